@@ -1,0 +1,124 @@
+/* gi_scene.h: an immutable, reference-counted scene.
+ *
+ * A scene is triangles, materials and lights plus one Embree BVH. It is built
+ * once (from a file through assimp, or from a gi_mesh_builder) and is
+ * read-only afterwards: every function taking a const gi_scene* is
+ * thread-safe, so one scene serves all requests at once.
+ *
+ * Precision: positions are stored as float relative to a double-precision
+ * scene origin (the centre of the input's bounds), so a scene 10^7 units
+ * from the world origin keeps sub-millimetre float resolution. Public
+ * functions take world coordinates as double. */
+#ifndef GI_SCENE_H
+#define GI_SCENE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "gi_error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct gi_scene gi_scene;
+typedef struct gi_mesh_builder gi_mesh_builder;
+
+/* Which world axis points up: 1 = Y (OBJ, glTF default), 2 = Z (OSM cities). */
+typedef enum gi_up_axis { GI_UP_Y = 1, GI_UP_Z = 2 } gi_up_axis;
+
+/* A surface's material. Units: albedo is reflectance in [0,1] (larger input
+ * is clamped and counted); emission is radiance (W m^-2 sr^-1, or the
+ * scene's own radiometric unit); roughness in [0,1] (1 = fully diffuse);
+ * specular is the scalar normal-incidence reflectance of the glossy lobe. */
+typedef struct gi_material {
+  float albedo[3];
+  float emission[3];
+  float roughness;
+  float specular;
+  char name[64];
+} gi_material;
+
+typedef enum gi_light_type {
+  GI_LIGHT_SUN = 0,  /* direction + irradiance on a surface facing it */
+  GI_LIGHT_POINT = 1,/* position + intensity (power per steradian) */
+  GI_LIGHT_SPOT = 2, /* point light restricted to a cone */
+  GI_LIGHT_SKY = 3   /* uniform radiance from every unoccluded direction */
+} gi_light_type;
+
+/* A light. color: sun = irradiance E (on a surface facing the sun), point and
+ * spot = intensity I, sky = radiance L. direction: the way the light
+ * travels (sun, spot), unit length. position: world coordinates. */
+typedef struct gi_light {
+  gi_light_type type;
+  float color[3];
+  double position[3];
+  float direction[3];
+  float cos_inner, cos_outer; /* spot cone, cosines of the half-angles */
+} gi_light;
+
+/* How to load or build a scene. Zero means default for every field. */
+typedef struct gi_scene_options {
+  gi_up_axis up;        /* default GI_UP_Y */
+  int threads;          /* Embree build threads; 0 = all cores */
+  double scale;         /* multiply input positions by this; 0 = 1 */
+  const gi_light *lights; /* extra lights (command line, config); copied */
+  size_t num_lights;
+  int default_lights;   /* 1: add a sun and a sky when the scene has neither lights nor emitters */
+} gi_scene_options;
+
+/* What the loader kept and what it dropped, for reports and tests. */
+typedef struct gi_scene_stats {
+  uint64_t input_triangles;
+  uint64_t triangles;          /* kept */
+  uint64_t dropped_nonfinite;  /* NaN/Inf positions */
+  uint64_t dropped_degenerate; /* zero area (incl. repeated vertices) */
+  uint64_t clamped_albedo;     /* materials whose albedo exceeded 1 */
+  uint32_t materials;
+  uint32_t lights;
+  uint32_t emissive_triangles;
+  int default_lights_added;    /* 1 when a default sun + sky were added */
+} gi_scene_stats;
+
+/* Loads a scene file through assimp (OBJ+MTL, PLY, glTF 2.0, 3DS, FBX...).
+ * On failure *out is NULL and err says which file and what is wrong.
+ * The caller owns *out (release with gi_scene_release). */
+gi_result gi_scene_load(const char *path, const gi_scene_options *opt,
+                        gi_scene **out, gi_error_info *err);
+
+/* Reference counting; release accepts NULL. Thread-safe. */
+gi_scene *gi_scene_retain(gi_scene *s);
+void gi_scene_release(gi_scene *s);
+
+void gi_scene_get_stats(const gi_scene *s, gi_scene_stats *out);
+/* World-space bounds of the kept triangles (min, max). Empty scene: origin both. */
+void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]);
+gi_up_axis gi_scene_up(const gi_scene *s);
+const char *gi_scene_name(const gi_scene *s);
+size_t gi_scene_num_lights(const gi_scene *s);
+const gi_light *gi_scene_light(const gi_scene *s, size_t i);
+size_t gi_scene_num_materials(const gi_scene *s);
+const gi_material *gi_scene_material(const gi_scene *s, size_t i);
+
+/* Builder for scenes made in code (procedural city, tests). Not thread-safe;
+ * one builder per thread. Positions are world coordinates in double. */
+gi_mesh_builder *gi_mesh_builder_new(void);
+void gi_mesh_builder_free(gi_mesh_builder *b); /* accepts NULL */
+/* Returns the new material's index; copies m. */
+uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m);
+/* Adds a vertex and returns its index. */
+uint32_t gi_mesh_builder_add_vertex(gi_mesh_builder *b, double x, double y, double z);
+void gi_mesh_builder_add_triangle(gi_mesh_builder *b, uint32_t a, uint32_t c, uint32_t d, uint32_t material);
+/* Convenience: a quad a,b,c,d (counter-clockwise seen from the front) as two triangles. */
+void gi_mesh_builder_add_quad(gi_mesh_builder *b, const double a[3], const double bb[3],
+                              const double c[3], const double d[3], uint32_t material);
+/* Convenience: an axis-aligned box with outward-facing sides. */
+void gi_mesh_builder_add_box(gi_mesh_builder *b, const double lo[3], const double hi[3], uint32_t material);
+/* Builds the scene (drops bad triangles, builds the BVH). The builder stays
+ * valid and unchanged. name is copied (may be NULL). */
+gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_scene_options *opt,
+                         gi_scene **out, gi_error_info *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,69 @@
+/* gi_vdb.h: write and read OpenVDB files (C face of the one C++ file).
+ *
+ * Grids are given as dense blocks; only voxels whose value differs from the
+ * background are stored (OpenVDB is sparse). Index (i,j,k) of a dense block
+ * is data[i + dims[0]*(j + dims[1]*k)] (x fastest). The grid's transform
+ * maps voxel (i,j,k)'s centre to world origin + (i+0.5, j+0.5, k+0.5) *
+ * voxel_size, so voxel (0,0,0)'s min corner sits at origin.
+ * No C++ exception crosses this interface. Thread-safe for distinct files. */
+#ifndef GI_VDB_H
+#define GI_VDB_H
+
+#include <stddef.h>
+#include "gi_error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum gi_vdb_kind { GI_VDB_FLOAT = 0, GI_VDB_VEC3 = 1 } gi_vdb_kind;
+
+typedef struct gi_vdb_meta {
+  const char *name;  /* metadata key */
+  const char *str;   /* string value, or NULL to store num as a double */
+  double num;
+} gi_vdb_meta;
+
+typedef struct gi_vdb_grid {
+  const char *name;     /* e.g. "L0_density", "density", "Cd" */
+  gi_vdb_kind kind;
+  int dims[3];
+  const float *data;    /* dims product values (x3 for VEC3, interleaved), borrowed */
+  double voxel_size;
+  double origin[3];     /* world position of voxel (0,0,0)'s min corner */
+  int fog_volume;       /* 1: GRID_FOG_VOLUME class (density) */
+  size_t num_meta;
+  const gi_vdb_meta *meta; /* per-grid metadata */
+} gi_vdb_grid;
+
+/* Writes the grids (and file-level metadata) to path via a temporary name
+ * and a rename. */
+gi_result gi_vdb_write(const char *path, const gi_vdb_grid *grids, size_t num_grids,
+                       const gi_vdb_meta *file_meta, size_t num_file_meta, gi_error_info *err);
+
+/* What a grid in a file holds, for tests and inspection tools. */
+typedef struct gi_vdb_grid_info {
+  char name[128];
+  gi_vdb_kind kind;
+  double voxel_size;          /* uniform scale of the transform */
+  double index_to_world[3];   /* world position of index (0,0,0)'s centre */
+  long active_voxels;
+  int is_fog_volume;
+} gi_vdb_grid_info;
+
+/* Lists grids: fills up to max infos, returns the count in *num. */
+gi_result gi_vdb_read_info(const char *path, gi_vdb_grid_info *infos, size_t max, size_t *num,
+                           gi_error_info *err);
+/* Samples grid `name` at integer index (i,j,k) (no interpolation). val gets
+ * 1 float (FLOAT) or 3 (VEC3); background where inactive. */
+gi_result gi_vdb_read_value(const char *path, const char *name, int i, int j, int k, float val[3],
+                            gi_error_info *err);
+/* Reads a string or numeric metadata value of grid `name` (or of the file
+ * when name is NULL) as text into buf. */
+gi_result gi_vdb_read_meta(const char *path, const char *name, const char *key, char *buf,
+                           size_t bufsize, gi_error_info *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

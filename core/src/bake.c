@@ -1,0 +1,2 @@
+/* bake.c: placeholder until the module lands. */
+typedef int gi__placeholder_bake;

@@ -1,0 +1,2 @@
+/* cascade.c: placeholder until the module lands. */
+typedef int gi__placeholder_cascade;

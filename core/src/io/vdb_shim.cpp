@@ -1,0 +1,1 @@
+// vdb_shim.cpp: placeholder until the module lands.

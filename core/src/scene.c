@@ -1,0 +1,2 @@
+/* scene.c: placeholder until the module lands. */
+typedef int gi__placeholder_scene;

@@ -1,0 +1,69 @@
+/* scene_internal.h: the scene's layout, shared by the pipeline stages.
+ *
+ * Only core/src includes this. The struct is immutable after gi_scene_build
+ * or gi_scene_load returns; all readers may run concurrently. */
+#ifndef GI_SCENE_INTERNAL_H
+#define GI_SCENE_INTERNAL_H
+
+#include <stdatomic.h>
+#include <embree3/rtcore.h>
+#include "gi/gi_scene.h"
+
+struct gi_scene {
+  atomic_int refcount;
+  char name[128];
+  gi_up_axis up;
+  double origin[3];        /* world position of local (0,0,0) */
+  float lo[3], hi[3];      /* local bounds of kept triangles */
+
+  uint32_t num_vertices;
+  float *vertices;         /* 3 floats per vertex, local coordinates */
+  uint32_t num_triangles;
+  uint32_t *indices;       /* 3 per triangle */
+  uint32_t *tri_material;  /* material index per triangle */
+
+  uint32_t num_materials;
+  gi_material *materials;  /* albedo already clamped to [0,1] */
+
+  uint32_t num_lights;
+  gi_light *lights;        /* positions in world coordinates, as given */
+
+  /* Emissive triangles, for sampling them as area lights. */
+  uint32_t num_emitters;
+  uint32_t *emitter_tri;   /* triangle index */
+  float *emitter_cdf;      /* cumulative power (luminance * area), normalised to 1 */
+  float emitter_area_total;
+
+  gi_scene_stats stats;
+
+  RTCDevice device;
+  RTCScene rtc;            /* committed; NULL for an empty scene */
+};
+
+/* --- bvh_embree.c: everything that touches Embree -------------------- */
+
+/* Builds device + BVH over s->vertices/indices (shared buffers). */
+gi_result gi__bvh_build(struct gi_scene *s, int threads, gi_error_info *err);
+void gi__bvh_free(struct gi_scene *s);
+
+/* Visibility of n segments org + t*dir, t in [tnear, tfar], local coords.
+ * dir need not be normalised (t is in units of dir). visible[i] = 1 when
+ * nothing blocks segment i. Issues the rays as one stream (rtcOccluded1M).
+ * Thread-safe. An empty scene reports everything visible. */
+void gi__occluded(const struct gi_scene *s, int n, const float *org, const float *dir,
+                  const float *tnear, const float *tfar, uint8_t *visible);
+
+/* Closest hit along org + t*dir (dir unit), t in [tnear, tfar]. Returns 1
+ * on a hit with its distance, triangle and geometric normal (unit, facing
+ * against dir is NOT guaranteed: it is the triangle's winding normal). */
+int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir[3],
+                   float tnear, float tfar, float *t, uint32_t *tri, float ng[3]);
+
+/* Appends to *out the indices of all triangles whose bounding box overlaps the
+ * local-space box [lo, hi] (a BVH query, never a scan of all triangles).
+ * *out is realloc'ed; *count and *cap are updated. Returns GI_ERR_NOMEM on
+ * allocation failure. Thread-safe. */
+gi_result gi__query_box(const struct gi_scene *s, const float lo[3], const float hi[3],
+                        uint32_t **out, size_t *count, size_t *cap);
+
+#endif

@@ -1,0 +1,2 @@
+/* sh.c: placeholder until the module lands. */
+typedef int gi__placeholder_sh;

@@ -1,0 +1,2 @@
+/* voxelize.c: placeholder until the module lands. */
+typedef int gi__placeholder_voxelize;

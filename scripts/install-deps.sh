@@ -1,0 +1,21 @@
+#!/bin/sh
+# Installs the Debian 12 packages the build, the tests and the tools need.
+# Idempotent: does nothing when every package is already installed.
+set -eu
+PKGS="build-essential cmake pkg-config libembree-dev libopenexr-dev openexr
+libopenvdb-dev libboost-dev libboost-iostreams-dev libopenvdb-tools python3-openvdb
+libassimp-dev libtbb-dev libjansson-dev libcmocka-dev libmicrohttpd-dev
+libcurl4-openssl-dev libcyaml-dev"
+missing=""
+for p in $PKGS; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+[ -z "$missing" ] && exit 0
+echo "install-deps: installing:$missing"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null 2>&1 || { echo "install-deps: need root or sudo to install:$missing" >&2; exit 1; }
+  SUDO="sudo"
+fi
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends $missing

@@ -1,0 +1,23 @@
+/* test_util.h: small helpers shared by the unit tests. */
+#ifndef GI_TEST_UTIL_H
+#define GI_TEST_UTIL_H
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+/* Path of a shared scene file, or NULL (after printing a loud SKIP line)
+ * when ../shared/scenes is absent. Static buffer: not thread-safe. */
+const char *tu_scene_path(const char *rel);
+/* A fresh temporary directory for this test binary (created once). */
+const char *tu_tmpdir(void);
+/* Writes len bytes to tmpdir/name and returns the full path (static buffer rotation of 8). */
+const char *tu_write_file(const char *name, const void *data, size_t len);
+
+#define TU_SKIP_IF_NO_SCENE(var, rel)                  \
+  const char *var = tu_scene_path(rel);                \
+  if (!var) { skip(); }
+
+#endif
