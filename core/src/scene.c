@@ -1,2 +1,453 @@
-/* scene.c: placeholder until the module lands. */
-typedef int gi__placeholder_scene;
+/* scene.c: the mesh builder and the immutable, reference-counted scene.
+ *
+ * Design: a gi_mesh_builder collects world positions in double, triangles and
+ * materials in growable arrays; it never fails loudly on its own (add_* have
+ * no result), so an allocation failure or an index overflow is remembered in
+ * the builder and reported by gi_scene_build. Building classifies every
+ * triangle in double precision (non-finite, degenerate or kept), chooses the
+ * origin as the centre of the kept triangles' bounds, and stores only the
+ * vertices the kept triangles use, as float relative to that origin; this
+ * keeps sub-millimetre resolution for scenes far from the world origin.
+ * Materials are sanitised (albedo clamped to [0,1], non-finite values to 0,
+ * negative emission to 0), emissive triangles become a power-weighted CDF
+ * for light sampling, and the Embree BVH is built last (bvh_embree.c). A
+ * builder with no materials gets one default grey diffuse material, so a
+ * quick test or generator need not define one. After gi_scene_build returns
+ * the scene is read-only; only its reference count changes. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "internal.h"
+#include "scene_internal.h"
+
+struct gi_mesh_builder {
+  double *v;          /* 3 per vertex */
+  size_t nv, cap_v;
+  uint32_t *tri;      /* 3 per triangle */
+  uint32_t *mat;      /* 1 per triangle */
+  size_t nt, cap_t, cap_mt;
+  gi_material *mats;
+  size_t nm, cap_m;
+  int oom;            /* an add_* ran out of memory */
+  int overflow;       /* more than 2^32-1 vertices or materials */
+};
+
+/* Grows *p (elements of size sz) so that it holds at least need elements. */
+static int grow(void **p, size_t *cap, size_t need, size_t sz) {
+  if (need <= *cap) return 1;
+  size_t nc = *cap ? *cap : 64;
+  while (nc < need) nc *= 2;
+  if (nc > SIZE_MAX / sz) return 0;
+  void *q = realloc(*p, nc * sz);
+  if (!q) return 0;
+  *p = q;
+  *cap = nc;
+  return 1;
+}
+
+gi_mesh_builder *gi_mesh_builder_new(void) {
+  return calloc(1, sizeof(gi_mesh_builder));
+}
+
+void gi_mesh_builder_free(gi_mesh_builder *b) {
+  if (!b) return;
+  free(b->v);
+  free(b->tri);
+  free(b->mat);
+  free(b->mats);
+  free(b);
+}
+
+uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m) {
+  if (b->nm >= UINT32_MAX) { b->overflow = 1; return UINT32_MAX; }
+  if (!grow((void **)&b->mats, &b->cap_m, b->nm + 1, sizeof *b->mats)) { b->oom = 1; return UINT32_MAX; }
+  b->mats[b->nm] = *m;
+  b->mats[b->nm].name[sizeof m->name - 1] = 0;
+  return (uint32_t)b->nm++;
+}
+
+uint32_t gi_mesh_builder_add_vertex(gi_mesh_builder *b, double x, double y, double z) {
+  if (b->nv >= UINT32_MAX) { b->overflow = 1; return UINT32_MAX; }
+  if (!grow((void **)&b->v, &b->cap_v, 3 * (b->nv + 1), sizeof *b->v)) { b->oom = 1; return UINT32_MAX; }
+  double *p = b->v + 3 * b->nv;
+  p[0] = x; p[1] = y; p[2] = z;
+  return (uint32_t)b->nv++;
+}
+
+void gi_mesh_builder_add_triangle(gi_mesh_builder *b, uint32_t a, uint32_t c, uint32_t d, uint32_t material) {
+  if (!grow((void **)&b->tri, &b->cap_t, 3 * (b->nt + 1), sizeof *b->tri) ||
+      !grow((void **)&b->mat, &b->cap_mt, b->nt + 1, sizeof *b->mat)) {
+    b->oom = 1;
+    return;
+  }
+  uint32_t *t = b->tri + 3 * b->nt;
+  t[0] = a; t[1] = c; t[2] = d;
+  b->mat[b->nt++] = material;
+}
+
+void gi_mesh_builder_add_quad(gi_mesh_builder *b, const double a[3], const double bb[3],
+                              const double c[3], const double d[3], uint32_t material) {
+  uint32_t ia = gi_mesh_builder_add_vertex(b, a[0], a[1], a[2]);
+  uint32_t ib = gi_mesh_builder_add_vertex(b, bb[0], bb[1], bb[2]);
+  uint32_t ic = gi_mesh_builder_add_vertex(b, c[0], c[1], c[2]);
+  uint32_t id = gi_mesh_builder_add_vertex(b, d[0], d[1], d[2]);
+  gi_mesh_builder_add_triangle(b, ia, ib, ic, material);
+  gi_mesh_builder_add_triangle(b, ia, ic, id, material);
+}
+
+void gi_mesh_builder_add_box(gi_mesh_builder *b, const double lo[3], const double hi[3], uint32_t material) {
+  /* Corner k has x = hi when bit 0 is set, y with bit 1, z with bit 2. */
+  uint32_t c[8];
+  for (int k = 0; k < 8; k++)
+    c[k] = gi_mesh_builder_add_vertex(b, (k & 1) ? hi[0] : lo[0], (k & 2) ? hi[1] : lo[1],
+                                      (k & 4) ? hi[2] : lo[2]);
+  /* Each face counter-clockwise seen from outside. */
+  static const int face[6][4] = {
+      {0, 4, 6, 2}, /* -x */
+      {1, 3, 7, 5}, /* +x */
+      {0, 1, 5, 4}, /* -y */
+      {2, 6, 7, 3}, /* +y */
+      {0, 2, 3, 1}, /* -z */
+      {4, 5, 7, 6}, /* +z */
+  };
+  for (int f = 0; f < 6; f++) {
+    gi_mesh_builder_add_triangle(b, c[face[f][0]], c[face[f][1]], c[face[f][2]], material);
+    gi_mesh_builder_add_triangle(b, c[face[f][0]], c[face[f][2]], c[face[f][3]], material);
+  }
+}
+
+/* --- scene ------------------------------------------------------------- */
+
+static float luminance(const float c[3]) {
+  return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+}
+
+/* Clamps one material value into [lo, hi]; NaN/Inf become `bad`. Returns 1
+ * when the value changed. */
+static int clampf(float *x, float lo, float hi, float bad) {
+  float v = *x;
+  if (!isfinite(v)) { *x = bad; return 1; }
+  if (v < lo) { *x = lo; return 1; }
+  if (v > hi) { *x = hi; return 1; }
+  return 0;
+}
+
+/* Sanitises m in place; returns 1 when the albedo (or any non-finite value)
+ * had to be changed, which is what stats.clamped_albedo counts. */
+static int sanitize_material(gi_material *m) {
+  int changed = 0;
+  for (int k = 0; k < 3; k++) {
+    changed |= clampf(&m->albedo[k], 0.f, 1.f, 0.f);
+    if (!isfinite(m->emission[k])) { m->emission[k] = 0.f; changed = 1; }
+    if (m->emission[k] < 0.f) m->emission[k] = 0.f;
+  }
+  /* A broken roughness is treated as fully diffuse: the safest reading. */
+  if (!isfinite(m->roughness)) { m->roughness = 1.f; changed = 1; }
+  clampf(&m->roughness, 0.f, 1.f, 1.f);
+  if (!isfinite(m->specular)) { m->specular = 0.f; changed = 1; }
+  clampf(&m->specular, 0.f, 1.f, 0.f);
+  m->name[sizeof m->name - 1] = 0;
+  return changed;
+}
+
+static double tri_area2(const double *a, const double *b, const double *c, double *longest2) {
+  double e1[3], e2[3], e3[3];
+  for (int k = 0; k < 3; k++) { e1[k] = b[k] - a[k]; e2[k] = c[k] - a[k]; e3[k] = c[k] - b[k]; }
+  double x = e1[1] * e2[2] - e1[2] * e2[1];
+  double y = e1[2] * e2[0] - e1[0] * e2[2];
+  double z = e1[0] * e2[1] - e1[1] * e2[0];
+  double l1 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2];
+  double l2 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+  double l3 = e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2];
+  double m = l1 > l2 ? l1 : l2;
+  *longest2 = m > l3 ? m : l3;
+  return sqrt(x * x + y * y + z * z); /* twice the area */
+}
+
+static int finite3d(const double *p) {
+  return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
+}
+
+/* Validates and copies one light; the message names the light by index. */
+static gi_result check_light(gi_light *l, size_t i, gi_error_info *err) {
+  if ((int)l->type < GI_LIGHT_SUN || (int)l->type > GI_LIGHT_SKY)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "light %zu: unknown type %d", i, (int)l->type);
+  if (!gi__finite3(l->color))
+    return gi__fail(err, GI_ERR_NONFINITE, "light %zu: colour is not finite", i);
+  if (l->color[0] < 0 || l->color[1] < 0 || l->color[2] < 0)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "light %zu: colour is negative", i);
+  if ((l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) && !finite3d(l->position))
+    return gi__fail(err, GI_ERR_NONFINITE, "light %zu: position is not finite", i);
+  if (l->type == GI_LIGHT_SUN || l->type == GI_LIGHT_SPOT) {
+    if (!gi__finite3(l->direction))
+      return gi__fail(err, GI_ERR_NONFINITE, "light %zu: direction is not finite", i);
+    double len = sqrt((double)l->direction[0] * l->direction[0] + (double)l->direction[1] * l->direction[1] +
+                      (double)l->direction[2] * l->direction[2]);
+    if (!(len > 1e-20))
+      return gi__fail(err, GI_ERR_INVALID_ARG, "light %zu: direction has zero length", i);
+    for (int k = 0; k < 3; k++) l->direction[k] = (float)(l->direction[k] / len);
+  }
+  if (l->type == GI_LIGHT_SPOT) {
+    if (!isfinite(l->cos_inner) || !isfinite(l->cos_outer))
+      return gi__fail(err, GI_ERR_NONFINITE, "light %zu: spot cone is not finite", i);
+    clampf(&l->cos_inner, -1.f, 1.f, 1.f);
+    clampf(&l->cos_outer, -1.f, 1.f, 1.f);
+    /* The inner cone must lie inside the outer one (larger cosine). */
+    if (l->cos_inner < l->cos_outer) { float t = l->cos_inner; l->cos_inner = l->cos_outer; l->cos_outer = t; }
+  }
+  return GI_OK;
+}
+
+enum { TRI_KEEP = 0, TRI_NONFINITE = 1, TRI_DEGENERATE = 2 };
+
+gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_scene_options *opt,
+                         gi_scene **out, gi_error_info *err) {
+  gi_scene_options defaults = {0};
+  gi_scene *s = NULL;
+  uint8_t *cls = NULL;
+  uint32_t *remap = NULL;
+  double *area = NULL;
+  gi_result rc = GI_OK;
+
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_build: out is NULL");
+  *out = NULL;
+  if (!b) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_build: builder is NULL");
+  if (!opt) opt = &defaults;
+  if (b->oom) return gi__fail(err, GI_ERR_NOMEM, "mesh builder ran out of memory while adding data");
+  if (b->overflow) return gi__fail(err, GI_ERR_LIMIT, "mesh builder: more than 2^32-1 vertices or materials");
+  if (b->nt > ((size_t)1 << 31))
+    return gi__fail(err, GI_ERR_LIMIT, "scene has %zu triangles; the limit is 2^31", b->nt);
+  if (opt->num_lights && !opt->lights)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", opt->num_lights);
+  double scale = opt->scale == 0 ? 1.0 : opt->scale;
+  if (!isfinite(scale)) return gi__fail(err, GI_ERR_NONFINITE, "options: scale is not finite");
+  if (opt->up != 0 && opt->up != GI_UP_Y && opt->up != GI_UP_Z)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "options: up axis %d is neither Y (1) nor Z (2)", (int)opt->up);
+
+  size_t nm = b->nm ? b->nm : 1;
+  for (size_t t = 0; t < b->nt; t++) {
+    const uint32_t *ti = b->tri + 3 * t;
+    if (ti[0] >= b->nv || ti[1] >= b->nv || ti[2] >= b->nv)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "triangle %zu uses vertex %u but the builder has %zu vertices", t,
+                      ti[0] >= b->nv ? ti[0] : ti[1] >= b->nv ? ti[1] : ti[2], b->nv);
+    if (b->mat[t] >= nm)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "triangle %zu uses material %u but the builder has %zu materials", t,
+                      b->mat[t], b->nm);
+  }
+
+  s = calloc(1, sizeof *s);
+  cls = malloc(b->nt ? b->nt : 1);
+  remap = malloc((b->nv ? b->nv : 1) * sizeof *remap);
+  area = malloc((b->nt ? b->nt : 1) * sizeof *area);
+  if (!s || !cls || !remap || !area) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory building scene"); goto fail; }
+  atomic_init(&s->refcount, 1);
+  snprintf(s->name, sizeof s->name, "%s", name ? name : "unnamed");
+  s->up = opt->up ? opt->up : GI_UP_Y;
+  s->stats.input_triangles = b->nt;
+
+  /* Classify triangles in double, on scaled positions. */
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  size_t kept = 0, kept_v = 0;
+  for (size_t i = 0; i < b->nv; i++) remap[i] = UINT32_MAX;
+  for (size_t t = 0; t < b->nt; t++) {
+    const uint32_t *ti = b->tri + 3 * t;
+    double p[3][3];
+    int fin = 1;
+    for (int j = 0; j < 3; j++) {
+      for (int k = 0; k < 3; k++) p[j][k] = b->v[3 * (size_t)ti[j] + k] * scale;
+      fin &= finite3d(p[j]);
+    }
+    if (!fin) { cls[t] = TRI_NONFINITE; s->stats.dropped_nonfinite++; continue; }
+    double longest2, a2 = tri_area2(p[0], p[1], p[2], &longest2);
+    /* Relative threshold: a sliver whose height is ~1e-12 of its length has no area worth tracing. */
+    if (!(a2 > 2e-12 * longest2) || !isfinite(a2)) {
+      cls[t] = TRI_DEGENERATE; s->stats.dropped_degenerate++; continue;
+    }
+    cls[t] = TRI_KEEP;
+    area[t] = 0.5 * a2;
+    kept++;
+    for (int j = 0; j < 3; j++) {
+      if (remap[ti[j]] == UINT32_MAX) remap[ti[j]] = (uint32_t)kept_v++;
+      for (int k = 0; k < 3; k++) {
+        if (p[j][k] < lo[k]) lo[k] = p[j][k];
+        if (p[j][k] > hi[k]) hi[k] = p[j][k];
+      }
+    }
+  }
+  if (kept == 0) {
+    /* Empty scene: the origin is the centre of whatever finite vertices exist, else 0. */
+    for (size_t i = 0; i < b->nv; i++) {
+      double p[3] = {b->v[3 * i] * scale, b->v[3 * i + 1] * scale, b->v[3 * i + 2] * scale};
+      if (!finite3d(p)) continue;
+      for (int k = 0; k < 3; k++) {
+        if (p[k] < lo[k]) lo[k] = p[k];
+        if (p[k] > hi[k]) hi[k] = p[k];
+      }
+    }
+  }
+  for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
+
+  /* Local float vertices; 4 spare floats because Embree reads 16 bytes past the last vertex. */
+  s->num_vertices = (uint32_t)kept_v;
+  s->num_triangles = (uint32_t)kept;
+  s->vertices = calloc(3 * kept_v + 4, sizeof(float));
+  s->indices = malloc((kept ? kept : 1) * 3 * sizeof(uint32_t));
+  s->tri_material = malloc((kept ? kept : 1) * sizeof(uint32_t));
+  if (!s->vertices || !s->indices || !s->tri_material) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "out of memory building scene (%zu triangles)", kept);
+    goto fail;
+  }
+  for (size_t i = 0; i < b->nv; i++) {
+    if (remap[i] == UINT32_MAX) continue;
+    float *q = s->vertices + 3 * (size_t)remap[i];
+    for (int k = 0; k < 3; k++) q[k] = (float)(b->v[3 * i + k] * scale - s->origin[k]);
+  }
+  for (int k = 0; k < 3; k++) { s->lo[k] = 0.f; s->hi[k] = 0.f; }
+  if (kept) {
+    for (int k = 0; k < 3; k++) { s->lo[k] = INFINITY; s->hi[k] = -INFINITY; }
+    for (size_t i = 0; i < kept_v; i++)
+      for (int k = 0; k < 3; k++) {
+        float x = s->vertices[3 * i + k];
+        if (x < s->lo[k]) s->lo[k] = x;
+        if (x > s->hi[k]) s->hi[k] = x;
+      }
+  }
+
+  /* Materials. */
+  s->num_materials = (uint32_t)nm;
+  s->materials = calloc(nm, sizeof *s->materials);
+  if (!s->materials) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory copying materials"); goto fail; }
+  if (b->nm) {
+    memcpy(s->materials, b->mats, nm * sizeof *s->materials);
+  } else {
+    gi_material *m = &s->materials[0];
+    m->albedo[0] = m->albedo[1] = m->albedo[2] = 0.8f;
+    m->roughness = 1.f;
+    snprintf(m->name, sizeof m->name, "default");
+  }
+  for (size_t i = 0; i < nm; i++) s->stats.clamped_albedo += (uint64_t)sanitize_material(&s->materials[i]);
+
+  /* Triangles, and the emitters among them. */
+  size_t j = 0, ne = 0;
+  for (size_t t = 0; t < b->nt; t++) {
+    if (cls[t] != TRI_KEEP) continue;
+    for (int k = 0; k < 3; k++) s->indices[3 * j + k] = remap[b->tri[3 * t + k]];
+    s->tri_material[j] = b->mat[t];
+    const float *e = s->materials[b->mat[t]].emission;
+    if (e[0] > 0 || e[1] > 0 || e[2] > 0) ne++;
+    area[j] = area[t]; /* j <= t: compacts areas in place for the emitter pass */
+    j++;
+  }
+  if (ne) {
+    s->emitter_tri = malloc(ne * sizeof *s->emitter_tri);
+    s->emitter_cdf = malloc(ne * sizeof *s->emitter_cdf);
+    if (!s->emitter_tri || !s->emitter_cdf) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for emitters"); goto fail; }
+    double sum = 0, asum = 0;
+    size_t q = 0;
+    for (size_t t = 0; t < kept; t++) {
+      const float *e = s->materials[s->tri_material[t]].emission;
+      if (!(e[0] > 0 || e[1] > 0 || e[2] > 0)) continue;
+      s->emitter_tri[q] = (uint32_t)t;
+      sum += (double)luminance(e) * area[t];
+      asum += area[t];
+      s->emitter_cdf[q++] = (float)sum;
+    }
+    for (size_t i = 0; i < ne; i++) s->emitter_cdf[i] = sum > 0 ? (float)(s->emitter_cdf[i] / sum) : (float)(i + 1) / (float)ne;
+    s->emitter_cdf[ne - 1] = 1.f;
+    s->emitter_area_total = (float)asum;
+  }
+  s->num_emitters = (uint32_t)ne;
+  s->stats.emissive_triangles = (uint32_t)ne;
+  s->stats.triangles = kept;
+  s->stats.materials = (uint32_t)nm;
+
+  /* Lights: the caller's, then the defaults when asked and nothing lights the scene. */
+  int add_defaults = opt->default_lights && opt->num_lights == 0 && ne == 0;
+  size_t nl = opt->num_lights + (add_defaults ? 2 : 0);
+  if (nl) {
+    s->lights = calloc(nl, sizeof *s->lights);
+    if (!s->lights) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for lights"); goto fail; }
+  }
+  for (size_t i = 0; i < opt->num_lights; i++) {
+    s->lights[i] = opt->lights[i];
+    if ((rc = check_light(&s->lights[i], i, err)) != GI_OK) goto fail;
+  }
+  if (add_defaults) {
+    gi_light *sun = &s->lights[opt->num_lights], *sky = sun + 1;
+    /* Down the up axis and a little sideways, so walls facing two ways get some sun. */
+    double d[3] = {0.4, -1.0, 0.3};
+    if (s->up == GI_UP_Z) { d[1] = 0.3; d[2] = -1.0; }
+    double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    sun->type = GI_LIGHT_SUN;
+    sun->color[0] = 3.0f; sun->color[1] = 2.9f; sun->color[2] = 2.7f;
+    for (int k = 0; k < 3; k++) { sun->direction[k] = (float)(d[k] / len); sun->position[k] = s->origin[k]; }
+    sky->type = GI_LIGHT_SKY;
+    sky->color[0] = 0.25f; sky->color[1] = 0.3f; sky->color[2] = 0.4f;
+    for (int k = 0; k < 3; k++) sky->position[k] = s->origin[k];
+    s->stats.default_lights_added = 1;
+  }
+  s->num_lights = (uint32_t)nl;
+  s->stats.lights = (uint32_t)nl;
+
+  if (kept) {
+    if ((rc = gi__bvh_build(s, opt->threads, err)) != GI_OK) goto fail;
+  }
+  free(cls);
+  free(remap);
+  free(area);
+  *out = s;
+  return GI_OK;
+
+fail:
+  free(cls);
+  free(remap);
+  free(area);
+  if (s) {
+    atomic_store(&s->refcount, 1);
+    gi_scene_release(s);
+  }
+  return rc;
+}
+
+gi_scene *gi_scene_retain(gi_scene *s) {
+  if (s) atomic_fetch_add_explicit(&s->refcount, 1, memory_order_relaxed);
+  return s;
+}
+
+void gi_scene_release(gi_scene *s) {
+  if (!s) return;
+  if (atomic_fetch_sub_explicit(&s->refcount, 1, memory_order_acq_rel) != 1) return;
+  gi__bvh_free(s);
+  free(s->vertices);
+  free(s->indices);
+  free(s->tri_material);
+  free(s->materials);
+  free(s->lights);
+  free(s->emitter_tri);
+  free(s->emitter_cdf);
+  free(s);
+}
+
+void gi_scene_get_stats(const gi_scene *s, gi_scene_stats *out) {
+  *out = s->stats;
+}
+
+void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]) {
+  for (int k = 0; k < 3; k++) {
+    lo[k] = s->origin[k] + (double)s->lo[k];
+    hi[k] = s->origin[k] + (double)s->hi[k];
+  }
+}
+
+gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }
+const char *gi_scene_name(const gi_scene *s) { return s->name; }
+size_t gi_scene_num_lights(const gi_scene *s) { return s->num_lights; }
+size_t gi_scene_num_materials(const gi_scene *s) { return s->num_materials; }
+
+const gi_light *gi_scene_light(const gi_scene *s, size_t i) {
+  return i < s->num_lights ? &s->lights[i] : NULL;
+}
+
+const gi_material *gi_scene_material(const gi_scene *s, size_t i) {
+  return i < s->num_materials ? &s->materials[i] : NULL;
+}

@@ -1,2 +1,219 @@
-/* io/bvh_embree.c: placeholder until the module lands. */
-typedef int gi__placeholder_bvh_embree;
+/* io/bvh_embree.c: everything that touches Embree.
+ *
+ * Design: each scene owns one RTCDevice and one committed RTCScene holding a
+ * single triangle geometry whose vertex and index buffers are shared with the
+ * gi_scene arrays (scene.c pads the vertex array by 16 bytes, which Embree
+ * reads past the last vertex). Devices are per scene so the "threads=N"
+ * option applies per scene and nothing is global. After the commit the
+ * Embree scene is read-only, so the queries here are thread-safe. Shadow rays
+ * go out as streams (rtcOccluded1M) in fixed chunks on the stack; box
+ * queries use rtcPointQuery with the sphere around the box, so only BVH
+ * nodes near the box are visited, and a callback keeps each triangle whose
+ * bounding box overlaps the box. The build uses medium quality (no spatial
+ * splits), so every triangle sits in exactly one leaf and a point query
+ * visits it at most once. An empty scene (rtc == NULL) is handled in every
+ * entry point. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "internal.h"
+#include "scene_internal.h"
+
+/* Embree reports errors through the device; we read them back with
+ * rtcGetDeviceError right after each step, so the callback keeps nothing. */
+static void on_embree_error(void *user, enum RTCError code, const char *str) {
+  (void)user;
+  (void)code;
+  (void)str;
+}
+
+static const char *rtc_error_text(enum RTCError e) {
+  switch (e) {
+    case RTC_ERROR_NONE: return "no error";
+    case RTC_ERROR_INVALID_ARGUMENT: return "invalid argument";
+    case RTC_ERROR_INVALID_OPERATION: return "invalid operation";
+    case RTC_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case RTC_ERROR_UNSUPPORTED_CPU: return "unsupported CPU";
+    case RTC_ERROR_CANCELLED: return "cancelled";
+    default: return "unknown error";
+  }
+}
+
+gi_result gi__bvh_build(struct gi_scene *s, int threads, gi_error_info *err) {
+  char config[64] = "";
+  if (threads > 0) snprintf(config, sizeof config, "threads=%d", threads);
+  s->device = rtcNewDevice(config[0] ? config : NULL);
+  if (!s->device)
+    return gi__fail(err, GI_ERR_BACKEND, "scene '%s': Embree device creation failed: %s", s->name,
+                    rtc_error_text(rtcGetDeviceError(NULL)));
+  rtcSetDeviceErrorFunction(s->device, on_embree_error, NULL);
+
+  s->rtc = rtcNewScene(s->device);
+  /* ROBUST: shadow rays that graze shared edges must not leak through cracks. */
+  rtcSetSceneFlags(s->rtc, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(s->rtc, RTC_BUILD_QUALITY_MEDIUM);
+  RTCGeometry g = rtcNewGeometry(s->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_MEDIUM);
+  rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, s->vertices, 0,
+                             3 * sizeof(float), s->num_vertices);
+  rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, s->indices, 0,
+                             3 * sizeof(uint32_t), s->num_triangles);
+  rtcCommitGeometry(g);
+  rtcAttachGeometryByID(s->rtc, g, 0);
+  rtcReleaseGeometry(g);
+  rtcCommitScene(s->rtc);
+  enum RTCError e = rtcGetDeviceError(s->device);
+  if (e != RTC_ERROR_NONE) {
+    gi__bvh_free(s);
+    return gi__fail(err, e == RTC_ERROR_OUT_OF_MEMORY ? GI_ERR_NOMEM : GI_ERR_BACKEND,
+                    "scene '%s': Embree BVH build over %u triangles failed: %s", s->name, s->num_triangles,
+                    rtc_error_text(e));
+  }
+  return GI_OK;
+}
+
+void gi__bvh_free(struct gi_scene *s) {
+  if (s->rtc) rtcReleaseScene(s->rtc);
+  if (s->device) rtcReleaseDevice(s->device);
+  s->rtc = NULL;
+  s->device = NULL;
+}
+
+enum { CHUNK = 256 };
+
+void gi__occluded(const struct gi_scene *s, int n, const float *org, const float *dir,
+                  const float *tnear, const float *tfar, uint8_t *visible) {
+  if (!s->rtc) {
+    if (n > 0) memset(visible, 1, (size_t)n);
+    return;
+  }
+  struct RTCRay rays[CHUNK];
+  for (int base = 0; base < n; base += CHUNK) {
+    int m = n - base < CHUNK ? n - base : CHUNK;
+    for (int i = 0; i < m; i++) {
+      size_t r = (size_t)(base + i);
+      struct RTCRay *ray = &rays[i];
+      ray->org_x = org[3 * r];
+      ray->org_y = org[3 * r + 1];
+      ray->org_z = org[3 * r + 2];
+      ray->dir_x = dir[3 * r];
+      ray->dir_y = dir[3 * r + 1];
+      ray->dir_z = dir[3 * r + 2];
+      ray->tnear = tnear[r];
+      ray->tfar = tfar[r];
+      ray->time = 0.f;
+      ray->mask = UINT32_MAX;
+      ray->id = (unsigned)i;
+      ray->flags = 0;
+      /* A segment that is empty or not finite blocks nothing: Embree skips
+       * rays with tfar < tnear, so disable it that way. */
+      int ok = gi__finite3(&org[3 * r]) && gi__finite3(&dir[3 * r]) && isfinite(tnear[r]) &&
+               !isnan(tfar[r]) && tnear[r] >= 0.f && tnear[r] <= tfar[r];
+      if (!ok) { ray->tnear = 0.f; ray->tfar = -1.f; }
+    }
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    rtcOccluded1M(s->rtc, &ctx, rays, (unsigned)m, sizeof(struct RTCRay));
+    /* Embree sets tfar to -inf on a hit; disabled rays keep tfar = -1. */
+    for (int i = 0; i < m; i++) visible[base + i] = !(rays[i].tfar == -INFINITY);
+  }
+}
+
+int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir[3],
+                   float tnear, float tfar, float *t, uint32_t *tri, float ng[3]) {
+  if (!s->rtc) return 0;
+  if (!gi__finite3(org) || !gi__finite3(dir) || !isfinite(tnear) || isnan(tfar) || tnear < 0.f || tnear > tfar)
+    return 0;
+  struct RTCRayHit rh;
+  memset(&rh, 0, sizeof rh);
+  rh.ray.org_x = org[0]; rh.ray.org_y = org[1]; rh.ray.org_z = org[2];
+  rh.ray.dir_x = dir[0]; rh.ray.dir_y = dir[1]; rh.ray.dir_z = dir[2];
+  rh.ray.tnear = tnear;
+  rh.ray.tfar = tfar;
+  rh.ray.mask = UINT32_MAX;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  struct RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  rtcIntersect1(s->rtc, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
+  uint32_t p = rh.hit.primID;
+  if (t) *t = rh.ray.tfar;
+  if (tri) *tri = p;
+  if (ng) {
+    /* Our own winding normal (v1-v0) x (v2-v0), so the convention does not
+     * depend on how Embree orients Ng. */
+    const float *a = s->vertices + 3 * (size_t)s->indices[3 * (size_t)p];
+    const float *b = s->vertices + 3 * (size_t)s->indices[3 * (size_t)p + 1];
+    const float *c = s->vertices + 3 * (size_t)s->indices[3 * (size_t)p + 2];
+    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0)) len = 1;
+    for (int k = 0; k < 3; k++) ng[k] = (float)(n[k] / len);
+  }
+  return 1;
+}
+
+/* State of one box query, passed to the point-query callback. */
+typedef struct box_query {
+  const struct gi_scene *s;
+  float lo[3], hi[3];
+  uint32_t **out;
+  size_t *count, *cap;
+  int oom;
+} box_query;
+
+static bool box_cb(struct RTCPointQueryFunctionArguments *args) {
+  box_query *q = args->userPtr;
+  if (q->oom) return false;
+  const struct gi_scene *s = q->s;
+  uint32_t p = args->primID;
+  const uint32_t *ti = s->indices + 3 * (size_t)p;
+  for (int k = 0; k < 3; k++) {
+    float a = s->vertices[3 * (size_t)ti[0] + k], b = s->vertices[3 * (size_t)ti[1] + k],
+          c = s->vertices[3 * (size_t)ti[2] + k];
+    float mn = fminf(a, fminf(b, c)), mx = fmaxf(a, fmaxf(b, c));
+    if (mx < q->lo[k] || mn > q->hi[k]) return false;
+  }
+  if (*q->count == *q->cap) {
+    size_t nc = *q->cap ? 2 * *q->cap : 256;
+    uint32_t *n = realloc(*q->out, nc * sizeof *n);
+    if (!n) { q->oom = 1; return false; }
+    *q->out = n;
+    *q->cap = nc;
+  }
+  (*q->out)[(*q->count)++] = p;
+  return false; /* the query radius stays as it is */
+}
+
+gi_result gi__query_box(const struct gi_scene *s, const float lo[3], const float hi[3],
+                        uint32_t **out, size_t *count, size_t *cap) {
+  if (!s->rtc) return GI_OK;
+  if (!gi__finite3(lo) || !gi__finite3(hi)) return GI_ERR_NONFINITE;
+  if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) return GI_OK;
+  box_query q = {.s = s, .out = out, .count = count, .cap = cap};
+  memcpy(q.lo, lo, sizeof q.lo);
+  memcpy(q.hi, hi, sizeof q.hi);
+  struct RTCPointQuery pq;
+  double h2 = 0;
+  double c[3];
+  for (int k = 0; k < 3; k++) {
+    c[k] = 0.5 * ((double)lo[k] + (double)hi[k]);
+    double h = 0.5 * ((double)hi[k] - (double)lo[k]);
+    h2 += h * h;
+  }
+  pq.x = (float)c[0];
+  pq.y = (float)c[1];
+  pq.z = (float)c[2];
+  pq.time = 0.f;
+  /* Circumscribed sphere, widened so float rounding of the centre cannot cut off a corner. */
+  double r = sqrt(h2);
+  pq.radius = (float)(r * (1.0 + 1e-5) + 1e-6 * (fabs(c[0]) + fabs(c[1]) + fabs(c[2])) + 1e-30);
+  struct RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(s->rtc, &pq, &ctx, box_cb, &q);
+  return q.oom ? GI_ERR_NOMEM : GI_OK;
+}
