@@ -1,2 +1,318 @@
-/* bake.c: placeholder until the module lands. */
-typedef int gi__placeholder_bake;
+/* bake.c: the pipeline around one viewpoint, the effect plan, and the
+ * final gather.
+ *
+ * gi_cascade_bake resolves the quality (defaults, validation), decides
+ * which effects the scene and request call for, then runs the stages in
+ * order: place, voxelize, inject, filter, bounce. Each stage's time goes
+ * into the report. gi_cascade_gather answers points from the finished
+ * texture: direct light by shadow rays from the point itself (exact up to
+ * sampling noise), indirect light by cones over the whole sphere, both
+ * projected into SH L2 irradiance. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "cascade_internal.h"
+#include "internal.h"
+
+#define PI_F 3.14159265358979f
+
+static const char *const fx_names[GI_FX_COUNT] = {"sun", "local_lights", "sky", "emissive",
+                                                  "bounce", "specular", "ao"};
+
+const char *gi_effect_name(gi_effect_id id) {
+  return (unsigned)id < GI_FX_COUNT ? fx_names[id] : "unknown";
+}
+
+static void set_fx(gi_bake_report *r, gi_effect_id id, int ran, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static void set_fx(gi_bake_report *r, gi_effect_id id, int ran, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  r->effects[id].ran = ran;
+  vsnprintf(r->effects[id].why, sizeof r->effects[id].why, fmt, ap);
+  va_end(ap);
+}
+
+static gi_result resolve_quality(const gi_scene *s, const gi_quality *in, gi_quality *q,
+                                 gi_error_info *err) {
+  gi_quality z = {0};
+  *q = in ? *in : z;
+  if (q->levels == 0) q->levels = 6;
+  if (q->res == 0) q->res = 32;
+  if (q->cones == 0) q->cones = 16;
+  if (q->step == 0) q->step = 0.5f;
+  if (q->bounces == 0) q->bounces = 2;
+  else if (q->bounces < 0) q->bounces = 0;
+  if (q->light_samples == 0) q->light_samples = 16;
+  if (q->probe_samples == 0) q->probe_samples = 256;
+  if (q->seed == 0) q->seed = 1;
+  if (q->levels < 1 || q->levels > GI_MAX_LEVELS)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: levels must be 1..%d, got %d", GI_MAX_LEVELS, q->levels);
+  if (q->res < 8 || q->res > 256 || q->res % 4)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: res must be a multiple of 4 in 8..256, got %d", q->res);
+  if (q->cones != 4 && q->cones != 6 && q->cones != 8 && q->cones != 16 && q->cones != 32)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: cones must be 4, 6, 8, 16 or 32, got %d", q->cones);
+  if (!isfinite(q->voxel0) || q->voxel0 < 0)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: voxel size must be a positive finite number");
+  if (!isfinite(q->aperture_deg) || q->aperture_deg < 0 || q->aperture_deg >= 180)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: aperture must be in (0, 180) degrees");
+  if (!isfinite(q->step) || q->step < 0.05f || q->step > 4)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: step must be in 0.05..4, got %g", q->step);
+  if (q->bounces > 8)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: bounces must be at most 8, got %d", q->bounces);
+  if (q->light_samples < 1 || q->light_samples > 512 || q->probe_samples < 1 || q->probe_samples > 8192)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: light samples must be 1..512 and probe samples 1..8192");
+  if (q->voxel0 == 0) {
+    /* The coarsest level spans the scene's largest side. */
+    double lo[3], hi[3], ext = 0;
+    gi_scene_bounds(s, lo, hi);
+    for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
+    if (!(ext > 0)) ext = 1.0;
+    q->voxel0 = ext / ((double)q->res * (double)(1ull << (q->levels - 1)));
+  }
+  if (!isfinite(q->ao_lambda) || q->ao_lambda < 0)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: ao_lambda must be finite and >= 0");
+  if (q->ao_lambda == 0) q->ao_lambda = (float)(1.0 / (4.0 * q->voxel0));
+  return GI_OK;
+}
+
+/* The effect plan: what this scene and request call for, with reasons. */
+static void plan_effects(const gi_scene *s, const gi_quality *q, gi_bake_report *r) {
+  int sun = 0, local = 0, sky = 0;
+  for (uint32_t i = 0; i < s->num_lights; i++) {
+    const gi_light *l = &s->lights[i];
+    int lit = l->color[0] > 0 || l->color[1] > 0 || l->color[2] > 0;
+    if (!lit) continue;
+    if (l->type == GI_LIGHT_SUN) sun++;
+    else if (l->type == GI_LIGHT_SKY) sky++;
+    else local++;
+  }
+  if (sun) set_fx(r, GI_FX_SUN, 1, "%d directional light%s", sun, sun > 1 ? "s" : "");
+  else set_fx(r, GI_FX_SUN, 0, "no directional light in the scene");
+  if (local) set_fx(r, GI_FX_LOCAL, 1, "%d point/spot light%s", local, local > 1 ? "s" : "");
+  else set_fx(r, GI_FX_LOCAL, 0, "no point or spot light in the scene");
+  if (sky) set_fx(r, GI_FX_SKY, 1, "sky light present, %d samples per voxel", q->light_samples);
+  else set_fx(r, GI_FX_SKY, 0, "no sky light in the scene");
+  if (s->num_emitters)
+    set_fx(r, GI_FX_EMISSIVE, 1, "%u emissive triangles, %d samples per voxel", s->num_emitters, q->light_samples);
+  else set_fx(r, GI_FX_EMISSIVE, 0, "no emissive surfaces");
+  float amax = 0;
+  int glossy = 0;
+  for (uint32_t i = 0; i < s->num_materials; i++) {
+    const gi_material *m = &s->materials[i];
+    amax = fmaxf(amax, fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2])));
+    if (m->roughness < 0.5f && m->specular > 0) glossy++;
+  }
+  if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
+  else if (amax <= 0) set_fx(r, GI_FX_BOUNCE, 0, "every albedo is 0: a bounce would add nothing");
+  else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s, largest albedo %.2f", q->bounces, q->bounces > 1 ? "s" : "", amax);
+  if (q->specular > 0) set_fx(r, GI_FX_SPECULAR, 0, "forced on, but probe output has no view direction");
+  else if (glossy) set_fx(r, GI_FX_SPECULAR, 0, "%d glossy materials, but probe output has no view direction", glossy);
+  else set_fx(r, GI_FX_SPECULAR, 0, "no glossy materials in the scene");
+  if (q->ao) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
+  else set_fx(r, GI_FX_AO, 0, "not requested");
+}
+
+static void free_levels(struct gi_cascade *c) {
+  for (int d = 0; d < GI_MAX_LEVELS; d++) {
+    free(c->lv[d].geo);
+    free(c->lv[d].rad);
+    free(c->lv[d].side);
+    free(c->lv[d].direct);
+    free(c->lv[d].occ);
+  }
+}
+
+void gi_cascade_free(gi_cascade *c) {
+  if (!c) return;
+  free_levels(c);
+  gi_scene_release(c->scene);
+  free(c);
+}
+
+size_t gi_cascade_bytes(const gi_cascade *c) {
+  size_t per = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t);
+  return (size_t)c->n * (size_t)c->R * c->R * c->R * per;
+}
+
+const gi_bake_report *gi_cascade_report(const gi_cascade *c) { return &c->report; }
+
+gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_quality *qin,
+                          gi_cascade **out, gi_bake_report *report, gi_error_info *err) {
+  *out = NULL;
+  if (!scene || !at) return gi__fail(err, GI_ERR_INVALID_ARG, "bake: scene and viewpoint are required");
+  if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
+    return gi__fail(err, GI_ERR_NONFINITE, "bake: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
+  gi_quality q;
+  gi_result rc = resolve_quality(scene, qin, &q, err);
+  if (rc != GI_OK) return rc;
+  struct gi_cascade *c = calloc(1, sizeof *c);
+  if (!c) return gi__fail(err, GI_ERR_NOMEM, "bake: out of memory");
+  c->scene = gi_scene_retain((gi_scene *)scene);
+  c->n = q.levels;
+  c->R = q.res;
+  c->s0 = q.voxel0;
+  for (int a = 0; a < 3; a++) {
+    c->at_world[a] = at[a];
+    c->at[a] = (float)(at[a] - scene->origin[a]);
+  }
+  /* A viewpoint beyond float range of the scene would lose all precision. */
+  if (!isfinite(c->at[0]) || !isfinite(c->at[1]) || !isfinite(c->at[2]) ||
+      fabs(at[0] - scene->origin[0]) > 1e9 || fabs(at[1] - scene->origin[1]) > 1e9 ||
+      fabs(at[2] - scene->origin[2]) > 1e9) {
+    gi_cascade_free(c);
+    return gi__fail(err, GI_ERR_INVALID_ARG, "bake: viewpoint is more than 1e9 units from the scene");
+  }
+  c->report.quality = q;
+  c->report.levels = q.levels;
+  gi__cone_set(q.cones, q.aperture_deg, c->cone_dir, c->cone_weight, &c->cone_tan);
+  c->num_cones = q.cones;
+  plan_effects(scene, &q, &c->report);
+
+  if ((rc = gi__cascade_alloc(c, err)) != GI_OK) goto fail;
+  gi__cascade_place(c);
+  for (int d = 0; d < c->n; d++) {
+    c->report.voxel_size[d] = c->lv[d].s;
+    for (int a = 0; a < 3; a++)
+      c->report.level_origin[d][a] = (double)c->lv[d].cell0[a] * c->lv[d].s + scene->origin[a];
+  }
+  double t0 = gi__now_ms();
+  if ((rc = gi__voxelize(c, q.threads, err)) != GI_OK) goto fail;
+  double t1 = gi__now_ms();
+  if ((rc = gi__inject(c, &q, err)) != GI_OK) goto fail;
+  double t2 = gi__now_ms();
+  gi__cascade_filter(c, q.threads);
+  double t3 = gi__now_ms();
+  if (c->report.effects[GI_FX_BOUNCE].ran)
+    if ((rc = gi__bounce(c, &q, q.bounces, err)) != GI_OK) goto fail;
+  double t4 = gi__now_ms();
+  c->report.ms.voxelize = t1 - t0;
+  c->report.ms.inject = t2 - t1;
+  c->report.ms.filter = t3 - t2;
+  c->report.ms.bounce = t4 - t3;
+  /* Occupancy per level, including the filtered region. */
+  for (int d = 0; d < c->n; d++) {
+    uint64_t occ = 0;
+    size_t vox = (size_t)c->R * c->R * c->R;
+    for (size_t i = 0; i < vox; i++) occ += c->lv[d].geo[i].area > 0;
+    c->report.occupied[d] = occ;
+  }
+  c->report.cascade_bytes = gi_cascade_bytes(c);
+  if (report) *report = c->report;
+  *out = c;
+  return GI_OK;
+fail:
+  gi_cascade_free(c);
+  return rc;
+}
+
+typedef struct {
+  const struct gi_cascade *c;
+  const double *pts;
+  gi_probe *out;
+} gather_ctx;
+
+static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed) {
+  const gi_scene *s = c->scene;
+  const gi_quality *q = &c->report.quality;
+  memset(pr, 0, sizeof *pr);
+  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
+  /* Direct light: shadow rays from the point itself. */
+  gi_light_plan lp = {
+      .sun = c->report.effects[GI_FX_SUN].ran,
+      .local = c->report.effects[GI_FX_LOCAL].ran,
+      .sky = c->report.effects[GI_FX_SKY].ran,
+      .emissive = c->report.effects[GI_FX_EMISSIVE].ran,
+      .sky_samples = q->probe_samples,
+      .emit_samples = q->probe_samples,
+  };
+  int cap = q->probe_samples * 2 + (int)s->num_lights + 8;
+  gi_lsample *ls = malloc((size_t)cap * sizeof *ls);
+  float *org = malloc((size_t)cap * 3 * sizeof(float)), *dir = malloc((size_t)cap * 3 * sizeof(float));
+  float *tn = malloc((size_t)cap * sizeof(float)), *tf = malloc((size_t)cap * sizeof(float));
+  uint8_t *vis = malloc((size_t)cap);
+  if (ls && org && dir && tn && tf && vis) {
+    uint64_t rng = gi__mix64(seed);
+    int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
+    float eps = (float)(1e-4 * c->s0);
+    for (int i = 0; i < n; i++) {
+      memcpy(&org[3 * i], p, sizeof(float[3]));
+      memcpy(&dir[3 * i], ls[i].w, sizeof(float[3]));
+      tn[i] = eps;
+      tf[i] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
+    }
+    gi__occluded(s, n, org, dir, tn, tf, vis);
+    for (int i = 0; i < n; i++) {
+      if (!vis[i]) continue;
+      gi__sh_add(pr->sh_direct, ls[i].w, ls[i].V, 1.0f);
+      float cu = gi__dot(up, ls[i].w);
+      if (cu > 0)
+        for (int k = 0; k < 3; k++) pr->direct[k] += ls[i].V[k] * cu;
+    }
+  }
+  free(ls); free(org); free(dir); free(tn); free(tf); free(vis);
+  gi__sh_radiance_to_irradiance(pr->sh_direct);
+
+  /* Indirect light: the cone set on both hemispheres around up. */
+  float sh_ind[9][3] = {{0}};
+  int d = gi__finest_level_at(c, p);
+  float t0 = (float)(d >= 0 ? c->lv[d].s : c->s0);
+  float domega = 2 * PI_F / (float)c->num_cones;
+  float occ = 0;
+  for (int hemi = 0; hemi < 2; hemi++) {
+    float n[3], t[3], b[3];
+    for (int k = 0; k < 3; k++) n[k] = hemi ? -up[k] : up[k];
+    gi__basis(n, t, b);
+    for (int ci = 0; ci < c->num_cones; ci++) {
+      const float *cd = c->cone_dir[ci];
+      float w[3];
+      for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
+      gi_cone_out co;
+      if (d >= 0) {
+        gi__cone_trace(c, p, w, c->cone_tan, t0, q->step, q->ao_lambda, &co);
+      } else {
+        memset(&co, 0, sizeof co);
+      }
+      gi__sh_add(sh_ind, w, co.L, domega);
+      if (!hemi) {
+        for (int k = 0; k < 3; k++) pr->indirect[k] += c->cone_weight[ci] * co.L[k];
+        occ += c->cone_weight[ci] * co.occlusion;
+      }
+    }
+  }
+  gi__sh_radiance_to_irradiance(sh_ind);
+  for (int i = 0; i < 9; i++)
+    for (int k = 0; k < 3; k++) pr->sh[i][k] = pr->sh_direct[i][k] + sh_ind[i][k];
+  for (int k = 0; k < 3; k++) pr->irradiance[k] = pr->direct[k] + pr->indirect[k];
+  pr->ao = c->report.effects[GI_FX_AO].ran ? 1.0f - occ / PI_F : 1.0f;
+}
+
+static void gather_range(void *p, size_t b, size_t e, int worker) {
+  gather_ctx *g = p;
+  const struct gi_cascade *c = g->c;
+  for (size_t i = b; i < e; i++) {
+    float pl[3];
+    for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * i + k] - c->scene->origin[k]);
+    /* Seed by position so a probe's noise does not depend on its index. */
+    uint64_t h = c->report.quality.seed;
+    for (int k = 0; k < 3; k++) {
+      uint32_t bits;
+      memcpy(&bits, &pl[k], 4);
+      h = gi__mix64(h ^ bits);
+    }
+    gather_one(c, pl, &g->out[i], h);
+  }
+}
+
+gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi_probe *out,
+                            double *ms, gi_error_info *err) {
+  if (!c || (!pts && n) || (!out && n)) return gi__fail(err, GI_ERR_INVALID_ARG, "gather: missing arguments");
+  for (size_t i = 0; i < 3 * n; i++)
+    if (!isfinite(pts[i]))
+      return gi__fail(err, GI_ERR_NONFINITE, "gather: point %zu has a non-finite coordinate", i / 3);
+  double t0 = gi__now_ms();
+  gather_ctx g = {c, pts, out};
+  gi__parallel_for(n, 1, c->report.quality.threads, gather_range, &g);
+  if (ms) *ms = gi__now_ms() - t0;
+  return GI_OK;
+}

@@ -1,2 +1,191 @@
-/* cascade.c: placeholder until the module lands. */
-typedef int gi__placeholder_cascade;
+/* cascade.c: placing, allocating and filtering the cascaded voxel texture.
+ *
+ * Placement snaps each level's window to twice its voxel size around the
+ * viewpoint, so a viewpoint moving by less than a voxel leaves every grid
+ * where it was, and level d's window starts on a cell border of level d+1.
+ * The region of level d that level d-1 covers is not voxel-lit on its own:
+ * it is filtered from level d-1 by compositing along each axis, which keeps
+ * a thin wall that is opaque at the fine level opaque at the coarse one. */
+#include <stdlib.h>
+#include <string.h>
+#include "cascade_internal.h"
+#include "internal.h"
+
+gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
+  size_t vox = (size_t)c->R * c->R * c->R;
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    L->geo = calloc(vox, sizeof *L->geo);
+    L->rad = calloc(vox, sizeof *L->rad);
+    L->side = calloc(vox, sizeof *L->side);
+    L->direct = calloc(vox, sizeof *L->direct);
+    L->occ = malloc(vox * sizeof *L->occ);
+    if (!L->geo || !L->rad || !L->side || !L->direct || !L->occ)
+      return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
+  }
+  return GI_OK;
+}
+
+void gi__cascade_place(struct gi_cascade *c) {
+  int R = c->R;
+  double at[3] = {(double)c->at[0], (double)c->at[1], (double)c->at[2]};
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    L->s = c->s0 * (double)(1ull << d);
+    for (int a = 0; a < 3; a++) {
+      int64_t centre = (int64_t)floor(at[a] / L->s);
+      L->cell0[a] = gi__floordiv(centre - R / 2, 2) * 2;
+      L->lo[a] = (float)(L->cell0[a] * L->s);
+      L->hi[a] = (float)((L->cell0[a] + R) * L->s);
+    }
+    L->has_inner = 0;
+    if (d > 0) {
+      const gi_level *F = &c->lv[d - 1];
+      L->has_inner = 1;
+      for (int a = 0; a < 3; a++) {
+        /* cell0 of the finer level is even, so this division is exact. */
+        int64_t i0 = F->cell0[a] / 2, i1 = i0 + R / 2;
+        if (i0 < L->cell0[a]) i0 = L->cell0[a];
+        if (i1 > L->cell0[a] + R) i1 = L->cell0[a] + R;
+        L->inner0[a] = i0;
+        L->inner1[a] = i1;
+      }
+    }
+  }
+}
+
+int gi__level_contains(const gi_level *L, const float p[3], float border) {
+  float b = border * (float)L->s;
+  for (int a = 0; a < 3; a++)
+    if (!(p[a] >= L->lo[a] + b && p[a] <= L->hi[a] - b)) return 0;
+  return 1;
+}
+
+static int in_inner(const gi_level *L, int64_t i, int64_t j, int64_t k) {
+  return L->has_inner && i >= L->inner0[0] && i < L->inner1[0] && j >= L->inner0[1] &&
+         j < L->inner1[1] && k >= L->inner0[2] && k < L->inner1[2];
+}
+
+typedef struct {
+  struct gi_cascade *c;
+  int d;
+} filter_ctx;
+
+/* One coarse voxel from its 2x2x2 children. */
+static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level *L, int64_t ci,
+                         int64_t cj, int64_t ck) {
+  int R = c->R;
+  const gi_vrad *kr[2][2][2];
+  const gi_vgeo *kg[2][2][2];
+  const float(*ks[2][2][2])[3];
+  for (int z = 0; z < 2; z++)
+    for (int y = 0; y < 2; y++)
+      for (int x = 0; x < 2; x++) {
+        uint32_t s = gi__slot(2 * ci + x, 2 * cj + y, 2 * ck + z, R);
+        kr[z][y][x] = &F->rad[s];
+        kg[z][y][x] = &F->geo[s];
+        ks[z][y][x] = F->side[s];
+      }
+  uint32_t slot = gi__slot(ci, cj, ck, R);
+  gi_vrad *out = &L->rad[slot];
+  memset(out, 0, sizeof *out);
+  for (int axis = 0; axis < 3; axis++) {
+    double T = 0;
+    float pp[3] = {0, 0, 0}, pn[3] = {0, 0, 0};
+    for (int u = 0; u < 2; u++)
+      for (int v = 0; v < 2; v++) {
+        /* The column's two children along `axis`: lo (index 0) and hi (index 1). */
+        const gi_vrad *ch[2];
+        for (int t = 0; t < 2; t++) {
+          int x = axis == 0 ? t : u, y = axis == 1 ? t : (axis == 0 ? u : v), z = axis == 2 ? t : v;
+          ch[t] = kr[z][y][x];
+        }
+        T += exp(-(double)ch[0]->tau[axis] - (double)ch[1]->tau[axis]);
+        float tlo = expf(-ch[0]->tau[axis]), thi = expf(-ch[1]->tau[axis]);
+        for (int k = 0; k < 3; k++) {
+          /* Leaving through +axis the hi child is in front; through -axis the lo child. */
+          pp[k] += ch[1]->p[2 * axis][k] + thi * ch[0]->p[2 * axis][k];
+          pn[k] += ch[0]->p[2 * axis + 1][k] + tlo * ch[1]->p[2 * axis + 1][k];
+        }
+      }
+    T *= 0.25;
+    if (T < 1e-4) T = 1e-4;
+    out->tau[axis] = (float)-log(T);
+    out->alpha[axis] = (float)(1.0 - T);
+    for (int k = 0; k < 3; k++) {
+      out->p[2 * axis][k] = 0.25f * pp[k];
+      out->p[2 * axis + 1][k] = 0.25f * pn[k];
+    }
+  }
+  /* Geometry and side irradiance: area-weighted means, for inspection. */
+  gi_vgeo *g = &L->geo[slot];
+  float(*side)[3] = L->side[slot];
+  memset(g, 0, sizeof *g);
+  memset(side, 0, sizeof(float[2][3]));
+  double area = 0;
+  for (int z = 0; z < 2; z++)
+    for (int y = 0; y < 2; y++)
+      for (int x = 0; x < 2; x++) {
+        const gi_vgeo *h = kg[z][y][x];
+        if (h->area <= 0) continue;
+        float a = h->area;
+        area += a;
+        float sgn = gi__dot(h->normal, g->normal) < 0 ? -1.f : 1.f;
+        for (int k = 0; k < 3; k++) {
+          g->albedo[k] += a * h->albedo[k];
+          g->emission[k] += a * h->emission[k];
+          g->normal[k] += sgn * a * h->normal[k];
+          g->centroid[k] += a * h->centroid[k];
+          g->proj[k] += h->proj[k];
+          /* A flipped child's sides swap. */
+          side[0][k] += a * ks[z][y][x][sgn > 0 ? 0 : 1][k];
+          side[1][k] += a * ks[z][y][x][sgn > 0 ? 1 : 0][k];
+        }
+        g->gloss += a * h->gloss;
+      }
+  if (area > 0) {
+    float ia = (float)(1.0 / area);
+    g->area = (float)area;
+    for (int k = 0; k < 3; k++) {
+      g->albedo[k] *= ia;
+      g->emission[k] *= ia;
+      g->centroid[k] *= ia;
+      side[0][k] *= ia;
+      side[1][k] *= ia;
+    }
+    g->gloss *= ia;
+    float nl = gi__len(g->normal);
+    if (nl > 0)
+      for (int k = 0; k < 3; k++) g->normal[k] /= nl;
+  }
+}
+
+static void filter_range(void *p, size_t b, size_t e, int worker) {
+  filter_ctx *fc = p;
+  struct gi_cascade *c = fc->c;
+  gi_level *L = &c->lv[fc->d];
+  const gi_level *F = &c->lv[fc->d - 1];
+  int64_t nx = L->inner1[0] - L->inner0[0], ny = L->inner1[1] - L->inner0[1];
+  for (size_t idx = b; idx < e; idx++) {
+    int64_t i = L->inner0[0] + (int64_t)idx % nx;
+    int64_t j = L->inner0[1] + ((int64_t)idx / nx) % ny;
+    int64_t k = L->inner0[2] + (int64_t)idx / (nx * ny);
+    filter_voxel(c, F, L, i, j, k);
+  }
+}
+
+void gi__cascade_filter(struct gi_cascade *c, int threads) {
+  for (int d = 1; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    if (!L->has_inner) continue;
+    size_t count = 1;
+    for (int a = 0; a < 3; a++) {
+      int64_t w = L->inner1[a] - L->inner0[a];
+      count *= (size_t)(w > 0 ? w : 0);
+    }
+    filter_ctx fc = {c, d};
+    gi__parallel_for(count, 256, threads, filter_range, &fc);
+  }
+}
+
+int gi__is_inner(const gi_level *L, int64_t i, int64_t j, int64_t k) { return in_inner(L, i, j, k); }

@@ -1,2 +1,178 @@
-/* trace.c: placeholder until the module lands. */
-typedef int gi__placeholder_trace;
+/* trace.c: the cone-tracing filter over the cascaded texture.
+ *
+ * A cone at distance t has diameter D = 2 t tan(aperture/2). The level to
+ * sample follows directly from D (lod = log2(D / s0)) and from the sample's
+ * position (the finest level whose window, less a one-voxel border for the
+ * trilinear footprint, contains it): no tree is walked. Between two levels
+ * the sample blends linearly by the fractional lod, so a cone's result
+ * changes smoothly as the viewpoint or the cascade moves.
+ *
+ * A sample reads the three faces that face back toward the apex, weighted
+ * by the squared components of the direction. Opacity comes from optical
+ * depth: sigma = sum |w_a| tau_a / s, so a slab that is opaque along its
+ * normal stays opaque at any angle, and a segment of length dt has opacity
+ * 1 - exp(-sigma dt) (the step-length correction). Compositing is front to
+ * back: c += (1 - a) a_s c_s, a += (1 - a) a_s, until a >= 0.99 or the cone
+ * leaves the coarsest level.
+ *
+ * Diffuse cone sets: a hemisphere is split into rings of regions of equal
+ * solid angle 2 pi / N; each cone points at its region's centre and has the
+ * region's solid angle, and its weight is the exact integral of cos(theta)
+ * over the region, so the weights sum to pi and a uniform radiance L gathers
+ * exactly E = pi L. */
+#include <string.h>
+#include "cascade_internal.h"
+#include "internal.h"
+
+static const int ring_layout[][5] = {
+    /* N, rings... (0 terminated) */
+    {4, 1, 3, 0, 0}, {6, 1, 5, 0, 0}, {8, 1, 7, 0, 0}, {16, 1, 6, 9, 0}, {32, 1, 6, 11, 14},
+};
+
+void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[], float *tan_half) {
+  const int *layout = NULL;
+  for (size_t i = 0; i < sizeof ring_layout / sizeof ring_layout[0]; i++)
+    if (ring_layout[i][0] == count) layout = &ring_layout[i][1];
+  if (!layout) layout = ring_layout[3] + 1, count = 16;
+  const double pi = 3.14159265358979323846;
+  int idx = 0, cum = 0;
+  double cos_a = 1.0;
+  for (int r = 0; r < 4 && layout[r]; r++) {
+    int nr = layout[r];
+    cum += nr;
+    double cos_b = 1.0 - (double)cum / count;
+    if (cos_b < 0) cos_b = 0;
+    double cos_c = r == 0 ? 1.0 : 0.5 * (cos_a + cos_b);
+    double sin_c = sqrt(1.0 - cos_c * cos_c);
+    double w = pi * (cos_a * cos_a - cos_b * cos_b) / nr;
+    for (int i = 0; i < nr; i++) {
+      double phi = 2 * pi * (i + 0.5 * (r & 1)) / nr;
+      dirs[idx][0] = (float)(sin_c * cos(phi));
+      dirs[idx][1] = (float)(sin_c * sin(phi));
+      dirs[idx][2] = (float)cos_c;
+      weights[idx] = (float)w;
+      idx++;
+    }
+    cos_a = cos_b;
+  }
+  double half;
+  if (aperture_deg > 0) {
+    half = 0.5 * aperture_deg * pi / 180.0;
+  } else {
+    /* A cone whose solid angle equals its region's: 2 pi (1 - cos h) = 2 pi / N. */
+    half = acos(1.0 - 1.0 / count);
+  }
+  *tan_half = (float)tan(half);
+}
+
+void gi__basis(const float n[3], float t[3], float b[3]) {
+  float sign = copysignf(1.0f, n[2]);
+  float a = -1.0f / (sign + n[2]);
+  float bb = n[0] * n[1] * a;
+  t[0] = 1.0f + sign * n[0] * n[0] * a;
+  t[1] = sign * bb;
+  t[2] = -sign * n[0];
+  b[0] = bb;
+  b[1] = sign + n[1] * n[1] * a;
+  b[2] = -n[1];
+}
+
+int gi__finest_level_at(const struct gi_cascade *c, const float p[3]) {
+  for (int d = 0; d < c->n; d++)
+    if (gi__level_contains(&c->lv[d], p, 1.0f)) return d;
+  return -1;
+}
+
+int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const float w[3],
+                     float prem[3], float *wsum_alpha, float *sigma) {
+  const gi_level *L = &c->lv[d];
+  int R = c->R;
+  float inv = (float)(1.0 / L->s);
+  int64_t base[3];
+  float f[3];
+  for (int a = 0; a < 3; a++) {
+    float u = (p[a] - L->lo[a]) * inv - 0.5f;
+    float fl = floorf(u);
+    int64_t i0 = (int64_t)fl;
+    if (i0 < 0) i0 = 0, fl = 0, u = fmaxf(u, 0.f);
+    if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = fminf(u, (float)(R - 1));
+    base[a] = L->cell0[a] + i0;
+    f[a] = u - fl;
+  }
+  int face[3];
+  float w2[3], wa[3];
+  for (int a = 0; a < 3; a++) {
+    /* Light travelling toward the apex (-w) leaves through the face facing -w. */
+    face[a] = 2 * a + (w[a] > 0 ? 1 : 0);
+    w2[a] = w[a] * w[a];
+    wa[a] = fabsf(w[a]);
+  }
+  float P[3] = {0, 0, 0}, wal = 0, tau = 0;
+  for (int corner = 0; corner < 8; corner++) {
+    int dx = corner & 1, dy = (corner >> 1) & 1, dz = corner >> 2;
+    float wt = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+    if (wt <= 0) continue;
+    const gi_vrad *r = &L->rad[gi__slot(base[0] + dx, base[1] + dy, base[2] + dz, R)];
+    for (int a = 0; a < 3; a++) {
+      float k = wt * w2[a];
+      P[0] += k * r->p[face[a]][0];
+      P[1] += k * r->p[face[a]][1];
+      P[2] += k * r->p[face[a]][2];
+      wal += k * r->alpha[a];
+      tau += wt * wa[a] * r->tau[a];
+    }
+  }
+  prem[0] = P[0];
+  prem[1] = P[1];
+  prem[2] = P[2];
+  *wsum_alpha = wal;
+  *sigma = tau * inv;
+  return 1;
+}
+
+void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half,
+                    float t0, float step, float ao_lambda, gi_cone_out *out) {
+  float L[3] = {0, 0, 0}, a = 0, occ = 0;
+  uint32_t samples = 0;
+  float s0 = (float)c->s0;
+  float t = t0;
+  for (int guard = 0; guard < 4096 && a < 0.99f; guard++) {
+    float D = 2.0f * t * tan_half;
+    if (D < s0) D = s0;
+    float p[3] = {o[0] + t * w[0], o[1] + t * w[1], o[2] + t * w[2]};
+    float lod = log2f(D / s0);
+    int d0 = (int)floorf(lod);
+    float frac = lod - (float)d0;
+    if (d0 >= c->n) break;
+    int d = d0;
+    while (d < c->n && !gi__level_contains(&c->lv[d], p, 1.0f)) d++;
+    if (d >= c->n) break;
+    if (d > d0) frac = 0; /* pushed to a coarser level by position, not by size */
+    float P[3], wal, sig;
+    gi__sample_level(c, d, p, w, P, &wal, &sig);
+    samples++;
+    if (frac > 0 && d + 1 < c->n && gi__level_contains(&c->lv[d + 1], p, 1.0f)) {
+      float P2[3], wal2, sig2;
+      gi__sample_level(c, d + 1, p, w, P2, &wal2, &sig2);
+      samples++;
+      for (int k = 0; k < 3; k++) P[k] += frac * (P2[k] - P[k]);
+      wal += frac * (wal2 - wal);
+      sig += frac * (sig2 - sig);
+    }
+    float dt = step * D;
+    float as = 1.0f - expf(-sig * dt);
+    if (as > 0 && wal > 1e-8f) {
+      float k = (1 - a) * as / wal;
+      L[0] += k * P[0];
+      L[1] += k * P[1];
+      L[2] += k * P[2];
+    }
+    occ += (1 - occ) * as / (1.0f + ao_lambda * 0.5f * D);
+    a += (1 - a) * as;
+    t += dt;
+  }
+  memcpy(out->L, L, sizeof L);
+  out->alpha = a;
+  out->occlusion = occ;
+  out->samples = samples;
+}

@@ -1,2 +1,280 @@
-/* voxelize.c: placeholder until the module lands. */
-typedef int gi__placeholder_voxelize;
+/* voxelize.c: triangles into each level's geometry buffer.
+ *
+ * Per level, a BVH query returns only the triangles overlapping the level's
+ * window (never a scan of the scene); triangles entirely inside the region
+ * the finer level covers are skipped, since that region is filtered.
+ * Triangles are binned into slabs of cells along z, and slabs are
+ * voxelized in parallel: each worker writes only its own slabs, so no
+ * locks. Each triangle is clipped exactly against every cell of its bounds
+ * (Sutherland-Hodgman); the clipped polygon gives the area, centroid and
+ * vector area the cell receives. A polygon belongs to a cell when its
+ * centroid is inside the half-open cell [lo, hi): a face lying exactly on
+ * a cell border is counted once, in the upper cell. */
+#include <stdlib.h>
+#include <string.h>
+#include "cascade_internal.h"
+#include "internal.h"
+
+#define SLAB 2 /* cells per z-slab */
+#define MAXV 12
+
+typedef struct {
+  struct gi_cascade *c;
+  int d;
+  const uint32_t *tris;
+  const uint32_t *bin_start; /* per slab, into bin_tris */
+  const uint32_t *bin_tris;
+} vox_ctx;
+
+/* Clips polygon (n vertices) against axis a: keep x[a] >= lo if sign>0, else x[a] <= hi. */
+static int clip_plane(float in[][3], int n, float out[][3], int a, float bound, int keep_above) {
+  int m = 0;
+  for (int i = 0; i < n; i++) {
+    const float *p = in[i], *q = in[(i + 1) % n];
+    float dp = keep_above ? p[a] - bound : bound - p[a];
+    float dq = keep_above ? q[a] - bound : bound - q[a];
+    if (dp >= 0) {
+      memcpy(out[m++], p, sizeof(float[3]));
+    }
+    if ((dp >= 0) != (dq >= 0)) {
+      float t = dp / (dp - dq);
+      for (int k = 0; k < 3; k++) out[m][k] = p[k] + t * (q[k] - p[k]);
+      out[m][a] = bound; /* exact on the plane */
+      m++;
+    }
+    if (m >= MAXV - 1) break;
+  }
+  return m;
+}
+
+static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float corner[3],
+                       const gi_material *mat) {
+  /* Vector area and area-weighted centroid by fan triangulation. */
+  float A[3] = {0, 0, 0}, C[3] = {0, 0, 0};
+  for (int i = 1; i + 1 < n; i++) {
+    float e1[3], e2[3], x[3];
+    for (int k = 0; k < 3; k++) {
+      e1[k] = poly[i][k] - poly[0][k];
+      e2[k] = poly[i + 1][k] - poly[0][k];
+    }
+    gi__cross(e1, e2, x);
+    float a = 0.5f * gi__len(x);
+    for (int k = 0; k < 3; k++) {
+      A[k] += 0.5f * x[k];
+      C[k] += a * (poly[0][k] + poly[i][k] + poly[i + 1][k]) / 3.f;
+    }
+  }
+  float area = gi__len(A);
+  if (!(area > 0)) return;
+  /* Orient this piece like what the voxel already holds (two-sided surfaces). */
+  float flip = gi__dot(A, g->normal) < 0 ? -1.f : 1.f;
+  if (g->area == 0) {
+    int m = 0;
+    for (int k = 1; k < 3; k++)
+      if (fabsf(A[k]) > fabsf(A[m])) m = k;
+    flip = A[m] < 0 ? -1.f : 1.f;
+  }
+  float gloss = mat->roughness < 0.5f ? mat->specular : 0.f;
+  g->area += area;
+  for (int k = 0; k < 3; k++) {
+    g->albedo[k] += area * mat->albedo[k];
+    g->emission[k] += area * mat->emission[k];
+    g->normal[k] += flip * A[k];
+    /* C is area-weighted already; it is relative to the cell corner. */
+    g->centroid[k] += C[k] + area * corner[k];
+    g->proj[k] += fabsf(A[k]);
+  }
+  g->gloss += area * gloss;
+}
+
+static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
+  vox_ctx *v = p;
+  struct gi_cascade *c = v->c;
+  const gi_scene *s = c->scene;
+  gi_level *L = &c->lv[v->d];
+  int R = c->R;
+  float sz = (float)L->s;
+  for (size_t slab = b; slab < e; slab++) {
+    int64_t k0 = L->cell0[2] + (int64_t)slab * SLAB, k1 = k0 + SLAB;
+    for (uint32_t bi = v->bin_start[slab]; bi < v->bin_start[slab + 1]; bi++) {
+      uint32_t t = v->bin_tris[bi];
+      const uint32_t *ix = &s->indices[3 * t];
+      float tv[3][3];
+      float tlo[3], thi[3];
+      for (int q = 0; q < 3; q++) {
+        memcpy(tv[q], &s->vertices[3 * ix[q]], sizeof(float[3]));
+      }
+      for (int a = 0; a < 3; a++) {
+        tlo[a] = fminf(tv[0][a], fminf(tv[1][a], tv[2][a]));
+        thi[a] = fmaxf(tv[0][a], fmaxf(tv[1][a], tv[2][a]));
+      }
+      int64_t c0[3], c1[3];
+      for (int a = 0; a < 3; a++) {
+        c0[a] = (int64_t)floor((double)tlo[a] / L->s);
+        c1[a] = (int64_t)floor((double)thi[a] / L->s) + 1;
+        if (c0[a] < L->cell0[a]) c0[a] = L->cell0[a];
+        if (c1[a] > L->cell0[a] + R) c1[a] = L->cell0[a] + R;
+      }
+      if (c0[2] < k0) c0[2] = k0;
+      if (c1[2] > k1) c1[2] = k1;
+      const gi_material *mat = &s->materials[s->tri_material[t]];
+      for (int64_t k = c0[2]; k < c1[2]; k++)
+        for (int64_t j = c0[1]; j < c1[1]; j++)
+          for (int64_t i = c0[0]; i < c1[0]; i++) {
+            if (gi__is_inner(L, i, j, k)) continue;
+            float corner[3] = {(float)(i * L->s), (float)(j * L->s), (float)(k * L->s)};
+            float pa[MAXV][3], pb[MAXV][3];
+            for (int q = 0; q < 3; q++)
+              for (int a = 0; a < 3; a++) pa[q][a] = tv[q][a] - corner[a];
+            int n = 3;
+            for (int a = 0; a < 3 && n >= 3; a++) {
+              n = clip_plane(pa, n, pb, a, 0.f, 1);
+              if (n < 3) break;
+              n = clip_plane(pb, n, pa, a, sz, 0);
+            }
+            if (n < 3) continue;
+            /* Half-open ownership by the polygon's centroid. */
+            float cen[3] = {0, 0, 0};
+            for (int q = 0; q < n; q++)
+              for (int a = 0; a < 3; a++) cen[a] += pa[q][a] / (float)n;
+            if (cen[0] >= sz || cen[1] >= sz || cen[2] >= sz) continue;
+            accumulate(&L->geo[gi__slot(i, j, k, R)], (const float(*)[3])pa, n, corner, mat);
+          }
+    }
+  }
+}
+
+static int cmp_u32(const void *a, const void *b) {
+  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Normalises sums and derives opacity; lists occupied voxels to light. */
+static void finalize_level(struct gi_cascade *c, gi_level *L) {
+  int R = c->R;
+  double s2 = L->s * L->s;
+  L->num_occ = 0;
+  L->num_geo = 0;
+  for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++)
+    for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
+      for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
+        if (gi__is_inner(L, i, j, k)) continue;
+        uint32_t slot = gi__slot(i, j, k, R);
+        gi_vgeo *g = &L->geo[slot];
+        gi_vrad *r = &L->rad[slot];
+        memset(r, 0, sizeof *r);
+        if (!(g->area > 0)) {
+          memset(g, 0, sizeof *g);
+          continue;
+        }
+        float ia = 1.f / g->area;
+        for (int a = 0; a < 3; a++) {
+          g->albedo[a] *= ia;
+          g->emission[a] *= ia;
+          g->centroid[a] *= ia;
+        }
+        g->gloss *= ia;
+        float nl = gi__len(g->normal);
+        if (nl > 1e-12f * g->area) {
+          for (int a = 0; a < 3; a++) g->normal[a] /= nl;
+        } else {
+          /* Opposite pieces cancelled: fall back to the dominant projection axis. */
+          int m = 0;
+          for (int a = 1; a < 3; a++)
+            if (g->proj[a] > g->proj[m]) m = a;
+          g->normal[0] = g->normal[1] = g->normal[2] = 0;
+          g->normal[m] = 1;
+        }
+        for (int a = 0; a < 3; a++) {
+          double al = g->proj[a] / s2;
+          if (al > 0.999) al = 0.999;
+          r->alpha[a] = (float)al;
+          r->tau[a] = (float)-log(1.0 - al);
+        }
+        L->occ[L->num_occ++] = slot;
+        L->num_geo++;
+      }
+}
+
+gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
+  const gi_scene *s = c->scene;
+  int R = c->R;
+  int nslab = (R + SLAB - 1) / SLAB;
+  uint32_t *tris = NULL, *bin_tris = NULL;
+  size_t ntris = 0, cap = 0;
+  uint32_t *bin_start = calloc((size_t)nslab + 1, sizeof *bin_start);
+  if (!bin_start) return gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory");
+  gi_result rc = GI_OK;
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    memset(L->geo, 0, (size_t)R * R * R * sizeof *L->geo);
+    ntris = 0;
+    if (s->rtc) {
+      rc = gi__query_box(s, L->lo, L->hi, &tris, &ntris, &cap);
+      if (rc != GI_OK) {
+        gi__fail(err, rc, "voxelize: BVH query failed for level %d", d);
+        goto done;
+      }
+    }
+    qsort(tris, ntris, sizeof *tris, cmp_u32); /* deterministic accumulation order */
+    /* Drop triangles wholly inside the finer level's region. */
+    size_t kept = 0;
+    float ilo[3] = {0}, ihi[3] = {0};
+    if (L->has_inner)
+      for (int a = 0; a < 3; a++) {
+        ilo[a] = (float)(L->inner0[a] * L->s);
+        ihi[a] = (float)(L->inner1[a] * L->s);
+      }
+    memset(bin_start, 0, ((size_t)nslab + 1) * sizeof *bin_start);
+    for (size_t q = 0; q < ntris; q++) {
+      const uint32_t *ix = &s->indices[3 * tris[q]];
+      float lo[3], hi[3];
+      for (int a = 0; a < 3; a++) {
+        float x0 = s->vertices[3 * ix[0] + a], x1 = s->vertices[3 * ix[1] + a], x2 = s->vertices[3 * ix[2] + a];
+        lo[a] = fminf(x0, fminf(x1, x2));
+        hi[a] = fmaxf(x0, fmaxf(x1, x2));
+      }
+      if (L->has_inner && lo[0] > ilo[0] && hi[0] < ihi[0] && lo[1] > ilo[1] && hi[1] < ihi[1] &&
+          lo[2] > ilo[2] && hi[2] < ihi[2])
+        continue;
+      int64_t k0 = (int64_t)floor((double)lo[2] / L->s) - L->cell0[2];
+      int64_t k1 = (int64_t)floor((double)hi[2] / L->s) - L->cell0[2];
+      if (k1 < 0 || k0 >= R) continue;
+      if (k0 < 0) k0 = 0;
+      if (k1 >= R) k1 = R - 1;
+      tris[kept++] = tris[q];
+      for (int64_t sl = k0 / SLAB; sl <= k1 / SLAB; sl++) bin_start[sl + 1]++;
+    }
+    c->report.triangles_visited += kept;
+    for (int sl = 0; sl < nslab; sl++) bin_start[sl + 1] += bin_start[sl];
+    free(bin_tris);
+    bin_tris = malloc(((size_t)bin_start[nslab] + 1) * sizeof *bin_tris);
+    uint32_t *fill = malloc(((size_t)nslab + 1) * sizeof *fill);
+    if (!bin_tris || !fill) {
+      free(fill);
+      rc = gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory binning level %d", d);
+      goto done;
+    }
+    memcpy(fill, bin_start, ((size_t)nslab + 1) * sizeof *fill);
+    for (size_t q = 0; q < kept; q++) {
+      const uint32_t *ix = &s->indices[3 * tris[q]];
+      float lo = fminf(s->vertices[3 * ix[0] + 2], fminf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
+      float hi = fmaxf(s->vertices[3 * ix[0] + 2], fmaxf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
+      int64_t k0 = (int64_t)floor((double)lo / L->s) - L->cell0[2];
+      int64_t k1 = (int64_t)floor((double)hi / L->s) - L->cell0[2];
+      if (k0 < 0) k0 = 0;
+      if (k1 >= R) k1 = R - 1;
+      for (int64_t sl = k0 / SLAB; sl <= k1 / SLAB; sl++) bin_tris[fill[sl]++] = tris[q];
+    }
+    free(fill);
+    vox_ctx v = {c, d, tris, bin_start, bin_tris};
+    gi__parallel_for((size_t)nslab, 1, threads, voxelize_slabs, &v);
+    finalize_level(c, L);
+    c->report.occupied[d] = L->num_geo;
+  }
+done:
+  free(tris);
+  free(bin_tris);
+  free(bin_start);
+  return rc;
+}

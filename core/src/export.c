@@ -1,0 +1,226 @@
+/* export.c: the encode stage, probes to EXR and cascades to VDB.
+ *
+ * This file only arranges data; the files themselves are written by the
+ * dependency glue (io/exr_io.c, io/vdb_shim.cpp), which writes to a
+ * temporary name and renames into place. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "cascade_internal.h"
+#include "gi/gi_exr.h"
+#include "gi/gi_vdb.h"
+#include "internal.h"
+
+#define PI_F 3.14159265358979f
+
+static const char *const sh_names[9] = {"L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22"};
+static const char rgb[3] = {'R', 'G', 'B'};
+
+/* Writes the effect plan as "name=ran|skipped(why); ..." into buf. */
+static void effects_text(const gi_bake_report *rep, char *buf, size_t size) {
+  size_t off = 0;
+  buf[0] = 0;
+  for (int i = 0; i < GI_FX_COUNT && off < size; i++) {
+    int w = snprintf(buf + off, size - off, "%s%s=%s (%s)", i ? "; " : "", gi_effect_name(i),
+                     rep->effects[i].ran ? "ran" : "skipped", rep->effects[i].why);
+    if (w < 0) break;
+    off += (size_t)w;
+  }
+}
+
+static void quality_text(const gi_quality *q, char *buf, size_t size) {
+  snprintf(buf, size, "levels=%d res=%d voxel0=%.9g cones=%d aperture_deg=%g step=%g bounces=%d "
+                      "light_samples=%d probe_samples=%d seed=%llu",
+           q->levels, q->res, q->voxel0, q->cones, q->aperture_deg, q->step, q->bounces,
+           q->light_samples, q->probe_samples, (unsigned long long)q->seed);
+}
+
+gi_result gi_probes_write_exr(const char *path, const gi_probe *probes, size_t n, const gi_scene *scene,
+                              const double at[3], const gi_bake_report *rep, int use_half,
+                              gi_error_info *err) {
+  if (!path || !probes || n == 0 || !rep)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "probe EXR: nothing to write");
+  if (n > (1u << 24)) return gi__fail(err, GI_ERR_LIMIT, "probe EXR: %zu probes exceed 2^24", n);
+  enum { MAXCH = 3 + 3 + 3 + 3 + 1 + 27 };
+  char names[MAXCH][32];
+  float *planes = calloc((size_t)MAXCH * n, sizeof(float));
+  if (!planes) return gi__fail(err, GI_ERR_NOMEM, "probe EXR: out of memory");
+  gi_exr_channel ch[MAXCH];
+  int nc = 0;
+  int ao = rep->effects[GI_FX_AO].ran;
+#define ADD(fmt, ...) (snprintf(names[nc], sizeof names[nc], fmt, __VA_ARGS__), ch[nc].name = names[nc], \
+                       ch[nc].data = planes + (size_t)nc * n, nc++)
+  for (int k = 0; k < 3; k++) {
+    int base = nc;
+    ADD("%c", rgb[k]);
+    ADD("irradiance.%c", rgb[k]);
+    ADD("direct.%c", rgb[k]);
+    ADD("indirect.%c", rgb[k]);
+    for (size_t i = 0; i < n; i++) {
+      planes[(size_t)(base + 0) * n + i] = probes[i].irradiance[k];
+      planes[(size_t)(base + 1) * n + i] = probes[i].irradiance[k];
+      planes[(size_t)(base + 2) * n + i] = probes[i].direct[k];
+      planes[(size_t)(base + 3) * n + i] = probes[i].indirect[k];
+    }
+  }
+  if (ao) {
+    int base = nc;
+    ADD("%s", "ao.Y");
+    for (size_t i = 0; i < n; i++) planes[(size_t)base * n + i] = probes[i].ao;
+  }
+  for (int c = 0; c < 9; c++)
+    for (int k = 0; k < 3; k++) {
+      int base = nc;
+      ADD("sh.%s.%c", sh_names[c], rgb[k]);
+      for (size_t i = 0; i < n; i++) planes[(size_t)base * n + i] = probes[i].sh[c][k];
+    }
+#undef ADD
+  char vp[128], qual[256], fx[1200], ver[64];
+  snprintf(vp, sizeof vp, "%.17g,%.17g,%.17g", at[0], at[1], at[2]);
+  quality_text(&rep->quality, qual, sizeof qual);
+  effects_text(rep, fx, sizeof fx);
+  snprintf(ver, sizeof ver, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
+  gi_exr_attr attrs[] = {
+      {"gi.scene", scene ? gi_scene_name(scene) : ""},
+      {"gi.viewpoint", vp},
+      {"gi.quality", qual},
+      {"gi.effects", fx},
+      {"gi.version", ver},
+      {"gi.kind", "probe"},
+      {"gi.sh", "SH L2 irradiance, real basis L00 L1-1 L10 L11 L2-2 L2-1 L20 L21 L22 over world x,y,z; "
+                "E(n) = sum sh_i Y_i(n)"},
+  };
+  gi_exr_image img = {.width = (int)n, .height = 1, .use_half = use_half, .compression = GI_EXR_ZIP,
+                      .num_channels = (size_t)nc, .channels = ch,
+                      .num_attrs = sizeof attrs / sizeof attrs[0], .attrs = attrs};
+  gi_result rc = gi_exr_write(path, &img, err);
+  free(planes);
+  return rc;
+}
+
+/* Dense copies of one level in window order (x fastest), from toroidal storage. */
+typedef struct {
+  float *density, *cd, *albedo, *normal, *faces[6];
+} level_dense;
+
+static void free_dense(level_dense *ld) {
+  free(ld->density); free(ld->cd); free(ld->albedo); free(ld->normal);
+  for (int f = 0; f < 6; f++) free(ld->faces[f]);
+}
+
+static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_dense *ld) {
+  const gi_level *L = &c->lv[d];
+  int R = c->R;
+  size_t vox = (size_t)R * R * R;
+  memset(ld, 0, sizeof *ld);
+  ld->density = calloc(vox, sizeof(float));
+  ld->cd = calloc(vox * 3, sizeof(float));
+  ld->albedo = calloc(vox * 3, sizeof(float));
+  ld->normal = calloc(vox * 3, sizeof(float));
+  if (!ld->density || !ld->cd || !ld->albedo || !ld->normal) return GI_ERR_NOMEM;
+  if (faces)
+    for (int f = 0; f < 6; f++)
+      if (!(ld->faces[f] = calloc(vox * 3, sizeof(float)))) return GI_ERR_NOMEM;
+  for (int k = 0; k < R; k++)
+    for (int j = 0; j < R; j++)
+      for (int i = 0; i < R; i++) {
+        uint32_t slot = gi__slot(L->cell0[0] + i, L->cell0[1] + j, L->cell0[2] + k, R);
+        size_t o = (size_t)i + (size_t)R * ((size_t)j + (size_t)R * k);
+        const gi_vgeo *g = &L->geo[slot];
+        const gi_vrad *r = &L->rad[slot];
+        float dens = (r->alpha[0] + r->alpha[1] + r->alpha[2]) / 3.f;
+        ld->density[o] = dens;
+        if (g->area > 0) {
+          /* Shown colour: the brighter side's outgoing radiance plus emission. */
+          float lp = gi__lum(L->side[slot][0]), ln = gi__lum(L->side[slot][1]);
+          const float *E = L->side[slot][lp >= ln ? 0 : 1];
+          for (int a = 0; a < 3; a++) {
+            ld->cd[3 * o + a] = g->albedo[a] / PI_F * E[a] + g->emission[a];
+            ld->albedo[3 * o + a] = g->albedo[a];
+            ld->normal[3 * o + a] = g->normal[a];
+          }
+        }
+        if (faces)
+          for (int f = 0; f < 6; f++)
+            for (int a = 0; a < 3; a++) ld->faces[f][3 * o + a] = r->p[f][a];
+      }
+  return GI_OK;
+}
+
+gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces, gi_error_info *err) {
+  if (!c || !path) return gi__fail(err, GI_ERR_INVALID_ARG, "VDB: nothing to write");
+  static const char *const face_names[6] = {"px", "nx", "py", "ny", "pz", "nz"};
+  int n = c->n;
+  int per = 4 + (faces ? 6 : 0);
+  size_t ng = (size_t)n * per + 2;
+  gi_vdb_grid *grids = calloc(ng, sizeof *grids);
+  level_dense *ld = calloc((size_t)n, sizeof *ld);
+  char(*names)[48] = calloc(ng, sizeof *names);
+  gi_vdb_meta(*meta)[6] = calloc((size_t)n, sizeof *meta);
+  char(*vp)[160] = calloc((size_t)n, sizeof *vp);
+  gi_result rc = GI_OK;
+  if (!grids || !ld || !names || !meta || !vp) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "VDB '%s': out of memory", path);
+    goto done;
+  }
+  size_t g = 0;
+  char viewpoint[160];
+  snprintf(viewpoint, sizeof viewpoint, "%.17g,%.17g,%.17g", c->at_world[0], c->at_world[1], c->at_world[2]);
+  for (int d = 0; d < n; d++) {
+    if (fill_dense(c, d, faces, &ld[d]) != GI_OK) {
+      rc = gi__fail(err, GI_ERR_NOMEM, "VDB '%s': out of memory for level %d", path, d);
+      goto done;
+    }
+    const gi_level *L = &c->lv[d];
+    snprintf(vp[d], sizeof vp[d], "%s", viewpoint);
+    meta[d][0] = (gi_vdb_meta){"gi.level", NULL, d};
+    meta[d][1] = (gi_vdb_meta){"gi.resolution", NULL, c->R};
+    meta[d][2] = (gi_vdb_meta){"gi.viewpoint", vp[d], 0};
+    meta[d][3] = (gi_vdb_meta){"gi.scene", gi_scene_name(c->scene), 0};
+    meta[d][4] = (gi_vdb_meta){"gi.voxel_size", NULL, L->s};
+    gi_vdb_grid base = {.dims = {c->R, c->R, c->R}, .voxel_size = L->s, .num_meta = 5, .meta = meta[d]};
+    for (int a = 0; a < 3; a++) base.origin[a] = (double)L->cell0[a] * L->s + c->scene->origin[a];
+    const struct { const char *suffix; gi_vdb_kind kind; const float *data; int fog; } list[4] = {
+        {"density", GI_VDB_FLOAT, ld[d].density, 1},
+        {"Cd", GI_VDB_VEC3, ld[d].cd, 0},
+        {"albedo", GI_VDB_VEC3, ld[d].albedo, 0},
+        {"normal", GI_VDB_VEC3, ld[d].normal, 0},
+    };
+    for (int i = 0; i < 4; i++) {
+      grids[g] = base;
+      snprintf(names[g], sizeof names[g], "L%d_%s", d, list[i].suffix);
+      grids[g].name = names[g];
+      grids[g].kind = list[i].kind;
+      grids[g].data = list[i].data;
+      grids[g].fog_volume = list[i].fog;
+      g++;
+    }
+    for (int f = 0; faces && f < 6; f++) {
+      grids[g] = base;
+      snprintf(names[g], sizeof names[g], "L%d_face_%s", d, face_names[f]);
+      grids[g].name = names[g];
+      grids[g].kind = GI_VDB_VEC3;
+      grids[g].data = ld[d].faces[f];
+      g++;
+    }
+    if (d == 0) {
+      /* The finest level again under the names viewers show first. */
+      grids[g] = grids[g - per];
+      grids[g].name = "density";
+      g++;
+      grids[g] = grids[g - per];
+      grids[g].name = "Cd";
+      g++;
+    }
+  }
+  char ver[64];
+  snprintf(ver, sizeof ver, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
+  gi_vdb_meta fm[] = {{"gi.scene", gi_scene_name(c->scene), 0}, {"gi.viewpoint", viewpoint, 0},
+                      {"gi.levels", NULL, n}, {"gi.version", ver, 0}};
+  rc = gi_vdb_write(path, grids, g, fm, sizeof fm / sizeof fm[0], err);
+done:
+  if (ld)
+    for (int d = 0; d < n; d++) free_dense(&ld[d]);
+  free(ld); free(grids); free(names); free(meta); free(vp);
+  return rc;
+}
