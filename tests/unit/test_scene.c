@@ -41,9 +41,718 @@ static void test_builder_box(void **state) {
   gi_mesh_builder_free(b);
 }
 
+
+/* A triangle with explicit world corners. */
+static void add_tri(gi_mesh_builder *b, const double p[9], uint32_t mat) {
+  uint32_t a = gi_mesh_builder_add_vertex(b, p[0], p[1], p[2]);
+  uint32_t c = gi_mesh_builder_add_vertex(b, p[3], p[4], p[5]);
+  uint32_t d = gi_mesh_builder_add_vertex(b, p[6], p[7], p[8]);
+  gi_mesh_builder_add_triangle(b, a, c, d, mat);
+}
+
+static void test_builder_drops(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = grey();
+  uint32_t mi = gi_mesh_builder_add_material(b, &m);
+  const double good[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const double nan1[9] = {NAN, 0, 0, 1, 0, 0, 0, 1, 0};
+  const double inf1[9] = {0, 0, 0, 1, INFINITY, 0, 0, 1, 0};
+  const double ninf[9] = {0, 0, 0, 1, 0, 0, 0, 1, -INFINITY};
+  const double coll[9] = {0, 0, 0, 1, 1, 1, 2, 2, 2};
+  const double tiny[9] = {0, 0, 0, 1, 0, 0, 2, 1e-14, 0}; /* height 1e-14 over length 2 */
+  add_tri(b, good, mi);
+  add_tri(b, nan1, mi);
+  add_tri(b, inf1, mi);
+  add_tri(b, ninf, mi);
+  add_tri(b, coll, mi);
+  add_tri(b, tiny, mi);
+  /* Repeated vertex index. */
+  uint32_t v = gi_mesh_builder_add_vertex(b, 5, 5, 5), w = gi_mesh_builder_add_vertex(b, 6, 5, 5);
+  gi_mesh_builder_add_triangle(b, v, v, w, mi);
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_OK);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.input_triangles, 7);
+  assert_int_equal(st.triangles, 1);
+  assert_int_equal(st.dropped_nonfinite, 3);
+  assert_int_equal(st.dropped_degenerate, 3);
+  /* Only the kept triangle's vertices remain; the origin is its bounds' centre. */
+  assert_int_equal(s->num_vertices, 3);
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  assert_true(lo[0] == 0 && lo[1] == 0 && lo[2] == 0 && hi[0] == 1 && hi[1] == 1 && hi[2] == 0);
+  assert_true(s->origin[0] == 0.5 && s->origin[1] == 0.5 && s->origin[2] == 0);
+  assert_string_equal(gi_scene_name(s), "unnamed");
+  gi_scene_release(s);
+
+  /* Bad indices are the caller's bug: a clear error, not a crash. */
+  gi_mesh_builder_add_triangle(b, 0, 1, 99, mi);
+  assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_ERR_INVALID_ARG);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, "vertex 99"));
+  gi_mesh_builder_free(b);
+
+  b = gi_mesh_builder_new();
+  gi_mesh_builder_add_material(b, &m);
+  add_tri(b, good, 3);
+  assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "material 3"));
+  gi_mesh_builder_free(b);
+}
+
+static void test_materials_and_emitters(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m0 = {.albedo = {1.5f, 0.5f, 0.25f}, .roughness = 1.f, .name = "bright"};
+  gi_material m1 = {.albedo = {0.5f, NAN, 0.5f}, .emission = {-1.f, 2.f, INFINITY}, .roughness = 2.f};
+  gi_material m2 = {.albedo = {0.2f, 0.2f, 0.2f}, .emission = {1.f, 1.f, 1.f}, .roughness = 0.5f, .specular = 0.1f};
+  uint32_t i0 = gi_mesh_builder_add_material(b, &m0);
+  uint32_t i1 = gi_mesh_builder_add_material(b, &m1);
+  uint32_t i2 = gi_mesh_builder_add_material(b, &m2);
+  assert_int_equal(i0, 0);
+  assert_int_equal(i2, 2);
+  const double t0[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};     /* area 0.5, not emissive */
+  const double t1[9] = {0, 0, 1, 2, 0, 1, 0, 2, 1};     /* area 2, emission (0,2,0) */
+  const double t2[9] = {0, 0, 2, 1, 0, 2, 0, 1, 2};     /* area 0.5, emission (1,1,1) */
+  add_tri(b, t0, i0);
+  add_tri(b, t1, i1);
+  add_tri(b, t2, i2);
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "mats", NULL, &s, &err), GI_OK);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.clamped_albedo, 2); /* 1.5 -> 1, and the NaN material */
+  assert_int_equal(gi_scene_num_materials(s), 3);
+  const gi_material *a = gi_scene_material(s, 0);
+  assert_true(a->albedo[0] == 1.f && a->albedo[1] == 0.5f && a->albedo[2] == 0.25f);
+  assert_string_equal(a->name, "bright");
+  const gi_material *c = gi_scene_material(s, 1);
+  assert_true(c->albedo[1] == 0.f);
+  assert_true(c->emission[0] == 0.f && c->emission[1] == 2.f && c->emission[2] == 0.f);
+  assert_true(c->roughness == 1.f);
+  assert_null(gi_scene_material(s, 3));
+  /* Emitters: triangles 1 and 2; power = luminance * area. */
+  assert_int_equal(st.emissive_triangles, 2);
+  assert_int_equal(s->num_emitters, 2);
+  assert_int_equal(s->emitter_tri[0], 1);
+  assert_int_equal(s->emitter_tri[1], 2);
+  double p1 = 0.7152 * 2.0 * 2.0, p2 = 1.0 * 0.5;
+  assert_float_equal(s->emitter_cdf[0], p1 / (p1 + p2), 1e-5);
+  assert_true(s->emitter_cdf[1] == 1.f);
+  assert_float_equal(s->emitter_area_total, 2.5, 1e-6);
+  /* Emitters present: no default lights even when asked. */
+  gi_scene_release(s);
+  gi_scene_options o = {.default_lights = 1};
+  assert_int_equal(gi_scene_build(b, "mats", &o, &s, &err), GI_OK);
+  assert_int_equal(gi_scene_num_lights(s), 0);
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.default_lights_added, 0);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+}
+
+static void test_lights(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  double lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+  gi_mesh_builder_add_box(b, lo, hi, 0); /* no materials: the default grey */
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_scene_options o = {.default_lights = 1};
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_OK);
+  assert_int_equal(gi_scene_num_materials(s), 1);
+  assert_float_equal(gi_scene_material(s, 0)->albedo[0], 0.8, 1e-6);
+  assert_int_equal(gi_scene_num_lights(s), 2);
+  const gi_light *sun = gi_scene_light(s, 0), *sky = gi_scene_light(s, 1);
+  assert_int_equal(sun->type, GI_LIGHT_SUN);
+  assert_int_equal(sky->type, GI_LIGHT_SKY);
+  assert_true(sun->direction[1] < -0.8f); /* travels down Y */
+  assert_float_equal(sun->direction[0] * sun->direction[0] + sun->direction[1] * sun->direction[1] +
+                         sun->direction[2] * sun->direction[2], 1.0, 1e-6);
+  assert_float_equal(sun->color[0], 3.0, 1e-6);
+  assert_float_equal(sky->color[2], 0.4, 1e-6);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.default_lights_added, 1);
+  assert_int_equal(st.lights, 2);
+  gi_scene_release(s);
+
+  o.up = GI_UP_Z;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_OK);
+  assert_int_equal(gi_scene_up(s), GI_UP_Z);
+  assert_true(gi_scene_light(s, 0)->direction[2] < -0.8f); /* travels down Z */
+  gi_scene_release(s);
+
+  /* Caller's lights: copied, directions normalised, no defaults added. */
+  gi_light l[2] = {{.type = GI_LIGHT_SUN, .color = {1, 1, 1}, .direction = {0, 0, -2}},
+                   {.type = GI_LIGHT_POINT, .color = {5, 5, 5}, .position = {1, 2, 3}}};
+  o.lights = l;
+  o.num_lights = 2;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_OK);
+  assert_int_equal(gi_scene_num_lights(s), 2);
+  assert_true(gi_scene_light(s, 0)->direction[2] == -1.f);
+  assert_true(gi_scene_light(s, 1)->position[2] == 3.0);
+  assert_null(gi_scene_light(s, 2));
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.default_lights_added, 0);
+  gi_scene_release(s);
+
+  l[1].position[0] = NAN;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_NONFINITE);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, "light 1"));
+  l[1].position[0] = 0;
+  l[0].direction[2] = 0;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "light 0"));
+  gi_mesh_builder_free(b);
+}
+
+static void test_empty_scene(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "empty", NULL, &s, &err), GI_OK);
+  assert_null(s->rtc);
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  for (int k = 0; k < 3; k++) assert_true(lo[k] == 0 && hi[k] == 0);
+  float org[3] = {0, 0, 0}, dir[3] = {1, 0, 0}, tn = 0, tf = 10;
+  uint8_t vis = 0;
+  gi__occluded(s, 1, org, dir, &tn, &tf, &vis);
+  assert_int_equal(vis, 1);
+  float t;
+  uint32_t tri;
+  float ng[3];
+  assert_int_equal(gi__intersect1(s, org, dir, 0, 10, &t, &tri, ng), 0);
+  uint32_t *ids = NULL;
+  size_t n = 0, cap = 0;
+  float blo[3] = {-1, -1, -1}, bhi[3] = {1, 1, 1};
+  assert_int_equal(gi__query_box(s, blo, bhi, &ids, &n, &cap), GI_OK);
+  assert_int_equal(n, 0);
+  assert_ptr_equal(gi_scene_retain(s), s);
+  gi_scene_release(s);
+  gi_scene_release(s);
+  gi_scene_release(NULL);
+  gi_mesh_builder_free(b);
+  gi_mesh_builder_free(NULL);
+}
+
+static void test_far_origin(void **state) {
+  gi_scene *s[2] = {NULL, NULL};
+  const double base[2][3] = {{0, 0, 0}, {1e7, 0, 1e7}};
+  for (int i = 0; i < 2; i++) {
+    gi_mesh_builder *b = gi_mesh_builder_new();
+    gi_material m = grey();
+    gi_mesh_builder_add_material(b, &m);
+    double lo[3] = {base[i][0], base[i][1], base[i][2]};
+    double hi[3] = {base[i][0] + 1, base[i][1] + 1, base[i][2] + 1};
+    gi_mesh_builder_add_box(b, lo, hi, 0);
+    gi_error_info err = {0};
+    assert_int_equal(gi_scene_build(b, "far", NULL, &s[i], &err), GI_OK);
+    double blo[3], bhi[3];
+    gi_scene_bounds(s[i], blo, bhi);
+    for (int k = 0; k < 3; k++) {
+      assert_true(blo[k] == lo[k]);
+      assert_true(bhi[k] == hi[k]);
+      assert_true(s[i]->origin[k] == base[i][k] + 0.5);
+    }
+    gi_mesh_builder_free(b);
+  }
+  assert_int_equal(s[0]->num_vertices, s[1]->num_vertices);
+  assert_memory_equal(s[0]->vertices, s[1]->vertices, 3 * sizeof(float) * s[0]->num_vertices);
+  assert_memory_equal(s[0]->indices, s[1]->indices, 3 * sizeof(uint32_t) * s[0]->num_triangles);
+  gi_scene_release(s[0]);
+  gi_scene_release(s[1]);
+}
+
+/* xorshift: a fixed, portable random sequence. */
+static uint64_t rng_state = 88172645463325252ull;
+static double rnd(void) {
+  rng_state ^= rng_state << 13;
+  rng_state ^= rng_state >> 7;
+  rng_state ^= rng_state << 17;
+  return (double)(rng_state >> 11) / 9007199254740992.0;
+}
+
+/* Parametric range [t0, t1] of p + t*d inside the box, clipped to [0, 1]; 0 when missed. */
+static int slab(const double p[3], const double d[3], const double lo[3], const double hi[3], double *t0,
+                double *t1) {
+  double a = 0, b = 1;
+  for (int k = 0; k < 3; k++) {
+    if (d[k] == 0) {
+      if (p[k] < lo[k] || p[k] > hi[k]) return 0;
+      continue;
+    }
+    double u = (lo[k] - p[k]) / d[k], v = (hi[k] - p[k]) / d[k];
+    if (u > v) { double w = u; u = v; v = w; }
+    if (u > a) a = u;
+    if (v < b) b = v;
+  }
+  *t0 = a;
+  *t1 = b;
+  return a <= b;
+}
+
+static int inside(const double p[3], const double lo[3], const double hi[3]) {
+  return p[0] > lo[0] && p[0] < hi[0] && p[1] > lo[1] && p[1] < hi[1] && p[2] > lo[2] && p[2] < hi[2];
+}
+
+/* 1 when the segment p..p+d crosses the box's surface (a closed shell). */
+static int blocks(const double p[3], const double d[3], const double lo[3], const double hi[3]) {
+  double t0, t1, q[3] = {p[0] + d[0], p[1] + d[1], p[2] + d[2]};
+  if (!slab(p, d, lo, hi, &t0, &t1)) return 0;
+  return !(inside(p, lo, hi) && inside(q, lo, hi));
+}
+
+static gi_scene *box_scene(const double lo[3], const double hi[3]) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = grey();
+  gi_mesh_builder_add_material(b, &m);
+  gi_mesh_builder_add_box(b, lo, hi, 0);
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "box", NULL, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+static void test_occluded_box(void **state) {
+  const double lo[3] = {10, 20, 30}, hi[3] = {12, 21, 33};
+  gi_scene *s = box_scene(lo, hi);
+  enum { N = 1000 };
+  static float org[3 * N], dir[3 * N], tn[N], tf[N];
+  static uint8_t vis[N], expect[N];
+  int n = 0, skipped = 0, blocked = 0;
+  const double eps = 1e-3;
+  while (n < N) {
+    double p[3], d[3];
+    for (int k = 0; k < 3; k++) {
+      p[k] = lo[k] - 2 + rnd() * (hi[k] - lo[k] + 4);
+      d[k] = lo[k] - 2 + rnd() * (hi[k] - lo[k] + 4) - p[k];
+    }
+    /* Skip grazing segments: the answer must agree for the box grown and shrunk by eps. */
+    double glo[3], ghi[3], slo[3], shi[3];
+    for (int k = 0; k < 3; k++) { glo[k] = lo[k] - eps; ghi[k] = hi[k] + eps; slo[k] = lo[k] + eps; shi[k] = hi[k] - eps; }
+    int e = blocks(p, d, lo, hi);
+    if (blocks(p, d, glo, ghi) != e || blocks(p, d, slo, shi) != e) { skipped++; continue; }
+    for (int k = 0; k < 3; k++) {
+      org[3 * n + k] = (float)(p[k] - s->origin[k]);
+      dir[3 * n + k] = (float)d[k];
+    }
+    tn[n] = 0.f;
+    tf[n] = 1.f;
+    expect[n] = !e;
+    blocked += e;
+    n++;
+  }
+  gi__occluded(s, N, org, dir, tn, tf, vis);
+  int wrong = 0;
+  for (int i = 0; i < N; i++) wrong += vis[i] != expect[i];
+  printf("occluded: %d segments, %d blocked, %d grazing skipped, %d wrong\n", N, blocked, skipped, wrong);
+  assert_int_equal(wrong, 0);
+  assert_true(blocked > 100 && blocked < 900);
+
+  /* Hand-made: through the -x wall, beside it, stopping short of it, starting past it. */
+  float o[4][3] = {{-3, 0, 0}, {-3, 0.6f, 0}, {-3, 0, 0}, {-0.5f, 0, 0}};
+  float dd[4][3] = {{2, 0, 0}, {2, 0, 0}, {1.9f, 0, 0}, {1, 0, 0}};
+  float a[4] = {0, 0, 0, 0}, z[4] = {1, 1, 1, 0.4f};
+  /* The box's local x range is [-1, 1]; segment 3 starts inside and stays inside. */
+  uint8_t v[4];
+  gi__occluded(s, 4, &o[0][0], &dd[0][0], a, z, v);
+  assert_int_equal(v[0], 0);
+  assert_int_equal(v[1], 1);
+  assert_int_equal(v[2], 1);
+  assert_int_equal(v[3], 1);
+  gi_scene_release(s);
+}
+
+static void test_intersect1_box(void **state) {
+  const double lo[3] = {-3, 1, 2}, hi[3] = {-1, 4, 2.5};
+  gi_scene *s = box_scene(lo, hi);
+  int hits = 0;
+  for (int i = 0; i < 500; i++) {
+    /* From a point outside towards a random point inside. */
+    double p[3], q[3], d[3];
+    for (int k = 0; k < 3; k++) {
+      p[k] = lo[k] - 5 + rnd() * (hi[k] - lo[k] + 10);
+      q[k] = lo[k] + (0.05 + 0.9 * rnd()) * (hi[k] - lo[k]);
+    }
+    if (inside(p, lo, hi)) continue;
+    double len = 0;
+    for (int k = 0; k < 3; k++) { d[k] = q[k] - p[k]; len += d[k] * d[k]; }
+    len = sqrt(len);
+    for (int k = 0; k < 3; k++) d[k] /= len;
+    double t0, t1;
+    double dd[3] = {d[0] * 100, d[1] * 100, d[2] * 100};
+    assert_true(slab(p, dd, lo, hi, &t0, &t1));
+    double texp = t0 * 100;
+    float o[3], df[3], ng[3], t;
+    uint32_t tri;
+    for (int k = 0; k < 3; k++) { o[k] = (float)(p[k] - s->origin[k]); df[k] = (float)d[k]; }
+    assert_int_equal(gi__intersect1(s, o, df, 0.f, INFINITY, &t, &tri, ng), 1);
+    assert_float_equal(t, texp, 1e-4);
+    assert_true(tri < 12);
+    /* The hit face's outward normal: the axis where the entry point lies on the box. */
+    double h[3] = {p[0] + texp * d[0], p[1] + texp * d[1], p[2] + texp * d[2]};
+    double best = 1e9;
+    int axis = 0, side = 0;
+    for (int k = 0; k < 3; k++) {
+      if (fabs(h[k] - lo[k]) < best) { best = fabs(h[k] - lo[k]); axis = k; side = -1; }
+      if (fabs(h[k] - hi[k]) < best) { best = fabs(h[k] - hi[k]); axis = k; side = 1; }
+    }
+    assert_float_equal(ng[axis], (float)side, 1e-6);
+    /* Too short a ray misses. */
+    assert_int_equal(gi__intersect1(s, o, df, 0.f, (float)(texp * 0.99), &t, &tri, ng), 0);
+    hits++;
+  }
+  assert_true(hits > 400);
+  gi_scene_release(s);
+}
+
+static int cmp_u32(const void *a, const void *b) {
+  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  return x < y ? -1 : x > y;
+}
+
+static void test_query_box(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = grey();
+  gi_mesh_builder_add_material(b, &m);
+  for (int i = 0; i < 5000; i++) {
+    double c[3] = {1000 + rnd() * 100, rnd() * 100, -500 + rnd() * 100}, p[9];
+    double size = 0.2 + 4 * rnd() * rnd();
+    for (int j = 0; j < 9; j++) p[j] = c[j % 3] + (rnd() - 0.5) * size;
+    add_tri(b, p, 0);
+  }
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "soup", NULL, &s, &err), GI_OK);
+  assert_int_equal(s->num_triangles, 5000);
+  uint32_t *ids = NULL, *want = malloc(5000 * sizeof *want);
+  size_t n = 0, cap = 0, total = 0;
+  for (int q = 0; q < 50; q++) {
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++) {
+      float c = s->lo[k] + (float)rnd() * (s->hi[k] - s->lo[k]);
+      float h = (float)(1.0 + 25 * rnd() * rnd());
+      lo[k] = c - h;
+      hi[k] = c + h;
+    }
+    n = 0;
+    assert_int_equal(gi__query_box(s, lo, hi, &ids, &n, &cap), GI_OK);
+    size_t nw = 0;
+    for (uint32_t t = 0; t < s->num_triangles; t++) {
+      int hit = 1;
+      for (int k = 0; k < 3; k++) {
+        float mn = INFINITY, mx = -INFINITY;
+        for (int j = 0; j < 3; j++) {
+          float x = s->vertices[3 * s->indices[3 * t + j] + k];
+          mn = fminf(mn, x);
+          mx = fmaxf(mx, x);
+        }
+        if (mx < lo[k] || mn > hi[k]) hit = 0;
+      }
+      if (hit) want[nw++] = t;
+    }
+    if (n) qsort(ids, n, sizeof *ids, cmp_u32);
+    assert_int_equal(n, nw); /* equal counts: no duplicates, none missing */
+    if (nw) assert_memory_equal(ids, want, nw * sizeof *want);
+    total += nw;
+  }
+  printf("query_box: 50 boxes, %zu triangles found in all, each matching brute force\n", total);
+  assert_true(total > 500);
+  free(ids);
+  free(want);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+}
+
+/* --- import ------------------------------------------------------------ */
+
+static gi_scene *load_ok(const char *path, const gi_scene_options *o) {
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_result r = gi_scene_load(path, o, &s, &err);
+  if (r != GI_OK) fprintf(stderr, "load %s: %s\n", path, err.msg);
+  assert_int_equal(r, GI_OK);
+  assert_non_null(s);
+  return s;
+}
+
+static void test_cornell_box(void **state) {
+  TU_SKIP_IF_NO_SCENE(path, "cornell-box/cornell-box.obj");
+  gi_scene *s = load_ok(path, NULL);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  /* The file has 31 faces: 7 quads (light, floor, 2 ceiling, back, two
+   * walls) and 24 triangles (the two boxes), so 7*2 + 24 = 38, none dropped. */
+  assert_int_equal(st.input_triangles, 38);
+  assert_int_equal(st.triangles, 38);
+  assert_int_equal(st.dropped_degenerate + st.dropped_nonfinite, 0);
+  /* white, red, green, light (assimp's unused DefaultMaterial is left out). */
+  assert_int_equal(st.materials, 4);
+  assert_int_equal(st.emissive_triangles, 2);
+  assert_int_equal(st.lights, 0);
+  assert_int_equal(st.default_lights_added, 0);
+  int found_light = 0, found_red = 0;
+  for (size_t i = 0; i < gi_scene_num_materials(s); i++) {
+    const gi_material *m = gi_scene_material(s, i);
+    if (strcmp(m->name, "light") == 0) {
+      found_light = 1;
+      assert_float_equal(m->emission[0], 18.387, 1e-4);
+      assert_float_equal(m->emission[1], 10.9873, 1e-4);
+      assert_float_equal(m->emission[2], 2.75357, 1e-5);
+    } else {
+      assert_true(m->emission[0] == 0 && m->emission[1] == 0 && m->emission[2] == 0);
+    }
+    if (strcmp(m->name, "red") == 0) {
+      found_red = 1;
+      assert_float_equal(m->albedo[0], 0.570068, 1e-6);
+      assert_float_equal(m->albedo[1], 0.0430135, 1e-6);
+      assert_float_equal(m->albedo[2], 0.0443706, 1e-6);
+      assert_float_equal(m->roughness, 1.0, 0);
+      assert_float_equal(m->specular, 0.0, 0);
+    }
+  }
+  assert_true(found_light && found_red);
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  const double elo[3] = {0, 0, 0}, ehi[3] = {556, 548.8, 559.2};
+  for (int k = 0; k < 3; k++) {
+    assert_float_equal(lo[k], elo[k], 1e-3);
+    assert_float_equal(hi[k], ehi[k], 1e-3);
+  }
+  assert_string_equal(gi_scene_name(s), "cornell-box");
+  assert_int_equal(gi_scene_up(s), GI_UP_Y);
+  /* The light quad is the emitter area: 130 x 105 mm. */
+  assert_float_equal(s->emitter_area_total, 130.0 * 105.0, 1.0);
+  /* A ray straight up from the floor's centre hits the light or the ceiling at y = 548.3..548.8. */
+  float org[3] = {(float)(278 - s->origin[0]), (float)(1 - s->origin[1]), (float)(279.5 - s->origin[2])};
+  float dir[3] = {0, 1, 0}, t, ng[3];
+  uint32_t tri;
+  assert_int_equal(gi__intersect1(s, org, dir, 0, 1e4f, &t, &tri, ng), 1);
+  assert_true(t > 547 && t < 548);
+  assert_true(s->materials[s->tri_material[tri]].emission[0] > 0);
+  gi_scene_release(s);
+}
+
+static void test_munich(void **state) {
+  TU_SKIP_IF_NO_SCENE(path, "munich/munich.obj");
+  gi_scene_options o = {.up = GI_UP_Z, .default_lights = 1};
+  gi_scene *s = load_ok(path, &o);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  /* 38938 'f' lines, all triangles, none degenerate (the README's figure). */
+  assert_int_equal(st.input_triangles, 38938);
+  assert_int_equal(st.triangles, 38938);
+  /* The MTL defines 6 (brick, concrete, marble, metal, wood, default); 5 are used. */
+  assert_int_equal(st.materials, 6);
+  assert_int_equal(st.emissive_triangles, 0);
+  assert_int_equal(st.default_lights_added, 1);
+  assert_int_equal(gi_scene_num_lights(s), 2);
+  assert_int_equal(gi_scene_light(s, 0)->type, GI_LIGHT_SUN);
+  assert_true(gi_scene_light(s, 0)->direction[2] < -0.8f);
+  assert_int_equal(gi_scene_light(s, 1)->type, GI_LIGHT_SKY);
+  assert_int_equal(gi_scene_up(s), GI_UP_Z);
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  /* ~1475 x 1206 x 99 m, ground at z = 0. */
+  assert_float_equal(hi[0] - lo[0], 1475.467, 0.01);
+  assert_float_equal(hi[1] - lo[1], 1205.636, 0.01);
+  assert_float_equal(lo[2], 0.0, 1e-3);
+  assert_float_equal(hi[2], 98.57, 1e-3);
+  gi_scene_release(s);
+
+  /* scale multiplies positions. */
+  o.scale = 0.5;
+  s = load_ok(path, &o);
+  double lo2[3], hi2[3];
+  gi_scene_bounds(s, lo2, hi2);
+  for (int k = 0; k < 3; k++) {
+    assert_float_equal(lo2[k], 0.5 * lo[k], 1e-3);
+    assert_float_equal(hi2[k], 0.5 * hi[k], 1e-3);
+  }
+  gi_scene_release(s);
+}
+
+static void expect_fail(const char *path, gi_result code) {
+  gi_scene *s = (gi_scene *)1;
+  gi_error_info err = {0};
+  gi_result r = gi_scene_load(path, NULL, &s, &err);
+  printf("  %s -> %s: %s\n", path, gi_err_name(r), err.msg);
+  assert_int_not_equal(r, GI_OK);
+  if (code != GI_OK) assert_int_equal(r, code);
+  assert_int_equal(err.code, r);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, path));
+}
+
+static void test_bad_files(void **state) {
+  char missing[4200];
+  snprintf(missing, sizeof missing, "%s/no-such-file.obj", tu_tmpdir());
+  expect_fail(missing, GI_ERR_NOT_FOUND);
+  {
+    gi_error_info err = {0};
+    gi_scene *s;
+    gi_scene_load(missing, NULL, &s, &err);
+    assert_non_null(strstr(err.msg, "cannot open: No such file or directory"));
+  }
+  const char *p = tu_write_file("empty.obj", "", 0);
+  expect_fail(p, GI_ERR_FORMAT);
+  {
+    gi_error_info err = {0};
+    gi_scene *s;
+    gi_scene_load(p, NULL, &s, &err);
+    assert_non_null(strstr(err.msg, "is empty"));
+  }
+  expect_fail(tu_tmpdir(), GI_ERR_IO); /* a directory */
+  const char trunc[] = "v 1 2";
+  expect_fail(tu_write_file("trunc.obj", trunc, strlen(trunc)), GI_ERR_FORMAT);
+  const char trunc2[] = "# a longer file cut off in the middle of a face\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2";
+  expect_fail(tu_write_file("trunc2.obj", trunc2, strlen(trunc2)), GI_OK);
+  const char oor[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n";
+  expect_fail(tu_write_file("oor.obj", oor, strlen(oor)), GI_ERR_FORMAT);
+  const char lines[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\np 3\n";
+  expect_fail(tu_write_file("lines.obj", lines, strlen(lines)), GI_ERR_EMPTY);
+  unsigned char junk[4096];
+  for (size_t i = 0; i < sizeof junk; i++) junk[i] = (unsigned char)(rnd() * 256);
+  expect_fail(tu_write_file("junk.obj", junk, sizeof junk), GI_OK);
+  expect_fail(tu_write_file("junk.ply", junk, sizeof junk), GI_ERR_FORMAT);
+  memcpy(junk, "ply\n", 4); /* junk after a valid magic */
+  expect_fail(tu_write_file("junk2.ply", junk, sizeof junk), GI_OK);
+  const char huge[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                      "element face 1000000000\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+  expect_fail(tu_write_file("huge.ply", huge, strlen(huge)), GI_ERR_FORMAT);
+  const char hugeb[] = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                       "property float z\nelement face 1000000000\nproperty list uchar int vertex_indices\nend_header\n";
+  expect_fail(tu_write_file("hugeb.ply", hugeb, strlen(hugeb)), GI_ERR_FORMAT);
+  const char limit[] = "ply\nformat binary_little_endian 1.0\nelement face 4000000000\nproperty list uchar int v\nend_header\n";
+  expect_fail(tu_write_file("limit.ply", limit, strlen(limit)), GI_ERR_LIMIT);
+  /* Only non-finite triangles: nothing left, a clear GI_ERR_EMPTY. */
+  const char allnan[] = "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  expect_fail(tu_write_file("allnan.obj", allnan, strlen(allnan)), GI_ERR_EMPTY);
+}
+
+static void test_nonfinite_obj(void **state) {
+  const char obj[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 0\nv inf 0 0\nv 0 -inf 1\n"
+                     "f 1 2 3\nf 4 2 3\nf 1 5 3\nf 1 2 6\nf 1 1 2\n";
+  gi_scene *s = load_ok(tu_write_file("nan.obj", obj, strlen(obj)), NULL);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.input_triangles, 5);
+  assert_int_equal(st.triangles, 1);
+  assert_int_equal(st.dropped_nonfinite, 3);
+  assert_int_equal(st.dropped_degenerate, 1);
+  assert_string_equal(gi_scene_name(s), "nan");
+  gi_scene_release(s);
+}
+
+static void test_obj_materials(void **state) {
+  const char mtl[] = "newmtl glossy\nKd 0.2 0.3 0.4\nKs 0.5 0.5 0.5\nNs 98\n"
+                     "newmtl lamp\nKd 1.5 0.5 0.5\nKe 2 3 4\n";
+  tu_write_file("mats.mtl", mtl, strlen(mtl));
+  const char obj[] = "mtllib mats.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl glossy\nf 1 2 3 4\n"
+                     "usemtl lamp\nf 1 3 2\n";
+  gi_scene *s = load_ok(tu_write_file("mats.obj", obj, strlen(obj)), NULL);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.triangles, 3);
+  assert_int_equal(st.materials, 2);
+  assert_int_equal(st.clamped_albedo, 1);
+  assert_int_equal(st.emissive_triangles, 1);
+  const gi_material *g = NULL, *l = NULL;
+  for (size_t i = 0; i < gi_scene_num_materials(s); i++) {
+    const gi_material *m = gi_scene_material(s, i);
+    if (!strcmp(m->name, "glossy")) g = m;
+    if (!strcmp(m->name, "lamp")) l = m;
+  }
+  assert_non_null(g);
+  assert_non_null(l);
+  assert_float_equal(g->roughness, sqrt(2.0 / 100.0), 1e-6);
+  assert_float_equal(g->specular, 0.5, 1e-6);
+  assert_float_equal(g->albedo[2], 0.4, 1e-6);
+  assert_true(l->albedo[0] == 1.f);
+  assert_float_equal(l->emission[1], 3.0, 1e-6);
+  assert_float_equal(l->roughness, 1.0, 0);
+  assert_float_equal(l->specular, 0.0, 0);
+  gi_scene_release(s);
+}
+
+/* One triangle (0,0,0),(1,0,0),(0,1,0), an emissive material and a point
+ * light on a node translated to (1,2,3). Buffer: 9 floats + 3 uint16 + pad. */
+static const char gltf[] =
+    "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,"
+    "\"scenes\":[{\"nodes\":[0,1]}],"
+    "\"nodes\":[{\"mesh\":0},{\"translation\":[1,2,3],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}],"
+    "\"extensionsUsed\":[\"KHR_lights_punctual\"],"
+    "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[{\"type\":\"point\",\"color\":[1,0.5,0.25],\"intensity\":10}]}},"
+    "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1,\"material\":0}]}],"
+    "\"materials\":[{\"name\":\"glow\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.2,0.4,0.6,1],"
+    "\"metallicFactor\":0,\"roughnessFactor\":0.5},\"emissiveFactor\":[1,0.5,0.25]}],"
+    "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
+    "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}],"
+    "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+    "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
+    "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+    "\"min\":[0,0,0],\"max\":[1,1,0]},"
+    "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}";
+
+static void test_gltf(void **state) {
+  gi_scene_options o = {.scale = 2.0};
+  gi_scene *s = load_ok(tu_write_file("tri.gltf", gltf, strlen(gltf)), &o);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.triangles, 1);
+  assert_int_equal(st.materials, 1);
+  assert_int_equal(st.emissive_triangles, 1);
+  const gi_material *m = gi_scene_material(s, 0);
+  assert_string_equal(m->name, "glow");
+  assert_float_equal(m->albedo[0], 0.2, 1e-6);
+  assert_float_equal(m->albedo[1], 0.4, 1e-6);
+  assert_float_equal(m->albedo[2], 0.6, 1e-6);
+  assert_float_equal(m->emission[0], 1.0, 1e-6);
+  assert_float_equal(m->emission[1], 0.5, 1e-6);
+  assert_float_equal(m->emission[2], 0.25, 1e-6);
+  assert_float_equal(m->roughness, 0.5, 1e-6);
+  assert_float_equal(m->specular, 0.04, 1e-6); /* dielectric */
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  assert_true(lo[0] == 0 && lo[1] == 0 && lo[2] == 0 && hi[0] == 2 && hi[1] == 2 && hi[2] == 0);
+  assert_float_equal(s->emitter_area_total, 2.0, 1e-6);
+  /* The point light: node transform applied, then scaled. */
+  assert_int_equal(gi_scene_num_lights(s), 1);
+  const gi_light *l = gi_scene_light(s, 0);
+  assert_int_equal(l->type, GI_LIGHT_POINT);
+  assert_float_equal(l->position[0], 2.0, 1e-6);
+  assert_float_equal(l->position[1], 4.0, 1e-6);
+  assert_float_equal(l->position[2], 6.0, 1e-6);
+  /* assimp folds KHR_lights_punctual's intensity into the colour. */
+  assert_float_equal(l->color[0], 10.0, 1e-5);
+  assert_float_equal(l->color[1], 5.0, 1e-5);
+  assert_float_equal(l->color[2], 2.5, 1e-5);
+  assert_string_equal(gi_scene_name(s), "tri");
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_builder_box),
+      cmocka_unit_test(test_builder_drops),
+      cmocka_unit_test(test_materials_and_emitters),
+      cmocka_unit_test(test_lights),
+      cmocka_unit_test(test_empty_scene),
+      cmocka_unit_test(test_far_origin),
+      cmocka_unit_test(test_occluded_box),
+      cmocka_unit_test(test_intersect1_box),
+      cmocka_unit_test(test_query_box),
+      cmocka_unit_test(test_cornell_box),
+      cmocka_unit_test(test_munich),
+      cmocka_unit_test(test_bad_files),
+      cmocka_unit_test(test_nonfinite_obj),
+      cmocka_unit_test(test_obj_materials),
+      cmocka_unit_test(test_gltf),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,2 +1,356 @@
-/* io/import_assimp.c: placeholder until the module lands. */
-typedef int gi__placeholder_import_assimp;
+/* io/import_assimp.c: gi_scene_load, scene files through assimp's C API.
+ *
+ * Design: before assimp sees a file we check that it opens, is a regular
+ * non-empty file and, for PLY, that the element counts in its header fit in
+ * the bytes that follow (a header claiming 10^9 faces would otherwise make
+ * assimp reserve gigabytes). assimp then triangulates, joins vertices and
+ * pre-transforms everything into world space (lights included), and we copy
+ * triangle meshes into a gi_mesh_builder; points and lines are skipped.
+ * Non-finite positions are passed through so that gi_scene_build drops and
+ * counts those triangles; an index outside its mesh is a malformed file.
+ * Materials map OBJ (Kd, Ke, Ks, Ns) and glTF (baseColor, emissive,
+ * metallic/roughness) onto gi_material. assimp keeps its last error in a
+ * global string, so the import and the read of that string run under one
+ * mutex; loading is rare, serving is not, so this costs nothing that
+ * matters. assimp logs only when a logger is attached, and we attach none,
+ * so nothing goes to stdout. */
+#include <errno.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <assimp/cimport.h>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include "internal.h"
+#include "scene_internal.h"
+
+static pthread_mutex_t assimp_lock = PTHREAD_MUTEX_INITIALIZER;
+
+static int ends_with_ci(const char *s, const char *suffix) {
+  size_t n = strlen(s), m = strlen(suffix);
+  if (m > n) return 0;
+  for (size_t i = 0; i < m; i++) {
+    char a = s[n - m + i], b = suffix[i];
+    if (a >= 'A' && a <= 'Z') a = (char)(a - 'A' + 'a');
+    if (a != b) return 0;
+  }
+  return 1;
+}
+
+/* Size in bytes of a PLY scalar type name; 0 when unknown. */
+static int ply_type_size(const char *t) {
+  static const struct { const char *name; int size; } types[] = {
+      {"char", 1}, {"uchar", 1}, {"int8", 1}, {"uint8", 1}, {"short", 2}, {"ushort", 2},
+      {"int16", 2}, {"uint16", 2}, {"int", 4}, {"uint", 4}, {"int32", 4}, {"uint32", 4},
+      {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8}};
+  for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
+    if (strcmp(t, types[i].name) == 0) return types[i].size;
+  return 0;
+}
+
+/* Checks a PLY header's element counts against the data that follows: each
+ * element needs at least a few bytes, so a count the file cannot hold is a
+ * truncated or hostile file. Anything we do not understand is left to assimp. */
+static gi_result check_ply_header(const char *path, FILE *f, long long file_size, gi_error_info *err) {
+  char line[512];
+  int binary = -1;
+  long long header_end = 0;
+  long long need = 0;           /* minimum bytes for all elements */
+  long long count = 0, per = 0; /* current element */
+  char elem[64] = "";
+  if (!fgets(line, sizeof line, f) || strncmp(line, "ply", 3) != 0) return GI_OK;
+  while (fgets(line, sizeof line, f)) {
+    char a[64] = "", b[64] = "", c[64] = "", d[64] = "";
+    int n = sscanf(line, "%63s %63s %63s %63s", a, b, c, d);
+    if (n >= 2 && strcmp(a, "format") == 0) {
+      binary = strcmp(b, "ascii") != 0;
+    } else if (n >= 3 && strcmp(a, "element") == 0) {
+      need += count * per;
+      char *end;
+      errno = 0;
+      count = strtoll(c, &end, 10);
+      if (*end || errno || count < 0)
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY element '%s' has a bad count '%s'", path, b, c);
+      snprintf(elem, sizeof elem, "%s", b);
+      per = 0;
+      if (strcmp(b, "face") == 0 && count > ((long long)1 << 31))
+        return gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %lld faces; the limit is 2^31", path, count);
+    } else if (n >= 3 && strcmp(a, "property") == 0) {
+      /* ASCII: a digit and a separator; binary: the scalar, or a list's count. */
+      int size = ply_type_size(strcmp(b, "list") == 0 ? c : b);
+      per += binary == 1 ? (size ? size : 1) : 2;
+    } else if (n >= 1 && strcmp(a, "end_header") == 0) {
+      header_end = ftell(f);
+      need += count * per;
+      long long have = file_size - header_end;
+      if (need > have)
+        return gi__fail(err, GI_ERR_FORMAT,
+                        "scene file '%s': PLY header declares elements needing at least %lld bytes "
+                        "(last element '%s': %lld) but only %lld bytes follow the header; the file is truncated",
+                        path, need, elem, count, have);
+      return GI_OK;
+    }
+    /* Counts this large overflow the estimate; only a corrupt header has them. */
+    if (count > ((long long)1 << 40) || need > ((long long)1 << 60))
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY header declares an impossible element count", path);
+  }
+  return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY header has no end_header", path);
+}
+
+static float lum(const float c[3]) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+
+static int get_color(const struct aiMaterial *m, const char *key, unsigned type, unsigned idx, float out[3]) {
+  struct aiColor4D c;
+  if (aiGetMaterialColor(m, key, type, idx, &c) != aiReturn_SUCCESS) return 0;
+  out[0] = c.r; out[1] = c.g; out[2] = c.b;
+  return 1;
+}
+
+static int get_float(const struct aiMaterial *m, const char *key, unsigned type, unsigned idx, float *out) {
+  ai_real v;
+  unsigned int n = 1;
+  if (aiGetMaterialFloatArray(m, key, type, idx, &v, &n) != aiReturn_SUCCESS || n < 1) return 0;
+  *out = (float)v;
+  return 1;
+}
+
+static void convert_material(const struct aiMaterial *am, gi_material *m) {
+  memset(m, 0, sizeof *m);
+  float c[3];
+  /* glTF's base colour is the truer albedo when both are present. */
+  if (get_color(am, AI_MATKEY_BASE_COLOR, c) || get_color(am, AI_MATKEY_COLOR_DIFFUSE, c))
+    memcpy(m->albedo, c, sizeof c);
+  else
+    m->albedo[0] = m->albedo[1] = m->albedo[2] = 0.8f;
+  if (get_color(am, AI_MATKEY_COLOR_EMISSIVE, c)) {
+    float k = 1.f;
+    if (get_float(am, AI_MATKEY_EMISSIVE_INTENSITY, &k) && !(k >= 0.f)) k = 0.f;
+    for (int i = 0; i < 3; i++) m->emission[i] = c[i] * k;
+  }
+  float rough, metal, ns = 0.f, ks[3] = {0, 0, 0};
+  int has_rough = get_float(am, AI_MATKEY_ROUGHNESS_FACTOR, &rough);
+  int has_metal = get_float(am, AI_MATKEY_METALLIC_FACTOR, &metal);
+  int has_ks = get_color(am, AI_MATKEY_COLOR_SPECULAR, ks) && (ks[0] > 0 || ks[1] > 0 || ks[2] > 0);
+  if (has_rough) {
+    m->roughness = rough;
+    /* Metallic/roughness: normal-incidence reflectance between 4 % (dielectric) and the base colour (metal). */
+    float mt = has_metal ? metal : 0.f;
+    m->specular = has_ks ? lum(ks) : 0.04f * (1.f - mt) + mt * lum(m->albedo);
+  } else if (has_ks) {
+    /* Phong exponent to roughness, the usual Beckmann correspondence. */
+    get_float(am, AI_MATKEY_SHININESS, &ns);
+    if (!(ns >= 0.f)) ns = 0.f;
+    m->roughness = sqrtf(2.f / (ns + 2.f));
+    m->specular = lum(ks);
+  } else {
+    m->roughness = 1.f;
+    m->specular = 0.f;
+  }
+  struct aiString name;
+  if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
+    snprintf(m->name, sizeof m->name, "%.*s", (int)(name.length < sizeof m->name ? name.length : sizeof m->name - 1),
+             name.data);
+}
+
+static gi_result convert_light(const char *path, const struct aiLight *al, double scale, gi_light *l,
+                               gi_error_info *err) {
+  memset(l, 0, sizeof *l);
+  switch (al->mType) {
+    case aiLightSource_DIRECTIONAL: l->type = GI_LIGHT_SUN; break;
+    case aiLightSource_POINT: l->type = GI_LIGHT_POINT; break;
+    case aiLightSource_SPOT: l->type = GI_LIGHT_SPOT; break;
+    default: return GI_ERR_NOT_FOUND; /* ambient, area: not supported, skipped */
+  }
+  l->color[0] = al->mColorDiffuse.r;
+  l->color[1] = al->mColorDiffuse.g;
+  l->color[2] = al->mColorDiffuse.b;
+  l->position[0] = al->mPosition.x * scale;
+  l->position[1] = al->mPosition.y * scale;
+  l->position[2] = al->mPosition.z * scale;
+  l->direction[0] = al->mDirection.x;
+  l->direction[1] = al->mDirection.y;
+  l->direction[2] = al->mDirection.z;
+  /* assimp's cone angles are full angles; ours are cosines of half-angles. */
+  l->cos_inner = cosf(0.5f * al->mAngleInnerCone);
+  l->cos_outer = cosf(0.5f * al->mAngleOuterCone);
+  int bad = !gi__finite3(l->color) || !isfinite(l->position[0]) || !isfinite(l->position[1]) ||
+            !isfinite(l->position[2]) ||
+            (l->type != GI_LIGHT_POINT && (!gi__finite3(l->direction) || !isfinite(l->cos_inner) ||
+                                           (l->type == GI_LIGHT_SPOT && !isfinite(l->cos_outer))));
+  if (bad)
+    return gi__fail(err, GI_ERR_NONFINITE, "scene file '%s': light '%.*s' has a non-finite value", path,
+                    (int)al->mName.length, al->mName.data);
+  return GI_OK;
+}
+
+gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene **out, gi_error_info *err) {
+  gi_scene_options o = {0};
+  gi_mesh_builder *b = NULL;
+  gi_light *lights = NULL;
+  uint32_t *matmap = NULL;
+  const struct aiScene *as = NULL;
+  gi_result rc = GI_OK;
+  int locked = 0;
+
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_load: out is NULL");
+  *out = NULL;
+  if (!path || !path[0]) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_load: no file name given");
+  if (opt) o = *opt;
+  double scale = o.scale == 0 ? 1.0 : o.scale;
+  if (!isfinite(scale)) return gi__fail(err, GI_ERR_NONFINITE, "scene file '%s': scale is not finite", path);
+
+  /* Our own checks first: assimp's messages for these cases are vague. */
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    int e = errno;
+    return gi__fail(err, e == ENOENT ? GI_ERR_NOT_FOUND : GI_ERR_IO, "scene file '%s': cannot open: %s", path,
+                    strerror(e));
+  }
+  struct stat st;
+  if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
+    fclose(f);
+    return gi__fail(err, GI_ERR_IO, "scene file '%s' is not a regular file", path);
+  }
+  if (st.st_size == 0) {
+    fclose(f);
+    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' is empty", path);
+  }
+  if (ends_with_ci(path, ".ply")) rc = check_ply_header(path, f, (long long)st.st_size, err);
+  fclose(f);
+  if (rc != GI_OK) return rc;
+
+  pthread_mutex_lock(&assimp_lock);
+  locked = 1;
+  as = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
+                              aiProcess_PreTransformVertices | aiProcess_SortByPType);
+  if (!as) {
+    const char *msg = aiGetErrorString();
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': assimp cannot read it: %s", path,
+                  msg && msg[0] ? msg : "unknown error");
+    goto done;
+  }
+  pthread_mutex_unlock(&assimp_lock);
+  locked = 0;
+
+  /* Count first, in 64 bits, so a huge file fails before we allocate. */
+  uint64_t ntri = 0, nvert = 0;
+  for (unsigned i = 0; i < as->mNumMeshes; i++) {
+    const struct aiMesh *m = as->mMeshes[i];
+    if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    ntri += m->mNumFaces;
+    nvert += m->mNumVertices;
+  }
+  if (ntri > ((uint64_t)1 << 31)) {
+    rc = gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %llu triangles; the limit is 2^31", path,
+                  (unsigned long long)ntri);
+    goto done;
+  }
+  if (nvert >= UINT32_MAX) {
+    rc = gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %llu vertices; the limit is 2^32-1", path,
+                  (unsigned long long)nvert);
+    goto done;
+  }
+  if (ntri == 0) {
+    rc = gi__fail(err, GI_ERR_EMPTY, "scene file '%s' contains no triangles", path);
+    goto done;
+  }
+
+  b = gi_mesh_builder_new();
+  if (!b) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
+  /* assimp adds a material of its own (OBJ: "DefaultMaterial", glTF: an
+   * unnamed one); keep it only when a mesh uses it, so the material list
+   * matches the file's. */
+  matmap = malloc((as->mNumMaterials + 1) * sizeof *matmap);
+  if (!matmap) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
+  uint32_t nmat = 0;
+  for (unsigned i = 0; i < as->mNumMaterials; i++) {
+    gi_material m;
+    convert_material(as->mMaterials[i], &m);
+    int used = 0;
+    for (unsigned j = 0; j < as->mNumMeshes && !used; j++)
+      used = as->mMeshes[j]->mMaterialIndex == i && (as->mMeshes[j]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
+    matmap[i] = UINT32_MAX;
+    if (!used && (strcmp(m.name, AI_DEFAULT_MATERIAL_NAME) == 0 || m.name[0] == 0)) continue;
+    matmap[i] = nmat++;
+    gi_mesh_builder_add_material(b, &m);
+  }
+  if (nmat == 0) {
+    gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1.f, .name = "default"};
+    gi_mesh_builder_add_material(b, &m);
+  }
+  for (unsigned i = 0; i < as->mNumMeshes; i++) {
+    const struct aiMesh *m = as->mMeshes[i];
+    if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    uint32_t mat = m->mMaterialIndex < as->mNumMaterials ? matmap[m->mMaterialIndex] : 0;
+    if (mat == UINT32_MAX) mat = 0;
+    uint32_t base = 0;
+    /* Positions go in unscaled: gi_scene_build applies opt->scale. */
+    for (unsigned v = 0; v < m->mNumVertices; v++) {
+      uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z);
+      if (v == 0) base = id;
+    }
+    for (unsigned t = 0; t < m->mNumFaces; t++) {
+      const struct aiFace *fc = &m->mFaces[t];
+      if (fc->mNumIndices != 3) continue; /* a point or line left in a mixed mesh */
+      for (int k = 0; k < 3; k++)
+        if (fc->mIndices[k] >= m->mNumVertices) {
+          rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': mesh '%.*s' face %u uses vertex %u of %u", path,
+                        (int)m->mName.length, m->mName.data, t, fc->mIndices[k], m->mNumVertices);
+          goto done;
+        }
+      gi_mesh_builder_add_triangle(b, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2], mat);
+    }
+  }
+
+  /* The file's lights (already in world space), then the caller's. */
+  size_t nl = 0;
+  lights = calloc(as->mNumLights + o.num_lights + 1, sizeof *lights);
+  if (!lights) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
+  for (unsigned i = 0; i < as->mNumLights; i++) {
+    gi_result r = convert_light(path, as->mLights[i], scale, &lights[nl], err);
+    if (r == GI_OK) nl++;
+    else if (r != GI_ERR_NOT_FOUND) { rc = r; goto done; }
+  }
+  if (o.num_lights && !o.lights) {
+    rc = gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", o.num_lights);
+    goto done;
+  }
+  for (size_t i = 0; i < o.num_lights; i++) lights[nl++] = o.lights[i];
+  o.lights = lights;
+  o.num_lights = nl;
+
+  /* The scene's name: the file's base name without its extension. */
+  char name[128];
+  const char *slash = strrchr(path, '/');
+  snprintf(name, sizeof name, "%s", slash ? slash + 1 : path);
+  char *dot = strrchr(name, '.');
+  if (dot && dot != name) *dot = 0;
+
+  gi_error_info e2 = {0};
+  rc = gi_scene_build(b, name, &o, out, &e2);
+  if (rc != GI_OK) {
+    gi__fail(err, rc, "scene file '%s': %s", path, e2.msg);
+    goto done;
+  }
+  gi_scene_stats ss;
+  gi_scene_get_stats(*out, &ss);
+  if (ss.triangles == 0) {
+    rc = gi__fail(err, GI_ERR_EMPTY,
+                  "scene file '%s': all %llu triangles were dropped (%llu with non-finite positions, %llu degenerate)",
+                  path, (unsigned long long)ss.input_triangles, (unsigned long long)ss.dropped_nonfinite,
+                  (unsigned long long)ss.dropped_degenerate);
+    gi_scene_release(*out);
+    *out = NULL;
+  }
+
+done:
+  if (locked) pthread_mutex_unlock(&assimp_lock);
+  if (as) aiReleaseImport(as);
+  free(lights);
+  free(matmap);
+  gi_mesh_builder_free(b);
+  return rc;
+}
