@@ -14,6 +14,7 @@
  * mutex; loading is rare, serving is not, so this costs nothing that
  * matters. assimp logs only when a logger is attached, and we attach none,
  * so nothing goes to stdout. */
+#define _POSIX_C_SOURCE 200809L /* fileno, fstat under -std=c11 */
 #include <errno.h>
 #include <pthread.h>
 #include <stdio.h>
