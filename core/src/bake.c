@@ -242,12 +242,35 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
       tf[i] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
     }
     gi__occluded(s, n, org, dir, tn, tf, vis);
+    int mb = lp.emissive && s->num_emitters ? q->probe_samples : 0;
+    float pb = (float)mb / (4 * PI_F);
     for (int i = 0; i < n; i++) {
       if (!vis[i]) continue;
-      gi__sh_add(pr->sh_direct, ls[i].w, ls[i].V, 1.0f);
+      /* Balance heuristic against the uniform sphere samples below. */
+      float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + pb) : 1.f;
+      float V[3] = {f * ls[i].V[0], f * ls[i].V[1], f * ls[i].V[2]};
+      gi__sh_add(pr->sh_direct, ls[i].w, V, 1.0f);
       float cu = gi__dot(up, ls[i].w);
       if (cu > 0)
-        for (int k = 0; k < 3; k++) pr->direct[k] += ls[i].V[k] * cu;
+        for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
+    }
+    /* Uniform sphere rays: near, large emitters (see inject.c). */
+    for (int j = 0; j < mb; j++) {
+      float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
+      float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * PI_F * gi__u01(&rng);
+      float w[3] = {r * cosf(phi), r * sinf(phi), z};
+      float th, ng[3], ce;
+      uint32_t tri;
+      if (!gi__intersect1(s, p, w, eps, INFINITY, &th, &tri, ng)) continue;
+      if (!gi__emitter_hit(s, tri, w, &ce)) continue;
+      float mpl = gi__emitter_mpl(s, tri, th, ce, q->probe_samples);
+      const float *Le = s->materials[s->tri_material[tri]].emission;
+      float k0 = 1.0f / (mpl + pb);
+      float V[3] = {Le[0] * k0, Le[1] * k0, Le[2] * k0};
+      gi__sh_add(pr->sh_direct, w, V, 1.0f);
+      float cu = gi__dot(up, w);
+      if (cu > 0)
+        for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
     }
   }
   free(ls); free(org); free(dir); free(tn); free(tf); free(vis);

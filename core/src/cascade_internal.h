@@ -120,8 +120,14 @@ typedef struct gi_lsample {
   float w[3];
   float dist;
   float V[3];
+  float mpl;           /* emitters: sample count times solid-angle pdf, for MIS; else 0 */
   uint8_t fx;          /* gi_effect_id of the light kind */
 } gi_lsample;
+/* Solid-angle pdf (times the light-sample count m) of reaching emissive
+ * triangle tri along a ray of length t meeting it at cosine cos_e. */
+float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int m);
+/* Emission Le of triangle tri as seen along unit w (0 from behind), with cos_e. */
+int gi__emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e);
 /* Which light kinds to sample, and how many rays for sky and emitters. */
 typedef struct gi_light_plan {
   int sun, local, sky, emissive;

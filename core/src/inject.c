@@ -36,6 +36,7 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
       o->dist = INFINITY;
       memcpy(o->V, l->color, sizeof o->V);
       o->fx = GI_FX_SUN;
+      o->mpl = 0;
       n++;
     } else if (l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) {
       if (!lp->local) continue;
@@ -57,6 +58,7 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
       o->dist = r;
       for (int k = 0; k < 3; k++) o->V[k] = f * l->color[k] / r2;
       o->fx = GI_FX_LOCAL;
+      o->mpl = 0;
       n++;
     } else if (l->type == GI_LIGHT_SKY && lp->sky && lp->sky_samples > 0) {
       /* Upper hemisphere, stratified in cos(theta) and azimuth, uniform pdf 1 / (2 pi). */
@@ -74,6 +76,7 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
         q->dist = INFINITY;
         for (int k = 0; k < 3; k++) q->V[k] = l->color[k] * 2 * PI_F / (float)m;
         q->fx = GI_FX_SKY;
+        q->mpl = 0;
       }
     }
   }
@@ -118,12 +121,47 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
       const float *Le = s->materials[s->tri_material[tri]].emission;
       float k0 = cos_e / (r2d * pdf_area * (float)m);
       for (int k = 0; k < 3; k++) q->V[k] = Le[k] * k0;
+      q->mpl = (float)m * pdf_area * r2d / cos_e;
       q->dist = r;
       q->fx = GI_FX_EMISSIVE;
       n++;
     }
   }
   return n;
+}
+
+float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int m) {
+  /* emitter_tri is ascending: binary search for the triangle's cdf slot. */
+  uint32_t lo = 0, hi = s->num_emitters;
+  while (lo < hi) {
+    uint32_t mid = (lo + hi) / 2;
+    if (s->emitter_tri[mid] < tri) lo = mid + 1;
+    else hi = mid;
+  }
+  if (lo >= s->num_emitters || s->emitter_tri[lo] != tri || !(cos_e > 0)) return 0;
+  float pt = s->emitter_cdf[lo] - (lo ? s->emitter_cdf[lo - 1] : 0.f);
+  const uint32_t *ix = &s->indices[3 * tri];
+  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+  float e1[3], e2[3], ng[3];
+  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+  gi__cross(e1, e2, ng);
+  float area = 0.5f * gi__len(ng);
+  if (!(area > 0)) return 0;
+  return (float)m * (pt / area) * t * t / cos_e;
+}
+
+int gi__emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
+  const float *Le = s->materials[s->tri_material[tri]].emission;
+  if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0)) return 0;
+  const uint32_t *ix = &s->indices[3 * tri];
+  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+  float e1[3], e2[3], ng[3];
+  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+  gi__cross(e1, e2, ng);
+  float l = gi__len(ng);
+  if (!(l > 0)) return 0;
+  *cos_e = -gi__dot(ng, w) / l;
+  return *cos_e > 0;
 }
 
 typedef struct {
@@ -180,9 +218,39 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     }
     gi__occluded(s, m, org, dir, tn, tf, vis);
     rays += (uint64_t)m;
-    for (int i = 0; i < m; i++)
-      if (vis[i])
-        for (int k = 0; k < 3; k++) E[side[i]][k] += ls[i].V[k] * cosw[i];
+    int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
+    for (int i = 0; i < m; i++) {
+      if (!vis[i]) continue;
+      /* Balance heuristic against the cosine samples below. */
+      float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * cosw[i] / PI_F) : 1.f;
+      for (int k = 0; k < 3; k++) E[side[i]][k] += f * ls[i].V[k] * cosw[i];
+    }
+    /* Cosine-weighted rays find emitters that are close and large, which
+     * area sampling almost never picks (the furnace's edges). */
+    for (int sd = 0; sd < 2 && mb > 0; sd++) {
+      float n[3], t[3], bb[3], o[3];
+      float sg = sd ? -1.f : 1.f;
+      for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k], o[k] = g->centroid[k] + eps * n[k];
+      gi__basis(n, t, bb);
+      for (int j = 0; j < mb; j++) {
+        float u1 = ((float)j + gi__u01(&rng)) / (float)mb, u2 = gi__u01(&rng);
+        float r = sqrtf(u1), phi = 2 * PI_F * u2;
+        float x = r * cosf(phi), y = r * sinf(phi), z = sqrtf(fmaxf(0.f, 1 - u1));
+        float w[3];
+        for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
+        float th, ng[3], ce;
+        uint32_t tri;
+        rays++;
+        if (!gi__intersect1(s, o, w, 0, INFINITY, &th, &tri, ng)) continue;
+        if (!gi__emitter_hit(s, tri, w, &ce)) continue;
+        float mpl = gi__emitter_mpl(s, tri, th, ce, ic->lp->emit_samples);
+        float pb = (float)mb * z / PI_F;
+        if (!(pb > 0)) continue;
+        const float *Le = s->materials[s->tri_material[tri]].emission;
+        float k0 = z / (mpl + pb);
+        for (int k = 0; k < 3; k++) E[sd][k] += Le[k] * k0;
+      }
+    }
     memcpy(L->side[slot], E, sizeof(float[2][3]));
   }
   atomic_fetch_add(&ic->rays, rays);
@@ -264,7 +332,7 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
         float w[3];
         for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * bb[k] + cd[2] * n[k];
         gi_cone_out co;
-        gi__cone_trace(c, o, w, c->cone_tan, 0.5f * off, bc->q->step, lambda, &co);
+        gi__cone_trace(c, o, w, c->cone_tan, off, bc->q->step, lambda, &co);
         samples += co.samples;
         for (int k = 0; k < 3; k++) bc->E[q][sd][k] += c->cone_weight[ci] * co.L[k];
       }

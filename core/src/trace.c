@@ -13,7 +13,7 @@
  * normal stays opaque at any angle, and a segment of length dt has opacity
  * 1 - exp(-sigma dt) (the step-length correction). Compositing is front to
  * back: c += (1 - a) a_s c_s, a += (1 - a) a_s, until a >= 0.99 or the cone
- * leaves the coarsest level.
+ * leaves the coarsest level; a cone stopped by opacity is renormalised by a.
  *
  * Diffuse cone sets: a hemisphere is split into rings of regions of equal
  * solid angle 2 pi / N; each cone points at its region's centre and has the
@@ -143,7 +143,8 @@ void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[
     float lod = log2f(D / s0);
     int d0 = (int)floorf(lod);
     float frac = lod - (float)d0;
-    if (d0 >= c->n) break;
+    /* A cone wider than the coarsest voxels keeps sampling the coarsest level. */
+    if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0;
     int d = d0;
     while (d < c->n && !gi__level_contains(&c->lv[d], p, 1.0f)) d++;
     if (d >= c->n) break;
@@ -159,7 +160,8 @@ void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[
       wal += frac * (wal2 - wal);
       sig += frac * (sig2 - sig);
     }
-    float dt = step * D;
+    /* Never step past a voxel of the level sampled, or a wall can be jumped over. */
+    float dt = step * fminf(D, (float)c->lv[d].s);
     float as = 1.0f - expf(-sig * dt);
     if (as > 0 && wal > 1e-8f) {
       float k = (1 - a) * as / wal;
@@ -171,6 +173,10 @@ void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[
     a += (1 - a) * as;
     t += dt;
   }
+  /* A cone stopped by the opacity threshold assumes its last 1% looks like
+   * the rest; without this a closed room loses 1% per bounce. */
+  if (a >= 0.99f)
+    for (int k = 0; k < 3; k++) L[k] /= a;
   memcpy(out->L, L, sizeof L);
   out->alpha = a;
   out->occlusion = occ;
