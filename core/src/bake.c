@@ -63,12 +63,14 @@ static gi_result resolve_quality(const gi_scene *s, const gi_quality *in, gi_qua
   if (q->light_samples < 1 || q->light_samples > 512 || q->probe_samples < 1 || q->probe_samples > 8192)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: light samples must be 1..512 and probe samples 1..8192");
   if (q->voxel0 == 0) {
-    /* The coarsest level spans the scene's largest side. */
+    /* The coarsest level spans 1.25 times the scene's largest side: a
+     * centred viewpoint then keeps every wall a few voxels inside the
+     * window, clear of the one-voxel border cones need for filtering. */
     double lo[3], hi[3], ext = 0;
     gi_scene_bounds(s, lo, hi);
     for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
     if (!(ext > 0)) ext = 1.0;
-    q->voxel0 = ext / ((double)q->res * (double)(1ull << (q->levels - 1)));
+    q->voxel0 = 1.25 * ext / ((double)q->res * (double)(1ull << (q->levels - 1)));
   }
   if (!isfinite(q->ao_lambda) || q->ao_lambda < 0)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: ao_lambda must be finite and >= 0");

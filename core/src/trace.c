@@ -16,8 +16,8 @@
  * leaves the coarsest level; a cone stopped by opacity is renormalised by a.
  *
  * Diffuse cone sets: a hemisphere is split into rings of regions of equal
- * solid angle 2 pi / N; each cone points at its region's centre and has the
- * region's solid angle, and its weight is the exact integral of cos(theta)
+ * solid angle 2 pi / N; each cone points at its ring's cosine-weighted mean
+ * elevation and has the region's solid angle, and its weight is the exact integral of cos(theta)
  * over the region, so the weights sum to pi and a uniform radiance L gathers
  * exactly E = pi L. */
 #include <string.h>
@@ -42,7 +42,11 @@ void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[
     cum += nr;
     double cos_b = 1.0 - (double)cum / count;
     if (cos_b < 0) cos_b = 0;
-    double cos_c = r == 0 ? 1.0 : 0.5 * (cos_a + cos_b);
+    /* A ring's cones sit at its cosine-weighted mean elevation, so the set
+     * reproduces the lobe's first moment; the cap's cone stays on the axis. */
+    double cos_c = r == 0 ? 1.0
+                          : (2.0 / 3.0) * (cos_a * cos_a * cos_a - cos_b * cos_b * cos_b) /
+                                (cos_a * cos_a - cos_b * cos_b);
     double sin_c = sqrt(1.0 - cos_c * cos_c);
     double w = pi * (cos_a * cos_a - cos_b * cos_b) / nr;
     for (int i = 0; i < nr; i++) {

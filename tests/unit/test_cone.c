@@ -1,0 +1,145 @@
+/* test_cone.c: the cone-tracing filter on hand-built textures.
+ *
+ * Two levels (s0 = 1 m, R = 16) around the origin: level 0 spans
+ * [-8, 8) m, level 1 [-16, 16) m. Walls are written straight into the
+ * light buffers, with a different radiance per level, so the radiance a
+ * cone returns says which level it sampled. */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "cascade_internal.h"
+
+static struct gi_cascade *make(int levels) {
+  static struct gi_cascade c;
+  for (int d = 0; d < GI_MAX_LEVELS; d++) {
+    free(c.lv[d].geo); free(c.lv[d].rad); free(c.lv[d].side); free(c.lv[d].direct); free(c.lv[d].occ);
+  }
+  memset(&c, 0, sizeof c);
+  c.n = levels;
+  c.R = 16;
+  c.s0 = 1.0;
+  c.at[0] = c.at[1] = c.at[2] = 0.1f;
+  assert_int_equal(gi__cascade_alloc(&c, NULL), GI_OK);
+  gi__cascade_place(&c);
+  return &c;
+}
+
+/* Fills the slab of global cells x = i at level d: opacity alpha along x,
+ * radiance L leaving toward -x (lit side facing the origin), 0 toward +x. */
+static void slab(struct gi_cascade *c, int d, int64_t i, float alpha, float L) {
+  gi_level *lv = &c->lv[d];
+  for (int64_t k = lv->cell0[2]; k < lv->cell0[2] + c->R; k++)
+    for (int64_t j = lv->cell0[1]; j < lv->cell0[1] + c->R; j++) {
+      gi_vrad *r = &lv->rad[gi__slot(i, j, k, c->R)];
+      memset(r, 0, sizeof *r);
+      r->alpha[0] = alpha;
+      r->tau[0] = -logf(1 - alpha);
+      for (int ch = 0; ch < 3; ch++) r->p[GI_FACE_NX][ch] = alpha * L;
+    }
+}
+
+static gi_cone_out trace(struct gi_cascade *c, float ox, float dirx, float tan_half, float step) {
+  float o[3] = {ox, 0.3f, 0.2f}, w[3] = {dirx, 0, 0};
+  gi_cone_out out;
+  gi__cone_trace(c, o, w, tan_half, 0.5f, step, 0.f, &out);
+  return out;
+}
+
+static void test_level_selection(void **state) {
+  struct gi_cascade *c = make(2);
+  slab(c, 0, 4, 0.999f, 1.0f); /* x in [4,5) at level 0: radiance 1 */
+  slab(c, 1, 2, 0.999f, 3.0f); /* x in [4,6) at level 1: radiance 3 */
+  slab(c, 1, 6, 0.999f, 5.0f); /* x in [12,14) at level 1 only: radiance 5 */
+  /* Narrow: D = s0 all the way, so level 0. */
+  gi_cone_out n = trace(c, 0.5f, 1, 1e-4f, 0.5f);
+  printf("narrow: L=%.4f a=%.4f\n", n.L[0], n.alpha);
+  assert_true(n.alpha >= 0.99f);
+  assert_true(fabsf(n.L[0] - 1.0f) < 0.01f);
+  /* Wide: D >= 2 s0 at the wall, so level 1. */
+  gi_cone_out wd = trace(c, 0.5f, 1, 0.5f, 0.5f);
+  printf("wide: L=%.4f a=%.4f\n", wd.L[0], wd.alpha);
+  assert_true(fabsf(wd.L[0] - 3.0f) < 0.05f);
+  /* In between: lod about 0.5 at the wall blends the two levels. */
+  gi_cone_out mid = trace(c, 0.5f, 1, 0.177f, 0.5f);
+  printf("blend: L=%.4f a=%.4f\n", mid.L[0], mid.alpha);
+  assert_true(mid.L[0] > 1.4f && mid.L[0] < 2.6f);
+  /* Position: beyond level 0's window a narrow cone must use level 1. */
+  gi_cone_out far = trace(c, 8.5f, 1, 1e-4f, 0.5f);
+  printf("outside level 0: L=%.4f a=%.4f\n", far.L[0], far.alpha);
+  assert_true(fabsf(far.L[0] - 5.0f) < 0.05f);
+  /* From behind, the wall is opaque and dark. */
+  gi_cone_out back = trace(c, 6.5f, -1, 1e-4f, 0.5f);
+  printf("behind: L=%.4f a=%.4f\n", back.L[0], back.alpha);
+  assert_true(back.alpha >= 0.99f && back.L[0] < 1e-3f);
+  /* Nothing in the way: the cone leaves the coarsest level transparent. */
+  gi_cone_out none = trace(c, 0.5f, -1, 1e-4f, 0.5f);
+  assert_true(none.alpha == 0 && none.L[0] == 0);
+}
+
+static void test_compositing(void **state) {
+  struct gi_cascade *c = make(1);
+  slab(c, 0, 2, 0.5f, 4.0f);   /* half-transparent, radiance 4 */
+  slab(c, 0, 5, 0.999f, 2.0f); /* opaque behind it, radiance 2 */
+  /* Front to back: 0.5 * 4 + (1 - 0.5) * 2 = 3, for any step length. */
+  const float steps[] = {0.2f, 0.5f, 1.0f};
+  for (int i = 0; i < 3; i++) {
+    gi_cone_out o = trace(c, 0.5f, 1, 1e-4f, steps[i]);
+    printf("step %.1f: L=%.4f a=%.4f samples=%u\n", steps[i], o.L[0], o.alpha, o.samples);
+    assert_true(fabsf(o.L[0] - 3.0f) < 0.09f);
+    assert_true(o.alpha >= 0.99f);
+  }
+}
+
+static void test_cone_sets(void **state) {
+  const int counts[] = {4, 6, 8, 16, 32};
+  for (int i = 0; i < 5; i++) {
+    float dirs[64][3], w[64], th;
+    gi__cone_set(counts[i], 0, dirs, w, &th);
+    double sum = 0, mean_cos = 0;
+    for (int k = 0; k < counts[i]; k++) {
+      sum += w[k];
+      assert_true(fabsf(gi__len(dirs[k]) - 1) < 1e-5f);
+      assert_true(dirs[k][2] > 0);
+      mean_cos += w[k] * dirs[k][2];
+    }
+    /* Weights integrate the cosine lobe: pi. Cone solid angle = 2 pi / N. */
+    assert_true(fabs(sum - M_PI) < 1e-5);
+    double half = atan(th);
+    assert_true(fabs(2 * M_PI * (1 - cos(half)) - 2 * M_PI / counts[i]) < 1e-5);
+    /* Cos-weighted mean of cos over the hemisphere is 2/3 (int cos^2 / int cos). */
+    printf("%d cones: sum w = %.6f, aperture %.2f deg, mean cos %.4f (exact 0.6667)\n", counts[i], sum,
+           2 * half * 180 / M_PI, mean_cos / sum);
+    assert_true(fabs(mean_cos / sum - 2.0 / 3.0) < (counts[i] >= 16 ? 0.02 : 0.06));
+  }
+}
+
+static void test_sh_constant(void **state) {
+  /* Constant radiance 1 over the sphere: irradiance pi for every normal. */
+  float sh[9][3] = {{0}};
+  const int n = 20000;
+  float L[3] = {1, 1, 1};
+  for (int i = 0; i < n; i++) {
+    float z = 1 - 2 * (i + 0.5f) / n, r = sqrtf(1 - z * z), phi = 2.399963f * i;
+    float w[3] = {r * cosf(phi), r * sinf(phi), z};
+    gi__sh_add(sh, w, L, 4 * (float)M_PI / n);
+  }
+  gi__sh_radiance_to_irradiance(sh);
+  float ns[3][3] = {{1, 0, 0}, {0, -1, 0}, {0.6f, 0, 0.8f}};
+  for (int i = 0; i < 3; i++) {
+    float e[3];
+    gi_sh_eval_irradiance((const float(*)[3])sh, ns[i], e);
+    assert_true(fabsf(e[0] - (float)M_PI) < 1e-3f);
+  }
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_level_selection),
+      cmocka_unit_test(test_compositing),
+      cmocka_unit_test(test_cone_sets),
+      cmocka_unit_test(test_sh_constant),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}

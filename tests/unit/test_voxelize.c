@@ -1,0 +1,138 @@
+/* test_voxelize.c: exact voxelization counts, snapping and nesting.
+ *
+ * The cascade's grid is anchored at the scene's local origin (the centre of
+ * its bounds), so a box of width 5 s centred anywhere has its faces at
+ * +-2.5 s: half a voxel from every cell border, where occupancy is
+ * unambiguous. Its surface covers cells -3..2 on each axis, so exactly
+ * 6^3 - 4^3 = 152 voxels hold geometry at level 0; at level 1 (cells of
+ * 2 s, filtered from level 0) cells -2..1, so 4^3 - 2^3 = 56. */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include "gi/gi.h"
+#include "cascade_internal.h"
+
+static gi_scene *box_scene(double cx, double cy, double cz, double width, int copies, double spacing) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  for (int i = 0; i < copies; i++) {
+    double off = i * spacing;
+    double lo[3] = {cx - width / 2 + off, cy - width / 2, cz - width / 2};
+    double hi[3] = {cx + width / 2 + off, cy + width / 2, cz + width / 2};
+    gi_mesh_builder_add_box(b, lo, hi, mat);
+  }
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_scene_options opt = {.up = GI_UP_Y};
+  assert_int_equal(gi_scene_build(b, "boxes", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+static void test_exact_counts(void **state) {
+  const double s0 = 0.25;
+  const double centres[][3] = {{0, 0, 0}, {123.4, -7.9, 55.55}, {1e6 + 0.3, 2.0, -1e6}};
+  for (size_t ci = 0; ci < 3; ci++) {
+    const double *c = centres[ci];
+    gi_scene *sc = box_scene(c[0], c[1], c[2], 5 * s0, 1, 0);
+    gi_quality q = {.levels = 2, .res = 16, .voxel0 = s0, .bounces = -1, .light_samples = 1, .threads = 2};
+    gi_cascade *cas = NULL;
+    gi_bake_report rep;
+    gi_error_info err = {0};
+    double at[3] = {c[0] + 0.1 * s0, c[1] + 0.2 * s0, c[2] + 0.3 * s0};
+    assert_int_equal(gi_cascade_bake(sc, at, &q, &cas, &rep, &err), GI_OK);
+    printf("box at (%g,%g,%g): occupied L0=%llu L1=%llu, triangles visited %llu\n", c[0], c[1], c[2],
+           (unsigned long long)rep.occupied[0], (unsigned long long)rep.occupied[1],
+           (unsigned long long)rep.triangles_visited);
+    assert_int_equal(rep.occupied[0], 152);
+    assert_int_equal(rep.occupied[1], 56);
+    /* Every face voxel got its share of area: the sum is the box's surface. */
+    const gi_level *L = &cas->lv[0];
+    double area = 0;
+    int opaque_x = 0;
+    for (size_t i = 0; i < 16 * 16 * 16; i++) {
+      area += L->geo[i].area;
+      if (L->geo[i].area > 0 && fabsf(L->geo[i].normal[0]) > 0.999f) {
+        /* A voxel cut by a full x-face: opaque along x, clear along y and z. */
+        if (L->rad[i].alpha[0] > 0.998f && L->rad[i].alpha[1] == 0 && L->rad[i].alpha[2] == 0) opaque_x++;
+      }
+    }
+    assert_true(fabs(area - 6 * 25 * s0 * s0) < 1e-4 * 6 * 25 * s0 * s0);
+    /* Two x-faces of 4x4 cells each that hold no other face (cells -2..1 in y and z). */
+    assert_int_equal(opaque_x, 2 * 16);
+    gi_cascade_free(cas);
+    gi_scene_release(sc);
+  }
+}
+
+static void test_snapping_and_nesting(void **state) {
+  gi_scene *sc = box_scene(0, 0, 0, 10, 1, 0);
+  gi_quality q = {.levels = 4, .res = 16, .voxel0 = 0.5, .bounces = -1, .light_samples = 1, .threads = 1};
+  gi_bake_report ref;
+  gi_cascade *cas = NULL;
+  gi_error_info err = {0};
+  /* Viewpoint in the middle of a 2-cell block: sub-voxel moves keep every level fixed. */
+  double at0[3] = {1.1, 0.6, -0.9};
+  assert_int_equal(gi_cascade_bake(sc, at0, &q, &cas, &ref, &err), GI_OK);
+  gi_cascade_free(cas);
+  srand(7);
+  for (int trial = 0; trial < 20; trial++) {
+    double at[3];
+    for (int a = 0; a < 3; a++) at[a] = at0[a] + 0.09 * ((double)rand() / RAND_MAX - 0.5);
+    gi_bake_report rep;
+    assert_int_equal(gi_cascade_bake(sc, at, &q, &cas, &rep, &err), GI_OK);
+    for (int d = 0; d < q.levels; d++) {
+      for (int a = 0; a < 3; a++) assert_true(rep.level_origin[d][a] == ref.level_origin[d][a]);
+      assert_int_equal(rep.occupied[d], ref.occupied[d]);
+    }
+    gi_cascade_free(cas);
+  }
+  /* Random viewpoints: each level starts on a cell border of the next and nests inside it. */
+  for (int trial = 0; trial < 200; trial++) {
+    double at[3];
+    for (int a = 0; a < 3; a++) at[a] = 40.0 * ((double)rand() / RAND_MAX - 0.5);
+    gi_bake_report rep;
+    assert_int_equal(gi_cascade_bake(sc, at, &q, &cas, &rep, &err), GI_OK);
+    for (int d = 0; d + 1 < q.levels; d++)
+      for (int a = 0; a < 3; a++) {
+        double o = rep.level_origin[d][a], O = rep.level_origin[d + 1][a], S = rep.voxel_size[d + 1];
+        double k = (o - O) / S;
+        assert_true(fabs(k - round(k)) < 1e-9);
+        assert_true(o >= O && o + 16 * rep.voxel_size[d] <= O + 16 * S);
+      }
+    /* The viewpoint is inside the finest level, away from its border. */
+    for (int a = 0; a < 3; a++) {
+      assert_true(at[a] >= rep.level_origin[0][a] + 0.5 * 7 && at[a] <= rep.level_origin[0][a] + 0.5 * 9 + 0.5);
+    }
+    gi_cascade_free(cas);
+  }
+  gi_scene_release(sc);
+}
+
+static void test_query_visits_only_nearby(void **state) {
+  /* 200 boxes 10 m apart along x; a one-level 16 x 0.25 m cascade sees one. */
+  gi_scene *sc = box_scene(0, 0, 0, 1.25, 200, 10.0);
+  gi_quality q = {.levels = 1, .res = 16, .voxel0 = 0.25, .bounces = -1, .light_samples = 1};
+  gi_cascade *cas = NULL;
+  gi_bake_report rep;
+  gi_error_info err = {0};
+  double at[3] = {500.0 + 0.1, 0.1, 0.1};
+  assert_int_equal(gi_cascade_bake(sc, at, &q, &cas, &rep, &err), GI_OK);
+  printf("200 boxes (2400 triangles): level 0 visited %llu triangles, %llu occupied\n",
+         (unsigned long long)rep.triangles_visited, (unsigned long long)rep.occupied[0]);
+  assert_int_equal(rep.triangles_visited, 12);
+  assert_int_equal(rep.occupied[0], 152);
+  gi_cascade_free(cas);
+  gi_scene_release(sc);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_exact_counts),
+      cmocka_unit_test(test_snapping_and_nesting),
+      cmocka_unit_test(test_query_visits_only_nearby),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
