@@ -1,0 +1,51 @@
+# bad_args.sh: bad arguments exit 2 naming the option; a missing scene
+# file exits 1 naming the path. No scene is loaded for any of these.
+. "$(dirname "$0")/common.sh"
+
+# expect_usage OPTION-NAME ARGS...: exit 2 and the message names OPTION-NAME.
+expect_usage() {
+  name=$1; shift
+  "$BIN" "$@" > "$T/out" 2> "$T/err"; rc=$?
+  if [ $rc -ne 2 ]; then fail "'$*' exited $rc, expected 2"; return; fi
+  grep -q -e "$name" "$T/err" || { fail "'$*': message does not name $name: $(cat "$T/err")"; return; }
+  [ -s "$T/out" ] && { fail "'$*' wrote to stdout"; return; }
+  pass "'$*' -> 2: $(head -n 1 "$T/err")"
+}
+
+expect_usage --at city --at 1,2
+expect_usage --at city --at a,b,c
+expect_usage --at city --at nan,0,0
+expect_usage --at city --at 1,2,inf
+expect_usage --at city --at "1,2,3,"
+expect_usage --at city --at 1e999,0,0
+expect_usage --levels city --levels 0
+expect_usage --levels city --levels 13
+expect_usage --res city --res 30
+expect_usage --res city --res 4
+expect_usage --voxel city --voxel -1
+expect_usage --cones city --cones 5
+expect_usage --bounces city --bounces 9
+expect_usage --threads city --threads x
+expect_usage --samples city --samples 0
+expect_usage --up city --up x
+expect_usage --sun city --sun 0,0,0,1,1,1
+expect_usage --sky city --sky 1,-1,1
+expect_usage --point city --point 1,2,3,1,1
+expect_usage --city-extent city --city-extent 0
+expect_usage --city-seed city --city-seed -3
+expect_usage --city-detail city --city-detail 9
+expect_usage --at city --at
+expect_usage --bogus city --bogus
+expect_usage SCENE
+expect_usage --city-extent "$T/x.obj" --city-extent 100
+
+printf '1 2 3\n# comment\n4 5 x\n' > "$T/pts.txt"
+expect_usage "pts.txt:3" city --probes "$T/pts.txt"
+
+# A missing scene file is a runtime error (1) naming the file.
+missing="$T/no-such-dir/missing-scene.obj"
+"$BIN" "$missing" > "$T/out" 2> "$T/err"; rc=$?
+if [ $rc -ne 1 ]; then fail "missing scene exited $rc, expected 1"
+elif ! grep -q -F "$missing" "$T/err"; then fail "missing scene: message lacks the path: $(cat "$T/err")"
+else pass "missing scene -> 1: $(head -n 1 "$T/err")"; fi
+finish

@@ -1,0 +1,29 @@
+# bake_vdb.sh: --vdb writes a cascade snapshot that vdb_print lists
+# (L0_density, plain density), with no temporary file left behind.
+. "$(dirname "$0")/common.sh"
+make_box_scene
+
+"$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --bounces 1 --json \
+    --vdb "$T/cascades.vdb" --exr "$T/probe.exr" --half > "$T/out.json" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && pass "bake with --vdb exits 0" || { cat "$T/err" >&2; fail "bake exited $rc"; finish; }
+[ -s "$T/cascades.vdb" ] && pass "VDB exists" || fail "VDB missing"
+[ -s "$T/probe.exr" ] && pass "EXR exists" || fail "EXR missing"
+leftover=$(find "$T" -name '*.tmp.*')
+[ -z "$leftover" ] && pass "no temporary files" || fail "temporary files left: $leftover"
+python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["outputs"]["vdb"].endswith("cascades.vdb")' \
+  "$T/out.json" && pass "JSON names the VDB" || fail "JSON outputs.vdb"
+
+if command -v vdb_print > /dev/null 2>&1; then
+  vdb_print "$T/cascades.vdb" > "$T/grids" 2>&1
+  grep -q 'L0_density' "$T/grids" && pass "vdb_print lists L0_density" || fail "vdb_print: no L0_density: $(cat "$T/grids")"
+  grep -q '^density' "$T/grids" && pass "vdb_print lists density" || fail "vdb_print: no plain density"
+else
+  skip "vdb_print not installed (package libopenvdb-tools): VDB grid check skipped"
+fi
+if command -v exrheader > /dev/null 2>&1; then
+  exrheader "$T/probe.exr" | grep -q 'sh\.L00\.R, 16-bit' && pass "--half stores half floats" \
+    || fail "--half: sh.L00.R is not 16-bit"
+else
+  skip "exrheader not installed: --half check skipped"
+fi
+finish

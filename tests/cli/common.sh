@@ -1,0 +1,48 @@
+# common.sh: helpers sourced by the CLI tests (not a test itself).
+# Each test gets the gi-bake binary as $1 and a private temp dir in $T.
+set -u
+BIN=${1:?usage: sh test.sh path/to/gi-bake}
+T=$(mktemp -d "${TMPDIR:-/tmp}/gi-cli.XXXXXX")
+trap 'rm -rf "$T"' EXIT INT TERM
+FAILS=0
+
+fail() { echo "FAIL: $*" >&2; FAILS=$((FAILS + 1)); }
+pass() { echo "ok: $*"; }
+skip() { echo "SKIP: $*" >&2; }
+finish() { [ "$FAILS" -eq 0 ] && { echo "all passed"; exit 0; }; echo "$FAILS failure(s)" >&2; exit 1; }
+
+# A closed 4 m box (inward-facing walls) with a 1 m emissive quad under the
+# ceiling: every probe inside sees light directly and by bounces.
+make_box_scene() {
+  cat > "$T/box.mtl" <<'MTL'
+newmtl white
+Kd 0.7 0.7 0.7
+newmtl lamp
+Kd 0 0 0
+Ke 10 10 10
+MTL
+  cat > "$T/box.obj" <<'OBJ'
+mtllib box.mtl
+v 0 0 0
+v 4 0 0
+v 4 0 4
+v 0 0 4
+v 0 4 0
+v 4 4 0
+v 4 4 4
+v 0 4 4
+v 1.5 3.9 1.5
+v 2.5 3.9 1.5
+v 2.5 3.9 2.5
+v 1.5 3.9 2.5
+usemtl white
+f 1 4 3 2
+f 5 6 7 8
+f 1 5 8 4
+f 2 3 7 6
+f 1 2 6 5
+f 4 8 7 3
+usemtl lamp
+f 9 10 11 12
+OBJ
+}

@@ -1,0 +1,56 @@
+/* cli.h: gi-bake's pieces shared between its files (options, report). */
+#ifndef GI_BAKE_CLI_H
+#define GI_BAKE_CLI_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "gi/gi.h"
+
+/* Exit codes: 0 success, 1 the work failed (scene, bake, I/O), 2 usage. */
+enum { EXIT_RUN = 1, EXIT_USAGE = 2 };
+
+#define CLI_MAX_LIGHTS 64
+
+/* Everything the command line asked for, after strict parsing. */
+typedef struct cli_opts {
+  const char *scene;        /* a path, or "city" */
+  int is_city;
+  int have_at;
+  double at[3];
+  int up;                   /* 0 = not given, else GI_UP_Y / GI_UP_Z */
+  gi_quality q;             /* zero fields = core defaults */
+  const char *exr, *vdb, *probes_file;
+  int half, vdb_faces, json, no_default_lights;
+  gi_light lights[CLI_MAX_LIGHTS];
+  size_t num_lights;
+  gi_city_params city;
+  int city_opts_given;      /* a --city-* option was used */
+  double *probes;           /* extra points from --probes, 3 per point */
+  size_t num_probes;
+} cli_opts;
+
+/* Parses argv into o. Returns 0 on success, -1 when --help/--version was
+ * printed (exit 0), or EXIT_USAGE / EXIT_RUN after printing the reason. */
+int cli_parse(int argc, char **argv, cli_opts *o);
+void cli_opts_fini(cli_opts *o);
+
+/* What a finished run measured, for both output forms. */
+typedef struct cli_run {
+  const cli_opts *o;
+  const gi_scene *scene;
+  const gi_bake_report *rep;
+  const gi_probe *probes;   /* viewpoint first, then o->probes */
+  size_t num_probes;
+  const double *points;     /* 3 per probe */
+  double load_ms, gather_ms, encode_ms, total_ms;
+  int threads;              /* resolved worker count */
+} cli_run;
+
+/* Prints the run as one JSON object (json = 1) or a human summary to
+ * stdout. Returns 0, or EXIT_RUN after an internal error (a non-finite
+ * number, which must never reach the output). */
+int cli_report(const cli_run *r, int json);
+
+const char *cli_version(void);
+
+#endif
