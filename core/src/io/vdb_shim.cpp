@@ -1,1 +1,322 @@
-// vdb_shim.cpp: placeholder until the module lands.
+// vdb_shim.cpp: the C face of OpenVDB, and the project's only C++ file.
+//
+// DESIGN. Each extern "C" entry point is a thin try/catch around static C++
+// helpers, so no exception crosses into C: std::bad_alloc becomes
+// GI_ERR_NOMEM, openvdb::IoError GI_ERR_IO on write, any OpenVDB exception
+// GI_ERR_FORMAT on read (the file exists by then, so its content is wrong),
+// and anything else GI_ERR_BACKEND with what() in the message. The writer
+// turns dense blocks into sparse grids (only values != 0, the background,
+// become active), gives each grid the transform described in gi_vdb.h, and
+// writes "<path>.tmp.<pid>" before a rename, like the EXR writer. Readers
+// load the whole file through a stream that throws on a short read (see
+// load()), so damaged files fail fast instead of hanging.
+// openvdb::initialize() runs once per process under std::call_once.
+//
+// The shim is compiled with -fvisibility=hidden, but OpenVDB's headers must
+// keep default visibility: hidden copies of its template statics (tree type
+// names, grid registry) make openvdb::initialize() crash in libopenvdb.
+#pragma GCC visibility push(default)
+#include <openvdb/openvdb.h>
+#include <openvdb/io/Stream.h>
+#pragma GCC visibility pop
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <mutex>
+#include <new>
+#include <set>
+#include <string>
+
+extern "C" {
+#include "gi/gi_vdb.h"
+#include "internal.h"
+}
+
+namespace {
+
+// A failure with a gi code, thrown by the helpers and caught at the boundary.
+struct Fail {
+  gi_result code;
+  std::string msg;
+};
+
+void init_once() {
+  static std::once_flag flag;
+  std::call_once(flag, [] { openvdb::initialize(); });
+}
+
+// Metadata names OpenVDB itself writes on grids; a user key must not clobber them.
+bool reserved_grid_key(const std::string &k) {
+  using G = openvdb::GridBase;
+  for (const char *r : {G::META_GRID_CLASS, G::META_GRID_CREATOR, G::META_GRID_NAME, G::META_SAVE_HALF_FLOAT,
+                        G::META_IS_LOCAL_SPACE, G::META_VECTOR_TYPE, G::META_FILE_BBOX_MIN, G::META_FILE_BBOX_MAX,
+                        G::META_FILE_COMPRESSION, G::META_FILE_MEM_BYTES, G::META_FILE_VOXEL_COUNT,
+                        G::META_FILE_DELAYED_LOAD})
+    if (k == r) return true;
+  return false;
+}
+
+void add_meta(openvdb::MetaMap &map, const gi_vdb_meta *meta, size_t n, const std::string &where, bool is_grid) {
+  if (n && !meta) throw Fail{GI_ERR_INVALID_ARG, where + ": metadata array is NULL"};
+  for (size_t m = 0; m < n; m++) {
+    if (!meta[m].name || !meta[m].name[0])
+      throw Fail{GI_ERR_INVALID_ARG, where + ": metadata entry " + std::to_string(m) + " has an empty key"};
+    std::string key = meta[m].name;
+    if (is_grid && reserved_grid_key(key))
+      throw Fail{GI_ERR_INVALID_ARG, where + ": metadata key '" + key + "' is reserved by OpenVDB"};
+    if (meta[m].str) {
+      map.insertMeta(key, openvdb::StringMetadata(meta[m].str));
+    } else {
+      if (!std::isfinite(meta[m].num))
+        throw Fail{GI_ERR_NONFINITE, where + ": metadata '" + key + "' is not finite"};
+      map.insertMeta(key, openvdb::DoubleMetadata(meta[m].num));
+    }
+  }
+}
+
+// Copies the non-zero voxels of a dense block (x fastest) into a sparse grid.
+template <typename GridT, typename Get>
+typename GridT::Ptr build_grid(const gi_vdb_grid &g, Get value_at) {
+  using V = typename GridT::ValueType;
+  typename GridT::Ptr grid = GridT::create(openvdb::zeroVal<V>());
+  typename GridT::Accessor acc = grid->getAccessor();
+  size_t idx = 0;
+  for (int k = 0; k < g.dims[2]; k++)
+    for (int j = 0; j < g.dims[1]; j++)
+      for (int i = 0; i < g.dims[0]; i++, idx++) {
+        V v = value_at(idx);
+        if (v != openvdb::zeroVal<V>()) acc.setValue(openvdb::Coord(i, j, k), v);
+      }
+  // Collapse uniform leaves into tiles: same values, smaller file.
+  grid->tree().prune();
+  return grid;
+}
+
+openvdb::GridBase::Ptr make_grid(const gi_vdb_grid &g, size_t gi) {
+  std::string where = "grid " + std::to_string(gi);
+  if (!g.name || !g.name[0]) throw Fail{GI_ERR_INVALID_ARG, where + " has an empty name"};
+  where = "grid '" + std::string(g.name) + "'";
+  if (g.kind != GI_VDB_FLOAT && g.kind != GI_VDB_VEC3)
+    throw Fail{GI_ERR_INVALID_ARG, where + ": unknown kind " + std::to_string((int)g.kind)};
+  if (g.dims[0] <= 0 || g.dims[1] <= 0 || g.dims[2] <= 0)
+    throw Fail{GI_ERR_INVALID_ARG, where + ": dims must be > 0"};
+  if (!g.data) throw Fail{GI_ERR_INVALID_ARG, where + ": no data"};
+  if (!(g.voxel_size > 0) || !std::isfinite(g.voxel_size))
+    throw Fail{GI_ERR_INVALID_ARG, where + ": voxel_size must be finite and > 0"};
+  if (!std::isfinite(g.origin[0]) || !std::isfinite(g.origin[1]) || !std::isfinite(g.origin[2]))
+    throw Fail{GI_ERR_NONFINITE, where + ": origin is not finite"};
+  size_t comps = g.kind == GI_VDB_VEC3 ? 3 : 1;
+  size_t n = (size_t)g.dims[0] * (size_t)g.dims[1] * (size_t)g.dims[2] * comps;
+  for (size_t i = 0; i < n; i++)
+    if (!std::isfinite(g.data[i]))
+      throw Fail{GI_ERR_NONFINITE, where + ": value " + std::to_string(i / comps) + " (x fastest) is not finite"};
+
+  openvdb::GridBase::Ptr grid;
+  if (g.kind == GI_VDB_FLOAT)
+    grid = build_grid<openvdb::FloatGrid>(g, [&](size_t i) { return g.data[i]; });
+  else
+    grid = build_grid<openvdb::Vec3SGrid>(
+        g, [&](size_t i) { return openvdb::Vec3s(g.data[3 * i], g.data[3 * i + 1], g.data[3 * i + 2]); });
+
+  grid->setName(g.name);
+  // Index (i,j,k) is the voxel centre origin + (i+0.5)*voxel_size, in doubles.
+  openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(g.voxel_size);
+  double h = 0.5 * g.voxel_size;
+  xform->postTranslate(openvdb::Vec3d(g.origin[0] + h, g.origin[1] + h, g.origin[2] + h));
+  grid->setTransform(xform);
+  grid->setGridClass(g.fog_volume ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_UNKNOWN);
+  add_meta(*grid, g.meta, g.num_meta, where, true);
+  return grid;
+}
+
+void write_file(const char *path, const gi_vdb_grid *grids, size_t num_grids, const gi_vdb_meta *file_meta,
+                size_t num_file_meta) {
+  if (!path || !path[0]) throw Fail{GI_ERR_INVALID_ARG, "empty path"};
+  if (num_grids == 0 || !grids) throw Fail{GI_ERR_EMPTY, "no grids"};
+  openvdb::GridPtrVec vec;
+  std::set<std::string> names;
+  for (size_t g = 0; g < num_grids; g++) {
+    vec.push_back(make_grid(grids[g], g));
+    if (!names.insert(grids[g].name).second)
+      throw Fail{GI_ERR_INVALID_ARG, "grid name '" + std::string(grids[g].name) + "' given twice"};
+  }
+  openvdb::MetaMap meta;
+  add_meta(meta, file_meta, num_file_meta, "file metadata", false);
+
+  std::string tmp = std::string(path) + ".tmp." + std::to_string((long)getpid());
+  try {
+    openvdb::io::File file(tmp);
+    file.write(vec, meta);
+    file.close();
+  } catch (...) {
+    std::remove(tmp.c_str());
+    throw;
+  }
+  if (std::rename(tmp.c_str(), path) != 0) {
+    int e = errno;
+    std::remove(tmp.c_str());
+    throw Fail{GI_ERR_IO, "cannot rename '" + tmp + "' into place: " + std::strerror(e)};
+  }
+}
+
+// A whole file in memory: its grids (with voxels) and its file metadata.
+struct Loaded {
+  openvdb::GridPtrVecPtr grids;
+  openvdb::MetaMap::Ptr meta;
+};
+
+// Reads path through an istream that throws on a short read. OpenVDB does
+// not check every read, so a truncated file read via io::File can send it
+// into multi-GB allocations and minute-long loops; this way it stops at
+// the first missing byte. Files are small enough to load whole.
+Loaded load(const char *path) {
+  struct stat st;
+  if (stat(path, &st) != 0) {
+    int e = errno;
+    throw Fail{e == ENOENT ? GI_ERR_NOT_FOUND : GI_ERR_IO, std::strerror(e)};
+  }
+  if (!S_ISREG(st.st_mode)) throw Fail{GI_ERR_IO, "not a regular file"};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    int e = errno;
+    throw Fail{GI_ERR_IO, std::string("cannot open: ") + std::strerror(e)};
+  }
+  in.exceptions(std::ios::failbit | std::ios::badbit);
+  openvdb::io::Stream stream(in, /*delayLoad=*/false);
+  return Loaded{stream.getGrids(), stream.getMetadata()};
+}
+
+openvdb::GridBase::Ptr find_grid(const Loaded &l, const char *name) {
+  for (const openvdb::GridBase::Ptr &g : *l.grids)
+    if (g->getName() == name) return g;
+  throw Fail{GI_ERR_NOT_FOUND, "no grid named '" + std::string(name) + "'"};
+}
+
+gi_vdb_kind kind_of(const openvdb::GridBase &grid) {
+  if (grid.isType<openvdb::FloatGrid>()) return GI_VDB_FLOAT;
+  if (grid.isType<openvdb::Vec3SGrid>()) return GI_VDB_VEC3;
+  throw Fail{GI_ERR_FORMAT, "grid '" + grid.getName() + "' has type " + grid.type() +
+                                "; only float and vec3s grids are read"};
+}
+
+// Double metadata as round-trip text (Metadata::str() keeps only 6 digits).
+std::string meta_text(const openvdb::Metadata &m) {
+  double d;
+  if (m.typeName() == openvdb::DoubleMetadata::staticTypeName())
+    d = static_cast<const openvdb::DoubleMetadata &>(m).value();
+  else if (m.typeName() == openvdb::FloatMetadata::staticTypeName())
+    d = static_cast<const openvdb::FloatMetadata &>(m).value();
+  else
+    return m.str();
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.15g", d);
+  if (std::strtod(buf, nullptr) != d) std::snprintf(buf, sizeof buf, "%.17g", d);
+  return buf;
+}
+
+// Records code and "VDB file '<path>': <what>" in err. OpenVDB messages can
+// quote bytes of a damaged file, so the text is kept printable ASCII.
+gi_result fail(gi_error_info *err, gi_result code, const char *path, std::string what) {
+  for (char &c : what)
+    if ((unsigned char)c < 0x20 || (unsigned char)c > 0x7e) c = '?';
+  return gi__fail(err, code, "VDB file '%s': %s", path ? path : "(null)", what.c_str());
+}
+
+// Runs fn and maps whatever it throws to a gi_result; `reading` picks the
+// code for OpenVDB's exceptions (see the design note).
+template <typename Fn>
+gi_result guard(const char *path, bool reading, gi_error_info *err, Fn fn) {
+  try {
+    init_once();
+    fn();
+    return GI_OK;
+  } catch (const Fail &f) {
+    return fail(err, f.code, path, f.msg);
+  } catch (const std::bad_alloc &) {
+    return fail(err, GI_ERR_NOMEM, path, "out of memory");
+  } catch (const std::ios_base::failure &) {
+    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_IO, path,
+                reading ? "truncated or damaged (short read)" : "stream error");
+  } catch (const openvdb::IoError &e) {
+    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_IO, path, e.what());
+  } catch (const openvdb::Exception &e) {
+    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_BACKEND, path, std::string("OpenVDB: ") + e.what());
+  } catch (const std::exception &e) {
+    return fail(err, GI_ERR_BACKEND, path, std::string("OpenVDB: ") + e.what());
+  } catch (...) {
+    return fail(err, GI_ERR_BACKEND, path, "unknown C++ exception");
+  }
+}
+
+}  // namespace
+
+extern "C" gi_result gi_vdb_write(const char *path, const gi_vdb_grid *grids, size_t num_grids,
+                                  const gi_vdb_meta *file_meta, size_t num_file_meta, gi_error_info *err) {
+  return guard(path, false, err, [&] { write_file(path, grids, num_grids, file_meta, num_file_meta); });
+}
+
+extern "C" gi_result gi_vdb_read_info(const char *path, gi_vdb_grid_info *infos, size_t max, size_t *num,
+                                      gi_error_info *err) {
+  if (num) *num = 0;
+  return guard(path, true, err, [&] {
+    if (!path || !num || (max && !infos)) throw Fail{GI_ERR_INVALID_ARG, "NULL path, infos or num"};
+    Loaded l = load(path);
+    size_t n = 0;
+    for (const openvdb::GridBase::Ptr &g : *l.grids) {
+      gi_vdb_kind kind = kind_of(*g);
+      if (n < max) {
+        gi_vdb_grid_info &in = infos[n];
+        std::memset(&in, 0, sizeof in);
+        std::snprintf(in.name, sizeof in.name, "%s", g->getName().c_str());
+        in.kind = kind;
+        in.voxel_size = g->voxelSize()[0];
+        openvdb::Vec3d w = g->indexToWorld(openvdb::Vec3d(0, 0, 0));
+        for (int a = 0; a < 3; a++) in.index_to_world[a] = w[a];
+        in.active_voxels = (long)g->activeVoxelCount();
+        in.is_fog_volume = g->getGridClass() == openvdb::GRID_FOG_VOLUME;
+      }
+      n++;
+    }
+    *num = n < max ? n : max;
+  });
+}
+
+extern "C" gi_result gi_vdb_read_value(const char *path, const char *name, int i, int j, int k, float val[3],
+                                       gi_error_info *err) {
+  return guard(path, true, err, [&] {
+    if (!path || !name || !val) throw Fail{GI_ERR_INVALID_ARG, "NULL path, name or val"};
+    openvdb::GridBase::Ptr g = find_grid(load(path), name);
+    openvdb::Coord ijk(i, j, k);
+    if (kind_of(*g) == GI_VDB_FLOAT) {
+      val[0] = openvdb::gridPtrCast<openvdb::FloatGrid>(g)->getConstAccessor().getValue(ijk);
+    } else {
+      openvdb::Vec3s v = openvdb::gridPtrCast<openvdb::Vec3SGrid>(g)->getConstAccessor().getValue(ijk);
+      for (int a = 0; a < 3; a++) val[a] = v[a];
+    }
+  });
+}
+
+extern "C" gi_result gi_vdb_read_meta(const char *path, const char *name, const char *key, char *buf,
+                                      size_t bufsize, gi_error_info *err) {
+  if (buf && bufsize) buf[0] = '\0';
+  return guard(path, true, err, [&] {
+    if (!path || !key || !buf || !bufsize) throw Fail{GI_ERR_INVALID_ARG, "NULL path, key or buf"};
+    Loaded l = load(path);
+    openvdb::MetaMap::Ptr map = name ? find_grid(l, name) : l.meta;
+    openvdb::Metadata::Ptr m = (*map)[key];
+    if (!m)
+      throw Fail{GI_ERR_NOT_FOUND, "no metadata '" + std::string(key) + "' on " +
+                                       (name ? "grid '" + std::string(name) + "'" : std::string("the file"))};
+    std::string text = meta_text(*m);
+    if (text.size() >= bufsize)
+      throw Fail{GI_ERR_LIMIT, "metadata '" + std::string(key) + "' needs " + std::to_string(text.size() + 1) +
+                                   " bytes, buffer has " + std::to_string(bufsize)};
+    std::memcpy(buf, text.c_str(), text.size() + 1);
+  });
+}
