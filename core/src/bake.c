@@ -122,6 +122,7 @@ static void free_levels(struct gi_cascade *c) {
     free(c->lv[d].side);
     free(c->lv[d].direct);
     free(c->lv[d].occ);
+    free(c->lv[d].busy);
   }
 }
 
@@ -184,6 +185,7 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   if ((rc = gi__inject(c, &q, err)) != GI_OK) goto fail;
   double t2 = gi__now_ms();
   gi__cascade_filter(c, q.threads);
+  gi__cascade_mark_busy(c);
   double t3 = gi__now_ms();
   if (c->report.effects[GI_FX_BOUNCE].ran)
     if ((rc = gi__bounce(c, &q, q.bounces, err)) != GI_OK) goto fail;

@@ -20,7 +20,8 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
     L->side = calloc(vox, sizeof *L->side);
     L->direct = calloc(vox, sizeof *L->direct);
     L->occ = malloc(vox * sizeof *L->occ);
-    if (!L->geo || !L->rad || !L->side || !L->direct || !L->occ)
+    L->busy = calloc(vox, 1);
+    if (!L->geo || !L->rad || !L->side || !L->direct || !L->occ || !L->busy)
       return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
   }
   return GI_OK;
@@ -189,3 +190,26 @@ void gi__cascade_filter(struct gi_cascade *c, int threads) {
 }
 
 int gi__is_inner(const gi_level *L, int64_t i, int64_t j, int64_t k) { return in_inner(L, i, j, k); }
+
+/* A trilinear sample reads the 2x2x2 block at its base cell; the mask lets
+ * samples in empty space skip those eight reads. Opacity is fixed once the
+ * levels are voxelized and filtered (bounces change only radiance). */
+void gi__cascade_mark_busy(struct gi_cascade *c) {
+  int R = c->R;
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    memset(L->busy, 0, (size_t)R * R * R);
+    for (int k = 0; k < R; k++)
+      for (int j = 0; j < R; j++)
+        for (int i = 0; i < R; i++) {
+          const gi_vrad *r = &L->rad[(size_t)i + (size_t)R * ((size_t)j + (size_t)R * k)];
+          if (!(r->tau[0] > 0 || r->tau[1] > 0 || r->tau[2] > 0)) continue;
+          for (int dz = 0; dz < 2; dz++)
+            for (int dy = 0; dy < 2; dy++)
+              for (int dx = 0; dx < 2; dx++) {
+                int bi = (i - dx + R) % R, bj = (j - dy + R) % R, bk = (k - dz + R) % R;
+                L->busy[(size_t)bi + (size_t)R * ((size_t)bj + (size_t)R * bk)] = 1;
+              }
+        }
+  }
+}

@@ -55,6 +55,7 @@ typedef struct gi_level {
   gi_vrad *rad;        /* R^3, toroidal */
   float (*side)[2][3]; /* R^3: direct+indirect irradiance on the +n and -n sides */
   float (*direct)[2][3]; /* R^3: the direct part of side */
+  uint8_t *busy;       /* per slot: 1 when the 2x2x2 block starting there has any opacity */
   uint32_t *occ;       /* slots of occupied voxels outside the inner region */
   uint32_t num_occ;
   uint64_t num_geo;    /* voxels holding geometry (incl. the inner region) */
@@ -100,6 +101,8 @@ void gi__cascade_place(struct gi_cascade *c);
 /* Filters the region of level d covered by level d-1 from level d-1's light
  * (compositing along each axis) and geometry. */
 void gi__cascade_filter(struct gi_cascade *c, int threads);
+/* Rebuilds every level's busy mask from its opacity (after filtering). */
+void gi__cascade_mark_busy(struct gi_cascade *c);
 /* 1 when the local point lies in level d's window shrunk by `border` voxels. */
 int gi__level_contains(const gi_level *L, const float p[3], float border);
 /* 1 when cell (i,j,k) of level L is covered by the finer level. */

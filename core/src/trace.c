@@ -92,16 +92,27 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
   const gi_level *L = &c->lv[d];
   int R = c->R;
   float inv = (float)(1.0 / L->s);
-  int64_t base[3];
+  /* Wrap each axis once: toroidal slots of the two cells the footprint spans. */
+  uint32_t off[3][2];
   float f[3];
   for (int a = 0; a < 3; a++) {
     float u = (p[a] - L->lo[a]) * inv - 0.5f;
     float fl = floorf(u);
-    int64_t i0 = (int64_t)fl;
+    int i0 = (int)fl;
     if (i0 < 0) i0 = 0, fl = 0, u = fmaxf(u, 0.f);
     if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = fminf(u, (float)(R - 1));
-    base[a] = L->cell0[a] + i0;
     f[a] = u - fl;
+    int s0 = gi__wrap(L->cell0[a] + i0, R);
+    int s1 = s0 + 1 == R ? 0 : s0 + 1;
+    uint32_t stride = a == 0 ? 1u : (a == 1 ? (uint32_t)R : (uint32_t)R * (uint32_t)R);
+    off[a][0] = (uint32_t)s0 * stride;
+    off[a][1] = (uint32_t)s1 * stride;
+  }
+  if (!L->busy[off[0][0] + off[1][0] + off[2][0]]) {
+    prem[0] = prem[1] = prem[2] = 0;
+    *wsum_alpha = 0;
+    *sigma = 0;
+    return 0;
   }
   int face[3];
   float w2[3], wa[3];
@@ -112,18 +123,27 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
     wa[a] = fabsf(w[a]);
   }
   float P[3] = {0, 0, 0}, wal = 0, tau = 0;
-  for (int corner = 0; corner < 8; corner++) {
-    int dx = corner & 1, dy = (corner >> 1) & 1, dz = corner >> 2;
-    float wt = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
-    if (wt <= 0) continue;
-    const gi_vrad *r = &L->rad[gi__slot(base[0] + dx, base[1] + dy, base[2] + dz, R)];
-    for (int a = 0; a < 3; a++) {
-      float k = wt * w2[a];
-      P[0] += k * r->p[face[a]][0];
-      P[1] += k * r->p[face[a]][1];
-      P[2] += k * r->p[face[a]][2];
-      wal += k * r->alpha[a];
-      tau += wt * wa[a] * r->tau[a];
+  for (int dz = 0; dz < 2; dz++) {
+    float wz = dz ? f[2] : 1 - f[2];
+    if (wz <= 0) continue;
+    for (int dy = 0; dy < 2; dy++) {
+      float wyz = wz * (dy ? f[1] : 1 - f[1]);
+      if (wyz <= 0) continue;
+      uint32_t row = off[2][dz] + off[1][dy];
+      for (int dx = 0; dx < 2; dx++) {
+        float wt = wyz * (dx ? f[0] : 1 - f[0]);
+        if (wt <= 0) continue;
+        const gi_vrad *r = &L->rad[row + off[0][dx]];
+        for (int a = 0; a < 3; a++) {
+          float k = wt * w2[a];
+          const float *pf = r->p[face[a]];
+          P[0] += k * pf[0];
+          P[1] += k * pf[1];
+          P[2] += k * pf[2];
+          wal += k * r->alpha[a];
+          tau += wt * wa[a] * r->tau[a];
+        }
+      }
     }
   }
   prem[0] = P[0];
@@ -164,8 +184,9 @@ void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[
       wal += frac * (wal2 - wal);
       sig += frac * (sig2 - sig);
     }
-    /* Never step past a voxel of the level sampled, or a wall can be jumped over. */
-    float dt = step * fminf(D, (float)c->lv[d].s);
+    /* Step a fraction of the sampled level's voxel: a longer step could jump a
+     * wall, a shorter one only re-reads the same trilinear data. */
+    float dt = step * (float)c->lv[d].s;
     float as = 1.0f - expf(-sig * dt);
     if (as > 0 && wal > 1e-8f) {
       float k = (1 - a) * as / wal;

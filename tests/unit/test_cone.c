@@ -14,7 +14,7 @@
 static struct gi_cascade *make(int levels) {
   static struct gi_cascade c;
   for (int d = 0; d < GI_MAX_LEVELS; d++) {
-    free(c.lv[d].geo); free(c.lv[d].rad); free(c.lv[d].side); free(c.lv[d].direct); free(c.lv[d].occ);
+    free(c.lv[d].geo); free(c.lv[d].rad); free(c.lv[d].side); free(c.lv[d].direct); free(c.lv[d].occ); free(c.lv[d].busy);
   }
   memset(&c, 0, sizeof c);
   c.n = levels;
@@ -41,6 +41,7 @@ static void slab(struct gi_cascade *c, int d, int64_t i, float alpha, float L) {
 }
 
 static gi_cone_out trace(struct gi_cascade *c, float ox, float dirx, float tan_half, float step) {
+  gi__cascade_mark_busy(c);
   float o[3] = {ox, 0.3f, 0.2f}, w[3] = {dirx, 0, 0};
   gi_cone_out out;
   gi__cone_trace(c, o, w, tan_half, 0.5f, step, 0.f, &out);
