@@ -65,10 +65,17 @@ static gi_result resolve_quality(const gi_scene *s, const gi_quality *in, gi_qua
   if (q->voxel0 == 0) {
     /* The coarsest level spans 1.25 times the scene's largest side: a
      * centred viewpoint then keeps every wall a few voxels inside the
-     * window, clear of the one-voxel border cones need for filtering. */
+     * window, clear of the one-voxel border cones need for filtering. A
+     * wide, flat scene (a city) spans at most 16 times its height (but at
+     * least an eighth of its width): light from farther away than that
+     * barely reaches a street, and a cascade over all of a 5 km city
+     * would voxelize every triangle of it for each viewpoint. */
     double lo[3], hi[3], ext = 0;
     gi_scene_bounds(s, lo, hi);
     for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
+    int up = gi_scene_up(s) == GI_UP_Z ? 2 : 1;
+    double height = hi[up] - lo[up], cap = fmax(16.0 * height, ext / 8.0);
+    if (cap < ext) ext = cap;
     if (!(ext > 0)) ext = 1.0;
     q->voxel0 = 1.25 * ext / ((double)q->res * (double)(1ull << (q->levels - 1)));
   }
@@ -109,7 +116,8 @@ static void plan_effects(const gi_scene *s, const gi_quality *q, gi_bake_report 
   else if (amax <= 0) set_fx(r, GI_FX_BOUNCE, 0, "every albedo is 0: a bounce would add nothing");
   else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s, largest albedo %.2f", q->bounces, q->bounces > 1 ? "s" : "", amax);
   if (q->specular > 0) set_fx(r, GI_FX_SPECULAR, 0, "forced on, but probe output has no view direction");
-  else if (glossy) set_fx(r, GI_FX_SPECULAR, 0, "%d glossy materials, but probe output has no view direction", glossy);
+  else if (glossy) set_fx(r, GI_FX_SPECULAR, 0, "%d glossy material%s, but probe output has no view direction", glossy,
+               glossy > 1 ? "s" : "");
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy materials in the scene");
   if (q->ao) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
   else set_fx(r, GI_FX_AO, 0, "not requested");
@@ -170,6 +178,10 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   c->report.levels = q.levels;
   gi__cone_set(q.cones, q.aperture_deg, c->cone_dir, c->cone_weight, &c->cone_tan);
   c->num_cones = q.cones;
+  /* Report every knob resolved, so a JSON answer says exactly what ran. */
+  q.aperture_deg = (float)(2.0 * atan((double)c->cone_tan) * 180.0 / 3.14159265358979323846);
+  q.threads = gi__num_workers(q.threads);
+  c->report.quality = q;
   plan_effects(scene, &q, &c->report);
 
   if ((rc = gi__cascade_alloc(c, err)) != GI_OK) goto fail;
