@@ -275,14 +275,8 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
       float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
       float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * PI_F * gi__u01(&rng);
       float w[3] = {r * cosf(phi), r * sinf(phi), z};
-      float th, ng[3], ce;
-      uint32_t tri;
-      if (!gi__intersect1(s, p, w, eps, INFINITY, &th, &tri, ng)) continue;
-      if (!gi__emitter_hit(s, tri, w, &ce)) continue;
-      float mpl = gi__emitter_mpl(s, tri, th, ce, q->probe_samples);
-      const float *Le = s->materials[s->tri_material[tri]].emission;
-      float k0 = 1.0f / (mpl + pb);
-      float V[3] = {Le[0] * k0, Le[1] * k0, Le[2] * k0};
+      float V[3];
+      if (!gi__emitter_ray(s, p, w, eps, q->probe_samples, pb, V)) continue;
       gi__sh_add(pr->sh_direct, w, V, 1.0f);
       float cu = gi__dot(up, w);
       if (cu > 0)

@@ -129,8 +129,12 @@ typedef struct gi_lsample {
 /* Solid-angle pdf (times the light-sample count m) of reaching emissive
  * triangle tri along a ray of length t meeting it at cosine cos_e. */
 float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int m);
-/* Emission Le of triangle tri as seen along unit w (0 from behind), with cos_e. */
-int gi__emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e);
+/* MIS companion of emitter light sampling: traces o + t w (t > tnear); when
+ * it meets an emitter's front, out = Le / (mpl + pb) with mpl the light
+ * strategy's pdf for that point (m_light samples) and pb the caller's own
+ * pdf times its sample count. Returns 0 (out untouched) otherwise. */
+int gi__emitter_ray(const gi_scene *s, const float o[3], const float w[3], float tnear, int m_light,
+                    float pb, float out[3]);
 /* Which light kinds to sample, and how many rays for sky and emitters. */
 typedef struct gi_light_plan {
   int sun, local, sky, emissive;

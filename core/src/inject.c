@@ -150,7 +150,7 @@ float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int
   return (float)m * (pt / area) * t * t / cos_e;
 }
 
-int gi__emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
+static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
   const float *Le = s->materials[s->tri_material[tri]].emission;
   if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0)) return 0;
   const uint32_t *ix = &s->indices[3 * tri];
@@ -162,6 +162,18 @@ int gi__emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *co
   if (!(l > 0)) return 0;
   *cos_e = -gi__dot(ng, w) / l;
   return *cos_e > 0;
+}
+
+int gi__emitter_ray(const gi_scene *s, const float o[3], const float w[3], float tnear, int m_light,
+                    float pb, float out[3]) {
+  float th, ng[3], ce;
+  uint32_t tri;
+  if (!(pb > 0) || !gi__intersect1(s, o, w, tnear, INFINITY, &th, &tri, ng)) return 0;
+  if (!emitter_hit(s, tri, w, &ce)) return 0;
+  float mpl = gi__emitter_mpl(s, tri, th, ce, m_light);
+  const float *Le = s->materials[s->tri_material[tri]].emission;
+  for (int k = 0; k < 3; k++) out[k] = Le[k] / (mpl + pb);
+  return 1;
 }
 
 typedef struct {
@@ -238,17 +250,10 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
         float x = r * cosf(phi), y = r * sinf(phi), z = sqrtf(fmaxf(0.f, 1 - u1));
         float w[3];
         for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
-        float th, ng[3], ce;
-        uint32_t tri;
         rays++;
-        if (!gi__intersect1(s, o, w, 0, INFINITY, &th, &tri, ng)) continue;
-        if (!gi__emitter_hit(s, tri, w, &ce)) continue;
-        float mpl = gi__emitter_mpl(s, tri, th, ce, ic->lp->emit_samples);
-        float pb = (float)mb * z / PI_F;
-        if (!(pb > 0)) continue;
-        const float *Le = s->materials[s->tri_material[tri]].emission;
-        float k0 = z / (mpl + pb);
-        for (int k = 0; k < 3; k++) E[sd][k] += Le[k] * k0;
+        float V[3];
+        if (!gi__emitter_ray(s, o, w, 0, ic->lp->emit_samples, (float)mb * z / PI_F, V)) continue;
+        for (int k = 0; k < 3; k++) E[sd][k] += V[k] * z;
       }
     }
     memcpy(L->side[slot], E, sizeof(float[2][3]));
