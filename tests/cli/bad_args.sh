@@ -31,6 +31,9 @@ expect_usage --up city --up x
 expect_usage --sun city --sun 0,0,0,1,1,1
 expect_usage --sky city --sky 1,-1,1
 expect_usage --point city --point 1,2,3,1,1
+expect_usage --spot city --spot 0,5,0,0,-1,0,20,30,1,1
+expect_usage --spot city --spot 0,5,0,0,-1,0,40,30,1,1,1
+expect_usage --spot city --spot 0,5,0,0,0,0,20,30,1,1,1
 expect_usage --city-extent city --city-extent 0
 expect_usage --city-seed city --city-seed -3
 expect_usage --city-detail city --city-detail 9

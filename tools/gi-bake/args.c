@@ -25,7 +25,7 @@
 enum {
   OPT_AT = 256, OPT_UP, OPT_LEVELS, OPT_RES, OPT_VOXEL, OPT_CONES, OPT_BOUNCES, OPT_SAMPLES,
   OPT_PROBE_SAMPLES, OPT_THREADS, OPT_EXR, OPT_HALF, OPT_VDB, OPT_VDB_FACES, OPT_JSON, OPT_PROBES,
-  OPT_SUN, OPT_SKY, OPT_POINT, OPT_NO_DEFAULT_LIGHTS, OPT_AO, OPT_CITY_EXTENT, OPT_CITY_SEED,
+  OPT_SUN, OPT_SKY, OPT_POINT, OPT_SPOT, OPT_NO_DEFAULT_LIGHTS, OPT_AO, OPT_CITY_EXTENT, OPT_CITY_SEED,
   OPT_CITY_DETAIL
 };
 
@@ -49,6 +49,7 @@ static const struct option long_opts[] = {
     {"sun", required_argument, NULL, OPT_SUN},
     {"sky", required_argument, NULL, OPT_SKY},
     {"point", required_argument, NULL, OPT_POINT},
+    {"spot", required_argument, NULL, OPT_SPOT},
     {"no-default-lights", no_argument, NULL, OPT_NO_DEFAULT_LIGHTS},
     {"ao", no_argument, NULL, OPT_AO},
     {"city-extent", required_argument, NULL, OPT_CITY_EXTENT},
@@ -88,6 +89,10 @@ static const char help_text[] =
     "                        be unit length), irradiance on a facing surface (W/m^2)\n"
     "  --sky R,G,B           uniform sky radiance (W/m^2/sr)\n"
     "  --point X,Y,Z,R,G,B   point light: position (world units), intensity (W/sr)\n"
+    "  --spot X,Y,Z,DX,DY,DZ,INNER,OUTER,R,G,B\n"
+    "                        spot light: position, direction it shines, full cone\n"
+    "                        angles in degrees (full intensity inside INNER, none\n"
+    "                        outside OUTER, 0 < INNER <= OUTER < 180), intensity (W/sr)\n"
     "  --no-default-lights   do not add a sun and sky to a scene with no lights and\n"
     "                        no emitters (added by default)\n"
     "\n"
@@ -173,8 +178,26 @@ static int add_light(cli_opts *o, const char *opt, const char *arg) {
     return usage_fail(opt, "at most %d lights can be given on the command line", CLI_MAX_LIGHTS);
   gi_light l;
   memset(&l, 0, sizeof l);
-  double v[6];
-  if (!strcmp(opt, "--sun")) {
+  double v[11];
+  if (!strcmp(opt, "--spot")) {
+    if (parse_doubles(arg, v, 11))
+      return usage_fail(opt, "expected eleven finite numbers X,Y,Z,DX,DY,DZ,INNER,OUTER,R,G,B, got '%s'", arg);
+    double len = sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5]);
+    if (!(len > 1e-12) || !isfinite(len))
+      return usage_fail(opt, "direction DX,DY,DZ must be a non-zero finite vector, got '%s'", arg);
+    if (!(v[6] > 0 && v[6] <= v[7] && v[7] < 180))
+      return usage_fail(opt, "cone angles must satisfy 0 < INNER <= OUTER < 180 degrees, got '%s'", arg);
+    if (!colour_ok(v + 8)) return usage_fail(opt, "intensity R,G,B must be finite and >= 0, got '%s'", arg);
+    l.type = GI_LIGHT_SPOT;
+    for (int k = 0; k < 3; k++) {
+      l.position[k] = v[k];
+      l.direction[k] = (float)(v[3 + k] / len);
+      l.color[k] = (float)v[8 + k];
+    }
+    const double deg = 3.14159265358979323846 / 180.0;
+    l.cos_inner = (float)cos(0.5 * v[6] * deg);
+    l.cos_outer = (float)cos(0.5 * v[7] * deg);
+  } else if (!strcmp(opt, "--sun")) {
     if (parse_doubles(arg, v, 6))
       return usage_fail(opt, "expected six finite numbers DX,DY,DZ,R,G,B, got '%s'", arg);
     double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
@@ -373,6 +396,9 @@ int cli_parse(int argc, char **argv, cli_opts *o) {
       break;
     case OPT_POINT:
       if ((rc = add_light(o, "--point", optarg))) return rc;
+      break;
+    case OPT_SPOT:
+      if ((rc = add_light(o, "--spot", optarg))) return rc;
       break;
     case OPT_NO_DEFAULT_LIGHTS: o->no_default_lights = 1; break;
     case OPT_AO: o->q.ao = 1; break;
