@@ -156,6 +156,14 @@ typedef struct gi_cone_out {
 } gi_cone_out;
 void gi__cone_trace(const struct gi_cascade *c, const float p[3], const float w[3], float tan_half,
                     float t0, float step, float ao_lambda, gi_cone_out *out);
+/* Half-angle tangent of the specular cone for a roughness in [0,1]: the
+ * half-width at half maximum of the Phong lobe equivalent to Beckmann
+ * alpha = roughness^2 (exponent 2 / alpha^2 - 2), at least 0.5 degree. */
+float gi__specular_tan(float roughness);
+/* Radiance arriving along the mirror direction of view v (unit, pointing
+ * from the eye to p) about unit normal n, through one cone. */
+void gi__specular_trace(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
+                        float roughness, gi_cone_out *out);
 /* Samples the texture at local p for direction w (the faces facing -w),
  * trilinearly on level d: premultiplied radiance and optical depth per unit length. */
 int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const float w[3],

@@ -207,3 +207,33 @@ void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[
   out->occlusion = occ;
   out->samples = samples;
 }
+
+float gi__specular_tan(float roughness) {
+  float r = fminf(fmaxf(roughness, 0.f), 1.f);
+  float a = r * r;
+  float half;
+  if (a < 1e-4f) {
+    half = 0.0087f; /* a mirror: half a degree, the finest a voxel texture can resolve */
+  } else {
+    double ns = 2.0 / ((double)a * a) - 2.0;
+    half = ns > 0 ? (float)acos(pow(0.5, 1.0 / ns)) : 1.5707963f;
+    half = fmaxf(half, 0.0087f);
+  }
+  /* Beyond 80 degrees a cone is no longer a lobe: cap it. */
+  return tanf(fminf(half, 1.396f));
+}
+
+void gi__specular_trace(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
+                        float roughness, gi_cone_out *out) {
+  float d = gi__dot(v, n);
+  float r[3], o[3];
+  for (int k = 0; k < 3; k++) r[k] = v[k] - 2 * d * n[k];
+  float len = gi__len(r);
+  for (int k = 0; k < 3; k++) r[k] /= len;
+  int lvl = gi__finest_level_at(c, p);
+  float s = (float)(lvl >= 0 ? c->lv[lvl].s : c->s0);
+  /* Start one voxel off the surface, as the diffuse cones do. */
+  for (int k = 0; k < 3; k++) o[k] = p[k] + s * n[k];
+  gi__cone_trace(c, o, r, gi__specular_tan(roughness), s, c->report.quality.step > 0 ? c->report.quality.step : 0.5f,
+                 0.f, out);
+}

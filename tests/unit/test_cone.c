@@ -135,12 +135,42 @@ static void test_sh_constant(void **state) {
   }
 }
 
+static void test_specular_cone(void **state) {
+  struct gi_cascade *c = make(2);
+  slab(c, 0, 4, 0.999f, 2.0f); /* a wall of radiance 2 at x in [4,5) facing -x */
+  gi__cascade_mark_busy(c);
+  /* A floor point looking at 45 degrees: the mirror ray goes +x and meets the wall. */
+  float p[3] = {0.5f, -2.0f, 0.2f}, n[3] = {0, 1, 0};
+  float v[3] = {0.70710678f, -0.70710678f, 0};
+  gi_cone_out o;
+  gi__specular_trace(c, p, n, v, 0.1f, &o);
+  printf("specular: L=%.4f a=%.4f\n", o.L[0], o.alpha);
+  assert_true(fabsf(o.L[0] - 2.0f) < 0.02f && o.alpha >= 0.99f);
+  /* Reflected away from the wall: nothing. */
+  float v2[3] = {-0.70710678f, -0.70710678f, 0};
+  gi__specular_trace(c, p, n, v2, 0.1f, &o);
+  assert_true(o.L[0] == 0);
+  /* The cone widens with roughness (strictly once above the half-degree
+   * floor) and stays a lobe. */
+  float prev = 0;
+  for (int i = 0; i <= 10; i++) {
+    float t = gi__specular_tan(i / 10.0f);
+    assert_true(i < 2 ? t >= prev : t > prev);
+    assert_true(t <= tanf(1.3963f));
+    prev = t;
+  }
+  printf("specular half-angles: r=0.1 %.2f deg, r=0.5 %.2f deg, r=1 %.2f deg\n",
+         atanf(gi__specular_tan(0.1f)) * 57.2958f, atanf(gi__specular_tan(0.5f)) * 57.2958f,
+         atanf(gi__specular_tan(1.0f)) * 57.2958f);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_level_selection),
       cmocka_unit_test(test_compositing),
       cmocka_unit_test(test_cone_sets),
       cmocka_unit_test(test_sh_constant),
+      cmocka_unit_test(test_specular_cone),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
