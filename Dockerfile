@@ -35,6 +35,7 @@ ENV DEBIAN_FRONTEND=noninteractive
 RUN apt-get update \
  && apt-get install -y --no-install-recommends \
       libembree3-3 libopenexr-3-1-30 libopenvdb10.0 libassimp5 libtbb12 \
+      libpng16-16 libjpeg62-turbo \
       libjansson4 libmicrohttpd12 libcurl4 ca-certificates \
  && rm -rf /var/lib/apt/lists/*
 RUN useradd --system --uid 10001 --create-home --home-dir /home/gi --shell /usr/sbin/nologin gi

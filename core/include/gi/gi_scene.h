@@ -77,6 +77,7 @@ typedef struct gi_scene_stats {
   uint32_t lights;
   uint32_t emissive_triangles;
   int default_lights_added;    /* 1 when a default sun + sky were added */
+  uint64_t textures_unreadable; /* diffuse textures missing or undecodable (factor used alone) */
 } gi_scene_stats;
 
 /* Loads a scene file through assimp (OBJ+MTL, PLY, glTF 2.0, 3DS, FBX...).

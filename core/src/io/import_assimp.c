@@ -9,7 +9,12 @@
  * Non-finite positions are passed through so that gi_scene_build drops and
  * counts those triangles; an index outside its mesh is a malformed file.
  * Materials map OBJ (Kd, Ke, Ks, Ns) and glTF (baseColor, emissive,
- * metallic/roughness) onto gi_material. assimp keeps its last error in a
+ * metallic/roughness) onto gi_material; a diffuse or base-colour texture
+ * multiplies the colour factor by its average linear colour (we bake at
+ * voxel scale, so one colour per material is what the pipeline can use).
+ * Textures are decoded once per load (cached by path), embedded ones from
+ * the aiScene, and one that cannot be read costs a warning on stderr and a
+ * count in the stats, never the load. assimp keeps its last error in a
  * global string, so the import and the read of that string run under one
  * mutex; loading is rare, serving is not, so this costs nothing that
  * matters. assimp logs only when a logger is attached, and we attach none,
@@ -26,6 +31,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include "internal.h"
+#include "io/texture_image.h"
 #include "scene_internal.h"
 
 static pthread_mutex_t assimp_lock = PTHREAD_MUTEX_INITIALIZER;
@@ -118,11 +124,243 @@ static int get_float(const struct aiMaterial *m, const char *key, unsigned type,
   return 1;
 }
 
-static void convert_material(const struct aiMaterial *am, gi_material *m) {
+/* --- diffuse textures ------------------------------------------------ */
+
+/* One texture's average, computed once per load: key is "*N" for an
+ * embedded texture, else the resolved file path. */
+typedef struct tex_entry {
+  char *key;
+  int ok;
+  float rgb[3];
+} tex_entry;
+
+/* An OBJ material's name and whether its MTL block has a Kd line. */
+typedef struct mtl_entry {
+  char *name;
+  int has_kd;
+} mtl_entry;
+
+typedef struct tex_ctx {
+  const struct aiScene *as;
+  const char *path;   /* the scene file */
+  tex_entry *tex;
+  size_t ntex, captex;
+  uint64_t unreadable;
+  int mtl_scanned;    /* OBJ: the MTL files were read into mtl[] */
+  mtl_entry *mtl;
+  size_t nmtl, capmtl;
+} tex_ctx;
+
+static void tex_ctx_fini(tex_ctx *tc) {
+  for (size_t i = 0; i < tc->ntex; i++) free(tc->tex[i].key);
+  for (size_t i = 0; i < tc->nmtl; i++) free(tc->mtl[i].name);
+  free(tc->tex);
+  free(tc->mtl);
+}
+
+/* A file name from the scene, resolved against the scene file's folder;
+ * backslashes become slashes. malloc'ed; NULL when out of memory. */
+static char *resolve_path(const char *scene_path, const char *name, size_t len) {
+  const char *slash = strrchr(scene_path, '/');
+  size_t dl = (name[0] == '/' || name[0] == '\\' || !slash) ? 0 : (size_t)(slash - scene_path) + 1;
+  char *r = malloc(dl + len + 1);
+  if (!r) return NULL;
+  memcpy(r, scene_path, dl);
+  for (size_t i = 0; i < len; i++) r[dl + i] = name[i] == '\\' ? '/' : name[i];
+  r[dl + len] = 0;
+  return r;
+}
+
+static const char *base_name(const char *p) {
+  const char *a = strrchr(p, '/'), *b = strrchr(p, '\\');
+  if (b && (!a || b > a)) a = b;
+  return a ? a + 1 : p;
+}
+
+/* The embedded texture a material's path names ("*N", or a file name that
+ * matches an embedded texture's, as aiScene::GetEmbeddedTexture does), or -1. */
+static long embedded_index(const struct aiScene *as, const char *p) {
+  if (p[0] == '*') {
+    char *end;
+    errno = 0;
+    long i = strtol(p + 1, &end, 10);
+    return (!*end && !errno && i >= 0 && (unsigned long)i < as->mNumTextures) ? i : -1;
+  }
+  const char *bn = base_name(p);
+  for (unsigned i = 0; i < as->mNumTextures; i++)
+    if (as->mTextures[i] && strcmp(base_name(as->mTextures[i]->mFilename.data), bn) == 0) return (long)i;
+  return -1;
+}
+
+/* Average of one texture, decoded the first time it is asked for. Returns
+ * the cache entry, or NULL when out of memory. A texture that cannot be
+ * read is counted and reported once (naming the first material using it). */
+static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const char *tpath) {
+  const struct aiScene *as = tc->as;
+  long ei = embedded_index(as, tpath);
+  char *key = NULL;
+  if (ei >= 0) {
+    key = malloc(24);
+    if (key) snprintf(key, 24, "*%ld", ei);
+  } else {
+    key = resolve_path(tc->path, tpath, strlen(tpath));
+  }
+  if (!key) return NULL;
+  for (size_t i = 0; i < tc->ntex; i++)
+    if (strcmp(tc->tex[i].key, key) == 0) {
+      free(key);
+      return &tc->tex[i];
+    }
+  if (tc->ntex == tc->captex) {
+    size_t cap = tc->captex ? 2 * tc->captex : 8;
+    tex_entry *t = realloc(tc->tex, cap * sizeof *t);
+    if (!t) { free(key); return NULL; }
+    tc->tex = t;
+    tc->captex = cap;
+  }
+  tex_entry *e = &tc->tex[tc->ntex++];
+  memset(e, 0, sizeof *e);
+  e->key = key;
+  gi_error_info te = {0};
+  gi_result r;
+  char what[96];
+  if (ei >= 0) {
+    const struct aiTexture *t = as->mTextures[ei];
+    snprintf(what, sizeof what, "embedded texture *%ld", ei);
+    if (t->mHeight == 0)
+      r = gi__image_average(t->pcData, t->mWidth, what, e->rgb, &te);
+    else
+      r = gi__texels_average(t->pcData, t->mWidth, t->mHeight, what, e->rgb, &te);
+  } else {
+    void *data = NULL;
+    size_t size = 0;
+    r = gi__read_file(key, GI__TEXTURE_FILE_MAX, &data, &size, &te);
+    const char *bn = base_name(tpath);
+    if (r == GI_ERR_NOT_FOUND && bn != tpath) {
+      /* Exporters often write the author's absolute path: try the file
+       * name alone next to the scene. */
+      char *near = resolve_path(tc->path, bn, strlen(bn));
+      gi_error_info te2 = {0};
+      if (near && gi__read_file(near, GI__TEXTURE_FILE_MAX, &data, &size, &te2) == GI_OK) r = GI_OK;
+      free(near);
+    }
+    if (r == GI_OK) r = gi__image_average(data, size, key, e->rgb, &te);
+    free(data);
+  }
+  e->ok = r == GI_OK && gi__finite3(e->rgb);
+  if (!e->ok) {
+    tc->unreadable++;
+    fprintf(stderr, "gi: warning: scene file '%s': material '%s': diffuse texture '%s' is unreadable, using the "
+            "material's colour alone: %s\n", tc->path, mat_name, tpath, te.msg[0] ? te.msg : "non-finite average");
+  }
+  return e;
+}
+
+/* Leading blanks skipped, trailing blanks and line ends cut; returns the start. */
+static char *trim(char *l) {
+  while (*l == ' ' || *l == '\t') l++;
+  size_t n = strlen(l);
+  while (n && (l[n - 1] == '\n' || l[n - 1] == '\r' || l[n - 1] == ' ' || l[n - 1] == '\t')) l[--n] = 0;
+  return l;
+}
+
+/* Records which materials of one MTL file have a Kd line. 0: out of memory. */
+static int scan_mtl(tex_ctx *tc, const char *mtl_path) {
+  FILE *f = fopen(mtl_path, "rb");
+  if (!f) return 1;
+  char line[1024];
+  long cur = -1;
+  int ok = 1;
+  while (ok && fgets(line, sizeof line, f)) {
+    char *l = trim(line);
+    if (strncmp(l, "newmtl", 6) == 0 && (l[6] == ' ' || l[6] == '\t')) {
+      char *name = trim(l + 6);
+      cur = -1;
+      for (size_t i = 0; i < tc->nmtl && cur < 0; i++)
+        if (strcmp(tc->mtl[i].name, name) == 0) cur = (long)i;
+      if (cur >= 0) continue; /* assimp merges a repeated newmtl into the first */
+      if (tc->nmtl == tc->capmtl) {
+        size_t cap = tc->capmtl ? 2 * tc->capmtl : 16;
+        mtl_entry *m = realloc(tc->mtl, cap * sizeof *m);
+        if (!m) { ok = 0; break; }
+        tc->mtl = m;
+        tc->capmtl = cap;
+      }
+      char *copy = strdup(name);
+      if (!copy) { ok = 0; break; }
+      tc->mtl[tc->nmtl] = (mtl_entry){copy, 0};
+      cur = (long)tc->nmtl++;
+    } else if (cur >= 0 && (l[0] == 'K' || l[0] == 'k') && l[1] == 'd' && (l[2] == ' ' || l[2] == '\t')) {
+      tc->mtl[cur].has_kd = 1;
+    }
+  }
+  fclose(f);
+  return ok;
+}
+
+/* OBJ only: reads the MTL files the OBJ names, once per load. 0: out of memory. */
+static int scan_obj_mtllibs(tex_ctx *tc) {
+  if (tc->mtl_scanned) return 1;
+  tc->mtl_scanned = 1;
+  FILE *f = fopen(tc->path, "rb");
+  if (!f) return 1;
+  char line[4096];
+  int ok = 1;
+  while (ok && fgets(line, sizeof line, f)) {
+    char *l = trim(line);
+    if (strncmp(l, "mtllib", 6) != 0 || (l[6] != ' ' && l[6] != '\t')) continue;
+    char *name = trim(l + 6); /* like assimp: the rest of the line is one file name */
+    char *mp = resolve_path(tc->path, name, strlen(name));
+    ok = mp && scan_mtl(tc, mp);
+    free(mp);
+  }
+  fclose(f);
+  return ok;
+}
+
+/* The factor that goes with a diffuse texture. assimp reports Kd 0.6 for an
+ * OBJ material without a Kd line, and map_Kd alone means "the texture as is",
+ * so for OBJ the MTL is consulted: no Kd line gives a factor of 1. 0: out of memory. */
+static int texture_factor(tex_ctx *tc, const char *mat_name, float c[3]) {
+  if (!ends_with_ci(tc->path, ".obj") || c[0] != 0.6f || c[1] != 0.6f || c[2] != 0.6f) return 1;
+  if (!scan_obj_mtllibs(tc)) return 0;
+  for (size_t i = 0; i < tc->nmtl; i++)
+    if (strcmp(tc->mtl[i].name, mat_name) == 0) {
+      if (!tc->mtl[i].has_kd) c[0] = c[1] = c[2] = 1.f;
+      break;
+    }
+  return 1;
+}
+
+/* Maps one assimp material onto ours. The albedo is the colour factor
+ * times the average of the diffuse (or base-colour) texture when there is
+ * one; a texture that cannot be read leaves the factor alone. Fails only
+ * when out of memory. */
+static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_material *m, gi_error_info *err) {
   memset(m, 0, sizeof *m);
+  struct aiString name;
+  if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
+    snprintf(m->name, sizeof m->name, "%.*s", (int)(name.length < sizeof m->name ? name.length : sizeof m->name - 1),
+             name.data);
   float c[3];
   /* glTF's base colour is the truer albedo when both are present. */
-  if (get_color(am, AI_MATKEY_BASE_COLOR, c) || get_color(am, AI_MATKEY_COLOR_DIFFUSE, c))
+  int has_factor = get_color(am, AI_MATKEY_BASE_COLOR, c) || get_color(am, AI_MATKEY_COLOR_DIFFUSE, c);
+  struct aiString tpath;
+  int has_tex = aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tpath, NULL, NULL, NULL, NULL, NULL, NULL) ==
+                    aiReturn_SUCCESS ||
+                aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tpath, NULL, NULL, NULL, NULL, NULL, NULL) ==
+                    aiReturn_SUCCESS;
+  if (has_tex && tpath.length == 0) has_tex = 0;
+  if (has_tex) {
+    if (!has_factor) c[0] = c[1] = c[2] = 1.f;
+    const tex_entry *t = NULL;
+    if ((has_factor && !texture_factor(tc, m->name, c)) || !(t = texture_average(tc, m->name, tpath.data)))
+      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
+    if (t->ok)
+      for (int i = 0; i < 3; i++) c[i] *= t->rgb[i];
+    has_factor = 1;
+  }
+  if (has_factor)
     memcpy(m->albedo, c, sizeof c);
   else
     m->albedo[0] = m->albedo[1] = m->albedo[2] = 0.8f;
@@ -150,10 +388,7 @@ static void convert_material(const struct aiMaterial *am, gi_material *m) {
     m->roughness = 1.f;
     m->specular = 0.f;
   }
-  struct aiString name;
-  if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
-    snprintf(m->name, sizeof m->name, "%.*s", (int)(name.length < sizeof m->name ? name.length : sizeof m->name - 1),
-             name.data);
+  return GI_OK;
 }
 
 static gi_result convert_light(const char *path, const struct aiLight *al, double scale, gi_light *l,
@@ -193,6 +428,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   gi_light *lights = NULL;
   uint32_t *matmap = NULL;
   const struct aiScene *as = NULL;
+  tex_ctx tc = {0};
   gi_result rc = GI_OK;
   int locked = 0;
 
@@ -267,9 +503,12 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   matmap = malloc((as->mNumMaterials + 1) * sizeof *matmap);
   if (!matmap) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
   uint32_t nmat = 0;
+  tc.as = as;
+  tc.path = path;
   for (unsigned i = 0; i < as->mNumMaterials; i++) {
     gi_material m;
-    convert_material(as->mMaterials[i], &m);
+    rc = convert_material(as->mMaterials[i], &tc, &m, err);
+    if (rc != GI_OK) goto done;
     int used = 0;
     for (unsigned j = 0; j < as->mNumMeshes && !used; j++)
       used = as->mMeshes[j]->mMaterialIndex == i && (as->mMeshes[j]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
@@ -336,6 +575,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     gi__fail(err, rc, "scene file '%s': %s", path, e2.msg);
     goto done;
   }
+  (*out)->stats.textures_unreadable = tc.unreadable;
   gi_scene_stats ss;
   gi_scene_get_stats(*out, &ss);
   if (ss.triangles == 0) {
@@ -352,6 +592,7 @@ done:
   if (as) aiReleaseImport(as);
   free(lights);
   free(matmap);
+  tex_ctx_fini(&tc);
   gi_mesh_builder_free(b);
   return rc;
 }

@@ -1,0 +1,345 @@
+/* io/texture_image.c: the average linear colour of a PNG or JPEG texture.
+ *
+ * Design: the importer only needs one number per texture (the mean albedo),
+ * so images are streamed row by row into a per-channel histogram of the
+ * encoded values and never held whole; the histogram is then converted
+ * through the exact sRGB transfer function, which makes the mean exact for
+ * 8-bit data and cheap (256 or 65536 conversions, not one per pixel).
+ * Adam7-interlaced PNGs are read pass by pass without de-interlacing: every
+ * pixel lies in exactly one pass, and a mean does not care where. Both
+ * libraries report errors through callbacks that longjmp back here, so a
+ * corrupt or truncated file is a GI_ERR_FORMAT, never an exit() or a crash;
+ * libpng warnings and libjpeg's harmless warnings are dropped, libjpeg's
+ * "corrupt data" warnings (truncation, bad codes) are errors, and a PNG is
+ * read to its IEND, so a truncated file of either kind is refused. Image size is
+ * checked from the header before anything large is allocated, and libjpeg's
+ * own memory (progressive files keep all coefficients) is capped. */
+#include "io/texture_image.h"
+#include <errno.h>
+#include <math.h>
+#include <setjmp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <jpeglib.h>
+#include <jerror.h>
+#include <png.h>
+#include "internal.h"
+
+/* libjpeg's working memory ceiling; a progressive image needs about
+ * 2 bytes per pixel per component. */
+#define JPEG_MEMORY_MAX (768L << 20)
+
+/* Per-channel histograms of encoded values: hist[c * levels + v]. */
+typedef struct accum {
+  uint64_t *hist;
+  unsigned levels; /* 256 or 65536 */
+  uint64_t pixels;
+} accum;
+
+static int accum_init(accum *a, unsigned levels) {
+  a->levels = levels;
+  a->pixels = 0;
+  a->hist = calloc((size_t)3 * levels, sizeof *a->hist);
+  return a->hist != NULL;
+}
+
+static double srgb_to_linear(double c) {
+  return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
+}
+
+/* linear: the values are linear already (a PNG with gAMA 1.0), not sRGB. */
+static void accum_finish(const accum *a, int linear, float rgb[3]) {
+  double max = (double)(a->levels - 1);
+  for (int c = 0; c < 3; c++) {
+    double sum = 0.0;
+    const uint64_t *h = a->hist + (size_t)c * a->levels;
+    for (unsigned v = 0; v < a->levels; v++)
+      if (h[v]) sum += (double)h[v] * (linear ? v / max : srgb_to_linear(v / max));
+    rgb[c] = (float)(sum / (double)a->pixels);
+  }
+}
+
+static gi_result check_size(uint64_t w, uint64_t h, const char *what, const char *kind, gi_error_info *err) {
+  if (w == 0 || h == 0) return gi__fail(err, GI_ERR_FORMAT, "texture '%s': %s image has no pixels", what, kind);
+  if (w > GI__IMAGE_MAX_SIDE || h > GI__IMAGE_MAX_SIDE || w * h > GI__IMAGE_MAX_PIXELS)
+    return gi__fail(err, GI_ERR_LIMIT, "texture '%s': %s image is %llux%llu; the limit is %ux%u", what, kind,
+                    (unsigned long long)w, (unsigned long long)h, GI__IMAGE_MAX_SIDE, GI__IMAGE_MAX_SIDE);
+  return GI_OK;
+}
+
+/* --- PNG ------------------------------------------------------------- */
+
+typedef struct png_ctx {
+  const unsigned char *data;
+  size_t size, pos;
+  char msg[200];
+} png_ctx;
+
+static void png_on_error(png_structp png, png_const_charp msg) {
+  png_ctx *c = png_get_error_ptr(png);
+  snprintf(c->msg, sizeof c->msg, "%s", msg ? msg : "unknown error");
+  png_longjmp(png, 1);
+}
+
+static void png_on_warning(png_structp png, png_const_charp msg) { (void)png, (void)msg; }
+
+static void png_read_mem(png_structp png, png_bytep out, png_size_t len) {
+  png_ctx *c = png_get_io_ptr(png);
+  if (len > c->size - c->pos) png_error(png, "the data is truncated");
+  memcpy(out, c->data + c->pos, len);
+  c->pos += len;
+}
+
+static gi_result png_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err) {
+  png_ctx ctx = {.data = data, .size = size};
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, png_on_error, png_on_warning);
+  png_infop info = png ? png_create_info_struct(png) : NULL;
+  /* Changed after setjmp, read after a longjmp: volatile. */
+  unsigned char *volatile row = NULL;
+  accum *volatile acc = NULL;
+  accum a = {0};
+  volatile gi_result rc = GI_OK;
+  if (!info) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
+    goto done;
+  }
+  if (setjmp(png_jmpbuf(png))) {
+    rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': corrupt or unsupported PNG: %s", what, ctx.msg);
+    goto done;
+  }
+  png_set_read_fn(png, &ctx, png_read_mem);
+  png_set_user_limits(png, 0x7fffffff, 0x7fffffff); /* we apply our own limit, as GI_ERR_LIMIT */
+  png_read_info(png, info);
+  png_uint_32 w = png_get_image_width(png, info), h = png_get_image_height(png, info);
+  rc = check_size(w, h, what, "PNG", err);
+  if (rc != GI_OK) goto done;
+  int interlaced = png_get_interlace_type(png, info) == PNG_INTERLACE_ADAM7;
+  /* Textures are sRGB unless the file says its values are linear (gAMA 1.0,
+   * as libpng itself writes 16-bit linear data); other gAMA values are
+   * close enough to sRGB that the exact curve is the better guess. */
+  png_fixed_point gamma = 0;
+  int linear = !png_get_valid(png, info, PNG_INFO_sRGB) && png_get_gAMA_fixed(png, info, &gamma) &&
+               gamma >= 99000 && gamma <= 101000;
+  /* Everything to 8- or 16-bit RGB; no png_set_interlace_handling (see the top). */
+  png_set_expand(png);
+  png_set_strip_alpha(png);
+  png_set_gray_to_rgb(png);
+  png_read_update_info(png, info);
+  int depth = png_get_bit_depth(png, info);
+  if (png_get_channels(png, info) != 3 || (depth != 8 && depth != 16))
+    png_error(png, "unexpected pixel layout after conversion");
+  if (!accum_init(&a, depth == 16 ? 65536u : 256u)) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
+    goto done;
+  }
+  acc = &a;
+  row = malloc(png_get_rowbytes(png, info));
+  if (!row) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
+    goto done;
+  }
+  for (int pass = 0; pass < (interlaced ? 7 : 1); pass++) {
+    png_uint_32 rows = interlaced ? PNG_PASS_ROWS(h, pass) : h;
+    png_uint_32 cols = interlaced ? PNG_PASS_COLS(w, pass) : w;
+    if (rows == 0 || cols == 0) continue; /* libpng skips empty passes too */
+    for (png_uint_32 y = 0; y < rows; y++) {
+      png_read_row(png, row, NULL);
+      const unsigned char *p = row;
+      if (depth == 8) {
+        for (png_uint_32 x = 0; x < cols; x++, p += 3) {
+          a.hist[p[0]]++;
+          a.hist[256 + p[1]]++;
+          a.hist[512 + p[2]]++;
+        }
+      } else {
+        for (png_uint_32 x = 0; x < cols; x++, p += 6) {
+          a.hist[(p[0] << 8) | p[1]]++;
+          a.hist[65536 + ((p[2] << 8) | p[3])]++;
+          a.hist[131072 + ((p[4] << 8) | p[5])]++;
+        }
+      }
+      a.pixels += cols;
+    }
+  }
+  png_read_end(png, NULL); /* the rest of the file, so truncation and bad CRCs show */
+  accum_finish(&a, linear, rgb);
+done:
+  png_destroy_read_struct(png ? &png : NULL, info ? &info : NULL, NULL);
+  free(row);
+  if (acc) free(acc->hist);
+  return rc;
+}
+
+/* --- JPEG ------------------------------------------------------------ */
+
+typedef struct jpeg_fail_mgr {
+  struct jpeg_error_mgr pub;
+  jmp_buf jump;
+  char msg[JMSG_LENGTH_MAX];
+} jpeg_fail_mgr;
+
+static void jpeg_on_error(j_common_ptr ci) {
+  jpeg_fail_mgr *e = (jpeg_fail_mgr *)ci->err;
+  e->pub.format_message(ci, e->msg);
+  longjmp(e->jump, 1);
+}
+
+/* Warnings (level -1) that mean the pixels are wrong are errors; the rest
+ * (trace messages, "extraneous bytes", unknown JFIF revision) are dropped. */
+static void jpeg_on_message(j_common_ptr ci, int level) {
+  if (level >= 0) return;
+  switch (ci->err->msg_code) {
+    case JWRN_JPEG_EOF:
+    case JWRN_HIT_MARKER:
+    case JWRN_HUFF_BAD_CODE:
+    case JWRN_ARITH_BAD_CODE:
+    case JWRN_MUST_RESYNC: jpeg_on_error(ci); break;
+    default: break;
+  }
+}
+
+static gi_result jpeg_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err) {
+  struct jpeg_decompress_struct ci;
+  jpeg_fail_mgr je;
+  unsigned char *volatile row = NULL;
+  accum a = {0};
+  volatile gi_result rc = GI_OK;
+  if (!accum_init(&a, 256)) return gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
+  ci.err = jpeg_std_error(&je.pub);
+  je.pub.error_exit = jpeg_on_error;
+  je.pub.emit_message = jpeg_on_message;
+  je.msg[0] = 0;
+  if (setjmp(je.jump)) {
+    rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': corrupt or unsupported JPEG: %s", what, je.msg);
+    goto done;
+  }
+  jpeg_create_decompress(&ci);
+  ci.mem->max_memory_to_use = JPEG_MEMORY_MAX;
+  jpeg_mem_src(&ci, (const unsigned char *)data, (unsigned long)size);
+  if (jpeg_read_header(&ci, TRUE) != JPEG_HEADER_OK) {
+    rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': JPEG holds no image", what);
+    goto done;
+  }
+  rc = check_size(ci.image_width, ci.image_height, what, "JPEG", err);
+  if (rc != GI_OK) goto done;
+  /* libjpeg converts grey and YCbCr to RGB but not CMYK: that we do below. */
+  int cmyk = ci.jpeg_color_space == JCS_CMYK || ci.jpeg_color_space == JCS_YCCK;
+  ci.out_color_space = cmyk ? JCS_CMYK : JCS_RGB;
+  jpeg_start_decompress(&ci);
+  int n = ci.output_components;
+  if (n != (cmyk ? 4 : 3)) {
+    rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': JPEG decodes to %d components", what, n);
+    goto done;
+  }
+  row = malloc((size_t)ci.output_width * (size_t)n);
+  if (!row) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
+    goto done;
+  }
+  /* Photoshop (Adobe marker) stores CMYK inverted, everyone else plain. */
+  int inverted = ci.saw_Adobe_marker;
+  while (ci.output_scanline < ci.output_height) {
+    JSAMPROW rows[1] = {row};
+    if (jpeg_read_scanlines(&ci, rows, 1) != 1) break;
+    const unsigned char *p = row;
+    for (JDIMENSION x = 0; x < ci.output_width; x++, p += n) {
+      if (cmyk) {
+        unsigned k = inverted ? p[3] : 255u - p[3];
+        for (int c = 0; c < 3; c++) {
+          unsigned v = inverted ? p[c] : 255u - p[c];
+          a.hist[c * 256 + (v * k + 127) / 255]++;
+        }
+      } else {
+        a.hist[p[0]]++;
+        a.hist[256 + p[1]]++;
+        a.hist[512 + p[2]]++;
+      }
+    }
+    a.pixels += ci.output_width;
+  }
+  if (a.pixels != (uint64_t)ci.output_width * ci.output_height) {
+    rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': JPEG data ends early", what);
+    goto done;
+  }
+  jpeg_finish_decompress(&ci);
+  accum_finish(&a, 0, rgb);
+done:
+  jpeg_destroy_decompress(&ci);
+  free(row);
+  free(a.hist);
+  return rc;
+}
+
+/* --- entry points ---------------------------------------------------- */
+
+gi_result gi__image_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err) {
+  static const unsigned char png_magic[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  static const unsigned char jpeg_magic[3] = {0xff, 0xd8, 0xff};
+  if (!what) what = "(unnamed)";
+  if (!data || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "texture '%s': no data", what);
+  if (size >= 8 && memcmp(data, png_magic, 8) == 0) return png_average(data, size, what, rgb, err);
+  if (size >= 3 && memcmp(data, jpeg_magic, 3) == 0) return jpeg_average(data, size, what, rgb, err);
+  return gi__fail(err, GI_ERR_FORMAT, "texture '%s': not a PNG or JPEG image (%zu bytes)", what, size);
+}
+
+gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, const char *what, float rgb[3],
+                             gi_error_info *err) {
+  if (!what) what = "(unnamed)";
+  if (!bgra || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "texture '%s': no data", what);
+  gi_result rc = check_size(width, height, what, "raw", err);
+  if (rc != GI_OK) return rc;
+  accum a;
+  if (!accum_init(&a, 256)) return gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
+  const unsigned char *p = bgra;
+  size_t n = (size_t)width * height;
+  for (size_t i = 0; i < n; i++, p += 4) {
+    a.hist[p[2]]++;
+    a.hist[256 + p[1]]++;
+    a.hist[512 + p[0]]++;
+  }
+  a.pixels = n;
+  accum_finish(&a, 0, rgb);
+  free(a.hist);
+  return GI_OK;
+}
+
+gi_result gi__read_file(const char *path, size_t max_size, void **data, size_t *size, gi_error_info *err) {
+  *data = NULL;
+  *size = 0;
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    int e = errno;
+    return gi__fail(err, e == ENOENT || e == ENOTDIR ? GI_ERR_NOT_FOUND : GI_ERR_IO, "'%s': cannot open: %s", path,
+                    strerror(e));
+  }
+  struct stat st;
+  gi_result rc = GI_OK;
+  unsigned char *buf = NULL;
+  if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
+    rc = gi__fail(err, GI_ERR_IO, "'%s' is not a regular file", path);
+    goto done;
+  }
+  if ((uint64_t)st.st_size > max_size) {
+    rc = gi__fail(err, GI_ERR_LIMIT, "'%s' is %lld bytes; the limit is %zu", path, (long long)st.st_size, max_size);
+    goto done;
+  }
+  size_t n = (size_t)st.st_size;
+  buf = malloc(n ? n : 1);
+  if (!buf) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "'%s': out of memory for %zu bytes", path, n);
+    goto done;
+  }
+  if (fread(buf, 1, n, f) != n) {
+    rc = gi__fail(err, GI_ERR_IO, "'%s': read failed", path);
+    goto done;
+  }
+  *data = buf;
+  *size = n;
+  buf = NULL;
+done:
+  free(buf);
+  fclose(f);
+  return rc;
+}

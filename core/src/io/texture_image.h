@@ -1,0 +1,38 @@
+/* io/texture_image.h: average colour of a texture image (PNG, JPEG, raw BGRA8).
+ *
+ * Only core/src includes this. Everything here is thread-safe and keeps no
+ * state between calls. */
+#ifndef GI_TEXTURE_IMAGE_H
+#define GI_TEXTURE_IMAGE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "gi/gi_error.h"
+
+/* Largest image we decode: each side at most GI__IMAGE_MAX_SIDE pixels and at
+ * most GI__IMAGE_MAX_PIXELS in all. Larger images fail with GI_ERR_LIMIT. */
+#define GI__IMAGE_MAX_SIDE 16384u
+#define GI__IMAGE_MAX_PIXELS ((uint64_t)256 << 20)
+/* Largest texture file gi__read_file is asked to read (512 MiB). */
+#define GI__TEXTURE_FILE_MAX ((size_t)512 << 20)
+
+/* Decodes a PNG or JPEG held in memory (the format is told by its magic
+ * bytes) and stores in rgb the plain mean over all pixels of the LINEAR
+ * colour: 8- and 16-bit values are taken as sRGB-encoded and converted with
+ * the exact sRGB transfer function; alpha is ignored. `what` names the image
+ * in messages (a path, or "embedded texture *0"). Corrupt or unsupported data
+ * gives GI_ERR_FORMAT, an image over the size limits GI_ERR_LIMIT; neither
+ * ever aborts the process. Memory use is one row, not the whole image. */
+gi_result gi__image_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err);
+
+/* The same for width*height uncompressed texels of 4 bytes in B, G, R, A
+ * order (assimp's aiTexel), sRGB-encoded. */
+gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, const char *what, float rgb[3],
+                             gi_error_info *err);
+
+/* Reads a whole regular file into a malloc'ed buffer (*data, freed by the
+ * caller; *size bytes). A missing file gives GI_ERR_NOT_FOUND, a file larger
+ * than max_size GI_ERR_LIMIT, any other failure GI_ERR_IO. */
+gi_result gi__read_file(const char *path, size_t max_size, void **data, size_t *size, gi_error_info *err);
+
+#endif

@@ -1,0 +1,507 @@
+/* test_texture.c: texture averages (PNG, JPEG, raw texels) and textured
+ * materials in scene import (OBJ map_Kd, glTF baseColorTexture). */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <jpeglib.h>
+#include <png.h>
+#include "gi/gi_scene.h"
+#include "io/texture_image.h"
+
+/* The exact sRGB transfer function, in double. */
+static double lin(double v8) {
+  double c = v8 / 255.0;
+  return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
+}
+
+/* --- image writers ----------------------------------------------------- */
+
+/* A PNG in memory (simplified API); *size bytes, malloc'ed. */
+static void *png_mem(const void *pixels, uint32_t w, uint32_t h, uint32_t format, const void *colormap,
+                     uint32_t ncolors, size_t *size) {
+  png_image im;
+  memset(&im, 0, sizeof im);
+  im.version = PNG_IMAGE_VERSION;
+  im.width = w;
+  im.height = h;
+  im.format = format;
+  im.colormap_entries = ncolors;
+  png_alloc_size_t n = 0;
+  assert_true(png_image_write_to_memory(&im, NULL, &n, 0, pixels, 0, colormap));
+  void *buf = malloc(n);
+  assert_non_null(buf);
+  assert_true(png_image_write_to_memory(&im, buf, &n, 0, pixels, 0, colormap));
+  *size = n;
+  return buf;
+}
+
+/* A PNG file in the test folder, through png_image_write_to_file. */
+static const char *png_file(const char *name, const void *rgba, uint32_t w, uint32_t h) {
+  char path[4096];
+  snprintf(path, sizeof path, "%s/%s", tu_tmpdir(), name);
+  png_image im;
+  memset(&im, 0, sizeof im);
+  im.version = PNG_IMAGE_VERSION;
+  im.width = w;
+  im.height = h;
+  im.format = PNG_FORMAT_RGBA;
+  assert_true(png_image_write_to_file(&im, path, 0, rgba, 0, NULL));
+  return name;
+}
+
+/* An 8-bit RGB PNG through the low-level API, interlaced (Adam7) or not. */
+static void *png_mem_rgb(const unsigned char *rgb, uint32_t w, uint32_t h, int interlace, size_t *size) {
+  char path[4096];
+  snprintf(path, sizeof path, "%s/lowlevel.png", tu_tmpdir());
+  FILE *f = fopen(path, "wb");
+  assert_non_null(f);
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+  png_infop info = png_create_info_struct(png);
+  assert_non_null(info);
+  if (setjmp(png_jmpbuf(png))) fail_msg("libpng write failed");
+  png_init_io(png, f);
+  png_set_IHDR(png, info, w, h, 8, PNG_COLOR_TYPE_RGB, interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_bytep *rows = malloc(h * sizeof *rows);
+  for (uint32_t y = 0; y < h; y++) rows[y] = (png_bytep)rgb + (size_t)y * w * 3;
+  png_set_rows(png, info, rows);
+  png_write_png(png, info, PNG_TRANSFORM_IDENTITY, NULL);
+  png_destroy_write_struct(&png, &info);
+  fclose(f);
+  free(rows);
+  f = fopen(path, "rb");
+  fseek(f, 0, SEEK_END);
+  long n = ftell(f);
+  rewind(f);
+  void *buf = malloc((size_t)n);
+  assert_int_equal(fread(buf, 1, (size_t)n, f), (size_t)n);
+  fclose(f);
+  *size = (size_t)n;
+  return buf;
+}
+
+/* A JPEG in memory, quality 100, 4:4:4; components 3 (RGB) or 1 (grey). */
+static void *jpeg_mem(const unsigned char *pixels, uint32_t w, uint32_t h, int components, size_t *size) {
+  struct jpeg_compress_struct ci;
+  struct jpeg_error_mgr je;
+  ci.err = jpeg_std_error(&je);
+  jpeg_create_compress(&ci);
+  unsigned char *buf = NULL;
+  unsigned long n = 0;
+  jpeg_mem_dest(&ci, &buf, &n);
+  ci.image_width = w;
+  ci.image_height = h;
+  ci.input_components = components;
+  ci.in_color_space = components == 3 ? JCS_RGB : JCS_GRAYSCALE;
+  jpeg_set_defaults(&ci);
+  jpeg_set_quality(&ci, 100, TRUE);
+  for (int c = 0; c < ci.num_components; c++) ci.comp_info[c].h_samp_factor = ci.comp_info[c].v_samp_factor = 1;
+  jpeg_start_compress(&ci, TRUE);
+  while (ci.next_scanline < h) {
+    JSAMPROW row = (JSAMPROW)pixels + (size_t)ci.next_scanline * w * components;
+    jpeg_write_scanlines(&ci, &row, 1);
+  }
+  jpeg_finish_compress(&ci);
+  jpeg_destroy_compress(&ci);
+  *size = n;
+  void *copy = malloc(n); /* so callers free() it like the others */
+  memcpy(copy, buf, n);
+  free(buf);
+  return copy;
+}
+
+/* The 4x4 test image: top half pure red, bottom half sRGB grey 128; alpha
+ * varies and must not matter. */
+static void half_red_half_grey(unsigned char rgba[64]) {
+  for (int i = 0; i < 16; i++) {
+    unsigned char *p = rgba + 4 * i;
+    if (i < 8) { p[0] = 255; p[1] = 0; p[2] = 0; }
+    else { p[0] = p[1] = p[2] = 128; }
+    p[3] = (unsigned char)(i * 16);
+  }
+}
+#define GREY128 0.2158605 /* sRGB 128 in linear */
+#define HALF_RED_R ((1.0 + GREY128) / 2)
+#define HALF_RED_GB (GREY128 / 2)
+
+/* --- gi__image_average ------------------------------------------------ */
+
+static void test_png_average(void **state) {
+  assert_float_equal(lin(128), GREY128, 1e-7);
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  size_t n;
+  void *png = png_mem(rgba, 4, 4, PNG_FORMAT_RGBA, NULL, 0, &n);
+  float rgb[3];
+  gi_error_info err = {0};
+  assert_int_equal(gi__image_average(png, n, "mem.png", rgb, &err), GI_OK);
+  assert_float_equal(rgb[0], HALF_RED_R, 1e-6);
+  assert_float_equal(rgb[1], HALF_RED_GB, 1e-6);
+  assert_float_equal(rgb[2], HALF_RED_GB, 1e-6);
+  free(png);
+
+  /* Grey, and a two-colour palette. */
+  unsigned char grey[6] = {128, 128, 128, 0, 255, 64};
+  png = png_mem(grey, 3, 2, PNG_FORMAT_GRAY, NULL, 0, &n);
+  assert_int_equal(gi__image_average(png, n, "grey.png", rgb, &err), GI_OK);
+  double g = (3 * lin(128) + lin(0) + lin(255) + lin(64)) / 6;
+  for (int c = 0; c < 3; c++) assert_float_equal(rgb[c], g, 1e-6);
+  free(png);
+  unsigned char cmap[6] = {255, 0, 0, 0, 0, 128}, idx[4] = {0, 1, 1, 1};
+  png = png_mem(idx, 2, 2, PNG_FORMAT_RGB_COLORMAP, cmap, 2, &n);
+  assert_int_equal(gi__image_average(png, n, "palette.png", rgb, &err), GI_OK);
+  assert_float_equal(rgb[0], 0.25, 1e-6);
+  assert_float_equal(rgb[1], 0.0, 1e-6);
+  assert_float_equal(rgb[2], 0.75 * lin(128), 1e-6);
+  free(png);
+
+  /* 16-bit linear (libpng writes gAMA 1.0): values are taken as they are. */
+  uint16_t lin16[6] = {65535, 0, 0, 0, 0, 32768};
+  png = png_mem(lin16, 2, 1, PNG_FORMAT_LINEAR_RGB, NULL, 0, &n);
+  assert_int_equal(gi__image_average(png, n, "linear16.png", rgb, &err), GI_OK);
+  assert_float_equal(rgb[0], 0.5, 1e-6);
+  assert_float_equal(rgb[1], 0.0, 1e-6);
+  assert_float_equal(rgb[2], 32768.0 / 65535 / 2, 1e-6);
+  free(png);
+}
+
+/* Adam7 is read pass by pass without de-interlacing: same mean as plain. */
+static void test_png_interlaced(void **state) {
+  enum { W = 13, H = 7 };
+  unsigned char rgb8[W * H * 3];
+  double want[3] = {0, 0, 0};
+  for (int i = 0; i < W * H * 3; i++) {
+    rgb8[i] = (unsigned char)((i * 37 + 11) % 256);
+    want[i % 3] += lin(rgb8[i]) / (W * H);
+  }
+  for (int il = 0; il < 2; il++) {
+    size_t n;
+    void *png = png_mem_rgb(rgb8, W, H, il, &n);
+    float rgb[3];
+    gi_error_info err = {0};
+    assert_int_equal(gi__image_average(png, n, "il.png", rgb, &err), GI_OK);
+    for (int c = 0; c < 3; c++) assert_float_equal(rgb[c], want[c], 1e-6);
+    free(png);
+  }
+  /* A 1x1 interlaced image has six empty passes. */
+  size_t n;
+  void *png = png_mem_rgb(rgb8, 1, 1, 1, &n);
+  float rgb[3];
+  gi_error_info err = {0};
+  assert_int_equal(gi__image_average(png, n, "one.png", rgb, &err), GI_OK);
+  for (int c = 0; c < 3; c++) assert_float_equal(rgb[c], lin(rgb8[c]), 1e-6);
+  free(png);
+}
+
+static void test_jpeg_average(void **state) {
+  enum { W = 16, H = 16 };
+  static unsigned char px[W * H * 3];
+  const unsigned char col[3] = {200, 100, 50};
+  for (int i = 0; i < W * H; i++) memcpy(px + 3 * i, col, 3);
+  size_t n;
+  void *jpg = jpeg_mem(px, W, H, 3, &n);
+  float rgb[3];
+  gi_error_info err = {0};
+  assert_int_equal(gi__image_average(jpg, n, "uniform.jpg", rgb, &err), GI_OK);
+  /* A uniform colour survives quality 100 to within one level. */
+  for (int c = 0; c < 3; c++) {
+    assert_true(rgb[c] >= lin(col[c] - 1) - 1e-6);
+    assert_true(rgb[c] <= lin(col[c] + 1) + 1e-6);
+  }
+  free(jpg);
+  memset(px, 77, W * H);
+  jpg = jpeg_mem(px, W, H, 1, &n);
+  assert_int_equal(gi__image_average(jpg, n, "grey.jpg", rgb, &err), GI_OK);
+  for (int c = 0; c < 3; c++) assert_float_equal(rgb[c], lin(77), 1e-6); /* grey is exact */
+  free(jpg);
+}
+
+static void test_texels_average(void **state) {
+  const unsigned char bgra[8] = {0, 0, 255, 0, 128, 128, 128, 255};
+  float rgb[3];
+  gi_error_info err = {0};
+  assert_int_equal(gi__texels_average(bgra, 2, 1, "raw", rgb, &err), GI_OK);
+  assert_float_equal(rgb[0], HALF_RED_R, 1e-6);
+  assert_float_equal(rgb[1], HALF_RED_GB, 1e-6);
+  assert_float_equal(rgb[2], HALF_RED_GB, 1e-6);
+  assert_int_equal(gi__texels_average(bgra, 16385, 1, "raw", rgb, &err), GI_ERR_LIMIT);
+  assert_int_equal(gi__texels_average(bgra, 0, 1, "raw", rgb, &err), GI_ERR_FORMAT);
+}
+
+/* Junk, every truncation and a flipped byte: a clean error each time. */
+static void test_corrupt_images(void **state) {
+  float rgb[3];
+  gi_error_info err = {0};
+  const char junk[] = "this is not an image at all";
+  assert_int_equal(gi__image_average(junk, sizeof junk, "junk", rgb, &err), GI_ERR_FORMAT);
+  assert_non_null(strstr(err.msg, "junk"));
+  assert_int_equal(gi__image_average(junk, 0, "empty", rgb, &err), GI_ERR_FORMAT);
+  const unsigned char png_head[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 1, 2, 3, 4, 5, 6, 7};
+  assert_int_equal(gi__image_average(png_head, sizeof png_head, "head.png", rgb, &err), GI_ERR_FORMAT);
+  const unsigned char jpg_head[] = {0xff, 0xd8, 0xff, 0xe0, 0, 16, 'J', 'F', 'I', 'F', 0, 1, 2, 3};
+  assert_int_equal(gi__image_average(jpg_head, sizeof jpg_head, "head.jpg", rgb, &err), GI_ERR_FORMAT);
+
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  size_t pn, jn;
+  unsigned char *png = png_mem(rgba, 4, 4, PNG_FORMAT_RGBA, NULL, 0, &pn);
+  static unsigned char px[16 * 16 * 3];
+  for (size_t i = 0; i < sizeof px; i++) px[i] = (unsigned char)(i * 7);
+  unsigned char *jpg = jpeg_mem(px, 16, 16, 3, &jn);
+  /* Each prefix in its own buffer, so reading past it is caught by ASan. */
+  for (size_t len = 0; len < pn; len++) {
+    unsigned char *cut = malloc(len + 1);
+    memcpy(cut, png, len);
+    gi_error_info e = {0};
+    assert_int_equal(gi__image_average(cut, len, "cut.png", rgb, &e), GI_ERR_FORMAT);
+    free(cut);
+  }
+  for (size_t len = 0; len < jn; len++) {
+    unsigned char *cut = malloc(len + 1);
+    memcpy(cut, jpg, len);
+    gi_error_info e = {0};
+    if (gi__image_average(cut, len, "cut.jpg", rgb, &e) != GI_ERR_FORMAT) fail_msg("JPEG cut at %zu accepted", len);
+    free(cut);
+  }
+  /* A flipped bit in the PNG's data: the CRC catches it. */
+  png[pn - 20] ^= 0x10;
+  assert_int_equal(gi__image_average(png, pn, "flip.png", rgb, &err), GI_ERR_FORMAT);
+  assert_non_null(strstr(err.msg, "flip.png"));
+  /* Garbage after a JPEG's header: no crash, whatever the verdict. */
+  for (size_t i = 200; i < jn; i += 3) jpg[i] = (unsigned char)(i * 13);
+  gi__image_average(jpg, jn, "garbled.jpg", rgb, &err);
+  free(png);
+  free(jpg);
+}
+
+static void test_size_limits(void **state) {
+  float rgb[3];
+  gi_error_info err = {0};
+  unsigned char *row = calloc(16385 * 3, 1);
+  size_t n;
+  void *png = png_mem(row, 16385, 1, PNG_FORMAT_RGB, NULL, 0, &n);
+  assert_int_equal(gi__image_average(png, n, "wide.png", rgb, &err), GI_ERR_LIMIT);
+  free(png);
+  void *jpg = jpeg_mem(row, 16385, 1, 3, &n);
+  assert_int_equal(gi__image_average(jpg, n, "wide.jpg", rgb, &err), GI_ERR_LIMIT);
+  free(jpg);
+  png = png_mem(row, 16384, 1, PNG_FORMAT_RGB, NULL, 0, &n); /* at the limit: fine */
+  assert_int_equal(gi__image_average(png, n, "edge.png", rgb, &err), GI_OK);
+  free(png);
+  free(row);
+}
+
+static void test_read_file(void **state) {
+  void *data;
+  size_t size;
+  gi_error_info err = {0};
+  const char *p = tu_write_file("bytes.bin", "abcdef", 6);
+  assert_int_equal(gi__read_file(p, 100, &data, &size, &err), GI_OK);
+  assert_int_equal(size, 6);
+  assert_memory_equal(data, "abcdef", 6);
+  free(data);
+  assert_int_equal(gi__read_file(p, 5, &data, &size, &err), GI_ERR_LIMIT);
+  assert_null(data);
+  assert_int_equal(gi__read_file("/nonexistent/x.png", 100, &data, &size, &err), GI_ERR_NOT_FOUND);
+  assert_int_equal(gi__read_file(tu_tmpdir(), 100, &data, &size, &err), GI_ERR_IO);
+}
+
+/* --- scene import ----------------------------------------------------- */
+
+static const char tri_obj_head[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n";
+
+static gi_scene *load_ok(const char *path) {
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_result r = gi_scene_load(path, NULL, &s, &err);
+  if (r != GI_OK) fail_msg("load %s: %s", path, err.msg);
+  return s;
+}
+
+static const gi_material *find_mat(const gi_scene *s, const char *name) {
+  for (size_t i = 0; i < gi_scene_num_materials(s); i++)
+    if (strcmp(gi_scene_material(s, i)->name, name) == 0) return gi_scene_material(s, i);
+  fail_msg("no material '%s'", name);
+  return NULL;
+}
+
+static void assert_albedo(const gi_material *m, double r, double g, double b) {
+  assert_float_equal(m->albedo[0], r, 1e-4);
+  assert_float_equal(m->albedo[1], g, 1e-4);
+  assert_float_equal(m->albedo[2], b, 1e-4);
+}
+
+static void test_obj_map_kd(void **state) {
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  png_file("tex.png", rgba, 4, 4);
+  /* The same texture under a sub-folder, named with a backslash. */
+  char sub[4096];
+  snprintf(sub, sizeof sub, "%s/sub", tu_tmpdir());
+  mkdir(sub, 0755);
+  png_file("sub/tex2.png", rgba, 4, 4);
+  static unsigned char px[8 * 8 * 3];
+  for (int i = 0; i < 64; i++) px[3 * i] = 200, px[3 * i + 1] = 100, px[3 * i + 2] = 50;
+  size_t jn;
+  void *jpg = jpeg_mem(px, 8, 8, 3, &jn);
+  tu_write_file("tex.jpg", jpg, jn);
+  free(jpg);
+  const char mtl[] =
+      "newmtl half\nKd 0.5 0.5 0.5\nmap_Kd tex.png\n"
+      "newmtl maponly\nmap_Kd tex.png\n"
+      "newmtl sixty\nKd 0.6 0.6 0.6\nmap_Kd sub\\tex2.png\n"
+      "newmtl jpeg\nKd 1 0.5 0.25\nmap_Kd tex.jpg\n"
+      "newmtl plain\nKd 0.3 0.2 0.1\n"
+      "newmtl abs\nKd 1 1 1\nmap_Kd C:\\art\\tex.png\n";
+  tu_write_file("tex.mtl", mtl, strlen(mtl));
+  char obj[1024];
+  snprintf(obj, sizeof obj,
+           "mtllib tex.mtl\n%s"
+           "usemtl half\nf 1/1 2/2 3/3\nusemtl maponly\nf 1/1 2/2 3/3\nusemtl sixty\nf 1/1 2/2 3/3\n"
+           "usemtl jpeg\nf 1/1 2/2 3/3\nusemtl plain\nf 1/1 2/2 3/3\nusemtl abs\nf 1/1 2/2 3/3\n",
+           tri_obj_head);
+  gi_scene *s = load_ok(tu_write_file("tex.obj", obj, strlen(obj)));
+  assert_albedo(find_mat(s, "half"), 0.5 * HALF_RED_R, 0.5 * HALF_RED_GB, 0.5 * HALF_RED_GB);
+  /* assimp reports Kd 0.6 when the MTL has none; map_Kd alone means factor 1. */
+  assert_albedo(find_mat(s, "maponly"), HALF_RED_R, HALF_RED_GB, HALF_RED_GB);
+  /* An explicit Kd 0.6 is kept. */
+  assert_albedo(find_mat(s, "sixty"), 0.6 * HALF_RED_R, 0.6 * HALF_RED_GB, 0.6 * HALF_RED_GB);
+  const gi_material *j = find_mat(s, "jpeg");
+  assert_true(fabs(j->albedo[0] - lin(200)) <= lin(201) - lin(200));
+  assert_true(fabs(j->albedo[1] - 0.5 * lin(100)) <= 0.5 * (lin(101) - lin(100)));
+  assert_true(fabs(j->albedo[2] - 0.25 * lin(50)) <= 0.25 * (lin(51) - lin(50)));
+  assert_albedo(find_mat(s, "plain"), 0.3, 0.2, 0.1);
+  /* An exporter's absolute path: found by its file name next to the scene. */
+  assert_albedo(find_mat(s, "abs"), HALF_RED_R, HALF_RED_GB, HALF_RED_GB);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.textures_unreadable, 0);
+  gi_scene_release(s);
+}
+
+static void test_obj_bad_textures(void **state) {
+  const char corrupt[] = "\x89PNG\r\n\x1a\n\0\0\0\rIHDR garbage garbage";
+  tu_write_file("corrupt.png", corrupt, sizeof corrupt - 1);
+  const char mtl[] =
+      "newmtl missing\nKd 0.5 0.25 0.125\nmap_Kd does_not_exist.png\n"
+      "newmtl missing2\nKd 0.1 0.2 0.3\nmap_Kd does_not_exist.png\n"
+      "newmtl corrupt\nKd 0.7 0.7 0.7\nmap_Kd corrupt.png\n";
+  tu_write_file("bad.mtl", mtl, strlen(mtl));
+  char obj[1024];
+  snprintf(obj, sizeof obj,
+           "mtllib bad.mtl\n%susemtl missing\nf 1/1 2/2 3/3\nusemtl missing2\nf 1/1 2/2 3/3\n"
+           "usemtl corrupt\nf 1/1 2/2 3/3\n",
+           tri_obj_head);
+  gi_scene *s = load_ok(tu_write_file("bad.obj", obj, strlen(obj)));
+  assert_albedo(find_mat(s, "missing"), 0.5, 0.25, 0.125);
+  assert_albedo(find_mat(s, "missing2"), 0.1, 0.2, 0.3);
+  assert_albedo(find_mat(s, "corrupt"), 0.7, 0.7, 0.7);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.textures_unreadable, 2); /* distinct textures: one missing (used twice), one corrupt */
+  gi_scene_release(s);
+
+  /* Only a missing texture: exactly one. */
+  const char mtl1[] = "newmtl m\nKd 0.5 0.5 0.5\nmap_Kd nowhere.png\n";
+  tu_write_file("one.mtl", mtl1, strlen(mtl1));
+  snprintf(obj, sizeof obj, "mtllib one.mtl\n%susemtl m\nf 1/1 2/2 3/3\n", tri_obj_head);
+  s = load_ok(tu_write_file("one.obj", obj, strlen(obj)));
+  assert_albedo(find_mat(s, "m"), 0.5, 0.5, 0.5);
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.textures_unreadable, 1);
+  gi_scene_release(s);
+}
+
+static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+static char *base64(const unsigned char *d, size_t n) {
+  char *o = malloc(4 * ((n + 2) / 3) + 1), *p = o;
+  for (size_t i = 0; i < n; i += 3) {
+    uint32_t v = (uint32_t)d[i] << 16 | (i + 1 < n ? (uint32_t)d[i + 1] << 8 : 0) | (i + 2 < n ? d[i + 2] : 0);
+    *p++ = b64[v >> 18 & 63];
+    *p++ = b64[v >> 12 & 63];
+    *p++ = i + 1 < n ? b64[v >> 6 & 63] : '=';
+    *p++ = i + 2 < n ? b64[v & 63] : '=';
+  }
+  *p = 0;
+  return o;
+}
+
+/* One triangle with UVs; image_uri is the glTF image's uri. */
+static char *gltf_doc(const char *image_uri) {
+  /* positions (36 bytes), uvs (24), indices (6 + 2 pad) */
+  static const char geometry[] =
+      "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAABAAIAAAA=";
+  const char *fmt =
+      "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+      "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"TEXCOORD_0\":1},\"indices\":2,\"material\":0}]}],"
+      "\"materials\":[{\"name\":\"textured\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,0.25,1,1],"
+      "\"baseColorTexture\":{\"index\":0},\"metallicFactor\":0,\"roughnessFactor\":1}}],"
+      "\"textures\":[{\"source\":0}],\"images\":[{\"uri\":\"%s\"}],"
+      "\"buffers\":[{\"byteLength\":68,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+      "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+      "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":24},{\"buffer\":0,\"byteOffset\":60,\"byteLength\":6}],"
+      "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+      "\"min\":[0,0,0],\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5126,\"count\":3,\"type\":\"VEC2\"},"
+      "{\"bufferView\":2,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}";
+  size_t n = strlen(fmt) + strlen(image_uri) + sizeof geometry + 1;
+  char *doc = malloc(n);
+  snprintf(doc, n, fmt, image_uri, geometry);
+  return doc;
+}
+
+static void test_gltf_base_color_texture(void **state) {
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  size_t n;
+  void *png = png_mem(rgba, 4, 4, PNG_FORMAT_RGBA, NULL, 0, &n);
+  char *enc = base64(png, n);
+  char *uri = malloc(strlen(enc) + 32);
+  sprintf(uri, "data:image/png;base64,%s", enc);
+  /* Embedded (data URI). */
+  char *doc = gltf_doc(uri);
+  gi_scene *s = load_ok(tu_write_file("embedded.gltf", doc, strlen(doc)));
+  assert_albedo(find_mat(s, "textured"), 0.5 * HALF_RED_R, 0.25 * HALF_RED_GB, 1.0 * HALF_RED_GB);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.textures_unreadable, 0);
+  gi_scene_release(s);
+  free(doc);
+  /* External file next to the .gltf. */
+  tu_write_file("gltf_tex.png", png, n);
+  doc = gltf_doc("gltf_tex.png");
+  s = load_ok(tu_write_file("external.gltf", doc, strlen(doc)));
+  assert_albedo(find_mat(s, "textured"), 0.5 * HALF_RED_R, 0.25 * HALF_RED_GB, 1.0 * HALF_RED_GB);
+  gi_scene_release(s);
+  free(doc);
+  /* External and missing: the factor alone. */
+  doc = gltf_doc("gltf_missing.png");
+  s = load_ok(tu_write_file("missing.gltf", doc, strlen(doc)));
+  assert_albedo(find_mat(s, "textured"), 0.5, 0.25, 1.0);
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.textures_unreadable, 1);
+  gi_scene_release(s);
+  free(doc);
+  free(uri);
+  free(enc);
+  free(png);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_png_average),
+      cmocka_unit_test(test_png_interlaced),
+      cmocka_unit_test(test_jpeg_average),
+      cmocka_unit_test(test_texels_average),
+      cmocka_unit_test(test_corrupt_images),
+      cmocka_unit_test(test_size_limits),
+      cmocka_unit_test(test_read_file),
+      cmocka_unit_test(test_obj_map_kd),
+      cmocka_unit_test(test_obj_bad_textures),
+      cmocka_unit_test(test_gltf_base_color_texture),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
