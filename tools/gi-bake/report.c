@@ -88,6 +88,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(sc, "dropped_nonfinite", count(st.dropped_nonfinite));
   json_object_set_new(sc, "dropped_degenerate", count(st.dropped_degenerate));
   json_object_set_new(sc, "clamped_albedo", count(st.clamped_albedo));
+  json_object_set_new(sc, "textures_unreadable", count(st.textures_unreadable));
   json_object_set_new(sc, "materials", count(st.materials));
   json_object_set_new(sc, "lights", count(st.lights));
   json_object_set_new(sc, "emissive_triangles", count(st.emissive_triangles));
@@ -169,6 +170,9 @@ static void print_human(const cli_run *r) {
   printf("           %u materials%s, %u lights%s, %u emissive triangles\n", st.materials,
          st.clamped_albedo ? " (some albedos clamped to 1)" : "", st.lights,
          st.default_lights_added ? " (default sun + sky added)" : "", st.emissive_triangles);
+  if (st.textures_unreadable)
+    printf("           %llu texture%s unreadable: their materials keep the plain colour factor\n",
+           (unsigned long long)st.textures_unreadable, st.textures_unreadable > 1 ? "s" : "");
   printf("           bounds (%g, %g, %g) .. (%g, %g, %g), %s up\n", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
          gi_scene_up(r->scene) == GI_UP_Z ? "z" : "y");
   printf("viewpoint  (%.9g, %.9g, %.9g)\n", r->points[0], r->points[1], r->points[2]);
