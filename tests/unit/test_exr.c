@@ -186,23 +186,6 @@ static void test_half_clamps(void **s) {
   gi_exr_file_free(f);
 }
 
-/* Runs a command, returns its output (static buffer) and exit status. */
-static const char *run(const char *cmd, int *status) {
-  static char out[65536];
-  size_t n = 0;
-  FILE *p = popen(cmd, "r");
-  assert_non_null(p);
-  while (n + 1 < sizeof out) {
-    size_t k = fread(out + n, 1, sizeof out - 1 - n, p);
-    if (k == 0) break;
-    n += k;
-  }
-  out[n] = '\0';
-  int st = pclose(p);
-  *status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return out;
-}
-
 static void test_exrheader_accepts(void **s) {
   if (access("/usr/bin/exrheader", X_OK) != 0) {
     fprintf(stderr, "SKIP: /usr/bin/exrheader is missing (apt-get install openexr)\n");
@@ -216,7 +199,7 @@ static void test_exrheader_accepts(void **s) {
     char cmd[600];
     snprintf(cmd, sizeof cmd, "/usr/bin/exrheader '%s' 2>&1", path);
     int st = 0;
-    const char *out = run(cmd, &st);
+    const char *out = tu_run(cmd, &st);
     if (st != 0) fail_msg("exrheader exited %d:\n%s", st, out);
     for (int c = 0; c < NCH; c++) {
       char want[64];

@@ -2,6 +2,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 const char *tu_scene_path(const char *rel) {
@@ -33,4 +34,24 @@ const char *tu_write_file(const char *name, const void *data, size_t len) {
   if (len && fwrite(data, 1, len, f) != len) abort();
   fclose(f);
   return p;
+}
+
+const char *tu_run(const char *cmd, int *status) {
+  static char out[65536];
+  size_t n = 0;
+  FILE *p = popen(cmd, "r");
+  if (!p) {
+    *status = -1;
+    out[0] = 0;
+    return out;
+  }
+  while (n + 1 < sizeof out) {
+    size_t k = fread(out + n, 1, sizeof out - 1 - n, p);
+    if (k == 0) break;
+    n += k;
+  }
+  out[n] = '\0';
+  int st = pclose(p);
+  *status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return out;
 }

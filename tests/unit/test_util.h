@@ -16,6 +16,10 @@ const char *tu_tmpdir(void);
 /* Writes len bytes to tmpdir/name and returns the full path (static buffer rotation of 8). */
 const char *tu_write_file(const char *name, const void *data, size_t len);
 
+/* Runs a shell command; returns its stdout (static buffer, 64 KiB) and sets
+ * *status to its exit code (-1 when it did not exit normally). */
+const char *tu_run(const char *cmd, int *status);
+
 #define TU_SKIP_IF_NO_SCENE(var, rel)                  \
   const char *var = tu_scene_path(rel);                \
   if (!var) { skip(); }

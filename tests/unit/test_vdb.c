@@ -189,22 +189,6 @@ static void test_metadata(void **s) {
   assert_int_equal(gi_vdb_read_meta(path, "nope", "gi.level", buf, sizeof buf, &err), GI_ERR_NOT_FOUND);
 }
 
-static const char *run(const char *cmd, int *status) {
-  static char out[65536];
-  size_t n = 0;
-  FILE *p = popen(cmd, "r");
-  assert_non_null(p);
-  while (n + 1 < sizeof out) {
-    size_t k = fread(out + n, 1, sizeof out - 1 - n, p);
-    if (k == 0) break;
-    n += k;
-  }
-  out[n] = '\0';
-  int st = pclose(p);
-  *status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return out;
-}
-
 static void test_vdb_print(void **s) {
   if (access("/usr/bin/vdb_print", X_OK) != 0) {
     fprintf(stderr, "SKIP: /usr/bin/vdb_print is missing (apt-get install libopenvdb-tools)\n");
@@ -214,7 +198,7 @@ static void test_vdb_print(void **s) {
   char cmd[600];
   snprintf(cmd, sizeof cmd, "/usr/bin/vdb_print -l '%s' 2>&1", path);
   int st = 0;
-  const char *out = run(cmd, &st);
+  const char *out = tu_run(cmd, &st);
   if (st != 0) fail_msg("vdb_print exited %d:\n%s", st, out);
   for (int g = 0; g < 3; g++)
     if (!strstr(out, grids[g].name)) fail_msg("vdb_print lacks grid %s:\n%s", grids[g].name, out);
@@ -252,7 +236,7 @@ static void test_pyopenvdb(void **s) {
            path, kOrigin[0] + 0.25, kOrigin[1] + 0.25, kOrigin[2] + 0.25, kOrigin[0] + 2.25, kOrigin[1] + 1.75,
            kOrigin[2] + 1.25, n_density);
   int st = 0;
-  const char *out = run(script, &st);
+  const char *out = tu_run(script, &st);
   if (st == 77) {
     fprintf(stderr, "SKIP: pyopenvdb is not importable by /usr/bin/python3 (apt-get install python3-openvdb)\n");
     skip();
