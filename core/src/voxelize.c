@@ -216,7 +216,7 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
         goto done;
       }
     }
-    qsort(tris, ntris, sizeof *tris, cmp_u32); /* deterministic accumulation order */
+    if (ntris > 1) qsort(tris, ntris, sizeof *tris, cmp_u32); /* deterministic accumulation order */
     /* Drop triangles wholly inside the finer level's region. */
     size_t kept = 0;
     float ilo[3] = {0}, ihi[3] = {0};
