@@ -234,14 +234,7 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
   memset(pr, 0, sizeof *pr);
   const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
   /* Direct light: shadow rays from the point itself. */
-  gi_light_plan lp = {
-      .sun = c->report.effects[GI_FX_SUN].ran,
-      .local = c->report.effects[GI_FX_LOCAL].ran,
-      .sky = c->report.effects[GI_FX_SKY].ran,
-      .emissive = c->report.effects[GI_FX_EMISSIVE].ran,
-      .sky_samples = q->probe_samples,
-      .emit_samples = q->probe_samples,
-  };
+  gi_light_plan lp = gi__light_plan(&c->report, q->probe_samples);
   int cap = q->probe_samples * 2 + (int)s->num_lights + 8;
   gi_lsample *ls = malloc((size_t)cap * sizeof *ls);
   float *org = malloc((size_t)cap * 3 * sizeof(float)), *dir = malloc((size_t)cap * 3 * sizeof(float));

@@ -140,6 +140,9 @@ typedef struct gi_light_plan {
   int sun, local, sky, emissive;
   int sky_samples, emit_samples;
 } gi_light_plan;
+/* The light kinds the effect plan of report r enabled, with `samples` rays
+ * for sky and emitters. */
+gi_light_plan gi__light_plan(const gi_bake_report *r, int samples);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);

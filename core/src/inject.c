@@ -23,6 +23,18 @@
 #define PI_F 3.14159265358979f
 #define MAX_LS 1024
 
+gi_light_plan gi__light_plan(const gi_bake_report *r, int samples) {
+  gi_light_plan lp = {
+      .sun = r->effects[GI_FX_SUN].ran,
+      .local = r->effects[GI_FX_LOCAL].ran,
+      .sky = r->effects[GI_FX_SKY].ran,
+      .emissive = r->effects[GI_FX_EMISSIVE].ran,
+      .sky_samples = samples,
+      .emit_samples = samples,
+  };
+  return lp;
+}
+
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max) {
   int n = 0;
@@ -286,14 +298,7 @@ static void shade_all(struct gi_cascade *c) {
 }
 
 gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err) {
-  gi_light_plan lp = {
-      .sun = c->report.effects[GI_FX_SUN].ran,
-      .local = c->report.effects[GI_FX_LOCAL].ran,
-      .sky = c->report.effects[GI_FX_SKY].ran,
-      .emissive = c->report.effects[GI_FX_EMISSIVE].ran,
-      .sky_samples = q->light_samples,
-      .emit_samples = q->light_samples,
-  };
+  gi_light_plan lp = gi__light_plan(&c->report, q->light_samples);
   for (int d = 0; d < c->n; d++) {
     inject_ctx ic = {.c = c, .lp = &lp, .d = d, .seed = q->seed};
     atomic_init(&ic.rays, 0);
