@@ -142,7 +142,8 @@ void gi_cascade_free(gi_cascade *c) {
 }
 
 size_t gi_cascade_bytes(const gi_cascade *c) {
-  size_t per = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t);
+  /* geo, rad, side, direct, occ and busy: every per-voxel array a level holds. */
+  size_t per = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t) + sizeof(uint8_t);
   return (size_t)c->n * (size_t)c->R * c->R * c->R * per;
 }
 
