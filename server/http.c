@@ -97,7 +97,9 @@ static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
   if (!resp) return MHD_NO;
   MHD_add_response_header(resp, "Content-Type", a->content_type ? a->content_type : "application/json");
   MHD_add_response_header(resp, "Cache-Control", "no-store");
-  if (a->server_timing[0]) MHD_add_response_header(resp, "Server-Timing", a->server_timing);
+  if (!a->server_timing[0])
+    snprintf(a->server_timing, sizeof a->server_timing, "total;dur=%.2f", gs_now_ms() - r->t_start);
+  MHD_add_response_header(resp, "Server-Timing", a->server_timing);
   if (a->effects[0]) MHD_add_response_header(resp, "X-GI-Effects", a->effects);
   if (a->cache) MHD_add_response_header(resp, "X-GI-Cache", a->cache);
   if (a->disposition[0]) MHD_add_response_header(resp, "Content-Disposition", a->disposition);

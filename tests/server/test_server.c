@@ -269,6 +269,7 @@ static int teardown(void **state) {
 static void test_health_and_auth(void **state) {
   resp r = http(&S_main, NULL, "/v1/health", NULL, NULL); /* health needs no token */
   assert_int_equal(r.status, 200);
+  assert_non_null(strstr(header(&r, "Server-Timing"), "total;dur="));
   json_t *o = json_loadb(r.body, r.len, 0, NULL);
   assert_string_equal(json_string_value(json_object_get(o, "status")), "ok");
   assert_int_equal(json_integer_value(json_object_get(o, "scenes")), 1);
@@ -577,7 +578,9 @@ static void test_errors(void **state) {
 
 /* 64 parallel requests for different viewpoints against 1 worker + 1 slot. */
 static void test_overload(void **state) {
-  assert_int_equal(server_start(&S_tight, "tight", SERVER_INI("workers = 1\nqueue = 1\n")), 0);
+  /* 8 MiB holds one quality=low cascade (5 x 16^3 voxels, 4.4 MiB): the
+   * second bake must evict the first. */
+  assert_int_equal(server_start(&S_tight, "tight", SERVER_INI("workers = 1\nqueue = 1\n[limits]\ncache_mb = 8\n")), 0);
   enum { N = 64 };
   CURLM *m = curl_multi_init();
   static resp r[N];
@@ -616,6 +619,10 @@ static void test_overload(void **state) {
   assert_int_equal(ok + busy, N);
   assert_true(ok >= 2 && busy >= 1);
   assert_true(metric(&S_tight, "gi_rejected_total", NULL) == busy);
+  double evicted = metric(&S_tight, "gi_cache_evictions_total", NULL), held = metric(&S_tight, "gi_cache_bytes", NULL);
+  printf("  cache of 8 MiB: %g evictions, %.0f bytes held\n", evicted, held);
+  assert_true(evicted >= ok - 1);
+  assert_true(held > 0 && held <= 8 << 20);
   resp hr = http(&S_tight, NULL, "/v1/health", NULL, NULL);
   assert_int_equal(hr.status, 200);
   free(hr.body);
