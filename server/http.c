@@ -14,6 +14,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include <arpa/inet.h>
 #include <jansson.h>
+#include <math.h>
 #include <microhttpd.h>
 #include <netinet/in.h>
 #include <pthread.h>
@@ -249,8 +250,11 @@ static void scene_info(const gs_scene *s, gs_answer *a) {
     json_object_set_new(fx, gi_effect_name((gi_effect_id)i),
                         json_pack("{s:b, s:s}", "ran", s->effects[i].ran, "why", s->effects[i].why));
   const gi_quality *q = &s->quality;
+  /* The core derives the aperture from the cone count at bake time: a cone
+   * whose solid angle is its region's, 2 pi (1 - cos h) = 2 pi / N. */
+  double ap = q->aperture_deg > 0 ? q->aperture_deg : 2.0 * acos(1.0 - 1.0 / q->cones) * 180.0 / 3.14159265358979;
   json_t *qj = json_pack("{s:i, s:i, s:f, s:i, s:f, s:f, s:i, s:i, s:i}", "levels", q->levels, "res", q->res,
-                         "voxel", q->voxel0, "cones", q->cones, "aperture_deg", (double)q->aperture_deg, "step",
+                         "voxel", q->voxel0, "cones", q->cones, "aperture_deg", ap, "step",
                          (double)q->step, "bounces", q->bounces, "samples", q->light_samples, "probe_samples",
                          q->probe_samples);
   json_t *o = json_pack("{s:s, s:s, s:I, s:{s:I, s:I}, s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:f}", "id", s->id, "up",
