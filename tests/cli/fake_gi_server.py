@@ -42,6 +42,11 @@ class H(BaseHTTPRequestHandler):
             return self.error(401, "unauthorized", "a bearer token is required", [("WWW-Authenticate", "Bearer")])
         if path == "/v1/health":
             return self.send(200, {"status": "ok", "version": "0.1.0", "git": "fake", "uptime_s": 1.5, "scenes": 1})
+        if path == "/v1/scenes":
+            return self.send(200, {"scenes": [{"id": "city", "triangles": 12, "up": "y", "href": "/v1/scenes/city",
+                                               "bounds": {"min": [-300, 0, -300], "max": [300, 80, 300]}}]})
+        if path == "/v1/scenes/city":
+            return self.send(200, {"id": "city", "up": "y", "triangles": 12, "default_viewpoint": [12.5, 1.7, -3]})
         if path == "/metrics":
             return self.send(200, "gi_bakes_total 3\n", "text/plain; version=0.0.4")
         if path in ("/v1/scenes/city/lighting", "/v1/scenes/secret/lighting", "/v1/scenes/city/cascades.vdb"):
