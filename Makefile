@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure run test bench bench-http clean
+.PHONY: all deps configure run bake test bench bench-http clean
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -14,8 +14,13 @@ deps:
 configure: deps
 	@test -f $(BUILD)/CMakeCache.txt || cmake -S . -B $(BUILD) $(CMAKE_FLAGS)
 
-# The main job: bake the embedded procedural city at its default viewpoint.
+# The main job: serve the default catalog (the procedural city, and the
+# shared scenes when present) on 127.0.0.1:8080 until Ctrl-C.
 run: all
+	$(BUILD)/bin/gi-server --config configs/gi-server.ini
+
+# One bake on the command line: the embedded city at its default viewpoint.
+bake: all
 	@mkdir -p out
 	$(BUILD)/bin/gi-bake city --exr out/city-probe.exr --vdb out/city-cascades.vdb
 

@@ -33,8 +33,9 @@ static void set_fx(gi_bake_report *r, gi_effect_id id, int ran, const char *fmt,
   va_end(ap);
 }
 
-static gi_result resolve_quality(const gi_scene *s, const gi_quality *in, gi_quality *q,
-                                 gi_error_info *err) {
+gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality *q,
+                             gi_error_info *err) {
+  if (!s || !q) return gi__fail(err, GI_ERR_INVALID_ARG, "quality: scene and output are required");
   gi_quality z = {0};
   *q = in ? *in : z;
   if (q->levels == 0) q->levels = 6;
@@ -123,6 +124,30 @@ static void plan_effects(const gi_scene *s, const gi_quality *q, gi_bake_report 
   else set_fx(r, GI_FX_AO, 0, "not requested");
 }
 
+void gi_effect_plan(const gi_scene *s, const gi_quality *resolved, gi_effect out[GI_FX_COUNT]) {
+  gi_bake_report r;
+  memset(&r, 0, sizeof r);
+  plan_effects(s, resolved, &r);
+  memcpy(out, r.effects, sizeof r.effects);
+}
+
+gi_result gi_cascade_anchor(const gi_scene *s, const double at[3], const gi_quality *resolved,
+                            int64_t anchor[3], gi_error_info *err) {
+  if (!s || !at || !resolved || !(resolved->voxel0 > 0))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "anchor: scene, viewpoint and a resolved quality are required");
+  for (int a = 0; a < 3; a++) {
+    /* The same float rounding and snapping as gi_cascade_bake and
+     * gi__cascade_place: level 0's window starts at 2 floor(at / 2 s0) - R/2
+     * and every coarser level follows from it, so equal anchors mean equal
+     * cascades. */
+    float al = (float)(at[a] - s->origin[a]);
+    if (!isfinite(at[a]) || !isfinite(al))
+      return gi__fail(err, GI_ERR_NONFINITE, "anchor: viewpoint is not finite");
+    anchor[a] = (int64_t)floor((double)al / (2.0 * resolved->voxel0));
+  }
+  return GI_OK;
+}
+
 static void free_levels(struct gi_cascade *c) {
   for (int d = 0; d < GI_MAX_LEVELS; d++) {
     free(c->lv[d].geo);
@@ -156,7 +181,7 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
     return gi__fail(err, GI_ERR_NONFINITE, "bake: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
   gi_quality q;
-  gi_result rc = resolve_quality(scene, qin, &q, err);
+  gi_result rc = gi_quality_resolve(scene, qin, &q, err);
   if (rc != GI_OK) return rc;
   struct gi_cascade *c = calloc(1, sizeof *c);
   if (!c) return gi__fail(err, GI_ERR_NOMEM, "bake: out of memory");

@@ -35,10 +35,77 @@ static void quality_text(const gi_quality *q, char *buf, size_t size) {
            q->light_samples, q->probe_samples, (unsigned long long)q->seed);
 }
 
+/* The header every EXR of a bake carries, plus the caller's extras. */
+#define GI_MAX_EXR_ATTRS 24
+typedef struct {
+  char vp[128], qual[256], fx[1200], ver[64];
+  gi_exr_attr attrs[GI_MAX_EXR_ATTRS];
+  size_t n;
+} exr_header;
+
+static void header_fill(exr_header *h, const gi_scene *scene, const double at[3], const gi_bake_report *rep,
+                        const char *kind, const gi_exr_extra *extra, size_t num_extra) {
+  snprintf(h->vp, sizeof h->vp, "%.17g,%.17g,%.17g", at[0], at[1], at[2]);
+  quality_text(&rep->quality, h->qual, sizeof h->qual);
+  effects_text(rep, h->fx, sizeof h->fx);
+  snprintf(h->ver, sizeof h->ver, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
+  gi_exr_attr base[] = {
+      {"gi.scene", scene ? gi_scene_name(scene) : ""},
+      {"gi.viewpoint", h->vp},
+      {"gi.quality", h->qual},
+      {"gi.effects", h->fx},
+      {"gi.version", h->ver},
+      {"gi.kind", kind},
+  };
+  h->n = 0;
+  for (size_t i = 0; i < sizeof base / sizeof base[0]; i++) h->attrs[h->n++] = base[i];
+  /* Two places stay free for the kind's own attributes (gi.sh, gi.panorama). */
+  for (size_t i = 0; i < num_extra && h->n < GI_MAX_EXR_ATTRS - 2; i++)
+    h->attrs[h->n++] = (gi_exr_attr){extra[i].name, extra[i].value};
+}
+
 gi_result gi_probes_write_exr(const char *path, const gi_probe *probes, size_t n, const gi_scene *scene,
                               const double at[3], const gi_bake_report *rep, int use_half,
                               gi_error_info *err) {
-  if (!path || !probes || n == 0 || !rep)
+  return gi_probes_write_exr_ex(path, probes, n, scene, at, rep, use_half, NULL, 0, err);
+}
+
+gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *direct, const float *indirect,
+                                const gi_scene *scene, const double at[3], const gi_bake_report *rep,
+                                int use_half, const gi_exr_extra *extra, size_t num_extra, gi_error_info *err) {
+  if (!path || !direct || !indirect || !rep || !at || w < 1 || h < 1)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "panorama EXR: nothing to write");
+  size_t px = (size_t)w * (size_t)h;
+  float *planes = malloc(9 * px * sizeof(float));
+  if (!planes) return gi__fail(err, GI_ERR_NOMEM, "panorama EXR: out of memory");
+  static const char *const names[9] = {"R", "G", "B", "direct.R", "direct.G", "direct.B",
+                                       "indirect.R", "indirect.G", "indirect.B"};
+  gi_exr_channel ch[9];
+  for (int k = 0; k < 3; k++)
+    for (size_t i = 0; i < px; i++) {
+      planes[(size_t)k * px + i] = direct[3 * i + k] + indirect[3 * i + k];
+      planes[(size_t)(3 + k) * px + i] = direct[3 * i + k];
+      planes[(size_t)(6 + k) * px + i] = indirect[3 * i + k];
+    }
+  for (int c = 0; c < 9; c++) ch[c] = (gi_exr_channel){names[c], planes + (size_t)c * px};
+  exr_header hd;
+  header_fill(&hd, scene, at, rep, "panorama", extra, num_extra);
+  const char *up = scene && gi_scene_up(scene) == GI_UP_Z ? "z" : "y";
+  char map[200];
+  snprintf(map, sizeof map, "lat-long incident radiance; row 0 looks up (+%s), theta = pi (y+0.5)/h, "
+                            "phi = 2 pi (x+0.5)/w", up);
+  if (hd.n < GI_MAX_EXR_ATTRS) hd.attrs[hd.n++] = (gi_exr_attr){"gi.panorama", map};
+  gi_exr_image img = {.width = w, .height = h, .use_half = use_half, .compression = GI_EXR_ZIP,
+                      .num_channels = 9, .channels = ch, .num_attrs = hd.n, .attrs = hd.attrs};
+  gi_result rc = gi_exr_write(path, &img, err);
+  free(planes);
+  return rc;
+}
+
+gi_result gi_probes_write_exr_ex(const char *path, const gi_probe *probes, size_t n, const gi_scene *scene,
+                                 const double at[3], const gi_bake_report *rep, int use_half,
+                                 const gi_exr_extra *extra, size_t num_extra, gi_error_info *err) {
+  if (!path || !probes || n == 0 || !rep || !at)
     return gi__fail(err, GI_ERR_INVALID_ARG, "probe EXR: nothing to write");
   if (n > (1u << 24)) return gi__fail(err, GI_ERR_LIMIT, "probe EXR: %zu probes exceed 2^24", n);
   enum { MAXCH = 3 + 3 + 3 + 3 + 1 + 27 };
@@ -75,24 +142,12 @@ gi_result gi_probes_write_exr(const char *path, const gi_probe *probes, size_t n
       for (size_t i = 0; i < n; i++) planes[(size_t)base * n + i] = probes[i].sh[c][k];
     }
 #undef ADD
-  char vp[128], qual[256], fx[1200], ver[64];
-  snprintf(vp, sizeof vp, "%.17g,%.17g,%.17g", at[0], at[1], at[2]);
-  quality_text(&rep->quality, qual, sizeof qual);
-  effects_text(rep, fx, sizeof fx);
-  snprintf(ver, sizeof ver, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
-  gi_exr_attr attrs[] = {
-      {"gi.scene", scene ? gi_scene_name(scene) : ""},
-      {"gi.viewpoint", vp},
-      {"gi.quality", qual},
-      {"gi.effects", fx},
-      {"gi.version", ver},
-      {"gi.kind", "probe"},
-      {"gi.sh", "SH L2 irradiance, real basis L00 L1-1 L10 L11 L2-2 L2-1 L20 L21 L22 over world x,y,z; "
-                "E(n) = sum sh_i Y_i(n)"},
-  };
+  exr_header hd;
+  header_fill(&hd, scene, at, rep, "probe", extra, num_extra);
+  hd.attrs[hd.n++] = (gi_exr_attr){"gi.sh", "SH L2 irradiance, real basis L00 L1-1 L10 L11 L2-2 L2-1 L20 L21 L22 "
+                                            "over world x,y,z; E(n) = sum sh_i Y_i(n)"};
   gi_exr_image img = {.width = (int)n, .height = 1, .use_half = use_half, .compression = GI_EXR_ZIP,
-                      .num_channels = (size_t)nc, .channels = ch,
-                      .num_attrs = sizeof attrs / sizeof attrs[0], .attrs = attrs};
+                      .num_channels = (size_t)nc, .channels = ch, .num_attrs = hd.n, .attrs = hd.attrs};
   gi_result rc = gi_exr_write(path, &img, err);
   free(planes);
   return rc;

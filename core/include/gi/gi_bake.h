@@ -84,6 +84,21 @@ typedef struct gi_bake_report {
 
 typedef struct gi_cascade gi_cascade;
 
+/* Resolves every default of in (may be NULL) for scene and validates it,
+ * exactly as gi_cascade_bake will. Thread-safe. */
+gi_result gi_quality_resolve(const gi_scene *scene, const gi_quality *in, gi_quality *out,
+                             gi_error_info *err);
+
+/* The effect plan gi_cascade_bake would follow for a resolved quality,
+ * without baking (for catalogs and previews). Thread-safe. */
+void gi_effect_plan(const gi_scene *scene, const gi_quality *resolved, gi_effect out[GI_FX_COUNT]);
+
+/* The snapped placement of the cascade baked at `at` with a resolved
+ * quality: two viewpoints with equal anchors (same scene and quality) give
+ * bit-identical cascades, so the anchor is a cache key. Thread-safe. */
+gi_result gi_cascade_anchor(const gi_scene *scene, const double at[3], const gi_quality *resolved,
+                            int64_t anchor[3], gi_error_info *err);
+
 /* Builds the cascade around `at` (world) and lights it. q may be NULL
  * (defaults). On success the caller owns *out (gi_cascade_free). */
 gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_quality *q,
@@ -121,6 +136,36 @@ void gi_sh_eval_irradiance(const float sh[9][3], const float n[3], float out[3])
 gi_result gi_probes_write_exr(const char *path, const gi_probe *probes, size_t n,
                               const gi_scene *scene, const double at[3],
                               const gi_bake_report *rep, int use_half, gi_error_info *err);
+
+/* A lat-long panorama of the radiance arriving at one point: pixel (x, y)
+ * looks along polar angle theta = pi (y + 0.5) / h from the scene's up axis
+ * and azimuth phi = 2 pi (x + 0.5) / w (up Y: w = (sin t cos p, cos t,
+ * sin t sin p); up Z: w = (sin t cos p, sin t sin p, cos t)). direct is what
+ * a primary ray sees of emitters and the sky; indirect is the light that
+ * surfaces reflect, gathered by one cone per pixel from the cascade. Each
+ * array holds 3 * w * h floats (RGB interleaved, row-major), caller-owned.
+ * Thread-safe on a baked cascade. */
+gi_result gi_cascade_panorama(const gi_cascade *c, const double at[3], int w, int h, float *direct,
+                              float *indirect, double *ms, gi_error_info *err);
+
+/* Extra string attributes for the EXR writers (name and value borrowed). */
+typedef struct gi_exr_extra {
+  const char *name;
+  const char *value;
+} gi_exr_extra;
+
+/* gi_probes_write_exr with extra header attributes (timings, cache state). */
+gi_result gi_probes_write_exr_ex(const char *path, const gi_probe *probes, size_t n,
+                                 const gi_scene *scene, const double at[3],
+                                 const gi_bake_report *rep, int use_half,
+                                 const gi_exr_extra *extra, size_t num_extra, gi_error_info *err);
+
+/* Writes a panorama as EXR: R,G,B (direct + indirect radiance), direct.R/G/B,
+ * indirect.R/G/B; header gi.kind = "panorama" plus the probe attributes. */
+gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *direct,
+                                const float *indirect, const gi_scene *scene, const double at[3],
+                                const gi_bake_report *rep, int use_half,
+                                const gi_exr_extra *extra, size_t num_extra, gi_error_info *err);
 
 /* Writes the cascade snapshot as VDB: per level L<d>_density (fog),
  * L<d>_Cd (radiance), L<d>_albedo, L<d>_normal, and the finest level as

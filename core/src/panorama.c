@@ -1,0 +1,95 @@
+/* panorama.c: a lat-long view of the light arriving at one point.
+ *
+ * Each pixel is split as the probes are: what a primary ray sees of light
+ * sources directly (the front of an emitter, or the sky when it escapes)
+ * and what surfaces reflect toward the point, which one cone per pixel
+ * gathers from the cascade. The cone's aperture is the pixel's angular
+ * size, so the image is as sharp as the texture allows and no sharper.
+ * The sun is a delta light: no finite pixel shows it, and its light
+ * reaches the image only through the surfaces it lights. */
+#include <stdlib.h>
+#include <string.h>
+#include "cascade_internal.h"
+#include "internal.h"
+
+#define PI_F 3.14159265358979f
+
+typedef struct {
+  const struct gi_cascade *c;
+  const float *at;
+  int w, h;
+  float sky[3];
+  float *direct, *indirect;
+} pano_ctx;
+
+static void pixel_dir(int up_z, int w, int h, int x, int y, float out[3]) {
+  float th = PI_F * ((float)y + 0.5f) / (float)h, ph = 2 * PI_F * ((float)x + 0.5f) / (float)w;
+  float st = sinf(th), ct = cosf(th);
+  if (up_z) {
+    out[0] = st * cosf(ph), out[1] = st * sinf(ph), out[2] = ct;
+  } else {
+    out[0] = st * cosf(ph), out[1] = ct, out[2] = st * sinf(ph);
+  }
+}
+
+static void pano_rows(void *p, size_t b, size_t e, int worker) {
+  pano_ctx *pc = p;
+  const struct gi_cascade *c = pc->c;
+  const gi_scene *s = c->scene;
+  const gi_quality *q = &c->report.quality;
+  int up_z = s->up == GI_UP_Z;
+  int lvl = gi__finest_level_at(c, pc->at);
+  float t0 = (float)(lvl >= 0 ? c->lv[lvl].s : c->s0);
+  /* Half the pixel's angular height: neighbouring cones just touch. */
+  float tan_half = tanf(0.5f * PI_F / (float)pc->h);
+  float eps = (float)(1e-4 * c->s0);
+  for (size_t y = b; y < e; y++)
+    for (int x = 0; x < pc->w; x++) {
+      size_t i = 3 * ((size_t)y * (size_t)pc->w + (size_t)x);
+      float w[3], th, ng[3];
+      uint32_t tri;
+      pixel_dir(up_z, pc->w, pc->h, x, (int)y, w);
+      float *D = &pc->direct[i], *I = &pc->indirect[i];
+      D[0] = D[1] = D[2] = 0;
+      if (gi__intersect1(s, pc->at, w, eps, INFINITY, &th, &tri, ng)) {
+        /* Emitters are one-sided, facing their winding normal. */
+        const float *Le = s->materials[s->tri_material[tri]].emission;
+        if (gi__dot(ng, w) < 0 && c->report.effects[GI_FX_EMISSIVE].ran)
+          for (int k = 0; k < 3; k++) D[k] = Le[k];
+      } else {
+        for (int k = 0; k < 3; k++) D[k] = pc->sky[k];
+      }
+      gi_cone_out co;
+      if (lvl >= 0) {
+        gi__cone_trace(c, pc->at, w, tan_half, t0, q->step, 0.f, &co);
+      } else {
+        memset(&co, 0, sizeof co);
+      }
+      for (int k = 0; k < 3; k++) I[k] = co.L[k];
+    }
+}
+
+gi_result gi_cascade_panorama(const gi_cascade *c, const double at[3], int w, int h, float *direct,
+                              float *indirect, double *ms, gi_error_info *err) {
+  if (!c || !at || !direct || !indirect) return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: missing arguments");
+  if (w < 2 || h < 1 || w > 16384 || h > 8192)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: size %dx%d outside 2..16384 x 1..8192", w, h);
+  float p[3];
+  for (int a = 0; a < 3; a++) {
+    if (!isfinite(at[a])) return gi__fail(err, GI_ERR_NONFINITE, "panorama: viewpoint is not finite");
+    p[a] = (float)(at[a] - c->scene->origin[a]);
+    if (!isfinite(p[a]) || fabs(at[a] - c->scene->origin[a]) > 1e9)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: viewpoint is more than 1e9 units from the scene");
+  }
+  double t0 = gi__now_ms();
+  pano_ctx pc = {.c = c, .at = p, .w = w, .h = h, .direct = direct, .indirect = indirect};
+  if (c->report.effects[GI_FX_SKY].ran)
+    for (uint32_t i = 0; i < c->scene->num_lights; i++) {
+      const gi_light *l = &c->scene->lights[i];
+      if (l->type == GI_LIGHT_SKY)
+        for (int k = 0; k < 3; k++) pc.sky[k] += l->color[k];
+    }
+  gi__parallel_for((size_t)h, 1, c->report.quality.threads, pano_rows, &pc);
+  if (ms) *ms = gi__now_ms() - t0;
+  return GI_OK;
+}

@@ -1,0 +1,115 @@
+/* gi_proto.h: the HTTP contract in C (openapi.yaml says the same in YAML).
+ *
+ * Parses and validates requests (query parameters and JSON bodies) into
+ * plain structs, and encodes and decodes the JSON answers that both sides
+ * read: errors and job status. Shared by gi-server and gi-client. No
+ * sockets, no globals: every function is a pure function of its arguments
+ * and thread-safe. Strings returned as char* are malloc'ed and owned by the
+ * caller (free()); everything else is caller-allocated. */
+#ifndef GI_PROTO_H
+#define GI_PROTO_H
+
+#include <stddef.h>
+#include "gi/gi_bake.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* An error answer: HTTP status, snake_case name, and a message that names
+ * the parameter or field and what was expected. */
+typedef struct gi_proto_error {
+  int status;
+  char name[32];
+  char message[384];
+} gi_proto_error;
+
+/* Fills e (status, its name, printf message) and returns status. */
+int gi_proto_fail(gi_proto_error *e, int status, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+/* The error name of an HTTP status ("bad_request" for 400...); never NULL. */
+const char *gi_proto_status_name(int status);
+/* {"code":status,"name":...,"message":...} */
+char *gi_proto_error_json(const gi_proto_error *e);
+/* Reads an error body back; returns 0, or -1 when it is not one. */
+int gi_proto_error_parse(const char *json, size_t len, gi_proto_error *out);
+
+/* Request limits (from the server's config). */
+typedef struct gi_proto_limits {
+  int max_levels;                  /* cascade levels per request */
+  int max_res;                     /* voxels per side per request */
+  long long max_panorama_pixels;   /* width * height */
+  size_t max_probes_inline;        /* POST probes answered directly */
+  size_t max_probes_job;           /* POST probes accepted at all */
+  size_t max_body_bytes;
+} gi_proto_limits;
+void gi_proto_limits_default(gi_proto_limits *l);
+
+typedef enum gi_proto_kind { GI_PROTO_PROBE = 0, GI_PROTO_PANORAMA = 1, GI_PROTO_LIGHTMAP = 2 } gi_proto_kind;
+
+/* One query parameter, already URL-decoded (the server's HTTP library does it). */
+typedef struct gi_proto_kv {
+  const char *key;
+  const char *value;
+} gi_proto_kv;
+
+/* What to bake and what to answer. quality holds only what the request
+ * set (zero = the core's default), so it resolves like gi-bake's knobs. */
+typedef struct gi_proto_bake {
+  int has_at;
+  double at[3];
+  gi_proto_kind kind;
+  gi_quality quality;
+  int half;          /* EXR pixels as HALF */
+  int faces;         /* VDB: per-face radiance grids too */
+  int width, height; /* panorama size */
+} gi_proto_bake;
+
+/* GET /v1/scenes/{id}/lighting. Returns 0 or the error status (400, 501). */
+int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
+                            gi_proto_bake *out, gi_proto_error *err);
+/* GET /v1/scenes/{id}/cascades.vdb. */
+int gi_proto_parse_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
+                            gi_proto_bake *out, gi_proto_error *err);
+/* A request that takes no parameters: any parameter is a 400. */
+int gi_proto_parse_none(const gi_proto_kv *kv, size_t n, gi_proto_error *err);
+
+/* POST /v1/scenes/{id}/probes. points holds 3 * num_points world
+ * coordinates (owned: gi_proto_probes_free). */
+typedef struct gi_proto_probes {
+  gi_proto_bake bake;
+  double *points;
+  size_t num_points;
+} gi_proto_probes;
+int gi_proto_parse_probes(const char *body, size_t len, const gi_proto_limits *lim,
+                          gi_proto_probes *out, gi_proto_error *err);
+void gi_proto_probes_free(gi_proto_probes *p);
+
+/* Job status, as GET /v1/jobs/{id} answers it. */
+typedef enum gi_proto_job_state {
+  GI_JOB_QUEUED = 0, GI_JOB_RUNNING, GI_JOB_DONE, GI_JOB_FAILED
+} gi_proto_job_state;
+typedef struct gi_proto_job {
+  char id[40];
+  gi_proto_job_state state;
+  size_t probes, probes_done;
+  int tiles, tiles_done;
+  double elapsed_s;
+  gi_proto_error error;  /* when failed */
+} gi_proto_job;
+const char *gi_proto_job_state_name(gi_proto_job_state s);
+char *gi_proto_job_json(const gi_proto_job *j);
+int gi_proto_job_parse(const char *json, size_t len, gi_proto_job *out);
+
+/* Header values. Server-Timing: "voxelize;dur=1.2, inject;dur=...". */
+void gi_proto_server_timing(const gi_timings *t, double total_ms, char *buf, size_t size);
+/* X-GI-Effects: "sun=ran, local_lights=skipped, ...". */
+void gi_proto_effects_header(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size);
+
+/* Parses "x,y,z" into three finite doubles; 0 on success. */
+int gi_proto_parse_vec3(const char *s, double out[3]);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

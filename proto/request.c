@@ -1,0 +1,361 @@
+/* request.c: requests in, validated structs out.
+ *
+ * Strict on purpose: an unknown or repeated parameter, a number that is not
+ * all digits, not finite or out of range is a 400 that names it, before any
+ * work is queued. Quality knobs map onto gi_quality with zero meaning
+ * "the core's default", so the core resolves defaults in one place and
+ * checks them again (it trusts no caller). A preset (quality=low|default|
+ * high) sets several knobs; explicit knobs override it whatever the order. */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "gi_proto.h"
+
+void gi_proto_limits_default(gi_proto_limits *l) {
+  l->max_levels = 8;
+  l->max_res = 64;
+  l->max_panorama_pixels = 1 << 20;
+  l->max_probes_inline = 1024;
+  l->max_probes_job = 1000000;
+  l->max_body_bytes = 1 << 20;
+}
+
+int gi_proto_parse_vec3(const char *s, double out[3]) {
+  const char *p = s;
+  for (int i = 0; i < 3; i++) {
+    char *end;
+    errno = 0;
+    /* strtod accepts "nan", "inf" and hex: only plain decimals pass. */
+    for (const char *q = p; *q && *q != ','; q++)
+      if (!strchr("0123456789+-.eE", *q)) return -1;
+    double v = strtod(p, &end);
+    if (end == p || errno == ERANGE || !isfinite(v)) return -1;
+    out[i] = v;
+    if (i < 2) {
+      if (*end != ',') return -1;
+      p = end + 1;
+    } else if (*end) {
+      return -1;
+    }
+  }
+  return 0;
+}
+
+/* A plain decimal number: all of s, finite. */
+static int parse_num(const char *s, double *out) {
+  if (!*s) return -1;
+  for (const char *q = s; *q; q++)
+    if (!strchr("0123456789+-.eE", *q)) return -1;
+  char *end;
+  errno = 0;
+  double v = strtod(s, &end);
+  if (*end || errno == ERANGE || !isfinite(v)) return -1;
+  *out = v;
+  return 0;
+}
+
+/* The parameters a request kind accepts. */
+enum { P_AT = 1 << 0, P_KIND = 1 << 1, P_QUALITY = 1 << 2, P_HALF = 1 << 3, P_PANO = 1 << 4, P_FACES = 1 << 5 };
+
+typedef struct {
+  const char *key;
+  int group;
+} param_def;
+
+static const param_def params[] = {
+    {"at", P_AT},           {"kind", P_KIND},      {"quality", P_QUALITY}, {"levels", P_QUALITY},
+    {"res", P_QUALITY},     {"voxel", P_QUALITY},  {"cones", P_QUALITY},   {"aperture", P_QUALITY},
+    {"step", P_QUALITY},    {"bounces", P_QUALITY}, {"samples", P_QUALITY}, {"probe_samples", P_QUALITY},
+    {"ao", P_QUALITY},      {"seed", P_QUALITY},   {"half", P_HALF},       {"width", P_PANO},
+    {"height", P_PANO},     {"faces", P_FACES},
+};
+
+/* Applies a preset. low: a quick preview; high: more cones, samples and
+ * bounces at the same memory (R stays 32 so a request's cost stays bounded). */
+static int set_preset(gi_quality *q, const char *v, gi_proto_error *err, const char *where) {
+  if (!strcmp(v, "default")) return 0;
+  if (!strcmp(v, "low")) {
+    q->levels = 5, q->res = 16, q->cones = 6, q->bounces = 1, q->light_samples = 8, q->probe_samples = 64;
+    return 0;
+  }
+  if (!strcmp(v, "high")) {
+    q->cones = 32, q->bounces = 3, q->light_samples = 64, q->probe_samples = 1024, q->step = 0.35f;
+    return 0;
+  }
+  return gi_proto_fail(err, 400, "%s: expected low, default or high, got '%s'", where, v);
+}
+
+/* Sets one quality knob from a number; `where` names it in errors. */
+static int set_knob(gi_quality *q, const char *key, double v, const gi_proto_limits *lim, gi_proto_error *err,
+                    const char *where) {
+  int is_int = v == floor(v) && fabs(v) < 1e15;
+  if (!strcmp(key, "voxel")) {
+    if (!(v > 0) || v > 1e7) return gi_proto_fail(err, 400, "%s: expected a voxel size in (0, 1e7], got %g", where, v);
+    q->voxel0 = v;
+    return 0;
+  }
+  if (!strcmp(key, "aperture")) {
+    if (!(v >= 1 && v <= 120)) return gi_proto_fail(err, 400, "%s: expected degrees in 1..120, got %g", where, v);
+    q->aperture_deg = (float)v;
+    return 0;
+  }
+  if (!strcmp(key, "step")) {
+    if (!(v >= 0.05 && v <= 4)) return gi_proto_fail(err, 400, "%s: expected 0.05..4, got %g", where, v);
+    q->step = (float)v;
+    return 0;
+  }
+  if (!is_int) return gi_proto_fail(err, 400, "%s: expected an integer, got %g", where, v);
+  long long i = (long long)v;
+  if (!strcmp(key, "levels")) {
+    if (i < 1 || i > lim->max_levels)
+      return gi_proto_fail(err, 400, "%s: expected 1..%d (server limit), got %lld", where, lim->max_levels, i);
+    q->levels = (int)i;
+  } else if (!strcmp(key, "res")) {
+    if (i < 8 || i > lim->max_res || i % 4)
+      return gi_proto_fail(err, 400, "%s: expected a multiple of 4 in 8..%d (server limit), got %lld", where,
+                           lim->max_res, i);
+    q->res = (int)i;
+  } else if (!strcmp(key, "cones")) {
+    if (i != 4 && i != 6 && i != 8 && i != 16 && i != 32)
+      return gi_proto_fail(err, 400, "%s: expected 4, 6, 8, 16 or 32, got %lld", where, i);
+    q->cones = (int)i;
+  } else if (!strcmp(key, "bounces")) {
+    if (i < 0 || i > 8) return gi_proto_fail(err, 400, "%s: expected 0..8, got %lld", where, i);
+    q->bounces = i == 0 ? -1 : (int)i; /* the core's 0 means "default" */
+  } else if (!strcmp(key, "samples")) {
+    if (i < 1 || i > 512) return gi_proto_fail(err, 400, "%s: expected 1..512, got %lld", where, i);
+    q->light_samples = (int)i;
+  } else if (!strcmp(key, "probe_samples")) {
+    if (i < 1 || i > 8192) return gi_proto_fail(err, 400, "%s: expected 1..8192, got %lld", where, i);
+    q->probe_samples = (int)i;
+  } else if (!strcmp(key, "seed")) {
+    if (i < 1 || i > (1ll << 53)) return gi_proto_fail(err, 400, "%s: expected 1..2^53, got %lld", where, i);
+    q->seed = (uint64_t)i;
+  } else if (!strcmp(key, "ao")) {
+    if (i != 0 && i != 1) return gi_proto_fail(err, 400, "%s: expected 0 or 1, got %lld", where, i);
+    q->ao = (int)i;
+  } else {
+    return gi_proto_fail(err, 400, "%s: unknown quality knob", where);
+  }
+  return 0;
+}
+
+static int parse_flag(const char *v, int *out, gi_proto_error *err, const char *key) {
+  if (!strcmp(v, "1") || !strcmp(v, "true")) *out = 1;
+  else if (!strcmp(v, "0") || !strcmp(v, "false")) *out = 0;
+  else return gi_proto_fail(err, 400, "parameter '%s': expected 0 or 1, got '%s'", key, v);
+  return 0;
+}
+
+static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_proto_limits *lim,
+                       gi_proto_bake *out, gi_proto_error *err) {
+  memset(out, 0, sizeof *out);
+  out->width = 256;
+  out->height = 128;
+  /* Reject unknown and repeated keys first, then apply the preset, then the knobs. */
+  for (size_t i = 0; i < n; i++) {
+    const char *k = kv[i].key ? kv[i].key : "";
+    size_t j;
+    for (j = 0; j < sizeof params / sizeof params[0]; j++)
+      if (!strcmp(params[j].key, k)) break;
+    if (j == sizeof params / sizeof params[0] || !(params[j].group & allowed))
+      return gi_proto_fail(err, 400, "unknown parameter '%.64s'", k);
+    for (size_t m = 0; m < i; m++)
+      if (kv[m].key && !strcmp(kv[m].key, k)) return gi_proto_fail(err, 400, "parameter '%s' given twice", k);
+    if (!kv[i].value || !*kv[i].value) return gi_proto_fail(err, 400, "parameter '%s' has no value", k);
+    if (strlen(kv[i].value) > 256) return gi_proto_fail(err, 400, "parameter '%s' is too long", k);
+  }
+  for (size_t i = 0; i < n; i++)
+    if (!strcmp(kv[i].key, "quality") && set_preset(&out->quality, kv[i].value, err, "parameter 'quality'"))
+      return err->status;
+  for (size_t i = 0; i < n; i++) {
+    const char *k = kv[i].key, *v = kv[i].value;
+    char where[64];
+    snprintf(where, sizeof where, "parameter '%s'", k);
+    if (!strcmp(k, "quality")) continue;
+    if (!strcmp(k, "at")) {
+      if (gi_proto_parse_vec3(v, out->at))
+        return gi_proto_fail(err, 400, "parameter 'at': expected three finite numbers x,y,z, got '%.64s'", v);
+      out->has_at = 1;
+    } else if (!strcmp(k, "kind")) {
+      if (!strcmp(v, "probe")) out->kind = GI_PROTO_PROBE;
+      else if (!strcmp(v, "panorama")) out->kind = GI_PROTO_PANORAMA;
+      else if (!strcmp(v, "lightmap")) out->kind = GI_PROTO_LIGHTMAP;
+      else return gi_proto_fail(err, 400, "parameter 'kind': expected probe, panorama or lightmap, got '%.64s'", v);
+    } else if (!strcmp(k, "half") || !strcmp(k, "faces")) {
+      if (parse_flag(v, !strcmp(k, "half") ? &out->half : &out->faces, err, k)) return err->status;
+    } else if (!strcmp(k, "ao")) {
+      int f;
+      if (parse_flag(v, &f, err, k)) return err->status;
+      out->quality.ao = f;
+    } else {
+      double x;
+      if (parse_num(v, &x)) return gi_proto_fail(err, 400, "%s: expected a finite number, got '%.64s'", where, v);
+      if (!strcmp(k, "width") || !strcmp(k, "height")) {
+        if (x != floor(x) || x < 1 || x > 16384)
+          return gi_proto_fail(err, 400, "%s: expected an integer in 1..16384, got '%s'", where, v);
+        *(!strcmp(k, "width") ? &out->width : &out->height) = (int)x;
+      } else if (set_knob(&out->quality, k, x, lim, err, where)) {
+        return err->status;
+      }
+    }
+  }
+  if ((allowed & P_AT) && !out->has_at) return gi_proto_fail(err, 400, "parameter 'at' is required (x,y,z)");
+  return 0;
+}
+
+int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                            gi_proto_error *err) {
+  if (parse_query(kv, n, P_AT | P_KIND | P_QUALITY | P_HALF | P_PANO, lim, out, err)) return err->status;
+  if (out->kind == GI_PROTO_LIGHTMAP)
+    return gi_proto_fail(err, 501, "kind=lightmap is not available yet; use probe or panorama");
+  if (out->kind == GI_PROTO_PANORAMA) {
+    if (out->width < 2) return gi_proto_fail(err, 400, "parameter 'width': a panorama needs at least 2 columns");
+    if ((long long)out->width * out->height > lim->max_panorama_pixels)
+      return gi_proto_fail(err, 400, "parameters 'width' x 'height': %d x %d exceeds the server limit of %lld pixels",
+                           out->width, out->height, lim->max_panorama_pixels);
+  } else {
+    for (size_t i = 0; i < n; i++)
+      if (!strcmp(kv[i].key, "width") || !strcmp(kv[i].key, "height"))
+        return gi_proto_fail(err, 400, "parameter '%s' applies to kind=panorama only", kv[i].key);
+  }
+  return 0;
+}
+
+int gi_proto_parse_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                            gi_proto_error *err) {
+  return parse_query(kv, n, P_AT | P_QUALITY | P_FACES, lim, out, err);
+}
+
+int gi_proto_parse_none(const gi_proto_kv *kv, size_t n, gi_proto_error *err) {
+  if (n) return gi_proto_fail(err, 400, "unknown parameter '%.64s'", kv[0].key ? kv[0].key : "");
+  return 0;
+}
+
+/* A JSON array of three finite numbers. */
+static int json_vec3(const json_t *a, double out[3]) {
+  if (!json_is_array(a) || json_array_size(a) != 3) return -1;
+  for (size_t k = 0; k < 3; k++) {
+    const json_t *x = json_array_get(a, k);
+    if (!json_is_number(x)) return -1;
+    out[k] = json_number_value(x);
+    if (!isfinite(out[k])) return -1;
+  }
+  return 0;
+}
+
+int gi_proto_parse_probes(const char *body, size_t len, const gi_proto_limits *lim, gi_proto_probes *out,
+                          gi_proto_error *err) {
+  memset(out, 0, sizeof *out);
+  if (len > lim->max_body_bytes)
+    return gi_proto_fail(err, 413, "body: %zu bytes exceed the server limit of %zu", len, lim->max_body_bytes);
+  json_error_t je;
+  json_t *root = json_loadb(body ? body : "", len, JSON_REJECT_DUPLICATES, &je);
+  if (!root) return gi_proto_fail(err, 400, "body: line %d column %d: %s", je.line, je.column, je.text);
+  int rc = 0;
+  if (!json_is_object(root)) {
+    rc = gi_proto_fail(err, 400, "body: expected a JSON object with 'points'");
+    goto done;
+  }
+  const char *key;
+  json_t *v;
+  json_object_foreach(root, key, v) {
+    if (strcmp(key, "points") && strcmp(key, "at") && strcmp(key, "quality") && strcmp(key, "half") &&
+        strcmp(key, "ao")) {
+      rc = gi_proto_fail(err, 400, "body: unknown field '%.64s' (expected points, at, quality, half, ao)", key);
+      goto done;
+    }
+  }
+  json_t *pts = json_object_get(root, "points");
+  if (!json_is_array(pts) || json_array_size(pts) == 0) {
+    rc = gi_proto_fail(err, 400, "body: 'points' must be a non-empty array of [x,y,z]");
+    goto done;
+  }
+  size_t n = json_array_size(pts);
+  if (n > lim->max_probes_job) {
+    rc = gi_proto_fail(err, 413, "body: %zu points exceed the server limit of %zu", n, lim->max_probes_job);
+    goto done;
+  }
+  out->points = malloc(3 * n * sizeof(double));
+  if (!out->points) {
+    rc = gi_proto_fail(err, 500, "body: out of memory for %zu points", n);
+    goto done;
+  }
+  for (size_t i = 0; i < n; i++)
+    if (json_vec3(json_array_get(pts, i), &out->points[3 * i])) {
+      rc = gi_proto_fail(err, 400, "body: points[%zu]: expected an array of 3 finite numbers", i);
+      goto done;
+    }
+  out->num_points = n;
+  gi_proto_bake *b = &out->bake;
+  b->kind = GI_PROTO_PROBE;
+  if ((v = json_object_get(root, "at"))) {
+    if (json_vec3(v, b->at)) {
+      rc = gi_proto_fail(err, 400, "body: 'at': expected an array of 3 finite numbers");
+      goto done;
+    }
+    b->has_at = 1;
+  }
+  for (int f = 0; f < 2; f++) {
+    const char *name = f ? "ao" : "half";
+    if (!(v = json_object_get(root, name))) continue;
+    if (!json_is_boolean(v)) {
+      rc = gi_proto_fail(err, 400, "body: '%s': expected true or false", name);
+      goto done;
+    }
+    if (f) b->quality.ao = json_is_true(v);
+    else b->half = json_is_true(v);
+  }
+  if ((v = json_object_get(root, "quality"))) {
+    if (json_is_string(v)) {
+      if (set_preset(&b->quality, json_string_value(v), err, "body: 'quality'")) {
+        rc = err->status;
+        goto done;
+      }
+    } else if (json_is_object(v)) {
+      json_t *preset = json_object_get(v, "preset");
+      if (preset && (!json_is_string(preset) ||
+                     set_preset(&b->quality, json_string_value(preset), err, "body: quality.preset"))) {
+        rc = json_is_string(preset) ? err->status
+                                    : gi_proto_fail(err, 400, "body: quality.preset: expected a string");
+        goto done;
+      }
+      json_t *x;
+      json_object_foreach(v, key, x) {
+        if (!strcmp(key, "preset")) continue;
+        char where[96];
+        snprintf(where, sizeof where, "body: quality.%.64s", key);
+        double num;
+        if (json_is_boolean(x) && !strcmp(key, "ao")) num = json_is_true(x);
+        else if (json_is_number(x)) num = json_number_value(x);
+        else {
+          rc = gi_proto_fail(err, 400, "%s: expected a number", where);
+          goto done;
+        }
+        if (set_knob(&b->quality, key, num, lim, err, where)) {
+          rc = err->status;
+          goto done;
+        }
+      }
+    } else {
+      rc = gi_proto_fail(err, 400, "body: 'quality': expected low|default|high or an object of knobs");
+      goto done;
+    }
+  }
+done:
+  json_decref(root);
+  if (rc) gi_proto_probes_free(out);
+  return rc;
+}
+
+void gi_proto_probes_free(gi_proto_probes *p) {
+  if (!p) return;
+  free(p->points);
+  p->points = NULL;
+  p->num_points = 0;
+}

@@ -1,0 +1,208 @@
+/* cache.c: baked cascades keyed by scene, snapped viewpoint and quality.
+ *
+ * The key uses gi_cascade_anchor: viewpoints in the same snapped cell give
+ * bit-identical cascades, so a client moving inside a cell is answered
+ * from memory. A key being baked is in the table as BAKING: a second
+ * request for it waits on the condition variable instead of baking again
+ * (coalescing). The table is bounded in bytes; when it is over budget the
+ * least recently used READY entries that no request holds are evicted.
+ * Entries a request holds may briefly push the total over the budget; they
+ * are evicted when released. One mutex guards the table; bakes run
+ * outside it. The table is a list in LRU order: it holds at most a few
+ * hundred cascades, so a scan costs microseconds next to a gather. */
+#define _POSIX_C_SOURCE 200809L
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "server.h"
+
+enum { BAKING, READY, FAILED };
+
+struct gs_entry {
+  char key[512];
+  int state;
+  int refs;               /* requests holding or waiting for it */
+  gi_cascade *cascade;
+  size_t bytes;
+  gi_result rc;
+  gi_error_info err;
+  int linked;             /* in the table (failed entries leave it at once) */
+  struct gs_entry *prev, *next; /* most recent first */
+};
+
+struct gs_cache {
+  pthread_mutex_t mu;
+  pthread_cond_t done;
+  gs_entry *head, *tail;
+  size_t bytes, entries, budget;
+  gs_metrics *metrics;
+};
+
+gs_cache *gs_cache_new(size_t budget_bytes, gs_metrics *m) {
+  gs_cache *c = calloc(1, sizeof *c);
+  if (!c) return NULL;
+  pthread_mutex_init(&c->mu, NULL);
+  pthread_cond_init(&c->done, NULL);
+  c->budget = budget_bytes;
+  c->metrics = m;
+  return c;
+}
+
+static void unlink_entry(gs_cache *c, gs_entry *e) {
+  if (!e->linked) return;
+  if (e->prev) e->prev->next = e->next;
+  else c->head = e->next;
+  if (e->next) e->next->prev = e->prev;
+  else c->tail = e->prev;
+  e->prev = e->next = NULL;
+  e->linked = 0;
+  c->entries--;
+  c->bytes -= e->bytes;
+}
+
+static void push_front(gs_cache *c, gs_entry *e) {
+  e->prev = NULL;
+  e->next = c->head;
+  if (c->head) c->head->prev = e;
+  c->head = e;
+  if (!c->tail) c->tail = e;
+  e->linked = 1;
+  c->entries++;
+  c->bytes += e->bytes;
+}
+
+static void free_entry(gs_entry *e) {
+  gi_cascade_free(e->cascade);
+  free(e);
+}
+
+/* Evicts unheld READY entries from the LRU end while over budget. Locked. */
+static void evict(gs_cache *c) {
+  gs_entry *e = c->tail;
+  while (e && c->bytes > c->budget) {
+    gs_entry *prev = e->prev;
+    if (e->state == READY && e->refs == 0) {
+      unlink_entry(c, e);
+      free_entry(e);
+      if (c->metrics) gs_metrics_eviction(c->metrics);
+    }
+    e = prev;
+  }
+}
+
+void gs_cache_free(gs_cache *c) {
+  if (!c) return;
+  for (gs_entry *e = c->head, *n; e; e = n) {
+    n = e->next;
+    free_entry(e);
+  }
+  pthread_mutex_destroy(&c->mu);
+  pthread_cond_destroy(&c->done);
+  free(c);
+}
+
+static void make_key(const gs_scene *s, const int64_t a[3], const gi_quality *q, char *key, size_t size) {
+  /* Every knob that changes the cascade or its report; %a keeps floats exact.
+   * threads is left out: it changes speed, not values. */
+  snprintf(key, size, "%s|%lld,%lld,%lld|L%d R%d s%a c%d ap%a st%a b%d ls%d ps%d ao%d sp%d sd%llu lam%a", s->id,
+           (long long)a[0], (long long)a[1], (long long)a[2], q->levels, q->res, q->voxel0, q->cones,
+           (double)q->aperture_deg, (double)q->step, q->bounces, q->light_samples, q->probe_samples, q->ao,
+           q->specular, (unsigned long long)q->seed, (double)q->ao_lambda);
+}
+
+gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *q, gs_entry **out,
+                       gs_cache_how *how, gi_error_info *err) {
+  *out = NULL;
+  int64_t anchor[3];
+  gi_result rc = gi_cascade_anchor(s->scene, at, q, anchor, err);
+  if (rc != GI_OK) return rc;
+  char key[512];
+  make_key(s, anchor, q, key, sizeof key);
+  pthread_mutex_lock(&c->mu);
+  gs_entry *e = c->head;
+  while (e && strcmp(e->key, key)) e = e->next;
+  if (e) {
+    e->refs++;
+    /* Most recently used first. */
+    unlink_entry(c, e);
+    push_front(c, e);
+    *how = e->state == READY ? GS_CACHE_HIT : GS_CACHE_COALESCED;
+    while (e->state == BAKING) pthread_cond_wait(&c->done, &c->mu);
+    pthread_mutex_unlock(&c->mu);
+    if (c->metrics) gs_metrics_cache(c->metrics, *how);
+    if (e->state == FAILED) {
+      if (err) *err = e->err;
+      rc = e->rc;
+      gs_cache_release(c, e);
+      return rc;
+    }
+    *out = e;
+    return GI_OK;
+  }
+  e = calloc(1, sizeof *e);
+  if (!e) {
+    pthread_mutex_unlock(&c->mu);
+    return GI_ERR_NOMEM;
+  }
+  snprintf(e->key, sizeof e->key, "%s", key);
+  e->state = BAKING;
+  e->refs = 1;
+  push_front(c, e);
+  pthread_mutex_unlock(&c->mu);
+  *how = GS_CACHE_MISS;
+  if (c->metrics) gs_metrics_cache(c->metrics, GS_CACHE_MISS);
+
+  /* Bake at the requested point: any point with the same anchor gives the
+   * same cascade, and this one is in the request's own report. */
+  double t0 = gs_now_ms();
+  gi_cascade *cas = NULL;
+  gi_error_info e_err = {0};
+  rc = gi_cascade_bake(s->scene, at, q, &cas, NULL, &e_err);
+  if (c->metrics && rc == GI_OK) gs_metrics_bake(c->metrics, (gs_now_ms() - t0) * 1e-3);
+
+  pthread_mutex_lock(&c->mu);
+  if (rc == GI_OK) {
+    e->cascade = cas;
+    c->bytes -= e->bytes;
+    e->bytes = gi_cascade_bytes(cas);
+    c->bytes += e->bytes;
+    e->state = READY;
+    evict(c);
+  } else {
+    e->state = FAILED;
+    e->rc = rc;
+    e->err = e_err;
+    unlink_entry(c, e);
+  }
+  pthread_cond_broadcast(&c->done);
+  pthread_mutex_unlock(&c->mu);
+  if (rc != GI_OK) {
+    if (err) *err = e_err;
+    gs_cache_release(c, e);
+    return rc;
+  }
+  *out = e;
+  return GI_OK;
+}
+
+const gi_cascade *gs_entry_cascade(const gs_entry *e) { return e->cascade; }
+
+void gs_cache_release(gs_cache *c, gs_entry *e) {
+  if (!e) return;
+  pthread_mutex_lock(&c->mu);
+  e->refs--;
+  if (!e->linked && e->refs == 0) {
+    free_entry(e);
+  } else if (e->refs == 0) {
+    evict(c);
+  }
+  pthread_mutex_unlock(&c->mu);
+}
+
+void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries) {
+  pthread_mutex_lock(&c->mu);
+  *bytes = c->bytes;
+  *entries = c->entries;
+  pthread_mutex_unlock(&c->mu);
+}

@@ -1,0 +1,328 @@
+/* config.c: the server's INI file (inih glue), validated at start.
+ *
+ * Every key is checked as it is read: its type, its range, and that it
+ * belongs to its section. The first problem stops the load with a message
+ * "FILE:LINE: [section] key: expected ..., got '...'" so a bad deployment
+ * fails at start, never on the first request. Scene paths are resolved
+ * against the config file's folder so the same file works from any cwd. */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <ini.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <unistd.h>
+#include "server.h"
+
+void gs_config_defaults(gs_config *c) {
+  memset(c, 0, sizeof *c);
+  snprintf(c->bind, sizeof c->bind, "127.0.0.1");
+  c->port = 8080;
+  c->connection_threads = 4;
+  c->workers = 2;
+  c->queue = 32;
+  c->bake_threads = 0;
+  c->deadline_s = 120;
+  gi_proto_limits_default(&c->lim);
+  c->max_tiles_inline = 4;
+  c->cache_bytes = (size_t)1024 << 20;
+  c->max_jobs = 1;
+  c->max_jobs_queued = 16;
+  c->max_jobs_retained = 64;
+}
+
+typedef struct {
+  gs_config *c;
+  char dir[1024];
+  char err[1400];
+  int line;            /* current line, counted by our reader */
+  gs_scene_conf *cur;  /* the [scene ID] being read */
+  char token_file[1024];
+} load_ctx;
+
+static int fail(load_ctx *x, const char *section, const char *key, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static int fail(load_ctx *x, const char *section, const char *key, const char *fmt, ...) {
+  if (x->err[0]) return 0;
+  char msg[400];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(msg, sizeof msg, fmt, ap);
+  va_end(ap);
+  snprintf(x->err, sizeof x->err, "%s:%d: [%s] %s: %s", x->c->path, x->line, section, key, msg);
+  return 0;
+}
+
+static int get_int(load_ctx *x, const char *sec, const char *key, const char *v, long long lo, long long hi,
+                   long long *out) {
+  char *end;
+  errno = 0;
+  long long n = strtoll(v, &end, 10);
+  if (end == v || *end || errno == ERANGE || n < lo || n > hi)
+    return fail(x, sec, key, "expected an integer in %lld..%lld, got '%s'", lo, hi, v);
+  *out = n;
+  return 1;
+}
+
+static int get_num(load_ctx *x, const char *sec, const char *key, const char *v, double lo, double hi,
+                   double *out) {
+  char *end;
+  errno = 0;
+  double d = strtod(v, &end);
+  if (end == v || *end || errno == ERANGE || !isfinite(d) || d < lo || d > hi)
+    return fail(x, sec, key, "expected a number in %g..%g, got '%s'", lo, hi, v);
+  *out = d;
+  return 1;
+}
+
+static int get_bool(load_ctx *x, const char *sec, const char *key, const char *v, int *out) {
+  if (!strcasecmp(v, "yes") || !strcasecmp(v, "true") || !strcmp(v, "1")) *out = 1;
+  else if (!strcasecmp(v, "no") || !strcasecmp(v, "false") || !strcmp(v, "0")) *out = 0;
+  else return fail(x, sec, key, "expected yes or no, got '%s'", v);
+  return 1;
+}
+
+static int resolve_path(load_ctx *x, const char *sec, const char *key, const char *v, char *out, size_t size) {
+  int n = v[0] == '/' || !x->dir[0] ? snprintf(out, size, "%s", v) : snprintf(out, size, "%s/%s", x->dir, v);
+  if (n < 0 || (size_t)n >= size) return fail(x, sec, key, "path longer than %zu bytes", size - 1);
+  return 1;
+}
+
+static int server_key(load_ctx *x, const char *k, const char *v) {
+  gs_config *c = x->c;
+  long long n;
+  double d;
+  const char *S = "server";
+  if (!strcmp(k, "bind")) {
+    if (!*v || strlen(v) >= sizeof c->bind) return fail(x, S, k, "expected an IPv4 address, got '%s'", v);
+    snprintf(c->bind, sizeof c->bind, "%s", v);
+  } else if (!strcmp(k, "port")) {
+    if (!get_int(x, S, k, v, 0, 65535, &n)) return 0;
+    c->port = (int)n;
+  } else if (!strcmp(k, "connection_threads")) {
+    if (!get_int(x, S, k, v, 1, 256, &n)) return 0;
+    c->connection_threads = (int)n;
+  } else if (!strcmp(k, "workers")) {
+    if (!get_int(x, S, k, v, 1, 256, &n)) return 0;
+    c->workers = (int)n;
+  } else if (!strcmp(k, "queue")) {
+    if (!get_int(x, S, k, v, 0, 100000, &n)) return 0;
+    c->queue = (int)n;
+  } else if (!strcmp(k, "bake_threads")) {
+    if (!get_int(x, S, k, v, 0, 256, &n)) return 0;
+    c->bake_threads = (int)n;
+  } else if (!strcmp(k, "deadline_s")) {
+    if (!get_num(x, S, k, v, 0.1, 86400, &d)) return 0;
+    c->deadline_s = d;
+  } else if (!strcmp(k, "token_file")) {
+    if (*v) return resolve_path(x, S, k, v, x->token_file, sizeof x->token_file);
+  } else if (!strcmp(k, "tmp_dir")) {
+    if (*v) return resolve_path(x, S, k, v, c->tmp_dir, sizeof c->tmp_dir);
+  } else {
+    return fail(x, S, k, "unknown key (expected bind, port, connection_threads, workers, queue, bake_threads, "
+                         "deadline_s, token_file, tmp_dir)");
+  }
+  return 1;
+}
+
+static int limits_key(load_ctx *x, const char *k, const char *v) {
+  gs_config *c = x->c;
+  long long n;
+  const char *S = "limits";
+  if (!strcmp(k, "max_body_bytes")) {
+    if (!get_int(x, S, k, v, 64, 1ll << 32, &n)) return 0;
+    c->lim.max_body_bytes = (size_t)n;
+  } else if (!strcmp(k, "max_probes_inline")) {
+    if (!get_int(x, S, k, v, 1, 1 << 24, &n)) return 0;
+    c->lim.max_probes_inline = (size_t)n;
+  } else if (!strcmp(k, "max_probes_job")) {
+    if (!get_int(x, S, k, v, 1, 1 << 24, &n)) return 0;
+    c->lim.max_probes_job = (size_t)n;
+  } else if (!strcmp(k, "max_levels")) {
+    if (!get_int(x, S, k, v, 1, GI_MAX_LEVELS, &n)) return 0;
+    c->lim.max_levels = (int)n;
+  } else if (!strcmp(k, "max_res")) {
+    if (!get_int(x, S, k, v, 8, 256, &n)) return 0;
+    c->lim.max_res = (int)n;
+  } else if (!strcmp(k, "max_panorama_pixels")) {
+    if (!get_int(x, S, k, v, 2, 1ll << 26, &n)) return 0;
+    c->lim.max_panorama_pixels = n;
+  } else if (!strcmp(k, "max_tiles_inline")) {
+    if (!get_int(x, S, k, v, 1, 1024, &n)) return 0;
+    c->max_tiles_inline = (int)n;
+  } else if (!strcmp(k, "cache_mb")) {
+    if (!get_int(x, S, k, v, 0, 1 << 20, &n)) return 0;
+    c->cache_bytes = (size_t)n << 20;
+  } else if (!strcmp(k, "max_jobs")) {
+    if (!get_int(x, S, k, v, 1, 64, &n)) return 0;
+    c->max_jobs = (int)n;
+  } else if (!strcmp(k, "max_jobs_queued")) {
+    if (!get_int(x, S, k, v, 0, 100000, &n)) return 0;
+    c->max_jobs_queued = (int)n;
+  } else if (!strcmp(k, "max_jobs_retained")) {
+    if (!get_int(x, S, k, v, 1, 100000, &n)) return 0;
+    c->max_jobs_retained = (int)n;
+  } else {
+    return fail(x, S, k, "unknown key (expected max_body_bytes, max_probes_inline, max_probes_job, max_levels, "
+                         "max_res, max_panorama_pixels, max_tiles_inline, cache_mb, max_jobs, max_jobs_queued, "
+                         "max_jobs_retained)");
+  }
+  return 1;
+}
+
+static int scene_key(load_ctx *x, const char *sec, const char *k, const char *v) {
+  gs_scene_conf *s = x->cur;
+  long long n;
+  double d;
+  if (!strcmp(k, "source")) {
+    if (!*v) return fail(x, sec, k, "expected 'city' or a scene file path");
+    if (!strcmp(v, "city")) {
+      s->is_city = 1;
+      snprintf(s->source, sizeof s->source, "city");
+    } else {
+      s->is_city = 0;
+      return resolve_path(x, sec, k, v, s->source, sizeof s->source);
+    }
+  } else if (!strcmp(k, "up")) {
+    if (!strcmp(v, "y")) s->up = GI_UP_Y;
+    else if (!strcmp(v, "z")) s->up = GI_UP_Z;
+    else return fail(x, sec, k, "expected y or z, got '%s'", v);
+  } else if (!strcmp(k, "optional")) {
+    return get_bool(x, sec, k, v, &s->optional);
+  } else if (!strcmp(k, "extent")) {
+    if (!get_num(x, sec, k, v, 100, 20000, &d)) return 0;
+    s->extent = d;
+  } else if (!strcmp(k, "seed")) {
+    if (!get_int(x, sec, k, v, 0, LLONG_MAX, &n)) return 0;
+    s->seed = (uint64_t)n;
+  } else if (!strcmp(k, "detail")) {
+    if (!get_int(x, sec, k, v, 1, 8, &n)) return 0;
+    s->detail = (int)n;
+  } else {
+    return fail(x, sec, k, "unknown key (expected source, up, optional, extent, seed, detail)");
+  }
+  return 1;
+}
+
+static int valid_id(const char *id) {
+  size_t n = strlen(id);
+  if (n == 0 || n > 63) return 0;
+  for (const char *p = id; *p; p++)
+    if (!((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z') || (*p >= '0' && *p <= '9') || *p == '-' ||
+          *p == '_'))
+      return 0;
+  return 1;
+}
+
+static int on_entry(void *user, const char *section, const char *name, const char *value) {
+  load_ctx *x = user;
+  if (x->err[0]) return 0;
+  if (!strcmp(section, "server")) return server_key(x, name, value);
+  if (!strcmp(section, "limits")) return limits_key(x, name, value);
+  if (!strncmp(section, "scene ", 6)) {
+    const char *id = section + 6;
+    if (!valid_id(id)) return fail(x, section, name, "scene id '%s' must be 1..63 of [A-Za-z0-9_-]", id);
+    if (!x->cur || strcmp(x->cur->id, id)) {
+      gs_config *c = x->c;
+      for (size_t i = 0; i < c->num_scenes; i++)
+        if (!strcmp(c->scenes[i].id, id)) return fail(x, section, name, "scene '%s' is defined twice", id);
+      gs_scene_conf *ns = realloc(c->scenes, (c->num_scenes + 1) * sizeof *ns);
+      if (!ns) return fail(x, section, name, "out of memory");
+      c->scenes = ns;
+      x->cur = &c->scenes[c->num_scenes++];
+      memset(x->cur, 0, sizeof *x->cur);
+      snprintf(x->cur->id, sizeof x->cur->id, "%s", id);
+      x->cur->up = GI_UP_Y;
+      x->cur->line = x->line;
+    }
+    return scene_key(x, section, name, value);
+  }
+  return fail(x, section, name, "unknown section (expected [server], [limits] or [scene ID])");
+}
+
+/* inih's reader callback: counts lines so messages can name them. */
+static char *read_line(char *str, int num, void *stream) {
+  load_ctx *x = ((void **)stream)[1];
+  char *r = fgets(str, num, ((void **)stream)[0]);
+  if (r) x->line++;
+  return r;
+}
+
+static int read_token(load_ctx *x, const char *path) {
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    snprintf(x->err, sizeof x->err, "%s: [server] token_file: cannot open '%s': %s", x->c->path, path,
+             strerror(errno));
+    return -1;
+  }
+  char buf[sizeof x->c->token + 1];
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  fclose(f);
+  buf[n] = 0;
+  while (n && (buf[n - 1] == '\n' || buf[n - 1] == '\r' || buf[n - 1] == ' ')) buf[--n] = 0;
+  if (n < 16 || n >= sizeof x->c->token) {
+    snprintf(x->err, sizeof x->err, "%s: [server] token_file: '%s' must hold one token of 16..255 characters",
+             x->c->path, path);
+    return -1;
+  }
+  snprintf(x->c->token, sizeof x->c->token, "%s", buf);
+  return 0;
+}
+
+int gs_config_load(const char *path, gs_config *c, char *err, size_t errsize) {
+  load_ctx x;
+  memset(&x, 0, sizeof x);
+  x.c = c;
+  snprintf(c->path, sizeof c->path, "%s", path);
+  const char *slash = strrchr(path, '/');
+  if (slash) snprintf(x.dir, sizeof x.dir, "%.*s", (int)(slash - path), path);
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    snprintf(err, errsize, "%s: cannot open config: %s", path, strerror(errno));
+    return -1;
+  }
+  void *stream[2] = {f, &x};
+  int rc = ini_parse_stream(read_line, stream, on_entry, &x);
+  fclose(f);
+  if (x.err[0]) {
+    snprintf(err, errsize, "%s", x.err);
+    return -1;
+  }
+  if (rc != 0) {
+    snprintf(err, errsize, "%s:%d: syntax error (expected [section] or key = value)", path, rc);
+    return -1;
+  }
+  if (x.token_file[0] && read_token(&x, x.token_file)) {
+    snprintf(err, errsize, "%s", x.err);
+    return -1;
+  }
+  for (size_t i = 0; i < c->num_scenes; i++) {
+    gs_scene_conf *s = &c->scenes[i];
+    if (!s->source[0]) {
+      snprintf(err, errsize, "%s:%d: [scene %s]: 'source' is required ('city' or a file path)", path, s->line,
+               s->id);
+      return -1;
+    }
+    if (!s->is_city && (s->extent || s->seed || s->detail)) {
+      snprintf(err, errsize, "%s:%d: [scene %s]: extent, seed and detail apply to source = city only", path,
+               s->line, s->id);
+      return -1;
+    }
+  }
+  if (c->lim.max_probes_inline > c->lim.max_probes_job) {
+    snprintf(err, errsize, "%s: [limits] max_probes_inline (%zu) exceeds max_probes_job (%zu)", path,
+             c->lim.max_probes_inline, c->lim.max_probes_job);
+    return -1;
+  }
+  return 0;
+}
+
+void gs_config_free(gs_config *c) {
+  free(c->scenes);
+  c->scenes = NULL;
+  c->num_scenes = 0;
+}

@@ -1,0 +1,578 @@
+/* http.c: the HTTP front on libmicrohttpd (the only file that includes it).
+ *
+ * libmicrohttpd's threads parse, authenticate, route and validate, and
+ * answer the cheap endpoints (health, catalog, jobs, metrics) themselves.
+ * Anything that bakes or encodes goes to the bounded worker pool: the
+ * connection is suspended, the worker fills in the answer and resumes it,
+ * so a poll thread never waits for a bake. A full queue is a 503 at once.
+ *
+ * Deadlines: a reaper thread answers 504 for a request still unanswered at
+ * its deadline. The worker and the reaper race to answer; one mutex and
+ * the request's `done` flag make exactly one of them win, and resume is
+ * only ever called on a suspended connection. A request lives until both
+ * libmicrohttpd and its task have let go of it (reference count). */
+#define _POSIX_C_SOURCE 200809L
+#include <arpa/inet.h>
+#include <jansson.h>
+#include <microhttpd.h>
+#include <netinet/in.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+#include "server.h"
+
+typedef struct gs_req {
+  gs_http *h;
+  struct MHD_Connection *conn;
+  gs_endpoint ep;
+  const gs_scene *scene;
+  char method[8];
+  char path[160];
+  char job_id[48];
+  double t_start, deadline;
+  char *body;
+  size_t len, cap;
+  int too_large;
+  /* Guarded by h->mu. */
+  int dispatched, suspended, done;
+  gs_answer ans;
+  gi_proto_bake bake;
+  gi_proto_probes probes;
+  atomic_int refs;
+  struct gs_req *prev, *next;  /* waiting list (dispatched, not done) */
+} gs_req;
+
+struct gs_http {
+  gs_service *svc;
+  struct MHD_Daemon *d;
+  int port;
+  pthread_mutex_t mu;
+  gs_req *waiting;
+  pthread_t reaper;
+  int stop;
+  pthread_cond_t stop_cv;
+};
+
+static void req_release(gs_req *r) {
+  if (atomic_fetch_sub(&r->refs, 1) != 1) return;
+  gs_answer_free(&r->ans);
+  gi_proto_probes_free(&r->probes);
+  free(r->body);
+  free(r);
+}
+
+/* ---- answers ------------------------------------------------------------ */
+
+static void answer_json(gs_answer *a, int status, json_t *o) {
+  a->status = status;
+  a->json = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(10)) : NULL;
+  json_decref(o);
+  a->content_type = "application/json";
+  if (!a->json) {
+    gi_proto_error e;
+    gi_proto_fail(&e, 500, "could not encode the answer");
+    gs_answer_error(a, &e);
+  }
+}
+
+static void answer_fail(gs_answer *a, int status, const char *fmt, const char *arg) {
+  gi_proto_error e;
+  gi_proto_fail(&e, status, fmt, arg);
+  gs_answer_error(a, &e);
+}
+
+static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
+  gs_answer *a = &r->ans;
+  struct MHD_Response *resp;
+  if (a->fd >= 0) {
+    resp = MHD_create_response_from_fd(a->size, a->fd);
+    if (resp) a->fd = -1; /* libmicrohttpd closes it */
+  } else {
+    const char *body = a->json ? a->json : "";
+    resp = MHD_create_response_from_buffer(strlen(body), (void *)body, MHD_RESPMEM_MUST_COPY);
+  }
+  if (!resp) return MHD_NO;
+  MHD_add_response_header(resp, "Content-Type", a->content_type ? a->content_type : "application/json");
+  MHD_add_response_header(resp, "Cache-Control", "no-store");
+  if (!a->server_timing[0])
+    snprintf(a->server_timing, sizeof a->server_timing, "total;dur=%.2f", gs_now_ms() - r->t_start);
+  MHD_add_response_header(resp, "Server-Timing", a->server_timing);
+  if (a->effects[0]) MHD_add_response_header(resp, "X-GI-Effects", a->effects);
+  if (a->cache) MHD_add_response_header(resp, "X-GI-Cache", a->cache);
+  if (a->disposition[0]) MHD_add_response_header(resp, "Content-Disposition", a->disposition);
+  if (a->location[0]) MHD_add_response_header(resp, "Location", a->location);
+  if (a->status == 503) MHD_add_response_header(resp, "Retry-After", "1");
+  if (a->status == 401) MHD_add_response_header(resp, "WWW-Authenticate", "Bearer realm=\"gi-server\"");
+  if (a->status == 405)
+    MHD_add_response_header(resp, "Allow", r->ep == GS_EP_PROBES ? "POST" : "GET, HEAD");
+  enum MHD_Result ok = MHD_queue_response(r->conn, (unsigned)a->status, resp);
+  MHD_destroy_response(resp);
+  double secs = (gs_now_ms() - r->t_start) * 1e-3;
+  gs_metrics_request(h->svc->metrics, r->ep, a->status, secs);
+  if (a->status == 503) gs_metrics_rejected(h->svc->metrics);
+  fprintf(stderr, "gi-server: %s %s %d %.1f ms%s%s\n", r->method, r->path, a->status, secs * 1e3,
+          a->cache ? " " : "", a->cache ? a->cache : "");
+  return ok;
+}
+
+/* ---- worker side -------------------------------------------------------- */
+
+static void waiting_remove(gs_http *h, gs_req *r) {
+  if (r->prev) r->prev->next = r->next;
+  else if (h->waiting == r) h->waiting = r->next;
+  if (r->next) r->next->prev = r->prev;
+  r->prev = r->next = NULL;
+}
+
+/* Hands an answer to the request unless the reaper answered first. */
+static void complete(gs_http *h, gs_req *r, gs_answer *a) {
+  pthread_mutex_lock(&h->mu);
+  if (r->done) {
+    pthread_mutex_unlock(&h->mu);
+    gs_answer_free(a);
+    return;
+  }
+  r->done = 1;
+  r->ans = *a;
+  waiting_remove(h, r);
+  if (r->suspended) {
+    r->suspended = 0;
+    MHD_resume_connection(r->conn);
+  }
+  pthread_mutex_unlock(&h->mu);
+}
+
+static void task(void *arg) {
+  gs_req *r = arg;
+  gs_http *h = r->h;
+  pthread_mutex_lock(&h->mu);
+  int skip = r->done;
+  pthread_mutex_unlock(&h->mu);
+  if (!skip) {
+    gs_answer a = {.fd = -1};
+    if (r->ep == GS_EP_PROBES) gs_serve_probes(h->svc, r->scene, &r->probes, r->t_start, &a);
+    else gs_serve_bake(h->svc, r->scene, r->ep, &r->bake, r->t_start, &a);
+    complete(h, r, &a);
+  }
+  req_release(r);
+}
+
+static void *reaper_main(void *p) {
+  gs_http *h = p;
+  pthread_mutex_lock(&h->mu);
+  while (!h->stop) {
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    ts.tv_nsec += 50 * 1000000L;
+    if (ts.tv_nsec >= 1000000000L) ts.tv_sec++, ts.tv_nsec -= 1000000000L;
+    pthread_cond_timedwait(&h->stop_cv, &h->mu, &ts);
+    double now = gs_now_ms();
+    for (gs_req *r = h->waiting, *n; r; r = n) {
+      n = r->next;
+      if (now < r->deadline || r->done) continue;
+      r->done = 1;
+      waiting_remove(h, r);
+      gi_proto_error e;
+      gi_proto_fail(&e, 504, "the request took longer than the server's deadline of %g s; the cascade may "
+                             "still be cached when it finishes: retry",
+                    h->svc->cfg->deadline_s);
+      gs_answer_error(&r->ans, &e);
+      gs_metrics_timeout(h->svc->metrics);
+      if (r->suspended) {
+        r->suspended = 0;
+        MHD_resume_connection(r->conn);
+      }
+    }
+  }
+  pthread_mutex_unlock(&h->mu);
+  return NULL;
+}
+
+/* Queues r's work and suspends the connection; 503 when the queue is full. */
+static enum MHD_Result dispatch(gs_http *h, gs_req *r) {
+  pthread_mutex_lock(&h->mu);
+  r->dispatched = 1;
+  atomic_fetch_add(&r->refs, 1);
+  if (gs_pool_submit(h->svc->pool, task, r) != 0) {
+    atomic_fetch_sub(&r->refs, 1);
+    r->done = 1;
+    pthread_mutex_unlock(&h->mu);
+    int depth, cap, busy;
+    gs_pool_stats(h->svc->pool, &depth, &cap, &busy);
+    gi_proto_error e;
+    gi_proto_fail(&e, 503, "the server is busy: %d requests wait for %d workers; retry after 1 s", depth, busy);
+    gs_answer_error(&r->ans, &e);
+    return send_answer(h, r);
+  }
+  if (!r->done) {
+    /* The task cannot resume before this: it takes the same mutex. */
+    r->next = h->waiting;
+    if (h->waiting) h->waiting->prev = r;
+    h->waiting = r;
+    r->suspended = 1;
+    MHD_suspend_connection(r->conn);
+    pthread_mutex_unlock(&h->mu);
+    return MHD_YES;
+  }
+  pthread_mutex_unlock(&h->mu);
+  return send_answer(h, r);
+}
+
+/* ---- cheap endpoints ---------------------------------------------------- */
+
+static json_t *vec3(const double v[3]) { return json_pack("[f,f,f]", v[0], v[1], v[2]); }
+static json_t *vec3f(const float v[3]) { return json_pack("[f,f,f]", (double)v[0], (double)v[1], (double)v[2]); }
+
+static json_t *bounds_json(const gi_scene *s) {
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  return json_pack("{s:o, s:o}", "min", vec3(lo), "max", vec3(hi));
+}
+
+static void scene_info(const gs_scene *s, gs_answer *a) {
+  gi_scene_stats st;
+  gi_scene_get_stats(s->scene, &st);
+  json_t *lights = json_array();
+  for (size_t i = 0; i < gi_scene_num_lights(s->scene); i++) {
+    const gi_light *l = gi_scene_light(s->scene, i);
+    static const char *const types[] = {"sun", "point", "spot", "sky"};
+    json_t *o = json_pack("{s:s, s:o}", "type", types[l->type & 3], "color", vec3f(l->color));
+    if (l->type == GI_LIGHT_SUN || l->type == GI_LIGHT_SPOT) json_object_set_new(o, "direction", vec3f(l->direction));
+    if (l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) json_object_set_new(o, "position", vec3(l->position));
+    json_array_append_new(lights, o);
+  }
+  json_t *fx = json_object();
+  for (int i = 0; i < GI_FX_COUNT; i++)
+    json_object_set_new(fx, gi_effect_name((gi_effect_id)i),
+                        json_pack("{s:b, s:s}", "ran", s->effects[i].ran, "why", s->effects[i].why));
+  const gi_quality *q = &s->quality;
+  json_t *qj = json_pack("{s:i, s:i, s:f, s:i, s:f, s:f, s:i, s:i, s:i}", "levels", q->levels, "res", q->res,
+                         "voxel", q->voxel0, "cones", q->cones, "aperture_deg", (double)q->aperture_deg, "step",
+                         (double)q->step, "bounces", q->bounces, "samples", q->light_samples, "probe_samples",
+                         q->probe_samples);
+  json_t *o = json_pack("{s:s, s:s, s:I, s:{s:I, s:I}, s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:f}", "id", s->id, "up",
+                        gi_scene_up(s->scene) == GI_UP_Z ? "z" : "y", "triangles", (json_int_t)st.triangles,
+                        "dropped", "nonfinite", (json_int_t)st.dropped_nonfinite, "degenerate",
+                        (json_int_t)st.dropped_degenerate, "materials", (int)st.materials, "emissive_triangles",
+                        (int)st.emissive_triangles, "lights", lights, "bounds", bounds_json(s->scene),
+                        "default_viewpoint", vec3(s->default_at), "quality", qj, "effects", fx, "load_ms",
+                        s->load_ms);
+  answer_json(a, 200, o);
+}
+
+static void catalog(gs_service *svc, gs_answer *a) {
+  json_t *arr = json_array();
+  for (size_t i = 0; i < svc->cat->num; i++) {
+    const gs_scene *s = &svc->cat->scenes[i];
+    gi_scene_stats st;
+    gi_scene_get_stats(s->scene, &st);
+    char href[96];
+    snprintf(href, sizeof href, "/v1/scenes/%s", s->id);
+    json_array_append_new(arr, json_pack("{s:s, s:I, s:s, s:o, s:s}", "id", s->id, "triangles",
+                                         (json_int_t)st.triangles, "up",
+                                         gi_scene_up(s->scene) == GI_UP_Z ? "z" : "y", "bounds",
+                                         bounds_json(s->scene), "href", href));
+  }
+  answer_json(a, 200, json_pack("{s:o}", "scenes", arr));
+}
+
+static void health(gs_service *svc, gs_answer *a) {
+  answer_json(a, 200, json_pack("{s:s, s:s, s:s, s:f, s:i}", "status", "ok", "version", GI_VERSION, "git",
+                                GI_GIT_REV, "uptime_s", (gs_now_ms() - svc->start_ms) * 1e-3, "scenes",
+                                (int)svc->cat->num));
+}
+
+static void metrics(gs_service *svc, gs_answer *a) {
+  gs_gauges g = {0};
+  gs_cache_stats(svc->cache, &g.cache_bytes, &g.cache_entries);
+  g.cache_budget = svc->cfg->cache_bytes;
+  gs_pool_stats(svc->pool, &g.queue_depth, &g.queue_capacity, &g.workers_busy);
+  gs_jobs_count(svc->jobs, g.jobs);
+  g.uptime_s = (gs_now_ms() - svc->start_ms) * 1e-3;
+  g.scenes = svc->cat->num;
+  a->status = 200;
+  a->json = gs_metrics_render(svc->metrics, &g);
+  a->content_type = "text/plain; version=0.0.4; charset=utf-8";
+}
+
+/* ---- routing ------------------------------------------------------------ */
+
+typedef struct {
+  gi_proto_kv kv[64];
+  size_t n;
+  int overflow;
+} query;
+
+static enum MHD_Result collect(void *cls, enum MHD_ValueKind kind, const char *key, const char *value) {
+  query *q = cls;
+  if (q->n == 64) {
+    q->overflow = 1;
+    return MHD_NO;
+  }
+  q->kv[q->n++] = (gi_proto_kv){key, value ? value : ""};
+  return MHD_YES;
+}
+
+/* Constant-time comparison: the time taken does not depend on where a guess differs. */
+static int token_ok(const char *want, const char *got) {
+  size_t n = strlen(want), m = got ? strlen(got) : 0;
+  unsigned char diff = (unsigned char)(n != m);
+  for (size_t i = 0; i < n; i++) diff |= (unsigned char)(want[i] ^ (i < m ? got[i] : 0));
+  return diff == 0;
+}
+
+static int valid_id(const char *s, size_t n) {
+  if (n == 0 || n > 63) return 0;
+  for (size_t i = 0; i < n; i++)
+    if (!((s[i] >= 'a' && s[i] <= 'z') || (s[i] >= 'A' && s[i] <= 'Z') || (s[i] >= '0' && s[i] <= '9') ||
+          s[i] == '-' || s[i] == '_'))
+      return 0;
+  return 1;
+}
+
+/* Splits the path into an endpoint and its id; 0 when no route matches. */
+static int route(gs_req *r, const char *url, char *id, size_t idsize) {
+  if (!strcmp(url, "/v1/health")) return r->ep = GS_EP_HEALTH, 1;
+  if (!strcmp(url, "/v1/scenes")) return r->ep = GS_EP_SCENES, 1;
+  if (!strcmp(url, "/metrics")) return r->ep = GS_EP_METRICS, 1;
+  const char *rest;
+  int scenes = !strncmp(url, "/v1/scenes/", 11), jobs = !strncmp(url, "/v1/jobs/", 9);
+  if (!scenes && !jobs) return 0;
+  rest = url + (scenes ? 11 : 9);
+  const char *slash = strchr(rest, '/');
+  size_t n = slash ? (size_t)(slash - rest) : strlen(rest);
+  if (!valid_id(rest, n) || n >= idsize) return 0;
+  memcpy(id, rest, n);
+  id[n] = 0;
+  const char *tail = slash ? slash : "";
+  if (scenes) {
+    if (!*tail) r->ep = GS_EP_SCENE;
+    else if (!strcmp(tail, "/lighting")) r->ep = GS_EP_LIGHTING;
+    else if (!strcmp(tail, "/cascades.vdb")) r->ep = GS_EP_CASCADES;
+    else if (!strcmp(tail, "/probes")) r->ep = GS_EP_PROBES;
+    else return 0;
+  } else {
+    if (!*tail) r->ep = GS_EP_JOB;
+    else if (!strcmp(tail, "/result")) r->ep = GS_EP_JOB_RESULT;
+    else return 0;
+  }
+  return 1;
+}
+
+static enum MHD_Result handle(gs_http *h, gs_req *r, const char *url) {
+  gs_service *svc = h->svc;
+  gs_answer *a = &r->ans;
+  char id[64] = "";
+  if (!route(r, url, id, sizeof id)) {
+    r->ep = GS_EP_OTHER;
+    answer_fail(a, 404, "no such endpoint: %.100s (see /v1/health, /v1/scenes, /metrics)", url);
+    return send_answer(h, r);
+  }
+  if (r->ep != GS_EP_HEALTH && svc->cfg->token[0]) {
+    const char *auth = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Authorization");
+    const char *tok = auth && !strncmp(auth, "Bearer ", 7) ? auth + 7 : NULL;
+    if (!token_ok(svc->cfg->token, tok)) {
+      answer_fail(a, 401, "%s", auth ? "the bearer token is not valid" : "an Authorization: Bearer token is required");
+      return send_answer(h, r);
+    }
+  }
+  int post = r->ep == GS_EP_PROBES;
+  int get_ok = !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
+  if (post ? strcmp(r->method, "POST") : !get_ok) {
+    answer_fail(a, 405, "%s", post ? "this endpoint takes POST" : "this endpoint takes GET or HEAD");
+    return send_answer(h, r);
+  }
+  query q = {0};
+  MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, collect, &q);
+  if (q.overflow) {
+    answer_fail(a, 400, "%s", "more than 64 query parameters");
+    return send_answer(h, r);
+  }
+  gi_proto_error pe;
+  if (r->ep == GS_EP_SCENE || r->ep == GS_EP_LIGHTING || r->ep == GS_EP_CASCADES || r->ep == GS_EP_PROBES) {
+    r->scene = gs_catalog_find(svc->cat, id);
+    if (!r->scene) {
+      answer_fail(a, 404, "scene '%s' is not in the catalog (GET /v1/scenes lists them)", id);
+      return send_answer(h, r);
+    }
+  }
+  switch (r->ep) {
+  case GS_EP_HEALTH:
+  case GS_EP_SCENES:
+  case GS_EP_METRICS:
+  case GS_EP_SCENE:
+  case GS_EP_JOB:
+  case GS_EP_JOB_RESULT:
+    if (gi_proto_parse_none(q.kv, q.n, &pe)) {
+      gs_answer_error(a, &pe);
+    } else if (r->ep == GS_EP_HEALTH) {
+      health(svc, a);
+    } else if (r->ep == GS_EP_SCENES) {
+      catalog(svc, a);
+    } else if (r->ep == GS_EP_METRICS) {
+      metrics(svc, a);
+    } else if (r->ep == GS_EP_SCENE) {
+      scene_info(r->scene, a);
+    } else if (r->ep == GS_EP_JOB) {
+      gs_jobs_status(svc->jobs, id, a);
+    } else {
+      gs_jobs_result(svc->jobs, id, a);
+    }
+    return send_answer(h, r);
+  case GS_EP_LIGHTING:
+  case GS_EP_CASCADES: {
+    int st = r->ep == GS_EP_LIGHTING ? gi_proto_parse_lighting(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe)
+                                     : gi_proto_parse_cascades(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe);
+    if (st) {
+      gs_answer_error(a, &pe);
+      return send_answer(h, r);
+    }
+    return dispatch(h, r);
+  }
+  case GS_EP_PROBES:
+    if (r->too_large) {
+      gi_proto_fail(&pe, 413, "body: more than the server limit of %zu bytes", svc->cfg->lim.max_body_bytes);
+    } else if (gi_proto_parse_none(q.kv, q.n, &pe) == 0 &&
+               gi_proto_parse_probes(r->body, r->len, &svc->cfg->lim, &r->probes, &pe) == 0) {
+      return dispatch(h, r);
+    }
+    gs_answer_error(a, &pe);
+    return send_answer(h, r);
+  default:
+    answer_fail(a, 404, "no such endpoint: %.100s", url);
+    return send_answer(h, r);
+  }
+}
+
+static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url, const char *method,
+                                  const char *version, const char *upload, size_t *upload_size, void **con_cls) {
+  gs_http *h = cls;
+  gs_req *r = *con_cls;
+  if (!r) {
+    r = calloc(1, sizeof *r);
+    if (!r) return MHD_NO;
+    r->h = h;
+    r->conn = conn;
+    r->ans.fd = -1;
+    atomic_init(&r->refs, 1);
+    r->t_start = gs_now_ms();
+    r->deadline = r->t_start + h->svc->cfg->deadline_s * 1e3;
+    snprintf(r->method, sizeof r->method, "%s", method);
+    snprintf(r->path, sizeof r->path, "%s", url);
+    *con_cls = r;
+    return MHD_YES;
+  }
+  if (*upload_size) {
+    /* Keep at most the limit; the rest is read and dropped, then 413. */
+    size_t lim = h->svc->cfg->lim.max_body_bytes;
+    if (r->too_large || r->len + *upload_size > lim) {
+      r->too_large = 1;
+    } else {
+      if (r->len + *upload_size + 1 > r->cap) {
+        size_t cap = r->cap ? r->cap : 4096;
+        while (cap < r->len + *upload_size + 1) cap *= 2;
+        char *nb = realloc(r->body, cap);
+        if (!nb) return MHD_NO;
+        r->body = nb;
+        r->cap = cap;
+      }
+      memcpy(r->body + r->len, upload, *upload_size);
+      r->len += *upload_size;
+    }
+    *upload_size = 0;
+    return MHD_YES;
+  }
+  if (r->dispatched) {
+    /* Resumed: the worker or the reaper left the answer. */
+    pthread_mutex_lock(&h->mu);
+    int done = r->done;
+    pthread_mutex_unlock(&h->mu);
+    return done ? send_answer(h, r) : MHD_YES;
+  }
+  return handle(h, r, url);
+}
+
+static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
+                         enum MHD_RequestTerminationCode code) {
+  gs_req *r = *con_cls;
+  if (!r) return;
+  *con_cls = NULL;
+  req_release(r);
+}
+
+static void mhd_log(void *cls, const char *fmt, va_list ap) {
+  fprintf(stderr, "gi-server: libmicrohttpd: ");
+  vfprintf(stderr, fmt, ap);
+}
+
+gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
+  const gs_config *cfg = svc->cfg;
+  struct sockaddr_in sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sin_family = AF_INET;
+  sa.sin_port = htons((uint16_t)cfg->port);
+  if (inet_pton(AF_INET, cfg->bind, &sa.sin_addr) != 1) {
+    snprintf(err, errsize, "%s: [server] bind: '%s' is not an IPv4 address", cfg->path, cfg->bind);
+    return NULL;
+  }
+  gs_http *h = calloc(1, sizeof *h);
+  if (!h) {
+    snprintf(err, errsize, "out of memory");
+    return NULL;
+  }
+  h->svc = svc;
+  pthread_mutex_init(&h->mu, NULL);
+  pthread_cond_init(&h->stop_cv, NULL);
+  unsigned flags = MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG;
+  h->d = MHD_start_daemon(flags, 0, NULL, NULL, on_request, h, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&sa,
+                          MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->connection_threads,
+                          MHD_OPTION_CONNECTION_LIMIT, 1000u, MHD_OPTION_CONNECTION_TIMEOUT, 60u,
+                          MHD_OPTION_NOTIFY_COMPLETED, on_completed, h, MHD_OPTION_EXTERNAL_LOGGER, mhd_log, h,
+                          MHD_OPTION_END);
+  if (!h->d) {
+    snprintf(err, errsize, "cannot listen on %s:%d (in use, or not permitted)", cfg->bind, cfg->port);
+    pthread_mutex_destroy(&h->mu);
+    pthread_cond_destroy(&h->stop_cv);
+    free(h);
+    return NULL;
+  }
+  const union MHD_DaemonInfo *di = MHD_get_daemon_info(h->d, MHD_DAEMON_INFO_BIND_PORT);
+  h->port = di ? di->port : cfg->port;
+  if (pthread_create(&h->reaper, NULL, reaper_main, h) != 0) {
+    MHD_stop_daemon(h->d);
+    free(h);
+    snprintf(err, errsize, "cannot start the deadline thread");
+    return NULL;
+  }
+  return h;
+}
+
+int gs_http_port(const gs_http *h) { return h->port; }
+
+void gs_http_stop(gs_http *h) {
+  if (!h) return;
+  /* No new connections; let suspended ones be answered (by their worker or
+   * at their deadline), then stop. */
+  MHD_socket fd = MHD_quiesce_daemon(h->d);
+  if (fd != MHD_INVALID_SOCKET) close(fd);
+  for (;;) {
+    pthread_mutex_lock(&h->mu);
+    int busy = h->waiting != NULL;
+    pthread_mutex_unlock(&h->mu);
+    if (!busy) break;
+    struct timespec ts = {0, 20 * 1000000L};
+    nanosleep(&ts, NULL);
+  }
+  pthread_mutex_lock(&h->mu);
+  h->stop = 1;
+  pthread_cond_signal(&h->stop_cv);
+  pthread_mutex_unlock(&h->mu);
+  pthread_join(h->reaper, NULL);
+  MHD_stop_daemon(h->d);
+  pthread_mutex_destroy(&h->mu);
+  pthread_cond_destroy(&h->stop_cv);
+  free(h);
+}

@@ -1,0 +1,189 @@
+/* main.c: gi-server's command line, start-up order and shutdown.
+ *
+ * Start-up fails early and loudly: the config is validated and every
+ * scene is loaded before the port opens, so "listening" means "ready".
+ * SIGINT/SIGTERM stop accepting, let running requests finish, and exit 0. */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <getopt.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include "server.h"
+
+static const char help_text[] =
+    "Usage: gi-server [--config FILE] [--port N] [--bind ADDR] [--port-file F]\n"
+    "                 [--check-config] [--version] [--help]\n"
+    "Serves global illumination over HTTP: probes and panoramas as EXR, cascade\n"
+    "snapshots as VDB, probe lists as jobs, Prometheus metrics. See proto/openapi.yaml.\n"
+    "\n"
+    "  --config FILE   INI config (default configs/gi-server.ini); scene paths in it\n"
+    "                  are relative to the file\n"
+    "  --port N        override [server] port (0 = an ephemeral port)\n"
+    "  --bind ADDR     override [server] bind (an IPv4 address)\n"
+    "  --port-file F   write the bound port number to F once listening\n"
+    "  --check-config  validate the config and load the scenes, then exit\n"
+    "  -V, --version   print the version;  -h, --help  this text\n"
+    "\n"
+    "Environment: GI_SERVER_TOKEN overrides [server] token_file (bearer token).\n"
+    "Exit status: 0 clean shutdown or valid config, 1 start-up failed, 2 bad arguments.\n";
+
+static int write_port_file(const char *path, int port) {
+  char tmp[1100];
+  snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
+  FILE *f = fopen(tmp, "w");
+  if (!f) return -1;
+  fprintf(f, "%d\n", port);
+  if (fclose(f) != 0 || rename(tmp, path) != 0) {
+    unlink(tmp);
+    return -1;
+  }
+  return 0;
+}
+
+static int parse_port(const char *s, int *out) {
+  char *end;
+  errno = 0;
+  long v = strtol(s, &end, 10);
+  if (end == s || *end || errno || v < 0 || v > 65535) return -1;
+  *out = (int)v;
+  return 0;
+}
+
+int main(int argc, char **argv) {
+  const char *config = "configs/gi-server.ini", *port_file = NULL, *bind = NULL;
+  int port = -1, check = 0;
+  static const struct option opts[] = {{"config", required_argument, NULL, 'c'},
+                                       {"port", required_argument, NULL, 'p'},
+                                       {"bind", required_argument, NULL, 'b'},
+                                       {"port-file", required_argument, NULL, 'f'},
+                                       {"check-config", no_argument, NULL, 'k'},
+                                       {"version", no_argument, NULL, 'V'},
+                                       {"help", no_argument, NULL, 'h'},
+                                       {NULL, 0, NULL, 0}};
+  opterr = 0;
+  int o;
+  while ((o = getopt_long(argc, argv, ":hV", opts, NULL)) != -1) {
+    switch (o) {
+    case 'c': config = optarg; break;
+    case 'p':
+      if (parse_port(optarg, &port)) {
+        fprintf(stderr, "gi-server: --port: expected 0..65535, got '%s'\n", optarg);
+        return 2;
+      }
+      break;
+    case 'b': bind = optarg; break;
+    case 'f': port_file = optarg; break;
+    case 'k': check = 1; break;
+    case 'V': printf("gi-server %s (%s)\n", GI_VERSION, GI_GIT_REV); return 0;
+    case 'h': fputs(help_text, stdout); return 0;
+    case ':': fprintf(stderr, "gi-server: %s needs a value\n", argv[optind - 1]); return 2;
+    default: fprintf(stderr, "gi-server: unknown option '%s' (see --help)\n", argv[optind - 1]); return 2;
+    }
+  }
+  if (optind < argc) {
+    fprintf(stderr, "gi-server: unexpected argument '%s' (see --help)\n", argv[optind]);
+    return 2;
+  }
+
+  static gs_config cfg;
+  char err[1200];
+  gs_config_defaults(&cfg);
+  if (gs_config_load(config, &cfg, err, sizeof err)) {
+    fprintf(stderr, "gi-server: %s\n", err);
+    return 1;
+  }
+  if (port >= 0) cfg.port = port;
+  if (bind) snprintf(cfg.bind, sizeof cfg.bind, "%s", bind);
+  const char *tok = getenv("GI_SERVER_TOKEN");
+  if (tok && *tok) {
+    if (strlen(tok) < 16 || strlen(tok) >= sizeof cfg.token) {
+      fprintf(stderr, "gi-server: GI_SERVER_TOKEN must be 16..255 characters\n");
+      return 1;
+    }
+    snprintf(cfg.token, sizeof cfg.token, "%s", tok);
+  }
+  if (!cfg.tmp_dir[0]) {
+    const char *t = getenv("TMPDIR");
+    snprintf(cfg.tmp_dir, sizeof cfg.tmp_dir, "%s", t && *t ? t : "/tmp");
+  }
+  struct stat st;
+  if (stat(cfg.tmp_dir, &st) != 0 || !S_ISDIR(st.st_mode) || access(cfg.tmp_dir, W_OK) != 0) {
+    fprintf(stderr, "gi-server: %s: [server] tmp_dir: '%s' is not a writable folder\n", cfg.path, cfg.tmp_dir);
+    return 1;
+  }
+  if (cfg.num_scenes == 0) {
+    fprintf(stderr, "gi-server: %s: no [scene ID] sections: nothing to serve\n", cfg.path);
+    return 1;
+  }
+
+  /* Signals go to one thread (sigwait below); every other thread blocks them. */
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGINT);
+  sigaddset(&sigs, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+  signal(SIGPIPE, SIG_IGN);
+
+  static gs_catalog cat;
+  if (gs_catalog_load(&cfg, &cat, err, sizeof err)) {
+    fprintf(stderr, "gi-server: %s\n", err);
+    return 1;
+  }
+  if (cat.num == 0) {
+    fprintf(stderr, "gi-server: %s: every scene was optional and absent: nothing to serve\n", cfg.path);
+    return 1;
+  }
+  if (check) {
+    printf("gi-server: %s is valid: %zu scene(s)\n", cfg.path, cat.num);
+    gs_catalog_free(&cat);
+    gs_config_free(&cfg);
+    return 0;
+  }
+  static gs_service svc;
+  svc.cfg = &cfg;
+  svc.cat = &cat;
+  svc.start_ms = gs_now_ms();
+  svc.metrics = gs_metrics_new();
+  svc.cache = gs_cache_new(cfg.cache_bytes, svc.metrics);
+  svc.pool = gs_pool_new(cfg.workers, cfg.queue);
+  svc.jobs = svc.pool ? gs_jobs_new(&svc) : NULL;
+  if (!svc.metrics || !svc.cache || !svc.pool || !svc.jobs) {
+    fprintf(stderr, "gi-server: cannot start the workers (out of memory or threads)\n");
+    return 1;
+  }
+  gs_http *h = gs_http_start(&svc, err, sizeof err);
+  if (!h) {
+    fprintf(stderr, "gi-server: %s\n", err);
+    return 1;
+  }
+  int bound = gs_http_port(h);
+  if (port_file && write_port_file(port_file, bound)) {
+    fprintf(stderr, "gi-server: --port-file: cannot write '%s': %s\n", port_file, strerror(errno));
+    gs_http_stop(h);
+    return 1;
+  }
+  const gs_scene *first = &cat.scenes[0];
+  printf("gi-server %s listening on http://%s:%d (%zu scene(s), %d workers, queue %d, cache %zu MiB%s)\n",
+         GI_VERSION, cfg.bind, bound, cat.num, cfg.workers, cfg.queue, cfg.cache_bytes >> 20,
+         cfg.token[0] ? ", bearer token required" : "");
+  printf("try: curl -o %s-probe.exr 'http://%s:%d/v1/scenes/%s/lighting?at=%.6g,%.6g,%.6g'%s\n", first->id,
+         cfg.bind, bound, first->id, first->default_at[0], first->default_at[1], first->default_at[2],
+         cfg.token[0] ? " -H \"Authorization: Bearer $TOKEN\"" : "");
+  fflush(stdout);
+
+  int sig = 0;
+  sigwait(&sigs, &sig);
+  fprintf(stderr, "gi-server: %s: finishing running requests, then stopping\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+  gs_http_stop(h);
+  gs_pool_free(svc.pool);
+  gs_jobs_free(svc.jobs);
+  gs_cache_free(svc.cache);
+  gs_metrics_free(svc.metrics);
+  gs_catalog_free(&cat);
+  gs_config_free(&cfg);
+  return 0;
+}

@@ -1,0 +1,140 @@
+/* metrics.c: counters for /metrics in Prometheus text format 0.0.4.
+ *
+ * Counters are atomics, so recording never takes a lock on the request
+ * path; a scrape reads them without stopping anyone (values may be a
+ * request apart from each other, which Prometheus tolerates). */
+#define _POSIX_C_SOURCE 200809L
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "server.h"
+
+static const char *const ep_names[GS_EP_COUNT] = {"health", "scenes", "scene",      "lighting", "cascades",
+                                                  "probes", "job",    "job_result", "metrics",  "other"};
+static const int codes[] = {200, 202, 400, 401, 404, 405, 409, 413, 500, 501, 503, 504};
+#define NCODES (sizeof codes / sizeof codes[0])
+static const double buckets[] = {0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
+#define NB (sizeof buckets / sizeof buckets[0])
+
+typedef struct {
+  atomic_ullong le[NB + 1]; /* last: +Inf */
+  atomic_ullong sum_us;
+} histogram;
+
+struct gs_metrics {
+  atomic_ullong requests[GS_EP_COUNT][NCODES + 1]; /* last: any other code */
+  histogram req_seconds, bake_seconds;
+  atomic_ullong cache[3], evictions, bakes, rejected, timeouts;
+};
+
+gs_metrics *gs_metrics_new(void) { return calloc(1, sizeof(gs_metrics)); }
+void gs_metrics_free(gs_metrics *m) { free(m); }
+
+static void observe(histogram *h, double s) {
+  size_t i = 0;
+  while (i < NB && s > buckets[i]) i++;
+  atomic_fetch_add(&h->le[i], 1);
+  atomic_fetch_add(&h->sum_us, (unsigned long long)(s * 1e6));
+}
+
+void gs_metrics_request(gs_metrics *m, gs_endpoint ep, int status, double seconds) {
+  size_t c = NCODES;
+  for (size_t i = 0; i < NCODES; i++)
+    if (codes[i] == status) c = i;
+  atomic_fetch_add(&m->requests[ep][c], 1);
+  observe(&m->req_seconds, seconds);
+}
+
+void gs_metrics_bake(gs_metrics *m, double seconds) {
+  atomic_fetch_add(&m->bakes, 1);
+  observe(&m->bake_seconds, seconds);
+}
+void gs_metrics_cache(gs_metrics *m, gs_cache_how how) { atomic_fetch_add(&m->cache[how], 1); }
+void gs_metrics_eviction(gs_metrics *m) { atomic_fetch_add(&m->evictions, 1); }
+void gs_metrics_rejected(gs_metrics *m) { atomic_fetch_add(&m->rejected, 1); }
+void gs_metrics_timeout(gs_metrics *m) { atomic_fetch_add(&m->timeouts, 1); }
+
+typedef struct {
+  char *buf;
+  size_t len, cap;
+} sbuf;
+
+static void put(sbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void put(sbuf *b, const char *fmt, ...) {
+  for (;;) {
+    va_list ap;
+    va_start(ap, fmt);
+    int n = b->buf ? vsnprintf(b->buf + b->len, b->cap - b->len, fmt, ap) : -1;
+    va_end(ap);
+    if (n >= 0 && (size_t)n < b->cap - b->len) {
+      b->len += (size_t)n;
+      return;
+    }
+    size_t cap = b->cap ? 2 * b->cap : 8192;
+    char *nb = realloc(b->buf, cap);
+    if (!nb) return;
+    b->buf = nb;
+    b->cap = cap;
+  }
+}
+
+static void put_hist(sbuf *b, const char *name, const char *help, histogram *h) {
+  put(b, "# HELP %s %s\n# TYPE %s histogram\n", name, help, name);
+  unsigned long long cum = 0;
+  for (size_t i = 0; i < NB; i++) {
+    cum += atomic_load(&h->le[i]);
+    put(b, "%s_bucket{le=\"%g\"} %llu\n", name, buckets[i], cum);
+  }
+  cum += atomic_load(&h->le[NB]);
+  put(b, "%s_bucket{le=\"+Inf\"} %llu\n%s_sum %.6f\n%s_count %llu\n", name, cum, name,
+      (double)atomic_load(&h->sum_us) * 1e-6, name, cum);
+}
+
+static void put_counter(sbuf *b, const char *name, const char *help, unsigned long long v) {
+  put(b, "# HELP %s %s\n# TYPE %s counter\n%s %llu\n", name, help, name, name, v);
+}
+
+static void put_gauge(sbuf *b, const char *name, const char *help, double v) {
+  put(b, "# HELP %s %s\n# TYPE %s gauge\n%s %.17g\n", name, help, name, name, v);
+}
+
+char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
+  sbuf b = {0};
+  put(&b, "# HELP gi_build_info Build of this server.\n# TYPE gi_build_info gauge\n"
+          "gi_build_info{version=\"%s\",git=\"%s\"} 1\n", GI_VERSION, GI_GIT_REV);
+  put(&b, "# HELP gi_requests_total HTTP requests answered, by endpoint and status.\n"
+          "# TYPE gi_requests_total counter\n");
+  for (int e = 0; e < GS_EP_COUNT; e++)
+    for (size_t c = 0; c <= NCODES; c++) {
+      unsigned long long v = atomic_load(&m->requests[e][c]);
+      if (!v) continue;
+      if (c < NCODES) put(&b, "gi_requests_total{endpoint=\"%s\",code=\"%d\"} %llu\n", ep_names[e], codes[c], v);
+      else put(&b, "gi_requests_total{endpoint=\"%s\",code=\"other\"} %llu\n", ep_names[e], v);
+    }
+  put_hist(&b, "gi_request_duration_seconds", "Time from request to answer.", &m->req_seconds);
+  put_hist(&b, "gi_bake_duration_seconds", "Time to bake one cascade (voxelize to bounce).", &m->bake_seconds);
+  put_counter(&b, "gi_bakes_total", "Cascades baked.", atomic_load(&m->bakes));
+  put_counter(&b, "gi_cache_hits_total", "Requests answered from a cached cascade.", atomic_load(&m->cache[0]));
+  put_counter(&b, "gi_cache_misses_total", "Requests that baked their cascade.", atomic_load(&m->cache[1]));
+  put_counter(&b, "gi_cache_coalesced_total", "Requests that waited for a bake already running for their key.",
+              atomic_load(&m->cache[2]));
+  put_counter(&b, "gi_cache_evictions_total", "Cascades evicted to stay within the cache budget.",
+              atomic_load(&m->evictions));
+  put_counter(&b, "gi_rejected_total", "Requests answered 503 because the queue was full.",
+              atomic_load(&m->rejected));
+  put_counter(&b, "gi_timeouts_total", "Requests answered 504 at their deadline.", atomic_load(&m->timeouts));
+  put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades.", (double)g->cache_bytes);
+  put_gauge(&b, "gi_cache_budget_bytes", "The cache's configured budget.", (double)g->cache_budget);
+  put_gauge(&b, "gi_cache_entries", "Cascades in the cache (baking or ready).", (double)g->cache_entries);
+  put_gauge(&b, "gi_queue_depth", "Requests waiting for a bake worker.", (double)g->queue_depth);
+  put_gauge(&b, "gi_queue_capacity", "Requests that may wait before 503.", (double)g->queue_capacity);
+  put_gauge(&b, "gi_workers_busy", "Bake workers running a request.", (double)g->workers_busy);
+  put(&b, "# HELP gi_jobs Probe jobs by state.\n# TYPE gi_jobs gauge\n");
+  static const char *const js[4] = {"queued", "running", "done", "failed"};
+  for (int i = 0; i < 4; i++) put(&b, "gi_jobs{state=\"%s\"} %d\n", js[i], g->jobs[i]);
+  put_gauge(&b, "gi_scenes", "Scenes in the catalog.", (double)g->scenes);
+  put_gauge(&b, "gi_uptime_seconds", "Seconds since start.", g->uptime_s);
+  return b.buf;
+}

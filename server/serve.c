@@ -1,0 +1,365 @@
+/* serve.c: a parsed request in, an encoded answer out (runs on workers).
+ *
+ * Files are encoded by the core's writers into tmp_dir (temporary name,
+ * then rename), opened, and unlinked at once: the open descriptor is the
+ * answer, so nothing is left on disk whatever happens to the connection,
+ * and a large VDB is streamed from the page cache instead of copied.
+ *
+ * Probe lists are split into tiles: the points a single cascade answers
+ * from its finest level. Each tile's cascade is anchored at the tile's
+ * centre, so neighbouring requests share cascades through the cache. */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+#include "server.h"
+
+double gs_now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+void gs_tmp_path(gs_service *svc, const char *ext, char *buf, size_t size) {
+  unsigned long n = atomic_fetch_add(&svc->tmp_counter, 1);
+  snprintf(buf, size, "%s/gi-server-%ld-%lu%s", svc->cfg->tmp_dir, (long)getpid(), n, ext);
+}
+
+int gs_status_of(gi_result rc) {
+  switch (rc) {
+  case GI_ERR_INVALID_ARG:
+  case GI_ERR_NONFINITE:
+  case GI_ERR_EMPTY: return 400;
+  case GI_ERR_LIMIT: return 413;
+  case GI_ERR_NOMEM: return 503;
+  default: return 500;
+  }
+}
+
+void gs_answer_error(gs_answer *a, const gi_proto_error *e) {
+  free(a->json);
+  if (a->fd >= 0) close(a->fd);
+  a->fd = -1;
+  a->status = e->status;
+  a->json = gi_proto_error_json(e);
+  a->content_type = "application/json";
+}
+
+void gs_answer_free(gs_answer *a) {
+  free(a->json);
+  a->json = NULL;
+  if (a->fd >= 0) close(a->fd);
+  a->fd = -1;
+}
+
+static void fail_core(gs_answer *a, gi_result rc, const gi_error_info *e) {
+  gi_proto_error pe;
+  gi_proto_fail(&pe, gs_status_of(rc), "%s", e->msg[0] ? e->msg : gi_strerror(rc));
+  gs_answer_error(a, &pe);
+}
+
+/* Opens the finished file, unlinks it, and makes it the answer. */
+static int take_file(gs_answer *a, const char *path, const char *type) {
+  int fd = open(path, O_RDONLY | O_CLOEXEC);
+  struct stat st;
+  if (fd < 0 || fstat(fd, &st) != 0) {
+    gi_proto_error pe;
+    gi_proto_fail(&pe, 500, "encode: cannot reopen the encoded file: %s", strerror(errno));
+    if (fd >= 0) close(fd);
+    unlink(path);
+    gs_answer_error(a, &pe);
+    return -1;
+  }
+  unlink(path);
+  a->status = 200;
+  a->fd = fd;
+  a->size = (size_t)st.st_size;
+  a->content_type = type;
+  return 0;
+}
+
+static const char *const cache_names[3] = {"hit", "miss", "coalesced"};
+
+static gi_quality resolve_request(gs_service *svc, const gs_scene *s, const gi_quality *req, gi_error_info *e,
+                                  gi_result *rc) {
+  gi_quality q = *req;
+  q.threads = svc->cfg->bake_threads;
+  gi_quality out;
+  *rc = gi_quality_resolve(s->scene, &q, &out, e);
+  return out;
+}
+
+/* Timings of this answer: the stages it ran itself (a cache hit baked nothing). */
+static void finish_headers(gs_answer *a, const gi_bake_report *rep, const gi_timings *ms, gs_cache_how how,
+                           double t_start_ms) {
+  gi_proto_server_timing(ms, gs_now_ms() - t_start_ms, a->server_timing, sizeof a->server_timing);
+  gi_proto_effects_header(rep->effects, a->effects, sizeof a->effects);
+  a->cache = cache_names[how];
+}
+
+void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
+                   gs_answer *a) {
+  gi_error_info e = {0};
+  gi_result rc;
+  gi_quality q = resolve_request(svc, s, &b->quality, &e, &rc);
+  if (rc != GI_OK) return fail_core(a, rc, &e);
+  gs_entry *ent = NULL;
+  gs_cache_how how;
+  if ((rc = gs_cache_get(svc->cache, s, b->at, &q, &ent, &how, &e)) != GI_OK) return fail_core(a, rc, &e);
+  const gi_cascade *c = gs_entry_cascade(ent);
+  const gi_bake_report *rep = gi_cascade_report(c);
+  gi_timings ms = {0};
+  if (how == GS_CACHE_MISS) ms = rep->ms;
+  char path[1200];
+  double t0;
+  if (ep == GS_EP_CASCADES) {
+    gs_tmp_path(svc, ".vdb", path, sizeof path);
+    t0 = gs_now_ms();
+    rc = gi_cascade_write_vdb(c, path, b->faces, &e);
+    ms.encode = gs_now_ms() - t0;
+    if (rc == GI_OK && take_file(a, path, "application/octet-stream") == 0)
+      snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-cascades.vdb\"", s->id);
+  } else if (b->kind == GI_PROTO_PANORAMA) {
+    size_t n = 3 * (size_t)b->width * (size_t)b->height;
+    float *dir = malloc(n * sizeof(float)), *ind = malloc(n * sizeof(float));
+    if (!dir || !ind) {
+      rc = GI_ERR_NOMEM;
+      snprintf(e.msg, sizeof e.msg, "panorama: out of memory for %dx%d", b->width, b->height);
+    } else {
+      rc = gi_cascade_panorama(c, b->at, b->width, b->height, dir, ind, &ms.gather, &e);
+    }
+    if (rc == GI_OK) {
+      char timing[320];
+      gi_proto_server_timing(&ms, gs_now_ms() - t_start_ms, timing, sizeof timing);
+      gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}};
+      gs_tmp_path(svc, ".exr", path, sizeof path);
+      t0 = gs_now_ms();
+      rc = gi_panorama_write_exr(path, b->width, b->height, dir, ind, s->scene, b->at, rep, b->half, extra, 2, &e);
+      ms.encode = gs_now_ms() - t0;
+      if (rc == GI_OK) take_file(a, path, "image/x-exr");
+    }
+    free(dir);
+    free(ind);
+  } else {
+    gi_probe pr;
+    rc = gi_cascade_gather(c, b->at, 1, &pr, &ms.gather, &e);
+    if (rc == GI_OK) {
+      char timing[320];
+      gi_proto_server_timing(&ms, gs_now_ms() - t_start_ms, timing, sizeof timing);
+      gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}};
+      gs_tmp_path(svc, ".exr", path, sizeof path);
+      t0 = gs_now_ms();
+      rc = gi_probes_write_exr_ex(path, &pr, 1, s->scene, b->at, rep, b->half, extra, 2, &e);
+      ms.encode = gs_now_ms() - t0;
+      if (rc == GI_OK) take_file(a, path, "image/x-exr");
+    }
+  }
+  if (rc != GI_OK) fail_core(a, rc, &e);
+  else finish_headers(a, rep, &ms, how, t_start_ms);
+  gs_cache_release(svc->cache, ent);
+}
+
+/* ---- tiles -------------------------------------------------------------- */
+
+typedef struct {
+  int64_t t[3];
+  size_t i;
+} tile_key;
+
+static int cmp_tile(const void *a, const void *b) {
+  const tile_key *x = a, *y = b;
+  for (int k = 0; k < 3; k++)
+    if (x->t[k] != y->t[k]) return x->t[k] < y->t[k] ? -1 : 1;
+  return x->i < y->i ? -1 : x->i > y->i;
+}
+
+int gs_tiles_make(const gs_scene *s, const gi_quality *q, const double *pts, size_t n, gs_tile **out,
+                  size_t *num_tiles) {
+  (void)s;
+  *out = NULL;
+  *num_tiles = 0;
+  /* A tile of side T around its centre stays inside level 0's window (which
+   * reaches at least (R/2 - 2) s0 from the snapped centre) with the one-voxel
+   * border cones need: T/2 <= (R/2 - 3) s0. */
+  double T = (double)(q->res / 2 - 4 > 2 ? q->res / 2 - 4 : 2) * q->voxel0;
+  tile_key *k = malloc((n ? n : 1) * sizeof *k);
+  if (!k) return -1;
+  for (size_t i = 0; i < n; i++) {
+    for (int a = 0; a < 3; a++) k[i].t[a] = (int64_t)floor(pts[3 * i + a] / T);
+    k[i].i = i;
+  }
+  qsort(k, n, sizeof *k, cmp_tile);
+  size_t nt = 0;
+  for (size_t i = 0; i < n; i++)
+    if (i == 0 || memcmp(k[i].t, k[i - 1].t, sizeof k[i].t)) nt++;
+  gs_tile *t = calloc(nt ? nt : 1, sizeof *t);
+  size_t *idx = malloc((n ? n : 1) * sizeof *idx);
+  if (!t || !idx) {
+    free(t);
+    free(idx);
+    free(k);
+    return -1;
+  }
+  size_t j = (size_t)-1;
+  for (size_t i = 0; i < n; i++) {
+    if (i == 0 || memcmp(k[i].t, k[i - 1].t, sizeof k[i].t)) {
+      j++;
+      for (int a = 0; a < 3; a++) t[j].at[a] = ((double)k[i].t[a] + 0.5) * T;
+      t[j].idx = idx + i;
+    }
+    idx[i] = k[i].i;
+    t[j].n++;
+  }
+  free(k);
+  *out = t;
+  *num_tiles = nt;
+  return 0;
+}
+
+void gs_tiles_free(gs_tile *t, size_t n) {
+  (void)n;
+  if (t) free(t[0].idx); /* one block for all tiles' indices */
+  free(t);
+}
+
+gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *q, const double *pts,
+                          const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
+                          gi_bake_report *rep, gi_timings *ms, gs_cache_how *how_out,
+                          void (*progress)(void *ctx, size_t tile, size_t probes), void *ctx,
+                          gi_error_info *err) {
+  size_t maxn = 0;
+  for (size_t t = 0; t < num_tiles; t++) maxn = tiles[t].n > maxn ? tiles[t].n : maxn;
+  double *tp = malloc(3 * (maxn ? maxn : 1) * sizeof *tp);
+  gi_probe *tr = malloc((maxn ? maxn : 1) * sizeof *tr);
+  if (!tp || !tr) {
+    free(tp);
+    free(tr);
+    snprintf(err->msg, sizeof err->msg, "probes: out of memory");
+    return GI_ERR_NOMEM;
+  }
+  gi_result rc = GI_OK;
+  if (how_out) *how_out = GS_CACHE_HIT;
+  for (size_t t = 0; t < num_tiles && rc == GI_OK; t++) {
+    const gs_tile *tl = &tiles[t];
+    gs_entry *ent = NULL;
+    gi_cascade *own = NULL;
+    const gi_cascade *c;
+    gs_cache_how how = GS_CACHE_MISS;
+    if (use_cache) {
+      if ((rc = gs_cache_get(svc->cache, s, tl->at, q, &ent, &how, err)) != GI_OK) break;
+      c = gs_entry_cascade(ent);
+    } else {
+      double t0 = gs_now_ms();
+      if ((rc = gi_cascade_bake(s->scene, tl->at, q, &own, NULL, err)) != GI_OK) break;
+      gs_metrics_bake(svc->metrics, (gs_now_ms() - t0) * 1e-3);
+      c = own;
+    }
+    const gi_bake_report *r = gi_cascade_report(c);
+    if (t == 0 && rep) *rep = *r;
+    if (how == GS_CACHE_MISS && ms) {
+      ms->voxelize += r->ms.voxelize;
+      ms->inject += r->ms.inject;
+      ms->filter += r->ms.filter;
+      ms->bounce += r->ms.bounce;
+    }
+    if (how_out && how != GS_CACHE_HIT) *how_out = how;
+    for (size_t i = 0; i < tl->n; i++) memcpy(&tp[3 * i], &pts[3 * tl->idx[i]], 3 * sizeof(double));
+    double g = 0;
+    rc = gi_cascade_gather(c, tp, tl->n, tr, &g, err);
+    if (ms) ms->gather += g;
+    if (rc == GI_OK)
+      for (size_t i = 0; i < tl->n; i++) out[tl->idx[i]] = tr[i];
+    if (ent) gs_cache_release(svc->cache, ent);
+    gi_cascade_free(own);
+    if (rc == GI_OK && progress) progress(ctx, t, tl->n);
+  }
+  free(tp);
+  free(tr);
+  return rc;
+}
+
+void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_answer *a) {
+  gi_error_info e = {0};
+  gi_result rc;
+  gi_quality q = resolve_request(svc, s, &p->bake.quality, &e, &rc);
+  if (rc != GI_OK) {
+    gi_proto_probes_free(p);
+    return fail_core(a, rc, &e);
+  }
+  gs_tile *tiles = NULL, one;
+  size_t nt = 0;
+  size_t *all = NULL;
+  if (p->bake.has_at) {
+    /* The client chose one cascade for all points. */
+    all = malloc(p->num_points * sizeof *all);
+    if (all)
+      for (size_t i = 0; i < p->num_points; i++) all[i] = i;
+    memcpy(one.at, p->bake.at, sizeof one.at);
+    one.idx = all;
+    one.n = p->num_points;
+    nt = 1;
+  } else if (gs_tiles_make(s, &q, p->points, p->num_points, &tiles, &nt) != 0) {
+    nt = 0;
+  }
+  if (nt == 0 || (p->bake.has_at && !all)) {
+    gi_proto_error pe;
+    gi_proto_fail(&pe, 503, "probes: out of memory for %zu points", p->num_points);
+    gs_answer_error(a, &pe);
+    free(all);
+    gi_proto_probes_free(p);
+    return;
+  }
+  if (p->num_points > svc->cfg->lim.max_probes_inline || nt > (size_t)svc->cfg->max_tiles_inline) {
+    /* Too much for one answer: a job, polled at /v1/jobs/{id}. */
+    free(all);
+    gs_tiles_free(tiles, nt);
+    char id[40];
+    gi_proto_error pe;
+    size_t n = p->num_points;
+    if (gs_jobs_submit(svc->jobs, s, p, &q, id, &pe) != 0) {
+      gi_proto_probes_free(p);
+      gs_answer_error(a, &pe);
+      return;
+    }
+    gi_proto_job j = {.state = GI_JOB_QUEUED, .probes = n};
+    snprintf(j.id, sizeof j.id, "%s", id);
+    a->status = 202;
+    a->json = gi_proto_job_json(&j);
+    a->content_type = "application/json";
+    snprintf(a->location, sizeof a->location, "/v1/jobs/%s", id);
+    return;
+  }
+  gi_probe *pr = malloc(p->num_points * sizeof *pr);
+  gi_bake_report rep;
+  gi_timings ms = {0};
+  gs_cache_how how = GS_CACHE_HIT;
+  if (!pr) {
+    rc = GI_ERR_NOMEM;
+    snprintf(e.msg, sizeof e.msg, "probes: out of memory");
+  } else {
+    rc = gs_gather_tiles(svc, s, &q, p->points, tiles ? tiles : &one, nt, 1, pr, &rep, &ms, &how, NULL, NULL, &e);
+  }
+  if (rc == GI_OK) {
+    char path[1200], timing[320], ntiles[32];
+    gi_proto_server_timing(&ms, gs_now_ms() - t_start_ms, timing, sizeof timing);
+    snprintf(ntiles, sizeof ntiles, "%zu", nt);
+    gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}, {"gi.tiles", ntiles}};
+    gs_tmp_path(svc, ".exr", path, sizeof path);
+    double t0 = gs_now_ms();
+    const double *vp = p->bake.has_at ? p->bake.at : (tiles ? tiles[0].at : p->points);
+    rc = gi_probes_write_exr_ex(path, pr, p->num_points, s->scene, vp, &rep, p->bake.half, extra, 3, &e);
+    ms.encode = gs_now_ms() - t0;
+    if (rc == GI_OK && take_file(a, path, "image/x-exr") == 0) finish_headers(a, &rep, &ms, how, t_start_ms);
+  }
+  if (rc != GI_OK) fail_core(a, rc, &e);
+  free(pr);
+  free(all);
+  gs_tiles_free(tiles, nt);
+  gi_proto_probes_free(p);
+}

@@ -1,0 +1,221 @@
+/* server.h: the pieces of gi-server and who owns what.
+ *
+ * main.c reads the config (config.c), loads the catalog (catalog.c) and
+ * starts the HTTP front (http.c). The front parses and routes requests on
+ * libmicrohttpd's threads and never bakes: heavy work goes to the bounded
+ * worker pool (pool.c) and long probe lists to the job runner (jobs.c).
+ * Workers get cascades from the cache (cache.c), which bakes each key once
+ * even when many requests ask for it at the same time. metrics.c counts it
+ * all for /metrics.
+ *
+ * Threading: the catalog and the config are read-only after start and
+ * shared by all threads. The cache, the pool, the job table and the
+ * metrics are internally synchronised; every function below is thread-safe
+ * unless its comment says otherwise. */
+#ifndef GS_SERVER_H
+#define GS_SERVER_H
+
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+#include "gi/gi.h"
+#include "gi_proto.h"
+
+/* ---- config.c: the INI file, validated at start ------------------------ */
+
+typedef struct gs_scene_conf {
+  char id[64];
+  char source[1024];    /* "city" or a file path, resolved against the config's folder */
+  int is_city;
+  double extent;        /* city only */
+  uint64_t seed;        /* city only */
+  int detail;           /* city only */
+  gi_up_axis up;
+  int optional;         /* a missing file is a warning, not an error */
+  int line;             /* where the section starts, for messages */
+} gs_scene_conf;
+
+typedef struct gs_config {
+  char path[1024];
+  char bind[64];
+  int port;
+  int connection_threads, workers, queue, bake_threads;
+  double deadline_s;
+  char token[256];      /* empty: no authentication */
+  char tmp_dir[1024];
+  gi_proto_limits lim;
+  int max_tiles_inline; /* POST probes spanning more cascades become a job */
+  size_t cache_bytes;
+  int max_jobs, max_jobs_queued, max_jobs_retained;
+  gs_scene_conf *scenes;
+  size_t num_scenes;
+} gs_config;
+
+/* Fills the defaults (no scenes). */
+void gs_config_defaults(gs_config *c);
+/* Reads and validates path over the defaults. On error returns -1 with a
+ * message naming the file, line and key in err. */
+int gs_config_load(const char *path, gs_config *c, char *err, size_t errsize);
+void gs_config_free(gs_config *c);
+
+/* ---- catalog.c: scenes loaded once, shared read-only ------------------- */
+
+typedef struct gs_scene {
+  char id[64];
+  gi_scene *scene;
+  double default_at[3];
+  gi_quality quality;              /* the default quality resolved for this scene */
+  gi_effect effects[GI_FX_COUNT];  /* the default plan, for GET /v1/scenes/{id} */
+  double load_ms;
+} gs_scene;
+
+typedef struct gs_catalog {
+  gs_scene *scenes;
+  size_t num;
+} gs_catalog;
+
+int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t errsize);
+const gs_scene *gs_catalog_find(const gs_catalog *cat, const char *id);
+void gs_catalog_free(gs_catalog *cat);
+
+/* ---- metrics.c ---------------------------------------------------------- */
+
+typedef enum gs_endpoint {
+  GS_EP_HEALTH, GS_EP_SCENES, GS_EP_SCENE, GS_EP_LIGHTING, GS_EP_CASCADES, GS_EP_PROBES,
+  GS_EP_JOB, GS_EP_JOB_RESULT, GS_EP_METRICS, GS_EP_OTHER, GS_EP_COUNT
+} gs_endpoint;
+
+typedef struct gs_metrics gs_metrics;
+gs_metrics *gs_metrics_new(void);
+void gs_metrics_free(gs_metrics *m);
+void gs_metrics_request(gs_metrics *m, gs_endpoint ep, int status, double seconds);
+void gs_metrics_bake(gs_metrics *m, double seconds);
+typedef enum { GS_CACHE_HIT, GS_CACHE_MISS, GS_CACHE_COALESCED } gs_cache_how;
+void gs_metrics_cache(gs_metrics *m, gs_cache_how how);
+void gs_metrics_eviction(gs_metrics *m);
+void gs_metrics_rejected(gs_metrics *m);
+void gs_metrics_timeout(gs_metrics *m);
+/* Gauges read at scrape time. */
+typedef struct gs_gauges {
+  size_t cache_bytes, cache_entries, cache_budget;
+  int queue_depth, queue_capacity, workers_busy;
+  int jobs[4];          /* by gi_proto_job_state */
+  double uptime_s;
+  size_t scenes;
+} gs_gauges;
+/* Prometheus text format (malloc'ed). */
+char *gs_metrics_render(gs_metrics *m, const gs_gauges *g);
+
+/* ---- cache.c: cascades keyed by scene, anchor and quality -------------- */
+
+typedef struct gs_cache gs_cache;
+typedef struct gs_entry gs_entry;
+gs_cache *gs_cache_new(size_t budget_bytes, gs_metrics *m);
+void gs_cache_free(gs_cache *c);
+/* A baked cascade for (scene, at, resolved quality): from the cache, from a
+ * bake already running for the same key (waits for it), or baked now on
+ * the calling thread. The entry stays valid until gs_cache_release. */
+gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *resolved,
+                       gs_entry **out, gs_cache_how *how, gi_error_info *err);
+const gi_cascade *gs_entry_cascade(const gs_entry *e);
+void gs_cache_release(gs_cache *c, gs_entry *e);
+void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries);
+
+/* ---- pool.c: the bounded worker pool ----------------------------------- */
+
+typedef struct gs_pool gs_pool;
+typedef void (*gs_task_fn)(void *arg);
+gs_pool *gs_pool_new(int workers, int queue_capacity);
+/* Queues fn(arg); returns -1 when the queue is full (the caller answers 503). */
+int gs_pool_submit(gs_pool *p, gs_task_fn fn, void *arg);
+void gs_pool_stats(gs_pool *p, int *depth, int *capacity, int *busy);
+/* Runs what is queued, then joins the workers. */
+void gs_pool_free(gs_pool *p);
+
+/* ---- the service: what workers and the front share -------------------- */
+
+typedef struct gs_jobs gs_jobs;
+
+typedef struct gs_service {
+  const gs_config *cfg;
+  const gs_catalog *cat;
+  gs_cache *cache;
+  gs_pool *pool;
+  gs_jobs *jobs;
+  gs_metrics *metrics;
+  double start_ms;
+  atomic_ulong tmp_counter;
+} gs_service;
+
+/* A fresh scratch path in tmp_dir ending in ext. */
+void gs_tmp_path(gs_service *svc, const char *ext, char *buf, size_t size);
+/* HTTP status for a core error. */
+int gs_status_of(gi_result rc);
+/* Milliseconds on the monotonic clock. */
+double gs_now_ms(void);
+
+/* ---- bake.c (server side): turning a request into a file --------------- */
+
+/* An encoded answer: an open file (unlinked) and its headers. */
+typedef struct gs_answer {
+  int status;
+  int fd;                 /* -1 for a JSON body */
+  size_t size;
+  char *json;             /* error or job JSON when fd == -1 (malloc'ed) */
+  const char *content_type;
+  char disposition[160];
+  char server_timing[320];
+  char effects[200];
+  const char *cache;      /* "hit", "miss", "coalesced" or NULL */
+  char location[128];
+} gs_answer;
+
+void gs_answer_error(gs_answer *a, const gi_proto_error *e);
+void gs_answer_free(gs_answer *a);
+
+/* Lighting (probe, panorama) or cascades for one viewpoint. */
+void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b,
+                   double t_start_ms, gs_answer *out);
+/* Probe points: inline when small, else a job (202). Frees p's points. */
+void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms,
+                     gs_answer *out);
+/* Tiles: probe points grouped by the cascade that answers them. */
+typedef struct gs_tile {
+  double at[3];
+  size_t *idx;          /* indices into the point list */
+  size_t n;
+} gs_tile;
+int gs_tiles_make(const gs_scene *s, const gi_quality *resolved, const double *pts, size_t n, gs_tile **out,
+                  size_t *num_tiles);
+void gs_tiles_free(gs_tile *t, size_t n);
+/* Gathers the points of every tile into probes; progress callback per tile.
+ * use_cache = 0 bakes privately (batch jobs must not evict interactive views). */
+gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *resolved, const double *pts,
+                          const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
+                          gi_bake_report *rep, gi_timings *ms, gs_cache_how *how,
+                          void (*progress)(void *ctx, size_t tile, size_t probes), void *ctx,
+                          gi_error_info *err);
+
+/* ---- jobs.c: long probe lists, run off the worker pool ------------------ */
+
+gs_jobs *gs_jobs_new(gs_service *svc);
+void gs_jobs_free(gs_jobs *j);
+/* Queues a job (takes ownership of p's points). Returns 0 and the id, or a
+ * status (503 when the job queue is full). */
+int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_quality *resolved,
+                   char id[40], gi_proto_error *err);
+/* Status JSON into a->json (200), or 404. */
+void gs_jobs_status(gs_jobs *j, const char *id, gs_answer *a);
+/* The result EXR (200), 409 when not done, 404 when unknown. */
+void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a);
+void gs_jobs_count(gs_jobs *j, int by_state[4]);
+
+/* ---- http.c: the front -------------------------------------------------- */
+
+typedef struct gs_http gs_http;
+gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize);
+int gs_http_port(const gs_http *h);
+/* Stops accepting, lets queued work finish, answers, and stops. */
+void gs_http_stop(gs_http *h);
+
+#endif

@@ -1,0 +1,66 @@
+#!/bin/sh
+# config.sh: gi-server refuses bad configs at start, naming file, line and key.
+# Usage: sh config.sh path/to/gi-server
+set -u
+BIN=${1:?usage: sh config.sh path/to/gi-server}
+T=$(mktemp -d "${TMPDIR:-/tmp}/gi-config.XXXXXX")
+trap 'rm -rf "$T"' EXIT INT TERM
+FAILS=0
+fail() { echo "FAIL: $*" >&2; FAILS=$((FAILS + 1)); }
+
+# expect NAME STATUS NEEDLE: runs --check-config on $T/NAME.ini.
+expect() {
+  out=$("$BIN" --config "$T/$1.ini" --check-config 2>&1); st=$?
+  if [ "$st" -ne "$2" ]; then fail "$1: exit $st, want $2: $out"; return; fi
+  case "$out" in *"$3"*) echo "ok: $1: $(echo "$out" | grep -F -- "$3" | head -1)" ;;
+                 *) fail "$1: output lacks '$3': $out" ;; esac
+}
+scene='[scene city]
+source = city
+extent = 150'
+
+printf '[server]\nport = 0\n%s\n' "$scene" > "$T/good.ini"
+expect good 0 "is valid: 1 scene(s)"
+printf '[server]\nport = 0\nworkers = lots\n%s\n' "$scene" > "$T/workers.ini"
+expect workers 1 "workers.ini:3: [server] workers: expected an integer in 1..256, got 'lots'"
+printf '[server]\nprot = 8080\n%s\n' "$scene" > "$T/typo.ini"
+expect typo 1 "typo.ini:2: [server] prot: unknown key"
+printf '[limits]\ncache_mb = -5\n%s\n' "$scene" > "$T/neg.ini"
+expect neg 1 "neg.ini:2: [limits] cache_mb: expected an integer in 0..1048576, got '-5'"
+printf '[limits]\nmax_res = 64.5\n%s\n' "$scene" > "$T/frac.ini"
+expect frac 1 "[limits] max_res: expected an integer in 8..256"
+printf '[server]\ndeadline_s = nan\n%s\n' "$scene" > "$T/nan.ini"
+expect nan 1 "[server] deadline_s: expected a number in 0.1..86400, got 'nan'"
+printf '[cache]\nsize = 1\n%s\n' "$scene" > "$T/section.ini"
+expect section 1 "section.ini:2: [cache] size: unknown section"
+printf '[server]\nport = 0\nthis line has no equals sign\n%s\n' "$scene" > "$T/syntax.ini"
+expect syntax 1 "syntax.ini:3: syntax error"
+printf '[scene a b]\nsource = city\n' > "$T/badid.ini"
+expect badid 1 "scene id 'a b' must be"
+printf '[scene city]\nup = y\n' > "$T/nosource.ini"
+expect nosource 1 "[scene city]: 'source' is required"
+printf '[scene x]\nsource = missing.obj\n' > "$T/missing.ini"
+expect missing 1 "missing.obj"
+printf '[scene x]\nsource = missing.obj\noptional = yes\n%s\n' "$scene" > "$T/optional.ini"
+expect optional 0 "is valid: 1 scene(s)"
+printf '[scene x]\nsource = missing.obj\nextent = 300\n' > "$T/cityonly.ini"
+expect cityonly 1 "apply to source = city only"
+printf '[server]\nport = 0\n' > "$T/empty.ini"
+expect empty 1 "no [scene ID] sections"
+printf 'short\n' > "$T/tok"
+printf '[server]\ntoken_file = tok\n%s\n' "$scene" > "$T/token.ini"
+expect token 1 "token_file: '$T/tok' must hold one token of 16..255 characters"
+printf '[server]\ntmp_dir = nowhere\n%s\n' "$scene" > "$T/tmpdir.ini"
+expect tmpdir 1 "tmp_dir: '$T/nowhere' is not a writable folder"
+expect absent 1 "absent.ini: cannot open config"
+printf '[limits]\nmax_probes_inline = 10\nmax_probes_job = 5\n%s\n' "$scene" > "$T/order.ini"
+expect order 1 "max_probes_inline (10) exceeds max_probes_job (5)"
+
+# Bad command lines exit 2.
+"$BIN" --port 70000 >/dev/null 2>&1; [ $? -eq 2 ] || fail "--port 70000 should exit 2"
+"$BIN" --frobnicate >/dev/null 2>&1; [ $? -eq 2 ] || fail "--frobnicate should exit 2"
+"$BIN" --config >/dev/null 2>&1; [ $? -eq 2 ] || fail "--config without a value should exit 2"
+"$BIN" --help | grep -q -- "--port-file" || fail "--help lacks --port-file"
+
+[ "$FAILS" -eq 0 ] && { echo "all passed"; exit 0; }
+echo "$FAILS failure(s)" >&2; exit 1

@@ -1,0 +1,662 @@
+/* test_server.c: the real gi-server on 127.0.0.1, spoken to over HTTP.
+ *
+ * Three server processes, each from its own config on an ephemeral port:
+ *   main:     bearer token, small body and probe limits; every endpoint's
+ *             success path with its file read back, every error path;
+ *   tight:    one worker, a queue of one; 64 parallel requests for
+ *             different viewpoints must all be 200 or 503 and leave the
+ *             server alive;
+ *   deadline: a 0.2 s deadline; a cold bake is a 504, and the cascade it
+ *             was baking answers the retry from the cache.
+ * Values are checked against the core called in this process with the same
+ * scene and quality: the server must answer exactly what the library bakes. */
+#define _POSIX_C_SOURCE 200809L
+#include "test_util.h"
+#include <curl/curl.h>
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+#include "gi/gi.h"
+
+#define TOKEN "test-token-0123456789abcdef"
+
+typedef struct {
+  pid_t pid;
+  int port;
+  char dir[512];
+} server;
+
+static server S_main, S_tight, S_deadline;
+
+static void sleep_ms(int ms) {
+  struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+  nanosleep(&ts, NULL);
+}
+
+/* Writes the config (name.ini) and starts gi-server on an ephemeral port. */
+static int server_start(server *s, const char *name, const char *ini) {
+  snprintf(s->dir, sizeof s->dir, "%s/%s", tu_tmpdir(), name);
+  mkdir(s->dir, 0700);
+  char cfg[600], portf[600], log[600], tok[600];
+  snprintf(cfg, sizeof cfg, "%s/gi-server.ini", s->dir);
+  snprintf(portf, sizeof portf, "%s/port", s->dir);
+  snprintf(log, sizeof log, "%s/server.log", s->dir);
+  snprintf(tok, sizeof tok, "%s/token.txt", s->dir);
+  FILE *f = fopen(cfg, "w");
+  if (!f) return -1;
+  fputs(ini, f);
+  fclose(f);
+  f = fopen(tok, "w");
+  fputs(TOKEN "\n", f);
+  fclose(f);
+  unlink(portf);
+  s->pid = fork();
+  if (s->pid == 0) {
+    FILE *lf = freopen(log, "w", stderr);
+    (void)lf;
+    execl(GI_BIN_DIR "/gi-server", "gi-server", "--config", cfg, "--port", "0", "--port-file", portf, (char *)NULL);
+    _exit(127);
+  }
+  for (int i = 0; i < 600; i++) {
+    f = fopen(portf, "r");
+    if (f) {
+      int ok = fscanf(f, "%d", &s->port) == 1;
+      fclose(f);
+      if (ok && s->port > 0) return 0;
+    }
+    int st;
+    if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
+      fprintf(stderr, "gi-server exited at start (status %d); log: %s\n", st, log);
+      return -1;
+    }
+    sleep_ms(100);
+  }
+  return -1;
+}
+
+/* SIGTERM, then the exit status (0 = clean shutdown). */
+static int server_stop(server *s) {
+  if (s->pid <= 0) return -1;
+  kill(s->pid, SIGTERM);
+  for (int i = 0; i < 600; i++) {
+    int st;
+    if (waitpid(s->pid, &st, WNOHANG) == s->pid) return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    sleep_ms(100);
+  }
+  kill(s->pid, SIGKILL);
+  waitpid(s->pid, NULL, 0);
+  return -2;
+}
+
+typedef struct {
+  long status;
+  char *body;
+  size_t len;
+  char headers[8192];
+  size_t hlen;
+} resp;
+
+static size_t on_body(char *p, size_t sz, size_t n, void *u) {
+  resp *r = u;
+  char *nb = realloc(r->body, r->len + sz * n + 1);
+  if (!nb) return 0;
+  r->body = nb;
+  memcpy(r->body + r->len, p, sz * n);
+  r->len += sz * n;
+  r->body[r->len] = 0;
+  return sz * n;
+}
+
+static size_t on_header(char *p, size_t sz, size_t n, void *u) {
+  resp *r = u;
+  size_t k = sz * n;
+  if (r->hlen + k < sizeof r->headers) {
+    memcpy(r->headers + r->hlen, p, k);
+    r->hlen += k;
+    r->headers[r->hlen] = 0;
+  }
+  return k;
+}
+
+static CURL *make_req(const server *s, const char *method, const char *path, const char *body, const char *token,
+                      resp *r, struct curl_slist **hdrs) {
+  char url[1024];
+  snprintf(url, sizeof url, "http://127.0.0.1:%d%s", s->port, path);
+  CURL *c = curl_easy_init();
+  curl_easy_setopt(c, CURLOPT_URL, url);
+  curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
+  curl_easy_setopt(c, CURLOPT_WRITEDATA, r);
+  curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_header);
+  curl_easy_setopt(c, CURLOPT_HEADERDATA, r);
+  curl_easy_setopt(c, CURLOPT_TIMEOUT, 120L);
+  *hdrs = NULL;
+  if (token) {
+    char h[256];
+    snprintf(h, sizeof h, "Authorization: Bearer %s", token);
+    *hdrs = curl_slist_append(*hdrs, h);
+  }
+  if (body) {
+    *hdrs = curl_slist_append(*hdrs, "Content-Type: application/json");
+    curl_easy_setopt(c, CURLOPT_POSTFIELDS, body);
+    curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE, (long)strlen(body));
+  }
+  if (method) curl_easy_setopt(c, CURLOPT_CUSTOMREQUEST, method);
+  if (*hdrs) curl_easy_setopt(c, CURLOPT_HTTPHEADER, *hdrs);
+  return c;
+}
+
+static resp http(const server *s, const char *method, const char *path, const char *body, const char *token) {
+  resp r = {0};
+  struct curl_slist *h;
+  CURL *c = make_req(s, method, path, body, token, &r, &h);
+  CURLcode rc = curl_easy_perform(c);
+  if (rc != CURLE_OK) fprintf(stderr, "curl %s: %s\n", path, curl_easy_strerror(rc));
+  assert_int_equal(rc, CURLE_OK);
+  curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &r.status);
+  curl_slist_free_all(h);
+  curl_easy_cleanup(c);
+  return r;
+}
+#define GET(s, path) http(s, NULL, path, NULL, TOKEN)
+
+/* A header's value (case-insensitive name), or NULL. Static buffer. */
+static const char *header(const resp *r, const char *name) {
+  static char val[1024];
+  size_t n = strlen(name);
+  for (const char *p = r->headers; p && *p;) {
+    if (!strncasecmp(p, name, n) && p[n] == ':') {
+      const char *v = p + n + 1;
+      while (*v == ' ') v++;
+      size_t k = strcspn(v, "\r\n");
+      snprintf(val, sizeof val, "%.*s", (int)k, v);
+      return val;
+    }
+    p = strchr(p, '\n');
+    if (p) p++;
+  }
+  return NULL;
+}
+
+/* The JSON error body of an answer: checks its shape and returns its name. */
+static void expect_error(const resp *r, long status, const char *name, const char *needle) {
+  if (r->status != status) fprintf(stderr, "got %ld: %s\n", r->status, r->body ? r->body : "");
+  assert_int_equal(r->status, status);
+  assert_string_equal(header(r, "Content-Type"), "application/json");
+  json_t *o = json_loadb(r->body, r->len, 0, NULL);
+  assert_non_null(o);
+  assert_int_equal(json_integer_value(json_object_get(o, "code")), status);
+  assert_string_equal(json_string_value(json_object_get(o, "name")), name);
+  const char *msg = json_string_value(json_object_get(o, "message"));
+  assert_non_null(msg);
+  if (needle && !strstr(msg, needle)) fprintf(stderr, "message '%s' lacks '%s'\n", msg, needle);
+  if (needle) assert_non_null(strstr(msg, needle));
+  json_decref(o);
+}
+
+/* A counter or gauge from /metrics (sum over label sets when labels is NULL). */
+static double metric(const server *s, const char *name, const char *labels) {
+  resp r = GET(s, "/metrics");
+  assert_int_equal(r.status, 200);
+  double sum = 0;
+  size_t n = strlen(name);
+  for (char *line = strtok(r.body, "\n"); line; line = strtok(NULL, "\n")) {
+    if (line[0] == '#' || strncmp(line, name, n) || (line[n] != ' ' && line[n] != '{')) continue;
+    if (labels && (line[n] != '{' || strncmp(line + n + 1, labels, strlen(labels)))) continue;
+    sum += strtod(strrchr(line, ' ') + 1, NULL);
+  }
+  free(r.body);
+  return sum;
+}
+
+static gi_exr_file *read_exr(const resp *r, const char *name) {
+  char path[700];
+  snprintf(path, sizeof path, "%s/%s", S_main.dir, name);
+  FILE *f = fopen(path, "wb");
+  assert_non_null(f);
+  assert_int_equal(fwrite(r->body, 1, r->len, f), r->len);
+  fclose(f);
+  gi_exr_file *x = NULL;
+  gi_error_info e = {0};
+  gi_result rc = gi_exr_read(path, &x, &e);
+  if (rc) fprintf(stderr, "EXR: %s\n", e.msg);
+  assert_int_equal(rc, GI_OK);
+  return x;
+}
+
+/* The scene and quality the servers use: city extent 300, quality=low. */
+static gi_scene *city300(void) {
+  gi_city_params p = {.extent = 300};
+  gi_scene_options opt = {.up = GI_UP_Y, .threads = 2, .default_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info e = {0};
+  assert_int_equal(gi_city_build(&p, &opt, &s, &e), GI_OK);
+  return s;
+}
+static const gi_quality Q_LOW = {.levels = 5, .res = 16, .cones = 6, .bounces = 1, .light_samples = 8,
+                                 .probe_samples = 64, .threads = 2};
+
+#define SERVER_INI(extra)                                                                 \
+  "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\nbake_threads = 2\n"     \
+  "tmp_dir = .\n" extra "\n[scene city]\nsource = city\nextent = 300\n"
+
+static int setup(void **state) {
+  curl_global_init(CURL_GLOBAL_DEFAULT);
+  if (server_start(&S_main, "main",
+                   SERVER_INI("workers = 2\nqueue = 32\ntoken_file = token.txt\n"
+                              "[limits]\nmax_body_bytes = 4096\nmax_probes_inline = 2\nmax_probes_job = 100\n"
+                              "max_levels = 6\nmax_res = 32\n")))
+    return -1;
+  return 0;
+}
+
+static int teardown(void **state) {
+  /* A clean SIGTERM shutdown exits 0. */
+  int st = server_stop(&S_main);
+  if (st != 0) fprintf(stderr, "main server exit status %d\n", st);
+  curl_global_cleanup();
+  return st == 0 ? 0 : -1;
+}
+
+static void test_health_and_auth(void **state) {
+  resp r = http(&S_main, NULL, "/v1/health", NULL, NULL); /* health needs no token */
+  assert_int_equal(r.status, 200);
+  assert_non_null(strstr(header(&r, "Server-Timing"), "total;dur="));
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  assert_string_equal(json_string_value(json_object_get(o, "status")), "ok");
+  assert_int_equal(json_integer_value(json_object_get(o, "scenes")), 1);
+  assert_non_null(json_string_value(json_object_get(o, "version")));
+  json_decref(o);
+  free(r.body);
+  r = http(&S_main, NULL, "/v1/scenes", NULL, NULL);
+  expect_error(&r, 401, "unauthorized", "Bearer");
+  assert_non_null(header(&r, "WWW-Authenticate"));
+  free(r.body);
+  r = http(&S_main, NULL, "/v1/scenes", NULL, "test-token-0123456789abcdeX");
+  expect_error(&r, 401, "unauthorized", "not valid");
+  free(r.body);
+  r = http(&S_main, NULL, "/v1/scenes/city/lighting?at=0,2,0", NULL, "short");
+  expect_error(&r, 401, "unauthorized", NULL);
+  free(r.body);
+}
+
+static void test_catalog_and_scene(void **state) {
+  resp r = GET(&S_main, "/v1/scenes");
+  assert_int_equal(r.status, 200);
+  /* Ids only: no path of the server's machine leaks. */
+  assert_null(strstr(r.body, S_main.dir));
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  json_t *sc = json_array_get(json_object_get(o, "scenes"), 0);
+  assert_string_equal(json_string_value(json_object_get(sc, "id")), "city");
+  assert_string_equal(json_string_value(json_object_get(sc, "href")), "/v1/scenes/city");
+  json_decref(o);
+  free(r.body);
+
+  r = GET(&S_main, "/v1/scenes/city");
+  assert_int_equal(r.status, 200);
+  o = json_loadb(r.body, r.len, 0, NULL);
+  gi_scene *s = city300();
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(json_integer_value(json_object_get(o, "triangles")), st.triangles);
+  json_t *fx = json_object_get(o, "effects");
+  assert_int_equal(json_object_size(fx), GI_FX_COUNT);
+  for (int i = 0; i < GI_FX_COUNT; i++) {
+    json_t *e = json_object_get(fx, gi_effect_name((gi_effect_id)i));
+    assert_true(json_is_boolean(json_object_get(e, "ran")));
+    assert_true(strlen(json_string_value(json_object_get(e, "why"))) > 0);
+  }
+  assert_true(json_is_true(json_object_get(json_object_get(fx, "sun"), "ran")));
+  assert_int_equal(json_integer_value(json_object_get(json_object_get(o, "quality"), "levels")), 6);
+  json_decref(o);
+  gi_scene_release(s);
+  free(r.body);
+}
+
+/* The probe the server answers equals the one the core bakes here. */
+static void test_lighting_probe_matches_core(void **state) {
+  resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low");
+  assert_int_equal(r.status, 200);
+  assert_string_equal(header(&r, "Content-Type"), "image/x-exr");
+  assert_string_equal(header(&r, "X-GI-Cache"), "miss");
+  const char *timing = header(&r, "Server-Timing");
+  assert_non_null(timing);
+  const char *stages[] = {"voxelize;dur=", "inject;dur=", "bounce;dur=", "gather;dur=", "encode;dur=", "total;dur="};
+  for (size_t i = 0; i < 6; i++) assert_non_null(strstr(timing, stages[i]));
+  assert_non_null(strstr(header(&r, "X-GI-Effects"), "sun=ran"));
+  gi_exr_file *x = read_exr(&r, "probe.exr");
+  assert_int_equal(gi_exr_file_width(x), 1);
+  assert_non_null(strstr(gi_exr_file_attr(x, "gi.effects"), "sun=ran"));
+  assert_non_null(strstr(gi_exr_file_attr(x, "gi.timings"), "voxelize;dur="));
+  assert_string_equal(gi_exr_file_attr(x, "gi.cache"), "miss");
+
+  gi_scene *s = city300();
+  gi_cascade *c = NULL;
+  gi_error_info e = {0};
+  double at[3] = {31, 2, 29};
+  assert_int_equal(gi_cascade_bake(s, at, &Q_LOW, &c, NULL, &e), GI_OK);
+  gi_probe pr;
+  assert_int_equal(gi_cascade_gather(c, at, 1, &pr, NULL, &e), GI_OK);
+  const char *rgb[3] = {"R", "G", "B"};
+  for (int k = 0; k < 3; k++) {
+    float got = gi_exr_file_channel(x, rgb[k])[0];
+    printf("  probe %s: server %.7g, core %.7g\n", rgb[k], got, pr.irradiance[k]);
+    assert_true(isfinite(got) && got > 0);
+    /* Same scene, quality, seed and placement: equal to float rounding. */
+    assert_true(fabsf(got - pr.irradiance[k]) <= 1e-5f * fabsf(pr.irradiance[k]));
+    char name[32];
+    snprintf(name, sizeof name, "sh.L00.%s", rgb[k]);
+    assert_true(fabsf(gi_exr_file_channel(x, name)[0] - pr.sh[0][k]) <= 1e-5f * fabsf(pr.sh[0][k]) + 1e-9f);
+  }
+  gi_exr_file_free(x);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+  free(r.body);
+
+  /* A client moving inside the snapped cell is answered from the cache. */
+  double hits = metric(&S_main, "gi_cache_hits_total", NULL), bakes = metric(&S_main, "gi_bakes_total", NULL);
+  r = GET(&S_main, "/v1/scenes/city/lighting?at=31.001,2,29&quality=low");
+  assert_int_equal(r.status, 200);
+  assert_string_equal(header(&r, "X-GI-Cache"), "hit");
+  assert_non_null(strstr(header(&r, "Server-Timing"), "voxelize;dur=0.00"));
+  free(r.body);
+  assert_true(metric(&S_main, "gi_cache_hits_total", NULL) == hits + 1);
+  assert_true(metric(&S_main, "gi_bakes_total", NULL) == bakes);
+}
+
+/* Identical requests in flight are baked once. */
+static void test_coalescing(void **state) {
+  double bakes = metric(&S_main, "gi_bakes_total", NULL), miss = metric(&S_main, "gi_cache_misses_total", NULL);
+  double other = metric(&S_main, "gi_cache_hits_total", NULL) + metric(&S_main, "gi_cache_coalesced_total", NULL);
+  enum { N = 6 };
+  CURLM *m = curl_multi_init();
+  resp r[N];
+  CURL *c[N];
+  struct curl_slist *h[N];
+  memset(r, 0, sizeof r);
+  for (int i = 0; i < N; i++) {
+    c[i] = make_req(&S_main, NULL, "/v1/scenes/city/lighting?at=-40,3,12&quality=low", NULL, TOKEN, &r[i], &h[i]);
+    curl_multi_add_handle(m, c[i]);
+  }
+  int running = 1;
+  while (running) {
+    curl_multi_perform(m, &running);
+    curl_multi_poll(m, NULL, 0, 100, NULL);
+  }
+  for (int i = 0; i < N; i++) {
+    curl_easy_getinfo(c[i], CURLINFO_RESPONSE_CODE, &r[i].status);
+    assert_int_equal(r[i].status, 200);
+    curl_multi_remove_handle(m, c[i]);
+    curl_easy_cleanup(c[i]);
+    curl_slist_free_all(h[i]);
+    free(r[i].body);
+  }
+  curl_multi_cleanup(m);
+  double b = metric(&S_main, "gi_bakes_total", NULL) - bakes;
+  printf("  %d identical requests: %g bake(s)\n", N, b);
+  assert_true(b == 1);
+  assert_true(metric(&S_main, "gi_cache_misses_total", NULL) == miss + 1);
+  assert_true(metric(&S_main, "gi_cache_hits_total", NULL) + metric(&S_main, "gi_cache_coalesced_total", NULL) ==
+              other + N - 1);
+}
+
+static void test_panorama(void **state) {
+  resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&kind=panorama&width=32&height=16");
+  assert_int_equal(r.status, 200);
+  gi_exr_file *x = read_exr(&r, "pano.exr");
+  assert_int_equal(gi_exr_file_width(x), 32);
+  assert_int_equal(gi_exr_file_height(x), 16);
+  assert_string_equal(gi_exr_file_attr(x, "gi.kind"), "panorama");
+  const char *ch[] = {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"};
+  for (int c = 0; c < 9; c++) {
+    const float *v = gi_exr_file_channel(x, ch[c]);
+    assert_non_null(v);
+    for (int i = 0; i < 32 * 16; i++) assert_true(isfinite(v[i]) && v[i] >= 0);
+  }
+  /* Straight up from a street the primary ray escapes: direct = the sky's radiance. */
+  gi_scene *s = city300();
+  float sky[3] = {0};
+  for (size_t i = 0; i < gi_scene_num_lights(s); i++)
+    if (gi_scene_light(s, i)->type == GI_LIGHT_SKY)
+      for (int k = 0; k < 3; k++) sky[k] += gi_scene_light(s, i)->color[k];
+  assert_true(sky[2] > 0);
+  const float *dB = gi_exr_file_channel(x, "direct.B"), *iR = gi_exr_file_channel(x, "indirect.R");
+  printf("  panorama: top direct.B %.5g (sky %.5g), bottom indirect.R %.5g\n", dB[0], sky[2], iR[15 * 32]);
+  assert_true(fabsf(dB[0] - sky[2]) <= 1e-6f * sky[2]);
+  /* Straight down is the lit street: no emitter, but reflected light. */
+  assert_true(dB[15 * 32] == 0);
+  assert_true(iR[15 * 32] > 0);
+  gi_exr_file_free(x);
+  gi_scene_release(s);
+  free(r.body);
+}
+
+static void test_cascades_vdb(void **state) {
+  resp r = GET(&S_main, "/v1/scenes/city/cascades.vdb?at=31,2,29&levels=3&res=16&voxel=0.5&bounces=0");
+  assert_int_equal(r.status, 200);
+  assert_string_equal(header(&r, "Content-Type"), "application/octet-stream");
+  assert_non_null(strstr(header(&r, "Content-Disposition"), "city-cascades.vdb"));
+  char path[700];
+  snprintf(path, sizeof path, "%s/snap.vdb", S_main.dir);
+  FILE *f = fopen(path, "wb");
+  assert_int_equal(fwrite(r.body, 1, r.len, f), r.len);
+  fclose(f);
+  gi_vdb_grid_info info[64];
+  size_t n = 0;
+  gi_error_info e = {0};
+  assert_int_equal(gi_vdb_read_info(path, info, 64, &n, &e), GI_OK);
+  int found = 0;
+  for (size_t i = 0; i < n; i++) {
+    for (int d = 0; d < 3; d++) {
+      char want[32];
+      snprintf(want, sizeof want, "L%d_density", d);
+      if (!strcmp(info[i].name, want)) {
+        found++;
+        assert_true(info[i].is_fog_volume);
+        /* Voxel size doubles per level from the requested 0.5. */
+        assert_true(fabs(info[i].voxel_size - 0.5 * (1 << d)) < 1e-12);
+        assert_true(info[i].active_voxels > 0);
+      }
+    }
+  }
+  assert_int_equal(found, 3);
+  free(r.body);
+}
+
+static void test_probes_inline_and_job(void **state) {
+  resp r = http(&S_main, "POST", "/v1/scenes/city/probes", "{\"points\":[[31,2,29],[31.2,2,29.1]],\"quality\":\"low\"}",
+                TOKEN);
+  assert_int_equal(r.status, 200);
+  gi_exr_file *x = read_exr(&r, "probes.exr");
+  assert_int_equal(gi_exr_file_width(x), 2);
+  for (int i = 0; i < 2; i++) assert_true(isfinite(gi_exr_file_channel(x, "R")[i]) && gi_exr_file_channel(x, "R")[i] > 0);
+  assert_string_equal(gi_exr_file_attr(x, "gi.tiles"), "1");
+  gi_exr_file_free(x);
+  free(r.body);
+
+  /* Over max_probes_inline (2): a job. */
+  r = http(&S_main, "POST", "/v1/scenes/city/probes",
+           "{\"points\":[[31,2,29],[60,2,29],[90,2,29],[120,2,29],[-20,2,-40]],\"quality\":\"low\",\"half\":true}",
+           TOKEN);
+  assert_int_equal(r.status, 202);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  char id[64], loc[128];
+  snprintf(id, sizeof id, "%s", json_string_value(json_object_get(o, "job")));
+  json_decref(o);
+  snprintf(loc, sizeof loc, "/v1/jobs/%s", id);
+  assert_string_equal(header(&r, "Location"), loc);
+  free(r.body);
+  int done = 0;
+  for (int i = 0; i < 600 && !done; i++) {
+    r = GET(&S_main, loc);
+    assert_int_equal(r.status, 200);
+    o = json_loadb(r.body, r.len, 0, NULL);
+    const char *st = json_string_value(json_object_get(o, "state"));
+    double prog = json_number_value(json_object_get(o, "progress"));
+    assert_true(prog >= 0 && prog <= 1);
+    assert_int_equal(json_integer_value(json_object_get(o, "probes")), 5);
+    assert_true(strcmp(st, "failed"));
+    done = !strcmp(st, "done");
+    if (done) {
+      assert_true(prog == 1.0);
+      assert_int_equal(json_integer_value(json_object_get(o, "tiles_done")), 5);
+    }
+    json_decref(o);
+    free(r.body);
+    if (!done) sleep_ms(100);
+  }
+  assert_true(done);
+  char res[160];
+  snprintf(res, sizeof res, "%s/result", loc);
+  r = GET(&S_main, res);
+  assert_int_equal(r.status, 200);
+  x = read_exr(&r, "job.exr");
+  assert_int_equal(gi_exr_file_width(x), 5);
+  assert_true(gi_exr_file_channel_is_half(x, 0));
+  assert_string_equal(gi_exr_file_attr(x, "gi.job"), id);
+  for (int i = 0; i < 5; i++) assert_true(isfinite(gi_exr_file_channel(x, "R")[i]));
+  gi_exr_file_free(x);
+  free(r.body);
+  r = GET(&S_main, "/v1/jobs/000000000000000000000000/result");
+  expect_error(&r, 404, "not_found", "unknown");
+  free(r.body);
+}
+
+static void test_errors(void **state) {
+  struct { const char *method, *path, *body; long status; const char *name, *needle; } cases[] = {
+      {NULL, "/v1/scenes/city/lighting?at=1,2", NULL, 400, "bad_request", "'at'"},
+      {NULL, "/v1/scenes/city/lighting?at=1,2,nan", NULL, 400, "bad_request", "'at'"},
+      {NULL, "/v1/scenes/city/lighting?at=1,2,3&colour=red", NULL, 400, "bad_request", "'colour'"},
+      {NULL, "/v1/scenes/city/lighting?at=1,2,3&levels=7", NULL, 400, "bad_request", "server limit"},
+      {NULL, "/v1/scenes/city/lighting?at=1,2,3&kind=lightmap", NULL, 501, "not_implemented", "lightmap"},
+      {NULL, "/v1/scenes/city/lighting?at=1e12,2,3", NULL, 400, "bad_request", "1e9"},
+      {NULL, "/v1/scenes/atlantis/lighting?at=1,2,3", NULL, 404, "not_found", "atlantis"},
+      {NULL, "/v1/scenes/..%2Fetc/lighting?at=1,2,3", NULL, 404, "not_found", NULL},
+      {NULL, "/v2/everything", NULL, 404, "not_found", "no such endpoint"},
+      {"DELETE", "/v1/scenes/city", NULL, 405, "method_not_allowed", "GET"},
+      {NULL, "/v1/scenes/city/probes", NULL, 405, "method_not_allowed", "POST"},
+      {"POST", "/v1/scenes/city/probes", "{\"points\":[[1,2]]}", 400, "bad_request", "points[0]"},
+      {"POST", "/v1/scenes/city/probes", "{\"points\":[[1,2,3]],\"bogus\":1}", 400, "bad_request", "'bogus'"},
+      {"POST", "/v1/scenes/city/probes", "not json", 400, "bad_request", "line 1"},
+      {NULL, "/v1/health?verbose=1", NULL, 400, "bad_request", "'verbose'"},
+  };
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    resp r = http(&S_main, cases[i].method, cases[i].path, cases[i].body, TOKEN);
+    expect_error(&r, cases[i].status, cases[i].name, cases[i].needle);
+    if (cases[i].status == 405) assert_non_null(header(&r, "Allow"));
+    free(r.body);
+  }
+  /* 413: a body over max_body_bytes (4096), and more points than max_probes_job (100). */
+  char *big = malloc(9000);
+  strcpy(big, "{\"points\":[");
+  for (int i = 0; i < 900; i++) strcat(big, i ? ",[1,2,3]" : "[1,2,3]");
+  strcat(big, "]}");
+  resp r = http(&S_main, "POST", "/v1/scenes/city/probes", big, TOKEN);
+  expect_error(&r, 413, "payload_too_large", "4096");
+  free(r.body);
+  strcpy(big, "{\"points\":[");
+  for (int i = 0; i < 101; i++) strcat(big, i ? ",[1,2,3]" : "[1,2,3]");
+  strcat(big, "]}");
+  r = http(&S_main, "POST", "/v1/scenes/city/probes", big, TOKEN);
+  expect_error(&r, 413, "payload_too_large", "101 points");
+  free(r.body);
+  free(big);
+  /* Every answer above was counted, and the server is still healthy. */
+  assert_true(metric(&S_main, "gi_requests_total", "endpoint=\"lighting\",code=\"400\"") >= 5);
+  r = http(&S_main, NULL, "/v1/health", NULL, NULL);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+}
+
+/* 64 parallel requests for different viewpoints against 1 worker + 1 slot. */
+static void test_overload(void **state) {
+  /* 8 MiB holds one quality=low cascade (5 x 16^3 voxels, 4.4 MiB): the
+   * second bake must evict the first. */
+  assert_int_equal(server_start(&S_tight, "tight", SERVER_INI("workers = 1\nqueue = 1\n[limits]\ncache_mb = 8\n")), 0);
+  enum { N = 64 };
+  CURLM *m = curl_multi_init();
+  static resp r[N];
+  CURL *c[N];
+  struct curl_slist *h[N];
+  memset(r, 0, sizeof r);
+  for (int i = 0; i < N; i++) {
+    char path[160];
+    snprintf(path, sizeof path, "/v1/scenes/city/lighting?at=%d,2,%d&quality=low", -140 + 4 * i, 7 * (i % 9));
+    c[i] = make_req(&S_tight, NULL, path, NULL, NULL, &r[i], &h[i]);
+    curl_multi_add_handle(m, c[i]);
+  }
+  int running = 1;
+  while (running) {
+    curl_multi_perform(m, &running);
+    curl_multi_poll(m, NULL, 0, 100, NULL);
+  }
+  int ok = 0, busy = 0;
+  for (int i = 0; i < N; i++) {
+    curl_easy_getinfo(c[i], CURLINFO_RESPONSE_CODE, &r[i].status);
+    if (r[i].status == 200) {
+      ok++;
+      assert_string_equal(header(&r[i], "Content-Type"), "image/x-exr");
+    } else {
+      busy++;
+      expect_error(&r[i], 503, "overloaded", "busy");
+      assert_string_equal(header(&r[i], "Retry-After"), "1");
+    }
+    curl_multi_remove_handle(m, c[i]);
+    curl_easy_cleanup(c[i]);
+    curl_slist_free_all(h[i]);
+    free(r[i].body);
+  }
+  curl_multi_cleanup(m);
+  printf("  64 parallel viewpoints on 1 worker + 1 queue slot: %d x 200, %d x 503\n", ok, busy);
+  assert_int_equal(ok + busy, N);
+  assert_true(ok >= 2 && busy >= 1);
+  assert_true(metric(&S_tight, "gi_rejected_total", NULL) == busy);
+  double evicted = metric(&S_tight, "gi_cache_evictions_total", NULL), held = metric(&S_tight, "gi_cache_bytes", NULL);
+  printf("  cache of 8 MiB: %g evictions, %.0f bytes held\n", evicted, held);
+  assert_true(evicted >= ok - 1);
+  assert_true(held > 0 && held <= 8 << 20);
+  resp hr = http(&S_tight, NULL, "/v1/health", NULL, NULL);
+  assert_int_equal(hr.status, 200);
+  free(hr.body);
+  assert_int_equal(server_stop(&S_tight), 0);
+}
+
+/* A request past its deadline is a 504; the bake it started still lands in the cache. */
+static void test_deadline(void **state) {
+  assert_int_equal(server_start(&S_deadline, "deadline", SERVER_INI("workers = 1\nqueue = 4\ndeadline_s = 0.2\n")), 0);
+  const char *path = "/v1/scenes/city/lighting?at=12,2,-33&levels=6&res=32&bounces=2";
+  resp r = http(&S_deadline, NULL, path, NULL, NULL);
+  expect_error(&r, 504, "timeout", "deadline");
+  free(r.body);
+  for (int i = 0; i < 600 && metric(&S_deadline, "gi_bakes_total", NULL) < 1; i++) sleep_ms(100);
+  assert_true(metric(&S_deadline, "gi_timeouts_total", NULL) == 1);
+  r = http(&S_deadline, NULL, path, NULL, NULL);
+  assert_int_equal(r.status, 200);
+  assert_string_equal(header(&r, "X-GI-Cache"), "hit");
+  free(r.body);
+  assert_int_equal(server_stop(&S_deadline), 0);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_health_and_auth),
+      cmocka_unit_test(test_catalog_and_scene),
+      cmocka_unit_test(test_lighting_probe_matches_core),
+      cmocka_unit_test(test_coalescing),
+      cmocka_unit_test(test_panorama),
+      cmocka_unit_test(test_cascades_vdb),
+      cmocka_unit_test(test_probes_inline_and_job),
+      cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_overload),
+      cmocka_unit_test(test_deadline),
+  };
+  return cmocka_run_group_tests(tests, setup, teardown);
+}

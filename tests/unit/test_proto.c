@@ -1,0 +1,225 @@
+/* test_proto.c: the request parser and the answer encoders (proto/).
+ *
+ * Every rejection must be a specific status whose message names the
+ * parameter; every accepted request must land in the exact gi_quality the
+ * core resolves, with zero left for "default". */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "gi_proto.h"
+
+#define KV(...) ((gi_proto_kv[]){__VA_ARGS__})
+#define NKV(a) (sizeof(a) / sizeof((a)[0]))
+
+static gi_proto_limits lim(void) {
+  gi_proto_limits l;
+  gi_proto_limits_default(&l);
+  return l;
+}
+
+static void expect_fail(const gi_proto_kv *kv, size_t n, int status, const char *needle) {
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  int st = gi_proto_parse_lighting(kv, n, &l, &b, &e);
+  if (st != status || !strstr(e.message, needle))
+    fprintf(stderr, "got %d '%s', want %d containing '%s'\n", st, e.message, status, needle);
+  assert_int_equal(st, status);
+  assert_int_equal(e.status, status);
+  assert_non_null(strstr(e.message, needle));
+}
+
+static void test_lighting_ok(void **state) {
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv kv[] = {{"at", "1.5,-2,3e2"}, {"levels", "4"}, {"res", "16"}, {"bounces", "0"}, {"half", "1"}};
+  assert_int_equal(gi_proto_parse_lighting(kv, NKV(kv), &l, &b, &e), 0);
+  assert_int_equal(b.has_at, 1);
+  assert_true(b.at[0] == 1.5 && b.at[1] == -2 && b.at[2] == 300);
+  assert_int_equal(b.kind, GI_PROTO_PROBE);
+  assert_int_equal(b.quality.levels, 4);
+  assert_int_equal(b.quality.res, 16);
+  assert_int_equal(b.quality.bounces, -1); /* HTTP 0 = none = the core's -1 */
+  assert_int_equal(b.quality.cones, 0);    /* untouched knobs stay default */
+  assert_int_equal(b.half, 1);
+}
+
+static void test_preset_then_override(void **state) {
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  /* The explicit knob wins whatever the order. */
+  gi_proto_kv kv[] = {{"cones", "32"}, {"quality", "low"}, {"at", "0,0,0"}};
+  assert_int_equal(gi_proto_parse_lighting(kv, NKV(kv), &l, &b, &e), 0);
+  assert_int_equal(b.quality.cones, 32);
+  assert_int_equal(b.quality.res, 16);
+  assert_int_equal(b.quality.levels, 5);
+}
+
+static void test_panorama(void **state) {
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv kv[] = {{"at", "0,0,0"}, {"kind", "panorama"}, {"width", "64"}, {"height", "32"}};
+  assert_int_equal(gi_proto_parse_lighting(kv, NKV(kv), &l, &b, &e), 0);
+  assert_int_equal(b.kind, GI_PROTO_PANORAMA);
+  assert_int_equal(b.width, 64);
+  assert_int_equal(b.height, 32);
+  l.max_panorama_pixels = 1000;
+  assert_int_equal(gi_proto_parse_lighting(kv, NKV(kv), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "1000 pixels"));
+}
+
+static void test_rejections(void **state) {
+  expect_fail(KV({"levels", "3"}), 1, 400, "'at' is required");
+  expect_fail(KV({"at", "1,2"}), 1, 400, "'at'");
+  expect_fail(KV({"at", "1,2,3,4"}), 1, 400, "'at'");
+  expect_fail(KV({"at", "nan,0,0"}), 1, 400, "'at'");
+  expect_fail(KV({"at", "inf,0,0"}), 1, 400, "'at'");
+  expect_fail(KV({"at", "1e999,0,0"}), 1, 400, "'at'");
+  expect_fail(KV({"at", "0x10,0,0"}), 1, 400, "'at'");
+  expect_fail(KV({"at", "0,0,0"}, {"bogus", "1"}), 2, 400, "unknown parameter 'bogus'");
+  expect_fail(KV({"at", "0,0,0"}, {"at", "1,1,1"}), 2, 400, "given twice");
+  expect_fail(KV({"at", "0,0,0"}, {"levels", ""}), 2, 400, "no value");
+  expect_fail(KV({"at", "0,0,0"}, {"levels", "9"}), 2, 400, "'levels': expected 1..8");
+  expect_fail(KV({"at", "0,0,0"}, {"levels", "2.5"}), 2, 400, "expected an integer");
+  expect_fail(KV({"at", "0,0,0"}, {"res", "30"}), 2, 400, "multiple of 4");
+  expect_fail(KV({"at", "0,0,0"}, {"res", "128"}), 2, 400, "server limit");
+  expect_fail(KV({"at", "0,0,0"}, {"cones", "5"}), 2, 400, "4, 6, 8, 16 or 32");
+  expect_fail(KV({"at", "0,0,0"}, {"voxel", "-1"}), 2, 400, "'voxel'");
+  expect_fail(KV({"at", "0,0,0"}, {"voxel", "nan"}), 2, 400, "'voxel'");
+  expect_fail(KV({"at", "0,0,0"}, {"quality", "ultra"}), 2, 400, "low, default or high");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "hdri"}), 2, 400, "probe, panorama or lightmap");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}), 2, 501, "lightmap");
+  expect_fail(KV({"at", "0,0,0"}, {"width", "64"}), 2, 400, "kind=panorama only");
+  expect_fail(KV({"at", "0,0,0"}, {"faces", "1"}), 2, 400, "unknown parameter 'faces'");
+  expect_fail(KV({"at", "0,0,0"}, {"half", "yes"}), 2, 400, "0 or 1");
+}
+
+static void test_cascades(void **state) {
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv ok[] = {{"at", "0,0,0"}, {"faces", "1"}, {"levels", "2"}};
+  assert_int_equal(gi_proto_parse_cascades(ok, 3, &l, &b, &e), 0);
+  assert_int_equal(b.faces, 1);
+  gi_proto_kv bad[] = {{"at", "0,0,0"}, {"kind", "probe"}};
+  assert_int_equal(gi_proto_parse_cascades(bad, 2, &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "'kind'"));
+  assert_int_equal(gi_proto_parse_none(bad, 1, &e), 400);
+  assert_int_equal(gi_proto_parse_none(NULL, 0, &e), 0);
+}
+
+static int probes(const char *body, gi_proto_probes *p, gi_proto_error *e, size_t max_job) {
+  gi_proto_limits l = lim();
+  l.max_probes_job = max_job;
+  return gi_proto_parse_probes(body, strlen(body), &l, p, e);
+}
+
+static void test_probes_body(void **state) {
+  gi_proto_probes p;
+  gi_proto_error e = {0};
+  assert_int_equal(probes("{\"points\":[[1,2,3],[4.5,-5,6e1]],\"quality\":{\"preset\":\"low\",\"res\":24},"
+                          "\"half\":true,\"ao\":true,\"at\":[7,8,9]}", &p, &e, 100), 0);
+  assert_int_equal(p.num_points, 2);
+  assert_true(p.points[3] == 4.5 && p.points[4] == -5 && p.points[5] == 60);
+  assert_int_equal(p.bake.quality.res, 24);
+  assert_int_equal(p.bake.quality.levels, 5);
+  assert_int_equal(p.bake.quality.ao, 1);
+  assert_int_equal(p.bake.half, 1);
+  assert_true(p.bake.has_at && p.bake.at[2] == 9);
+  gi_proto_probes_free(&p);
+
+  struct { const char *body; int status; const char *needle; } bad[] = {
+      {"", 400, "line 1"},
+      {"[1,2,3]", 400, "JSON object"},
+      {"{\"points\":[]}", 400, "non-empty"},
+      {"{\"points\":[[1,2]]}", 400, "points[0]"},
+      {"{\"points\":[[1,2,3],[1,2,\"x\"]]}", 400, "points[1]"},
+      {"{\"points\":[[1,2,1e999]]}", 400, "overflow"},
+      {"{\"points\":[[1,2,3]],\"extra\":1}", 400, "unknown field 'extra'"},
+      {"{\"points\":[[1,2,3]],\"points\":[[1,2,3]]}", 400, "duplicate"},
+      {"{\"points\":[[1,2,3]],\"quality\":{\"levels\":99}}", 400, "quality.levels"},
+      {"{\"points\":[[1,2,3]],\"quality\":\"max\"}", 400, "low, default or high"},
+      {"{\"points\":[[1,2,3]],\"half\":1}", 400, "'half'"},
+      {"{\"points\":[[1,2,3],[1,2,3],[1,2,3]]}", 413, "3 points exceed"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    int st = probes(bad[i].body, &p, &e, 2);
+    if (st != bad[i].status || !strstr(e.message, bad[i].needle))
+      fprintf(stderr, "body %zu: got %d '%s'\n", i, st, e.message);
+    assert_int_equal(st, bad[i].status);
+    assert_non_null(strstr(e.message, bad[i].needle));
+    assert_null(p.points);
+  }
+  /* A body over the byte limit is refused before parsing. */
+  gi_proto_limits l = lim();
+  l.max_body_bytes = 8;
+  assert_int_equal(gi_proto_parse_probes("{\"points\":[[1,2,3]]}", 20, &l, &p, &e), 413);
+}
+
+static void test_error_roundtrip(void **state) {
+  gi_proto_error e, back;
+  gi_proto_fail(&e, 503, "busy \"now\" %d", 7);
+  assert_string_equal(e.name, "overloaded");
+  char *js = gi_proto_error_json(&e);
+  assert_non_null(js);
+  assert_int_equal(gi_proto_error_parse(js, strlen(js), &back), 0);
+  assert_int_equal(back.status, 503);
+  assert_string_equal(back.name, "overloaded");
+  assert_string_equal(back.message, "busy \"now\" 7");
+  free(js);
+  assert_int_equal(gi_proto_error_parse("{\"x\":1}", 7, &back), -1);
+  assert_string_equal(gi_proto_status_name(413), "payload_too_large");
+  assert_string_equal(gi_proto_status_name(504), "timeout");
+}
+
+static void test_job_roundtrip(void **state) {
+  gi_proto_job j = {.state = GI_JOB_RUNNING, .probes = 10, .probes_done = 4, .tiles = 5, .tiles_done = 2,
+                    .elapsed_s = 1.25}, back;
+  strcpy(j.id, "abc123");
+  char *js = gi_proto_job_json(&j);
+  assert_non_null(strstr(js, "\"progress\":0.4"));
+  assert_int_equal(gi_proto_job_parse(js, strlen(js), &back), 0);
+  assert_string_equal(back.id, "abc123");
+  assert_int_equal(back.state, GI_JOB_RUNNING);
+  assert_int_equal(back.probes_done, 4);
+  assert_int_equal(back.tiles, 5);
+  assert_true(fabs(back.elapsed_s - 1.25) < 1e-12);
+  free(js);
+  j.state = GI_JOB_FAILED;
+  gi_proto_fail(&j.error, 500, "bake failed");
+  js = gi_proto_job_json(&j);
+  assert_int_equal(gi_proto_job_parse(js, strlen(js), &back), 0);
+  assert_int_equal(back.state, GI_JOB_FAILED);
+  assert_string_equal(back.error.message, "bake failed");
+  free(js);
+}
+
+static void test_headers(void **state) {
+  gi_timings t = {.voxelize = 1.5, .inject = 2, .filter = 0.25, .bounce = 10, .gather = 0.5, .encode = 1};
+  char buf[320];
+  gi_proto_server_timing(&t, 16.25, buf, sizeof buf);
+  assert_string_equal(buf, "voxelize;dur=1.50, inject;dur=2.00, filter;dur=0.25, bounce;dur=10.00, "
+                           "gather;dur=0.50, encode;dur=1.00, total;dur=16.25");
+  gi_effect fx[GI_FX_COUNT] = {{0}};
+  fx[GI_FX_SUN].ran = 1;
+  fx[GI_FX_BOUNCE].ran = 1;
+  gi_proto_effects_header(fx, buf, sizeof buf);
+  assert_string_equal(buf, "sun=ran, local_lights=skipped, sky=skipped, emissive=skipped, bounce=ran, "
+                           "specular=skipped, ao=skipped");
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_lighting_ok),   cmocka_unit_test(test_preset_then_override),
+      cmocka_unit_test(test_panorama),      cmocka_unit_test(test_rejections),
+      cmocka_unit_test(test_cascades),      cmocka_unit_test(test_probes_body),
+      cmocka_unit_test(test_error_roundtrip), cmocka_unit_test(test_job_roundtrip),
+      cmocka_unit_test(test_headers),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
