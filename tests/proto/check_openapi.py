@@ -7,7 +7,9 @@ contract promises (WWW-Authenticate, Allow, Retry-After, Location,
 Content-Disposition, Server-Timing, X-GI-Cache, X-GI-Effects), content types
 and each operation's query parameters. Then breaks a copy on purpose and
 expects the check to notice (a check that cannot fail proves nothing).
-Usage: check_openapi.py path/to/openapi.yaml. Exit 0 ok, 1 problems, 77 skip."""
+With proto/request.c as a second argument it also reads the C parser's
+parameter table and checks the query parameters against it.
+Usage: check_openapi.py openapi.yaml [request.c]. Exit 0 ok, 1 problems, 77 skip."""
 import copy
 import sys
 
@@ -20,15 +22,16 @@ except ImportError:
 ERR = {400: "bad_request", 401: "unauthorized", 404: "not_found", 405: "method_not_allowed",
        409: "not_ready", 413: "payload_too_large", 500: "internal", 501: "not_implemented",
        503: "overloaded", 504: "timeout"}
-BAKE_Q = {"quality", "levels", "res", "voxel"}
+# The quality group both bake endpoints take (proto/request.c: P_QUALITY).
+BAKE_Q = {"quality", "levels", "res", "voxel", "cones", "aperture", "step", "bounces", "samples", "probe_samples",
+          "ao", "seed"}
 # path -> method -> (success codes, error codes, query parameters)
 CONTRACT = {
     "/v1/health": {"get": ({200}, {405, 500}, set())},
     "/v1/scenes": {"get": ({200}, {401, 405, 500}, set())},
     "/v1/scenes/{id}": {"get": ({200}, {401, 404, 405, 500}, set())},
     "/v1/scenes/{id}/lighting": {"get": ({200}, {400, 401, 404, 405, 500, 501, 503, 504},
-                                         {"at", "kind"} | BAKE_Q | {"cones", "bounces", "samples", "probe_samples",
-                                                                   "ao", "half", "width", "height"})},
+                                         {"at", "kind", "half", "width", "height"} | BAKE_Q)},
     "/v1/scenes/{id}/cascades.vdb": {"get": ({200}, {400, 401, 404, 405, 500, 503, 504}, {"at", "faces"} | BAKE_Q)},
     "/v1/scenes/{id}/probes": {"post": ({200, 202}, {400, 401, 404, 405, 413, 500, 503, 504}, set())},
     "/v1/jobs/{id}": {"get": ({200}, {401, 404, 405, 500}, set())},
@@ -145,9 +148,37 @@ def check(doc):
     return p
 
 
+def query_sets_from_c(path):
+    """The query keys the C parser accepts per endpoint, read from
+    proto/request.c's params[] table and the groups each gi_proto_parse_*
+    passes to parse_query: the YAML must not drift from the code."""
+    import re
+    src = open(path).read()
+    table = re.findall(r'\{"(\w+)",\s*(P_\w+)\}', src)
+    out = {}
+    for fn, path_key in (("lighting", "/v1/scenes/{id}/lighting"), ("cascades", "/v1/scenes/{id}/cascades.vdb")):
+        m = re.search(r"gi_proto_parse_%s\([^)]*\)\s*\{.*?parse_query\([^,]+,[^,]+,\s*([A-Z_| ]+)," % fn, src, re.S)
+        if not m or not table:
+            return None
+        groups = {g.strip() for g in m.group(1).split("|")}
+        out[path_key] = {k for k, g in table if g in groups}
+    return out
+
+
 def main():
     with open(sys.argv[1]) as f:
         doc = yaml.safe_load(f)
+    if len(sys.argv) > 2:
+        from_c = query_sets_from_c(sys.argv[2])
+        if from_c is None:
+            print("FAIL: cannot read the parameter table of %s" % sys.argv[2])
+            sys.exit(1)
+        for path, keys in from_c.items():
+            ok, errs, q = CONTRACT[path]["get"]
+            if q != keys:
+                print("FAIL: %s: the contract table says %s, %s accepts %s" % (path, sorted(q), sys.argv[2], sorted(keys)))
+                sys.exit(1)
+        print("ok: query parameters agree with %s" % sys.argv[2])
     problems = check(doc)
     for x in problems:
         print("FAIL: " + x)
