@@ -66,14 +66,16 @@ expect_usage "bounces" lighting city --at 1,2,3 --set bounces=-1 -o "$O"
 expect_usage "ao" lighting city --at 1,2,3 --set ao=yes -o "$O"
 expect_usage "given twice" lighting city --at 1,2,3 --set res=16 --set res=32 -o "$O"
 expect_usage "only to --kind panorama" lighting city --at 1,2,3 --set width=64 -o "$O"
-expect_usage "'cones' does not apply to 'cascades'" cascades city --at 1,2,3 --set cones=8 -o "$O"
+expect_usage "'probe_samples' does not apply to 'cascades'" cascades city --at 1,2,3 --set probe_samples=8 -o "$O"
+expect_usage "'ao' does not apply to 'probes'" probes city --points x --set ao=1 -o "$O"
+expect_usage "seed" lighting city --at 1,2,3 --set seed=0 -o "$O"
+expect_usage "aperture" lighting city --at 1,2,3 --set aperture=inf -o "$O"
 expect_usage "--kind: does not apply to 'cascades'" cascades city --at 1,2,3 --kind probe -o "$O"
 expect_usage "--faces: does not apply to 'lighting'" lighting city --at 1,2,3 --faces -o "$O"
 expect_usage "--at: does not apply to 'health'" health --at 1,2,3
 expect_usage "--points: does not apply to 'lighting'" lighting city --at 1,2,3 --points x -o "$O"
 # probes and the points file (gi-bake --probes format, errors name file:line)
 expect_usage --points probes city -o "$O"
-expect_usage "not both" probes city --points x --quality high --set res=16 -o "$O"
 printf '1 2 3\n# comment\n\n4,5,6\n7 8 x\n' > "$T/pts.txt"
 expect_usage "pts.txt:5" probes city --points "$T/pts.txt" -o "$O"
 printf '1 2 3\n4 5 nan\n' > "$T/nan.txt"
@@ -99,7 +101,7 @@ expect_io "$T/no-dir" lighting city --at 1,2,3 -o "$T/no-dir/o.exr"
 "$BIN" --help > "$T/help" 2>&1 || fail "--help exited $?"
 for w in --server GI_SERVER --token GI_TOKEN --token-file --timeout -o -q health scenes scene metrics job \
          lighting cascades probes --at --kind panorama --quality --set --faces --points --half --ao --no-wait \
-         levels res voxel cones bounces samples probe_samples width height Server-Timing X-GI-Cache "Exit status"; do
+         levels res voxel cones aperture step bounces samples probe_samples seed width height Server-Timing X-GI-Cache "Exit status"; do
   grep -q -F -e "$w" "$T/help" || fail "--help does not mention $w"
 done
 pass "--help mentions every option"

@@ -62,6 +62,9 @@ has "$T/err" "X-GI-Cache: hit"
 C probes city --points "$T/two.txt" --set levels=4 --set voxel=0.25 -o "$T/p.exr"; rc=$?; check "probes --set" 0
 [ "$(cat "$T/p.exr")" = '{"points":[[1,2,3],[4.5,-5,0.1]],"quality":{"levels":4,"voxel":0.25}}' ] \
   || fail "probes --set sent $(cat "$T/p.exr")"
+C probes city --points "$T/two.txt" --quality high --set seed=7 -o "$T/p.exr"; rc=$?; check "probes --quality --set" 0
+[ "$(cat "$T/p.exr")" = '{"points":[[1,2,3],[4.5,-5,0.1]],"quality":{"preset":"high","seed":7}}' ] \
+  || fail "probes --quality --set sent $(cat "$T/p.exr")"
 
 # A larger set becomes a job: polled (one line per 10% when stderr is no tty), then downloaded.
 printf '0 0 0\n1 1 1\n2 2 2\n3 3 3\n' > "$T/four.txt"

@@ -54,10 +54,12 @@ static const struct {
     {"metrics", GC_METRICS, 0, 0, 0, ""},
     {"job", GC_JOB, 2, 0, 0, ""},
     {"lighting", GC_LIGHTING, 1, F_AT | F_KIND | F_QUALITY | F_SET, 1,
-     "levels res voxel cones bounces samples probe_samples ao half width height"},
-    {"cascades", GC_CASCADES, 1, F_AT | F_FACES | F_QUALITY | F_SET, 1, "levels res voxel"},
+     "levels res voxel cones aperture step bounces samples probe_samples seed ao half width height"},
+    /* probe_samples and ao act at gather points only: a cascade does not change with them. */
+    {"cascades", GC_CASCADES, 1, F_AT | F_FACES | F_QUALITY | F_SET, 1,
+     "levels res voxel cones aperture step bounces samples seed"},
     {"probes", GC_PROBES, 1, F_AT | F_QUALITY | F_SET | F_HALF | F_AO | F_NO_WAIT | F_POINTS, 1,
-     "levels res voxel cones bounces samples probe_samples"},
+     "levels res voxel cones aperture step bounces samples probe_samples seed"},
 };
 
 static const struct option long_opts[] = {
@@ -123,14 +125,16 @@ static const char help_text[] =
     "\n"
     "  --at X,Y,Z            viewpoint, three finite numbers in world units\n"
     "  --quality Q           preset: low, default or high\n"
-    "  --set KEY=VALUE       one more quality parameter, repeatable, each key once:\n"
-    "                        levels, res, cones, bounces (0 = none), samples,\n"
-    "                        probe_samples (integers), voxel (number > 0);\n"
-    "                        lighting also: ao=0|1, half=0|1, width, height\n"
-    "                        (panorama only, default 256x128); cascades: levels,\n"
-    "                        res, voxel only; probes: not with --quality (the\n"
-    "                        knobs replace the preset). Ranges come from the\n"
-    "                        server's config: it answers 400 naming the field\n"
+    "  --set KEY=VALUE       one more quality parameter, repeatable, each key once,\n"
+    "                        overriding the preset: levels, res (multiple of 4),\n"
+    "                        cones (4,6,8,16,32), bounces (0 = none), samples,\n"
+    "                        probe_samples, seed (integers); voxel (finest voxel,\n"
+    "                        world units), aperture (degrees), step (fraction of\n"
+    "                        the cone diameter) (numbers > 0); lighting also\n"
+    "                        ao=0|1, half=0|1, width, height (panorama only,\n"
+    "                        default 256x128); cascades takes no probe_samples.\n"
+    "                        Ranges come from the server's config: it answers\n"
+    "                        400 naming the parameter\n"
     "  --half, --ao          probes: half-float EXR; ambient occlusion channel\n"
     "\n"
     "The server's Server-Timing and X-GI-Cache headers are printed on stderr\n"
@@ -322,19 +326,20 @@ static int add_set(gc_opts *o, char *arg) {
   int is_int = 1;
   if (!strcmp(key, "ao") || !strcmp(key, "half")) {
     if (strcmp(val, "0") && strcmp(val, "1")) return usage_fail("--set", "%s: expected 0 or 1, got '%s'", key, val);
-  } else if (!strcmp(key, "voxel")) {
+  } else if (!strcmp(key, "voxel") || !strcmp(key, "aperture") || !strcmp(key, "step")) {
     if (parse_doubles(val, &d, 1) || !(d > 0))
-      return usage_fail("--set", "voxel: expected a finite number > 0, got '%s'", val);
+      return usage_fail("--set", "%s: expected a finite number > 0, got '%s'", key, val);
     is_int = 0;
   } else if (!strcmp(key, "bounces")) {
     if (parse_long(val, 0, 1000000, &l)) return usage_fail("--set", "bounces: expected an integer >= 0, got '%s'", val);
   } else if (!strcmp(key, "levels") || !strcmp(key, "res") || !strcmp(key, "cones") || !strcmp(key, "samples") ||
-             !strcmp(key, "probe_samples") || !strcmp(key, "width") || !strcmp(key, "height")) {
-    if (parse_long(val, 1, 1000000000, &l))
+             !strcmp(key, "probe_samples") || !strcmp(key, "width") || !strcmp(key, "height") ||
+             !strcmp(key, "seed")) {
+    if (parse_long(val, 1, 9007199254740992L, &l))
       return usage_fail("--set", "%s: expected an integer >= 1, got '%s'", key, val);
   } else {
-    return usage_fail("--set", "unknown key '%s' (levels, res, voxel, cones, bounces, samples, probe_samples, "
-                      "ao, half, width, height)", key);
+    return usage_fail("--set", "unknown key '%s' (levels, res, voxel, cones, aperture, step, bounces, samples, "
+                      "probe_samples, seed, ao, half, width, height)", key);
   }
   o->sets[o->num_sets++] = (gc_set){key, val, is_int};
   return 0;
@@ -471,8 +476,6 @@ int gc_parse(int argc, char **argv, gc_opts *o) {
       if (!strcmp(o->sets[i].key, "width") || !strcmp(o->sets[i].key, "height"))
         return usage_fail("--set", "'%s' applies only to --kind panorama", o->sets[i].key);
   if (o->cmd == GC_PROBES && !o->points_file) return usage_fail("--points", "'probes' needs --points FILE");
-  if (o->cmd == GC_PROBES && o->quality && o->num_sets)
-    return usage_fail("--set", "'probes' takes either --quality or --set knobs, not both");
   if (commands[ci].needs_out && !o->out) return usage_fail("-o", "'%s' downloads a file: give -o OUT", cmd);
 
   if (token && token_file) return usage_fail("--token-file", "give --token or --token-file, not both");

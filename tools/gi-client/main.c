@@ -358,16 +358,21 @@ static char *probes_body(const gc_opts *o, size_t *len) {
     int k = snprintf(n, sizeof n, ",\"at\":[%s]", at);
     fail |= buf_add(&b, n, (size_t)k);
   }
-  if (o->quality) {
+  if (o->quality && !o->num_sets) {
     int k = snprintf(n, sizeof n, ",\"quality\":\"%s\"", o->quality);
     fail |= buf_add(&b, n, (size_t)k);
   } else if (o->num_sets) {
+    /* Knobs as an object; a preset goes in first as "preset" (the knobs override it). */
     fail |= buf_add(&b, ",\"quality\":{", 12);
+    if (o->quality) {
+      int k = snprintf(n, sizeof n, "\"preset\":\"%s\"%s", o->quality, ",");
+      fail |= buf_add(&b, n, (size_t)k);
+    }
     for (int i = 0; i < o->num_sets; i++) {
       /* Keys and values were checked by args.c: plain words and numbers. */
       double v = strtod(o->sets[i].value, NULL);
       char num[32];
-      if (o->sets[i].is_int) snprintf(num, sizeof num, "%ld", strtol(o->sets[i].value, NULL, 10));
+      if (o->sets[i].is_int) snprintf(num, sizeof num, "%lld", strtoll(o->sets[i].value, NULL, 10));
       else fmt_double(num, sizeof num, v);
       int k = snprintf(n, sizeof n, "%s\"%s\":%s", i ? "," : "", o->sets[i].key, num);
       fail |= buf_add(&b, n, (size_t)k);
