@@ -19,6 +19,9 @@ no_tmp() { ls "$T" | grep -q '\.tmp\.' && fail "temporary file left: $(ls "$T")"
 
 C health; rc=$?; check "health" 0
 has "$T/out" '"status": "ok"'
+[ "$(tail -c 1 "$T/out" | od -An -c | tr -d ' ')" = '\n' ] || fail "health on stdout does not end with a newline"
+C -q health -o "$T/h.json"; rc=$?; check "health -o" 0
+[ "$(tail -c 1 "$T/h.json")" = "}" ] || fail "health -o must keep the exact bytes: $(cat "$T/h.json")"
 C metrics; rc=$?; check "metrics" 0
 has "$T/out" "gi_bakes_total 3"
 

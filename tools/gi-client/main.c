@@ -71,6 +71,7 @@ typedef struct answer {
   int fp_is_tmp;
   long status;
   size_t bytes;
+  int last_nl;          /* the body so far ends with '\n' */
   buf mem;              /* non-2xx (or 202) body */
   int write_failed;     /* errno of a failed write, or -1 (too big), 0 = fine */
   char timing[1024], cache[64], retry_after[64], location[512];
@@ -144,6 +145,7 @@ static size_t on_body(char *p, size_t size, size_t nmemb, void *ud) {
     }
   }
   a->bytes += n;
+  if (n) a->last_nl = p[n - 1] == '\n';
   return n;
 }
 
@@ -249,6 +251,9 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
     return EXIT_RUN;
   }
   if (!a->fp_is_tmp) {
+    /* The server's JSON has no final newline; a terminal or a pipe reads better with one.
+     * Files (-o) keep the exact bytes. */
+    if (a->bytes && !a->last_nl) fputc('\n', a->fp);
     if (fflush(a->fp)) {
       fprintf(stderr, "gi-client: cannot write stdout: %s\n", strerror(errno));
       return EXIT_RUN;
