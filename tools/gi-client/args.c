@@ -6,8 +6,12 @@
  * checked for form here (whole string consumed, finite, integer where the
  * server wants one); ranges that depend on the server's config (max_levels,
  * max_res, ...) are left to the server, which answers 400 naming the field.
- * Every usage error prints "gi-client: --opt: ..." and exits 2; files that
- * cannot be read (--token-file, --points) exit 1 like any other I/O error. */
+ * Then the query goes through the contract's own parser (proto/request.c,
+ * with the widest limits the core allows), so what the server would refuse
+ * whatever its config (cones=5, res=30, width without a panorama) is refused
+ * here with the server's wording. Every usage error prints
+ * "gi-client: --opt: ..." and exits 2; files that cannot be read
+ * (--token-file, --points) exit 1 like any other I/O error. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <getopt.h>
@@ -18,6 +22,7 @@
 #include <string.h>
 #include <unistd.h>
 #include "client.h"
+#include "gi_proto.h"
 
 #define MAX_POINTS ((size_t)1 << 24) /* the server's job limit is far below this */
 #define DEFAULT_SERVER "http://127.0.0.1:8080"
@@ -353,6 +358,32 @@ static int in_list(const char *list, const char *word) {
   return 0;
 }
 
+/* Runs the query (or, for probes, the knobs) through the server's parser with
+ * config-independent limits. Returns 0 or EXIT_USAGE. */
+static int check_with_proto(const gc_opts *o) {
+  gi_proto_kv kv[GC_MAX_SETS + 4];
+  size_t n = 0;
+  kv[n++] = (gi_proto_kv){"at", o->at_text ? o->at_text : "0,0,0"};
+  if (o->kind) kv[n++] = (gi_proto_kv){"kind", o->kind};
+  if (o->quality) kv[n++] = (gi_proto_kv){"quality", o->quality};
+  if (o->faces) kv[n++] = (gi_proto_kv){"faces", "1"};
+  for (int i = 0; i < o->num_sets; i++) kv[n++] = (gi_proto_kv){o->sets[i].key, o->sets[i].value};
+  gi_proto_limits lim;
+  gi_proto_limits_default(&lim);
+  lim.max_levels = GI_MAX_LEVELS; /* the server's own limits may be lower: it says so */
+  lim.max_res = 256;
+  lim.max_panorama_pixels = 16384LL * 16384;
+  gi_proto_bake b;
+  gi_proto_error e;
+  int rc = o->cmd == GC_CASCADES ? gi_proto_parse_cascades(kv, n, &lim, &b, &e)
+                                 : gi_proto_parse_lighting(kv, n, &lim, &b, &e);
+  if (!rc) return 0;
+  /* Our limits are not the server's: do not call them that. */
+  char *tag = strstr(e.message, " (server limit)");
+  if (tag) memmove(tag, tag + 15, strlen(tag + 15) + 1);
+  return usage_fail(o->num_sets ? "--set" : NULL, "%s", e.message);
+}
+
 /* The output's folder must exist and be writable: fail before a slow bake. */
 static int check_output(const char *path) {
   if (!*path) return usage_fail("-o", "expected a file name, got ''");
@@ -402,7 +433,7 @@ int gc_parse(int argc, char **argv, gc_opts *o) {
     case 'o': o->out = optarg; break;
     case 'q': o->quiet = 1; break;
     case OPT_AT:
-      if (parse_doubles(optarg, o->at, 3))
+      if (gi_proto_parse_vec3(optarg, o->at)) /* the server's grammar: plain finite decimals */
         return usage_fail("--at", "expected three finite numbers X,Y,Z, got '%s'", optarg);
       o->have_at = 1;
       o->at_text = optarg;
@@ -476,6 +507,8 @@ int gc_parse(int argc, char **argv, gc_opts *o) {
       if (!strcmp(o->sets[i].key, "width") || !strcmp(o->sets[i].key, "height"))
         return usage_fail("--set", "'%s' applies only to --kind panorama", o->sets[i].key);
   if (o->cmd == GC_PROBES && !o->points_file) return usage_fail("--points", "'probes' needs --points FILE");
+  if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES || o->cmd == GC_PROBES) && (rc = check_with_proto(o)))
+    return rc;
   if (commands[ci].needs_out && !o->out) return usage_fail("-o", "'%s' downloads a file: give -o OUT", cmd);
 
   if (token && token_file) return usage_fail("--token-file", "give --token or --token-file, not both");

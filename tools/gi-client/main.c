@@ -6,8 +6,9 @@
  * OUT.tmp.<pid> that is renamed onto OUT only after the whole body arrived
  * and was flushed), anything else is kept in memory (capped) so the JSON
  * error {code, name, message} can be printed. A 202 from POST probes is
- * kept in memory too: it is the job to poll. Nothing here knows the
- * server's limits; its 400 messages name the field. */
+ * kept in memory too: it is the job to poll. Error bodies and job status are
+ * decoded by the contract's own code (proto/answer.c). Nothing here knows
+ * the server's limits; its 400 messages name the field. */
 #define _POSIX_C_SOURCE 200809L
 #include <curl/curl.h>
 #include <errno.h>
@@ -21,6 +22,7 @@
 #include <time.h>
 #include <unistd.h>
 #include "client.h"
+#include "gi_proto.h"
 
 #define MAX_MEM_BODY (1 << 20) /* error and job bodies are small; refuse a runaway one */
 #define POLL_MS 500
@@ -161,15 +163,9 @@ static void drop_tmp(answer *a) {
 /* Prints "gi-client: HTTP <status> <name>: <message>" from a JSON error body,
  * or the start of a non-JSON body (a proxy's HTML page, say). */
 static void print_http_error(const answer *a) {
-  json_error_t je;
-  json_t *j = a->mem.n ? json_loadb(a->mem.p, a->mem.n, 0, &je) : NULL;
-  const char *name = NULL, *msg = NULL;
-  if (j && json_is_object(j)) {
-    name = json_string_value(json_object_get(j, "name"));
-    msg = json_string_value(json_object_get(j, "message"));
-  }
-  if (name && msg) {
-    fprintf(stderr, "gi-client: HTTP %ld %s: %s", a->status, name, msg);
+  gi_proto_error e;
+  if (a->mem.n && !gi_proto_error_parse(a->mem.p, a->mem.n, &e)) {
+    fprintf(stderr, "gi-client: HTTP %ld %s: %s", a->status, e.name, e.message);
   } else {
     int n = 0;
     while (n < 200 && n < (int)a->mem.n && a->mem.p[n] != '\n' && a->mem.p[n] != '\r') n++;
@@ -177,7 +173,6 @@ static void print_http_error(const answer *a) {
   }
   if (a->retry_after[0]) fprintf(stderr, " (Retry-After: %s s)", a->retry_after);
   fputc('\n', stderr);
-  json_decref(j);
 }
 
 /* Runs one request. On success (2xx) returns 0 with the body in the sink
@@ -415,8 +410,8 @@ typedef struct progress {
   int tty, quiet, last_decile, drawn;
 } progress;
 
-static void progress_show(progress *p, const char *id, const char *state, double frac, json_int_t done,
-                          json_int_t total, double elapsed) {
+static void progress_show(progress *p, const char *id, const char *state, double frac, long long done,
+                          long long total, double elapsed) {
   if (p->quiet) return;
   if (!(frac >= 0)) frac = 0; /* NaN too */
   if (frac > 1) frac = 1;
@@ -462,43 +457,26 @@ static int wait_job(const gc_opts *o, CURL *c, const char *id) {
       free(a.mem.p);
       goto done;
     }
-    json_error_t je;
-    json_t *j = json_loadb(a.mem.p ? a.mem.p : "", a.mem.n, 0, &je);
+    gi_proto_job j;
+    int bad = gi_proto_job_parse(a.mem.p ? a.mem.p : "", a.mem.n, &j);
     free(a.mem.p);
-    const char *state = j ? json_string_value(json_object_get(j, "state")) : NULL;
-    if (!state) {
+    if (bad) {
       progress_end(&pg);
-      fprintf(stderr, "gi-client: GET %s: expected a JSON job with a \"state\"\n", url);
-      json_decref(j);
+      fprintf(stderr, "gi-client: GET %s: expected a job status (id, state, probes, probes_done, ...)\n", url);
       goto done;
     }
-    double frac = json_number_value(json_object_get(j, "progress"));
-    json_int_t total = json_integer_value(json_object_get(j, "probes"));
-    json_int_t pdone = json_integer_value(json_object_get(j, "probes_done"));
-    if (!strcmp(state, "done")) frac = 1, pdone = total;
-    if (strcmp(state, "failed")) progress_show(&pg, id, state, frac, pdone, total, now_s() - t0);
-    if (!strcmp(state, "done")) {
-      json_decref(j);
+    const char *state = gi_proto_job_state_name(j.state);
+    double frac = j.probes ? (double)j.probes_done / (double)j.probes : 0;
+    if (j.state == GI_JOB_FAILED) {
+      progress_end(&pg);
+      fprintf(stderr, "gi-client: job %s failed: %s: %s\n", id, j.error.name, j.error.message);
+      goto done;
+    }
+    progress_show(&pg, id, state, frac, (long long)j.probes_done, (long long)j.probes, now_s() - t0);
+    if (j.state == GI_JOB_DONE) {
       progress_end(&pg);
       break;
     }
-    if (!strcmp(state, "failed")) {
-      progress_end(&pg);
-      json_t *e = json_object_get(j, "error");
-      const char *name = json_string_value(json_object_get(e, "name"));
-      const char *msg = json_string_value(json_object_get(e, "message"));
-      fprintf(stderr, "gi-client: job %s failed: %s: %s\n", id, name ? name : "error",
-              msg ? msg : "(no message)");
-      json_decref(j);
-      goto done;
-    }
-    if (strcmp(state, "queued") && strcmp(state, "running")) {
-      progress_end(&pg);
-      fprintf(stderr, "gi-client: job %s: unexpected state '%s'\n", id, state);
-      json_decref(j);
-      goto done;
-    }
-    json_decref(j);
     sleep_ms(POLL_MS);
   }
   answer a;
