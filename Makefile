@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure run bake test bench clean
+.PHONY: all deps configure run bake test bench bench-http clean
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -30,6 +30,11 @@ test: all
 # Benchmarks print figures; they never decide pass or fail.
 bench: all
 	./tests/bench/run-bench.sh $(BUILD)
+
+# HTTP load test (wrk): starts gi-server on an ephemeral port with the default
+# config, benches cached and uncached lighting requests, stops the server.
+bench-http: all
+	./tests/bench/http-bench.sh --start $(BUILD)/bin/gi-server configs/gi-server.ini
 
 clean:
 	rm -rf $(BUILD) out

@@ -1,0 +1,558 @@
+/* args.c: gi-client's command line, parsed strictly.
+ *
+ * Design: options may come before or after COMMAND (getopt permutes), but
+ * each command accepts only the options that mean something for it: an
+ * option that would be ignored is an error, not a surprise. Numbers are
+ * checked for form here (whole string consumed, finite, integer where the
+ * server wants one); ranges that depend on the server's config (max_levels,
+ * max_res, ...) are left to the server, which answers 400 naming the field.
+ * Then the query goes through the contract's own parser (proto/request.c,
+ * with the widest limits the core allows), so what the server would refuse
+ * whatever its config (cones=5, res=30, width without a panorama) is refused
+ * here with the server's wording. Every usage error prints
+ * "gi-client: --opt: ..." and exits 2; files that cannot be read
+ * (--token-file, --points) exit 1 like any other I/O error. */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include "client.h"
+#include "gi_proto.h"
+
+#define MAX_POINTS ((size_t)1 << 24) /* the server's job limit is far below this */
+#define DEFAULT_SERVER "http://127.0.0.1:8080"
+
+enum {
+  OPT_SERVER = 256, OPT_TOKEN, OPT_TOKEN_FILE, OPT_TIMEOUT, OPT_AT, OPT_KIND, OPT_QUALITY, OPT_SET,
+  OPT_FACES, OPT_HALF, OPT_AO, OPT_NO_WAIT, OPT_POINTS
+};
+
+/* Options that apply to some commands only, as bits of a per-command mask. */
+enum {
+  F_AT = 1 << 0, F_KIND = 1 << 1, F_QUALITY = 1 << 2, F_SET = 1 << 3, F_FACES = 1 << 4,
+  F_HALF = 1 << 5, F_AO = 1 << 6, F_NO_WAIT = 1 << 7, F_POINTS = 1 << 8
+};
+
+static const struct {
+  int bit;
+  const char *name;
+} flag_names[] = {{F_AT, "--at"},       {F_KIND, "--kind"}, {F_QUALITY, "--quality"},
+                  {F_SET, "--set"},     {F_FACES, "--faces"}, {F_HALF, "--half"},
+                  {F_AO, "--ao"},       {F_NO_WAIT, "--no-wait"}, {F_POINTS, "--points"}};
+
+static const struct {
+  const char *name;
+  gc_command cmd;
+  int takes_id;     /* 1: scene id, 2: job id */
+  int allowed;      /* F_* bits */
+  int needs_out;    /* binary answer: -o is required */
+  const char *set_keys; /* --set keys allowed, space-separated */
+} commands[] = {
+    {"health", GC_HEALTH, 0, 0, 0, ""},
+    {"scenes", GC_SCENES, 0, 0, 0, ""},
+    {"scene", GC_SCENE, 1, 0, 0, ""},
+    {"metrics", GC_METRICS, 0, 0, 0, ""},
+    {"job", GC_JOB, 2, 0, 0, ""},
+    {"lighting", GC_LIGHTING, 1, F_AT | F_KIND | F_QUALITY | F_SET, 1,
+     "levels res voxel cones aperture step bounces samples probe_samples seed ao half width height"},
+    /* probe_samples and ao act at gather points only: a cascade does not change with them. */
+    {"cascades", GC_CASCADES, 1, F_AT | F_FACES | F_QUALITY | F_SET, 1,
+     "levels res voxel cones aperture step bounces samples seed"},
+    {"probes", GC_PROBES, 1, F_AT | F_QUALITY | F_SET | F_HALF | F_AO | F_NO_WAIT | F_POINTS, 1,
+     "levels res voxel cones aperture step bounces samples probe_samples seed"},
+};
+
+static const struct option long_opts[] = {
+    {"server", required_argument, NULL, OPT_SERVER},
+    {"token", required_argument, NULL, OPT_TOKEN},
+    {"token-file", required_argument, NULL, OPT_TOKEN_FILE},
+    {"timeout", required_argument, NULL, OPT_TIMEOUT},
+    {"output", required_argument, NULL, 'o'},
+    {"quiet", no_argument, NULL, 'q'},
+    {"at", required_argument, NULL, OPT_AT},
+    {"kind", required_argument, NULL, OPT_KIND},
+    {"quality", required_argument, NULL, OPT_QUALITY},
+    {"set", required_argument, NULL, OPT_SET},
+    {"faces", no_argument, NULL, OPT_FACES},
+    {"half", no_argument, NULL, OPT_HALF},
+    {"ao", no_argument, NULL, OPT_AO},
+    {"no-wait", no_argument, NULL, OPT_NO_WAIT},
+    {"points", required_argument, NULL, OPT_POINTS},
+    {"help", no_argument, NULL, 'h'},
+    {"version", no_argument, NULL, 'V'},
+    {NULL, 0, NULL, 0}};
+
+static const char help_text[] =
+    "Usage: gi-client [global options] COMMAND [ID] [command options]\n"
+    "A thin command-line client for gi-server's HTTP API (see proto/openapi.yaml).\n"
+    "\n"
+    "Global options (may also follow COMMAND)\n"
+    "  --server URL          server base URL, http:// or https:// (default\n"
+    "                        " DEFAULT_SERVER ", or $GI_SERVER)\n"
+    "  --token T             bearer token (default $GI_TOKEN); every endpoint but\n"
+    "                        health needs it when the server has one configured\n"
+    "  --token-file F        read the token from file F (surrounding blanks and the\n"
+    "                        final newline are ignored); not with --token\n"
+    "  --timeout SECONDS     limit for each HTTP request, > 0 (default: none; the\n"
+    "                        server answers 504 after its own deadline)\n"
+    "  -o, --output OUT      write the answer to OUT (via OUT.tmp.<pid>, renamed on\n"
+    "                        success: a failed request leaves an existing OUT as it\n"
+    "                        was); default stdout for text answers\n"
+    "  -q, --quiet           no progress, no Server-Timing / X-GI-Cache lines\n"
+    "  -h, --help            this text;  -V, --version  the version\n"
+    "\n"
+    "Commands that print a JSON or text body (to stdout, or to -o OUT)\n"
+    "  health                GET /v1/health (needs no token)\n"
+    "  scenes                GET /v1/scenes\n"
+    "  scene ID              GET /v1/scenes/ID: bounds, lights, quality, effect plan\n"
+    "  metrics               GET /metrics (Prometheus text)\n"
+    "  job JOBID             GET /v1/jobs/JOBID: state and progress of a probe job\n"
+    "\n"
+    "Commands that download a file (-o OUT required)\n"
+    "  lighting ID --at X,Y,Z [--kind probe|panorama] [--quality Q] [--set K=V ...]\n"
+    "                        GET /v1/scenes/ID/lighting -> EXR (kind default probe)\n"
+    "  cascades ID --at X,Y,Z [--faces] [--quality Q] [--set K=V ...]\n"
+    "                        GET /v1/scenes/ID/cascades.vdb -> VDB; --faces adds the\n"
+    "                        six per-face radiance grids\n"
+    "  probes ID --points FILE [--at X,Y,Z] [--quality Q] [--set K=V ...] [--half]\n"
+    "            [--ao] [--no-wait]\n"
+    "                        POST /v1/scenes/ID/probes -> EXR, one pixel per point.\n"
+    "                        FILE: one 'x y z' per line, '#' comments, blank lines\n"
+    "                        ok (the format of gi-bake --probes). A large set becomes\n"
+    "                        a job: gi-client polls it (progress bar on a terminal,\n"
+    "                        a line per 10% otherwise) and downloads the result;\n"
+    "                        --no-wait prints the job instead (see 'job JOBID')\n"
+    "\n"
+    "  --at X,Y,Z            viewpoint, three finite numbers in world units\n"
+    "  --quality Q           preset: low, default or high\n"
+    "  --set KEY=VALUE       one more quality parameter, repeatable, each key once,\n"
+    "                        overriding the preset: levels, res (multiple of 4),\n"
+    "                        cones (4,6,8,16,32), bounces (0 = none), samples,\n"
+    "                        probe_samples, seed (integers); voxel (finest voxel,\n"
+    "                        world units), aperture (degrees), step (fraction of\n"
+    "                        the cone diameter) (numbers > 0); lighting also\n"
+    "                        ao=0|1, half=0|1, width, height (panorama only,\n"
+    "                        default 256x128); cascades takes no probe_samples.\n"
+    "                        Ranges come from the server's config: it answers\n"
+    "                        400 naming the parameter\n"
+    "  --half, --ao          probes: half-float EXR; ambient occlusion channel\n"
+    "\n"
+    "The server's Server-Timing and X-GI-Cache headers are printed on stderr\n"
+    "unless -q. An error answer prints 'gi-client: HTTP <status> <name>: <message>'.\n"
+    "\n"
+    "Exit status: 0 success, 1 the request failed (network error, HTTP status not\n"
+    "2xx, failed job, unwritable output), 2 bad arguments.\n"
+    "\n"
+    "Examples\n"
+    "  gi-client health\n"
+    "  gi-client lighting city --at 10,1.7,-4 --quality high -o probe.exr\n"
+    "  gi-client lighting city --at 10,1.7,-4 --kind panorama --set width=512 \\\n"
+    "            --set height=256 -o pano.exr\n"
+    "  gi-client cascades city --at 10,1.7,-4 --set levels=4 -o city.vdb\n"
+    "  GI_TOKEN=s3cret gi-client probes city --points pts.txt -o probes.exr\n";
+
+static int usage_fail(const char *opt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static int usage_fail(const char *opt, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  fprintf(stderr, "gi-client: %s%s", opt ? opt : "", opt ? ": " : "");
+  vfprintf(stderr, fmt, ap);
+  fputs("\nTry 'gi-client --help'.\n", stderr);
+  va_end(ap);
+  return EXIT_USAGE;
+}
+
+/* Splits s on commas into exactly n finite doubles. Returns 0 on success. */
+static int parse_doubles(const char *s, double *out, int n) {
+  const char *p = s;
+  for (int i = 0; i < n; i++) {
+    char *end;
+    errno = 0;
+    double v = strtod(p, &end);
+    if (end == p || errno == ERANGE || !isfinite(v)) return -1;
+    /* strtod skips leading blanks; refuse trailing ones and empty fields. */
+    if (*end != (i + 1 < n ? ',' : '\0')) return -1;
+    out[i] = v;
+    p = end + 1;
+  }
+  return 0;
+}
+
+/* A plain decimal integer in [lo, hi]: no sign games, no blanks, no hex. */
+static int parse_long(const char *s, long lo, long hi, long *out) {
+  if (!((*s >= '0' && *s <= '9') || (*s == '-' && s[1] >= '0' && s[1] <= '9'))) return -1;
+  char *end;
+  errno = 0;
+  long v = strtol(s, &end, 10);
+  if (*end || errno == ERANGE || v < lo || v > hi) return -1;
+  *out = v;
+  return 0;
+}
+
+/* "http://host[:port][/prefix]" or https; returns a copy without trailing '/'. */
+static char *check_server(const char *s) {
+  if (strncmp(s, "http://", 7) && strncmp(s, "https://", 8)) return NULL;
+  const char *host = strstr(s, "://") + 3;
+  if (!*host || *host == '/') return NULL;
+  for (const char *p = s; *p; p++)
+    if ((unsigned char)*p <= ' ' || *p == 0x7f || *p == '?' || *p == '#') return NULL;
+  char *c = strdup(s);
+  if (!c) return NULL;
+  size_t n = strlen(c);
+  while (n && c[n - 1] == '/') c[--n] = '\0';
+  return c;
+}
+
+/* A bearer token is sent in a header: refuse blanks and control bytes, which
+ * would split or corrupt it. */
+static int token_ok(const char *t) {
+  if (!*t) return 0;
+  for (const unsigned char *p = (const unsigned char *)t; *p; p++)
+    if (*p <= ' ' || *p == 0x7f) return 0;
+  return 1;
+}
+
+static int read_token_file(gc_opts *o, const char *path) {
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    fprintf(stderr, "gi-client: --token-file: cannot open '%s': %s\n", path, strerror(errno));
+    return EXIT_RUN;
+  }
+  char buf[4097];
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  int err = ferror(f), more = !feof(f) && fgetc(f) != EOF;
+  fclose(f);
+  if (err) {
+    fprintf(stderr, "gi-client: --token-file: cannot read '%s'\n", path);
+    return EXIT_RUN;
+  }
+  if (more) return usage_fail("--token-file", "'%s' is longer than %zu bytes", path, sizeof buf - 1);
+  buf[n] = '\0';
+  char *p = buf;
+  while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
+  while (n && (buf[n - 1] == ' ' || buf[n - 1] == '\t' || buf[n - 1] == '\r' || buf[n - 1] == '\n'))
+    buf[--n] = '\0';
+  if (!token_ok(p))
+    return usage_fail("--token-file", "'%s' must hold one token without blanks or control characters", path);
+  o->token = strdup(p);
+  return o->token ? 0 : EXIT_RUN;
+}
+
+/* Reads --points FILE (gi-bake --probes format). Returns 0, EXIT_RUN (cannot
+ * read) or EXIT_USAGE (a bad line, named by file and number). */
+static int read_points(gc_opts *o, const char *path) {
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    fprintf(stderr, "gi-client: --points: cannot open '%s': %s\n", path, strerror(errno));
+    return EXIT_RUN;
+  }
+  char *line = NULL;
+  size_t cap = 0, alloc = 0, lineno = 0;
+  int rc = 0;
+  while (getline(&line, &cap, f) >= 0) {
+    lineno++;
+    char *hash = strchr(line, '#');
+    if (hash) *hash = '\0';
+    char *p = line;
+    while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
+    if (!*p) continue;
+    size_t len = strlen(p);
+    while (len && (p[len - 1] == ' ' || p[len - 1] == '\t' || p[len - 1] == '\r' || p[len - 1] == '\n'))
+      p[--len] = '\0';
+    double v[3];
+    char *q = p;
+    int ok = 1;
+    for (int i = 0; i < 3 && ok; i++) {
+      char *end;
+      errno = 0;
+      v[i] = strtod(q, &end);
+      ok = end != q && errno != ERANGE && isfinite(v[i]);
+      /* Separators are blanks (and a comma, for pasted X,Y,Z). */
+      if (ok && i < 2) {
+        ok = *end == ' ' || *end == '\t' || *end == ',';
+        while (*end == ' ' || *end == '\t') end++;
+        if (*end == ',') end++;
+      }
+      q = end;
+    }
+    if (!ok || *q) {
+      fprintf(stderr, "gi-client: --points: %s:%zu: expected three finite numbers 'x y z', got '%s'\n", path,
+              lineno, p);
+      rc = EXIT_USAGE;
+      break;
+    }
+    if (o->num_points >= MAX_POINTS) {
+      fprintf(stderr, "gi-client: --points: %s:%zu: more than %zu points\n", path, lineno, MAX_POINTS);
+      rc = EXIT_USAGE;
+      break;
+    }
+    if (o->num_points == alloc) {
+      size_t na = alloc ? alloc * 2 : 64;
+      double *np = realloc(o->points, na * 3 * sizeof *np);
+      if (!np) {
+        fprintf(stderr, "gi-client: --points: %s: out of memory\n", path);
+        rc = EXIT_RUN;
+        break;
+      }
+      o->points = np;
+      alloc = na;
+    }
+    memcpy(&o->points[3 * o->num_points++], v, sizeof v);
+  }
+  if (!rc && ferror(f)) {
+    fprintf(stderr, "gi-client: --points: cannot read '%s': %s\n", path, strerror(errno));
+    rc = EXIT_RUN;
+  }
+  if (!rc && o->num_points == 0) {
+    fprintf(stderr, "gi-client: --points: %s: no points (one 'x y z' per line expected)\n", path);
+    rc = EXIT_USAGE;
+  }
+  free(line);
+  fclose(f);
+  return rc;
+}
+
+/* Checks one --set KEY=VALUE for form; the command's key list is checked later. */
+static int add_set(gc_opts *o, char *arg) {
+  char *eq = strchr(arg, '=');
+  if (!eq || eq == arg || !eq[1]) return usage_fail("--set", "expected KEY=VALUE, got '%s'", arg);
+  if (o->num_sets >= GC_MAX_SETS) return usage_fail("--set", "at most %d are allowed", GC_MAX_SETS);
+  *eq = '\0'; /* argv strings are writable; the key is used alone from now on */
+  const char *key = arg, *val = eq + 1;
+  for (int i = 0; i < o->num_sets; i++)
+    if (!strcmp(o->sets[i].key, key)) return usage_fail("--set", "'%s' given twice", key);
+  long l;
+  double d;
+  int is_int = 1;
+  if (!strcmp(key, "ao") || !strcmp(key, "half")) {
+    if (strcmp(val, "0") && strcmp(val, "1")) return usage_fail("--set", "%s: expected 0 or 1, got '%s'", key, val);
+  } else if (!strcmp(key, "voxel") || !strcmp(key, "aperture") || !strcmp(key, "step")) {
+    if (parse_doubles(val, &d, 1) || !(d > 0))
+      return usage_fail("--set", "%s: expected a finite number > 0, got '%s'", key, val);
+    is_int = 0;
+  } else if (!strcmp(key, "bounces")) {
+    if (parse_long(val, 0, 1000000, &l)) return usage_fail("--set", "bounces: expected an integer >= 0, got '%s'", val);
+  } else if (!strcmp(key, "levels") || !strcmp(key, "res") || !strcmp(key, "cones") || !strcmp(key, "samples") ||
+             !strcmp(key, "probe_samples") || !strcmp(key, "width") || !strcmp(key, "height") ||
+             !strcmp(key, "seed")) {
+    if (parse_long(val, 1, 9007199254740992L, &l))
+      return usage_fail("--set", "%s: expected an integer >= 1, got '%s'", key, val);
+  } else {
+    return usage_fail("--set", "unknown key '%s' (levels, res, voxel, cones, aperture, step, bounces, samples, "
+                      "probe_samples, seed, ao, half, width, height)", key);
+  }
+  o->sets[o->num_sets++] = (gc_set){key, val, is_int};
+  return 0;
+}
+
+/* Is word in the space-separated list? */
+static int in_list(const char *list, const char *word) {
+  size_t n = strlen(word);
+  for (const char *p = list; (p = strstr(p, word)); p += n)
+    if ((p == list || p[-1] == ' ') && (p[n] == ' ' || !p[n])) return 1;
+  return 0;
+}
+
+/* Runs the query (or, for probes, the knobs) through the server's parser with
+ * config-independent limits. Returns 0 or EXIT_USAGE. */
+static int check_with_proto(const gc_opts *o) {
+  gi_proto_kv kv[GC_MAX_SETS + 4];
+  size_t n = 0;
+  kv[n++] = (gi_proto_kv){"at", o->at_text ? o->at_text : "0,0,0"};
+  if (o->kind) kv[n++] = (gi_proto_kv){"kind", o->kind};
+  if (o->quality) kv[n++] = (gi_proto_kv){"quality", o->quality};
+  if (o->faces) kv[n++] = (gi_proto_kv){"faces", "1"};
+  for (int i = 0; i < o->num_sets; i++) kv[n++] = (gi_proto_kv){o->sets[i].key, o->sets[i].value};
+  gi_proto_limits lim;
+  gi_proto_limits_default(&lim);
+  lim.max_levels = GI_MAX_LEVELS; /* the server's own limits may be lower: it says so */
+  lim.max_res = 256;
+  lim.max_panorama_pixels = 16384LL * 16384;
+  gi_proto_bake b;
+  gi_proto_error e;
+  int rc = o->cmd == GC_CASCADES ? gi_proto_parse_cascades(kv, n, &lim, &b, &e)
+                                 : gi_proto_parse_lighting(kv, n, &lim, &b, &e);
+  if (!rc) return 0;
+  /* Our limits are not the server's: do not call them that. */
+  char *tag = strstr(e.message, " (server limit)");
+  if (tag) memmove(tag, tag + 15, strlen(tag + 15) + 1);
+  return usage_fail(o->num_sets ? "--set" : NULL, "%s", e.message);
+}
+
+/* The output's folder must exist and be writable: fail before a slow bake. */
+static int check_output(const char *path) {
+  if (!*path) return usage_fail("-o", "expected a file name, got ''");
+  char *dir = strdup(path);
+  if (!dir) return EXIT_RUN;
+  char *slash = strrchr(dir, '/');
+  const char *d = ".";
+  if (slash) {
+    if (slash == dir) slash[1] = '\0';
+    else *slash = '\0';
+    d = dir;
+  }
+  int rc = 0;
+  if (access(d, W_OK | X_OK) != 0) {
+    fprintf(stderr, "gi-client: -o: cannot write into '%s' for '%s': %s\n", d, path, strerror(errno));
+    rc = EXIT_RUN;
+  }
+  free(dir);
+  return rc;
+}
+
+int gc_parse(int argc, char **argv, gc_opts *o) {
+  memset(o, 0, sizeof *o);
+  opterr = 0; /* our messages, with our program name */
+  int c, rc, given = 0;
+  const char *server = NULL, *token = NULL, *token_file = NULL;
+  double d;
+  while ((c = getopt_long(argc, argv, ":o:qhV", long_opts, NULL)) != -1) {
+    switch (c) {
+    case 'h':
+      fputs(help_text, stdout);
+      return -1;
+    case 'V':
+      printf("gi-client %s\n", gc_version());
+      return -1;
+    case OPT_SERVER: server = optarg; break;
+    case OPT_TOKEN:
+      if (!token_ok(optarg)) return usage_fail("--token", "expected a token without blanks or control characters");
+      token = optarg;
+      break;
+    case OPT_TOKEN_FILE: token_file = optarg; break;
+    case OPT_TIMEOUT:
+      if (parse_doubles(optarg, &d, 1) || !(d > 0) || d > 1e6)
+        return usage_fail("--timeout", "expected seconds in (0, 1e6], got '%s'", optarg);
+      o->timeout_ms = (long)ceil(d * 1000.0);
+      break;
+    case 'o': o->out = optarg; break;
+    case 'q': o->quiet = 1; break;
+    case OPT_AT:
+      if (gi_proto_parse_vec3(optarg, o->at)) /* the server's grammar: plain finite decimals */
+        return usage_fail("--at", "expected three finite numbers X,Y,Z, got '%s'", optarg);
+      o->have_at = 1;
+      o->at_text = optarg;
+      given |= F_AT;
+      break;
+    case OPT_KIND:
+      if (strcmp(optarg, "probe") && strcmp(optarg, "panorama"))
+        return usage_fail("--kind", "expected probe or panorama, got '%s'", optarg);
+      o->kind = optarg;
+      given |= F_KIND;
+      break;
+    case OPT_QUALITY:
+      if (strcmp(optarg, "low") && strcmp(optarg, "default") && strcmp(optarg, "high"))
+        return usage_fail("--quality", "expected low, default or high, got '%s'", optarg);
+      o->quality = optarg;
+      given |= F_QUALITY;
+      break;
+    case OPT_SET:
+      if ((rc = add_set(o, optarg))) return rc;
+      given |= F_SET;
+      break;
+    case OPT_FACES: o->faces = 1; given |= F_FACES; break;
+    case OPT_HALF: o->half = 1; given |= F_HALF; break;
+    case OPT_AO: o->ao = 1; given |= F_AO; break;
+    case OPT_NO_WAIT: o->no_wait = 1; given |= F_NO_WAIT; break;
+    case OPT_POINTS: o->points_file = optarg; given |= F_POINTS; break;
+    case ':': {
+      const char *name = argv[optind - 1];
+      char shortname[3] = {'-', (char)optopt, 0};
+      if (optopt == 'o') name = shortname;
+      for (const struct option *lo = long_opts; lo->name; lo++)
+        if (lo->val == optopt && optopt >= 256) name = lo->name;
+      return usage_fail(NULL, "option '%s%s' needs a value", optopt >= 256 ? "--" : "", name);
+    }
+    default:
+      if (optopt && optopt < 256) return usage_fail(NULL, "unknown option '-%c'", optopt);
+      return usage_fail(NULL, "unknown option '%s'", argv[optind - 1]);
+    }
+  }
+
+  if (optind >= argc)
+    return usage_fail(NULL, "missing COMMAND (health, scenes, scene, metrics, job, lighting, cascades, probes)");
+  const char *cmd = argv[optind++];
+  int ci = -1;
+  for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+    if (!strcmp(commands[i].name, cmd)) ci = (int)i;
+  if (ci < 0)
+    return usage_fail(NULL, "unknown command '%s' (health, scenes, scene, metrics, job, lighting, cascades, probes)",
+                      cmd);
+  o->cmd = commands[ci].cmd;
+  o->cmd_name = commands[ci].name;
+  if (commands[ci].takes_id) {
+    const char *what = commands[ci].takes_id == 2 ? "JOBID" : "scene ID";
+    if (optind >= argc) return usage_fail(cmd, "missing %s", what);
+    o->id = argv[optind++];
+    if (!*o->id) return usage_fail(cmd, "%s must not be empty", what);
+  }
+  if (optind < argc) return usage_fail(cmd, "unexpected argument '%s'", argv[optind]);
+
+  for (size_t i = 0; i < sizeof flag_names / sizeof flag_names[0]; i++)
+    if ((given & flag_names[i].bit) && !(commands[ci].allowed & flag_names[i].bit))
+      return usage_fail(flag_names[i].name, "does not apply to '%s'", cmd);
+  for (int i = 0; i < o->num_sets; i++)
+    if (!in_list(commands[ci].set_keys, o->sets[i].key))
+      return usage_fail("--set", "'%s' does not apply to '%s' (allowed: %s)", o->sets[i].key, cmd,
+                        commands[ci].set_keys);
+  if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES) && !o->have_at)
+    return usage_fail("--at", "'%s' needs a viewpoint --at X,Y,Z", cmd);
+  if (o->cmd == GC_LIGHTING && (!o->kind || strcmp(o->kind, "panorama")))
+    for (int i = 0; i < o->num_sets; i++)
+      if (!strcmp(o->sets[i].key, "width") || !strcmp(o->sets[i].key, "height"))
+        return usage_fail("--set", "'%s' applies only to --kind panorama", o->sets[i].key);
+  if (o->cmd == GC_PROBES && !o->points_file) return usage_fail("--points", "'probes' needs --points FILE");
+  if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES || o->cmd == GC_PROBES) && (rc = check_with_proto(o)))
+    return rc;
+  if (commands[ci].needs_out && !o->out) return usage_fail("-o", "'%s' downloads a file: give -o OUT", cmd);
+
+  if (token && token_file) return usage_fail("--token-file", "give --token or --token-file, not both");
+  if (!server) {
+    const char *env = getenv("GI_SERVER");
+    if (env && *env) {
+      if (!(o->server = check_server(env)))
+        return usage_fail("GI_SERVER", "expected an http:// or https:// URL, got '%s'", env);
+    } else if (!(o->server = strdup(DEFAULT_SERVER))) {
+      return EXIT_RUN;
+    }
+  } else if (!(o->server = check_server(server))) {
+    return usage_fail("--server", "expected an http:// or https:// URL, got '%s'", server);
+  }
+  if (token_file) {
+    if ((rc = read_token_file(o, token_file))) return rc;
+  } else if (token) {
+    if (!(o->token = strdup(token))) return EXIT_RUN;
+  } else {
+    const char *env = getenv("GI_TOKEN");
+    if (env && *env) {
+      if (!token_ok(env)) return usage_fail("GI_TOKEN", "expected a token without blanks or control characters");
+      if (!(o->token = strdup(env))) return EXIT_RUN;
+    }
+  }
+  if (o->out && (rc = check_output(o->out))) return rc;
+  if (o->points_file && (rc = read_points(o, o->points_file))) return rc;
+  return 0;
+}
+
+void gc_opts_fini(gc_opts *o) {
+  free(o->server);
+  free(o->token);
+  free(o->points);
+  o->server = o->token = NULL;
+  o->points = NULL;
+}
+
+const char *gc_version(void) {
+#ifndef GI_VERSION
+#define GI_VERSION "0.0.0"
+#endif
+#ifndef GI_GIT_REV
+#define GI_GIT_REV "unknown"
+#endif
+  return GI_VERSION " (" GI_GIT_REV ")";
+}

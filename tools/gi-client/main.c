@@ -1,0 +1,568 @@
+/* gi-client: a thin command-line client for gi-server's HTTP API.
+ *
+ * Design: one libcurl easy handle, reused, so polls and the final download
+ * share a connection. Each request decides where the body goes once the
+ * status line is in: a 2xx answer streams into the output (stdout, or
+ * OUT.tmp.<pid> that is renamed onto OUT only after the whole body arrived
+ * and was flushed), anything else is kept in memory (capped) so the JSON
+ * error {code, name, message} can be printed. A 202 from POST probes is
+ * kept in memory too: it is the job to poll. Error bodies and job status are
+ * decoded by the contract's own code (proto/answer.c). Nothing here knows
+ * the server's limits; its 400 messages name the field. */
+#define _POSIX_C_SOURCE 200809L
+#include <curl/curl.h>
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <time.h>
+#include <unistd.h>
+#include "client.h"
+#include "gi_proto.h"
+
+#define MAX_MEM_BODY (1 << 20) /* error and job bodies are small; refuse a runaway one */
+#define POLL_MS 500
+
+enum { MEM_NONE = 0, MEM_202 = 1, MEM_ALL = 2 }; /* 202: a job to poll; ALL: a poll answer */
+
+/* --- output file: temp name, renamed on success ------------------------------ */
+
+/* The temp path, for the signal handler: Ctrl-C during a download must not
+ * leave OUT.tmp.<pid> behind. */
+static char g_tmp_path[4200];
+static volatile sig_atomic_t g_tmp_live;
+
+static void on_signal(int sig) {
+  if (g_tmp_live) unlink(g_tmp_path);
+  signal(sig, SIG_DFL);
+  raise(sig);
+}
+
+/* --- one request --------------------------------------------------------------- */
+
+typedef struct buf {
+  char *p;
+  size_t n, cap;
+} buf;
+
+static int buf_add(buf *b, const void *d, size_t n) {
+  if (b->n + n + 1 > b->cap) {
+    size_t nc = b->cap ? b->cap : 4096;
+    while (nc < b->n + n + 1) nc *= 2;
+    char *np = realloc(b->p, nc);
+    if (!np) return -1;
+    b->p = np;
+    b->cap = nc;
+  }
+  memcpy(b->p + b->n, d, n);
+  b->n += n;
+  b->p[b->n] = '\0';
+  return 0;
+}
+
+typedef struct answer {
+  CURL *curl;
+  const char *out;      /* file name, or NULL for stdout (text commands) */
+  int mem_mode;         /* MEM_*: which 2xx bodies stay in memory instead of the sink */
+  int decided;          /* 1 once the first body byte chose a sink */
+  FILE *fp;             /* the 2xx sink */
+  int fp_is_tmp;
+  long status;
+  size_t bytes;
+  int last_nl;          /* the body so far ends with '\n' */
+  buf mem;              /* non-2xx (or 202) body */
+  int write_failed;     /* errno of a failed write, or -1 (too big), 0 = fine */
+  char timing[1024], cache[64], retry_after[64], location[512];
+} answer;
+
+static void copy_header(char *dst, size_t cap, const char *v, size_t n) {
+  while (n && (v[n - 1] == '\r' || v[n - 1] == '\n' || v[n - 1] == ' ')) n--;
+  while (n && (*v == ' ' || *v == '\t')) v++, n--;
+  if (n >= cap) n = cap - 1;
+  memcpy(dst, v, n);
+  dst[n] = '\0';
+}
+
+static size_t on_header(char *p, size_t size, size_t nmemb, void *ud) {
+  answer *a = ud;
+  size_t n = size * nmemb;
+  /* A new status line (after "100 Continue", say) starts a new header set. */
+  if (n >= 5 && !strncmp(p, "HTTP/", 5)) {
+    a->timing[0] = a->cache[0] = a->retry_after[0] = a->location[0] = '\0';
+    return n;
+  }
+  const char *colon = memchr(p, ':', n);
+  if (!colon) return n;
+  size_t kn = (size_t)(colon - p), vn = n - kn - 1;
+#define HDR(name, dst)                                                          \
+  if (kn == sizeof(name) - 1 && !strncasecmp(p, name, kn)) copy_header(dst, sizeof dst, colon + 1, vn)
+  HDR("Server-Timing", a->timing);
+  HDR("X-GI-Cache", a->cache);
+  HDR("Retry-After", a->retry_after);
+  HDR("Location", a->location);
+#undef HDR
+  return n;
+}
+
+static int open_sink(answer *a) {
+  if (!a->out) {
+    a->fp = stdout;
+    return 0;
+  }
+  snprintf(g_tmp_path, sizeof g_tmp_path, "%s.tmp.%ld", a->out, (long)getpid());
+  g_tmp_live = 1;
+  a->fp = fopen(g_tmp_path, "wb");
+  if (!a->fp) {
+    g_tmp_live = 0;
+    a->write_failed = errno ? errno : EIO;
+    return -1;
+  }
+  a->fp_is_tmp = 1;
+  return 0;
+}
+
+static size_t on_body(char *p, size_t size, size_t nmemb, void *ud) {
+  answer *a = ud;
+  size_t n = size * nmemb;
+  if (!a->decided) {
+    curl_easy_getinfo(a->curl, CURLINFO_RESPONSE_CODE, &a->status);
+    a->decided = 1;
+    int ok2xx = a->status >= 200 && a->status < 300 && a->mem_mode != MEM_ALL &&
+                !(a->status == 202 && a->mem_mode == MEM_202);
+    if (ok2xx && open_sink(a)) return 0; /* aborts the transfer: reported below */
+  }
+  if (a->fp) {
+    if (fwrite(p, 1, n, a->fp) != n) {
+      a->write_failed = errno ? errno : EIO;
+      return 0;
+    }
+  } else {
+    if (a->mem.n + n > MAX_MEM_BODY || buf_add(&a->mem, p, n)) {
+      a->write_failed = -1;
+      return 0;
+    }
+  }
+  a->bytes += n;
+  if (n) a->last_nl = p[n - 1] == '\n';
+  return n;
+}
+
+static void drop_tmp(answer *a) {
+  if (a->fp && a->fp_is_tmp) {
+    fclose(a->fp);
+    unlink(g_tmp_path);
+    g_tmp_live = 0;
+  }
+  a->fp = NULL;
+}
+
+/* Prints "gi-client: HTTP <status> <name>: <message>" from a JSON error body,
+ * or the start of a non-JSON body (a proxy's HTML page, say). */
+static void print_http_error(const answer *a) {
+  gi_proto_error e;
+  if (a->mem.n && !gi_proto_error_parse(a->mem.p, a->mem.n, &e)) {
+    fprintf(stderr, "gi-client: HTTP %ld %s: %s", a->status, e.name, e.message);
+  } else {
+    int n = 0;
+    while (n < 200 && n < (int)a->mem.n && a->mem.p[n] != '\n' && a->mem.p[n] != '\r') n++;
+    fprintf(stderr, "gi-client: HTTP %ld: %s%.*s", a->status, n ? "" : "(no error body)", n, a->mem.p ? a->mem.p : "");
+  }
+  if (a->retry_after[0]) fprintf(stderr, " (Retry-After: %s s)", a->retry_after);
+  fputc('\n', stderr);
+}
+
+/* Runs one request. On success (2xx) returns 0 with the body in the sink
+ * (committed to OUT for downloads) or, for a 202 kept in memory, in a->mem.
+ * On failure prints why and returns EXIT_RUN. The caller frees a->mem.p. */
+static int run_request(const gc_opts *o, CURL *c, const char *method, const char *url, const char *body,
+                       size_t body_len, const char *out, int mem_mode, answer *a) {
+  memset(a, 0, sizeof *a);
+  a->curl = c;
+  a->out = out;
+  a->mem_mode = mem_mode;
+  char err[CURL_ERROR_SIZE] = "";
+  struct curl_slist *hdrs = NULL;
+  char auth[4200];
+  if (o->token) {
+    snprintf(auth, sizeof auth, "Authorization: Bearer %s", o->token);
+    hdrs = curl_slist_append(hdrs, auth);
+  }
+  if (body) {
+    hdrs = curl_slist_append(hdrs, "Content-Type: application/json");
+    hdrs = curl_slist_append(hdrs, "Expect:"); /* no 100-continue round trip */
+  }
+  curl_easy_reset(c);
+  curl_easy_setopt(c, CURLOPT_URL, url);
+  curl_easy_setopt(c, CURLOPT_ERRORBUFFER, err);
+  curl_easy_setopt(c, CURLOPT_HTTPHEADER, hdrs);
+  curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_header);
+  curl_easy_setopt(c, CURLOPT_HEADERDATA, a);
+  curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
+  curl_easy_setopt(c, CURLOPT_WRITEDATA, a);
+  curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
+  curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT_MS, 10000L);
+  curl_easy_setopt(c, CURLOPT_USERAGENT, "gi-client/" GI_VERSION);
+  if (o->timeout_ms) curl_easy_setopt(c, CURLOPT_TIMEOUT_MS, o->timeout_ms);
+  if (body) {
+    curl_easy_setopt(c, CURLOPT_POSTFIELDS, body);
+    curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE_LARGE, (curl_off_t)body_len);
+  }
+  (void)method; /* GET unless there is a body (POST): curl follows from POSTFIELDS */
+  CURLcode cr = curl_easy_perform(c);
+  curl_slist_free_all(hdrs);
+  curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &a->status);
+
+  if (!o->quiet) {
+    if (a->timing[0]) fprintf(stderr, "Server-Timing: %s\n", a->timing);
+    if (a->cache[0]) fprintf(stderr, "X-GI-Cache: %s\n", a->cache);
+  }
+  if (a->write_failed) {
+    if (a->write_failed == -1)
+      fprintf(stderr, "gi-client: %s %s: answer (HTTP %ld) longer than %d bytes\n", method, url, a->status,
+              MAX_MEM_BODY);
+    else
+      fprintf(stderr, "gi-client: %s: cannot write '%s': %s\n", url, out ? g_tmp_path : "stdout",
+              strerror(a->write_failed));
+    drop_tmp(a);
+    return EXIT_RUN;
+  }
+  if (cr != CURLE_OK) {
+    fprintf(stderr, "gi-client: %s %s: %s\n", method, url, err[0] ? err : curl_easy_strerror(cr));
+    drop_tmp(a);
+    return EXIT_RUN;
+  }
+  if (a->status < 200 || a->status >= 300) {
+    print_http_error(a);
+    drop_tmp(a);
+    return EXIT_RUN;
+  }
+  if (mem_mode == MEM_ALL || (a->status == 202 && mem_mode == MEM_202)) return 0;
+  if (!a->decided && open_sink(a)) { /* an empty 2xx body: still an (empty) answer */
+    fprintf(stderr, "gi-client: cannot write '%s': %s\n", g_tmp_path, strerror(a->write_failed));
+    return EXIT_RUN;
+  }
+  if (!a->fp_is_tmp) {
+    /* The server's JSON has no final newline; a terminal or a pipe reads better with one.
+     * Files (-o) keep the exact bytes. */
+    if (a->bytes && !a->last_nl) fputc('\n', a->fp);
+    if (fflush(a->fp)) {
+      fprintf(stderr, "gi-client: cannot write stdout: %s\n", strerror(errno));
+      return EXIT_RUN;
+    }
+    return 0;
+  }
+  /* Flushed and synced before the rename: OUT is either the old file or the whole new one. */
+  int bad = fflush(a->fp) != 0 || fsync(fileno(a->fp)) != 0;
+  int e = errno;
+  bad |= fclose(a->fp) != 0;
+  a->fp = NULL;
+  if (bad || rename(g_tmp_path, out) != 0) {
+    if (!bad) e = errno;
+    fprintf(stderr, "gi-client: cannot write '%s': %s\n", out, strerror(e));
+    unlink(g_tmp_path);
+    g_tmp_live = 0;
+    return EXIT_RUN;
+  }
+  g_tmp_live = 0;
+  if (!o->quiet) fprintf(stderr, "gi-client: wrote %s (%zu bytes)\n", out, a->bytes);
+  return 0;
+}
+
+/* --- URLs and bodies --------------------------------------------------------- */
+
+/* Shortest "%.*g" that reads back as the same double (finite input only). */
+static void fmt_double(char *dst, size_t cap, double v) {
+  for (int prec = 6; prec <= 17; prec++) {
+    snprintf(dst, cap, "%.*g", prec, v);
+    if (strtod(dst, NULL) == v) return;
+  }
+}
+
+/* Appends s percent-encoded for a query value; commas stay readable. */
+static int add_query_value(buf *b, const char *s) {
+  for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+    char t[4];
+    int keep = (*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z') || (*p >= '0' && *p <= '9') || *p == '-' ||
+               *p == '.' || *p == '_' || *p == '~' || *p == ',';
+    if (keep) t[0] = (char)*p, t[1] = 0;
+    else snprintf(t, sizeof t, "%%%02X", *p);
+    if (buf_add(b, t, strlen(t))) return -1;
+  }
+  return 0;
+}
+
+static int add_param(buf *b, int *first, const char *key, const char *value) {
+  int rc = buf_add(b, *first ? "?" : "&", 1) || buf_add(b, key, strlen(key)) || buf_add(b, "=", 1) ||
+           add_query_value(b, value);
+  *first = 0;
+  return rc ? -1 : 0;
+}
+
+static void fmt_at(char *dst, size_t cap, const double at[3]) {
+  char x[32], y[32], z[32];
+  fmt_double(x, sizeof x, at[0]);
+  fmt_double(y, sizeof y, at[1]);
+  fmt_double(z, sizeof z, at[2]);
+  snprintf(dst, cap, "%s,%s,%s", x, y, z);
+}
+
+/* server + prefix + escaped id + suffix, then the command's query. */
+static char *build_url(const gc_opts *o, CURL *c, const char *prefix, const char *id, const char *suffix) {
+  buf b = {0};
+  int first = 1, fail = buf_add(&b, o->server, strlen(o->server)) || buf_add(&b, prefix, strlen(prefix));
+  if (id && !fail) {
+    char *e = curl_easy_escape(c, id, 0); /* ids go in a path segment: '/' and '?' must not */
+    fail = !e || buf_add(&b, e, strlen(e));
+    curl_free(e);
+  }
+  if (suffix && !fail) fail = buf_add(&b, suffix, strlen(suffix));
+  if (!fail && (o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES)) {
+    char at[100];
+    fmt_at(at, sizeof at, o->at);
+    fail |= add_param(&b, &first, "at", at);
+    if (o->kind) fail |= add_param(&b, &first, "kind", o->kind);
+    if (o->quality) fail |= add_param(&b, &first, "quality", o->quality);
+    if (o->faces) fail |= add_param(&b, &first, "faces", "1");
+    for (int i = 0; i < o->num_sets; i++) fail |= add_param(&b, &first, o->sets[i].key, o->sets[i].value);
+  }
+  if (fail) {
+    free(b.p);
+    fputs("gi-client: out of memory\n", stderr);
+    return NULL;
+  }
+  return b.p;
+}
+
+/* The POST probes body: {"points":[[x,y,z],..],"at":[..],"quality":..,"half":..,"ao":..}.
+ * Written by hand: a million points as jansson objects would cost ~150 MB. */
+static char *probes_body(const gc_opts *o, size_t *len) {
+  buf b = {0};
+  char n[100];
+  int fail = buf_add(&b, "{\"points\":[", 11);
+  for (size_t i = 0; i < o->num_points && !fail; i++) {
+    char x[32], y[32], z[32];
+    fmt_double(x, sizeof x, o->points[3 * i]);
+    fmt_double(y, sizeof y, o->points[3 * i + 1]);
+    fmt_double(z, sizeof z, o->points[3 * i + 2]);
+    int k = snprintf(n, sizeof n, "%s[%s,%s,%s]", i ? "," : "", x, y, z);
+    fail = buf_add(&b, n, (size_t)k);
+  }
+  fail |= buf_add(&b, "]", 1);
+  if (o->have_at) {
+    char at[100];
+    fmt_at(at, sizeof at, o->at);
+    int k = snprintf(n, sizeof n, ",\"at\":[%s]", at);
+    fail |= buf_add(&b, n, (size_t)k);
+  }
+  if (o->quality && !o->num_sets) {
+    int k = snprintf(n, sizeof n, ",\"quality\":\"%s\"", o->quality);
+    fail |= buf_add(&b, n, (size_t)k);
+  } else if (o->num_sets) {
+    /* Knobs as an object; a preset goes in first as "preset" (the knobs override it). */
+    fail |= buf_add(&b, ",\"quality\":{", 12);
+    if (o->quality) {
+      int k = snprintf(n, sizeof n, "\"preset\":\"%s\"%s", o->quality, ",");
+      fail |= buf_add(&b, n, (size_t)k);
+    }
+    for (int i = 0; i < o->num_sets; i++) {
+      /* Keys and values were checked by args.c: plain words and numbers. */
+      double v = strtod(o->sets[i].value, NULL);
+      char num[32];
+      if (o->sets[i].is_int) snprintf(num, sizeof num, "%lld", strtoll(o->sets[i].value, NULL, 10));
+      else fmt_double(num, sizeof num, v);
+      int k = snprintf(n, sizeof n, "%s\"%s\":%s", i ? "," : "", o->sets[i].key, num);
+      fail |= buf_add(&b, n, (size_t)k);
+    }
+    fail |= buf_add(&b, "}", 1);
+  }
+  if (o->half) fail |= buf_add(&b, ",\"half\":true", 12);
+  if (o->ao) fail |= buf_add(&b, ",\"ao\":true", 10);
+  fail |= buf_add(&b, "}", 1);
+  if (fail) {
+    free(b.p);
+    fputs("gi-client: out of memory building the request body\n", stderr);
+    return NULL;
+  }
+  *len = b.n;
+  return b.p;
+}
+
+/* --- jobs ---------------------------------------------------------------------- */
+
+static double now_s(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void sleep_ms(long ms) {
+  struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+  while (nanosleep(&ts, &ts) && errno == EINTR) {}
+}
+
+/* Progress on stderr: a bar redrawn in place on a terminal, else one line
+ * each time another 10% is done (logs stay short). */
+typedef struct progress {
+  int tty, quiet, last_decile, drawn;
+} progress;
+
+static void progress_show(progress *p, const char *id, const char *state, double frac, long long done,
+                          long long total, double elapsed) {
+  if (p->quiet) return;
+  if (!(frac >= 0)) frac = 0; /* NaN too */
+  if (frac > 1) frac = 1;
+  if (p->tty) {
+    char bar[31];
+    int fill = (int)(frac * 30 + 0.5);
+    for (int i = 0; i < 30; i++) bar[i] = i < fill ? '#' : '-';
+    bar[30] = '\0';
+    fprintf(stderr, "\rjob %s [%s] %5.1f%%  %lld/%lld probes  %-7s %6.1f s ", id, bar, 100 * frac, (long long)done,
+            (long long)total, state, elapsed);
+    p->drawn = 1;
+  } else {
+    int dec = (int)(frac * 10 + 1e-9);
+    if (dec > p->last_decile) {
+      fprintf(stderr, "gi-client: job %s: %d%% (%lld/%lld probes, %.1f s)\n", id, dec * 10, (long long)done,
+              (long long)total, elapsed);
+      p->last_decile = dec;
+    }
+  }
+  fflush(stderr);
+}
+
+static void progress_end(progress *p) {
+  if (p->drawn) fputc('\n', stderr);
+  p->drawn = 0;
+}
+
+/* Polls GET /v1/jobs/{id} until done or failed, then downloads the result. */
+static int wait_job(const gc_opts *o, CURL *c, const char *id) {
+  char *url = build_url(o, c, "/v1/jobs/", id, NULL);
+  char *result_url = build_url(o, c, "/v1/jobs/", id, "/result");
+  int rc = EXIT_RUN;
+  progress pg = {isatty(STDERR_FILENO), o->quiet, 0, 0};
+  double t0 = now_s();
+  if (!url || !result_url) goto done;
+  if (!o->quiet) fprintf(stderr, "gi-client: job %s: waiting (%s)\n", id, url);
+  for (;;) {
+    answer a;
+    gc_opts q = *o;
+    q.quiet = 1; /* no header lines for every poll */
+    if (run_request(&q, c, "GET", url, NULL, 0, NULL, MEM_ALL, &a)) {
+      progress_end(&pg);
+      free(a.mem.p);
+      goto done;
+    }
+    gi_proto_job j;
+    int bad = gi_proto_job_parse(a.mem.p ? a.mem.p : "", a.mem.n, &j);
+    free(a.mem.p);
+    if (bad) {
+      progress_end(&pg);
+      fprintf(stderr, "gi-client: GET %s: expected a job status (id, state, probes, probes_done, ...)\n", url);
+      goto done;
+    }
+    const char *state = gi_proto_job_state_name(j.state);
+    double frac = j.probes ? (double)j.probes_done / (double)j.probes : 0;
+    if (j.state == GI_JOB_FAILED) {
+      progress_end(&pg);
+      fprintf(stderr, "gi-client: job %s failed: %s: %s\n", id, j.error.name, j.error.message);
+      goto done;
+    }
+    progress_show(&pg, id, state, frac, (long long)j.probes_done, (long long)j.probes, now_s() - t0);
+    if (j.state == GI_JOB_DONE) {
+      progress_end(&pg);
+      break;
+    }
+    sleep_ms(POLL_MS);
+  }
+  answer a;
+  rc = run_request(o, c, "GET", result_url, NULL, 0, o->out, MEM_NONE, &a);
+  free(a.mem.p);
+done:
+  free(url);
+  free(result_url);
+  return rc;
+}
+
+/* --- commands ------------------------------------------------------------------ */
+
+static int run(const gc_opts *o, CURL *c) {
+  answer a;
+  char *url = NULL, *body = NULL;
+  int rc = EXIT_RUN;
+  switch (o->cmd) {
+  case GC_HEALTH: url = build_url(o, c, "/v1/health", NULL, NULL); break;
+  case GC_SCENES: url = build_url(o, c, "/v1/scenes", NULL, NULL); break;
+  case GC_SCENE: url = build_url(o, c, "/v1/scenes/", o->id, NULL); break;
+  case GC_METRICS: url = build_url(o, c, "/metrics", NULL, NULL); break;
+  case GC_JOB: url = build_url(o, c, "/v1/jobs/", o->id, NULL); break;
+  case GC_LIGHTING: url = build_url(o, c, "/v1/scenes/", o->id, "/lighting"); break;
+  case GC_CASCADES: url = build_url(o, c, "/v1/scenes/", o->id, "/cascades.vdb"); break;
+  case GC_PROBES: url = build_url(o, c, "/v1/scenes/", o->id, "/probes"); break;
+  }
+  if (!url) return EXIT_RUN;
+  if (o->cmd != GC_PROBES) {
+    rc = run_request(o, c, "GET", url, NULL, 0, o->out, MEM_NONE, &a);
+    free(a.mem.p);
+    free(url);
+    return rc;
+  }
+  size_t len = 0;
+  if (!(body = probes_body(o, &len))) goto out;
+  if ((rc = run_request(o, c, "POST", url, body, len, o->out, MEM_202, &a))) goto out_a;
+  if (a.status != 202) goto out_a; /* 200: the EXR is already in place */
+  rc = EXIT_RUN;
+  json_error_t je;
+  json_t *j = json_loadb(a.mem.p ? a.mem.p : "", a.mem.n, 0, &je);
+  const char *job = j ? json_string_value(json_object_get(j, "job")) : NULL;
+  if (!job || !*job) {
+    fprintf(stderr, "gi-client: POST %s: a 202 answer without a \"job\" id\n", url);
+  } else if (o->no_wait) {
+    fwrite(a.mem.p, 1, a.mem.n, stdout);
+    if (a.mem.n && a.mem.p[a.mem.n - 1] != '\n') putchar('\n');
+    rc = fflush(stdout) ? EXIT_RUN : 0;
+  } else {
+    json_int_t n = json_integer_value(json_object_get(j, "probes"));
+    if (!o->quiet) fprintf(stderr, "gi-client: %lld probes became job %s\n", (long long)n, job);
+    rc = wait_job(o, c, job);
+  }
+  json_decref(j);
+out_a:
+  free(a.mem.p);
+out:
+  free(body);
+  free(url);
+  return rc;
+}
+
+int main(int argc, char **argv) {
+  gc_opts o;
+  int rc = gc_parse(argc, argv, &o);
+  if (rc) {
+    gc_opts_fini(&o);
+    return rc < 0 ? 0 : rc;
+  }
+  signal(SIGINT, on_signal);
+  signal(SIGTERM, on_signal);
+  signal(SIGPIPE, SIG_IGN); /* a closed stdout is a write error, reported */
+  if (curl_global_init(CURL_GLOBAL_DEFAULT)) {
+    fputs("gi-client: cannot initialise libcurl\n", stderr);
+    gc_opts_fini(&o);
+    return EXIT_RUN;
+  }
+  CURL *c = curl_easy_init();
+  if (!c) {
+    fputs("gi-client: cannot initialise libcurl\n", stderr);
+    rc = EXIT_RUN;
+  } else {
+    rc = run(&o, c);
+    curl_easy_cleanup(c);
+  }
+  curl_global_cleanup();
+  gc_opts_fini(&o);
+  return rc;
+}
