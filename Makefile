@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure run test bench clean
+.PHONY: all deps configure run test bench accuracy clean
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -25,6 +25,14 @@ test: all
 # Benchmarks print figures; they never decide pass or fail.
 bench: all
 	./tests/bench/run-bench.sh $(BUILD)
+
+# The accuracy/time report: sweeps every quality knob and the path tracer
+# against a path-traced reference (cached in out/accuracy) and regenerates
+# docs/accuracy.md, docs/accuracy.png and docs/accuracy.csv. Several minutes.
+accuracy: all
+	@mkdir -p out/accuracy docs
+	$(BUILD)/bin/gi-accuracy --out out/accuracy --md docs/accuracy.md --png docs/accuracy.png
+	cp out/accuracy/accuracy.csv docs/accuracy.csv.tmp && mv docs/accuracy.csv.tmp docs/accuracy.csv
 
 clean:
 	rm -rf $(BUILD) out
