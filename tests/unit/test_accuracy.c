@@ -105,10 +105,12 @@ static void test_cone_error_falls(void **state) {
   assert_true(ml[ACC_INDIRECT].mre > md[ACC_INDIRECT].mre);
   assert_true(md[ACC_INDIRECT].mre > mh[ACC_INDIRECT].mre);
   assert_true(ml[ACC_TOTAL].rel_mse > md[ACC_TOTAL].rel_mse && md[ACC_TOTAL].rel_mse > mh[ACC_TOTAL].rel_mse);
-  /* Default-quality bounds. Measured: indirect MRE 26.7%, total 5.5%
-   * (against the 10% ambition for indirect: not met, see docs/accuracy.md). */
-  assert_true(md[ACC_INDIRECT].mre < 0.30);
-  assert_true(md[ACC_TOTAL].mre < 0.07);
+  /* Default-quality bounds (3 bounces from the albedo rule). Measured:
+   * indirect MRE 18.4%, total 3.7% (the ambition is 10% on indirect: not
+   * met, see docs/accuracy.md); high quality measured 9.2% indirect. */
+  assert_true(md[ACC_INDIRECT].mre < 0.21);
+  assert_true(md[ACC_TOTAL].mre < 0.045);
+  assert_true(mh[ACC_INDIRECT].mre < 0.11);
   /* The direct part is Monte Carlo at the probe in both: 256 probe samples
    * against the reference's 16384. Measured 1.2%. */
   assert_true(md[ACC_DIRECT].mre < 0.03);

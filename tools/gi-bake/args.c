@@ -26,7 +26,7 @@ enum {
   OPT_AT = 256, OPT_UP, OPT_LEVELS, OPT_RES, OPT_VOXEL, OPT_CONES, OPT_BOUNCES, OPT_SAMPLES,
   OPT_PROBE_SAMPLES, OPT_THREADS, OPT_EXR, OPT_HALF, OPT_VDB, OPT_VDB_FACES, OPT_JSON, OPT_PROBES,
   OPT_SUN, OPT_SKY, OPT_POINT, OPT_SPOT, OPT_NO_DEFAULT_LIGHTS, OPT_AO, OPT_CITY_EXTENT, OPT_CITY_SEED,
-  OPT_CITY_DETAIL
+  OPT_CITY_DETAIL, OPT_EFFECT
 };
 
 static const struct option long_opts[] = {
@@ -52,6 +52,7 @@ static const struct option long_opts[] = {
     {"spot", required_argument, NULL, OPT_SPOT},
     {"no-default-lights", no_argument, NULL, OPT_NO_DEFAULT_LIGHTS},
     {"ao", no_argument, NULL, OPT_AO},
+    {"effect", required_argument, NULL, OPT_EFFECT},
     {"city-extent", required_argument, NULL, OPT_CITY_EXTENT},
     {"city-seed", required_argument, NULL, OPT_CITY_SEED},
     {"city-detail", required_argument, NULL, OPT_CITY_DETAIL},
@@ -78,10 +79,14 @@ static const char help_text[] =
     "  --voxel S0            finest voxel size, world units (default: coarsest level\n"
     "                        spans the scene)\n"
     "  --cones N             diffuse cones per hemisphere: 4, 6, 8, 16, 32 (16)\n"
-    "  --bounces N           voxel-to-voxel bounces, 0..8, 0 = none (2)\n"
+    "  --bounces N           voxel-to-voxel bounces, 0..8, 0 = none (default: from\n"
+    "                        the albedo in range, 1..3; the effect plan says why)\n"
     "  --samples N           shadow rays per voxel for sky/area lights, 1..512 (16)\n"
     "  --probe-samples N     shadow rays per probe for sky/area lights, 1..8192 (256)\n"
     "  --ao                  also compute ambient occlusion at the probes (off)\n"
+    "  --effect NAME=on|off|auto  override the effect plan for one effect; NAME is\n"
+    "                        sun, local_lights, sky, emissive, bounce, specular or ao\n"
+    "                        (repeatable; default auto: decided from the scene)\n"
     "  --threads N           worker threads, 0 = all cores (0)\n"
     "\n"
     "Lights (added to the scene's own; repeatable, at most 64)\n"
@@ -402,6 +407,24 @@ int cli_parse(int argc, char **argv, cli_opts *o) {
       break;
     case OPT_NO_DEFAULT_LIGHTS: o->no_default_lights = 1; break;
     case OPT_AO: o->q.ao = 1; break;
+    case OPT_EFFECT: {
+      const char *eq = strchr(optarg, '=');
+      char name[32];
+      size_t len = eq ? (size_t)(eq - optarg) : 0;
+      if (!eq || len == 0 || len >= sizeof name)
+        return usage_fail("--effect", "expected NAME=on|off|auto, got '%s'", optarg);
+      memcpy(name, optarg, len);
+      name[len] = '\0';
+      int id = gi_effect_from_name(name);
+      if (id < 0)
+        return usage_fail("--effect", "unknown effect '%s' (sun, local_lights, sky, emissive, bounce, specular, ao)",
+                          name);
+      if (!strcmp(eq + 1, "on")) o->q.effects[id] = GI_FX_ON;
+      else if (!strcmp(eq + 1, "off")) o->q.effects[id] = GI_FX_OFF;
+      else if (!strcmp(eq + 1, "auto")) o->q.effects[id] = GI_FX_AUTO;
+      else return usage_fail("--effect", "expected on, off or auto after '%s=', got '%s'", name, eq + 1);
+      break;
+    }
     case OPT_CITY_EXTENT:
       if (parse_doubles(optarg, d, 1) || !(d[0] > 0) || d[0] > 20000)
         return usage_fail("--city-extent", "expected metres in (0, 20000], got '%s'", optarg);
