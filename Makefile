@@ -31,7 +31,8 @@ bench: all
 # docs/accuracy.md, docs/accuracy.png and docs/accuracy.csv. Several minutes.
 accuracy: all
 	@mkdir -p out/accuracy docs
-	$(BUILD)/bin/gi-accuracy --out out/accuracy --md docs/accuracy.md --png docs/accuracy.png
+	$(BUILD)/bin/gi-accuracy --out out/accuracy --md docs/accuracy.md --png docs/accuracy.png \
+	    --notes docs/accuracy-notes.md
 	cp out/accuracy/accuracy.csv docs/accuracy.csv.tmp && mv docs/accuracy.csv.tmp docs/accuracy.csv
 
 clean:

@@ -30,8 +30,10 @@ typedef struct acc_scene_info {
 } acc_scene_info;
 
 /* report.c: writes out_dir/accuracy.csv, accuracy.gp (+ accuracy.png via
- * gnuplot when present) and the markdown report md_path. Returns 0 on success. */
+ * gnuplot when present) and the markdown report md_path, with the
+ * hand-written notes file (may be NULL) after the method. Returns 0 on success. */
 int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const char *out_dir,
-                      const char *md_path, const char *png_path, const char *machine, const char *cmdline);
+                      const char *md_path, const char *png_path, const char *machine, const char *cmdline,
+                      const char *notes);
 
 #endif

@@ -24,7 +24,7 @@
 static int g_repeat = 2; /* runs per configuration; the fastest counts */
 
 typedef struct opts {
-  const char *scenes_dir, *out_dir, *md, *png;
+  const char *scenes_dir, *out_dir, *md, *png, *notes;
   char scenes[3][16];
   int num_scenes;
   int ref_samples, pt_max, threads;
@@ -34,12 +34,13 @@ typedef struct opts {
 static void usage(FILE *f) {
   fprintf(f,
           "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
-          "                   [--ref-samples N] [--pt-max N] [--threads N] [--repeat N] [--quick]\n"
+          "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N] [--quick]\n"
           "  --scenes LIST      comma-separated: cornell, munich, city (default all three)\n"
           "  --scenes-dir DIR   the shared scenes (default %s)\n"
           "  --out DIR          CSV, plot script and reference cache (default out/accuracy)\n"
           "  --md FILE          the markdown report (default OUT/accuracy.md)\n"
           "  --png FILE         the plot (default OUT/accuracy.png; needs gnuplot)\n"
+          "  --notes FILE       hand-written markdown to put after the method in the report\n"
           "  --ref-samples N    reference paths per probe (default 65536)\n"
           "  --pt-max N         largest path-tracer sample count in the sweep, a power of 4 (default 4096)\n"
           "  --threads N        threads for bakes and path tracing (default: all cores)\n"
@@ -60,6 +61,14 @@ static int parse_int(const char *name, const char *s, int lo, int hi, int *out) 
   return 1;
 }
 
+static int takes_value(const char *a) {
+  static const char *const v[] = {"--scenes", "--scenes-dir", "--out", "--md", "--png", "--notes",
+                                   "--ref-samples", "--pt-max", "--threads", "--repeat"};
+  for (size_t i = 0; i < sizeof v / sizeof v[0]; i++)
+    if (!strcmp(a, v[i])) return 1;
+  return 0;
+}
+
 static int parse_args(int argc, char **argv, opts *o) {
   memset(o, 0, sizeof *o);
   o->scenes_dir = GI_SCENES_DIR;
@@ -75,7 +84,7 @@ static int parse_args(int argc, char **argv, opts *o) {
       return -1;
     } else if (!strcmp(a, "--quick")) {
       o->quick = 1;
-    } else if (!has && a[0] == '-' && a[1] == '-') {
+    } else if (!has && takes_value(a)) {
       fprintf(stderr, "gi-accuracy: %s needs a value\n", a);
       return 2;
     } else if (!strcmp(a, "--scenes")) list = argv[++i];
@@ -83,6 +92,7 @@ static int parse_args(int argc, char **argv, opts *o) {
     else if (!strcmp(a, "--out")) o->out_dir = argv[++i];
     else if (!strcmp(a, "--md")) o->md = argv[++i];
     else if (!strcmp(a, "--png")) o->png = argv[++i];
+    else if (!strcmp(a, "--notes")) o->notes = argv[++i];
     else if (!strcmp(a, "--ref-samples")) {
       if (!parse_int("--ref-samples", argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
     } else if (!strcmp(a, "--pt-max")) {
@@ -344,7 +354,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   gi_cascade_free(c);
   int ok = run_cone(name, ss, ref, &q0, "default", 0, 1, out);
   static const int res_full[] = {16, 24, 48, 64}, res_quick[] = {16, 48};
-  static const int lev[] = {4, 5, 7}, cones[] = {4, 6, 32}, bnc[] = {-1, 1, 3};
+  static const int lev[] = {4, 5, 7}, cones[] = {4, 6, 32}, bnc[] = {-1, 1, 2, 3};
   static const double vx[] = {0.5, 2.0};
   static const float steps[] = {0.25f, 1.0f}, aps[] = {0.6f, 1.5f};
   const int *res = o->quick ? res_quick : res_full;
@@ -381,7 +391,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
     q.step = steps[i];
     ok = run_cone(name, ss, ref, &q, "step", steps[i], 0, out);
   }
-  for (int i = 0; ok && i < 3; i++) {
+  for (int i = 0; ok && i < 4; i++) {
     gi_quality q = q0;
     q.bounces = bnc[i];
     ok = run_cone(name, ss, ref, &q, "bounces", bnc[i] < 0 ? 0 : bnc[i], 0, out);
@@ -486,7 +496,7 @@ int main(int argc, char **argv) {
       for (size_t k = i; k < j; k++) out.v[k].on_front = front[k - i];
       i = j;
     }
-    if (acc_write_reports(out.v, out.n, info, ninfo, o.out_dir, md, png, machine, cmd)) rc = 1;
+    if (acc_write_reports(out.v, out.n, info, ninfo, o.out_dir, md, png, machine, cmd, o.notes)) rc = 1;
   } else if (!rc) {
     fprintf(stderr, "gi-accuracy: SKIP: no scene was available\n");
   }
