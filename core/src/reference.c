@@ -25,6 +25,7 @@
 #include <string.h>
 #include "cascade_internal.h"
 #include "gi/gi_reference.h"
+#include "gi/gi_render.h"
 #include "internal.h"
 
 #define PI_F 3.14159265358979f
@@ -289,5 +290,68 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   free(rc.acc);
   if (ms) *ms = gi__now_ms() - t0;
   if (res != GI_OK) return gi__fail(err, res, "reference: a probe came out non-finite (scene values too large?)");
+  return GI_OK;
+}
+
+/* ---- the path-traced camera view ------------------------------------ */
+
+typedef struct {
+  ref_ctx rc;
+  const gi__cam *k;
+  int spp;
+  float *rgb;
+} view_ctx;
+
+static void view_rows(void *p, size_t b, size_t e, int worker) {
+  view_ctx *vc = p;
+  const ref_ctx *rc = &vc->rc;
+  const gi_scene *s = rc->s;
+  int cap = (int)s->num_lights + 8;
+  gi_lsample *ls = malloc((size_t)cap * sizeof *ls);
+  float *org = malloc((size_t)cap * 3 * sizeof(float)), *dir = malloc((size_t)cap * 3 * sizeof(float));
+  float *tn = malloc((size_t)cap * sizeof(float)), *tf = malloc((size_t)cap * sizeof(float));
+  uint8_t *vis = malloc((size_t)cap);
+  if (ls && org && dir && tn && tf && vis)
+    for (size_t y = b; y < e; y++)
+      for (int x = 0; x < vc->k->w; x++) {
+        uint64_t rng = gi__mix64(rc->o.seed ^ gi__mix64((uint64_t)y << 32 | (uint32_t)x));
+        double acc[3] = {0, 0, 0};
+        for (int j = 0; j < vc->spp; j++) {
+          float w[3], t, ng[3], L[3] = {0, 0, 0};
+          uint32_t tri;
+          gi__cam_ray(vc->k, (float)x + gi__u01(&rng), (float)y + gi__u01(&rng), w);
+          if (!gi__intersect1(s, vc->k->eye, w, 0, INFINITY, &t, &tri, ng)) continue;
+          if (gi__dot(ng, w) < 0) /* an emitter seen from the front */
+            for (int a = 0; a < 3; a++) L[a] += s->materials[s->tri_material[tri]].emission[a];
+          float px[3] = {vc->k->eye[0] + t * w[0], vc->k->eye[1] + t * w[1], vc->k->eye[2] + t * w[2]};
+          reflected(rc, px, w, tri, ng, &rng, ls, cap, org, dir, tn, tf, vis, L);
+          for (int a = 0; a < 3; a++) acc[a] += L[a];
+        }
+        for (int a = 0; a < 3; a++) vc->rgb[3 * (y * (size_t)vc->k->w + (size_t)x) + a] = (float)(acc[a] / vc->spp);
+      }
+  free(ls); free(org); free(dir); free(tn); free(tf); free(vis);
+}
+
+gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
+                              float *rgb, double *ms, gi_error_info *err) {
+  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: missing scene or image");
+  if (spp < 1 || spp > (1 << 20))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: spp must be 1..1048576, got %d", spp);
+  gi__cam k;
+  gi_result r = gi__cam_setup(s, cam, &k, err);
+  if (r != GI_OK) return r;
+  double t0 = gi__now_ms();
+  view_ctx vc = {.k = &k, .spp = spp, .rgb = rgb};
+  vc.rc.s = s;
+  vc.rc.o.seed = seed ? seed : 1;
+  vc.rc.o.rr_depth = 3;
+  float ext = 0;
+  for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
+  vc.rc.eps = 2e-5f * ext + 1e-6f;
+  memset(rgb, 0, (size_t)k.w * k.h * 3 * sizeof(float));
+  gi__parallel_for((size_t)k.h, 1, threads, view_rows, &vc);
+  if (ms) *ms = gi__now_ms() - t0;
+  for (size_t i = 0; i < (size_t)k.w * k.h * 3; i++)
+    if (!isfinite(rgb[i])) return gi__fail(err, GI_ERR_NONFINITE, "reference render: pixel %zu is not finite", i / 3);
   return GI_OK;
 }

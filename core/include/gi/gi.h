@@ -6,6 +6,7 @@
 #include "gi_city.h"
 #include "gi_bake.h"
 #include "gi_reference.h"
+#include "gi_render.h"
 #include "gi_exr.h"
 #include "gi_vdb.h"
 #endif
