@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure run bake test bench bench-http clean
+.PHONY: all deps configure run bake test bench bench-http accuracy clean
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -35,6 +35,15 @@ bench: all
 # config, benches cached and uncached lighting requests, stops the server.
 bench-http: all
 	./tests/bench/http-bench.sh --start $(BUILD)/bin/gi-server configs/gi-server.ini
+
+# The accuracy/time report: sweeps every quality knob and the path tracer
+# against a path-traced reference (cached in out/accuracy) and regenerates
+# docs/accuracy.md, docs/accuracy.png and docs/accuracy.csv. Several minutes.
+accuracy: all
+	@mkdir -p out/accuracy docs
+	$(BUILD)/bin/gi-accuracy --out out/accuracy --md docs/accuracy.md --png docs/accuracy.png \
+	    --notes docs/accuracy-notes.md
+	cp out/accuracy/accuracy.csv docs/accuracy.csv.tmp && mv docs/accuracy.csv.tmp docs/accuracy.csv
 
 clean:
 	rm -rf $(BUILD) out

@@ -71,7 +71,7 @@ static const param_def params[] = {
     {"at", P_AT},           {"kind", P_KIND},      {"quality", P_QUALITY}, {"levels", P_QUALITY},
     {"res", P_QUALITY},     {"voxel", P_QUALITY},  {"cones", P_QUALITY},   {"aperture", P_QUALITY},
     {"step", P_QUALITY},    {"bounces", P_QUALITY}, {"samples", P_QUALITY}, {"probe_samples", P_QUALITY},
-    {"ao", P_QUALITY},      {"seed", P_QUALITY},   {"half", P_HALF},       {"width", P_PANO},
+    {"ao", P_QUALITY},      {"seed", P_QUALITY},   {"effects", P_QUALITY},   {"half", P_HALF},       {"width", P_PANO},
     {"height", P_PANO},     {"faces", P_FACES},
 };
 
@@ -145,6 +145,27 @@ static int set_knob(gi_quality *q, const char *key, double v, const gi_proto_lim
   return 0;
 }
 
+/* "sky:off,specular:on": per-effect overrides of the effect plan. */
+static int set_effects(gi_quality *q, const char *v, gi_proto_error *err, const char *where) {
+  char buf[260];
+  snprintf(buf, sizeof buf, "%s", v);
+  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+    char *colon = strchr(tok, ':');
+    if (!colon) return gi_proto_fail(err, 400, "%s: expected NAME:on|off|auto[,...], got '%.64s'", where, tok);
+    *colon = 0;
+    int id = gi_effect_from_name(tok);
+    if (id < 0)
+      return gi_proto_fail(err, 400, "%s: unknown effect '%.32s' (sun, local_lights, sky, emissive, bounce, specular, ao)",
+                           where, tok);
+    const char *m = colon + 1;
+    if (!strcmp(m, "on")) q->effects[id] = GI_FX_ON;
+    else if (!strcmp(m, "off")) q->effects[id] = GI_FX_OFF;
+    else if (!strcmp(m, "auto")) q->effects[id] = GI_FX_AUTO;
+    else return gi_proto_fail(err, 400, "%s: expected on, off or auto after '%s:', got '%.32s'", where, tok, m);
+  }
+  return 0;
+}
+
 static int parse_flag(const char *v, int *out, gi_proto_error *err, const char *key) {
   if (!strcmp(v, "1") || !strcmp(v, "true")) *out = 1;
   else if (!strcmp(v, "0") || !strcmp(v, "false")) *out = 0;
@@ -189,6 +210,8 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
       else return gi_proto_fail(err, 400, "parameter 'kind': expected probe, panorama or lightmap, got '%.64s'", v);
     } else if (!strcmp(k, "half") || !strcmp(k, "faces")) {
       if (parse_flag(v, !strcmp(k, "half") ? &out->half : &out->faces, err, k)) return err->status;
+    } else if (!strcmp(k, "effects")) {
+      if (set_effects(&out->quality, v, err, where)) return err->status;
     } else if (!strcmp(k, "ao")) {
       int f;
       if (parse_flag(v, &f, err, k)) return err->status;
@@ -330,6 +353,17 @@ int gi_proto_parse_probes(const char *body, size_t len, const gi_proto_limits *l
         if (!strcmp(key, "preset")) continue;
         char where[96];
         snprintf(where, sizeof where, "body: quality.%.64s", key);
+        if (!strcmp(key, "effects")) {
+          if (!json_is_string(x)) {
+            rc = gi_proto_fail(err, 400, "%s: expected a string NAME:on|off|auto[,...]", where);
+            goto done;
+          }
+          if (set_effects(&b->quality, json_string_value(x), err, where)) {
+            rc = err->status;
+            goto done;
+          }
+          continue;
+        }
         double num;
         if (json_is_boolean(x) && !strcmp(key, "ao")) num = json_is_true(x);
         else if (json_is_number(x)) num = json_number_value(x);

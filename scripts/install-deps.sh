@@ -6,7 +6,7 @@ PKGS="build-essential cmake pkg-config libembree-dev libopenexr-dev openexr
 libopenvdb-dev libboost-dev libboost-iostreams-dev libopenvdb-tools python3-openvdb
 libassimp-dev libtbb-dev libjansson-dev libcmocka-dev libmicrohttpd-dev
 libcurl4-openssl-dev libinih-dev libpng-dev libjpeg62-turbo-dev python3
-python3-yaml wrk"
+python3-yaml wrk gnuplot-nox"
 missing=""
 for p in $PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

@@ -102,23 +102,27 @@ void gs_cache_free(gs_cache *c) {
   free(c);
 }
 
-static void make_key(const gs_scene *s, const int64_t a[3], const gi_quality *q, char *key, size_t size) {
+static void make_key(const gs_scene *s, const int64_t a[3], const gi_quality *req, const gi_quality *q, char *key,
+                     size_t size) {
   /* Every knob that changes the cascade or its report; %a keeps floats exact.
-   * threads is left out: it changes speed, not values. */
-  snprintf(key, size, "%s|%lld,%lld,%lld|L%d R%d s%a c%d ap%a st%a b%d ls%d ps%d ao%d sp%d sd%llu lam%a", s->id,
-           (long long)a[0], (long long)a[1], (long long)a[2], q->levels, q->res, q->voxel0, q->cones,
-           (double)q->aperture_deg, (double)q->step, q->bounces, q->light_samples, q->probe_samples, q->ao,
-           q->specular, (unsigned long long)q->seed, (double)q->ao_lambda);
+   * Bounces as requested (0 = the plan decides, which differs from an
+   * explicit count); threads left out: they change speed, not values. */
+  int n = snprintf(key, size, "%s|%lld,%lld,%lld|L%d R%d s%a c%d ap%a st%a b%d ls%d ps%d ao%d sp%d sd%llu lam%a fx",
+                   s->id, (long long)a[0], (long long)a[1], (long long)a[2], q->levels, q->res, q->voxel0, q->cones,
+                   (double)q->aperture_deg, (double)q->step, req->bounces, q->light_samples, q->probe_samples, q->ao,
+                   q->specular, (unsigned long long)q->seed, (double)q->ao_lambda);
+  for (int i = 0; i < GI_FX_COUNT && n > 0 && (size_t)n < size; i++)
+    n += snprintf(key + n, size - (size_t)n, "%+d", q->effects[i]);
 }
 
-gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *q, gs_entry **out,
-                       gs_cache_how *how, gi_error_info *err) {
+gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
+                       const gi_quality *q, gs_entry **out, gs_cache_how *how, gi_error_info *err) {
   *out = NULL;
   int64_t anchor[3];
   gi_result rc = gi_cascade_anchor(s->scene, at, q, anchor, err);
   if (rc != GI_OK) return rc;
   char key[512];
-  make_key(s, anchor, q, key, sizeof key);
+  make_key(s, anchor, req, q, key, sizeof key);
   pthread_mutex_lock(&c->mu);
   gs_entry *e = c->head;
   while (e && strcmp(e->key, key)) e = e->next;
@@ -158,7 +162,7 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   double t0 = gs_now_ms();
   gi_cascade *cas = NULL;
   gi_error_info e_err = {0};
-  rc = gi_cascade_bake(s->scene, at, q, &cas, NULL, &e_err);
+  rc = gi_cascade_bake(s->scene, at, req, &cas, NULL, &e_err);
   if (c->metrics && rc == GI_OK) gs_metrics_bake(c->metrics, (gs_now_ms() - t0) * 1e-3);
 
   pthread_mutex_lock(&c->mu);

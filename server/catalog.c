@@ -48,13 +48,12 @@ int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t err
     }
     snprintf(s->id, sizeof s->id, "%s", sc->id);
     s->load_ms = gs_now_ms() - t0;
-    if (gi_quality_resolve(s->scene, NULL, &s->quality, &e) != GI_OK) {
+    if (gi_effect_plan(s->scene, s->default_at, NULL, s->effects, &s->quality, &e) != GI_OK) {
       snprintf(err, errsize, "[scene %s]: %s", sc->id, e.msg);
       gi_scene_release(s->scene);
       gs_catalog_free(cat);
       return -1;
     }
-    gi_effect_plan(s->scene, &s->quality, s->effects);
     gi_scene_stats st;
     gi_scene_get_stats(s->scene, &st);
     fprintf(stderr, "gi-server: scene '%s': %llu triangles, %u lights, loaded in %.0f ms\n", s->id,

@@ -19,7 +19,7 @@
 typedef struct job {
   gi_proto_job st;          /* guarded by the table's mutex */
   const gs_scene *scene;
-  gi_quality q;
+  gi_quality req, q;         /* as requested (for the bake), resolved (for tiles) */
   gi_proto_probes p;        /* owned */
   double t_start;
   char path[1200];          /* result file when done */
@@ -98,7 +98,7 @@ static void run_job(gs_jobs *j, job *jb) {
     prog_ctx pc = {j, jb};
     gi_bake_report rep;
     e.msg[0] = 0;
-    rc = gs_gather_tiles(svc, jb->scene, &jb->q, jb->p.points, tiles, nt, 0, pr, &rep, NULL, NULL, on_tile, &pc, &e);
+    rc = gs_gather_tiles(svc, jb->scene, &jb->req, &jb->q, jb->p.points, tiles, nt, 0, pr, &rep, NULL, NULL, on_tile, &pc, &e);
     if (rc == GI_OK) {
       char path[1200], ntiles[32];
       gs_tmp_path(svc, ".exr", path, sizeof path);
@@ -184,7 +184,8 @@ void gs_jobs_free(gs_jobs *j) {
   free(j);
 }
 
-int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_quality *q, char id[40],
+int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_quality *req, const gi_quality *q,
+                   char id[40],
                    gi_proto_error *err) {
   pthread_mutex_lock(&j->mu);
   if (j->queued >= j->svc->cfg->max_jobs_queued) {
@@ -200,6 +201,7 @@ int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_q
   jb->st.state = GI_JOB_QUEUED;
   jb->st.probes = p->num_points;
   jb->scene = s;
+  jb->req = *req;
   jb->q = *q;
   jb->p = *p;
   memset(p, 0, sizeof *p); /* the job owns the points now */

@@ -86,12 +86,14 @@ static int take_file(gs_answer *a, const char *path, const char *type) {
 
 static const char *const cache_names[3] = {"hit", "miss", "coalesced"};
 
-static gi_quality resolve_request(gs_service *svc, const gs_scene *s, const gi_quality *req, gi_error_info *e,
-                                  gi_result *rc) {
-  gi_quality q = *req;
-  q.threads = svc->cfg->bake_threads;
+/* The request's quality as the core takes it (zero = auto, the server's
+ * thread count) into *req, and its resolution into the return value. */
+static gi_quality resolve_request(gs_service *svc, const gs_scene *s, const gi_quality *in, gi_quality *req,
+                                  gi_error_info *e, gi_result *rc) {
+  *req = *in;
+  req->threads = svc->cfg->bake_threads;
   gi_quality out;
-  *rc = gi_quality_resolve(s->scene, &q, &out, e);
+  *rc = gi_quality_resolve(s->scene, req, &out, e);
   return out;
 }
 
@@ -107,11 +109,11 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
                    gs_answer *a) {
   gi_error_info e = {0};
   gi_result rc;
-  gi_quality q = resolve_request(svc, s, &b->quality, &e, &rc);
+  gi_quality req, q = resolve_request(svc, s, &b->quality, &req, &e, &rc);
   if (rc != GI_OK) return fail_core(a, rc, &e);
   gs_entry *ent = NULL;
   gs_cache_how how;
-  if ((rc = gs_cache_get(svc->cache, s, b->at, &q, &ent, &how, &e)) != GI_OK) return fail_core(a, rc, &e);
+  if ((rc = gs_cache_get(svc->cache, s, b->at, &req, &q, &ent, &how, &e)) != GI_OK) return fail_core(a, rc, &e);
   const gi_cascade *c = gs_entry_cascade(ent);
   const gi_bake_report *rep = gi_cascade_report(c);
   gi_timings ms = {0};
@@ -228,7 +230,8 @@ void gs_tiles_free(gs_tile *t, size_t n) {
   free(t);
 }
 
-gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *q, const double *pts,
+gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *req, const gi_quality *q,
+                          const double *pts,
                           const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
                           gi_bake_report *rep, gi_timings *ms, gs_cache_how *how_out,
                           void (*progress)(void *ctx, size_t tile, size_t probes), void *ctx,
@@ -252,11 +255,11 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
     const gi_cascade *c;
     gs_cache_how how = GS_CACHE_MISS;
     if (use_cache) {
-      if ((rc = gs_cache_get(svc->cache, s, tl->at, q, &ent, &how, err)) != GI_OK) break;
+      if ((rc = gs_cache_get(svc->cache, s, tl->at, req, q, &ent, &how, err)) != GI_OK) break;
       c = gs_entry_cascade(ent);
     } else {
       double t0 = gs_now_ms();
-      if ((rc = gi_cascade_bake(s->scene, tl->at, q, &own, NULL, err)) != GI_OK) break;
+      if ((rc = gi_cascade_bake(s->scene, tl->at, req, &own, NULL, err)) != GI_OK) break;
       gs_metrics_bake(svc->metrics, (gs_now_ms() - t0) * 1e-3);
       c = own;
     }
@@ -287,7 +290,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
 void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_answer *a) {
   gi_error_info e = {0};
   gi_result rc;
-  gi_quality q = resolve_request(svc, s, &p->bake.quality, &e, &rc);
+  gi_quality req, q = resolve_request(svc, s, &p->bake.quality, &req, &e, &rc);
   if (rc != GI_OK) {
     gi_proto_probes_free(p);
     return fail_core(a, rc, &e);
@@ -322,7 +325,7 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     char id[40];
     gi_proto_error pe;
     size_t n = p->num_points;
-    if (gs_jobs_submit(svc->jobs, s, p, &q, id, &pe) != 0) {
+    if (gs_jobs_submit(svc->jobs, s, p, &req, &q, id, &pe) != 0) {
       gi_proto_probes_free(p);
       gs_answer_error(a, &pe);
       return;
@@ -343,7 +346,8 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     rc = GI_ERR_NOMEM;
     snprintf(e.msg, sizeof e.msg, "probes: out of memory");
   } else {
-    rc = gs_gather_tiles(svc, s, &q, p->points, tiles ? tiles : &one, nt, 1, pr, &rep, &ms, &how, NULL, NULL, &e);
+    rc = gs_gather_tiles(svc, s, &req, &q, p->points, tiles ? tiles : &one, nt, 1, pr, &rep, &ms, &how, NULL, NULL,
+                         &e);
   }
   if (rc == GI_OK) {
     char path[1200], timing[320], ntiles[32];

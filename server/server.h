@@ -64,8 +64,8 @@ typedef struct gs_scene {
   char id[64];
   gi_scene *scene;
   double default_at[3];
-  gi_quality quality;              /* the default quality resolved for this scene */
-  gi_effect effects[GI_FX_COUNT];  /* the default plan, for GET /v1/scenes/{id} */
+  gi_quality quality;              /* the default quality resolved at default_at, with the plan's bounces */
+  gi_effect effects[GI_FX_COUNT];  /* the default plan at default_at, for GET /v1/scenes/{id} */
   double load_ms;
 } gs_scene;
 
@@ -115,8 +115,10 @@ void gs_cache_free(gs_cache *c);
 /* A baked cascade for (scene, at, resolved quality): from the cache, from a
  * bake already running for the same key (waits for it), or baked now on
  * the calling thread. The entry stays valid until gs_cache_release. */
-gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *resolved,
-                       gs_entry **out, gs_cache_how *how, gi_error_info *err);
+/* req is the request's quality as gi_cascade_bake takes it (zero = auto);
+ * resolved is gi_quality_resolve's answer for it (placement, key). */
+gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
+                       const gi_quality *resolved, gs_entry **out, gs_cache_how *how, gi_error_info *err);
 const gi_cascade *gs_entry_cascade(const gs_entry *e);
 void gs_cache_release(gs_cache *c, gs_entry *e);
 void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries);
@@ -190,7 +192,8 @@ int gs_tiles_make(const gs_scene *s, const gi_quality *resolved, const double *p
 void gs_tiles_free(gs_tile *t, size_t n);
 /* Gathers the points of every tile into probes; progress callback per tile.
  * use_cache = 0 bakes privately (batch jobs must not evict interactive views). */
-gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *resolved, const double *pts,
+gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *req, const gi_quality *resolved,
+                          const double *pts,
                           const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
                           gi_bake_report *rep, gi_timings *ms, gs_cache_how *how,
                           void (*progress)(void *ctx, size_t tile, size_t probes), void *ctx,
@@ -202,7 +205,7 @@ gs_jobs *gs_jobs_new(gs_service *svc);
 void gs_jobs_free(gs_jobs *j);
 /* Queues a job (takes ownership of p's points). Returns 0 and the id, or a
  * status (503 when the job queue is full). */
-int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_quality *resolved,
+int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_quality *req, const gi_quality *resolved,
                    char id[40], gi_proto_error *err);
 /* Status JSON into a->json (200), or 404. */
 void gs_jobs_status(gs_jobs *j, const char *id, gs_answer *a);

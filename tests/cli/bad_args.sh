@@ -37,6 +37,9 @@ expect_usage --spot city --spot 0,5,0,0,0,0,20,30,1,1,1
 expect_usage --city-extent city --city-extent 0
 expect_usage --city-seed city --city-seed -3
 expect_usage --city-detail city --city-detail 9
+expect_usage --effect city --effect glow=on
+expect_usage --effect city --effect sky=maybe
+expect_usage --effect city --effect sky
 expect_usage --at city --at
 expect_usage --bogus city --bogus
 expect_usage SCENE

@@ -24,7 +24,7 @@ ERR = {400: "bad_request", 401: "unauthorized", 404: "not_found", 405: "method_n
        503: "overloaded", 504: "timeout"}
 # The quality group both bake endpoints take (proto/request.c: P_QUALITY).
 BAKE_Q = {"quality", "levels", "res", "voxel", "cones", "aperture", "step", "bounces", "samples", "probe_samples",
-          "ao", "seed"}
+          "ao", "seed", "effects"}
 # path -> method -> (success codes, error codes, query parameters)
 CONTRACT = {
     "/v1/health": {"get": ({200}, {405, 500}, set())},

@@ -47,6 +47,29 @@ static void test_lighting_ok(void **state) {
   assert_int_equal(b.half, 1);
 }
 
+static void test_effects(void **state) {
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv kv[] = {{"at", "0,0,0"}, {"effects", "sky:off,specular:on,bounce:auto"}};
+  assert_int_equal(gi_proto_parse_lighting(kv, 2, &l, &b, &e), 0);
+  assert_int_equal(b.quality.effects[GI_FX_SKY], GI_FX_OFF);
+  assert_int_equal(b.quality.effects[GI_FX_SPECULAR], GI_FX_ON);
+  assert_int_equal(b.quality.effects[GI_FX_BOUNCE], GI_FX_AUTO);
+  assert_int_equal(b.quality.effects[GI_FX_SUN], GI_FX_AUTO);
+  expect_fail(KV({"at", "0,0,0"}, {"effects", "fog:on"}), 2, 400, "unknown effect 'fog'");
+  expect_fail(KV({"at", "0,0,0"}, {"effects", "sky"}), 2, 400, "NAME:on|off|auto");
+  expect_fail(KV({"at", "0,0,0"}, {"effects", "sky:maybe"}), 2, 400, "after 'sky:'");
+  gi_proto_probes p;
+  const char *body = "{\"points\":[[1,2,3]],\"quality\":{\"effects\":\"emissive:off\"}}";
+  assert_int_equal(gi_proto_parse_probes(body, strlen(body), &l, &p, &e), 0);
+  assert_int_equal(p.bake.quality.effects[GI_FX_EMISSIVE], GI_FX_OFF);
+  gi_proto_probes_free(&p);
+  body = "{\"points\":[[1,2,3]],\"quality\":{\"effects\":1}}";
+  assert_int_equal(gi_proto_parse_probes(body, strlen(body), &l, &p, &e), 400);
+  assert_non_null(strstr(e.message, "quality.effects"));
+}
+
 static void test_preset_then_override(void **state) {
   gi_proto_limits l = lim();
   gi_proto_bake b;
@@ -216,6 +239,7 @@ static void test_headers(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_lighting_ok),   cmocka_unit_test(test_preset_then_override),
+      cmocka_unit_test(test_effects),
       cmocka_unit_test(test_panorama),      cmocka_unit_test(test_rejections),
       cmocka_unit_test(test_cascades),      cmocka_unit_test(test_probes_body),
       cmocka_unit_test(test_error_roundtrip), cmocka_unit_test(test_job_roundtrip),

@@ -26,7 +26,7 @@ enum {
   OPT_AT = 256, OPT_UP, OPT_LEVELS, OPT_RES, OPT_VOXEL, OPT_CONES, OPT_BOUNCES, OPT_SAMPLES,
   OPT_PROBE_SAMPLES, OPT_THREADS, OPT_EXR, OPT_HALF, OPT_VDB, OPT_VDB_FACES, OPT_JSON, OPT_PROBES,
   OPT_SUN, OPT_SKY, OPT_POINT, OPT_SPOT, OPT_NO_DEFAULT_LIGHTS, OPT_AO, OPT_CITY_EXTENT, OPT_CITY_SEED,
-  OPT_CITY_DETAIL
+  OPT_CITY_DETAIL, OPT_EFFECT, OPT_RENDER, OPT_PNG, OPT_RENDER_SAMPLES
 };
 
 static const struct option long_opts[] = {
@@ -52,6 +52,10 @@ static const struct option long_opts[] = {
     {"spot", required_argument, NULL, OPT_SPOT},
     {"no-default-lights", no_argument, NULL, OPT_NO_DEFAULT_LIGHTS},
     {"ao", no_argument, NULL, OPT_AO},
+    {"effect", required_argument, NULL, OPT_EFFECT},
+    {"render", required_argument, NULL, OPT_RENDER},
+    {"png", required_argument, NULL, OPT_PNG},
+    {"render-samples", required_argument, NULL, OPT_RENDER_SAMPLES},
     {"city-extent", required_argument, NULL, OPT_CITY_EXTENT},
     {"city-seed", required_argument, NULL, OPT_CITY_SEED},
     {"city-detail", required_argument, NULL, OPT_CITY_DETAIL},
@@ -78,10 +82,14 @@ static const char help_text[] =
     "  --voxel S0            finest voxel size, world units (default: coarsest level\n"
     "                        spans the scene)\n"
     "  --cones N             diffuse cones per hemisphere: 4, 6, 8, 16, 32 (16)\n"
-    "  --bounces N           voxel-to-voxel bounces, 0..8, 0 = none (2)\n"
+    "  --bounces N           voxel-to-voxel bounces, 0..8, 0 = none (default: from\n"
+    "                        the albedo in range, 1..3; the effect plan says why)\n"
     "  --samples N           shadow rays per voxel for sky/area lights, 1..512 (16)\n"
     "  --probe-samples N     shadow rays per probe for sky/area lights, 1..8192 (256)\n"
     "  --ao                  also compute ambient occlusion at the probes (off)\n"
+    "  --effect NAME=on|off|auto  override the effect plan for one effect; NAME is\n"
+    "                        sun, local_lights, sky, emissive, bounce, specular or ao\n"
+    "                        (repeatable; default auto: decided from the scene)\n"
     "  --threads N           worker threads, 0 = all cores (0)\n"
     "\n"
     "Lights (added to the scene's own; repeatable, at most 64)\n"
@@ -109,6 +117,16 @@ static const char help_text[] =
     "                        L<d>_normal per level, plain density/Cd for level 0\n"
     "  --vdb-faces           add the six per-face radiance grids L<d>_face_px..\n"
     "  --json                print one JSON object instead of the summary\n"
+    "\n"
+    "Pictures (the view from the cascade beside the same view path-traced)\n"
+    "  --render CAMERA       a Mitsuba XML file's perspective sensor (lookat, fov;\n"
+    "                        256 x 256), or X,Y,Z,TX,TY,TZ,FOV,W,H: eye, target,\n"
+    "                        fov in degrees across the smaller side, pixels\n"
+    "                        (up = the scene's up axis)\n"
+    "  --png OUT.png         cone-traced | path-traced | error side by side (needs\n"
+    "                        --render); with --render, --exr gets the images\n"
+    "                        (R,G,B cone-traced, path.R/G/B, error.Y) instead of probes\n"
+    "  --render-samples N    paths per pixel of the path-traced view, 1..65536 (64)\n"
     "  -h, --help            this text;  -V, --version  the version\n"
     "\n"
     "Exit status: 0 success, 1 the scene, bake or an output failed, 2 bad arguments.\n"
@@ -402,6 +420,49 @@ int cli_parse(int argc, char **argv, cli_opts *o) {
       break;
     case OPT_NO_DEFAULT_LIGHTS: o->no_default_lights = 1; break;
     case OPT_AO: o->q.ao = 1; break;
+    case OPT_RENDER: {
+      double c[9];
+      const char *dot = strrchr(optarg, '.');
+      if (dot && !strcmp(dot, ".xml")) {
+        gi_error_info e = {0};
+        if (gi_camera_from_mitsuba(optarg, &o->cam, &e) != GI_OK) return usage_fail("--render", "%s", e.msg);
+        o->cam.width = o->cam.height = 256;
+      } else if (!parse_doubles(optarg, c, 9)) {
+        memcpy(o->cam.eye, c, sizeof(double[3]));
+        memcpy(o->cam.target, c + 3, sizeof(double[3]));
+        o->cam.fov_deg = c[6];
+        if (c[7] != floor(c[7]) || c[8] != floor(c[8]) || !(c[7] >= 1 && c[7] <= 4096 && c[8] >= 1 && c[8] <= 4096))
+          return usage_fail("--render", "W and H must be whole numbers of pixels in 1..4096, got '%s'", optarg);
+        o->cam.width = (int)c[7], o->cam.height = (int)c[8];
+        o->cam_up_from_scene = 1;
+      } else {
+        return usage_fail("--render", "expected a Mitsuba .xml file or X,Y,Z,TX,TY,TZ,FOV,W,H, got '%s'", optarg);
+      }
+      o->render = 1;
+      break;
+    }
+    case OPT_PNG: o->png = optarg; break;
+    case OPT_RENDER_SAMPLES:
+      INT_OPT("--render-samples", 1, 65536, o->render_spp, "an integer in 1..65536");
+      break;
+    case OPT_EFFECT: {
+      const char *eq = strchr(optarg, '=');
+      char name[32];
+      size_t len = eq ? (size_t)(eq - optarg) : 0;
+      if (!eq || len == 0 || len >= sizeof name)
+        return usage_fail("--effect", "expected NAME=on|off|auto, got '%s'", optarg);
+      memcpy(name, optarg, len);
+      name[len] = '\0';
+      int id = gi_effect_from_name(name);
+      if (id < 0)
+        return usage_fail("--effect", "unknown effect '%s' (sun, local_lights, sky, emissive, bounce, specular, ao)",
+                          name);
+      if (!strcmp(eq + 1, "on")) o->q.effects[id] = GI_FX_ON;
+      else if (!strcmp(eq + 1, "off")) o->q.effects[id] = GI_FX_OFF;
+      else if (!strcmp(eq + 1, "auto")) o->q.effects[id] = GI_FX_AUTO;
+      else return usage_fail("--effect", "expected on, off or auto after '%s=', got '%s'", name, eq + 1);
+      break;
+    }
     case OPT_CITY_EXTENT:
       if (parse_doubles(optarg, d, 1) || !(d[0] > 0) || d[0] > 20000)
         return usage_fail("--city-extent", "expected metres in (0, 20000], got '%s'", optarg);
@@ -436,6 +497,15 @@ int cli_parse(int argc, char **argv, cli_opts *o) {
   if (!o->is_city && o->city_opts_given)
     return usage_fail(NULL, "--city-extent, --city-seed and --city-detail apply only to the scene 'city'");
   if (o->half && !o->exr) return usage_fail("--half", "needs --exr");
+  if (o->png && !o->render) return usage_fail("--png", "needs --render");
+  if (o->render && !o->png && !o->exr) return usage_fail("--render", "needs --png or --exr for the pictures");
+  if (o->render) {
+    gi_camera cam = o->cam;
+    gi_error_info e = {0};
+    if (o->cam_up_from_scene) cam.up[1] = 1; /* checked again with the real up axis after loading */
+    if (gi_camera_validate(&cam, &e) != GI_OK) return usage_fail("--render", "%s", e.msg);
+  }
+  if (o->png && (rc = check_output("--png", o->png))) return rc;
   if (o->vdb_faces && !o->vdb) return usage_fail("--vdb-faces", "needs --vdb");
   if (o->exr && (rc = check_output("--exr", o->exr))) return rc;
   if (o->vdb && (rc = check_output("--vdb", o->vdb))) return rc;

@@ -25,6 +25,9 @@ typedef struct cli_opts {
   size_t num_lights;
   gi_city_params city;
   int city_opts_given;      /* a --city-* option was used */
+  int render, cam_up_from_scene, render_spp;
+  gi_camera cam;            /* --render */
+  const char *png;
   double *probes;           /* extra points from --probes, 3 per point */
   size_t num_probes;
 } cli_opts;
@@ -33,6 +36,12 @@ typedef struct cli_opts {
  * printed (exit 0), or EXIT_USAGE / EXIT_RUN after printing the reason. */
 int cli_parse(int argc, char **argv, cli_opts *o);
 void cli_opts_fini(cli_opts *o);
+
+/* What --render measured. */
+typedef struct cli_render_stats {
+  double cone_ms, path_ms, mre;
+  int width, height, spp;
+} cli_render_stats;
 
 /* What a finished run measured, for both output forms. */
 typedef struct cli_run {
@@ -44,6 +53,7 @@ typedef struct cli_run {
   const double *points;     /* 3 per probe */
   double load_ms, gather_ms, encode_ms, total_ms;
   int threads;              /* resolved worker count */
+  const cli_render_stats *render; /* NULL without --render */
 } cli_run;
 
 /* Prints the run as one JSON object (json = 1) or a human summary to
@@ -52,5 +62,10 @@ typedef struct cli_run {
 int cli_report(const cli_run *r, int json);
 
 const char *cli_version(void);
+
+/* render.c: the --render pictures (cone-traced, path-traced, error) to
+ * o->png and/or o->exr; fills st with what it measured. Returns 0,
+ * EXIT_USAGE (bad camera for this scene) or EXIT_RUN. */
+int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, cli_render_stats *st);
 
 #endif

@@ -109,7 +109,15 @@ int main(int argc, char **argv) {
   }
 
   double t_enc = now_ms();
-  if (o.exr && (r = gi_probes_write_exr(o.exr, probes, n, scene, o.at, &rep, o.half, &err)) != GI_OK) {
+  cli_render_stats rs;
+  memset(&rs, 0, sizeof rs);
+  if (o.render) {
+    if ((rc = cli_render(&o, scene, cas, &rs)) != 0) goto done;
+    fprintf(stderr, "gi-bake: render %d x %d: cone-traced %.1f ms, path-traced (%d paths/pixel) %.1f ms, "
+                    "mean relative error %.1f%%%s%s\n", rs.width, rs.height, rs.cone_ms, rs.spp, rs.path_ms,
+            100 * rs.mre, o.png ? ", wrote " : "", o.png ? o.png : "");
+  }
+  if (o.exr && !o.render && (r = gi_probes_write_exr(o.exr, probes, n, scene, o.at, &rep, o.half, &err)) != GI_OK) {
     rc = fail("--exr", &err, r);
     goto done;
   }
@@ -133,6 +141,7 @@ int main(int argc, char **argv) {
       .encode_ms = encode_ms,
       .total_ms = now_ms() - t_start,
       .threads = resolved_threads(rep.quality.threads),
+      .render = o.render ? &rs : NULL,
   };
   rc = cli_report(&run, o.json);
 

@@ -128,6 +128,16 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(root, "effects", fx);
 
   json_object_set_new(root, "cascade_bytes", count(rep->cascade_bytes));
+  if (r->render) {
+    json_t *rj = json_object();
+    json_object_set_new(rj, "width", json_integer(r->render->width));
+    json_object_set_new(rj, "height", json_integer(r->render->height));
+    json_object_set_new(rj, "path_samples", json_integer(r->render->spp));
+    json_object_set_new(rj, "cone_ms", json_real(r->render->cone_ms));
+    json_object_set_new(rj, "path_ms", json_real(r->render->path_ms));
+    json_object_set_new(rj, "mean_relative_error", json_real(r->render->mre));
+    json_object_set_new(root, "render", rj);
+  }
   json_t *lv = json_array();
   uint64_t total_occ = 0;
   for (int d = 0; d < rep->levels && d < GI_MAX_LEVELS; d++) {

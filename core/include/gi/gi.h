@@ -5,6 +5,8 @@
 #include "gi_scene.h"
 #include "gi_city.h"
 #include "gi_bake.h"
+#include "gi_reference.h"
+#include "gi_render.h"
 #include "gi_exr.h"
 #include "gi_vdb.h"
 #endif

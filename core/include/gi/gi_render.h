@@ -1,0 +1,58 @@
+/* gi_render.h: pictures of a baked cascade and of the reference, from a camera.
+ *
+ * The paper's final rendering step: primary rays on Embree, direct light by
+ * shadow rays, indirect light by diffuse cones from the cascade, and a
+ * specular cone for glossy materials. The same view path-traced
+ * (gi_reference_render) is the picture to compare with. Images are linear
+ * RGB floats, row-major from the top-left, 3 per pixel, owned by the caller.
+ * Both renderers only read the cascade or scene: any number may run at
+ * once; each uses up to `threads` threads of its own (0 = all cores). */
+#ifndef GI_RENDER_H
+#define GI_RENDER_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "gi_bake.h"
+#include "gi_error.h"
+#include "gi_scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A pinhole camera in world coordinates. fov_deg is the full field of view
+ * across the smaller image side (Mitsuba's fov_axis "smaller"). */
+typedef struct gi_camera {
+  double eye[3], target[3], up[3];
+  double fov_deg;
+  int width, height;
+} gi_camera;
+
+/* Reads the first perspective sensor of a Mitsuba XML scene: lookat origin,
+ * target and up, and fov. Width and height are left as they are (Mitsuba
+ * files often hold "$res"). Errors name the file and the missing field. */
+gi_result gi_camera_from_mitsuba(const char *path, gi_camera *cam, gi_error_info *err);
+
+/* Checks a camera: finite, eye != target, up not along the view, fov in
+ * (0, 180), 1..8192 pixels per side. */
+gi_result gi_camera_validate(const gi_camera *cam, gi_error_info *err);
+
+/* Renders the view from the cascade into rgb (width * height * 3 floats).
+ * light_samples shadow rays per pixel for sky and area lights (0 = 16). */
+gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
+                            double *ms, gi_error_info *err);
+
+/* Path-traces the same view with spp paths per pixel (same materials and
+ * lights as gi_reference_irradiance; surfaces are Lambertian only). */
+gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
+                              float *rgb, double *ms, gi_error_info *err);
+
+/* Writes an 8-bit sRGB PNG from linear RGB floats times `exposure`,
+ * through a temporary file renamed into place. */
+gi_result gi_image_write_png(const char *path, const float *rgb, int width, int height, float exposure,
+                             gi_error_info *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,505 @@
+/* gi-accuracy: what each quality knob costs in milliseconds and buys in error.
+ *
+ * For each scene (Cornell box, Munich, procedural city): a fixed,
+ * deterministic set of probe points; a path-traced reference at a high
+ * sample count (cached under the output folder, keyed by scene, points,
+ * samples and reference version, so reruns are cheap); then one bake and
+ * gather per knob value, changing one knob at a time around the default,
+ * and the path tracer itself at 1..4096 samples, all timed and compared
+ * with the reference. Writes a CSV, a gnuplot plot and a markdown report
+ * (report.c). Figures are measured on the machine it runs on; nothing is
+ * estimated. Exit status: 0 done, 1 a scene or bake failed, 2 bad arguments. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include "acc.h"
+#include "gi/gi.h"
+
+#define REF_VERSION 1 /* bump when the path tracer changes: old caches are ignored */
+
+static int g_repeat = 2; /* runs per configuration; the fastest counts */
+
+typedef struct opts {
+  const char *scenes_dir, *out_dir, *md, *png, *notes;
+  char scenes[3][16];
+  int num_scenes;
+  int ref_samples, pt_max, threads;
+  int quick;
+} opts;
+
+static void usage(FILE *f) {
+  fprintf(f,
+          "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
+          "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N] [--quick]\n"
+          "  --scenes LIST      comma-separated: cornell, munich, city (default all three)\n"
+          "  --scenes-dir DIR   the shared scenes (default %s)\n"
+          "  --out DIR          CSV, plot script and reference cache (default out/accuracy)\n"
+          "  --md FILE          the markdown report (default OUT/accuracy.md)\n"
+          "  --png FILE         the plot (default OUT/accuracy.png; needs gnuplot)\n"
+          "  --notes FILE       hand-written markdown to put after the method in the report\n"
+          "  --ref-samples N    reference paths per probe (default 65536)\n"
+          "  --pt-max N         largest path-tracer sample count in the sweep, a power of 4 (default 4096)\n"
+          "  --threads N        threads for bakes and path tracing (default: all cores)\n"
+          "  --repeat N         runs per configuration, the fastest counts (default 2)\n"
+          "  --quick            fewer knob values (a smoke run)\n",
+          GI_SCENES_DIR);
+}
+
+static int parse_int(const char *name, const char *s, int lo, int hi, int *out) {
+  char *end;
+  errno = 0;
+  long v = strtol(s, &end, 10);
+  if (errno || *end || end == s || v < lo || v > hi) {
+    fprintf(stderr, "gi-accuracy: %s must be an integer in %d..%d, got '%s'\n", name, lo, hi, s);
+    return 0;
+  }
+  *out = (int)v;
+  return 1;
+}
+
+static int takes_value(const char *a) {
+  static const char *const v[] = {"--scenes", "--scenes-dir", "--out", "--md", "--png", "--notes",
+                                   "--ref-samples", "--pt-max", "--threads", "--repeat"};
+  for (size_t i = 0; i < sizeof v / sizeof v[0]; i++)
+    if (!strcmp(a, v[i])) return 1;
+  return 0;
+}
+
+static int parse_args(int argc, char **argv, opts *o) {
+  memset(o, 0, sizeof *o);
+  o->scenes_dir = GI_SCENES_DIR;
+  o->out_dir = "out/accuracy";
+  o->ref_samples = 65536;
+  o->pt_max = 4096;
+  const char *list = "cornell,munich,city";
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    int has = i + 1 < argc;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage(stdout);
+      return -1;
+    } else if (!strcmp(a, "--quick")) {
+      o->quick = 1;
+    } else if (!has && takes_value(a)) {
+      fprintf(stderr, "gi-accuracy: %s needs a value\n", a);
+      return 2;
+    } else if (!strcmp(a, "--scenes")) list = argv[++i];
+    else if (!strcmp(a, "--scenes-dir")) o->scenes_dir = argv[++i];
+    else if (!strcmp(a, "--out")) o->out_dir = argv[++i];
+    else if (!strcmp(a, "--md")) o->md = argv[++i];
+    else if (!strcmp(a, "--png")) o->png = argv[++i];
+    else if (!strcmp(a, "--notes")) o->notes = argv[++i];
+    else if (!strcmp(a, "--ref-samples")) {
+      if (!parse_int("--ref-samples", argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
+    } else if (!strcmp(a, "--pt-max")) {
+      if (!parse_int("--pt-max", argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
+    } else if (!strcmp(a, "--repeat")) {
+      if (!parse_int("--repeat", argv[++i], 1, 20, &g_repeat)) return 2;
+    } else if (!strcmp(a, "--threads")) {
+      if (!parse_int("--threads", argv[++i], 0, 256, &o->threads)) return 2;
+    } else {
+      fprintf(stderr, "gi-accuracy: unknown argument '%s' (see --help)\n", a);
+      return 2;
+    }
+  }
+  char buf[64];
+  snprintf(buf, sizeof buf, "%s", list);
+  for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
+    if (strcmp(t, "cornell") && strcmp(t, "munich") && strcmp(t, "city")) {
+      fprintf(stderr, "gi-accuracy: --scenes: unknown scene '%s' (cornell, munich, city)\n", t);
+      return 2;
+    }
+    if (o->num_scenes == 3) {
+      fprintf(stderr, "gi-accuracy: --scenes: at most three scenes\n");
+      return 2;
+    }
+    snprintf(o->scenes[o->num_scenes++], sizeof o->scenes[0], "%s", t);
+  }
+  if (!o->num_scenes) {
+    fprintf(stderr, "gi-accuracy: --scenes is empty\n");
+    return 2;
+  }
+  return 0;
+}
+
+/* ---- scenes and probe points ---------------------------------------- */
+
+typedef struct scene_set {
+  gi_scene *s;
+  double at[3];
+  double *pts;
+  size_t n;
+} scene_set;
+
+/* Candidate points on a grid; keeps those that see direct light above 2%
+ * of the best candidate (drops points inside buildings and inside the
+ * Cornell box's blocks, where the truth is darkness), at most `keep`. */
+static int keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int threads) {
+  gi_ref_probe *r = calloc(nc, sizeof *r);
+  gi_reference_opts o = {.samples = 64, .max_depth = -1, .seed = 7, .threads = threads};
+  gi_error_info err = {0};
+  if (!r || gi_reference_irradiance(ss->s, cand, nc, &o, r, NULL, &err) != GI_OK) {
+    fprintf(stderr, "gi-accuracy: probe selection: %s\n", err.msg);
+    free(r);
+    return 0;
+  }
+  double best = 0;
+  for (size_t i = 0; i < nc; i++) best = fmax(best, r[i].direct[1]);
+  ss->pts = malloc(3 * keep * sizeof(double));
+  ss->n = 0;
+  for (size_t i = 0; i < nc && ss->n < keep && ss->pts; i++)
+    if (r[i].direct[1] > 0.02 * best) memcpy(&ss->pts[3 * ss->n++], &cand[3 * i], 3 * sizeof(double));
+  free(r);
+  return ss->n > 0;
+}
+
+static int setup_scene(const opts *o, const char *name, scene_set *ss) {
+  memset(ss, 0, sizeof *ss);
+  gi_error_info err = {0};
+  gi_scene_options so = {.up = GI_UP_Y, .threads = o->threads, .default_lights = 1};
+  char path[1024];
+  if (!strcmp(name, "cornell")) {
+    snprintf(path, sizeof path, "%s/cornell-box/cornell-box.obj", o->scenes_dir);
+    if (access(path, R_OK)) return fprintf(stderr, "gi-accuracy: SKIP cornell: %s not found\n", path), -1;
+    if (gi_scene_load(path, &so, &ss->s, &err)) return fprintf(stderr, "gi-accuracy: %s\n", err.msg), 0;
+    ss->at[0] = 278, ss->at[1] = 273, ss->at[2] = 279.6;
+    /* 3x3x3 points inside the box, 20/50/80% of its bounds. */
+    double lo[3], hi[3], cand[3 * 27];
+    gi_scene_bounds(ss->s, lo, hi);
+    static const double f[3] = {0.2, 0.5, 0.8};
+    for (int i = 0; i < 27; i++) {
+      int ix[3] = {i % 3, (i / 3) % 3, i / 9};
+      for (int k = 0; k < 3; k++) cand[3 * i + k] = lo[k] + f[ix[k]] * (hi[k] - lo[k]);
+    }
+    return keep_lit(ss, cand, 27, 27, o->threads);
+  }
+  double cand[3 * 49];
+  if (!strcmp(name, "munich")) {
+    snprintf(path, sizeof path, "%s/munich/munich.obj", o->scenes_dir);
+    if (access(path, R_OK)) return fprintf(stderr, "gi-accuracy: SKIP munich: %s not found\n", path), -1;
+    so.up = GI_UP_Z;
+    if (gi_scene_load(path, &so, &ss->s, &err)) return fprintf(stderr, "gi-accuracy: %s\n", err.msg), 0;
+    ss->at[0] = -67.85, ss->at[1] = -85.78, ss->at[2] = 2;
+    /* A 7x7 grid, 12 m apart, 2 m above the ground, around the README's open square. */
+    for (int i = 0; i < 49; i++) {
+      cand[3 * i] = ss->at[0] + 12.0 * (i % 7 - 3);
+      cand[3 * i + 1] = ss->at[1] + 12.0 * (i / 7 - 3);
+      cand[3 * i + 2] = 2;
+    }
+  } else {
+    gi_city_params cp = {0};
+    if (gi_city_build(&cp, &so, &ss->s, &err)) return fprintf(stderr, "gi-accuracy: city: %s\n", err.msg), 0;
+    gi_city_default_viewpoint(&cp, ss->at);
+    int up = gi_scene_up(ss->s) == GI_UP_Z ? 2 : 1, h0 = up == 2 ? 0 : 2;
+    for (int i = 0; i < 49; i++) {
+      memcpy(&cand[3 * i], ss->at, sizeof ss->at);
+      cand[3 * i + 0] += 6.0 * (i % 7 - 3);
+      cand[3 * i + h0] += 6.0 * (i / 7 - 3);
+    }
+  }
+  return keep_lit(ss, cand, 49, 24, o->threads);
+}
+
+/* ---- reference cache ------------------------------------------------- */
+
+static uint64_t fnv(uint64_t h, const void *p, size_t n) {
+  const unsigned char *b = p;
+  for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 1099511628211ull;
+  return h;
+}
+
+static int load_or_make_ref(const opts *o, const char *name, const scene_set *ss, gi_ref_probe *ref, double *ms) {
+  int ver = REF_VERSION;
+  uint64_t h = fnv(1469598103934665603ull, name, strlen(name));
+  h = fnv(h, ss->pts, ss->n * 3 * sizeof(double));
+  h = fnv(h, &o->ref_samples, sizeof o->ref_samples);
+  h = fnv(h, &ver, sizeof ver);
+  char path[1024], tmp[1100];
+  snprintf(path, sizeof path, "%s/ref-%s-%016llx.bin", o->out_dir, name, (unsigned long long)h);
+  *ms = 0;
+  FILE *f = fopen(path, "rb");
+  if (f) {
+    size_t got = fread(ref, sizeof *ref, ss->n, f);
+    fclose(f);
+    int ok = got == ss->n;
+    for (size_t i = 0; ok && i < ss->n; i++)
+      for (int k = 0; k < 3; k++) ok &= isfinite(ref[i].irradiance[k]) && isfinite(ref[i].std_err[k]);
+    if (ok) {
+      fprintf(stderr, "gi-accuracy: %s: reference from cache %s\n", name, path);
+      return 1;
+    }
+    fprintf(stderr, "gi-accuracy: %s: cache %s unreadable, recomputing\n", name, path);
+  }
+  gi_reference_opts ro = {.samples = o->ref_samples, .seed = 1, .threads = o->threads};
+  gi_error_info err = {0};
+  fprintf(stderr, "gi-accuracy: %s: reference, %zu probes x %d paths...\n", name, ss->n, o->ref_samples);
+  if (gi_reference_irradiance(ss->s, ss->pts, ss->n, &ro, ref, ms, &err) != GI_OK) {
+    fprintf(stderr, "gi-accuracy: %s: reference: %s\n", name, err.msg);
+    return 0;
+  }
+  snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
+  f = fopen(tmp, "wb");
+  if (!f || fwrite(ref, sizeof *ref, ss->n, f) != ss->n || fclose(f) != 0 || rename(tmp, path) != 0) {
+    fprintf(stderr, "gi-accuracy: cannot write the reference cache %s: %s\n", path, strerror(errno));
+    remove(tmp);
+  }
+  return 1;
+}
+
+/* ---- the sweep -------------------------------------------------------- */
+
+typedef struct rows {
+  acc_row *v;
+  size_t n, cap;
+} rows;
+
+static acc_row *push(rows *r) {
+  if (r->n == r->cap) {
+    size_t c = r->cap ? 2 * r->cap : 64;
+    acc_row *v = realloc(r->v, c * sizeof *v);
+    if (!v) return NULL;
+    r->v = v, r->cap = c;
+  }
+  memset(&r->v[r->n], 0, sizeof r->v[0]);
+  return &r->v[r->n++];
+}
+
+static int run_cone(const char *name, const scene_set *ss, const gi_ref_probe *ref, const gi_quality *q,
+                    const char *knob, double value, int is_default, rows *out) {
+  gi_cascade *c = NULL;
+  gi_bake_report rep;
+  gi_error_info err = {0};
+  gi_probe *pr = calloc(ss->n, sizeof *pr);
+  if (!pr) return 0;
+  double gms = 0, best = INFINITY, bake = 0;
+  /* Deterministic bakes: repeats change only the time; keep the fastest
+   * (the machine is shared, the slow runs are other people's work). */
+  for (int rep_i = 0; rep_i < g_repeat; rep_i++) {
+    gi_cascade_free(c);
+    c = NULL;
+    if (gi_cascade_bake(ss->s, ss->at, q, &c, &rep, &err) != GI_OK ||
+        gi_cascade_gather(c, ss->pts, ss->n, pr, &gms, &err) != GI_OK) {
+      fprintf(stderr, "gi-accuracy: %s %s=%g: %s\n", name, knob, value, err.msg);
+      gi_cascade_free(c);
+      free(pr);
+      return 0;
+    }
+    double b = rep.ms.voxelize + rep.ms.inject + rep.ms.filter + rep.ms.bounce;
+    if (b + gms < best) best = b + gms, bake = b;
+  }
+  acc_row *r = push(out);
+  if (!r) return 0;
+  snprintf(r->scene, sizeof r->scene, "%s", name);
+  snprintf(r->kind, sizeof r->kind, "cone");
+  snprintf(r->knob, sizeof r->knob, "%s", knob);
+  r->value = value;
+  r->is_default = is_default;
+  r->bake_ms = bake;
+  r->ms = best;
+  r->gather_ms = best - bake;
+  r->specular_ran = rep.effects[GI_FX_SPECULAR].ran;
+  for (int p = 0; p < 3; p++) acc_compare_probes(pr, ref, ss->n, (acc_part)p, &r->m[p]);
+  fprintf(stderr, "  cone %-8s %8g  %9.1f ms  mre total %.4f direct %.4f indirect %.4f\n", knob, value, r->ms,
+          r->m[0].mre, r->m[1].mre, r->m[2].mre);
+  gi_cascade_free(c);
+  free(pr);
+  return 1;
+}
+
+static int run_path(const char *name, const scene_set *ss, const gi_ref_probe *ref, int samples, int threads,
+                    rows *out) {
+  gi_ref_probe *pr = calloc(ss->n, sizeof *pr);
+  gi_reference_opts ro = {.samples = samples, .seed = 2, .threads = threads}; /* seed 2: independent of the reference */
+  gi_error_info err = {0};
+  double ms = INFINITY;
+  for (int i = 0; i < g_repeat; i++) {
+    double t = 0;
+    if (!pr || gi_reference_irradiance(ss->s, ss->pts, ss->n, &ro, pr, &t, &err) != GI_OK) {
+      fprintf(stderr, "gi-accuracy: %s path %d: %s\n", name, samples, err.msg);
+      free(pr);
+      return 0;
+    }
+    ms = fmin(ms, t);
+  }
+  acc_row *r = push(out);
+  if (!r) return 0;
+  snprintf(r->scene, sizeof r->scene, "%s", name);
+  snprintf(r->kind, sizeof r->kind, "path");
+  snprintf(r->knob, sizeof r->knob, "samples");
+  r->value = samples;
+  r->ms = ms;
+  for (int p = 0; p < 3; p++) acc_compare_refs(pr, ref, ss->n, (acc_part)p, &r->m[p]);
+  fprintf(stderr, "  path samples  %8d  %9.1f ms  mre total %.4f direct %.4f indirect %.4f\n", samples, r->ms,
+          r->m[0].mre, r->m[1].mre, r->m[2].mre);
+  free(pr);
+  return 1;
+}
+
+static int sweep_scene(const opts *o, const char *name, const scene_set *ss, const gi_ref_probe *ref, rows *out) {
+  gi_quality q0 = {.threads = o->threads};
+  /* Resolve the default voxel size once, so `levels` can move alone. */
+  gi_cascade *c = NULL;
+  gi_bake_report rep;
+  gi_error_info err = {0};
+  if (gi_cascade_bake(ss->s, ss->at, &q0, &c, &rep, &err) != GI_OK) {
+    fprintf(stderr, "gi-accuracy: %s: %s\n", name, err.msg);
+    return 0;
+  }
+  double s0 = rep.quality.voxel0;
+  float ap16 = rep.quality.aperture_deg;
+  gi_cascade_free(c);
+  int ok = run_cone(name, ss, ref, &q0, "default", 0, 1, out);
+  static const int res_full[] = {16, 24, 48, 64}, res_quick[] = {16, 48};
+  static const int lev[] = {4, 5, 7}, cones[] = {4, 6, 32}, bnc[] = {-1, 1, 2, 3};
+  static const double vx[] = {0.5, 2.0};
+  static const float steps[] = {0.25f, 1.0f}, aps[] = {0.6f, 1.5f};
+  const int *res = o->quick ? res_quick : res_full;
+  int nres = o->quick ? 2 : 4;
+  for (int i = 0; ok && i < nres; i++) {
+    gi_quality q = q0;
+    q.res = res[i];
+    q.voxel0 = s0 * 32.0 / res[i]; /* same extent, finer voxels */
+    ok = run_cone(name, ss, ref, &q, "res", res[i], 0, out);
+  }
+  for (int i = 0; ok && i < 3; i++) {
+    gi_quality q = q0;
+    q.levels = lev[i];
+    q.voxel0 = s0;
+    ok = run_cone(name, ss, ref, &q, "levels", lev[i], 0, out);
+  }
+  for (int i = 0; ok && i < 2; i++) {
+    gi_quality q = q0;
+    q.voxel0 = s0 * vx[i];
+    ok = run_cone(name, ss, ref, &q, "voxel0", q.voxel0, 0, out);
+  }
+  for (int i = 0; ok && i < 3; i++) {
+    gi_quality q = q0;
+    q.cones = cones[i];
+    ok = run_cone(name, ss, ref, &q, "cones", cones[i], 0, out);
+  }
+  for (int i = 0; ok && i < 2; i++) {
+    gi_quality q = q0;
+    q.aperture_deg = ap16 * aps[i];
+    ok = run_cone(name, ss, ref, &q, "aperture", q.aperture_deg, 0, out);
+  }
+  for (int i = 0; ok && i < 2; i++) {
+    gi_quality q = q0;
+    q.step = steps[i];
+    ok = run_cone(name, ss, ref, &q, "step", steps[i], 0, out);
+  }
+  for (int i = 0; ok && i < 4; i++) {
+    gi_quality q = q0;
+    q.bounces = bnc[i];
+    ok = run_cone(name, ss, ref, &q, "bounces", bnc[i] < 0 ? 0 : bnc[i], 0, out);
+  }
+  if (ok && !o->quick) {
+    /* A "high" setting: every knob that helped, together. */
+    gi_quality q = q0;
+    q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f, q.bounces = 3;
+    ok = run_cone(name, ss, ref, &q, "high", 1, 0, out);
+  }
+  for (int s = 1; ok && s <= o->pt_max; s *= 4) ok = run_path(name, ss, ref, s, o->threads, out);
+  return ok;
+}
+
+static int mkdirs(const char *p) {
+  char b[1024];
+  snprintf(b, sizeof b, "%s", p);
+  for (char *s = b + 1; *s; s++)
+    if (*s == '/') {
+      *s = 0;
+      if (mkdir(b, 0777) && errno != EEXIST) return 0;
+      *s = '/';
+    }
+  return !mkdir(b, 0777) || errno == EEXIST;
+}
+
+static void machine_name(char *out, size_t n) {
+  snprintf(out, n, "unknown CPU");
+  FILE *f = fopen("/proc/cpuinfo", "r");
+  char line[256];
+  while (f && fgets(line, sizeof line, f))
+    if (!strncmp(line, "model name", 10)) {
+      char *c = strchr(line, ':');
+      if (c) {
+        c += 2;
+        c[strcspn(c, "\n")] = 0;
+        snprintf(out, n, "%s, %ld cores", c, sysconf(_SC_NPROCESSORS_ONLN));
+      }
+      break;
+    }
+  if (f) fclose(f);
+}
+
+int main(int argc, char **argv) {
+  opts o;
+  int rc = parse_args(argc, argv, &o);
+  if (rc) return rc < 0 ? 0 : rc;
+  if (!mkdirs(o.out_dir)) {
+    fprintf(stderr, "gi-accuracy: cannot create %s: %s\n", o.out_dir, strerror(errno));
+    return 1;
+  }
+  char md[1024], png[1024], machine[256], cmd[1024] = "";
+  snprintf(md, sizeof md, "%s", o.md ? o.md : "");
+  if (!o.md) snprintf(md, sizeof md, "%s/accuracy.md", o.out_dir);
+  if (o.png) snprintf(png, sizeof png, "%s", o.png);
+  else snprintf(png, sizeof png, "%s/accuracy.png", o.out_dir);
+  machine_name(machine, sizeof machine);
+  for (int i = 0; i < argc; i++) {
+    size_t l = strlen(cmd);
+    snprintf(cmd + l, sizeof cmd - l, "%s%s", i ? " " : "", argv[i]);
+  }
+  rows out = {0};
+  acc_scene_info info[3];
+  size_t ninfo = 0;
+  rc = 0;
+  for (int i = 0; i < o.num_scenes; i++) {
+    const char *name = o.scenes[i];
+    scene_set ss;
+    int st = setup_scene(&o, name, &ss);
+    if (st < 0) continue; /* skipped loudly */
+    gi_ref_probe *ref = st ? calloc(ss.n, sizeof *ref) : NULL;
+    acc_scene_info *si = &info[ninfo];
+    memset(si, 0, sizeof *si);
+    if (!st || !ref || !load_or_make_ref(&o, name, &ss, ref, &si->ref_ms) || !sweep_scene(&o, name, &ss, ref, &out)) {
+      rc = 1;
+    } else {
+      snprintf(si->name, sizeof si->name, "%s", name);
+      si->probes = ss.n;
+      si->ref_samples = o.ref_samples;
+      snprintf(si->at, sizeof si->at, "%.6g, %.6g, %.6g", ss.at[0], ss.at[1], ss.at[2]);
+      acc_metrics m;
+      for (int p = 0; p < 3; p++) {
+        acc_compare_refs(ref, ref, ss.n, (acc_part)p, &m);
+        si->ref_rel_se[p] = m.ref_rel_se;
+      }
+      ninfo++;
+    }
+    free(ref);
+    free(ss.pts);
+    gi_scene_release(ss.s);
+    if (rc) break;
+  }
+  if (!rc && out.n) {
+    /* Pareto front per scene over (ms, total mean relative error). */
+    for (size_t i = 0; i < out.n;) {
+      size_t j = i;
+      while (j < out.n && !strcmp(out.v[j].scene, out.v[i].scene)) j++;
+      double ms[j - i], e[j - i];
+      int front[j - i];
+      for (size_t k = i; k < j; k++) ms[k - i] = out.v[k].ms, e[k - i] = out.v[k].m[ACC_TOTAL].mre;
+      acc_pareto(ms, e, j - i, front);
+      for (size_t k = i; k < j; k++) out.v[k].on_front = front[k - i];
+      i = j;
+    }
+    if (acc_write_reports(out.v, out.n, info, ninfo, o.out_dir, md, png, machine, cmd, o.notes)) rc = 1;
+  } else if (!rc) {
+    fprintf(stderr, "gi-accuracy: SKIP: no scene was available\n");
+  }
+  free(out.v);
+  return rc;
+}

@@ -1,0 +1,100 @@
+/* render.c: gi-bake --render, the cascade's view beside the truth.
+ *
+ * Renders the camera view from the baked cascade (gi_cascade_render) and
+ * path-traced (gi_reference_render), and puts them side by side with an
+ * error image: |cone - path| / path on luminance, 0 black to 50% and
+ * above white (false colour through red and yellow). Both views share one
+ * exposure, chosen so the path-traced view's mean luminance lands at 0.18
+ * (mid grey), so the pictures compare at a glance. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "cli.h"
+
+static float lum(const float *c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
+
+int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, cli_render_stats *st) {
+  gi_camera cam = o->cam;
+  if (o->cam_up_from_scene) {
+    memset(cam.up, 0, sizeof cam.up);
+    cam.up[gi_scene_up(scene) == GI_UP_Z ? 2 : 1] = 1;
+  }
+  gi_error_info err = {0};
+  if (gi_camera_validate(&cam, &err) != GI_OK) {
+    fprintf(stderr, "gi-bake: --render: %s\n", err.msg);
+    return EXIT_USAGE;
+  }
+  int w = cam.width, h = cam.height, spp = o->render_spp ? o->render_spp : 64;
+  size_t np = (size_t)w * h;
+  float *cone = malloc(np * 3 * sizeof(float)), *path = malloc(np * 3 * sizeof(float));
+  float *side = malloc(np * 9 * sizeof(float)), *errimg = malloc(np * sizeof(float));
+  int rc = EXIT_RUN;
+  if (!cone || !path || !side || !errimg) {
+    fprintf(stderr, "gi-bake: --render: out of memory for %d x %d pixels\n", w, h);
+    goto done;
+  }
+  memset(st, 0, sizeof *st);
+  st->width = w, st->height = h, st->spp = spp;
+  if (gi_cascade_render(cas, &cam, 0, o->q.threads, cone, &st->cone_ms, &err) != GI_OK ||
+      gi_reference_render(scene, &cam, spp, 1, o->q.threads, path, &st->path_ms, &err) != GI_OK) {
+    fprintf(stderr, "gi-bake: --render: %s\n", err.msg);
+    goto done;
+  }
+  double mean = 0;
+  for (size_t i = 0; i < np; i++) mean += lum(&path[3 * i]) / (double)np;
+  float floor_l = (float)(0.05 * mean), exposure = mean > 0 ? (float)(0.18 / mean) : 1.f;
+  double sum = 0;
+  for (size_t i = 0; i < np; i++) {
+    float lc = lum(&cone[3 * i]), lp = lum(&path[3 * i]);
+    errimg[i] = fabsf(lc - lp) / fmaxf(lp, floor_l > 0 ? floor_l : 1e-30f);
+    sum += errimg[i];
+  }
+  st->mre = sum / (double)np;
+  /* Side by side: cone | path | error (already scaled, so undo the exposure). */
+  for (int y = 0; y < h; y++)
+    for (int x = 0; x < w; x++) {
+      size_t i = (size_t)y * w + x, row = (size_t)y * 3 * w;
+      float e = fminf(errimg[i] / 0.5f, 1.f);
+      float heat[3] = {fminf(1.f, 3 * e) / exposure, fminf(1.f, fmaxf(0.f, 3 * e - 1)) / exposure,
+                       fminf(1.f, fmaxf(0.f, 3 * e - 2)) / exposure};
+      for (int k = 0; k < 3; k++) {
+        side[3 * (row + x) + k] = cone[3 * i + k];
+        side[3 * (row + w + x) + k] = path[3 * i + k];
+        side[3 * (row + 2 * w + x) + k] = heat[k];
+      }
+    }
+  if (o->png && gi_image_write_png(o->png, side, 3 * w, h, exposure, &err) != GI_OK) {
+    fprintf(stderr, "gi-bake: --png: %s\n", err.msg);
+    goto done;
+  }
+  if (o->exr) {
+    float *planes = malloc(np * 7 * sizeof(float));
+    if (!planes) goto done;
+    static const char *const names[7] = {"R", "G", "B", "path.R", "path.G", "path.B", "error.Y"};
+    gi_exr_channel ch[7];
+    for (int c = 0; c < 7; c++) {
+      for (size_t i = 0; i < np; i++)
+        planes[c * np + i] = c < 3 ? cone[3 * i + c] : c < 6 ? path[3 * i + c - 3] : errimg[i];
+      ch[c].name = names[c], ch[c].data = &planes[c * np];
+    }
+    char spp_s[32];
+    snprintf(spp_s, sizeof spp_s, "%d", spp);
+    gi_exr_attr at[3] = {{"gi.kind", "render"}, {"gi.scene", gi_scene_name(scene)}, {"gi.path_spp", spp_s}};
+    gi_exr_image img = {.width = w, .height = h, .use_half = o->half, .num_channels = 7, .channels = ch,
+                        .num_attrs = 3, .attrs = at};
+    gi_result r = gi_exr_write(o->exr, &img, &err);
+    free(planes);
+    if (r != GI_OK) {
+      fprintf(stderr, "gi-bake: --exr: %s\n", err.msg);
+      goto done;
+    }
+  }
+  rc = 0;
+done:
+  free(cone);
+  free(path);
+  free(side);
+  free(errimg);
+  return rc;
+}
