@@ -408,6 +408,26 @@ static void test_coalescing(void **state) {
               other + N - 1);
 }
 
+/* effects= overrides the plan: a different cascade, said in the header, and less light. */
+static void test_effect_override(void **state) {
+  resp a = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low");
+  resp b = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&effects=sky:off");
+  assert_int_equal(a.status, 200);
+  assert_int_equal(b.status, 200);
+  assert_non_null(strstr(header(&a, "X-GI-Effects"), "sky=ran"));
+  assert_non_null(strstr(header(&b, "X-GI-Effects"), "sky=skipped"));
+  assert_string_equal(header(&b, "X-GI-Cache"), "miss");
+  gi_exr_file *xa = read_exr(&a, "fx_a.exr"), *xb = read_exr(&b, "fx_b.exr");
+  assert_non_null(strstr(gi_exr_file_attr(xb, "gi.effects"), "sky=skipped (turned off by the request)"));
+  float ea = gi_exr_file_channel(xa, "B")[0], eb = gi_exr_file_channel(xb, "B")[0];
+  printf("  blue irradiance with sky %.5g, without %.5g\n", ea, eb);
+  assert_true(eb > 0 && eb < ea);
+  gi_exr_file_free(xa);
+  gi_exr_file_free(xb);
+  free(a.body);
+  free(b.body);
+}
+
 static void test_panorama(void **state) {
   resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&kind=panorama&width=32&height=16");
   assert_int_equal(r.status, 200);
@@ -651,6 +671,7 @@ int main(void) {
       cmocka_unit_test(test_catalog_and_scene),
       cmocka_unit_test(test_lighting_probe_matches_core),
       cmocka_unit_test(test_coalescing),
+      cmocka_unit_test(test_effect_override),
       cmocka_unit_test(test_panorama),
       cmocka_unit_test(test_cascades_vdb),
       cmocka_unit_test(test_probes_inline_and_job),
