@@ -465,8 +465,15 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
                               aiProcess_PreTransformVertices | aiProcess_SortByPType);
   if (!as) {
     const char *msg = aiGetErrorString();
-    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': assimp cannot read it: %s", path,
-                  msg && msg[0] ? msg : "unknown error");
+    msg = msg && msg[0] ? msg : "unknown error";
+    /* assimp's wording for the commonest failures says what it did, not
+     * what is wrong with the file: say that first, keep its text after. */
+    const char *why = "";
+    if (strstr(msg, "No suitable reader"))
+      why = "not a readable file of its type (cut short, corrupt, or another format); ";
+    else if (strstr(msg, "mNumMeshes is 0") || strstr(msg, "has no faces"))
+      why = "no usable triangles (binary junk, or faces whose indices are out of range); ";
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': %sassimp cannot read it: %s", path, why, msg);
     goto done;
   }
   pthread_mutex_unlock(&assimp_lock);
