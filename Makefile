@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps configure run bake test bench bench-http accuracy clean
+.PHONY: all deps configure run bake test bench bench-http accuracy clean asan tsan valgrind fuzz
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -45,5 +45,54 @@ accuracy: all
 	    --notes docs/accuracy-notes.md
 	cp out/accuracy/accuracy.csv docs/accuracy.csv.tmp && mv docs/accuracy.csv.tmp docs/accuracy.csv
 
+# Sanitizer builds: the whole ctest suite under ASan+UBSan and under TSan,
+# each in its own build folder. Any report fails the run. Suppressions
+# (tests/sanitize/*.supp) name third-party libraries only.
+SAN_SUPP := $(CURDIR)/tests/sanitize
+ASAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
+TSAN_FLAGS := -fsanitize=thread -fno-omit-frame-pointer
+
+asan: deps
+	cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Release -DCMAKE_C_FLAGS="$(ASAN_FLAGS)" \
+	  -DCMAKE_CXX_FLAGS="$(ASAN_FLAGS)" -DCMAKE_EXE_LINKER_FLAGS="$(ASAN_FLAGS)"
+	cmake --build build-asan -j $(JOBS)
+	cd build-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1 \
+	  LSAN_OPTIONS=suppressions=$(SAN_SUPP)/lsan.supp:print_suppressions=0 \
+	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS)
+
+tsan: deps
+	cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=Release -DCMAKE_C_FLAGS="$(TSAN_FLAGS)" \
+	  -DCMAKE_CXX_FLAGS="$(TSAN_FLAGS)" -DCMAKE_EXE_LINKER_FLAGS="$(TSAN_FLAGS)"
+	cmake --build build-tsan -j $(JOBS)
+	cd build-tsan && TSAN_OPTIONS=suppressions=$(SAN_SUPP)/tsan.supp:halt_on_error=1:second_deadlock_stack=1 \
+	  setarch $$(uname -m) -R ctest --output-on-failure -j $(JOBS)
+
+# valgrind memcheck on a small bake (a closed box with an area light, EXR
+# and VDB written); any error or definite leak fails.
+valgrind: all
+	./scripts/install-deps.sh valgrind
+	./tests/sanitize/valgrind-bake.sh $(BUILD)/bin/gi-bake
+
+# Fuzzing (opt-in, clang + libFuzzer + ASan/UBSan): each target in
+# FUZZ_TARGETS runs FUZZ_SECONDS from its seed corpus (tests/fuzz/corpus/),
+# growing build-fuzz/corpus/<name>; crashes land in build-fuzz/artifacts/<name>/
+# and fail the run. The seed corpus is replayed in every `make test`.
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS ?= scene
+FUZZ_FLAGS := -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
+
+fuzz:
+	./scripts/install-deps.sh fuzz
+	CC=clang-14 CXX=clang++-14 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=Release -DGI_FUZZ=ON \
+	  -DCMAKE_C_FLAGS="$(FUZZ_FLAGS)" -DCMAKE_CXX_FLAGS="$(FUZZ_FLAGS)" \
+	  -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined"
+	cmake --build build-fuzz -j $(JOBS) --target $(addprefix fuzz_,$(FUZZ_TARGETS))
+	@set -e; for t in $(FUZZ_TARGETS); do \
+	  mkdir -p build-fuzz/corpus/$$t build-fuzz/artifacts/$$t; \
+	  echo "fuzz_$$t: $(FUZZ_SECONDS) s"; \
+	  build-fuzz/fuzz/fuzz_$$t -max_total_time=$(FUZZ_SECONDS) -timeout=10 -rss_limit_mb=2048 \
+	    -artifact_prefix=build-fuzz/artifacts/$$t/ build-fuzz/corpus/$$t tests/fuzz/corpus/$$t; \
+	done
+
 clean:
-	rm -rf $(BUILD) out
+	rm -rf $(BUILD) build-asan build-tsan build-fuzz out

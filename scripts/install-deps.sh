@@ -1,12 +1,22 @@
 #!/bin/sh
 # Installs the Debian 12 packages the build, the tests and the tools need.
 # Idempotent: does nothing when every package is already installed.
+# Optional groups for opt-in make targets, never needed by `make test`:
+#   fuzz      clang and its libFuzzer runtime (make fuzz)
+#   valgrind  valgrind (make valgrind)
 set -eu
 PKGS="build-essential cmake pkg-config libembree-dev libopenexr-dev openexr
 libopenvdb-dev libboost-dev libboost-iostreams-dev libopenvdb-tools python3-openvdb
 libassimp-dev libtbb-dev libjansson-dev libcmocka-dev libmicrohttpd-dev
 libcurl4-openssl-dev libinih-dev libpng-dev libjpeg62-turbo-dev python3
 python3-yaml wrk gnuplot-nox"
+for group in "$@"; do
+  case "$group" in
+    fuzz) PKGS="$PKGS clang-14 libclang-rt-14-dev" ;;
+    valgrind) PKGS="$PKGS valgrind" ;;
+    *) echo "install-deps: unknown group '$group' (known: fuzz, valgrind)" >&2; exit 2 ;;
+  esac
+done
 missing=""
 for p in $PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

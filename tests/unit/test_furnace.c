@@ -25,30 +25,6 @@
 #include <string.h>
 #include "gi/gi.h"
 
-static gi_scene *make_furnace(double size, double a, double Le, double offset) {
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {a, a, a}, .emission = {Le, Le, Le}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double o = offset, s = size;
-  /* Six walls wound so their normals point into the cube (emitters are one-sided). */
-  double P[8][3];
-  for (int i = 0; i < 8; i++) {
-    P[i][0] = o + ((i & 1) ? s : 0);
-    P[i][1] = (i & 2) ? s : 0;
-    P[i][2] = o + ((i & 4) ? s : 0);
-  }
-  static const int q[6][4] = {{0, 2, 6, 4}, {1, 5, 7, 3}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 6, 7, 5}};
-  for (int f = 0; f < 6; f++) gi_mesh_builder_add_quad(b, P[q[f][0]], P[q[f][1]], P[q[f][2]], P[q[f][3]], mat);
-  gi_scene *sc = NULL;
-  gi_error_info err = {0};
-  gi_scene_options opt = {.up = GI_UP_Y};
-  gi_result rc = gi_scene_build(b, "furnace", &opt, &sc, &err);
-  gi_mesh_builder_free(b);
-  if (rc != GI_OK) fprintf(stderr, "furnace build: %s\n", err.msg);
-  assert_int_equal(rc, GI_OK);
-  return sc;
-}
-
 static double furnace_expect(double a, double Le, int k) {
   double sum = 0, p = 1;
   for (int i = 0; i <= k; i++, p *= a) sum += p;
@@ -56,7 +32,7 @@ static double furnace_expect(double a, double Le, int k) {
 }
 
 static void run_furnace(double a, double Le, int bounces, uint64_t seed, double out[2]) {
-  gi_scene *sc = make_furnace(1.0, a, Le, 0.0);
+  gi_scene *sc = tu_furnace_scene(1.0, a, Le);
   gi_quality q = {.levels = 3, .res = 32, .voxel0 = 1.25 / (32 * 4), .bounces = bounces ? bounces : -1,
                   .light_samples = 64, .probe_samples = 8192, .seed = seed};
   gi_cascade *c = NULL;

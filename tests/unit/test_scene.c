@@ -736,6 +736,113 @@ static void test_gltf(void **state) {
   gi_scene_release(s);
 }
 
+/* ---- bad files, every kind for OBJ, PLY and glTF ------------------------- */
+
+static void b64(const unsigned char *in, size_t n, char *out) {
+  static const char tab[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  size_t o = 0;
+  for (size_t i = 0; i < n; i += 3) {
+    uint32_t v = (uint32_t)in[i] << 16 | (i + 1 < n ? (uint32_t)in[i + 1] << 8 : 0) | (i + 2 < n ? in[i + 2] : 0);
+    out[o++] = tab[v >> 18 & 63];
+    out[o++] = tab[v >> 12 & 63];
+    out[o++] = i + 1 < n ? tab[v >> 6 & 63] : '=';
+    out[o++] = i + 2 < n ? tab[v & 63] : '=';
+  }
+  out[o] = 0;
+}
+
+/* A one-triangle glTF with the given positions, indices and accessor count. */
+static const char *gltf_tri(const char *name, const float pos[9], const uint16_t idx[3], unsigned count) {
+  unsigned char buf[44] = {0};
+  memcpy(buf, pos, 36);
+  memcpy(buf + 36, idx, 6);
+  char enc[80];
+  b64(buf, sizeof buf, enc);
+  static char json[2048];
+  int n = snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+           "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+           "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%u,\"type\":\"VEC3\"},"
+           "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}",
+           enc, count);
+  return tu_write_file(name, json, (size_t)n);
+}
+
+/* Loading must fail with `code`, and the message must name the file and
+ * contain `what` (the problem, in words a user can act on). */
+static void expect_bad(const char *path, gi_result code, const char *what) {
+  gi_scene *s = (gi_scene *)1;
+  gi_error_info err = {0};
+  gi_result r = gi_scene_load(path, NULL, &s, &err);
+  printf("  %s -> %s: %s\n", path, gi_err_name(r), err.msg);
+  assert_int_equal(r, code);
+  assert_int_equal(err.code, r);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, path));
+  if (!strstr(err.msg, what)) fail_msg("message for %s does not say '%s': %s", path, what, err.msg);
+}
+
+static void test_bad_file_matrix(void **state) {
+  static const char *const ext[] = {"obj", "ply", "gltf"};
+  unsigned char junk[4096];
+  for (size_t i = 0; i < sizeof junk; i++) junk[i] = (unsigned char)(rnd() * 256);
+  char path[4300];
+  for (int e = 0; e < 3; e++) {
+    snprintf(path, sizeof path, "%s/missing.%s", tu_tmpdir(), ext[e]);
+    expect_bad(path, GI_ERR_NOT_FOUND, "cannot open");
+    snprintf(path, sizeof path, "empty.%s", ext[e]);
+    expect_bad(tu_write_file(path, "", 0), GI_ERR_FORMAT, "is empty");
+    snprintf(path, sizeof path, "junk.%s", ext[e]);
+    expect_bad(tu_write_file(path, junk, sizeof junk), GI_ERR_FORMAT,
+               e == 0 ? "no usable triangles" : e == 1 ? "magic number" : "cut short");
+  }
+  /* OBJ: truncated, NaN/Inf only, index out of range, a face count no file backs. */
+  const char obj_trunc[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2";
+  expect_bad(tu_write_file("trunc.obj", obj_trunc, strlen(obj_trunc)), GI_ERR_FORMAT, "LINE");
+  const char obj_nan[] = "v nan 0 0\nv 1 inf 0\nv 0 1 -inf\nf 1 2 3\n";
+  expect_bad(tu_write_file("nan.obj", obj_nan, strlen(obj_nan)), GI_ERR_EMPTY, "non-finite");
+  const char obj_oor[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n";
+  expect_bad(tu_write_file("oor2.obj", obj_oor, strlen(obj_oor)), GI_ERR_FORMAT, "index out of range");
+  /* PLY */
+  const char ply_head[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                          "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  char ply[1024];
+  snprintf(ply, sizeof ply, "%s0 0 0\n1 0 0\n", ply_head);
+  expect_bad(tu_write_file("trunc.ply", ply, strlen(ply)), GI_ERR_FORMAT, "truncated");
+  snprintf(ply, sizeof ply, "%snan 0 0\n1 inf 0\n0 1 -inf\n3 0 1 2\n", ply_head);
+  expect_bad(tu_write_file("nan.ply", ply, strlen(ply)), GI_ERR_EMPTY, "non-finite");
+  snprintf(ply, sizeof ply, "%s0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n", ply_head);
+  expect_bad(tu_write_file("oor.ply", ply, strlen(ply)), GI_ERR_FORMAT, "out of range");
+  const char ply_huge[] = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                          "property float y\nproperty float z\nelement face 900000000\n"
+                          "property list uchar int vertex_indices\nend_header\n";
+  expect_bad(tu_write_file("huge2.ply", ply_huge, strlen(ply_huge)), GI_ERR_FORMAT, "face");
+  /* glTF */
+  const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const uint16_t idx[3] = {0, 1, 2};
+  const char *good = gltf_tri("good.gltf", pos, idx, 3);
+  {
+    gi_scene *s = NULL;
+    gi_error_info err = {0};
+    assert_int_equal(gi_scene_load(good, NULL, &s, &err), GI_OK); /* the generator itself is sound */
+    gi_scene_release(s);
+  }
+  FILE *f = fopen(good, "rb");
+  assert_non_null(f);
+  char full[2048];
+  size_t n = fread(full, 1, sizeof full, f);
+  fclose(f);
+  expect_bad(tu_write_file("trunc.gltf", full, n / 2), GI_ERR_FORMAT, "cut short");
+  const float nanpos[9] = {NAN, 0, 0, 1, INFINITY, 0, 0, 1, -INFINITY};
+  expect_bad(gltf_tri("nan.gltf", nanpos, idx, 3), GI_ERR_EMPTY, "non-finite");
+  const uint16_t oor[3] = {0, 1, 999};
+  expect_bad(gltf_tri("oor.gltf", pos, oor, 3), GI_ERR_FORMAT, "out of range");
+  expect_bad(gltf_tri("huge.gltf", pos, idx, 1000000000u), GI_ERR_FORMAT, "out of range");
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_builder_box),
@@ -753,6 +860,7 @@ int main(void) {
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
       cmocka_unit_test(test_gltf),
+      cmocka_unit_test(test_bad_file_matrix),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

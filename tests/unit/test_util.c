@@ -4,6 +4,7 @@
 #include <string.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include "gi/gi.h"
 
 const char *tu_scene_path(const char *rel) {
   static char buf[4096];
@@ -54,4 +55,28 @@ const char *tu_run(const char *cmd, int *status) {
   int st = pclose(p);
   *status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   return out;
+}
+
+struct gi_scene *tu_furnace_scene(double size, double a, double Le) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {a, a, a}, .emission = {Le, Le, Le}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double s = size;
+  /* Six walls wound so their normals point into the cube (emitters are one-sided). */
+  double P[8][3];
+  for (int i = 0; i < 8; i++) {
+    P[i][0] = (i & 1) ? s : 0;
+    P[i][1] = (i & 2) ? s : 0;
+    P[i][2] = (i & 4) ? s : 0;
+  }
+  static const int q[6][4] = {{0, 2, 6, 4}, {1, 5, 7, 3}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 6, 7, 5}};
+  for (int f = 0; f < 6; f++) gi_mesh_builder_add_quad(b, P[q[f][0]], P[q[f][1]], P[q[f][2]], P[q[f][3]], mat);
+  gi_scene *sc = NULL;
+  gi_error_info err = {0};
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_result rc = gi_scene_build(b, "furnace", &opt, &sc, &err);
+  gi_mesh_builder_free(b);
+  if (rc != GI_OK) fprintf(stderr, "furnace build: %s\n", err.msg);
+  assert_int_equal(rc, GI_OK);
+  return sc;
 }

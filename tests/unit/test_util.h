@@ -20,6 +20,11 @@ const char *tu_write_file(const char *name, const void *data, size_t len);
  * *status to its exit code (-1 when it did not exit normally). */
 const char *tu_run(const char *cmd, int *status);
 
+struct gi_scene;
+/* The closed white furnace: a cube [0,size]^3 of albedo a whose walls emit
+ * Le inward (test_furnace, test_hardcases). Caller releases it. */
+struct gi_scene *tu_furnace_scene(double size, double a, double Le);
+
 #define TU_SKIP_IF_NO_SCENE(var, rel)                  \
   const char *var = tu_scene_path(rel);                \
   if (!var) { skip(); }

@@ -86,8 +86,15 @@ static gi_result check_ply_header(const char *path, FILE *f, long long file_size
       if (strcmp(b, "face") == 0 && count > ((long long)1 << 31))
         return gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %lld faces; the limit is 2^31", path, count);
     } else if (n >= 3 && strcmp(a, "property") == 0) {
+      /* An unknown type would make assimp guess (and, in 5.2, leak: found by
+       * fuzz_scene); say what is wrong instead. */
+      int list = strcmp(b, "list") == 0;
+      const char *bad = !ply_type_size(list ? c : b) ? (list ? c : b) : (list && !ply_type_size(d) ? d : NULL);
+      if (bad)
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY element '%s' has a property of unknown type '%s'",
+                        path, elem, bad);
       /* ASCII: a digit and a separator; binary: the scalar, or a list's count. */
-      int size = ply_type_size(strcmp(b, "list") == 0 ? c : b);
+      int size = ply_type_size(list ? c : b);
       per += binary == 1 ? (size ? size : 1) : 2;
     } else if (n >= 1 && strcmp(a, "end_header") == 0) {
       header_end = ftell(f);
@@ -465,8 +472,15 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
                               aiProcess_PreTransformVertices | aiProcess_SortByPType);
   if (!as) {
     const char *msg = aiGetErrorString();
-    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': assimp cannot read it: %s", path,
-                  msg && msg[0] ? msg : "unknown error");
+    msg = msg && msg[0] ? msg : "unknown error";
+    /* assimp's wording for the commonest failures says what it did, not
+     * what is wrong with the file: say that first, keep its text after. */
+    const char *why = "";
+    if (strstr(msg, "No suitable reader"))
+      why = "not a readable file of its type (cut short, corrupt, or another format); ";
+    else if (strstr(msg, "mNumMeshes is 0") || strstr(msg, "has no faces"))
+      why = "no usable triangles (binary junk, or faces whose indices are out of range); ";
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': %sassimp cannot read it: %s", path, why, msg);
     goto done;
   }
   pthread_mutex_unlock(&assimp_lock);

@@ -1,0 +1,59 @@
+# bad_files.sh: hostile scene files (OBJ, PLY, glTF: missing, empty,
+# truncated, binary junk, NaN/Inf coordinates, out-of-range indices, huge
+# face counts) make gi-bake exit 1 within 60 s with a message naming the
+# file, and leave no output (and no temporary) behind; an output file that
+# already exists is left exactly as it was.
+. "$(dirname "$0")/common.sh"
+
+PLY_HEAD='ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n'
+GLTF='{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],"meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1}]}],"buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}],"accessors":[{"bufferView":0,"componentType":5126,"count":COUNT,"type":"VEC3"},{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]}'
+
+mkdir -p "$T/in" "$T/out"
+: > "$T/in/empty.obj"; : > "$T/in/empty.ply"; : > "$T/in/empty.gltf"
+python3 -c "import random,sys; random.seed(5); sys.stdout.buffer.write(bytes(random.randrange(256) for _ in range(4096)))" > "$T/in/junk.obj"
+cp "$T/in/junk.obj" "$T/in/junk.ply"; cp "$T/in/junk.obj" "$T/in/junk.gltf"; cp "$T/in/junk.obj" "$T/in/junk.glb"
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2' > "$T/in/truncated.obj"
+printf 'v nan 0 0\nv 1 inf 0\nv 0 1 -inf\nf 1 2 3\n' > "$T/in/nan.obj"
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n' > "$T/in/index.obj"
+printf "${PLY_HEAD}0 0 0\n1 0 0\n" > "$T/in/truncated.ply"
+printf "${PLY_HEAD}nan 0 0\n1 inf 0\n0 1 -inf\n3 0 1 2\n" > "$T/in/nan.ply"
+printf "${PLY_HEAD}0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n" > "$T/in/index.ply"
+printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 900000000\nproperty list uchar int vertex_indices\nend_header\n' > "$T/in/huge.ply"
+echo "$GLTF" | sed 's/COUNT/3/' | head -c 300 > "$T/in/truncated.gltf"
+echo "$GLTF" | sed 's/COUNT/1000000000/' > "$T/in/huge.gltf"
+
+# expect_bad FILE: exit 1, message names FILE, no output or temporary left.
+expect_bad() {
+  f=$1
+  timeout 60 "$BIN" "$f" --at 0,0,0 --levels 2 --res 8 --exr "$T/out/probe.exr" --vdb "$T/out/cascades.vdb" \
+    > "$T/stdout" 2> "$T/err"; rc=$?
+  if [ $rc -eq 124 ]; then fail "$f: gi-bake hung (killed after 60 s)"; return; fi
+  if [ $rc -ne 1 ]; then fail "$f: exited $rc, expected 1: $(cat "$T/err")"; return; fi
+  grep -q -F "$f" "$T/err" || { fail "$f: message does not name the file: $(cat "$T/err")"; return; }
+  left=$(ls -A "$T/out")
+  [ -z "$left" ] || { fail "$f: left output behind: $left"; rm -f "$T"/out/*; return; }
+  pass "$(basename "$f") -> 1: $(head -n 1 "$T/err")"
+}
+
+expect_bad "$T/in/missing.obj"
+expect_bad "$T/in/missing.ply"
+expect_bad "$T/in/missing.gltf"
+for f in "$T"/in/*; do expect_bad "$f"; done
+
+# A failing run must not touch an output that already exists.
+printf 'precious' > "$T/out/probe.exr"
+printf 'precious' > "$T/out/cascades.vdb"
+timeout 60 "$BIN" "$T/in/junk.obj" --exr "$T/out/probe.exr" --vdb "$T/out/cascades.vdb" > /dev/null 2>&1; rc=$?
+[ $rc -eq 1 ] || fail "junk.obj over existing outputs exited $rc, expected 1"
+[ "$(cat "$T/out/probe.exr")" = precious ] && [ "$(cat "$T/out/cascades.vdb")" = precious ] \
+  && pass "existing outputs left intact by a failing run" || fail "a failing run changed existing outputs"
+[ -z "$(find "$T/out" -name '*.tmp.*')" ] && pass "no temporary files" || fail "temporary files left in $T/out"
+
+# An unwritable output (its folder does not exist) fails the run, names the
+# path, and leaves the other output absent rather than half-written.
+make_box_scene
+timeout 120 "$BIN" "$T/box.obj" --at 2,2,2 --levels 2 --res 8 --bounces 1 --exr "$T/out2/probe.exr" \
+  > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 1 ] && grep -q -F "$T/out2/probe.exr" "$T/err" && pass "unwritable --exr -> 1: $(head -n 1 "$T/err")" \
+  || fail "unwritable --exr exited $rc: $(cat "$T/err")"
+finish

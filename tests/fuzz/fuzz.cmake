@@ -1,0 +1,24 @@
+# Fuzz targets: one fuzz_<name>.c per parser with LLVMFuzzerTestOneInput and
+# a seed corpus in corpus/<name>/. Every build replays the corpus through
+# the same function in ctest (replay_<name>); with -DGI_FUZZ=ON (clang,
+# `make fuzz`) each also becomes a libFuzzer binary fuzz_<name>.
+# Adding a target: write fuzz_<name>.c, add corpus/<name>/, call gi_add_fuzz.
+option(GI_FUZZ "build libFuzzer targets (needs clang)" OFF)
+
+function(gi_add_fuzz name)
+  add_executable(replay_${name} fuzz/fuzz_${name}.c fuzz/replay.c)
+  target_link_libraries(replay_${name} PRIVATE gicore)
+  set_target_properties(replay_${name} PROPERTIES LINKER_LANGUAGE CXX
+                        RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+  add_test(NAME fuzz_replay_${name} COMMAND replay_${name} ${CMAKE_CURRENT_SOURCE_DIR}/fuzz/corpus/${name})
+  set_tests_properties(fuzz_replay_${name} PROPERTIES TIMEOUT 300)
+  if(GI_FUZZ)
+    add_executable(fuzz_${name} fuzz/fuzz_${name}.c)
+    target_link_libraries(fuzz_${name} PRIVATE gicore)
+    target_link_options(fuzz_${name} PRIVATE -fsanitize=fuzzer)
+    set_target_properties(fuzz_${name} PROPERTIES LINKER_LANGUAGE CXX
+                          RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/fuzz)
+  endif()
+endfunction()
+
+gi_add_fuzz(scene)

@@ -1,0 +1,429 @@
+/* test_hardcases.c: numerically hard cases (DESIGN section 7, issue 5).
+ *
+ * Each case prints its measured figure on a line starting "hardcase:" and
+ * asserts finite output plus a numeric bound; each bound's comment gives
+ * the value measured on the 2-core EPYC VM beside it. Scenes are made in
+ * code and baked small (R = 16..32, 2..4 levels) to keep the file quick.
+ * Lights are a point light (one deterministic shadow ray per voxel) unless
+ * a case needs otherwise, so figures carry no Monte Carlo noise. */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <stdlib.h>
+#include "gi/gi.h"
+
+#define PI 3.14159265358979
+
+static double mean3(const float v[3]) { return ((double)v[0] + v[1] + v[2]) / 3.0; }
+
+static void assert_probe_finite(const gi_probe *p) {
+  for (int i = 0; i < 9; i++)
+    for (int k = 0; k < 3; k++) {
+      assert_true(isfinite(p->sh[i][k]));
+      assert_true(isfinite(p->sh_direct[i][k]));
+    }
+  for (int k = 0; k < 3; k++) {
+    assert_true(isfinite(p->irradiance[k]));
+    assert_true(isfinite(p->direct[k]));
+    assert_true(isfinite(p->indirect[k]));
+    assert_true(p->irradiance[k] >= 0);
+  }
+  assert_true(isfinite(p->ao));
+}
+
+static gi_scene *build(gi_mesh_builder *b, const char *name, const gi_light *lights, size_t nl) {
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = lights, .num_lights = nl};
+  gi_result rc = gi_scene_build(b, name, &opt, &s, &err);
+  if (rc) fprintf(stderr, "%s: %s\n", name, err.msg);
+  assert_int_equal(rc, GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* Bakes around `at` and gathers n points; every probe must be finite. */
+static void bake_gather_rep(const gi_scene *s, const double at[3], const gi_quality *q, const double *pts,
+                            size_t n, gi_probe *out, gi_bake_report *rep) {
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  gi_result rc = gi_cascade_bake(s, at, q, &c, rep, &err);
+  if (rc) fprintf(stderr, "bake: %s\n", err.msg);
+  assert_int_equal(rc, GI_OK);
+  assert_int_equal(gi_cascade_gather(c, pts, n, out, NULL, &err), GI_OK);
+  for (size_t i = 0; i < n; i++) assert_probe_finite(&out[i]);
+  gi_cascade_free(c);
+}
+
+static void bake_gather(const gi_scene *s, const double at[3], const gi_quality *q, const double *pts, size_t n,
+                        gi_probe *out) {
+  bake_gather_rep(s, at, q, pts, n, out, NULL);
+}
+
+/* A closed 4 x 3 x 4 room with a red box in it and a point light, moved by o. */
+static gi_scene *room_scene2(const double o[3], float albedo, float box, float light) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material wall = {.albedo = {albedo, albedo, albedo}, .roughness = 1};
+  gi_material red = {.albedo = {box, box / 7, box / 7}, .roughness = 1};
+  uint32_t mw = gi_mesh_builder_add_material(b, &wall), mr = gi_mesh_builder_add_material(b, &red);
+  double lo[3] = {o[0], o[1], o[2]}, hi[3] = {o[0] + 4, o[1] + 3, o[2] + 4};
+  gi_mesh_builder_add_box(b, lo, hi, mw);
+  double blo[3] = {o[0] + 2.3, o[1], o[2] + 1.1}, bhi[3] = {o[0] + 3.1, o[1] + 1.4, o[2] + 2.0};
+  gi_mesh_builder_add_box(b, blo, bhi, mr);
+  gi_light pl = {.type = GI_LIGHT_POINT, .color = {light, light, light},
+                 .position = {o[0] + 1.3, o[1] + 2.6, o[2] + 1.7}};
+  return build(b, "room", &pl, 1);
+}
+
+static gi_scene *room_scene(const double o[3], float albedo, float light) {
+  return room_scene2(o, albedo, 0.7f, light);
+}
+
+/* ---- far from the origin ------------------------------------------------ */
+
+static void test_far_origin(void **state) {
+  /* Not round numbers: world coordinates then round differently from local ones. */
+  const double offs[] = {0, 1e6 + 0.3217, 1e7 + 0.3217};
+  gi_quality q = {.levels = 3, .res = 32, .voxel0 = 5.0 / 128, .bounces = 2, .light_samples = 4,
+                  .probe_samples = 16, .threads = 2};
+  gi_probe ref[3], pr[3];
+  for (size_t i = 0; i < 3; i++) {
+    /* Same offset on all three axes; points and viewpoint move with the scene. */
+    double o[3] = {offs[i], -offs[i], offs[i]};
+    gi_scene *s = room_scene(o, 0.6f, 10.f);
+    double at[3] = {o[0] + 2, o[1] + 1.5, o[2] + 2};
+    double pts[9] = {o[0] + 2, o[1] + 1.5, o[2] + 2, o[0] + 0.7, o[1] + 0.4, o[2] + 3.1,
+                     o[0] + 3.5, o[1] + 2.2, o[2] + 0.6};
+    bake_gather(s, at, &q, pts, 3, i ? pr : ref);
+    gi_scene_release(s);
+    if (!i) continue;
+    double worst = 0;
+    for (int p = 0; p < 3; p++)
+      for (int k = 0; k < 3; k++) {
+        double a = ref[p].irradiance[k], b = pr[p].irradiance[k];
+        worst = fmax(worst, fabs(a - b) / fmax(fabs(a), 1e-6));
+        for (int j = 0; j < 9; j++)
+          worst = fmax(worst, fabs(ref[p].sh[j][k] - pr[p].sh[j][k]) / fmax(fabs(ref[p].sh[0][k]), 1e-6));
+      }
+    printf("hardcase: far origin %.4f: largest relative probe difference %.3g (irradiance %.5f vs %.5f)\n",
+           offs[i], worst, mean3(pr[0].irradiance), mean3(ref[0].irradiance));
+    /* Issue 5 asks for 1e-3. The scene keeps float positions relative to a
+     * double origin and the cascade snaps relative to that origin, so the
+     * pipeline sees the same local numbers: measured 0 at 1e6 and 1e7. */
+    assert_true(worst <= 1e-3);
+  }
+}
+
+
+/* ---- walls thinner than a voxel ---------------------------------------- */
+
+/* Two 2 x 2 x 2 rooms side by side along x, split by a wall of thickness
+ * s0/10 centred at x = xw; a point light in the lit room (x < xw). The
+ * exact answer in the dark room is 0: all of its light leaked. */
+#define WALL_S0 0.04
+static double wall_leak(double xw, double *lit_out) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.7f, 0.7f, 0.7f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {-2, 0, 0}, hi[3] = {2, 2, 2};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  double t = WALL_S0 / 10;
+  double wlo[3] = {xw - t / 2, 0, 0}, whi[3] = {xw + t / 2, 2, 2};
+  gi_mesh_builder_add_box(b, wlo, whi, mat);
+  gi_light pl = {.type = GI_LIGHT_POINT, .color = {20, 20, 20}, .position = {xw - 1.2, 1.6, 1.1}};
+  gi_scene *s = build(b, "thin-wall", &pl, 1);
+  gi_quality q = {.levels = 3, .res = 32, .voxel0 = WALL_S0, .bounces = 2, .light_samples = 4,
+                  .probe_samples = 16, .threads = 2};
+  double at[3] = {xw, 1, 1};
+  /* Probes mirrored about the wall, and one near it on each side. */
+  double pts[12] = {xw - 1, 1, 1, xw + 1, 1, 1, xw - 0.2, 1, 1, xw + 0.2, 1, 1};
+  gi_probe pr[4];
+  bake_gather(s, at, &q, pts, 4, pr);
+  gi_scene_release(s);
+  /* L00 is proportional to the irradiance averaged over all normals. */
+  double lit = mean3(pr[0].sh[0]), dark = mean3(pr[1].sh[0]);
+  double lit_n = mean3(pr[2].sh[0]), dark_n = mean3(pr[3].sh[0]);
+  /* No direct light reaches the dark room (shadow rays see the real wall). */
+  assert_true(mean3(pr[1].direct) == 0);
+  printf("hardcase: thin wall at x=%+.4f (s0=%.3g, thickness s0/10): lit %.5f dark %.5f leak %.4f;"
+         " 0.2 from the wall: lit %.5f dark %.5f leak %.4f\n",
+         xw, WALL_S0, lit, dark, dark / lit, lit_n, dark_n, dark_n / lit_n);
+  if (lit_out) *lit_out = lit;
+  return fmax(dark / lit, dark_n / lit_n);
+}
+
+static void test_thin_wall(void **state) {
+  /* The scene's origin is x = 0, so 0 puts the wall on a cell border (its
+   * two faces in two voxels), 0.5 s0 in the middle of a cell (both faces in
+   * one voxel), 0.3 s0 off-centre. */
+  const double xs[] = {0.0, 0.5 * WALL_S0, 0.3 * WALL_S0};
+  double worst = 0;
+  for (int i = 0; i < 3; i++) worst = fmax(worst, wall_leak(xs[i], NULL));
+  printf("hardcase: thin wall: largest leak %.4f\n", worst);
+  /* Measured 0.0906 before bounce cones kept coarse levels off their own
+   * surface (trace.c, GI_SURFACE_LOD_K; 0.069 with K = 1.5, 0.024 with
+   * K = 2), 0.0072 after (K = 3), worst 0.2 from a wall on a cell border.
+   * Bound 0.015. */
+  assert_true(worst < 0.015);
+}
+
+
+/* ---- viewpoint on cell and cascade borders ------------------------------ */
+
+/* A client at fixed probe points while the cascade's viewpoint walks along
+ * x in steps of s0/16 over [-2.5 s0, 2.5 s0] around the scene's local
+ * origin: across level-0 cell borders (every s0), level-0 window snaps
+ * (every 2 s0) and x = 0, where every level's window snaps at once (0 is a
+ * multiple of 2 s_d for all d). Per step, the change of each probe's
+ * irradiance (L00 and E(up), every channel) relative to its value. */
+static void test_border_steps(void **state) {
+  const double o[3] = {0, 0, 0};
+  gi_scene *s = room_scene(o, 0.6f, 10.f); /* local origin = world (2, 1.5, 2) */
+  const int R = 16, steps_per_voxel = 16;
+  const double s0 = 0.08, span = 2.5;
+  gi_quality q = {.levels = 3, .res = R, .voxel0 = s0, .bounces = 1, .light_samples = 4, .probe_samples = 16,
+                  .threads = 2};
+  /* Near the viewpoint, and 0.3, 0.5 and 0.6 of level 0's half-width away. */
+  enum { NP = 4 };
+  const double half = 0.5 * R * s0;
+  const double probe[3 * NP] = {2.15, 1.7, 1.8, 2 + 0.6 * half, 1.5, 2, 2, 1.5 - 0.5 * half, 2.1,
+                                2 - 0.3 * half, 1.5 + 0.3 * half, 2 - 0.9 * half};
+  int n = (int)lround(2 * span * steps_per_voxel) + 1, snaps = 0;
+  double prev[NP][6] = {{0}}, prev_origin[GI_MAX_LEVELS][3] = {{0}};
+  double worst_snap = 0, worst_still = 0, sum = 0;
+  for (int i = 0; i < n; i++) {
+    double x = -span * s0 + i * s0 / steps_per_voxel;
+    double at[3] = {2 + x, 1.5, 2};
+    gi_probe pr[NP];
+    gi_bake_report rep;
+    bake_gather_rep(s, at, &q, probe, NP, pr, &rep);
+    int snapped = i > 0 && memcmp(prev_origin, rep.level_origin, sizeof prev_origin) != 0;
+    memcpy(prev_origin, rep.level_origin, sizeof prev_origin);
+    snaps += snapped;
+    for (int p = 0; p < NP; p++) {
+      double cur[6] = {pr[p].sh[0][0], pr[p].sh[0][1], pr[p].sh[0][2],
+                       pr[p].irradiance[0], pr[p].irradiance[1], pr[p].irradiance[2]};
+      sum += mean3(pr[p].irradiance) / NP;
+      if (i) {
+        double step = 0;
+        for (int k = 0; k < 6; k++) step = fmax(step, fabs(cur[k] - prev[p][k]) / fmax(fabs(prev[p][k]), 1e-9));
+        if (snapped) worst_snap = fmax(worst_snap, step);
+        else worst_still = fmax(worst_still, step);
+      }
+      memcpy(prev[p], cur, sizeof cur);
+    }
+  }
+  gi_scene_release(s);
+  printf("hardcase: border walk (3 x %d^3, s0 %.2f, %d steps of s0/%d): mean E %.4f; %d window snaps, largest "
+         "per-step change %.4f at a snap, %.2g between snaps\n",
+         R, s0, n - 1, steps_per_voxel, sum / n, snaps, worst_snap, worst_still);
+  /* Windows snap at 2 s_d: x = -2, 0 (all levels) and +2 s0 (level 0). */
+  assert_int_equal(snaps, 3);
+  /* Between snaps the grids stay put and the gather is a pure function of
+   * the texture and the point: exactly no change (measured 0). */
+  assert_true(worst_still == 0);
+  /* At a snap, coarse cells switch between filtered from the finer level
+   * and voxelized and lit on their own, which do not agree exactly:
+   * measured 0.054 (at x = 0, all levels snapping). Bound 0.08. */
+  assert_true(worst_snap < 0.08);
+}
+
+/* ---- hostile geometry, materials and lights ------------------------------ */
+
+static const gi_quality small_q = {.levels = 3, .res = 16, .voxel0 = 5.0 / 64, .bounces = 2, .light_samples = 4,
+                                   .probe_samples = 16, .threads = 2};
+static const double room_at[3] = {2, 1.5, 2};
+static const double room_pts[6] = {2, 1.5, 2, 1.0, 2.5, 3.0};
+
+static double max_rel_diff(const gi_probe *a, const gi_probe *b, int n) {
+  double worst = 0;
+  for (int p = 0; p < n; p++)
+    for (int k = 0; k < 3; k++)
+      worst = fmax(worst, fabs(a[p].irradiance[k] - b[p].irradiance[k]) / fmax(fabs(a[p].irradiance[k]), 1e-12));
+  return worst;
+}
+
+/* The room with an enormous floor (1e6 across, 10 below the room: kept,
+ * voxelized by every level it crosses, hidden from the probes by the closed
+ * room); with `hostile`, also every wall twice and degenerate, sliver and
+ * non-finite triangles, which must change nothing. */
+static gi_scene *hostile_scene(int hostile) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material wall = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  gi_material red = {.albedo = {0.7f, 0.1f, 0.1f}, .roughness = 1};
+  uint32_t mw = gi_mesh_builder_add_material(b, &wall), mr = gi_mesh_builder_add_material(b, &red);
+  double lo[3] = {0, 0, 0}, hi[3] = {4, 3, 4};
+  gi_mesh_builder_add_box(b, lo, hi, mw);
+  double blo[3] = {2.3, 0, 1.1}, bhi[3] = {3.1, 1.4, 2.0};
+  gi_mesh_builder_add_box(b, blo, bhi, mr);
+  uint32_t e0 = gi_mesh_builder_add_vertex(b, -1e6, -10, -1e6), e1 = gi_mesh_builder_add_vertex(b, 1e6, -10, -1e6);
+  uint32_t e2 = gi_mesh_builder_add_vertex(b, 0, -10, 1e6);
+  gi_mesh_builder_add_triangle(b, e0, e1, e2, mw);
+  if (hostile) {
+    gi_mesh_builder_add_box(b, lo, hi, mw); /* every wall twice */
+    uint32_t v0 = gi_mesh_builder_add_vertex(b, 1, 1, 1), v1 = gi_mesh_builder_add_vertex(b, 2, 1, 1);
+    uint32_t v2 = gi_mesh_builder_add_vertex(b, 3, 1, 1); /* collinear with v0, v1 */
+    gi_mesh_builder_add_triangle(b, v0, v0, v1, mw);      /* repeated vertex */
+    gi_mesh_builder_add_triangle(b, v0, v1, v2, mw);      /* zero area */
+    uint32_t s0 = gi_mesh_builder_add_vertex(b, 1, 2, 1), s1 = gi_mesh_builder_add_vertex(b, 3, 2, 1);
+    uint32_t s2 = gi_mesh_builder_add_vertex(b, 2, 2 + 1e-13, 1); /* height 1e-13 over length 2 */
+    gi_mesh_builder_add_triangle(b, s0, s1, s2, mw);
+    uint32_t n0 = gi_mesh_builder_add_vertex(b, NAN, 1, 1), n1 = gi_mesh_builder_add_vertex(b, 1, INFINITY, 1);
+    gi_mesh_builder_add_triangle(b, n0, v1, s0, mw);
+    gi_mesh_builder_add_triangle(b, v0, n1, s1, mw);
+  }
+  gi_light pl = {.type = GI_LIGHT_POINT, .color = {10, 10, 10}, .position = {1.3, 2.6, 1.7}};
+  return build(b, hostile ? "hostile" : "enormous", &pl, 1);
+}
+
+static void test_degenerate_triangles(void **state) {
+  gi_scene *ref = hostile_scene(0), *s = hostile_scene(1);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  printf("hardcase: hostile triangles: %llu in, %llu kept, %llu degenerate, %llu non-finite dropped\n",
+         (unsigned long long)st.input_triangles, (unsigned long long)st.triangles,
+         (unsigned long long)st.dropped_degenerate, (unsigned long long)st.dropped_nonfinite);
+  assert_int_equal(st.dropped_degenerate, 3);
+  assert_int_equal(st.dropped_nonfinite, 2);
+  assert_int_equal(st.triangles, 12 + 12 + 1 + 12);
+  gi_probe a[2], b[2];
+  gi_bake_report rep;
+  bake_gather_rep(ref, room_at, &small_q, room_pts, 2, a, &rep);
+  printf("hardcase: enormous triangle: %llu triangle/level pairs visited, probe E %.5f (finite)\n",
+         (unsigned long long)rep.triangles_visited, mean3(a[0].irradiance));
+  bake_gather(s, room_at, &small_q, room_pts, 2, b);
+  double d = max_rel_diff(a, b, 2);
+  printf("hardcase: duplicate, degenerate, sliver, non-finite triangles: largest relative probe difference %.3g\n", d);
+  /* Duplicates double a voxel's projected area, but opacity saturates at
+   * 0.999 either way and albedo is an area-weighted mean; the rest are
+   * dropped. Measured 1.7e-4 (the duplicates' summation order). Bound 1e-3. */
+  assert_true(d <= 1e-3);
+  gi_scene_release(s);
+  gi_scene_release(ref);
+}
+
+static void test_albedo_extremes(void **state) {
+  const double o[3] = {0, 0, 0};
+  const float albedo[] = {0.f, 1.f, 1.5f};
+  gi_probe pr[3][2];
+  for (int i = 0; i < 3; i++) {
+    gi_scene *s = room_scene2(o, albedo[i], albedo[i], 10.f);
+    gi_scene_stats st;
+    gi_scene_get_stats(s, &st);
+    bake_gather(s, room_at, &small_q, room_pts, 2, pr[i]);
+    printf("hardcase: albedo %.1f: %llu material(s) clamped; probe E %.5f (direct %.5f, indirect %.5f)\n",
+           albedo[i], (unsigned long long)st.clamped_albedo, mean3(pr[i][0].irradiance), mean3(pr[i][0].direct),
+           mean3(pr[i][0].indirect));
+    /* 1.5 is clamped (both materials: walls 1.5, box R 1.5) and counted. */
+    assert_int_equal(st.clamped_albedo, i == 2 ? 2 : 0);
+    gi_scene_release(s);
+  }
+  /* Albedo 0: nothing bounces, indirect light is exactly 0. */
+  assert_true(mean3(pr[0][0].indirect) == 0 && mean3(pr[0][1].indirect) == 0);
+  /* Albedo 1 in a closed room: finite (checked), and more light than at 0. */
+  assert_true(mean3(pr[1][0].indirect) > 0);
+  /* Albedo 1.5 on the walls is clamped to 1: the walls match the albedo-1
+   * room; the box differs only in G and B (1.5/7 against 1/7). */
+  for (int p = 0; p < 2; p++) assert_true(fabs(pr[2][p].irradiance[0] - pr[1][p].irradiance[0]) <=
+                                          0.05 * pr[1][p].irradiance[0]);
+}
+
+static void test_light_extremes(void **state) {
+  const double o[3] = {0, 0, 0};
+  const float light[] = {1.f, 1e-6f, 1e6f};
+  gi_probe pr[3][2];
+  double worst = 0;
+  for (int i = 0; i < 3; i++) {
+    gi_scene *s = room_scene(o, 0.6f, light[i]);
+    bake_gather(s, room_at, &small_q, room_pts, 2, pr[i]);
+    gi_scene_release(s);
+    for (int p = 0; p < 2 && i; p++)
+      for (int k = 0; k < 3; k++) {
+        double want = (double)pr[0][p].irradiance[k] * light[i];
+        worst = fmax(worst, fabs(pr[i][p].irradiance[k] - want) / want);
+      }
+    printf("hardcase: light %.0e: probe E %.6g\n", light[i], mean3(pr[i][0].irradiance));
+  }
+  printf("hardcase: lights 1e-6 and 1e6: largest departure from linear scaling %.3g\n", worst);
+  /* Light transport is linear; in float the pipeline is linear to rounding
+   * (measured 7.6e-8). Bound 1e-4. */
+  assert_true(worst <= 1e-4);
+}
+
+static void test_empty_and_outside(void **state) {
+  /* Empty scene: no triangles, a sun. The probe sees the sun, nothing else. */
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0.6f, -0.8f, 0}};
+  gi_scene *e = build(gi_mesh_builder_new(), "empty", &sun, 1);
+  gi_probe pr[2];
+  bake_gather(e, room_at, &small_q, room_pts, 2, pr);
+  gi_scene_release(e);
+  printf("hardcase: empty scene: E(up) %.6f (exact 2.4), indirect %.3g\n", mean3(pr[0].irradiance), mean3(pr[0].indirect));
+  assert_true(fabs(mean3(pr[0].irradiance) - 3 * 0.8) <= 1e-5);
+  assert_true(mean3(pr[0].indirect) == 0);
+
+  /* The room with a sun, the cascade 1000 units away: no level holds any
+   * geometry; the probe there gets the sun and nothing else. */
+  const double o[3] = {0, 0, 0};
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {o[0], o[1], o[2]}, hi[3] = {4, 3, 4};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_scene *s = build(b, "far-room", &sun, 1);
+  double at[3] = {1000, 1.5, 2}, pts[6] = {1000, 1.5, 2, 1001, 2, 2};
+  gi_bake_report rep;
+  bake_gather_rep(s, at, &small_q, pts, 2, pr, &rep);
+  gi_scene_release(s);
+  uint64_t occ = 0;
+  for (int d = 0; d < rep.levels; d++) occ += rep.occupied[d];
+  printf("hardcase: scene outside every cascade: occupied voxels %llu, E(up) %.6f (exact 2.4), indirect %.3g\n",
+         (unsigned long long)occ, mean3(pr[0].irradiance), mean3(pr[0].indirect));
+  assert_int_equal(occ, 0);
+  assert_true(fabs(mean3(pr[0].irradiance) - 2.4) <= 1e-5);
+  assert_true(mean3(pr[0].indirect) == 0 && mean3(pr[1].indirect) == 0);
+}
+
+/* ---- the furnace at albedo 0.99 ------------------------------------------ */
+
+static void test_furnace_099(void **state) {
+  const double a = 0.99, Le = 1.0;
+  gi_scene *sc = tu_furnace_scene(1.0, a, Le);
+  gi_quality q = {.levels = 3, .res = 32, .voxel0 = 1.25 / (32 * 4), .bounces = 8, .light_samples = 64,
+                  .probe_samples = 8192, .threads = 2};
+  double at[3] = {0.5, 0.5, 0.5}, pts[3] = {0.43, 0.55, 0.47};
+  gi_probe pr;
+  bake_gather(sc, at, &q, pts, 1, &pr);
+  gi_scene_release(sc);
+  /* k = 9 light bounces: Le (1 + a + ... + a^9); all bounces: Le / (1 - a) = 100. */
+  double want = 0, p = 1;
+  for (int i = 0; i <= 9; i++, p *= a) want += p;
+  double direct = mean3(pr.direct) / PI, total = mean3(pr.irradiance) / PI;
+  double ind = total - direct, want_ind = want - Le;
+  printf("hardcase: furnace a=0.99, 8 bounces: indirect/pi %.5f (exact %.5f) rel.err %+.4f; total/pi %.5f "
+         "(exact after 8 bounces %.5f, converged %.1f)\n",
+         ind, want_ind, (ind - want_ind) / want_ind, total, want, Le / (1 - a));
+  /* Direct: test_furnace's noise budget (4 sigma, 5.5%). Indirect: each
+   * voxel bounce transfers about 0.5% too little in this closed cube, so
+   * the relative error grows by a steady 0.30% per bounce (measured
+   * -0.27%, -0.55%, -0.85% ... -2.34% for 1..8 bounces; test_furnace's
+   * 1.5% covers its 3): stable, not diverging. Measured -2.34% at 8; bound
+   * 3%, and the result must stay below the converged answer. */
+  assert_true(fabs(direct - Le) <= 0.055 * Le);
+  assert_true(total < Le / (1 - a));
+  assert_true(fabs(ind - want_ind) <= 0.03 * want_ind);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_far_origin),
+      cmocka_unit_test(test_thin_wall),
+      cmocka_unit_test(test_border_steps),
+      cmocka_unit_test(test_degenerate_triangles),
+      cmocka_unit_test(test_albedo_extremes),
+      cmocka_unit_test(test_light_extremes),
+      cmocka_unit_test(test_empty_and_outside),
+      cmocka_unit_test(test_furnace_099),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
