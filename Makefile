@@ -78,7 +78,7 @@ valgrind: all
 # growing build-fuzz/corpus/<name>; crashes land in build-fuzz/artifacts/<name>/
 # and fail the run. The seed corpus is replayed in every `make test`.
 FUZZ_SECONDS ?= 60
-FUZZ_TARGETS ?= scene
+FUZZ_TARGETS ?= scene request config
 FUZZ_FLAGS := -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
 
 fuzz:
