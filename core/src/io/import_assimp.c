@@ -58,22 +58,113 @@ static int ply_type_size(const char *t) {
   return 0;
 }
 
+/* A PLY element as its header declares it, for walking a binary body. */
+#define PLY_MAX_ELEMS 16
+#define PLY_MAX_PROPS 32
+typedef struct {
+  char name[64];
+  long long count;
+  int nprops;
+  struct { int size, list_count_size, is_index_list; } prop[PLY_MAX_PROPS];
+} ply_elem;
+
+/* Buffered little reader over the body: refills 64 KiB at a time. */
+typedef struct {
+  FILE *f;
+  unsigned char buf[65536];
+  size_t pos, len;
+} ply_reader;
+
+static int ply_read(ply_reader *r, void *out, size_t n) {
+  unsigned char *o = out;
+  while (n) {
+    if (r->pos == r->len) {
+      r->len = fread(r->buf, 1, sizeof r->buf, r->f);
+      r->pos = 0;
+      if (!r->len) return -1;
+    }
+    size_t k = r->len - r->pos < n ? r->len - r->pos : n;
+    memcpy(o, r->buf + r->pos, k);
+    r->pos += k, o += k, n -= k;
+  }
+  return 0;
+}
+
+/* An unsigned integer of `size` bytes in the file's byte order; -1 past the end. */
+static long long ply_read_uint(ply_reader *r, int size, int big) {
+  unsigned char b[8];
+  if (ply_read(r, b, (size_t)size)) return -1;
+  unsigned long long v = 0;
+  for (int i = 0; i < size; i++) v |= (unsigned long long)b[big ? size - 1 - i : i] << (8 * i);
+  return (long long)v;
+}
+
+/* Walks a binary body: every record present, every face a polygon of 3..255
+ * vertices whose indices exist. assimp 5.2 trusts these and aborts on a
+ * short face list (an assertion in its triangulation, found by fuzz_scene). */
+static gi_result check_ply_body(const char *path, FILE *f, int big, const ply_elem *el, int nel,
+                                gi_error_info *err) {
+  static _Thread_local ply_reader r;
+  r.f = f, r.pos = r.len = 0;
+  long long vertices = 0;
+  for (int e = 0; e < nel; e++)
+    if (!strcmp(el[e].name, "vertex")) vertices = el[e].count;
+  for (int e = 0; e < nel; e++) {
+    const ply_elem *E = &el[e];
+    int is_face = !strcmp(E->name, "face");
+    for (long long i = 0; i < E->count; i++)
+      for (int p = 0; p < E->nprops; p++) {
+        int lc = E->prop[p].list_count_size, sz = E->prop[p].size;
+        long long n = 1;
+        if (lc) {
+          n = ply_read_uint(&r, lc, big);
+          if (n < 0) goto truncated;
+          if (is_face && E->prop[p].is_index_list && (n < 3 || n > 255))
+            return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY face %lld has %lld vertex indices; a face needs 3..255",
+                            path, i, n);
+        }
+        for (long long k = 0; k < n; k++) {
+          if (is_face && E->prop[p].is_index_list) {
+            long long v = ply_read_uint(&r, sz, big);
+            if (v < 0) goto truncated;
+            /* Signed index types: a negative index reads as a huge unsigned one. */
+            if (v >= vertices)
+              return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY face %lld uses vertex %lld of %lld", path, i,
+                              v, vertices);
+          } else {
+            unsigned char skip[8];
+            if (ply_read(&r, skip, (size_t)sz)) goto truncated;
+          }
+        }
+      }
+    continue;
+  truncated:
+    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY data ends inside element '%s'; the file is truncated",
+                    path, E->name);
+  }
+  return GI_OK;
+}
+
 /* Checks a PLY header's element counts against the data that follows: each
  * element needs at least a few bytes, so a count the file cannot hold is a
- * truncated or hostile file. Anything we do not understand is left to assimp. */
+ * truncated or hostile file; a binary body is then walked record by record.
+ * Anything we do not understand is left to assimp. */
 static gi_result check_ply_header(const char *path, FILE *f, long long file_size, gi_error_info *err) {
   char line[512];
-  int binary = -1;
+  int binary = -1, big = 0;
   long long header_end = 0;
   long long need = 0;           /* minimum bytes for all elements */
   long long count = 0, per = 0; /* current element */
   char elem[64] = "";
+  ply_elem el[PLY_MAX_ELEMS];
+  int nel = 0, walkable = 1;
   if (!fgets(line, sizeof line, f) || strncmp(line, "ply", 3) != 0) return GI_OK;
   while (fgets(line, sizeof line, f)) {
-    char a[64] = "", b[64] = "", c[64] = "", d[64] = "";
-    int n = sscanf(line, "%63s %63s %63s %63s", a, b, c, d);
+    char a[64] = "", b[64] = "", c[64] = "", d[64] = "", e5[64] = "";
+    int n = sscanf(line, "%63s %63s %63s %63s %63s", a, b, c, d, e5);
     if (n >= 2 && strcmp(a, "format") == 0) {
       binary = strcmp(b, "ascii") != 0;
+      big = strcmp(b, "binary_big_endian") == 0;
     } else if (n >= 3 && strcmp(a, "element") == 0) {
       need += count * per;
       char *end;
@@ -85,6 +176,14 @@ static gi_result check_ply_header(const char *path, FILE *f, long long file_size
       per = 0;
       if (strcmp(b, "face") == 0 && count > ((long long)1 << 31))
         return gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %lld faces; the limit is 2^31", path, count);
+      if (nel < PLY_MAX_ELEMS) {
+        snprintf(el[nel].name, sizeof el[nel].name, "%s", b);
+        el[nel].count = count;
+        el[nel].nprops = 0;
+        nel++;
+      } else {
+        walkable = 0;
+      }
     } else if (n >= 3 && strcmp(a, "property") == 0) {
       /* An unknown type would make assimp guess (and, in 5.2, leak: found by
        * fuzz_scene); say what is wrong instead. */
@@ -96,6 +195,15 @@ static gi_result check_ply_header(const char *path, FILE *f, long long file_size
       /* ASCII: a digit and a separator; binary: the scalar, or a list's count. */
       int size = ply_type_size(list ? c : b);
       per += binary == 1 ? (size ? size : 1) : 2;
+      if (nel == 0 || el[nel - 1].nprops == PLY_MAX_PROPS) {
+        walkable = 0;
+      } else {
+        ply_elem *E = &el[nel - 1];
+        E->prop[E->nprops].list_count_size = list ? ply_type_size(c) : 0;
+        E->prop[E->nprops].size = list ? ply_type_size(d) : size;
+        E->prop[E->nprops].is_index_list = list && (!strcmp(e5, "vertex_indices") || !strcmp(e5, "vertex_index"));
+        E->nprops++;
+      }
     } else if (n >= 1 && strcmp(a, "end_header") == 0) {
       header_end = ftell(f);
       need += count * per;
@@ -105,7 +213,7 @@ static gi_result check_ply_header(const char *path, FILE *f, long long file_size
                         "scene file '%s': PLY header declares elements needing at least %lld bytes "
                         "(last element '%s': %lld) but only %lld bytes follow the header; the file is truncated",
                         path, need, elem, count, have);
-      return GI_OK;
+      return binary == 1 && walkable ? check_ply_body(path, f, big, el, nel, err) : GI_OK;
     }
     /* Counts this large overflow the estimate; only a corrupt header has them. */
     if (count > ((long long)1 << 40) || need > ((long long)1 << 60))
