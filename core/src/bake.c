@@ -423,11 +423,11 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
   /* Direct light: shadow rays from the point itself. */
   gi_light_plan lp = gi__light_plan(&c->report, q->probe_samples);
   int cap = q->probe_samples * 2 + (int)s->num_lights + 8;
-  gi_lsample *ls = malloc((size_t)cap * sizeof *ls);
-  float *org = malloc((size_t)cap * 3 * sizeof(float)), *dir = malloc((size_t)cap * 3 * sizeof(float));
-  float *tn = malloc((size_t)cap * sizeof(float)), *tf = malloc((size_t)cap * sizeof(float));
-  uint8_t *vis = malloc((size_t)cap);
-  if (ls && org && dir && tn && tf && vis) {
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, cap) == 0) {
+    gi_lsample *ls = sc.ls;
+    float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
+    uint8_t *vis = sc.vis;
     uint64_t rng = gi__mix64(seed);
     int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
     float eps = (float)(1e-4 * c->s0);
@@ -463,7 +463,7 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
         for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
     }
   }
-  free(ls); free(org); free(dir); free(tn); free(tf); free(vis);
+  gi__scratch_free(&sc);
   gi__sh_radiance_to_irradiance(pr->sh_direct);
 
   /* Indirect light: the cone set on both hemispheres around up. */

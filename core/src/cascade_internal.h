@@ -143,6 +143,16 @@ typedef struct gi_light_plan {
 /* The light kinds the effect plan of report r enabled, with `samples` rays
  * for sky and emitters. */
 gi_light_plan gi__light_plan(const gi_bake_report *r, int samples);
+/* Per-thread buffers for one batch of light samples and their shadow rays. */
+typedef struct gi_ray_scratch {
+  int cap;
+  gi_lsample *ls;
+  float *org, *dir, *tn, *tf;  /* 3, 3, 1, 1 floats per ray */
+  uint8_t *vis;
+} gi_ray_scratch;
+/* Allocates cap of each; 0 on success, -1 (everything freed) when out of memory. */
+int gi__scratch_alloc(gi_ray_scratch *sc, int cap);
+void gi__scratch_free(gi_ray_scratch *sc);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);

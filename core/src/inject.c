@@ -142,6 +142,25 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
   return n;
 }
 
+int gi__scratch_alloc(gi_ray_scratch *sc, int cap) {
+  size_t n = (size_t)(cap > 0 ? cap : 1);
+  sc->cap = cap;
+  sc->ls = malloc(n * sizeof *sc->ls);
+  sc->org = malloc(n * 3 * sizeof(float));
+  sc->dir = malloc(n * 3 * sizeof(float));
+  sc->tn = malloc(n * sizeof(float));
+  sc->tf = malloc(n * sizeof(float));
+  sc->vis = malloc(n);
+  if (sc->ls && sc->org && sc->dir && sc->tn && sc->tf && sc->vis) return 0;
+  gi__scratch_free(sc);
+  return -1;
+}
+
+void gi__scratch_free(gi_ray_scratch *sc) {
+  free(sc->ls); free(sc->org); free(sc->dir); free(sc->tn); free(sc->tf); free(sc->vis);
+  sc->ls = NULL, sc->org = sc->dir = sc->tn = sc->tf = NULL, sc->vis = NULL;
+}
+
 float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int m) {
   /* emitter_tri is ascending: binary search for the triangle's cdf slot. */
   uint32_t lo = 0, hi = s->num_emitters;
@@ -201,13 +220,13 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   struct gi_cascade *c = ic->c;
   gi_level *L = &c->lv[ic->d];
   const gi_scene *s = c->scene;
-  gi_lsample *ls = malloc(MAX_LS * sizeof *ls);
-  float *org = malloc(MAX_LS * 3 * sizeof(float)), *dir = malloc(MAX_LS * 3 * sizeof(float));
-  float *tn = malloc(MAX_LS * sizeof(float)), *tf = malloc(MAX_LS * sizeof(float));
-  uint8_t *vis = malloc(MAX_LS);
+  gi_ray_scratch sc = {0};
   int8_t *side = malloc(MAX_LS);
   float *cosw = malloc(MAX_LS * sizeof(float));
-  if (!ls || !org || !dir || !tn || !tf || !vis || !side || !cosw) goto out; /* voxels stay dark */
+  if (gi__scratch_alloc(&sc, MAX_LS) || !side || !cosw) goto out; /* voxels stay dark */
+  gi_lsample *ls = sc.ls;
+  float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
+  uint8_t *vis = sc.vis;
   uint64_t rays = 0;
   int R = c->R;
   for (size_t q = b; q < e; q++) {
@@ -272,7 +291,9 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   }
   atomic_fetch_add(&ic->rays, rays);
 out:
-  free(ls); free(org); free(dir); free(tn); free(tf); free(vis); free(side); free(cosw);
+  gi__scratch_free(&sc);
+  free(side);
+  free(cosw);
 }
 
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {

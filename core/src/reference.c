@@ -57,8 +57,12 @@ static void cosine_dir(const float n[3], uint64_t *rng, float w[3]) {
 
 /* Direct irradiance at x on the side n: NEE over every light, MIS-weighted
  * for emitters against a cosine sample (pdf cos/pi, one sample). */
-static void nee(const ref_ctx *rc, const float x[3], const float n[3], uint64_t *rng, gi_lsample *ls, int cap,
-                float *org, float *dir, float *tn, float *tf, uint8_t *vis, float E[3]) {
+static void nee(const ref_ctx *rc, const float x[3], const float n[3], uint64_t *rng, gi_ray_scratch *sc,
+                float E[3]) {
+  gi_lsample *ls = sc->ls;
+  float *org = sc->org, *dir = sc->dir, *tn = sc->tn, *tf = sc->tf;
+  uint8_t *vis = sc->vis;
+  int cap = sc->cap;
   static const gi_light_plan lp = {1, 1, 1, 1, 1, 1};
   int m = gi__light_samples(rc->s, &lp, x, rng, ls, cap), k = 0;
   for (int i = 0; i < m; i++) {
@@ -98,8 +102,7 @@ static int emitted(const gi_scene *s, uint32_t tri, const float ng[3], const flo
  * org + t w (triangle tri, winding normal ng): the indirect part of one
  * path. depth0 reflections have happened before this one. */
 static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], uint64_t *rng,
-                      gi_lsample *ls, int cap, float *org, float *dir, float *tn, float *tf, uint8_t *vis,
-                      float L[3]) {
+                      gi_ray_scratch *sc, float L[3]) {
   const gi_scene *s = rc->s;
   float T[3] = {1, 1, 1};
   int maxd = rc->o.max_depth > 0 ? rc->o.max_depth : MAX_DEPTH_HARD;
@@ -109,7 +112,7 @@ static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, f
     float sg = gi__dot(ng, w) > 0 ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * ng[k];
     float E[3] = {0, 0, 0};
-    nee(rc, x, n, rng, ls, cap, org, dir, tn, tf, vis, E);
+    nee(rc, x, n, rng, sc, E);
     int last = depth >= maxd;
     /* The cosine sample: MIS partner of the emitter samples, and the next segment. */
     float wn[3], o[3], t, ngn[3];
@@ -139,12 +142,12 @@ static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, f
 static void ref_range(void *p, size_t b, size_t e, int worker) {
   ref_ctx *rc = p;
   const gi_scene *s = rc->s;
-  int cap = (int)s->num_lights + 8;
-  gi_lsample *ls = malloc((size_t)cap * sizeof *ls);
-  float *org = malloc((size_t)cap * 3 * sizeof(float)), *dir = malloc((size_t)cap * 3 * sizeof(float));
-  float *tn = malloc((size_t)cap * sizeof(float)), *tf = malloc((size_t)cap * sizeof(float));
-  uint8_t *vis = malloc((size_t)cap);
-  if (!ls || !org || !dir || !tn || !tf || !vis) goto out; /* the caller sees samples = 0 */
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, (int)s->num_lights + 8)) goto out; /* the caller sees samples = 0 */
+  gi_lsample *ls = sc.ls;
+  float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
+  uint8_t *vis = sc.vis;
+  int cap = sc.cap;
   for (size_t task = b; task < e; task++) {
     size_t pi = task / (size_t)rc->chunks, ci = task % (size_t)rc->chunks;
     chunk_acc *A = &rc->acc[task];
@@ -205,7 +208,7 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
           if (rc->o.max_depth >= 0) {
             float x[3] = {p[0] + t * w[0], p[1] + t * w[1], p[2] + t * w[2]};
             float wc[3] = {w[0], w[1], w[2]};
-            reflected(rc, x, wc, tri, ng, &rng, ls, cap, org, dir, tn, tf, vis, Lr);
+            reflected(rc, x, wc, tri, ng, &rng, &sc, Lr);
             gi__sh_add(shi, w, Lr, 1.f / pb);
             if (cu > 0)
               for (int k = 0; k < 3; k++) Ei[k] += Lr[k] * cu / pb;
@@ -221,7 +224,7 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
     }
   }
 out:
-  free(ls); free(org); free(dir); free(tn); free(tf); free(vis);
+  gi__scratch_free(&sc);
 }
 
 gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n, const gi_reference_opts *opts,
@@ -306,12 +309,8 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
   view_ctx *vc = p;
   const ref_ctx *rc = &vc->rc;
   const gi_scene *s = rc->s;
-  int cap = (int)s->num_lights + 8;
-  gi_lsample *ls = malloc((size_t)cap * sizeof *ls);
-  float *org = malloc((size_t)cap * 3 * sizeof(float)), *dir = malloc((size_t)cap * 3 * sizeof(float));
-  float *tn = malloc((size_t)cap * sizeof(float)), *tf = malloc((size_t)cap * sizeof(float));
-  uint8_t *vis = malloc((size_t)cap);
-  if (ls && org && dir && tn && tf && vis)
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, (int)s->num_lights + 8) == 0)
     for (size_t y = b; y < e; y++)
       for (int x = 0; x < vc->k->w; x++) {
         uint64_t rng = gi__mix64(rc->o.seed ^ gi__mix64((uint64_t)y << 32 | (uint32_t)x));
@@ -324,12 +323,12 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
           if (gi__dot(ng, w) < 0) /* an emitter seen from the front */
             for (int a = 0; a < 3; a++) L[a] += s->materials[s->tri_material[tri]].emission[a];
           float px[3] = {vc->k->eye[0] + t * w[0], vc->k->eye[1] + t * w[1], vc->k->eye[2] + t * w[2]};
-          reflected(rc, px, w, tri, ng, &rng, ls, cap, org, dir, tn, tf, vis, L);
+          reflected(rc, px, w, tri, ng, &rng, &sc, L);
           for (int a = 0; a < 3; a++) acc[a] += L[a];
         }
         for (int a = 0; a < 3; a++) vc->rgb[3 * (y * (size_t)vc->k->w + (size_t)x) + a] = (float)(acc[a] / vc->spp);
       }
-  free(ls); free(org); free(dir); free(tn); free(tf); free(vis);
+  gi__scratch_free(&sc);
 }
 
 gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,

@@ -166,8 +166,11 @@ typedef struct {
   float *rgb;
 } render_ctx;
 
-static void shade_pixel(const render_ctx *rc, int px, int py, gi_lsample *ls, int cap, float *org, float *dir,
-                        float *tn, float *tf, uint8_t *vis, float out[3]) {
+static void shade_pixel(const render_ctx *rc, int px, int py, gi_ray_scratch *sc, float out[3]) {
+  gi_lsample *ls = sc->ls;
+  float *org = sc->org, *dir = sc->dir, *tn = sc->tn, *tf = sc->tf;
+  uint8_t *vis = sc->vis;
+  int cap = sc->cap;
   const struct gi_cascade *c = rc->c;
   const gi_scene *s = c->scene;
   float w[3], t, ng[3];
@@ -223,16 +226,12 @@ static void shade_pixel(const render_ctx *rc, int px, int py, gi_lsample *ls, in
 static void render_rows(void *p, size_t b, size_t e, int worker) {
   render_ctx *rc = p;
   const gi_scene *s = rc->c->scene;
-  int cap = 2 * rc->samples + (int)s->num_lights + 8;
-  gi_lsample *ls = malloc((size_t)cap * sizeof *ls);
-  float *org = malloc((size_t)cap * 3 * sizeof(float)), *dir = malloc((size_t)cap * 3 * sizeof(float));
-  float *tn = malloc((size_t)cap * sizeof(float)), *tf = malloc((size_t)cap * sizeof(float));
-  uint8_t *vis = malloc((size_t)cap);
-  if (ls && org && dir && tn && tf && vis)
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, 2 * rc->samples + (int)s->num_lights + 8) == 0)
     for (size_t y = b; y < e; y++)
       for (int x = 0; x < rc->k->w; x++)
-        shade_pixel(rc, x, (int)y, ls, cap, org, dir, tn, tf, vis, &rc->rgb[3 * ((size_t)y * rc->k->w + x)]);
-  free(ls); free(org); free(dir); free(tn); free(tf); free(vis);
+        shade_pixel(rc, x, (int)y, &sc, &rc->rgb[3 * ((size_t)y * rc->k->w + x)]);
+  gi__scratch_free(&sc);
 }
 
 gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,

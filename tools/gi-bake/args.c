@@ -246,73 +246,15 @@ static int add_light(cli_opts *o, const char *opt, const char *arg) {
   return 0;
 }
 
-/* Reads --probes FILE. Returns 0, EXIT_RUN (cannot read) or EXIT_USAGE (bad line). */
+/* Reads --probes FILE (gi_points.h). Returns 0, EXIT_RUN (cannot read) or
+ * EXIT_USAGE (a bad line, named by file and number). The viewpoint takes
+ * one of the EXR's pixels. */
 static int read_probes(cli_opts *o, const char *path) {
-  FILE *f = fopen(path, "r");
-  if (!f) {
-    fprintf(stderr, "gi-bake: --probes: cannot open '%s': %s\n", path, strerror(errno));
-    return EXIT_RUN;
-  }
-  char *line = NULL;
-  size_t cap = 0, alloc = 0, lineno = 0;
-  int rc = 0;
-  while (getline(&line, &cap, f) >= 0) {
-    lineno++;
-    char *hash = strchr(line, '#');
-    if (hash) *hash = '\0';
-    char *p = line;
-    while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
-    if (!*p) continue;
-    size_t len = strlen(p);
-    while (len && (p[len - 1] == ' ' || p[len - 1] == '\t' || p[len - 1] == '\r' || p[len - 1] == '\n'))
-      p[--len] = '\0';
-    double v[3];
-    char *q = p;
-    int ok = 1;
-    for (int i = 0; i < 3 && ok; i++) {
-      char *end;
-      errno = 0;
-      v[i] = strtod(q, &end);
-      ok = end != q && errno != ERANGE && isfinite(v[i]);
-      /* Separators are blanks (and a comma, for pasted X,Y,Z). */
-      if (ok && i < 2) {
-        ok = *end == ' ' || *end == '\t' || *end == ',';
-        while (*end == ' ' || *end == '\t') end++;
-        if (*end == ',') end++;
-      }
-      q = end;
-    }
-    if (!ok || *q) {
-      fprintf(stderr, "gi-bake: --probes: %s:%zu: expected three finite numbers 'x y z', got '%s'\n", path,
-              lineno, p);
-      rc = EXIT_USAGE;
-      break;
-    }
-    if (o->num_probes + 1 >= MAX_POINTS) {
-      fprintf(stderr, "gi-bake: --probes: %s:%zu: more than %zu points\n", path, lineno, MAX_POINTS - 1);
-      rc = EXIT_USAGE;
-      break;
-    }
-    if (o->num_probes == alloc) {
-      size_t na = alloc ? alloc * 2 : 64;
-      double *np = realloc(o->probes, na * 3 * sizeof *np);
-      if (!np) {
-        fprintf(stderr, "gi-bake: --probes: %s: out of memory\n", path);
-        rc = EXIT_RUN;
-        break;
-      }
-      o->probes = np;
-      alloc = na;
-    }
-    memcpy(&o->probes[3 * o->num_probes++], v, sizeof v);
-  }
-  if (!rc && ferror(f)) {
-    fprintf(stderr, "gi-bake: --probes: cannot read '%s': %s\n", path, strerror(errno));
-    rc = EXIT_RUN;
-  }
-  free(line);
-  fclose(f);
-  return rc;
+  gi_error_info e = {0};
+  gi_result rc = gi_points_read(path, MAX_POINTS - 1, &o->probes, &o->num_probes, &e);
+  if (rc == GI_OK) return 0;
+  fprintf(stderr, "gi-bake: --probes: %s\n", e.msg);
+  return rc == GI_ERR_FORMAT || rc == GI_ERR_LIMIT ? EXIT_USAGE : EXIT_RUN;
 }
 
 /* An output's folder must exist and be writable: fail before a slow bake. */

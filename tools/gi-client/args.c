@@ -23,6 +23,7 @@
 #include <unistd.h>
 #include "client.h"
 #include "gi_proto.h"
+#include "gi/gi_points.h"
 
 #define MAX_POINTS ((size_t)1 << 24) /* the server's job limit is far below this */
 #define DEFAULT_SERVER "http://127.0.0.1:8080"
@@ -243,78 +244,20 @@ static int read_token_file(gc_opts *o, const char *path) {
   return o->token ? 0 : EXIT_RUN;
 }
 
-/* Reads --points FILE (gi-bake --probes format). Returns 0, EXIT_RUN (cannot
- * read) or EXIT_USAGE (a bad line, named by file and number). */
+/* Reads --points FILE (gi_points.h, as gi-bake --probes). Returns 0, EXIT_RUN
+ * (cannot read) or EXIT_USAGE (a bad line, named by file and number). */
 static int read_points(gc_opts *o, const char *path) {
-  FILE *f = fopen(path, "r");
-  if (!f) {
-    fprintf(stderr, "gi-client: --points: cannot open '%s': %s\n", path, strerror(errno));
-    return EXIT_RUN;
+  gi_error_info e = {0};
+  gi_result rc = gi_points_read(path, MAX_POINTS, &o->points, &o->num_points, &e);
+  if (rc != GI_OK) {
+    fprintf(stderr, "gi-client: --points: %s\n", e.msg);
+    return rc == GI_ERR_FORMAT || rc == GI_ERR_LIMIT ? EXIT_USAGE : EXIT_RUN;
   }
-  char *line = NULL;
-  size_t cap = 0, alloc = 0, lineno = 0;
-  int rc = 0;
-  while (getline(&line, &cap, f) >= 0) {
-    lineno++;
-    char *hash = strchr(line, '#');
-    if (hash) *hash = '\0';
-    char *p = line;
-    while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
-    if (!*p) continue;
-    size_t len = strlen(p);
-    while (len && (p[len - 1] == ' ' || p[len - 1] == '\t' || p[len - 1] == '\r' || p[len - 1] == '\n'))
-      p[--len] = '\0';
-    double v[3];
-    char *q = p;
-    int ok = 1;
-    for (int i = 0; i < 3 && ok; i++) {
-      char *end;
-      errno = 0;
-      v[i] = strtod(q, &end);
-      ok = end != q && errno != ERANGE && isfinite(v[i]);
-      /* Separators are blanks (and a comma, for pasted X,Y,Z). */
-      if (ok && i < 2) {
-        ok = *end == ' ' || *end == '\t' || *end == ',';
-        while (*end == ' ' || *end == '\t') end++;
-        if (*end == ',') end++;
-      }
-      q = end;
-    }
-    if (!ok || *q) {
-      fprintf(stderr, "gi-client: --points: %s:%zu: expected three finite numbers 'x y z', got '%s'\n", path,
-              lineno, p);
-      rc = EXIT_USAGE;
-      break;
-    }
-    if (o->num_points >= MAX_POINTS) {
-      fprintf(stderr, "gi-client: --points: %s:%zu: more than %zu points\n", path, lineno, MAX_POINTS);
-      rc = EXIT_USAGE;
-      break;
-    }
-    if (o->num_points == alloc) {
-      size_t na = alloc ? alloc * 2 : 64;
-      double *np = realloc(o->points, na * 3 * sizeof *np);
-      if (!np) {
-        fprintf(stderr, "gi-client: --points: %s: out of memory\n", path);
-        rc = EXIT_RUN;
-        break;
-      }
-      o->points = np;
-      alloc = na;
-    }
-    memcpy(&o->points[3 * o->num_points++], v, sizeof v);
-  }
-  if (!rc && ferror(f)) {
-    fprintf(stderr, "gi-client: --points: cannot read '%s': %s\n", path, strerror(errno));
-    rc = EXIT_RUN;
-  }
-  if (!rc && o->num_points == 0) {
+  if (o->num_points == 0) {
     fprintf(stderr, "gi-client: --points: %s: no points (one 'x y z' per line expected)\n", path);
-    rc = EXIT_USAGE;
+    return EXIT_USAGE;
   }
-  free(line);
-  fclose(f);
-  return rc;
+  return 0;
 }
 
 /* Checks one --set KEY=VALUE for form; the command's key list is checked later. */

@@ -9,4 +9,5 @@
 #include "gi_render.h"
 #include "gi_exr.h"
 #include "gi_vdb.h"
+#include "gi_points.h"
 #endif

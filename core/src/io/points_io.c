@@ -1,0 +1,79 @@
+/* points_io.c: the probe-point text file (see gi_points.h). */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "gi/gi_points.h"
+#include "internal.h"
+
+/* Three finite numbers separated by blanks (or a comma, for pasted X,Y,Z). */
+static int parse_line(const char *p, double v[3]) {
+  const char *q = p;
+  for (int i = 0; i < 3; i++) {
+    char *end;
+    errno = 0;
+    v[i] = strtod(q, &end);
+    if (end == q || errno == ERANGE || !isfinite(v[i])) return -1;
+    if (i < 2) {
+      if (*end != ' ' && *end != '\t' && *end != ',') return -1;
+      while (*end == ' ' || *end == '\t') end++;
+      if (*end == ',') end++;
+    }
+    q = end;
+  }
+  return *q ? -1 : 0;
+}
+
+gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, gi_error_info *err) {
+  *pts = NULL;
+  *n = 0;
+  FILE *f = fopen(path, "r");
+  if (!f) return gi__fail(err, GI_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
+  char *line = NULL;
+  size_t cap = 0, alloc = 0, lineno = 0;
+  double *out = NULL;
+  gi_result rc = GI_OK;
+  while (getline(&line, &cap, f) >= 0) {
+    lineno++;
+    char *hash = strchr(line, '#');
+    if (hash) *hash = '\0';
+    char *p = line;
+    while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
+    if (!*p) continue;
+    size_t len = strlen(p);
+    while (len && (p[len - 1] == ' ' || p[len - 1] == '\t' || p[len - 1] == '\r' || p[len - 1] == '\n'))
+      p[--len] = '\0';
+    double v[3];
+    if (parse_line(p, v)) {
+      rc = gi__fail(err, GI_ERR_FORMAT, "%s:%zu: expected three finite numbers 'x y z', got '%s'", path, lineno, p);
+      break;
+    }
+    if (*n >= max) {
+      rc = gi__fail(err, GI_ERR_LIMIT, "%s:%zu: more than %zu points", path, lineno, max);
+      break;
+    }
+    if (*n == alloc) {
+      size_t na = alloc ? alloc * 2 : 64;
+      double *np = realloc(out, na * 3 * sizeof *np);
+      if (!np) {
+        rc = gi__fail(err, GI_ERR_NOMEM, "%s: out of memory", path);
+        break;
+      }
+      out = np;
+      alloc = na;
+    }
+    memcpy(&out[3 * (*n)++], v, sizeof v);
+  }
+  if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "cannot read '%s': %s", path, strerror(errno));
+  free(line);
+  fclose(f);
+  if (rc != GI_OK) {
+    free(out);
+    *n = 0;
+    return rc;
+  }
+  *pts = out;
+  return GI_OK;
+}
