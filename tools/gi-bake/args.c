@@ -444,7 +444,13 @@ int cli_parse(int argc, char **argv, cli_opts *o) {
   if (o->render) {
     gi_camera cam = o->cam;
     gi_error_info e = {0};
-    if (o->cam_up_from_scene) cam.up[1] = 1; /* checked again with the real up axis after loading */
+    /* The up axis is known only after loading, where it is checked again:
+     * here take whichever of y and z lies farther from the view. */
+    if (o->cam_up_from_scene) {
+      double d[3];
+      for (int a = 0; a < 3; a++) d[a] = cam.target[a] - cam.eye[a];
+      cam.up[fabs(d[1]) <= fabs(d[2]) ? 1 : 2] = 1;
+    }
     if (gi_camera_validate(&cam, &e) != GI_OK) return usage_fail("--render", "%s", e.msg);
   }
   if (o->png && (rc = check_output("--png", o->png))) return rc;
