@@ -250,13 +250,16 @@ static void plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bou
   else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s as requested, mean albedo %.2f in range", q->bounces,
               q->bounces > 1 ? "s" : "", abar);
 
-  /* The specular cone needs a view direction; probes have none. */
+  /* The specular cone needs a view direction; probes have none. Camera
+   * views re-decide this entry (gi_cascade_view_plan) from the same count. */
+  r->glossy_triangles = glossy;
   int fsp = forced(q, GI_FX_SPECULAR);
   if (fsp == GI_FX_OFF) set_fx(r, GI_FX_SPECULAR, 0, "turned off by the request");
-  else if (fsp == GI_FX_ON) set_fx(r, GI_FX_SPECULAR, 0, "forced on, but probe output has no view direction");
+  else if (fsp == GI_FX_ON)
+    set_fx(r, GI_FX_SPECULAR, 0, "forced on: camera views trace it at every pixel; probe output has no view direction");
   else if (glossy)
-    set_fx(r, GI_FX_SPECULAR, 0, "%u glossy triangle%s in range, but probe output has no view direction", glossy,
-           glossy > 1 ? "s" : "");
+    set_fx(r, GI_FX_SPECULAR, 0, "%u glossy triangle%s in range: camera views trace it; probe output has no view "
+                                 "direction", glossy, glossy > 1 ? "s" : "");
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
   if (forced(q, GI_FX_AO) == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
   else set_fx(r, GI_FX_AO, 0, "not requested");

@@ -156,6 +156,8 @@ void gi__scratch_free(gi_ray_scratch *sc);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);
+/* The sum of the scene's sky radiances: what a ray that escapes sees. */
+void gi__sky_radiance(const gi_scene *s, float out[3]);
 /* Voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel. */
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, gi_error_info *err);
 

@@ -35,6 +35,13 @@ gi_light_plan gi__light_plan(const gi_bake_report *r, int samples) {
   return lp;
 }
 
+void gi__sky_radiance(const gi_scene *s, float out[3]) {
+  out[0] = out[1] = out[2] = 0;
+  for (uint32_t i = 0; i < s->num_lights; i++)
+    if (s->lights[i].type == GI_LIGHT_SKY)
+      for (int k = 0; k < 3; k++) out[k] += s->lights[i].color[k];
+}
+
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max) {
   int n = 0;

@@ -319,7 +319,12 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
           float w[3], t, ng[3], L[3] = {0, 0, 0};
           uint32_t tri;
           gi__cam_ray(vc->k, (float)x + gi__u01(&rng), (float)y + gi__u01(&rng), w);
-          if (!gi__intersect1(s, vc->k->eye, w, 0, INFINITY, &t, &tri, ng)) continue;
+          if (!gi__intersect1(s, vc->k->eye, w, 0, INFINITY, &t, &tri, ng)) {
+            float Ls[3];
+            gi__sky_radiance(s, Ls);
+            for (int a = 0; a < 3; a++) acc[a] += Ls[a];
+            continue;
+          }
           if (gi__dot(ng, w) < 0) /* an emitter seen from the front */
             for (int a = 0; a < 3; a++) L[a] += s->materials[s->tri_material[tri]].emission[a];
           float px[3] = {vc->k->eye[0] + t * w[0], vc->k->eye[1] + t * w[1], vc->k->eye[2] + t * w[2]};

@@ -6,9 +6,10 @@
  * (so a skipped effect stays skipped); indirect light from the bake's
  * diffuse cone set around the normal, started one voxel of the finest level
  * containing the point off the surface, exactly as the voxel bounces
- * gather; glossy materials (roughness < 0.5, specular > 0) add one
- * specular cone along the mirror direction. Pixels are independent:
- * rows run in parallel, each pixel seeded by its index.
+ * gather; the specular pass (gi_cascade_view_plan decides whether it runs
+ * and where) adds one specular cone along the mirror direction, weighted
+ * by the material's specular reflectance. Pixels are independent: rows
+ * run in parallel, each pixel seeded by its index.
  *
  * Also here: the camera (Mitsuba sensor reader, validation, ray setup,
  * shared with the path-traced view in reference.c). */
@@ -159,14 +160,50 @@ done:
 
 /* ---- the cone-traced view ------------------------------------------- */
 
+/* Where the specular pass traces its cone. */
+enum { SPEC_NONE = 0, SPEC_GLOSSY = 1, SPEC_ALL = 2 };
+
+static int spec_mode(const struct gi_cascade *c) {
+  const gi_quality *q = &c->report.quality;
+  int f = q->effects[GI_FX_SPECULAR] != GI_FX_AUTO ? q->effects[GI_FX_SPECULAR] : q->specular;
+  if (f == GI_FX_OFF) return SPEC_NONE;
+  if (f == GI_FX_ON) return SPEC_ALL;
+  return c->report.glossy_triangles ? SPEC_GLOSSY : SPEC_NONE;
+}
+
+void gi_cascade_view_plan(const gi_cascade *c, gi_effect out[GI_FX_COUNT]) {
+  if (!c || !out) return;
+  memcpy(out, c->report.effects, sizeof c->report.effects);
+  gi_effect *e = &out[GI_FX_SPECULAR];
+  uint32_t g = c->report.glossy_triangles;
+  switch (spec_mode(c)) {
+    case SPEC_ALL:
+      e->ran = 1;
+      snprintf(e->why, sizeof e->why, "forced on: one specular cone at every pixel (%u glossy triangle%s in range)", g,
+               g == 1 ? "" : "s");
+      break;
+    case SPEC_GLOSSY:
+      e->ran = 1;
+      snprintf(e->why, sizeof e->why, "%u glossy triangle%s in range: one specular cone at each of their pixels", g,
+               g == 1 ? "" : "s");
+      break;
+    default:
+      e->ran = 0;
+      if (g) snprintf(e->why, sizeof e->why, "turned off by the request");
+      else snprintf(e->why, sizeof e->why, "%s", c->report.effects[GI_FX_SPECULAR].why);
+  }
+}
+
 typedef struct {
   const struct gi_cascade *c;
   const gi__cam *k;
   int samples;
+  int spec;            /* SPEC_* */
   float *rgb;
+  _Atomic uint64_t diffuse_cones, specular_cones;
 } render_ctx;
 
-static void shade_pixel(const render_ctx *rc, int px, int py, gi_ray_scratch *sc, float out[3]) {
+static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3]) {
   gi_lsample *ls = sc->ls;
   float *org = sc->org, *dir = sc->dir, *tn = sc->tn, *tf = sc->tf;
   uint8_t *vis = sc->vis;
@@ -177,7 +214,11 @@ static void shade_pixel(const render_ctx *rc, int px, int py, gi_ray_scratch *sc
   uint32_t tri;
   out[0] = out[1] = out[2] = 0;
   gi__cam_ray(rc->k, (float)px + 0.5f, (float)py + 0.5f, w);
-  if (!gi__intersect1(s, rc->k->eye, w, 0, INFINITY, &t, &tri, ng)) return;
+  if (!gi__intersect1(s, rc->k->eye, w, 0, INFINITY, &t, &tri, ng)) {
+    /* The camera sees the sky itself where the plan lights with it. */
+    if (c->report.effects[GI_FX_SKY].ran) gi__sky_radiance(s, out);
+    return;
+  }
   const gi_material *m = &s->materials[s->tri_material[tri]];
   float cw = gi__dot(ng, w), n[3], x[3];
   for (int a = 0; a < 3; a++) n[a] = cw > 0 ? -ng[a] : ng[a], x[a] = rc->k->eye[a] + t * w[a];
@@ -214,11 +255,14 @@ static void shade_pixel(const render_ctx *rc, int px, int py, gi_ray_scratch *sc
       gi__cone_trace(c, o, cwd, c->cone_tan, off, c->report.quality.step, c->report.quality.ao_lambda, &co);
       for (int a = 0; a < 3; a++) E[a] += c->cone_weight[ci] * co.L[a];
     }
+    cones[0] += (uint64_t)c->num_cones;
   }
   for (int a = 0; a < 3; a++) out[a] += m->albedo[a] * (1.f / PI_F) * E[a];
-  if (d >= 0 && m->roughness < 0.5f && m->specular > 0) {
+  int glossy = m->roughness < 0.5f && m->specular > 0;
+  if (d >= 0 && (rc->spec == SPEC_ALL || (rc->spec == SPEC_GLOSSY && glossy))) {
     gi_cone_out co;
     gi__specular_trace(c, x, n, w, m->roughness, &co);
+    cones[1]++;
     for (int a = 0; a < 3; a++) out[a] += m->specular * co.L[a];
   }
 }
@@ -227,28 +271,48 @@ static void render_rows(void *p, size_t b, size_t e, int worker) {
   render_ctx *rc = p;
   const gi_scene *s = rc->c->scene;
   gi_ray_scratch sc = {0};
+  uint64_t cones[2] = {0, 0};
   if (gi__scratch_alloc(&sc, 2 * rc->samples + (int)s->num_lights + 8) == 0)
     for (size_t y = b; y < e; y++)
       for (int x = 0; x < rc->k->w; x++)
-        shade_pixel(rc, x, (int)y, &sc, &rc->rgb[3 * ((size_t)y * rc->k->w + x)]);
+        shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)]);
   gi__scratch_free(&sc);
+  atomic_fetch_add(&rc->diffuse_cones, cones[0]);
+  atomic_fetch_add(&rc->specular_cones, cones[1]);
 }
 
-gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
-                            double *ms, gi_error_info *err) {
+gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                               gi_render_stats *st, gi_error_info *err) {
   if (!c || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "render: missing cascade or image");
-  if (light_samples == 0) light_samples = 16;
-  if (light_samples < 1 || light_samples > 4096)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "render: light_samples must be 1..4096, got %d", light_samples);
+  gi_render_opts o = {0};
+  if (opts) o = *opts;
+  if (o.light_samples == 0) o.light_samples = 16;
+  if (o.light_samples < 1 || o.light_samples > 4096)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "render: light_samples must be 1..4096, got %d", o.light_samples);
   gi__cam k;
   gi_result r = gi__cam_setup(c->scene, cam, &k, err);
   if (r != GI_OK) return r;
   double t0 = gi__now_ms();
   memset(rgb, 0, (size_t)k.w * k.h * 3 * sizeof(float));
-  render_ctx rc = {c, &k, light_samples, rgb};
-  gi__parallel_for((size_t)k.h, 1, threads, render_rows, &rc);
-  if (ms) *ms = gi__now_ms() - t0;
+  render_ctx rc = {.c = c, .k = &k, .samples = o.light_samples, .spec = spec_mode(c), .rgb = rgb};
+  gi__parallel_for((size_t)k.h, 1, o.threads, render_rows, &rc);
+  if (st) {
+    memset(st, 0, sizeof *st);
+    st->ms = gi__now_ms() - t0;
+    st->diffuse_cones = atomic_load(&rc.diffuse_cones);
+    st->specular_cones = atomic_load(&rc.specular_cones);
+    gi_cascade_view_plan(c, st->effects);
+  }
   for (size_t i = 0; i < (size_t)k.w * k.h * 3; i++)
     if (!isfinite(rgb[i])) return gi__fail(err, GI_ERR_NONFINITE, "render: pixel %zu is not finite", i / 3);
   return GI_OK;
+}
+
+gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
+                            double *ms, gi_error_info *err) {
+  gi_render_opts o = {light_samples, threads};
+  gi_render_stats st;
+  gi_result r = gi_cascade_render_ex(c, cam, &o, rgb, &st, err);
+  if (ms) *ms = r == GI_OK ? st.ms : 0;
+  return r;
 }

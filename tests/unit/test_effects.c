@@ -7,7 +7,10 @@
  *     the path-traced reference agrees the sky gives nothing there (and
  *     forcing the sky on only adds leaked light); an open plane runs it;
  *   Munich (diffuse only, shared scene) never runs the specular cone, and
- *     forcing it on changes no probe value. */
+ *     forcing it on changes no probe value and no pixel of a street view,
+ *     though the forced pass traces a cone at every pixel it shades;
+ *   a camera view of a scene with one glossy quad traces the specular cone
+ *     at exactly the glossy quad's pixels on auto, at none when off. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
@@ -126,10 +129,89 @@ static void test_munich_no_specular(void **state) {
          rep.effects[GI_FX_SPECULAR].why);
   assert_false(rep.effects[GI_FX_SPECULAR].ran);
   assert_non_null(strstr(rep.effects[GI_FX_SPECULAR].why, "no glossy material"));
+  /* A street view, auto and forced on. */
+  enum { W = 48, H = 27 };
+  gi_camera cam = {.eye = {-67.85, -85.78, 1.7}, .target = {-67.85, -45.78, 1.7}, .up = {0, 0, 1}, .fov_deg = 70,
+                   .width = W, .height = H};
+  static float img_auto[W * H * 3], img_on[W * H * 3];
+  gi_render_stats st_auto, st_on;
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_render_ex(c, &cam, NULL, img_auto, &st_auto, &err), GI_OK);
+  gi_cascade_free(c);
+  assert_false(st_auto.effects[GI_FX_SPECULAR].ran);
+  assert_int_equal(st_auto.specular_cones, 0);
+
   q.effects[GI_FX_SPECULAR] = GI_FX_ON;
   bake_at(s, at, &q, &rep, &b);
   assert_non_null(strstr(rep.effects[GI_FX_SPECULAR].why, "forced on"));
   assert_memory_equal(&a, &b, sizeof a);
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_render_ex(c, &cam, NULL, img_on, &st_on, &err), GI_OK);
+  gi_cascade_free(c);
+  printf("munich view: specular cones auto %llu, forced on %llu (%s); diffuse cones %llu\n",
+         (unsigned long long)st_auto.specular_cones, (unsigned long long)st_on.specular_cones,
+         st_on.effects[GI_FX_SPECULAR].why, (unsigned long long)st_on.diffuse_cones);
+  assert_true(st_on.effects[GI_FX_SPECULAR].ran);
+  /* The forced pass runs at every shaded pixel: the view looks down a
+   * street, so the ground and walls fill well over half of it. */
+  assert_true(st_on.specular_cones > W * H / 2 && st_on.specular_cones <= W * H);
+  assert_int_equal(st_on.diffuse_cones, st_auto.diffuse_cones);
+  assert_memory_equal(img_auto, img_on, sizeof img_auto);
+  gi_scene_release(s);
+}
+
+static void test_view_traces_glossy_pixels_only(void **state) {
+  /* A matte floor with a glossy square in its middle, lit by a sun. */
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material matte = {.albedo = {0.5, 0.5, 0.5}, .roughness = 1};
+  gi_material gloss = {.albedo = {0.2, 0.2, 0.2}, .roughness = 0.2f, .specular = 0.5f};
+  uint32_t m0 = gi_mesh_builder_add_material(b, &matte), m1 = gi_mesh_builder_add_material(b, &gloss);
+  double A[3] = {-8, 0, -8}, B[3] = {-8, 0, 8}, C[3] = {8, 0, 8}, D[3] = {8, 0, -8};
+  gi_mesh_builder_add_quad(b, A, B, C, D, m0);
+  double E[3] = {-2, 0.01, -2}, F[3] = {-2, 0.01, 2}, G[3] = {2, 0.01, 2}, K[3] = {2, 0.01, -2};
+  gi_mesh_builder_add_quad(b, E, F, G, K, m1);
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0.3f, -1, 0.2f}};
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "glossy-square", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  /* Straight down from 10 units with a 90 degree view: the image spans
+   * [-10, 10]^2 of the plane: the floor [-8, 8]^2 and the square [-2, 2]^2
+   * show in 52 x 52 and 12 x 12 pixel centres. */
+  enum { N = 64 };
+  gi_camera cam = {.eye = {0, 10, 0}, .target = {0, 0, 0}, .up = {0, 0, 1}, .fov_deg = 90, .width = N, .height = N};
+  static float img[N * N * 3];
+  const double at[3] = {0, 1, 0};
+  int64_t square = 0, floor = 0;
+  for (int y = 0; y < N; y++)
+    for (int x = 0; x < N; x++) {
+      /* The pixel centre's ray meets the floor at (px, py). */
+      double px = 10 * (2 * (x + 0.5) / N - 1), py = 10 * (1 - 2 * (y + 0.5) / N);
+      square += fabs(px) < 2 && fabs(py) < 2;
+      floor += fabs(px) < 8 && fabs(py) < 8;
+    }
+  assert_int_equal(square, 12 * 12);
+  assert_int_equal(floor, 52 * 52);
+  /* Auto: the square only; off: none; on: every pixel that sees the floor. */
+  const int modes[3] = {GI_FX_AUTO, GI_FX_OFF, GI_FX_ON};
+  const int64_t cones[3] = {square, 0, floor};
+  for (int i = 0; i < 3; i++) {
+    gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.5};
+    q.effects[GI_FX_SPECULAR] = modes[i];
+    gi_cascade *c = NULL;
+    gi_render_stats st;
+    assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+    assert_int_equal(gi_cascade_render_ex(c, &cam, NULL, img, &st, &err), GI_OK);
+    printf("glossy square, specular %s: %s, %llu specular cones (want %lld): %s\n",
+           i == 0 ? "auto" : i == 1 ? "off" : "on", st.effects[GI_FX_SPECULAR].ran ? "ran" : "skipped",
+           (unsigned long long)st.specular_cones, (long long)cones[i], st.effects[GI_FX_SPECULAR].why);
+    assert_int_equal(st.effects[GI_FX_SPECULAR].ran, i != 1);
+    assert_int_equal((int64_t)st.specular_cones, cones[i]);
+    assert_int_equal(gi_cascade_report(c)->glossy_triangles, 2);
+    gi_cascade_free(c);
+  }
   gi_scene_release(s);
 }
 
@@ -152,6 +234,7 @@ int main(void) {
       cmocka_unit_test(test_bounces_from_albedo),
       cmocka_unit_test(test_sky_only_where_visible),
       cmocka_unit_test(test_munich_no_specular),
+      cmocka_unit_test(test_view_traces_glossy_pixels_only),
       cmocka_unit_test(test_bad_override),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -41,6 +41,7 @@ void cli_opts_fini(cli_opts *o);
 typedef struct cli_render_stats {
   double cone_ms, path_ms, mre;
   int width, height, spp;
+  gi_render_stats view;     /* the cone-traced view: its plan and cone counts */
 } cli_render_stats;
 
 /* What a finished run measured, for both output forms. */

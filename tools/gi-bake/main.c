@@ -113,9 +113,10 @@ int main(int argc, char **argv) {
   memset(&rs, 0, sizeof rs);
   if (o.render) {
     if ((rc = cli_render(&o, scene, cas, &rs)) != 0) goto done;
-    fprintf(stderr, "gi-bake: render %d x %d: cone-traced %.1f ms, path-traced (%d paths/pixel) %.1f ms, "
-                    "mean relative error %.1f%%%s%s\n", rs.width, rs.height, rs.cone_ms, rs.spp, rs.path_ms,
-            100 * rs.mre, o.png ? ", wrote " : "", o.png ? o.png : "");
+    fprintf(stderr, "gi-bake: render %d x %d: cone-traced %.1f ms (%llu specular cones), path-traced (%d "
+                    "paths/pixel) %.1f ms, mean relative error %.1f%%%s%s\n", rs.width, rs.height, rs.cone_ms,
+            (unsigned long long)rs.view.specular_cones, rs.spp, rs.path_ms, 100 * rs.mre, o.png ? ", wrote " : "",
+            o.png ? o.png : "");
   }
   if (o.exr && !o.render && (r = gi_probes_write_exr(o.exr, probes, n, scene, o.at, &rep, o.half, &err)) != GI_OK) {
     rc = fail("--exr", &err, r);

@@ -36,11 +36,13 @@ int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, 
   }
   memset(st, 0, sizeof *st);
   st->width = w, st->height = h, st->spp = spp;
-  if (gi_cascade_render(cas, &cam, 0, o->q.threads, cone, &st->cone_ms, &err) != GI_OK ||
+  gi_render_opts ro = {.threads = o->q.threads};
+  if (gi_cascade_render_ex(cas, &cam, &ro, cone, &st->view, &err) != GI_OK ||
       gi_reference_render(scene, &cam, spp, 1, o->q.threads, path, &st->path_ms, &err) != GI_OK) {
     fprintf(stderr, "gi-bake: --render: %s\n", err.msg);
     goto done;
   }
+  st->cone_ms = st->view.ms;
   double mean = 0;
   for (size_t i = 0; i < np; i++) mean += lum(&path[3 * i]) / (double)np;
   float floor_l = (float)(0.05 * mean), exposure = mean > 0 ? (float)(0.18 / mean) : 1.f;

@@ -118,11 +118,13 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(root, "timings_ms", t);
   json_object_set_new(root, "threads", json_integer(r->threads));
 
+  /* With --render the view's plan is what ran: it decides the specular pass. */
+  const gi_effect *effects = r->render ? r->render->view.effects : rep->effects;
   json_t *fx = json_object();
   for (int i = 0; i < GI_FX_COUNT; i++) {
     json_t *e = json_object();
-    json_object_set_new(e, "ran", json_boolean(rep->effects[i].ran));
-    json_object_set_new(e, "why", json_string(rep->effects[i].why));
+    json_object_set_new(e, "ran", json_boolean(effects[i].ran));
+    json_object_set_new(e, "why", json_string(effects[i].why));
     json_object_set_new(fx, gi_effect_name((gi_effect_id)i), e);
   }
   json_object_set_new(root, "effects", fx);
@@ -136,6 +138,8 @@ static json_t *build_json(const cli_run *r, jctx *j) {
     json_object_set_new(rj, "cone_ms", json_real(r->render->cone_ms));
     json_object_set_new(rj, "path_ms", json_real(r->render->path_ms));
     json_object_set_new(rj, "mean_relative_error", json_real(r->render->mre));
+    json_object_set_new(rj, "diffuse_cones", count(r->render->view.diffuse_cones));
+    json_object_set_new(rj, "specular_cones", count(r->render->view.specular_cones));
     json_object_set_new(root, "render", rj);
   }
   json_t *lv = json_array();
@@ -206,10 +210,11 @@ static void print_human(const cli_run *r) {
          (unsigned long long)rep->triangles_visited, (unsigned long long)rep->shadow_rays,
          (unsigned long long)rep->cone_samples, rep->bounces_run, rep->bounces_run == 1 ? "" : "s");
 
-  printf("effects\n");
+  const gi_effect *effects = r->render ? r->render->view.effects : rep->effects;
+  printf("effects%s\n", r->render ? "    (of the rendered view)" : "");
   for (int i = 0; i < GI_FX_COUNT; i++)
     printf("           %-13s %-8s %s\n", gi_effect_name((gi_effect_id)i),
-           rep->effects[i].ran ? "ran" : "skipped", rep->effects[i].why);
+           effects[i].ran ? "ran" : "skipped", effects[i].why);
 
   const gi_probe *p = &r->probes[0];
   printf("probe      irradiance on an up-facing surface (R, G, B)\n");

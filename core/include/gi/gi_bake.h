@@ -89,6 +89,8 @@ typedef struct gi_bake_report {
   uint64_t cone_samples;
   size_t cascade_bytes;
   int bounces_run;
+  uint32_t glossy_triangles;             /* glossy triangles inside the cascade: a camera
+                                            view's specular pass runs on auto when > 0 */
 } gi_bake_report;
 
 typedef struct gi_cascade gi_cascade;

@@ -37,8 +37,37 @@ gi_result gi_camera_from_mitsuba(const char *path, gi_camera *cam, gi_error_info
  * (0, 180), 1..8192 pixels per side. */
 gi_result gi_camera_validate(const gi_camera *cam, gi_error_info *err);
 
+/* The effect plan of a camera view of c: the bake's plan, with the
+ * specular pass decided for an output that has a view direction.
+ *   auto: runs when glossy materials (roughness < 0.5, specular > 0) lie
+ *         in the cascade, and traces one cone at each of their pixels only;
+ *   on:   runs, one cone at every pixel weighted by the material's
+ *         specular reflectance (a forced pass costs the same in any scene;
+ *         on a diffuse scene it adds exactly nothing);
+ *   off:  no specular cone at all.
+ * Thread-safe (reads the cascade only). */
+void gi_cascade_view_plan(const gi_cascade *c, gi_effect out[GI_FX_COUNT]);
+
+typedef struct gi_render_opts {
+  int light_samples; /* shadow rays per pixel for sky and area lights (0 = 16, 1..4096) */
+  int threads;       /* 0 = all cores */
+} gi_render_opts;
+
+/* What one view cost. */
+typedef struct gi_render_stats {
+  double ms;                         /* wall clock of the whole view */
+  uint64_t diffuse_cones;            /* diffuse cones traced (all pixels) */
+  uint64_t specular_cones;           /* specular cones traced: 0 when the pass is skipped */
+  gi_effect effects[GI_FX_COUNT];    /* gi_cascade_view_plan, as followed */
+} gi_render_stats;
+
 /* Renders the view from the cascade into rgb (width * height * 3 floats).
- * light_samples shadow rays per pixel for sky and area lights (0 = 16). */
+ * opts may be NULL (defaults); st may be NULL. */
+gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                               gi_render_stats *st, gi_error_info *err);
+
+/* The same with light_samples and threads given directly; *ms (may be
+ * NULL) receives the wall clock. */
 gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
                             double *ms, gi_error_info *err);
 
