@@ -101,4 +101,7 @@ for extent in 600 1500 5000; do
 done
 
 echo "JSON lines appended to $JSONL"
+echo
+# What the specular pass costs in a camera view, and what the plan saves.
+sh "$ROOT/tests/bench/specular-bench.sh" "$BUILD"
 exit 0
