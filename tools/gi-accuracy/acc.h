@@ -3,6 +3,7 @@
 #define GI_ACC_H
 
 #include <stddef.h>
+#include <stdio.h>
 #include "metrics.h"
 
 /* One measured configuration: a cone-traced bake (kind "cone") or a
@@ -29,11 +30,39 @@ typedef struct acc_scene_info {
   char at[96];
 } acc_scene_info;
 
+/* One camera view at equal error (views.c). */
+#define ACC_VIEW_MAX_PATH 8
+typedef struct acc_view {
+  char scene[32];
+  int w, h, ref_spp;
+  double ref_ms;              /* reference render time (0 when read from the cache) */
+  double ref_mre;             /* the reference's own error, from its two halves */
+  size_t pixels;              /* pixels compared (not pure sky) */
+  double cone_ms, cone_bake_ms, cone_render_ms, cone_mre;
+  unsigned long long specular_cones;
+  int num_path, path_spp[ACC_VIEW_MAX_PATH];
+  double path_ms[ACC_VIEW_MAX_PATH], path_mre[ACC_VIEW_MAX_PATH];
+  double path_ms_at_cone;     /* path-tracer ms at the cone's error; -1 not reached */
+  char png[256];              /* the picture, relative to the report */
+} acc_view;
+
+/* Renders the view cam of scene s: the reference (ref_spp paths per pixel,
+ * cached in out_dir under ref_version), the cone tracer's bake at `at` +
+ * render at default quality, the path tracer at 1, 4, .. ref_spp / 4;
+ * writes the side-by-side picture to png (may be NULL). Returns 1 on success. */
+struct gi_scene;
+struct gi_camera;
+int acc_run_view(const char *name, const struct gi_scene *s, const double at[3], const struct gi_camera *cam,
+                 int ref_spp, int threads, int repeat, const char *out_dir, const char *png, int ref_version,
+                 acc_view *v);
+/* The views' section of the markdown report. */
+void acc_write_views_md(FILE *f, const acc_view *v, size_t n);
+
 /* report.c: writes out_dir/accuracy.csv, accuracy.gp (+ accuracy.png via
  * gnuplot when present) and the markdown report md_path, with the
  * hand-written notes file (may be NULL) after the method. Returns 0 on success. */
-int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const char *out_dir,
-                      const char *md_path, const char *png_path, const char *machine, const char *cmdline,
-                      const char *notes);
+int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const acc_view *views,
+                      size_t nviews, const char *out_dir, const char *md_path, const char *png_path,
+                      const char *machine, const char *cmdline, const char *notes);
 
 #endif

@@ -19,7 +19,7 @@
 #include "acc.h"
 #include "gi/gi.h"
 
-#define REF_VERSION 1 /* bump when the path tracer changes: old caches are ignored */
+#define REF_VERSION 2 /* bump when the path tracer changes: old caches are ignored (2: glossy lobe, sky seen) */
 
 static int g_repeat = 2; /* runs per configuration; the fastest counts */
 
@@ -29,12 +29,14 @@ typedef struct opts {
   int num_scenes;
   int ref_samples, pt_max, threads;
   int quick;
+  int view_spp;        /* reference paths per pixel of the camera views; 0 = no views */
 } opts;
 
 static void usage(FILE *f) {
   fprintf(f,
           "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
-          "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N] [--quick]\n"
+          "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N]\n"
+          "                   [--view-samples N] [--no-views] [--quick]\n"
           "  --scenes LIST      comma-separated: cornell, munich, city (default all three)\n"
           "  --scenes-dir DIR   the shared scenes (default %s)\n"
           "  --out DIR          CSV, plot script and reference cache (default out/accuracy)\n"
@@ -45,7 +47,10 @@ static void usage(FILE *f) {
           "  --pt-max N         largest path-tracer sample count in the sweep, a power of 4 (default 4096)\n"
           "  --threads N        threads for bakes and path tracing (default: all cores)\n"
           "  --repeat N         runs per configuration, the fastest counts (default 2)\n"
-          "  --quick            fewer knob values (a smoke run)\n",
+          "  --view-samples N   reference paths per pixel of each scene's camera view (default 1024;\n"
+          "                     the path tracer is swept up to a quarter of it)\n"
+          "  --no-views         skip the camera views\n"
+          "  --quick            fewer knob values, views at 64 paths per pixel (a smoke run)\n",
           GI_SCENES_DIR);
 }
 
@@ -63,7 +68,7 @@ static int parse_int(const char *name, const char *s, int lo, int hi, int *out) 
 
 static int takes_value(const char *a) {
   static const char *const v[] = {"--scenes", "--scenes-dir", "--out", "--md", "--png", "--notes",
-                                   "--ref-samples", "--pt-max", "--threads", "--repeat"};
+                                   "--ref-samples", "--pt-max", "--threads", "--repeat", "--view-samples"};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++)
     if (!strcmp(a, v[i])) return 1;
   return 0;
@@ -75,6 +80,8 @@ static int parse_args(int argc, char **argv, opts *o) {
   o->out_dir = "out/accuracy";
   o->ref_samples = 65536;
   o->pt_max = 4096;
+  o->view_spp = -1;
+  int no_views = 0;
   const char *list = "cornell,munich,city";
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
@@ -84,6 +91,8 @@ static int parse_args(int argc, char **argv, opts *o) {
       return -1;
     } else if (!strcmp(a, "--quick")) {
       o->quick = 1;
+    } else if (!strcmp(a, "--no-views")) {
+      no_views = 1;
     } else if (!has && takes_value(a)) {
       fprintf(stderr, "gi-accuracy: %s needs a value\n", a);
       return 2;
@@ -99,6 +108,8 @@ static int parse_args(int argc, char **argv, opts *o) {
       if (!parse_int("--pt-max", argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
     } else if (!strcmp(a, "--repeat")) {
       if (!parse_int("--repeat", argv[++i], 1, 20, &g_repeat)) return 2;
+    } else if (!strcmp(a, "--view-samples")) {
+      if (!parse_int("--view-samples", argv[++i], 8, 1 << 20, &o->view_spp)) return 2;
     } else if (!strcmp(a, "--threads")) {
       if (!parse_int("--threads", argv[++i], 0, 256, &o->threads)) return 2;
     } else {
@@ -123,6 +134,8 @@ static int parse_args(int argc, char **argv, opts *o) {
     fprintf(stderr, "gi-accuracy: --scenes is empty\n");
     return 2;
   }
+  if (no_views) o->view_spp = 0;
+  else if (o->view_spp < 0) o->view_spp = o->quick ? 64 : 1024;
   return 0;
 }
 
@@ -406,6 +419,41 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   return ok;
 }
 
+/* ---- camera views ------------------------------------------------------ */
+
+/* Each scene's view: the Cornell box through its Mitsuba camera; Munich
+ * and the city from the viewpoint at eye height, down a street. */
+static int view_camera(const opts *o, const char *name, const scene_set *ss, gi_camera *cam) {
+  gi_error_info err = {0};
+  memset(cam, 0, sizeof *cam);
+  if (!strcmp(name, "cornell")) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/cornell-box/cbox-mitsuba.xml", o->scenes_dir);
+    if (gi_camera_from_mitsuba(path, cam, &err) != GI_OK) {
+      fprintf(stderr, "gi-accuracy: SKIP cornell view: %s\n", err.msg);
+      return 0;
+    }
+    cam->width = cam->height = 192;
+    return 1;
+  }
+  int up = gi_scene_up(ss->s) == GI_UP_Z ? 2 : 1, along = up == 2 ? 1 : 0;
+  memcpy(cam->eye, ss->at, sizeof cam->eye);
+  cam->eye[up] = ss->at[up] - (strcmp(name, "munich") ? 0 : 0.3); /* Munich's viewpoint is 2 m up: eye at 1.7 */
+  memcpy(cam->target, cam->eye, sizeof cam->target);
+  cam->target[along] += 40;
+  cam->up[up] = 1;
+  cam->fov_deg = 70, cam->width = 320, cam->height = 180;
+  return 1;
+}
+
+static const char *dir_of(const char *path, char *buf, size_t n) {
+  snprintf(buf, n, "%s", path);
+  char *sl = strrchr(buf, '/');
+  if (sl) *sl = 0;
+  else snprintf(buf, n, ".");
+  return buf;
+}
+
 static int mkdirs(const char *p) {
   char b[1024];
   snprintf(b, sizeof b, "%s", p);
@@ -455,7 +503,10 @@ int main(int argc, char **argv) {
   }
   rows out = {0};
   acc_scene_info info[3];
-  size_t ninfo = 0;
+  acc_view views[3];
+  size_t ninfo = 0, nviews = 0;
+  char md_dir[1024];
+  dir_of(md, md_dir, sizeof md_dir);
   rc = 0;
   for (int i = 0; i < o.num_scenes; i++) {
     const char *name = o.scenes[i];
@@ -478,6 +529,18 @@ int main(int argc, char **argv) {
         si->ref_rel_se[p] = m.ref_rel_se;
       }
       ninfo++;
+      gi_camera cam;
+      if (o.view_spp > 0 && view_camera(&o, name, &ss, &cam)) {
+        char png_path[1100];
+        snprintf(png_path, sizeof png_path, "%s/view-%s.png", md_dir, name);
+        if (!acc_run_view(name, ss.s, ss.at, &cam, o.view_spp, o.threads, g_repeat, o.out_dir, png_path,
+                          REF_VERSION, &views[nviews])) {
+          rc = 1;
+        } else {
+          snprintf(views[nviews].png, sizeof views[nviews].png, "view-%s.png", name);
+          nviews++;
+        }
+      }
     }
     free(ref);
     free(ss.pts);
@@ -496,7 +559,8 @@ int main(int argc, char **argv) {
       for (size_t k = i; k < j; k++) out.v[k].on_front = front[k - i];
       i = j;
     }
-    if (acc_write_reports(out.v, out.n, info, ninfo, o.out_dir, md, png, machine, cmd, o.notes)) rc = 1;
+    if (acc_write_reports(out.v, out.n, info, ninfo, views, nviews, o.out_dir, md, png, machine, cmd, o.notes))
+      rc = 1;
   } else if (!rc) {
     fprintf(stderr, "gi-accuracy: SKIP: no scene was available\n");
   }

@@ -163,8 +163,9 @@ static void write_standing(FILE *f, const acc_row *r, size_t n, const acc_scene_
              "compare differently.)\n\n", nsc ? "about 20" : "few");
 }
 
-static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t nsc, const char *path,
-                    const char *png, int drawn, const char *machine, const char *cmdline, const char *notes) {
+static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t nsc, const acc_view *views,
+                    size_t nviews, const char *path, const char *png, int drawn, const char *machine,
+                    const char *cmdline, const char *notes) {
   char tmp[1100];
   FILE *f = open_tmp(path, tmp, sizeof tmp);
   if (!f) return 1;
@@ -200,6 +201,7 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
   if (drawn && slash) fprintf(f, "![error against time](%s)\n\n", slash + 1);
   else if (drawn) fprintf(f, "![error against time](%s)\n\n", png);
   else fprintf(f, "(The plot was not drawn: gnuplot is not installed.)\n\n");
+  acc_write_views_md(f, views, nviews);
 
   for (size_t s = 0; s < nsc; s++) {
     const char *name = sc[s].name;
@@ -249,15 +251,15 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
   return close_rename(f, tmp, path);
 }
 
-int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const char *out_dir,
-                      const char *md_path, const char *png_path, const char *machine, const char *cmdline,
-                      const char *notes) {
+int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const acc_view *views,
+                      size_t nviews, const char *out_dir, const char *md_path, const char *png_path,
+                      const char *machine, const char *cmdline, const char *notes) {
   char csv[1024];
   snprintf(csv, sizeof csv, "%s/accuracy.csv", out_dir);
   int drawn = 0;
   if (write_csv(rows, n, csv)) return 1;
   if (write_plot(sc, nsc, csv, out_dir, png_path, &drawn)) return 1;
-  if (write_md(rows, n, sc, nsc, md_path, png_path, drawn, machine, cmdline, notes)) return 1;
+  if (write_md(rows, n, sc, nsc, views, nviews, md_path, png_path, drawn, machine, cmdline, notes)) return 1;
   fprintf(stderr, "gi-accuracy: wrote %s, %s%s and %s\n", csv, drawn ? png_path : "", drawn ? "" : "(no plot)",
           md_path);
   return 0;
