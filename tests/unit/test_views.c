@@ -1,0 +1,77 @@
+/* test_views.c: gi-accuracy's camera-view comparison (tools/gi-accuracy/views.c)
+ * on a view whose answer is known.
+ *
+ * A plane of albedo 0.5 under a sun at 60 degrees, no sky: every pixel
+ * that sees the plane shows L = a E cos60 / pi in both renderers (the
+ * cone view exactly up to float rounding plus what the voxels bounce back
+ * from a flat plane: nothing; the path tracer exactly, every continuation
+ * escapes), and every other pixel is black in both (the sky is black):
+ * those are left out of the error. So the comparison must count exactly
+ * the plane's pixels, measure ~0 error for the cone and every path-tracer
+ * sample count, estimate ~0 noise for the reference, read the reference
+ * back from its cache the second time with the same figures, and write
+ * the picture. */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "acc.h"
+#include "gi/gi.h"
+
+static void test_plane_view(void **state) {
+  const double a = 0.5, E = 3.0;
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {E, E, E}, .direction = {(float)(sqrt(3.0) / 2), -0.5f, 0}};
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {a, a, a}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  /* The plane y = 0 over x in [-100, 100], z in [-100, 10]. */
+  double A[3] = {-100, 0, -100}, B[3] = {-100, 0, 10}, C[3] = {100, 0, 10}, D[3] = {100, 0, -100};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "plane", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+
+  /* From 3 up, looking at the plane's far edge (0, 0, 10): the edge is a
+   * horizontal line through the image centre, the border between rows 7
+   * and 8 of 16, and the plane is wider than the view. So rows 8..15 see
+   * only the plane, every sample of them, path-traced with jitter or not;
+   * rows 0..7 only the black sky. */
+  gi_camera cam = {.eye = {0, 3, 0}, .target = {0, 0, 10}, .up = {0, 1, 0}, .fov_deg = 60, .width = 24, .height = 16};
+  const size_t plane_px = 8 * 24;
+
+  const char *dir = tu_tmpdir();
+  char png[1024];
+  snprintf(png, sizeof png, "%s/view-plane.png", dir);
+  const double at[3] = {0, 1, 4};
+  acc_view v1, v2;
+  assert_int_equal(acc_run_view("plane", s, at, &cam, 64, 0, 1, dir, png, 1, &v1), 1);
+  printf("cone MRE %.3g (bake %.1f + render %.1f ms), reference's own %.3g, path MRE at 1 spp %.3g\n", v1.cone_mre,
+         v1.cone_bake_ms, v1.cone_render_ms, v1.ref_mre, v1.path_mre[0]);
+  assert_int_equal(v1.pixels, plane_px);
+  assert_true(v1.ref_ms > 0);
+  assert_true(v1.ref_mre < 1e-5);
+  assert_true(v1.cone_mre < 1e-3);
+  /* 1, 4 and 16 paths per pixel: a quarter of the 64-path reference. */
+  assert_int_equal(v1.num_path, 3);
+  for (int k = 0; k < v1.num_path; k++) assert_true(v1.path_mre[k] < 1e-5);
+  /* Again: the reference comes from the cache, and the figures are the same. */
+  assert_int_equal(acc_run_view("plane", s, at, &cam, 64, 0, 1, dir, png, 1, &v2), 1);
+  assert_true(v2.ref_ms == 0);
+  assert_true(v2.ref_mre == v1.ref_mre && v2.cone_mre == v1.cone_mre && v2.pixels == v1.pixels);
+  FILE *pf = fopen(png, "rb");
+  unsigned char sig[8] = {0};
+  assert_non_null(pf);
+  assert_int_equal(fread(sig, 1, 8, pf), 8);
+  fclose(pf);
+  assert_memory_equal(sig, "\x89PNG\r\n\x1a\n", 8);
+  gi_scene_release(s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_plane_view),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
