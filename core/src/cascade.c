@@ -36,6 +36,7 @@ void gi__cascade_place(struct gi_cascade *c) {
     for (int a = 0; a < 3; a++) {
       int64_t centre = (int64_t)floor(at[a] / L->s);
       L->cell0[a] = gi__floordiv(centre - R / 2, 2) * 2;
+      L->slot0[a] = gi__wrap(L->cell0[a], R);
       L->lo[a] = (float)(L->cell0[a] * L->s);
       L->hi[a] = (float)((L->cell0[a] + R) * L->s);
     }

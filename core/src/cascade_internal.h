@@ -48,6 +48,7 @@ typedef struct gi_vrad {
 typedef struct gi_level {
   double s;            /* voxel size */
   int64_t cell0[3];    /* first cell of the window */
+  int slot0[3];        /* its toroidal slot per axis, cell0 mod R (saves a 64-bit division per sample) */
   float lo[3], hi[3];  /* window box, local coordinates */
   int has_inner;       /* 1 when level d-1 nests inside (cells filtered from it) */
   int64_t inner0[3], inner1[3]; /* this level's cells covered by level d-1: [inner0, inner1) */

@@ -102,7 +102,8 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
     if (i0 < 0) i0 = 0, fl = 0, u = fmaxf(u, 0.f);
     if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = fminf(u, (float)(R - 1));
     f[a] = u - fl;
-    int s0 = gi__wrap(L->cell0[a] + i0, R);
+    int s0 = L->slot0[a] + i0;
+    if (s0 >= R) s0 -= R;
     int s1 = s0 + 1 == R ? 0 : s0 + 1;
     uint32_t stride = a == 0 ? 1u : (a == 1 ? (uint32_t)R : (uint32_t)R * (uint32_t)R);
     off[a][0] = (uint32_t)s0 * stride;
