@@ -53,9 +53,11 @@ static void test_plane_view(void **state) {
   assert_true(v1.ref_ms > 0);
   assert_true(v1.ref_mre < 1e-5);
   assert_true(v1.cone_mre < 1e-3);
+  /* A flat, uniform region in both: structurally identical. */
+  assert_true(fabs(v1.cone_ssim - 1) < 1e-6);
   /* 1, 4 and 16 paths per pixel: a quarter of the 64-path reference. */
   assert_int_equal(v1.num_path, 3);
-  for (int k = 0; k < v1.num_path; k++) assert_true(v1.path_mre[k] < 1e-5);
+  for (int k = 0; k < v1.num_path; k++) assert_true(v1.path_mre[k] < 1e-5 && fabs(v1.path_ssim[k] - 1) < 1e-6);
   /* Again: the reference comes from the cache, and the figures are the same. */
   assert_int_equal(acc_run_view("plane", s, at, &cam, 64, 0, 1, dir, png, 1, &v2), 1);
   assert_true(v2.ref_ms == 0);
@@ -69,8 +71,31 @@ static void test_plane_view(void **state) {
   gi_scene_release(s);
 }
 
+static void test_image_metrics(void **state) {
+  /* 16 x 16, flat: the reference shows display value 0.5, the test image
+   * 0.25 (linear 0.5^2.2 and 0.25^2.2, grey, exposure 1). Within a window
+   * both variances are 0, so SSIM is the luminance term alone:
+   * (2 * 0.5 * 0.25 + C1) / (0.5^2 + 0.25^2 + C1), C1 = 1e-4: 0.800064. */
+  enum { W = 16 };
+  static float a[W * W * 3], r[W * W * 3];
+  static unsigned char mask[W * W];
+  for (int i = 0; i < W * W * 3; i++) r[i] = (float)pow(0.5, 2.2), a[i] = (float)pow(0.25, 2.2);
+  memset(mask, 1, sizeof mask);
+  double ssim = acc_image_ssim(a, r, mask, W, W, 1.0);
+  printf("ssim %.6f (exact 0.800064)\n", ssim);
+  assert_true(fabs(ssim - (0.25 + 1e-4) / (0.3125 + 1e-4)) < 1e-5);
+  /* MRE: |0.25^2.2 - 0.5^2.2| / 0.5^2.2 = 1 - 0.5^2.2 = 0.782371. */
+  double mre = acc_image_mre(a, r, mask, W * W, 0);
+  assert_true(fabs(mre - (1 - pow(0.5, 2.2))) < 1e-5);
+  /* Masked pixels do not count; windows that touch them do not either. */
+  for (int i = 0; i < W * W / 2; i++) a[3 * i] = a[3 * i + 1] = a[3 * i + 2] = 100, mask[i] = 0;
+  assert_true(fabs(acc_image_mre(a, r, mask, W * W, 0) - (1 - pow(0.5, 2.2))) < 1e-5);
+  assert_true(fabs(acc_image_ssim(a, r, mask, W, W, 1.0) - ssim) < 1e-9);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_image_metrics),
       cmocka_unit_test(test_plane_view),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

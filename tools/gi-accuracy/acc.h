@@ -38,10 +38,10 @@ typedef struct acc_view {
   double ref_ms;              /* reference render time (0 when read from the cache) */
   double ref_mre;             /* the reference's own error, from its two halves */
   size_t pixels;              /* pixels compared (not pure sky) */
-  double cone_ms, cone_bake_ms, cone_render_ms, cone_mre;
+  double cone_ms, cone_bake_ms, cone_render_ms, cone_mre, cone_ssim;
   unsigned long long specular_cones;
   int num_path, path_spp[ACC_VIEW_MAX_PATH];
-  double path_ms[ACC_VIEW_MAX_PATH], path_mre[ACC_VIEW_MAX_PATH];
+  double path_ms[ACC_VIEW_MAX_PATH], path_mre[ACC_VIEW_MAX_PATH], path_ssim[ACC_VIEW_MAX_PATH];
   double path_ms_at_cone;     /* path-tracer ms at the cone's error; -1 not reached */
   char png[256];              /* the picture, relative to the report */
 } acc_view;
@@ -55,6 +55,13 @@ struct gi_camera;
 int acc_run_view(const char *name, const struct gi_scene *s, const double at[3], const struct gi_camera *cam,
                  int ref_spp, int threads, int repeat, const char *out_dir, const char *png, int ref_version,
                  acc_view *v);
+/* Mean relative error of a's luminance against ref's over the pixels in
+ * mask, each divided by max(ref, floor_l). */
+double acc_image_mre(const float *a, const float *ref, const unsigned char *mask, size_t np, double floor_l);
+/* Mean SSIM of a against ref on display luminance (times exposure, clamped
+ * to [0, 1], gamma 1/2.2), over 8 x 8 windows at a stride of 4 that lie
+ * wholly in the mask; 1 = structurally identical, 1 when no window fits. */
+double acc_image_ssim(const float *a, const float *ref, const unsigned char *mask, int w, int h, double exposure);
 /* The views' section of the markdown report. */
 void acc_write_views_md(FILE *f, const acc_view *v, size_t n);
 

@@ -22,8 +22,7 @@
 
 static float lum(const float *c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
-/* MRE of a against ref over the pixels in mask. */
-static double image_mre(const float *a, const float *ref, const uint8_t *mask, size_t np, double floor_l) {
+double acc_image_mre(const float *a, const float *ref, const uint8_t *mask, size_t np, double floor_l) {
   double sum = 0;
   size_t k = 0;
   for (size_t i = 0; i < np; i++) {
@@ -33,6 +32,33 @@ static double image_mre(const float *a, const float *ref, const uint8_t *mask, s
     k++;
   }
   return k ? sum / (double)k : 0;
+}
+
+double acc_image_ssim(const float *a, const float *ref, const uint8_t *mask, int w, int h, double exposure) {
+  const double C1 = 1e-4, C2 = 9e-4;
+  double sum = 0;
+  size_t k = 0;
+  for (int y0 = 0; y0 + 8 <= h; y0 += 4)
+    for (int x0 = 0; x0 + 8 <= w; x0 += 4) {
+      double sa = 0, sr = 0, saa = 0, srr = 0, sar = 0;
+      int in = 1;
+      for (int y = y0; y < y0 + 8 && in; y++)
+        for (int x = x0; x < x0 + 8; x++) {
+          size_t i = (size_t)y * w + x;
+          if (!mask[i]) {
+            in = 0;
+            break;
+          }
+          double va = pow(fmin(fmax(exposure * lum(&a[3 * i]), 0), 1), 1 / 2.2);
+          double vr = pow(fmin(fmax(exposure * lum(&ref[3 * i]), 0), 1), 1 / 2.2);
+          sa += va, sr += vr, saa += va * va, srr += vr * vr, sar += va * vr;
+        }
+      if (!in) continue;
+      double ma = sa / 64, mr = sr / 64, va = saa / 64 - ma * ma, vr = srr / 64 - mr * mr, cv = sar / 64 - ma * mr;
+      sum += (2 * ma * mr + C1) * (2 * cv + C2) / ((ma * ma + mr * mr + C1) * (va + vr + C2));
+      k++;
+    }
+  return k ? sum / (double)k : 1;
 }
 
 static uint64_t fnv(uint64_t h, const void *p, size_t n) {
@@ -138,7 +164,7 @@ int acc_run_view(const char *name, const gi_scene *s, const double at[3], const 
   mean = kept ? mean / (double)kept : 0;
   v->pixels = kept;
   double floor_l = fmax(0.05 * mean, 1e-30);
-  v->ref_mre = 0.5 * image_mre(A, B, mask, np, floor_l);
+  v->ref_mre = 0.5 * acc_image_mre(A, B, mask, np, floor_l);
 
   /* The cone tracer: bake + render at default quality, fastest of repeat. */
   gi_quality q = {.threads = threads};
@@ -160,9 +186,11 @@ int acc_run_view(const char *name, const gi_scene *s, const double at[3], const 
     v->specular_cones = st.specular_cones;
     gi_cascade_free(c);
   }
-  v->cone_mre = image_mre(img, ref, mask, np, floor_l);
-  fprintf(stderr, "  view cone: bake %.1f + render %.1f ms, MRE %.4f (reference's own %.4f)\n", v->cone_bake_ms,
-          v->cone_render_ms, v->cone_mre, v->ref_mre);
+  v->cone_mre = acc_image_mre(img, ref, mask, np, floor_l);
+  double exposure = mean > 0 ? 0.18 / mean : 1;
+  v->cone_ssim = acc_image_ssim(img, ref, mask, cam->width, cam->height, exposure);
+  fprintf(stderr, "  view cone: bake %.1f + render %.1f ms, MRE %.4f, SSIM %.4f (reference's own MRE %.4f)\n",
+          v->cone_bake_ms, v->cone_render_ms, v->cone_mre, v->cone_ssim, v->ref_mre);
   if (png && !write_picture(png, img, ref, mask, cam->width, cam->height, floor_l, mean)) goto done;
 
   /* The path tracer at 1, 4, 16, ... paths per pixel, up to a quarter of the reference. */
@@ -177,8 +205,9 @@ int acc_run_view(const char *name, const gi_scene *s, const double at[3], const 
       best = fmin(best, t);
     }
     int k = v->num_path++;
-    v->path_spp[k] = spp, v->path_ms[k] = best, v->path_mre[k] = image_mre(img, ref, mask, np, floor_l);
-    fprintf(stderr, "  view path %5d spp: %9.1f ms, MRE %.4f\n", spp, best, v->path_mre[k]);
+    v->path_spp[k] = spp, v->path_ms[k] = best, v->path_mre[k] = acc_image_mre(img, ref, mask, np, floor_l);
+    v->path_ssim[k] = acc_image_ssim(img, ref, mask, cam->width, cam->height, exposure);
+    fprintf(stderr, "  view path %5d spp: %9.1f ms, MRE %.4f, SSIM %.4f\n", spp, best, v->path_mre[k], v->path_ssim[k]);
   }
   /* Time at the cone tracer's error: log-log interpolation between samples. */
   v->path_ms_at_cone = -1;
@@ -207,7 +236,8 @@ void acc_write_views_md(FILE *f, const acc_view *v, size_t n) {
              "The paper's final rendering step: one bake serves every pixel of a view. Per view, the cone "
              "tracer's bake + render at default quality, and the path tracer at increasing paths per pixel, both "
              "against a path-traced reference image. Error: mean relative error of pixel luminance (floor 5%% of "
-             "the reference's mean), over the pixels that are not pure sky. Pictures: cone-traced | reference | "
+             "the reference's mean), over the pixels that are not pure sky; SSIM on display luminance (exposure "
+             "to mid grey, gamma 2.2, 8 x 8 windows wholly off the sky; 1 = identical). Pictures: cone-traced | reference | "
              "error (black 0, white 50%% and above).\n\n");
   for (size_t i = 0; i < n; i++) {
     const acc_view *x = &v[i];
@@ -216,11 +246,13 @@ void acc_write_views_md(FILE *f, const acc_view *v, size_t n) {
     if (x->ref_ms > 0) fprintf(f, ", %.1f s", x->ref_ms / 1000);
     else fprintf(f, " (from the cache)");
     fprintf(f, "; its own error, from its halves: %.2f%% over %zu pixels.\n\n", 100 * x->ref_mre, x->pixels);
-    fprintf(f, "| method | paths/pixel | ms | MRE |\n|---|---|---|---|\n");
-    fprintf(f, "| cone (bake %.0f + render %.0f ms, %llu specular cones) | - | %.1f | %.2f%% |\n", x->cone_bake_ms,
-            x->cone_render_ms, (unsigned long long)x->specular_cones, x->cone_ms, 100 * x->cone_mre);
+    fprintf(f, "| method | paths/pixel | ms | MRE | SSIM |\n|---|---|---|---|---|\n");
+    fprintf(f, "| cone (bake %.0f + render %.0f ms, %llu specular cones) | - | %.1f | %.2f%% | %.4f |\n",
+            x->cone_bake_ms, x->cone_render_ms, (unsigned long long)x->specular_cones, x->cone_ms,
+            100 * x->cone_mre, x->cone_ssim);
     for (int k = 0; k < x->num_path; k++)
-      fprintf(f, "| path | %d | %.1f | %.2f%% |\n", x->path_spp[k], x->path_ms[k], 100 * x->path_mre[k]);
+      fprintf(f, "| path | %d | %.1f | %.2f%% | %.4f |\n", x->path_spp[k], x->path_ms[k], 100 * x->path_mre[k],
+              x->path_ssim[k]);
     if (x->path_ms_at_cone > 0) {
       double pt = x->path_ms_at_cone, r = x->cone_render_ms;
       fprintf(f, "\nThe path tracer reaches the cone tracer's error (%.2f%%) in about %.0f ms (interpolated): the "
