@@ -164,9 +164,10 @@ typedef struct {
   const gi__cam *k;
   int samples;
   float *rgb;
+  float *spec;       /* optional: specular * L_cone per pixel */
 } render_ctx;
 
-static void shade_pixel(const render_ctx *rc, int px, int py, gi_ray_scratch *sc, float out[3]) {
+static void shade_pixel(const render_ctx *rc, int px, int py, gi_ray_scratch *sc, float out[3], float *spec) {
   gi_lsample *ls = sc->ls;
   float *org = sc->org, *dir = sc->dir, *tn = sc->tn, *tf = sc->tf;
   uint8_t *vis = sc->vis;
@@ -220,6 +221,8 @@ static void shade_pixel(const render_ctx *rc, int px, int py, gi_ray_scratch *sc
     gi_cone_out co;
     gi__specular_trace(c, x, n, w, m->roughness, &co);
     for (int a = 0; a < 3; a++) out[a] += m->specular * co.L[a];
+    if (spec)
+      for (int a = 0; a < 3; a++) spec[a] = m->specular * co.L[a];
   }
 }
 
@@ -230,25 +233,37 @@ static void render_rows(void *p, size_t b, size_t e, int worker) {
   if (gi__scratch_alloc(&sc, 2 * rc->samples + (int)s->num_lights + 8) == 0)
     for (size_t y = b; y < e; y++)
       for (int x = 0; x < rc->k->w; x++)
-        shade_pixel(rc, x, (int)y, &sc, &rc->rgb[3 * ((size_t)y * rc->k->w + x)]);
+        shade_pixel(rc, x, (int)y, &sc, &rc->rgb[3 * ((size_t)y * rc->k->w + x)],
+                    rc->spec ? &rc->spec[3 * ((size_t)y * rc->k->w + x)] : NULL);
   gi__scratch_free(&sc);
 }
 
-gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
-                            double *ms, gi_error_info *err) {
+gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                               double *ms, gi_error_info *err) {
+  gi_render_opts o = {0};
+  if (opts) o = *opts;
   if (!c || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "render: missing cascade or image");
-  if (light_samples == 0) light_samples = 16;
-  if (light_samples < 1 || light_samples > 4096)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "render: light_samples must be 1..4096, got %d", light_samples);
+  if (o.light_samples == 0) o.light_samples = 16;
+  if (o.light_samples < 1 || o.light_samples > 4096)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "render: light_samples must be 1..4096, got %d", o.light_samples);
   gi__cam k;
   gi_result r = gi__cam_setup(c->scene, cam, &k, err);
   if (r != GI_OK) return r;
   double t0 = gi__now_ms();
-  memset(rgb, 0, (size_t)k.w * k.h * 3 * sizeof(float));
-  render_ctx rc = {c, &k, light_samples, rgb};
-  gi__parallel_for((size_t)k.h, 1, threads, render_rows, &rc);
+  size_t np = (size_t)k.w * k.h * 3;
+  memset(rgb, 0, np * sizeof(float));
+  if (o.specular) memset(o.specular, 0, np * sizeof(float));
+  render_ctx rc = {c, &k, o.light_samples, rgb, o.specular};
+  gi__parallel_for((size_t)k.h, 1, o.threads, render_rows, &rc);
   if (ms) *ms = gi__now_ms() - t0;
-  for (size_t i = 0; i < (size_t)k.w * k.h * 3; i++)
-    if (!isfinite(rgb[i])) return gi__fail(err, GI_ERR_NONFINITE, "render: pixel %zu is not finite", i / 3);
+  for (size_t i = 0; i < np; i++)
+    if (!isfinite(rgb[i]) || (o.specular && !isfinite(o.specular[i])))
+      return gi__fail(err, GI_ERR_NONFINITE, "render: pixel %zu is not finite", i / 3);
   return GI_OK;
+}
+
+gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
+                            double *ms, gi_error_info *err) {
+  gi_render_opts o = {.light_samples = light_samples, .threads = threads};
+  return gi_cascade_render_ex(c, cam, &o, rgb, ms, err);
 }

@@ -38,14 +38,38 @@ gi_result gi_camera_from_mitsuba(const char *path, gi_camera *cam, gi_error_info
 gi_result gi_camera_validate(const gi_camera *cam, gi_error_info *err);
 
 /* Renders the view from the cascade into rgb (width * height * 3 floats).
- * light_samples shadow rays per pixel for sky and area lights (0 = 16). */
+ * light_samples shadow rays per pixel for sky and area lights (0 = 16).
+ * Same as gi_cascade_render_ex with those fields set. */
 gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
                             double *ms, gi_error_info *err);
 
-/* Path-traces the same view with spp paths per pixel (same materials and
- * lights as gi_reference_irradiance; surfaces are Lambertian only). */
+/* Path-traces the same view with spp paths per pixel (1..1048576; same
+ * materials and lights as gi_reference_irradiance: a Lambertian lobe plus,
+ * on glossy materials, the Phong lobe the specular cone stands for).
+ * Same as gi_reference_render_ex with those fields set. */
 gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
                               float *rgb, double *ms, gi_error_info *err);
+
+/* Options of the _ex renderers; zero means default for every field. The
+ * optional specular image makes the glossy part measurable on its own: at
+ * each pixel's primary hit, specular times the radiance the glossy lobe
+ * gathers (reference: the Phong lobe, sampled; cascade: the one specular
+ * cone), 0 where the hit is not glossy or nothing is hit. Its part is
+ * already included in rgb. */
+typedef struct gi_render_opts {
+  int light_samples; /* cascade: shadow rays per pixel for sky and area lights; 0 = 16 */
+  int spp;           /* reference: paths per pixel, 1..1048576; 0 = 16 */
+  uint64_t seed;     /* reference: 0 = 1 */
+  int threads;       /* 0 = all cores */
+  float *specular;   /* NULL, or width * height * 3 floats, caller-owned, written by the call */
+} gi_render_opts;
+
+/* gi_cascade_render and gi_reference_render with options (opts may be
+ * NULL). Thread-safety as above; each call writes only its own images. */
+gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                               double *ms, gi_error_info *err);
+gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                                 double *ms, gi_error_info *err);
 
 /* Writes an 8-bit sRGB PNG from linear RGB floats times `exposure`,
  * through a temporary file renamed into place. */
