@@ -184,6 +184,9 @@ float gi__specular_tan(float roughness);
  * from the eye to p) about unit normal n, through one cone. */
 void gi__specular_trace(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
                         float roughness, gi_cone_out *out);
+/* The same with the cone's half-angle tangent given (aperture sweeps in tests). */
+void gi__specular_trace_tan(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
+                            float tan_half, gi_cone_out *out);
 /* Samples the texture at local p for direction w (the faces facing -w),
  * trilinearly on level d: premultiplied radiance and optical depth per unit length. */
 int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const float w[3],
