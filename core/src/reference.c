@@ -173,12 +173,13 @@ static void phong_dir(const float r[3], double ns, uint64_t *rng, float w[3]) {
 /* Radiance reflected toward the ray's origin by the surface hit at
  * x (ray direction w, triangle tri, winding normal ng), times T0: the
  * indirect part of one path, whose first vertex here is reflection number
- * depth0. At that first vertex the glossy lobe and the diffuse lobe are
- * both followed (their paths split there); Ls (may be NULL) receives the
- * glossy lobe's share of L, i.e. specular * (radiance along the lobe
- * sample). Deeper vertices pick one lobe at random. */
+ * depth0. With split0, at that first vertex the glossy lobe and the
+ * diffuse lobe are both followed (the glossy one as a path that splits no
+ * further, so a room of glossy walls cannot branch without bound); Ls (may
+ * be NULL) receives the glossy lobe's share of L there, i.e. specular *
+ * (radiance along the lobe sample). Deeper vertices pick one lobe at random. */
 static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], const float T0[3],
-                           int depth0, uint64_t *rng, gi_ray_scratch *sc, float L[3], float Ls[3]) {
+                           int depth0, int split0, uint64_t *rng, gi_ray_scratch *sc, float L[3], float Ls[3]) {
   const gi_scene *s = rc->s;
   float T[3] = {T0[0], T0[1], T0[2]};
   int maxd = rc->o.max_depth > 0 ? rc->o.max_depth : MAX_DEPTH_HARD;
@@ -209,7 +210,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
      * what it meets (an emitter's front, the sky above the horizon) counts
      * in full: no light sample ever draws from this lobe. */
     double ns = glossy_exponent(mat);
-    int gcont = 0, split = depth == depth0;
+    int gcont = 0, split = split0 && depth == depth0;
     float wg[3], tg = 0, ngg[3], spec = mat->specular;
     uint32_t trig = 0;
     if (ns > 0) {
@@ -238,7 +239,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
       /* Follow the glossy lobe as its own path; the diffuse one goes on below. */
       float xg[3], Tg[3], Lg[3] = {0, 0, 0};
       for (int k = 0; k < 3; k++) xg[k] = o[k] + tg * wg[k], Tg[k] = T[k] * spec;
-      reflected_from(rc, xg, wg, trig, ngg, Tg, depth + 1, rng, sc, Lg, NULL);
+      reflected_from(rc, xg, wg, trig, ngg, Tg, depth + 1, 0, rng, sc, Lg, NULL); /* splits no further */
       for (int k = 0; k < 3; k++) {
         L[k] += Lg[k];
         if (Ls) Ls[k] += Lg[k];
@@ -270,7 +271,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
 static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], uint64_t *rng,
                       gi_ray_scratch *sc, float L[3], float Ls[3]) {
   static const float one[3] = {1, 1, 1};
-  reflected_from(rc, x, w, tri, ng, one, 1, rng, sc, L, Ls);
+  reflected_from(rc, x, w, tri, ng, one, 1, 1, rng, sc, L, Ls);
 }
 
 static void ref_range(void *p, size_t b, size_t e, int worker) {
