@@ -370,7 +370,7 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
         float w[3];
         for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * bb[k] + cd[2] * n[k];
         gi_cone_out co;
-        gi__cone_trace_surface(c, o, w, c->cone_tan, off, bc->q->step, lambda, off, cd[2], &co);
+        gi__cone_trace_surface(c, o, w, c->cone_tan, off, bc->q->step, lambda, off, n, &co);
         samples += co.samples;
         for (int k = 0; k < 3; k++) bc->E[q][sd][k] += c->cone_weight[ci] * co.L[k];
       }

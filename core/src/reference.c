@@ -9,14 +9,37 @@
  * projection's weight bounded (Y/p <= 8 pi Y). Where the path meets an
  * emitter's front the emission is direct light, MIS-weighted (balance
  * heuristic) against the area samples, exactly as the gather does. What the
- * first hit reflects toward the probe is the indirect part.
+ * first hit reflects toward the probe (both lobes) is the indirect part.
  *
- * Surfaces are two-sided Lambertian (the voxel texture reflects on both
- * sides too): at each hit the normal is turned toward the arriving ray,
- * direct light there is NEE + MIS, and the path continues along a cosine
- * sample with throughput times albedo. Sky and delta lights are reached by
- * NEE only (no double counting). Russian roulette from rr_depth on keeps
- * unbounded depth unbiased.
+ * Surfaces are two-sided (the voxel texture reflects on both sides too):
+ * at each hit the normal is turned toward the arriving ray. The BRDF is
+ * albedo/pi plus, on glossy materials only (roughness < 0.5 and
+ * specular > 0, the cone tracer's rule), a glossy lobe: the physical
+ * counterpart of the renderer's `specular * L_cone`. Its reflected
+ * radiance is specular * E_p[L_in(w)] with p the normalised Phong lobe
+ * (ns+1)/(2 pi) cos^ns(angle(w, r)) around the mirror direction r, of the
+ * exponent the cone's aperture is derived from (gi__specular_tan: a =
+ * roughness^2, ns = 2/a^2 - 2; a perfect mirror for a < 1e-4); directions below
+ * the surface give 0, so the lobe reflects at most `specular`.
+ *
+ * Diffuse part: NEE + MIS (emitters against the cosine sample), path on
+ * along the cosine sample with throughput times albedo. Sky and delta
+ * lights reach it by NEE only. Glossy part: one exact sample of p, no
+ * NEE; what it meets counts in full with no MIS weight (an emitter's
+ * front, or the sky when it escapes above the horizon), since no light
+ * sample ever draws from this lobe: nothing is counted twice. Delta lights
+ * (sun, point, spot) are never met by a lobe sample, just as the cone,
+ * which sees only voxel radiance, never sees them. (The cone sees neither
+ * emitters, which the voxel texture does not hold, nor the sky: a cone
+ * leaving the coarsest level returns what it gathered so far. The
+ * reference keeps the physics; a comparison of the specular parts must
+ * keep emitters and sky out of the reflection, as test_specular does.)
+ * At the path's first vertex both lobes are followed (the path splits);
+ * deeper, one lobe goes on, picked with probability spec / (spec + max
+ * albedo) and divided by it. Russian roulette from rr_depth on keeps
+ * unbounded depth unbiased. A diffuse material draws exactly the random
+ * numbers it drew before the lobe existed, so diffuse scenes give
+ * bit-identical answers.
  *
  * Samples run in chunks of CHUNK per probe; each chunk has its own seed
  * and sums, reduced in chunk order, so results do not depend on threads. */
@@ -44,8 +67,22 @@ typedef struct {
   int chunks;                 /* per probe */
   float eps;
   float up[3];
+  float sky[3];               /* radiance of every sky light, summed: what an escaping lobe sample sees above the horizon */
   chunk_acc *acc;             /* n * chunks */
 } ref_ctx;
+
+/* Offsets, up axis and sky radiance shared by probes and the view. */
+static void ctx_setup(ref_ctx *rc, const gi_scene *s) {
+  float ext = 0;
+  for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
+  /* Offsets scale with the scene: float positions near ext carry ~1e-7 ext of error. */
+  rc->eps = 2e-5f * ext + 1e-6f;
+  rc->up[0] = 0, rc->up[1] = s->up == GI_UP_Z ? 0.f : 1.f, rc->up[2] = s->up == GI_UP_Z ? 1.f : 0.f;
+  rc->sky[0] = rc->sky[1] = rc->sky[2] = 0;
+  for (uint32_t i = 0; i < s->num_lights; i++)
+    if (s->lights[i].type == GI_LIGHT_SKY)
+      for (int k = 0; k < 3; k++) rc->sky[k] += s->lights[i].color[k];
+}
 
 static void cosine_dir(const float n[3], uint64_t *rng, float w[3]) {
   float t[3], b[3];
@@ -98,16 +135,57 @@ static int emitted(const gi_scene *s, uint32_t tri, const float ng[3], const flo
   return 1;
 }
 
+/* Emitted radiance seen along w at a hit, without MIS weight (the glossy
+ * lobe's sample, which light sampling never competes with). 0 when not an
+ * emitter's front. */
+static int emitted_full(const gi_scene *s, uint32_t tri, const float ng[3], const float w[3], float out[3]) {
+  const float *Le = s->materials[s->tri_material[tri]].emission;
+  if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(-gi__dot(ng, w) > 0)) return 0;
+  memcpy(out, Le, sizeof(float[3]));
+  return 1;
+}
+
+/* The material's glossy lobe: exponent of the normalised Phong lobe the
+ * cone tracer's aperture stands for (gi__specular_tan: a = roughness^2,
+ * ns = 2 / a^2 - 2), or 0 when the material is not glossy (same rule as the
+ * cone tracer and the effect plan: roughness < 0.5 and specular > 0).
+ * INFINITY is a perfect mirror. */
+static double glossy_exponent(const gi_material *m) {
+  if (!(m->roughness < 0.5f && m->specular > 0)) return 0;
+  double a = (double)m->roughness * m->roughness;
+  return a < 1e-4 ? INFINITY : 2.0 / (a * a) - 2.0;
+}
+
+/* Samples w from p(w) = (ns+1)/(2 pi) cos^ns(angle(w, r)), exactly. */
+static void phong_dir(const float r[3], double ns, uint64_t *rng, float w[3]) {
+  float u1 = gi__u01(rng), u2 = gi__u01(rng);
+  if (isinf(ns)) {
+    memcpy(w, r, sizeof(float[3]));
+    return;
+  }
+  float t[3], b[3];
+  gi__basis(r, t, b);
+  float ct = (float)pow(1.0 - (double)u1, 1.0 / (ns + 1.0)); /* 1 - u1 in (0, 1]: no 0^0 */
+  float st = sqrtf(fmaxf(0.f, 1 - ct * ct)), phi = 2 * PI_F * u2;
+  for (int k = 0; k < 3; k++) w[k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + ct * r[k];
+}
+
 /* Radiance reflected toward the ray's origin by the surface hit at
- * org + t w (triangle tri, winding normal ng): the indirect part of one
- * path. depth0 reflections have happened before this one. */
-static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], uint64_t *rng,
-                      gi_ray_scratch *sc, float L[3]) {
+ * x (ray direction w, triangle tri, winding normal ng), times T0: the
+ * indirect part of one path, whose first vertex here is reflection number
+ * depth0. With split0, at that first vertex the glossy lobe and the
+ * diffuse lobe are both followed (the glossy one as a path that splits no
+ * further, so a room of glossy walls cannot branch without bound); Ls (may
+ * be NULL) receives the glossy lobe's share of L there, i.e. specular *
+ * (radiance along the lobe sample). Deeper vertices pick one lobe at random. */
+static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], const float T0[3],
+                           int depth0, int split0, uint64_t *rng, gi_ray_scratch *sc, float L[3], float Ls[3]) {
   const gi_scene *s = rc->s;
-  float T[3] = {1, 1, 1};
+  float T[3] = {T0[0], T0[1], T0[2]};
   int maxd = rc->o.max_depth > 0 ? rc->o.max_depth : MAX_DEPTH_HARD;
-  for (int depth = 1;; depth++) {
-    const float *a = s->materials[s->tri_material[tri]].albedo;
+  for (int depth = depth0;; depth++) {
+    const gi_material *mat = &s->materials[s->tri_material[tri]];
+    const float *a = mat->albedo;
     float n[3];
     float sg = gi__dot(ng, w) > 0 ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * ng[k];
@@ -127,16 +205,73 @@ static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, f
         for (int k = 0; k < 3; k++) E[k] += PI_F * Le[k]; /* Le cos / (cos / pi) */
     }
     for (int k = 0; k < 3; k++) L[k] += T[k] * a[k] * (1.f / PI_F) * E[k];
-    if (last || !hit || !(cn > 0)) break;
-    for (int k = 0; k < 3; k++) T[k] *= a[k];
+    int dcont = !last && hit && cn > 0;
+    /* The glossy lobe: one sample of p(w) around the mirror direction;
+     * what it meets (an emitter's front, the sky above the horizon) counts
+     * in full: no light sample ever draws from this lobe. */
+    double ns = glossy_exponent(mat);
+    int gcont = 0, split = split0 && depth == depth0;
+    float wg[3], tg = 0, ngg[3], spec = mat->specular;
+    uint32_t trig = 0;
+    if (ns > 0) {
+      float r[3], dn = gi__dot(w, n);
+      for (int k = 0; k < 3; k++) r[k] = w[k] - 2 * dn * n[k];
+      float lr = gi__len(r);
+      for (int k = 0; k < 3; k++) r[k] /= lr;
+      phong_dir(r, ns, rng, wg);
+      float cg = gi__dot(n, wg);
+      if (cg > 0) {
+        float Lg[3] = {0, 0, 0};
+        if (gi__intersect1(s, o, wg, 0, INFINITY, &tg, &trig, ngg)) {
+          emitted_full(s, trig, ngg, wg, Lg);
+          gcont = !last;
+        } else if (gi__dot(rc->up, wg) > 0) {
+          memcpy(Lg, rc->sky, sizeof Lg);
+        }
+        for (int k = 0; k < 3; k++) {
+          float v = T[k] * spec * Lg[k];
+          L[k] += v;
+          if (split && Ls) Ls[k] += v;
+        }
+      }
+    }
+    if (split && gcont) {
+      /* Follow the glossy lobe as its own path; the diffuse one goes on below. */
+      float xg[3], Tg[3], Lg[3] = {0, 0, 0};
+      for (int k = 0; k < 3; k++) xg[k] = o[k] + tg * wg[k], Tg[k] = T[k] * spec;
+      reflected_from(rc, xg, wg, trig, ngg, Tg, depth + 1, 0, rng, sc, Lg, NULL); /* splits no further */
+      for (int k = 0; k < 3; k++) {
+        L[k] += Lg[k];
+        if (Ls) Ls[k] += Lg[k];
+      }
+      gcont = 0;
+    }
+    if (!dcont && !gcont) break;
+    /* One lobe goes on, picked in proportion to its reflectance; dividing
+     * by the pick's probability keeps the sum of both unbiased. */
+    float amax = fmaxf(a[0], fmaxf(a[1], a[2]));
+    float pg = !gcont ? 0.f : !dcont ? 1.f : spec / (spec + amax);
+    if (pg > 0 && (pg >= 1 || gi__u01(rng) < pg)) {
+      for (int k = 0; k < 3; k++) T[k] *= spec / pg;
+      for (int k = 0; k < 3; k++) x[k] = o[k] + tg * wg[k], w[k] = wg[k], ng[k] = ngg[k];
+      tri = trig;
+    } else {
+      for (int k = 0; k < 3; k++) T[k] *= a[k] / (1.f - pg);
+      for (int k = 0; k < 3; k++) x[k] = o[k] + t * wn[k], w[k] = wn[k], ng[k] = ngn[k];
+      tri = trin;
+    }
     if (depth >= rc->o.rr_depth) {
       float q = fminf(0.95f, fmaxf(T[0], fmaxf(T[1], T[2])));
       if (!(q > 0) || gi__u01(rng) >= q) break;
       for (int k = 0; k < 3; k++) T[k] /= q;
     }
-    for (int k = 0; k < 3; k++) x[k] = o[k] + t * wn[k], w[k] = wn[k], ng[k] = ngn[k];
-    tri = trin;
   }
+}
+
+static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], uint64_t *rng,
+                      gi_ray_scratch *sc, float L[3], float Ls[3]) {
+  static const float one[3] = {1, 1, 1};
+  reflected_from(rc, x, w, tri, ng, one, 1, 1, rng, sc, L, Ls);
 }
 
 static void ref_range(void *p, size_t b, size_t e, int worker) {
@@ -208,7 +343,7 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
           if (rc->o.max_depth >= 0) {
             float x[3] = {p[0] + t * w[0], p[1] + t * w[1], p[2] + t * w[2]};
             float wc[3] = {w[0], w[1], w[2]};
-            reflected(rc, x, wc, tri, ng, &rng, &sc, Lr);
+            reflected(rc, x, wc, tri, ng, &rng, &sc, Lr, NULL);
             gi__sh_add(shi, w, Lr, 1.f / pb);
             if (cu > 0)
               for (int k = 0; k < 3; k++) Ei[k] += Lr[k] * cu / pb;
@@ -247,11 +382,7 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
       return gi__fail(err, GI_ERR_NONFINITE, "reference: point %zu has a non-finite coordinate", i / 3);
   double t0 = gi__now_ms();
   rc.chunks = (rc.o.samples + CHUNK - 1) / CHUNK;
-  float ext = 0;
-  for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
-  /* Offsets scale with the scene: float positions near ext carry ~1e-7 ext of error. */
-  rc.eps = 2e-5f * ext + 1e-6f;
-  rc.up[0] = 0, rc.up[1] = s->up == GI_UP_Z ? 0.f : 1.f, rc.up[2] = s->up == GI_UP_Z ? 1.f : 0.f;
+  ctx_setup(&rc, s);
   size_t tasks = n * (size_t)rc.chunks;
   rc.acc = calloc(tasks ? tasks : 1, sizeof *rc.acc);
   if (!rc.acc) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %zu sample chunks", tasks);
@@ -302,7 +433,7 @@ typedef struct {
   ref_ctx rc;
   const gi__cam *k;
   int spp;
-  float *rgb;
+  float *rgb, *spec;
 } view_ctx;
 
 static void view_rows(void *p, size_t b, size_t e, int worker) {
@@ -314,9 +445,9 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
     for (size_t y = b; y < e; y++)
       for (int x = 0; x < vc->k->w; x++) {
         uint64_t rng = gi__mix64(rc->o.seed ^ gi__mix64((uint64_t)y << 32 | (uint32_t)x));
-        double acc[3] = {0, 0, 0};
+        double acc[3] = {0, 0, 0}, accs[3] = {0, 0, 0};
         for (int j = 0; j < vc->spp; j++) {
-          float w[3], t, ng[3], L[3] = {0, 0, 0};
+          float w[3], t, ng[3], L[3] = {0, 0, 0}, Ls[3] = {0, 0, 0};
           uint32_t tri;
           gi__cam_ray(vc->k, (float)x + gi__u01(&rng), (float)y + gi__u01(&rng), w);
           if (!gi__intersect1(s, vc->k->eye, w, 0, INFINITY, &t, &tri, ng)) {
@@ -328,34 +459,49 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
           if (gi__dot(ng, w) < 0) /* an emitter seen from the front */
             for (int a = 0; a < 3; a++) L[a] += s->materials[s->tri_material[tri]].emission[a];
           float px[3] = {vc->k->eye[0] + t * w[0], vc->k->eye[1] + t * w[1], vc->k->eye[2] + t * w[2]};
-          reflected(rc, px, w, tri, ng, &rng, &sc, L);
-          for (int a = 0; a < 3; a++) acc[a] += L[a];
+          reflected(rc, px, w, tri, ng, &rng, &sc, L, Ls);
+          for (int a = 0; a < 3; a++) acc[a] += L[a], accs[a] += Ls[a];
         }
-        for (int a = 0; a < 3; a++) vc->rgb[3 * (y * (size_t)vc->k->w + (size_t)x) + a] = (float)(acc[a] / vc->spp);
+        size_t i = 3 * (y * (size_t)vc->k->w + (size_t)x);
+        for (int a = 0; a < 3; a++) vc->rgb[i + a] = (float)(acc[a] / vc->spp);
+        if (vc->spec)
+          for (int a = 0; a < 3; a++) vc->spec[i + a] = (float)(accs[a] / vc->spp);
       }
   gi__scratch_free(&sc);
 }
 
-gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
-                              float *rgb, double *ms, gi_error_info *err) {
+gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                                 double *ms, gi_error_info *err) {
+  gi_render_opts o = {0};
+  if (opts) o = *opts;
+  if (o.spp == 0) o.spp = 16;
   if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: missing scene or image");
-  if (spp < 1 || spp > (1 << 20))
-    return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: spp must be 1..1048576, got %d", spp);
+  if (o.spp < 1 || o.spp > (1 << 20))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: spp must be 1..1048576, got %d", o.spp);
   gi__cam k;
   gi_result r = gi__cam_setup(s, cam, &k, err);
   if (r != GI_OK) return r;
   double t0 = gi__now_ms();
-  view_ctx vc = {.k = &k, .spp = spp, .rgb = rgb};
+  view_ctx vc = {.k = &k, .spp = o.spp, .rgb = rgb, .spec = o.specular};
   vc.rc.s = s;
-  vc.rc.o.seed = seed ? seed : 1;
+  vc.rc.o.seed = o.seed ? o.seed : 1;
   vc.rc.o.rr_depth = 3;
-  float ext = 0;
-  for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
-  vc.rc.eps = 2e-5f * ext + 1e-6f;
-  memset(rgb, 0, (size_t)k.w * k.h * 3 * sizeof(float));
-  gi__parallel_for((size_t)k.h, 1, threads, view_rows, &vc);
+  ctx_setup(&vc.rc, s);
+  size_t np = (size_t)k.w * k.h * 3;
+  memset(rgb, 0, np * sizeof(float));
+  if (o.specular) memset(o.specular, 0, np * sizeof(float));
+  gi__parallel_for((size_t)k.h, 1, o.threads, view_rows, &vc);
   if (ms) *ms = gi__now_ms() - t0;
-  for (size_t i = 0; i < (size_t)k.w * k.h * 3; i++)
-    if (!isfinite(rgb[i])) return gi__fail(err, GI_ERR_NONFINITE, "reference render: pixel %zu is not finite", i / 3);
+  for (size_t i = 0; i < np; i++)
+    if (!isfinite(rgb[i]) || (o.specular && !isfinite(o.specular[i])))
+      return gi__fail(err, GI_ERR_NONFINITE, "reference render: pixel %zu is not finite", i / 3);
   return GI_OK;
+}
+
+gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
+                              float *rgb, double *ms, gi_error_info *err) {
+  if (spp == 0) /* the _ex default would hide a caller's missing count */
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: spp must be 1..1048576, got %d", spp);
+  gi_render_opts o = {.spp = spp, .seed = seed, .threads = threads};
+  return gi_reference_render_ex(s, cam, &o, rgb, ms, err);
 }

@@ -201,9 +201,11 @@ typedef struct {
   int spec;            /* SPEC_* */
   float *rgb;
   _Atomic uint64_t diffuse_cones, specular_cones;
+  float *spec_img;     /* optional: specular * L_cone per pixel */
 } render_ctx;
 
-static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3]) {
+static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3],
+                        float *spec) {
   gi_lsample *ls = sc->ls;
   float *org = sc->org, *dir = sc->dir, *tn = sc->tn, *tf = sc->tf;
   uint8_t *vis = sc->vis;
@@ -264,6 +266,8 @@ static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint
     gi__specular_trace(c, x, n, w, m->roughness, &co);
     cones[1]++;
     for (int a = 0; a < 3; a++) out[a] += m->specular * co.L[a];
+    if (spec)
+      for (int a = 0; a < 3; a++) spec[a] = m->specular * co.L[a];
   }
 }
 
@@ -275,7 +279,8 @@ static void render_rows(void *p, size_t b, size_t e, int worker) {
   if (gi__scratch_alloc(&sc, 2 * rc->samples + (int)s->num_lights + 8) == 0)
     for (size_t y = b; y < e; y++)
       for (int x = 0; x < rc->k->w; x++)
-        shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)]);
+        shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)],
+                    rc->spec_img ? &rc->spec_img[3 * ((size_t)y * rc->k->w + x)] : NULL);
   gi__scratch_free(&sc);
   atomic_fetch_add(&rc->diffuse_cones, cones[0]);
   atomic_fetch_add(&rc->specular_cones, cones[1]);
@@ -293,8 +298,11 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   gi_result r = gi__cam_setup(c->scene, cam, &k, err);
   if (r != GI_OK) return r;
   double t0 = gi__now_ms();
-  memset(rgb, 0, (size_t)k.w * k.h * 3 * sizeof(float));
-  render_ctx rc = {.c = c, .k = &k, .samples = o.light_samples, .spec = spec_mode(c), .rgb = rgb};
+  size_t np = (size_t)k.w * k.h * 3;
+  memset(rgb, 0, np * sizeof(float));
+  if (o.specular) memset(o.specular, 0, np * sizeof(float));
+  render_ctx rc = {.c = c, .k = &k, .samples = o.light_samples, .spec = spec_mode(c), .rgb = rgb,
+                   .spec_img = o.specular};
   gi__parallel_for((size_t)k.h, 1, o.threads, render_rows, &rc);
   if (st) {
     memset(st, 0, sizeof *st);
@@ -303,14 +311,15 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
     st->specular_cones = atomic_load(&rc.specular_cones);
     gi_cascade_view_plan(c, st->effects);
   }
-  for (size_t i = 0; i < (size_t)k.w * k.h * 3; i++)
-    if (!isfinite(rgb[i])) return gi__fail(err, GI_ERR_NONFINITE, "render: pixel %zu is not finite", i / 3);
+  for (size_t i = 0; i < np; i++)
+    if (!isfinite(rgb[i]) || (o.specular && !isfinite(o.specular[i])))
+      return gi__fail(err, GI_ERR_NONFINITE, "render: pixel %zu is not finite", i / 3);
   return GI_OK;
 }
 
 gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
                             double *ms, gi_error_info *err) {
-  gi_render_opts o = {light_samples, threads};
+  gi_render_opts o = {.light_samples = light_samples, .threads = threads};
   gi_render_stats st;
   gi_result r = gi_cascade_render_ex(c, cam, &o, rgb, &st, err);
   if (ms) *ms = r == GI_OK ? st.ms : 0;

@@ -1,9 +1,13 @@
 /* gi_reference.h: the ground truth the cone tracer is measured against.
  *
  * A Monte Carlo path tracer on the scene's Embree BVH, with the same
- * triangles, materials (two-sided Lambertian, albedo from the material,
- * one-sided emitters) and lights (sun, point, spot, sky, emissive
+ * triangles, materials and lights (sun, point, spot, sky, emissive
  * triangles) as the bake, sampled through the same light-sampling code.
+ * Surfaces are two-sided: a Lambertian lobe (albedo) plus, on glossy
+ * materials (roughness < 0.5, specular > 0), a normalised Phong lobe of
+ * weight `specular` around the mirror direction, with the exponent the
+ * renderer's specular cone is sized from (see reference.c). Emitters are
+ * one-sided.
  * It answers what gi_cascade_gather answers, at the same points and in the
  * same convention: irradiance on a surface facing the scene's up axis,
  * split into direct light (straight from a light or an emitter) and

@@ -48,11 +48,6 @@ gi_result gi_camera_validate(const gi_camera *cam, gi_error_info *err);
  * Thread-safe (reads the cascade only). */
 void gi_cascade_view_plan(const gi_cascade *c, gi_effect out[GI_FX_COUNT]);
 
-typedef struct gi_render_opts {
-  int light_samples; /* shadow rays per pixel for sky and area lights (0 = 16, 1..4096) */
-  int threads;       /* 0 = all cores */
-} gi_render_opts;
-
 /* What one view cost. */
 typedef struct gi_render_stats {
   double ms;                         /* wall clock of the whole view */
@@ -62,19 +57,41 @@ typedef struct gi_render_stats {
 } gi_render_stats;
 
 /* Renders the view from the cascade into rgb (width * height * 3 floats).
- * opts may be NULL (defaults); st may be NULL. */
-gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
-                               gi_render_stats *st, gi_error_info *err);
-
-/* The same with light_samples and threads given directly; *ms (may be
- * NULL) receives the wall clock. */
+ * light_samples shadow rays per pixel for sky and area lights (0 = 16);
+ * *ms (may be NULL) receives the wall clock. Same as gi_cascade_render_ex
+ * with those fields set. */
 gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
                             double *ms, gi_error_info *err);
 
-/* Path-traces the same view with spp paths per pixel (same materials and
- * lights as gi_reference_irradiance; surfaces are Lambertian only). */
+/* Path-traces the same view with spp paths per pixel (1..1048576; same
+ * materials and lights as gi_reference_irradiance: a Lambertian lobe plus,
+ * on glossy materials, the Phong lobe the specular cone stands for).
+ * Same as gi_reference_render_ex with those fields set. */
 gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
                               float *rgb, double *ms, gi_error_info *err);
+
+/* Options of the _ex renderers; zero means default for every field. The
+ * optional specular image makes the glossy part measurable on its own: at
+ * each pixel's primary hit, specular times the radiance the glossy lobe
+ * gathers (reference: the Phong lobe, sampled; cascade: the one specular
+ * cone), 0 where the hit is not glossy or nothing is hit. Its part is
+ * already included in rgb. */
+typedef struct gi_render_opts {
+  int light_samples; /* cascade: shadow rays per pixel for sky and area lights; 0 = 16 */
+  int spp;           /* reference: paths per pixel, 1..1048576; 0 = 16 */
+  uint64_t seed;     /* reference: 0 = 1 */
+  int threads;       /* 0 = all cores */
+  float *specular;   /* NULL, or width * height * 3 floats, caller-owned, written by the call */
+} gi_render_opts;
+
+/* gi_cascade_render and gi_reference_render with options (opts may be
+ * NULL). The cascade's view reports its cost and plan in *st, the
+ * reference its wall clock in *ms (either may be NULL). Thread-safety as
+ * above; each call writes only its own images. */
+gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                               gi_render_stats *st, gi_error_info *err);
+gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                                 double *ms, gi_error_info *err);
 
 /* Writes an 8-bit sRGB PNG from linear RGB floats times `exposure`,
  * through a temporary file renamed into place. */
