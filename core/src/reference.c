@@ -29,11 +29,10 @@
  * front, or the sky when it escapes above the horizon), since no light
  * sample ever draws from this lobe: nothing is counted twice. Delta lights
  * (sun, point, spot) are never met by a lobe sample, just as the cone,
- * which sees only voxel radiance, never sees them. (The cone sees neither
- * emitters, which the voxel texture does not hold, nor the sky: a cone
- * leaving the coarsest level returns what it gathered so far. The
- * reference keeps the physics; a comparison of the specular parts must
- * keep emitters and sky out of the reflection, as test_specular does.)
+ * which sees only voxel radiance, never sees them. (The cone sees the sky
+ * through what it leaves unoccluded, but not emitters, which the voxel
+ * texture does not hold. The reference keeps the physics; a comparison of
+ * the specular parts must keep emitters out of the reflection.)
  * At the path's first vertex both lobes are followed (the path splits);
  * deeper, one lobe goes on, picked with probability spec / (spec + max
  * albedo) and divided by it. Russian roulette from rr_depth on keeps

@@ -289,4 +289,11 @@ void gi__specular_trace_tan(const struct gi_cascade *c, const float p[3], const 
   for (int k = 0; k < 3; k++) o[k] = p[k] + s * n[k];
   gi__cone_trace_surface(c, o, r, tan_half, s, c->report.quality.step > 0 ? c->report.quality.step : 0.5f, 0.f, s, n,
                          out);
+  /* What the cone did not meet is sky: nothing else lights a reflection of
+   * it (diffuse cones leave the sky to the shadow rays, a mirror cannot). */
+  if (c->report.effects[GI_FX_SKY].ran && out->alpha < 0.99f) {
+    float sky[3];
+    gi__sky_radiance(c->scene, sky);
+    for (int k = 0; k < 3; k++) out->L[k] += (1 - out->alpha) * sky[k];
+  }
 }
