@@ -156,8 +156,10 @@ void gi__scratch_free(gi_ray_scratch *sc);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);
-/* Voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel. */
-gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, gi_error_info *err);
+/* Voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
+ * tail (with bounces >= 2): then adds the orders after the last bounce as
+ * a geometric series whose ratio is measured from the last two bounces. */
+gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
 
 /* trace.c */
 void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[], float *tan_half);
