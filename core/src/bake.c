@@ -160,8 +160,10 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
 
 /* The effect plan: what this scene and request call for, with reasons.
  * Runs after placement (it looks at what lies inside the cascade). May set
- * q->bounces when the request left it to the plan (auto_bounces). */
-static void plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r) {
+ * q->bounces when the request left it to the plan (auto_bounces). Returns 1
+ * when the plan capped the bounces while the orders left out still weigh
+ * 2% or more: the bounce stage then adds their geometric tail (inject.c). */
+static int plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r) {
   const gi_scene *s = c->scene;
   int sun = 0, local = 0, sky = 0;
   for (uint32_t i = 0; i < s->num_lights; i++) {
@@ -232,17 +234,27 @@ static void plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bou
    * the first one missing weighs a^(B+2). Stop when that is under 2% of
    * the direct light: the probe's own Monte Carlo noise on direct light is
    * about that (measured 1.2% Cornell, 1.6% Munich at 256 probe samples).
-   * At most 3: each bounce is a full cone gather at every voxel. */
+   * At most 3: each bounce is a full cone gather at every voxel. When the
+   * cap stops short of that (a bright closed room: the Cornell box's mean
+   * albedo gives a^5 = 20%), the orders left out are not dropped: the
+   * bounce stage extrapolates them as a geometric series from the last two
+   * bounces (see gi__bounce), which costs no gather. */
   double abar = area > 0 ? a_sum / area : 0;
   int fb = forced(q, GI_FX_BOUNCE);
+  int tail = 0;
   if (auto_bounces) {
     int B = 1;
     while (B < 3 && pow(abar, B + 2) >= 0.02) B++;
     q->bounces = B;
+    tail = B >= 2 && pow(abar, B + 2) >= 0.02;
   }
   if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
   else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
   else if (abar <= 0 && fb != GI_FX_ON) set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
+  else if (auto_bounces && tail)
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, next "
+                               "bounce would add %.1f%% of direct (stop under 2%%, at most 3)", q->bounces, abar,
+           100 * pow(abar, q->bounces + 2));
   else if (auto_bounces)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
                                "(stop under 2%%, at most 3)", q->bounces, q->bounces > 1 ? "s" : "", abar,
@@ -263,6 +275,7 @@ static void plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bou
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
   if (forced(q, GI_FX_AO) == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
   else set_fx(r, GI_FX_AO, 0, "not requested");
+  return tail && r->effects[GI_FX_BOUNCE].ran;
 }
 
 gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality *qin, gi_effect out[GI_FX_COUNT],
@@ -373,7 +386,7 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
 
   if ((rc = gi__cascade_alloc(c, err)) != GI_OK) goto fail;
   gi__cascade_place(c);
-  plan_effects(c, &q, !qin || qin->bounces == 0, &c->report);
+  int tail = plan_effects(c, &q, !qin || qin->bounces == 0, &c->report);
   if (c->report.effects[GI_FX_AO].ran) q.ao = 1;
   c->report.quality = q;
   for (int d = 0; d < c->n; d++) {
@@ -390,7 +403,7 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   gi__cascade_mark_busy(c);
   double t3 = gi__now_ms();
   if (c->report.effects[GI_FX_BOUNCE].ran)
-    if ((rc = gi__bounce(c, &q, q.bounces, err)) != GI_OK) goto fail;
+    if ((rc = gi__bounce(c, &q, q.bounces, tail, err)) != GI_OK) goto fail;
   double t4 = gi__now_ms();
   c->report.ms.voxelize = t1 - t0;
   c->report.ms.inject = t2 - t1;

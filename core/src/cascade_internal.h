@@ -159,8 +159,10 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
                       gi_lsample *out, int max);
 /* The sum of the scene's sky radiances: what a ray that escapes sees. */
 void gi__sky_radiance(const gi_scene *s, float out[3]);
-/* Voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel. */
-gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, gi_error_info *err);
+/* Voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
+ * tail (with bounces >= 2): then adds the orders after the last bounce as
+ * a geometric series whose ratio is measured from the last two bounces. */
+gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
 
 /* trace.c */
 void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[], float *tan_half);

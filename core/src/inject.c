@@ -14,7 +14,11 @@
  * off the surface; all voxels gather from the previous bounce's texture
  * (Jacobi), then the texture is reshaded and the nested regions refiltered.
  * A closed furnace of albedo a and emission Le therefore reaches
- * Le (a + ... + a^(k+1)) reflected radiance after k bounces. */
+ * Le (a + ... + a^(k+1)) reflected radiance after k bounces. When the
+ * effect plan capped an automatic bounce count short of what the albedo
+ * asks for, the last bounce also adds the geometric tail of the orders
+ * left out (ratio measured from the last two bounces); an explicit bounce
+ * count keeps the exact k-bounce sum above. */
 #include <stdlib.h>
 #include <string.h>
 #include "cascade_internal.h"
@@ -379,9 +383,12 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   atomic_fetch_add(&bc->samples, samples);
 }
 
-gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, gi_error_info *err) {
+gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
   float(*E[GI_MAX_LEVELS])[2][3] = {0};
   gi_result rc = GI_OK;
+  /* Area-weighted sums of the gathered irradiance per bounce (both sides,
+   * every level's own voxels), for the tail's ratio. */
+  double S[3][3] = {{0}};
   for (int d = 0; d < c->n; d++) {
     E[d] = malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *E[d]);
     if (!E[d]) {
@@ -396,12 +403,44 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, gi_
       gi__parallel_for(c->lv[d].num_occ, 16, q->threads, bounce_range, &bc);
       c->report.cone_samples += atomic_load(&bc.samples);
     }
+    int last = it + 1 == bounces;
+    /* The tail: bounce k gathers E_k = E_1 + ... (orders 2..k+1 of the
+     * light leaving the voxels); its increment D_k = E_k - E_(k-1) shrinks
+     * by the room's mean reflection r = D_k / D_(k-1) (area-weighted over
+     * every voxel, per channel; the dominant eigenvalue of the transport
+     * once the first bounces have spread the light). The orders left out
+     * add D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its
+     * own last increment. r is capped at 0.95 (a furnace of albedo 0.99
+     * would otherwise multiply its last increment by 99). */
+    double f[3] = {0, 0, 0};
+    for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = S[2][k], S[2][k] = 0;
+    for (int d = 0; d < c->n; d++) {
+      const gi_level *L = &c->lv[d];
+      for (uint32_t i = 0; i < L->num_occ; i++) {
+        double a = L->geo[L->occ[i]].area;
+        for (int sd = 0; sd < 2; sd++)
+          for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][sd][k];
+      }
+    }
+    if (tail && last && it >= 1)
+      for (int k = 0; k < 3; k++) {
+        double dk = S[2][k] - S[1][k], dk1 = S[1][k] - S[0][k];
+        double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
+        if (r > 0.95) r = 0.95;
+        f[k] = r / (1 - r);
+      }
     for (int d = 0; d < c->n; d++) {
       gi_level *L = &c->lv[d];
       for (uint32_t i = 0; i < L->num_occ; i++) {
         uint32_t slot = L->occ[i];
         for (int sd = 0; sd < 2; sd++)
-          for (int k = 0; k < 3; k++) L->side[slot][sd][k] = L->direct[slot][sd][k] + E[d][i][sd][k];
+          for (int k = 0; k < 3; k++) {
+            float e = E[d][i][sd][k];
+            /* side - direct is still the previous bounce's E. */
+            float inc = e - (L->side[slot][sd][k] - L->direct[slot][sd][k]);
+            float t = (float)f[k] * inc;
+            L->side[slot][sd][k] = L->direct[slot][sd][k] + e + (t > 0 ? t : 0);
+          }
       }
     }
     shade_all(c);

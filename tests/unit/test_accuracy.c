@@ -97,7 +97,9 @@ static void test_cone_error_falls(void **state) {
   double s0 = rep.quality.voxel0;
   gi_cascade_free(tmp);
   gi_quality low = {.res = 16, .voxel0 = s0 * 2, .cones = 6, .bounces = 1};
-  gi_quality high = {.res = 48, .voxel0 = s0 * 32 / 48, .bounces = 3};
+  /* High: finer voxels over the same extent, bounces from the same albedo
+   * rule as the default (3 and the geometric tail of the rest). */
+  gi_quality high = {.res = 48, .voxel0 = s0 * 32 / 48};
   acc_metrics ml[3], md[3], mh[3];
   bake_metrics(c, &low, "low", ml);
   bake_metrics(c, &dq, "default", md);
@@ -105,12 +107,13 @@ static void test_cone_error_falls(void **state) {
   assert_true(ml[ACC_INDIRECT].mre > md[ACC_INDIRECT].mre);
   assert_true(md[ACC_INDIRECT].mre > mh[ACC_INDIRECT].mre);
   assert_true(ml[ACC_TOTAL].rel_mse > md[ACC_TOTAL].rel_mse && md[ACC_TOTAL].rel_mse > mh[ACC_TOTAL].rel_mse);
-  /* Default-quality bounds (3 bounces from the albedo rule). Measured:
-   * indirect MRE 18.4%, total 3.7% (the ambition is 10% on indirect: not
-   * met, see docs/accuracy.md); high quality measured 9.2% indirect. */
-  assert_true(md[ACC_INDIRECT].mre < 0.21);
-  assert_true(md[ACC_TOTAL].mre < 0.045);
-  assert_true(mh[ACC_INDIRECT].mre < 0.11);
+  /* Default-quality bounds (3 bounces from the albedo rule, plus the
+   * geometric tail of the orders after them). Measured: indirect MRE
+   * 9.75% (18.4% before the tail), total 2.27% (the ambition is 10% on
+   * indirect: borderline); high quality measured 8.80% indirect. */
+  assert_true(md[ACC_INDIRECT].mre < 0.12);
+  assert_true(md[ACC_TOTAL].mre < 0.03);
+  assert_true(mh[ACC_INDIRECT].mre < 0.10);
   /* The direct part is Monte Carlo at the probe in both: 256 probe samples
    * against the reference's 16384. Measured 1.2%. */
   assert_true(md[ACC_DIRECT].mre < 0.03);
