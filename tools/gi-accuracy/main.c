@@ -418,7 +418,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   if (ok && !o->quick) {
     /* A "high" setting: every knob that helped, together. */
     gi_quality q = q0;
-    q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f, q.bounces = 3;
+    q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f; /* bounces: the albedo rule and its tail */
     ok = run_cone(name, ss, ref, &q, "high", 1, 0, out);
   }
   for (int s = 1; ok && s <= o->pt_max; s *= 4) ok = run_path(name, ss, ref, s, o->threads, out);
