@@ -291,7 +291,7 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   if (!c || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "render: missing cascade or image");
   gi_render_opts o = {0};
   if (opts) o = *opts;
-  if (o.light_samples == 0) o.light_samples = 16;
+  if (o.light_samples == 0) o.light_samples = 64;
   if (o.light_samples < 1 || o.light_samples > 4096)
     return gi__fail(err, GI_ERR_INVALID_ARG, "render: light_samples must be 1..4096, got %d", o.light_samples);
   gi__cam k;

@@ -57,7 +57,7 @@ typedef struct gi_render_stats {
 } gi_render_stats;
 
 /* Renders the view from the cascade into rgb (width * height * 3 floats).
- * light_samples shadow rays per pixel for sky and area lights (0 = 16);
+ * light_samples shadow rays per pixel for sky and area lights (0 = 64);
  * *ms (may be NULL) receives the wall clock. Same as gi_cascade_render_ex
  * with those fields set. */
 gi_result gi_cascade_render(const gi_cascade *c, const gi_camera *cam, int light_samples, int threads, float *rgb,
@@ -77,7 +77,8 @@ gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, 
  * cone), 0 where the hit is not glossy or nothing is hit. Its part is
  * already included in rgb. */
 typedef struct gi_render_opts {
-  int light_samples; /* cascade: shadow rays per pixel for sky and area lights; 0 = 16 */
+  int light_samples; /* cascade: shadow rays per pixel for sky and area lights; 0 = 64 (the city's street
+                        view: 35% -> 26% error against the reference, +34% render time) */
   int spp;           /* reference: paths per pixel, 1..1048576; 0 = 16 */
   uint64_t seed;     /* reference: 0 = 1 */
   int threads;       /* 0 = all cores */
