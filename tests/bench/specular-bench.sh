@@ -5,7 +5,9 @@
 # glass curtain walls) gi-bake renders the same view with the specular
 # effect on auto, forced on and off, REPEAT times in turn, and prints the
 # median cone-traced render milliseconds, the specular cones traced, and
-# the ratio to the run with the pass off, measured in the same run.
+# the ratio to the run with the pass off, measured in the same run. The
+# cone counts are the deterministic part: the timing of auto against off
+# (the same work when nothing is glossy) shows the run's own noise.
 #
 # A benchmark prints figures and always exits 0. Shared scenes are skipped
 # loudly when absent. Set SPEC_REPEAT (default 3) and SPEC_SIZE (WxH,
@@ -27,7 +29,7 @@ TMP=$(mktemp -d "${TMPDIR:-/tmp}/gi-spec.XXXXXX") || exit 0
 trap 'rm -rf "$TMP"' EXIT INT TERM
 
 echo "specular pass of a camera view ($SIZE pixels, median of $REPEAT renders each; 1 path/pixel for the unused path-traced half)"
-printf '%-8s %-6s %12s %16s %10s   %s\n' view mode "render ms" "specular cones" "vs off" "plan"
+printf '%-8s %-6s %12s %16s %14s %10s   %s\n' view mode "render ms" "specular cones" "diffuse cones" "vs off" "plan"
 
 # view LABEL ARGS...: REPEAT rounds of auto, on, off; then one row per mode.
 view() {
@@ -50,11 +52,12 @@ rows = {}
 for mode in ("auto", "on", "off"):
     runs = [json.load(open("%s/%s.%d.json" % (tmp, mode, i))) for i in range(n)]
     ms = statistics.median(r["render"]["cone_ms"] for r in runs)
-    rows[mode] = (ms, runs[0]["render"]["specular_cones"], runs[0]["effects"]["specular"])
+    rows[mode] = (ms, runs[0]["render"]["specular_cones"], runs[0]["render"]["diffuse_cones"],
+                  runs[0]["effects"]["specular"])
 off = rows["off"][0]
 for mode in ("auto", "on", "off"):
-    ms, cones, fx = rows[mode]
-    print("%-8s %-6s %12.1f %16d %9.2fx   %s: %s" % (label, mode, ms, cones, ms / off,
+    ms, cones, diffuse, fx = rows[mode]
+    print("%-8s %-6s %12.1f %16d %14d %9.2fx   %s: %s" % (label, mode, ms, cones, diffuse, ms / off,
           "ran" if fx["ran"] else "skipped", fx["why"]))
 PY
 }
