@@ -98,8 +98,7 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
   return GI_OK;
 }
 
-/* The request's override for one effect: GI_FX_ON, GI_FX_OFF or GI_FX_AUTO. */
-static int forced(const gi_quality *q, gi_effect_id id) {
+int gi__fx_forced(const gi_quality *q, gi_effect_id id) {
   int f = q->effects[id];
   if (f == GI_FX_AUTO && id == GI_FX_SPECULAR) f = q->specular;
   if (f == GI_FX_AUTO && id == GI_FX_AO && q->ao) f = GI_FX_ON;
@@ -174,14 +173,14 @@ static int plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_boun
     else if (l->type == GI_LIGHT_SKY) sky++;
     else local++;
   }
-  if (forced(q, GI_FX_SUN) == GI_FX_OFF) set_fx(r, GI_FX_SUN, 0, "turned off by the request");
+  if (gi__fx_forced(q, GI_FX_SUN) == GI_FX_OFF) set_fx(r, GI_FX_SUN, 0, "turned off by the request");
   else if (sun) set_fx(r, GI_FX_SUN, 1, "%d directional light%s", sun, sun > 1 ? "s" : "");
   else set_fx(r, GI_FX_SUN, 0, "no directional light in the scene");
-  if (forced(q, GI_FX_LOCAL) == GI_FX_OFF) set_fx(r, GI_FX_LOCAL, 0, "turned off by the request");
+  if (gi__fx_forced(q, GI_FX_LOCAL) == GI_FX_OFF) set_fx(r, GI_FX_LOCAL, 0, "turned off by the request");
   else if (local) set_fx(r, GI_FX_LOCAL, 1, "%d point/spot light%s", local, local > 1 ? "s" : "");
   else set_fx(r, GI_FX_LOCAL, 0, "no point or spot light in the scene");
 
-  int fs = forced(q, GI_FX_SKY);
+  int fs = gi__fx_forced(q, GI_FX_SKY);
   if (fs == GI_FX_OFF) set_fx(r, GI_FX_SKY, 0, "turned off by the request");
   else if (!sky) set_fx(r, GI_FX_SKY, 0, "no sky light in the scene");
   else if (fs == GI_FX_ON) set_fx(r, GI_FX_SKY, 1, "forced on by the request, %d samples per voxel", q->light_samples);
@@ -220,7 +219,7 @@ static int plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_boun
     glossy += m->roughness < 0.5f && m->specular > 0;
   }
   free(tris);
-  int fe = forced(q, GI_FX_EMISSIVE);
+  int fe = gi__fx_forced(q, GI_FX_EMISSIVE);
   if (fe == GI_FX_OFF) set_fx(r, GI_FX_EMISSIVE, 0, "turned off by the request");
   else if (!s->num_emitters) set_fx(r, GI_FX_EMISSIVE, 0, "no emissive surfaces");
   else if (emit_in || fe == GI_FX_ON)
@@ -240,7 +239,7 @@ static int plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_boun
    * bounce stage extrapolates them as a geometric series from the last two
    * bounces (see gi__bounce), which costs no gather. */
   double abar = area > 0 ? a_sum / area : 0;
-  int fb = forced(q, GI_FX_BOUNCE);
+  int fb = gi__fx_forced(q, GI_FX_BOUNCE);
   int tail = 0;
   if (auto_bounces) {
     int B = 1;
@@ -265,7 +264,7 @@ static int plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_boun
   /* The specular cone needs a view direction; probes have none. Camera
    * views re-decide this entry (gi_cascade_view_plan) from the same count. */
   r->glossy_triangles = glossy;
-  int fsp = forced(q, GI_FX_SPECULAR);
+  int fsp = gi__fx_forced(q, GI_FX_SPECULAR);
   if (fsp == GI_FX_OFF) set_fx(r, GI_FX_SPECULAR, 0, "turned off by the request");
   else if (fsp == GI_FX_ON)
     set_fx(r, GI_FX_SPECULAR, 0, "forced on: camera views trace it at every pixel; probe output has no view direction");
@@ -273,7 +272,7 @@ static int plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_boun
     set_fx(r, GI_FX_SPECULAR, 0, "%u glossy triangle%s in range: camera views trace it; probe output has no view "
                                  "direction", glossy, glossy > 1 ? "s" : "");
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
-  if (forced(q, GI_FX_AO) == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
+  if (gi__fx_forced(q, GI_FX_AO) == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
   else set_fx(r, GI_FX_AO, 0, "not requested");
   return tail && r->effects[GI_FX_BOUNCE].ran;
 }

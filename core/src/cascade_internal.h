@@ -157,6 +157,10 @@ void gi__scratch_free(gi_ray_scratch *sc);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);
+/* bake.c: the request's override for one effect, GI_FX_ON, GI_FX_OFF or
+ * GI_FX_AUTO (the legacy `specular` and `ao` fields count when effects[id]
+ * is auto). Shared by the bake's plan and the camera view's. */
+int gi__fx_forced(const gi_quality *q, gi_effect_id id);
 /* The sum of the scene's sky radiances: what a ray that escapes sees. */
 void gi__sky_radiance(const gi_scene *s, float out[3]);
 /* Voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.

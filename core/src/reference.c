@@ -77,10 +77,7 @@ static void ctx_setup(ref_ctx *rc, const gi_scene *s) {
   /* Offsets scale with the scene: float positions near ext carry ~1e-7 ext of error. */
   rc->eps = 2e-5f * ext + 1e-6f;
   rc->up[0] = 0, rc->up[1] = s->up == GI_UP_Z ? 0.f : 1.f, rc->up[2] = s->up == GI_UP_Z ? 1.f : 0.f;
-  rc->sky[0] = rc->sky[1] = rc->sky[2] = 0;
-  for (uint32_t i = 0; i < s->num_lights; i++)
-    if (s->lights[i].type == GI_LIGHT_SKY)
-      for (int k = 0; k < 3; k++) rc->sky[k] += s->lights[i].color[k];
+  gi__sky_radiance(s, rc->sky);
 }
 
 static void cosine_dir(const float n[3], uint64_t *rng, float w[3]) {
@@ -450,9 +447,7 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
           uint32_t tri;
           gi__cam_ray(vc->k, (float)x + gi__u01(&rng), (float)y + gi__u01(&rng), w);
           if (!gi__intersect1(s, vc->k->eye, w, 0, INFINITY, &t, &tri, ng)) {
-            float Ls[3];
-            gi__sky_radiance(s, Ls);
-            for (int a = 0; a < 3; a++) acc[a] += Ls[a];
+            for (int a = 0; a < 3; a++) acc[a] += rc->sky[a];
             continue;
           }
           if (gi__dot(ng, w) < 0) /* an emitter seen from the front */

@@ -164,8 +164,7 @@ done:
 enum { SPEC_NONE = 0, SPEC_GLOSSY = 1, SPEC_ALL = 2 };
 
 static int spec_mode(const struct gi_cascade *c) {
-  const gi_quality *q = &c->report.quality;
-  int f = q->effects[GI_FX_SPECULAR] != GI_FX_AUTO ? q->effects[GI_FX_SPECULAR] : q->specular;
+  int f = gi__fx_forced(&c->report.quality, GI_FX_SPECULAR);
   if (f == GI_FX_OFF) return SPEC_NONE;
   if (f == GI_FX_ON) return SPEC_ALL;
   return c->report.glossy_triangles ? SPEC_GLOSSY : SPEC_NONE;

@@ -3,6 +3,7 @@
 #define GI_ACC_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 #include "metrics.h"
 
@@ -29,6 +30,14 @@ typedef struct acc_scene_info {
   double ref_rel_se[3];
   char at[96];
 } acc_scene_info;
+
+/* cache.c: FNV-1a over bytes (the cache files' names), and the cache
+ * files themselves: read exactly na (+ nb when b is not NULL) bytes, 1 on
+ * success; write through a temporary name renamed into place (a failure
+ * is printed, the run goes on without the cache). */
+uint64_t acc_fnv(uint64_t h, const void *p, size_t n);
+int acc_cache_read(const char *path, void *a, size_t na, void *b, size_t nb);
+void acc_cache_write(const char *path, const void *a, size_t na, const void *b, size_t nb);
 
 /* One camera view at equal error (views.c). */
 #define ACC_VIEW_MAX_PATH 8

@@ -225,26 +225,17 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
 
 /* ---- reference cache ------------------------------------------------- */
 
-static uint64_t fnv(uint64_t h, const void *p, size_t n) {
-  const unsigned char *b = p;
-  for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 1099511628211ull;
-  return h;
-}
-
 static int load_or_make_ref(const opts *o, const char *name, const scene_set *ss, gi_ref_probe *ref, double *ms) {
   int ver = REF_VERSION;
-  uint64_t h = fnv(1469598103934665603ull, name, strlen(name));
-  h = fnv(h, ss->pts, ss->n * 3 * sizeof(double));
-  h = fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
-  h = fnv(h, &ver, sizeof ver);
-  char path[1024], tmp[1100];
+  uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
+  h = acc_fnv(h, ss->pts, ss->n * 3 * sizeof(double));
+  h = acc_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
+  h = acc_fnv(h, &ver, sizeof ver);
+  char path[1024];
   snprintf(path, sizeof path, "%s/ref-%s-%016llx.bin", o->out_dir, name, (unsigned long long)h);
   *ms = 0;
-  FILE *f = fopen(path, "rb");
-  if (f) {
-    size_t got = fread(ref, sizeof *ref, ss->n, f);
-    fclose(f);
-    int ok = got == ss->n;
+  if (acc_cache_read(path, ref, ss->n * sizeof *ref, NULL, 0)) {
+    int ok = 1;
     for (size_t i = 0; ok && i < ss->n; i++)
       for (int k = 0; k < 3; k++) ok &= isfinite(ref[i].irradiance[k]) && isfinite(ref[i].std_err[k]);
     if (ok) {
@@ -260,12 +251,7 @@ static int load_or_make_ref(const opts *o, const char *name, const scene_set *ss
     fprintf(stderr, "gi-accuracy: %s: reference: %s\n", name, err.msg);
     return 0;
   }
-  snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
-  f = fopen(tmp, "wb");
-  if (!f || fwrite(ref, sizeof *ref, ss->n, f) != ss->n || fclose(f) != 0 || rename(tmp, path) != 0) {
-    fprintf(stderr, "gi-accuracy: cannot write the reference cache %s: %s\n", path, strerror(errno));
-    remove(tmp);
-  }
+  acc_cache_write(path, ref, ss->n * sizeof *ref, NULL, 0);
   return 1;
 }
 

@@ -11,12 +11,10 @@
  * reference path escaped to the sky are left out (both renderers show the
  * sky radiance there exactly). The reference's own error is estimated
  * from its halves: MRE(A, B) / 2 for the mean of two independent halves. */
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 #include "acc.h"
 #include "gi/gi.h"
 
@@ -61,27 +59,19 @@ double acc_image_ssim(const float *a, const float *ref, const uint8_t *mask, int
   return k ? sum / (double)k : 1;
 }
 
-static uint64_t fnv(uint64_t h, const void *p, size_t n) {
-  const unsigned char *b = p;
-  for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 1099511628211ull;
-  return h;
-}
-
 /* The two reference halves, from the cache or rendered (and cached). */
 static int reference_halves(const char *name, const gi_scene *s, const gi_camera *cam, int spp, int threads,
                             const char *out_dir, int ref_version, float *A, float *B, double *ms) {
   size_t nf = (size_t)cam->width * cam->height * 3;
-  uint64_t h = fnv(1469598103934665603ull, name, strlen(name));
-  h = fnv(h, cam, sizeof *cam);
-  h = fnv(h, &spp, sizeof spp);
-  h = fnv(h, &ref_version, sizeof ref_version);
-  char path[1024], tmp[1100];
+  uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
+  h = acc_fnv(h, cam, sizeof *cam);
+  h = acc_fnv(h, &spp, sizeof spp);
+  h = acc_fnv(h, &ref_version, sizeof ref_version);
+  char path[1024];
   snprintf(path, sizeof path, "%s/view-%s-%016llx.bin", out_dir, name, (unsigned long long)h);
   *ms = 0;
-  FILE *f = fopen(path, "rb");
-  if (f) {
-    int ok = fread(A, sizeof *A, nf, f) == nf && fread(B, sizeof *B, nf, f) == nf;
-    fclose(f);
+  if (acc_cache_read(path, A, nf * sizeof *A, B, nf * sizeof *B)) {
+    int ok = 1;
     for (size_t i = 0; ok && i < nf; i++) ok = isfinite(A[i]) && isfinite(B[i]);
     if (ok) {
       fprintf(stderr, "gi-accuracy: %s view: reference from cache %s\n", name, path);
@@ -99,13 +89,7 @@ static int reference_halves(const char *name, const gi_scene *s, const gi_camera
     return 0;
   }
   *ms = ta + tb;
-  snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
-  f = fopen(tmp, "wb");
-  if (!f || fwrite(A, sizeof *A, nf, f) != nf || fwrite(B, sizeof *B, nf, f) != nf || fclose(f) != 0 ||
-      rename(tmp, path) != 0) {
-    fprintf(stderr, "gi-accuracy: cannot write the view cache %s: %s\n", path, strerror(errno));
-    remove(tmp);
-  }
+  acc_cache_write(path, A, nf * sizeof *A, B, nf * sizeof *B);
   return 1;
 }
 
