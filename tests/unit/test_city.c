@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "gi/gi_city.h"
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 
 static uint64_t fnv(uint64_t h, const void *data, size_t n) {
   const unsigned char *p = data;

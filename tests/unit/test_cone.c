@@ -9,7 +9,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "cascade_internal.h"
+#include "cascade/cascade_internal.h"
+#include "light/light.h"
+#include "trace/trace.h"
+#include "scene/lights.h"
+#include "answer/answer.h"
 
 static struct gi_cascade *make(int levels) {
   static struct gi_cascade c;

@@ -12,7 +12,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include "gi/gi.h"
-#include "cascade_internal.h"
+#include "cascade/cascade_internal.h"
+#include "light/light.h"
+#include "trace/trace.h"
+#include "scene/lights.h"
+#include "answer/answer.h"
 
 static gi_scene *box(void) {
   gi_mesh_builder *b = gi_mesh_builder_new();

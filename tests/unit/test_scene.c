@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "gi/gi_scene.h"
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 
 static gi_material grey(void) {
   gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1.f};

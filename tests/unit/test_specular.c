@@ -26,9 +26,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "cascade_internal.h"
+#include "cascade/cascade_internal.h"
+#include "light/light.h"
+#include "trace/trace.h"
+#include "scene/lights.h"
+#include "answer/answer.h"
 #include "gi/gi.h"
-#include "internal.h"
+#include "base/internal.h"
 
 #define W 64
 #define H 48

@@ -11,7 +11,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include "gi/gi.h"
-#include "cascade_internal.h"
+#include "cascade/cascade_internal.h"
+#include "light/light.h"
+#include "trace/trace.h"
+#include "scene/lights.h"
+#include "answer/answer.h"
 
 static gi_scene *box_scene(double cx, double cy, double cz, double width, int copies, double spacing) {
   gi_mesh_builder *b = gi_mesh_builder_new();

@@ -16,8 +16,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "internal.h"
-#include "scene_internal.h"
+#include "base/internal.h"
+#include "scene/scene_internal.h"
 
 /* Embree reports errors through the device; we read them back with
  * rtcGetDeviceError right after each step, so the callback keeps nothing. */

@@ -33,7 +33,7 @@
 
 #include <openexr.h>
 
-#include "internal.h"
+#include "base/internal.h"
 
 #define HALF_MAX 65504.0f
 /* Refuse headers that would need more than this many float samples (8 GiB);

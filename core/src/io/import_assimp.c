@@ -30,9 +30,9 @@
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
-#include "internal.h"
+#include "base/internal.h"
 #include "io/texture_image.h"
-#include "scene_internal.h"
+#include "scene/scene_internal.h"
 
 static pthread_mutex_t assimp_lock = PTHREAD_MUTEX_INITIALIZER;
 

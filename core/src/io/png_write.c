@@ -10,7 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 #include "gi/gi_render.h"
-#include "internal.h"
+#include "base/internal.h"
 
 static unsigned char to_srgb8(float v) {
   if (!(v > 0)) return 0;

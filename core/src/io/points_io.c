@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "gi/gi_points.h"
-#include "internal.h"
+#include "base/internal.h"
 
 /* Three finite numbers separated by blanks (or a comma, for pasted X,Y,Z). */
 static int parse_line(const char *p, double v[3]) {

@@ -25,7 +25,7 @@
 #include <jpeglib.h>
 #include <jerror.h>
 #include <png.h>
-#include "internal.h"
+#include "base/internal.h"
 
 /* libjpeg's working memory ceiling; a progressive image needs about
  * 2 bytes per pixel per component. */

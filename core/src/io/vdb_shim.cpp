@@ -35,7 +35,7 @@
 
 extern "C" {
 #include "gi/gi_vdb.h"
-#include "internal.h"
+#include "base/internal.h"
 }
 
 namespace {

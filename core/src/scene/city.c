@@ -18,7 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "gi/gi_city.h"
-#include "internal.h"
+#include "base/internal.h"
 
 /* Limits that keep generation time and memory bounded for any input. */
 #define CITY_MAX_EXTENT_M 20000.0

@@ -6,12 +6,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "cascade_internal.h"
+#include "base/internal.h"
+#include "cascade/cascade_internal.h"
 #include "gi/gi_exr.h"
 #include "gi/gi_vdb.h"
-#include "internal.h"
-
-#define PI_F 3.14159265358979f
 
 static const char *const sh_names[9] = {"L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22"};
 static const char rgb[3] = {'R', 'G', 'B'};
@@ -190,7 +188,7 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
           float lp = gi__lum(L->side[slot][0]), ln = gi__lum(L->side[slot][1]);
           const float *E = L->side[slot][lp >= ln ? 0 : 1];
           for (int a = 0; a < 3; a++) {
-            ld->cd[3 * o + a] = g->albedo[a] / PI_F * E[a] + g->emission[a];
+            ld->cd[3 * o + a] = g->albedo[a] / GI_PI_F * E[a] + g->emission[a];
             ld->albedo[3 * o + a] = g->albedo[a];
             ld->normal[3 * o + a] = g->normal[a];
           }

@@ -12,8 +12,8 @@
  * a cell border is counted once, in the upper cell. */
 #include <stdlib.h>
 #include <string.h>
-#include "cascade_internal.h"
-#include "internal.h"
+#include "cascade/cascade_internal.h"
+#include "base/internal.h"
 
 #define SLAB 2 /* cells per z-slab */
 #define MAXV 12

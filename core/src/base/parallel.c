@@ -8,7 +8,7 @@
 #include <stdatomic.h>
 #include <time.h>
 #include <unistd.h>
-#include "internal.h"
+#include "base/internal.h"
 
 #define GI_MAX_WORKERS 256
 

@@ -17,8 +17,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "internal.h"
-#include "scene_internal.h"
+#include "base/internal.h"
+#include "scene/scene_internal.h"
 
 struct gi_mesh_builder {
   double *v;          /* 3 per vertex */

@@ -4,8 +4,8 @@
  * lobe's convolution turns it into irradiance coefficients by the factors
  * pi, 2 pi / 3 and pi / 4 for bands 0, 1, 2 (Ramamoorthi and Hanrahan 2001),
  * so E(n) = sum_lm E_lm Y_lm(n). */
-#include "cascade_internal.h"
-#include "internal.h"
+#include "answer/answer.h"
+#include "base/internal.h"
 
 void gi__sh_basis(const float w[3], float y[9]) {
   float x = w[0], yy = w[1], z = w[2];

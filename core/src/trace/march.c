@@ -14,72 +14,11 @@
  * 1 - exp(-sigma dt) (the step-length correction). Compositing is front to
  * back: c += (1 - a) a_s c_s, a += (1 - a) a_s, until a >= 0.99 or the cone
  * leaves the coarsest level; a cone stopped by opacity is renormalised by a.
- *
- * Diffuse cone sets: a hemisphere is split into rings of regions of equal
- * solid angle 2 pi / N; each cone points at its ring's cosine-weighted mean
- * elevation and has the region's solid angle, and its weight is the exact integral of cos(theta)
- * over the region, so the weights sum to pi and a uniform radiance L gathers
- * exactly E = pi L. */
+ * */
 #include <string.h>
-#include "cascade_internal.h"
-#include "internal.h"
-
-static const int ring_layout[][5] = {
-    /* N, rings... (0 terminated) */
-    {4, 1, 3, 0, 0}, {6, 1, 5, 0, 0}, {8, 1, 7, 0, 0}, {16, 1, 6, 9, 0}, {32, 1, 6, 11, 14},
-};
-
-void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[], float *tan_half) {
-  const int *layout = NULL;
-  for (size_t i = 0; i < sizeof ring_layout / sizeof ring_layout[0]; i++)
-    if (ring_layout[i][0] == count) layout = &ring_layout[i][1];
-  if (!layout) layout = ring_layout[3] + 1, count = 16;
-  const double pi = 3.14159265358979323846;
-  int idx = 0, cum = 0;
-  double cos_a = 1.0;
-  for (int r = 0; r < 4 && layout[r]; r++) {
-    int nr = layout[r];
-    cum += nr;
-    double cos_b = 1.0 - (double)cum / count;
-    if (cos_b < 0) cos_b = 0;
-    /* A ring's cones sit at its cosine-weighted mean elevation, so the set
-     * reproduces the lobe's first moment; the cap's cone stays on the axis. */
-    double cos_c = r == 0 ? 1.0
-                          : (2.0 / 3.0) * (cos_a * cos_a * cos_a - cos_b * cos_b * cos_b) /
-                                (cos_a * cos_a - cos_b * cos_b);
-    double sin_c = sqrt(1.0 - cos_c * cos_c);
-    double w = pi * (cos_a * cos_a - cos_b * cos_b) / nr;
-    for (int i = 0; i < nr; i++) {
-      double phi = 2 * pi * (i + 0.5 * (r & 1)) / nr;
-      dirs[idx][0] = (float)(sin_c * cos(phi));
-      dirs[idx][1] = (float)(sin_c * sin(phi));
-      dirs[idx][2] = (float)cos_c;
-      weights[idx] = (float)w;
-      idx++;
-    }
-    cos_a = cos_b;
-  }
-  double half;
-  if (aperture_deg > 0) {
-    half = 0.5 * aperture_deg * pi / 180.0;
-  } else {
-    /* A cone whose solid angle equals its region's: 2 pi (1 - cos h) = 2 pi / N. */
-    half = acos(1.0 - 1.0 / count);
-  }
-  *tan_half = (float)tan(half);
-}
-
-void gi__basis(const float n[3], float t[3], float b[3]) {
-  float sign = copysignf(1.0f, n[2]);
-  float a = -1.0f / (sign + n[2]);
-  float bb = n[0] * n[1] * a;
-  t[0] = 1.0f + sign * n[0] * n[0] * a;
-  t[1] = sign * bb;
-  t[2] = -sign * n[0];
-  b[0] = bb;
-  b[1] = sign + n[1] * n[1] * a;
-  b[2] = -n[1];
-}
+#include "base/internal.h"
+#include "scene/lights.h"
+#include "trace/trace.h"
 
 int gi__finest_level_at(const struct gi_cascade *c, const float p[3]) {
   for (int d = 0; d < c->n; d++)
@@ -254,46 +193,4 @@ void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[
 void gi__cone_trace_surface(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half,
                             float t0, float step, float ao_lambda, float h0, const float n[3], gi_cone_out *out) {
   cone_trace(c, o, w, tan_half, t0, step, ao_lambda, fmaxf(h0, 0.f), n, out);
-}
-
-float gi__specular_tan(float roughness) {
-  float r = fminf(fmaxf(roughness, 0.f), 1.f);
-  float a = r * r;
-  float half;
-  if (a < 1e-4f) {
-    half = 0.0087f; /* a mirror: half a degree, the finest a voxel texture can resolve */
-  } else {
-    double ns = 2.0 / ((double)a * a) - 2.0;
-    half = ns > 0 ? (float)acos(pow(0.5, 1.0 / ns)) : 1.5707963f;
-    half = fmaxf(half, 0.0087f);
-  }
-  /* Beyond 80 degrees a cone is no longer a lobe: cap it. */
-  return tanf(fminf(half, 1.396f));
-}
-
-void gi__specular_trace(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
-                        float roughness, gi_cone_out *out) {
-  gi__specular_trace_tan(c, p, n, v, gi__specular_tan(roughness), out);
-}
-
-void gi__specular_trace_tan(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
-                            float tan_half, gi_cone_out *out) {
-  float d = gi__dot(v, n);
-  float r[3], o[3];
-  for (int k = 0; k < 3; k++) r[k] = v[k] - 2 * d * n[k];
-  float len = gi__len(r);
-  for (int k = 0; k < 3; k++) r[k] /= len;
-  int lvl = gi__finest_level_at(c, p);
-  float s = (float)(lvl >= 0 ? c->lv[lvl].s : c->s0);
-  /* Start one voxel off the surface, as the diffuse cones do. */
-  for (int k = 0; k < 3; k++) o[k] = p[k] + s * n[k];
-  gi__cone_trace_surface(c, o, r, tan_half, s, c->report.quality.step > 0 ? c->report.quality.step : 0.5f, 0.f, s, n,
-                         out);
-  /* What the cone did not meet is sky: nothing else lights a reflection of
-   * it (diffuse cones leave the sky to the shadow rays, a mirror cannot). */
-  if (c->report.effects[GI_FX_SKY].ran && out->alpha < 0.99f) {
-    float sky[3];
-    gi__sky_radiance(c->scene, sky);
-    for (int k = 0; k < 3; k++) out->L[k] += (1 - out->alpha) * sky[k];
-  }
 }

@@ -9,10 +9,10 @@
  * reaches the image only through the surfaces it lights. */
 #include <stdlib.h>
 #include <string.h>
-#include "cascade_internal.h"
-#include "internal.h"
-
-#define PI_F 3.14159265358979f
+#include "answer/answer.h"
+#include "base/internal.h"
+#include "scene/lights.h"
+#include "trace/trace.h"
 
 typedef struct {
   const struct gi_cascade *c;
@@ -23,7 +23,7 @@ typedef struct {
 } pano_ctx;
 
 static void pixel_dir(int up_z, int w, int h, int x, int y, float out[3]) {
-  float th = PI_F * ((float)y + 0.5f) / (float)h, ph = 2 * PI_F * ((float)x + 0.5f) / (float)w;
+  float th = GI_PI_F * ((float)y + 0.5f) / (float)h, ph = 2 * GI_PI_F * ((float)x + 0.5f) / (float)w;
   float st = sinf(th), ct = cosf(th);
   if (up_z) {
     out[0] = st * cosf(ph), out[1] = st * sinf(ph), out[2] = ct;
@@ -41,7 +41,7 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
   int lvl = gi__finest_level_at(c, pc->at);
   float t0 = (float)(lvl >= 0 ? c->lv[lvl].s : c->s0);
   /* Half the pixel's angular height: neighbouring cones just touch. */
-  float tan_half = tanf(0.5f * PI_F / (float)pc->h);
+  float tan_half = tanf(0.5f * GI_PI_F / (float)pc->h);
   float eps = (float)(1e-4 * c->s0);
   for (size_t y = b; y < e; y++)
     for (int x = 0; x < pc->w; x++) {

@@ -45,12 +45,12 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-#include "cascade_internal.h"
+#include "answer/answer.h"
+#include "base/internal.h"
 #include "gi/gi_reference.h"
 #include "gi/gi_render.h"
-#include "internal.h"
+#include "scene/lights.h"
 
-#define PI_F 3.14159265358979f
 #define CHUNK 64
 #define MAX_DEPTH_HARD 256 /* unbounded paths stop here; a^256 is nothing for any a < 0.97 */
 
@@ -84,7 +84,7 @@ static void cosine_dir(const float n[3], uint64_t *rng, float w[3]) {
   float t[3], b[3];
   gi__basis(n, t, b);
   float u1 = gi__u01(rng), u2 = gi__u01(rng);
-  float r = sqrtf(u1), phi = 2 * PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
+  float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
   for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
 }
 
@@ -112,7 +112,7 @@ static void nee(const ref_ctx *rc, const float x[3], const float n[3], uint64_t 
   for (int i = 0; i < k; i++) {
     if (!vis[i]) continue;
     float c = ls[i].dist;
-    float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + c / PI_F) : 1.f;
+    float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + c / GI_PI_F) : 1.f;
     for (int a = 0; a < 3; a++) E[a] += f * ls[i].V[a] * c;
   }
 }
@@ -162,7 +162,7 @@ static void phong_dir(const float r[3], double ns, uint64_t *rng, float w[3]) {
   float t[3], b[3];
   gi__basis(r, t, b);
   float ct = (float)pow(1.0 - (double)u1, 1.0 / (ns + 1.0)); /* 1 - u1 in (0, 1]: no 0^0 */
-  float st = sqrtf(fmaxf(0.f, 1 - ct * ct)), phi = 2 * PI_F * u2;
+  float st = sqrtf(fmaxf(0.f, 1 - ct * ct)), phi = 2 * GI_PI_F * u2;
   for (int k = 0; k < 3; k++) w[k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + ct * r[k];
 }
 
@@ -197,10 +197,10 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     float cn = gi__dot(n, wn);
     if (hit && cn > 0) {
       float Le[3];
-      if (emitted(s, trin, ngn, wn, t, cn / PI_F, Le))
-        for (int k = 0; k < 3; k++) E[k] += PI_F * Le[k]; /* Le cos / (cos / pi) */
+      if (emitted(s, trin, ngn, wn, t, cn / GI_PI_F, Le))
+        for (int k = 0; k < 3; k++) E[k] += GI_PI_F * Le[k]; /* Le cos / (cos / pi) */
     }
-    for (int k = 0; k < 3; k++) L[k] += T[k] * a[k] * (1.f / PI_F) * E[k];
+    for (int k = 0; k < 3; k++) L[k] += T[k] * a[k] * (1.f / GI_PI_F) * E[k];
     int dcont = !last && hit && cn > 0;
     /* The glossy lobe: one sample of p(w) around the mirror direction;
      * what it meets (an emitter's front, the sky above the horizon) counts
@@ -309,7 +309,7 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
         for (int i = 0; i < m; i++) {
           if (!vis[i]) continue;
           float cu = gi__dot(rc->up, ls[i].w);
-          float pb = fmaxf(cu, 0.f) / (2 * PI_F) + 1.f / (8 * PI_F);
+          float pb = fmaxf(cu, 0.f) / (2 * GI_PI_F) + 1.f / (8 * GI_PI_F);
           float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + pb) : 1.f;
           float V[3] = {f * ls[i].V[0], f * ls[i].V[1], f * ls[i].V[2]};
           gi__sh_add(shd, ls[i].w, V, 1.f);
@@ -322,11 +322,11 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
         float w[3];
         if (gi__u01(&rng) < 0.5f) cosine_dir(rc->up, &rng, w);
         else {
-          float z = 1 - 2 * gi__u01(&rng), r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * PI_F * gi__u01(&rng);
+          float z = 1 - 2 * gi__u01(&rng), r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__u01(&rng);
           w[0] = r * cosf(phi), w[1] = r * sinf(phi), w[2] = z;
         }
         float cu = gi__dot(rc->up, w);
-        float pb = fmaxf(cu, 0.f) / (2 * PI_F) + 1.f / (8 * PI_F);
+        float pb = fmaxf(cu, 0.f) / (2 * GI_PI_F) + 1.f / (8 * GI_PI_F);
         float t, ng[3];
         uint32_t tri;
         if (gi__intersect1(s, p, w, rc->eps, INFINITY, &t, &tri, ng)) {

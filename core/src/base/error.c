@@ -1,6 +1,6 @@
 /* error.c: result-code names and texts, and the detail-message helper. */
 #include <stdio.h>
-#include "internal.h"
+#include "base/internal.h"
 
 const char *gi_strerror(gi_result r) {
   switch (r) {

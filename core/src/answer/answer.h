@@ -1,0 +1,25 @@
+/* answer.h: helpers shared by the answers (probes, panoramas, camera
+ * views, outputs). */
+#ifndef GI_ANSWER_H
+#define GI_ANSWER_H
+
+#include "cascade/cascade_internal.h"
+
+/* camera.c: a camera set up in the scene's local frame, shared by the
+ * cone-traced and the path-traced views. */
+struct gi_camera;
+typedef struct gi__cam {
+  float eye[3], fwd[3], right[3], upv[3];
+  float tanx, tany;    /* half-extent of the image plane at distance 1 */
+  int w, h;
+} gi__cam;
+gi_result gi__cam_setup(const gi_scene *s, const struct gi_camera *cam, gi__cam *k, gi_error_info *err);
+/* Unit direction through image position (px, py), in pixels from the top-left. */
+void gi__cam_ray(const gi__cam *k, float px, float py, float dir[3]);
+
+/* sh.c */
+void gi__sh_basis(const float w[3], float y[9]);
+void gi__sh_add(float sh[9][3], const float w[3], const float L[3], float weight);
+void gi__sh_radiance_to_irradiance(float sh[9][3]);
+
+#endif

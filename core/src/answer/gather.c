@@ -1,0 +1,132 @@
+/* gather.c: probes from a baked cascade.
+ *
+ * Direct light by shadow rays from the point itself (exact up to sampling
+ * noise), indirect light by cones over the whole sphere, both projected
+ * into SH L2 irradiance. */
+#include <stdlib.h>
+#include <string.h>
+#include "answer/answer.h"
+#include "base/internal.h"
+#include "scene/lights.h"
+#include "trace/trace.h"
+
+typedef struct {
+  const struct gi_cascade *c;
+  const double *pts;
+  gi_probe *out;
+} gather_ctx;
+
+static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed) {
+  const gi_scene *s = c->scene;
+  const gi_quality *q = &c->report.quality;
+  memset(pr, 0, sizeof *pr);
+  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
+  /* Direct light: shadow rays from the point itself. */
+  gi_light_plan lp = gi__light_plan(&c->report, q->probe_samples);
+  int cap = q->probe_samples * 2 + (int)s->num_lights + 8;
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, cap) == 0) {
+    gi_lsample *ls = sc.ls;
+    float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
+    uint8_t *vis = sc.vis;
+    uint64_t rng = gi__mix64(seed);
+    int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
+    float eps = (float)(1e-4 * c->s0);
+    for (int i = 0; i < n; i++) {
+      memcpy(&org[3 * i], p, sizeof(float[3]));
+      memcpy(&dir[3 * i], ls[i].w, sizeof(float[3]));
+      tn[i] = eps;
+      tf[i] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
+    }
+    gi__occluded(s, n, org, dir, tn, tf, vis);
+    int mb = lp.emissive && s->num_emitters ? q->probe_samples : 0;
+    float pb = (float)mb / (4 * GI_PI_F);
+    for (int i = 0; i < n; i++) {
+      if (!vis[i]) continue;
+      /* Balance heuristic against the uniform sphere samples below. */
+      float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + pb) : 1.f;
+      float V[3] = {f * ls[i].V[0], f * ls[i].V[1], f * ls[i].V[2]};
+      gi__sh_add(pr->sh_direct, ls[i].w, V, 1.0f);
+      float cu = gi__dot(up, ls[i].w);
+      if (cu > 0)
+        for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
+    }
+    /* Uniform sphere rays: near, large emitters (see inject.c). */
+    for (int j = 0; j < mb; j++) {
+      float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
+      float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__u01(&rng);
+      float w[3] = {r * cosf(phi), r * sinf(phi), z};
+      float V[3];
+      if (!gi__emitter_ray(s, p, w, eps, q->probe_samples, pb, V)) continue;
+      gi__sh_add(pr->sh_direct, w, V, 1.0f);
+      float cu = gi__dot(up, w);
+      if (cu > 0)
+        for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
+    }
+  }
+  gi__scratch_free(&sc);
+  gi__sh_radiance_to_irradiance(pr->sh_direct);
+
+  /* Indirect light: the cone set on both hemispheres around up. */
+  float sh_ind[9][3] = {{0}};
+  int d = gi__finest_level_at(c, p);
+  float t0 = (float)(d >= 0 ? c->lv[d].s : c->s0);
+  float domega = 2 * GI_PI_F / (float)c->num_cones;
+  float occ = 0;
+  for (int hemi = 0; hemi < 2; hemi++) {
+    float n[3], t[3], b[3];
+    for (int k = 0; k < 3; k++) n[k] = hemi ? -up[k] : up[k];
+    gi__basis(n, t, b);
+    for (int ci = 0; ci < c->num_cones; ci++) {
+      const float *cd = c->cone_dir[ci];
+      float w[3];
+      for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
+      gi_cone_out co;
+      if (d >= 0) {
+        gi__cone_trace(c, p, w, c->cone_tan, t0, q->step, q->ao_lambda, &co);
+      } else {
+        memset(&co, 0, sizeof co);
+      }
+      gi__sh_add(sh_ind, w, co.L, domega);
+      if (!hemi) {
+        for (int k = 0; k < 3; k++) pr->indirect[k] += c->cone_weight[ci] * co.L[k];
+        occ += c->cone_weight[ci] * co.occlusion;
+      }
+    }
+  }
+  gi__sh_radiance_to_irradiance(sh_ind);
+  for (int i = 0; i < 9; i++)
+    for (int k = 0; k < 3; k++) pr->sh[i][k] = pr->sh_direct[i][k] + sh_ind[i][k];
+  for (int k = 0; k < 3; k++) pr->irradiance[k] = pr->direct[k] + pr->indirect[k];
+  pr->ao = c->report.effects[GI_FX_AO].ran ? 1.0f - occ / GI_PI_F : 1.0f;
+}
+
+static void gather_range(void *p, size_t b, size_t e, int worker) {
+  gather_ctx *g = p;
+  const struct gi_cascade *c = g->c;
+  for (size_t i = b; i < e; i++) {
+    float pl[3];
+    for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * i + k] - c->scene->origin[k]);
+    /* Seed by position so a probe's noise does not depend on its index. */
+    uint64_t h = c->report.quality.seed;
+    for (int k = 0; k < 3; k++) {
+      uint32_t bits;
+      memcpy(&bits, &pl[k], 4);
+      h = gi__mix64(h ^ bits);
+    }
+    gather_one(c, pl, &g->out[i], h);
+  }
+}
+
+gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi_probe *out,
+                            double *ms, gi_error_info *err) {
+  if (!c || (!pts && n) || (!out && n)) return gi__fail(err, GI_ERR_INVALID_ARG, "gather: missing arguments");
+  for (size_t i = 0; i < 3 * n; i++)
+    if (!isfinite(pts[i]))
+      return gi__fail(err, GI_ERR_NONFINITE, "gather: point %zu has a non-finite coordinate", i / 3);
+  double t0 = gi__now_ms();
+  gather_ctx g = {c, pts, out};
+  gi__parallel_for(n, 1, c->report.quality.threads, gather_range, &g);
+  if (ms) *ms = gi__now_ms() - t0;
+  return GI_OK;
+}

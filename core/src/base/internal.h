@@ -1,0 +1,73 @@
+/* internal.h: helpers shared by the core's source files (not installed). */
+#ifndef GI_INTERNAL_H
+#define GI_INTERNAL_H
+
+#include <math.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include "gi/gi_error.h"
+
+/* Records code and a printf-style message in err (which may be NULL) and
+ * returns code, so callers write `return gi__fail(err, GI_ERR_IO, ...)`. */
+gi_result gi__fail(gi_error_info *err, gi_result code, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+/* Runs fn(ctx, begin, end) over [0, n) in chunks of `grain` on up to
+ * `threads` threads (0 = all cores). Blocks until all chunks are done.
+ * fn must be safe to run concurrently on disjoint ranges. */
+typedef void (*gi__range_fn)(void *ctx, size_t begin, size_t end, int worker);
+void gi__parallel_for(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx);
+/* Number of workers gi__parallel_for will use for `threads` (worker ids are 0..N-1). */
+int gi__num_workers(int threads);
+
+/* Monotonic clock in milliseconds. */
+double gi__now_ms(void);
+
+static inline int gi__finite3(const float v[3]) {
+  return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+/* pi in float, for the per-sample math of every stage. */
+#define GI_PI_F 3.14159265358979f
+#define GI_PI 3.14159265358979323846
+
+/* A cone, a primary ray or a transmittance product counts as blocked once
+ * its accumulated opacity reaches this: the rest would add under 1%. */
+#define GI_OPAQUE_ALPHA 0.99f
+
+/* Deterministic hash-based random numbers (splitmix64): samples depend on
+ * what is sampled (a voxel's cell, a probe's position), never on thread
+ * order. */
+static inline uint64_t gi__mix64(uint64_t x) {
+  x ^= x >> 30; x *= 0xbf58476d1ce4e5b9ULL;
+  x ^= x >> 27; x *= 0x94d049bb133111ebULL;
+  x ^= x >> 31;
+  return x;
+}
+static inline float gi__u01(uint64_t *state) {
+  *state += 0x9e3779b97f4a7c15ULL;
+  return (float)(gi__mix64(*state) >> 40) * (1.0f / 16777216.0f);
+}
+
+static inline float gi__dot(const float a[3], const float b[3]) { return a[0]*b[0] + a[1]*b[1] + a[2]*b[2]; }
+static inline void gi__cross(const float a[3], const float b[3], float o[3]) {
+  o[0] = a[1]*b[2] - a[2]*b[1]; o[1] = a[2]*b[0] - a[0]*b[2]; o[2] = a[0]*b[1] - a[1]*b[0];
+}
+static inline float gi__len(const float a[3]) { return sqrtf(gi__dot(a, a)); }
+static inline float gi__lum(const float c[3]) { return 0.2126f*c[0] + 0.7152f*c[1] + 0.0722f*c[2]; }
+
+/* Orthonormal basis with unit n as the third axis (branchless, Duff et al. 2017). */
+static inline void gi__basis(const float n[3], float t[3], float b[3]) {
+  float sign = copysignf(1.0f, n[2]);
+  float a = -1.0f / (sign + n[2]);
+  float bb = n[0] * n[1] * a;
+  t[0] = 1.0f + sign * n[0] * n[0] * a;
+  t[1] = sign * bb;
+  t[2] = -sign * n[0];
+  b[0] = bb;
+  b[1] = sign + n[1] * n[1] * a;
+  b[2] = -n[1];
+}
+
+#endif

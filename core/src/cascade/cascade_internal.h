@@ -1,0 +1,116 @@
+/* cascade_internal.h: the cascaded voxel texture's layout, shared by the
+ * stages that fill it (cascade/, light/) and read it (trace/, answer/).
+ *
+ * Level d has R^3 voxels of size s_d = s0 * 2^d. Voxel positions are global
+ * integer cells of that level, counted from the scene's local origin; a
+ * level's window is cells [cell0, cell0 + R) per axis, with cell0 even so
+ * that levels nest on coarse cell borders. Storage is toroidal: cell c lives
+ * at slot (c mod R), so re-centring a level later moves no memory.
+ *
+ * Radiance model (DESIGN section 3). Surfaces are two-sided: each voxel has
+ * one orientation n (area-weighted, sign-canonical) and a reflected
+ * radiance for its +n side and its -n side. Per axis the voxel stores the
+ * projected surface area as an opacity alpha and as an optical depth
+ * tau = -ln(1 - alpha); tau interpolates linearly without thinning walls,
+ * which alpha would. Per face it stores premultiplied radiance: the
+ * radiance leaving through that face times the face's covered fraction.
+ * The texture holds reflected light only; emitters reach everything as
+ * area lights sampled with shadow rays, so nothing counts them twice. */
+#ifndef GI_CASCADE_INTERNAL_H
+#define GI_CASCADE_INTERNAL_H
+
+#include <math.h>
+#include <stdint.h>
+#include "gi/gi_bake.h"
+#include "base/internal.h"
+#include "scene/scene_internal.h"
+
+/* Face order: +X, -X, +Y, -Y, +Z, -Z (face f: axis f/2, sign + when f even). */
+enum { GI_FACE_PX, GI_FACE_NX, GI_FACE_PY, GI_FACE_NY, GI_FACE_PZ, GI_FACE_NZ };
+
+/* Geometry buffer of one voxel (sums while voxelizing, then normalised). */
+typedef struct gi_vgeo {
+  float area;          /* surface area inside the voxel */
+  float albedo[3];     /* area-weighted mean */
+  float emission[3];   /* area-weighted mean emitted radiance */
+  float normal[3];     /* unit, sign-canonical (two-sided surfaces) */
+  float centroid[3];   /* area-weighted centroid, local coordinates */
+  float proj[3];       /* projected area per axis, |A_axis| summed */
+  float gloss;         /* area-weighted specular reflectance of glossy materials */
+} gi_vgeo;
+
+/* Light buffer of one voxel: what cones sample. */
+typedef struct gi_vrad {
+  float p[6][3];       /* premultiplied radiance leaving through each face */
+  float tau[3];        /* optical depth across the voxel along each axis */
+  float alpha[3];      /* opacity along each axis, 1 - exp(-tau) */
+} gi_vrad;
+
+typedef struct gi_level {
+  double s;            /* voxel size */
+  int64_t cell0[3];    /* first cell of the window */
+  int slot0[3];        /* its toroidal slot per axis, cell0 mod R (saves a 64-bit division per sample) */
+  float lo[3], hi[3];  /* window box, local coordinates */
+  int has_inner;       /* 1 when level d-1 nests inside (cells filtered from it) */
+  int64_t inner0[3], inner1[3]; /* this level's cells covered by level d-1: [inner0, inner1) */
+  gi_vgeo *geo;        /* R^3, toroidal */
+  gi_vrad *rad;        /* R^3, toroidal */
+  float (*side)[2][3]; /* R^3: direct+indirect irradiance on the +n and -n sides */
+  float (*direct)[2][3]; /* R^3: the direct part of side */
+  uint8_t *busy;       /* per slot: 1 when the 2x2x2 block starting there has any opacity */
+  uint32_t *occ;       /* slots of occupied voxels outside the inner region */
+  uint32_t num_occ;
+  uint64_t num_geo;    /* voxels holding geometry (incl. the inner region) */
+} gi_level;
+
+struct gi_cascade {
+  gi_scene *scene;     /* retained */
+  int n, R;
+  double s0;
+  double at_world[3];
+  float at[3];         /* viewpoint, local */
+  gi_level lv[GI_MAX_LEVELS];
+  gi_bake_report report;
+  /* Diffuse cone set around +Z, shared by bounce and gather. */
+  int num_cones;
+  float cone_dir[64][3];
+  float cone_weight[64]; /* integral of cos over the cone's region; sums to pi */
+  float cone_tan;        /* tan(aperture / 2) */
+};
+
+static inline int64_t gi__floordiv(int64_t a, int64_t b) {
+  int64_t q = a / b;
+  return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
+}
+static inline int gi__wrap(int64_t c, int R) {
+  int64_t m = c % R;
+  return (int)(m < 0 ? m + R : m);
+}
+/* Slot of global cell (i,j,k) in a level of R^3. */
+static inline uint32_t gi__slot(int64_t i, int64_t j, int64_t k, int R) {
+  return (uint32_t)gi__wrap(i, R) + (uint32_t)R * ((uint32_t)gi__wrap(j, R) + (uint32_t)R * (uint32_t)gi__wrap(k, R));
+}
+
+/* Global cell of a slot in level L's current window. */
+static inline void gi__slot_cell(const gi_level *L, int R, uint32_t slot, int64_t cell[3]) {
+  uint32_t w[3] = {slot % (uint32_t)R, (slot / (uint32_t)R) % (uint32_t)R, slot / ((uint32_t)R * (uint32_t)R)};
+  for (int a = 0; a < 3; a++) cell[a] = L->cell0[a] + gi__wrap((int64_t)w[a] - gi__wrap(L->cell0[a], R), R);
+}
+
+/* cascade.c */
+gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err);
+void gi__cascade_place(struct gi_cascade *c);
+/* filter.c: filters the region of level d covered by level d-1 from level d-1's light
+ * (compositing along each axis) and geometry. */
+void gi__cascade_filter(struct gi_cascade *c, int threads);
+/* Rebuilds every level's busy mask from its opacity (after filtering). */
+void gi__cascade_mark_busy(struct gi_cascade *c);
+/* 1 when the local point lies in level d's window shrunk by `border` voxels. */
+int gi__level_contains(const gi_level *L, const float p[3], float border);
+/* 1 when cell (i,j,k) of level L is covered by the finer level. */
+int gi__is_inner(const gi_level *L, int64_t i, int64_t j, int64_t k);
+
+/* voxelize.c */
+gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err);
+
+#endif

@@ -1,0 +1,140 @@
+/* inject.c: direct light into the voxels.
+ *
+ * Every occupied voxel gets the direct irradiance on both sides of its
+ * surface from every light, with visibility from Embree shadow rays issued
+ * as one stream per voxel. Sun, point and spot lights take one ray each;
+ * the sky and emissive surfaces are sampled (stratified, seeded by the
+ * voxel's global cell so a bake is deterministic and a voxel's noise does
+ * not change when the cascade scrolls). Outgoing radiance per face is then
+ * albedo / pi * irradiance of the side facing that way, times the face's
+ * covered fraction (gi__shade_voxels). */
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+#include "light/light.h"
+#include "scene/lights.h"
+
+#define MAX_LS 1024
+
+typedef struct {
+  struct gi_cascade *c;
+  const gi_light_plan *lp;
+  int d;
+  uint64_t seed;
+  atomic_ullong rays;
+} inject_ctx;
+
+static void inject_range(void *p, size_t b, size_t e, int worker) {
+  inject_ctx *ic = p;
+  struct gi_cascade *c = ic->c;
+  gi_level *L = &c->lv[ic->d];
+  const gi_scene *s = c->scene;
+  gi_ray_scratch sc = {0};
+  int8_t *side = malloc(MAX_LS);
+  float *cosw = malloc(MAX_LS * sizeof(float));
+  if (gi__scratch_alloc(&sc, MAX_LS) || !side || !cosw) goto out; /* voxels stay dark */
+  gi_lsample *ls = sc.ls;
+  float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
+  uint8_t *vis = sc.vis;
+  uint64_t rays = 0;
+  int R = c->R;
+  for (size_t q = b; q < e; q++) {
+    uint32_t slot = L->occ[q];
+    const gi_vgeo *g = &L->geo[slot];
+    float(*E)[3] = L->direct[slot];
+    memset(E, 0, sizeof(float[2][3]));
+    /* Seed from the global cell: the same voxel gets the same samples wherever the window is. */
+    int64_t cell[3];
+    gi__slot_cell(L, R, slot, cell);
+    uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
+                                                    (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
+    int n = gi__light_samples(s, ic->lp, g->centroid, &rng, ls, MAX_LS);
+    float eps = (float)(0.02 * L->s);
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+      float cn = gi__dot(g->normal, ls[i].w);
+      if (cn == 0) continue;
+      int sd = cn > 0 ? 0 : 1;
+      float sg = cn > 0 ? 1.f : -1.f;
+      for (int k = 0; k < 3; k++) {
+        org[3 * m + k] = g->centroid[k] + sg * eps * g->normal[k];
+        dir[3 * m + k] = ls[i].w[k];
+      }
+      tn[m] = 0;
+      tf[m] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
+      side[m] = (int8_t)sd;
+      cosw[m] = fabsf(cn);
+      /* Keep the sample index in the V slot order: compact in place. */
+      ls[m] = ls[i];
+      m++;
+    }
+    gi__occluded(s, m, org, dir, tn, tf, vis);
+    rays += (uint64_t)m;
+    int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
+    for (int i = 0; i < m; i++) {
+      if (!vis[i]) continue;
+      /* Balance heuristic against the cosine samples below. */
+      float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * cosw[i] / GI_PI_F) : 1.f;
+      for (int k = 0; k < 3; k++) E[side[i]][k] += f * ls[i].V[k] * cosw[i];
+    }
+    /* Cosine-weighted rays find emitters that are close and large, which
+     * area sampling almost never picks (the furnace's edges). */
+    for (int sd = 0; sd < 2 && mb > 0; sd++) {
+      float n[3], t[3], bb[3], o[3];
+      float sg = sd ? -1.f : 1.f;
+      for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k], o[k] = g->centroid[k] + eps * n[k];
+      gi__basis(n, t, bb);
+      for (int j = 0; j < mb; j++) {
+        float u1 = ((float)j + gi__u01(&rng)) / (float)mb, u2 = gi__u01(&rng);
+        float r = sqrtf(u1), phi = 2 * GI_PI_F * u2;
+        float x = r * cosf(phi), y = r * sinf(phi), z = sqrtf(fmaxf(0.f, 1 - u1));
+        float w[3];
+        for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
+        rays++;
+        float V[3];
+        if (!gi__emitter_ray(s, o, w, 0, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
+        for (int k = 0; k < 3; k++) E[sd][k] += V[k] * z;
+      }
+    }
+    memcpy(L->side[slot], E, sizeof(float[2][3]));
+  }
+  atomic_fetch_add(&ic->rays, rays);
+out:
+  gi__scratch_free(&sc);
+  free(side);
+  free(cosw);
+}
+
+void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {
+  gi_level *L = &c->lv[d];
+  for (uint32_t q = begin; q < end; q++) {
+    uint32_t slot = L->occ[q];
+    const gi_vgeo *g = &L->geo[slot];
+    gi_vrad *r = &L->rad[slot];
+    float Ls[2][3];
+    for (int sd = 0; sd < 2; sd++)
+      for (int k = 0; k < 3; k++) Ls[sd][k] = g->albedo[k] * (1.0f / GI_PI_F) * L->side[slot][sd][k];
+    for (int f = 0; f < 6; f++) {
+      int a = f / 2;
+      float sf = (f & 1) ? -1.f : 1.f;
+      int sd = sf * g->normal[a] >= 0 ? 0 : 1;
+      for (int k = 0; k < 3; k++) r->p[f][k] = r->alpha[a] * Ls[sd][k];
+    }
+  }
+}
+
+static void shade_all(struct gi_cascade *c) {
+  for (int d = 0; d < c->n; d++) gi__shade_voxels(c, d, 0, c->lv[d].num_occ);
+}
+
+gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err) {
+  gi_light_plan lp = gi__light_plan(&c->report, q->light_samples);
+  for (int d = 0; d < c->n; d++) {
+    inject_ctx ic = {.c = c, .lp = &lp, .d = d, .seed = q->seed};
+    atomic_init(&ic.rays, 0);
+    gi__parallel_for(c->lv[d].num_occ, 32, q->threads, inject_range, &ic);
+    c->report.shadow_rays += atomic_load(&ic.rays);
+  }
+  shade_all(c);
+  return GI_OK;
+}

@@ -1,0 +1,18 @@
+/* light.h: lighting the cascade: injection (light/inject.c) and bounces
+ * (light/bounce.c). Each writes the cascade it is given; one call at a time
+ * per cascade. */
+#ifndef GI_LIGHT_H
+#define GI_LIGHT_H
+
+#include "cascade/cascade_internal.h"
+
+/* inject.c: direct light into every occupied voxel (both sides). */
+gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err);
+/* Recomputes each occupied voxel's face radiance from its side irradiance. */
+void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end);
+/* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
+ * tail (with bounces >= 2): then adds the orders after the last bounce as
+ * a geometric series whose ratio is measured from the last two bounces. */
+gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
+
+#endif

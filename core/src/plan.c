@@ -1,0 +1,303 @@
+/* plan.c: quality resolution and the effect plan.
+ *
+ * gi_quality_resolve turns a request's quality into explicit knobs
+ * (defaults, validation). The effect plan then decides which effects the
+ * scene and request call for around a placed cascade, and says why, so a
+ * bake pays only for what the scene holds. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+#include "cascade/cascade_internal.h"
+#include "plan.h"
+#include "trace/trace.h"
+
+static const char *const fx_names[GI_FX_COUNT] = {"sun", "local_lights", "sky", "emissive",
+                                                  "bounce", "specular", "ao"};
+
+const char *gi_effect_name(gi_effect_id id) {
+  return (unsigned)id < GI_FX_COUNT ? fx_names[id] : "unknown";
+}
+
+int gi_effect_from_name(const char *name) {
+  for (int i = 0; name && i < GI_FX_COUNT; i++)
+    if (!strcmp(name, fx_names[i])) return i;
+  return -1;
+}
+
+static void set_fx(gi_bake_report *r, gi_effect_id id, int ran, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static void set_fx(gi_bake_report *r, gi_effect_id id, int ran, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  r->effects[id].ran = ran;
+  vsnprintf(r->effects[id].why, sizeof r->effects[id].why, fmt, ap);
+  va_end(ap);
+}
+
+gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality *q,
+                             gi_error_info *err) {
+  if (!s || !q) return gi__fail(err, GI_ERR_INVALID_ARG, "quality: scene and output are required");
+  gi_quality z = {0};
+  *q = in ? *in : z;
+  if (q->levels == 0) q->levels = 6;
+  if (q->res == 0) q->res = 32;
+  if (q->cones == 0) q->cones = 16;
+  if (q->step == 0) q->step = 0.5f;
+  if (q->bounces == 0) q->bounces = 2; /* auto: the effect plan replaces it */
+  else if (q->bounces < 0) q->bounces = 0;
+  for (int i = 0; i < GI_FX_COUNT; i++)
+    if (q->effects[i] < -1 || q->effects[i] > 1)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "quality: effects[%s] must be -1 (off), 0 (auto) or 1 (on), got %d",
+                      fx_names[i], q->effects[i]);
+  if (q->specular < -1 || q->specular > 1)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: specular must be -1, 0 or 1, got %d", q->specular);
+  if (q->light_samples == 0) q->light_samples = 16;
+  if (q->probe_samples == 0) q->probe_samples = 256;
+  if (q->seed == 0) q->seed = 1;
+  if (q->levels < 1 || q->levels > GI_MAX_LEVELS)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: levels must be 1..%d, got %d", GI_MAX_LEVELS, q->levels);
+  if (q->res < 8 || q->res > 256 || q->res % 4)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: res must be a multiple of 4 in 8..256, got %d", q->res);
+  if (q->cones != 4 && q->cones != 6 && q->cones != 8 && q->cones != 16 && q->cones != 32)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: cones must be 4, 6, 8, 16 or 32, got %d", q->cones);
+  if (!isfinite(q->voxel0) || q->voxel0 < 0)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: voxel size must be a positive finite number");
+  if (!isfinite(q->aperture_deg) || q->aperture_deg < 0 || q->aperture_deg >= 180)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: aperture must be in (0, 180) degrees");
+  if (!isfinite(q->step) || q->step < 0.05f || q->step > 4)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: step must be in 0.05..4, got %g", q->step);
+  if (q->bounces > 8)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: bounces must be at most 8, got %d", q->bounces);
+  if (q->light_samples < 1 || q->light_samples > 512 || q->probe_samples < 1 || q->probe_samples > 8192)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: light samples must be 1..512 and probe samples 1..8192");
+  if (q->voxel0 == 0) {
+    /* The coarsest level spans 1.25 times the scene's largest side: a
+     * centred viewpoint then keeps every wall a few voxels inside the
+     * window, clear of the one-voxel border cones need for filtering. A
+     * wide, flat scene (a city) spans at most 16 times its height (but at
+     * least an eighth of its width): light from farther away than that
+     * barely reaches a street, and a cascade over all of a 5 km city
+     * would voxelize every triangle of it for each viewpoint. */
+    double lo[3], hi[3], ext = 0;
+    gi_scene_bounds(s, lo, hi);
+    for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
+    int up = gi_scene_up(s) == GI_UP_Z ? 2 : 1;
+    double height = hi[up] - lo[up], cap = fmax(16.0 * height, ext / 8.0);
+    if (cap < ext) ext = cap;
+    if (!(ext > 0)) ext = 1.0;
+    q->voxel0 = 1.25 * ext / ((double)q->res * (double)(1ull << (q->levels - 1)));
+  }
+  if (!isfinite(q->ao_lambda) || q->ao_lambda < 0)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: ao_lambda must be finite and >= 0");
+  if (q->ao_lambda == 0) q->ao_lambda = (float)(1.0 / (4.0 * q->voxel0));
+  return GI_OK;
+}
+
+int gi__fx_forced(const gi_quality *q, gi_effect_id id) {
+  int f = q->effects[id];
+  if (f == GI_FX_AUTO && id == GI_FX_SPECULAR) f = q->specular;
+  if (f == GI_FX_AUTO && id == GI_FX_AO && q->ao) f = GI_FX_ON;
+  return f;
+}
+
+/* Triangles whose bounds overlap the coarsest level's box grown by `grow`
+ * times its side on every face; *n = 0 on an empty scene or allocation
+ * failure. Caller frees. */
+static uint32_t *tris_in_range(const struct gi_cascade *c, float grow, size_t *n) {
+  uint32_t *t = NULL;
+  size_t cap = 0;
+  *n = 0;
+  const gi_level *L = &c->lv[c->n - 1];
+  float lo[3], hi[3];
+  for (int a = 0; a < 3; a++) {
+    float m = grow * (L->hi[a] - L->lo[a]);
+    lo[a] = L->lo[a] - m, hi[a] = L->hi[a] + m;
+  }
+  if (gi__query_box(c->scene, lo, hi, &t, n, &cap) != GI_OK) *n = 0;
+  return t;
+}
+
+/* Sky visibility: 32 stratified upward rays from the viewpoint and from the
+ * centres of the finest level's six faces. One escaping ray is enough; a
+ * closed room (or the Cornell box's ceiling side) stops them all. */
+static int sky_rays(const struct gi_cascade *c, int *tested) {
+  const gi_scene *s = c->scene;
+  enum { ORG = 7, PER = 32 };
+  float org[3 * ORG * PER], dir[3 * ORG * PER], tn[ORG * PER], tf[ORG * PER];
+  uint8_t vis[ORG * PER];
+  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
+  float t[3], b[3];
+  gi__basis(up, t, b);
+  float half = (float)(0.5 * c->R * c->lv[0].s);
+  int n = 0;
+  for (int o = 0; o < ORG; o++) {
+    float p[3] = {c->at[0], c->at[1], c->at[2]};
+    if (o) p[(o - 1) / 2] += (o & 1) ? half : -half;
+    uint64_t rng = gi__mix64(0x5c1ull + (uint64_t)o);
+    for (int j = 0; j < PER; j++, n++) {
+      float ct = ((float)j + gi__u01(&rng)) / PER, st = sqrtf(fmaxf(0.f, 1 - ct * ct));
+      float phi = 2 * GI_PI_F * gi__u01(&rng);
+      for (int k = 0; k < 3; k++) {
+        org[3 * n + k] = p[k];
+        dir[3 * n + k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + ct * up[k];
+      }
+      tn[n] = 0;
+      tf[n] = INFINITY;
+    }
+  }
+  gi__occluded(s, n, org, dir, tn, tf, vis);
+  int seen = 0;
+  for (int i = 0; i < n; i++) seen += vis[i];
+  *tested = n;
+  return seen;
+}
+
+/* The effect plan: what this scene and request call for, with reasons.
+ * Runs after placement (it looks at what lies inside the cascade). May set
+ * q->bounces when the request left it to the plan (auto_bounces). Returns 1
+ * when the plan capped the bounces while the orders left out still weigh
+ * 2% or more: the bounce stage then adds their geometric tail (inject.c). */
+int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r) {
+  const gi_scene *s = c->scene;
+  int sun = 0, local = 0, sky = 0;
+  for (uint32_t i = 0; i < s->num_lights; i++) {
+    const gi_light *l = &s->lights[i];
+    int lit = l->color[0] > 0 || l->color[1] > 0 || l->color[2] > 0;
+    if (!lit) continue;
+    if (l->type == GI_LIGHT_SUN) sun++;
+    else if (l->type == GI_LIGHT_SKY) sky++;
+    else local++;
+  }
+  if (gi__fx_forced(q, GI_FX_SUN) == GI_FX_OFF) set_fx(r, GI_FX_SUN, 0, "turned off by the request");
+  else if (sun) set_fx(r, GI_FX_SUN, 1, "%d directional light%s", sun, sun > 1 ? "s" : "");
+  else set_fx(r, GI_FX_SUN, 0, "no directional light in the scene");
+  if (gi__fx_forced(q, GI_FX_LOCAL) == GI_FX_OFF) set_fx(r, GI_FX_LOCAL, 0, "turned off by the request");
+  else if (local) set_fx(r, GI_FX_LOCAL, 1, "%d point/spot light%s", local, local > 1 ? "s" : "");
+  else set_fx(r, GI_FX_LOCAL, 0, "no point or spot light in the scene");
+
+  int fs = gi__fx_forced(q, GI_FX_SKY);
+  if (fs == GI_FX_OFF) set_fx(r, GI_FX_SKY, 0, "turned off by the request");
+  else if (!sky) set_fx(r, GI_FX_SKY, 0, "no sky light in the scene");
+  else if (fs == GI_FX_ON) set_fx(r, GI_FX_SKY, 1, "forced on by the request, %d samples per voxel", q->light_samples);
+  else {
+    int tested = 0, seen = sky_rays(c, &tested);
+    if (seen) set_fx(r, GI_FX_SKY, 1, "sky seen by %d of %d test rays, %d samples per voxel", seen, tested,
+                     q->light_samples);
+    else set_fx(r, GI_FX_SKY, 0, "sky light present, but none of %d upward test rays from the viewpoint and the "
+                                 "finest level's faces escapes", tested);
+  }
+
+  /* Emitters light the cascade from outside it too: look half a cascade
+   * beyond it (an emitter farther away lights it at under a ninth of the
+   * irradiance it would give at the border, and the coarsest level
+   * already spans the whole scene by default). Albedo and gloss: inside only. */
+  size_t ne = 0, nt = 0;
+  uint32_t *tris = tris_in_range(c, 0.5f, &ne);
+  uint32_t emit_in = 0, glossy = 0;
+  for (size_t i = 0; i < ne; i++) {
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    emit_in += m->emission[0] > 0 || m->emission[1] > 0 || m->emission[2] > 0;
+  }
+  free(tris);
+  tris = tris_in_range(c, 0.f, &nt);
+  double area = 0, a_sum = 0;
+  for (size_t i = 0; i < nt; i++) {
+    const uint32_t *ix = &s->indices[3 * tris[i]];
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+    float e1[3], e2[3], n[3];
+    for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+    gi__cross(e1, e2, n);
+    double ar = 0.5 * gi__len(n);
+    area += ar;
+    a_sum += ar * fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2]));
+    glossy += m->roughness < 0.5f && m->specular > 0;
+  }
+  free(tris);
+  int fe = gi__fx_forced(q, GI_FX_EMISSIVE);
+  if (fe == GI_FX_OFF) set_fx(r, GI_FX_EMISSIVE, 0, "turned off by the request");
+  else if (!s->num_emitters) set_fx(r, GI_FX_EMISSIVE, 0, "no emissive surfaces");
+  else if (emit_in || fe == GI_FX_ON)
+    set_fx(r, GI_FX_EMISSIVE, 1, "%u emissive triangles (%u within reach of the cascade%s), %d samples per voxel",
+           s->num_emitters, emit_in, emit_in ? "" : ", forced on", q->light_samples);
+  else set_fx(r, GI_FX_EMISSIVE, 0, "%u emissive triangles, none within half a cascade of it", s->num_emitters);
+
+  /* Bounces from the albedo: the k-th reflection adds about a^k of the
+   * direct light (a = area-weighted albedo, brightest channel, of what lies
+   * in the cascade). With B voxel bounces the gather holds k = B + 1, so
+   * the first one missing weighs a^(B+2). Stop when that is under 2% of
+   * the direct light: the probe's own Monte Carlo noise on direct light is
+   * about that (measured 1.2% Cornell, 1.6% Munich at 256 probe samples).
+   * At most 3: each bounce is a full cone gather at every voxel. When the
+   * cap stops short of that (a bright closed room: the Cornell box's mean
+   * albedo gives a^5 = 20%), the orders left out are not dropped: the
+   * bounce stage extrapolates them as a geometric series from the last two
+   * bounces (see gi__bounce), which costs no gather. */
+  double abar = area > 0 ? a_sum / area : 0;
+  int fb = gi__fx_forced(q, GI_FX_BOUNCE);
+  int tail = 0;
+  if (auto_bounces) {
+    int B = 1;
+    while (B < 3 && pow(abar, B + 2) >= 0.02) B++;
+    q->bounces = B;
+    tail = B >= 2 && pow(abar, B + 2) >= 0.02;
+  }
+  if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
+  else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
+  else if (abar <= 0 && fb != GI_FX_ON) set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
+  else if (auto_bounces && tail)
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, next "
+                               "bounce would add %.1f%% of direct (stop under 2%%, at most 3)", q->bounces, abar,
+           100 * pow(abar, q->bounces + 2));
+  else if (auto_bounces)
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
+                               "(stop under 2%%, at most 3)", q->bounces, q->bounces > 1 ? "s" : "", abar,
+           100 * pow(abar, q->bounces + 2));
+  else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s as requested, mean albedo %.2f in range", q->bounces,
+              q->bounces > 1 ? "s" : "", abar);
+
+  /* The specular cone needs a view direction; probes have none. Camera
+   * views re-decide this entry (gi_cascade_view_plan) from the same count. */
+  r->glossy_triangles = glossy;
+  int fsp = gi__fx_forced(q, GI_FX_SPECULAR);
+  if (fsp == GI_FX_OFF) set_fx(r, GI_FX_SPECULAR, 0, "turned off by the request");
+  else if (fsp == GI_FX_ON)
+    set_fx(r, GI_FX_SPECULAR, 0, "forced on: camera views trace it at every pixel; probe output has no view direction");
+  else if (glossy)
+    set_fx(r, GI_FX_SPECULAR, 0, "%u glossy triangle%s in range: camera views trace it; probe output has no view "
+                                 "direction", glossy, glossy > 1 ? "s" : "");
+  else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
+  if (gi__fx_forced(q, GI_FX_AO) == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
+  else set_fx(r, GI_FX_AO, 0, "not requested");
+  return tail && r->effects[GI_FX_BOUNCE].ran;
+}
+
+gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality *qin, gi_effect out[GI_FX_COUNT],
+                         gi_quality *resolved, gi_error_info *err) {
+  if (!s || !at || !out) return gi__fail(err, GI_ERR_INVALID_ARG, "plan: scene, viewpoint and output are required");
+  gi_quality q;
+  gi_result rc = gi_quality_resolve(s, qin, &q, err);
+  if (rc != GI_OK) return rc;
+  /* The plan looks at what lies inside the placed cascade: place one
+   * without its voxel arrays, as gi_cascade_bake would. */
+  struct gi_cascade *c = calloc(1, sizeof *c);
+  if (!c) return gi__fail(err, GI_ERR_NOMEM, "plan: out of memory");
+  c->scene = (gi_scene *)s;
+  c->n = q.levels;
+  c->R = q.res;
+  c->s0 = q.voxel0;
+  for (int a = 0; a < 3; a++) {
+    c->at[a] = (float)(at[a] - s->origin[a]);
+    if (!isfinite(at[a]) || !isfinite(c->at[a]) || fabs(at[a] - s->origin[a]) > 1e9) {
+      free(c);
+      return gi__fail(err, GI_ERR_INVALID_ARG, "plan: viewpoint is not finite or more than 1e9 units from the scene");
+    }
+  }
+  gi__cascade_place(c);
+  gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report);
+  memcpy(out, c->report.effects, sizeof c->report.effects);
+  if (resolved) *resolved = q;
+  free(c);
+  return GI_OK;
+}

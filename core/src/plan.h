@@ -1,0 +1,18 @@
+/* plan.h: the effect plan's internals (plan.c), shared with the bake and
+ * the camera view. */
+#ifndef GI_PLAN_H
+#define GI_PLAN_H
+
+#include "cascade/cascade_internal.h"
+
+/* The request's override for one effect, GI_FX_ON, GI_FX_OFF or
+ * GI_FX_AUTO (the legacy `specular` and `ao` fields count when effects[id]
+ * is auto). Shared by the bake's plan and the camera view's. */
+int gi__fx_forced(const gi_quality *q, gi_effect_id id);
+/* Decides the effect plan around the placed cascade c into r, and may set
+ * q->bounces when the request left it to the plan (auto_bounces). Returns
+ * 1 when the bounce stage should add the geometric tail of the orders the
+ * cap leaves out. */
+int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r);
+
+#endif

@@ -1,0 +1,185 @@
+/* lights.c: the light sampler shared by injection, probes and camera views.
+ *
+ * A point gets one sample per sun, point and spot light, stratified
+ * samples over the sky's upper hemisphere and over emissive triangles
+ * picked by power. Each sample carries what a surface facing it receives,
+ * with solid-angle and pdf weights folded in, so callers only add up
+ * visible samples (shadow.c decides visibility). Emitter samples also carry
+ * their pdf for multiple importance sampling against the callers' own
+ * cosine or sphere rays (gi__emitter_ray). */
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+#include "scene/lights.h"
+
+gi_light_plan gi__light_plan(const gi_bake_report *r, int samples) {
+  gi_light_plan lp = {
+      .sun = r->effects[GI_FX_SUN].ran,
+      .local = r->effects[GI_FX_LOCAL].ran,
+      .sky = r->effects[GI_FX_SKY].ran,
+      .emissive = r->effects[GI_FX_EMISSIVE].ran,
+      .sky_samples = samples,
+      .emit_samples = samples,
+  };
+  return lp;
+}
+
+void gi__sky_radiance(const gi_scene *s, float out[3]) {
+  out[0] = out[1] = out[2] = 0;
+  for (uint32_t i = 0; i < s->num_lights; i++)
+    if (s->lights[i].type == GI_LIGHT_SKY)
+      for (int k = 0; k < 3; k++) out[k] += s->lights[i].color[k];
+}
+
+int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
+                      gi_lsample *out, int max) {
+  int n = 0;
+  const float *up_axis = s->up == GI_UP_Z ? (const float[3]){0, 0, 1} : (const float[3]){0, 1, 0};
+  for (uint32_t i = 0; i < s->num_lights && n < max; i++) {
+    const gi_light *l = &s->lights[i];
+    gi_lsample *o = &out[n];
+    if (l->type == GI_LIGHT_SUN) {
+      if (!lp->sun) continue;
+      for (int k = 0; k < 3; k++) o->w[k] = -l->direction[k];
+      o->dist = INFINITY;
+      memcpy(o->V, l->color, sizeof o->V);
+      o->fx = GI_FX_SUN;
+      o->mpl = 0;
+      n++;
+    } else if (l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) {
+      if (!lp->local) continue;
+      float v[3];
+      for (int k = 0; k < 3; k++) v[k] = (float)(l->position[k] - s->origin[k]) - p[k];
+      float r2 = gi__dot(v, v);
+      if (!(r2 > 1e-12f)) continue;
+      float r = sqrtf(r2);
+      for (int k = 0; k < 3; k++) o->w[k] = v[k] / r;
+      float f = 1.0f;
+      if (l->type == GI_LIGHT_SPOT) {
+        float c = -gi__dot(o->w, l->direction);
+        if (c <= l->cos_outer) continue;
+        if (c < l->cos_inner) {
+          float t = (c - l->cos_outer) / fmaxf(l->cos_inner - l->cos_outer, 1e-6f);
+          f = t * t * (3 - 2 * t);
+        }
+      }
+      o->dist = r;
+      for (int k = 0; k < 3; k++) o->V[k] = f * l->color[k] / r2;
+      o->fx = GI_FX_LOCAL;
+      o->mpl = 0;
+      n++;
+    } else if (l->type == GI_LIGHT_SKY && lp->sky && lp->sky_samples > 0) {
+      /* Upper hemisphere, stratified in cos(theta) and azimuth, uniform pdf 1 / (2 pi). */
+      int m = lp->sky_samples;
+      float t[3], b[3];
+      gi__basis(up_axis, t, b);
+      float rot = gi__u01(rng);
+      for (int j = 0; j < m && n < max; j++) {
+        float ct = ((float)j + gi__u01(rng)) / (float)m;
+        float st = sqrtf(fmaxf(0.f, 1 - ct * ct));
+        float phi = 2 * GI_PI_F * ((float)j * 0.6180339887f + rot);
+        float cp = cosf(phi), sp = sinf(phi);
+        gi_lsample *q = &out[n++];
+        for (int k = 0; k < 3; k++) q->w[k] = st * cp * t[k] + st * sp * b[k] + ct * up_axis[k];
+        q->dist = INFINITY;
+        for (int k = 0; k < 3; k++) q->V[k] = l->color[k] * 2 * GI_PI_F / (float)m;
+        q->fx = GI_FX_SKY;
+        q->mpl = 0;
+      }
+    }
+  }
+  if (lp->emissive && s->num_emitters > 0) {
+    int m = lp->emit_samples;
+    for (int j = 0; j < m && n < max; j++) {
+      float u = ((float)j + gi__u01(rng)) / (float)m;
+      /* Pick a triangle by power: binary search in the cdf. */
+      uint32_t lo = 0, hi = s->num_emitters - 1;
+      while (lo < hi) {
+        uint32_t mid = (lo + hi) / 2;
+        if (s->emitter_cdf[mid] < u) lo = mid + 1;
+        else hi = mid;
+      }
+      float pt = s->emitter_cdf[lo] - (lo ? s->emitter_cdf[lo - 1] : 0.f);
+      if (!(pt > 0)) continue;
+      uint32_t tri = s->emitter_tri[lo];
+      const uint32_t *ix = &s->indices[3 * tri];
+      const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+      float r1 = gi__u01(rng), r2 = gi__u01(rng);
+      float sr = sqrtf(r1), ba = 1 - sr, bb = sr * (1 - r2), bc = sr * r2;
+      float e1[3], e2[3], ng[3], y[3], v[3];
+      for (int k = 0; k < 3; k++) {
+        e1[k] = B[k] - A[k];
+        e2[k] = C[k] - A[k];
+        y[k] = ba * A[k] + bb * B[k] + bc * C[k];
+        v[k] = y[k] - p[k];
+      }
+      gi__cross(e1, e2, ng);
+      float area2 = gi__len(ng);
+      if (!(area2 > 0)) continue;
+      float r2d = gi__dot(v, v);
+      if (!(r2d > 0)) continue;
+      float r = sqrtf(r2d);
+      gi_lsample *q = &out[n];
+      for (int k = 0; k < 3; k++) q->w[k] = v[k] / r;
+      /* Emitters are one-sided, facing their winding normal. */
+      float cos_e = -gi__dot(ng, q->w) / area2;
+      if (cos_e <= 0) continue;
+      float area = 0.5f * area2;
+      float pdf_area = pt / area;
+      const float *Le = s->materials[s->tri_material[tri]].emission;
+      float k0 = cos_e / (r2d * pdf_area * (float)m);
+      for (int k = 0; k < 3; k++) q->V[k] = Le[k] * k0;
+      q->mpl = (float)m * pdf_area * r2d / cos_e;
+      q->dist = r;
+      q->fx = GI_FX_EMISSIVE;
+      n++;
+    }
+  }
+  return n;
+}
+
+float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int m) {
+  /* emitter_tri is ascending: binary search for the triangle's cdf slot. */
+  uint32_t lo = 0, hi = s->num_emitters;
+  while (lo < hi) {
+    uint32_t mid = (lo + hi) / 2;
+    if (s->emitter_tri[mid] < tri) lo = mid + 1;
+    else hi = mid;
+  }
+  if (lo >= s->num_emitters || s->emitter_tri[lo] != tri || !(cos_e > 0)) return 0;
+  float pt = s->emitter_cdf[lo] - (lo ? s->emitter_cdf[lo - 1] : 0.f);
+  const uint32_t *ix = &s->indices[3 * tri];
+  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+  float e1[3], e2[3], ng[3];
+  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+  gi__cross(e1, e2, ng);
+  float area = 0.5f * gi__len(ng);
+  if (!(area > 0)) return 0;
+  return (float)m * (pt / area) * t * t / cos_e;
+}
+
+static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
+  const float *Le = s->materials[s->tri_material[tri]].emission;
+  if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0)) return 0;
+  const uint32_t *ix = &s->indices[3 * tri];
+  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+  float e1[3], e2[3], ng[3];
+  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+  gi__cross(e1, e2, ng);
+  float l = gi__len(ng);
+  if (!(l > 0)) return 0;
+  *cos_e = -gi__dot(ng, w) / l;
+  return *cos_e > 0;
+}
+
+int gi__emitter_ray(const gi_scene *s, const float o[3], const float w[3], float tnear, int m_light,
+                    float pb, float out[3]) {
+  float th, ng[3], ce;
+  uint32_t tri;
+  if (!(pb > 0) || !gi__intersect1(s, o, w, tnear, INFINITY, &th, &tri, ng)) return 0;
+  if (!emitter_hit(s, tri, w, &ce)) return 0;
+  float mpl = gi__emitter_mpl(s, tri, th, ce, m_light);
+  const float *Le = s->materials[s->tri_material[tri]].emission;
+  for (int k = 0; k < 3; k++) out[k] = Le[k] / (mpl + pb);
+  return 1;
+}

@@ -1,0 +1,52 @@
+/* lights.h: the light sampler and the shadow-ray rule (scene/lights.c,
+ * scene/shadow.c). Read-only on the scene: thread-safe. */
+#ifndef GI_LIGHTS_H
+#define GI_LIGHTS_H
+
+#include "gi/gi_bake.h"
+#include "scene/scene_internal.h"
+
+/* One light sample seen from a point: direction w (unit, local), distance
+ * to the light (INFINITY for sun and sky) and V, such that a surface with
+ * unit normal m receives irradiance V * max(0, m.w) from it when visible.
+ * Solid-angle and pdf weights are folded into V. */
+typedef struct gi_lsample {
+  float w[3];
+  float dist;
+  float V[3];
+  float mpl;           /* emitters: sample count times solid-angle pdf, for MIS; else 0 */
+  uint8_t fx;          /* gi_effect_id of the light kind */
+} gi_lsample;
+/* Solid-angle pdf (times the light-sample count m) of reaching emissive
+ * triangle tri along a ray of length t meeting it at cosine cos_e. */
+float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int m);
+/* MIS companion of emitter light sampling: traces o + t w (t > tnear); when
+ * it meets an emitter's front, out = Le / (mpl + pb) with mpl the light
+ * strategy's pdf for that point (m_light samples) and pb the caller's own
+ * pdf times its sample count. Returns 0 (out untouched) otherwise. */
+int gi__emitter_ray(const gi_scene *s, const float o[3], const float w[3], float tnear, int m_light,
+                    float pb, float out[3]);
+/* Which light kinds to sample, and how many rays for sky and emitters. */
+typedef struct gi_light_plan {
+  int sun, local, sky, emissive;
+  int sky_samples, emit_samples;
+} gi_light_plan;
+/* The light kinds the effect plan of report r enabled, with `samples` rays
+ * for sky and emitters. */
+gi_light_plan gi__light_plan(const gi_bake_report *r, int samples);
+/* Per-thread buffers for one batch of light samples and their shadow rays. */
+typedef struct gi_ray_scratch {
+  int cap;
+  gi_lsample *ls;
+  float *org, *dir, *tn, *tf;  /* 3, 3, 1, 1 floats per ray */
+  uint8_t *vis;
+} gi_ray_scratch;
+/* Allocates cap of each; 0 on success, -1 (everything freed) when out of memory. */
+int gi__scratch_alloc(gi_ray_scratch *sc, int cap);
+void gi__scratch_free(gi_ray_scratch *sc);
+/* Fills out (capacity max) with samples for point p; returns the count. */
+int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
+                      gi_lsample *out, int max);
+/* The sum of the scene's sky radiances: what a ray that escapes sees. */
+void gi__sky_radiance(const gi_scene *s, float out[3]);
+#endif
