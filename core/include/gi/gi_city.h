@@ -3,7 +3,9 @@
  * Same seed and size give the same triangles bit for bit on every machine
  * (integer PRNG, no libm calls in the layout). Y is up, metres. Streets on
  * a grid, blocks of buildings with varied heights and albedos, some
- * emissive windows and street lights; a sun and a sky. */
+ * emissive windows and street lights; a sun and a sky. The functions keep
+ * no state: they are thread-safe as long as each thread fills its own
+ * builder. The built scene is the caller's (gi_scene_release). */
 #ifndef GI_CITY_H
 #define GI_CITY_H
 

@@ -2,7 +2,8 @@
  *
  * A Monte Carlo path tracer on the scene's Embree BVH, with the same
  * triangles, materials and lights (sun, point, spot, sky, emissive
- * triangles) as the bake, sampled through the same light-sampling code.
+ * triangles) as the bake, sampled by code of its own (reference/), so a
+ * sampling bug in the bake does not cancel out of a comparison.
  * Surfaces are two-sided: a Lambertian lobe (albedo) plus, on glossy
  * materials (roughness < 0.5, specular > 0), a normalised Phong lobe of
  * weight `specular` around the mirror direction, with the exponent the
@@ -27,6 +28,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "gi_error.h"
+#include "gi_camera.h"
 #include "gi_scene.h"
 
 #ifdef __cplusplus
@@ -61,6 +63,18 @@ typedef struct gi_ref_probe {
 gi_result gi_reference_irradiance(const gi_scene *scene, const double *pts, size_t n,
                                   const gi_reference_opts *opts, gi_ref_probe *out, double *ms,
                                   gi_error_info *err);
+
+/* Path-traces the same view with spp paths per pixel (1..1048576; same
+ * materials and lights as gi_reference_irradiance: a Lambertian lobe plus,
+ * on glossy materials, the Phong lobe the specular cone stands for).
+ * Same as gi_reference_render_ex with those fields set. */
+gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
+                              float *rgb, double *ms, gi_error_info *err);
+
+/* gi_reference_render with options (opts may be NULL); *ms (may be NULL)
+ * receives the wall clock. */
+gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                                 double *ms, gi_error_info *err);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,71 @@
+/* gi_cascade.h: bake the light around a viewpoint.
+ *
+ * gi_cascade_bake builds the cascaded voxel texture around a viewpoint
+ * (voxelize, inject direct light, bounce): the expensive, cacheable part.
+ * Answers come from it (gi_probe.h, gi_render.h, gi_output.h).
+ *
+ * Ownership: the caller owns a baked cascade until gi_cascade_free. The
+ * cascade retains its scene (gi_scene_retain) until it is freed, so the
+ * caller may release the scene right after the bake. A baked cascade is
+ * read-only: any number of threads may read it at once; it must not be
+ * freed while a reader runs. gi_cascade_report's pointer lives as long as
+ * the cascade.
+ *
+ * Units: irradiance in the scene's radiometric unit (W m^-2 for physical
+ * inputs); positions in world coordinates (double). */
+#ifndef GI_CASCADE_H
+#define GI_CASCADE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "gi_error.h"
+#include "gi_quality.h"
+#include "gi_scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Per-stage wall-clock milliseconds. */
+typedef struct gi_timings {
+  double voxelize, inject, bounce, filter, gather, encode;
+} gi_timings;
+
+/* What one bake did: counts for reports, tests and benchmarks. */
+typedef struct gi_bake_report {
+  gi_quality quality;          /* with every default resolved */
+  gi_effect effects[GI_FX_COUNT];
+  gi_timings ms;
+  int levels;
+  double voxel_size[GI_MAX_LEVELS];
+  double level_origin[GI_MAX_LEVELS][3]; /* world min corner of each level's box */
+  uint64_t occupied[GI_MAX_LEVELS];      /* voxels holding geometry, per level */
+  uint64_t triangles_visited;            /* triangle/level pairs from the BVH query */
+  uint64_t shadow_rays;
+  uint64_t cone_samples;
+  size_t cascade_bytes;
+  int bounces_run;
+  uint32_t glossy_triangles;             /* glossy triangles inside the cascade: a camera
+                                            view's specular pass runs on auto when > 0 */
+} gi_bake_report;
+
+typedef struct gi_cascade gi_cascade;
+
+/* The snapped placement of the cascade baked at `at` with a resolved
+ * quality: two viewpoints with equal anchors (same scene and quality) give
+ * bit-identical cascades, so the anchor is a cache key. Thread-safe. */
+gi_result gi_cascade_anchor(const gi_scene *scene, const double at[3], const gi_quality *resolved,
+                            int64_t anchor[3], gi_error_info *err);
+
+/* Builds the cascade around `at` (world) and lights it. q may be NULL
+ * (defaults). On success the caller owns *out (gi_cascade_free). */
+gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_quality *q,
+                          gi_cascade **out, gi_bake_report *report, gi_error_info *err);
+void gi_cascade_free(gi_cascade *c); /* accepts NULL */
+size_t gi_cascade_bytes(const gi_cascade *c);
+const gi_bake_report *gi_cascade_report(const gi_cascade *c);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
