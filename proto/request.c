@@ -272,6 +272,88 @@ static int json_vec3(const json_t *a, double out[3]) {
   return 0;
 }
 
+/* The body's fields are these and no others. */
+static int probes_check_fields(json_t *root, gi_proto_error *err) {
+  const char *key;
+  json_t *v;
+  json_object_foreach(root, key, v) {
+    if (strcmp(key, "points") && strcmp(key, "at") && strcmp(key, "quality") && strcmp(key, "half") &&
+        strcmp(key, "ao"))
+      return gi_proto_fail(err, 400, "body: unknown field '%.64s' (expected points, at, quality, half, ao)", key);
+  }
+  return 0;
+}
+
+/* 'points': a non-empty array of [x,y,z] within the job limit, into out. */
+static int probes_points(json_t *root, const gi_proto_limits *lim, gi_proto_probes *out, gi_proto_error *err) {
+  json_t *pts = json_object_get(root, "points");
+  if (!json_is_array(pts) || json_array_size(pts) == 0)
+    return gi_proto_fail(err, 400, "body: 'points' must be a non-empty array of [x,y,z]");
+  size_t n = json_array_size(pts);
+  if (n > lim->max_probes_job)
+    return gi_proto_fail(err, 413, "body: %zu points exceed the server limit of %zu", n, lim->max_probes_job);
+  out->points = malloc(3 * n * sizeof(double));
+  if (!out->points) return gi_proto_fail(err, 500, "body: out of memory for %zu points", n);
+  for (size_t i = 0; i < n; i++)
+    if (json_vec3(json_array_get(pts, i), &out->points[3 * i]))
+      return gi_proto_fail(err, 400, "body: points[%zu]: expected an array of 3 finite numbers", i);
+  out->num_points = n;
+  return 0;
+}
+
+/* 'at', 'half' and 'ao'. */
+static int probes_flags(json_t *root, gi_proto_bake *b, gi_proto_error *err) {
+  json_t *v;
+  if ((v = json_object_get(root, "at"))) {
+    if (json_vec3(v, b->at)) return gi_proto_fail(err, 400, "body: 'at': expected an array of 3 finite numbers");
+    b->has_at = 1;
+  }
+  for (int f = 0; f < 2; f++) {
+    const char *name = f ? "ao" : "half";
+    if (!(v = json_object_get(root, name))) continue;
+    if (!json_is_boolean(v)) return gi_proto_fail(err, 400, "body: '%s': expected true or false", name);
+    if (f) b->quality.ao = json_is_true(v);
+    else b->half = json_is_true(v);
+  }
+  return 0;
+}
+
+/* One knob of a 'quality' object (not the preset). */
+static int probes_knob(gi_proto_bake *b, const char *key, json_t *x, const gi_proto_limits *lim,
+                       gi_proto_error *err) {
+  char where[96];
+  snprintf(where, sizeof where, "body: quality.%.64s", key);
+  if (!strcmp(key, "effects")) {
+    if (!json_is_string(x)) return gi_proto_fail(err, 400, "%s: expected a string NAME:on|off|auto[,...]", where);
+    return set_effects(&b->quality, json_string_value(x), err, where) ? err->status : 0;
+  }
+  double num;
+  if (json_is_boolean(x) && !strcmp(key, "ao")) num = json_is_true(x);
+  else if (json_is_number(x)) num = json_number_value(x);
+  else return gi_proto_fail(err, 400, "%s: expected a number", where);
+  return set_knob(&b->quality, key, num, lim, err, where) ? err->status : 0;
+}
+
+/* 'quality': a preset name, or an object of knobs with an optional preset
+ * applied first. */
+static int probes_quality(json_t *root, gi_proto_bake *b, const gi_proto_limits *lim, gi_proto_error *err) {
+  json_t *v = json_object_get(root, "quality");
+  if (!v) return 0;
+  if (json_is_string(v))
+    return set_preset(&b->quality, json_string_value(v), err, "body: 'quality'") ? err->status : 0;
+  if (!json_is_object(v))
+    return gi_proto_fail(err, 400, "body: 'quality': expected low|default|high or an object of knobs");
+  json_t *preset = json_object_get(v, "preset");
+  if (preset && !json_is_string(preset)) return gi_proto_fail(err, 400, "body: quality.preset: expected a string");
+  if (preset && set_preset(&b->quality, json_string_value(preset), err, "body: quality.preset")) return err->status;
+  const char *key;
+  json_t *x;
+  json_object_foreach(v, key, x) {
+    if (strcmp(key, "preset") && probes_knob(b, key, x, lim, err)) return err->status;
+  }
+  return 0;
+}
+
 int gi_proto_parse_probes(const char *body, size_t len, const gi_proto_limits *lim, gi_proto_probes *out,
                           gi_proto_error *err) {
   memset(out, 0, sizeof *out);
@@ -280,108 +362,12 @@ int gi_proto_parse_probes(const char *body, size_t len, const gi_proto_limits *l
   json_error_t je;
   json_t *root = json_loadb(body ? body : "", len, JSON_REJECT_DUPLICATES, &je);
   if (!root) return gi_proto_fail(err, 400, "body: line %d column %d: %s", je.line, je.column, je.text);
-  int rc = 0;
-  if (!json_is_object(root)) {
-    rc = gi_proto_fail(err, 400, "body: expected a JSON object with 'points'");
-    goto done;
-  }
-  const char *key;
-  json_t *v;
-  json_object_foreach(root, key, v) {
-    if (strcmp(key, "points") && strcmp(key, "at") && strcmp(key, "quality") && strcmp(key, "half") &&
-        strcmp(key, "ao")) {
-      rc = gi_proto_fail(err, 400, "body: unknown field '%.64s' (expected points, at, quality, half, ao)", key);
-      goto done;
-    }
-  }
-  json_t *pts = json_object_get(root, "points");
-  if (!json_is_array(pts) || json_array_size(pts) == 0) {
-    rc = gi_proto_fail(err, 400, "body: 'points' must be a non-empty array of [x,y,z]");
-    goto done;
-  }
-  size_t n = json_array_size(pts);
-  if (n > lim->max_probes_job) {
-    rc = gi_proto_fail(err, 413, "body: %zu points exceed the server limit of %zu", n, lim->max_probes_job);
-    goto done;
-  }
-  out->points = malloc(3 * n * sizeof(double));
-  if (!out->points) {
-    rc = gi_proto_fail(err, 500, "body: out of memory for %zu points", n);
-    goto done;
-  }
-  for (size_t i = 0; i < n; i++)
-    if (json_vec3(json_array_get(pts, i), &out->points[3 * i])) {
-      rc = gi_proto_fail(err, 400, "body: points[%zu]: expected an array of 3 finite numbers", i);
-      goto done;
-    }
-  out->num_points = n;
-  gi_proto_bake *b = &out->bake;
-  b->kind = GI_PROTO_PROBE;
-  if ((v = json_object_get(root, "at"))) {
-    if (json_vec3(v, b->at)) {
-      rc = gi_proto_fail(err, 400, "body: 'at': expected an array of 3 finite numbers");
-      goto done;
-    }
-    b->has_at = 1;
-  }
-  for (int f = 0; f < 2; f++) {
-    const char *name = f ? "ao" : "half";
-    if (!(v = json_object_get(root, name))) continue;
-    if (!json_is_boolean(v)) {
-      rc = gi_proto_fail(err, 400, "body: '%s': expected true or false", name);
-      goto done;
-    }
-    if (f) b->quality.ao = json_is_true(v);
-    else b->half = json_is_true(v);
-  }
-  if ((v = json_object_get(root, "quality"))) {
-    if (json_is_string(v)) {
-      if (set_preset(&b->quality, json_string_value(v), err, "body: 'quality'")) {
-        rc = err->status;
-        goto done;
-      }
-    } else if (json_is_object(v)) {
-      json_t *preset = json_object_get(v, "preset");
-      if (preset && (!json_is_string(preset) ||
-                     set_preset(&b->quality, json_string_value(preset), err, "body: quality.preset"))) {
-        rc = json_is_string(preset) ? err->status
-                                    : gi_proto_fail(err, 400, "body: quality.preset: expected a string");
-        goto done;
-      }
-      json_t *x;
-      json_object_foreach(v, key, x) {
-        if (!strcmp(key, "preset")) continue;
-        char where[96];
-        snprintf(where, sizeof where, "body: quality.%.64s", key);
-        if (!strcmp(key, "effects")) {
-          if (!json_is_string(x)) {
-            rc = gi_proto_fail(err, 400, "%s: expected a string NAME:on|off|auto[,...]", where);
-            goto done;
-          }
-          if (set_effects(&b->quality, json_string_value(x), err, where)) {
-            rc = err->status;
-            goto done;
-          }
-          continue;
-        }
-        double num;
-        if (json_is_boolean(x) && !strcmp(key, "ao")) num = json_is_true(x);
-        else if (json_is_number(x)) num = json_number_value(x);
-        else {
-          rc = gi_proto_fail(err, 400, "%s: expected a number", where);
-          goto done;
-        }
-        if (set_knob(&b->quality, key, num, lim, err, where)) {
-          rc = err->status;
-          goto done;
-        }
-      }
-    } else {
-      rc = gi_proto_fail(err, 400, "body: 'quality': expected low|default|high or an object of knobs");
-      goto done;
-    }
-  }
-done:
+  int rc;
+  out->bake.kind = GI_PROTO_PROBE;
+  if (!json_is_object(root)) rc = gi_proto_fail(err, 400, "body: expected a JSON object with 'points'");
+  else if (!(rc = probes_check_fields(root, err)) && !(rc = probes_points(root, lim, out, err)) &&
+           !(rc = probes_flags(root, &out->bake, err)))
+    rc = probes_quality(root, &out->bake, lim, err);
   json_decref(root);
   if (rc) gi_proto_probes_free(out);
   return rc;
