@@ -53,9 +53,16 @@ static int parse_port(const char *s, int *out) {
   return 0;
 }
 
-int main(int argc, char **argv) {
-  const char *config = "configs/gi-server.ini", *port_file = NULL, *bind = NULL;
-  int port = -1, check = 0;
+/* What the command line asked for. */
+typedef struct server_args {
+  const char *config, *port_file, *bind;
+  int port;  /* -1: the config's */
+  int check; /* --check-config */
+} server_args;
+
+/* Parses argv into a. Returns -1 to go on, else the exit status (0 after
+ * --help or --version, 2 for bad arguments). */
+static int parse_args(int argc, char **argv, server_args *a) {
   static const struct option opts[] = {{"config", required_argument, NULL, 'c'},
                                        {"port", required_argument, NULL, 'p'},
                                        {"bind", required_argument, NULL, 'b'},
@@ -64,20 +71,21 @@ int main(int argc, char **argv) {
                                        {"version", no_argument, NULL, 'V'},
                                        {"help", no_argument, NULL, 'h'},
                                        {NULL, 0, NULL, 0}};
+  *a = (server_args){.config = "configs/gi-server.ini", .port = -1};
   opterr = 0;
   int o;
   while ((o = getopt_long(argc, argv, ":hV", opts, NULL)) != -1) {
     switch (o) {
-    case 'c': config = optarg; break;
+    case 'c': a->config = optarg; break;
     case 'p':
-      if (parse_port(optarg, &port)) {
+      if (parse_port(optarg, &a->port)) {
         fprintf(stderr, "gi-server: --port: expected 0..65535, got '%s'\n", optarg);
         return 2;
       }
       break;
-    case 'b': bind = optarg; break;
-    case 'f': port_file = optarg; break;
-    case 'k': check = 1; break;
+    case 'b': a->bind = optarg; break;
+    case 'f': a->port_file = optarg; break;
+    case 'k': a->check = 1; break;
     case 'V': printf("gi-server %s (%s)\n", GI_VERSION, GI_GIT_REV); return 0;
     case 'h': fputs(help_text, stdout); return 0;
     case ':': fprintf(stderr, "gi-server: %s needs a value\n", argv[optind - 1]); return 2;
@@ -88,102 +96,141 @@ int main(int argc, char **argv) {
     fprintf(stderr, "gi-server: unexpected argument '%s' (see --help)\n", argv[optind]);
     return 2;
   }
+  return -1;
+}
 
-  static gs_config cfg;
+/* Loads the config and applies what overrides it: --port, --bind,
+ * GI_SERVER_TOKEN, TMPDIR. Returns 0, or 1 after printing why not. */
+static int load_config(const server_args *a, gs_config *cfg) {
   char err[1200];
-  gs_config_defaults(&cfg);
-  if (gs_config_load(config, &cfg, err, sizeof err)) {
+  gs_config_defaults(cfg);
+  if (gs_config_load(a->config, cfg, err, sizeof err)) {
     fprintf(stderr, "gi-server: %s\n", err);
     return 1;
   }
-  if (port >= 0) cfg.port = port;
-  if (bind) snprintf(cfg.bind, sizeof cfg.bind, "%s", bind);
+  if (a->port >= 0) cfg->port = a->port;
+  if (a->bind) snprintf(cfg->bind, sizeof cfg->bind, "%s", a->bind);
   const char *tok = getenv("GI_SERVER_TOKEN");
   if (tok && *tok) {
-    if (strlen(tok) < 16 || strlen(tok) >= sizeof cfg.token) {
+    if (strlen(tok) < 16 || strlen(tok) >= sizeof cfg->token) {
       fprintf(stderr, "gi-server: GI_SERVER_TOKEN must be 16..255 characters\n");
       return 1;
     }
-    snprintf(cfg.token, sizeof cfg.token, "%s", tok);
+    snprintf(cfg->token, sizeof cfg->token, "%s", tok);
   }
-  if (!cfg.tmp_dir[0]) {
+  if (!cfg->tmp_dir[0]) {
     const char *t = getenv("TMPDIR");
-    snprintf(cfg.tmp_dir, sizeof cfg.tmp_dir, "%s", t && *t ? t : "/tmp");
+    snprintf(cfg->tmp_dir, sizeof cfg->tmp_dir, "%s", t && *t ? t : "/tmp");
   }
   struct stat st;
-  if (stat(cfg.tmp_dir, &st) != 0 || !S_ISDIR(st.st_mode) || access(cfg.tmp_dir, W_OK) != 0) {
-    fprintf(stderr, "gi-server: %s: [server] tmp_dir: '%s' is not a writable folder\n", cfg.path, cfg.tmp_dir);
+  if (stat(cfg->tmp_dir, &st) != 0 || !S_ISDIR(st.st_mode) || access(cfg->tmp_dir, W_OK) != 0) {
+    fprintf(stderr, "gi-server: %s: [server] tmp_dir: '%s' is not a writable folder\n", cfg->path, cfg->tmp_dir);
     return 1;
   }
-  if (cfg.num_scenes == 0) {
-    fprintf(stderr, "gi-server: %s: no [scene ID] sections: nothing to serve\n", cfg.path);
+  if (cfg->num_scenes == 0) {
+    fprintf(stderr, "gi-server: %s: no [scene ID] sections: nothing to serve\n", cfg->path);
     return 1;
   }
+  return 0;
+}
 
-  /* Signals go to one thread (sigwait below); every other thread blocks them. */
-  sigset_t sigs;
-  sigemptyset(&sigs);
-  sigaddset(&sigs, SIGINT);
-  sigaddset(&sigs, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+/* Signals go to one thread (sigwait in main); every other thread, started
+ * after this, blocks them. */
+static void block_signals(sigset_t *sigs) {
+  sigemptyset(sigs);
+  sigaddset(sigs, SIGINT);
+  sigaddset(sigs, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, sigs, NULL);
   signal(SIGPIPE, SIG_IGN);
+}
 
-  static gs_catalog cat;
-  if (gs_catalog_load(&cfg, &cat, err, sizeof err)) {
+/* Loads every scene of the config. Returns 0, or 1 after printing why not. */
+static int load_catalog(const gs_config *cfg, gs_catalog *cat) {
+  char err[1200];
+  if (gs_catalog_load(cfg, cat, err, sizeof err)) {
     fprintf(stderr, "gi-server: %s\n", err);
     return 1;
   }
-  if (cat.num == 0) {
-    fprintf(stderr, "gi-server: %s: every scene was optional and absent: nothing to serve\n", cfg.path);
+  if (cat->num == 0) {
+    fprintf(stderr, "gi-server: %s: every scene was optional and absent: nothing to serve\n", cfg->path);
     return 1;
   }
-  if (check) {
+  return 0;
+}
+
+/* Metrics, cache, worker pool and jobs. Returns 0, or 1 after printing why not. */
+static int start_service(gs_service *svc, const gs_config *cfg, const gs_catalog *cat) {
+  svc->cfg = cfg;
+  svc->cat = cat;
+  svc->start_ms = gs_now_ms();
+  svc->metrics = gs_metrics_new();
+  svc->cache = gs_cache_new(cfg->cache_bytes, svc->metrics);
+  svc->pool = gs_pool_new(cfg->workers, cfg->queue);
+  svc->jobs = svc->pool ? gs_jobs_new(svc) : NULL;
+  if (!svc->metrics || !svc->cache || !svc->pool || !svc->jobs) {
+    fprintf(stderr, "gi-server: cannot start the workers (out of memory or threads)\n");
+    return 1;
+  }
+  return 0;
+}
+
+/* The "listening" line and a curl command that works against this server. */
+static void announce(const gs_config *cfg, const gs_catalog *cat, int bound) {
+  const gs_scene *first = &cat->scenes[0];
+  printf("gi-server %s listening on http://%s:%d (%zu scene(s), %d workers, queue %d, cache %zu MiB%s)\n",
+         GI_VERSION, cfg->bind, bound, cat->num, cfg->workers, cfg->queue, cfg->cache_bytes >> 20,
+         cfg->token[0] ? ", bearer token required" : "");
+  printf("try: curl -o %s-probe.exr 'http://%s:%d/v1/scenes/%s/lighting?at=%.6g,%.6g,%.6g'%s\n", first->id,
+         cfg->bind, bound, first->id, first->default_at[0], first->default_at[1], first->default_at[2],
+         cfg->token[0] ? " -H \"Authorization: Bearer $TOKEN\"" : "");
+  fflush(stdout);
+}
+
+/* Stops accepting, lets running requests finish, frees everything. */
+static void stop_service(gs_http *h, gs_service *svc, gs_catalog *cat, gs_config *cfg) {
+  gs_http_stop(h);
+  gs_pool_free(svc->pool);
+  gs_jobs_free(svc->jobs);
+  gs_cache_free(svc->cache);
+  gs_metrics_free(svc->metrics);
+  gs_catalog_free(cat);
+  gs_config_free(cfg);
+}
+
+int main(int argc, char **argv) {
+  server_args args;
+  int rc = parse_args(argc, argv, &args);
+  if (rc >= 0) return rc;
+  static gs_config cfg;
+  if (load_config(&args, &cfg)) return 1;
+  sigset_t sigs;
+  block_signals(&sigs);
+  static gs_catalog cat;
+  if (load_catalog(&cfg, &cat)) return 1;
+  if (args.check) {
     printf("gi-server: %s is valid: %zu scene(s)\n", cfg.path, cat.num);
     gs_catalog_free(&cat);
     gs_config_free(&cfg);
     return 0;
   }
   static gs_service svc;
-  svc.cfg = &cfg;
-  svc.cat = &cat;
-  svc.start_ms = gs_now_ms();
-  svc.metrics = gs_metrics_new();
-  svc.cache = gs_cache_new(cfg.cache_bytes, svc.metrics);
-  svc.pool = gs_pool_new(cfg.workers, cfg.queue);
-  svc.jobs = svc.pool ? gs_jobs_new(&svc) : NULL;
-  if (!svc.metrics || !svc.cache || !svc.pool || !svc.jobs) {
-    fprintf(stderr, "gi-server: cannot start the workers (out of memory or threads)\n");
-    return 1;
-  }
+  if (start_service(&svc, &cfg, &cat)) return 1;
+  char err[1200];
   gs_http *h = gs_http_start(&svc, err, sizeof err);
   if (!h) {
     fprintf(stderr, "gi-server: %s\n", err);
     return 1;
   }
   int bound = gs_http_port(h);
-  if (port_file && write_port_file(port_file, bound)) {
-    fprintf(stderr, "gi-server: --port-file: cannot write '%s': %s\n", port_file, strerror(errno));
+  if (args.port_file && write_port_file(args.port_file, bound)) {
+    fprintf(stderr, "gi-server: --port-file: cannot write '%s': %s\n", args.port_file, strerror(errno));
     gs_http_stop(h);
     return 1;
   }
-  const gs_scene *first = &cat.scenes[0];
-  printf("gi-server %s listening on http://%s:%d (%zu scene(s), %d workers, queue %d, cache %zu MiB%s)\n",
-         GI_VERSION, cfg.bind, bound, cat.num, cfg.workers, cfg.queue, cfg.cache_bytes >> 20,
-         cfg.token[0] ? ", bearer token required" : "");
-  printf("try: curl -o %s-probe.exr 'http://%s:%d/v1/scenes/%s/lighting?at=%.6g,%.6g,%.6g'%s\n", first->id,
-         cfg.bind, bound, first->id, first->default_at[0], first->default_at[1], first->default_at[2],
-         cfg.token[0] ? " -H \"Authorization: Bearer $TOKEN\"" : "");
-  fflush(stdout);
-
+  announce(&cfg, &cat, bound);
   int sig = 0;
   sigwait(&sigs, &sig);
   fprintf(stderr, "gi-server: %s: finishing running requests, then stopping\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
-  gs_http_stop(h);
-  gs_pool_free(svc.pool);
-  gs_jobs_free(svc.jobs);
-  gs_cache_free(svc.cache);
-  gs_metrics_free(svc.metrics);
-  gs_catalog_free(&cat);
-  gs_config_free(&cfg);
+  stop_service(h, &svc, &cat, &cfg);
   return 0;
 }

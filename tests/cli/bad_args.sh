@@ -19,6 +19,20 @@ expect_usage --at city --at 1,2,inf
 expect_usage --at city --at "1,2,3,"
 expect_usage --at city --at 1e999,0,0
 expect_usage --levels city --levels 0
+# The tools' one number rule (tools/common/toolargs.h): a sign may only be
+# '-'; blanks, hex, trailing bytes and overflow are refused.
+expect_usage --levels city --levels +5
+expect_usage --levels city --levels " 5"
+expect_usage --levels city --levels 5x
+expect_usage --levels city --levels 0x10
+expect_usage --levels city --levels ""
+expect_usage --threads city --threads 99999999999999999999
+expect_usage --at city --at +1,2,3
+expect_usage --at city --at 0x1,2,3
+expect_usage --voxel city --voxel 1e999
+expect_usage --voxel city --voxel nan
+expect_usage --city-seed city --city-seed +3
+expect_usage --city-seed city --city-seed 18446744073709551616
 expect_usage --levels city --levels 13
 expect_usage --res city --res 30
 expect_usage --res city --res 4

@@ -37,6 +37,11 @@ expect_usage --timeout --timeout -3 health
 expect_usage --timeout --timeout nan health
 expect_usage --timeout --timeout inf health
 expect_usage --timeout --timeout 5s health
+# The tools' one number rule (tools/common/toolargs.h), as in gi-bake.
+expect_usage --timeout --timeout +5 health
+expect_usage --timeout --timeout " 5" health
+expect_usage --timeout --timeout 1e999 health
+expect_usage --timeout --timeout "" health
 expect_usage --token --token "a b" health
 expect_usage --token-file --token x --token-file "$T/tok" health
 printf '\n\n' > "$T/empty-token"
@@ -63,6 +68,14 @@ expect_usage "res" lighting city --at 1,2,3 --set res=0x20 -o "$O"
 expect_usage "voxel" lighting city --at 1,2,3 --set voxel=nan -o "$O"
 expect_usage "voxel" lighting city --at 1,2,3 --set voxel=-1 -o "$O"
 expect_usage "bounces" lighting city --at 1,2,3 --set bounces=-1 -o "$O"
+expect_usage "--set: levels" lighting city --at 1,2,3 --set levels=+3 -o "$O"
+expect_usage "--set: levels" lighting city --at 1,2,3 --set "levels= 3" -o "$O"
+expect_usage "--set: levels" lighting city --at 1,2,3 --set levels=3x -o "$O"
+expect_usage "--set: seed" lighting city --at 1,2,3 --set seed=99999999999999999999 -o "$O"
+expect_usage "--set: voxel" lighting city --at 1,2,3 --set voxel=+1 -o "$O"
+expect_usage "--set: voxel" lighting city --at 1,2,3 --set voxel=0x1 -o "$O"
+expect_usage "--set: voxel" lighting city --at 1,2,3 --set voxel=1e999 -o "$O"
+expect_usage --at lighting city --at +1,2,3 -o "$O"
 expect_usage "ao" lighting city --at 1,2,3 --set ao=yes -o "$O"
 # Checked by the contract's own parser (proto/request.c), in the server's words.
 expect_usage "parameter 'cones': expected 4, 6, 8, 16 or 32, got 5" lighting city --at 1,2,3 --set cones=5 -o "$O"

@@ -18,6 +18,7 @@
 #include <unistd.h>
 #include "acc.h"
 #include "gi/gi.h"
+#include "toolargs.h"
 
 #define REF_VERSION 2 /* bump when the path tracer changes: old caches are ignored (2: glossy lobe, sky seen) */
 
@@ -54,17 +55,7 @@ static void usage(FILE *f) {
           GI_SCENES_DIR);
 }
 
-static int parse_int(const char *name, const char *s, int lo, int hi, int *out) {
-  char *end;
-  errno = 0;
-  long v = strtol(s, &end, 10);
-  if (errno || *end || end == s || v < lo || v > hi) {
-    fprintf(stderr, "gi-accuracy: %s must be an integer in %d..%d, got '%s'\n", name, lo, hi, s);
-    return 0;
-  }
-  *out = (int)v;
-  return 1;
-}
+static ta_ctx ta = TA_CTX("gi-accuracy");
 
 static int takes_value(const char *a) {
   static const char *const v[] = {"--scenes", "--scenes-dir", "--out", "--md", "--png", "--notes",
@@ -94,8 +85,7 @@ static int parse_args(int argc, char **argv, opts *o) {
     } else if (!strcmp(a, "--no-views")) {
       no_views = 1;
     } else if (!has && takes_value(a)) {
-      fprintf(stderr, "gi-accuracy: %s needs a value\n", a);
-      return 2;
+      return ta_fail(&ta, NULL, "option '%s' needs a value", a);
     } else if (!strcmp(a, "--scenes")) list = argv[++i];
     else if (!strcmp(a, "--scenes-dir")) o->scenes_dir = argv[++i];
     else if (!strcmp(a, "--out")) o->out_dir = argv[++i];
@@ -103,18 +93,17 @@ static int parse_args(int argc, char **argv, opts *o) {
     else if (!strcmp(a, "--png")) o->png = argv[++i];
     else if (!strcmp(a, "--notes")) o->notes = argv[++i];
     else if (!strcmp(a, "--ref-samples")) {
-      if (!parse_int("--ref-samples", argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
+      if (ta_int(&ta, "--ref-samples", NULL, argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
     } else if (!strcmp(a, "--pt-max")) {
-      if (!parse_int("--pt-max", argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
+      if (ta_int(&ta, "--pt-max", NULL, argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
     } else if (!strcmp(a, "--repeat")) {
-      if (!parse_int("--repeat", argv[++i], 1, 20, &g_repeat)) return 2;
+      if (ta_int(&ta, "--repeat", NULL, argv[++i], 1, 20, &g_repeat)) return 2;
     } else if (!strcmp(a, "--view-samples")) {
-      if (!parse_int("--view-samples", argv[++i], 8, 1 << 20, &o->view_spp)) return 2;
+      if (ta_int(&ta, "--view-samples", NULL, argv[++i], 8, 1 << 20, &o->view_spp)) return 2;
     } else if (!strcmp(a, "--threads")) {
-      if (!parse_int("--threads", argv[++i], 0, 256, &o->threads)) return 2;
+      if (ta_int(&ta, "--threads", NULL, argv[++i], 0, 256, &o->threads)) return 2;
     } else {
-      fprintf(stderr, "gi-accuracy: unknown argument '%s' (see --help)\n", a);
-      return 2;
+      return ta_fail(&ta, NULL, "unknown argument '%s'", a);
     }
   }
   char buf[64];

@@ -5,9 +5,10 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "gi/gi.h"
+#include "toolargs.h"
 
 /* Exit codes: 0 success, 1 the work failed (scene, bake, I/O), 2 usage. */
-enum { EXIT_RUN = 1, EXIT_USAGE = 2 };
+enum { EXIT_RUN = TA_EXIT_RUN, EXIT_USAGE = TA_EXIT_USAGE };
 
 #define CLI_MAX_LIGHTS 64
 
@@ -61,8 +62,6 @@ typedef struct cli_run {
  * stdout. Returns 0, or EXIT_RUN after an internal error (a non-finite
  * number, which must never reach the output). */
 int cli_report(const cli_run *r, int json);
-
-const char *cli_version(void);
 
 /* render.c: the --render pictures (cone-traced, path-traced, error) to
  * o->png and/or o->exr; fills st with what it measured. Returns 0,

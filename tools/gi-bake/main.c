@@ -34,6 +34,77 @@ static int fail(const char *what, const gi_error_info *err, gi_result rc) {
   return EXIT_RUN;
 }
 
+/* Loads the scene file, or builds the city, with the command line's lights. */
+static int load_scene(const cli_opts *o, gi_scene **scene) {
+  gi_error_info err = {0};
+  gi_scene_options so;
+  memset(&so, 0, sizeof so);
+  so.up = o->up ? (gi_up_axis)o->up : GI_UP_Y;
+  so.threads = o->q.threads;
+  so.lights = o->num_lights ? o->lights : NULL;
+  so.num_lights = o->num_lights;
+  so.default_lights = !o->no_default_lights;
+  gi_result r = o->is_city ? gi_city_build(&o->city, &so, scene, &err) : gi_scene_load(o->scene, &so, scene, &err);
+  return r == GI_OK ? 0 : fail(o->is_city ? "city" : "scene", &err, r);
+}
+
+/* Without --at: the city's street corner, or the centre of the bounds (said
+ * on stderr). With --at outside the bounds: a note, usually a wrong --up or unit. */
+static void choose_viewpoint(cli_opts *o, const gi_scene *scene) {
+  double lo[3], hi[3];
+  gi_scene_bounds(scene, lo, hi);
+  if (!o->have_at) {
+    if (o->is_city) {
+      gi_city_default_viewpoint(&o->city, o->at);
+    } else {
+      for (int k = 0; k < 3; k++) o->at[k] = 0.5 * (lo[k] + hi[k]);
+      fprintf(stderr, "gi-bake: no --at given; baking at the centre of the scene bounds (%.9g, %.9g, %.9g)\n",
+              o->at[0], o->at[1], o->at[2]);
+    }
+    return;
+  }
+  int inside = 1;
+  for (int k = 0; k < 3; k++) inside &= o->at[k] >= lo[k] && o->at[k] <= hi[k];
+  /* Still a valid request, so only a note. */
+  if (!inside)
+    fprintf(stderr, "gi-bake: note: --at (%g, %g, %g) lies outside the scene bounds (%g, %g, %g) .. (%g, %g, %g)\n",
+            o->at[0], o->at[1], o->at[2], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
+}
+
+/* The gather points, viewpoint first, then --probes; and room for their probes. */
+static int make_points(const cli_opts *o, double **pts, gi_probe **probes, size_t *n) {
+  *n = 1 + o->num_probes;
+  *pts = malloc(*n * 3 * sizeof **pts);
+  *probes = calloc(*n, sizeof **probes);
+  if (!*pts || !*probes) {
+    fprintf(stderr, "gi-bake: out of memory for %zu probes\n", *n);
+    return EXIT_RUN;
+  }
+  memcpy(*pts, o->at, sizeof o->at);
+  if (o->num_probes) memcpy(*pts + 3, o->probes, o->num_probes * 3 * sizeof **pts);
+  return 0;
+}
+
+/* --render pictures, then the probe EXR and the VDB. */
+static int write_outputs(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, const gi_probe *probes,
+                         size_t n, const gi_bake_report *rep, cli_render_stats *rs) {
+  gi_error_info err = {0};
+  gi_result r;
+  int rc;
+  if (o->render) {
+    if ((rc = cli_render(o, scene, cas, rs)) != 0) return rc;
+    fprintf(stderr, "gi-bake: render %d x %d: cone-traced %.1f ms (%llu specular cones), path-traced (%d "
+                    "paths/pixel) %.1f ms, mean relative error %.1f%%%s%s\n", rs->width, rs->height, rs->cone_ms,
+            (unsigned long long)rs->view.specular_cones, rs->spp, rs->path_ms, 100 * rs->mre, o->png ? ", wrote " : "",
+            o->png ? o->png : "");
+  }
+  if (o->exr && !o->render &&
+      (r = gi_probes_write_exr(o->exr, probes, n, scene, o->at, rep, o->half, &err)) != GI_OK)
+    return fail("--exr", &err, r);
+  if (o->vdb && (r = gi_cascade_write_vdb(cas, o->vdb, o->vdb_faces, &err)) != GI_OK) return fail("--vdb", &err, r);
+  return 0;
+}
+
 int main(int argc, char **argv) {
   cli_opts o;
   int rc = cli_parse(argc, argv, &o);
@@ -46,55 +117,16 @@ int main(int argc, char **argv) {
   gi_cascade *cas = NULL;
   gi_probe *probes = NULL;
   double *pts = NULL;
+  size_t n = 0;
   gi_error_info err;
   memset(&err, 0, sizeof err);
   gi_result r;
 
   double t_start = now_ms();
-  gi_scene_options so;
-  memset(&so, 0, sizeof so);
-  so.up = o.up ? (gi_up_axis)o.up : GI_UP_Y;
-  so.threads = o.q.threads;
-  so.lights = o.num_lights ? o.lights : NULL;
-  so.num_lights = o.num_lights;
-  so.default_lights = !o.no_default_lights;
-  if (o.is_city) r = gi_city_build(&o.city, &so, &scene, &err);
-  else r = gi_scene_load(o.scene, &so, &scene, &err);
-  if (r != GI_OK) {
-    rc = fail(o.is_city ? "city" : "scene", &err, r);
-    goto done;
-  }
+  if ((rc = load_scene(&o, &scene))) goto done;
   double load_ms = now_ms() - t_start;
-
-  double lo[3], hi[3];
-  gi_scene_bounds(scene, lo, hi);
-  if (!o.have_at) {
-    if (o.is_city) {
-      gi_city_default_viewpoint(&o.city, o.at);
-    } else {
-      for (int k = 0; k < 3; k++) o.at[k] = 0.5 * (lo[k] + hi[k]);
-      fprintf(stderr, "gi-bake: no --at given; baking at the centre of the scene bounds (%.9g, %.9g, %.9g)\n",
-              o.at[0], o.at[1], o.at[2]);
-    }
-  } else {
-    int inside = 1;
-    for (int k = 0; k < 3; k++) inside &= o.at[k] >= lo[k] && o.at[k] <= hi[k];
-    /* Usually a wrong --up or unit; still a valid request, so only a note. */
-    if (!inside)
-      fprintf(stderr, "gi-bake: note: --at (%g, %g, %g) lies outside the scene bounds (%g, %g, %g) .. (%g, %g, %g)\n",
-              o.at[0], o.at[1], o.at[2], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
-  }
-
-  size_t n = 1 + o.num_probes;
-  pts = malloc(n * 3 * sizeof *pts);
-  probes = calloc(n, sizeof *probes);
-  if (!pts || !probes) {
-    fprintf(stderr, "gi-bake: out of memory for %zu probes\n", n);
-    rc = EXIT_RUN;
-    goto done;
-  }
-  memcpy(pts, o.at, sizeof o.at);
-  if (o.num_probes) memcpy(pts + 3, o.probes, o.num_probes * 3 * sizeof *pts);
+  choose_viewpoint(&o, scene);
+  if ((rc = make_points(&o, &pts, &probes, &n))) goto done;
 
   gi_bake_report rep;
   memset(&rep, 0, sizeof rep);
@@ -111,21 +143,7 @@ int main(int argc, char **argv) {
   double t_enc = now_ms();
   cli_render_stats rs;
   memset(&rs, 0, sizeof rs);
-  if (o.render) {
-    if ((rc = cli_render(&o, scene, cas, &rs)) != 0) goto done;
-    fprintf(stderr, "gi-bake: render %d x %d: cone-traced %.1f ms (%llu specular cones), path-traced (%d "
-                    "paths/pixel) %.1f ms, mean relative error %.1f%%%s%s\n", rs.width, rs.height, rs.cone_ms,
-            (unsigned long long)rs.view.specular_cones, rs.spp, rs.path_ms, 100 * rs.mre, o.png ? ", wrote " : "",
-            o.png ? o.png : "");
-  }
-  if (o.exr && !o.render && (r = gi_probes_write_exr(o.exr, probes, n, scene, o.at, &rep, o.half, &err)) != GI_OK) {
-    rc = fail("--exr", &err, r);
-    goto done;
-  }
-  if (o.vdb && (r = gi_cascade_write_vdb(cas, o.vdb, o.vdb_faces, &err)) != GI_OK) {
-    rc = fail("--vdb", &err, r);
-    goto done;
-  }
+  if ((rc = write_outputs(&o, scene, cas, probes, n, &rep, &rs))) goto done;
   double encode_ms = now_ms() - t_enc;
   rep.ms.gather = gather_ms;
   rep.ms.encode = encode_ms;

@@ -164,7 +164,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(out, "exr", r->o->exr ? json_string(r->o->exr) : json_null());
   json_object_set_new(out, "vdb", r->o->vdb ? json_string(r->o->vdb) : json_null());
   json_object_set_new(root, "outputs", out);
-  json_object_set_new(root, "version", json_string(cli_version()));
+  json_object_set_new(root, "version", json_string(ta_version()));
   return root;
 }
 
@@ -176,7 +176,7 @@ static void print_human(const cli_run *r) {
   gi_scene_bounds(r->scene, lo, hi);
   const char *name = gi_scene_name(r->scene);
 
-  printf("gi-bake %s\n", cli_version());
+  printf("gi-bake %s\n", ta_version());
   printf("scene      %s: %llu triangles kept of %llu (dropped %llu non-finite, %llu degenerate)\n",
          name && *name ? name : r->o->scene, (unsigned long long)st.triangles,
          (unsigned long long)st.input_triangles, (unsigned long long)st.dropped_nonfinite,

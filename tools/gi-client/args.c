@@ -3,9 +3,10 @@
  * Design: options may come before or after COMMAND (getopt permutes), but
  * each command accepts only the options that mean something for it: an
  * option that would be ignored is an error, not a surprise. Numbers are
- * checked for form here (whole string consumed, finite, integer where the
- * server wants one); ranges that depend on the server's config (max_levels,
- * max_res, ...) are left to the server, which answers 400 naming the field.
+ * checked for form here by the tools' shared rule (tools/common/toolargs.h:
+ * plain decimals, whole string, finite, integer where the server wants
+ * one); ranges that depend on the server's config (max_levels, max_res, ...)
+ * are left to the server, which answers 400 naming the field.
  * Then the query goes through the contract's own parser (proto/request.c,
  * with the widest limits the core allows), so what the server would refuse
  * whatever its config (cones=5, res=30, width without a panorama) is refused
@@ -16,14 +17,12 @@
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 #include "client.h"
 #include "gi_proto.h"
-#include "gi/gi_points.h"
+#include "toolargs.h"
 
 #define MAX_POINTS ((size_t)1 << 24) /* the server's job limit is far below this */
 #define DEFAULT_SERVER "http://127.0.0.1:8080"
@@ -157,43 +156,7 @@ static const char help_text[] =
     "  gi-client cascades city --at 10,1.7,-4 --set levels=4 -o city.vdb\n"
     "  GI_TOKEN=s3cret gi-client probes city --points pts.txt -o probes.exr\n";
 
-static int usage_fail(const char *opt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static int usage_fail(const char *opt, const char *fmt, ...) {
-  va_list ap;
-  va_start(ap, fmt);
-  fprintf(stderr, "gi-client: %s%s", opt ? opt : "", opt ? ": " : "");
-  vfprintf(stderr, fmt, ap);
-  fputs("\nTry 'gi-client --help'.\n", stderr);
-  va_end(ap);
-  return EXIT_USAGE;
-}
-
-/* Splits s on commas into exactly n finite doubles. Returns 0 on success. */
-static int parse_doubles(const char *s, double *out, int n) {
-  const char *p = s;
-  for (int i = 0; i < n; i++) {
-    char *end;
-    errno = 0;
-    double v = strtod(p, &end);
-    if (end == p || errno == ERANGE || !isfinite(v)) return -1;
-    /* strtod skips leading blanks; refuse trailing ones and empty fields. */
-    if (*end != (i + 1 < n ? ',' : '\0')) return -1;
-    out[i] = v;
-    p = end + 1;
-  }
-  return 0;
-}
-
-/* A plain decimal integer in [lo, hi]: no sign games, no blanks, no hex. */
-static int parse_long(const char *s, long lo, long hi, long *out) {
-  if (!((*s >= '0' && *s <= '9') || (*s == '-' && s[1] >= '0' && s[1] <= '9'))) return -1;
-  char *end;
-  errno = 0;
-  long v = strtol(s, &end, 10);
-  if (*end || errno == ERANGE || v < lo || v > hi) return -1;
-  *out = v;
-  return 0;
-}
+static ta_ctx ta = TA_CTX("gi-client");
 
 /* "http://host[:port][/prefix]" or https; returns a copy without trailing '/'. */
 static char *check_server(const char *s) {
@@ -220,26 +183,20 @@ static int token_ok(const char *t) {
 
 static int read_token_file(gc_opts *o, const char *path) {
   FILE *f = fopen(path, "r");
-  if (!f) {
-    fprintf(stderr, "gi-client: --token-file: cannot open '%s': %s\n", path, strerror(errno));
-    return EXIT_RUN;
-  }
+  if (!f) return ta_error(&ta, EXIT_RUN, "--token-file", "cannot open '%s': %s", path, strerror(errno));
   char buf[4097];
   size_t n = fread(buf, 1, sizeof buf - 1, f);
   int err = ferror(f), more = !feof(f) && fgetc(f) != EOF;
   fclose(f);
-  if (err) {
-    fprintf(stderr, "gi-client: --token-file: cannot read '%s'\n", path);
-    return EXIT_RUN;
-  }
-  if (more) return usage_fail("--token-file", "'%s' is longer than %zu bytes", path, sizeof buf - 1);
+  if (err) return ta_error(&ta, EXIT_RUN, "--token-file", "cannot read '%s'", path);
+  if (more) return ta_fail(&ta, "--token-file", "'%s' is longer than %zu bytes", path, sizeof buf - 1);
   buf[n] = '\0';
   char *p = buf;
   while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
   while (n && (buf[n - 1] == ' ' || buf[n - 1] == '\t' || buf[n - 1] == '\r' || buf[n - 1] == '\n'))
     buf[--n] = '\0';
   if (!token_ok(p))
-    return usage_fail("--token-file", "'%s' must hold one token without blanks or control characters", path);
+    return ta_fail(&ta, "--token-file", "'%s' must hold one token without blanks or control characters", path);
   o->token = strdup(p);
   return o->token ? 0 : EXIT_RUN;
 }
@@ -247,48 +204,43 @@ static int read_token_file(gc_opts *o, const char *path) {
 /* Reads --points FILE (gi_points.h, as gi-bake --probes). Returns 0, EXIT_RUN
  * (cannot read) or EXIT_USAGE (a bad line, named by file and number). */
 static int read_points(gc_opts *o, const char *path) {
-  gi_error_info e = {0};
-  gi_result rc = gi_points_read(path, MAX_POINTS, &o->points, &o->num_points, &e);
-  if (rc != GI_OK) {
-    fprintf(stderr, "gi-client: --points: %s\n", e.msg);
-    return rc == GI_ERR_FORMAT || rc == GI_ERR_LIMIT ? EXIT_USAGE : EXIT_RUN;
-  }
-  if (o->num_points == 0) {
-    fprintf(stderr, "gi-client: --points: %s: no points (one 'x y z' per line expected)\n", path);
-    return EXIT_USAGE;
-  }
+  int rc = ta_read_points(&ta, "--points", path, MAX_POINTS, &o->points, &o->num_points);
+  if (rc) return rc;
+  if (o->num_points == 0)
+    return ta_error(&ta, EXIT_USAGE, "--points", "%s: no points (one 'x y z' per line expected)", path);
   return 0;
 }
 
 /* Checks one --set KEY=VALUE for form; the command's key list is checked later. */
 static int add_set(gc_opts *o, char *arg) {
   char *eq = strchr(arg, '=');
-  if (!eq || eq == arg || !eq[1]) return usage_fail("--set", "expected KEY=VALUE, got '%s'", arg);
-  if (o->num_sets >= GC_MAX_SETS) return usage_fail("--set", "at most %d are allowed", GC_MAX_SETS);
+  if (!eq || eq == arg || !eq[1]) return ta_fail(&ta, "--set", "expected KEY=VALUE, got '%s'", arg);
+  if (o->num_sets >= GC_MAX_SETS) return ta_fail(&ta, "--set", "at most %d are allowed", GC_MAX_SETS);
   *eq = '\0'; /* argv strings are writable; the key is used alone from now on */
   const char *key = arg, *val = eq + 1;
   for (int i = 0; i < o->num_sets; i++)
-    if (!strcmp(o->sets[i].key, key)) return usage_fail("--set", "'%s' given twice", key);
-  long l;
+    if (!strcmp(o->sets[i].key, key)) return ta_fail(&ta, "--set", "'%s' given twice", key);
+  char label[64]; /* "--set: KEY" */
+  snprintf(label, sizeof label, "--set: %s", key);
+  long long l;
   double d;
-  int is_int = 1;
+  int is_int = 1, rc = 0;
   if (!strcmp(key, "ao") || !strcmp(key, "half")) {
-    if (strcmp(val, "0") && strcmp(val, "1")) return usage_fail("--set", "%s: expected 0 or 1, got '%s'", key, val);
+    if (strcmp(val, "0") && strcmp(val, "1")) rc = ta_fail(&ta, label, "expected 0 or 1, got '%s'", val);
   } else if (!strcmp(key, "voxel") || !strcmp(key, "aperture") || !strcmp(key, "step")) {
-    if (parse_doubles(val, &d, 1) || !(d > 0))
-      return usage_fail("--set", "%s: expected a finite number > 0, got '%s'", key, val);
+    rc = ta_double(&ta, label, "a finite number > 0", val, 0, HUGE_VAL, &d);
     is_int = 0;
   } else if (!strcmp(key, "bounces")) {
-    if (parse_long(val, 0, 1000000, &l)) return usage_fail("--set", "bounces: expected an integer >= 0, got '%s'", val);
+    rc = ta_ll(&ta, label, "an integer >= 0", val, 0, 1000000, &l);
   } else if (!strcmp(key, "levels") || !strcmp(key, "res") || !strcmp(key, "cones") || !strcmp(key, "samples") ||
              !strcmp(key, "probe_samples") || !strcmp(key, "width") || !strcmp(key, "height") ||
              !strcmp(key, "seed")) {
-    if (parse_long(val, 1, 9007199254740992L, &l))
-      return usage_fail("--set", "%s: expected an integer >= 1, got '%s'", key, val);
+    rc = ta_ll(&ta, label, "an integer >= 1", val, 1, 9007199254740992LL, &l);
   } else {
-    return usage_fail("--set", "unknown key '%s' (levels, res, voxel, cones, aperture, step, bounces, samples, "
-                      "probe_samples, seed, ao, half, width, height)", key);
+    rc = ta_fail(&ta, "--set", "unknown key '%s' (levels, res, voxel, cones, aperture, step, bounces, samples, "
+                 "probe_samples, seed, ao, half, width, height)", key);
   }
+  if (rc) return rc;
   o->sets[o->num_sets++] = (gc_set){key, val, is_int};
   return 0;
 }
@@ -324,160 +276,161 @@ static int check_with_proto(const gc_opts *o) {
   /* Our limits are not the server's: do not call them that. */
   char *tag = strstr(e.message, " (server limit)");
   if (tag) memmove(tag, tag + 15, strlen(tag + 15) + 1);
-  return usage_fail(o->num_sets ? "--set" : NULL, "%s", e.message);
+  return ta_fail(&ta, o->num_sets ? "--set" : NULL, "%s", e.message);
 }
 
-/* The output's folder must exist and be writable: fail before a slow bake. */
-static int check_output(const char *path) {
-  if (!*path) return usage_fail("-o", "expected a file name, got ''");
-  char *dir = strdup(path);
-  if (!dir) return EXIT_RUN;
-  char *slash = strrchr(dir, '/');
-  const char *d = ".";
-  if (slash) {
-    if (slash == dir) slash[1] = '\0';
-    else *slash = '\0';
-    d = dir;
-  }
+/* What the options said before the command is known. */
+typedef struct pending {
+  const char *server, *token, *token_file;
+  int given; /* F_* bits of the options used */
+} pending;
+
+/* The options of the download commands: --at .. --points. */
+static int command_option(gc_opts *o, pending *p, int c, char *arg) {
   int rc = 0;
-  if (access(d, W_OK | X_OK) != 0) {
-    fprintf(stderr, "gi-client: -o: cannot write into '%s' for '%s': %s\n", d, path, strerror(errno));
-    rc = EXIT_RUN;
+  switch (c) {
+  case OPT_AT:
+    if ((rc = ta_triple(&ta, "--at", arg, o->at))) return rc;
+    o->have_at = 1;
+    o->at_text = arg;
+    p->given |= F_AT;
+    return 0;
+  case OPT_KIND:
+    if (strcmp(arg, "probe") && strcmp(arg, "panorama"))
+      return ta_fail(&ta, "--kind", "expected probe or panorama, got '%s'", arg);
+    o->kind = arg;
+    p->given |= F_KIND;
+    return 0;
+  case OPT_QUALITY:
+    if (strcmp(arg, "low") && strcmp(arg, "default") && strcmp(arg, "high"))
+      return ta_fail(&ta, "--quality", "expected low, default or high, got '%s'", arg);
+    o->quality = arg;
+    p->given |= F_QUALITY;
+    return 0;
+  case OPT_SET:
+    if ((rc = add_set(o, arg))) return rc;
+    p->given |= F_SET;
+    return 0;
+  case OPT_FACES: o->faces = 1; p->given |= F_FACES; return 0;
+  case OPT_HALF: o->half = 1; p->given |= F_HALF; return 0;
+  case OPT_AO: o->ao = 1; p->given |= F_AO; return 0;
+  case OPT_NO_WAIT: o->no_wait = 1; p->given |= F_NO_WAIT; return 0;
+  default: o->points_file = arg; p->given |= F_POINTS; return 0;
   }
-  free(dir);
-  return rc;
+}
+
+/* One option from getopt_long. Returns 0, -1 (--help/--version printed) or an exit code. */
+static int apply_option(gc_opts *o, pending *p, int c, char *arg, char **argv) {
+  double d;
+  int rc;
+  switch (c) {
+  case 'h': fputs(help_text, stdout); return -1;
+  case 'V': printf("gi-client %s\n", ta_version()); return -1;
+  case OPT_SERVER: p->server = arg; return 0;
+  case OPT_TOKEN:
+    if (!token_ok(arg)) return ta_fail(&ta, "--token", "expected a token without blanks or control characters");
+    p->token = arg;
+    return 0;
+  case OPT_TOKEN_FILE: p->token_file = arg; return 0;
+  case OPT_TIMEOUT:
+    if ((rc = ta_double(&ta, "--timeout", "seconds in (0, 1e6]", arg, 0, 1e6, &d))) return rc;
+    o->timeout_ms = (long)ceil(d * 1000.0);
+    return 0;
+  case 'o': o->out = arg; return 0;
+  case 'q': o->quiet = 1; return 0;
+  case OPT_AT: case OPT_KIND: case OPT_QUALITY: case OPT_SET: case OPT_FACES: case OPT_HALF: case OPT_AO:
+  case OPT_NO_WAIT: case OPT_POINTS:
+    return command_option(o, p, c, arg);
+  default: return ta_getopt_fail(&ta, c, argv, long_opts);
+  }
+}
+
+/* COMMAND and its ID, after the options; *ci = its row in commands[]. */
+static int take_command(int argc, char **argv, gc_opts *o, int *ci) {
+  if (optind >= argc)
+    return ta_fail(&ta, NULL, "missing COMMAND (health, scenes, scene, metrics, job, lighting, cascades, probes)");
+  const char *cmd = argv[optind++];
+  *ci = -1;
+  for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+    if (!strcmp(commands[i].name, cmd)) *ci = (int)i;
+  if (*ci < 0)
+    return ta_fail(&ta, NULL,
+                   "unknown command '%s' (health, scenes, scene, metrics, job, lighting, cascades, probes)", cmd);
+  o->cmd = commands[*ci].cmd;
+  o->cmd_name = commands[*ci].name;
+  if (commands[*ci].takes_id) {
+    const char *what = commands[*ci].takes_id == 2 ? "JOBID" : "scene ID";
+    if (optind >= argc) return ta_fail(&ta, cmd, "missing %s", what);
+    o->id = argv[optind++];
+    if (!*o->id) return ta_fail(&ta, cmd, "%s must not be empty", what);
+  }
+  if (optind < argc) return ta_fail(&ta, cmd, "unexpected argument '%s'", argv[optind]);
+  return 0;
+}
+
+/* Every option given must mean something for the command; what it needs must be there. */
+static int check_command_options(const gc_opts *o, int ci, int given) {
+  const char *cmd = commands[ci].name;
+  int rc;
+  for (size_t i = 0; i < sizeof flag_names / sizeof flag_names[0]; i++)
+    if ((given & flag_names[i].bit) && !(commands[ci].allowed & flag_names[i].bit))
+      return ta_fail(&ta, flag_names[i].name, "does not apply to '%s'", cmd);
+  for (int i = 0; i < o->num_sets; i++)
+    if (!in_list(commands[ci].set_keys, o->sets[i].key))
+      return ta_fail(&ta, "--set", "'%s' does not apply to '%s' (allowed: %s)", o->sets[i].key, cmd,
+                     commands[ci].set_keys);
+  if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES) && !o->have_at)
+    return ta_fail(&ta, "--at", "'%s' needs a viewpoint --at X,Y,Z", cmd);
+  if (o->cmd == GC_LIGHTING && (!o->kind || strcmp(o->kind, "panorama")))
+    for (int i = 0; i < o->num_sets; i++)
+      if (!strcmp(o->sets[i].key, "width") || !strcmp(o->sets[i].key, "height"))
+        return ta_fail(&ta, "--set", "'%s' applies only to --kind panorama", o->sets[i].key);
+  if (o->cmd == GC_PROBES && !o->points_file) return ta_fail(&ta, "--points", "'probes' needs --points FILE");
+  if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES || o->cmd == GC_PROBES) && (rc = check_with_proto(o)))
+    return rc;
+  if (commands[ci].needs_out && !o->out) return ta_fail(&ta, "-o", "'%s' downloads a file: give -o OUT", cmd);
+  return 0;
+}
+
+/* --server, else $GI_SERVER, else the default. */
+static int resolve_server(gc_opts *o, const char *server) {
+  if (server) {
+    if (!(o->server = check_server(server)))
+      return ta_fail(&ta, "--server", "expected an http:// or https:// URL, got '%s'", server);
+    return 0;
+  }
+  const char *env = getenv("GI_SERVER");
+  if (env && *env) {
+    if (!(o->server = check_server(env)))
+      return ta_fail(&ta, "GI_SERVER", "expected an http:// or https:// URL, got '%s'", env);
+    return 0;
+  }
+  return (o->server = strdup(DEFAULT_SERVER)) ? 0 : EXIT_RUN;
+}
+
+/* --token-file, else --token, else $GI_TOKEN, else none. */
+static int resolve_token(gc_opts *o, const pending *p) {
+  if (p->token_file) return read_token_file(o, p->token_file);
+  if (p->token) return (o->token = strdup(p->token)) ? 0 : EXIT_RUN;
+  const char *env = getenv("GI_TOKEN");
+  if (!env || !*env) return 0;
+  if (!token_ok(env)) return ta_fail(&ta, "GI_TOKEN", "expected a token without blanks or control characters");
+  return (o->token = strdup(env)) ? 0 : EXIT_RUN;
 }
 
 int gc_parse(int argc, char **argv, gc_opts *o) {
   memset(o, 0, sizeof *o);
   opterr = 0; /* our messages, with our program name */
-  int c, rc, given = 0;
-  const char *server = NULL, *token = NULL, *token_file = NULL;
-  double d;
-  while ((c = getopt_long(argc, argv, ":o:qhV", long_opts, NULL)) != -1) {
-    switch (c) {
-    case 'h':
-      fputs(help_text, stdout);
-      return -1;
-    case 'V':
-      printf("gi-client %s\n", gc_version());
-      return -1;
-    case OPT_SERVER: server = optarg; break;
-    case OPT_TOKEN:
-      if (!token_ok(optarg)) return usage_fail("--token", "expected a token without blanks or control characters");
-      token = optarg;
-      break;
-    case OPT_TOKEN_FILE: token_file = optarg; break;
-    case OPT_TIMEOUT:
-      if (parse_doubles(optarg, &d, 1) || !(d > 0) || d > 1e6)
-        return usage_fail("--timeout", "expected seconds in (0, 1e6], got '%s'", optarg);
-      o->timeout_ms = (long)ceil(d * 1000.0);
-      break;
-    case 'o': o->out = optarg; break;
-    case 'q': o->quiet = 1; break;
-    case OPT_AT:
-      if (gi_proto_parse_vec3(optarg, o->at)) /* the server's grammar: plain finite decimals */
-        return usage_fail("--at", "expected three finite numbers X,Y,Z, got '%s'", optarg);
-      o->have_at = 1;
-      o->at_text = optarg;
-      given |= F_AT;
-      break;
-    case OPT_KIND:
-      if (strcmp(optarg, "probe") && strcmp(optarg, "panorama"))
-        return usage_fail("--kind", "expected probe or panorama, got '%s'", optarg);
-      o->kind = optarg;
-      given |= F_KIND;
-      break;
-    case OPT_QUALITY:
-      if (strcmp(optarg, "low") && strcmp(optarg, "default") && strcmp(optarg, "high"))
-        return usage_fail("--quality", "expected low, default or high, got '%s'", optarg);
-      o->quality = optarg;
-      given |= F_QUALITY;
-      break;
-    case OPT_SET:
-      if ((rc = add_set(o, optarg))) return rc;
-      given |= F_SET;
-      break;
-    case OPT_FACES: o->faces = 1; given |= F_FACES; break;
-    case OPT_HALF: o->half = 1; given |= F_HALF; break;
-    case OPT_AO: o->ao = 1; given |= F_AO; break;
-    case OPT_NO_WAIT: o->no_wait = 1; given |= F_NO_WAIT; break;
-    case OPT_POINTS: o->points_file = optarg; given |= F_POINTS; break;
-    case ':': {
-      const char *name = argv[optind - 1];
-      char shortname[3] = {'-', (char)optopt, 0};
-      if (optopt == 'o') name = shortname;
-      for (const struct option *lo = long_opts; lo->name; lo++)
-        if (lo->val == optopt && optopt >= 256) name = lo->name;
-      return usage_fail(NULL, "option '%s%s' needs a value", optopt >= 256 ? "--" : "", name);
-    }
-    default:
-      if (optopt && optopt < 256) return usage_fail(NULL, "unknown option '-%c'", optopt);
-      return usage_fail(NULL, "unknown option '%s'", argv[optind - 1]);
-    }
-  }
-
-  if (optind >= argc)
-    return usage_fail(NULL, "missing COMMAND (health, scenes, scene, metrics, job, lighting, cascades, probes)");
-  const char *cmd = argv[optind++];
-  int ci = -1;
-  for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
-    if (!strcmp(commands[i].name, cmd)) ci = (int)i;
-  if (ci < 0)
-    return usage_fail(NULL, "unknown command '%s' (health, scenes, scene, metrics, job, lighting, cascades, probes)",
-                      cmd);
-  o->cmd = commands[ci].cmd;
-  o->cmd_name = commands[ci].name;
-  if (commands[ci].takes_id) {
-    const char *what = commands[ci].takes_id == 2 ? "JOBID" : "scene ID";
-    if (optind >= argc) return usage_fail(cmd, "missing %s", what);
-    o->id = argv[optind++];
-    if (!*o->id) return usage_fail(cmd, "%s must not be empty", what);
-  }
-  if (optind < argc) return usage_fail(cmd, "unexpected argument '%s'", argv[optind]);
-
-  for (size_t i = 0; i < sizeof flag_names / sizeof flag_names[0]; i++)
-    if ((given & flag_names[i].bit) && !(commands[ci].allowed & flag_names[i].bit))
-      return usage_fail(flag_names[i].name, "does not apply to '%s'", cmd);
-  for (int i = 0; i < o->num_sets; i++)
-    if (!in_list(commands[ci].set_keys, o->sets[i].key))
-      return usage_fail("--set", "'%s' does not apply to '%s' (allowed: %s)", o->sets[i].key, cmd,
-                        commands[ci].set_keys);
-  if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES) && !o->have_at)
-    return usage_fail("--at", "'%s' needs a viewpoint --at X,Y,Z", cmd);
-  if (o->cmd == GC_LIGHTING && (!o->kind || strcmp(o->kind, "panorama")))
-    for (int i = 0; i < o->num_sets; i++)
-      if (!strcmp(o->sets[i].key, "width") || !strcmp(o->sets[i].key, "height"))
-        return usage_fail("--set", "'%s' applies only to --kind panorama", o->sets[i].key);
-  if (o->cmd == GC_PROBES && !o->points_file) return usage_fail("--points", "'probes' needs --points FILE");
-  if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES || o->cmd == GC_PROBES) && (rc = check_with_proto(o)))
-    return rc;
-  if (commands[ci].needs_out && !o->out) return usage_fail("-o", "'%s' downloads a file: give -o OUT", cmd);
-
-  if (token && token_file) return usage_fail("--token-file", "give --token or --token-file, not both");
-  if (!server) {
-    const char *env = getenv("GI_SERVER");
-    if (env && *env) {
-      if (!(o->server = check_server(env)))
-        return usage_fail("GI_SERVER", "expected an http:// or https:// URL, got '%s'", env);
-    } else if (!(o->server = strdup(DEFAULT_SERVER))) {
-      return EXIT_RUN;
-    }
-  } else if (!(o->server = check_server(server))) {
-    return usage_fail("--server", "expected an http:// or https:// URL, got '%s'", server);
-  }
-  if (token_file) {
-    if ((rc = read_token_file(o, token_file))) return rc;
-  } else if (token) {
-    if (!(o->token = strdup(token))) return EXIT_RUN;
-  } else {
-    const char *env = getenv("GI_TOKEN");
-    if (env && *env) {
-      if (!token_ok(env)) return usage_fail("GI_TOKEN", "expected a token without blanks or control characters");
-      if (!(o->token = strdup(env))) return EXIT_RUN;
-    }
-  }
-  if (o->out && (rc = check_output(o->out))) return rc;
+  pending p = {0};
+  int c, rc, ci = -1;
+  while ((c = getopt_long(argc, argv, ":o:qhV", long_opts, NULL)) != -1)
+    if ((rc = apply_option(o, &p, c, optarg, argv))) return rc;
+  if ((rc = take_command(argc, argv, o, &ci))) return rc;
+  if ((rc = check_command_options(o, ci, p.given))) return rc;
+  if (p.token && p.token_file) return ta_fail(&ta, "--token-file", "give --token or --token-file, not both");
+  if ((rc = resolve_server(o, p.server))) return rc;
+  if ((rc = resolve_token(o, &p))) return rc;
+  if (o->out && (rc = ta_check_output(&ta, "-o", o->out))) return rc;
   if (o->points_file && (rc = read_points(o, o->points_file))) return rc;
   return 0;
 }
@@ -488,14 +441,4 @@ void gc_opts_fini(gc_opts *o) {
   free(o->points);
   o->server = o->token = NULL;
   o->points = NULL;
-}
-
-const char *gc_version(void) {
-#ifndef GI_VERSION
-#define GI_VERSION "0.0.0"
-#endif
-#ifndef GI_GIT_REV
-#define GI_GIT_REV "unknown"
-#endif
-  return GI_VERSION " (" GI_GIT_REV ")";
 }

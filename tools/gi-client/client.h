@@ -3,9 +3,10 @@
 #define GI_CLIENT_H
 
 #include <stddef.h>
+#include "toolargs.h"
 
 /* Exit codes: 0 success, 1 the request failed (network, HTTP, I/O), 2 usage. */
-enum { EXIT_RUN = 1, EXIT_USAGE = 2 };
+enum { EXIT_RUN = TA_EXIT_RUN, EXIT_USAGE = TA_EXIT_USAGE };
 
 typedef enum gc_command {
   GC_HEALTH, GC_SCENES, GC_SCENE, GC_METRICS, GC_JOB, GC_LIGHTING, GC_CASCADES, GC_PROBES
@@ -47,6 +48,5 @@ typedef struct gc_opts {
  * printed (exit 0), or EXIT_USAGE / EXIT_RUN after printing the reason. */
 int gc_parse(int argc, char **argv, gc_opts *o);
 void gc_opts_fini(gc_opts *o);
-const char *gc_version(void);
 
 #endif

@@ -1,0 +1,211 @@
+/* toolargs.c: the tools' shared command-line helpers (see toolargs.h for
+ * the one number rule). The grammar is checked by hand first; strtoll,
+ * strtoull and strtod then only convert a string already known to be plain
+ * decimal, so their leniencies (blanks, '+', hex, "inf", "nan", locale
+ * prefixes) never reach a tool. */
+#define _POSIX_C_SOURCE 200809L
+#include "toolargs.h"
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include "gi/gi_points.h"
+
+static int is_digit(char ch) { return ch >= '0' && ch <= '9'; }
+
+/* Length of the leading run of digits of s. */
+static size_t digits(const char *s) {
+  size_t n = 0;
+  while (is_digit(s[n])) n++;
+  return n;
+}
+
+ta_status ta_parse_ll(const char *s, long long lo, long long hi, long long *out) {
+  if (!*s) return TA_EMPTY;
+  const char *p = s + (*s == '-');
+  size_t n = digits(p);
+  if (n == 0 || p[n]) return TA_SYNTAX;
+  errno = 0;
+  long long v = strtoll(s, NULL, 10);
+  if (errno == ERANGE || v < lo || v > hi) return TA_RANGE;
+  *out = v;
+  return TA_OK;
+}
+
+ta_status ta_parse_u64(const char *s, uint64_t *out) {
+  if (!*s) return TA_EMPTY;
+  size_t n = digits(s);
+  if (n == 0 || s[n]) return TA_SYNTAX; /* no '-': strtoull would negate "-1" silently */
+  errno = 0;
+  unsigned long long v = strtoull(s, NULL, 10);
+  if (errno == ERANGE) return TA_RANGE;
+  *out = (uint64_t)v;
+  return TA_OK;
+}
+
+/* Length of the plain decimal number at the start of s, 0 if there is none. */
+static size_t number_len(const char *s) {
+  size_t i = *s == '-';
+  size_t whole = digits(s + i), frac = 0;
+  i += whole;
+  if (s[i] == '.') {
+    frac = digits(s + i + 1);
+    i += 1 + frac;
+  }
+  if (whole == 0 && frac == 0) return 0;
+  if (s[i] == 'e' || s[i] == 'E') {
+    size_t j = i + 1;
+    if (s[j] == '+' || s[j] == '-') j++;
+    size_t e = digits(s + j);
+    if (e == 0) return 0;
+    i = j + e;
+  }
+  return i;
+}
+
+/* One number at the start of s, followed by the byte `end` ('\0' or ','). */
+static ta_status number_at(const char *s, char end, double *out) {
+  size_t n = number_len(s);
+  if (n == 0 || s[n] != end) return s[0] == '\0' || s[0] == ',' ? TA_EMPTY : TA_SYNTAX;
+  errno = 0;
+  double v = strtod(s, NULL);
+  if (errno == ERANGE || !isfinite(v)) return TA_RANGE;
+  *out = v;
+  return TA_OK;
+}
+
+ta_status ta_parse_double(const char *s, double *out) {
+  return number_at(s, '\0', out);
+}
+
+ta_status ta_parse_doubles(const char *s, double *out, int n) {
+  double tmp[64];
+  if (n < 1 || n > 64) return TA_RANGE;
+  const char *p = s;
+  for (int i = 0; i < n; i++) {
+    ta_status st = number_at(p, i + 1 < n ? ',' : '\0', &tmp[i]);
+    if (st != TA_OK) return st == TA_EMPTY && *s ? TA_SYNTAX : st;
+    if (i + 1 < n) p += number_len(p) + 1; /* past the number and its comma */
+  }
+  memcpy(out, tmp, (size_t)n * sizeof *out);
+  return TA_OK;
+}
+
+/* ---- messages ---------------------------------------------------------- */
+
+static void vemit(ta_ctx *c, int try_line, const char *opt, const char *fmt, va_list ap) {
+  size_t k = 0;
+  if (opt) k = (size_t)snprintf(c->msg, sizeof c->msg, "%s: ", opt);
+  if (k < sizeof c->msg) vsnprintf(c->msg + k, sizeof c->msg - k, fmt, ap);
+  if (c->quiet) return;
+  FILE *f = c->err ? c->err : stderr;
+  fprintf(f, "%s: %s\n", c->prog, c->msg);
+  if (try_line) fprintf(f, "Try '%s --help'.\n", c->prog);
+}
+
+int ta_fail(ta_ctx *c, const char *opt, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  vemit(c, 1, opt, fmt, ap);
+  va_end(ap);
+  return TA_EXIT_USAGE;
+}
+
+int ta_error(ta_ctx *c, int rc, const char *opt, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  vemit(c, 0, opt, fmt, ap);
+  va_end(ap);
+  return rc;
+}
+
+/* ---- option-level parsers ---------------------------------------------- */
+
+int ta_ll(ta_ctx *c, const char *opt, const char *what, const char *s, long long lo, long long hi, long long *out) {
+  if (ta_parse_ll(s, lo, hi, out) == TA_OK) return 0;
+  if (what) return ta_fail(c, opt, "expected %s, got '%s'", what, s);
+  return ta_fail(c, opt, "expected an integer in %lld..%lld, got '%s'", lo, hi, s);
+}
+
+int ta_int(ta_ctx *c, const char *opt, const char *what, const char *s, int lo, int hi, int *out) {
+  long long v;
+  int rc = ta_ll(c, opt, what, s, lo, hi, &v);
+  if (!rc) *out = (int)v;
+  return rc;
+}
+
+int ta_u64(ta_ctx *c, const char *opt, const char *what, const char *s, uint64_t *out) {
+  if (ta_parse_u64(s, out) == TA_OK) return 0;
+  return ta_fail(c, opt, "expected %s, got '%s'", what ? what : "an unsigned 64-bit integer", s);
+}
+
+int ta_double(ta_ctx *c, const char *opt, const char *what, const char *s, double above, double at_most,
+              double *out) {
+  double v;
+  if (ta_parse_double(s, &v) == TA_OK && v > above && v <= at_most) {
+    *out = v;
+    return 0;
+  }
+  return ta_fail(c, opt, "expected %s, got '%s'", what ? what : "a finite number", s);
+}
+
+int ta_doubles(ta_ctx *c, const char *opt, const char *what, const char *s, int n, double *out) {
+  if (ta_parse_doubles(s, out, n) == TA_OK) return 0;
+  if (what) return ta_fail(c, opt, "expected %s, got '%s'", what, s);
+  return ta_fail(c, opt, "expected %d finite numbers separated by commas, got '%s'", n, s);
+}
+
+int ta_triple(ta_ctx *c, const char *opt, const char *s, double out[3]) {
+  return ta_doubles(c, opt, "three finite numbers X,Y,Z", s, 3, out);
+}
+
+/* ---- getopt, outputs, points, version ---------------------------------- */
+
+int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_opts) {
+  if (ret == ':') {
+    /* Short options are named by their letter, long ones (val >= 256) by name. */
+    if (optopt > 0 && optopt < 256) return ta_fail(c, NULL, "option '-%c' needs a value", optopt);
+    for (const struct option *lo = long_opts; lo && lo->name; lo++)
+      if (lo->val == optopt) return ta_fail(c, NULL, "option '--%s' needs a value", lo->name);
+    return ta_fail(c, NULL, "option '%s' needs a value", argv[optind - 1]);
+  }
+  if (optopt > 0 && optopt < 256) return ta_fail(c, NULL, "unknown option '-%c'", optopt);
+  return ta_fail(c, NULL, "unknown option '%s'", argv[optind - 1]);
+}
+
+int ta_check_output(ta_ctx *c, const char *opt, const char *path) {
+  if (!*path) return ta_fail(c, opt, "expected a file name, got ''");
+  char *dir = strdup(path);
+  if (!dir) return TA_EXIT_RUN;
+  char *slash = strrchr(dir, '/');
+  const char *d = ".";
+  if (slash) {
+    if (slash == dir) slash[1] = '\0';
+    else *slash = '\0';
+    d = dir;
+  }
+  int rc = 0;
+  if (access(d, W_OK | X_OK) != 0)
+    rc = ta_error(c, TA_EXIT_RUN, opt, "cannot write into '%s' for '%s': %s", d, path, strerror(errno));
+  free(dir);
+  return rc;
+}
+
+int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, double **pts, size_t *n) {
+  gi_error_info e = {0};
+  gi_result rc = gi_points_read(path, max, pts, n, &e);
+  if (rc == GI_OK) return 0;
+  return ta_error(c, rc == GI_ERR_FORMAT || rc == GI_ERR_LIMIT ? TA_EXIT_USAGE : TA_EXIT_RUN, opt, "%s", e.msg);
+}
+
+const char *ta_version(void) {
+#ifndef GI_VERSION
+#define GI_VERSION "0.0.0"
+#endif
+#ifndef GI_GIT_REV
+#define GI_GIT_REV "unknown"
+#endif
+  return GI_VERSION " (" GI_GIT_REV ")";
+}

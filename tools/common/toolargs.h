@@ -1,0 +1,92 @@
+/* toolargs.h: the command-line helpers every gi-* tool shares (gi_toolargs).
+ *
+ * One rule for numbers on every tool's command line:
+ *
+ *   integer  -?[0-9]+                 decimal only; the whole string, in range
+ *   number   -?(D+(.D*)?|.D+)([eE][+-]?D+)?   plain decimal, finite
+ *   list     number,number,...        exactly n numbers, no blanks
+ *
+ * So a sign may only be '-' (never '+'), and blanks, hex ("0x10"), "inf",
+ * "nan", trailing bytes ("5x", "1,2,3,") and values out of range ("1e999",
+ * 2^63, "13" for 1..12) are all refused. A number whose conversion sets
+ * ERANGE (overflow or underflow, "1e999" or "1e-400") is refused too. This is
+ * a subset of what the HTTP contract (proto/request.c) accepts, so anything
+ * gi-client lets through reaches the server in a form it parses.
+ *
+ * Two layers: ta_parse_* only say whether a string is valid (for callers
+ * that try several forms); the option-level helpers (ta_int, ta_double, ...)
+ * also print "PROG: OPT: expected WHAT, got 'S'" and "Try 'PROG --help'." and
+ * return TA_EXIT_USAGE, so a tool can `return` their result directly. */
+#ifndef GI_TOOLARGS_H
+#define GI_TOOLARGS_H
+
+#include <getopt.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+/* Exit codes shared by the tools: 0 success, 1 the work failed, 2 usage. */
+enum { TA_EXIT_RUN = 1, TA_EXIT_USAGE = 2 };
+
+typedef enum ta_status {
+  TA_OK = 0,
+  TA_EMPTY,   /* "" */
+  TA_SYNTAX,  /* not the grammar above: "+5", " 5", "0x10", "nan", "5x" */
+  TA_RANGE,   /* well-formed but out of range: overflow, ERANGE, < lo, > hi */
+} ta_status;
+
+/* Pure parsers: no output; *out is written only on TA_OK. */
+ta_status ta_parse_ll(const char *s, long long lo, long long hi, long long *out);
+ta_status ta_parse_u64(const char *s, uint64_t *out);
+ta_status ta_parse_double(const char *s, double *out);
+/* Exactly n numbers separated by single commas. */
+ta_status ta_parse_doubles(const char *s, double *out, int n);
+
+/* Where a tool's messages go, and the last one (for tests). */
+typedef struct ta_ctx {
+  const char *prog;  /* "gi-bake": prefixes every message */
+  FILE *err;         /* NULL: stderr */
+  int quiet;         /* 1: store the message in msg only */
+  char msg[640];     /* the last message, "OPT: ..." without the program name */
+} ta_ctx;
+
+#define TA_CTX(prog) {(prog), NULL, 0, {0}}
+
+/* Prints "PROG: OPT: <fmt>" and "Try 'PROG --help'."; returns TA_EXIT_USAGE.
+ * opt may be NULL (then no "OPT: "). */
+int ta_fail(ta_ctx *c, const char *opt, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+/* The same without the "Try" line, returning rc (files that cannot be read). */
+int ta_error(ta_ctx *c, int rc, const char *opt, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
+
+/* Option-level parsers: 0 on success, else TA_EXIT_USAGE after
+ * "OPT: expected WHAT, got 'S'". what = NULL gives the default
+ * ("an integer in LO..HI", "an unsigned 64-bit integer", "a finite number",
+ * "N finite numbers separated by commas"). */
+int ta_int(ta_ctx *c, const char *opt, const char *what, const char *s, int lo, int hi, int *out);
+int ta_ll(ta_ctx *c, const char *opt, const char *what, const char *s, long long lo, long long hi, long long *out);
+int ta_u64(ta_ctx *c, const char *opt, const char *what, const char *s, uint64_t *out);
+/* A finite number v with above < v <= at_most (use -HUGE_VAL / HUGE_VAL for none). */
+int ta_double(ta_ctx *c, const char *opt, const char *what, const char *s, double above, double at_most,
+              double *out);
+int ta_doubles(ta_ctx *c, const char *opt, const char *what, const char *s, int n, double *out);
+/* "X,Y,Z": three finite numbers. */
+int ta_triple(ta_ctx *c, const char *opt, const char *s, double out[3]);
+
+/* After getopt_long returned ':' (an option without its value) or '?' (an
+ * unknown option; also an argument given to a flag), names the option:
+ * "option '--at' needs a value", "unknown option '-x'". Returns TA_EXIT_USAGE. */
+int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_opts);
+
+/* An output file's folder must exist and be writable: checked before slow
+ * work. Returns 0, TA_EXIT_USAGE (empty name) or TA_EXIT_RUN. */
+int ta_check_output(ta_ctx *c, const char *opt, const char *path);
+
+/* Reads a points file (gi_points.h: one 'x y z' per line, '#' comments) of
+ * at most max points. Returns 0, TA_EXIT_USAGE (a bad line, named by file
+ * and number, or too many) or TA_EXIT_RUN (cannot read). */
+int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, double **pts, size_t *n);
+
+/* "VERSION (GIT_REV)" of this build. */
+const char *ta_version(void);
+
+#endif
