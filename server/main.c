@@ -13,6 +13,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 #include "server.h"
+#include "toolargs.h"
 
 static const char help_text[] =
     "Usage: gi-server [--config FILE] [--port N] [--bind ADDR] [--port-file F]\n"
@@ -44,11 +45,10 @@ static int write_port_file(const char *path, int port) {
   return 0;
 }
 
+/* The tools' one rule for integers (tools/common): digits only, in range. */
 static int parse_port(const char *s, int *out) {
-  char *end;
-  errno = 0;
-  long v = strtol(s, &end, 10);
-  if (end == s || *end || errno || v < 0 || v > 65535) return -1;
+  long long v;
+  if (ta_parse_ll(s, 0, 65535, &v) != TA_OK) return -1;
   *out = (int)v;
   return 0;
 }
