@@ -86,8 +86,21 @@ float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e);
 /* A shadow ray stops this fraction short of the light's sample point, so it
  * does not hit the emitter it aims at. */
 #define REF_SHADOW_SHORTEN 0.999f
-/* 1 when nothing blocks o + t w for t in (tnear, tfar). */
-int ref_visible(const gi_scene *s, const float o[3], const float w[3], float tnear, float tfar);
+/* Shadow rays of one point, traced REF_BATCH at a time (one BVH call per
+ * batch: a city has hundreds of street lights). Lives on the stack. */
+#define REF_BATCH 32
+typedef struct ref_batch {
+  int n;
+  float org[3 * REF_BATCH], dir[3 * REF_BATCH], tn[REF_BATCH], tf[REF_BATCH];
+  float V[REF_BATCH][3]; /* what each ray brings when nothing blocks it */
+  uint8_t vis[REF_BATCH];
+} ref_batch;
+/* Queues the segment o + t w, t in [tnear, tfar], carrying V; flushes first when full. */
+void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
+                   const float V[3], float E[3], float sh[9][3]);
+/* Traces the queued rays; each unblocked one adds V to E or, with sh,
+ * V along its direction to sh and V times its cosine to the up axis to E. */
+void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]);
 /* Direct irradiance at x on the side n from sun, point and spot lights and
  * one emitter sample (balance heuristic against a cosine sample, pdf
  * cos / pi). The sky is left to the cosine sample (it has no other). */

@@ -164,26 +164,49 @@ float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e) {
   return L->em[lo].pdf_area * t * t / cos_e;
 }
 
-int ref_visible(const gi_scene *s, const float o[3], const float w[3], float tnear, float tfar) {
-  uint8_t vis = 0;
-  gi__occluded(s, 1, o, w, &tnear, &tfar, &vis);
-  return vis;
+void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]) {
+  gi__occluded(L->s, b->n, b->org, b->dir, b->tn, b->tf, b->vis);
+  for (int i = 0; i < b->n; i++) {
+    if (!b->vis[i]) continue;
+    float f = 1;
+    if (sh) {
+      ref_sh_add(sh, &b->dir[3 * i], b->V[i], 1.f);
+      f = fmaxf(0.f, gi__dot(L->up, &b->dir[3 * i]));
+    }
+    for (int k = 0; k < 3; k++) E[k] += f * b->V[i][k];
+  }
+  b->n = 0;
+}
+
+void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
+                   const float V[3], float E[3], float sh[9][3]) {
+  if (b->n == REF_BATCH) ref_batch_flush(b, L, E, sh);
+  int i = b->n++;
+  memcpy(&b->org[3 * i], o, sizeof(float[3]));
+  memcpy(&b->dir[3 * i], w, sizeof(float[3]));
+  memcpy(b->V[i], V, sizeof(float[3]));
+  b->tn[i] = tnear, b->tf[i] = tfar;
 }
 
 void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]) {
   const gi_scene *s = L->s;
   float o[3], w[3], dist, V[3];
+  ref_batch b;
+  b.n = 0;
   for (int k = 0; k < 3; k++) o[k] = x[k] + L->eps * n[k];
   for (uint32_t i = 0; i < s->num_lights; i++) {
     if (!ref_delta_light(L, &s->lights[i], x, w, &dist, V)) continue;
     float c = gi__dot(n, w);
-    if (!(c > 0) || !ref_visible(s, o, w, 0, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN)) continue;
-    for (int k = 0; k < 3; k++) E[k] += V[k] * c;
+    if (!(c > 0)) continue;
+    for (int k = 0; k < 3; k++) V[k] *= c;
+    ref_batch_add(&b, L, o, w, 0, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN, V, E, NULL);
   }
   float pdf, Le[3];
-  if (!ref_emitter_sample(L, x, r, w, &dist, &pdf, Le)) return;
-  float c = gi__dot(n, w);
-  if (!(c > 0) || !ref_visible(s, o, w, 0, dist * REF_SHADOW_SHORTEN)) return;
-  /* Balance heuristic: Le c / pdf * pdf / (pdf + c / pi). */
-  for (int k = 0; k < 3; k++) E[k] += Le[k] * c / (pdf + c / (float)GI_PI);
+  if (ref_emitter_sample(L, x, r, w, &dist, &pdf, Le)) {
+    float c = gi__dot(n, w);
+    /* Balance heuristic: Le c / pdf * pdf / (pdf + c / pi). */
+    for (int k = 0; k < 3; k++) V[k] = Le[k] * c / (pdf + c / (float)GI_PI);
+    if (c > 0) ref_batch_add(&b, L, o, w, 0, dist * REF_SHADOW_SHORTEN, V, E, NULL);
+  }
+  ref_batch_flush(&b, L, E, NULL);
 }

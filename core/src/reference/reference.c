@@ -257,23 +257,19 @@ static void probe_direct(const ref_ctx *rc, const float p[3], ref_rng *rng, floa
   const ref_lights *L = &rc->L;
   const gi_scene *s = rc->s;
   float w[3], dist, V[3];
-  for (uint32_t i = 0; i < s->num_lights; i++) {
-    if (!ref_delta_light(L, &s->lights[i], p, w, &dist, V)) continue;
-    if (!ref_visible(s, p, w, L->eps, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN)) continue;
-    ref_sh_add(sh, w, V, 1.f);
-    float cu = gi__dot(L->up, w);
-    if (cu > 0)
-      for (int k = 0; k < 3; k++) Ed[k] += V[k] * cu;
-  }
+  ref_batch b;
+  b.n = 0;
+  for (uint32_t i = 0; i < s->num_lights; i++)
+    if (ref_delta_light(L, &s->lights[i], p, w, &dist, V))
+      ref_batch_add(&b, L, p, w, L->eps, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN, V, Ed, sh);
   float pl, Le[3];
-  if (!ref_emitter_sample(L, p, rng, w, &dist, &pl, Le)) return;
-  if (!ref_visible(s, p, w, L->eps, dist * REF_SHADOW_SHORTEN)) return;
-  /* Balance heuristic against the path direction: Le / pl * pl / (pl + pb). */
-  float cu = gi__dot(L->up, w), f = 1.f / (pl + mixture_pdf(cu));
-  for (int k = 0; k < 3; k++) V[k] = Le[k] * f;
-  ref_sh_add(sh, w, V, 1.f);
-  if (cu > 0)
-    for (int k = 0; k < 3; k++) Ed[k] += V[k] * cu;
+  if (ref_emitter_sample(L, p, rng, w, &dist, &pl, Le)) {
+    /* Balance heuristic against the path direction: Le / pl * pl / (pl + pb). */
+    float f = 1.f / (pl + mixture_pdf(gi__dot(L->up, w)));
+    for (int k = 0; k < 3; k++) V[k] = Le[k] * f;
+    ref_batch_add(&b, L, p, w, L->eps, dist * REF_SHADOW_SHORTEN, V, Ed, sh);
+  }
+  ref_batch_flush(&b, L, Ed, sh);
 }
 
 /* One path from the probe along a direction of the mixture: emitters and
