@@ -13,12 +13,16 @@
  *   Lambert's polygon formula for the quad, within 3 standard errors of the
  *   spread over 32 seeds. The reference samples lights with its own code,
  *   so this pins its light models to the physics, not to the bake's sampler.
- * The standard error is itself checked against the spread over 8 seeds. */
+ * The standard error is itself checked against the spread over 8 seeds.
+ * The reference's own camera, PCG32 stream and frame are checked against
+ * the view's camera, the published generator and orthonormality. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include "answer/answer.h"
 #include "gi/gi.h"
+#include "reference/ref_internal.h"
 
 static const double PI = 3.14159265358979;
 
@@ -301,6 +305,81 @@ static void test_all_lights_closed_form(void **state) {
   gi_scene_release(s);
 }
 
+/* The reference's own camera keeps gi_camera's public semantics (fov
+ * across the smaller side, right = forward x up, rows from the top) and so
+ * agrees with the cone-traced view's camera ray for ray. */
+static void test_camera(void **state) {
+  gi_scene *s = make_furnace(0.5, 1.0);
+  gi_camera cams[3] = {
+      {.eye = {0.5, 0.5, 3}, .target = {0.5, 0.5, 0}, .up = {0, 1, 0}, .fov_deg = 60, .width = 40, .height = 30},
+      {.eye = {-2, 1, 0.3}, .target = {0.4, 0.2, 0.7}, .up = {0.3, 1, -0.2}, .fov_deg = 35, .width = 17, .height = 64},
+      {.eye = {1, 4, 1}, .target = {0.9, 0, 1.1}, .up = {0, 0, 1}, .fov_deg = 120, .width = 8, .height = 8},
+  };
+  gi_error_info err = {0};
+  for (int c = 0; c < 3; c++) {
+    ref_cam k;
+    gi__cam g;
+    assert_int_equal(ref_cam_init(&k, s, &cams[c], &err), GI_OK);
+    assert_int_equal(gi__cam_setup(s, &cams[c], &g, &err), GI_OK);
+    double maxd = 0;
+    for (int y = 0; y <= 4; y++)
+      for (int x = 0; x <= 4; x++) {
+        float px = cams[c].width * x / 4.0f, py = cams[c].height * y / 4.0f, a[3], b[3];
+        ref_cam_dir(&k, px, py, a);
+        gi__cam_ray(&g, px, py, b);
+        for (int i = 0; i < 3; i++) maxd = fmax(maxd, fabs(a[i] - b[i]));
+      }
+    /* The middle of the smaller side's edge is fov / 2 from the view axis. */
+    float mid[3], edge[3];
+    int w = cams[c].width, h = cams[c].height;
+    ref_cam_dir(&k, 0.5f * w, 0.5f * h, mid);
+    if (w <= h) ref_cam_dir(&k, 0, 0.5f * h, edge);
+    else ref_cam_dir(&k, 0.5f * w, 0, edge);
+    double ang = acos(mid[0] * edge[0] + mid[1] * edge[1] + mid[2] * edge[2]) * 180 / PI;
+    printf("camera %d: largest difference from the view's camera %.2g, half fov %.4f deg (want %.4f)\n", c, maxd, ang,
+           cams[c].fov_deg / 2);
+    assert_true(maxd < 1e-5);
+    assert_true(fabs(ang - cams[c].fov_deg / 2) < 1e-3);
+  }
+  /* Bad cameras fail with the public validation's message. */
+  gi_camera bad = cams[0];
+  bad.fov_deg = 180;
+  ref_cam k;
+  assert_int_equal(ref_cam_init(&k, s, &bad, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "fov"));
+  gi_scene_release(s);
+}
+
+/* The reference's own sampling primitives: PCG32 is the published
+ * generator (pcg32-demo's first outputs for seed 42, stream 54), and the
+ * frame is orthonormal and right-handed about any normal, axes included. */
+static void test_rng_and_frame(void **state) {
+  static const uint32_t want[6] = {0xa15c02b7u, 0x7b47f409u, 0xba1d3330u, 0x83d2f293u, 0xbfa4784bu, 0xcbed606eu};
+  ref_rng r = {0, (54u << 1) | 1u};
+  (void)ref_rng_u32(&r);
+  r.state += 42u;
+  (void)ref_rng_u32(&r);
+  for (int i = 0; i < 6; i++) assert_int_equal(ref_rng_u32(&r), want[i]);
+  ref_rng_seed(&r, 7);
+  double worst = 0;
+  for (int i = 0; i < 1000; i++) {
+    float n[3], t[3], b[3], c[3];
+    if (i < 6) n[0] = n[1] = n[2] = 0, n[i % 3] = i < 3 ? 1.f : -1.f;
+    else ref_sphere(&r, n);
+    ref_frame(n, t, b);
+    c[0] = t[1] * b[2] - t[2] * b[1], c[1] = t[2] * b[0] - t[0] * b[2], c[2] = t[0] * b[1] - t[1] * b[0];
+    const float *v[3] = {t, b, n};
+    for (int p = 0; p < 3; p++)
+      for (int q = 0; q < 3; q++) {
+        double d = v[p][0] * v[q][0] + v[p][1] * v[q][1] + v[p][2] * v[q][2];
+        worst = fmax(worst, fabs(d - (p == q)));
+      }
+    for (int k = 0; k < 3; k++) worst = fmax(worst, fabs(c[k] - n[k])); /* t x b = n */
+  }
+  printf("frame: largest deviation from orthonormal and right-handed over 1000 normals %.2g\n", worst);
+  assert_true(worst < 1e-6);
+}
+
 static void test_bad_input(void **state) {
   gi_scene *s = make_furnace(0.5, 1.0);
   double p[3] = {0.5, NAN, 0.5};
@@ -324,6 +403,8 @@ int main(void) {
       cmocka_unit_test(test_sun_on_plane),
       cmocka_unit_test(test_sky_on_plane),
       cmocka_unit_test(test_all_lights_closed_form),
+      cmocka_unit_test(test_camera),
+      cmocka_unit_test(test_rng_and_frame),
       cmocka_unit_test(test_bad_input),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
