@@ -1,13 +1,16 @@
 /* test_accuracy.c: the quick accuracy sweep on the Cornell box.
  *
  * The cone tracer and the path tracer are compared with a path-traced
- * reference (16384 paths per probe, unbounded depth) at the Cornell box
+ * reference (65536 paths per probe, unbounded depth) at the Cornell box
  * probes gi-accuracy uses (a 3x3x3 grid inside the box, minus the points
  * inside the blocks). Error must fall as quality rises, for both methods,
  * and the default quality must stay under a bound. The bounds are the
  * measured values plus a margin, measured on a 2-core AMD EPYC VM; the
  * bakes are deterministic, so a change in them is a change in the code,
- * not noise (the reference's own noise is printed: ~1.5% on indirect).
+ * not noise (the reference's own noise is printed: ~0.8% on indirect).
+ * The reference's noise does move the MREs, though: at 16384 paths the
+ * default-vs-high ordering of indirect MRE (0.7 points apart) flipped for
+ * 1 reference seed in 6, with either path tracer; at 65536 it held for all.
  * Skips loudly when ../shared/scenes is absent. */
 #include "test_util.h"
 #include <math.h>
@@ -52,7 +55,7 @@ static int setup(void **state) {
   for (int i = 0; i < 27; i++) best = fmax(best, d[i].direct[1]);
   for (int i = 0; i < 27; i++)
     if (d[i].direct[1] > 0.02 * best) memcpy(&c->pts[3 * c->n++], &cand[3 * i], sizeof(double[3]));
-  gi_reference_opts o = {.samples = 16384, .seed = 1};
+  gi_reference_opts o = {.samples = 65536, .seed = 1};
   double ms = 0;
   if (gi_reference_irradiance(c->s, c->pts, c->n, &o, c->ref, &ms, &err) != GI_OK) return -1;
   acc_metrics m;
@@ -109,13 +112,15 @@ static void test_cone_error_falls(void **state) {
   assert_true(ml[ACC_TOTAL].rel_mse > md[ACC_TOTAL].rel_mse && md[ACC_TOTAL].rel_mse > mh[ACC_TOTAL].rel_mse);
   /* Default-quality bounds (3 bounces from the albedo rule, plus the
    * geometric tail of the orders after them). Measured: indirect MRE
-   * 9.75% (18.4% before the tail), total 2.27% (the ambition is 10% on
-   * indirect: borderline); high quality measured 8.80% indirect. */
+   * 9.35% (18.4% before the tail), total 2.18% (the ambition is 10% on
+   * indirect: borderline); high quality measured 8.96% indirect. (Against
+   * the earlier 16384-path reference that shared the bake's light sampler:
+   * 9.75%, 2.27% and 8.80%.) */
   assert_true(md[ACC_INDIRECT].mre < 0.12);
   assert_true(md[ACC_TOTAL].mre < 0.03);
   assert_true(mh[ACC_INDIRECT].mre < 0.10);
   /* The direct part is Monte Carlo at the probe in both: 256 probe samples
-   * against the reference's 16384. Measured 1.2%. */
+   * against the reference's 65536. Measured 1.3% (1.2% before). */
   assert_true(md[ACC_DIRECT].mre < 0.03);
 }
 

@@ -20,7 +20,9 @@
 #include "gi/gi.h"
 #include "toolargs.h"
 
-#define REF_VERSION 2 /* bump when the path tracer changes: old caches are ignored (2: glossy lobe, sky seen) */
+/* The library's reference version keys the cache: a changed path tracer
+ * never reuses old files. (Tool-side history: 2 = glossy lobe, sky seen.) */
+#define REF_VERSION GI_REFERENCE_VERSION
 
 static int g_repeat = 2; /* runs per configuration; the fastest counts */
 

@@ -2,8 +2,9 @@
  *
  * A Monte Carlo path tracer on the scene's Embree BVH, with the same
  * triangles, materials and lights (sun, point, spot, sky, emissive
- * triangles) as the bake, sampled by code of its own (reference/), so a
- * sampling bug in the bake does not cancel out of a comparison.
+ * triangles) as the bake, but sampled by code of its own (light sampling,
+ * emitter picking, camera, random streams): a sampling bug in the bake
+ * shows up as an error instead of cancelling out of the comparison.
  * Surfaces are two-sided: a Lambertian lobe (albedo) plus, on glossy
  * materials (roughness < 0.5, specular > 0), a normalised Phong lobe of
  * weight `specular` around the mirror direction, with the exponent the
@@ -34,6 +35,11 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* Changes whenever the reference's answers change (a fix, another random
+ * stream): callers that cache its results key them on it.
+ * 3: its own light sampling, camera and PCG32 streams. */
+#define GI_REFERENCE_VERSION 3
 
 /* Zero means default for every field. */
 typedef struct gi_reference_opts {

@@ -1,0 +1,121 @@
+/* ref_internal.h: the reference path tracer's own sampling, lights and
+ * camera (reference/ only).
+ *
+ * The reference judges the cone tracer, so it shares none of its sampling
+ * code: not the light sampler (scene/lights.c), not the camera
+ * (answer/camera.c), not the basis or the random numbers of base/internal.h.
+ * A bug there then shows up as a disagreement instead of cancelling out.
+ * What it shares is the scene's data and the BVH queries (io/bvh_embree.c),
+ * the physics being defined by them. */
+#ifndef GI_REF_INTERNAL_H
+#define GI_REF_INTERNAL_H
+
+#include <stdint.h>
+#include "base/internal.h"
+#include "gi/gi_render.h"
+#include "scene/scene_internal.h"
+
+/* ---- ref_sampling.c: random numbers, frames, directions, SH ---------- */
+
+/* PCG32 (O'Neill 2014, XSH-RR): 64-bit state, odd increment = stream. */
+typedef struct ref_rng {
+  uint64_t state, inc;
+} ref_rng;
+static inline uint32_t ref_rng_u32(ref_rng *r) {
+  uint64_t old = r->state;
+  r->state = old * 6364136223846793005ULL + r->inc;
+  uint32_t xs = (uint32_t)(((old >> 18) ^ old) >> 27), rot = (uint32_t)(old >> 59);
+  return (xs >> rot) | (xs << ((32 - rot) & 31));
+}
+/* Uniform in [0, 1): the top 24 bits, exact in a float. */
+static inline float ref_u01(ref_rng *r) { return (float)(ref_rng_u32(r) >> 8) * (1.0f / 16777216.0f); }
+/* A stream from a key: both state and increment are hashed from it. */
+void ref_rng_seed(ref_rng *r, uint64_t key);
+/* Mixes v into the hash h (MurmurHash3's 64-bit finaliser). */
+uint64_t ref_hash(uint64_t h, uint64_t v);
+
+/* Orthonormal t, b with unit n as the third axis: Gram-Schmidt of the
+ * world axis least aligned with n. */
+void ref_frame(const float n[3], float t[3], float b[3]);
+/* Cosine-weighted direction about unit n (pdf cos / pi). */
+void ref_cosine(const float n[3], ref_rng *r, float w[3]);
+/* Uniform direction on the sphere (pdf 1 / (4 pi)). */
+void ref_sphere(ref_rng *r, float w[3]);
+
+/* SH L2 in the gi_bake.h basis order: adds weight * Y(w) * L. */
+void ref_sh_add(float sh[9][3], const float w[3], const float L[3], float weight);
+/* Radiance coefficients to irradiance ones (the clamped-cosine convolution). */
+void ref_sh_to_irradiance(float sh[9][3]);
+
+/* ---- ref_lights.c: next-event estimation ---------------------------- */
+
+/* One emissive triangle of the picking table. */
+typedef struct ref_emitter {
+  double cdf;       /* cumulative pick probability up to and including this one */
+  float pdf_area;   /* pick probability / area: the sample's pdf in area measure */
+  uint32_t tri;     /* triangle index; the table is in ascending order */
+} ref_emitter;
+
+typedef struct ref_lights {
+  const gi_scene *s;
+  float up[3];      /* the scene's up axis */
+  float sky[3];     /* every sky light's radiance, summed */
+  int has_sky;
+  float eps;        /* ray offset, scaled to the scene */
+  uint32_t num_emitters;
+  ref_emitter *em;  /* NULL when there are none */
+} ref_lights;
+
+/* Builds the table from the scene's triangles and materials (emitters
+ * picked by area times mean emission); GI_ERR_NOMEM when out of memory. */
+gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err);
+void ref_lights_free(ref_lights *L);
+
+/* A sun, point or spot light seen from x: unit direction w toward it,
+ * distance (INFINITY for the sun) and the irradiance E it gives a surface
+ * facing it. 0 when it gives x nothing (outside a spot's cone, a sky). */
+int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], float w[3], float *dist, float E[3]);
+/* One area sample of the emitters seen from x: direction, distance, the
+ * sample's solid-angle pdf and the emitted radiance. 0 when the point is
+ * behind its triangle (one-sided) or there are no emitters. */
+int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
+                       float Le[3]);
+/* Solid-angle pdf with which ref_emitter_sample draws the point at
+ * distance t on triangle tri, seen at cosine cos_e; 0 for a non-emitter. */
+float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e);
+/* A shadow ray stops this fraction short of the light's sample point, so it
+ * does not hit the emitter it aims at. */
+#define REF_SHADOW_SHORTEN 0.999f
+/* Shadow rays of one point, traced REF_BATCH at a time (one BVH call per
+ * batch: a city has hundreds of street lights). Lives on the stack. */
+#define REF_BATCH 32
+typedef struct ref_batch {
+  int n;
+  float org[3 * REF_BATCH], dir[3 * REF_BATCH], tn[REF_BATCH], tf[REF_BATCH];
+  float V[REF_BATCH][3]; /* what each ray brings when nothing blocks it */
+  uint8_t vis[REF_BATCH];
+} ref_batch;
+/* Queues the segment o + t w, t in [tnear, tfar], carrying V; flushes first when full. */
+void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
+                   const float V[3], float E[3], float sh[9][3]);
+/* Traces the queued rays; each unblocked one adds V to E or, with sh,
+ * V along its direction to sh and V times its cosine to the up axis to E. */
+void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]);
+/* Direct irradiance at x on the side n from sun, point and spot lights and
+ * one emitter sample (balance heuristic against a cosine sample, pdf
+ * cos / pi). The sky is left to the cosine sample (it has no other). */
+void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]);
+
+/* ---- ref_camera.c: the pinhole camera ---------------------------------- */
+
+typedef struct ref_cam {
+  float eye[3], fwd[3], right[3], up[3]; /* local frame */
+  float half;       /* tan(fov / 2) over half the smaller side, per pixel */
+  int w, h;
+} ref_cam;
+/* Validates cam and sets it up in the scene's local frame. */
+gi_result ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_error_info *err);
+/* Unit direction through image point (px, py), pixels from the top-left corner. */
+void ref_cam_dir(const ref_cam *k, float px, float py, float w[3]);
+
+#endif

@@ -1,0 +1,212 @@
+/* ref_lights.c: the reference's next-event estimation, apart from the
+ * bake's light sampler (scene/lights.c) so that neither can hide a bug of
+ * the other.
+ *
+ * The radiometry is the scene's: a sun gives irradiance `color` to a
+ * surface facing it; a point light `color / r^2`; a spot the same times a
+ * smoothstep from its outer cone (0) to its inner cone (1); a sky is
+ * radiance `color` over the upper hemisphere about the scene's up axis;
+ * emissive triangles emit their material's radiance from the side their
+ * winding normal faces only. Sun, point and spot are evaluated exactly.
+ * Emitters are sampled by area: a triangle picked from a table built here
+ * from the triangles and materials (weight area times mean emission; not
+ * the scene's emitter cdf), a uniform point on it by folding the unit
+ * square. The sky has no light sample: callers meet it with their own
+ * cosine or mixture directions. */
+#include <stdlib.h>
+#include <string.h>
+#include "reference/ref_internal.h"
+
+/* Lights closer than this (squared, local units) are skipped: 1 / r^2 blows up. */
+#define MIN_LIGHT_DIST2 1e-12f
+
+static void tri_corners(const gi_scene *s, uint32_t tri, const float *P[3]) {
+  for (int c = 0; c < 3; c++) P[c] = &s->vertices[3 * s->indices[3 * tri + c]];
+}
+
+/* Winding normal times twice the area. */
+static void tri_normal2(const float *P[3], float n[3]) {
+  float e1[3], e2[3];
+  for (int k = 0; k < 3; k++) e1[k] = P[1][k] - P[0][k], e2[k] = P[2][k] - P[0][k];
+  gi__cross(e1, e2, n);
+}
+
+static int emissive(const float e[3]) { return e[0] > 0 || e[1] > 0 || e[2] > 0; }
+
+gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err) {
+  memset(L, 0, sizeof *L);
+  L->s = s;
+  float ext = 0;
+  for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
+  /* Float positions near ext carry ~1e-7 ext of error: offsets scale with it. */
+  L->eps = 2e-5f * ext + 1e-6f;
+  L->up[s->up == GI_UP_Z ? 2 : 1] = 1;
+  for (uint32_t i = 0; i < s->num_lights; i++)
+    if (s->lights[i].type == GI_LIGHT_SKY) {
+      L->has_sky = 1;
+      for (int k = 0; k < 3; k++) L->sky[k] += s->lights[i].color[k];
+    }
+  uint32_t n = 0;
+  for (uint32_t t = 0; t < s->num_triangles; t++) n += emissive(s->materials[s->tri_material[t]].emission);
+  if (!n) return GI_OK;
+  L->em = malloc((size_t)n * sizeof *L->em);
+  if (!L->em) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %u emissive triangles", n);
+  double sum = 0;
+  for (uint32_t t = 0, q = 0; t < s->num_triangles; t++) {
+    const float *e = s->materials[s->tri_material[t]].emission;
+    if (!emissive(e)) continue;
+    const float *P[3];
+    float ng[3];
+    tri_corners(s, t, P);
+    tri_normal2(P, ng);
+    double area = 0.5 * gi__len(ng);
+    L->em[q].tri = t;
+    L->em[q].pdf_area = (float)(area * (e[0] + e[1] + e[2]) / 3); /* weight for now */
+    sum += L->em[q].pdf_area;
+    L->em[q++].cdf = sum;
+  }
+  L->num_emitters = n;
+  if (!(sum > 0)) { /* only degenerate emitters: nothing can be sampled or hit */
+    ref_lights_free(L);
+    return GI_OK;
+  }
+  for (uint32_t q = 0; q < n; q++) {
+    const float *P[3];
+    float ng[3];
+    tri_corners(s, L->em[q].tri, P);
+    tri_normal2(P, ng);
+    double area = 0.5 * gi__len(ng), pick = L->em[q].pdf_area / sum;
+    L->em[q].pdf_area = area > 0 ? (float)(pick / area) : 0.f;
+    L->em[q].cdf /= sum;
+  }
+  L->em[n - 1].cdf = 1.0;
+  return GI_OK;
+}
+
+void ref_lights_free(ref_lights *L) {
+  free(L->em);
+  L->em = NULL;
+  L->num_emitters = 0;
+}
+
+int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], float w[3], float *dist, float E[3]) {
+  if (l->type == GI_LIGHT_SUN) {
+    for (int k = 0; k < 3; k++) w[k] = -l->direction[k], E[k] = l->color[k];
+    *dist = INFINITY;
+    return 1;
+  }
+  if (l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) return 0;
+  const gi_scene *s = L->s;
+  double d[3], r2 = 0;
+  for (int k = 0; k < 3; k++) d[k] = (l->position[k] - s->origin[k]) - x[k], r2 += d[k] * d[k];
+  if (!(r2 > MIN_LIGHT_DIST2)) return 0;
+  double r = sqrt(r2);
+  for (int k = 0; k < 3; k++) w[k] = (float)(d[k] / r);
+  double f = 1;
+  if (l->type == GI_LIGHT_SPOT) {
+    /* Cosine between the spot's axis and the way from the light to x. */
+    double c = -(w[0] * (double)l->direction[0] + w[1] * (double)l->direction[1] + w[2] * (double)l->direction[2]);
+    if (c <= l->cos_outer) return 0;
+    if (c < l->cos_inner) {
+      double u = (c - l->cos_outer) / (l->cos_inner - l->cos_outer);
+      f = u * u * (3 - 2 * u);
+    }
+  }
+  for (int k = 0; k < 3; k++) E[k] = (float)(f * l->color[k] / r2);
+  *dist = (float)r;
+  return 1;
+}
+
+/* Index of the first table entry whose cdf exceeds u. */
+static uint32_t pick(const ref_lights *L, double u) {
+  uint32_t lo = 0, hi = L->num_emitters - 1;
+  while (lo < hi) {
+    uint32_t mid = lo + (hi - lo) / 2;
+    if (L->em[mid].cdf > u) hi = mid;
+    else lo = mid + 1;
+  }
+  return lo;
+}
+
+int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
+                       float Le[3]) {
+  if (!L->num_emitters) return 0;
+  const gi_scene *s = L->s;
+  const ref_emitter *e = &L->em[pick(L, ref_u01(r))];
+  float u = ref_u01(r), v = ref_u01(r);
+  if (u + v > 1) u = 1 - u, v = 1 - v; /* fold the square onto the triangle */
+  const float *P[3];
+  float ng[3], d[3];
+  tri_corners(s, e->tri, P);
+  tri_normal2(P, ng);
+  for (int k = 0; k < 3; k++) d[k] = P[0][k] + u * (P[1][k] - P[0][k]) + v * (P[2][k] - P[0][k]) - x[k];
+  float r2 = gi__dot(d, d), ln = gi__len(ng);
+  if (!(r2 > 0) || !(ln > 0) || !(e->pdf_area > 0)) return 0;
+  float rr = sqrtf(r2);
+  for (int k = 0; k < 3; k++) w[k] = d[k] / rr;
+  float cos_e = -gi__dot(ng, w) / ln;
+  if (!(cos_e > 0)) return 0; /* the back of a one-sided emitter */
+  *dist = rr;
+  *pdf = e->pdf_area * r2 / cos_e;
+  memcpy(Le, s->materials[s->tri_material[e->tri]].emission, sizeof(float[3]));
+  return 1;
+}
+
+float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e) {
+  if (!L->num_emitters || !(cos_e > 0)) return 0;
+  uint32_t lo = 0, hi = L->num_emitters;
+  while (lo < hi) {
+    uint32_t mid = lo + (hi - lo) / 2;
+    if (L->em[mid].tri < tri) lo = mid + 1;
+    else hi = mid;
+  }
+  if (lo >= L->num_emitters || L->em[lo].tri != tri) return 0;
+  return L->em[lo].pdf_area * t * t / cos_e;
+}
+
+void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]) {
+  gi__occluded(L->s, b->n, b->org, b->dir, b->tn, b->tf, b->vis);
+  for (int i = 0; i < b->n; i++) {
+    if (!b->vis[i]) continue;
+    float f = 1;
+    if (sh) {
+      ref_sh_add(sh, &b->dir[3 * i], b->V[i], 1.f);
+      f = fmaxf(0.f, gi__dot(L->up, &b->dir[3 * i]));
+    }
+    for (int k = 0; k < 3; k++) E[k] += f * b->V[i][k];
+  }
+  b->n = 0;
+}
+
+void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
+                   const float V[3], float E[3], float sh[9][3]) {
+  if (b->n == REF_BATCH) ref_batch_flush(b, L, E, sh);
+  int i = b->n++;
+  memcpy(&b->org[3 * i], o, sizeof(float[3]));
+  memcpy(&b->dir[3 * i], w, sizeof(float[3]));
+  memcpy(b->V[i], V, sizeof(float[3]));
+  b->tn[i] = tnear, b->tf[i] = tfar;
+}
+
+void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]) {
+  const gi_scene *s = L->s;
+  float o[3], w[3], dist, V[3];
+  ref_batch b;
+  b.n = 0;
+  for (int k = 0; k < 3; k++) o[k] = x[k] + L->eps * n[k];
+  for (uint32_t i = 0; i < s->num_lights; i++) {
+    if (!ref_delta_light(L, &s->lights[i], x, w, &dist, V)) continue;
+    float c = gi__dot(n, w);
+    if (!(c > 0)) continue;
+    for (int k = 0; k < 3; k++) V[k] *= c;
+    ref_batch_add(&b, L, o, w, 0, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN, V, E, NULL);
+  }
+  float pdf, Le[3];
+  if (ref_emitter_sample(L, x, r, w, &dist, &pdf, Le)) {
+    float c = gi__dot(n, w);
+    /* Balance heuristic: Le c / pdf * pdf / (pdf + c / pi). */
+    for (int k = 0; k < 3; k++) V[k] = Le[k] * c / (pdf + c / (float)GI_PI);
+    if (c > 0) ref_batch_add(&b, L, o, w, 0, dist * REF_SHADOW_SHORTEN, V, E, NULL);
+  }
+  ref_batch_flush(&b, L, E, NULL);
+}
