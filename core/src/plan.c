@@ -199,7 +199,7 @@ int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces
     const gi_material *m = &s->materials[s->tri_material[tris[i]]];
     emit_in += m->emission[0] > 0 || m->emission[1] > 0 || m->emission[2] > 0;
   }
-  free(tris);
+  gi__free(tris);
   tris = tris_in_range(c, 0.f, &nt);
   double area = 0, a_sum = 0;
   for (size_t i = 0; i < nt; i++) {
@@ -214,7 +214,7 @@ int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces
     a_sum += ar * fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2]));
     glossy += m->roughness < 0.5f && m->specular > 0;
   }
-  free(tris);
+  gi__free(tris);
   int fe = gi__fx_forced(q, GI_FX_EMISSIVE);
   if (fe == GI_FX_OFF) set_fx(r, GI_FX_EMISSIVE, 0, "turned off by the request");
   else if (!s->num_emitters) set_fx(r, GI_FX_EMISSIVE, 0, "no emissive surfaces");
@@ -281,7 +281,7 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   if (rc != GI_OK) return rc;
   /* The plan looks at what lies inside the placed cascade: place one
    * without its voxel arrays, as gi_cascade_bake would. */
-  struct gi_cascade *c = calloc(1, sizeof *c);
+  struct gi_cascade *c = gi__calloc(1, sizeof *c);
   if (!c) return gi__fail(err, GI_ERR_NOMEM, "plan: out of memory");
   c->scene = (gi_scene *)s;
   c->n = q.levels;
@@ -290,7 +290,7 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   for (int a = 0; a < 3; a++) {
     c->at[a] = (float)(at[a] - s->origin[a]);
     if (!isfinite(at[a]) || !isfinite(c->at[a]) || fabs(at[a] - s->origin[a]) > 1e9) {
-      free(c);
+      gi__free(c);
       return gi__fail(err, GI_ERR_INVALID_ARG, "plan: viewpoint is not finite or more than 1e9 units from the scene");
     }
   }
@@ -298,6 +298,6 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report);
   memcpy(out, c->report.effects, sizeof c->report.effects);
   if (resolved) *resolved = q;
-  free(c);
+  gi__free(c);
   return GI_OK;
 }

@@ -30,8 +30,8 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   gi_level *L = &c->lv[ic->d];
   const gi_scene *s = c->scene;
   gi_ray_scratch sc = {0};
-  int8_t *side = malloc(MAX_LS);
-  float *cosw = malloc(MAX_LS * sizeof(float));
+  int8_t *side = gi__malloc(MAX_LS);
+  float *cosw = gi__malloc(MAX_LS * sizeof(float));
   if (gi__scratch_alloc(&sc, MAX_LS) || !side || !cosw) goto out; /* voxels stay dark */
   gi_lsample *ls = sc.ls;
   float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
@@ -101,8 +101,8 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   atomic_fetch_add(&ic->rays, rays);
 out:
   gi__scratch_free(&sc);
-  free(side);
-  free(cosw);
+  gi__free(side);
+  gi__free(cosw);
 }
 
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {

@@ -380,7 +380,7 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   rc.chunks = (rc.o.samples + CHUNK - 1) / CHUNK;
   ctx_setup(&rc, s);
   size_t tasks = n * (size_t)rc.chunks;
-  rc.acc = calloc(tasks ? tasks : 1, sizeof *rc.acc);
+  rc.acc = gi__calloc(tasks ? tasks : 1, sizeof *rc.acc);
   if (!rc.acc) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %zu sample chunks", tasks);
   gi__parallel_for(tasks, 1, rc.o.threads, ref_range, &rc);
   gi_result res = GI_OK;
@@ -417,7 +417,7 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
       for (int k = 0; k < 3; k++)
         if (!isfinite(o->sh[j][k])) res = GI_ERR_NONFINITE;
   }
-  free(rc.acc);
+  gi__free(rc.acc);
   if (ms) *ms = gi__now_ms() - t0;
   if (res != GI_OK) return gi__fail(err, res, "reference: a probe came out non-finite (scene values too large?)");
   return GI_OK;
