@@ -94,7 +94,8 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
 
   if ((rc = gi__cascade_alloc(c, err)) != GI_OK) goto fail;
   gi__cascade_place(c);
-  int tail = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report);
+  int tail;
+  if ((rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err)) != GI_OK) goto fail;
   if (c->report.effects[GI_FX_AO].ran) q.ao = 1;
   c->report.quality = q;
   for (int d = 0; d < c->n; d++) {

@@ -68,7 +68,11 @@ typedef struct {
   float up[3];
   float sky[3];               /* radiance of every sky light, summed: what an escaping lobe sample sees above the horizon */
   chunk_acc *acc;             /* n * chunks */
+  atomic_int failed;          /* a worker ran out of memory */
 } ref_ctx;
+
+/* Every light kind, one sky and one emitter sample per path vertex. */
+static const gi_light_plan ref_lp = {1, 1, 1, 1, 1, 1};
 
 /* Offsets, up axis and sky radiance shared by probes and the view. */
 static void ctx_setup(ref_ctx *rc, const gi_scene *s) {
@@ -96,8 +100,7 @@ static void nee(const ref_ctx *rc, const float x[3], const float n[3], uint64_t 
   float *org = sc->org, *dir = sc->dir, *tn = sc->tn, *tf = sc->tf;
   uint8_t *vis = sc->vis;
   int cap = sc->cap;
-  static const gi_light_plan lp = {1, 1, 1, 1, 1, 1};
-  int m = gi__light_samples(rc->s, &lp, x, rng, ls, cap), k = 0;
+  int m = gi__light_samples(rc->s, &ref_lp, x, rng, ls, cap), k = 0;
   for (int i = 0; i < m; i++) {
     float c = gi__dot(n, ls[i].w);
     if (!(c > 0)) continue;
@@ -274,7 +277,10 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
   ref_ctx *rc = p;
   const gi_scene *s = rc->s;
   gi_ray_scratch sc = {0};
-  if (gi__scratch_alloc(&sc, (int)s->num_lights + 8)) goto out; /* the caller sees samples = 0 */
+  if (gi__scratch_alloc(&sc, gi__light_sample_cap(s, &ref_lp))) {
+    atomic_store(&rc->failed, 1);
+    goto out;
+  }
   gi_lsample *ls = sc.ls;
   float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
   uint8_t *vis = sc.vis;
@@ -297,8 +303,7 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
       float shd[9][3] = {{0}}, shi[9][3] = {{0}};
       /* (1) NEE at the probe over the whole sphere. */
       {
-        static const gi_light_plan lp = {1, 1, 1, 1, 1, 1};
-        int m = gi__light_samples(s, &lp, p, &rng, ls, cap);
+        int m = gi__light_samples(s, &ref_lp, p, &rng, ls, cap);
         for (int i = 0; i < m; i++) {
           memcpy(&org[3 * i], p, sizeof(float[3]));
           memcpy(&dir[3 * i], ls[i].w, sizeof(float[3]));
@@ -382,7 +387,12 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   size_t tasks = n * (size_t)rc.chunks;
   rc.acc = gi__calloc(tasks ? tasks : 1, sizeof *rc.acc);
   if (!rc.acc) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %zu sample chunks", tasks);
-  gi__parallel_for(tasks, 1, rc.o.threads, ref_range, &rc);
+  atomic_init(&rc.failed, 0);
+  gi__parallel_for_stop(tasks, 1, rc.o.threads, ref_range, &rc, &rc.failed);
+  if (atomic_load(&rc.failed)) {
+    gi__free(rc.acc);
+    return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for the light-sample buffers");
+  }
   gi_result res = GI_OK;
   for (size_t i = 0; i < n; i++) {
     chunk_acc T = {0};
@@ -437,7 +447,11 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
   const ref_ctx *rc = &vc->rc;
   const gi_scene *s = rc->s;
   gi_ray_scratch sc = {0};
-  if (gi__scratch_alloc(&sc, (int)s->num_lights + 8) == 0)
+  if (gi__scratch_alloc(&sc, gi__light_sample_cap(s, &ref_lp))) {
+    atomic_store(&vc->rc.failed, 1);
+    return;
+  }
+  {
     for (size_t y = b; y < e; y++)
       for (int x = 0; x < vc->k->w; x++) {
         uint64_t rng = gi__mix64(rc->o.seed ^ gi__mix64((uint64_t)y << 32 | (uint32_t)x));
@@ -461,6 +475,7 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
         if (vc->spec)
           for (int a = 0; a < 3; a++) vc->spec[i + a] = (float)(accs[a] / vc->spp);
       }
+  }
   gi__scratch_free(&sc);
 }
 
@@ -484,7 +499,10 @@ gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const 
   size_t np = (size_t)k.w * k.h * 3;
   memset(rgb, 0, np * sizeof(float));
   if (o.specular) memset(o.specular, 0, np * sizeof(float));
-  gi__parallel_for((size_t)k.h, 1, o.threads, view_rows, &vc);
+  atomic_init(&vc.rc.failed, 0);
+  gi__parallel_for_stop((size_t)k.h, 1, o.threads, view_rows, &vc, &vc.rc.failed);
+  if (atomic_load(&vc.rc.failed))
+    return gi__fail(err, GI_ERR_NOMEM, "reference render: out of memory for the light-sample buffers");
   if (ms) *ms = gi__now_ms() - t0;
   for (size_t i = 0; i < np; i++)
     if (!isfinite(rgb[i]) || (o.specular && !isfinite(o.specular[i])))
