@@ -173,8 +173,16 @@ static gi_result call_points_read(call_ctx *x, gi_error_info *err) {
   return rc;
 }
 
+static gi_result call_png(call_ctx *x, gi_error_info *err) {
+  snprintf(x->path, sizeof x->path, "%s/nomem-tex.png", tu_tmpdir());
+  for (size_t i = 0; i < sizeof x->rgb / sizeof x->rgb[0]; i++) x->rgb[i] = (float)(i % 7) / 7.f;
+  return gi_image_write_png(x->path, x->rgb, VIEW_W, VIEW_H, 1.f, err);
+}
+
+/* The OBJ's wall material is textured with the PNG call_png wrote. */
 static gi_result call_scene_load(call_ctx *x, gi_error_info *err) {
-  static const char mtl[] = "newmtl wall\nKd 0.6 0.6 0.6\nnewmtl lamp\nKd 0.2 0.2 0.2\nKe 4 4 4\n";
+  static const char mtl[] = "newmtl wall\nKd 0.6 0.6 0.6\nmap_Kd nomem-tex.png\n"
+                            "newmtl lamp\nKd 0.2 0.2 0.2\nKe 4 4 4\n";
   static const char obj[] = "mtllib nomem.mtl\n"
                             "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0 1 0\nv 1 1 0\nv 1 1 1\nv 0 1 1\n"
                             "usemtl wall\nf 1 2 3 4\nf 5 8 7 6\nf 1 5 6 2\n"
@@ -281,6 +289,7 @@ static void test_nomem_every_call(void **state) {
   assert_true(walk("gi_probes_write_exr", call_exr, &x) > 0);
   assert_true(walk("gi_exr_read", call_exr_read, &x) > 0);
   assert_true(walk("gi_points_read", call_points_read, &x) > 0);
+  assert_true(walk("gi_image_write_png", call_png, &x) > 0);
   assert_true(walk("gi_scene_load", call_scene_load, &x) > 0);
   assert_true(walk("gi_city_build", call_city, &x) > 0);
 

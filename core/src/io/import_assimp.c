@@ -356,12 +356,15 @@ static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const
        * name alone next to the scene. */
       char *near = resolve_path(tc->path, bn, strlen(bn));
       gi_error_info te2 = {0};
-      if (near && gi__read_file(near, GI__TEXTURE_FILE_MAX, &data, &size, &te2) == GI_OK) r = GI_OK;
+      gi_result r2 = near ? gi__read_file(near, GI__TEXTURE_FILE_MAX, &data, &size, &te2) : GI_ERR_NOMEM;
+      if (r2 == GI_OK || r2 == GI_ERR_NOMEM) r = r2;
       gi__free(near);
     }
     if (r == GI_OK) r = gi__image_average(data, size, key, e->rgb, &te);
     gi__free(data);
   }
+  /* Out of memory fails the load; only a texture that cannot be read falls back to the colour. */
+  if (r == GI_ERR_NOMEM) return NULL;
   e->ok = r == GI_OK && gi__finite3(e->rgb);
   if (!e->ok) {
     tc->unreadable++;
@@ -470,7 +473,8 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     if (!has_factor) c[0] = c[1] = c[2] = 1.f;
     const tex_entry *t = NULL;
     if ((has_factor && !texture_factor(tc, m->name, c)) || !(t = texture_average(tc, m->name, tpath.data)))
-      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
+      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': material '%s': out of memory for its texture", tc->path,
+                      m->name);
     if (t->ok)
       for (int i = 0; i < 3; i++) c[i] *= t->rgb[i];
     has_factor = 1;

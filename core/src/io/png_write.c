@@ -26,7 +26,8 @@ gi_result gi_image_write_png(const char *path, const float *rgb, int width, int 
   char tmp[4096];
   snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
   unsigned char *row = gi__malloc((size_t)width * 3);
-  FILE *f = row ? fopen(tmp, "wb") : NULL;
+  if (!row) return gi__fail(err, GI_ERR_NOMEM, "png: out of memory for a row of %d pixels of %s", width, path);
+  FILE *f = fopen(tmp, "wb");
   if (!f) {
     gi__free(row);
     return gi__fail(err, GI_ERR_IO, "png: cannot write %s", tmp);
