@@ -145,9 +145,9 @@ static void render_rows(void *p, size_t b, size_t e, int worker) {
     return;
   }
   for (size_t y = b; y < e; y++)
-      for (int x = 0; x < rc->k->w; x++)
-        shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)],
-                    rc->spec_img ? &rc->spec_img[3 * ((size_t)y * rc->k->w + x)] : NULL);
+    for (int x = 0; x < rc->k->w; x++)
+      shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)],
+                  rc->spec_img ? &rc->spec_img[3 * ((size_t)y * rc->k->w + x)] : NULL);
   gi__scratch_free(&sc);
   atomic_fetch_add(&rc->diffuse_cones, cones[0]);
   atomic_fetch_add(&rc->specular_cones, cones[1]);
