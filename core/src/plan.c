@@ -159,6 +159,46 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
   return seen;
 }
 
+/* What lies in range of the cascade: emissive triangles within half a
+ * cascade of it (*emit_in), glossy triangles inside it and the
+ * area-weighted albedo (brightest channel) inside it (*abar). Emitters
+ * light the cascade from outside it too: an emitter farther away than
+ * half a cascade lights it at under a ninth of the irradiance it would
+ * give at the border, and the coarsest level already spans the whole scene
+ * by default. Albedo and gloss: inside only. */
+static gi_result survey_range(const struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar,
+                              gi_error_info *err) {
+  const gi_scene *s = c->scene;
+  size_t ne = 0, nt = 0;
+  uint32_t *tris;
+  gi_result rc = tris_in_range(c, 0.5f, &tris, &ne);
+  if (rc != GI_OK) return gi__fail(err, rc, "plan: triangle query around the cascade failed (%s)", gi_strerror(rc));
+  *emit_in = *glossy = 0;
+  for (size_t i = 0; i < ne; i++) {
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    *emit_in += m->emission[0] > 0 || m->emission[1] > 0 || m->emission[2] > 0;
+  }
+  gi__free(tris);
+  if ((rc = tris_in_range(c, 0.f, &tris, &nt)) != GI_OK)
+    return gi__fail(err, rc, "plan: triangle query inside the cascade failed (%s)", gi_strerror(rc));
+  double area = 0, a_sum = 0;
+  for (size_t i = 0; i < nt; i++) {
+    const uint32_t *ix = &s->indices[3 * tris[i]];
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+    float e1[3], e2[3], n[3];
+    for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+    gi__cross(e1, e2, n);
+    double ar = 0.5 * gi__len(n);
+    area += ar;
+    a_sum += ar * fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2]));
+    *glossy += m->roughness < 0.5f && m->specular > 0;
+  }
+  gi__free(tris);
+  *abar = area > 0 ? a_sum / area : 0;
+  return GI_OK;
+}
+
 /* The effect plan: what this scene and request call for, with reasons.
  * Runs after placement (it looks at what lies inside the cascade). May set
  * q->bounces when the request left it to the plan (auto_bounces). *tail is
@@ -195,36 +235,10 @@ gi_result gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_b
                                  "finest level's faces escapes", tested);
   }
 
-  /* Emitters light the cascade from outside it too: look half a cascade
-   * beyond it (an emitter farther away lights it at under a ninth of the
-   * irradiance it would give at the border, and the coarsest level
-   * already spans the whole scene by default). Albedo and gloss: inside only. */
-  size_t ne = 0, nt = 0;
-  uint32_t *tris;
-  gi_result rc = tris_in_range(c, 0.5f, &tris, &ne);
-  if (rc != GI_OK) return gi__fail(err, rc, "plan: triangle query around the cascade failed (%s)", gi_strerror(rc));
   uint32_t emit_in = 0, glossy = 0;
-  for (size_t i = 0; i < ne; i++) {
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
-    emit_in += m->emission[0] > 0 || m->emission[1] > 0 || m->emission[2] > 0;
-  }
-  gi__free(tris);
-  if ((rc = tris_in_range(c, 0.f, &tris, &nt)) != GI_OK)
-    return gi__fail(err, rc, "plan: triangle query inside the cascade failed (%s)", gi_strerror(rc));
-  double area = 0, a_sum = 0;
-  for (size_t i = 0; i < nt; i++) {
-    const uint32_t *ix = &s->indices[3 * tris[i]];
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
-    const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
-    float e1[3], e2[3], n[3];
-    for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
-    gi__cross(e1, e2, n);
-    double ar = 0.5 * gi__len(n);
-    area += ar;
-    a_sum += ar * fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2]));
-    glossy += m->roughness < 0.5f && m->specular > 0;
-  }
-  gi__free(tris);
+  double abar = 0;
+  gi_result rc = survey_range(c, &emit_in, &glossy, &abar, err);
+  if (rc != GI_OK) return rc;
   int fe = gi__fx_forced(q, GI_FX_EMISSIVE);
   if (fe == GI_FX_OFF) set_fx(r, GI_FX_EMISSIVE, 0, "turned off by the request");
   else if (!s->num_emitters) set_fx(r, GI_FX_EMISSIVE, 0, "no emissive surfaces");
@@ -244,7 +258,6 @@ gi_result gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_b
    * albedo gives a^5 = 20%), the orders left out are not dropped: the
    * bounce stage extrapolates them as a geometric series from the last two
    * bounces (see gi__bounce), which costs no gather. */
-  double abar = area > 0 ? a_sum / area : 0;
   int fb = gi__fx_forced(q, GI_FX_BOUNCE);
   int tail = 0;
   if (auto_bounces) {
