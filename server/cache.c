@@ -147,6 +147,7 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   e = calloc(1, sizeof *e);
   if (!e) {
     pthread_mutex_unlock(&c->mu);
+    if (err) snprintf(err->msg, sizeof err->msg, "cache: out of memory for an entry");
     return GI_ERR_NOMEM;
   }
   snprintf(e->key, sizeof e->key, "%s", key);

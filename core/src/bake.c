@@ -34,12 +34,12 @@ gi_result gi_cascade_anchor(const gi_scene *s, const double at[3], const gi_qual
 
 static void free_levels(struct gi_cascade *c) {
   for (int d = 0; d < GI_MAX_LEVELS; d++) {
-    free(c->lv[d].geo);
-    free(c->lv[d].rad);
-    free(c->lv[d].side);
-    free(c->lv[d].direct);
-    free(c->lv[d].occ);
-    free(c->lv[d].busy);
+    gi__free(c->lv[d].geo);
+    gi__free(c->lv[d].rad);
+    gi__free(c->lv[d].side);
+    gi__free(c->lv[d].direct);
+    gi__free(c->lv[d].occ);
+    gi__free(c->lv[d].busy);
   }
 }
 
@@ -47,7 +47,7 @@ void gi_cascade_free(gi_cascade *c) {
   if (!c) return;
   free_levels(c);
   gi_scene_release(c->scene);
-  free(c);
+  gi__free(c);
 }
 
 size_t gi_cascade_bytes(const gi_cascade *c) {
@@ -67,7 +67,7 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   gi_quality q;
   gi_result rc = gi_quality_resolve(scene, qin, &q, err);
   if (rc != GI_OK) return rc;
-  struct gi_cascade *c = calloc(1, sizeof *c);
+  struct gi_cascade *c = gi__calloc(1, sizeof *c);
   if (!c) return gi__fail(err, GI_ERR_NOMEM, "bake: out of memory");
   c->scene = gi_scene_retain((gi_scene *)scene);
   c->n = q.levels;
@@ -94,7 +94,8 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
 
   if ((rc = gi__cascade_alloc(c, err)) != GI_OK) goto fail;
   gi__cascade_place(c);
-  int tail = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report);
+  int tail;
+  if ((rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err)) != GI_OK) goto fail;
   if (c->report.effects[GI_FX_AO].ran) q.ao = 1;
   c->report.quality = q;
   for (int d = 0; d < c->n; d++) {

@@ -102,11 +102,12 @@ int gi__fx_forced(const gi_quality *q, gi_effect_id id) {
 }
 
 /* Triangles whose bounds overlap the coarsest level's box grown by `grow`
- * times its side on every face; *n = 0 on an empty scene or allocation
- * failure. Caller frees. */
-static uint32_t *tris_in_range(const struct gi_cascade *c, float grow, size_t *n) {
-  uint32_t *t = NULL;
+ * times its side on every face into *t (caller frees; *n = 0 on an empty
+ * scene). A failed query is an error: a plan from a partial list would
+ * silently drop effects. */
+static gi_result tris_in_range(const struct gi_cascade *c, float grow, uint32_t **t, size_t *n) {
   size_t cap = 0;
+  *t = NULL;
   *n = 0;
   const gi_level *L = &c->lv[c->n - 1];
   float lo[3], hi[3];
@@ -114,8 +115,13 @@ static uint32_t *tris_in_range(const struct gi_cascade *c, float grow, size_t *n
     float m = grow * (L->hi[a] - L->lo[a]);
     lo[a] = L->lo[a] - m, hi[a] = L->hi[a] + m;
   }
-  if (gi__query_box(c->scene, lo, hi, &t, n, &cap) != GI_OK) *n = 0;
-  return t;
+  gi_result rc = gi__query_box(c->scene, lo, hi, t, n, &cap);
+  if (rc != GI_OK) {
+    gi__free(*t);
+    *t = NULL;
+    *n = 0;
+  }
+  return rc;
 }
 
 /* Sky visibility: 32 stratified upward rays from the viewpoint and from the
@@ -153,12 +159,53 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
   return seen;
 }
 
+/* What lies in range of the cascade: emissive triangles within half a
+ * cascade of it (*emit_in), glossy triangles inside it and the
+ * area-weighted albedo (brightest channel) inside it (*abar). Emitters
+ * light the cascade from outside it too: an emitter farther away than
+ * half a cascade lights it at under a ninth of the irradiance it would
+ * give at the border, and the coarsest level already spans the whole scene
+ * by default. Albedo and gloss: inside only. */
+static gi_result survey_range(const struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar,
+                              gi_error_info *err) {
+  const gi_scene *s = c->scene;
+  size_t ne = 0, nt = 0;
+  uint32_t *tris;
+  gi_result rc = tris_in_range(c, 0.5f, &tris, &ne);
+  if (rc != GI_OK) return gi__fail(err, rc, "plan: triangle query around the cascade failed (%s)", gi_strerror(rc));
+  *emit_in = *glossy = 0;
+  for (size_t i = 0; i < ne; i++) {
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    *emit_in += m->emission[0] > 0 || m->emission[1] > 0 || m->emission[2] > 0;
+  }
+  gi__free(tris);
+  if ((rc = tris_in_range(c, 0.f, &tris, &nt)) != GI_OK)
+    return gi__fail(err, rc, "plan: triangle query inside the cascade failed (%s)", gi_strerror(rc));
+  double area = 0, a_sum = 0;
+  for (size_t i = 0; i < nt; i++) {
+    const uint32_t *ix = &s->indices[3 * tris[i]];
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+    float e1[3], e2[3], n[3];
+    for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+    gi__cross(e1, e2, n);
+    double ar = 0.5 * gi__len(n);
+    area += ar;
+    a_sum += ar * fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2]));
+    *glossy += m->roughness < 0.5f && m->specular > 0;
+  }
+  gi__free(tris);
+  *abar = area > 0 ? a_sum / area : 0;
+  return GI_OK;
+}
+
 /* The effect plan: what this scene and request call for, with reasons.
  * Runs after placement (it looks at what lies inside the cascade). May set
- * q->bounces when the request left it to the plan (auto_bounces). Returns 1
- * when the plan capped the bounces while the orders left out still weigh
+ * q->bounces when the request left it to the plan (auto_bounces). *tail is
+ * 1 when the plan capped the bounces while the orders left out still weigh
  * 2% or more: the bounce stage then adds their geometric tail (inject.c). */
-int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r) {
+gi_result gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r,
+                           int *tail_out, gi_error_info *err) {
   const gi_scene *s = c->scene;
   int sun = 0, local = 0, sky = 0;
   for (uint32_t i = 0; i < s->num_lights; i++) {
@@ -188,33 +235,10 @@ int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces
                                  "finest level's faces escapes", tested);
   }
 
-  /* Emitters light the cascade from outside it too: look half a cascade
-   * beyond it (an emitter farther away lights it at under a ninth of the
-   * irradiance it would give at the border, and the coarsest level
-   * already spans the whole scene by default). Albedo and gloss: inside only. */
-  size_t ne = 0, nt = 0;
-  uint32_t *tris = tris_in_range(c, 0.5f, &ne);
   uint32_t emit_in = 0, glossy = 0;
-  for (size_t i = 0; i < ne; i++) {
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
-    emit_in += m->emission[0] > 0 || m->emission[1] > 0 || m->emission[2] > 0;
-  }
-  free(tris);
-  tris = tris_in_range(c, 0.f, &nt);
-  double area = 0, a_sum = 0;
-  for (size_t i = 0; i < nt; i++) {
-    const uint32_t *ix = &s->indices[3 * tris[i]];
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
-    const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
-    float e1[3], e2[3], n[3];
-    for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
-    gi__cross(e1, e2, n);
-    double ar = 0.5 * gi__len(n);
-    area += ar;
-    a_sum += ar * fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2]));
-    glossy += m->roughness < 0.5f && m->specular > 0;
-  }
-  free(tris);
+  double abar = 0;
+  gi_result rc = survey_range(c, &emit_in, &glossy, &abar, err);
+  if (rc != GI_OK) return rc;
   int fe = gi__fx_forced(q, GI_FX_EMISSIVE);
   if (fe == GI_FX_OFF) set_fx(r, GI_FX_EMISSIVE, 0, "turned off by the request");
   else if (!s->num_emitters) set_fx(r, GI_FX_EMISSIVE, 0, "no emissive surfaces");
@@ -234,7 +258,6 @@ int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces
    * albedo gives a^5 = 20%), the orders left out are not dropped: the
    * bounce stage extrapolates them as a geometric series from the last two
    * bounces (see gi__bounce), which costs no gather. */
-  double abar = area > 0 ? a_sum / area : 0;
   int fb = gi__fx_forced(q, GI_FX_BOUNCE);
   int tail = 0;
   if (auto_bounces) {
@@ -270,7 +293,8 @@ int gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
   if (gi__fx_forced(q, GI_FX_AO) == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
   else set_fx(r, GI_FX_AO, 0, "not requested");
-  return tail && r->effects[GI_FX_BOUNCE].ran;
+  *tail_out = tail && r->effects[GI_FX_BOUNCE].ran;
+  return GI_OK;
 }
 
 gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality *qin, gi_effect out[GI_FX_COUNT],
@@ -281,7 +305,7 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   if (rc != GI_OK) return rc;
   /* The plan looks at what lies inside the placed cascade: place one
    * without its voxel arrays, as gi_cascade_bake would. */
-  struct gi_cascade *c = calloc(1, sizeof *c);
+  struct gi_cascade *c = gi__calloc(1, sizeof *c);
   if (!c) return gi__fail(err, GI_ERR_NOMEM, "plan: out of memory");
   c->scene = (gi_scene *)s;
   c->n = q.levels;
@@ -290,14 +314,19 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   for (int a = 0; a < 3; a++) {
     c->at[a] = (float)(at[a] - s->origin[a]);
     if (!isfinite(at[a]) || !isfinite(c->at[a]) || fabs(at[a] - s->origin[a]) > 1e9) {
-      free(c);
+      gi__free(c);
       return gi__fail(err, GI_ERR_INVALID_ARG, "plan: viewpoint is not finite or more than 1e9 units from the scene");
     }
   }
   gi__cascade_place(c);
-  gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report);
+  int tail;
+  rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err);
+  if (rc != GI_OK) {
+    gi__free(c);
+    return rc;
+  }
   memcpy(out, c->report.effects, sizeof c->report.effects);
   if (resolved) *resolved = q;
-  free(c);
+  gi__free(c);
   return GI_OK;
 }

@@ -26,6 +26,8 @@
 #include <time.h>
 #include <unistd.h>
 #include "gi/gi.h"
+#include "base/alloc_test.h"
+#include "server.h"
 
 #define TOKEN "test-token-0123456789abcdef"
 
@@ -665,6 +667,47 @@ static void test_deadline(void **state) {
   assert_int_equal(server_stop(&S_deadline), 0);
 }
 
+/* In-process: a bake that runs out of memory is a 503 and is not cached;
+ * the next request for the same cascade bakes afresh (a miss) and is a
+ * 200, the one after that a hit. The first core allocation of the bake
+ * is made to fail (base/alloc_test.h). */
+static void test_nomem_not_cached(void **state) {
+  (void)state;
+  gs_config cfg;
+  gs_config_defaults(&cfg);
+  cfg.bake_threads = 1;
+  snprintf(cfg.tmp_dir, sizeof cfg.tmp_dir, "%s", tu_tmpdir());
+  gs_service svc = {.cfg = &cfg, .cache = gs_cache_new((size_t)1 << 30, NULL)};
+  assert_non_null(svc.cache);
+  gs_scene sc = {.id = "furnace", .scene = tu_furnace_scene(1.0, 0.5, 1.0)};
+  gi_proto_bake b = {.has_at = 1, .at = {0.5, 0.5, 0.5}, .kind = GI_PROTO_PROBE,
+                     .quality = {.levels = 2, .res = 16, .bounces = 1}};
+  const int want_status[3] = {503, 200, 200};
+  const char *const want_cache[3] = {NULL, "miss", "hit"};
+  const size_t want_entries[3] = {0, 1, 1};
+  for (int i = 0; i < 3; i++) {
+    gs_answer a = {.fd = -1};
+    if (i == 0) gi__alloc_fail_after(0);
+    gs_serve_bake(&svc, &sc, GS_EP_LIGHTING, &b, gs_now_ms(), &a);
+    if (i == 0) {
+      assert_false(gi__alloc_fail_armed()); /* the bake reached the failure */
+      gi__alloc_fail_after(-1);
+    }
+    size_t bytes, entries;
+    gs_cache_stats(svc.cache, &bytes, &entries);
+    printf("  request %d: status %d, cache %s, %zu entries%s%s\n", i, a.status, a.cache ? a.cache : "-", entries,
+           a.json ? ", " : "", a.json ? a.json : "");
+    assert_int_equal(a.status, want_status[i]);
+    assert_int_equal(entries, want_entries[i]);
+    if (want_cache[i]) assert_string_equal(a.cache, want_cache[i]);
+    else assert_non_null(strstr(a.json, "out of memory"));
+    if (a.status == 200) assert_true(a.fd >= 0 && a.size > 0);
+    gs_answer_free(&a);
+  }
+  gs_cache_free(svc.cache);
+  gi_scene_release(sc.scene);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_health_and_auth),
@@ -678,6 +721,7 @@ int main(void) {
       cmocka_unit_test(test_errors),
       cmocka_unit_test(test_overload),
       cmocka_unit_test(test_deadline),
+      cmocka_unit_test(test_nomem_not_cached),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }

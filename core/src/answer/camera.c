@@ -102,7 +102,7 @@ static int parse3(const char *s, double v[3]) {
 gi_result gi_camera_from_mitsuba(const char *path, gi_camera *cam, gi_error_info *err) {
   FILE *f = fopen(path, "rb");
   if (!f) return gi__fail(err, GI_ERR_IO, "camera: cannot open %s", path);
-  char *buf = malloc(1 << 20);
+  char *buf = gi__malloc(1 << 20);
   size_t n = buf ? fread(buf, 1, (1 << 20) - 1, f) : 0;
   fclose(f);
   if (!buf) return gi__fail(err, GI_ERR_NOMEM, "camera: out of memory");
@@ -138,6 +138,6 @@ gi_result gi_camera_from_mitsuba(const char *path, gi_camera *cam, gi_error_info
       goto done;
     }
 done:
-  free(buf);
+  gi__free(buf);
   return rc;
 }

@@ -74,7 +74,7 @@ gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *dir
   if (!path || !direct || !indirect || !rep || !at || w < 1 || h < 1)
     return gi__fail(err, GI_ERR_INVALID_ARG, "panorama EXR: nothing to write");
   size_t px = (size_t)w * (size_t)h;
-  float *planes = malloc(9 * px * sizeof(float));
+  float *planes = gi__malloc(9 * px * sizeof(float));
   if (!planes) return gi__fail(err, GI_ERR_NOMEM, "panorama EXR: out of memory");
   static const char *const names[9] = {"R", "G", "B", "direct.R", "direct.G", "direct.B",
                                        "indirect.R", "indirect.G", "indirect.B"};
@@ -96,7 +96,7 @@ gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *dir
   gi_exr_image img = {.width = w, .height = h, .use_half = use_half, .compression = GI_EXR_ZIP,
                       .num_channels = 9, .channels = ch, .num_attrs = hd.n, .attrs = hd.attrs};
   gi_result rc = gi_exr_write(path, &img, err);
-  free(planes);
+  gi__free(planes);
   return rc;
 }
 
@@ -108,7 +108,7 @@ gi_result gi_probes_write_exr_ex(const char *path, const gi_probe *probes, size_
   if (n > (1u << 24)) return gi__fail(err, GI_ERR_LIMIT, "probe EXR: %zu probes exceed 2^24", n);
   enum { MAXCH = 3 + 3 + 3 + 3 + 1 + 27 };
   char names[MAXCH][32];
-  float *planes = calloc((size_t)MAXCH * n, sizeof(float));
+  float *planes = gi__calloc((size_t)MAXCH * n, sizeof(float));
   if (!planes) return gi__fail(err, GI_ERR_NOMEM, "probe EXR: out of memory");
   gi_exr_channel ch[MAXCH];
   int nc = 0;
@@ -147,7 +147,7 @@ gi_result gi_probes_write_exr_ex(const char *path, const gi_probe *probes, size_
   gi_exr_image img = {.width = (int)n, .height = 1, .use_half = use_half, .compression = GI_EXR_ZIP,
                       .num_channels = (size_t)nc, .channels = ch, .num_attrs = hd.n, .attrs = hd.attrs};
   gi_result rc = gi_exr_write(path, &img, err);
-  free(planes);
+  gi__free(planes);
   return rc;
 }
 
@@ -157,8 +157,8 @@ typedef struct {
 } level_dense;
 
 static void free_dense(level_dense *ld) {
-  free(ld->density); free(ld->cd); free(ld->albedo); free(ld->normal);
-  for (int f = 0; f < 6; f++) free(ld->faces[f]);
+  gi__free(ld->density); gi__free(ld->cd); gi__free(ld->albedo); gi__free(ld->normal);
+  for (int f = 0; f < 6; f++) gi__free(ld->faces[f]);
 }
 
 static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_dense *ld) {
@@ -166,14 +166,14 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
   int R = c->R;
   size_t vox = (size_t)R * R * R;
   memset(ld, 0, sizeof *ld);
-  ld->density = calloc(vox, sizeof(float));
-  ld->cd = calloc(vox * 3, sizeof(float));
-  ld->albedo = calloc(vox * 3, sizeof(float));
-  ld->normal = calloc(vox * 3, sizeof(float));
+  ld->density = gi__calloc(vox, sizeof(float));
+  ld->cd = gi__calloc(vox * 3, sizeof(float));
+  ld->albedo = gi__calloc(vox * 3, sizeof(float));
+  ld->normal = gi__calloc(vox * 3, sizeof(float));
   if (!ld->density || !ld->cd || !ld->albedo || !ld->normal) return GI_ERR_NOMEM;
   if (faces)
     for (int f = 0; f < 6; f++)
-      if (!(ld->faces[f] = calloc(vox * 3, sizeof(float)))) return GI_ERR_NOMEM;
+      if (!(ld->faces[f] = gi__calloc(vox * 3, sizeof(float)))) return GI_ERR_NOMEM;
   for (int k = 0; k < R; k++)
     for (int j = 0; j < R; j++)
       for (int i = 0; i < R; i++) {
@@ -206,11 +206,11 @@ gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces,
   int n = c->n;
   int per = 4 + (faces ? 6 : 0);
   size_t ng = (size_t)n * per + 2;
-  gi_vdb_grid *grids = calloc(ng, sizeof *grids);
-  level_dense *ld = calloc((size_t)n, sizeof *ld);
-  char(*names)[48] = calloc(ng, sizeof *names);
-  gi_vdb_meta(*meta)[6] = calloc((size_t)n, sizeof *meta);
-  char(*vp)[160] = calloc((size_t)n, sizeof *vp);
+  gi_vdb_grid *grids = gi__calloc(ng, sizeof *grids);
+  level_dense *ld = gi__calloc((size_t)n, sizeof *ld);
+  char(*names)[48] = gi__calloc(ng, sizeof *names);
+  gi_vdb_meta(*meta)[6] = gi__calloc((size_t)n, sizeof *meta);
+  char(*vp)[160] = gi__calloc((size_t)n, sizeof *vp);
   gi_result rc = GI_OK;
   if (!grids || !ld || !names || !meta || !vp) {
     rc = gi__fail(err, GI_ERR_NOMEM, "VDB '%s': out of memory", path);
@@ -274,6 +274,6 @@ gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces,
 done:
   if (ld)
     for (int d = 0; d < n; d++) free_dense(&ld[d]);
-  free(ld); free(grids); free(names); free(meta); free(vp);
+  gi__free(ld); gi__free(grids); gi__free(names); gi__free(meta); gi__free(vp);
   return rc;
 }

@@ -14,21 +14,23 @@ typedef struct {
   const struct gi_cascade *c;
   const double *pts;
   gi_probe *out;
+  int cap;             /* light samples per probe at most (gi__light_sample_cap) */
+  atomic_int failed;   /* a worker ran out of memory */
 } gather_ctx;
 
-static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed) {
+static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed,
+                       gi_ray_scratch *scr) {
   const gi_scene *s = c->scene;
   const gi_quality *q = &c->report.quality;
   memset(pr, 0, sizeof *pr);
   const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
   /* Direct light: shadow rays from the point itself. */
   gi_light_plan lp = gi__light_plan(&c->report, q->probe_samples);
-  int cap = q->probe_samples * 2 + (int)s->num_lights + 8;
-  gi_ray_scratch sc = {0};
-  if (gi__scratch_alloc(&sc, cap) == 0) {
-    gi_lsample *ls = sc.ls;
-    float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
-    uint8_t *vis = sc.vis;
+  int cap = scr->cap;
+  {
+    gi_lsample *ls = scr->ls;
+    float *org = scr->org, *dir = scr->dir, *tn = scr->tn, *tf = scr->tf;
+    uint8_t *vis = scr->vis;
     uint64_t rng = gi__mix64(seed);
     int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
     float eps = (float)(1e-4 * c->s0);
@@ -64,7 +66,6 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
         for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
     }
   }
-  gi__scratch_free(&sc);
   gi__sh_radiance_to_irradiance(pr->sh_direct);
 
   /* Indirect light: the cone set on both hemispheres around up. */
@@ -104,6 +105,11 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
 static void gather_range(void *p, size_t b, size_t e, int worker) {
   gather_ctx *g = p;
   const struct gi_cascade *c = g->c;
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, g->cap)) {
+    atomic_store(&g->failed, 1);
+    return;
+  }
   for (size_t i = b; i < e; i++) {
     float pl[3];
     for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * i + k] - c->scene->origin[k]);
@@ -114,8 +120,9 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
       memcpy(&bits, &pl[k], 4);
       h = gi__mix64(h ^ bits);
     }
-    gather_one(c, pl, &g->out[i], h);
+    gather_one(c, pl, &g->out[i], h, &sc);
   }
+  gi__scratch_free(&sc);
 }
 
 gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi_probe *out,
@@ -125,8 +132,12 @@ gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi
     if (!isfinite(pts[i]))
       return gi__fail(err, GI_ERR_NONFINITE, "gather: point %zu has a non-finite coordinate", i / 3);
   double t0 = gi__now_ms();
-  gather_ctx g = {c, pts, out};
-  gi__parallel_for(n, 1, c->report.quality.threads, gather_range, &g);
+  gi_light_plan lp = gi__light_plan(&c->report, c->report.quality.probe_samples);
+  gather_ctx g = {.c = c, .pts = pts, .out = out, .cap = gi__light_sample_cap(c->scene, &lp)};
+  atomic_init(&g.failed, 0);
+  gi__parallel_for_stop(n, 1, c->report.quality.threads, gather_range, &g, &g.failed);
+  if (atomic_load(&g.failed))
+    return gi__fail(err, GI_ERR_NOMEM, "gather: out of memory for the light-sample buffers (%d samples)", g.cap);
   if (ms) *ms = gi__now_ms() - t0;
   return GI_OK;
 }

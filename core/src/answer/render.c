@@ -65,6 +65,8 @@ typedef struct {
   float *rgb;
   _Atomic uint64_t diffuse_cones, specular_cones;
   float *spec_img;     /* optional: specular * L_cone per pixel */
+  int cap;             /* light samples per pixel at most (gi__light_sample_cap) */
+  atomic_int failed;   /* a worker ran out of memory */
 } render_ctx;
 
 static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3],
@@ -136,14 +138,16 @@ static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint
 
 static void render_rows(void *p, size_t b, size_t e, int worker) {
   render_ctx *rc = p;
-  const gi_scene *s = rc->c->scene;
   gi_ray_scratch sc = {0};
   uint64_t cones[2] = {0, 0};
-  if (gi__scratch_alloc(&sc, 2 * rc->samples + (int)s->num_lights + 8) == 0)
-    for (size_t y = b; y < e; y++)
-      for (int x = 0; x < rc->k->w; x++)
-        shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)],
-                    rc->spec_img ? &rc->spec_img[3 * ((size_t)y * rc->k->w + x)] : NULL);
+  if (gi__scratch_alloc(&sc, rc->cap)) {
+    atomic_store(&rc->failed, 1);
+    return;
+  }
+  for (size_t y = b; y < e; y++)
+    for (int x = 0; x < rc->k->w; x++)
+      shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)],
+                  rc->spec_img ? &rc->spec_img[3 * ((size_t)y * rc->k->w + x)] : NULL);
   gi__scratch_free(&sc);
   atomic_fetch_add(&rc->diffuse_cones, cones[0]);
   atomic_fetch_add(&rc->specular_cones, cones[1]);
@@ -166,7 +170,12 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   if (o.specular) memset(o.specular, 0, np * sizeof(float));
   render_ctx rc = {.c = c, .k = &k, .samples = o.light_samples, .spec = spec_mode(c), .rgb = rgb,
                    .spec_img = o.specular};
-  gi__parallel_for((size_t)k.h, 1, o.threads, render_rows, &rc);
+  gi_light_plan lp = gi__light_plan(&c->report, o.light_samples);
+  rc.cap = gi__light_sample_cap(c->scene, &lp);
+  atomic_init(&rc.failed, 0);
+  gi__parallel_for_stop((size_t)k.h, 1, o.threads, render_rows, &rc, &rc.failed);
+  if (atomic_load(&rc.failed))
+    return gi__fail(err, GI_ERR_NOMEM, "render: out of memory for the light-sample buffers (%d samples)", rc.cap);
   if (st) {
     memset(st, 0, sizeof *st);
     st->ms = gi__now_ms() - t0;

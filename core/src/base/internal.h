@@ -4,6 +4,9 @@
 
 #include <math.h>
 #include <stdarg.h>
+#ifndef __cplusplus
+#include <stdatomic.h>
+#endif
 #include <stddef.h>
 #include <stdint.h>
 #include "gi/gi_error.h"
@@ -13,11 +16,29 @@
 gi_result gi__fail(gi_error_info *err, gi_result code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
+/* Every core allocation goes through these (base/alloc.c): malloc and
+ * friends plus counters for the tests. Memory from them may be freed by
+ * free(); memory the core hands to a caller who frees it with free() is
+ * first passed to gi__alloc_release so the count stays balanced. Callers
+ * treat NULL as GI_ERR_NOMEM. */
+void *gi__malloc(size_t n);
+void *gi__calloc(size_t n, size_t size);
+void *gi__realloc(void *p, size_t n);
+char *gi__strdup(const char *s);
+void gi__free(void *p);
+void gi__alloc_release(void *p);
+
 /* Runs fn(ctx, begin, end) over [0, n) in chunks of `grain` on up to
  * `threads` threads (0 = all cores). Blocks until all chunks are done.
  * fn must be safe to run concurrently on disjoint ranges. */
 typedef void (*gi__range_fn)(void *ctx, size_t begin, size_t end, int worker);
 void gi__parallel_for(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx);
+#ifndef __cplusplus /* the C++ shim has no workers; C11 atomics are C only */
+/* As gi__parallel_for, but no further chunk starts once *stop is non-zero:
+ * a worker that fails (workers return nothing) sets *stop, which lives in
+ * its ctx, and the caller checks it after the loop. */
+void gi__parallel_for_stop(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop);
+#endif
 /* Number of workers gi__parallel_for will use for `threads` (worker ids are 0..N-1). */
 int gi__num_workers(int threads);
 

@@ -17,6 +17,7 @@ typedef struct {
   atomic_size_t next;
   gi__range_fn fn;
   void *ctx;
+  atomic_int *stop;    /* optional: no chunk starts once it is set */
 } job;
 
 typedef struct {
@@ -27,7 +28,7 @@ typedef struct {
 static void run(job *j, int id) {
   for (;;) {
     size_t b = atomic_fetch_add(&j->next, j->grain);
-    if (b >= j->n) break;
+    if (b >= j->n || (j->stop && atomic_load_explicit(j->stop, memory_order_relaxed))) break;
     size_t e = b + j->grain < j->n ? b + j->grain : j->n;
     j->fn(j->ctx, b, e, id);
   }
@@ -48,12 +49,16 @@ int gi__num_workers(int threads) {
 }
 
 void gi__parallel_for(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx) {
+  gi__parallel_for_stop(n, grain, threads, fn, ctx, NULL);
+}
+
+void gi__parallel_for_stop(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop) {
   if (n == 0) return;
   if (grain == 0) grain = 1;
   int t = gi__num_workers(threads);
   size_t chunks = (n + grain - 1) / grain;
   if ((size_t)t > chunks) t = (int)chunks;
-  job j = {.n = n, .grain = grain, .fn = fn, .ctx = ctx};
+  job j = {.n = n, .grain = grain, .fn = fn, .ctx = ctx, .stop = stop};
   atomic_init(&j.next, 0);
   if (t <= 1) {
     run(&j, 0);

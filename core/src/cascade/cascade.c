@@ -12,12 +12,12 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
   size_t vox = (size_t)c->R * c->R * c->R;
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
-    L->geo = calloc(vox, sizeof *L->geo);
-    L->rad = calloc(vox, sizeof *L->rad);
-    L->side = calloc(vox, sizeof *L->side);
-    L->direct = calloc(vox, sizeof *L->direct);
-    L->occ = malloc(vox * sizeof *L->occ);
-    L->busy = calloc(vox, 1);
+    L->geo = gi__calloc(vox, sizeof *L->geo);
+    L->rad = gi__calloc(vox, sizeof *L->rad);
+    L->side = gi__calloc(vox, sizeof *L->side);
+    L->direct = gi__calloc(vox, sizeof *L->direct);
+    L->occ = gi__malloc(vox * sizeof *L->occ);
+    L->busy = gi__calloc(vox, 1);
     if (!L->geo || !L->rad || !L->side || !L->direct || !L->occ || !L->busy)
       return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
   }

@@ -202,7 +202,7 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
   int nslab = (R + SLAB - 1) / SLAB;
   uint32_t *tris = NULL, *bin_tris = NULL;
   size_t ntris = 0, cap = 0;
-  uint32_t *bin_start = calloc((size_t)nslab + 1, sizeof *bin_start);
+  uint32_t *bin_start = gi__calloc((size_t)nslab + 1, sizeof *bin_start);
   if (!bin_start) return gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory");
   gi_result rc = GI_OK;
   for (int d = 0; d < c->n; d++) {
@@ -247,11 +247,11 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
     }
     c->report.triangles_visited += kept;
     for (int sl = 0; sl < nslab; sl++) bin_start[sl + 1] += bin_start[sl];
-    free(bin_tris);
-    bin_tris = malloc(((size_t)bin_start[nslab] + 1) * sizeof *bin_tris);
-    uint32_t *fill = malloc(((size_t)nslab + 1) * sizeof *fill);
+    gi__free(bin_tris);
+    bin_tris = gi__malloc(((size_t)bin_start[nslab] + 1) * sizeof *bin_tris);
+    uint32_t *fill = gi__malloc(((size_t)nslab + 1) * sizeof *fill);
     if (!bin_tris || !fill) {
-      free(fill);
+      gi__free(fill);
       rc = gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory binning level %d", d);
       goto done;
     }
@@ -266,15 +266,15 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
       if (k1 >= R) k1 = R - 1;
       for (int64_t sl = k0 / SLAB; sl <= k1 / SLAB; sl++) bin_tris[fill[sl]++] = tris[q];
     }
-    free(fill);
+    gi__free(fill);
     vox_ctx v = {c, d, tris, bin_start, bin_tris};
     gi__parallel_for((size_t)nslab, 1, threads, voxelize_slabs, &v);
     finalize_level(c, L);
     c->report.occupied[d] = L->num_geo;
   }
 done:
-  free(tris);
-  free(bin_tris);
-  free(bin_start);
+  gi__free(tris);
+  gi__free(bin_tris);
+  gi__free(bin_start);
   return rc;
 }

@@ -180,7 +180,7 @@ static bool box_cb(struct RTCPointQueryFunctionArguments *args) {
   }
   if (*q->count == *q->cap) {
     size_t nc = *q->cap ? 2 * *q->cap : 256;
-    uint32_t *n = realloc(*q->out, nc * sizeof *n);
+    uint32_t *n = gi__realloc(*q->out, nc * sizeof *n);
     if (!n) { q->oom = 1; return false; }
     *q->out = n;
     *q->cap = nc;

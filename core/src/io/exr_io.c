@@ -235,7 +235,7 @@ gi_result gi_exr_write(const char *path, const gi_exr_image *img, gi_error_info 
   if (rv != EXR_ERR_SUCCESS) goto fail;
   if (lines < 1) lines = 1;
   if (img->use_half) {
-    scratch = malloc(img->num_channels * (size_t)lines * (size_t)img->width * sizeof *scratch);
+    scratch = gi__malloc(img->num_channels * (size_t)lines * (size_t)img->width * sizeof *scratch);
     if (!scratch) {
       r = gi__fail(err, GI_ERR_NOMEM, "EXR file '%s': out of memory for a %d-line chunk", path, lines);
       goto fail_cleanup;
@@ -249,7 +249,7 @@ gi_result gi_exr_write(const char *path, const gi_exr_image *img, gi_error_info 
   rv = exr_finish(&ctx);
   ctx = NULL;
   if (rv != EXR_ERR_SUCCESS) goto fail;
-  free(scratch);
+  gi__free(scratch);
   if (rename(tmp, path) != 0) {
     int e = errno;
     unlink(tmp);
@@ -261,7 +261,7 @@ fail:
   r = gi__fail(err, map_write_error(rv), "EXR file '%s': %s failed: %s", path, what, why(&msg, rv));
 fail_cleanup:
   if (ctx) exr_finish(&ctx);
-  free(scratch);
+  gi__free(scratch);
   unlink(tmp);
   return r;
 }
@@ -283,19 +283,19 @@ struct gi_exr_file {
 void gi_exr_file_free(gi_exr_file *f) {
   if (!f) return;
   for (size_t c = 0; c < f->num_channels; c++) {
-    if (f->names) free(f->names[c]);
-    if (f->planes) free(f->planes[c]);
+    if (f->names) gi__free(f->names[c]);
+    if (f->planes) gi__free(f->planes[c]);
   }
   for (size_t a = 0; a < f->num_attrs; a++) {
-    free(f->attr_names[a]);
-    free(f->attr_values[a]);
+    gi__free(f->attr_names[a]);
+    gi__free(f->attr_values[a]);
   }
-  free(f->names);
-  free(f->is_half);
-  free(f->planes);
-  free(f->attr_names);
-  free(f->attr_values);
-  free(f);
+  gi__free(f->names);
+  gi__free(f->is_half);
+  gi__free(f->planes);
+  gi__free(f->attr_names);
+  gi__free(f->attr_values);
+  gi__free(f);
 }
 
 static gi_result map_read_error(exr_result_t rv) {
@@ -308,7 +308,7 @@ static gi_result map_read_error(exr_result_t rv) {
 }
 
 static char *dup_n(const char *s, size_t n) {
-  char *d = malloc(n + 1);
+  char *d = gi__malloc(n + 1);
   if (d) {
     memcpy(d, s, n);
     d[n] = '\0';
@@ -320,8 +320,8 @@ static char *dup_n(const char *s, size_t n) {
 static gi_result read_attrs(exr_context_t ctx, gi_exr_file *f, const char *path, gi_error_info *err) {
   int32_t n = 0;
   if (exr_get_attribute_count(ctx, 0, &n) != EXR_ERR_SUCCESS || n <= 0) return GI_OK;
-  f->attr_names = calloc((size_t)n, sizeof *f->attr_names);
-  f->attr_values = calloc((size_t)n, sizeof *f->attr_values);
+  f->attr_names = gi__calloc((size_t)n, sizeof *f->attr_names);
+  f->attr_values = gi__calloc((size_t)n, sizeof *f->attr_values);
   if (!f->attr_names || !f->attr_values)
     return gi__fail(err, GI_ERR_NOMEM, "EXR file '%s': out of memory for attributes", path);
   for (int32_t i = 0; i < n; i++) {
@@ -333,7 +333,7 @@ static gi_result read_attrs(exr_context_t ctx, gi_exr_file *f, const char *path,
     f->attr_names[k] = dup_n(at->name, strlen(at->name));
     f->attr_values[k] = dup_n(at->string->str ? at->string->str : "",
                               at->string->str && at->string->length > 0 ? (size_t)at->string->length : 0);
-    f->num_attrs++; /* counted before the check so free() sees both slots */
+    f->num_attrs++; /* counted before the check so gi__free() sees both slots */
     if (!f->attr_names[k] || !f->attr_values[k])
       return gi__fail(err, GI_ERR_NOMEM, "EXR file '%s': out of memory for attributes", path);
   }
@@ -450,7 +450,7 @@ gi_result gi_exr_read(const char *path, gi_exr_file **out, gi_error_info *err) {
     goto cleanup;
   }
 
-  f = calloc(1, sizeof *f);
+  f = gi__calloc(1, sizeof *f);
   if (!f) goto nomem;
   f->width = (int)w64;
   f->height = (int)h64;
@@ -458,9 +458,9 @@ gi_result gi_exr_read(const char *path, gi_exr_file **out, gi_error_info *err) {
    * decode fine but have no gi_exr_compression value: reported as ZIP. */
   f->compression = comp == EXR_COMPRESSION_PIZ ? GI_EXR_PIZ : comp == EXR_COMPRESSION_NONE ? GI_EXR_NONE : GI_EXR_ZIP;
   size_t nch = (size_t)chl->num_channels, npix = (size_t)w64 * (size_t)h64;
-  f->names = calloc(nch, sizeof *f->names);
-  f->is_half = calloc(nch, sizeof *f->is_half);
-  f->planes = calloc(nch, sizeof *f->planes);
+  f->names = gi__calloc(nch, sizeof *f->names);
+  f->is_half = gi__calloc(nch, sizeof *f->is_half);
+  f->planes = gi__calloc(nch, sizeof *f->planes);
   if (!f->names || !f->is_half || !f->planes) goto nomem;
   f->num_channels = nch;
   for (size_t c = 0; c < nch; c++) {
@@ -472,7 +472,7 @@ gi_result gi_exr_read(const char *path, gi_exr_file **out, gi_error_info *err) {
     }
     f->names[c] = dup_n(e->name.str, (size_t)e->name.length);
     /* Zeroed planes: a channel the decoder skips reads back as 0, not garbage. */
-    f->planes[c] = calloc(npix, sizeof(float));
+    f->planes[c] = gi__calloc(npix, sizeof(float));
     if (!f->names[c] || !f->planes[c]) goto nomem;
     f->is_half[c] = e->pixel_type == EXR_PIXEL_HALF;
   }

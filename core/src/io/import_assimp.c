@@ -267,10 +267,10 @@ typedef struct tex_ctx {
 } tex_ctx;
 
 static void tex_ctx_fini(tex_ctx *tc) {
-  for (size_t i = 0; i < tc->ntex; i++) free(tc->tex[i].key);
-  for (size_t i = 0; i < tc->nmtl; i++) free(tc->mtl[i].name);
-  free(tc->tex);
-  free(tc->mtl);
+  for (size_t i = 0; i < tc->ntex; i++) gi__free(tc->tex[i].key);
+  for (size_t i = 0; i < tc->nmtl; i++) gi__free(tc->mtl[i].name);
+  gi__free(tc->tex);
+  gi__free(tc->mtl);
 }
 
 /* A file name from the scene, resolved against the scene file's folder;
@@ -278,7 +278,7 @@ static void tex_ctx_fini(tex_ctx *tc) {
 static char *resolve_path(const char *scene_path, const char *name, size_t len) {
   const char *slash = strrchr(scene_path, '/');
   size_t dl = (name[0] == '/' || name[0] == '\\' || !slash) ? 0 : (size_t)(slash - scene_path) + 1;
-  char *r = malloc(dl + len + 1);
+  char *r = gi__malloc(dl + len + 1);
   if (!r) return NULL;
   memcpy(r, scene_path, dl);
   for (size_t i = 0; i < len; i++) r[dl + i] = name[i] == '\\' ? '/' : name[i];
@@ -315,7 +315,7 @@ static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const
   long ei = embedded_index(as, tpath);
   char *key = NULL;
   if (ei >= 0) {
-    key = malloc(24);
+    key = gi__malloc(24);
     if (key) snprintf(key, 24, "*%ld", ei);
   } else {
     key = resolve_path(tc->path, tpath, strlen(tpath));
@@ -323,13 +323,13 @@ static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const
   if (!key) return NULL;
   for (size_t i = 0; i < tc->ntex; i++)
     if (strcmp(tc->tex[i].key, key) == 0) {
-      free(key);
+      gi__free(key);
       return &tc->tex[i];
     }
   if (tc->ntex == tc->captex) {
     size_t cap = tc->captex ? 2 * tc->captex : 8;
-    tex_entry *t = realloc(tc->tex, cap * sizeof *t);
-    if (!t) { free(key); return NULL; }
+    tex_entry *t = gi__realloc(tc->tex, cap * sizeof *t);
+    if (!t) { gi__free(key); return NULL; }
     tc->tex = t;
     tc->captex = cap;
   }
@@ -356,12 +356,15 @@ static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const
        * name alone next to the scene. */
       char *near = resolve_path(tc->path, bn, strlen(bn));
       gi_error_info te2 = {0};
-      if (near && gi__read_file(near, GI__TEXTURE_FILE_MAX, &data, &size, &te2) == GI_OK) r = GI_OK;
-      free(near);
+      gi_result r2 = near ? gi__read_file(near, GI__TEXTURE_FILE_MAX, &data, &size, &te2) : GI_ERR_NOMEM;
+      if (r2 == GI_OK || r2 == GI_ERR_NOMEM) r = r2;
+      gi__free(near);
     }
     if (r == GI_OK) r = gi__image_average(data, size, key, e->rgb, &te);
-    free(data);
+    gi__free(data);
   }
+  /* Out of memory fails the load; only a texture that cannot be read falls back to the colour. */
+  if (r == GI_ERR_NOMEM) return NULL;
   e->ok = r == GI_OK && gi__finite3(e->rgb);
   if (!e->ok) {
     tc->unreadable++;
@@ -396,12 +399,12 @@ static int scan_mtl(tex_ctx *tc, const char *mtl_path) {
       if (cur >= 0) continue; /* assimp merges a repeated newmtl into the first */
       if (tc->nmtl == tc->capmtl) {
         size_t cap = tc->capmtl ? 2 * tc->capmtl : 16;
-        mtl_entry *m = realloc(tc->mtl, cap * sizeof *m);
+        mtl_entry *m = gi__realloc(tc->mtl, cap * sizeof *m);
         if (!m) { ok = 0; break; }
         tc->mtl = m;
         tc->capmtl = cap;
       }
-      char *copy = strdup(name);
+      char *copy = gi__strdup(name);
       if (!copy) { ok = 0; break; }
       tc->mtl[tc->nmtl] = (mtl_entry){copy, 0};
       cur = (long)tc->nmtl++;
@@ -427,7 +430,7 @@ static int scan_obj_mtllibs(tex_ctx *tc) {
     char *name = trim(l + 6); /* like assimp: the rest of the line is one file name */
     char *mp = resolve_path(tc->path, name, strlen(name));
     ok = mp && scan_mtl(tc, mp);
-    free(mp);
+    gi__free(mp);
   }
   fclose(f);
   return ok;
@@ -470,7 +473,8 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     if (!has_factor) c[0] = c[1] = c[2] = 1.f;
     const tex_entry *t = NULL;
     if ((has_factor && !texture_factor(tc, m->name, c)) || !(t = texture_average(tc, m->name, tpath.data)))
-      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
+      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': material '%s': out of memory for its texture", tc->path,
+                      m->name);
     if (t->ok)
       for (int i = 0; i < 3; i++) c[i] *= t->rgb[i];
     has_factor = 1;
@@ -622,7 +626,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   /* assimp adds a material of its own (OBJ: "DefaultMaterial", glTF: an
    * unnamed one); keep it only when a mesh uses it, so the material list
    * matches the file's. */
-  matmap = malloc((as->mNumMaterials + 1) * sizeof *matmap);
+  matmap = gi__malloc((as->mNumMaterials + 1) * sizeof *matmap);
   if (!matmap) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
   uint32_t nmat = 0;
   tc.as = as;
@@ -669,7 +673,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
 
   /* The file's lights (already in world space), then the caller's. */
   size_t nl = 0;
-  lights = calloc(as->mNumLights + o.num_lights + 1, sizeof *lights);
+  lights = gi__calloc(as->mNumLights + o.num_lights + 1, sizeof *lights);
   if (!lights) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
   for (unsigned i = 0; i < as->mNumLights; i++) {
     gi_result r = convert_light(path, as->mLights[i], scale, &lights[nl], err);
@@ -712,8 +716,8 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
 done:
   if (locked) pthread_mutex_unlock(&assimp_lock);
   if (as) aiReleaseImport(as);
-  free(lights);
-  free(matmap);
+  gi__free(lights);
+  gi__free(matmap);
   tex_ctx_fini(&tc);
   gi_mesh_builder_free(b);
   return rc;

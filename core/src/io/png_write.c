@@ -25,10 +25,11 @@ gi_result gi_image_write_png(const char *path, const float *rgb, int width, int 
     return gi__fail(err, GI_ERR_INVALID_ARG, "png: bad arguments for %s", path ? path : "(null)");
   char tmp[4096];
   snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
-  unsigned char *row = malloc((size_t)width * 3);
-  FILE *f = row ? fopen(tmp, "wb") : NULL;
+  unsigned char *row = gi__malloc((size_t)width * 3);
+  if (!row) return gi__fail(err, GI_ERR_NOMEM, "png: out of memory for a row of %d pixels of %s", width, path);
+  FILE *f = fopen(tmp, "wb");
   if (!f) {
-    free(row);
+    gi__free(row);
     return gi__fail(err, GI_ERR_IO, "png: cannot write %s", tmp);
   }
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
@@ -36,7 +37,7 @@ gi_result gi_image_write_png(const char *path, const float *rgb, int width, int 
   if (!png || !info || setjmp(png_jmpbuf(png))) {
     png_destroy_write_struct(&png, &info);
     fclose(f);
-    free(row);
+    gi__free(row);
     remove(tmp);
     return gi__fail(err, GI_ERR_IO, "png: libpng failed writing %s", path);
   }
@@ -51,7 +52,7 @@ gi_result gi_image_write_png(const char *path, const float *rgb, int width, int 
   }
   png_write_end(png, NULL);
   png_destroy_write_struct(&png, &info);
-  free(row);
+  gi__free(row);
   if (fclose(f) != 0 || rename(tmp, path) != 0) {
     remove(tmp);
     return gi__fail(err, GI_ERR_IO, "png: cannot finish %s", path);

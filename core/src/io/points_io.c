@@ -56,7 +56,7 @@ gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, 
     }
     if (*n == alloc) {
       size_t na = alloc ? alloc * 2 : 64;
-      double *np = realloc(out, na * 3 * sizeof *np);
+      double *np = gi__realloc(out, na * 3 * sizeof *np);
       if (!np) {
         rc = gi__fail(err, GI_ERR_NOMEM, "%s: out of memory", path);
         break;
@@ -67,13 +67,14 @@ gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, 
     memcpy(&out[3 * (*n)++], v, sizeof v);
   }
   if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "cannot read '%s': %s", path, strerror(errno));
-  free(line);
+  free(line); /* getline's buffer is libc's, not ours */
   fclose(f);
   if (rc != GI_OK) {
-    free(out);
+    gi__free(out);
     *n = 0;
     return rc;
   }
+  gi__alloc_release(out); /* the caller frees it with free() */
   *pts = out;
   return GI_OK;
 }

@@ -41,7 +41,7 @@ typedef struct accum {
 static int accum_init(accum *a, unsigned levels) {
   a->levels = levels;
   a->pixels = 0;
-  a->hist = calloc((size_t)3 * levels, sizeof *a->hist);
+  a->hist = gi__calloc((size_t)3 * levels, sizeof *a->hist);
   return a->hist != NULL;
 }
 
@@ -135,7 +135,7 @@ static gi_result png_average(const void *data, size_t size, const char *what, fl
     goto done;
   }
   acc = &a;
-  row = malloc(png_get_rowbytes(png, info));
+  row = gi__malloc(png_get_rowbytes(png, info));
   if (!row) {
     rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
     goto done;
@@ -167,8 +167,8 @@ static gi_result png_average(const void *data, size_t size, const char *what, fl
   accum_finish(&a, linear, rgb);
 done:
   png_destroy_read_struct(png ? &png : NULL, info ? &info : NULL, NULL);
-  free(row);
-  if (acc) free(acc->hist);
+  gi__free(row);
+  if (acc) gi__free(acc->hist);
   return rc;
 }
 
@@ -233,7 +233,7 @@ static gi_result jpeg_average(const void *data, size_t size, const char *what, f
     rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': JPEG decodes to %d components", what, n);
     goto done;
   }
-  row = malloc((size_t)ci.output_width * (size_t)n);
+  row = gi__malloc((size_t)ci.output_width * (size_t)n);
   if (!row) {
     rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
     goto done;
@@ -267,8 +267,8 @@ static gi_result jpeg_average(const void *data, size_t size, const char *what, f
   accum_finish(&a, 0, rgb);
 done:
   jpeg_destroy_decompress(&ci);
-  free(row);
-  free(a.hist);
+  gi__free(row);
+  gi__free(a.hist);
   return rc;
 }
 
@@ -301,7 +301,7 @@ gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, 
   }
   a.pixels = n;
   accum_finish(&a, 0, rgb);
-  free(a.hist);
+  gi__free(a.hist);
   return GI_OK;
 }
 
@@ -326,7 +326,7 @@ gi_result gi__read_file(const char *path, size_t max_size, void **data, size_t *
     goto done;
   }
   size_t n = (size_t)st.st_size;
-  buf = malloc(n ? n : 1);
+  buf = gi__malloc(n ? n : 1);
   if (!buf) {
     rc = gi__fail(err, GI_ERR_NOMEM, "'%s': out of memory for %zu bytes", path, n);
     goto done;
@@ -339,7 +339,7 @@ gi_result gi__read_file(const char *path, size_t max_size, void **data, size_t *
   *size = n;
   buf = NULL;
 done:
-  free(buf);
+  gi__free(buf);
   fclose(f);
   return rc;
 }

@@ -220,12 +220,17 @@ std::string meta_text(const openvdb::Metadata &m) {
   return buf;
 }
 
-// Records code and "VDB file '<path>': <what>" in err. OpenVDB messages can
-// quote bytes of a damaged file, so the text is kept printable ASCII.
-gi_result fail(gi_error_info *err, gi_result code, const char *path, std::string what) {
-  for (char &c : what)
-    if ((unsigned char)c < 0x20 || (unsigned char)c > 0x7e) c = '?';
-  return gi__fail(err, code, "VDB file '%s': %s", path ? path : "(null)", what.c_str());
+// Records code and "VDB file '<path>': <prefix><what>" in err. OpenVDB
+// messages can quote bytes of a damaged file, so the text is kept printable
+// ASCII. It runs inside catch handlers, where a throw would escape to C:
+// a fixed buffer, no allocation.
+gi_result fail(gi_error_info *err, gi_result code, const char *path, const char *prefix,
+               const char *what) noexcept {
+  char text[sizeof err->msg];
+  std::snprintf(text, sizeof text, "%s%s", prefix, what ? what : "");
+  for (char *c = text; *c; c++)
+    if ((unsigned char)*c < 0x20 || (unsigned char)*c > 0x7e) *c = '?';
+  return gi__fail(err, code, "VDB file '%s': %s", path ? path : "(null)", text);
 }
 
 // Runs fn and maps whatever it throws to a gi_result; `reading` picks the
@@ -237,20 +242,20 @@ gi_result guard(const char *path, bool reading, gi_error_info *err, Fn fn) {
     fn();
     return GI_OK;
   } catch (const Fail &f) {
-    return fail(err, f.code, path, f.msg);
+    return fail(err, f.code, path, "", f.msg.c_str());
   } catch (const std::bad_alloc &) {
-    return fail(err, GI_ERR_NOMEM, path, "out of memory");
+    return fail(err, GI_ERR_NOMEM, path, "", "out of memory");
   } catch (const std::ios_base::failure &) {
-    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_IO, path,
+    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_IO, path, "",
                 reading ? "truncated or damaged (short read)" : "stream error");
   } catch (const openvdb::IoError &e) {
-    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_IO, path, e.what());
+    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_IO, path, "", e.what());
   } catch (const openvdb::Exception &e) {
-    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_BACKEND, path, std::string("OpenVDB: ") + e.what());
+    return fail(err, reading ? GI_ERR_FORMAT : GI_ERR_BACKEND, path, "OpenVDB: ", e.what());
   } catch (const std::exception &e) {
-    return fail(err, GI_ERR_BACKEND, path, std::string("OpenVDB: ") + e.what());
+    return fail(err, GI_ERR_BACKEND, path, "OpenVDB: ", e.what());
   } catch (...) {
-    return fail(err, GI_ERR_BACKEND, path, "unknown C++ exception");
+    return fail(err, GI_ERR_BACKEND, path, "", "unknown C++ exception");
   }
 }
 

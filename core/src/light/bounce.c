@@ -69,7 +69,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
    * every level's own voxels), for the tail's ratio. */
   double S[3][3] = {{0}};
   for (int d = 0; d < c->n; d++) {
-    E[d] = malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *E[d]);
+    E[d] = gi__malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *E[d]);
     if (!E[d]) {
       rc = gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory");
       goto done;
@@ -127,6 +127,6 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     c->report.bounces_run = it + 1;
   }
 done:
-  for (int d = 0; d < c->n; d++) free(E[d]);
+  for (int d = 0; d < c->n; d++) gi__free(E[d]);
   return rc;
 }

@@ -14,14 +14,14 @@
 #include "light/light.h"
 #include "scene/lights.h"
 
-#define MAX_LS 1024
-
 typedef struct {
   struct gi_cascade *c;
   const gi_light_plan *lp;
   int d;
   uint64_t seed;
+  int cap;             /* light samples per voxel at most (gi__light_sample_cap) */
   atomic_ullong rays;
+  atomic_int failed;   /* a worker ran out of memory */
 } inject_ctx;
 
 static void inject_range(void *p, size_t b, size_t e, int worker) {
@@ -30,9 +30,12 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   gi_level *L = &c->lv[ic->d];
   const gi_scene *s = c->scene;
   gi_ray_scratch sc = {0};
-  int8_t *side = malloc(MAX_LS);
-  float *cosw = malloc(MAX_LS * sizeof(float));
-  if (gi__scratch_alloc(&sc, MAX_LS) || !side || !cosw) goto out; /* voxels stay dark */
+  int8_t *side = gi__malloc((size_t)ic->cap);
+  float *cosw = gi__malloc((size_t)ic->cap * sizeof(float));
+  if (!side || !cosw || gi__scratch_alloc(&sc, ic->cap)) {
+    atomic_store(&ic->failed, 1);
+    goto out;
+  }
   gi_lsample *ls = sc.ls;
   float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
   uint8_t *vis = sc.vis;
@@ -48,7 +51,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     gi__slot_cell(L, R, slot, cell);
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
-    int n = gi__light_samples(s, ic->lp, g->centroid, &rng, ls, MAX_LS);
+    int n = gi__light_samples(s, ic->lp, g->centroid, &rng, ls, ic->cap);
     float eps = (float)(0.02 * L->s);
     int m = 0;
     for (int i = 0; i < n; i++) {
@@ -101,8 +104,8 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   atomic_fetch_add(&ic->rays, rays);
 out:
   gi__scratch_free(&sc);
-  free(side);
-  free(cosw);
+  gi__free(side);
+  gi__free(cosw);
 }
 
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {
@@ -129,10 +132,15 @@ static void shade_all(struct gi_cascade *c) {
 
 gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err) {
   gi_light_plan lp = gi__light_plan(&c->report, q->light_samples);
+  int cap = gi__light_sample_cap(c->scene, &lp);
   for (int d = 0; d < c->n; d++) {
-    inject_ctx ic = {.c = c, .lp = &lp, .d = d, .seed = q->seed};
+    inject_ctx ic = {.c = c, .lp = &lp, .d = d, .seed = q->seed, .cap = cap};
     atomic_init(&ic.rays, 0);
-    gi__parallel_for(c->lv[d].num_occ, 32, q->threads, inject_range, &ic);
+    atomic_init(&ic.failed, 0);
+    gi__parallel_for_stop(c->lv[d].num_occ, 32, q->threads, inject_range, &ic, &ic.failed);
+    if (atomic_load(&ic.failed))
+      return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for the light-sample buffers (%d samples) of level %d",
+                      cap, d);
     c->report.shadow_rays += atomic_load(&ic.rays);
   }
   shade_all(c);

@@ -49,7 +49,7 @@ gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err) 
   uint32_t n = 0;
   for (uint32_t t = 0; t < s->num_triangles; t++) n += emissive(s->materials[s->tri_material[t]].emission);
   if (!n) return GI_OK;
-  L->em = malloc((size_t)n * sizeof *L->em);
+  L->em = gi__malloc((size_t)n * sizeof *L->em);
   if (!L->em) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %u emissive triangles", n);
   double sum = 0;
   for (uint32_t t = 0, q = 0; t < s->num_triangles; t++) {
@@ -84,7 +84,7 @@ gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err) 
 }
 
 void ref_lights_free(ref_lights *L) {
-  free(L->em);
+  gi__free(L->em);
   L->em = NULL;
   L->num_emitters = 0;
 }

@@ -394,7 +394,7 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   gi_result res = ref_lights_init(&rc.L, s, err);
   if (res != GI_OK) return res;
   size_t tasks = n * (size_t)rc.chunks;
-  rc.acc = calloc(tasks ? tasks : 1, sizeof *rc.acc);
+  rc.acc = gi__calloc(tasks ? tasks : 1, sizeof *rc.acc);
   if (!rc.acc) {
     ref_lights_free(&rc.L);
     return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %zu sample chunks", tasks);
@@ -402,7 +402,7 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   gi__parallel_for(tasks, 1, rc.o.threads, ref_range, &rc);
   int ok = 1;
   for (size_t i = 0; i < n; i++) ok &= finish_probe(&rc, i, &out[i]);
-  free(rc.acc);
+  gi__free(rc.acc);
   ref_lights_free(&rc.L);
   if (ms) *ms = gi__now_ms() - t0;
   if (!ok) return gi__fail(err, GI_ERR_NONFINITE, "reference: a probe came out non-finite (scene values too large?)");

@@ -240,7 +240,7 @@ static void lot(city *c, int64_t i, int64_t j, int64_t x0, int64_t z0, int64_t x
 static void add_lamp_light(city *c, int64_t x, int64_t y, int64_t z) {
   if (c->num_lamps == c->cap_lamps) {
     size_t nc = c->cap_lamps ? 2 * c->cap_lamps : 256;
-    void *q = realloc(c->lamps, nc * sizeof *c->lamps);
+    void *q = gi__realloc(c->lamps, nc * sizeof *c->lamps);
     if (!q) { c->oom = 1; return; }
     c->lamps = q;
     c->cap_lamps = nc;
@@ -399,7 +399,7 @@ gi_result gi_city_generate(const gi_city_params *p, gi_mesh_builder *b, gi_light
       lamps(&c, i * P + hw, (i + 1) * P - hw, j * P, 0, &rz); /* along z, on line x = j P */
     }
   if (c.oom) {
-    free(c.lamps);
+    gi__free(c.lamps);
     return gi__fail(err, GI_ERR_NOMEM, "city: out of memory for %zu street lamps", c.num_lamps);
   }
 
@@ -428,7 +428,7 @@ gi_result gi_city_generate(const gi_city_params *p, gi_mesh_builder *b, gi_light
       for (int a = 0; a < 3; a++) l->position[a] = m_of(c.lamps[k][a]);
     }
   }
-  free(c.lamps);
+  gi__free(c.lamps);
   if (num_lights) *num_lights = nl;
   return GI_OK;
 }
@@ -448,7 +448,7 @@ gi_result gi_city_build(const gi_city_params *p, const gi_scene_options *opt, gi
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", o.num_lights);
   size_t cap = 2 + CITY_BUILD_POINT_LIGHTS;
   b = gi_mesh_builder_new();
-  lights = calloc(cap + o.num_lights, sizeof *lights);
+  lights = gi__calloc(cap + o.num_lights, sizeof *lights);
   if (!b || !lights) { rc = gi__fail(err, GI_ERR_NOMEM, "city: out of memory"); goto done; }
   if ((rc = gi_city_generate(p, b, lights, cap, &n, err)) != GI_OK) goto done;
   /* The caller's lights come after the city's, so the sun and sky stay first. */
@@ -458,7 +458,7 @@ gi_result gi_city_build(const gi_city_params *p, const gi_scene_options *opt, gi
   o.up = GI_UP_Y; /* the city is generated Y-up whatever the caller's files use */
   rc = gi_scene_build(b, "city", &o, out, err);
 done:
-  free(lights);
+  gi__free(lights);
   gi_mesh_builder_free(b);
   return rc;
 }

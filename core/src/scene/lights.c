@@ -7,6 +7,7 @@
  * visible samples (shadow.c decides visibility). Emitter samples also carry
  * their pdf for multiple importance sampling against the callers' own
  * cosine or sphere rays (gi__emitter_ray). */
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -29,6 +30,15 @@ void gi__sky_radiance(const gi_scene *s, float out[3]) {
   for (uint32_t i = 0; i < s->num_lights; i++)
     if (s->lights[i].type == GI_LIGHT_SKY)
       for (int k = 0; k < 3; k++) out[k] += s->lights[i].color[k];
+}
+
+int gi__light_sample_cap(const gi_scene *s, const gi_light_plan *lp) {
+  size_t n = 0;
+  for (uint32_t i = 0; i < s->num_lights; i++)
+    n += s->lights[i].type == GI_LIGHT_SKY ? (size_t)(lp->sky_samples > 0 ? lp->sky_samples : 0) : 1;
+  if (s->num_emitters > 0 && lp->emit_samples > 0) n += (size_t)lp->emit_samples;
+  /* Beyond INT_MAX the buffer cannot be allocated anyway: the caller reports out of memory. */
+  return n > INT_MAX ? INT_MAX : (int)(n ? n : 1);
 }
 
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,

@@ -44,6 +44,10 @@ typedef struct gi_ray_scratch {
 /* Allocates cap of each; 0 on success, -1 (everything freed) when out of memory. */
 int gi__scratch_alloc(gi_ray_scratch *sc, int cap);
 void gi__scratch_free(gi_ray_scratch *sc);
+/* The most samples gi__light_samples can return under plan lp: one per
+ * sun, point and spot light, sky_samples per sky light, emit_samples for
+ * the emitters. Size sample buffers with it: a smaller one drops lights. */
+int gi__light_sample_cap(const gi_scene *s, const gi_light_plan *lp);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);

@@ -38,7 +38,7 @@ static int grow(void **p, size_t *cap, size_t need, size_t sz) {
   size_t nc = *cap ? *cap : 64;
   while (nc < need) nc *= 2;
   if (nc > SIZE_MAX / sz) return 0;
-  void *q = realloc(*p, nc * sz);
+  void *q = gi__realloc(*p, nc * sz);
   if (!q) return 0;
   *p = q;
   *cap = nc;
@@ -46,16 +46,16 @@ static int grow(void **p, size_t *cap, size_t need, size_t sz) {
 }
 
 gi_mesh_builder *gi_mesh_builder_new(void) {
-  return calloc(1, sizeof(gi_mesh_builder));
+  return gi__calloc(1, sizeof(gi_mesh_builder));
 }
 
 void gi_mesh_builder_free(gi_mesh_builder *b) {
   if (!b) return;
-  free(b->v);
-  free(b->tri);
-  free(b->mat);
-  free(b->mats);
-  free(b);
+  gi__free(b->v);
+  gi__free(b->tri);
+  gi__free(b->mat);
+  gi__free(b->mats);
+  gi__free(b);
 }
 
 uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m) {
@@ -235,10 +235,10 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
                       b->mat[t], b->nm);
   }
 
-  s = calloc(1, sizeof *s);
-  cls = malloc(b->nt ? b->nt : 1);
-  remap = malloc((b->nv ? b->nv : 1) * sizeof *remap);
-  area = malloc((b->nt ? b->nt : 1) * sizeof *area);
+  s = gi__calloc(1, sizeof *s);
+  cls = gi__malloc(b->nt ? b->nt : 1);
+  remap = gi__malloc((b->nv ? b->nv : 1) * sizeof *remap);
+  area = gi__malloc((b->nt ? b->nt : 1) * sizeof *area);
   if (!s || !cls || !remap || !area) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory building scene"); goto fail; }
   atomic_init(&s->refcount, 1);
   snprintf(s->name, sizeof s->name, "%s", name ? name : "unnamed");
@@ -290,9 +290,9 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
   /* Local float vertices; 4 spare floats because Embree reads 16 bytes past the last vertex. */
   s->num_vertices = (uint32_t)kept_v;
   s->num_triangles = (uint32_t)kept;
-  s->vertices = calloc(3 * kept_v + 4, sizeof(float));
-  s->indices = malloc((kept ? kept : 1) * 3 * sizeof(uint32_t));
-  s->tri_material = malloc((kept ? kept : 1) * sizeof(uint32_t));
+  s->vertices = gi__calloc(3 * kept_v + 4, sizeof(float));
+  s->indices = gi__malloc((kept ? kept : 1) * 3 * sizeof(uint32_t));
+  s->tri_material = gi__malloc((kept ? kept : 1) * sizeof(uint32_t));
   if (!s->vertices || !s->indices || !s->tri_material) {
     rc = gi__fail(err, GI_ERR_NOMEM, "out of memory building scene (%zu triangles)", kept);
     goto fail;
@@ -315,7 +315,7 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
 
   /* Materials. */
   s->num_materials = (uint32_t)nm;
-  s->materials = calloc(nm, sizeof *s->materials);
+  s->materials = gi__calloc(nm, sizeof *s->materials);
   if (!s->materials) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory copying materials"); goto fail; }
   if (b->nm) {
     memcpy(s->materials, b->mats, nm * sizeof *s->materials);
@@ -339,8 +339,8 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
     j++;
   }
   if (ne) {
-    s->emitter_tri = malloc(ne * sizeof *s->emitter_tri);
-    s->emitter_cdf = malloc(ne * sizeof *s->emitter_cdf);
+    s->emitter_tri = gi__malloc(ne * sizeof *s->emitter_tri);
+    s->emitter_cdf = gi__malloc(ne * sizeof *s->emitter_cdf);
     if (!s->emitter_tri || !s->emitter_cdf) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for emitters"); goto fail; }
     double sum = 0, asum = 0;
     size_t q = 0;
@@ -365,7 +365,7 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
   int add_defaults = opt->default_lights && opt->num_lights == 0 && ne == 0;
   size_t nl = opt->num_lights + (add_defaults ? 2 : 0);
   if (nl) {
-    s->lights = calloc(nl, sizeof *s->lights);
+    s->lights = gi__calloc(nl, sizeof *s->lights);
     if (!s->lights) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for lights"); goto fail; }
   }
   for (size_t i = 0; i < opt->num_lights; i++) {
@@ -392,16 +392,16 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
   if (kept) {
     if ((rc = gi__bvh_build(s, opt->threads, err)) != GI_OK) goto fail;
   }
-  free(cls);
-  free(remap);
-  free(area);
+  gi__free(cls);
+  gi__free(remap);
+  gi__free(area);
   *out = s;
   return GI_OK;
 
 fail:
-  free(cls);
-  free(remap);
-  free(area);
+  gi__free(cls);
+  gi__free(remap);
+  gi__free(area);
   if (s) {
     atomic_store(&s->refcount, 1);
     gi_scene_release(s);
@@ -418,14 +418,14 @@ void gi_scene_release(gi_scene *s) {
   if (!s) return;
   if (atomic_fetch_sub_explicit(&s->refcount, 1, memory_order_acq_rel) != 1) return;
   gi__bvh_free(s);
-  free(s->vertices);
-  free(s->indices);
-  free(s->tri_material);
-  free(s->materials);
-  free(s->lights);
-  free(s->emitter_tri);
-  free(s->emitter_cdf);
-  free(s);
+  gi__free(s->vertices);
+  gi__free(s->indices);
+  gi__free(s->tri_material);
+  gi__free(s->materials);
+  gi__free(s->lights);
+  gi__free(s->emitter_tri);
+  gi__free(s->emitter_cdf);
+  gi__free(s);
 }
 
 void gi_scene_get_stats(const gi_scene *s, gi_scene_stats *out) {

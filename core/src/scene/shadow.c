@@ -8,18 +8,18 @@
 int gi__scratch_alloc(gi_ray_scratch *sc, int cap) {
   size_t n = (size_t)(cap > 0 ? cap : 1);
   sc->cap = cap;
-  sc->ls = malloc(n * sizeof *sc->ls);
-  sc->org = malloc(n * 3 * sizeof(float));
-  sc->dir = malloc(n * 3 * sizeof(float));
-  sc->tn = malloc(n * sizeof(float));
-  sc->tf = malloc(n * sizeof(float));
-  sc->vis = malloc(n);
+  sc->ls = gi__malloc(n * sizeof *sc->ls);
+  sc->org = gi__malloc(n * 3 * sizeof(float));
+  sc->dir = gi__malloc(n * 3 * sizeof(float));
+  sc->tn = gi__malloc(n * sizeof(float));
+  sc->tf = gi__malloc(n * sizeof(float));
+  sc->vis = gi__malloc(n);
   if (sc->ls && sc->org && sc->dir && sc->tn && sc->tf && sc->vis) return 0;
   gi__scratch_free(sc);
   return -1;
 }
 
 void gi__scratch_free(gi_ray_scratch *sc) {
-  free(sc->ls); free(sc->org); free(sc->dir); free(sc->tn); free(sc->tf); free(sc->vis);
+  gi__free(sc->ls); gi__free(sc->org); gi__free(sc->dir); gi__free(sc->tn); gi__free(sc->tf); gi__free(sc->vis);
   sc->ls = NULL, sc->org = sc->dir = sc->tn = sc->tf = NULL, sc->vis = NULL;
 }
