@@ -30,5 +30,6 @@ install(FILES ${CMAKE_BINARY_DIR}/giConfig.cmake ${CMAKE_BINARY_DIR}/giConfigVer
 
 # gi.pc finds the prefix relative to itself, so --prefix at install time works.
 file(RELATIVE_PATH GI_PC_PREFIX_FROM_PCDIR ${CMAKE_INSTALL_FULL_LIBDIR}/pkgconfig ${CMAKE_INSTALL_PREFIX})
+string(REGEX REPLACE "/$" "" GI_PC_PREFIX_FROM_PCDIR "${GI_PC_PREFIX_FROM_PCDIR}")
 configure_file(cmake/gi.pc.in ${CMAKE_BINARY_DIR}/gi.pc @ONLY)
 install(FILES ${CMAKE_BINARY_DIR}/gi.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
