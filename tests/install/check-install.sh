@@ -1,5 +1,5 @@
 #!/bin/sh
-# check-install.sh BUILD LIBDIR VERSION SONAME SCENES_DIR CC CMAKE
+# check-install.sh BUILD LIBDIR VERSION SONAME SCENES_DIR CC CMAKE [CFLAGS [LDFLAGS]]
 #
 # Installs the built tree into a temporary prefix (cmake --install) and
 # checks what a downstream user gets: the layout, libgi.so's SONAME and its
@@ -9,8 +9,9 @@
 # program must print the same probe as the installed gi-bake --json for the
 # same scene, point and quality: the embedded city always, the Cornell box
 # when the shared scenes are present (exit 77, "Skipped", when not).
+# CFLAGS and LDFLAGS are the tree's own (sanitizer builds need them).
 set -eu
-build=$1 libdir=$2 version=$3 soname=$4 scenes=$5 cc=$6 cmake=$7
+build=$1 libdir=$2 version=$3 soname=$4 scenes=$5 cc=$6 cmake=$7 cflags=${8:-} ldflags=${9:-}
 here=$(cd "$(dirname "$0")" && pwd)
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/gi-install.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
@@ -63,21 +64,23 @@ flags=$(PKG_CONFIG_LIBDIR="$lib/pkgconfig" PKG_CONFIG_PATH= pkg-config --cflags 
   || fail "pkg-config gi needs more than gi.pc"
 test "$(PKG_CONFIG_LIBDIR="$lib/pkgconfig" pkg-config --modversion gi)" = "$version" || fail "gi.pc version"
 # shellcheck disable=SC2086
-"$cc" -std=c11 -Wall -Werror -o "$tmp/prog_pc" "$here/prog.c" $flags -Wl,-rpath,"$lib" \
+"$cc" -std=c11 -Wall -Werror $cflags -o "$tmp/prog_pc" "$here/prog.c" $flags $ldflags -Wl,-rpath,"$lib" \
   || fail "build against pkg-config gi"
 only_libgi "$tmp/prog_pc"
 
 # (b) pkg-config --static: libgi.a (named explicitly; -lgi would pick the
 # .so) plus gi.pc's Libs.private.
 export PKG_CONFIG_PATH="$lib/pkgconfig"
-# shellcheck disable=SC2046
-"$cc" -std=c11 -Wall -Werror -o "$tmp/prog_pc_static" "$here/prog.c" \
-  $(pkg-config --static --cflags --libs gi | sed 's/-lgi\b/-l:libgi.a/') || fail "static build against pkg-config gi"
+# shellcheck disable=SC2046,SC2086
+"$cc" -std=c11 -Wall -Werror $cflags -o "$tmp/prog_pc_static" "$here/prog.c" \
+  $(pkg-config --static --cflags --libs gi | sed 's/-lgi\b/-l:libgi.a/') $ldflags \
+  || fail "static build against pkg-config gi"
 if readelf -d "$tmp/prog_pc_static" | grep -q 'libgi\.so'; then fail "prog_pc_static needs libgi.so"; fi
 
 # (c) find_package(gi): gi::gi (prog) and gi::gi_static (prog_static).
 "$cmake" -S "$here/consumer" -B "$tmp/cmake" -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_C_COMPILER="$cc" \
-  -DCMAKE_BUILD_TYPE=Release -DGI_STATIC=ON >"$tmp/cmake.log" 2>&1 \
+  -DCMAKE_BUILD_TYPE=Release -DGI_STATIC=ON -DCMAKE_C_FLAGS="$cflags" -DCMAKE_CXX_FLAGS="$cflags" \
+  -DCMAKE_EXE_LINKER_FLAGS="$ldflags" >"$tmp/cmake.log" 2>&1 \
   && "$cmake" --build "$tmp/cmake" -j 2 >>"$tmp/cmake.log" 2>&1 \
   || { cat "$tmp/cmake.log"; fail "find_package(gi) project"; }
 only_libgi "$tmp/cmake/prog"
