@@ -20,6 +20,7 @@ COPY scripts/install-deps.sh scripts/install-deps.sh
 RUN sh scripts/install-deps.sh && rm -rf /var/lib/apt/lists/*
 # Only the sources: no local build/ or out/ folders leak in.
 COPY CMakeLists.txt Makefile ./
+COPY cmake cmake
 COPY core core
 COPY proto proto
 COPY server server
@@ -32,6 +33,9 @@ RUN cmake -S . -B build -DCMAKE_BUILD_TYPE=Release \
 # (tests that need ../shared/scenes skip).
 ARG RUN_TESTS=0
 RUN if [ "$RUN_TESTS" = 1 ]; then cd build && ctest --output-on-failure -j"$(nproc)"; fi
+# The install step a host uses (make install): the commands in /opt/gi/bin,
+# libgi (shared and static), its headers, gi.pc and the CMake package.
+RUN cmake --install build --prefix /opt/gi
 
 # --- runtime -------------------------------------------------------------------
 FROM debian:bookworm-slim
@@ -46,7 +50,8 @@ RUN apt-get update \
       libjansson4 libmicrohttpd12 libinih1 libcurl4 ca-certificates \
  && rm -rf /var/lib/apt/lists/*
 RUN useradd --system --uid 10001 --create-home --home-dir /home/gi --shell /usr/sbin/nologin gi
-COPY --from=build /src/build/bin/ /usr/local/bin/
+COPY --from=build /opt/gi/ /opt/gi/
+ENV PATH=/opt/gi/bin:$PATH
 # The default config (root-owned, read-only for gi); a mount replaces it.
 COPY configs/docker.ini /etc/gi-server/gi-server.ini
 USER gi

@@ -2,8 +2,9 @@
 BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
+PREFIX ?= /usr/local
 
-.PHONY: all deps configure run bake test bench bench-http accuracy clean asan tsan valgrind fuzz
+.PHONY: all deps configure install run bake test bench bench-http accuracy clean asan tsan valgrind fuzz
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -13,6 +14,13 @@ deps:
 
 configure: deps
 	@test -f $(BUILD)/CMakeCache.txt || cmake -S . -B $(BUILD) $(CMAKE_FLAGS)
+
+# The commands, libgi (libgi.so and libgi.a), its headers, gi.pc and the
+# CMake package (find_package(gi)) under PREFIX; DESTDIR stages the tree
+# for packaging (make install DESTDIR=/tmp/pkgroot). The library folder
+# (lib/ or lib/<multiarch>/ for /usr) is chosen when build/ is configured.
+install: all
+	DESTDIR="$(DESTDIR)" cmake --install $(BUILD) --prefix "$(PREFIX)"
 
 # The main job: serve the default catalog (the procedural city, and the
 # shared scenes when present) on 127.0.0.1:8080 until Ctrl-C.
