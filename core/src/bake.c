@@ -73,6 +73,10 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   c->n = q.levels;
   c->R = q.res;
   c->s0 = q.voxel0;
+  /* Only placement reads c->at, through the same float rounding and floor
+   * as gi_cascade_anchor; the plan and every stage read the snapped levels,
+   * so the cascade depends on the anchor alone. at_world is kept for the
+   * VDB's viewpoint metadata. */
   for (int a = 0; a < 3; a++) {
     c->at_world[a] = at[a];
     c->at[a] = (float)(at[a] - scene->origin[a]);

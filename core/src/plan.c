@@ -124,9 +124,15 @@ static gi_result tris_in_range(const struct gi_cascade *c, float grow, uint32_t 
   return rc;
 }
 
-/* Sky visibility: 32 stratified upward rays from the viewpoint and from the
- * centres of the finest level's six faces. One escaping ray is enough; a
- * closed room (or the Cornell box's ceiling side) stops them all. */
+/* Sky visibility: 32 stratified upward rays from the centre of the
+ * viewpoint's anchor cell (the 2 s0 cell that places level 0, see
+ * gi_cascade_anchor) and from the points half the finest level's side away
+ * from it along each axis (its faces' centres, give or take s0). One
+ * escaping ray is enough; a closed room (or the Cornell box's ceiling side)
+ * stops them all. The origins come from the snapped placement, not the raw
+ * viewpoint, so viewpoints with equal anchors get the same plan. The cell
+ * centre sits on an odd multiple of s0, off the even grid lines where
+ * axis-aligned walls of round coordinates tend to lie. */
 static int sky_rays(const struct gi_cascade *c, int *tested) {
   const gi_scene *s = c->scene;
   enum { ORG = 7, PER = 32 };
@@ -135,10 +141,13 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
   const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
   float t[3], b[3];
   gi__basis(up, t, b);
-  float half = (float)(0.5 * c->R * c->lv[0].s);
+  const gi_level *L0 = &c->lv[0];
+  float half = (float)(0.5 * c->R * L0->s), centre[3];
+  /* Level 0 starts R/2 cells below the anchor cell's first cell (cascade.c). */
+  for (int a = 0; a < 3; a++) centre[a] = (float)(((double)L0->cell0[a] + c->R / 2 + 1) * L0->s);
   int n = 0;
   for (int o = 0; o < ORG; o++) {
-    float p[3] = {c->at[0], c->at[1], c->at[2]};
+    float p[3] = {centre[0], centre[1], centre[2]};
     if (o) p[(o - 1) / 2] += (o & 1) ? half : -half;
     uint64_t rng = gi__mix64(0x5c1ull + (uint64_t)o);
     for (int j = 0; j < PER; j++, n++) {
@@ -231,8 +240,8 @@ gi_result gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_b
     int tested = 0, seen = sky_rays(c, &tested);
     if (seen) set_fx(r, GI_FX_SKY, 1, "sky seen by %d of %d test rays, %d samples per voxel", seen, tested,
                      q->light_samples);
-    else set_fx(r, GI_FX_SKY, 0, "sky light present, but none of %d upward test rays from the viewpoint and the "
-                                 "finest level's faces escapes", tested);
+    else set_fx(r, GI_FX_SKY, 0, "sky light present, but none of %d upward test rays from the viewpoint's cell "
+                                 "and the finest level's faces escapes", tested);
   }
 
   uint32_t emit_in = 0, glossy = 0;

@@ -28,9 +28,26 @@ char *gi__strdup(const char *s);
 void gi__free(void *p);
 void gi__alloc_release(void *p);
 
-/* Runs fn(ctx, begin, end) over [0, n) in chunks of `grain` on up to
- * `threads` threads (0 = all cores). Blocks until all chunks are done.
- * fn must be safe to run concurrently on disjoint ranges. */
+/* Runs fn(ctx, begin, end, worker) over [0, n) in chunks of `grain` on up
+ * to `threads` workers (0 = all cores). Blocks until all chunks are done.
+ * fn must be safe to run concurrently on disjoint ranges. The calling
+ * thread is always worker 0 and works until no chunk is left; the other
+ * workers come from one persistent pool per process (cores - 1 threads,
+ * started by the first call that can use them, joined at exit). Worker ids
+ * lie in 0..gi__num_workers(threads)-1 and no two workers of one call hold
+ * the same id at once, so per-worker scratch keyed by id needs no lock (an
+ * id may pass from one pool thread to another between chunks; the hand-over
+ * is ordered by the pool's lock).
+ *
+ * Sharing: calls may nest and may come from any number of application
+ * threads at once. While k calls run on the pool, each may use at most
+ * ceil(cores / k) workers, its caller included, and never more than
+ * `threads` or its number of chunks; a pool thread leaves a call after a
+ * chunk once the call holds more than its share, and joins whichever call
+ * is below it. Calls that fit on their caller alone (threads = 1, one chunk)
+ * do not count. Since the caller always works, a call finishes even when
+ * every pool thread is busy elsewhere: no call ever waits for a free
+ * thread, only for pool threads finishing one of its own chunks. */
 typedef void (*gi__range_fn)(void *ctx, size_t begin, size_t end, int worker);
 void gi__parallel_for(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx);
 #ifndef __cplusplus /* the C++ shim has no workers; C11 atomics are C only */
@@ -39,7 +56,9 @@ void gi__parallel_for(size_t n, size_t grain, int threads, gi__range_fn fn, void
  * its ctx, and the caller checks it after the loop. */
 void gi__parallel_for_stop(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop);
 #endif
-/* Number of workers gi__parallel_for will use for `threads` (worker ids are 0..N-1). */
+/* Bound on the worker ids gi__parallel_for passes for `threads` (ids are
+ * 0..N-1): the size of a per-worker scratch array. At most min(N, cores)
+ * of them run at once. */
 int gi__num_workers(int threads);
 
 /* Monotonic clock in milliseconds. */
