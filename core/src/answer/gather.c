@@ -67,31 +67,22 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
   gi__scratch_free(&sc);
   gi__sh_radiance_to_irradiance(pr->sh_direct);
 
-  /* Indirect light: the cone set on both hemispheres around up. */
+  /* Indirect light: the cone set on both hemispheres around up, by the
+   * gather's free-space rule. */
   float sh_ind[9][3] = {{0}};
-  int d = gi__finest_level_at(c, p);
-  float t0 = (float)(d >= 0 ? c->lv[d].s : c->s0);
   float domega = 2 * GI_PI_F / (float)c->num_cones;
   float occ = 0;
+  float dirs[GI_MAX_CONES][3];
+  gi_cone_out cones[GI_MAX_CONES];
   for (int hemi = 0; hemi < 2; hemi++) {
-    float n[3], t[3], b[3];
+    float n[3];
     for (int k = 0; k < 3; k++) n[k] = hemi ? -up[k] : up[k];
-    gi__basis(n, t, b);
-    for (int ci = 0; ci < c->num_cones; ci++) {
-      const float *cd = c->cone_dir[ci];
-      float w[3];
-      for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
-      gi_cone_out co;
-      if (d >= 0) {
-        gi__cone_trace(c, p, w, c->cone_tan, t0, q->step, q->ao_lambda, &co);
-      } else {
-        memset(&co, 0, sizeof co);
-      }
-      gi__sh_add(sh_ind, w, co.L, domega);
-      if (!hemi) {
-        for (int k = 0; k < 3; k++) pr->indirect[k] += c->cone_weight[ci] * co.L[k];
-        occ += c->cone_weight[ci] * co.occlusion;
-      }
+    gi_gather_out go;
+    gi__gather_hemisphere(c, p, n, GI_GATHER_FREE, -1, &go, dirs, cones);
+    for (int ci = 0; ci < c->num_cones; ci++) gi__sh_add(sh_ind, dirs[ci], cones[ci].L, domega);
+    if (!hemi) {
+      memcpy(pr->indirect, go.E, sizeof go.E);
+      occ = go.occlusion;
     }
   }
   gi__sh_radiance_to_irradiance(sh_ind);

@@ -27,19 +27,17 @@ void gi__specular_trace(const struct gi_cascade *c, const float p[3], const floa
 void gi__specular_trace_tan(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
                             float tan_half, gi_cone_out *out) {
   float d = gi__dot(v, n);
-  float r[3], o[3];
+  float r[3];
   for (int k = 0; k < 3; k++) r[k] = v[k] - 2 * d * n[k];
   float len = gi__len(r);
   for (int k = 0; k < 3; k++) r[k] /= len;
-  int lvl = gi__finest_level_at(c, p);
-  float s = (float)(lvl >= 0 ? c->lv[lvl].s : c->s0);
-  /* Start one voxel off the surface, as the diffuse cones do. */
-  for (int k = 0; k < 3; k++) o[k] = p[k] + s * n[k];
-  gi__cone_trace_surface(c, o, r, tan_half, s, c->report.quality.step > 0 ? c->report.quality.step : 0.5f, 0.f, s, n,
-                         out);
+  /* The gather's surface rule, as the diffuse cones. */
+  gi_gather_start g;
+  gi__gather_start(c, p, n, GI_GATHER_SURFACE, -1, &g);
+  gi__gather_cone(c, &g, r, tan_half, out);
   /* What the cone did not meet is sky: nothing else lights a reflection of
    * it (diffuse cones leave the sky to the shadow rays, a mirror cannot). */
-  if (c->report.effects[GI_FX_SKY].ran && out->alpha < 0.99f) {
+  if (c->report.effects[GI_FX_SKY].ran && out->alpha < GI_OPAQUE_ALPHA) {
     float sky[3];
     gi__sky_radiance(c->scene, sky);
     for (int k = 0; k < 3; k++) out->L[k] += (1 - out->alpha) * sky[k];
