@@ -27,18 +27,12 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
   gi_ray_scratch sc = {0};
   if (gi__scratch_alloc(&sc, cap) == 0) {
     gi_lsample *ls = sc.ls;
-    float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
     uint8_t *vis = sc.vis;
     uint64_t rng = gi__mix64(seed);
     int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
-    float eps = (float)(1e-4 * c->s0);
-    for (int i = 0; i < n; i++) {
-      memcpy(&org[3 * i], p, sizeof(float[3]));
-      memcpy(&dir[3 * i], ls[i].w, sizeof(float[3]));
-      tn[i] = eps;
-      tf[i] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
-    }
-    gi__occluded(s, n, org, dir, tn, tf, vis);
+    /* A probe is a point in space: the shadow rule without a normal. */
+    float voxel = gi__voxel_at(c, p);
+    gi__shadow_rays(s, p, NULL, voxel, ls, n, &sc);
     int mb = lp.emissive && s->num_emitters ? q->probe_samples : 0;
     float pb = (float)mb / (4 * GI_PI_F);
     for (int i = 0; i < n; i++) {
@@ -57,7 +51,8 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
       float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__u01(&rng);
       float w[3] = {r * cosf(phi), r * sinf(phi), z};
       float V[3];
-      if (!gi__emitter_ray(s, p, w, eps, q->probe_samples, pb, V)) continue;
+      float o[3], tn = gi__shadow_origin(p, NULL, voxel, w, o);
+      if (!gi__emitter_ray(s, o, w, tn, q->probe_samples, pb, V)) continue;
       gi__sh_add(pr->sh_direct, w, V, 1.0f);
       float cu = gi__dot(up, w);
       if (cu > 0)

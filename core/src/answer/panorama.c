@@ -42,7 +42,7 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
   int inside = gi__gather_start(c, pc->at, NULL, GI_GATHER_FREE, -1, &g);
   /* Half the pixel's angular height: neighbouring cones just touch. */
   float tan_half = tanf(0.5f * GI_PI_F / (float)pc->h);
-  float eps = (float)(1e-4 * c->s0);
+  float eps = gi__shadow_offset(gi__voxel_at(c, pc->at));
   for (size_t y = b; y < e; y++)
     for (int x = 0; x < pc->w; x++) {
       size_t i = 3 * ((size_t)y * (size_t)pc->w + (size_t)x);
