@@ -4,19 +4,25 @@
 #include "scene/lights.h"
 #include "trace/trace.h"
 
+/* A mirror's cone: half a degree, the finest a voxel texture can resolve. */
+#define GI_SPECULAR_MIN_HALF 0.0087f
+/* Beyond 80 degrees a cone is no longer a lobe: the widest half-angle. */
+#define GI_SPECULAR_MAX_HALF 1.396f
+/* Below this Beckmann alpha the surface is a mirror. */
+#define GI_SPECULAR_MIRROR_ALPHA 1e-4f
+
 float gi__specular_tan(float roughness) {
   float r = fminf(fmaxf(roughness, 0.f), 1.f);
   float a = r * r;
   float half;
-  if (a < 1e-4f) {
-    half = 0.0087f; /* a mirror: half a degree, the finest a voxel texture can resolve */
+  if (a < GI_SPECULAR_MIRROR_ALPHA) {
+    half = GI_SPECULAR_MIN_HALF;
   } else {
     double ns = 2.0 / ((double)a * a) - 2.0;
-    half = ns > 0 ? (float)acos(pow(0.5, 1.0 / ns)) : 1.5707963f;
-    half = fmaxf(half, 0.0087f);
+    half = ns > 0 ? (float)acos(pow(0.5, 1.0 / ns)) : 0.5f * GI_PI_F;
+    half = fmaxf(half, GI_SPECULAR_MIN_HALF);
   }
-  /* Beyond 80 degrees a cone is no longer a lobe: cap it. */
-  return tanf(fminf(half, 1.396f));
+  return tanf(fminf(half, GI_SPECULAR_MAX_HALF));
 }
 
 void gi__specular_trace(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
