@@ -2,14 +2,15 @@
  *
  * Each occupied voxel gathers indirect irradiance on each side with the
  * diffuse cone set (weights sum to pi, see trace/cones.c) by the gather's
- * surface rule (trace/gather.c: one voxel off the surface); all voxels gather from the previous bounce's
- * texture (Jacobi), then the texture is reshaded and the nested regions
- * refiltered. A closed furnace of albedo a and emission Le therefore
- * reaches Le (a + ... + a^(k+1)) reflected radiance after k bounces. When
- * the effect plan capped an automatic bounce count short of what the albedo
- * asks for, the last bounce also adds the geometric tail of the orders
- * left out (ratio measured from the last two bounces); an explicit bounce
- * count keeps the exact k-bounce sum above. */
+ * surface rule (trace/gather.c: one voxel off the surface); all voxels
+ * gather from the previous bounce's texture (Jacobi), then the texture is
+ * reshaded and the nested regions refiltered. A closed furnace of albedo a
+ * and emission Le therefore reaches Le (a + ... + a^(k+1)) reflected
+ * radiance after k bounces. When the effect plan capped an automatic
+ * bounce count short of what the albedo asks for, the last bounce also
+ * adds the geometric tail of the orders left out (ratio measured from the
+ * last two bounces); an explicit bounce count keeps the exact k-bounce sum
+ * above. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
