@@ -42,6 +42,8 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
   int inside = gi__gather_start(c, pc->at, NULL, GI_GATHER_FREE, -1, &g);
   /* Half the pixel's angular height: neighbouring cones just touch. */
   float tan_half = tanf(0.5f * GI_PI_F / (float)pc->h);
+  /* Primary rays skip hits closer than the shadow rule's offset, as a
+   * probe's shadow rays from the same point do. */
   float eps = gi__shadow_offset(gi__voxel_at(c, pc->at));
   for (size_t y = b; y < e; y++)
     for (int x = 0; x < pc->w; x++) {
