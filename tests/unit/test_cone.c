@@ -48,7 +48,7 @@ static gi_cone_out trace(struct gi_cascade *c, float ox, float dirx, float tan_h
   gi__cascade_mark_busy(c);
   float o[3] = {ox, 0.3f, 0.2f}, w[3] = {dirx, 0, 0};
   gi_cone_out out;
-  gi__cone_trace(c, o, w, tan_half, 0.5f, step, 0.f, &out);
+  gi__cone_march(c, o, w, tan_half, 0.5f, step, 0.f, -1.f, NULL, &out);
   return out;
 }
 

@@ -10,6 +10,7 @@
 #include <math.h>
 #include <stdio.h>
 #include "gi/gi.h"
+#include "scene/lights.h"
 
 static void direct_at(const gi_light *l, const double pts[][3], int n, float out[][3]) {
   gi_mesh_builder *b = gi_mesh_builder_new();
@@ -68,10 +69,60 @@ static void test_sky(void **state) {
   assert_true(fabsf(e[0][0] - (float)M_PI) < 0.02f * (float)M_PI);
 }
 
+/* The shadow-ray rule (scene/shadow.c) on a floor at y = 0 under an
+ * emitter 0.01 above it, facing down, with a local voxel of 0.1 (offset
+ * 0.002). Each case is one ray whose answer is known exactly. */
+static void test_shadow_rule(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  gi_material e = {.emission = {1, 1, 1}, .roughness = 1};
+  uint32_t mf = gi_mesh_builder_add_material(b, &m), me = gi_mesh_builder_add_material(b, &e);
+  double A[3] = {-5, 0, -5}, B[3] = {-5, 0, 5}, C[3] = {5, 0, 5}, D[3] = {5, 0, -5};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mf);
+  double EA[3] = {-0.1, 0.01, -0.1}, EB[3] = {0.1, 0.01, -0.1}, EC[3] = {0.1, 0.01, 0.1}, ED[3] = {-0.1, 0.01, 0.1};
+  gi_mesh_builder_add_quad(b, EA, EB, EC, ED, me);
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "shadow", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_ray_scratch sc = {0};
+  assert_int_equal(gi__scratch_alloc(&sc, 4), 0);
+  const float up[3] = {0, 1, 0}, voxel = 0.1f;
+  /* Shadow rays take the scene's local frame (world minus its origin). */
+  const double *o = s->origin;
+  float p[3] = {(float)(0.05 - o[0]), (float)(0 - o[1]), (float)(0.05 - o[2])};
+  /* A point on the emitter straight above, 0.01 away: visible. Aimed along w
+   * from the offset start, the segment would end 0.002 past the emitter and
+   * be blocked by it. Then the sun from below: the ray starts on the floor's
+   * lower side and escapes. */
+  gi_lsample ls[2] = {{.w = {0, 1, 0}, .dist = 0.01f}, {.w = {0, -1, 0}, .dist = INFINITY}};
+  gi__shadow_rays(s, p, up, voxel, ls, 2, &sc);
+  assert_int_equal(sc.vis[0], 1);
+  assert_int_equal(sc.vis[1], 1);
+  /* A light beyond the emitter, 1 above: the emitter blocks it. */
+  gi_lsample far = {.w = {0, 1, 0}, .dist = 1.0f};
+  gi__shadow_rays(s, p, up, voxel, &far, 1, &sc);
+  assert_int_equal(sc.vis[0], 0);
+  /* A point in space (no normal) skips hits closer than the offset: 0.001
+   * above the floor it sees the sun below through it, 0.005 above not. */
+  gi_lsample down = {.w = {0, -1, 0}, .dist = INFINITY};
+  float q[3] = {(float)(2 - o[0]), (float)(0.001 - o[1]), (float)(2 - o[2])};
+  gi__shadow_rays(s, q, NULL, voxel, &down, 1, &sc);
+  assert_int_equal(sc.vis[0], 1);
+  q[1] = (float)(0.005 - o[1]);
+  gi__shadow_rays(s, q, NULL, voxel, &down, 1, &sc);
+  assert_int_equal(sc.vis[0], 0);
+  printf("shadow rule: offset %g voxels, shortening %g\n", (double)GI_SHADOW_OFFSET_VOXELS, (double)GI_SHADOW_SHORTEN);
+  gi__scratch_free(&sc);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_delta_lights),
       cmocka_unit_test(test_sky),
+      cmocka_unit_test(test_shadow_rule),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

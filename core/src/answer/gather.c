@@ -29,18 +29,12 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
   int cap = scr->cap;
   {
     gi_lsample *ls = scr->ls;
-    float *org = scr->org, *dir = scr->dir, *tn = scr->tn, *tf = scr->tf;
     uint8_t *vis = scr->vis;
     uint64_t rng = gi__mix64(seed);
     int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
-    float eps = (float)(1e-4 * c->s0);
-    for (int i = 0; i < n; i++) {
-      memcpy(&org[3 * i], p, sizeof(float[3]));
-      memcpy(&dir[3 * i], ls[i].w, sizeof(float[3]));
-      tn[i] = eps;
-      tf[i] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
-    }
-    gi__occluded(s, n, org, dir, tn, tf, vis);
+    /* A probe is a point in space: the shadow rule without a normal. */
+    float voxel = gi__voxel_at(c, p);
+    gi__shadow_rays(s, p, NULL, voxel, ls, n, scr);
     int mb = lp.emissive && s->num_emitters ? q->probe_samples : 0;
     float pb = (float)mb / (4 * GI_PI_F);
     for (int i = 0; i < n; i++) {
@@ -59,7 +53,8 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
       float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__u01(&rng);
       float w[3] = {r * cosf(phi), r * sinf(phi), z};
       float V[3];
-      if (!gi__emitter_ray(s, p, w, eps, q->probe_samples, pb, V)) continue;
+      float o[3], tn = gi__shadow_origin(p, NULL, voxel, w, o);
+      if (!gi__emitter_ray(s, o, w, tn, q->probe_samples, pb, V)) continue;
       gi__sh_add(pr->sh_direct, w, V, 1.0f);
       float cu = gi__dot(up, w);
       if (cu > 0)
@@ -68,31 +63,22 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
   }
   gi__sh_radiance_to_irradiance(pr->sh_direct);
 
-  /* Indirect light: the cone set on both hemispheres around up. */
+  /* Indirect light: the cone set on both hemispheres around up, by the
+   * gather's free-space rule. */
   float sh_ind[9][3] = {{0}};
-  int d = gi__finest_level_at(c, p);
-  float t0 = (float)(d >= 0 ? c->lv[d].s : c->s0);
   float domega = 2 * GI_PI_F / (float)c->num_cones;
   float occ = 0;
+  float dirs[GI_MAX_CONES][3];
+  gi_cone_out cones[GI_MAX_CONES];
   for (int hemi = 0; hemi < 2; hemi++) {
-    float n[3], t[3], b[3];
+    float n[3];
     for (int k = 0; k < 3; k++) n[k] = hemi ? -up[k] : up[k];
-    gi__basis(n, t, b);
-    for (int ci = 0; ci < c->num_cones; ci++) {
-      const float *cd = c->cone_dir[ci];
-      float w[3];
-      for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
-      gi_cone_out co;
-      if (d >= 0) {
-        gi__cone_trace(c, p, w, c->cone_tan, t0, q->step, q->ao_lambda, &co);
-      } else {
-        memset(&co, 0, sizeof co);
-      }
-      gi__sh_add(sh_ind, w, co.L, domega);
-      if (!hemi) {
-        for (int k = 0; k < 3; k++) pr->indirect[k] += c->cone_weight[ci] * co.L[k];
-        occ += c->cone_weight[ci] * co.occlusion;
-      }
+    gi_gather_out go;
+    gi__gather_hemisphere(c, p, n, GI_GATHER_FREE, -1, &go, dirs, cones);
+    for (int ci = 0; ci < c->num_cones; ci++) gi__sh_add(sh_ind, dirs[ci], cones[ci].L, domega);
+    if (!hemi) {
+      memcpy(pr->indirect, go.E, sizeof go.E);
+      occ = go.occlusion;
     }
   }
   gi__sh_radiance_to_irradiance(sh_ind);

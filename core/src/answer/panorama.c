@@ -36,13 +36,15 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
   pano_ctx *pc = p;
   const struct gi_cascade *c = pc->c;
   const gi_scene *s = c->scene;
-  const gi_quality *q = &c->report.quality;
   int up_z = s->up == GI_UP_Z;
-  int lvl = gi__finest_level_at(c, pc->at);
-  float t0 = (float)(lvl >= 0 ? c->lv[lvl].s : c->s0);
+  /* The eye is a point in space: the gather's free-space rule. */
+  gi_gather_start g;
+  int inside = gi__gather_start(c, pc->at, NULL, GI_GATHER_FREE, -1, &g);
   /* Half the pixel's angular height: neighbouring cones just touch. */
   float tan_half = tanf(0.5f * GI_PI_F / (float)pc->h);
-  float eps = (float)(1e-4 * c->s0);
+  /* Primary rays skip hits closer than the shadow rule's offset, as a
+   * probe's shadow rays from the same point do. */
+  float eps = gi__shadow_offset(gi__voxel_at(c, pc->at));
   for (size_t y = b; y < e; y++)
     for (int x = 0; x < pc->w; x++) {
       size_t i = 3 * ((size_t)y * (size_t)pc->w + (size_t)x);
@@ -60,8 +62,8 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
         for (int k = 0; k < 3; k++) D[k] = pc->sky[k];
       }
       gi_cone_out co;
-      if (lvl >= 0) {
-        gi__cone_trace(c, pc->at, w, tan_half, t0, q->step, 0.f, &co);
+      if (inside) {
+        gi__gather_cone(c, &g, w, tan_half, &co);
       } else {
         memset(&co, 0, sizeof co);
       }

@@ -4,8 +4,9 @@
  * hit, surfaces are two-sided: the normal turns toward the camera. Direct
  * light comes from shadow rays with the bake's own light sampler and plan
  * (so a skipped effect stays skipped); indirect light from the bake's
- * diffuse cone set around the normal, started one voxel of the finest level
- * containing the point off the surface, exactly as the voxel bounces
+ * diffuse cone set around the normal by the gather's surface rule (one
+ * voxel of the finest level containing the point off the surface, coarse
+ * levels kept off it: trace/gather.c), exactly as the voxel bounces
  * gather; the specular pass (gi_cascade_view_plan decides whether it runs
  * and where) adds one specular cone along the mirror direction, weighted
  * by the material's specular reflectance. Pixels are independent: rows
@@ -72,7 +73,6 @@ typedef struct {
 static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3],
                         float *spec) {
   gi_lsample *ls = sc->ls;
-  float *org = sc->org, *dir = sc->dir, *tn = sc->tn, *tf = sc->tf;
   uint8_t *vis = sc->vis;
   int cap = sc->cap;
   const struct gi_cascade *c = rc->c;
@@ -91,37 +91,25 @@ static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint
   for (int a = 0; a < 3; a++) n[a] = cw > 0 ? -ng[a] : ng[a], x[a] = rc->k->eye[a] + t * w[a];
   if (cw < 0) /* emitters are one-sided: their front faces the camera */
     for (int a = 0; a < 3; a++) out[a] += m->emission[a];
-  float eps = (float)(1e-3 * c->s0), E[3] = {0, 0, 0};
+  float E[3] = {0, 0, 0};
   gi_light_plan lp = gi__light_plan(&c->report, rc->samples);
   uint64_t rng = gi__mix64(c->report.quality.seed ^ ((uint64_t)py << 32 | (uint32_t)px));
   int nl = gi__light_samples(s, &lp, x, &rng, ls, cap), k = 0;
-  for (int i = 0; i < nl; i++) {
-    float cn = gi__dot(n, ls[i].w);
-    if (!(cn > 0)) continue;
-    for (int a = 0; a < 3; a++) org[3 * k + a] = x[a] + eps * n[a], dir[3 * k + a] = ls[i].w[a];
-    tn[k] = 0;
-    tf[k] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
-    ls[k] = ls[i];
-    ls[k].dist = cn;
-    k++;
-  }
-  gi__occluded(s, k, org, dir, tn, tf, vis);
+  /* Only lights in front of the surface; compact in place. */
+  for (int i = 0; i < nl; i++)
+    if (gi__dot(n, ls[i].w) > 0) ls[k++] = ls[i];
+  gi__shadow_rays(s, x, n, gi__voxel_at(c, x), ls, k, sc);
   for (int i = 0; i < k; i++)
-    if (vis[i])
-      for (int a = 0; a < 3; a++) E[a] += ls[i].V[a] * ls[i].dist;
+    if (vis[i]) {
+      float cn = gi__dot(n, ls[i].w);
+      for (int a = 0; a < 3; a++) E[a] += ls[i].V[a] * cn;
+    }
+  /* Indirect light: the surface rule, exactly as the voxel bounces gather. */
   int d = gi__finest_level_at(c, x);
   if (d >= 0 && c->report.bounces_run > 0) {
-    float off = (float)c->lv[d].s, o[3], tt[3], bb[3];
-    for (int a = 0; a < 3; a++) o[a] = x[a] + off * n[a];
-    gi__basis(n, tt, bb);
-    for (int ci = 0; ci < c->num_cones; ci++) {
-      const float *cd = c->cone_dir[ci];
-      float cwd[3];
-      for (int a = 0; a < 3; a++) cwd[a] = cd[0] * tt[a] + cd[1] * bb[a] + cd[2] * n[a];
-      gi_cone_out co;
-      gi__cone_trace(c, o, cwd, c->cone_tan, off, c->report.quality.step, c->report.quality.ao_lambda, &co);
-      for (int a = 0; a < 3; a++) E[a] += c->cone_weight[ci] * co.L[a];
-    }
+    gi_gather_out go;
+    gi__gather_hemisphere(c, x, n, GI_GATHER_SURFACE, d, &go, NULL, NULL);
+    for (int a = 0; a < 3; a++) E[a] += go.E[a];
     cones[0] += (uint64_t)c->num_cones;
   }
   for (int a = 0; a < 3; a++) out[a] += m->albedo[a] * (1.f / GI_PI_F) * E[a];

@@ -63,6 +63,9 @@ typedef struct gi_level {
   uint64_t num_geo;    /* voxels holding geometry (incl. the inner region) */
 } gi_level;
 
+/* Room in the cascade for the largest diffuse cone set (trace/cones.c: 32). */
+#define GI_MAX_CONES 64
+
 struct gi_cascade {
   gi_scene *scene;     /* retained */
   int n, R;
@@ -73,8 +76,8 @@ struct gi_cascade {
   gi_bake_report report;
   /* Diffuse cone set around +Z, shared by bounce and gather. */
   int num_cones;
-  float cone_dir[64][3];
-  float cone_weight[64]; /* integral of cos over the cone's region; sums to pi */
+  float cone_dir[GI_MAX_CONES][3];
+  float cone_weight[GI_MAX_CONES]; /* integral of cos over the cone's region; sums to pi */
   float cone_tan;        /* tan(aperture / 2) */
 };
 

@@ -1,15 +1,16 @@
 /* bounce.c: the voxel-to-voxel bounces.
  *
  * Each occupied voxel gathers indirect irradiance on each side with the
- * diffuse cone set (weights sum to pi, see trace/cones.c), starting one
- * voxel off the surface; all voxels gather from the previous bounce's
- * texture (Jacobi), then the texture is reshaded and the nested regions
- * refiltered. A closed furnace of albedo a and emission Le therefore
- * reaches Le (a + ... + a^(k+1)) reflected radiance after k bounces. When
- * the effect plan capped an automatic bounce count short of what the albedo
- * asks for, the last bounce also adds the geometric tail of the orders
- * left out (ratio measured from the last two bounces); an explicit bounce
- * count keeps the exact k-bounce sum above. */
+ * diffuse cone set (weights sum to pi, see trace/cones.c) by the gather's
+ * surface rule (trace/gather.c: one voxel off the surface); all voxels
+ * gather from the previous bounce's texture (Jacobi), then the texture is
+ * reshaded and the nested regions refiltered. A closed furnace of albedo a
+ * and emission Le therefore reaches Le (a + ... + a^(k+1)) reflected
+ * radiance after k bounces. When the effect plan capped an automatic
+ * bounce count short of what the albedo asks for, the last bounce also
+ * adds the geometric tail of the orders left out (ratio measured from the
+ * last two bounces); an explicit bounce count keeps the exact k-bounce sum
+ * above. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -22,7 +23,6 @@ static void shade_all(struct gi_cascade *c) {
 
 typedef struct {
   struct gi_cascade *c;
-  const gi_quality *q;
   int d;
   float (*E)[2][3]; /* per occupied voxel */
   atomic_ullong samples;
@@ -32,8 +32,6 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   bounce_ctx *bc = p;
   struct gi_cascade *c = bc->c;
   const gi_level *L = &c->lv[bc->d];
-  float off = (float)L->s;
-  float lambda = bc->q->ao_lambda;
   uint64_t samples = 0;
   for (size_t q = b; q < e; q++) {
     uint32_t slot = L->occ[q];
@@ -41,22 +39,14 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
     memset(bc->E[q], 0, sizeof(float[2][3]));
     if (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0) continue;
     for (int sd = 0; sd < 2; sd++) {
-      float n[3], t[3], bb[3], o[3];
+      float n[3];
       float sg = sd ? -1.f : 1.f;
-      for (int k = 0; k < 3; k++) {
-        n[k] = sg * g->normal[k];
-        o[k] = g->centroid[k] + off * n[k];
-      }
-      gi__basis(n, t, bb);
-      for (int ci = 0; ci < c->num_cones; ci++) {
-        const float *cd = c->cone_dir[ci];
-        float w[3];
-        for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * bb[k] + cd[2] * n[k];
-        gi_cone_out co;
-        gi__cone_trace_surface(c, o, w, c->cone_tan, off, bc->q->step, lambda, off, n, &co);
-        samples += co.samples;
-        for (int k = 0; k < 3; k++) bc->E[q][sd][k] += c->cone_weight[ci] * co.L[k];
-      }
+      for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
+      /* A voxel is a surface at its own level's resolution. */
+      gi_gather_out go;
+      gi__gather_hemisphere(c, g->centroid, n, GI_GATHER_SURFACE, bc->d, &go, NULL, NULL);
+      samples += go.samples;
+      memcpy(bc->E[q][sd], go.E, sizeof go.E);
     }
   }
   atomic_fetch_add(&bc->samples, samples);
@@ -77,7 +67,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
   }
   for (int it = 0; it < bounces; it++) {
     for (int d = 0; d < c->n; d++) {
-      bounce_ctx bc = {.c = c, .q = q, .d = d, .E = E[d]};
+      bounce_ctx bc = {.c = c, .d = d, .E = E[d]};
       atomic_init(&bc.samples, 0);
       gi__parallel_for(c->lv[d].num_occ, 16, q->threads, bounce_range, &bc);
       c->report.cone_samples += atomic_load(&bc.samples);

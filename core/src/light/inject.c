@@ -37,8 +37,8 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     goto out;
   }
   gi_lsample *ls = sc.ls;
-  float *org = sc.org, *dir = sc.dir, *tn = sc.tn, *tf = sc.tf;
   uint8_t *vis = sc.vis;
+  float voxel = (float)L->s;
   uint64_t rays = 0;
   int R = c->R;
   for (size_t q = b; q < e; q++) {
@@ -52,26 +52,18 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
     int n = gi__light_samples(s, ic->lp, g->centroid, &rng, ls, ic->cap);
-    float eps = (float)(0.02 * L->s);
     int m = 0;
     for (int i = 0; i < n; i++) {
       float cn = gi__dot(g->normal, ls[i].w);
       if (cn == 0) continue;
-      int sd = cn > 0 ? 0 : 1;
-      float sg = cn > 0 ? 1.f : -1.f;
-      for (int k = 0; k < 3; k++) {
-        org[3 * m + k] = g->centroid[k] + sg * eps * g->normal[k];
-        dir[3 * m + k] = ls[i].w[k];
-      }
-      tn[m] = 0;
-      tf[m] = isinf(ls[i].dist) ? INFINITY : ls[i].dist * 0.999f;
-      side[m] = (int8_t)sd;
+      side[m] = (int8_t)(cn > 0 ? 0 : 1);
       cosw[m] = fabsf(cn);
       /* Keep the sample index in the V slot order: compact in place. */
       ls[m] = ls[i];
       m++;
     }
-    gi__occluded(s, m, org, dir, tn, tf, vis);
+    /* Each ray leaves from the side of the surface that faces its light. */
+    gi__shadow_rays(s, g->centroid, g->normal, voxel, ls, m, &sc);
     rays += (uint64_t)m;
     int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
     for (int i = 0; i < m; i++) {
@@ -85,7 +77,9 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     for (int sd = 0; sd < 2 && mb > 0; sd++) {
       float n[3], t[3], bb[3], o[3];
       float sg = sd ? -1.f : 1.f;
-      for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k], o[k] = g->centroid[k] + eps * n[k];
+      for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
+      /* These rays all leave on side n: the shadow rule's start for it. */
+      float tn = gi__shadow_origin(g->centroid, n, voxel, n, o);
       gi__basis(n, t, bb);
       for (int j = 0; j < mb; j++) {
         float u1 = ((float)j + gi__u01(&rng)) / (float)mb, u2 = gi__u01(&rng);
@@ -95,7 +89,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
         for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
         rays++;
         float V[3];
-        if (!gi__emitter_ray(s, o, w, 0, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
+        if (!gi__emitter_ray(s, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
         for (int k = 0; k < 3; k++) E[sd][k] += V[k] * z;
       }
     }

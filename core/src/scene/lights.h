@@ -48,6 +48,24 @@ void gi__scratch_free(gi_ray_scratch *sc);
  * sun, point and spot light, sky_samples per sky light, emit_samples for
  * the emitters. Size sample buffers with it: a smaller one drops lights. */
 int gi__light_sample_cap(const gi_scene *s, const gi_light_plan *lp);
+/* The shadow-ray rule, one for every stage (the path-traced reference keeps
+ * its own). From a surface point with unit normal n a ray starts
+ * GI_SHADOW_OFFSET_VOXELS local voxels off the surface, on the side of n
+ * that faces the light, so the surface cannot shadow itself; from a point
+ * in space (n NULL) it starts at the point and ignores hits closer than
+ * that. A ray toward a light at a finite distance aims from its start at
+ * the sampled light point and stops GI_SHADOW_SHORTEN of the way short of
+ * it, so the light's own surface does not block it. */
+#define GI_SHADOW_OFFSET_VOXELS 0.02f
+#define GI_SHADOW_SHORTEN 1e-3f
+static inline float gi__shadow_offset(float voxel) { return GI_SHADOW_OFFSET_VOXELS * voxel; }
+/* Start o of a shadow ray toward unit w from p; returns its tnear. */
+float gi__shadow_origin(const float p[3], const float *n, float voxel, const float w[3], float o[3]);
+/* Visibility of the count samples ls (count <= sc->cap) from p by the rule
+ * above: fills sc's org/dir/tn/tf, traces them, sc->vis[i] = 1 when sample
+ * i is unoccluded. voxel: the local voxel size at p. */
+void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float voxel, const gi_lsample *ls,
+                     int count, gi_ray_scratch *sc);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);

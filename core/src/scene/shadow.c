@@ -23,3 +23,44 @@ void gi__scratch_free(gi_ray_scratch *sc) {
   gi__free(sc->ls); gi__free(sc->org); gi__free(sc->dir); gi__free(sc->tn); gi__free(sc->tf); gi__free(sc->vis);
   sc->ls = NULL, sc->org = sc->dir = sc->tn = sc->tf = NULL, sc->vis = NULL;
 }
+
+float gi__shadow_origin(const float p[3], const float *n, float voxel, const float w[3], float o[3]) {
+  float off = gi__shadow_offset(voxel);
+  if (!n) {
+    memcpy(o, p, sizeof(float[3]));
+    return off;
+  }
+  float sg = gi__dot(n, w) < 0 ? -1.f : 1.f;
+  for (int k = 0; k < 3; k++) o[k] = p[k] + sg * off * n[k];
+  return 0.f;
+}
+
+void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float voxel, const gi_lsample *ls,
+                     int count, gi_ray_scratch *sc) {
+  if (count > sc->cap) count = sc->cap;
+  for (int i = 0; i < count; i++) {
+    float *o = &sc->org[3 * i], *d = &sc->dir[3 * i];
+    sc->tn[i] = gi__shadow_origin(p, n, voxel, ls[i].w, o);
+    memcpy(d, ls[i].w, sizeof(float[3]));
+    if (isinf(ls[i].dist)) {
+      sc->tf[i] = INFINITY;
+      continue;
+    }
+    float len = ls[i].dist;
+    if (n) {
+      /* Aim from the offset start at the sampled point itself: along w from
+       * the start, the segment would end up to the offset past the light
+       * and meet an emitter's own surface (Cornell's default bake: indirect
+       * bias 0.91 instead of 1.04 at 0.02 voxels, 0.63 at 0.05). */
+      float e[3], l;
+      for (int k = 0; k < 3; k++) e[k] = p[k] + ls[i].dist * ls[i].w[k] - o[k];
+      l = gi__len(e);
+      if (l > 0) {
+        for (int k = 0; k < 3; k++) d[k] = e[k] / l;
+        len = l;
+      }
+    }
+    sc->tf[i] = len * (1.f - GI_SHADOW_SHORTEN);
+  }
+  gi__occluded(s, count, sc->org, sc->dir, sc->tn, sc->tf, sc->vis);
+}

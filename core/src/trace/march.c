@@ -12,8 +12,10 @@
  * depth: sigma = sum |w_a| tau_a / s, so a slab that is opaque along its
  * normal stays opaque at any angle, and a segment of length dt has opacity
  * 1 - exp(-sigma dt) (the step-length correction). Compositing is front to
- * back: c += (1 - a) a_s c_s, a += (1 - a) a_s, until a >= 0.99 or the cone
- * leaves the coarsest level; a cone stopped by opacity is renormalised by a.
+ * back: c += (1 - a) a_s c_s, a += (1 - a) a_s, until a >= GI_OPAQUE_ALPHA
+ * or the cone leaves the coarsest level; a cone stopped by opacity is
+ * renormalised by a. Where a cone starts and which levels it may enter
+ * near a surface is the gather's rule (trace/gather.c).
  * */
 #include <string.h>
 #include "base/internal.h"
@@ -24,6 +26,11 @@ int gi__finest_level_at(const struct gi_cascade *c, const float p[3]) {
   for (int d = 0; d < c->n; d++)
     if (gi__level_contains(&c->lv[d], p, 1.0f)) return d;
   return -1;
+}
+
+float gi__voxel_at(const struct gi_cascade *c, const float p[3]) {
+  int d = gi__finest_level_at(c, p);
+  return (float)(d >= 0 ? c->lv[d].s : c->s0);
 }
 
 static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], const float w[3], const float *axw,
@@ -103,6 +110,13 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
   return 1;
 }
 
+/* A sample's trilinear footprint reaches this many of its level's voxels. */
+#define GI_TRILINEAR_REACH 1.5f
+/* A sample whose weighted opacity is below this carries no usable radiance. */
+#define GI_MIN_SAMPLE_WEIGHT 1e-8f
+/* Floor of the height above the surface, so its log stays finite. */
+#define GI_MIN_HEIGHT 1e-30f
+
 /* h0 < 0: the apex is in free space (a probe). h0 >= 0: the apex is h0
  * above a surface and nw is the cosine between the cone and its normal;
  * then level d is reached (lod capped at log2(h / (K s0))) only where the
@@ -113,21 +127,21 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
  * itself, and with it the radiance the surface sends out of its *other*
  * side: behind a wall thinner than a voxel, the lit room's light (the leak
  * in test_hardcases: 9% before, under 1% after). */
-static void cone_trace(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half,
-                       float t0, float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
+void gi__cone_march(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
+                    float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
   float L[3] = {0, 0, 0}, a = 0, occ = 0;
-  float nw = n ? gi__dot(n, w) : 0.f;
+  float nw = n && h0 >= 0 ? gi__dot(n, w) : 0.f;
   uint32_t samples = 0;
   float s0 = (float)c->s0;
   float t = t0;
-  for (int guard = 0; guard < 4096 && a < 0.99f; guard++) {
+  for (int guard = 0; guard < GI_CONE_MAX_STEPS && a < GI_OPAQUE_ALPHA; guard++) {
     float D = 2.0f * t * tan_half;
     if (D < s0) D = s0;
     float p[3] = {o[0] + t * w[0], o[1] + t * w[1], o[2] + t * w[2]};
     float lod = log2f(D / s0);
     if (h0 >= 0) {
       float h = h0 + t * nw;
-      lod = fminf(lod, log2f(fmaxf(h, 1e-30f) / (GI_SURFACE_LOD_K * s0)));
+      lod = fminf(lod, log2f(fmaxf(h, GI_MIN_HEIGHT) / (GI_SURFACE_LOD_K * s0)));
       if (lod < 0) lod = 0;
     }
     int d0 = (int)floorf(lod);
@@ -146,7 +160,7 @@ static void cone_trace(const struct gi_cascade *c, const float o[3], const float
      * opacity and radiance lie along its normal, a wall standing on it
      * lies across. */
     float P[3], wal, sig;
-    if (d > d0 && h0 >= 0 && h0 + t * nw < 1.5f * (float)c->lv[d].s) {
+    if (d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s) {
       float axw[3] = {1 - n[0] * n[0], 1 - n[1] * n[1], 1 - n[2] * n[2]};
       sample_level_ax(c, d, p, w, axw, P, &wal, &sig);
     } else {
@@ -165,7 +179,7 @@ static void cone_trace(const struct gi_cascade *c, const float o[3], const float
      * wall, a shorter one only re-reads the same trilinear data. */
     float dt = step * (float)c->lv[d].s;
     float as = 1.0f - expf(-sig * dt);
-    if (as > 0 && wal > 1e-8f) {
+    if (as > 0 && wal > GI_MIN_SAMPLE_WEIGHT) {
       float k = (1 - a) * as / wal;
       L[0] += k * P[0];
       L[1] += k * P[1];
@@ -177,20 +191,10 @@ static void cone_trace(const struct gi_cascade *c, const float o[3], const float
   }
   /* A cone stopped by the opacity threshold assumes its last 1% looks like
    * the rest; without this a closed room loses 1% per bounce. */
-  if (a >= 0.99f)
+  if (a >= GI_OPAQUE_ALPHA)
     for (int k = 0; k < 3; k++) L[k] /= a;
   memcpy(out->L, L, sizeof L);
   out->alpha = a;
   out->occlusion = occ;
   out->samples = samples;
-}
-
-void gi__cone_trace(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half,
-                    float t0, float step, float ao_lambda, gi_cone_out *out) {
-  cone_trace(c, o, w, tan_half, t0, step, ao_lambda, -1.f, NULL, out);
-}
-
-void gi__cone_trace_surface(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half,
-                            float t0, float step, float ao_lambda, float h0, const float n[3], gi_cone_out *out) {
-  cone_trace(c, o, w, tan_half, t0, step, ao_lambda, fmaxf(h0, 0.f), n, out);
 }

@@ -13,16 +13,56 @@ typedef struct gi_cone_out {
   float occlusion;     /* AO-weighted occlusion */
   uint32_t samples;
 } gi_cone_out;
-void gi__cone_trace(const struct gi_cascade *c, const float p[3], const float w[3], float tan_half,
-                    float t0, float step, float ao_lambda, gi_cone_out *out);
-/* The same from a point h0 above a surface of unit normal n (w.n > 0):
+/* Marches one cone from apex o along unit w, first sample at distance t0,
+ * steps of `step` voxels of the sampled level. h0 < 0: the apex is in free
+ * space. h0 >= 0: the apex is h0 above a surface of unit normal n (w.n > 0);
  * levels coarse enough for their footprint to reach back to the surface
  * are not sampled there (keeps light from leaking through walls thinner
- * than a voxel; see trace.c), and where the window forces one, it is read
- * across the normal only. */
+ * than a voxel; see march.c), and where the window forces one, it is read
+ * across the normal only. Callers go through the gather's rule below. */
 #define GI_SURFACE_LOD_K 3.0f
-void gi__cone_trace_surface(const struct gi_cascade *c, const float p[3], const float w[3], float tan_half,
-                            float t0, float step, float ao_lambda, float h0, const float n[3], gi_cone_out *out);
+/* Most samples one cone takes: far beyond what crossing every level needs. */
+#define GI_CONE_MAX_STEPS 4096
+void gi__cone_march(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
+                    float step, float ao_lambda, float h0, const float *n, gi_cone_out *out);
+
+/* ---- the gather (trace/gather.c): one rule for where cones start ----
+ * GI_GATHER_SURFACE: p lies on a surface of unit normal n (the side to
+ * gather). Cones start one voxel s off the surface (apex p + s n, first
+ * sample s further) and use the surface level-entry rule (h0 = s). Voxel
+ * bounces, camera-view hits and specular cones.
+ * GI_GATHER_FREE: p is a point in space (a probe, a panorama's eye). Cones
+ * start at p itself, first sample one voxel s out, with no entry limit; n,
+ * when given, only orients the hemisphere.
+ * s is the voxel size of `level`; level < 0 takes the finest level whose
+ * window contains p (the best resolution there). */
+typedef enum { GI_GATHER_FREE = 0, GI_GATHER_SURFACE = 1 } gi_gather_mode;
+typedef struct gi_gather_start {
+  float o[3];          /* apex */
+  float n[3];          /* surface normal (GI_GATHER_SURFACE) */
+  float t0, h0;        /* first sample distance; apex height (< 0: free space) */
+  float step, ao_lambda;
+} gi_gather_start;
+/* Fills g for a gather at p; returns 0 when level < 0 and p lies outside
+ * every level (g is then set up with the finest voxel size). */
+int gi__gather_start(const struct gi_cascade *c, const float p[3], const float *n, gi_gather_mode mode, int level,
+                     gi_gather_start *g);
+/* One cone of half-angle tangent tan_half along unit w from g. */
+void gi__gather_cone(const struct gi_cascade *c, const gi_gather_start *g, const float w[3], float tan_half,
+                     gi_cone_out *out);
+/* What a hemisphere gather returns. */
+typedef struct gi_gather_out {
+  float E[3];          /* irradiance: sum over cones of weight x L */
+  float occlusion;     /* sum of weight x occlusion: pi when fully occluded */
+  uint64_t samples;    /* texture samples taken */
+} gi_gather_out;
+/* The cascade's diffuse cone set on the hemisphere around unit n at p.
+ * Optional dirs/cones (num_cones each) receive every cone's direction and
+ * result, for SH projection. Returns 0 (out, dirs and cones zeroed) when
+ * level < 0 and p lies outside every level: there is nothing to gather. */
+int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const float n[3], gi_gather_mode mode,
+                          int level, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones);
+
 /* Half-angle tangent of the specular cone for a roughness in [0,1]: the
  * half-width at half maximum of the Phong lobe equivalent to Beckmann
  * alpha = roughness^2 (exponent 2 / alpha^2 - 2), at least 0.5 degree. */
@@ -40,5 +80,7 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
                      float prem[3], float *wsum_alpha, float *sigma);
 /* Finest level whose window (minus one voxel) contains p; -1 when none. */
 int gi__finest_level_at(const struct gi_cascade *c, const float p[3]);
+/* The local voxel size at p: that level's voxel, else the finest (s0). */
+float gi__voxel_at(const struct gi_cascade *c, const float p[3]);
 
 #endif
