@@ -541,24 +541,8 @@ static gi_result convert_light(const char *path, const struct aiLight *al, doubl
   return GI_OK;
 }
 
-gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene **out, gi_error_info *err) {
-  gi_scene_options o = {0};
-  gi_mesh_builder *b = NULL;
-  gi_light *lights = NULL;
-  uint32_t *matmap = NULL;
-  const struct aiScene *as = NULL;
-  tex_ctx tc = {0};
-  gi_result rc = GI_OK;
-  int locked = 0;
-
-  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_load: out is NULL");
-  *out = NULL;
-  if (!path || !path[0]) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_load: no file name given");
-  if (opt) o = *opt;
-  double scale = o.scale == 0 ? 1.0 : o.scale;
-  if (!isfinite(scale)) return gi__fail(err, GI_ERR_NONFINITE, "scene file '%s': scale is not finite", path);
-
-  /* Our own checks first: assimp's messages for these cases are vague. */
+/* Our own checks first: assimp's messages for these cases are vague. */
+static gi_result check_file(const char *path, gi_error_info *err) {
   FILE *f = fopen(path, "rb");
   if (!f) {
     int e = errno;
@@ -566,23 +550,24 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
                     strerror(e));
   }
   struct stat st;
-  if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
-    fclose(f);
-    return gi__fail(err, GI_ERR_IO, "scene file '%s' is not a regular file", path);
-  }
-  if (st.st_size == 0) {
-    fclose(f);
-    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' is empty", path);
-  }
-  if (ends_with_ci(path, ".ply")) rc = check_ply_header(path, f, (long long)st.st_size, err);
+  gi_result rc = GI_OK;
+  if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode))
+    rc = gi__fail(err, GI_ERR_IO, "scene file '%s' is not a regular file", path);
+  else if (st.st_size == 0)
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s' is empty", path);
+  else if (ends_with_ci(path, ".ply"))
+    rc = check_ply_header(path, f, (long long)st.st_size, err);
   fclose(f);
-  if (rc != GI_OK) return rc;
+  return rc;
+}
 
+/* assimp's import under its lock (its error string is global). */
+static gi_result import_file(const char *path, const struct aiScene **out, gi_error_info *err) {
   pthread_mutex_lock(&assimp_lock);
-  locked = 1;
-  as = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
-                              aiProcess_PreTransformVertices | aiProcess_SortByPType);
-  if (!as) {
+  *out = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
+                                aiProcess_PreTransformVertices | aiProcess_SortByPType);
+  gi_result rc = GI_OK;
+  if (!*out) {
     const char *msg = aiGetErrorString();
     msg = msg && msg[0] ? msg : "unknown error";
     /* assimp's wording for the commonest failures says what it did, not
@@ -593,12 +578,13 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     else if (strstr(msg, "mNumMeshes is 0") || strstr(msg, "has no faces"))
       why = "no usable triangles (binary junk, or faces whose indices are out of range); ";
     rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': %sassimp cannot read it: %s", path, why, msg);
-    goto done;
   }
   pthread_mutex_unlock(&assimp_lock);
-  locked = 0;
+  return rc;
+}
 
-  /* Count first, in 64 bits, so a huge file fails before we allocate. */
+/* Counts in 64 bits, so a huge file fails before we allocate. */
+static gi_result check_counts(const struct aiScene *as, const char *path, gi_error_info *err) {
   uint64_t ntri = 0, nvert = 0;
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
     const struct aiMesh *m = as->mMeshes[i];
@@ -606,35 +592,27 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     ntri += m->mNumFaces;
     nvert += m->mNumVertices;
   }
-  if (ntri > ((uint64_t)1 << 31)) {
-    rc = gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %llu triangles; the limit is 2^31", path,
-                  (unsigned long long)ntri);
-    goto done;
-  }
-  if (nvert >= UINT32_MAX) {
-    rc = gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %llu vertices; the limit is 2^32-1", path,
-                  (unsigned long long)nvert);
-    goto done;
-  }
-  if (ntri == 0) {
-    rc = gi__fail(err, GI_ERR_EMPTY, "scene file '%s' contains no triangles", path);
-    goto done;
-  }
+  if (ntri > ((uint64_t)1 << 31))
+    return gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %llu triangles; the limit is 2^31", path,
+                    (unsigned long long)ntri);
+  if (nvert >= UINT32_MAX)
+    return gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %llu vertices; the limit is 2^32-1", path,
+                    (unsigned long long)nvert);
+  if (ntri == 0) return gi__fail(err, GI_ERR_EMPTY, "scene file '%s' contains no triangles", path);
+  return GI_OK;
+}
 
-  b = gi_mesh_builder_new();
-  if (!b) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
-  /* assimp adds a material of its own (OBJ: "DefaultMaterial", glTF: an
-   * unnamed one); keep it only when a mesh uses it, so the material list
-   * matches the file's. */
-  matmap = gi__malloc((as->mNumMaterials + 1) * sizeof *matmap);
-  if (!matmap) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
+/* The file's materials into b; matmap[i] is material i's index in b.
+ * assimp adds a material of its own (OBJ: "DefaultMaterial", glTF: an
+ * unnamed one); it is kept only when a mesh uses it, so the material list
+ * matches the file's. */
+static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_builder *b, uint32_t *matmap,
+                               gi_error_info *err) {
   uint32_t nmat = 0;
-  tc.as = as;
-  tc.path = path;
   for (unsigned i = 0; i < as->mNumMaterials; i++) {
     gi_material m;
-    rc = convert_material(as->mMaterials[i], &tc, &m, err);
-    if (rc != GI_OK) goto done;
+    gi_result rc = convert_material(as->mMaterials[i], tc, &m, err);
+    if (rc != GI_OK) return rc;
     int used = 0;
     for (unsigned j = 0; j < as->mNumMeshes && !used; j++)
       used = as->mMeshes[j]->mMaterialIndex == i && (as->mMeshes[j]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
@@ -647,13 +625,19 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1.f, .name = "default"};
     gi_mesh_builder_add_material(b, &m);
   }
+  return GI_OK;
+}
+
+/* Every triangle mesh's vertices (unscaled: gi_scene_build applies
+ * opt->scale) and faces into b. */
+static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, gi_mesh_builder *b, const char *path,
+                            gi_error_info *err) {
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
     const struct aiMesh *m = as->mMeshes[i];
     if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
     uint32_t mat = m->mMaterialIndex < as->mNumMaterials ? matmap[m->mMaterialIndex] : 0;
     if (mat == UINT32_MAX) mat = 0;
     uint32_t base = 0;
-    /* Positions go in unscaled: gi_scene_build applies opt->scale. */
     for (unsigned v = 0; v < m->mNumVertices; v++) {
       uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z);
       if (v == 0) base = id;
@@ -662,59 +646,88 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
       const struct aiFace *fc = &m->mFaces[t];
       if (fc->mNumIndices != 3) continue; /* a point or line left in a mixed mesh */
       for (int k = 0; k < 3; k++)
-        if (fc->mIndices[k] >= m->mNumVertices) {
-          rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': mesh '%.*s' face %u uses vertex %u of %u", path,
-                        (int)m->mName.length, m->mName.data, t, fc->mIndices[k], m->mNumVertices);
-          goto done;
-        }
+        if (fc->mIndices[k] >= m->mNumVertices)
+          return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': mesh '%.*s' face %u uses vertex %u of %u", path,
+                          (int)m->mName.length, m->mName.data, t, fc->mIndices[k], m->mNumVertices);
       gi_mesh_builder_add_triangle(b, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2], mat);
     }
   }
+  return GI_OK;
+}
 
-  /* The file's lights (already in world space), then the caller's. */
+/* The file's lights (already in world space), then the caller's, into a
+ * new array *lights (caller frees) that o then points at. */
+static gi_result collect_lights(const struct aiScene *as, const char *path, double scale, gi_scene_options *o,
+                                gi_light **lights, gi_error_info *err) {
+  if (o->num_lights && !o->lights)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", o->num_lights);
   size_t nl = 0;
-  lights = gi__calloc(as->mNumLights + o.num_lights + 1, sizeof *lights);
-  if (!lights) { rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path); goto done; }
+  gi_light *l = *lights = gi__calloc(as->mNumLights + o->num_lights + 1, sizeof *l);
+  if (!l) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
   for (unsigned i = 0; i < as->mNumLights; i++) {
-    gi_result r = convert_light(path, as->mLights[i], scale, &lights[nl], err);
+    gi_result r = convert_light(path, as->mLights[i], scale, &l[nl], err);
     if (r == GI_OK) nl++;
-    else if (r != GI_ERR_NOT_FOUND) { rc = r; goto done; }
+    else if (r != GI_ERR_NOT_FOUND) return r;
   }
-  if (o.num_lights && !o.lights) {
-    rc = gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", o.num_lights);
-    goto done;
-  }
-  for (size_t i = 0; i < o.num_lights; i++) lights[nl++] = o.lights[i];
-  o.lights = lights;
-  o.num_lights = nl;
+  for (size_t i = 0; i < o->num_lights; i++) l[nl++] = o->lights[i];
+  o->lights = l;
+  o->num_lights = nl;
+  return GI_OK;
+}
 
-  /* The scene's name: the file's base name without its extension. */
+/* Builds the scene, named after the file's base name without its
+ * extension; a file whose every triangle was dropped is an error. */
+static gi_result build(const gi_mesh_builder *b, const char *path, const gi_scene_options *o, const tex_ctx *tc,
+                       gi_scene **out, gi_error_info *err) {
   char name[128];
   const char *slash = strrchr(path, '/');
   snprintf(name, sizeof name, "%s", slash ? slash + 1 : path);
   char *dot = strrchr(name, '.');
   if (dot && dot != name) *dot = 0;
-
   gi_error_info e2 = {0};
-  rc = gi_scene_build(b, name, &o, out, &e2);
-  if (rc != GI_OK) {
-    gi__fail(err, rc, "scene file '%s': %s", path, e2.msg);
-    goto done;
-  }
-  (*out)->stats.textures_unreadable = tc.unreadable;
+  gi_result rc = gi_scene_build(b, name, o, out, &e2);
+  if (rc != GI_OK) return gi__fail(err, rc, "scene file '%s': %s", path, e2.msg);
+  (*out)->stats.textures_unreadable = tc->unreadable;
   gi_scene_stats ss;
   gi_scene_get_stats(*out, &ss);
-  if (ss.triangles == 0) {
-    rc = gi__fail(err, GI_ERR_EMPTY,
+  if (ss.triangles > 0) return GI_OK;
+  gi_scene_release(*out);
+  *out = NULL;
+  return gi__fail(err, GI_ERR_EMPTY,
                   "scene file '%s': all %llu triangles were dropped (%llu with non-finite positions, %llu degenerate)",
                   path, (unsigned long long)ss.input_triangles, (unsigned long long)ss.dropped_nonfinite,
                   (unsigned long long)ss.dropped_degenerate);
-    gi_scene_release(*out);
-    *out = NULL;
+}
+
+gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene **out, gi_error_info *err) {
+  gi_scene_options o = {0};
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_load: out is NULL");
+  *out = NULL;
+  if (!path || !path[0]) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_load: no file name given");
+  if (opt) o = *opt;
+  double scale = o.scale == 0 ? 1.0 : o.scale;
+  if (!isfinite(scale)) return gi__fail(err, GI_ERR_NONFINITE, "scene file '%s': scale is not finite", path);
+  gi_result rc = check_file(path, err);
+  if (rc != GI_OK) return rc;
+
+  const struct aiScene *as = NULL;
+  gi_mesh_builder *b = NULL;
+  gi_light *lights = NULL;
+  uint32_t *matmap = NULL;
+  tex_ctx tc = {.path = path};
+  if ((rc = import_file(path, &as, err)) != GI_OK || (rc = check_counts(as, path, err)) != GI_OK) goto done;
+  tc.as = as;
+  b = gi_mesh_builder_new();
+  matmap = gi__malloc((as->mNumMaterials + 1) * sizeof *matmap);
+  if (!b || !matmap) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+    goto done;
   }
+  if ((rc = add_materials(as, &tc, b, matmap, err)) == GI_OK && (rc = add_meshes(as, matmap, b, path, err)) == GI_OK &&
+      (rc = collect_lights(as, path, scale, &o, &lights, err)) == GI_OK)
+    rc = build(b, path, &o, &tc, out, err);
 
 done:
-  if (locked) pthread_mutex_unlock(&assimp_lock);
   if (as) aiReleaseImport(as);
   gi__free(lights);
   gi__free(matmap);

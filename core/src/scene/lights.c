@@ -41,6 +41,97 @@ int gi__light_sample_cap(const gi_scene *s, const gi_light_plan *lp) {
   return n > INT_MAX ? INT_MAX : (int)(n ? n : 1);
 }
 
+/* A point or spot light seen from p into *o; 0 when it sends nothing there. */
+static int local_sample(const gi_scene *s, const gi_light *l, const float p[3], gi_lsample *o) {
+  float v[3];
+  for (int k = 0; k < 3; k++) v[k] = (float)(l->position[k] - s->origin[k]) - p[k];
+  float r2 = gi__dot(v, v);
+  if (!(r2 > 1e-12f)) return 0;
+  float r = sqrtf(r2);
+  for (int k = 0; k < 3; k++) o->w[k] = v[k] / r;
+  float f = 1.0f;
+  if (l->type == GI_LIGHT_SPOT) {
+    float c = -gi__dot(o->w, l->direction);
+    if (c <= l->cos_outer) return 0;
+    if (c < l->cos_inner) {
+      float t = (c - l->cos_outer) / fmaxf(l->cos_inner - l->cos_outer, 1e-6f);
+      f = t * t * (3 - 2 * t);
+    }
+  }
+  o->dist = r;
+  for (int k = 0; k < 3; k++) o->V[k] = f * l->color[k] / r2;
+  o->fx = GI_FX_LOCAL;
+  o->mpl = 0;
+  return 1;
+}
+
+/* m samples of one sky light over the upper hemisphere, stratified in
+ * cos(theta) and azimuth, uniform pdf 1 / (2 pi); appended at out[n..max). */
+static int sky_samples(const gi_light *l, int m, const float up[3], uint64_t *rng, gi_lsample *out, int n,
+                       int max) {
+  float t[3], b[3];
+  gi__basis(up, t, b);
+  float rot = gi__u01(rng);
+  for (int j = 0; j < m && n < max; j++) {
+    float ct = ((float)j + gi__u01(rng)) / (float)m;
+    float st = sqrtf(fmaxf(0.f, 1 - ct * ct));
+    float phi = 2 * GI_PI_F * ((float)j * 0.6180339887f + rot);
+    float cp = cosf(phi), sp = sinf(phi);
+    gi_lsample *q = &out[n++];
+    for (int k = 0; k < 3; k++) q->w[k] = st * cp * t[k] + st * sp * b[k] + ct * up[k];
+    q->dist = INFINITY;
+    for (int k = 0; k < 3; k++) q->V[k] = l->color[k] * 2 * GI_PI_F / (float)m;
+    q->fx = GI_FX_SKY;
+    q->mpl = 0;
+  }
+  return n;
+}
+
+/* Sample j of m over the emitters: a triangle picked by power (binary
+ * search in the cdf), a uniform point on it. 0 when it sends nothing to p. */
+static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uint64_t *rng, gi_lsample *q) {
+  float u = ((float)j + gi__u01(rng)) / (float)m;
+  uint32_t lo = 0, hi = s->num_emitters - 1;
+  while (lo < hi) {
+    uint32_t mid = (lo + hi) / 2;
+    if (s->emitter_cdf[mid] < u) lo = mid + 1;
+    else hi = mid;
+  }
+  float pt = s->emitter_cdf[lo] - (lo ? s->emitter_cdf[lo - 1] : 0.f);
+  if (!(pt > 0)) return 0;
+  uint32_t tri = s->emitter_tri[lo];
+  const uint32_t *ix = &s->indices[3 * tri];
+  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+  float r1 = gi__u01(rng), r2 = gi__u01(rng);
+  float sr = sqrtf(r1), ba = 1 - sr, bb = sr * (1 - r2), bc = sr * r2;
+  float e1[3], e2[3], ng[3], y[3], v[3];
+  for (int k = 0; k < 3; k++) {
+    e1[k] = B[k] - A[k];
+    e2[k] = C[k] - A[k];
+    y[k] = ba * A[k] + bb * B[k] + bc * C[k];
+    v[k] = y[k] - p[k];
+  }
+  gi__cross(e1, e2, ng);
+  float area2 = gi__len(ng);
+  if (!(area2 > 0)) return 0;
+  float r2d = gi__dot(v, v);
+  if (!(r2d > 0)) return 0;
+  float r = sqrtf(r2d);
+  for (int k = 0; k < 3; k++) q->w[k] = v[k] / r;
+  /* Emitters are one-sided, facing their winding normal. */
+  float cos_e = -gi__dot(ng, q->w) / area2;
+  if (cos_e <= 0) return 0;
+  float area = 0.5f * area2;
+  float pdf_area = pt / area;
+  const float *Le = s->materials[s->tri_material[tri]].emission;
+  float k0 = cos_e / (r2d * pdf_area * (float)m);
+  for (int k = 0; k < 3; k++) q->V[k] = Le[k] * k0;
+  q->mpl = (float)m * pdf_area * r2d / cos_e;
+  q->dist = r;
+  q->fx = GI_FX_EMISSIVE;
+  return 1;
+}
+
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max) {
   int n = 0;
@@ -57,94 +148,13 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
       o->mpl = 0;
       n++;
     } else if (l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) {
-      if (!lp->local) continue;
-      float v[3];
-      for (int k = 0; k < 3; k++) v[k] = (float)(l->position[k] - s->origin[k]) - p[k];
-      float r2 = gi__dot(v, v);
-      if (!(r2 > 1e-12f)) continue;
-      float r = sqrtf(r2);
-      for (int k = 0; k < 3; k++) o->w[k] = v[k] / r;
-      float f = 1.0f;
-      if (l->type == GI_LIGHT_SPOT) {
-        float c = -gi__dot(o->w, l->direction);
-        if (c <= l->cos_outer) continue;
-        if (c < l->cos_inner) {
-          float t = (c - l->cos_outer) / fmaxf(l->cos_inner - l->cos_outer, 1e-6f);
-          f = t * t * (3 - 2 * t);
-        }
-      }
-      o->dist = r;
-      for (int k = 0; k < 3; k++) o->V[k] = f * l->color[k] / r2;
-      o->fx = GI_FX_LOCAL;
-      o->mpl = 0;
-      n++;
+      if (lp->local) n += local_sample(s, l, p, o);
     } else if (l->type == GI_LIGHT_SKY && lp->sky && lp->sky_samples > 0) {
-      /* Upper hemisphere, stratified in cos(theta) and azimuth, uniform pdf 1 / (2 pi). */
-      int m = lp->sky_samples;
-      float t[3], b[3];
-      gi__basis(up_axis, t, b);
-      float rot = gi__u01(rng);
-      for (int j = 0; j < m && n < max; j++) {
-        float ct = ((float)j + gi__u01(rng)) / (float)m;
-        float st = sqrtf(fmaxf(0.f, 1 - ct * ct));
-        float phi = 2 * GI_PI_F * ((float)j * 0.6180339887f + rot);
-        float cp = cosf(phi), sp = sinf(phi);
-        gi_lsample *q = &out[n++];
-        for (int k = 0; k < 3; k++) q->w[k] = st * cp * t[k] + st * sp * b[k] + ct * up_axis[k];
-        q->dist = INFINITY;
-        for (int k = 0; k < 3; k++) q->V[k] = l->color[k] * 2 * GI_PI_F / (float)m;
-        q->fx = GI_FX_SKY;
-        q->mpl = 0;
-      }
+      n = sky_samples(l, lp->sky_samples, up_axis, rng, out, n, max);
     }
   }
-  if (lp->emissive && s->num_emitters > 0) {
-    int m = lp->emit_samples;
-    for (int j = 0; j < m && n < max; j++) {
-      float u = ((float)j + gi__u01(rng)) / (float)m;
-      /* Pick a triangle by power: binary search in the cdf. */
-      uint32_t lo = 0, hi = s->num_emitters - 1;
-      while (lo < hi) {
-        uint32_t mid = (lo + hi) / 2;
-        if (s->emitter_cdf[mid] < u) lo = mid + 1;
-        else hi = mid;
-      }
-      float pt = s->emitter_cdf[lo] - (lo ? s->emitter_cdf[lo - 1] : 0.f);
-      if (!(pt > 0)) continue;
-      uint32_t tri = s->emitter_tri[lo];
-      const uint32_t *ix = &s->indices[3 * tri];
-      const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
-      float r1 = gi__u01(rng), r2 = gi__u01(rng);
-      float sr = sqrtf(r1), ba = 1 - sr, bb = sr * (1 - r2), bc = sr * r2;
-      float e1[3], e2[3], ng[3], y[3], v[3];
-      for (int k = 0; k < 3; k++) {
-        e1[k] = B[k] - A[k];
-        e2[k] = C[k] - A[k];
-        y[k] = ba * A[k] + bb * B[k] + bc * C[k];
-        v[k] = y[k] - p[k];
-      }
-      gi__cross(e1, e2, ng);
-      float area2 = gi__len(ng);
-      if (!(area2 > 0)) continue;
-      float r2d = gi__dot(v, v);
-      if (!(r2d > 0)) continue;
-      float r = sqrtf(r2d);
-      gi_lsample *q = &out[n];
-      for (int k = 0; k < 3; k++) q->w[k] = v[k] / r;
-      /* Emitters are one-sided, facing their winding normal. */
-      float cos_e = -gi__dot(ng, q->w) / area2;
-      if (cos_e <= 0) continue;
-      float area = 0.5f * area2;
-      float pdf_area = pt / area;
-      const float *Le = s->materials[s->tri_material[tri]].emission;
-      float k0 = cos_e / (r2d * pdf_area * (float)m);
-      for (int k = 0; k < 3; k++) q->V[k] = Le[k] * k0;
-      q->mpl = (float)m * pdf_area * r2d / cos_e;
-      q->dist = r;
-      q->fx = GI_FX_EMISSIVE;
-      n++;
-    }
-  }
+  if (lp->emissive && s->num_emitters > 0)
+    for (int j = 0; j < lp->emit_samples && n < max; j++) n += emitter_sample(s, j, lp->emit_samples, p, rng, &out[n]);
   return n;
 }
 

@@ -200,30 +200,25 @@ static gi_result check_light(gi_light *l, size_t i, gi_error_info *err) {
 
 enum { TRI_KEEP = 0, TRI_NONFINITE = 1, TRI_DEGENERATE = 2 };
 
-gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_scene_options *opt,
-                         gi_scene **out, gi_error_info *err) {
-  gi_scene_options defaults = {0};
-  gi_scene *s = NULL;
-  uint8_t *cls = NULL;
-  uint32_t *remap = NULL;
-  double *area = NULL;
-  gi_result rc = GI_OK;
+/* Scratch of one build: per input triangle and vertex. */
+typedef struct build_tmp {
+  uint8_t *cls;      /* TRI_* per input triangle */
+  uint32_t *remap;   /* input vertex -> kept vertex, UINT32_MAX when unused */
+  double *area;      /* per input triangle, then compacted to kept triangles */
+  size_t kept, kept_v;
+} build_tmp;
 
-  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_build: out is NULL");
-  *out = NULL;
-  if (!b) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_build: builder is NULL");
-  if (!opt) opt = &defaults;
+/* Rejects builders and options that cannot make a scene, before any allocation. */
+static gi_result check_input(const gi_mesh_builder *b, const gi_scene_options *opt, gi_error_info *err) {
   if (b->oom) return gi__fail(err, GI_ERR_NOMEM, "mesh builder ran out of memory while adding data");
   if (b->overflow) return gi__fail(err, GI_ERR_LIMIT, "mesh builder: more than 2^32-1 vertices or materials");
   if (b->nt > ((size_t)1 << 31))
     return gi__fail(err, GI_ERR_LIMIT, "scene has %zu triangles; the limit is 2^31", b->nt);
   if (opt->num_lights && !opt->lights)
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", opt->num_lights);
-  double scale = opt->scale == 0 ? 1.0 : opt->scale;
-  if (!isfinite(scale)) return gi__fail(err, GI_ERR_NONFINITE, "options: scale is not finite");
+  if (opt->scale != 0 && !isfinite(opt->scale)) return gi__fail(err, GI_ERR_NONFINITE, "options: scale is not finite");
   if (opt->up != 0 && opt->up != GI_UP_Y && opt->up != GI_UP_Z)
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: up axis %d is neither Y (1) nor Z (2)", (int)opt->up);
-
   size_t nm = b->nm ? b->nm : 1;
   for (size_t t = 0; t < b->nt; t++) {
     const uint32_t *ti = b->tri + 3 * t;
@@ -234,89 +229,86 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
       return gi__fail(err, GI_ERR_INVALID_ARG, "triangle %zu uses material %u but the builder has %zu materials", t,
                       b->mat[t], b->nm);
   }
+  return GI_OK;
+}
 
-  s = gi__calloc(1, sizeof *s);
-  cls = gi__malloc(b->nt ? b->nt : 1);
-  remap = gi__malloc((b->nv ? b->nv : 1) * sizeof *remap);
-  area = gi__malloc((b->nt ? b->nt : 1) * sizeof *area);
-  if (!s || !cls || !remap || !area) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory building scene"); goto fail; }
-  atomic_init(&s->refcount, 1);
-  snprintf(s->name, sizeof s->name, "%s", name ? name : "unnamed");
-  s->up = opt->up ? opt->up : GI_UP_Y;
-  s->stats.input_triangles = b->nt;
+static void grow_box(const double p[3], double lo[3], double hi[3]) {
+  for (int k = 0; k < 3; k++) {
+    if (p[k] < lo[k]) lo[k] = p[k];
+    if (p[k] > hi[k]) hi[k] = p[k];
+  }
+}
 
-  /* Classify triangles in double, on scaled positions. */
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  size_t kept = 0, kept_v = 0;
-  for (size_t i = 0; i < b->nv; i++) remap[i] = UINT32_MAX;
-  for (size_t t = 0; t < b->nt; t++) {
-    const uint32_t *ti = b->tri + 3 * t;
+/* Classifies triangles in double, on scaled positions: keeps finite ones
+ * with area, numbers their vertices, and bounds what is kept in lo/hi. */
+static void classify(const gi_mesh_builder *b, double scale, gi_scene *s, build_tmp *t, double lo[3], double hi[3]) {
+  for (size_t i = 0; i < b->nv; i++) t->remap[i] = UINT32_MAX;
+  for (size_t tr = 0; tr < b->nt; tr++) {
+    const uint32_t *ti = b->tri + 3 * tr;
     double p[3][3];
     int fin = 1;
     for (int j = 0; j < 3; j++) {
       for (int k = 0; k < 3; k++) p[j][k] = b->v[3 * (size_t)ti[j] + k] * scale;
       fin &= finite3d(p[j]);
     }
-    if (!fin) { cls[t] = TRI_NONFINITE; s->stats.dropped_nonfinite++; continue; }
+    if (!fin) { t->cls[tr] = TRI_NONFINITE; s->stats.dropped_nonfinite++; continue; }
     double longest2, a2 = tri_area2(p[0], p[1], p[2], &longest2);
     /* Relative threshold: a sliver whose height is ~1e-12 of its length has no area worth tracing. */
     if (!(a2 > 2e-12 * longest2) || !isfinite(a2)) {
-      cls[t] = TRI_DEGENERATE; s->stats.dropped_degenerate++; continue;
+      t->cls[tr] = TRI_DEGENERATE; s->stats.dropped_degenerate++; continue;
     }
-    cls[t] = TRI_KEEP;
-    area[t] = 0.5 * a2;
-    kept++;
+    t->cls[tr] = TRI_KEEP;
+    t->area[tr] = 0.5 * a2;
+    t->kept++;
     for (int j = 0; j < 3; j++) {
-      if (remap[ti[j]] == UINT32_MAX) remap[ti[j]] = (uint32_t)kept_v++;
-      for (int k = 0; k < 3; k++) {
-        if (p[j][k] < lo[k]) lo[k] = p[j][k];
-        if (p[j][k] > hi[k]) hi[k] = p[j][k];
-      }
+      if (t->remap[ti[j]] == UINT32_MAX) t->remap[ti[j]] = (uint32_t)t->kept_v++;
+      grow_box(p[j], lo, hi);
     }
   }
-  if (kept == 0) {
+  if (t->kept == 0) {
     /* Empty scene: the origin is the centre of whatever finite vertices exist, else 0. */
     for (size_t i = 0; i < b->nv; i++) {
       double p[3] = {b->v[3 * i] * scale, b->v[3 * i + 1] * scale, b->v[3 * i + 2] * scale};
-      if (!finite3d(p)) continue;
-      for (int k = 0; k < 3; k++) {
-        if (p[k] < lo[k]) lo[k] = p[k];
-        if (p[k] > hi[k]) hi[k] = p[k];
-      }
+      if (finite3d(p)) grow_box(p, lo, hi);
     }
   }
-  for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
+}
 
-  /* Local float vertices; 4 spare floats because Embree reads 16 bytes past the last vertex. */
-  s->num_vertices = (uint32_t)kept_v;
-  s->num_triangles = (uint32_t)kept;
-  s->vertices = gi__calloc(3 * kept_v + 4, sizeof(float));
-  s->indices = gi__malloc((kept ? kept : 1) * 3 * sizeof(uint32_t));
-  s->tri_material = gi__malloc((kept ? kept : 1) * sizeof(uint32_t));
-  if (!s->vertices || !s->indices || !s->tri_material) {
-    rc = gi__fail(err, GI_ERR_NOMEM, "out of memory building scene (%zu triangles)", kept);
-    goto fail;
-  }
+/* Kept vertices relative to the origin, in float, and their local bounds. */
+static gi_result copy_vertices(const gi_mesh_builder *b, double scale, gi_scene *s, const build_tmp *t,
+                               gi_error_info *err) {
+  /* 4 spare floats because Embree reads 16 bytes past the last vertex. */
+  s->num_vertices = (uint32_t)t->kept_v;
+  s->num_triangles = (uint32_t)t->kept;
+  s->vertices = gi__calloc(3 * t->kept_v + 4, sizeof(float));
+  s->indices = gi__malloc((t->kept ? t->kept : 1) * 3 * sizeof(uint32_t));
+  s->tri_material = gi__malloc((t->kept ? t->kept : 1) * sizeof(uint32_t));
+  if (!s->vertices || !s->indices || !s->tri_material)
+    return gi__fail(err, GI_ERR_NOMEM, "out of memory building scene (%zu triangles)", t->kept);
   for (size_t i = 0; i < b->nv; i++) {
-    if (remap[i] == UINT32_MAX) continue;
-    float *q = s->vertices + 3 * (size_t)remap[i];
+    if (t->remap[i] == UINT32_MAX) continue;
+    float *q = s->vertices + 3 * (size_t)t->remap[i];
     for (int k = 0; k < 3; k++) q[k] = (float)(b->v[3 * i + k] * scale - s->origin[k]);
   }
-  for (int k = 0; k < 3; k++) { s->lo[k] = 0.f; s->hi[k] = 0.f; }
-  if (kept) {
+  for (int k = 0; k < 3; k++) s->lo[k] = s->hi[k] = 0.f;
+  if (t->kept) {
     for (int k = 0; k < 3; k++) { s->lo[k] = INFINITY; s->hi[k] = -INFINITY; }
-    for (size_t i = 0; i < kept_v; i++)
+    for (size_t i = 0; i < t->kept_v; i++)
       for (int k = 0; k < 3; k++) {
         float x = s->vertices[3 * i + k];
         if (x < s->lo[k]) s->lo[k] = x;
         if (x > s->hi[k]) s->hi[k] = x;
       }
   }
+  return GI_OK;
+}
 
-  /* Materials. */
+/* The builder's materials (or one grey default), sanitized. */
+static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, gi_error_info *err) {
+  size_t nm = b->nm ? b->nm : 1;
   s->num_materials = (uint32_t)nm;
   s->materials = gi__calloc(nm, sizeof *s->materials);
-  if (!s->materials) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory copying materials"); goto fail; }
+  if (!s->materials) return gi__fail(err, GI_ERR_NOMEM, "out of memory copying materials");
   if (b->nm) {
     memcpy(s->materials, b->mats, nm * sizeof *s->materials);
   } else {
@@ -326,83 +318,122 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
     snprintf(m->name, sizeof m->name, "default");
   }
   for (size_t i = 0; i < nm; i++) s->stats.clamped_albedo += (uint64_t)sanitize_material(&s->materials[i]);
+  s->stats.materials = (uint32_t)nm;
+  return GI_OK;
+}
 
-  /* Triangles, and the emitters among them. */
+static int emits(const float e[3]) { return e[0] > 0 || e[1] > 0 || e[2] > 0; }
+
+/* Kept triangles in input order, and the emitters among them with a cdf by
+ * power (luminance times area) for light sampling. */
+static gi_result copy_triangles(const gi_mesh_builder *b, gi_scene *s, build_tmp *t, gi_error_info *err) {
   size_t j = 0, ne = 0;
-  for (size_t t = 0; t < b->nt; t++) {
-    if (cls[t] != TRI_KEEP) continue;
-    for (int k = 0; k < 3; k++) s->indices[3 * j + k] = remap[b->tri[3 * t + k]];
-    s->tri_material[j] = b->mat[t];
-    const float *e = s->materials[b->mat[t]].emission;
-    if (e[0] > 0 || e[1] > 0 || e[2] > 0) ne++;
-    area[j] = area[t]; /* j <= t: compacts areas in place for the emitter pass */
+  for (size_t tr = 0; tr < b->nt; tr++) {
+    if (t->cls[tr] != TRI_KEEP) continue;
+    for (int k = 0; k < 3; k++) s->indices[3 * j + k] = t->remap[b->tri[3 * tr + k]];
+    s->tri_material[j] = b->mat[tr];
+    ne += emits(s->materials[b->mat[tr]].emission);
+    t->area[j] = t->area[tr]; /* j <= tr: compacts areas in place for the emitter pass */
     j++;
   }
-  if (ne) {
-    s->emitter_tri = gi__malloc(ne * sizeof *s->emitter_tri);
-    s->emitter_cdf = gi__malloc(ne * sizeof *s->emitter_cdf);
-    if (!s->emitter_tri || !s->emitter_cdf) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for emitters"); goto fail; }
-    double sum = 0, asum = 0;
-    size_t q = 0;
-    for (size_t t = 0; t < kept; t++) {
-      const float *e = s->materials[s->tri_material[t]].emission;
-      if (!(e[0] > 0 || e[1] > 0 || e[2] > 0)) continue;
-      s->emitter_tri[q] = (uint32_t)t;
-      sum += (double)luminance(e) * area[t];
-      asum += area[t];
-      s->emitter_cdf[q++] = (float)sum;
-    }
-    for (size_t i = 0; i < ne; i++) s->emitter_cdf[i] = sum > 0 ? (float)(s->emitter_cdf[i] / sum) : (float)(i + 1) / (float)ne;
-    s->emitter_cdf[ne - 1] = 1.f;
-    s->emitter_area_total = (float)asum;
+  s->stats.triangles = t->kept;
+  if (!ne) return GI_OK;
+  s->emitter_tri = gi__malloc(ne * sizeof *s->emitter_tri);
+  s->emitter_cdf = gi__malloc(ne * sizeof *s->emitter_cdf);
+  if (!s->emitter_tri || !s->emitter_cdf) return gi__fail(err, GI_ERR_NOMEM, "out of memory for emitters");
+  double sum = 0, asum = 0;
+  size_t q = 0;
+  for (size_t tr = 0; tr < t->kept; tr++) {
+    const float *e = s->materials[s->tri_material[tr]].emission;
+    if (!emits(e)) continue;
+    s->emitter_tri[q] = (uint32_t)tr;
+    sum += (double)luminance(e) * t->area[tr];
+    asum += t->area[tr];
+    s->emitter_cdf[q++] = (float)sum;
   }
+  for (size_t i = 0; i < ne; i++)
+    s->emitter_cdf[i] = sum > 0 ? (float)(s->emitter_cdf[i] / sum) : (float)(i + 1) / (float)ne;
+  s->emitter_cdf[ne - 1] = 1.f;
+  s->emitter_area_total = (float)asum;
   s->num_emitters = (uint32_t)ne;
   s->stats.emissive_triangles = (uint32_t)ne;
-  s->stats.triangles = kept;
-  s->stats.materials = (uint32_t)nm;
+  return GI_OK;
+}
 
-  /* Lights: the caller's, then the defaults when asked and nothing lights the scene. */
-  int add_defaults = opt->default_lights && opt->num_lights == 0 && ne == 0;
+/* A sun down the up axis and a little sideways (so walls facing two ways
+ * get some), and a sky. */
+static void default_lights(gi_scene *s, gi_light *sun, gi_light *sky) {
+  double d[3] = {0.4, -1.0, 0.3};
+  if (s->up == GI_UP_Z) { d[1] = 0.3; d[2] = -1.0; }
+  double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  sun->type = GI_LIGHT_SUN;
+  sun->color[0] = 3.0f; sun->color[1] = 2.9f; sun->color[2] = 2.7f;
+  for (int k = 0; k < 3; k++) { sun->direction[k] = (float)(d[k] / len); sun->position[k] = s->origin[k]; }
+  sky->type = GI_LIGHT_SKY;
+  sky->color[0] = 0.25f; sky->color[1] = 0.3f; sky->color[2] = 0.4f;
+  for (int k = 0; k < 3; k++) sky->position[k] = s->origin[k];
+  s->stats.default_lights_added = 1;
+}
+
+/* Lights: the caller's, then the defaults when asked and nothing lights the scene. */
+static gi_result copy_lights(const gi_scene_options *opt, gi_scene *s, gi_error_info *err) {
+  int add_defaults = opt->default_lights && opt->num_lights == 0 && s->num_emitters == 0;
   size_t nl = opt->num_lights + (add_defaults ? 2 : 0);
   if (nl) {
     s->lights = gi__calloc(nl, sizeof *s->lights);
-    if (!s->lights) { rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for lights"); goto fail; }
+    if (!s->lights) return gi__fail(err, GI_ERR_NOMEM, "out of memory for lights");
   }
   for (size_t i = 0; i < opt->num_lights; i++) {
     s->lights[i] = opt->lights[i];
-    if ((rc = check_light(&s->lights[i], i, err)) != GI_OK) goto fail;
+    gi_result rc = check_light(&s->lights[i], i, err);
+    if (rc != GI_OK) return rc;
   }
-  if (add_defaults) {
-    gi_light *sun = &s->lights[opt->num_lights], *sky = sun + 1;
-    /* Down the up axis and a little sideways, so walls facing two ways get some sun. */
-    double d[3] = {0.4, -1.0, 0.3};
-    if (s->up == GI_UP_Z) { d[1] = 0.3; d[2] = -1.0; }
-    double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    sun->type = GI_LIGHT_SUN;
-    sun->color[0] = 3.0f; sun->color[1] = 2.9f; sun->color[2] = 2.7f;
-    for (int k = 0; k < 3; k++) { sun->direction[k] = (float)(d[k] / len); sun->position[k] = s->origin[k]; }
-    sky->type = GI_LIGHT_SKY;
-    sky->color[0] = 0.25f; sky->color[1] = 0.3f; sky->color[2] = 0.4f;
-    for (int k = 0; k < 3; k++) sky->position[k] = s->origin[k];
-    s->stats.default_lights_added = 1;
-  }
+  if (add_defaults) default_lights(s, &s->lights[opt->num_lights], &s->lights[opt->num_lights + 1]);
   s->num_lights = (uint32_t)nl;
   s->stats.lights = (uint32_t)nl;
-
-  if (kept) {
-    if ((rc = gi__bvh_build(s, opt->threads, err)) != GI_OK) goto fail;
-  }
-  gi__free(cls);
-  gi__free(remap);
-  gi__free(area);
-  *out = s;
   return GI_OK;
+}
 
-fail:
-  gi__free(cls);
-  gi__free(remap);
-  gi__free(area);
-  if (s) {
+gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_scene_options *opt,
+                         gi_scene **out, gi_error_info *err) {
+  gi_scene_options defaults = {0};
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_build: out is NULL");
+  *out = NULL;
+  if (!b) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_build: builder is NULL");
+  if (!opt) opt = &defaults;
+  gi_result rc = check_input(b, opt, err);
+  if (rc != GI_OK) return rc;
+  double scale = opt->scale == 0 ? 1.0 : opt->scale;
+
+  build_tmp t = {0};
+  gi_scene *s = gi__calloc(1, sizeof *s);
+  t.cls = gi__malloc(b->nt ? b->nt : 1);
+  t.remap = gi__malloc((b->nv ? b->nv : 1) * sizeof *t.remap);
+  t.area = gi__malloc((b->nt ? b->nt : 1) * sizeof *t.area);
+  if (!s || !t.cls || !t.remap || !t.area) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "out of memory building scene");
+    goto done;
+  }
+  atomic_init(&s->refcount, 1);
+  snprintf(s->name, sizeof s->name, "%s", name ? name : "unnamed");
+  s->up = opt->up ? opt->up : GI_UP_Y;
+  s->stats.input_triangles = b->nt;
+
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  classify(b, scale, s, &t, lo, hi);
+  for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
+  if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_materials(b, s, err)) != GI_OK ||
+      (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_lights(opt, s, err)) != GI_OK)
+    goto done;
+  if (t.kept) rc = gi__bvh_build(s, opt->threads, err);
+
+done:
+  gi__free(t.cls);
+  gi__free(t.remap);
+  gi__free(t.area);
+  if (rc == GI_OK) {
+    *out = s;
+  } else if (s) {
     atomic_store(&s->refcount, 1);
     gi_scene_release(s);
   }
