@@ -25,6 +25,13 @@
 #include "base/internal.h"
 #include "scene/scene_internal.h"
 
+/* A voxel's opacity along an axis stays below 1 (its optical depth finite,
+ * tau = -ln(1 - alpha) <= 6.9), so a voxel covered twice over still
+ * interpolates; the filter keeps a coarse voxel's transmittance above
+ * GI_MIN_TRANSMITTANCE (tau <= 9.2) for the same reason. */
+#define GI_MAX_VOXEL_ALPHA 0.999
+#define GI_MIN_TRANSMITTANCE 1e-4
+
 /* Face order: +X, -X, +Y, -Y, +Z, -Z (face f: axis f/2, sign + when f even). */
 enum { GI_FACE_PX, GI_FACE_NX, GI_FACE_PY, GI_FACE_NY, GI_FACE_PZ, GI_FACE_NZ };
 

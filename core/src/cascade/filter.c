@@ -56,7 +56,7 @@ static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level
         }
       }
     T *= 0.25;
-    if (T < 1e-4) T = 1e-4;
+    if (T < GI_MIN_TRANSMITTANCE) T = GI_MIN_TRANSMITTANCE;
     out->tau[axis] = (float)-log(T);
     out->alpha[axis] = (float)(1.0 - T);
     for (int k = 0; k < 3; k++) {

@@ -187,7 +187,7 @@ static void finalize_level(struct gi_cascade *c, gi_level *L) {
         }
         for (int a = 0; a < 3; a++) {
           double al = g->proj[a] / s2;
-          if (al > 0.999) al = 0.999;
+          if (al > GI_MAX_VOXEL_ALPHA) al = GI_MAX_VOXEL_ALPHA;
           r->alpha[a] = (float)al;
           r->tau[a] = (float)-log(1.0 - al);
         }

@@ -12,9 +12,10 @@
 // load()), so damaged files fail fast instead of hanging.
 // openvdb::initialize() runs once per process under std::call_once.
 //
-// The shim is compiled with -fvisibility=hidden, but OpenVDB's headers must
-// keep default visibility: hidden copies of its template statics (tree type
-// names, grid registry) make openvdb::initialize() crash in libopenvdb.
+// OpenVDB's headers keep default visibility: hidden copies of its template
+// statics (tree type names, grid registry) made openvdb::initialize() crash
+// in libopenvdb. What libgi.so exports is decided by core/libgi.map (gi_*
+// only), not by the compiler's visibility.
 #pragma GCC visibility push(default)
 #include <openvdb/openvdb.h>
 #include <openvdb/io/Stream.h>
