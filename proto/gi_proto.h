@@ -35,9 +35,9 @@ char *gi_proto_error_json(const gi_proto_error *e);
 int gi_proto_error_parse(const char *json, size_t len, gi_proto_error *out);
 
 /* Coordinates (viewpoints, probe points) beyond this are out of range
- * whatever the scene: the core refuses more than 1e9 units from a scene,
- * and no scene's origin is anywhere near 1e15. */
-#define GI_PROTO_MAX_COORD 1e15
+ * whatever the scene: products of such values stay finite. (The server
+ * also refuses points more than 1e9 units from its scene, as the core does.) */
+#define GI_PROTO_MAX_COORD 1e30
 /* A panorama's width or height. */
 #define GI_PROTO_MAX_PANORAMA_SIDE 16384
 

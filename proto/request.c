@@ -135,14 +135,14 @@ static int is_int_knob(const char *key) {
 static int set_real_knob(gi_quality *q, const char *key, double v, gi_proto_error *err, const char *where) {
   if (!strcmp(key, "voxel")) {
     if (!(v > 0) || v > 1e7)
-      return gi_proto_fail(err, 400, "%s: out of range: expected a voxel size in (0, 1e7], got %g", where, v);
+      return gi_proto_fail(err, 400, "%s: expected a voxel size in (0, 1e7], got %g (out of range)", where, v);
     q->voxel0 = v;
   } else if (!strcmp(key, "aperture")) {
     if (!(v >= 1 && v <= 120))
-      return gi_proto_fail(err, 400, "%s: out of range: expected degrees in 1..120, got %g", where, v);
+      return gi_proto_fail(err, 400, "%s: expected degrees in 1..120, got %g (out of range)", where, v);
     q->aperture_deg = (float)v;
   } else if (!strcmp(key, "step")) {
-    if (!(v >= 0.05 && v <= 4)) return gi_proto_fail(err, 400, "%s: out of range: expected 0.05..4, got %g", where, v);
+    if (!(v >= 0.05 && v <= 4)) return gi_proto_fail(err, 400, "%s: expected 0.05..4, got %g (out of range)", where, v);
     q->step = (float)v;
   } else {
     return gi_proto_fail(err, 400, "%s: unknown quality knob", where);
@@ -155,31 +155,31 @@ static int set_int_knob(gi_quality *q, const char *key, long long i, const char 
                         gi_proto_error *err, const char *where) {
   if (!strcmp(key, "levels")) {
     if (i < 1 || i > lim->max_levels)
-      return gi_proto_fail(err, 400, "%s: out of range: expected 1..%d (server limit), got %.40s", where,
+      return gi_proto_fail(err, 400, "%s: expected 1..%d (server limit), got %.40s (out of range)", where,
                            lim->max_levels, text);
     q->levels = (int)i;
   } else if (!strcmp(key, "res")) {
     if (i < 8 || i > lim->max_res || i % 4)
-      return gi_proto_fail(err, 400, "%s: out of range: expected a multiple of 4 in 8..%d (server limit), got %.40s",
-                           where, lim->max_res, text);
+      return gi_proto_fail(err, 400, "%s: expected a multiple of 4 in 8..%d (server limit), got %.40s%s", where,
+                           lim->max_res, text, i < 8 || i > lim->max_res ? " (out of range)" : "");
     q->res = (int)i;
   } else if (!strcmp(key, "cones")) {
     if (i != 4 && i != 6 && i != 8 && i != 16 && i != 32)
       return gi_proto_fail(err, 400, "%s: expected 4, 6, 8, 16 or 32, got %.40s", where, text);
     q->cones = (int)i;
   } else if (!strcmp(key, "bounces")) {
-    if (i < 0 || i > 8) return gi_proto_fail(err, 400, "%s: out of range: expected 0..8, got %.40s", where, text);
+    if (i < 0 || i > 8) return gi_proto_fail(err, 400, "%s: expected 0..8, got %.40s (out of range)", where, text);
     q->bounces = i == 0 ? -1 : (int)i; /* the core's 0 means "default" */
   } else if (!strcmp(key, "samples")) {
-    if (i < 1 || i > 512) return gi_proto_fail(err, 400, "%s: out of range: expected 1..512, got %.40s", where, text);
+    if (i < 1 || i > 512) return gi_proto_fail(err, 400, "%s: expected 1..512, got %.40s (out of range)", where, text);
     q->light_samples = (int)i;
   } else if (!strcmp(key, "probe_samples")) {
     if (i < 1 || i > 8192)
-      return gi_proto_fail(err, 400, "%s: out of range: expected 1..8192, got %.40s", where, text);
+      return gi_proto_fail(err, 400, "%s: expected 1..8192, got %.40s (out of range)", where, text);
     q->probe_samples = (int)i;
   } else if (!strcmp(key, "seed")) {
     if (i < 1 || i > (1ll << 53))
-      return gi_proto_fail(err, 400, "%s: out of range: expected 1..2^53, got %.40s", where, text);
+      return gi_proto_fail(err, 400, "%s: expected 1..2^53, got %.40s (out of range)", where, text);
     q->seed = (uint64_t)i;
   } else if (!strcmp(key, "ao")) {
     if (i != 0 && i != 1) return gi_proto_fail(err, 400, "%s: expected 0 or 1, got %.40s", where, text);
@@ -235,7 +235,7 @@ static int set_query_number(gi_proto_bake *out, const char *k, const char *v, co
   if (!is_int_knob(k)) {
     double x;
     int rc = parse_num(v, &x);
-    if (rc == -2) return gi_proto_fail(err, 400, "%s: out of range: '%.64s'", where, v);
+    if (rc == -2) return gi_proto_fail(err, 400, "%s: '%.64s' is out of range", where, v);
     if (rc) return gi_proto_fail(err, 400, "%s: expected a finite number, got '%.64s'", where, v);
     return set_real_knob(&out->quality, k, x, err, where);
   }
@@ -245,7 +245,7 @@ static int set_query_number(gi_proto_bake *out, const char *k, const char *v, co
   if (rc) return gi_proto_fail(err, 400, "%s: expected an integer (decimal digits), got '%.64s'", where, v);
   if (strcmp(k, "width") && strcmp(k, "height")) return set_int_knob(&out->quality, k, i, v, lim, err, where);
   if (i < 1 || i > GI_PROTO_MAX_PANORAMA_SIDE)
-    return gi_proto_fail(err, 400, "%s: out of range: expected an integer in 1..%d, got '%.40s'", where,
+    return gi_proto_fail(err, 400, "%s: expected an integer in 1..%d, got '%.40s' (out of range)", where,
                          GI_PROTO_MAX_PANORAMA_SIDE, v);
   *(!strcmp(k, "width") ? &out->width : &out->height) = (int)i;
   return 0;

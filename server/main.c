@@ -178,6 +178,7 @@ int main(int argc, char **argv) {
   int sig = 0;
   sigwait(&sigs, &sig);
   fprintf(stderr, "gi-server: %s: finishing running requests, then stopping\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+  gs_shutdown_begin(&svc, &sigs);
   gs_http_stop(h);
   gs_pool_free(svc.pool);
   gs_jobs_free(svc.jobs);
