@@ -116,30 +116,37 @@ static size_t on_header(char *p, size_t sz, size_t n, void *u) {
   return k;
 }
 
-su_resp su_http(const su_server *s, const char *method, const char *path, const char *body, const char *token) {
-  su_resp r = {0};
+CURL *su_make_req(const su_server *s, const char *method, const char *path, const char *body, const char *token,
+                  su_resp *r, struct curl_slist **hdrs) {
   char url[16384];
   snprintf(url, sizeof url, "http://127.0.0.1:%d%s", s->port, path);
   CURL *c = curl_easy_init();
   curl_easy_setopt(c, CURLOPT_URL, url);
   curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
-  curl_easy_setopt(c, CURLOPT_WRITEDATA, &r);
+  curl_easy_setopt(c, CURLOPT_WRITEDATA, r);
   curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_header);
-  curl_easy_setopt(c, CURLOPT_HEADERDATA, &r);
+  curl_easy_setopt(c, CURLOPT_HEADERDATA, r);
   curl_easy_setopt(c, CURLOPT_TIMEOUT, 120L);
-  struct curl_slist *h = NULL;
+  *hdrs = NULL;
   if (token) {
-    char hd[256];
-    snprintf(hd, sizeof hd, "Authorization: Bearer %s", token);
-    h = curl_slist_append(h, hd);
+    char h[256];
+    snprintf(h, sizeof h, "Authorization: Bearer %s", token);
+    *hdrs = curl_slist_append(*hdrs, h);
   }
   if (body) {
-    h = curl_slist_append(h, "Content-Type: application/json");
+    *hdrs = curl_slist_append(*hdrs, "Content-Type: application/json");
     curl_easy_setopt(c, CURLOPT_POSTFIELDS, body);
     curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE, (long)strlen(body));
   }
   if (method) curl_easy_setopt(c, CURLOPT_CUSTOMREQUEST, method);
-  if (h) curl_easy_setopt(c, CURLOPT_HTTPHEADER, h);
+  if (*hdrs) curl_easy_setopt(c, CURLOPT_HTTPHEADER, *hdrs);
+  return c;
+}
+
+su_resp su_http(const su_server *s, const char *method, const char *path, const char *body, const char *token) {
+  su_resp r = {0};
+  struct curl_slist *h;
+  CURL *c = su_make_req(s, method, path, body, token, &r, &h);
   CURLcode rc = curl_easy_perform(c);
   if (rc != CURLE_OK) fprintf(stderr, "curl %.200s: %s\n", path, curl_easy_strerror(rc));
   assert_int_equal(rc, CURLE_OK);
@@ -169,6 +176,7 @@ const char *su_header(const su_resp *r, const char *name) {
 void su_expect_error(const su_resp *r, long status, const char *name, const char *needle) {
   if (r->status != status) fprintf(stderr, "got %ld: %s\n", r->status, r->body ? r->body : "");
   assert_int_equal(r->status, status);
+  assert_string_equal(su_header(r, "Content-Type"), "application/json");
   json_t *o = json_loadb(r->body, r->len, 0, NULL);
   assert_non_null(o);
   assert_int_equal(json_integer_value(json_object_get(o, "code")), status);

@@ -6,6 +6,7 @@
 #ifndef GI_SERVER_UTIL_H
 #define GI_SERVER_UTIL_H
 
+#include <curl/curl.h>
 #include <stddef.h>
 #include <sys/types.h>
 
@@ -36,12 +37,16 @@ int su_start(su_server *s, const char *name, const char *ini);
 int su_signal_wait(su_server *s, int sig, int wait_ms, double *ms);
 /* SIGTERM and the exit status (0 = clean shutdown). */
 int su_stop(su_server *s);
+/* An easy handle for one request into r (for curl_multi); *hdrs is the
+ * caller's to free with curl_slist_free_all after the transfer. */
+CURL *su_make_req(const su_server *s, const char *method, const char *path, const char *body, const char *token,
+                  su_resp *r, struct curl_slist **hdrs);
 /* One request (method NULL = GET, token NULL = none); fails the test when
  * curl cannot complete it. */
 su_resp su_http(const su_server *s, const char *method, const char *path, const char *body, const char *token);
 /* A header's value (case-insensitive name), or NULL. Static buffer. */
 const char *su_header(const su_resp *r, const char *name);
-/* Asserts an error answer: status, JSON error body, its name, and needle in its message. */
+/* Asserts an error answer: status, a JSON error body (Content-Type too), its name, and needle in its message. */
 void su_expect_error(const su_resp *r, long status, const char *name, const char *needle);
 /* A counter or gauge from /metrics (sum over label sets when labels is NULL). */
 double su_metric(const su_server *s, const char *name, const char *labels);
