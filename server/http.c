@@ -10,7 +10,13 @@
  * its deadline. The worker and the reaper race to answer; one mutex and
  * the request's `done` flag make exactly one of them win, and resume is
  * only ever called on a suspended connection. A request lives until both
- * libmicrohttpd and its task have let go of it (reference count). */
+ * libmicrohttpd and its task have let go of it (reference count).
+ *
+ * Hostile clients: the first call for a request (headers complete) routes,
+ * authenticates and checks the framing, and answers a refusal at once, so
+ * no body is read and no "100 Continue" sent for it. The same reaper also
+ * shuts down connections whose request has been arriving for longer than
+ * request_timeout_s (libmicrohttpd's own timeout restarts on every byte). */
 #define _POSIX_C_SOURCE 200809L
 #include <arpa/inet.h>
 #include <jansson.h>
