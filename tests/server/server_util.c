@@ -46,6 +46,9 @@ int su_start(su_server *s, const char *name, const char *ini) {
   fputs(SU_TOKEN "\n", f);
   fclose(f);
   unlink(portf);
+  /* Else the child would write the parent's pending output a second time. */
+  fflush(stdout);
+  fflush(stderr);
   s->pid = fork();
   if (s->pid == 0) {
     FILE *lf = freopen(log, "a", stderr);
