@@ -29,7 +29,8 @@ static const char help_text[] =
     "  -V, --version   print the version;  -h, --help  this text\n"
     "\n"
     "Environment: GI_SERVER_TOKEN overrides [server] token_file (bearer token).\n"
-    "Exit status: 0 clean shutdown or valid config, 1 start-up failed, 2 bad arguments.\n";
+    "Exit status: 0 clean shutdown or valid config, 1 start-up failed, 2 bad arguments,\n"
+    "3 shutdown forced (a second signal, or work still running after shutdown_grace_s).\n";
 
 static int write_port_file(const char *path, int port) {
   char tmp[1100];
