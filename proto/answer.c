@@ -64,10 +64,10 @@ int gi_proto_error_parse(const char *json, size_t len, gi_proto_error *out) {
   return rc;
 }
 
-static const char *const job_states[] = {"queued", "running", "done", "failed"};
+static const char *const job_states[GI_JOB_STATE_COUNT] = {"queued", "running", "done", "failed", "cancelled"};
 
 const char *gi_proto_job_state_name(gi_proto_job_state s) {
-  return (unsigned)s < 4 ? job_states[s] : "unknown";
+  return (unsigned)s < GI_JOB_STATE_COUNT ? job_states[s] : "unknown";
 }
 
 char *gi_proto_job_json(const gi_proto_job *j) {
@@ -105,7 +105,7 @@ int gi_proto_job_parse(const char *json, size_t len, gi_proto_job *out) {
                         "probes_done", &done, "tiles", &tiles, "tiles_done", &tiles_done, "elapsed_s", &elapsed)) {
     snprintf(out->id, sizeof out->id, "%s", id);
     out->state = (gi_proto_job_state)-1;
-    for (int i = 0; i < 4; i++)
+    for (int i = 0; i < GI_JOB_STATE_COUNT; i++)
       if (!strcmp(state, job_states[i])) out->state = (gi_proto_job_state)i;
     out->probes = (size_t)probes;
     out->probes_done = (size_t)done;

@@ -34,6 +34,13 @@ char *gi_proto_error_json(const gi_proto_error *e);
 /* Reads an error body back; returns 0, or -1 when it is not one. */
 int gi_proto_error_parse(const char *json, size_t len, gi_proto_error *out);
 
+/* Coordinates (viewpoints, probe points) beyond this are out of range
+ * whatever the scene: products of such values stay finite. (The server
+ * also refuses points more than 1e9 units from its scene, as the core does.) */
+#define GI_PROTO_MAX_COORD 1e30
+/* A panorama's width or height. */
+#define GI_PROTO_MAX_PANORAMA_SIDE 16384
+
 /* Request limits (from the server's config). */
 typedef struct gi_proto_limits {
   int max_levels;                  /* cascade levels per request */
@@ -86,8 +93,9 @@ int gi_proto_parse_probes(const char *body, size_t len, const gi_proto_limits *l
 void gi_proto_probes_free(gi_proto_probes *p);
 
 /* Job status, as GET /v1/jobs/{id} answers it. */
+/* CANCELLED: by DELETE /v1/jobs/{id} or a server shutdown. */
 typedef enum gi_proto_job_state {
-  GI_JOB_QUEUED = 0, GI_JOB_RUNNING, GI_JOB_DONE, GI_JOB_FAILED
+  GI_JOB_QUEUED = 0, GI_JOB_RUNNING, GI_JOB_DONE, GI_JOB_FAILED, GI_JOB_CANCELLED, GI_JOB_STATE_COUNT
 } gi_proto_job_state;
 typedef struct gi_proto_job {
   char id[40];
@@ -106,7 +114,8 @@ void gi_proto_server_timing(const gi_timings *t, double total_ms, char *buf, siz
 /* X-GI-Effects: "sun=ran, local_lights=skipped, ...". */
 void gi_proto_effects_header(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size);
 
-/* Parses "x,y,z" into three finite doubles; 0 on success. */
+/* Parses "x,y,z" (plain decimals, nothing after) into three doubles; 0 on
+ * success, -1 when malformed, -2 when a value is beyond GI_PROTO_MAX_COORD. */
 int gi_proto_parse_vec3(const char *s, double out[3]);
 
 #ifdef __cplusplus

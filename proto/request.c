@@ -1,13 +1,16 @@
 /* request.c: requests in, validated structs out.
  *
- * Strict on purpose: an unknown or repeated parameter, a number that is not
- * all digits, not finite or out of range is a 400 that names it, before any
- * work is queued. Quality knobs map onto gi_quality with zero meaning
+ * Strict on purpose: an unknown or repeated parameter, an integer knob not
+ * written as plain digits (64.0, 6.4e1 and 032 are refused), a number that is
+ * not a finite decimal, a value out of range ("out of range" when it is finite
+ * but too large), or an empty or repeated effect is a 400 that names it,
+ * before any work is queued. Quality knobs map onto gi_quality with zero meaning
  * "the core's default", so the core resolves defaults in one place and
  * checks them again (it trusts no caller). A preset (quality=low|default|
  * high) sets several knobs; explicit knobs override it whatever the order. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <float.h>
 #include <jansson.h>
 #include <math.h>
 #include <stdarg.h>
@@ -25,17 +28,36 @@ void gi_proto_limits_default(gi_proto_limits *l) {
   l->max_body_bytes = 1 << 20;
 }
 
+/* Whether s is a plain decimal number: strtod alone would also take "nan",
+ * "inf" and hex. */
+static int plain_decimal(const char *s, size_t n) {
+  if (n == 0) return 0;
+  for (size_t i = 0; i < n; i++)
+    if (!strchr("0123456789+-.eE", s[i])) return 0;
+  return 1;
+}
+
+/* One number of s up to `stop` (',' or NUL): 0, or -1 malformed, -2 out of range. */
+static int parse_real(const char *s, char stop, double abs_max, double *out, const char **end_out) {
+  size_t n = strcspn(s, stop ? "," : "");
+  if (!plain_decimal(s, n)) return -1;
+  char *end;
+  errno = 0;
+  double v = strtod(s, &end);
+  if (end != s + n) return -1;
+  /* ERANGE: over- or underflow of a well-formed number, so finite but out of range. */
+  if (errno == ERANGE || !isfinite(v) || fabs(v) > abs_max) return -2;
+  *out = v;
+  *end_out = end;
+  return 0;
+}
+
 int gi_proto_parse_vec3(const char *s, double out[3]) {
   const char *p = s;
   for (int i = 0; i < 3; i++) {
-    char *end;
-    errno = 0;
-    /* strtod accepts "nan", "inf" and hex: only plain decimals pass. */
-    for (const char *q = p; *q && *q != ','; q++)
-      if (!strchr("0123456789+-.eE", *q)) return -1;
-    double v = strtod(p, &end);
-    if (end == p || errno == ERANGE || !isfinite(v)) return -1;
-    out[i] = v;
+    const char *end;
+    int rc = parse_real(p, ',', GI_PROTO_MAX_COORD, &out[i], &end);
+    if (rc) return rc;
     if (i < 2) {
       if (*end != ',') return -1;
       p = end + 1;
@@ -46,16 +68,26 @@ int gi_proto_parse_vec3(const char *s, double out[3]) {
   return 0;
 }
 
-/* A plain decimal number: all of s, finite. */
+/* A plain decimal number: all of s. 0, -1 malformed, -2 out of range. */
 static int parse_num(const char *s, double *out) {
-  if (!*s) return -1;
-  for (const char *q = s; *q; q++)
-    if (!strchr("0123456789+-.eE", *q)) return -1;
-  char *end;
+  const char *end;
+  int rc = parse_real(s, 0, DBL_MAX, out, &end);
+  return rc ? rc : (*end ? -1 : 0);
+}
+
+/* An integer: an optional '-' and decimal digits, no leading zeros (so
+ * "032", "64.0", "6.4e1" and "1e0" are refused: the contract says integer).
+ * 0, -1 malformed, -3 leading zero; beyond long long it saturates, which
+ * every range check then refuses as out of range. */
+static int parse_int(const char *s, long long *out) {
+  const char *d = s + (*s == '-');
+  if (!*d) return -1;
+  for (const char *q = d; *q; q++)
+    if (*q < '0' || *q > '9') return -1;
+  if (d[0] == '0' && d[1]) return -3;
   errno = 0;
-  double v = strtod(s, &end);
-  if (*end || errno == ERANGE || !isfinite(v)) return -1;
-  *out = v;
+  long long v = strtoll(s, NULL, 10);
+  *out = v; /* ERANGE: LLONG_MIN or LLONG_MAX, out of every range */
   return 0;
 }
 
@@ -90,54 +122,67 @@ static int set_preset(gi_quality *q, const char *v, gi_proto_error *err, const c
   return gi_proto_fail(err, 400, "%s: expected low, default or high, got '%s'", where, v);
 }
 
-/* Sets one quality knob from a number; `where` names it in errors. */
-static int set_knob(gi_quality *q, const char *key, double v, const gi_proto_limits *lim, gi_proto_error *err,
-                    const char *where) {
-  int is_int = v == floor(v) && fabs(v) < 1e15;
+/* Whether key is a knob the contract says is an integer. */
+static int is_int_knob(const char *key) {
+  static const char *const ints[] = {"levels", "res", "cones", "bounces", "samples", "probe_samples", "seed",
+                                     "ao", "width", "height"};
+  for (size_t i = 0; i < sizeof ints / sizeof ints[0]; i++)
+    if (!strcmp(key, ints[i])) return 1;
+  return 0;
+}
+
+/* Sets one real-valued quality knob; `where` names it in errors. */
+static int set_real_knob(gi_quality *q, const char *key, double v, gi_proto_error *err, const char *where) {
   if (!strcmp(key, "voxel")) {
-    if (!(v > 0) || v > 1e7) return gi_proto_fail(err, 400, "%s: expected a voxel size in (0, 1e7], got %g", where, v);
+    if (!(v > 0) || v > 1e7)
+      return gi_proto_fail(err, 400, "%s: expected a voxel size in (0, 1e7], got %g (out of range)", where, v);
     q->voxel0 = v;
-    return 0;
-  }
-  if (!strcmp(key, "aperture")) {
-    if (!(v >= 1 && v <= 120)) return gi_proto_fail(err, 400, "%s: expected degrees in 1..120, got %g", where, v);
+  } else if (!strcmp(key, "aperture")) {
+    if (!(v >= 1 && v <= 120))
+      return gi_proto_fail(err, 400, "%s: expected degrees in 1..120, got %g (out of range)", where, v);
     q->aperture_deg = (float)v;
-    return 0;
-  }
-  if (!strcmp(key, "step")) {
-    if (!(v >= 0.05 && v <= 4)) return gi_proto_fail(err, 400, "%s: expected 0.05..4, got %g", where, v);
+  } else if (!strcmp(key, "step")) {
+    if (!(v >= 0.05 && v <= 4)) return gi_proto_fail(err, 400, "%s: expected 0.05..4, got %g (out of range)", where, v);
     q->step = (float)v;
-    return 0;
+  } else {
+    return gi_proto_fail(err, 400, "%s: unknown quality knob", where);
   }
-  if (!is_int) return gi_proto_fail(err, 400, "%s: expected an integer, got %g", where, v);
-  long long i = (long long)v;
+  return 0;
+}
+
+/* Sets one integer quality knob; `text` is the value as the client wrote it. */
+static int set_int_knob(gi_quality *q, const char *key, long long i, const char *text, const gi_proto_limits *lim,
+                        gi_proto_error *err, const char *where) {
   if (!strcmp(key, "levels")) {
     if (i < 1 || i > lim->max_levels)
-      return gi_proto_fail(err, 400, "%s: expected 1..%d (server limit), got %lld", where, lim->max_levels, i);
+      return gi_proto_fail(err, 400, "%s: expected 1..%d (server limit), got %.40s (out of range)", where,
+                           lim->max_levels, text);
     q->levels = (int)i;
   } else if (!strcmp(key, "res")) {
     if (i < 8 || i > lim->max_res || i % 4)
-      return gi_proto_fail(err, 400, "%s: expected a multiple of 4 in 8..%d (server limit), got %lld", where,
-                           lim->max_res, i);
+      return gi_proto_fail(err, 400, "%s: expected a multiple of 4 in 8..%d (server limit), got %.40s%s", where,
+                           lim->max_res, text, i < 8 || i > lim->max_res ? " (out of range)" : "");
     q->res = (int)i;
   } else if (!strcmp(key, "cones")) {
     if (i != 4 && i != 6 && i != 8 && i != 16 && i != 32)
-      return gi_proto_fail(err, 400, "%s: expected 4, 6, 8, 16 or 32, got %lld", where, i);
+      return gi_proto_fail(err, 400, "%s: expected 4, 6, 8, 16 or 32, got %.40s", where, text);
     q->cones = (int)i;
   } else if (!strcmp(key, "bounces")) {
-    if (i < 0 || i > 8) return gi_proto_fail(err, 400, "%s: expected 0..8, got %lld", where, i);
+    if (i < 0 || i > 8) return gi_proto_fail(err, 400, "%s: expected 0..8, got %.40s (out of range)", where, text);
     q->bounces = i == 0 ? -1 : (int)i; /* the core's 0 means "default" */
   } else if (!strcmp(key, "samples")) {
-    if (i < 1 || i > 512) return gi_proto_fail(err, 400, "%s: expected 1..512, got %lld", where, i);
+    if (i < 1 || i > 512) return gi_proto_fail(err, 400, "%s: expected 1..512, got %.40s (out of range)", where, text);
     q->light_samples = (int)i;
   } else if (!strcmp(key, "probe_samples")) {
-    if (i < 1 || i > 8192) return gi_proto_fail(err, 400, "%s: expected 1..8192, got %lld", where, i);
+    if (i < 1 || i > 8192)
+      return gi_proto_fail(err, 400, "%s: expected 1..8192, got %.40s (out of range)", where, text);
     q->probe_samples = (int)i;
   } else if (!strcmp(key, "seed")) {
-    if (i < 1 || i > (1ll << 53)) return gi_proto_fail(err, 400, "%s: expected 1..2^53, got %lld", where, i);
+    if (i < 1 || i > (1ll << 53))
+      return gi_proto_fail(err, 400, "%s: expected 1..2^53, got %.40s (out of range)", where, text);
     q->seed = (uint64_t)i;
   } else if (!strcmp(key, "ao")) {
-    if (i != 0 && i != 1) return gi_proto_fail(err, 400, "%s: expected 0 or 1, got %lld", where, i);
+    if (i != 0 && i != 1) return gi_proto_fail(err, 400, "%s: expected 0 or 1, got %.40s", where, text);
     q->ao = (int)i;
   } else {
     return gi_proto_fail(err, 400, "%s: unknown quality knob", where);
@@ -145,11 +190,20 @@ static int set_knob(gi_quality *q, const char *key, double v, const gi_proto_lim
   return 0;
 }
 
-/* "sky:off,specular:on": per-effect overrides of the effect plan. */
+/* "sky:off,specular:on": per-effect overrides of the effect plan. Every
+ * entry is NAME:MODE; an empty entry or an effect named twice is refused
+ * (which of two contradicting modes would win is not the client's guess). */
 static int set_effects(gi_quality *q, const char *v, gi_proto_error *err, const char *where) {
-  char buf[260];
-  snprintf(buf, sizeof buf, "%s", v);
-  for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+  enum { MAX_ENTRY = 64 };
+  int seen[GI_FX_COUNT] = {0};
+  for (const char *p = v;; p++) {
+    size_t n = strcspn(p, ",");
+    if (n == 0)
+      return gi_proto_fail(err, 400, "%s: empty entry (expected NAME:on|off|auto[,...]), got '%.64s'", where, v);
+    char tok[MAX_ENTRY];
+    if (n >= sizeof tok) return gi_proto_fail(err, 400, "%s: entry too long in '%.64s'", where, v);
+    memcpy(tok, p, n);
+    tok[n] = 0;
     char *colon = strchr(tok, ':');
     if (!colon) return gi_proto_fail(err, 400, "%s: expected NAME:on|off|auto[,...], got '%.64s'", where, tok);
     *colon = 0;
@@ -157,19 +211,43 @@ static int set_effects(gi_quality *q, const char *v, gi_proto_error *err, const 
     if (id < 0)
       return gi_proto_fail(err, 400, "%s: unknown effect '%.32s' (sun, local_lights, sky, emissive, bounce, specular, ao)",
                            where, tok);
+    if (seen[id]++) return gi_proto_fail(err, 400, "%s: effect '%s' given twice", where, tok);
     const char *m = colon + 1;
     if (!strcmp(m, "on")) q->effects[id] = GI_FX_ON;
     else if (!strcmp(m, "off")) q->effects[id] = GI_FX_OFF;
     else if (!strcmp(m, "auto")) q->effects[id] = GI_FX_AUTO;
     else return gi_proto_fail(err, 400, "%s: expected on, off or auto after '%s:', got '%.32s'", where, tok, m);
+    p += n;
+    if (!*p) return 0;
   }
-  return 0;
 }
 
 static int parse_flag(const char *v, int *out, gi_proto_error *err, const char *key) {
   if (!strcmp(v, "1") || !strcmp(v, "true")) *out = 1;
   else if (!strcmp(v, "0") || !strcmp(v, "false")) *out = 0;
   else return gi_proto_fail(err, 400, "parameter '%s': expected 0 or 1, got '%s'", key, v);
+  return 0;
+}
+
+/* A numeric parameter: integers must be written as integers. */
+static int set_query_number(gi_proto_bake *out, const char *k, const char *v, const gi_proto_limits *lim,
+                            gi_proto_error *err, const char *where) {
+  if (!is_int_knob(k)) {
+    double x;
+    int rc = parse_num(v, &x);
+    if (rc == -2) return gi_proto_fail(err, 400, "%s: '%.64s' is out of range", where, v);
+    if (rc) return gi_proto_fail(err, 400, "%s: expected a finite number, got '%.64s'", where, v);
+    return set_real_knob(&out->quality, k, x, err, where);
+  }
+  long long i;
+  int rc = parse_int(v, &i);
+  if (rc == -3) return gi_proto_fail(err, 400, "%s: expected an integer without leading zeros, got '%.64s'", where, v);
+  if (rc) return gi_proto_fail(err, 400, "%s: expected an integer (decimal digits), got '%.64s'", where, v);
+  if (strcmp(k, "width") && strcmp(k, "height")) return set_int_knob(&out->quality, k, i, v, lim, err, where);
+  if (i < 1 || i > GI_PROTO_MAX_PANORAMA_SIDE)
+    return gi_proto_fail(err, 400, "%s: expected an integer in 1..%d, got '%.40s' (out of range)", where,
+                         GI_PROTO_MAX_PANORAMA_SIDE, v);
+  *(!strcmp(k, "width") ? &out->width : &out->height) = (int)i;
   return 0;
 }
 
@@ -200,8 +278,11 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
     snprintf(where, sizeof where, "parameter '%s'", k);
     if (!strcmp(k, "quality")) continue;
     if (!strcmp(k, "at")) {
-      if (gi_proto_parse_vec3(v, out->at))
-        return gi_proto_fail(err, 400, "parameter 'at': expected three finite numbers x,y,z, got '%.64s'", v);
+      int rc = gi_proto_parse_vec3(v, out->at);
+      if (rc == -2)
+        return gi_proto_fail(err, 400, "parameter 'at': out of range: expected |x|, |y|, |z| <= %g, got '%.64s'",
+                             GI_PROTO_MAX_COORD, v);
+      if (rc) return gi_proto_fail(err, 400, "parameter 'at': expected three finite numbers x,y,z, got '%.64s'", v);
       out->has_at = 1;
     } else if (!strcmp(k, "kind")) {
       if (!strcmp(v, "probe")) out->kind = GI_PROTO_PROBE;
@@ -216,16 +297,8 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
       int f;
       if (parse_flag(v, &f, err, k)) return err->status;
       out->quality.ao = f;
-    } else {
-      double x;
-      if (parse_num(v, &x)) return gi_proto_fail(err, 400, "%s: expected a finite number, got '%.64s'", where, v);
-      if (!strcmp(k, "width") || !strcmp(k, "height")) {
-        if (x != floor(x) || x < 1 || x > 16384)
-          return gi_proto_fail(err, 400, "%s: expected an integer in 1..16384, got '%s'", where, v);
-        *(!strcmp(k, "width") ? &out->width : &out->height) = (int)x;
-      } else if (set_knob(&out->quality, k, x, lim, err, where)) {
-        return err->status;
-      }
+    } else if (set_query_number(out, k, v, lim, err, where)) {
+      return err->status;
     }
   }
   if ((allowed & P_AT) && !out->has_at) return gi_proto_fail(err, 400, "parameter 'at' is required (x,y,z)");
@@ -260,7 +333,7 @@ int gi_proto_parse_none(const gi_proto_kv *kv, size_t n, gi_proto_error *err) {
   return 0;
 }
 
-/* A JSON array of three finite numbers. */
+/* A JSON array of three finite numbers: 0, -1 malformed, -2 out of range. */
 static int json_vec3(const json_t *a, double out[3]) {
   if (!json_is_array(a) || json_array_size(a) != 3) return -1;
   for (size_t k = 0; k < 3; k++) {
@@ -268,6 +341,7 @@ static int json_vec3(const json_t *a, double out[3]) {
     if (!json_is_number(x)) return -1;
     out[k] = json_number_value(x);
     if (!isfinite(out[k])) return -1;
+    if (fabs(out[k]) > GI_PROTO_MAX_COORD) return -2;
   }
   return 0;
 }
@@ -294,9 +368,13 @@ static int probes_points(json_t *root, const gi_proto_limits *lim, gi_proto_prob
     return gi_proto_fail(err, 413, "body: %zu points exceed the server limit of %zu", n, lim->max_probes_job);
   out->points = malloc(3 * n * sizeof(double));
   if (!out->points) return gi_proto_fail(err, 500, "body: out of memory for %zu points", n);
-  for (size_t i = 0; i < n; i++)
-    if (json_vec3(json_array_get(pts, i), &out->points[3 * i]))
-      return gi_proto_fail(err, 400, "body: points[%zu]: expected an array of 3 finite numbers", i);
+  for (size_t i = 0; i < n; i++) {
+    int rc = json_vec3(json_array_get(pts, i), &out->points[3 * i]);
+    if (rc == -2)
+      return gi_proto_fail(err, 400, "body: points[%zu]: out of range: expected |x|, |y|, |z| <= %g", i,
+                           GI_PROTO_MAX_COORD);
+    if (rc) return gi_proto_fail(err, 400, "body: points[%zu]: expected an array of 3 finite numbers", i);
+  }
   out->num_points = n;
   return 0;
 }
@@ -305,7 +383,9 @@ static int probes_points(json_t *root, const gi_proto_limits *lim, gi_proto_prob
 static int probes_flags(json_t *root, gi_proto_bake *b, gi_proto_error *err) {
   json_t *v;
   if ((v = json_object_get(root, "at"))) {
-    if (json_vec3(v, b->at)) return gi_proto_fail(err, 400, "body: 'at': expected an array of 3 finite numbers");
+    int rc = json_vec3(v, b->at);
+    if (rc == -2) return gi_proto_fail(err, 400, "body: 'at': out of range: expected |x|, |y|, |z| <= %g", GI_PROTO_MAX_COORD);
+    if (rc) return gi_proto_fail(err, 400, "body: 'at': expected an array of 3 finite numbers");
     b->has_at = 1;
   }
   for (int f = 0; f < 2; f++) {
@@ -327,11 +407,19 @@ static int probes_knob(gi_proto_bake *b, const char *key, json_t *x, const gi_pr
     if (!json_is_string(x)) return gi_proto_fail(err, 400, "%s: expected a string NAME:on|off|auto[,...]", where);
     return set_effects(&b->quality, json_string_value(x), err, where) ? err->status : 0;
   }
-  double num;
-  if (json_is_boolean(x) && !strcmp(key, "ao")) num = json_is_true(x);
-  else if (json_is_number(x)) num = json_number_value(x);
-  else return gi_proto_fail(err, 400, "%s: expected a number", where);
-  return set_knob(&b->quality, key, num, lim, err, where) ? err->status : 0;
+  if (!strcmp(key, "ao") && json_is_boolean(x)) {
+    b->quality.ao = json_is_true(x);
+    return 0;
+  }
+  if (is_int_knob(key)) {
+    /* JSON keeps 64 and 64.0 apart: the contract says integer. */
+    if (!json_is_integer(x)) return gi_proto_fail(err, 400, "%s: expected an integer", where);
+    char text[32];
+    snprintf(text, sizeof text, "%lld", (long long)json_integer_value(x));
+    return set_int_knob(&b->quality, key, json_integer_value(x), text, lim, err, where) ? err->status : 0;
+  }
+  if (!json_is_number(x)) return gi_proto_fail(err, 400, "%s: expected a number", where);
+  return set_real_knob(&b->quality, key, json_number_value(x), err, where) ? err->status : 0;
 }
 
 /* 'quality': a preset name, or an object of knobs with an optional preset

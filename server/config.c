@@ -27,6 +27,10 @@ void gs_config_defaults(gs_config *c) {
   c->queue = 32;
   c->bake_threads = 0;
   c->deadline_s = 120;
+  c->max_connections_per_ip = 128;
+  c->request_timeout_s = 30;
+  c->shutdown_grace_s = 10;
+  c->job_deadline_s = 3600;
   gi_proto_limits_default(&c->lim);
   c->max_tiles_inline = 4;
   c->cache_bytes = (size_t)1024 << 20;
@@ -118,13 +122,23 @@ static int server_key(load_ctx *x, const char *k, const char *v) {
   } else if (!strcmp(k, "deadline_s")) {
     if (!get_num(x, S, k, v, 0.1, 86400, &d)) return 0;
     c->deadline_s = d;
+  } else if (!strcmp(k, "max_connections_per_ip")) {
+    if (!get_int(x, S, k, v, 1, 1000, &n)) return 0;
+    c->max_connections_per_ip = (int)n;
+  } else if (!strcmp(k, "request_timeout_s")) {
+    if (!get_num(x, S, k, v, 0.5, 3600, &d)) return 0;
+    c->request_timeout_s = d;
+  } else if (!strcmp(k, "shutdown_grace_s")) {
+    if (!get_num(x, S, k, v, 0.1, 3600, &d)) return 0;
+    c->shutdown_grace_s = d;
   } else if (!strcmp(k, "token_file")) {
     if (*v) return resolve_path(x, S, k, v, x->token_file, sizeof x->token_file);
   } else if (!strcmp(k, "tmp_dir")) {
     if (*v) return resolve_path(x, S, k, v, c->tmp_dir, sizeof c->tmp_dir);
   } else {
     return fail(x, S, k, "unknown key (expected bind, port, connection_threads, workers, queue, bake_threads, "
-                         "deadline_s, token_file, tmp_dir)");
+                         "deadline_s, max_connections_per_ip, request_timeout_s, shutdown_grace_s, token_file, "
+                         "tmp_dir)");
   }
   return 1;
 }
@@ -132,6 +146,7 @@ static int server_key(load_ctx *x, const char *k, const char *v) {
 static int limits_key(load_ctx *x, const char *k, const char *v) {
   gs_config *c = x->c;
   long long n;
+  double d;
   const char *S = "limits";
   if (!strcmp(k, "max_body_bytes")) {
     if (!get_int(x, S, k, v, 64, 1ll << 32, &n)) return 0;
@@ -166,10 +181,13 @@ static int limits_key(load_ctx *x, const char *k, const char *v) {
   } else if (!strcmp(k, "max_jobs_retained")) {
     if (!get_int(x, S, k, v, 1, 100000, &n)) return 0;
     c->max_jobs_retained = (int)n;
+  } else if (!strcmp(k, "job_deadline_s")) {
+    if (!get_num(x, S, k, v, 0.1, 604800, &d)) return 0;
+    c->job_deadline_s = d;
   } else {
     return fail(x, S, k, "unknown key (expected max_body_bytes, max_probes_inline, max_probes_job, max_levels, "
                          "max_res, max_panorama_pixels, max_tiles_inline, cache_mb, max_jobs, max_jobs_queued, "
-                         "max_jobs_retained)");
+                         "max_jobs_retained, job_deadline_s)");
   }
   return 1;
 }

@@ -10,7 +10,13 @@
  * its deadline. The worker and the reaper race to answer; one mutex and
  * the request's `done` flag make exactly one of them win, and resume is
  * only ever called on a suspended connection. A request lives until both
- * libmicrohttpd and its task have let go of it (reference count). */
+ * libmicrohttpd and its task have let go of it (reference count).
+ *
+ * Hostile clients: the first call for a request (headers complete) routes,
+ * authenticates and checks the framing, and answers a refusal at once, so
+ * no body is read and no "100 Continue" sent for it. The same reaper also
+ * shuts down connections whose request has been arriving for longer than
+ * request_timeout_s (libmicrohttpd's own timeout restarts on every byte). */
 #define _POSIX_C_SOURCE 200809L
 #include <arpa/inet.h>
 #include <jansson.h>
@@ -21,9 +27,31 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 #include "server.h"
+
+/* More query parameters than this is a 400 (the contract's limit). */
+#define GS_MAX_PARAMS 64
+/* libmicrohttpd's memory per connection: headers, the query's parsed
+ * parameters (about 48 bytes each) and the read buffer. Its default, 32 KiB,
+ * ran out at ~500 parameters and left the client hanging without a status. */
+#define GS_CONNECTION_MEMORY ((size_t)256 << 10)
+/* The core refuses viewpoints more than this from the scene; say so at once. */
+#define GS_MAX_DISTANCE 1e9
+#define GS_MAX_DISTANCE_TEXT "1e9"
+/* Connections at once, from all clients. */
+#define GS_MAX_CONNECTIONS 1000u
+/* A connection silent this long is closed (libmicrohttpd's timer, which
+ * restarts on every byte; request_timeout_s bounds the whole request). */
+#define GS_IDLE_TIMEOUT_S 60u
+/* What libmicrohttpd's parser takes from the connection's memory per query
+ * parameter (its header record, rounded up). */
+#define GS_PARAM_COST 64
+/* How often the reaper looks at deadlines. */
+#define GS_REAPER_PERIOD_MS 50
 
 typedef struct gs_req {
   gs_http *h;
@@ -32,11 +60,12 @@ typedef struct gs_req {
   const gs_scene *scene;
   char method[8];
   char path[160];
-  char job_id[48];
+  char id[64];              /* the scene or job id the route named */
   double t_start, deadline;
   char *body;
   size_t len, cap;
   int too_large;
+  int answered;             /* a response is queued */
   /* Guarded by h->mu. */
   int dispatched, suspended, done;
   gs_answer ans;
@@ -45,6 +74,17 @@ typedef struct gs_req {
   atomic_int refs;
   struct gs_req *prev, *next;  /* waiting list (dispatched, not done) */
 } gs_req;
+
+/* One TCP connection, for the absolute request deadline: libmicrohttpd's
+ * own timeout restarts on every byte, so a client sending one byte a second
+ * would hold its connection for ever. */
+typedef struct gs_conn {
+  int fd;
+  double t_phase;     /* when the request now arriving started (or the connection) */
+  int receiving;      /* its headers or body are still arriving */
+  int cut;            /* shut down for missing the deadline */
+  struct gs_conn *prev, *next;
+} gs_conn;
 
 struct gs_http {
   gs_service *svc;
@@ -55,6 +95,9 @@ struct gs_http {
   pthread_t reaper;
   int stop;
   pthread_cond_t stop_cv;
+  pthread_mutex_t conn_mu;  /* guards conns and cut_logged; never held with mu */
+  gs_conn *conns;
+  unsigned long cuts, cuts_logged;
 };
 
 static void req_release(gs_req *r) {
@@ -108,14 +151,19 @@ static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
   if (a->status == 503) MHD_add_response_header(resp, "Retry-After", "1");
   if (a->status == 401) MHD_add_response_header(resp, "WWW-Authenticate", "Bearer realm=\"gi-server\"");
   if (a->status == 405)
-    MHD_add_response_header(resp, "Allow", r->ep == GS_EP_PROBES ? "POST" : "GET, HEAD");
+    MHD_add_response_header(resp, "Allow",
+                            r->ep == GS_EP_PROBES ? "POST" : r->ep == GS_EP_JOB ? "GET, HEAD, DELETE" : "GET, HEAD");
   enum MHD_Result ok = MHD_queue_response(r->conn, (unsigned)a->status, resp);
+  r->answered = 1;
   MHD_destroy_response(resp);
   double secs = (gs_now_ms() - r->t_start) * 1e-3;
   gs_metrics_request(h->svc->metrics, r->ep, a->status, secs);
   if (a->status == 503) gs_metrics_rejected(h->svc->metrics);
-  fprintf(stderr, "gi-server: %s %s %d %.1f ms%s%s\n", r->method, r->path, a->status, secs * 1e3,
-          a->cache ? " " : "", a->cache ? a->cache : "");
+  char method[4 * sizeof r->method], path[4 * sizeof r->path];
+  gs_log_escape(r->method, method, sizeof method);
+  gs_log_escape(r->path, path, sizeof path);
+  fprintf(stderr, "gi-server: %s %s %d %.1f ms%s%s\n", method, path, a->status, secs * 1e3, a->cache ? " " : "",
+          a->cache ? a->cache : "");
   return ok;
 }
 
@@ -161,32 +209,122 @@ static void task(void *arg) {
   req_release(r);
 }
 
+/* Answers 504 for every waiting request past its deadline. Locked (mu). */
+static void reap_deadlines(gs_http *h) {
+  double now = gs_now_ms();
+  for (gs_req *r = h->waiting, *n; r; r = n) {
+    n = r->next;
+    if (now < r->deadline || r->done) continue;
+    r->done = 1;
+    waiting_remove(h, r);
+    gi_proto_error e;
+    gi_proto_fail(&e, 504, "the request took longer than the server's deadline of %g s; the cascade may "
+                           "still be cached when it finishes: retry",
+                  h->svc->cfg->deadline_s);
+    gs_answer_error(&r->ans, &e);
+    gs_metrics_timeout(h->svc->metrics);
+    if (r->suspended) {
+      r->suspended = 0;
+      MHD_resume_connection(r->conn);
+    }
+  }
+}
+
+/* ---- connections: the absolute request deadline -------------------------- */
+
+static void on_connection(void *cls, struct MHD_Connection *conn, void **socket_context,
+                          enum MHD_ConnectionNotificationCode code) {
+  gs_http *h = cls;
+  if (code == MHD_CONNECTION_NOTIFY_STARTED) {
+    gs_conn *c = calloc(1, sizeof *c);
+    const union MHD_ConnectionInfo *ci = MHD_get_connection_info(conn, MHD_CONNECTION_INFO_CONNECTION_FD);
+    if (!c || !ci) {
+      free(c); /* without a record only libmicrohttpd's idle timeout applies */
+      return;
+    }
+    c->fd = ci->connect_fd;
+    c->t_phase = gs_now_ms();
+    c->receiving = 1;
+    pthread_mutex_lock(&h->conn_mu);
+    c->next = h->conns;
+    if (h->conns) h->conns->prev = c;
+    h->conns = c;
+    pthread_mutex_unlock(&h->conn_mu);
+    *socket_context = c;
+    return;
+  }
+  gs_conn *c = *socket_context;
+  if (!c) return;
+  /* libmicrohttpd closes the socket after this: until then c->fd is ours. */
+  pthread_mutex_lock(&h->conn_mu);
+  if (c->prev) c->prev->next = c->next;
+  else h->conns = c->next;
+  if (c->next) c->next->prev = c->prev;
+  pthread_mutex_unlock(&h->conn_mu);
+  free(c);
+  *socket_context = NULL;
+}
+
+static gs_conn *conn_of(struct MHD_Connection *conn) {
+  const union MHD_ConnectionInfo *ci = MHD_get_connection_info(conn, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+  return ci ? ci->socket_context : NULL;
+}
+
+/* The whole request is in: from here the bake deadline (504) applies. */
+static void conn_request_arrived(gs_http *h, struct MHD_Connection *conn) {
+  gs_conn *c = conn_of(conn);
+  if (!c) return;
+  pthread_mutex_lock(&h->conn_mu);
+  c->receiving = 0;
+  pthread_mutex_unlock(&h->conn_mu);
+}
+
+/* Answered: the next request on this connection starts its clock now. */
+static void conn_request_done(gs_http *h, struct MHD_Connection *conn) {
+  gs_conn *c = conn_of(conn);
+  if (!c) return;
+  pthread_mutex_lock(&h->conn_mu);
+  c->receiving = 1;
+  c->t_phase = gs_now_ms();
+  pthread_mutex_unlock(&h->conn_mu);
+}
+
+/* Shuts down every connection whose request has been arriving for longer
+ * than request_timeout_s; libmicrohttpd then sees the socket closed and
+ * cleans up on its own thread. Logs a count at most once a second. */
+static void cut_slow_connections(gs_http *h, double *last_log) {
+  double limit = h->svc->cfg->request_timeout_s * 1e3, now = gs_now_ms();
+  pthread_mutex_lock(&h->conn_mu);
+  for (gs_conn *c = h->conns; c; c = c->next) {
+    if (!c->receiving || c->cut || now - c->t_phase <= limit) continue;
+    shutdown(c->fd, SHUT_RDWR);
+    c->cut = 1;
+    h->cuts++;
+  }
+  unsigned long cuts = h->cuts, fresh = cuts - h->cuts_logged;
+  int log = fresh && now - *last_log >= 1000;
+  if (log) h->cuts_logged = cuts, *last_log = now;
+  pthread_mutex_unlock(&h->conn_mu);
+  if (log)
+    fprintf(stderr, "gi-server: closed %lu connection(s) that sent no whole request within %g s, or a query too large "
+            "to parse (%lu so far)\n", fresh,
+            h->svc->cfg->request_timeout_s, cuts);
+}
+
 static void *reaper_main(void *p) {
   gs_http *h = p;
+  double last_log = 0;
   pthread_mutex_lock(&h->mu);
   while (!h->stop) {
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
-    ts.tv_nsec += 50 * 1000000L;
+    ts.tv_nsec += GS_REAPER_PERIOD_MS * 1000000L;
     if (ts.tv_nsec >= 1000000000L) ts.tv_sec++, ts.tv_nsec -= 1000000000L;
     pthread_cond_timedwait(&h->stop_cv, &h->mu, &ts);
-    double now = gs_now_ms();
-    for (gs_req *r = h->waiting, *n; r; r = n) {
-      n = r->next;
-      if (now < r->deadline || r->done) continue;
-      r->done = 1;
-      waiting_remove(h, r);
-      gi_proto_error e;
-      gi_proto_fail(&e, 504, "the request took longer than the server's deadline of %g s; the cascade may "
-                             "still be cached when it finishes: retry",
-                    h->svc->cfg->deadline_s);
-      gs_answer_error(&r->ans, &e);
-      gs_metrics_timeout(h->svc->metrics);
-      if (r->suspended) {
-        r->suspended = 0;
-        MHD_resume_connection(r->conn);
-      }
-    }
+    reap_deadlines(h);
+    pthread_mutex_unlock(&h->mu);
+    cut_slow_connections(h, &last_log);
+    pthread_mutex_lock(&h->mu);
   }
   pthread_mutex_unlock(&h->mu);
   return NULL;
@@ -304,22 +442,6 @@ static void metrics(gs_service *svc, gs_answer *a) {
 
 /* ---- routing ------------------------------------------------------------ */
 
-typedef struct {
-  gi_proto_kv kv[64];
-  size_t n;
-  int overflow;
-} query;
-
-static enum MHD_Result collect(void *cls, enum MHD_ValueKind kind, const char *key, const char *value) {
-  query *q = cls;
-  if (q->n == 64) {
-    q->overflow = 1;
-    return MHD_NO;
-  }
-  q->kv[q->n++] = (gi_proto_kv){key, value ? value : ""};
-  return MHD_YES;
-}
-
 /* Constant-time comparison: the time taken does not depend on where a guess differs. */
 static int token_ok(const char *want, const char *got) {
   size_t n = strlen(want), m = got ? strlen(got) : 0;
@@ -366,71 +488,177 @@ static int route(gs_req *r, const char *url, char *id, size_t idsize) {
   return 1;
 }
 
-static enum MHD_Result handle(gs_http *h, gs_req *r, const char *url) {
+/* The bearer token from Authorization, or NULL. The scheme is
+ * case-insensitive (RFC 7235); one or more spaces follow it. */
+static const char *bearer_token(const char *auth) {
+  if (!auth || strncasecmp(auth, "Bearer", 6) || auth[6] != ' ') return NULL;
+  auth += 6;
+  while (*auth == ' ') auth++;
+  return auth;
+}
+
+typedef struct {
+  int count;            /* Content-Length headers */
+  int differ;           /* two of them disagree */
+  int chunked;          /* Transfer-Encoding present */
+  const char *length;   /* the first Content-Length */
+} framing;
+
+static enum MHD_Result collect_framing(void *cls, enum MHD_ValueKind kind, const char *key, const char *value) {
+  framing *f = cls;
+  if (!strcasecmp(key, "Transfer-Encoding")) f->chunked = 1;
+  if (strcasecmp(key, "Content-Length")) return MHD_YES;
+  if (f->count++ && strcmp(f->length, value ? value : "")) f->differ = 1;
+  if (!f->length) f->length = value ? value : "";
+  return MHD_YES;
+}
+
+/* A body's framing, from the headers: 0, or an error answer in a. Refuses
+ * before a byte of the body is read (so no "100 Continue" either). */
+static int check_framing(gs_http *h, gs_req *r, gs_answer *a) {
+  framing f = {0};
+  MHD_get_connection_values(r->conn, MHD_HEADER_KIND, collect_framing, &f);
+  if (f.differ) {
+    answer_fail(a, 400, "%s", "Content-Length: the request has two different values");
+    return -1;
+  }
+  if (f.count && f.chunked) {
+    answer_fail(a, 400, "%s", "Content-Length and Transfer-Encoding: a request may have only one of them");
+    return -1;
+  }
+  if (!f.count) return 0;
+  const char *d = f.length;
+  size_t n = strspn(d, "0123456789");
+  if (!n || d[n] || n > 19) {
+    answer_fail(a, 400, "Content-Length: expected a number of bytes, got '%.32s'", d);
+    return -1;
+  }
+  size_t lim = h->svc->cfg->lim.max_body_bytes;
+  unsigned long long len = strtoull(d, NULL, 10);
+  if (len > lim) {
+    gi_proto_error pe;
+    gi_proto_fail(&pe, 413, "body: %llu bytes exceed the server limit of %zu", len, lim);
+    gs_answer_error(a, &pe);
+    return -1;
+  }
+  return 0;
+}
+
+/* Everything the headers decide, on the first call, before any body is
+ * read: route, token, method and framing. 0 to go on, else the answer is in r. */
+static int check_headers(gs_http *h, gs_req *r, const char *url) {
   gs_service *svc = h->svc;
   gs_answer *a = &r->ans;
-  char id[64] = "";
-  if (!route(r, url, id, sizeof id)) {
+  if (!route(r, url, r->id, sizeof r->id)) {
     r->ep = GS_EP_OTHER;
     answer_fail(a, 404, "no such endpoint: %.100s (see /v1/health, /v1/scenes, /metrics)", url);
-    return send_answer(h, r);
+    return -1;
   }
   if (r->ep != GS_EP_HEALTH && svc->cfg->token[0]) {
     const char *auth = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Authorization");
-    const char *tok = auth && !strncmp(auth, "Bearer ", 7) ? auth + 7 : NULL;
-    if (!token_ok(svc->cfg->token, tok)) {
+    if (!token_ok(svc->cfg->token, bearer_token(auth))) {
       answer_fail(a, 401, "%s", auth ? "the bearer token is not valid" : "an Authorization: Bearer token is required");
-      return send_answer(h, r);
+      return -1;
     }
   }
-  int post = r->ep == GS_EP_PROBES;
+  int post = r->ep == GS_EP_PROBES, del = r->ep == GS_EP_JOB && !strcmp(r->method, "DELETE");
   int get_ok = !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
-  if (post ? strcmp(r->method, "POST") : !get_ok) {
-    answer_fail(a, 405, "%s", post ? "this endpoint takes POST" : "this endpoint takes GET or HEAD");
-    return send_answer(h, r);
+  if (post ? strcmp(r->method, "POST") : !(get_ok || del)) {
+    answer_fail(a, 405, "%s", post ? "this endpoint takes POST"
+                              : r->ep == GS_EP_JOB ? "this endpoint takes GET, HEAD or DELETE"
+                                                   : "this endpoint takes GET or HEAD");
+    return -1;
   }
-  query q = {0};
-  MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, collect, &q);
-  if (q.overflow) {
+  return check_framing(h, r, a);
+}
+
+typedef struct {
+  gi_proto_kv kv[GS_MAX_PARAMS];
+  size_t n;
+  int overflow;
+  const char *nul_key;  /* a value with a NUL byte in it */
+} query;
+
+static enum MHD_Result collect(void *cls, enum MHD_ValueKind kind, const char *key, size_t key_size,
+                               const char *value, size_t value_size) {
+  query *q = cls;
+  if ((key && strlen(key) != key_size) || (value && strlen(value) != value_size)) {
+    q->nul_key = key ? key : "";
+    return MHD_NO;
+  }
+  if (q->n == GS_MAX_PARAMS) {
+    q->overflow = 1;
+    return MHD_NO;
+  }
+  q->kv[q->n++] = (gi_proto_kv){key, value ? value : ""};
+  return MHD_YES;
+}
+
+/* The query parameters into q: 0, or an error answer in a. */
+static int read_query(gs_req *r, query *q, gs_answer *a) {
+  MHD_get_connection_values_n(r->conn, MHD_GET_ARGUMENT_KIND, collect, q);
+  if (q->nul_key) {
+    char key[4 * 64];
+    gs_log_escape(q->nul_key, key, sizeof key);
+    answer_fail(a, 400, "parameter '%.64s': a NUL byte (%%00) in a parameter is not allowed", key);
+    return -1;
+  }
+  if (q->overflow) {
     answer_fail(a, 400, "%s", "more than 64 query parameters");
-    return send_answer(h, r);
+    return -1;
   }
+  return 0;
+}
+
+static void cheap_endpoint(gs_service *svc, gs_req *r, const query *q, gs_answer *a) {
+  gi_proto_error pe;
+  if (gi_proto_parse_none(q->kv, q->n, &pe)) gs_answer_error(a, &pe);
+  else if (r->ep == GS_EP_HEALTH) health(svc, a);
+  else if (r->ep == GS_EP_SCENES) catalog(svc, a);
+  else if (r->ep == GS_EP_METRICS) metrics(svc, a);
+  else if (r->ep == GS_EP_SCENE) scene_info(r->scene, a);
+  else if (r->ep == GS_EP_JOB && !strcmp(r->method, "DELETE")) gs_jobs_cancel(svc->jobs, r->id, a);
+  else if (r->ep == GS_EP_JOB) gs_jobs_status(svc->jobs, r->id, a);
+  else gs_jobs_result(svc->jobs, r->id, a);
+}
+
+/* Points within GS_MAX_DISTANCE of the scene's bounds, else a 400 naming the first far one. */
+static int check_near(const gs_scene *s, const double *pts, size_t n, const char *what, gi_proto_error *e) {
+  double lo[3], hi[3];
+  gi_scene_bounds(s->scene, lo, hi);
+  for (size_t i = 0; i < n; i++)
+    for (int k = 0; k < 3; k++) {
+      double v = pts[3 * i + k];
+      if (v >= lo[k] - GS_MAX_DISTANCE && v <= hi[k] + GS_MAX_DISTANCE) continue;
+      if (n == 1)
+        return gi_proto_fail(e, 400, "%s: out of range: (%g, %g, %g) is more than " GS_MAX_DISTANCE_TEXT
+                             " units from the scene", what, pts[0], pts[1], pts[2]);
+      return gi_proto_fail(e, 400, "%s[%zu]: out of range: (%g, %g, %g) is more than " GS_MAX_DISTANCE_TEXT
+                           " units from the scene", what, i, pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]);
+    }
+  return 0;
+}
+
+/* The whole request has arrived: validate and answer, or dispatch. */
+static enum MHD_Result handle(gs_http *h, gs_req *r) {
+  gs_service *svc = h->svc;
+  gs_answer *a = &r->ans;
+  query q = {0};
+  if (read_query(r, &q, a)) return send_answer(h, r);
   gi_proto_error pe;
   if (r->ep == GS_EP_SCENE || r->ep == GS_EP_LIGHTING || r->ep == GS_EP_CASCADES || r->ep == GS_EP_PROBES) {
-    r->scene = gs_catalog_find(svc->cat, id);
+    r->scene = gs_catalog_find(svc->cat, r->id);
     if (!r->scene) {
-      answer_fail(a, 404, "scene '%s' is not in the catalog (GET /v1/scenes lists them)", id);
+      answer_fail(a, 404, "scene '%s' is not in the catalog (GET /v1/scenes lists them)", r->id);
       return send_answer(h, r);
     }
   }
   switch (r->ep) {
-  case GS_EP_HEALTH:
-  case GS_EP_SCENES:
-  case GS_EP_METRICS:
-  case GS_EP_SCENE:
-  case GS_EP_JOB:
-  case GS_EP_JOB_RESULT:
-    if (gi_proto_parse_none(q.kv, q.n, &pe)) {
-      gs_answer_error(a, &pe);
-    } else if (r->ep == GS_EP_HEALTH) {
-      health(svc, a);
-    } else if (r->ep == GS_EP_SCENES) {
-      catalog(svc, a);
-    } else if (r->ep == GS_EP_METRICS) {
-      metrics(svc, a);
-    } else if (r->ep == GS_EP_SCENE) {
-      scene_info(r->scene, a);
-    } else if (r->ep == GS_EP_JOB) {
-      gs_jobs_status(svc->jobs, id, a);
-    } else {
-      gs_jobs_result(svc->jobs, id, a);
-    }
-    return send_answer(h, r);
   case GS_EP_LIGHTING:
   case GS_EP_CASCADES: {
     int st = r->ep == GS_EP_LIGHTING ? gi_proto_parse_lighting(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe)
                                      : gi_proto_parse_cascades(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe);
-    if (st) {
+    if (st || check_near(r->scene, r->bake.at, 1, "parameter 'at'", &pe)) {
       gs_answer_error(a, &pe);
       return send_answer(h, r);
     }
@@ -440,15 +668,39 @@ static enum MHD_Result handle(gs_http *h, gs_req *r, const char *url) {
     if (r->too_large) {
       gi_proto_fail(&pe, 413, "body: more than the server limit of %zu bytes", svc->cfg->lim.max_body_bytes);
     } else if (gi_proto_parse_none(q.kv, q.n, &pe) == 0 &&
-               gi_proto_parse_probes(r->body, r->len, &svc->cfg->lim, &r->probes, &pe) == 0) {
+               gi_proto_parse_probes(r->body, r->len, &svc->cfg->lim, &r->probes, &pe) == 0 &&
+               check_near(r->scene, r->probes.points, r->probes.num_points, "body: points", &pe) == 0 &&
+               (!r->probes.bake.has_at || check_near(r->scene, r->probes.bake.at, 1, "body: 'at'", &pe) == 0)) {
       return dispatch(h, r);
     }
     gs_answer_error(a, &pe);
     return send_answer(h, r);
   default:
-    answer_fail(a, 404, "no such endpoint: %.100s", url);
+    cheap_endpoint(svc, r, &q, a);
     return send_answer(h, r);
   }
+}
+
+/* Body bytes: kept up to the limit; the rest is read and dropped, then 413
+ * (only when the length was not announced: an announced one is checked first). */
+static enum MHD_Result take_upload(gs_http *h, gs_req *r, const char *upload, size_t *upload_size) {
+  size_t lim = h->svc->cfg->lim.max_body_bytes;
+  if (r->too_large || r->len + *upload_size > lim) {
+    r->too_large = 1;
+  } else {
+    if (r->len + *upload_size + 1 > r->cap) {
+      size_t cap = r->cap ? r->cap : 4096;
+      while (cap < r->len + *upload_size + 1) cap *= 2;
+      char *nb = realloc(r->body, cap);
+      if (!nb) return MHD_NO;
+      r->body = nb;
+      r->cap = cap;
+    }
+    memcpy(r->body + r->len, upload, *upload_size);
+    r->len += *upload_size;
+  }
+  *upload_size = 0;
+  return MHD_YES;
 }
 
 static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url, const char *method,
@@ -467,28 +719,15 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
     snprintf(r->method, sizeof r->method, "%s", method);
     snprintf(r->path, sizeof r->path, "%s", url);
     *con_cls = r;
+    /* Answered now, a refused request's body is never read. */
+    if (check_headers(h, r, url)) return send_answer(h, r);
     return MHD_YES;
   }
-  if (*upload_size) {
-    /* Keep at most the limit; the rest is read and dropped, then 413. */
-    size_t lim = h->svc->cfg->lim.max_body_bytes;
-    if (r->too_large || r->len + *upload_size > lim) {
-      r->too_large = 1;
-    } else {
-      if (r->len + *upload_size + 1 > r->cap) {
-        size_t cap = r->cap ? r->cap : 4096;
-        while (cap < r->len + *upload_size + 1) cap *= 2;
-        char *nb = realloc(r->body, cap);
-        if (!nb) return MHD_NO;
-        r->body = nb;
-        r->cap = cap;
-      }
-      memcpy(r->body + r->len, upload, *upload_size);
-      r->len += *upload_size;
-    }
-    *upload_size = 0;
+  if (r->answered && !r->dispatched) {
+    *upload_size = 0; /* refused from its headers: nothing more to read */
     return MHD_YES;
   }
+  if (*upload_size) return take_upload(h, r, upload, upload_size);
   if (r->dispatched) {
     /* Resumed: the worker or the reaper left the answer. */
     pthread_mutex_lock(&h->mu);
@@ -496,20 +735,48 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
     pthread_mutex_unlock(&h->mu);
     return done ? send_answer(h, r) : MHD_YES;
   }
-  return handle(h, r, url);
+  conn_request_arrived(h, conn);
+  return handle(h, r);
+}
+
+/* Before libmicrohttpd parses the query. Its parser keeps a record per
+ * parameter in the connection's memory; when they do not fit it gives up
+ * without answering, and the client would wait for the request deadline.
+ * A query that could not fit (far beyond the 64 parameters the contract
+ * allows, which always fit) closes the connection at once instead. */
+static void *on_uri(void *cls, const char *uri, struct MHD_Connection *conn) {
+  gs_http *h = cls;
+  const char *q = strchr(uri, '?');
+  if (!q) return NULL;
+  size_t params = 1;
+  for (const char *p = q; *p; p++) params += *p == '&';
+  if (strlen(uri) + params * GS_PARAM_COST <= GS_CONNECTION_MEMORY / 2) return NULL;
+  const union MHD_ConnectionInfo *ci = MHD_get_connection_info(conn, MHD_CONNECTION_INFO_CONNECTION_FD);
+  if (ci) shutdown(ci->connect_fd, SHUT_RDWR);
+  pthread_mutex_lock(&h->conn_mu);
+  h->cuts++;
+  pthread_mutex_unlock(&h->conn_mu);
+  return NULL;
 }
 
 static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
                          enum MHD_RequestTerminationCode code) {
+  gs_http *h = cls;
+  conn_request_done(h, conn);
   gs_req *r = *con_cls;
   if (!r) return;
   *con_cls = NULL;
   req_release(r);
 }
 
+/* libmicrohttpd's messages can quote what a client sent: escaped like ours. */
 static void mhd_log(void *cls, const char *fmt, va_list ap) {
-  fprintf(stderr, "gi-server: libmicrohttpd: ");
-  vfprintf(stderr, fmt, ap);
+  char raw[512], esc[4 * sizeof raw];
+  vsnprintf(raw, sizeof raw, fmt, ap);
+  size_t n = strlen(raw);
+  while (n && (raw[n - 1] == '\n' || raw[n - 1] == '\r')) raw[--n] = 0;
+  gs_log_escape(raw, esc, sizeof esc);
+  fprintf(stderr, "gi-server: libmicrohttpd: %s\n", esc);
 }
 
 gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
@@ -530,15 +797,20 @@ gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
   h->svc = svc;
   pthread_mutex_init(&h->mu, NULL);
   pthread_cond_init(&h->stop_cv, NULL);
+  pthread_mutex_init(&h->conn_mu, NULL);
   unsigned flags = MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG;
-  h->d = MHD_start_daemon(flags, 0, NULL, NULL, on_request, h, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&sa,
-                          MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->connection_threads,
-                          MHD_OPTION_CONNECTION_LIMIT, 1000u, MHD_OPTION_CONNECTION_TIMEOUT, 60u,
-                          MHD_OPTION_NOTIFY_COMPLETED, on_completed, h, MHD_OPTION_EXTERNAL_LOGGER, mhd_log, h,
-                          MHD_OPTION_END);
+  h->d = MHD_start_daemon(flags, 0, NULL, NULL, on_request, h, MHD_OPTION_EXTERNAL_LOGGER, mhd_log, h,
+                          MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&sa, MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->connection_threads,
+                          MHD_OPTION_CONNECTION_LIMIT, GS_MAX_CONNECTIONS,
+                          MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)cfg->max_connections_per_ip,
+                          MHD_OPTION_CONNECTION_TIMEOUT, GS_IDLE_TIMEOUT_S,
+                          MHD_OPTION_CONNECTION_MEMORY_LIMIT, GS_CONNECTION_MEMORY,
+                          MHD_OPTION_NOTIFY_COMPLETED, on_completed, h, MHD_OPTION_NOTIFY_CONNECTION, on_connection, h,
+                          MHD_OPTION_URI_LOG_CALLBACK, on_uri, h, MHD_OPTION_END);
   if (!h->d) {
     snprintf(err, errsize, "cannot listen on %s:%d (in use, or not permitted)", cfg->bind, cfg->port);
     pthread_mutex_destroy(&h->mu);
+    pthread_mutex_destroy(&h->conn_mu);
     pthread_cond_destroy(&h->stop_cv);
     free(h);
     return NULL;
@@ -577,6 +849,7 @@ void gs_http_stop(gs_http *h) {
   pthread_join(h->reaper, NULL);
   MHD_stop_daemon(h->d);
   pthread_mutex_destroy(&h->mu);
+  pthread_mutex_destroy(&h->conn_mu);
   pthread_cond_destroy(&h->stop_cv);
   free(h);
 }

@@ -4,11 +4,20 @@
  * bake workers, so a city-wide probe list cannot starve interactive
  * requests; and it bakes its cascades privately, so it cannot evict the
  * cascades interactive clients are using. Progress is counted per tile.
- * The result is an EXR in tmp_dir, kept until max_jobs_retained newer
- * jobs have finished; then the oldest finished job and its file go. */
+ * The result is an EXR (0600) in the server's private folder in tmp_dir
+ * (0700, removed at exit, and at the next start if the server was killed),
+ * kept until max_jobs_retained newer jobs have finished; then the oldest
+ * finished job and its file go.
+ *
+ * A job stops between tiles when it is cancelled (DELETE, shutdown) or
+ * outlives job_deadline_s; the tile being baked finishes first (the core
+ * cannot be interrupted yet). */
 #define _POSIX_C_SOURCE 200809L
+#include <dirent.h>
+#include <errno.h>
 #include <fcntl.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,6 +33,8 @@ typedef struct job {
   double t_start;
   char path[1200];          /* result file when done */
   uint64_t order;           /* submission order, for retention */
+  int cancel;               /* stop between tiles (guarded) */
+  int timed_out;            /* stopped by job_deadline_s (guarded) */
   struct job *next;
 } job;
 
@@ -36,6 +47,7 @@ struct gs_jobs {
   uint64_t order;
   int nthreads;
   pthread_t threads[64];
+  char dir[1100];           /* the private folder, or empty */
 };
 
 static void random_id(char id[40]) {
@@ -56,13 +68,24 @@ typedef struct {
   job *jb;
 } prog_ctx;
 
-static void on_tile(void *ctx, size_t tile, size_t probes) {
+/* After each tile: progress, then whether to stop (cancelled, or past the deadline). */
+static int on_tile(void *ctx, size_t tile, size_t probes, gi_error_info *err) {
   prog_ctx *pc = ctx;
+  job *jb = pc->jb;
+  double limit = pc->j->svc->cfg->job_deadline_s;
   pthread_mutex_lock(&pc->j->mu);
-  pc->jb->st.tiles_done = (int)tile + 1;
-  pc->jb->st.probes_done += probes;
-  pc->jb->st.elapsed_s = (gs_now_ms() - pc->jb->t_start) * 1e-3;
+  jb->st.tiles_done = (int)tile + 1;
+  jb->st.probes_done += probes;
+  jb->st.elapsed_s = (gs_now_ms() - jb->t_start) * 1e-3;
+  if (!jb->cancel && jb->st.elapsed_s > limit) jb->timed_out = 1;
+  int stop = jb->cancel || jb->timed_out;
   pthread_mutex_unlock(&pc->j->mu);
+  if (stop && jb->timed_out)
+    snprintf(err->msg, sizeof err->msg, "job: stopped after %zu tile(s): it ran longer than the job deadline of %g s",
+             tile + 1, limit);
+  else if (stop)
+    snprintf(err->msg, sizeof err->msg, "job: cancelled after %zu tile(s)", tile + 1);
+  return stop;
 }
 
 /* Drops the oldest finished jobs beyond the retention limit. Locked. */
@@ -106,6 +129,12 @@ static void run_job(gs_jobs *j, job *jb) {
       gi_exr_extra extra[] = {{"gi.job", jb->st.id}, {"gi.tiles", ntiles}};
       rc = gi_probes_write_exr_ex(path, pr, jb->p.num_points, jb->scene->scene, tiles[0].at, &rep, jb->p.bake.half,
                                   extra, 2, &e);
+      /* The folder is private already; the file is too, for a copy moved out of it. */
+      if (rc == GI_OK && chmod(path, S_IRUSR | S_IWUSR) != 0) {
+        rc = GI_ERR_IO;
+        snprintf(e.msg, sizeof e.msg, "job: cannot make the result private: %s", strerror(errno));
+        unlink(path);
+      }
       if (rc == GI_OK) snprintf(jb->path, sizeof jb->path, "%s", path);
     }
   }
@@ -115,9 +144,11 @@ static void run_job(gs_jobs *j, job *jb) {
   jb->st.elapsed_s = (gs_now_ms() - jb->t_start) * 1e-3;
   if (rc == GI_OK) {
     jb->st.state = GI_JOB_DONE;
+  } else if (jb->cancel) {
+    jb->st.state = GI_JOB_CANCELLED;
   } else {
     jb->st.state = GI_JOB_FAILED;
-    gi_proto_fail(&jb->st.error, gs_status_of(rc), "%s", e.msg[0] ? e.msg : gi_strerror(rc));
+    gi_proto_fail(&jb->st.error, jb->timed_out ? 504 : gs_status_of(rc), "%s", e.msg[0] ? e.msg : gi_strerror(rc));
   }
   /* The points are no longer needed; a retained job keeps only its status. */
   gi_proto_probes_free(&jb->p);
@@ -149,12 +180,72 @@ static void *runner(void *p) {
   return NULL;
 }
 
+/* ---- the private folder ---------------------------------------------------- */
+
+#define DIR_PREFIX "gi-server-jobs."
+
+/* Removes the regular files of a folder we own, then the folder. */
+static void remove_folder(const char *path) {
+  DIR *d = opendir(path);
+  if (!d) return;
+  for (struct dirent *e; (e = readdir(d));) {
+    if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+    struct stat st;
+    if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(st.st_mode))
+      unlinkat(dirfd(d), e->d_name, 0);
+  }
+  closedir(d);
+  rmdir(path);
+}
+
+/* Folders "gi-server-jobs.PID.XXXXXX" in tmp_dir whose server (PID) is gone:
+ * what a killed server left (results and scratch files). Ours only: same
+ * user, real folders, not symbolic links. */
+static void remove_stale(const char *tmp_dir) {
+  DIR *d = opendir(tmp_dir);
+  if (!d) return;
+  for (struct dirent *e; (e = readdir(d));) {
+    if (strncmp(e->d_name, DIR_PREFIX, strlen(DIR_PREFIX))) continue;
+    char *end;
+    long pid = strtol(e->d_name + strlen(DIR_PREFIX), &end, 10);
+    struct stat st;
+    if (*end != '.' || pid <= 0 || pid == (long)getpid()) continue;
+    if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* still running (or not ours to ask) */
+    if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0 || !S_ISDIR(st.st_mode) ||
+        st.st_uid != geteuid())
+      continue;
+    char path[1400];
+    snprintf(path, sizeof path, "%s/%s", tmp_dir, e->d_name);
+    remove_folder(path);
+    fprintf(stderr, "gi-server: removed %s, left by server process %ld which is gone\n", path, pid);
+  }
+  closedir(d);
+}
+
+/* mkdtemp makes the folder 0700: results and scratch files are ours alone. */
+static int make_private_dir(gs_jobs *j) {
+  const char *tmp = j->svc->cfg->tmp_dir[0] ? j->svc->cfg->tmp_dir : "/tmp";
+  remove_stale(tmp);
+  snprintf(j->dir, sizeof j->dir, "%s/" DIR_PREFIX "%ld.XXXXXX", tmp, (long)getpid());
+  if (!mkdtemp(j->dir)) {
+    fprintf(stderr, "gi-server: cannot make a private folder in %s: %s\n", tmp, strerror(errno));
+    j->dir[0] = 0;
+    return -1;
+  }
+  snprintf(j->svc->work_dir, sizeof j->svc->work_dir, "%s", j->dir);
+  return 0;
+}
+
 gs_jobs *gs_jobs_new(gs_service *svc) {
   gs_jobs *j = calloc(1, sizeof *j);
   if (!j) return NULL;
   j->svc = svc;
   pthread_mutex_init(&j->mu, NULL);
   pthread_cond_init(&j->cv, NULL);
+  if (make_private_dir(j)) {
+    gs_jobs_free(j);
+    return NULL;
+  }
   int n = svc->cfg->max_jobs < 64 ? svc->cfg->max_jobs : 64;
   for (int i = 0; i < n; i++)
     if (pthread_create(&j->threads[j->nthreads], NULL, runner, j) == 0) j->nthreads++;
@@ -171,7 +262,8 @@ void gs_jobs_free(gs_jobs *j) {
   j->stop = 1;
   pthread_cond_broadcast(&j->cv);
   pthread_mutex_unlock(&j->mu);
-  /* A running job finishes its bake first: the core cannot be interrupted. */
+  /* A running job stops after its tile (gs_jobs_cancel_all), else finishes:
+   * the core cannot be interrupted inside a bake. */
   for (int i = 0; i < j->nthreads; i++) pthread_join(j->threads[i], NULL);
   for (job *b = j->all, *n; b; b = n) {
     n = b->next;
@@ -179,6 +271,8 @@ void gs_jobs_free(gs_jobs *j) {
     gi_proto_probes_free(&b->p);
     free(b);
   }
+  if (j->dir[0]) remove_folder(j->dir);
+  j->svc->work_dir[0] = 0;
   pthread_mutex_destroy(&j->mu);
   pthread_cond_destroy(&j->cv);
   free(j);
@@ -250,10 +344,12 @@ void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a) {
     return gs_answer_error(a, &pe);
   }
   if (b->st.state != GI_JOB_DONE) {
+    /* Copied under the lock: once it is released, retire() may free b. */
     gi_proto_job_state s = b->st.state;
-    pthread_mutex_unlock(&j->mu);
     if (s == GI_JOB_FAILED) gi_proto_fail(&pe, 409, "job '%s' failed: %s", id, b->st.error.message);
+    else if (s == GI_JOB_CANCELLED) gi_proto_fail(&pe, 409, "job '%s' was cancelled", id);
     else gi_proto_fail(&pe, 409, "job '%s' is %s; poll /v1/jobs/%s", id, gi_proto_job_state_name(s), id);
+    pthread_mutex_unlock(&j->mu);
     return gs_answer_error(a, &pe);
   }
   /* Opened under the lock: retirement cannot unlink it in between. */
@@ -272,10 +368,58 @@ void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a) {
   snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"probes-%s.exr\"", id);
 }
 
-void gs_jobs_count(gs_jobs *j, int by_state[4]) {
-  memset(by_state, 0, 4 * sizeof(int));
+void gs_jobs_count(gs_jobs *j, int by_state[GI_JOB_STATE_COUNT]) {
+  memset(by_state, 0, GI_JOB_STATE_COUNT * sizeof(int));
   pthread_mutex_lock(&j->mu);
   for (job *b = j->all; b; b = b->next)
-    if ((unsigned)b->st.state < 4) by_state[b->st.state]++;
+    if ((unsigned)b->st.state < GI_JOB_STATE_COUNT) by_state[b->st.state]++;
   pthread_mutex_unlock(&j->mu);
+}
+
+/* A queued job ends now, as cancelled. Locked. */
+static void cancel_queued(gs_jobs *j, job *b) {
+  b->st.state = GI_JOB_CANCELLED;
+  b->st.elapsed_s = (gs_now_ms() - b->t_start) * 1e-3;
+  gi_proto_probes_free(&b->p);
+  j->queued--;
+}
+
+void gs_jobs_cancel(gs_jobs *j, const char *id, gs_answer *a) {
+  gi_proto_error pe;
+  pthread_mutex_lock(&j->mu);
+  job *b = find(j, id);
+  if (!b) {
+    pthread_mutex_unlock(&j->mu);
+    gi_proto_fail(&pe, 404, "job '%.40s' is unknown", id);
+    return gs_answer_error(a, &pe);
+  }
+  gi_proto_job_state was = b->st.state;
+  if (was != GI_JOB_QUEUED && was != GI_JOB_RUNNING) {
+    pthread_mutex_unlock(&j->mu);
+    gi_proto_fail(&pe, 409, "job '%s' has already finished (%s)", id, gi_proto_job_state_name(was));
+    return gs_answer_error(a, &pe);
+  }
+  if (was == GI_JOB_QUEUED) cancel_queued(j, b);
+  else b->cancel = 1; /* the runner stops after the tile it is baking */
+  gi_proto_job st = b->st;
+  if (was == GI_JOB_RUNNING) st.elapsed_s = (gs_now_ms() - b->t_start) * 1e-3;
+  if (was == GI_JOB_QUEUED) retire(j); /* may free b: st is a copy */
+  pthread_mutex_unlock(&j->mu);
+  a->status = was == GI_JOB_QUEUED ? 200 : 202;
+  a->json = gi_proto_job_json(&st);
+  a->content_type = "application/json";
+}
+
+void gs_jobs_cancel_all(gs_jobs *j) {
+  pthread_mutex_lock(&j->mu);
+  for (job *b = j->all; b; b = b->next) {
+    if (b->st.state == GI_JOB_QUEUED) cancel_queued(j, b);
+    else if (b->st.state == GI_JOB_RUNNING) b->cancel = 1;
+  }
+  pthread_mutex_unlock(&j->mu);
+}
+
+void gs_jobs_abandon(gs_jobs *j) {
+  /* No lock: the process is about to exit and a runner may hold it. */
+  if (j && j->dir[0]) remove_folder(j->dir);
 }

@@ -30,7 +30,8 @@ static const char help_text[] =
     "  -V, --version   print the version;  -h, --help  this text\n"
     "\n"
     "Environment: GI_SERVER_TOKEN overrides [server] token_file (bearer token).\n"
-    "Exit status: 0 clean shutdown or valid config, 1 start-up failed, 2 bad arguments.\n";
+    "Exit status: 0 clean shutdown or valid config, 1 start-up failed, 2 bad arguments,\n"
+    "3 shutdown forced (a second signal, or work still running after shutdown_grace_s).\n";
 
 static int write_port_file(const char *path, int port) {
   char tmp[1100];
@@ -230,7 +231,9 @@ int main(int argc, char **argv) {
   announce(&cfg, &cat, bound);
   int sig = 0;
   sigwait(&sigs, &sig);
-  fprintf(stderr, "gi-server: %s: finishing running requests, then stopping\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+  fprintf(stderr, "gi-server: %s: stopping: jobs cancelled, requests given shutdown_grace_s\n",
+          sig == SIGINT ? "SIGINT" : "SIGTERM");
+  gs_shutdown_begin(&svc, &sigs);
   stop_service(h, &svc, &cat, &cfg);
   return 0;
 }

@@ -132,8 +132,8 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put_gauge(&b, "gi_queue_capacity", "Requests that may wait before 503.", (double)g->queue_capacity);
   put_gauge(&b, "gi_workers_busy", "Bake workers running a request.", (double)g->workers_busy);
   put(&b, "# HELP gi_jobs Probe jobs by state.\n# TYPE gi_jobs gauge\n");
-  static const char *const js[4] = {"queued", "running", "done", "failed"};
-  for (int i = 0; i < 4; i++) put(&b, "gi_jobs{state=\"%s\"} %d\n", js[i], g->jobs[i]);
+  for (int i = 0; i < GI_JOB_STATE_COUNT; i++)
+    put(&b, "gi_jobs{state=\"%s\"} %d\n", gi_proto_job_state_name((gi_proto_job_state)i), g->jobs[i]);
   put_gauge(&b, "gi_scenes", "Scenes in the catalog.", (double)g->scenes);
   put_gauge(&b, "gi_uptime_seconds", "Seconds since start.", g->uptime_s);
   return b.buf;

@@ -28,7 +28,9 @@ double gs_now_ms(void) {
 
 void gs_tmp_path(gs_service *svc, const char *ext, char *buf, size_t size) {
   unsigned long n = atomic_fetch_add(&svc->tmp_counter, 1);
-  snprintf(buf, size, "%s/gi-server-%ld-%lu%s", svc->cfg->tmp_dir, (long)getpid(), n, ext);
+  /* The private folder (jobs.c, mode 0700) once it exists. */
+  snprintf(buf, size, "%s/gi-server-%ld-%lu%s", svc->work_dir[0] ? svc->work_dir : svc->cfg->tmp_dir, (long)getpid(),
+           n, ext);
 }
 
 int gs_status_of(gi_result rc) {
@@ -174,6 +176,9 @@ typedef struct {
   size_t i;
 } tile_key;
 
+/* Tile indices stay well inside int64_t (2^62). */
+#define GS_MAX_TILE_INDEX 4.6e18
+
 static int cmp_tile(const void *a, const void *b) {
   const tile_key *x = a, *y = b;
   for (int k = 0; k < 3; k++)
@@ -183,6 +188,7 @@ static int cmp_tile(const void *a, const void *b) {
 
 int gs_tiles_make(const gs_scene *s, const gi_quality *q, const double *pts, size_t n, gs_tile **out,
                   size_t *num_tiles) {
+  /* -1: out of memory; -2: a point too far to index its tile. */
   (void)s;
   *out = NULL;
   *num_tiles = 0;
@@ -193,7 +199,15 @@ int gs_tiles_make(const gs_scene *s, const gi_quality *q, const double *pts, siz
   tile_key *k = malloc((n ? n : 1) * sizeof *k);
   if (!k) return -1;
   for (size_t i = 0; i < n; i++) {
-    for (int a = 0; a < 3; a++) k[i].t[a] = (int64_t)floor(pts[3 * i + a] / T);
+    for (int a = 0; a < 3; a++) {
+      /* Converting a double beyond int64 is undefined: such a point has no tile. */
+      double t = floor(pts[3 * i + a] / T);
+      if (!(fabs(t) < GS_MAX_TILE_INDEX)) {
+        free(k);
+        return -2;
+      }
+      k[i].t[a] = (int64_t)t;
+    }
     k[i].i = i;
   }
   qsort(k, n, sizeof *k, cmp_tile);
@@ -234,7 +248,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
                           const double *pts,
                           const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
                           gi_bake_report *rep, gi_timings *ms, gs_cache_how *how_out,
-                          void (*progress)(void *ctx, size_t tile, size_t probes), void *ctx,
+                          int (*progress)(void *ctx, size_t tile, size_t probes, gi_error_info *err), void *ctx,
                           gi_error_info *err) {
   size_t maxn = 0;
   for (size_t t = 0; t < num_tiles; t++) maxn = tiles[t].n > maxn ? tiles[t].n : maxn;
@@ -280,7 +294,8 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
       for (size_t i = 0; i < tl->n; i++) out[tl->idx[i]] = tr[i];
     if (ent) gs_cache_release(svc->cache, ent);
     gi_cascade_free(own);
-    if (rc == GI_OK && progress) progress(ctx, t, tl->n);
+    /* Between tiles: the caller may stop here (job cancelled or past its deadline). */
+    if (rc == GI_OK && progress && progress(ctx, t, tl->n, err) && t + 1 < num_tiles) rc = GI_ERR_LIMIT;
   }
   free(tp);
   free(tr);
@@ -297,6 +312,7 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
   }
   gs_tile *tiles = NULL, one;
   size_t nt = 0;
+  int far = 0;
   size_t *all = NULL;
   if (p->bake.has_at) {
     /* The client chose one cascade for all points. */
@@ -307,12 +323,13 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     one.idx = all;
     one.n = p->num_points;
     nt = 1;
-  } else if (gs_tiles_make(s, &q, p->points, p->num_points, &tiles, &nt) != 0) {
+  } else if ((far = gs_tiles_make(s, &q, p->points, p->num_points, &tiles, &nt) == -2) || !tiles) {
     nt = 0;
   }
   if (nt == 0 || (p->bake.has_at && !all)) {
     gi_proto_error pe;
-    gi_proto_fail(&pe, 503, "probes: out of memory for %zu points", p->num_points);
+    if (far) gi_proto_fail(&pe, 400, "body: points: a point is too far from the scene for voxels of %g", q.voxel0);
+    else gi_proto_fail(&pe, 503, "probes: out of memory for %zu points", p->num_points);
     gs_answer_error(a, &pe);
     free(all);
     gi_proto_probes_free(p);

@@ -15,6 +15,7 @@
 #ifndef GS_SERVER_H
 #define GS_SERVER_H
 
+#include <signal.h>
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -41,6 +42,10 @@ typedef struct gs_config {
   int port;
   int connection_threads, workers, queue, bake_threads;
   double deadline_s;
+  int max_connections_per_ip; /* libmicrohttpd refuses more from one address */
+  double request_timeout_s;   /* headers and body must arrive within this, whatever the pace */
+  double shutdown_grace_s;    /* SIGTERM: exit within this */
+  double job_deadline_s;      /* a job running longer fails between tiles */
   char token[256];      /* empty: no authentication */
   char tmp_dir[1024];
   gi_proto_limits lim;
@@ -99,7 +104,7 @@ void gs_metrics_timeout(gs_metrics *m);
 typedef struct gs_gauges {
   size_t cache_bytes, cache_entries, cache_budget;
   int queue_depth, queue_capacity, workers_busy;
-  int jobs[4];          /* by gi_proto_job_state */
+  int jobs[GI_JOB_STATE_COUNT];  /* by gi_proto_job_state */
   double uptime_s;
   size_t scenes;
 } gs_gauges;
@@ -147,10 +152,14 @@ typedef struct gs_service {
   gs_metrics *metrics;
   double start_ms;
   atomic_ulong tmp_counter;
+  char work_dir[1100];  /* private scratch folder (0700) in tmp_dir, made by gs_jobs_new */
 } gs_service;
 
-/* A fresh scratch path in tmp_dir ending in ext. */
+/* A fresh scratch path in work_dir (else tmp_dir) ending in ext. */
 void gs_tmp_path(gs_service *svc, const char *ext, char *buf, size_t size);
+/* log.c: in written with every byte outside printable ASCII (and '\\') as
+ * \xNN, cut to fit size, so a client's bytes cannot forge a log line. */
+void gs_log_escape(const char *in, char *out, size_t size);
 /* HTTP status for a core error. */
 int gs_status_of(gi_result rc);
 /* Milliseconds on the monotonic clock. */
@@ -187,20 +196,25 @@ typedef struct gs_tile {
   size_t *idx;          /* indices into the point list */
   size_t n;
 } gs_tile;
+/* 0, -1 out of memory, -2 a point too far from the origin to index its tile. */
 int gs_tiles_make(const gs_scene *s, const gi_quality *resolved, const double *pts, size_t n, gs_tile **out,
                   size_t *num_tiles);
 void gs_tiles_free(gs_tile *t, size_t n);
-/* Gathers the points of every tile into probes; progress callback per tile.
+/* Gathers the points of every tile into probes; progress callback per
+ * tile, which returns nonzero to stop before the next tile (GI_ERR_LIMIT,
+ * its message in err).
  * use_cache = 0 bakes privately (batch jobs must not evict interactive views). */
 gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *req, const gi_quality *resolved,
                           const double *pts,
                           const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
                           gi_bake_report *rep, gi_timings *ms, gs_cache_how *how,
-                          void (*progress)(void *ctx, size_t tile, size_t probes), void *ctx,
+                          int (*progress)(void *ctx, size_t tile, size_t probes, gi_error_info *err), void *ctx,
                           gi_error_info *err);
 
 /* ---- jobs.c: long probe lists, run off the worker pool ------------------ */
 
+/* Also makes svc->work_dir (mkdtemp in tmp_dir, 0700) after removing the
+ * folders of earlier servers that are no longer running. */
 gs_jobs *gs_jobs_new(gs_service *svc);
 void gs_jobs_free(gs_jobs *j);
 /* Queues a job (takes ownership of p's points). Returns 0 and the id, or a
@@ -211,7 +225,23 @@ int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_q
 void gs_jobs_status(gs_jobs *j, const char *id, gs_answer *a);
 /* The result EXR (200), 409 when not done, 404 when unknown. */
 void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a);
-void gs_jobs_count(gs_jobs *j, int by_state[4]);
+/* DELETE: a queued job is cancelled at once (200), a running one between
+ * tiles (202); its status JSON either way. 409 when it has finished, 404
+ * when unknown. */
+void gs_jobs_cancel(gs_jobs *j, const char *id, gs_answer *a);
+/* Shutdown: queued and running jobs are cancelled (running ones between tiles). */
+void gs_jobs_cancel_all(gs_jobs *j);
+/* A forced exit: removes the private folder (results, scratch files) now. */
+void gs_jobs_abandon(gs_jobs *j);
+void gs_jobs_count(gs_jobs *j, int by_state[GI_JOB_STATE_COUNT]);
+
+/* ---- shutdown.c: after the first SIGINT/SIGTERM --------------------------- */
+
+/* Exit status when shutdown is forced: a second signal, or shutdown_grace_s passed. */
+#define GS_EXIT_FORCED 3
+/* Cancels the jobs and starts a watchdog that exits the process (status
+ * GS_EXIT_FORCED) on a second signal in sigs or when the grace runs out. */
+void gs_shutdown_begin(gs_service *svc, const sigset_t *sigs);
 
 /* ---- http.c: the front -------------------------------------------------- */
 

@@ -34,7 +34,8 @@ CONTRACT = {
                                          {"at", "kind", "half", "width", "height"} | BAKE_Q)},
     "/v1/scenes/{id}/cascades.vdb": {"get": ({200}, {400, 401, 404, 405, 500, 503, 504}, {"at", "faces"} | BAKE_Q)},
     "/v1/scenes/{id}/probes": {"post": ({200, 202}, {400, 401, 404, 405, 413, 500, 503, 504}, set())},
-    "/v1/jobs/{id}": {"get": ({200}, {401, 404, 405, 500}, set())},
+    "/v1/jobs/{id}": {"get": ({200}, {401, 404, 405, 500}, set()),
+                      "delete": ({200, 202}, {401, 404, 405, 409, 500}, set())},
     "/v1/jobs/{id}/result": {"get": ({200}, {401, 404, 405, 409, 500}, set())},
     "/metrics": {"get": ({200}, {401, 405, 500}, set())},
 }
@@ -125,7 +126,7 @@ def check(doc):
                         p.append("%s 200: headers %s lack %s" % (w, sorted(hdrs), sorted(BAKE_HEADERS - hdrs)))
                     if path.endswith("cascades.vdb") and "Content-Disposition" not in hdrs:
                         p.append("%s 200: no Content-Disposition" % w)
-                elif c == 202 and "Location" not in hdrs:
+                elif c == 202 and m == "post" and "Location" not in hdrs:
                     p.append("%s 202: no Location header" % w)
             params = [resolve(doc, x, p, w) for x in op.get("parameters", [])]
             q = {x.get("name") for x in params if x.get("in") == "query"}
@@ -189,6 +190,7 @@ def main():
         ("probe_samples", lambda d: d["paths"]["/v1/scenes/{id}/lighting"]["get"]["parameters"].remove(
             {"$ref": "#/components/parameters/ProbeSamples"})),
         ("jobs path", lambda d: d["paths"].pop("/v1/jobs/{id}")),
+        ("job cancel", lambda d: d["paths"]["/v1/jobs/{id}"].pop("delete")),
     ]:
         broken = copy.deepcopy(doc)
         breaker(broken)

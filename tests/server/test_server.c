@@ -11,6 +11,7 @@
  * Values are checked against the core called in this process with the same
  * scene and quality: the server must answer exactly what the library bakes. */
 #define _POSIX_C_SOURCE 200809L
+#include "server_util.h"
 #include "test_util.h"
 #include <curl/curl.h>
 #include <errno.h>
@@ -29,197 +30,12 @@
 #include "base/alloc_test.h"
 #include "server.h"
 
-#define TOKEN "test-token-0123456789abcdef"
+#define TOKEN SU_TOKEN
+#define GET(s, path) su_http(s, NULL, path, NULL, TOKEN)
 
-typedef struct {
-  pid_t pid;
-  int port;
-  char dir[512];
-} server;
+static su_server S_main, S_tight, S_deadline;
 
-static server S_main, S_tight, S_deadline;
-
-static void sleep_ms(int ms) {
-  struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
-  nanosleep(&ts, NULL);
-}
-
-/* Writes the config (name.ini) and starts gi-server on an ephemeral port. */
-static int server_start(server *s, const char *name, const char *ini) {
-  snprintf(s->dir, sizeof s->dir, "%s/%s", tu_tmpdir(), name);
-  mkdir(s->dir, 0700);
-  char cfg[600], portf[600], log[600], tok[600];
-  snprintf(cfg, sizeof cfg, "%s/gi-server.ini", s->dir);
-  snprintf(portf, sizeof portf, "%s/port", s->dir);
-  snprintf(log, sizeof log, "%s/server.log", s->dir);
-  snprintf(tok, sizeof tok, "%s/token.txt", s->dir);
-  FILE *f = fopen(cfg, "w");
-  if (!f) return -1;
-  fputs(ini, f);
-  fclose(f);
-  f = fopen(tok, "w");
-  fputs(TOKEN "\n", f);
-  fclose(f);
-  unlink(portf);
-  s->pid = fork();
-  if (s->pid == 0) {
-    FILE *lf = freopen(log, "w", stderr);
-    (void)lf;
-    execl(GI_BIN_DIR "/gi-server", "gi-server", "--config", cfg, "--port", "0", "--port-file", portf, (char *)NULL);
-    _exit(127);
-  }
-  for (int i = 0; i < 600; i++) {
-    f = fopen(portf, "r");
-    if (f) {
-      int ok = fscanf(f, "%d", &s->port) == 1;
-      fclose(f);
-      if (ok && s->port > 0) return 0;
-    }
-    int st;
-    if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
-      fprintf(stderr, "gi-server exited at start (status %d); log: %s\n", st, log);
-      return -1;
-    }
-    sleep_ms(100);
-  }
-  return -1;
-}
-
-/* SIGTERM, then the exit status (0 = clean shutdown). */
-static int server_stop(server *s) {
-  if (s->pid <= 0) return -1;
-  kill(s->pid, SIGTERM);
-  for (int i = 0; i < 600; i++) {
-    int st;
-    if (waitpid(s->pid, &st, WNOHANG) == s->pid) return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-    sleep_ms(100);
-  }
-  kill(s->pid, SIGKILL);
-  waitpid(s->pid, NULL, 0);
-  return -2;
-}
-
-typedef struct {
-  long status;
-  char *body;
-  size_t len;
-  char headers[8192];
-  size_t hlen;
-} resp;
-
-static size_t on_body(char *p, size_t sz, size_t n, void *u) {
-  resp *r = u;
-  char *nb = realloc(r->body, r->len + sz * n + 1);
-  if (!nb) return 0;
-  r->body = nb;
-  memcpy(r->body + r->len, p, sz * n);
-  r->len += sz * n;
-  r->body[r->len] = 0;
-  return sz * n;
-}
-
-static size_t on_header(char *p, size_t sz, size_t n, void *u) {
-  resp *r = u;
-  size_t k = sz * n;
-  if (r->hlen + k < sizeof r->headers) {
-    memcpy(r->headers + r->hlen, p, k);
-    r->hlen += k;
-    r->headers[r->hlen] = 0;
-  }
-  return k;
-}
-
-static CURL *make_req(const server *s, const char *method, const char *path, const char *body, const char *token,
-                      resp *r, struct curl_slist **hdrs) {
-  char url[1024];
-  snprintf(url, sizeof url, "http://127.0.0.1:%d%s", s->port, path);
-  CURL *c = curl_easy_init();
-  curl_easy_setopt(c, CURLOPT_URL, url);
-  curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
-  curl_easy_setopt(c, CURLOPT_WRITEDATA, r);
-  curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_header);
-  curl_easy_setopt(c, CURLOPT_HEADERDATA, r);
-  curl_easy_setopt(c, CURLOPT_TIMEOUT, 120L);
-  *hdrs = NULL;
-  if (token) {
-    char h[256];
-    snprintf(h, sizeof h, "Authorization: Bearer %s", token);
-    *hdrs = curl_slist_append(*hdrs, h);
-  }
-  if (body) {
-    *hdrs = curl_slist_append(*hdrs, "Content-Type: application/json");
-    curl_easy_setopt(c, CURLOPT_POSTFIELDS, body);
-    curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE, (long)strlen(body));
-  }
-  if (method) curl_easy_setopt(c, CURLOPT_CUSTOMREQUEST, method);
-  if (*hdrs) curl_easy_setopt(c, CURLOPT_HTTPHEADER, *hdrs);
-  return c;
-}
-
-static resp http(const server *s, const char *method, const char *path, const char *body, const char *token) {
-  resp r = {0};
-  struct curl_slist *h;
-  CURL *c = make_req(s, method, path, body, token, &r, &h);
-  CURLcode rc = curl_easy_perform(c);
-  if (rc != CURLE_OK) fprintf(stderr, "curl %s: %s\n", path, curl_easy_strerror(rc));
-  assert_int_equal(rc, CURLE_OK);
-  curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &r.status);
-  curl_slist_free_all(h);
-  curl_easy_cleanup(c);
-  return r;
-}
-#define GET(s, path) http(s, NULL, path, NULL, TOKEN)
-
-/* A header's value (case-insensitive name), or NULL. Static buffer. */
-static const char *header(const resp *r, const char *name) {
-  static char val[1024];
-  size_t n = strlen(name);
-  for (const char *p = r->headers; p && *p;) {
-    if (!strncasecmp(p, name, n) && p[n] == ':') {
-      const char *v = p + n + 1;
-      while (*v == ' ') v++;
-      size_t k = strcspn(v, "\r\n");
-      snprintf(val, sizeof val, "%.*s", (int)k, v);
-      return val;
-    }
-    p = strchr(p, '\n');
-    if (p) p++;
-  }
-  return NULL;
-}
-
-/* The JSON error body of an answer: checks its shape and returns its name. */
-static void expect_error(const resp *r, long status, const char *name, const char *needle) {
-  if (r->status != status) fprintf(stderr, "got %ld: %s\n", r->status, r->body ? r->body : "");
-  assert_int_equal(r->status, status);
-  assert_string_equal(header(r, "Content-Type"), "application/json");
-  json_t *o = json_loadb(r->body, r->len, 0, NULL);
-  assert_non_null(o);
-  assert_int_equal(json_integer_value(json_object_get(o, "code")), status);
-  assert_string_equal(json_string_value(json_object_get(o, "name")), name);
-  const char *msg = json_string_value(json_object_get(o, "message"));
-  assert_non_null(msg);
-  if (needle && !strstr(msg, needle)) fprintf(stderr, "message '%s' lacks '%s'\n", msg, needle);
-  if (needle) assert_non_null(strstr(msg, needle));
-  json_decref(o);
-}
-
-/* A counter or gauge from /metrics (sum over label sets when labels is NULL). */
-static double metric(const server *s, const char *name, const char *labels) {
-  resp r = GET(s, "/metrics");
-  assert_int_equal(r.status, 200);
-  double sum = 0;
-  size_t n = strlen(name);
-  for (char *line = strtok(r.body, "\n"); line; line = strtok(NULL, "\n")) {
-    if (line[0] == '#' || strncmp(line, name, n) || (line[n] != ' ' && line[n] != '{')) continue;
-    if (labels && (line[n] != '{' || strncmp(line + n + 1, labels, strlen(labels)))) continue;
-    sum += strtod(strrchr(line, ' ') + 1, NULL);
-  }
-  free(r.body);
-  return sum;
-}
-
-static gi_exr_file *read_exr(const resp *r, const char *name) {
+static gi_exr_file *read_exr(const su_resp *r, const char *name) {
   char path[700];
   snprintf(path, sizeof path, "%s/%s", S_main.dir, name);
   FILE *f = fopen(path, "wb");
@@ -252,7 +68,7 @@ static const gi_quality Q_LOW = {.levels = 5, .res = 16, .cones = 6, .bounces = 
 
 static int setup(void **state) {
   curl_global_init(CURL_GLOBAL_DEFAULT);
-  if (server_start(&S_main, "main",
+  if (su_start(&S_main, "main",
                    SERVER_INI("workers = 2\nqueue = 32\ntoken_file = token.txt\n"
                               "[limits]\nmax_body_bytes = 4096\nmax_probes_inline = 2\nmax_probes_job = 100\n"
                               "max_levels = 6\nmax_res = 32\n")))
@@ -262,36 +78,36 @@ static int setup(void **state) {
 
 static int teardown(void **state) {
   /* A clean SIGTERM shutdown exits 0. */
-  int st = server_stop(&S_main);
+  int st = su_stop(&S_main);
   if (st != 0) fprintf(stderr, "main server exit status %d\n", st);
   curl_global_cleanup();
   return st == 0 ? 0 : -1;
 }
 
 static void test_health_and_auth(void **state) {
-  resp r = http(&S_main, NULL, "/v1/health", NULL, NULL); /* health needs no token */
+  su_resp r = su_http(&S_main, NULL, "/v1/health", NULL, NULL); /* health needs no token */
   assert_int_equal(r.status, 200);
-  assert_non_null(strstr(header(&r, "Server-Timing"), "total;dur="));
+  assert_non_null(strstr(su_header(&r, "Server-Timing"), "total;dur="));
   json_t *o = json_loadb(r.body, r.len, 0, NULL);
   assert_string_equal(json_string_value(json_object_get(o, "status")), "ok");
   assert_int_equal(json_integer_value(json_object_get(o, "scenes")), 1);
   assert_non_null(json_string_value(json_object_get(o, "version")));
   json_decref(o);
   free(r.body);
-  r = http(&S_main, NULL, "/v1/scenes", NULL, NULL);
-  expect_error(&r, 401, "unauthorized", "Bearer");
-  assert_non_null(header(&r, "WWW-Authenticate"));
+  r = su_http(&S_main, NULL, "/v1/scenes", NULL, NULL);
+  su_expect_error(&r, 401, "unauthorized", "Bearer");
+  assert_non_null(su_header(&r, "WWW-Authenticate"));
   free(r.body);
-  r = http(&S_main, NULL, "/v1/scenes", NULL, "test-token-0123456789abcdeX");
-  expect_error(&r, 401, "unauthorized", "not valid");
+  r = su_http(&S_main, NULL, "/v1/scenes", NULL, "test-token-0123456789abcdeX");
+  su_expect_error(&r, 401, "unauthorized", "not valid");
   free(r.body);
-  r = http(&S_main, NULL, "/v1/scenes/city/lighting?at=0,2,0", NULL, "short");
-  expect_error(&r, 401, "unauthorized", NULL);
+  r = su_http(&S_main, NULL, "/v1/scenes/city/lighting?at=0,2,0", NULL, "short");
+  su_expect_error(&r, 401, "unauthorized", NULL);
   free(r.body);
 }
 
 static void test_catalog_and_scene(void **state) {
-  resp r = GET(&S_main, "/v1/scenes");
+  su_resp r = GET(&S_main, "/v1/scenes");
   assert_int_equal(r.status, 200);
   /* Ids only: no path of the server's machine leaks. */
   assert_null(strstr(r.body, S_main.dir));
@@ -325,15 +141,15 @@ static void test_catalog_and_scene(void **state) {
 
 /* The probe the server answers equals the one the core bakes here. */
 static void test_lighting_probe_matches_core(void **state) {
-  resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low");
+  su_resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low");
   assert_int_equal(r.status, 200);
-  assert_string_equal(header(&r, "Content-Type"), "image/x-exr");
-  assert_string_equal(header(&r, "X-GI-Cache"), "miss");
-  const char *timing = header(&r, "Server-Timing");
+  assert_string_equal(su_header(&r, "Content-Type"), "image/x-exr");
+  assert_string_equal(su_header(&r, "X-GI-Cache"), "miss");
+  const char *timing = su_header(&r, "Server-Timing");
   assert_non_null(timing);
   const char *stages[] = {"voxelize;dur=", "inject;dur=", "bounce;dur=", "gather;dur=", "encode;dur=", "total;dur="};
   for (size_t i = 0; i < 6; i++) assert_non_null(strstr(timing, stages[i]));
-  assert_non_null(strstr(header(&r, "X-GI-Effects"), "sun=ran"));
+  assert_non_null(strstr(su_header(&r, "X-GI-Effects"), "sun=ran"));
   gi_exr_file *x = read_exr(&r, "probe.exr");
   assert_int_equal(gi_exr_file_width(x), 1);
   assert_non_null(strstr(gi_exr_file_attr(x, "gi.effects"), "sun=ran"));
@@ -364,28 +180,28 @@ static void test_lighting_probe_matches_core(void **state) {
   free(r.body);
 
   /* A client moving inside the snapped cell is answered from the cache. */
-  double hits = metric(&S_main, "gi_cache_hits_total", NULL), bakes = metric(&S_main, "gi_bakes_total", NULL);
+  double hits = su_metric(&S_main, "gi_cache_hits_total", NULL), bakes = su_metric(&S_main, "gi_bakes_total", NULL);
   r = GET(&S_main, "/v1/scenes/city/lighting?at=31.001,2,29&quality=low");
   assert_int_equal(r.status, 200);
-  assert_string_equal(header(&r, "X-GI-Cache"), "hit");
-  assert_non_null(strstr(header(&r, "Server-Timing"), "voxelize;dur=0.00"));
+  assert_string_equal(su_header(&r, "X-GI-Cache"), "hit");
+  assert_non_null(strstr(su_header(&r, "Server-Timing"), "voxelize;dur=0.00"));
   free(r.body);
-  assert_true(metric(&S_main, "gi_cache_hits_total", NULL) == hits + 1);
-  assert_true(metric(&S_main, "gi_bakes_total", NULL) == bakes);
+  assert_true(su_metric(&S_main, "gi_cache_hits_total", NULL) == hits + 1);
+  assert_true(su_metric(&S_main, "gi_bakes_total", NULL) == bakes);
 }
 
 /* Identical requests in flight are baked once. */
 static void test_coalescing(void **state) {
-  double bakes = metric(&S_main, "gi_bakes_total", NULL), miss = metric(&S_main, "gi_cache_misses_total", NULL);
-  double other = metric(&S_main, "gi_cache_hits_total", NULL) + metric(&S_main, "gi_cache_coalesced_total", NULL);
+  double bakes = su_metric(&S_main, "gi_bakes_total", NULL), miss = su_metric(&S_main, "gi_cache_misses_total", NULL);
+  double other = su_metric(&S_main, "gi_cache_hits_total", NULL) + su_metric(&S_main, "gi_cache_coalesced_total", NULL);
   enum { N = 6 };
   CURLM *m = curl_multi_init();
-  resp r[N];
+  su_resp r[N];
   CURL *c[N];
   struct curl_slist *h[N];
   memset(r, 0, sizeof r);
   for (int i = 0; i < N; i++) {
-    c[i] = make_req(&S_main, NULL, "/v1/scenes/city/lighting?at=-40,3,12&quality=low", NULL, TOKEN, &r[i], &h[i]);
+    c[i] = su_make_req(&S_main, NULL, "/v1/scenes/city/lighting?at=-40,3,12&quality=low", NULL, TOKEN, &r[i], &h[i]);
     curl_multi_add_handle(m, c[i]);
   }
   int running = 1;
@@ -402,23 +218,23 @@ static void test_coalescing(void **state) {
     free(r[i].body);
   }
   curl_multi_cleanup(m);
-  double b = metric(&S_main, "gi_bakes_total", NULL) - bakes;
+  double b = su_metric(&S_main, "gi_bakes_total", NULL) - bakes;
   printf("  %d identical requests: %g bake(s)\n", N, b);
   assert_true(b == 1);
-  assert_true(metric(&S_main, "gi_cache_misses_total", NULL) == miss + 1);
-  assert_true(metric(&S_main, "gi_cache_hits_total", NULL) + metric(&S_main, "gi_cache_coalesced_total", NULL) ==
+  assert_true(su_metric(&S_main, "gi_cache_misses_total", NULL) == miss + 1);
+  assert_true(su_metric(&S_main, "gi_cache_hits_total", NULL) + su_metric(&S_main, "gi_cache_coalesced_total", NULL) ==
               other + N - 1);
 }
 
 /* effects= overrides the plan: a different cascade, said in the header, and less light. */
 static void test_effect_override(void **state) {
-  resp a = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low");
-  resp b = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&effects=sky:off");
+  su_resp a = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low");
+  su_resp b = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&effects=sky:off");
   assert_int_equal(a.status, 200);
   assert_int_equal(b.status, 200);
-  assert_non_null(strstr(header(&a, "X-GI-Effects"), "sky=ran"));
-  assert_non_null(strstr(header(&b, "X-GI-Effects"), "sky=skipped"));
-  assert_string_equal(header(&b, "X-GI-Cache"), "miss");
+  assert_non_null(strstr(su_header(&a, "X-GI-Effects"), "sky=ran"));
+  assert_non_null(strstr(su_header(&b, "X-GI-Effects"), "sky=skipped"));
+  assert_string_equal(su_header(&b, "X-GI-Cache"), "miss");
   gi_exr_file *xa = read_exr(&a, "fx_a.exr"), *xb = read_exr(&b, "fx_b.exr");
   assert_non_null(strstr(gi_exr_file_attr(xb, "gi.effects"), "sky=skipped (turned off by the request)"));
   float ea = gi_exr_file_channel(xa, "B")[0], eb = gi_exr_file_channel(xb, "B")[0];
@@ -431,7 +247,7 @@ static void test_effect_override(void **state) {
 }
 
 static void test_panorama(void **state) {
-  resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&kind=panorama&width=32&height=16");
+  su_resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&kind=panorama&width=32&height=16");
   assert_int_equal(r.status, 200);
   gi_exr_file *x = read_exr(&r, "pano.exr");
   assert_int_equal(gi_exr_file_width(x), 32);
@@ -462,10 +278,10 @@ static void test_panorama(void **state) {
 }
 
 static void test_cascades_vdb(void **state) {
-  resp r = GET(&S_main, "/v1/scenes/city/cascades.vdb?at=31,2,29&levels=3&res=16&voxel=0.5&bounces=0");
+  su_resp r = GET(&S_main, "/v1/scenes/city/cascades.vdb?at=31,2,29&levels=3&res=16&voxel=0.5&bounces=0");
   assert_int_equal(r.status, 200);
-  assert_string_equal(header(&r, "Content-Type"), "application/octet-stream");
-  assert_non_null(strstr(header(&r, "Content-Disposition"), "city-cascades.vdb"));
+  assert_string_equal(su_header(&r, "Content-Type"), "application/octet-stream");
+  assert_non_null(strstr(su_header(&r, "Content-Disposition"), "city-cascades.vdb"));
   char path[700];
   snprintf(path, sizeof path, "%s/snap.vdb", S_main.dir);
   FILE *f = fopen(path, "wb");
@@ -494,7 +310,7 @@ static void test_cascades_vdb(void **state) {
 }
 
 static void test_probes_inline_and_job(void **state) {
-  resp r = http(&S_main, "POST", "/v1/scenes/city/probes", "{\"points\":[[31,2,29],[31.2,2,29.1]],\"quality\":\"low\"}",
+  su_resp r = su_http(&S_main, "POST", "/v1/scenes/city/probes", "{\"points\":[[31,2,29],[31.2,2,29.1]],\"quality\":\"low\"}",
                 TOKEN);
   assert_int_equal(r.status, 200);
   gi_exr_file *x = read_exr(&r, "probes.exr");
@@ -505,7 +321,7 @@ static void test_probes_inline_and_job(void **state) {
   free(r.body);
 
   /* Over max_probes_inline (2): a job. */
-  r = http(&S_main, "POST", "/v1/scenes/city/probes",
+  r = su_http(&S_main, "POST", "/v1/scenes/city/probes",
            "{\"points\":[[31,2,29],[60,2,29],[90,2,29],[120,2,29],[-20,2,-40]],\"quality\":\"low\",\"half\":true}",
            TOKEN);
   assert_int_equal(r.status, 202);
@@ -514,7 +330,7 @@ static void test_probes_inline_and_job(void **state) {
   snprintf(id, sizeof id, "%s", json_string_value(json_object_get(o, "job")));
   json_decref(o);
   snprintf(loc, sizeof loc, "/v1/jobs/%s", id);
-  assert_string_equal(header(&r, "Location"), loc);
+  assert_string_equal(su_header(&r, "Location"), loc);
   free(r.body);
   int done = 0;
   for (int i = 0; i < 600 && !done; i++) {
@@ -533,7 +349,7 @@ static void test_probes_inline_and_job(void **state) {
     }
     json_decref(o);
     free(r.body);
-    if (!done) sleep_ms(100);
+    if (!done) su_sleep_ms(100);
   }
   assert_true(done);
   char res[160];
@@ -548,7 +364,7 @@ static void test_probes_inline_and_job(void **state) {
   gi_exr_file_free(x);
   free(r.body);
   r = GET(&S_main, "/v1/jobs/000000000000000000000000/result");
-  expect_error(&r, 404, "not_found", "unknown");
+  su_expect_error(&r, 404, "not_found", "unknown");
   free(r.body);
 }
 
@@ -571,9 +387,9 @@ static void test_errors(void **state) {
       {NULL, "/v1/health?verbose=1", NULL, 400, "bad_request", "'verbose'"},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-    resp r = http(&S_main, cases[i].method, cases[i].path, cases[i].body, TOKEN);
-    expect_error(&r, cases[i].status, cases[i].name, cases[i].needle);
-    if (cases[i].status == 405) assert_non_null(header(&r, "Allow"));
+    su_resp r = su_http(&S_main, cases[i].method, cases[i].path, cases[i].body, TOKEN);
+    su_expect_error(&r, cases[i].status, cases[i].name, cases[i].needle);
+    if (cases[i].status == 405) assert_non_null(su_header(&r, "Allow"));
     free(r.body);
   }
   /* 413: a body over max_body_bytes (4096), and more points than max_probes_job (100). */
@@ -581,19 +397,19 @@ static void test_errors(void **state) {
   strcpy(big, "{\"points\":[");
   for (int i = 0; i < 900; i++) strcat(big, i ? ",[1,2,3]" : "[1,2,3]");
   strcat(big, "]}");
-  resp r = http(&S_main, "POST", "/v1/scenes/city/probes", big, TOKEN);
-  expect_error(&r, 413, "payload_too_large", "4096");
+  su_resp r = su_http(&S_main, "POST", "/v1/scenes/city/probes", big, TOKEN);
+  su_expect_error(&r, 413, "payload_too_large", "4096");
   free(r.body);
   strcpy(big, "{\"points\":[");
   for (int i = 0; i < 101; i++) strcat(big, i ? ",[1,2,3]" : "[1,2,3]");
   strcat(big, "]}");
-  r = http(&S_main, "POST", "/v1/scenes/city/probes", big, TOKEN);
-  expect_error(&r, 413, "payload_too_large", "101 points");
+  r = su_http(&S_main, "POST", "/v1/scenes/city/probes", big, TOKEN);
+  su_expect_error(&r, 413, "payload_too_large", "101 points");
   free(r.body);
   free(big);
   /* Every answer above was counted, and the server is still healthy. */
-  assert_true(metric(&S_main, "gi_requests_total", "endpoint=\"lighting\",code=\"400\"") >= 5);
-  r = http(&S_main, NULL, "/v1/health", NULL, NULL);
+  assert_true(su_metric(&S_main, "gi_requests_total", "endpoint=\"lighting\",code=\"400\"") >= 5);
+  r = su_http(&S_main, NULL, "/v1/health", NULL, NULL);
   assert_int_equal(r.status, 200);
   free(r.body);
 }
@@ -602,17 +418,17 @@ static void test_errors(void **state) {
 static void test_overload(void **state) {
   /* 8 MiB holds one quality=low cascade (5 x 16^3 voxels, 4.4 MiB): the
    * second bake must evict the first. */
-  assert_int_equal(server_start(&S_tight, "tight", SERVER_INI("workers = 1\nqueue = 1\n[limits]\ncache_mb = 8\n")), 0);
+  assert_int_equal(su_start(&S_tight, "tight", SERVER_INI("workers = 1\nqueue = 1\n[limits]\ncache_mb = 8\n")), 0);
   enum { N = 64 };
   CURLM *m = curl_multi_init();
-  static resp r[N];
+  static su_resp r[N];
   CURL *c[N];
   struct curl_slist *h[N];
   memset(r, 0, sizeof r);
   for (int i = 0; i < N; i++) {
     char path[160];
     snprintf(path, sizeof path, "/v1/scenes/city/lighting?at=%d,2,%d&quality=low", -140 + 4 * i, 7 * (i % 9));
-    c[i] = make_req(&S_tight, NULL, path, NULL, NULL, &r[i], &h[i]);
+    c[i] = su_make_req(&S_tight, NULL, path, NULL, NULL, &r[i], &h[i]);
     curl_multi_add_handle(m, c[i]);
   }
   int running = 1;
@@ -625,11 +441,11 @@ static void test_overload(void **state) {
     curl_easy_getinfo(c[i], CURLINFO_RESPONSE_CODE, &r[i].status);
     if (r[i].status == 200) {
       ok++;
-      assert_string_equal(header(&r[i], "Content-Type"), "image/x-exr");
+      assert_string_equal(su_header(&r[i], "Content-Type"), "image/x-exr");
     } else {
       busy++;
-      expect_error(&r[i], 503, "overloaded", "busy");
-      assert_string_equal(header(&r[i], "Retry-After"), "1");
+      su_expect_error(&r[i], 503, "overloaded", "busy");
+      assert_string_equal(su_header(&r[i], "Retry-After"), "1");
     }
     curl_multi_remove_handle(m, c[i]);
     curl_easy_cleanup(c[i]);
@@ -640,31 +456,31 @@ static void test_overload(void **state) {
   printf("  64 parallel viewpoints on 1 worker + 1 queue slot: %d x 200, %d x 503\n", ok, busy);
   assert_int_equal(ok + busy, N);
   assert_true(ok >= 2 && busy >= 1);
-  assert_true(metric(&S_tight, "gi_rejected_total", NULL) == busy);
-  double evicted = metric(&S_tight, "gi_cache_evictions_total", NULL), held = metric(&S_tight, "gi_cache_bytes", NULL);
+  assert_true(su_metric(&S_tight, "gi_rejected_total", NULL) == busy);
+  double evicted = su_metric(&S_tight, "gi_cache_evictions_total", NULL), held = su_metric(&S_tight, "gi_cache_bytes", NULL);
   printf("  cache of 8 MiB: %g evictions, %.0f bytes held\n", evicted, held);
   assert_true(evicted >= ok - 1);
   assert_true(held > 0 && held <= 8 << 20);
-  resp hr = http(&S_tight, NULL, "/v1/health", NULL, NULL);
+  su_resp hr = su_http(&S_tight, NULL, "/v1/health", NULL, NULL);
   assert_int_equal(hr.status, 200);
   free(hr.body);
-  assert_int_equal(server_stop(&S_tight), 0);
+  assert_int_equal(su_stop(&S_tight), 0);
 }
 
 /* A request past its deadline is a 504; the bake it started still lands in the cache. */
 static void test_deadline(void **state) {
-  assert_int_equal(server_start(&S_deadline, "deadline", SERVER_INI("workers = 1\nqueue = 4\ndeadline_s = 0.2\n")), 0);
+  assert_int_equal(su_start(&S_deadline, "deadline", SERVER_INI("workers = 1\nqueue = 4\ndeadline_s = 0.2\n")), 0);
   const char *path = "/v1/scenes/city/lighting?at=12,2,-33&levels=6&res=32&bounces=2";
-  resp r = http(&S_deadline, NULL, path, NULL, NULL);
-  expect_error(&r, 504, "timeout", "deadline");
+  su_resp r = su_http(&S_deadline, NULL, path, NULL, NULL);
+  su_expect_error(&r, 504, "timeout", "deadline");
   free(r.body);
-  for (int i = 0; i < 600 && metric(&S_deadline, "gi_bakes_total", NULL) < 1; i++) sleep_ms(100);
-  assert_true(metric(&S_deadline, "gi_timeouts_total", NULL) == 1);
-  r = http(&S_deadline, NULL, path, NULL, NULL);
+  for (int i = 0; i < 600 && su_metric(&S_deadline, "gi_bakes_total", NULL) < 1; i++) su_sleep_ms(100);
+  assert_true(su_metric(&S_deadline, "gi_timeouts_total", NULL) == 1);
+  r = su_http(&S_deadline, NULL, path, NULL, NULL);
   assert_int_equal(r.status, 200);
-  assert_string_equal(header(&r, "X-GI-Cache"), "hit");
+  assert_string_equal(su_header(&r, "X-GI-Cache"), "hit");
   free(r.body);
-  assert_int_equal(server_stop(&S_deadline), 0);
+  assert_int_equal(su_stop(&S_deadline), 0);
 }
 
 /* In-process: a bake that runs out of memory is a 503 and is not cached;

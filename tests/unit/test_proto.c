@@ -122,6 +122,74 @@ static void test_rejections(void **state) {
   expect_fail(KV({"at", "0,0,0"}, {"half", "yes"}), 2, 400, "0 or 1");
 }
 
+/* Integers are integers, values are whole, and finite-but-huge is "out of range" (issue 15, item 7). */
+static void test_strict_numbers(void **state) {
+  const char *not_int[] = {"64.0", "6.4e1", "1e0", "+8", "0x10", " 8", "8 ", "1_0"};
+  for (size_t i = 0; i < sizeof not_int / sizeof not_int[0]; i++) {
+    expect_fail(KV({"at", "0,0,0"}, {"res", not_int[i]}), 2, 400, "parameter 'res': expected an integer");
+    expect_fail(KV({"at", "0,0,0"}, {"levels", not_int[i]}), 2, 400, "parameter 'levels': expected an integer");
+  }
+  expect_fail(KV({"at", "0,0,0"}, {"res", "032"}), 2, 400, "parameter 'res': expected an integer without leading zeros");
+  expect_fail(KV({"at", "0,0,0"}, {"seed", "00"}), 2, 400, "parameter 'seed': expected an integer without leading zeros");
+  expect_fail(KV({"at", "0,0,0"}, {"seed", "99999999999999999999999"}), 2, 400, "parameter 'seed': expected 1..2^53, got 99999999999999999999999 (out of range)");
+  expect_fail(KV({"at", "0,0,0"}, {"bounces", "-1"}), 2, 400, "parameter 'bounces': expected 0..8, got -1 (out of range)");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "panorama"}, {"width", "64.0"}), 3, 400, "parameter 'width': expected an integer");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "panorama"}, {"width", "20000"}), 3, 400,
+              "parameter 'width': expected an integer in 1..16384, got '20000' (out of range)");
+  /* Finite but too large is "out of range", never "not finite". */
+  expect_fail(KV({"at", "1e300,0,0"}), 1, 400, "parameter 'at': out of range");
+  expect_fail(KV({"at", "0,0,-2e30"}), 1, 400, "parameter 'at': out of range");
+  expect_fail(KV({"at", "1e999,0,0"}), 1, 400, "parameter 'at': out of range");
+  expect_fail(KV({"at", "0,0,0"}, {"voxel", "1e400"}), 2, 400, "parameter 'voxel': '1e400' is out of range");
+  expect_fail(KV({"at", "0,0,0"}, {"voxel", "1e300"}), 2, 400, "parameter 'voxel': expected a voxel size in (0, 1e7], got 1e+300 (out of range)");
+  /* A value that is not a multiple of 4 is wrong, not out of range. */
+  expect_fail(KV({"at", "0,0,0"}, {"res", "30"}), 2, 400, "got 30");
+  {
+    gi_proto_limits l = lim();
+    gi_proto_bake b;
+    gi_proto_error e = {0};
+    gi_proto_kv kv[] = {{"at", "0,0,0"}, {"res", "30"}};
+    assert_int_equal(gi_proto_parse_lighting(kv, 2, &l, &b, &e), 400);
+    assert_null(strstr(e.message, "out of range"));
+  }
+  /* Trailing bytes after the third number. */
+  expect_fail(KV({"at", "1,2,3garbage"}), 1, 400, "parameter 'at': expected three finite numbers");
+  expect_fail(KV({"at", "1,2,3,"}), 1, 400, "parameter 'at'");
+  /* What stays valid: 0, negative coordinates, exponents in reals, the largest seed. */
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv ok[] = {{"at", "-1e29,0,2.5e-3"}, {"bounces", "0"}, {"voxel", "2.5e-1"}, {"seed", "9007199254740992"}};
+  assert_int_equal(gi_proto_parse_lighting(ok, NKV(ok), &l, &b, &e), 0);
+  assert_true(b.at[0] == -1e29 && b.at[2] == 2.5e-3);
+  assert_true(b.quality.voxel0 == 0.25);
+  assert_true(b.quality.seed == 9007199254740992ull);
+  /* The body keeps 64 and 64.0 apart too. */
+  gi_proto_probes p;
+  const char *bad[][2] = {
+      {"{\"points\":[[1,2,3]],\"quality\":{\"res\":16.0}}", "quality.res: expected an integer"},
+      {"{\"points\":[[1,2,3]],\"quality\":{\"levels\":1e0}}", "quality.levels: expected an integer"},
+      {"{\"points\":[[1e300,2,3]]}", "points[0]: out of range"},
+      {"{\"points\":[[1,2,3]],\"at\":[0,0,1e31]}", "'at': out of range"},
+      {"{\"points\":[[1,2,3]],\"quality\":{\"effects\":\"sky:off,sky:on\"}}", "effect 'sky' given twice"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    int st = gi_proto_parse_probes(bad[i][0], strlen(bad[i][0]), &l, &p, &e);
+    if (st != 400 || !strstr(e.message, bad[i][1])) fprintf(stderr, "body %zu: got %d '%s'\n", i, st, e.message);
+    assert_int_equal(st, 400);
+    assert_non_null(strstr(e.message, bad[i][1]));
+  }
+}
+
+/* Effects: each entry once, none empty. */
+static void test_effects_strict(void **state) {
+  expect_fail(KV({"at", "0,0,0"}, {"effects", "sky:off,sky:on"}), 2, 400, "parameter 'effects': effect 'sky' given twice");
+  expect_fail(KV({"at", "0,0,0"}, {"effects", "sky:off,sky:off"}), 2, 400, "given twice");
+  const char *empty[] = {",,,,", ",sky:off", "sky:off,", "sky:off,,sun:on", ","};
+  for (size_t i = 0; i < sizeof empty / sizeof empty[0]; i++)
+    expect_fail(KV({"at", "0,0,0"}, {"effects", empty[i]}), 2, 400, "parameter 'effects': empty entry");
+}
+
 static void test_cascades(void **state) {
   gi_proto_limits l = lim();
   gi_proto_bake b;
@@ -239,7 +307,8 @@ static void test_headers(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_lighting_ok),   cmocka_unit_test(test_preset_then_override),
-      cmocka_unit_test(test_effects),
+      cmocka_unit_test(test_effects),       cmocka_unit_test(test_strict_numbers),
+      cmocka_unit_test(test_effects_strict),
       cmocka_unit_test(test_panorama),      cmocka_unit_test(test_rejections),
       cmocka_unit_test(test_cascades),      cmocka_unit_test(test_probes_body),
       cmocka_unit_test(test_error_roundtrip), cmocka_unit_test(test_job_roundtrip),

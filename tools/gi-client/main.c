@@ -467,9 +467,10 @@ static int wait_job(const gc_opts *o, CURL *c, const char *id) {
     }
     const char *state = gi_proto_job_state_name(j.state);
     double frac = j.probes ? (double)j.probes_done / (double)j.probes : 0;
-    if (j.state == GI_JOB_FAILED) {
+    if (j.state == GI_JOB_FAILED || j.state == GI_JOB_CANCELLED) {
       progress_end(&pg);
-      fprintf(stderr, "gi-client: job %s failed: %s: %s\n", id, j.error.name, j.error.message);
+      if (j.state == GI_JOB_CANCELLED) fprintf(stderr, "gi-client: job %s was cancelled\n", id);
+      else fprintf(stderr, "gi-client: job %s failed: %s: %s\n", id, j.error.name, j.error.message);
       goto done;
     }
     progress_show(&pg, id, state, frac, (long long)j.probes_done, (long long)j.probes, now_s() - t0);

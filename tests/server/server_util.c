@@ -1,0 +1,254 @@
+/* server_util.c: see server_util.h. */
+#define _POSIX_C_SOURCE 200809L
+#include "server_util.h"
+#include "test_util.h"
+#include <arpa/inet.h>
+#include <curl/curl.h>
+#include <errno.h>
+#include <jansson.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+void su_sleep_ms(int ms) {
+  struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+  nanosleep(&ts, NULL);
+}
+
+double su_now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+int su_start(su_server *s, const char *name, const char *ini) {
+  snprintf(s->dir, sizeof s->dir, "%s/%s", tu_tmpdir(), name);
+  mkdir(s->dir, 0700);
+  char cfg[600], portf[600], log[600], tok[600];
+  snprintf(cfg, sizeof cfg, "%s/gi-server.ini", s->dir);
+  snprintf(portf, sizeof portf, "%s/port", s->dir);
+  snprintf(log, sizeof log, "%s/server.log", s->dir);
+  snprintf(tok, sizeof tok, "%s/token.txt", s->dir);
+  FILE *f = fopen(cfg, "w");
+  if (!f) return -1;
+  fputs(ini, f);
+  fclose(f);
+  f = fopen(tok, "w");
+  fputs(SU_TOKEN "\n", f);
+  fclose(f);
+  unlink(portf);
+  /* Else the child would write the parent's pending output a second time. */
+  fflush(stdout);
+  fflush(stderr);
+  s->pid = fork();
+  if (s->pid == 0) {
+    FILE *lf = freopen(log, "a", stderr);
+    lf = lf ? freopen(log, "a", stdout) : lf; /* its banner too: the test's output stays the test's */
+    (void)lf;
+    execl(GI_BIN_DIR "/gi-server", "gi-server", "--config", cfg, "--port", "0", "--port-file", portf, (char *)NULL);
+    _exit(127);
+  }
+  for (int i = 0; i < 600; i++) {
+    f = fopen(portf, "r");
+    if (f) {
+      int ok = fscanf(f, "%d", &s->port) == 1;
+      fclose(f);
+      if (ok && s->port > 0) return 0;
+    }
+    int st;
+    if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
+      fprintf(stderr, "gi-server exited at start (status %d); log: %s\n", st, log);
+      s->pid = 0;
+      return -1;
+    }
+    su_sleep_ms(100);
+  }
+  return -1;
+}
+
+int su_signal_wait(su_server *s, int sig, int wait_ms, double *ms) {
+  if (s->pid <= 0) return -1;
+  double t0 = su_now_ms();
+  kill(s->pid, sig);
+  while (su_now_ms() - t0 < wait_ms) {
+    int st;
+    if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
+      if (ms) *ms = su_now_ms() - t0;
+      s->pid = 0;
+      return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    }
+    su_sleep_ms(5);
+  }
+  if (ms) *ms = su_now_ms() - t0;
+  kill(s->pid, SIGKILL);
+  waitpid(s->pid, NULL, 0);
+  s->pid = 0;
+  return -2;
+}
+
+int su_stop(su_server *s) { return su_signal_wait(s, SIGTERM, 60000, NULL); }
+
+static size_t on_body(char *p, size_t sz, size_t n, void *u) {
+  su_resp *r = u;
+  char *nb = realloc(r->body, r->len + sz * n + 1);
+  if (!nb) return 0;
+  r->body = nb;
+  memcpy(r->body + r->len, p, sz * n);
+  r->len += sz * n;
+  r->body[r->len] = 0;
+  return sz * n;
+}
+
+static size_t on_header(char *p, size_t sz, size_t n, void *u) {
+  su_resp *r = u;
+  size_t k = sz * n;
+  if (r->hlen + k < sizeof r->headers) {
+    memcpy(r->headers + r->hlen, p, k);
+    r->hlen += k;
+    r->headers[r->hlen] = 0;
+  }
+  return k;
+}
+
+CURL *su_make_req(const su_server *s, const char *method, const char *path, const char *body, const char *token,
+                  su_resp *r, struct curl_slist **hdrs) {
+  char url[16384];
+  snprintf(url, sizeof url, "http://127.0.0.1:%d%s", s->port, path);
+  CURL *c = curl_easy_init();
+  curl_easy_setopt(c, CURLOPT_URL, url);
+  curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
+  curl_easy_setopt(c, CURLOPT_WRITEDATA, r);
+  curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_header);
+  curl_easy_setopt(c, CURLOPT_HEADERDATA, r);
+  curl_easy_setopt(c, CURLOPT_TIMEOUT, 120L);
+  *hdrs = NULL;
+  if (token) {
+    char h[256];
+    snprintf(h, sizeof h, "Authorization: Bearer %s", token);
+    *hdrs = curl_slist_append(*hdrs, h);
+  }
+  if (body) {
+    *hdrs = curl_slist_append(*hdrs, "Content-Type: application/json");
+    curl_easy_setopt(c, CURLOPT_POSTFIELDS, body);
+    curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE, (long)strlen(body));
+  }
+  if (method) curl_easy_setopt(c, CURLOPT_CUSTOMREQUEST, method);
+  if (*hdrs) curl_easy_setopt(c, CURLOPT_HTTPHEADER, *hdrs);
+  return c;
+}
+
+su_resp su_http(const su_server *s, const char *method, const char *path, const char *body, const char *token) {
+  su_resp r = {0};
+  struct curl_slist *h;
+  CURL *c = su_make_req(s, method, path, body, token, &r, &h);
+  CURLcode rc = curl_easy_perform(c);
+  if (rc != CURLE_OK) fprintf(stderr, "curl %.200s: %s\n", path, curl_easy_strerror(rc));
+  assert_int_equal(rc, CURLE_OK);
+  curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &r.status);
+  curl_slist_free_all(h);
+  curl_easy_cleanup(c);
+  return r;
+}
+
+const char *su_header(const su_resp *r, const char *name) {
+  static char val[1024];
+  size_t n = strlen(name);
+  for (const char *p = r->headers; p && *p;) {
+    if (!strncasecmp(p, name, n) && p[n] == ':') {
+      const char *v = p + n + 1;
+      while (*v == ' ') v++;
+      size_t k = strcspn(v, "\r\n");
+      snprintf(val, sizeof val, "%.*s", (int)k, v);
+      return val;
+    }
+    p = strchr(p, '\n');
+    if (p) p++;
+  }
+  return NULL;
+}
+
+void su_expect_error(const su_resp *r, long status, const char *name, const char *needle) {
+  if (r->status != status) fprintf(stderr, "got %ld: %s\n", r->status, r->body ? r->body : "");
+  assert_int_equal(r->status, status);
+  assert_string_equal(su_header(r, "Content-Type"), "application/json");
+  json_t *o = json_loadb(r->body, r->len, 0, NULL);
+  assert_non_null(o);
+  assert_int_equal(json_integer_value(json_object_get(o, "code")), status);
+  assert_string_equal(json_string_value(json_object_get(o, "name")), name);
+  const char *msg = json_string_value(json_object_get(o, "message"));
+  assert_non_null(msg);
+  if (needle && !strstr(msg, needle)) fprintf(stderr, "message '%s' lacks '%s'\n", msg, needle);
+  if (needle) assert_non_null(strstr(msg, needle));
+  json_decref(o);
+}
+
+double su_metric(const su_server *s, const char *name, const char *labels) {
+  su_resp r = su_http(s, NULL, "/metrics", NULL, SU_TOKEN);
+  assert_int_equal(r.status, 200);
+  double sum = 0;
+  size_t n = strlen(name);
+  for (char *line = strtok(r.body, "\n"); line; line = strtok(NULL, "\n")) {
+    if (line[0] == '#' || strncmp(line, name, n) || (line[n] != ' ' && line[n] != '{')) continue;
+    if (labels && (line[n] != '{' || strncmp(line + n + 1, labels, strlen(labels)))) continue;
+    sum += strtod(strrchr(line, ' ') + 1, NULL);
+  }
+  free(r.body);
+  return sum;
+}
+
+double su_rss_mb(const su_server *s) {
+  char path[64], line[256];
+  snprintf(path, sizeof path, "/proc/%d/status", (int)s->pid);
+  FILE *f = fopen(path, "r");
+  if (!f) return -1;
+  double kb = -1;
+  while (fgets(line, sizeof line, f))
+    if (!strncmp(line, "VmRSS:", 6)) kb = strtod(line + 6, NULL);
+  fclose(f);
+  return kb < 0 ? -1 : kb / 1024.0;
+}
+
+int su_connect(const su_server *s, const char *src) {
+  int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return -1;
+  if (src) {
+    struct sockaddr_in a = {.sin_family = AF_INET};
+    inet_pton(AF_INET, src, &a.sin_addr);
+    if (bind(fd, (struct sockaddr *)&a, sizeof a) != 0) {
+      close(fd);
+      return -1;
+    }
+  }
+  struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)s->port)};
+  inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
+  if (connect(fd, (struct sockaddr *)&a, sizeof a) != 0) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+long su_read(int fd, char *buf, size_t size, int ms) {
+  size_t n = 0;
+  double end = su_now_ms() + ms;
+  while (n + 1 < size) {
+    int left = (int)(end - su_now_ms());
+    if (left <= 0) break;
+    struct pollfd p = {fd, POLLIN, 0};
+    if (poll(&p, 1, left) <= 0) break;
+    ssize_t k = recv(fd, buf + n, size - 1 - n, 0);
+    if (k <= 0) break;
+    n += (size_t)k;
+  }
+  buf[n] = 0;
+  return (long)n;
+}

@@ -1,0 +1,604 @@
+/* test_hostile.c: gi-server under hostile load (issue 15), on loopback.
+ *
+ * Each test asserts the fixed behaviour with figures it prints:
+ *   strict parsing    integers, NUL bytes, effects, "out of range", 500
+ *                     repeated parameters, framing, the bearer scheme;
+ *   log escaping      a CR LF in a path is one escaped log line;
+ *   auth first        401/413 from the headers, without 100 Continue, and
+ *                     900 unauthenticated 1 MB POSTs leave RSS < 150 MB;
+ *   slow clients      1,100 connections sending a byte a second from one
+ *                     address: the per-address limit refuses most, the
+ *                     request deadline closes the rest, /v1/health from a
+ *                     second address answers within 100 ms throughout;
+ *   jobs              DELETE cancels (queued at once, running between
+ *                     tiles), the job deadline, private result files,
+ *                     stale folders removed, SIGTERM within the grace. */
+#define _POSIX_C_SOURCE 200809L
+#include "server_util.h"
+#include "test_util.h"
+#include <curl/curl.h>
+#include <dirent.h>
+#include <errno.h>
+#include <jansson.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+/* A small city, one bake worker, a 3 s request deadline and 16 connections per address. */
+#define HOSTILE_INI(extra)                                                                          \
+  "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\nworkers = 1\nqueue = 8\n"          \
+  "bake_threads = 1\ntmp_dir = .\ntoken_file = token.txt\nrequest_timeout_s = 3\n"                  \
+  "max_connections_per_ip = 16\n" extra "\n[scene city]\nsource = city\nextent = 300\n"
+#define REQUEST_TIMEOUT_MS 3000
+#define PER_IP_LIMIT 16
+/* Points 5 m apart along a street: each one its own quality=low tile (about 4.7 m). */
+#define TILE_SPACING 5.0
+
+static su_server S;
+
+static int setup(void **state) {
+  curl_global_init(CURL_GLOBAL_DEFAULT);
+  signal(SIGPIPE, SIG_IGN);
+  /* 1,100 client sockets and the server's: more than the usual 1024. */
+  struct rlimit rl;
+  if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur < 4096) {
+    rl.rlim_cur = rl.rlim_max < 4096 ? rl.rlim_max : 4096;
+    setrlimit(RLIMIT_NOFILE, &rl);
+  }
+  return su_start(&S, "hostile", HOSTILE_INI("[limits]\nmax_probes_inline = 2\n"));
+}
+
+static int teardown(void **state) {
+  int st = su_stop(&S);
+  if (st != 0) fprintf(stderr, "hostile server exit status %d\n", st);
+  curl_global_cleanup();
+  return st == 0 ? 0 : -1;
+}
+
+/* Sends raw bytes and returns what the server answers within ms (static buffer). */
+static const char *raw(const su_server *s, const char *req, int ms) {
+  static char buf[8192];
+  int fd = su_connect(s, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  su_read(fd, buf, sizeof buf, ms);
+  close(fd);
+  return buf;
+}
+
+/* ---- 1. strict parsing ----------------------------------------------------- */
+
+static void test_strict_parsing(void **state) {
+  struct { const char *query, *needle; } cases[] = {
+      {"at=1,2,3%00garbage", "parameter 'at': a NUL byte"},
+      {"at=1,2,3&res=64.0", "parameter 'res': expected an integer"},
+      {"at=1,2,3&res=6.4e1", "parameter 'res': expected an integer"},
+      {"at=1,2,3&levels=1e0", "parameter 'levels': expected an integer"},
+      {"at=1,2,3&res=032", "parameter 'res': expected an integer without leading zeros"},
+      {"at=1,2,3&effects=sky:off,sky:on", "parameter 'effects': effect 'sky' given twice"},
+      {"at=1,2,3&effects=,,,,", "parameter 'effects': empty entry"},
+      {"at=1e300,0,0", "parameter 'at': out of range"},
+      {"at=1e12,0,0", "parameter 'at': out of range"},
+  };
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    char path[256];
+    snprintf(path, sizeof path, "/v1/scenes/city/lighting?%s", cases[i].query);
+    su_resp r = su_http(&S, NULL, path, NULL, SU_TOKEN);
+    su_expect_error(&r, 400, "bad_request", cases[i].needle);
+    assert_null(strstr(r.body, "not finite"));
+    printf("  %-34s -> %ld %s\n", cases[i].query, r.status, r.body);
+    free(r.body);
+  }
+  /* 500 repeated parameters: the documented 400 at once, not a hang. */
+  char *q = malloc(8 * 500 + 64);
+  strcpy(q, "/v1/scenes/city/lighting?at=1,2,3");
+  for (int i = 0; i < 500; i++) strcat(q, "&seed=1");
+  double t0 = su_now_ms();
+  su_resp r = su_http(&S, NULL, q, NULL, SU_TOKEN);
+  double ms = su_now_ms() - t0;
+  su_expect_error(&r, 400, "bad_request", "more than 64 query parameters");
+  printf("  500 x seed=1: %ld in %.1f ms\n", r.status, ms);
+  assert_true(ms < 2000);
+  free(r.body);
+  free(q);
+  /* Far probe points: refused at submission, not accepted as a job that fails later. */
+  r = su_http(&S, "POST", "/v1/scenes/city/probes", "{\"points\":[[1,2,3],[1e10,2,3],[5,6,7]],\"quality\":\"low\"}",
+              SU_TOKEN);
+  su_expect_error(&r, 400, "bad_request", "body: points[1]: out of range");
+  free(r.body);
+}
+
+static void test_framing_and_bearer(void **state) {
+  const char *a = raw(&S,
+                      "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN
+                      "\r\nContent-Length: 5\r\nContent-Length: 7\r\n\r\nhello",
+                      2000);
+  printf("  two Content-Length headers: %.*s\n", (int)strcspn(a, "\r\n"), a);
+  assert_true(!strncmp(a, "HTTP/1.1 400", 12));
+  assert_non_null(strstr(a, "Content-Length: the request has two different values"));
+  /* RFC 7235: the scheme is case-insensitive. */
+  a = raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nauthorization: bearer " SU_TOKEN "\r\nConnection: close\r\n\r\n",
+          2000);
+  printf("  lowercase 'bearer': %.*s\n", (int)strcspn(a, "\r\n"), a);
+  assert_true(!strncmp(a, "HTTP/1.1 200", 12));
+  a = raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: BEARER  " SU_TOKEN "\r\nConnection: close\r\n\r\n",
+          2000);
+  assert_true(!strncmp(a, "HTTP/1.1 200", 12));
+  a = raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearerx" SU_TOKEN "\r\nConnection: close\r\n\r\n",
+          2000);
+  assert_true(!strncmp(a, "HTTP/1.1 401", 12));
+}
+
+/* ---- 2. logs ---------------------------------------------------------------- */
+
+static void test_log_escapes_control_chars(void **state) {
+  su_resp r = su_http(&S, NULL, "/v1/scenes/%0d%0aX-Injected:%201", NULL, SU_TOKEN);
+  assert_int_equal(r.status, 404);
+  free(r.body);
+  char path[700], line[1024];
+  snprintf(path, sizeof path, "%s/server.log", S.dir);
+  FILE *f = fopen(path, "r");
+  assert_non_null(f);
+  int escaped = 0, forged = 0;
+  while (fgets(line, sizeof line, f)) {
+    if (!strncmp(line, "X-Injected", 10)) forged++;
+    if (strstr(line, "GET /v1/scenes/\\x0d\\x0aX-Injected: 1 404")) {
+      escaped++;
+      printf("  log: %s", line);
+    }
+  }
+  fclose(f);
+  assert_int_equal(forged, 0);
+  assert_int_equal(escaped, 1);
+}
+
+/* ---- 3. authentication before the body ------------------------------------------ */
+
+static void test_refused_from_headers(void **state) {
+  const char *a = raw(&S,
+                      "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nContent-Length: 1048576\r\n"
+                      "Expect: 100-continue\r\n\r\n",
+                      2000);
+  printf("  no token, Expect: 100-continue: %.*s\n", (int)strcspn(a, "\r\n"), a);
+  assert_true(!strncmp(a, "HTTP/1.1 401", 12));
+  assert_null(strstr(a, "100 Continue"));
+  a = raw(&S,
+          "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN
+          "\r\nContent-Length: 104857600\r\nExpect: 100-continue\r\n\r\n",
+          2000);
+  printf("  100 MB announced: %.*s\n", (int)strcspn(a, "\r\n"), a);
+  assert_true(!strncmp(a, "HTTP/1.1 413", 12));
+  assert_null(strstr(a, "100 Continue"));
+  assert_non_null(strstr(a, "104857600 bytes exceed the server limit of 1048576"));
+  /* Without Expect: the 413 arrives though not one body byte was sent. */
+  a = raw(&S,
+          "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN
+          "\r\nContent-Length: 104857600\r\n\r\n",
+          2000);
+  assert_true(!strncmp(a, "HTTP/1.1 413", 12));
+}
+
+static size_t discard(char *p, size_t sz, size_t n, void *u) { return sz * n; }
+
+/* 900 unauthenticated POSTs of 1 MB, 50 at a time: the server's RSS stays under 150 MB. */
+static void test_unauthenticated_bodies_rss(void **state) {
+  enum { N = 900, PARALLEL = 50, BODY = 1 << 20 };
+  const double limit_mb = 150;
+  char *body = malloc(BODY);
+  memset(body, ' ', BODY);
+  body[0] = '{';
+  body[BODY - 1] = '}';
+  char url[128];
+  snprintf(url, sizeof url, "http://127.0.0.1:%d/v1/scenes/city/probes", S.port);
+  struct curl_slist *h = curl_slist_append(NULL, "Expect:"); /* push the body without asking */
+  CURLM *m = curl_multi_init();
+  int started = 0, running = 0, by_status[600] = {0}, failed = 0;
+  double rss0 = su_rss_mb(&S), peak = rss0, t0 = su_now_ms();
+  while (started < N || running) {
+    while (started < N && running < PARALLEL) {
+      CURL *c = curl_easy_init();
+      curl_easy_setopt(c, CURLOPT_URL, url);
+      curl_easy_setopt(c, CURLOPT_POSTFIELDS, body);
+      curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE, (long)BODY);
+      curl_easy_setopt(c, CURLOPT_HTTPHEADER, h);
+      curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, discard);
+      curl_easy_setopt(c, CURLOPT_TIMEOUT, 30L);
+      curl_multi_add_handle(m, c);
+      started++;
+      running++;
+    }
+    curl_multi_perform(m, &running);
+    curl_multi_poll(m, NULL, 0, 20, NULL);
+    CURLMsg *msg;
+    int left;
+    while ((msg = curl_multi_info_read(m, &left))) {
+      if (msg->msg != CURLMSG_DONE) continue;
+      long st = 0;
+      curl_easy_getinfo(msg->easy_handle, CURLINFO_RESPONSE_CODE, &st);
+      if (st > 0 && st < 600) by_status[st]++;
+      else failed++;
+      curl_multi_remove_handle(m, msg->easy_handle);
+      curl_easy_cleanup(msg->easy_handle);
+    }
+    double rss = su_rss_mb(&S);
+    if (rss > peak) peak = rss;
+  }
+  double secs = (su_now_ms() - t0) * 1e-3;
+  curl_multi_cleanup(m);
+  curl_slist_free_all(h);
+  free(body);
+  su_sleep_ms(200);
+  double after = su_rss_mb(&S);
+  printf("  %d unauthenticated 1 MB POSTs (%d at a time) in %.2f s: %d x 401, %d closed before the status\n", N,
+         PARALLEL, secs, by_status[401], failed);
+  printf("  server RSS: %.1f MB before, %.1f MB peak, %.1f MB after (limit %.0f MB)\n", rss0, peak, after, limit_mb);
+  assert_int_equal(by_status[401] + failed, N);
+  assert_true(by_status[401] > 0);
+  assert_true(peak < limit_mb);
+  /* Buffering the bodies in flight would take PARALLEL MB (v0.1.0: +64 MB here). */
+  assert_true(peak - rss0 < PARALLEL / 2);
+  su_resp r = su_http(&S, NULL, "/v1/health", NULL, NULL);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+}
+
+/* ---- 4. slow clients ----------------------------------------------------------------- */
+
+/* GET /v1/health from 127.0.0.2 (its own per-address count): milliseconds, or -1. */
+static double health_ms(const su_server *s) {
+  double t0 = su_now_ms();
+  int fd = su_connect(s, "127.0.0.2");
+  if (fd < 0) return -1;
+  const char *req = "GET /v1/health HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+  char buf[2048];
+  if (send(fd, req, strlen(req), MSG_NOSIGNAL) < 0) {
+    close(fd);
+    return -1;
+  }
+  su_read(fd, buf, sizeof buf, 2000);
+  close(fd);
+  return strncmp(buf, "HTTP/1.1 200", 12) ? -1 : su_now_ms() - t0;
+}
+
+/* Sends the next header byte of every open socket; marks those the server closed. */
+static void trickle(int *fd, double *closed_at, int n, int byte, double t0) {
+  static const char hdr[] = "GET /v1/health HTTP/1.1\r\nHost: slow\r\nX-Slow: aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa";
+  for (int i = 0; i < n; i++) {
+    if (fd[i] < 0) continue;
+    char c;
+    struct pollfd p = {fd[i], POLLIN, 0};
+    int gone = poll(&p, 1, 0) > 0 && recv(fd[i], &c, 1, MSG_DONTWAIT) <= 0;
+    if (!gone) gone = send(fd[i], &hdr[byte % (sizeof hdr - 1)], 1, MSG_NOSIGNAL) < 0;
+    if (gone) {
+      closed_at[i] = su_now_ms() - t0;
+      close(fd[i]);
+      fd[i] = -1;
+    }
+  }
+}
+
+static void test_slow_clients(void **state) {
+  enum { N = 1100, SECONDS = 8 };
+  static int fd[N];
+  static double closed_at[N];
+  double t0 = su_now_ms();
+  int opened = 0;
+  for (int i = 0; i < N; i++) {
+    fd[i] = su_connect(&S, NULL);
+    closed_at[i] = -1;
+    opened += fd[i] >= 0;
+  }
+  double worst = 0;
+  int checks = 0, bad = 0, open_at_1s = -1;
+  for (int tick = 0; tick < SECONDS * 4; tick++) {
+    if (tick % 4 == 0) trickle(fd, closed_at, N, tick / 4, t0);
+    double ms = health_ms(&S);
+    checks++;
+    if (ms < 0) bad++;
+    if (ms > worst) worst = ms;
+    if (tick == 4) {
+      open_at_1s = 0;
+      for (int i = 0; i < N; i++) open_at_1s += fd[i] >= 0;
+    }
+    su_sleep_ms(250);
+  }
+  /* Refused at once (per-address limit) versus accepted and cut at the deadline. */
+  int refused = 0, cut = 0, still_open = 0;
+  double first_cut = 1e30, last_cut = 0;
+  for (int i = 0; i < N; i++) {
+    if (fd[i] >= 0) {
+      still_open++;
+      close(fd[i]);
+    } else if (closed_at[i] >= 0 && closed_at[i] < 1500) {
+      refused++;
+    } else if (closed_at[i] >= 0) {
+      cut++;
+      if (closed_at[i] < first_cut) first_cut = closed_at[i];
+      if (closed_at[i] > last_cut) last_cut = closed_at[i];
+    }
+  }
+  printf("  %d slow connections from 127.0.0.1 (one byte a second, %d s): %d refused at once, %d open after 1 s,\n"
+         "  %d closed by the %d ms request deadline (at %.0f..%.0f ms), %d still open\n",
+         opened, SECONDS, refused, open_at_1s, cut, REQUEST_TIMEOUT_MS, first_cut, last_cut, still_open);
+  printf("  /v1/health from 127.0.0.2: %d checks, %d failed, slowest %.1f ms\n", checks, bad, worst);
+  assert_int_equal(opened, N);
+  assert_int_equal(bad, 0);
+  assert_true(worst < 100);
+  assert_true(open_at_1s <= PER_IP_LIMIT);
+  assert_int_equal(still_open, 0);
+  assert_true(cut >= 1 && cut <= PER_IP_LIMIT);
+  /* Cut at the deadline though each sent a byte a second (libmicrohttpd's idle timer would restart). */
+  assert_true(first_cut >= REQUEST_TIMEOUT_MS - 100 && last_cut <= REQUEST_TIMEOUT_MS + 1500);
+}
+
+/* ---- 5. jobs ------------------------------------------------------------------------ */
+
+/* A job body of n points, each its own tile. */
+static char *job_body(int n) {
+  char *b = malloc(64 + 40 * (size_t)n);
+  strcpy(b, "{\"quality\":\"low\",\"points\":[");
+  for (int i = 0; i < n; i++)
+    sprintf(b + strlen(b), "%s[%.1f,2,29]", i ? "," : "", -140 + TILE_SPACING * i);
+  strcat(b, "]}");
+  return b;
+}
+
+static void submit(const su_server *s, int n, char id[64]) {
+  char *b = job_body(n);
+  su_resp r = su_http(s, "POST", "/v1/scenes/city/probes", b, SU_TOKEN);
+  free(b);
+  if (r.status != 202) fprintf(stderr, "submit: %ld %s\n", r.status, r.body);
+  assert_int_equal(r.status, 202);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  snprintf(id, 64, "%s", json_string_value(json_object_get(o, "job")));
+  json_decref(o);
+  free(r.body);
+}
+
+typedef struct {
+  char state[16];
+  int tiles, tiles_done;
+  long code;
+  char message[400];
+} job_status;
+
+static job_status job_get(const su_server *s, const char *id) {
+  char path[128];
+  snprintf(path, sizeof path, "/v1/jobs/%s", id);
+  su_resp r = su_http(s, NULL, path, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 200);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  job_status js = {0};
+  snprintf(js.state, sizeof js.state, "%s", json_string_value(json_object_get(o, "state")));
+  js.tiles = (int)json_integer_value(json_object_get(o, "tiles"));
+  js.tiles_done = (int)json_integer_value(json_object_get(o, "tiles_done"));
+  json_t *e = json_object_get(o, "error");
+  js.code = (long)json_integer_value(json_object_get(e, "code"));
+  snprintf(js.message, sizeof js.message, "%s", e ? json_string_value(json_object_get(e, "message")) : "");
+  json_decref(o);
+  free(r.body);
+  return js;
+}
+
+/* Polls until the job is in one of the states (|-separated) or ms pass. */
+static job_status job_wait(const su_server *s, const char *id, const char *states, int ms) {
+  double t0 = su_now_ms();
+  job_status js;
+  for (;;) {
+    js = job_get(s, id);
+    char want[64];
+    snprintf(want, sizeof want, "|%s|", states);
+    char have[24];
+    snprintf(have, sizeof have, "|%s|", js.state);
+    if (strstr(want, have) || su_now_ms() - t0 > ms) return js;
+    su_sleep_ms(20);
+  }
+}
+
+static void test_job_cancel(void **state) {
+  enum { TILES = 40 };
+  char a[64], b[64], path[160];
+  submit(&S, TILES, a);
+  job_status js = job_wait(&S, a, "running", 30000);
+  assert_string_equal(js.state, "running");
+  submit(&S, TILES, b); /* one runner: b waits */
+  assert_string_equal(job_get(&S, b).state, "queued");
+  snprintf(path, sizeof path, "/v1/jobs/%s", b);
+  su_resp r = su_http(&S, "DELETE", path, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 200);
+  assert_non_null(strstr(r.body, "\"state\":\"cancelled\""));
+  free(r.body);
+  /* Cancel the running one after its first tile: it stops after the tile it is baking. */
+  while (job_get(&S, a).tiles_done < 1) su_sleep_ms(20);
+  snprintf(path, sizeof path, "/v1/jobs/%s", a);
+  double t0 = su_now_ms();
+  r = su_http(&S, "DELETE", path, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 202);
+  free(r.body);
+  js = job_wait(&S, a, "cancelled|done|failed", 30000);
+  double ms = su_now_ms() - t0;
+  printf("  running job of %d tiles cancelled after %d tile(s), %.0f ms after DELETE; queued job cancelled at once\n",
+         js.tiles, js.tiles_done, ms);
+  assert_string_equal(js.state, "cancelled");
+  assert_true(js.tiles_done < TILES);
+  snprintf(path, sizeof path, "/v1/jobs/%s/result", a);
+  r = su_http(&S, NULL, path, NULL, SU_TOKEN);
+  su_expect_error(&r, 409, "not_ready", "cancelled");
+  free(r.body);
+  snprintf(path, sizeof path, "/v1/jobs/%s", a);
+  r = su_http(&S, "DELETE", path, NULL, SU_TOKEN);
+  su_expect_error(&r, 409, "not_ready", "already finished (cancelled)");
+  free(r.body);
+  r = su_http(&S, "DELETE", "/v1/jobs/000000000000000000000000", NULL, SU_TOKEN);
+  su_expect_error(&r, 404, "not_found", "unknown");
+  free(r.body);
+  r = su_http(&S, "DELETE", path, NULL, NULL);
+  assert_int_equal(r.status, 401);
+  free(r.body);
+  assert_true(su_metric(&S, "gi_jobs", "state=\"cancelled\"") == 2);
+}
+
+static void test_job_deadline(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "job-deadline", HOSTILE_INI("[limits]\nmax_probes_inline = 2\njob_deadline_s = 1\n")), 0);
+  char id[64];
+  submit(&s, 40, id);
+  double t0 = su_now_ms();
+  job_status js = job_wait(&s, id, "done|failed|cancelled", 60000);
+  double secs = (su_now_ms() - t0) * 1e-3;
+  printf("  job_deadline_s = 1: %s after %.2f s, %d of %d tiles: %ld %s\n", js.state, secs, js.tiles_done, js.tiles,
+         js.code, js.message);
+  assert_string_equal(js.state, "failed");
+  assert_int_equal(js.code, 504);
+  assert_non_null(strstr(js.message, "job deadline of 1 s"));
+  assert_true(js.tiles_done >= 1 && js.tiles_done < js.tiles);
+  assert_int_equal(su_stop(&s), 0);
+}
+
+/* The folder gi-server-jobs.PID.* in dir, or "" (static buffer). */
+static const char *jobs_folder(const char *dir, pid_t pid) {
+  static char out[1024];
+  char prefix[64];
+  snprintf(prefix, sizeof prefix, "gi-server-jobs.%ld.", (long)pid);
+  out[0] = 0;
+  DIR *d = opendir(dir);
+  for (struct dirent *e; d && (e = readdir(d));)
+    if (!strncmp(e->d_name, prefix, strlen(prefix))) snprintf(out, sizeof out, "%s/%s", dir, e->d_name);
+  if (d) closedir(d);
+  return out;
+}
+
+static int count_files(const char *dir, mode_t want_mode) {
+  int n = 0;
+  DIR *d = opendir(dir);
+  for (struct dirent *e; d && (e = readdir(d));) {
+    char p[1300];
+    struct stat st;
+    snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
+    if (stat(p, &st) == 0 && S_ISREG(st.st_mode)) {
+      printf("  %s: mode %03o\n", e->d_name, (unsigned)(st.st_mode & 0777));
+      assert_int_equal(st.st_mode & 0777, want_mode);
+      n++;
+    }
+  }
+  if (d) closedir(d);
+  return n;
+}
+
+static void test_job_files_private(void **state) {
+  /* What a killed server left: a folder whose process is gone, with a result in it. */
+  pid_t dead = fork();
+  if (dead == 0) _exit(0);
+  waitpid(dead, NULL, 0);
+  char dir[600], stale[700], mine[700], f[800];
+  snprintf(dir, sizeof dir, "%s/job-files", tu_tmpdir());
+  mkdir(dir, 0700);
+  snprintf(stale, sizeof stale, "%s/gi-server-jobs.%ld.abcdef", dir, (long)dead);
+  snprintf(mine, sizeof mine, "%s/gi-server-jobs.%ld.keepme", dir, (long)getpid()); /* alive: kept */
+  mkdir(stale, 0700);
+  mkdir(mine, 0700);
+  snprintf(f, sizeof f, "%s/old.exr", stale);
+  fclose(fopen(f, "w"));
+  su_server s;
+  assert_int_equal(su_start(&s, "job-files", HOSTILE_INI("[limits]\nmax_probes_inline = 2\n")), 0);
+  struct stat st;
+  assert_int_not_equal(stat(stale, &st), 0);
+  assert_int_equal(stat(mine, &st), 0);
+  const char *jf = jobs_folder(dir, s.pid);
+  assert_true(jf[0]);
+  char folder[1024];
+  snprintf(folder, sizeof folder, "%s", jf);
+  assert_int_equal(stat(folder, &st), 0);
+  printf("  private folder %s: mode %03o\n", strrchr(folder, '/') + 1, (unsigned)(st.st_mode & 0777));
+  assert_int_equal(st.st_mode & 0777, 0700);
+  char id[64];
+  submit(&s, 3, id);
+  assert_string_equal(job_wait(&s, id, "done|failed", 60000).state, "done");
+  assert_int_equal(count_files(folder, 0600), 1);
+  /* SIGKILL leaves the folder; the next start removes it. */
+  assert_int_equal(su_signal_wait(&s, SIGKILL, 10000, NULL), 128 + SIGKILL);
+  assert_int_equal(stat(folder, &st), 0);
+  assert_int_equal(su_start(&s, "job-files", HOSTILE_INI("[limits]\nmax_probes_inline = 2\n")), 0);
+  assert_int_not_equal(stat(folder, &st), 0);
+  snprintf(folder, sizeof folder, "%s", jobs_folder(dir, s.pid));
+  assert_int_equal(su_stop(&s), 0);
+  /* A clean stop removes its own. */
+  assert_int_not_equal(stat(folder, &st), 0);
+  rmdir(mine);
+}
+
+static void test_sigterm_with_running_job(void **state) {
+  const double grace_s = 10;
+  su_server s;
+  assert_int_equal(su_start(&s, "sigterm", HOSTILE_INI("shutdown_grace_s = 10\n[limits]\nmax_probes_inline = 2\n")), 0);
+  char id[64];
+  submit(&s, 200, id);
+  job_status js = job_wait(&s, id, "running", 30000);
+  assert_string_equal(js.state, "running");
+  while (job_get(&s, id).tiles_done < 1) su_sleep_ms(20);
+  double ms;
+  int st = su_signal_wait(&s, SIGTERM, 30000, &ms);
+  printf("  SIGTERM with a running job of 200 tiles: exit %d after %.0f ms (grace %.0f s)\n", st, ms, grace_s);
+  assert_int_equal(st, 0);
+  assert_true(ms < grace_s * 1e3);
+}
+
+/* A bake far longer than any grace here (minutes on one thread). */
+#define SLOW_BAKE "GET /v1/scenes/city/lighting?at=2.1,1.7,1.4&quality=high&res=64&levels=8&bounces=8 HTTP/1.1\r\n" \
+                  "Host: x\r\nAuthorization: Bearer " SU_TOKEN "\r\n\r\n"
+
+static int start_slow_bake(su_server *s) {
+  int fd = su_connect(s, NULL);
+  assert_true(fd >= 0);
+  assert_true(send(fd, SLOW_BAKE, strlen(SLOW_BAKE), MSG_NOSIGNAL) > 0);
+  for (int i = 0; i < 200 && su_metric(s, "gi_workers_busy", NULL) < 1; i++) su_sleep_ms(20);
+  assert_true(su_metric(s, "gi_workers_busy", NULL) == 1);
+  return fd;
+}
+
+static void test_second_signal_and_grace(void **state) {
+  const double grace_s = 1.5;
+  enum { GS_EXIT_FORCED = 3 };
+  su_server s;
+  assert_int_equal(su_start(&s, "signals", HOSTILE_INI("shutdown_grace_s = 1.5\ndeadline_s = 600\n")), 0);
+  int fd = start_slow_bake(&s);
+  double ms;
+  kill(s.pid, SIGTERM);
+  su_sleep_ms(200);
+  int st = su_signal_wait(&s, SIGTERM, 10000, &ms);
+  printf("  a bake running, SIGTERM then SIGTERM 200 ms later: exit %d %.0f ms after the second\n", st, ms);
+  assert_int_equal(st, GS_EXIT_FORCED);
+  assert_true(ms < 500);
+  close(fd);
+  assert_int_equal(su_start(&s, "signals", HOSTILE_INI("shutdown_grace_s = 1.5\ndeadline_s = 600\n")), 0);
+  fd = start_slow_bake(&s);
+  st = su_signal_wait(&s, SIGTERM, 10000, &ms);
+  printf("  a bake running, one SIGTERM: exit %d after %.0f ms (grace %.1f s)\n", st, ms, grace_s);
+  assert_int_equal(st, GS_EXIT_FORCED);
+  assert_true(ms >= grace_s * 1e3 - 50 && ms < grace_s * 1e3 + 1000);
+  close(fd);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_strict_parsing),
+      cmocka_unit_test(test_framing_and_bearer),
+      cmocka_unit_test(test_log_escapes_control_chars),
+      cmocka_unit_test(test_refused_from_headers),
+      cmocka_unit_test(test_unauthenticated_bodies_rss),
+      cmocka_unit_test(test_slow_clients),
+      cmocka_unit_test(test_job_cancel),
+      cmocka_unit_test(test_job_deadline),
+      cmocka_unit_test(test_job_files_private),
+      cmocka_unit_test(test_sigterm_with_running_job),
+      cmocka_unit_test(test_second_signal_and_grace),
+  };
+  return cmocka_run_group_tests(tests, setup, teardown);
+}
