@@ -5,6 +5,13 @@
  * read-only afterwards: every function taking a const gi_scene* is
  * thread-safe, so one scene serves all requests at once.
  *
+ * Ownership: gi_scene_load and gi_scene_build give the caller one
+ * reference; gi_scene_retain adds one, gi_scene_release drops one and the
+ * last frees the scene (a baked cascade holds its own). Pointers and
+ * strings returned by the accessors (gi_scene_light, gi_scene_material,
+ * gi_scene_name) live as long as the scene. A gi_mesh_builder belongs to
+ * one thread at a time; gi_scene_build copies what it needs from it.
+ *
  * Precision: positions are stored as float relative to a double-precision
  * scene origin (the centre of the input's bounds), so a scene 10^7 units
  * from the world origin keeps sub-millimetre float resolution. Public
