@@ -30,8 +30,11 @@ static void test_int_accepts(void **state) {
   assert_true(v == 42);
   assert_int_equal(ta_parse_ll("-17", -20, 0, &v), TA_OK);
   assert_true(v == -17);
-  assert_int_equal(ta_parse_ll("007", 0, 10, &v), TA_OK); /* decimal, never octal */
-  assert_true(v == 7);
+  assert_int_equal(ta_parse_ll("007", 0, 10, &v), TA_SYNTAX); /* no leading zeros, as the HTTP contract */
+  assert_int_equal(ta_parse_ll("0", 0, 10, &v), TA_OK);
+  assert_int_equal(v, 0);
+  assert_int_equal(ta_parse_ll("-0", -1, 10, &v), TA_OK);
+  assert_true(v == 0);
   assert_int_equal(ta_parse_ll("12", 1, 12, &v), TA_OK); /* bounds are inclusive */
   assert_true(v == 12);
   assert_int_equal(ta_parse_ll("9223372036854775807", LLONG_MIN, LLONG_MAX, &v), TA_OK);
@@ -77,6 +80,7 @@ static void test_u64(void **state) {
   assert_int_equal(ta_parse_u64("+1", &v), TA_SYNTAX);
   assert_int_equal(ta_parse_u64(" 1", &v), TA_SYNTAX);
   assert_int_equal(ta_parse_u64("0x10", &v), TA_SYNTAX);
+  assert_int_equal(ta_parse_u64("01", &v), TA_SYNTAX);
   assert_int_equal(ta_parse_u64("", &v), TA_EMPTY);
   assert_true(v == 99);
 }

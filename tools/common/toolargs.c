@@ -26,7 +26,8 @@ ta_status ta_parse_ll(const char *s, long long lo, long long hi, long long *out)
   if (!*s) return TA_EMPTY;
   const char *p = s + (*s == '-');
   size_t n = digits(p);
-  if (n == 0 || p[n]) return TA_SYNTAX;
+  /* No leading zeros, as the HTTP contract: "07" is refused, "0" is not. */
+  if (n == 0 || p[n] || (n > 1 && p[0] == '0')) return TA_SYNTAX;
   errno = 0;
   long long v = strtoll(s, NULL, 10);
   if (errno == ERANGE || v < lo || v > hi) return TA_RANGE;
@@ -37,7 +38,8 @@ ta_status ta_parse_ll(const char *s, long long lo, long long hi, long long *out)
 ta_status ta_parse_u64(const char *s, uint64_t *out) {
   if (!*s) return TA_EMPTY;
   size_t n = digits(s);
-  if (n == 0 || s[n]) return TA_SYNTAX; /* no '-': strtoull would negate "-1" silently */
+  /* no '-': strtoull would negate "-1" silently; no leading zeros, as in ta_parse_ll */
+  if (n == 0 || s[n] || (n > 1 && s[0] == '0')) return TA_SYNTAX;
   errno = 0;
   unsigned long long v = strtoull(s, NULL, 10);
   if (errno == ERANGE) return TA_RANGE;

@@ -2,7 +2,7 @@
  *
  * One rule for numbers on every tool's command line:
  *
- *   integer  -?[0-9]+                 decimal only; the whole string, in range
+ *   integer  -?(0|[1-9][0-9]*)        decimal, no leading zeros; the whole string, in range
  *   number   -?(D+(.D*)?|.D+)([eE][+-]?D+)?   plain decimal, finite
  *   list     number,number,...        exactly n numbers, no blanks
  *
