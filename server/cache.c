@@ -150,6 +150,7 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w) {
   pthread_mutex_lock(&c->mu);
   gs_entry *e = w->entry;
   int cancelled = 0;
+  w->left = 1; /* it joins no bake after this */
   /* A linked waiter means its bake is still running: the baker's own
    * reference keeps e alive. */
   if (e) {
@@ -167,15 +168,14 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w) {
 
 /* An entry found in the table: a hit, a pending waiter, or a blocking
  * wait for the bake. Called locked; returns unlocked. */
-static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, gs_entry **out, gs_cache_how *how,
+static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_entry **out, gs_cache_how *how,
                        gi_error_info *err) {
   /* Most recently used first. */
   unlink_entry(c, e);
   push_front(c, e);
   *how = e->state == READY ? GS_CACHE_HIT : GS_CACHE_COALESCED;
-  if (w && w->coalesced) {
+  if (woken && e->state == READY) {
     /* Woken after waiting for this bake: it counted as coalesced then. */
-    w->coalesced = 0;
     *how = GS_CACHE_COALESCED;
     e->refs++;
     pthread_mutex_unlock(&c->mu);
@@ -263,10 +263,18 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   if (rc != GI_OK) return rc;
   char key[512];
   make_key(s, anchor, req, q, key, sizeof key);
+  int woken = w && w->coalesced;
+  if (w) w->coalesced = 0;
   pthread_mutex_lock(&c->mu);
+  if (w && w->left) {
+    /* Given up (deadline, hang-up) before it could join a bake. */
+    pthread_mutex_unlock(&c->mu);
+    if (err) snprintf(err->msg, sizeof err->msg, "bake: the request was given up before its bake started");
+    return GI_ERR_CANCELLED;
+  }
   gs_entry *e = c->head;
   while (e && strcmp(e->key, key)) e = e->next;
-  if (e) return found(c, e, w, out, how, err);
+  if (e) return found(c, e, w, woken, out, how, err);
   e = calloc(1, sizeof *e);
   gi_cancel *token = e ? gi_cancel_new() : NULL;
   if (!token) {

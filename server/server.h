@@ -131,6 +131,7 @@ typedef struct gs_waiter {
   gs_entry *entry;         /* the bake it is interested in, or NULL */
   struct gs_waiter *next;
   int coalesced;           /* it waited for another request's bake */
+  int left;                /* gs_cache_leave was called: it joins no bake */
   gi_result rc;            /* that bake's failure, for the request's next try */
   gi_error_info err;
 } gs_waiter;
