@@ -3,8 +3,13 @@
  * The key uses gi_cascade_anchor: viewpoints in the same snapped cell give
  * bit-identical cascades, so a client moving inside a cell is answered
  * from memory. A key being baked is in the table as BAKING: a second
- * request for it waits on the condition variable instead of baking again
- * (coalescing). The table is bounded in bytes; when it is over budget the
+ * request for it does not bake again (coalescing). A request with a
+ * waiter (an HTTP request) returns GS_PENDING and frees its worker; the
+ * baking worker wakes it when the bake ends, and it runs again as a hit.
+ * A request without one (a probe list) waits on the condition variable.
+ * Every bake has a cancel token: when the last interested request leaves
+ * (deadline, hang-up) the token is set, the entry leaves the table and the
+ * bake stops within tens of milliseconds; it is never cached. The table is bounded in bytes; when it is over budget the
  * least recently used READY entries that no request holds are evicted.
  * Entries a request holds may briefly push the total over the budget; they
  * are evicted when released. One mutex guards the table; bakes run
@@ -27,7 +32,10 @@ struct gs_entry {
   size_t bytes;
   gi_result rc;
   gi_error_info err;
-  int linked;             /* in the table (failed entries leave it at once) */
+  int linked;             /* in the table (failed and cancelled entries leave it at once) */
+  gi_cancel *cancel;      /* the bake's token: set when nobody is interested any more */
+  int interest;           /* requests that want the bake: the baker and its waiters */
+  gs_waiter *waiters;     /* requests to wake when the bake ends (the baker's own first, if any) */
   struct gs_entry *prev, *next; /* most recent first */
 };
 
@@ -74,6 +82,7 @@ static void push_front(gs_cache *c, gs_entry *e) {
 
 static void free_entry(gs_entry *e) {
   gi_cascade_free(e->cascade);
+  gi_cancel_free(e->cancel);
   free(e);
 }
 
@@ -115,37 +124,161 @@ static void make_key(const gs_scene *s, const int64_t a[3], const gi_quality *re
     n += snprintf(key + n, size - (size_t)n, "%+d", q->effects[i]);
 }
 
+/* w is interested in e's bake. Locked. */
+static void join(gs_entry *e, gs_waiter *w) {
+  w->entry = e;
+  w->next = e->waiters;
+  e->waiters = w;
+  e->interest++;
+}
+
+/* Unlinks w from its entry's list. Locked. */
+static void drop_waiter(gs_waiter *w) {
+  gs_entry *e = w->entry;
+  for (gs_waiter **p = &e->waiters; *p; p = &(*p)->next)
+    if (*p == w) {
+      *p = w->next;
+      break;
+    }
+  w->entry = NULL;
+  w->next = NULL;
+  e->interest--;
+}
+
+int gs_cache_leave(gs_cache *c, gs_waiter *w) {
+  if (!w) return 0;
+  pthread_mutex_lock(&c->mu);
+  gs_entry *e = w->entry;
+  int cancelled = 0;
+  w->left = 1; /* it joins no bake after this */
+  /* A linked waiter means its bake is still running: the baker's own
+   * reference keeps e alive. */
+  if (e) {
+    drop_waiter(w);
+    if (e->interest == 0 && e->state == BAKING) {
+      gi_cancel_set(e->cancel);
+      /* A request arriving now starts a fresh bake instead of joining this one. */
+      unlink_entry(c, e);
+      cancelled = 1;
+    }
+  }
+  pthread_mutex_unlock(&c->mu);
+  return cancelled;
+}
+
+/* An entry found in the table: a hit, a pending waiter, or a blocking
+ * wait for the bake. Called locked; returns unlocked. */
+static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_entry **out, gs_cache_how *how,
+                       gi_error_info *err) {
+  /* Most recently used first. */
+  unlink_entry(c, e);
+  push_front(c, e);
+  *how = e->state == READY ? GS_CACHE_HIT : GS_CACHE_COALESCED;
+  if (woken && e->state == READY) {
+    /* Woken after waiting for this bake: it counted as coalesced then. */
+    *how = GS_CACHE_COALESCED;
+    e->refs++;
+    pthread_mutex_unlock(&c->mu);
+    *out = e;
+    return GI_OK;
+  }
+  if (e->state == BAKING && w) {
+    /* Waiters do not hold a worker: the baker wakes them. */
+    join(e, w);
+    w->coalesced = 1;
+    pthread_mutex_unlock(&c->mu);
+    if (c->metrics) gs_metrics_cache(c->metrics, *how);
+    return GS_PENDING;
+  }
+  e->refs++;
+  if (e->state == BAKING) {
+    e->interest++;
+    while (e->state == BAKING) pthread_cond_wait(&c->done, &c->mu);
+    e->interest--;
+  }
+  pthread_mutex_unlock(&c->mu);
+  if (c->metrics) gs_metrics_cache(c->metrics, *how);
+  if (e->state == FAILED) {
+    if (err) *err = e->err;
+    gi_result rc = e->rc;
+    gs_cache_release(c, e);
+    return rc;
+  }
+  *out = e;
+  return GI_OK;
+}
+
+/* The bake ended: stores or drops the result and wakes the waiters (each
+ * held under the lock, woken after it). */
+static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, gi_cascade *cas,
+                      const gi_error_info *e_err) {
+  pthread_mutex_lock(&c->mu);
+  if (self && self->entry == e) drop_waiter(self);
+  /* Cancelled (nobody waited any more, the entry left the table then) is never cached. */
+  if (rc == GI_OK && e->linked) {
+    e->cascade = cas;
+    c->bytes -= e->bytes;
+    e->bytes = gi_cascade_bytes(cas);
+    c->bytes += e->bytes;
+    e->state = READY;
+    evict(c);
+  } else {
+    gi_cascade_free(cas);
+    e->state = FAILED;
+    e->rc = rc == GI_OK ? GI_ERR_CANCELLED : rc;
+    e->err = *e_err;
+    if (rc == GI_OK) snprintf(e->err.msg, sizeof e->err.msg, "bake: cancelled as it finished (nobody waited)");
+    unlink_entry(c, e);
+  }
+  gs_waiter *woken = e->waiters;
+  e->waiters = NULL;
+  for (gs_waiter *w = woken; w; w = w->next) {
+    w->entry = NULL;
+    e->interest--;
+    w->rc = e->state == FAILED ? e->rc : GI_OK;
+    if (e->state == FAILED) w->err = e->err;
+    w->hold(w->arg);
+  }
+  pthread_cond_broadcast(&c->done);
+  pthread_mutex_unlock(&c->mu);
+  for (gs_waiter *w = woken, *n; w; w = n) {
+    n = w->next; /* wake may run the request at once and reuse w */
+    w->next = NULL;
+    w->wake(w->arg);
+  }
+}
+
 gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
-                       const gi_quality *q, gs_entry **out, gs_cache_how *how, gi_error_info *err) {
+                       const gi_quality *q, gs_waiter *w, gs_entry **out, gs_cache_how *how, gi_error_info *err) {
   *out = NULL;
+  if (w && w->rc != GI_OK) {
+    /* Woken by a bake that failed: its error is this request's answer. */
+    gi_result rc = w->rc;
+    if (err) *err = w->err;
+    w->rc = GI_OK;
+    return rc;
+  }
   int64_t anchor[3];
   gi_result rc = gi_cascade_anchor(s->scene, at, q, anchor, err);
   if (rc != GI_OK) return rc;
   char key[512];
   make_key(s, anchor, req, q, key, sizeof key);
+  int woken = w && w->coalesced;
+  if (w) w->coalesced = 0;
   pthread_mutex_lock(&c->mu);
+  if (w && w->left) {
+    /* Given up (deadline, hang-up) before it could join a bake. */
+    pthread_mutex_unlock(&c->mu);
+    if (err) snprintf(err->msg, sizeof err->msg, "bake: the request was given up before its bake started");
+    return GI_ERR_CANCELLED;
+  }
   gs_entry *e = c->head;
   while (e && strcmp(e->key, key)) e = e->next;
-  if (e) {
-    e->refs++;
-    /* Most recently used first. */
-    unlink_entry(c, e);
-    push_front(c, e);
-    *how = e->state == READY ? GS_CACHE_HIT : GS_CACHE_COALESCED;
-    while (e->state == BAKING) pthread_cond_wait(&c->done, &c->mu);
-    pthread_mutex_unlock(&c->mu);
-    if (c->metrics) gs_metrics_cache(c->metrics, *how);
-    if (e->state == FAILED) {
-      if (err) *err = e->err;
-      rc = e->rc;
-      gs_cache_release(c, e);
-      return rc;
-    }
-    *out = e;
-    return GI_OK;
-  }
+  if (e) return found(c, e, w, woken, out, how, err);
   e = calloc(1, sizeof *e);
-  if (!e) {
+  gi_cancel *token = e ? gi_cancel_new() : NULL;
+  if (!token) {
+    free(e);
     pthread_mutex_unlock(&c->mu);
     if (err) snprintf(err->msg, sizeof err->msg, "cache: out of memory for an entry");
     return GI_ERR_NOMEM;
@@ -153,6 +286,10 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   snprintf(e->key, sizeof e->key, "%s", key);
   e->state = BAKING;
   e->refs = 1;
+  e->cancel = token;
+  /* Without a waiter the caller cannot leave: it stays interested. */
+  if (w) join(e, w);
+  else e->interest = 1;
   push_front(c, e);
   pthread_mutex_unlock(&c->mu);
   *how = GS_CACHE_MISS;
@@ -163,27 +300,14 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   double t0 = gs_now_ms();
   gi_cascade *cas = NULL;
   gi_error_info e_err = {0};
-  rc = gi_cascade_bake(s->scene, at, req, &cas, NULL, &e_err);
+  if (c->metrics) gs_metrics_bake_begin(c->metrics);
+  rc = gi_cascade_bake_ex(s->scene, at, req, token, &cas, NULL, &e_err);
+  if (c->metrics) gs_metrics_bake_end(c->metrics, rc == GI_ERR_CANCELLED);
   if (c->metrics && rc == GI_OK) gs_metrics_bake(c->metrics, (gs_now_ms() - t0) * 1e-3);
-
-  pthread_mutex_lock(&c->mu);
-  if (rc == GI_OK) {
-    e->cascade = cas;
-    c->bytes -= e->bytes;
-    e->bytes = gi_cascade_bytes(cas);
-    c->bytes += e->bytes;
-    e->state = READY;
-    evict(c);
-  } else {
-    e->state = FAILED;
-    e->rc = rc;
-    e->err = e_err;
-    unlink_entry(c, e);
-  }
-  pthread_cond_broadcast(&c->done);
-  pthread_mutex_unlock(&c->mu);
-  if (rc != GI_OK) {
-    if (err) *err = e_err;
+  bake_done(c, e, w, rc, cas, &e_err);
+  if (e->state == FAILED) {
+    if (err) *err = e->err;
+    rc = e->rc;
     gs_cache_release(c, e);
     return rc;
   }

@@ -12,6 +12,13 @@
  * only ever called on a suspended connection. A request lives until both
  * libmicrohttpd and its task have let go of it (reference count).
  *
+ * Cancelling: a request that waits for another request's bake returns
+ * its worker (the cache's GS_PENDING) and stays suspended; the baking
+ * worker's completion queues it again. The reaper also watches suspended
+ * connections for a hang-up (libmicrohttpd does not poll them). A request
+ * past its deadline or whose client left tells the cache it is no longer
+ * interested, and a bake nobody waits for is cancelled.
+ *
  * Hostile clients: the first call for a request (headers complete) routes,
  * authenticates and checks the framing, and answers a refusal at once, so
  * no body is read and no "100 Continue" sent for it. The same reaper also
@@ -19,10 +26,12 @@
  * request_timeout_s (libmicrohttpd's own timeout restarts on every byte). */
 #define _POSIX_C_SOURCE 200809L
 #include <arpa/inet.h>
+#include <errno.h>
 #include <jansson.h>
 #include <math.h>
 #include <microhttpd.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -68,6 +77,8 @@ typedef struct gs_req {
   int answered;             /* a response is queued */
   /* Guarded by h->mu. */
   int dispatched, suspended, done;
+  int gone;                 /* the client hung up while it waited: close without an answer */
+  gs_waiter w;              /* its interest in a bake (cache.c) */
   gs_answer ans;
   gi_proto_bake bake;
   gi_proto_probes probes;
@@ -148,7 +159,11 @@ static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
   if (a->cache) MHD_add_response_header(resp, "X-GI-Cache", a->cache);
   if (a->disposition[0]) MHD_add_response_header(resp, "Content-Disposition", a->disposition);
   if (a->location[0]) MHD_add_response_header(resp, "Location", a->location);
-  if (a->status == 503) MHD_add_response_header(resp, "Retry-After", "1");
+  if (a->status == 503 || a->status == 504) {
+    char retry[16];
+    snprintf(retry, sizeof retry, "%d", a->retry_after_s > 0 ? a->retry_after_s : 1);
+    MHD_add_response_header(resp, "Retry-After", retry);
+  }
   if (a->status == 401) MHD_add_response_header(resp, "WWW-Authenticate", "Bearer realm=\"gi-server\"");
   if (a->status == 405)
     MHD_add_response_header(resp, "Allow",
@@ -203,31 +218,105 @@ static void task(void *arg) {
   if (!skip) {
     gs_answer a = {.fd = -1};
     if (r->ep == GS_EP_PROBES) gs_serve_probes(h->svc, r->scene, &r->probes, r->t_start, &a);
-    else gs_serve_bake(h->svc, r->scene, r->ep, &r->bake, r->t_start, &a);
-    complete(h, r, &a);
+    else gs_serve_bake(h->svc, r->scene, r->ep, &r->bake, r->t_start, &r->w, &a);
+    /* Status 0: it waits for another request's bake; wake_request queues it again. */
+    if (a.status) complete(h, r, &a);
   }
   req_release(r);
 }
 
-/* Answers 504 for every waiting request past its deadline. Locked (mu). */
+/* The cache holds r (under its lock) for the wake that follows. */
+static void hold_request(void *arg) {
+  gs_req *r = arg;
+  atomic_fetch_add(&r->refs, 1);
+}
+
+/* The bake r waited for ended: run r again on a worker (a cache hit now). */
+static void wake_request(void *arg) {
+  gs_req *r = arg;
+  gs_http *h = r->h;
+  pthread_mutex_lock(&h->mu);
+  int done = r->done;
+  pthread_mutex_unlock(&h->mu);
+  if (done) {
+    req_release(r);
+    return;
+  }
+  if (gs_pool_submit(h->svc->pool, task, r) == 0) return; /* the task takes the hold */
+  gi_proto_error e;
+  gi_proto_fail(&e, 503, "%s", "the server is busy: the bake this request waited for is done, but no worker "
+                               "could take it; retry after 1 s");
+  gs_answer a = {.fd = -1};
+  gs_answer_error(&a, &e);
+  complete(h, r, &a);
+  req_release(r);
+}
+
+/* Whether the client of a suspended request has closed its connection
+ * (libmicrohttpd does not poll suspended connections). */
+static int hung_up(gs_req *r) {
+  const union MHD_ConnectionInfo *ci = MHD_get_connection_info(r->conn, MHD_CONNECTION_INFO_CONNECTION_FD);
+  if (!ci) return 0;
+  struct pollfd p = {.fd = ci->connect_fd, .events = POLLIN};
+  if (poll(&p, 1, 0) <= 0) return 0;
+  if (p.revents & (POLLHUP | POLLERR)) return 1;
+  /* Readable: the end of the stream (0), or a pipelined request (kept). */
+  char b;
+  ssize_t n = recv(ci->connect_fd, &b, 1, MSG_PEEK | MSG_DONTWAIT);
+  return n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR);
+}
+
+/* Past its deadline (504) or hung up (closed without an answer): r leaves
+ * its bake, which is cancelled when nobody else waits for it. Called
+ * unlocked with a reference on r; r is done and out of the waiting list. */
+static void give_up(gs_http *h, gs_req *r) {
+  int cancelled = gs_cache_leave(h->svc->cache, &r->w);
+  const gs_config *cfg = h->svc->cfg;
+  if (!r->gone) {
+    /* The same request would cost as much again: retry after a deadline's
+     * time, when the server may be less busy, or ask for less. */
+    int retry = (int)ceil(cfg->deadline_s);
+    gi_proto_error e;
+    gi_proto_fail(&e, 504, "the request took longer than the server's deadline of %g s%s; a retry costs as much: "
+                  "retry after %d s, or ask for a cheaper quality", cfg->deadline_s,
+                  cancelled ? " and its bake was stopped" : "", retry);
+    gs_answer_error(&r->ans, &e);
+    r->ans.retry_after_s = retry;
+    gs_metrics_timeout(h->svc->metrics);
+  }
+  pthread_mutex_lock(&h->mu);
+  if (r->suspended) {
+    r->suspended = 0;
+    MHD_resume_connection(r->conn);
+  }
+  pthread_mutex_unlock(&h->mu);
+  req_release(r);
+}
+
+/* Gives up every waiting request past its deadline or whose client left.
+ * Called locked (mu); returns locked, having unlocked in between. */
 static void reap_deadlines(gs_http *h) {
   double now = gs_now_ms();
+  gs_req *expired = NULL;
   for (gs_req *r = h->waiting, *n; r; r = n) {
     n = r->next;
-    if (now < r->deadline || r->done) continue;
+    if (r->done) continue;
+    int gone = r->suspended && hung_up(r);
+    if (now < r->deadline && !gone) continue;
     r->done = 1;
+    r->gone = gone && now < r->deadline;
     waiting_remove(h, r);
-    gi_proto_error e;
-    gi_proto_fail(&e, 504, "the request took longer than the server's deadline of %g s; the cascade may "
-                           "still be cached when it finishes: retry",
-                  h->svc->cfg->deadline_s);
-    gs_answer_error(&r->ans, &e);
-    gs_metrics_timeout(h->svc->metrics);
-    if (r->suspended) {
-      r->suspended = 0;
-      MHD_resume_connection(r->conn);
-    }
+    atomic_fetch_add(&r->refs, 1);
+    r->next = expired; /* a private list now: r left the waiting list */
+    expired = r;
   }
+  pthread_mutex_unlock(&h->mu);
+  for (gs_req *r = expired, *n; r; r = n) {
+    n = r->next;
+    r->next = NULL;
+    give_up(h, r);
+  }
+  pthread_mutex_lock(&h->mu);
 }
 
 /* ---- connections: the absolute request deadline -------------------------- */
@@ -714,6 +803,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
     r->conn = conn;
     r->ans.fd = -1;
     atomic_init(&r->refs, 1);
+    r->w = (gs_waiter){.hold = hold_request, .wake = wake_request, .arg = r};
     r->t_start = gs_now_ms();
     r->deadline = r->t_start + h->svc->cfg->deadline_s * 1e3;
     snprintf(r->method, sizeof r->method, "%s", method);
@@ -731,8 +821,14 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
   if (r->dispatched) {
     /* Resumed: the worker or the reaper left the answer. */
     pthread_mutex_lock(&h->mu);
-    int done = r->done;
+    int done = r->done, gone = r->gone;
     pthread_mutex_unlock(&h->mu);
+    if (gone) {
+      char path[4 * sizeof r->path];
+      gs_log_escape(r->path, path, sizeof path);
+      fprintf(stderr, "gi-server: %s %s: the client left after %.1f ms\n", r->method, path, gs_now_ms() - r->t_start);
+      return MHD_NO; /* nobody to answer: close */
+    }
     return done ? send_answer(h, r) : MHD_YES;
   }
   conn_request_arrived(h, conn);
@@ -766,6 +862,8 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
   gs_req *r = *con_cls;
   if (!r) return;
   *con_cls = NULL;
+  /* Closed before its answer went out: it no longer wants its bake. */
+  if (code != MHD_REQUEST_TERMINATED_COMPLETED_OK) gs_cache_leave(h->svc->cache, &r->w);
   req_release(r);
 }
 

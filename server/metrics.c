@@ -26,7 +26,8 @@ typedef struct {
 struct gs_metrics {
   atomic_ullong requests[GS_EP_COUNT][NCODES + 1]; /* last: any other code */
   histogram req_seconds, bake_seconds;
-  atomic_ullong cache[3], evictions, bakes, rejected, timeouts;
+  atomic_ullong cache[3], evictions, bakes, rejected, timeouts, cancelled;
+  atomic_llong in_flight; /* bakes running now */
 };
 
 gs_metrics *gs_metrics_new(void) { return calloc(1, sizeof(gs_metrics)); }
@@ -50,6 +51,11 @@ void gs_metrics_request(gs_metrics *m, gs_endpoint ep, int status, double second
 void gs_metrics_bake(gs_metrics *m, double seconds) {
   atomic_fetch_add(&m->bakes, 1);
   observe(&m->bake_seconds, seconds);
+}
+void gs_metrics_bake_begin(gs_metrics *m) { atomic_fetch_add(&m->in_flight, 1); }
+void gs_metrics_bake_end(gs_metrics *m, int cancelled) {
+  atomic_fetch_sub(&m->in_flight, 1);
+  if (cancelled) atomic_fetch_add(&m->cancelled, 1);
 }
 void gs_metrics_cache(gs_metrics *m, gs_cache_how how) { atomic_fetch_add(&m->cache[how], 1); }
 void gs_metrics_eviction(gs_metrics *m) { atomic_fetch_add(&m->evictions, 1); }
@@ -116,6 +122,10 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put_hist(&b, "gi_request_duration_seconds", "Time from request to answer.", &m->req_seconds);
   put_hist(&b, "gi_bake_duration_seconds", "Time to bake one cascade (voxelize to bounce).", &m->bake_seconds);
   put_counter(&b, "gi_bakes_total", "Cascades baked.", atomic_load(&m->bakes));
+  put_counter(&b, "gi_bakes_cancelled_total",
+              "Bakes stopped because every request waiting for them left (deadline or hang-up).",
+              atomic_load(&m->cancelled));
+  put_gauge(&b, "gi_bakes_in_flight", "Cascades being baked now.", (double)atomic_load(&m->in_flight));
   put_counter(&b, "gi_cache_hits_total", "Requests answered from a cached cascade.", atomic_load(&m->cache[0]));
   put_counter(&b, "gi_cache_misses_total", "Requests that baked their cascade.", atomic_load(&m->cache[1]));
   put_counter(&b, "gi_cache_coalesced_total", "Requests that waited for a bake already running for their key.",

@@ -40,6 +40,7 @@ int gs_status_of(gi_result rc) {
   case GI_ERR_EMPTY: return 400;
   case GI_ERR_LIMIT: return 413;
   case GI_ERR_NOMEM: return 503;
+  case GI_ERR_CANCELLED: return 504;
   default: return 500;
   }
 }
@@ -108,14 +109,16 @@ static void finish_headers(gs_answer *a, const gi_bake_report *rep, const gi_tim
 }
 
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
-                   gs_answer *a) {
+                   gs_waiter *w, gs_answer *a) {
   gi_error_info e = {0};
   gi_result rc;
   gi_quality req, q = resolve_request(svc, s, &b->quality, &req, &e, &rc);
   if (rc != GI_OK) return fail_core(a, rc, &e);
   gs_entry *ent = NULL;
   gs_cache_how how;
-  if ((rc = gs_cache_get(svc->cache, s, b->at, &req, &q, &ent, &how, &e)) != GI_OK) return fail_core(a, rc, &e);
+  rc = gs_cache_get(svc->cache, s, b->at, &req, &q, w, &ent, &how, &e);
+  if (rc == GS_PENDING) return; /* no answer yet: w is woken when the bake ends */
+  if (rc != GI_OK) return fail_core(a, rc, &e);
   const gi_cascade *c = gs_entry_cascade(ent);
   const gi_bake_report *rep = gi_cascade_report(c);
   gi_timings ms = {0};
@@ -269,7 +272,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
     const gi_cascade *c;
     gs_cache_how how = GS_CACHE_MISS;
     if (use_cache) {
-      if ((rc = gs_cache_get(svc->cache, s, tl->at, req, q, &ent, &how, err)) != GI_OK) break;
+      if ((rc = gs_cache_get(svc->cache, s, tl->at, req, q, NULL, &ent, &how, err)) != GI_OK) break;
       c = gs_entry_cascade(ent);
     } else {
       double t0 = gs_now_ms();

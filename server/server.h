@@ -97,6 +97,9 @@ void gs_metrics_request(gs_metrics *m, gs_endpoint ep, int status, double second
 void gs_metrics_bake(gs_metrics *m, double seconds);
 typedef enum { GS_CACHE_HIT, GS_CACHE_MISS, GS_CACHE_COALESCED } gs_cache_how;
 void gs_metrics_cache(gs_metrics *m, gs_cache_how how);
+/* Around every bake (cache.c): the in-flight gauge, and the cancelled counter. */
+void gs_metrics_bake_begin(gs_metrics *m);
+void gs_metrics_bake_end(gs_metrics *m, int cancelled);
 void gs_metrics_eviction(gs_metrics *m);
 void gs_metrics_rejected(gs_metrics *m);
 void gs_metrics_timeout(gs_metrics *m);
@@ -117,13 +120,39 @@ typedef struct gs_cache gs_cache;
 typedef struct gs_entry gs_entry;
 gs_cache *gs_cache_new(size_t budget_bytes, gs_metrics *m);
 void gs_cache_free(gs_cache *c);
+/* A request's interest in a bake (cache.c). The request owns it; the
+ * cache links it to the entry being baked until the bake ends or the
+ * request leaves (gs_cache_leave). */
+typedef struct gs_waiter {
+  void (*hold)(void *arg); /* called under the cache lock: keep arg alive until wake */
+  void (*wake)(void *arg); /* the bake it waited for ended: run the request again (no lock held) */
+  void *arg;
+  /* The cache's, under its lock. */
+  gs_entry *entry;         /* the bake it is interested in, or NULL */
+  struct gs_waiter *next;
+  int coalesced;           /* it waited for another request's bake */
+  int left;                /* gs_cache_leave was called: it joins no bake */
+  gi_result rc;            /* that bake's failure, for the request's next try */
+  gi_error_info err;
+} gs_waiter;
+/* gs_cache_get's answer when w waits for another request's bake: the
+ * caller returns and frees its worker; w->wake comes when the bake ends. */
+#define GS_PENDING ((gi_result)-100)
 /* A baked cascade for (scene, at, resolved quality): from the cache, from a
- * bake already running for the same key (waits for it), or baked now on
- * the calling thread. The entry stays valid until gs_cache_release. */
+ * bake already running for the same key, or baked now on the calling
+ * thread. With a waiter, a running bake gives GS_PENDING (see gs_waiter)
+ * and the call's own bake counts w as interested; without one (NULL) the
+ * call blocks until the running bake ends. A bake nobody is interested in
+ * any more is cancelled and never cached. The entry stays valid until
+ * gs_cache_release. */
 /* req is the request's quality as gi_cascade_bake takes it (zero = auto);
  * resolved is gi_quality_resolve's answer for it (placement, key). */
 gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
-                       const gi_quality *resolved, gs_entry **out, gs_cache_how *how, gi_error_info *err);
+                       const gi_quality *resolved, gs_waiter *w, gs_entry **out, gs_cache_how *how,
+                       gi_error_info *err);
+/* The request behind w gave up (deadline, hang-up): it stops counting as
+ * interested. Returns 1 when that cancelled the bake (nobody else waits). */
+int gs_cache_leave(gs_cache *c, gs_waiter *w);
 const gi_cascade *gs_entry_cascade(const gs_entry *e);
 void gs_cache_release(gs_cache *c, gs_entry *e);
 void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries);
@@ -160,7 +189,7 @@ void gs_tmp_path(gs_service *svc, const char *ext, char *buf, size_t size);
 /* log.c: in written with every byte outside printable ASCII (and '\\') as
  * \xNN, cut to fit size, so a client's bytes cannot forge a log line. */
 void gs_log_escape(const char *in, char *out, size_t size);
-/* HTTP status for a core error. */
+/* HTTP status for a core error (a cancelled bake: 504, its deadline passed). */
 int gs_status_of(gi_result rc);
 /* Milliseconds on the monotonic clock. */
 double gs_now_ms(void);
@@ -179,14 +208,17 @@ typedef struct gs_answer {
   char effects[200];
   const char *cache;      /* "hit", "miss", "coalesced" or NULL */
   char location[128];
+  int retry_after_s;      /* Retry-After for a 503 or 504 (0: 1 s) */
 } gs_answer;
 
 void gs_answer_error(gs_answer *a, const gi_proto_error *e);
 void gs_answer_free(gs_answer *a);
 
 /* Lighting (probe, panorama) or cascades for one viewpoint. */
+/* w (may be NULL: block for a running bake) as in gs_cache_get: out->status
+ * stays 0 when the request waits for another request's bake. */
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b,
-                   double t_start_ms, gs_answer *out);
+                   double t_start_ms, gs_waiter *w, gs_answer *out);
 /* Probe points: inline when small, else a job (202). Frees p's points. */
 void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms,
                      gs_answer *out);

@@ -60,6 +60,12 @@ const gi_bake_report *gi_cascade_report(const gi_cascade *c) { return &c->report
 
 gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_quality *qin,
                           gi_cascade **out, gi_bake_report *report, gi_error_info *err) {
+  return gi_cascade_bake_ex(scene, at, qin, NULL, out, report, err);
+}
+
+gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi_quality *qin,
+                             const gi_cancel *cancel, gi_cascade **out, gi_bake_report *report,
+                             gi_error_info *err) {
   *out = NULL;
   if (!scene || !at) return gi__fail(err, GI_ERR_INVALID_ARG, "bake: scene and viewpoint are required");
   if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
@@ -70,6 +76,7 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   struct gi_cascade *c = gi__calloc(1, sizeof *c);
   if (!c) return gi__fail(err, GI_ERR_NOMEM, "bake: out of memory");
   c->scene = gi_scene_retain((gi_scene *)scene);
+  c->cancel = cancel;
   c->n = q.levels;
   c->R = q.res;
   c->s0 = q.voxel0;
@@ -112,7 +119,10 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   double t1 = gi__now_ms();
   if ((rc = gi__inject(c, &q, err)) != GI_OK) goto fail;
   double t2 = gi__now_ms();
-  gi__cascade_filter(c, q.threads);
+  if (gi__cascade_filter(c, q.threads)) {
+    rc = gi__cancel_fail(cancel, err, "filter");
+    goto fail;
+  }
   gi__cascade_mark_busy(c);
   double t3 = gi__now_ms();
   if (c->report.effects[GI_FX_BOUNCE].ran)
@@ -130,6 +140,7 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
     c->report.occupied[d] = occ;
   }
   c->report.cascade_bytes = gi_cascade_bytes(c);
+  c->cancel = NULL; /* the token need not outlive the bake */
   if (report) *report = c->report;
   *out = c;
   return GI_OK;

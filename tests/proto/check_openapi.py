@@ -42,7 +42,7 @@ CONTRACT = {
 CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
                "/v1/scenes/{id}/probes": "image/x-exr", "/v1/jobs/{id}/result": "image/x-exr",
                "/metrics": "text/plain; version=0.0.4"}
-ERR_HEADERS = {401: "WWW-Authenticate", 405: "Allow", 503: "Retry-After"}
+ERR_HEADERS = {401: "WWW-Authenticate", 405: "Allow", 503: "Retry-After", 504: "Retry-After"}
 BAKE_HEADERS = {"Server-Timing", "X-GI-Cache", "X-GI-Effects"}
 
 
@@ -187,6 +187,7 @@ def main():
     for what, breaker in [
         ("lighting 503", lambda d: d["paths"]["/v1/scenes/{id}/lighting"]["get"]["responses"].pop("503")),
         ("Retry-After", lambda d: d["components"]["responses"]["Overloaded"].pop("headers")),
+        ("504 Retry-After", lambda d: d["components"]["responses"]["Timeout"].pop("headers")),
         ("probe_samples", lambda d: d["paths"]["/v1/scenes/{id}/lighting"]["get"]["parameters"].remove(
             {"$ref": "#/components/parameters/ProbeSamples"})),
         ("jobs path", lambda d: d["paths"].pop("/v1/jobs/{id}")),

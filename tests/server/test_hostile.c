@@ -12,7 +12,11 @@
  *                     second address answers within 100 ms throughout;
  *   jobs              DELETE cancels (queued at once, running between
  *                     tiles), the job deadline, private result files,
- *                     stale folders removed, SIGTERM within the grace. */
+ *                     stale folders removed, SIGTERM within the grace;
+ *   cancelling        costly bakes whose clients hang up, or whose request
+ *                     passes its deadline (504 + Retry-After), are
+ *                     cancelled within 1 s; a coalesced waiter holds no
+ *                     worker and keeps the shared bake alive. */
 #define _POSIX_C_SOURCE 200809L
 #include "server_util.h"
 #include "test_util.h"
@@ -586,6 +590,128 @@ static void test_second_signal_and_grace(void **state) {
   close(fd);
 }
 
+/* ---- 8. bakes nobody waits for are cancelled ------------------------------ */
+
+/* The costly request: minutes of baking on one thread. */
+#define COSTLY "/v1/scenes/city/lighting?at=2.1,1.7,1.4&quality=high&res=64&levels=8&samples=512" \
+               "&probe_samples=8192&bounces=8&cones=32&step=0.05"
+#define CHEAP "/v1/scenes/city/lighting?at=2.1,1.7,1.4&quality=low"
+/* Two bake workers, a 3 s deadline. */
+#define CANCEL_DEADLINE_S 3
+#define CANCEL_INI                                                                                  \
+  "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\nworkers = 2\nqueue = 8\n"          \
+  "bake_threads = 1\ntmp_dir = .\ntoken_file = token.txt\ndeadline_s = 3\n"                         \
+  "\n[scene city]\nsource = city\nextent = 300\n"
+/* Workers must be free this soon after the last client left (the bound). */
+#define FREE_WITHIN_MS 1000
+
+/* A GET on a raw socket that the test closes without reading (a client hanging up). */
+static int send_get(const su_server *s, const char *path) {
+  char req[1024];
+  snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN "\r\n\r\n", path);
+  int fd = su_connect(s, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  return fd;
+}
+
+/* Milliseconds until the bakes in flight are `flight` and the cancelled
+ * counter `cancelled`, or -1 after ms. */
+static double wait_bakes(const su_server *s, double flight, double cancelled, int ms) {
+  double t0 = su_now_ms();
+  while (su_now_ms() - t0 < ms) {
+    if (su_metric(s, "gi_bakes_in_flight", NULL) == flight &&
+        su_metric(s, "gi_bakes_cancelled_total", NULL) == cancelled)
+      return su_now_ms() - t0;
+    su_sleep_ms(10);
+  }
+  return -1;
+}
+
+/* A GET with the token: its status and time in ms; X-GI-Cache into cache. */
+static long timed_get(const su_server *s, const char *path, double *ms, char cache[16]) {
+  double t0 = su_now_ms();
+  su_resp r = su_http(s, NULL, path, NULL, SU_TOKEN);
+  *ms = su_now_ms() - t0;
+  const char *c = su_header(&r, "X-GI-Cache");
+  snprintf(cache, 16, "%s", c ? c : "-");
+  free(r.body);
+  return r.status;
+}
+
+/* Finding 1: two costly bakes whose clients hang up after 1 s. */
+static void test_hangups_cancel_bakes(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "cancel", CANCEL_INI), 0);
+  int a = send_get(&s, COSTLY), b = send_get(&s, COSTLY "&seed=2");
+  su_sleep_ms(1000);
+  assert_true(su_metric(&s, "gi_bakes_in_flight", NULL) == 2);
+  assert_true(su_metric(&s, "gi_workers_busy", NULL) == 2);
+  close(a);
+  close(b);
+  double t0 = su_now_ms(), ms = wait_bakes(&s, 0, 2, 5000);
+  while (su_metric(&s, "gi_workers_busy", NULL) > 0 && su_now_ms() - t0 < 5000) su_sleep_ms(10);
+  double free_ms = su_now_ms() - t0;
+  printf("  two costly bakes, clients gone after 1 s: both cancelled after %.0f ms, workers free after %.0f ms\n", ms,
+         free_ms);
+  assert_true(ms >= 0 && ms < FREE_WITHIN_MS);
+  assert_true(free_ms < FREE_WITHIN_MS);
+  assert_true(su_metric(&s, "gi_bakes_total", NULL) == 0);
+  char cache[16];
+  assert_int_equal(timed_get(&s, CHEAP, &ms, cache), 200);
+  printf("  then a cheap request: 200 in %.0f ms (%s)\n", ms, cache);
+  assert_true(ms < 2000);
+  assert_int_equal(su_stop(&s), 0);
+}
+
+/* A coalesced waiter holds no worker, and the shared bake stops only when
+ * both its clients are gone; a request past its deadline gets 504 with
+ * Retry-After and its bake is cancelled. */
+static void test_coalesced_and_deadline(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "coalesce", CANCEL_INI), 0);
+  char cache[16];
+  double ms;
+  assert_int_equal(timed_get(&s, CHEAP, &ms, cache), 200);
+  int a = send_get(&s, COSTLY "&seed=3");
+  assert_true(wait_bakes(&s, 1, 0, 5000) >= 0);
+  int b = send_get(&s, COSTLY "&seed=3");
+  for (int i = 0; i < 250 && su_metric(&s, "gi_cache_coalesced_total", NULL) < 1; i++) su_sleep_ms(20);
+  su_sleep_ms(200);
+  double busy = su_metric(&s, "gi_workers_busy", NULL);
+  assert_int_equal(timed_get(&s, CHEAP, &ms, cache), 200);
+  printf("  one bake, two clients: %.0f worker(s) busy; a cache hit meanwhile took %.0f ms (%s)\n", busy, ms, cache);
+  assert_true(busy == 1);
+  assert_string_equal(cache, "hit");
+  assert_true(ms < 500);
+  close(a);
+  su_sleep_ms(300);
+  /* One client still waits: the bake goes on. */
+  assert_true(su_metric(&s, "gi_bakes_in_flight", NULL) == 1);
+  assert_true(su_metric(&s, "gi_bakes_cancelled_total", NULL) == 0);
+  close(b);
+  ms = wait_bakes(&s, 0, 1, 5000);
+  printf("  the second client gone: the bake cancelled after %.0f ms\n", ms);
+  assert_true(ms >= 0 && ms < FREE_WITHIN_MS);
+
+  double t0 = su_now_ms();
+  su_resp r = su_http(&s, NULL, COSTLY "&seed=4", NULL, SU_TOKEN);
+  double took = su_now_ms() - t0;
+  su_expect_error(&r, 504, "timeout", "deadline");
+  const char *retry = su_header(&r, "Retry-After");
+  printf("  a costly request: 504 after %.0f ms (deadline %d s), Retry-After: %s\n", took, CANCEL_DEADLINE_S,
+         retry ? retry : "(none)");
+  assert_non_null(retry);
+  assert_int_equal(atoi(retry), CANCEL_DEADLINE_S);
+  assert_null(strstr(r.body, "retry now"));
+  free(r.body);
+  ms = wait_bakes(&s, 0, 2, 5000);
+  printf("  its bake cancelled %.0f ms after the 504\n", ms);
+  assert_true(ms >= 0 && ms < FREE_WITHIN_MS);
+  assert_true(su_metric(&s, "gi_timeouts_total", NULL) == 1);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_strict_parsing),
@@ -599,6 +725,8 @@ int main(void) {
       cmocka_unit_test(test_job_files_private),
       cmocka_unit_test(test_sigterm_with_running_job),
       cmocka_unit_test(test_second_signal_and_grace),
+      cmocka_unit_test(test_hangups_cancel_bakes),
+      cmocka_unit_test(test_coalesced_and_deadline),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -6,6 +6,7 @@
 #include "gi_scene.h"
 #include "gi_city.h"
 #include "gi_quality.h"
+#include "gi_cancel.h"
 #include "gi_cascade.h"
 #include "gi_probe.h"
 #include "gi_output.h"

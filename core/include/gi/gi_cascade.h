@@ -18,6 +18,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include "gi_cancel.h"
 #include "gi_error.h"
 #include "gi_quality.h"
 #include "gi_scene.h"
@@ -61,6 +62,13 @@ gi_result gi_cascade_anchor(const gi_scene *scene, const double at[3], const gi_
  * (defaults). On success the caller owns *out (gi_cascade_free). */
 gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_quality *q,
                           gi_cascade **out, gi_bake_report *report, gi_error_info *err);
+/* As gi_cascade_bake, checking `cancel` (may be NULL; gi_cancel.h) between
+ * chunks of every stage: once it fires the bake stops within a chunk's
+ * time and returns GI_ERR_CANCELLED, *out NULL. A token that never fires
+ * gives the same cascade as NULL, bit for bit. */
+gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi_quality *q,
+                             const gi_cancel *cancel, gi_cascade **out, gi_bake_report *report,
+                             gi_error_info *err);
 void gi_cascade_free(gi_cascade *c); /* accepts NULL */
 size_t gi_cascade_bytes(const gi_cascade *c);
 const gi_bake_report *gi_cascade_report(const gi_cascade *c);

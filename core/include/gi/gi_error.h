@@ -24,7 +24,8 @@ extern "C" {
   X(GI_ERR_EMPTY, 7, "nothing to work on")                             \
   X(GI_ERR_LIMIT, 8, "limit exceeded")                                 \
   X(GI_ERR_BACKEND, 9, "a dependency (Embree, OpenEXR, OpenVDB) failed") \
-  X(GI_ERR_INTERNAL, 10, "internal error")
+  X(GI_ERR_INTERNAL, 10, "internal error")                            \
+  X(GI_ERR_CANCELLED, 11, "cancelled or past its deadline")
 
 typedef int32_t gi_result;
 enum {

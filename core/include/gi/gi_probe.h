@@ -36,6 +36,10 @@ typedef struct gi_probe {
  * receives the gather time. */
 gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi_probe *out,
                             double *ms, gi_error_info *err);
+/* As gi_cascade_gather, checking `cancel` (may be NULL) between probes:
+ * GI_ERR_CANCELLED once it fires (out is then partly written). */
+gi_result gi_cascade_gather_ex(const gi_cascade *c, const double *pts, size_t n, const gi_cancel *cancel,
+                               gi_probe *out, double *ms, gi_error_info *err);
 
 /* Evaluates SH L2 irradiance coefficients at unit normal n. */
 void gi_sh_eval_irradiance(const float sh[9][3], const float n[3], float out[3]);

@@ -113,6 +113,11 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
 
 gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi_probe *out,
                             double *ms, gi_error_info *err) {
+  return gi_cascade_gather_ex(c, pts, n, NULL, out, ms, err);
+}
+
+gi_result gi_cascade_gather_ex(const gi_cascade *c, const double *pts, size_t n, const gi_cancel *cancel,
+                               gi_probe *out, double *ms, gi_error_info *err) {
   if (!c || (!pts && n) || (!out && n)) return gi__fail(err, GI_ERR_INVALID_ARG, "gather: missing arguments");
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(pts[i]))
@@ -121,7 +126,8 @@ gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi
   gi_light_plan lp = gi__light_plan(&c->report, c->report.quality.probe_samples);
   gather_ctx g = {.c = c, .pts = pts, .out = out, .cap = gi__light_sample_cap(c->scene, &lp)};
   atomic_init(&g.failed, 0);
-  gi__parallel_for_stop(n, 1, c->report.quality.threads, gather_range, &g, &g.failed);
+  if (gi__parallel_for_cancel(n, 1, c->report.quality.threads, gather_range, &g, &g.failed, cancel))
+    return gi__cancel_fail(cancel, err, "gather");
   if (atomic_load(&g.failed))
     return gi__fail(err, GI_ERR_NOMEM, "gather: out of memory for the light-sample buffers (%d samples)", g.cap);
   if (ms) *ms = gi__now_ms() - t0;

@@ -9,6 +9,7 @@
 #endif
 #include <stddef.h>
 #include <stdint.h>
+#include "gi/gi_cancel.h"
 #include "gi/gi_error.h"
 
 /* Records code and a printf-style message in err (which may be NULL) and
@@ -55,7 +56,14 @@ void gi__parallel_for(size_t n, size_t grain, int threads, gi__range_fn fn, void
  * a worker that fails (workers return nothing) sets *stop, which lives in
  * its ctx, and the caller checks it after the loop. */
 void gi__parallel_for_stop(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop);
+/* As gi__parallel_for_stop (stop may be NULL), and no chunk starts once the
+ * cancel token (may be NULL) fired. Returns nonzero when the token stopped
+ * the loop: some chunks did not run, so the caller's results are partial. */
+int gi__parallel_for_cancel(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop,
+                            const gi_cancel *cancel);
 #endif
+/* GI_ERR_CANCELLED with a message naming the stage and why the token fired. */
+gi_result gi__cancel_fail(const gi_cancel *c, gi_error_info *err, const char *stage);
 /* Bound on the worker ids gi__parallel_for passes for `threads` (ids are
  * 0..N-1): the size of a per-worker scratch array. At most min(N, cores)
  * of them run at once. */

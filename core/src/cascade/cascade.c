@@ -8,18 +8,22 @@
 #include "base/internal.h"
 #include "cascade/cascade_internal.h"
 
+/* calloc may clear recycled memory (tens of MB per array of a large
+ * cascade): the token is checked before each array. */
+static int fired(const struct gi_cascade *c) { return gi_cancel_check(c->cancel) != GI_CANCEL_NONE; }
+
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
   size_t vox = (size_t)c->R * c->R * c->R;
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
-    L->geo = gi__calloc(vox, sizeof *L->geo);
-    L->rad = gi__calloc(vox, sizeof *L->rad);
-    L->side = gi__calloc(vox, sizeof *L->side);
-    L->direct = gi__calloc(vox, sizeof *L->direct);
-    L->occ = gi__malloc(vox * sizeof *L->occ);
-    L->busy = gi__calloc(vox, 1);
-    if (!L->geo || !L->rad || !L->side || !L->direct || !L->occ || !L->busy)
+    if (fired(c) || !(L->geo = gi__calloc(vox, sizeof *L->geo)) || fired(c) ||
+        !(L->rad = gi__calloc(vox, sizeof *L->rad)) || fired(c) ||
+        !(L->side = gi__calloc(vox, sizeof *L->side)) || fired(c) ||
+        !(L->direct = gi__calloc(vox, sizeof *L->direct)) || fired(c) ||
+        !(L->occ = gi__malloc(vox * sizeof *L->occ)) || fired(c) || !(L->busy = gi__calloc(vox, 1))) {
+      if (fired(c)) return gi__cancel_fail(c->cancel, err, "allocate");
       return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
+    }
   }
   return GI_OK;
 }

@@ -19,6 +19,7 @@
 #ifndef GI_CASCADE_INTERNAL_H
 #define GI_CASCADE_INTERNAL_H
 
+#include "gi/gi_cancel.h"
 #include <math.h>
 #include <stdint.h>
 #include "gi/gi_bake.h"
@@ -86,6 +87,7 @@ struct gi_cascade {
   float cone_dir[GI_MAX_CONES][3];
   float cone_weight[GI_MAX_CONES]; /* integral of cos over the cone's region; sums to pi */
   float cone_tan;        /* tan(aperture / 2) */
+  const gi_cancel *cancel; /* the bake's token while it runs (may be NULL); NULL after */
 };
 
 static inline int64_t gi__floordiv(int64_t a, int64_t b) {
@@ -112,7 +114,8 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err);
 void gi__cascade_place(struct gi_cascade *c);
 /* filter.c: filters the region of level d covered by level d-1 from level d-1's light
  * (compositing along each axis) and geometry. */
-void gi__cascade_filter(struct gi_cascade *c, int threads);
+/* Returns nonzero when c->cancel stopped it (the regions are then partial). */
+int gi__cascade_filter(struct gi_cascade *c, int threads);
 /* Rebuilds every level's busy mask from its opacity (after filtering). */
 void gi__cascade_mark_busy(struct gi_cascade *c);
 /* 1 when the local point lies in level d's window shrunk by `border` voxels. */

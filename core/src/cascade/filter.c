@@ -121,7 +121,7 @@ static void filter_range(void *p, size_t b, size_t e, int worker) {
   }
 }
 
-void gi__cascade_filter(struct gi_cascade *c, int threads) {
+int gi__cascade_filter(struct gi_cascade *c, int threads) {
   for (int d = 1; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     if (!L->has_inner) continue;
@@ -131,8 +131,9 @@ void gi__cascade_filter(struct gi_cascade *c, int threads) {
       count *= (size_t)(w > 0 ? w : 0);
     }
     filter_ctx fc = {c, d};
-    gi__parallel_for(count, 256, threads, filter_range, &fc);
+    if (gi__parallel_for_cancel(count, 256, threads, filter_range, &fc, NULL, c->cancel)) return 1;
   }
+  return 0;
 }
 
 int gi__is_inner(const gi_level *L, int64_t i, int64_t j, int64_t k) { return in_inner(L, i, j, k); }

@@ -149,13 +149,16 @@ static int cmp_u32(const void *a, const void *b) {
   return x < y ? -1 : x > y;
 }
 
-/* Normalises sums and derives opacity; lists occupied voxels to light. */
-static void finalize_level(struct gi_cascade *c, gi_level *L) {
+/* Normalises sums and derives opacity; lists occupied voxels to light.
+ * Returns nonzero when c->cancel fired (checked per z slice: a level of
+ * 64^3 takes over 100 ms here, mostly first touches of its pages). */
+static int finalize_level(struct gi_cascade *c, gi_level *L) {
   int R = c->R;
   double s2 = L->s * L->s;
   L->num_occ = 0;
   L->num_geo = 0;
-  for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++)
+  for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++) {
+    if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return 1;
     for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
       for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
         if (gi__is_inner(L, i, j, k)) continue;
@@ -194,6 +197,8 @@ static void finalize_level(struct gi_cascade *c, gi_level *L) {
         L->occ[L->num_occ++] = slot;
         L->num_geo++;
       }
+  }
+  return 0;
 }
 
 gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
@@ -207,6 +212,11 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
   gi_result rc = GI_OK;
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
+    /* Clearing, querying and binning a level is serial: check around it. */
+    if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) {
+      rc = gi__cancel_fail(c->cancel, err, "voxelize");
+      goto done;
+    }
     memset(L->geo, 0, (size_t)R * R * R * sizeof *L->geo);
     ntris = 0;
     if (s->rtc) {
@@ -217,6 +227,10 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
       }
     }
     if (ntris > 1) qsort(tris, ntris, sizeof *tris, cmp_u32); /* deterministic accumulation order */
+    if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) {
+      rc = gi__cancel_fail(c->cancel, err, "voxelize");
+      goto done;
+    }
     /* Drop triangles wholly inside the finer level's region. */
     size_t kept = 0;
     float ilo[3] = {0}, ihi[3] = {0};
@@ -268,8 +282,14 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
     }
     gi__free(fill);
     vox_ctx v = {c, d, tris, bin_start, bin_tris};
-    gi__parallel_for((size_t)nslab, 1, threads, voxelize_slabs, &v);
-    finalize_level(c, L);
+    if (gi__parallel_for_cancel((size_t)nslab, 1, threads, voxelize_slabs, &v, NULL, c->cancel)) {
+      rc = gi__cancel_fail(c->cancel, err, "voxelize");
+      goto done;
+    }
+    if (finalize_level(c, L)) {
+      rc = gi__cancel_fail(c->cancel, err, "voxelize");
+      goto done;
+    }
     c->report.occupied[d] = L->num_geo;
   }
 done:

@@ -69,8 +69,12 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     for (int d = 0; d < c->n; d++) {
       bounce_ctx bc = {.c = c, .d = d, .E = E[d]};
       atomic_init(&bc.samples, 0);
-      gi__parallel_for(c->lv[d].num_occ, 16, q->threads, bounce_range, &bc);
+      int cancelled = gi__parallel_for_cancel(c->lv[d].num_occ, 16, q->threads, bounce_range, &bc, NULL, c->cancel);
       c->report.cone_samples += atomic_load(&bc.samples);
+      if (cancelled) {
+        rc = gi__cancel_fail(c->cancel, err, "bounce");
+        goto done;
+      }
     }
     int last = it + 1 == bounces;
     /* The tail: bounce k gathers E_k = E_1 + ... (orders 2..k+1 of the
@@ -113,7 +117,10 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
       }
     }
     shade_all(c);
-    gi__cascade_filter(c, q->threads);
+    if (gi__cascade_filter(c, q->threads)) {
+      rc = gi__cancel_fail(c->cancel, err, "bounce filter");
+      goto done;
+    }
     c->report.bounces_run = it + 1;
   }
 done:

@@ -131,7 +131,9 @@ gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *e
     inject_ctx ic = {.c = c, .lp = &lp, .d = d, .seed = q->seed, .cap = cap};
     atomic_init(&ic.rays, 0);
     atomic_init(&ic.failed, 0);
-    gi__parallel_for_stop(c->lv[d].num_occ, 32, q->threads, inject_range, &ic, &ic.failed);
+    int cancelled = gi__parallel_for_cancel(c->lv[d].num_occ, 32, q->threads, inject_range, &ic, &ic.failed,
+                                            c->cancel);
+    if (cancelled) return gi__cancel_fail(c->cancel, err, "inject");
     if (atomic_load(&ic.failed))
       return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for the light-sample buffers (%d samples) of level %d",
                       cap, d);

@@ -1,0 +1,209 @@
+/* test_cancel.c: the cancel token through the bake and the gather.
+ *
+ * A costly city bake (minutes when left alone) is stopped from another
+ * thread and by a deadline, and must return GI_ERR_CANCELLED within a
+ * chunk's time; a token that never fires changes nothing, bit for bit. */
+#include "test_util.h"
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include "cascade/cascade_internal.h"
+#include "gi/gi_city.h"
+#include "gi/gi_probe.h"
+
+/* How long after a cancel (or a deadline) the bake may still run. The
+ * design goal is ~50 ms; the margin covers a loaded two-core test machine.
+ * Sanitizer builds run the serial parts (calloc clears through the
+ * sanitizer) about three times slower: the bound scales with them. */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define SLOWDOWN 3.0
+#else
+#define SLOWDOWN 1.0
+#endif
+#define STOP_WITHIN_MS (100.0 * SLOWDOWN)
+#define CANCEL_AFTER_MS 100.0
+#define DEADLINE_MS 100.0
+#define LATE_DEADLINE_MS 1000.0
+
+static gi_scene *city(double at[3]) {
+  gi_city_params p = {0};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&p, NULL, &s, &err), GI_OK);
+  gi_city_default_viewpoint(&p, at);
+  return s;
+}
+
+/* The costly request: far more than a second of work. */
+static gi_quality costly(void) {
+  gi_quality q = {0};
+  q.res = 64;
+  q.levels = 8;
+  q.light_samples = 512;
+  q.probe_samples = 8192;
+  q.bounces = 8;
+  q.cones = 32;
+  q.step = 0.05f;
+  return q;
+}
+
+static void sleep_ms(double ms) {
+  struct timespec ts = {(time_t)(ms / 1000), (long)(((long long)ms % 1000) * 1000000)};
+  nanosleep(&ts, NULL);
+}
+
+typedef struct {
+  gi_scene *s;
+  double at[3];
+  gi_quality q;
+  gi_cancel *cancel;
+  gi_cascade *out;
+  gi_error_info err;
+  gi_result rc;
+  double end_ms;
+} bake_job;
+
+static void *bake_thread(void *p) {
+  bake_job *j = p;
+  j->rc = gi_cascade_bake_ex(j->s, j->at, &j->q, j->cancel, &j->out, NULL, &j->err);
+  j->end_ms = gi_now_ms();
+  return NULL;
+}
+
+static void test_cancel_from_another_thread(void **state) {
+  bake_job j = {.q = costly()};
+  j.s = city(j.at);
+  j.cancel = gi_cancel_new();
+  assert_non_null(j.cancel);
+  pthread_t t;
+  double t0 = gi_now_ms();
+  assert_int_equal(pthread_create(&t, NULL, bake_thread, &j), 0);
+  sleep_ms(CANCEL_AFTER_MS);
+  double tc = gi_now_ms();
+  gi_cancel_set(j.cancel);
+  pthread_join(t, NULL);
+  printf("  cancelled %.0f ms into the bake; it returned %.1f ms after the cancel (%s)\n", tc - t0,
+         j.end_ms - tc, j.err.msg);
+  gi_cancel_reason why = gi_cancel_check(j.cancel);
+  /* Freed before the checks, so a failing one does not also report leaks. */
+  gi_cascade_free(j.out);
+  gi_cancel_free(j.cancel);
+  gi_scene_release(j.s);
+  assert_int_equal(j.rc, GI_ERR_CANCELLED);
+  assert_null(j.out);
+  assert_int_equal(why, GI_CANCEL_REQUESTED);
+  assert_non_null(strstr(j.err.msg, "cancelled"));
+  assert_true(j.end_ms - tc < STOP_WITHIN_MS);
+}
+
+/* A deadline stops the bake in whichever stage it falls: 100 ms is in the
+ * voxelization, 1 s in the lighting stages. */
+static void deadline_after(const gi_quality *q, double ahead_ms) {
+  bake_job j = {.q = q->res ? *q : costly()};
+  j.s = city(j.at);
+  j.cancel = gi_cancel_new();
+  double t0 = gi_now_ms();
+  gi_cancel_set_deadline(j.cancel, t0 + ahead_ms);
+  bake_thread(&j);
+  printf("  deadline %.0f ms ahead: the bake returned after %.1f ms (%s)\n", ahead_ms, j.end_ms - t0, j.err.msg);
+  gi_cancel_reason why = gi_cancel_check(j.cancel);
+  gi_cascade_free(j.out);
+  gi_cancel_free(j.cancel);
+  gi_scene_release(j.s);
+  assert_int_equal(j.rc, GI_ERR_CANCELLED);
+  assert_null(j.out);
+  assert_int_equal(why, GI_CANCEL_DEADLINE);
+  assert_non_null(strstr(j.err.msg, "deadline"));
+  assert_true(j.end_ms - t0 >= ahead_ms);
+  assert_true(j.end_ms - t0 < ahead_ms + STOP_WITHIN_MS);
+}
+
+static void test_deadline(void **state) {
+  deadline_after(&(gi_quality){0}, DEADLINE_MS);
+  /* Fewer, smaller levels: voxelized in a fraction of the time, so the
+   * deadline falls in the lighting stages. */
+  gi_quality q = costly();
+  q.res = 32;
+  q.levels = 4;
+  deadline_after(&q, LATE_DEADLINE_MS);
+}
+
+/* A token fired before the call stops it before any work. */
+static void test_fired_before(void **state) {
+  double at[3];
+  gi_scene *s = city(at);
+  gi_cancel *c = gi_cancel_new();
+  gi_cancel_set_deadline(c, gi_now_ms() - 1);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_DEADLINE);
+  gi_cascade *out = (gi_cascade *)&out; /* must come back NULL */
+  gi_error_info err = {0};
+  gi_quality q = costly();
+  assert_int_equal(gi_cascade_bake_ex(s, at, &q, c, &out, NULL, &err), GI_ERR_CANCELLED);
+  assert_null(out);
+  assert_int_equal(err.code, GI_ERR_CANCELLED);
+  /* A request wins over a deadline; NULL never fires. */
+  gi_cancel_set(c);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_REQUESTED);
+  assert_int_equal(gi_cancel_check(NULL), GI_CANCEL_NONE);
+  assert_string_equal(gi_err_name(GI_ERR_CANCELLED), "GI_ERR_CANCELLED");
+  gi_cancel_free(c);
+  gi_cancel_free(NULL);
+  gi_scene_release(s);
+}
+
+static void assert_same_cascade(const gi_cascade *a, const gi_cascade *b) {
+  assert_int_equal(a->n, b->n);
+  size_t vox = (size_t)a->R * a->R * a->R;
+  for (int d = 0; d < a->n; d++) {
+    assert_memory_equal(a->lv[d].rad, b->lv[d].rad, vox * sizeof *a->lv[d].rad);
+    assert_memory_equal(a->lv[d].side, b->lv[d].side, vox * sizeof *a->lv[d].side);
+    assert_memory_equal(a->lv[d].geo, b->lv[d].geo, vox * sizeof *a->lv[d].geo);
+  }
+  assert_true(a->report.cone_samples == b->report.cone_samples);
+  assert_true(a->report.shadow_rays == b->report.shadow_rays);
+}
+
+/* A token that never fires (with a deadline far ahead) gives the NULL
+ * token's cascade and probes exactly; a fired one stops the gather. */
+static void test_unfired_is_identical(void **state) {
+  double at[3];
+  gi_scene *s = city(at);
+  gi_quality q = {0};
+  q.res = 16;
+  q.levels = 3;
+  q.bounces = 2;
+  gi_cancel *c = gi_cancel_new();
+  gi_cancel_set_deadline(c, gi_now_ms() + 3600e3);
+  gi_cascade *a = NULL, *b = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake_ex(s, at, &q, NULL, &a, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_bake_ex(s, at, &q, c, &b, NULL, &err), GI_OK);
+  assert_same_cascade(a, b);
+  enum { NP = 16 };
+  double pts[3 * NP];
+  for (int i = 0; i < NP; i++)
+    for (int k = 0; k < 3; k++) pts[3 * i + k] = at[k] + 0.5 * (i % 4) - 0.25 * k;
+  gi_probe pa[NP], pb[NP];
+  assert_int_equal(gi_cascade_gather_ex(a, pts, NP, NULL, pa, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_gather_ex(b, pts, NP, c, pb, NULL, &err), GI_OK);
+  assert_memory_equal(pa, pb, sizeof pa);
+  gi_cancel_set(c);
+  assert_int_equal(gi_cascade_gather_ex(b, pts, NP, c, pb, NULL, &err), GI_ERR_CANCELLED);
+  assert_non_null(strstr(err.msg, "gather"));
+  gi_cascade_free(a);
+  gi_cascade_free(b);
+  gi_cancel_free(c);
+  gi_scene_release(s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_fired_before),
+      cmocka_unit_test(test_unfired_is_identical),
+      cmocka_unit_test(test_cancel_from_another_thread),
+      cmocka_unit_test(test_deadline),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
