@@ -129,7 +129,7 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put_counter(&b, "gi_rejected_total", "Requests answered 503 (queue full or memory budget taken).",
               atomic_load(&m->rejected));
   put_counter(&b, "gi_timeouts_total", "Requests answered 504 at their deadline.", atomic_load(&m->timeouts));
-  put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades.", (double)g->cache_bytes);
+  put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades and their encoded VDBs.", (double)g->cache_bytes);
   put_gauge(&b, "gi_cache_budget_bytes", "The configured memory budget: cached plus in-flight bytes.",
             (double)g->cache_budget);
   put_gauge(&b, "gi_inflight_bytes", "Estimated bytes of the bakes running now (cache misses and jobs).",
