@@ -13,7 +13,16 @@
  * least recently used READY entries that no request holds are evicted.
  * Entries a request holds may briefly push the total over the budget; they
  * are evicted when released. One mutex guards the table; bakes run
- * outside it. The table is a list in LRU order: it holds at most a few
+ * outside it.
+ *
+ * Admission by bytes: before a bake starts, its estimate (gs_bake_bytes:
+ * the cascade's exact size plus its transient buffers) is reserved as
+ * in-flight bytes. A bake is admitted only while cached bytes + in-flight
+ * bytes stay within the budget, after evicting unheld entries; otherwise
+ * the caller answers 503 (GI_ERR_NOMEM) with Retry-After. Jobs' private
+ * bakes reserve through gs_cache_reserve, so they count too. Encoded VDB
+ * bytes are kept with their cascade and counted in its bytes. The table
+ * is a list in LRU order: it holds at most a few
  * hundred cascades, so a scan costs microseconds next to a gather. */
 #define _POSIX_C_SOURCE 200809L
 #include <pthread.h>
@@ -29,7 +38,9 @@ struct gs_entry {
   int state;
   int refs;               /* requests holding or waiting for it */
   gi_cascade *cascade;
-  size_t bytes;
+  size_t bytes;           /* the cascade's plus its encoded answers' */
+  size_t reserved;        /* in-flight bytes admitted for its bake, until the bake ends */
+  gs_blob *encoded[GS_ENCODED_KINDS];
   gi_result rc;
   gi_error_info err;
   int linked;             /* in the table (failed and cancelled entries leave it at once) */
@@ -44,6 +55,7 @@ struct gs_cache {
   pthread_cond_t done;
   gs_entry *head, *tail;
   size_t bytes, entries, budget;
+  size_t inflight;        /* estimates of the bakes admitted and not yet finished */
   gs_metrics *metrics;
 };
 
@@ -83,13 +95,17 @@ static void push_front(gs_cache *c, gs_entry *e) {
 static void free_entry(gs_entry *e) {
   gi_cascade_free(e->cascade);
   gi_cancel_free(e->cancel);
+  for (int k = 0; k < GS_ENCODED_KINDS; k++) gs_blob_release(e->encoded[k]);
   free(e);
 }
 
-/* Evicts unheld READY entries from the LRU end while over budget. Locked. */
-static void evict(gs_cache *c) {
+/* Room left for `extra` more bytes: cached + in-flight + extra within the budget. */
+static int fits(const gs_cache *c, size_t extra) { return c->bytes + c->inflight + extra <= c->budget; }
+
+/* Evicts unheld READY entries from the LRU end until extra bytes fit. Locked. */
+static void evict(gs_cache *c, size_t extra) {
   gs_entry *e = c->tail;
-  while (e && c->bytes > c->budget) {
+  while (e && !fits(c, extra)) {
     gs_entry *prev = e->prev;
     if (e->state == READY && e->refs == 0) {
       unlink_entry(c, e);
@@ -122,6 +138,60 @@ static void make_key(const gs_scene *s, const int64_t a[3], const gi_quality *re
                    q->specular, (unsigned long long)q->seed, (double)q->ao_lambda);
   for (int i = 0; i < GI_FX_COUNT && n > 0 && (size_t)n < size; i++)
     n += snprintf(key + n, size - (size_t)n, "%+d", q->effects[i]);
+}
+
+size_t gs_bake_bytes(const gi_quality *resolved) {
+  size_t cas = gi_cascade_bytes_estimate(resolved);
+  return cas + cas / GS_BAKE_TRANSIENT_DIV;
+}
+
+/* Reserves need bytes for a bake (locked): evicts what it must, else GI_ERR_NOMEM. */
+static gi_result admit(gs_cache *c, size_t need, gi_error_info *err) {
+  /* A zero budget caches nothing and admits every bake (admission off). */
+  if (c->budget == 0) return GI_OK;
+  if (need > c->budget) {
+    if (err)
+      snprintf(err->msg, sizeof err->msg, "memory: this bake needs about %zu MiB, more than the whole budget (%zu MiB)",
+               need >> 20, c->budget >> 20);
+    return GI_ERR_LIMIT;
+  }
+  if (!fits(c, need)) evict(c, need);
+  if (!fits(c, need)) {
+    if (err)
+      snprintf(err->msg, sizeof err->msg,
+               "busy: the memory budget is taken (%zu MiB cached, %zu MiB baking, this bake needs %zu MiB); "
+               "retry later",
+               c->bytes >> 20, c->inflight >> 20, need >> 20);
+    return GI_ERR_NOMEM;
+  }
+  c->inflight += need;
+  return GI_OK;
+}
+
+static void unreserve(gs_cache *c, size_t need) {
+  if (c->budget == 0) return;
+  c->inflight -= need;
+}
+
+gi_result gs_cache_reserve(gs_cache *c, size_t need, gi_error_info *err) {
+  pthread_mutex_lock(&c->mu);
+  gi_result rc = admit(c, need, err);
+  pthread_mutex_unlock(&c->mu);
+  return rc;
+}
+
+void gs_cache_unreserve(gs_cache *c, size_t need) {
+  pthread_mutex_lock(&c->mu);
+  unreserve(c, need);
+  pthread_cond_broadcast(&c->done);
+  pthread_mutex_unlock(&c->mu);
+}
+
+size_t gs_cache_inflight(gs_cache *c) {
+  pthread_mutex_lock(&c->mu);
+  size_t n = c->inflight;
+  pthread_mutex_unlock(&c->mu);
+  return n;
 }
 
 /* w is interested in e's bake. Locked. */
@@ -213,6 +283,8 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_ent
 static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, gi_cascade *cas,
                       const gi_error_info *e_err) {
   pthread_mutex_lock(&c->mu);
+  unreserve(c, e->reserved);
+  e->reserved = 0;
   if (self && self->entry == e) drop_waiter(self);
   /* Cancelled (nobody waited any more, the entry left the table then) is never cached. */
   if (rc == GI_OK && e->linked) {
@@ -221,7 +293,7 @@ static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, g
     e->bytes = gi_cascade_bytes(cas);
     c->bytes += e->bytes;
     e->state = READY;
-    evict(c);
+    evict(c, 0);
   } else {
     gi_cascade_free(cas);
     e->state = FAILED;
@@ -275,10 +347,16 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   gs_entry *e = c->head;
   while (e && strcmp(e->key, key)) e = e->next;
   if (e) return found(c, e, w, woken, out, how, err);
+  size_t need = gs_bake_bytes(q);
+  if ((rc = admit(c, need, err)) != GI_OK) {
+    pthread_mutex_unlock(&c->mu);
+    return rc;
+  }
   e = calloc(1, sizeof *e);
   gi_cancel *token = e ? gi_cancel_new() : NULL;
   if (!token) {
     free(e);
+    unreserve(c, need);
     pthread_mutex_unlock(&c->mu);
     if (err) snprintf(err->msg, sizeof err->msg, "cache: out of memory for an entry");
     return GI_ERR_NOMEM;
@@ -287,6 +365,7 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   e->state = BAKING;
   e->refs = 1;
   e->cancel = token;
+  e->reserved = need;
   /* Without a waiter the caller cannot leave: it stays interested. */
   if (w) join(e, w);
   else e->interest = 1;
@@ -324,9 +403,34 @@ void gs_cache_release(gs_cache *c, gs_entry *e) {
   if (!e->linked && e->refs == 0) {
     free_entry(e);
   } else if (e->refs == 0) {
-    evict(c);
+    evict(c, 0);
   }
   pthread_mutex_unlock(&c->mu);
+}
+
+gs_blob *gs_cache_encoded(gs_cache *c, gs_entry *e, int kind) {
+  pthread_mutex_lock(&c->mu);
+  gs_blob *b = e->encoded[kind];
+  if (b) gs_blob_retain(b);
+  pthread_mutex_unlock(&c->mu);
+  return b;
+}
+
+gs_blob *gs_cache_store_encoded(gs_cache *c, gs_entry *e, int kind, gs_blob *b) {
+  pthread_mutex_lock(&c->mu);
+  if (e->encoded[kind]) {
+    /* Another request encoded it first: answer with the stored copy. */
+    gs_blob_release(b);
+    b = e->encoded[kind];
+  } else {
+    e->encoded[kind] = b;
+    e->bytes += b->size;
+    if (e->linked) c->bytes += b->size;
+    evict(c, 0);
+  }
+  gs_blob_retain(b);
+  pthread_mutex_unlock(&c->mu);
+  return b;
 }
 
 void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries) {

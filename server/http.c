@@ -142,7 +142,11 @@ static void answer_fail(gs_answer *a, int status, const char *fmt, const char *a
 static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
   gs_answer *a = &r->ans;
   struct MHD_Response *resp;
-  if (a->fd >= 0) {
+  if (a->blob) {
+    /* The blob's reference goes to libmicrohttpd, which drops it when done. */
+    resp = MHD_create_response_from_buffer_with_free_callback(a->blob->size, a->blob->data, gs_blob_release_data);
+    if (resp) a->blob = NULL;
+  } else if (a->fd >= 0) {
     resp = MHD_create_response_from_fd(a->size, a->fd);
     if (resp) a->fd = -1; /* libmicrohttpd closes it */
   } else {
@@ -520,6 +524,7 @@ static void metrics(gs_service *svc, gs_answer *a) {
   gs_gauges g = {0};
   gs_cache_stats(svc->cache, &g.cache_bytes, &g.cache_entries);
   g.cache_budget = svc->cfg->cache_bytes;
+  g.inflight_bytes = gs_cache_inflight(svc->cache);
   gs_pool_stats(svc->pool, &g.queue_depth, &g.queue_capacity, &g.workers_busy);
   gs_jobs_count(svc->jobs, g.jobs);
   g.uptime_s = (gs_now_ms() - svc->start_ms) * 1e-3;

@@ -2,8 +2,10 @@
  *
  * A job runs on its own runner threads (max_jobs of them), never on the
  * bake workers, so a city-wide probe list cannot starve interactive
- * requests; and it bakes its cascades privately, so it cannot evict the
- * cascades interactive clients are using. Progress is counted per tile.
+ * requests; and it bakes its cascades privately, so they never fill the
+ * cache. Its bakes do reserve their bytes in the memory budget (serve.c),
+ * which, like any bake, may evict cached cascades no request holds.
+ * Progress is counted per tile.
  * The result is an EXR (0600) in the server's private folder in tmp_dir
  * (0700, removed at exit, and at the next start if the server was killed),
  * kept until max_jobs_retained newer jobs have finished; then the oldest

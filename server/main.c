@@ -172,6 +172,13 @@ static int start_service(gs_service *svc, const gs_config *cfg, const gs_catalog
     fprintf(stderr, "gi-server: cannot start the workers (out of memory or threads)\n");
     return 1;
   }
+  /* A budget too small for a scene's default bake refuses every default request (413): say so now. */
+  for (size_t i = 0; i < cat->num && cfg->cache_bytes; i++) {
+    size_t need = gs_bake_bytes(&cat->scenes[i].quality);
+    if (need > cfg->cache_bytes)
+      fprintf(stderr, "gi-server: warning: scene '%s': a default bake needs %zu MiB, more than cache_mb = %zu\n",
+              cat->scenes[i].id, need >> 20, cfg->cache_bytes >> 20);
+  }
   return 0;
 }
 

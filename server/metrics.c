@@ -26,7 +26,7 @@ typedef struct {
 struct gs_metrics {
   atomic_ullong requests[GS_EP_COUNT][NCODES + 1]; /* last: any other code */
   histogram req_seconds, bake_seconds;
-  atomic_ullong cache[3], evictions, bakes, rejected, timeouts, cancelled;
+  atomic_ullong cache[3], evictions, bakes, rejected, timeouts, cancelled, encode[2];
   atomic_llong in_flight; /* bakes running now */
 };
 
@@ -61,6 +61,7 @@ void gs_metrics_cache(gs_metrics *m, gs_cache_how how) { atomic_fetch_add(&m->ca
 void gs_metrics_eviction(gs_metrics *m) { atomic_fetch_add(&m->evictions, 1); }
 void gs_metrics_rejected(gs_metrics *m) { atomic_fetch_add(&m->rejected, 1); }
 void gs_metrics_timeout(gs_metrics *m) { atomic_fetch_add(&m->timeouts, 1); }
+void gs_metrics_encode(gs_metrics *m, int hit) { atomic_fetch_add(&m->encode[hit != 0], 1); }
 
 typedef struct {
   char *buf;
@@ -132,11 +133,17 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
               atomic_load(&m->cache[2]));
   put_counter(&b, "gi_cache_evictions_total", "Cascades evicted to stay within the cache budget.",
               atomic_load(&m->evictions));
-  put_counter(&b, "gi_rejected_total", "Requests answered 503 because the queue was full.",
+  put_counter(&b, "gi_encode_hits_total", "VDB answers streamed from bytes kept with their cascade.",
+              atomic_load(&m->encode[1]));
+  put_counter(&b, "gi_encode_misses_total", "VDB answers encoded for the request.", atomic_load(&m->encode[0]));
+  put_counter(&b, "gi_rejected_total", "Requests answered 503 (queue full or memory budget taken).",
               atomic_load(&m->rejected));
   put_counter(&b, "gi_timeouts_total", "Requests answered 504 at their deadline.", atomic_load(&m->timeouts));
-  put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades.", (double)g->cache_bytes);
-  put_gauge(&b, "gi_cache_budget_bytes", "The cache's configured budget.", (double)g->cache_budget);
+  put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades and their encoded VDBs.", (double)g->cache_bytes);
+  put_gauge(&b, "gi_cache_budget_bytes", "The configured memory budget: cached plus in-flight bytes.",
+            (double)g->cache_budget);
+  put_gauge(&b, "gi_inflight_bytes", "Estimated bytes of the bakes running now (cache misses and jobs).",
+            (double)g->inflight_bytes);
   put_gauge(&b, "gi_cache_entries", "Cascades in the cache (baking or ready).", (double)g->cache_entries);
   put_gauge(&b, "gi_queue_depth", "Requests waiting for a bake worker.", (double)g->queue_depth);
   put_gauge(&b, "gi_queue_capacity", "Requests that may wait before 503.", (double)g->queue_capacity);

@@ -1,9 +1,12 @@
 /* serve.c: a parsed request in, an encoded answer out (runs on workers).
  *
- * Files are encoded by the core's writers into tmp_dir (temporary name,
- * then rename), opened, and unlinked at once: the open descriptor is the
- * answer, so nothing is left on disk whatever happens to the connection,
- * and a large VDB is streamed from the page cache instead of copied.
+ * The core's writers write to a path: each answer is encoded into the
+ * private work folder, read back into a reference-counted blob and
+ * unlinked at once, so nothing stays on disk and no descriptor stays open
+ * whatever the client does. A cascade's VDB is kept with it in the cache
+ * (counted in the budget): a second request for the same cell streams the
+ * same bytes without encoding. EXR answers are not kept: each holds its
+ * own viewpoint and timings.
  *
  * Probe lists are split into tiles: the points a single cascade answers
  * from its finest level. Each tile's cascade is anchored at the tile's
@@ -15,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <stddef.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -45,8 +49,49 @@ int gs_status_of(gi_result rc) {
   }
 }
 
+/* Jobs wait this long for room in the memory budget before they fail. */
+#define GS_JOB_ADMIT_WAIT_MS 30000
+#define GS_JOB_ADMIT_POLL_MS 100
+
+void gs_blob_retain(gs_blob *b) { atomic_fetch_add(&b->refs, 1); }
+
+void gs_blob_release(gs_blob *b) {
+  if (b && atomic_fetch_sub(&b->refs, 1) == 1) free(b);
+}
+
+void gs_blob_release_data(void *data) {
+  gs_blob_release((gs_blob *)((unsigned char *)data - offsetof(gs_blob, data)));
+}
+
+gs_blob *gs_blob_take_file(const char *path, gi_error_info *err) {
+  int fd = open(path, O_RDONLY | O_CLOEXEC);
+  struct stat st;
+  gs_blob *b = NULL;
+  if (fd >= 0 && fstat(fd, &st) == 0 && (b = malloc(sizeof *b + (size_t)st.st_size + 1))) {
+    atomic_init(&b->refs, 1);
+    b->size = (size_t)st.st_size;
+    size_t got = 0;
+    while (got < b->size) {
+      ssize_t n = read(fd, b->data + got, b->size - got);
+      if (n <= 0 && !(n < 0 && errno == EINTR)) break;
+      if (n > 0) got += (size_t)n;
+    }
+    if (got < b->size) {
+      free(b);
+      b = NULL;
+    }
+  }
+  int saved = errno;
+  if (fd >= 0) close(fd);
+  unlink(path);
+  if (!b && err) snprintf(err->msg, sizeof err->msg, "encode: cannot read the encoded file back: %s", strerror(saved));
+  return b;
+}
+
 void gs_answer_error(gs_answer *a, const gi_proto_error *e) {
   free(a->json);
+  gs_blob_release(a->blob);
+  a->blob = NULL;
   if (a->fd >= 0) close(a->fd);
   a->fd = -1;
   a->status = e->status;
@@ -57,6 +102,8 @@ void gs_answer_error(gs_answer *a, const gi_proto_error *e) {
 void gs_answer_free(gs_answer *a) {
   free(a->json);
   a->json = NULL;
+  gs_blob_release(a->blob);
+  a->blob = NULL;
   if (a->fd >= 0) close(a->fd);
   a->fd = -1;
 }
@@ -67,24 +114,38 @@ static void fail_core(gs_answer *a, gi_result rc, const gi_error_info *e) {
   gs_answer_error(a, &pe);
 }
 
-/* Opens the finished file, unlinks it, and makes it the answer. */
-static int take_file(gs_answer *a, const char *path, const char *type) {
-  int fd = open(path, O_RDONLY | O_CLOEXEC);
-  struct stat st;
-  if (fd < 0 || fstat(fd, &st) != 0) {
-    gi_proto_error pe;
-    gi_proto_fail(&pe, 500, "encode: cannot reopen the encoded file: %s", strerror(errno));
-    if (fd >= 0) close(fd);
-    unlink(path);
-    gs_answer_error(a, &pe);
-    return -1;
-  }
-  unlink(path);
+/* Reads the finished file into memory (unlinking it) and makes it the answer. */
+static gi_result take_file(gs_answer *a, const char *path, const char *type, gi_error_info *e) {
+  gs_blob *b = gs_blob_take_file(path, e);
+  if (!b) return GI_ERR_IO;
   a->status = 200;
-  a->fd = fd;
-  a->size = (size_t)st.st_size;
+  a->blob = b;
+  a->size = b->size;
   a->content_type = type;
-  return 0;
+  return GI_OK;
+}
+
+/* The cascade's VDB from the cache, else encoded now and kept there. */
+static gi_result cascade_vdb(gs_service *svc, gs_entry *ent, int faces, gs_answer *a, gi_error_info *e) {
+  int kind = faces ? 1 : 0;
+  gs_blob *b = gs_cache_encoded(svc->cache, ent, kind);
+  gs_metrics_encode(svc->metrics, b != NULL);
+  if (!b) {
+    char path[1200];
+    gs_tmp_path(svc, ".vdb", path, sizeof path);
+    gi_result rc = gi_cascade_write_vdb(gs_entry_cascade(ent), path, faces, e);
+    if (rc != GI_OK) {
+      unlink(path);
+      return rc;
+    }
+    if (!(b = gs_blob_take_file(path, e))) return GI_ERR_IO;
+    b = gs_cache_store_encoded(svc->cache, ent, kind, b);
+  }
+  a->status = 200;
+  a->blob = b;
+  a->size = b->size;
+  a->content_type = "application/octet-stream";
+  return GI_OK;
 }
 
 static const char *const cache_names[3] = {"hit", "miss", "coalesced"};
@@ -126,11 +187,10 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
   char path[1200];
   double t0;
   if (ep == GS_EP_CASCADES) {
-    gs_tmp_path(svc, ".vdb", path, sizeof path);
     t0 = gs_now_ms();
-    rc = gi_cascade_write_vdb(c, path, b->faces, &e);
+    rc = cascade_vdb(svc, ent, b->faces, a, &e);
     ms.encode = gs_now_ms() - t0;
-    if (rc == GI_OK && take_file(a, path, "application/octet-stream") == 0)
+    if (rc == GI_OK)
       snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-cascades.vdb\"", s->id);
   } else if (b->kind == GI_PROTO_PANORAMA) {
     size_t n = 3 * (size_t)b->width * (size_t)b->height;
@@ -149,7 +209,7 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
       t0 = gs_now_ms();
       rc = gi_panorama_write_exr(path, b->width, b->height, dir, ind, s->scene, b->at, rep, b->half, extra, 2, &e);
       ms.encode = gs_now_ms() - t0;
-      if (rc == GI_OK) take_file(a, path, "image/x-exr");
+      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", &e);
     }
     free(dir);
     free(ind);
@@ -164,7 +224,7 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
       t0 = gs_now_ms();
       rc = gi_probes_write_exr_ex(path, &pr, 1, s->scene, b->at, rep, b->half, extra, 2, &e);
       ms.encode = gs_now_ms() - t0;
-      if (rc == GI_OK) take_file(a, path, "image/x-exr");
+      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", &e);
     }
   }
   if (rc != GI_OK) fail_core(a, rc, &e);
@@ -247,6 +307,18 @@ void gs_tiles_free(gs_tile *t, size_t n) {
   free(t);
 }
 
+/* A job's bakes wait for room in the budget (interactive bakes finish in
+ * seconds) rather than fail at the first busy moment. */
+static gi_result reserve_waiting(gs_service *svc, size_t need, gi_error_info *err) {
+  double t0 = gs_now_ms();
+  gi_result rc;
+  while ((rc = gs_cache_reserve(svc->cache, need, err)) == GI_ERR_NOMEM && gs_now_ms() - t0 < GS_JOB_ADMIT_WAIT_MS) {
+    struct timespec ts = {0, GS_JOB_ADMIT_POLL_MS * 1000000L};
+    nanosleep(&ts, NULL);
+  }
+  return rc;
+}
+
 gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *req, const gi_quality *q,
                           const double *pts,
                           const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
@@ -263,7 +335,13 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
     snprintf(err->msg, sizeof err->msg, "probes: out of memory");
     return GI_ERR_NOMEM;
   }
+  /* Private bakes run one at a time: one reservation covers them all. */
+  size_t need = 0;
   gi_result rc = GI_OK;
+  if (!use_cache) {
+    need = gs_bake_bytes(q);
+    if ((rc = reserve_waiting(svc, need, err)) != GI_OK) need = 0;
+  }
   if (how_out) *how_out = GS_CACHE_HIT;
   for (size_t t = 0; t < num_tiles && rc == GI_OK; t++) {
     const gs_tile *tl = &tiles[t];
@@ -300,6 +378,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
     /* Between tiles: the caller may stop here (job cancelled or past its deadline). */
     if (rc == GI_OK && progress && progress(ctx, t, tl->n, err) && t + 1 < num_tiles) rc = GI_ERR_LIMIT;
   }
+  if (need) gs_cache_unreserve(svc->cache, need);
   free(tp);
   free(tr);
   return rc;
@@ -379,7 +458,8 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     const double *vp = p->bake.has_at ? p->bake.at : (tiles ? tiles[0].at : p->points);
     rc = gi_probes_write_exr_ex(path, pr, p->num_points, s->scene, vp, &rep, p->bake.half, extra, 3, &e);
     ms.encode = gs_now_ms() - t0;
-    if (rc == GI_OK && take_file(a, path, "image/x-exr") == 0) finish_headers(a, &rep, &ms, how, t_start_ms);
+    if (rc == GI_OK && (rc = take_file(a, path, "image/x-exr", &e)) == GI_OK)
+      finish_headers(a, &rep, &ms, how, t_start_ms);
   }
   if (rc != GI_OK) fail_core(a, rc, &e);
   free(pr);

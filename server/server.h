@@ -103,9 +103,11 @@ void gs_metrics_bake_end(gs_metrics *m, int cancelled);
 void gs_metrics_eviction(gs_metrics *m);
 void gs_metrics_rejected(gs_metrics *m);
 void gs_metrics_timeout(gs_metrics *m);
+/* A VDB answer: from the encoded bytes kept with its cascade (hit) or encoded now. */
+void gs_metrics_encode(gs_metrics *m, int hit);
 /* Gauges read at scrape time. */
 typedef struct gs_gauges {
-  size_t cache_bytes, cache_entries, cache_budget;
+  size_t cache_bytes, cache_entries, cache_budget, inflight_bytes;
   int queue_depth, queue_capacity, workers_busy;
   int jobs[GI_JOB_STATE_COUNT];  /* by gi_proto_job_state */
   double uptime_s;
@@ -114,7 +116,32 @@ typedef struct gs_gauges {
 /* Prometheus text format (malloc'ed). */
 char *gs_metrics_render(gs_metrics *m, const gs_gauges *g);
 
+/* ---- blob (serve.c): encoded bytes shared by the cache and answers ------ */
+
+/* Reference-counted bytes: the cache holds one reference, each answer
+ * streaming them another, so a VDB is encoded once and a client that never
+ * reads holds no copy and no file. */
+typedef struct gs_blob {
+  atomic_int refs;
+  size_t size;
+  unsigned char data[];
+} gs_blob;
+/* Reads path into a new blob (one reference) and unlinks the file; NULL with err on failure. */
+gs_blob *gs_blob_take_file(const char *path, gi_error_info *err);
+void gs_blob_retain(gs_blob *b);
+void gs_blob_release(gs_blob *b); /* accepts NULL */
+/* libmicrohttpd's free callback: data is a blob's data. */
+void gs_blob_release_data(void *data);
+
 /* ---- cache.c: cascades keyed by scene, anchor and quality -------------- */
+
+/* Encoded answers a cascade keeps: its VDB without and with per-face grids. */
+#define GS_ENCODED_KINDS 2
+/* A bake's transient buffers beside its cascade, as a fraction 1/DIV of the
+ * cascade: bounce's irradiance pairs (24 of the 217 bytes a voxel holds),
+ * voxelize's bins and inject's scratch. Measured peak RSS growth of one
+ * bake on the city (server/README.md): see the table there. */
+#define GS_BAKE_TRANSIENT_DIV 8
 
 typedef struct gs_cache gs_cache;
 typedef struct gs_entry gs_entry;
@@ -156,6 +183,22 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w);
 const gi_cascade *gs_entry_cascade(const gs_entry *e);
 void gs_cache_release(gs_cache *c, gs_entry *e);
 void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries);
+/* The bytes a bake of this resolved quality is admitted for: its cascade
+ * (gi_cascade_bytes_estimate, exact) plus its transient buffers. */
+size_t gs_bake_bytes(const gi_quality *resolved);
+/* Admission for bakes outside the cache (jobs): reserves need bytes when
+ * cached + in-flight + need fit the budget (evicting unheld entries first);
+ * GI_ERR_NOMEM when they do not now, GI_ERR_LIMIT when they never can. */
+gi_result gs_cache_reserve(gs_cache *c, size_t need, gi_error_info *err);
+void gs_cache_unreserve(gs_cache *c, size_t need);
+/* In-flight bytes: the estimates of admitted bakes still running (gauge). */
+size_t gs_cache_inflight(gs_cache *c);
+/* The entry's encoded answer of a kind, with a reference for the caller, or NULL. */
+gs_blob *gs_cache_encoded(gs_cache *c, gs_entry *e, int kind);
+/* Keeps b (takes the caller's reference) as the entry's encoded answer,
+ * counted in the budget, and returns the kept blob with a reference for
+ * the caller (an earlier one when another request stored first). */
+gs_blob *gs_cache_store_encoded(gs_cache *c, gs_entry *e, int kind, gs_blob *b);
 
 /* ---- pool.c: the bounded worker pool ----------------------------------- */
 
@@ -196,12 +239,13 @@ double gs_now_ms(void);
 
 /* ---- bake.c (server side): turning a request into a file --------------- */
 
-/* An encoded answer: an open file (unlinked) and its headers. */
+/* An encoded answer: bytes in memory or an open file (unlinked), and its headers. */
 typedef struct gs_answer {
   int status;
-  int fd;                 /* -1 for a JSON body */
+  gs_blob *blob;          /* encoded bytes (one reference), or NULL */
+  int fd;                 /* a job's result file, else -1 */
   size_t size;
-  char *json;             /* error or job JSON when fd == -1 (malloc'ed) */
+  char *json;             /* error or job JSON when neither blob nor fd (malloc'ed) */
   const char *content_type;
   char disposition[160];
   char server_timing[320];

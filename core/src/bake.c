@@ -50,10 +50,20 @@ void gi_cascade_free(gi_cascade *c) {
   gi__free(c);
 }
 
-size_t gi_cascade_bytes(const gi_cascade *c) {
-  /* geo, rad, side, direct, occ and busy: every per-voxel array a level holds. */
-  size_t per = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t) + sizeof(uint8_t);
-  return (size_t)c->n * (size_t)c->R * c->R * c->R * per;
+/* geo, rad, side, direct, occ and busy: every per-voxel array a level holds. */
+static const size_t GI_VOXEL_BYTES =
+    sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t) + sizeof(uint8_t);
+
+static size_t level_bytes(int levels, int res) {
+  return (size_t)levels * (size_t)res * (size_t)res * (size_t)res * GI_VOXEL_BYTES;
+}
+
+size_t gi_cascade_bytes(const gi_cascade *c) { return level_bytes(c->n, c->R); }
+
+size_t gi_cascade_bytes_estimate(const gi_quality *resolved) {
+  /* Unresolved (zero) levels or res: no estimate rather than a wrong one. */
+  if (!resolved || resolved->levels <= 0 || resolved->res <= 0) return 0;
+  return level_bytes(resolved->levels, resolved->res);
 }
 
 const gi_bake_report *gi_cascade_report(const gi_cascade *c) { return &c->report; }

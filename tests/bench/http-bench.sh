@@ -20,6 +20,11 @@
 # wrk counts only requests that finish within the run),
 # BENCH_CONNECTIONS (4), BENCH_THREADS (2), BENCH_SPREAD (50 world units),
 # BENCH_TIMEOUT (60s, wrk's per-request limit), GI_TOKEN (bearer token).
+#
+# Then the soak (tests/bench/http-soak.py): SOAK_SECONDS (600; 0 skips it) of
+# mixed traffic from SOAK_CLIENTS (6) threads: cache hits, misses, VDBs, probe
+# jobs and DELETE cancels, with the server's RSS sampled every second; prints
+# max RSS against the memory budget and any status the contract does not expect.
 set -u
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 LUA="$ROOT/tests/bench/http-lighting.lua"
@@ -169,4 +174,7 @@ for MODE in fixed vary; do
 done
 echo
 echo "JSON lines appended to $JSONL"
+
+echo
+python3 "$ROOT/tests/bench/http-soak.py" "$URL" "${PID:-0}" "$SCENE" "$X,$Y,$Z" "$TOKEN"
 exit 0

@@ -16,7 +16,16 @@
  *   cancelling        costly bakes whose clients hang up, or whose request
  *                     passes its deadline (504 + Retry-After), are
  *                     cancelled within 1 s; a coalesced waiter holds no
- *                     worker and keeps the shared bake alive. */
+ *                     worker and keeps the shared bake alive;
+ *   memory budget     four concurrent res=64 levels=8 bakes under a
+ *                     500 MiB budget: one runs, three get 503 with
+ *                     Retry-After, in-flight bytes on /metrics are the
+ *                     estimate, VmRSS stays under budget + slack; a bake
+ *                     that does not fit evicts the cached one;
+ *   encoded bytes     a second cascades.vdb for the same cell streams the
+ *                     kept bytes (no encode); 200 clients that never read
+ *                     a VDB leave no temporary file, no open file and RSS
+ *                     bounded. */
 #define _POSIX_C_SOURCE 200809L
 #include "server_util.h"
 #include "test_util.h"
@@ -29,10 +38,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 /* A small city, one bake worker, a 3 s request deadline and 16 connections per address. */
@@ -712,6 +723,220 @@ static void test_coalesced_and_deadline(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* ---- 6. memory budget and encoded bytes ---------------------------------------------- */
+
+/* Bytes a res=64 levels=8 bake is admitted for: 8 x 64^3 voxels x 217 bytes
+ * (gi_cascade_bytes_estimate; test_anchor checks it against the structs)
+ * plus 1/8 for its transient buffers. */
+#define VOXEL_BYTES 217
+#define BIG_CASCADE_BYTES (8.0 * 64 * 64 * 64 * VOXEL_BYTES)
+#define BIG_BAKE_BYTES (BIG_CASCADE_BYTES + (double)((size_t)BIG_CASCADE_BYTES / 8))
+#define BUDGET_MB 500
+/* server/README.md: RSS stays within cache_mb + the RSS at start + this. */
+#define RSS_SLACK_MB 64
+
+typedef struct {
+  long status;
+  char retry_after[32];
+} big_result;
+
+static size_t header_cb(char *p, size_t sz, size_t n, void *u) {
+  big_result *r = u;
+  if (sz * n > 13 && !strncasecmp(p, "Retry-After:", 12)) {
+    snprintf(r->retry_after, sizeof r->retry_after, "%.*s", (int)(sz * n - 12), p + 12);
+    r->retry_after[strcspn(r->retry_after, "\r\n")] = 0;
+  }
+  return sz * n;
+}
+
+/* Runs n GETs of paths[] at once; samples the server's RSS (peak) and
+ * /metrics gi_inflight_bytes (max) until all are answered. */
+static void run_parallel(const su_server *s, const char *const *paths, int n, big_result *res, double *peak_rss,
+                         double *max_inflight) {
+  CURLM *m = curl_multi_init();
+  char url[256];
+  struct curl_slist *h = curl_slist_append(NULL, "Authorization: Bearer " SU_TOKEN);
+  for (int i = 0; i < n; i++) {
+    CURL *c = curl_easy_init();
+    snprintf(url, sizeof url, "http://127.0.0.1:%d%s", s->port, paths[i]);
+    curl_easy_setopt(c, CURLOPT_URL, url);
+    curl_easy_setopt(c, CURLOPT_HTTPHEADER, h);
+    curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, discard);
+    curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, header_cb);
+    curl_easy_setopt(c, CURLOPT_HEADERDATA, &res[i]);
+    curl_easy_setopt(c, CURLOPT_PRIVATE, &res[i]);
+    curl_easy_setopt(c, CURLOPT_TIMEOUT, 240L);
+    curl_multi_add_handle(m, c);
+  }
+  int running = n;
+  while (running) {
+    curl_multi_perform(m, &running);
+    curl_multi_poll(m, NULL, 0, 100, NULL);
+    CURLMsg *msg;
+    int left;
+    while ((msg = curl_multi_info_read(m, &left))) {
+      if (msg->msg != CURLMSG_DONE) continue;
+      big_result *r;
+      curl_easy_getinfo(msg->easy_handle, CURLINFO_PRIVATE, (char **)&r);
+      curl_easy_getinfo(msg->easy_handle, CURLINFO_RESPONSE_CODE, &r->status);
+      curl_multi_remove_handle(m, msg->easy_handle);
+      curl_easy_cleanup(msg->easy_handle);
+    }
+    double rss = su_rss_mb(s), inflight = su_metric(s, "gi_inflight_bytes", NULL);
+    if (rss > *peak_rss) *peak_rss = rss;
+    if (inflight > *max_inflight) *max_inflight = inflight;
+  }
+  curl_multi_cleanup(m);
+  curl_slist_free_all(h);
+}
+
+static void test_memory_budget(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "budget",
+                            HOSTILE_INI("workers = 4\nbake_threads = 2\ndeadline_s = 240\n[limits]\ncache_mb = 500\n")),
+                   0);
+  const double rss0 = su_rss_mb(&s), limit = BUDGET_MB + rss0 + RSS_SLACK_MB;
+  /* Four seeds: four cache keys, so nothing coalesces. */
+#define BIG(seed) "/v1/scenes/city/lighting?at=2.1,1.7,1.4&res=64&levels=8&seed=" #seed
+  const char *big[4] = {BIG(1), BIG(2), BIG(3), BIG(4)};
+  big_result res[4] = {{0}};
+  double peak = rss0, inflight = 0, t0 = su_now_ms();
+  run_parallel(&s, big, 4, res, &peak, &inflight);
+  int ok = 0, busy = 0;
+  for (int i = 0; i < 4; i++) {
+    printf("  bake %d: %ld%s%s\n", i + 1, res[i].status, res[i].retry_after[0] ? ", Retry-After:" : "",
+           res[i].retry_after);
+    ok += res[i].status == 200;
+    if (res[i].status == 503) {
+      busy++;
+      assert_true(atoi(res[i].retry_after) >= 1);
+    }
+  }
+  double cached = su_metric(&s, "gi_cache_bytes", NULL);
+  printf("  4 concurrent res=64 levels=8 bakes, budget %d MiB, in %.1f s: %d x 200, %d x 503\n", BUDGET_MB,
+         (su_now_ms() - t0) * 1e-3, ok, busy);
+  printf("  in-flight bytes seen %.0f (estimate %.0f), cached %.0f; RSS %.0f MB at start, peak %.0f MB (limit %.0f)\n",
+         inflight, BIG_BAKE_BYTES, cached, rss0, peak, limit);
+  assert_int_equal(ok, 1);
+  assert_int_equal(busy, 3);
+  assert_true(inflight == BIG_BAKE_BYTES);
+  assert_true(cached == BIG_CASCADE_BYTES);
+  assert_true(su_metric(&s, "gi_inflight_bytes", NULL) == 0);
+  assert_true(peak < limit);
+  /* A bake that does not fit beside the cached cascade evicts it. */
+  const char *mid[1] = {"/v1/scenes/city/lighting?at=2.1,1.7,1.4&res=64&levels=2"};
+  big_result r2 = {0};
+  run_parallel(&s, mid, 1, &r2, &peak, &inflight);
+  double evictions = su_metric(&s, "gi_cache_evictions_total", NULL);
+  printf("  then res=64 levels=2: %ld, %.0f eviction(s), cached %.0f, RSS peak %.0f MB\n", r2.status, evictions,
+         su_metric(&s, "gi_cache_bytes", NULL), peak);
+  assert_int_equal(r2.status, 200);
+  assert_true(evictions == 1);
+  assert_true(su_metric(&s, "gi_cache_bytes", NULL) == 2.0 * 64 * 64 * 64 * VOXEL_BYTES);
+  assert_true(peak < limit);
+  assert_int_equal(su_stop(&s), 0);
+}
+
+/* The duration of one Server-Timing entry, or -1. */
+static double timing(const su_resp *r, const char *name) {
+  const char *st = su_header(r, "Server-Timing");
+  char key[32];
+  snprintf(key, sizeof key, "%s;dur=", name);
+  const char *p = st ? strstr(st, key) : NULL;
+  return p ? strtod(p + strlen(key), NULL) : -1;
+}
+
+/* Open descriptors of pid that name a regular file (the deleted temporary files of v0.1.0). */
+static int open_files(pid_t pid, int *total) {
+  char dir[64], p[400], target[600];
+  snprintf(dir, sizeof dir, "/proc/%d/fd", (int)pid);
+  DIR *d = opendir(dir);
+  int files = 0;
+  *total = 0;
+  for (struct dirent *e; d && (e = readdir(d));) {
+    if (e->d_name[0] == '.') continue;
+    snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
+    ssize_t n = readlink(p, target, sizeof target - 1);
+    if (n <= 0) continue;
+    target[n] = 0;
+    (*total)++;
+    if (target[0] == '/' && !strstr(target, "/dev/") && !strstr(target, "server.log")) files++;
+  }
+  if (d) closedir(d);
+  return files;
+}
+
+#define VDB_PATH "/v1/scenes/city/cascades.vdb?at=2.1,1.7,1.4&levels=6&res=32"
+#define SILENT_CLIENTS 200
+#define CLIENTS_PER_ADDRESS 15 /* under max_connections_per_ip = 16 */
+/* libmicrohttpd's memory per connection (http.c), the per-connection part of RSS_SLACK_MB. */
+#define CONNECTION_MB 0.25
+
+static void test_vdb_from_memory(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "vdb-memory", HOSTILE_INI("workers = 2\nqueue = 256\n")), 0);
+  su_resp a = su_http(&s, NULL, VDB_PATH, NULL, SU_TOKEN);
+  double misses = su_metric(&s, "gi_encode_misses_total", NULL);
+  su_resp b = su_http(&s, NULL, VDB_PATH, NULL, SU_TOKEN);
+  double hits = su_metric(&s, "gi_encode_hits_total", NULL);
+  printf("  cascades.vdb %zu bytes: first encode %.1f ms (total %.1f), second encode %.2f ms (total %.1f); "
+         "encode misses %.0f, hits %.0f\n",
+         a.len, timing(&a, "encode"), timing(&a, "total"), timing(&b, "encode"), timing(&b, "total"), misses, hits);
+  assert_int_equal(a.status, 200);
+  assert_int_equal(b.status, 200);
+  assert_true(a.len > 1000 && a.len == b.len);
+  assert_memory_equal(a.body, b.body, a.len);
+  assert_true(misses == 1 && hits == 1);
+  assert_true(timing(&b, "encode") < 0.1 * timing(&a, "encode"));
+  assert_true(timing(&b, "total") < 0.25 * timing(&a, "encode"));
+  double vdb_mb = (double)a.len / (1 << 20);
+  free(a.body);
+  free(b.body);
+
+  /* 200 clients ask for the VDB and never read a byte. */
+  char dir[600];
+  snprintf(dir, sizeof dir, "%s", s.dir);
+  int fds0, files0 = open_files(s.pid, &fds0);
+  double rss0 = su_rss_mb(&s), peak = rss0;
+  static int fd[SILENT_CLIENTS];
+  const char *req = "GET " VDB_PATH " HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN "\r\n\r\n";
+  for (int i = 0; i < SILENT_CLIENTS; i++) {
+    char src[32];
+    snprintf(src, sizeof src, "127.0.0.%d", 10 + i / CLIENTS_PER_ADDRESS);
+    fd[i] = su_connect(&s, src);
+    assert_true(fd[i] >= 0);
+    assert_true(send(fd[i], req, strlen(req), MSG_NOSIGNAL) > 0);
+  }
+  /* Until every request has been answered (the hits counter), sampling RSS. */
+  double t0 = su_now_ms();
+  while (su_metric(&s, "gi_encode_hits_total", NULL) < 1 + SILENT_CLIENTS && su_now_ms() - t0 < 30000) {
+    double r = su_rss_mb(&s);
+    if (r > peak) peak = r;
+    su_sleep_ms(50);
+  }
+  su_sleep_ms(500);
+  double r = su_rss_mb(&s);
+  if (r > peak) peak = r;
+  int fds1, files1 = open_files(s.pid, &fds1);
+  const char *jf = jobs_folder(dir, s.pid);
+  int tmp = jf[0] ? count_files(jf, 0600) : 0;
+  printf("  %d silent VDB clients: %.0f encode hits, %d fds (was %d), %d open files (was %d), %d files in the "
+         "private folder; RSS %.1f MB before, %.1f MB peak (limit +%.0f MB; a copy each would be %.0f MB more)\n",
+         SILENT_CLIENTS, su_metric(&s, "gi_encode_hits_total", NULL) - 1, fds1, fds0, files1, files0, tmp, rss0, peak,
+         SILENT_CLIENTS * CONNECTION_MB + 16, SILENT_CLIENTS * vdb_mb);
+  assert_true(su_metric(&s, "gi_encode_hits_total", NULL) == 1 + SILENT_CLIENTS);
+  assert_int_equal(files1, files0);
+  assert_int_equal(tmp, 0);
+  assert_true(fds1 <= fds0 + SILENT_CLIENTS + 8);
+  /* Each connection's libmicrohttpd memory, and no copy of the VDB per client. */
+  assert_true(peak - rss0 < SILENT_CLIENTS * CONNECTION_MB + 16);
+  for (int i = 0; i < SILENT_CLIENTS; i++) close(fd[i]);
+  su_resp h = su_http(&s, NULL, "/v1/health", NULL, NULL);
+  assert_int_equal(h.status, 200);
+  free(h.body);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_strict_parsing),
@@ -724,6 +949,8 @@ int main(void) {
       cmocka_unit_test(test_job_deadline),
       cmocka_unit_test(test_job_files_private),
       cmocka_unit_test(test_sigterm_with_running_job),
+      cmocka_unit_test(test_memory_budget),
+      cmocka_unit_test(test_vdb_from_memory),
       cmocka_unit_test(test_second_signal_and_grace),
       cmocka_unit_test(test_hangups_cancel_bakes),
       cmocka_unit_test(test_coalesced_and_deadline),

@@ -228,11 +228,46 @@ static void test_skylight_sensitivity(void **state) {
   gi_scene_release(open);
 }
 
+/* The server admits a bake by gi_cascade_bytes_estimate before it runs: the
+ * estimate must be exactly what the baked cascade then holds, levels x res^3
+ * x the per-voxel arrays (geo, rad, side, direct, occ, busy). */
+static void test_bytes_estimate(void **state) {
+  (void)state;
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&cp, NULL, &s, &err), GI_OK);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  const size_t per_voxel = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + 4 + 1;
+  const int shapes[][2] = {{2, 8}, {3, 16}, {4, 12}};
+  for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
+    gi_quality req = {.levels = shapes[i][0], .res = shapes[i][1], .light_samples = 4, .probe_samples = 16,
+                      .threads = 2},
+               q;
+    assert_int_equal(gi_quality_resolve(s, &req, &q, &err), GI_OK);
+    size_t est = gi_cascade_bytes_estimate(&q);
+    size_t want = (size_t)q.levels * q.res * q.res * q.res * per_voxel;
+    gi_cascade *c = NULL;
+    assert_int_equal(gi_cascade_bake(s, at, &req, &c, NULL, &err), GI_OK);
+    printf("levels %d res %d: estimate %zu bytes, baked %zu\n", q.levels, q.res, est, gi_cascade_bytes(c));
+    assert_true(est == want);
+    assert_true(est == gi_cascade_bytes(c));
+    assert_true(est == gi_cascade_report(c)->cascade_bytes);
+    gi_cascade_free(c);
+  }
+  gi_quality unresolved = {0};
+  assert_true(gi_cascade_bytes_estimate(&unresolved) == 0);
+  assert_true(gi_cascade_bytes_estimate(NULL) == 0);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_city_cell),
       cmocka_unit_test(test_skylight_cell),
       cmocka_unit_test(test_skylight_sensitivity),
+      cmocka_unit_test(test_bytes_estimate),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
