@@ -336,15 +336,22 @@ void gs_jobs_status(gs_jobs *j, const char *id, gs_answer *a) {
   gs_answer_error(a, &pe);
 }
 
-void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a) {
-  gi_proto_error pe;
+/* Locks j and finds job id; when it is unknown, unlocks and answers 404. */
+static job *find_locked(gs_jobs *j, const char *id, gs_answer *a) {
   pthread_mutex_lock(&j->mu);
   job *b = find(j, id);
-  if (!b) {
-    pthread_mutex_unlock(&j->mu);
-    gi_proto_fail(&pe, 404, "job '%.40s' is unknown", id);
-    return gs_answer_error(a, &pe);
-  }
+  if (b) return b;
+  pthread_mutex_unlock(&j->mu);
+  gi_proto_error pe;
+  gi_proto_fail(&pe, 404, "job '%.40s' is unknown", id);
+  gs_answer_error(a, &pe);
+  return NULL;
+}
+
+void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a) {
+  gi_proto_error pe;
+  job *b = find_locked(j, id, a);
+  if (!b) return;
   if (b->st.state != GI_JOB_DONE) {
     /* Copied under the lock: once it is released, retire() may free b. */
     gi_proto_job_state s = b->st.state;
@@ -388,13 +395,8 @@ static void cancel_queued(gs_jobs *j, job *b) {
 
 void gs_jobs_cancel(gs_jobs *j, const char *id, gs_answer *a) {
   gi_proto_error pe;
-  pthread_mutex_lock(&j->mu);
-  job *b = find(j, id);
-  if (!b) {
-    pthread_mutex_unlock(&j->mu);
-    gi_proto_fail(&pe, 404, "job '%.40s' is unknown", id);
-    return gs_answer_error(a, &pe);
-  }
+  job *b = find_locked(j, id, a);
+  if (!b) return;
   gi_proto_job_state was = b->st.state;
   if (was != GI_JOB_QUEUED && was != GI_JOB_RUNNING) {
     pthread_mutex_unlock(&j->mu);

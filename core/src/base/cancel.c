@@ -52,39 +52,3 @@ gi_result gi__cancel_fail(const gi_cancel *c, gi_error_info *err, const char *st
   return gi__fail(err, GI_ERR_CANCELLED, "%s: stopped because %s", stage,
                   why == GI_CANCEL_DEADLINE ? "the deadline passed" : "the caller cancelled");
 }
-
-/* The wrapped chunk function: skips the chunk (and stops the loop) once the
- * token fired. One flag load and at most one clock read per chunk. */
-typedef struct {
-  gi__range_fn fn;
-  void *ctx;
-  const gi_cancel *cancel;
-  atomic_int *stop;
-  atomic_int fired;
-} cancel_ctx;
-
-static void cancel_range(void *p, size_t b, size_t e, int worker) {
-  cancel_ctx *cc = p;
-  if (gi_cancel_check(cc->cancel) != GI_CANCEL_NONE) {
-    atomic_store(&cc->fired, 1);
-    atomic_store(cc->stop, 1);
-    return;
-  }
-  cc->fn(cc->ctx, b, e, worker);
-}
-
-int gi__parallel_for_cancel(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop,
-                            const gi_cancel *cancel) {
-  atomic_int own;
-  atomic_init(&own, 0);
-  if (!stop) stop = &own;
-  if (!cancel) {
-    gi__parallel_for_stop(n, grain, threads, fn, ctx, stop == &own ? NULL : stop);
-    return 0;
-  }
-  if (gi_cancel_check(cancel) != GI_CANCEL_NONE) return 1;
-  cancel_ctx cc = {.fn = fn, .ctx = ctx, .cancel = cancel, .stop = stop};
-  atomic_init(&cc.fired, 0);
-  gi__parallel_for_stop(n, grain, threads, cancel_range, &cc, stop);
-  return atomic_load(&cc.fired);
-}

@@ -13,7 +13,6 @@
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
-#include <time.h>
 #include <unistd.h>
 #include "base/internal.h"
 
@@ -25,6 +24,7 @@ typedef struct job {
   gi__range_fn fn;
   void *ctx;
   atomic_int *stop;     /* optional: no chunk starts once it is set (a worker failed) */
+  const gi_cancel *cancel; /* optional: no chunk starts once it fired */
   int cap;              /* workers this call may use (threads, chunks), caller included */
   atomic_int helpers;   /* helpers inside the job; changed under the pool lock */
   int free_ids[GI_MAX_WORKERS]; /* worker ids not in use (1..cap-1); the caller is 0 */
@@ -81,15 +81,17 @@ static void leave_job(job *j, int id) {
   if (left == 0 && j->closed) pthread_cond_signal(&j->done);
 }
 
-/* One chunk at a time until the job runs dry, the pool stops, or the job
- * has more workers than its share (another call became active). */
-static int stopped(atomic_int *stop) {
-  return stop && atomic_load_explicit(stop, memory_order_relaxed);
+/* No further chunk starts once a worker failed (*stop) or the caller's
+ * token fired: one flag load, plus a clock read when it has a deadline. */
+static int stopped(atomic_int *stop, const gi_cancel *cancel) {
+  return (stop && atomic_load_explicit(stop, memory_order_relaxed)) || gi_cancel_check(cancel) != GI_CANCEL_NONE;
 }
 
+/* One chunk at a time until the job runs dry or stops, the pool stops, or
+ * the job has more workers than its share (another call became active). */
 static void help(job *j, int id) {
   for (;;) {
-    if (stopped(j->stop)) return;
+    if (stopped(j->stop, j->cancel)) return;
     size_t b = atomic_fetch_add(&j->next, j->grain);
     if (b >= j->n) return;
     size_t e = b + j->grain < j->n ? b + j->grain : j->n;
@@ -153,8 +155,13 @@ int gi__num_workers(int threads) {
   return threads > GI_MAX_WORKERS ? GI_MAX_WORKERS : threads;
 }
 
-static void run_alone(size_t n, size_t grain, gi__range_fn fn, void *ctx, atomic_int *stop) {
-  for (size_t b = 0; b < n && !stopped(stop); b += grain) fn(ctx, b, b + grain < n ? b + grain : n, 0);
+/* Returns 1 when the token fired with chunks left undone. */
+static int run_alone(size_t n, size_t grain, gi__range_fn fn, void *ctx, atomic_int *stop, const gi_cancel *cancel) {
+  for (size_t b = 0; b < n; b += grain) {
+    if (stopped(stop, cancel)) return gi_cancel_check(cancel) != GI_CANCEL_NONE;
+    fn(ctx, b, b + grain < n ? b + grain : n, 0);
+  }
+  return 0;
 }
 
 static void unlink_job(job *j) {
@@ -164,22 +171,26 @@ static void unlink_job(job *j) {
 }
 
 void gi__parallel_for(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx) {
-  gi__parallel_for_stop(n, grain, threads, fn, ctx, NULL);
+  gi__parallel_for_cancel(n, grain, threads, fn, ctx, NULL, NULL);
 }
 
 void gi__parallel_for_stop(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop) {
-  if (n == 0) return;
+  gi__parallel_for_cancel(n, grain, threads, fn, ctx, stop, NULL);
+}
+
+int gi__parallel_for_cancel(size_t n, size_t grain, int threads, gi__range_fn fn, void *ctx, atomic_int *stop,
+                            const gi_cancel *cancel) {
+  if (n == 0) return 0;
   if (grain == 0) grain = 1;
   int t = gi__num_workers(threads);
   size_t chunks = (n + grain - 1) / grain;
   if ((size_t)t > chunks) t = (int)chunks;
   if (t > 1) pthread_once(&pool.once, pool_init);
   if (t <= 1 || pool.num_helpers == 0 || atomic_load(&pool.stop)) {
-    run_alone(n, grain, fn, ctx, stop);
-    return;
+    return run_alone(n, grain, fn, ctx, stop, cancel);
   }
   if (t > pool.cores) t = pool.cores;
-  job j = {.n = n, .grain = grain, .fn = fn, .ctx = ctx, .stop = stop, .cap = t};
+  job j = {.n = n, .grain = grain, .fn = fn, .ctx = ctx, .stop = stop, .cancel = cancel, .cap = t};
   atomic_init(&j.next, 0);
   atomic_init(&j.helpers, 0);
   for (int id = t - 1; id >= 1; id--) j.free_ids[j.num_free++] = id;
@@ -201,7 +212,7 @@ void gi__parallel_for_stop(size_t n, size_t grain, int threads, gi__range_fn fn,
   pthread_mutex_unlock(&pool.lock);
 
   /* The caller is worker 0 and stays until no chunk is left. */
-  while (!stopped(stop)) {
+  while (!stopped(stop, cancel)) {
     size_t b = atomic_fetch_add(&j.next, grain);
     if (b >= n) break;
     fn(ctx, b, b + grain < n ? b + grain : n, 0);
@@ -216,10 +227,6 @@ void gi__parallel_for_stop(size_t n, size_t grain, int threads, gi__range_fn fn,
   if (pool.head) pthread_cond_broadcast(&pool.work);
   pthread_mutex_unlock(&pool.lock);
   pthread_cond_destroy(&j.done);
-}
-
-double gi__now_ms(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  /* Chunks nobody took: only a stop or the token can leave any. */
+  return atomic_load(&j.next) < n && gi_cancel_check(cancel) != GI_CANCEL_NONE;
 }

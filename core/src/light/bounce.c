@@ -17,10 +17,6 @@
 #include "light/light.h"
 #include "trace/trace.h"
 
-static void shade_all(struct gi_cascade *c) {
-  for (int d = 0; d < c->n; d++) gi__shade_voxels(c, d, 0, c->lv[d].num_occ);
-}
-
 typedef struct {
   struct gi_cascade *c;
   int d;
@@ -116,7 +112,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
           }
       }
     }
-    shade_all(c);
+    gi__shade_all(c);
     if (gi__cascade_filter(c, q->threads)) {
       rc = gi__cancel_fail(c->cancel, err, "bounce filter");
       goto done;

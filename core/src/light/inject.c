@@ -120,7 +120,7 @@ void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end)
   }
 }
 
-static void shade_all(struct gi_cascade *c) {
+void gi__shade_all(struct gi_cascade *c) {
   for (int d = 0; d < c->n; d++) gi__shade_voxels(c, d, 0, c->lv[d].num_occ);
 }
 
@@ -139,6 +139,6 @@ gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *e
                       cap, d);
     c->report.shadow_rays += atomic_load(&ic.rays);
   }
-  shade_all(c);
+  gi__shade_all(c);
   return GI_OK;
 }

@@ -10,6 +10,8 @@
 gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err);
 /* Recomputes each occupied voxel's face radiance from its side irradiance. */
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end);
+/* gi__shade_voxels over every occupied voxel of every level. */
+void gi__shade_all(struct gi_cascade *c);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
  * tail (with bounces >= 2): then adds the orders after the last bounce as
  * a geometric series whose ratio is measured from the last two bounces. */
