@@ -127,31 +127,64 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
  * itself, and with it the radiance the surface sends out of its *other*
  * side: behind a wall thinner than a voxel, the lit room's light (the leak
  * in test_hardcases: 9% before, under 1% after). */
+/* The part of the ray o + t w inside each level's window shrunk by one
+ * voxel, [in, out] (empty when in > out): a sample at t may read level d
+ * when in[d] <= t <= out[d], the test gi__level_contains makes on the
+ * point, done once per cone instead of once per sample. */
+typedef struct {
+  float in, out;
+} gi_span;
+
+static void level_spans(const struct gi_cascade *c, const float o[3], const float w[3], gi_span *sp) {
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    float b = (float)L->s, tin = -INFINITY, tout = INFINITY;
+    for (int a = 0; a < 3; a++) {
+      float lo = L->lo[a] + b, hi = L->hi[a] - b;
+      if (w[a] == 0.f) {
+        if (!(o[a] >= lo && o[a] <= hi)) tin = INFINITY, tout = -INFINITY;
+        continue;
+      }
+      float inv = 1.f / w[a], t0 = (lo - o[a]) * inv, t1 = (hi - o[a]) * inv;
+      tin = gi__maxf(tin, gi__minf(t0, t1));
+      tout = gi__minf(tout, gi__maxf(t0, t1));
+    }
+    sp[d].in = tin;
+    sp[d].out = tout;
+  }
+}
+
+static inline int span_has(const gi_span *sp, float t) { return t >= sp->in && t <= sp->out; }
+
 void gi__cone_march(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
                     float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
   float L[3] = {0, 0, 0}, a = 0, occ = 0;
   float nw = n && h0 >= 0 ? gi__dot(n, w) : 0.f;
   uint32_t samples = 0;
-  float s0 = (float)c->s0;
+  float s0 = (float)c->s0, inv_s0 = 1.f / s0, inv_ks0 = 1.f / (GI_SURFACE_LOD_K * s0);
+  gi_span sp[GI_MAX_LEVELS];
+  level_spans(c, o, w, sp);
   float t = t0;
   for (int guard = 0; guard < GI_CONE_MAX_STEPS && a < GI_OPAQUE_ALPHA; guard++) {
-    float D = 2.0f * t * tan_half;
-    if (D < s0) D = s0;
-    float p[3] = {o[0] + t * w[0], o[1] + t * w[1], o[2] + t * w[2]};
-    float lod = log2f(D / s0);
+    float D = gi__maxf(2.0f * t * tan_half, s0);
+    float lod = gi__fast_log2(D * inv_s0);
+    int near = 0;
     if (h0 >= 0) {
       float h = h0 + t * nw;
-      lod = fminf(lod, log2f(fmaxf(h, GI_MIN_HEIGHT) / (GI_SURFACE_LOD_K * s0)));
+      float lh = gi__fast_log2(gi__maxf(h, GI_MIN_HEIGHT) * inv_ks0);
+      near = lh < lod;
+      lod = gi__minf(lod, lh);
       if (lod < 0) lod = 0;
     }
-    int d0 = (int)floorf(lod);
+    int d0 = (int)lod;
     float frac = lod - (float)d0;
     /* A cone wider than the coarsest voxels keeps sampling the coarsest level. */
     if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0;
     int d = d0;
-    while (d < c->n && !gi__level_contains(&c->lv[d], p, 1.0f)) d++;
+    while (d < c->n && !span_has(&sp[d], t)) d++;
     if (d >= c->n) break;
     if (d > d0) frac = 0; /* pushed to a coarser level by position, not by size */
+    float p[3] = {o[0] + t * w[0], o[1] + t * w[1], o[2] + t * w[2]};
     /* Pushed there near the surface it started from, the coarse trilinear
      * footprint (1.5 voxels) holds that surface itself, which reads as an
      * occluder: a grazing cone leaving the finer window turned black on
@@ -167,7 +200,7 @@ void gi__cone_march(const struct gi_cascade *c, const float o[3], const float w[
       gi__sample_level(c, d, p, w, P, &wal, &sig);
     }
     samples++;
-    if (frac > 0 && d + 1 < c->n && gi__level_contains(&c->lv[d + 1], p, 1.0f)) {
+    if (frac > 0 && d + 1 < c->n && span_has(&sp[d + 1], t)) {
       float P2[3], wal2, sig2;
       gi__sample_level(c, d + 1, p, w, P2, &wal2, &sig2);
       samples++;
@@ -176,9 +209,12 @@ void gi__cone_march(const struct gi_cascade *c, const float o[3], const float w[
       sig += frac * (sig2 - sig);
     }
     /* Step a fraction of the sampled level's voxel: a longer step could jump a
-     * wall, a shorter one only re-reads the same trilinear data. */
-    float dt = step * (float)c->lv[d].s;
-    float as = 1.0f - expf(-sig * dt);
+     * wall, a shorter one only re-reads the same trilinear data. Where the
+     * surface rule holds the cone on a level finer than its width, the
+     * step stays short (GI_NEAR_SURFACE_STEP): that is where a wall behind
+     * the surface must not be jumped. */
+    float dt = (near ? gi__minf(step, GI_NEAR_SURFACE_STEP) : step) * (float)c->lv[d].s;
+    float as = 1.0f - gi__fast_exp_neg(sig * dt);
     if (as > 0 && wal > GI_MIN_SAMPLE_WEIGHT) {
       float k = (1 - a) * as / wal;
       L[0] += k * P[0];
