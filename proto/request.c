@@ -294,7 +294,7 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
     } else if (!strcmp(k, "effects")) {
       if (set_effects(&out->quality, v, err, where)) return err->status;
     } else if (!strcmp(k, "ao")) {
-      int f;
+      int f = 0;
       if (parse_flag(v, &f, err, k)) return err->status;
       out->quality.ao = f;
     } else if (set_query_number(out, k, v, lim, err, where)) {

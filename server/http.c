@@ -515,9 +515,9 @@ static void catalog(gs_service *svc, gs_answer *a) {
 }
 
 static void health(gs_service *svc, gs_answer *a) {
-  answer_json(a, 200, json_pack("{s:s, s:s, s:s, s:f, s:i}", "status", "ok", "version", GI_VERSION, "git",
-                                GI_GIT_REV, "uptime_s", (gs_now_ms() - svc->start_ms) * 1e-3, "scenes",
-                                (int)svc->cat->num));
+  answer_json(a, 200, json_pack("{s:s, s:s, s:s, s:s, s:f, s:i}", "status", "ok", "version", GI_VERSION, "git",
+                                GI_GIT_REV, "cpu_path", gi_cpu_path(), "uptime_s",
+                                (gs_now_ms() - svc->start_ms) * 1e-3, "scenes", (int)svc->cat->num));
 }
 
 static void metrics(gs_service *svc, gs_answer *a) {

@@ -138,10 +138,10 @@ void gs_blob_release_data(void *data);
 /* Encoded answers a cascade keeps: its VDB without and with per-face grids. */
 #define GS_ENCODED_KINDS 2
 /* A bake's transient buffers beside its cascade, as a fraction 1/DIV of the
- * cascade: bounce's irradiance pairs (24 of the 217 bytes a voxel holds),
+ * cascade: bounce's irradiance pairs (24 of the 169 bytes a voxel holds),
  * voxelize's bins and inject's scratch. Measured peak RSS growth of one
  * bake on the city (server/README.md): see the table there. */
-#define GS_BAKE_TRANSIENT_DIV 8
+#define GS_BAKE_TRANSIENT_DIV 6
 
 typedef struct gs_cache gs_cache;
 typedef struct gs_entry gs_entry;

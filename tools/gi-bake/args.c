@@ -337,7 +337,7 @@ static int city_option(cli_opts *o, int c, const char *arg) {
 static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
   switch (c) {
   case 'h': fputs(help_text, stdout); return -1;
-  case 'V': printf("gi-bake %s\n", ta_version()); return -1;
+  case 'V': printf("gi-bake %s\ncpu path: %s\n", ta_version(), gi_cpu_path()); return -1;
   case OPT_AT: case OPT_UP: case OPT_PROBES: return scene_option(o, c, arg);
   case OPT_LEVELS: case OPT_RES: case OPT_VOXEL: case OPT_CONES: case OPT_BOUNCES: case OPT_SAMPLES:
   case OPT_PROBE_SAMPLES: case OPT_THREADS: case OPT_AO: case OPT_EFFECT:

@@ -69,6 +69,12 @@ gi_result gi__cancel_fail(const gi_cancel *c, gi_error_info *err, const char *st
  * of them run at once. */
 int gi__num_workers(int threads);
 
+/* 1 when the hot loops take their x86-64-v3 build (base/cpu.c). */
+int gi__cpu_v3(void);
+/* Tests only: take the v3 build (when the CPU can) or the baseline one
+ * from now on. Not while a bake runs. */
+void gi__cpu_force(int v3);
+
 /* Monotonic clock in milliseconds. */
 double gi__now_ms(void);
 
@@ -102,21 +108,6 @@ static inline float gi__u01(uint64_t *state) {
  * are library calls, and the hot loops need neither NaN rule. */
 static inline float gi__minf(float a, float b) { return a < b ? a : b; }
 static inline float gi__maxf(float a, float b) { return a > b ? a : b; }
-
-/* log2(x) for finite x > 0, absolute error about 1e-6: the exponent's
- * bits plus the atanh series of the mantissa taken in [sqrt(1/2), sqrt(2)).
- * The cone marcher picks its level of detail with it once per sample,
- * where log2f was 5% of a bake. */
-static inline float gi__fast_log2(float x) {
-  union { float f; uint32_t u; } v = {x};
-  int32_t e = (int32_t)((v.u >> 23) & 0xff) - 127;
-  v.u = (v.u & 0x007fffffu) | 0x3f800000u; /* mantissa in [1, 2) */
-  float m = v.f;
-  if (m > 1.41421356f) m *= 0.5f, e++;
-  float z = (m - 1.f) / (m + 1.f), z2 = z * z;
-  float ln = 2.f * z * (1.f + z2 * (0.33333333f + z2 * (0.2f + z2 * 0.14285714f)));
-  return (float)e + ln * 1.44269504f;
-}
 
 /* exp(-x) for x >= 0 (0 beyond 87), relative error under 5e-6: 2^-k times
  * a degree-6 polynomial of the rest in [-ln2/2, ln2/2]. Once per cone
