@@ -38,6 +38,7 @@ test: all
 # Benchmarks print figures; they never decide pass or fail.
 bench: all
 	./tests/bench/run-bench.sh $(BUILD)
+	./tests/bench/speedup.sh $(BUILD)
 
 # HTTP load test (wrk): starts gi-server on an ephemeral port with the default
 # config, benches cached and uncached lighting requests, stops the server.
