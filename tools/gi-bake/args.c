@@ -66,6 +66,7 @@ static const struct option long_opts[] = {
 
 static const char help_text[] =
     "Usage: gi-bake SCENE [options]\n"
+    "       gi-bake merge [--exr OUT.exr] [--vdb OUT.vdb] SHARD.exr...\n"
     "Bakes global illumination around a viewpoint with cascaded voxel cone tracing\n"
     "and prints what it did. SCENE is a scene file (OBJ, PLY, glTF, 3DS, FBX) or the\n"
     "word 'city' for the embedded procedural city (use ./city for a file named city).\n"
@@ -135,7 +136,8 @@ static const char help_text[] =
     "\n"
     "Examples\n"
     "  gi-bake city --exr out/city-probe.exr --vdb out/city-cascades.vdb\n"
-    "  gi-bake cornell-box.obj --at 278,273,279.6 --bounces 3 --json\n";
+    "  gi-bake cornell-box.obj --at 278,273,279.6 --bounces 3 --json\n"
+    "  gi-bake munich.obj --up z --grid 4 --above-ground 2 --vdb probes.vdb\n";
 
 static ta_ctx ta = TA_CTX("gi-bake");
 
