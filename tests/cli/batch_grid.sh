@@ -83,6 +83,13 @@ fi
 "$BIN" merge "$T/s0.exr" 2> "$T/e5"; rc=$?
 [ $rc -eq 2 ] && pass "merge without an output: exit 2" || fail "merge without output: rc $rc"
 
+# A checkpoint folder of another bake is refused, not mixed in.
+"$BIN" "$T/box.obj" $BOXQ --resume "$T/ckb" --exr "$T/b1.exr" > /dev/null 2>&1
+"$BIN" "$T/box.obj" $BOXQ --bounces 2 --resume "$T/ckb" --exr "$T/b2.exr" > /dev/null 2> "$T/e6"; rc=$?
+[ $rc -eq 1 ] && grep -q -- "--resume: .*tile-0000000.bin' belongs to a different bake" "$T/e6" && [ ! -e "$T/b2.exr" ] \
+  && pass "--resume with another bake's tiles: exit 1 naming the file" || fail "resume mismatch: rc $rc: $(cat "$T/e6")"
+cmp "$T/b1.exr" "$T/full.exr" && pass "a --resume bake equals the plain bake" || fail "--resume changed the EXR"
+
 # Bad arguments: exit 2 naming the option, before any work, no output.
 expect_usage() { # OPTION-NAME ARGS...
   name=$1; shift
