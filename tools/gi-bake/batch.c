@@ -5,7 +5,8 @@
  * level spans twice a tile, name the bake by a hash of everything that
  * decides its bytes, then bake this shard's tiles one at a time (each
  * from its checkpoint when --resume has it), and write the outputs and
- * the manifest (batch_manifest.c). */
+ * the manifest (batch_manifest.c). Memory: one cascade at a time, plus
+ * the grid's positions and answers (about 270 bytes per point). */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -82,7 +83,10 @@ static int alloc_state(batch_state *st) {
     if (st->grid.state[i] == GI_GRID_VALID) st->tile_start[layout_tile_of(&st->L, i) + 1]++;
   for (size_t t = 0; t < st->L.tiles; t++) st->tile_start[t + 1] += st->tile_start[t];
   size_t *fill = calloc(st->L.tiles, sizeof *fill);
-  if (!fill) return EXIT_RUN;
+  if (!fill) {
+    fprintf(stderr, "gi-bake: out of memory for %zu tiles\n", st->L.tiles);
+    return EXIT_RUN;
+  }
   for (size_t i = 0; i < n; i++)
     if (st->grid.state[i] == GI_GRID_VALID) {
       size_t t = layout_tile_of(&st->L, i);
@@ -181,7 +185,10 @@ static int run_tiles(batch_state *st) {
   }
   st->pts = malloc(maxm * 3 * sizeof *st->pts);
   st->tile_probes = malloc(maxm * sizeof *st->tile_probes);
-  if (!st->pts || !st->tile_probes) return EXIT_RUN;
+  if (!st->pts || !st->tile_probes) {
+    fprintf(stderr, "gi-bake: out of memory for a tile of %zu probes\n", maxm);
+    return EXIT_RUN;
+  }
   if (st->o->batch.resume && mkdir(st->o->batch.resume, 0777) != 0 && !batch_is_dir(st->o->batch.resume)) {
     fprintf(stderr, "gi-bake: --resume: cannot create folder '%s'\n", st->o->batch.resume);
     return EXIT_RUN;
