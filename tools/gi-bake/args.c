@@ -59,12 +59,14 @@ static const struct option long_opts[] = {
     {"city-extent", required_argument, NULL, OPT_CITY_EXTENT},
     {"city-seed", required_argument, NULL, OPT_CITY_SEED},
     {"city-detail", required_argument, NULL, OPT_CITY_DETAIL},
+    BATCH_LONG_OPTS,
     {"help", no_argument, NULL, 'h'},
     {"version", no_argument, NULL, 'V'},
     {NULL, 0, NULL, 0}};
 
 static const char help_text[] =
     "Usage: gi-bake SCENE [options]\n"
+    "       gi-bake merge [--exr OUT.exr] [--vdb OUT.vdb] SHARD.exr...\n"
     "Bakes global illumination around a viewpoint with cascaded voxel cone tracing\n"
     "and prints what it did. SCENE is a scene file (OBJ, PLY, glTF, 3DS, FBX) or the\n"
     "word 'city' for the embedded procedural city (use ./city for a file named city).\n"
@@ -109,6 +111,7 @@ static const char help_text[] =
     "  --city-seed N         layout seed, unsigned 64-bit, 0 = default (1)\n"
     "  --city-detail N       facade subdivision, 1..8 (2)\n"
     "\n"
+    BATCH_HELP
     "Outputs (files are written to a temporary name, then renamed)\n"
     "  --exr OUT.exr         probe EXR: R,G,B, irradiance/direct/indirect.R,G,B, ao.Y,\n"
     "                        sh.L00.R .. sh.L22.B (one pixel per probe)\n"
@@ -133,7 +136,8 @@ static const char help_text[] =
     "\n"
     "Examples\n"
     "  gi-bake city --exr out/city-probe.exr --vdb out/city-cascades.vdb\n"
-    "  gi-bake cornell-box.obj --at 278,273,279.6 --bounces 3 --json\n";
+    "  gi-bake cornell-box.obj --at 278,273,279.6 --bounces 3 --json\n"
+    "  gi-bake munich.obj --up z --grid 4 --above-ground 2 --vdb probes.vdb\n";
 
 static ta_ctx ta = TA_CTX("gi-bake");
 
@@ -353,6 +357,8 @@ static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
   case OPT_PNG: o->png = arg; return 0;
   case OPT_RENDER_SAMPLES: return ta_int(&ta, "--render-samples", NULL, arg, 1, 65536, &o->render_spp);
   case OPT_CITY_EXTENT: case OPT_CITY_SEED: case OPT_CITY_DETAIL: return city_option(o, c, arg);
+  case OPT_GRID: case OPT_REGION: case OPT_ABOVE_GROUND: case OPT_SHARD: case OPT_RESUME: case OPT_MANIFEST:
+    return batch_option(&ta, &o->batch, c, arg);
   default: return ta_getopt_fail(&ta, c, argv, long_opts);
   }
 }
@@ -396,6 +402,7 @@ static int check_combinations(cli_opts *o) {
   if (o->vdb_faces && !o->vdb) return ta_fail(&ta, "--vdb-faces", "needs --vdb");
   if (o->exr && (rc = ta_check_output(&ta, "--exr", o->exr))) return rc;
   if (o->vdb && (rc = ta_check_output(&ta, "--vdb", o->vdb))) return rc;
+  if ((rc = batch_check(&ta, o))) return rc;
   /* The viewpoint takes one of the probe EXR's pixels. */
   if (o->probes_file &&
       (rc = ta_read_points(&ta, "--probes", o->probes_file, MAX_POINTS - 1, &o->probes, &o->num_probes)))

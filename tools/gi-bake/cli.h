@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include "gi/gi.h"
 #include "toolargs.h"
+#include "batch.h"
 
 /* Exit codes: 0 success, 1 the work failed (scene, bake, I/O), 2 usage. */
 enum { EXIT_RUN = TA_EXIT_RUN, EXIT_USAGE = TA_EXIT_USAGE };
@@ -31,6 +32,7 @@ typedef struct cli_opts {
   const char *png;
   double *probes;           /* extra points from --probes, 3 per point */
   size_t num_probes;
+  cli_batch batch;          /* --grid and its options (batch.h) */
 } cli_opts;
 
 /* Parses argv into o. Returns 0 on success, -1 when --help/--version was

@@ -17,4 +17,5 @@
 #include "gi_vdb.h"
 #include "gi_points.h"
 #include "gi_cpu.h"
+#include "gi_batch.h"
 #endif
