@@ -16,4 +16,5 @@
 #include "gi_exr.h"
 #include "gi_vdb.h"
 #include "gi_points.h"
+#include "gi_lightmap.h"
 #endif
