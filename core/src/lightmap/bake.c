@@ -28,6 +28,8 @@
 #define GI_LM_TILE_FRACTION 0.8
 /* A footprint point farther than this (texels) from its chart is not on it. */
 #define GI_LM_EDGE_REACH 0.5f
+/* How far such a point moves toward its triangle's centre (a fraction of the way). */
+#define GI_LM_INSET 0.01f
 /* Rays that decide whether a point lies inside geometry, and the share of
  * back-face hits above which it does. */
 #define GI_LM_INSIDE_RAYS 12
@@ -70,8 +72,10 @@ static float nearest_bary(const float *uv, const float p[2], float bary[3]) {
   return best;
 }
 
-/* The lightmap triangle under atlas point p of chart c (or nearest within reach); -1 if none. */
-static long find_tri(const gi_lightmap *lm, const gi_lm_chart *c, const float p[2], float bary[3]) {
+/* The lightmap triangle under atlas point p of chart c, else the nearest
+ * within reach (*outside = 1; its point pulled a little inside, so it is
+ * not on the edge a neighbouring wall starts from); -1 if none. */
+static long find_tri(const gi_lightmap *lm, const gi_lm_chart *c, const float p[2], float bary[3], int *outside) {
   int bx = (int)((p[0] - (float)c->pub.x) / GI_LM_BIN), by = (int)((p[1] - (float)c->pub.y) / GI_LM_BIN);
   if (bx < 0 || by < 0 || bx >= c->bins_x || by >= c->bins_y) return -1;
   size_t b = (size_t)by * c->bins_x + bx;
@@ -86,6 +90,9 @@ static long find_tri(const gi_lightmap *lm, const gi_lm_chart *c, const float p[
       if (d2 == 0) break;
     }
   }
+  *outside = bd > 0;
+  if (best >= 0 && *outside)
+    for (int j = 0; j < 3; j++) bary[j] = (1 - GI_LM_INSET) * bary[j] + GI_LM_INSET / 3;
   return best;
 }
 
@@ -131,27 +138,40 @@ static int surface_side(const gi_scene *s, uint32_t tri, const float x[3], float
   return 0;
 }
 
-/* One texel: the mean over its valid footprint points. */
+/* The surface point and side for footprint point p, if it is on the chart
+ * and not inside geometry. pass 0 takes points inside the chart's
+ * triangles only, pass 1 the nearest edge points too. */
+static int footprint_point(const tile_ctx *g, const gi_lm_chart *c, const float p[2], int pass, float reach,
+                           uint32_t *tri, float X[3], float n[3]) {
+  const gi_scene *s = g->lm->scene;
+  float bary[3];
+  int outside;
+  long t = find_tri(g->lm, c, p, bary, &outside);
+  if (t < 0 || (outside && pass == 0)) return 0;
+  *tri = g->lm->tri[t];
+  for (int k = 0; k < 3; k++) X[k] = 0;
+  for (int j = 0; j < 3; j++)
+    for (int k = 0; k < 3; k++) X[k] += bary[j] * s->vertices[3 * (size_t)s->indices[3 * (size_t)*tri + j] + k];
+  return surface_side(s, *tri, X, reach, n);
+}
+
+/* One texel: the mean over the valid points of its footprint that lie on
+ * the chart; a texel the chart only grazes takes the nearest edge points. */
 static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int atlas, int x, int y,
                        gi_ray_scratch *sc) {
-  const gi_lightmap *lm = g->lm;
-  const gi_scene *s = lm->scene;
-  int ss = lm->opts.supersample, nv = 0;
+  const gi_scene *s = g->lm->scene;
+  int ss = g->lm->opts.supersample, nv = 0;
   float acc[5][3] = {{0}}; /* radiance, direct, indirect, point, normal */
   float reach = gi__voxel_at(g->c, c->centre);
-  for (int sy = 0; sy < ss; sy++)
-    for (int sx = 0; sx < ss; sx++) {
-      float p[2] = {(float)x + ((float)sx + 0.5f) / (float)ss, (float)y + ((float)sy + 0.5f) / (float)ss}, bary[3];
-      long t = find_tri(lm, c, p, bary);
-      if (t < 0) continue;
-      uint32_t tri = lm->tri[t];
-      float X[3] = {0, 0, 0}, n[3], E[3], I[3];
-      for (int j = 0; j < 3; j++)
-        for (int k = 0; k < 3; k++) X[k] += bary[j] * s->vertices[3 * (size_t)s->indices[3 * (size_t)tri + j] + k];
-      if (!surface_side(s, tri, X, reach, n)) continue;
-      uint64_t seed = g->c->report.quality.seed;
-      seed = gi__mix64(seed ^ ((uint64_t)atlas << 48 | (uint64_t)(uint32_t)y << 24 | (uint32_t)x));
-      gi__surface_irradiance(g->c, X, n, g->samples, gi__mix64(seed + (uint64_t)(sy * ss + sx)), sc, E, I);
+  uint64_t seed = gi__mix64(g->c->report.quality.seed ^
+                            ((uint64_t)atlas << 48 | (uint64_t)(uint32_t)y << 24 | (uint32_t)x));
+  for (int pass = 0; pass < 2 && !nv; pass++)
+    for (int sub = 0; sub < ss * ss; sub++) {
+      float p[2] = {(float)x + ((float)(sub % ss) + 0.5f) / (float)ss, (float)y + ((float)(sub / ss) + 0.5f) / (float)ss};
+      float X[3], n[3], E[3], I[3];
+      uint32_t tri;
+      if (!footprint_point(g, c, p, pass, reach, &tri, X, n)) continue;
+      gi__surface_irradiance(g->c, X, n, g->samples, gi__mix64(seed + (uint64_t)sub), sc, E, I);
       const float *alb = s->materials[s->tri_material[tri]].albedo;
       for (int k = 0; k < 3; k++) {
         acc[0][k] += alb[k] * (E[k] + I[k]) / GI_PI_F;
