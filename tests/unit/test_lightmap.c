@@ -271,11 +271,123 @@ static void test_cornell_against_reference(void **state) {
   gi_scene_release(sc);
 }
 
+/* The room baked small and fast: the outputs only need real values. */
+static gi_lightmap *baked_room(gi_scene *s, int atlas) {
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = atlas};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6};
+  gi_lightmap_report rep;
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_OK);
+  assert_true(rep.texels_valid > 0 && rep.texels_filled > 0);
+  assert_int_equal(rep.texels, rep.texels_valid + rep.texels_filled);
+  return lm;
+}
+
+static void test_exr_read_back(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap *lm = baked_room(s, 64);
+  size_t na = gi_lightmap_num_atlases(lm);
+  assert_true(na > 1);
+  char path[512], file[512];
+  snprintf(path, sizeof path, "%s/room-lm.exr", tu_tmpdir());
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_write_exr(lm, path, 0, &err), GI_OK);
+  /* Several atlases: numbered files, none under the bare name. */
+  FILE *f = fopen(path, "rb");
+  assert_null(f);
+  static const char *rgb[] = {"R", "G", "B"};
+  for (size_t i = 0; i < na; i++) {
+    assert_int_equal(gi_lightmap_atlas_path(lm, path, i, file, sizeof file), 0);
+    char want[512];
+    snprintf(want, sizeof want, "%s/room-lm.%04zu.exr", tu_tmpdir(), i + 1);
+    assert_string_equal(file, want);
+    gi_exr_file *x = NULL;
+    assert_int_equal(gi_exr_read(file, &x, &err), GI_OK);
+    gi_lightmap_atlas a;
+    gi_lightmap_get_atlas(lm, i, &a);
+    assert_int_equal(gi_exr_file_width(x), a.width);
+    assert_int_equal(gi_exr_file_height(x), a.height);
+    assert_int_equal(gi_exr_file_num_channels(x), 13);
+    assert_string_equal(gi_exr_file_attr(x, "gi.kind"), "lightmap");
+    const float *src[4] = {a.radiance, a.irradiance, a.direct, a.indirect};
+    const char *layer[4] = {"", "irradiance.", "direct.", "indirect."};
+    size_t n = (size_t)a.width * a.height, lit = 0;
+    for (int l = 0; l < 4; l++)
+      for (int k = 0; k < 3; k++) {
+        char name[32];
+        snprintf(name, sizeof name, "%s%s", layer[l], rgb[k]);
+        const float *ch = gi_exr_file_channel(x, name);
+        assert_non_null(ch);
+        for (size_t t = 0; t < n; t++) assert_true(ch[t] == src[l][3 * t + k]);
+      }
+    const float *valid = gi_exr_file_channel(x, "valid.Y"), *R = gi_exr_file_channel(x, "R");
+    const float *irr = gi_exr_file_channel(x, "irradiance.R");
+    for (size_t t = 0; t < n; t++) {
+      assert_true(valid[t] == a.valid[t]);
+      /* Radiance is albedo (0.7) x irradiance / pi on every gathered texel. */
+      if (valid[t] > 0) assert_float_equal(R[t], 0.7f * irr[t] / 3.14159265f, 1e-5f + 1e-4f * R[t]);
+      lit += valid[t] > 0 && irr[t] > 0;
+    }
+    assert_true(lit > 0);
+    gi_exr_file_free(x);
+  }
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
+static void test_gltf_read_back(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap *lm = baked_room(s, 256);
+  char path[512];
+  snprintf(path, sizeof path, "%s/room-uv.glb", tu_tmpdir());
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_write_gltf(lm, path, &err), GI_OK);
+  const struct aiScene *as = aiImportFile(path, 0);
+  assert_non_null(as);
+  assert_int_equal(as->mNumMeshes, 1);
+  const struct aiMesh *m = as->mMeshes[0];
+  size_t nt = gi_lightmap_num_triangles(lm);
+  assert_int_equal(m->mNumFaces, nt);
+  assert_non_null(m->mTextureCoords[0]);
+  assert_non_null(m->mTextureCoords[1]);
+  /* assimp reads glTF's V (down) as 1 - v; the root node carries the origin. */
+  double o[3];
+  gi_lightmap_origin(lm, o);
+  const struct aiNode *node = as->mRootNode;
+  assert_float_equal(node->mTransformation.a4, o[0], 1e-6);
+  assert_float_equal(node->mTransformation.b4, o[1], 1e-6);
+  assert_int_equal(node->mNumChildren, 1);
+  assert_string_equal(node->mChildren[0]->mName.data, "lightmap.0001");
+  for (size_t t = 0; t < nt; t++) {
+    float uv[6], xyz[9];
+    gi_lightmap_triangle(lm, t, NULL, uv, xyz, NULL);
+    const struct aiFace *fc = &m->mFaces[t];
+    assert_int_equal(fc->mNumIndices, 3);
+    for (int j = 0; j < 3; j++) {
+      unsigned v = fc->mIndices[j];
+      assert_float_equal(m->mTextureCoords[1][v].x, uv[2 * j], 1e-6);
+      assert_float_equal(1 - m->mTextureCoords[1][v].y, uv[2 * j + 1], 1e-6);
+      assert_float_equal(m->mVertices[v].x, xyz[3 * j], 1e-5);
+    }
+  }
+  aiReleaseImport(as);
+  assert_int_equal(gi_lightmap_write_gltf(lm, "/tmp/x.gltf", &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, ".glb"));
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
       cmocka_unit_test(test_bad_options),
       cmocka_unit_test(test_cornell_against_reference),
+      cmocka_unit_test(test_exr_read_back),
+      cmocka_unit_test(test_gltf_read_back),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

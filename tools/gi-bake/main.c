@@ -125,6 +125,10 @@ int main(int argc, char **argv) {
   double t_start = now_ms();
   if ((rc = load_scene(&o, &scene))) goto done;
   double load_ms = now_ms() - t_start;
+  if (o.lm.out) {
+    rc = lightmap_run(&o, scene, t_start, now_ms);
+    goto done;
+  }
   choose_viewpoint(&o, scene);
   if ((rc = make_points(&o, &pts, &probes, &n))) goto done;
 

@@ -130,9 +130,9 @@ gi_result gi_lightmap_write_exr(const gi_lightmap *lm, const char *path, int hal
 /* The file name atlas i gets for path (as above) into buf; -1 when it does not fit. */
 int gi_lightmap_atlas_path(const gi_lightmap *lm, const char *path, size_t i, char *buf, size_t cap);
 /* Writes the lightmap's triangles as binary glTF 2.0 (path ends in .glb)
- * through assimp's exporter: one mesh per atlas (material "lightmap.NNNN"
- * after the atlas's number), positions local to a root node translated to
- * the scene origin, TEXCOORD_1 = the lightmap UVs and TEXCOORD_0 = the
+ * through assimp's exporter: one node, mesh and material per atlas, named
+ * "lightmap.NNNN" after the atlas's number, under a root node translated
+ * to the scene origin (positions are local to it), TEXCOORD_1 = the lightmap UVs and TEXCOORD_0 = the
  * same (the core keeps no texture UVs). Temporary name, then rename. */
 gi_result gi_lightmap_write_gltf(const gi_lightmap *lm, const char *path, gi_error_info *err);
 

@@ -1,7 +1,7 @@
 // gltf_export.cpp: gi_lightmap_write_gltf, the lightmap's triangles as
 // binary glTF 2.0 through assimp's exporter.
 //
-// Design: an aiScene is built by hand (one mesh and one material per atlas,
+// Design: an aiScene is built by hand (one child node, mesh and material per atlas,
 // three unshared corners per triangle so every corner carries its chart's
 // UV), positions local to a root node translated to the scene origin (so a
 // city far from the world origin keeps float precision in the file), and
@@ -96,17 +96,23 @@ aiScene *build_scene(const gi_lightmap *lm) {
   gi_lightmap_origin(lm, o);
   sc->mRootNode = new aiNode("lightmap");
   aiMatrix4x4::Translation(aiVector3D((ai_real)o[0], (ai_real)o[1], (ai_real)o[2]), sc->mRootNode->mTransformation);
-  sc->mRootNode->mNumMeshes = (unsigned)n;
-  sc->mRootNode->mMeshes = new unsigned[n];
+  sc->mRootNode->mNumChildren = (unsigned)n;
+  sc->mRootNode->mChildren = new aiNode *[n]();
   sc->mNumMeshes = sc->mNumMaterials = (unsigned)n;
   sc->mMeshes = new aiMesh *[n]();
   sc->mMaterials = new aiMaterial *[n]();
   for (size_t i = 0; i < n; i++) {
-    sc->mRootNode->mMeshes[i] = (unsigned)i;
-    sc->mMeshes[i] = atlas_mesh(lm, i);
-    sc->mMaterials[i] = new aiMaterial();
     char name[32];
     std::snprintf(name, sizeof name, "lightmap.%04zu", i + 1);
+    // One child node (one object in Blender) per atlas, so each gets its own image.
+    aiNode *child = new aiNode(name);
+    child->mParent = sc->mRootNode;
+    child->mNumMeshes = 1;
+    child->mMeshes = new unsigned[1]{(unsigned)i};
+    sc->mRootNode->mChildren[i] = child;
+    sc->mMeshes[i] = atlas_mesh(lm, i);
+    sc->mMeshes[i]->mName = aiString(name);
+    sc->mMaterials[i] = new aiMaterial();
     aiString s(name);
     sc->mMaterials[i]->AddProperty(&s, AI_MATKEY_NAME);
     aiColor4D white(1, 1, 1, 1);
