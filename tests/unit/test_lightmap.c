@@ -375,6 +375,36 @@ static void test_gltf_read_back(void **state) {
     }
   }
   aiReleaseImport(as);
+  /* Loaded back as a scene, its second UV set is the lightmap's: the layout
+   * keeps it (one chart, the same UVs) instead of making charts. */
+  gi_scene *back = NULL;
+  gi_scene_options so = {.up = GI_UP_Y};
+  assert_int_equal(gi_scene_load(path, &so, &back, &err), GI_OK);
+  assert_true(gi_scene_has_lightmap_uv(back));
+  assert_false(gi_scene_has_lightmap_uv(s));
+  gi_lightmap_opts lo = {.atlas = 256};
+  gi_lightmap *own = NULL;
+  assert_int_equal(gi_lightmap_layout(back, &lo, &own, &err), GI_OK);
+  assert_int_equal(gi_lightmap_num_charts(own), 1);
+  assert_int_equal(gi_lightmap_num_triangles(own), nt);
+  for (size_t t = 0; t < nt; t++) {
+    float a[6], b[6];
+    gi_lightmap_triangle(lm, t, NULL, a, NULL, NULL);
+    gi_lightmap_triangle(own, t, NULL, b, NULL, NULL);
+    for (int j = 0; j < 6; j++) assert_float_equal(a[j], b[j], 1e-6);
+  }
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6};
+  gi_lightmap_report rep;
+  assert_int_equal(gi_lightmap_bake(own, &q, NULL, &rep, &err), GI_OK);
+  printf("scene's own UVs: %llu texels gathered of %llu\n", (unsigned long long)rep.texels_valid,
+         (unsigned long long)rep.texels);
+  assert_true(rep.texels_valid > 100);
+  lo.scene_uv = -1;
+  gi_lightmap_free(own);
+  assert_int_equal(gi_lightmap_layout(back, &lo, &own, &err), GI_OK);
+  assert_true(gi_lightmap_num_charts(own) > 1);
+  gi_lightmap_free(own);
+  gi_scene_release(back);
   assert_int_equal(gi_lightmap_write_gltf(lm, "/tmp/x.gltf", &err), GI_ERR_INVALID_ARG);
   assert_non_null(strstr(err.msg, ".glb"));
   gi_lightmap_free(lm);

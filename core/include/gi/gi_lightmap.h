@@ -1,7 +1,8 @@
 /* gi_lightmap.h: bake a scene's diffuse lighting into texture atlases.
  *
  * Two steps. gi_lightmap_layout gives every triangle of a region lightmap
- * UVs: triangles are grouped into charts (edge-connected, near coplanar:
+ * UVs, the scene's own when it has them (a glTF's TEXCOORD_1, a second UV
+ * channel), else new ones: triangles are grouped into charts (edge-connected, near coplanar:
  * a building's wall is one chart), each chart is projected onto its plane
  * at a texel density given in world units, and the charts are packed
  * (shelves, a gutter around each) into one or more square atlases. The
@@ -59,6 +60,9 @@ typedef struct gi_lightmap_opts {
   int have_region;     /* 1: only triangles whose centre lies in [region_lo, region_hi] */
   double region_lo[3], region_hi[3]; /* world box; default: the whole scene */
   double tile;         /* tile side, world units; default 0.8 x the coarsest cascade level */
+  int scene_uv;        /* 0: bake into the scene's own lightmap UVs when it has them
+                          (gi_scene_has_lightmap_uv: one atlas of `atlas` texels, one chart,
+                          texel unused); -1: always make charts */
 } gi_lightmap_opts;
 
 typedef struct gi_lightmap gi_lightmap;

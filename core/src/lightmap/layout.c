@@ -50,6 +50,8 @@ static gi_result resolve(const gi_scene *s, const gi_lightmap_opts *in, gi_light
   if (o->supersample < 1 || o->supersample > GI_LIGHTMAP_MAX_SUPERSAMPLE)
     return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: supersample must be 1..%d, got %d",
                     GI_LIGHTMAP_MAX_SUPERSAMPLE, o->supersample);
+  if (o->scene_uv != 0 && o->scene_uv != -1)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: scene_uv must be 0 or -1, got %d", o->scene_uv);
   if (o->tile < 0 || !isfinite(o->tile))
     return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: tile must be a finite size >= 0 (0 = default), got %g", o->tile);
   for (int k = 0; k < 3; k++) lo[k] = s->lo[k], hi[k] = s->hi[k];
@@ -85,6 +87,7 @@ gi_result gi_lightmap_layout(const gi_scene *scene, const gi_lightmap_opts *opts
   gi_result rc = resolve(scene, opts, &lm->opts, lm->lo, lm->hi, err);
   if (rc == GI_OK && scene->num_triangles == 0)
     rc = gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: the scene has no triangles");
+  lm->scene_uv = scene->uv2 && lm->opts.scene_uv == 0;
   if (rc == GI_OK) rc = gi__lm_charts(lm, err);
   if (rc == GI_OK) rc = gi__lm_pack(lm, err);
   if (rc != GI_OK) {

@@ -38,6 +38,7 @@ struct gi_lightmap {
   gi_scene *scene;            /* retained */
   gi_lightmap_opts opts;      /* resolved */
   float lo[3], hi[3];         /* the region, local */
+  int scene_uv;               /* 1: the scene's lightmap UVs, one chart covering one atlas */
   size_t num_tris;
   uint32_t *tri;              /* scene triangle per lightmap triangle, chart by chart */
   float *uv;                  /* 6 per triangle, atlas texel units (x right, y down) */

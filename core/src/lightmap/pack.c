@@ -125,7 +125,22 @@ static void to_atlas(struct gi_lightmap *lm) {
   }
 }
 
+/* The scene's own UVs: one chart already in atlas texel units, one atlas. */
+static gi_result pack_scene_uv(struct gi_lightmap *lm, gi_error_info *err) {
+  int N = lm->opts.atlas;
+  gi_lightmap_chart *c = &lm->charts[0].pub;
+  c->atlas = 0, c->x = c->y = 0, c->w = c->h = N;
+  lm->num_atlases = 1;
+  if (!(lm->atlases = gi__calloc(1, sizeof *lm->atlases)))
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for an atlas");
+  gi_result rc = alloc_atlas(&lm->atlases[0], N, N, err);
+  if (rc != GI_OK) return rc;
+  for (size_t i = 0; i < (size_t)N * N; i++) lm->atlases[0].chart[i] = 0;
+  return bin_chart(lm, &lm->charts[0], err);
+}
+
 gi_result gi__lm_pack(struct gi_lightmap *lm, gi_error_info *err) {
+  if (lm->scene_uv) return pack_scene_uv(lm, err);
   int g = lm->opts.gutter, N = lm->opts.atlas;
   pack_key *keys = gi__malloc(lm->num_charts * sizeof *keys);
   int *heights = gi__calloc(GI_LIGHTMAP_MAX_ATLASES, sizeof *heights);

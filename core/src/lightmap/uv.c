@@ -236,11 +236,41 @@ static gi_result grow_charts(struct gi_lightmap *lm, const uint32_t *sel, size_t
   return GI_OK;
 }
 
+/* The scene's own lightmap UVs: every selected triangle in one chart that
+ * covers the whole atlas, in texel units (texel centres at j + 0.5). */
+static gi_result scene_chart(struct gi_lightmap *lm, uint32_t *sel, size_t n, gi_error_info *err) {
+  const gi_scene *s = lm->scene;
+  lm->charts = gi__calloc(1, sizeof *lm->charts);
+  lm->uv = gi__malloc(6 * n * sizeof *lm->uv);
+  if (!lm->charts || !lm->uv) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu triangles", n);
+  float N = (float)lm->opts.atlas, lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < n; i++)
+    for (int j = 0; j < 3; j++) {
+      uint32_t v = s->indices[3 * (size_t)sel[i] + j];
+      lm->uv[6 * i + 2 * j] = s->uv2[2 * (size_t)v] * N;
+      lm->uv[6 * i + 2 * j + 1] = s->uv2[2 * (size_t)v + 1] * N;
+      for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], s->vertices[3 * (size_t)v + k]), hi[k] = fmaxf(hi[k], s->vertices[3 * (size_t)v + k]);
+    }
+  gi_lm_chart *c = &lm->charts[0];
+  c->pub.count = n;
+  c->cw = c->ch = lm->opts.atlas;
+  for (int k = 0; k < 3; k++) c->centre[k] = 0.5f * (lo[k] + hi[k]);
+  lm->tri = sel;
+  lm->num_tris = n;
+  lm->num_charts = 1;
+  return GI_OK;
+}
+
 gi_result gi__lm_charts(struct gi_lightmap *lm, gi_error_info *err) {
   const gi_scene *s = lm->scene;
   uint32_t *sel = NULL, *canon = NULL, *nb_start = NULL, *nb = NULL;
   size_t n = 0;
   gi_result rc = select_tris(lm, &sel, &n, err);
+  if (rc == GI_OK && lm->scene_uv) {
+    rc = scene_chart(lm, sel, n, err);
+    if (rc != GI_OK) gi__free(sel);
+    return rc;
+  }
   if (rc == GI_OK && !(canon = gi__malloc((s->num_vertices ? s->num_vertices : 1) * sizeof *canon)))
     rc = gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory welding vertices");
   if (rc == GI_OK) rc = weld(s, canon, err);
