@@ -34,6 +34,20 @@ for m in j["meshes"]:
     acc = j["accessors"][a["TEXCOORD_1"]]
     assert min(acc["min"]) >= 0 and max(acc["max"]) <= 1, acc
 PY
+# The atlas read back (tests/blender/exr_read.py): every channel, and R = 0.7 x irradiance.R / pi where gathered.
+python3 - "$(dirname "$0")/../blender" "$T/lm.0001.exr" <<'PY' && pass "EXR channels read back" || fail "EXR read back"
+import math, sys
+sys.path.insert(0, sys.argv[1])
+from exr_read import read
+w, h, c = read(sys.argv[2])
+want = {"R", "G", "B", "valid.Y"} | {"%s.%s" % (l, k) for l in ("irradiance", "direct", "indirect") for k in "RGB"}
+assert set(c) == want, sorted(c)
+lit = [i for i in range(w * h) if c["valid.Y"][i] > 0 and c["irradiance.R"][i] > 0]
+assert len(lit) > 50, len(lit)
+# The lamp's texels (albedo 0) show no reflected light; the walls' show 0.7 x E / pi.
+walls = [i for i in lit if c["R"][i] > 0]
+assert len(walls) > 50 and all(abs(c["R"][i] - 0.7 * c["irradiance.R"][i] / math.pi) <= 1e-5 + 1e-4 * c["R"][i] for i in walls)
+PY
 if command -v exrheader > /dev/null 2>&1; then
   exrheader "$T/lm.0001.exr" > "$T/hdr"
   for ch in R G B irradiance.R direct.G indirect.B valid.Y; do
