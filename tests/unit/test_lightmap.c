@@ -411,6 +411,53 @@ static void test_gltf_read_back(void **state) {
   gi_scene_release(s);
 }
 
+/* The bake does not depend on threads or on how the region is tiled per
+ * texel seed; a second bake of the same lightmap gives the same atlas. */
+static void test_bake_deterministic_and_tiled(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6, .threads = 1};
+  gi_lightmap_report r1, r2;
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &r1, &err), GI_OK);
+  gi_lightmap_atlas a;
+  gi_lightmap_get_atlas(lm, 0, &a);
+  size_t n = 3 * (size_t)a.width * a.height;
+  float *first = malloc(n * sizeof *first);
+  memcpy(first, a.radiance, n * sizeof *first);
+  q.threads = 2;
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &r2, &err), GI_OK);
+  assert_memory_equal(first, a.radiance, n * sizeof *first);
+  assert_int_equal(r1.texels_valid, r2.texels_valid);
+  assert_int_equal(r1.tiles, 1);
+  /* 2 m tiles: the 4 x 3 x 5 room in several cascades, every gathered texel
+   * finite, and lit but for the box's bottom (pressed onto the floor). */
+  gi_lightmap_free(lm);
+  o.tile = 2;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &r2, &err), GI_OK);
+  printf("room: %d tiles, %llu texels gathered (one tile: %llu)\n", r2.tiles, (unsigned long long)r2.texels_valid,
+         (unsigned long long)r1.texels_valid);
+  assert_true(r2.tiles > 1);
+  assert_int_equal(r1.texels_valid, r2.texels_valid);
+  gi_lightmap_get_atlas(lm, 0, &a);
+  size_t lit = 0, dark_not_bottom = 0;
+  for (size_t i = 0; i < (size_t)a.width * a.height; i++) {
+    if (a.valid[i] == 0) continue;
+    assert_true(isfinite(a.irradiance[3 * i]) && a.irradiance[3 * i] >= 0);
+    lit += a.irradiance[3 * i] > 0;
+    dark_not_bottom += a.irradiance[3 * i] == 0 && a.normal[3 * i + 1] > -0.99f;
+  }
+  assert_int_equal(dark_not_bottom, 0);
+  assert_true(lit > 0.9 * r2.texels_valid);
+  free(first);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
@@ -418,6 +465,7 @@ int main(void) {
       cmocka_unit_test(test_cornell_against_reference),
       cmocka_unit_test(test_exr_read_back),
       cmocka_unit_test(test_gltf_read_back),
+      cmocka_unit_test(test_bake_deterministic_and_tiled),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

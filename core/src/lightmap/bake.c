@@ -348,6 +348,14 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   gi_quality rq;
   gi_result rc = gi_quality_resolve(lm->scene, q, &rq, err);
   if (rc != GI_OK) return rc;
+  /* A second bake starts from empty atlases. */
+  for (size_t a = 0; a < lm->num_atlases; a++) {
+    gi_lm_atlas *A = &lm->atlases[a];
+    size_t n = (size_t)A->w * A->h;
+    float *rgb[] = {A->radiance, A->irradiance, A->direct, A->indirect, A->point, A->normal};
+    for (size_t i = 0; i < sizeof rgb / sizeof rgb[0]; i++) memset(rgb[i], 0, 3 * n * sizeof(float));
+    memset(A->valid, 0, n * sizeof(float));
+  }
   double side = lm->opts.tile > 0 ? lm->opts.tile
                                   : GI_LM_TILE_FRACTION * rq.res * rq.voxel0 * (double)(1u << (rq.levels - 1));
   int nt[3];
