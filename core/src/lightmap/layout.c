@@ -127,19 +127,16 @@ int gi_lightmap_triangle(const gi_lightmap *lm, size_t i, uint32_t *tri, float u
   if (!lm || i >= lm->num_tris) return -1;
   const gi_scene *s = lm->scene;
   if (tri) *tri = lm->tri[i];
+  /* Charts hold contiguous triangle ranges: binary search by first. */
+  size_t lo = 0, hi = lm->num_charts;
+  while (hi - lo > 1) {
+    size_t mid = (lo + hi) / 2;
+    if (lm->charts[mid].pub.first <= i) lo = mid;
+    else hi = mid;
+  }
+  const gi_lm_atlas *a = &lm->atlases[lm->charts[lo].pub.atlas];
+  if (chart) *chart = (int)lo;
   for (int j = 0; j < 3; j++) {
-    const gi_lm_atlas *a = NULL;
-    if (uv || chart) {
-      /* Charts hold contiguous triangle ranges: binary search by first. */
-      size_t lo = 0, hi = lm->num_charts;
-      while (hi - lo > 1) {
-        size_t mid = (lo + hi) / 2;
-        if (lm->charts[mid].pub.first <= i) lo = mid;
-        else hi = mid;
-      }
-      a = &lm->atlases[lm->charts[lo].pub.atlas];
-      if (chart) *chart = (int)lo;
-    }
     if (uv) uv[2 * j] = lm->uv[6 * i + 2 * j] / (float)a->w, uv[2 * j + 1] = lm->uv[6 * i + 2 * j + 1] / (float)a->h;
     if (xyz) memcpy(xyz + 3 * j, s->vertices + 3 * (size_t)s->indices[3 * (size_t)lm->tri[i] + j], 3 * sizeof(float));
   }
