@@ -7,11 +7,16 @@
  * parameters (the layout is deterministic), so the glTF a client fetches
  * matches the atlas it fetched. An answer is one atlas: a region that
  * needs more is a 413 that says how many. The bake runs tile by tile with
- * cascades of its own, outside the cascade cache (like a job's). */
+ * cascades of its own, outside the cascade cache (like a job's), admitted
+ * by the same memory budget: one tile's cascade plus the atlas. */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
 #include <string.h>
 #include "server.h"
+
+/* Bytes per texel while a lightmap is baked and encoded: six RGB float
+ * arrays, valid and chart (80), and the EXR's 13 planar channels (52). */
+#define GS_LIGHTMAP_TEXEL_BYTES 132
 
 static void fail(gs_answer *a, int status, const char *msg) {
   gi_proto_error pe;
@@ -73,6 +78,13 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   }
   gi_lightmap_report rep;
   gi_timings ms = {0};
+  gi_lightmap_atlas at;
+  gi_lightmap_get_atlas(lm, 0, &at);
+  size_t need = ep == GS_EP_LIGHTMAP_UV ? 0 : gs_bake_bytes(&q) + (size_t)at.width * at.height * GS_LIGHTMAP_TEXEL_BYTES;
+  if (need && (rc = gs_cache_reserve(svc->cache, need, &e)) != GI_OK) {
+    gi_lightmap_free(lm);
+    return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+  }
   rc = ep == GS_EP_LIGHTMAP_UV ? GI_OK : gi_lightmap_bake(lm, &req, NULL, &rep, &e);
   /* Server-Timing's gather stage carries the whole lightmap bake (its tiles' cascades included). */
   if (rc == GI_OK && ep != GS_EP_LIGHTMAP_UV) ms.gather = rep.bake_ms;
@@ -80,6 +92,7 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   if (rc == GI_OK) rc = encode(svc, lm, ep, b->half, a, &e);
   ms.encode = gs_now_ms() - t1;
   gi_lightmap_free(lm);
+  if (need) gs_cache_unreserve(svc->cache, need);
   if (rc != GI_OK) return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
   gi_effect fx[GI_FX_COUNT];
   double centre[3];
