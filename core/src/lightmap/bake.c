@@ -304,7 +304,7 @@ static int fill_from_neighbours(gi_lm_atlas *a, size_t i, const int *stamp, int 
       int u = x + dx, v = y + dy;
       if ((!dx && !dy) || u < 0 || v < 0 || u >= a->w || v >= a->h) continue;
       size_t j = (size_t)v * a->w + u;
-      if (a->chart[j] != a->chart[i] || stamp[j] < 0 || stamp[j] >= layer) continue;
+      if (a->chart[j] != a->chart[i] || stamp[j] < 0 || stamp[j] >= layer) continue; /* unfilled or this layer */
       for (int k = 0; k < 3; k++)
         acc[0][k] += a->radiance[3 * j + k], acc[1][k] += a->direct[3 * j + k], acc[2][k] += a->indirect[3 * j + k];
       n++;
@@ -319,23 +319,49 @@ static int fill_from_neighbours(gi_lm_atlas *a, size_t i, const int *stamp, int 
   return 1;
 }
 
-/* Layer by layer, every chart texel without a value of its own takes the
- * mean of its neighbours filled in earlier layers (the valid texels are
- * layer 0), so invalid interiors and gutters grow inward from the surface. */
-static gi_result fill_atlas(gi_lm_atlas *a, uint64_t *filled, gi_error_info *err) {
-  size_t n = (size_t)a->w * a->h;
-  int *stamp = gi__malloc(n * sizeof *stamp);
-  if (!stamp) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory filling a %d x %d atlas", a->w, a->h);
-  for (size_t i = 0; i < n; i++) stamp[i] = a->valid[i] > 0 ? 0 : -1;
-  for (int layer = 1;; layer++) {
-    int grew = 0;
-    for (size_t i = 0; i < n; i++) {
-      if (stamp[i] >= 0 || a->chart[i] < 0) continue;
-      if (fill_from_neighbours(a, i, stamp, layer)) stamp[i] = layer, grew = 1, (*filled)++;
+/* Appends to next the unstamped, unqueued texels of i's chart around i. */
+static void queue_neighbours(const gi_lm_atlas *a, size_t i, int *stamp, size_t *next, size_t *nn) {
+  int x = (int)(i % (size_t)a->w), y = (int)(i / (size_t)a->w);
+  for (int dy = -1; dy <= 1; dy++)
+    for (int dx = -1; dx <= 1; dx++) {
+      int u = x + dx, v = y + dy;
+      if (u < 0 || v < 0 || u >= a->w || v >= a->h) continue;
+      size_t j = (size_t)v * a->w + u;
+      if (stamp[j] != -1 || a->chart[j] != a->chart[i]) continue;
+      stamp[j] = -2; /* queued */
+      next[(*nn)++] = j;
     }
-    if (!grew) break;
+}
+
+/* Layer by layer (a breadth-first front, so every texel is visited a
+ * bounded number of times), each chart texel without a value of its own
+ * takes the mean of its neighbours filled in earlier layers (the valid
+ * texels are layer 0): invalid interiors and gutters grow in from the surface. */
+static gi_result fill_atlas(gi_lm_atlas *a, uint64_t *filled, gi_error_info *err) {
+  size_t n = (size_t)a->w * a->h, nf = 0, nn = 0;
+  int *stamp = gi__malloc(n * sizeof *stamp);
+  size_t *front = gi__malloc(n * sizeof *front), *next = gi__malloc(n * sizeof *next);
+  if (!stamp || !front || !next) {
+    gi__free(stamp);
+    gi__free(front);
+    gi__free(next);
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory filling a %d x %d atlas", a->w, a->h);
+  }
+  for (size_t i = 0; i < n; i++) stamp[i] = a->valid[i] > 0 ? 0 : -1;
+  for (size_t i = 0; i < n; i++)
+    if (stamp[i] == 0) queue_neighbours(a, i, stamp, front, &nf);
+  for (int layer = 1; nf; layer++) {
+    for (size_t k = 0; k < nf; k++)
+      if (fill_from_neighbours(a, front[k], stamp, layer)) (*filled)++;
+    for (size_t k = 0; k < nf; k++) stamp[front[k]] = layer;
+    nn = 0;
+    for (size_t k = 0; k < nf; k++) queue_neighbours(a, front[k], stamp, next, &nn);
+    size_t *t = front;
+    front = next, next = t, nf = nn;
   }
   gi__free(stamp);
+  gi__free(front);
+  gi__free(next);
   return GI_OK;
 }
 
