@@ -573,6 +573,7 @@ static int route(gs_req *r, const char *url, char *id, size_t idsize) {
     else if (!strcmp(tail, "/lighting")) r->ep = GS_EP_LIGHTING;
     else if (!strcmp(tail, "/cascades.vdb")) r->ep = GS_EP_CASCADES;
     else if (!strcmp(tail, "/probes")) r->ep = GS_EP_PROBES;
+    else if (!strcmp(tail, "/lightmap-uv.glb")) r->ep = GS_EP_LIGHTMAP_UV;
     else return 0;
   } else {
     if (!*tail) r->ep = GS_EP_JOB;
@@ -740,7 +741,8 @@ static enum MHD_Result handle(gs_http *h, gs_req *r) {
   query q = {0};
   if (read_query(r, &q, a)) return send_answer(h, r);
   gi_proto_error pe;
-  if (r->ep == GS_EP_SCENE || r->ep == GS_EP_LIGHTING || r->ep == GS_EP_CASCADES || r->ep == GS_EP_PROBES) {
+  if (r->ep == GS_EP_SCENE || r->ep == GS_EP_LIGHTING || r->ep == GS_EP_CASCADES || r->ep == GS_EP_PROBES ||
+      r->ep == GS_EP_LIGHTMAP_UV) {
     r->scene = gs_catalog_find(svc->cat, r->id);
     if (!r->scene) {
       answer_fail(a, 404, "scene '%s' is not in the catalog (GET /v1/scenes lists them)", r->id);
@@ -749,9 +751,11 @@ static enum MHD_Result handle(gs_http *h, gs_req *r) {
   }
   switch (r->ep) {
   case GS_EP_LIGHTING:
+  case GS_EP_LIGHTMAP_UV:
   case GS_EP_CASCADES: {
-    int st = r->ep == GS_EP_LIGHTING ? gi_proto_parse_lighting(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe)
-                                     : gi_proto_parse_cascades(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe);
+    int st = r->ep == GS_EP_LIGHTING       ? gi_proto_parse_lighting(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe)
+             : r->ep == GS_EP_LIGHTMAP_UV ? gi_proto_parse_lightmap_uv(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe)
+                                          : gi_proto_parse_cascades(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe);
     if (st || check_near(r->scene, r->bake.at, 1, "parameter 'at'", &pe)) {
       gs_answer_error(a, &pe);
       return send_answer(h, r);

@@ -25,13 +25,17 @@ ERR = {400: "bad_request", 401: "unauthorized", 404: "not_found", 405: "method_n
 # The quality group both bake endpoints take (proto/request.c: P_QUALITY).
 BAKE_Q = {"quality", "levels", "res", "voxel", "cones", "aperture", "step", "bounces", "samples", "probe_samples",
           "ao", "seed", "effects"}
+# kind=lightmap's own parameters (P_LM), also taken by lightmap-uv.glb.
+LIGHTMAP = {"region", "texel", "atlas"}
 # path -> method -> (success codes, error codes, query parameters)
 CONTRACT = {
     "/v1/health": {"get": ({200}, {405, 500}, set())},
     "/v1/scenes": {"get": ({200}, {401, 405, 500}, set())},
     "/v1/scenes/{id}": {"get": ({200}, {401, 404, 405, 500}, set())},
-    "/v1/scenes/{id}/lighting": {"get": ({200}, {400, 401, 404, 405, 500, 501, 503, 504},
-                                         {"at", "kind", "half", "width", "height"} | BAKE_Q)},
+    "/v1/scenes/{id}/lighting": {"get": ({200}, {400, 401, 404, 405, 413, 500, 503, 504},
+                                         {"at", "kind", "half", "width", "height"} | BAKE_Q | LIGHTMAP)},
+    "/v1/scenes/{id}/lightmap-uv.glb": {"get": ({200}, {400, 401, 404, 405, 413, 500, 503, 504},
+                                                {"at"} | BAKE_Q | LIGHTMAP)},
     "/v1/scenes/{id}/cascades.vdb": {"get": ({200}, {400, 401, 404, 405, 500, 503, 504}, {"at", "faces"} | BAKE_Q)},
     "/v1/scenes/{id}/probes": {"post": ({200, 202}, {400, 401, 404, 405, 413, 500, 503, 504}, set())},
     "/v1/jobs/{id}": {"get": ({200}, {401, 404, 405, 500}, set()),
@@ -39,7 +43,7 @@ CONTRACT = {
     "/v1/jobs/{id}/result": {"get": ({200}, {401, 404, 405, 409, 500}, set())},
     "/metrics": {"get": ({200}, {401, 405, 500}, set())},
 }
-CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
+CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/lightmap-uv.glb": "model/gltf-binary", "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
                "/v1/scenes/{id}/probes": "image/x-exr", "/v1/jobs/{id}/result": "image/x-exr",
                "/metrics": "text/plain; version=0.0.4"}
 ERR_HEADERS = {401: "WWW-Authenticate", 405: "Allow", 503: "Retry-After", 504: "Retry-After"}
@@ -157,7 +161,8 @@ def query_sets_from_c(path):
     src = open(path).read()
     table = re.findall(r'\{"(\w+)",\s*(P_\w+)\}', src)
     out = {}
-    for fn, path_key in (("lighting", "/v1/scenes/{id}/lighting"), ("cascades", "/v1/scenes/{id}/cascades.vdb")):
+    for fn, path_key in (("lighting", "/v1/scenes/{id}/lighting"), ("cascades", "/v1/scenes/{id}/cascades.vdb"),
+                         ("lightmap_uv", "/v1/scenes/{id}/lightmap-uv.glb")):
         m = re.search(r"gi_proto_parse_%s\([^)]*\)\s*\{.*?parse_query\([^,]+,[^,]+,\s*([A-Z_| ]+)," % fn, src, re.S)
         if not m or not table:
             return None

@@ -60,6 +60,10 @@ static const struct option long_opts[] = {
     {"city-seed", required_argument, NULL, OPT_CITY_SEED},
     {"city-detail", required_argument, NULL, OPT_CITY_DETAIL},
     BATCH_LONG_OPTS,
+    {"lightmap", required_argument, NULL, LM_OPT_OUT},
+    {"uv-out", required_argument, NULL, LM_OPT_UV_OUT},
+    {"texel", required_argument, NULL, LM_OPT_TEXEL},
+    {"atlas", required_argument, NULL, LM_OPT_ATLAS},
     {"help", no_argument, NULL, 'h'},
     {"version", no_argument, NULL, 'V'},
     {NULL, 0, NULL, 0}};
@@ -120,6 +124,17 @@ static const char help_text[] =
     "                        L<d>_normal per level, plain density/Cd for level 0\n"
     "  --vdb-faces           add the six per-face radiance grids L<d>_face_px..\n"
     "  --json                print one JSON object instead of the summary\n"
+    "\n"
+    "Lightmap (instead of the probes: the scene's surfaces baked into atlases)\n"
+    "  --lightmap OUT.exr    multilayer EXR atlas: R,G,B = albedo x irradiance / pi,\n"
+    "                        irradiance/direct/indirect.R,G,B, valid.Y; several\n"
+    "                        atlases go to OUT.0001.exr, OUT.0002.exr ...\n"
+    "  --region X0,Y0,Z0,X1,Y1,Z1  only triangles whose centre is in this box\n"
+    "                        (default: the whole scene; the same option as --grid's)\n"
+    "  --texel S             texel size, world units (default 0.25)\n"
+    "  --atlas N             atlas side in texels, 16..16384 (default 2048)\n"
+    "  --uv-out OUT.glb      the lightmap's triangles as glTF 2.0, lightmap UVs in\n"
+    "                        TEXCOORD_1, one mesh per atlas\n"
     "\n"
     "Pictures (the view from the cascade beside the same view path-traced)\n"
     "  --render CAMERA       a Mitsuba XML file's perspective sensor (lookat, fov;\n"
@@ -359,6 +374,8 @@ static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
   case OPT_CITY_EXTENT: case OPT_CITY_SEED: case OPT_CITY_DETAIL: return city_option(o, c, arg);
   case OPT_GRID: case OPT_REGION: case OPT_ABOVE_GROUND: case OPT_SHARD: case OPT_RESUME: case OPT_MANIFEST:
     return batch_option(&ta, &o->batch, c, arg);
+  case LM_OPT_OUT: case LM_OPT_UV_OUT: case LM_OPT_TEXEL: case LM_OPT_ATLAS:
+    return lightmap_option(o, c, arg);
   default: return ta_getopt_fail(&ta, c, argv, long_opts);
   }
 }
@@ -394,7 +411,8 @@ static int check_combinations(cli_opts *o) {
   if (o->is_city && o->up == GI_UP_Z) return ta_fail(&ta, "--up", "the procedural city is always Y-up");
   if (!o->is_city && o->city_opts_given)
     return ta_fail(&ta, NULL, "--city-extent, --city-seed and --city-detail apply only to the scene 'city'");
-  if (o->half && !o->exr) return ta_fail(&ta, "--half", "needs --exr");
+  if (o->half && !o->exr && !o->lm.out) return ta_fail(&ta, "--half", "needs --exr or --lightmap");
+  if ((rc = lightmap_check(o))) return rc;
   if (o->png && !o->render) return ta_fail(&ta, "--png", "needs --render");
   if (o->render && !o->png && !o->exr) return ta_fail(&ta, "--render", "needs --png or --exr for the pictures");
   if (o->render && (rc = check_render_camera(o))) return rc;

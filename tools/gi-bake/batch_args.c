@@ -54,7 +54,7 @@ int batch_check(ta_ctx *ta, const cli_opts *o) {
   const cli_batch *b = &o->batch;
   int rc;
   if (b->grid <= 0) {
-    if (b->have_region) return ta_fail(ta, "--region", "needs --grid");
+    if (b->have_region && !o->lm.out) return ta_fail(ta, "--region", "needs --grid or --lightmap");
     if (b->have_above) return ta_fail(ta, "--above-ground", "needs --grid");
     if (b->have_shard) return ta_fail(ta, "--shard", "needs --grid");
     if (b->resume) return ta_fail(ta, "--resume", "needs --grid");

@@ -130,6 +130,10 @@ int main(int argc, char **argv) {
     rc = batch_run(&o, scene, load_ms);
     goto done;
   }
+  if (o.lm.out) {
+    rc = lightmap_run(&o, scene, t_start, now_ms);
+    goto done;
+  }
   choose_viewpoint(&o, scene);
   if ((rc = make_points(&o, &pts, &probes, &n))) goto done;
 

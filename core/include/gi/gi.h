@@ -18,4 +18,5 @@
 #include "gi_points.h"
 #include "gi_cpu.h"
 #include "gi_batch.h"
+#include "gi_lightmap.h"
 #endif
