@@ -98,8 +98,8 @@ static int resolve_path(load_ctx *x, const char *sec, const char *key, const cha
 
 static int server_key(load_ctx *x, const char *k, const char *v) {
   gs_config *c = x->c;
-  long long n;
-  double d;
+  long long n = 0;
+  double d = 0;
   const char *S = "server";
   if (!strcmp(k, "bind")) {
     if (!*v || strlen(v) >= sizeof c->bind) return fail(x, S, k, "expected an IPv4 address, got '%s'", v);
@@ -145,8 +145,8 @@ static int server_key(load_ctx *x, const char *k, const char *v) {
 
 static int limits_key(load_ctx *x, const char *k, const char *v) {
   gs_config *c = x->c;
-  long long n;
-  double d;
+  long long n = 0;
+  double d = 0;
   const char *S = "limits";
   if (!strcmp(k, "max_body_bytes")) {
     if (!get_int(x, S, k, v, 64, 1ll << 32, &n)) return 0;
@@ -194,8 +194,8 @@ static int limits_key(load_ctx *x, const char *k, const char *v) {
 
 static int scene_key(load_ctx *x, const char *sec, const char *k, const char *v) {
   gs_scene_conf *s = x->cur;
-  long long n;
-  double d;
+  long long n = 0;
+  double d = 0;
   if (!strcmp(k, "source")) {
     if (!*v) return fail(x, sec, k, "expected 'city' or a scene file path");
     if (!strcmp(v, "city")) {

@@ -384,7 +384,7 @@ static void test_intersect1_box(void **state) {
     for (int k = 0; k < 3; k++) { d[k] = q[k] - p[k]; len += d[k] * d[k]; }
     len = sqrt(len);
     for (int k = 0; k < 3; k++) d[k] /= len;
-    double t0, t1;
+    double t0 = 0, t1 = 0;
     double dd[3] = {d[0] * 100, d[1] * 100, d[2] * 100};
     assert_true(slab(p, dd, lo, hi, &t0, &t1));
     double texp = t0 * 100;

@@ -144,7 +144,7 @@ static int surface_side(const gi_scene *s, uint32_t tri, const float x[3], float
 static int footprint_point(const tile_ctx *g, const gi_lm_chart *c, const float p[2], int pass, float reach,
                            uint32_t *tri, float X[3], float n[3]) {
   const gi_scene *s = g->lm->scene;
-  float bary[3];
+  float bary[3] = {0, 0, 0};
   int outside;
   long t = find_tri(g->lm, c, p, bary, &outside);
   if (t < 0 || (outside && pass == 0)) return 0;
