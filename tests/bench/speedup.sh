@@ -48,11 +48,12 @@ REV=$(git -C "$ROOT" rev-parse --short HEAD 2> /dev/null || echo unknown)
 git -C "$ROOT" diff --quiet HEAD -- 2> /dev/null || REV="$REV-dirty"
 STAMP=$(date -u +%Y-%m-%dT%H:%M:%SZ)
 
-# bake LABEL BIN THREADS ARGS...: one line "bake_ms samples cones ns" to $TMP/LABEL.
+# bake FILE BIN THREADS ARGS...: one line "bake_ms samples cones ns" to $TMP/FILE.
+# (sh functions share variables: these names are bake's own.)
 bake() {
-  label=$1; bin=$2; thr=$3; shift 3
-  if "$bin" "$@" --threads "$thr" --json > "$TMP/run.json" 2> "$TMP/run.err"; then
-    python3 - "$TMP/run.json" >> "$TMP/$label" <<'PY'
+  b_file=$1; b_bin=$2; b_thr=$3; shift 3
+  if "$b_bin" "$@" --threads "$b_thr" --json > "$TMP/run.json" 2> "$TMP/run.err"; then
+    python3 - "$TMP/run.json" >> "$TMP/$b_file" <<'PY'
 import json, sys
 d = json.load(open(sys.argv[1]))
 t = d["timings_ms"]
@@ -60,7 +61,7 @@ bake = sum(t[k] for k in ("voxelize", "inject", "filter", "bounce"))
 print(bake, d.get("cone_samples", 0), d.get("cones_traced", 0), d.get("ns_per_sample", 0))
 PY
   else
-    say "$label: $(tail -n 1 "$TMP/run.err")"
+    say "$b_file: $(tail -n 1 "$TMP/run.err")"
   fi
 }
 
