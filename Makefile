@@ -38,6 +38,7 @@ test: all
 # Benchmarks print figures; they never decide pass or fail.
 bench: all
 	./tests/bench/run-bench.sh $(BUILD)
+	./tests/bench/specular-bench.sh $(BUILD)
 	./tests/bench/speedup.sh $(BUILD)
 
 # Batch probe grids (issue 13): Munich street-level probes at 4 m, 2 m above
