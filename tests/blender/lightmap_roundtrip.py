@@ -12,6 +12,12 @@ import sys
 
 import bpy
 import mathutils
+import numpy
+
+# Debian 12's Blender 3.4 glTF importer still calls numpy.bool, which
+# Debian's numpy 1.24 removed (it was an alias of bool): restore the alias.
+if not hasattr(numpy, "bool"):
+    numpy.bool = bool
 
 
 def to_blender(p):

@@ -20,7 +20,7 @@ EYE=2,2,3.8 TARGET=2,1.2,0 FOV=70 W=64 H=64
 # shellcheck disable=SC2086
 "$BIN" "$T/box.obj" $Q --render "$EYE,$TARGET,$FOV,$W,$H" --exr "$T/view.exr" > /dev/null 2> "$T/err" \
   || { cat "$T/err" >&2; fail "gi-bake --render"; finish; }
-blender -b --factory-startup --python "$HERE/lightmap_roundtrip.py" -- "$T/lm.glb" "$T/lm.exr" "$T/blender.exr" \
+blender -b --factory-startup --python-exit-code 1 --python "$HERE/lightmap_roundtrip.py" -- "$T/lm.glb" "$T/lm.exr" "$T/blender.exr" \
   "$EYE" "$TARGET" "$FOV" "$W" "$H" > "$T/blender.log" 2>&1 \
   || { tail -n 20 "$T/blender.log" >&2; fail "blender"; finish; }
 grep "^blender:" "$T/blender.log"
