@@ -319,10 +319,9 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
   return 0;
 }
 
-/* Lighting at a viewpoint (P_AT | P_REDIRECT) or for a cell (P_CELLQ). */
-static int parse_lighting(const gi_proto_kv *kv, size_t n, int where, const gi_proto_limits *lim, gi_proto_bake *out,
+/* What a lighting request's kind allows, after its parameters parsed. */
+static int check_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                           gi_proto_error *err) {
-  if (parse_query(kv, n, where | P_KIND | P_QUALITY | P_HALF | P_PANO, lim, out, err)) return err->status;
   if (out->kind == GI_PROTO_LIGHTMAP)
     return gi_proto_fail(err, 501, "kind=lightmap is not available yet; use probe or panorama");
   if (out->kind == GI_PROTO_PANORAMA) {
@@ -340,14 +339,15 @@ static int parse_lighting(const gi_proto_kv *kv, size_t n, int where, const gi_p
 
 int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                             gi_proto_error *err) {
-  return parse_lighting(kv, n, P_AT | P_REDIRECT, lim, out, err);
+  if (parse_query(kv, n, P_AT | P_REDIRECT | P_KIND | P_QUALITY | P_HALF | P_PANO, lim, out, err)) return err->status;
+  return check_lighting(kv, n, lim, out, err);
 }
 
 int gi_proto_parse_cell_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                                  gi_proto_error *err) {
-  if (parse_lighting(kv, n, P_CELLQ, lim, out, err)) return err->status;
+  if (parse_query(kv, n, P_CELLQ | P_KIND | P_QUALITY | P_HALF | P_PANO, lim, out, err)) return err->status;
   out->cell = 1;
-  return 0;
+  return check_lighting(kv, n, lim, out, err);
 }
 
 int gi_proto_parse_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
