@@ -177,3 +177,33 @@ json_t *gs_canon_grid_json(const gs_scene *s, const gs_canon *c) {
                    "cell[a] = floor(float32(at[a] - origin[a]) / cell_size), float32 = IEEE single rounding",
                    "scene_version", ver, "q", c->q, "query", c->knobs, "lighting", tl, "cascades", tc);
 }
+
+/* OpenVDB's file header: magic (8 bytes), file version and library
+ * version (3 x 4), the grid-offsets flag (1), then a random UUID as 36
+ * characters, new at every write. */
+#define VDB_UUID_AT 21
+#define VDB_UUID_LEN 36
+
+static int uuid_shaped(const unsigned char *u) {
+  for (int i = 0; i < VDB_UUID_LEN; i++) {
+    int dash = i == 8 || i == 13 || i == 18 || i == 23;
+    if (dash ? u[i] != '-' : !((u[i] >= '0' && u[i] <= '9') || (u[i] >= 'a' && u[i] <= 'f'))) return 0;
+  }
+  return 1;
+}
+
+int gs_vdb_stable_uuid(gs_blob *b) {
+  static const unsigned char magic[8] = {0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0};
+  if (b->size < VDB_UUID_AT + VDB_UUID_LEN || memcmp(b->data, magic, sizeof magic) ||
+      !uuid_shaped(b->data + VDB_UUID_AT))
+    return -1;
+  /* The UUID then names the content: a hash of every other byte. */
+  uint64_t h1 = gs_hash_bytes(FNV_OFFSET, b->data, VDB_UUID_AT);
+  h1 = gs_hash_bytes(h1, b->data + VDB_UUID_AT + VDB_UUID_LEN, b->size - VDB_UUID_AT - VDB_UUID_LEN);
+  uint64_t h2 = gs_hash_bytes(h1, "uuid", 4);
+  char u[VDB_UUID_LEN + 1];
+  snprintf(u, sizeof u, "%08x-%04x-%04x-%04x-%012" PRIx64, (unsigned)(h1 >> 32), (unsigned)(h1 >> 16) & 0xffff,
+           (unsigned)h1 & 0xffff, (unsigned)(h2 >> 48), (uint64_t)(h2 & 0xffffffffffffull));
+  memcpy(b->data + VDB_UUID_AT, u, VDB_UUID_LEN);
+  return 0;
+}

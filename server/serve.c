@@ -139,6 +139,11 @@ static gi_result cascade_vdb(gs_service *svc, gs_entry *ent, int faces, gs_answe
       return rc;
     }
     if (!(b = gs_blob_take_file(path, e))) return GI_ERR_IO;
+    if (gs_vdb_stable_uuid(b) != 0) {
+      gs_blob_release(b);
+      snprintf(e->msg, sizeof e->msg, "encode: the VDB writer's header is not the expected one");
+      return GI_ERR_IO;
+    }
     b = gs_cache_store_encoded(svc->cache, ent, kind, b);
   }
   a->status = 200;

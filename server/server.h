@@ -264,6 +264,10 @@ void gs_canon_url(const gs_scene *s, const gs_canon *c, const int64_t cell[3], g
 /* The strong ETag (quoted) of a cell answer. */
 void gs_canon_etag(const gs_canon *c, const int64_t cell[3], gs_endpoint ep, const gi_proto_bake *b, char *out,
                    size_t size);
+/* OpenVDB writes a random UUID into every file: replaces it with one
+ * derived from the other bytes, so equal cascades encode to equal bytes on
+ * every replica. -1 (b unchanged) when b is not shaped as expected. */
+int gs_vdb_stable_uuid(gs_blob *b);
 /* Whether an If-None-Match value names etag (or is "*"). */
 int gs_etag_matches(const char *if_none_match, const char *etag);
 /* The grid a client snaps viewpoints to, and the URL templates, for GET /v1/scenes/{id}. */

@@ -184,7 +184,7 @@ retried=$(tail -n +$((before + 1)) "$T/access.log" | grep -c 'up=[^ ]*, ')
 failed_up=$(tail -n +$((before + 1)) "$T/access.log" | grep -c 'upstatus=502')
 B3=$(bakes 1 3)
 echo "walk 3 (seed=2, replica 2 killed after $KILL_AFTER steps): $S3; retried on another replica: $retried" \
-     "(replica answers 502: $failed_up); replicas 1 and 3 have baked $B3 in all; ${WALK_S}"
+     "(attempts refused by the dead replica: $failed_up); replicas 1 and 3 have baked $B3 in all; ${WALK_S}"
 [ "$(field "$S3" ok)" = $STEPS ] || fail "walk 3: $(( STEPS - $(field "$S3" ok) )) requests lost"
 [ "$retried" -ge 1 ] || fail "walk 3: nginx retried nothing: was replica 2 asked at all?"
 
