@@ -11,7 +11,15 @@
  * parameters), the quality knobs the request set (in canonical form,
  * carried in the URL so any replica can bake from it) and the server's
  * build (its bytes carry it). A scene file that changes gives a new q, so
- * no cache ever serves the old answer under the new URL. */
+ * no cache ever serves the old answer under the new URL.
+ *
+ * Lightmaps (issue 13) hook in here: kind=lightmap is parsed for cell URLs
+ * already (501 until it exists). Its answer is a cell answer like the
+ * others: gs_canon_url names it by kind, and the parameters that shape it
+ * (region, texel, atlas) must be appended in gs_canon_url in one fixed
+ * order and hashed into gs_canon_etag's shape, and its EXR must carry no
+ * timings (answer_extras in serve.c); the UV glTF gets a sibling cell URL
+ * (.../cells/{i},{j},{k}/lightmap-uv.glb) the same way. */
 #define _POSIX_C_SOURCE 200809L
 #include <inttypes.h>
 #include <stdarg.h>
