@@ -652,6 +652,97 @@ static void test_nomem_not_cached(void **state) {
   gi_scene_release(sc.scene);
 }
 
+/* A scene whose file changes gets another version, hence another q: no
+ * cache keyed by the old cell URLs can answer for it. Equal bytes and
+ * build options give the same version on any replica. */
+static void test_scene_version(void **state) {
+  (void)state;
+  char path[600];
+  snprintf(path, sizeof path, "%s/version.obj", tu_tmpdir());
+  const char *obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  FILE *f = fopen(path, "wb");
+  assert_non_null(f);
+  fputs(obj, f);
+  fclose(f);
+  gs_scene_conf sc = {.up = GI_UP_Y};
+  snprintf(sc.source, sizeof sc.source, "%s", path);
+  char err[256];
+  uint64_t v1, v2, v3, v4;
+  assert_int_equal(gs_scene_version(&sc, &v1, err, sizeof err), 0);
+  assert_int_equal(gs_scene_version(&sc, &v2, err, sizeof err), 0);
+  assert_true(v1 == v2);
+  f = fopen(path, "wb");
+  fputs("v 0 0 0\nv 1 0 0\nv 0 2 0\nf 1 2 3\n", f); /* one vertex moved */
+  fclose(f);
+  assert_int_equal(gs_scene_version(&sc, &v3, err, sizeof err), 0);
+  assert_true(v3 != v1);
+  sc.up = GI_UP_Z; /* the same bytes read another way */
+  assert_int_equal(gs_scene_version(&sc, &v4, err, sizeof err), 0);
+  assert_true(v4 != v3);
+  snprintf(sc.source, sizeof sc.source, "%s/absent.obj", tu_tmpdir());
+  assert_int_equal(gs_scene_version(&sc, &v4, err, sizeof err), -1);
+  assert_non_null(strstr(err, "absent.obj"));
+  gs_scene_conf city = {.is_city = 1, .extent = 300, .seed = 1, .up = GI_UP_Y}, city2 = city;
+  city2.seed = 2;
+  assert_int_equal(gs_scene_version(&city, &v1, err, sizeof err), 0);
+  assert_int_equal(gs_scene_version(&city2, &v2, err, sizeof err), 0);
+  assert_true(v1 != v2);
+  /* The scene's q moves with its version; a cell's ETag with q. */
+  gs_config cfg;
+  gs_config_defaults(&cfg);
+  gs_service svc = {.cfg = &cfg};
+  gs_scene s = {.id = "v", .scene = tu_furnace_scene(1.0, 0.5, 1.0), .version = v1};
+  gi_quality q = {.levels = 3, .res = 16};
+  gs_canon a, b;
+  gi_error_info e = {0};
+  assert_int_equal(gs_canon_quality(&svc, &s, &q, &a, &e), GI_OK);
+  s.version = v2;
+  assert_int_equal(gs_canon_quality(&svc, &s, &q, &b, &e), GI_OK);
+  assert_string_equal(a.knobs, "levels=3&res=16");
+  assert_string_not_equal(a.q, b.q);
+  gi_scene_release(s.scene);
+}
+
+/* A cell URL carries the request's knobs in canonical form: parsed back,
+ * they give the very gi_quality the viewpoint request had, bit for bit
+ * (so any replica bakes the same cascade from the URL alone). */
+static void test_canonical_knobs(void **state) {
+  (void)state;
+  const char *queries[][12] = {
+      {"quality", "high", "voxel", "0.33333333333333331", "aperture", "33.3", "effects", "sky:off,ao:on", NULL},
+      {"quality", "low", "bounces", "0", "seed", "9007199254740992", "step", "0.123456789", "ao", "1", NULL},
+      {"res", "12", "levels", "2", "probe_samples", "3", "samples", "7", "cones", "8", NULL},
+      {NULL}};
+  gs_config cfg;
+  gs_config_defaults(&cfg);
+  gs_service svc = {.cfg = &cfg};
+  gs_scene s = {.id = "k", .scene = tu_furnace_scene(1.0, 0.5, 1.0), .version = 42};
+  for (size_t t = 0; queries[t][0]; t++) {
+    gi_proto_kv kv[8];
+    size_t n = 0;
+    for (; queries[t][2 * n]; n++) kv[n] = (gi_proto_kv){queries[t][2 * n], queries[t][2 * n + 1]};
+    gi_proto_bake want, got;
+    gi_proto_error pe = {0};
+    assert_int_equal(gi_proto_parse_scene(kv, n, &cfg.lim, &want, &pe), 0);
+    gs_canon c;
+    gi_error_info e = {0};
+    assert_int_equal(gs_canon_quality(&svc, &s, &want.quality, &c, &e), GI_OK);
+    printf("  knobs: %s\n", c.knobs);
+    char buf[sizeof c.knobs];
+    snprintf(buf, sizeof buf, "%s", c.knobs);
+    n = 0;
+    for (char *save = NULL, *tok = strtok_r(buf, "&", &save); tok; tok = strtok_r(NULL, "&", &save)) {
+      char *eq = strchr(tok, '=');
+      assert_non_null(eq);
+      *eq = 0;
+      kv[n++] = (gi_proto_kv){tok, eq + 1};
+    }
+    assert_int_equal(gi_proto_parse_scene(kv, n, &cfg.lim, &got, &pe), 0);
+    assert_memory_equal(&got.quality, &want.quality, sizeof got.quality);
+  }
+  gi_scene_release(s.scene);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_health_and_auth),
@@ -667,6 +758,8 @@ int main(void) {
       cmocka_unit_test(test_overload),
       cmocka_unit_test(test_deadline),
       cmocka_unit_test(test_nomem_not_cached),
+      cmocka_unit_test(test_scene_version),
+      cmocka_unit_test(test_canonical_knobs),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }
