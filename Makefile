@@ -4,7 +4,7 @@ JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 PREFIX ?= /usr/local
 
-.PHONY: all deps configure install run bake test bench bench-http accuracy clean asan tsan valgrind fuzz test-scale
+.PHONY: all deps configure install run bake test bench bench-batch bench-http accuracy clean asan tsan valgrind fuzz test-scale
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -38,6 +38,12 @@ test: all
 # Benchmarks print figures; they never decide pass or fail.
 bench: all
 	./tests/bench/run-bench.sh $(BUILD)
+	./tests/bench/speedup.sh $(BUILD)
+
+# Batch probe grids (issue 13): Munich street-level probes at 4 m, 2 m above
+# the ground, on 2 threads: probes, tiles, time, probes/s, peak RSS. Figures only.
+bench-batch: all
+	./tests/bench/batch-bench.sh $(BUILD)
 
 # HTTP load test (wrk): starts gi-server on an ephemeral port with the default
 # config, benches cached and uncached lighting requests, stops the server.

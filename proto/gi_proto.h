@@ -73,14 +73,27 @@ typedef struct gi_proto_bake {
   int half;          /* EXR pixels as HALF */
   int faces;         /* VDB: per-face radiance grids too */
   int width, height; /* panorama size */
+  int has_region;    /* kind=lightmap: region given (else level 0's box around at) */
+  double region[6];  /* min x,y,z then max x,y,z, world */
+  double texel;      /* lightmap texel, world units; 0 = level 0's voxel */
+  int atlas;         /* lightmap atlas side; 0 = GI_PROTO_DEFAULT_LIGHTMAP_ATLAS */
   int redirect;      /* viewpoint URLs: 1 (default) answers 307 to the cell's URL, 0 serves it */
   int cell;          /* a cell URL: at is the cell's centre (set by the server) */
   char q[GI_PROTO_QHASH_LEN + 1]; /* cell URLs: the quality hash */
 } gi_proto_bake;
 
-/* GET /v1/scenes/{id}/lighting. Returns 0 or the error status (400, 501). */
+/* Lightmap atlas sides the server accepts (one atlas per answer). */
+#define GI_PROTO_MIN_LIGHTMAP_ATLAS 16
+#define GI_PROTO_MAX_LIGHTMAP_ATLAS 4096
+#define GI_PROTO_DEFAULT_LIGHTMAP_ATLAS 1024
+
+/* GET /v1/scenes/{id}/lighting. Returns 0 or the error status (400). */
 int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
                             gi_proto_bake *out, gi_proto_error *err);
+/* GET /v1/scenes/{id}/lightmap-uv.glb: the lightmap's geometry for the
+ * same parameters as kind=lightmap (sets kind to GI_PROTO_LIGHTMAP). */
+int gi_proto_parse_lightmap_uv(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                               gi_proto_error *err);
 /* GET /v1/scenes/{id}/cascades.vdb. */
 int gi_proto_parse_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
                             gi_proto_bake *out, gi_proto_error *err);

@@ -94,8 +94,9 @@ static int parse_int(const char *s, long long *out) {
 /* The parameters a request kind accepts. */
 enum {
   P_AT = 1 << 0, P_KIND = 1 << 1, P_QUALITY = 1 << 2, P_HALF = 1 << 3, P_PANO = 1 << 4, P_FACES = 1 << 5,
-  P_REDIRECT = 1 << 6, /* viewpoint URLs: 307 to the cell's URL, or serve it */
-  P_CELLQ = 1 << 7     /* cell URLs: the quality hash */
+  P_LM = 1 << 6,       /* kind=lightmap: region, texel, atlas */
+  P_REDIRECT = 1 << 7, /* viewpoint URLs: 307 to the cell's URL, or serve it */
+  P_CELLQ = 1 << 8     /* cell URLs: the quality hash */
 };
 
 typedef struct {
@@ -108,7 +109,8 @@ static const param_def params[] = {
     {"res", P_QUALITY},     {"voxel", P_QUALITY},  {"cones", P_QUALITY},   {"aperture", P_QUALITY},
     {"step", P_QUALITY},    {"bounces", P_QUALITY}, {"samples", P_QUALITY}, {"probe_samples", P_QUALITY},
     {"ao", P_QUALITY},      {"seed", P_QUALITY},   {"effects", P_QUALITY},   {"half", P_HALF},       {"width", P_PANO},
-    {"height", P_PANO},     {"faces", P_FACES},    {"redirect", P_REDIRECT}, {"q", P_CELLQ},
+    {"height", P_PANO},     {"faces", P_FACES},        {"region", P_LM},       {"texel", P_LM},
+    {"atlas", P_LM},        {"redirect", P_REDIRECT}, {"q", P_CELLQ},
 };
 
 /* Applies a preset. low: a quick preview; high: more cones, samples and
@@ -255,6 +257,40 @@ static int set_query_number(gi_proto_bake *out, const char *k, const char *v, co
   return 0;
 }
 
+/* region=x0,y0,z0,x1,y1,z1, texel=S, atlas=N (kind=lightmap). */
+static int set_lightmap_param(gi_proto_bake *out, const char *k, const char *v, gi_proto_error *err) {
+  if (!strcmp(k, "atlas")) {
+    long long i;
+    if (parse_int(v, &i) || i < GI_PROTO_MIN_LIGHTMAP_ATLAS || i > GI_PROTO_MAX_LIGHTMAP_ATLAS)
+      return gi_proto_fail(err, 400, "parameter 'atlas': expected an integer in %d..%d, got '%.64s'",
+                           GI_PROTO_MIN_LIGHTMAP_ATLAS, GI_PROTO_MAX_LIGHTMAP_ATLAS, v);
+    out->atlas = (int)i;
+    return 0;
+  }
+  if (!strcmp(k, "texel")) {
+    if (parse_num(v, &out->texel) || !(out->texel > 0))
+      return gi_proto_fail(err, 400, "parameter 'texel': expected a finite size > 0, got '%.64s'", v);
+    return 0;
+  }
+  char buf[260];
+  snprintf(buf, sizeof buf, "%s", v);
+  char *p = buf;
+  for (int i = 0; i < 6; i++) {
+    char *comma = strchr(p, ',');
+    if ((comma != NULL) != (i < 5)) goto bad;
+    if (comma) *comma = 0;
+    if (parse_num(p, &out->region[i]) || fabs(out->region[i]) > GI_PROTO_MAX_COORD) goto bad;
+    p = comma ? comma + 1 : p;
+  }
+  for (int k3 = 0; k3 < 3; k3++)
+    if (!(out->region[k3] < out->region[3 + k3]))
+      return gi_proto_fail(err, 400, "parameter 'region': min must be below max on every axis, got '%.64s'", v);
+  out->has_region = 1;
+  return 0;
+bad:
+  return gi_proto_fail(err, 400, "parameter 'region': expected six finite numbers x0,y0,z0,x1,y1,z1, got '%.64s'", v);
+}
+
 static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_proto_limits *lim,
                        gi_proto_bake *out, gi_proto_error *err) {
   memset(out, 0, sizeof *out);
@@ -305,8 +341,10 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
       memcpy(out->q, v, len + 1);
     } else if (!strcmp(k, "effects")) {
       if (set_effects(&out->quality, v, err, where)) return err->status;
+    } else if (!strcmp(k, "region") || !strcmp(k, "texel") || !strcmp(k, "atlas")) {
+      if (set_lightmap_param(out, k, v, err)) return err->status;
     } else if (!strcmp(k, "ao")) {
-      int f;
+      int f = 0;
       if (parse_flag(v, &f, err, k)) return err->status;
       out->quality.ao = f;
     } else if (set_query_number(out, k, v, lim, err, where)) {
@@ -322,8 +360,10 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
 /* What a lighting request's kind allows, after its parameters parsed. */
 static int check_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                           gi_proto_error *err) {
-  if (out->kind == GI_PROTO_LIGHTMAP)
-    return gi_proto_fail(err, 501, "kind=lightmap is not available yet; use probe or panorama");
+  if (out->kind != GI_PROTO_LIGHTMAP)
+    for (size_t i = 0; i < n; i++)
+      if (!strcmp(kv[i].key, "region") || !strcmp(kv[i].key, "texel") || !strcmp(kv[i].key, "atlas"))
+        return gi_proto_fail(err, 400, "parameter '%s' applies to kind=lightmap only", kv[i].key);
   if (out->kind == GI_PROTO_PANORAMA) {
     if (out->width < 2) return gi_proto_fail(err, 400, "parameter 'width': a panorama needs at least 2 columns");
     if ((long long)out->width * out->height > lim->max_panorama_pixels)
@@ -339,15 +379,27 @@ static int check_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits
 
 int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                             gi_proto_error *err) {
-  if (parse_query(kv, n, P_AT | P_REDIRECT | P_KIND | P_QUALITY | P_HALF | P_PANO, lim, out, err)) return err->status;
+  if (parse_query(kv, n, P_AT | P_REDIRECT | P_KIND | P_QUALITY | P_HALF | P_PANO | P_LM, lim, out, err))
+    return err->status;
   return check_lighting(kv, n, lim, out, err);
 }
 
+/* Lightmaps are not cell-addressed yet (canonical.c says how they will be):
+ * a cell URL takes probe and panorama. */
 int gi_proto_parse_cell_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                                  gi_proto_error *err) {
   if (parse_query(kv, n, P_CELLQ | P_KIND | P_QUALITY | P_HALF | P_PANO, lim, out, err)) return err->status;
   out->cell = 1;
+  if (out->kind == GI_PROTO_LIGHTMAP)
+    return gi_proto_fail(err, 501, "kind=lightmap has no cell URL yet; ask /v1/scenes/{id}/lighting?at=...&kind=lightmap");
   return check_lighting(kv, n, lim, out, err);
+}
+
+int gi_proto_parse_lightmap_uv(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                               gi_proto_error *err) {
+  if (parse_query(kv, n, P_AT | P_QUALITY | P_LM, lim, out, err)) return err->status;
+  out->kind = GI_PROTO_LIGHTMAP;
+  return 0;
 }
 
 int gi_proto_parse_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,

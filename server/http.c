@@ -561,9 +561,9 @@ static void catalog(gs_service *svc, gs_answer *a) {
 }
 
 static void health(gs_service *svc, gs_answer *a) {
-  answer_json(a, 200, json_pack("{s:s, s:s, s:s, s:f, s:i}", "status", "ok", "version", GI_VERSION, "git",
-                                GI_GIT_REV, "uptime_s", (gs_now_ms() - svc->start_ms) * 1e-3, "scenes",
-                                (int)svc->cat->num));
+  answer_json(a, 200, json_pack("{s:s, s:s, s:s, s:s, s:f, s:i}", "status", "ok", "version", GI_VERSION, "git",
+                                GI_GIT_REV, "cpu_path", gi_cpu_path(), "uptime_s",
+                                (gs_now_ms() - svc->start_ms) * 1e-3, "scenes", (int)svc->cat->num));
 }
 
 static void metrics(gs_service *svc, gs_answer *a) {
@@ -637,6 +637,7 @@ static int route(gs_req *r, const char *url, char *id, size_t idsize) {
     else if (!strcmp(tail, "/lighting")) r->ep = GS_EP_LIGHTING;
     else if (!strcmp(tail, "/cascades.vdb")) r->ep = GS_EP_CASCADES;
     else if (!strcmp(tail, "/probes")) r->ep = GS_EP_PROBES;
+    else if (!strcmp(tail, "/lightmap-uv.glb")) r->ep = GS_EP_LIGHTMAP_UV;
     else return route_cell(r, tail);
   } else {
     if (!*tail) r->ep = GS_EP_JOB;
@@ -823,6 +824,9 @@ static enum MHD_Result lighting(gs_http *h, gs_req *r, const query *q) {
     gs_answer_error(&r->ans, &pe);
     return send_answer(h, r);
   }
+  /* Lightmaps are answered at the viewpoint, uncached, until they get cell
+   * URLs too (the hook: canonical.c's header comment). */
+  if (!r->cell_url && r->bake.kind == GI_PROTO_LIGHTMAP) return dispatch(h, r);
   gs_canon c;
   gi_error_info e = {0};
   gi_result rc = gs_canon_quality(svc, r->scene, &r->bake.quality, &c, &e);
@@ -859,7 +863,8 @@ static enum MHD_Result handle(gs_http *h, gs_req *r) {
   query q = {0};
   if (read_query(r, &q, a)) return send_answer(h, r);
   gi_proto_error pe;
-  if (r->ep == GS_EP_SCENE || r->ep == GS_EP_LIGHTING || r->ep == GS_EP_CASCADES || r->ep == GS_EP_PROBES) {
+  if (r->ep == GS_EP_SCENE || r->ep == GS_EP_LIGHTING || r->ep == GS_EP_CASCADES || r->ep == GS_EP_PROBES ||
+      r->ep == GS_EP_LIGHTMAP_UV) {
     r->scene = gs_catalog_find(svc->cat, r->id);
     if (!r->scene) {
       answer_fail(a, 404, "scene '%s' is not in the catalog (GET /v1/scenes lists them)", r->id);
@@ -869,6 +874,14 @@ static enum MHD_Result handle(gs_http *h, gs_req *r) {
   switch (r->ep) {
   case GS_EP_LIGHTING:
   case GS_EP_CASCADES: return lighting(h, r, &q);
+  case GS_EP_LIGHTMAP_UV: {
+    if (gi_proto_parse_lightmap_uv(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe) ||
+        check_near(r->scene, r->bake.at, 1, "parameter 'at'", &pe)) {
+      gs_answer_error(a, &pe);
+      return send_answer(h, r);
+    }
+    return dispatch(h, r);
+  }
   case GS_EP_PROBES:
     if (r->too_large) {
       gi_proto_fail(&pe, 413, "body: more than the server limit of %zu bytes", svc->cfg->lim.max_body_bytes);

@@ -181,6 +181,8 @@ static size_t answer_extras(const gi_proto_bake *b) { return b->cell ? 0 : 2; }
 
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
                    gs_waiter *w, gs_answer *a) {
+  if (ep == GS_EP_LIGHTMAP_UV || (ep == GS_EP_LIGHTING && b->kind == GI_PROTO_LIGHTMAP))
+    return gs_serve_lightmap(svc, s, ep, b, t_start_ms, a);
   gi_error_info e = {0};
   gi_result rc;
   gi_quality req, q = resolve_request(svc, s, &b->quality, &req, &e, &rc);

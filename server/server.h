@@ -88,7 +88,7 @@ void gs_catalog_free(gs_catalog *cat);
 
 typedef enum gs_endpoint {
   GS_EP_HEALTH, GS_EP_SCENES, GS_EP_SCENE, GS_EP_LIGHTING, GS_EP_CASCADES, GS_EP_PROBES,
-  GS_EP_JOB, GS_EP_JOB_RESULT, GS_EP_METRICS, GS_EP_OTHER, GS_EP_COUNT
+  GS_EP_JOB, GS_EP_JOB_RESULT, GS_EP_METRICS, GS_EP_LIGHTMAP_UV, GS_EP_OTHER, GS_EP_COUNT
 } gs_endpoint;
 
 typedef struct gs_metrics gs_metrics;
@@ -139,10 +139,10 @@ void gs_blob_release_data(void *data);
 /* Encoded answers a cascade keeps: its VDB without and with per-face grids. */
 #define GS_ENCODED_KINDS 2
 /* A bake's transient buffers beside its cascade, as a fraction 1/DIV of the
- * cascade: bounce's irradiance pairs (24 of the 217 bytes a voxel holds),
+ * cascade: bounce's irradiance pairs (24 of the 169 bytes a voxel holds),
  * voxelize's bins and inject's scratch. Measured peak RSS growth of one
  * bake on the city (server/README.md): see the table there. */
-#define GS_BAKE_TRANSIENT_DIV 8
+#define GS_BAKE_TRANSIENT_DIV 6
 
 typedef struct gs_cache gs_cache;
 typedef struct gs_entry gs_entry;
@@ -301,6 +301,10 @@ void gs_answer_free(gs_answer *a);
  * stays 0 when the request waits for another request's bake. */
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b,
                    double t_start_ms, gs_waiter *w, gs_answer *out);
+/* lightmap.c: kind=lightmap (the EXR atlas) or lightmap-uv.glb (ep) for
+ * b's region, baked tile by tile outside the cascade cache. */
+void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b,
+                       double t_start_ms, gs_answer *out);
 /* Probe points: inline when small, else a job (202). Frees p's points. */
 void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms,
                      gs_answer *out);

@@ -43,7 +43,7 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
   if (q->levels == 0) q->levels = 6;
   if (q->res == 0) q->res = 32;
   if (q->cones == 0) q->cones = 16;
-  if (q->step == 0) q->step = 0.5f;
+  if (q->step == 0) q->step = 1.0f;
   if (q->bounces == 0) q->bounces = 2; /* auto: the effect plan replaces it */
   else if (q->bounces < 0) q->bounces = 0;
   for (int i = 0; i < GI_FX_COUNT; i++)

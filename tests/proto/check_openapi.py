@@ -25,16 +25,20 @@ ERR = {400: "bad_request", 401: "unauthorized", 404: "not_found", 405: "method_n
 # The quality group both bake endpoints take (proto/request.c: P_QUALITY).
 BAKE_Q = {"quality", "levels", "res", "voxel", "cones", "aperture", "step", "bounces", "samples", "probe_samples",
           "ao", "seed", "effects"}
+# kind=lightmap's own parameters (P_LM), also taken by lightmap-uv.glb.
+LIGHTMAP = {"region", "texel", "atlas"}
 # path -> method -> (success codes, error codes, query parameters)
 CONTRACT = {
     "/v1/health": {"get": ({200}, {405, 500}, set())},
     "/v1/scenes": {"get": ({200}, {401, 405, 500}, set())},
     "/v1/scenes/{id}": {"get": ({200}, {400, 401, 404, 405, 500}, BAKE_Q)},
-    "/v1/scenes/{id}/lighting": {"get": ({200, 304, 307}, {400, 401, 404, 405, 500, 501, 503, 504},
-                                         {"at", "kind", "half", "width", "height", "redirect"} | BAKE_Q)},
+    "/v1/scenes/{id}/lighting": {"get": ({200, 304, 307}, {400, 401, 404, 405, 413, 500, 503, 504},
+                                         {"at", "kind", "half", "width", "height", "redirect"} | BAKE_Q | LIGHTMAP)},
+    "/v1/scenes/{id}/lightmap-uv.glb": {"get": ({200}, {400, 401, 404, 405, 413, 500, 503, 504},
+                                                {"at"} | BAKE_Q | LIGHTMAP)},
     "/v1/scenes/{id}/cascades.vdb": {"get": ({200, 304, 307}, {400, 401, 404, 405, 500, 503, 504},
                                              {"at", "faces", "redirect"} | BAKE_Q)},
-    # Cell-addressed answers (issue 14): immutable, ETag, 304; 307 for a stale q.
+    # Cell-addressed answers (issue 14): immutable, ETag, 304; 307 for a stale q; kind=lightmap 501 there.
     "/v1/scenes/{id}/cells/{cell}/lighting": {"get": ({200, 304, 307}, {400, 401, 404, 405, 500, 501, 503, 504},
                                                       {"q", "kind", "half", "width", "height"} | BAKE_Q)},
     "/v1/scenes/{id}/cells/{cell}/cascades.vdb": {"get": ({200, 304, 307}, {400, 401, 404, 405, 500, 503, 504},
@@ -46,7 +50,8 @@ CONTRACT = {
     "/metrics": {"get": ({200}, {401, 405, 500}, set())},
 }
 CELL_PATHS = {"/v1/scenes/{id}/cells/{cell}/lighting", "/v1/scenes/{id}/cells/{cell}/cascades.vdb"}
-CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
+CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/lightmap-uv.glb": "model/gltf-binary",
+               "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
                "/v1/scenes/{id}/cells/{cell}/lighting": "image/x-exr",
                "/v1/scenes/{id}/cells/{cell}/cascades.vdb": "application/octet-stream",
                "/v1/scenes/{id}/probes": "image/x-exr", "/v1/jobs/{id}/result": "image/x-exr",
@@ -174,6 +179,7 @@ def query_sets_from_c(path):
     table = re.findall(r'\{"(\w+)",\s*(P_\w+)\}', src)
     out = {}
     for fn, path_key in (("lighting", "/v1/scenes/{id}/lighting"), ("cascades", "/v1/scenes/{id}/cascades.vdb"),
+                         ("lightmap_uv", "/v1/scenes/{id}/lightmap-uv.glb"),
                          ("cell_lighting", "/v1/scenes/{id}/cells/{cell}/lighting"),
                          ("cell_cascades", "/v1/scenes/{id}/cells/{cell}/cascades.vdb"), ("scene", "/v1/scenes/{id}")):
         m = re.search(r"gi_proto_parse_%s\([^)]*\)\s*\{.*?parse_query\([^,]+,[^,]+,\s*([A-Z_| ]+)," % fn, src, re.S)

@@ -36,11 +36,12 @@ static void slab(struct gi_cascade *c, int d, int64_t i, float alpha, float L) {
   gi_level *lv = &c->lv[d];
   for (int64_t k = lv->cell0[2]; k < lv->cell0[2] + c->R; k++)
     for (int64_t j = lv->cell0[1]; j < lv->cell0[1] + c->R; j++) {
-      gi_vrad *r = &lv->rad[gi__slot(i, j, k, c->R)];
-      memset(r, 0, sizeof *r);
-      r->alpha[0] = alpha;
-      r->tau[0] = -logf(1 - alpha);
-      for (int ch = 0; ch < 3; ch++) r->p[GI_FACE_NX][ch] = alpha * L;
+      gi_vrad_f v;
+      memset(&v, 0, sizeof v);
+      v.alpha[0] = alpha;
+      v.tau[0] = -logf(1 - alpha);
+      for (int ch = 0; ch < 3; ch++) v.p[GI_FACE_NX][ch] = alpha * L;
+      gi__vrad_pack(c, &v, &lv->rad[gi__slot(i, j, k, c->R)]);
     }
 }
 

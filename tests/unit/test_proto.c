@@ -31,6 +31,30 @@ static void expect_fail(const gi_proto_kv *kv, size_t n, int status, const char 
   assert_non_null(strstr(e.message, needle));
 }
 
+static void test_lightmap_ok(void **state) {
+  (void)state;
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv kv[] = {{"at", "1,2,3"}, {"kind", "lightmap"}, {"region", "-1,0,-2.5,4,3,5e1"}, {"texel", "0.25"},
+                      {"atlas", "512"}};
+  assert_int_equal(gi_proto_parse_lighting(kv, NKV(kv), &l, &b, &e), 0);
+  assert_int_equal(b.kind, GI_PROTO_LIGHTMAP);
+  assert_int_equal(b.has_region, 1);
+  double want[6] = {-1, 0, -2.5, 4, 3, 50};
+  for (int i = 0; i < 6; i++) assert_true(b.region[i] == want[i]);
+  assert_true(b.texel == 0.25);
+  assert_int_equal(b.atlas, 512);
+  /* The glTF endpoint takes the same parameters but no kind. */
+  gi_proto_kv uv[] = {{"at", "1,2,3"}, {"texel", "0.5"}};
+  assert_int_equal(gi_proto_parse_lightmap_uv(uv, NKV(uv), &l, &b, &e), 0);
+  assert_int_equal(b.kind, GI_PROTO_LIGHTMAP);
+  assert_true(b.texel == 0.5 && !b.has_region && b.atlas == 0);
+  gi_proto_kv bad[] = {{"at", "1,2,3"}, {"kind", "lightmap"}};
+  assert_int_equal(gi_proto_parse_lightmap_uv(bad, NKV(bad), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "'kind'"));
+}
+
 static void test_lighting_ok(void **state) {
   gi_proto_limits l = lim();
   gi_proto_bake b;
@@ -116,7 +140,15 @@ static void test_rejections(void **state) {
   expect_fail(KV({"at", "0,0,0"}, {"voxel", "nan"}), 2, 400, "'voxel'");
   expect_fail(KV({"at", "0,0,0"}, {"quality", "ultra"}), 2, 400, "low, default or high");
   expect_fail(KV({"at", "0,0,0"}, {"kind", "hdri"}), 2, 400, "probe, panorama or lightmap");
-  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}), 2, 501, "lightmap");
+  /* kind=lightmap: its own parameters, checked; they belong to it alone. */
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}, {"texel", "0"}), 3, 400, "'texel'");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}, {"texel", "nan"}), 3, 400, "'texel'");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}, {"atlas", "8"}), 3, 400, "'atlas'");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}, {"atlas", "99999"}), 3, 400, "'atlas'");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}, {"region", "0,0,0,1,1"}), 3, 400, "'region'");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}, {"region", "0,0,0,1,1,1,"}), 3, 400, "'region'");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "lightmap"}, {"region", "0,0,0,1,-1,1"}), 3, 400, "min must be below");
+  expect_fail(KV({"at", "0,0,0"}, {"texel", "0.5"}), 2, 400, "kind=lightmap only");
   expect_fail(KV({"at", "0,0,0"}, {"width", "64"}), 2, 400, "kind=panorama only");
   expect_fail(KV({"at", "0,0,0"}, {"faces", "1"}), 2, 400, "unknown parameter 'faces'");
   expect_fail(KV({"at", "0,0,0"}, {"half", "yes"}), 2, 400, "0 or 1");
@@ -351,8 +383,8 @@ static void test_cell_requests(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_lighting_ok),   cmocka_unit_test(test_preset_then_override),
-      cmocka_unit_test(test_cell_requests),
+      cmocka_unit_test(test_lighting_ok),   cmocka_unit_test(test_cell_requests),
+      cmocka_unit_test(test_lightmap_ok),   cmocka_unit_test(test_preset_then_override),
       cmocka_unit_test(test_effects),       cmocka_unit_test(test_strict_numbers),
       cmocka_unit_test(test_effects_strict),
       cmocka_unit_test(test_panorama),      cmocka_unit_test(test_rejections),

@@ -60,7 +60,8 @@ static void test_exact_counts(void **state) {
       area += L->geo[i].area;
       if (L->geo[i].area > 0 && fabsf(L->geo[i].normal[0]) > 0.999f) {
         /* A voxel cut by a full x-face: opaque along x, clear along y and z. */
-        if (L->rad[i].alpha[0] > 0.998f && L->rad[i].alpha[1] == 0 && L->rad[i].alpha[2] == 0) opaque_x++;
+        const gi_vrad *r = &L->rad[i];
+        if (gi__vrad_alpha(r, 0) > 0.998f && gi__vrad_alpha(r, 1) == 0 && gi__vrad_alpha(r, 2) == 0) opaque_x++;
       }
     }
     assert_true(fabs(area - 6 * 25 * s0 * s0) < 1e-4 * 6 * 25 * s0 * s0);

@@ -132,7 +132,7 @@ int ta_ll(ta_ctx *c, const char *opt, const char *what, const char *s, long long
 }
 
 int ta_int(ta_ctx *c, const char *opt, const char *what, const char *s, int lo, int hi, int *out) {
-  long long v;
+  long long v = 0;
   int rc = ta_ll(c, opt, what, s, lo, hi, &v);
   if (!rc) *out = (int)v;
   return rc;

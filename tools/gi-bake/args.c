@@ -59,12 +59,18 @@ static const struct option long_opts[] = {
     {"city-extent", required_argument, NULL, OPT_CITY_EXTENT},
     {"city-seed", required_argument, NULL, OPT_CITY_SEED},
     {"city-detail", required_argument, NULL, OPT_CITY_DETAIL},
+    BATCH_LONG_OPTS,
+    {"lightmap", required_argument, NULL, LM_OPT_OUT},
+    {"uv-out", required_argument, NULL, LM_OPT_UV_OUT},
+    {"texel", required_argument, NULL, LM_OPT_TEXEL},
+    {"atlas", required_argument, NULL, LM_OPT_ATLAS},
     {"help", no_argument, NULL, 'h'},
     {"version", no_argument, NULL, 'V'},
     {NULL, 0, NULL, 0}};
 
 static const char help_text[] =
     "Usage: gi-bake SCENE [options]\n"
+    "       gi-bake merge [--exr OUT.exr] [--vdb OUT.vdb] SHARD.exr...\n"
     "Bakes global illumination around a viewpoint with cascaded voxel cone tracing\n"
     "and prints what it did. SCENE is a scene file (OBJ, PLY, glTF, 3DS, FBX) or the\n"
     "word 'city' for the embedded procedural city (use ./city for a file named city).\n"
@@ -109,6 +115,7 @@ static const char help_text[] =
     "  --city-seed N         layout seed, unsigned 64-bit, 0 = default (1)\n"
     "  --city-detail N       facade subdivision, 1..8 (2)\n"
     "\n"
+    BATCH_HELP
     "Outputs (files are written to a temporary name, then renamed)\n"
     "  --exr OUT.exr         probe EXR: R,G,B, irradiance/direct/indirect.R,G,B, ao.Y,\n"
     "                        sh.L00.R .. sh.L22.B (one pixel per probe)\n"
@@ -117,6 +124,17 @@ static const char help_text[] =
     "                        L<d>_normal per level, plain density/Cd for level 0\n"
     "  --vdb-faces           add the six per-face radiance grids L<d>_face_px..\n"
     "  --json                print one JSON object instead of the summary\n"
+    "\n"
+    "Lightmap (instead of the probes: the scene's surfaces baked into atlases)\n"
+    "  --lightmap OUT.exr    multilayer EXR atlas: R,G,B = albedo x irradiance / pi,\n"
+    "                        irradiance/direct/indirect.R,G,B, valid.Y; several\n"
+    "                        atlases go to OUT.0001.exr, OUT.0002.exr ...\n"
+    "  --region X0,Y0,Z0,X1,Y1,Z1  only triangles whose centre is in this box\n"
+    "                        (default: the whole scene; the same option as --grid's)\n"
+    "  --texel S             texel size, world units (default 0.25)\n"
+    "  --atlas N             atlas side in texels, 16..16384 (default 2048)\n"
+    "  --uv-out OUT.glb      the lightmap's triangles as glTF 2.0, lightmap UVs in\n"
+    "                        TEXCOORD_1, one mesh per atlas\n"
     "\n"
     "Pictures (the view from the cascade beside the same view path-traced)\n"
     "  --render CAMERA       a Mitsuba XML file's perspective sensor (lookat, fov;\n"
@@ -133,7 +151,8 @@ static const char help_text[] =
     "\n"
     "Examples\n"
     "  gi-bake city --exr out/city-probe.exr --vdb out/city-cascades.vdb\n"
-    "  gi-bake cornell-box.obj --at 278,273,279.6 --bounces 3 --json\n";
+    "  gi-bake cornell-box.obj --at 278,273,279.6 --bounces 3 --json\n"
+    "  gi-bake munich.obj --up z --grid 4 --above-ground 2 --vdb probes.vdb\n";
 
 static ta_ctx ta = TA_CTX("gi-bake");
 
@@ -337,7 +356,7 @@ static int city_option(cli_opts *o, int c, const char *arg) {
 static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
   switch (c) {
   case 'h': fputs(help_text, stdout); return -1;
-  case 'V': printf("gi-bake %s\n", ta_version()); return -1;
+  case 'V': printf("gi-bake %s\ncpu path: %s\n", ta_version(), gi_cpu_path()); return -1;
   case OPT_AT: case OPT_UP: case OPT_PROBES: return scene_option(o, c, arg);
   case OPT_LEVELS: case OPT_RES: case OPT_VOXEL: case OPT_CONES: case OPT_BOUNCES: case OPT_SAMPLES:
   case OPT_PROBE_SAMPLES: case OPT_THREADS: case OPT_AO: case OPT_EFFECT:
@@ -353,6 +372,10 @@ static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
   case OPT_PNG: o->png = arg; return 0;
   case OPT_RENDER_SAMPLES: return ta_int(&ta, "--render-samples", NULL, arg, 1, 65536, &o->render_spp);
   case OPT_CITY_EXTENT: case OPT_CITY_SEED: case OPT_CITY_DETAIL: return city_option(o, c, arg);
+  case OPT_GRID: case OPT_REGION: case OPT_ABOVE_GROUND: case OPT_SHARD: case OPT_RESUME: case OPT_MANIFEST:
+    return batch_option(&ta, &o->batch, c, arg);
+  case LM_OPT_OUT: case LM_OPT_UV_OUT: case LM_OPT_TEXEL: case LM_OPT_ATLAS:
+    return lightmap_option(o, c, arg);
   default: return ta_getopt_fail(&ta, c, argv, long_opts);
   }
 }
@@ -388,7 +411,8 @@ static int check_combinations(cli_opts *o) {
   if (o->is_city && o->up == GI_UP_Z) return ta_fail(&ta, "--up", "the procedural city is always Y-up");
   if (!o->is_city && o->city_opts_given)
     return ta_fail(&ta, NULL, "--city-extent, --city-seed and --city-detail apply only to the scene 'city'");
-  if (o->half && !o->exr) return ta_fail(&ta, "--half", "needs --exr");
+  if (o->half && !o->exr && !o->lm.out) return ta_fail(&ta, "--half", "needs --exr or --lightmap");
+  if ((rc = lightmap_check(o))) return rc;
   if (o->png && !o->render) return ta_fail(&ta, "--png", "needs --render");
   if (o->render && !o->png && !o->exr) return ta_fail(&ta, "--render", "needs --png or --exr for the pictures");
   if (o->render && (rc = check_render_camera(o))) return rc;
@@ -396,6 +420,7 @@ static int check_combinations(cli_opts *o) {
   if (o->vdb_faces && !o->vdb) return ta_fail(&ta, "--vdb-faces", "needs --vdb");
   if (o->exr && (rc = ta_check_output(&ta, "--exr", o->exr))) return rc;
   if (o->vdb && (rc = ta_check_output(&ta, "--vdb", o->vdb))) return rc;
+  if ((rc = batch_check(&ta, o))) return rc;
   /* The viewpoint takes one of the probe EXR's pixels. */
   if (o->probes_file &&
       (rc = ta_read_points(&ta, "--probes", o->probes_file, MAX_POINTS - 1, &o->probes, &o->num_probes)))

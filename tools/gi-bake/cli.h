@@ -6,11 +6,20 @@
 #include <stdint.h>
 #include "gi/gi.h"
 #include "toolargs.h"
+#include "batch.h"
 
 /* Exit codes: 0 success, 1 the work failed (scene, bake, I/O), 2 usage. */
 enum { EXIT_RUN = TA_EXIT_RUN, EXIT_USAGE = TA_EXIT_USAGE };
 
 #define CLI_MAX_LIGHTS 64
+
+/* --lightmap and its options (lightmap.c). */
+typedef struct cli_lightmap {
+  const char *out, *uv_out;
+  gi_lightmap_opts opts;    /* zero fields = core defaults */
+} cli_lightmap;
+/* getopt_long values of the lightmap options (after args.c's own). */
+enum { LM_OPT_OUT = 512, LM_OPT_UV_OUT, LM_OPT_TEXEL, LM_OPT_ATLAS }; /* --region: batch.h's, shared */
 
 /* Everything the command line asked for, after strict parsing. */
 typedef struct cli_opts {
@@ -31,6 +40,8 @@ typedef struct cli_opts {
   const char *png;
   double *probes;           /* extra points from --probes, 3 per point */
   size_t num_probes;
+  cli_batch batch;          /* --grid and its options (batch.h) */
+  cli_lightmap lm;          /* --lightmap */
 } cli_opts;
 
 /* Parses argv into o. Returns 0 on success, -1 when --help/--version was
@@ -67,5 +78,12 @@ int cli_report(const cli_run *r, int json);
  * o->png and/or o->exr; fills st with what it measured. Returns 0,
  * EXIT_USAGE (bad camera for this scene) or EXIT_RUN. */
 int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, cli_render_stats *st);
+
+/* lightmap.c: one lightmap option (LM_OPT_*) into o->lm; the checks of
+ * the lightmap options and their combinations (0 or an exit code); the
+ * --lightmap run on a loaded scene (0, EXIT_USAGE or EXIT_RUN). */
+int lightmap_option(cli_opts *o, int c, const char *arg);
+int lightmap_check(const cli_opts *o);
+int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, double (*now_ms)(void));
 
 #endif

@@ -106,6 +106,7 @@ static int write_outputs(const cli_opts *o, const gi_scene *scene, const gi_casc
 }
 
 int main(int argc, char **argv) {
+  if (argc > 1 && !strcmp(argv[1], "merge")) return batch_merge_main(argc - 1, argv + 1);
   cli_opts o;
   int rc = cli_parse(argc, argv, &o);
   if (rc) {
@@ -125,6 +126,14 @@ int main(int argc, char **argv) {
   double t_start = now_ms();
   if ((rc = load_scene(&o, &scene))) goto done;
   double load_ms = now_ms() - t_start;
+  if (o.batch.grid > 0) {
+    rc = batch_run(&o, scene, load_ms);
+    goto done;
+  }
+  if (o.lm.out) {
+    rc = lightmap_run(&o, scene, t_start, now_ms);
+    goto done;
+  }
   choose_viewpoint(&o, scene);
   if ((rc = make_points(&o, &pts, &probes, &n))) goto done;
 

@@ -72,6 +72,18 @@ static json_t *quality_json(jctx *j, const gi_quality *q, int threads) {
   return o;
 }
 
+/* The march's cost: cones traced, samples per cone, and per sample the
+ * bounce's wall time on every thread (so a loaded machine reads slower). */
+static void add_march_figures(json_t *root, const gi_bake_report *rep) {
+  json_object_set_new(root, "cones_traced", count(rep->cones_traced));
+  json_object_set_new(root, "samples_per_cone",
+                      json_real(rep->cones_traced ? (double)rep->cone_samples / (double)rep->cones_traced : 0.0));
+  json_object_set_new(root, "ns_per_sample",
+                      json_real(rep->cone_samples ? rep->ms.bounce * 1e6 * rep->quality.threads / (double)rep->cone_samples
+                                                  : 0.0));
+  json_object_set_new(root, "cpu_path", json_string(gi_cpu_path()));
+}
+
 static json_t *build_json(const cli_run *r, jctx *j) {
   const gi_bake_report *rep = r->rep;
   gi_scene_stats st;
@@ -158,6 +170,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(root, "triangles_visited", count(rep->triangles_visited));
   json_object_set_new(root, "shadow_rays", count(rep->shadow_rays));
   json_object_set_new(root, "cone_samples", count(rep->cone_samples));
+  add_march_figures(root, rep);
   json_object_set_new(root, "bounces_run", json_integer(rep->bounces_run));
 
   json_t *out = json_object();
@@ -209,6 +222,10 @@ static void print_human(const cli_run *r) {
   printf("work       %llu triangle/level pairs, %llu shadow rays, %llu cone samples, %d bounce%s run\n",
          (unsigned long long)rep->triangles_visited, (unsigned long long)rep->shadow_rays,
          (unsigned long long)rep->cone_samples, rep->bounces_run, rep->bounces_run == 1 ? "" : "s");
+  if (rep->cones_traced && rep->cone_samples)
+    printf("cones      %llu traced, %.1f samples per cone, %.1f ns per sample per thread (%s march)\n",
+           (unsigned long long)rep->cones_traced, (double)rep->cone_samples / (double)rep->cones_traced,
+           rep->ms.bounce * 1e6 * rep->quality.threads / (double)rep->cone_samples, gi_cpu_path());
 
   const gi_effect *effects = r->render ? r->render->view.effects : rep->effects;
   printf("effects%s\n", r->render ? "    (of the rendered view)" : "");

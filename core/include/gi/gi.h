@@ -16,4 +16,7 @@
 #include "gi_exr.h"
 #include "gi_vdb.h"
 #include "gi_points.h"
+#include "gi_cpu.h"
+#include "gi_batch.h"
+#include "gi_lightmap.h"
 #endif

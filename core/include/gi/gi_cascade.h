@@ -43,7 +43,8 @@ typedef struct gi_bake_report {
   uint64_t occupied[GI_MAX_LEVELS];      /* voxels holding geometry, per level */
   uint64_t triangles_visited;            /* triangle/level pairs from the BVH query */
   uint64_t shadow_rays;
-  uint64_t cone_samples;
+  uint64_t cone_samples;                 /* texture samples the bounces' cones took */
+  uint64_t cones_traced;                 /* cones the bounces marched */
   size_t cascade_bytes;
   int bounces_run;
   uint32_t glossy_triangles;             /* glossy triangles inside the cascade: a camera

@@ -42,7 +42,7 @@ typedef struct gi_quality {
   double voxel0;       /* finest voxel size s0; default: the coarsest level spans the scene */
   int cones;           /* diffuse cones per hemisphere: 4, 6, 8, 16 or 32; default 16 */
   float aperture_deg;  /* diffuse cone full aperture; default from the cone count */
-  float step;          /* march step as a fraction of the cone diameter; default 0.5 */
+  float step;          /* march step in voxels of the sampled level; default 1 (near surfaces at most 0.75) */
   int bounces;         /* voxel-to-voxel bounces after injection; 0 = auto from the albedo
                           in range (1..3, see the effect plan), -1 = none */
   int light_samples;   /* shadow rays per voxel for sky and area lights; default 16 */

@@ -119,6 +119,13 @@ uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m);
 /* Adds a vertex and returns its index. */
 uint32_t gi_mesh_builder_add_vertex(gi_mesh_builder *b, double x, double y, double z);
 void gi_mesh_builder_add_triangle(gi_mesh_builder *b, uint32_t a, uint32_t c, uint32_t d, uint32_t material);
+/* The lightmap UVs of an added vertex (u right, v down, as glTF's
+ * TEXCOORD_1; 1 = the atlas's far edge). The scene keeps them only when
+ * every vertex its triangles use has finite ones; gi_lightmap_layout then
+ * bakes into them instead of making charts. */
+void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double u, double v);
+/* 1 when the scene kept lightmap UVs (a file's second UV set, or the builder's). */
+int gi_scene_has_lightmap_uv(const gi_scene *s);
 /* Convenience: a quad a,b,c,d (counter-clockwise seen from the front) as two triangles. */
 void gi_mesh_builder_add_quad(gi_mesh_builder *b, const double a[3], const double bb[3],
                               const double c[3], const double d[3], uint32_t material);

@@ -41,6 +41,27 @@ typedef struct gi_vdb_grid {
 gi_result gi_vdb_write(const char *path, const gi_vdb_grid *grids, size_t num_grids,
                        const gi_vdb_meta *file_meta, size_t num_file_meta, gi_error_info *err);
 
+/* A grid given voxel by voxel: every listed voxel becomes active, even
+ * when its value equals the background (0). */
+typedef struct gi_vdb_sparse {
+  const char *name;
+  gi_vdb_kind kind;
+  size_t count;
+  const int *ijk;       /* 3 index coordinates per voxel, borrowed */
+  const float *data;    /* count values (x3 for VEC3, interleaved), borrowed */
+  double voxel_size;
+  double origin[3];     /* as gi_vdb_grid: voxel (0,0,0)'s min corner */
+  size_t num_meta;
+  const gi_vdb_meta *meta;
+} gi_vdb_sparse;
+
+/* Writes sparse grids like gi_vdb_write. uuid (may be NULL: OpenVDB's
+ * random one) is the file's 36-character id "xxxxxxxx-xxxx-xxxx-xxxx-
+ * xxxxxxxxxxxx" (hex digits); with it, equal inputs give equal bytes. */
+gi_result gi_vdb_write_sparse(const char *path, const gi_vdb_sparse *grids, size_t num_grids,
+                              const gi_vdb_meta *file_meta, size_t num_file_meta, const char *uuid,
+                              gi_error_info *err);
+
 /* What a grid in a file holds, for tests and inspection tools. */
 typedef struct gi_vdb_grid_info {
   char name[128];

@@ -22,4 +22,14 @@ void gi__sh_basis(const float w[3], float y[9]);
 void gi__sh_add(float sh[9][3], const float w[3], const float L[3], float weight);
 void gi__sh_radiance_to_irradiance(float sh[9][3]);
 
+/* surface.c: irradiance at a point x on a surface of unit normal n (the
+ * side to gather): direct light by the probes' shadow-ray rule with a
+ * normal (light samples balanced against cosine rays that find emitters),
+ * indirect light by the cascade's cones with the gather's surface rule.
+ * samples: light samples for sky and emitters; seed: this point's stream.
+ * sc holds at least gi__light_sample_cap samples. Thread-safe. */
+struct gi_ray_scratch;
+void gi__surface_irradiance(const struct gi_cascade *c, const float x[3], const float n[3], int samples,
+                            uint64_t seed, struct gi_ray_scratch *sc, float direct[3], float indirect[3]);
+
 #endif

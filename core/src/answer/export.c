@@ -180,7 +180,8 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
         uint32_t slot = gi__slot(L->cell0[0] + i, L->cell0[1] + j, L->cell0[2] + k, R);
         size_t o = (size_t)i + (size_t)R * ((size_t)j + (size_t)R * k);
         const gi_vgeo *g = &L->geo[slot];
-        const gi_vrad *r = &L->rad[slot];
+        gi_vrad_f rv, *r = &rv;
+        gi__vrad_unpack(c, &L->rad[slot], r);
         float dens = (r->alpha[0] + r->alpha[1] + r->alpha[2]) / 3.f;
         ld->density[o] = dens;
         if (g->area > 0) {

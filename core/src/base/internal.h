@@ -69,6 +69,12 @@ gi_result gi__cancel_fail(const gi_cancel *c, gi_error_info *err, const char *st
  * of them run at once. */
 int gi__num_workers(int threads);
 
+/* 1 when the hot loops take their x86-64-v3 build (base/cpu.c). */
+int gi__cpu_v3(void);
+/* Tests only: take the v3 build (when the CPU can) or the baseline one
+ * from now on. Not while a bake runs. */
+void gi__cpu_force(int v3);
+
 /* Monotonic clock in milliseconds. */
 double gi__now_ms(void);
 
@@ -96,6 +102,25 @@ static inline uint64_t gi__mix64(uint64_t x) {
 static inline float gi__u01(uint64_t *state) {
   *state += 0x9e3779b97f4a7c15ULL;
   return (float)(gi__mix64(*state) >> 40) * (1.0f / 16777216.0f);
+}
+
+/* Branch-free min and max: without -ffinite-math-only, fminf and fmaxf
+ * are library calls, and the hot loops need neither NaN rule. */
+static inline float gi__minf(float a, float b) { return a < b ? a : b; }
+static inline float gi__maxf(float a, float b) { return a > b ? a : b; }
+
+/* exp(-x) for x >= 0 (0 beyond 87), relative error under 5e-6: 2^-k times
+ * a degree-6 polynomial of the rest in [-ln2/2, ln2/2]. Once per cone
+ * sample. */
+static inline float gi__fast_exp_neg(float x) {
+  if (!(x < 87.f)) return 0.f;
+  float y = -x * 1.44269504f; /* log2(e) */
+  float k = floorf(y + 0.5f);
+  float f = (y - k) * 0.69314718f;
+  float p = 1.f + f * (1.f + f * (0.5f + f * (0.16666667f + f * (0.041666668f + f * (0.0083333338f + f * 0.0013888889f)))));
+  union { float f; uint32_t u; } v;
+  v.u = (uint32_t)((int32_t)k + 127) << 23;
+  return p * v.f;
 }
 
 static inline float gi__dot(const float a[3], const float b[3]) { return a[0]*b[0] + a[1]*b[1] + a[2]*b[2]; }

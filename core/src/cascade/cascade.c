@@ -14,6 +14,7 @@ static int fired(const struct gi_cascade *c) { return gi_cancel_check(c->cancel)
 
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
   size_t vox = (size_t)c->R * c->R * c->R;
+  c->rad_scale = 1.0f;
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     if (fired(c) || !(L->geo = gi__calloc(vox, sizeof *L->geo)) || fired(c) ||

@@ -23,6 +23,7 @@
 #include <math.h>
 #include <stdint.h>
 #include "gi/gi_bake.h"
+#include "base/half.h"
 #include "base/internal.h"
 #include "scene/scene_internal.h"
 
@@ -47,12 +48,29 @@ typedef struct gi_vgeo {
   float gloss;         /* area-weighted specular reflectance of glossy materials */
 } gi_vgeo;
 
-/* Light buffer of one voxel: what cones sample. */
+/* Light buffer of one voxel: what cones sample. 48 bytes, 24 half floats
+ * (IEEE binary16), the lanes a trilinear sample sums at once:
+ *   lanes 3f+k (f < 6, k < 3): radiance of channel k leaving through face f
+ *     (f = 2 axis for the +axis face, 2 axis + 1 for -axis), premultiplied
+ *     by the face's opacity and divided by the cascade's rad_scale;
+ *   lanes GI_VRAD_ALPHA + a: opacity along axis a, 1 - exp(-tau);
+ *   lanes GI_VRAD_TAU + a: optical depth across the voxel along axis a.
+ * Half of v0.1's 96-byte float record: two fit in three cache lines. The
+ * march reads texels directly; every other stage goes through
+ * gi__vrad_unpack / gi__vrad_pack (cascade/texel.c). */
+#define GI_VRAD_ALPHA 18
+#define GI_VRAD_TAU 21
+#define GI_VRAD_LANES 24
 typedef struct gi_vrad {
-  float p[6][3];       /* premultiplied radiance leaving through each face */
-  float tau[3];        /* optical depth across the voxel along each axis */
-  float alpha[3];      /* opacity along each axis, 1 - exp(-tau) */
+  uint16_t h[GI_VRAD_LANES];
 } gi_vrad;
+
+/* A texel in float, radiance in true units: the lanes in the same order. */
+typedef struct gi_vrad_f {
+  float p[6][3];
+  float alpha[3];
+  float tau[3];
+} gi_vrad_f;
 
 typedef struct gi_level {
   double s;            /* voxel size */
@@ -88,6 +106,11 @@ struct gi_cascade {
   float cone_weight[GI_MAX_CONES]; /* integral of cos over the cone's region; sums to pi */
   float cone_tan;        /* tan(aperture / 2) */
   const gi_cancel *cancel; /* the bake's token while it runs (may be NULL); NULL after */
+  /* Radiance lanes of every texel hold value / rad_scale, set by
+   * gi__vrad_rescale so the brightest texel stays far from half's largest
+   * value (a 1e6-bright light stays finite) and dim light keeps half's 11
+   * bits. 1 until the first shading. */
+  float rad_scale;
 };
 
 static inline int64_t gi__floordiv(int64_t a, int64_t b) {
@@ -122,6 +145,16 @@ void gi__cascade_mark_busy(struct gi_cascade *c);
 int gi__level_contains(const gi_level *L, const float p[3], float border);
 /* 1 when cell (i,j,k) of level L is covered by the finer level. */
 int gi__is_inner(const gi_level *L, int64_t i, int64_t j, int64_t k);
+
+/* texel.c: converting texels; rad_scale must not change between a
+ * texel's pack and its unpack (gi__vrad_rescale repacks nothing). */
+void gi__vrad_unpack(const struct gi_cascade *c, const gi_vrad *r, gi_vrad_f *out);
+void gi__vrad_pack(const struct gi_cascade *c, const gi_vrad_f *in, gi_vrad *r);
+/* Chooses rad_scale for radiance up to `brightest`; every radiance lane
+ * must be rewritten afterwards (shade and filter do). */
+void gi__vrad_rescale(struct gi_cascade *c, float brightest);
+static inline float gi__vrad_alpha(const gi_vrad *r, int a) { return gi__h2f(r->h[GI_VRAD_ALPHA + a]); }
+static inline float gi__vrad_tau(const gi_vrad *r, int a) { return gi__h2f(r->h[GI_VRAD_TAU + a]); }
 
 /* voxelize.c */
 gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err);

@@ -22,19 +22,19 @@ typedef struct {
 static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level *L, int64_t ci,
                          int64_t cj, int64_t ck) {
   int R = c->R;
-  const gi_vrad *kr[2][2][2];
+  gi_vrad_f kr[2][2][2];
   const gi_vgeo *kg[2][2][2];
   const float(*ks[2][2][2])[3];
   for (int z = 0; z < 2; z++)
     for (int y = 0; y < 2; y++)
       for (int x = 0; x < 2; x++) {
         uint32_t s = gi__slot(2 * ci + x, 2 * cj + y, 2 * ck + z, R);
-        kr[z][y][x] = &F->rad[s];
+        gi__vrad_unpack(c, &F->rad[s], &kr[z][y][x]);
         kg[z][y][x] = &F->geo[s];
         ks[z][y][x] = F->side[s];
       }
   uint32_t slot = gi__slot(ci, cj, ck, R);
-  gi_vrad *out = &L->rad[slot];
+  gi_vrad_f o, *out = &o;
   memset(out, 0, sizeof *out);
   for (int axis = 0; axis < 3; axis++) {
     double T = 0;
@@ -42,10 +42,10 @@ static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level
     for (int u = 0; u < 2; u++)
       for (int v = 0; v < 2; v++) {
         /* The column's two children along `axis`: lo (index 0) and hi (index 1). */
-        const gi_vrad *ch[2];
+        const gi_vrad_f *ch[2];
         for (int t = 0; t < 2; t++) {
           int x = axis == 0 ? t : u, y = axis == 1 ? t : (axis == 0 ? u : v), z = axis == 2 ? t : v;
-          ch[t] = kr[z][y][x];
+          ch[t] = &kr[z][y][x];
         }
         T += exp(-(double)ch[0]->tau[axis] - (double)ch[1]->tau[axis]);
         float tlo = expf(-ch[0]->tau[axis]), thi = expf(-ch[1]->tau[axis]);
@@ -64,6 +64,7 @@ static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level
       out->p[2 * axis + 1][k] = 0.25f * pn[k];
     }
   }
+  gi__vrad_pack(c, out, &L->rad[slot]);
   /* Geometry and side irradiance: area-weighted means, for inspection. */
   gi_vgeo *g = &L->geo[slot];
   float(*side)[3] = L->side[slot];
@@ -150,7 +151,8 @@ void gi__cascade_mark_busy(struct gi_cascade *c) {
       for (int j = 0; j < R; j++)
         for (int i = 0; i < R; i++) {
           const gi_vrad *r = &L->rad[(size_t)i + (size_t)R * ((size_t)j + (size_t)R * k)];
-          if (!(r->tau[0] > 0 || r->tau[1] > 0 || r->tau[2] > 0)) continue;
+          /* Optical depth is never negative: a non-zero half is a positive one. */
+          if (!(r->h[GI_VRAD_TAU] | r->h[GI_VRAD_TAU + 1] | r->h[GI_VRAD_TAU + 2])) continue;
           for (int dz = 0; dz < 2; dz++)
             for (int dy = 0; dy < 2; dy++)
               for (int dx = 0; dx < 2; dx++) {

@@ -169,7 +169,7 @@ static int finalize_level(struct gi_cascade *c, gi_level *L) {
         uint32_t slot = gi__slot(i, j, k, R);
         gi_vgeo *g = &L->geo[slot];
         gi_vrad *r = &L->rad[slot];
-        memset(r, 0, sizeof *r);
+        memset(r, 0, sizeof *r); /* +0 in every half lane */
         if (!(g->area > 0)) {
           memset(g, 0, sizeof *g);
           continue;
@@ -195,8 +195,8 @@ static int finalize_level(struct gi_cascade *c, gi_level *L) {
         for (int a = 0; a < 3; a++) {
           double al = g->proj[a] / s2;
           if (al > GI_MAX_VOXEL_ALPHA) al = GI_MAX_VOXEL_ALPHA;
-          r->alpha[a] = (float)al;
-          r->tau[a] = (float)-log(1.0 - al);
+          r->h[GI_VRAD_ALPHA + a] = gi__f2h((float)al);
+          r->h[GI_VRAD_TAU + a] = gi__f2h((float)-log(1.0 - al));
         }
         L->occ[L->num_occ++] = slot;
         L->num_geo++;

@@ -641,6 +641,9 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, gi
     for (unsigned v = 0; v < m->mNumVertices; v++) {
       uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z);
       if (v == 0) base = id;
+      /* The second UV set is the lightmap's (glTF TEXCOORD_1); assimp's V runs up. */
+      if (m->mTextureCoords[1])
+        gi_mesh_builder_set_lightmap_uv(b, id, m->mTextureCoords[1][v].x, 1.0 - m->mTextureCoords[1][v].y);
     }
     for (unsigned t = 0; t < m->mNumFaces; t++) {
       const struct aiFace *fc = &m->mFaces[t];

@@ -24,6 +24,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -81,6 +82,19 @@ void add_meta(openvdb::MetaMap &map, const gi_vdb_meta *meta, size_t n, const st
   }
 }
 
+// The grid's transform (see gi_vdb.h), class and metadata.
+void finish_grid(openvdb::GridBase &grid, const char *name, double voxel_size, const double origin[3], bool fog,
+                 const gi_vdb_meta *meta, size_t num_meta, const std::string &where) {
+  grid.setName(name);
+  // Index (i,j,k) is the voxel centre origin + (i+0.5)*voxel_size, in doubles.
+  openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(voxel_size);
+  double h = 0.5 * voxel_size;
+  xform->postTranslate(openvdb::Vec3d(origin[0] + h, origin[1] + h, origin[2] + h));
+  grid.setTransform(xform);
+  grid.setGridClass(fog ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_UNKNOWN);
+  add_meta(grid, meta, num_meta, where, true);
+}
+
 // Copies the non-zero voxels of a dense block (x fastest) into a sparse grid.
 template <typename GridT, typename Get>
 typename GridT::Ptr build_grid(const gi_vdb_grid &g, Get value_at) {
@@ -125,15 +139,94 @@ openvdb::GridBase::Ptr make_grid(const gi_vdb_grid &g, size_t gi) {
     grid = build_grid<openvdb::Vec3SGrid>(
         g, [&](size_t i) { return openvdb::Vec3s(g.data[3 * i], g.data[3 * i + 1], g.data[3 * i + 2]); });
 
-  grid->setName(g.name);
-  // Index (i,j,k) is the voxel centre origin + (i+0.5)*voxel_size, in doubles.
-  openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(g.voxel_size);
-  double h = 0.5 * g.voxel_size;
-  xform->postTranslate(openvdb::Vec3d(g.origin[0] + h, g.origin[1] + h, g.origin[2] + h));
-  grid->setTransform(xform);
-  grid->setGridClass(g.fog_volume ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_UNKNOWN);
-  add_meta(*grid, g.meta, g.num_meta, where, true);
+  finish_grid(*grid, g.name, g.voxel_size, g.origin, g.fog_volume != 0, g.meta, g.num_meta, where);
   return grid;
+}
+
+// A grid listed voxel by voxel; every listed voxel is switched on.
+openvdb::GridBase::Ptr make_sparse_grid(const gi_vdb_sparse &g, size_t gi) {
+  std::string where = "grid " + std::to_string(gi);
+  if (!g.name || !g.name[0]) throw Fail{GI_ERR_INVALID_ARG, where + " has an empty name"};
+  where = "grid '" + std::string(g.name) + "'";
+  if (g.kind != GI_VDB_FLOAT && g.kind != GI_VDB_VEC3)
+    throw Fail{GI_ERR_INVALID_ARG, where + ": unknown kind " + std::to_string((int)g.kind)};
+  if (g.count && (!g.ijk || !g.data)) throw Fail{GI_ERR_INVALID_ARG, where + ": no voxels"};
+  if (!(g.voxel_size > 0) || !std::isfinite(g.voxel_size))
+    throw Fail{GI_ERR_INVALID_ARG, where + ": voxel_size must be finite and > 0"};
+  if (!std::isfinite(g.origin[0]) || !std::isfinite(g.origin[1]) || !std::isfinite(g.origin[2]))
+    throw Fail{GI_ERR_NONFINITE, where + ": origin is not finite"};
+  size_t comps = g.kind == GI_VDB_VEC3 ? 3 : 1;
+  for (size_t i = 0; i < g.count * comps; i++)
+    if (!std::isfinite(g.data[i]))
+      throw Fail{GI_ERR_NONFINITE, where + ": voxel " + std::to_string(i / comps) + " is not finite"};
+  openvdb::GridBase::Ptr out;
+  if (g.kind == GI_VDB_FLOAT) {
+    openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(0.f);
+    openvdb::FloatGrid::Accessor acc = grid->getAccessor();
+    for (size_t i = 0; i < g.count; i++)
+      acc.setValueOn(openvdb::Coord(g.ijk[3 * i], g.ijk[3 * i + 1], g.ijk[3 * i + 2]), g.data[i]);
+    out = grid;
+  } else {
+    openvdb::Vec3SGrid::Ptr grid = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.f));
+    openvdb::Vec3SGrid::Accessor acc = grid->getAccessor();
+    for (size_t i = 0; i < g.count; i++) {
+      const float *v = g.data + 3 * i;
+      acc.setValueOn(openvdb::Coord(g.ijk[3 * i], g.ijk[3 * i + 1], g.ijk[3 * i + 2]), openvdb::Vec3s(v[0], v[1], v[2]));
+    }
+    out = grid;
+  }
+  finish_grid(*out, g.name, g.voxel_size, g.origin, false, g.meta, g.num_meta, where);
+  return out;
+}
+
+// OpenVDB's header: magic (8 bytes), file version and library major/minor
+// (4 each), the grid-offsets flag (1), then the UUID as 36 ASCII characters.
+const long kUuidOffset = 8 + 4 + 4 + 4 + 1;
+const size_t kUuidLen = 36;
+
+bool uuid_ok(const char *u) {
+  if (std::strlen(u) != kUuidLen) return false;
+  for (size_t i = 0; i < kUuidLen; i++) {
+    bool dash = i == 8 || i == 13 || i == 18 || i == 23;
+    if (dash ? u[i] != '-' : !std::isxdigit((unsigned char)u[i])) return false;
+  }
+  return true;
+}
+
+// Replaces the random UUID OpenVDB wrote with the caller's, after checking
+// the bytes there are a UUID (so a format change cannot corrupt a file).
+void set_uuid(const std::string &file, const char *uuid) {
+  std::FILE *f = std::fopen(file.c_str(), "r+b");
+  if (!f) throw Fail{GI_ERR_IO, "cannot reopen '" + file + "' to set its id"};
+  char cur[kUuidLen + 1] = {0};
+  bool ok = std::fseek(f, kUuidOffset, SEEK_SET) == 0 && std::fread(cur, 1, kUuidLen, f) == kUuidLen &&
+            uuid_ok(cur) && std::fseek(f, kUuidOffset, SEEK_SET) == 0 &&
+            std::fwrite(uuid, 1, kUuidLen, f) == kUuidLen;
+  if (std::fclose(f) != 0) ok = false;
+  if (!ok) throw Fail{GI_ERR_IO, "cannot set the file id in '" + file + "'"};
+}
+
+void write_grids(const char *path, const openvdb::GridPtrVec &vec, const gi_vdb_meta *file_meta,
+                 size_t num_file_meta, const char *uuid) {
+  if (uuid && !uuid_ok(uuid)) throw Fail{GI_ERR_INVALID_ARG, "file id is not a 36-character UUID"};
+  openvdb::MetaMap meta;
+  add_meta(meta, file_meta, num_file_meta, "file metadata", false);
+
+  std::string tmp = std::string(path) + ".tmp." + std::to_string((long)getpid());
+  try {
+    openvdb::io::File file(tmp);
+    file.write(vec, meta);
+    file.close();
+    if (uuid) set_uuid(tmp, uuid);
+  } catch (...) {
+    std::remove(tmp.c_str());
+    throw;
+  }
+  if (std::rename(tmp.c_str(), path) != 0) {
+    int e = errno;
+    std::remove(tmp.c_str());
+    throw Fail{GI_ERR_IO, "cannot rename '" + tmp + "' into place: " + std::strerror(e)};
+  }
 }
 
 void write_file(const char *path, const gi_vdb_grid *grids, size_t num_grids, const gi_vdb_meta *file_meta,
@@ -147,23 +240,21 @@ void write_file(const char *path, const gi_vdb_grid *grids, size_t num_grids, co
     if (!names.insert(grids[g].name).second)
       throw Fail{GI_ERR_INVALID_ARG, "grid name '" + std::string(grids[g].name) + "' given twice"};
   }
-  openvdb::MetaMap meta;
-  add_meta(meta, file_meta, num_file_meta, "file metadata", false);
+  write_grids(path, vec, file_meta, num_file_meta, nullptr);
+}
 
-  std::string tmp = std::string(path) + ".tmp." + std::to_string((long)getpid());
-  try {
-    openvdb::io::File file(tmp);
-    file.write(vec, meta);
-    file.close();
-  } catch (...) {
-    std::remove(tmp.c_str());
-    throw;
+void write_sparse_file(const char *path, const gi_vdb_sparse *grids, size_t num_grids,
+                       const gi_vdb_meta *file_meta, size_t num_file_meta, const char *uuid) {
+  if (!path || !path[0]) throw Fail{GI_ERR_INVALID_ARG, "empty path"};
+  if (num_grids == 0 || !grids) throw Fail{GI_ERR_EMPTY, "no grids"};
+  openvdb::GridPtrVec vec;
+  std::set<std::string> names;
+  for (size_t g = 0; g < num_grids; g++) {
+    vec.push_back(make_sparse_grid(grids[g], g));
+    if (!names.insert(grids[g].name).second)
+      throw Fail{GI_ERR_INVALID_ARG, "grid name '" + std::string(grids[g].name) + "' given twice"};
   }
-  if (std::rename(tmp.c_str(), path) != 0) {
-    int e = errno;
-    std::remove(tmp.c_str());
-    throw Fail{GI_ERR_IO, "cannot rename '" + tmp + "' into place: " + std::strerror(e)};
-  }
+  write_grids(path, vec, file_meta, num_file_meta, uuid);
 }
 
 // A whole file in memory: its grids (with voxels) and its file metadata.
@@ -265,6 +356,13 @@ gi_result guard(const char *path, bool reading, gi_error_info *err, Fn fn) {
 extern "C" gi_result gi_vdb_write(const char *path, const gi_vdb_grid *grids, size_t num_grids,
                                   const gi_vdb_meta *file_meta, size_t num_file_meta, gi_error_info *err) {
   return guard(path, false, err, [&] { write_file(path, grids, num_grids, file_meta, num_file_meta); });
+}
+
+extern "C" gi_result gi_vdb_write_sparse(const char *path, const gi_vdb_sparse *grids, size_t num_grids,
+                                         const gi_vdb_meta *file_meta, size_t num_file_meta, const char *uuid,
+                                         gi_error_info *err) {
+  return guard(path, false, err,
+               [&] { write_sparse_file(path, grids, num_grids, file_meta, num_file_meta, uuid); });
 }
 
 extern "C" gi_result gi_vdb_read_info(const char *path, gi_vdb_grid_info *infos, size_t max, size_t *num,

@@ -21,14 +21,14 @@ typedef struct {
   struct gi_cascade *c;
   int d;
   float (*E)[2][3]; /* per occupied voxel */
-  atomic_ullong samples;
+  atomic_ullong samples, cones;
 } bounce_ctx;
 
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
   bounce_ctx *bc = p;
   struct gi_cascade *c = bc->c;
   const gi_level *L = &c->lv[bc->d];
-  uint64_t samples = 0;
+  uint64_t samples = 0, cones = 0;
   for (size_t q = b; q < e; q++) {
     uint32_t slot = L->occ[q];
     const gi_vgeo *g = &L->geo[slot];
@@ -40,12 +40,14 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
       for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
       /* A voxel is a surface at its own level's resolution. */
       gi_gather_out go;
-      gi__gather_hemisphere(c, g->centroid, n, GI_GATHER_SURFACE, bc->d, &go, NULL, NULL);
+      if (gi__gather_hemisphere(c, g->centroid, n, GI_GATHER_SURFACE, bc->d, &go, NULL, NULL))
+        cones += (uint64_t)c->num_cones;
       samples += go.samples;
       memcpy(bc->E[q][sd], go.E, sizeof go.E);
     }
   }
   atomic_fetch_add(&bc->samples, samples);
+  atomic_fetch_add(&bc->cones, cones);
 }
 
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
@@ -65,8 +67,10 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     for (int d = 0; d < c->n; d++) {
       bounce_ctx bc = {.c = c, .d = d, .E = E[d]};
       atomic_init(&bc.samples, 0);
+      atomic_init(&bc.cones, 0);
       int cancelled = gi__parallel_for_cancel(c->lv[d].num_occ, 16, q->threads, bounce_range, &bc, NULL, c->cancel);
       c->report.cone_samples += atomic_load(&bc.samples);
+      c->report.cones_traced += atomic_load(&bc.cones);
       if (cancelled) {
         rc = gi__cancel_fail(c->cancel, err, "bounce");
         goto done;

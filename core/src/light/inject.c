@@ -102,25 +102,48 @@ out:
   gi__free(cosw);
 }
 
+/* Radiance leaving each side of an occupied voxel (diffuse reflection of
+ * what the side receives). */
+static inline void side_radiance(const gi_level *L, uint32_t slot, float Ls[2][3]) {
+  const gi_vgeo *g = &L->geo[slot];
+  for (int sd = 0; sd < 2; sd++)
+    for (int k = 0; k < 3; k++) Ls[sd][k] = g->albedo[k] * (1.0f / GI_PI_F) * L->side[slot][sd][k];
+}
+
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {
   gi_level *L = &c->lv[d];
+  float inv = 1.0f / c->rad_scale;
   for (uint32_t q = begin; q < end; q++) {
     uint32_t slot = L->occ[q];
     const gi_vgeo *g = &L->geo[slot];
     gi_vrad *r = &L->rad[slot];
     float Ls[2][3];
-    for (int sd = 0; sd < 2; sd++)
-      for (int k = 0; k < 3; k++) Ls[sd][k] = g->albedo[k] * (1.0f / GI_PI_F) * L->side[slot][sd][k];
+    side_radiance(L, slot, Ls);
     for (int f = 0; f < 6; f++) {
       int a = f / 2;
       float sf = (f & 1) ? -1.f : 1.f;
       int sd = sf * g->normal[a] >= 0 ? 0 : 1;
-      for (int k = 0; k < 3; k++) r->p[f][k] = r->alpha[a] * Ls[sd][k];
+      float al = gi__vrad_alpha(r, a) * inv;
+      for (int k = 0; k < 3; k++) r->h[3 * f + k] = gi__f2h(al * Ls[sd][k]);
     }
   }
 }
 
+/* Every occupied voxel of every level, after choosing the texels' scale
+ * for the brightest of them (filtering then rewrites the nested regions
+ * at the same scale). */
 void gi__shade_all(struct gi_cascade *c) {
+  float brightest = 0;
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    for (uint32_t q = 0; q < L->num_occ; q++) {
+      float Ls[2][3];
+      side_radiance(L, L->occ[q], Ls);
+      for (int sd = 0; sd < 2; sd++)
+        for (int k = 0; k < 3; k++) brightest = gi__maxf(brightest, Ls[sd][k]);
+    }
+  }
+  gi__vrad_rescale(c, brightest);
   for (int d = 0; d < c->n; d++) gi__shade_voxels(c, d, 0, c->lv[d].num_occ);
 }
 

@@ -28,6 +28,8 @@ struct gi_mesh_builder {
   size_t nt, cap_t, cap_mt;
   gi_material *mats;
   size_t nm, cap_m;
+  float *uv2;         /* 2 per vertex up to cap_uv2/2: lightmap UVs, NaN when unset */
+  size_t cap_uv2;
   int oom;            /* an add_* ran out of memory */
   int overflow;       /* more than 2^32-1 vertices or materials */
 };
@@ -55,7 +57,17 @@ void gi_mesh_builder_free(gi_mesh_builder *b) {
   gi__free(b->tri);
   gi__free(b->mat);
   gi__free(b->mats);
+  gi__free(b->uv2);
   gi__free(b);
+}
+
+void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double u, double v) {
+  if (vertex >= b->nv) { b->overflow = 1; return; }
+  size_t old = b->cap_uv2;
+  if (!grow((void **)&b->uv2, &b->cap_uv2, 2 * (size_t)b->nv, sizeof *b->uv2)) { b->oom = 1; return; }
+  for (size_t i = old; i < b->cap_uv2; i++) b->uv2[i] = NAN;
+  b->uv2[2 * (size_t)vertex] = (float)u;
+  b->uv2[2 * (size_t)vertex + 1] = (float)v;
 }
 
 uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m) {
@@ -303,6 +315,20 @@ static gi_result copy_vertices(const gi_mesh_builder *b, double scale, gi_scene 
   return GI_OK;
 }
 
+/* The lightmap UVs of the kept vertices, kept only when every one has
+ * finite UVs (a partial set cannot lay out a lightmap). */
+static gi_result copy_uv2(const gi_mesh_builder *b, gi_scene *s, const build_tmp *t, gi_error_info *err) {
+  if (!b->uv2 || !t->kept_v) return GI_OK;
+  for (size_t i = 0; i < b->nv; i++)
+    if (t->remap[i] != UINT32_MAX && (2 * i + 1 >= b->cap_uv2 || !isfinite(b->uv2[2 * i]) || !isfinite(b->uv2[2 * i + 1])))
+      return GI_OK;
+  if (!(s->uv2 = gi__malloc(2 * t->kept_v * sizeof *s->uv2)))
+    return gi__fail(err, GI_ERR_NOMEM, "out of memory for %zu lightmap UVs", t->kept_v);
+  for (size_t i = 0; i < b->nv; i++)
+    if (t->remap[i] != UINT32_MAX) memcpy(s->uv2 + 2 * (size_t)t->remap[i], b->uv2 + 2 * i, 2 * sizeof(float));
+  return GI_OK;
+}
+
 /* The builder's materials (or one grey default), sanitized. */
 static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, gi_error_info *err) {
   size_t nm = b->nm ? b->nm : 1;
@@ -422,7 +448,8 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   classify(b, scale, s, &t, lo, hi);
   for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
-  if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_materials(b, s, err)) != GI_OK ||
+  if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_uv2(b, s, &t, err)) != GI_OK ||
+      (rc = copy_materials(b, s, err)) != GI_OK ||
       (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_lights(opt, s, err)) != GI_OK)
     goto done;
   if (t.kept) rc = gi__bvh_build(s, opt->threads, err);
@@ -450,6 +477,7 @@ void gi_scene_release(gi_scene *s) {
   if (atomic_fetch_sub_explicit(&s->refcount, 1, memory_order_acq_rel) != 1) return;
   gi__bvh_free(s);
   gi__free(s->vertices);
+  gi__free(s->uv2);
   gi__free(s->indices);
   gi__free(s->tri_material);
   gi__free(s->materials);
@@ -471,6 +499,7 @@ void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]) {
 }
 
 gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }
+int gi_scene_has_lightmap_uv(const gi_scene *s) { return s && s->uv2 != NULL; }
 const char *gi_scene_name(const gi_scene *s) { return s->name; }
 size_t gi_scene_num_lights(const gi_scene *s) { return s->num_lights; }
 size_t gi_scene_num_materials(const gi_scene *s) { return s->num_materials; }

@@ -18,6 +18,7 @@ struct gi_scene {
 
   uint32_t num_vertices;
   float *vertices;         /* 3 floats per vertex, local coordinates */
+  float *uv2;              /* 2 per vertex: the input's lightmap UVs (u right, v down, [0,1]), or NULL */
   uint32_t num_triangles;
   uint32_t *indices;       /* 3 per triangle */
   uint32_t *tri_material;  /* material index per triangle */

@@ -21,6 +21,13 @@ typedef struct gi_cone_out {
  * than a voxel; see march.c), and where the window forces one, it is read
  * across the normal only. Callers go through the gather's rule below. */
 #define GI_SURFACE_LOD_K 3.0f
+/* Longest step, in voxels of the sampled level, while the surface rule
+ * holds a cone on a level finer than its width. Free-space samples step
+ * by the quality's step (default 1: the trilinear tents of samples one
+ * voxel apart sum to one, so a wall's opacity is counted whole). 1.0 here
+ * let the thin-wall test's camera views leak 1.6%, 0.75 leaks 1.3%, 0.5
+ * 0.9% at 1.5x the samples. */
+#define GI_NEAR_SURFACE_STEP 0.75f
 /* Most samples one cone takes: far beyond what crossing every level needs. */
 #define GI_CONE_MAX_STEPS 4096
 void gi__cone_march(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,

@@ -1,0 +1,177 @@
+/* probe_grid.c: where a batch bake's probes go (gi_batch.h).
+ *
+ * A full lattice is pure arithmetic. Street-level mode shoots rays through
+ * the scene's Embree BVH: per column one downward ray, repeated past each
+ * hit, finds the lowest surface (the ground, not a roof); the probe goes
+ * above_ground above it. A probe is inside a building when it is covered
+ * (the ray straight up hits something) and enclosed (all eight horizontal
+ * rays hit something): a street is open to the sky, an arcade or a bridge
+ * is open along the street, a room is neither. This needs no consistent
+ * winding, which OSM meshes do not promise. */
+#include <math.h>
+#include <string.h>
+#include "base/internal.h"
+#include "gi/gi_batch.h"
+#include "scene/scene_internal.h"
+
+/* At most this many surfaces are stepped through on the way down a column. */
+#define MAX_COLUMN_HITS 256
+/* Horizontal directions of the enclosure test. */
+#define ENCLOSE_DIRS 8
+/* Ray offsets, as a fraction of the scene's largest extent. */
+#define REL_EPS 1e-6
+
+typedef struct {
+  const struct gi_scene *s;
+  int u, h0, h1;        /* up axis and the two horizontal ones (0..2) */
+  float eps;            /* ray offset, local units */
+  float top, floor_;    /* local up coordinates: where columns start and stop */
+} ray_ctx;
+
+/* The lowest surface on the column at local (a, b); 0 when there is none. */
+static int column_ground(const ray_ctx *c, float a, float b, float *ground) {
+  float org[3], dir[3] = {0, 0, 0};
+  org[c->h0] = a, org[c->h1] = b, org[c->u] = c->top;
+  dir[c->u] = -1;
+  float tfar = c->top - c->floor_, tnear = 0, t;
+  int found = 0;
+  for (int i = 0; i < MAX_COLUMN_HITS; i++) {
+    if (!gi__intersect1(c->s, org, dir, tnear, tfar, &t, NULL, NULL)) break;
+    *ground = c->top - t;
+    found = 1;
+    tnear = t + c->eps;
+    if (tnear > tfar) break;
+  }
+  return found;
+}
+
+/* Covered and enclosed: see the file comment. */
+static int inside_building(const ray_ctx *c, const float p[3]) {
+  float dir[3] = {0, 0, 0}, t;
+  dir[c->u] = 1;
+  if (!gi__intersect1(c->s, p, dir, c->eps, INFINITY, &t, NULL, NULL)) return 0;
+  for (int k = 0; k < ENCLOSE_DIRS; k++) {
+    double ang = 2.0 * GI_PI * k / ENCLOSE_DIRS;
+    float d[3] = {0, 0, 0};
+    d[c->h0] = (float)cos(ang), d[c->h1] = (float)sin(ang);
+    if (!gi__intersect1(c->s, p, d, c->eps, INFINITY, &t, NULL, NULL)) return 0;
+  }
+  return 1;
+}
+
+/* Region checks; the region (or the scene's bounds) into lo, hi. */
+static gi_result region_of(const gi_scene *scene, const gi_grid_spec *spec, double lo[3], double hi[3],
+                           gi_error_info *err) {
+  double slo[3], shi[3];
+  gi_scene_bounds(scene, slo, shi);
+  if (!spec->have_region) {
+    memcpy(lo, slo, sizeof slo), memcpy(hi, shi, sizeof shi);
+    return GI_OK;
+  }
+  for (int a = 0; a < 3; a++) {
+    lo[a] = spec->lo[a], hi[a] = spec->hi[a];
+    if (!isfinite(lo[a]) || !isfinite(hi[a]) || lo[a] > hi[a])
+      return gi__fail(err, GI_ERR_INVALID_ARG, "region: min must not exceed max on axis %c (%g > %g)", "xyz"[a],
+                      lo[a], hi[a]);
+  }
+  for (int a = 0; a < 3; a++)
+    if (hi[a] < slo[a] || lo[a] > shi[a])
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "region (%g,%g,%g)..(%g,%g,%g) lies outside the scene bounds (%g,%g,%g)..(%g,%g,%g)", lo[0],
+                      lo[1], lo[2], hi[0], hi[1], hi[2], slo[0], slo[1], slo[2], shi[0], shi[1], shi[2]);
+  return GI_OK;
+}
+
+/* Counts and allocation; the lattice positions (street level: up = floor). */
+static gi_result lay_out(const gi_grid_spec *spec, int u, const double lo[3], const double hi[3], gi_probe_grid *g,
+                         gi_error_info *err) {
+  double total = 1;
+  for (int a = 0; a < 3; a++) {
+    double c = (spec->above_ground > 0 && a == u) ? 1 : floor((hi[a] - lo[a]) / spec->spacing + 1e-9) + 1;
+    total *= c;
+    if (total > (double)GI_GRID_MAX_POINTS)
+      return gi__fail(err, GI_ERR_LIMIT, "grid spacing %g gives more than %zu probes over the region", spec->spacing,
+                      GI_GRID_MAX_POINTS);
+    g->counts[a] = (int)c;
+    g->origin[a] = lo[a];
+  }
+  g->n = (size_t)total;
+  g->pos = gi__malloc(g->n * 3 * sizeof(float));
+  g->state = gi__malloc(g->n);
+  if (!g->pos || !g->state) return gi__fail(err, GI_ERR_NOMEM, "probe grid: out of memory for %zu probes", g->n);
+  size_t i = 0;
+  for (int z = 0; z < g->counts[2]; z++)
+    for (int y = 0; y < g->counts[1]; y++)
+      for (int x = 0; x < g->counts[0]; x++, i++) {
+        int idx[3] = {x, y, z};
+        for (int a = 0; a < 3; a++) g->pos[3 * i + a] = (float)(g->origin[a] + idx[a] * spec->spacing);
+        g->state[i] = GI_GRID_VALID;
+      }
+  g->num_valid = g->n;
+  return GI_OK;
+}
+
+/* Street level: each column's probe on its ground, or dropped. */
+static void place_above_ground(const gi_scene *scene, const gi_grid_spec *spec, const double hi[3], gi_probe_grid *g) {
+  const struct gi_scene *s = scene;
+  ray_ctx c = {.s = s, .u = g->up_axis, .h0 = 0, .h1 = g->up_axis == 1 ? 2 : 1};
+  double ext = 0;
+  for (int a = 0; a < 3; a++) ext = fmax(ext, (double)s->hi[a] - s->lo[a]);
+  c.eps = (float)(REL_EPS * ext + 1e-7);
+  /* Start just above the scene (or the region's top, when lower). */
+  double top_world = fmin(hi[c.u], s->origin[c.u] + s->hi[c.u] + 10 * c.eps);
+  c.top = (float)(top_world - s->origin[c.u]) + c.eps;
+  c.floor_ = (float)(g->origin[c.u] - s->origin[c.u]) - 10 * c.eps; /* a ground exactly at the floor counts */
+  g->num_valid = 0;
+  for (size_t i = 0; i < g->n; i++) {
+    float *p = g->pos + 3 * i;
+    float local[3];
+    for (int a = 0; a < 3; a++) local[a] = (float)(p[a] - s->origin[a]);
+    float ground;
+    if (!column_ground(&c, local[c.h0], local[c.h1], &ground)) {
+      g->state[i] = GI_GRID_NO_GROUND;
+      g->num_no_ground++;
+      continue;
+    }
+    local[c.u] = ground + (float)spec->above_ground;
+    p[c.u] = (float)(s->origin[c.u] + local[c.u]);
+    if (inside_building(&c, local)) {
+      g->state[i] = GI_GRID_INSIDE;
+      g->num_inside++;
+    } else {
+      g->num_valid++;
+    }
+  }
+}
+
+gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
+                              gi_error_info *err) {
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "probe grid: no output");
+  memset(out, 0, sizeof *out);
+  if (!scene || !spec) return gi__fail(err, GI_ERR_INVALID_ARG, "probe grid: no scene or spec");
+  if (!(spec->spacing > 0) || !isfinite(spec->spacing))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "grid spacing must be finite and > 0, got %g", spec->spacing);
+  if (!(spec->above_ground >= 0) || !isfinite(spec->above_ground))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "height above ground must be finite and >= 0, got %g",
+                    spec->above_ground);
+  double lo[3], hi[3];
+  gi_result rc = region_of(scene, spec, lo, hi, err);
+  if (rc != GI_OK) return rc;
+  out->spacing = spec->spacing;
+  out->above_ground = spec->above_ground;
+  out->up_axis = gi_scene_up(scene) == GI_UP_Z ? 2 : 1;
+  if ((rc = lay_out(spec, out->up_axis, lo, hi, out, err)) != GI_OK) {
+    gi_probe_grid_free(out);
+    return rc;
+  }
+  if (spec->above_ground > 0) place_above_ground(scene, spec, hi, out);
+  return GI_OK;
+}
+
+void gi_probe_grid_free(gi_probe_grid *g) {
+  if (!g) return;
+  gi__free(g->pos);
+  gi__free(g->state);
+  g->pos = NULL;
+  g->state = NULL;
+}

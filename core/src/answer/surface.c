@@ -1,0 +1,58 @@
+/* surface.c: irradiance at a point on a surface (lightmap texels).
+ *
+ * The probe gather's recipe with a normal: direct light by the shared
+ * light sampler and shadow-ray rule, emitter samples balanced against
+ * cosine rays exactly as the voxel injection balances them (inject.c), and
+ * indirect light by the cascade's diffuse cones around the normal with the
+ * gather's surface rule (trace/gather.c), as camera views and the voxel
+ * bounces gather. Nothing here samples or marches on its own. */
+#include <string.h>
+#include "answer/answer.h"
+#include "base/internal.h"
+#include "scene/lights.h"
+#include "trace/trace.h"
+
+/* Direct light: light samples in front of the surface, then cosine rays for emitters. */
+static void surface_direct(const struct gi_cascade *c, const float x[3], const float n[3], int samples, uint64_t *rng,
+                           gi_ray_scratch *sc, float E[3]) {
+  const gi_scene *s = c->scene;
+  gi_light_plan lp = gi__light_plan(&c->report, samples);
+  gi_lsample *ls = sc->ls;
+  int nl = gi__light_samples(s, &lp, x, rng, ls, sc->cap), m = 0;
+  for (int i = 0; i < nl; i++)
+    if (gi__dot(n, ls[i].w) > 0) ls[m++] = ls[i];
+  float voxel = gi__voxel_at(c, x);
+  gi__shadow_rays(s, x, n, voxel, ls, m, sc);
+  int mb = lp.emissive && s->num_emitters ? lp.emit_samples : 0;
+  for (int i = 0; i < m; i++) {
+    if (!sc->vis[i]) continue;
+    float cn = gi__dot(n, ls[i].w);
+    float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * cn / GI_PI_F) : 1.f;
+    for (int k = 0; k < 3; k++) E[k] += f * ls[i].V[k] * cn;
+  }
+  if (!mb) return;
+  float t[3], b[3], o[3];
+  float tn = gi__shadow_origin(x, n, voxel, n, o);
+  gi__basis(n, t, b);
+  for (int j = 0; j < mb; j++) {
+    float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__u01(rng);
+    float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
+    float w[3], V[3];
+    for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
+    if (!gi__emitter_ray(s, o, w, tn, lp.emit_samples, (float)mb * z / GI_PI_F, V)) continue;
+    for (int k = 0; k < 3; k++) E[k] += V[k] * z;
+  }
+}
+
+void gi__surface_irradiance(const struct gi_cascade *c, const float x[3], const float n[3], int samples,
+                            uint64_t seed, struct gi_ray_scratch *sc, float direct[3], float indirect[3]) {
+  uint64_t rng = gi__mix64(seed);
+  memset(direct, 0, 3 * sizeof(float));
+  memset(indirect, 0, 3 * sizeof(float));
+  surface_direct(c, x, n, samples, &rng, sc, direct);
+  int d = gi__finest_level_at(c, x);
+  if (d < 0) return;
+  gi_gather_out go;
+  gi__gather_hemisphere(c, x, n, GI_GATHER_SURFACE, d, &go, NULL, NULL);
+  memcpy(indirect, go.E, sizeof go.E);
+}

@@ -1,0 +1,419 @@
+/* bake.c: gi_lightmap_bake, every texel's irradiance from a cascade.
+ *
+ * Design. The region is cut into a grid of tiles no wider than opts.tile
+ * (default: 0.8 of the coarsest cascade level, so a tile lies inside it);
+ * each chart belongs to the tile holding its centre, and each tile with
+ * charts is one cascade bake, gathered, then freed: memory stays one
+ * cascade. A texel takes supersample^2 points of its footprint; each point
+ * finds its triangle through the chart's bins (or the nearest point of the
+ * nearest triangle within half a texel, so texels straddling a chart's
+ * edge see the surface, not what lies beyond it), is tested for lying
+ * inside geometry (most of a few hemisphere rays hit back faces), and is
+ * gathered by the surface rule (answer/surface.c). The texel keeps the
+ * mean of its valid points. Every point's random stream comes from the
+ * seed and its atlas position, so the result does not depend on tiles or
+ * threads. Afterwards, invalid texels and gutters are filled layer by
+ * layer from their already-filled neighbours in the same chart. */
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include "answer/answer.h"
+#include "base/internal.h"
+#include "gi/gi_cascade.h"
+#include "lightmap/lightmap_internal.h"
+#include "scene/lights.h"
+#include "trace/trace.h"
+
+/* Default tile side as a fraction of the coarsest level's side. */
+#define GI_LM_TILE_FRACTION 0.8
+/* A footprint point farther than this (texels) from its chart is not on it. */
+#define GI_LM_EDGE_REACH 0.5f
+/* How far such a point moves toward its triangle's centre (a fraction of the way). */
+#define GI_LM_INSET 0.01f
+/* Rays that decide whether a point lies inside geometry, and the share of
+ * back-face hits above which it does. */
+#define GI_LM_INSIDE_RAYS 12
+#define GI_LM_INSIDE_SHARE 0.5f
+
+typedef struct {
+  const gi_lightmap *lm;
+  const struct gi_cascade *c;
+  const uint32_t *jobs;        /* chart index per job ... */
+  const int *rows;             /* ... and the row of its rectangle */
+  int samples, cap;
+  atomic_int failed;
+} tile_ctx;
+
+/* Nearest point of 2D triangle (a, b, c) to p as barycentrics; returns the squared distance. */
+static float nearest_bary(const float *uv, const float p[2], float bary[3]) {
+  const float *a = uv, *b = uv + 2, *c = uv + 4;
+  float e0[2] = {b[0] - a[0], b[1] - a[1]}, e1[2] = {c[0] - a[0], c[1] - a[1]}, d[2] = {p[0] - a[0], p[1] - a[1]};
+  float den = e0[0] * e1[1] - e0[1] * e1[0];
+  float v = (d[0] * e1[1] - d[1] * e1[0]) / den, w = (e0[0] * d[1] - e0[1] * d[0]) / den;
+  if (v >= 0 && w >= 0 && v + w <= 1) {
+    bary[0] = 1 - v - w, bary[1] = v, bary[2] = w;
+    return 0;
+  }
+  /* Outside: the nearest of the three edges. */
+  float best = INFINITY;
+  const float *P[3] = {a, b, c};
+  for (int i = 0; i < 3; i++) {
+    const float *s = P[i], *e = P[(i + 1) % 3];
+    float se[2] = {e[0] - s[0], e[1] - s[1]}, sp[2] = {p[0] - s[0], p[1] - s[1]};
+    float l2 = se[0] * se[0] + se[1] * se[1];
+    float t = l2 > 0 ? fminf(1.f, fmaxf(0.f, (sp[0] * se[0] + sp[1] * se[1]) / l2)) : 0.f;
+    float dx = sp[0] - t * se[0], dy = sp[1] - t * se[1], d2 = dx * dx + dy * dy;
+    if (d2 < best) {
+      best = d2;
+      bary[0] = bary[1] = bary[2] = 0;
+      bary[i] = 1 - t, bary[(i + 1) % 3] = t;
+    }
+  }
+  return best;
+}
+
+/* The lightmap triangle under atlas point p of chart c, else the nearest
+ * within reach (*outside = 1; its point pulled a little inside, so it is
+ * not on the edge a neighbouring wall starts from); -1 if none. */
+static long find_tri(const gi_lightmap *lm, const gi_lm_chart *c, const float p[2], float bary[3], int *outside) {
+  int bx = (int)((p[0] - (float)c->pub.x) / GI_LM_BIN), by = (int)((p[1] - (float)c->pub.y) / GI_LM_BIN);
+  if (bx < 0 || by < 0 || bx >= c->bins_x || by >= c->bins_y) return -1;
+  size_t b = (size_t)by * c->bins_x + bx;
+  long best = -1;
+  float bd = GI_LM_EDGE_REACH * GI_LM_EDGE_REACH, tb[3];
+  for (uint32_t k = c->bin_start[b]; k < c->bin_start[b + 1]; k++) {
+    uint32_t t = c->bin_tri[k];
+    float d2 = nearest_bary(lm->uv + 6 * (size_t)t, p, tb);
+    if (d2 <= bd) {
+      bd = d2, best = (long)t;
+      memcpy(bary, tb, sizeof tb);
+      if (d2 == 0) break;
+    }
+  }
+  *outside = bd > 0;
+  if (best >= 0 && *outside)
+    for (int j = 0; j < 3; j++) bary[j] = (1 - GI_LM_INSET) * bary[j] + GI_LM_INSET / 3;
+  return best;
+}
+
+/* Back-face share of a few rays over the hemisphere of n from x, and whether any front face was hit. */
+static float backface_share(const gi_scene *s, const float x[3], const float n[3], float reach, int *front) {
+  float t[3], b[3];
+  gi__basis(n, t, b);
+  int back = 0;
+  *front = 0;
+  for (int i = 0; i < GI_LM_INSIDE_RAYS; i++) {
+    /* A fixed spiral of directions: deterministic, spread over the hemisphere. */
+    float z = 1.f - ((float)i + 0.5f) / GI_LM_INSIDE_RAYS, r = sqrtf(fmaxf(0.f, 1 - z * z));
+    float phi = 2.39996323f * (float)i, w[3], o[3], th, ng[3];
+    for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
+    float tn = gi__shadow_origin(x, n, reach, w, o);
+    uint32_t tri;
+    if (!gi__intersect1(s, o, w, tn, INFINITY, &th, &tri, ng)) continue;
+    if (gi__dot(ng, w) > 0) back++;
+    else *front = 1;
+  }
+  return (float)back / GI_LM_INSIDE_RAYS;
+}
+
+/* The side of triangle tri to gather at x: its winding normal, the other
+ * side when that one is inside geometry but the other sees front faces
+ * (a surface wound the wrong way), else 0 (the point is inside). */
+static int surface_side(const gi_scene *s, uint32_t tri, const float x[3], float reach, float n[3]) {
+  const float *v0 = s->vertices + 3 * (size_t)s->indices[3 * (size_t)tri];
+  const float *v1 = s->vertices + 3 * (size_t)s->indices[3 * (size_t)tri + 1];
+  const float *v2 = s->vertices + 3 * (size_t)s->indices[3 * (size_t)tri + 2];
+  float e1[3], e2[3];
+  for (int k = 0; k < 3; k++) e1[k] = v1[k] - v0[k], e2[k] = v2[k] - v0[k];
+  gi__cross(e1, e2, n);
+  float l = gi__len(n);
+  for (int k = 0; k < 3; k++) n[k] /= l;
+  int front;
+  if (backface_share(s, x, n, reach, &front) <= GI_LM_INSIDE_SHARE) return 1;
+  float m[3] = {-n[0], -n[1], -n[2]};
+  if (backface_share(s, x, m, reach, &front) <= GI_LM_INSIDE_SHARE && front) {
+    memcpy(n, m, sizeof m);
+    return 1;
+  }
+  return 0;
+}
+
+/* The surface point and side for footprint point p, if it is on the chart
+ * and not inside geometry. pass 0 takes points inside the chart's
+ * triangles only, pass 1 the nearest edge points too. */
+static int footprint_point(const tile_ctx *g, const gi_lm_chart *c, const float p[2], int pass, float reach,
+                           uint32_t *tri, float X[3], float n[3]) {
+  const gi_scene *s = g->lm->scene;
+  float bary[3];
+  int outside;
+  long t = find_tri(g->lm, c, p, bary, &outside);
+  if (t < 0 || (outside && pass == 0)) return 0;
+  *tri = g->lm->tri[t];
+  for (int k = 0; k < 3; k++) X[k] = 0;
+  for (int j = 0; j < 3; j++)
+    for (int k = 0; k < 3; k++) X[k] += bary[j] * s->vertices[3 * (size_t)s->indices[3 * (size_t)*tri + j] + k];
+  return surface_side(s, *tri, X, reach, n);
+}
+
+/* One texel: the mean over the valid points of its footprint that lie on
+ * the chart; a texel the chart only grazes takes the nearest edge points. */
+static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int atlas, int x, int y,
+                       gi_ray_scratch *sc) {
+  const gi_scene *s = g->lm->scene;
+  int ss = g->lm->opts.supersample, nv = 0;
+  float acc[5][3] = {{0}}; /* radiance, direct, indirect, point, normal */
+  float reach = gi__voxel_at(g->c, c->centre);
+  uint64_t seed = gi__mix64(g->c->report.quality.seed ^
+                            ((uint64_t)atlas << 48 | (uint64_t)(uint32_t)y << 24 | (uint32_t)x));
+  for (int pass = 0; pass < 2 && !nv; pass++)
+    for (int sub = 0; sub < ss * ss; sub++) {
+      float p[2] = {(float)x + ((float)(sub % ss) + 0.5f) / (float)ss, (float)y + ((float)(sub / ss) + 0.5f) / (float)ss};
+      float X[3], n[3], E[3], I[3];
+      uint32_t tri;
+      if (!footprint_point(g, c, p, pass, reach, &tri, X, n)) continue;
+      gi__surface_irradiance(g->c, X, n, g->samples, gi__mix64(seed + (uint64_t)sub), sc, E, I);
+      const float *alb = s->materials[s->tri_material[tri]].albedo;
+      for (int k = 0; k < 3; k++) {
+        acc[0][k] += alb[k] * (E[k] + I[k]) / GI_PI_F;
+        acc[1][k] += E[k], acc[2][k] += I[k], acc[3][k] += X[k], acc[4][k] += n[k];
+      }
+      nv++;
+    }
+  if (!nv) return;
+  size_t i = (size_t)y * a->w + x;
+  float nl = gi__len(acc[4]);
+  for (int k = 0; k < 3; k++) {
+    a->radiance[3 * i + k] = acc[0][k] / (float)nv;
+    a->direct[3 * i + k] = acc[1][k] / (float)nv;
+    a->indirect[3 * i + k] = acc[2][k] / (float)nv;
+    a->irradiance[3 * i + k] = a->direct[3 * i + k] + a->indirect[3 * i + k];
+    a->point[3 * i + k] = acc[3][k] / (float)nv;
+    a->normal[3 * i + k] = nl > 0 ? acc[4][k] / nl : 0.f;
+  }
+  a->valid[i] = 1.f;
+}
+
+static void tile_rows(void *p, size_t b, size_t e, int worker) {
+  (void)worker;
+  tile_ctx *g = p;
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, g->cap)) {
+    atomic_store(&g->failed, 1);
+    return;
+  }
+  for (size_t j = b; j < e; j++) {
+    const gi_lm_chart *c = &g->lm->charts[g->jobs[j]];
+    gi_lm_atlas *a = &g->lm->atlases[c->pub.atlas];
+    for (int x = c->pub.x; x < c->pub.x + c->pub.w; x++) bake_texel(g, c, a, c->pub.atlas, x, g->rows[j], &sc);
+  }
+  gi__scratch_free(&sc);
+}
+
+/* Tile counts and sizes over the region. */
+static void tile_grid(const gi_lightmap *lm, double side, int nt[3], double size[3]) {
+  for (int k = 0; k < 3; k++) {
+    double ext = (double)lm->hi[k] - lm->lo[k];
+    double n = ceil(ext / side);
+    nt[k] = n < 1 ? 1 : n > 4096 ? 4096 : (int)n;
+    size[k] = ext / nt[k];
+  }
+}
+
+static int tile_of(const gi_lightmap *lm, const float p[3], const int nt[3], const double size[3]) {
+  int id[3];
+  for (int k = 0; k < 3; k++) {
+    int v = size[k] > 0 ? (int)floor((p[k] - lm->lo[k]) / size[k]) : 0;
+    id[k] = v < 0 ? 0 : v >= nt[k] ? nt[k] - 1 : v;
+  }
+  return (id[2] * nt[1] + id[1]) * nt[0] + id[0];
+}
+
+/* One tile: bake its cascade, gather its charts' texels, free the cascade. */
+static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel, const uint32_t *charts,
+                           size_t nc, const double at[3], gi_lightmap_report *rep, gi_error_info *err) {
+  size_t nj = 0;
+  for (size_t i = 0; i < nc; i++) nj += (size_t)lm->charts[charts[i]].pub.h;
+  uint32_t *jobs = gi__malloc(nj * sizeof *jobs);
+  int *rows = gi__malloc(nj * sizeof *rows);
+  gi_cascade *c = NULL;
+  gi_result rc = GI_OK;
+  if (!jobs || !rows) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu texel rows", nj);
+    goto done;
+  }
+  nj = 0;
+  for (size_t i = 0; i < nc; i++) {
+    const gi_lightmap_chart *ch = &lm->charts[charts[i]].pub;
+    for (int y = ch->y; y < ch->y + ch->h; y++) jobs[nj] = charts[i], rows[nj++] = y;
+  }
+  double t0 = gi__now_ms();
+  gi_bake_report br;
+  if ((rc = gi_cascade_bake_ex(lm->scene, at, q, cancel, &c, &br, err)) != GI_OK) goto done;
+  double t1 = gi__now_ms();
+  const gi_quality *rq = &br.quality;
+  int ss = lm->opts.supersample;
+  /* The probe's light-sample budget, shared by the texel's footprint points. */
+  int samples = rq->probe_samples / (ss * ss);
+  tile_ctx g = {.lm = lm, .c = c, .jobs = jobs, .rows = rows, .samples = samples < 1 ? 1 : samples};
+  gi_light_plan lp = gi__light_plan(&br, g.samples);
+  g.cap = gi__light_sample_cap(lm->scene, &lp);
+  atomic_init(&g.failed, 0);
+  if (gi__parallel_for_cancel(nj, 1, rq->threads, tile_rows, &g, &g.failed, cancel)) {
+    rc = gi__cancel_fail(cancel, err, "lightmap");
+    goto done;
+  }
+  if (atomic_load(&g.failed)) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the light-sample buffers (%d samples)", g.cap);
+    goto done;
+  }
+  rep->cascade_ms += t1 - t0;
+  rep->gather_ms += gi__now_ms() - t1;
+  rep->tiles++;
+done:
+  gi_cascade_free(c);
+  gi__free(jobs);
+  gi__free(rows);
+  return rc;
+}
+
+/* Charts grouped by tile (counting sort: order inside a tile stays chart order). */
+static gi_result group_by_tile(const gi_lightmap *lm, const int nt[3], const double size[3], uint32_t **start,
+                               uint32_t **list, gi_error_info *err) {
+  size_t ntiles = (size_t)nt[0] * nt[1] * nt[2];
+  *start = gi__calloc(ntiles + 1, sizeof **start);
+  *list = gi__malloc(lm->num_charts * sizeof **list);
+  if (!*start || !*list) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
+  for (size_t i = 0; i < lm->num_charts; i++) (*start)[tile_of(lm, lm->charts[i].centre, nt, size) + 1]++;
+  for (size_t t = 0; t < ntiles; t++) (*start)[t + 1] += (*start)[t];
+  uint32_t *fill = gi__calloc(ntiles ? ntiles : 1, sizeof *fill);
+  if (!fill) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
+  for (size_t i = 0; i < lm->num_charts; i++) {
+    int t = tile_of(lm, lm->charts[i].centre, nt, size);
+    (*list)[(*start)[t] + fill[t]++] = (uint32_t)i;
+  }
+  gi__free(fill);
+  return GI_OK;
+}
+
+/* Fills texel i from the filled 8-neighbours of the same chart (stamp < layer); 0 when none. */
+static int fill_from_neighbours(gi_lm_atlas *a, size_t i, const int *stamp, int layer) {
+  int x = (int)(i % (size_t)a->w), y = (int)(i / (size_t)a->w), n = 0;
+  float acc[4][3] = {{0}};
+  for (int dy = -1; dy <= 1; dy++)
+    for (int dx = -1; dx <= 1; dx++) {
+      int u = x + dx, v = y + dy;
+      if ((!dx && !dy) || u < 0 || v < 0 || u >= a->w || v >= a->h) continue;
+      size_t j = (size_t)v * a->w + u;
+      if (a->chart[j] != a->chart[i] || stamp[j] < 0 || stamp[j] >= layer) continue; /* unfilled or this layer */
+      for (int k = 0; k < 3; k++)
+        acc[0][k] += a->radiance[3 * j + k], acc[1][k] += a->direct[3 * j + k], acc[2][k] += a->indirect[3 * j + k];
+      n++;
+    }
+  if (!n) return 0;
+  for (int k = 0; k < 3; k++) {
+    a->radiance[3 * i + k] = acc[0][k] / (float)n;
+    a->direct[3 * i + k] = acc[1][k] / (float)n;
+    a->indirect[3 * i + k] = acc[2][k] / (float)n;
+    a->irradiance[3 * i + k] = a->direct[3 * i + k] + a->indirect[3 * i + k];
+  }
+  return 1;
+}
+
+/* Appends to next the unstamped, unqueued texels of i's chart around i. */
+static void queue_neighbours(const gi_lm_atlas *a, size_t i, int *stamp, size_t *next, size_t *nn) {
+  int x = (int)(i % (size_t)a->w), y = (int)(i / (size_t)a->w);
+  for (int dy = -1; dy <= 1; dy++)
+    for (int dx = -1; dx <= 1; dx++) {
+      int u = x + dx, v = y + dy;
+      if (u < 0 || v < 0 || u >= a->w || v >= a->h) continue;
+      size_t j = (size_t)v * a->w + u;
+      if (stamp[j] != -1 || a->chart[j] != a->chart[i]) continue;
+      stamp[j] = -2; /* queued */
+      next[(*nn)++] = j;
+    }
+}
+
+/* Layer by layer (a breadth-first front, so every texel is visited a
+ * bounded number of times), each chart texel without a value of its own
+ * takes the mean of its neighbours filled in earlier layers (the valid
+ * texels are layer 0): invalid interiors and gutters grow in from the surface. */
+static gi_result fill_atlas(gi_lm_atlas *a, uint64_t *filled, gi_error_info *err) {
+  size_t n = (size_t)a->w * a->h, nf = 0, nn = 0;
+  int *stamp = gi__malloc(n * sizeof *stamp);
+  size_t *front = gi__malloc(n * sizeof *front), *next = gi__malloc(n * sizeof *next);
+  if (!stamp || !front || !next) {
+    gi__free(stamp);
+    gi__free(front);
+    gi__free(next);
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory filling a %d x %d atlas", a->w, a->h);
+  }
+  for (size_t i = 0; i < n; i++) stamp[i] = a->valid[i] > 0 ? 0 : -1;
+  for (size_t i = 0; i < n; i++)
+    if (stamp[i] == 0) queue_neighbours(a, i, stamp, front, &nf);
+  for (int layer = 1; nf; layer++) {
+    for (size_t k = 0; k < nf; k++)
+      if (fill_from_neighbours(a, front[k], stamp, layer)) (*filled)++;
+    for (size_t k = 0; k < nf; k++) stamp[front[k]] = layer;
+    nn = 0;
+    for (size_t k = 0; k < nf; k++) queue_neighbours(a, front[k], stamp, next, &nn);
+    size_t *t = front;
+    front = next, next = t, nf = nn;
+  }
+  gi__free(stamp);
+  gi__free(front);
+  gi__free(next);
+  return GI_OK;
+}
+
+gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel,
+                           gi_lightmap_report *report, gi_error_info *err) {
+  if (!lm) return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: lightmap is NULL");
+  double t0 = gi__now_ms();
+  gi_lightmap_report rep = {.triangles = lm->num_tris, .charts = lm->num_charts, .atlases = lm->num_atlases,
+                            .layout_ms = lm->layout_ms};
+  gi_quality rq;
+  gi_result rc = gi_quality_resolve(lm->scene, q, &rq, err);
+  if (rc != GI_OK) return rc;
+  /* A second bake starts from empty atlases. */
+  for (size_t a = 0; a < lm->num_atlases; a++) {
+    gi_lm_atlas *A = &lm->atlases[a];
+    size_t n = (size_t)A->w * A->h;
+    float *rgb[] = {A->radiance, A->irradiance, A->direct, A->indirect, A->point, A->normal};
+    for (size_t i = 0; i < sizeof rgb / sizeof rgb[0]; i++) memset(rgb[i], 0, 3 * n * sizeof(float));
+    memset(A->valid, 0, n * sizeof(float));
+  }
+  double side = lm->opts.tile > 0 ? lm->opts.tile
+                                  : GI_LM_TILE_FRACTION * rq.res * rq.voxel0 * (double)(1u << (rq.levels - 1));
+  int nt[3];
+  double size[3];
+  tile_grid(lm, side, nt, size);
+  uint32_t *start = NULL, *list = NULL;
+  if ((rc = group_by_tile(lm, nt, size, &start, &list, err)) != GI_OK) goto done;
+  for (int tz = 0; tz < nt[2] && rc == GI_OK; tz++)
+    for (int ty = 0; ty < nt[1] && rc == GI_OK; ty++)
+      for (int tx = 0; tx < nt[0] && rc == GI_OK; tx++) {
+        size_t t = ((size_t)tz * nt[1] + ty) * nt[0] + tx;
+        if (start[t] == start[t + 1]) continue;
+        int id[3] = {tx, ty, tz};
+        double at[3];
+        for (int k = 0; k < 3; k++) at[k] = lm->scene->origin[k] + lm->lo[k] + (id[k] + 0.5) * size[k];
+        rc = bake_tile(lm, q, cancel, list + start[t], start[t + 1] - start[t], at, &rep, err);
+      }
+  if (rc != GI_OK) goto done;
+  double tf = gi__now_ms();
+  for (size_t a = 0; a < lm->num_atlases && rc == GI_OK; a++) {
+    const gi_lm_atlas *A = &lm->atlases[a];
+    for (size_t i = 0; i < (size_t)A->w * A->h; i++) {
+      rep.texels += A->chart[i] >= 0;
+      rep.texels_valid += A->valid[i] > 0;
+    }
+    rc = fill_atlas(&lm->atlases[a], &rep.texels_filled, err);
+  }
+  rep.fill_ms = gi__now_ms() - tf;
+done:
+  gi__free(start);
+  gi__free(list);
+  rep.bake_ms = gi__now_ms() - t0;
+  if (report) *report = rep;
+  return rc;
+}

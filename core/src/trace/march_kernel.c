@@ -1,0 +1,254 @@
+/* march_kernel.c: the cone march's inner loop, built twice.
+ *
+ * CMake compiles this file once for any x86-64 CPU (GI_MARCH_V3 unset)
+ * and once with -march=x86-64-v3 (GI_MARCH_V3=1); march.c calls the one
+ * base/cpu.c chose. The two differ only in how a texel's 24 half floats
+ * become float (bit arithmetic, or F16C eight lanes at a time) and in the
+ * compiler's use of AVX2 and FMA. See march.c for what the march does. */
+#include <string.h>
+#include "base/internal.h"
+#include "trace/trace.h"
+#if GI_MARCH_V3
+#include <immintrin.h>
+#define GI_KERNEL(name) name##_v3
+#else
+#define GI_KERNEL(name) name##_base
+#endif
+
+/* The trilinear sum of the 2x2x2 texels at a sample, all 24 lanes at
+ * once: the per-cone choice of faces and axis weights is applied after
+ * (reduce), so the eight texel reads are the same straight-line loads for
+ * every cone. */
+typedef struct {
+  float v[GI_VRAD_LANES];
+} lanes;
+
+#if GI_MARCH_V3
+static inline void sum_texels(const gi_vrad *const r[8], const float wt[8], lanes *out) {
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
+  for (int i = 0; i < 8; i++) {
+    __m256 w = _mm256_set1_ps(wt[i]);
+    const __m128i *h = (const __m128i *)r[i]->h;
+    a0 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
+    a1 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
+    a2 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
+  }
+  _mm256_storeu_ps(out->v, a0);
+  _mm256_storeu_ps(out->v + 8, a1);
+  _mm256_storeu_ps(out->v + 16, a2);
+}
+#else
+static inline void sum_texels(const gi_vrad *const r[8], const float wt[8], lanes *out) {
+  memset(out, 0, sizeof *out);
+  for (int i = 0; i < 8; i++)
+    for (int l = 0; l < GI_VRAD_LANES; l++) out->v[l] += wt[i] * gi__h2f(r[i]->h[l]);
+}
+#endif
+
+/* gi__sample_level with each axis's share scaled by axw[a] (NULL: 1).
+ * When the sample's 2x2x2 block is empty, *clear (may be NULL) receives
+ * how far along w the point may move and still read only that block:
+ * every sample there reads zero, so the march may skip to its end. */
+static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], const float w[3], const float *axw,
+                           float prem[3], float *wsum_alpha, float *sigma, float *clear) {
+  const gi_level *L = &c->lv[d];
+  int R = c->R;
+  float inv = (float)(1.0 / L->s);
+  /* Wrap each axis once: toroidal slots of the two cells the footprint spans. */
+  uint32_t off[3][2];
+  float f[3], run = INFINITY;
+  for (int a = 0; a < 3; a++) {
+    float u = (p[a] - L->lo[a]) * inv - 0.5f;
+    float fl = floorf(u);
+    int i0 = (int)fl;
+    if (i0 < 0) i0 = 0, fl = 0, u = gi__maxf(u, 0.f), run = 0;
+    if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = gi__minf(u, (float)(R - 1)), run = 0;
+    f[a] = u - fl;
+    /* Inside the block while u stays in [fl, fl + 1]. */
+    if (w[a] > 0) run = gi__minf(run, (1.f - f[a]) * (float)L->s / w[a]);
+    else if (w[a] < 0) run = gi__minf(run, f[a] * (float)L->s / -w[a]);
+    int s0 = L->slot0[a] + i0;
+    if (s0 >= R) s0 -= R;
+    int s1 = s0 + 1 == R ? 0 : s0 + 1;
+    uint32_t stride = a == 0 ? 1u : (a == 1 ? (uint32_t)R : (uint32_t)R * (uint32_t)R);
+    off[a][0] = (uint32_t)s0 * stride;
+    off[a][1] = (uint32_t)s1 * stride;
+  }
+  if (!L->busy[off[0][0] + off[1][0] + off[2][0]]) {
+    prem[0] = prem[1] = prem[2] = 0;
+    *wsum_alpha = 0;
+    *sigma = 0;
+    if (clear) *clear = run;
+    return 0;
+  }
+  if (clear) *clear = 0;
+  const gi_vrad *r[8];
+  float wt[8];
+  for (int i = 0; i < 8; i++) {
+    int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
+    r[i] = &L->rad[off[2][dz] + off[1][dy] + off[0][dx]];
+    wt[i] = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+  }
+  lanes s;
+  sum_texels(r, wt, &s);
+  /* Light travelling toward the apex (-w) leaves through the face facing -w. */
+  float P[3] = {0, 0, 0}, wal = 0, tau = 0;
+  for (int a = 0; a < 3; a++) {
+    int face = 2 * a + (w[a] > 0 ? 1 : 0);
+    float ax = axw ? axw[a] : 1.f;
+    float k = w[a] * w[a] * ax;
+    for (int ch = 0; ch < 3; ch++) P[ch] += k * s.v[3 * face + ch];
+    wal += k * s.v[GI_VRAD_ALPHA + a];
+    tau += fabsf(w[a]) * ax * s.v[GI_VRAD_TAU + a];
+  }
+  for (int ch = 0; ch < 3; ch++) prem[ch] = P[ch] * c->rad_scale;
+  *wsum_alpha = wal;
+  *sigma = tau * inv;
+  return 1;
+}
+
+int GI_KERNEL(gi__sample_level)(const struct gi_cascade *c, int d, const float p[3], const float w[3],
+                                float prem[3], float *wsum_alpha, float *sigma) {
+  return sample_level_ax(c, d, p, w, NULL, prem, wsum_alpha, sigma, NULL);
+}
+
+/* A sample's trilinear footprint reaches this many of its level's voxels. */
+#define GI_TRILINEAR_REACH 1.5f
+/* How far past an empty block's end (in voxels) the next sample lands. */
+#define GI_CLEAR_OVERSHOOT 1e-3f
+/* A sample whose weighted opacity is below this carries no usable radiance. */
+#define GI_MIN_SAMPLE_WEIGHT 1e-8f
+/* Floor of the height above the surface, so its log stays finite. */
+#define GI_MIN_HEIGHT 1e-30f
+
+/* h0 < 0: the apex is in free space (a probe). h0 >= 0: the apex is h0
+ * above a surface and nw is the cosine between the cone and its normal;
+ * then level d is reached (lod capped at log2(h / (K s0))) only where the
+ * sample is at least K = GI_SURFACE_LOD_K voxels of level d above the
+ * surface plane. A coarse voxel's trilinear footprint reaches about 1.5 of
+ * its voxels from the sample, and the blend toward level d+1 starts at lod
+ * d, hence K = 2 x 1.5. Any closer and the footprint holds the surface
+ * itself, and with it the radiance the surface sends out of its *other*
+ * side: behind a wall thinner than a voxel, the lit room's light (the leak
+ * in test_hardcases: 9% before, under 1% after). */
+/* The part of the ray o + t w inside each level's window shrunk by one
+ * voxel, [in, out] (empty when in > out): a sample at t may read level d
+ * when in[d] <= t <= out[d], the test gi__level_contains makes on the
+ * point, done once per cone instead of once per sample. */
+typedef struct {
+  float in, out;
+} gi_span;
+
+static void level_spans(const struct gi_cascade *c, const float o[3], const float w[3], gi_span *sp) {
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    float b = (float)L->s, tin = -INFINITY, tout = INFINITY;
+    for (int a = 0; a < 3; a++) {
+      float lo = L->lo[a] + b, hi = L->hi[a] - b;
+      if (w[a] == 0.f) {
+        if (!(o[a] >= lo && o[a] <= hi)) tin = INFINITY, tout = -INFINITY;
+        continue;
+      }
+      float inv = 1.f / w[a], t0 = (lo - o[a]) * inv, t1 = (hi - o[a]) * inv;
+      tin = gi__maxf(tin, gi__minf(t0, t1));
+      tout = gi__minf(tout, gi__maxf(t0, t1));
+    }
+    sp[d].in = tin;
+    sp[d].out = tout;
+  }
+}
+
+static inline int span_has(const gi_span *sp, float t) { return t >= sp->in && t <= sp->out; }
+
+void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
+                    float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
+  float L[3] = {0, 0, 0}, a = 0, occ = 0;
+  float nw = n && h0 >= 0 ? gi__dot(n, w) : 0.f;
+  uint32_t samples = 0;
+  float s0 = (float)c->s0, inv_s0 = 1.f / s0, inv_ks0 = 1.f / (GI_SURFACE_LOD_K * s0);
+  gi_span sp[GI_MAX_LEVELS];
+  level_spans(c, o, w, sp);
+  float t = t0;
+  for (int guard = 0; guard < GI_CONE_MAX_STEPS && a < GI_OPAQUE_ALPHA; guard++) {
+    float D = gi__maxf(2.0f * t * tan_half, s0);
+    /* x = 2^lod: the cone's width in finest voxels, or near a surface the
+     * height the surface rule allows, whichever is smaller. */
+    float x = D * inv_s0;
+    int near = 0;
+    if (h0 >= 0) {
+      float xh = gi__maxf(h0 + t * nw, GI_MIN_HEIGHT) * inv_ks0;
+      near = xh < x;
+      x = gi__minf(x, xh);
+      if (x < 1.f) x = 1.f;
+    }
+    /* The level is x's binary exponent and the blend toward the next level
+     * its mantissa less one: linear in the width within an octave, 0 at
+     * the finer level's voxel and 1 at the coarser's, with no log. Where
+     * the surface rule sets the level there is no blend: the next level
+     * is the one whose footprint would reach back through the surface, and
+     * reading it too cost a third of the bounce's samples for no measured
+     * accuracy (test_accuracy and the thin-wall leak unchanged). */
+    union { float f; uint32_t u; } xb = {x};
+    int d0 = (int)(xb.u >> 23) - 127;
+    xb.u = (xb.u & 0x007fffffu) | 0x3f800000u;
+    float frac = near ? 0.f : xb.f - 1.f;
+    /* A cone wider than the coarsest voxels keeps sampling the coarsest level. */
+    if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0;
+    int d = d0;
+    while (d < c->n && !span_has(&sp[d], t)) d++;
+    if (d >= c->n) break;
+    if (d > d0) frac = 0; /* pushed to a coarser level by position, not by size */
+    float p[3] = {o[0] + t * w[0], o[1] + t * w[1], o[2] + t * w[2]};
+    /* Pushed there near the surface it started from, the coarse trilinear
+     * footprint (1.5 voxels) holds that surface itself, which reads as an
+     * occluder: a grazing cone leaving the finer window turned black on
+     * the glossy floor of test_specular. Such samples read only the axes
+     * across the surface's normal (weights 1 - n_a^2): a floor's own
+     * opacity and radiance lie along its normal, a wall standing on it
+     * lies across. */
+    float P[3], wal, sig, clear, clear2 = INFINITY;
+    if (d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s) {
+      float axw[3] = {1 - n[0] * n[0], 1 - n[1] * n[1], 1 - n[2] * n[2]};
+      sample_level_ax(c, d, p, w, axw, P, &wal, &sig, &clear);
+    } else {
+      sample_level_ax(c, d, p, w, NULL, P, &wal, &sig, &clear);
+    }
+    samples++;
+    if (frac > 0 && d + 1 < c->n && span_has(&sp[d + 1], t)) {
+      float P2[3], wal2, sig2;
+      sample_level_ax(c, d + 1, p, w, NULL, P2, &wal2, &sig2, &clear2);
+      samples++;
+      for (int k = 0; k < 3; k++) P[k] += frac * (P2[k] - P[k]);
+      wal += frac * (wal2 - wal);
+      sig += frac * (sig2 - sig);
+    }
+    /* Step a fraction of the sampled level's voxel: a longer step could jump a
+     * wall, a shorter one only re-reads the same trilinear data. Where the
+     * surface rule holds the cone on a level finer than its width, the
+     * step stays short (GI_NEAR_SURFACE_STEP): that is where a wall behind
+     * the surface must not be jumped. */
+    float dt = (near ? gi__minf(step, GI_NEAR_SURFACE_STEP) : step) * (float)c->lv[d].s;
+    /* In empty blocks nothing is read until the nearer block's end: go there
+     * (a hair beyond, so the next sample reads the next block). */
+    float run = gi__minf(clear, clear2);
+    if (run > dt) dt = run + GI_CLEAR_OVERSHOOT * (float)c->lv[d].s;
+    float as = 1.0f - gi__fast_exp_neg(sig * dt);
+    if (as > 0 && wal > GI_MIN_SAMPLE_WEIGHT) {
+      float k = (1 - a) * as / wal;
+      L[0] += k * P[0];
+      L[1] += k * P[1];
+      L[2] += k * P[2];
+    }
+    occ += (1 - occ) * as / (1.0f + ao_lambda * 0.5f * D);
+    a += (1 - a) * as;
+    t += dt;
+  }
+  /* A cone stopped by the opacity threshold assumes its last 1% looks like
+   * the rest; without this a closed room loses 1% per bounce. */
+  if (a >= GI_OPAQUE_ALPHA)
+    for (int k = 0; k < 3; k++) L[k] /= a;
+  memcpy(out->L, L, sizeof L);
+  out->alpha = a;
+  out->occlusion = occ;
+  out->samples = samples;
+}

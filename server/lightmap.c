@@ -1,0 +1,106 @@
+/* lightmap.c: GET .../lighting?kind=lightmap (the EXR atlas) and
+ * GET .../lightmap-uv.glb (its geometry), for one region.
+ *
+ * The region is the request's, else level 0's box around `at` (the part
+ * of the scene the viewpoint's cascade sees best); the texel defaults to
+ * level 0's voxel. Both answers lay out the same charts from the same
+ * parameters (the layout is deterministic), so the glTF a client fetches
+ * matches the atlas it fetched. An answer is one atlas: a region that
+ * needs more is a 413 that says how many. The bake runs tile by tile with
+ * cascades of its own, outside the cascade cache (like a job's), admitted
+ * by the same memory budget: one tile's cascade plus the atlas. */
+#define _POSIX_C_SOURCE 200809L
+#include <stdio.h>
+#include <string.h>
+#include "server.h"
+
+/* Bytes per texel while a lightmap is baked and encoded: six RGB float
+ * arrays, valid and chart (80), and the EXR's 13 planar channels (52). */
+#define GS_LIGHTMAP_TEXEL_BYTES 132
+
+static void fail(gs_answer *a, int status, const char *msg) {
+  gi_proto_error pe;
+  gi_proto_fail(&pe, status, "%s", msg);
+  gs_answer_error(a, &pe);
+}
+
+/* The core's options from the request, with the defaults above. */
+static void lightmap_opts(const gi_proto_bake *b, const gi_quality *q, gi_lightmap_opts *o) {
+  memset(o, 0, sizeof *o);
+  double side = q->res * q->voxel0;
+  o->texel = b->texel > 0 ? b->texel : q->voxel0;
+  o->atlas = b->atlas ? b->atlas : GI_PROTO_DEFAULT_LIGHTMAP_ATLAS;
+  o->have_region = 1;
+  for (int k = 0; k < 3; k++) {
+    o->region_lo[k] = b->has_region ? b->region[k] : b->at[k] - 0.5 * side;
+    o->region_hi[k] = b->has_region ? b->region[3 + k] : b->at[k] + 0.5 * side;
+  }
+}
+
+/* Writes the answer's file into the work folder and takes it as the body. */
+static gi_result encode(gs_service *svc, const gi_lightmap *lm, gs_endpoint ep, int half, gs_answer *a,
+                        gi_error_info *e) {
+  char path[1200];
+  gs_tmp_path(svc, ep == GS_EP_LIGHTMAP_UV ? ".glb" : ".exr", path, sizeof path);
+  gi_result rc = ep == GS_EP_LIGHTMAP_UV ? gi_lightmap_write_gltf(lm, path, e) : gi_lightmap_write_exr(lm, path, half, e);
+  if (rc != GI_OK) return rc;
+  gs_blob *blob = gs_blob_take_file(path, e);
+  if (!blob) return GI_ERR_IO;
+  a->status = 200;
+  a->blob = blob;
+  a->size = blob->size;
+  a->content_type = ep == GS_EP_LIGHTMAP_UV ? "model/gltf-binary" : "image/x-exr";
+  return GI_OK;
+}
+
+void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
+                       gs_answer *a) {
+  gi_error_info e = {0};
+  gi_quality req = b->quality, q;
+  req.threads = svc->cfg->bake_threads;
+  gi_result rc = gi_quality_resolve(s->scene, &req, &q, &e);
+  gi_lightmap_opts o;
+  gi_lightmap *lm = NULL;
+  if (rc == GI_OK) {
+    lightmap_opts(b, &q, &o);
+    rc = gi_lightmap_layout(s->scene, &o, &lm, &e);
+  }
+  if (rc != GI_OK) return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+  size_t na = gi_lightmap_num_atlases(lm);
+  if (na > 1) {
+    char msg[256];
+    snprintf(msg, sizeof msg,
+             "the region needs %zu lightmap atlases of %d texels; one answer holds one: raise 'texel' or 'atlas', or "
+             "shrink 'region'",
+             na, o.atlas);
+    gi_lightmap_free(lm);
+    return fail(a, 413, msg);
+  }
+  gi_lightmap_report rep;
+  gi_timings ms = {0};
+  gi_lightmap_atlas at;
+  gi_lightmap_get_atlas(lm, 0, &at);
+  size_t need = ep == GS_EP_LIGHTMAP_UV ? 0 : gs_bake_bytes(&q) + (size_t)at.width * at.height * GS_LIGHTMAP_TEXEL_BYTES;
+  if (need && (rc = gs_cache_reserve(svc->cache, need, &e)) != GI_OK) {
+    gi_lightmap_free(lm);
+    return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+  }
+  rc = ep == GS_EP_LIGHTMAP_UV ? GI_OK : gi_lightmap_bake(lm, &req, NULL, &rep, &e);
+  /* Server-Timing's gather stage carries the whole lightmap bake (its tiles' cascades included). */
+  if (rc == GI_OK && ep != GS_EP_LIGHTMAP_UV) ms.gather = rep.bake_ms;
+  double t1 = gs_now_ms();
+  if (rc == GI_OK) rc = encode(svc, lm, ep, b->half, a, &e);
+  ms.encode = gs_now_ms() - t1;
+  gi_lightmap_free(lm);
+  if (need) gs_cache_unreserve(svc->cache, need);
+  if (rc != GI_OK) return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+  gi_effect fx[GI_FX_COUNT];
+  double centre[3];
+  for (int k = 0; k < 3; k++) centre[k] = 0.5 * (o.region_lo[k] + o.region_hi[k]);
+  if (gi_effect_plan(s->scene, centre, &req, fx, NULL, &e) == GI_OK)
+    gi_proto_effects_header(fx, a->effects, sizeof a->effects);
+  gi_proto_server_timing(&ms, gs_now_ms() - t_start_ms, a->server_timing, sizeof a->server_timing);
+  a->cache = "miss";
+  snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-lightmap%s\"", s->id,
+           ep == GS_EP_LIGHTMAP_UV ? "-uv.glb" : ".exr");
+}

@@ -1,0 +1,119 @@
+#!/bin/sh
+# speedup.sh BUILD_DIR: the cold bake of v0.1.0 against this tree, side by side.
+#
+# Builds v0.1.0 (db8404f) once from a git worktree under out/ (cached), then
+# bakes each scene with both gi-bake binaries, alternating, RUNS times each on
+# 2 threads, and once more per run on 1 thread with this tree (thread scaling).
+# Prints medians and `speed-up: N.Nx` per scene, samples per cone and ns per
+# sample per thread, and appends one JSON line per scene to out/bench.jsonl.
+#
+# The bake is the cascade's stages (voxelize, inject, filter, bounce), not the
+# scene's load or the probe's gather. A benchmark prints figures and never
+# fails the build: this script always exits 0. Numbers are comparable only
+# within one run on one machine; a loaded machine slows both sides alike.
+set -u
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+BUILD=${1:-build}
+case $BUILD in /*) ;; *) BUILD="$ROOT/$BUILD" ;; esac
+NOW="$BUILD/bin/gi-bake"
+BASE_REV=${BENCH_BASE_REV:-db8404f}
+RUNS=${BENCH_RUNS:-5}
+OUT="$ROOT/out"
+SRC="$OUT/v0.1.0-src"
+BLD="$OUT/v0.1.0-build"
+OLD="$BLD/bin/gi-bake"
+SCENES=${GI_SCENES_DIR:-$ROOT/../shared/scenes}
+JSONL="$OUT/bench.jsonl"
+
+say() { echo "speedup: $*" >&2; }
+[ -x "$NOW" ] || { say "no gi-bake at $NOW (build first: make); nothing measured"; exit 0; }
+command -v python3 > /dev/null 2>&1 || { say "python3 is needed to read gi-bake --json"; exit 0; }
+mkdir -p "$OUT" || exit 0
+
+# v0.1.0, built once with its own build rules (its CMake default: Release).
+if [ ! -x "$OLD" ]; then
+  if [ ! -d "$SRC" ]; then
+    git -C "$ROOT" worktree add --detach "$SRC" "$BASE_REV" > /dev/null 2>&1 ||
+      { say "cannot check out $BASE_REV into $SRC (is this a git clone with history?)"; exit 0; }
+  fi
+  say "building v0.1.0 ($BASE_REV) in $BLD, once"
+  (cmake -S "$SRC" -B "$BLD" -DCMAKE_BUILD_TYPE=Release > "$OUT/v0.1.0-build.log" 2>&1 &&
+    cmake --build "$BLD" -j "$(nproc)" --target gi-bake >> "$OUT/v0.1.0-build.log" 2>&1) ||
+    { say "building v0.1.0 failed (see $OUT/v0.1.0-build.log)"; exit 0; }
+fi
+
+TMP=$(mktemp -d "${TMPDIR:-/tmp}/gi-speedup.XXXXXX") || exit 0
+trap 'rm -rf "$TMP"' EXIT INT TERM
+REV=$(git -C "$ROOT" rev-parse --short HEAD 2> /dev/null || echo unknown)
+git -C "$ROOT" diff --quiet HEAD -- 2> /dev/null || REV="$REV-dirty"
+STAMP=$(date -u +%Y-%m-%dT%H:%M:%SZ)
+
+# bake LABEL BIN THREADS ARGS...: one line "bake_ms samples cones ns" to $TMP/LABEL.
+bake() {
+  label=$1; bin=$2; thr=$3; shift 3
+  if "$bin" "$@" --threads "$thr" --json > "$TMP/run.json" 2> "$TMP/run.err"; then
+    python3 - "$TMP/run.json" >> "$TMP/$label" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+t = d["timings_ms"]
+bake = sum(t[k] for k in ("voxelize", "inject", "filter", "bounce"))
+print(bake, d.get("cone_samples", 0), d.get("cones_traced", 0), d.get("ns_per_sample", 0))
+PY
+  else
+    say "$label: $(tail -n 1 "$TMP/run.err")"
+  fi
+}
+
+echo "cold bake, v0.1.0 ($BASE_REV) against $REV, $RUNS alternating runs, $(nproc) cpus, $STAMP"
+printf '%-10s %12s %12s %10s %12s %14s %14s\n' scene "v0.1.0 ms" "now ms" speed-up "samples/cone" "ns/sample/thr" "2 thr vs 1"
+
+# scene LABEL ARGS...
+scene() {
+  label=$1; shift
+  rm -f "$TMP/$label.old" "$TMP/$label.now" "$TMP/$label.one"
+  i=0
+  while [ $i -lt "$RUNS" ]; do
+    bake "$label.old" "$OLD" 2 "$@"
+    bake "$label.now" "$NOW" 2 "$@"
+    bake "$label.one" "$NOW" 1 "$@"
+    i=$((i + 1))
+  done
+  python3 - "$TMP/$label.old" "$TMP/$label.now" "$TMP/$label.one" "$label" "$REV" "$BASE_REV" "$STAMP" "$JSONL" "$*" <<'PY' ||
+import json, statistics, sys
+old, now, one, label, rev, base, stamp, jsonl, args = sys.argv[1:10]
+def rows(p):
+    try:
+        return [list(map(float, l.split())) for l in open(p) if l.strip()]
+    except OSError:
+        return []
+o, n, s = rows(old), rows(now), rows(one)
+if not o or not n:
+    print("%-10s  not measured" % label); sys.exit(0)
+mo, mn = statistics.median(r[0] for r in o), statistics.median(r[0] for r in n)
+ms1 = statistics.median(r[0] for r in s) if s else float("nan")
+spc = n[0][1] / n[0][2] if n[0][2] else float("nan")
+ns = statistics.median(r[3] for r in n)
+print("%-10s %12.1f %12.1f %9.1fx %12.1f %14.1f %13.2fx" % (label, mo, mn, mo / mn, spc, ns, ms1 / mn))
+print("%-10s speed-up: %.1fx" % (label, mo / mn))
+with open(jsonl, "a") as f:
+    f.write(json.dumps({"bench": "speedup", "scene": label, "args": args, "rev": rev, "base": base,
+                        "stamp": stamp, "runs": len(n), "v010_bake_ms": mo, "bake_ms": mn,
+                        "speedup": mo / mn, "one_thread_ms": ms1, "thread_scaling": ms1 / mn,
+                        "samples_per_cone": spc, "ns_per_sample": ns,
+                        "cone_samples": n[0][1], "v010_cone_samples": o[0][1]}) + "\n")
+PY
+    say "$label: could not read the figures"
+}
+
+if [ -f "$SCENES/cornell-box/cornell-box.obj" ]; then
+  scene cornell "$SCENES/cornell-box/cornell-box.obj"
+else
+  say "SKIP cornell: $SCENES/cornell-box/cornell-box.obj not found"
+fi
+if [ -f "$SCENES/munich/munich.obj" ]; then
+  scene munich "$SCENES/munich/munich.obj" --up z --at 0,0,2
+else
+  say "SKIP munich: $SCENES/munich/munich.obj not found"
+fi
+scene city city
+exit 0

@@ -1,0 +1,546 @@
+/* test_lightmap.c: lightmap charts, packing, texels against the reference,
+ * seams, and the EXR and glTF outputs read back.
+ *
+ * Layout tests use scenes built in code (a room with a box in it); the
+ * accuracy test uses the shared Cornell box and skips loudly without it. */
+#include "test_util.h"
+#include <assimp/cimport.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "gi/gi.h"
+
+/* A 4 x 3 x 5 room (walls facing in) with a 1 m box standing on its floor,
+ * or without the box and with the floor in two halves that share no
+ * vertex (two charts meeting at x = 2: a seam in the middle of a plane). */
+static gi_scene *room_scene_ex(int split_floor) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.7f, 0.7f, 0.7f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double c[8][3];
+  for (int i = 0; i < 8; i++) c[i][0] = i & 1 ? 4 : 0, c[i][1] = i & 2 ? 3 : 0, c[i][2] = i & 4 ? 5 : 0;
+  /* Inward-facing sides: counter-clockwise seen from inside. */
+  if (split_floor) {
+    double m0[3] = {2, 0, 0}, m1[3] = {2, 0, 5};
+    gi_mesh_builder_add_quad(b, c[0], c[4], m1, m0, mat);
+    gi_mesh_builder_add_quad(b, m0, m1, c[5], c[1], mat);
+  } else {
+    gi_mesh_builder_add_quad(b, c[0], c[4], c[5], c[1], mat); /* floor y=0, normal +y */
+  }
+  gi_mesh_builder_add_quad(b, c[2], c[3], c[7], c[6], mat); /* ceiling, normal -y */
+  gi_mesh_builder_add_quad(b, c[0], c[2], c[6], c[4], mat); /* x=0, normal +x */
+  gi_mesh_builder_add_quad(b, c[1], c[5], c[7], c[3], mat); /* x=4, normal -x */
+  gi_mesh_builder_add_quad(b, c[0], c[1], c[3], c[2], mat); /* z=0, normal +z */
+  gi_mesh_builder_add_quad(b, c[4], c[6], c[7], c[5], mat); /* z=5, normal -z */
+  double lo[3] = {1.5, 0, 2}, hi[3] = {2.5, 1, 3};
+  if (!split_floor) gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_light sun = {.type = GI_LIGHT_POINT, .color = {20, 20, 20}, .position = {2, 2.5, 2.5}};
+  gi_scene_options so = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "room", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+static gi_scene *room_scene(void) { return room_scene_ex(0); }
+
+static int rects_overlap(const gi_lightmap_chart *a, const gi_lightmap_chart *b) {
+  return a->atlas == b->atlas && a->x < b->x + b->w && b->x < a->x + a->w && a->y < b->y + b->h &&
+         b->y < a->y + a->h;
+}
+
+static void check_layout(const gi_lightmap *lm, int atlas, int gutter) {
+  size_t nc = gi_lightmap_num_charts(lm);
+  for (size_t i = 0; i < nc; i++) {
+    gi_lightmap_chart a, b;
+    assert_int_equal(gi_lightmap_get_chart(lm, i, &a), 0);
+    gi_lightmap_atlas at;
+    assert_int_equal(gi_lightmap_get_atlas(lm, (size_t)a.atlas, &at), 0);
+    assert_true(a.x >= 0 && a.y >= 0 && a.x + a.w <= at.width && a.y + a.h <= at.height && at.width == atlas);
+    for (size_t j = i + 1; j < nc; j++) {
+      assert_int_equal(gi_lightmap_get_chart(lm, j, &b), 0);
+      assert_false(rects_overlap(&a, &b));
+    }
+    /* Every corner lies in the chart's rectangle with the gutter kept clear
+     * (texel centres of the content's edge texels, hence the half texel). */
+    for (size_t t = a.first; t < a.first + a.count; t++) {
+      float uv[6];
+      int ch;
+      assert_int_equal(gi_lightmap_triangle(lm, t, NULL, uv, NULL, &ch), 0);
+      assert_int_equal(ch, (int)i);
+      for (int j = 0; j < 3; j++) {
+        float x = uv[2 * j] * (float)at.width, y = uv[2 * j + 1] * (float)at.height;
+        assert_true(x >= (float)(a.x + gutter) + 0.5f - 1e-3f && x <= (float)(a.x + a.w - gutter) - 0.5f + 1e-3f);
+        assert_true(y >= (float)(a.y + gutter) + 0.5f - 1e-3f && y <= (float)(a.y + a.h - gutter) - 0.5f + 1e-3f);
+      }
+    }
+  }
+}
+
+static void test_charts_and_packing(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 64, .gutter = 2};
+  gi_lightmap *lm = NULL, *again = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  /* Six room sides plus five visible box sides and its bottom: one chart each. */
+  assert_int_equal(gi_lightmap_num_charts(lm), 12);
+  assert_int_equal(gi_lightmap_num_triangles(lm), 24);
+  check_layout(lm, 64, 2);
+  /* The 4 x 5 floor at 0.25: 17 x 21 texel centres plus the gutters. */
+  int found = 0;
+  for (size_t i = 0; i < gi_lightmap_num_charts(lm); i++) {
+    gi_lightmap_chart c;
+    gi_lightmap_get_chart(lm, i, &c);
+    if (c.normal[1] > 0.99f && c.count == 2 && (c.w == 21 + 4 || c.w == 17 + 4)) found = c.w + c.h == 17 + 21 + 8;
+  }
+  assert_true(found);
+  /* 64 texels hold the room in more than one atlas. */
+  printf("room at 0.25: %zu charts in %zu atlases of 64\n", gi_lightmap_num_charts(lm), gi_lightmap_num_atlases(lm));
+  assert_true(gi_lightmap_num_atlases(lm) > 1);
+  /* Deterministic: the same options give the same UVs, bit for bit. */
+  assert_int_equal(gi_lightmap_layout(s, &o, &again, &err), GI_OK);
+  assert_int_equal(gi_lightmap_num_triangles(again), gi_lightmap_num_triangles(lm));
+  for (size_t t = 0; t < gi_lightmap_num_triangles(lm); t++) {
+    float a[6], b[6];
+    uint32_t ta, tb;
+    gi_lightmap_triangle(lm, t, &ta, a, NULL, NULL);
+    gi_lightmap_triangle(again, t, &tb, b, NULL, NULL);
+    assert_int_equal(ta, tb);
+    assert_memory_equal(a, b, sizeof a);
+  }
+  gi_lightmap_free(again);
+  gi_lightmap_free(lm);
+  /* A big atlas holds everything in one. */
+  o.atlas = 256;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  assert_int_equal(gi_lightmap_num_atlases(lm), 1);
+  check_layout(lm, 256, 2);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
+static void test_bad_options(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap *lm = (gi_lightmap *)1;
+  gi_error_info err = {0};
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 16};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_INVALID_ARG);
+  assert_null(lm);
+  printf("atlas too small: %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "does not fit in an atlas of 16 texels"));
+  o = (gi_lightmap_opts){.texel = -1};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "texel"));
+  o = (gi_lightmap_opts){.texel = NAN};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_INVALID_ARG);
+  o = (gi_lightmap_opts){.atlas = 20000};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "atlas"));
+  o = (gi_lightmap_opts){.have_region = 1, .region_lo = {10, 10, 10}, .region_hi = {11, 11, 11}};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_INVALID_ARG);
+  printf("region outside: %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "outside the scene"));
+  o = (gi_lightmap_opts){.have_region = 1, .region_lo = {1, 1, 1}, .region_hi = {0, 2, 2}};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "min < max"));
+  gi_scene_release(s);
+}
+
+/* Relative error of the luminance of a against b. */
+static double rel_err(const float a[3], const float b[3]) {
+  double la = 0.2126 * a[0] + 0.7152 * a[1] + 0.0722 * a[2], lb = 0.2126 * b[0] + 0.7152 * b[1] + 0.0722 * b[2];
+  return fabs(la - lb) / lb;
+}
+
+#define CB_MAXP 256
+/* Reference points: lightmap texels that face up (floor and box tops),
+ * gathered from their own surface, a border set (a texel next to one that
+ * is not) and an interior set, spread evenly over the atlas. */
+typedef struct {
+  double pts[3 * CB_MAXP];
+  size_t idx[CB_MAXP];
+  int border[CB_MAXP];
+  size_t n;
+} cb_points;
+
+static int is_border(const gi_lightmap_atlas *a, int x, int y) {
+  size_t i = (size_t)y * a->width + x;
+  for (int dy = -1; dy <= 1; dy++)
+    for (int dx = -1; dx <= 1; dx++) {
+      int u = x + dx, v = y + dy;
+      if (u < 0 || v < 0 || u >= a->width || v >= a->height) return 1;
+      size_t j = (size_t)v * a->width + u;
+      if (a->chart[j] != a->chart[i] || a->valid[j] == 0) return 1;
+    }
+  return 0;
+}
+
+static void pick_points(const gi_lightmap *lm, const gi_lightmap_atlas *a, double top, cb_points *p, int per_kind) {
+  double o[3];
+  gi_lightmap_origin(lm, o);
+  size_t cand[2][4096], nc[2] = {0, 0};
+  for (int y = 0; y < a->height; y++)
+    for (int x = 0; x < a->width; x++) {
+      size_t i = (size_t)y * a->width + x;
+      /* Not the light's back, which faces the outside above the ceiling. */
+      if (a->valid[i] == 0 || a->normal[3 * i + 1] < 0.99f || o[1] + a->point[3 * i + 1] > top) continue;
+      int b = is_border(a, x, y);
+      if (nc[b] < 4096) cand[b][nc[b]++] = i;
+    }
+  p->n = 0;
+  for (int b = 0; b < 2; b++)
+    for (int k = 0; k < per_kind && nc[b]; k++) {
+      size_t i = cand[b][(size_t)k * nc[b] / per_kind];
+      p->idx[p->n] = i;
+      p->border[p->n] = b;
+      /* A hair above the surface: the reference answers at points in space. */
+      for (int j = 0; j < 3; j++) p->pts[3 * p->n + j] = o[j] + a->point[3 * i + j] + (j == 1 ? 0.5 : 0.0);
+      p->n++;
+    }
+}
+
+static void test_cornell_against_reference(void **state) {
+  (void)state;
+  TU_SKIP_IF_NO_SCENE(path, "cornell-box/cornell-box.obj");
+  gi_scene *sc = NULL;
+  gi_error_info err = {0};
+  gi_scene_options so = {.up = GI_UP_Y};
+  assert_int_equal(gi_scene_load(path, &so, &sc, &err), GI_OK);
+  gi_lightmap_opts o = {.texel = 20, .atlas = 256, .supersample = 2};
+  gi_lightmap *lm = NULL;
+  assert_int_equal(gi_lightmap_layout(sc, &o, &lm, &err), GI_OK);
+  gi_quality q = {.res = 16, .probe_samples = 64};
+  gi_lightmap_report rep;
+  gi_result rc = gi_lightmap_bake(lm, &q, NULL, &rep, &err);
+  if (rc) printf("%s\n", err.msg);
+  assert_int_equal(rc, GI_OK);
+  printf("cornell lightmap at 20 mm: %zu charts, %zu atlases, %llu texels (%llu gathered, %llu filled), %d tile(s);"
+         " layout %.1f ms, cascade %.1f ms, gather %.1f ms, fill %.1f ms\n",
+         rep.charts, rep.atlases, (unsigned long long)rep.texels, (unsigned long long)rep.texels_valid,
+         (unsigned long long)rep.texels_filled, rep.tiles, rep.layout_ms, rep.cascade_ms, rep.gather_ms, rep.fill_ms);
+  assert_int_equal(gi_lightmap_num_atlases(lm), 1);
+  gi_lightmap_atlas a;
+  gi_lightmap_get_atlas(lm, 0, &a);
+  double lo[3], hi[3], at[3];
+  gi_scene_bounds(sc, lo, hi);
+  static cb_points p;
+  pick_points(lm, &a, hi[1] - 50, &p, 48);
+  assert_true(p.n > 60);
+  /* The probes at the same points, from a cascade of the same quality at the tile's centre. */
+  for (int k = 0; k < 3; k++) at[k] = 0.5 * (lo[k] + hi[k]);
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(sc, at, &q, &c, NULL, &err), GI_OK);
+  static gi_probe pr[CB_MAXP];
+  static gi_ref_probe ref[CB_MAXP];
+  assert_int_equal(gi_cascade_gather(c, p.pts, p.n, pr, NULL, &err), GI_OK);
+  gi_reference_opts ro = {.samples = 4096, .seed = 3};
+  double ref_ms = 0;
+  assert_int_equal(gi_reference_irradiance(sc, p.pts, p.n, &ro, ref, &ref_ms, &err), GI_OK);
+  /* Per kind (0 interior, 1 border): lightmap and probe errors, signed lightmap error. */
+  double e_lm[2] = {0, 0}, e_pr[2] = {0, 0}, bias[2] = {0, 0}, se = 0;
+  size_t nk[2] = {0, 0};
+  for (size_t i = 0; i < p.n; i++) {
+    const float *E = a.irradiance + 3 * p.idx[i];
+    int b = p.border[i];
+    e_lm[b] += rel_err(E, ref[i].irradiance);
+    e_pr[b] += rel_err(pr[i].irradiance, ref[i].irradiance);
+    bias[b] += (E[1] - ref[i].irradiance[1]) / ref[i].irradiance[1];
+    se += (double)ref[i].std_err[1] / ref[i].irradiance[1];
+    nk[b]++;
+    if (getenv("LM_DEBUG"))
+      printf("%d %7.1f %7.1f %7.1f  lm %.4f probe %.4f ref %.4f  direct lm %.4f ref %.4f\n", b, p.pts[3 * i],
+             p.pts[3 * i + 1], p.pts[3 * i + 2], E[1], pr[i].irradiance[1], ref[i].irradiance[1],
+             a.direct[3 * p.idx[i] + 1], ref[i].direct[1]);
+  }
+  double lm_all = (e_lm[0] + e_lm[1]) / (double)p.n, pr_all = (e_pr[0] + e_pr[1]) / (double)p.n;
+  for (int b = 0; b < 2; b++) e_lm[b] /= (double)nk[b], e_pr[b] /= (double)nk[b], bias[b] /= (double)nk[b];
+  se /= (double)p.n;
+  printf("cornell, %zu up-facing texels (%zu interior, %zu border), reference %d paths (%.0f ms, rel. std. error "
+         "%.2f%%):\n  MRE lightmap %.2f%%, probes at the same points %.2f%% (ratio %.2f)\n"
+         "  interior: lightmap %.2f%%, probes %.2f%%; border: lightmap %.2f%% (signed %+.2f%%), probes %.2f%% "
+         "(interior signed %+.2f%%)\n",
+         p.n, nk[0], nk[1], ro.samples, ref_ms, 100 * se, 100 * lm_all, 100 * pr_all, lm_all / pr_all,
+         100 * e_lm[0], 100 * e_pr[0], 100 * e_lm[1], 100 * bias[1], 100 * e_pr[1], 100 * bias[0]);
+  assert_true(lm_all <= 1.2 * pr_all);
+  /* Every chart border of the Cornell box is a corner, where the cascade
+   * itself is least accurate (its voxels straddle two walls; the probes at
+   * the same points show it): there the lightmap is held to the probes'
+   * error. Seams inside a plane are test_no_dark_seams. */
+  assert_true(e_lm[1] <= 1.2 * e_pr[1]);
+  gi_cascade_free(c);
+  gi_lightmap_free(lm);
+  gi_scene_release(sc);
+}
+
+/* The room baked small and fast: the outputs only need real values. */
+static gi_lightmap *baked_room(gi_scene *s, int atlas) {
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = atlas};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6};
+  gi_lightmap_report rep;
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_OK);
+  assert_true(rep.texels_valid > 0 && rep.texels_filled > 0);
+  assert_int_equal(rep.texels, rep.texels_valid + rep.texels_filled);
+  return lm;
+}
+
+static void test_exr_read_back(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap *lm = baked_room(s, 64);
+  size_t na = gi_lightmap_num_atlases(lm);
+  assert_true(na > 1);
+  char path[512], file[512];
+  snprintf(path, sizeof path, "%s/room-lm.exr", tu_tmpdir());
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_write_exr(lm, path, 0, &err), GI_OK);
+  /* Several atlases: numbered files, none under the bare name. */
+  FILE *f = fopen(path, "rb");
+  assert_null(f);
+  static const char *rgb[] = {"R", "G", "B"};
+  for (size_t i = 0; i < na; i++) {
+    assert_int_equal(gi_lightmap_atlas_path(lm, path, i, file, sizeof file), 0);
+    char want[512];
+    snprintf(want, sizeof want, "%s/room-lm.%04zu.exr", tu_tmpdir(), i + 1);
+    assert_string_equal(file, want);
+    gi_exr_file *x = NULL;
+    assert_int_equal(gi_exr_read(file, &x, &err), GI_OK);
+    gi_lightmap_atlas a;
+    gi_lightmap_get_atlas(lm, i, &a);
+    assert_int_equal(gi_exr_file_width(x), a.width);
+    assert_int_equal(gi_exr_file_height(x), a.height);
+    assert_int_equal(gi_exr_file_num_channels(x), 13);
+    assert_string_equal(gi_exr_file_attr(x, "gi.kind"), "lightmap");
+    const float *src[4] = {a.radiance, a.irradiance, a.direct, a.indirect};
+    const char *layer[4] = {"", "irradiance.", "direct.", "indirect."};
+    size_t n = (size_t)a.width * a.height, lit = 0;
+    for (int l = 0; l < 4; l++)
+      for (int k = 0; k < 3; k++) {
+        char name[32];
+        snprintf(name, sizeof name, "%s%s", layer[l], rgb[k]);
+        const float *ch = gi_exr_file_channel(x, name);
+        assert_non_null(ch);
+        for (size_t t = 0; t < n; t++) assert_true(ch[t] == src[l][3 * t + k]);
+      }
+    const float *valid = gi_exr_file_channel(x, "valid.Y"), *R = gi_exr_file_channel(x, "R");
+    const float *irr = gi_exr_file_channel(x, "irradiance.R");
+    for (size_t t = 0; t < n; t++) {
+      assert_true(valid[t] == a.valid[t]);
+      /* Radiance is albedo (0.7) x irradiance / pi on every gathered texel. */
+      if (valid[t] > 0) assert_float_equal(R[t], 0.7f * irr[t] / 3.14159265f, 1e-5f + 1e-4f * R[t]);
+      lit += valid[t] > 0 && irr[t] > 0;
+    }
+    assert_true(lit > 0);
+    gi_exr_file_free(x);
+  }
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
+static void test_gltf_read_back(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap *lm = baked_room(s, 256);
+  char path[512];
+  snprintf(path, sizeof path, "%s/room-uv.glb", tu_tmpdir());
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_write_gltf(lm, path, &err), GI_OK);
+  const struct aiScene *as = aiImportFile(path, 0);
+  assert_non_null(as);
+  assert_int_equal(as->mNumMeshes, 1);
+  const struct aiMesh *m = as->mMeshes[0];
+  size_t nt = gi_lightmap_num_triangles(lm);
+  assert_int_equal(m->mNumFaces, nt);
+  assert_non_null(m->mTextureCoords[0]);
+  assert_non_null(m->mTextureCoords[1]);
+  /* assimp reads glTF's V (down) as 1 - v; the root node carries the origin. */
+  double o[3];
+  gi_lightmap_origin(lm, o);
+  const struct aiNode *node = as->mRootNode;
+  assert_float_equal(node->mTransformation.a4, o[0], 1e-6);
+  assert_float_equal(node->mTransformation.b4, o[1], 1e-6);
+  assert_int_equal(node->mNumChildren, 1);
+  assert_string_equal(node->mChildren[0]->mName.data, "lightmap.0001");
+  for (size_t t = 0; t < nt; t++) {
+    float uv[6], xyz[9];
+    gi_lightmap_triangle(lm, t, NULL, uv, xyz, NULL);
+    const struct aiFace *fc = &m->mFaces[t];
+    assert_int_equal(fc->mNumIndices, 3);
+    for (int j = 0; j < 3; j++) {
+      unsigned v = fc->mIndices[j];
+      assert_float_equal(m->mTextureCoords[1][v].x, uv[2 * j], 1e-6);
+      assert_float_equal(1 - m->mTextureCoords[1][v].y, uv[2 * j + 1], 1e-6);
+      assert_float_equal(m->mVertices[v].x, xyz[3 * j], 1e-5);
+    }
+  }
+  aiReleaseImport(as);
+  /* Loaded back as a scene, its second UV set is the lightmap's: the layout
+   * keeps it (one chart, the same UVs) instead of making charts. */
+  gi_scene *back = NULL;
+  gi_scene_options so = {.up = GI_UP_Y};
+  assert_int_equal(gi_scene_load(path, &so, &back, &err), GI_OK);
+  assert_true(gi_scene_has_lightmap_uv(back));
+  assert_false(gi_scene_has_lightmap_uv(s));
+  gi_lightmap_opts lo = {.atlas = 256};
+  gi_lightmap *own = NULL;
+  assert_int_equal(gi_lightmap_layout(back, &lo, &own, &err), GI_OK);
+  assert_int_equal(gi_lightmap_num_charts(own), 1);
+  assert_int_equal(gi_lightmap_num_triangles(own), nt);
+  for (size_t t = 0; t < nt; t++) {
+    float a[6], b[6];
+    gi_lightmap_triangle(lm, t, NULL, a, NULL, NULL);
+    gi_lightmap_triangle(own, t, NULL, b, NULL, NULL);
+    for (int j = 0; j < 6; j++) assert_float_equal(a[j], b[j], 1e-6);
+  }
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6};
+  gi_lightmap_report rep;
+  assert_int_equal(gi_lightmap_bake(own, &q, NULL, &rep, &err), GI_OK);
+  printf("scene's own UVs: %llu texels gathered of %llu\n", (unsigned long long)rep.texels_valid,
+         (unsigned long long)rep.texels);
+  assert_true(rep.texels_valid > 100);
+  lo.scene_uv = -1;
+  gi_lightmap_free(own);
+  assert_int_equal(gi_lightmap_layout(back, &lo, &own, &err), GI_OK);
+  assert_true(gi_lightmap_num_charts(own) > 1);
+  gi_lightmap_free(own);
+  gi_scene_release(back);
+  assert_int_equal(gi_lightmap_write_gltf(lm, "/tmp/x.gltf", &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, ".glb"));
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
+/* The bake does not depend on threads or on how the region is tiled per
+ * texel seed; a second bake of the same lightmap gives the same atlas. */
+static void test_bake_deterministic_and_tiled(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6, .threads = 1};
+  gi_lightmap_report r1, r2;
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &r1, &err), GI_OK);
+  gi_lightmap_atlas a;
+  gi_lightmap_get_atlas(lm, 0, &a);
+  size_t n = 3 * (size_t)a.width * a.height;
+  float *first = malloc(n * sizeof *first);
+  memcpy(first, a.radiance, n * sizeof *first);
+  q.threads = 2;
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &r2, &err), GI_OK);
+  assert_memory_equal(first, a.radiance, n * sizeof *first);
+  assert_int_equal(r1.texels_valid, r2.texels_valid);
+  assert_int_equal(r1.tiles, 1);
+  /* 2 m tiles: the 4 x 3 x 5 room in several cascades, every gathered texel
+   * finite, and lit but for the box's bottom (pressed onto the floor). */
+  gi_lightmap_free(lm);
+  o.tile = 2;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &r2, &err), GI_OK);
+  printf("room: %d tiles, %llu texels gathered (one tile: %llu)\n", r2.tiles, (unsigned long long)r2.texels_valid,
+         (unsigned long long)r1.texels_valid);
+  assert_true(r2.tiles > 1);
+  assert_int_equal(r1.texels_valid, r2.texels_valid);
+  gi_lightmap_get_atlas(lm, 0, &a);
+  size_t lit = 0, dark_not_bottom = 0;
+  for (size_t i = 0; i < (size_t)a.width * a.height; i++) {
+    if (a.valid[i] == 0) continue;
+    assert_true(isfinite(a.irradiance[3 * i]) && a.irradiance[3 * i] >= 0);
+    lit += a.irradiance[3 * i] > 0;
+    dark_not_bottom += a.irradiance[3 * i] == 0 && a.normal[3 * i + 1] > -0.99f;
+  }
+  assert_int_equal(dark_not_bottom, 0);
+  assert_true(lit > 0.9 * r2.texels_valid);
+  free(first);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
+/* A floor of two charts meeting at x = 2 under the light: the texels on
+ * both sides of the seam are as close to the reference, and no darker
+ * against it, than the texels 0.3 m beside them inside their charts. */
+static void test_no_dark_seams(void **state) {
+  (void)state;
+  gi_scene *s = room_scene_ex(1);
+  gi_lightmap_opts o = {.texel = 0.1, .atlas = 256};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6};
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, NULL, &err), GI_OK);
+  gi_lightmap_atlas a;
+  gi_lightmap_get_atlas(lm, 0, &a);
+  double o3[3];
+  gi_lightmap_origin(lm, o3);
+  /* Floor texels (normal up) within half a texel of the seam, each paired
+   * with the floor texel nearest to 0.3 m beside it (alternating sides),
+   * which sees the same light pattern from inside its chart. */
+  enum { PER = 40 };
+  static double pts[3 * 2 * PER];
+  size_t idx[2 * PER], n[2] = {0, 0}, cand[2048], nc = 0, floor_t[8192], nf = 0;
+  for (size_t i = 0; i < (size_t)a.width * a.height; i++) {
+    if (a.valid[i] == 0 || a.normal[3 * i + 1] < 0.99f || o3[1] + a.point[3 * i + 1] > 0.5) continue;
+    if (nf < 8192) floor_t[nf++] = i;
+    if (fabs(o3[0] + a.point[3 * i] - 2) < 0.06 && nc < 2048) cand[nc++] = i;
+  }
+  assert_true(nc >= PER);
+  for (int j = 0; j < PER; j++) {
+    size_t i = cand[(size_t)j * nc / PER], best = 0;
+    double want[2] = {o3[0] + a.point[3 * i] + (j % 2 ? 0.3 : -0.3), o3[2] + a.point[3 * i + 2]}, bd = INFINITY;
+    for (size_t f = 0; f < nf; f++) {
+      double dx = o3[0] + a.point[3 * floor_t[f]] - want[0], dz = o3[2] + a.point[3 * floor_t[f] + 2] - want[1];
+      if (dx * dx + dz * dz < bd) bd = dx * dx + dz * dz, best = floor_t[f];
+    }
+    idx[j] = best, idx[PER + j] = i;
+  }
+  n[0] = n[1] = PER;
+  for (size_t m = 0; m < 2 * PER; m++)
+    for (int c = 0; c < 3; c++) pts[3 * m + c] = o3[c] + a.point[3 * idx[m] + c] + (c == 1 ? 1e-3 : 0);
+  printf("seam: %zu texels along it, %zu beside them inside the charts\n", n[1], n[0]);
+  static gi_ref_probe ref[2 * PER];
+  gi_reference_opts ro = {.samples = 2048, .seed = 5};
+  assert_int_equal(gi_reference_irradiance(s, pts, n[0] + n[1], &ro, ref, NULL, &err), GI_OK);
+  double e[2] = {0, 0}, bias[2] = {0, 0}, se = 0;
+  for (size_t m = 0; m < n[0] + n[1]; m++) {
+    int k = m >= n[0];
+    const float *E = a.irradiance + 3 * idx[m];
+    e[k] += rel_err(E, ref[m].irradiance);
+    bias[k] += (E[1] - ref[m].irradiance[1]) / ref[m].irradiance[1];
+    se += (double)ref[m].std_err[1] / ref[m].irradiance[1];
+    if (getenv("LM_DEBUG"))
+      printf("%d %.3f %.3f  lm %.4f (direct %.4f) ref %.4f (direct %.4f)\n", k, pts[3 * m], pts[3 * m + 2], E[1],
+             a.direct[3 * idx[m] + 1], ref[m].irradiance[1], ref[m].direct[1]);
+  }
+  for (int k = 0; k < 2; k++) e[k] /= (double)n[k], bias[k] /= (double)n[k];
+  se /= (double)(n[0] + n[1]);
+  printf("seam texels: MRE %.2f%% (signed %+.2f%%); beside them: %.2f%% (signed %+.2f%%); reference rel. std. error "
+         "%.2f%%\n",
+         100 * e[1], 100 * bias[1], 100 * e[0], 100 * bias[0], 100 * se);
+  assert_true(e[1] <= 1.2 * e[0] + 2 * se);
+  assert_true(bias[1] >= bias[0] - 2 * se - 0.02);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_charts_and_packing),
+      cmocka_unit_test(test_bad_options),
+      cmocka_unit_test(test_cornell_against_reference),
+      cmocka_unit_test(test_exr_read_back),
+      cmocka_unit_test(test_gltf_read_back),
+      cmocka_unit_test(test_bake_deterministic_and_tiled),
+      cmocka_unit_test(test_no_dark_seams),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,141 @@
+/* test_texel.c: the half-float texels and the two builds of the march.
+ *
+ * Conversions are checked exhaustively against their definition (every
+ * half round-trips; every float goes to its nearest half), packing keeps
+ * radiance to half precision over the scale's whole range, and a bake
+ * gives the same light on the baseline and the x86-64-v3 march. */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "base/half.h"
+#include "cascade/cascade_internal.h"
+#include "gi/gi_city.h"
+#include "gi/gi_cpu.h"
+#include "gi/gi_probe.h"
+
+/* Half's relative spacing at the top of a binade: 2^-10; half of it is the
+ * worst rounding error. */
+#define HALF_REL_ROUNDING (1.0f / 2048.0f)
+
+static void test_every_half_round_trips(void **state) {
+  int checked = 0;
+  for (uint32_t h = 0; h < 65536; h++) {
+    float f = gi__h2f((uint16_t)h);
+    uint32_t e = (h >> 10) & 0x1f;
+    if (e == 0x1f && (h & 0x3ff)) {
+      assert_true(isnan(f));
+      continue;
+    }
+    assert_int_equal(gi__f2h(f), h);
+    checked++;
+  }
+  /* The definition of a few: 1, -2, the largest, the smallest subnormal. */
+  assert_true(gi__h2f(0x3c00) == 1.0f && gi__h2f(0xc000) == -2.0f);
+  assert_true(gi__h2f(0x7bff) == 65504.0f && gi__h2f(0x0001) == ldexpf(1.0f, -24));
+  assert_true(isinf(gi__h2f(0x7c00)));
+  printf("  %d halves round-trip\n", checked);
+}
+
+/* Every float in [2^-26, 65504] (a million spread over the range) goes to
+ * the nearer of the two halves around it, ties to the even one. */
+static void test_floats_round_to_nearest(void **state) {
+  uint64_t seed = 7;
+  int n = 0;
+  for (int i = 0; i < 1000000; i++) {
+    float f = ldexpf(1.0f + gi__u01(&seed), -26 + (int)(gi__u01(&seed) * 42.0f));
+    if (f > 65504.0f) continue;
+    uint16_t h = gi__f2h(f);
+    float got = gi__h2f(h), below = h ? gi__h2f((uint16_t)(h - 1)) : -INFINITY, above = h < 0x7bff ? gi__h2f((uint16_t)(h + 1)) : INFINITY;
+    float err = fabsf(got - f);
+    assert_true(err <= fabsf(below - f));
+    assert_true(err <= fabsf(above - f));
+    if (err == fabsf(below - f) || err == fabsf(above - f)) assert_int_equal(h & 1, 0);
+    assert_int_equal(gi__f2h(-f), h | 0x8000);
+    n++;
+  }
+  assert_int_equal(gi__f2h(1e6f), 0x7c00); /* beyond the range: infinity, never a wrap */
+  printf("  %d floats rounded to their nearest half\n", n);
+}
+
+/* Packing at a scale chosen for the brightest value keeps every radiance
+ * lane within half's rounding, down to 2e-7 of the brightest. */
+static void test_pack_keeps_precision(void **state) {
+  struct gi_cascade c;
+  memset(&c, 0, sizeof c);
+  const float brightest = 3.7e6f;
+  gi__vrad_rescale(&c, brightest);
+  assert_true(c.rad_scale > 0 && isfinite(c.rad_scale));
+  float worst = 0;
+  for (int e = 0; e < 7 * 4; e++) {
+    float v = brightest * powf(10.0f, -(float)e / 4.0f);
+    gi_vrad_f in, out;
+    memset(&in, 0, sizeof in);
+    for (int f = 0; f < 6; f++)
+      for (int k = 0; k < 3; k++) in.p[f][k] = v * (1.0f - 0.1f * (float)k);
+    in.alpha[0] = 0.999f, in.tau[0] = 6.9f, in.alpha[1] = 0.25f, in.tau[1] = 0.2877f;
+    gi_vrad r;
+    gi__vrad_pack(&c, &in, &r);
+    gi__vrad_unpack(&c, &r, &out);
+    for (int f = 0; f < 6; f++)
+      for (int k = 0; k < 3; k++) worst = fmaxf(worst, fabsf(out.p[f][k] - in.p[f][k]) / in.p[f][k]);
+    for (int a = 0; a < 3; a++) {
+      assert_true(fabsf(out.alpha[a] - in.alpha[a]) <= HALF_REL_ROUNDING * in.alpha[a]);
+      assert_true(fabsf(out.tau[a] - in.tau[a]) <= HALF_REL_ROUNDING * in.tau[a]);
+    }
+  }
+  printf("  radiance 3.7e6 .. 3.7e-1 packed: worst relative error %.2e (bound %.2e)\n", worst, HALF_REL_ROUNDING);
+  assert_true(worst <= HALF_REL_ROUNDING);
+}
+
+static double bake_city_irradiance(int v3, uint64_t *samples) {
+  gi__cpu_force(v3);
+  gi_city_params p = {0};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&p, NULL, &s, &err), GI_OK);
+  double at[3];
+  gi_city_default_viewpoint(&p, at);
+  gi_quality q = {0};
+  q.levels = 4;
+  q.res = 16;
+  gi_cascade *c = NULL;
+  gi_bake_report rep;
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
+  gi_probe pr;
+  assert_int_equal(gi_cascade_gather(c, at, 1, &pr, NULL, &err), GI_OK);
+  *samples = rep.cone_samples;
+  gi_cascade_free(c);
+  gi_scene_release(s);
+  return pr.indirect[0] + pr.indirect[1] + pr.indirect[2];
+}
+
+/* Both builds of the march: same samples, same light (FMA rounds a few
+ * products differently, nothing more). */
+static void test_both_march_builds_agree(void **state) {
+  if (!gi_cpu_has_v3()) {
+    printf("SKIP: this CPU has no x86-64-v3; only the baseline march can run\n");
+    skip();
+  }
+  uint64_t n_base, n_v3;
+  double e_base = bake_city_irradiance(0, &n_base);
+  double e_v3 = bake_city_irradiance(1, &n_v3);
+  gi__cpu_force(1);
+  double rel = fabs(e_v3 - e_base) / e_base;
+  printf("  city probe indirect: baseline %.6f, x86-64-v3 %.6f (rel. difference %.2e); samples %llu and %llu\n", e_base,
+         e_v3, rel, (unsigned long long)n_base, (unsigned long long)n_v3);
+  assert_true(rel < 1e-4);
+  /* A sample lands on the other side of a level border at most rarely. */
+  assert_true(llabs((long long)n_base - (long long)n_v3) <= (long long)(n_base / 10000));
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_every_half_round_trips),
+      cmocka_unit_test(test_floats_round_to_nearest),
+      cmocka_unit_test(test_pack_keeps_precision),
+      cmocka_unit_test(test_both_march_builds_agree),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,232 @@
+/* batch.c: gi-bake --grid, a probe grid baked tile by tile (batch.h).
+ *
+ * Steps: lay the grid out (core: gi_probe_grid_build), resolve the quality
+ * (the finest voxel defaults to the grid spacing), cut tiles so the finest
+ * level spans twice a tile, name the bake by a hash of everything that
+ * decides its bytes, then bake this shard's tiles one at a time (each
+ * from its checkpoint when --resume has it), and write the outputs and
+ * the manifest (batch_manifest.c). Memory: one cascade at a time, plus
+ * the grid's positions and answers (about 270 bytes per point). */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+#include "batch_run.h"
+
+double batch_now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+/* The grid; a region outside the scene or too many probes is a usage error. */
+static int make_grid(const cli_opts *o, const gi_scene *scene, gi_probe_grid *g) {
+  const cli_batch *b = &o->batch;
+  gi_grid_spec spec = {.spacing = b->grid, .have_region = b->have_region, .above_ground = b->above};
+  for (int a = 0; a < 3; a++) spec.lo[a] = b->region[a], spec.hi[a] = b->region[3 + a];
+  gi_error_info err = {0};
+  gi_result r = gi_probe_grid_build(scene, &spec, g, &err);
+  if (r == GI_OK && g->num_valid == 0) {
+    fprintf(stderr, "gi-bake: --grid: no probe left: %zu columns without ground, %zu inside buildings\n",
+            g->num_no_ground, g->num_inside);
+    return EXIT_RUN;
+  }
+  if (r == GI_OK) return 0;
+  const char *opt = r == GI_ERR_LIMIT ? "--grid" : r == GI_ERR_INVALID_ARG && b->have_region ? "--region" : "--grid";
+  fprintf(stderr, "gi-bake: %s: %s\n", opt, err.msg[0] ? err.msg : gi_strerror(r));
+  return r == GI_ERR_NOMEM ? EXIT_RUN : EXIT_USAGE;
+}
+
+/* Resolved quality (finest voxel = spacing unless --voxel) and the tiles. */
+static int plan_tiles(batch_state *st) {
+  gi_error_info err = {0};
+  st->q = st->o->q;
+  if (st->q.voxel0 <= 0) st->q.voxel0 = st->grid.spacing;
+  gi_result r = gi_quality_resolve(st->scene, &st->q, &st->resolved, &err);
+  if (r != GI_OK) {
+    fprintf(stderr, "gi-bake: quality: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
+    return EXIT_USAGE;
+  }
+  batch_layout *L = &st->L;
+  memset(L, 0, sizeof *L);
+  int side = (int)floor(st->resolved.res * st->resolved.voxel0 / (TILE_SPAN_RATIO * st->grid.spacing));
+  for (int a = 0; a < 3; a++) {
+    L->counts[a] = st->grid.counts[a];
+    L->origin[a] = st->grid.origin[a];
+    L->tile[a] = side < 1 ? 1 : side;
+  }
+  L->spacing = st->grid.spacing;
+  L->up_axis = st->grid.up_axis;
+  L->above = st->grid.above_ground;
+  if (L->above > 0) L->tile[L->up_axis] = 1;
+  layout_tiles(L);
+  return 0;
+}
+
+/* Room for the answers, and this shard's tiles with their valid probes. */
+static int alloc_state(batch_state *st) {
+  size_t n = st->grid.n;
+  st->probes = calloc(n, sizeof *st->probes);
+  st->valid = calloc(n, 1);
+  st->tile_start = calloc(st->L.tiles + 1, sizeof *st->tile_start);
+  st->order = malloc((st->grid.num_valid ? st->grid.num_valid : 1) * sizeof *st->order);
+  if (!st->probes || !st->valid || !st->tile_start || !st->order) {
+    fprintf(stderr, "gi-bake: out of memory for %zu probes\n", n);
+    return EXIT_RUN;
+  }
+  /* Counting sort of the valid points by tile: each tile's list stays in point order. */
+  for (size_t i = 0; i < n; i++)
+    if (st->grid.state[i] == GI_GRID_VALID) st->tile_start[layout_tile_of(&st->L, i) + 1]++;
+  for (size_t t = 0; t < st->L.tiles; t++) st->tile_start[t + 1] += st->tile_start[t];
+  size_t *fill = calloc(st->L.tiles, sizeof *fill);
+  if (!fill) {
+    fprintf(stderr, "gi-bake: out of memory for %zu tiles\n", st->L.tiles);
+    return EXIT_RUN;
+  }
+  for (size_t i = 0; i < n; i++)
+    if (st->grid.state[i] == GI_GRID_VALID) {
+      size_t t = layout_tile_of(&st->L, i);
+      st->order[st->tile_start[t] + fill[t]++] = (uint32_t)i;
+    }
+  free(fill);
+  return 0;
+}
+
+int batch_owns(const batch_state *st, size_t t) {
+  const cli_batch *b = &st->o->batch;
+  return !b->have_shard || (int)(t % (size_t)b->shard_n) == b->shard_i;
+}
+
+/* Bakes tile t's probes (m of them, at order[]) around the middle of their box. */
+static int bake_tile(batch_state *st, size_t t) {
+  const uint32_t *idx = st->order + st->tile_start[t];
+  size_t m = st->tile_start[t + 1] - st->tile_start[t];
+  double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}, at[3];
+  for (size_t j = 0; j < m; j++)
+    for (int a = 0; a < 3; a++) {
+      double v = st->grid.pos[3 * (size_t)idx[j] + a];
+      lo[a] = fmin(lo[a], v), hi[a] = fmax(hi[a], v);
+      st->pts[3 * j + a] = v;
+    }
+  for (int a = 0; a < 3; a++) at[a] = 0.5 * (lo[a] + hi[a]);
+  gi_error_info err = {0};
+  gi_bake_report rep;
+  gi_cascade *cas = NULL;
+  double t0 = batch_now_ms(), gms = 0;
+  gi_result r = gi_cascade_bake(st->scene, at, &st->q, &cas, &rep, &err);
+  double t1 = batch_now_ms();
+  if (r == GI_OK) r = gi_cascade_gather(cas, st->pts, m, st->tile_probes, &gms, &err);
+  gi_cascade_free(cas);
+  if (r != GI_OK) {
+    fprintf(stderr, "gi-bake: tile %zu: %s\n", t, err.msg[0] ? err.msg : gi_strerror(r));
+    return EXIT_RUN;
+  }
+  st->bake_ms += t1 - t0;
+  st->gather_ms += batch_now_ms() - t1;
+  if (rep.cascade_bytes > st->peak_cascade_bytes) st->peak_cascade_bytes = rep.cascade_bytes;
+  for (int e = 0; e < GI_FX_COUNT; e++) st->fx_ran[e] += rep.effects[e].ran != 0;
+  double span = rep.voxel_size[0] * rep.quality.res;
+  for (size_t j = 0; j < m; j++) {
+    int out = 0;
+    for (int a = 0; a < 3; a++)
+      out |= st->pts[3 * j + a] < rep.level_origin[0][a] || st->pts[3 * j + a] > rep.level_origin[0][a] + span;
+    st->outside_level0 += (size_t)out;
+    st->probes[idx[j]] = st->tile_probes[j];
+  }
+  return 0;
+}
+
+/* One tile: from its checkpoint, or baked (and checkpointed). */
+static int run_tile(batch_state *st, size_t t) {
+  const char *dir = st->o->batch.resume;
+  size_t m = st->tile_start[t + 1] - st->tile_start[t];
+  char msg[4400];
+  const char *source = "empty";
+  if (dir) {
+    int got = ckpt_load(dir, t, st->hash, st->grid.n, st->probes, msg, sizeof msg);
+    if (got < 0) {
+      fprintf(stderr, "gi-bake: --resume: %s\n", msg);
+      return EXIT_RUN;
+    }
+    if (got > 0) source = "resumed";
+  }
+  if (!strcmp(source, "empty") && m > 0) {
+    int rc = bake_tile(st, t);
+    if (rc) return rc;
+    source = "baked";
+  }
+  if (dir && strcmp(source, "resumed") &&
+      ckpt_save(dir, t, st->hash, st->order + st->tile_start[t], m, st->probes, msg, sizeof msg)) {
+    fprintf(stderr, "gi-bake: --resume: %s\n", msg);
+    return EXIT_RUN;
+  }
+  for (size_t j = 0; j < m; j++) st->valid[st->order[st->tile_start[t] + j]] = 1;
+  if (!strcmp(source, "resumed")) st->tiles_resumed++;
+  else if (!strcmp(source, "baked")) st->tiles_baked++, st->probes_baked += m;
+  else st->tiles_empty++;
+  st->probes_done += m;
+  batch_progress(st, t, source);
+  return 0;
+}
+
+static int run_tiles(batch_state *st) {
+  size_t maxm = 1;
+  for (size_t t = 0; t < st->L.tiles; t++) {
+    size_t m = st->tile_start[t + 1] - st->tile_start[t];
+    if (batch_owns(st, t)) {
+      st->tiles_owned++;
+      st->probes_owned += m;
+    }
+    if (m > maxm) maxm = m;
+  }
+  st->pts = malloc(maxm * 3 * sizeof *st->pts);
+  st->tile_probes = malloc(maxm * sizeof *st->tile_probes);
+  if (!st->pts || !st->tile_probes) {
+    fprintf(stderr, "gi-bake: out of memory for a tile of %zu probes\n", maxm);
+    return EXIT_RUN;
+  }
+  if (st->o->batch.resume && mkdir(st->o->batch.resume, 0777) != 0 && !batch_is_dir(st->o->batch.resume)) {
+    fprintf(stderr, "gi-bake: --resume: cannot create folder '%s'\n", st->o->batch.resume);
+    return EXIT_RUN;
+  }
+  st->loop_start_ms = batch_now_ms();
+  for (size_t t = 0; t < st->L.tiles; t++) {
+    if (!batch_owns(st, t)) continue;
+    int rc = run_tile(st, t);
+    if (rc) return rc;
+  }
+  batch_progress_end(st);
+  return 0;
+}
+
+static void free_state(batch_state *st) {
+  gi_probe_grid_free(&st->grid);
+  free(st->probes); free(st->valid); free(st->tile_start); free(st->order); free(st->pts); free(st->tile_probes);
+}
+
+int batch_run(const cli_opts *o, const gi_scene *scene, double load_ms) {
+  batch_state st;
+  memset(&st, 0, sizeof st);
+  st.o = o;
+  st.scene = scene;
+  st.load_ms = load_ms;
+  st.tty = isatty(STDERR_FILENO);
+  double t0 = batch_now_ms();
+  int rc = make_grid(o, scene, &st.grid);
+  if (!rc) rc = plan_tiles(&st);
+  if (!rc) rc = alloc_state(&st);
+  if (!rc) rc = batch_identify(&st);
+  st.plan_ms = batch_now_ms() - t0;
+  if (!rc) rc = run_tiles(&st);
+  double t1 = batch_now_ms();
+  if (!rc) rc = batch_write(&st);
+  st.write_ms = batch_now_ms() - t1;
+  st.total_ms = batch_now_ms() - t0 + load_ms;
+  if (!rc) rc = batch_manifest(&st);
+  free_state(&st);
+  return rc;
+}

@@ -1,0 +1,220 @@
+/* batch_manifest.c: a grid bake's name (hash), progress, outputs and
+ * manifest.
+ *
+ * The hash covers everything that decides the output bytes: the layout,
+ * resolved quality, effect plan, scene identity and lights, the version,
+ * and every point's position and state. Two shards agree on it exactly
+ * when they are shares of the same bake. Timings and memory go only into
+ * the manifest, never into the EXR or VDB. */
+#define _POSIX_C_SOURCE 200809L
+#include <jansson.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include "batch_run.h"
+
+#define SH_TEXT "SH L2 irradiance, real basis L00 L1-1 L10 L11 L2-2 L2-1 L20 L21 L22 over world x,y,z; E(n) = sum sh_i Y_i(n)"
+#define BAR_WIDTH 30
+
+int batch_is_dir(const char *path) {
+  struct stat sb;
+  return stat(path, &sb) == 0 && S_ISDIR(sb.st_mode);
+}
+
+static void quality_text(const gi_quality *q, char *buf, size_t size) {
+  snprintf(buf, size, "levels=%d res=%d voxel0=%.17g cones=%d aperture_deg=%.9g step=%.9g bounces=%d "
+                      "light_samples=%d probe_samples=%d ao=%d specular=%d seed=%llu",
+           q->levels, q->res, q->voxel0, q->cones, q->aperture_deg, q->step, q->bounces, q->light_samples,
+           q->probe_samples, q->ao, q->specular, (unsigned long long)q->seed);
+}
+
+static void effects_text(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size) {
+  size_t off = 0;
+  buf[0] = 0;
+  for (int i = 0; i < GI_FX_COUNT && off < size; i++) {
+    int w = snprintf(buf + off, size - off, "%s%s=%s (%s)", i ? "; " : "", gi_effect_name(i),
+                     fx[i].ran ? "ran" : "skipped", fx[i].why);
+    if (w < 0) break;
+    off += (size_t)w;
+  }
+}
+
+/* Scene name, size and lights, as text for the hash. */
+static uint64_t hash_scene(const gi_scene *s, uint64_t h) {
+  char buf[512];
+  gi_scene_stats ss;
+  gi_scene_get_stats(s, &ss);
+  snprintf(buf, sizeof buf, "%s|%llu|%u|%zu", gi_scene_name(s), (unsigned long long)ss.triangles, ss.materials,
+           gi_scene_num_lights(s));
+  h = batch_fnv(buf, strlen(buf), h);
+  for (size_t i = 0; i < gi_scene_num_lights(s); i++) {
+    const gi_light *l = gi_scene_light(s, i);
+    snprintf(buf, sizeof buf, "%d %.9g %.9g %.9g %.17g %.17g %.17g %.9g %.9g %.9g %.9g %.9g", (int)l->type,
+             l->color[0], l->color[1], l->color[2], l->position[0], l->position[1], l->position[2], l->direction[0],
+             l->direction[1], l->direction[2], l->cos_inner, l->cos_outer);
+    h = batch_fnv(buf, strlen(buf), h);
+  }
+  return h;
+}
+
+int batch_identify(batch_state *st) {
+  double centre[3];
+  for (int a = 0; a < 3; a++) centre[a] = st->L.origin[a] + 0.5 * (st->L.counts[a] - 1) * st->L.spacing;
+  gi_error_info err = {0};
+  gi_result r = gi_effect_plan(st->scene, centre, &st->q, st->plan, NULL, &err);
+  if (r != GI_OK) {
+    fprintf(stderr, "gi-bake: effect plan: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
+    return EXIT_RUN;
+  }
+  quality_text(&st->resolved, st->quality, sizeof st->quality);
+  effects_text(st->plan, st->effects, sizeof st->effects);
+  layout_text(&st->L, st->grid_text, sizeof st->grid_text);
+  snprintf(st->version, sizeof st->version, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
+  const cli_batch *b = &st->o->batch;
+  if (b->have_shard) snprintf(st->shard, sizeof st->shard, "%d/%d", b->shard_i, b->shard_n);
+  const char *texts[] = {st->quality, st->effects, st->grid_text, st->version, st->o->q.ao ? "ao" : "no-ao"};
+  uint64_t h = BATCH_FNV_BASIS;
+  for (size_t i = 0; i < sizeof texts / sizeof texts[0]; i++) h = batch_fnv(texts[i], strlen(texts[i]) + 1, h);
+  h = hash_scene(st->scene, h);
+  h = batch_fnv(st->grid.pos, st->grid.n * 3 * sizeof(float), h);
+  h = batch_fnv(st->grid.state, st->grid.n, h);
+  snprintf(st->hash, sizeof st->hash, "%016llx", (unsigned long long)h);
+  return 0;
+}
+
+void batch_progress(batch_state *st, size_t t, const char *source) {
+  double el = (batch_now_ms() - st->loop_start_ms) / 1e3;
+  size_t done = st->tiles_baked + st->tiles_resumed + st->tiles_empty;
+  double rate = el > 0 ? st->probes_baked / el : 0;
+  double eta = rate > 0 ? (double)(st->probes_owned - st->probes_done) / rate : -1;
+  if (!st->tty) {
+    fprintf(stderr, "gi-bake: progress tile=%zu done=%zu/%zu probes=%zu/%zu probes_per_s=%.1f eta_s=%.1f source=%s\n",
+            t, done, st->tiles_owned, st->probes_done, st->probes_owned, rate, eta, source);
+    return;
+  }
+  int fill = st->tiles_owned ? (int)(BAR_WIDTH * done / st->tiles_owned) : BAR_WIDTH;
+  char bar[BAR_WIDTH + 1];
+  for (int i = 0; i < BAR_WIDTH; i++) bar[i] = i < fill ? '#' : '.';
+  bar[BAR_WIDTH] = 0;
+  if (eta >= 0)
+    fprintf(stderr, "\r[%s] %zu/%zu tiles  %.0f probes/s  ETA %d:%02d  ", bar, done, st->tiles_owned, rate,
+            (int)(eta / 60), (int)eta % 60);
+  else
+    fprintf(stderr, "\r[%s] %zu/%zu tiles  ", bar, done, st->tiles_owned);
+}
+
+void batch_progress_end(batch_state *st) {
+  if (st->tty) fputc('\n', stderr);
+}
+
+int batch_write(batch_state *st) {
+  const cli_opts *o = st->o;
+  if (!o->exr && !o->vdb) return 0;
+  const char *values[HDR_COUNT] = {BATCH_KIND, gi_scene_name(st->scene), st->version, st->quality, st->effects,
+                                   st->grid_text, st->hash, SH_TEXT, st->shard[0] ? st->shard : NULL};
+  gi_exr_attr attrs[HDR_COUNT];
+  size_t na = batch_attrs(values, attrs);
+  gi_probe_volume v = {.spacing = st->L.spacing, .up_axis = st->L.up_axis, .street_level = st->L.above > 0,
+                       .n = st->grid.n, .pos = st->grid.pos, .valid = st->valid, .probes = st->probes,
+                       .ao = st->o->q.ao};
+  memcpy(v.counts, st->L.counts, sizeof v.counts);
+  memcpy(v.origin, st->L.origin, sizeof v.origin);
+  return batch_write_outputs(o->exr, o->vdb, &v, attrs, na, st->hash) ? EXIT_RUN : 0;
+}
+
+static json_t *ints3(const int v[3]) {
+  return json_pack("[iii]", v[0], v[1], v[2]);
+}
+
+static json_t *manifest_grid(const batch_state *st) {
+  const batch_layout *L = &st->L;
+  return json_pack("{s:[fff],s:f,s:o,s:s,s:f,s:I,s:I,s:I,s:I,s:o}", "origin", L->origin[0], L->origin[1],
+                   L->origin[2], "spacing", L->spacing, "counts", ints3(L->counts), "up", L->up_axis == 2 ? "z" : "y",
+                   "above_ground", L->above, "points", (json_int_t)st->grid.n, "valid",
+                   (json_int_t)st->grid.num_valid, "dropped_inside", (json_int_t)st->grid.num_inside, "no_ground",
+                   (json_int_t)st->grid.num_no_ground, "region",
+                   st->o->batch.have_region ? json_pack("[ffffff]", st->o->batch.region[0], st->o->batch.region[1],
+                                                        st->o->batch.region[2], st->o->batch.region[3],
+                                                        st->o->batch.region[4], st->o->batch.region[5])
+                                            : json_null());
+}
+
+static json_t *manifest_tiles(const batch_state *st) {
+  const cli_batch *b = &st->o->batch;
+  json_t *shard = b->have_shard ? json_pack("{s:i,s:i}", "index", b->shard_i, "count", b->shard_n) : json_null();
+  return json_pack("{s:o,s:o,s:I,s:o,s:I,s:I,s:I,s:I,s:I,s:I}", "size", ints3(st->L.tile), "grid",
+                   ints3(st->L.ntiles), "count", (json_int_t)st->L.tiles, "shard", shard, "owned",
+                   (json_int_t)st->tiles_owned, "baked", (json_int_t)st->tiles_baked, "resumed",
+                   (json_int_t)st->tiles_resumed, "empty", (json_int_t)st->tiles_empty, "probes_owned",
+                   (json_int_t)st->probes_owned, "probes_outside_level0", (json_int_t)st->outside_level0);
+}
+
+static json_t *manifest_effects(const batch_state *st) {
+  json_t *fx = json_object();
+  for (int i = 0; i < GI_FX_COUNT; i++)
+    json_object_set_new(fx, gi_effect_name(i),
+                        json_pack("{s:b,s:s,s:i}", "ran", st->plan[i].ran, "why", st->plan[i].why, "tiles_ran",
+                                  st->fx_ran[i]));
+  return fx;
+}
+
+static json_t *manifest_json(const batch_state *st) {
+  const gi_quality *q = &st->resolved;
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  double secs = st->bake_ms + st->gather_ms > 0 ? (st->bake_ms + st->gather_ms) / 1e3 : 0;
+  json_t *m = json_pack("{s:s,s:s,s:s,s:{s:s,s:s}}", "kind", "gi-bake probe grid", "bake_hash", st->hash, "version",
+                        st->version, "scene", "name", gi_scene_name(st->scene), "path", st->o->scene);
+  json_object_set_new(m, "grid", manifest_grid(st));
+  json_object_set_new(m, "tiles", manifest_tiles(st));
+  json_object_set_new(m, "quality", json_pack("{s:i,s:i,s:f,s:i,s:i,s:i,s:i,s:b,s:s}", "levels", q->levels, "res",
+                                              q->res, "voxel0", q->voxel0, "cones", q->cones, "bounces", q->bounces,
+                                              "light_samples", q->light_samples, "probe_samples", q->probe_samples,
+                                              "ao", q->ao, "text", st->quality));
+  json_object_set_new(m, "effects", manifest_effects(st));
+  json_object_set_new(m, "outputs", json_pack("{s:s?,s:s?,s:s?,s:s?}", "exr", st->o->exr, "vdb", st->o->vdb,
+                                              "manifest", st->o->batch.manifest, "resume", st->o->batch.resume));
+  json_object_set_new(m, "timings_ms", json_pack("{s:f,s:f,s:f,s:f,s:f,s:f}", "load", st->load_ms, "plan",
+                                                 st->plan_ms, "bake", st->bake_ms, "gather", st->gather_ms, "write",
+                                                 st->write_ms, "total", st->total_ms));
+  json_object_set_new(m, "probes_per_s", json_real(secs > 0 ? st->probes_baked / secs : 0));
+  json_object_set_new(m, "threads", json_integer(q->threads));
+  json_object_set_new(m, "peak_rss_mb", json_real(ru.ru_maxrss / 1024.0));
+  json_object_set_new(m, "peak_cascade_mb", json_real(st->peak_cascade_bytes / 1048576.0));
+  return m;
+}
+
+/* Dumps m to path through a temporary name. */
+static int dump_atomic(json_t *m, const char *path) {
+  char tmp[4200];
+  snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
+  if (json_dump_file(m, tmp, JSON_INDENT(2) | JSON_REAL_PRECISION(17)) != 0 || rename(tmp, path) != 0) {
+    remove(tmp);
+    fprintf(stderr, "gi-bake: --manifest: cannot write '%s'\n", path);
+    return EXIT_RUN;
+  }
+  return 0;
+}
+
+int batch_manifest(batch_state *st) {
+  json_t *m = manifest_json(st);
+  if (!m) {
+    fprintf(stderr, "gi-bake: manifest: internal error building JSON\n");
+    return EXIT_RUN;
+  }
+  int rc = st->o->batch.manifest ? dump_atomic(m, st->o->batch.manifest) : 0;
+  if (!rc && st->o->json) {
+    json_dumpf(m, stdout, JSON_INDENT(2) | JSON_REAL_PRECISION(17));
+    fputc('\n', stdout);
+  } else if (!rc) {
+    printf("gi-bake: grid %d x %d x %d (%zu probes, %zu inside buildings, %zu without ground), %zu tiles "
+           "(%zu baked, %zu resumed, %zu empty here), bake %s, %.0f ms\n",
+           st->L.counts[0], st->L.counts[1], st->L.counts[2], st->grid.num_valid, st->grid.num_inside,
+           st->grid.num_no_ground, st->L.tiles, st->tiles_baked, st->tiles_resumed, st->tiles_empty, st->hash,
+           st->total_ms);
+  }
+  json_decref(m);
+  return rc;
+}

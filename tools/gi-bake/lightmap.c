@@ -1,0 +1,138 @@
+/* lightmap.c: gi-bake's --lightmap mode, a lightmap atlas instead of probes.
+ *
+ * Design: args.c hands the lightmap options here (lightmap_option) and
+ * asks for their checks (lightmap_check) before any scene is loaded; main.c
+ * runs lightmap_run after loading the scene instead of the viewpoint bake.
+ * The run lays out the charts (a chart too large for the atlas or a region
+ * outside the scene is a usage error naming the option, exit 2), bakes
+ * every tile, then writes the glTF and the EXR atlases; when the second
+ * write fails the first file is removed, so a failed run leaves nothing. */
+#define _POSIX_C_SOURCE 200809L
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <stdlib.h>
+#include <strings.h>
+#include "cli.h"
+
+static ta_ctx ta = TA_CTX("gi-bake");
+
+int lightmap_option(cli_opts *o, int c, const char *arg) {
+  cli_lightmap *l = &o->lm;
+  switch (c) {
+  case LM_OPT_OUT: l->out = arg; return 0;
+  case LM_OPT_UV_OUT: l->uv_out = arg; return 0;
+  case LM_OPT_TEXEL:
+    return ta_double(&ta, "--texel", "a texel size in world units > 0", arg, 0, HUGE_VAL, &l->opts.texel);
+  case LM_OPT_ATLAS:
+    return ta_int(&ta, "--atlas", NULL, arg, GI_LIGHTMAP_MIN_ATLAS, GI_LIGHTMAP_MAX_ATLAS, &l->opts.atlas);
+  default: return 0;
+  }
+}
+
+static int ends_with_ci(const char *s, const char *suffix) {
+  size_t n = strlen(s), m = strlen(suffix);
+  return n >= m && !strcasecmp(s + n - m, suffix);
+}
+
+int lightmap_check(const cli_opts *o) {
+  const cli_lightmap *l = &o->lm;
+  int rc;
+  if (!l->out) {
+    if (l->uv_out) return ta_fail(&ta, "--uv-out", "needs --lightmap");
+    if (l->opts.texel) return ta_fail(&ta, "--texel", "needs --lightmap");
+    if (l->opts.atlas) return ta_fail(&ta, "--atlas", "needs --lightmap");
+    return 0;
+  }
+  /* --region is shared with --grid (parsed into o->batch); a lightmap's box
+   * must have volume. */
+  if (o->batch.have_region)
+    for (int k = 0; k < 3; k++)
+      if (!(o->batch.region[k] < o->batch.region[3 + k]))
+        return ta_fail(&ta, "--region", "min must be below max on every axis for --lightmap");
+  if (o->batch.grid > 0) return ta_fail(&ta, "--lightmap", "cannot be combined with --grid");
+  /* A lightmap covers a region, not a viewpoint, and has outputs of its own. */
+  if (o->have_at) return ta_fail(&ta, "--at", "does not apply to --lightmap (use --region)");
+  if (o->exr || o->vdb || o->render || o->probes_file)
+    return ta_fail(&ta, "--lightmap", "cannot be combined with --exr, --vdb, --render or --probes");
+  if (!ends_with_ci(l->out, ".exr")) return ta_fail(&ta, "--lightmap", "expected an .exr file name, got '%s'", l->out);
+  if (l->uv_out && !ends_with_ci(l->uv_out, ".glb"))
+    return ta_fail(&ta, "--uv-out", "expected a binary glTF .glb file name, got '%s'", l->uv_out);
+  if ((rc = ta_check_output(&ta, "--lightmap", l->out))) return rc;
+  if (l->uv_out && (rc = ta_check_output(&ta, "--uv-out", l->uv_out))) return rc;
+  return 0;
+}
+
+/* A layout the options make impossible is a usage error naming the option. */
+static int layout_failed(const gi_error_info *err, gi_result r) {
+  if (r != GI_ERR_INVALID_ARG) {
+    fprintf(stderr, "gi-bake: --lightmap: %s\n", err->msg[0] ? err->msg : gi_strerror(r));
+    return EXIT_RUN;
+  }
+  const char *opt = strstr(err->msg, "region") ? "--region" : strstr(err->msg, "atlas") ? "--atlas" : "--texel";
+  return ta_fail(&ta, opt, "%s", err->msg);
+}
+
+static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_lightmap_report *r, double total_ms) {
+  size_t na = gi_lightmap_num_atlases(lm);
+  if (!o->json) {
+    printf("lightmap: %zu triangles in %zu charts, %zu atlas%s, %llu texels (%llu gathered, %llu filled), %d tile%s\n",
+           r->triangles, r->charts, na, na == 1 ? "" : "es", (unsigned long long)r->texels,
+           (unsigned long long)r->texels_valid, (unsigned long long)r->texels_filled, r->tiles, r->tiles == 1 ? "" : "s");
+    printf("time: layout %.1f ms, cascades %.1f ms, gather %.1f ms, fill %.1f ms, total %.1f ms\n", r->layout_ms,
+           r->cascade_ms, r->gather_ms, r->fill_ms, total_ms);
+    return;
+  }
+  json_t *j = json_pack("{s:I,s:I,s:I,s:I,s:I,s:I,s:i,s:f,s:f,s:f,s:f,s:f,s:s,s:s?}", "triangles",
+                        (json_int_t)r->triangles, "charts", (json_int_t)r->charts, "atlases", (json_int_t)na, "texels",
+                        (json_int_t)r->texels, "texels_gathered", (json_int_t)r->texels_valid, "texels_filled",
+                        (json_int_t)r->texels_filled, "tiles", r->tiles, "layout_ms", r->layout_ms, "cascade_ms",
+                        r->cascade_ms, "gather_ms", r->gather_ms, "fill_ms", r->fill_ms, "total_ms", total_ms, "exr",
+                        o->lm.out, "glb", o->lm.uv_out);
+  json_t *root = json_pack("{s:o}", "lightmap", j);
+  char *s = json_dumps(root, JSON_INDENT(2));
+  if (s) puts(s);
+  free(s);
+  json_decref(root);
+}
+
+int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, double (*now_ms)(void)) {
+  gi_error_info err;
+  memset(&err, 0, sizeof err);
+  gi_lightmap *lm = NULL;
+  gi_lightmap_opts opts = o->lm.opts;
+  if (o->batch.have_region) {
+    memcpy(opts.region_lo, o->batch.region, sizeof(double[3]));
+    memcpy(opts.region_hi, o->batch.region + 3, sizeof(double[3]));
+    opts.have_region = 1;
+  }
+  gi_result r = gi_lightmap_layout(scene, &opts, &lm, &err);
+  if (r != GI_OK) return layout_failed(&err, r);
+  gi_lightmap_report rep;
+  int rc = 0;
+  if ((r = gi_lightmap_bake(lm, &o->q, NULL, &rep, &err)) != GI_OK) {
+    fprintf(stderr, "gi-bake: lightmap bake: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
+    rc = EXIT_RUN;
+  } else if (o->lm.uv_out && (r = gi_lightmap_write_gltf(lm, o->lm.uv_out, &err)) != GI_OK) {
+    fprintf(stderr, "gi-bake: --uv-out: %s\n", err.msg);
+    rc = EXIT_RUN;
+  } else if ((r = gi_lightmap_write_exr(lm, o->lm.out, o->half, &err)) != GI_OK) {
+    fprintf(stderr, "gi-bake: --lightmap: %s\n", err.msg);
+    if (o->lm.uv_out) remove(o->lm.uv_out);
+    rc = EXIT_RUN;
+  }
+  if (!rc) {
+    for (size_t i = 0; i < gi_lightmap_num_atlases(lm); i++) {
+      char file[4096];
+      gi_lightmap_atlas a;
+      gi_lightmap_get_atlas(lm, i, &a);
+      if (!gi_lightmap_atlas_path(lm, o->lm.out, i, file, sizeof file))
+        fprintf(stderr, "gi-bake: wrote %s (%d x %d)\n", file, a.width, a.height);
+    }
+    if (o->lm.uv_out) fprintf(stderr, "gi-bake: wrote %s\n", o->lm.uv_out);
+    print_report(o, lm, &rep, now_ms() - t_start_ms);
+  }
+  gi_lightmap_free(lm);
+  return rc;
+}
