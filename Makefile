@@ -4,7 +4,7 @@ JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 PREFIX ?= /usr/local
 
-.PHONY: all deps configure install run bake test bench bench-batch bench-http accuracy clean asan tsan valgrind fuzz
+.PHONY: all deps configure install run bake test bench bench-batch bench-http accuracy clean asan tsan valgrind fuzz test-scale
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -107,6 +107,18 @@ fuzz:
 	  echo "fuzz_$$t: $(FUZZ_SECONDS) s"; \
 	  build-fuzz/fuzz/fuzz_$$t -max_total_time=$(FUZZ_SECONDS) -timeout=10 -rss_limit_mb=2048 \
 	    -artifact_prefix=build-fuzz/artifacts/$$t/ build-fuzz/corpus/$$t tests/fuzz/corpus/$$t; \
+	done
+
+# Scale-out tests (opt-in, issue 14), each tests/scale/NAME.sh for NAME in
+# SCALE_TESTS: nginx = real nginx (configs/nginx/gi.conf) in front of three
+# gi-server replicas, about a minute. Installs what they need when missing;
+# a test that still cannot run exits 77 and is reported as SKIPPED.
+SCALE_TESTS ?= nginx
+test-scale: all
+	@./scripts/install-deps.sh $(SCALE_TESTS) || echo "test-scale: WARNING: could not install $(SCALE_TESTS)"
+	@for t in $(SCALE_TESTS); do \
+	  rc=0; ./tests/scale/$$t.sh $(abspath $(BUILD)) || rc=$$?; \
+	  if [ $$rc = 77 ]; then echo "test-scale: SKIPPED $$t (see above)"; elif [ $$rc != 0 ]; then exit $$rc; fi; \
 	done
 
 clean:

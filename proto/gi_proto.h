@@ -54,6 +54,9 @@ void gi_proto_limits_default(gi_proto_limits *l);
 
 typedef enum gi_proto_kind { GI_PROTO_PROBE = 0, GI_PROTO_PANORAMA = 1, GI_PROTO_LIGHTMAP = 2 } gi_proto_kind;
 
+/* Hex digits of a cell URL's quality hash (q=). */
+#define GI_PROTO_QHASH_LEN 16
+
 /* One query parameter, already URL-decoded (the server's HTTP library does it). */
 typedef struct gi_proto_kv {
   const char *key;
@@ -74,6 +77,9 @@ typedef struct gi_proto_bake {
   double region[6];  /* min x,y,z then max x,y,z, world */
   double texel;      /* lightmap texel, world units; 0 = level 0's voxel */
   int atlas;         /* lightmap atlas side; 0 = GI_PROTO_DEFAULT_LIGHTMAP_ATLAS */
+  int redirect;      /* viewpoint URLs: 1 (default) answers 307 to the cell's URL, 0 serves it */
+  int cell;          /* a cell URL: at is the cell's centre (set by the server) */
+  char q[GI_PROTO_QHASH_LEN + 1]; /* cell URLs: the quality hash */
 } gi_proto_bake;
 
 /* Lightmap atlas sides the server accepts (one atlas per answer). */
@@ -91,6 +97,18 @@ int gi_proto_parse_lightmap_uv(const gi_proto_kv *kv, size_t n, const gi_proto_l
 /* GET /v1/scenes/{id}/cascades.vdb. */
 int gi_proto_parse_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
                             gi_proto_bake *out, gi_proto_error *err);
+/* GET /v1/scenes/{id}/cells/{i},{j},{k}/lighting: as lighting without 'at'
+ * and 'redirect', with 'q' required; sets out->cell. */
+int gi_proto_parse_cell_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
+                                 gi_proto_bake *out, gi_proto_error *err);
+/* GET /v1/scenes/{id}/cells/{i},{j},{k}/cascades.vdb. */
+int gi_proto_parse_cell_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
+                                 gi_proto_bake *out, gi_proto_error *err);
+/* GET /v1/scenes/{id}: optional quality knobs, for the grid it publishes. */
+int gi_proto_parse_scene(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
+                         gi_proto_bake *out, gi_proto_error *err);
+/* A cell path segment "i,j,k" (plain integers, no leading zeros): 0 or -1. */
+int gi_proto_parse_cell(const char *s, long long out[3]);
 /* A request that takes no parameters: any parameter is a 400. */
 int gi_proto_parse_none(const gi_proto_kv *kv, size_t n, gi_proto_error *err);
 

@@ -94,7 +94,9 @@ static int parse_int(const char *s, long long *out) {
 /* The parameters a request kind accepts. */
 enum {
   P_AT = 1 << 0, P_KIND = 1 << 1, P_QUALITY = 1 << 2, P_HALF = 1 << 3, P_PANO = 1 << 4, P_FACES = 1 << 5,
-  P_LM = 1 << 6
+  P_LM = 1 << 6,       /* kind=lightmap: region, texel, atlas */
+  P_REDIRECT = 1 << 7, /* viewpoint URLs: 307 to the cell's URL, or serve it */
+  P_CELLQ = 1 << 8     /* cell URLs: the quality hash */
 };
 
 typedef struct {
@@ -108,7 +110,7 @@ static const param_def params[] = {
     {"step", P_QUALITY},    {"bounces", P_QUALITY}, {"samples", P_QUALITY}, {"probe_samples", P_QUALITY},
     {"ao", P_QUALITY},      {"seed", P_QUALITY},   {"effects", P_QUALITY},   {"half", P_HALF},       {"width", P_PANO},
     {"height", P_PANO},     {"faces", P_FACES},        {"region", P_LM},       {"texel", P_LM},
-    {"atlas", P_LM},
+    {"atlas", P_LM},        {"redirect", P_REDIRECT}, {"q", P_CELLQ},
 };
 
 /* Applies a preset. low: a quick preview; high: more cones, samples and
@@ -294,6 +296,7 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
   memset(out, 0, sizeof *out);
   out->width = 256;
   out->height = 128;
+  out->redirect = 1;
   /* Reject unknown and repeated keys first, then apply the preset, then the knobs. */
   for (size_t i = 0; i < n; i++) {
     const char *k = kv[i].key ? kv[i].key : "";
@@ -327,8 +330,15 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
       else if (!strcmp(v, "panorama")) out->kind = GI_PROTO_PANORAMA;
       else if (!strcmp(v, "lightmap")) out->kind = GI_PROTO_LIGHTMAP;
       else return gi_proto_fail(err, 400, "parameter 'kind': expected probe, panorama or lightmap, got '%.64s'", v);
-    } else if (!strcmp(k, "half") || !strcmp(k, "faces")) {
-      if (parse_flag(v, !strcmp(k, "half") ? &out->half : &out->faces, err, k)) return err->status;
+    } else if (!strcmp(k, "half") || !strcmp(k, "faces") || !strcmp(k, "redirect")) {
+      int *flag = !strcmp(k, "half") ? &out->half : !strcmp(k, "faces") ? &out->faces : &out->redirect;
+      if (parse_flag(v, flag, err, k)) return err->status;
+    } else if (!strcmp(k, "q")) {
+      size_t len = strlen(v);
+      if (len != GI_PROTO_QHASH_LEN || strspn(v, "0123456789abcdef") != len)
+        return gi_proto_fail(err, 400, "parameter 'q': expected %d lowercase hex digits, got '%.64s'",
+                             GI_PROTO_QHASH_LEN, v);
+      memcpy(out->q, v, len + 1);
     } else if (!strcmp(k, "effects")) {
       if (set_effects(&out->quality, v, err, where)) return err->status;
     } else if (!strcmp(k, "region") || !strcmp(k, "texel") || !strcmp(k, "atlas")) {
@@ -342,12 +352,14 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
     }
   }
   if ((allowed & P_AT) && !out->has_at) return gi_proto_fail(err, 400, "parameter 'at' is required (x,y,z)");
+  if ((allowed & P_CELLQ) && !out->q[0])
+    return gi_proto_fail(err, 400, "parameter 'q' is required (the quality hash the redirect or the scene's grid gives)");
   return 0;
 }
 
-int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
-                            gi_proto_error *err) {
-  if (parse_query(kv, n, P_AT | P_KIND | P_QUALITY | P_HALF | P_PANO | P_LM, lim, out, err)) return err->status;
+/* What a lighting request's kind allows, after its parameters parsed. */
+static int check_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                          gi_proto_error *err) {
   if (out->kind != GI_PROTO_LIGHTMAP)
     for (size_t i = 0; i < n; i++)
       if (!strcmp(kv[i].key, "region") || !strcmp(kv[i].key, "texel") || !strcmp(kv[i].key, "atlas"))
@@ -365,6 +377,24 @@ int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limi
   return 0;
 }
 
+int gi_proto_parse_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                            gi_proto_error *err) {
+  if (parse_query(kv, n, P_AT | P_REDIRECT | P_KIND | P_QUALITY | P_HALF | P_PANO | P_LM, lim, out, err))
+    return err->status;
+  return check_lighting(kv, n, lim, out, err);
+}
+
+/* Lightmaps are not cell-addressed yet (canonical.c says how they will be):
+ * a cell URL takes probe and panorama. */
+int gi_proto_parse_cell_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                                 gi_proto_error *err) {
+  if (parse_query(kv, n, P_CELLQ | P_KIND | P_QUALITY | P_HALF | P_PANO, lim, out, err)) return err->status;
+  out->cell = 1;
+  if (out->kind == GI_PROTO_LIGHTMAP)
+    return gi_proto_fail(err, 501, "kind=lightmap has no cell URL yet; ask /v1/scenes/{id}/lighting?at=...&kind=lightmap");
+  return check_lighting(kv, n, lim, out, err);
+}
+
 int gi_proto_parse_lightmap_uv(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                                gi_proto_error *err) {
   if (parse_query(kv, n, P_AT | P_QUALITY | P_LM, lim, out, err)) return err->status;
@@ -374,7 +404,33 @@ int gi_proto_parse_lightmap_uv(const gi_proto_kv *kv, size_t n, const gi_proto_l
 
 int gi_proto_parse_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                             gi_proto_error *err) {
-  return parse_query(kv, n, P_AT | P_QUALITY | P_FACES, lim, out, err);
+  return parse_query(kv, n, P_AT | P_QUALITY | P_FACES | P_REDIRECT, lim, out, err);
+}
+
+int gi_proto_parse_cell_cascades(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                                 gi_proto_error *err) {
+  if (parse_query(kv, n, P_QUALITY | P_FACES | P_CELLQ, lim, out, err)) return err->status;
+  out->cell = 1;
+  return 0;
+}
+
+int gi_proto_parse_scene(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
+                         gi_proto_error *err) {
+  return parse_query(kv, n, P_QUALITY, lim, out, err);
+}
+
+int gi_proto_parse_cell(const char *s, long long out[3]) {
+  const char *p = s;
+  for (int i = 0; i < 3; i++) {
+    const char *d = p + (*p == '-');
+    size_t nd = strspn(d, "0123456789");
+    /* Plain integers: no sign but '-', no leading zeros, at most 18 digits. */
+    if (nd == 0 || nd > 18 || (d[0] == '0' && nd > 1) || (*p == '-' && d[0] == '0')) return -1;
+    out[i] = strtoll(p, NULL, 10);
+    p = d + nd;
+    if (i < 2 && *p++ != ',') return -1;
+  }
+  return *p ? -1 : 0;
 }
 
 int gi_proto_parse_none(const gi_proto_kv *kv, size_t n, gi_proto_error *err) {

@@ -4,6 +4,7 @@
 # Optional groups for opt-in make targets, never needed by `make test`:
 #   fuzz      clang and its libFuzzer runtime (make fuzz)
 #   valgrind  valgrind (make valgrind)
+#   nginx     nginx (make test-scale: tests/scale/nginx.sh)
 set -eu
 PKGS="build-essential cmake pkg-config libembree-dev libopenexr-dev openexr
 libopenvdb-dev libboost-dev libboost-iostreams-dev libopenvdb-tools python3-openvdb
@@ -14,7 +15,8 @@ for group in "$@"; do
   case "$group" in
     fuzz) PKGS="$PKGS clang-14 libclang-rt-14-dev" ;;
     valgrind) PKGS="$PKGS valgrind" ;;
-    *) echo "install-deps: unknown group '$group' (known: fuzz, valgrind)" >&2; exit 2 ;;
+    nginx) PKGS="$PKGS nginx" ;;
+    *) echo "install-deps: unknown group '$group' (known: fuzz, valgrind, nginx)" >&2; exit 2 ;;
   esac
 done
 missing=""

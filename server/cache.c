@@ -374,13 +374,17 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   *how = GS_CACHE_MISS;
   if (c->metrics) gs_metrics_cache(c->metrics, GS_CACHE_MISS);
 
-  /* Bake at the requested point: any point with the same anchor gives the
-   * same cascade, and this one is in the request's own report. */
+  /* Bake at the anchor cell's centre: any point with the same anchor gives
+   * the same cascade, and the centre makes the metadata the cascade keeps
+   * (its VDB's viewpoint) the same whichever request baked it first, so a
+   * cell's answer is the same bytes on every replica. */
+  double centre[3];
+  if (gi_cascade_cell_centre(s->scene, anchor, q, centre, NULL) != GI_OK) memcpy(centre, at, sizeof centre);
   double t0 = gs_now_ms();
   gi_cascade *cas = NULL;
   gi_error_info e_err = {0};
   if (c->metrics) gs_metrics_bake_begin(c->metrics);
-  rc = gi_cascade_bake_ex(s->scene, at, req, token, &cas, NULL, &e_err);
+  rc = gi_cascade_bake_ex(s->scene, centre, req, token, &cas, NULL, &e_err);
   if (c->metrics) gs_metrics_bake_end(c->metrics, rc == GI_ERR_CANCELLED);
   if (c->metrics && rc == GI_OK) gs_metrics_bake(c->metrics, (gs_now_ms() - t0) * 1e-3);
   bake_done(c, e, w, rc, cas, &e_err);

@@ -46,6 +46,13 @@ int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t err
       gs_catalog_free(cat);
       return -1;
     }
+    /* Read after the load: the version names what was loaded (a file
+     * replaced meanwhile gives a version the next start will change). */
+    if (gs_scene_version(sc, &s->version, err, errsize) != 0) {
+      gi_scene_release(s->scene);
+      gs_catalog_free(cat);
+      return -1;
+    }
     snprintf(s->id, sizeof s->id, "%s", sc->id);
     s->load_ms = gs_now_ms() - t0;
     if (gi_effect_plan(s->scene, s->default_at, NULL, s->effects, &s->quality, &e) != GI_OK) {

@@ -59,8 +59,18 @@
 /* What libmicrohttpd's parser takes from the connection's memory per query
  * parameter (its header record, rounded up). */
 #define GS_PARAM_COST 64
+/* A number macro as a string literal. */
+#define GS_STR_(x) #x
+#define GS_STR(x) GS_STR_(x)
 /* How often the reaper looks at deadlines. */
 #define GS_REAPER_PERIOD_MS 50
+
+typedef struct {
+  gi_proto_kv kv[GS_MAX_PARAMS];
+  size_t n;
+  int overflow;
+  const char *nul_key;  /* a value with a NUL byte in it */
+} query;
 
 typedef struct gs_req {
   gs_http *h;
@@ -70,6 +80,12 @@ typedef struct gs_req {
   char method[8];
   char path[160];
   char id[64];              /* the scene or job id the route named */
+  int cell_url;             /* /v1/scenes/{id}/cells/{i},{j},{k}/...: cell names the cascade */
+  int64_t cell[3];
+  /* A cell answer's headers, sent with a 200 or 304 (canonical.c). */
+  char etag[24];
+  const char *cache_control;
+  char content_location[768];
   double t_start, deadline;
   char *body;
   size_t len, cap;
@@ -133,6 +149,16 @@ static void answer_json(gs_answer *a, int status, json_t *o) {
   }
 }
 
+static void answer_fail(gs_answer *a, int status, const char *fmt, const char *arg);
+
+static void answer_json_precise(gs_answer *a, int status, json_t *o) {
+  a->status = status;
+  a->json = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
+  json_decref(o);
+  a->content_type = "application/json";
+  if (!a->json) answer_fail(a, 500, "%s", "could not encode the answer");
+}
+
 static void answer_fail(gs_answer *a, int status, const char *fmt, const char *arg) {
   gi_proto_error e;
   gi_proto_fail(&e, status, fmt, arg);
@@ -154,8 +180,14 @@ static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
     resp = MHD_create_response_from_buffer(strlen(body), (void *)body, MHD_RESPMEM_MUST_COPY);
   }
   if (!resp) return MHD_NO;
-  MHD_add_response_header(resp, "Content-Type", a->content_type ? a->content_type : "application/json");
-  MHD_add_response_header(resp, "Cache-Control", "no-store");
+  if (a->status != 304)
+    MHD_add_response_header(resp, "Content-Type", a->content_type ? a->content_type : "application/json");
+  /* Only a cell's answer is cacheable, never an error or a busy 503. */
+  int cell_ok = r->etag[0] && (a->status == 200 || a->status == 304);
+  const char *cc = cell_ok ? r->cache_control : a->cache_control;
+  MHD_add_response_header(resp, "Cache-Control", cc ? cc : "no-store");
+  if (cell_ok) MHD_add_response_header(resp, "ETag", r->etag);
+  if (cell_ok && r->content_location[0]) MHD_add_response_header(resp, "Content-Location", r->content_location);
   if (!a->server_timing[0])
     snprintf(a->server_timing, sizeof a->server_timing, "total;dur=%.2f", gs_now_ms() - r->t_start);
   MHD_add_response_header(resp, "Server-Timing", a->server_timing);
@@ -464,7 +496,19 @@ static json_t *bounds_json(const gi_scene *s) {
   return json_pack("{s:o, s:o}", "min", vec3(lo), "max", vec3(hi));
 }
 
-static void scene_info(const gs_scene *s, gs_answer *a) {
+/* GET /v1/scenes/{id}: the scene, its default plan and the grid for the
+ * quality knobs in the query (the default quality without any). */
+static void scene_info(gs_service *svc, const gs_scene *s, const query *qy, gs_answer *a) {
+  gi_proto_bake b;
+  gi_proto_error pe;
+  gs_canon canon;
+  gi_error_info e = {0};
+  if (gi_proto_parse_scene(qy->kv, qy->n, &svc->cfg->lim, &b, &pe)) return gs_answer_error(a, &pe);
+  gi_result rc = gs_canon_quality(svc, s, &b.quality, &canon, &e);
+  if (rc != GI_OK) {
+    gi_proto_fail(&pe, 400, "%s", e.msg);
+    return gs_answer_error(a, &pe);
+  }
   gi_scene_stats st;
   gi_scene_get_stats(s->scene, &st);
   json_t *lights = json_array();
@@ -495,7 +539,9 @@ static void scene_info(const gs_scene *s, gs_answer *a) {
                         (int)st.emissive_triangles, "lights", lights, "bounds", bounds_json(s->scene),
                         "default_viewpoint", vec3(s->default_at), "quality", qj, "effects", fx, "load_ms",
                         s->load_ms);
-  answer_json(a, 200, o);
+  json_object_set_new(o, "grid", gs_canon_grid_json(s, &canon));
+  /* Full precision: a client snaps with origin and cell_size bit for bit. */
+  answer_json_precise(a, 200, o);
 }
 
 static void catalog(gs_service *svc, gs_answer *a) {
@@ -553,6 +599,24 @@ static int valid_id(const char *s, size_t n) {
   return 1;
 }
 
+/* "/cells/{i},{j},{k}/lighting" or ".../cascades.vdb": 1 when it matches. */
+static int route_cell(gs_req *r, const char *tail) {
+  if (strncmp(tail, "/cells/", 7)) return 0;
+  const char *seg = tail + 7, *end = strchr(seg, '/');
+  char buf[64];
+  long long c[3];
+  if (!end || (size_t)(end - seg) >= sizeof buf) return 0;
+  memcpy(buf, seg, (size_t)(end - seg));
+  buf[end - seg] = 0;
+  if (gi_proto_parse_cell(buf, c)) return 0;
+  if (!strcmp(end, "/lighting")) r->ep = GS_EP_LIGHTING;
+  else if (!strcmp(end, "/cascades.vdb")) r->ep = GS_EP_CASCADES;
+  else return 0;
+  r->cell_url = 1;
+  for (int a = 0; a < 3; a++) r->cell[a] = c[a];
+  return 1;
+}
+
 /* Splits the path into an endpoint and its id; 0 when no route matches. */
 static int route(gs_req *r, const char *url, char *id, size_t idsize) {
   if (!strcmp(url, "/v1/health")) return r->ep = GS_EP_HEALTH, 1;
@@ -574,7 +638,7 @@ static int route(gs_req *r, const char *url, char *id, size_t idsize) {
     else if (!strcmp(tail, "/cascades.vdb")) r->ep = GS_EP_CASCADES;
     else if (!strcmp(tail, "/probes")) r->ep = GS_EP_PROBES;
     else if (!strcmp(tail, "/lightmap-uv.glb")) r->ep = GS_EP_LIGHTMAP_UV;
-    else return 0;
+    else return route_cell(r, tail);
   } else {
     if (!*tail) r->ep = GS_EP_JOB;
     else if (!strcmp(tail, "/result")) r->ep = GS_EP_JOB_RESULT;
@@ -667,13 +731,6 @@ static int check_headers(gs_http *h, gs_req *r, const char *url) {
   return check_framing(h, r, a);
 }
 
-typedef struct {
-  gi_proto_kv kv[GS_MAX_PARAMS];
-  size_t n;
-  int overflow;
-  const char *nul_key;  /* a value with a NUL byte in it */
-} query;
-
 static enum MHD_Result collect(void *cls, enum MHD_ValueKind kind, const char *key, size_t key_size,
                                const char *value, size_t value_size) {
   query *q = cls;
@@ -707,11 +764,11 @@ static int read_query(gs_req *r, query *q, gs_answer *a) {
 
 static void cheap_endpoint(gs_service *svc, gs_req *r, const query *q, gs_answer *a) {
   gi_proto_error pe;
-  if (gi_proto_parse_none(q->kv, q->n, &pe)) gs_answer_error(a, &pe);
+  if (r->ep == GS_EP_SCENE) scene_info(svc, r->scene, q, a);
+  else if (gi_proto_parse_none(q->kv, q->n, &pe)) gs_answer_error(a, &pe);
   else if (r->ep == GS_EP_HEALTH) health(svc, a);
   else if (r->ep == GS_EP_SCENES) catalog(svc, a);
   else if (r->ep == GS_EP_METRICS) metrics(svc, a);
-  else if (r->ep == GS_EP_SCENE) scene_info(r->scene, a);
   else if (r->ep == GS_EP_JOB && !strcmp(r->method, "DELETE")) gs_jobs_cancel(svc->jobs, r->id, a);
   else if (r->ep == GS_EP_JOB) gs_jobs_status(svc->jobs, r->id, a);
   else gs_jobs_result(svc->jobs, r->id, a);
@@ -734,6 +791,71 @@ static int check_near(const gs_scene *s, const double *pts, size_t n, const char
   return 0;
 }
 
+/* A core error before any bake (quality, cell): its status and message. */
+static enum MHD_Result fail_early(gs_http *h, gs_req *r, gi_result rc, const gi_error_info *e) {
+  gi_proto_error pe;
+  gi_proto_fail(&pe, gs_status_of(rc) == 500 ? 400 : gs_status_of(rc), "%s", e->msg[0] ? e->msg : gi_strerror(rc));
+  gs_answer_error(&r->ans, &pe);
+  return send_answer(h, r);
+}
+
+/* A 307 to url, with a short JSON body naming it. */
+static enum MHD_Result redirect(gs_http *h, gs_req *r, const char *url, const char *cache_control) {
+  answer_json(&r->ans, 307, json_pack("{s:s}", "location", url));
+  snprintf(r->ans.location, sizeof r->ans.location, "%s", url);
+  r->ans.cache_control = cache_control;
+  return send_answer(h, r);
+}
+
+/* Lighting and cascades (canonical.c): a viewpoint URL redirects to its
+ * cell's URL (or, with redirect=0, is answered as it); a cell URL with a
+ * stale q redirects to the current one; a cell answer is immutable, with
+ * a strong ETag, and If-None-Match naming it is a 304 without any work. */
+static enum MHD_Result lighting(gs_http *h, gs_req *r, const query *q) {
+  gs_service *svc = h->svc;
+  const gi_proto_limits *lim = &svc->cfg->lim;
+  gi_proto_error pe;
+  int light = r->ep == GS_EP_LIGHTING, st;
+  if (r->cell_url) st = light ? gi_proto_parse_cell_lighting(q->kv, q->n, lim, &r->bake, &pe)
+                              : gi_proto_parse_cell_cascades(q->kv, q->n, lim, &r->bake, &pe);
+  else st = light ? gi_proto_parse_lighting(q->kv, q->n, lim, &r->bake, &pe)
+                  : gi_proto_parse_cascades(q->kv, q->n, lim, &r->bake, &pe);
+  if (st || (!r->cell_url && check_near(r->scene, r->bake.at, 1, "parameter 'at'", &pe))) {
+    gs_answer_error(&r->ans, &pe);
+    return send_answer(h, r);
+  }
+  /* Lightmaps are answered at the viewpoint, uncached, until they get cell
+   * URLs too (the hook: canonical.c's header comment). */
+  if (!r->cell_url && r->bake.kind == GI_PROTO_LIGHTMAP) return dispatch(h, r);
+  gs_canon c;
+  gi_error_info e = {0};
+  gi_result rc = gs_canon_quality(svc, r->scene, &r->bake.quality, &c, &e);
+  if (rc != GI_OK) return fail_early(h, r, rc, &e);
+  char url[sizeof r->content_location];
+  if (!r->cell_url && (rc = gi_cascade_anchor(r->scene->scene, r->bake.at, &c.resolved, r->cell, &e)) != GI_OK)
+    return fail_early(h, r, rc, &e);
+  gs_canon_url(r->scene, &c, r->cell, r->ep, &r->bake, url, sizeof url);
+  if (!r->cell_url && r->bake.redirect) return redirect(h, r, url, "public, max-age=" GS_STR(GS_REDIRECT_MAX_AGE_S));
+  /* Stale (another scene version or build) or forged: the current URL, never cached. */
+  if (r->cell_url && strcmp(r->bake.q, c.q)) return redirect(h, r, url, NULL);
+  if ((rc = gi_cascade_cell_centre(r->scene->scene, r->cell, &c.resolved, r->bake.at, &e)) != GI_OK)
+    return fail_early(h, r, rc, &e);
+  if (check_near(r->scene, r->bake.at, 1, "cell", &pe)) {
+    gs_answer_error(&r->ans, &pe);
+    return send_answer(h, r);
+  }
+  r->bake.cell = 1;
+  gs_canon_etag(&c, r->cell, r->ep, &r->bake, r->etag, sizeof r->etag);
+  /* A viewpoint URL's answer changes with the scene's version: revalidate it. */
+  r->cache_control = r->cell_url ? "public, max-age=" GS_STR(GS_CELL_MAX_AGE_S) ", immutable" : "no-cache";
+  if (!r->cell_url) snprintf(r->content_location, sizeof r->content_location, "%s", url);
+  if (gs_etag_matches(MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "If-None-Match"), r->etag)) {
+    r->ans.status = 304;
+    return send_answer(h, r);
+  }
+  return dispatch(h, r);
+}
+
 /* The whole request has arrived: validate and answer, or dispatch. */
 static enum MHD_Result handle(gs_http *h, gs_req *r) {
   gs_service *svc = h->svc;
@@ -751,12 +873,10 @@ static enum MHD_Result handle(gs_http *h, gs_req *r) {
   }
   switch (r->ep) {
   case GS_EP_LIGHTING:
-  case GS_EP_LIGHTMAP_UV:
-  case GS_EP_CASCADES: {
-    int st = r->ep == GS_EP_LIGHTING       ? gi_proto_parse_lighting(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe)
-             : r->ep == GS_EP_LIGHTMAP_UV ? gi_proto_parse_lightmap_uv(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe)
-                                          : gi_proto_parse_cascades(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe);
-    if (st || check_near(r->scene, r->bake.at, 1, "parameter 'at'", &pe)) {
+  case GS_EP_CASCADES: return lighting(h, r, &q);
+  case GS_EP_LIGHTMAP_UV: {
+    if (gi_proto_parse_lightmap_uv(q.kv, q.n, &svc->cfg->lim, &r->bake, &pe) ||
+        check_near(r->scene, r->bake.at, 1, "parameter 'at'", &pe)) {
       gs_answer_error(a, &pe);
       return send_answer(h, r);
     }

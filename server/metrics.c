@@ -14,7 +14,7 @@
 static const char *const ep_names[GS_EP_COUNT] = {"health", "scenes", "scene",      "lighting", "cascades",
                                                   "probes", "job",    "job_result", "metrics",  "lightmap_uv",
                                                   "other"};
-static const int codes[] = {200, 202, 400, 401, 404, 405, 409, 413, 500, 501, 503, 504};
+static const int codes[] = {200, 202, 304, 307, 400, 401, 404, 405, 409, 413, 500, 501, 503, 504};
 #define NCODES (sizeof codes / sizeof codes[0])
 static const double buckets[] = {0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
 #define NB (sizeof buckets / sizeof buckets[0])

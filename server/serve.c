@@ -5,8 +5,8 @@
  * unlinked at once, so nothing stays on disk and no descriptor stays open
  * whatever the client does. A cascade's VDB is kept with it in the cache
  * (counted in the budget): a second request for the same cell streams the
- * same bytes without encoding. EXR answers are not kept: each holds its
- * own viewpoint and timings.
+ * same bytes without encoding. EXR answers are not kept (a cell's answer
+ * is cached in front, by nginx: canonical.c).
  *
  * Probe lists are split into tiles: the points a single cascade answers
  * from its finest level. Each tile's cascade is anchored at the tile's
@@ -139,6 +139,11 @@ static gi_result cascade_vdb(gs_service *svc, gs_entry *ent, int faces, gs_answe
       return rc;
     }
     if (!(b = gs_blob_take_file(path, e))) return GI_ERR_IO;
+    if (gs_vdb_stable_uuid(b) != 0) {
+      gs_blob_release(b);
+      snprintf(e->msg, sizeof e->msg, "encode: the VDB writer's header is not the expected one");
+      return GI_ERR_IO;
+    }
     b = gs_cache_store_encoded(svc->cache, ent, kind, b);
   }
   a->status = 200;
@@ -168,6 +173,11 @@ static void finish_headers(gs_answer *a, const gi_bake_report *rep, const gi_tim
   gi_proto_effects_header(rep->effects, a->effects, sizeof a->effects);
   a->cache = cache_names[how];
 }
+
+/* A cell's answer is the same bytes whoever asks and whenever (its ETag
+ * says so): its EXR carries no timings or cache outcome, which stay in
+ * the headers. A viewpoint's own answer (POST probes) keeps them. */
+static size_t answer_extras(const gi_proto_bake *b) { return b->cell ? 0 : 2; }
 
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
                    gs_waiter *w, gs_answer *a) {
@@ -209,7 +219,8 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
       gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}};
       gs_tmp_path(svc, ".exr", path, sizeof path);
       t0 = gs_now_ms();
-      rc = gi_panorama_write_exr(path, b->width, b->height, dir, ind, s->scene, b->at, rep, b->half, extra, 2, &e);
+      rc = gi_panorama_write_exr(path, b->width, b->height, dir, ind, s->scene, b->at, rep, b->half, extra,
+                                 answer_extras(b), &e);
       ms.encode = gs_now_ms() - t0;
       if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", &e);
     }
@@ -224,7 +235,7 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
       gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}};
       gs_tmp_path(svc, ".exr", path, sizeof path);
       t0 = gs_now_ms();
-      rc = gi_probes_write_exr_ex(path, &pr, 1, s->scene, b->at, rep, b->half, extra, 2, &e);
+      rc = gi_probes_write_exr_ex(path, &pr, 1, s->scene, b->at, rep, b->half, extra, answer_extras(b), &e);
       ms.encode = gs_now_ms() - t0;
       if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", &e);
     }

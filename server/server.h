@@ -72,6 +72,7 @@ typedef struct gs_scene {
   gi_quality quality;              /* the default quality resolved at default_at, with the plan's bounces */
   gi_effect effects[GI_FX_COUNT];  /* the default plan at default_at, for GET /v1/scenes/{id} */
   double load_ms;
+  uint64_t version;                /* hash of what the scene was built from (canonical.c) */
 } gs_scene;
 
 typedef struct gs_catalog {
@@ -237,6 +238,42 @@ int gs_status_of(gi_result rc);
 /* Milliseconds on the monotonic clock. */
 double gs_now_ms(void);
 
+/* ---- canonical.c: cell-addressed, cacheable URLs ---------------------- */
+
+/* max-age of a cell URL's answer: it never changes (immutable). */
+#define GS_CELL_MAX_AGE_S 31536000
+/* max-age of a viewpoint URL's 307: a stale one leads to a stale q, which
+ * redirects again, so a short life is safe. */
+#define GS_REDIRECT_MAX_AGE_S 60
+
+typedef struct gs_canon {
+  gi_quality req;        /* as the core takes it (zero = auto, the server's threads) */
+  gi_quality resolved;   /* gi_quality_resolve of req */
+  char knobs[384];       /* the request's quality knobs in canonical form: "levels=3&res=16" */
+  char q[GI_PROTO_QHASH_LEN + 1];
+} gs_canon;
+uint64_t gs_hash_bytes(uint64_t h, const void *data, size_t n);
+/* The scene's version: a hash of its file's bytes (or the city's parameters). */
+int gs_scene_version(const gs_scene_conf *sc, uint64_t *out, char *err, size_t errsize);
+/* Resolves a request's quality and its canonical knobs and q hash. */
+gi_result gs_canon_quality(const gs_service *svc, const gs_scene *s, const gi_quality *in, gs_canon *out,
+                           gi_error_info *err);
+/* The cell URL of a lighting (ep GS_EP_LIGHTING) or cascades answer. */
+void gs_canon_url(const gs_scene *s, const gs_canon *c, const int64_t cell[3], gs_endpoint ep,
+                  const gi_proto_bake *b, char *buf, size_t size);
+/* The strong ETag (quoted) of a cell answer. */
+void gs_canon_etag(const gs_canon *c, const int64_t cell[3], gs_endpoint ep, const gi_proto_bake *b, char *out,
+                   size_t size);
+/* OpenVDB writes a random UUID into every file: replaces it with one
+ * derived from the other bytes, so equal cascades encode to equal bytes on
+ * every replica. -1 (b unchanged) when b is not shaped as expected. */
+int gs_vdb_stable_uuid(gs_blob *b);
+/* Whether an If-None-Match value names etag (or is "*"). */
+int gs_etag_matches(const char *if_none_match, const char *etag);
+/* The grid a client snaps viewpoints to, and the URL templates, for GET /v1/scenes/{id}. */
+#include <jansson.h>
+json_t *gs_canon_grid_json(const gs_scene *s, const gs_canon *c);
+
 /* ---- bake.c (server side): turning a request into a file --------------- */
 
 /* An encoded answer: bytes in memory or an open file (unlinked), and its headers. */
@@ -251,7 +288,8 @@ typedef struct gs_answer {
   char server_timing[320];
   char effects[200];
   const char *cache;      /* "hit", "miss", "coalesced" or NULL */
-  char location[128];
+  char location[768];
+  const char *cache_control; /* a 307's; NULL: no-store (a cell answer's come from its request) */
   int retry_after_s;      /* Retry-After for a 503 or 504 (0: 1 s) */
 } gs_answer;
 

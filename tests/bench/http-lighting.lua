@@ -1,4 +1,5 @@
 -- http-lighting.lua: wrk script for tests/bench/http-bench.sh.
+-- redirect=0: the server answers the viewpoint at once (no 307 to its cell URL), as before issue 14.
 -- wrk ... -s http-lighting.lua URL -- MODE PATH X Y Z SPREAD [TOKEN]
 --   MODE fixed: every request asks for the same viewpoint (a warm cache);
 --   MODE vary:  each request moves the viewpoint to a pseudo-random point
@@ -19,14 +20,14 @@ function init(args)
   if args[7] and args[7] ~= "" then wrk.headers["Authorization"] = "Bearer " .. args[7] end
   math.randomseed(1000 + id) -- deterministic, but different per thread
   hits, misses, coalesced, other, non200 = 0, 0, 0, 0, 0
-  fixed = wrk.format("GET", string.format("%s?at=%.6f,%.6f,%.6f", path, x, y, z))
+  fixed = wrk.format("GET", string.format("%s?redirect=0&at=%.6f,%.6f,%.6f", path, x, y, z))
 end
 
 function request()
   if mode == "fixed" then return fixed end
   local dx = (math.random() * 2 - 1) * spread
   local dz = (math.random() * 2 - 1) * spread
-  return wrk.format("GET", string.format("%s?at=%.6f,%.6f,%.6f", path, x + dx, y, z + dz))
+  return wrk.format("GET", string.format("%s?redirect=0&at=%.6f,%.6f,%.6f", path, x + dx, y, z + dz))
 end
 
 function response(status, headers, body)

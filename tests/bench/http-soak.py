@@ -122,8 +122,8 @@ class Soak:
     def client(self, seed):
         rng = random.Random(seed)
         kinds = [k for k, w in MIX for _ in range(w)]
-        lpath = self.base + "/v1/scenes/%s/lighting?at=" % self.scene
-        vpath = self.base + "/v1/scenes/%s/cascades.vdb?at=" % self.scene
+        lpath = self.base + "/v1/scenes/%s/lighting?redirect=0&at=" % self.scene
+        vpath = self.base + "/v1/scenes/%s/cascades.vdb?redirect=0&at=" % self.scene
         while not self.stop.is_set():
             kind = rng.choice(kinds)
             if kind == "hit":

@@ -38,6 +38,18 @@ C -q cascades city --at 0,1.5,0 --faces --set levels=4 -o "$T/c.vdb"; rc=$?; che
 [ "$(cat "$T/c.vdb")" = "/v1/scenes/city/cascades.vdb?at=0,1.5,0&faces=1&levels=4" ] || fail "cascades sent $(cat "$T/c.vdb")"
 [ -s "$T/err" ] && fail "-q still printed: $(cat "$T/err")"
 
+# A server that publishes its grid: the client asks the cell URL itself
+# (x: (3 - 0.5) / 2.5 = 1, y: 0, z: (-3 + 0.25) / 2.5 = -1.1 -> -2), in the
+# server's parameter order; the scene request carried the quality knobs.
+G=/v1/scenes/grid/cells/1,0,-2
+C -q lighting grid --at 3,1,-3 --set levels=3 --set res=16 -o "$T/g.exr"; rc=$?; check "lighting by cell" 0
+[ "$(cat "$T/g.exr")" = "$G/lighting?q=0123456789abcdef&kind=probe&levels=3&res=16" ] || fail "cell URL $(cat "$T/g.exr")"
+C -q lighting grid --at 3,1,-3 --kind panorama --set half=1 --set height=8 -o "$T/g.exr"; rc=$?; check "panorama by cell" 0
+[ "$(cat "$T/g.exr")" = "$G/lighting?q=0123456789abcdef&kind=panorama&levels=3&res=16&half=1&width=256&height=8" ] ||
+  fail "panorama cell URL $(cat "$T/g.exr")"
+C -q cascades grid --at 3,1,-3 --faces -o "$T/g.vdb"; rc=$?; check "cascades by cell" 0
+[ "$(cat "$T/g.vdb")" = "$G/cascades.vdb?q=0123456789abcdef&levels=3&res=16&faces=1" ] || fail "vdb cell URL $(cat "$T/g.vdb")"
+
 # Errors: the JSON error line, exit 1, the old output untouched, no temp file.
 echo old > "$T/keep.exr"
 C lighting nope --at 0,0,0 -o "$T/keep.exr"; rc=$?; check "404" 1

@@ -47,6 +47,16 @@ class H(BaseHTTPRequestHandler):
                                                "bounds": {"min": [-300, 0, -300], "max": [300, 80, 300]}}]})
         if path == "/v1/scenes/city":
             return self.send(200, {"id": "city", "up": "y", "triangles": 12, "default_viewpoint": [12.5, 1.7, -3]})
+        if path == "/v1/scenes/grid":
+            # A scene that publishes its cell grid (issue 14); q and query as if for levels=3&res=16.
+            q = "0123456789abcdef&kind=probe&levels=3&res=16"
+            return self.send(200, {"id": "grid", "grid": {
+                "origin": [0.5, 0, -0.25], "voxel": 1.25, "cell_size": 2.5, "q": "0123456789abcdef",
+                "query": "levels=3&res=16", "asked": p,
+                "lighting": "/v1/scenes/grid/cells/{i},{j},{k}/lighting?q=" + q,
+                "cascades": "/v1/scenes/grid/cells/{i},{j},{k}/cascades.vdb?q=0123456789abcdef&levels=3&res=16"}})
+        if path.startswith("/v1/scenes/grid/cells/"):
+            return self.send(200, p, "image/x-exr", gi)
         if path == "/metrics":
             return self.send(200, "gi_bakes_total 3\n", "text/plain; version=0.0.4")
         if path in ("/v1/scenes/city/lighting", "/v1/scenes/secret/lighting", "/v1/scenes/city/cascades.vdb"):

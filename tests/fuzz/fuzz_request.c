@@ -56,6 +56,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
       if (!b.has_at) abort(); /* 'at' is required */
       check_bake(&b, &lim);
     }
+    /* The same query on a cell URL (issue 14): 'q' required, no 'at'. */
+    st = mode == 0 ? gi_proto_parse_cell_lighting(kv, n, &lim, &b, &e) : gi_proto_parse_cell_cascades(kv, n, &lim, &b, &e);
+    check_error(st, &e);
+    if (st == 0) {
+      if (b.has_at || !b.cell || strlen(b.q) != GI_PROTO_QHASH_LEN) abort();
+      check_bake(&b, &lim);
+    }
+    long long cell[3];
+    if (n && gi_proto_parse_cell(kv[0].key, cell) == 0 && strlen(kv[0].key) > 3 * 19 + 2) abort();
   } else if (mode == 2) {
     gi_proto_probes p;
     int st = gi_proto_parse_probes(s, size - 1, &lim, &p, &e);

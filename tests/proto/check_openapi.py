@@ -31,19 +31,29 @@ LIGHTMAP = {"region", "texel", "atlas"}
 CONTRACT = {
     "/v1/health": {"get": ({200}, {405, 500}, set())},
     "/v1/scenes": {"get": ({200}, {401, 405, 500}, set())},
-    "/v1/scenes/{id}": {"get": ({200}, {401, 404, 405, 500}, set())},
-    "/v1/scenes/{id}/lighting": {"get": ({200}, {400, 401, 404, 405, 413, 500, 503, 504},
-                                         {"at", "kind", "half", "width", "height"} | BAKE_Q | LIGHTMAP)},
+    "/v1/scenes/{id}": {"get": ({200}, {400, 401, 404, 405, 500}, BAKE_Q)},
+    "/v1/scenes/{id}/lighting": {"get": ({200, 304, 307}, {400, 401, 404, 405, 413, 500, 503, 504},
+                                         {"at", "kind", "half", "width", "height", "redirect"} | BAKE_Q | LIGHTMAP)},
     "/v1/scenes/{id}/lightmap-uv.glb": {"get": ({200}, {400, 401, 404, 405, 413, 500, 503, 504},
                                                 {"at"} | BAKE_Q | LIGHTMAP)},
-    "/v1/scenes/{id}/cascades.vdb": {"get": ({200}, {400, 401, 404, 405, 500, 503, 504}, {"at", "faces"} | BAKE_Q)},
+    "/v1/scenes/{id}/cascades.vdb": {"get": ({200, 304, 307}, {400, 401, 404, 405, 500, 503, 504},
+                                             {"at", "faces", "redirect"} | BAKE_Q)},
+    # Cell-addressed answers (issue 14): immutable, ETag, 304; 307 for a stale q; kind=lightmap 501 there.
+    "/v1/scenes/{id}/cells/{cell}/lighting": {"get": ({200, 304, 307}, {400, 401, 404, 405, 500, 501, 503, 504},
+                                                      {"q", "kind", "half", "width", "height"} | BAKE_Q)},
+    "/v1/scenes/{id}/cells/{cell}/cascades.vdb": {"get": ({200, 304, 307}, {400, 401, 404, 405, 500, 503, 504},
+                                                          {"q", "faces"} | BAKE_Q)},
     "/v1/scenes/{id}/probes": {"post": ({200, 202}, {400, 401, 404, 405, 413, 500, 503, 504}, set())},
     "/v1/jobs/{id}": {"get": ({200}, {401, 404, 405, 500}, set()),
                       "delete": ({200, 202}, {401, 404, 405, 409, 500}, set())},
     "/v1/jobs/{id}/result": {"get": ({200}, {401, 404, 405, 409, 500}, set())},
     "/metrics": {"get": ({200}, {401, 405, 500}, set())},
 }
-CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/lightmap-uv.glb": "model/gltf-binary", "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
+CELL_PATHS = {"/v1/scenes/{id}/cells/{cell}/lighting", "/v1/scenes/{id}/cells/{cell}/cascades.vdb"}
+CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/lightmap-uv.glb": "model/gltf-binary",
+               "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
+               "/v1/scenes/{id}/cells/{cell}/lighting": "image/x-exr",
+               "/v1/scenes/{id}/cells/{cell}/cascades.vdb": "application/octet-stream",
                "/v1/scenes/{id}/probes": "image/x-exr", "/v1/jobs/{id}/result": "image/x-exr",
                "/metrics": "text/plain; version=0.0.4"}
 ERR_HEADERS = {401: "WWW-Authenticate", 405: "Allow", 503: "Retry-After", 504: "Retry-After"}
@@ -125,11 +135,18 @@ def check(doc):
                     want = CONTENT_200.get(path, "application/json")
                     if set(r.get("content", {})) != {want}:
                         p.append("%s 200: content %s, expected %s" % (w, sorted(r.get("content", {})), want))
-                    if path in ("/v1/scenes/{id}/lighting", "/v1/scenes/{id}/cascades.vdb", "/v1/scenes/{id}/probes") \
-                            and not BAKE_HEADERS <= hdrs:
+                    if (path in ("/v1/scenes/{id}/lighting", "/v1/scenes/{id}/cascades.vdb", "/v1/scenes/{id}/probes")
+                            or path in CELL_PATHS) and not BAKE_HEADERS <= hdrs:
                         p.append("%s 200: headers %s lack %s" % (w, sorted(hdrs), sorted(BAKE_HEADERS - hdrs)))
                     if path.endswith("cascades.vdb") and "Content-Disposition" not in hdrs:
                         p.append("%s 200: no Content-Disposition" % w)
+                    if (path in CELL_PATHS or path.endswith(("/lighting", "/cascades.vdb"))) \
+                            and not {"ETag", "Cache-Control"} <= hdrs:
+                        p.append("%s 200: no ETag or Cache-Control" % w)
+                elif c == 307 and "Location" not in hdrs:
+                    p.append("%s 307: no Location header" % w)
+                elif c == 304 and "ETag" not in hdrs:
+                    p.append("%s 304: no ETag header" % w)
                 elif c == 202 and m == "post" and "Location" not in hdrs:
                     p.append("%s 202: no Location header" % w)
             params = [resolve(doc, x, p, w) for x in op.get("parameters", [])]
@@ -162,7 +179,9 @@ def query_sets_from_c(path):
     table = re.findall(r'\{"(\w+)",\s*(P_\w+)\}', src)
     out = {}
     for fn, path_key in (("lighting", "/v1/scenes/{id}/lighting"), ("cascades", "/v1/scenes/{id}/cascades.vdb"),
-                         ("lightmap_uv", "/v1/scenes/{id}/lightmap-uv.glb")):
+                         ("lightmap_uv", "/v1/scenes/{id}/lightmap-uv.glb"),
+                         ("cell_lighting", "/v1/scenes/{id}/cells/{cell}/lighting"),
+                         ("cell_cascades", "/v1/scenes/{id}/cells/{cell}/cascades.vdb"), ("scene", "/v1/scenes/{id}")):
         m = re.search(r"gi_proto_parse_%s\([^)]*\)\s*\{.*?parse_query\([^,]+,[^,]+,\s*([A-Z_| ]+)," % fn, src, re.S)
         if not m or not table:
             return None
@@ -196,6 +215,9 @@ def main():
         ("probe_samples", lambda d: d["paths"]["/v1/scenes/{id}/lighting"]["get"]["parameters"].remove(
             {"$ref": "#/components/parameters/ProbeSamples"})),
         ("jobs path", lambda d: d["paths"].pop("/v1/jobs/{id}")),
+        ("cell ETag", lambda d: d["paths"]["/v1/scenes/{id}/cells/{cell}/lighting"]["get"]["responses"]["200"][
+            "headers"].pop("ETag")),
+        ("cell 304", lambda d: d["paths"]["/v1/scenes/{id}/cells/{cell}/cascades.vdb"]["get"]["responses"].pop("304")),
         ("job cancel", lambda d: d["paths"]["/v1/jobs/{id}"].pop("delete")),
     ]:
         broken = copy.deepcopy(doc)

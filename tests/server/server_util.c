@@ -111,6 +111,8 @@ static size_t on_body(char *p, size_t sz, size_t n, void *u) {
 static size_t on_header(char *p, size_t sz, size_t n, void *u) {
   su_resp *r = u;
   size_t k = sz * n;
+  /* A followed redirect: keep the final answer's headers only. */
+  if (k >= 5 && !memcmp(p, "HTTP/", 5)) r->hlen = 0;
   if (r->hlen + k < sizeof r->headers) {
     memcpy(r->headers + r->hlen, p, k);
     r->hlen += k;
@@ -118,6 +120,8 @@ static size_t on_header(char *p, size_t sz, size_t n, void *u) {
   }
   return k;
 }
+
+int su_follow_redirects = 1;
 
 CURL *su_make_req(const su_server *s, const char *method, const char *path, const char *body, const char *token,
                   su_resp *r, struct curl_slist **hdrs) {
@@ -130,6 +134,8 @@ CURL *su_make_req(const su_server *s, const char *method, const char *path, cons
   curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, on_header);
   curl_easy_setopt(c, CURLOPT_HEADERDATA, r);
   curl_easy_setopt(c, CURLOPT_TIMEOUT, 120L);
+  /* Viewpoint URLs answer 307 to their cell's URL (issue 14). */
+  curl_easy_setopt(c, CURLOPT_FOLLOWLOCATION, (long)su_follow_redirects);
   *hdrs = NULL;
   if (token) {
     char h[256];

@@ -37,6 +37,9 @@ int su_start(su_server *s, const char *name, const char *ini);
 int su_signal_wait(su_server *s, int sig, int wait_ms, double *ms);
 /* SIGTERM and the exit status (0 = clean shutdown). */
 int su_stop(su_server *s);
+/* Whether requests follow redirects (default 1: a viewpoint URL's 307 to
+ * its cell URL is followed, and r holds the final answer's headers). */
+extern int su_follow_redirects;
 /* An easy handle for one request into r (for curl_multi); *hdrs is the
  * caller's to free with curl_slist_free_all after the transfer. */
 CURL *su_make_req(const su_server *s, const char *method, const char *path, const char *body, const char *token,

@@ -139,7 +139,10 @@ static void test_catalog_and_scene(void **state) {
   free(r.body);
 }
 
-/* The probe the server answers equals the one the core bakes here. */
+/* The probe the server answers equals the one the core bakes here: since
+ * issue 14 the answer of a viewpoint is its anchor cell's, gathered at the
+ * cell's centre, and its EXR holds no timings (the bytes of a cell's
+ * answer must not depend on who asked first); Server-Timing still does. */
 static void test_lighting_probe_matches_core(void **state) {
   su_resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low");
   assert_int_equal(r.status, 200);
@@ -153,16 +156,24 @@ static void test_lighting_probe_matches_core(void **state) {
   gi_exr_file *x = read_exr(&r, "probe.exr");
   assert_int_equal(gi_exr_file_width(x), 1);
   assert_non_null(strstr(gi_exr_file_attr(x, "gi.effects"), "sun=ran"));
-  assert_non_null(strstr(gi_exr_file_attr(x, "gi.timings"), "voxelize;dur="));
-  assert_string_equal(gi_exr_file_attr(x, "gi.cache"), "miss");
+  assert_null(gi_exr_file_attr(x, "gi.timings"));
+  assert_null(gi_exr_file_attr(x, "gi.cache"));
 
   gi_scene *s = city300();
   gi_cascade *c = NULL;
   gi_error_info e = {0};
-  double at[3] = {31, 2, 29};
+  double at[3] = {31, 2, 29}, centre[3];
+  gi_quality rq;
+  int64_t cell[3];
+  assert_int_equal(gi_quality_resolve(s, &Q_LOW, &rq, &e), GI_OK);
+  assert_int_equal(gi_cascade_anchor(s, at, &rq, cell, &e), GI_OK);
+  assert_int_equal(gi_cascade_cell_centre(s, cell, &rq, centre, &e), GI_OK);
+  char vp[128];
+  snprintf(vp, sizeof vp, "%.17g,%.17g,%.17g", centre[0], centre[1], centre[2]);
+  assert_string_equal(gi_exr_file_attr(x, "gi.viewpoint"), vp);
   assert_int_equal(gi_cascade_bake(s, at, &Q_LOW, &c, NULL, &e), GI_OK);
   gi_probe pr;
-  assert_int_equal(gi_cascade_gather(c, at, 1, &pr, NULL, &e), GI_OK);
+  assert_int_equal(gi_cascade_gather(c, centre, 1, &pr, NULL, &e), GI_OK);
   const char *rgb[3] = {"R", "G", "B"};
   for (int k = 0; k < 3; k++) {
     float got = gi_exr_file_channel(x, rgb[k])[0];
@@ -188,6 +199,112 @@ static void test_lighting_probe_matches_core(void **state) {
   free(r.body);
   assert_true(su_metric(&S_main, "gi_cache_hits_total", NULL) == hits + 1);
   assert_true(su_metric(&S_main, "gi_bakes_total", NULL) == bakes);
+}
+
+/* A GET that does not follow redirects. */
+static su_resp get_nofollow(const char *path, const char *header) {
+  su_resp r = {0};
+  struct curl_slist *h;
+  su_follow_redirects = 0;
+  CURL *c = su_make_req(&S_main, NULL, path, NULL, TOKEN, &r, &h);
+  su_follow_redirects = 1;
+  if (header) {
+    h = curl_slist_append(h, header);
+    curl_easy_setopt(c, CURLOPT_HTTPHEADER, h);
+  }
+  assert_int_equal(curl_easy_perform(c), CURLE_OK);
+  curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &r.status);
+  curl_slist_free_all(h);
+  curl_easy_cleanup(c);
+  return r;
+}
+
+/* Issue 14: a viewpoint URL redirects to its cell's URL, which a client can
+ * also compute from the published grid; the cell's answer is immutable,
+ * the same bytes every time, with a strong ETag and a 304 that bakes nothing. */
+static void test_cell_urls(void **state) {
+  const char *vp = "/v1/scenes/city/lighting?at=-71.5,4,18.25&quality=low";
+  su_resp r = get_nofollow(vp, NULL);
+  assert_int_equal(r.status, 307);
+  char loc[1024];
+  snprintf(loc, sizeof loc, "%s", su_header(&r, "Location"));
+  assert_string_equal(su_header(&r, "Cache-Control"), "public, max-age=60");
+  free(r.body);
+  /* The client's own computation from GET /v1/scenes/{id}?quality=low. */
+  r = GET(&S_main, "/v1/scenes/city?quality=low");
+  assert_int_equal(r.status, 200);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL), *g = json_object_get(o, "grid");
+  double at[3] = {-71.5, 4, 18.25}, cs = json_real_value(json_object_get(g, "cell_size"));
+  long long cell[3];
+  for (int a = 0; a < 3; a++) {
+    double org = json_number_value(json_array_get(json_object_get(g, "origin"), (size_t)a));
+    cell[a] = (long long)floor((double)(float)(at[a] - org) / cs);
+  }
+  char want[1024];
+  snprintf(want, sizeof want, "/v1/scenes/city/cells/%lld,%lld,%lld/lighting?q=%s&kind=probe&%s", cell[0], cell[1],
+           cell[2], json_string_value(json_object_get(g, "q")), json_string_value(json_object_get(g, "query")));
+  printf("  redirect: %s\n", loc);
+  assert_string_equal(loc, want);
+  json_decref(o);
+  free(r.body);
+
+  double bakes0 = su_metric(&S_main, "gi_bakes_total", NULL);
+  su_resp a = get_nofollow(loc, NULL), b = get_nofollow(loc, NULL), d = GET(&S_main, vp);
+  assert_int_equal(a.status, 200);
+  assert_string_equal(su_header(&a, "Cache-Control"), "public, max-age=31536000, immutable");
+  char etag[64];
+  snprintf(etag, sizeof etag, "%s", su_header(&a, "ETag"));
+  assert_true(strlen(etag) == 18 && etag[0] == '"' && etag[17] == '"');
+  assert_string_equal(su_header(&b, "ETag"), etag);
+  assert_true(a.len == b.len && a.len == d.len && a.len > 0);
+  assert_memory_equal(a.body, b.body, a.len);
+  assert_memory_equal(a.body, d.body, a.len); /* the redirect followed: the same bytes */
+  assert_true(su_metric(&S_main, "gi_bakes_total", NULL) == bakes0 + 1);
+  /* redirect=0 serves the same bytes, naming the cell URL. */
+  char direct[256];
+  snprintf(direct, sizeof direct, "%s&redirect=0", vp);
+  su_resp z = get_nofollow(direct, NULL);
+  assert_int_equal(z.status, 200);
+  assert_string_equal(su_header(&z, "Content-Location"), loc);
+  assert_string_equal(su_header(&z, "Cache-Control"), "no-cache");
+  assert_string_equal(su_header(&z, "ETag"), etag);
+  assert_true(z.len == a.len);
+  assert_memory_equal(z.body, a.body, a.len);
+  /* If-None-Match: 304, no body, no work. */
+  char inm[96];
+  snprintf(inm, sizeof inm, "If-None-Match: W/\"0000000000000000\", %s", etag);
+  double hits = su_metric(&S_main, "gi_cache_hits_total", NULL);
+  su_resp n = get_nofollow(loc, inm);
+  assert_int_equal(n.status, 304);
+  assert_int_equal(n.len, 0);
+  assert_string_equal(su_header(&n, "ETag"), etag);
+  assert_true(su_metric(&S_main, "gi_cache_hits_total", NULL) == hits);
+  /* Another cell, another quality or another kind: another ETag. */
+  char other[1100];
+  snprintf(other, sizeof other, "%s&half=1", loc);
+  su_resp hf = get_nofollow(other, NULL);
+  assert_int_equal(hf.status, 200);
+  assert_string_not_equal(su_header(&hf, "ETag"), etag);
+  /* A stale or forged q: 307 to the current URL, never cached. */
+  char stale[1024];
+  snprintf(stale, sizeof stale, "%s", loc);
+  char *q = strstr(stale, "q=") + 2;
+  q[0] = q[0] == '0' ? '1' : '0';
+  su_resp st = get_nofollow(stale, NULL);
+  assert_int_equal(st.status, 307);
+  assert_string_equal(su_header(&st, "Location"), loc);
+  assert_string_equal(su_header(&st, "Cache-Control"), "no-store");
+  /* Malformed cells and a missing q are refused. */
+  su_resp bad = GET(&S_main, "/v1/scenes/city/cells/1,2/lighting?q=0123456789abcdef");
+  su_expect_error(&bad, 404, "not_found", NULL);
+  su_resp noq = GET(&S_main, "/v1/scenes/city/cells/1,2,3/lighting?kind=probe");
+  su_expect_error(&noq, 400, "bad_request", "'q'");
+  su_resp wat = GET(&S_main, "/v1/scenes/city/cells/1,2,3/lighting?q=0123456789abcdef&at=1,2,3");
+  su_expect_error(&wat, 400, "bad_request", "'at'");
+  su_resp far = GET(&S_main, "/v1/scenes/city/cells/900000000000000000,0,0/lighting?q=0123456789abcdef");
+  assert_true(far.status == 400 || far.status == 307);
+  su_resp *all[] = {&a, &b, &d, &z, &n, &hf, &st, &bad, &noq, &wat, &far};
+  for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]->body);
 }
 
 /* Identical requests in flight are baked once. */
@@ -569,11 +686,103 @@ static void test_nomem_not_cached(void **state) {
   gi_scene_release(sc.scene);
 }
 
+/* A scene whose file changes gets another version, hence another q: no
+ * cache keyed by the old cell URLs can answer for it. Equal bytes and
+ * build options give the same version on any replica. */
+static void test_scene_version(void **state) {
+  (void)state;
+  char path[600];
+  snprintf(path, sizeof path, "%s/version.obj", tu_tmpdir());
+  const char *obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  FILE *f = fopen(path, "wb");
+  assert_non_null(f);
+  fputs(obj, f);
+  fclose(f);
+  gs_scene_conf sc = {.up = GI_UP_Y};
+  snprintf(sc.source, sizeof sc.source, "%s", path);
+  char err[256];
+  uint64_t v1, v2, v3, v4;
+  assert_int_equal(gs_scene_version(&sc, &v1, err, sizeof err), 0);
+  assert_int_equal(gs_scene_version(&sc, &v2, err, sizeof err), 0);
+  assert_true(v1 == v2);
+  f = fopen(path, "wb");
+  fputs("v 0 0 0\nv 1 0 0\nv 0 2 0\nf 1 2 3\n", f); /* one vertex moved */
+  fclose(f);
+  assert_int_equal(gs_scene_version(&sc, &v3, err, sizeof err), 0);
+  assert_true(v3 != v1);
+  sc.up = GI_UP_Z; /* the same bytes read another way */
+  assert_int_equal(gs_scene_version(&sc, &v4, err, sizeof err), 0);
+  assert_true(v4 != v3);
+  snprintf(sc.source, sizeof sc.source, "%s/absent.obj", tu_tmpdir());
+  assert_int_equal(gs_scene_version(&sc, &v4, err, sizeof err), -1);
+  assert_non_null(strstr(err, "absent.obj"));
+  gs_scene_conf city = {.is_city = 1, .extent = 300, .seed = 1, .up = GI_UP_Y}, city2 = city;
+  city2.seed = 2;
+  assert_int_equal(gs_scene_version(&city, &v1, err, sizeof err), 0);
+  assert_int_equal(gs_scene_version(&city2, &v2, err, sizeof err), 0);
+  assert_true(v1 != v2);
+  /* The scene's q moves with its version; a cell's ETag with q. */
+  gs_config cfg;
+  gs_config_defaults(&cfg);
+  gs_service svc = {.cfg = &cfg};
+  gs_scene s = {.id = "v", .scene = tu_furnace_scene(1.0, 0.5, 1.0), .version = v1};
+  gi_quality q = {.levels = 3, .res = 16};
+  gs_canon a, b;
+  gi_error_info e = {0};
+  assert_int_equal(gs_canon_quality(&svc, &s, &q, &a, &e), GI_OK);
+  s.version = v2;
+  assert_int_equal(gs_canon_quality(&svc, &s, &q, &b, &e), GI_OK);
+  assert_string_equal(a.knobs, "levels=3&res=16");
+  assert_string_not_equal(a.q, b.q);
+  gi_scene_release(s.scene);
+}
+
+/* A cell URL carries the request's knobs in canonical form: parsed back,
+ * they give the very gi_quality the viewpoint request had, bit for bit
+ * (so any replica bakes the same cascade from the URL alone). */
+static void test_canonical_knobs(void **state) {
+  (void)state;
+  const char *queries[][12] = {
+      {"quality", "high", "voxel", "0.33333333333333331", "aperture", "33.3", "effects", "sky:off,ao:on", NULL},
+      {"quality", "low", "bounces", "0", "seed", "9007199254740992", "step", "0.123456789", "ao", "1", NULL},
+      {"res", "12", "levels", "2", "probe_samples", "3", "samples", "7", "cones", "8", NULL},
+      {NULL}};
+  gs_config cfg;
+  gs_config_defaults(&cfg);
+  gs_service svc = {.cfg = &cfg};
+  gs_scene s = {.id = "k", .scene = tu_furnace_scene(1.0, 0.5, 1.0), .version = 42};
+  for (size_t t = 0; queries[t][0]; t++) {
+    gi_proto_kv kv[8];
+    size_t n = 0;
+    for (; queries[t][2 * n]; n++) kv[n] = (gi_proto_kv){queries[t][2 * n], queries[t][2 * n + 1]};
+    gi_proto_bake want, got;
+    gi_proto_error pe = {0};
+    assert_int_equal(gi_proto_parse_scene(kv, n, &cfg.lim, &want, &pe), 0);
+    gs_canon c;
+    gi_error_info e = {0};
+    assert_int_equal(gs_canon_quality(&svc, &s, &want.quality, &c, &e), GI_OK);
+    printf("  knobs: %s\n", c.knobs);
+    char buf[sizeof c.knobs];
+    snprintf(buf, sizeof buf, "%s", c.knobs);
+    n = 0;
+    for (char *save = NULL, *tok = strtok_r(buf, "&", &save); tok; tok = strtok_r(NULL, "&", &save)) {
+      char *eq = strchr(tok, '=');
+      assert_non_null(eq);
+      *eq = 0;
+      kv[n++] = (gi_proto_kv){tok, eq + 1};
+    }
+    assert_int_equal(gi_proto_parse_scene(kv, n, &cfg.lim, &got, &pe), 0);
+    assert_memory_equal(&got.quality, &want.quality, sizeof got.quality);
+  }
+  gi_scene_release(s.scene);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_health_and_auth),
       cmocka_unit_test(test_catalog_and_scene),
       cmocka_unit_test(test_lighting_probe_matches_core),
+      cmocka_unit_test(test_cell_urls),
       cmocka_unit_test(test_coalescing),
       cmocka_unit_test(test_effect_override),
       cmocka_unit_test(test_panorama),
@@ -584,6 +793,8 @@ int main(void) {
       cmocka_unit_test(test_overload),
       cmocka_unit_test(test_deadline),
       cmocka_unit_test(test_nomem_not_cached),
+      cmocka_unit_test(test_scene_version),
+      cmocka_unit_test(test_canonical_knobs),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }

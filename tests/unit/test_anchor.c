@@ -262,12 +262,48 @@ static void test_bytes_estimate(void **state) {
   gi_scene_release(s);
 }
 
+/* gi_cascade_cell_centre inverts gi_cascade_anchor: the centre of cell A
+ * is origin + (A + 1/2) 2 s0, snaps back to A, and a cell too far for the
+ * float snapping is refused rather than answered with another cell. */
+static void test_cell_centre(void **state) {
+  (void)state;
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&cp, NULL, &s, &err), GI_OK);
+  gi_quality req = {.levels = 3, .res = 16}, q;
+  assert_int_equal(gi_quality_resolve(s, &req, &q, &err), GI_OK);
+  double org[3];
+  gi_scene_origin(s, org);
+  for (int a = 0; a < 3; a++) assert_true(org[a] == s->origin[a]);
+  const int64_t cells[][3] = {{0, 0, 0}, {-1, -1, -1}, {2, -5, 7}, {-25, 3, 40}, {1000, -1000, 123}};
+  for (size_t i = 0; i < sizeof cells / sizeof cells[0]; i++) {
+    double c[3], lo[3], hi[3];
+    int64_t back[3];
+    assert_int_equal(gi_cascade_cell_centre(s, cells[i], &q, c, &err), GI_OK);
+    cell_bounds(s, &q, cells[i], lo, hi);
+    assert_int_equal(gi_cascade_anchor(s, c, &q, back, &err), GI_OK);
+    for (int a = 0; a < 3; a++) {
+      assert_true(c[a] == 0.5 * (lo[a] + hi[a]));
+      assert_true(back[a] == cells[i][a]);
+    }
+  }
+  const int64_t far[3] = {((int64_t)1 << 40) + 1, 0, 0}; /* float spacing there: many cells */
+  double c[3];
+  assert_int_equal(gi_cascade_cell_centre(s, far, &q, c, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "too far"));
+  gi_quality unresolved = {0};
+  assert_int_equal(gi_cascade_cell_centre(s, cells[0], &unresolved, c, &err), GI_ERR_INVALID_ARG);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_city_cell),
       cmocka_unit_test(test_skylight_cell),
       cmocka_unit_test(test_skylight_sensitivity),
       cmocka_unit_test(test_bytes_estimate),
+      cmocka_unit_test(test_cell_centre),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -336,10 +336,55 @@ static void test_headers(void **state) {
                            "specular=skipped, ao=skipped");
 }
 
+/* Cell URLs (issue 14): the path segment, q required and strict, no 'at'
+ * there and no 'q' on a viewpoint URL; redirect defaults to 1. */
+static void test_cell_requests(void **state) {
+  (void)state;
+  long long c[3];
+  assert_int_equal(gi_proto_parse_cell("2,-5,0", c), 0);
+  assert_true(c[0] == 2 && c[1] == -5 && c[2] == 0);
+  assert_int_equal(gi_proto_parse_cell("-123456789012345678,1,1", c), 0);
+  assert_true(c[0] == -123456789012345678ll);
+  const char *bad[] = {"1,2", "1,2,3,", "1,,3", "01,2,3", "-0,1,1", "+1,2,3", "1,2,3x", "1.5,2,3", "", "a,b,c",
+                       "1234567890123456789,0,0", "1, 2,3"};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) assert_int_equal(gi_proto_parse_cell(bad[i], c), -1);
+
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv ok[] = {{"q", "0123456789abcdef"}, {"kind", "panorama"}, {"levels", "3"}, {"width", "32"}};
+  assert_int_equal(gi_proto_parse_cell_lighting(ok, NKV(ok), &l, &b, &e), 0);
+  assert_true(b.cell == 1 && !b.has_at && b.kind == GI_PROTO_PANORAMA && b.width == 32);
+  assert_string_equal(b.q, "0123456789abcdef");
+  gi_proto_kv noq[] = {{"kind", "probe"}};
+  assert_int_equal(gi_proto_parse_cell_lighting(noq, NKV(noq), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "'q'"));
+  gi_proto_kv badq[] = {{"q", "0123456789ABCDEF"}};
+  assert_int_equal(gi_proto_parse_cell_cascades(badq, NKV(badq), &l, &b, &e), 400);
+  gi_proto_kv at[] = {{"q", "0123456789abcdef"}, {"at", "1,2,3"}};
+  assert_int_equal(gi_proto_parse_cell_lighting(at, NKV(at), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "'at'"));
+  gi_proto_kv lm[] = {{"q", "0123456789abcdef"}, {"kind", "lightmap"}};
+  assert_int_equal(gi_proto_parse_cell_lighting(lm, NKV(lm), &l, &b, &e), 501);
+  gi_proto_kv vp[] = {{"at", "1,2,3"}};
+  assert_int_equal(gi_proto_parse_lighting(vp, NKV(vp), &l, &b, &e), 0);
+  assert_int_equal(b.redirect, 1);
+  gi_proto_kv vp0[] = {{"at", "1,2,3"}, {"redirect", "0"}};
+  assert_int_equal(gi_proto_parse_cascades(vp0, NKV(vp0), &l, &b, &e), 0);
+  assert_int_equal(b.redirect, 0);
+  gi_proto_kv vpq[] = {{"at", "1,2,3"}, {"q", "0123456789abcdef"}};
+  assert_int_equal(gi_proto_parse_lighting(vpq, NKV(vpq), &l, &b, &e), 400);
+  gi_proto_kv sc[] = {{"quality", "low"}, {"res", "8"}};
+  assert_int_equal(gi_proto_parse_scene(sc, NKV(sc), &l, &b, &e), 0);
+  assert_true(b.quality.res == 8 && b.quality.levels == 5);
+  gi_proto_kv sca[] = {{"at", "1,2,3"}};
+  assert_int_equal(gi_proto_parse_scene(sca, NKV(sca), &l, &b, &e), 400);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_lighting_ok),
-    cmocka_unit_test(test_lightmap_ok),   cmocka_unit_test(test_preset_then_override),
+      cmocka_unit_test(test_lighting_ok),   cmocka_unit_test(test_cell_requests),
+      cmocka_unit_test(test_lightmap_ok),   cmocka_unit_test(test_preset_then_override),
       cmocka_unit_test(test_effects),       cmocka_unit_test(test_strict_numbers),
       cmocka_unit_test(test_effects_strict),
       cmocka_unit_test(test_panorama),      cmocka_unit_test(test_rejections),

@@ -48,5 +48,9 @@ typedef struct gc_opts {
  * printed (exit 0), or EXIT_USAGE / EXIT_RUN after printing the reason. */
 int gc_parse(int argc, char **argv, gc_opts *o);
 void gc_opts_fini(gc_opts *o);
+/* cell.c: the cell URL (server included, malloc'ed) of a lighting or
+ * cascades request, from the grid GET /v1/scenes/ID publishes; NULL when
+ * the server gives none (then ask the viewpoint URL: it redirects). */
+char *gc_cell_url(const gc_opts *o);
 
 #endif

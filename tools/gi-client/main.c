@@ -204,6 +204,8 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
   curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
   curl_easy_setopt(c, CURLOPT_WRITEDATA, a);
   curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
+  /* A viewpoint URL answers 307 to its cell URL on the same server. */
+  if (!body) curl_easy_setopt(c, CURLOPT_FOLLOWLOCATION, 1L);
   curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT_MS, 10000L);
   curl_easy_setopt(c, CURLOPT_USERAGENT, "gi-client/" GI_VERSION);
   if (o->timeout_ms) curl_easy_setopt(c, CURLOPT_TIMEOUT_MS, o->timeout_ms);
@@ -501,8 +503,13 @@ static int run(const gc_opts *o, CURL *c) {
   case GC_SCENE: url = build_url(o, c, "/v1/scenes/", o->id, NULL); break;
   case GC_METRICS: url = build_url(o, c, "/metrics", NULL, NULL); break;
   case GC_JOB: url = build_url(o, c, "/v1/jobs/", o->id, NULL); break;
-  case GC_LIGHTING: url = build_url(o, c, "/v1/scenes/", o->id, "/lighting"); break;
-  case GC_CASCADES: url = build_url(o, c, "/v1/scenes/", o->id, "/cascades.vdb"); break;
+  /* The cell URL when the server publishes its grid (cacheable, no 307). */
+  case GC_LIGHTING:
+    if (!(url = gc_cell_url(o))) url = build_url(o, c, "/v1/scenes/", o->id, "/lighting");
+    break;
+  case GC_CASCADES:
+    if (!(url = gc_cell_url(o))) url = build_url(o, c, "/v1/scenes/", o->id, "/cascades.vdb");
+    break;
   case GC_PROBES: url = build_url(o, c, "/v1/scenes/", o->id, "/probes"); break;
   }
   if (!url) return EXIT_RUN;

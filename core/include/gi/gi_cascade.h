@@ -58,6 +58,12 @@ typedef struct gi_cascade gi_cascade;
  * bit-identical cascades, so the anchor is a cache key. Thread-safe. */
 gi_result gi_cascade_anchor(const gi_scene *scene, const double at[3], const gi_quality *resolved,
                             int64_t anchor[3], gi_error_info *err);
+/* The world-space centre of anchor cell `cell` (side 2 voxel0, from the
+ * scene origin): gi_cascade_anchor of it gives `cell` back, so baking or
+ * gathering there answers for the whole cell. GI_ERR_INVALID_ARG for a
+ * cell too far away to round-trip. Thread-safe. */
+gi_result gi_cascade_cell_centre(const gi_scene *scene, const int64_t cell[3], const gi_quality *resolved,
+                                 double at[3], gi_error_info *err);
 
 /* Builds the cascade around `at` (world) and lights it. q may be NULL
  * (defaults). On success the caller owns *out (gi_cascade_free). */

@@ -100,6 +100,9 @@ void gi_scene_release(gi_scene *s);
 void gi_scene_get_stats(const gi_scene *s, gi_scene_stats *out);
 /* World-space bounds of the kept triangles (min, max). Empty scene: origin both. */
 void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]);
+/* The scene origin (world, double): the centre of the input's bounds, from
+ * which gi_cascade_anchor snaps viewpoints. NULL scene: zeros. */
+void gi_scene_origin(const gi_scene *s, double out[3]);
 gi_up_axis gi_scene_up(const gi_scene *s);
 const char *gi_scene_name(const gi_scene *s);
 size_t gi_scene_num_lights(const gi_scene *s);
