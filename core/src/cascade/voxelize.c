@@ -16,6 +16,9 @@
 #include "base/internal.h"
 
 #define SLAB 2 /* cells per z-slab */
+/* The serial binning of a level checks the cancel token this often: a
+ * coarse level of a large city holds every triangle. */
+#define GI_CANCEL_EVERY_TRIS 8192
 #define MAXV 12
 
 typedef struct {
@@ -244,6 +247,10 @@ gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
       }
     memset(bin_start, 0, ((size_t)nslab + 1) * sizeof *bin_start);
     for (size_t q = 0; q < ntris; q++) {
+      if (q % GI_CANCEL_EVERY_TRIS == 0 && gi_cancel_check(c->cancel) != GI_CANCEL_NONE) {
+        rc = gi__cancel_fail(c->cancel, err, "voxelize");
+        goto done;
+      }
       const uint32_t *ix = &s->indices[3 * tris[q]];
       float lo[3], hi[3];
       for (int a = 0; a < 3; a++) {
