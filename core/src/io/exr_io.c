@@ -124,6 +124,26 @@ static const gi_exr_channel *find_channel(const gi_exr_image *img, const char *n
   return NULL;
 }
 
+/* OpenEXR 3.1's ZIP encoder keeps the zlib bytes when they are exactly as
+ * long as the raw chunk, and every reader then takes them for raw pixels:
+ * small probe images came back as garbage (upstream issue 2306, fixed in
+ * 3.4). This wraps the library's compressor with the fix: a chunk that
+ * compression does not shrink is stored raw. */
+typedef struct {
+  exr_result_t (*compress)(exr_encode_pipeline_t *enc);
+} zip_guard;
+
+static exr_result_t compress_or_raw(exr_encode_pipeline_t *enc) {
+  const zip_guard *g = enc->encoding_user_data;
+  exr_result_t rv = g->compress(enc);
+  if (rv == EXR_ERR_SUCCESS && enc->compressed_bytes >= enc->packed_bytes && enc->compressed_buffer &&
+      enc->packed_buffer) {
+    memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    enc->compressed_bytes = enc->packed_bytes;
+  }
+  return rv;
+}
+
 /* Writes every chunk of the part. For HALF output the chunk's rows are first
  * copied into `scratch` with the clamp described at the top of the file. */
 static exr_result_t write_chunks(exr_context_t ctx, int part, const gi_exr_image *img, float *scratch,
@@ -131,6 +151,7 @@ static exr_result_t write_chunks(exr_context_t ctx, int part, const gi_exr_image
   exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
   exr_result_t rv = EXR_ERR_SUCCESS;
   int started = 0;
+  zip_guard guard = {NULL};
   size_t w = (size_t)img->width;
   for (int y = 0; y < img->height && rv == EXR_ERR_SUCCESS; y += lines_per_chunk) {
     exr_chunk_info_t cinfo;
@@ -167,6 +188,11 @@ static exr_result_t write_chunks(exr_context_t ctx, int part, const gi_exr_image
       *what = "choosing encoders";
       rv = exr_encoding_choose_default_routines(ctx, part, &enc);
       if (rv != EXR_ERR_SUCCESS) break;
+      if (enc.compress_fn) {
+        guard.compress = enc.compress_fn;
+        enc.encoding_user_data = &guard;
+        enc.compress_fn = compress_or_raw;
+      }
     }
     *what = "encoding a chunk";
     rv = exr_encoding_run(ctx, part, &enc);
