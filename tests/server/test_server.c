@@ -752,7 +752,8 @@ static void test_canonical_knobs(void **state) {
   gs_service svc = {.cfg = &cfg};
   gs_scene s = {.id = "k", .scene = tu_furnace_scene(1.0, 0.5, 1.0), .version = 42};
   for (size_t t = 0; queries[t][0]; t++) {
-    gi_proto_kv kv[8];
+    enum { MAX_KV = 32 };
+    gi_proto_kv kv[MAX_KV];
     size_t n = 0;
     for (; queries[t][2 * n]; n++) kv[n] = (gi_proto_kv){queries[t][2 * n], queries[t][2 * n + 1]};
     gi_proto_bake want, got;
@@ -769,6 +770,7 @@ static void test_canonical_knobs(void **state) {
       char *eq = strchr(tok, '=');
       assert_non_null(eq);
       *eq = 0;
+      assert_true(n < MAX_KV);
       kv[n++] = (gi_proto_kv){tok, eq + 1};
     }
     assert_int_equal(gi_proto_parse_scene(kv, n, &cfg.lim, &got, &pe), 0);
