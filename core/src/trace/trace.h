@@ -20,7 +20,7 @@ typedef struct gi_cone_out {
  * are not sampled there (keeps light from leaking through walls thinner
  * than a voxel; see march.c), and where the window forces one, it is read
  * across the normal only. Callers go through the gather's rule below. */
-#define GI_SURFACE_LOD_K 3.0f
+#define GI_SURFACE_LOD_K 2.0f
 /* Longest step, in voxels of the sampled level, while the surface rule
  * holds a cone on a level finer than its width. Free-space samples step
  * by the quality's step (default 1: the trilinear tents of samples one
