@@ -111,9 +111,12 @@ fuzz:
 
 # Scale-out tests (opt-in, issue 14), each tests/scale/NAME.sh for NAME in
 # SCALE_TESTS: nginx = real nginx (configs/nginx/gi.conf) in front of three
-# gi-server replicas, about a minute. Installs what they need when missing;
+# gi-server replicas, about a minute; slurm = a one-node Slurm cluster
+# (munged, slurmctld, slurmd, as root) running configs/slurm/bake-array.sbatch
+# for a 4-shard Cornell grid, then a cancelled task resubmitted, about a
+# minute. Installs what they need when missing;
 # a test that still cannot run exits 77 and is reported as SKIPPED.
-SCALE_TESTS ?= nginx
+SCALE_TESTS ?= nginx slurm
 test-scale: all
 	@./scripts/install-deps.sh $(SCALE_TESTS) || echo "test-scale: WARNING: could not install $(SCALE_TESTS)"
 	@for t in $(SCALE_TESTS); do \

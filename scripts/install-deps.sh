@@ -5,6 +5,7 @@
 #   fuzz      clang and its libFuzzer runtime (make fuzz)
 #   valgrind  valgrind (make valgrind)
 #   nginx     nginx (make test-scale: tests/scale/nginx.sh)
+#   slurm     slurm-wlm and munge (make test-scale: tests/scale/slurm.sh)
 set -eu
 PKGS="build-essential cmake pkg-config libembree-dev libopenexr-dev openexr
 libopenvdb-dev libboost-dev libboost-iostreams-dev libopenvdb-tools python3-openvdb
@@ -16,7 +17,8 @@ for group in "$@"; do
     fuzz) PKGS="$PKGS clang-14 libclang-rt-14-dev" ;;
     valgrind) PKGS="$PKGS valgrind" ;;
     nginx) PKGS="$PKGS nginx" ;;
-    *) echo "install-deps: unknown group '$group' (known: fuzz, valgrind, nginx)" >&2; exit 2 ;;
+    slurm) PKGS="$PKGS slurm-wlm munge" ;;
+    *) echo "install-deps: unknown group '$group' (known: fuzz, valgrind, nginx, slurm)" >&2; exit 2 ;;
   esac
 done
 missing=""
