@@ -49,6 +49,13 @@ typedef struct gi_bake_report {
   int bounces_run;
   uint32_t glossy_triangles;             /* glossy triangles inside the cascade: a camera
                                             view's specular pass runs on auto when > 0 */
+  /* Work per level: voxels voxelized (own voxels, not the filtered region),
+   * voxels whose direct light was injected, and voxel gathers the bounces
+   * ran (one per voxel per bounce). A bake counts everything; a move
+   * (gi_move.h) only what it redid. */
+  uint64_t level_voxelized[GI_MAX_LEVELS];
+  uint64_t level_injected[GI_MAX_LEVELS];
+  uint64_t level_rebounced[GI_MAX_LEVELS];
 } gi_bake_report;
 
 typedef struct gi_cascade gi_cascade;

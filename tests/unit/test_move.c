@@ -1,0 +1,226 @@
+/* test_move.c: moving a baked cascade (gi_cascade_move) against cold bakes.
+ *
+ * On the procedural city at small quality (4 levels of 16^3):
+ *   walk: 200 seeded random moves, most by a few finest voxels, some far
+ *     across the city (larger than the finer levels' extents: those levels
+ *     are rebuilt). Every WALK_CHECK moves the geometry, opacity and direct
+ *     light of every own voxel must equal a cold bake at that point bit for
+ *     bit (the scroll rebuilds exactly the voxels that came into range).
+ *     After the walk the viewer stands still until the refresh cycle closes;
+ *     then every face of every voxel (unpacked texels: the two cascades may
+ *     store them at different rad_scale) must equal the cold bake within
+ *     1e-3 relative.
+ *   cost: a move by one anchor cell voxelizes, injects and re-gathers far
+ *     fewer voxels than the cold bake (counted, not timed). */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+#include "cascade/cascade_internal.h"
+#include "gi/gi.h"
+#include "gi/gi_move.h"
+
+#define WALK_MOVES 200
+#define WALK_CHECK 25       /* moves between geometry checks against a cold bake */
+#define FAR_SHARE 0.15      /* share of moves that jump across the city */
+#define NEAR_VOXELS 3.0     /* a near move: up to this many finest voxels per horizontal axis */
+#define FACE_REL_TOL 1e-3   /* the bound on every face */
+/* Below about 2^-24 of the brightest texel a half float (stored relative to
+ * rad_scale = brightest / 4096, subnormal under 2^-14) has no relative
+ * precision left; differences under this share of the brightest are noise. */
+#define FACE_ABS_FLOOR 1e-7
+#define COST_SHARE 0.25     /* a one-cell move redoes at most this share of a cold bake's voxels */
+
+static gi_scene *city(gi_city_params *cp) {
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(cp, NULL, &s, &err), GI_OK);
+  return s;
+}
+
+static const gi_quality SMALL = {.levels = 4, .res = 16, .light_samples = 4, .probe_samples = 16, .threads = 2};
+
+static gi_cascade *bake(const gi_scene *s, const double at[3]) {
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, at, &SMALL, &c, NULL, &err), GI_OK);
+  return c;
+}
+
+/* Geometry, opacity and direct light of every own voxel, bit for bit. */
+static void assert_same_geometry(const gi_cascade *m, const gi_cascade *b) {
+  size_t vox = (size_t)m->R * m->R * m->R;
+  for (int d = 0; d < m->n; d++) {
+    const gi_level *A = &m->lv[d], *B = &b->lv[d];
+    assert_memory_equal(A->cell0, B->cell0, sizeof A->cell0);
+    assert_int_equal(A->num_occ, B->num_occ);
+    assert_memory_equal(A->occ, B->occ, A->num_occ * sizeof *A->occ);
+    assert_true(memcmp(A->geo, B->geo, vox * sizeof *A->geo) == 0);
+    assert_true(memcmp(A->busy, B->busy, vox) == 0);
+    for (uint32_t i = 0; i < A->num_occ; i++) {
+      uint32_t slot = A->occ[i];
+      assert_memory_equal(A->direct[slot], B->direct[slot], sizeof *A->direct);
+      for (int a = 0; a < 3; a++) {
+        assert_int_equal(A->rad[slot].h[GI_VRAD_ALPHA + a], B->rad[slot].h[GI_VRAD_ALPHA + a]);
+        assert_int_equal(A->rad[slot].h[GI_VRAD_TAU + a], B->rad[slot].h[GI_VRAD_TAU + a]);
+      }
+    }
+  }
+}
+
+/* Every face of every voxel (both cascades' texels unpacked); returns the
+ * largest relative difference seen above the floor. */
+static double assert_same_light(const gi_cascade *m, const gi_cascade *b) {
+  size_t vox = (size_t)m->R * m->R * m->R;
+  float brightest = 0;
+  for (int d = 0; d < b->n; d++)
+    for (size_t i = 0; i < vox; i++) {
+      gi_vrad_f f;
+      gi__vrad_unpack(b, &b->lv[d].rad[i], &f);
+      for (int k = 0; k < 18; k++) brightest = fmaxf(brightest, f.p[k / 3][k % 3]);
+    }
+  assert_true(brightest > 0);
+  double worst = 0, floor_abs = FACE_ABS_FLOOR * brightest;
+  uint64_t faces = 0;
+  for (int d = 0; d < m->n; d++)
+    for (size_t i = 0; i < vox; i++) {
+      gi_vrad_f x, y;
+      gi__vrad_unpack(m, &m->lv[d].rad[i], &x);
+      gi__vrad_unpack(b, &b->lv[d].rad[i], &y);
+      for (int k = 0; k < 18; k++) {
+        double u = x.p[k / 3][k % 3], v = y.p[k / 3][k % 3], diff = fabs(u - v);
+        double big = fmax(fabs(u), fabs(v));
+        if (diff > floor_abs && big > 0) worst = fmax(worst, diff / big);
+        if (diff > FACE_REL_TOL * big + floor_abs)
+          fail_msg("level %d slot %zu lane %d: move %.9g, bake %.9g (rel %.3g)", d, i, k, u, v, diff / big);
+        faces++;
+      }
+      for (int a = 0; a < 3; a++) assert_true(x.alpha[a] == y.alpha[a] && x.tau[a] == y.tau[a]);
+    }
+  printf("compared %llu faces: largest relative difference %.3g (bound %.0e)\n", (unsigned long long)faces, worst,
+         FACE_REL_TOL);
+  return worst;
+}
+
+/* The next viewpoint of the walk: near (a few finest voxels) or far. */
+static void next_point(const gi_city_params *cp, double s0, uint64_t *rng, double at[3]) {
+  if (gi__u01(rng) < FAR_SHARE) {
+    at[0] = (gi__u01(rng) - 0.5) * 0.9 * cp->extent;
+    at[2] = (gi__u01(rng) - 0.5) * 0.9 * cp->extent;
+    at[1] = 1.7 + 20.0 * gi__u01(rng);
+    return;
+  }
+  at[0] += (2.0 * gi__u01(rng) - 1.0) * NEAR_VOXELS * s0;
+  at[2] += (2.0 * gi__u01(rng) - 1.0) * NEAR_VOXELS * s0;
+  at[1] += (2.0 * gi__u01(rng) - 1.0) * s0;
+  if (at[1] < 0.5) at[1] = 0.5;
+}
+
+static void test_walk(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *c = bake(s, at);
+  double s0 = c->s0;
+  uint64_t rng = 0x5c2011;
+  gi_error_info err = {0};
+  int rebuilt = 0, closed = 0;
+  for (int m = 1; m <= WALK_MOVES; m++) {
+    next_point(&cp, s0, &rng, at);
+    gi_move_info mi;
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+    assert_true(mi.move == (uint64_t)m);
+    for (int d = 0; d < c->n; d++) rebuilt += mi.rebuilt[d];
+    closed += mi.cycle_closed;
+    if (m % WALK_CHECK == 0) {
+      gi_cascade *b = bake(s, at);
+      assert_same_geometry(c, b);
+      gi_cascade_free(b);
+    }
+  }
+  assert_true(rebuilt > 0); /* the far jumps rebuilt some levels */
+  assert_int_equal(closed, WALK_MOVES / (int)gi_cascade_refresh_period(c, c->n - 1));
+  /* Stand still until the cycle closes: within one coarsest period. */
+  gi_move_info mi = {0};
+  for (uint64_t i = 0; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+  assert_true(mi.cycle_closed);
+  gi_cascade *b = bake(s, at);
+  assert_same_geometry(c, b);
+  assert_same_light(c, b);
+  gi_cascade_free(b);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+static uint64_t total(const uint64_t *v, int n) {
+  uint64_t t = 0;
+  for (int d = 0; d < n; d++) t += v[d];
+  return t;
+}
+
+static void test_cost(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *c = bake(s, at);
+  gi_bake_report cold = *gi_cascade_report(c);
+  /* One anchor cell (2 finest voxels) along x: the first move, not a cycle's end. */
+  at[0] += 2.0 * c->s0;
+  gi_bake_report r;
+  gi_move_info mi;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_move(c, at, &r, &mi, &err), GI_OK);
+  assert_false(mi.cycle_closed);
+  int n = c->n;
+  uint64_t cv = total(cold.level_voxelized, n), mv = total(r.level_voxelized, n);
+  uint64_t ci = total(cold.level_injected, n), minj = total(r.level_injected, n);
+  uint64_t cb = total(cold.level_rebounced, n), mb = total(r.level_rebounced, n);
+  printf("cold bake: voxelized %llu injected %llu rebounced %llu; move: %llu %llu %llu\n",
+         (unsigned long long)cv, (unsigned long long)ci, (unsigned long long)cb, (unsigned long long)mv,
+         (unsigned long long)minj, (unsigned long long)mb);
+  for (int d = 0; d < n; d++)
+    printf("  level %d: voxelized %llu injected %llu rebounced %llu\n", d, (unsigned long long)r.level_voxelized[d],
+           (unsigned long long)r.level_injected[d], (unsigned long long)r.level_rebounced[d]);
+  /* The cold bake counts every own voxel of every level. */
+  assert_true(cv > 0 && ci > 0 && cb > 0);
+  /* Level 0 scrolled by exactly 2 cells: a slab of 2 x R x R. */
+  assert_true(r.level_voxelized[0] == 2ull * (uint64_t)c->R * (uint64_t)c->R);
+  assert_true((double)mv < COST_SHARE * (double)cv);
+  assert_true((double)minj < COST_SHARE * (double)ci);
+  assert_true((double)mb < COST_SHARE * (double)cb);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+/* Bad viewpoints are refused and leave the cascade as it was. */
+static void test_bad_viewpoint(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *c = bake(s, at);
+  gi_error_info err = {0};
+  double nan_at[3] = {NAN, 0, 0}, far_at[3] = {2e9, 0, 0};
+  assert_int_equal(gi_cascade_move(c, nan_at, NULL, NULL, &err), GI_ERR_NONFINITE);
+  assert_int_equal(gi_cascade_move(c, far_at, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_int_equal(gi_cascade_move(NULL, at, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  gi_cascade *b = bake(s, at);
+  assert_same_geometry(c, b);
+  gi_cascade_free(b);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_cost),
+      cmocka_unit_test(test_bad_viewpoint),
+      cmocka_unit_test(test_walk),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
