@@ -70,10 +70,11 @@ static void assert_same_geometry(const gi_cascade *m, const gi_cascade *b) {
   }
 }
 
-/* Every face of every voxel (both cascades' texels unpacked); returns the
- * largest relative difference seen above the floor. */
-static double assert_same_light(const gi_cascade *m, const gi_cascade *b) {
-  size_t vox = (size_t)m->R * m->R * m->R;
+/* Faces at least this share of the brightest enter the drift figure. */
+#define DRIFT_FLOOR 1e-3
+
+static float brightest_face(const gi_cascade *b) {
+  size_t vox = (size_t)b->R * b->R * b->R;
   float brightest = 0;
   for (int d = 0; d < b->n; d++)
     for (size_t i = 0; i < vox; i++) {
@@ -81,9 +82,20 @@ static double assert_same_light(const gi_cascade *m, const gi_cascade *b) {
       gi__vrad_unpack(b, &b->lv[d].rad[i], &f);
       for (int k = 0; k < 18; k++) brightest = fmaxf(brightest, f.p[k / 3][k % 3]);
     }
+  return brightest;
+}
+
+/* Every face of every voxel (both cascades' texels unpacked). With
+ * `strict` each must agree within FACE_REL_TOL; either way the mean and
+ * largest relative difference over faces above DRIFT_FLOOR of the
+ * brightest go to mean/worst. */
+static void compare_light(const gi_cascade *m, const gi_cascade *b, int strict, double *mean, double *worst) {
+  size_t vox = (size_t)m->R * m->R * m->R;
+  float brightest = brightest_face(b);
   assert_true(brightest > 0);
-  double worst = 0, floor_abs = FACE_ABS_FLOOR * brightest;
+  double floor_abs = FACE_ABS_FLOOR * brightest, sum = 0;
   uint64_t faces = 0;
+  *worst = 0;
   for (int d = 0; d < m->n; d++)
     for (size_t i = 0; i < vox; i++) {
       gi_vrad_f x, y;
@@ -92,16 +104,16 @@ static double assert_same_light(const gi_cascade *m, const gi_cascade *b) {
       for (int k = 0; k < 18; k++) {
         double u = x.p[k / 3][k % 3], v = y.p[k / 3][k % 3], diff = fabs(u - v);
         double big = fmax(fabs(u), fabs(v));
-        if (diff > floor_abs && big > 0) worst = fmax(worst, diff / big);
-        if (diff > FACE_REL_TOL * big + floor_abs)
+        if (strict && diff > FACE_REL_TOL * big + floor_abs)
           fail_msg("level %d slot %zu lane %d: move %.9g, bake %.9g (rel %.3g)", d, i, k, u, v, diff / big);
+        if (big < DRIFT_FLOOR * brightest) continue;
+        sum += diff / big;
+        *worst = fmax(*worst, diff / big);
         faces++;
       }
       for (int a = 0; a < 3; a++) assert_true(x.alpha[a] == y.alpha[a] && x.tau[a] == y.tau[a]);
     }
-  printf("compared %llu faces: largest relative difference %.3g (bound %.0e)\n", (unsigned long long)faces, worst,
-         FACE_REL_TOL);
-  return worst;
+  *mean = faces ? sum / (double)faces : 0;
 }
 
 /* The next viewpoint of the walk: near (a few finest voxels) or far. */
@@ -138,6 +150,11 @@ static void test_walk(void **state) {
     if (m % WALK_CHECK == 0) {
       gi_cascade *b = bake(s, at);
       assert_same_geometry(c, b);
+      /* Between cycle ends the light drifts (reported, not asserted). */
+      double mean, worst;
+      compare_light(c, b, 0, &mean, &worst);
+      printf("move %3d (cycle phase %llu): light against a cold bake: mean %.4f max %.4f relative\n", m,
+             (unsigned long long)(mi.move % gi_cascade_refresh_period(c, c->n - 1)), mean, worst);
       gi_cascade_free(b);
     }
   }
@@ -150,7 +167,10 @@ static void test_walk(void **state) {
   assert_true(mi.cycle_closed);
   gi_cascade *b = bake(s, at);
   assert_same_geometry(c, b);
-  assert_same_light(c, b);
+  double mean, worst;
+  compare_light(c, b, 1, &mean, &worst);
+  printf("cycle closed: light against a cold bake: mean %.3g max %.3g relative (bound %.0e)\n", mean, worst,
+         FACE_REL_TOL);
   gi_cascade_free(b);
   gi_cascade_free(c);
   gi_scene_release(s);
@@ -183,6 +203,9 @@ static void test_cost(void **state) {
   printf("cold bake: voxelized %llu injected %llu rebounced %llu; move: %llu %llu %llu\n",
          (unsigned long long)cv, (unsigned long long)ci, (unsigned long long)cb, (unsigned long long)mv,
          (unsigned long long)minj, (unsigned long long)mb);
+  printf("ms (figures only): cold voxelize %.2f inject %.2f filter %.2f bounce %.2f; move %.2f %.2f %.2f %.2f\n",
+         cold.ms.voxelize, cold.ms.inject, cold.ms.filter, cold.ms.bounce, r.ms.voxelize, r.ms.inject, r.ms.filter,
+         r.ms.bounce);
   for (int d = 0; d < n; d++)
     printf("  level %d: voxelized %llu injected %llu rebounced %llu\n", d, (unsigned long long)r.level_voxelized[d],
            (unsigned long long)r.level_injected[d], (unsigned long long)r.level_rebounced[d]);

@@ -8,7 +8,8 @@
  * cascade retains its scene (gi_scene_retain) until it is freed, so the
  * caller may release the scene right after the bake. A baked cascade is
  * read-only: any number of threads may read it at once; it must not be
- * freed while a reader runs. gi_cascade_report's pointer lives as long as
+ * freed while a reader runs. gi_cascade_move (gi_move.h) is the one writer:
+ * no reader may run during a move. gi_cascade_report's pointer lives as long as
  * the cascade.
  *
  * Units: irradiance in the scene's radiometric unit (W m^-2 for physical

@@ -31,6 +31,10 @@ enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2 };
 
 /* A scroll slab per axis and the old nested region. */
 #define MAX_BOXES 4
+/* Own voxels within this many cells of a rebuilt cell are re-gathered with
+ * it: their gathers start next to the new geometry (a surface gather
+ * starts one voxel off the surface and samples 2x2x2 blocks). */
+#define NEIGHBOUR_CELLS 2
 /* Viewpoints farther than this from the scene origin lose float precision (as in the bake). */
 #define MAX_VIEW_DISTANCE 1e9
 
@@ -157,9 +161,20 @@ static gi_result voxelize_box(struct gi_cascade *c, gi_level *L, const cell_box 
   return GI_OK;
 }
 
-/* Finalizes the voxelized cells, lists the occupied ones in `fresh` and
- * rebuilds the occupied list in the bake's order; returns how many fresh. */
-static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh) {
+/* 1 when a cell within NEIGHBOUR_CELLS of (i,j,k) in L's window was rebuilt. */
+static int near_rebuilt(const gi_level *L, int R, int64_t i, int64_t j, int64_t k) {
+  for (int64_t z = k - NEIGHBOUR_CELLS; z <= k + NEIGHBOUR_CELLS; z++)
+    for (int64_t y = j - NEIGHBOUR_CELLS; y <= j + NEIGHBOUR_CELLS; y++)
+      for (int64_t x = i - NEIGHBOUR_CELLS; x <= i + NEIGHBOUR_CELLS; x++)
+        if (in_window(L, R, x, y, z) && L->busy[gi__slot(x, y, z, R)] == CELL_VOXELIZED) return 1;
+  return 0;
+}
+
+/* Finalizes the voxelized cells and rebuilds the occupied list in the
+ * bake's order. Lists in `fresh` the rebuilt occupied voxels and the kept
+ * ones next to them (they need a new gather); returns how many, and in
+ * *nnew how many of them (the first) were rebuilt. */
+static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh, uint32_t *nnew) {
   int R = c->R;
   uint32_t nf = 0;
   L->num_occ = 0;
@@ -171,18 +186,29 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh)
         uint32_t slot = gi__slot(i, j, k, R);
         if (L->busy[slot] == CELL_VOXELIZED) {
           if (!gi__voxel_finalize(L, slot)) continue;
-          fresh[nf++] = slot;
         } else if (!(L->geo[slot].area > 0)) {
           continue;
         }
         L->occ[L->num_occ++] = slot;
         L->num_geo++;
       }
+  /* Rebuilt voxels first (they need direct light), then their neighbours. */
+  for (uint32_t q = 0; q < L->num_occ; q++)
+    if (L->busy[L->occ[q]] == CELL_VOXELIZED) fresh[nf++] = L->occ[q];
+  uint32_t nf_rebuilt = nf;
+  for (uint32_t q = 0; q < L->num_occ; q++) {
+    int64_t cell[3];
+    gi__slot_cell(L, R, L->occ[q], cell);
+    if (L->busy[L->occ[q]] != CELL_VOXELIZED && near_rebuilt(L, R, cell[0], cell[1], cell[2]))
+      fresh[nf++] = L->occ[q];
+  }
+  *nnew = nf_rebuilt;
   return nf;
 }
 
 /* Scrolls every level and rebuilds the geometry of its stale cells. */
 static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32_t **fresh, uint32_t *nfresh,
+                               uint32_t *nnew,
                                gi_move_info *mi, gi_error_info *err) {
   int R = c->R;
   uint32_t *tris = NULL;
@@ -197,7 +223,7 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
     int nb = stale_boxes(&old[d], L, R, rebuild, b);
     c->report.level_voxelized[d] = mark_stale(&old[d], L, R, rebuild, b, nb);
     for (int q = 0; q < nb && rc == GI_OK; q++) rc = voxelize_box(c, L, &b[q], &tris, &cap, err);
-    if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d]);
+    if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d], &nnew[d]);
     c->report.voxel_size[d] = L->s;
     for (int a = 0; a < 3; a++)
       c->report.level_origin[d][a] = (double)L->cell0[a] * L->s + c->scene->origin[a];
@@ -293,13 +319,13 @@ static gi_result rebounce_all(struct gi_cascade *c, const gi_quality *q, int tai
   return rc;
 }
 
-/* Direct light into the fresh voxels (every own voxel when relit). */
+/* Direct light into the rebuilt voxels (every own voxel when relit). */
 static gi_result inject_fresh(struct gi_cascade *c, const gi_quality *q, int relit, uint32_t **fresh,
-                              const uint32_t *nfresh, gi_error_info *err) {
+                              const uint32_t *nnew, gi_error_info *err) {
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     const uint32_t *slots = relit ? L->occ : fresh[d];
-    uint32_t n = relit ? L->num_occ : nfresh[d];
+    uint32_t n = relit ? L->num_occ : nnew[d];
     gi_result rc = gi__inject_slots(c, q, d, slots, n, err);
     if (rc != GI_OK) return rc;
     c->report.level_injected[d] = n;
@@ -359,7 +385,7 @@ gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *rep
     c->at[a] = (float)(at[a] - c->scene->origin[a]);
   }
   gi__cascade_place(c);
-  uint32_t *fresh[GI_MAX_LEVELS] = {0}, nfresh[GI_MAX_LEVELS] = {0};
+  uint32_t *fresh[GI_MAX_LEVELS] = {0}, nfresh[GI_MAX_LEVELS] = {0}, nnew[GI_MAX_LEVELS] = {0};
   size_t vox = (size_t)c->R * c->R * c->R;
   for (int d = 0; d < c->n; d++)
     if (!(fresh[d] = gi__malloc(vox * sizeof *fresh[d]))) {
@@ -369,10 +395,10 @@ gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *rep
   gi_quality q;
   int tail = 0;
   double t0 = gi__now_ms();
-  if ((rc = scroll_levels(c, old, fresh, nfresh, &mi, err)) != GI_OK) goto done;
+  if ((rc = scroll_levels(c, old, fresh, nfresh, nnew, &mi, err)) != GI_OK) goto done;
   double t1 = gi__now_ms();
   if ((rc = replan(c, &q, &tail, &mi.relit, err)) != GI_OK) goto done;
-  if ((rc = inject_fresh(c, &q, mi.relit, fresh, nfresh, err)) != GI_OK) goto done;
+  if ((rc = inject_fresh(c, &q, mi.relit, fresh, nnew, err)) != GI_OK) goto done;
   double t2 = gi__now_ms();
   if (gi__cascade_filter(c, q.threads)) {
     rc = gi__cancel_fail(c->cancel, err, "move filter");
