@@ -27,7 +27,7 @@
 
 /* Cell states during a move, kept in the level's busy array (scratch until
  * gi__cascade_mark_busy rebuilds it at the end of the move). */
-enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2 };
+enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2, CELL_NEAR = 3 };
 
 /* A scroll slab per axis and the old nested region. */
 #define MAX_BOXES 4
@@ -161,13 +161,22 @@ static gi_result voxelize_box(struct gi_cascade *c, gi_level *L, const cell_box 
   return GI_OK;
 }
 
-/* 1 when a cell within NEIGHBOUR_CELLS of (i,j,k) in L's window was rebuilt. */
-static int near_rebuilt(const gi_level *L, int R, int64_t i, int64_t j, int64_t k) {
-  for (int64_t z = k - NEIGHBOUR_CELLS; z <= k + NEIGHBOUR_CELLS; z++)
-    for (int64_t y = j - NEIGHBOUR_CELLS; y <= j + NEIGHBOUR_CELLS; y++)
-      for (int64_t x = i - NEIGHBOUR_CELLS; x <= i + NEIGHBOUR_CELLS; x++)
-        if (in_window(L, R, x, y, z) && L->busy[gi__slot(x, y, z, R)] == CELL_VOXELIZED) return 1;
-  return 0;
+/* Marks the kept cells within NEIGHBOUR_CELLS of a rebuilt cell CELL_NEAR
+ * (work in proportion to the rebuilt cells, none when nothing scrolled). */
+static void mark_near(gi_level *L, int R) {
+  size_t vox = (size_t)R * R * R;
+  for (size_t slot = 0; slot < vox; slot++) {
+    if (L->busy[slot] != CELL_VOXELIZED) continue;
+    int64_t c[3];
+    gi__slot_cell(L, R, (uint32_t)slot, c);
+    for (int64_t z = c[2] - NEIGHBOUR_CELLS; z <= c[2] + NEIGHBOUR_CELLS; z++)
+      for (int64_t y = c[1] - NEIGHBOUR_CELLS; y <= c[1] + NEIGHBOUR_CELLS; y++)
+        for (int64_t x = c[0] - NEIGHBOUR_CELLS; x <= c[0] + NEIGHBOUR_CELLS; x++) {
+          if (!in_window(L, R, x, y, z)) continue;
+          uint8_t *b = &L->busy[gi__slot(x, y, z, R)];
+          if (*b == CELL_KEEP) *b = CELL_NEAR;
+        }
+  }
 }
 
 /* Finalizes the voxelized cells and rebuilds the occupied list in the
@@ -177,6 +186,7 @@ static int near_rebuilt(const gi_level *L, int R, int64_t i, int64_t j, int64_t 
 static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh, uint32_t *nnew) {
   int R = c->R;
   uint32_t nf = 0;
+  int any_voxelized = 0;
   L->num_occ = 0;
   L->num_geo = 0;
   for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++)
@@ -185,6 +195,7 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh,
         if (gi__is_inner(L, i, j, k)) continue;
         uint32_t slot = gi__slot(i, j, k, R);
         if (L->busy[slot] == CELL_VOXELIZED) {
+          any_voxelized = 1;
           if (!gi__voxel_finalize(L, slot)) continue;
         } else if (!(L->geo[slot].area > 0)) {
           continue;
@@ -196,13 +207,11 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh,
   for (uint32_t q = 0; q < L->num_occ; q++)
     if (L->busy[L->occ[q]] == CELL_VOXELIZED) fresh[nf++] = L->occ[q];
   uint32_t nf_rebuilt = nf;
-  for (uint32_t q = 0; q < L->num_occ; q++) {
-    int64_t cell[3];
-    gi__slot_cell(L, R, L->occ[q], cell);
-    if (L->busy[L->occ[q]] != CELL_VOXELIZED && near_rebuilt(L, R, cell[0], cell[1], cell[2]))
-      fresh[nf++] = L->occ[q];
-  }
   *nnew = nf_rebuilt;
+  if (!any_voxelized) return nf;
+  mark_near(L, R);
+  for (uint32_t q = 0; q < L->num_occ; q++)
+    if (L->busy[L->occ[q]] == CELL_NEAR) fresh[nf++] = L->occ[q];
   return nf;
 }
 
