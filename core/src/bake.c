@@ -121,6 +121,7 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
   if ((rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err)) != GI_OK) goto fail;
   if (c->report.effects[GI_FX_AO].ran) q.ao = 1;
   c->report.quality = q;
+  c->tail = tail;
   for (int d = 0; d < c->n; d++) {
     c->report.voxel_size[d] = c->lv[d].s;
     for (int a = 0; a < 3; a++)

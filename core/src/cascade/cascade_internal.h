@@ -117,6 +117,7 @@ struct gi_cascade {
    * (the refresh schedule's clock). */
   gi_quality plan_q;
   int auto_bounces;
+  int tail;            /* the plan's bounce tail (gi__bounce) */
   uint64_t moves;
 };
 

@@ -122,6 +122,10 @@ static gi_result voxelize_box(struct gi_cascade *c, gi_level *L, const cell_box 
   const gi_scene *s = c->scene;
   int R = c->R;
   size_t nt = 0;
+  /* The old nested region is a box every move; usually nothing in it is stale. */
+  int any = 0;
+  FOR_BOX(b, i, j, k) any |= L->busy[gi__slot(i, j, k, R)] == CELL_STALE;
+  if (!any) return GI_OK;
   if (s->rtc) {
     float lo[3], hi[3];
     for (int a = 0; a < 3; a++) {
@@ -406,7 +410,13 @@ gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *rep
   double t0 = gi__now_ms();
   if ((rc = scroll_levels(c, old, fresh, nfresh, nnew, &mi, err)) != GI_OK) goto done;
   double t1 = gi__now_ms();
-  if ((rc = replan(c, &q, &tail, &mi.relit, err)) != GI_OK) goto done;
+  /* The plan reads only the placement: unchanged when no level scrolled. */
+  int scrolled = 0;
+  for (int d = 0; d < c->n; d++) scrolled |= memcmp(old[d].cell0, c->lv[d].cell0, sizeof old[d].cell0) != 0;
+  q = c->report.quality;
+  tail = c->tail;
+  if (scrolled && (rc = replan(c, &q, &tail, &mi.relit, err)) != GI_OK) goto done;
+  c->tail = tail;
   if ((rc = inject_fresh(c, &q, mi.relit, fresh, nnew, err)) != GI_OK) goto done;
   double t2 = gi__now_ms();
   if (gi__cascade_filter(c, q.threads)) {
