@@ -13,6 +13,11 @@
  *     its direct light exactly as a bake does, so the cascade then equals a
  *     cold bake at the same anchor (up to half-float rounding of texels
  *     stored at a different rad_scale).
+ * Every call is one tick of that clock, also a call to the same point (a
+ * viewer standing still lets the cycle close). New voxels and kept voxels
+ * within 2 cells of them are gathered in the move that brings them in
+ * (their cones read the coarser levels), rather than copying the next
+ * coarser level's values until their level's turn.
  * A level that moves by its extent or more is rebuilt whole.
  *
  * Ownership and threads: the caller owns the cascade; a move writes it, so
