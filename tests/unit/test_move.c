@@ -149,7 +149,7 @@ static void test_walk(void **state) {
   double s0 = c->s0;
   uint64_t rng = 0x5c2011;
   gi_error_info err = {0};
-  int rebuilt = 0, closed = 0;
+  int rebuilt = 0, closed = 0, relit = 0;
   for (int m = 1; m <= WALK_MOVES; m++) {
     double prev[3] = {at[0], at[1], at[2]};
     next_point(&cp, s0, &rng, at);
@@ -158,6 +158,7 @@ static void test_walk(void **state) {
     assert_true(mi.move == (uint64_t)m);
     for (int d = 0; d < c->n; d++) rebuilt += mi.rebuilt[d];
     closed += mi.cycle_closed;
+    relit += mi.relit;
     if (m % WALK_CHECK == 0) {
       gi_cascade *b = bake(s, at);
       assert_same_geometry(c, b);
@@ -174,6 +175,7 @@ static void test_walk(void **state) {
       gi_cascade_free(b);
     }
   }
+  printf("walk: %d level rebuilds, %d moves re-lit by a changed plan, %d cycles closed\n", rebuilt, relit, closed);
   assert_true(rebuilt > 0); /* the far jumps rebuilt some levels */
   assert_int_equal(closed, WALK_MOVES / (int)gi_cascade_refresh_period(c, c->n - 1));
   /* Stand still until the cycle closes: within one coarsest period. */
