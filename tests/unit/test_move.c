@@ -11,6 +11,8 @@
  *     store them at different rad_scale) must equal the cold bake within
  *     1e-3 relative.
  *   deterministic: two cascades walked alike stay byte-identical.
+ *   relit: moving out of a closed room turns the sky on (and back in off):
+ *     every voxel is re-injected and matches a cold bake.
  *   cost: a move by one anchor cell voxelizes, injects and re-gathers far
  *     fewer voxels than the cold bake (counted, not timed). */
 #include "test_util.h"
@@ -285,11 +287,72 @@ static void test_deterministic(void **state) {
   gi_scene_release(s);
 }
 
+/* A closed room [0,4] x [0,3] x [0,4] (y up), lit by the sky and a point
+ * light inside: from inside the plan skips the sky, from above the roof it
+ * runs it, so moving in and out changes the lights of every voxel. */
+static gi_scene *closed_room(void) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  const double W = 4, H = 3;
+  double f[4][3] = {{0, 0, 0}, {W, 0, 0}, {W, 0, W}, {0, 0, W}};
+  gi_mesh_builder_add_quad(b, f[0], f[1], f[2], f[3], mat);
+  for (int i = 0; i < 4; i++) {
+    const double *p = f[i], *q = f[(i + 1) % 4];
+    double top_p[3] = {p[0], H, p[2]}, top_q[3] = {q[0], H, q[2]};
+    gi_mesh_builder_add_quad(b, p, q, top_q, top_p, mat);
+  }
+  double c[4][3] = {{0, H, 0}, {W, H, 0}, {W, H, W}, {0, H, W}};
+  gi_mesh_builder_add_quad(b, c[0], c[1], c[2], c[3], mat);
+  gi_light l[2] = {{.type = GI_LIGHT_SKY, .color = {1, 1, 1}},
+                   {.type = GI_LIGHT_POINT, .color = {5, 5, 5}, .position = {1, 2, 1}}};
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = l, .num_lights = 2};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "closed room", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* A move that changes the effect plan's lights re-injects every voxel; the
+ * geometry and direct light then equal a cold bake's, and after the cycle
+ * closes so does every face. */
+static void test_relit(void **state) {
+  gi_scene *s = closed_room();
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.05, .light_samples = 8, .probe_samples = 16, .threads = 2};
+  const double inside[3] = {2.03, 1.5, 2.03}, above[3] = {2.03, 4.5, 2.03};
+  const double *path[2] = {above, inside};
+  gi_cascade *c = NULL;
+  gi_bake_report r;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, inside, &q, &c, &r, &err), GI_OK);
+  assert_false(r.effects[GI_FX_SKY].ran);
+  for (int i = 0; i < 2; i++) {
+    gi_move_info mi;
+    assert_int_equal(gi_cascade_move(c, path[i], &r, &mi, &err), GI_OK);
+    assert_true(mi.relit);
+    assert_int_equal(r.effects[GI_FX_SKY].ran, path[i] == above);
+    gi_cascade *b = NULL;
+    assert_int_equal(gi_cascade_bake(s, path[i], &q, &b, NULL, &err), GI_OK);
+    assert_same_geometry(c, b);
+    gi_move_info still = {0};
+    for (uint64_t k = 0; k < gi_cascade_refresh_period(c, c->n - 1) && !still.cycle_closed; k++)
+      assert_int_equal(gi_cascade_move(c, path[i], NULL, &still, &err), GI_OK);
+    assert_true(still.cycle_closed);
+    double mean, worst;
+    compare_light(c, b, 1, &mean, &worst);
+    gi_cascade_free(b);
+  }
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_cost),
       cmocka_unit_test(test_bad_viewpoint),
       cmocka_unit_test(test_deterministic),
+      cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
