@@ -115,10 +115,13 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
 
   if ((rc = gi__cascade_alloc(c, err)) != GI_OK) goto fail;
   gi__cascade_place(c);
+  c->plan_q = q;
+  c->auto_bounces = !qin || qin->bounces == 0;
   int tail;
   if ((rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err)) != GI_OK) goto fail;
   if (c->report.effects[GI_FX_AO].ran) q.ao = 1;
   c->report.quality = q;
+  c->tail = tail;
   for (int d = 0; d < c->n; d++) {
     c->report.voxel_size[d] = c->lv[d].s;
     for (int a = 0; a < 3; a++)
@@ -148,6 +151,12 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
     size_t vox = (size_t)c->R * c->R * c->R;
     for (size_t i = 0; i < vox; i++) occ += c->lv[d].geo[i].area > 0;
     c->report.occupied[d] = occ;
+    gi_level *L = &c->lv[d];
+    uint64_t inner = 1;
+    for (int a = 0; a < 3; a++) inner *= L->has_inner ? (uint64_t)(L->inner1[a] - L->inner0[a]) : 0;
+    c->report.level_voxelized[d] = (uint64_t)c->R * c->R * c->R - inner;
+    c->report.level_injected[d] = L->num_occ;
+    c->report.level_rebounced[d] = (uint64_t)L->num_occ * (uint64_t)c->report.bounces_run;
   }
   c->report.cascade_bytes = gi_cascade_bytes(c);
   c->cancel = NULL; /* the token need not outlive the bake */

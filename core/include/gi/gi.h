@@ -19,4 +19,5 @@
 #include "gi_cpu.h"
 #include "gi_batch.h"
 #include "gi_lightmap.h"
+#include "gi_move.h"
 #endif

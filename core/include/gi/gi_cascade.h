@@ -8,7 +8,8 @@
  * cascade retains its scene (gi_scene_retain) until it is freed, so the
  * caller may release the scene right after the bake. A baked cascade is
  * read-only: any number of threads may read it at once; it must not be
- * freed while a reader runs. gi_cascade_report's pointer lives as long as
+ * freed while a reader runs. gi_cascade_move (gi_move.h) is the one writer:
+ * no reader may run during a move. gi_cascade_report's pointer lives as long as
  * the cascade.
  *
  * Units: irradiance in the scene's radiometric unit (W m^-2 for physical
@@ -49,6 +50,13 @@ typedef struct gi_bake_report {
   int bounces_run;
   uint32_t glossy_triangles;             /* glossy triangles inside the cascade: a camera
                                             view's specular pass runs on auto when > 0 */
+  /* Work per level: voxels voxelized (own voxels, not the filtered region),
+   * voxels whose direct light was injected, and voxel gathers the bounces
+   * ran (one per voxel per bounce). A bake counts everything; a move
+   * (gi_move.h) only what it redid. */
+  uint64_t level_voxelized[GI_MAX_LEVELS];
+  uint64_t level_injected[GI_MAX_LEVELS];
+  uint64_t level_rebounced[GI_MAX_LEVELS];
 } gi_bake_report;
 
 typedef struct gi_cascade gi_cascade;

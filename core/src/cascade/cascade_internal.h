@@ -111,6 +111,14 @@ struct gi_cascade {
    * value (a 1e6-bright light stays finite) and dim light keeps half's 11
    * bits. 1 until the first shading. */
   float rad_scale;
+  /* What the move (move/move.c) needs to re-plan and re-bounce exactly as
+   * a bake at its anchor would: the quality before the effect plan, whether
+   * the request left the bounce count automatic, and the moves so far
+   * (the refresh schedule's clock). */
+  gi_quality plan_q;
+  int auto_bounces;
+  int tail;            /* the plan's bounce tail (gi__bounce) */
+  uint64_t moves;
 };
 
 static inline int64_t gi__floordiv(int64_t a, int64_t b) {
@@ -158,5 +166,9 @@ static inline float gi__vrad_tau(const gi_vrad *r, int a) { return gi__h2f(r->h[
 
 /* voxelize.c */
 gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err);
+/* One triangle's piece in global cell `cell` of L, added to its sums. */
+void gi__voxel_add_tri(gi_level *L, int R, const int64_t cell[3], const float tv[3][3], const gi_material *mat);
+/* Normalises one voxel's sums; 1 when it holds geometry (0: cleared). */
+int gi__voxel_finalize(gi_level *L, uint32_t slot);
 
 #endif

@@ -90,13 +90,36 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
   g->gloss += area * gloss;
 }
 
+/* Clips triangle tv against global cell `cell` of level L and adds the
+ * piece it owns to that voxel's sums. Shared with the move (move/move.c):
+ * one code path, so a voxel rebuilt after a scroll is bit-identical. */
+void gi__voxel_add_tri(gi_level *L, int R, const int64_t cell[3], const float tv[3][3], const gi_material *mat) {
+  float sz = (float)L->s;
+  float corner[3] = {(float)(cell[0] * L->s), (float)(cell[1] * L->s), (float)(cell[2] * L->s)};
+  float pa[MAXV][3], pb[MAXV][3];
+  for (int q = 0; q < 3; q++)
+    for (int a = 0; a < 3; a++) pa[q][a] = tv[q][a] - corner[a];
+  int n = 3;
+  for (int a = 0; a < 3 && n >= 3; a++) {
+    n = clip_plane(pa, n, pb, a, 0.f, 1);
+    if (n < 3) break;
+    n = clip_plane(pb, n, pa, a, sz, 0);
+  }
+  if (n < 3) return;
+  /* Half-open ownership by the polygon's centroid. */
+  float cen[3] = {0, 0, 0};
+  for (int q = 0; q < n; q++)
+    for (int a = 0; a < 3; a++) cen[a] += pa[q][a] / (float)n;
+  if (cen[0] >= sz || cen[1] >= sz || cen[2] >= sz) return;
+  accumulate(&L->geo[gi__slot(cell[0], cell[1], cell[2], R)], (const float(*)[3])pa, n, corner, mat);
+}
+
 static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
   vox_ctx *v = p;
   struct gi_cascade *c = v->c;
   const gi_scene *s = c->scene;
   gi_level *L = &c->lv[v->d];
   int R = c->R;
-  float sz = (float)L->s;
   for (size_t slab = b; slab < e; slab++) {
     int64_t k0 = L->cell0[2] + (int64_t)slab * SLAB, k1 = k0 + SLAB;
     /* Each worker clears its own z slices: parallel first touches of the
@@ -129,23 +152,8 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
         for (int64_t j = c0[1]; j < c1[1]; j++)
           for (int64_t i = c0[0]; i < c1[0]; i++) {
             if (gi__is_inner(L, i, j, k)) continue;
-            float corner[3] = {(float)(i * L->s), (float)(j * L->s), (float)(k * L->s)};
-            float pa[MAXV][3], pb[MAXV][3];
-            for (int q = 0; q < 3; q++)
-              for (int a = 0; a < 3; a++) pa[q][a] = tv[q][a] - corner[a];
-            int n = 3;
-            for (int a = 0; a < 3 && n >= 3; a++) {
-              n = clip_plane(pa, n, pb, a, 0.f, 1);
-              if (n < 3) break;
-              n = clip_plane(pb, n, pa, a, sz, 0);
-            }
-            if (n < 3) continue;
-            /* Half-open ownership by the polygon's centroid. */
-            float cen[3] = {0, 0, 0};
-            for (int q = 0; q < n; q++)
-              for (int a = 0; a < 3; a++) cen[a] += pa[q][a] / (float)n;
-            if (cen[0] >= sz || cen[1] >= sz || cen[2] >= sz) continue;
-            accumulate(&L->geo[gi__slot(i, j, k, R)], (const float(*)[3])pa, n, corner, mat);
+            int64_t cell[3] = {i, j, k};
+            gi__voxel_add_tri(L, R, cell, (const float(*)[3])tv, mat);
           }
     }
   }
@@ -156,12 +164,49 @@ static int cmp_u32(const void *a, const void *b) {
   return x < y ? -1 : x > y;
 }
 
+/* Normalises one voxel's sums and derives its opacity; clears an empty
+ * voxel. Returns 1 when it holds geometry. Shared with the move. */
+int gi__voxel_finalize(gi_level *L, uint32_t slot) {
+  double s2 = L->s * L->s;
+  gi_vgeo *g = &L->geo[slot];
+  gi_vrad *r = &L->rad[slot];
+  memset(r, 0, sizeof *r); /* +0 in every half lane */
+  if (!(g->area > 0)) {
+    memset(g, 0, sizeof *g);
+    return 0;
+  }
+  float ia = 1.f / g->area;
+  for (int a = 0; a < 3; a++) {
+    g->albedo[a] *= ia;
+    g->emission[a] *= ia;
+    g->centroid[a] *= ia;
+  }
+  g->gloss *= ia;
+  float nl = gi__len(g->normal);
+  if (nl > 1e-12f * g->area) {
+    for (int a = 0; a < 3; a++) g->normal[a] /= nl;
+  } else {
+    /* Opposite pieces cancelled: fall back to the dominant projection axis. */
+    int m = 0;
+    for (int a = 1; a < 3; a++)
+      if (g->proj[a] > g->proj[m]) m = a;
+    g->normal[0] = g->normal[1] = g->normal[2] = 0;
+    g->normal[m] = 1;
+  }
+  for (int a = 0; a < 3; a++) {
+    double al = g->proj[a] / s2;
+    if (al > GI_MAX_VOXEL_ALPHA) al = GI_MAX_VOXEL_ALPHA;
+    r->h[GI_VRAD_ALPHA + a] = gi__f2h((float)al);
+    r->h[GI_VRAD_TAU + a] = gi__f2h((float)-log(1.0 - al));
+  }
+  return 1;
+}
+
 /* Normalises sums and derives opacity; lists occupied voxels to light.
  * Returns nonzero when c->cancel fired (checked per z slice: a level of
  * 64^3 takes over 100 ms here, mostly first touches of its pages). */
 static int finalize_level(struct gi_cascade *c, gi_level *L) {
   int R = c->R;
-  double s2 = L->s * L->s;
   L->num_occ = 0;
   L->num_geo = 0;
   for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++) {
@@ -170,37 +215,7 @@ static int finalize_level(struct gi_cascade *c, gi_level *L) {
       for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
         if (gi__is_inner(L, i, j, k)) continue;
         uint32_t slot = gi__slot(i, j, k, R);
-        gi_vgeo *g = &L->geo[slot];
-        gi_vrad *r = &L->rad[slot];
-        memset(r, 0, sizeof *r); /* +0 in every half lane */
-        if (!(g->area > 0)) {
-          memset(g, 0, sizeof *g);
-          continue;
-        }
-        float ia = 1.f / g->area;
-        for (int a = 0; a < 3; a++) {
-          g->albedo[a] *= ia;
-          g->emission[a] *= ia;
-          g->centroid[a] *= ia;
-        }
-        g->gloss *= ia;
-        float nl = gi__len(g->normal);
-        if (nl > 1e-12f * g->area) {
-          for (int a = 0; a < 3; a++) g->normal[a] /= nl;
-        } else {
-          /* Opposite pieces cancelled: fall back to the dominant projection axis. */
-          int m = 0;
-          for (int a = 1; a < 3; a++)
-            if (g->proj[a] > g->proj[m]) m = a;
-          g->normal[0] = g->normal[1] = g->normal[2] = 0;
-          g->normal[m] = 1;
-        }
-        for (int a = 0; a < 3; a++) {
-          double al = g->proj[a] / s2;
-          if (al > GI_MAX_VOXEL_ALPHA) al = GI_MAX_VOXEL_ALPHA;
-          r->h[GI_VRAD_ALPHA + a] = gi__f2h((float)al);
-          r->h[GI_VRAD_TAU + a] = gi__f2h((float)-log(1.0 - al));
-        }
+        if (!gi__voxel_finalize(L, slot)) continue;
         L->occ[L->num_occ++] = slot;
         L->num_geo++;
       }

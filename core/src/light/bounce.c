@@ -24,28 +24,30 @@ typedef struct {
   atomic_ullong samples, cones;
 } bounce_ctx;
 
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, float E[2][3], uint64_t *cones) {
+  const gi_vgeo *g = &c->lv[d].geo[slot];
+  uint64_t samples = 0;
+  memset(E, 0, sizeof(float[2][3]));
+  if (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0) return 0;
+  for (int sd = 0; sd < 2; sd++) {
+    float n[3];
+    float sg = sd ? -1.f : 1.f;
+    for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
+    /* A voxel is a surface at its own level's resolution. */
+    gi_gather_out go;
+    if (gi__gather_hemisphere(c, g->centroid, n, GI_GATHER_SURFACE, d, &go, NULL, NULL))
+      *cones += (uint64_t)c->num_cones;
+    samples += go.samples;
+    memcpy(E[sd], go.E, sizeof go.E);
+  }
+  return samples;
+}
+
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
   bounce_ctx *bc = p;
-  struct gi_cascade *c = bc->c;
-  const gi_level *L = &c->lv[bc->d];
+  const gi_level *L = &bc->c->lv[bc->d];
   uint64_t samples = 0, cones = 0;
-  for (size_t q = b; q < e; q++) {
-    uint32_t slot = L->occ[q];
-    const gi_vgeo *g = &L->geo[slot];
-    memset(bc->E[q], 0, sizeof(float[2][3]));
-    if (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0) continue;
-    for (int sd = 0; sd < 2; sd++) {
-      float n[3];
-      float sg = sd ? -1.f : 1.f;
-      for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
-      /* A voxel is a surface at its own level's resolution. */
-      gi_gather_out go;
-      if (gi__gather_hemisphere(c, g->centroid, n, GI_GATHER_SURFACE, bc->d, &go, NULL, NULL))
-        cones += (uint64_t)c->num_cones;
-      samples += go.samples;
-      memcpy(bc->E[q][sd], go.E, sizeof go.E);
-    }
-  }
+  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(bc->c, bc->d, L->occ[q], bc->E[q], &cones);
   atomic_fetch_add(&bc->samples, samples);
   atomic_fetch_add(&bc->cones, cones);
 }

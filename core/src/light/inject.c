@@ -18,6 +18,7 @@ typedef struct {
   struct gi_cascade *c;
   const gi_light_plan *lp;
   int d;
+  const uint32_t *slots; /* the voxels to light (a level's occ list, or a move's new voxels) */
   uint64_t seed;
   int cap;             /* light samples per voxel at most (gi__light_sample_cap) */
   atomic_ullong rays;
@@ -42,7 +43,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   uint64_t rays = 0;
   int R = c->R;
   for (size_t q = b; q < e; q++) {
-    uint32_t slot = L->occ[q];
+    uint32_t slot = ic->slots[q];
     const gi_vgeo *g = &L->geo[slot];
     float(*E)[3] = L->direct[slot];
     memset(E, 0, sizeof(float[2][3]));
@@ -147,20 +148,26 @@ void gi__shade_all(struct gi_cascade *c) {
   for (int d = 0; d < c->n; d++) gi__shade_voxels(c, d, 0, c->lv[d].num_occ);
 }
 
-gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err) {
+gi_result gi__inject_slots(struct gi_cascade *c, const gi_quality *q, int d, const uint32_t *slots, uint32_t n,
+                           gi_error_info *err) {
   gi_light_plan lp = gi__light_plan(&c->report, q->light_samples);
   int cap = gi__light_sample_cap(c->scene, &lp);
+  inject_ctx ic = {.c = c, .lp = &lp, .d = d, .slots = slots, .seed = q->seed, .cap = cap};
+  atomic_init(&ic.rays, 0);
+  atomic_init(&ic.failed, 0);
+  int cancelled = gi__parallel_for_cancel(n, 32, q->threads, inject_range, &ic, &ic.failed, c->cancel);
+  if (cancelled) return gi__cancel_fail(c->cancel, err, "inject");
+  if (atomic_load(&ic.failed))
+    return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for the light-sample buffers (%d samples) of level %d",
+                    cap, d);
+  c->report.shadow_rays += atomic_load(&ic.rays);
+  return GI_OK;
+}
+
+gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err) {
   for (int d = 0; d < c->n; d++) {
-    inject_ctx ic = {.c = c, .lp = &lp, .d = d, .seed = q->seed, .cap = cap};
-    atomic_init(&ic.rays, 0);
-    atomic_init(&ic.failed, 0);
-    int cancelled = gi__parallel_for_cancel(c->lv[d].num_occ, 32, q->threads, inject_range, &ic, &ic.failed,
-                                            c->cancel);
-    if (cancelled) return gi__cancel_fail(c->cancel, err, "inject");
-    if (atomic_load(&ic.failed))
-      return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for the light-sample buffers (%d samples) of level %d",
-                      cap, d);
-    c->report.shadow_rays += atomic_load(&ic.rays);
+    gi_result rc = gi__inject_slots(c, q, d, c->lv[d].occ, c->lv[d].num_occ, err);
+    if (rc != GI_OK) return rc;
   }
   gi__shade_all(c);
   return GI_OK;

@@ -8,6 +8,10 @@
 
 /* inject.c: direct light into every occupied voxel (both sides). */
 gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err);
+/* Direct light into the listed voxels of level d only (a move's new voxels);
+ * the caller reshades (gi__shade_all). */
+gi_result gi__inject_slots(struct gi_cascade *c, const gi_quality *q, int d, const uint32_t *slots, uint32_t n,
+                           gi_error_info *err);
 /* Recomputes each occupied voxel's face radiance from its side irradiance. */
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end);
 /* gi__shade_voxels over every occupied voxel of every level. */
@@ -15,6 +19,9 @@ void gi__shade_all(struct gi_cascade *c);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
  * tail (with bounces >= 2): then adds the orders after the last bounce as
  * a geometric series whose ratio is measured from the last two bounces. */
+/* One voxel's gather from the current texture: E per side; returns the
+ * texture samples taken and adds the cones marched to *cones. */
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, float E[2][3], uint64_t *cones);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
 
 #endif

@@ -1,0 +1,444 @@
+/* move/move.c: scrolling a baked cascade to a new viewpoint (gi_move.h).
+ *
+ * Levels are stored toroidally (cascade_internal.h), so re-placing a level
+ * moves no memory: a cell that stays in the window keeps its slot and its
+ * data. Only cells that are new to the window, or that the finer level's
+ * region used to cover (they held filtered data), are cleared, voxelized
+ * and injected. Voxelization goes through the bake's own per-cell code
+ * (gi__voxel_add_tri, gi__voxel_finalize) over the triangles of each
+ * stale box in index order, and injection seeds by global cell, so a
+ * rebuilt voxel is bit-identical to the bake's.
+ *
+ * Indirect light is refreshed on a fixed clock (the move count), never on
+ * timing, so a walk is reproducible: level d every 2^d moves and new voxels
+ * every move (one Jacobi gather from the current texture); every 2^(n-1)
+ * moves the cycle closes with the bake's own bounce schedule from direct
+ * light, which makes the cascade equal to a cold bake at the anchor. The
+ * paper's equation 5 (per-level frequency) did not survive in the stored
+ * text of section 1.3; 2^d follows its rule (finer levels more often) and
+ * the level's voxel size, which doubles per level. */
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+#include "cascade/cascade_internal.h"
+#include "gi/gi_move.h"
+#include "light/light.h"
+#include "plan.h"
+
+/* Cell states during a move, kept in the level's busy array (scratch until
+ * gi__cascade_mark_busy rebuilds it at the end of the move). */
+enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2, CELL_NEAR = 3 };
+
+/* A scroll slab per axis and the old nested region. */
+#define MAX_BOXES 4
+/* Own voxels within this many cells of a rebuilt cell are re-gathered with
+ * it: their gathers start next to the new geometry (a surface gather
+ * starts one voxel off the surface and samples 2x2x2 blocks). */
+#define NEIGHBOUR_CELLS 2
+/* Viewpoints farther than this from the scene origin lose float precision (as in the bake). */
+#define MAX_VIEW_DISTANCE 1e9
+
+typedef struct {
+  int64_t lo[3], hi[3]; /* global cells [lo, hi) of one level */
+} cell_box;
+
+#define FOR_BOX(b, i, j, k)                            \
+  for (int64_t k = (b)->lo[2]; k < (b)->hi[2]; k++)    \
+    for (int64_t j = (b)->lo[1]; j < (b)->hi[1]; j++)  \
+      for (int64_t i = (b)->lo[0]; i < (b)->hi[0]; i++)
+
+uint64_t gi_cascade_refresh_period(const gi_cascade *c, int level) {
+  if (!c || level < 0 || level >= c->n) return 0;
+  return 1ull << level;
+}
+
+static int in_window(const gi_level *L, int R, int64_t i, int64_t j, int64_t k) {
+  int64_t p[3] = {i, j, k};
+  for (int a = 0; a < 3; a++)
+    if (p[a] < L->cell0[a] || p[a] >= L->cell0[a] + R) return 0;
+  return 1;
+}
+
+/* Boxes of the new window that may hold stale cells. */
+static int stale_boxes(const gi_level *old, const gi_level *L, int R, int rebuild, cell_box *b) {
+  int n = 0;
+  cell_box win;
+  for (int a = 0; a < 3; a++) win.lo[a] = L->cell0[a], win.hi[a] = L->cell0[a] + R;
+  if (rebuild) {
+    b[n++] = win;
+    return n;
+  }
+  for (int a = 0; a < 3; a++) {
+    int64_t delta = L->cell0[a] - old->cell0[a];
+    if (delta == 0) continue;
+    cell_box s = win;
+    if (delta > 0) s.lo[a] = old->cell0[a] + R;
+    else s.hi[a] = old->cell0[a];
+    b[n++] = s;
+  }
+  if (old->has_inner) {
+    cell_box s;
+    int empty = 0;
+    for (int a = 0; a < 3; a++) {
+      s.lo[a] = old->inner0[a] > win.lo[a] ? old->inner0[a] : win.lo[a];
+      s.hi[a] = old->inner1[a] < win.hi[a] ? old->inner1[a] : win.hi[a];
+      empty |= s.lo[a] >= s.hi[a];
+    }
+    if (!empty) b[n++] = s;
+  }
+  return n;
+}
+
+/* Marks and clears the own cells of the new window that were not own cells
+ * of the old one; returns how many. */
+static uint64_t mark_stale(const gi_level *old, gi_level *L, int R, int rebuild, const cell_box *b, int nb) {
+  uint64_t count = 0;
+  memset(L->busy, CELL_KEEP, (size_t)R * R * R);
+  for (int q = 0; q < nb; q++)
+    FOR_BOX(&b[q], i, j, k) {
+      if (gi__is_inner(L, i, j, k)) continue;
+      if (!rebuild && in_window(old, R, i, j, k) && !gi__is_inner(old, i, j, k)) continue;
+      uint32_t slot = gi__slot(i, j, k, R);
+      if (L->busy[slot] == CELL_STALE) continue;
+      L->busy[slot] = CELL_STALE;
+      memset(&L->geo[slot], 0, sizeof *L->geo);
+      memset(&L->rad[slot], 0, sizeof *L->rad);
+      memset(L->side[slot], 0, sizeof *L->side);
+      memset(L->direct[slot], 0, sizeof *L->direct);
+      count++;
+    }
+  return count;
+}
+
+static int cmp_u32(const void *a, const void *b) {
+  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Voxelizes the stale cells of one box: every triangle the BVH finds over
+ * the box, in index order (the bake's accumulation order per cell). */
+static gi_result voxelize_box(struct gi_cascade *c, gi_level *L, const cell_box *b, uint32_t **tris,
+                              size_t *cap, gi_error_info *err) {
+  const gi_scene *s = c->scene;
+  int R = c->R;
+  size_t nt = 0;
+  /* The old nested region is a box every move; usually nothing in it is stale. */
+  int any = 0;
+  FOR_BOX(b, i, j, k) any |= L->busy[gi__slot(i, j, k, R)] == CELL_STALE;
+  if (!any) return GI_OK;
+  if (s->rtc) {
+    float lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+      lo[a] = (float)(b->lo[a] * L->s);
+      hi[a] = (float)(b->hi[a] * L->s);
+    }
+    gi_result rc = gi__query_box(s, lo, hi, tris, &nt, cap);
+    if (rc != GI_OK) return gi__fail(err, rc, "move: BVH query failed");
+    if (nt > 1) qsort(*tris, nt, sizeof **tris, cmp_u32);
+  }
+  c->report.triangles_visited += nt;
+  for (size_t q = 0; q < nt; q++) {
+    uint32_t t = (*tris)[q];
+    const uint32_t *ix = &s->indices[3 * t];
+    float tv[3][3];
+    for (int v = 0; v < 3; v++) memcpy(tv[v], &s->vertices[3 * ix[v]], sizeof(float[3]));
+    cell_box tb;
+    for (int a = 0; a < 3; a++) {
+      float tlo = fminf(tv[0][a], fminf(tv[1][a], tv[2][a])), thi = fmaxf(tv[0][a], fmaxf(tv[1][a], tv[2][a]));
+      tb.lo[a] = (int64_t)floor((double)tlo / L->s);
+      tb.hi[a] = (int64_t)floor((double)thi / L->s) + 1;
+      if (tb.lo[a] < b->lo[a]) tb.lo[a] = b->lo[a];
+      if (tb.hi[a] > b->hi[a]) tb.hi[a] = b->hi[a];
+    }
+    const gi_material *mat = &s->materials[s->tri_material[t]];
+    FOR_BOX(&tb, i, j, k) {
+      if (L->busy[gi__slot(i, j, k, R)] != CELL_STALE) continue;
+      int64_t cell[3] = {i, j, k};
+      gi__voxel_add_tri(L, R, cell, (const float(*)[3])tv, mat);
+    }
+  }
+  /* A cell in two boxes is complete after the first. */
+  FOR_BOX(b, i, j, k) {
+    uint32_t slot = gi__slot(i, j, k, R);
+    if (L->busy[slot] == CELL_STALE) L->busy[slot] = CELL_VOXELIZED;
+  }
+  return GI_OK;
+}
+
+/* Marks the kept cells within NEIGHBOUR_CELLS of a rebuilt cell CELL_NEAR
+ * (work in proportion to the rebuilt cells, none when nothing scrolled). */
+static void mark_near(gi_level *L, int R) {
+  size_t vox = (size_t)R * R * R;
+  for (size_t slot = 0; slot < vox; slot++) {
+    if (L->busy[slot] != CELL_VOXELIZED) continue;
+    int64_t c[3];
+    gi__slot_cell(L, R, (uint32_t)slot, c);
+    for (int64_t z = c[2] - NEIGHBOUR_CELLS; z <= c[2] + NEIGHBOUR_CELLS; z++)
+      for (int64_t y = c[1] - NEIGHBOUR_CELLS; y <= c[1] + NEIGHBOUR_CELLS; y++)
+        for (int64_t x = c[0] - NEIGHBOUR_CELLS; x <= c[0] + NEIGHBOUR_CELLS; x++) {
+          if (!in_window(L, R, x, y, z)) continue;
+          uint8_t *b = &L->busy[gi__slot(x, y, z, R)];
+          if (*b == CELL_KEEP) *b = CELL_NEAR;
+        }
+  }
+}
+
+/* Finalizes the voxelized cells and rebuilds the occupied list in the
+ * bake's order. Lists in `fresh` the rebuilt occupied voxels and the kept
+ * ones next to them (they need a new gather); returns how many, and in
+ * *nnew how many of them (the first) were rebuilt. */
+static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh, uint32_t *nnew) {
+  int R = c->R;
+  uint32_t nf = 0;
+  int any_voxelized = 0;
+  L->num_occ = 0;
+  L->num_geo = 0;
+  for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++)
+    for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
+      for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
+        if (gi__is_inner(L, i, j, k)) continue;
+        uint32_t slot = gi__slot(i, j, k, R);
+        if (L->busy[slot] == CELL_VOXELIZED) {
+          any_voxelized = 1;
+          if (!gi__voxel_finalize(L, slot)) continue;
+        } else if (!(L->geo[slot].area > 0)) {
+          continue;
+        }
+        L->occ[L->num_occ++] = slot;
+        L->num_geo++;
+      }
+  /* Rebuilt voxels first (they need direct light), then their neighbours. */
+  for (uint32_t q = 0; q < L->num_occ; q++)
+    if (L->busy[L->occ[q]] == CELL_VOXELIZED) fresh[nf++] = L->occ[q];
+  uint32_t nf_rebuilt = nf;
+  *nnew = nf_rebuilt;
+  if (!any_voxelized) return nf;
+  mark_near(L, R);
+  for (uint32_t q = 0; q < L->num_occ; q++)
+    if (L->busy[L->occ[q]] == CELL_NEAR) fresh[nf++] = L->occ[q];
+  return nf;
+}
+
+/* Scrolls every level and rebuilds the geometry of its stale cells. */
+static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32_t **fresh, uint32_t *nfresh,
+                               uint32_t *nnew,
+                               gi_move_info *mi, gi_error_info *err) {
+  int R = c->R;
+  uint32_t *tris = NULL;
+  size_t cap = 0;
+  gi_result rc = GI_OK;
+  for (int d = 0; d < c->n && rc == GI_OK; d++) {
+    gi_level *L = &c->lv[d];
+    int rebuild = 0;
+    for (int a = 0; a < 3; a++) rebuild |= llabs(L->cell0[a] - old[d].cell0[a]) >= R;
+    mi->rebuilt[d] = rebuild;
+    cell_box b[MAX_BOXES];
+    int nb = stale_boxes(&old[d], L, R, rebuild, b);
+    c->report.level_voxelized[d] = mark_stale(&old[d], L, R, rebuild, b, nb);
+    for (int q = 0; q < nb && rc == GI_OK; q++) rc = voxelize_box(c, L, &b[q], &tris, &cap, err);
+    if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d], &nnew[d]);
+    c->report.voxel_size[d] = L->s;
+    for (int a = 0; a < 3; a++)
+      c->report.level_origin[d][a] = (double)L->cell0[a] * L->s + c->scene->origin[a];
+  }
+  gi__free(tris);
+  return rc;
+}
+
+/* The effect plan at the new placement; *relit when its lights changed. */
+static gi_result replan(struct gi_cascade *c, gi_quality *q, int *tail, int *relit, gi_error_info *err) {
+  static const int lights[] = {GI_FX_SUN, GI_FX_LOCAL, GI_FX_SKY, GI_FX_EMISSIVE};
+  int before[GI_FX_COUNT];
+  for (int i = 0; i < GI_FX_COUNT; i++) before[i] = c->report.effects[i].ran;
+  *q = c->plan_q;
+  gi_result rc = gi__plan_effects(c, q, c->auto_bounces, &c->report, tail, err);
+  if (rc != GI_OK) return rc;
+  if (c->report.effects[GI_FX_AO].ran) q->ao = 1;
+  c->report.quality = *q;
+  *relit = 0;
+  for (size_t i = 0; i < sizeof lights / sizeof lights[0]; i++)
+    *relit |= before[lights[i]] != c->report.effects[lights[i]].ran;
+  return GI_OK;
+}
+
+typedef struct {
+  const struct gi_cascade *c;
+  int d;
+  const uint32_t *slots;
+  float (*E)[2][3];
+  atomic_ullong samples, cones;
+} gather_ctx;
+
+static void gather_range(void *p, size_t b, size_t e, int worker) {
+  gather_ctx *g = p;
+  uint64_t samples = 0, cones = 0;
+  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(g->c, g->d, g->slots[q], g->E[q], &cones);
+  atomic_fetch_add(&g->samples, samples);
+  atomic_fetch_add(&g->cones, cones);
+}
+
+/* One Jacobi gather over the levels that are due (all their own voxels)
+ * and the fresh voxels of the others: every gather reads the texture as it
+ * was before the pass. */
+static gi_result regather(struct gi_cascade *c, int threads, const int *due, uint32_t **fresh,
+                          const uint32_t *nfresh, gi_error_info *err) {
+  float(*E[GI_MAX_LEVELS])[2][3] = {0};
+  const uint32_t *list[GI_MAX_LEVELS];
+  uint32_t cnt[GI_MAX_LEVELS];
+  gi_result rc = GI_OK;
+  for (int d = 0; d < c->n && rc == GI_OK; d++) {
+    gi_level *L = &c->lv[d];
+    list[d] = due[d] ? L->occ : fresh[d];
+    cnt[d] = due[d] ? L->num_occ : nfresh[d];
+    if (!(E[d] = gi__malloc(((size_t)cnt[d] + 1) * sizeof *E[d]))) {
+      rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
+      break;
+    }
+    gather_ctx g = {.c = c, .d = d, .slots = list[d], .E = E[d]};
+    atomic_init(&g.samples, 0);
+    atomic_init(&g.cones, 0);
+    if (gi__parallel_for_cancel(cnt[d], 16, threads, gather_range, &g, NULL, c->cancel))
+      rc = gi__cancel_fail(c->cancel, err, "move gather");
+    c->report.cone_samples += atomic_load(&g.samples);
+    c->report.cones_traced += atomic_load(&g.cones);
+    c->report.level_rebounced[d] += cnt[d];
+  }
+  for (int d = 0; d < c->n && rc == GI_OK; d++) {
+    gi_level *L = &c->lv[d];
+    for (uint32_t q = 0; q < cnt[d]; q++) {
+      uint32_t slot = list[d][q];
+      for (int sd = 0; sd < 2; sd++)
+        for (int k = 0; k < 3; k++) L->side[slot][sd][k] = L->direct[slot][sd][k] + E[d][q][sd][k];
+    }
+  }
+  for (int d = 0; d < c->n; d++) gi__free(E[d]);
+  if (rc == GI_OK) c->report.bounces_run = 1;
+  return rc;
+}
+
+/* Closes the refresh cycle: every own voxel back to its direct light, then
+ * the bake's bounces (gi__bounce) with the plan's count and tail. */
+static gi_result rebounce_all(struct gi_cascade *c, const gi_quality *q, int tail, gi_error_info *err) {
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    for (uint32_t i = 0; i < L->num_occ; i++) memcpy(L->side[L->occ[i]], L->direct[L->occ[i]], sizeof *L->side);
+  }
+  gi__shade_all(c);
+  if (gi__cascade_filter(c, q->threads)) return gi__cancel_fail(c->cancel, err, "move filter");
+  if (!c->report.effects[GI_FX_BOUNCE].ran) return GI_OK;
+  gi_result rc = gi__bounce(c, q, q->bounces, tail, err);
+  for (int d = 0; d < c->n; d++)
+    c->report.level_rebounced[d] += (uint64_t)c->lv[d].num_occ * (uint64_t)c->report.bounces_run;
+  return rc;
+}
+
+/* Direct light into the rebuilt voxels (every own voxel when relit). */
+static gi_result inject_fresh(struct gi_cascade *c, const gi_quality *q, int relit, uint32_t **fresh,
+                              const uint32_t *nnew, gi_error_info *err) {
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    const uint32_t *slots = relit ? L->occ : fresh[d];
+    uint32_t n = relit ? L->num_occ : nnew[d];
+    gi_result rc = gi__inject_slots(c, q, d, slots, n, err);
+    if (rc != GI_OK) return rc;
+    c->report.level_injected[d] = n;
+  }
+  gi__shade_all(c);
+  return GI_OK;
+}
+
+static gi_result check_viewpoint(const gi_cascade *c, const double at[3], gi_error_info *err) {
+  if (!c || !at) return gi__fail(err, GI_ERR_INVALID_ARG, "move: cascade and viewpoint are required");
+  if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
+    return gi__fail(err, GI_ERR_NONFINITE, "move: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
+  for (int a = 0; a < 3; a++)
+    if (fabs(at[a] - c->scene->origin[a]) > MAX_VIEW_DISTANCE)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "move: viewpoint is more than 1e9 units from the scene");
+  return GI_OK;
+}
+
+/* Counters describe this move only. */
+static void reset_counters(gi_bake_report *r) {
+  memset(&r->ms, 0, sizeof r->ms);
+  r->triangles_visited = r->shadow_rays = r->cone_samples = r->cones_traced = 0;
+  r->bounces_run = 0;
+  memset(r->level_voxelized, 0, sizeof r->level_voxelized);
+  memset(r->level_injected, 0, sizeof r->level_injected);
+  memset(r->level_rebounced, 0, sizeof r->level_rebounced);
+}
+
+/* Refreshes indirect light on the move clock (see the file comment). */
+static gi_result refresh(struct gi_cascade *c, const gi_quality *q, int tail, uint32_t **fresh,
+                         const uint32_t *nfresh, gi_move_info *mi, gi_error_info *err) {
+  if (mi->move % gi_cascade_refresh_period(c, c->n - 1) == 0) {
+    mi->cycle_closed = 1;
+    for (int d = 0; d < c->n; d++) mi->refreshed[d] = 1;
+    return rebounce_all(c, q, tail, err);
+  }
+  if (!c->report.effects[GI_FX_BOUNCE].ran) return GI_OK;
+  int due[GI_MAX_LEVELS] = {0};
+  for (int d = 0; d < c->n; d++) mi->refreshed[d] = due[d] = mi->move % gi_cascade_refresh_period(c, d) == 0;
+  gi_result rc = regather(c, q->threads, due, fresh, nfresh, err);
+  if (rc != GI_OK) return rc;
+  gi__shade_all(c);
+  if (gi__cascade_filter(c, q->threads)) return gi__cancel_fail(c->cancel, err, "move filter");
+  return GI_OK;
+}
+
+gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
+                          gi_error_info *err) {
+  gi_result rc = check_viewpoint(c, at, err);
+  if (rc != GI_OK) return rc;
+  gi_move_info mi = {.move = ++c->moves};
+  reset_counters(&c->report);
+  gi_level old[GI_MAX_LEVELS];
+  memcpy(old, c->lv, sizeof old);
+  for (int a = 0; a < 3; a++) {
+    c->at_world[a] = at[a];
+    c->at[a] = (float)(at[a] - c->scene->origin[a]);
+  }
+  gi__cascade_place(c);
+  uint32_t *fresh[GI_MAX_LEVELS] = {0}, nfresh[GI_MAX_LEVELS] = {0}, nnew[GI_MAX_LEVELS] = {0};
+  size_t vox = (size_t)c->R * c->R * c->R;
+  for (int d = 0; d < c->n; d++)
+    if (!(fresh[d] = gi__malloc(vox * sizeof *fresh[d]))) {
+      rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the new voxels' list");
+      goto done;
+    }
+  gi_quality q;
+  int tail = 0;
+  double t0 = gi__now_ms();
+  if ((rc = scroll_levels(c, old, fresh, nfresh, nnew, &mi, err)) != GI_OK) goto done;
+  double t1 = gi__now_ms();
+  /* The plan reads only the placement: unchanged when no level scrolled. */
+  int scrolled = 0;
+  for (int d = 0; d < c->n; d++) scrolled |= memcmp(old[d].cell0, c->lv[d].cell0, sizeof old[d].cell0) != 0;
+  q = c->report.quality;
+  tail = c->tail;
+  if (scrolled && (rc = replan(c, &q, &tail, &mi.relit, err)) != GI_OK) goto done;
+  c->tail = tail;
+  if ((rc = inject_fresh(c, &q, mi.relit, fresh, nnew, err)) != GI_OK) goto done;
+  double t2 = gi__now_ms();
+  if (gi__cascade_filter(c, q.threads)) {
+    rc = gi__cancel_fail(c->cancel, err, "move filter");
+    goto done;
+  }
+  gi__cascade_mark_busy(c);
+  double t3 = gi__now_ms();
+  if ((rc = refresh(c, &q, tail, fresh, nfresh, &mi, err)) != GI_OK) goto done;
+  double t4 = gi__now_ms();
+  c->report.ms.voxelize = t1 - t0;
+  c->report.ms.inject = t2 - t1;
+  c->report.ms.filter = t3 - t2;
+  c->report.ms.bounce = t4 - t3;
+  for (int d = 0; d < c->n; d++) {
+    uint64_t occ = 0;
+    for (size_t i = 0; i < vox; i++) occ += c->lv[d].geo[i].area > 0;
+    c->report.occupied[d] = occ;
+  }
+  if (report) *report = c->report;
+  if (info) *info = mi;
+done:
+  for (int d = 0; d < c->n; d++) gi__free(fresh[d]);
+  return rc;
+}

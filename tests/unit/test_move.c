@@ -1,0 +1,359 @@
+/* test_move.c: moving a baked cascade (gi_cascade_move) against cold bakes.
+ *
+ * On the procedural city at small quality (4 levels of 16^3):
+ *   walk: 200 seeded random moves, most by a few finest voxels, some far
+ *     across the city (larger than the finer levels' extents: those levels
+ *     are rebuilt). Every WALK_CHECK moves the geometry, opacity and direct
+ *     light of every own voxel must equal a cold bake at that point bit for
+ *     bit (the scroll rebuilds exactly the voxels that came into range).
+ *     After the walk the viewer stands still until the refresh cycle closes;
+ *     then every face of every voxel (unpacked texels: the two cascades may
+ *     store them at different rad_scale) must equal the cold bake within
+ *     1e-3 relative.
+ *   deterministic: two cascades walked alike stay byte-identical.
+ *   relit: moving out of a closed room turns the sky on (and back in off):
+ *     every voxel is re-injected and matches a cold bake.
+ *   cost: a move by one anchor cell voxelizes, injects and re-gathers far
+ *     fewer voxels than the cold bake (counted, not timed). */
+#include "test_util.h"
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+#include "cascade/cascade_internal.h"
+#include "gi/gi.h"
+#include "gi/gi_move.h"
+
+#define WALK_MOVES 200
+#define WALK_CHECK 25       /* moves between geometry checks against a cold bake */
+#define FAR_SHARE 0.15      /* share of moves that jump across the city */
+#define NEAR_VOXELS 3.0     /* a near move: up to this many finest voxels per horizontal axis */
+#define FACE_REL_TOL 1e-3   /* the bound on every face */
+/* Below about 2^-24 of the brightest texel a half float (stored relative to
+ * rad_scale = brightest / 4096, subnormal under 2^-14) has no relative
+ * precision left; differences under this share of the brightest are noise. */
+#define FACE_ABS_FLOOR 1e-7
+#define COST_SHARE 0.25     /* a one-cell move redoes at most this share of a cold bake's voxels */
+
+static gi_scene *city(gi_city_params *cp) {
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(cp, NULL, &s, &err), GI_OK);
+  return s;
+}
+
+static const gi_quality SMALL = {.levels = 4, .res = 16, .light_samples = 4, .probe_samples = 16, .threads = 2};
+
+static gi_cascade *bake(const gi_scene *s, const double at[3]) {
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, at, &SMALL, &c, NULL, &err), GI_OK);
+  return c;
+}
+
+/* Geometry, opacity and direct light of every own voxel, bit for bit. */
+static void assert_same_geometry(const gi_cascade *m, const gi_cascade *b) {
+  size_t vox = (size_t)m->R * m->R * m->R;
+  for (int d = 0; d < m->n; d++) {
+    const gi_level *A = &m->lv[d], *B = &b->lv[d];
+    assert_memory_equal(A->cell0, B->cell0, sizeof A->cell0);
+    assert_int_equal(A->num_occ, B->num_occ);
+    assert_memory_equal(A->occ, B->occ, A->num_occ * sizeof *A->occ);
+    assert_true(memcmp(A->geo, B->geo, vox * sizeof *A->geo) == 0);
+    assert_true(memcmp(A->busy, B->busy, vox) == 0);
+    for (uint32_t i = 0; i < A->num_occ; i++) {
+      uint32_t slot = A->occ[i];
+      assert_memory_equal(A->direct[slot], B->direct[slot], sizeof *A->direct);
+      for (int a = 0; a < 3; a++) {
+        assert_int_equal(A->rad[slot].h[GI_VRAD_ALPHA + a], B->rad[slot].h[GI_VRAD_ALPHA + a]);
+        assert_int_equal(A->rad[slot].h[GI_VRAD_TAU + a], B->rad[slot].h[GI_VRAD_TAU + a]);
+      }
+    }
+  }
+}
+
+/* Faces at least this share of the brightest enter the drift figure. */
+#define DRIFT_FLOOR 1e-3
+
+static float brightest_face(const gi_cascade *b) {
+  size_t vox = (size_t)b->R * b->R * b->R;
+  float brightest = 0;
+  for (int d = 0; d < b->n; d++)
+    for (size_t i = 0; i < vox; i++) {
+      gi_vrad_f f;
+      gi__vrad_unpack(b, &b->lv[d].rad[i], &f);
+      for (int k = 0; k < 18; k++) brightest = fmaxf(brightest, f.p[k / 3][k % 3]);
+    }
+  return brightest;
+}
+
+/* Every face of every voxel (both cascades' texels unpacked). With
+ * `strict` each must agree within FACE_REL_TOL; either way the mean and
+ * largest relative difference over faces above DRIFT_FLOOR of the
+ * brightest go to mean/worst. */
+static void compare_light(const gi_cascade *m, const gi_cascade *b, int strict, double *mean, double *worst) {
+  size_t vox = (size_t)m->R * m->R * m->R;
+  float brightest = brightest_face(b);
+  if (strict)
+    for (int d = 0; d < m->n; d++) assert_memory_equal(m->lv[d].cell0, b->lv[d].cell0, sizeof m->lv[d].cell0);
+  assert_true(brightest > 0);
+  double floor_abs = FACE_ABS_FLOOR * brightest, sum = 0;
+  uint64_t faces = 0;
+  *worst = 0;
+  for (int d = 0; d < m->n; d++)
+    for (size_t i = 0; i < vox; i++) {
+      /* Cascades at other anchors share only the cells both windows hold
+       * (a global cell has the same slot in both), own or nested in both. */
+      int64_t cm[3], cb[3];
+      gi__slot_cell(&m->lv[d], m->R, (uint32_t)i, cm);
+      gi__slot_cell(&b->lv[d], b->R, (uint32_t)i, cb);
+      if (memcmp(cm, cb, sizeof cm) != 0 ||
+          gi__is_inner(&m->lv[d], cm[0], cm[1], cm[2]) != gi__is_inner(&b->lv[d], cb[0], cb[1], cb[2]))
+        continue;
+      gi_vrad_f x, y;
+      gi__vrad_unpack(m, &m->lv[d].rad[i], &x);
+      gi__vrad_unpack(b, &b->lv[d].rad[i], &y);
+      for (int k = 0; k < 18; k++) {
+        double u = x.p[k / 3][k % 3], v = y.p[k / 3][k % 3], diff = fabs(u - v);
+        double big = fmax(fabs(u), fabs(v));
+        if (strict && diff > FACE_REL_TOL * big + floor_abs)
+          fail_msg("level %d slot %zu lane %d: move %.9g, bake %.9g (rel %.3g)", d, i, k, u, v, diff / big);
+        if (big < DRIFT_FLOOR * brightest) continue;
+        sum += diff / big;
+        *worst = fmax(*worst, diff / big);
+        faces++;
+      }
+      for (int a = 0; a < 3 && strict; a++) assert_true(x.alpha[a] == y.alpha[a] && x.tau[a] == y.tau[a]);
+    }
+  *mean = faces ? sum / (double)faces : 0;
+}
+
+/* The next viewpoint of the walk: near (a few finest voxels) or far. */
+static void next_point(const gi_city_params *cp, double s0, uint64_t *rng, double at[3]) {
+  if (gi__u01(rng) < FAR_SHARE) {
+    at[0] = (gi__u01(rng) - 0.5) * 0.9 * cp->extent;
+    at[2] = (gi__u01(rng) - 0.5) * 0.9 * cp->extent;
+    at[1] = 1.7 + 20.0 * gi__u01(rng);
+    return;
+  }
+  at[0] += (2.0 * gi__u01(rng) - 1.0) * NEAR_VOXELS * s0;
+  at[2] += (2.0 * gi__u01(rng) - 1.0) * NEAR_VOXELS * s0;
+  at[1] += (2.0 * gi__u01(rng) - 1.0) * s0;
+  if (at[1] < 0.5) at[1] = 0.5;
+}
+
+static void test_walk(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *c = bake(s, at);
+  double s0 = c->s0;
+  uint64_t rng = 0x5c2011;
+  gi_error_info err = {0};
+  int rebuilt = 0, closed = 0, relit = 0;
+  for (int m = 1; m <= WALK_MOVES; m++) {
+    double prev[3] = {at[0], at[1], at[2]};
+    next_point(&cp, s0, &rng, at);
+    gi_move_info mi;
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+    assert_true(mi.move == (uint64_t)m);
+    for (int d = 0; d < c->n; d++) rebuilt += mi.rebuilt[d];
+    closed += mi.cycle_closed;
+    relit += mi.relit;
+    if (m % WALK_CHECK == 0) {
+      gi_cascade *b = bake(s, at);
+      assert_same_geometry(c, b);
+      /* Between cycle ends the light drifts (reported, not asserted). */
+      /* Baseline: how far cold bakes at the previous and this point differ. */
+      gi_cascade *p = bake(s, prev);
+      double mean, worst, pmean, pworst;
+      compare_light(c, b, 0, &mean, &worst);
+      compare_light(p, b, 0, &pmean, &pworst);
+      printf("move %3d (cycle phase %llu): light against a cold bake: mean %.4f max %.4f relative; "
+             "cold bake one step back against it: mean %.4f max %.4f\n", m,
+             (unsigned long long)(mi.move % gi_cascade_refresh_period(c, c->n - 1)), mean, worst, pmean, pworst);
+      gi_cascade_free(p);
+      gi_cascade_free(b);
+    }
+  }
+  printf("walk: %d level rebuilds, %d moves re-lit by a changed plan, %d cycles closed\n", rebuilt, relit, closed);
+  assert_true(rebuilt > 0); /* the far jumps rebuilt some levels */
+  assert_int_equal(closed, WALK_MOVES / (int)gi_cascade_refresh_period(c, c->n - 1));
+  /* Stand still until the cycle closes: within one coarsest period. */
+  gi_move_info mi = {0};
+  for (uint64_t i = 0; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+  assert_true(mi.cycle_closed);
+  gi_cascade *b = bake(s, at);
+  assert_same_geometry(c, b);
+  double mean, worst;
+  compare_light(c, b, 1, &mean, &worst);
+  printf("cycle closed: light against a cold bake: mean %.3g max %.3g relative (bound %.0e)\n", mean, worst,
+         FACE_REL_TOL);
+  gi_cascade_free(b);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+static uint64_t total(const uint64_t *v, int n) {
+  uint64_t t = 0;
+  for (int d = 0; d < n; d++) t += v[d];
+  return t;
+}
+
+static void test_cost(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *c = bake(s, at);
+  gi_bake_report cold = *gi_cascade_report(c);
+  /* One anchor cell (2 finest voxels) along x: the first move, not a cycle's end. */
+  at[0] += 2.0 * c->s0;
+  gi_bake_report r;
+  gi_move_info mi;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_move(c, at, &r, &mi, &err), GI_OK);
+  assert_false(mi.cycle_closed);
+  int n = c->n;
+  uint64_t cv = total(cold.level_voxelized, n), mv = total(r.level_voxelized, n);
+  uint64_t ci = total(cold.level_injected, n), minj = total(r.level_injected, n);
+  uint64_t cb = total(cold.level_rebounced, n), mb = total(r.level_rebounced, n);
+  printf("cold bake: voxelized %llu injected %llu rebounced %llu; move: %llu %llu %llu\n",
+         (unsigned long long)cv, (unsigned long long)ci, (unsigned long long)cb, (unsigned long long)mv,
+         (unsigned long long)minj, (unsigned long long)mb);
+  printf("ms (figures only): cold voxelize %.2f inject %.2f filter %.2f bounce %.2f; move %.2f %.2f %.2f %.2f\n",
+         cold.ms.voxelize, cold.ms.inject, cold.ms.filter, cold.ms.bounce, r.ms.voxelize, r.ms.inject, r.ms.filter,
+         r.ms.bounce);
+  for (int d = 0; d < n; d++)
+    printf("  level %d: voxelized %llu injected %llu rebounced %llu\n", d, (unsigned long long)r.level_voxelized[d],
+           (unsigned long long)r.level_injected[d], (unsigned long long)r.level_rebounced[d]);
+  /* The cold bake counts every own voxel of every level. */
+  assert_true(cv > 0 && ci > 0 && cb > 0);
+  /* Level 0 scrolled by exactly 2 cells: a slab of 2 x R x R. */
+  assert_true(r.level_voxelized[0] == 2ull * (uint64_t)c->R * (uint64_t)c->R);
+  assert_true((double)mv < COST_SHARE * (double)cv);
+  assert_true((double)minj < COST_SHARE * (double)ci);
+  assert_true((double)mb < COST_SHARE * (double)cb);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+/* Bad viewpoints are refused and leave the cascade as it was. */
+static void test_bad_viewpoint(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *c = bake(s, at);
+  gi_error_info err = {0};
+  double nan_at[3] = {NAN, 0, 0}, far_at[3] = {2e9, 0, 0};
+  assert_int_equal(gi_cascade_move(c, nan_at, NULL, NULL, &err), GI_ERR_NONFINITE);
+  assert_int_equal(gi_cascade_move(c, far_at, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_int_equal(gi_cascade_move(NULL, at, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  gi_cascade *b = bake(s, at);
+  assert_same_geometry(c, b);
+  gi_cascade_free(b);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+/* Two cascades walked along the same path hold the same bytes at every step
+ * (also between cycle ends): the refresh runs on the move clock alone. */
+#define DETERMINISM_MOVES 20
+static void test_deterministic(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *a = bake(s, at), *b = bake(s, at);
+  uint64_t rng = 0xd373;
+  gi_error_info err = {0};
+  size_t vox = (size_t)a->R * a->R * a->R;
+  for (int m = 0; m < DETERMINISM_MOVES; m++) {
+    next_point(&cp, a->s0, &rng, at);
+    assert_int_equal(gi_cascade_move(a, at, NULL, NULL, &err), GI_OK);
+    assert_int_equal(gi_cascade_move(b, at, NULL, NULL, &err), GI_OK);
+    assert_true(a->rad_scale == b->rad_scale);
+    for (int d = 0; d < a->n; d++) {
+      assert_true(memcmp(a->lv[d].rad, b->lv[d].rad, vox * sizeof *a->lv[d].rad) == 0);
+      assert_true(memcmp(a->lv[d].side, b->lv[d].side, vox * sizeof *a->lv[d].side) == 0);
+    }
+  }
+  gi_cascade_free(a);
+  gi_cascade_free(b);
+  gi_scene_release(s);
+}
+
+/* A closed room [0,4] x [0,3] x [0,4] (y up), lit by the sky and a point
+ * light inside: from inside the plan skips the sky, from above the roof it
+ * runs it, so moving in and out changes the lights of every voxel. */
+static gi_scene *closed_room(void) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  const double W = 4, H = 3;
+  double f[4][3] = {{0, 0, 0}, {W, 0, 0}, {W, 0, W}, {0, 0, W}};
+  gi_mesh_builder_add_quad(b, f[0], f[1], f[2], f[3], mat);
+  for (int i = 0; i < 4; i++) {
+    const double *p = f[i], *q = f[(i + 1) % 4];
+    double top_p[3] = {p[0], H, p[2]}, top_q[3] = {q[0], H, q[2]};
+    gi_mesh_builder_add_quad(b, p, q, top_q, top_p, mat);
+  }
+  double c[4][3] = {{0, H, 0}, {W, H, 0}, {W, H, W}, {0, H, W}};
+  gi_mesh_builder_add_quad(b, c[0], c[1], c[2], c[3], mat);
+  gi_light l[2] = {{.type = GI_LIGHT_SKY, .color = {1, 1, 1}},
+                   {.type = GI_LIGHT_POINT, .color = {5, 5, 5}, .position = {1, 2, 1}}};
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = l, .num_lights = 2};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "closed room", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* A move that changes the effect plan's lights re-injects every voxel; the
+ * geometry and direct light then equal a cold bake's, and after the cycle
+ * closes so does every face. */
+static void test_relit(void **state) {
+  gi_scene *s = closed_room();
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.05, .light_samples = 8, .probe_samples = 16, .threads = 2};
+  const double inside[3] = {2.03, 1.5, 2.03}, above[3] = {2.03, 4.5, 2.03};
+  const double *path[2] = {above, inside};
+  gi_cascade *c = NULL;
+  gi_bake_report r;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, inside, &q, &c, &r, &err), GI_OK);
+  assert_false(r.effects[GI_FX_SKY].ran);
+  for (int i = 0; i < 2; i++) {
+    gi_move_info mi;
+    assert_int_equal(gi_cascade_move(c, path[i], &r, &mi, &err), GI_OK);
+    assert_true(mi.relit);
+    assert_int_equal(r.effects[GI_FX_SKY].ran, path[i] == above);
+    gi_cascade *b = NULL;
+    assert_int_equal(gi_cascade_bake(s, path[i], &q, &b, NULL, &err), GI_OK);
+    assert_same_geometry(c, b);
+    gi_move_info still = {0};
+    for (uint64_t k = 0; k < gi_cascade_refresh_period(c, c->n - 1) && !still.cycle_closed; k++)
+      assert_int_equal(gi_cascade_move(c, path[i], NULL, &still, &err), GI_OK);
+    assert_true(still.cycle_closed);
+    double mean, worst;
+    compare_light(c, b, 1, &mean, &worst);
+    gi_cascade_free(b);
+  }
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_cost),
+      cmocka_unit_test(test_bad_viewpoint),
+      cmocka_unit_test(test_deterministic),
+      cmocka_unit_test(test_relit),
+      cmocka_unit_test(test_walk),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
