@@ -33,6 +33,8 @@ typedef struct opts {
   int ref_samples, pt_max, threads;
   int quick;
   int view_spp;        /* reference paths per pixel of the camera views; 0 = no views */
+  acc_file_opts file;  /* --scene FILE and its options */
+  char out_buf[1024];  /* the default --out of a --scene run */
 } opts;
 
 static void usage(FILE *f) {
@@ -40,7 +42,20 @@ static void usage(FILE *f) {
           "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
           "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N]\n"
           "                   [--view-samples N] [--no-views] [--quick]\n"
+          "       gi-accuracy --scene FILE [--up y|z] [--at X,Y,Z] [--probes FILE | --above-ground H]\n"
+          "                   [--view CAMERA] [the options above but --scenes]\n"
           "  --scenes LIST      comma-separated: cornell, munich, city (default all three)\n"
+          "  --scene FILE       any scene file instead (OBJ, glTF, PLY, ...); default --out\n"
+          "                     out/accuracy-NAME (NAME: the file's base name)\n"
+          "  --up y|z           the file's up axis (default y)\n"
+          "  --at X,Y,Z         the cone tracer's viewpoint (default: the probes' middle)\n"
+          "  --probes FILE      the probe points, one 'x y z' per line, '#' comments (as gi-bake --probes);\n"
+          "                     default: a 3x3x3 lattice at 20/50/80%% of the bounds, points that see\n"
+          "                     direct light (the Cornell box's rule)\n"
+          "  --above-ground H   instead a 7x7 street-level grid H above the ground around --at, none\n"
+          "                     inside buildings (Munich's and the city's rule)\n"
+          "  --view CAMERA      also compare a camera view: a Mitsuba .xml sensor or\n"
+          "                     X,Y,Z,TX,TY,TZ,FOV,W,H (as gi-bake --render)\n"
           "  --scenes-dir DIR   the shared scenes (default %s)\n"
           "  --out DIR          CSV, plot script and reference cache (default out/accuracy)\n"
           "  --md FILE          the markdown report (default OUT/accuracy.md)\n"
@@ -67,47 +82,8 @@ static int takes_value(const char *a) {
   return 0;
 }
 
-static int parse_args(int argc, char **argv, opts *o) {
-  memset(o, 0, sizeof *o);
-  o->scenes_dir = GI_SCENES_DIR;
-  o->out_dir = "out/accuracy";
-  o->ref_samples = 65536;
-  o->pt_max = 4096;
-  o->view_spp = -1;
-  int no_views = 0;
-  const char *list = "cornell,munich,city";
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    int has = i + 1 < argc;
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      return -1;
-    } else if (!strcmp(a, "--quick")) {
-      o->quick = 1;
-    } else if (!strcmp(a, "--no-views")) {
-      no_views = 1;
-    } else if (!has && takes_value(a)) {
-      return ta_fail(&ta, NULL, "option '%s' needs a value", a);
-    } else if (!strcmp(a, "--scenes")) list = argv[++i];
-    else if (!strcmp(a, "--scenes-dir")) o->scenes_dir = argv[++i];
-    else if (!strcmp(a, "--out")) o->out_dir = argv[++i];
-    else if (!strcmp(a, "--md")) o->md = argv[++i];
-    else if (!strcmp(a, "--png")) o->png = argv[++i];
-    else if (!strcmp(a, "--notes")) o->notes = argv[++i];
-    else if (!strcmp(a, "--ref-samples")) {
-      if (ta_int(&ta, "--ref-samples", NULL, argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
-    } else if (!strcmp(a, "--pt-max")) {
-      if (ta_int(&ta, "--pt-max", NULL, argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
-    } else if (!strcmp(a, "--repeat")) {
-      if (ta_int(&ta, "--repeat", NULL, argv[++i], 1, 20, &g_repeat)) return 2;
-    } else if (!strcmp(a, "--view-samples")) {
-      if (ta_int(&ta, "--view-samples", NULL, argv[++i], 8, 1 << 20, &o->view_spp)) return 2;
-    } else if (!strcmp(a, "--threads")) {
-      if (ta_int(&ta, "--threads", NULL, argv[++i], 0, 256, &o->threads)) return 2;
-    } else {
-      return ta_fail(&ta, NULL, "unknown argument '%s'", a);
-    }
-  }
+/* --scenes LIST: the shipped scenes, at most three. */
+static int parse_list(const char *list, opts *o) {
   char buf[64];
   snprintf(buf, sizeof buf, "%s", list);
   for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
@@ -125,25 +101,79 @@ static int parse_args(int argc, char **argv, opts *o) {
     fprintf(stderr, "gi-accuracy: --scenes is empty\n");
     return 2;
   }
-  if (no_views) o->view_spp = 0;
-  else if (o->view_spp < 0) o->view_spp = o->quick ? 64 : 1024;
   return 0;
 }
 
+static int parse_args(int argc, char **argv, opts *o) {
+  memset(o, 0, sizeof *o);
+  o->scenes_dir = GI_SCENES_DIR;
+  o->out_dir = "out/accuracy";
+  o->ref_samples = 65536;
+  o->pt_max = 4096;
+  o->view_spp = -1;
+  int no_views = 0;
+  const char *list = "cornell,munich,city";
+  int scenes_given = 0, out_given = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    int has = i + 1 < argc, took = acc_file_option(&ta, &o->file, argc, argv, &i);
+    if (took == 2) return 2;
+    if (took) continue;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage(stdout);
+      return -1;
+    } else if (!strcmp(a, "--quick")) {
+      o->quick = 1;
+    } else if (!strcmp(a, "--no-views")) {
+      no_views = 1;
+    } else if (!has && takes_value(a)) {
+      return ta_fail(&ta, NULL, "option '%s' needs a value", a);
+    } else if (!strcmp(a, "--scenes")) list = argv[++i], scenes_given = 1;
+    else if (!strcmp(a, "--scenes-dir")) o->scenes_dir = argv[++i];
+    else if (!strcmp(a, "--out")) o->out_dir = argv[++i], out_given = 1;
+    else if (!strcmp(a, "--md")) o->md = argv[++i];
+    else if (!strcmp(a, "--png")) o->png = argv[++i];
+    else if (!strcmp(a, "--notes")) o->notes = argv[++i];
+    else if (!strcmp(a, "--ref-samples")) {
+      if (ta_int(&ta, "--ref-samples", NULL, argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
+    } else if (!strcmp(a, "--pt-max")) {
+      if (ta_int(&ta, "--pt-max", NULL, argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
+    } else if (!strcmp(a, "--repeat")) {
+      if (ta_int(&ta, "--repeat", NULL, argv[++i], 1, 20, &g_repeat)) return 2;
+    } else if (!strcmp(a, "--view-samples")) {
+      if (ta_int(&ta, "--view-samples", NULL, argv[++i], 8, 1 << 20, &o->view_spp)) return 2;
+    } else if (!strcmp(a, "--threads")) {
+      if (ta_int(&ta, "--threads", NULL, argv[++i], 0, 256, &o->threads)) return 2;
+    } else {
+      return ta_fail(&ta, NULL, "unknown argument '%s'", a);
+    }
+  }
+  int rc = acc_file_check(&ta, &o->file);
+  if (rc) return rc;
+  if (no_views && o->file.have_view) return ta_fail(&ta, "--view", "cannot be combined with --no-views");
+  if (no_views) o->view_spp = 0;
+  else if (o->view_spp < 0) o->view_spp = o->quick ? 64 : 1024;
+  if (o->file.path) {
+    if (scenes_given) return ta_fail(&ta, "--scene", "cannot be combined with --scenes");
+    if (!out_given) {
+      snprintf(o->out_buf, sizeof o->out_buf, "out/accuracy-%s", o->file.name);
+      o->out_dir = o->out_buf;
+    }
+    o->num_scenes = 1;
+    return 0;
+  }
+  return parse_list(list, o);
+}
+
+
 /* ---- scenes and probe points ---------------------------------------- */
 
-typedef struct scene_set {
-  gi_scene *s;
-  double at[3];
-  double *pts;
-  size_t n;
-  int ref_samples;     /* reference paths per probe for this scene */
-} scene_set;
+typedef acc_scene_set scene_set;
 
 /* Candidate points on a grid; keeps those that see direct light above 2%
  * of the best candidate (drops points inside buildings and inside the
  * Cornell box's blocks, where the truth is darkness), at most `keep`. */
-static int keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int threads) {
+int acc_keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int threads) {
   gi_ref_probe *r = calloc(nc, sizeof *r);
   gi_reference_opts o = {.samples = 64, .max_depth = -1, .seed = 7, .threads = threads};
   gi_error_info err = {0};
@@ -185,7 +215,7 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
       int ix[3] = {i % 3, (i / 3) % 3, i / 9};
       for (int k = 0; k < 3; k++) cand[3 * i + k] = lo[k] + f[ix[k]] * (hi[k] - lo[k]);
     }
-    return keep_lit(ss, cand, 27, 27, o->threads);
+    return acc_keep_lit(ss, cand, 27, 27, o->threads);
   }
   double cand[3 * 49];
   if (!strcmp(name, "munich")) {
@@ -211,7 +241,7 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
       cand[3 * i + h0] += 6.0 * (i / 7 - 3);
     }
   }
-  return keep_lit(ss, cand, 49, 24, o->threads);
+  return acc_keep_lit(ss, cand, 49, 24, o->threads);
 }
 
 /* ---- reference cache ------------------------------------------------- */
@@ -409,6 +439,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
 static int view_camera(const opts *o, const char *name, const scene_set *ss, gi_camera *cam) {
   gi_error_info err = {0};
   memset(cam, 0, sizeof *cam);
+  if (o->file.path) return acc_file_camera(&o->file, ss->s, cam);
   if (!strcmp(name, "cornell")) {
     char path[1024];
     snprintf(path, sizeof path, "%s/cornell-box/cbox-mitsuba.xml", o->scenes_dir);
@@ -492,9 +523,11 @@ int main(int argc, char **argv) {
   dir_of(md, md_dir, sizeof md_dir);
   rc = 0;
   for (int i = 0; i < o.num_scenes; i++) {
-    const char *name = o.scenes[i];
+    const char *name = o.file.path ? o.file.name : o.scenes[i];
     scene_set ss;
-    int st = setup_scene(&o, name, &ss);
+    char placement[sizeof info[0].placement] = "";
+    int st = o.file.path ? acc_file_setup(&o.file, o.ref_samples, o.threads, &ss, placement, sizeof placement)
+                         : setup_scene(&o, name, &ss);
     if (st < 0) continue; /* skipped loudly */
     gi_ref_probe *ref = st ? calloc(ss.n, sizeof *ref) : NULL;
     acc_scene_info *si = &info[ninfo];
@@ -505,6 +538,7 @@ int main(int argc, char **argv) {
       snprintf(si->name, sizeof si->name, "%s", name);
       si->probes = ss.n;
       si->ref_samples = ss.ref_samples;
+      snprintf(si->placement, sizeof si->placement, "%s", placement);
       snprintf(si->at, sizeof si->at, "%.6g, %.6g, %.6g", ss.at[0], ss.at[1], ss.at[2]);
       acc_metrics m;
       for (int p = 0; p < 3; p++) {
@@ -548,5 +582,6 @@ int main(int argc, char **argv) {
     fprintf(stderr, "gi-accuracy: SKIP: no scene was available\n");
   }
   free(out.v);
+  free(o.file.pts);
   return rc;
 }
