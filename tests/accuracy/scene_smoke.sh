@@ -63,6 +63,46 @@ grep -q 'Viewpoint (2, 1.5, 2), 2 probes (2 points from pts.txt, as given)' "$T/
   && pass "--probes taken as given, default --out out/accuracy-box" \
   || fail "--probes run: $(ls -R "$T/out" 2>&1 | head -5)"
 
+# Street level (the cities' rule) on a ground with one closed block, Z up:
+# a 7 x 7 grid 2 m up, the probe inside the block dropped, the viewpoint a
+# kept probe 2 m up; only the bounce knob swept, to stay quick.
+cat > "$T/street.obj" <<'OBJ'
+v -20 -20 0
+v 20 -20 0
+v 20 20 0
+v -20 20 0
+v -5 -5 0
+v 5 -5 0
+v 5 5 0
+v -5 5 0
+v -5 -5 8
+v 5 -5 8
+v 5 5 8
+v -5 5 8
+f 1 2 3 4
+f 9 10 11 12
+f 5 6 10 9
+f 6 7 11 10
+f 7 8 12 11
+f 8 5 9 12
+OBJ
+"$BIN" --scene "$T/street.obj" --up z --above-ground 2 --knobs bounces --quick --ref-samples 256 --pt-max 4 \
+    --repeat 1 --threads 2 --no-views --out "$T/st" > /dev/null 2> "$T/err3"; rc=$?
+[ $rc -eq 0 ] && pass "--above-ground run exits 0" || { cat "$T/err3" >&2; fail "--above-ground run exited $rc"; }
+python3 - "$T/st/accuracy.csv" "$T/st/accuracy.md" <<'PY' && pass "street-level probes placed, only bounces swept" \
+  || fail "street-level run"
+import csv, re, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert sorted({r["knob"] for r in rows}) == ["bounces", "default", "samples"], {r["knob"] for r in rows}
+md = open(sys.argv[2]).read()
+m = re.search(r"Viewpoint \(([^)]*)\), (\d+) probes \(a 7x7 street-level grid, 5.33333 apart, 2 above the ground "
+              r"\(gi_probe_grid_build\), 1 inside buildings dropped", md)
+assert m, md[:1500]
+at = [float(x) for x in m.group(1).split(",")]
+assert at[2] == 2 and not (abs(at[0]) < 5 and abs(at[1]) < 5), at  # 2 m up, outside the block
+assert int(m.group(2)) == 24, m.group(2)
+PY
+
 # Bad arguments: exit 2 naming the option; a missing file exits 1; nothing written.
 expect_rc() {
   want=$1 what=$2; shift 2
@@ -84,6 +124,8 @@ expect_rc 2 "badpts.txt" --scene "$T/box.obj" --probes "$T/badpts.txt"
 expect_rc 2 "--view: expected a Mitsuba" --scene "$T/box.obj" --view 1,2,3
 expect_rc 2 "--view: .*eye" --scene "$T/box.obj" --view 1,1,1,1,1,1,60,8,8
 expect_rc 2 "cannot be combined with --no-views" --scene "$T/box.obj" --view 1,1,1,2,2,2,60,8,8 --no-views
+expect_rc 2 "--knobs: unknown knob 'foo'" --scene "$T/box.obj" --knobs res,foo
+expect_rc 2 "--knobs: unknown knob ''" --scene "$T/box.obj" --knobs res,
 expect_rc 1 "cannot read" --scene "$T/missing.obj"
 expect_rc 1 "missing.txt" --scene "$T/box.obj" --probes "$T/missing.txt"
 finish

@@ -33,6 +33,7 @@ typedef struct opts {
   int ref_samples, pt_max, threads;
   int quick;
   int view_spp;        /* reference paths per pixel of the camera views; 0 = no views */
+  const char *knobs;   /* --knobs: the knobs to sweep; NULL = all */
   acc_file_opts file;  /* --scene FILE and its options */
   char out_buf[1024];  /* the default --out of a --scene run */
 } opts;
@@ -41,14 +42,15 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
           "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N]\n"
-          "                   [--view-samples N] [--no-views] [--quick]\n"
+          "                   [--view-samples N] [--no-views] [--quick] [--knobs LIST]\n"
           "       gi-accuracy --scene FILE [--up y|z] [--at X,Y,Z] [--probes FILE | --above-ground H]\n"
           "                   [--view CAMERA] [the options above but --scenes]\n"
           "  --scenes LIST      comma-separated: cornell, munich, city (default all three)\n"
           "  --scene FILE       any scene file instead (OBJ, glTF, PLY, ...); default --out\n"
           "                     out/accuracy-NAME (NAME: the file's base name)\n"
           "  --up y|z           the file's up axis (default y)\n"
-          "  --at X,Y,Z         the cone tracer's viewpoint (default: the probes' middle)\n"
+          "  --at X,Y,Z         the cone tracer's viewpoint (default: the placed probe nearest the\n"
+          "                     middle of the bounds or of the grid; the --probes points' mean)\n"
           "  --probes FILE      the probe points, one 'x y z' per line, '#' comments (as gi-bake --probes);\n"
           "                     default: a 3x3x3 lattice at 20/50/80%% of the bounds, points that see\n"
           "                     direct light (the Cornell box's rule)\n"
@@ -68,7 +70,9 @@ static void usage(FILE *f) {
           "  --view-samples N   reference paths per pixel of each scene's camera view (default 1024;\n"
           "                     the path tracer is swept up to a quarter of it)\n"
           "  --no-views         skip the camera views\n"
-          "  --quick            fewer knob values, views at 64 paths per pixel (a smoke run)\n",
+          "  --quick            fewer knob values, views at 64 paths per pixel (a smoke run)\n"
+          "  --knobs LIST       sweep only these: res, levels, voxel0, cones, aperture, step, bounces,\n"
+          "                     high (comma-separated; the default bake always runs)\n",
           GI_SCENES_DIR);
 }
 
@@ -76,9 +80,25 @@ static ta_ctx ta = TA_CTX("gi-accuracy");
 
 static int takes_value(const char *a) {
   static const char *const v[] = {"--scenes", "--scenes-dir", "--out", "--md", "--png", "--notes",
-                                   "--ref-samples", "--pt-max", "--threads", "--repeat", "--view-samples"};
+                                   "--ref-samples", "--pt-max", "--threads", "--repeat", "--view-samples", "--knobs"};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++)
     if (!strcmp(a, v[i])) return 1;
+  return 0;
+}
+
+/* --knobs LIST: names from the sweep, comma-separated. */
+static int check_knobs(const char *list) {
+  static const char *const known[] = {"res", "levels", "voxel0", "cones", "aperture", "step", "bounces", "high"};
+  char buf[128];
+  if (!*list || strlen(list) >= sizeof buf) return ta_fail(&ta, "--knobs", "expected a list of knobs, got '%s'", list);
+  snprintf(buf, sizeof buf, "%s", list);
+  for (char *t = buf, *e; t; t = e ? e + 1 : NULL) {
+    if ((e = strchr(t, ','))) *e = 0;
+    size_t k = 0;
+    while (k < sizeof known / sizeof known[0] && strcmp(t, known[k])) k++;
+    if (k == sizeof known / sizeof known[0])
+      return ta_fail(&ta, "--knobs", "unknown knob '%s' (res, levels, voxel0, cones, aperture, step, bounces, high)", t);
+  }
   return 0;
 }
 
@@ -134,6 +154,9 @@ static int parse_args(int argc, char **argv, opts *o) {
     else if (!strcmp(a, "--md")) o->md = argv[++i];
     else if (!strcmp(a, "--png")) o->png = argv[++i];
     else if (!strcmp(a, "--notes")) o->notes = argv[++i];
+    else if (!strcmp(a, "--knobs")) {
+      if (check_knobs(o->knobs = argv[++i])) return 2;
+    }
     else if (!strcmp(a, "--ref-samples")) {
       if (ta_int(&ta, "--ref-samples", NULL, argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
     } else if (!strcmp(a, "--pt-max")) {
@@ -365,6 +388,15 @@ static int run_path(const char *name, const scene_set *ss, const gi_ref_probe *r
   return 1;
 }
 
+/* Whether --knobs (default: every knob) names this one. */
+static int sweeps(const opts *o, const char *knob) {
+  if (!o->knobs) return 1;
+  size_t n = strlen(knob);
+  for (const char *p = o->knobs; (p = strstr(p, knob)); p += n)
+    if ((p == o->knobs || p[-1] == ',') && (p[n] == ',' || !p[n])) return 1;
+  return 0;
+}
+
 static int sweep_scene(const opts *o, const char *name, const scene_set *ss, const gi_ref_probe *ref, rows *out) {
   gi_quality q0 = {.threads = o->threads};
   /* Resolve the default voxel size once, so `levels` can move alone. */
@@ -385,44 +417,44 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   static const float steps[] = {0.25f, 1.0f}, aps[] = {0.6f, 1.5f};
   const int *res = o->quick ? res_quick : res_full;
   int nres = o->quick ? 2 : 4;
-  for (int i = 0; ok && i < nres; i++) {
+  for (int i = 0; ok && sweeps(o, "res") && i < nres; i++) {
     gi_quality q = q0;
     q.res = res[i];
     q.voxel0 = s0 * 32.0 / res[i]; /* same extent, finer voxels */
     ok = run_cone(name, ss, ref, &q, "res", res[i], 0, out);
   }
-  for (int i = 0; ok && i < 3; i++) {
+  for (int i = 0; ok && sweeps(o, "levels") && i < 3; i++) {
     gi_quality q = q0;
     q.levels = lev[i];
     q.voxel0 = s0;
     ok = run_cone(name, ss, ref, &q, "levels", lev[i], 0, out);
   }
-  for (int i = 0; ok && i < 2; i++) {
+  for (int i = 0; ok && sweeps(o, "voxel0") && i < 2; i++) {
     gi_quality q = q0;
     q.voxel0 = s0 * vx[i];
     ok = run_cone(name, ss, ref, &q, "voxel0", q.voxel0, 0, out);
   }
-  for (int i = 0; ok && i < 3; i++) {
+  for (int i = 0; ok && sweeps(o, "cones") && i < 3; i++) {
     gi_quality q = q0;
     q.cones = cones[i];
     ok = run_cone(name, ss, ref, &q, "cones", cones[i], 0, out);
   }
-  for (int i = 0; ok && i < 2; i++) {
+  for (int i = 0; ok && sweeps(o, "aperture") && i < 2; i++) {
     gi_quality q = q0;
     q.aperture_deg = ap16 * aps[i];
     ok = run_cone(name, ss, ref, &q, "aperture", q.aperture_deg, 0, out);
   }
-  for (int i = 0; ok && i < 2; i++) {
+  for (int i = 0; ok && sweeps(o, "step") && i < 2; i++) {
     gi_quality q = q0;
     q.step = steps[i];
     ok = run_cone(name, ss, ref, &q, "step", steps[i], 0, out);
   }
-  for (int i = 0; ok && i < 4; i++) {
+  for (int i = 0; ok && sweeps(o, "bounces") && i < 4; i++) {
     gi_quality q = q0;
     q.bounces = bnc[i];
     ok = run_cone(name, ss, ref, &q, "bounces", bnc[i] < 0 ? 0 : bnc[i], 0, out);
   }
-  if (ok && !o->quick) {
+  if (ok && !o->quick && sweeps(o, "high")) {
     /* A "high" setting: every knob that helped, together. */
     gi_quality q = q0;
     q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f; /* bounces: the albedo rule and its tail */

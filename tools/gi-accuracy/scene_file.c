@@ -112,6 +112,18 @@ int acc_file_check(struct ta_ctx *ta, acc_file_opts *f) {
   return 0;
 }
 
+/* Without --at the viewpoint is the kept probe nearest c: a point that
+ * sees light, never one inside a solid (a bounds' centre or a grid's mean
+ * may well be inside a building). */
+static void at_nearest(acc_scene_set *ss, const double c[3]) {
+  double best = INFINITY;
+  for (size_t i = 0; i < ss->n; i++) {
+    const double *p = &ss->pts[3 * i];
+    double d = (p[0] - c[0]) * (p[0] - c[0]) + (p[1] - c[1]) * (p[1] - c[1]) + (p[2] - c[2]) * (p[2] - c[2]);
+    if (d < best) best = d, memcpy(ss->at, p, sizeof ss->at);
+  }
+}
+
 /* The Cornell rule over the scene's bounds. */
 static int place_lattice(const acc_file_opts *f, int threads, acc_scene_set *ss, char *pl, size_t pn) {
   static const double frac[LATTICE_SIDE] = {0.2, 0.5, 0.8};
@@ -122,22 +134,22 @@ static int place_lattice(const acc_file_opts *f, int threads, acc_scene_set *ss,
     int ix[3] = {i % LATTICE_SIDE, (i / LATTICE_SIDE) % LATTICE_SIDE, i / (LATTICE_SIDE * LATTICE_SIDE)};
     for (int k = 0; k < 3; k++) cand[3 * i + k] = lo[k] + frac[ix[k]] * (hi[k] - lo[k]);
   }
-  if (!f->have_at)
-    for (int k = 0; k < 3; k++) ss->at[k] = 0.5 * (lo[k] + hi[k]);
   snprintf(pl, pn, "a 3x3x3 lattice at 20/50/80%% of the scene's bounds, points that see direct light");
-  return acc_keep_lit(ss, cand, N, N, threads);
+  if (!acc_keep_lit(ss, cand, N, N, threads)) return 0;
+  if (!f->have_at) at_nearest(ss, cand + 3 * (N / 2)); /* the lattice's middle point: the bounds' centre */
+  return 1;
 }
 
 /* The cities' rule: a 7 x 7 street-level grid around --at (a quarter of the
  * scene's width) or over most of the scene, above_ground up, no probe
- * inside a building. Without --at the viewpoint is the kept probes' mean. */
+ * inside a building. */
 static int place_street(const acc_file_opts *f, int threads, acc_scene_set *ss, char *pl, size_t pn) {
   double lo[3], hi[3];
   gi_scene_bounds(ss->s, lo, hi);
   int up = f->up, h0 = 0, h1 = up == GI_UP_Z ? 1 : 2; /* the horizontal axes */
   double width = fmax(hi[h0] - lo[h0], hi[h1] - lo[h1]);
   double side = width * (f->have_at ? STREET_AT_SHARE : STREET_ALL_SHARE);
-  gi_grid_spec spec = {.spacing = side / (STREET_SIDE - 1) * (1 + 1e-9), .have_region = 1,
+  gi_grid_spec spec = {.spacing = side / (STREET_SIDE - 1), .have_region = 1,
                        .above_ground = f->above_ground};
   for (int k = 0; k < 3; k++) {
     double c = f->have_at && k != up ? f->at[k] : 0.5 * (lo[k] + hi[k]);
@@ -158,9 +170,9 @@ static int place_street(const acc_file_opts *f, int threads, acc_scene_set *ss, 
   snprintf(pl, pn, "a %dx%d street-level grid, %g apart, %g above the ground (gi_probe_grid_build), "
            "%zu inside buildings dropped, points that see direct light", g.counts[h0], g.counts[h1], spec.spacing,
            f->above_ground, g.num_inside);
-  if (!f->have_at) memcpy(ss->at, mean, sizeof mean);
   gi_probe_grid_free(&g);
   int ok = cand && nc ? acc_keep_lit(ss, cand, nc, STREET_KEEP, threads) : 0;
+  if (ok && !f->have_at) at_nearest(ss, mean);
   if (cand && !nc) fprintf(stderr, "gi-accuracy: --above-ground: no ground under the grid (wrong --up?)\n");
   free(cand);
   return ok;
