@@ -5,6 +5,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include "gi/gi_camera.h"
 #include "metrics.h"
 
 /* One measured configuration: a cone-traced bake (kind "cone") or a
@@ -29,7 +30,23 @@ typedef struct acc_scene_info {
   double ref_ms;       /* time the reference took (0 when read from the cache) */
   double ref_rel_se[3];
   char at[96];
+  char placement[160]; /* how the probes were chosen (--scene runs); "" for the shipped scenes */
 } acc_scene_info;
+
+/* A scene with its viewpoint and probe points. */
+struct gi_scene;
+typedef struct acc_scene_set {
+  struct gi_scene *s;
+  double at[3];
+  double *pts;
+  size_t n;
+  int ref_samples;     /* reference paths per probe for this scene */
+} acc_scene_set;
+
+/* main.c: keeps the candidates that see direct light above 2% of the best
+ * (drops points inside solids, where the truth is darkness), at most keep,
+ * in their order. Returns 1 when at least one is kept. */
+int acc_keep_lit(acc_scene_set *ss, const double *cand, size_t nc, size_t keep, int threads);
 
 /* cache.c: FNV-1a over bytes (the cache files' names), and the cache
  * files themselves: read exactly na (+ nb when b is not NULL) bytes, 1 on
@@ -59,7 +76,6 @@ typedef struct acc_view {
  * cached in out_dir under ref_version), the cone tracer's bake at `at` +
  * render at default quality, the path tracer at 1, 4, .. ref_spp / 4;
  * writes the side-by-side picture to png (may be NULL). Returns 1 on success. */
-struct gi_scene;
 struct gi_camera;
 int acc_run_view(const char *name, const struct gi_scene *s, const double at[3], const struct gi_camera *cam,
                  int ref_spp, int threads, int repeat, const char *out_dir, const char *png, int ref_version,
@@ -80,5 +96,35 @@ void acc_write_views_md(FILE *f, const acc_view *v, size_t n);
 int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const acc_view *views,
                       size_t nviews, const char *out_dir, const char *md_path, const char *png_path,
                       const char *machine, const char *cmdline, const char *notes);
+
+/* scene_file.c: `gi-accuracy --scene FILE`, any scene file. */
+#define ACC_FILE_MAX_PROBES 4096 /* --probes: more would make the reference take hours */
+typedef struct acc_file_opts {
+  const char *path;       /* --scene; NULL: the shipped scenes */
+  char name[32];          /* the file's base name without extension, safe for CSV and gnuplot */
+  int up;                 /* GI_UP_Y or GI_UP_Z (--up) */
+  int have_at;
+  double at[3];           /* --at: the cone tracer's viewpoint */
+  const char *probes_file;/* --probes */
+  double *pts;            /* its points, read while parsing */
+  size_t npts;
+  double above_ground;    /* --above-ground: street-level probes this far up; 0 = a lattice in the bounds */
+  int have_view, cam_up_from_scene;
+  gi_camera cam;          /* --view */
+} acc_file_opts;
+
+struct ta_ctx;
+/* Takes argv[*i] when it is one of the --scene options (advancing *i past
+ * its value): 1 taken, 0 not one of them, 2 bad value (message printed). */
+int acc_file_option(struct ta_ctx *ta, acc_file_opts *f, int argc, char **argv, int *i);
+/* After every option: the combinations, the files, the name. Returns 0,
+ * 2 (bad usage) or 1 (a file cannot be read), the message printed. */
+int acc_file_check(struct ta_ctx *ta, acc_file_opts *f);
+/* Loads the file and places the probes (or takes --probes); the reference
+ * paths per probe are ref_samples. 1 on success, 0 on failure (printed). */
+int acc_file_setup(const acc_file_opts *f, int ref_samples, int threads, acc_scene_set *ss, char *placement,
+                   size_t placement_size);
+/* The --view camera with the scene's up axis; 0 when there is none. */
+int acc_file_camera(const acc_file_opts *f, const struct gi_scene *s, gi_camera *cam);
 
 #endif

@@ -33,14 +33,31 @@ typedef struct opts {
   int ref_samples, pt_max, threads;
   int quick;
   int view_spp;        /* reference paths per pixel of the camera views; 0 = no views */
+  const char *knobs;   /* --knobs: the knobs to sweep; NULL = all */
+  acc_file_opts file;  /* --scene FILE and its options */
+  char out_buf[1024];  /* the default --out of a --scene run */
 } opts;
 
 static void usage(FILE *f) {
   fprintf(f,
           "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
           "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N]\n"
-          "                   [--view-samples N] [--no-views] [--quick]\n"
+          "                   [--view-samples N] [--no-views] [--quick] [--knobs LIST]\n"
+          "       gi-accuracy --scene FILE [--up y|z] [--at X,Y,Z] [--probes FILE | --above-ground H]\n"
+          "                   [--view CAMERA] [the options above but --scenes]\n"
           "  --scenes LIST      comma-separated: cornell, munich, city (default all three)\n"
+          "  --scene FILE       any scene file instead (OBJ, glTF, PLY, ...); default --out\n"
+          "                     out/accuracy-NAME (NAME: the file's base name)\n"
+          "  --up y|z           the file's up axis (default y)\n"
+          "  --at X,Y,Z         the cone tracer's viewpoint (default: the placed probe nearest the\n"
+          "                     middle of the bounds or of the grid; the --probes points' mean)\n"
+          "  --probes FILE      the probe points, one 'x y z' per line, '#' comments (as gi-bake --probes);\n"
+          "                     default: a 3x3x3 lattice at 20/50/80%% of the bounds, points that see\n"
+          "                     direct light (the Cornell box's rule)\n"
+          "  --above-ground H   instead a 7x7 street-level grid H above the ground around --at, none\n"
+          "                     inside buildings (Munich's and the city's rule)\n"
+          "  --view CAMERA      also compare a camera view: a Mitsuba .xml sensor or\n"
+          "                     X,Y,Z,TX,TY,TZ,FOV,W,H (as gi-bake --render)\n"
           "  --scenes-dir DIR   the shared scenes (default %s)\n"
           "  --out DIR          CSV, plot script and reference cache (default out/accuracy)\n"
           "  --md FILE          the markdown report (default OUT/accuracy.md)\n"
@@ -53,7 +70,9 @@ static void usage(FILE *f) {
           "  --view-samples N   reference paths per pixel of each scene's camera view (default 1024;\n"
           "                     the path tracer is swept up to a quarter of it)\n"
           "  --no-views         skip the camera views\n"
-          "  --quick            fewer knob values, views at 64 paths per pixel (a smoke run)\n",
+          "  --quick            fewer knob values, views at 64 paths per pixel (a smoke run)\n"
+          "  --knobs LIST       sweep only these: res, levels, voxel0, cones, aperture, step, bounces,\n"
+          "                     high (comma-separated; the default bake always runs)\n",
           GI_SCENES_DIR);
 }
 
@@ -61,53 +80,30 @@ static ta_ctx ta = TA_CTX("gi-accuracy");
 
 static int takes_value(const char *a) {
   static const char *const v[] = {"--scenes", "--scenes-dir", "--out", "--md", "--png", "--notes",
-                                   "--ref-samples", "--pt-max", "--threads", "--repeat", "--view-samples"};
+                                   "--ref-samples", "--pt-max", "--threads", "--repeat", "--view-samples", "--knobs"};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++)
     if (!strcmp(a, v[i])) return 1;
   return 0;
 }
 
-static int parse_args(int argc, char **argv, opts *o) {
-  memset(o, 0, sizeof *o);
-  o->scenes_dir = GI_SCENES_DIR;
-  o->out_dir = "out/accuracy";
-  o->ref_samples = 65536;
-  o->pt_max = 4096;
-  o->view_spp = -1;
-  int no_views = 0;
-  const char *list = "cornell,munich,city";
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    int has = i + 1 < argc;
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      return -1;
-    } else if (!strcmp(a, "--quick")) {
-      o->quick = 1;
-    } else if (!strcmp(a, "--no-views")) {
-      no_views = 1;
-    } else if (!has && takes_value(a)) {
-      return ta_fail(&ta, NULL, "option '%s' needs a value", a);
-    } else if (!strcmp(a, "--scenes")) list = argv[++i];
-    else if (!strcmp(a, "--scenes-dir")) o->scenes_dir = argv[++i];
-    else if (!strcmp(a, "--out")) o->out_dir = argv[++i];
-    else if (!strcmp(a, "--md")) o->md = argv[++i];
-    else if (!strcmp(a, "--png")) o->png = argv[++i];
-    else if (!strcmp(a, "--notes")) o->notes = argv[++i];
-    else if (!strcmp(a, "--ref-samples")) {
-      if (ta_int(&ta, "--ref-samples", NULL, argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
-    } else if (!strcmp(a, "--pt-max")) {
-      if (ta_int(&ta, "--pt-max", NULL, argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
-    } else if (!strcmp(a, "--repeat")) {
-      if (ta_int(&ta, "--repeat", NULL, argv[++i], 1, 20, &g_repeat)) return 2;
-    } else if (!strcmp(a, "--view-samples")) {
-      if (ta_int(&ta, "--view-samples", NULL, argv[++i], 8, 1 << 20, &o->view_spp)) return 2;
-    } else if (!strcmp(a, "--threads")) {
-      if (ta_int(&ta, "--threads", NULL, argv[++i], 0, 256, &o->threads)) return 2;
-    } else {
-      return ta_fail(&ta, NULL, "unknown argument '%s'", a);
-    }
+/* --knobs LIST: names from the sweep, comma-separated. */
+static int check_knobs(const char *list) {
+  static const char *const known[] = {"res", "levels", "voxel0", "cones", "aperture", "step", "bounces", "high"};
+  char buf[128];
+  if (!*list || strlen(list) >= sizeof buf) return ta_fail(&ta, "--knobs", "expected a list of knobs, got '%s'", list);
+  snprintf(buf, sizeof buf, "%s", list);
+  for (char *t = buf, *e; t; t = e ? e + 1 : NULL) {
+    if ((e = strchr(t, ','))) *e = 0;
+    size_t k = 0;
+    while (k < sizeof known / sizeof known[0] && strcmp(t, known[k])) k++;
+    if (k == sizeof known / sizeof known[0])
+      return ta_fail(&ta, "--knobs", "unknown knob '%s' (res, levels, voxel0, cones, aperture, step, bounces, high)", t);
   }
+  return 0;
+}
+
+/* --scenes LIST: the shipped scenes, at most three. */
+static int parse_list(const char *list, opts *o) {
   char buf[64];
   snprintf(buf, sizeof buf, "%s", list);
   for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
@@ -125,25 +121,82 @@ static int parse_args(int argc, char **argv, opts *o) {
     fprintf(stderr, "gi-accuracy: --scenes is empty\n");
     return 2;
   }
-  if (no_views) o->view_spp = 0;
-  else if (o->view_spp < 0) o->view_spp = o->quick ? 64 : 1024;
   return 0;
 }
 
+static int parse_args(int argc, char **argv, opts *o) {
+  memset(o, 0, sizeof *o);
+  o->scenes_dir = GI_SCENES_DIR;
+  o->out_dir = "out/accuracy";
+  o->ref_samples = 65536;
+  o->pt_max = 4096;
+  o->view_spp = -1;
+  int no_views = 0;
+  const char *list = "cornell,munich,city";
+  int scenes_given = 0, out_given = 0;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    int has = i + 1 < argc, took = acc_file_option(&ta, &o->file, argc, argv, &i);
+    if (took == 2) return 2;
+    if (took) continue;
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage(stdout);
+      return -1;
+    } else if (!strcmp(a, "--quick")) {
+      o->quick = 1;
+    } else if (!strcmp(a, "--no-views")) {
+      no_views = 1;
+    } else if (!has && takes_value(a)) {
+      return ta_fail(&ta, NULL, "option '%s' needs a value", a);
+    } else if (!strcmp(a, "--scenes")) list = argv[++i], scenes_given = 1;
+    else if (!strcmp(a, "--scenes-dir")) o->scenes_dir = argv[++i];
+    else if (!strcmp(a, "--out")) o->out_dir = argv[++i], out_given = 1;
+    else if (!strcmp(a, "--md")) o->md = argv[++i];
+    else if (!strcmp(a, "--png")) o->png = argv[++i];
+    else if (!strcmp(a, "--notes")) o->notes = argv[++i];
+    else if (!strcmp(a, "--knobs")) {
+      if (check_knobs(o->knobs = argv[++i])) return 2;
+    }
+    else if (!strcmp(a, "--ref-samples")) {
+      if (ta_int(&ta, "--ref-samples", NULL, argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
+    } else if (!strcmp(a, "--pt-max")) {
+      if (ta_int(&ta, "--pt-max", NULL, argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
+    } else if (!strcmp(a, "--repeat")) {
+      if (ta_int(&ta, "--repeat", NULL, argv[++i], 1, 20, &g_repeat)) return 2;
+    } else if (!strcmp(a, "--view-samples")) {
+      if (ta_int(&ta, "--view-samples", NULL, argv[++i], 8, 1 << 20, &o->view_spp)) return 2;
+    } else if (!strcmp(a, "--threads")) {
+      if (ta_int(&ta, "--threads", NULL, argv[++i], 0, 256, &o->threads)) return 2;
+    } else {
+      return ta_fail(&ta, NULL, "unknown argument '%s'", a);
+    }
+  }
+  int rc = acc_file_check(&ta, &o->file);
+  if (rc) return rc;
+  if (no_views && o->file.have_view) return ta_fail(&ta, "--view", "cannot be combined with --no-views");
+  if (no_views) o->view_spp = 0;
+  else if (o->view_spp < 0) o->view_spp = o->quick ? 64 : 1024;
+  if (o->file.path) {
+    if (scenes_given) return ta_fail(&ta, "--scene", "cannot be combined with --scenes");
+    if (!out_given) {
+      snprintf(o->out_buf, sizeof o->out_buf, "out/accuracy-%s", o->file.name);
+      o->out_dir = o->out_buf;
+    }
+    o->num_scenes = 1;
+    return 0;
+  }
+  return parse_list(list, o);
+}
+
+
 /* ---- scenes and probe points ---------------------------------------- */
 
-typedef struct scene_set {
-  gi_scene *s;
-  double at[3];
-  double *pts;
-  size_t n;
-  int ref_samples;     /* reference paths per probe for this scene */
-} scene_set;
+typedef acc_scene_set scene_set;
 
 /* Candidate points on a grid; keeps those that see direct light above 2%
  * of the best candidate (drops points inside buildings and inside the
  * Cornell box's blocks, where the truth is darkness), at most `keep`. */
-static int keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int threads) {
+int acc_keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int threads) {
   gi_ref_probe *r = calloc(nc, sizeof *r);
   gi_reference_opts o = {.samples = 64, .max_depth = -1, .seed = 7, .threads = threads};
   gi_error_info err = {0};
@@ -185,7 +238,7 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
       int ix[3] = {i % 3, (i / 3) % 3, i / 9};
       for (int k = 0; k < 3; k++) cand[3 * i + k] = lo[k] + f[ix[k]] * (hi[k] - lo[k]);
     }
-    return keep_lit(ss, cand, 27, 27, o->threads);
+    return acc_keep_lit(ss, cand, 27, 27, o->threads);
   }
   double cand[3 * 49];
   if (!strcmp(name, "munich")) {
@@ -211,7 +264,7 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
       cand[3 * i + h0] += 6.0 * (i / 7 - 3);
     }
   }
-  return keep_lit(ss, cand, 49, 24, o->threads);
+  return acc_keep_lit(ss, cand, 49, 24, o->threads);
 }
 
 /* ---- reference cache ------------------------------------------------- */
@@ -335,6 +388,15 @@ static int run_path(const char *name, const scene_set *ss, const gi_ref_probe *r
   return 1;
 }
 
+/* Whether --knobs (default: every knob) names this one. */
+static int sweeps(const opts *o, const char *knob) {
+  if (!o->knobs) return 1;
+  size_t n = strlen(knob);
+  for (const char *p = o->knobs; (p = strstr(p, knob)); p += n)
+    if ((p == o->knobs || p[-1] == ',') && (p[n] == ',' || !p[n])) return 1;
+  return 0;
+}
+
 static int sweep_scene(const opts *o, const char *name, const scene_set *ss, const gi_ref_probe *ref, rows *out) {
   gi_quality q0 = {.threads = o->threads};
   /* Resolve the default voxel size once, so `levels` can move alone. */
@@ -355,44 +417,44 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   static const float steps[] = {0.25f, 1.0f}, aps[] = {0.6f, 1.5f};
   const int *res = o->quick ? res_quick : res_full;
   int nres = o->quick ? 2 : 4;
-  for (int i = 0; ok && i < nres; i++) {
+  for (int i = 0; ok && sweeps(o, "res") && i < nres; i++) {
     gi_quality q = q0;
     q.res = res[i];
     q.voxel0 = s0 * 32.0 / res[i]; /* same extent, finer voxels */
     ok = run_cone(name, ss, ref, &q, "res", res[i], 0, out);
   }
-  for (int i = 0; ok && i < 3; i++) {
+  for (int i = 0; ok && sweeps(o, "levels") && i < 3; i++) {
     gi_quality q = q0;
     q.levels = lev[i];
     q.voxel0 = s0;
     ok = run_cone(name, ss, ref, &q, "levels", lev[i], 0, out);
   }
-  for (int i = 0; ok && i < 2; i++) {
+  for (int i = 0; ok && sweeps(o, "voxel0") && i < 2; i++) {
     gi_quality q = q0;
     q.voxel0 = s0 * vx[i];
     ok = run_cone(name, ss, ref, &q, "voxel0", q.voxel0, 0, out);
   }
-  for (int i = 0; ok && i < 3; i++) {
+  for (int i = 0; ok && sweeps(o, "cones") && i < 3; i++) {
     gi_quality q = q0;
     q.cones = cones[i];
     ok = run_cone(name, ss, ref, &q, "cones", cones[i], 0, out);
   }
-  for (int i = 0; ok && i < 2; i++) {
+  for (int i = 0; ok && sweeps(o, "aperture") && i < 2; i++) {
     gi_quality q = q0;
     q.aperture_deg = ap16 * aps[i];
     ok = run_cone(name, ss, ref, &q, "aperture", q.aperture_deg, 0, out);
   }
-  for (int i = 0; ok && i < 2; i++) {
+  for (int i = 0; ok && sweeps(o, "step") && i < 2; i++) {
     gi_quality q = q0;
     q.step = steps[i];
     ok = run_cone(name, ss, ref, &q, "step", steps[i], 0, out);
   }
-  for (int i = 0; ok && i < 4; i++) {
+  for (int i = 0; ok && sweeps(o, "bounces") && i < 4; i++) {
     gi_quality q = q0;
     q.bounces = bnc[i];
     ok = run_cone(name, ss, ref, &q, "bounces", bnc[i] < 0 ? 0 : bnc[i], 0, out);
   }
-  if (ok && !o->quick) {
+  if (ok && !o->quick && sweeps(o, "high")) {
     /* A "high" setting: every knob that helped, together. */
     gi_quality q = q0;
     q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f; /* bounces: the albedo rule and its tail */
@@ -409,6 +471,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
 static int view_camera(const opts *o, const char *name, const scene_set *ss, gi_camera *cam) {
   gi_error_info err = {0};
   memset(cam, 0, sizeof *cam);
+  if (o->file.path) return acc_file_camera(&o->file, ss->s, cam);
   if (!strcmp(name, "cornell")) {
     char path[1024];
     snprintf(path, sizeof path, "%s/cornell-box/cbox-mitsuba.xml", o->scenes_dir);
@@ -492,9 +555,11 @@ int main(int argc, char **argv) {
   dir_of(md, md_dir, sizeof md_dir);
   rc = 0;
   for (int i = 0; i < o.num_scenes; i++) {
-    const char *name = o.scenes[i];
+    const char *name = o.file.path ? o.file.name : o.scenes[i];
     scene_set ss;
-    int st = setup_scene(&o, name, &ss);
+    char placement[sizeof info[0].placement] = "";
+    int st = o.file.path ? acc_file_setup(&o.file, o.ref_samples, o.threads, &ss, placement, sizeof placement)
+                         : setup_scene(&o, name, &ss);
     if (st < 0) continue; /* skipped loudly */
     gi_ref_probe *ref = st ? calloc(ss.n, sizeof *ref) : NULL;
     acc_scene_info *si = &info[ninfo];
@@ -505,6 +570,7 @@ int main(int argc, char **argv) {
       snprintf(si->name, sizeof si->name, "%s", name);
       si->probes = ss.n;
       si->ref_samples = ss.ref_samples;
+      snprintf(si->placement, sizeof si->placement, "%s", placement);
       snprintf(si->at, sizeof si->at, "%.6g, %.6g, %.6g", ss.at[0], ss.at[1], ss.at[2]);
       acc_metrics m;
       for (int p = 0; p < 3; p++) {
@@ -548,5 +614,6 @@ int main(int argc, char **argv) {
     fprintf(stderr, "gi-accuracy: SKIP: no scene was available\n");
   }
   free(out.v);
+  free(o.file.pts);
   return rc;
 }

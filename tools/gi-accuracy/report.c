@@ -210,8 +210,9 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
     const char *name = sc[s].name;
     const acc_row *d = find_default(r, n, name);
     fprintf(f, "## %s\n\n", name);
-    fprintf(f, "Viewpoint (%s), %zu probes. Reference: %d paths per probe", sc[s].at, sc[s].probes,
-            sc[s].ref_samples);
+    fprintf(f, "Viewpoint (%s), %zu probes", sc[s].at, sc[s].probes);
+    if (sc[s].placement[0]) fprintf(f, " (%s)", sc[s].placement);
+    fprintf(f, ". Reference: %d paths per probe", sc[s].ref_samples);
     if (sc[s].ref_ms > 0) fprintf(f, ", %.1f s", sc[s].ref_ms / 1000);
     else fprintf(f, " (from the cache)");
     fprintf(f, "; its own mean relative standard error: total %.3f%%, direct %.3f%%, indirect %.3f%%.\n\n",

@@ -1,0 +1,131 @@
+# scene_smoke.sh: gi-accuracy --scene FILE on a tiny generated box (issue
+# 16, item 3): a quick knob sweep and a short path-tracer sweep write the
+# CSV and the markdown into the output folder; read back, every knob has its
+# rows with finite errors, the path tracer's error falls with samples, the
+# reference's own error is reported, finite and the same in both files.
+# --probes takes the points as given and the default --out is
+# out/accuracy-NAME; bad arguments exit 2 (a missing file 1), naming the
+# option, with nothing written.
+# Usage: sh scene_smoke.sh path/to/gi-accuracy
+. "$(dirname "$0")/../cli/common.sh"
+make_box_scene
+QUICK="--quick --ref-samples 1024 --pt-max 16 --repeat 1 --threads 2 --no-views"
+
+"$BIN" --scene "$T/box.obj" $QUICK --out "$T/acc" > "$T/stdout" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && pass "--scene run exits 0" || { cat "$T/err" >&2; fail "--scene run exited $rc"; finish; }
+[ -s "$T/acc/accuracy.csv" ] && [ -s "$T/acc/accuracy.md" ] && [ -s "$T/acc/accuracy.gp" ] \
+  && pass "CSV, markdown and plot script written to --out" || fail "outputs missing: $(ls "$T/acc")"
+
+python3 - "$T/acc/accuracy.csv" "$T/acc/accuracy.md" <<'PY' && pass "CSV and markdown read back" || fail "CSV / markdown"
+import csv, math, re, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+md = open(sys.argv[2]).read()
+assert rows and all(r["scene"] == "box" for r in rows), {r["scene"] for r in rows}
+cone = [r for r in rows if r["kind"] == "cone"]
+path = [r for r in rows if r["kind"] == "path"]
+# --quick: each knob of the sweep, and the default once.
+want = {"default": 1, "res": 2, "levels": 3, "voxel0": 2, "cones": 3, "aperture": 2, "step": 2, "bounces": 4}
+got = {}
+for r in cone:
+    got[r["knob"]] = got.get(r["knob"], 0) + 1
+assert got == want, got
+assert [int(float(r["value"])) for r in path] == [1, 4, 16], [r["value"] for r in path]
+for r in rows:
+    for k in ("ms", "mre_total", "mre_direct", "mre_indirect", "relmse_total", "ref_rel_se_total"):
+        v = float(r[k])
+        assert math.isfinite(v) and v >= 0, (r["knob"], k, v)
+    assert float(r["ms"]) > 0, r
+d = [r for r in cone if r["default"] == "1"]
+assert len(d) == 1 and d[0]["knob"] == "default", d
+# A lit closed box: the default bake is within 50% of the reference
+# (a wrong sweep, e.g. probes outside the cascade, reads ~100%).
+assert float(d[0]["mre_total"]) < 0.5, d[0]["mre_total"]
+# The path tracer converges: 16 paths beat 1 path.
+assert float(path[-1]["mre_total"]) < float(path[0]["mre_total"]), [p["mre_total"] for p in path]
+# The reference's own error: in the markdown, finite, small at 1024 paths,
+# and the CSV's figure for the same reference.
+m = re.search(r"## box\n\nViewpoint \(([^)]*)\), (\d+) probes \(a 3x3x3 lattice[^)]*\)\. Reference: 1024 paths per "
+              r"probe, [0-9.]+ s; its own mean relative standard error: total ([0-9.naif]+)%", md)
+assert m, md[:2000]
+se = float(m.group(3)) / 100
+assert math.isfinite(se) and 0 < se < 0.05, se
+assert int(m.group(2)) == 27, m.group(2)       # every lattice point is inside the lit box
+assert [float(x) for x in m.group(1).split(",")] == [2, 2, 2], m.group(1)  # the bounds' centre
+assert abs(float(d[0]["ref_rel_se_total"]) - se) < 1e-4, (d[0]["ref_rel_se_total"], se)
+assert "| cone | **default** |" in md and "| path | samples | 16 |" in md
+PY
+
+# --probes as given, viewpoint their middle, the default --out under the working directory.
+printf '# two points\n1 1 1\n3 2 3\n' > "$T/pts.txt"
+(cd "$T" && "$BIN" --scene box.obj --probes pts.txt $QUICK > "$T/stdout2" 2> "$T/err2"); rc=$?
+[ $rc -eq 0 ] && pass "--probes run exits 0" || { cat "$T/err2" >&2; fail "--probes run exited $rc"; }
+grep -q 'Viewpoint (2, 1.5, 2), 2 probes (2 points from pts.txt, as given)' "$T/out/accuracy-box/accuracy.md" \
+  && pass "--probes taken as given, default --out out/accuracy-box" \
+  || fail "--probes run: $(ls -R "$T/out" 2>&1 | head -5)"
+
+# Street level (the cities' rule) on a ground with one closed block, Z up:
+# a 7 x 7 grid 2 m up, the probe inside the block dropped, the viewpoint a
+# kept probe 2 m up; only the bounce knob swept, to stay quick.
+cat > "$T/street.obj" <<'OBJ'
+v -20 -20 0
+v 20 -20 0
+v 20 20 0
+v -20 20 0
+v -5 -5 0
+v 5 -5 0
+v 5 5 0
+v -5 5 0
+v -5 -5 8
+v 5 -5 8
+v 5 5 8
+v -5 5 8
+f 1 2 3 4
+f 9 10 11 12
+f 5 6 10 9
+f 6 7 11 10
+f 7 8 12 11
+f 8 5 9 12
+OBJ
+"$BIN" --scene "$T/street.obj" --up z --above-ground 2 --knobs bounces --quick --ref-samples 256 --pt-max 4 \
+    --repeat 1 --threads 2 --no-views --out "$T/st" > /dev/null 2> "$T/err3"; rc=$?
+[ $rc -eq 0 ] && pass "--above-ground run exits 0" || { cat "$T/err3" >&2; fail "--above-ground run exited $rc"; }
+python3 - "$T/st/accuracy.csv" "$T/st/accuracy.md" <<'PY' && pass "street-level probes placed, only bounces swept" \
+  || fail "street-level run"
+import csv, re, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert sorted({r["knob"] for r in rows}) == ["bounces", "default", "samples"], {r["knob"] for r in rows}
+md = open(sys.argv[2]).read()
+m = re.search(r"Viewpoint \(([^)]*)\), (\d+) probes \(a 7x7 street-level grid, 5.33333 apart, 2 above the ground "
+              r"\(gi_probe_grid_build\), 1 inside buildings dropped", md)
+assert m, md[:1500]
+at = [float(x) for x in m.group(1).split(",")]
+assert at[2] == 2 and not (abs(at[0]) < 5 and abs(at[1]) < 5), at  # 2 m up, outside the block
+assert int(m.group(2)) == 24, m.group(2)
+PY
+
+# Bad arguments: exit 2 naming the option; a missing file exits 1; nothing written.
+expect_rc() {
+  want=$1 what=$2; shift 2
+  "$BIN" --out "$T/bad" "$@" > /dev/null 2> "$T/e"; rc=$?
+  if [ $rc -ne "$want" ]; then fail "$*: exited $rc, expected $want: $(cat "$T/e")"; return; fi
+  grep -q -e "$what" "$T/e" || { fail "$*: message does not say '$what': $(cat "$T/e")"; return; }
+  [ ! -e "$T/bad" ] || { fail "$*: wrote $T/bad"; rm -rf "$T/bad"; return; }
+  pass "$* -> $want ($what)"
+}
+printf '1 2\n' > "$T/badpts.txt"
+expect_rc 2 "cannot be combined with --scenes" --scene "$T/box.obj" --scenes cornell
+expect_rc 2 "need --scene FILE" --at 1,2,3
+expect_rc 2 "'--at' needs a value" --scene "$T/box.obj" --at
+expect_rc 2 "--at: expected" --scene "$T/box.obj" --at 1,2
+expect_rc 2 "--up: expected y or z" --scene "$T/box.obj" --up x
+expect_rc 2 "--above-ground: expected a finite number > 0" --scene "$T/box.obj" --above-ground -1
+expect_rc 2 "cannot be combined with --probes" --scene "$T/box.obj" --above-ground 2 --probes "$T/pts.txt"
+expect_rc 2 "badpts.txt" --scene "$T/box.obj" --probes "$T/badpts.txt"
+expect_rc 2 "--view: expected a Mitsuba" --scene "$T/box.obj" --view 1,2,3
+expect_rc 2 "--view: .*eye" --scene "$T/box.obj" --view 1,1,1,1,1,1,60,8,8
+expect_rc 2 "cannot be combined with --no-views" --scene "$T/box.obj" --view 1,1,1,2,2,2,60,8,8 --no-views
+expect_rc 2 "--knobs: unknown knob 'foo'" --scene "$T/box.obj" --knobs res,foo
+expect_rc 2 "--knobs: unknown knob ''" --scene "$T/box.obj" --knobs res,
+expect_rc 1 "cannot read" --scene "$T/missing.obj"
+expect_rc 1 "missing.txt" --scene "$T/box.obj" --probes "$T/missing.txt"
+finish
