@@ -3,16 +3,12 @@
  * Direct light by shadow rays from the point itself (exact up to sampling
  * noise), indirect light by cones over the whole sphere, both projected
  * into SH L2 irradiance. */
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include "answer/answer.h"
 #include "base/internal.h"
 #include "scene/lights.h"
 #include "trace/trace.h"
-
-/* Probe seeds come from the position on a grid this much finer than s0. */
-#define GATHER_SEED_CELLS_PER_VOXEL 1024.0
 
 typedef struct {
   const struct gi_cascade *c;
@@ -103,13 +99,13 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
   for (size_t i = b; i < e; i++) {
     float pl[3];
     for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * i + k] - c->scene->origin[k]);
-    /* Seed by position so a probe's noise does not depend on its index;
-     * rounded to a fine grid so that the last bits of the local float,
-     * which follow the scene origin's rounding far from the world origin,
-     * do not change the noise. */
+    /* Seed by position so a probe's noise does not depend on its index. */
     uint64_t h = c->report.quality.seed;
-    double seed_cell = c->report.quality.voxel0 / GATHER_SEED_CELLS_PER_VOXEL;
-    for (int k = 0; k < 3; k++) h = gi__mix64(h ^ (uint64_t)llround((double)pl[k] / seed_cell));
+    for (int k = 0; k < 3; k++) {
+      uint32_t bits;
+      memcpy(&bits, &pl[k], 4);
+      h = gi__mix64(h ^ bits);
+    }
     gather_one(c, pl, &g->out[i], h, &sc);
   }
   gi__scratch_free(&sc);
