@@ -801,7 +801,7 @@ static void test_bad_file_matrix(void **state) {
   }
   /* OBJ: truncated, NaN/Inf only, index out of range, a face count no file backs. */
   const char obj_trunc[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2";
-  expect_bad(tu_write_file("trunc.obj", obj_trunc, strlen(obj_trunc)), GI_ERR_FORMAT, "LINE");
+  expect_bad(tu_write_file("trunc.obj", obj_trunc, strlen(obj_trunc)), GI_ERR_FORMAT, "line 5: a face needs at least 3 corners");
   const char obj_nan[] = "v nan 0 0\nv 1 inf 0\nv 0 1 -inf\nf 1 2 3\n";
   expect_bad(tu_write_file("nan.obj", obj_nan, strlen(obj_nan)), GI_ERR_EMPTY, "non-finite");
   const char obj_oor[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n";

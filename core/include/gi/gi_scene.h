@@ -14,8 +14,10 @@
  *
  * Precision: positions are stored as float relative to a double-precision
  * scene origin (the centre of the input's bounds), so a scene 10^7 units
- * from the world origin keeps sub-millimetre float resolution. Public
- * functions take world coordinates as double. */
+ * from the world origin keeps sub-millimetre float resolution. OBJ and PLY
+ * files are read in double, so this holds for them too (glTF and the other
+ * assimp formats are parsed in float). Public functions take world
+ * coordinates as double. */
 #ifndef GI_SCENE_H
 #define GI_SCENE_H
 

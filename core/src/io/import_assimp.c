@@ -6,6 +6,11 @@
  * assimp reserve gigabytes). assimp then triangulates, joins vertices and
  * pre-transforms everything into world space (lights included), and we copy
  * triangle meshes into a gi_mesh_builder; points and lines are skipped.
+ * OBJ and PLY geometry comes instead from our own double-precision readers
+ * (io/import_exact.c), run before assimp: assimp parses positions into
+ * float, which moves a georeferenced vertex (UTM, ~5e6) by up to 0.5 m
+ * before the scene can subtract its origin. glTF node translations still
+ * pass through assimp's float matrices.
  * Non-finite positions are passed through so that gi_scene_build drops and
  * counts those triangles; an index outside its mesh is a malformed file.
  * Materials map OBJ (Kd, Ke, Ks, Ns) and glTF (baseColor, emissive,
@@ -31,6 +36,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include "base/internal.h"
+#include "io/import_exact.h"
 #include "io/texture_image.h"
 #include "scene/scene_internal.h"
 
@@ -658,6 +664,50 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, gi
   return GI_OK;
 }
 
+/* Our material index for assimp material i; 0 when assimp's was dropped. */
+static uint32_t our_material(const struct aiScene *as, const uint32_t *matmap, unsigned i) {
+  return i < as->mNumMaterials && matmap[i] != UINT32_MAX ? matmap[i] : 0;
+}
+
+/* OBJ and PLY positions in double (io/import_exact.c): assimp's float would
+ * round a georeferenced file's coordinates before the scene subtracts its
+ * origin. Materials stay assimp's, matched to usemtl by name; a face before
+ * any usemtl (and every PLY face) takes the material of assimp's first mesh. */
+static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matmap, const gi__exact_mesh *mp,
+                                  gi_mesh_builder *b, const char *path, gi_error_info *err) {
+  const gi__exact_mesh m = *mp;
+  uint32_t fallback = 0;
+  for (unsigned i = 0; i < as->mNumMaterials; i++) {
+    struct aiString n;
+    if (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &n) == aiReturn_SUCCESS &&
+        strcmp(n.data, AI_DEFAULT_MATERIAL_NAME) == 0)
+      fallback = our_material(as, matmap, i);
+  }
+  if (!ends_with_ci(path, ".obj") && as->mNumMeshes)
+    fallback = our_material(as, matmap, as->mMeshes[0]->mMaterialIndex);
+  uint32_t *map = gi__malloc((m.nnames + 1) * sizeof *map);
+  if (!map) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  for (size_t k = 0; k < m.nnames; k++) {
+    map[k] = fallback;
+    for (unsigned i = 0; i < as->mNumMaterials; i++) {
+      struct aiString n;
+      if (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &n) == aiReturn_SUCCESS &&
+          !strcmp(n.data, m.names[k]))
+        map[k] = our_material(as, matmap, i);
+    }
+  }
+  uint32_t base = 0;
+  for (size_t v = 0; v < m.nv; v++) {
+    uint32_t id = gi_mesh_builder_add_vertex(b, m.v[3 * v], m.v[3 * v + 1], m.v[3 * v + 2]);
+    if (v == 0) base = id;
+  }
+  for (size_t t = 0; t < m.nt; t++)
+    gi_mesh_builder_add_triangle(b, base + m.tri[3 * t], base + m.tri[3 * t + 1], base + m.tri[3 * t + 2],
+                                 m.mat[t] == GI__EXACT_NO_MATERIAL ? fallback : map[m.mat[t]]);
+  gi__free(map);
+  return GI_OK;
+}
+
 /* The file's lights (already in world space), then the caller's, into a
  * new array *lights (caller frees) that o then points at. */
 static gi_result collect_lights(const struct aiScene *as, const char *path, double scale, gi_scene_options *o,
@@ -718,6 +768,12 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   gi_light *lights = NULL;
   uint32_t *matmap = NULL;
   tex_ctx tc = {.path = path};
+  /* Our strict reader first: its errors name the line, assimp's do not. */
+  gi__exact_mesh em = {0};
+  int exact = ends_with_ci(path, ".obj") || ends_with_ci(path, ".ply");
+  if (exact && (rc = ends_with_ci(path, ".obj") ? gi__exact_read_obj(path, &em, err)
+                                                : gi__exact_read_ply(path, &em, err)) != GI_OK)
+    goto done;
   if ((rc = import_file(path, &as, err)) != GI_OK || (rc = check_counts(as, path, err)) != GI_OK) goto done;
   tc.as = as;
   b = gi_mesh_builder_new();
@@ -726,12 +782,14 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     goto done;
   }
-  if ((rc = add_materials(as, &tc, b, matmap, err)) == GI_OK && (rc = add_meshes(as, matmap, b, path, err)) == GI_OK &&
+  if ((rc = add_materials(as, &tc, b, matmap, err)) == GI_OK &&
+      (rc = exact ? add_exact_meshes(as, matmap, &em, b, path, err) : add_meshes(as, matmap, b, path, err)) == GI_OK &&
       (rc = collect_lights(as, path, scale, &o, &lights, err)) == GI_OK)
     rc = build(b, path, &o, &tc, out, err);
 
 done:
   if (as) aiReleaseImport(as);
+  gi__exact_free(&em);
   gi__free(lights);
   gi__free(matmap);
   tex_ctx_fini(&tc);

@@ -1,0 +1,425 @@
+/* io/import_exact.c: strict double-precision OBJ and PLY geometry readers
+ * (see import_exact.h for why). Errors name the file, the line (OBJ, ASCII
+ * PLY) or element record (binary PLY), and what was expected. */
+#define _POSIX_C_SOURCE 200809L /* getline */
+#include "io/import_exact.h"
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+
+/* Largest PLY file read into memory; larger city tiles should be split. */
+#define EXACT_PLY_FILE_MAX ((size_t)4 << 30)
+#define PLY_MAX_ELEMENTS 16
+#define PLY_MAX_PROPERTIES 32
+#define PLY_MAX_POLYGON 255
+
+void gi__exact_free(gi__exact_mesh *m) {
+  if (!m) return;
+  for (size_t i = 0; i < m->nnames; i++) gi__free(m->names[i]);
+  gi__free(m->names);
+  gi__free(m->v);
+  gi__free(m->tri);
+  gi__free(m->mat);
+  memset(m, 0, sizeof *m);
+}
+
+/* Grows *p to hold at least n items of size sz (doubling). 0: out of memory. */
+static int grow(void **p, size_t *cap, size_t n, size_t sz) {
+  if (n <= *cap) return 1;
+  size_t c = *cap ? *cap : 64;
+  while (c < n) c *= 2;
+  void *q = gi__realloc(*p, c * sz);
+  if (!q) return 0;
+  *p = q;
+  *cap = c;
+  return 1;
+}
+
+static int push_vertex(gi__exact_mesh *m, const double p[3]) {
+  if (m->nv >= UINT32_MAX - 1 || !grow((void **)&m->v, &m->cap_v, 3 * (m->nv + 1), sizeof *m->v)) return 0;
+  memcpy(m->v + 3 * m->nv++, p, 3 * sizeof *p);
+  return 1;
+}
+
+static int push_tri(gi__exact_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint32_t mat) {
+  if (!grow((void **)&m->tri, &m->cap_t, 3 * (m->nt + 1), sizeof *m->tri) ||
+      !grow((void **)&m->mat, &m->cap_m, m->nt + 1, sizeof *m->mat))
+    return 0;
+  m->tri[3 * m->nt] = a, m->tri[3 * m->nt + 1] = b, m->tri[3 * m->nt + 2] = c;
+  m->mat[m->nt++] = mat;
+  return 1;
+}
+
+/* Index of name in m->names, added when new; GI__EXACT_NO_MATERIAL when out of memory. */
+static uint32_t intern_name(gi__exact_mesh *m, const char *name) {
+  for (size_t i = 0; i < m->nnames; i++)
+    if (strcmp(m->names[i], name) == 0) return (uint32_t)i;
+  if (!grow((void **)&m->names, &m->cap_names, m->nnames + 1, sizeof *m->names)) return GI__EXACT_NO_MATERIAL;
+  char *c = gi__strdup(name);
+  if (!c) return GI__EXACT_NO_MATERIAL;
+  m->names[m->nnames] = c;
+  return (uint32_t)m->nnames++;
+}
+
+/* --- OBJ --------------------------------------------------------------- */
+
+static int is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v'; }
+static char *skip_blank(char *s) { while (*s && is_blank(*s)) s++; return s; }
+/* Length of the token at s, at most 40 characters, for messages. */
+static int token_len(const char *s) {
+  int n = 0;
+  while (n < 40 && s[n] && !is_blank(s[n])) n++;
+  return n;
+}
+
+/* "v x y z [w | r g b]": three numbers, and only numbers after them. */
+static gi_result obj_vertex(const char *path, size_t line, char *s, gi__exact_mesh *m, gi_error_info *err) {
+  double p[3];
+  int n = 0;
+  for (;; n++) {
+    s = skip_blank(s);
+    if (!*s) break;
+    char *e;
+    double x = strtod(s, &e);
+    if (e == s || (*e && !is_blank(*e)))
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: vertex coordinate %d is not a number: '%.*s'",
+                      path, line, n + 1, token_len(s), s);
+    if (n < 3) p[n] = x;
+    s = e;
+  }
+  if (n < 3)
+    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a vertex needs x y z, found %d number%s", path, line,
+                    n, n == 1 ? "" : "s");
+  if (!push_vertex(m, p)) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory or too many vertices", path);
+  return GI_OK;
+}
+
+/* "f a b c ...", each corner v, v/t, v//n or v/t/n; negative counts back
+ * from the last vertex. The polygon is fanned from its first corner. */
+static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, gi__exact_mesh *m,
+                          gi_error_info *err) {
+  uint32_t poly[PLY_MAX_POLYGON + 1];
+  int n = 0;
+  for (;;) {
+    s = skip_blank(s);
+    if (!*s) break;
+    char *e;
+    errno = 0;
+    long long i = strtoll(s, &e, 10);
+    if (e == s || errno || (*e && *e != '/' && !is_blank(*e)))
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: face corner %d: expected a vertex index, found '%.*s'",
+                      path, line, n + 1, token_len(s), s);
+    long long k = i > 0 ? i - 1 : (long long)m->nv + i;
+    if (i == 0 || k < 0 || k >= (long long)m->nv)
+      return gi__fail(err, GI_ERR_FORMAT,
+                      "scene file '%s' line %zu: face corner %d: vertex %lld: index out of range "
+                      "(%zu vertices defined so far)", path,
+                      line, n + 1, i, m->nv);
+    if (n == PLY_MAX_POLYGON)
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a face has more than %d corners", path, line,
+                      PLY_MAX_POLYGON);
+    poly[n++] = (uint32_t)k;
+    while (*e && !is_blank(*e)) e++; /* texture and normal indices are not used */
+    s = e;
+  }
+  if (n < 3)
+    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a face needs at least 3 corners, found %d", path,
+                    line, n);
+  for (int t = 1; t + 1 < n; t++)
+    if (!push_tri(m, poly[0], poly[t], poly[t + 1], mat))
+      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  return GI_OK;
+}
+
+/* Whether line s starts with keyword kw followed by a blank; *rest after it. */
+static int keyword(char *s, const char *kw, char **rest) {
+  size_t n = strlen(kw);
+  if (strncmp(s, kw, n) != 0 || (s[n] && !is_blank(s[n]))) return 0;
+  *rest = s + n;
+  return 1;
+}
+
+gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err) {
+  memset(m, 0, sizeof *m);
+  FILE *f = fopen(path, "rb");
+  if (!f) return gi__fail(err, GI_ERR_IO, "scene file '%s': cannot open: %s", path, strerror(errno));
+  char *buf = NULL, *rest;
+  size_t cap = 0, line = 0;
+  uint32_t mat = GI__EXACT_NO_MATERIAL;
+  gi_result rc = GI_OK;
+  while (rc == GI_OK && getline(&buf, &cap, f) >= 0) {
+    line++;
+    char *s = skip_blank(buf);
+    if (keyword(s, "v", &rest)) {
+      rc = obj_vertex(path, line, rest, m, err);
+    } else if (keyword(s, "f", &rest)) {
+      rc = obj_face(path, line, rest, mat, m, err);
+    } else if (keyword(s, "usemtl", &rest)) {
+      /* Like assimp: the rest of the line, trimmed, is the name. */
+      rest = skip_blank(rest);
+      size_t n = strlen(rest);
+      while (n && is_blank(rest[n - 1])) rest[--n] = 0;
+      if (!n) rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: usemtl needs a material name", path, line);
+      else if ((mat = intern_name(m, rest)) == GI__EXACT_NO_MATERIAL)
+        rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+    }
+    /* vt, vn, o, g, s, mtllib, l, p, comments: not geometry we use. */
+  }
+  if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error after line %zu", path, line);
+  free(buf); /* getline's buffer comes from libc malloc */
+  fclose(f);
+  if (rc != GI_OK) gi__exact_free(m);
+  return rc;
+}
+
+/* --- PLY --------------------------------------------------------------- */
+
+typedef enum { T_NONE, T_I8, T_U8, T_I16, T_U16, T_I32, T_U32, T_F32, T_F64 } ply_type;
+
+static ply_type type_of(const char *t) {
+  static const struct { const char *name; ply_type t; } tab[] = {
+      {"char", T_I8},   {"int8", T_I8},     {"uchar", T_U8},  {"uint8", T_U8},     {"short", T_I16},
+      {"int16", T_I16}, {"ushort", T_U16},  {"uint16", T_U16}, {"int", T_I32},     {"int32", T_I32},
+      {"uint", T_U32},  {"uint32", T_U32},  {"float", T_F32}, {"float32", T_F32}, {"double", T_F64},
+      {"float64", T_F64}};
+  for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++)
+    if (strcmp(t, tab[i].name) == 0) return tab[i].t;
+  return T_NONE;
+}
+
+static const int type_size[] = {0, 1, 1, 2, 2, 4, 4, 4, 8};
+
+typedef struct {
+  char name[64];
+  ply_type type, count_type; /* count_type != T_NONE: a list */
+} ply_prop;
+
+typedef struct {
+  char name[64];
+  long long count;
+  int nprops;
+  ply_prop prop[PLY_MAX_PROPERTIES];
+} ply_element;
+
+/* The body as a stream of numbers. */
+typedef struct {
+  const char *path;
+  const unsigned char *p, *end;
+  int ascii, big;
+  size_t line; /* ascii only */
+} ply_body;
+
+/* Next value of type t as a double. 0 ok, -1 end of data, -2 not a number. */
+static int body_value(ply_body *b, ply_type t, double *out) {
+  if (b->ascii) {
+    while (b->p < b->end && is_blank((char)*b->p)) b->line += *b->p++ == '\n';
+    if (b->p >= b->end) return -1;
+    char *e;
+    *out = strtod((const char *)b->p, &e); /* the buffer is NUL-terminated */
+    if ((const unsigned char *)e == b->p || (*e && !is_blank(*e))) return -2;
+    b->p = (const unsigned char *)e;
+    return 0;
+  }
+  int n = type_size[t];
+  if (b->end - b->p < n) return -1;
+  unsigned char v[8];
+  for (int i = 0; i < n; i++) v[i] = b->p[b->big ? n - 1 - i : i];
+  b->p += n;
+  union { uint8_t u8; int8_t i8; uint16_t u16; int16_t i16; uint32_t u32; int32_t i32; float f; double d; } u;
+  memcpy(&u, v, (size_t)n); /* v is now little-endian, as this machine */
+  switch (t) {
+    case T_I8: *out = u.i8; break;
+    case T_U8: *out = u.u8; break;
+    case T_I16: *out = u.i16; break;
+    case T_U16: *out = u.u16; break;
+    case T_I32: *out = u.i32; break;
+    case T_U32: *out = u.u32; break;
+    case T_F32: *out = u.f; break;
+    default: *out = u.d; break;
+  }
+  return 0;
+}
+
+/* Where a record sits, for error messages. */
+static void body_where(const ply_body *b, const ply_element *e, long long i, char *w, size_t n) {
+  if (b->ascii) snprintf(w, n, "line %zu (%s %lld)", b->line, e->name, i);
+  else snprintf(w, n, "%s %lld", e->name, i);
+}
+
+/* Parses the header; *body_start is the offset after end_header's line. */
+static gi_result ply_header(const char *path, char *text, size_t size, ply_element *el, int *nel, int *ascii, int *big,
+                            size_t *body_start, gi_error_info *err) {
+  char *p = text, *end = text + size;
+  int format = 0;
+  *nel = 0;
+  for (size_t line = 1; p < end; line++) {
+    char *nl = memchr(p, '\n', (size_t)(end - p));
+    if (!nl) break;
+    *nl = 0;
+    char a[64] = "", b[64] = "", c[64] = "", d[64] = "", e[64] = "";
+    int n = sscanf(p, "%63s %63s %63s %63s %63s", a, b, c, d, e);
+    p = nl + 1;
+    if (line == 1) {
+      if (strcmp(a, "ply") != 0)
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line 1: expected the PLY magic number 'ply'", path);
+    } else if (!strcmp(a, "format") && n >= 2) {
+      format = 1;
+      *ascii = !strcmp(b, "ascii");
+      *big = !strcmp(b, "binary_big_endian");
+      if (!*ascii && !*big && strcmp(b, "binary_little_endian"))
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: unknown PLY format '%s'", path, line, b);
+    } else if (!strcmp(a, "element") && n >= 3) {
+      if (*nel == PLY_MAX_ELEMENTS)
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: more than %d PLY elements", path, line,
+                        PLY_MAX_ELEMENTS);
+      ply_element *E = &el[(*nel)++];
+      memset(E, 0, sizeof *E);
+      snprintf(E->name, sizeof E->name, "%s", b);
+      char *x;
+      errno = 0;
+      E->count = strtoll(c, &x, 10);
+      if (*x || errno || E->count < 0)
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: element '%s' has a bad count '%s'", path, line, b,
+                        c);
+    } else if (!strcmp(a, "property") && n >= 3) {
+      if (!*nel || el[*nel - 1].nprops == PLY_MAX_PROPERTIES)
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: property outside an element or too many", path,
+                        line);
+      ply_element *E = &el[*nel - 1];
+      ply_prop *P = &E->prop[E->nprops++];
+      int list = !strcmp(b, "list");
+      P->count_type = list ? type_of(c) : T_NONE;
+      P->type = type_of(list ? d : b);
+      snprintf(P->name, sizeof P->name, "%s", list ? e : c);
+      if (P->type == T_NONE || (list && (P->count_type == T_NONE || n < 5)))
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: expected 'property TYPE NAME' or 'property list "
+                        "TYPE TYPE NAME' with a PLY scalar type", path, line);
+    } else if (!strcmp(a, "end_header")) {
+      if (!format) return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY header has no format line", path);
+      *body_start = (size_t)(p - text);
+      return GI_OK;
+    }
+  }
+  return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY header has no end_header", path);
+}
+
+/* Index of the scalar property called name, or -1. */
+static int find_prop(const ply_element *e, const char *name, int list) {
+  for (int i = 0; i < e->nprops; i++)
+    if (!strcmp(e->prop[i].name, name) && (e->prop[i].count_type != T_NONE) == list) return i;
+  return -1;
+}
+
+/* One element's records: vertices keep x, y, z; faces keep their index list. */
+static gi_result ply_element_body(ply_body *b, const ply_element *E, long long nverts, gi__exact_mesh *m,
+                                  gi_error_info *err) {
+  int is_v = !strcmp(E->name, "vertex"), is_f = !strcmp(E->name, "face");
+  int ix = is_v ? find_prop(E, "x", 0) : -1, iy = is_v ? find_prop(E, "y", 0) : -1, iz = is_v ? find_prop(E, "z", 0) : -1;
+  int il = is_f ? find_prop(E, "vertex_indices", 1) : -1;
+  if (is_f && il < 0) il = find_prop(E, "vertex_index", 1);
+  char w[128];
+  if (is_v && (ix < 0 || iy < 0 || iz < 0))
+    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY vertex element needs scalar properties x, y and z", b->path);
+  if (is_f && il < 0)
+    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY face element needs a list property vertex_indices", b->path);
+  for (long long i = 0; i < E->count; i++) {
+    double pos[3] = {0, 0, 0};
+    for (int p = 0; p < E->nprops; p++) {
+      const ply_prop *P = &E->prop[p];
+      double n = 1, x;
+      int r = 0;
+      if (P->count_type != T_NONE) {
+        r = body_value(b, P->count_type, &n);
+        if (!r && !(n >= 0 && n == floor(n) && n <= (p == il ? PLY_MAX_POLYGON : 1e6))) {
+          body_where(b, E, i, w, sizeof w);
+          return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' %s: list '%s' has length %g; expected %s", b->path, w,
+                          P->name, n, p == il ? "3..255 vertex indices" : "a whole number");
+        }
+        if (!r && p == il && n < 3) {
+          body_where(b, E, i, w, sizeof w);
+          return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' %s: a face needs 3..255 vertex indices, found %g",
+                          b->path, w, n);
+        }
+      }
+      uint32_t poly[PLY_MAX_POLYGON];
+      for (int k = 0; !r && k < (int)n; k++) {
+        if ((r = body_value(b, P->type, &x))) break;
+        if (p == ix || p == iy || p == iz) pos[p == ix ? 0 : p == iy ? 1 : 2] = x;
+        if (p == il) {
+          if (!(x >= 0 && x < (double)nverts && x == floor(x))) {
+            body_where(b, E, i, w, sizeof w);
+            return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' %s: vertex index %g out of range; expected 0..%lld",
+                            b->path, w, x,
+                            nverts - 1);
+          }
+          poly[k] = (uint32_t)x;
+        }
+      }
+      if (r) {
+        body_where(b, E, i, w, sizeof w);
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' %s: property '%s': %s", b->path, w, P->name,
+                        r == -1 ? "the data ends here; the file is truncated" : "expected a number");
+      }
+      if (p == il)
+        for (int t = 1; t + 1 < (int)n; t++)
+          if (!push_tri(m, poly[0], poly[t], poly[t + 1], GI__EXACT_NO_MATERIAL))
+            return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", b->path);
+    }
+    if (is_v && !push_vertex(m, pos))
+      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory or too many vertices", b->path);
+  }
+  return GI_OK;
+}
+
+/* The whole file, NUL-terminated, so ASCII numbers can be read with strtod. */
+static gi_result slurp(const char *path, char **out, size_t *size, gi_error_info *err) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return gi__fail(err, GI_ERR_IO, "scene file '%s': cannot open: %s", path, strerror(errno));
+  gi_result rc = GI_OK;
+  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  char *buf = NULL;
+  if (n < 0 || (size_t)n > EXACT_PLY_FILE_MAX) {
+    rc = gi__fail(err, n < 0 ? GI_ERR_IO : GI_ERR_LIMIT, "scene file '%s': cannot size it, or larger than %zu bytes",
+                  path, EXACT_PLY_FILE_MAX);
+  } else if (!(buf = gi__malloc((size_t)n + 1))) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  } else if (fseek(f, 0, SEEK_SET) != 0 || fread(buf, 1, (size_t)n, f) != (size_t)n) {
+    rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error", path);
+  }
+  fclose(f);
+  if (rc != GI_OK) { gi__free(buf); return rc; }
+  buf[n] = 0;
+  *out = buf;
+  *size = (size_t)n;
+  return GI_OK;
+}
+
+gi_result gi__exact_read_ply(const char *path, gi__exact_mesh *m, gi_error_info *err) {
+  memset(m, 0, sizeof *m);
+  char *text = NULL;
+  size_t size = 0, start = 0;
+  gi_result rc = slurp(path, &text, &size, err);
+  if (rc != GI_OK) return rc;
+  static _Thread_local ply_element el[PLY_MAX_ELEMENTS]; /* ~40 KiB: off the stack */
+  int nel = 0, ascii = 0, big = 0;
+  /* The header is parsed on a copy: it writes NULs over line ends. */
+  char *head = gi__malloc(size + 1);
+  if (!head) rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  else memcpy(head, text, size + 1);
+  if (rc == GI_OK) rc = ply_header(path, head, size, el, &nel, &ascii, &big, &start, err);
+  gi__free(head);
+  long long nverts = 0;
+  for (int e = 0; e < nel; e++)
+    if (!strcmp(el[e].name, "vertex")) nverts = el[e].count;
+  ply_body b = {.path = path, .p = (const unsigned char *)text + start, .end = (const unsigned char *)text + size,
+                .ascii = ascii, .big = big, .line = 1};
+  /* ASCII line numbers count from the file's first line. */
+  for (size_t i = 0; ascii && i < start; i++) b.line += text[i] == '\n';
+  for (int e = 0; rc == GI_OK && e < nel; e++) rc = ply_element_body(&b, &el[e], nverts, m, err);
+  gi__free(text);
+  if (rc != GI_OK) gi__exact_free(m);
+  return rc;
+}

@@ -1,0 +1,37 @@
+/* io/import_exact.h: OBJ and PLY geometry read in double precision.
+ *
+ * assimp parses positions into float, so a georeferenced file (UTM easting
+ * ~7e5, northing ~5e6) loses up to 0.5 m before the scene can subtract its
+ * origin. These readers keep every position as the file's double and hand
+ * it to the mesh builder, which subtracts the scene origin in double; only
+ * local coordinates become float. Materials and lights still come from
+ * assimp (import_assimp.c), matched by the OBJ's usemtl names. */
+#ifndef GI_IMPORT_EXACT_H
+#define GI_IMPORT_EXACT_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "gi/gi_error.h"
+
+/* No usemtl before a face: assimp's default material. */
+#define GI__EXACT_NO_MATERIAL UINT32_MAX
+
+typedef struct gi__exact_mesh {
+  double *v;       /* 3 per vertex, as written in the file */
+  size_t nv, cap_v;
+  uint32_t *tri;   /* 3 per triangle (polygons fan-triangulated) */
+  uint32_t *mat;   /* per triangle: index into names, or GI__EXACT_NO_MATERIAL */
+  size_t nt, cap_t, cap_m;
+  char **names;    /* OBJ usemtl names in first-use order */
+  size_t nnames, cap_names;
+} gi__exact_mesh;
+
+/* OBJ: v, f (v, v/t, v//n, v/t/n, negative = relative), usemtl; other
+ * statements are ignored. A bad number or index fails with file and line. */
+gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err);
+/* PLY: ascii, binary_little_endian, binary_big_endian; x/y/z of any scalar
+ * type (float and double included); faces from vertex_indices/vertex_index. */
+gi_result gi__exact_read_ply(const char *path, gi__exact_mesh *m, gi_error_info *err);
+void gi__exact_free(gi__exact_mesh *m);
+
+#endif
