@@ -14,6 +14,7 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/socket.h>
+#include <sys/prctl.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -49,8 +50,13 @@ int su_start(su_server *s, const char *name, const char *ini) {
   /* Else the child would write the parent's pending output a second time. */
   fflush(stdout);
   fflush(stderr);
+  pid_t parent = getpid();
   s->pid = fork();
   if (s->pid == 0) {
+    /* A failed assert skips the test's su_stop: the server then dies with
+     * the test binary instead of outliving it (eight did, before this). */
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (getppid() != parent) _exit(127);
     FILE *lf = freopen(log, "a", stderr);
     lf = lf ? freopen(log, "a", stdout) : lf; /* its banner too: the test's output stays the test's */
     (void)lf;
