@@ -145,12 +145,8 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
   c->report.ms.inject = t2 - t1;
   c->report.ms.filter = t3 - t2;
   c->report.ms.bounce = t4 - t3;
-  /* Occupancy per level, including the filtered region. */
+  gi__cascade_count_occupied(c);
   for (int d = 0; d < c->n; d++) {
-    uint64_t occ = 0;
-    size_t vox = (size_t)c->R * c->R * c->R;
-    for (size_t i = 0; i < vox; i++) occ += c->lv[d].geo[i].area > 0;
-    c->report.occupied[d] = occ;
     gi_level *L = &c->lv[d];
     uint64_t inner = 1;
     for (int a = 0; a < 3; a++) inner *= L->has_inner ? (uint64_t)(L->inner1[a] - L->inner0[a]) : 0;

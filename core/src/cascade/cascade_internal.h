@@ -149,6 +149,8 @@ void gi__cascade_place(struct gi_cascade *c);
 int gi__cascade_filter(struct gi_cascade *c, int threads);
 /* Rebuilds every level's busy mask from its opacity (after filtering). */
 void gi__cascade_mark_busy(struct gi_cascade *c);
+/* report.occupied[d]: voxels holding geometry per level, the filtered region included. */
+void gi__cascade_count_occupied(struct gi_cascade *c);
 /* 1 when the local point lies in level d's window shrunk by `border` voxels. */
 int gi__level_contains(const gi_level *L, const float p[3], float border);
 /* 1 when cell (i,j,k) of level L is covered by the finer level. */

@@ -162,3 +162,12 @@ void gi__cascade_mark_busy(struct gi_cascade *c) {
         }
   }
 }
+
+void gi__cascade_count_occupied(struct gi_cascade *c) {
+  size_t vox = (size_t)c->R * c->R * c->R;
+  for (int d = 0; d < c->n; d++) {
+    uint64_t occ = 0;
+    for (size_t i = 0; i < vox; i++) occ += c->lv[d].geo[i].area > 0;
+    c->report.occupied[d] = occ;
+  }
+}

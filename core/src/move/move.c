@@ -431,11 +431,7 @@ gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *rep
   c->report.ms.inject = t2 - t1;
   c->report.ms.filter = t3 - t2;
   c->report.ms.bounce = t4 - t3;
-  for (int d = 0; d < c->n; d++) {
-    uint64_t occ = 0;
-    for (size_t i = 0; i < vox; i++) occ += c->lv[d].geo[i].area > 0;
-    c->report.occupied[d] = occ;
-  }
+  gi__cascade_count_occupied(c);
   if (report) *report = c->report;
   if (info) *info = mi;
 done:
