@@ -2,7 +2,8 @@
  *
  * City files come in projected coordinates (UTM: easting ~7e5, northing
  * ~5e6). The shared Cornell box and Munich are shifted there and to 1e7,
- * written as OBJ (%.17g) and binary PLY with double properties, loaded and
+ * written as OBJ (%.17g), binary PLY with double properties and glTF with
+ * node translations (the mesh stays local, as float32), loaded and
  * baked at the shifted viewpoint; probes must match the unshifted bake to
  * 1e-3 relative. Before the double-precision readers (io/import_exact.c)
  * assimp parsed positions into float. Malformed files must say where. */
@@ -116,6 +117,79 @@ static const char *write_shifted_ply(const char *src, const char *name, const do
   return path;
 }
 
+/* Cornell's geometry as glTF: the mesh in a child node translated by
+ * child_t (its vertices written less child_t, as float32, the glTF type),
+ * under a root node that moves everything by s (as 'translation', or as a
+ * 'matrix' when as_matrix), and a KHR point light under the ceiling beside
+ * the mesh. glb: one binary file; else .gltf with an external .bin, so the
+ * importer must still find files beside the one it rewrote. */
+static const double child_t[3] = {1.5, -2.25, 0.125};
+
+static const char *write_shifted_gltf(const char *src, const char *name, const double s[3], int glb, int as_matrix) {
+  gi__exact_mesh m;
+  gi_error_info err = {0};
+  assert_int_equal(gi__exact_read_obj(src, &m, &err), GI_OK);
+  size_t pos_bytes = 12 * m.nv, idx_bytes = 12 * m.nt, bin_len = pos_bytes + idx_bytes;
+  unsigned char *bin = malloc(bin_len);
+  assert_non_null(bin);
+  float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+  for (size_t i = 0; i < 3 * m.nv; i++) {
+    float f = (float)(m.v[i] - child_t[i % 3]);
+    memcpy(bin + 4 * i, &f, 4);
+    lo[i % 3] = fminf(lo[i % 3], f), hi[i % 3] = fmaxf(hi[i % 3], f);
+  }
+  memcpy(bin + pos_bytes, m.tri, idx_bytes);
+  char root_tf[512], bin_name[256], buf_uri[300] = "";
+  if (as_matrix)
+    snprintf(root_tf, sizeof root_tf, "\"matrix\":[1,0,0,0,0,1,0,0,0,0,1,0,%.17g,%.17g,%.17g,1]", s[0], s[1], s[2]);
+  else
+    snprintf(root_tf, sizeof root_tf, "\"translation\":[%.17g,%.17g,%.17g]", s[0], s[1], s[2]);
+  snprintf(bin_name, sizeof bin_name, "%s.bin", name);
+  if (!glb) snprintf(buf_uri, sizeof buf_uri, ",\"uri\":\"%s\"", bin_name);
+  char *json = malloc(8192);
+  assert_non_null(json);
+  int jl = snprintf(json, 8192,
+      "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_lights_punctual\"],"
+      "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[{\"type\":\"point\",\"color\":[1,1,1],"
+      "\"intensity\":200000}]}},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
+      "\"nodes\":[{\"name\":\"site\",%s,\"children\":[1,2]},"
+      "{\"name\":\"box\",\"mesh\":0,\"translation\":[%.17g,%.17g,%.17g]},"
+      "{\"name\":\"lamp\",\"translation\":[278,500,279.6],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}],"
+      "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+      "\"buffers\":[{\"byteLength\":%zu%s}],"
+      "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":%zu},"
+      "{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu}],"
+      "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\","
+      "\"min\":[%.9g,%.9g,%.9g],\"max\":[%.9g,%.9g,%.9g]},"
+      "{\"bufferView\":1,\"componentType\":5125,\"count\":%zu,\"type\":\"SCALAR\"}]}",
+      root_tf, child_t[0], child_t[1], child_t[2], bin_len, buf_uri, pos_bytes, pos_bytes, idx_bytes, m.nv,
+      lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], 3 * m.nt);
+  assert_true(jl > 0 && jl < 8192);
+  const char *path;
+  if (!glb) {
+    tu_write_file(bin_name, bin, bin_len);
+    path = tu_write_file(name, json, (size_t)jl);
+  } else {
+    size_t jpad = ((size_t)jl + 3) & ~(size_t)3, bpad = (bin_len + 3) & ~(size_t)3;
+    size_t total = 12 + 8 + jpad + 8 + bpad;
+    unsigned char *g = calloc(1, total);
+    assert_non_null(g);
+    uint32_t hdr[5] = {0x46546C67u, 2, (uint32_t)total, (uint32_t)jpad, 0x4E4F534Au};
+    memcpy(g, hdr, 20);
+    memcpy(g + 20, json, (size_t)jl);
+    memset(g + 20 + jl, ' ', jpad - (size_t)jl);
+    uint32_t bh[2] = {(uint32_t)bpad, 0x004E4942u};
+    memcpy(g + 20 + jpad, bh, 8);
+    memcpy(g + 28 + jpad, bin, bin_len);
+    path = tu_write_file(name, g, total);
+    free(g);
+  }
+  free(json);
+  free(bin);
+  gi__exact_free(&m);
+  return path;
+}
+
 typedef struct {
   gi_up_axis up;
   int default_lights;
@@ -206,6 +280,18 @@ static void test_cornell_ply(void **state) {
   check_shifts("cornell binary PLY (double)", paths, &bs);
 }
 
+/* glTF: node translations (as TRS and as a matrix) composed in double; the
+ * file's own point light moves with them. */
+static void test_cornell_gltf(void **state) {
+  TU_SKIP_IF_NO_SCENE(src, "cornell-box/cornell-box.obj");
+  const char *paths[3] = {write_shifted_gltf(src, "cbox0.glb", (double[3]){0, 0, 0}, 1, 0),
+                          write_shifted_gltf(src, "cbox-utm.glb", utm_shift, 1, 0),
+                          write_shifted_gltf(src, "cbox-far.gltf", far_shift, 0, 1)};
+  bake_setup bs = {.up = GI_UP_Y, .at = {278, 273, 279.6},
+                   .pts = {{516, 273, 279.6}, {40, 273, 279.6}, {278, 273, 279.6}}, .q = small_q};
+  check_shifts("cornell glTF (node translation)", paths, &bs);
+}
+
 static void test_munich_obj(void **state) {
   TU_SKIP_IF_NO_SCENE(src, "munich/munich.obj");
   const char *paths[3] = {write_shifted_obj(src, "munich.mtl", "munich0.obj", (double[3]){0, 0, 0}),
@@ -258,6 +344,7 @@ static void test_malformed(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {cmocka_unit_test(test_malformed), cmocka_unit_test(test_cornell_obj),
-                                     cmocka_unit_test(test_cornell_ply), cmocka_unit_test(test_munich_obj)};
+                                     cmocka_unit_test(test_cornell_ply), cmocka_unit_test(test_cornell_gltf),
+                                     cmocka_unit_test(test_munich_obj)};
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

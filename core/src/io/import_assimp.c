@@ -9,8 +9,9 @@
  * OBJ and PLY geometry comes instead from our own double-precision readers
  * (io/import_exact.c), run before assimp: assimp parses positions into
  * float, which moves a georeferenced vertex (UTM, ~5e6) by up to 0.5 m
- * before the scene can subtract its origin. glTF node translations still
- * pass through assimp's float matrices.
+ * before the scene can subtract its origin. glTF node matrices are composed
+ * in double (io/gltf_recentre.c) and the file assimp reads is recentred on
+ * its first mesh; the offset is added back here, in double.
  * Non-finite positions are passed through so that gi_scene_build drops and
  * counts those triangles; an index outside its mesh is a malformed file.
  * Materials map OBJ (Kd, Ke, Ks, Ns) and glTF (baseColor, emissive,
@@ -31,11 +32,13 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <assimp/cfileio.h>
 #include <assimp/cimport.h>
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include "base/internal.h"
+#include "io/gltf_recentre.h"
 #include "io/import_exact.h"
 #include "io/texture_image.h"
 #include "scene/scene_internal.h"
@@ -516,8 +519,8 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   return GI_OK;
 }
 
-static gi_result convert_light(const char *path, const struct aiLight *al, double scale, gi_light *l,
-                               gi_error_info *err) {
+static gi_result convert_light(const char *path, const struct aiLight *al, const double shift[3], double scale,
+                               gi_light *l, gi_error_info *err) {
   memset(l, 0, sizeof *l);
   switch (al->mType) {
     case aiLightSource_DIRECTIONAL: l->type = GI_LIGHT_SUN; break;
@@ -528,9 +531,9 @@ static gi_result convert_light(const char *path, const struct aiLight *al, doubl
   l->color[0] = al->mColorDiffuse.r;
   l->color[1] = al->mColorDiffuse.g;
   l->color[2] = al->mColorDiffuse.b;
-  l->position[0] = al->mPosition.x * scale;
-  l->position[1] = al->mPosition.y * scale;
-  l->position[2] = al->mPosition.z * scale;
+  l->position[0] = (al->mPosition.x + shift[0]) * scale;
+  l->position[1] = (al->mPosition.y + shift[1]) * scale;
+  l->position[2] = (al->mPosition.z + shift[2]) * scale;
   l->direction[0] = al->mDirection.x;
   l->direction[1] = al->mDirection.y;
   l->direction[2] = al->mDirection.z;
@@ -568,10 +571,14 @@ static gi_result check_file(const char *path, gi_error_info *err) {
 }
 
 /* assimp's import under its lock (its error string is global). */
-static gi_result import_file(const char *path, const struct aiScene **out, gi_error_info *err) {
+static gi_result import_file(const char *path, const gi__gltf_shift *gs, const struct aiScene **out,
+                             gi_error_info *err) {
+  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
+                         aiProcess_PreTransformVertices | aiProcess_SortByPType;
+  struct aiFileIO io;
+  gi__gltf_open_io(&io, gs);
   pthread_mutex_lock(&assimp_lock);
-  *out = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
-                                aiProcess_PreTransformVertices | aiProcess_SortByPType);
+  *out = gs->data ? aiImportFileEx(path, flags, &io) : aiImportFile(path, flags);
   gi_result rc = GI_OK;
   if (!*out) {
     const char *msg = aiGetErrorString();
@@ -636,8 +643,8 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
 
 /* Every triangle mesh's vertices (unscaled: gi_scene_build applies
  * opt->scale) and faces into b. */
-static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, gi_mesh_builder *b, const char *path,
-                            gi_error_info *err) {
+static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, const double shift[3],
+                            gi_mesh_builder *b, const char *path, gi_error_info *err) {
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
     const struct aiMesh *m = as->mMeshes[i];
     if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
@@ -645,7 +652,8 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, gi
     if (mat == UINT32_MAX) mat = 0;
     uint32_t base = 0;
     for (unsigned v = 0; v < m->mNumVertices; v++) {
-      uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z);
+      uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x + shift[0], m->mVertices[v].y + shift[1],
+                                               m->mVertices[v].z + shift[2]);
       if (v == 0) base = id;
       /* The second UV set is the lightmap's (glTF TEXCOORD_1); assimp's V runs up. */
       if (m->mTextureCoords[1])
@@ -710,15 +718,15 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
 
 /* The file's lights (already in world space), then the caller's, into a
  * new array *lights (caller frees) that o then points at. */
-static gi_result collect_lights(const struct aiScene *as, const char *path, double scale, gi_scene_options *o,
-                                gi_light **lights, gi_error_info *err) {
+static gi_result collect_lights(const struct aiScene *as, const char *path, const double shift[3], double scale,
+                                gi_scene_options *o, gi_light **lights, gi_error_info *err) {
   if (o->num_lights && !o->lights)
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", o->num_lights);
   size_t nl = 0;
   gi_light *l = *lights = gi__calloc(as->mNumLights + o->num_lights + 1, sizeof *l);
   if (!l) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
   for (unsigned i = 0; i < as->mNumLights; i++) {
-    gi_result r = convert_light(path, as->mLights[i], scale, &l[nl], err);
+    gi_result r = convert_light(path, as->mLights[i], shift, scale, &l[nl], err);
     if (r == GI_OK) nl++;
     else if (r != GI_ERR_NOT_FOUND) return r;
   }
@@ -770,11 +778,13 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   tex_ctx tc = {.path = path};
   /* Our strict reader first: its errors name the line, assimp's do not. */
   gi__exact_mesh em = {0};
+  gi__gltf_shift gs = {.path = path};
   int exact = ends_with_ci(path, ".obj") || ends_with_ci(path, ".ply");
   if (exact && (rc = ends_with_ci(path, ".obj") ? gi__exact_read_obj(path, &em, err)
                                                 : gi__exact_read_ply(path, &em, err)) != GI_OK)
     goto done;
-  if ((rc = import_file(path, &as, err)) != GI_OK || (rc = check_counts(as, path, err)) != GI_OK) goto done;
+  if (!exact && (rc = gi__gltf_recentre(path, &gs, err)) != GI_OK) goto done;
+  if ((rc = import_file(path, &gs, &as, err)) != GI_OK || (rc = check_counts(as, path, err)) != GI_OK) goto done;
   tc.as = as;
   b = gi_mesh_builder_new();
   matmap = gi__malloc((as->mNumMaterials + 1) * sizeof *matmap);
@@ -783,13 +793,15 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     goto done;
   }
   if ((rc = add_materials(as, &tc, b, matmap, err)) == GI_OK &&
-      (rc = exact ? add_exact_meshes(as, matmap, &em, b, path, err) : add_meshes(as, matmap, b, path, err)) == GI_OK &&
-      (rc = collect_lights(as, path, scale, &o, &lights, err)) == GI_OK)
+      (rc = exact ? add_exact_meshes(as, matmap, &em, b, path, err)
+                  : add_meshes(as, matmap, gs.t, b, path, err)) == GI_OK &&
+      (rc = collect_lights(as, path, gs.t, scale, &o, &lights, err)) == GI_OK)
     rc = build(b, path, &o, &tc, out, err);
 
 done:
   if (as) aiReleaseImport(as);
   gi__exact_free(&em);
+  gi__gltf_shift_free(&gs);
   gi__free(lights);
   gi__free(matmap);
   tex_ctx_fini(&tc);

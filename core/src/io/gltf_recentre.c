@@ -1,0 +1,411 @@
+/* io/gltf_recentre.c: glTF node transforms composed in double (see the
+ * header for why). jansson parses and rewrites the JSON; the binary chunk
+ * of a .glb is kept byte for byte. */
+#define _DEFAULT_SOURCE /* realpath */
+#include "io/gltf_recentre.h"
+#include <assimp/cfileio.h>
+#include <jansson.h>
+#include <limits.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+
+#define GLB_MAGIC 0x46546C67u      /* "glTF" */
+#define GLB_CHUNK_JSON 0x4E4F534Au /* "JSON" */
+#define GLB_HEADER 12
+#define GLB_CHUNK_HEADER 8
+/* Digits that carry a double through text unchanged. */
+#define JSON_PRECISION 17
+
+static int ends_with_ci(const char *s, const char *suffix) {
+  size_t n = strlen(s), m = strlen(suffix);
+  if (n < m) return 0;
+  for (size_t i = 0; i < m; i++)
+    if ((s[n - m + i] | 32) != (suffix[i] | 32)) return 0;
+  return 1;
+}
+
+static uint32_t le32(const unsigned char *p) {
+  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static void put_le32(unsigned char *p, uint32_t v) {
+  for (int i = 0; i < 4; i++) p[i] = (unsigned char)(v >> (8 * i));
+}
+
+/* The whole file (caller frees). */
+static unsigned char *read_all(const char *path, size_t *len, gi_error_info *err) {
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    gi__fail(err, GI_ERR_IO, "scene file '%s': cannot open", path);
+    return NULL;
+  }
+  unsigned char *buf = NULL;
+  long n = -1;
+  if (fseek(f, 0, SEEK_END) == 0 && (n = ftell(f)) >= 0 && fseek(f, 0, SEEK_SET) == 0) {
+    buf = gi__malloc((size_t)n + 1);
+    if (buf && fread(buf, 1, (size_t)n, f) != (size_t)n) {
+      gi__free(buf);
+      buf = NULL;
+    }
+  }
+  fclose(f);
+  if (!buf) gi__fail(err, n < 0 ? GI_ERR_IO : GI_ERR_NOMEM, "scene file '%s': cannot read it", path);
+  *len = (size_t)(n < 0 ? 0 : n);
+  return buf;
+}
+
+/* ---- matrices: column-major 4x4 in double, as glTF stores them ---------- */
+
+static void mat_mul(const double a[16], const double b[16], double out[16]) {
+  double r[16];
+  for (int c = 0; c < 4; c++)
+    for (int row = 0; row < 4; row++) {
+      double s = 0;
+      for (int k = 0; k < 4; k++) s += a[k * 4 + row] * b[c * 4 + k];
+      r[c * 4 + row] = s;
+    }
+  memcpy(out, r, sizeof r);
+}
+
+/* Reads n finite numbers from a JSON array member; 0 when absent. */
+static int numbers(json_t *node, const char *key, double *out, size_t n, const char *path, size_t idx,
+                   gi_error_info *err) {
+  json_t *a = json_object_get(node, key);
+  if (!a) return 0;
+  if (!json_is_array(a) || json_array_size(a) != n) {
+    gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF node %zu: '%s' must be an array of %zu numbers", path, idx,
+             key, n);
+    return -1;
+  }
+  for (size_t i = 0; i < n; i++) {
+    json_t *v = json_array_get(a, i);
+    out[i] = json_is_number(v) ? json_number_value(v) : NAN;
+    if (!isfinite(out[i])) {
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF node %zu: '%s'[%zu] is not a finite number", path, idx, key,
+               i);
+      return -1;
+    }
+  }
+  return 1;
+}
+
+/* Node idx's own matrix: 'matrix', or translation * rotation * scale. */
+static int local_matrix(json_t *node, const char *path, size_t idx, double m[16], gi_error_info *err) {
+  int has = numbers(node, "matrix", m, 16, path, idx, err);
+  if (has) return has < 0 ? -1 : 0;
+  double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+  if (numbers(node, "translation", t, 3, path, idx, err) < 0 || numbers(node, "rotation", q, 4, path, idx, err) < 0 ||
+      numbers(node, "scale", s, 3, path, idx, err) < 0)
+    return -1;
+  double x = q[0], y = q[1], z = q[2], w = q[3];
+  double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
+                 2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+                 2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y)};
+  for (int c = 0; c < 3; c++) {
+    for (int row = 0; row < 3; row++) m[c * 4 + row] = r[c * 3 + row] * s[c];
+    m[c * 4 + 3] = 0;
+  }
+  m[12] = t[0], m[13] = t[1], m[14] = t[2], m[15] = 1;
+  return 0;
+}
+
+/* A node that draws something assimp must place: a mesh or a light. */
+static int carries_content(json_t *node) {
+  json_t *ext = json_object_get(node, "extensions");
+  return json_object_get(node, "mesh") || (ext && json_object_get(ext, "KHR_lights_punctual"));
+}
+
+typedef struct walk {
+  json_t *nodes;
+  const char *path;
+  unsigned char *seen;
+  size_t *order; /* content nodes in depth-first order */
+  double *world; /* 16 per node */
+  size_t count;
+  gi_error_info *err;
+} walk;
+
+/* Depth-first from node idx under parent matrix pm; an explicit stack would
+ * only matter for graphs deeper than any exporter writes, and every node is
+ * visited once, so a cyclic file cannot loop. */
+static int visit(walk *w, size_t idx, const double pm[16], int depth) {
+  if (idx >= json_array_size(w->nodes) || w->seen[idx] || depth > 1024) {
+    gi__fail(w->err, GI_ERR_FORMAT, "scene file '%s': glTF node %zu is out of range, reached twice or nested too deep",
+             w->path, idx);
+    return -1;
+  }
+  w->seen[idx] = 1;
+  json_t *node = json_array_get(w->nodes, idx);
+  double lm[16];
+  if (!json_is_object(node) || local_matrix(node, w->path, idx, lm, w->err) < 0) {
+    if (!json_is_object(node)) gi__fail(w->err, GI_ERR_FORMAT, "scene file '%s': glTF node %zu is not an object",
+                                        w->path, idx);
+    return -1;
+  }
+  mat_mul(pm, lm, &w->world[16 * idx]);
+  if (carries_content(node)) w->order[w->count++] = idx;
+  json_t *ch = json_object_get(node, "children");
+  for (size_t i = 0; ch && i < json_array_size(ch); i++) {
+    json_t *c = json_array_get(ch, i);
+    if (!json_is_integer(c) || json_integer_value(c) < 0) {
+      gi__fail(w->err, GI_ERR_FORMAT, "scene file '%s': glTF node %zu: children[%zu] is not a node index", w->path,
+               idx, i);
+      return -1;
+    }
+    if (visit(w, (size_t)json_integer_value(c), &w->world[16 * idx], depth + 1) < 0) return -1;
+  }
+  return 0;
+}
+
+/* Replaces the default scene by its content nodes as roots, each with its
+ * world matrix less t. */
+static int flatten(json_t *scene, walk *w, double t[3]) {
+  const double *first = &w->world[16 * w->order[0]];
+  t[0] = first[12], t[1] = first[13], t[2] = first[14];
+  json_t *roots = json_array();
+  if (!roots) return -1;
+  for (size_t k = 0; k < w->count; k++) {
+    json_t *node = json_array_get(w->nodes, w->order[k]);
+    double m[16];
+    memcpy(m, &w->world[16 * w->order[k]], sizeof m);
+    for (int i = 0; i < 3; i++) m[12 + i] -= t[i];
+    json_t *arr = json_array();
+    for (int i = 0; arr && i < 16; i++) json_array_append_new(arr, json_real(m[i]));
+    if (!arr || json_object_set_new(node, "matrix", arr) || json_array_append_new(roots, json_integer(
+                                                                 (json_int_t)w->order[k]))) {
+      json_decref(roots);
+      return -1;
+    }
+    json_object_del(node, "translation");
+    json_object_del(node, "rotation");
+    json_object_del(node, "scale");
+    json_object_del(node, "children");
+  }
+  return json_object_set_new(scene, "nodes", roots) ? -1 : 0;
+}
+
+/* The default scene, or NULL when the file has none to place. */
+static json_t *default_scene(json_t *root) {
+  json_t *scenes = json_object_get(root, "scenes");
+  json_t *si = json_object_get(root, "scene");
+  size_t s = json_is_integer(si) && json_integer_value(si) >= 0 ? (size_t)json_integer_value(si) : 0;
+  json_t *scene = json_array_get(scenes, s);
+  return json_is_object(scene) && json_is_array(json_object_get(scene, "nodes")) ? scene : NULL;
+}
+
+/* Rewrites root's scene graph in place; 1 when it did, 0 when there was
+ * nothing to place, -1 on error (err set). */
+static int recentre_json(json_t *root, const char *path, double t[3], gi_error_info *err) {
+  json_t *scene = default_scene(root), *nodes = json_object_get(root, "nodes");
+  if (!scene || !json_is_array(nodes) || json_array_size(nodes) == 0) return 0;
+  size_t n = json_array_size(nodes);
+  walk w = {.nodes = nodes, .path = path, .err = err};
+  w.seen = gi__calloc(n, 1);
+  w.order = gi__malloc(n * sizeof *w.order);
+  w.world = gi__malloc(n * 16 * sizeof *w.world);
+  int rc = -1;
+  if (!w.seen || !w.order || !w.world) {
+    gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory for %zu glTF nodes", path, n);
+    goto done;
+  }
+  static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  json_t *rn = json_object_get(scene, "nodes");
+  for (size_t i = 0; i < json_array_size(rn); i++) {
+    json_t *v = json_array_get(rn, i);
+    if (!json_is_integer(v) || json_integer_value(v) < 0) {
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF scene nodes[%zu] is not a node index", path, i);
+      goto done;
+    }
+    if (visit(&w, (size_t)json_integer_value(v), identity, 0) < 0) goto done;
+  }
+  rc = 0;
+  if (w.count && (rc = flatten(scene, &w, t) < 0 ? -1 : 1) < 0)
+    gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory rewriting the glTF scene", path);
+done:
+  gi__free(w.seen);
+  gi__free(w.order);
+  gi__free(w.world);
+  return rc;
+}
+
+/* The JSON text of a .gltf, or the JSON chunk of a .glb. */
+static int split_glb(const unsigned char *buf, size_t len, size_t *json_off, size_t *json_len) {
+  if (len < GLB_HEADER + GLB_CHUNK_HEADER || le32(buf) != GLB_MAGIC || le32(buf + 12 + 4) != GLB_CHUNK_JSON) return -1;
+  size_t cl = le32(buf + 12);
+  if (cl > len - GLB_HEADER - GLB_CHUNK_HEADER) return -1;
+  *json_off = GLB_HEADER + GLB_CHUNK_HEADER;
+  *json_len = cl;
+  return 0;
+}
+
+/* The new file: text alone, or a .glb with text as its JSON chunk and the
+ * original chunks after it. */
+static int assemble(gi__gltf_shift *out, const char *text, const unsigned char *buf, size_t len, int glb,
+                    size_t json_off, size_t json_len) {
+  size_t tl = strlen(text), padded = (tl + 3) & ~(size_t)3;
+  size_t rest = glb ? len - json_off - json_len : 0;
+  size_t total = glb ? GLB_HEADER + GLB_CHUNK_HEADER + padded + rest : tl;
+  if (glb && total > UINT32_MAX) return -1;
+  out->data = gi__malloc(total ? total : 1);
+  if (!out->data) return -1;
+  if (!glb) {
+    memcpy(out->data, text, tl);
+  } else {
+    memcpy(out->data, buf, GLB_HEADER);
+    put_le32(out->data + 8, (uint32_t)total);
+    put_le32(out->data + 12, (uint32_t)padded);
+    put_le32(out->data + 16, GLB_CHUNK_JSON);
+    memcpy(out->data + 20, text, tl);
+    memset(out->data + 20 + tl, ' ', padded - tl); /* the spec pads JSON with spaces */
+    memcpy(out->data + 20 + padded, buf + json_off + json_len, rest);
+  }
+  out->len = total;
+  return 0;
+}
+
+gi_result gi__gltf_recentre(const char *path, gi__gltf_shift *out, gi_error_info *err) {
+  memset(out, 0, sizeof *out);
+  out->path = path;
+  int glb = ends_with_ci(path, ".glb");
+  if (!glb && !ends_with_ci(path, ".gltf")) return GI_OK;
+  size_t len = 0, json_off = 0, json_len = 0;
+  unsigned char *buf = read_all(path, &len, err);
+  if (!buf) return err ? err->code : GI_ERR_IO;
+  gi_result rc = GI_OK;
+  if (glb && split_glb(buf, len, &json_off, &json_len) < 0) {
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': not a readable glTF binary (cut short, corrupt, or another format): "
+                  "bad header or JSON chunk", path);
+    goto done;
+  }
+  if (!glb) json_len = len;
+  json_error_t je;
+  json_t *root = json_loadb((const char *)buf + json_off, json_len, 0, &je);
+  if (!root) {
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': not a readable glTF (cut short, corrupt, or another format): "
+                  "JSON line %d column %d: %s", path, je.line, je.column, je.text);
+    goto done;
+  }
+  int r = recentre_json(root, path, out->t, err);
+  char *text = r > 0 ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(JSON_PRECISION)) : NULL;
+  json_decref(root);
+  if (r < 0) {
+    rc = err ? err->code : GI_ERR_FORMAT;
+  } else if (r > 0 && (!text || assemble(out, text, buf, len, glb, json_off, json_len) < 0)) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory rewriting the glTF scene", path);
+  }
+  free(text);
+done:
+  gi__free(buf);
+  if (rc != GI_OK) gi__gltf_shift_free(out);
+  return rc;
+}
+
+void gi__gltf_shift_free(gi__gltf_shift *s) {
+  gi__free(s->data);
+  s->data = NULL;
+  s->len = 0;
+}
+
+/* ---- the assimp file system: the rewritten file from memory ------------- */
+
+typedef struct mem_file {
+  const unsigned char *data; /* NULL: read f */
+  size_t len, pos;
+  FILE *f;
+} mem_file;
+
+static size_t io_read(struct aiFile *af, char *buf, size_t size, size_t count) {
+  mem_file *m = (mem_file *)af->UserData;
+  if (!m->data) return fread(buf, size, count, m->f);
+  if (size == 0) return 0;
+  size_t n = (m->len - m->pos) / size;
+  if (n > count) n = count;
+  memcpy(buf, m->data + m->pos, n * size);
+  m->pos += n * size;
+  return n;
+}
+
+static size_t io_write(struct aiFile *af, const char *buf, size_t size, size_t count) {
+  (void)af, (void)buf, (void)size, (void)count;
+  return 0; /* imports never write */
+}
+
+static size_t io_tell(struct aiFile *af) {
+  mem_file *m = (mem_file *)af->UserData;
+  return m->data ? m->pos : (size_t)ftell(m->f);
+}
+
+static size_t io_size(struct aiFile *af) {
+  mem_file *m = (mem_file *)af->UserData;
+  if (m->data) return m->len;
+  long here = ftell(m->f), end = -1;
+  if (fseek(m->f, 0, SEEK_END) == 0) end = ftell(m->f);
+  fseek(m->f, here, SEEK_SET);
+  return end < 0 ? 0 : (size_t)end;
+}
+
+static enum aiReturn io_seek(struct aiFile *af, size_t off, enum aiOrigin origin) {
+  mem_file *m = (mem_file *)af->UserData;
+  if (!m->data) {
+    int whence = origin == aiOrigin_SET ? SEEK_SET : origin == aiOrigin_CUR ? SEEK_CUR : SEEK_END;
+    return fseek(m->f, (long)off, whence) == 0 ? aiReturn_SUCCESS : aiReturn_FAILURE;
+  }
+  size_t base = origin == aiOrigin_SET ? 0 : origin == aiOrigin_CUR ? m->pos : m->len;
+  if (off > m->len - base) return aiReturn_FAILURE;
+  m->pos = base + off;
+  return aiReturn_SUCCESS;
+}
+
+static void io_flush(struct aiFile *af) { (void)af; }
+
+/* Same file: the same string, or the same resolved path. */
+static int same_path(const char *a, const char *b) {
+  if (!strcmp(a, b)) return 1;
+  char ra[PATH_MAX], rb[PATH_MAX];
+  return realpath(a, ra) && realpath(b, rb) && !strcmp(ra, rb);
+}
+
+static struct aiFile *io_open(struct aiFileIO *io, const char *name, const char *mode) {
+  const gi__gltf_shift *s = (const gi__gltf_shift *)io->UserData;
+  if (mode && strchr(mode, 'w')) return NULL;
+  struct aiFile *af = gi__calloc(1, sizeof *af);
+  mem_file *m = gi__calloc(1, sizeof *m);
+  if (!af || !m) goto fail;
+  if (s->data && same_path(name, s->path)) {
+    m->data = s->data;
+    m->len = s->len;
+  } else if (!(m->f = fopen(name, "rb"))) {
+    goto fail;
+  }
+  af->ReadProc = io_read;
+  af->WriteProc = io_write;
+  af->TellProc = io_tell;
+  af->FileSizeProc = io_size;
+  af->SeekProc = io_seek;
+  af->FlushProc = io_flush;
+  af->UserData = (aiUserData)m;
+  return af;
+fail:
+  gi__free(af);
+  gi__free(m);
+  return NULL;
+}
+
+static void io_close(struct aiFileIO *io, struct aiFile *af) {
+  (void)io;
+  if (!af) return;
+  mem_file *m = (mem_file *)af->UserData;
+  if (m && m->f) fclose(m->f);
+  gi__free(m);
+  gi__free(af);
+}
+
+void gi__gltf_open_io(struct aiFileIO *io, const gi__gltf_shift *s) {
+  io->OpenProc = io_open;
+  io->CloseProc = io_close;
+  io->UserData = (aiUserData)s;
+}

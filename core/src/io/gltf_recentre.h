@@ -1,0 +1,43 @@
+/* io/gltf_recentre.h: glTF node transforms composed in double.
+ *
+ * assimp composes glTF node matrices in float, so a node translated to a
+ * georeferenced position (UTM northing ~5e6) moves its vertices by up to
+ * 0.5 m before the scene can subtract its origin. Before assimp sees a
+ * .gltf or .glb we compose every node's world matrix in double, pick an
+ * offset T (the world position of the first node that carries a mesh),
+ * and rewrite the default scene flat: each node with a mesh or a light
+ * becomes a root whose matrix is its world matrix with T taken off. assimp
+ * then works with small numbers, and the importer adds T back, in double,
+ * to every vertex and light position. The rewritten file lives only in
+ * memory: gi__gltf_open_io serves it to assimp under the original path, so
+ * external buffers still resolve beside the file.
+ *
+ * Ownership: gi__gltf_recentre fills a gi__gltf_shift the caller releases
+ * with gi__gltf_shift_free. Not shared between threads. */
+#ifndef GI_GLTF_RECENTRE_H
+#define GI_GLTF_RECENTRE_H
+
+#include <stddef.h>
+#include "gi/gi_error.h"
+
+struct aiFileIO;
+
+typedef struct gi__gltf_shift {
+  double t[3];         /* add to every position assimp returns */
+  unsigned char *data; /* the rewritten file, or NULL: let assimp read the file as it is */
+  size_t len;
+  const char *path;    /* the file the data stands for (borrowed) */
+} gi__gltf_shift;
+
+/* For a .gltf or .glb at path: the shift and the rewritten file. A file
+ * whose JSON cannot be parsed or whose nodes hold non-numbers fails with
+ * GI_ERR_FORMAT naming the file and the place; a file without a scene
+ * graph gets t = 0 and no data. */
+gi_result gi__gltf_recentre(const char *path, gi__gltf_shift *out, gi_error_info *err);
+void gi__gltf_shift_free(gi__gltf_shift *s);
+
+/* An assimp file system that reads s->path from s->data and every other
+ * file from disk. io must outlive the import; s must outlive io. */
+void gi__gltf_open_io(struct aiFileIO *io, const gi__gltf_shift *s);
+
+#endif
