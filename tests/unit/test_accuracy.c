@@ -101,8 +101,13 @@ static void test_cone_error_falls(void **state) {
   gi_cascade_free(tmp);
   gi_quality low = {.res = 16, .voxel0 = s0 * 2, .cones = 6, .bounces = 1};
   /* High: finer voxels over the same extent, bounces from the same albedo
-   * rule as the default (3 and the geometric tail of the rest). */
-  gi_quality high = {.res = 48, .voxel0 = s0 * 32 / 48};
+   * rule as the default (3 and the geometric tail of the rest), and the
+   * probe's direct light sampled as the service's "high" preset does (1024
+   * rays). The total includes that direct noise; every probe now draws the
+   * same light samples (no popping as a point moves), so it no longer
+   * averages out over the probes, and a "high" that kept the default's 256
+   * rays compared one noise draw with itself rather than two qualities. */
+  gi_quality high = {.res = 48, .voxel0 = s0 * 32 / 48, .probe_samples = 1024};
   acc_metrics ml[3], md[3], mh[3];
   bake_metrics(c, &low, "low", ml);
   bake_metrics(c, &dq, "default", md);

@@ -297,10 +297,8 @@ static void test_munich_obj(void **state) {
   const char *paths[3] = {write_shifted_obj(src, "munich.mtl", "munich0.obj", (double[3]){0, 0, 0}),
                           write_shifted_obj(src, "munich.mtl", "munich-utm.obj", utm_shift),
                           write_shifted_obj(src, "munich.mtl", "munich-far.obj", far_shift)};
-  /* gi-accuracy's Munich viewpoint: an open square, 2 m above the street.
-   * It lies within 3 mm of the scene origin, and gather seeds a probe's
-   * noise by its local float bits, which there follow the origin's
-   * rounding (0.46% measured at the viewpoint): probes sit 12..24 m away. */
+  /* gi-accuracy's Munich viewpoint: an open square, 2 m above the street;
+   * probes 12..24 m away from it. */
   bake_setup bs = {.up = GI_UP_Z, .default_lights = 1, .at = {-67.85, -85.78, 2},
                    .pts = {{-55.85, -73.78, 2}, {-79.85, -97.78, 2}, {-43.85, -61.78, 2}},
                    .q = {.levels = 4, .res = 16, .bounces = 1, .threads = 2}};

@@ -10,6 +10,9 @@
 #include "scene/lights.h"
 #include "trace/trace.h"
 
+/* Keeps the gather's stream apart from the bake's, which share quality.seed. */
+#define GI_GATHER_SEED_SALT 0x70726f6265ull /* "probe" */
+
 typedef struct {
   const struct gi_cascade *c;
   const double *pts;
@@ -99,13 +102,11 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
   for (size_t i = b; i < e; i++) {
     float pl[3];
     for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * i + k] - c->scene->origin[k]);
-    /* Seed by position so a probe's noise does not depend on its index. */
-    uint64_t h = c->report.quality.seed;
-    for (int k = 0; k < 3; k++) {
-      uint32_t bits;
-      memcpy(&bits, &pl[k], 4);
-      h = gi__mix64(h ^ bits);
-    }
+    /* One seed for every probe: the same light samples at every point, so
+     * a probe's noise does not depend on its index and varies smoothly as
+     * the point moves (no popping along a walk; seeding by position made
+     * a step of s0/16 change the direct light by up to 40%). */
+    uint64_t h = gi__mix64(c->report.quality.seed ^ GI_GATHER_SEED_SALT);
     gather_one(c, pl, &g->out[i], h, &sc);
   }
   gi__scratch_free(&sc);
