@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "gi/gi_scene.h"
+#include "scene/lights.h"
 #include "scene/scene_internal.h"
 
 static gi_material grey(void) {
@@ -139,8 +140,10 @@ static void test_materials_and_emitters(void **state) {
   assert_int_equal(s->emitter_tri[0], 1);
   assert_int_equal(s->emitter_tri[1], 2);
   double p1 = 0.7152 * 2.0 * 2.0, p2 = 1.0 * 0.5;
-  assert_float_equal(s->emitter_cdf[0], p1 / (p1 + p2), 1e-5);
-  assert_true(s->emitter_cdf[1] == 1.f);
+  assert_int_equal(s->num_lnodes, 3);
+  assert_float_equal(s->ltree[0].power, p1 + p2, 1e-5);
+  assert_float_equal(s->ltree[s->ltree[s->emitter_leaf[0]].parent == 0 ? s->emitter_leaf[0] : 0].power, p1, 1e-5);
+  assert_float_equal(s->ltree[s->emitter_leaf[1]].power, p2, 1e-5);
   assert_float_equal(s->emitter_area_total, 2.5, 1e-6);
   /* Emitters present: no default lights even when asked. */
   gi_scene_release(s);
@@ -843,12 +846,79 @@ static void test_bad_file_matrix(void **state) {
   expect_bad(gltf_tri("huge.gltf", pos, idx, 1000000000u), GI_ERR_FORMAT, "out of range");
 }
 
+/* The light tree: every point's pick probabilities sum to one, a pick
+ * reports the probability the MIS side recomputes, stratified picks land
+ * in proportion, and an emitter that faces away from a point is never
+ * picked from there while others face it. */
+static void test_light_tree(void **state) {
+  enum { NE = 300 };
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material lit = {.albedo = {0.5f, 0.5f, 0.5f}, .emission = {1, 1, 1}, .roughness = 1};
+  gi_mesh_builder_add_material(b, &lit);
+  for (int i = 0; i < NE; i++) {
+    double c[3] = {rnd() * 40, rnd() * 20, rnd() * 40}, sz = 0.2 + rnd();
+    uint32_t v0 = gi_mesh_builder_add_vertex(b, c[0], c[1], c[2]);
+    /* Half face +x, half -x: windows on two facades. */
+    double dz = i % 2 ? sz : -sz;
+    gi_mesh_builder_add_vertex(b, c[0], c[1] + sz, c[2]);
+    gi_mesh_builder_add_vertex(b, c[0], c[1], c[2] + dz);
+    gi_mesh_builder_add_triangle(b, v0, v0 + 1, v0 + 2, 0);
+  }
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "lt", NULL, &s, &err), GI_OK);
+  assert_int_equal(s->num_emitters, NE);
+  assert_int_equal(s->num_lnodes, 2 * NE - 1);
+  for (int t = 0; t < 20; t++) {
+    float p[3] = {(float)(rnd() * 60 - 10 - s->origin[0]), (float)(rnd() * 30 - 5 - s->origin[1]),
+                  (float)(rnd() * 60 - 10 - s->origin[2])};
+    double sum = 0;
+    for (uint32_t k = 0; k < NE; k++) sum += gi__light_tree_prob(s, p, k);
+    assert_float_equal(sum, 1.0, 1e-4);
+    enum { M = 20000 };
+    static int hits[NE];
+    memset(hits, 0, sizeof hits);
+    for (int j = 0; j < M; j++) {
+      float pr, ur;
+      uint32_t k = gi__light_tree_pick(s, p, (j + 0.5) / M, &pr, &ur);
+      assert_true(ur >= 0 && ur < 1);
+      assert_true(k < NE);
+      assert_float_equal(pr, gi__light_tree_prob(s, p, k), 1e-5 + 1e-4 * pr);
+      hits[k]++;
+    }
+    for (uint32_t k = 0; k < NE; k++) {
+      double want = M * (double)gi__light_tree_prob(s, p, k);
+      /* Stratified picks: each emitter's count is within 2 of its share. */
+      if (fabs(hits[k] - want) > 2.0 + 1e-3 * want) fail_msg("emitter %u: %d picks, expected %.1f", k, hits[k], want);
+    }
+  }
+  /* Far out on +x every emitter faces it or away from it (their normals
+   * are +-x): the ones facing away get nothing. */
+  float far[3] = {(float)(500 - s->origin[0]), (float)(10 - s->origin[1]), (float)(20 - s->origin[2])};
+  int away = 0;
+  for (uint32_t k = 0; k < NE; k++) {
+    const uint32_t *ix = &s->indices[3 * s->emitter_tri[k]];
+    const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+    float e1[3], e2[3];
+    for (int q = 0; q < 3; q++) e1[q] = B[q] - A[q], e2[q] = C[q] - A[q];
+    float nx = e1[1] * e2[2] - e1[2] * e2[1];
+    if (nx < 0) {
+      away++;
+      assert_true(gi__light_tree_prob(s, far, k) == 0.f);
+    }
+  }
+  assert_int_equal(away, NE / 2);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_builder_box),
       cmocka_unit_test(test_builder_drops),
       cmocka_unit_test(test_materials_and_emitters),
       cmocka_unit_test(test_lights),
+      cmocka_unit_test(test_light_tree),
       cmocka_unit_test(test_empty_scene),
       cmocka_unit_test(test_far_origin),
       cmocka_unit_test(test_occluded_box),

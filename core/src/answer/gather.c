@@ -57,7 +57,7 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
       float w[3] = {r * cosf(phi), r * sinf(phi), z};
       float V[3];
       float o[3], tn = gi__shadow_origin(p, NULL, voxel, w, o);
-      if (!gi__emitter_ray(s, o, w, tn, q->probe_samples, pb, V)) continue;
+      if (!gi__emitter_ray(s, p, o, w, tn, q->probe_samples, pb, V)) continue;
       gi__sh_add(pr->sh_direct, w, V, 1.0f);
       float cu = gi__dot(up, w);
       if (cu > 0)

@@ -90,7 +90,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
         for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
         rays++;
         float V[3];
-        if (!gi__emitter_ray(s, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
+        if (!gi__emitter_ray(s, g->centroid, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
         for (int k = 0; k < 3; k++) E[sd][k] += V[k] * z;
       }
     }

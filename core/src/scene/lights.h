@@ -17,15 +17,27 @@ typedef struct gi_lsample {
   float mpl;           /* emitters: sample count times solid-angle pdf, for MIS; else 0 */
   uint8_t fx;          /* gi_effect_id of the light kind */
 } gi_lsample;
-/* Solid-angle pdf (times the light-sample count m) of reaching emissive
- * triangle tri along a ray of length t meeting it at cosine cos_e. */
-float gi__emitter_mpl(const gi_scene *s, uint32_t tri, float t, float cos_e, int m);
-/* MIS companion of emitter light sampling: traces o + t w (t > tnear); when
- * it meets an emitter's front, out = Le / (mpl + pb) with mpl the light
- * strategy's pdf for that point (m_light samples) and pb the caller's own
- * pdf times its sample count. Returns 0 (out untouched) otherwise. */
-int gi__emitter_ray(const gi_scene *s, const float o[3], const float w[3], float tnear, int m_light,
-                    float pb, float out[3]);
+/* Solid-angle pdf (times the light-sample count m) with which point p's
+ * light samples reach emissive triangle tri along a ray of length t meeting
+ * it at cosine cos_e. */
+float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t, float cos_e, int m);
+/* MIS companion of emitter light sampling at point p: traces o + t w
+ * (t > tnear; o is p's shadow-ray start); when it meets an emitter's front,
+ * out = Le / (mpl + pb) with mpl the light strategy's pdf for that point
+ * (m_light samples) and pb the caller's own pdf times its sample count.
+ * Returns 0 (out untouched) otherwise. */
+int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
+                    int m_light, float pb, float out[3]);
+/* --- light_tree.c: emitters picked by power and distance ---------------- */
+/* Builds s->ltree and s->emitter_leaf over the s->num_emitters slots of
+ * s->emitter_tri, power[slot] = luminance x area. */
+gi_result gi__light_tree_build(gi_scene *s, const float *power, gi_error_info *err);
+/* The emitter slot that u in [0, 1) picks for point p, its probability,
+ * and u rescaled within the pick (uniform in [0, 1) again: stratified
+ * picks that land on one emitter spread it evenly). */
+uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest);
+/* The probability that a pick from p returns slot. */
+float gi__light_tree_prob(const gi_scene *s, const float p[3], uint32_t slot);
 /* Which light kinds to sample, and how many rays for sky and emitters. */
 typedef struct gi_light_plan {
   int sun, local, sky, emissive;

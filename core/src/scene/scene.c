@@ -18,6 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
+#include "scene/lights.h"
 #include "scene/scene_internal.h"
 
 struct gi_mesh_builder {
@@ -365,25 +366,26 @@ static gi_result copy_triangles(const gi_mesh_builder *b, gi_scene *s, build_tmp
   s->stats.triangles = t->kept;
   if (!ne) return GI_OK;
   s->emitter_tri = gi__malloc(ne * sizeof *s->emitter_tri);
-  s->emitter_cdf = gi__malloc(ne * sizeof *s->emitter_cdf);
-  if (!s->emitter_tri || !s->emitter_cdf) return gi__fail(err, GI_ERR_NOMEM, "out of memory for emitters");
-  double sum = 0, asum = 0;
+  float *power = gi__malloc(ne * sizeof *power);
+  if (!s->emitter_tri || !power) {
+    gi__free(power);
+    return gi__fail(err, GI_ERR_NOMEM, "out of memory for emitters");
+  }
+  double asum = 0;
   size_t q = 0;
   for (size_t tr = 0; tr < t->kept; tr++) {
     const float *e = s->materials[s->tri_material[tr]].emission;
     if (!emits(e)) continue;
     s->emitter_tri[q] = (uint32_t)tr;
-    sum += (double)luminance(e) * t->area[tr];
     asum += t->area[tr];
-    s->emitter_cdf[q++] = (float)sum;
+    power[q++] = luminance(e) * t->area[tr];
   }
-  for (size_t i = 0; i < ne; i++)
-    s->emitter_cdf[i] = sum > 0 ? (float)(s->emitter_cdf[i] / sum) : (float)(i + 1) / (float)ne;
-  s->emitter_cdf[ne - 1] = 1.f;
   s->emitter_area_total = (float)asum;
   s->num_emitters = (uint32_t)ne;
   s->stats.emissive_triangles = (uint32_t)ne;
-  return GI_OK;
+  gi_result rc = gi__light_tree_build(s, power, err);
+  gi__free(power);
+  return rc;
 }
 
 /* A sun down the up axis and a little sideways (so walls facing two ways
@@ -483,7 +485,8 @@ void gi_scene_release(gi_scene *s) {
   gi__free(s->materials);
   gi__free(s->lights);
   gi__free(s->emitter_tri);
-  gi__free(s->emitter_cdf);
+  gi__free(s->emitter_leaf);
+  gi__free(s->ltree);
   gi__free(s);
 }
 

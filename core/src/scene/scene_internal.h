@@ -9,6 +9,18 @@
 #include <embree3/rtcore.h>
 #include "gi/gi_scene.h"
 
+/* A node of the emitters' light tree: the box and power of the emitters
+ * below it; internal nodes have children child and child + 1. */
+typedef struct gi_light_node {
+  float lo[3], hi[3];
+  float power;             /* luminance x area, summed */
+  float axis[3];           /* the emitters' normals lie within angle theta of axis */
+  float cos_o, sin_o;      /* cos and sin of theta (cos -1: any direction) */
+  uint32_t parent;         /* UINT32_MAX at the root */
+  uint32_t child;          /* internal nodes: the left child */
+  uint32_t slot;           /* leaves: the emitter slot; UINT32_MAX for internal nodes */
+} gi_light_node;
+
 struct gi_scene {
   atomic_int refcount;
   char name[128];
@@ -29,10 +41,12 @@ struct gi_scene {
   uint32_t num_lights;
   gi_light *lights;        /* positions in world coordinates, as given */
 
-  /* Emissive triangles, for sampling them as area lights. */
+  /* Emissive triangles, for sampling them as area lights (light_tree.c). */
   uint32_t num_emitters;
-  uint32_t *emitter_tri;   /* triangle index */
-  float *emitter_cdf;      /* cumulative power (luminance * area), normalised to 1 */
+  uint32_t *emitter_tri;   /* triangle index per emitter slot, ascending */
+  uint32_t *emitter_leaf;  /* per slot: its leaf in ltree */
+  gi_light_node *ltree;    /* 2 num_emitters - 1 nodes, root first */
+  uint32_t num_lnodes;
   float emitter_area_total;
 
   gi_scene_stats stats;

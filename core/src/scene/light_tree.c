@@ -1,0 +1,241 @@
+/* light_tree.c: emissive triangles picked by power and distance.
+ *
+ * A city has thousands of small emitters (windows, signs). Picking them by
+ * power alone gives a point near one window the same chance of sampling it
+ * as any window across town, so a few rare samples carry most of the light:
+ * noisy, and a probe jumps whenever one of them turns visible. The tree is
+ * a binary hierarchy of the emitters (median splits along the widest
+ * centroid axis); a sample walks down from the root choosing each child
+ * with probability proportional to its importance seen from the point,
+ * power / max(distance to its box centre^2, half its diagonal^2), times
+ * how far its emitters can face the point (a cone bounding their normals,
+ * widened by the angle the box subtends: emitters are one-sided). The
+ * importance is continuous in the point, so with the same random numbers
+ * the choice changes little as the point moves. The probability of any
+ * emitter is the product of the choices on its path, recomputed from its
+ * leaf upward for multiple importance sampling. Built once with the scene,
+ * read-only afterwards. */
+#include <float.h>
+#include <math.h>
+#include <string.h>
+#include "base/internal.h"
+#include "scene/lights.h"
+
+#define GI_LT_PI 3.14159265358979323846
+
+typedef struct build_ctx {
+  gi_scene *s;
+  uint32_t *slots;   /* emitter slots, permuted by the splits */
+  float *centroid;   /* 3 per slot */
+  const float *power;/* per slot */
+  uint32_t next;     /* next free node */
+} build_ctx;
+
+static void tri_bounds(const gi_scene *s, uint32_t tri, float lo[3], float hi[3]) {
+  const uint32_t *ix = &s->indices[3 * tri];
+  for (int k = 0; k < 3; k++) lo[k] = FLT_MAX, hi[k] = -FLT_MAX;
+  for (int v = 0; v < 3; v++)
+    for (int k = 0; k < 3; k++) {
+      float x = s->vertices[3 * ix[v] + k];
+      lo[k] = fminf(lo[k], x), hi[k] = fmaxf(hi[k], x);
+    }
+}
+
+/* The cone of normals of one emitter (one-sided: its winding normal). */
+static void leaf_cone(const gi_scene *s, uint32_t tri, gi_light_node *n) {
+  const uint32_t *ix = &s->indices[3 * tri];
+  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+  float e1[3], e2[3], ng[3];
+  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+  gi__cross(e1, e2, ng);
+  float l = gi__len(ng);
+  for (int k = 0; k < 3; k++) n->axis[k] = l > 0 ? ng[k] / l : (k == 0);
+  n->cos_o = l > 0 ? 1.f : -1.f, n->sin_o = 0.f;
+}
+
+/* The smallest cone (of this construction) holding the cones of a and b. */
+static void merge_cones(const gi_light_node *a, const gi_light_node *b, gi_light_node *out) {
+  double ta = acos(fmax(-1.0, fmin(1.0, a->cos_o))), tb = acos(fmax(-1.0, fmin(1.0, b->cos_o)));
+  if (ta < tb) {
+    const gi_light_node *t = a;
+    a = b, b = t;
+    double x = ta;
+    ta = tb, tb = x;
+  }
+  double dot = 0;
+  for (int k = 0; k < 3; k++) dot += (double)a->axis[k] * b->axis[k];
+  double td = acos(fmax(-1.0, fmin(1.0, dot)));
+  memcpy(out->axis, a->axis, sizeof out->axis);
+  double to = ta;
+  if (fmin(td + tb, GI_LT_PI) > ta) {
+    to = 0.5 * (ta + td + tb);
+    if (to >= GI_LT_PI || td < 1e-6) {
+      to = to >= GI_LT_PI ? GI_LT_PI : to;
+    } else {
+      /* Turn a's axis toward b's by to - ta. */
+      double tr = to - ta, sd = sin(td);
+      double ca = sin(td - tr) / sd, cb = sin(tr) / sd, l = 0;
+      for (int k = 0; k < 3; k++) {
+        out->axis[k] = (float)(ca * a->axis[k] + cb * b->axis[k]);
+        l += (double)out->axis[k] * out->axis[k];
+      }
+      l = sqrt(l);
+      for (int k = 0; k < 3; k++) out->axis[k] = l > 0 ? (float)(out->axis[k] / l) : a->axis[k];
+    }
+  }
+  out->cos_o = (float)cos(to), out->sin_o = (float)sin(to);
+  if (to >= GI_LT_PI) out->cos_o = -1.f, out->sin_o = 0.f;
+}
+
+/* Reorders slots[b..e) so that the one of rank m along axis sits at m,
+ * smaller centroids before it and larger after (quickselect). */
+static void select_median(build_ctx *c, uint32_t b, uint32_t e, uint32_t m, int axis) {
+  uint32_t *a = c->slots;
+  int64_t lo = b, hi = (int64_t)e - 1;
+  while (hi > lo) {
+    float pivot = c->centroid[3 * a[lo + (hi - lo) / 2] + axis];
+    int64_t i = lo, j = hi;
+    while (i <= j) {
+      while (c->centroid[3 * a[i] + axis] < pivot) i++;
+      while (c->centroid[3 * a[j] + axis] > pivot) j--;
+      if (i <= j) {
+        uint32_t t = a[i];
+        a[i++] = a[j], a[j--] = t;
+      }
+    }
+    /* Now [lo, j] <= pivot <= [i, hi], and anything between equals it. */
+    if ((int64_t)m <= j) hi = j;
+    else if ((int64_t)m >= i) lo = i;
+    else return;
+  }
+}
+
+/* Node n over slots[b..e): its box, power and children (depth-first, so
+ * the tree is as deep as log2 of the emitter count). */
+static void build_node(build_ctx *c, uint32_t n, uint32_t parent, uint32_t b, uint32_t e) {
+  gi_light_node *nd = &c->s->ltree[n];
+  nd->parent = parent;
+  float clo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, chi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+  double pw = 0;
+  for (int k = 0; k < 3; k++) nd->lo[k] = FLT_MAX, nd->hi[k] = -FLT_MAX;
+  for (uint32_t i = b; i < e; i++) {
+    uint32_t sl = c->slots[i];
+    float lo[3], hi[3];
+    tri_bounds(c->s, c->s->emitter_tri[sl], lo, hi);
+    for (int k = 0; k < 3; k++) {
+      nd->lo[k] = fminf(nd->lo[k], lo[k]), nd->hi[k] = fmaxf(nd->hi[k], hi[k]);
+      clo[k] = fminf(clo[k], c->centroid[3 * sl + k]), chi[k] = fmaxf(chi[k], c->centroid[3 * sl + k]);
+    }
+    pw += c->power[sl];
+  }
+  nd->power = (float)pw;
+  if (e - b == 1) {
+    nd->slot = c->slots[b];
+    nd->child = 0;
+    c->s->emitter_leaf[nd->slot] = n;
+    leaf_cone(c->s, c->s->emitter_tri[nd->slot], nd);
+    return;
+  }
+  int axis = 0;
+  for (int k = 1; k < 3; k++)
+    if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
+  uint32_t m = b + (e - b) / 2;
+  select_median(c, b, e, m, axis);
+  nd->slot = UINT32_MAX;
+  nd->child = c->next;
+  c->next += 2;
+  uint32_t l = nd->child;
+  build_node(c, l, n, b, m);
+  build_node(c, l + 1, n, m, e);
+  merge_cones(&c->s->ltree[l], &c->s->ltree[l + 1], &c->s->ltree[n]);
+}
+
+gi_result gi__light_tree_build(gi_scene *s, const float *power, gi_error_info *err) {
+  uint32_t ne = s->num_emitters;
+  if (!ne) return GI_OK;
+  build_ctx c = {.s = s, .power = power, .next = 1};
+  s->ltree = gi__malloc((2 * (size_t)ne - 1) * sizeof *s->ltree);
+  s->emitter_leaf = gi__malloc(ne * sizeof *s->emitter_leaf);
+  c.slots = gi__malloc(ne * sizeof *c.slots);
+  c.centroid = gi__malloc(3 * (size_t)ne * sizeof *c.centroid);
+  gi_result rc = GI_OK;
+  if (!s->ltree || !s->emitter_leaf || !c.slots || !c.centroid) {
+    rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for the light tree of %u emitters", ne);
+    goto done;
+  }
+  for (uint32_t i = 0; i < ne; i++) {
+    const uint32_t *ix = &s->indices[3 * s->emitter_tri[i]];
+    for (int k = 0; k < 3; k++)
+      c.centroid[3 * i + k] =
+          (s->vertices[3 * ix[0] + k] + s->vertices[3 * ix[1] + k] + s->vertices[3 * ix[2] + k]) / 3.f;
+    c.slots[i] = i;
+  }
+  build_node(&c, 0, UINT32_MAX, 0, ne);
+  s->num_lnodes = c.next;
+done:
+  gi__free(c.slots);
+  gi__free(c.centroid);
+  return rc;
+}
+
+/* How much node n matters to point p: power over squared distance, times
+ * the cosine of the smallest angle at which one of its emitters could face
+ * p (0 when none can). Continuous in p, and without trigonometry. */
+static float importance(const gi_light_node *n, const float p[3]) {
+  float v[3], d2 = 0, h2 = 0;
+  for (int k = 0; k < 3; k++) {
+    float h = 0.5f * (n->hi[k] - n->lo[k]);
+    v[k] = p[k] - 0.5f * (n->lo[k] + n->hi[k]);
+    d2 += v[k] * v[k], h2 += h * h;
+  }
+  float base = n->power / fmaxf(fmaxf(d2, h2), FLT_MIN);
+  if (n->cos_o <= -1.f || d2 <= h2) return base; /* faces everywhere, or p is inside the box */
+  float d = sqrtf(d2);
+  float cos_t = (v[0] * n->axis[0] + v[1] * n->axis[1] + v[2] * n->axis[2]) / d;
+  float sin_t = sqrtf(fmaxf(0.f, 1 - cos_t * cos_t));
+  float sin_u = sqrtf(h2) / d, cos_u = sqrtf(fmaxf(0.f, 1 - sin_u * sin_u));
+  /* theta_o + theta_u: the cone widened by the box's angular radius. */
+  float cos_s = n->cos_o * cos_u - n->sin_o * sin_u, sin_s = n->sin_o * cos_u + n->cos_o * sin_u;
+  if (sin_s < 0 || cos_t >= cos_s) return base; /* the widened cone covers p's direction */
+  float cos_p = cos_t * cos_s + sin_t * sin_s;  /* cos(theta - theta_o - theta_u) */
+  return cos_p > 0 ? base * cos_p : 0.f;
+}
+
+/* Probability of taking the left child of internal node n from p. */
+static double left_prob(const gi_scene *s, const gi_light_node *n, const float p[3]) {
+  double il = importance(&s->ltree[n->child], p), ir = importance(&s->ltree[n->child + 1], p);
+  return il + ir > 0 ? il / (il + ir) : 0.5;
+}
+
+uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest) {
+  const gi_light_node *n = &s->ltree[0];
+  double pr = 1;
+  while (n->slot == UINT32_MAX) {
+    double pl = left_prob(s, n, p);
+    if (u < pl) {
+      u = u / pl;
+      pr *= pl;
+      n = &s->ltree[n->child];
+    } else {
+      u = (u - pl) / (1 - pl);
+      pr *= 1 - pl;
+      n = &s->ltree[n->child + 1];
+    }
+    u = u < 0 ? 0 : u >= 1 ? 0x1.fffffffffffffp-1 : u;
+  }
+  *prob = (float)pr;
+  *u_rest = (float)u;
+  return n->slot;
+}
+
+float gi__light_tree_prob(const gi_scene *s, const float p[3], uint32_t slot) {
+  uint32_t at = s->emitter_leaf[slot];
+  double pr = 1;
+  while (s->ltree[at].parent != UINT32_MAX) {
+    const gi_light_node *par = &s->ltree[s->ltree[at].parent];
+    double pl = left_prob(s, par, p);
+    pr *= at == par->child ? pl : 1 - pl;
+    at = s->ltree[at].parent;
+  }
+  return (float)pr;
+}
