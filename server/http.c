@@ -263,7 +263,7 @@ static void task(void *arg) {
   if (!skip) {
     gs_answer a = {.fd = -1};
     if (r->ep == GS_EP_PROBES) gs_serve_probes(h->svc, r->scene, &r->probes, r->t_start, &a);
-    else if (r->ep == GS_EP_SESSIONS) gs_session_create(h->svc, r->scene, &r->bake, r->cancel, &a);
+    else if (r->ep == GS_EP_SESSIONS) gs_session_create(h->svc, r->scene, &r->bake, r->cancel, r->t_start, &a);
     else if (r->ep == GS_EP_SESSION_LIGHTING)
       gs_session_lighting(h->svc, r->id, &r->bake, r->t_start, r->cancel, &a);
     else gs_serve_bake(h->svc, r->scene, r->ep, &r->bake, r->t_start, &r->w, &a);

@@ -394,9 +394,10 @@ void gs_sessions_free(gs_sessions *t);
 void gs_sessions_sweep(gs_sessions *t);
 void gs_sessions_stats(gs_sessions *t, int *open, size_t *bytes);
 /* POST /v1/scenes/{id}/sessions (a worker): bakes the session's cascade
- * at b->at (else the scene's default viewpoint), 201 with its JSON. */
+ * at b->at (else the scene's default viewpoint), 201 with its JSON and
+ * the bake's Server-Timing. */
 void gs_session_create(gs_service *svc, const gs_scene *s, const gi_proto_bake *b, const gi_cancel *cancel,
-                       gs_answer *a);
+                       double t_start_ms, gs_answer *a);
 /* GET /v1/sessions/{sid}/lighting (a worker): moves the session's
  * cascade to b->at and answers as the scene's lighting URL does. Requests
  * on one session run one at a time. */

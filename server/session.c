@@ -297,7 +297,7 @@ static int bake_session(gs_service *svc, gs_session *s, const double at[3], cons
 }
 
 void gs_session_create(gs_service *svc, const gs_scene *sc, const gi_proto_bake *b, const gi_cancel *cancel,
-                       gs_answer *a) {
+                       double t_start_ms, gs_answer *a) {
   gs_sessions *t = svc->sessions;
   if (take_slot(t, a)) return;
   gs_session *s = calloc(1, sizeof *s);
@@ -322,6 +322,9 @@ void gs_session_create(gs_service *svc, const gs_scene *sc, const gi_proto_bake 
   t->head = s;
   /* Answered before the lock is let go: no request can move it yet. */
   answer_session(svc, s, 201, a);
+  const gi_bake_report *rep = gi_cascade_report(s->cascade);
+  gi_proto_server_timing(&rep->ms, gs_now_ms() - t_start_ms, a->server_timing, sizeof a->server_timing);
+  gi_proto_effects_header(rep->effects, a->effects, sizeof a->effects);
   pthread_mutex_unlock(&t->mu);
   gs_metrics_session(svc->metrics, GS_SESSION_CREATED);
 }
