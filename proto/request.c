@@ -106,7 +106,7 @@ typedef struct {
 } param_def;
 
 static const param_def params[] = {
-    {"at", P_AT | P_AT_OPT},           {"kind", P_KIND},      {"quality", P_QUALITY}, {"levels", P_QUALITY},
+    {"at", P_AT},           {"kind", P_KIND},      {"quality", P_QUALITY}, {"levels", P_QUALITY},
     {"res", P_QUALITY},     {"voxel", P_QUALITY},  {"cones", P_QUALITY},   {"aperture", P_QUALITY},
     {"step", P_QUALITY},    {"bounces", P_QUALITY}, {"samples", P_QUALITY}, {"probe_samples", P_QUALITY},
     {"ao", P_QUALITY},      {"seed", P_QUALITY},   {"effects", P_QUALITY},   {"half", P_HALF},       {"width", P_PANO},
@@ -352,7 +352,8 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
       return err->status;
     }
   }
-  if ((allowed & P_AT) && !out->has_at) return gi_proto_fail(err, 400, "parameter 'at' is required (x,y,z)");
+  if ((allowed & P_AT) && !(allowed & P_AT_OPT) && !out->has_at)
+    return gi_proto_fail(err, 400, "parameter 'at' is required (x,y,z)");
   if ((allowed & P_CELLQ) && !out->q[0])
     return gi_proto_fail(err, 400, "parameter 'q' is required (the quality hash the redirect or the scene's grid gives)");
   return 0;
@@ -430,7 +431,7 @@ int gi_proto_parse_session(const gi_proto_kv *kv, size_t n, const char *body, si
   if (len && n)
     return gi_proto_fail(err, 400, "give the session's quality in the JSON body or in the query, not both");
   if (len) return session_body(body, len, lim, out, err);
-  return parse_query(kv, n, P_AT_OPT | P_QUALITY, lim, out, err);
+  return parse_query(kv, n, P_AT | P_AT_OPT | P_QUALITY, lim, out, err);
 }
 
 int gi_proto_parse_session_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
