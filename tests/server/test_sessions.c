@@ -11,7 +11,10 @@
  *     expires after the TTL (404, gi_sessions_expired_total);
  *   - two clients hammering one session: every request answered, move
  *     numbers 1..N each exactly once (serialised), and the cascade after
- *     it is still a cold bake's once the cycle closes (nothing torn). */
+ *     it is still a cold bake's once the cycle closes (nothing torn).
+ * Two more servers: a 6 MiB budget (a session evicts a cached cascade to
+ * fit; a second one does not fit: 503) and a 0.3 s deadline (a session
+ * whose bake outlives it is a 504, its bake cancelled, no session left). */
 #define _POSIX_C_SOURCE 200809L
 #include "server_util.h"
 #include "test_util.h"
@@ -38,7 +41,7 @@
 /* Requests each of the two hammering clients sends. */
 #define HAMMER_N 12
 
-static su_server S;
+static su_server S, S_budget, S_deadline;
 
 static const gi_quality Q_LOW = {.levels = 5, .res = 16, .cones = 6, .bounces = 1, .light_samples = 8,
                                  .probe_samples = 64, .threads = 2};
@@ -56,6 +59,8 @@ static int setup(void **state) {
 static int teardown(void **state) {
   (void)state;
   int st = su_stop(&S);
+  if (S_budget.pid) st |= su_stop(&S_budget);
+  if (S_deadline.pid) st |= su_stop(&S_deadline);
   curl_global_cleanup();
   return st == 0 ? 0 : -1;
 }
@@ -335,12 +340,84 @@ static void test_concurrent_serialised(void **state) {
   delete_session(id);
 }
 
+/* One session at quality=low holds about 3.9 MiB (res 16, 5 levels); a
+ * cached low cascade about 3.4 MiB: in 6 MiB one of them fits with room
+ * for nothing else. */
+#define BUDGET_INI                                                                                     \
+  "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 2\nworkers = 2\ntmp_dir = .\n"                   \
+  "[limits]\ncache_mb = 6\nmax_sessions = 4\n[scene city]\nsource = city\nextent = 300\n"
+
+static void test_budget(void **state) {
+  (void)state;
+  assert_int_equal(su_start(&S_budget, "budget", BUDGET_INI), 0);
+  su_resp r = su_http(&S_budget, NULL, "/v1/scenes/city/lighting?at=40,2,40&quality=low&redirect=0", NULL, NULL);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_cache_entries", NULL) == 1);
+  /* The session takes the cached cascade's room. */
+  r = su_http(&S_budget, "POST", "/v1/scenes/city/sessions?quality=low", NULL, NULL);
+  assert_int_equal(r.status, 201);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  double bytes = (double)json_integer_value(json_object_get(o, "bytes"));
+  char self[128];
+  snprintf(self, sizeof self, "%s", json_string_value(json_object_get(json_object_get(o, "links"), "self")));
+  json_decref(o);
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_cache_entries", NULL) == 0);
+  assert_true(su_metric(&S_budget, "gi_cache_evictions_total", NULL) == 1);
+  assert_true(su_metric(&S_budget, "gi_session_bytes", NULL) == bytes);
+  /* A second session does not fit beside the first. */
+  r = su_http(&S_budget, "POST", "/v1/scenes/city/sessions?quality=low", NULL, NULL);
+  su_expect_error(&r, 503, "overloaded", "held by sessions");
+  assert_non_null(su_header(&r, "Retry-After"));
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_sessions_rejected_total", NULL) == 1);
+  /* Nor does a cold bake; ending the session gives the room back. */
+  r = su_http(&S_budget, NULL, "/v1/scenes/city/lighting?at=-40,2,40&quality=low&redirect=0", NULL, NULL);
+  su_expect_error(&r, 503, "overloaded", "held by sessions");
+  free(r.body);
+  r = su_http(&S_budget, "DELETE", self, NULL, NULL);
+  assert_int_equal(r.status, 204);
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_session_bytes", NULL) == 0);
+  r = su_http(&S_budget, NULL, "/v1/scenes/city/lighting?at=-40,2,40&quality=low&redirect=0", NULL, NULL);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  assert_int_equal(su_stop(&S_budget), 0);
+  S_budget.pid = 0;
+}
+
+static void test_deadline_cancels_creation(void **state) {
+  (void)state;
+  assert_int_equal(su_start(&S_deadline, "deadline",
+                            "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 2\nworkers = 2\ntmp_dir = .\n"
+                            "deadline_s = 0.3\n[scene city]\nsource = city\nextent = 300\n"),
+                   0);
+  /* The default quality bakes for seconds on two cores. */
+  su_resp r = su_http(&S_deadline, "POST", "/v1/scenes/city/sessions", NULL, NULL);
+  su_expect_error(&r, 504, "timeout", "deadline");
+  assert_non_null(su_header(&r, "Retry-After"));
+  free(r.body);
+  /* The bake stops within a chunk's time: nothing left running, nothing open. */
+  double t0 = su_now_ms();
+  while (su_metric(&S_deadline, "gi_bakes_in_flight", NULL) > 0 && su_now_ms() - t0 < 10000) su_sleep_ms(20);
+  assert_true(su_metric(&S_deadline, "gi_bakes_in_flight", NULL) == 0);
+  assert_true(su_metric(&S_deadline, "gi_bakes_cancelled_total", NULL) == 1);
+  assert_true(su_metric(&S_deadline, "gi_sessions_open", NULL) == 0);
+  assert_true(su_metric(&S_deadline, "gi_sessions_created_total", NULL) == 0);
+  assert_true(su_metric(&S_deadline, "gi_session_bytes", NULL) == 0);
+  assert_int_equal(su_stop(&S_deadline), 0);
+  S_deadline.pid = 0;
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_walk_matches_cold_bake),
       cmocka_unit_test(test_bad_input),
       cmocka_unit_test(test_limit_and_expiry),
       cmocka_unit_test(test_concurrent_serialised),
+      cmocka_unit_test(test_budget),
+      cmocka_unit_test(test_deadline_cancels_creation),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }
