@@ -119,6 +119,38 @@ int gi_proto_job_parse(const char *json, size_t len, gi_proto_job *out) {
   return rc;
 }
 
+char *gi_proto_session_json(const gi_proto_session *s) {
+  char self[96], light[112];
+  snprintf(self, sizeof self, "/v1/sessions/%s", s->id);
+  snprintf(light, sizeof light, "/v1/sessions/%s/lighting", s->id);
+  json_t *o = json_pack("{s:s, s:s, s:f, s:[f,f,f], s:I, s:I, s:{s:s, s:s}}", "id", s->id, "scene", s->scene,
+                        "ttl_s", s->ttl_s, "at", s->at[0], s->at[1], s->at[2], "moves", (json_int_t)s->moves,
+                        "bytes", (json_int_t)s->bytes, "links", "self", self, "lighting", light);
+  if (!o) return NULL;
+  char *out = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
+  json_decref(o);
+  return out;
+}
+
+int gi_proto_session_parse(const char *json, size_t len, gi_proto_session *out) {
+  memset(out, 0, sizeof *out);
+  json_t *o = json_loadb(json, len, 0, NULL);
+  const char *id, *scene;
+  json_int_t moves, bytes;
+  int rc = -1;
+  if (o && !json_unpack(o, "{s:s, s:s, s:F, s:[F,F,F], s:I, s:I}", "id", &id, "scene", &scene, "ttl_s", &out->ttl_s,
+                        "at", &out->at[0], &out->at[1], &out->at[2], "moves", &moves, "bytes", &bytes) &&
+      strlen(id) < sizeof out->id && strlen(scene) < sizeof out->scene) {
+    snprintf(out->id, sizeof out->id, "%s", id);
+    snprintf(out->scene, sizeof out->scene, "%s", scene);
+    out->moves = (unsigned long long)moves;
+    out->bytes = (unsigned long long)bytes;
+    rc = 0;
+  }
+  json_decref(o);
+  return rc;
+}
+
 void gi_proto_server_timing(const gi_timings *t, double total_ms, char *buf, size_t size) {
   snprintf(buf, size,
            "voxelize;dur=%.2f, inject;dur=%.2f, filter;dur=%.2f, bounce;dur=%.2f, gather;dur=%.2f, "

@@ -107,6 +107,15 @@ int gi_proto_parse_cell_cascades(const gi_proto_kv *kv, size_t n, const gi_proto
 /* GET /v1/scenes/{id}: optional quality knobs, for the grid it publishes. */
 int gi_proto_parse_scene(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
                          gi_proto_bake *out, gi_proto_error *err);
+/* POST /v1/scenes/{id}/sessions: quality knobs and an optional start
+ * 'at' (has_at), from the query (kv) or a JSON body {"at":[x,y,z],
+ * "quality":...} as POST probes takes them; both at once is a 400. */
+int gi_proto_parse_session(const gi_proto_kv *kv, size_t n, const char *body, size_t len,
+                           const gi_proto_limits *lim, gi_proto_bake *out, gi_proto_error *err);
+/* GET /v1/sessions/{sid}/lighting: 'at' (required), kind probe|panorama,
+ * half, width, height; quality knobs are the session's (400 here). */
+int gi_proto_parse_session_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
+                                    gi_proto_bake *out, gi_proto_error *err);
 /* A cell path segment "i,j,k" (plain integers, no leading zeros): 0 or -1. */
 int gi_proto_parse_cell(const char *s, long long out[3]);
 /* A request that takes no parameters: any parameter is a 400. */
@@ -139,6 +148,19 @@ typedef struct gi_proto_job {
 const char *gi_proto_job_state_name(gi_proto_job_state s);
 char *gi_proto_job_json(const gi_proto_job *j);
 int gi_proto_job_parse(const char *json, size_t len, gi_proto_job *out);
+
+/* A session, as POST /v1/scenes/{id}/sessions (201) and GET
+ * /v1/sessions/{sid} answer it; links are derived from the id. */
+typedef struct gi_proto_session {
+  char id[40];
+  char scene[64];
+  double ttl_s;          /* idle time after which the server ends it */
+  double at[3];          /* where its cascade stands now */
+  unsigned long long moves;
+  unsigned long long bytes; /* what it holds of the server's memory budget */
+} gi_proto_session;
+char *gi_proto_session_json(const gi_proto_session *s);
+int gi_proto_session_parse(const char *json, size_t len, gi_proto_session *out);
 
 /* Header values. Server-Timing: "voxelize;dur=1.2, inject;dur=...". */
 void gi_proto_server_timing(const gi_timings *t, double total_ms, char *buf, size_t size);

@@ -96,7 +96,8 @@ enum {
   P_AT = 1 << 0, P_KIND = 1 << 1, P_QUALITY = 1 << 2, P_HALF = 1 << 3, P_PANO = 1 << 4, P_FACES = 1 << 5,
   P_LM = 1 << 6,       /* kind=lightmap: region, texel, atlas */
   P_REDIRECT = 1 << 7, /* viewpoint URLs: 307 to the cell's URL, or serve it */
-  P_CELLQ = 1 << 8     /* cell URLs: the quality hash */
+  P_CELLQ = 1 << 8,    /* cell URLs: the quality hash */
+  P_AT_OPT = 1 << 9    /* 'at' allowed but not required (a session's start) */
 };
 
 typedef struct {
@@ -351,7 +352,8 @@ static int parse_query(const gi_proto_kv *kv, size_t n, int allowed, const gi_pr
       return err->status;
     }
   }
-  if ((allowed & P_AT) && !out->has_at) return gi_proto_fail(err, 400, "parameter 'at' is required (x,y,z)");
+  if ((allowed & P_AT) && !(allowed & P_AT_OPT) && !out->has_at)
+    return gi_proto_fail(err, 400, "parameter 'at' is required (x,y,z)");
   if ((allowed & P_CELLQ) && !out->q[0])
     return gi_proto_fail(err, 400, "parameter 'q' is required (the quality hash the redirect or the scene's grid gives)");
   return 0;
@@ -417,6 +419,33 @@ int gi_proto_parse_cell_cascades(const gi_proto_kv *kv, size_t n, const gi_proto
 int gi_proto_parse_scene(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim, gi_proto_bake *out,
                          gi_proto_error *err) {
   return parse_query(kv, n, P_QUALITY, lim, out, err);
+}
+
+/* POST /v1/scenes/{id}/sessions: quality knobs and an optional start 'at',
+ * in the query or as a JSON body (probes' 'at' and 'quality'), not both. */
+static int session_body(const char *body, size_t len, const gi_proto_limits *lim, gi_proto_bake *out,
+                        gi_proto_error *err);
+
+int gi_proto_parse_session(const gi_proto_kv *kv, size_t n, const char *body, size_t len,
+                           const gi_proto_limits *lim, gi_proto_bake *out, gi_proto_error *err) {
+  if (len && n)
+    return gi_proto_fail(err, 400, "give the session's quality in the JSON body or in the query, not both");
+  if (len) return session_body(body, len, lim, out, err);
+  return parse_query(kv, n, P_AT | P_AT_OPT | P_QUALITY, lim, out, err);
+}
+
+int gi_proto_parse_session_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
+                                    gi_proto_bake *out, gi_proto_error *err) {
+  for (size_t i = 0; i < n; i++) {
+    const char *k = kv[i].key ? kv[i].key : "";
+    for (size_t j = 0; j < sizeof params / sizeof params[0]; j++)
+      if (params[j].group == P_QUALITY && !strcmp(params[j].key, k))
+        return gi_proto_fail(err, 400, "parameter '%s': a session's quality is set when it is created", k);
+  }
+  if (parse_query(kv, n, P_AT | P_KIND | P_HALF | P_PANO, lim, out, err)) return err->status;
+  if (out->kind == GI_PROTO_LIGHTMAP)
+    return gi_proto_fail(err, 400, "parameter 'kind': a session answers probe or panorama, got 'lightmap'");
+  return check_lighting(kv, n, lim, out, err);
 }
 
 int gi_proto_parse_cell(const char *s, long long out[3]) {
@@ -563,6 +592,27 @@ int gi_proto_parse_probes(const char *body, size_t len, const gi_proto_limits *l
     rc = probes_quality(root, &out->bake, lim, err);
   json_decref(root);
   if (rc) gi_proto_probes_free(out);
+  return rc;
+}
+
+static int session_body(const char *body, size_t len, const gi_proto_limits *lim, gi_proto_bake *out,
+                        gi_proto_error *err) {
+  memset(out, 0, sizeof *out);
+  if (len > lim->max_body_bytes)
+    return gi_proto_fail(err, 413, "body: %zu bytes exceed the server limit of %zu", len, lim->max_body_bytes);
+  json_error_t je;
+  json_t *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je);
+  if (!root) return gi_proto_fail(err, 400, "body: line %d column %d: %s", je.line, je.column, je.text);
+  int rc = 0;
+  const char *key;
+  json_t *v;
+  if (!json_is_object(root)) rc = gi_proto_fail(err, 400, "body: expected a JSON object with 'at' and 'quality'");
+  else json_object_foreach(root, key, v) {
+    if (!rc && strcmp(key, "at") && strcmp(key, "quality") && strcmp(key, "ao"))
+      rc = gi_proto_fail(err, 400, "body: unknown field '%.64s' (expected at, quality, ao)", key);
+  }
+  if (!rc && !(rc = probes_flags(root, out, err))) rc = probes_quality(root, out, lim, err);
+  json_decref(root);
   return rc;
 }
 

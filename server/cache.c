@@ -56,6 +56,7 @@ struct gs_cache {
   gs_entry *head, *tail;
   size_t bytes, entries, budget;
   size_t inflight;        /* estimates of the bakes admitted and not yet finished */
+  size_t held;            /* sessions' cascades (session.c), for their lives */
   gs_metrics *metrics;
 };
 
@@ -100,7 +101,7 @@ static void free_entry(gs_entry *e) {
 }
 
 /* Room left for `extra` more bytes: cached + in-flight + extra within the budget. */
-static int fits(const gs_cache *c, size_t extra) { return c->bytes + c->inflight + extra <= c->budget; }
+static int fits(const gs_cache *c, size_t extra) { return c->bytes + c->inflight + c->held + extra <= c->budget; }
 
 /* Evicts unheld READY entries from the LRU end until extra bytes fit. Locked. */
 static void evict(gs_cache *c, size_t extra) {
@@ -159,9 +160,9 @@ static gi_result admit(gs_cache *c, size_t need, gi_error_info *err) {
   if (!fits(c, need)) {
     if (err)
       snprintf(err->msg, sizeof err->msg,
-               "busy: the memory budget is taken (%zu MiB cached, %zu MiB baking, this bake needs %zu MiB); "
-               "retry later",
-               c->bytes >> 20, c->inflight >> 20, need >> 20);
+               "busy: the memory budget is taken (%zu MiB cached, %zu MiB baking, %zu MiB held by sessions, "
+               "this bake needs %zu MiB); retry later",
+               c->bytes >> 20, c->inflight >> 20, c->held >> 20, need >> 20);
     return GI_ERR_NOMEM;
   }
   c->inflight += need;
@@ -183,6 +184,25 @@ gi_result gs_cache_reserve(gs_cache *c, size_t need, gi_error_info *err) {
 void gs_cache_unreserve(gs_cache *c, size_t need) {
   pthread_mutex_lock(&c->mu);
   unreserve(c, need);
+  pthread_cond_broadcast(&c->done);
+  pthread_mutex_unlock(&c->mu);
+}
+
+gi_result gs_cache_hold(gs_cache *c, size_t need, gi_error_info *err) {
+  pthread_mutex_lock(&c->mu);
+  gi_result rc = admit(c, need, err);
+  if (rc == GI_OK && c->budget) {
+    /* Admitted as a bake, kept apart: a session holds it until it ends. */
+    c->inflight -= need;
+    c->held += need;
+  }
+  pthread_mutex_unlock(&c->mu);
+  return rc;
+}
+
+void gs_cache_unhold(gs_cache *c, size_t need) {
+  pthread_mutex_lock(&c->mu);
+  if (c->budget) c->held -= need;
   pthread_cond_broadcast(&c->done);
   pthread_mutex_unlock(&c->mu);
 }

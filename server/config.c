@@ -34,6 +34,8 @@ void gs_config_defaults(gs_config *c) {
   gi_proto_limits_default(&c->lim);
   c->max_tiles_inline = 4;
   c->cache_bytes = (size_t)1024 << 20;
+  c->max_sessions = 8;
+  c->session_ttl_s = 300;
   c->max_jobs = 1;
   c->max_jobs_queued = 16;
   c->max_jobs_retained = 64;
@@ -184,10 +186,16 @@ static int limits_key(load_ctx *x, const char *k, const char *v) {
   } else if (!strcmp(k, "job_deadline_s")) {
     if (!get_num(x, S, k, v, 0.1, 604800, &d)) return 0;
     c->job_deadline_s = d;
+  } else if (!strcmp(k, "max_sessions")) {
+    if (!get_int(x, S, k, v, 1, 100000, &n)) return 0;
+    c->max_sessions = (int)n;
+  } else if (!strcmp(k, "session_ttl_s")) {
+    if (!get_num(x, S, k, v, 0.1, 604800, &d)) return 0;
+    c->session_ttl_s = d;
   } else {
     return fail(x, S, k, "unknown key (expected max_body_bytes, max_probes_inline, max_probes_job, max_levels, "
                          "max_res, max_panorama_pixels, max_tiles_inline, cache_mb, max_jobs, max_jobs_queued, "
-                         "max_jobs_retained, job_deadline_s)");
+                         "max_jobs_retained, job_deadline_s, max_sessions, session_ttl_s)");
   }
   return 1;
 }

@@ -95,6 +95,7 @@ typedef struct gs_req {
   int dispatched, suspended, done;
   int gone;                 /* the client hung up while it waited: close without an answer */
   gs_waiter w;              /* its interest in a bake (cache.c) */
+  gi_cancel *cancel;        /* session work: set when it is given up (deadline, hang-up) */
   gs_answer ans;
   gi_proto_bake bake;
   gi_proto_probes probes;
@@ -131,6 +132,7 @@ static void req_release(gs_req *r) {
   if (atomic_fetch_sub(&r->refs, 1) != 1) return;
   gs_answer_free(&r->ans);
   gi_proto_probes_free(&r->probes);
+  gi_cancel_free(r->cancel);
   free(r->body);
   free(r);
 }
@@ -165,6 +167,13 @@ static void answer_fail(gs_answer *a, int status, const char *fmt, const char *a
   gs_answer_error(a, &e);
 }
 
+/* The methods an endpoint takes (405's Allow). */
+static const char *allowed_methods(gs_endpoint ep) {
+  if (ep == GS_EP_PROBES || ep == GS_EP_SESSIONS) return "POST";
+  if (ep == GS_EP_JOB || ep == GS_EP_SESSION) return "GET, HEAD, DELETE";
+  return "GET, HEAD";
+}
+
 static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
   gs_answer *a = &r->ans;
   struct MHD_Response *resp;
@@ -193,6 +202,7 @@ static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
   MHD_add_response_header(resp, "Server-Timing", a->server_timing);
   if (a->effects[0]) MHD_add_response_header(resp, "X-GI-Effects", a->effects);
   if (a->cache) MHD_add_response_header(resp, "X-GI-Cache", a->cache);
+  if (a->move[0]) MHD_add_response_header(resp, "X-GI-Move", a->move);
   if (a->disposition[0]) MHD_add_response_header(resp, "Content-Disposition", a->disposition);
   if (a->location[0]) MHD_add_response_header(resp, "Location", a->location);
   if (a->status == 503 || a->status == 504) {
@@ -202,8 +212,7 @@ static enum MHD_Result send_answer(gs_http *h, gs_req *r) {
   }
   if (a->status == 401) MHD_add_response_header(resp, "WWW-Authenticate", "Bearer realm=\"gi-server\"");
   if (a->status == 405)
-    MHD_add_response_header(resp, "Allow",
-                            r->ep == GS_EP_PROBES ? "POST" : r->ep == GS_EP_JOB ? "GET, HEAD, DELETE" : "GET, HEAD");
+    MHD_add_response_header(resp, "Allow", allowed_methods(r->ep));
   enum MHD_Result ok = MHD_queue_response(r->conn, (unsigned)a->status, resp);
   r->answered = 1;
   MHD_destroy_response(resp);
@@ -254,6 +263,9 @@ static void task(void *arg) {
   if (!skip) {
     gs_answer a = {.fd = -1};
     if (r->ep == GS_EP_PROBES) gs_serve_probes(h->svc, r->scene, &r->probes, r->t_start, &a);
+    else if (r->ep == GS_EP_SESSIONS) gs_session_create(h->svc, r->scene, &r->bake, r->cancel, r->t_start, &a);
+    else if (r->ep == GS_EP_SESSION_LIGHTING)
+      gs_session_lighting(h->svc, r->id, &r->bake, r->t_start, r->cancel, &a);
     else gs_serve_bake(h->svc, r->scene, r->ep, &r->bake, r->t_start, &r->w, &a);
     /* Status 0: it waits for another request's bake; wake_request queues it again. */
     if (a.status) complete(h, r, &a);
@@ -307,6 +319,7 @@ static int hung_up(gs_req *r) {
  * unlocked with a reference on r; r is done and out of the waiting list. */
 static void give_up(gs_http *h, gs_req *r) {
   int cancelled = gs_cache_leave(h->svc->cache, &r->w);
+  if (r->cancel) gi_cancel_set(r->cancel);
   const gs_config *cfg = h->svc->cfg;
   if (!r->gone) {
     /* The same request would cost as much again: retry after a deadline's
@@ -449,6 +462,7 @@ static void *reaper_main(void *p) {
     reap_deadlines(h);
     pthread_mutex_unlock(&h->mu);
     cut_slow_connections(h, &last_log);
+    gs_sessions_sweep(h->svc->sessions);
     pthread_mutex_lock(&h->mu);
   }
   pthread_mutex_unlock(&h->mu);
@@ -457,6 +471,11 @@ static void *reaper_main(void *p) {
 
 /* Queues r's work and suspends the connection; 503 when the queue is full. */
 static enum MHD_Result dispatch(gs_http *h, gs_req *r) {
+  if (r->ep == GS_EP_SESSIONS || r->ep == GS_EP_SESSION_LIGHTING) {
+    /* Session work stops on this token (without one, at its own pace). */
+    r->cancel = gi_cancel_new();
+    if (r->cancel) gi_cancel_set_deadline(r->cancel, gi_now_ms() + (r->deadline - gs_now_ms()));
+  }
   pthread_mutex_lock(&h->mu);
   r->dispatched = 1;
   atomic_fetch_add(&r->refs, 1);
@@ -575,6 +594,7 @@ static void metrics(gs_service *svc, gs_answer *a) {
   gs_jobs_count(svc->jobs, g.jobs);
   g.uptime_s = (gs_now_ms() - svc->start_ms) * 1e-3;
   g.scenes = svc->cat->num;
+  gs_sessions_stats(svc->sessions, &g.sessions_open, &g.session_bytes);
   a->status = 200;
   a->json = gs_metrics_render(svc->metrics, &g);
   a->content_type = "text/plain; version=0.0.4; charset=utf-8";
@@ -624,8 +644,9 @@ static int route(gs_req *r, const char *url, char *id, size_t idsize) {
   if (!strcmp(url, "/metrics")) return r->ep = GS_EP_METRICS, 1;
   const char *rest;
   int scenes = !strncmp(url, "/v1/scenes/", 11), jobs = !strncmp(url, "/v1/jobs/", 9);
-  if (!scenes && !jobs) return 0;
-  rest = url + (scenes ? 11 : 9);
+  int sessions = !strncmp(url, "/v1/sessions/", 13);
+  if (!scenes && !jobs && !sessions) return 0;
+  rest = url + (scenes ? 11 : jobs ? 9 : 13);
   const char *slash = strchr(rest, '/');
   size_t n = slash ? (size_t)(slash - rest) : strlen(rest);
   if (!valid_id(rest, n) || n >= idsize) return 0;
@@ -638,7 +659,12 @@ static int route(gs_req *r, const char *url, char *id, size_t idsize) {
     else if (!strcmp(tail, "/cascades.vdb")) r->ep = GS_EP_CASCADES;
     else if (!strcmp(tail, "/probes")) r->ep = GS_EP_PROBES;
     else if (!strcmp(tail, "/lightmap-uv.glb")) r->ep = GS_EP_LIGHTMAP_UV;
+    else if (!strcmp(tail, "/sessions")) r->ep = GS_EP_SESSIONS;
     else return route_cell(r, tail);
+  } else if (sessions) {
+    if (!*tail) r->ep = GS_EP_SESSION;
+    else if (!strcmp(tail, "/lighting")) r->ep = GS_EP_SESSION_LIGHTING;
+    else return 0;
   } else {
     if (!*tail) r->ep = GS_EP_JOB;
     else if (!strcmp(tail, "/result")) r->ep = GS_EP_JOB_RESULT;
@@ -720,12 +746,11 @@ static int check_headers(gs_http *h, gs_req *r, const char *url) {
       return -1;
     }
   }
-  int post = r->ep == GS_EP_PROBES, del = r->ep == GS_EP_JOB && !strcmp(r->method, "DELETE");
+  int post = r->ep == GS_EP_PROBES || r->ep == GS_EP_SESSIONS;
+  int del = (r->ep == GS_EP_JOB || r->ep == GS_EP_SESSION) && !strcmp(r->method, "DELETE");
   int get_ok = !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
   if (post ? strcmp(r->method, "POST") : !(get_ok || del)) {
-    answer_fail(a, 405, "%s", post ? "this endpoint takes POST"
-                              : r->ep == GS_EP_JOB ? "this endpoint takes GET, HEAD or DELETE"
-                                                   : "this endpoint takes GET or HEAD");
+    answer_fail(a, 405, "this endpoint takes %s", allowed_methods(r->ep));
     return -1;
   }
   return check_framing(h, r, a);
@@ -770,6 +795,8 @@ static void cheap_endpoint(gs_service *svc, gs_req *r, const query *q, gs_answer
   else if (r->ep == GS_EP_SCENES) catalog(svc, a);
   else if (r->ep == GS_EP_METRICS) metrics(svc, a);
   else if (r->ep == GS_EP_JOB && !strcmp(r->method, "DELETE")) gs_jobs_cancel(svc->jobs, r->id, a);
+  else if (r->ep == GS_EP_SESSION && !strcmp(r->method, "DELETE")) gs_session_delete(svc, r->id, a);
+  else if (r->ep == GS_EP_SESSION) gs_session_info(svc, r->id, a);
   else if (r->ep == GS_EP_JOB) gs_jobs_status(svc->jobs, r->id, a);
   else gs_jobs_result(svc->jobs, r->id, a);
 }
@@ -856,6 +883,33 @@ static enum MHD_Result lighting(gs_http *h, gs_req *r, const query *q) {
   return dispatch(h, r);
 }
 
+/* POST /v1/scenes/{id}/sessions and GET /v1/sessions/{sid}/lighting: the
+ * same checks as lighting ('at' near the scene), then a worker. An unknown
+ * session is a 404 here, without a worker. */
+static enum MHD_Result sessions(gs_http *h, gs_req *r, const query *q) {
+  gs_service *svc = h->svc;
+  gi_proto_error pe;
+  int st;
+  if (r->ep == GS_EP_SESSIONS) {
+    st = r->too_large ? gi_proto_fail(&pe, 413, "body: more than the server limit of %zu bytes",
+                                      svc->cfg->lim.max_body_bytes)
+                      : gi_proto_parse_session(q->kv, q->n, r->body, r->len, &svc->cfg->lim, &r->bake, &pe);
+  } else {
+    r->scene = gs_session_scene(svc, r->id);
+    if (!r->scene) {
+      gs_session_info(svc, r->id, &r->ans); /* its 404, worded once (session.c) */
+      return send_answer(h, r);
+    }
+    st = gi_proto_parse_session_lighting(q->kv, q->n, &svc->cfg->lim, &r->bake, &pe);
+  }
+  const char *what = r->ep == GS_EP_SESSIONS && r->len ? "body: 'at'" : "parameter 'at'";
+  if (st || (r->bake.has_at && check_near(r->scene, r->bake.at, 1, what, &pe))) {
+    gs_answer_error(&r->ans, &pe);
+    return send_answer(h, r);
+  }
+  return dispatch(h, r);
+}
+
 /* The whole request has arrived: validate and answer, or dispatch. */
 static enum MHD_Result handle(gs_http *h, gs_req *r) {
   gs_service *svc = h->svc;
@@ -864,7 +918,7 @@ static enum MHD_Result handle(gs_http *h, gs_req *r) {
   if (read_query(r, &q, a)) return send_answer(h, r);
   gi_proto_error pe;
   if (r->ep == GS_EP_SCENE || r->ep == GS_EP_LIGHTING || r->ep == GS_EP_CASCADES || r->ep == GS_EP_PROBES ||
-      r->ep == GS_EP_LIGHTMAP_UV) {
+      r->ep == GS_EP_LIGHTMAP_UV || r->ep == GS_EP_SESSIONS) {
     r->scene = gs_catalog_find(svc->cat, r->id);
     if (!r->scene) {
       answer_fail(a, 404, "scene '%s' is not in the catalog (GET /v1/scenes lists them)", r->id);
@@ -882,6 +936,8 @@ static enum MHD_Result handle(gs_http *h, gs_req *r) {
     }
     return dispatch(h, r);
   }
+  case GS_EP_SESSIONS:
+  case GS_EP_SESSION_LIGHTING: return sessions(h, r, &q);
   case GS_EP_PROBES:
     if (r->too_large) {
       gi_proto_fail(&pe, 413, "body: more than the server limit of %zu bytes", svc->cfg->lim.max_body_bytes);
@@ -992,7 +1048,10 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
   if (!r) return;
   *con_cls = NULL;
   /* Closed before its answer went out: it no longer wants its bake. */
-  if (code != MHD_REQUEST_TERMINATED_COMPLETED_OK) gs_cache_leave(h->svc->cache, &r->w);
+  if (code != MHD_REQUEST_TERMINATED_COMPLETED_OK) {
+    gs_cache_leave(h->svc->cache, &r->w);
+    if (r->cancel) gi_cancel_set(r->cancel);
+  }
   req_release(r);
 }
 

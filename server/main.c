@@ -168,7 +168,8 @@ static int start_service(gs_service *svc, const gs_config *cfg, const gs_catalog
   svc->cache = gs_cache_new(cfg->cache_bytes, svc->metrics);
   svc->pool = gs_pool_new(cfg->workers, cfg->queue);
   svc->jobs = svc->pool ? gs_jobs_new(svc) : NULL;
-  if (!svc->metrics || !svc->cache || !svc->pool || !svc->jobs) {
+  svc->sessions = gs_sessions_new(svc);
+  if (!svc->metrics || !svc->cache || !svc->pool || !svc->jobs || !svc->sessions) {
     fprintf(stderr, "gi-server: cannot start the workers (out of memory or threads)\n");
     return 1;
   }
@@ -199,6 +200,8 @@ static void stop_service(gs_http *h, gs_service *svc, gs_catalog *cat, gs_config
   gs_http_stop(h);
   gs_pool_free(svc->pool);
   gs_jobs_free(svc->jobs);
+  /* Sessions give their bytes back to the cache's budget: before the cache goes. */
+  gs_sessions_free(svc->sessions);
   gs_cache_free(svc->cache);
   gs_metrics_free(svc->metrics);
   gs_catalog_free(cat);

@@ -13,8 +13,8 @@
 
 static const char *const ep_names[GS_EP_COUNT] = {"health", "scenes", "scene",      "lighting", "cascades",
                                                   "probes", "job",    "job_result", "metrics",  "lightmap_uv",
-                                                  "other"};
-static const int codes[] = {200, 202, 304, 307, 400, 401, 404, 405, 409, 413, 500, 501, 503, 504};
+                                                  "sessions", "session", "session_lighting", "other"};
+static const int codes[] = {200, 201, 202, 204, 304, 307, 400, 401, 404, 405, 409, 413, 500, 501, 503, 504};
 #define NCODES (sizeof codes / sizeof codes[0])
 static const double buckets[] = {0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60};
 #define NB (sizeof buckets / sizeof buckets[0])
@@ -26,7 +26,8 @@ typedef struct {
 
 struct gs_metrics {
   atomic_ullong requests[GS_EP_COUNT][NCODES + 1]; /* last: any other code */
-  histogram req_seconds, bake_seconds;
+  histogram req_seconds, bake_seconds, move_seconds;
+  atomic_ullong moves, cycles, session_events[GS_SESSION_EVENT_COUNT];
   atomic_ullong cache[3], evictions, bakes, rejected, timeouts, cancelled, encode[2];
   atomic_llong in_flight; /* bakes running now */
 };
@@ -58,6 +59,12 @@ void gs_metrics_bake_end(gs_metrics *m, int cancelled) {
   atomic_fetch_sub(&m->in_flight, 1);
   if (cancelled) atomic_fetch_add(&m->cancelled, 1);
 }
+void gs_metrics_move(gs_metrics *m, double seconds, int cycle_closed) {
+  atomic_fetch_add(&m->moves, 1);
+  if (cycle_closed) atomic_fetch_add(&m->cycles, 1);
+  observe(&m->move_seconds, seconds);
+}
+void gs_metrics_session(gs_metrics *m, gs_session_event ev) { atomic_fetch_add(&m->session_events[ev], 1); }
 void gs_metrics_cache(gs_metrics *m, gs_cache_how how) { atomic_fetch_add(&m->cache[how], 1); }
 void gs_metrics_eviction(gs_metrics *m) { atomic_fetch_add(&m->evictions, 1); }
 void gs_metrics_rejected(gs_metrics *m) { atomic_fetch_add(&m->rejected, 1); }
@@ -152,6 +159,21 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put(&b, "# HELP gi_jobs Probe jobs by state.\n# TYPE gi_jobs gauge\n");
   for (int i = 0; i < GI_JOB_STATE_COUNT; i++)
     put(&b, "gi_jobs{state=\"%s\"} %d\n", gi_proto_job_state_name((gi_proto_job_state)i), g->jobs[i]);
+  put_hist(&b, "gi_session_move_duration_seconds", "Time of one session move (gi_cascade_move, before the gather).",
+           &m->move_seconds);
+  put_counter(&b, "gi_session_moves_total", "Session cascades moved.", atomic_load(&m->moves));
+  put_counter(&b, "gi_session_cycles_total", "Session moves that closed the refresh cycle (equal to a cold bake).",
+              atomic_load(&m->cycles));
+  put_counter(&b, "gi_sessions_created_total", "Sessions opened.", atomic_load(&m->session_events[GS_SESSION_CREATED]));
+  put_counter(&b, "gi_sessions_expired_total", "Sessions ended after session_ttl_s idle.",
+              atomic_load(&m->session_events[GS_SESSION_EXPIRED]));
+  put_counter(&b, "gi_sessions_deleted_total", "Sessions ended by DELETE.",
+              atomic_load(&m->session_events[GS_SESSION_DELETED]));
+  put_counter(&b, "gi_sessions_rejected_total", "Session creations answered 503 (max_sessions or memory budget).",
+              atomic_load(&m->session_events[GS_SESSION_REJECTED]));
+  put_gauge(&b, "gi_sessions_open", "Sessions open now.", (double)g->sessions_open);
+  put_gauge(&b, "gi_session_bytes", "Bytes sessions hold in the memory budget (their cascades and move scratch).",
+            (double)g->session_bytes);
   put_gauge(&b, "gi_scenes", "Scenes in the catalog.", (double)g->scenes);
   put_gauge(&b, "gi_uptime_seconds", "Seconds since start.", g->uptime_s);
   return b.buf;

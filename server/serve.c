@@ -108,7 +108,7 @@ void gs_answer_free(gs_answer *a) {
   a->fd = -1;
 }
 
-static void fail_core(gs_answer *a, gi_result rc, const gi_error_info *e) {
+void gs_answer_core_error(gs_answer *a, gi_result rc, const gi_error_info *e) {
   gi_proto_error pe;
   gi_proto_fail(&pe, gs_status_of(rc), "%s", e->msg[0] ? e->msg : gi_strerror(rc));
   gs_answer_error(a, &pe);
@@ -157,8 +157,8 @@ static const char *const cache_names[3] = {"hit", "miss", "coalesced"};
 
 /* The request's quality as the core takes it (zero = auto, the server's
  * thread count) into *req, and its resolution into the return value. */
-static gi_quality resolve_request(gs_service *svc, const gs_scene *s, const gi_quality *in, gi_quality *req,
-                                  gi_error_info *e, gi_result *rc) {
+gi_quality gs_resolve_request(gs_service *svc, const gs_scene *s, const gi_quality *in, gi_quality *req,
+                              gi_error_info *e, gi_result *rc) {
   *req = *in;
   req->threads = svc->cfg->bake_threads;
   gi_quality out;
@@ -167,11 +167,11 @@ static gi_quality resolve_request(gs_service *svc, const gs_scene *s, const gi_q
 }
 
 /* Timings of this answer: the stages it ran itself (a cache hit baked nothing). */
-static void finish_headers(gs_answer *a, const gi_bake_report *rep, const gi_timings *ms, gs_cache_how how,
+static void finish_headers(gs_answer *a, const gi_bake_report *rep, const gi_timings *ms, const char *cache,
                            double t_start_ms) {
   gi_proto_server_timing(ms, gs_now_ms() - t_start_ms, a->server_timing, sizeof a->server_timing);
   gi_proto_effects_header(rep->effects, a->effects, sizeof a->effects);
-  a->cache = cache_names[how];
+  a->cache = cache;
 }
 
 /* A cell's answer is the same bytes whoever asks and whenever (its ETag
@@ -179,69 +179,82 @@ static void finish_headers(gs_answer *a, const gi_bake_report *rep, const gi_tim
  * the headers. A viewpoint's own answer (POST probes) keeps them. */
 static size_t answer_extras(const gi_proto_bake *b) { return b->cell ? 0 : 2; }
 
+/* The probe or panorama at b->at from cascade c: the lighting answer, for
+ * the scene's lighting URLs and for sessions alike. ms holds the stages
+ * already run (a bake's or a move's); gather and encode are added. */
+gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascade *c, const gi_proto_bake *b,
+                             const gi_cancel *cancel, const char *cache, gi_timings *ms, double t_start_ms,
+                             gs_answer *a, gi_error_info *e) {
+  const gi_bake_report *rep = gi_cascade_report(c);
+  char path[1200], timing[320];
+  double t0;
+  gi_result rc;
+  if (b->kind == GI_PROTO_PANORAMA) {
+    size_t n = 3 * (size_t)b->width * (size_t)b->height;
+    float *dir = malloc(n * sizeof(float)), *ind = malloc(n * sizeof(float));
+    if (!dir || !ind) {
+      rc = GI_ERR_NOMEM;
+      snprintf(e->msg, sizeof e->msg, "panorama: out of memory for %dx%d", b->width, b->height);
+    } else {
+      rc = gi_cascade_panorama(c, b->at, b->width, b->height, dir, ind, &ms->gather, e);
+    }
+    if (rc == GI_OK) {
+      gi_proto_server_timing(ms, gs_now_ms() - t_start_ms, timing, sizeof timing);
+      gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache}};
+      gs_tmp_path(svc, ".exr", path, sizeof path);
+      t0 = gs_now_ms();
+      rc = gi_panorama_write_exr(path, b->width, b->height, dir, ind, s->scene, b->at, rep, b->half, extra,
+                                 answer_extras(b), e);
+      ms->encode = gs_now_ms() - t0;
+      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", e);
+    }
+    free(dir);
+    free(ind);
+  } else {
+    gi_probe pr;
+    rc = gi_cascade_gather_ex(c, b->at, 1, cancel, &pr, &ms->gather, e);
+    if (rc == GI_OK) {
+      gi_proto_server_timing(ms, gs_now_ms() - t_start_ms, timing, sizeof timing);
+      gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache}};
+      gs_tmp_path(svc, ".exr", path, sizeof path);
+      t0 = gs_now_ms();
+      rc = gi_probes_write_exr_ex(path, &pr, 1, s->scene, b->at, rep, b->half, extra, answer_extras(b), e);
+      ms->encode = gs_now_ms() - t0;
+      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", e);
+    }
+  }
+  if (rc == GI_OK) finish_headers(a, rep, ms, cache, t_start_ms);
+  return rc;
+}
+
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
                    gs_waiter *w, gs_answer *a) {
   if (ep == GS_EP_LIGHTMAP_UV || (ep == GS_EP_LIGHTING && b->kind == GI_PROTO_LIGHTMAP))
     return gs_serve_lightmap(svc, s, ep, b, t_start_ms, a);
   gi_error_info e = {0};
   gi_result rc;
-  gi_quality req, q = resolve_request(svc, s, &b->quality, &req, &e, &rc);
-  if (rc != GI_OK) return fail_core(a, rc, &e);
+  gi_quality req, q = gs_resolve_request(svc, s, &b->quality, &req, &e, &rc);
+  if (rc != GI_OK) return gs_answer_core_error(a, rc, &e);
   gs_entry *ent = NULL;
   gs_cache_how how;
   rc = gs_cache_get(svc->cache, s, b->at, &req, &q, w, &ent, &how, &e);
   if (rc == GS_PENDING) return; /* no answer yet: w is woken when the bake ends */
-  if (rc != GI_OK) return fail_core(a, rc, &e);
+  if (rc != GI_OK) return gs_answer_core_error(a, rc, &e);
   const gi_cascade *c = gs_entry_cascade(ent);
   const gi_bake_report *rep = gi_cascade_report(c);
   gi_timings ms = {0};
   if (how == GS_CACHE_MISS) ms = rep->ms;
-  char path[1200];
-  double t0;
   if (ep == GS_EP_CASCADES) {
-    t0 = gs_now_ms();
+    double t0 = gs_now_ms();
     rc = cascade_vdb(svc, ent, b->faces, a, &e);
     ms.encode = gs_now_ms() - t0;
     if (rc == GI_OK)
       snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-cascades.vdb\"", s->id);
-  } else if (b->kind == GI_PROTO_PANORAMA) {
-    size_t n = 3 * (size_t)b->width * (size_t)b->height;
-    float *dir = malloc(n * sizeof(float)), *ind = malloc(n * sizeof(float));
-    if (!dir || !ind) {
-      rc = GI_ERR_NOMEM;
-      snprintf(e.msg, sizeof e.msg, "panorama: out of memory for %dx%d", b->width, b->height);
-    } else {
-      rc = gi_cascade_panorama(c, b->at, b->width, b->height, dir, ind, &ms.gather, &e);
-    }
-    if (rc == GI_OK) {
-      char timing[320];
-      gi_proto_server_timing(&ms, gs_now_ms() - t_start_ms, timing, sizeof timing);
-      gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}};
-      gs_tmp_path(svc, ".exr", path, sizeof path);
-      t0 = gs_now_ms();
-      rc = gi_panorama_write_exr(path, b->width, b->height, dir, ind, s->scene, b->at, rep, b->half, extra,
-                                 answer_extras(b), &e);
-      ms.encode = gs_now_ms() - t0;
-      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", &e);
-    }
-    free(dir);
-    free(ind);
+    if (rc == GI_OK) finish_headers(a, rep, &ms, cache_names[how], t_start_ms);
   } else {
-    gi_probe pr;
-    rc = gi_cascade_gather(c, b->at, 1, &pr, &ms.gather, &e);
-    if (rc == GI_OK) {
-      char timing[320];
-      gi_proto_server_timing(&ms, gs_now_ms() - t_start_ms, timing, sizeof timing);
-      gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}};
-      gs_tmp_path(svc, ".exr", path, sizeof path);
-      t0 = gs_now_ms();
-      rc = gi_probes_write_exr_ex(path, &pr, 1, s->scene, b->at, rep, b->half, extra, answer_extras(b), &e);
-      ms.encode = gs_now_ms() - t0;
-      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", &e);
-    }
+    rc = gs_answer_lighting(svc, s, c, b, NULL, cache_names[how], &ms, t_start_ms, a, &e);
   }
-  if (rc != GI_OK) fail_core(a, rc, &e);
-  else finish_headers(a, rep, &ms, how, t_start_ms);
+  if (rc != GI_OK) gs_answer_core_error(a, rc, &e);
   gs_cache_release(svc->cache, ent);
 }
 
@@ -400,10 +413,10 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
 void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_answer *a) {
   gi_error_info e = {0};
   gi_result rc;
-  gi_quality req, q = resolve_request(svc, s, &p->bake.quality, &req, &e, &rc);
+  gi_quality req, q = gs_resolve_request(svc, s, &p->bake.quality, &req, &e, &rc);
   if (rc != GI_OK) {
     gi_proto_probes_free(p);
-    return fail_core(a, rc, &e);
+    return gs_answer_core_error(a, rc, &e);
   }
   gs_tile *tiles = NULL, one;
   size_t nt = 0;
@@ -472,9 +485,9 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     rc = gi_probes_write_exr_ex(path, pr, p->num_points, s->scene, vp, &rep, p->bake.half, extra, 3, &e);
     ms.encode = gs_now_ms() - t0;
     if (rc == GI_OK && (rc = take_file(a, path, "image/x-exr", &e)) == GI_OK)
-      finish_headers(a, &rep, &ms, how, t_start_ms);
+      finish_headers(a, &rep, &ms, cache_names[how], t_start_ms);
   }
-  if (rc != GI_OK) fail_core(a, rc, &e);
+  if (rc != GI_OK) gs_answer_core_error(a, rc, &e);
   free(pr);
   free(all);
   gs_tiles_free(tiles, nt);

@@ -51,6 +51,8 @@ typedef struct gs_config {
   gi_proto_limits lim;
   int max_tiles_inline; /* POST probes spanning more cascades become a job */
   size_t cache_bytes;
+  int max_sessions;           /* open sessions at once; more is a 503 */
+  double session_ttl_s;       /* a session idle this long is ended */
   int max_jobs, max_jobs_queued, max_jobs_retained;
   gs_scene_conf *scenes;
   size_t num_scenes;
@@ -88,7 +90,8 @@ void gs_catalog_free(gs_catalog *cat);
 
 typedef enum gs_endpoint {
   GS_EP_HEALTH, GS_EP_SCENES, GS_EP_SCENE, GS_EP_LIGHTING, GS_EP_CASCADES, GS_EP_PROBES,
-  GS_EP_JOB, GS_EP_JOB_RESULT, GS_EP_METRICS, GS_EP_LIGHTMAP_UV, GS_EP_OTHER, GS_EP_COUNT
+  GS_EP_JOB, GS_EP_JOB_RESULT, GS_EP_METRICS, GS_EP_LIGHTMAP_UV, GS_EP_SESSIONS, GS_EP_SESSION,
+  GS_EP_SESSION_LIGHTING, GS_EP_OTHER, GS_EP_COUNT
 } gs_endpoint;
 
 typedef struct gs_metrics gs_metrics;
@@ -106,6 +109,12 @@ void gs_metrics_rejected(gs_metrics *m);
 void gs_metrics_timeout(gs_metrics *m);
 /* A VDB answer: from the encoded bytes kept with its cascade (hit) or encoded now. */
 void gs_metrics_encode(gs_metrics *m, int hit);
+/* Sessions (session.c): one move (its seconds, whether it closed the
+ * refresh cycle), and how sessions end or are refused. */
+void gs_metrics_move(gs_metrics *m, double seconds, int cycle_closed);
+typedef enum { GS_SESSION_CREATED, GS_SESSION_EXPIRED, GS_SESSION_DELETED, GS_SESSION_REJECTED,
+               GS_SESSION_EVENT_COUNT } gs_session_event;
+void gs_metrics_session(gs_metrics *m, gs_session_event ev);
 /* Gauges read at scrape time. */
 typedef struct gs_gauges {
   size_t cache_bytes, cache_entries, cache_budget, inflight_bytes;
@@ -113,6 +122,8 @@ typedef struct gs_gauges {
   int jobs[GI_JOB_STATE_COUNT];  /* by gi_proto_job_state */
   double uptime_s;
   size_t scenes;
+  int sessions_open;
+  size_t session_bytes;
 } gs_gauges;
 /* Prometheus text format (malloc'ed). */
 char *gs_metrics_render(gs_metrics *m, const gs_gauges *g);
@@ -192,6 +203,10 @@ size_t gs_bake_bytes(const gi_quality *resolved);
  * GI_ERR_NOMEM when they do not now, GI_ERR_LIMIT when they never can. */
 gi_result gs_cache_reserve(gs_cache *c, size_t need, gi_error_info *err);
 void gs_cache_unreserve(gs_cache *c, size_t need);
+/* Sessions' cascades: admitted as gs_cache_reserve (evicting unheld
+ * entries first), then counted apart as held bytes until gs_cache_unhold. */
+gi_result gs_cache_hold(gs_cache *c, size_t need, gi_error_info *err);
+void gs_cache_unhold(gs_cache *c, size_t need);
 /* In-flight bytes: the estimates of admitted bakes still running (gauge). */
 size_t gs_cache_inflight(gs_cache *c);
 /* The entry's encoded answer of a kind, with a reference for the caller, or NULL. */
@@ -215,6 +230,7 @@ void gs_pool_free(gs_pool *p);
 /* ---- the service: what workers and the front share -------------------- */
 
 typedef struct gs_jobs gs_jobs;
+typedef struct gs_sessions gs_sessions;
 
 typedef struct gs_service {
   const gs_config *cfg;
@@ -222,6 +238,7 @@ typedef struct gs_service {
   gs_cache *cache;
   gs_pool *pool;
   gs_jobs *jobs;
+  gs_sessions *sessions;
   gs_metrics *metrics;
   double start_ms;
   atomic_ulong tmp_counter;
@@ -291,9 +308,22 @@ typedef struct gs_answer {
   char location[768];
   const char *cache_control; /* a 307's; NULL: no-store (a cell answer's come from its request) */
   int retry_after_s;      /* Retry-After for a 503 or 504 (0: 1 s) */
+  char move[128];         /* X-GI-Move: what a session's move did, or empty */
 } gs_answer;
 
 void gs_answer_error(gs_answer *a, const gi_proto_error *e);
+/* A core error as the answer: its status (gs_status_of) and message. */
+void gs_answer_core_error(gs_answer *a, gi_result rc, const gi_error_info *e);
+/* The request's quality as the core takes it (zero = auto, the server's
+ * thread count) into *req, and its resolution (gi_quality_resolve). */
+gi_quality gs_resolve_request(gs_service *svc, const gs_scene *s, const gi_quality *in, gi_quality *req,
+                              gi_error_info *e, gi_result *rc);
+/* The probe or panorama answer (EXR) at b->at from cascade c, with its
+ * headers; ms holds the stages already run (a bake's or a move's), cache
+ * names the outcome (X-GI-Cache and the EXR's gi.cache). cancel may be NULL. */
+gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascade *c, const gi_proto_bake *b,
+                             const gi_cancel *cancel, const char *cache, gi_timings *ms, double t_start_ms,
+                             gs_answer *a, gi_error_info *e);
 void gs_answer_free(gs_answer *a);
 
 /* Lighting (probe, panorama) or cascades for one viewpoint. */
@@ -352,6 +382,32 @@ void gs_jobs_cancel_all(gs_jobs *j);
 /* A forced exit: removes the private folder (results, scratch files) now. */
 void gs_jobs_abandon(gs_jobs *j);
 void gs_jobs_count(gs_jobs *j, int by_state[GI_JOB_STATE_COUNT]);
+
+/* ---- session.c: a walking client's own cascade ------------------------- */
+
+/* Session ids: 32 hex digits from the kernel's random source. */
+#define GS_SESSION_ID_LEN 32
+gs_sessions *gs_sessions_new(gs_service *svc);
+/* Shutdown (after the workers stopped): frees every session's cascade. */
+void gs_sessions_free(gs_sessions *t);
+/* Ends sessions idle longer than session_ttl_s (the reaper calls it). */
+void gs_sessions_sweep(gs_sessions *t);
+void gs_sessions_stats(gs_sessions *t, int *open, size_t *bytes);
+/* POST /v1/scenes/{id}/sessions (a worker): bakes the session's cascade
+ * at b->at (else the scene's default viewpoint), 201 with its JSON and
+ * the bake's Server-Timing. */
+void gs_session_create(gs_service *svc, const gs_scene *s, const gi_proto_bake *b, const gi_cancel *cancel,
+                       double t_start_ms, gs_answer *a);
+/* GET /v1/sessions/{sid}/lighting (a worker): moves the session's
+ * cascade to b->at and answers as the scene's lighting URL does. Requests
+ * on one session run one at a time. */
+void gs_session_lighting(gs_service *svc, const char *sid, const gi_proto_bake *b, double t_start_ms,
+                         const gi_cancel *cancel, gs_answer *a);
+/* The scene of an open session, or NULL (scenes live as long as the server). */
+const gs_scene *gs_session_scene(gs_service *svc, const char *sid);
+/* GET (200, its JSON) and DELETE (204) /v1/sessions/{sid}: cheap, on the front. */
+void gs_session_info(gs_service *svc, const char *sid, gs_answer *a);
+void gs_session_delete(gs_service *svc, const char *sid, gs_answer *a);
 
 /* ---- shutdown.c: after the first SIGINT/SIGTERM --------------------------- */
 

@@ -48,9 +48,17 @@ CONTRACT = {
                       "delete": ({200, 202}, {401, 404, 405, 409, 500}, set())},
     "/v1/jobs/{id}/result": {"get": ({200}, {401, 404, 405, 409, 500}, set())},
     "/metrics": {"get": ({200}, {401, 405, 500}, set())},
+    # Sessions (issue 12): a moving viewer's own cascade.
+    "/v1/scenes/{id}/sessions": {"post": ({201}, {400, 401, 404, 405, 413, 500, 503, 504}, {"at"} | BAKE_Q)},
+    "/v1/sessions/{sid}": {"get": ({200}, {401, 404, 405, 500}, set()),
+                           "delete": ({204}, {401, 404, 405, 500}, set())},
+    "/v1/sessions/{sid}/lighting": {"get": ({200}, {400, 401, 404, 405, 500, 503, 504},
+                                            {"at", "kind", "half", "width", "height"})},
 }
+# A session's start 'at' is optional; everywhere else 'at' is required.
+AT_OPTIONAL = {"/v1/scenes/{id}/sessions"}
 CELL_PATHS = {"/v1/scenes/{id}/cells/{cell}/lighting", "/v1/scenes/{id}/cells/{cell}/cascades.vdb"}
-CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/scenes/{id}/lightmap-uv.glb": "model/gltf-binary",
+CONTENT_200 = {"/v1/scenes/{id}/lighting": "image/x-exr", "/v1/sessions/{sid}/lighting": "image/x-exr", "/v1/scenes/{id}/lightmap-uv.glb": "model/gltf-binary",
                "/v1/scenes/{id}/cascades.vdb": "application/octet-stream",
                "/v1/scenes/{id}/cells/{cell}/lighting": "image/x-exr",
                "/v1/scenes/{id}/cells/{cell}/cascades.vdb": "application/octet-stream",
@@ -140,9 +148,14 @@ def check(doc):
                         p.append("%s 200: headers %s lack %s" % (w, sorted(hdrs), sorted(BAKE_HEADERS - hdrs)))
                     if path.endswith("cascades.vdb") and "Content-Disposition" not in hdrs:
                         p.append("%s 200: no Content-Disposition" % w)
-                    if (path in CELL_PATHS or path.endswith(("/lighting", "/cascades.vdb"))) \
-                            and not {"ETag", "Cache-Control"} <= hdrs:
+                    if path == "/v1/sessions/{sid}/lighting" and not (BAKE_HEADERS | {"X-GI-Move"}) <= hdrs:
+                        p.append("%s 200: headers %s lack Server-Timing, X-GI-Cache, X-GI-Effects or X-GI-Move"
+                                 % (w, sorted(hdrs)))
+                    if (path in CELL_PATHS or (path.startswith("/v1/scenes/") and path.endswith(
+                            ("/lighting", "/cascades.vdb")))) and not {"ETag", "Cache-Control"} <= hdrs:
                         p.append("%s 200: no ETag or Cache-Control" % w)
+                elif c == 201 and not {"Location", "Server-Timing"} <= hdrs:
+                    p.append("%s 201: no Location or Server-Timing header" % w)
                 elif c == 307 and "Location" not in hdrs:
                     p.append("%s 307: no Location header" % w)
                 elif c == 304 and "ETag" not in hdrs:
@@ -159,7 +172,7 @@ def check(doc):
                     p.append("%s: parameter %s has no scalar type" % (w, x.get("name")))
                 if x.get("in") == "path" and not x.get("required"):
                     p.append("%s: path parameter %s not required" % (w, x.get("name")))
-                if x.get("name") == "at" and not x.get("required"):
+                if x.get("name") == "at" and not x.get("required") and path not in AT_OPTIONAL:
                     p.append("%s: 'at' must be required" % w)
             if path == "/v1/health" and op.get("security") != []:
                 p.append("GET /v1/health must need no token (security: [])")
@@ -181,7 +194,9 @@ def query_sets_from_c(path):
     for fn, path_key in (("lighting", "/v1/scenes/{id}/lighting"), ("cascades", "/v1/scenes/{id}/cascades.vdb"),
                          ("lightmap_uv", "/v1/scenes/{id}/lightmap-uv.glb"),
                          ("cell_lighting", "/v1/scenes/{id}/cells/{cell}/lighting"),
-                         ("cell_cascades", "/v1/scenes/{id}/cells/{cell}/cascades.vdb"), ("scene", "/v1/scenes/{id}")):
+                         ("cell_cascades", "/v1/scenes/{id}/cells/{cell}/cascades.vdb"), ("scene", "/v1/scenes/{id}"),
+                         ("session", "/v1/scenes/{id}/sessions"),
+                         ("session_lighting", "/v1/sessions/{sid}/lighting")):
         m = re.search(r"gi_proto_parse_%s\([^)]*\)\s*\{.*?parse_query\([^,]+,[^,]+,\s*([A-Z_| ]+)," % fn, src, re.S)
         if not m or not table:
             return None
@@ -199,7 +214,7 @@ def main():
             print("FAIL: cannot read the parameter table of %s" % sys.argv[2])
             sys.exit(1)
         for path, keys in from_c.items():
-            ok, errs, q = CONTRACT[path]["get"]
+            ok, errs, q = next(iter(CONTRACT[path].values()))
             if q != keys:
                 print("FAIL: %s: the contract table says %s, %s accepts %s" % (path, sorted(q), sys.argv[2], sorted(keys)))
                 sys.exit(1)
@@ -219,6 +234,9 @@ def main():
             "headers"].pop("ETag")),
         ("cell 304", lambda d: d["paths"]["/v1/scenes/{id}/cells/{cell}/cascades.vdb"]["get"]["responses"].pop("304")),
         ("job cancel", lambda d: d["paths"]["/v1/jobs/{id}"].pop("delete")),
+        ("session delete", lambda d: d["paths"]["/v1/sessions/{sid}"].pop("delete")),
+        ("X-GI-Move", lambda d: d["paths"]["/v1/sessions/{sid}/lighting"]["get"]["responses"]["200"][
+            "headers"].pop("X-GI-Move")),
     ]:
         broken = copy.deepcopy(doc)
         breaker(broken)

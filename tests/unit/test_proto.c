@@ -322,6 +322,59 @@ static void test_job_roundtrip(void **state) {
   free(js);
 }
 
+/* Sessions: the start 'at' is optional, quality from the query or a body
+ * (not both); a session's lighting takes no quality and no lightmap. */
+static void test_sessions(void **state) {
+  (void)state;
+  gi_proto_limits l = lim();
+  gi_proto_bake b;
+  gi_proto_error e = {0};
+  gi_proto_kv q[] = {{"quality", "low"}, {"levels", "4"}};
+  assert_int_equal(gi_proto_parse_session(q, NKV(q), NULL, 0, &l, &b, &e), 0);
+  assert_int_equal(b.has_at, 0);
+  assert_int_equal(b.quality.levels, 4);
+  const char *body = "{\"at\":[1,2.5,-3],\"quality\":{\"preset\":\"low\",\"res\":16}}";
+  assert_int_equal(gi_proto_parse_session(NULL, 0, body, strlen(body), &l, &b, &e), 0);
+  assert_true(b.has_at && b.at[0] == 1 && b.at[1] == 2.5 && b.at[2] == -3);
+  assert_int_equal(b.quality.res, 16);
+  assert_int_equal(gi_proto_parse_session(q, NKV(q), body, strlen(body), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "not both"));
+  const char *bad = "{\"points\":[[0,0,0]]}";
+  assert_int_equal(gi_proto_parse_session(NULL, 0, bad, strlen(bad), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "unknown field 'points'"));
+  gi_proto_kv far[] = {{"at", "1e31,0,0"}};
+  assert_int_equal(gi_proto_parse_session(far, NKV(far), NULL, 0, &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "parameter 'at': out of range"));
+
+  gi_proto_kv mv[] = {{"at", "1,2,3"}, {"kind", "panorama"}, {"width", "64"}, {"height", "32"}, {"half", "1"}};
+  assert_int_equal(gi_proto_parse_session_lighting(mv, NKV(mv), &l, &b, &e), 0);
+  assert_true(b.kind == GI_PROTO_PANORAMA && b.width == 64 && b.height == 32 && b.half == 1 && b.at[2] == 3);
+  gi_proto_kv knob[] = {{"at", "1,2,3"}, {"bounces", "2"}};
+  assert_int_equal(gi_proto_parse_session_lighting(knob, NKV(knob), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "parameter 'bounces': a session's quality is set when it is created"));
+  gi_proto_kv lm[] = {{"at", "1,2,3"}, {"kind", "lightmap"}};
+  assert_int_equal(gi_proto_parse_session_lighting(lm, NKV(lm), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "parameter 'kind'"));
+  gi_proto_kv none[] = {{"kind", "probe"}};
+  assert_int_equal(gi_proto_parse_session_lighting(none, NKV(none), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "parameter 'at' is required"));
+  gi_proto_kv nan[] = {{"at", "nan,2,3"}};
+  assert_int_equal(gi_proto_parse_session_lighting(nan, NKV(nan), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "parameter 'at'"));
+  /* The session's JSON reads back. */
+  gi_proto_session ss = {.ttl_s = 300, .at = {1, 2, 3}, .moves = 7, .bytes = 4096}, back;
+  strcpy(ss.id, "0123456789abcdef0123456789abcdef");
+  strcpy(ss.scene, "city");
+  char *js = gi_proto_session_json(&ss);
+  assert_non_null(strstr(js, "\"lighting\":\"/v1/sessions/0123456789abcdef0123456789abcdef/lighting\""));
+  assert_int_equal(gi_proto_session_parse(js, strlen(js), &back), 0);
+  assert_string_equal(back.id, ss.id);
+  assert_string_equal(back.scene, "city");
+  assert_true(back.ttl_s == 300 && back.at[1] == 2 && back.moves == 7 && back.bytes == 4096);
+  free(js);
+  assert_int_equal(gi_proto_session_parse("{}", 2, &back), -1);
+}
+
 static void test_headers(void **state) {
   gi_timings t = {.voxelize = 1.5, .inject = 2, .filter = 0.25, .bounce = 10, .gather = 0.5, .encode = 1};
   char buf[320];
@@ -390,7 +443,7 @@ int main(void) {
       cmocka_unit_test(test_panorama),      cmocka_unit_test(test_rejections),
       cmocka_unit_test(test_cascades),      cmocka_unit_test(test_probes_body),
       cmocka_unit_test(test_error_roundtrip), cmocka_unit_test(test_job_roundtrip),
-      cmocka_unit_test(test_headers),
+      cmocka_unit_test(test_headers),       cmocka_unit_test(test_sessions),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -29,13 +29,14 @@
 
 enum {
   OPT_SERVER = 256, OPT_TOKEN, OPT_TOKEN_FILE, OPT_TIMEOUT, OPT_AT, OPT_KIND, OPT_QUALITY, OPT_SET,
-  OPT_FACES, OPT_HALF, OPT_AO, OPT_NO_WAIT, OPT_POINTS
+  OPT_FACES, OPT_HALF, OPT_AO, OPT_NO_WAIT, OPT_POINTS, OPT_PATH, OPT_RATE, OPT_JSON
 };
 
 /* Options that apply to some commands only, as bits of a per-command mask. */
 enum {
   F_AT = 1 << 0, F_KIND = 1 << 1, F_QUALITY = 1 << 2, F_SET = 1 << 3, F_FACES = 1 << 4,
-  F_HALF = 1 << 5, F_AO = 1 << 6, F_NO_WAIT = 1 << 7, F_POINTS = 1 << 8
+  F_HALF = 1 << 5, F_AO = 1 << 6, F_NO_WAIT = 1 << 7, F_POINTS = 1 << 8, F_PATH = 1 << 9, F_RATE = 1 << 10,
+  F_JSON = 1 << 11
 };
 
 static const struct {
@@ -43,7 +44,8 @@ static const struct {
   const char *name;
 } flag_names[] = {{F_AT, "--at"},       {F_KIND, "--kind"}, {F_QUALITY, "--quality"},
                   {F_SET, "--set"},     {F_FACES, "--faces"}, {F_HALF, "--half"},
-                  {F_AO, "--ao"},       {F_NO_WAIT, "--no-wait"}, {F_POINTS, "--points"}};
+                  {F_AO, "--ao"},       {F_NO_WAIT, "--no-wait"}, {F_POINTS, "--points"},
+                  {F_PATH, "--path"},   {F_RATE, "--rate"}, {F_JSON, "--json"}};
 
 static const struct {
   const char *name;
@@ -65,6 +67,8 @@ static const struct {
      "levels res voxel cones aperture step bounces samples seed"},
     {"probes", GC_PROBES, 1, F_AT | F_QUALITY | F_SET | F_HALF | F_AO | F_NO_WAIT | F_POINTS, 1,
      "levels res voxel cones aperture step bounces samples probe_samples seed"},
+    {"walk", GC_WALK, 1, F_KIND | F_QUALITY | F_SET | F_PATH | F_RATE | F_JSON, 0,
+     "levels res voxel cones aperture step bounces samples probe_samples seed"},
 };
 
 static const struct option long_opts[] = {
@@ -83,6 +87,9 @@ static const struct option long_opts[] = {
     {"ao", no_argument, NULL, OPT_AO},
     {"no-wait", no_argument, NULL, OPT_NO_WAIT},
     {"points", required_argument, NULL, OPT_POINTS},
+    {"path", required_argument, NULL, OPT_PATH},
+    {"rate", required_argument, NULL, OPT_RATE},
+    {"json", no_argument, NULL, OPT_JSON},
     {"help", no_argument, NULL, 'h'},
     {"version", no_argument, NULL, 'V'},
     {NULL, 0, NULL, 0}};
@@ -141,6 +148,19 @@ static const char help_text[] =
     "                        Ranges come from the server's config: it answers\n"
     "                        400 naming the parameter\n"
     "  --half, --ao          probes: half-float EXR; ambient occlusion channel\n"
+    "\n"
+    "A walk through a server session (prints a summary on stdout)\n"
+    "  walk ID --path FILE [--rate HZ] [--kind probe|panorama] [--quality Q]\n"
+    "          [--set K=V ...] [--json]\n"
+    "                        POST /v1/scenes/ID/sessions at the path's first point,\n"
+    "                        GET /v1/sessions/SID/lighting at every point (the\n"
+    "                        server moves the session's cascade), DELETE at the end\n"
+    "                        (also on Ctrl-C). FILE: one 't,x,y,z' per line (t in\n"
+    "                        seconds, not decreasing), '#' comments. Steps are paced\n"
+    "                        by t, or --rate HZ steps per second (0: as fast as the\n"
+    "                        server answers). Prints steps, moves that crossed a\n"
+    "                        cell, refresh cycles closed, errors and the latency's\n"
+    "                        p50/p90/p99/max; --json: one JSON object\n"
     "\n"
     "The server's Server-Timing and X-GI-Cache headers are printed on stderr\n"
     "unless -q. An error answer prints 'gi-client: HTTP <status> <name>: <message>'.\n"
@@ -279,6 +299,24 @@ static int check_with_proto(const gc_opts *o) {
   return ta_fail(&ta, o->num_sets ? "--set" : NULL, "%s", e.message);
 }
 
+/* A walk's quality knobs through the session parser (as check_with_proto). */
+static int check_session_knobs(const gc_opts *o) {
+  gi_proto_kv kv[GC_MAX_SETS + 1];
+  size_t n = 0;
+  if (o->quality) kv[n++] = (gi_proto_kv){"quality", o->quality};
+  for (int i = 0; i < o->num_sets; i++) kv[n++] = (gi_proto_kv){o->sets[i].key, o->sets[i].value};
+  gi_proto_limits lim;
+  gi_proto_limits_default(&lim);
+  lim.max_levels = GI_MAX_LEVELS;
+  lim.max_res = 256;
+  gi_proto_bake b;
+  gi_proto_error e;
+  if (!gi_proto_parse_session(kv, n, NULL, 0, &lim, &b, &e)) return 0;
+  char *tag = strstr(e.message, " (server limit)");
+  if (tag) memmove(tag, tag + 15, strlen(tag + 15) + 1);
+  return ta_fail(&ta, o->num_sets ? "--set" : NULL, "%s", e.message);
+}
+
 /* What the options said before the command is known. */
 typedef struct pending {
   const char *server, *token, *token_file;
@@ -315,6 +353,12 @@ static int command_option(gc_opts *o, pending *p, int c, char *arg) {
   case OPT_HALF: o->half = 1; p->given |= F_HALF; return 0;
   case OPT_AO: o->ao = 1; p->given |= F_AO; return 0;
   case OPT_NO_WAIT: o->no_wait = 1; p->given |= F_NO_WAIT; return 0;
+  case OPT_PATH: o->path_file = arg; p->given |= F_PATH; return 0;
+  case OPT_RATE:
+    if ((rc = ta_double(&ta, "--rate", "steps per second >= 0", arg, -1e-300, 1e6, &o->rate))) return rc;
+    p->given |= F_RATE;
+    return 0;
+  case OPT_JSON: o->json = 1; p->given |= F_JSON; return 0;
   default: o->points_file = arg; p->given |= F_POINTS; return 0;
   }
 }
@@ -339,7 +383,7 @@ static int apply_option(gc_opts *o, pending *p, int c, char *arg, char **argv) {
   case 'o': o->out = arg; return 0;
   case 'q': o->quiet = 1; return 0;
   case OPT_AT: case OPT_KIND: case OPT_QUALITY: case OPT_SET: case OPT_FACES: case OPT_HALF: case OPT_AO:
-  case OPT_NO_WAIT: case OPT_POINTS:
+  case OPT_NO_WAIT: case OPT_POINTS: case OPT_PATH: case OPT_RATE: case OPT_JSON:
     return command_option(o, p, c, arg);
   default: return ta_getopt_fail(&ta, c, argv, long_opts);
   }
@@ -348,14 +392,14 @@ static int apply_option(gc_opts *o, pending *p, int c, char *arg, char **argv) {
 /* COMMAND and its ID, after the options; *ci = its row in commands[]. */
 static int take_command(int argc, char **argv, gc_opts *o, int *ci) {
   if (optind >= argc)
-    return ta_fail(&ta, NULL, "missing COMMAND (health, scenes, scene, metrics, job, lighting, cascades, probes)");
+    return ta_fail(&ta, NULL, "missing COMMAND (health, scenes, scene, metrics, job, lighting, cascades, probes, walk)");
   const char *cmd = argv[optind++];
   *ci = -1;
   for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
     if (!strcmp(commands[i].name, cmd)) *ci = (int)i;
   if (*ci < 0)
     return ta_fail(&ta, NULL,
-                   "unknown command '%s' (health, scenes, scene, metrics, job, lighting, cascades, probes)", cmd);
+                   "unknown command '%s' (health, scenes, scene, metrics, job, lighting, cascades, probes, walk)", cmd);
   o->cmd = commands[*ci].cmd;
   o->cmd_name = commands[*ci].name;
   if (commands[*ci].takes_id) {
@@ -386,6 +430,8 @@ static int check_command_options(const gc_opts *o, int ci, int given) {
       if (!strcmp(o->sets[i].key, "width") || !strcmp(o->sets[i].key, "height"))
         return ta_fail(&ta, "--set", "'%s' applies only to --kind panorama", o->sets[i].key);
   if (o->cmd == GC_PROBES && !o->points_file) return ta_fail(&ta, "--points", "'probes' needs --points FILE");
+  if (o->cmd == GC_WALK && !o->path_file) return ta_fail(&ta, "--path", "'walk' needs --path FILE");
+  if (o->cmd == GC_WALK && (rc = check_session_knobs(o))) return rc;
   if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES || o->cmd == GC_PROBES) && (rc = check_with_proto(o)))
     return rc;
   if (commands[ci].needs_out && !o->out) return ta_fail(&ta, "-o", "'%s' downloads a file: give -o OUT", cmd);
@@ -420,6 +466,7 @@ static int resolve_token(gc_opts *o, const pending *p) {
 
 int gc_parse(int argc, char **argv, gc_opts *o) {
   memset(o, 0, sizeof *o);
+  o->rate = -1; /* walk: the path's own times */
   opterr = 0; /* our messages, with our program name */
   pending p = {0};
   int c, rc, ci = -1;
@@ -432,6 +479,7 @@ int gc_parse(int argc, char **argv, gc_opts *o) {
   if ((rc = resolve_token(o, &p))) return rc;
   if (o->out && (rc = ta_check_output(&ta, "-o", o->out))) return rc;
   if (o->points_file && (rc = read_points(o, o->points_file))) return rc;
+  if (o->path_file && (rc = gc_read_path(&ta, o->path_file, &o->steps, &o->num_steps))) return rc;
   return 0;
 }
 
@@ -439,6 +487,8 @@ void gc_opts_fini(gc_opts *o) {
   free(o->server);
   free(o->token);
   free(o->points);
+  free(o->steps);
+  o->steps = NULL;
   o->server = o->token = NULL;
   o->points = NULL;
 }

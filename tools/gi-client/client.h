@@ -2,6 +2,7 @@
 #ifndef GI_CLIENT_H
 #define GI_CLIENT_H
 
+#include <curl/curl.h>
 #include <stddef.h>
 #include "toolargs.h"
 
@@ -9,8 +10,14 @@
 enum { EXIT_RUN = TA_EXIT_RUN, EXIT_USAGE = TA_EXIT_USAGE };
 
 typedef enum gc_command {
-  GC_HEALTH, GC_SCENES, GC_SCENE, GC_METRICS, GC_JOB, GC_LIGHTING, GC_CASCADES, GC_PROBES
+  GC_HEALTH, GC_SCENES, GC_SCENE, GC_METRICS, GC_JOB, GC_LIGHTING, GC_CASCADES, GC_PROBES, GC_WALK
 } gc_command;
+
+/* One step of a walk's path: its time (seconds) and viewpoint. */
+typedef struct gc_step {
+  double t;
+  double at[3];
+} gc_step;
 
 #define GC_MAX_SETS 16
 
@@ -42,6 +49,11 @@ typedef struct gc_opts {
   const char *points_file;
   double *points;            /* probes: 3 per point, owned */
   size_t num_points;
+  const char *path_file;     /* walk: --path */
+  gc_step *steps;            /* walk: the path, owned */
+  size_t num_steps;
+  double rate;               /* walk: steps per second; 0 = at once; < 0 = the path's t column */
+  int json;                  /* walk: the summary as one JSON object */
 } gc_opts;
 
 /* Parses argv into o. Returns 0 on success, -1 when --help/--version was
@@ -52,5 +64,27 @@ void gc_opts_fini(gc_opts *o);
  * cascades request, from the grid GET /v1/scenes/ID publishes; NULL when
  * the server gives none (then ask the viewpoint URL: it redirects). */
 char *gc_cell_url(const gc_opts *o);
+
+/* main.c: one request for other commands' files (walk.c). An answer kept
+ * in memory (GC_MEM_ALL) or, for a 2xx, dropped after counting (GC_MEM_DROP). */
+enum { GC_MEM_ALL = 2, GC_MEM_DROP = 3 };
+typedef struct gc_response {
+  long status;
+  char *body;                /* GC_MEM_ALL, or an error body: malloc'ed */
+  size_t body_len;
+  char move[160];            /* X-GI-Move, or empty */
+} gc_response;
+/* 0 on a 2xx answer, else EXIT_RUN after printing why (status in r). method: GET, POST or DELETE. */
+int gc_request(const gc_opts *o, CURL *c, const char *method, const char *url, const char *body, size_t len,
+               int mem_mode, gc_response *r);
+void gc_response_free(gc_response *r);
+/* Shortest "%.*g" that reads back as the same double. */
+void gc_fmt_double(char *dst, size_t cap, double v);
+/* POST /v1/scenes/ID/sessions with the walk's first point and quality (malloc'ed). */
+char *gc_session_url(const gc_opts *o, CURL *c);
+/* walk.c: reads --path FILE ('t,x,y,z' lines); 0, or an exit code after the message. */
+int gc_read_path(ta_ctx *ta, const char *path, gc_step **out, size_t *n);
+/* walk.c: the walk command. */
+int gc_walk(const gc_opts *o, CURL *c);
 
 #endif

@@ -27,7 +27,8 @@
 #define MAX_MEM_BODY (1 << 20) /* error and job bodies are small; refuse a runaway one */
 #define POLL_MS 500
 
-enum { MEM_NONE = 0, MEM_202 = 1, MEM_ALL = 2 }; /* 202: a job to poll; ALL: a poll answer */
+/* 202: a job to poll; ALL: a poll answer; DROP: a walk's step (counted, not kept) */
+enum { MEM_NONE = 0, MEM_202 = 1, MEM_ALL = GC_MEM_ALL, MEM_DROP = GC_MEM_DROP };
 
 /* --- output file: temp name, renamed on success ------------------------------ */
 
@@ -76,7 +77,7 @@ typedef struct answer {
   int last_nl;          /* the body so far ends with '\n' */
   buf mem;              /* non-2xx (or 202) body */
   int write_failed;     /* errno of a failed write, or -1 (too big), 0 = fine */
-  char timing[1024], cache[64], retry_after[64], location[512];
+  char timing[1024], cache[64], retry_after[64], location[512], move[160];
 } answer;
 
 static void copy_header(char *dst, size_t cap, const char *v, size_t n) {
@@ -92,7 +93,7 @@ static size_t on_header(char *p, size_t size, size_t nmemb, void *ud) {
   size_t n = size * nmemb;
   /* A new status line (after "100 Continue", say) starts a new header set. */
   if (n >= 5 && !strncmp(p, "HTTP/", 5)) {
-    a->timing[0] = a->cache[0] = a->retry_after[0] = a->location[0] = '\0';
+    a->timing[0] = a->cache[0] = a->retry_after[0] = a->location[0] = a->move[0] = '\0';
     return n;
   }
   const char *colon = memchr(p, ':', n);
@@ -104,6 +105,7 @@ static size_t on_header(char *p, size_t size, size_t nmemb, void *ud) {
   HDR("X-GI-Cache", a->cache);
   HDR("Retry-After", a->retry_after);
   HDR("Location", a->location);
+  HDR("X-GI-Move", a->move);
 #undef HDR
   return n;
 }
@@ -131,11 +133,13 @@ static size_t on_body(char *p, size_t size, size_t nmemb, void *ud) {
   if (!a->decided) {
     curl_easy_getinfo(a->curl, CURLINFO_RESPONSE_CODE, &a->status);
     a->decided = 1;
-    int ok2xx = a->status >= 200 && a->status < 300 && a->mem_mode != MEM_ALL &&
+    int ok2xx = a->status >= 200 && a->status < 300 && a->mem_mode != MEM_ALL && a->mem_mode != MEM_DROP &&
                 !(a->status == 202 && a->mem_mode == MEM_202);
     if (ok2xx && open_sink(a)) return 0; /* aborts the transfer: reported below */
   }
-  if (a->fp) {
+  if (a->mem_mode == MEM_DROP && a->status >= 200 && a->status < 300) {
+    /* Counted only. */
+  } else if (a->fp) {
     if (fwrite(p, 1, n, a->fp) != n) {
       a->write_failed = errno ? errno : EIO;
       return 0;
@@ -213,7 +217,8 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
     curl_easy_setopt(c, CURLOPT_POSTFIELDS, body);
     curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE_LARGE, (curl_off_t)body_len);
   }
-  (void)method; /* GET unless there is a body (POST): curl follows from POSTFIELDS */
+  /* GET unless there is a body (POST: curl follows from POSTFIELDS), or DELETE. */
+  if (!strcmp(method, "DELETE")) curl_easy_setopt(c, CURLOPT_CUSTOMREQUEST, "DELETE");
   CURLcode cr = curl_easy_perform(c);
   curl_slist_free_all(hdrs);
   curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &a->status);
@@ -242,7 +247,7 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
     drop_tmp(a);
     return EXIT_RUN;
   }
-  if (mem_mode == MEM_ALL || (a->status == 202 && mem_mode == MEM_202)) return 0;
+  if (mem_mode == MEM_ALL || mem_mode == MEM_DROP || (a->status == 202 && mem_mode == MEM_202)) return 0;
   if (!a->decided && open_sink(a)) { /* an empty 2xx body: still an (empty) answer */
     fprintf(stderr, "gi-client: cannot write '%s': %s\n", g_tmp_path, strerror(a->write_failed));
     return EXIT_RUN;
@@ -277,7 +282,7 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
 /* --- URLs and bodies --------------------------------------------------------- */
 
 /* Shortest "%.*g" that reads back as the same double (finite input only). */
-static void fmt_double(char *dst, size_t cap, double v) {
+void gc_fmt_double(char *dst, size_t cap, double v) {
   for (int prec = 6; prec <= 17; prec++) {
     snprintf(dst, cap, "%.*g", prec, v);
     if (strtod(dst, NULL) == v) return;
@@ -306,9 +311,9 @@ static int add_param(buf *b, int *first, const char *key, const char *value) {
 
 static void fmt_at(char *dst, size_t cap, const double at[3]) {
   char x[32], y[32], z[32];
-  fmt_double(x, sizeof x, at[0]);
-  fmt_double(y, sizeof y, at[1]);
-  fmt_double(z, sizeof z, at[2]);
+  gc_fmt_double(x, sizeof x, at[0]);
+  gc_fmt_double(y, sizeof y, at[1]);
+  gc_fmt_double(z, sizeof z, at[2]);
   snprintf(dst, cap, "%s,%s,%s", x, y, z);
 }
 
@@ -322,6 +327,13 @@ static char *build_url(const gc_opts *o, CURL *c, const char *prefix, const char
     curl_free(e);
   }
   if (suffix && !fail) fail = buf_add(&b, suffix, strlen(suffix));
+  if (!fail && o->cmd == GC_WALK) {
+    char at[100];
+    fmt_at(at, sizeof at, o->steps[0].at);
+    fail |= add_param(&b, &first, "at", at);
+    if (o->quality) fail |= add_param(&b, &first, "quality", o->quality);
+    for (int i = 0; i < o->num_sets; i++) fail |= add_param(&b, &first, o->sets[i].key, o->sets[i].value);
+  }
   if (!fail && (o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES)) {
     char at[100];
     fmt_at(at, sizeof at, o->at);
@@ -339,6 +351,24 @@ static char *build_url(const gc_opts *o, CURL *c, const char *prefix, const char
   return b.p;
 }
 
+int gc_request(const gc_opts *o, CURL *c, const char *method, const char *url, const char *body, size_t len,
+               int mem_mode, gc_response *r) {
+  answer a;
+  int rc = run_request(o, c, method, url, body, len, NULL, mem_mode, &a);
+  r->status = a.status;
+  r->body = a.mem.p;
+  r->body_len = a.mem.n;
+  snprintf(r->move, sizeof r->move, "%s", a.move);
+  return rc;
+}
+
+void gc_response_free(gc_response *r) {
+  free(r->body);
+  r->body = NULL;
+}
+
+char *gc_session_url(const gc_opts *o, CURL *c) { return build_url(o, c, "/v1/scenes/", o->id, "/sessions"); }
+
 /* The POST probes body: {"points":[[x,y,z],..],"at":[..],"quality":..,"half":..,"ao":..}.
  * Written by hand: a million points as jansson objects would cost ~150 MB. */
 static char *probes_body(const gc_opts *o, size_t *len) {
@@ -347,9 +377,9 @@ static char *probes_body(const gc_opts *o, size_t *len) {
   int fail = buf_add(&b, "{\"points\":[", 11);
   for (size_t i = 0; i < o->num_points && !fail; i++) {
     char x[32], y[32], z[32];
-    fmt_double(x, sizeof x, o->points[3 * i]);
-    fmt_double(y, sizeof y, o->points[3 * i + 1]);
-    fmt_double(z, sizeof z, o->points[3 * i + 2]);
+    gc_fmt_double(x, sizeof x, o->points[3 * i]);
+    gc_fmt_double(y, sizeof y, o->points[3 * i + 1]);
+    gc_fmt_double(z, sizeof z, o->points[3 * i + 2]);
     int k = snprintf(n, sizeof n, "%s[%s,%s,%s]", i ? "," : "", x, y, z);
     fail = buf_add(&b, n, (size_t)k);
   }
@@ -375,7 +405,7 @@ static char *probes_body(const gc_opts *o, size_t *len) {
       double v = strtod(o->sets[i].value, NULL);
       char num[32];
       if (o->sets[i].is_int) snprintf(num, sizeof num, "%lld", strtoll(o->sets[i].value, NULL, 10));
-      else fmt_double(num, sizeof num, v);
+      else gc_fmt_double(num, sizeof num, v);
       int k = snprintf(n, sizeof n, "%s\"%s\":%s", i ? "," : "", o->sets[i].key, num);
       fail |= buf_add(&b, n, (size_t)k);
     }
@@ -511,6 +541,7 @@ static int run(const gc_opts *o, CURL *c) {
     if (!(url = gc_cell_url(o))) url = build_url(o, c, "/v1/scenes/", o->id, "/cascades.vdb");
     break;
   case GC_PROBES: url = build_url(o, c, "/v1/scenes/", o->id, "/probes"); break;
+  case GC_WALK: return gc_walk(o, c);
   }
   if (!url) return EXIT_RUN;
   if (o->cmd != GC_PROBES) {

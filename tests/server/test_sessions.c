@@ -1,0 +1,423 @@
+/* test_sessions.c: server sessions (issue 12 item 2) over HTTP.
+ *
+ * One gi-server (city extent 300, two sessions at most, a 2 s idle TTL):
+ *   - a session walks, then stands still until its refresh cycle closes; its
+ *     probe then equals the core's cold bake at that point (half-float
+ *     rounding of texels aside), and every answer carries the move's
+ *     Server-Timing stages and X-GI-Move;
+ *   - bad input: unknown session 404, non-finite and far 'at' 400 naming it,
+ *     kind=lightmap 400, quality knobs on a session 400, DELETE then 404;
+ *   - limits: a third session is a 503 with Retry-After; an idle one
+ *     expires after the TTL (404, gi_sessions_expired_total);
+ *   - two clients hammering one session: every request answered, move
+ *     numbers 1..N each exactly once (serialised), and the cascade after
+ *     it is still a cold bake's once the cycle closes (nothing torn).
+ * Two more servers: a 6 MiB budget (a session evicts a cached cascade to
+ * fit; a second one does not fit: 503) and a 0.3 s deadline (a session
+ * whose bake outlives it is a 504, its bake cancelled, no session left). */
+#define _POSIX_C_SOURCE 200809L
+#include "server_util.h"
+#include "test_util.h"
+#include <curl/curl.h>
+#include <jansson.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "gi/gi.h"
+
+#define TOKEN SU_TOKEN
+#define GET(path) su_http(&S, NULL, path, NULL, TOKEN)
+/* Sessions' idle TTL in the test server, seconds. */
+#define TTL_S 2
+#define STR_(x) #x
+#define STR(x) STR_(x)
+/* A session at quality=low has 5 levels: the cycle closes every 2^4 moves. */
+#define CYCLE 16
+/* Relative difference allowed against a cold bake: texels stored as half
+ * floats at another scale round differently (gi_move.h). */
+#define COLD_TOL 1e-3
+/* Requests each of the two hammering clients sends. */
+#define HAMMER_N 12
+
+static su_server S, S_budget, S_deadline;
+
+static const gi_quality Q_LOW = {.levels = 5, .res = 16, .cones = 6, .bounces = 1, .light_samples = 8,
+                                 .probe_samples = 64, .threads = 2};
+
+static int setup(void **state) {
+  (void)state;
+  curl_global_init(CURL_GLOBAL_DEFAULT);
+  return su_start(&S, "sessions",
+                  "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\nbake_threads = 2\nworkers = 2\n"
+                  "queue = 32\ntmp_dir = .\ntoken_file = token.txt\n"
+                  "[limits]\nmax_sessions = 2\nsession_ttl_s = " STR(TTL_S) "\n"
+                  "[scene city]\nsource = city\nextent = 300\n");
+}
+
+static int teardown(void **state) {
+  (void)state;
+  int st = su_stop(&S);
+  if (S_budget.pid) st |= su_stop(&S_budget);
+  if (S_deadline.pid) st |= su_stop(&S_deadline);
+  curl_global_cleanup();
+  return st == 0 ? 0 : -1;
+}
+
+/* POST .../sessions; returns the new id (static buffer). */
+static const char *open_session(const char *query, const char *body) {
+  static char id[64];
+  char path[256];
+  snprintf(path, sizeof path, "/v1/scenes/city/sessions%s", query);
+  su_resp r = su_http(&S, "POST", path, body, TOKEN);
+  if (r.status != 201) fprintf(stderr, "create: %ld %.*s\n", r.status, (int)r.len, r.body);
+  assert_int_equal(r.status, 201);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  assert_non_null(o);
+  snprintf(id, sizeof id, "%s", json_string_value(json_object_get(o, "id")));
+  assert_int_equal(strlen(id), 32);
+  char want[128];
+  snprintf(want, sizeof want, "/v1/sessions/%s/lighting", id);
+  assert_string_equal(json_string_value(json_object_get(json_object_get(o, "links"), "lighting")), want);
+  assert_true(json_number_value(json_object_get(o, "ttl_s")) == TTL_S);
+  assert_true(json_integer_value(json_object_get(o, "bytes")) > 0);
+  snprintf(want, sizeof want, "/v1/sessions/%s", id);
+  assert_string_equal(su_header(&r, "Location"), want);
+  json_decref(o);
+  free(r.body);
+  return id;
+}
+
+static su_resp move_to(const char *id, const char *at) {
+  char path[256];
+  snprintf(path, sizeof path, "/v1/sessions/%s/lighting?at=%s", id, at);
+  return GET(path);
+}
+
+static void delete_session(const char *id) {
+  char path[128];
+  snprintf(path, sizeof path, "/v1/sessions/%s", id);
+  su_resp r = su_http(&S, "DELETE", path, NULL, TOKEN);
+  assert_int_equal(r.status, 204);
+  free(r.body);
+}
+
+/* A field of X-GI-Move ("n=3 cycle=0 ..."), or -1. */
+static long move_field(const su_resp *r, const char *key) {
+  const char *h = su_header(r, "X-GI-Move");
+  if (!h) return -1;
+  char pat[32];
+  snprintf(pat, sizeof pat, "%s=", key);
+  const char *p = strstr(h, pat);
+  return p ? strtol(p + strlen(pat), NULL, 10) : -1;
+}
+
+/* The probe's irradiance in an EXR answer. */
+static void exr_rgb(const su_resp *r, float rgb[3]) {
+  char path[700];
+  snprintf(path, sizeof path, "%s/answer.exr", S.dir);
+  FILE *f = fopen(path, "wb");
+  assert_non_null(f);
+  assert_int_equal(fwrite(r->body, 1, r->len, f), r->len);
+  fclose(f);
+  gi_exr_file *x = NULL;
+  gi_error_info e = {0};
+  assert_int_equal(gi_exr_read(path, &x, &e), GI_OK);
+  const char *names[3] = {"R", "G", "B"};
+  for (int k = 0; k < 3; k++) rgb[k] = gi_exr_file_channel(x, names[k])[0];
+  gi_exr_file_free(x);
+}
+
+/* The core's probe at `at` from a cold bake, in this process. */
+static void cold_probe(const double at[3], float rgb[3]) {
+  gi_city_params p = {.extent = 300};
+  gi_scene_options opt = {.up = GI_UP_Y, .threads = 2, .default_lights = 1};
+  gi_scene *s = NULL;
+  gi_cascade *c = NULL;
+  gi_error_info e = {0};
+  assert_int_equal(gi_city_build(&p, &opt, &s, &e), GI_OK);
+  assert_int_equal(gi_cascade_bake(s, at, &Q_LOW, &c, NULL, &e), GI_OK);
+  gi_probe pr;
+  assert_int_equal(gi_cascade_gather(c, at, 1, &pr, NULL, &e), GI_OK);
+  memcpy(rgb, pr.irradiance, sizeof pr.irradiance);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+/* Stands at `at` until the session's refresh cycle closes; that answer's probe into rgb. */
+static void stand_until_cycle(const char *id, const char *at, float rgb[3]) {
+  for (int i = 0; i <= CYCLE; i++) {
+    su_resp r = move_to(id, at);
+    assert_int_equal(r.status, 200);
+    int closed = move_field(&r, "cycle") == 1;
+    if (closed) exr_rgb(&r, rgb);
+    free(r.body);
+    if (closed) return;
+  }
+  fail_msg("the refresh cycle did not close within %d moves", CYCLE + 1);
+}
+
+static void expect_cold(const float got[3], const double at[3]) {
+  float want[3];
+  cold_probe(at, want);
+  for (int k = 0; k < 3; k++) {
+    printf("  probe[%d]: session %.7g, cold bake %.7g\n", k, got[k], want[k]);
+    assert_true(isfinite(got[k]) && got[k] > 0);
+    assert_true(fabsf(got[k] - want[k]) <= COLD_TOL * fabsf(want[k]));
+  }
+}
+
+static void test_walk_matches_cold_bake(void **state) {
+  (void)state;
+  const char *id = open_session("?quality=low&at=10,2,10", NULL);
+  const char *walk[] = {"10.5,2,10", "12,2,10", "20,2,11", "25,2,14"};
+  for (size_t i = 0; i < sizeof walk / sizeof walk[0]; i++) {
+    su_resp r = move_to(id, walk[i]);
+    assert_int_equal(r.status, 200);
+    assert_string_equal(su_header(&r, "Content-Type"), "image/x-exr");
+    const char *t = su_header(&r, "Server-Timing");
+    const char *stages[] = {"voxelize;dur=", "inject;dur=", "filter;dur=", "bounce;dur=", "gather;dur=", "total;dur="};
+    for (size_t k = 0; k < 6; k++) assert_non_null(strstr(t, stages[k]));
+    assert_int_equal(move_field(&r, "n"), (long)i + 1);
+    assert_true(move_field(&r, "cycle") == 0 && move_field(&r, "rebuilt") == 0);
+    /* 10 -> 10.5 stays in its 2-voxel cell; 12 and 20 leave it. */
+    assert_int_equal(move_field(&r, "crossed"), i == 0 ? 0 : 1);
+    float rgb[3];
+    exr_rgb(&r, rgb);
+    for (int k = 0; k < 3; k++) assert_true(isfinite(rgb[k]) && rgb[k] > 0);
+    free(r.body);
+  }
+  float got[3];
+  stand_until_cycle(id, "25,2,14", got);
+  expect_cold(got, (const double[3]){25, 2, 14});
+  /* GET names where it stands and how often it moved. */
+  char path[128];
+  snprintf(path, sizeof path, "/v1/sessions/%s", id);
+  su_resp r = GET(path);
+  assert_int_equal(r.status, 200);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  assert_int_equal(json_integer_value(json_object_get(o, "moves")), CYCLE);
+  assert_true(json_number_value(json_array_get(json_object_get(o, "at"), 2)) == 14);
+  json_decref(o);
+  free(r.body);
+  assert_true(su_metric(&S, "gi_session_cycles_total", NULL) >= 1);
+  assert_true(su_metric(&S, "gi_session_move_duration_seconds_count", NULL) >= CYCLE);
+  assert_true(su_metric(&S, "gi_sessions_open", NULL) == 1);
+  assert_true(su_metric(&S, "gi_session_bytes", NULL) > 0);
+  delete_session(id);
+  assert_true(su_metric(&S, "gi_session_bytes", NULL) == 0);
+}
+
+static void test_bad_input(void **state) {
+  (void)state;
+  su_resp r = move_to("0123456789abcdef0123456789abcdef", "1,2,3");
+  su_expect_error(&r, 404, "not_found", "does not exist or has ended");
+  free(r.body);
+  const char *id = open_session("", "{\"at\":[5,2,5],\"quality\":\"low\"}");
+  char path[256];
+  r = move_to(id, "nan,2,3");
+  su_expect_error(&r, 400, "bad_request", "parameter 'at'");
+  free(r.body);
+  r = move_to(id, "1e12,2,3");
+  su_expect_error(&r, 400, "bad_request", "parameter 'at': out of range");
+  free(r.body);
+  snprintf(path, sizeof path, "/v1/sessions/%s/lighting?at=1,2,3&kind=lightmap", id);
+  r = GET(path);
+  su_expect_error(&r, 400, "bad_request", "parameter 'kind'");
+  free(r.body);
+  snprintf(path, sizeof path, "/v1/sessions/%s/lighting?at=1,2,3&levels=3", id);
+  r = GET(path);
+  su_expect_error(&r, 400, "bad_request", "parameter 'levels': a session's quality is set when it is created");
+  free(r.body);
+  snprintf(path, sizeof path, "/v1/sessions/%s/lighting", id);
+  r = GET(path);
+  su_expect_error(&r, 400, "bad_request", "parameter 'at' is required");
+  free(r.body);
+  /* The refused moves left the cascade alone: the next is move 1. */
+  r = move_to(id, "5,2,5");
+  assert_int_equal(r.status, 200);
+  assert_int_equal(move_field(&r, "n"), 1);
+  free(r.body);
+  r = su_http(&S, "POST", "/v1/scenes/city/sessions?quality=low", "{\"quality\":\"low\"}", TOKEN);
+  su_expect_error(&r, 400, "bad_request", "not both");
+  free(r.body);
+  r = su_http(&S, "POST", "/v1/scenes/city/sessions", "{\"at\":[1,2]}", TOKEN);
+  su_expect_error(&r, 400, "bad_request", "body: 'at'");
+  free(r.body);
+  r = su_http(&S, "POST", "/v1/scenes/nope/sessions", NULL, TOKEN);
+  su_expect_error(&r, 404, "not_found", "nope");
+  free(r.body);
+  snprintf(path, sizeof path, "/v1/sessions/%s", id);
+  r = su_http(&S, "PUT", path, NULL, TOKEN);
+  su_expect_error(&r, 405, "method_not_allowed", "GET, HEAD, DELETE");
+  free(r.body);
+  delete_session(id);
+  r = move_to(id, "5,2,5");
+  su_expect_error(&r, 404, "not_found", id);
+  free(r.body);
+  r = su_http(&S, "DELETE", path, NULL, TOKEN);
+  su_expect_error(&r, 404, "not_found", id);
+  free(r.body);
+}
+
+static void test_limit_and_expiry(void **state) {
+  (void)state;
+  char a[64], b[64];
+  snprintf(a, sizeof a, "%s", open_session("?quality=low", NULL));
+  snprintf(b, sizeof b, "%s", open_session("?quality=low", NULL));
+  double rejected = su_metric(&S, "gi_sessions_rejected_total", NULL);
+  su_resp r = su_http(&S, "POST", "/v1/scenes/city/sessions?quality=low", NULL, TOKEN);
+  su_expect_error(&r, 503, "overloaded", "max_sessions");
+  const char *ra = su_header(&r, "Retry-After");
+  assert_non_null(ra);
+  assert_true(atoi(ra) >= 1 && atoi(ra) <= TTL_S);
+  free(r.body);
+  assert_true(su_metric(&S, "gi_sessions_rejected_total", NULL) == rejected + 1);
+  /* A used session stays; an idle one ends after the TTL. */
+  double expired = su_metric(&S, "gi_sessions_expired_total", NULL);
+  for (int i = 0; i < 3; i++) {
+    su_sleep_ms(TTL_S * 1000 / 2);
+    r = move_to(b, "0,2,0");
+    assert_int_equal(r.status, 200);
+    free(r.body);
+  }
+  r = move_to(a, "0,2,0");
+  su_expect_error(&r, 404, "not_found", "after 2 s idle");
+  free(r.body);
+  assert_true(su_metric(&S, "gi_sessions_expired_total", NULL) == expired + 1);
+  assert_true(su_metric(&S, "gi_sessions_open", NULL) == 1);
+  /* Its slot is free again. */
+  snprintf(a, sizeof a, "%s", open_session("?quality=low", NULL));
+  delete_session(a);
+  delete_session(b);
+}
+
+typedef struct {
+  const char *id;
+  const char *at[2];
+  long status[HAMMER_N], n[HAMMER_N];
+} hammer_arg;
+
+/* One client: HAMMER_N moves on the session, back and forth (no cmocka here: another thread). */
+static void *hammer(void *p) {
+  hammer_arg *h = p;
+  for (int i = 0; i < HAMMER_N; i++) {
+    char path[256];
+    snprintf(path, sizeof path, "/v1/sessions/%s/lighting?at=%s", h->id, h->at[i % 2]);
+    su_resp r = {0};
+    struct curl_slist *hd;
+    CURL *c = su_make_req(&S, NULL, path, NULL, TOKEN, &r, &hd);
+    h->status[i] = curl_easy_perform(c) == CURLE_OK ? 0 : -1;
+    if (h->status[i] == 0) curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &h->status[i]);
+    h->n[i] = move_field(&r, "n");
+    curl_slist_free_all(hd);
+    curl_easy_cleanup(c);
+    free(r.body);
+  }
+  return NULL;
+}
+
+static void test_concurrent_serialised(void **state) {
+  (void)state;
+  const char *id = open_session("?quality=low&at=0,2,0", NULL);
+  hammer_arg h[2] = {{.id = id, .at = {"0,2,0", "9,2,3"}}, {.id = id, .at = {"-7,2,1", "4,2,-8"}}};
+  pthread_t th[2];
+  for (int i = 0; i < 2; i++) assert_int_equal(pthread_create(&th[i], NULL, hammer, &h[i]), 0);
+  for (int i = 0; i < 2; i++) pthread_join(th[i], NULL);
+  int seen[2 * HAMMER_N + 1] = {0};
+  for (int i = 0; i < 2; i++)
+    for (int k = 0; k < HAMMER_N; k++) {
+      assert_int_equal(h[i].status[k], 200);
+      assert_true(h[i].n[k] >= 1 && h[i].n[k] <= 2 * HAMMER_N);
+      seen[h[i].n[k]]++;
+    }
+  /* One move at a time: every move number once. */
+  for (int n = 1; n <= 2 * HAMMER_N; n++) assert_int_equal(seen[n], 1);
+  float got[3];
+  stand_until_cycle(id, "6,2,6", got);
+  expect_cold(got, (const double[3]){6, 2, 6});
+  delete_session(id);
+}
+
+/* One session at quality=low holds about 3.9 MiB (res 16, 5 levels); a
+ * cached low cascade about 3.4 MiB: in 6 MiB one of them fits with room
+ * for nothing else. */
+#define BUDGET_INI                                                                                     \
+  "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 2\nworkers = 2\ntmp_dir = .\n"                   \
+  "[limits]\ncache_mb = 6\nmax_sessions = 4\n[scene city]\nsource = city\nextent = 300\n"
+
+static void test_budget(void **state) {
+  (void)state;
+  assert_int_equal(su_start(&S_budget, "budget", BUDGET_INI), 0);
+  su_resp r = su_http(&S_budget, NULL, "/v1/scenes/city/lighting?at=40,2,40&quality=low&redirect=0", NULL, NULL);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_cache_entries", NULL) == 1);
+  /* The session takes the cached cascade's room. */
+  r = su_http(&S_budget, "POST", "/v1/scenes/city/sessions?quality=low", NULL, NULL);
+  assert_int_equal(r.status, 201);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  double bytes = (double)json_integer_value(json_object_get(o, "bytes"));
+  char self[128];
+  snprintf(self, sizeof self, "%s", json_string_value(json_object_get(json_object_get(o, "links"), "self")));
+  json_decref(o);
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_cache_entries", NULL) == 0);
+  assert_true(su_metric(&S_budget, "gi_cache_evictions_total", NULL) == 1);
+  assert_true(su_metric(&S_budget, "gi_session_bytes", NULL) == bytes);
+  /* A second session does not fit beside the first. */
+  r = su_http(&S_budget, "POST", "/v1/scenes/city/sessions?quality=low", NULL, NULL);
+  su_expect_error(&r, 503, "overloaded", "held by sessions");
+  assert_non_null(su_header(&r, "Retry-After"));
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_sessions_rejected_total", NULL) == 1);
+  /* Nor does a cold bake; ending the session gives the room back. */
+  r = su_http(&S_budget, NULL, "/v1/scenes/city/lighting?at=-40,2,40&quality=low&redirect=0", NULL, NULL);
+  su_expect_error(&r, 503, "overloaded", "held by sessions");
+  free(r.body);
+  r = su_http(&S_budget, "DELETE", self, NULL, NULL);
+  assert_int_equal(r.status, 204);
+  free(r.body);
+  assert_true(su_metric(&S_budget, "gi_session_bytes", NULL) == 0);
+  r = su_http(&S_budget, NULL, "/v1/scenes/city/lighting?at=-40,2,40&quality=low&redirect=0", NULL, NULL);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  assert_int_equal(su_stop(&S_budget), 0);
+  S_budget.pid = 0;
+}
+
+static void test_deadline_cancels_creation(void **state) {
+  (void)state;
+  assert_int_equal(su_start(&S_deadline, "deadline",
+                            "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 2\nworkers = 2\ntmp_dir = .\n"
+                            "deadline_s = 0.3\n[scene city]\nsource = city\nextent = 300\n"),
+                   0);
+  /* The default quality bakes for seconds on two cores. */
+  su_resp r = su_http(&S_deadline, "POST", "/v1/scenes/city/sessions", NULL, NULL);
+  su_expect_error(&r, 504, "timeout", "deadline");
+  assert_non_null(su_header(&r, "Retry-After"));
+  free(r.body);
+  /* The bake stops within a chunk's time: nothing left running, nothing open. */
+  double t0 = su_now_ms();
+  while (su_metric(&S_deadline, "gi_bakes_in_flight", NULL) > 0 && su_now_ms() - t0 < 10000) su_sleep_ms(20);
+  assert_true(su_metric(&S_deadline, "gi_bakes_in_flight", NULL) == 0);
+  assert_true(su_metric(&S_deadline, "gi_bakes_cancelled_total", NULL) == 1);
+  assert_true(su_metric(&S_deadline, "gi_sessions_open", NULL) == 0);
+  assert_true(su_metric(&S_deadline, "gi_sessions_created_total", NULL) == 0);
+  assert_true(su_metric(&S_deadline, "gi_session_bytes", NULL) == 0);
+  assert_int_equal(su_stop(&S_deadline), 0);
+  S_deadline.pid = 0;
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_walk_matches_cold_bake),
+      cmocka_unit_test(test_bad_input),
+      cmocka_unit_test(test_limit_and_expiry),
+      cmocka_unit_test(test_concurrent_serialised),
+      cmocka_unit_test(test_budget),
+      cmocka_unit_test(test_deadline_cancels_creation),
+  };
+  return cmocka_run_group_tests(tests, setup, teardown);
+}

@@ -1,0 +1,253 @@
+/* walk.c: gi-client walk: replays a path against a server session.
+ *
+ * Opens a session at the path's first point (POST /v1/scenes/ID/sessions
+ * with the quality knobs), asks GET /v1/sessions/SID/lighting at every
+ * point, paced by the path's t column (or --rate HZ; 0 = as fast as the
+ * server answers), and deletes the session at the end, also after Ctrl-C.
+ * Per step it measures the client's latency (request sent to answer read)
+ * and reads X-GI-Move (a move that crossed a cell, one that closed the
+ * refresh cycle). The summary: steps, crossings, cycles, errors and the
+ * latency's p50/p90/p99/max, as text or (--json) one JSON object. */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include "client.h"
+#include "gi_proto.h"
+
+/* Longest path line read; longer is an error naming the line. */
+#define WALK_LINE_MAX 512
+
+static volatile sig_atomic_t g_walk_stop;
+static void on_walk_signal(int sig) {
+  (void)sig;
+  g_walk_stop = 1;
+}
+
+/* A path line's fields: "t,x,y,z" with blanks around, '#' starts a comment. */
+static int parse_line(char *line, double v[4]) {
+  char *hash = strchr(line, '#');
+  if (hash) *hash = 0;
+  char *p = line, *q = line;
+  for (; *p; p++)
+    if (*p != ' ' && *p != '\t' && *p != '\r' && *p != '\n') *q++ = *p;
+  *q = 0;
+  if (!*line) return 1; /* blank or comment only */
+  return ta_parse_doubles(line, v, 4) == TA_OK ? 0 : -1;
+}
+
+int gc_read_path(ta_ctx *ta, const char *path, gc_step **out, size_t *n) {
+  FILE *f = fopen(path, "r");
+  if (!f) return ta_error(ta, EXIT_RUN, "--path", "cannot open '%s': %s", path, strerror(errno));
+  gc_step *s = NULL;
+  size_t cap = 0, k = 0;
+  char line[WALK_LINE_MAX + 2];
+  int rc = 0;
+  for (long no = 1; !rc && fgets(line, sizeof line, f); no++) {
+    if (!strchr(line, '\n') && !feof(f)) {
+      rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: line longer than %d bytes", path, no, WALK_LINE_MAX);
+      break;
+    }
+    char copy[sizeof line];
+    snprintf(copy, sizeof copy, "%s", line);
+    copy[strcspn(copy, "\r\n")] = 0;
+    double v[4];
+    int st = parse_line(line, v);
+    if (st > 0) continue;
+    if (st < 0) rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: expected t,x,y,z (four finite numbers), got '%.80s'",
+                              path, no, copy);
+    else if (k && v[0] < s[k - 1].t)
+      rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: t = %g goes back in time (the line before has %g)", path, no,
+                    v[0], s[k - 1].t);
+    if (rc) break;
+    if (k == cap) {
+      cap = cap ? 2 * cap : 64;
+      gc_step *ns = realloc(s, cap * sizeof *ns);
+      if (!ns) {
+        rc = ta_error(ta, EXIT_RUN, "--path", "out of memory");
+        break;
+      }
+      s = ns;
+    }
+    s[k++] = (gc_step){v[0], {v[1], v[2], v[3]}};
+  }
+  if (!rc && ferror(f)) rc = ta_error(ta, EXIT_RUN, "--path", "cannot read '%s'", path);
+  fclose(f);
+  if (!rc && !k) rc = ta_error(ta, EXIT_USAGE, "--path", "%s: no steps (one 't,x,y,z' per line expected)", path);
+  if (rc) {
+    free(s);
+    return rc;
+  }
+  *out = s;
+  *n = k;
+  return 0;
+}
+
+static double mono_s(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+/* Sleeps until monotonic time t (seconds); returns early on a signal. */
+static void sleep_until(double t) {
+  double d = t - mono_s();
+  if (d <= 0 || g_walk_stop) return;
+  struct timespec ts = {(time_t)d, (long)((d - floor(d)) * 1e9)};
+  nanosleep(&ts, NULL);
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Nearest-rank percentile of sorted v[0..n). */
+static double pct(const double *v, size_t n, double p) {
+  if (!n) return 0;
+  size_t r = (size_t)ceil(p / 100.0 * (double)n);
+  return v[r ? r - 1 : 0];
+}
+
+/* A field of X-GI-Move ("n=3 cycle=0 crossed=1 ..."): its value, or 0. */
+static long move_field(const char *h, const char *key) {
+  char pat[32];
+  snprintf(pat, sizeof pat, "%s=", key);
+  for (const char *p = h; (p = strstr(p, pat)); p++)
+    if (p == h || p[-1] == ' ') return strtol(p + strlen(pat), NULL, 10);
+  return 0;
+}
+
+/* What the walk counted. */
+typedef struct walk_stats {
+  size_t steps, ok, crossed, cycles, errors;
+  double *lat_ms; /* per successful step */
+  double elapsed_s;
+  int interrupted;
+} walk_stats;
+
+static void print_summary(const gc_opts *o, const char *sid, walk_stats *w) {
+  qsort(w->lat_ms, w->ok, sizeof *w->lat_ms, cmp_double);
+  double sum = 0;
+  for (size_t i = 0; i < w->ok; i++) sum += w->lat_ms[i];
+  double mean = w->ok ? sum / (double)w->ok : 0, p50 = pct(w->lat_ms, w->ok, 50), p90 = pct(w->lat_ms, w->ok, 90),
+         p99 = pct(w->lat_ms, w->ok, 99), mx = w->ok ? w->lat_ms[w->ok - 1] : 0;
+  if (o->json) {
+    json_t *j = json_pack("{s:s, s:s, s:I, s:I, s:I, s:I, s:b, s:f, s:{s:f, s:f, s:f, s:f, s:f}}", "scene", o->id,
+                          "session", sid, "steps", (json_int_t)w->steps, "crossed", (json_int_t)w->crossed, "cycles",
+                          (json_int_t)w->cycles, "errors", (json_int_t)w->errors, "interrupted", w->interrupted,
+                          "elapsed_s", w->elapsed_s, "latency_ms", "p50", p50, "p90", p90, "p99", p99, "max", mx,
+                          "mean", mean);
+    char *s = j ? json_dumps(j, JSON_COMPACT | JSON_REAL_PRECISION(6)) : NULL;
+    if (s) puts(s);
+    free(s);
+    json_decref(j);
+  } else {
+    printf("walk %s: %zu steps, %zu crossed a cell, %zu cycles closed, %zu errors%s, %.2f s\n", o->id, w->steps,
+           w->crossed, w->cycles, w->errors, w->interrupted ? " (interrupted)" : "", w->elapsed_s);
+    printf("latency ms: p50 %.2f  p90 %.2f  p99 %.2f  max %.2f  mean %.2f\n", p50, p90, p99, mx, mean);
+  }
+  fflush(stdout);
+}
+
+/* The session lighting URL of one step. */
+static char *step_url(const gc_opts *o, CURL *c, const char *sid, const double at[3]) {
+  char *e = curl_easy_escape(c, sid, 0);
+  char x[32], y[32], z[32];
+  gc_fmt_double(x, sizeof x, at[0]);
+  gc_fmt_double(y, sizeof y, at[1]);
+  gc_fmt_double(z, sizeof z, at[2]);
+  size_t n = strlen(o->server) + 200;
+  char *url = e ? malloc(n) : NULL;
+  if (url)
+    snprintf(url, n, "%s/v1/sessions/%s/lighting?at=%s,%s,%s%s%s", o->server, e, x, y, z, o->kind ? "&kind=" : "",
+             o->kind ? o->kind : "");
+  curl_free(e);
+  return url;
+}
+
+/* Runs the steps, counting into w; a 404 (the session ended) stops the walk. */
+static void walk_steps(const gc_opts *o, CURL *c, const char *sid, walk_stats *w) {
+  gc_opts quiet = *o;
+  quiet.quiet = 1; /* one line per step would drown the summary */
+  double t0 = mono_s();
+  for (size_t i = 0; i < o->num_steps && !g_walk_stop; i++) {
+    double due = o->rate > 0 ? t0 + (double)i / o->rate
+                 : o->rate == 0 ? 0
+                                : t0 + (o->steps[i].t - o->steps[0].t);
+    sleep_until(due);
+    if (g_walk_stop) break;
+    char *url = step_url(o, c, sid, o->steps[i].at);
+    if (!url) {
+      w->errors++;
+      break;
+    }
+    double ts = mono_s();
+    gc_response a;
+    int rc = gc_request(&quiet, c, "GET", url, NULL, 0, GC_MEM_DROP, &a);
+    double ms = (mono_s() - ts) * 1e3;
+    w->steps++;
+    if (rc) {
+      w->errors++;
+      if (a.status == 404) i = o->num_steps; /* the session ended: nothing more to move */
+    } else {
+      w->lat_ms[w->ok++] = ms;
+      w->crossed += move_field(a.move, "crossed") == 1;
+      w->cycles += move_field(a.move, "cycle") == 1;
+    }
+    gc_response_free(&a);
+    free(url);
+  }
+  w->elapsed_s = mono_s() - t0;
+  w->interrupted = g_walk_stop != 0;
+}
+
+/* POST .../sessions?quality..&at=first point: the session id into sid. */
+static int open_session(const gc_opts *o, CURL *c, char sid[40]) {
+  char *url = gc_session_url(o, c);
+  if (!url) return EXIT_RUN;
+  gc_response a;
+  int rc = gc_request(o, c, "POST", url, "", 0, GC_MEM_ALL, &a);
+  gi_proto_session s;
+  if (!rc && gi_proto_session_parse(a.body ? a.body : "", a.body_len, &s)) {
+    fprintf(stderr, "gi-client: POST %s: the answer is not a session\n", url);
+    rc = EXIT_RUN;
+  }
+  if (!rc) snprintf(sid, 40, "%s", s.id);
+  gc_response_free(&a);
+  free(url);
+  return rc;
+}
+
+int gc_walk(const gc_opts *o, CURL *c) {
+  char sid[40];
+  struct sigaction sa = {0}, old_int, old_term;
+  sa.sa_handler = on_walk_signal;
+  sigaction(SIGINT, &sa, &old_int);
+  sigaction(SIGTERM, &sa, &old_term);
+  int rc = open_session(o, c, sid);
+  if (rc) return rc;
+  walk_stats w = {0};
+  w.lat_ms = malloc((o->num_steps ? o->num_steps : 1) * sizeof *w.lat_ms);
+  if (w.lat_ms) walk_steps(o, c, sid, &w);
+  else w.errors = 1;
+  /* The session holds server memory: end it, also after Ctrl-C. */
+  char url[4300];
+  snprintf(url, sizeof url, "%s/v1/sessions/%s", o->server, sid);
+  gc_response a;
+  gc_opts quiet = *o;
+  quiet.quiet = 1;
+  int del = gc_request(&quiet, c, "DELETE", url, NULL, 0, GC_MEM_ALL, &a);
+  gc_response_free(&a);
+  print_summary(o, sid, &w);
+  free(w.lat_ms);
+  sigaction(SIGINT, &old_int, NULL);
+  sigaction(SIGTERM, &old_term, NULL);
+  if (w.interrupted) return 130;
+  return w.errors || del ? EXIT_RUN : 0;
+}
