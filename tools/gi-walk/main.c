@@ -17,7 +17,7 @@
 #define DRIVE_EYE 1.2
 #define PATH_SEED 12
 #define DEFAULT_SAMPLES 12
-#define DEFAULT_MOVES 32
+#define DEFAULT_MOVES 8
 #define DEFAULT_VDB_MAX 60000000ull
 
 static const char USAGE[] =
