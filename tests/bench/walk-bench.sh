@@ -31,11 +31,11 @@ if [ "${GI_WALK_QUICK:-0}" = 1 ]; then
   echo "bench-walk: QUICK mode (GI_WALK_QUICK=1): small city, low quality; the figures mean nothing"
 fi
 [ -x "$WALK" ] || { echo "bench-walk: no $WALK (build it first: make); nothing measured"; exit 0; }
-echo "bench-walk: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg) at start"
+echo "bench-walk: $(date -u '+%H:%M:%S UTC'): $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg) at start"
 # shellcheck disable=SC2086
 if ! "$WALK" bench --extent "$EXTENT" $ARGS --out "$OUT" --json "$OUT/bench-walk.jsonl" | tee "$OUT/bench-walk.txt"; then
   echo "bench-walk: WARNING: gi-walk bench failed (see above); figures incomplete"
 fi
-echo "bench-walk: load $(cut -d' ' -f1-3 /proc/loadavg) at the end of the in-process part"
+echo "bench-walk: $(date -u '+%H:%M:%S UTC'): load $(cut -d' ' -f1-3 /proc/loadavg) at the end of the in-process part"
 "$ROOT/tests/bench/walk-server.sh" "$BUILD" "$OUT" "$EXTENT"
 exit 0

@@ -86,12 +86,12 @@ static int move_step(gi_cascade *c, const double at[3], step_rec *st) {
   return probe_at(c, at, &st->moved, &st->gather_ms);
 }
 
-int bench_path(const bench_opts *o, const gi_scene *s, const walk_path *p, step_rec *steps) {
+int bench_path(const bench_opts *o, const gi_scene *s, walk_path *p, step_rec *steps) {
   memset(steps, 0, p->n * sizeof *steps);
   gi_cascade *c = NULL;
   step_rec *s0 = &steps[0];
   if (cold_bake(s, &o->q, p->at[0], &c, &s0->cold_ms, &s0->cold_cpu_ms) != 0) return -1;
-  gi_quality resolved = gi_cascade_report(c)->quality;
+  gi_quality resolved = p->resolved = gi_cascade_report(c)->quality;
   int rc = probe_at(c, p->at[0], &s0->moved, &s0->gather_ms);
   s0->cold_probe = s0->moved, s0->cold = 1;
   if (!rc && p->n > 1) rc = probe_at(c, p->at[1], &s0->cold_next, NULL);

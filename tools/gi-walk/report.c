@@ -88,8 +88,9 @@ static const char *num(double v, int prec) {
 
 static void print_figures(const walk_path *p, const figures *f) {
   double su_mean = f->cold_mean / f->upd_mean, su_p99 = f->cold_p99 / f->upd_p99;
-  printf("== %s: %.1f m/s, eye %.1f m, %zu steps at %.0f Hz, %zu crossing a cell boundary, %zu cold bakes\n",
-         p->name, p->speed, p->eye, f->steps, p->rate, f->crossings, f->colds);
+  printf("== %s: %.1f m/s, eye %.1f m, %zu steps at %.0f Hz, %zu crossing a cell boundary, %zu cold bakes "
+         "(%d levels of %d^3, finest voxel %.3f m)\n", p->name, p->speed, p->eye, f->steps, p->rate, f->crossings,
+         f->colds, p->resolved.levels, p->resolved.res, p->resolved.voxel0);
   printf("update (crossing steps): mean %s ms, p99 %s ms; cold bake: mean %s ms, p99 %s ms\n", num(f->upd_mean, 1),
          num(f->upd_p99, 1), num(f->cold_mean, 1), num(f->cold_p99, 1));
   printf("speed-up: %sx (mean)   goal >= %.0fx: %s\n", num(su_mean, 1), GOAL_SPEEDUP_MEAN, met(su_mean >= GOAL_SPEEDUP_MEAN));
@@ -124,7 +125,7 @@ static void json_figures(const bench_opts *o, const walk_path *p, const figures 
           p->name, f->steps, f->crossings, f->colds, f->pairs);
   const struct { const char *k; double v; } kv[] = {
       {"speed_mps", p->speed}, {"eye_m", p->eye}, {"rate_hz", p->rate}, {"city_extent_m", o->city.extent},
-      {"levels", o->q.levels}, {"res", o->q.res}, {"update_ms_mean", f->upd_mean}, {"update_ms_p99", f->upd_p99},
+      {"levels", p->resolved.levels}, {"res", p->resolved.res}, {"voxel0_m", p->resolved.voxel0}, {"update_ms_mean", f->upd_mean}, {"update_ms_p99", f->upd_p99},
       {"cold_ms_mean", f->cold_mean}, {"cold_ms_p99", f->cold_p99}, {"speedup_mean", f->cold_mean / f->upd_mean},
       {"speedup_p99", f->cold_p99 / f->upd_p99}, {"update_cpu_ms_mean", f->upd_cpu_mean},
       {"cold_cpu_ms_mean", f->cold_cpu_mean}, {"step_ms_mean", f->step_mean}, {"step_ms_p99", f->step_p99},

@@ -28,6 +28,7 @@ typedef struct walk_path {
   size_t n;
   double *t;          /* n times, s */
   double (*at)[3];    /* n world points (city: y up) */
+  gi_quality resolved; /* set by bench_path: the quality the cascade was baked with */
 } walk_path;
 
 /* A path along the city's street centre lines from the central
@@ -89,7 +90,7 @@ typedef struct step_rec {
   uint64_t redone[3];   /* voxels voxelized, injected, re-gathered by the move */
 } step_rec;
 
-int bench_path(const bench_opts *o, const gi_scene *s, const walk_path *p, step_rec *steps);
+int bench_path(const bench_opts *o, const gi_scene *s, walk_path *p, step_rec *steps);
 /* Prints the figures against the goals, appends the JSON line, writes the
  * per-step CSV (for the chart). */
 void report_path(const bench_opts *o, const walk_path *p, const step_rec *steps, FILE *json);
