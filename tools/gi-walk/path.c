@@ -2,9 +2,9 @@
  *
  * The city's street centre lines lie on multiples of the block pitch
  * (gi_city.h), so a path is a polyline through intersections: start at the
- * central one heading +x, at each intersection go straight, left or right
- * (seeded; never back, never past the outermost line that still has blocks
- * on both sides). The eye keeps a lateral offset from the centre line (the
+ * central one heading +x, turn left or right at the first intersection, and
+ * at each later one go straight, left or right (seeded; never back, never
+ * past the outermost line that still has blocks on both sides). The eye keeps a lateral offset from the centre line (the
  * right lane) so it does not run along voxel borders: the origin is a cell
  * border of every level. Points are sampled at the path's rate along the
  * polyline at constant speed. */
@@ -47,10 +47,10 @@ static uint64_t next_rand(uint64_t *s) {
 static const int HX[4] = {1, 0, -1, 0}, HZ[4] = {0, 1, 0, -1};
 
 /* The next heading at intersection (ix, iz): straight, left or right, seeded,
- * among those that stay within kmax. */
-static int turn(int ix, int iz, int h, int kmax, uint64_t *rng) {
+ * among those that stay within kmax; `must_turn` leaves straight out. */
+static int turn(int ix, int iz, int h, int kmax, int must_turn, uint64_t *rng) {
   int opts[3] = {h, (h + 1) % 4, (h + 3) % 4}, ok[3], n = 0;
-  for (int i = 0; i < 3; i++) {
+  for (int i = must_turn; i < 3; i++) {
     int nx = ix + HX[opts[i]], nz = iz + HZ[opts[i]];
     if (abs(nx) <= kmax && abs(nz) <= kmax) ok[n++] = opts[i];
   }
@@ -76,7 +76,9 @@ static int polyline(const city_dims *d, double length, uint64_t seed, double (**
   int ix = 0, iz = 0, h = 0, prev = 0;
   double total = 0;
   for (int k = 0; k < MAX_TURNS; k++) {
-    int nh = k ? turn(ix, iz, h, d->kmax, &rng) : 0;
+    /* The first intersection reached is always a corner: a minute's walk
+     * (84 m) reaches only one, and it should turn there. */
+    int nh = k ? turn(ix, iz, h, d->kmax, k == 1, &rng) : 0;
     if (n == cap) {
       double(*w)[2] = realloc(v, 2 * cap * sizeof *v);
       if (!w) return free(v), -1;
