@@ -4,7 +4,7 @@ JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 PREFIX ?= /usr/local
 
-.PHONY: all deps configure install run bake test bench bench-batch bench-http accuracy clean asan tsan valgrind fuzz test-scale
+.PHONY: all deps configure install run bake test bench bench-batch bench-http bench-walk experiments accuracy clean asan tsan valgrind fuzz test-scale
 
 all: configure
 	cmake --build $(BUILD) -j $(JOBS)
@@ -50,6 +50,23 @@ bench-batch: all
 # config, benches cached and uncached lighting requests, stops the server.
 bench-http: all
 	./tests/bench/http-bench.sh --start $(BUILD)/bin/gi-server configs/gi-server.ini
+
+# Moving viewpoints (issue 12): a street walk (1.4 m/s) and a drive (14 m/s)
+# through the city at default quality, 10 Hz for 60 s, one cascade moved
+# along each (gi_cascade_move) against cold bakes at sampled grid shifts:
+# speed-up, drift and popping against the goals, then the same paths through
+# gi-server with gi-client walk when it has that command. About 10-15 min on
+# 2 cores; GI_WALK_QUICK=1 runs a seconds-long version. Figures only.
+bench-walk: all
+	./tests/bench/walk-bench.sh $(BUILD)
+
+# The paper's tables (docs/experiments.md and docs/experiments-walk.png):
+# voxels, memory against dense and OpenVDB grids, stage times and the
+# dynamic update for the city at 600/1500/5000 m and Munich, and the walk
+# chart (from bench-walk's out/, run first when missing). gnuplot-nox comes
+# with deps. The reading is hand-written in docs/experiments-reading.md.
+experiments: all
+	./tests/bench/experiments.sh $(BUILD)
 
 # The accuracy/time report: sweeps every quality knob and the path tracer
 # against a path-traced reference (cached in out/accuracy) and regenerates

@@ -3,7 +3,8 @@
  *
  * The grids sit 1e6 units from the world origin with a 0.5 voxel, so the
  * transform must be kept in doubles: index (0,0,0)'s centre is expected at
- * exactly origin + 0.25 on each axis. */
+ * exactly origin + 0.25 on each axis. gi_vdb_mem's memory figure is checked
+ * against the leaf buffers it must hold at least. */
 #define _POSIX_C_SOURCE 200809L
 #include "test_util.h"
 #include <math.h>
@@ -317,12 +318,43 @@ static void test_read_bad_files(void **s) {
   LSAN_ON();
 }
 
+/* gi_vdb_mem: OpenVDB's memUsage of grids built in memory. A Vec3f leaf
+ * holds 8^3 values of 12 bytes, whatever few of them are active. */
+#define LEAF_VALUE_BYTES (512 * 12)
+static void test_mem_usage(void **s) {
+  (void)s;
+  gi_vdb_mem *m = (gi_vdb_mem *)1;
+  gi_error_info err = {0};
+  assert_int_equal(gi_vdb_mem_new(0, &m, &err), GI_ERR_INVALID_ARG);
+  assert_null(m);
+  assert_int_equal(gi_vdb_mem_new(2, &m, &err), GI_OK);
+  float v[6] = {1, 2, 3, 4, 5, 6};
+  for (int i = 0; i < 10; i++) assert_int_equal(gi_vdb_mem_set(m, i, 0, 0, v, &err), GI_OK);
+  size_t one_leaf, again, two_leaves;
+  uint64_t active;
+  gi_vdb_mem_usage(m, &one_leaf, &active);
+  assert_int_equal(active, 10);
+  assert_true(one_leaf >= 2 * LEAF_VALUE_BYTES);
+  /* Setting an active voxel again adds nothing. */
+  assert_int_equal(gi_vdb_mem_set(m, 3, 0, 0, v, &err), GI_OK);
+  gi_vdb_mem_usage(m, &again, &active);
+  assert_int_equal(active, 10);
+  assert_int_equal(again, one_leaf);
+  /* A far voxel needs a new leaf (and nodes above it) in each grid. */
+  assert_int_equal(gi_vdb_mem_set(m, 1000, -1000, 1000, v, &err), GI_OK);
+  gi_vdb_mem_usage(m, &two_leaves, &active);
+  assert_int_equal(active, 11);
+  assert_true(two_leaves >= one_leaf + 2 * LEAF_VALUE_BYTES);
+  gi_vdb_mem_free(m);
+  gi_vdb_mem_free(NULL);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_info),        cmocka_unit_test(test_values),
       cmocka_unit_test(test_metadata),    cmocka_unit_test(test_vdb_print),
       cmocka_unit_test(test_pyopenvdb),   cmocka_unit_test(test_write_errors),
-      cmocka_unit_test(test_read_bad_files),
+      cmocka_unit_test(test_read_bad_files), cmocka_unit_test(test_mem_usage),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -10,6 +10,7 @@
 #define GI_VDB_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include "gi_error.h"
 
 #ifdef __cplusplus
@@ -83,6 +84,20 @@ gi_result gi_vdb_read_value(const char *path, const char *name, int i, int j, in
  * when name is NULL) as text into buf. */
 gi_result gi_vdb_read_meta(const char *path, const char *name, const char *key, char *buf,
                            size_t bufsize, gi_error_info *err);
+
+/* OpenVDB's own memory figure for sparse grids built in memory (nothing is
+ * written): a set of `vec3_grids` Vec3f grids sharing one index space,
+ * filled voxel by voxel. Used to size a sparse grid against the cascade
+ * (docs/experiments.md). Not thread-safe: one thread per builder. */
+typedef struct gi_vdb_mem gi_vdb_mem;
+gi_result gi_vdb_mem_new(int vec3_grids, gi_vdb_mem **out, gi_error_info *err);
+/* Sets voxel (i,j,k) active in every grid: vals holds 3 * vec3_grids
+ * floats, grid g's value at vals[3g..3g+2]. GI_ERR_NOMEM on allocation
+ * failure (the builder stays usable for gi_vdb_mem_free). */
+gi_result gi_vdb_mem_set(gi_vdb_mem *m, int i, int j, int k, const float *vals, gi_error_info *err);
+/* The sum of the grids' memUsage() in bytes and the active voxels of one grid. */
+void gi_vdb_mem_usage(const gi_vdb_mem *m, size_t *bytes, uint64_t *active);
+void gi_vdb_mem_free(gi_vdb_mem *m); /* accepts NULL */
 
 #ifdef __cplusplus
 }

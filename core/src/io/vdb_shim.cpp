@@ -34,6 +34,7 @@
 #include <new>
 #include <set>
 #include <string>
+#include <vector>
 
 extern "C" {
 #include "gi/gi_vdb.h"
@@ -424,3 +425,47 @@ extern "C" gi_result gi_vdb_read_meta(const char *path, const char *name, const 
     std::memcpy(buf, text.c_str(), text.size() + 1);
   });
 }
+
+// --- memory figure: grids built in memory only ------------------------------
+
+struct gi_vdb_mem {
+  std::vector<openvdb::Vec3fGrid::Ptr> grids;
+  std::vector<openvdb::Vec3fGrid::Accessor> acc;
+};
+
+extern "C" gi_result gi_vdb_mem_new(int vec3_grids, gi_vdb_mem **out, gi_error_info *err) {
+  *out = nullptr;
+  if (vec3_grids < 1 || vec3_grids > 64)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "gi_vdb_mem_new: vec3_grids must be 1..64, got %d", vec3_grids);
+  gi_vdb_mem *m = nullptr;
+  gi_result r = guard("(memory)", false, err, [&] {
+    m = new gi_vdb_mem;
+    for (int g = 0; g < vec3_grids; g++) {
+      m->grids.push_back(openvdb::Vec3fGrid::create(openvdb::Vec3f(0.f)));
+      m->acc.push_back(m->grids.back()->getAccessor());
+    }
+  });
+  if (r != GI_OK) {
+    delete m;
+    return r;
+  }
+  *out = m;
+  return GI_OK;
+}
+
+extern "C" gi_result gi_vdb_mem_set(gi_vdb_mem *m, int i, int j, int k, const float *vals, gi_error_info *err) {
+  return guard("(memory)", false, err, [&] {
+    openvdb::Coord ijk(i, j, k);
+    for (size_t g = 0; g < m->acc.size(); g++)
+      m->acc[g].setValueOn(ijk, openvdb::Vec3f(vals[3 * g], vals[3 * g + 1], vals[3 * g + 2]));
+  });
+}
+
+extern "C" void gi_vdb_mem_usage(const gi_vdb_mem *m, size_t *bytes, uint64_t *active) {
+  size_t sum = 0;
+  for (const auto &g : m->grids) sum += (size_t)g->memUsage();
+  *bytes = sum;
+  *active = m->grids.empty() ? 0 : (uint64_t)m->grids[0]->activeVoxelCount();
+}
+
+extern "C" void gi_vdb_mem_free(gi_vdb_mem *m) { delete m; }

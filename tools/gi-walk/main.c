@@ -1,0 +1,141 @@
+/* main.c: gi-walk's command line (see walk.h for what it measures).
+ *
+ *   gi-walk bench [--extent M] [--levels N] [--res R] [--seconds S] [--rate HZ]
+ *                 [--samples N] [--out DIR] [--json FILE] [--paths-only]
+ *   gi-walk tables --label TEXT (--extent M | --scene FILE [--up y|z]) [--at X,Y,Z]
+ *                  [--levels N] [--res R] [--moves N] [--vdb-max N] --md FILE
+ * Exit 0 when the work ran (figures never fail it), 1 when it could not (a
+ * path leaving the streets is such a failure), 2 for usage errors. */
+#include <stdlib.h>
+#include <string.h>
+#include "toolargs.h"
+#include "walk.h"
+
+#define WALK_SPEED 1.4
+#define WALK_EYE 1.7
+#define DRIVE_SPEED 14.0
+#define DRIVE_EYE 1.2
+#define PATH_SEED 12
+#define DEFAULT_SAMPLES 12
+#define DEFAULT_MOVES 8
+#define DEFAULT_VDB_MAX 60000000ull
+
+static const char USAGE[] =
+    "usage: gi-walk bench [--extent M] [--levels N] [--res R] [--seconds S] [--rate HZ]\n"
+    "                     [--samples N] [--out DIR] [--json FILE] [--paths-only]\n"
+    "       gi-walk tables --label TEXT (--extent M | --scene FILE [--up y|z]) [--at X,Y,Z]\n"
+    "                      [--levels N] [--res R] [--moves N] [--vdb-max N] --md FILE\n"
+    "bench: a street walk (1.4 m/s, eye 1.7 m) and a drive (14 m/s, eye 1.2 m) through the\n"
+    "  city; writes DIR/walk-walk.csv and DIR/walk-drive.csv (t,x,y,z), moves one cascade\n"
+    "  along each and compares with cold bakes at N sampled grid shifts (pairs).\n"
+    "tables: the paper's tables for one scene, appended to FILE as markdown.\n";
+
+static int run_bench(const bench_opts *o, int paths_only) {
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  if (gi_city_build(&o->city, NULL, &s, &err) != GI_OK) return fprintf(stderr, "gi-walk: city: %s\n", err.msg), 1;
+  struct { const char *name; double speed, eye; } kinds[2] = {{"walk", WALK_SPEED, WALK_EYE}, {"drive", DRIVE_SPEED, DRIVE_EYE}};
+  walk_path p[2] = {{0}};
+  int rc = 0;
+  for (int k = 0; k < 2 && !rc; k++) {
+    char file[1024];
+    snprintf(file, sizeof file, "%s/walk-%s.csv", o->out_dir, kinds[k].name);
+    rc = walk_path_make(&o->city, kinds[k].name, kinds[k].speed, kinds[k].eye, o->rate, o->seconds, PATH_SEED, &p[k]) ||
+         walk_path_check(s, &o->city, &p[k]) || walk_path_write_csv(&p[k], file);
+    if (!rc) printf("gi-walk: %s: %zu points on the streets (checked against building footprints) -> %s\n",
+                    kinds[k].name, p[k].n, file);
+  }
+  FILE *json = (!rc && o->jsonl && !paths_only) ? fopen(o->jsonl, "a") : NULL;
+  if (!rc && o->jsonl && !paths_only && !json) perror(o->jsonl);
+  for (int k = 0; k < 2 && !rc && !paths_only; k++) {
+    step_rec *st = calloc(p[k].n, sizeof *st);
+    rc = !st || bench_path(o, s, &p[k], st);
+    if (!rc) report_path(o, &p[k], st, json);
+    free(st);
+  }
+  if (json) fclose(json);
+  for (int k = 0; k < 2; k++) walk_path_free(&p[k]);
+  gi_scene_release(s);
+  return rc ? 1 : 0;
+}
+
+enum { O_EXTENT = 1, O_LEVELS, O_RES, O_SECONDS, O_RATE, O_SAMPLES, O_OUT, O_JSON, O_PATHS, O_LABEL, O_SCENE,
+       O_UP, O_AT, O_MOVES, O_VDBMAX, O_MD };
+
+static const struct option LONG_OPTS[] = {
+    {"extent", required_argument, NULL, O_EXTENT}, {"levels", required_argument, NULL, O_LEVELS},
+    {"res", required_argument, NULL, O_RES},       {"seconds", required_argument, NULL, O_SECONDS},
+    {"rate", required_argument, NULL, O_RATE},     {"samples", required_argument, NULL, O_SAMPLES},
+    {"out", required_argument, NULL, O_OUT},       {"json", required_argument, NULL, O_JSON},
+    {"paths-only", no_argument, NULL, O_PATHS},    {"label", required_argument, NULL, O_LABEL},
+    {"scene", required_argument, NULL, O_SCENE},   {"up", required_argument, NULL, O_UP},
+    {"at", required_argument, NULL, O_AT},         {"moves", required_argument, NULL, O_MOVES},
+    {"vdb-max", required_argument, NULL, O_VDBMAX}, {"md", required_argument, NULL, O_MD},
+    {NULL, 0, NULL, 0}};
+
+typedef struct all_opts {
+  bench_opts b;
+  tables_opts t;
+  const char *md;
+  int paths_only, have_extent;
+} all_opts;
+
+static int parse_one(ta_ctx *ctx, int ch, const char *v, all_opts *a) {
+  uint64_t u = 0;
+  int r = 0;
+  switch (ch) {
+    case O_EXTENT: r = ta_double(ctx, "--extent", NULL, v, 0, 20000, &a->b.city.extent); a->have_extent = 1; break;
+    case O_LEVELS: return ta_int(ctx, "--levels", NULL, v, 1, GI_MAX_LEVELS, &a->b.q.levels);
+    case O_RES: return ta_int(ctx, "--res", NULL, v, 8, 256, &a->b.q.res);
+    case O_SECONDS: return ta_double(ctx, "--seconds", NULL, v, 0, 3600, &a->b.seconds);
+    case O_RATE: return ta_double(ctx, "--rate", NULL, v, 0, 1000, &a->b.rate);
+    case O_SAMPLES: return ta_int(ctx, "--samples", NULL, v, 0, 10000, &a->b.samples);
+    case O_OUT: a->b.out_dir = v; break;
+    case O_JSON: a->b.jsonl = v; break;
+    case O_PATHS: a->paths_only = 1; break;
+    case O_LABEL: a->t.label = v; break;
+    case O_SCENE: a->t.scene_file = v; break;
+    case O_UP:
+      if (strcmp(v, "y") && strcmp(v, "z")) return ta_fail(ctx, "--up", "expected y or z, got '%s'", v);
+      a->t.up = v[0] == 'z' ? GI_UP_Z : GI_UP_Y;
+      break;
+    case O_AT: r = ta_triple(ctx, "--at", v, a->t.at); a->t.have_at = 1; break;
+    case O_MOVES: return ta_int(ctx, "--moves", NULL, v, 0, 100000, &a->t.moves);
+    case O_VDBMAX: r = ta_u64(ctx, "--vdb-max", NULL, v, &u); a->t.vdb_max_voxels = (size_t)u; break;
+    case O_MD: a->md = v; break;
+    default: return TA_EXIT_USAGE;
+  }
+  return r;
+}
+
+static int run_tables(all_opts *a, ta_ctx *ctx) {
+  if (!a->t.label || !a->md) return ta_fail(ctx, NULL, "tables needs --label and --md");
+  if (!a->t.scene_file == !a->have_extent) return ta_fail(ctx, NULL, "tables needs --extent (the city) or --scene FILE");
+  a->t.city = a->b.city;
+  a->t.q = a->b.q;
+  FILE *md = fopen(a->md, "a");
+  if (!md) return perror(a->md), 1;
+  int rc = tables_run(&a->t, md);
+  fclose(md);
+  return rc ? 1 : 0;
+}
+
+int main(int argc, char **argv) {
+  ta_ctx ctx = TA_CTX("gi-walk");
+  setvbuf(stdout, NULL, _IOLBF, 0); /* figures show up as they come, also through tee */
+  if (argc < 2 || (strcmp(argv[1], "bench") && strcmp(argv[1], "tables")))
+    return fputs(USAGE, argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr), argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
+  all_opts a = {.b = {.seconds = 60, .rate = 10, .samples = DEFAULT_SAMPLES, .out_dir = "out"},
+                .t = {.moves = DEFAULT_MOVES, .vdb_max_voxels = DEFAULT_VDB_MAX, .up = GI_UP_Y}};
+  int ch;
+  optind = 2;
+  while ((ch = getopt_long(argc, argv, ":", LONG_OPTS, NULL)) != -1) {
+    if (ch == ':' || ch == '?') return ta_getopt_fail(&ctx, ch, argv, LONG_OPTS);
+    int r = parse_one(&ctx, ch, optarg, &a);
+    if (r) return r;
+  }
+  if (optind < argc) return ta_fail(&ctx, NULL, "unexpected argument '%s'", argv[optind]);
+  if (!strcmp(argv[1], "tables")) return run_tables(&a, &ctx);
+  a.b.q.threads = 0;
+  return run_bench(&a.b, a.paths_only);
+}
