@@ -49,18 +49,21 @@ int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const fl
   }
   float t[3], b[3];
   gi__basis(n, t, b);
+  float w[GI_MAX_CONES][3];
+  gi_cone_out co[GI_MAX_CONES];
   for (int ci = 0; ci < c->num_cones; ci++) {
     const float *cd = c->cone_dir[ci];
-    float w[3];
-    for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
-    gi_cone_out co;
-    gi__gather_cone(c, &g, w, c->cone_tan, &co);
+    for (int k = 0; k < 3; k++) w[ci][k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
+  }
+  /* All cones at once: the SIMD march takes them eight at a time. */
+  gi__cone_march_many(c, &g, (const float(*)[3])w, c->num_cones, c->cone_tan, co);
+  for (int ci = 0; ci < c->num_cones; ci++) {
     float cw = c->cone_weight[ci];
-    for (int k = 0; k < 3; k++) out->E[k] += cw * co.L[k];
-    out->occlusion += cw * co.occlusion;
-    out->samples += co.samples;
-    if (dirs) memcpy(dirs[ci], w, sizeof(float[3]));
-    if (cones) cones[ci] = co;
+    for (int k = 0; k < 3; k++) out->E[k] += cw * co[ci].L[k];
+    out->occlusion += cw * co[ci].occlusion;
+    out->samples += co[ci].samples;
+    if (dirs) memcpy(dirs[ci], w[ci], sizeof(float[3]));
+    if (cones) cones[ci] = co[ci];
   }
   return 1;
 }

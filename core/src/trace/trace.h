@@ -57,6 +57,12 @@ int gi__gather_start(const struct gi_cascade *c, const float p[3], const float *
 /* One cone of half-angle tangent tan_half along unit w from g. */
 void gi__gather_cone(const struct gi_cascade *c, const gi_gather_start *g, const float w[3], float tan_half,
                      gi_cone_out *out);
+/* count cones of half-angle tangent tan_half along unit w[i] from g, each
+ * exactly as gi__gather_cone would march it (to float rounding): on the
+ * x86-64-v3 path GI_MARCH_LANES at a time in SIMD lanes. */
+#define GI_MARCH_LANES 8
+void gi__cone_march_many(const struct gi_cascade *c, const gi_gather_start *g, const float (*w)[3], int count,
+                         float tan_half, gi_cone_out *out);
 /* What a hemisphere gather returns. */
 typedef struct gi_gather_out {
   float E[3];          /* irradiance: sum over cones of weight x L */

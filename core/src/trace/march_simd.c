@@ -1,0 +1,342 @@
+/* march_simd.c: the cone march eight cones at a time (x86-64-v3 build only).
+ *
+ * The cones of one gather share their apex, first distance, step rule and
+ * surface; only their directions differ. Each AVX2 lane carries one cone
+ * through the same steps as the scalar march (march_kernel.c, whose
+ * comments say why each rule is what it is): the cone's width, its level
+ * and blend, the level spans, the sample's trilinear cell, the empty-block
+ * skip, the step and the compositing run in the eight lanes together; a
+ * lane whose cone has stopped is masked off. Only the texel reads are per
+ * lane: a sample's eight texels are summed 24 lanes at a time (F16C) and
+ * reduced by that cone's faces. The eight cones' reads are independent,
+ * so the CPU overlaps their cache misses, which one cone's march, a chain
+ * of dependent steps, cannot. Results match the scalar march to float
+ * rounding (test_texel). */
+#include <immintrin.h>
+#include "trace/march_internal.h"
+
+#define LANES 8
+/* Per-level constants as tables of 16, read per lane with two permutes. */
+#define TAB 16
+
+typedef struct {
+  const struct gi_cascade *c;
+  int n, R;
+  float s[TAB], inv[TAB], lo[3][TAB];
+  int32_t slot0[3][TAB];
+  /* Per lane: the first radiance lane of the face each axis reads, the
+   * axis weights w_a^2 (radiance, opacity) and |w_a| (optical depth), and
+   * the same across the surface's normal only (x (1 - n_a^2)). */
+  int fb[LANES][3];
+  float k[LANES][3], kt[LANES][3], kax[LANES][3], ktax[LANES][3];
+  float span_in[GI_MAX_LEVELS][LANES], span_out[GI_MAX_LEVELS][LANES];
+} batch;
+
+/* One sample per lane: what sample_level_ax returns. */
+typedef struct {
+  __m256 P[3], wal, sig, clear;
+} sample8;
+
+static inline __m256 tab16(const float *t, __m256i d) {
+  __m256 a = _mm256_permutevar8x32_ps(_mm256_loadu_ps(t), d);
+  __m256 b = _mm256_permutevar8x32_ps(_mm256_loadu_ps(t + 8), d);
+  return _mm256_blendv_ps(a, b, _mm256_castsi256_ps(_mm256_cmpgt_epi32(d, _mm256_set1_epi32(7))));
+}
+
+static inline __m256i tab16i(const int32_t *t, __m256i d) {
+  return _mm256_castps_si256(tab16((const float *)t, d));
+}
+
+#define V1(x) _mm256_set1_ps(x)
+#define CMP(a, b, op) _mm256_cmp_ps(a, b, op)
+
+/* gi__fast_exp_neg in eight lanes (the same polynomial). */
+static inline __m256 exp_neg8(__m256 x) {
+  __m256 y = _mm256_mul_ps(x, V1(-1.44269504f));
+  __m256 k = _mm256_floor_ps(_mm256_add_ps(y, V1(0.5f)));
+  __m256 f = _mm256_mul_ps(_mm256_sub_ps(y, k), V1(0.69314718f));
+  __m256 p = _mm256_fmadd_ps(f, V1(0.0013888889f), V1(0.0083333338f));
+  p = _mm256_fmadd_ps(f, p, V1(0.041666668f));
+  p = _mm256_fmadd_ps(f, p, V1(0.16666667f));
+  p = _mm256_fmadd_ps(f, p, V1(0.5f));
+  p = _mm256_fmadd_ps(f, p, V1(1.f));
+  p = _mm256_fmadd_ps(f, p, V1(1.f));
+  __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvttps_epi32(k), _mm256_set1_epi32(127)), 23);
+  __m256 r = _mm256_mul_ps(p, _mm256_castsi256_ps(e));
+  return _mm256_and_ps(r, CMP(x, V1(87.f), _CMP_LT_OQ)); /* 0 beyond, and for NaN */
+}
+
+/* The trilinear cell of p on each lane's level d: per axis the fraction
+ * f, the two slots' offsets, and how far along w the sample stays in its
+ * 2x2x2 block (run; 0 where the cell was clamped to the window). */
+typedef struct {
+  float f[3][LANES], run[LANES];
+  uint32_t off[3][2][LANES];
+} cell8;
+
+static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], cell8 *out) {
+  __m256 inv = tab16(b->inv, d), sd = tab16(b->s, d), run = V1(INFINITY);
+  __m256i R = _mm256_set1_epi32(b->R), Rm2 = _mm256_set1_epi32(b->R - 2), one = _mm256_set1_epi32(1);
+  for (int a = 0; a < 3; a++) {
+    __m256 u = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(p[a], tab16(b->lo[a], d)), inv), V1(0.5f));
+    __m256 fl = _mm256_floor_ps(u);
+    __m256i i0 = _mm256_cvttps_epi32(fl);
+    __m256 low = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_setzero_si256(), i0));
+    __m256 high = _mm256_castsi256_ps(_mm256_cmpgt_epi32(i0, Rm2));
+    i0 = _mm256_min_epi32(_mm256_max_epi32(i0, _mm256_setzero_si256()), Rm2);
+    fl = _mm256_blendv_ps(fl, _mm256_setzero_ps(), low);
+    u = _mm256_blendv_ps(u, _mm256_max_ps(u, _mm256_setzero_ps()), low);
+    fl = _mm256_blendv_ps(fl, V1((float)(b->R - 2)), high);
+    u = _mm256_blendv_ps(u, _mm256_min_ps(u, V1((float)(b->R - 1))), high);
+    run = _mm256_andnot_ps(_mm256_or_ps(low, high), run);
+    __m256 f = _mm256_sub_ps(u, fl);
+    /* Inside the block while u stays in [fl, fl + 1]. */
+    __m256 pos = CMP(w[a], _mm256_setzero_ps(), _CMP_GT_OQ), nz = CMP(w[a], _mm256_setzero_ps(), _CMP_NEQ_OQ);
+    __m256 gap = _mm256_blendv_ps(f, _mm256_sub_ps(V1(1.f), f), pos);
+    __m256 aw = _mm256_andnot_ps(V1(-0.f), w[a]);
+    __m256 r = _mm256_div_ps(_mm256_mul_ps(gap, sd), aw);
+    run = _mm256_blendv_ps(run, _mm256_min_ps(r, run), nz);
+    _mm256_storeu_ps(out->f[a], f);
+    __m256i s0 = _mm256_add_epi32(tab16i(b->slot0[a], d), i0);
+    s0 = _mm256_sub_epi32(s0, _mm256_andnot_si256(_mm256_cmpgt_epi32(R, s0), R)); /* s0 >= R: wrap */
+    __m256i s1 = _mm256_add_epi32(s0, one);
+    s1 = _mm256_andnot_si256(_mm256_cmpeq_epi32(s1, R), s1);
+    __m256i stride = _mm256_set1_epi32(a == 0 ? 1 : (a == 1 ? b->R : b->R * b->R));
+    _mm256_storeu_si256((__m256i *)out->off[a][0], _mm256_mullo_epi32(s0, stride));
+    _mm256_storeu_si256((__m256i *)out->off[a][1], _mm256_mullo_epi32(s1, stride));
+  }
+  _mm256_storeu_ps(out->run, run);
+}
+
+/* One lane's texel reads: sample_level_ax's second half. */
+static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float *P, float *wal, float *tau,
+                      float *clear) {
+  const gi_level *L = &b->c->lv[d];
+  uint32_t ox0 = cl->off[0][0][l], oy0 = cl->off[1][0][l], oz0 = cl->off[2][0][l];
+  if (!L->busy[ox0 + oy0 + oz0]) {
+    P[0] = P[1] = P[2] = *wal = *tau = 0;
+    *clear = cl->run[l];
+    return;
+  }
+  *clear = 0;
+  uint32_t ox[2] = {ox0, cl->off[0][1][l]}, oy[2] = {oy0, cl->off[1][1][l]}, oz[2] = {oz0, cl->off[2][1][l]};
+  float f[3] = {cl->f[0][l], cl->f[1][l], cl->f[2][l]};
+  const gi_vrad *r[8];
+  float wt[8];
+  for (int i = 0; i < 8; i++) {
+    int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
+    r[i] = &L->rad[oz[dz] + oy[dy] + ox[dx]];
+    wt[i] = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+  }
+  gi_lanes s;
+  gi__sum_texels(r, wt, &s);
+  const float *k = ax ? b->kax[l] : b->k[l], *kt = ax ? b->ktax[l] : b->kt[l];
+  const int *fb = b->fb[l];
+  float p0 = 0, p1 = 0, p2 = 0, wa = 0, ta = 0;
+  for (int a = 0; a < 3; a++) {
+    p0 += k[a] * s.v[fb[a]];
+    p1 += k[a] * s.v[fb[a] + 1];
+    p2 += k[a] * s.v[fb[a] + 2];
+    wa += k[a] * s.v[GI_VRAD_ALPHA + a];
+    ta += kt[a] * s.v[GI_VRAD_TAU + a];
+  }
+  P[0] = p0, P[1] = p1, P[2] = p2;
+  *wal = wa;
+  *tau = ta;
+}
+
+/* Samples level d (per lane) at p for the lanes in `act`; lanes in `ax`
+ * read the axes across the surface's normal only. */
+static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, const __m256 p[3], const __m256 w[3],
+                       sample8 *out) {
+  cell8 cl;
+  locate(b, d, p, w, &cl);
+  int32_t dl[LANES];
+  _mm256_storeu_si256((__m256i *)dl, d);
+  float P[3][LANES] = {{0}}, wal[LANES] = {0}, tau[LANES] = {0}, clear[LANES] = {0};
+  int m = _mm256_movemask_ps(act), mx = _mm256_movemask_ps(ax);
+  while (m) {
+    int l = __builtin_ctz((unsigned)m);
+    m &= m - 1;
+    float pl[3];
+    read_lane(b, l, dl[l], &cl, (mx >> l) & 1, pl, &wal[l], &tau[l], &clear[l]);
+    P[0][l] = pl[0], P[1][l] = pl[1], P[2][l] = pl[2];
+  }
+  __m256 scale = V1(b->c->rad_scale);
+  for (int ch = 0; ch < 3; ch++) out->P[ch] = _mm256_mul_ps(_mm256_loadu_ps(P[ch]), scale);
+  out->wal = _mm256_loadu_ps(wal);
+  out->sig = _mm256_mul_ps(_mm256_loadu_ps(tau), tab16(b->inv, d));
+  out->clear = _mm256_loadu_ps(clear);
+}
+
+/* Each cone's constants: spans, faces and axis weights; the level tables. */
+static void batch_init(batch *b, const struct gi_cascade *c, const float o[3], const float (*w)[3], int count,
+                       const float *n) {
+  memset(b, 0, sizeof *b);
+  b->c = c;
+  b->n = c->n;
+  b->R = c->R;
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    b->s[d] = (float)L->s;
+    b->inv[d] = (float)(1.0 / L->s);
+    for (int a = 0; a < 3; a++) b->lo[a][d] = L->lo[a], b->slot0[a][d] = L->slot0[a];
+  }
+  for (int l = 0; l < LANES; l++) {
+    const float *wl = w[l < count ? l : 0];
+    gi_span sp[GI_MAX_LEVELS];
+    gi__level_spans(c, o, wl, sp);
+    for (int d = 0; d < c->n; d++) b->span_in[d][l] = sp[d].in, b->span_out[d][l] = sp[d].out;
+    for (int a = 0; a < 3; a++) {
+      float across = n ? 1 - n[a] * n[a] : 1.f;
+      b->fb[l][a] = 3 * (2 * a + (wl[a] > 0 ? 1 : 0));
+      b->k[l][a] = wl[a] * wl[a];
+      b->kt[l][a] = fabsf(wl[a]);
+      b->kax[l][a] = wl[a] * wl[a] * across;
+      b->ktax[l][a] = fabsf(wl[a]) * across;
+    }
+  }
+}
+
+/* The march's constants shared by the eight cones. */
+typedef struct {
+  float o[3], tan_half, step, ao_lambda, h0, s0, inv_s0, inv_ks0;
+} par8;
+
+typedef struct {
+  __m256 t, a, occ, L[3], act;
+  __m256i samples;
+} state8;
+
+/* The level each lane samples, as the scalar march picks it: the cone's
+ * width (or the surface rule's height) gives d0 and the blend; the first
+ * level from d0 on whose span holds t is read. *next: lanes whose level
+ * d+1 also holds t. Returns n where no level does. */
+static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m256 nw, __m256 D, __m256 *near,
+                          __m256 *frac, __m256 *next, __m256i *d0out) {
+  __m256 x = _mm256_mul_ps(D, V1(q->inv_s0));
+  *near = _mm256_setzero_ps();
+  if (q->h0 >= 0) {
+    __m256 h = _mm256_fmadd_ps(st->t, nw, V1(q->h0));
+    __m256 xh = _mm256_mul_ps(_mm256_max_ps(h, V1(GI_MIN_HEIGHT)), V1(q->inv_ks0));
+    *near = CMP(xh, x, _CMP_LT_OQ);
+    x = _mm256_max_ps(_mm256_min_ps(x, xh), V1(1.f));
+  }
+  /* Level from the exponent, blend from the mantissa (see march_kernel.c). */
+  __m256i xb = _mm256_castps_si256(x);
+  __m256i d0 = _mm256_sub_epi32(_mm256_srli_epi32(xb, 23), _mm256_set1_epi32(127));
+  __m256 mant = _mm256_castsi256_ps(
+      _mm256_or_si256(_mm256_and_si256(xb, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000)));
+  __m256 fr = _mm256_andnot_ps(*near, _mm256_sub_ps(mant, V1(1.f)));
+  __m256 coarsest = _mm256_castsi256_ps(_mm256_cmpgt_epi32(d0, _mm256_set1_epi32(b->n - 2)));
+  d0 = _mm256_min_epi32(d0, _mm256_set1_epi32(b->n - 1));
+  fr = _mm256_andnot_ps(coarsest, fr);
+  __m256i d = _mm256_set1_epi32(b->n);
+  __m256 has_next = _mm256_setzero_ps(), prev = _mm256_setzero_ps();
+  for (int k = b->n - 1; k >= 0; k--) {
+    __m256 ok = _mm256_and_ps(CMP(_mm256_loadu_ps(b->span_in[k]), st->t, _CMP_LE_OQ),
+                              CMP(st->t, _mm256_loadu_ps(b->span_out[k]), _CMP_LE_OQ));
+    __m256 sel = _mm256_and_ps(ok, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(k + 1), d0)));
+    d = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(d), _mm256_castsi256_ps(_mm256_set1_epi32(k)), sel));
+    has_next = _mm256_blendv_ps(has_next, prev, sel);
+    prev = ok;
+  }
+  /* Pushed to a coarser level by position, not by size: no blend. */
+  *frac = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0)), fr);
+  *next = has_next;
+  *d0out = d0;
+  return d;
+}
+
+/* Folds one sample into the lanes in act: the step, the empty-block
+ * skip, the opacity and front-to-back compositing. */
+static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256 sd, __m256 D, const sample8 *s,
+                      __m256 clear2) {
+  __m256 dt = _mm256_mul_ps(_mm256_blendv_ps(V1(q->step), V1(gi__minf(q->step, GI_NEAR_SURFACE_STEP)), near), sd);
+  __m256 run = _mm256_min_ps(s->clear, clear2);
+  dt = _mm256_blendv_ps(dt, _mm256_fmadd_ps(V1(GI_CLEAR_OVERSHOOT), sd, run), CMP(run, dt, _CMP_GT_OQ));
+  __m256 as = _mm256_sub_ps(V1(1.f), exp_neg8(_mm256_mul_ps(s->sig, dt)));
+  __m256 a = st->a, ta = _mm256_sub_ps(V1(1.f), a);
+  __m256 lit = _mm256_and_ps(act, _mm256_and_ps(CMP(as, _mm256_setzero_ps(), _CMP_GT_OQ),
+                                                CMP(s->wal, V1(GI_MIN_SAMPLE_WEIGHT), _CMP_GT_OQ)));
+  __m256 k = _mm256_div_ps(_mm256_mul_ps(ta, as), s->wal);
+  for (int ch = 0; ch < 3; ch++) st->L[ch] = _mm256_blendv_ps(st->L[ch], _mm256_fmadd_ps(k, s->P[ch], st->L[ch]), lit);
+  __m256 occ = st->occ;
+  __m256 att = _mm256_fmadd_ps(V1(q->ao_lambda * 0.5f), D, V1(1.f));
+  occ = _mm256_add_ps(occ, _mm256_div_ps(_mm256_mul_ps(_mm256_sub_ps(V1(1.f), occ), as), att));
+  st->occ = _mm256_blendv_ps(st->occ, occ, act);
+  a = _mm256_fmadd_ps(ta, as, a);
+  st->a = _mm256_blendv_ps(st->a, a, act);
+  st->t = _mm256_blendv_ps(st->t, _mm256_add_ps(st->t, dt), act);
+  st->act = _mm256_and_ps(act, CMP(st->a, V1(GI_OPAQUE_ALPHA), _CMP_LT_OQ));
+}
+
+/* One step of every live lane. */
+static void step8(const batch *b, const par8 *q, const __m256 w[3], __m256 nw, state8 *st) {
+  __m256 D = _mm256_max_ps(_mm256_mul_ps(_mm256_mul_ps(V1(2.f), st->t), V1(q->tan_half)), V1(q->s0));
+  __m256 near, frac, next;
+  __m256i d0;
+  __m256i d = pick_level(b, q, st, nw, D, &near, &frac, &next, &d0);
+  __m256 act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(b->n), d)));
+  st->act = act;
+  if (!_mm256_movemask_ps(act)) return;
+  __m256 p[3];
+  for (int a = 0; a < 3; a++) p[a] = _mm256_fmadd_ps(st->t, w[a], V1(q->o[a]));
+  __m256 sd = tab16(b->s, d);
+  /* Pushed to a coarser level near the surface it started from: read
+   * the axes across the normal only (see march_kernel.c). */
+  __m256 ax = _mm256_setzero_ps();
+  if (q->h0 >= 0) {
+    __m256 h = _mm256_fmadd_ps(st->t, nw, V1(q->h0));
+    ax = _mm256_and_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0)),
+                       CMP(h, _mm256_mul_ps(V1(GI_TRILINEAR_REACH), sd), _CMP_LT_OQ));
+  }
+  sample8 s;
+  sample8_at(b, d, act, ax, p, w, &s);
+  st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(act));
+  __m256 two = _mm256_and_ps(act, _mm256_and_ps(next, CMP(frac, _mm256_setzero_ps(), _CMP_GT_OQ)));
+  __m256 clear2 = V1(INFINITY);
+  if (_mm256_movemask_ps(two)) {
+    sample8 s2;
+    sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), p, w, &s2);
+    st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(two));
+    for (int ch = 0; ch < 3; ch++)
+      s.P[ch] = _mm256_blendv_ps(s.P[ch], _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.P[ch], s.P[ch]), s.P[ch]), two);
+    s.wal = _mm256_blendv_ps(s.wal, _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.wal, s.wal), s.wal), two);
+    s.sig = _mm256_blendv_ps(s.sig, _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.sig, s.sig), s.sig), two);
+    clear2 = _mm256_blendv_ps(clear2, s2.clear, two);
+  }
+  composite(q, st, act, near, sd, D, &s, clear2);
+}
+
+void gi__cone_march8_v3(const struct gi_cascade *c, const float o[3], const float (*w)[3], int count, float tan_half,
+                        float t0, float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
+  batch b;
+  batch_init(&b, c, o, w, count, h0 >= 0 ? n : NULL);
+  float s0 = (float)c->s0;
+  par8 q = {{o[0], o[1], o[2]}, tan_half, step, ao_lambda, h0, s0, 1.f / s0, 1.f / (GI_SURFACE_LOD_K * s0)};
+  float wv[3][LANES], nwv[LANES], live[LANES];
+  for (int l = 0; l < LANES; l++) {
+    const float *wl = w[l < count ? l : 0];
+    for (int a = 0; a < 3; a++) wv[a][l] = wl[a];
+    nwv[l] = n && h0 >= 0 ? gi__dot(n, wl) : 0.f;
+    live[l] = l < count ? 1.f : 0.f;
+  }
+  __m256 wvec[3] = {_mm256_loadu_ps(wv[0]), _mm256_loadu_ps(wv[1]), _mm256_loadu_ps(wv[2])};
+  __m256 nw = _mm256_loadu_ps(nwv);
+  state8 st = {.t = V1(t0), .act = CMP(_mm256_loadu_ps(live), V1(0.5f), _CMP_GT_OQ)};
+  for (int guard = 0; guard < GI_CONE_MAX_STEPS && _mm256_movemask_ps(st.act); guard++) step8(&b, &q, wvec, nw, &st);
+  float L[3][LANES], a[LANES], occ[LANES];
+  int32_t ns[LANES];
+  for (int ch = 0; ch < 3; ch++) _mm256_storeu_ps(L[ch], st.L[ch]);
+  _mm256_storeu_ps(a, st.a);
+  _mm256_storeu_ps(occ, st.occ);
+  _mm256_storeu_si256((__m256i *)ns, st.samples);
+  for (int l = 0; l < count; l++) {
+    /* A cone stopped by opacity: renormalised by a (march_kernel.c). */
+    for (int ch = 0; ch < 3; ch++) out[l].L[ch] = a[l] >= GI_OPAQUE_ALPHA ? L[ch][l] / a[l] : L[ch][l];
+    out[l].alpha = a[l];
+    out[l].occlusion = occ[l];
+    out[l].samples = (uint32_t)ns[l];
+  }
+}
