@@ -18,6 +18,7 @@
 #define LANES 8
 /* Per-level constants as tables of 16, read per lane with two permutes. */
 #define TAB 16
+_Static_assert(GI_MAX_LEVELS <= TAB, "level tables hold every level");
 
 typedef struct {
   const struct gi_cascade *c;
@@ -66,17 +67,21 @@ static inline __m256 exp_neg8(__m256 x) {
   return _mm256_and_ps(r, CMP(x, V1(87.f), _CMP_LT_OQ)); /* 0 beyond, and for NaN */
 }
 
-/* The trilinear cell of p on each lane's level d: per axis the fraction
- * f, the two slots' offsets, and how far along w the sample stays in its
- * 2x2x2 block (run; 0 where the cell was clamped to the window). */
+/* The trilinear cell of p on each lane's level d: the eight corner
+ * texels' indices into the level and their weights (corner i = dx + 2 dy
+ * + 4 dz), and how far along w the sample stays in its 2x2x2 block (run;
+ * 0 where the cell was clamped to the window). Corner 0's slot is also
+ * the block's, which the busy mask is indexed by. */
 typedef struct {
-  float f[3][LANES], run[LANES];
-  uint32_t off[3][2][LANES];
+  float wt[8][LANES], run[LANES];
+  uint32_t corner[8][LANES];
 } cell8;
 
 static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], cell8 *out) {
   __m256 inv = tab16(b->inv, d), sd = tab16(b->s, d), run = V1(INFINITY);
   __m256i R = _mm256_set1_epi32(b->R), Rm2 = _mm256_set1_epi32(b->R - 2), one = _mm256_set1_epi32(1);
+  __m256 f[3];
+  __m256i off[3][2];
   for (int a = 0; a < 3; a++) {
     __m256 u = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(p[a], tab16(b->lo[a], d)), inv), V1(0.5f));
     __m256 fl = _mm256_floor_ps(u);
@@ -89,47 +94,56 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
     fl = _mm256_blendv_ps(fl, V1((float)(b->R - 2)), high);
     u = _mm256_blendv_ps(u, _mm256_min_ps(u, V1((float)(b->R - 1))), high);
     run = _mm256_andnot_ps(_mm256_or_ps(low, high), run);
-    __m256 f = _mm256_sub_ps(u, fl);
+    f[a] = _mm256_sub_ps(u, fl);
     /* Inside the block while u stays in [fl, fl + 1]. */
     __m256 pos = CMP(w[a], _mm256_setzero_ps(), _CMP_GT_OQ), nz = CMP(w[a], _mm256_setzero_ps(), _CMP_NEQ_OQ);
-    __m256 gap = _mm256_blendv_ps(f, _mm256_sub_ps(V1(1.f), f), pos);
+    __m256 gap = _mm256_blendv_ps(f[a], _mm256_sub_ps(V1(1.f), f[a]), pos);
     __m256 aw = _mm256_andnot_ps(V1(-0.f), w[a]);
     __m256 r = _mm256_div_ps(_mm256_mul_ps(gap, sd), aw);
     run = _mm256_blendv_ps(run, _mm256_min_ps(r, run), nz);
-    _mm256_storeu_ps(out->f[a], f);
     __m256i s0 = _mm256_add_epi32(tab16i(b->slot0[a], d), i0);
     s0 = _mm256_sub_epi32(s0, _mm256_andnot_si256(_mm256_cmpgt_epi32(R, s0), R)); /* s0 >= R: wrap */
     __m256i s1 = _mm256_add_epi32(s0, one);
     s1 = _mm256_andnot_si256(_mm256_cmpeq_epi32(s1, R), s1);
     __m256i stride = _mm256_set1_epi32(a == 0 ? 1 : (a == 1 ? b->R : b->R * b->R));
-    _mm256_storeu_si256((__m256i *)out->off[a][0], _mm256_mullo_epi32(s0, stride));
-    _mm256_storeu_si256((__m256i *)out->off[a][1], _mm256_mullo_epi32(s1, stride));
+    off[a][0] = _mm256_mullo_epi32(s0, stride);
+    off[a][1] = _mm256_mullo_epi32(s1, stride);
   }
   _mm256_storeu_ps(out->run, run);
+  __m256 g[3][2];
+  for (int a = 0; a < 3; a++) g[a][0] = _mm256_sub_ps(V1(1.f), f[a]), g[a][1] = f[a];
+  for (int i = 0; i < 8; i++) {
+    int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
+    /* The scalar march's order: (x y) z. */
+    _mm256_storeu_ps(out->wt[i], _mm256_mul_ps(_mm256_mul_ps(g[0][dx], g[1][dy]), g[2][dz]));
+    __m256i o = _mm256_add_epi32(_mm256_add_epi32(off[2][dz], off[1][dy]), off[0][dx]);
+    _mm256_storeu_si256((__m256i *)out->corner[i], o);
+  }
 }
 
 /* One lane's texel reads: sample_level_ax's second half. */
 static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float *P, float *wal, float *tau,
                       float *clear) {
   const gi_level *L = &b->c->lv[d];
-  uint32_t ox0 = cl->off[0][0][l], oy0 = cl->off[1][0][l], oz0 = cl->off[2][0][l];
-  if (!L->busy[ox0 + oy0 + oz0]) {
+  if (!L->busy[cl->corner[0][l]]) {
     P[0] = P[1] = P[2] = *wal = *tau = 0;
     *clear = cl->run[l];
     return;
   }
   *clear = 0;
-  uint32_t ox[2] = {ox0, cl->off[0][1][l]}, oy[2] = {oy0, cl->off[1][1][l]}, oz[2] = {oz0, cl->off[2][1][l]};
-  float f[3] = {cl->f[0][l], cl->f[1][l], cl->f[2][l]};
-  const gi_vrad *r[8];
-  float wt[8];
+  /* gi__sum_texels with the weights and corners read from the lane's column. */
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
   for (int i = 0; i < 8; i++) {
-    int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
-    r[i] = &L->rad[oz[dz] + oy[dy] + ox[dx]];
-    wt[i] = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+    __m256 wi = _mm256_broadcast_ss(&cl->wt[i][l]);
+    const __m128i *h = (const __m128i *)L->rad[cl->corner[i][l]].h;
+    a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
+    a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
+    a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
   }
   gi_lanes s;
-  gi__sum_texels(r, wt, &s);
+  _mm256_storeu_ps(s.v, a0);
+  _mm256_storeu_ps(s.v + 8, a1);
+  _mm256_storeu_ps(s.v + 16, a2);
   const float *k = ax ? b->kax[l] : b->k[l], *kt = ax ? b->ktax[l] : b->kt[l];
   const int *fb = b->fb[l];
   float p0 = 0, p1 = 0, p2 = 0, wa = 0, ta = 0;
@@ -169,24 +183,45 @@ static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, const _
   out->clear = _mm256_loadu_ps(clear);
 }
 
+/* gi__level_spans for the eight lanes (the apex is shared). */
+static void spans8(batch *b, const struct gi_cascade *c, const float o[3], const __m256 w[3]) {
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    float bd = (float)L->s;
+    __m256 tin = V1(-INFINITY), tout = V1(INFINITY);
+    for (int a = 0; a < 3; a++) {
+      float lo = L->lo[a] + bd, hi = L->hi[a] - bd;
+      __m256 inv = _mm256_div_ps(V1(1.f), w[a]);
+      __m256 t0 = _mm256_mul_ps(V1(lo - o[a]), inv), t1 = _mm256_mul_ps(V1(hi - o[a]), inv);
+      __m256 zero = CMP(w[a], _mm256_setzero_ps(), _CMP_EQ_OQ);
+      tin = _mm256_blendv_ps(_mm256_max_ps(tin, _mm256_min_ps(t0, t1)), tin, zero);
+      tout = _mm256_blendv_ps(_mm256_min_ps(tout, _mm256_max_ps(t0, t1)), tout, zero);
+      /* Parallel to this axis: the whole ray is in or out of the slab. */
+      if (!(o[a] >= lo && o[a] <= hi)) {
+        tin = _mm256_blendv_ps(tin, V1(INFINITY), zero);
+        tout = _mm256_blendv_ps(tout, V1(-INFINITY), zero);
+      }
+    }
+    _mm256_storeu_ps(b->span_in[d], tin);
+    _mm256_storeu_ps(b->span_out[d], tout);
+  }
+}
+
 /* Each cone's constants: spans, faces and axis weights; the level tables. */
 static void batch_init(batch *b, const struct gi_cascade *c, const float o[3], const float (*w)[3], int count,
-                       const float *n) {
-  memset(b, 0, sizeof *b);
+                       const __m256 wv[3], const float *n) {
   b->c = c;
   b->n = c->n;
   b->R = c->R;
-  for (int d = 0; d < c->n; d++) {
-    const gi_level *L = &c->lv[d];
+  for (int d = 0; d < TAB; d++) {
+    const gi_level *L = &c->lv[d < c->n ? d : 0];
     b->s[d] = (float)L->s;
     b->inv[d] = (float)(1.0 / L->s);
     for (int a = 0; a < 3; a++) b->lo[a][d] = L->lo[a], b->slot0[a][d] = L->slot0[a];
   }
+  spans8(b, c, o, wv);
   for (int l = 0; l < LANES; l++) {
     const float *wl = w[l < count ? l : 0];
-    gi_span sp[GI_MAX_LEVELS];
-    gi__level_spans(c, o, wl, sp);
-    for (int d = 0; d < c->n; d++) b->span_in[d][l] = sp[d].in, b->span_out[d][l] = sp[d].out;
     for (int a = 0; a < 3; a++) {
       float across = n ? 1 - n[a] * n[a] : 1.f;
       b->fb[l][a] = 3 * (2 * a + (wl[a] > 0 ? 1 : 0));
@@ -311,8 +346,6 @@ static void step8(const batch *b, const par8 *q, const __m256 w[3], __m256 nw, s
 
 void gi__cone_march8_v3(const struct gi_cascade *c, const float o[3], const float (*w)[3], int count, float tan_half,
                         float t0, float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
-  batch b;
-  batch_init(&b, c, o, w, count, h0 >= 0 ? n : NULL);
   float s0 = (float)c->s0;
   par8 q = {{o[0], o[1], o[2]}, tan_half, step, ao_lambda, h0, s0, 1.f / s0, 1.f / (GI_SURFACE_LOD_K * s0)};
   float wv[3][LANES], nwv[LANES], live[LANES];
@@ -323,6 +356,8 @@ void gi__cone_march8_v3(const struct gi_cascade *c, const float o[3], const floa
     live[l] = l < count ? 1.f : 0.f;
   }
   __m256 wvec[3] = {_mm256_loadu_ps(wv[0]), _mm256_loadu_ps(wv[1]), _mm256_loadu_ps(wv[2])};
+  batch b;
+  batch_init(&b, c, o, w, count, wvec, h0 >= 0 ? n : NULL);
   __m256 nw = _mm256_loadu_ps(nwv);
   state8 st = {.t = V1(t0), .act = CMP(_mm256_loadu_ps(live), V1(0.5f), _CMP_GT_OQ)};
   for (int guard = 0; guard < GI_CONE_MAX_STEPS && _mm256_movemask_ps(st.act); guard++) step8(&b, &q, wvec, nw, &st);
