@@ -29,17 +29,30 @@ uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, floa
   uint64_t samples = 0;
   memset(E, 0, sizeof(float[2][3]));
   if (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0) return 0;
+  /* Both sides' cones in one batch: the SIMD march keeps its lanes full
+   * across the two hemispheres. */
+  int nc = c->num_cones;
+  gi_cone_job jobs[2 * GI_MAX_CONES];
+  gi_cone_out co[2 * GI_MAX_CONES];
+  gi_gather_start st;
   for (int sd = 0; sd < 2; sd++) {
     float n[3];
     float sg = sd ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
-    /* A voxel is a surface at its own level's resolution. */
-    gi_gather_out go;
-    if (gi__gather_hemisphere(c, g->centroid, n, GI_GATHER_SURFACE, d, &go, NULL, NULL))
-      *cones += (uint64_t)c->num_cones;
-    samples += go.samples;
-    memcpy(E[sd], go.E, sizeof go.E);
+    /* A voxel is a surface at its own level's resolution (level d is
+     * given, so the start always exists). */
+    gi__gather_start(c, g->centroid, n, GI_GATHER_SURFACE, d, &st);
+    gi__hemisphere_jobs(c, &st, n, jobs + sd * nc);
   }
+  gi__cone_march_jobs(c, jobs, 2 * nc, c->cone_tan, st.step, st.ao_lambda, co);
+  for (int sd = 0; sd < 2; sd++)
+    for (int ci = 0; ci < nc; ci++) {
+      const gi_cone_out *o = &co[sd * nc + ci];
+      float cw = c->cone_weight[ci];
+      for (int k = 0; k < 3; k++) E[sd][k] += cw * o->L[k];
+      samples += o->samples;
+    }
+  *cones += 2 * (uint64_t)nc;
   return samples;
 }
 

@@ -41,8 +41,8 @@ int gi__sample_level_base(const struct gi_cascade *c, int d, const float p[3], c
                           float *wsum_alpha, float *sigma);
 #ifdef GI_HAVE_V3_BUILD
 void gi__cone_march_v3(GI_MARCH_ARGS);
-void gi__cone_march8_v3(const struct gi_cascade *c, const float o[3], const float (*w)[3], int count, float tan_half,
-                        float t0, float step, float ao_lambda, float h0, const float *n, gi_cone_out *out);
+void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                            float step, float ao_lambda, gi_cone_out *out);
 int gi__sample_level_v3(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
                         float *wsum_alpha, float *sigma);
 #endif
@@ -66,19 +66,16 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
   return gi__sample_level_base(c, d, p, w, prem, wsum_alpha, sigma);
 }
 
-/* Cones that share apex and start: eight at a time in AVX2 lanes on the
- * x86-64-v3 path (march_simd.c), one by one on the baseline. */
-void gi__cone_march_many(const struct gi_cascade *c, const gi_gather_start *g, const float (*w)[3], int count,
-                         float tan_half, gi_cone_out *out) {
-  const float *n = g->h0 >= 0 ? g->n : NULL;
+void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                         float step, float ao_lambda, gi_cone_out *out) {
 #ifdef GI_HAVE_V3_BUILD
   if (gi__cpu_v3()) {
-    for (int i = 0; i < count; i += GI_MARCH_LANES)
-      gi__cone_march8_v3(c, g->o, w + i, count - i < GI_MARCH_LANES ? count - i : GI_MARCH_LANES, tan_half, g->t0,
-                         g->step, g->ao_lambda, g->h0, n, out + i);
+    gi__cone_march_jobs_v3(c, jobs, count, tan_half, step, ao_lambda, out);
     return;
   }
 #endif
-  for (int i = 0; i < count; i++)
-    gi__cone_march_base(c, g->o, w[i], tan_half, g->t0, g->step, g->ao_lambda, g->h0, n, &out[i]);
+  for (int i = 0; i < count; i++) {
+    const gi_cone_job *j = &jobs[i];
+    gi__cone_march_base(c, j->o, j->w, tan_half, j->t0, step, ao_lambda, j->h0, j->h0 >= 0 ? j->n : NULL, &out[i]);
+  }
 }

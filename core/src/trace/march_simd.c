@@ -1,7 +1,10 @@
 /* march_simd.c: the cone march eight cones at a time (x86-64-v3 build only).
  *
- * The cones of one gather share their apex, first distance, step rule and
- * surface; only their directions differ. Each AVX2 lane carries one cone
+ * A batch of cones (one or more gathers: apex, surface and direction per
+ * cone, the step rule shared) runs through eight AVX2 lanes; a lane whose
+ * cone stops takes the batch's next cone, so the lanes stay busy until
+ * the batch runs out (cones of one hemisphere differ in length by 2-3x;
+ * without the refill a third of the lane-steps idled). Each lane carries one cone
  * through the same steps as the scalar march (march_kernel.c, whose
  * comments say why each rule is what it is): the cone's width, its level
  * and blend, the level spans, the sample's trilinear cell, the empty-block
@@ -31,6 +34,11 @@ typedef struct {
   int fb[LANES][3];
   float k[LANES][3], kt[LANES][3], kax[LANES][3], ktax[LANES][3];
   float span_in[GI_MAX_LEVELS][LANES], span_out[GI_MAX_LEVELS][LANES];
+  /* Per lane: the cone's start (apex, direction, cosine to the surface
+   * normal, apex height: < 0 in free space) and its march so far. */
+  float o[3][LANES], w[3][LANES], nw[LANES], h0[LANES];
+  float t[LANES], a[LANES], occ[LANES], L[3][LANES], live[LANES];
+  int32_t samples[LANES], steps[LANES], job[LANES];
 } batch;
 
 /* One sample per lane: what sample_level_ax returns. */
@@ -183,80 +191,31 @@ static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, const _
   out->clear = _mm256_loadu_ps(clear);
 }
 
-/* gi__level_spans for the eight lanes (the apex is shared). */
-static void spans8(batch *b, const struct gi_cascade *c, const float o[3], const __m256 w[3]) {
-  for (int d = 0; d < c->n; d++) {
-    const gi_level *L = &c->lv[d];
-    float bd = (float)L->s;
-    __m256 tin = V1(-INFINITY), tout = V1(INFINITY);
-    for (int a = 0; a < 3; a++) {
-      float lo = L->lo[a] + bd, hi = L->hi[a] - bd;
-      __m256 inv = _mm256_div_ps(V1(1.f), w[a]);
-      __m256 t0 = _mm256_mul_ps(V1(lo - o[a]), inv), t1 = _mm256_mul_ps(V1(hi - o[a]), inv);
-      __m256 zero = CMP(w[a], _mm256_setzero_ps(), _CMP_EQ_OQ);
-      tin = _mm256_blendv_ps(_mm256_max_ps(tin, _mm256_min_ps(t0, t1)), tin, zero);
-      tout = _mm256_blendv_ps(_mm256_min_ps(tout, _mm256_max_ps(t0, t1)), tout, zero);
-      /* Parallel to this axis: the whole ray is in or out of the slab. */
-      if (!(o[a] >= lo && o[a] <= hi)) {
-        tin = _mm256_blendv_ps(tin, V1(INFINITY), zero);
-        tout = _mm256_blendv_ps(tout, V1(-INFINITY), zero);
-      }
-    }
-    _mm256_storeu_ps(b->span_in[d], tin);
-    _mm256_storeu_ps(b->span_out[d], tout);
-  }
-}
-
-/* Each cone's constants: spans, faces and axis weights; the level tables. */
-static void batch_init(batch *b, const struct gi_cascade *c, const float o[3], const float (*w)[3], int count,
-                       const __m256 wv[3], const float *n) {
-  b->c = c;
-  b->n = c->n;
-  b->R = c->R;
-  for (int d = 0; d < TAB; d++) {
-    const gi_level *L = &c->lv[d < c->n ? d : 0];
-    b->s[d] = (float)L->s;
-    b->inv[d] = (float)(1.0 / L->s);
-    for (int a = 0; a < 3; a++) b->lo[a][d] = L->lo[a], b->slot0[a][d] = L->slot0[a];
-  }
-  spans8(b, c, o, wv);
-  for (int l = 0; l < LANES; l++) {
-    const float *wl = w[l < count ? l : 0];
-    for (int a = 0; a < 3; a++) {
-      float across = n ? 1 - n[a] * n[a] : 1.f;
-      b->fb[l][a] = 3 * (2 * a + (wl[a] > 0 ? 1 : 0));
-      b->k[l][a] = wl[a] * wl[a];
-      b->kt[l][a] = fabsf(wl[a]);
-      b->kax[l][a] = wl[a] * wl[a] * across;
-      b->ktax[l][a] = fabsf(wl[a]) * across;
-    }
-  }
-}
-
-/* The march's constants shared by the eight cones. */
+/* The step rule all cones share, and the cascade's finest voxel. */
 typedef struct {
-  float o[3], tan_half, step, ao_lambda, h0, s0, inv_s0, inv_ks0;
+  float tan_half, step, ao_lambda, s0, inv_s0, inv_ks0;
 } par8;
 
+/* The lanes' march in registers; batch holds the same in columns while
+ * lanes are refilled. */
 typedef struct {
   __m256 t, a, occ, L[3], act;
-  __m256i samples;
+  __m256i samples, steps;
+  __m256 o[3], w[3], nw, h0;
 } state8;
 
 /* The level each lane samples, as the scalar march picks it: the cone's
  * width (or the surface rule's height) gives d0 and the blend; the first
  * level from d0 on whose span holds t is read. *next: lanes whose level
  * d+1 also holds t. Returns n where no level does. */
-static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m256 nw, __m256 D, __m256 *near,
-                          __m256 *frac, __m256 *next, __m256i *d0out) {
+static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m256 D, __m256 *near, __m256 *frac,
+                          __m256 *next, __m256i *d0out) {
   __m256 x = _mm256_mul_ps(D, V1(q->inv_s0));
-  *near = _mm256_setzero_ps();
-  if (q->h0 >= 0) {
-    __m256 h = _mm256_fmadd_ps(st->t, nw, V1(q->h0));
-    __m256 xh = _mm256_mul_ps(_mm256_max_ps(h, V1(GI_MIN_HEIGHT)), V1(q->inv_ks0));
-    *near = CMP(xh, x, _CMP_LT_OQ);
-    x = _mm256_max_ps(_mm256_min_ps(x, xh), V1(1.f));
-  }
+  __m256 surf = CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ);
+  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 xh = _mm256_mul_ps(_mm256_max_ps(h, V1(GI_MIN_HEIGHT)), V1(q->inv_ks0));
+  *near = _mm256_and_ps(surf, CMP(xh, x, _CMP_LT_OQ));
+  x = _mm256_blendv_ps(x, _mm256_max_ps(_mm256_min_ps(x, xh), V1(1.f)), surf);
   /* Level from the exponent, blend from the mantissa (see march_kernel.c). */
   __m256i xb = _mm256_castps_si256(x);
   __m256i d0 = _mm256_sub_epi32(_mm256_srli_epi32(xb, 23), _mm256_set1_epi32(127));
@@ -307,33 +266,32 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
 }
 
 /* One step of every live lane. */
-static void step8(const batch *b, const par8 *q, const __m256 w[3], __m256 nw, state8 *st) {
+static void step8(const batch *b, const par8 *q, state8 *st) {
   __m256 D = _mm256_max_ps(_mm256_mul_ps(_mm256_mul_ps(V1(2.f), st->t), V1(q->tan_half)), V1(q->s0));
   __m256 near, frac, next;
   __m256i d0;
-  __m256i d = pick_level(b, q, st, nw, D, &near, &frac, &next, &d0);
+  __m256i d = pick_level(b, q, st, D, &near, &frac, &next, &d0);
   __m256 act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(b->n), d)));
   st->act = act;
   if (!_mm256_movemask_ps(act)) return;
+  st->steps = _mm256_sub_epi32(st->steps, _mm256_castps_si256(act));
   __m256 p[3];
-  for (int a = 0; a < 3; a++) p[a] = _mm256_fmadd_ps(st->t, w[a], V1(q->o[a]));
+  for (int a = 0; a < 3; a++) p[a] = _mm256_fmadd_ps(st->t, st->w[a], st->o[a]);
   __m256 sd = tab16(b->s, d);
   /* Pushed to a coarser level near the surface it started from: read
    * the axes across the normal only (see march_kernel.c). */
-  __m256 ax = _mm256_setzero_ps();
-  if (q->h0 >= 0) {
-    __m256 h = _mm256_fmadd_ps(st->t, nw, V1(q->h0));
-    ax = _mm256_and_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0)),
-                       CMP(h, _mm256_mul_ps(V1(GI_TRILINEAR_REACH), sd), _CMP_LT_OQ));
-  }
+  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 ax = _mm256_and_ps(_mm256_and_ps(CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ),
+                                          _mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0))),
+                            CMP(h, _mm256_mul_ps(V1(GI_TRILINEAR_REACH), sd), _CMP_LT_OQ));
   sample8 s;
-  sample8_at(b, d, act, ax, p, w, &s);
+  sample8_at(b, d, act, ax, p, st->w, &s);
   st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(act));
   __m256 two = _mm256_and_ps(act, _mm256_and_ps(next, CMP(frac, _mm256_setzero_ps(), _CMP_GT_OQ)));
   __m256 clear2 = V1(INFINITY);
   if (_mm256_movemask_ps(two)) {
     sample8 s2;
-    sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), p, w, &s2);
+    sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), p, st->w, &s2);
     st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(two));
     for (int ch = 0; ch < 3; ch++)
       s.P[ch] = _mm256_blendv_ps(s.P[ch], _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.P[ch], s.P[ch]), s.P[ch]), two);
@@ -342,36 +300,160 @@ static void step8(const batch *b, const par8 *q, const __m256 w[3], __m256 nw, s
     clear2 = _mm256_blendv_ps(clear2, s2.clear, two);
   }
   composite(q, st, act, near, sd, D, &s, clear2);
+  /* Every cone stops after GI_CONE_MAX_STEPS steps, as the scalar one. */
+  st->act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(GI_CONE_MAX_STEPS),
+                                                                          st->steps)));
 }
 
-void gi__cone_march8_v3(const struct gi_cascade *c, const float o[3], const float (*w)[3], int count, float tan_half,
-                        float t0, float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
-  float s0 = (float)c->s0;
-  par8 q = {{o[0], o[1], o[2]}, tan_half, step, ao_lambda, h0, s0, 1.f / s0, 1.f / (GI_SURFACE_LOD_K * s0)};
-  float wv[3][LANES], nwv[LANES], live[LANES];
-  for (int l = 0; l < LANES; l++) {
-    const float *wl = w[l < count ? l : 0];
-    for (int a = 0; a < 3; a++) wv[a][l] = wl[a];
-    nwv[l] = n && h0 >= 0 ? gi__dot(n, wl) : 0.f;
-    live[l] = l < count ? 1.f : 0.f;
+/* Level spans (gi__level_spans) of up to eight jobs at once, one job
+ * per lane: in[d][lane], out[d][lane]. */
+static void spans8(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float in[][LANES],
+                   float out[][LANES]) {
+  float o[3][LANES], w[3][LANES];
+  for (int l = 0; l < LANES; l++)
+    for (int a = 0; a < 3; a++) {
+      const gi_cone_job *j = &jobs[l < count ? l : 0];
+      o[a][l] = j->o[a], w[a][l] = j->w[a];
+    }
+  __m256 ov[3], inv[3], zero[3];
+  for (int a = 0; a < 3; a++) {
+    ov[a] = _mm256_loadu_ps(o[a]);
+    __m256 wa = _mm256_loadu_ps(w[a]);
+    inv[a] = _mm256_div_ps(V1(1.f), wa);
+    zero[a] = CMP(wa, _mm256_setzero_ps(), _CMP_EQ_OQ);
   }
-  __m256 wvec[3] = {_mm256_loadu_ps(wv[0]), _mm256_loadu_ps(wv[1]), _mm256_loadu_ps(wv[2])};
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    float bd = (float)L->s;
+    __m256 tin = V1(-INFINITY), tout = V1(INFINITY);
+    for (int a = 0; a < 3; a++) {
+      __m256 lo = V1(L->lo[a] + bd), hi = V1(L->hi[a] - bd);
+      __m256 t0 = _mm256_mul_ps(_mm256_sub_ps(lo, ov[a]), inv[a]), t1 = _mm256_mul_ps(_mm256_sub_ps(hi, ov[a]), inv[a]);
+      tin = _mm256_blendv_ps(_mm256_max_ps(tin, _mm256_min_ps(t0, t1)), tin, zero[a]);
+      tout = _mm256_blendv_ps(_mm256_min_ps(tout, _mm256_max_ps(t0, t1)), tout, zero[a]);
+      /* Parallel to this axis: the whole ray is in or out of the slab. */
+      __m256 inside = _mm256_and_ps(CMP(ov[a], lo, _CMP_GE_OQ), CMP(ov[a], hi, _CMP_LE_OQ));
+      __m256 miss = _mm256_andnot_ps(inside, zero[a]);
+      tin = _mm256_blendv_ps(tin, V1(INFINITY), miss);
+      tout = _mm256_blendv_ps(tout, V1(-INFINITY), miss);
+    }
+    _mm256_storeu_ps(in[d], tin);
+    _mm256_storeu_ps(out[d], tout);
+  }
+}
+
+/* Puts job j (number `index`) into lane l: its start, its constants, its
+ * spans (from spans8's group), a fresh march. */
+static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const float (*gin)[LANES],
+                      const float (*gout)[LANES]) {
+  const float *w = j->w;
+  int surf = j->h0 >= 0, gl = index & (LANES - 1);
+  for (int a = 0; a < 3; a++) {
+    float across = surf ? 1 - j->n[a] * j->n[a] : 1.f;
+    b->o[a][l] = j->o[a];
+    b->w[a][l] = w[a];
+    b->fb[l][a] = 3 * (2 * a + (w[a] > 0 ? 1 : 0));
+    b->k[l][a] = w[a] * w[a];
+    b->kt[l][a] = fabsf(w[a]);
+    b->kax[l][a] = w[a] * w[a] * across;
+    b->ktax[l][a] = fabsf(w[a]) * across;
+    b->L[a][l] = 0;
+  }
+  b->nw[l] = surf ? gi__dot(j->n, w) : 0.f;
+  b->h0[l] = j->h0;
+  for (int d = 0; d < b->n; d++) b->span_in[d][l] = gin[d][gl], b->span_out[d][l] = gout[d][gl];
+  b->t[l] = j->t0;
+  b->a[l] = b->occ[l] = 0;
+  b->samples[l] = b->steps[l] = 0;
+  b->job[l] = index;
+  b->live[l] = 1.f;
+}
+
+#define LOADV(dst, src) dst = _mm256_loadu_ps(src)
+#define STOREV(dst, src) _mm256_storeu_ps(dst, src)
+
+static void lanes_to_regs(const batch *b, state8 *st) {
+  for (int a = 0; a < 3; a++) LOADV(st->o[a], b->o[a]), LOADV(st->w[a], b->w[a]), LOADV(st->L[a], b->L[a]);
+  LOADV(st->nw, b->nw), LOADV(st->h0, b->h0), LOADV(st->t, b->t), LOADV(st->a, b->a), LOADV(st->occ, b->occ);
+  st->samples = _mm256_loadu_si256((const __m256i *)b->samples);
+  st->steps = _mm256_loadu_si256((const __m256i *)b->steps);
+  st->act = CMP(_mm256_loadu_ps(b->live), V1(0.5f), _CMP_GT_OQ);
+}
+
+static void regs_to_lanes(const state8 *st, batch *b) {
+  for (int a = 0; a < 3; a++) STOREV(b->L[a], st->L[a]);
+  STOREV(b->t, st->t), STOREV(b->a, st->a), STOREV(b->occ, st->occ);
+  _mm256_storeu_si256((__m256i *)b->samples, st->samples);
+  _mm256_storeu_si256((__m256i *)b->steps, st->steps);
+}
+
+/* Writes lane l's finished cone to its job's slot. */
+static void lane_finish(const batch *b, int l, gi_cone_out *out) {
+  gi_cone_out *o = &out[b->job[l]];
+  float a = b->a[l];
+  /* A cone stopped by opacity: renormalised by a (march_kernel.c). */
+  for (int ch = 0; ch < 3; ch++) o->L[ch] = a >= GI_OPAQUE_ALPHA ? b->L[ch][l] / a : b->L[ch][l];
+  o->alpha = a;
+  o->occlusion = b->occ[l];
+  o->samples = (uint32_t)b->samples[l];
+}
+
+/* The batch's level tables. */
+static void batch_init(batch *b, const struct gi_cascade *c) {
+  b->c = c;
+  b->n = c->n;
+  b->R = c->R;
+  for (int d = 0; d < TAB; d++) {
+    const gi_level *L = &c->lv[d < c->n ? d : 0];
+    b->s[d] = (float)L->s;
+    b->inv[d] = (float)(1.0 / L->s);
+    for (int a = 0; a < 3; a++) b->lo[a][d] = L->lo[a], b->slot0[a][d] = L->slot0[a];
+  }
+}
+
+/* At most this many jobs per batch (their spans are computed up front). */
+#define MAX_JOBS 128
+
+static void march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, const par8 *q,
+                       gi_cone_out *out) {
   batch b;
-  batch_init(&b, c, o, w, count, wvec, h0 >= 0 ? n : NULL);
-  __m256 nw = _mm256_loadu_ps(nwv);
-  state8 st = {.t = V1(t0), .act = CMP(_mm256_loadu_ps(live), V1(0.5f), _CMP_GT_OQ)};
-  for (int guard = 0; guard < GI_CONE_MAX_STEPS && _mm256_movemask_ps(st.act); guard++) step8(&b, &q, wvec, nw, &st);
-  float L[3][LANES], a[LANES], occ[LANES];
-  int32_t ns[LANES];
-  for (int ch = 0; ch < 3; ch++) _mm256_storeu_ps(L[ch], st.L[ch]);
-  _mm256_storeu_ps(a, st.a);
-  _mm256_storeu_ps(occ, st.occ);
-  _mm256_storeu_si256((__m256i *)ns, st.samples);
-  for (int l = 0; l < count; l++) {
-    /* A cone stopped by opacity: renormalised by a (march_kernel.c). */
-    for (int ch = 0; ch < 3; ch++) out[l].L[ch] = a[l] >= GI_OPAQUE_ALPHA ? L[ch][l] / a[l] : L[ch][l];
-    out[l].alpha = a[l];
-    out[l].occlusion = occ[l];
-    out[l].samples = (uint32_t)ns[l];
+  batch_init(&b, c);
+  float gin[MAX_JOBS / LANES][GI_MAX_LEVELS][LANES], gout[MAX_JOBS / LANES][GI_MAX_LEVELS][LANES]; /* 12 KB */
+  for (int i = 0; i < count; i += LANES) spans8(c, jobs + i, count - i, gin[i / LANES], gout[i / LANES]);
+  /* Idle lanes hold a copy of job 0 that nobody reads. */
+  int next = 0;
+  for (int l = 0; l < LANES; l++) {
+    int j = next < count ? next : 0;
+    lane_load(&b, l, &jobs[j], j, gin[j / LANES], gout[j / LANES]);
+    if (next < count) next++;
+    else b.live[l] = 0;
   }
+  state8 st;
+  lanes_to_regs(&b, &st);
+  int busy = _mm256_movemask_ps(st.act);
+  while (busy) {
+    step8(&b, q, &st);
+    int done = busy & ~_mm256_movemask_ps(st.act);
+    if (!done) continue;
+    regs_to_lanes(&st, &b);
+    for (; done; done &= done - 1) {
+      int l = __builtin_ctz((unsigned)done);
+      lane_finish(&b, l, out);
+      if (next < count) {
+        lane_load(&b, l, &jobs[next], next, gin[next / LANES], gout[next / LANES]);
+        next++;
+      } else {
+        b.live[l] = 0, busy &= ~(1 << l);
+      }
+    }
+    lanes_to_regs(&b, &st);
+  }
+}
+
+void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                            float step, float ao_lambda, gi_cone_out *out) {
+  float s0 = (float)c->s0;
+  par8 q = {tan_half, step, ao_lambda, s0, 1.f / s0, 1.f / (GI_SURFACE_LOD_K * s0)};
+  for (int i = 0; i < count; i += MAX_JOBS)
+    march_jobs(c, jobs + i, count - i < MAX_JOBS ? count - i : MAX_JOBS, &q, out + i);
 }
