@@ -69,7 +69,8 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out) {
 #ifdef GI_HAVE_V3_BUILD
-  if (gi__cpu_v3()) {
+  /* The lanes address texels by 32-bit byte offsets: R^3 x 48 bytes. */
+  if (gi__cpu_v3() && c->R <= GI_MARCH_LANES_MAX_RES) {
     gi__cone_march_jobs_v3(c, jobs, count, tan_half, step, ao_lambda, out);
     return;
   }

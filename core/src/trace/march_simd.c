@@ -28,6 +28,8 @@ typedef struct {
   int n, R;
   float s[TAB], inv[TAB], lo[3][TAB];
   int32_t slot0[3][TAB];
+  const char *rad[TAB];
+  const uint8_t *busy[TAB];
   /* Per lane: the first radiance lane of the face each axis reads, the
    * axis weights w_a^2 (radiance, opacity) and |w_a| (optical depth), and
    * the same across the surface's normal only (x (1 - n_a^2)). */
@@ -76,13 +78,14 @@ static inline __m256 exp_neg8(__m256 x) {
 }
 
 /* The trilinear cell of p on each lane's level d: the eight corner
- * texels' indices into the level and their weights (corner i = dx + 2 dy
+ * texels' byte offsets into the level and their weights (corner i = dx + 2 dy
  * + 4 dz), and how far along w the sample stays in its 2x2x2 block (run;
  * 0 where the cell was clamped to the window). Corner 0's slot is also
  * the block's, which the busy mask is indexed by. */
 typedef struct {
   float wt[8][LANES], run[LANES];
-  uint32_t corner[8][LANES];
+  uint32_t corner[8][LANES]; /* bytes: R^3 x 48 < 2^32 for R <= 256 */
+  uint32_t block[LANES];      /* corner 0's slot */
 } cell8;
 
 static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], cell8 *out) {
@@ -120,20 +123,21 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
   _mm256_storeu_ps(out->run, run);
   __m256 g[3][2];
   for (int a = 0; a < 3; a++) g[a][0] = _mm256_sub_ps(V1(1.f), f[a]), g[a][1] = f[a];
+  __m256i texel = _mm256_set1_epi32((int)sizeof(gi_vrad));
   for (int i = 0; i < 8; i++) {
     int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
     /* The scalar march's order: (x y) z. */
     _mm256_storeu_ps(out->wt[i], _mm256_mul_ps(_mm256_mul_ps(g[0][dx], g[1][dy]), g[2][dz]));
     __m256i o = _mm256_add_epi32(_mm256_add_epi32(off[2][dz], off[1][dy]), off[0][dx]);
-    _mm256_storeu_si256((__m256i *)out->corner[i], o);
+    if (i == 0) _mm256_storeu_si256((__m256i *)out->block, o);
+    _mm256_storeu_si256((__m256i *)out->corner[i], _mm256_mullo_epi32(o, texel));
   }
 }
 
 /* One lane's texel reads: sample_level_ax's second half. */
 static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float *P, float *wal, float *tau,
                       float *clear) {
-  const gi_level *L = &b->c->lv[d];
-  if (!L->busy[cl->corner[0][l]]) {
+  if (!b->busy[d][cl->block[l]]) {
     P[0] = P[1] = P[2] = *wal = *tau = 0;
     *clear = cl->run[l];
     return;
@@ -143,7 +147,7 @@ static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, flo
   __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
   for (int i = 0; i < 8; i++) {
     __m256 wi = _mm256_broadcast_ss(&cl->wt[i][l]);
-    const __m128i *h = (const __m128i *)L->rad[cl->corner[i][l]].h;
+    const __m128i *h = (const __m128i *)(b->rad[d] + cl->corner[i][l]);
     a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
     a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
     a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
@@ -408,6 +412,8 @@ static void batch_init(batch *b, const struct gi_cascade *c) {
     b->s[d] = (float)L->s;
     b->inv[d] = (float)(1.0 / L->s);
     for (int a = 0; a < 3; a++) b->lo[a][d] = L->lo[a], b->slot0[a][d] = L->slot0[a];
+    b->rad[d] = (const char *)L->rad;
+    b->busy[d] = L->busy;
   }
 }
 

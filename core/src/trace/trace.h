@@ -69,6 +69,7 @@ typedef struct gi_cone_job {
  * x86-64-v3 path eight at a time in AVX2 lanes (march_simd.c), so the
  * more cones one call gets (a voxel's two sides, several gathers), the
  * fuller the lanes stay. */
+#define GI_MARCH_LANES_MAX_RES 256
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out);
 /* The cascade's diffuse cone set on the hemisphere around unit n, started
