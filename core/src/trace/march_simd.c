@@ -134,15 +134,17 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
   }
 }
 
+/* What one lane's sample leaves in its row: P (3 channels), opacity
+ * weight, optical depth, empty run; transposed into sample8 after. */
+enum { ROW_P = 0, ROW_WAL = 3, ROW_TAU = 4, ROW_CLEAR = 5 };
+
 /* One lane's texel reads: sample_level_ax's second half. */
-static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float *P, float *wal, float *tau,
-                      float *clear) {
+static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float row[LANES]) {
   if (!b->busy[d][cl->block[l]]) {
-    P[0] = P[1] = P[2] = *wal = *tau = 0;
-    *clear = cl->run[l];
+    _mm256_storeu_ps(row, _mm256_setzero_ps());
+    row[ROW_CLEAR] = cl->run[l];
     return;
   }
-  *clear = 0;
   /* gi__sum_texels with the weights and corners read from the lane's column. */
   __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
   for (int i = 0; i < 8; i++) {
@@ -158,17 +160,39 @@ static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, flo
   _mm256_storeu_ps(s.v + 16, a2);
   const float *k = ax ? b->kax[l] : b->k[l], *kt = ax ? b->ktax[l] : b->kt[l];
   const int *fb = b->fb[l];
-  float p0 = 0, p1 = 0, p2 = 0, wa = 0, ta = 0;
-  for (int a = 0; a < 3; a++) {
-    p0 += k[a] * s.v[fb[a]];
-    p1 += k[a] * s.v[fb[a] + 1];
-    p2 += k[a] * s.v[fb[a] + 2];
+  /* The three channels of each axis's face at once (the fourth is dropped). */
+  __m128 P = _mm_mul_ps(_mm_broadcast_ss(&k[0]), _mm_loadu_ps(s.v + fb[0]));
+  P = _mm_fmadd_ps(_mm_broadcast_ss(&k[1]), _mm_loadu_ps(s.v + fb[1]), P);
+  P = _mm_fmadd_ps(_mm_broadcast_ss(&k[2]), _mm_loadu_ps(s.v + fb[2]), P);
+  _mm_storeu_ps(row + ROW_P, P);
+  float wa = k[0] * s.v[GI_VRAD_ALPHA], ta = kt[0] * s.v[GI_VRAD_TAU];
+  for (int a = 1; a < 3; a++) {
     wa += k[a] * s.v[GI_VRAD_ALPHA + a];
     ta += kt[a] * s.v[GI_VRAD_TAU + a];
   }
-  P[0] = p0, P[1] = p1, P[2] = p2;
-  *wal = wa;
-  *tau = ta;
+  row[ROW_WAL] = wa;
+  row[ROW_TAU] = ta;
+  row[ROW_CLEAR] = 0;
+}
+
+/* rows[l][j] -> col[j] lane l: the 8x8 transpose. */
+static inline void transpose8(const float rows[LANES][LANES], __m256 col[LANES]) {
+  __m256 r[8], t[8];
+  for (int i = 0; i < 8; i++) r[i] = _mm256_loadu_ps(rows[i]);
+  for (int i = 0; i < 8; i += 2) {
+    t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
+    t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
+  }
+  for (int i = 0; i < 8; i += 4) {
+    r[i] = _mm256_shuffle_ps(t[i], t[i + 2], 0x44);
+    r[i + 1] = _mm256_shuffle_ps(t[i], t[i + 2], 0xEE);
+    r[i + 2] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0x44);
+    r[i + 3] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0xEE);
+  }
+  for (int i = 0; i < 4; i++) {
+    col[i] = _mm256_permute2f128_ps(r[i], r[i + 4], 0x20);
+    col[i + 4] = _mm256_permute2f128_ps(r[i], r[i + 4], 0x31);
+  }
 }
 
 /* Samples level d (per lane) at p for the lanes in `act`; lanes in `ax`
@@ -179,20 +203,18 @@ static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, const _
   locate(b, d, p, w, &cl);
   int32_t dl[LANES];
   _mm256_storeu_si256((__m256i *)dl, d);
-  float P[3][LANES] = {{0}}, wal[LANES] = {0}, tau[LANES] = {0}, clear[LANES] = {0};
+  float rows[LANES][LANES];
   int m = _mm256_movemask_ps(act), mx = _mm256_movemask_ps(ax);
-  while (m) {
-    int l = __builtin_ctz((unsigned)m);
-    m &= m - 1;
-    float pl[3];
-    read_lane(b, l, dl[l], &cl, (mx >> l) & 1, pl, &wal[l], &tau[l], &clear[l]);
-    P[0][l] = pl[0], P[1][l] = pl[1], P[2][l] = pl[2];
-  }
+  for (int l = 0; l < LANES; l++)
+    if (m >> l & 1) read_lane(b, l, dl[l], &cl, (mx >> l) & 1, rows[l]);
+    else _mm256_storeu_ps(rows[l], _mm256_setzero_ps());
+  __m256 col[LANES];
+  transpose8((const float(*)[LANES])rows, col);
   __m256 scale = V1(b->c->rad_scale);
-  for (int ch = 0; ch < 3; ch++) out->P[ch] = _mm256_mul_ps(_mm256_loadu_ps(P[ch]), scale);
-  out->wal = _mm256_loadu_ps(wal);
-  out->sig = _mm256_mul_ps(_mm256_loadu_ps(tau), tab16(b->inv, d));
-  out->clear = _mm256_loadu_ps(clear);
+  for (int ch = 0; ch < 3; ch++) out->P[ch] = _mm256_mul_ps(col[ROW_P + ch], scale);
+  out->wal = col[ROW_WAL];
+  out->sig = _mm256_mul_ps(col[ROW_TAU], tab16(b->inv, d));
+  out->clear = col[ROW_CLEAR];
 }
 
 /* The step rule all cones share, and the cascade's finest voxel. */
