@@ -21,53 +21,93 @@ typedef struct {
   struct gi_cascade *c;
   int d;
   float (*E)[2][3]; /* per occupied voxel */
+  uint64_t *hit;    /* per occupied voxel: the cones that met opacity on the first bounce */
+  int first;
   atomic_ullong samples, cones;
 } bounce_ctx;
 
-uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, float E[2][3], uint64_t *cones) {
+/* Both sides of a voxel, only the cones in `want` (bit sd * num_cones + ci,
+ * cones past bit 63 always run); *hit (may be NULL) receives the cones that met any
+ * opacity. A cone that met none took no light and never will: the texture's
+ * opacity stays as voxelized through every bounce (shading rewrites
+ * radiance only), so the same steps see the same empty space. */
+static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, uint64_t want, float E[2][3],
+                             uint64_t *cones, uint64_t *hit) {
   const gi_vgeo *g = &c->lv[d].geo[slot];
   uint64_t samples = 0;
   memset(E, 0, sizeof(float[2][3]));
+  if (hit) *hit = 0;
   if (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0) return 0;
+  /* Both sides' cones in one batch: the SIMD march keeps its lanes full
+   * across the two hemispheres. */
+  int nc = c->num_cones, nj = 0;
+  gi_cone_job all[GI_MAX_CONES], jobs[2 * GI_MAX_CONES];
+  gi_cone_out co[2 * GI_MAX_CONES];
+  int8_t which[2 * GI_MAX_CONES];
+  gi_gather_start st;
   for (int sd = 0; sd < 2; sd++) {
     float n[3];
     float sg = sd ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
-    /* A voxel is a surface at its own level's resolution. */
-    gi_gather_out go;
-    if (gi__gather_hemisphere(c, g->centroid, n, GI_GATHER_SURFACE, d, &go, NULL, NULL))
-      *cones += (uint64_t)c->num_cones;
-    samples += go.samples;
-    memcpy(E[sd], go.E, sizeof go.E);
+    /* A voxel is a surface at its own level's resolution (level d is
+     * given, so the start always exists). */
+    gi__gather_start(c, g->centroid, n, GI_GATHER_SURFACE, d, &st);
+    gi__hemisphere_jobs(c, &st, n, all);
+    for (int ci = 0; ci < nc; ci++) {
+      int bit = sd * nc + ci; /* past 64 bits (more than 32 cones): always traced */
+      if (bit >= 64 || (want >> bit & 1)) which[nj] = (int8_t)bit, jobs[nj++] = all[ci];
+    }
   }
+  gi__cone_march_jobs(c, jobs, nj, c->cone_tan, st.step, st.ao_lambda, co);
+  /* In the order of the full set, so skipped cones (exact zeros) leave E's bits as they were. */
+  for (int j = 0; j < nj; j++) {
+    int sd = which[j] / nc;
+    float cw = c->cone_weight[which[j] % nc];
+    for (int k = 0; k < 3; k++) E[sd][k] += cw * co[j].L[k];
+    samples += co[j].samples;
+    if (hit && co[j].alpha > 0 && which[j] < 64) *hit |= 1ull << which[j];
+  }
+  *cones += (uint64_t)nj;
   return samples;
+}
+
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, float E[2][3], uint64_t *cones) {
+  return gather_sides(c, d, slot, ~0ull, E, cones, NULL);
 }
 
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
   bounce_ctx *bc = p;
   const gi_level *L = &bc->c->lv[bc->d];
   uint64_t samples = 0, cones = 0;
-  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(bc->c, bc->d, L->occ[q], bc->E[q], &cones);
+  for (size_t q = b; q < e; q++) {
+    uint32_t slot = L->occ[q];
+    if (bc->first)
+      samples += gather_sides(bc->c, bc->d, slot, ~0ull, bc->E[q], &cones, &bc->hit[q]);
+    else
+      samples += gather_sides(bc->c, bc->d, slot, bc->hit[q], bc->E[q], &cones, NULL);
+  }
   atomic_fetch_add(&bc->samples, samples);
   atomic_fetch_add(&bc->cones, cones);
 }
 
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
   float(*E[GI_MAX_LEVELS])[2][3] = {0};
+  uint64_t *hit[GI_MAX_LEVELS] = {0};
   gi_result rc = GI_OK;
   /* Area-weighted sums of the gathered irradiance per bounce (both sides,
    * every level's own voxels), for the tail's ratio. */
   double S[3][3] = {{0}};
   for (int d = 0; d < c->n; d++) {
     E[d] = gi__malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *E[d]);
-    if (!E[d]) {
+    hit[d] = gi__malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *hit[d]);
+    if (!E[d] || !hit[d]) {
       rc = gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory");
       goto done;
     }
   }
   for (int it = 0; it < bounces; it++) {
     for (int d = 0; d < c->n; d++) {
-      bounce_ctx bc = {.c = c, .d = d, .E = E[d]};
+      bounce_ctx bc = {.c = c, .d = d, .E = E[d], .hit = hit[d], .first = it == 0};
       atomic_init(&bc.samples, 0);
       atomic_init(&bc.cones, 0);
       int cancelled = gi__parallel_for_cancel(c->lv[d].num_occ, 16, q->threads, bounce_range, &bc, NULL, c->cancel);
@@ -126,6 +166,6 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     c->report.bounces_run = it + 1;
   }
 done:
-  for (int d = 0; d < c->n; d++) gi__free(E[d]);
+  for (int d = 0; d < c->n; d++) gi__free(E[d]), gi__free(hit[d]);
   return rc;
 }

@@ -38,6 +38,20 @@ void gi__gather_cone(const struct gi_cascade *c, const gi_gather_start *g, const
   gi__cone_march(c, g->o, w, tan_half, g->t0, g->step, g->ao_lambda, g->h0, g->h0 >= 0 ? g->n : NULL, out);
 }
 
+void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, const float n[3], gi_cone_job *jobs) {
+  float t[3], b[3];
+  gi__basis(n, t, b);
+  for (int ci = 0; ci < c->num_cones; ci++) {
+    const float *cd = c->cone_dir[ci];
+    gi_cone_job *j = &jobs[ci];
+    memcpy(j->o, g->o, sizeof j->o);
+    memcpy(j->n, g->n, sizeof j->n);
+    for (int k = 0; k < 3; k++) j->w[k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
+    j->t0 = g->t0;
+    j->h0 = g->h0;
+  }
+}
+
 int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const float n[3], gi_gather_mode mode,
                           int level, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
   memset(out, 0, sizeof *out);
@@ -47,20 +61,17 @@ int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const fl
     if (cones) memset(cones, 0, (size_t)c->num_cones * sizeof *cones);
     return 0;
   }
-  float t[3], b[3];
-  gi__basis(n, t, b);
+  gi_cone_job jobs[GI_MAX_CONES];
+  gi_cone_out co[GI_MAX_CONES];
+  gi__hemisphere_jobs(c, &g, n, jobs);
+  gi__cone_march_jobs(c, jobs, c->num_cones, c->cone_tan, g.step, g.ao_lambda, co);
   for (int ci = 0; ci < c->num_cones; ci++) {
-    const float *cd = c->cone_dir[ci];
-    float w[3];
-    for (int k = 0; k < 3; k++) w[k] = cd[0] * t[k] + cd[1] * b[k] + cd[2] * n[k];
-    gi_cone_out co;
-    gi__gather_cone(c, &g, w, c->cone_tan, &co);
     float cw = c->cone_weight[ci];
-    for (int k = 0; k < 3; k++) out->E[k] += cw * co.L[k];
-    out->occlusion += cw * co.occlusion;
-    out->samples += co.samples;
-    if (dirs) memcpy(dirs[ci], w, sizeof(float[3]));
-    if (cones) cones[ci] = co;
+    for (int k = 0; k < 3; k++) out->E[k] += cw * co[ci].L[k];
+    out->occlusion += cw * co[ci].occlusion;
+    out->samples += co[ci].samples;
+    if (dirs) memcpy(dirs[ci], jobs[ci].w, sizeof(float[3]));
+    if (cones) cones[ci] = co[ci];
   }
   return 1;
 }

@@ -41,6 +41,8 @@ int gi__sample_level_base(const struct gi_cascade *c, int d, const float p[3], c
                           float *wsum_alpha, float *sigma);
 #ifdef GI_HAVE_V3_BUILD
 void gi__cone_march_v3(GI_MARCH_ARGS);
+void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                            float step, float ao_lambda, gi_cone_out *out);
 int gi__sample_level_v3(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
                         float *wsum_alpha, float *sigma);
 #endif
@@ -62,4 +64,19 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
   if (gi__cpu_v3()) return gi__sample_level_v3(c, d, p, w, prem, wsum_alpha, sigma);
 #endif
   return gi__sample_level_base(c, d, p, w, prem, wsum_alpha, sigma);
+}
+
+void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                         float step, float ao_lambda, gi_cone_out *out) {
+#ifdef GI_HAVE_V3_BUILD
+  /* The lanes address texels by 32-bit byte offsets: R^3 x 48 bytes. */
+  if (gi__cpu_v3() && c->R <= GI_MARCH_LANES_MAX_RES) {
+    gi__cone_march_jobs_v3(c, jobs, count, tan_half, step, ao_lambda, out);
+    return;
+  }
+#endif
+  for (int i = 0; i < count; i++) {
+    const gi_cone_job *j = &jobs[i];
+    gi__cone_march_base(c, j->o, j->w, tan_half, j->t0, step, ao_lambda, j->h0, j->h0 >= 0 ? j->n : NULL, &out[i]);
+  }
 }

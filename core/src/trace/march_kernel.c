@@ -8,41 +8,11 @@
 #include <string.h>
 #include "base/internal.h"
 #include "trace/trace.h"
+#include "trace/march_internal.h"
 #if GI_MARCH_V3
-#include <immintrin.h>
 #define GI_KERNEL(name) name##_v3
 #else
 #define GI_KERNEL(name) name##_base
-#endif
-
-/* The trilinear sum of the 2x2x2 texels at a sample, all 24 lanes at
- * once: the per-cone choice of faces and axis weights is applied after
- * (reduce), so the eight texel reads are the same straight-line loads for
- * every cone. */
-typedef struct {
-  float v[GI_VRAD_LANES];
-} lanes;
-
-#if GI_MARCH_V3
-static inline void sum_texels(const gi_vrad *const r[8], const float wt[8], lanes *out) {
-  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
-  for (int i = 0; i < 8; i++) {
-    __m256 w = _mm256_set1_ps(wt[i]);
-    const __m128i *h = (const __m128i *)r[i]->h;
-    a0 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
-    a1 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
-    a2 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
-  }
-  _mm256_storeu_ps(out->v, a0);
-  _mm256_storeu_ps(out->v + 8, a1);
-  _mm256_storeu_ps(out->v + 16, a2);
-}
-#else
-static inline void sum_texels(const gi_vrad *const r[8], const float wt[8], lanes *out) {
-  memset(out, 0, sizeof *out);
-  for (int i = 0; i < 8; i++)
-    for (int l = 0; l < GI_VRAD_LANES; l++) out->v[l] += wt[i] * gi__h2f(r[i]->h[l]);
-}
 #endif
 
 /* gi__sample_level with each axis's share scaled by axw[a] (NULL: 1).
@@ -89,8 +59,8 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
     r[i] = &L->rad[off[2][dz] + off[1][dy] + off[0][dx]];
     wt[i] = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
   }
-  lanes s;
-  sum_texels(r, wt, &s);
+  gi_lanes s;
+  gi__sum_texels(r, wt, &s);
   /* Light travelling toward the apex (-w) leaves through the face facing -w. */
   float P[3] = {0, 0, 0}, wal = 0, tau = 0;
   for (int a = 0; a < 3; a++) {
@@ -112,15 +82,6 @@ int GI_KERNEL(gi__sample_level)(const struct gi_cascade *c, int d, const float p
   return sample_level_ax(c, d, p, w, NULL, prem, wsum_alpha, sigma, NULL);
 }
 
-/* A sample's trilinear footprint reaches this many of its level's voxels. */
-#define GI_TRILINEAR_REACH 1.5f
-/* How far past an empty block's end (in voxels) the next sample lands. */
-#define GI_CLEAR_OVERSHOOT 1e-3f
-/* A sample whose weighted opacity is below this carries no usable radiance. */
-#define GI_MIN_SAMPLE_WEIGHT 1e-8f
-/* Floor of the height above the surface, so its log stays finite. */
-#define GI_MIN_HEIGHT 1e-30f
-
 /* h0 < 0: the apex is in free space (a probe). h0 >= 0: the apex is h0
  * above a surface and nw is the cosine between the cone and its normal;
  * then level d is reached (lod capped at log2(h / (K s0))) only where the
@@ -134,35 +95,6 @@ int GI_KERNEL(gi__sample_level)(const struct gi_cascade *c, int d, const float p
  * 9% before the rule, 0.8% with it; K = 1.75 lets the camera views leak
  * 1.9%, K = 3, the value while near samples still blended, reads the same
  * 0.8% with 13% more samples). */
-/* The part of the ray o + t w inside each level's window shrunk by one
- * voxel, [in, out] (empty when in > out): a sample at t may read level d
- * when in[d] <= t <= out[d], the test gi__level_contains makes on the
- * point, done once per cone instead of once per sample. */
-typedef struct {
-  float in, out;
-} gi_span;
-
-static void level_spans(const struct gi_cascade *c, const float o[3], const float w[3], gi_span *sp) {
-  for (int d = 0; d < c->n; d++) {
-    const gi_level *L = &c->lv[d];
-    float b = (float)L->s, tin = -INFINITY, tout = INFINITY;
-    for (int a = 0; a < 3; a++) {
-      float lo = L->lo[a] + b, hi = L->hi[a] - b;
-      if (w[a] == 0.f) {
-        if (!(o[a] >= lo && o[a] <= hi)) tin = INFINITY, tout = -INFINITY;
-        continue;
-      }
-      float inv = 1.f / w[a], t0 = (lo - o[a]) * inv, t1 = (hi - o[a]) * inv;
-      tin = gi__maxf(tin, gi__minf(t0, t1));
-      tout = gi__minf(tout, gi__maxf(t0, t1));
-    }
-    sp[d].in = tin;
-    sp[d].out = tout;
-  }
-}
-
-static inline int span_has(const gi_span *sp, float t) { return t >= sp->in && t <= sp->out; }
-
 void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
                     float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
   float L[3] = {0, 0, 0}, a = 0, occ = 0;
@@ -170,7 +102,7 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
   uint32_t samples = 0;
   float s0 = (float)c->s0, inv_s0 = 1.f / s0, inv_ks0 = 1.f / (GI_SURFACE_LOD_K * s0);
   gi_span sp[GI_MAX_LEVELS];
-  level_spans(c, o, w, sp);
+  gi__level_spans(c, o, w, sp);
   float t = t0;
   for (int guard = 0; guard < GI_CONE_MAX_STEPS && a < GI_OPAQUE_ALPHA; guard++) {
     float D = gi__maxf(2.0f * t * tan_half, s0);
@@ -198,7 +130,7 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
     /* A cone wider than the coarsest voxels keeps sampling the coarsest level. */
     if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0;
     int d = d0;
-    while (d < c->n && !span_has(&sp[d], t)) d++;
+    while (d < c->n && !gi__span_has(&sp[d], t)) d++;
     if (d >= c->n) break;
     if (d > d0) frac = 0; /* pushed to a coarser level by position, not by size */
     float p[3] = {o[0] + t * w[0], o[1] + t * w[1], o[2] + t * w[2]};
@@ -217,7 +149,7 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
       sample_level_ax(c, d, p, w, NULL, P, &wal, &sig, &clear);
     }
     samples++;
-    if (frac > 0 && d + 1 < c->n && span_has(&sp[d + 1], t)) {
+    if (frac > 0 && d + 1 < c->n && gi__span_has(&sp[d + 1], t)) {
       float P2[3], wal2, sig2;
       sample_level_ax(c, d + 1, p, w, NULL, P2, &wal2, &sig2, &clear2);
       samples++;

@@ -57,6 +57,24 @@ int gi__gather_start(const struct gi_cascade *c, const float p[3], const float *
 /* One cone of half-angle tangent tan_half along unit w from g. */
 void gi__gather_cone(const struct gi_cascade *c, const gi_gather_start *g, const float w[3], float tan_half,
                      gi_cone_out *out);
+/* One cone of a batch: its start as gi__gather_start sets it (apex o,
+ * first sample distance t0, apex height h0, < 0 in free space, and the
+ * surface's unit normal n when h0 >= 0) and its unit direction w. */
+typedef struct gi_cone_job {
+  float o[3], n[3], w[3];
+  float t0, h0;
+} gi_cone_job;
+/* Marches count cones of half-angle tangent tan_half with one step rule
+ * into out[i], each as gi__cone_march would (to float rounding): on the
+ * x86-64-v3 path eight at a time in AVX2 lanes (march_simd.c), so the
+ * more cones one call gets (a voxel's two sides, several gathers), the
+ * fuller the lanes stay. */
+#define GI_MARCH_LANES_MAX_RES 256
+void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                         float step, float ao_lambda, gi_cone_out *out);
+/* The cascade's diffuse cone set on the hemisphere around unit n, started
+ * from g, as jobs (num_cones of them). */
+void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, const float n[3], gi_cone_job *jobs);
 /* What a hemisphere gather returns. */
 typedef struct gi_gather_out {
   float E[3];          /* irradiance: sum over cones of weight x L */

@@ -1,0 +1,83 @@
+/* march_internal.h: what the scalar march (march_kernel.c) and the
+ * eight-lane march (march_simd.c) share: the level spans of a cone and
+ * the trilinear sum of a sample's eight texels. Included by the kernel
+ * files only; GI_MARCH_V3 says which build is being compiled. */
+#ifndef GI_MARCH_INTERNAL_H
+#define GI_MARCH_INTERNAL_H
+
+#include <string.h>
+#include "base/internal.h"
+#include "trace/trace.h"
+#if GI_MARCH_V3
+#include <immintrin.h>
+#endif
+
+/* The part of the ray o + t w inside each level's window shrunk by one
+ * voxel, [in, out] (empty when in > out): a sample at t may read level d
+ * when in[d] <= t <= out[d], the test gi__level_contains makes on the
+ * point, done once per cone instead of once per sample. */
+typedef struct {
+  float in, out;
+} gi_span;
+
+static inline void gi__level_spans(const struct gi_cascade *c, const float o[3], const float w[3], gi_span *sp) {
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    float b = (float)L->s, tin = -INFINITY, tout = INFINITY;
+    for (int a = 0; a < 3; a++) {
+      float lo = L->lo[a] + b, hi = L->hi[a] - b;
+      if (w[a] == 0.f) {
+        if (!(o[a] >= lo && o[a] <= hi)) tin = INFINITY, tout = -INFINITY;
+        continue;
+      }
+      float inv = 1.f / w[a], t0 = (lo - o[a]) * inv, t1 = (hi - o[a]) * inv;
+      tin = gi__maxf(tin, gi__minf(t0, t1));
+      tout = gi__minf(tout, gi__maxf(t0, t1));
+    }
+    sp[d].in = tin;
+    sp[d].out = tout;
+  }
+}
+
+static inline int gi__span_has(const gi_span *sp, float t) { return t >= sp->in && t <= sp->out; }
+
+/* The trilinear sum of the 2x2x2 texels at a sample, all 24 lanes at
+ * once: the per-cone choice of faces and axis weights is applied after
+ * (reduce), so the eight texel reads are the same straight-line loads for
+ * every cone. */
+typedef struct {
+  float v[GI_VRAD_LANES];
+} gi_lanes;
+
+#if GI_MARCH_V3
+static inline void gi__sum_texels(const gi_vrad *const r[8], const float wt[8], gi_lanes *out) {
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
+  for (int i = 0; i < 8; i++) {
+    __m256 w = _mm256_set1_ps(wt[i]);
+    const __m128i *h = (const __m128i *)r[i]->h;
+    a0 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
+    a1 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
+    a2 = _mm256_fmadd_ps(w, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
+  }
+  _mm256_storeu_ps(out->v, a0);
+  _mm256_storeu_ps(out->v + 8, a1);
+  _mm256_storeu_ps(out->v + 16, a2);
+}
+#else
+static inline void gi__sum_texels(const gi_vrad *const r[8], const float wt[8], gi_lanes *out) {
+  memset(out, 0, sizeof *out);
+  for (int i = 0; i < 8; i++)
+    for (int l = 0; l < GI_VRAD_LANES; l++) out->v[l] += wt[i] * gi__h2f(r[i]->h[l]);
+}
+#endif
+
+/* A sample's trilinear footprint reaches this many of its level's voxels. */
+#define GI_TRILINEAR_REACH 1.5f
+/* How far past an empty block's end (in voxels) the next sample lands. */
+#define GI_CLEAR_OVERSHOOT 1e-3f
+/* A sample whose weighted opacity is below this carries no usable radiance. */
+#define GI_MIN_SAMPLE_WEIGHT 1e-8f
+/* Floor of the height above the surface, so its log stays finite. */
+#define GI_MIN_HEIGHT 1e-30f
+
+#endif

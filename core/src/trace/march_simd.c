@@ -1,0 +1,487 @@
+/* march_simd.c: the cone march eight cones at a time (x86-64-v3 build only).
+ *
+ * A batch of cones (one or more gathers: apex, surface and direction per
+ * cone, the step rule shared) runs through eight AVX2 lanes; a lane whose
+ * cone stops takes the batch's next cone, so the lanes stay busy until
+ * the batch runs out (cones of one hemisphere differ in length by 2-3x;
+ * without the refill a third of the lane-steps idled). Each lane carries one cone
+ * through the same steps as the scalar march (march_kernel.c, whose
+ * comments say why each rule is what it is): the cone's width, its level
+ * and blend, the level spans, the sample's trilinear cell, the empty-block
+ * skip, the step and the compositing run in the eight lanes together; a
+ * lane whose cone has stopped is masked off. Only the texel reads are per
+ * lane: a sample's eight texels are summed 24 lanes at a time (F16C) and
+ * reduced by that cone's faces. The eight cones' reads are independent,
+ * so the CPU overlaps their cache misses, which one cone's march, a chain
+ * of dependent steps, cannot. Results match the scalar march to float
+ * rounding (test_texel). */
+#include <immintrin.h>
+#include "trace/march_internal.h"
+
+#define LANES 8
+/* Per-level constants as tables of 16, read per lane with two permutes. */
+#define TAB 16
+_Static_assert(GI_MAX_LEVELS <= TAB, "level tables hold every level");
+
+typedef struct {
+  const struct gi_cascade *c;
+  int n, R;
+  float s[TAB], inv[TAB], lo[3][TAB];
+  int32_t slot0[3][TAB];
+  const char *rad[TAB];
+  const uint8_t *busy[TAB];
+  /* Per lane: the first radiance lane of the face each axis reads, the
+   * axis weights w_a^2 (radiance, opacity) and |w_a| (optical depth), and
+   * the same across the surface's normal only (x (1 - n_a^2)). */
+  int fb[LANES][3];
+  float k[LANES][3], kt[LANES][3], kax[LANES][3], ktax[LANES][3];
+  float span_in[GI_MAX_LEVELS][LANES], span_out[GI_MAX_LEVELS][LANES];
+  /* Per lane: the cone's start (apex, direction, cosine to the surface
+   * normal, apex height: < 0 in free space) and its march so far. */
+  float o[3][LANES], w[3][LANES], nw[LANES], h0[LANES];
+  float t[LANES], a[LANES], occ[LANES], L[3][LANES], live[LANES];
+  int32_t samples[LANES], steps[LANES], job[LANES];
+} batch;
+
+/* One sample per lane: what sample_level_ax returns. */
+typedef struct {
+  __m256 P[3], wal, sig, clear;
+} sample8;
+
+static inline __m256 tab16(const float *t, __m256i d) {
+  __m256 a = _mm256_permutevar8x32_ps(_mm256_loadu_ps(t), d);
+  __m256 b = _mm256_permutevar8x32_ps(_mm256_loadu_ps(t + 8), d);
+  return _mm256_blendv_ps(a, b, _mm256_castsi256_ps(_mm256_cmpgt_epi32(d, _mm256_set1_epi32(7))));
+}
+
+static inline __m256i tab16i(const int32_t *t, __m256i d) {
+  return _mm256_castps_si256(tab16((const float *)t, d));
+}
+
+#define V1(x) _mm256_set1_ps(x)
+#define CMP(a, b, op) _mm256_cmp_ps(a, b, op)
+
+/* gi__fast_exp_neg in eight lanes (the same polynomial). */
+static inline __m256 exp_neg8(__m256 x) {
+  __m256 y = _mm256_mul_ps(x, V1(-1.44269504f));
+  __m256 k = _mm256_floor_ps(_mm256_add_ps(y, V1(0.5f)));
+  __m256 f = _mm256_mul_ps(_mm256_sub_ps(y, k), V1(0.69314718f));
+  __m256 p = _mm256_fmadd_ps(f, V1(0.0013888889f), V1(0.0083333338f));
+  p = _mm256_fmadd_ps(f, p, V1(0.041666668f));
+  p = _mm256_fmadd_ps(f, p, V1(0.16666667f));
+  p = _mm256_fmadd_ps(f, p, V1(0.5f));
+  p = _mm256_fmadd_ps(f, p, V1(1.f));
+  p = _mm256_fmadd_ps(f, p, V1(1.f));
+  __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvttps_epi32(k), _mm256_set1_epi32(127)), 23);
+  __m256 r = _mm256_mul_ps(p, _mm256_castsi256_ps(e));
+  return _mm256_and_ps(r, CMP(x, V1(87.f), _CMP_LT_OQ)); /* 0 beyond, and for NaN */
+}
+
+/* The trilinear cell of p on each lane's level d: the eight corner
+ * texels' byte offsets into the level and their weights (corner i = dx + 2 dy
+ * + 4 dz), and how far along w the sample stays in its 2x2x2 block (run;
+ * 0 where the cell was clamped to the window). Corner 0's slot is also
+ * the block's, which the busy mask is indexed by. */
+typedef struct {
+  float wt[8][LANES], run[LANES];
+  uint32_t corner[8][LANES]; /* bytes: R^3 x 48 < 2^32 for R <= 256 */
+  uint32_t block[LANES];      /* corner 0's slot */
+} cell8;
+
+static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], cell8 *out) {
+  __m256 inv = tab16(b->inv, d), sd = tab16(b->s, d), run = V1(INFINITY);
+  __m256i R = _mm256_set1_epi32(b->R), Rm2 = _mm256_set1_epi32(b->R - 2), one = _mm256_set1_epi32(1);
+  __m256 f[3];
+  __m256i off[3][2];
+  for (int a = 0; a < 3; a++) {
+    __m256 u = _mm256_sub_ps(_mm256_mul_ps(_mm256_sub_ps(p[a], tab16(b->lo[a], d)), inv), V1(0.5f));
+    __m256 fl = _mm256_floor_ps(u);
+    __m256i i0 = _mm256_cvttps_epi32(fl);
+    __m256 low = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_setzero_si256(), i0));
+    __m256 high = _mm256_castsi256_ps(_mm256_cmpgt_epi32(i0, Rm2));
+    i0 = _mm256_min_epi32(_mm256_max_epi32(i0, _mm256_setzero_si256()), Rm2);
+    fl = _mm256_blendv_ps(fl, _mm256_setzero_ps(), low);
+    u = _mm256_blendv_ps(u, _mm256_max_ps(u, _mm256_setzero_ps()), low);
+    fl = _mm256_blendv_ps(fl, V1((float)(b->R - 2)), high);
+    u = _mm256_blendv_ps(u, _mm256_min_ps(u, V1((float)(b->R - 1))), high);
+    run = _mm256_andnot_ps(_mm256_or_ps(low, high), run);
+    f[a] = _mm256_sub_ps(u, fl);
+    /* Inside the block while u stays in [fl, fl + 1]. */
+    __m256 pos = CMP(w[a], _mm256_setzero_ps(), _CMP_GT_OQ), nz = CMP(w[a], _mm256_setzero_ps(), _CMP_NEQ_OQ);
+    __m256 gap = _mm256_blendv_ps(f[a], _mm256_sub_ps(V1(1.f), f[a]), pos);
+    __m256 aw = _mm256_andnot_ps(V1(-0.f), w[a]);
+    __m256 r = _mm256_div_ps(_mm256_mul_ps(gap, sd), aw);
+    run = _mm256_blendv_ps(run, _mm256_min_ps(r, run), nz);
+    __m256i s0 = _mm256_add_epi32(tab16i(b->slot0[a], d), i0);
+    s0 = _mm256_sub_epi32(s0, _mm256_andnot_si256(_mm256_cmpgt_epi32(R, s0), R)); /* s0 >= R: wrap */
+    __m256i s1 = _mm256_add_epi32(s0, one);
+    s1 = _mm256_andnot_si256(_mm256_cmpeq_epi32(s1, R), s1);
+    __m256i stride = _mm256_set1_epi32(a == 0 ? 1 : (a == 1 ? b->R : b->R * b->R));
+    off[a][0] = _mm256_mullo_epi32(s0, stride);
+    off[a][1] = _mm256_mullo_epi32(s1, stride);
+  }
+  _mm256_storeu_ps(out->run, run);
+  __m256 g[3][2];
+  for (int a = 0; a < 3; a++) g[a][0] = _mm256_sub_ps(V1(1.f), f[a]), g[a][1] = f[a];
+  __m256i texel = _mm256_set1_epi32((int)sizeof(gi_vrad));
+  for (int i = 0; i < 8; i++) {
+    int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
+    /* The scalar march's order: (x y) z. */
+    _mm256_storeu_ps(out->wt[i], _mm256_mul_ps(_mm256_mul_ps(g[0][dx], g[1][dy]), g[2][dz]));
+    __m256i o = _mm256_add_epi32(_mm256_add_epi32(off[2][dz], off[1][dy]), off[0][dx]);
+    if (i == 0) _mm256_storeu_si256((__m256i *)out->block, o);
+    _mm256_storeu_si256((__m256i *)out->corner[i], _mm256_mullo_epi32(o, texel));
+  }
+}
+
+/* What one lane's sample leaves in its row: P (3 channels), opacity
+ * weight, optical depth, empty run; transposed into sample8 after. */
+enum { ROW_P = 0, ROW_WAL = 3, ROW_TAU = 4, ROW_CLEAR = 5 };
+
+/* One lane's texel reads: sample_level_ax's second half. */
+static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float row[LANES]) {
+  if (!b->busy[d][cl->block[l]]) {
+    _mm256_storeu_ps(row, _mm256_setzero_ps());
+    row[ROW_CLEAR] = cl->run[l];
+    return;
+  }
+  /* gi__sum_texels with the weights and corners read from the lane's column. */
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
+  for (int i = 0; i < 8; i++) {
+    __m256 wi = _mm256_broadcast_ss(&cl->wt[i][l]);
+    const __m128i *h = (const __m128i *)(b->rad[d] + cl->corner[i][l]);
+    a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
+    a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
+    a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
+  }
+  gi_lanes s;
+  _mm256_storeu_ps(s.v, a0);
+  _mm256_storeu_ps(s.v + 8, a1);
+  _mm256_storeu_ps(s.v + 16, a2);
+  const float *k = ax ? b->kax[l] : b->k[l], *kt = ax ? b->ktax[l] : b->kt[l];
+  const int *fb = b->fb[l];
+  /* The three channels of each axis's face at once (the fourth is dropped). */
+  __m128 P = _mm_mul_ps(_mm_broadcast_ss(&k[0]), _mm_loadu_ps(s.v + fb[0]));
+  P = _mm_fmadd_ps(_mm_broadcast_ss(&k[1]), _mm_loadu_ps(s.v + fb[1]), P);
+  P = _mm_fmadd_ps(_mm_broadcast_ss(&k[2]), _mm_loadu_ps(s.v + fb[2]), P);
+  _mm_storeu_ps(row + ROW_P, P);
+  float wa = k[0] * s.v[GI_VRAD_ALPHA], ta = kt[0] * s.v[GI_VRAD_TAU];
+  for (int a = 1; a < 3; a++) {
+    wa += k[a] * s.v[GI_VRAD_ALPHA + a];
+    ta += kt[a] * s.v[GI_VRAD_TAU + a];
+  }
+  row[ROW_WAL] = wa;
+  row[ROW_TAU] = ta;
+  row[ROW_CLEAR] = 0;
+}
+
+/* rows[l][j] -> col[j] lane l: the 8x8 transpose. */
+static inline void transpose8(const float rows[LANES][LANES], __m256 col[LANES]) {
+  __m256 r[8], t[8];
+  for (int i = 0; i < 8; i++) r[i] = _mm256_loadu_ps(rows[i]);
+  for (int i = 0; i < 8; i += 2) {
+    t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
+    t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
+  }
+  for (int i = 0; i < 8; i += 4) {
+    r[i] = _mm256_shuffle_ps(t[i], t[i + 2], 0x44);
+    r[i + 1] = _mm256_shuffle_ps(t[i], t[i + 2], 0xEE);
+    r[i + 2] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0x44);
+    r[i + 3] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0xEE);
+  }
+  for (int i = 0; i < 4; i++) {
+    col[i] = _mm256_permute2f128_ps(r[i], r[i + 4], 0x20);
+    col[i + 4] = _mm256_permute2f128_ps(r[i], r[i + 4], 0x31);
+  }
+}
+
+/* Samples level d (per lane) at p for the lanes in `act`; lanes in `ax`
+ * read the axes across the surface's normal only. */
+static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, const __m256 p[3], const __m256 w[3],
+                       sample8 *out) {
+  cell8 cl;
+  locate(b, d, p, w, &cl);
+  int32_t dl[LANES];
+  _mm256_storeu_si256((__m256i *)dl, d);
+  float rows[LANES][LANES];
+  int m = _mm256_movemask_ps(act), mx = _mm256_movemask_ps(ax);
+  for (int l = 0; l < LANES; l++)
+    if (m >> l & 1) read_lane(b, l, dl[l], &cl, (mx >> l) & 1, rows[l]);
+    else _mm256_storeu_ps(rows[l], _mm256_setzero_ps());
+  __m256 col[LANES];
+  transpose8((const float(*)[LANES])rows, col);
+  __m256 scale = V1(b->c->rad_scale);
+  for (int ch = 0; ch < 3; ch++) out->P[ch] = _mm256_mul_ps(col[ROW_P + ch], scale);
+  out->wal = col[ROW_WAL];
+  out->sig = _mm256_mul_ps(col[ROW_TAU], tab16(b->inv, d));
+  out->clear = col[ROW_CLEAR];
+}
+
+/* The step rule all cones share, and the cascade's finest voxel. */
+typedef struct {
+  float tan_half, step, ao_lambda, s0, inv_s0, inv_ks0;
+} par8;
+
+/* The lanes' march in registers; batch holds the same in columns while
+ * lanes are refilled. */
+typedef struct {
+  __m256 t, a, occ, L[3], act;
+  __m256i samples, steps;
+  __m256 o[3], w[3], nw, h0;
+} state8;
+
+/* The level each lane samples, as the scalar march picks it: the cone's
+ * width (or the surface rule's height) gives d0 and the blend; the first
+ * level from d0 on whose span holds t is read. *next: lanes whose level
+ * d+1 also holds t. Returns n where no level does. */
+static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m256 D, __m256 *near, __m256 *frac,
+                          __m256 *next, __m256i *d0out) {
+  __m256 x = _mm256_mul_ps(D, V1(q->inv_s0));
+  __m256 surf = CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ);
+  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 xh = _mm256_mul_ps(_mm256_max_ps(h, V1(GI_MIN_HEIGHT)), V1(q->inv_ks0));
+  *near = _mm256_and_ps(surf, CMP(xh, x, _CMP_LT_OQ));
+  x = _mm256_blendv_ps(x, _mm256_max_ps(_mm256_min_ps(x, xh), V1(1.f)), surf);
+  /* Level from the exponent, blend from the mantissa (see march_kernel.c). */
+  __m256i xb = _mm256_castps_si256(x);
+  __m256i d0 = _mm256_sub_epi32(_mm256_srli_epi32(xb, 23), _mm256_set1_epi32(127));
+  __m256 mant = _mm256_castsi256_ps(
+      _mm256_or_si256(_mm256_and_si256(xb, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000)));
+  __m256 fr = _mm256_andnot_ps(*near, _mm256_sub_ps(mant, V1(1.f)));
+  __m256 coarsest = _mm256_castsi256_ps(_mm256_cmpgt_epi32(d0, _mm256_set1_epi32(b->n - 2)));
+  d0 = _mm256_min_epi32(d0, _mm256_set1_epi32(b->n - 1));
+  fr = _mm256_andnot_ps(coarsest, fr);
+  __m256i d = _mm256_set1_epi32(b->n);
+  __m256 has_next = _mm256_setzero_ps(), prev = _mm256_setzero_ps();
+  for (int k = b->n - 1; k >= 0; k--) {
+    __m256 ok = _mm256_and_ps(CMP(_mm256_loadu_ps(b->span_in[k]), st->t, _CMP_LE_OQ),
+                              CMP(st->t, _mm256_loadu_ps(b->span_out[k]), _CMP_LE_OQ));
+    __m256 sel = _mm256_and_ps(ok, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(k + 1), d0)));
+    d = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(d), _mm256_castsi256_ps(_mm256_set1_epi32(k)), sel));
+    has_next = _mm256_blendv_ps(has_next, prev, sel);
+    prev = ok;
+  }
+  /* Pushed to a coarser level by position, not by size: no blend. */
+  *frac = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0)), fr);
+  *next = has_next;
+  *d0out = d0;
+  return d;
+}
+
+/* Folds one sample into the lanes in act: the step, the empty-block
+ * skip, the opacity and front-to-back compositing. */
+static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256 sd, __m256 D, const sample8 *s,
+                      __m256 clear2) {
+  __m256 dt = _mm256_mul_ps(_mm256_blendv_ps(V1(q->step), V1(gi__minf(q->step, GI_NEAR_SURFACE_STEP)), near), sd);
+  __m256 run = _mm256_min_ps(s->clear, clear2);
+  dt = _mm256_blendv_ps(dt, _mm256_fmadd_ps(V1(GI_CLEAR_OVERSHOOT), sd, run), CMP(run, dt, _CMP_GT_OQ));
+  __m256 as = _mm256_sub_ps(V1(1.f), exp_neg8(_mm256_mul_ps(s->sig, dt)));
+  __m256 a = st->a, ta = _mm256_sub_ps(V1(1.f), a);
+  __m256 lit = _mm256_and_ps(act, _mm256_and_ps(CMP(as, _mm256_setzero_ps(), _CMP_GT_OQ),
+                                                CMP(s->wal, V1(GI_MIN_SAMPLE_WEIGHT), _CMP_GT_OQ)));
+  __m256 k = _mm256_div_ps(_mm256_mul_ps(ta, as), s->wal);
+  for (int ch = 0; ch < 3; ch++) st->L[ch] = _mm256_blendv_ps(st->L[ch], _mm256_fmadd_ps(k, s->P[ch], st->L[ch]), lit);
+  __m256 occ = st->occ;
+  __m256 att = _mm256_fmadd_ps(V1(q->ao_lambda * 0.5f), D, V1(1.f));
+  occ = _mm256_add_ps(occ, _mm256_div_ps(_mm256_mul_ps(_mm256_sub_ps(V1(1.f), occ), as), att));
+  st->occ = _mm256_blendv_ps(st->occ, occ, act);
+  a = _mm256_fmadd_ps(ta, as, a);
+  st->a = _mm256_blendv_ps(st->a, a, act);
+  st->t = _mm256_blendv_ps(st->t, _mm256_add_ps(st->t, dt), act);
+  st->act = _mm256_and_ps(act, CMP(st->a, V1(GI_OPAQUE_ALPHA), _CMP_LT_OQ));
+}
+
+/* One step of every live lane. */
+static void step8(const batch *b, const par8 *q, state8 *st) {
+  __m256 D = _mm256_max_ps(_mm256_mul_ps(_mm256_mul_ps(V1(2.f), st->t), V1(q->tan_half)), V1(q->s0));
+  __m256 near, frac, next;
+  __m256i d0;
+  __m256i d = pick_level(b, q, st, D, &near, &frac, &next, &d0);
+  __m256 act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(b->n), d)));
+  st->act = act;
+  if (!_mm256_movemask_ps(act)) return;
+  st->steps = _mm256_sub_epi32(st->steps, _mm256_castps_si256(act));
+  __m256 p[3];
+  for (int a = 0; a < 3; a++) p[a] = _mm256_fmadd_ps(st->t, st->w[a], st->o[a]);
+  __m256 sd = tab16(b->s, d);
+  /* Pushed to a coarser level near the surface it started from: read
+   * the axes across the normal only (see march_kernel.c). */
+  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 ax = _mm256_and_ps(_mm256_and_ps(CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ),
+                                          _mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0))),
+                            CMP(h, _mm256_mul_ps(V1(GI_TRILINEAR_REACH), sd), _CMP_LT_OQ));
+  sample8 s;
+  sample8_at(b, d, act, ax, p, st->w, &s);
+  st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(act));
+  __m256 two = _mm256_and_ps(act, _mm256_and_ps(next, CMP(frac, _mm256_setzero_ps(), _CMP_GT_OQ)));
+  __m256 clear2 = V1(INFINITY);
+  if (_mm256_movemask_ps(two)) {
+    sample8 s2;
+    sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), p, st->w, &s2);
+    st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(two));
+    for (int ch = 0; ch < 3; ch++)
+      s.P[ch] = _mm256_blendv_ps(s.P[ch], _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.P[ch], s.P[ch]), s.P[ch]), two);
+    s.wal = _mm256_blendv_ps(s.wal, _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.wal, s.wal), s.wal), two);
+    s.sig = _mm256_blendv_ps(s.sig, _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.sig, s.sig), s.sig), two);
+    clear2 = _mm256_blendv_ps(clear2, s2.clear, two);
+  }
+  composite(q, st, act, near, sd, D, &s, clear2);
+  /* Every cone stops after GI_CONE_MAX_STEPS steps, as the scalar one. */
+  st->act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(GI_CONE_MAX_STEPS),
+                                                                          st->steps)));
+}
+
+/* Level spans (gi__level_spans) of up to eight jobs at once, one job
+ * per lane: in[d][lane], out[d][lane]. */
+static void spans8(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float in[][LANES],
+                   float out[][LANES]) {
+  float o[3][LANES], w[3][LANES];
+  for (int l = 0; l < LANES; l++)
+    for (int a = 0; a < 3; a++) {
+      const gi_cone_job *j = &jobs[l < count ? l : 0];
+      o[a][l] = j->o[a], w[a][l] = j->w[a];
+    }
+  __m256 ov[3], inv[3], zero[3];
+  for (int a = 0; a < 3; a++) {
+    ov[a] = _mm256_loadu_ps(o[a]);
+    __m256 wa = _mm256_loadu_ps(w[a]);
+    inv[a] = _mm256_div_ps(V1(1.f), wa);
+    zero[a] = CMP(wa, _mm256_setzero_ps(), _CMP_EQ_OQ);
+  }
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    float bd = (float)L->s;
+    __m256 tin = V1(-INFINITY), tout = V1(INFINITY);
+    for (int a = 0; a < 3; a++) {
+      __m256 lo = V1(L->lo[a] + bd), hi = V1(L->hi[a] - bd);
+      __m256 t0 = _mm256_mul_ps(_mm256_sub_ps(lo, ov[a]), inv[a]), t1 = _mm256_mul_ps(_mm256_sub_ps(hi, ov[a]), inv[a]);
+      tin = _mm256_blendv_ps(_mm256_max_ps(tin, _mm256_min_ps(t0, t1)), tin, zero[a]);
+      tout = _mm256_blendv_ps(_mm256_min_ps(tout, _mm256_max_ps(t0, t1)), tout, zero[a]);
+      /* Parallel to this axis: the whole ray is in or out of the slab. */
+      __m256 inside = _mm256_and_ps(CMP(ov[a], lo, _CMP_GE_OQ), CMP(ov[a], hi, _CMP_LE_OQ));
+      __m256 miss = _mm256_andnot_ps(inside, zero[a]);
+      tin = _mm256_blendv_ps(tin, V1(INFINITY), miss);
+      tout = _mm256_blendv_ps(tout, V1(-INFINITY), miss);
+    }
+    _mm256_storeu_ps(in[d], tin);
+    _mm256_storeu_ps(out[d], tout);
+  }
+}
+
+/* Puts job j (number `index`) into lane l: its start, its constants, its
+ * spans (from spans8's group), a fresh march. */
+static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const float (*gin)[LANES],
+                      const float (*gout)[LANES]) {
+  const float *w = j->w;
+  int surf = j->h0 >= 0, gl = index & (LANES - 1);
+  for (int a = 0; a < 3; a++) {
+    float across = surf ? 1 - j->n[a] * j->n[a] : 1.f;
+    b->o[a][l] = j->o[a];
+    b->w[a][l] = w[a];
+    b->fb[l][a] = 3 * (2 * a + (w[a] > 0 ? 1 : 0));
+    b->k[l][a] = w[a] * w[a];
+    b->kt[l][a] = fabsf(w[a]);
+    b->kax[l][a] = w[a] * w[a] * across;
+    b->ktax[l][a] = fabsf(w[a]) * across;
+    b->L[a][l] = 0;
+  }
+  b->nw[l] = surf ? gi__dot(j->n, w) : 0.f;
+  b->h0[l] = j->h0;
+  for (int d = 0; d < b->n; d++) b->span_in[d][l] = gin[d][gl], b->span_out[d][l] = gout[d][gl];
+  b->t[l] = j->t0;
+  b->a[l] = b->occ[l] = 0;
+  b->samples[l] = b->steps[l] = 0;
+  b->job[l] = index;
+  b->live[l] = 1.f;
+}
+
+#define LOADV(dst, src) dst = _mm256_loadu_ps(src)
+#define STOREV(dst, src) _mm256_storeu_ps(dst, src)
+
+static void lanes_to_regs(const batch *b, state8 *st) {
+  for (int a = 0; a < 3; a++) LOADV(st->o[a], b->o[a]), LOADV(st->w[a], b->w[a]), LOADV(st->L[a], b->L[a]);
+  LOADV(st->nw, b->nw), LOADV(st->h0, b->h0), LOADV(st->t, b->t), LOADV(st->a, b->a), LOADV(st->occ, b->occ);
+  st->samples = _mm256_loadu_si256((const __m256i *)b->samples);
+  st->steps = _mm256_loadu_si256((const __m256i *)b->steps);
+  st->act = CMP(_mm256_loadu_ps(b->live), V1(0.5f), _CMP_GT_OQ);
+}
+
+static void regs_to_lanes(const state8 *st, batch *b) {
+  for (int a = 0; a < 3; a++) STOREV(b->L[a], st->L[a]);
+  STOREV(b->t, st->t), STOREV(b->a, st->a), STOREV(b->occ, st->occ);
+  _mm256_storeu_si256((__m256i *)b->samples, st->samples);
+  _mm256_storeu_si256((__m256i *)b->steps, st->steps);
+}
+
+/* Writes lane l's finished cone to its job's slot. */
+static void lane_finish(const batch *b, int l, gi_cone_out *out) {
+  gi_cone_out *o = &out[b->job[l]];
+  float a = b->a[l];
+  /* A cone stopped by opacity: renormalised by a (march_kernel.c). */
+  for (int ch = 0; ch < 3; ch++) o->L[ch] = a >= GI_OPAQUE_ALPHA ? b->L[ch][l] / a : b->L[ch][l];
+  o->alpha = a;
+  o->occlusion = b->occ[l];
+  o->samples = (uint32_t)b->samples[l];
+}
+
+/* The batch's level tables. */
+static void batch_init(batch *b, const struct gi_cascade *c) {
+  b->c = c;
+  b->n = c->n;
+  b->R = c->R;
+  for (int d = 0; d < TAB; d++) {
+    const gi_level *L = &c->lv[d < c->n ? d : 0];
+    b->s[d] = (float)L->s;
+    b->inv[d] = (float)(1.0 / L->s);
+    for (int a = 0; a < 3; a++) b->lo[a][d] = L->lo[a], b->slot0[a][d] = L->slot0[a];
+    b->rad[d] = (const char *)L->rad;
+    b->busy[d] = L->busy;
+  }
+}
+
+/* At most this many jobs per batch (their spans are computed up front). */
+#define MAX_JOBS 128
+
+static void march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, const par8 *q,
+                       gi_cone_out *out) {
+  batch b;
+  batch_init(&b, c);
+  float gin[MAX_JOBS / LANES][GI_MAX_LEVELS][LANES], gout[MAX_JOBS / LANES][GI_MAX_LEVELS][LANES]; /* 12 KB */
+  for (int i = 0; i < count; i += LANES) spans8(c, jobs + i, count - i, gin[i / LANES], gout[i / LANES]);
+  /* Idle lanes hold a copy of job 0 that nobody reads. */
+  int next = 0;
+  for (int l = 0; l < LANES; l++) {
+    int j = next < count ? next : 0;
+    lane_load(&b, l, &jobs[j], j, gin[j / LANES], gout[j / LANES]);
+    if (next < count) next++;
+    else b.live[l] = 0;
+  }
+  state8 st;
+  lanes_to_regs(&b, &st);
+  int busy = _mm256_movemask_ps(st.act);
+  while (busy) {
+    step8(&b, q, &st);
+    int done = busy & ~_mm256_movemask_ps(st.act);
+    if (!done) continue;
+    regs_to_lanes(&st, &b);
+    for (; done; done &= done - 1) {
+      int l = __builtin_ctz((unsigned)done);
+      lane_finish(&b, l, out);
+      if (next < count) {
+        lane_load(&b, l, &jobs[next], next, gin[next / LANES], gout[next / LANES]);
+        next++;
+      } else {
+        b.live[l] = 0, busy &= ~(1 << l);
+      }
+    }
+    lanes_to_regs(&b, &st);
+  }
+}
+
+void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                            float step, float ao_lambda, gi_cone_out *out) {
+  float s0 = (float)c->s0;
+  par8 q = {tan_half, step, ao_lambda, s0, 1.f / s0, 1.f / (GI_SURFACE_LOD_K * s0)};
+  for (int i = 0; i < count; i += MAX_JOBS)
+    march_jobs(c, jobs + i, count - i < MAX_JOBS ? count - i : MAX_JOBS, &q, out + i);
+}
