@@ -10,8 +10,9 @@
  * gives drift at both points and a cold pair straddling the grid shift.
  * Popping is measured at a fixed point: the probe at step i's point from the
  * cascade before the move and after it (for cold: the bakes at i - 1 and i,
- * both gathered at i's point), since the gather's own sampling noise
- * changes from point to point (the consecutive-step jump is kept too). */
+ * both gathered at i's point): the change between two points also holds
+ * the light's real gradient there (a shadow's edge) and flips of emitter
+ * samples (the consecutive-step jump is kept too). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -67,7 +68,7 @@ static int cold_at(const gi_scene *s, const gi_quality *q, const double at[3], c
 
 static int move_step(gi_cascade *c, const double at[3], step_rec *st) {
   /* The same point before and after the update: the jump the update causes,
-   * free of the gather's sampling noise, which depends on the point. */
+   * apart from how the light changes between points. */
   if (probe_at(c, at, &st->pre, NULL) != 0) return -1;
   gi_bake_report rep;
   gi_move_info info;

@@ -9,8 +9,8 @@
  * and after the move; cold: the bakes at i - 1 and i), over the sampled
  * pairs (each straddles a grid shift) for both, and over every crossing
  * step for the moved cascade. The jump between consecutive steps' points is
- * printed too; it includes the gather's sampling noise, which changes with
- * the point. */
+ * printed too; it includes the light's real change between the points and
+ * flips of emitter samples. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -29,7 +29,7 @@ typedef struct figures {
   double drift_mean, drift_max;
   /* At a fixed point across the update (moved) or across the anchors (cold). */
   double pop_shift, pop_all, pop_pairs_moved, pop_pairs_cold;
-  /* Between consecutive steps' points: includes the gather's noise. */
+  /* Between consecutive steps' points: includes the light's change between them. */
   double jump_pairs_moved, jump_pairs_cold, jump_all;
 } figures;
 
@@ -109,7 +109,7 @@ static void print_figures(const walk_path *p, const figures *f) {
   printf("popping at a fixed point, every grid shift (moved): %s%%  goal <= %.0f%%: %s; any step: %s%%\n",
          num(100 * f->pop_shift, 2), 100 * GOAL_POP_SHIFT, met(f->crossings && f->pop_shift <= GOAL_POP_SHIFT),
          num(100 * f->pop_all, 2));
-  printf("consecutive steps' probes (incl. the gather's noise between points): sampled shifts moved %s%%, "
+  printf("consecutive steps' probes (incl. the light's change between points): sampled shifts moved %s%%, "
          "cold %s%%; any step moved %s%%\n", num(100 * f->jump_pairs_moved, 2), num(100 * f->jump_pairs_cold, 2),
          num(100 * f->jump_all, 2));
 }
