@@ -180,10 +180,12 @@ static void test_walk(void **state) {
   }
   printf("walk: %d level rebuilds, %d moves re-lit by a changed plan, %d cycles closed\n", rebuilt, relit, closed);
   assert_true(rebuilt > 0); /* the far jumps rebuilt some levels */
-  assert_int_equal(closed, WALK_MOVES / (int)gi_cascade_refresh_period(c, c->n - 1));
-  /* Stand still until the cycle closes: within one coarsest period. */
+  assert_true(closed > 0);  /* ... and closed the cycle at once */
+  /* Stand still until the cycle closes: one more call at the anchor the
+   * walk ended on (the call that arrived does not count), then P calls. */
   gi_move_info mi = {0};
-  for (uint64_t i = 0; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
+  assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+  for (uint64_t i = 1; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
     assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
   assert_true(mi.cycle_closed);
   gi_cascade *b = bake(s, at);
@@ -331,14 +333,12 @@ static void test_relit(void **state) {
     gi_move_info mi;
     assert_int_equal(gi_cascade_move(c, path[i], &r, &mi, &err), GI_OK);
     assert_true(mi.relit);
+    /* Every voxel was re-lit: the move re-bakes at once. */
+    assert_true(mi.cycle_closed);
     assert_int_equal(r.effects[GI_FX_SKY].ran, path[i] == above);
     gi_cascade *b = NULL;
     assert_int_equal(gi_cascade_bake(s, path[i], &q, &b, NULL, &err), GI_OK);
     assert_same_geometry(c, b);
-    gi_move_info still = {0};
-    for (uint64_t k = 0; k < gi_cascade_refresh_period(c, c->n - 1) && !still.cycle_closed; k++)
-      assert_int_equal(gi_cascade_move(c, path[i], NULL, &still, &err), GI_OK);
-    assert_true(still.cycle_closed);
     double mean, worst;
     compare_light(c, b, 1, &mean, &worst);
     gi_cascade_free(b);
