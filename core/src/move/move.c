@@ -9,14 +9,20 @@
  * stale box in index order, and injection seeds by global cell, so a
  * rebuilt voxel is bit-identical to the bake's.
  *
- * Indirect light is refreshed on a fixed clock (the move count), never on
- * timing, so a walk is reproducible: level d every 2^d moves and new voxels
- * every move (one Jacobi gather from the current texture); every 2^(n-1)
- * moves the cycle closes with the bake's own bounce schedule from direct
- * light, which makes the cascade equal to a cold bake at the anchor. The
- * paper's equation 5 (per-level frequency) did not survive in the stored
- * text of section 1.3; 2^d follows its rule (finer levels more often) and
- * the level's voxel size, which doubles per level. */
+ * Indirect light (see gi_move.h): the scene is static, so kept voxels
+ * keep their light; the new voxels and their neighbours are gathered once
+ * from the live texture. Exactness comes from a re-bake that runs the
+ * bake's own bounces (k bounces and the tail, from direct light) against a
+ * second texture, one slice per call that keeps the anchor, and swaps it
+ * in when done. Measured at default quality on the city (street walk at
+ * 1.4 m/s, 10 Hz): the clocked scheme this replaced (whole levels
+ * re-gathered every 2^d moves, a cold bake's bounces every 2^(n-1)) kept
+ * the probe within 0.41% mean / 1.26% max of cold bakes; this one 0.08% /
+ * 0.52%, since a repeated gather drifts toward the infinite-bounce answer
+ * rather than the bake's. Everything runs on the call count, never on
+ * timing, so a walk is reproducible. Filtering twice per scrolling move is
+ * needed: skipping the filter before the gather (coarse cells just nested
+ * keep their own light) nearly tripled the largest probe error on a drive. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
