@@ -18,6 +18,8 @@
  *     fewer voxels than the cold bake (counted, not timed).
  *   bounded: along a street walk and a drive no call re-gathers or
  *     voxelizes more than a quarter of a cold bake's voxels.
+ *   refilter exact: the nested cells a move refilters are all that a full
+ *     refilter would change.
  *   probe drift: the probe at the viewpoint along the walk and the drive
  *     stays within measured bounds of cold bakes at the same anchors. */
 #include "test_util.h"
@@ -364,6 +366,37 @@ static void test_probe_drift(void **state) {
   gi_scene_release(s);
 }
 
+/* A move refilters only the nested cells above what changed: after every
+ * move of a drive and of a sideways walk, a full refilter changes no texel. */
+#define REFILTER_MOVES 40
+static void test_refilter_exact(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  const double steps[2][3] = {{DRIVE_SPEED / STEP_HZ, 0, 0}, {0.3, 0.05, 0.9}};
+  for (int v = 0; v < 2; v++) {
+    double at[3];
+    gi_city_default_viewpoint(&cp, at);
+    gi_cascade *c = bake(s, at);
+    size_t vox = (size_t)c->R * c->R * c->R;
+    gi_vrad *before = gi__malloc(vox * sizeof *before);
+    assert_non_null(before);
+    gi_error_info err = {0};
+    for (int m = 0; m < REFILTER_MOVES; m++) {
+      for (int a = 0; a < 3; a++) at[a] += steps[v][a];
+      assert_int_equal(gi_cascade_move(c, at, NULL, NULL, &err), GI_OK);
+      for (int d = 1; d < c->n; d++) {
+        memcpy(before, c->lv[d].rad, vox * sizeof *before);
+        const int64_t *lo = c->lv[d].inner0, *hi = c->lv[d].inner1;
+        assert_int_equal(gi__cascade_filter_box(c, 2, d, lo, hi), 0);
+        assert_true(memcmp(before, c->lv[d].rad, vox * sizeof *before) == 0);
+      }
+    }
+    gi__free(before);
+    gi_cascade_free(c);
+  }
+  gi_scene_release(s);
+}
+
 /* Bad viewpoints are refused and leave the cascade as it was. */
 static void test_bad_viewpoint(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
@@ -476,6 +509,7 @@ int main(void) {
       cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),
       cmocka_unit_test(test_bounded),
+      cmocka_unit_test(test_refilter_exact),
       cmocka_unit_test(test_probe_drift),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -231,8 +231,8 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh,
 
 /* Scrolls every level and rebuilds the geometry of its stale cells. */
 static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32_t **fresh, uint32_t *nfresh,
-                               uint32_t *nnew,
-                               gi_move_info *mi, gi_error_info *err) {
+                               uint32_t *nnew, cell_box (*boxes)[MAX_BOXES], int *nboxes, gi_move_info *mi,
+                               gi_error_info *err) {
   int R = c->R;
   uint32_t *tris = NULL;
   size_t cap = 0;
@@ -242,8 +242,8 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
     int rebuild = 0;
     for (int a = 0; a < 3; a++) rebuild |= llabs(L->cell0[a] - old[d].cell0[a]) >= R;
     mi->rebuilt[d] = rebuild;
-    cell_box b[MAX_BOXES];
-    int nb = stale_boxes(&old[d], L, R, rebuild, b);
+    cell_box *b = boxes[d];
+    int nb = nboxes[d] = stale_boxes(&old[d], L, R, rebuild, b);
     c->report.level_voxelized[d] = mark_stale(&old[d], L, R, rebuild, b, nb);
     for (int q = 0; q < nb && rc == GI_OK; q++) rc = voxelize_box(c, L, &b[q], &tris, &cap, err);
     if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d], &nnew[d]);
@@ -540,6 +540,43 @@ static void reset_counters(gi_bake_report *r) {
   memset(r->level_rebounced, 0, sizeof r->level_rebounced);
 }
 
+/* Boxes of changed cells per level: a level's own stale boxes grown by
+ * `grow` cells, and the nested cells above every changed box of the finer
+ * level (refiltered here, finer levels first). */
+#define MAX_CHANGED (MAX_BOXES * GI_MAX_LEVELS)
+static int refilter_changed(struct gi_cascade *c, int threads, cell_box (*own)[MAX_BOXES], const int *nown,
+                            int grow) {
+  cell_box ch[2][MAX_CHANGED];
+  int nch[2] = {0, 0};
+  for (int d = 0; d < c->n; d++) {
+    cell_box *cur = ch[d & 1], *fine = ch[!(d & 1)];
+    int n = 0;
+    for (int q = 0; q < nown[d]; q++) {
+      cur[n] = own[d][q];
+      for (int a = 0; a < 3; a++) cur[n].lo[a] -= grow, cur[n].hi[a] += grow;
+      n++;
+    }
+    for (int q = 0; d > 0 && q < nch[!(d & 1)]; q++) {
+      cell_box p;
+      for (int a = 0; a < 3; a++) {
+        p.lo[a] = gi__floordiv(fine[q].lo[a], 2);
+        p.hi[a] = gi__floordiv(fine[q].hi[a] - 1, 2) + 1;
+      }
+      if (gi__cascade_filter_box(c, threads, d, p.lo, p.hi)) return 1;
+      cur[n++] = p;
+    }
+    nch[d & 1] = n;
+  }
+  return 0;
+}
+
+/* Refilters what changed, or every nested region when `all` (the texels'
+ * scale changed, so every filtered texel is stale). */
+static int refilter(struct gi_cascade *c, int threads, int all, cell_box (*own)[MAX_BOXES], const int *nown,
+                    int grow) {
+  return all ? gi__cascade_filter(c, threads) : refilter_changed(c, threads, own, nown, grow);
+}
+
 /* Scrolls to the new placement and updates the live light: voxelize and
  * inject the new voxels, gather them and their neighbours once. A move that
  * re-lit every voxel or rebuilt a level runs the whole re-bake at once (it
@@ -548,6 +585,8 @@ static void reset_counters(gi_bake_report *r) {
 static gi_result scroll_and_update(struct gi_cascade *c, const gi_level *old, gi_move_info *mi, double t[4],
                                    gi_error_info *err) {
   uint32_t *fresh[GI_MAX_LEVELS] = {0}, nfresh[GI_MAX_LEVELS] = {0}, nnew[GI_MAX_LEVELS] = {0};
+  cell_box boxes[GI_MAX_LEVELS][MAX_BOXES];
+  int nboxes[GI_MAX_LEVELS] = {0};
   size_t vox = (size_t)c->R * c->R * c->R;
   gi_result rc = GI_OK;
   for (int d = 0; d < c->n && rc == GI_OK; d++)
@@ -555,24 +594,28 @@ static gi_result scroll_and_update(struct gi_cascade *c, const gi_level *old, gi
       rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the new voxels' list");
   gi_quality q = c->report.quality;
   int tail = c->tail, rebuilt = 0;
-  if (rc == GI_OK) rc = scroll_levels(c, old, fresh, nfresh, nnew, mi, err);
+  if (rc == GI_OK) rc = scroll_levels(c, old, fresh, nfresh, nnew, boxes, nboxes, mi, err);
   t[1] = gi__now_ms();
   if (rc == GI_OK) rc = replan(c, &q, &tail, &mi->relit, err);
   c->tail = tail;
+  float scale = c->rad_scale;
   if (rc == GI_OK) rc = inject_fresh(c, &q, mi->relit, fresh, nnew, err);
   t[2] = gi__now_ms();
-  if (rc == GI_OK && gi__cascade_filter(c, q.threads)) rc = gi__cancel_fail(c->cancel, err, "move filter");
+  for (int d = 0; d < c->n; d++) rebuilt |= mi->rebuilt[d];
+  if (rc == GI_OK && refilter(c, q.threads, mi->relit || rebuilt || c->rad_scale != scale, boxes, nboxes, 0))
+    rc = gi__cancel_fail(c->cancel, err, "move filter");
   if (rc == GI_OK) gi__cascade_mark_busy(c);
   t[3] = gi__now_ms();
   c->move_state->slice = 0;
   c->move_state->closed = 0;
-  for (int d = 0; d < c->n; d++) rebuilt |= mi->rebuilt[d];
   if (rc == GI_OK && (mi->relit || rebuilt)) {
     while (rc == GI_OK && !c->move_state->closed) rc = rebake_slice(c, &q, tail, mi, err);
   } else if (rc == GI_OK && c->report.effects[GI_FX_BOUNCE].ran) {
     rc = gather_fresh(c, q.threads, fresh, nfresh, err);
+    scale = c->rad_scale;
     if (rc == GI_OK) gi__shade_all(c);
-    if (rc == GI_OK && gi__cascade_filter(c, q.threads)) rc = gi__cancel_fail(c->cancel, err, "move filter");
+    if (rc == GI_OK && refilter(c, q.threads, c->rad_scale != scale, boxes, nboxes, NEIGHBOUR_CELLS))
+      rc = gi__cancel_fail(c->cancel, err, "move filter");
     if (rc == GI_OK) c->report.bounces_run = 1;
   }
   for (int d = 0; d < c->n; d++) gi__free(fresh[d]);
