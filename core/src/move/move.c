@@ -20,9 +20,11 @@
  * the probe within 0.41% mean / 1.26% max of cold bakes; this one 0.08% /
  * 0.52%, since a repeated gather drifts toward the infinite-bounce answer
  * rather than the bake's. Everything runs on the call count, never on
- * timing, so a walk is reproducible. Filtering twice per scrolling move is
- * needed: skipping the filter before the gather (coarse cells just nested
- * keep their own light) nearly tripled the largest probe error on a drive. */
+ * timing, so a walk is reproducible. A scrolling move filters twice, but
+ * only the nested cells above what changed (the whole regions when the
+ * texels' scale changed): skipping the filter before the gather (coarse
+ * cells just nested keep their own light) nearly tripled the largest probe
+ * error on a drive. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
