@@ -18,15 +18,19 @@
  * call that arrived there does not count) completes the re-bake and swaps
  * its texture in; the cascade then equals a cold bake at that anchor (up
  * to half-float rounding of texels stored at a different rad_scale) and
- * info->cycle_closed is 1. Further calls at that anchor do nothing. A call
- * that changes the anchor restarts the re-bake.
+ * info->cycle_closed is 1. Further calls at that anchor do nothing (a
+ * freshly baked cascade is already there). A call that changes the anchor
+ * restarts the re-bake, so a viewer that keeps crossing cells sees the
+ * live update alone (measured on the city at default quality: the probe
+ * within 0.08% mean / 0.5% max of cold bakes on a 1.4 m/s walk, 0.3% /
+ * 2.1% on a 14 m/s drive).
  * A level that moves by its extent or more is rebuilt whole; such a move,
  * and one that changes the effect plan's lights (every voxel re-injected),
  * runs the whole re-bake at once (a cold bake's work) and closes the cycle.
  * So no call that scrolls by less than a level's extent costs more than
- * the new voxels' work, and no call that keeps the anchor more than one
- * slice (1/P of a bake's gathers, plus one reshade and refilter per bounce
- * the slice ends).
+ * the new voxels' work (and a refilter above them), and no call that keeps
+ * the anchor more than one slice (1/P of a bake's gathers, plus one
+ * reshade and refilter per bounce the slice ends).
  *
  * Ownership and threads: the caller owns the cascade; a move writes it, so
  * no reader may run during a move. On error the cascade is left partial
@@ -34,7 +38,8 @@
  * level_voxelized, level_injected and level_rebounced (voxel gathers, the
  * live update's and the re-bake slice's) and its stage times count only
  * what the move did; gi_cascade_report returns it too. A moved cascade
- * holds the re-bake's texture beside its own (gi_cascade_bytes counts it). */
+ * holds the re-bake's texture beside its own (72 bytes per voxel, about
+ * 43% more; gi_cascade_bytes counts it). */
 #ifndef GI_MOVE_H
 #define GI_MOVE_H
 
