@@ -250,23 +250,33 @@ static void test_cost(void **state) {
 }
 
 /* A street walk (1.4 m/s) and a drive (14 m/s) at 10 Hz along the street
- * through the city's central intersection (x grows, z fixed). */
+ * through the city's central intersection (x grows, z fixed), centred on
+ * it so that the drive (168 m) stays inside the 300 m city. */
 #define STEP_HZ 10.0
 #define WALK_SPEED 1.4
 #define DRIVE_SPEED 14.0
 #define PATH_STEPS 120
 
+static void path_start(const gi_city_params *cp, double speed, double at[3]) {
+  gi_city_default_viewpoint(cp, at);
+  at[0] -= 0.5 * speed * PATH_STEPS / STEP_HZ;
+}
+
 /* Per-move work along a long walk and drive, counted: no call re-gathers
  * more than BOUND_SHARE of a cold bake's gathers (the bake's bounces times
- * its occupied voxels), nor voxelizes more than BOUND_SHARE of its voxels. */
-#define BOUND_SHARE 0.25
+ * its occupied voxels), nor voxelizes more than BOUND_SHARE of its voxels.
+ * Measured: at most 24.1% and 15.1% (at 16^3 a level's 2-cell slab and the
+ * 2-cell band gathered with it are up to 6/16 of the level; a re-bake
+ * slice is 1/8 of the bake's gathers); at the default 32^3, 7% of the
+ * gathers on a 14 m/s drive. */
+#define BOUND_SHARE 0.3
 static void test_bounded(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
   gi_scene *s = city(&cp);
   const double speeds[2] = {WALK_SPEED, DRIVE_SPEED};
   for (int v = 0; v < 2; v++) {
     double at[3];
-    gi_city_default_viewpoint(&cp, at);
+    path_start(&cp, speeds[v], at);
     gi_cascade *c = bake(s, at);
     gi_bake_report cold = *gi_cascade_report(c);
     uint64_t cb = total(cold.level_rebounced, c->n), cv = total(cold.level_voxelized, c->n);
@@ -316,21 +326,22 @@ static void probe_figures(const gi_cascade *c, const double at[3], double v[21])
 
 /* Probe drift along the walk and the drive against cold bakes at the same
  * anchors: mean and largest relative difference of the 21 figures.
- * Measured on this path (deterministic): walk mean 0.0005, max 0.017; drive
- * mean 0.0029, max 0.042 (a dim downward figure, 0.052 against 0.050, at
- * a step that scrolled level 1; the new voxels' one gather from the live
- * texture reads one order more than the bake's k bounces). The bounds
- * leave 1.5x for other compilers and the other march kernel (AVX2 or
- * not); the scheme this replaced (whole levels re-gathered on a clock)
- * measured 5x the mean at default quality. */
-static const double DRIFT_MEAN_BOUND[2] = {0.001, 0.005}, DRIFT_MAX_BOUND[2] = {0.026, 0.064};
+ * Measured on these paths (deterministic): walk mean 0.0003, max 0.0091;
+ * drive mean 0.0034, max 0.033 (a dim downward figure, 0.053 against
+ * 0.051: the new voxels' one gather from the live texture reads one order
+ * more than the bake's k bounces on level 0, less on coarse levels). The
+ * bounds leave 1.5x for other compilers and the other march kernel (AVX2
+ * or not; the walk's mean, 3x: it is tiny); the scheme this replaced
+ * (whole levels re-gathered on a clock) measured 5x the mean at default
+ * quality. */
+static const double DRIFT_MEAN_BOUND[2] = {0.001, 0.0052}, DRIFT_MAX_BOUND[2] = {0.014, 0.05};
 static void test_probe_drift(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
   gi_scene *s = city(&cp);
   const double speeds[2] = {WALK_SPEED, DRIVE_SPEED};
   for (int v = 0; v < 2; v++) {
     double at[3];
-    gi_city_default_viewpoint(&cp, at);
+    path_start(&cp, speeds[v], at);
     gi_cascade *c = bake(s, at), *b = NULL;
     int64_t banchor[3] = {INT64_MIN, 0, 0};
     double sum = 0, worst = 0;
@@ -356,7 +367,7 @@ static void test_probe_drift(void **state) {
         n++;
       }
     }
-    printf("%s: probe against cold bakes over %d steps: mean %.4f max %.4f relative (bounds %.3f, %.3f)\n",
+    printf("%s: probe against cold bakes over %d steps: mean %.4f max %.4f relative (bounds %.4f, %.3f)\n",
            v ? "drive" : "walk", PATH_STEPS, sum / n, worst, DRIFT_MEAN_BOUND[v], DRIFT_MAX_BOUND[v]);
     assert_true(sum / n <= DRIFT_MEAN_BOUND[v]);
     assert_true(worst <= DRIFT_MAX_BOUND[v]);
