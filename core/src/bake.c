@@ -46,6 +46,7 @@ static void free_levels(struct gi_cascade *c) {
 void gi_cascade_free(gi_cascade *c) {
   if (!c) return;
   free_levels(c);
+  gi__move_state_free(c->move_state);
   gi_scene_release(c->scene);
   gi__free(c);
 }
@@ -58,7 +59,8 @@ static size_t level_bytes(int levels, int res) {
   return (size_t)levels * (size_t)res * (size_t)res * (size_t)res * GI_VOXEL_BYTES;
 }
 
-size_t gi_cascade_bytes(const gi_cascade *c) { return level_bytes(c->n, c->R); }
+/* A moved cascade also holds its re-bake's buffers. */
+size_t gi_cascade_bytes(const gi_cascade *c) { return level_bytes(c->n, c->R) + gi__move_state_bytes(c); }
 
 size_t gi_cascade_bytes_estimate(const gi_quality *resolved) {
   /* Unresolved (zero) levels or res: no estimate rather than a wrong one. */

@@ -6,7 +6,8 @@
  *     are rebuilt). Every WALK_CHECK moves the geometry, opacity and direct
  *     light of every own voxel must equal a cold bake at that point bit for
  *     bit (the scroll rebuilds exactly the voxels that came into range).
- *     After the walk the viewer stands still until the refresh cycle closes;
+ *     After the walk the viewer stands still until the refresh cycle closes
+ *     (the re-bake's P slices at one anchor, gi_move.h);
  *     then every face of every voxel (unpacked texels: the two cascades may
  *     store them at different rad_scale) must equal the cold bake within
  *     1e-3 relative.
@@ -14,7 +15,13 @@
  *   relit: moving out of a closed room turns the sky on (and back in off):
  *     every voxel is re-injected and matches a cold bake.
  *   cost: a move by one anchor cell voxelizes, injects and re-gathers far
- *     fewer voxels than the cold bake (counted, not timed). */
+ *     fewer voxels than the cold bake (counted, not timed).
+ *   bounded: along a street walk and a drive no call re-gathers or
+ *     voxelizes more than a quarter of a cold bake's voxels.
+ *   refilter exact: the nested cells a move refilters are all that a full
+ *     refilter would change.
+ *   probe drift: the probe at the viewpoint along the walk and the drive
+ *     stays within measured bounds of cold bakes at the same anchors. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
@@ -165,25 +172,26 @@ static void test_walk(void **state) {
     if (m % WALK_CHECK == 0) {
       gi_cascade *b = bake(s, at);
       assert_same_geometry(c, b);
-      /* Between cycle ends the light drifts (reported, not asserted). */
+      /* Before the re-bake completes the light drifts (reported, not asserted). */
       /* Baseline: how far cold bakes at the previous and this point differ. */
       gi_cascade *p = bake(s, prev);
       double mean, worst, pmean, pworst;
       compare_light(c, b, 0, &mean, &worst);
       compare_light(p, b, 0, &pmean, &pworst);
-      printf("move %3d (cycle phase %llu): light against a cold bake: mean %.4f max %.4f relative; "
-             "cold bake one step back against it: mean %.4f max %.4f\n", m,
-             (unsigned long long)(mi.move % gi_cascade_refresh_period(c, c->n - 1)), mean, worst, pmean, pworst);
+      printf("move %3d (re-bake slice %d): light against a cold bake: mean %.4f max %.4f relative; "
+             "cold bake one step back against it: mean %.4f max %.4f\n", m, mi.slice, mean, worst, pmean, pworst);
       gi_cascade_free(p);
       gi_cascade_free(b);
     }
   }
   printf("walk: %d level rebuilds, %d moves re-lit by a changed plan, %d cycles closed\n", rebuilt, relit, closed);
   assert_true(rebuilt > 0); /* the far jumps rebuilt some levels */
-  assert_int_equal(closed, WALK_MOVES / (int)gi_cascade_refresh_period(c, c->n - 1));
-  /* Stand still until the cycle closes: within one coarsest period. */
+  assert_true(closed > 0);  /* ... and closed the cycle at once */
+  /* Stand still until the cycle closes: one more call at the anchor the
+   * walk ended on (the call that arrived does not count), then P calls. */
   gi_move_info mi = {0};
-  for (uint64_t i = 0; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
+  assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+  for (uint64_t i = 1; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
     assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
   assert_true(mi.cycle_closed);
   gi_cascade *b = bake(s, at);
@@ -238,6 +246,165 @@ static void test_cost(void **state) {
   assert_true((double)minj < COST_SHARE * (double)ci);
   assert_true((double)mb < COST_SHARE * (double)cb);
   gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+/* A street walk (1.4 m/s) and a drive (14 m/s) at 10 Hz along the street
+ * through the city's central intersection (x grows, z fixed), centred on
+ * it so that the drive (168 m) stays inside the 300 m city. */
+#define STEP_HZ 10.0
+#define WALK_SPEED 1.4
+#define DRIVE_SPEED 14.0
+#define PATH_STEPS 120
+
+static void path_start(const gi_city_params *cp, double speed, double at[3]) {
+  gi_city_default_viewpoint(cp, at);
+  at[0] -= 0.5 * speed * PATH_STEPS / STEP_HZ;
+}
+
+/* Per-move work along a long walk and drive, counted: no call re-gathers
+ * more than BOUND_SHARE of a cold bake's gathers (the bake's bounces times
+ * its occupied voxels), nor voxelizes more than BOUND_SHARE of its voxels.
+ * Measured: at most 24.1% and 15.1% (at 16^3 a level's 2-cell slab and the
+ * 2-cell band gathered with it are up to 6/16 of the level; a re-bake
+ * slice is 1/8 of the bake's gathers); at the default 32^3, 7% of the
+ * gathers on a 14 m/s drive. */
+#define BOUND_SHARE 0.3
+static void test_bounded(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  const double speeds[2] = {WALK_SPEED, DRIVE_SPEED};
+  for (int v = 0; v < 2; v++) {
+    double at[3];
+    path_start(&cp, speeds[v], at);
+    gi_cascade *c = bake(s, at);
+    gi_bake_report cold = *gi_cascade_report(c);
+    uint64_t cb = total(cold.level_rebounced, c->n), cv = total(cold.level_voxelized, c->n);
+    uint64_t worst = 0, worst_v = 0, sum = 0;
+    int slices = 0, crossings = 0;
+    gi_error_info err = {0};
+    for (int m = 0; m < PATH_STEPS; m++) {
+      at[0] += speeds[v] / STEP_HZ;
+      gi_bake_report r;
+      gi_move_info mi;
+      assert_int_equal(gi_cascade_move(c, at, &r, &mi, &err), GI_OK);
+      uint64_t g = total(r.level_rebounced, c->n), vx = total(r.level_voxelized, c->n);
+      for (int d = 0; d < c->n; d++) assert_false(mi.rebuilt[d]);
+      assert_false(mi.cycle_closed && mi.slice == 0);
+      slices += mi.slice > 0;
+      crossings += vx > 0;
+      worst = g > worst ? g : worst;
+      worst_v = vx > worst_v ? vx : worst_v;
+      sum += g;
+      assert_true((double)g <= BOUND_SHARE * (double)cb);
+      assert_true((double)vx <= BOUND_SHARE * (double)cv);
+    }
+    printf("%s: cold bake %llu gathers, %llu voxels; per move at most %llu gathers (%.1f%%), mean %.1f (%.1f%%), "
+           "at most %llu voxelized (%.1f%%); %d crossing moves, %d re-bake slices\n",
+           v ? "drive" : "walk", (unsigned long long)cb, (unsigned long long)cv, (unsigned long long)worst,
+           100.0 * (double)worst / (double)cb, (double)sum / PATH_STEPS, 100.0 * (double)sum / PATH_STEPS / (double)cb,
+           (unsigned long long)worst_v, 100.0 * (double)worst_v / (double)cv, crossings, slices);
+    gi_cascade_free(c);
+  }
+  gi_scene_release(s);
+}
+
+/* The probe at the viewpoint as the issue measures it: SH L00 and the
+ * irradiance of the 6 axis directions, per channel (21 values). */
+static void probe_figures(const gi_cascade *c, const double at[3], double v[21]) {
+  gi_probe p;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_gather(c, at, 1, &p, NULL, &err), GI_OK);
+  for (int k = 0; k < 3; k++) v[k] = p.sh[0][k];
+  for (int f = 0; f < 6; f++) {
+    float n[3] = {0, 0, 0}, o[3];
+    n[f / 2] = f % 2 ? -1.f : 1.f;
+    gi_sh_eval_irradiance(p.sh, n, o);
+    for (int k = 0; k < 3; k++) v[3 + 3 * f + k] = o[k];
+  }
+}
+
+/* Probe drift along the walk and the drive against cold bakes at the same
+ * anchors: mean and largest relative difference of the 21 figures.
+ * Measured on these paths (deterministic): walk mean 0.0003, max 0.0091;
+ * drive mean 0.0034, max 0.033 (a dim downward figure, 0.053 against
+ * 0.051: the new voxels' one gather from the live texture reads one order
+ * more than the bake's k bounces on level 0, less on coarse levels). The
+ * bounds leave 1.5x for other compilers and the other march kernel (AVX2
+ * or not; the walk's mean, 3x: it is tiny); the scheme this replaced
+ * (whole levels re-gathered on a clock) measured 5x the mean at default
+ * quality. */
+static const double DRIFT_MEAN_BOUND[2] = {0.001, 0.0052}, DRIFT_MAX_BOUND[2] = {0.014, 0.05};
+static void test_probe_drift(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  const double speeds[2] = {WALK_SPEED, DRIVE_SPEED};
+  for (int v = 0; v < 2; v++) {
+    double at[3];
+    path_start(&cp, speeds[v], at);
+    gi_cascade *c = bake(s, at), *b = NULL;
+    int64_t banchor[3] = {INT64_MIN, 0, 0};
+    double sum = 0, worst = 0;
+    int n = 0;
+    gi_error_info err = {0};
+    for (int m = 0; m < PATH_STEPS; m++) {
+      at[0] += speeds[v] / STEP_HZ;
+      assert_int_equal(gi_cascade_move(c, at, NULL, NULL, &err), GI_OK);
+      int64_t an[3];
+      assert_int_equal(gi_cascade_anchor(s, at, &c->report.quality, an, &err), GI_OK);
+      if (memcmp(an, banchor, sizeof an) != 0) {
+        gi_cascade_free(b);
+        b = bake(s, at);
+        memcpy(banchor, an, sizeof an);
+      }
+      double pm[21], pb[21];
+      probe_figures(c, at, pm);
+      probe_figures(b, at, pb);
+      for (int i = 0; i < 21; i++) {
+        double rel = fabs(pm[i] - pb[i]) / fmax(fabs(pb[i]), 1e-12);
+        sum += rel;
+        worst = fmax(worst, rel);
+        n++;
+      }
+    }
+    printf("%s: probe against cold bakes over %d steps: mean %.4f max %.4f relative (bounds %.4f, %.3f)\n",
+           v ? "drive" : "walk", PATH_STEPS, sum / n, worst, DRIFT_MEAN_BOUND[v], DRIFT_MAX_BOUND[v]);
+    assert_true(sum / n <= DRIFT_MEAN_BOUND[v]);
+    assert_true(worst <= DRIFT_MAX_BOUND[v]);
+    gi_cascade_free(b);
+    gi_cascade_free(c);
+  }
+  gi_scene_release(s);
+}
+
+/* A move refilters only the nested cells above what changed: after every
+ * move of a drive and of a sideways walk, a full refilter changes no texel. */
+#define REFILTER_MOVES 40
+static void test_refilter_exact(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  const double steps[2][3] = {{DRIVE_SPEED / STEP_HZ, 0, 0}, {0.3, 0.05, 0.9}};
+  for (int v = 0; v < 2; v++) {
+    double at[3];
+    gi_city_default_viewpoint(&cp, at);
+    gi_cascade *c = bake(s, at);
+    size_t vox = (size_t)c->R * c->R * c->R;
+    gi_vrad *before = gi__malloc(vox * sizeof *before);
+    assert_non_null(before);
+    gi_error_info err = {0};
+    for (int m = 0; m < REFILTER_MOVES; m++) {
+      for (int a = 0; a < 3; a++) at[a] += steps[v][a];
+      assert_int_equal(gi_cascade_move(c, at, NULL, NULL, &err), GI_OK);
+      for (int d = 1; d < c->n; d++) {
+        memcpy(before, c->lv[d].rad, vox * sizeof *before);
+        const int64_t *lo = c->lv[d].inner0, *hi = c->lv[d].inner1;
+        assert_int_equal(gi__cascade_filter_box(c, 2, d, lo, hi), 0);
+        assert_true(memcmp(before, c->lv[d].rad, vox * sizeof *before) == 0);
+      }
+    }
+    gi__free(before);
+    gi_cascade_free(c);
+  }
   gi_scene_release(s);
 }
 
@@ -331,14 +498,12 @@ static void test_relit(void **state) {
     gi_move_info mi;
     assert_int_equal(gi_cascade_move(c, path[i], &r, &mi, &err), GI_OK);
     assert_true(mi.relit);
+    /* Every voxel was re-lit: the move re-bakes at once. */
+    assert_true(mi.cycle_closed);
     assert_int_equal(r.effects[GI_FX_SKY].ran, path[i] == above);
     gi_cascade *b = NULL;
     assert_int_equal(gi_cascade_bake(s, path[i], &q, &b, NULL, &err), GI_OK);
     assert_same_geometry(c, b);
-    gi_move_info still = {0};
-    for (uint64_t k = 0; k < gi_cascade_refresh_period(c, c->n - 1) && !still.cycle_closed; k++)
-      assert_int_equal(gi_cascade_move(c, path[i], NULL, &still, &err), GI_OK);
-    assert_true(still.cycle_closed);
     double mean, worst;
     compare_light(c, b, 1, &mean, &worst);
     gi_cascade_free(b);
@@ -354,6 +519,9 @@ int main(void) {
       cmocka_unit_test(test_deterministic),
       cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),
+      cmocka_unit_test(test_bounded),
+      cmocka_unit_test(test_refilter_exact),
+      cmocka_unit_test(test_probe_drift),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

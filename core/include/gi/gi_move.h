@@ -1,30 +1,46 @@
 /* gi_move.h: move a baked cascade to a new viewpoint.
  *
- * gi_cascade_move scrolls each level of a baked cascade by whole voxels
- * (toroidal storage: nothing is copied), voxelizes and injects direct light
- * only into the voxels that came into range (or left a finer level's
- * region), refilters the nested regions and refreshes indirect light on a
- * deterministic schedule (the paper's section 1.3: finer levels more often):
- *   - move m (counted from 1) re-gathers level d's own voxels when m is a
- *     multiple of gi_cascade_refresh_period(c, d) = 2^d, plus every voxel
- *     that came into range this move (one gather from the current texture);
- *   - when m is a multiple of the coarsest level's period 2^(n-1) the move
- *     closes the refresh cycle: it re-plans and re-bounces every level from
- *     its direct light exactly as a bake does, so the cascade then equals a
- *     cold bake at the same anchor (up to half-float rounding of texels
- *     stored at a different rad_scale).
- * Every call is one tick of that clock, also a call to the same point (a
- * viewer standing still lets the cycle close). New voxels and kept voxels
- * within 2 cells of them are gathered in the move that brings them in
- * (their cones read the coarser levels), rather than copying the next
- * coarser level's values until their level's turn.
- * A level that moves by its extent or more is rebuilt whole.
+ * The scene is static, so the light field does not change as the viewer
+ * moves: the cascade is a window on it. gi_cascade_move therefore
+ *   - scrolls each level by whole voxels (toroidal storage: nothing is
+ *     copied) and voxelizes and injects direct light only into the voxels
+ *     that came into range (or left a finer level's region), bit-identical
+ *     to a bake's;
+ *   - gathers those new voxels and the kept voxels within 2 cells of them
+ *     once from the current texture (their cones read the coarser levels
+ *     at once); every other kept voxel keeps its light;
+ *   - re-bakes in the background: on each call that keeps the anchor
+ *     (gi_cascade_anchor), it runs one slice of the bake's own bounce
+ *     schedule (k bounces and the tail, from direct light) against a second
+ *     texture, each slice 1/P of the bake's voxel gathers, with
+ *     P = gi_cascade_refresh_period(c, d) (2^(n-1), at least 4).
+ * The refresh cycle: the P-th consecutive call that keeps the anchor (the
+ * call that arrived there does not count) completes the re-bake and swaps
+ * its texture in; the cascade then equals a cold bake at that anchor (up
+ * to half-float rounding of texels stored at a different rad_scale) and
+ * info->cycle_closed is 1. Further calls at that anchor do nothing (a
+ * freshly baked cascade is already there). A call that changes the anchor
+ * restarts the re-bake, so a viewer that keeps crossing cells sees the
+ * live update alone (measured on the city at default quality, 60 steps at
+ * 10 Hz: the probe within 0.07% mean / 0.44% max of cold bakes on a
+ * 1.4 m/s walk, 0.59% / 3.6% on a 14 m/s drive, the largest some 60 m on,
+ * mostly from levels 4 and 5).
+ * A level that moves by its extent or more is rebuilt whole; such a move,
+ * and one that changes the effect plan's lights (every voxel re-injected),
+ * runs the whole re-bake at once (a cold bake's work) and closes the cycle.
+ * So no call that scrolls by less than a level's extent costs more than
+ * the new voxels' work (and a refilter above them), and no call that keeps
+ * the anchor more than one slice (1/P of a bake's gathers, plus one
+ * reshade and refilter per bounce the slice ends).
  *
  * Ownership and threads: the caller owns the cascade; a move writes it, so
  * no reader may run during a move. On error the cascade is left partial
  * and must be freed. The report (gi_cascade.h) describes the move: its
- * level_voxelized, level_injected and level_rebounced and its stage times
- * count only what the move redid; gi_cascade_report returns it too. */
+ * level_voxelized, level_injected and level_rebounced (voxel gathers, the
+ * live update's and the re-bake slice's) and its stage times count only
+ * what the move did; gi_cascade_report returns it too. A moved cascade
+ * holds the re-bake's texture beside its own (72 bytes per voxel, about
+ * 43% more; gi_cascade_bytes counts it). */
 #ifndef GI_MOVE_H
 #define GI_MOVE_H
 
@@ -37,10 +53,11 @@ extern "C" {
 /* What one move decided, beside the counts in the report. */
 typedef struct gi_move_info {
   uint64_t move;               /* this move's number, from 1 */
-  int cycle_closed;            /* 1: every level was re-bounced as a bake would (equal to a cold bake) */
+  int cycle_closed;            /* 1: the re-bake completed: the cascade equals a cold bake */
   int relit;                   /* 1: the effect plan's lights changed: every voxel was re-injected */
   int rebuilt[GI_MAX_LEVELS];  /* 1: the level moved by its extent or more and was rebuilt whole */
-  int refreshed[GI_MAX_LEVELS];/* 1: all of the level's own voxels were re-gathered */
+  int refreshed[GI_MAX_LEVELS];/* 1: the level's light is now the re-bake's (as cycle_closed) */
+  int slice;                   /* the re-bake slice this call ran, 1..P (P: the cycle closed); 0: none */
 } gi_move_info;
 
 /* Moves cascade c to viewpoint `at` (world). report and info may be NULL.
@@ -48,8 +65,9 @@ typedef struct gi_move_info {
  * is then untouched). */
 gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
                           gi_error_info *err);
-/* Moves between two refreshes of level d (2^d); the refresh cycle is the
- * coarsest level's period. 0 for a level the cascade does not have. */
+/* P: the calls at one anchor that complete the re-bake (the refresh cycle),
+ * the same for every level (the bake's bounces couple them). 0 for a level
+ * the cascade does not have. */
 uint64_t gi_cascade_refresh_period(const gi_cascade *c, int level);
 
 #ifdef __cplusplus

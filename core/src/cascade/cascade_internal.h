@@ -119,6 +119,8 @@ struct gi_cascade {
   int auto_bounces;
   int tail;            /* the plan's bounce tail (gi__bounce) */
   uint64_t moves;
+  /* The move's re-bake in slices (move/move.c); NULL until the first move. */
+  struct gi_move_state *move_state;
 };
 
 static inline int64_t gi__floordiv(int64_t a, int64_t b) {
@@ -147,6 +149,9 @@ void gi__cascade_place(struct gi_cascade *c);
  * (compositing along each axis) and geometry. */
 /* Returns nonzero when c->cancel stopped it (the regions are then partial). */
 int gi__cascade_filter(struct gi_cascade *c, int threads);
+/* Filters only the nested cells of level d (>= 1) inside its global cells
+ * [lo, hi): a move whose finer level changed there. Nonzero when cancelled. */
+int gi__cascade_filter_box(struct gi_cascade *c, int threads, int d, const int64_t lo[3], const int64_t hi[3]);
 /* Rebuilds every level's busy mask from its opacity (after filtering). */
 void gi__cascade_mark_busy(struct gi_cascade *c);
 /* report.occupied[d]: voxels holding geometry per level, the filtered region included. */
@@ -165,6 +170,10 @@ void gi__vrad_pack(const struct gi_cascade *c, const gi_vrad_f *in, gi_vrad *r);
 void gi__vrad_rescale(struct gi_cascade *c, float brightest);
 static inline float gi__vrad_alpha(const gi_vrad *r, int a) { return gi__h2f(r->h[GI_VRAD_ALPHA + a]); }
 static inline float gi__vrad_tau(const gi_vrad *r, int a) { return gi__h2f(r->h[GI_VRAD_TAU + a]); }
+
+/* move/move.c: frees the move's re-bake state (NULL is fine); its bytes. */
+void gi__move_state_free(struct gi_move_state *m);
+size_t gi__move_state_bytes(const struct gi_cascade *c);
 
 /* voxelize.c */
 gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err);

@@ -16,6 +16,7 @@ static int in_inner(const gi_level *L, int64_t i, int64_t j, int64_t k) {
 typedef struct {
   struct gi_cascade *c;
   int d;
+  int64_t lo[3], hi[3]; /* the cells of level d to filter (inside its nested region) */
 } filter_ctx;
 
 /* One coarse voxel from its 2x2x2 children. */
@@ -113,27 +114,33 @@ static void filter_range(void *p, size_t b, size_t e, int worker) {
   struct gi_cascade *c = fc->c;
   gi_level *L = &c->lv[fc->d];
   const gi_level *F = &c->lv[fc->d - 1];
-  int64_t nx = L->inner1[0] - L->inner0[0], ny = L->inner1[1] - L->inner0[1];
+  int64_t nx = fc->hi[0] - fc->lo[0], ny = fc->hi[1] - fc->lo[1];
   for (size_t idx = b; idx < e; idx++) {
-    int64_t i = L->inner0[0] + (int64_t)idx % nx;
-    int64_t j = L->inner0[1] + ((int64_t)idx / nx) % ny;
-    int64_t k = L->inner0[2] + (int64_t)idx / (nx * ny);
+    int64_t i = fc->lo[0] + (int64_t)idx % nx;
+    int64_t j = fc->lo[1] + ((int64_t)idx / nx) % ny;
+    int64_t k = fc->lo[2] + (int64_t)idx / (nx * ny);
     filter_voxel(c, F, L, i, j, k);
   }
 }
 
-int gi__cascade_filter(struct gi_cascade *c, int threads) {
-  for (int d = 1; d < c->n; d++) {
-    gi_level *L = &c->lv[d];
-    if (!L->has_inner) continue;
-    size_t count = 1;
-    for (int a = 0; a < 3; a++) {
-      int64_t w = L->inner1[a] - L->inner0[a];
-      count *= (size_t)(w > 0 ? w : 0);
-    }
-    filter_ctx fc = {c, d};
-    if (gi__parallel_for_cancel(count, 256, threads, filter_range, &fc, NULL, c->cancel)) return 1;
+int gi__cascade_filter_box(struct gi_cascade *c, int threads, int d, const int64_t lo[3], const int64_t hi[3]) {
+  gi_level *L = &c->lv[d];
+  if (d < 1 || d >= c->n || !L->has_inner) return 0;
+  filter_ctx fc = {.c = c, .d = d};
+  size_t count = 1;
+  for (int a = 0; a < 3; a++) {
+    fc.lo[a] = lo[a] > L->inner0[a] ? lo[a] : L->inner0[a];
+    fc.hi[a] = hi[a] < L->inner1[a] ? hi[a] : L->inner1[a];
+    int64_t w = fc.hi[a] - fc.lo[a];
+    count *= (size_t)(w > 0 ? w : 0);
   }
+  if (count == 0) return 0;
+  return gi__parallel_for_cancel(count, 256, threads, filter_range, &fc, NULL, c->cancel);
+}
+
+int gi__cascade_filter(struct gi_cascade *c, int threads) {
+  for (int d = 1; d < c->n; d++)
+    if (gi__cascade_filter_box(c, threads, d, c->lv[d].inner0, c->lv[d].inner1)) return 1;
   return 0;
 }
 

@@ -9,14 +9,22 @@
  * stale box in index order, and injection seeds by global cell, so a
  * rebuilt voxel is bit-identical to the bake's.
  *
- * Indirect light is refreshed on a fixed clock (the move count), never on
- * timing, so a walk is reproducible: level d every 2^d moves and new voxels
- * every move (one Jacobi gather from the current texture); every 2^(n-1)
- * moves the cycle closes with the bake's own bounce schedule from direct
- * light, which makes the cascade equal to a cold bake at the anchor. The
- * paper's equation 5 (per-level frequency) did not survive in the stored
- * text of section 1.3; 2^d follows its rule (finer levels more often) and
- * the level's voxel size, which doubles per level. */
+ * Indirect light (see gi_move.h): the scene is static, so kept voxels
+ * keep their light; the new voxels and their neighbours are gathered once
+ * from the live texture. Exactness comes from a re-bake that runs the
+ * bake's own bounces (k bounces and the tail, from direct light) against a
+ * second texture, one slice per call that keeps the anchor, and swaps it
+ * in when done. Measured at default quality on the city (street walk at
+ * 1.4 m/s, 10 Hz): the clocked scheme this replaced (whole levels
+ * re-gathered every 2^d moves, a cold bake's bounces every 2^(n-1)) kept
+ * the probe within 0.41% mean / 1.26% max of cold bakes; this one 0.08% /
+ * 0.52%, since a repeated gather drifts toward the infinite-bounce answer
+ * rather than the bake's. Everything runs on the call count, never on
+ * timing, so a walk is reproducible. A scrolling move filters twice, but
+ * only the nested cells above what changed (the whole regions when the
+ * texels' scale changed): skipping the filter before the gather (coarse
+ * cells just nested keep their own light) nearly tripled the largest probe
+ * error on a drive. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -35,6 +43,9 @@ enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2, CELL_NEAR = 3 };
  * it: their gathers start next to the new geometry (a surface gather
  * starts one voxel off the surface and samples 2x2x2 blocks). */
 #define NEIGHBOUR_CELLS 2
+/* The re-bake runs in 2^(n-1) slices (32 at the default 6 levels: each
+ * about 3% of a bake's gathers), never fewer than this. */
+#define MIN_SLICES 4
 /* Viewpoints farther than this from the scene origin lose float precision (as in the bake). */
 #define MAX_VIEW_DISTANCE 1e9
 
@@ -49,7 +60,8 @@ typedef struct {
 
 uint64_t gi_cascade_refresh_period(const gi_cascade *c, int level) {
   if (!c || level < 0 || level >= c->n) return 0;
-  return 1ull << level;
+  uint64_t p = 1ull << (c->n - 1);
+  return p < MIN_SLICES ? MIN_SLICES : p;
 }
 
 static int in_window(const gi_level *L, int R, int64_t i, int64_t j, int64_t k) {
@@ -221,8 +233,8 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh,
 
 /* Scrolls every level and rebuilds the geometry of its stale cells. */
 static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32_t **fresh, uint32_t *nfresh,
-                               uint32_t *nnew,
-                               gi_move_info *mi, gi_error_info *err) {
+                               uint32_t *nnew, cell_box (*boxes)[MAX_BOXES], int *nboxes, gi_move_info *mi,
+                               gi_error_info *err) {
   int R = c->R;
   uint32_t *tris = NULL;
   size_t cap = 0;
@@ -232,8 +244,8 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
     int rebuild = 0;
     for (int a = 0; a < 3; a++) rebuild |= llabs(L->cell0[a] - old[d].cell0[a]) >= R;
     mi->rebuilt[d] = rebuild;
-    cell_box b[MAX_BOXES];
-    int nb = stale_boxes(&old[d], L, R, rebuild, b);
+    cell_box *b = boxes[d];
+    int nb = nboxes[d] = stale_boxes(&old[d], L, R, rebuild, b);
     c->report.level_voxelized[d] = mark_stale(&old[d], L, R, rebuild, b, nb);
     for (int q = 0; q < nb && rc == GI_OK; q++) rc = voxelize_box(c, L, &b[q], &tris, &cap, err);
     if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d], &nnew[d]);
@@ -261,6 +273,68 @@ static gi_result replan(struct gi_cascade *c, gi_quality *q, int *tail, int *rel
   return GI_OK;
 }
 
+/* The re-bake: the bake's bounce schedule (gi__bounce) at the current
+ * anchor, run against its own texture so answers keep reading the live one,
+ * and cut into gi_cascade_refresh_period slices of equal gather counts. */
+typedef struct gi_move_state {
+  gi_vrad *rad[GI_MAX_LEVELS];    /* the re-bake's texture (R^3, toroidal like the live one) */
+  float (*side[GI_MAX_LEVELS])[2][3];
+  float (*E[GI_MAX_LEVELS])[2][3]; /* this bounce's gathers, per occupied voxel */
+  uint32_t ecap[GI_MAX_LEVELS];   /* entries E[d] holds */
+  float rad_scale;
+  int slice;       /* slices run at this anchor */
+  int closed;      /* 1: the live cascade equals a cold bake at this anchor */
+  int bounces, tail;
+  double S[3][3];  /* the tail's area-weighted sums of the last three bounces (as gi__bounce) */
+} gi_move_state;
+
+void gi__move_state_free(struct gi_move_state *m) {
+  if (!m) return;
+  for (int d = 0; d < GI_MAX_LEVELS; d++) {
+    gi__free(m->rad[d]);
+    gi__free(m->side[d]);
+    gi__free(m->E[d]);
+  }
+  gi__free(m);
+}
+
+size_t gi__move_state_bytes(const struct gi_cascade *c) {
+  const gi_move_state *m = c ? c->move_state : NULL;
+  if (!m) return 0;
+  size_t vox = (size_t)c->R * c->R * c->R, bytes = sizeof *m;
+  for (int d = 0; d < c->n; d++) bytes += vox * (sizeof *m->rad[d] + sizeof *m->side[d]) + m->ecap[d] * sizeof *m->E[d];
+  return bytes;
+}
+
+/* A freshly baked cascade is its anchor's bake: the state starts closed. */
+static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
+  if (c->move_state) return GI_OK;
+  gi_move_state *m = gi__calloc(1, sizeof *m);
+  size_t vox = (size_t)c->R * c->R * c->R;
+  int ok = m != NULL;
+  for (int d = 0; d < c->n && ok; d++)
+    ok = (m->rad[d] = gi__malloc(vox * sizeof *m->rad[d])) && (m->side[d] = gi__malloc(vox * sizeof *m->side[d]));
+  if (!ok) {
+    gi__move_state_free(m);
+    return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake's texture");
+  }
+  m->closed = 1;
+  c->move_state = m;
+  return GI_OK;
+}
+
+/* Exchanges the live texture and the re-bake's (pointers only). */
+static void swap_texture(struct gi_cascade *c, gi_move_state *m) {
+  for (int d = 0; d < c->n; d++) {
+    gi_vrad *r = c->lv[d].rad;
+    float(*sd)[2][3] = c->lv[d].side;
+    c->lv[d].rad = m->rad[d], m->rad[d] = r;
+    c->lv[d].side = m->side[d], m->side[d] = sd;
+  }
+  float sc = c->rad_scale;
+  c->rad_scale = m->rad_scale, m->rad_scale = sc;
+}
+
 typedef struct {
   const struct gi_cascade *c;
   int d;
@@ -277,59 +351,160 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
   atomic_fetch_add(&g->cones, cones);
 }
 
-/* One Jacobi gather over the levels that are due (all their own voxels)
- * and the fresh voxels of the others: every gather reads the texture as it
- * was before the pass. */
-static gi_result regather(struct gi_cascade *c, int threads, const int *due, uint32_t **fresh,
-                          const uint32_t *nfresh, gi_error_info *err) {
+/* Gathers the n voxels slots[] of level d from the current texture into E. */
+static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n,
+                             float (*E)[2][3], gi_error_info *err) {
+  gather_ctx g = {.c = c, .d = d, .slots = slots, .E = E};
+  atomic_init(&g.samples, 0);
+  atomic_init(&g.cones, 0);
+  int cancelled = gi__parallel_for_cancel(n, 16, threads, gather_range, &g, NULL, c->cancel);
+  c->report.cone_samples += atomic_load(&g.samples);
+  c->report.cones_traced += atomic_load(&g.cones);
+  c->report.level_rebounced[d] += n;
+  return cancelled ? gi__cancel_fail(c->cancel, err, "move gather") : GI_OK;
+}
+
+/* The live update's light: one Jacobi gather of the new voxels and their
+ * kept neighbours from the live texture (already holding the new voxels'
+ * direct light). Kept voxels further away keep their light: the scene is
+ * static, so the light they hold is still the field the bake would find
+ * there (measured: re-gathering whole levels drifts toward the
+ * infinite-bounce answer instead, 5x the probe error). */
+static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fresh, const uint32_t *nfresh,
+                              gi_error_info *err) {
   float(*E[GI_MAX_LEVELS])[2][3] = {0};
-  const uint32_t *list[GI_MAX_LEVELS];
-  uint32_t cnt[GI_MAX_LEVELS];
   gi_result rc = GI_OK;
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
-    gi_level *L = &c->lv[d];
-    list[d] = due[d] ? L->occ : fresh[d];
-    cnt[d] = due[d] ? L->num_occ : nfresh[d];
-    if (!(E[d] = gi__malloc(((size_t)cnt[d] + 1) * sizeof *E[d]))) {
+    if (!(E[d] = gi__malloc(((size_t)nfresh[d] + 1) * sizeof *E[d])))
       rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
-      break;
-    }
-    gather_ctx g = {.c = c, .d = d, .slots = list[d], .E = E[d]};
-    atomic_init(&g.samples, 0);
-    atomic_init(&g.cones, 0);
-    if (gi__parallel_for_cancel(cnt[d], 16, threads, gather_range, &g, NULL, c->cancel))
-      rc = gi__cancel_fail(c->cancel, err, "move gather");
-    c->report.cone_samples += atomic_load(&g.samples);
-    c->report.cones_traced += atomic_load(&g.cones);
-    c->report.level_rebounced[d] += cnt[d];
+    else rc = gather_list(c, threads, d, fresh[d], nfresh[d], E[d], err);
   }
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     gi_level *L = &c->lv[d];
-    for (uint32_t q = 0; q < cnt[d]; q++) {
-      uint32_t slot = list[d][q];
+    for (uint32_t q = 0; q < nfresh[d]; q++) {
+      uint32_t slot = fresh[d][q];
       for (int sd = 0; sd < 2; sd++)
         for (int k = 0; k < 3; k++) L->side[slot][sd][k] = L->direct[slot][sd][k] + E[d][q][sd][k];
     }
   }
   for (int d = 0; d < c->n; d++) gi__free(E[d]);
-  if (rc == GI_OK) c->report.bounces_run = 1;
   return rc;
 }
 
-/* Closes the refresh cycle: every own voxel back to its direct light, then
- * the bake's bounces (gi__bounce) with the plan's count and tail. */
-static gi_result rebounce_all(struct gi_cascade *c, const gi_quality *q, int tail, gi_error_info *err) {
+/* Slice 0 of a re-bake: its texture from the live one (opacity lanes and
+ * geometry are the anchor's already), every own voxel back to its direct
+ * light, shaded and filtered: the bake's state before its first bounce. */
+static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tail, gi_error_info *err) {
+  gi_move_state *m = c->move_state;
+  size_t vox = (size_t)c->R * c->R * c->R;
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
-    for (uint32_t i = 0; i < L->num_occ; i++) memcpy(L->side[L->occ[i]], L->direct[L->occ[i]], sizeof *L->side);
+    memcpy(m->rad[d], L->rad, vox * sizeof *L->rad);
+    memset(m->side[d], 0, vox * sizeof *m->side[d]);
+    for (uint32_t i = 0; i < L->num_occ; i++) memcpy(m->side[d][L->occ[i]], L->direct[L->occ[i]], sizeof *L->side);
+    if (m->ecap[d] < L->num_occ + 1) {
+      gi__free(m->E[d]);
+      m->ecap[d] = 0;
+      if (!(m->E[d] = gi__malloc(((size_t)L->num_occ + 1) * sizeof *m->E[d])))
+        return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake of level %d", d);
+      m->ecap[d] = L->num_occ + 1;
+    }
+  }
+  m->bounces = c->report.effects[GI_FX_BOUNCE].ran ? q->bounces : 0;
+  m->tail = tail;
+  memset(m->S, 0, sizeof m->S);
+  swap_texture(c, m);
+  gi__shade_all(c);
+  int cancelled = gi__cascade_filter(c, q->threads);
+  swap_texture(c, m);
+  return cancelled ? gi__cancel_fail(c->cancel, err, "re-bake filter") : GI_OK;
+}
+
+/* Ends bounce `it` of the re-bake on its (swapped-in) texture: exactly the
+ * update after gi__bounce's gathers (light/bounce.c), so the result is
+ * bit-identical to the bake's: the tail's sums in the same order, the
+ * tail added on the last bounce, reshade and refilter. */
+static int rebake_bounce_end(struct gi_cascade *c, gi_move_state *m, int it, int threads) {
+  int last = it + 1 == m->bounces;
+  double f[3] = {0, 0, 0};
+  for (int k = 0; k < 3; k++) m->S[0][k] = m->S[1][k], m->S[1][k] = m->S[2][k], m->S[2][k] = 0;
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    for (uint32_t i = 0; i < L->num_occ; i++) {
+      double a = L->geo[L->occ[i]].area;
+      for (int sd = 0; sd < 2; sd++)
+        for (int k = 0; k < 3; k++) m->S[2][k] += a * m->E[d][i][sd][k];
+    }
+  }
+  if (m->tail && last && it >= 1)
+    for (int k = 0; k < 3; k++) {
+      double dk = m->S[2][k] - m->S[1][k], dk1 = m->S[1][k] - m->S[0][k];
+      double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
+      if (r > 0.95) r = 0.95;
+      f[k] = r / (1 - r);
+    }
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    for (uint32_t i = 0; i < L->num_occ; i++) {
+      uint32_t slot = L->occ[i];
+      for (int sd = 0; sd < 2; sd++)
+        for (int k = 0; k < 3; k++) {
+          float e = m->E[d][i][sd][k];
+          float inc = e - (L->side[slot][sd][k] - L->direct[slot][sd][k]);
+          float t = (float)f[k] * inc;
+          L->side[slot][sd][k] = L->direct[slot][sd][k] + e + (t > 0 ? t : 0);
+        }
+    }
   }
   gi__shade_all(c);
-  if (gi__cascade_filter(c, q->threads)) return gi__cancel_fail(c->cancel, err, "move filter");
-  if (!c->report.effects[GI_FX_BOUNCE].ran) return GI_OK;
-  gi_result rc = gi__bounce(c, q, q->bounces, tail, err);
-  for (int d = 0; d < c->n; d++)
-    c->report.level_rebounced[d] += (uint64_t)c->lv[d].num_occ * (uint64_t)c->report.bounces_run;
+  return gi__cascade_filter(c, threads);
+}
+
+/* Gathers units [lo, hi) of the re-bake (unit u: bounce u / U, then the
+ * levels' occupied voxels in order, U voxels per bounce) from its texture,
+ * ending each bounce whose last unit falls in the range. */
+static gi_result rebake_units(struct gi_cascade *c, gi_move_state *m, uint64_t lo, uint64_t hi, uint64_t U,
+                              int threads, gi_error_info *err) {
+  gi_result rc = GI_OK;
+  swap_texture(c, m);
+  while (lo < hi && rc == GI_OK) {
+    int it = (int)(lo / U);
+    uint64_t end = (uint64_t)(it + 1) * U < hi ? (uint64_t)(it + 1) * U : hi, base = (uint64_t)it * U;
+    for (int d = 0; d < c->n && rc == GI_OK; base += c->lv[d].num_occ, d++) {
+      uint64_t b = lo > base ? lo - base : 0, e = end - base;
+      if (e > c->lv[d].num_occ) e = c->lv[d].num_occ;
+      if (lo >= base + c->lv[d].num_occ || end <= base || b >= e) continue;
+      rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), m->E[d] + b, err);
+    }
+    if (rc == GI_OK && end == (uint64_t)(it + 1) * U && rebake_bounce_end(c, m, it, threads))
+      rc = gi__cancel_fail(c->cancel, err, "re-bake filter");
+    lo = end;
+  }
+  swap_texture(c, m);
   return rc;
+}
+
+/* Runs the next slice of the re-bake; the last one hands its texture to
+ * the live cascade (a pointer swap), which then equals a cold bake. */
+static gi_result rebake_slice(struct gi_cascade *c, const gi_quality *q, int tail, gi_move_info *mi,
+                              gi_error_info *err) {
+  gi_move_state *m = c->move_state;
+  if (m->closed) return GI_OK;
+  uint64_t P = gi_cascade_refresh_period(c, 0);
+  gi_result rc = GI_OK;
+  if (m->slice == 0 && (rc = rebake_start(c, q, tail, err)) != GI_OK) return rc;
+  uint64_t U = 0;
+  for (int d = 0; d < c->n; d++) U += c->lv[d].num_occ;
+  uint64_t W = U * (uint64_t)m->bounces, s = (uint64_t)m->slice;
+  if (W > 0 && (rc = rebake_units(c, m, s * W / P, (s + 1) * W / P, U, q->threads, err)) != GI_OK) return rc;
+  mi->slice = ++m->slice;
+  if ((uint64_t)m->slice < P) return GI_OK;
+  swap_texture(c, m);
+  m->closed = 1;
+  mi->cycle_closed = 1;
+  for (int d = 0; d < c->n; d++) mi->refreshed[d] = 1;
+  c->report.bounces_run = m->bounces;
+  return GI_OK;
 }
 
 /* Direct light into the rebuilt voxels (every own voxel when relit). */
@@ -367,28 +542,92 @@ static void reset_counters(gi_bake_report *r) {
   memset(r->level_rebounced, 0, sizeof r->level_rebounced);
 }
 
-/* Refreshes indirect light on the move clock (see the file comment). */
-static gi_result refresh(struct gi_cascade *c, const gi_quality *q, int tail, uint32_t **fresh,
-                         const uint32_t *nfresh, gi_move_info *mi, gi_error_info *err) {
-  if (mi->move % gi_cascade_refresh_period(c, c->n - 1) == 0) {
-    mi->cycle_closed = 1;
-    for (int d = 0; d < c->n; d++) mi->refreshed[d] = 1;
-    return rebounce_all(c, q, tail, err);
+/* Boxes of changed cells per level: a level's own stale boxes grown by
+ * `grow` cells, and the nested cells above every changed box of the finer
+ * level (refiltered here, finer levels first). */
+#define MAX_CHANGED (MAX_BOXES * GI_MAX_LEVELS)
+static int refilter_changed(struct gi_cascade *c, int threads, cell_box (*own)[MAX_BOXES], const int *nown,
+                            int grow) {
+  cell_box ch[2][MAX_CHANGED];
+  int nch[2] = {0, 0};
+  for (int d = 0; d < c->n; d++) {
+    cell_box *cur = ch[d & 1], *fine = ch[!(d & 1)];
+    int n = 0;
+    for (int q = 0; q < nown[d]; q++) {
+      cur[n] = own[d][q];
+      for (int a = 0; a < 3; a++) cur[n].lo[a] -= grow, cur[n].hi[a] += grow;
+      n++;
+    }
+    for (int q = 0; d > 0 && q < nch[!(d & 1)]; q++) {
+      cell_box p;
+      for (int a = 0; a < 3; a++) {
+        p.lo[a] = gi__floordiv(fine[q].lo[a], 2);
+        p.hi[a] = gi__floordiv(fine[q].hi[a] - 1, 2) + 1;
+      }
+      if (gi__cascade_filter_box(c, threads, d, p.lo, p.hi)) return 1;
+      cur[n++] = p;
+    }
+    nch[d & 1] = n;
   }
-  if (!c->report.effects[GI_FX_BOUNCE].ran) return GI_OK;
-  int due[GI_MAX_LEVELS] = {0};
-  for (int d = 0; d < c->n; d++) mi->refreshed[d] = due[d] = mi->move % gi_cascade_refresh_period(c, d) == 0;
-  gi_result rc = regather(c, q->threads, due, fresh, nfresh, err);
-  if (rc != GI_OK) return rc;
-  gi__shade_all(c);
-  if (gi__cascade_filter(c, q->threads)) return gi__cancel_fail(c->cancel, err, "move filter");
-  return GI_OK;
+  return 0;
+}
+
+/* Refilters what changed, or every nested region when `all` (the texels'
+ * scale changed, so every filtered texel is stale). */
+static int refilter(struct gi_cascade *c, int threads, int all, cell_box (*own)[MAX_BOXES], const int *nown,
+                    int grow) {
+  return all ? gi__cascade_filter(c, threads) : refilter_changed(c, threads, own, nown, grow);
+}
+
+/* Scrolls to the new placement and updates the live light: voxelize and
+ * inject the new voxels, gather them and their neighbours once. A move that
+ * re-lit every voxel or rebuilt a level runs the whole re-bake at once (it
+ * is a cold bake's work anyway); otherwise the re-bake restarts at slice 0
+ * on the next call that keeps this anchor. */
+static gi_result scroll_and_update(struct gi_cascade *c, const gi_level *old, gi_move_info *mi, double t[4],
+                                   gi_error_info *err) {
+  uint32_t *fresh[GI_MAX_LEVELS] = {0}, nfresh[GI_MAX_LEVELS] = {0}, nnew[GI_MAX_LEVELS] = {0};
+  cell_box boxes[GI_MAX_LEVELS][MAX_BOXES];
+  int nboxes[GI_MAX_LEVELS] = {0};
+  size_t vox = (size_t)c->R * c->R * c->R;
+  gi_result rc = GI_OK;
+  for (int d = 0; d < c->n && rc == GI_OK; d++)
+    if (!(fresh[d] = gi__malloc(vox * sizeof *fresh[d])))
+      rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the new voxels' list");
+  gi_quality q = c->report.quality;
+  int tail = c->tail, rebuilt = 0;
+  if (rc == GI_OK) rc = scroll_levels(c, old, fresh, nfresh, nnew, boxes, nboxes, mi, err);
+  t[1] = gi__now_ms();
+  if (rc == GI_OK) rc = replan(c, &q, &tail, &mi->relit, err);
+  c->tail = tail;
+  float scale = c->rad_scale;
+  if (rc == GI_OK) rc = inject_fresh(c, &q, mi->relit, fresh, nnew, err);
+  t[2] = gi__now_ms();
+  for (int d = 0; d < c->n; d++) rebuilt |= mi->rebuilt[d];
+  if (rc == GI_OK && refilter(c, q.threads, mi->relit || rebuilt || c->rad_scale != scale, boxes, nboxes, 0))
+    rc = gi__cancel_fail(c->cancel, err, "move filter");
+  if (rc == GI_OK) gi__cascade_mark_busy(c);
+  t[3] = gi__now_ms();
+  c->move_state->slice = 0;
+  c->move_state->closed = 0;
+  if (rc == GI_OK && (mi->relit || rebuilt)) {
+    while (rc == GI_OK && !c->move_state->closed) rc = rebake_slice(c, &q, tail, mi, err);
+  } else if (rc == GI_OK && c->report.effects[GI_FX_BOUNCE].ran) {
+    rc = gather_fresh(c, q.threads, fresh, nfresh, err);
+    scale = c->rad_scale;
+    if (rc == GI_OK) gi__shade_all(c);
+    if (rc == GI_OK && refilter(c, q.threads, c->rad_scale != scale, boxes, nboxes, NEIGHBOUR_CELLS))
+      rc = gi__cancel_fail(c->cancel, err, "move filter");
+    if (rc == GI_OK) c->report.bounces_run = 1;
+  }
+  for (int d = 0; d < c->n; d++) gi__free(fresh[d]);
+  return rc;
 }
 
 gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
                           gi_error_info *err) {
   gi_result rc = check_viewpoint(c, at, err);
-  if (rc != GI_OK) return rc;
+  if (rc != GI_OK || (rc = move_state(c, err)) != GI_OK) return rc;
   gi_move_info mi = {.move = ++c->moves};
   reset_counters(&c->report);
   gi_level old[GI_MAX_LEVELS];
@@ -398,43 +637,21 @@ gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *rep
     c->at[a] = (float)(at[a] - c->scene->origin[a]);
   }
   gi__cascade_place(c);
-  uint32_t *fresh[GI_MAX_LEVELS] = {0}, nfresh[GI_MAX_LEVELS] = {0}, nnew[GI_MAX_LEVELS] = {0};
-  size_t vox = (size_t)c->R * c->R * c->R;
-  for (int d = 0; d < c->n; d++)
-    if (!(fresh[d] = gi__malloc(vox * sizeof *fresh[d]))) {
-      rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the new voxels' list");
-      goto done;
-    }
-  gi_quality q;
-  int tail = 0;
-  double t0 = gi__now_ms();
-  if ((rc = scroll_levels(c, old, fresh, nfresh, nnew, &mi, err)) != GI_OK) goto done;
-  double t1 = gi__now_ms();
-  /* The plan reads only the placement: unchanged when no level scrolled. */
+  /* Placement depends on the anchor alone: an unchanged one scrolled nothing. */
   int scrolled = 0;
   for (int d = 0; d < c->n; d++) scrolled |= memcmp(old[d].cell0, c->lv[d].cell0, sizeof old[d].cell0) != 0;
-  q = c->report.quality;
-  tail = c->tail;
-  if (scrolled && (rc = replan(c, &q, &tail, &mi.relit, err)) != GI_OK) goto done;
-  c->tail = tail;
-  if ((rc = inject_fresh(c, &q, mi.relit, fresh, nnew, err)) != GI_OK) goto done;
-  double t2 = gi__now_ms();
-  if (gi__cascade_filter(c, q.threads)) {
-    rc = gi__cancel_fail(c->cancel, err, "move filter");
-    goto done;
-  }
-  gi__cascade_mark_busy(c);
-  double t3 = gi__now_ms();
-  if ((rc = refresh(c, &q, tail, fresh, nfresh, &mi, err)) != GI_OK) goto done;
-  double t4 = gi__now_ms();
-  c->report.ms.voxelize = t1 - t0;
-  c->report.ms.inject = t2 - t1;
-  c->report.ms.filter = t3 - t2;
-  c->report.ms.bounce = t4 - t3;
-  gi__cascade_count_occupied(c);
+  double t[5];
+  t[0] = t[1] = t[2] = t[3] = gi__now_ms();
+  if (scrolled) rc = scroll_and_update(c, old, &mi, t, err);
+  else rc = rebake_slice(c, &c->report.quality, c->tail, &mi, err);
+  if (rc != GI_OK) return rc;
+  t[4] = gi__now_ms();
+  c->report.ms.voxelize = t[1] - t[0];
+  c->report.ms.inject = t[2] - t[1];
+  c->report.ms.filter = t[3] - t[2];
+  c->report.ms.bounce = t[4] - t[3];
+  if (scrolled) gi__cascade_count_occupied(c);
   if (report) *report = c->report;
   if (info) *info = mi;
-done:
-  for (int d = 0; d < c->n; d++) gi__free(fresh[d]);
-  return rc;
+  return GI_OK;
 }
