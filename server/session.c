@@ -273,7 +273,8 @@ static int bake_session(gs_service *svc, gs_session *s, const double at[3], cons
   gi_result rc;
   s->resolved = gs_resolve_request(svc, s->scene, &s->req, &s->req, &e, &rc);
   if (rc != GI_OK) return gs_answer_core_error(a, rc, &e), -1;
-  size_t need = gs_bake_bytes(&s->resolved);
+  /* The bake, and what its moves add (the re-bake's texture): held for the session's life. */
+  size_t need = gs_bake_bytes(&s->resolved) + gi_cascade_move_bytes_estimate(&s->resolved);
   if ((rc = gs_cache_hold(svc->cache, need, &e)) != GI_OK) {
     if (rc == GI_ERR_NOMEM) gs_metrics_session(svc->metrics, GS_SESSION_REJECTED);
     return gs_answer_core_error(a, rc, &e), -1;

@@ -304,6 +304,12 @@ static void test_bounded(void **state) {
            v ? "drive" : "walk", (unsigned long long)cb, (unsigned long long)cv, (unsigned long long)worst,
            100.0 * (double)worst / (double)cb, (double)sum / PATH_STEPS, 100.0 * (double)sum / PATH_STEPS / (double)cb,
            (unsigned long long)worst_v, 100.0 * (double)worst_v / (double)cv, crossings, slices);
+    /* What the moves added stays within what a holder reserves for them. */
+    size_t grown = gi_cascade_bytes(c), est = gi_cascade_move_bytes_estimate(&c->report.quality);
+    size_t baked = gi_cascade_bytes_estimate(&c->report.quality);
+    printf("%s: moved cascade %zu bytes, bake estimate %zu + move estimate %zu\n", v ? "drive" : "walk", grown,
+           baked, est);
+    assert_true(grown > baked && grown <= baked + est);
     gi_cascade_free(c);
   }
   gi_scene_release(s);
@@ -326,15 +332,18 @@ static void probe_figures(const gi_cascade *c, const double at[3], double v[21])
 
 /* Probe drift along the walk and the drive against cold bakes at the same
  * anchors: mean and largest relative difference of the 21 figures.
- * Measured on these paths (deterministic): walk mean 0.0003, max 0.0091;
- * drive mean 0.0034, max 0.033 (a dim downward figure, 0.053 against
- * 0.051: the new voxels' one gather from the live texture reads one order
- * more than the bake's k bounces on level 0, less on coarse levels). The
- * bounds leave 1.5x for other compilers and the other march kernel (AVX2
- * or not; the walk's mean, 3x: it is tiny); the scheme this replaced
- * (whole levels re-gathered on a clock) measured 5x the mean at default
- * quality. */
-static const double DRIFT_MEAN_BOUND[2] = {0.001, 0.0052}, DRIFT_MAX_BOUND[2] = {0.014, 0.05};
+ * Measured on these paths (deterministic, both march kernels alike): walk
+ * mean 0.0006, max 0.0128; drive mean 0.0037, max 0.0526 (a dim downward
+ * figure, 0.0892 against 0.0847: the new voxels' one gather from the live
+ * texture reads one order more than the bake's k bounces on level 0, less
+ * on coarse levels). Before the light tree (emitters picked by power
+ * alone, so the windows' light rarely reached the voxels) the same paths
+ * measured walk 0.0003 / 0.0091 and drive 0.0034 / 0.033: the windows'
+ * indirect light now carries that order's bias too. The bounds leave 1.5x
+ * for other compilers (the walk's mean, 1.7x: it is tiny); the scheme this
+ * replaced (whole levels re-gathered on a clock) measured 5x the mean at
+ * default quality. The issue's goal (max 3%) is not met on the drive. */
+static const double DRIFT_MEAN_BOUND[2] = {0.001, 0.0056}, DRIFT_MAX_BOUND[2] = {0.019, 0.079};
 static void test_probe_drift(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
   gi_scene *s = city(&cp);

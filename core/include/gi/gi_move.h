@@ -65,6 +65,12 @@ typedef struct gi_move_info {
  * is then untouched). */
 gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
                           gi_error_info *err);
+/* The most bytes gi_cascade_move adds to a cascade baked with this
+ * resolved quality (the re-bake's texture, irradiance and gathers: up to
+ * 96 bytes per voxel), known before the first move, so a holder of a
+ * moving cascade can reserve them. 0 when levels or res is unresolved.
+ * Thread-safe. */
+size_t gi_cascade_move_bytes_estimate(const gi_quality *resolved);
 /* P: the calls at one anchor that complete the re-bake (the refresh cycle),
  * the same for every level (the bake's bounces couple them). 0 for a level
  * the cascade does not have. */

@@ -90,6 +90,52 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   atomic_fetch_add(&bc->cones, cones);
 }
 
+/* The end of one bounce, shared with the move's re-bake (move/move.c) so
+ * both give the same bits: rolls the tail's sums S and adds E's, then
+ * writes side = direct + E (+ the tail when add_tail) and reshades.
+ * The tail: bounce k gathers E_k = E_1 + ... (orders 2..k+1 of the light
+ * leaving the voxels); its increment D_k = E_k - E_(k-1) shrinks by the
+ * room's mean reflection r = D_k / D_(k-1) (area-weighted over every
+ * voxel, per channel; the dominant eigenvalue of the transport once the
+ * first bounces have spread the light). The orders left out add
+ * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
+ * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
+ * otherwise multiply its last increment by 99). */
+void gi__bounce_end(struct gi_cascade *c, float (*const E[])[2][3], double S[3][3], int add_tail) {
+  double f[3] = {0, 0, 0};
+  for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = S[2][k], S[2][k] = 0;
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    for (uint32_t i = 0; i < L->num_occ; i++) {
+      double a = L->geo[L->occ[i]].area;
+      for (int sd = 0; sd < 2; sd++)
+        for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][sd][k];
+    }
+  }
+  if (add_tail)
+    for (int k = 0; k < 3; k++) {
+      double dk = S[2][k] - S[1][k], dk1 = S[1][k] - S[0][k];
+      double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
+      if (r > 0.95) r = 0.95;
+      f[k] = r / (1 - r);
+    }
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    for (uint32_t i = 0; i < L->num_occ; i++) {
+      uint32_t slot = L->occ[i];
+      for (int sd = 0; sd < 2; sd++)
+        for (int k = 0; k < 3; k++) {
+          float e = E[d][i][sd][k];
+          /* side - direct is still the previous bounce's E. */
+          float inc = e - (L->side[slot][sd][k] - L->direct[slot][sd][k]);
+          float t = (float)f[k] * inc;
+          L->side[slot][sd][k] = L->direct[slot][sd][k] + e + (t > 0 ? t : 0);
+        }
+    }
+  }
+  gi__shade_all(c);
+}
+
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
   float(*E[GI_MAX_LEVELS])[2][3] = {0};
   uint64_t *hit[GI_MAX_LEVELS] = {0};
@@ -118,47 +164,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
         goto done;
       }
     }
-    int last = it + 1 == bounces;
-    /* The tail: bounce k gathers E_k = E_1 + ... (orders 2..k+1 of the
-     * light leaving the voxels); its increment D_k = E_k - E_(k-1) shrinks
-     * by the room's mean reflection r = D_k / D_(k-1) (area-weighted over
-     * every voxel, per channel; the dominant eigenvalue of the transport
-     * once the first bounces have spread the light). The orders left out
-     * add D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its
-     * own last increment. r is capped at 0.95 (a furnace of albedo 0.99
-     * would otherwise multiply its last increment by 99). */
-    double f[3] = {0, 0, 0};
-    for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = S[2][k], S[2][k] = 0;
-    for (int d = 0; d < c->n; d++) {
-      const gi_level *L = &c->lv[d];
-      for (uint32_t i = 0; i < L->num_occ; i++) {
-        double a = L->geo[L->occ[i]].area;
-        for (int sd = 0; sd < 2; sd++)
-          for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][sd][k];
-      }
-    }
-    if (tail && last && it >= 1)
-      for (int k = 0; k < 3; k++) {
-        double dk = S[2][k] - S[1][k], dk1 = S[1][k] - S[0][k];
-        double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
-        if (r > 0.95) r = 0.95;
-        f[k] = r / (1 - r);
-      }
-    for (int d = 0; d < c->n; d++) {
-      gi_level *L = &c->lv[d];
-      for (uint32_t i = 0; i < L->num_occ; i++) {
-        uint32_t slot = L->occ[i];
-        for (int sd = 0; sd < 2; sd++)
-          for (int k = 0; k < 3; k++) {
-            float e = E[d][i][sd][k];
-            /* side - direct is still the previous bounce's E. */
-            float inc = e - (L->side[slot][sd][k] - L->direct[slot][sd][k]);
-            float t = (float)f[k] * inc;
-            L->side[slot][sd][k] = L->direct[slot][sd][k] + e + (t > 0 ? t : 0);
-          }
-      }
-    }
-    gi__shade_all(c);
+    gi__bounce_end(c, E, S, tail && it + 1 == bounces && it >= 1);
     if (gi__cascade_filter(c, q->threads)) {
       rc = gi__cancel_fail(c->cancel, err, "bounce filter");
       goto done;

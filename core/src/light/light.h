@@ -23,5 +23,9 @@ void gi__shade_all(struct gi_cascade *c);
  * texture samples taken and adds the cones marched to *cones. */
 uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, float E[2][3], uint64_t *cones);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
+/* The end of one bounce from its gathers E (per level, per occupied voxel):
+ * the tail's sums S rolled, side light written, the texture reshaded (the
+ * caller refilters). Shared by gi__bounce and the move's re-bake. */
+void gi__bounce_end(struct gi_cascade *c, float (*const E[])[2][3], double S[3][3], int add_tail);
 
 #endif

@@ -306,6 +306,13 @@ size_t gi__move_state_bytes(const struct gi_cascade *c) {
   return bytes;
 }
 
+size_t gi_cascade_move_bytes_estimate(const gi_quality *q) {
+  if (!q || q->levels <= 0 || q->res <= 0) return 0;
+  gi_move_state *m = NULL;
+  size_t per_voxel = sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->E[0]; /* E: at most one per voxel */
+  return sizeof *m + (size_t)q->levels * (size_t)q->res * (size_t)q->res * (size_t)q->res * per_voxel;
+}
+
 /* A freshly baked cascade is its anchor's bake: the state starts closed. */
 static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
   if (c->move_state) return GI_OK;
@@ -420,43 +427,11 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
   return cancelled ? gi__cancel_fail(c->cancel, err, "re-bake filter") : GI_OK;
 }
 
-/* Ends bounce `it` of the re-bake on its (swapped-in) texture: exactly the
- * update after gi__bounce's gathers (light/bounce.c), so the result is
- * bit-identical to the bake's: the tail's sums in the same order, the
- * tail added on the last bounce, reshade and refilter. */
+/* Ends bounce `it` of the re-bake on its (swapped-in) texture with the
+ * bake's own bounce end (light/bounce.c), so the result is bit-identical
+ * to the bake's; then refilters. */
 static int rebake_bounce_end(struct gi_cascade *c, gi_move_state *m, int it, int threads) {
-  int last = it + 1 == m->bounces;
-  double f[3] = {0, 0, 0};
-  for (int k = 0; k < 3; k++) m->S[0][k] = m->S[1][k], m->S[1][k] = m->S[2][k], m->S[2][k] = 0;
-  for (int d = 0; d < c->n; d++) {
-    const gi_level *L = &c->lv[d];
-    for (uint32_t i = 0; i < L->num_occ; i++) {
-      double a = L->geo[L->occ[i]].area;
-      for (int sd = 0; sd < 2; sd++)
-        for (int k = 0; k < 3; k++) m->S[2][k] += a * m->E[d][i][sd][k];
-    }
-  }
-  if (m->tail && last && it >= 1)
-    for (int k = 0; k < 3; k++) {
-      double dk = m->S[2][k] - m->S[1][k], dk1 = m->S[1][k] - m->S[0][k];
-      double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
-      if (r > 0.95) r = 0.95;
-      f[k] = r / (1 - r);
-    }
-  for (int d = 0; d < c->n; d++) {
-    gi_level *L = &c->lv[d];
-    for (uint32_t i = 0; i < L->num_occ; i++) {
-      uint32_t slot = L->occ[i];
-      for (int sd = 0; sd < 2; sd++)
-        for (int k = 0; k < 3; k++) {
-          float e = m->E[d][i][sd][k];
-          float inc = e - (L->side[slot][sd][k] - L->direct[slot][sd][k]);
-          float t = (float)f[k] * inc;
-          L->side[slot][sd][k] = L->direct[slot][sd][k] + e + (t > 0 ? t : 0);
-        }
-    }
-  }
-  gi__shade_all(c);
+  gi__bounce_end(c, m->E, m->S, m->tail && it + 1 == m->bounces && it >= 1);
   return gi__cascade_filter(c, threads);
 }
 
