@@ -22,10 +22,10 @@
  * leaving the table; its cascade is freed when the last request lets go.
  *
  * Cancelling: a request waiting for its session's lock gives up when its
- * token fires (deadline, hang-up). gi_cascade_move takes no token and
- * leaves a partial cascade when stopped, so a move that has started runs
- * to its end (tens of milliseconds at most for a step inside a level's
- * extent); the gather after it checks the token. */
+ * token fires (deadline, hang-up); a started move stops on the same token
+ * (gi_cascade_move_ex) and leaves a partial cascade, so it ends the
+ * session like any other failed move; the gather after it checks the
+ * token too. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <fcntl.h>
@@ -350,7 +350,7 @@ static void move_and_answer(gs_service *svc, gs_session *s, const gi_proto_bake 
   gi_bake_report rep;
   gi_move_info mi;
   double t0 = gs_now_ms();
-  gi_result rc = gi_cascade_move(s->cascade, b->at, &rep, &mi, &e);
+  gi_result rc = gi_cascade_move_ex(s->cascade, b->at, cancel, &rep, &mi, &e);
   if (rc == GI_ERR_NONFINITE || rc == GI_ERR_INVALID_ARG)
     return fail(a, 400, 0, "parameter 'at': %s", e.msg[0] ? e.msg : gi_strerror(rc)); /* cascade untouched */
   if (rc != GI_OK) {

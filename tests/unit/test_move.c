@@ -448,18 +448,47 @@ static void test_deterministic(void **state) {
   uint64_t rng = 0xd373;
   gi_error_info err = {0};
   size_t vox = (size_t)a->R * a->R * a->R;
+  /* b moves with a token that never fires: the same bits as without one. */
+  gi_cancel *never = gi_cancel_new();
+  assert_non_null(never);
   for (int m = 0; m < DETERMINISM_MOVES; m++) {
     next_point(&cp, a->s0, &rng, at);
     assert_int_equal(gi_cascade_move(a, at, NULL, NULL, &err), GI_OK);
-    assert_int_equal(gi_cascade_move(b, at, NULL, NULL, &err), GI_OK);
+    assert_int_equal(gi_cascade_move_ex(b, at, never, NULL, NULL, &err), GI_OK);
     assert_true(a->rad_scale == b->rad_scale);
     for (int d = 0; d < a->n; d++) {
       assert_true(memcmp(a->lv[d].rad, b->lv[d].rad, vox * sizeof *a->lv[d].rad) == 0);
       assert_true(memcmp(a->lv[d].side, b->lv[d].side, vox * sizeof *a->lv[d].side) == 0);
     }
   }
+  gi_cancel_free(never);
   gi_cascade_free(a);
   gi_cascade_free(b);
+  gi_scene_release(s);
+}
+
+/* A move a client stopped: a far move (every level rebuilt, a cold bake's
+ * work) with a fired token returns GI_ERR_CANCELLED, saying so; a small
+ * one too. The cascade is then partial: freed, never read. */
+static void test_cancelled_move(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cancel *stop = gi_cancel_new();
+  assert_non_null(stop);
+  gi_cancel_set(stop);
+  for (int far = 0; far < 2; far++) {
+    gi_cascade *c = bake(s, at);
+    double to[3] = {at[0] + (far ? 120.0 : 2.5 * c->s0), at[1], at[2] + (far ? 90.0 : 0.0)};
+    gi_error_info err = {0};
+    gi_result rc = gi_cascade_move_ex(c, to, stop, NULL, NULL, &err);
+    printf("cancelled %s move -> %s: %s\n", far ? "far" : "one-cell", gi_err_name(rc), err.msg);
+    assert_int_equal(rc, GI_ERR_CANCELLED);
+    assert_non_null(strstr(err.msg, "cancel"));
+    gi_cascade_free(c);
+  }
+  gi_cancel_free(stop);
   gi_scene_release(s);
 }
 
@@ -526,6 +555,7 @@ int main(void) {
       cmocka_unit_test(test_cost),
       cmocka_unit_test(test_bad_viewpoint),
       cmocka_unit_test(test_deterministic),
+      cmocka_unit_test(test_cancelled_move),
       cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),
       cmocka_unit_test(test_bounded),

@@ -65,6 +65,13 @@ typedef struct gi_move_info {
  * is then untouched). */
 gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
                           gi_error_info *err);
+/* As gi_cascade_move, checking `cancel` (may be NULL; gi_cancel.h) between
+ * chunks of every stage: once it fires the move stops within a chunk's
+ * time and returns GI_ERR_CANCELLED; the cascade is then partial and must
+ * be freed (a rebuilt level can cost a cold bake: a server must be able to
+ * stop it). A token that never fires moves exactly as gi_cascade_move. */
+gi_result gi_cascade_move_ex(gi_cascade *c, const double at[3], const gi_cancel *cancel, gi_bake_report *report,
+                             gi_move_info *info, gi_error_info *err);
 /* The most bytes gi_cascade_move adds to a cascade baked with this
  * resolved quality (the re-bake's texture, irradiance and gathers: up to
  * 96 bytes per voxel), known before the first move, so a holder of a

@@ -601,6 +601,24 @@ static gi_result scroll_and_update(struct gi_cascade *c, const gi_level *old, gi
 
 gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
                           gi_error_info *err) {
+  return gi_cascade_move_ex(c, at, NULL, report, info, err);
+}
+
+static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
+                           gi_error_info *err);
+
+gi_result gi_cascade_move_ex(gi_cascade *c, const double at[3], const gi_cancel *cancel, gi_bake_report *report,
+                             gi_move_info *info, gi_error_info *err) {
+  if (!c) return gi__fail(err, GI_ERR_INVALID_ARG, "move: no cascade");
+  /* The stages look at c->cancel, as they do during a bake. */
+  c->cancel = cancel;
+  gi_result rc = move_body(c, at, report, info, err);
+  c->cancel = NULL;
+  return rc;
+}
+
+static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
+                           gi_error_info *err) {
   gi_result rc = check_viewpoint(c, at, err);
   if (rc != GI_OK || (rc = move_state(c, err)) != GI_OK) return rc;
   gi_move_info mi = {.move = ++c->moves};
