@@ -121,9 +121,9 @@ except the reading, which lives in `docs/experiments-reading.md` and is copied i
 ```
 
 Every step's cost, as a client walking through the city would see it: with moves, every
-request moves the session's cascade (each call ticks the refresh clock, so also steps inside
-a cell re-gather level 0) and gathers; without moves, a request inside the cached cell only
-gathers, and a request in a new cell waits for a cold bake. Cold bakes were measured at the
+request moves the session's cascade (a step that crosses a cell scrolls it; a step inside a
+cell runs a slice of the re-bake at the held anchor) and gathers; without moves, a request
+inside the cached cell only gathers, and a request in a new cell waits for a cold bake. Cold bakes were measured at the
 sampled steps; the other crossings use their median ({median:.0f} ms).
 
 {per_step_table(paths)}
