@@ -175,9 +175,15 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
  * half a cascade lights it at under a ninth of the irradiance it would
  * give at the border, and the coarsest level already spans the whole scene
  * by default. Albedo and gloss: inside only. */
-static gi_result survey_range(const struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar,
+static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar,
                               gi_error_info *err) {
   const gi_scene *s = c->scene;
+  const gi_level *top = &c->lv[c->n - 1];
+  if (c->survey.valid && !memcmp(c->survey.lo, top->lo, sizeof top->lo) &&
+      !memcmp(c->survey.hi, top->hi, sizeof top->hi)) {
+    *emit_in = c->survey.emit_in, *glossy = c->survey.glossy, *abar = c->survey.abar;
+    return GI_OK;
+  }
   size_t ne = 0, nt = 0;
   uint32_t *tris;
   gi_result rc = tris_in_range(c, 0.5f, &tris, &ne);
@@ -205,6 +211,10 @@ static gi_result survey_range(const struct gi_cascade *c, uint32_t *emit_in, uin
   }
   gi__free(tris);
   *abar = area > 0 ? a_sum / area : 0;
+  c->survey.valid = 1;
+  memcpy(c->survey.lo, top->lo, sizeof top->lo);
+  memcpy(c->survey.hi, top->hi, sizeof top->hi);
+  c->survey.emit_in = *emit_in, c->survey.glossy = *glossy, c->survey.abar = *abar;
   return GI_OK;
 }
 
@@ -213,7 +223,7 @@ static gi_result survey_range(const struct gi_cascade *c, uint32_t *emit_in, uin
  * q->bounces when the request left it to the plan (auto_bounces). *tail is
  * 1 when the plan capped the bounces while the orders left out still weigh
  * 2% or more: the bounce stage then adds their geometric tail (inject.c). */
-gi_result gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r,
+gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r,
                            int *tail_out, gi_error_info *err) {
   const gi_scene *s = c->scene;
   int sun = 0, local = 0, sky = 0;

@@ -9,11 +9,12 @@
  * GI_FX_AUTO (the legacy `specular` and `ao` fields count when effects[id]
  * is auto). Shared by the bake's plan and the camera view's. */
 int gi__fx_forced(const gi_quality *q, gi_effect_id id);
-/* Decides the effect plan around the placed cascade c into r, and may set
+/* Decides the effect plan around the placed cascade c into r (keeping its
+ * survey of the coarsest level's range in c->survey), and may set
  * q->bounces when the request left it to the plan (auto_bounces). *tail is
  * 1 when the bounce stage should add the geometric tail of the orders the
  * cap leaves out. Fails (GI_ERR_NOMEM) when the triangle query does. */
-gi_result gi__plan_effects(const struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r,
+gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r,
                            int *tail, gi_error_info *err);
 
 #endif

@@ -119,6 +119,16 @@ struct gi_cascade {
   int auto_bounces;
   int tail;            /* the plan's bounce tail (gi__bounce) */
   uint64_t moves;
+  /* The effect plan's survey of what lies in the coarsest level's range
+   * (plan.c), kept while that level's box stays: a move that scrolls only
+   * finer levels does not query every triangle in range again (millions
+   * on a large city). */
+  struct {
+    int valid;
+    float lo[3], hi[3];
+    uint32_t emit_in, glossy;
+    double abar;
+  } survey;
   /* The move's re-bake in slices (move/move.c); NULL until the first move. */
   struct gi_move_state *move_state;
 };
