@@ -19,6 +19,7 @@
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
+#include "gi/gi.h"
 
 void su_sleep_ms(int ms) {
   struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
@@ -215,6 +216,26 @@ double su_metric(const su_server *s, const char *name, const char *labels) {
   }
   free(r.body);
   return sum;
+}
+
+const char *su_save_body(const su_server *s, const su_resp *r, const char *name) {
+  static char path[700];
+  snprintf(path, sizeof path, "%s/%s", s->dir, name);
+  FILE *f = fopen(path, "wb");
+  assert_non_null(f);
+  assert_int_equal(fwrite(r->body, 1, r->len, f), r->len);
+  fclose(f);
+  return path;
+}
+
+struct gi_exr_file *su_read_exr(const su_server *s, const su_resp *r, const char *name) {
+  const char *path = su_save_body(s, r, name);
+  gi_exr_file *x = NULL;
+  gi_error_info e = {0};
+  gi_result rc = gi_exr_read(path, &x, &e);
+  if (rc) fprintf(stderr, "EXR: %s\n", e.msg);
+  assert_int_equal(rc, GI_OK);
+  return x;
 }
 
 double su_rss_mb(const su_server *s) {

@@ -53,6 +53,11 @@ const char *su_header(const su_resp *r, const char *name);
 void su_expect_error(const su_resp *r, long status, const char *name, const char *needle);
 /* A counter or gauge from /metrics (sum over label sets when labels is NULL). */
 double su_metric(const su_server *s, const char *name, const char *labels);
+/* Writes r's body to the server's folder as name; returns the path
+ * (static buffer, valid until the next call). Fails the test on error. */
+const char *su_save_body(const su_server *s, const su_resp *r, const char *name);
+/* r's body saved as name and read back as an EXR (caller frees). */
+struct gi_exr_file *su_read_exr(const su_server *s, const su_resp *r, const char *name);
 /* The server's resident memory (VmRSS) in MiB, or -1. */
 double su_rss_mb(const su_server *s);
 /* A TCP connection to the server from source address src (NULL: any); -1 on error. */

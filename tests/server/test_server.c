@@ -35,21 +35,6 @@
 
 static su_server S_main, S_tight, S_deadline;
 
-static gi_exr_file *read_exr(const su_resp *r, const char *name) {
-  char path[700];
-  snprintf(path, sizeof path, "%s/%s", S_main.dir, name);
-  FILE *f = fopen(path, "wb");
-  assert_non_null(f);
-  assert_int_equal(fwrite(r->body, 1, r->len, f), r->len);
-  fclose(f);
-  gi_exr_file *x = NULL;
-  gi_error_info e = {0};
-  gi_result rc = gi_exr_read(path, &x, &e);
-  if (rc) fprintf(stderr, "EXR: %s\n", e.msg);
-  assert_int_equal(rc, GI_OK);
-  return x;
-}
-
 /* The scene and quality the servers use: city extent 300, quality=low. */
 static gi_scene *city300(void) {
   gi_city_params p = {.extent = 300};
@@ -153,7 +138,7 @@ static void test_lighting_probe_matches_core(void **state) {
   const char *stages[] = {"voxelize;dur=", "inject;dur=", "bounce;dur=", "gather;dur=", "encode;dur=", "total;dur="};
   for (size_t i = 0; i < 6; i++) assert_non_null(strstr(timing, stages[i]));
   assert_non_null(strstr(su_header(&r, "X-GI-Effects"), "sun=ran"));
-  gi_exr_file *x = read_exr(&r, "probe.exr");
+  gi_exr_file *x = su_read_exr(&S_main, &r, "probe.exr");
   assert_int_equal(gi_exr_file_width(x), 1);
   assert_non_null(strstr(gi_exr_file_attr(x, "gi.effects"), "sun=ran"));
   assert_null(gi_exr_file_attr(x, "gi.timings"));
@@ -352,7 +337,7 @@ static void test_effect_override(void **state) {
   assert_non_null(strstr(su_header(&a, "X-GI-Effects"), "sky=ran"));
   assert_non_null(strstr(su_header(&b, "X-GI-Effects"), "sky=skipped"));
   assert_string_equal(su_header(&b, "X-GI-Cache"), "miss");
-  gi_exr_file *xa = read_exr(&a, "fx_a.exr"), *xb = read_exr(&b, "fx_b.exr");
+  gi_exr_file *xa = su_read_exr(&S_main, &a, "fx_a.exr"), *xb = su_read_exr(&S_main, &b, "fx_b.exr");
   assert_non_null(strstr(gi_exr_file_attr(xb, "gi.effects"), "sky=skipped (turned off by the request)"));
   float ea = gi_exr_file_channel(xa, "B")[0], eb = gi_exr_file_channel(xb, "B")[0];
   printf("  blue irradiance with sky %.5g, without %.5g\n", ea, eb);
@@ -366,7 +351,7 @@ static void test_effect_override(void **state) {
 static void test_panorama(void **state) {
   su_resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&kind=panorama&width=32&height=16");
   assert_int_equal(r.status, 200);
-  gi_exr_file *x = read_exr(&r, "pano.exr");
+  gi_exr_file *x = su_read_exr(&S_main, &r, "pano.exr");
   assert_int_equal(gi_exr_file_width(x), 32);
   assert_int_equal(gi_exr_file_height(x), 16);
   assert_string_equal(gi_exr_file_attr(x, "gi.kind"), "panorama");
@@ -403,7 +388,7 @@ static void test_lightmap(void **state) {
   su_resp r = GET(&S_main, url);
   assert_int_equal(r.status, 200);
   assert_string_equal(su_header(&r, "X-GI-Cache"), "miss");
-  gi_exr_file *x = read_exr(&r, "lightmap.exr");
+  gi_exr_file *x = su_read_exr(&S_main, &r, "lightmap.exr");
   assert_string_equal(gi_exr_file_attr(x, "gi.kind"), "lightmap");
   assert_int_equal(gi_exr_file_width(x), 256);
   const float *valid = gi_exr_file_channel(x, "valid.Y"), *irr = gi_exr_file_channel(x, "irradiance.G");
@@ -432,11 +417,7 @@ static void test_cascades_vdb(void **state) {
   assert_int_equal(r.status, 200);
   assert_string_equal(su_header(&r, "Content-Type"), "application/octet-stream");
   assert_non_null(strstr(su_header(&r, "Content-Disposition"), "city-cascades.vdb"));
-  char path[700];
-  snprintf(path, sizeof path, "%s/snap.vdb", S_main.dir);
-  FILE *f = fopen(path, "wb");
-  assert_int_equal(fwrite(r.body, 1, r.len, f), r.len);
-  fclose(f);
+  const char *path = su_save_body(&S_main, &r, "snap.vdb");
   gi_vdb_grid_info info[64];
   size_t n = 0;
   gi_error_info e = {0};
@@ -463,7 +444,7 @@ static void test_probes_inline_and_job(void **state) {
   su_resp r = su_http(&S_main, "POST", "/v1/scenes/city/probes", "{\"points\":[[31,2,29],[31.2,2,29.1]],\"quality\":\"low\"}",
                 TOKEN);
   assert_int_equal(r.status, 200);
-  gi_exr_file *x = read_exr(&r, "probes.exr");
+  gi_exr_file *x = su_read_exr(&S_main, &r, "probes.exr");
   assert_int_equal(gi_exr_file_width(x), 2);
   for (int i = 0; i < 2; i++) assert_true(isfinite(gi_exr_file_channel(x, "R")[i]) && gi_exr_file_channel(x, "R")[i] > 0);
   assert_string_equal(gi_exr_file_attr(x, "gi.tiles"), "1");
@@ -506,7 +487,7 @@ static void test_probes_inline_and_job(void **state) {
   snprintf(res, sizeof res, "%s/result", loc);
   r = GET(&S_main, res);
   assert_int_equal(r.status, 200);
-  x = read_exr(&r, "job.exr");
+  x = su_read_exr(&S_main, &r, "job.exr");
   assert_int_equal(gi_exr_file_width(x), 5);
   assert_true(gi_exr_file_channel_is_half(x, 0));
   assert_string_equal(gi_exr_file_attr(x, "gi.job"), id);

@@ -116,15 +116,7 @@ static long move_field(const su_resp *r, const char *key) {
 
 /* The probe's irradiance in an EXR answer. */
 static void exr_rgb(const su_resp *r, float rgb[3]) {
-  char path[700];
-  snprintf(path, sizeof path, "%s/answer.exr", S.dir);
-  FILE *f = fopen(path, "wb");
-  assert_non_null(f);
-  assert_int_equal(fwrite(r->body, 1, r->len, f), r->len);
-  fclose(f);
-  gi_exr_file *x = NULL;
-  gi_error_info e = {0};
-  assert_int_equal(gi_exr_read(path, &x, &e), GI_OK);
+  gi_exr_file *x = su_read_exr(&S, r, "answer.exr");
   const char *names[3] = {"R", "G", "B"};
   for (int k = 0; k < 3; k++) rgb[k] = gi_exr_file_channel(x, names[k])[0];
   gi_exr_file_free(x);

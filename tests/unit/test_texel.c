@@ -92,8 +92,9 @@ static void test_pack_keeps_precision(void **state) {
   assert_true(worst <= HALF_REL_ROUNDING);
 }
 
-static double bake_city_irradiance(int v3, uint64_t *samples) {
-  gi__cpu_force(v3);
+/* The default city's cascade around its default viewpoint, 4 levels of
+ * 16^3 (bounces: 0 = the plan's, -1 = none). It keeps the scene. */
+static gi_cascade *city_cascade(int bounces) {
   gi_city_params p = {0};
   gi_scene *s = NULL;
   gi_error_info err = {0};
@@ -103,14 +104,23 @@ static double bake_city_irradiance(int v3, uint64_t *samples) {
   gi_quality q = {0};
   q.levels = 4;
   q.res = 16;
+  q.bounces = bounces;
   gi_cascade *c = NULL;
   gi_bake_report rep;
   assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
-  gi_probe pr;
-  assert_int_equal(gi_cascade_gather(c, at, 1, &pr, NULL, &err), GI_OK);
-  *samples = rep.cone_samples;
-  gi_cascade_free(c);
+  if (bounces) assert_int_equal(rep.bounces_run, bounces < 0 ? 0 : bounces);
   gi_scene_release(s);
+  return c;
+}
+
+static double bake_city_irradiance(int v3, uint64_t *samples) {
+  gi__cpu_force(v3);
+  gi_cascade *c = city_cascade(0);
+  gi_error_info err = {0};
+  gi_probe pr;
+  assert_int_equal(gi_cascade_gather(c, c->at_world, 1, &pr, NULL, &err), GI_OK);
+  *samples = gi_cascade_report(c)->cone_samples;
+  gi_cascade_free(c);
   return pr.indirect[0] + pr.indirect[1] + pr.indirect[2];
 }
 
@@ -173,18 +183,7 @@ static void test_lanes_match_scalar_march(void **state) {
     skip();
   }
   gi__cpu_force(1);
-  gi_city_params p = {0};
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_city_build(&p, NULL, &s, &err), GI_OK);
-  double at[3];
-  gi_city_default_viewpoint(&p, at);
-  gi_quality q = {0};
-  q.levels = 4;
-  q.res = 16;
-  gi_cascade *c = NULL;
-  gi_bake_report rep;
-  assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
+  gi_cascade *c = city_cascade(0);
   enum { CAP = 6000 };
   gi_cone_job *jobs = malloc(CAP * sizeof *jobs);
   gi_cone_out *base = malloc(CAP * sizeof *base), *lanes = malloc(CAP * sizeof *lanes);
@@ -226,32 +225,12 @@ static void test_lanes_match_scalar_march(void **state) {
   free(base);
   free(lanes);
   gi_cascade_free(c);
-  gi_scene_release(s);
 }
 
 /* The bounce skips, after its first pass, the cones that met no opacity
  * (light/bounce.c): exact only while the texture's opacity lanes and busy
  * masks stay as injection left them. A bake with no bounce and one with
  * three hold the same opacity, bit for bit, on every level. */
-static gi_cascade *city_cascade(int bounces) {
-  gi_city_params p = {0};
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_city_build(&p, NULL, &s, &err), GI_OK);
-  double at[3];
-  gi_city_default_viewpoint(&p, at);
-  gi_quality q = {0};
-  q.levels = 4;
-  q.res = 16;
-  q.bounces = bounces;
-  gi_cascade *c = NULL;
-  gi_bake_report rep;
-  assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
-  assert_int_equal(rep.bounces_run, bounces < 0 ? 0 : bounces);
-  gi_scene_release(s);
-  return c;
-}
-
 static void test_bounces_keep_opacity(void **state) {
   gi_cascade *a = city_cascade(-1), *b = city_cascade(3);
   size_t vox = (size_t)a->R * a->R * a->R, differ = 0, opaque = 0;

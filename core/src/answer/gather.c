@@ -99,15 +99,15 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
     atomic_store(&g->failed, 1);
     return;
   }
+  /* One seed for every probe: the same light samples at every point, so
+   * a probe's noise does not depend on its index and varies smoothly as
+   * the point moves (no popping along a walk; seeding by position made a
+   * step of s0/16 change the direct light by up to 40%). */
+  const uint64_t seed = gi__mix64(c->report.quality.seed ^ GI_GATHER_SEED_SALT);
   for (size_t i = b; i < e; i++) {
     float pl[3];
     for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * i + k] - c->scene->origin[k]);
-    /* One seed for every probe: the same light samples at every point, so
-     * a probe's noise does not depend on its index and varies smoothly as
-     * the point moves (no popping along a walk; seeding by position made
-     * a step of s0/16 change the direct light by up to 40%). */
-    uint64_t h = gi__mix64(c->report.quality.seed ^ GI_GATHER_SEED_SALT);
-    gather_one(c, pl, &g->out[i], h, &sc);
+    gather_one(c, pl, &g->out[i], seed, &sc);
   }
   gi__scratch_free(&sc);
 }

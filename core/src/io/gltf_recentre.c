@@ -20,14 +20,6 @@
 /* Digits that carry a double through text unchanged. */
 #define JSON_PRECISION 17
 
-static int ends_with_ci(const char *s, const char *suffix) {
-  size_t n = strlen(s), m = strlen(suffix);
-  if (n < m) return 0;
-  for (size_t i = 0; i < m; i++)
-    if ((s[n - m + i] | 32) != (suffix[i] | 32)) return 0;
-  return 1;
-}
-
 static uint32_t le32(const unsigned char *p) {
   return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
@@ -267,11 +259,9 @@ static int assemble(gi__gltf_shift *out, const char *text, const unsigned char *
   return 0;
 }
 
-gi_result gi__gltf_recentre(const char *path, gi__gltf_shift *out, gi_error_info *err) {
+gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_error_info *err) {
   memset(out, 0, sizeof *out);
   out->path = path;
-  int glb = ends_with_ci(path, ".glb");
-  if (!glb && !ends_with_ci(path, ".gltf")) return GI_OK;
   size_t len = 0, json_off = 0, json_len = 0;
   unsigned char *buf = read_all(path, &len, err);
   if (!buf) return err ? err->code : GI_ERR_IO;

@@ -29,11 +29,11 @@ typedef struct gi__gltf_shift {
   const char *path;    /* the file the data stands for (borrowed) */
 } gi__gltf_shift;
 
-/* For a .gltf or .glb at path: the shift and the rewritten file. A file
+/* For the .gltf (glb 0) or .glb (glb 1) at path: the shift and the rewritten file. A file
  * whose JSON cannot be parsed or whose nodes hold non-numbers fails with
  * GI_ERR_FORMAT naming the file and the place; a file without a scene
  * graph gets t = 0 and no data. */
-gi_result gi__gltf_recentre(const char *path, gi__gltf_shift *out, gi_error_info *err);
+gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_error_info *err);
 void gi__gltf_shift_free(gi__gltf_shift *s);
 
 /* An assimp file system that reads s->path from s->data and every other

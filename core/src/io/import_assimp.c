@@ -783,7 +783,8 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   if (exact && (rc = ends_with_ci(path, ".obj") ? gi__exact_read_obj(path, &em, err)
                                                 : gi__exact_read_ply(path, &em, err)) != GI_OK)
     goto done;
-  if (!exact && (rc = gi__gltf_recentre(path, &gs, err)) != GI_OK) goto done;
+  int glb = ends_with_ci(path, ".glb");
+  if ((glb || ends_with_ci(path, ".gltf")) && (rc = gi__gltf_recentre(path, glb, &gs, err)) != GI_OK) goto done;
   if ((rc = import_file(path, &gs, &as, err)) != GI_OK || (rc = check_counts(as, path, err)) != GI_OK) goto done;
   tc.as = as;
   b = gi_mesh_builder_new();

@@ -43,11 +43,8 @@ static void tri_bounds(const gi_scene *s, uint32_t tri, float lo[3], float hi[3]
 
 /* The cone of normals of one emitter (one-sided: its winding normal). */
 static void leaf_cone(const gi_scene *s, uint32_t tri, gi_light_node *n) {
-  const uint32_t *ix = &s->indices[3 * tri];
-  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
-  float e1[3], e2[3], ng[3];
-  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
-  gi__cross(e1, e2, ng);
+  float ng[3];
+  gi__tri_cross(s, tri, ng);
   float l = gi__len(ng);
   for (int k = 0; k < 3; k++) n->axis[k] = l > 0 ? ng[k] / l : (k == 0);
   n->cos_o = l > 0 ? 1.f : -1.f, n->sin_o = 0.f;

@@ -170,11 +170,8 @@ float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t
   }
   if (lo >= s->num_emitters || s->emitter_tri[lo] != tri || !(cos_e > 0)) return 0;
   float pt = gi__light_tree_prob(s, p, lo);
-  const uint32_t *ix = &s->indices[3 * tri];
-  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
-  float e1[3], e2[3], ng[3];
-  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
-  gi__cross(e1, e2, ng);
+  float ng[3];
+  gi__tri_cross(s, tri, ng);
   float area = 0.5f * gi__len(ng);
   if (!(area > 0)) return 0;
   return (float)m * (pt / area) * t * t / cos_e;
@@ -183,11 +180,8 @@ float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t
 static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
   const float *Le = s->materials[s->tri_material[tri]].emission;
   if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0)) return 0;
-  const uint32_t *ix = &s->indices[3 * tri];
-  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
-  float e1[3], e2[3], ng[3];
-  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
-  gi__cross(e1, e2, ng);
+  float ng[3];
+  gi__tri_cross(s, tri, ng);
   float l = gi__len(ng);
   if (!(l > 0)) return 0;
   *cos_e = -gi__dot(ng, w) / l;

@@ -3,6 +3,7 @@
 #ifndef GI_LIGHTS_H
 #define GI_LIGHTS_H
 
+#include "base/internal.h"
 #include "gi/gi_bake.h"
 #include "scene/scene_internal.h"
 
@@ -28,6 +29,14 @@ float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t
  * Returns 0 (out untouched) otherwise. */
 int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
                     int m_light, float pb, float out[3]);
+/* Triangle tri's winding normal, unnormalised (length: twice its area). */
+static inline void gi__tri_cross(const gi_scene *s, uint32_t tri, float ng[3]) {
+  const uint32_t *ix = &s->indices[3 * tri];
+  const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
+  float e1[3], e2[3];
+  for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+  gi__cross(e1, e2, ng);
+}
 /* --- light_tree.c: emitters picked by power and distance ---------------- */
 /* Builds s->ltree and s->emitter_leaf over the s->num_emitters slots of
  * s->emitter_tri, power[slot] = luminance x area. */
