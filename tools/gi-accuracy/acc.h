@@ -41,11 +41,12 @@ typedef struct acc_scene_set {
   double *pts;
   size_t n;
   int ref_samples;     /* reference paths per probe for this scene */
+  double clearance;    /* street level: candidates nearer a surface than this are dropped (0: none) */
 } acc_scene_set;
 
 /* main.c: keeps the candidates that see direct light above 2% of the best
- * (drops points inside solids, where the truth is darkness), at most keep,
- * in their order. Returns 1 when at least one is kept. */
+ * (drops points inside solids, where the truth is darkness) and have
+ * ss->clearance of room around them, at most keep, in their order. Returns 1 when at least one is kept. */
 int acc_keep_lit(acc_scene_set *ss, const double *cand, size_t nc, size_t keep, int threads);
 
 /* cache.c: FNV-1a over bytes (the cache files' names), and the cache

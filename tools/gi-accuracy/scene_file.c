@@ -21,6 +21,7 @@
 #define LATTICE_SIDE 3       /* the Cornell rule: 3 x 3 x 3 */
 #define STREET_SIDE 7        /* the cities' rule: 7 x 7 columns */
 #define STREET_KEEP 24       /* at most this many street probes, as for Munich and the city */
+#define STREET_CLEARANCE 0.25 /* room a street probe needs around it, in heights above the ground */
 #define STREET_AT_SHARE 0.25 /* with --at: the street grid spans this share of the scene's width */
 #define STREET_ALL_SHARE 0.8 /* without --at: this share, centred on the bounds */
 #define VIEW_XML_SIDE 192    /* a Mitsuba sensor's pixels per side (its file often holds "$res") */
@@ -171,6 +172,7 @@ static int place_street(const acc_file_opts *f, int threads, acc_scene_set *ss, 
            "%zu inside buildings dropped, points that see direct light", g.counts[h0], g.counts[h1], spec.spacing,
            f->above_ground, g.num_inside);
   gi_probe_grid_free(&g);
+  ss->clearance = STREET_CLEARANCE * f->above_ground; /* as for Munich and the city */
   int ok = cand && nc ? acc_keep_lit(ss, cand, nc, STREET_KEEP, threads) : 0;
   if (ok && !f->have_at) at_nearest(ss, mean);
   if (cand && !nc) fprintf(stderr, "gi-accuracy: --above-ground: no ground under the grid (wrong --up?)\n");

@@ -108,6 +108,11 @@ void gi_scene_origin(const gi_scene *s, double out[3]);
 gi_up_axis gi_scene_up(const gi_scene *s);
 const char *gi_scene_name(const gi_scene *s);
 size_t gi_scene_num_lights(const gi_scene *s);
+/* The distance from world point p to the nearest surface along the 26
+ * directions of the axes and the face and cube diagonals, or max when none
+ * is nearer (0 for a non-finite p or max <= 0): the room a probe has (a
+ * point in a wall's plane has none). Thread-safe. */
+double gi_scene_clearance(const gi_scene *s, const double p[3], double max);
 const gi_light *gi_scene_light(const gi_scene *s, size_t i);
 size_t gi_scene_num_materials(const gi_scene *s);
 const gi_material *gi_scene_material(const gi_scene *s, size_t i);

@@ -9,6 +9,8 @@
 #include "base/internal.h"
 #include "scene/lights.h"
 #include "trace/trace.h"
+#include "trace/march_internal.h"
+#include "scene/scene_internal.h"
 
 /* Keeps the gather's stream apart from the bake's, which share quality.seed. */
 #define GI_GATHER_SEED_SALT 0x70726f6265ull /* "probe" */
@@ -20,6 +22,16 @@ typedef struct {
   int cap;             /* light samples per probe at most (gi__light_sample_cap) */
   atomic_int failed;   /* a worker ran out of memory */
 } gather_ctx;
+
+/* How far below p (along -up) the first surface lies, or -1 when none is
+ * near enough for a coarse level's footprint to hold it. */
+static float ground_height(const struct gi_cascade *c, const float p[3], const float up[3]) {
+  const float down[3] = {-up[0], -up[1], -up[2]};
+  float reach = GI_TRILINEAR_REACH * (float)c->lv[c->n - 1].s, t, ng[3];
+  uint32_t tri;
+  if (!gi__intersect1(c->scene, p, down, 0, reach, &t, &tri, ng)) return -1.f;
+  return t;
+}
 
 static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed,
                        gi_ray_scratch *scr) {
@@ -69,16 +81,17 @@ static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *p
   /* Indirect light: the cone set on both hemispheres around up, by the
    * gather's free-space rule. */
   float sh_ind[9][3] = {{0}};
-  float domega = 2 * GI_PI_F / (float)c->num_cones;
+  float domega = 2 * GI_PI_F / (float)c->num_probe_cones;
   float occ = 0;
   float dirs[GI_MAX_CONES][3];
   gi_cone_out cones[GI_MAX_CONES];
+  float h0 = ground_height(c, p, up);
   for (int hemi = 0; hemi < 2; hemi++) {
     float n[3];
     for (int k = 0; k < 3; k++) n[k] = hemi ? -up[k] : up[k];
     gi_gather_out go;
-    gi__gather_hemisphere(c, p, n, GI_GATHER_FREE, -1, &go, dirs, cones);
-    for (int ci = 0; ci < c->num_cones; ci++) gi__sh_add(sh_ind, dirs[ci], cones[ci].L, domega);
+    gi__gather_hemisphere_probe(c, p, n, hemi ? -1.f : h0, &go, dirs, cones);
+    for (int ci = 0; ci < c->num_probe_cones; ci++) gi__sh_add(sh_ind, dirs[ci], cones[ci].L, domega);
     if (!hemi) {
       memcpy(pr->indirect, go.E, sizeof go.E);
       occ = go.occlusion;

@@ -105,6 +105,11 @@ struct gi_cascade {
   float cone_dir[GI_MAX_CONES][3];
   float cone_weight[GI_MAX_CONES]; /* integral of cos over the cone's region; sums to pi */
   float cone_tan;        /* tan(aperture / 2) */
+  /* The probes' denser final-gather set (gi__probe_cone_set). */
+  int num_probe_cones;
+  float probe_dir[GI_MAX_CONES][3];
+  float probe_weight[GI_MAX_CONES];
+  float probe_tan;
   const gi_cancel *cancel; /* the bake's token while it runs (may be NULL); NULL after */
   /* Radiance lanes of every texel hold value / rad_scale, set by
    * gi__vrad_rescale so the brightest texel stays far from half's largest

@@ -25,6 +25,43 @@ typedef struct {
   atomic_int failed;   /* a worker ran out of memory */
 } inject_ctx;
 
+/* A point or spot light closer to a voxel than a few times the voxel's
+ * surface patch lights that patch very unevenly: 1/r^2 at the centroid
+ * can miss most of what the patch receives (a lamp 0.1 m under its
+ * housing: the housing's voxel read a tenth of the light it reflects down
+ * onto the street, the largest share of a lit city street's indirect
+ * light). The patch is taken as a disc of the voxel's surface area (at
+ * most a face's) in the voxel's plane, and the irradiance averaged over NEAR_RINGS x NEAR_SPOKES points
+ * of equal area; returned as the factor on the centroid's value. */
+#define NEAR_FIELD_REACH 4.0f /* light farther than this many patch radii: the centroid's value stands */
+#define NEAR_RINGS 3
+#define NEAR_SPOKES 8
+static float near_field_factor(const gi_vgeo *g, float voxel, const gi_lsample *ls) {
+  /* At most a voxel face's area: more is several surfaces (a corner, a
+   * duplicated triangle), not a larger patch. */
+  float rd = sqrtf(gi__minf(g->area, voxel * voxel) / GI_PI_F);
+  if (!(ls->dist < NEAR_FIELD_REACH * rd)) return 1.f;
+  /* The light at height h over the plane and lateral offset (lx, 0). */
+  float h = fabsf(gi__dot(g->normal, ls->w)) * ls->dist;
+  float lx = sqrtf(fmaxf(ls->dist * ls->dist - h * h, 0.f));
+  float hmin = 0.05f * rd; /* a light in the patch's own plane: still finite */
+  h = fmaxf(h, hmin);
+  float sum = 0;
+  for (int i = 0; i < NEAR_RINGS; i++) {
+    float r = rd * sqrtf(((float)i + 0.5f) / NEAR_RINGS);
+    for (int j = 0; j < NEAR_SPOKES; j++) {
+      float phi = 2 * GI_PI_F * ((float)j + 0.5f * (float)(i & 1)) / NEAR_SPOKES;
+      float dx = r * cosf(phi) - lx, dy = r * sinf(phi);
+      float d2 = dx * dx + dy * dy + h * h;
+      sum += h / (d2 * sqrtf(d2));
+    }
+  }
+  float avg = sum / (NEAR_RINGS * NEAR_SPOKES);
+  float d2c = lx * lx + h * h;
+  float centre = h / (d2c * sqrtf(d2c));
+  return avg / centre;
+}
+
 static void inject_range(void *p, size_t b, size_t e, int worker) {
   inject_ctx *ic = p;
   struct gi_cascade *c = ic->c;
@@ -57,6 +94,10 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     for (int i = 0; i < n; i++) {
       float cn = gi__dot(g->normal, ls[i].w);
       if (cn == 0) continue;
+      if (ls[i].fx == GI_FX_LOCAL) {
+        float nf = near_field_factor(g, voxel, &ls[i]);
+        for (int k = 0; k < 3; k++) ls[i].V[k] *= nf;
+      }
       side[m] = (int8_t)(cn > 0 ? 0 : 1);
       cosw[m] = fabsf(cn);
       /* Keep the sample index in the V slot order: compact in place. */
@@ -66,6 +107,12 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     /* Each ray leaves from the side of the surface that faces its light. */
     gi__shadow_rays(s, g->centroid, g->normal, voxel, ls, m, &sc);
     rays += (uint64_t)m;
+    /* A point light within the voxel lights the voxel's own surfaces
+     * whatever its centroid sees: the centroid of a small closed object
+     * (a lamp's housing) lies inside it, and its shadow ray meets the
+     * object's own faces. */
+    for (int i = 0; i < m; i++)
+      if (ls[i].fx == GI_FX_LOCAL && ls[i].dist < voxel) vis[i] = 1;
     int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
     for (int i = 0; i < m; i++) {
       if (!vis[i]) continue;

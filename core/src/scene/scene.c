@@ -501,6 +501,23 @@ void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]) {
   }
 }
 
+double gi_scene_clearance(const gi_scene *s, const double p[3], double max) {
+  if (!s || !p || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]) || !(max > 0)) return 0;
+  float o[3];
+  for (int k = 0; k < 3; k++) o[k] = (float)(p[k] - s->origin[k]);
+  double best = max;
+  /* The 26 directions of a 3x3x3 block's neighbours: axes, face and cube diagonals. */
+  for (int i = 0; i < 27; i++) {
+    int d[3] = {i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1};
+    if (!d[0] && !d[1] && !d[2]) continue;
+    float w[3] = {(float)d[0], (float)d[1], (float)d[2]}, t;
+    float l = sqrtf(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    for (int k = 0; k < 3; k++) w[k] /= l;
+    if (gi__intersect1(s, o, w, 0, (float)best, &t, NULL, NULL) && t < best) best = t;
+  }
+  return best;
+}
+
 gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }
 int gi_scene_has_lightmap_uv(const gi_scene *s) { return s && s->uv2 != NULL; }
 const char *gi_scene_name(const gi_scene *s) { return s->name; }

@@ -9,9 +9,11 @@
 #include "base/internal.h"
 #include "trace/trace.h"
 
-static const int ring_layout[][5] = {
+static const int ring_layout[][6] = {
     /* N, rings... (0 terminated) */
-    {4, 1, 3, 0, 0}, {6, 1, 5, 0, 0}, {8, 1, 7, 0, 0}, {16, 1, 6, 9, 0}, {32, 1, 6, 11, 14},
+    {4, 1, 3, 0, 0, 0}, {6, 1, 5, 0, 0, 0}, {8, 1, 7, 0, 0, 0}, {16, 1, 6, 9, 0, 0}, {32, 1, 6, 11, 14, 0},
+    /* Regions about 17 degrees on a side: the probes' final gather. */
+    {64, 1, 6, 12, 18, 27},
 };
 
 void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[], float *tan_half) {
@@ -22,7 +24,7 @@ void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[
   const double pi = 3.14159265358979323846;
   int idx = 0, cum = 0;
   double cos_a = 1.0;
-  for (int r = 0; r < 4 && layout[r]; r++) {
+  for (int r = 0; r < 5 && layout[r]; r++) {
     int nr = layout[r];
     cum += nr;
     double cos_b = 1.0 - (double)cum / count;
@@ -52,4 +54,22 @@ void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[
     half = acos(1.0 - 1.0 / count);
   }
   *tan_half = (float)tan(half);
+}
+
+#define PROBE_DENSE_FROM 32 /* bake cones from which probes take the dense set */
+
+int gi__probe_cone_count(int bake_count) {
+  return bake_count < PROBE_DENSE_FROM ? bake_count : GI_MAX_CONES;
+}
+
+void gi__probe_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half) {
+  int count = gi__probe_cone_count(bake_count);
+  float user = 0;
+  if (aperture_deg > 0) {
+    /* A chosen aperture narrows or widens the probes' cones by the same
+     * factor against their matched width as it does the bake's. */
+    double matched_bake = acos(1.0 - 1.0 / bake_count), matched = acos(1.0 - 1.0 / count);
+    user = (float)(aperture_deg * matched / matched_bake);
+  }
+  gi__cone_set(count, user, dirs, weights, tan_half);
 }

@@ -38,11 +38,19 @@ void gi__gather_cone(const struct gi_cascade *c, const gi_gather_start *g, const
   gi__cone_march(c, g->o, w, tan_half, g->t0, g->step, g->ao_lambda, g->h0, g->h0 >= 0 ? g->n : NULL, out);
 }
 
-void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, const float n[3], gi_cone_job *jobs) {
+/* A cone set around +Z: count directions, their weights, tan(aperture / 2). */
+typedef struct {
+  int n;
+  const float (*dir)[3];
+  const float *weight;
+  float tan;
+} cone_set;
+
+static void set_jobs(const cone_set *cs, const gi_gather_start *g, const float n[3], gi_cone_job *jobs) {
   float t[3], b[3];
   gi__basis(n, t, b);
-  for (int ci = 0; ci < c->num_cones; ci++) {
-    const float *cd = c->cone_dir[ci];
+  for (int ci = 0; ci < cs->n; ci++) {
+    const float *cd = cs->dir[ci];
     gi_cone_job *j = &jobs[ci];
     memcpy(j->o, g->o, sizeof j->o);
     memcpy(j->n, g->n, sizeof j->n);
@@ -52,21 +60,34 @@ void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, c
   }
 }
 
-int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const float n[3], gi_gather_mode mode,
-                          int level, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
+void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, const float n[3], gi_cone_job *jobs) {
+  cone_set cs = {c->num_cones, c->cone_dir, c->cone_weight, c->cone_tan};
+  set_jobs(&cs, g, n, jobs);
+}
+
+static int gather_set(const struct gi_cascade *c, const cone_set *cs, const float p[3], const float n[3],
+                      gi_gather_mode mode, int level, float h0, gi_gather_out *out, float (*dirs)[3],
+                      gi_cone_out *cones) {
   memset(out, 0, sizeof *out);
   gi_gather_start g;
-  if (!gi__gather_start(c, p, n, mode, level, &g)) {
-    if (dirs) memset(dirs, 0, (size_t)c->num_cones * sizeof *dirs);
-    if (cones) memset(cones, 0, (size_t)c->num_cones * sizeof *cones);
+  int in = gi__gather_start(c, p, n, mode, level, &g);
+  if (in && mode == GI_GATHER_FREE && h0 >= 0) {
+    /* A free point h0 above a surface of normal n: the apex stays at the
+     * point, the surface's level-entry rule applies (see gi__gather_hemisphere_probe). */
+    memcpy(g.n, n, sizeof g.n);
+    g.h0 = h0;
+  }
+  if (!in) {
+    if (dirs) memset(dirs, 0, (size_t)cs->n * sizeof *dirs);
+    if (cones) memset(cones, 0, (size_t)cs->n * sizeof *cones);
     return 0;
   }
   gi_cone_job jobs[GI_MAX_CONES];
   gi_cone_out co[GI_MAX_CONES];
-  gi__hemisphere_jobs(c, &g, n, jobs);
-  gi__cone_march_jobs(c, jobs, c->num_cones, c->cone_tan, g.step, g.ao_lambda, co);
-  for (int ci = 0; ci < c->num_cones; ci++) {
-    float cw = c->cone_weight[ci];
+  set_jobs(cs, &g, n, jobs);
+  gi__cone_march_jobs(c, jobs, cs->n, cs->tan, g.step, g.ao_lambda, co);
+  for (int ci = 0; ci < cs->n; ci++) {
+    float cw = cs->weight[ci];
     for (int k = 0; k < 3; k++) out->E[k] += cw * co[ci].L[k];
     out->occlusion += cw * co[ci].occlusion;
     out->samples += co[ci].samples;
@@ -74,4 +95,16 @@ int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const fl
     if (cones) cones[ci] = co[ci];
   }
   return 1;
+}
+
+int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const float n[3], gi_gather_mode mode,
+                          int level, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
+  cone_set cs = {c->num_cones, c->cone_dir, c->cone_weight, c->cone_tan};
+  return gather_set(c, &cs, p, n, mode, level, -1.f, out, dirs, cones);
+}
+
+int gi__gather_hemisphere_probe(const struct gi_cascade *c, const float p[3], const float n[3], float h0,
+                                gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
+  cone_set cs = {c->num_probe_cones, c->probe_dir, c->probe_weight, c->probe_tan};
+  return gather_set(c, &cs, p, n, GI_GATHER_FREE, -1, h0, out, dirs, cones);
 }

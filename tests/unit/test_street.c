@@ -1,0 +1,164 @@
+/* test_street.c: street-level light, the cities' hard cases, against the
+ * reference path tracer.
+ *
+ * (1) A street canyon between two closed buildings, the western facade in
+ *     the sun: street probes 1.7 m up read the facades' light through
+ *     coarse voxels whose footprint also holds the ground under the probe.
+ *     The probe gather keeps the surface rule over the ground (see
+ *     gi__gather_hemisphere_probe): mean ratio cone / reference 1.06,
+ *     where reading the ground's underside as an occluder gave 0.76.
+ * (2) A lamp 0.1 m under its housing: the housing reflects about a quarter
+ *     of the lamp's light back down, the largest share of a lit street's
+ *     indirect light. The housing's centroid lies inside it, so its shadow
+ *     ray met its own faces and the housing stayed black (cone 0.000 against
+ *     the reference's 6.6 under the lamp); a light within the voxel now
+ *     lights it, with the irradiance averaged over the patch (inject.c):
+ *     0.24 of the reference, and the city's street-level indirect ratio
+ *     0.58 -> 0.88 (gi-accuracy).
+ * (3) gi_scene_clearance, which keeps gi-accuracy's street probes out of
+ *     walls, against distances known by construction. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "gi/gi.h"
+#include "test_util.h"
+
+#define STREET_PROBES 7
+#define REF_PATHS 16384
+
+static void add_quad(gi_mesh_builder *b, const double p[4][3], uint32_t m) {
+  uint32_t v[4];
+  for (int i = 0; i < 4; i++) v[i] = gi_mesh_builder_add_vertex(b, p[i][0], p[i][1], p[i][2]);
+  gi_mesh_builder_add_triangle(b, v[0], v[1], v[2], m);
+  gi_mesh_builder_add_triangle(b, v[0], v[2], v[3], m);
+}
+
+/* Two closed 20 m blocks either side of a 14 m street along z (x in -7..7),
+ * a black street, the sun from the west-southwest 53 degrees up. */
+static gi_scene *canyon_scene(const gi_light *light) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material wall = {{0.8f, 0.8f, 0.8f}, {0, 0, 0}, 1, 0, "wall"}, street = {{0, 0, 0}, {0, 0, 0}, 1, 0, "street"};
+  uint32_t mw = gi_mesh_builder_add_material(b, &wall), ms = gi_mesh_builder_add_material(b, &street);
+  double w0[3] = {-27, 0, -100}, w1[3] = {-7, 20, 100}, e0[3] = {7, 0, -100}, e1[3] = {27, 20, 100};
+  gi_mesh_builder_add_box(b, w0, w1, mw);
+  gi_mesh_builder_add_box(b, e0, e1, mw);
+  const double ground[4][3] = {{-7, 0, -100}, {-7, 0, 100}, {7, 0, 100}, {7, 0, -100}};
+  add_quad(b, ground, ms);
+  gi_scene_options so = {.up = GI_UP_Y, .lights = light, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_result rc = gi_scene_build(b, "canyon", &so, &s, &err);
+  gi_mesh_builder_free(b);
+  if (rc) fprintf(stderr, "canyon: %s\n", err.msg);
+  assert_int_equal(rc, GI_OK);
+  return s;
+}
+
+/* Mean over the probes of cone / reference indirect irradiance (green),
+ * one voxel bounce's light (the reference limited to one reflection). */
+static double street_ratio(gi_scene *s, const double *pts, int n, const char *what) {
+  gi_ref_probe ref[STREET_PROBES];
+  gi_probe pr[STREET_PROBES];
+  gi_error_info err = {0};
+  gi_reference_opts ro = {.samples = REF_PATHS, .max_depth = 1, .seed = 3};
+  assert_int_equal(gi_reference_irradiance(s, pts, (size_t)n, &ro, ref, NULL, &err), GI_OK);
+  gi_quality q = {.bounces = -1};
+  double at[3] = {0.1, 1.7, 0.3};
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_gather(c, pts, (size_t)n, pr, NULL, &err), GI_OK);
+  double sum = 0;
+  for (int i = 0; i < n; i++) {
+    assert_true(ref[i].indirect[1] > 0 && isfinite(pr[i].indirect[1]));
+    double r = pr[i].indirect[1] / ref[i].indirect[1];
+    printf("street %s: x %5.1f cone %.4f reference %.4f (+- %.4f) ratio %.3f\n", what, pts[3 * i], pr[i].indirect[1],
+           ref[i].indirect[1], ref[i].std_err_indirect[1], r);
+    sum += r;
+  }
+  gi_cascade_free(c);
+  return sum / n;
+}
+
+static void street_points(double *pts) {
+  for (int i = 0; i < STREET_PROBES; i++) pts[3 * i] = -6 + 2 * i, pts[3 * i + 1] = 1.7, pts[3 * i + 2] = 0.3;
+}
+
+static void test_canyon_sun(void **state) {
+  (void)state;
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {-0.6f, -0.8f, 0}};
+  gi_scene *s = canyon_scene(&sun);
+  double pts[3 * STREET_PROBES];
+  street_points(pts);
+  double r = street_ratio(s, pts, STREET_PROBES, "sun");
+  printf("street canyon, sun: mean ratio cone / reference %.3f\n", r);
+  /* Measured 1.064 (0.756 before the ground rule); the reference's own
+   * error is 1.2%, the rest is the 16 cones' coarse reading of a street
+   * whose light changes 2.4x across it. */
+  assert_true(r >= 0.9 && r <= 1.2);
+  gi_scene_release(s);
+}
+
+static void test_lamp_housing(void **state) {
+  (void)state;
+  gi_light lamp = {.type = GI_LIGHT_POINT, .color = {120, 120, 120}, .position = {0, 5.9, 0}};
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material white = {{0.8f, 0.8f, 0.8f}, {0, 0, 0}, 1, 0, "housing"}, dark = {{0.1f, 0.1f, 0.1f}, {0, 0, 0}, 1, 0, "ground"};
+  uint32_t mw = gi_mesh_builder_add_material(b, &white), mg = gi_mesh_builder_add_material(b, &dark);
+  double h0[3] = {-0.25, 6, -0.25}, h1[3] = {0.25, 6.5, 0.25}, g0[3] = {-20, -1, -20}, g1[3] = {20, 0, 20};
+  gi_mesh_builder_add_box(b, h0, h1, mw);
+  gi_mesh_builder_add_box(b, g0, g1, mg);
+  gi_scene_options so = {.up = GI_UP_Y, .lights = &lamp, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "lamp", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  double p[3] = {0.3, 1.7, 0.2};
+  gi_ref_probe ref;
+  gi_reference_opts ro = {.samples = 1 << 18, .max_depth = 1, .seed = 3};
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &ro, &ref, NULL, &err), GI_OK);
+  gi_quality q = {.bounces = -1, .voxel0 = 0.25};
+  gi_cascade *c = NULL;
+  gi_probe pr;
+  assert_int_equal(gi_cascade_bake(s, p, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_gather(c, p, 1, &pr, NULL, &err), GI_OK);
+  double r = pr.indirect[1] / ref.indirect[1];
+  printf("lamp housing: indirect under the lamp cone %.4f reference %.4f (+- %.4f) ratio %.3f\n", pr.indirect[1],
+         ref.indirect[1], ref.std_err_indirect[1], r);
+  /* Measured 0.24 (0 before: the housing was black). Still low: the
+   * patch model spreads the housing's light over at most a voxel's face,
+   * and the probe's cones see it through coarse voxels 4 m away. */
+  assert_true(r >= 0.15 && r <= 1.2);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+static void test_clearance(void **state) {
+  (void)state;
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {-0.6f, -0.8f, 0}};
+  gi_scene *s = canyon_scene(&sun);
+  /* 1.7 m over the street, 2 m from the western facade: the street is nearest. */
+  double p[3] = {-5, 1.7, 0.3};
+  assert_float_equal(gi_scene_clearance(s, p, 100), 1.7, 1e-4);
+  /* In the facade's plane: no room. */
+  double in_wall[3] = {-7, 5, 0.3};
+  assert_true(gi_scene_clearance(s, in_wall, 100) < 1e-3);
+  /* 40 m over the street's middle: straight down meets the street at 40,
+   * the face diagonals down and sideways meet a roof at (+-20, 20): 20 sqrt 2. */
+  double mid[3] = {0, 40, 0.3};
+  assert_float_equal(gi_scene_clearance(s, mid, 100), 20.0 * sqrt(2.0), 1e-3);
+  /* Capped at max; bad input gives 0. */
+  double sky[3] = {0, 500, 0.3}, bad[3] = {NAN, 0, 0};
+  assert_float_equal(gi_scene_clearance(s, sky, 10), 10, 0);
+  assert_float_equal(gi_scene_clearance(s, bad, 10), 0, 0);
+  assert_float_equal(gi_scene_clearance(s, p, 0), 0, 0);
+  gi_scene_release(s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_canyon_sun),
+      cmocka_unit_test(test_lamp_housing),
+      cmocka_unit_test(test_clearance),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
