@@ -305,6 +305,62 @@ static void test_all_lights_closed_form(void **state) {
   gi_scene_release(s);
 }
 
+/* Direct irradiance at a point on a 400 m floor, 1 m under a 0.6 m square
+ * emitter facing it, as a path vertex there gathers it: ref_direct's MIS-
+ * weighted emitter sample plus the cosine sample's MIS-weighted hit (as
+ * diffuse_vertex adds it), against Lambert's formula. The floor makes the
+ * scene large, so the shadow ray starts 8 mm off the surface: aimed along
+ * the sample's direction from there instead of at the sampled point, it
+ * would pass the emitter's plane and be blocked by it (E then came out
+ * at 9% of the truth here). */
+static void test_surface_direct_near_emitter(void **state) {
+  const double H = 1.0, R = 0.3, Le = 2.0;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.emission = {Le, Le, Le}, .roughness = 1}, f = {.albedo = {0.5, 0.5, 0.5}, .roughness = 1};
+  uint32_t me = gi_mesh_builder_add_material(b, &m), mf = gi_mesh_builder_add_material(b, &f);
+  double Q[4][3] = {{-R, H, -R}, {R, H, -R}, {R, H, R}, {-R, H, R}}; /* faces down */
+  gi_mesh_builder_add_quad(b, Q[0], Q[1], Q[2], Q[3], me);
+  double A[3] = {-200, 0, -200}, B[3] = {-200, 0, 200}, C[3] = {200, 0, 200}, D[3] = {200, 0, -200};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mf);
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "square over a floor", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  const double pw[3] = {0.2, 0, 0.1}, up[3] = {0, 1, 0};
+  const double want = Le * polygon_psa(pw, (const double(*)[3])Q, 4, up);
+  const float n[3] = {0, 1, 0};
+  float x[3];
+  for (int k = 0; k < 3; k++) x[k] = (float)(pw[k] - s->origin[k]);
+  const int N = 200000;
+  {
+    ref_lights L;
+    assert_int_equal(ref_lights_init(&L, s, &err), GI_OK);
+    assert_true(L.eps > 0.005f); /* the lift this test is about */
+    ref_rng r;
+    ref_rng_seed(&r, 5);
+    double sum = 0, sum2 = 0;
+    for (int i = 0; i < N; i++) {
+      float E[3] = {0, 0, 0}, w[3], o[3], t, ng[3];
+      uint32_t tri;
+      ref_direct(&L, x, n, &r, E);
+      ref_cosine(n, &r, w);
+      for (int k = 0; k < 3; k++) o[k] = x[k] + L.eps * n[k];
+      if (gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng) && s->materials[s->tri_material[tri]].emission[1] > 0) {
+        float cos_e = -gi__dot(ng, w), pb = w[1] / (float)PI, y[3];
+        for (int k = 0; k < 3; k++) y[k] = o[k] + t * w[k] - x[k];
+        if (cos_e > 0) E[1] += (float)(PI * Le) * pb / (pb + ref_emitter_pdf(&L, tri, gi__len(y), cos_e));
+      }
+      sum += E[1], sum2 += (double)E[1] * E[1];
+    }
+    double mean = sum / N, se = sqrt(fmax(0, sum2 / N - mean * mean) / N);
+    near_se("surface under a square", mean, want, se);
+    assert_true(se < 0.01 * want);
+    ref_lights_free(&L);
+  }
+  gi_scene_release(s);
+}
+
 /* The reference's own camera keeps gi_camera's public semantics (fov
  * across the smaller side, right = forward x up, rows from the top) and so
  * agrees with the cone-traced view's camera ray for ray. */
@@ -403,6 +459,7 @@ int main(void) {
       cmocka_unit_test(test_sun_on_plane),
       cmocka_unit_test(test_sky_on_plane),
       cmocka_unit_test(test_all_lights_closed_form),
+      cmocka_unit_test(test_surface_direct_near_emitter),
       cmocka_unit_test(test_camera),
       cmocka_unit_test(test_rng_and_frame),
       cmocka_unit_test(test_bad_input),

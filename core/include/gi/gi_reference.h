@@ -38,8 +38,10 @@ extern "C" {
 
 /* Changes whenever the reference's answers change (a fix, another random
  * stream): callers that cache its results key them on it.
- * 3: its own light sampling, camera and PCG32 streams. */
-#define GI_REFERENCE_VERSION 3
+ * 3: its own light sampling, camera and PCG32 streams.
+ * 4: shadow rays from a surface aim at the sampled light point (nearby
+ *    emitters were lost in large scenes). */
+#define GI_REFERENCE_VERSION 4
 
 /* Zero means default for every field. */
 typedef struct gi_reference_opts {

@@ -188,6 +188,25 @@ void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const fl
   b->tn[i] = tnear, b->tf[i] = tfar;
 }
 
+/* Queues the shadow ray from o (x lifted off its surface) to the light
+ * point x + dist w: aimed from o at that point and stopped short of it.
+ * Aimed along w from o instead, it would pass the light's plane by up to
+ * the lift (1 cm in a 600 m city) and hit the emitter it aims at, losing
+ * every nearby emitter's light sample. */
+static void shadow_to(ref_batch *b, const ref_lights *L, const float o[3], const float x[3], const float w[3],
+                      float dist, const float V[3], float E[3]) {
+  if (isinf(dist)) {
+    ref_batch_add(b, L, o, w, 0, INFINITY, V, E, NULL);
+    return;
+  }
+  float d[3];
+  for (int k = 0; k < 3; k++) d[k] = x[k] + dist * w[k] - o[k];
+  float l = gi__len(d);
+  if (!(l > 0)) return;
+  for (int k = 0; k < 3; k++) d[k] /= l;
+  ref_batch_add(b, L, o, d, 0, l * REF_SHADOW_SHORTEN, V, E, NULL);
+}
+
 void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]) {
   const gi_scene *s = L->s;
   float o[3], w[3], dist, V[3];
@@ -199,14 +218,14 @@ void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng
     float c = gi__dot(n, w);
     if (!(c > 0)) continue;
     for (int k = 0; k < 3; k++) V[k] *= c;
-    ref_batch_add(&b, L, o, w, 0, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN, V, E, NULL);
+    shadow_to(&b, L, o, x, w, dist, V, E);
   }
   float pdf, Le[3];
   if (ref_emitter_sample(L, x, r, w, &dist, &pdf, Le)) {
     float c = gi__dot(n, w);
     /* Balance heuristic: Le c / pdf * pdf / (pdf + c / pi). */
     for (int k = 0; k < 3; k++) V[k] = Le[k] * c / (pdf + c / (float)GI_PI);
-    if (c > 0) ref_batch_add(&b, L, o, w, 0, dist * REF_SHADOW_SHORTEN, V, E, NULL);
+    if (c > 0) shadow_to(&b, L, o, x, w, dist, V, E);
   }
   ref_batch_flush(&b, L, E, NULL);
 }

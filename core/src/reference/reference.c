@@ -149,8 +149,11 @@ static void diffuse_vertex(const ref_ctx *rc, const float x[3], const float n[3]
   if (!(cn > 0) || (last && !L->num_emitters && !L->has_sky)) return;
   if (gi__intersect1(rc->s, d->o, d->w, 0, INFINITY, &d->t, &d->tri, d->ng)) {
     d->hit = 1;
-    float Le[3];
-    if (emitted(L, d->tri, d->ng, d->w, d->t, cn / (float)GI_PI, Le))
+    /* The light strategy's pdf is for the point as seen from x, not from
+     * the lifted origin: the distance from x. */
+    float y[3], Le[3];
+    for (int k = 0; k < 3; k++) y[k] = d->o[k] + d->t * d->w[k] - x[k];
+    if (emitted(L, d->tri, d->ng, d->w, gi__len(y), cn / (float)GI_PI, Le))
       for (int k = 0; k < 3; k++) E[k] += (float)GI_PI * Le[k]; /* Le cos / (cos / pi), times the MIS weight */
   } else if (L->has_sky && gi__dot(L->up, d->w) > 0) {
     for (int k = 0; k < 3; k++) E[k] += (float)GI_PI * L->sky[k];
