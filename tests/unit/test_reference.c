@@ -19,6 +19,7 @@
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include "answer/answer.h"
 #include "gi/gi.h"
@@ -305,6 +306,167 @@ static void test_all_lights_closed_form(void **state) {
   gi_scene_release(s);
 }
 
+/* ---- emitter picking: by distance (light tree) and by power ----------- */
+
+/* A field of down-facing emissive squares over the point (0, 0, 0), none
+ * hiding another from it: EMIT_GRID^2 squares whose directions from the
+ * origin lie on a grid of slopes (x / y, z / y) EMIT_SLOPE apart, each at
+ * its own height (0.6 m to 15 m) and angular size, so distance and power
+ * disagree: the biggest squares are the farthest. The emitters reflect
+ * (albedo EMIT_ALBEDO) and, with a floor, light comes back up to the
+ * point as indirect light. */
+#define EMIT_GRID 6
+#define EMIT_SLOPE 0.6
+#define EMIT_ALBEDO 0.5
+#define FLOOR_Y -1.0
+static gi_scene *make_emitter_field(int with_floor, double Q[][4][3], int *nq) {
+  static const double heights[4] = {0.6, 2.0, 6.0, 15.0};
+  static const double half_slope[3] = {0.05, 0.12, 0.25}; /* < EMIT_SLOPE / 2: no two overlap */
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {EMIT_ALBEDO, EMIT_ALBEDO, EMIT_ALBEDO}, .emission = {2, 2, 2}, .roughness = 1};
+  gi_material f = {.albedo = {0.6, 0.6, 0.6}, .roughness = 1};
+  uint32_t me = gi_mesh_builder_add_material(b, &m), mf = gi_mesh_builder_add_material(b, &f);
+  *nq = 0;
+  for (int i = 0; i < EMIT_GRID * EMIT_GRID; i++) {
+    double sa = EMIT_SLOPE * (i % EMIT_GRID - 0.5 * (EMIT_GRID - 1)), sb = EMIT_SLOPE * (i / EMIT_GRID - 0.5 * (EMIT_GRID - 1));
+    double h = heights[i % 4], r = half_slope[i % 3] * h;
+    double (*q)[3] = Q[(*nq)++];
+    /* Wound to face down (-y), toward the point, as the all-lights quad. */
+    double c[4][2] = {{-r, -r}, {r, -r}, {r, r}, {-r, r}};
+    for (int v = 0; v < 4; v++) q[v][0] = sa * h + c[v][0], q[v][1] = h, q[v][2] = sb * h + c[v][1];
+    gi_mesh_builder_add_quad(b, q[0], q[1], q[2], q[3], me);
+  }
+  if (with_floor) {
+    double A[3] = {-200, FLOOR_Y, -200}, B[3] = {-200, FLOOR_Y, 200}, C[3] = {200, FLOOR_Y, 200},
+           D[3] = {200, FLOOR_Y, -200};
+    gi_mesh_builder_add_quad(b, A, B, C, D, mf);
+  }
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "emitter field", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* Pick probabilities from the tree and from the power table sum to 1, the
+ * pick returns the same probability that ref_emitter_pick_prob (what MIS
+ * uses) gives, and the frequencies of many picks match them (each within
+ * 4.5 sigma of its binomial count; a chi-square over all of them). */
+static void test_pick_probabilities(void **state) {
+  double Q[EMIT_GRID * EMIT_GRID][4][3];
+  int nq;
+  gi_scene *s = make_emitter_field(1, Q, &nq);
+  const int draws = 1000000;
+  /* Under the field, on the floor, and among the squares (world). */
+  static const double W[3][3] = {{0, 0, 0}, {3.5, FLOOR_Y, -2}, {1, 7, 0.5}};
+  float X[3][3];
+  for (int i = 0; i < 9; i++) X[i / 3][i % 3] = (float)(W[i / 3][i % 3] - s->origin[i % 3]);
+  for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
+    ref_lights L;
+    gi_error_info err = {0};
+    assert_int_equal(ref_lights_init(&L, s, mode, &err), GI_OK);
+    assert_int_equal(L.num_emitters, 2 * nq);
+    double *count = calloc(L.num_emitters, sizeof *count);
+    for (int xi = 0; xi < 3; xi++) {
+      double sum = 0, chi2 = 0, worst = 0;
+      for (uint32_t q = 0; q < L.num_emitters; q++) sum += ref_emitter_pick_prob(&L, X[xi], q);
+      assert_true(fabs(sum - 1) < 1e-5);
+      memset(count, 0, L.num_emitters * sizeof *count);
+      ref_rng r;
+      ref_rng_seed(&r, 21 + xi);
+      for (int d = 0; d < draws; d++) {
+        double prob;
+        uint32_t q = ref_emitter_pick(&L, X[xi], ref_u01d(&r), &prob);
+        assert_true(q < L.num_emitters);
+        double want = ref_emitter_pick_prob(&L, X[xi], q);
+        assert_true(fabs(prob - want) <= 1e-6 * want);
+        count[q]++;
+      }
+      int cells = 0;
+      for (uint32_t q = 0; q < L.num_emitters; q++) {
+        double p = ref_emitter_pick_prob(&L, X[xi], q), mu = draws * p, sd = sqrt(mu * (1 - p));
+        if (p == 0) assert_true(count[q] == 0);
+        if (mu < 5) continue;
+        worst = fmax(worst, fabs(count[q] - mu) / sd);
+        chi2 += (count[q] - mu) * (count[q] - mu) / mu, cells++;
+      }
+      /* chi-square with cells - 1 degrees of freedom: mean k, sd sqrt(2k). */
+      double k = cells - 1, z = (chi2 - k) / sqrt(2 * k);
+      printf("%s pick at (%g, %g, %g): probabilities sum to 1%+.1e; %d draws: worst cell %.2f sigma, chi2 %.1f "
+             "on %.0f dof (z %+.2f)\n",
+             mode == GI_REF_PICK_TREE ? "tree " : "power", W[xi][0], W[xi][1], W[xi][2], sum - 1, draws, worst,
+             chi2, k, z);
+      assert_true(worst < 4.5);
+      assert_true(z < 5);
+    }
+    free(count);
+    ref_lights_free(&L);
+  }
+  gi_scene_release(s);
+}
+
+static gi_ref_probe ref_pick(const gi_scene *s, const double p[3], int samples, int depth, int pick) {
+  gi_reference_opts o = {.samples = samples, .max_depth = depth, .seed = 3, .emitter_pick = pick};
+  gi_ref_probe r;
+  gi_error_info err = {0};
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_OK);
+  return r;
+}
+
+/* Direct irradiance at the origin from the field of emitters (nothing
+ * else: black sky, no floor) is the sum of Lambert's polygon formula over
+ * the squares; both pickers must find it within 4 standard errors, their
+ * MIS weights with the path direction included. The tree, which picks by
+ * distance, must also be the less noisy here, where the biggest squares
+ * are the farthest. */
+static void test_pickers_closed_form(void **state) {
+  double Q[EMIT_GRID * EMIT_GRID][4][3];
+  int nq;
+  gi_scene *s = make_emitter_field(0, Q, &nq);
+  const double p[3] = {0, 0, 0}, up[3] = {0, 1, 0};
+  double want = 0;
+  for (int i = 0; i < nq; i++) want += 2.0 * polygon_psa(p, (const double(*)[3])Q[i], 4, up);
+  double se[2];
+  for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
+    gi_ref_probe r = ref_pick(s, p, 16384, -1, mode);
+    near_se(mode == GI_REF_PICK_TREE ? "emitter field, tree pick: E(up)" : "emitter field, power pick: E(up)",
+            r.direct[1], want, r.std_err_direct[1]);
+    assert_true(r.std_err_direct[1] < 0.02 * want); /* tight enough to mean something */
+    se[mode] = r.std_err_direct[1];
+  }
+  printf("emitter field: standard error tree / power %.3f\n", se[0] / se[1]);
+  assert_true(se[GI_REF_PICK_TREE] < 0.7 * se[GI_REF_PICK_POWER]);
+  gi_scene_release(s);
+}
+
+/* With a floor the emitters' light comes back up: indirect light, whose
+ * paths pick emitters at every vertex (floor and squares) and meet them
+ * with MIS weights from those vertices' pick probabilities. Tree and power
+ * picks are both unbiased, so they agree within 4 combined standard errors. */
+static void test_pickers_agree_with_indirect(void **state) {
+  double Q[EMIT_GRID * EMIT_GRID][4][3];
+  int nq;
+  gi_scene *s = make_emitter_field(1, Q, &nq);
+  static const double P[2][3] = {{0, 0, 0}, {2.5, -0.5, 1.5}};
+  for (int i = 0; i < 2; i++) {
+    gi_ref_probe t = ref_pick(s, P[i], 65536, 0, GI_REF_PICK_TREE), w = ref_pick(s, P[i], 65536, 0, GI_REF_PICK_POWER);
+    const float *vt[3] = {t.direct, t.indirect, t.irradiance}, *vw[3] = {w.direct, w.indirect, w.irradiance};
+    const float *st[3] = {t.std_err_direct, t.std_err_indirect, t.std_err};
+    const float *sw[3] = {w.std_err_direct, w.std_err_indirect, w.std_err};
+    static const char *part[3] = {"direct", "indirect", "total"};
+    for (int q = 0; q < 3; q++) {
+      double se = sqrt((double)st[q][1] * st[q][1] + (double)sw[q][1] * sw[q][1]);
+      printf("emitter field + floor, point %d, %-8s tree %.5f (se %.2f%%) power %.5f (se %.2f%%): diff %+.2f se\n", i,
+             part[q], vt[q][1], 100 * st[q][1] / vt[q][1], vw[q][1], 100 * sw[q][1] / vw[q][1],
+             (vt[q][1] - vw[q][1]) / se);
+      assert_true(vt[q][1] > 0 && se < 0.04 * vt[q][1]); /* tight enough to mean something */
+      assert_true(fabs(vt[q][1] - vw[q][1]) <= 4 * se);
+    }
+  }
+  gi_scene_release(s);
+}
+
 /* Direct irradiance at a point on a 400 m floor, 1 m under a 0.6 m square
  * emitter facing it, as a path vertex there gathers it: ref_direct's MIS-
  * weighted emitter sample plus the cosine sample's MIS-weighted hit (as
@@ -333,9 +495,9 @@ static void test_surface_direct_near_emitter(void **state) {
   float x[3];
   for (int k = 0; k < 3; k++) x[k] = (float)(pw[k] - s->origin[k]);
   const int N = 200000;
-  {
+  for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
     ref_lights L;
-    assert_int_equal(ref_lights_init(&L, s, &err), GI_OK);
+    assert_int_equal(ref_lights_init(&L, s, mode, &err), GI_OK);
     assert_true(L.eps > 0.005f); /* the lift this test is about */
     ref_rng r;
     ref_rng_seed(&r, 5);
@@ -349,12 +511,13 @@ static void test_surface_direct_near_emitter(void **state) {
       if (gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng) && s->materials[s->tri_material[tri]].emission[1] > 0) {
         float cos_e = -gi__dot(ng, w), pb = w[1] / (float)PI, y[3];
         for (int k = 0; k < 3; k++) y[k] = o[k] + t * w[k] - x[k];
-        if (cos_e > 0) E[1] += (float)(PI * Le) * pb / (pb + ref_emitter_pdf(&L, tri, gi__len(y), cos_e));
+        if (cos_e > 0) E[1] += (float)(PI * Le) * pb / (pb + ref_emitter_pdf(&L, x, tri, gi__len(y), cos_e));
       }
       sum += E[1], sum2 += (double)E[1] * E[1];
     }
     double mean = sum / N, se = sqrt(fmax(0, sum2 / N - mean * mean) / N);
-    near_se("surface under a square", mean, want, se);
+    near_se(mode == GI_REF_PICK_TREE ? "surface under a square, tree pick" : "surface under a square, power pick",
+            mean, want, se);
     assert_true(se < 0.01 * want);
     ref_lights_free(&L);
   }
@@ -449,6 +612,9 @@ static void test_bad_input(void **state) {
   o.samples = 16, o.max_depth = -2;
   assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_ERR_INVALID_ARG);
   assert_non_null(strstr(err.msg, "max_depth"));
+  o.max_depth = 0, o.emitter_pick = 2;
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "emitter_pick"));
   gi_scene_release(s);
 }
 
@@ -460,6 +626,9 @@ int main(void) {
       cmocka_unit_test(test_sky_on_plane),
       cmocka_unit_test(test_all_lights_closed_form),
       cmocka_unit_test(test_surface_direct_near_emitter),
+      cmocka_unit_test(test_pick_probabilities),
+      cmocka_unit_test(test_pickers_closed_form),
+      cmocka_unit_test(test_pickers_agree_with_indirect),
       cmocka_unit_test(test_camera),
       cmocka_unit_test(test_rng_and_frame),
       cmocka_unit_test(test_bad_input),

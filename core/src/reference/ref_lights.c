@@ -8,14 +8,27 @@
  * radiance `color` over the upper hemisphere about the scene's up axis;
  * emissive triangles emit their material's radiance from the side their
  * winding normal faces only. Sun, point and spot are evaluated exactly.
- * Emitters are sampled by area: a triangle picked from a table built here
- * from the triangles and materials (weight area times mean emission; not
- * the scene's emitter cdf), a uniform point on it by folding the unit
- * square. The sky has no light sample: callers meet it with their own
- * cosine or mixture directions. */
+ * Emitters are sampled by area: a triangle picked, then a uniform point on
+ * it by folding the unit square. The sky has no light sample: callers meet
+ * it with their own cosine or mixture directions.
+ *
+ * Picking. A city has thousands of small emitters; picked by power alone
+ * (a table built here, weight area times mean emission) a street-level
+ * point spends nearly all its samples on windows across town, hidden or
+ * far, and the few near ones it draws carry the light: noise. So by
+ * default the pick walks the scene's light tree (scene/light_tree.c), by
+ * power over distance squared and orientation seen from the shading point.
+ * That is the one piece of sampling shared with the bake; it cannot bias
+ * the reference unseen because only its probabilities matter (the
+ * estimate divides by exactly the probability the walk took, and the MIS
+ * weight of an emitter met by a BSDF ray asks the tree for the same
+ * point's probability), and test_reference checks that those
+ * probabilities sum to 1, match the walk's frequencies, and that both
+ * pickers agree with each other and with closed forms. */
 #include <stdlib.h>
 #include <string.h>
 #include "reference/ref_internal.h"
+#include "scene/lights.h"
 
 /* Lights closer than this (squared, local units) are skipped: 1 / r^2 blows up. */
 #define MIN_LIGHT_DIST2 1e-12f
@@ -33,9 +46,49 @@ static void tri_normal2(const float *P[3], float n[3]) {
 
 static int emissive(const float e[3]) { return e[0] > 0 || e[1] > 0 || e[2] > 0; }
 
-gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err) {
+/* Twice the area of triangle tri. */
+static float tri_area2(const gi_scene *s, uint32_t tri) {
+  const float *P[3];
+  float ng[3];
+  tri_corners(s, tri, P);
+  tri_normal2(P, ng);
+  return gi__len(ng);
+}
+
+/* The power table: entries q of L->em get cdf and pick from area times
+ * mean emission; 0 when every emitter is degenerate (nothing to pick). */
+static int power_table(ref_lights *L) {
+  const gi_scene *s = L->s;
+  double sum = 0;
+  for (uint32_t q = 0; q < L->num_emitters; q++) {
+    const float *e = s->materials[s->tri_material[L->em[q].tri]].emission;
+    sum += (double)L->em[q].area * (e[0] + e[1] + e[2]) / 3;
+    L->em[q].cdf = sum;
+  }
+  if (!(sum > 0)) return 0;
+  double prev = 0;
+  for (uint32_t q = 0; q < L->num_emitters; q++) {
+    L->em[q].pick = (float)((L->em[q].cdf - prev) / sum);
+    prev = L->em[q].cdf;
+    L->em[q].cdf /= sum;
+  }
+  L->em[L->num_emitters - 1].cdf = 1.0;
+  return 1;
+}
+
+/* The tree picks scene emitter slots: they must be this table's entries. */
+static int slots_match(const ref_lights *L) {
+  const gi_scene *s = L->s;
+  if (s->num_emitters != L->num_emitters || !s->ltree) return 0;
+  for (uint32_t q = 0; q < L->num_emitters; q++)
+    if (s->emitter_tri[q] != L->em[q].tri) return 0;
+  return 1;
+}
+
+gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, gi_error_info *err) {
   memset(L, 0, sizeof *L);
   L->s = s;
+  L->by_tree = pick == GI_REF_PICK_TREE;
   float ext = 0;
   for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
   /* Float positions near ext carry ~1e-7 ext of error: offsets scale with it. */
@@ -51,35 +104,21 @@ gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err) 
   if (!n) return GI_OK;
   L->em = gi__malloc((size_t)n * sizeof *L->em);
   if (!L->em) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %u emissive triangles", n);
-  double sum = 0;
   for (uint32_t t = 0, q = 0; t < s->num_triangles; t++) {
-    const float *e = s->materials[s->tri_material[t]].emission;
-    if (!emissive(e)) continue;
-    const float *P[3];
-    float ng[3];
-    tri_corners(s, t, P);
-    tri_normal2(P, ng);
-    double area = 0.5 * gi__len(ng);
+    if (!emissive(s->materials[s->tri_material[t]].emission)) continue;
     L->em[q].tri = t;
-    L->em[q].pdf_area = (float)(area * (e[0] + e[1] + e[2]) / 3); /* weight for now */
-    sum += L->em[q].pdf_area;
-    L->em[q++].cdf = sum;
+    L->em[q++].area = 0.5f * tri_area2(s, t);
   }
   L->num_emitters = n;
-  if (!(sum > 0)) { /* only degenerate emitters: nothing can be sampled or hit */
+  if (!power_table(L)) { /* only degenerate emitters: nothing can be sampled or hit */
     ref_lights_free(L);
     return GI_OK;
   }
-  for (uint32_t q = 0; q < n; q++) {
-    const float *P[3];
-    float ng[3];
-    tri_corners(s, L->em[q].tri, P);
-    tri_normal2(P, ng);
-    double area = 0.5 * gi__len(ng), pick = L->em[q].pdf_area / sum;
-    L->em[q].pdf_area = area > 0 ? (float)(pick / area) : 0.f;
-    L->em[q].cdf /= sum;
+  if (L->by_tree && !slots_match(L)) {
+    ref_lights_free(L);
+    return gi__fail(err, GI_ERR_INTERNAL, "reference: the scene's %u emitter slots are not its %u emissive triangles",
+                    s->num_emitters, n);
   }
-  L->em[n - 1].cdf = 1.0;
   return GI_OK;
 }
 
@@ -118,7 +157,7 @@ int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], fl
 }
 
 /* Index of the first table entry whose cdf exceeds u. */
-static uint32_t pick(const ref_lights *L, double u) {
+static uint32_t power_pick(const ref_lights *L, double u) {
   uint32_t lo = 0, hi = L->num_emitters - 1;
   while (lo < hi) {
     uint32_t mid = lo + (hi - lo) / 2;
@@ -128,11 +167,28 @@ static uint32_t pick(const ref_lights *L, double u) {
   return lo;
 }
 
+uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob) {
+  if (!L->by_tree) {
+    uint32_t q = power_pick(L, u);
+    *prob = L->em[q].pick;
+    return q;
+  }
+  float pr, u_rest;
+  uint32_t q = gi__light_tree_pick(L->s, x, u, &pr, &u_rest);
+  *prob = pr;
+  return q;
+}
+
+double ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q) {
+  return L->by_tree ? gi__light_tree_prob(L->s, x, q) : L->em[q].pick;
+}
+
 int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
                        float Le[3]) {
   if (!L->num_emitters) return 0;
   const gi_scene *s = L->s;
-  const ref_emitter *e = &L->em[pick(L, ref_u01(r))];
+  double prob;
+  const ref_emitter *e = &L->em[ref_emitter_pick(L, x, ref_u01d(r), &prob)];
   float u = ref_u01(r), v = ref_u01(r);
   if (u + v > 1) u = 1 - u, v = 1 - v; /* fold the square onto the triangle */
   const float *P[3];
@@ -141,18 +197,18 @@ int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float 
   tri_normal2(P, ng);
   for (int k = 0; k < 3; k++) d[k] = P[0][k] + u * (P[1][k] - P[0][k]) + v * (P[2][k] - P[0][k]) - x[k];
   float r2 = gi__dot(d, d), ln = gi__len(ng);
-  if (!(r2 > 0) || !(ln > 0) || !(e->pdf_area > 0)) return 0;
+  if (!(r2 > 0) || !(ln > 0) || !(prob > 0) || !(e->area > 0)) return 0;
   float rr = sqrtf(r2);
   for (int k = 0; k < 3; k++) w[k] = d[k] / rr;
   float cos_e = -gi__dot(ng, w) / ln;
   if (!(cos_e > 0)) return 0; /* the back of a one-sided emitter */
   *dist = rr;
-  *pdf = e->pdf_area * r2 / cos_e;
+  *pdf = (float)(prob / e->area) * r2 / cos_e;
   memcpy(Le, s->materials[s->tri_material[e->tri]].emission, sizeof(float[3]));
   return 1;
 }
 
-float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e) {
+float ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float t, float cos_e) {
   if (!L->num_emitters || !(cos_e > 0)) return 0;
   uint32_t lo = 0, hi = L->num_emitters;
   while (lo < hi) {
@@ -160,8 +216,8 @@ float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e) {
     if (L->em[mid].tri < tri) lo = mid + 1;
     else hi = mid;
   }
-  if (lo >= L->num_emitters || L->em[lo].tri != tri) return 0;
-  return L->em[lo].pdf_area * t * t / cos_e;
+  if (lo >= L->num_emitters || L->em[lo].tri != tri || !(L->em[lo].area > 0)) return 0;
+  return (float)(ref_emitter_pick_prob(L, x, lo) / L->em[lo].area) * t * t / cos_e;
 }
 
 void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]) {

@@ -4,18 +4,22 @@
  * its own next-event estimation and emitter table (ref_lights.c), camera
  * (ref_camera.c), frames, random streams (PCG32) and SH projection
  * (ref_sampling.c). It reads the scene's data and asks the BVH
- * (gi__intersect1, gi__occluded); nothing else. A sampling bug in the
+ * (gi__intersect1, gi__occluded) and, to pick emitters by distance, the
+ * scene's light tree (gi__light_tree_pick / _prob: only probabilities,
+ * checked by test_reference; see ref_lights.c). A sampling bug in the
  * bake's light sampler therefore cannot cancel out of the comparison.
  *
  * DESIGN. Per probe sample: (1) next-event estimation at the probe: every
- * sun, point and spot light exactly, one area sample of the emitters,
- * shadow rays through Embree; (2) one path direction from a mixture of a
- * cosine lobe around up and a uniform sphere (pdf p(w) = cos+/(2 pi) +
- * 1/(8 pi)): the lobe keeps the up-facing irradiance low-noise, the sphere
- * keeps the SH projection's weight bounded (Y/p <= 8 pi Y). Where the path
- * meets an emitter's front the emission is direct light, MIS-weighted
- * (balance heuristic) against the area sample; where it escapes above the
- * horizon it sees the sky (direct light too; the sky has no light sample).
+ * sun, point and spot light exactly, one area sample of the emitters
+ * (picked by power, distance and orientation from the probe, or by power
+ * alone: opts.emitter_pick), shadow rays through Embree; (2) one path
+ * direction from a mixture of a cosine lobe around up and a uniform sphere
+ * (pdf p(w) = cos+/(2 pi) + 1/(8 pi)): the lobe keeps the up-facing
+ * irradiance low-noise, the sphere keeps the SH projection's weight
+ * bounded (Y/p <= 8 pi Y). Where the path meets an emitter's front the
+ * emission is direct light, MIS-weighted (balance heuristic) against the
+ * area sample; where it escapes above the horizon it sees the sky (direct
+ * light too; the sky has no light sample).
  * What the first hit reflects toward the probe (both lobes) is the
  * indirect part.
  *
@@ -88,14 +92,16 @@ typedef struct {
   int hit;
 } seg;
 
-/* Emitted radiance seen along w at a hit, MIS-weighted against one emitter
- * area sample (pb = the direction's own pdf). 0 when not an emitter's front. */
-static int emitted(const ref_lights *L, uint32_t tri, const float ng[3], const float w[3], float t, float pb,
-                   float out[3]) {
+/* Emitted radiance seen along w from x at a hit, MIS-weighted against one
+ * emitter area sample from x (pb = the direction's own pdf; the light
+ * strategy's pdf is the pick probability for x, as the sample's was).
+ * 0 when not an emitter's front. */
+static int emitted(const ref_lights *L, const float x[3], uint32_t tri, const float ng[3], const float w[3],
+                   float t, float pb, float out[3]) {
   const float *Le = L->s->materials[L->s->tri_material[tri]].emission;
   float cos_e = -gi__dot(ng, w);
   if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(cos_e > 0)) return 0;
-  float f = pb / (pb + ref_emitter_pdf(L, tri, t, cos_e));
+  float f = pb / (pb + ref_emitter_pdf(L, x, tri, t, cos_e));
   for (int k = 0; k < 3; k++) out[k] = f * Le[k];
   return 1;
 }
@@ -153,7 +159,7 @@ static void diffuse_vertex(const ref_ctx *rc, const float x[3], const float n[3]
      * the lifted origin: the distance from x. */
     float y[3], Le[3];
     for (int k = 0; k < 3; k++) y[k] = d->o[k] + d->t * d->w[k] - x[k];
-    if (emitted(L, d->tri, d->ng, d->w, gi__len(y), cn / (float)GI_PI, Le))
+    if (emitted(L, x, d->tri, d->ng, d->w, gi__len(y), cn / (float)GI_PI, Le))
       for (int k = 0; k < 3; k++) E[k] += (float)GI_PI * Le[k]; /* Le cos / (cos / pi), times the MIS weight */
   } else if (L->has_sky && gi__dot(L->up, d->w) > 0) {
     for (int k = 0; k < 3; k++) E[k] += (float)GI_PI * L->sky[k];
@@ -293,7 +299,7 @@ static void probe_path(const ref_ctx *rc, const float p[3], ref_rng *rng, float 
     return;
   }
   float Le[3], Lr[3] = {0, 0, 0};
-  if (emitted(L, tri, ng, w, t, pb, Le)) {
+  if (emitted(L, p, tri, ng, w, t, pb, Le)) {
     ref_sh_add(shd, w, Le, 1.f / pb);
     if (cu > 0)
       for (int k = 0; k < 3; k++) Ed[k] += Le[k] * cu / pb;
@@ -389,12 +395,15 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
                     rc.o.max_depth);
   if (rc.o.rr_depth < 1)
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference: rr_depth must be at least 1, got %d", rc.o.rr_depth);
+  if (rc.o.emitter_pick != GI_REF_PICK_TREE && rc.o.emitter_pick != GI_REF_PICK_POWER)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference: emitter_pick must be GI_REF_PICK_TREE or _POWER, got %d",
+                    rc.o.emitter_pick);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(pts[i]))
       return gi__fail(err, GI_ERR_NONFINITE, "reference: point %zu has a non-finite coordinate", i / 3);
   double t0 = gi__now_ms();
   rc.chunks = (rc.o.samples + CHUNK - 1) / CHUNK;
-  gi_result res = ref_lights_init(&rc.L, s, err);
+  gi_result res = ref_lights_init(&rc.L, s, rc.o.emitter_pick, err);
   if (res != GI_OK) return res;
   size_t tasks = n * (size_t)rc.chunks;
   rc.acc = gi__calloc(tasks ? tasks : 1, sizeof *rc.acc);
@@ -473,7 +482,7 @@ gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const 
   vc.rc.s = s;
   vc.rc.o.seed = o.seed ? o.seed : 1;
   vc.rc.o.rr_depth = 3;
-  r = ref_lights_init(&vc.rc.L, s, err);
+  r = ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, err);
   if (r != GI_OK) return r;
   size_t np = (size_t)k.w * k.h * 3;
   memset(rgb, 0, np * sizeof(float));
