@@ -6,7 +6,9 @@
  * camera, random streams): a sampling bug in the bake shows up as an error
  * instead of cancelling out of the comparison. The one shared piece is the
  * scene's light tree, which picks emitters by distance: only its
- * probabilities enter, and they are tested on their own.
+ * probabilities enter, and they are tested on their own. Light reflected
+ * once from point and spot lights is also traced from the light (MIS with
+ * the paths), so a lamp next to a surface does not make it noisy.
  * Surfaces are two-sided: a Lambertian lobe (albedo) plus, on glossy
  * materials (roughness < 0.5, specular > 0), a normalised Phong lobe of
  * weight `specular` around the mirror direction, with the exponent the
@@ -43,8 +45,10 @@ extern "C" {
  * 3: its own light sampling, camera and PCG32 streams.
  * 4: shadow rays from a surface aim at the sampled light point (nearby
  *    emitters were lost in large scenes).
- * 5: emitters picked by power, distance and orientation (the light tree). */
-#define GI_REFERENCE_VERSION 5
+ * 5: emitters picked by power, distance and orientation (the light tree).
+ * 6: light tracing from point and spot lights, MIS-weighted against the
+ *    path's directions (the light a street lamp's head reflects). */
+#define GI_REFERENCE_VERSION 6
 /* How next-event estimation picks an emissive triangle. Either way the
  * estimate is unbiased (its MIS weights use the same probabilities); they
  * differ in noise. */
@@ -68,6 +72,8 @@ typedef struct gi_reference_opts {
   uint64_t seed;    /* default 1 */
   int threads;      /* 0 = all cores */
   int emitter_pick; /* a gi_ref_pick; default GI_REF_PICK_TREE */
+  int no_light_tracing; /* 1: without light tracing from point and spot
+                       lights (version 5's estimator), to compare against */
 } gi_reference_opts;
 
 /* One reference probe. Same convention as gi_probe: irradiance = direct +

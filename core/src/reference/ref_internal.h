@@ -71,6 +71,7 @@ typedef struct ref_lights {
   float sky[3];     /* every sky light's radiance, summed */
   int has_sky;
   float eps;        /* ray offset, scaled to the scene */
+  float extent;     /* the scene's largest side */
   int by_tree;      /* GI_REF_PICK_TREE: picks from the scene's light tree, seen from the point */
   uint32_t num_emitters;
   ref_emitter *em;  /* NULL when there are none */
@@ -118,10 +119,32 @@ void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const fl
 /* Traces the queued rays; each unblocked one adds V to E or, with sh,
  * V along its direction to sh and V times its cosine to the up axis to E. */
 void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]);
+/* Light tracing from point and spot lights toward a probe (reference.c):
+ * the light reflected once from a point light is a spike on the few
+ * surfaces next to it (a street lamp's own head, 10 cm above its light,
+ * gets 10^4 times a street's irradiance), which the probe's path direction
+ * finds only rarely. A light picked in proportion to lum(I) / d^2 from the
+ * probe shoots a uniform direction; the surface it meets reflects toward
+ * the probe. The probe path's first vertex weighs the same light's term by
+ * the balance heuristic against it. */
+typedef struct ref_lt {
+  const float *p;   /* the probe */
+  float pb;         /* solid-angle pdf of the probe path's direction */
+  double total;     /* sum of ref_lt_weight over the scene's lights; 0: no light tracing */
+} ref_lt;
+/* Light l's pick weight seen from probe p: lum(I) / max(d^2, floor) for a
+ * point or spot light, 0 for others. */
+double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]);
+double ref_lt_total(const ref_lights *L, const float p[3]);
+/* Area pdf with which light tracing from lt's probe reaches a point at
+ * distance dist from light l, seen from it at cosine c. */
+double ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist);
 /* Direct irradiance at x on the side n from sun, point and spot lights and
  * one emitter sample (balance heuristic against a cosine sample, pdf
- * cos / pi). The sky is left to the cosine sample (it has no other). */
-void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]);
+ * cos / pi). The sky is left to the cosine sample (it has no other). With
+ * lt (x is then the first vertex of that probe's path), each point and
+ * spot light's term is weighted against light tracing. */
+void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt);
 
 /* ---- ref_camera.c: the pinhole camera ---------------------------------- */
 

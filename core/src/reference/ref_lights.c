@@ -93,6 +93,7 @@ gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, gi_error_i
   for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
   /* Float positions near ext carry ~1e-7 ext of error: offsets scale with it. */
   L->eps = 2e-5f * ext + 1e-6f;
+  L->extent = ext;
   L->up[s->up == GI_UP_Z ? 2 : 1] = 1;
   for (uint32_t i = 0; i < s->num_lights; i++)
     if (s->lights[i].type == GI_LIGHT_SKY) {
@@ -263,7 +264,47 @@ static void shadow_to(ref_batch *b, const ref_lights *L, const float o[3], const
   ref_batch_add(b, L, o, d, 0, l * REF_SHADOW_SHORTEN, V, E, NULL);
 }
 
-void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]) {
+/* Light tracing never picks a light closer to the probe than this
+ * fraction of the scene's extent by more than its weight there. */
+#define LT_NEAR_FRACTION 1e-3f
+
+double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]) {
+  if (l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) return 0;
+  double d2 = 0, lum = 0.2126 * l->color[0] + 0.7152 * l->color[1] + 0.0722 * l->color[2];
+  for (int k = 0; k < 3; k++) {
+    double v = (l->position[k] - L->s->origin[k]) - p[k];
+    d2 += v * v;
+  }
+  double near = LT_NEAR_FRACTION * L->extent;
+  return lum > 0 ? lum / fmax(d2, near * near) : 0;
+}
+
+double ref_lt_total(const ref_lights *L, const float p[3]) {
+  double t = 0;
+  for (uint32_t i = 0; i < L->s->num_lights; i++) t += ref_lt_weight(L, &L->s->lights[i], p);
+  return t;
+}
+
+double ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist) {
+  if (!(lt->total > 0)) return 0;
+  double pick = ref_lt_weight(L, l, lt->p) / lt->total;
+  return pick * c / (4 * GI_PI * (double)dist * dist);
+}
+
+/* Balance-heuristic weight of a point or spot light's term at the first
+ * vertex x (side n) of lt's probe path, against light tracing. */
+static float lt_weight_at(const ref_lights *L, const ref_lt *lt, const gi_light *l, const float x[3],
+                          const float n[3], float c, float dist) {
+  double plt = ref_lt_pdf(L, lt, l, c, dist);
+  if (!(plt > 0)) return 1;
+  float v[3];
+  for (int k = 0; k < 3; k++) v[k] = lt->p[k] - x[k];
+  double d2 = gi__dot(v, v), cy = fabs((double)gi__dot(n, v)) / sqrt(d2);
+  double ppp = lt->pb * cy / d2; /* the path direction's pdf in area measure at x */
+  return (float)(ppp / (ppp + plt));
+}
+
+void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt) {
   const gi_scene *s = L->s;
   float o[3], w[3], dist, V[3];
   ref_batch b;
@@ -273,7 +314,8 @@ void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng
     if (!ref_delta_light(L, &s->lights[i], x, w, &dist, V)) continue;
     float c = gi__dot(n, w);
     if (!(c > 0)) continue;
-    for (int k = 0; k < 3; k++) V[k] *= c;
+    float f = lt && !isinf(dist) ? lt_weight_at(L, lt, &s->lights[i], x, n, c, dist) : 1.f;
+    for (int k = 0; k < 3; k++) V[k] *= c * f;
     shadow_to(&b, L, o, x, w, dist, V, E);
   }
   float pdf, Le[3];
