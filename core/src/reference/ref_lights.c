@@ -24,7 +24,11 @@
  * weight of an emitter met by a BSDF ray asks the tree for the same
  * point's probability), and test_reference checks that those
  * probabilities sum to 1, match the walk's frequencies, and that both
- * pickers agree with each other and with closed forms. */
+ * pickers agree with each other and with closed forms.
+ *
+ * Light tracing (ref_lt, used by reference.c): the pick weights of point
+ * and spot lights seen from a point and the area pdf of a light-traced
+ * surface point, which both of its MIS strategies must compute alike. */
 #include <stdlib.h>
 #include <string.h>
 #include "reference/ref_internal.h"
@@ -264,8 +268,8 @@ static void shadow_to(ref_batch *b, const ref_lights *L, const float o[3], const
   ref_batch_add(b, L, o, d, 0, l * REF_SHADOW_SHORTEN, V, E, NULL);
 }
 
-/* Light tracing never picks a light closer to the probe than this
- * fraction of the scene's extent by more than its weight there. */
+/* A light's light-tracing weight lum(I) / d^2 stops growing closer to
+ * the point than this fraction of the scene's extent. */
 #define LT_NEAR_FRACTION 1e-3f
 
 double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]) {
