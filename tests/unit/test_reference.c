@@ -19,6 +19,7 @@
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include "answer/answer.h"
 #include "gi/gi.h"
@@ -305,6 +306,382 @@ static void test_all_lights_closed_form(void **state) {
   gi_scene_release(s);
 }
 
+/* ---- emitter picking: by distance (light tree) and by power ----------- */
+
+/* A field of down-facing emissive squares over the point (0, 0, 0), none
+ * hiding another from it: EMIT_GRID^2 squares whose directions from the
+ * origin lie on a grid of slopes (x / y, z / y) EMIT_SLOPE apart, each at
+ * its own height (0.6 m to 15 m) and angular size, so distance and power
+ * disagree: the biggest squares are the farthest. The emitters reflect
+ * (albedo EMIT_ALBEDO) and, with a floor, light comes back up to the
+ * point as indirect light. */
+#define EMIT_GRID 6
+#define EMIT_SLOPE 0.6
+#define EMIT_ALBEDO 0.5
+#define FLOOR_Y -1.0
+static gi_scene *make_emitter_field(int with_floor, double Q[][4][3], int *nq) {
+  static const double heights[4] = {0.6, 2.0, 6.0, 15.0};
+  static const double half_slope[3] = {0.05, 0.12, 0.25}; /* < EMIT_SLOPE / 2: no two overlap */
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {EMIT_ALBEDO, EMIT_ALBEDO, EMIT_ALBEDO}, .emission = {2, 2, 2}, .roughness = 1};
+  gi_material f = {.albedo = {0.6, 0.6, 0.6}, .roughness = 1};
+  uint32_t me = gi_mesh_builder_add_material(b, &m), mf = gi_mesh_builder_add_material(b, &f);
+  *nq = 0;
+  for (int i = 0; i < EMIT_GRID * EMIT_GRID; i++) {
+    double sa = EMIT_SLOPE * (i % EMIT_GRID - 0.5 * (EMIT_GRID - 1)), sb = EMIT_SLOPE * (i / EMIT_GRID - 0.5 * (EMIT_GRID - 1));
+    double h = heights[i % 4], r = half_slope[i % 3] * h;
+    double (*q)[3] = Q[(*nq)++];
+    /* Wound to face down (-y), toward the point, as the all-lights quad. */
+    double c[4][2] = {{-r, -r}, {r, -r}, {r, r}, {-r, r}};
+    for (int v = 0; v < 4; v++) q[v][0] = sa * h + c[v][0], q[v][1] = h, q[v][2] = sb * h + c[v][1];
+    gi_mesh_builder_add_quad(b, q[0], q[1], q[2], q[3], me);
+  }
+  if (with_floor) {
+    double A[3] = {-200, FLOOR_Y, -200}, B[3] = {-200, FLOOR_Y, 200}, C[3] = {200, FLOOR_Y, 200},
+           D[3] = {200, FLOOR_Y, -200};
+    gi_mesh_builder_add_quad(b, A, B, C, D, mf);
+  }
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "emitter field", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* Pick probabilities from the tree and from the power table sum to 1, the
+ * pick returns the same probability that ref_emitter_pick_prob (what MIS
+ * uses) gives, and the frequencies of many picks match them (each within
+ * 4.5 sigma of its binomial count; a chi-square over all of them). */
+static void test_pick_probabilities(void **state) {
+  double Q[EMIT_GRID * EMIT_GRID][4][3];
+  int nq;
+  gi_scene *s = make_emitter_field(1, Q, &nq);
+  const int draws = 1000000;
+  /* Under the field, on the floor, and among the squares (world). */
+  static const double W[3][3] = {{0, 0, 0}, {3.5, FLOOR_Y, -2}, {1, 7, 0.5}};
+  float X[3][3];
+  for (int i = 0; i < 9; i++) X[i / 3][i % 3] = (float)(W[i / 3][i % 3] - s->origin[i % 3]);
+  for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
+    ref_lights L;
+    gi_error_info err = {0};
+    assert_int_equal(ref_lights_init(&L, s, mode, &err), GI_OK);
+    assert_int_equal(L.num_emitters, 2 * nq);
+    double *count = calloc(L.num_emitters, sizeof *count);
+    for (int xi = 0; xi < 3; xi++) {
+      double sum = 0, chi2 = 0, worst = 0;
+      for (uint32_t q = 0; q < L.num_emitters; q++) sum += ref_emitter_pick_prob(&L, X[xi], q);
+      assert_true(fabs(sum - 1) < 1e-5);
+      memset(count, 0, L.num_emitters * sizeof *count);
+      ref_rng r;
+      ref_rng_seed(&r, 21 + xi);
+      for (int d = 0; d < draws; d++) {
+        double prob;
+        uint32_t q = ref_emitter_pick(&L, X[xi], ref_u01d(&r), &prob);
+        assert_true(q < L.num_emitters);
+        double want = ref_emitter_pick_prob(&L, X[xi], q);
+        assert_true(fabs(prob - want) <= 1e-6 * want);
+        count[q]++;
+      }
+      int cells = 0;
+      for (uint32_t q = 0; q < L.num_emitters; q++) {
+        double p = ref_emitter_pick_prob(&L, X[xi], q), mu = draws * p, sd = sqrt(mu * (1 - p));
+        if (p == 0) assert_true(count[q] == 0);
+        if (mu < 5) continue;
+        worst = fmax(worst, fabs(count[q] - mu) / sd);
+        chi2 += (count[q] - mu) * (count[q] - mu) / mu, cells++;
+      }
+      /* chi-square with cells - 1 degrees of freedom: mean k, sd sqrt(2k). */
+      double k = cells - 1, z = (chi2 - k) / sqrt(2 * k);
+      printf("%s pick at (%g, %g, %g): probabilities sum to 1%+.1e; %d draws: worst cell %.2f sigma, chi2 %.1f "
+             "on %.0f dof (z %+.2f)\n",
+             mode == GI_REF_PICK_TREE ? "tree " : "power", W[xi][0], W[xi][1], W[xi][2], sum - 1, draws, worst,
+             chi2, k, z);
+      assert_true(worst < 4.5);
+      assert_true(z < 5);
+    }
+    free(count);
+    ref_lights_free(&L);
+  }
+  gi_scene_release(s);
+}
+
+static gi_ref_probe ref_pick(const gi_scene *s, const double p[3], int samples, int depth, int pick) {
+  gi_reference_opts o = {.samples = samples, .max_depth = depth, .seed = 3, .emitter_pick = pick};
+  gi_ref_probe r;
+  gi_error_info err = {0};
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_OK);
+  return r;
+}
+
+/* Direct irradiance at the origin from the field of emitters (nothing
+ * else: black sky, no floor) is the sum of Lambert's polygon formula over
+ * the squares; both pickers must find it within 4 standard errors, their
+ * MIS weights with the path direction included. The tree, which picks by
+ * distance, must also be the less noisy here, where the biggest squares
+ * are the farthest. */
+static void test_pickers_closed_form(void **state) {
+  double Q[EMIT_GRID * EMIT_GRID][4][3];
+  int nq;
+  gi_scene *s = make_emitter_field(0, Q, &nq);
+  const double p[3] = {0, 0, 0}, up[3] = {0, 1, 0};
+  double want = 0;
+  for (int i = 0; i < nq; i++) want += 2.0 * polygon_psa(p, (const double(*)[3])Q[i], 4, up);
+  double se[2];
+  for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
+    gi_ref_probe r = ref_pick(s, p, 16384, -1, mode);
+    near_se(mode == GI_REF_PICK_TREE ? "emitter field, tree pick: E(up)" : "emitter field, power pick: E(up)",
+            r.direct[1], want, r.std_err_direct[1]);
+    assert_true(r.std_err_direct[1] < 0.02 * want); /* tight enough to mean something */
+    se[mode] = r.std_err_direct[1];
+  }
+  printf("emitter field: standard error tree / power %.3f\n", se[0] / se[1]);
+  assert_true(se[GI_REF_PICK_TREE] < 0.7 * se[GI_REF_PICK_POWER]);
+  gi_scene_release(s);
+}
+
+/* With a floor the emitters' light comes back up: indirect light, whose
+ * paths pick emitters at every vertex (floor and squares) and meet them
+ * with MIS weights from those vertices' pick probabilities. Tree and power
+ * picks are both unbiased, so they agree within 4 combined standard errors. */
+static void test_pickers_agree_with_indirect(void **state) {
+  double Q[EMIT_GRID * EMIT_GRID][4][3];
+  int nq;
+  gi_scene *s = make_emitter_field(1, Q, &nq);
+  static const double P[2][3] = {{0, 0, 0}, {2.5, -0.5, 1.5}};
+  for (int i = 0; i < 2; i++) {
+    gi_ref_probe t = ref_pick(s, P[i], 65536, 0, GI_REF_PICK_TREE), w = ref_pick(s, P[i], 65536, 0, GI_REF_PICK_POWER);
+    const float *vt[3] = {t.direct, t.indirect, t.irradiance}, *vw[3] = {w.direct, w.indirect, w.irradiance};
+    const float *st[3] = {t.std_err_direct, t.std_err_indirect, t.std_err};
+    const float *sw[3] = {w.std_err_direct, w.std_err_indirect, w.std_err};
+    static const char *part[3] = {"direct", "indirect", "total"};
+    for (int q = 0; q < 3; q++) {
+      double se = sqrt((double)st[q][1] * st[q][1] + (double)sw[q][1] * sw[q][1]);
+      printf("emitter field + floor, point %d, %-8s tree %.5f (se %.2f%%) power %.5f (se %.2f%%): diff %+.2f se\n", i,
+             part[q], vt[q][1], 100 * st[q][1] / vt[q][1], vw[q][1], 100 * sw[q][1] / vw[q][1],
+             (vt[q][1] - vw[q][1]) / se);
+      assert_true(vt[q][1] > 0 && se < 0.04 * vt[q][1]); /* tight enough to mean something */
+      assert_true(fabs(vt[q][1] - vw[q][1]) <= 4 * se);
+    }
+  }
+  gi_scene_release(s);
+}
+
+/* Direct irradiance at a point on a 400 m floor, 1 m under a 0.6 m square
+ * emitter facing it, as a path vertex there gathers it: ref_direct's MIS-
+ * weighted emitter sample plus the cosine sample's MIS-weighted hit (as
+ * diffuse_vertex adds it), against Lambert's formula. The floor makes the
+ * scene large, so the shadow ray starts 8 mm off the surface: aimed along
+ * the sample's direction from there instead of at the sampled point, it
+ * would pass the emitter's plane and be blocked by it (E then came out
+ * at 9% of the truth here). */
+static void test_surface_direct_near_emitter(void **state) {
+  const double H = 1.0, R = 0.3, Le = 2.0;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.emission = {Le, Le, Le}, .roughness = 1}, f = {.albedo = {0.5, 0.5, 0.5}, .roughness = 1};
+  uint32_t me = gi_mesh_builder_add_material(b, &m), mf = gi_mesh_builder_add_material(b, &f);
+  double Q[4][3] = {{-R, H, -R}, {R, H, -R}, {R, H, R}, {-R, H, R}}; /* faces down */
+  gi_mesh_builder_add_quad(b, Q[0], Q[1], Q[2], Q[3], me);
+  double A[3] = {-200, 0, -200}, B[3] = {-200, 0, 200}, C[3] = {200, 0, 200}, D[3] = {200, 0, -200};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mf);
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "square over a floor", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  const double pw[3] = {0.2, 0, 0.1}, up[3] = {0, 1, 0};
+  const double want = Le * polygon_psa(pw, (const double(*)[3])Q, 4, up);
+  const float n[3] = {0, 1, 0};
+  float x[3];
+  for (int k = 0; k < 3; k++) x[k] = (float)(pw[k] - s->origin[k]);
+  const int N = 200000;
+  for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
+    ref_lights L;
+    assert_int_equal(ref_lights_init(&L, s, mode, &err), GI_OK);
+    assert_true(L.eps > 0.005f); /* the lift this test is about */
+    ref_rng r;
+    ref_rng_seed(&r, 5);
+    double sum = 0, sum2 = 0;
+    for (int i = 0; i < N; i++) {
+      float E[3] = {0, 0, 0}, w[3], o[3], t, ng[3];
+      uint32_t tri;
+      ref_direct(&L, x, n, &r, E, NULL);
+      ref_cosine(n, &r, w);
+      for (int k = 0; k < 3; k++) o[k] = x[k] + L.eps * n[k];
+      if (gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng) && s->materials[s->tri_material[tri]].emission[1] > 0) {
+        float cos_e = -gi__dot(ng, w), pb = w[1] / (float)PI, y[3];
+        for (int k = 0; k < 3; k++) y[k] = o[k] + t * w[k] - x[k];
+        if (cos_e > 0) E[1] += (float)(PI * Le) * pb / (pb + ref_emitter_pdf(&L, x, tri, gi__len(y), cos_e));
+      }
+      sum += E[1], sum2 += (double)E[1] * E[1];
+    }
+    double mean = sum / N, se = sqrt(fmax(0, sum2 / N - mean * mean) / N);
+    near_se(mode == GI_REF_PICK_TREE ? "surface under a square, tree pick" : "surface under a square, power pick",
+            mean, want, se);
+    assert_true(se < 0.01 * want);
+    ref_lights_free(&L);
+  }
+  gi_scene_release(s);
+}
+
+/* ---- light tracing from point lights ------------------------------------ */
+
+/* A street lamp's geometry in small: a point light LAMP_DROP under a white
+ * ceiling (LAMP_H high, 2 LAMP_HALF wide), optionally a grey floor. */
+#define LAMP_H 4.0
+#define LAMP_DROP 0.1
+#define LAMP_HALF 50.0
+#define LAMP_I 100.0
+#define CEIL_ALBEDO 0.8
+static gi_scene *make_lamp_room(int with_floor) {
+  gi_light l = {.type = GI_LIGHT_POINT, .color = {LAMP_I, LAMP_I, LAMP_I}, .position = {0, LAMP_H - LAMP_DROP, 0}};
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material c = {.albedo = {CEIL_ALBEDO, CEIL_ALBEDO, CEIL_ALBEDO}, .roughness = 1};
+  gi_material f = {.albedo = {0.4, 0.4, 0.4}, .roughness = 1};
+  uint32_t mc = gi_mesh_builder_add_material(b, &c), mf = gi_mesh_builder_add_material(b, &f);
+  double A[3] = {-LAMP_HALF, LAMP_H, -LAMP_HALF}, B[3] = {LAMP_HALF, LAMP_H, -LAMP_HALF},
+         C[3] = {LAMP_HALF, LAMP_H, LAMP_HALF}, D[3] = {-LAMP_HALF, LAMP_H, LAMP_HALF};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mc);
+  if (with_floor) {
+    for (int k = 0; k < 4; k++) (k == 0 ? A : k == 1 ? B : k == 2 ? C : D)[1] = 0;
+    gi_mesh_builder_add_quad(b, A, B, C, D, mf);
+  }
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = &l, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "lamp room", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* Up-facing irradiance at p from the ceiling's one reflection of the lamp:
+ * the integral over the ceiling of (a / pi) E_c(q) cos_p cos_q / |p - q|^2,
+ * E_c = I h / |q - l|^3, in polar coordinates about the point above the
+ * lamp with geometric steps in r (the spike under the lamp is 1/h^2). */
+static double lamp_one_bounce(const double p[3]) {
+  const int nt = 720, nr = 6000;
+  const double h = LAMP_DROP, H = LAMP_H - p[1], r0 = 1e-5;
+  double sum = 0;
+  for (int i = 0; i < nt; i++) {
+    double th = 2 * PI * (i + 0.5) / nt, ct = cos(th), st = sin(th);
+    double rmax = LAMP_HALF / fmax(fabs(ct), fabs(st)), q = pow(rmax / r0, 1.0 / nr);
+    /* [0, r0] by one midpoint, then nodes r0 q^j (trapezoid in ln r). */
+    double acc = 0;
+    for (int j = 0; j <= nr; j++) {
+      double r = r0 * pow(q, j), dx = r * ct - p[0], dz = r * st - p[2], d2 = dx * dx + H * H + dz * dz;
+      double f = h * r / pow(h * h + r * r, 1.5) * H * H / (d2 * d2) * r; /* times r: d(ln r) */
+      acc += (j == 0 || j == nr ? 0.5 : 1) * f;
+    }
+    sum += acc * log(q) * (2 * PI / nt);
+  }
+  return CEIL_ALBEDO / PI * LAMP_I * sum;
+}
+
+/* One reflection (max_depth 1) off a ceiling with a point light 10 cm
+ * under it, the city's lamp head in small: the probe's path rarely meets
+ * the bright spot over the lamp; light tracing from the lamp does. The
+ * indirect irradiance matches the integral within 4 standard errors, and
+ * with light tracing its error is far below the estimator's without it. */
+static void test_light_tracing_closed_form(void **state) {
+  gi_scene *s = make_lamp_room(0);
+  static const double P[2][3] = {{1.5, 0, 0.7}, {6, 2, -3}};
+  for (int i = 0; i < 2; i++) {
+    double want = lamp_one_bounce(P[i]);
+    gi_reference_opts o = {.samples = 16384, .max_depth = 1, .seed = 9};
+    gi_ref_probe r, q;
+    gi_error_info err = {0};
+    assert_int_equal(gi_reference_irradiance(s, P[i], 1, &o, &r, NULL, &err), GI_OK);
+    o.no_light_tracing = 1;
+    assert_int_equal(gi_reference_irradiance(s, P[i], 1, &o, &q, NULL, &err), GI_OK);
+    near_se(i ? "lamp under a ceiling, far: indirect" : "lamp under a ceiling: indirect", r.indirect[1], want,
+            r.std_err_indirect[1]);
+    printf("  without light tracing %.5f (se %.2f%%); with it se %.2f%%\n", q.indirect[1],
+           100 * q.std_err_indirect[1] / want, 100 * r.std_err_indirect[1] / want);
+    assert_true(r.std_err_indirect[1] < 0.01 * want);
+    assert_true(r.std_err_indirect[1] < 0.3 * q.std_err_indirect[1]);
+  }
+  gi_scene_release(s);
+}
+
+/* Up-facing irradiance at p (under the ceiling, above the floor) from
+ * light reflected by the floor and then the ceiling. The floor's
+ * irradiance I h' / (r^2 + h'^2)^(3/2) (h' the lamp's height) reflected to
+ * the ceiling gives a radially symmetric E_c(rho), tabulated; the ceiling
+ * then reflects it to p. Midpoint rules over discs of radius LAMP_HALF
+ * (the squares' corners add well under 0.1%). */
+#define FLOOR_ALBEDO 0.4
+static double lamp_two_bounce(const double p[3]) {
+  enum { NRHO = 201, NR = 500, NTH = 180, NS = 600, NPH = 360 };
+  const double hl = LAMP_H - LAMP_DROP, R = LAMP_HALF, H = LAMP_H - p[1], dr = R / NR;
+  static double ec[NRHO];
+  for (int j = 0; j < NRHO; j++) {
+    double rho = R * j / (NRHO - 1), sum = 0;
+    for (int i = 0; i < NR; i++) {
+      double r = (i + 0.5) * dr, ef = LAMP_I * hl / pow(r * r + hl * hl, 1.5), ring = 0;
+      for (int k = 0; k < NTH; k++) { /* 0..pi, doubled: symmetric about the line to rho */
+        double th = PI * (k + 0.5) / NTH, D2 = rho * rho + r * r - 2 * rho * r * cos(th) + LAMP_H * LAMP_H;
+        ring += LAMP_H * LAMP_H / (D2 * D2);
+      }
+      sum += FLOOR_ALBEDO / PI * ef * ring * (2 * PI / NTH) * r * dr;
+    }
+    ec[j] = sum;
+  }
+  double sum = 0, ds = (R + 15) / NS;
+  for (int i = 0; i < NS; i++) {
+    double sd = (i + 0.5) * ds, ring = 0;
+    for (int k = 0; k < NPH; k++) {
+      double ph = 2 * PI * (k + 0.5) / NPH, qx = p[0] + sd * cos(ph), qz = p[2] + sd * sin(ph);
+      double rho = sqrt(qx * qx + qz * qz), x = rho / R * (NRHO - 1);
+      if (x >= NRHO - 1) continue; /* beyond the ceiling */
+      int j = (int)x;
+      double e = ec[j] + (x - j) * (ec[j + 1] - ec[j]), d2 = sd * sd + H * H;
+      ring += CEIL_ALBEDO / PI * e * H * H / (d2 * d2);
+    }
+    sum += ring * (2 * PI / NPH) * sd * ds;
+  }
+  return sum;
+}
+
+/* With a floor, light goes lamp - floor - ceiling - probe and further:
+ * light tracing toward every path vertex, weighted against its cosine
+ * sample. With and without light tracing the reference must agree (the
+ * estimator without it is unbiased, only noisy): the indirect light within
+ * 4 combined standard errors, the direct light (the lamp alone, exact)
+ * to float rounding. */
+static void test_light_tracing_agrees(void **state) {
+  gi_scene *s = make_lamp_room(1);
+  const double p[3] = {2.0, 1.5, -1.0};
+  gi_reference_opts o = {.samples = 1 << 17, .seed = 4};
+  gi_ref_probe r, q;
+  gi_error_info err = {0};
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_OK);
+  o.no_light_tracing = 1;
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &q, NULL, &err), GI_OK);
+  double se = sqrt((double)r.std_err_indirect[1] * r.std_err_indirect[1] +
+                   (double)q.std_err_indirect[1] * q.std_err_indirect[1]);
+  printf("lamp room, indirect with light tracing %.5f (se %.2f%%), without %.5f (se %.2f%%): diff %+.2f se; "
+         "direct %.6f and %.6f\n",
+         r.indirect[1], 100 * r.std_err_indirect[1] / r.indirect[1], q.indirect[1],
+         100 * q.std_err_indirect[1] / q.indirect[1], (r.indirect[1] - q.indirect[1]) / se, r.direct[1], q.direct[1]);
+  assert_true(fabs(r.direct[1] - q.direct[1]) <= 1e-5 * r.direct[1]);
+  assert_true(se < 0.06 * r.indirect[1]); /* tight enough to mean something */
+  assert_true(fabs(r.indirect[1] - q.indirect[1]) <= 4 * se);
+  assert_true(r.std_err_indirect[1] < 0.2 * q.std_err_indirect[1]);
+  /* Two reflections at most (lamp - ceiling - probe, lamp - floor -
+   * ceiling - probe), 12 m from the lamp where the second is two thirds
+   * of the light: it strains the light tracing toward the ceiling point
+   * the probe's path meets, against that point's cosine sample, and the
+   * floor point's lamp term weighted against it. */
+  const double pf[3] = {12, 1.5, -1};
+  gi_reference_opts o2 = {.samples = 1 << 15, .seed = 5, .max_depth = 2};
+  assert_int_equal(gi_reference_irradiance(s, pf, 1, &o2, &r, NULL, &err), GI_OK);
+  double e1 = lamp_one_bounce(pf), e2 = lamp_two_bounce(pf);
+  printf("lamp room, two reflections: one %.5f + two %.5f (quadrature)\n", e1, e2);
+  near_se("lamp room, two reflections: indirect", r.indirect[1], e1 + e2, r.std_err_indirect[1]);
+  assert_true(r.std_err_indirect[1] < 0.01 * (e1 + e2));
+  gi_scene_release(s);
+}
+
 /* The reference's own camera keeps gi_camera's public semantics (fov
  * across the smaller side, right = forward x up, rows from the top) and so
  * agrees with the cone-traced view's camera ray for ray. */
@@ -393,6 +770,12 @@ static void test_bad_input(void **state) {
   o.samples = 16, o.max_depth = -2;
   assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_ERR_INVALID_ARG);
   assert_non_null(strstr(err.msg, "max_depth"));
+  o.max_depth = 0, o.emitter_pick = 2;
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "emitter_pick"));
+  o.emitter_pick = 0, o.no_light_tracing = 7;
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "no_light_tracing"));
   gi_scene_release(s);
 }
 
@@ -403,6 +786,12 @@ int main(void) {
       cmocka_unit_test(test_sun_on_plane),
       cmocka_unit_test(test_sky_on_plane),
       cmocka_unit_test(test_all_lights_closed_form),
+      cmocka_unit_test(test_surface_direct_near_emitter),
+      cmocka_unit_test(test_pick_probabilities),
+      cmocka_unit_test(test_pickers_closed_form),
+      cmocka_unit_test(test_pickers_agree_with_indirect),
+      cmocka_unit_test(test_light_tracing_closed_form),
+      cmocka_unit_test(test_light_tracing_agrees),
       cmocka_unit_test(test_camera),
       cmocka_unit_test(test_rng_and_frame),
       cmocka_unit_test(test_bad_input),

@@ -134,6 +134,20 @@ static const acc_row *find_knob(const acc_row *r, size_t n, const char *scene, c
 /* The issue's ambition, measured: Cornell-box indirect error at default
  * (10%) and high quality (5%), and speed against the path tracer at equal
  * error (30x), per scene. */
+/* The reference's own noise per scene: a reference is trusted when its
+ * mean relative standard error of indirect light is within this. */
+#define REF_TRUSTED_SE 0.02
+static void write_ref_noise(FILE *f, const acc_scene_info *sc, size_t nsc) {
+  fprintf(f, "- The reference's own noise (mean relative standard error over the probes; ambition: indirect within "
+             "%.0f%%):\n\n| scene | paths per probe | indirect | direct | total | trusted |\n|---|---|---|---|---|---|\n",
+          100 * REF_TRUSTED_SE);
+  for (size_t s = 0; s < nsc; s++)
+    fprintf(f, "| %s | %d | %.2f%% | %.2f%% | %.2f%% | %s |\n", sc[s].name, sc[s].ref_samples,
+            100 * sc[s].ref_rel_se[ACC_INDIRECT], 100 * sc[s].ref_rel_se[ACC_DIRECT],
+            100 * sc[s].ref_rel_se[ACC_TOTAL], sc[s].ref_rel_se[ACC_INDIRECT] <= REF_TRUSTED_SE ? "yes" : "no");
+  fprintf(f, "\n");
+}
+
 static void write_standing(FILE *f, const acc_row *r, size_t n, const acc_scene_info *sc, size_t nsc) {
   fprintf(f, "## Standing against the ambition\n\n");
   const acc_row *d = find_default(r, n, "cornell"), *h = find_knob(r, n, "cornell", "high");
@@ -144,6 +158,7 @@ static void write_standing(FILE *f, const acc_row *r, size_t n, const acc_scene_
     fprintf(f, "- Cornell box, high quality (%s), indirect: **%.1f%%** (ambition: within 5%%) -> %s.\n",
             "R 64, s0/2, 32 cones, step 0.25, bounces from the albedo rule", 100 * h->m[ACC_INDIRECT].mre,
             h->m[ACC_INDIRECT].mre <= 0.05 ? "met" : "not met");
+  write_ref_noise(f, sc, nsc);
   fprintf(f, "- Speed at equal error (ambition: the cone tracer at least 30x faster than the path tracer):\n\n"
              "| scene | default ms (bake + gather) | gather ms | default total MRE | path tracer ms at that error "
              "| speed-up, bake + gather | speed-up, gather alone |\n"
@@ -216,7 +231,7 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
     if (sc[s].ref_ms > 0) fprintf(f, ", %.1f s", sc[s].ref_ms / 1000);
     else fprintf(f, " (from the cache)");
     fprintf(f, "; its own mean relative standard error: total %.3f%%, direct %.3f%%, indirect %.3f%%.\n\n",
-            100 * sc[s].ref_rel_se[0], 100 * sc[s].ref_rel_se[1], 100 * sc[s].ref_rel_se[2]);
+            100 * sc[s].ref_rel_se[ACC_TOTAL], 100 * sc[s].ref_rel_se[ACC_DIRECT], 100 * sc[s].ref_rel_se[ACC_INDIRECT]);
     fprintf(f, "| method | knob | value | ms | bake ms | gather ms | MRE total | MRE direct | MRE indirect | relMSE total "
                "| relMSE indirect | indirect bias | Pareto |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (size_t i = 0; i < n; i++) {

@@ -3,8 +3,12 @@
  * A Monte Carlo path tracer on the scene's Embree BVH, with the same
  * triangles, materials and lights (sun, point, spot, sky, emissive
  * triangles) as the bake, but sampled by code of its own (light sampling,
- * emitter picking, camera, random streams): a sampling bug in the bake
- * shows up as an error instead of cancelling out of the comparison.
+ * camera, random streams): a sampling bug in the bake shows up as an error
+ * instead of cancelling out of the comparison. The one shared piece is the
+ * scene's light tree, which picks emitters by distance: only its
+ * probabilities enter, and they are tested on their own. Light reflected
+ * once from point and spot lights is also traced from the light (MIS with
+ * the paths), so a lamp next to a surface does not make it noisy.
  * Surfaces are two-sided: a Lambertian lobe (albedo) plus, on glossy
  * materials (roughness < 0.5, specular > 0), a normalised Phong lobe of
  * weight `specular` around the mirror direction, with the exponent the
@@ -38,8 +42,25 @@ extern "C" {
 
 /* Changes whenever the reference's answers change (a fix, another random
  * stream): callers that cache its results key them on it.
- * 3: its own light sampling, camera and PCG32 streams. */
-#define GI_REFERENCE_VERSION 3
+ * 3: its own light sampling, camera and PCG32 streams.
+ * 4: shadow rays from a surface aim at the sampled light point (nearby
+ *    emitters were lost in large scenes).
+ * 5: emitters picked by power, distance and orientation (the light tree).
+ * 6: light tracing from point and spot lights, MIS-weighted against the
+ *    path's directions (the light a street lamp's head reflects). */
+#define GI_REFERENCE_VERSION 6
+/* How next-event estimation picks an emissive triangle. Either way the
+ * estimate is unbiased (its MIS weights use the same probabilities); they
+ * differ in noise. */
+typedef enum gi_ref_pick {
+  /* By power over distance squared times how far the emitters can face the
+   * shading point, walking the scene's light tree: a point near one window
+   * of a city samples that window, not one across town. The default. */
+  GI_REF_PICK_TREE = 0,
+  /* By power (area times mean emission) alone, wherever the point is:
+   * version 3's sampler, kept to compare against. */
+  GI_REF_PICK_POWER = 1
+} gi_ref_pick;
 
 /* Zero means default for every field. */
 typedef struct gi_reference_opts {
@@ -50,6 +71,9 @@ typedef struct gi_reference_opts {
   int rr_depth;     /* Russian roulette from this many reflections on; default 3 */
   uint64_t seed;    /* default 1 */
   int threads;      /* 0 = all cores */
+  int emitter_pick; /* a gi_ref_pick; default GI_REF_PICK_TREE */
+  int no_light_tracing; /* 1: without light tracing from point and spot
+                       lights (version 5's estimator), to compare against */
 } gi_reference_opts;
 
 /* One reference probe. Same convention as gi_probe: irradiance = direct +

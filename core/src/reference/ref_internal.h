@@ -12,6 +12,7 @@
 
 #include <stdint.h>
 #include "base/internal.h"
+#include "gi/gi_reference.h"
 #include "gi/gi_render.h"
 #include "scene/scene_internal.h"
 
@@ -29,6 +30,13 @@ static inline uint32_t ref_rng_u32(ref_rng *r) {
 }
 /* Uniform in [0, 1): the top 24 bits, exact in a float. */
 static inline float ref_u01(ref_rng *r) { return (float)(ref_rng_u32(r) >> 8) * (1.0f / 16777216.0f); }
+/* Uniform in [0, 1) with 53 bits (two draws): an emitter pick walks a
+ * dozen levels of the light tree, each rescaling u, and 24 bits would run
+ * out for emitters of small probability. */
+static inline double ref_u01d(ref_rng *r) {
+  uint64_t a = ref_rng_u32(r) >> 5, b = ref_rng_u32(r) >> 6;
+  return ((double)a * 67108864.0 + (double)b) * (1.0 / 9007199254740992.0);
+}
 /* A stream from a key: both state and increment are hashed from it. */
 void ref_rng_seed(ref_rng *r, uint64_t key);
 /* Mixes v into the hash h (MurmurHash3's 64-bit finaliser). */
@@ -51,9 +59,10 @@ void ref_sh_to_irradiance(float sh[9][3]);
 
 /* One emissive triangle of the picking table. */
 typedef struct ref_emitter {
-  double cdf;       /* cumulative pick probability up to and including this one */
-  float pdf_area;   /* pick probability / area: the sample's pdf in area measure */
-  uint32_t tri;     /* triangle index; the table is in ascending order */
+  double cdf;       /* power pick: cumulative probability up to and including this one */
+  float pick;       /* power pick: this one's probability */
+  float area;
+  uint32_t tri;     /* triangle index; the table is in ascending order (the scene's emitter slots) */
 } ref_emitter;
 
 typedef struct ref_lights {
@@ -62,14 +71,23 @@ typedef struct ref_lights {
   float sky[3];     /* every sky light's radiance, summed */
   int has_sky;
   float eps;        /* ray offset, scaled to the scene */
+  float extent;     /* the scene's largest side */
+  int by_tree;      /* GI_REF_PICK_TREE: picks from the scene's light tree, seen from the point */
   uint32_t num_emitters;
   ref_emitter *em;  /* NULL when there are none */
 } ref_lights;
 
-/* Builds the table from the scene's triangles and materials (emitters
- * picked by area times mean emission); GI_ERR_NOMEM when out of memory. */
-gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err);
+/* Builds the table from the scene's triangles and materials; pick is a
+ * gi_ref_pick (by power, distance and orientation from the scene's light
+ * tree, or by area times mean emission alone). GI_ERR_NOMEM when out of
+ * memory, GI_ERR_INTERNAL when the scene's emitter slots disagree with the
+ * table (the tree's picks would then name other triangles). */
+gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, gi_error_info *err);
 void ref_lights_free(ref_lights *L);
+/* The table entry u in [0, 1) picks for shading point x, and its probability. */
+uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob);
+/* The probability that a pick for x returns entry q (what MIS must use). */
+double ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q);
 
 /* A sun, point or spot light seen from x: unit direction w toward it,
  * distance (INFINITY for the sun) and the irradiance E it gives a surface
@@ -80,9 +98,9 @@ int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], fl
  * behind its triangle (one-sided) or there are no emitters. */
 int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
                        float Le[3]);
-/* Solid-angle pdf with which ref_emitter_sample draws the point at
+/* Solid-angle pdf with which ref_emitter_sample from x draws the point at
  * distance t on triangle tri, seen at cosine cos_e; 0 for a non-emitter. */
-float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e);
+float ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float t, float cos_e);
 /* A shadow ray stops this fraction short of the light's sample point, so it
  * does not hit the emitter it aims at. */
 #define REF_SHADOW_SHORTEN 0.999f
@@ -101,10 +119,32 @@ void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const fl
 /* Traces the queued rays; each unblocked one adds V to E or, with sh,
  * V along its direction to sh and V times its cosine to the up axis to E. */
 void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]);
+/* Light tracing from point and spot lights toward a probe (reference.c):
+ * the light reflected once from a point light is a spike on the few
+ * surfaces next to it (a street lamp's own head, 10 cm above its light,
+ * gets 10^4 times a street's irradiance), which the probe's path direction
+ * finds only rarely. A light picked in proportion to lum(I) / d^2 from the
+ * probe shoots a uniform direction; the surface it meets reflects toward
+ * the probe. The probe path's first vertex weighs the same light's term by
+ * the balance heuristic against it. */
+typedef struct ref_lt {
+  const float *p;   /* the probe */
+  float pb;         /* solid-angle pdf of the probe path's direction */
+  double total;     /* sum of ref_lt_weight over the scene's lights; 0: no light tracing */
+} ref_lt;
+/* Light l's pick weight seen from probe p: lum(I) / max(d^2, floor) for a
+ * point or spot light, 0 for others. */
+double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]);
+double ref_lt_total(const ref_lights *L, const float p[3]);
+/* Area pdf with which light tracing from lt's probe reaches a point at
+ * distance dist from light l, seen from it at cosine c. */
+double ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist);
 /* Direct irradiance at x on the side n from sun, point and spot lights and
  * one emitter sample (balance heuristic against a cosine sample, pdf
- * cos / pi). The sky is left to the cosine sample (it has no other). */
-void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]);
+ * cos / pi). The sky is left to the cosine sample (it has no other). With
+ * lt (x is then the first vertex of that probe's path), each point and
+ * spot light's term is weighted against light tracing. */
+void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt);
 
 /* ---- ref_camera.c: the pinhole camera ---------------------------------- */
 

@@ -8,14 +8,31 @@
  * radiance `color` over the upper hemisphere about the scene's up axis;
  * emissive triangles emit their material's radiance from the side their
  * winding normal faces only. Sun, point and spot are evaluated exactly.
- * Emitters are sampled by area: a triangle picked from a table built here
- * from the triangles and materials (weight area times mean emission; not
- * the scene's emitter cdf), a uniform point on it by folding the unit
- * square. The sky has no light sample: callers meet it with their own
- * cosine or mixture directions. */
+ * Emitters are sampled by area: a triangle picked, then a uniform point on
+ * it by folding the unit square. The sky has no light sample: callers meet
+ * it with their own cosine or mixture directions.
+ *
+ * Picking. A city has thousands of small emitters; picked by power alone
+ * (a table built here, weight area times mean emission) a street-level
+ * point spends nearly all its samples on windows across town, hidden or
+ * far, and the few near ones it draws carry the light: noise. So by
+ * default the pick walks the scene's light tree (scene/light_tree.c), by
+ * power over distance squared and orientation seen from the shading point.
+ * That is the one piece of sampling shared with the bake; it cannot bias
+ * the reference unseen because only its probabilities matter (the
+ * estimate divides by exactly the probability the walk took, and the MIS
+ * weight of an emitter met by a BSDF ray asks the tree for the same
+ * point's probability), and test_reference checks that those
+ * probabilities sum to 1, match the walk's frequencies, and that both
+ * pickers agree with each other and with closed forms.
+ *
+ * Light tracing (ref_lt, used by reference.c): the pick weights of point
+ * and spot lights seen from a point and the area pdf of a light-traced
+ * surface point, which both of its MIS strategies must compute alike. */
 #include <stdlib.h>
 #include <string.h>
 #include "reference/ref_internal.h"
+#include "scene/lights.h"
 
 /* Lights closer than this (squared, local units) are skipped: 1 / r^2 blows up. */
 #define MIN_LIGHT_DIST2 1e-12f
@@ -33,13 +50,54 @@ static void tri_normal2(const float *P[3], float n[3]) {
 
 static int emissive(const float e[3]) { return e[0] > 0 || e[1] > 0 || e[2] > 0; }
 
-gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err) {
+/* Twice the area of triangle tri. */
+static float tri_area2(const gi_scene *s, uint32_t tri) {
+  const float *P[3];
+  float ng[3];
+  tri_corners(s, tri, P);
+  tri_normal2(P, ng);
+  return gi__len(ng);
+}
+
+/* The power table: entries q of L->em get cdf and pick from area times
+ * mean emission; 0 when every emitter is degenerate (nothing to pick). */
+static int power_table(ref_lights *L) {
+  const gi_scene *s = L->s;
+  double sum = 0;
+  for (uint32_t q = 0; q < L->num_emitters; q++) {
+    const float *e = s->materials[s->tri_material[L->em[q].tri]].emission;
+    sum += (double)L->em[q].area * (e[0] + e[1] + e[2]) / 3;
+    L->em[q].cdf = sum;
+  }
+  if (!(sum > 0)) return 0;
+  double prev = 0;
+  for (uint32_t q = 0; q < L->num_emitters; q++) {
+    L->em[q].pick = (float)((L->em[q].cdf - prev) / sum);
+    prev = L->em[q].cdf;
+    L->em[q].cdf /= sum;
+  }
+  L->em[L->num_emitters - 1].cdf = 1.0;
+  return 1;
+}
+
+/* The tree picks scene emitter slots: they must be this table's entries. */
+static int slots_match(const ref_lights *L) {
+  const gi_scene *s = L->s;
+  if (s->num_emitters != L->num_emitters || !s->ltree) return 0;
+  for (uint32_t q = 0; q < L->num_emitters; q++)
+    if (s->emitter_tri[q] != L->em[q].tri) return 0;
+  return 1;
+}
+
+gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, gi_error_info *err) {
   memset(L, 0, sizeof *L);
   L->s = s;
+  L->by_tree = pick == GI_REF_PICK_TREE;
   float ext = 0;
   for (int a = 0; a < 3; a++) ext = fmaxf(ext, s->hi[a] - s->lo[a]);
   /* Float positions near ext carry ~1e-7 ext of error: offsets scale with it. */
   L->eps = 2e-5f * ext + 1e-6f;
+  L->extent = ext;
   L->up[s->up == GI_UP_Z ? 2 : 1] = 1;
   for (uint32_t i = 0; i < s->num_lights; i++)
     if (s->lights[i].type == GI_LIGHT_SKY) {
@@ -51,35 +109,21 @@ gi_result ref_lights_init(ref_lights *L, const gi_scene *s, gi_error_info *err) 
   if (!n) return GI_OK;
   L->em = gi__malloc((size_t)n * sizeof *L->em);
   if (!L->em) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %u emissive triangles", n);
-  double sum = 0;
   for (uint32_t t = 0, q = 0; t < s->num_triangles; t++) {
-    const float *e = s->materials[s->tri_material[t]].emission;
-    if (!emissive(e)) continue;
-    const float *P[3];
-    float ng[3];
-    tri_corners(s, t, P);
-    tri_normal2(P, ng);
-    double area = 0.5 * gi__len(ng);
+    if (!emissive(s->materials[s->tri_material[t]].emission)) continue;
     L->em[q].tri = t;
-    L->em[q].pdf_area = (float)(area * (e[0] + e[1] + e[2]) / 3); /* weight for now */
-    sum += L->em[q].pdf_area;
-    L->em[q++].cdf = sum;
+    L->em[q++].area = 0.5f * tri_area2(s, t);
   }
   L->num_emitters = n;
-  if (!(sum > 0)) { /* only degenerate emitters: nothing can be sampled or hit */
+  if (!power_table(L)) { /* only degenerate emitters: nothing can be sampled or hit */
     ref_lights_free(L);
     return GI_OK;
   }
-  for (uint32_t q = 0; q < n; q++) {
-    const float *P[3];
-    float ng[3];
-    tri_corners(s, L->em[q].tri, P);
-    tri_normal2(P, ng);
-    double area = 0.5 * gi__len(ng), pick = L->em[q].pdf_area / sum;
-    L->em[q].pdf_area = area > 0 ? (float)(pick / area) : 0.f;
-    L->em[q].cdf /= sum;
+  if (L->by_tree && !slots_match(L)) {
+    ref_lights_free(L);
+    return gi__fail(err, GI_ERR_INTERNAL, "reference: the scene's %u emitter slots are not its %u emissive triangles",
+                    s->num_emitters, n);
   }
-  L->em[n - 1].cdf = 1.0;
   return GI_OK;
 }
 
@@ -118,7 +162,7 @@ int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], fl
 }
 
 /* Index of the first table entry whose cdf exceeds u. */
-static uint32_t pick(const ref_lights *L, double u) {
+static uint32_t power_pick(const ref_lights *L, double u) {
   uint32_t lo = 0, hi = L->num_emitters - 1;
   while (lo < hi) {
     uint32_t mid = lo + (hi - lo) / 2;
@@ -128,11 +172,28 @@ static uint32_t pick(const ref_lights *L, double u) {
   return lo;
 }
 
+uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob) {
+  if (!L->by_tree) {
+    uint32_t q = power_pick(L, u);
+    *prob = L->em[q].pick;
+    return q;
+  }
+  float pr, u_rest;
+  uint32_t q = gi__light_tree_pick(L->s, x, u, &pr, &u_rest);
+  *prob = pr;
+  return q;
+}
+
+double ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q) {
+  return L->by_tree ? gi__light_tree_prob(L->s, x, q) : L->em[q].pick;
+}
+
 int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
                        float Le[3]) {
   if (!L->num_emitters) return 0;
   const gi_scene *s = L->s;
-  const ref_emitter *e = &L->em[pick(L, ref_u01(r))];
+  double prob;
+  const ref_emitter *e = &L->em[ref_emitter_pick(L, x, ref_u01d(r), &prob)];
   float u = ref_u01(r), v = ref_u01(r);
   if (u + v > 1) u = 1 - u, v = 1 - v; /* fold the square onto the triangle */
   const float *P[3];
@@ -141,18 +202,18 @@ int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float 
   tri_normal2(P, ng);
   for (int k = 0; k < 3; k++) d[k] = P[0][k] + u * (P[1][k] - P[0][k]) + v * (P[2][k] - P[0][k]) - x[k];
   float r2 = gi__dot(d, d), ln = gi__len(ng);
-  if (!(r2 > 0) || !(ln > 0) || !(e->pdf_area > 0)) return 0;
+  if (!(r2 > 0) || !(ln > 0) || !(prob > 0) || !(e->area > 0)) return 0;
   float rr = sqrtf(r2);
   for (int k = 0; k < 3; k++) w[k] = d[k] / rr;
   float cos_e = -gi__dot(ng, w) / ln;
   if (!(cos_e > 0)) return 0; /* the back of a one-sided emitter */
   *dist = rr;
-  *pdf = e->pdf_area * r2 / cos_e;
+  *pdf = (float)(prob / e->area) * r2 / cos_e;
   memcpy(Le, s->materials[s->tri_material[e->tri]].emission, sizeof(float[3]));
   return 1;
 }
 
-float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e) {
+float ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float t, float cos_e) {
   if (!L->num_emitters || !(cos_e > 0)) return 0;
   uint32_t lo = 0, hi = L->num_emitters;
   while (lo < hi) {
@@ -160,8 +221,8 @@ float ref_emitter_pdf(const ref_lights *L, uint32_t tri, float t, float cos_e) {
     if (L->em[mid].tri < tri) lo = mid + 1;
     else hi = mid;
   }
-  if (lo >= L->num_emitters || L->em[lo].tri != tri) return 0;
-  return L->em[lo].pdf_area * t * t / cos_e;
+  if (lo >= L->num_emitters || L->em[lo].tri != tri || !(L->em[lo].area > 0)) return 0;
+  return (float)(ref_emitter_pick_prob(L, x, lo) / L->em[lo].area) * t * t / cos_e;
 }
 
 void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]) {
@@ -188,7 +249,66 @@ void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const fl
   b->tn[i] = tnear, b->tf[i] = tfar;
 }
 
-void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3]) {
+/* Queues the shadow ray from o (x lifted off its surface) to the light
+ * point x + dist w: aimed from o at that point and stopped short of it.
+ * Aimed along w from o instead, it would pass the light's plane by up to
+ * the lift (1 cm in a 600 m city) and hit the emitter it aims at, losing
+ * every nearby emitter's light sample. */
+static void shadow_to(ref_batch *b, const ref_lights *L, const float o[3], const float x[3], const float w[3],
+                      float dist, const float V[3], float E[3]) {
+  if (isinf(dist)) {
+    ref_batch_add(b, L, o, w, 0, INFINITY, V, E, NULL);
+    return;
+  }
+  float d[3];
+  for (int k = 0; k < 3; k++) d[k] = x[k] + dist * w[k] - o[k];
+  float l = gi__len(d);
+  if (!(l > 0)) return;
+  for (int k = 0; k < 3; k++) d[k] /= l;
+  ref_batch_add(b, L, o, d, 0, l * REF_SHADOW_SHORTEN, V, E, NULL);
+}
+
+/* A light's light-tracing weight lum(I) / d^2 stops growing closer to
+ * the point than this fraction of the scene's extent. */
+#define LT_NEAR_FRACTION 1e-3f
+
+double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]) {
+  if (l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) return 0;
+  double d2 = 0, lum = 0.2126 * l->color[0] + 0.7152 * l->color[1] + 0.0722 * l->color[2];
+  for (int k = 0; k < 3; k++) {
+    double v = (l->position[k] - L->s->origin[k]) - p[k];
+    d2 += v * v;
+  }
+  double near = LT_NEAR_FRACTION * L->extent;
+  return lum > 0 ? lum / fmax(d2, near * near) : 0;
+}
+
+double ref_lt_total(const ref_lights *L, const float p[3]) {
+  double t = 0;
+  for (uint32_t i = 0; i < L->s->num_lights; i++) t += ref_lt_weight(L, &L->s->lights[i], p);
+  return t;
+}
+
+double ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist) {
+  if (!(lt->total > 0)) return 0;
+  double pick = ref_lt_weight(L, l, lt->p) / lt->total;
+  return pick * c / (4 * GI_PI * (double)dist * dist);
+}
+
+/* Balance-heuristic weight of a point or spot light's term at the first
+ * vertex x (side n) of lt's probe path, against light tracing. */
+static float lt_weight_at(const ref_lights *L, const ref_lt *lt, const gi_light *l, const float x[3],
+                          const float n[3], float c, float dist) {
+  double plt = ref_lt_pdf(L, lt, l, c, dist);
+  if (!(plt > 0)) return 1;
+  float v[3];
+  for (int k = 0; k < 3; k++) v[k] = lt->p[k] - x[k];
+  double d2 = gi__dot(v, v), cy = fabs((double)gi__dot(n, v)) / sqrt(d2);
+  double ppp = lt->pb * cy / d2; /* the path direction's pdf in area measure at x */
+  return (float)(ppp / (ppp + plt));
+}
+
+void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt) {
   const gi_scene *s = L->s;
   float o[3], w[3], dist, V[3];
   ref_batch b;
@@ -198,15 +318,16 @@ void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng
     if (!ref_delta_light(L, &s->lights[i], x, w, &dist, V)) continue;
     float c = gi__dot(n, w);
     if (!(c > 0)) continue;
-    for (int k = 0; k < 3; k++) V[k] *= c;
-    ref_batch_add(&b, L, o, w, 0, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN, V, E, NULL);
+    float f = lt && !isinf(dist) ? lt_weight_at(L, lt, &s->lights[i], x, n, c, dist) : 1.f;
+    for (int k = 0; k < 3; k++) V[k] *= c * f;
+    shadow_to(&b, L, o, x, w, dist, V, E);
   }
   float pdf, Le[3];
   if (ref_emitter_sample(L, x, r, w, &dist, &pdf, Le)) {
     float c = gi__dot(n, w);
     /* Balance heuristic: Le c / pdf * pdf / (pdf + c / pi). */
     for (int k = 0; k < 3; k++) V[k] = Le[k] * c / (pdf + c / (float)GI_PI);
-    if (c > 0) ref_batch_add(&b, L, o, w, 0, dist * REF_SHADOW_SHORTEN, V, E, NULL);
+    if (c > 0) shadow_to(&b, L, o, x, w, dist, V, E);
   }
   ref_batch_flush(&b, L, E, NULL);
 }

@@ -4,20 +4,32 @@
  * its own next-event estimation and emitter table (ref_lights.c), camera
  * (ref_camera.c), frames, random streams (PCG32) and SH projection
  * (ref_sampling.c). It reads the scene's data and asks the BVH
- * (gi__intersect1, gi__occluded); nothing else. A sampling bug in the
+ * (gi__intersect1, gi__occluded) and, to pick emitters by distance, the
+ * scene's light tree (gi__light_tree_pick / _prob: only probabilities,
+ * checked by test_reference; see ref_lights.c). A sampling bug in the
  * bake's light sampler therefore cannot cancel out of the comparison.
  *
  * DESIGN. Per probe sample: (1) next-event estimation at the probe: every
- * sun, point and spot light exactly, one area sample of the emitters,
- * shadow rays through Embree; (2) one path direction from a mixture of a
- * cosine lobe around up and a uniform sphere (pdf p(w) = cos+/(2 pi) +
- * 1/(8 pi)): the lobe keeps the up-facing irradiance low-noise, the sphere
- * keeps the SH projection's weight bounded (Y/p <= 8 pi Y). Where the path
- * meets an emitter's front the emission is direct light, MIS-weighted
- * (balance heuristic) against the area sample; where it escapes above the
- * horizon it sees the sky (direct light too; the sky has no light sample).
+ * sun, point and spot light exactly, one area sample of the emitters
+ * (picked by power, distance and orientation from the probe, or by power
+ * alone: opts.emitter_pick), shadow rays through Embree; (2) one path
+ * direction from a mixture of a cosine lobe around up and a uniform sphere
+ * (pdf p(w) = cos+/(2 pi) + 1/(8 pi)): the lobe keeps the up-facing
+ * irradiance low-noise, the sphere keeps the SH projection's weight
+ * bounded (Y/p <= 8 pi Y). Where the path meets an emitter's front the
+ * emission is direct light, MIS-weighted (balance heuristic) against the
+ * area sample; where it escapes above the horizon it sees the sky (direct
+ * light too; the sky has no light sample).
  * What the first hit reflects toward the probe (both lobes) is the
- * indirect part.
+ * indirect part. (3) Light tracing from point and spot lights (ref_lt):
+ * a light picked by lum(I) / d^2 from the probe shoots a uniform
+ * direction, and the surface it meets reflects toward the probe; it and
+ * the path's first vertex share that light's once-reflected term by the
+ * balance heuristic. Every diffuse path vertex does the same toward
+ * itself, against its cosine sample. A street lamp's point light 10 cm
+ * under its head makes a spot 10^4 times brighter than the street that
+ * paths from a probe meet rarely (the city's indirect light at 4096 paths:
+ * 16.7% relative standard error without it, 3.7% with it).
  *
  * Surfaces are two-sided (the voxel texture reflects on both sides too):
  * at each hit the normal is turned toward the arriving ray. The BRDF is
@@ -88,14 +100,16 @@ typedef struct {
   int hit;
 } seg;
 
-/* Emitted radiance seen along w at a hit, MIS-weighted against one emitter
- * area sample (pb = the direction's own pdf). 0 when not an emitter's front. */
-static int emitted(const ref_lights *L, uint32_t tri, const float ng[3], const float w[3], float t, float pb,
-                   float out[3]) {
+/* Emitted radiance seen along w from x at a hit, MIS-weighted against one
+ * emitter area sample from x (pb = the direction's own pdf; the light
+ * strategy's pdf is the pick probability for x, as the sample's was).
+ * 0 when not an emitter's front. */
+static int emitted(const ref_lights *L, const float x[3], uint32_t tri, const float ng[3], const float w[3],
+                   float t, float pb, float out[3]) {
   const float *Le = L->s->materials[L->s->tri_material[tri]].emission;
   float cos_e = -gi__dot(ng, w);
   if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(cos_e > 0)) return 0;
-  float f = pb / (pb + ref_emitter_pdf(L, tri, t, cos_e));
+  float f = pb / (pb + ref_emitter_pdf(L, x, tri, t, cos_e));
   for (int k = 0; k < 3; k++) out[k] = f * Le[k];
   return 1;
 }
@@ -134,14 +148,82 @@ static void phong_dir(const float r[3], double ns, ref_rng *rng, float w[3]) {
   for (int k = 0; k < 3; k++) w[k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + (float)ct * r[k];
 }
 
+/* One sample of the light tracing strategy (ref_lt) toward x, a probe
+ * (n NULL) or a surface point of side n: a point or spot light picked by
+ * lum(I) / d^2 from x, a uniform direction from it, and the surface point
+ * y it meets. Gives the unit direction wd from x toward y, the radiance Lr
+ * y's diffuse lobe sends back along it, g = cos_y / |y - x|^2 and y's area
+ * pdf plt; 0 when nothing comes (the ray escapes, x is behind y's lit
+ * side or below n, or something is in between). */
+static int lt_sample(const ref_ctx *rc, const float x[3], const float *n, const ref_lt *lt, ref_rng *rng,
+                     float wd[3], float Lr[3], float *g, double *plt) {
+  const ref_lights *L = &rc->L;
+  const gi_scene *s = rc->s;
+  double u = ref_u01d(rng) * lt->total, acc = 0;
+  const gi_light *l = NULL;
+  for (uint32_t i = 0; i < s->num_lights; i++) {
+    double wl = ref_lt_weight(L, &s->lights[i], x);
+    if (!(wl > 0)) continue;
+    l = &s->lights[i]; /* the last one with weight, should rounding leave u past the sum */
+    if (u < (acc += wl)) break;
+  }
+  float lp[3], om[3], t, ng[3], y[3], wl[3], dist, E[3], v[3];
+  uint32_t tri;
+  if (!l) return 0;
+  for (int k = 0; k < 3; k++) lp[k] = (float)(l->position[k] - s->origin[k]);
+  ref_sphere(rng, om);
+  if (!gi__intersect1(s, lp, om, 0, INFINITY, &t, &tri, ng)) return 0;
+  float ln = gi__len(ng), sg = gi__dot(ng, om) > 0 ? -1.f : 1.f;
+  for (int k = 0; k < 3; k++) y[k] = lp[k] + t * om[k], ng[k] *= sg / ln; /* ng faces the light */
+  for (int k = 0; k < 3; k++) v[k] = x[k] - y[k];
+  float d = gi__len(v), cy = d > 0 ? gi__dot(ng, v) / d : 0.f;
+  if (!(cy > 0) || !ref_delta_light(L, l, y, wl, &dist, E)) return 0;
+  for (int k = 0; k < 3; k++) wd[k] = -v[k] / d;
+  float c = gi__dot(ng, wl);
+  *plt = ref_lt_pdf(L, lt, l, c, dist);
+  if (!(c > 0) || !(*plt > 0) || (n && !(gi__dot(n, wd) > 0))) return 0;
+  /* From a surface the ray starts lifted off it and aims at y (as ref_direct's). */
+  float o[3], dir[3], tn = n ? 0.f : L->eps, tf;
+  for (int k = 0; k < 3; k++) o[k] = n ? x[k] + L->eps * n[k] : x[k], dir[k] = y[k] - o[k];
+  float dl = gi__len(dir);
+  if (!(dl > 0)) return 0;
+  for (int k = 0; k < 3; k++) dir[k] /= dl;
+  tf = dl * REF_SHADOW_SHORTEN;
+  uint8_t vis = 0;
+  gi__occluded(s, 1, o, dir, &tn, &tf, &vis);
+  if (!vis) return 0;
+  const float *a = s->materials[s->tri_material[tri]].albedo;
+  for (int k = 0; k < 3; k++) Lr[k] = a[k] / (float)GI_PI * E[k] * c;
+  *g = cy / (d * d);
+  return 1;
+}
+
+/* Light tracing toward a surface point x (side n): adds its balance-
+ * weighted share of irradiance to E; the cosine sample is the other
+ * strategy (area pdf cos_x / pi * g). */
+static void surface_lt(const ref_ctx *rc, const float x[3], const float n[3], const ref_lt *lt, ref_rng *rng,
+                       float E[3]) {
+  float wd[3], Lr[3], g;
+  double plt;
+  if (!(lt->total > 0) || !lt_sample(rc, x, n, lt, rng, wd, Lr, &g, &plt)) return;
+  float cx = gi__dot(n, wd);
+  double f = cx * g / (plt + cx / GI_PI * g);
+  for (int k = 0; k < 3; k++) E[k] += (float)(Lr[k] * f);
+}
+
 /* The diffuse lobe at x (side n): direct irradiance into E (lights, and
  * what the cosine sample d meets: an emitter's front, MIS-weighted, or the
  * sky above the horizon), and d itself, for the path to go on. At the
- * last vertex the sample is traced only when it can meet light. */
-static void diffuse_vertex(const ref_ctx *rc, const float x[3], const float n[3], int last, ref_rng *rng,
-                           float E[3], seg *d) {
+ * last vertex the sample is traced only when it can meet light. lt_in:
+ * x was reached by the diffuse (or probe) sample of that point, whose
+ * light tracing competes with x's point and spot terms; lt_here: light
+ * tracing toward x itself (total 0 at the last vertex: that light is
+ * reflected once more). */
+static void diffuse_vertex(const ref_ctx *rc, const float x[3], const float n[3], int last, const ref_lt *lt_in,
+                           const ref_lt *lt_here, ref_rng *rng, float E[3], seg *d) {
   const ref_lights *L = &rc->L;
-  ref_direct(L, x, n, rng, E);
+  ref_direct(L, x, n, rng, E, lt_in);
+  surface_lt(rc, x, n, lt_here, rng, E);
   ref_cosine(n, rng, d->w);
   for (int k = 0; k < 3; k++) d->o[k] = x[k] + L->eps * n[k];
   d->hit = 0;
@@ -149,8 +231,11 @@ static void diffuse_vertex(const ref_ctx *rc, const float x[3], const float n[3]
   if (!(cn > 0) || (last && !L->num_emitters && !L->has_sky)) return;
   if (gi__intersect1(rc->s, d->o, d->w, 0, INFINITY, &d->t, &d->tri, d->ng)) {
     d->hit = 1;
-    float Le[3];
-    if (emitted(L, d->tri, d->ng, d->w, d->t, cn / (float)GI_PI, Le))
+    /* The light strategy's pdf is for the point as seen from x, not from
+     * the lifted origin: the distance from x. */
+    float y[3], Le[3];
+    for (int k = 0; k < 3; k++) y[k] = d->o[k] + d->t * d->w[k] - x[k];
+    if (emitted(L, x, d->tri, d->ng, d->w, gi__len(y), cn / (float)GI_PI, Le))
       for (int k = 0; k < 3; k++) E[k] += (float)GI_PI * Le[k]; /* Le cos / (cos / pi), times the MIS weight */
   } else if (L->has_sky && gi__dot(L->up, d->w) > 0) {
     for (int k = 0; k < 3; k++) E[k] += (float)GI_PI * L->sky[k];
@@ -187,10 +272,14 @@ static int glossy_vertex(const ref_ctx *rc, const float w[3], const float n[3], 
  * be NULL) receives the glossy lobe's share of L there, i.e. specular *
  * (radiance along the lobe sample). Deeper vertices pick one lobe at random. */
 static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], const float T0[3],
-                           int depth0, int split0, ref_rng *rng, float L[3], float Ls[3]) {
+                           int depth0, int split0, const ref_lt *lt, ref_rng *rng, float L[3], float Ls[3]) {
   const gi_scene *s = rc->s;
   float T[3] = {T0[0], T0[1], T0[2]};
   int maxd = rc->o.max_depth > 0 ? rc->o.max_depth : MAX_DEPTH_HARD;
+  /* Light tracing toward this vertex (here) and toward the one the path
+   * came from by its diffuse sample (prev, when it did). */
+  float hx[3], px[3];
+  ref_lt here = {.p = hx}, prev = {.p = px};
   for (int depth = depth0;; depth++) {
     const gi_material *mat = &s->materials[s->tri_material[tri]];
     const float *a = mat->albedo;
@@ -199,7 +288,9 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     int last = depth >= maxd;
     float E[3] = {0, 0, 0};
     seg d, g = {.hit = 0};
-    diffuse_vertex(rc, x, n, last, rng, E, &d);
+    memcpy(hx, x, sizeof hx);
+    here.total = last || rc->o.no_light_tracing ? 0 : ref_lt_total(&rc->L, x);
+    diffuse_vertex(rc, x, n, last, lt, &here, rng, E, &d);
     for (int k = 0; k < 3; k++) L[k] += T[k] * a[k] * (1.f / (float)GI_PI) * E[k];
     int dcont = !last && d.hit;
     double ns = glossy_exponent(mat);
@@ -217,7 +308,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
       /* Follow the glossy lobe as its own path; the diffuse one goes on below. */
       float xg[3], Tg[3], Lr[3] = {0, 0, 0};
       for (int k = 0; k < 3; k++) xg[k] = g.o[k] + g.t * g.w[k], Tg[k] = T[k] * spec;
-      reflected_from(rc, xg, g.w, g.tri, g.ng, Tg, depth + 1, 0, rng, Lr, NULL); /* splits no further */
+      reflected_from(rc, xg, g.w, g.tri, g.ng, Tg, depth + 1, 0, NULL, rng, Lr, NULL); /* splits no further */
       for (int k = 0; k < 3; k++) {
         L[k] += Lr[k];
         if (Ls) Ls[k] += Lr[k];
@@ -230,6 +321,12 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     float amax = fmaxf(a[0], fmaxf(a[1], a[2]));
     float pg = !gcont ? 0.f : !dcont ? 1.f : spec / (spec + amax);
     const seg *next = pg > 0 && (pg >= 1 || ref_u01(rng) < pg) ? &g : &d;
+    lt = NULL;
+    if (next == &d && here.total > 0) {
+      memcpy(px, hx, sizeof px);
+      prev.total = here.total, prev.pb = gi__dot(n, d.w) / (float)GI_PI;
+      lt = &prev;
+    }
     for (int k = 0; k < 3; k++) T[k] *= next == &g ? spec / pg : a[k] / (1.f - pg);
     for (int k = 0; k < 3; k++) x[k] = next->o[k] + next->t * next->w[k], w[k] = next->w[k], ng[k] = next->ng[k];
     tri = next->tri;
@@ -241,10 +338,10 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
   }
 }
 
-static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], ref_rng *rng,
-                      float L[3], float Ls[3]) {
+static void reflected(const ref_ctx *rc, float x[3], float w[3], uint32_t tri, float ng[3], const ref_lt *lt,
+                      ref_rng *rng, float L[3], float Ls[3]) {
   static const float one[3] = {1, 1, 1};
-  reflected_from(rc, x, w, tri, ng, one, 1, 1, rng, L, Ls);
+  reflected_from(rc, x, w, tri, ng, one, 1, 1, lt, rng, L, Ls);
 }
 
 /* Pdf of the probe's path direction: the cosine lobe about up and the
@@ -274,8 +371,8 @@ static void probe_direct(const ref_ctx *rc, const float p[3], ref_rng *rng, floa
 
 /* One path from the probe along a direction of the mixture: emitters and
  * the sky it meets are direct light, what its first hit reflects indirect. */
-static void probe_path(const ref_ctx *rc, const float p[3], ref_rng *rng, float shd[9][3], float shi[9][3],
-                       float Ed[3], float Ei[3]) {
+static void probe_path(const ref_ctx *rc, const float p[3], double lt_total, ref_rng *rng, float shd[9][3],
+                       float shi[9][3], float Ed[3], float Ei[3]) {
   const ref_lights *L = &rc->L;
   float w[3];
   if (ref_u01(rng) < 0.5f) ref_cosine(L->up, rng, w);
@@ -290,7 +387,7 @@ static void probe_path(const ref_ctx *rc, const float p[3], ref_rng *rng, float 
     return;
   }
   float Le[3], Lr[3] = {0, 0, 0};
-  if (emitted(L, tri, ng, w, t, pb, Le)) {
+  if (emitted(L, p, tri, ng, w, t, pb, Le)) {
     ref_sh_add(shd, w, Le, 1.f / pb);
     if (cu > 0)
       for (int k = 0; k < 3; k++) Ed[k] += Le[k] * cu / pb;
@@ -298,10 +395,25 @@ static void probe_path(const ref_ctx *rc, const float p[3], ref_rng *rng, float 
   if (rc->o.max_depth < 0) return;
   float x[3] = {p[0] + t * w[0], p[1] + t * w[1], p[2] + t * w[2]};
   float wc[3] = {w[0], w[1], w[2]};
-  reflected(rc, x, wc, tri, ng, rng, Lr, NULL);
+  ref_lt lt = {.p = p, .pb = pb, .total = lt_total};
+  reflected(rc, x, wc, tri, ng, &lt, rng, Lr, NULL);
   ref_sh_add(shi, w, Lr, 1.f / pb);
   if (cu > 0)
     for (int k = 0; k < 3; k++) Ei[k] += Lr[k] * cu / pb;
+}
+
+/* Light tracing toward the probe (ref_lt): indirect light, the probe
+ * path's mixture direction being the other strategy (area pdf pb g). */
+static void probe_lt(const ref_ctx *rc, const float p[3], double total, ref_rng *rng, float shi[9][3],
+                     float Ei[3]) {
+  ref_lt lt = {.p = p, .total = total};
+  float wd[3], Lr[3], g;
+  double plt;
+  if (!(total > 0) || rc->o.max_depth < 0 || !lt_sample(rc, p, NULL, &lt, rng, wd, Lr, &g, &plt)) return;
+  float cu = gi__dot(rc->L.up, wd), f = (float)(g / (plt + mixture_pdf(cu) * g));
+  ref_sh_add(shi, wd, Lr, f);
+  if (cu > 0)
+    for (int k = 0; k < 3; k++) Ei[k] += Lr[k] * f * cu;
 }
 
 static void ref_range(void *p, size_t b, size_t e, int worker) {
@@ -321,12 +433,14 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
     }
     ref_rng rng;
     ref_rng_seed(&rng, ref_hash(key, ci));
+    double lt_total = rc->o.no_light_tracing ? 0 : ref_lt_total(&rc->L, pt);
     int first = (int)ci * CHUNK, count = rc->o.samples - first < CHUNK ? rc->o.samples - first : CHUNK;
     for (int j = 0; j < count; j++) {
       float Ed[3] = {0, 0, 0}, Ei[3] = {0, 0, 0};
       float shd[9][3] = {{0}}, shi[9][3] = {{0}};
       probe_direct(rc, pt, &rng, shd, Ed);
-      probe_path(rc, pt, &rng, shd, shi, Ed, Ei);
+      probe_path(rc, pt, lt_total, &rng, shd, shi, Ed, Ei);
+      probe_lt(rc, pt, lt_total, &rng, shi, Ei);
       for (int k = 0; k < 3; k++) {
         double v[3] = {Ed[k], Ei[k], (double)Ed[k] + Ei[k]};
         for (int q = 0; q < 3; q++) A->sum[q][k] += v[q], A->sq[q][k] += v[q] * v[q];
@@ -386,12 +500,18 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
                     rc.o.max_depth);
   if (rc.o.rr_depth < 1)
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference: rr_depth must be at least 1, got %d", rc.o.rr_depth);
+  if (rc.o.no_light_tracing != 0 && rc.o.no_light_tracing != 1)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference: no_light_tracing must be 0 or 1, got %d",
+                    rc.o.no_light_tracing);
+  if (rc.o.emitter_pick != GI_REF_PICK_TREE && rc.o.emitter_pick != GI_REF_PICK_POWER)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference: emitter_pick must be GI_REF_PICK_TREE or _POWER, got %d",
+                    rc.o.emitter_pick);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(pts[i]))
       return gi__fail(err, GI_ERR_NONFINITE, "reference: point %zu has a non-finite coordinate", i / 3);
   double t0 = gi__now_ms();
   rc.chunks = (rc.o.samples + CHUNK - 1) / CHUNK;
-  gi_result res = ref_lights_init(&rc.L, s, err);
+  gi_result res = ref_lights_init(&rc.L, s, rc.o.emitter_pick, err);
   if (res != GI_OK) return res;
   size_t tasks = n * (size_t)rc.chunks;
   rc.acc = gi__calloc(tasks ? tasks : 1, sizeof *rc.acc);
@@ -439,7 +559,7 @@ static void view_pixel(const view_ctx *vc, int x, int y) {
     if (gi__dot(ng, w) < 0) /* an emitter seen from the front */
       for (int a = 0; a < 3; a++) L[a] += s->materials[s->tri_material[tri]].emission[a];
     float p[3] = {k->eye[0] + t * w[0], k->eye[1] + t * w[1], k->eye[2] + t * w[2]};
-    reflected(rc, p, w, tri, ng, &rng, L, Ls);
+    reflected(rc, p, w, tri, ng, NULL, &rng, L, Ls);
     for (int a = 0; a < 3; a++) acc[a] += L[a], accs[a] += Ls[a];
   }
   size_t i = 3 * (y * (size_t)k->w + (size_t)x);
@@ -470,7 +590,7 @@ gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const 
   vc.rc.s = s;
   vc.rc.o.seed = o.seed ? o.seed : 1;
   vc.rc.o.rr_depth = 3;
-  r = ref_lights_init(&vc.rc.L, s, err);
+  r = ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, err);
   if (r != GI_OK) return r;
   size_t np = (size_t)k.w * k.h * 3;
   memset(rgb, 0, np * sizeof(float));
