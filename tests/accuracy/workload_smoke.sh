@@ -64,6 +64,11 @@ assert "the error is measured on the first 20 points" in sec, sec[:1500]
 for n in names:
     assert "| box | %s | " % n in sec, n
 assert ">= 30x: **" in sec and ">= 3x: **" in sec
+# The panorama's picture: linked, and a PNG next to the report.
+assert "![box, panorama 256x128: cone-traced, reference, error](pano-box.png)" in sec
+import os
+png = os.path.join(os.path.dirname(sys.argv[3]), "pano-box.png")
+assert open(png, "rb").read(8) == b"\x89PNG\r\n\x1a\n", png
 PY
 
 # --no-workloads: no files, and the markdown says why the section is empty.

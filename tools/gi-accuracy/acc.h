@@ -123,6 +123,7 @@ typedef struct acc_workload {
   int num_cycles;       /* Blender Cycles runs (the Munich aerial view) */
   int cycles_spp[ACC_WL_MAX_CYCLES];
   double cycles_ms[ACC_WL_MAX_CYCLES], cycles_mre[ACC_WL_MAX_CYCLES]; /* mre < 0: not measured */
+  char png[64];         /* cone | reference | error picture, relative to the report; "" none */
 } acc_workload;
 
 /* path_ms_eq / (bake + answer): a lower bound when path_how is -1, an upper one when 1. */

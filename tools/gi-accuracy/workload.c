@@ -279,10 +279,11 @@ static int probe_workloads(const acc_wl_opts *o, const char *name, const acc_sce
 
 /* ---- image workloads -------------------------------------------------- */
 
-static int from_view(const acc_view *v, const char *what, const char *unit, double goal, acc_workload **out,
-                     size_t *n) {
+static int from_view(const acc_view *v, const char *what, const char *unit, double goal, const char *png,
+                     acc_workload **out, size_t *n) {
   acc_workload *w = wl_push(out, n);
   if (!w) return 0;
+  snprintf(w->png, sizeof w->png, "%s", png);
   snprintf(w->scene, sizeof w->scene, "%s", v->scene);
   snprintf(w->what, sizeof w->what, "%s %dx%d", what, v->w, v->h);
   snprintf(w->unit, sizeof w->unit, "%s", unit);
@@ -314,14 +315,15 @@ int acc_run_workloads(const acc_wl_opts *o, const char *name, const acc_scene_se
                       int aerial, acc_workload **out, size_t *n) {
   fprintf(stderr, "gi-accuracy: %s: workloads at equal error\n", name);
   if (!probe_workloads(o, name, ss, out, n)) return 0;
-  char png[1200];
+  char png[1200], rel[64];
   acc_view v;
-  snprintf(png, sizeof png, "%s/pano-%s.png", o->md_dir, name);
+  snprintf(rel, sizeof rel, "pano-%s.png", name);
+  snprintf(png, sizeof png, "%s/%s", o->md_dir, rel);
   if (!acc_run_pano(name, ss->s, ss->at, WL_PANO_W, WL_PANO_H, o->view_spp, o->threads, o->repeat, o->out_dir, png,
                     o->ref_version, &v) ||
-      !from_view(&v, "panorama", "panorama", 0, out, n))
+      !from_view(&v, "panorama", "panorama", 0, rel, out, n))
     return 0;
-  if (view && !from_view(view, "camera view", "view", WL_GOAL_VIEW, out, n)) return 0;
+  if (view && !from_view(view, "camera view", "view", WL_GOAL_VIEW, "", out, n)) return 0;
   if (!aerial) return 1;
   gi_camera cam;
   acc_aerial_camera(&cam);
@@ -329,10 +331,11 @@ int acc_run_workloads(const acc_wl_opts *o, const char *name, const acc_scene_se
   const double at[3] = {0, 0, 2};
   char vname[48];
   snprintf(vname, sizeof vname, "%s-aerial", name);
-  snprintf(png, sizeof png, "%s/aerial-%s.png", o->md_dir, name);
+  snprintf(rel, sizeof rel, "aerial-%s.png", name);
+  snprintf(png, sizeof png, "%s/%s", o->md_dir, rel);
   if (!acc_run_view(vname, ss->s, at, &cam, o->view_spp, o->threads, o->repeat, o->out_dir, png, o->ref_version,
                     &v) ||
-      !from_view(&v, "aerial view", "view", WL_GOAL_VIEW, out, n))
+      !from_view(&v, "aerial view", "view", WL_GOAL_VIEW, rel, out, n))
     return 0;
   snprintf((*out)[*n - 1].scene, sizeof (*out)[*n - 1].scene, "%s", name);
   if (o->cycles && o->munich_obj) acc_cycles_aerial(o, ss->s, &cam, &(*out)[*n - 1]);
@@ -462,6 +465,8 @@ void acc_write_workloads_md(FILE *f, const acc_workload *w, size_t n, const char
              "error | cone tracer | crossover | goal |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (size_t i = 0; i < n; i++) md_row(f, &w[i]);
   fprintf(f, "\n");
+  for (size_t i = 0; i < n; i++)
+    if (w[i].png[0]) fprintf(f, "![%s, %s: cone-traced, reference, error](%s)\n\n", w[i].scene, w[i].what, w[i].png);
   md_cycles(f, w, n, cycles_note);
 }
 
