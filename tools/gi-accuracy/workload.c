@@ -407,6 +407,24 @@ static void wl_print(const acc_workload *w) {
           path, ratio, cross, w->goal > 0 ? "; goal: " : "", w->goal > 0 ? goal_verdict(w) : "");
 }
 
+/* Cycles' time at the cone tracer's error, interpolated as the path tracer's is. */
+static void md_cycles_equal(FILE *f, const acc_workload *w) {
+  double mre[ACC_WL_MAX_CYCLES];
+  for (int k = 0; k < w->num_cycles; k++) {
+    if (w->cycles_mre[k] < 0) return fprintf(f, "\n"), (void)0; /* an error not measured: no interpolation */
+    mre[k] = w->cycles_mre[k];
+  }
+  int how;
+  double t = acc_ms_at_error(w->cycles_ms, mre, w->num_cycles, w->cone_mre, &how), cone = w->bake_ms + w->answer_ms;
+  double r = t / cone;
+  const char *bound = how < 0 ? "more than " : how > 0 ? "at most " : "about ";
+  fprintf(f, "\nAt the cone tracer's error (%.2f%%) Cycles takes %s%.0f ms%s: the cone tracer, bake included, is "
+             "%s%.2fx %s.\n\n",
+          100 * w->cone_mre, bound, t, how > 0 ? " (its fewest samples are already better)" : "",
+          how == 0 ? "" : (how < 0) == (r >= 1) ? "at least " : "at most ", r >= 1 ? r : 1 / r,
+          r >= 1 ? "faster" : "slower");
+}
+
 static void md_cycles(FILE *f, const acc_workload *w, size_t n, const char *note) {
   if (note && note[0]) {
     fprintf(f, "**Blender Cycles: skipped** (%s).\n\n", note);
@@ -426,7 +444,7 @@ static void md_cycles(FILE *f, const acc_workload *w, size_t n, const char *note
               r >= 1 ? r : 1 / r, r >= 1 ? "faster" : "slower",
               w[i].cycles_mre[k] < 0 ? "unknown" : w[i].cycles_mre[k] <= w[i].cone_mre ? "Cycles at lower" : "Cycles at higher");
     }
-    fprintf(f, "\n");
+    md_cycles_equal(f, &w[i]);
   }
 }
 
