@@ -144,6 +144,13 @@ void acc_aerial_camera(gi_camera *cam);
  * few sample counts and measures their error against our reference;
  * fills w's cycles_*. Returns 0 (printed) when Blender fails. */
 int acc_cycles_aerial(const acc_wl_opts *o, const struct gi_scene *s, const gi_camera *cam, acc_workload *w);
+/* One Blender Cycles render of the OBJ file obj (as it is: Z up, no axis
+ * change; every material a diffuse BSDF of its Kd) with s's sun and sky,
+ * through cam at spp samples, 2 threads; its script and files go to dir.
+ * img receives the picture (top-down RGB, as ours), *ms the render call's
+ * time. Returns 0 (printed) when Blender fails. */
+int acc_cycles_image(const char *obj, const char *dir, const struct gi_scene *s, const gi_camera *cam, int spp,
+                     float *img, double *ms);
 /* 1 when `blender` is on PATH. */
 int acc_have_blender(void);
 

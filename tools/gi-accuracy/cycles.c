@@ -108,11 +108,11 @@ static void scene_sun_sky(const gi_scene *s, float dir[3], float E[3], float sky
   }
 }
 
-/* One Blender run at spp samples: its render time and picture (top-down RGB). */
-static int cycles_run(const acc_wl_opts *o, const gi_scene *s, const gi_camera *cam, int spp, float *img, double *ms) {
+int acc_cycles_image(const char *obj, const char *work_dir, const gi_scene *s, const gi_camera *cam, int spp,
+                     float *img, double *ms) {
   char script[1100], out[1100], cmd[4096], line[256];
-  snprintf(script, sizeof script, "%s/cycles_aerial.py", o->out_dir);
-  snprintf(out, sizeof out, "%s/cycles-aerial-%d", o->out_dir, spp);
+  snprintf(script, sizeof script, "%s/cycles_view.py", work_dir);
+  snprintf(out, sizeof out, "%s/cycles-%d", work_dir, spp);
   FILE *f = fopen(script, "w");
   if (!f || fputs(cycles_py, f) < 0 || fclose(f)) return fprintf(stderr, "gi-accuracy: cannot write %s\n", script), 0;
   float dir[3], E[3], sky[3];
@@ -120,7 +120,7 @@ static int cycles_run(const acc_wl_opts *o, const gi_scene *s, const gi_camera *
   snprintf(cmd, sizeof cmd,
            "blender -b --factory-startup --python '%s' -- '%s' '%s' %d %d %.9g %.9g %.9g %.9g %.9g %.9g %.9g %d %d "
            "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g 2>&1",
-           script, o->munich_obj, out, spp, CYCLES_THREADS, cam->eye[0], cam->eye[1], cam->eye[2], cam->target[0],
+           script, obj, out, spp, CYCLES_THREADS, cam->eye[0], cam->eye[1], cam->eye[2], cam->target[0],
            cam->target[1], cam->target[2], cam->fov_deg, cam->width, cam->height, dir[0], dir[1], dir[2], E[0], E[1],
            E[2], sky[0], sky[1], sky[2]);
   FILE *p = popen(cmd, "r");
@@ -150,7 +150,7 @@ int acc_cycles_aerial(const acc_wl_opts *o, const gi_scene *s, const gi_camera *
   int ok = img != NULL;
   for (int i = 0; ok && i < n && w->num_cycles < ACC_WL_MAX_CYCLES; i++) {
     double ms;
-    if (!(ok = cycles_run(o, s, cam, spp[i], img, &ms))) break;
+    if (!(ok = acc_cycles_image(o->munich_obj, o->out_dir, s, cam, spp[i], img, &ms))) break;
     int k = w->num_cycles++;
     w->cycles_spp[k] = spp[i], w->cycles_ms[k] = ms;
     w->cycles_mre[k] = acc_view_image_error("munich-aerial", s, cam, w->ref_samples, o->out_dir, o->ref_version, img);
