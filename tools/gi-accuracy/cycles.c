@@ -87,7 +87,7 @@ static const char *const cycles_py =
     "c.sample_clamp_direct = c.sample_clamp_indirect = 0\n"
     "c.blur_glossy = 0\n"
     "c.max_bounces = c.diffuse_bounces = c.glossy_bounces = 64\n"
-    "c.pixel_filter_type = 'BOX'\n"
+    "c.pixel_filter_type, c.filter_width = 'BOX', 1.0\n"
     "t0 = time.time()\n"
     "bpy.ops.render.render(write_still=True)\n"
     "ms = (time.time() - t0) * 1000\n"
