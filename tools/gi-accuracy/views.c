@@ -10,7 +10,10 @@
  * reference's mean (as gi-bake --render does); pixels where every
  * reference path escaped to the sky are left out (both renderers show the
  * sky radiance there exactly). The reference's own error is estimated
- * from its halves: MRE(A, B) / 2 for the mean of two independent halves. */
+ * from its halves: MRE(A, B) / 2 for the mean of two independent halves.
+ * A lat-long panorama at a point (the workloads, workload.c) goes through
+ * the same steps: gi_cascade_panorama's direct + indirect against
+ * gi_reference_panorama, cached as pano-NAME-HASH.bin. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
