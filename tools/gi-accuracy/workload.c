@@ -40,7 +40,7 @@ static const size_t wl_counts[] = {20, 1000, 10000};
 #define WL_AERIAL_FOV_DEG 84.0
 /* The path tracer is timed on a probe workload's full count when that
  * takes at most this long (else its time on the subset, scaled). */
-#define WL_FULL_BUDGET_MS 120000.0
+#define WL_FULL_BUDGET_MS 60000.0
 #define WL_FULL_BUDGET_QUICK_MS 20000.0
 /* Placement: at most this many rounds of candidates, each twice what is still missing. */
 #define WL_PLACE_ROUNDS 8
