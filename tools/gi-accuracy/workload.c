@@ -471,7 +471,7 @@ void acc_write_workloads_md(FILE *f, const acc_workload *w, size_t n, const char
              "The cone tracer's gather is timed over the full count; the error is measured on the first %d points "
              "(all 20 of the smallest workload) against a reference at the scene's reference paths per probe "
              "(cached), where the path tracer is also swept; its time at the sample counts around the cone's error "
-             "is then measured again on the full count (*scaled*: that would have taken over %.0f s, so the "
+             "is then measured again on the full count (*scaled*: that would have taken over %.0f s, %.0f s with --quick, so the "
              "subset's time is scaled to the count by its mean cost per probe). Panorama: %dx%d lat-long at the viewpoint "
              "(gi_cascade_panorama, direct + indirect) against gi_reference_panorama. Camera view: the view of the "
              "section above. Aerial view (Munich): issue 11's 256x256 view from (0, -900, 250) looking north 18 "
@@ -479,8 +479,8 @@ void acc_write_workloads_md(FILE *f, const acc_workload *w, size_t n, const char
              "floor 5%% of the mean). *Reference's own error*: for probes the mean relative standard error of the "
              "subset's reference, for images half the error between its two halves; the path tracer's measured error "
              "cannot fall far below it, so a weak reference makes the path tracer look slower.\n\n",
-          WL_GOAL_PROBES, WL_GOAL_PROBES_AT, WL_GOAL_VIEW, wl_counts[WL_NUM_COUNTS - 1], subset_of(w, n), WL_FULL_BUDGET_MS / 1000,
-          WL_PANO_W, WL_PANO_H);
+          WL_GOAL_PROBES, WL_GOAL_PROBES_AT, WL_GOAL_VIEW, wl_counts[WL_NUM_COUNTS - 1], subset_of(w, n),
+          WL_FULL_BUDGET_MS / 1000, WL_FULL_BUDGET_QUICK_MS / 1000, WL_PANO_W, WL_PANO_H);
   fprintf(f, "| scene | workload | error over | reference's own error | cone MRE | bake ms | gather/render ms | cone ms "
              "| path tracer at that error | cone tracer | crossover | goal |\n"
              "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
