@@ -69,13 +69,19 @@ experiments: all
 	./tests/bench/experiments.sh $(BUILD)
 
 # The accuracy/time report: sweeps every quality knob and the path tracer
-# against a path-traced reference (cached in out/accuracy) and regenerates
-# docs/accuracy.md, docs/accuracy.png and docs/accuracy.csv. Several minutes.
+# against a path-traced reference (cached in out/accuracy), then the
+# workloads at equal error (20/1000/10000 probes, a panorama, the camera
+# views, Munich's aerial view, Blender Cycles on it when `blender` is on
+# PATH), and regenerates docs/accuracy.md, docs/accuracy.png,
+# docs/accuracy.csv and docs/workloads.csv/.jsonl. Long: the first run
+# renders every reference (later runs read them from out/accuracy).
 accuracy: all
 	@mkdir -p out/accuracy docs
 	$(BUILD)/bin/gi-accuracy --out out/accuracy --md docs/accuracy.md --png docs/accuracy.png \
 	    --notes docs/accuracy-notes.md
 	cp out/accuracy/accuracy.csv docs/accuracy.csv.tmp && mv docs/accuracy.csv.tmp docs/accuracy.csv
+	cp out/accuracy/workloads.csv docs/workloads.csv.tmp && mv docs/workloads.csv.tmp docs/workloads.csv
+	cp out/accuracy/workloads.jsonl docs/workloads.jsonl.tmp && mv docs/workloads.jsonl.tmp docs/workloads.jsonl
 
 # Sanitizer builds: the whole ctest suite under ASan+UBSan and under TSan,
 # each in its own build folder. Any report fails the run. Suppressions

@@ -9,7 +9,7 @@
 # Usage: sh scene_smoke.sh path/to/gi-accuracy
 . "$(dirname "$0")/../cli/common.sh"
 make_box_scene
-QUICK="--quick --ref-samples 1024 --pt-max 16 --repeat 1 --threads 2 --no-views"
+QUICK="--quick --ref-samples 1024 --pt-max 16 --repeat 1 --threads 2 --no-views --no-workloads"
 
 "$BIN" --scene "$T/box.obj" $QUICK --out "$T/acc" > "$T/stdout" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && pass "--scene run exits 0" || { cat "$T/err" >&2; fail "--scene run exited $rc"; finish; }
@@ -86,7 +86,7 @@ f 6 7 11 10
 f 7 8 12 11
 f 8 5 9 12
 OBJ
-"$BIN" --scene "$T/street.obj" --up z --above-ground 2 --knobs bounces --quick --ref-samples 256 --pt-max 4 \
+"$BIN" --scene "$T/street.obj" --up z --above-ground 2 --knobs bounces --quick --ref-samples 256 --pt-max 4 --no-workloads \
     --repeat 1 --threads 2 --no-views --out "$T/st" > /dev/null 2> "$T/err3"; rc=$?
 [ $rc -eq 0 ] && pass "--above-ground run exits 0" || { cat "$T/err3" >&2; fail "--above-ground run exited $rc"; }
 python3 - "$T/st/accuracy.csv" "$T/st/accuracy.md" <<'PY' && pass "street-level probes placed, only bounces swept" \

@@ -81,6 +81,16 @@ struct gi_camera;
 int acc_run_view(const char *name, const struct gi_scene *s, const double at[3], const struct gi_camera *cam,
                  int ref_spp, int threads, int repeat, const char *out_dir, const char *png, int ref_version,
                  acc_view *v);
+/* The same comparison for the lat-long panorama (w x h) of the light
+ * arriving at `at`: gi_cascade_panorama (direct + indirect) against
+ * gi_reference_panorama, the reference cached as pano-NAME-HASH.bin. */
+int acc_run_pano(const char *name, const struct gi_scene *s, const double at[3], int w, int h, int ref_spp,
+                 int threads, int repeat, const char *out_dir, const char *png, int ref_version, acc_view *v);
+/* The error of img (the camera's w x h x 3 floats) against the view's
+ * reference as acc_run_view counts it (same pixels, same floor); the
+ * reference from its cache (rendered when missing). -1 on failure. */
+double acc_view_image_error(const char *name, const struct gi_scene *s, const struct gi_camera *cam, int ref_spp,
+                            const char *out_dir, int ref_version, const float *img);
 /* Mean relative error of a's luminance against ref's over the pixels in
  * mask, each divided by max(ref, floor_l). */
 double acc_image_mre(const float *a, const float *ref, const unsigned char *mask, size_t np, double floor_l);
@@ -91,12 +101,85 @@ double acc_image_ssim(const float *a, const float *ref, const unsigned char *mas
 /* The views' section of the markdown report. */
 void acc_write_views_md(FILE *f, const acc_view *v, size_t n);
 
+/* ---- workload.c: the cone tracer against the path tracer at equal error,
+ * per workload (issue 11, item 4). ---- */
+#define ACC_WL_MAX_PATH 12
+#define ACC_WL_MAX_CYCLES 4
+typedef struct acc_workload {
+  char scene[32];
+  char what[48];        /* "1000 probes", "panorama 256x128", "camera view 320x180", ... */
+  char unit[12];        /* one query of it: "probe", "panorama", "view" */
+  double count;         /* queries the one bake serves */
+  size_t err_points;    /* probes or pixels the error is measured over */
+  int ref_samples;      /* the reference's paths per probe or pixel */
+  double ref_err;       /* the reference's own error (MRE), from its halves or standard errors */
+  double cone_mre, bake_ms, answer_ms; /* answer: the gather or render of all count queries */
+  int num_path, path_spp[ACC_WL_MAX_PATH];
+  double path_ms[ACC_WL_MAX_PATH], path_mre[ACC_WL_MAX_PATH]; /* the path tracer, for all count queries */
+  double path_ms_eq;    /* path-tracer ms at cone_mre (acc_ms_at_error) */
+  int path_how;         /* 0 interpolated, 1 first count already better (an upper bound), -1 not reached */
+  int path_timed_full;  /* probes: the path tracer's times that path_ms_eq rests on were measured on all
+                           count probes (else scaled from the error subset); images: always 1 */
+  double goal;          /* speed-up asked for (path / cone), 0 none */
+  int num_cycles;       /* Blender Cycles runs (the Munich aerial view) */
+  int cycles_spp[ACC_WL_MAX_CYCLES];
+  double cycles_ms[ACC_WL_MAX_CYCLES], cycles_mre[ACC_WL_MAX_CYCLES]; /* mre < 0: not measured */
+  char png[64];         /* cone | reference | error picture, relative to the report; "" none */
+} acc_workload;
+
+/* path_ms_eq / (bake + answer): a lower bound when path_how is -1, an upper one when 1. */
+double acc_workload_ratio(const acc_workload *w);
+
+typedef struct acc_wl_opts {
+  int quick, threads, repeat, pt_max, view_spp, ref_version;
+  int cycles;              /* 1: also time Blender Cycles on the Munich aerial view when blender is on PATH */
+  const char *out_dir;     /* reference cache */
+  const char *md_dir;      /* pictures next to the markdown */
+  const char *munich_obj;  /* the Munich OBJ (for Blender), NULL when not run */
+} acc_wl_opts;
+
+/* Issue 11's aerial view of Munich: 900 m south, 250 m up, looking north
+ * 18 degrees down, fov 84, 256 x 256 (Z up). */
+void acc_aerial_camera(gi_camera *cam);
+/* Times Blender Cycles (CPU, 2 threads, no denoising) on that view at a
+ * few sample counts and measures their error against our reference;
+ * fills w's cycles_*. Returns 0 (printed) when Blender fails. */
+int acc_cycles_aerial(const acc_wl_opts *o, const struct gi_scene *s, const gi_camera *cam, acc_workload *w);
+/* One Blender Cycles render of the OBJ file obj (as it is: Z up, no axis
+ * change; every material a diffuse BSDF of its Kd) with s's sun and sky,
+ * through cam at spp samples, 2 threads; its script and files go to dir.
+ * img receives the picture (top-down RGB, as ours), *ms the render call's
+ * time. Returns 0 (printed) when Blender fails. */
+int acc_cycles_image(const char *obj, const char *dir, const struct gi_scene *s, const gi_camera *cam, int spp,
+                     float *img, double *ms);
+/* 1 when `blender` is on PATH. */
+int acc_have_blender(void);
+
+/* The workloads of one scene: probe counts in level 0's box, the
+ * panorama, the scene's camera view (view: from acc_run_view, may be NULL)
+ * and, for Munich (aerial != 0), the aerial view. Appends to *out (grown
+ * with realloc, *n entries). Returns 1 on success. */
+int acc_run_workloads(const acc_wl_opts *o, const char *name, const acc_scene_set *ss, const acc_view *view,
+                      int aerial, acc_workload **out, size_t *n);
+/* The markdown section; cycles_note says why Blender did not run ("" when it did). */
+void acc_write_workloads_md(FILE *f, const acc_workload *w, size_t n, const char *cycles_note);
+/* out_dir/workloads.csv and workloads.jsonl. Returns 0 on success. */
+int acc_write_workloads_files(const acc_workload *w, size_t n, const char *out_dir);
+
+/* The workloads as the report takes them. */
+typedef struct acc_wl_report {
+  const acc_workload *w;
+  size_t n;
+  int ran;               /* 0: --no-workloads */
+  const char *cycles_note;
+} acc_wl_report;
 /* report.c: writes out_dir/accuracy.csv, accuracy.gp (+ accuracy.png via
  * gnuplot when present) and the markdown report md_path, with the
- * hand-written notes file (may be NULL) after the method. Returns 0 on success. */
+ * hand-written notes file (may be NULL) after the method, and the
+ * workloads (wl, may be NULL) in their section and files. Returns 0 on success. */
 int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const acc_view *views,
-                      size_t nviews, const char *out_dir, const char *md_path, const char *png_path,
-                      const char *machine, const char *cmdline, const char *notes);
+                      size_t nviews, const acc_wl_report *wl, const char *out_dir, const char *md_path,
+                      const char *png_path, const char *machine, const char *cmdline, const char *notes);
 
 /* scene_file.c: `gi-accuracy --scene FILE`, any scene file. */
 #define ACC_FILE_MAX_PROBES 4096 /* --probes: more would make the reference take hours */

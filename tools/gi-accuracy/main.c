@@ -6,9 +6,13 @@
  * samples and reference version, so reruns are cheap); then one bake and
  * gather per knob value, changing one knob at a time around the default,
  * and the path tracer itself at 1..4096 samples, all timed and compared
- * with the reference. Writes a CSV, a gnuplot plot and a markdown report
- * (report.c). Figures are measured on the machine it runs on; nothing is
- * estimated. Exit status: 0 done, 1 a scene or bake failed, 2 bad arguments. */
+ * with the reference; then each scene's camera view (views.c) and its
+ * workloads at equal error (workload.c: probe counts, a panorama, the
+ * view, Munich's aerial view and Blender Cycles on it). Writes a CSV, a
+ * gnuplot plot and a markdown report (report.c), and workloads.csv/.jsonl.
+ * Figures are measured on the machine it runs on; nothing is estimated
+ * (a probe workload's path-tracer time is scaled from its error subset
+ * only when timing the full count would take too long, and says so). Exit status: 0 done, 1 a scene or bake failed, 2 bad arguments. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -33,6 +37,8 @@ typedef struct opts {
   int ref_samples, pt_max, threads;
   int quick;
   int view_spp;        /* reference paths per pixel of the camera views; 0 = no views */
+  int workloads;       /* 1: the workloads at equal error (--no-workloads: 0) */
+  int cycles;          /* 1: Blender Cycles on the aerial view when blender is on PATH (--no-cycles: 0) */
   const char *knobs;   /* --knobs: the knobs to sweep; NULL = all */
   acc_file_opts file;  /* --scene FILE and its options */
   char out_buf[1024];  /* the default --out of a --scene run */
@@ -42,7 +48,8 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
           "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N]\n"
-          "                   [--view-samples N] [--no-views] [--quick] [--knobs LIST]\n"
+          "                   [--view-samples N] [--no-views] [--no-workloads] [--no-cycles] [--quick]\n"
+          "                   [--knobs LIST]\n"
           "       gi-accuracy --scene FILE [--up y|z] [--at X,Y,Z] [--probes FILE | --above-ground H]\n"
           "                   [--view CAMERA] [the options above but --scenes]\n"
           "  --scenes LIST      comma-separated: cornell, munich, city (default all three)\n"
@@ -67,10 +74,15 @@ static void usage(FILE *f) {
           "  --pt-max N         largest path-tracer sample count in the sweep, a power of 4 (default 4096)\n"
           "  --threads N        threads for bakes and path tracing (default: all cores)\n"
           "  --repeat N         runs per configuration, the fastest counts (default 2)\n"
-          "  --view-samples N   reference paths per pixel of each scene's camera view (default 1024;\n"
-          "                     the path tracer is swept up to a quarter of it)\n"
+          "  --view-samples N   reference paths per pixel of each scene's camera view, panorama and\n"
+          "                     Munich's aerial view (default 1024; the path tracer is swept up to a\n"
+          "                     quarter of it)\n"
           "  --no-views         skip the camera views\n"
-          "  --quick            fewer knob values, views at 64 paths per pixel (a smoke run)\n"
+          "  --no-workloads     skip the workloads at equal error (20/1000/10000 probes, panorama,\n"
+          "                     camera view, Munich's aerial view; out/workloads.csv, .jsonl)\n"
+          "  --no-cycles        do not run Blender Cycles on Munich's aerial view (run when on PATH)\n"
+          "  --quick            fewer knob values, views at 64 paths per pixel, workloads' error on 20\n"
+          "                     probes and Cycles at 16 samples only (a smoke run)\n"
           "  --knobs LIST       sweep only these: res, levels, voxel0, cones, aperture, step, bounces,\n"
           "                     high (comma-separated; the default bake always runs)\n",
           GI_SCENES_DIR);
@@ -131,6 +143,7 @@ static int parse_args(int argc, char **argv, opts *o) {
   o->ref_samples = 65536;
   o->pt_max = 4096;
   o->view_spp = -1;
+  o->workloads = o->cycles = 1;
   int no_views = 0;
   const char *list = "cornell,munich,city";
   int scenes_given = 0, out_given = 0;
@@ -146,6 +159,10 @@ static int parse_args(int argc, char **argv, opts *o) {
       o->quick = 1;
     } else if (!strcmp(a, "--no-views")) {
       no_views = 1;
+    } else if (!strcmp(a, "--no-workloads")) {
+      o->workloads = 0;
+    } else if (!strcmp(a, "--no-cycles")) {
+      o->cycles = 0;
     } else if (!has && takes_value(a)) {
       return ta_fail(&ta, NULL, "option '%s' needs a value", a);
     } else if (!strcmp(a, "--scenes")) list = argv[++i], scenes_given = 1;
@@ -536,6 +553,101 @@ static void machine_name(char *out, size_t n) {
   if (f) fclose(f);
 }
 
+/* Everything one run gathers for the report. */
+typedef struct results {
+  rows out;
+  acc_scene_info info[3];
+  acc_view views[3];
+  size_t ninfo, nviews;
+  acc_workload *wl;
+  size_t nwl;
+  char cycles_note[160]; /* why Blender Cycles did not run; "" when it did or was not wanted */
+} results;
+
+/* The workloads of one scene; Munich also gets the aerial view (and Cycles). */
+static int scene_workloads(const opts *o, const char *name, const scene_set *ss, const acc_view *view,
+                           const char *md_dir, results *R) {
+  char obj[1024];
+  int munich = !o->file.path && !strcmp(name, "munich");
+  snprintf(obj, sizeof obj, "%s/munich/munich.obj", o->scenes_dir);
+  acc_wl_opts wo = {.quick = o->quick, .threads = o->threads, .repeat = g_repeat,
+                    .pt_max = o->pt_max, .view_spp = o->view_spp > 0 ? o->view_spp : (o->quick ? 64 : 1024),
+                    .ref_version = REF_VERSION, .out_dir = o->out_dir, .md_dir = md_dir,
+                    .munich_obj = munich ? obj : NULL};
+  if (munich && o->cycles) {
+    wo.cycles = acc_have_blender();
+    if (!wo.cycles) {
+      snprintf(R->cycles_note, sizeof R->cycles_note, "`blender` is not on PATH on the machine that made this report");
+      fprintf(stderr, "gi-accuracy: SKIP Blender Cycles column: blender is not on PATH\n");
+    }
+  } else if (munich) {
+    snprintf(R->cycles_note, sizeof R->cycles_note, "run with --no-cycles");
+    fprintf(stderr, "gi-accuracy: SKIP Blender Cycles column: --no-cycles\n");
+  }
+  return acc_run_workloads(&wo, name, ss, view, munich, &R->wl, &R->nwl);
+}
+
+/* One scene: probes, reference, sweep, view, workloads. 0 done, 1 failed, -1 skipped. */
+static int run_scene(const opts *o, const char *name, const char *md_dir, results *R) {
+  scene_set ss;
+  acc_scene_info *si = &R->info[R->ninfo];
+  char placement[sizeof si->placement] = "";
+  int st = o->file.path ? acc_file_setup(&o->file, o->ref_samples, o->threads, &ss, placement, sizeof placement)
+                        : setup_scene(o, name, &ss);
+  if (st < 0) return -1; /* skipped loudly */
+  gi_ref_probe *ref = st ? calloc(ss.n, sizeof *ref) : NULL;
+  int rc = 0;
+  memset(si, 0, sizeof *si);
+  if (!st || !ref || !load_or_make_ref(o, name, &ss, ref, &si->ref_ms) || !sweep_scene(o, name, &ss, ref, &R->out)) {
+    rc = 1;
+  } else {
+    snprintf(si->name, sizeof si->name, "%s", name);
+    si->probes = ss.n;
+    si->ref_samples = ss.ref_samples;
+    snprintf(si->placement, sizeof si->placement, "%s", placement);
+    snprintf(si->at, sizeof si->at, "%.6g, %.6g, %.6g", ss.at[0], ss.at[1], ss.at[2]);
+    acc_metrics m;
+    for (int p = 0; p < 3; p++) {
+      acc_compare_refs(ref, ref, ss.n, (acc_part)p, &m);
+      si->ref_rel_se[p] = m.ref_rel_se;
+    }
+    R->ninfo++;
+    gi_camera cam;
+    const acc_view *view = NULL;
+    if (o->view_spp > 0 && view_camera(o, name, &ss, &cam)) {
+      char png_path[1100];
+      acc_view *v = &R->views[R->nviews];
+      snprintf(png_path, sizeof png_path, "%s/view-%s.png", md_dir, name);
+      if (!acc_run_view(name, ss.s, ss.at, &cam, o->view_spp, o->threads, g_repeat, o->out_dir, png_path, REF_VERSION, v)) {
+        rc = 1;
+      } else {
+        snprintf(v->png, sizeof v->png, "view-%s.png", name);
+        view = v;
+        R->nviews++;
+      }
+    }
+    if (!rc && o->workloads && !scene_workloads(o, name, &ss, view, md_dir, R)) rc = 1;
+  }
+  free(ref);
+  free(ss.pts);
+  gi_scene_release(ss.s);
+  return rc;
+}
+
+/* Pareto front per scene over (ms, total mean relative error). */
+static void mark_fronts(rows *out) {
+  for (size_t i = 0; i < out->n;) {
+    size_t j = i;
+    while (j < out->n && !strcmp(out->v[j].scene, out->v[i].scene)) j++;
+    double ms[j - i], e[j - i];
+    int front[j - i];
+    for (size_t k = i; k < j; k++) ms[k - i] = out->v[k].ms, e[k - i] = out->v[k].m[ACC_TOTAL].mre;
+    acc_pareto(ms, e, j - i, front);
+    for (size_t k = i; k < j; k++) out->v[k].on_front = front[k - i];
+    i = j;
+  }
+}
+
 int main(int argc, char **argv) {
   opts o;
   int rc = parse_args(argc, argv, &o);
@@ -544,7 +656,7 @@ int main(int argc, char **argv) {
     fprintf(stderr, "gi-accuracy: cannot create %s: %s\n", o.out_dir, strerror(errno));
     return 1;
   }
-  char md[1024], png[1024], machine[256], cmd[1024] = "";
+  char md[1024], png[1024], machine[256], cmd[1024] = "", md_dir[1024];
   snprintf(md, sizeof md, "%s", o.md ? o.md : "");
   if (!o.md) snprintf(md, sizeof md, "%s/accuracy.md", o.out_dir);
   if (o.png) snprintf(png, sizeof png, "%s", o.png);
@@ -554,73 +666,26 @@ int main(int argc, char **argv) {
     size_t l = strlen(cmd);
     snprintf(cmd + l, sizeof cmd - l, "%s%s", i ? " " : "", argv[i]);
   }
-  rows out = {0};
-  acc_scene_info info[3];
-  acc_view views[3];
-  size_t ninfo = 0, nviews = 0;
-  char md_dir[1024];
   dir_of(md, md_dir, sizeof md_dir);
+  results *R = calloc(1, sizeof *R);
+  if (!R) return fprintf(stderr, "gi-accuracy: out of memory\n"), 1;
   rc = 0;
-  for (int i = 0; i < o.num_scenes; i++) {
-    const char *name = o.file.path ? o.file.name : o.scenes[i];
-    scene_set ss;
-    char placement[sizeof info[0].placement] = "";
-    int st = o.file.path ? acc_file_setup(&o.file, o.ref_samples, o.threads, &ss, placement, sizeof placement)
-                         : setup_scene(&o, name, &ss);
-    if (st < 0) continue; /* skipped loudly */
-    gi_ref_probe *ref = st ? calloc(ss.n, sizeof *ref) : NULL;
-    acc_scene_info *si = &info[ninfo];
-    memset(si, 0, sizeof *si);
-    if (!st || !ref || !load_or_make_ref(&o, name, &ss, ref, &si->ref_ms) || !sweep_scene(&o, name, &ss, ref, &out)) {
-      rc = 1;
-    } else {
-      snprintf(si->name, sizeof si->name, "%s", name);
-      si->probes = ss.n;
-      si->ref_samples = ss.ref_samples;
-      snprintf(si->placement, sizeof si->placement, "%s", placement);
-      snprintf(si->at, sizeof si->at, "%.6g, %.6g, %.6g", ss.at[0], ss.at[1], ss.at[2]);
-      acc_metrics m;
-      for (int p = 0; p < 3; p++) {
-        acc_compare_refs(ref, ref, ss.n, (acc_part)p, &m);
-        si->ref_rel_se[p] = m.ref_rel_se;
-      }
-      ninfo++;
-      gi_camera cam;
-      if (o.view_spp > 0 && view_camera(&o, name, &ss, &cam)) {
-        char png_path[1100];
-        snprintf(png_path, sizeof png_path, "%s/view-%s.png", md_dir, name);
-        if (!acc_run_view(name, ss.s, ss.at, &cam, o.view_spp, o.threads, g_repeat, o.out_dir, png_path,
-                          REF_VERSION, &views[nviews])) {
-          rc = 1;
-        } else {
-          snprintf(views[nviews].png, sizeof views[nviews].png, "view-%s.png", name);
-          nviews++;
-        }
-      }
-    }
-    free(ref);
-    free(ss.pts);
-    gi_scene_release(ss.s);
-    if (rc) break;
+  for (int i = 0; i < o.num_scenes && !rc; i++) {
+    int r = run_scene(&o, o.file.path ? o.file.name : o.scenes[i], md_dir, R);
+    if (r > 0) rc = 1;
   }
-  if (!rc && out.n) {
-    /* Pareto front per scene over (ms, total mean relative error). */
-    for (size_t i = 0; i < out.n;) {
-      size_t j = i;
-      while (j < out.n && !strcmp(out.v[j].scene, out.v[i].scene)) j++;
-      double ms[j - i], e[j - i];
-      int front[j - i];
-      for (size_t k = i; k < j; k++) ms[k - i] = out.v[k].ms, e[k - i] = out.v[k].m[ACC_TOTAL].mre;
-      acc_pareto(ms, e, j - i, front);
-      for (size_t k = i; k < j; k++) out.v[k].on_front = front[k - i];
-      i = j;
-    }
-    if (acc_write_reports(out.v, out.n, info, ninfo, views, nviews, o.out_dir, md, png, machine, cmd, o.notes))
+  if (!rc && R->out.n) {
+    mark_fronts(&R->out);
+    acc_wl_report wl = {.w = R->wl, .n = R->nwl, .ran = o.workloads, .cycles_note = R->cycles_note};
+    if (acc_write_reports(R->out.v, R->out.n, R->info, R->ninfo, R->views, R->nviews, &wl, o.out_dir, md, png, machine,
+                          cmd, o.notes))
       rc = 1;
   } else if (!rc) {
     fprintf(stderr, "gi-accuracy: SKIP: no scene was available\n");
   }
-  free(out.v);
+  free(R->out.v);
+  free(R->wl);
+  free(R);
   free(o.file.pts);
   return rc;
 }

@@ -60,3 +60,29 @@ void acc_pareto(const double *ms, const double *err, size_t n, int *on_front) {
       if (j != i && ms[j] <= ms[i] && err[j] <= err[i] && (ms[j] < ms[i] || err[j] < err[i])) on_front[i] = 0;
   }
 }
+
+double acc_ms_at_error(const double *ms, const double *mre, int n, double e, int *how) {
+  *how = -1;
+  for (int k = 0; k < n; k++) {
+    if (!(mre[k] <= e)) continue;
+    if (k == 0) {
+      *how = 1;
+      return ms[0];
+    }
+    *how = 0;
+    double e0 = log(mre[k - 1]), e1 = log(mre[k]);
+    /* Equal errors at both ends (or a zero error): take the later time. */
+    if (!(e1 < e0) || !isfinite(e1)) return ms[k];
+    double f = (log(e) - e0) / (e1 - e0);
+    return exp(log(ms[k - 1]) + f * (log(ms[k]) - log(ms[k - 1])));
+  }
+  return n ? ms[n - 1] : 0;
+}
+
+double acc_crossover(double bake_ms, double answer_per_ms, double path_per_ms) {
+  double gain = path_per_ms - answer_per_ms;
+  if (!(gain > 0)) return INFINITY;
+  if (!(bake_ms > 0)) return 1;
+  /* Strictly cheaper: at count = bake / gain exactly, the two tie. */
+  return floor(bake_ms / gain) + 1;
+}

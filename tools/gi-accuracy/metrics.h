@@ -32,4 +32,16 @@ void acc_compare_refs(const gi_ref_probe *got, const gi_ref_probe *ref, size_t n
  * beats in both time and error (ties keep both). */
 void acc_pareto(const double *ms, const double *err, size_t n, int *on_front);
 
+/* Path-tracer time at error e from a sweep of n increasing sample counts
+ * (ms[k], mre[k]): log-log interpolation between the first count whose
+ * error is at most e and the one before. *how: 0 interpolated; 1 the first
+ * count is already at most e (returns its ms, an upper bound); -1 never
+ * reached (returns the last ms, a lower bound; 0 when n is 0). */
+double acc_ms_at_error(const double *ms, const double *mre, int n, double e, int *how);
+/* How many queries one bake must serve before bake + answers beat the path
+ * tracer: the smallest count with count * path_per > bake + count *
+ * answer_per; INFINITY when the path tracer's query is no dearer than the
+ * cone tracer's answer (it never wins), 1 when bake is 0. */
+double acc_crossover(double bake_ms, double answer_per_ms, double path_per_ms);
+
 #endif

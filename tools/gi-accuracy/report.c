@@ -182,8 +182,8 @@ static void write_standing(FILE *f, const acc_row *r, size_t n, const acc_scene_
 }
 
 static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t nsc, const acc_view *views,
-                    size_t nviews, const char *path, const char *png, int drawn, const char *machine,
-                    const char *cmdline, const char *notes) {
+                    size_t nviews, const acc_wl_report *wl, const char *path, const char *png, int drawn,
+                    const char *machine, const char *cmdline, const char *notes) {
   char tmp[1100];
   FILE *f = open_tmp(path, tmp, sizeof tmp);
   if (!f) return 1;
@@ -220,6 +220,8 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
   else if (drawn) fprintf(f, "![error against time](%s)\n\n", png);
   else fprintf(f, "(The plot was not drawn: gnuplot is not installed.)\n\n");
   acc_write_views_md(f, views, nviews);
+  if (wl && wl->ran) acc_write_workloads_md(f, wl->w, wl->n, wl->cycles_note);
+  else fprintf(f, "## At equal error, per workload\n\n(Not measured in this run: --no-workloads.)\n\n");
 
   for (size_t s = 0; s < nsc; s++) {
     const char *name = sc[s].name;
@@ -271,14 +273,15 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
 }
 
 int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, size_t nsc, const acc_view *views,
-                      size_t nviews, const char *out_dir, const char *md_path, const char *png_path,
-                      const char *machine, const char *cmdline, const char *notes) {
+                      size_t nviews, const acc_wl_report *wl, const char *out_dir, const char *md_path,
+                      const char *png_path, const char *machine, const char *cmdline, const char *notes) {
   char csv[1024];
   snprintf(csv, sizeof csv, "%s/accuracy.csv", out_dir);
   int drawn = 0;
   if (write_csv(rows, n, csv)) return 1;
   if (write_plot(sc, nsc, csv, out_dir, png_path, &drawn)) return 1;
-  if (write_md(rows, n, sc, nsc, views, nviews, md_path, png_path, drawn, machine, cmdline, notes)) return 1;
+  if (wl && wl->ran && acc_write_workloads_files(wl->w, wl->n, out_dir)) return 1;
+  if (write_md(rows, n, sc, nsc, views, nviews, wl, md_path, png_path, drawn, machine, cmdline, notes)) return 1;
   fprintf(stderr, "gi-accuracy: wrote %s, %s%s and %s\n", csv, drawn ? png_path : "", drawn ? "" : "(no plot)",
           md_path);
   return 0;

@@ -10,7 +10,10 @@
  * reference's mean (as gi-bake --render does); pixels where every
  * reference path escaped to the sky are left out (both renderers show the
  * sky radiance there exactly). The reference's own error is estimated
- * from its halves: MRE(A, B) / 2 for the mean of two independent halves. */
+ * from its halves: MRE(A, B) / 2 for the mean of two independent halves.
+ * A lat-long panorama at a point (the workloads, workload.c) goes through
+ * the same steps: gi_cascade_panorama's direct + indirect against
+ * gi_reference_panorama, cached as pano-NAME-HASH.bin. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -59,33 +62,67 @@ double acc_image_ssim(const float *a, const float *ref, const uint8_t *mask, int
   return k ? sum / (double)k : 1;
 }
 
-/* The two reference halves, from the cache or rendered (and cached). */
-static int reference_halves(const char *name, const gi_scene *s, const gi_camera *cam, int spp, int threads,
+/* What an image shows: a pinhole camera's view, or (cam NULL) the
+ * lat-long panorama of the light arriving at the point at. */
+typedef struct img_src {
+  const gi_camera *cam;
+  double at[3];
+  int w, h;
+} img_src;
+
+/* The path tracer's image of src at spp paths per pixel. */
+static int path_image(const gi_scene *s, const img_src *src, int spp, uint64_t seed, int threads, float *img,
+                      double *ms, gi_error_info *err) {
+  if (src->cam) return gi_reference_render(s, src->cam, spp, seed, threads, img, ms, err) == GI_OK;
+  gi_render_opts o = {.spp = spp, .seed = seed, .threads = threads};
+  return gi_reference_panorama(s, src->at, src->w, src->h, &o, img, ms, err) == GI_OK;
+}
+
+/* The cone tracer's image of src from a baked cascade; tmp holds np * 3
+ * floats (the panorama's indirect half). */
+static int cone_image(const gi_cascade *c, const img_src *src, int threads, float *img, float *tmp, double *ms,
+                      unsigned long long *spec, gi_error_info *err) {
+  *spec = 0;
+  if (!src->cam) {
+    if (gi_cascade_panorama(c, src->at, src->w, src->h, img, tmp, ms, err) != GI_OK) return 0;
+    for (size_t i = 0; i < (size_t)src->w * src->h * 3; i++) img[i] += tmp[i];
+    return 1;
+  }
+  gi_render_opts ro = {.threads = threads};
+  gi_render_stats st;
+  if (gi_cascade_render_ex(c, src->cam, &ro, img, &st, err) != GI_OK) return 0;
+  *ms = st.ms, *spec = st.specular_cones;
+  return 1;
+}
+
+/* The two reference halves, from the cache or rendered (and cached). A
+ * camera's cache key is unchanged from before panoramas existed. */
+static int reference_halves(const char *name, const gi_scene *s, const img_src *src, int spp, int threads,
                             const char *out_dir, int ref_version, float *A, float *B, double *ms) {
-  size_t nf = (size_t)cam->width * cam->height * 3;
+  size_t nf = (size_t)src->w * src->h * 3;
   uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
-  h = acc_fnv(h, cam, sizeof *cam);
+  if (src->cam) h = acc_fnv(h, src->cam, sizeof *src->cam);
+  else h = acc_fnv(acc_fnv(acc_fnv(h, "pano", 4), src->at, sizeof src->at), &src->w, 2 * sizeof src->w);
   h = acc_fnv(h, &spp, sizeof spp);
   h = acc_fnv(h, &ref_version, sizeof ref_version);
+  const char *kind = src->cam ? "view" : "pano";
   char path[1024];
-  snprintf(path, sizeof path, "%s/view-%s-%016llx.bin", out_dir, name, (unsigned long long)h);
+  snprintf(path, sizeof path, "%s/%s-%s-%016llx.bin", out_dir, kind, name, (unsigned long long)h);
   *ms = 0;
   if (acc_cache_read(path, A, nf * sizeof *A, B, nf * sizeof *B)) {
     int ok = 1;
     for (size_t i = 0; ok && i < nf; i++) ok = isfinite(A[i]) && isfinite(B[i]);
     if (ok) {
-      fprintf(stderr, "gi-accuracy: %s view: reference from cache %s\n", name, path);
+      fprintf(stderr, "gi-accuracy: %s %s: reference from cache %s\n", name, kind, path);
       return 1;
     }
-    fprintf(stderr, "gi-accuracy: %s view: cache %s unreadable, recomputing\n", name, path);
+    fprintf(stderr, "gi-accuracy: %s %s: cache %s unreadable, recomputing\n", name, kind, path);
   }
-  fprintf(stderr, "gi-accuracy: %s view: reference, %d x %d pixels x %d paths...\n", name, cam->width, cam->height,
-          spp);
+  fprintf(stderr, "gi-accuracy: %s %s: reference, %d x %d pixels x %d paths...\n", name, kind, src->w, src->h, spp);
   gi_error_info err = {0};
   double ta = 0, tb = 0;
-  if (gi_reference_render(s, cam, spp / 2, 11, threads, A, &ta, &err) != GI_OK ||
-      gi_reference_render(s, cam, spp / 2, 12, threads, B, &tb, &err) != GI_OK) {
-    fprintf(stderr, "gi-accuracy: %s view: reference: %s\n", name, err.msg);
+  if (!path_image(s, src, spp / 2, 11, threads, A, &ta, &err) || !path_image(s, src, spp / 2, 12, threads, B, &tb, &err)) {
+    fprintf(stderr, "gi-accuracy: %s %s: reference: %s\n", name, kind, err.msg);
     return 0;
   }
   *ms = ta + tb;
@@ -119,18 +156,17 @@ static int write_picture(const char *png, const float *cone, const float *ref, c
   return ok;
 }
 
-int acc_run_view(const char *name, const gi_scene *s, const double at[3], const gi_camera *cam, int ref_spp,
-                 int threads, int repeat, const char *out_dir, const char *png, int ref_version, acc_view *v) {
-  memset(v, 0, sizeof *v);
-  snprintf(v->scene, sizeof v->scene, "%s", name);
-  v->w = cam->width, v->h = cam->height, v->ref_spp = ref_spp;
-  size_t np = (size_t)cam->width * cam->height;
-  float *A = malloc(np * 3 * sizeof(float)), *B = malloc(np * 3 * sizeof(float));
-  float *ref = malloc(np * 3 * sizeof(float)), *img = malloc(np * 3 * sizeof(float));
-  uint8_t *mask = malloc(np);
-  int ok = 0;
-  if (!A || !B || !ref || !img || !mask) goto done;
-  if (!reference_halves(name, s, cam, ref_spp, threads, out_dir, ref_version, A, B, &v->ref_ms)) goto done;
+/* The images of one comparison, and what the error is counted over. */
+typedef struct img_work {
+  size_t np;
+  float *ref, *img, *tmp;
+  uint8_t *mask;
+  double floor_l, mean, exposure;
+} img_work;
+
+/* The reference as the mean of its halves; the mask drops the pixels that
+ * both halves show as pure sky. Sets the pixel count and its own error. */
+static void reference_mask(const gi_scene *s, const float *A, const float *B, img_work *wk, acc_view *v) {
   float sky[3] = {0, 0, 0};
   for (size_t i = 0; i < gi_scene_num_lights(s); i++) {
     const gi_light *l = gi_scene_light(s, i);
@@ -139,79 +175,126 @@ int acc_run_view(const char *name, const gi_scene *s, const double at[3], const 
   }
   double mean = 0;
   size_t kept = 0;
-  for (size_t i = 0; i < np; i++) {
-    for (int k = 0; k < 3; k++) ref[3 * i + k] = 0.5f * (A[3 * i + k] + B[3 * i + k]);
-    mask[i] = !(A[3 * i] == sky[0] && A[3 * i + 1] == sky[1] && A[3 * i + 2] == sky[2] && B[3 * i] == sky[0] &&
-                B[3 * i + 1] == sky[1] && B[3 * i + 2] == sky[2]);
-    if (mask[i]) mean += lum(&ref[3 * i]), kept++;
+  for (size_t i = 0; i < wk->np; i++) {
+    for (int k = 0; k < 3; k++) wk->ref[3 * i + k] = 0.5f * (A[3 * i + k] + B[3 * i + k]);
+    wk->mask[i] = !(A[3 * i] == sky[0] && A[3 * i + 1] == sky[1] && A[3 * i + 2] == sky[2] && B[3 * i] == sky[0] &&
+                    B[3 * i + 1] == sky[1] && B[3 * i + 2] == sky[2]);
+    if (wk->mask[i]) mean += lum(&wk->ref[3 * i]), kept++;
   }
-  mean = kept ? mean / (double)kept : 0;
+  wk->mean = kept ? mean / (double)kept : 0;
+  wk->floor_l = fmax(0.05 * wk->mean, 1e-30);
+  wk->exposure = wk->mean > 0 ? 0.18 / wk->mean : 1;
   v->pixels = kept;
-  double floor_l = fmax(0.05 * mean, 1e-30);
-  v->ref_mre = 0.5 * acc_image_mre(A, B, mask, np, floor_l);
+  v->ref_mre = 0.5 * acc_image_mre(A, B, wk->mask, wk->np, wk->floor_l);
+}
 
-  /* The cone tracer: bake + render at default quality, fastest of repeat. */
+/* The cone tracer: bake + image at default quality, fastest of repeat. */
+static int run_cone_image(const char *name, const gi_scene *s, const double at[3], const img_src *src, int threads,
+                          int repeat, img_work *wk, acc_view *v) {
   gi_quality q = {.threads = threads};
-  gi_render_opts ro = {.threads = threads};
   gi_error_info err = {0};
   v->cone_ms = INFINITY;
   for (int r = 0; r < repeat; r++) {
     gi_cascade *c = NULL;
     gi_bake_report rep;
-    gi_render_stats st;
-    if (gi_cascade_bake(s, at, &q, &c, &rep, &err) != GI_OK ||
-        gi_cascade_render_ex(c, cam, &ro, img, &st, &err) != GI_OK) {
+    double ms = 0;
+    unsigned long long spec = 0;
+    if (gi_cascade_bake(s, at, &q, &c, &rep, &err) != GI_OK || !cone_image(c, src, threads, wk->img, wk->tmp, &ms, &spec, &err)) {
       fprintf(stderr, "gi-accuracy: %s view: %s\n", name, err.msg);
       gi_cascade_free(c);
-      goto done;
+      return 0;
     }
     double b = rep.ms.voxelize + rep.ms.inject + rep.ms.filter + rep.ms.bounce;
-    if (b + st.ms < v->cone_ms) v->cone_ms = b + st.ms, v->cone_bake_ms = b, v->cone_render_ms = st.ms;
-    v->specular_cones = st.specular_cones;
+    if (b + ms < v->cone_ms) v->cone_ms = b + ms, v->cone_bake_ms = b, v->cone_render_ms = ms;
+    v->specular_cones = spec;
     gi_cascade_free(c);
   }
-  v->cone_mre = acc_image_mre(img, ref, mask, np, floor_l);
-  double exposure = mean > 0 ? 0.18 / mean : 1;
-  v->cone_ssim = acc_image_ssim(img, ref, mask, cam->width, cam->height, exposure);
+  v->cone_mre = acc_image_mre(wk->img, wk->ref, wk->mask, wk->np, wk->floor_l);
+  v->cone_ssim = acc_image_ssim(wk->img, wk->ref, wk->mask, src->w, src->h, wk->exposure);
   fprintf(stderr, "  view cone: bake %.1f + render %.1f ms, MRE %.4f, SSIM %.4f (reference's own MRE %.4f)\n",
           v->cone_bake_ms, v->cone_render_ms, v->cone_mre, v->cone_ssim, v->ref_mre);
-  if (png && !write_picture(png, img, ref, mask, cam->width, cam->height, floor_l, mean)) goto done;
+  return 1;
+}
 
-  /* The path tracer at 1, 4, 16, ... paths per pixel, up to a quarter of the reference. */
-  for (int spp = 1; spp <= ref_spp / 4 && v->num_path < ACC_VIEW_MAX_PATH; spp *= 4) {
+/* The path tracer at 1, 4, 16, ... paths per pixel, up to a quarter of the reference. */
+static int run_path_images(const char *name, const gi_scene *s, const img_src *src, int threads, int repeat,
+                           img_work *wk, acc_view *v) {
+  gi_error_info err = {0};
+  for (int spp = 1; spp <= v->ref_spp / 4 && v->num_path < ACC_VIEW_MAX_PATH; spp *= 4) {
     double best = INFINITY;
     for (int r = 0; r < repeat; r++) {
       double t = 0;
-      if (gi_reference_render(s, cam, spp, 3, threads, img, &t, &err) != GI_OK) {
+      if (!path_image(s, src, spp, 3, threads, wk->img, &t, &err)) {
         fprintf(stderr, "gi-accuracy: %s view: path %d: %s\n", name, spp, err.msg);
-        goto done;
+        return 0;
       }
       best = fmin(best, t);
     }
     int k = v->num_path++;
-    v->path_spp[k] = spp, v->path_ms[k] = best, v->path_mre[k] = acc_image_mre(img, ref, mask, np, floor_l);
-    v->path_ssim[k] = acc_image_ssim(img, ref, mask, cam->width, cam->height, exposure);
+    v->path_spp[k] = spp, v->path_ms[k] = best, v->path_mre[k] = acc_image_mre(wk->img, wk->ref, wk->mask, wk->np, wk->floor_l);
+    v->path_ssim[k] = acc_image_ssim(wk->img, wk->ref, wk->mask, src->w, src->h, wk->exposure);
     fprintf(stderr, "  view path %5d spp: %9.1f ms, MRE %.4f, SSIM %.4f\n", spp, best, v->path_mre[k], v->path_ssim[k]);
   }
   /* Time at the cone tracer's error: log-log interpolation between samples. */
-  v->path_ms_at_cone = -1;
-  for (int k = 0; k < v->num_path; k++) {
-    if (v->path_mre[k] > v->cone_mre) continue;
-    if (k == 0) v->path_ms_at_cone = v->path_ms[0];
-    else {
-      double e0 = log(v->path_mre[k - 1]), e1 = log(v->path_mre[k]), f = (log(v->cone_mre) - e0) / (e1 - e0);
-      v->path_ms_at_cone = exp(log(v->path_ms[k - 1]) + f * (log(v->path_ms[k]) - log(v->path_ms[k - 1])));
-    }
-    break;
-  }
-  ok = 1;
-done:
+  int how;
+  v->path_ms_at_cone = acc_ms_at_error(v->path_ms, v->path_mre, v->num_path, v->cone_mre, &how);
+  if (how < 0) v->path_ms_at_cone = -1;
+  return 1;
+}
+
+static int run_image(const char *name, const gi_scene *s, const double at[3], const img_src *src, int ref_spp,
+                     int threads, int repeat, const char *out_dir, const char *png, int ref_version, acc_view *v) {
+  memset(v, 0, sizeof *v);
+  snprintf(v->scene, sizeof v->scene, "%s", name);
+  v->w = src->w, v->h = src->h, v->ref_spp = ref_spp;
+  img_work wk = {.np = (size_t)src->w * src->h};
+  float *A = malloc(wk.np * 3 * sizeof(float)), *B = malloc(wk.np * 3 * sizeof(float));
+  wk.ref = malloc(wk.np * 3 * sizeof(float)), wk.img = malloc(wk.np * 3 * sizeof(float));
+  wk.tmp = malloc(wk.np * 3 * sizeof(float)), wk.mask = malloc(wk.np);
+  int ok = A && B && wk.ref && wk.img && wk.tmp && wk.mask &&
+           reference_halves(name, s, src, ref_spp, threads, out_dir, ref_version, A, B, &v->ref_ms);
+  if (ok) reference_mask(s, A, B, &wk, v);
+  ok = ok && run_cone_image(name, s, at, src, threads, repeat, &wk, v);
+  if (ok && png) ok = write_picture(png, wk.img, wk.ref, wk.mask, src->w, src->h, wk.floor_l, wk.mean);
+  ok = ok && run_path_images(name, s, src, threads, repeat, &wk, v);
   free(A);
   free(B);
-  free(ref);
-  free(img);
-  free(mask);
+  free(wk.ref);
+  free(wk.img);
+  free(wk.tmp);
+  free(wk.mask);
   return ok;
+}
+
+int acc_run_view(const char *name, const gi_scene *s, const double at[3], const gi_camera *cam, int ref_spp,
+                 int threads, int repeat, const char *out_dir, const char *png, int ref_version, acc_view *v) {
+  img_src src = {.cam = cam, .w = cam->width, .h = cam->height};
+  return run_image(name, s, at, &src, ref_spp, threads, repeat, out_dir, png, ref_version, v);
+}
+
+double acc_view_image_error(const char *name, const gi_scene *s, const gi_camera *cam, int ref_spp, const char *out_dir,
+                            int ref_version, const float *img) {
+  img_src src = {.cam = cam, .w = cam->width, .h = cam->height};
+  acc_view v;
+  img_work wk = {.np = (size_t)src.w * src.h};
+  float *A = malloc(wk.np * 3 * sizeof(float)), *B = malloc(wk.np * 3 * sizeof(float));
+  wk.ref = malloc(wk.np * 3 * sizeof(float)), wk.mask = malloc(wk.np);
+  double e = -1;
+  if (A && B && wk.ref && wk.mask && reference_halves(name, s, &src, ref_spp, 0, out_dir, ref_version, A, B, &v.ref_ms)) {
+    reference_mask(s, A, B, &wk, &v);
+    e = acc_image_mre(img, wk.ref, wk.mask, wk.np, wk.floor_l);
+  }
+  free(A);
+  free(B);
+  free(wk.ref);
+  free(wk.mask);
+  return e;
+}
+
+int acc_run_pano(const char *name, const gi_scene *s, const double at[3], int w, int h, int ref_spp, int threads,
+                 int repeat, const char *out_dir, const char *png, int ref_version, acc_view *v) {
+  img_src src = {.cam = NULL, .at = {at[0], at[1], at[2]}, .w = w, .h = h};
+  return run_image(name, s, at, &src, ref_spp, threads, repeat, out_dir, png, ref_version, v);
 }
 
 void acc_write_views_md(FILE *f, const acc_view *v, size_t n) {

@@ -106,6 +106,18 @@ gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, 
 gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
                                  double *ms, gi_error_info *err);
 
+/* Path-traces the lat-long panorama of the radiance arriving at world
+ * point at, pixel for pixel the image gi_cascade_panorama gives as
+ * direct + indirect (gi_probe.h: polar angle from the scene's up axis down
+ * the rows, azimuth across the columns), each pixel's paths jittered over
+ * its cell in angle: what a primary ray sees of emitters and the sky plus
+ * the light surfaces reflect. Delta lights (the sun) show only through
+ * the surfaces they light, as in the cone-traced panorama. rgb holds
+ * 3 * w * h floats; opts (may be NULL) gives spp, seed and threads;
+ * w x h within 2..16384 x 1..8192. */
+gi_result gi_reference_panorama(const gi_scene *s, const double at[3], int w, int h, const gi_render_opts *opts,
+                                float *rgb, double *ms, gi_error_info *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -152,9 +152,13 @@ typedef struct ref_cam {
   float eye[3], fwd[3], right[3], up[3]; /* local frame */
   float half;       /* tan(fov / 2) over half the smaller side, per pixel */
   int w, h;
+  int pano;         /* 1: a lat-long panorama about the scene's up axis (gi_probe.h's convention) */
+  int up_z;         /* the panorama's up axis is Z (else Y) */
 } ref_cam;
 /* Validates cam and sets it up in the scene's local frame. */
 gi_result ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_error_info *err);
+/* A lat-long panorama of w x h pixels seen from at (world coordinates). */
+gi_result ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], int w, int h, gi_error_info *err);
 /* Unit direction through image point (px, py), pixels from the top-left corner. */
 void ref_cam_dir(const ref_cam *k, float px, float py, float w[3]);
 

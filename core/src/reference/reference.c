@@ -574,34 +574,60 @@ static void view_rows(void *p, size_t b, size_t e, int worker) {
     for (int x = 0; x < vc->k->w; x++) view_pixel(vc, x, (int)y);
 }
 
-gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
-                                 double *ms, gi_error_info *err) {
-  gi_render_opts o = {0};
-  if (opts) o = *opts;
-  if (o.spp == 0) o.spp = 16;
-  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: missing scene or image");
-  if (o.spp < 1 || o.spp > (1 << 20))
-    return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: spp must be 1..1048576, got %d", o.spp);
-  ref_cam k;
-  gi_result r = ref_cam_init(&k, s, cam, err);
-  if (r != GI_OK) return r;
+/* Renders the prepared camera or panorama k with options o (spp checked). */
+static gi_result render_view(const gi_scene *s, const ref_cam *k, const gi_render_opts *o, float *rgb, double *ms,
+                             gi_error_info *err) {
   double t0 = gi__now_ms();
-  view_ctx vc = {.k = &k, .spp = o.spp, .rgb = rgb, .spec = o.specular};
+  view_ctx vc = {.k = k, .spp = o->spp, .rgb = rgb, .spec = o->specular};
   vc.rc.s = s;
-  vc.rc.o.seed = o.seed ? o.seed : 1;
+  vc.rc.o.seed = o->seed ? o->seed : 1;
   vc.rc.o.rr_depth = 3;
-  r = ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, err);
+  gi_result r = ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, err);
   if (r != GI_OK) return r;
-  size_t np = (size_t)k.w * k.h * 3;
+  size_t np = (size_t)k->w * k->h * 3;
   memset(rgb, 0, np * sizeof(float));
-  if (o.specular) memset(o.specular, 0, np * sizeof(float));
-  gi__parallel_for((size_t)k.h, 1, o.threads, view_rows, &vc);
+  if (o->specular) memset(o->specular, 0, np * sizeof(float));
+  gi__parallel_for((size_t)k->h, 1, o->threads, view_rows, &vc);
   ref_lights_free(&vc.rc.L);
   if (ms) *ms = gi__now_ms() - t0;
   for (size_t i = 0; i < np; i++)
-    if (!isfinite(rgb[i]) || (o.specular && !isfinite(o.specular[i])))
+    if (!isfinite(rgb[i]) || (o->specular && !isfinite(o->specular[i])))
       return gi__fail(err, GI_ERR_NONFINITE, "reference render: pixel %zu is not finite", i / 3);
   return GI_OK;
+}
+
+/* Options with their defaults filled in; GI_OK when spp is in range. */
+static gi_result view_opts(const gi_render_opts *opts, gi_render_opts *o, gi_error_info *err) {
+  memset(o, 0, sizeof *o);
+  if (opts) *o = *opts;
+  if (o->spp == 0) o->spp = 16;
+  if (o->spp < 1 || o->spp > (1 << 20))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: spp must be 1..1048576, got %d", o->spp);
+  return GI_OK;
+}
+
+gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
+                                 double *ms, gi_error_info *err) {
+  gi_render_opts o;
+  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: missing scene or image");
+  gi_result r = view_opts(opts, &o, err);
+  if (r != GI_OK) return r;
+  ref_cam k;
+  r = ref_cam_init(&k, s, cam, err);
+  if (r != GI_OK) return r;
+  return render_view(s, &k, &o, rgb, ms, err);
+}
+
+gi_result gi_reference_panorama(const gi_scene *s, const double at[3], int w, int h, const gi_render_opts *opts,
+                                float *rgb, double *ms, gi_error_info *err) {
+  gi_render_opts o;
+  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: missing scene or image");
+  gi_result r = view_opts(opts, &o, err);
+  if (r != GI_OK) return r;
+  ref_cam k;
+  r = ref_pano_init(&k, s, at, w, h, err);
+  if (r != GI_OK) return r;
+  return render_view(s, &k, &o, rgb, ms, err);
 }
 
 gi_result gi_reference_render(const gi_scene *s, const gi_camera *cam, int spp, uint64_t seed, int threads,
