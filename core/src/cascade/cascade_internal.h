@@ -99,6 +99,12 @@ struct gi_cascade {
   double at_world[3];
   float at[3];         /* viewpoint, local */
   gi_level lv[GI_MAX_LEVELS];
+  /* The one block every level's arrays lie in (gi__cascade_alloc). The
+   * move swaps rad and side with its re-bake's block, so those pointers
+   * may point into either block: both are freed together, never an array
+   * on its own. */
+  void *block;
+  size_t block_bytes;
   gi_bake_report report;
   /* Diffuse cone set around +Z, shared by bounce and gather. */
   int num_cones;
@@ -152,8 +158,10 @@ static inline void gi__slot_cell(const gi_level *L, int R, uint32_t slot, int64_
   for (int a = 0; a < 3; a++) cell[a] = L->cell0[a] + gi__wrap((int64_t)w[a] - gi__wrap(L->cell0[a], R), R);
 }
 
-/* cascade.c */
+/* cascade.c: allocates every level's arrays, zeroed, in one block (c->n, c->R set). */
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err);
+/* Frees that block and clears the level pointers (a cascade never allocated is fine). */
+void gi__cascade_free_levels(struct gi_cascade *c);
 void gi__cascade_place(struct gi_cascade *c);
 /* filter.c: filters the region of level d covered by level d-1 from level d-1's light
  * (compositing along each axis) and geometry. */
@@ -185,7 +193,7 @@ static inline float gi__vrad_tau(const gi_vrad *r, int a) { return gi__h2f(r->h[
 void gi__move_state_free(struct gi_move_state *m);
 size_t gi__move_state_bytes(const struct gi_cascade *c);
 
-/* voxelize.c */
+/* voxelize.c: fills the geometry of a freshly allocated (zeroed) cascade. */
 gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err);
 /* One triangle's piece in global cell `cell` of L, added to its sums. */
 void gi__voxel_add_tri(gi_level *L, int R, const int64_t cell[3], const float tv[3][3], const gi_material *mat);
