@@ -40,12 +40,13 @@ void gi_cascade_free(gi_cascade *c) {
   gi__free(c);
 }
 
-/* geo, rad, side, direct, occ and busy: every per-voxel array a level holds. */
+/* geo, rad, side, direct, occ and busy: every per-voxel array a level holds (busy4 is per block). */
 static const size_t GI_VOXEL_BYTES =
     sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t) + sizeof(uint8_t);
 
 static size_t level_bytes(int levels, int res) {
-  return (size_t)levels * (size_t)res * (size_t)res * (size_t)res * GI_VOXEL_BYTES;
+  size_t nb = (size_t)gi__busy4_side(res);
+  return (size_t)levels * ((size_t)res * (size_t)res * (size_t)res * GI_VOXEL_BYTES + nb * nb * nb);
 }
 
 /* A moved cascade also holds its re-bake's buffers. */

@@ -84,10 +84,19 @@ typedef struct gi_level {
   float (*side)[2][3]; /* R^3: direct+indirect irradiance on the +n and -n sides */
   float (*direct)[2][3]; /* R^3: the direct part of side */
   uint8_t *busy;       /* per slot: 1 when the 2x2x2 block starting there has any opacity */
+  /* Per GI_EMPTY_BLOCK^3 block of the window's cells (window coordinates,
+   * not slots: rebuilt with busy): 1 when a sample whose trilinear base
+   * cell lies in the block may read opacity, so a cone may cross an empty
+   * block in one step where busy would take one step per cell. */
+  uint8_t *busy4;
   uint32_t *occ;       /* slots of occupied voxels outside the inner region */
   uint32_t num_occ;
   uint64_t num_geo;    /* voxels holding geometry (incl. the inner region) */
 } gi_level;
+
+/* Cells per side of a busy4 block (R is a multiple of 4). */
+#define GI_EMPTY_BLOCK 4 /* march_simd.c divides by it with a shift */
+static inline int gi__busy4_side(int R) { return (R + GI_EMPTY_BLOCK - 1) / GI_EMPTY_BLOCK; }
 
 /* Room in the cascade for the largest diffuse cone set (trace/cones.c: 32). */
 #define GI_MAX_CONES 64
@@ -170,7 +179,7 @@ int gi__cascade_filter(struct gi_cascade *c, int threads);
 /* Filters only the nested cells of level d (>= 1) inside its global cells
  * [lo, hi): a move whose finer level changed there. Nonzero when cancelled. */
 int gi__cascade_filter_box(struct gi_cascade *c, int threads, int d, const int64_t lo[3], const int64_t hi[3]);
-/* Rebuilds every level's busy mask from its opacity (after filtering). */
+/* Rebuilds every level's busy and busy4 masks from its opacity (after filtering). */
 void gi__cascade_mark_busy(struct gi_cascade *c);
 /* report.occupied[d]: voxels holding geometry per level, the filtered region included. */
 void gi__cascade_count_occupied(struct gi_cascade *c);

@@ -18,25 +18,36 @@
 /* gi__sample_level with each axis's share scaled by axw[a] (NULL: 1).
  * When the sample's 2x2x2 block is empty, *clear (may be NULL) receives
  * how far along w the point may move and still read only that block:
- * every sample there reads zero, so the march may skip to its end. */
+ * every sample there reads zero, so the march may skip to its end. With
+ * `far` (the cone's level can no longer change) and the sample's whole
+ * busy4 block empty, *clear reaches that block's end instead. */
 static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], const float w[3], const float *axw,
-                           float prem[3], float *wsum_alpha, float *sigma, float *clear) {
+                           int far, float prem[3], float *wsum_alpha, float *sigma, float *clear) {
   const gi_level *L = &c->lv[d];
   int R = c->R;
   float inv = (float)(1.0 / L->s);
   /* Wrap each axis once: toroidal slots of the two cells the footprint spans. */
   uint32_t off[3][2];
-  float f[3], run = INFINITY;
+  float f[3], run = INFINITY, run4 = INFINITY;
+  int b4[3];
   for (int a = 0; a < 3; a++) {
     float u = (p[a] - L->lo[a]) * inv - 0.5f;
     float fl = floorf(u);
     int i0 = (int)fl;
-    if (i0 < 0) i0 = 0, fl = 0, u = gi__maxf(u, 0.f), run = 0;
-    if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = gi__minf(u, (float)(R - 1)), run = 0;
+    if (i0 < 0) i0 = 0, fl = 0, u = gi__maxf(u, 0.f), run = run4 = 0;
+    if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = gi__minf(u, (float)(R - 1)), run = run4 = 0;
     f[a] = u - fl;
-    /* Inside the block while u stays in [fl, fl + 1]. */
-    if (w[a] > 0) run = gi__minf(run, (1.f - f[a]) * (float)L->s / w[a]);
-    else if (w[a] < 0) run = gi__minf(run, f[a] * (float)L->s / -w[a]);
+    /* Inside the block while u stays in [fl, fl + 1]; inside the busy4
+     * block while u stays in [4 b, 4 b + 4]: `more` whole cells further. */
+    b4[a] = i0 / GI_EMPTY_BLOCK;
+    int in4 = i0 - GI_EMPTY_BLOCK * b4[a];
+    if (w[a] > 0) {
+      run = gi__minf(run, (1.f - f[a]) * (float)L->s / w[a]);
+      run4 = gi__minf(run4, ((float)(GI_EMPTY_BLOCK - 1 - in4) + (1.f - f[a])) * (float)L->s / w[a]);
+    } else if (w[a] < 0) {
+      run = gi__minf(run, f[a] * (float)L->s / -w[a]);
+      run4 = gi__minf(run4, ((float)in4 + f[a]) * (float)L->s / -w[a]);
+    }
     int s0 = L->slot0[a] + i0;
     if (s0 >= R) s0 -= R;
     int s1 = s0 + 1 == R ? 0 : s0 + 1;
@@ -48,7 +59,10 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
     prem[0] = prem[1] = prem[2] = 0;
     *wsum_alpha = 0;
     *sigma = 0;
-    if (clear) *clear = run;
+    if (clear) {
+      int nb = gi__busy4_side(R);
+      *clear = far && !L->busy4[b4[0] + nb * (b4[1] + nb * b4[2])] ? run4 : run;
+    }
     return 0;
   }
   if (clear) *clear = 0;
@@ -79,7 +93,7 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
 
 int GI_KERNEL(gi__sample_level)(const struct gi_cascade *c, int d, const float p[3], const float w[3],
                                 float prem[3], float *wsum_alpha, float *sigma) {
-  return sample_level_ax(c, d, p, w, NULL, prem, wsum_alpha, sigma, NULL);
+  return sample_level_ax(c, d, p, w, NULL, 0, prem, wsum_alpha, sigma, NULL);
 }
 
 /* h0 < 0: the apex is in free space (a probe). h0 >= 0: the apex is h0
@@ -142,16 +156,21 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
      * opacity and radiance lie along its normal, a wall standing on it
      * lies across. */
     float P[3], wal, sig, clear, clear2 = INFINITY;
+    /* On the coarsest level by width, with the height above the surface
+     * not shrinking, the cone stays on this level to its end: an empty
+     * busy4 block may be crossed in one step (every sample in it reads
+     * zero at this level, and no other level would be read there). */
+    int far = d0 == c->n - 1 && (h0 < 0 || nw >= 0);
     if (d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s) {
       float axw[3] = {1 - n[0] * n[0], 1 - n[1] * n[1], 1 - n[2] * n[2]};
-      sample_level_ax(c, d, p, w, axw, P, &wal, &sig, &clear);
+      sample_level_ax(c, d, p, w, axw, far, P, &wal, &sig, &clear);
     } else {
-      sample_level_ax(c, d, p, w, NULL, P, &wal, &sig, &clear);
+      sample_level_ax(c, d, p, w, NULL, far, P, &wal, &sig, &clear);
     }
     samples++;
     if (frac > 0 && d + 1 < c->n && gi__span_has(&sp[d + 1], t)) {
       float P2[3], wal2, sig2;
-      sample_level_ax(c, d + 1, p, w, NULL, P2, &wal2, &sig2, &clear2);
+      sample_level_ax(c, d + 1, p, w, NULL, 0, P2, &wal2, &sig2, &clear2);
       samples++;
       for (int k = 0; k < 3; k++) P[k] += frac * (P2[k] - P[k]);
       wal += frac * (wal2 - wal);
