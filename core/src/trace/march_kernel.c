@@ -141,8 +141,11 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
     int d0 = (int)(xb.u >> 23) - 127;
     xb.u = (xb.u & 0x007fffffu) | 0x3f800000u;
     float frac = near ? 0.f : xb.f - 1.f;
-    /* A cone wider than the coarsest voxels keeps sampling the coarsest level. */
-    if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0;
+    /* A cone wider than the coarsest voxels keeps sampling the coarsest
+     * level. There the surface rule no longer holds it finer than its
+     * width (the height allows that level too): the full step, as in free
+     * space. */
+    if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0, near = 0;
     int d = d0;
     while (d < c->n && !gi__span_has(&sp[d], t)) d++;
     if (d >= c->n) break;

@@ -265,6 +265,7 @@ static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m25
   __m256 coarsest = _mm256_castsi256_ps(_mm256_cmpgt_epi32(d0, _mm256_set1_epi32(b->n - 2)));
   d0 = _mm256_min_epi32(d0, _mm256_set1_epi32(b->n - 1));
   fr = _mm256_andnot_ps(coarsest, fr);
+  *near = _mm256_andnot_ps(coarsest, *near); /* the full step on the coarsest level */
   __m256i d = _mm256_set1_epi32(b->n);
   __m256 has_next = _mm256_setzero_ps(), prev = _mm256_setzero_ps();
   for (int k = b->n - 1; k >= 0; k--) {
