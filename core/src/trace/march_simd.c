@@ -252,7 +252,7 @@ static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m25
                           __m256 *next, __m256i *d0out) {
   __m256 x = _mm256_mul_ps(D, V1(q->inv_s0));
   __m256 surf = CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ);
-  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 h = _mm256_add_ps(st->h0, _mm256_mul_ps(st->t, st->nw)); /* no FMA: see step8 */
   __m256 xh = _mm256_mul_ps(_mm256_max_ps(h, V1(GI_MIN_HEIGHT)), V1(q->inv_ks0));
   *near = _mm256_and_ps(surf, CMP(xh, x, _CMP_LT_OQ));
   x = _mm256_blendv_ps(x, _mm256_max_ps(_mm256_min_ps(x, xh), V1(1.f)), surf);
@@ -289,7 +289,7 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
                       __m256 clear2) {
   __m256 dt = _mm256_mul_ps(_mm256_blendv_ps(V1(q->step), V1(gi__minf(q->step, GI_NEAR_SURFACE_STEP)), near), sd);
   __m256 run = _mm256_min_ps(s->clear, clear2);
-  dt = _mm256_blendv_ps(dt, _mm256_fmadd_ps(V1(GI_CLEAR_OVERSHOOT), sd, run), CMP(run, dt, _CMP_GT_OQ));
+  dt = _mm256_blendv_ps(dt, _mm256_add_ps(run, _mm256_mul_ps(V1(GI_CLEAR_OVERSHOOT), sd)), CMP(run, dt, _CMP_GT_OQ));
   __m256 as = _mm256_sub_ps(V1(1.f), exp_neg8(_mm256_mul_ps(s->sig, dt)));
   __m256 a = st->a, ta = _mm256_sub_ps(V1(1.f), a);
   __m256 lit = _mm256_and_ps(act, _mm256_and_ps(CMP(as, _mm256_setzero_ps(), _CMP_GT_OQ),
@@ -300,7 +300,7 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
   __m256 att = _mm256_fmadd_ps(V1(q->ao_lambda * 0.5f), D, V1(1.f));
   occ = _mm256_add_ps(occ, _mm256_div_ps(_mm256_mul_ps(_mm256_sub_ps(V1(1.f), occ), as), att));
   st->occ = _mm256_blendv_ps(st->occ, occ, act);
-  a = _mm256_fmadd_ps(ta, as, a);
+  a = _mm256_add_ps(a, _mm256_mul_ps(ta, as));
   st->a = _mm256_blendv_ps(st->a, a, act);
   st->t = _mm256_blendv_ps(st->t, _mm256_add_ps(st->t, dt), act);
   st->act = _mm256_and_ps(act, CMP(st->a, V1(GI_OPAQUE_ALPHA), _CMP_LT_OQ));
@@ -317,11 +317,14 @@ static void step8(const batch *b, const par8 *q, state8 *st) {
   if (!_mm256_movemask_ps(act)) return;
   st->steps = _mm256_sub_epi32(st->steps, _mm256_castps_si256(act));
   __m256 p[3];
-  for (int a = 0; a < 3; a++) p[a] = _mm256_fmadd_ps(st->t, st->w[a], st->o[a]);
+  /* Positions, heights, steps and opacity round as in the scalar march
+   * (no FMA): they decide levels, blocks and the cone's end, and a fused
+   * rounding there sends a cone down another path now and then. */
+  for (int a = 0; a < 3; a++) p[a] = _mm256_add_ps(st->o[a], _mm256_mul_ps(st->t, st->w[a]));
   __m256 sd = tab16(b->s, d);
   /* Pushed to a coarser level near the surface it started from: read
    * the axes across the normal only (see march_kernel.c). */
-  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 h = _mm256_add_ps(st->h0, _mm256_mul_ps(st->t, st->nw));
   __m256 ax = _mm256_and_ps(_mm256_and_ps(CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ),
                                           _mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0))),
                             CMP(h, _mm256_mul_ps(V1(GI_TRILINEAR_REACH), sd), _CMP_LT_OQ));
