@@ -149,14 +149,19 @@ int gi__is_inner(const gi_level *L, int64_t i, int64_t j, int64_t k) { return in
 /* A trilinear sample reads the 2x2x2 block at its base cell; the mask lets
  * samples in empty space skip those eight reads. Opacity is fixed once the
  * levels are voxelized and filtered (bounces change only radiance). */
+/* The bits of a half other than its sign. */
+#define GI_HALF_MAGNITUDE 0x7fffu
+
 static void mark_busy2(gi_level *L, int R) {
   memset(L->busy, 0, (size_t)R * R * R);
   for (int k = 0; k < R; k++)
     for (int j = 0; j < R; j++)
       for (int i = 0; i < R; i++) {
         const gi_vrad *r = &L->rad[(size_t)i + (size_t)R * ((size_t)j + (size_t)R * k)];
-        /* Optical depth is never negative: a non-zero half is a positive one. */
-        if (!(r->h[GI_VRAD_TAU] | r->h[GI_VRAD_TAU + 1] | r->h[GI_VRAD_TAU + 2])) continue;
+        /* Optical depth is never negative: a half other than +0 and -0 is a
+         * positive one. (A filtered voxel over empty children holds
+         * -log(1) = -0: read as busy, every nested region was.) */
+        if (!((r->h[GI_VRAD_TAU] | r->h[GI_VRAD_TAU + 1] | r->h[GI_VRAD_TAU + 2]) & GI_HALF_MAGNITUDE)) continue;
         for (int dz = 0; dz < 2; dz++)
           for (int dy = 0; dy < 2; dy++)
             for (int dx = 0; dx < 2; dx++) {
