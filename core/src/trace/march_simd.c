@@ -289,7 +289,7 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
                       __m256 clear2) {
   __m256 dt = _mm256_mul_ps(_mm256_blendv_ps(V1(q->step), V1(gi__minf(q->step, GI_NEAR_SURFACE_STEP)), near), sd);
   __m256 run = _mm256_min_ps(s->clear, clear2);
-  dt = _mm256_blendv_ps(dt, _mm256_add_ps(run, _mm256_mul_ps(V1(GI_CLEAR_OVERSHOOT), sd)), CMP(run, dt, _CMP_GT_OQ));
+  dt = _mm256_blendv_ps(dt, _mm256_mul_ps(dt, _mm256_ceil_ps(_mm256_div_ps(run, dt))), CMP(run, dt, _CMP_GT_OQ));
   __m256 as = _mm256_sub_ps(V1(1.f), exp_neg8(_mm256_mul_ps(s->sig, dt)));
   __m256 a = st->a, ta = _mm256_sub_ps(V1(1.f), a);
   __m256 lit = _mm256_and_ps(act, _mm256_and_ps(CMP(as, _mm256_setzero_ps(), _CMP_GT_OQ),
