@@ -19,8 +19,10 @@
  * When the sample's 2x2x2 block is empty, *clear (may be NULL) receives
  * how far along w the point may move and still read only that block:
  * every sample there reads zero, so the march may skip to its end. With
- * `far` (the cone's level can no longer change) and the sample's whole
- * busy4 block empty, *clear reaches that block's end instead. */
+ * `far` (the cone's level can no longer change: on the coarsest level by
+ * width, with the height above the surface not shrinking, so no sample
+ * in the block reads another level) and the sample's whole busy4 block
+ * empty, *clear reaches that block's end instead. */
 static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], const float w[3], const float *axw,
                            int far, float prem[3], float *wsum_alpha, float *sigma, float *clear) {
   const gi_level *L = &c->lv[d];
@@ -159,10 +161,7 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
      * opacity and radiance lie along its normal, a wall standing on it
      * lies across. */
     float P[3], wal, sig, clear, clear2 = INFINITY;
-    /* On the coarsest level by width, with the height above the surface
-     * not shrinking, the cone stays on this level to its end: an empty
-     * busy4 block may be crossed in one step (every sample in it reads
-     * zero at this level, and no other level would be read there). */
+    /* Coarsest by width, height not shrinking: the cone reads this level to its end. */
     int far = d0 == c->n - 1 && (h0 < 0 || nw >= 0);
     if (d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s) {
       float axw[3] = {1 - n[0] * n[0], 1 - n[1] * n[1], 1 - n[2] * n[2]};
@@ -185,11 +184,9 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
      * step stays short (GI_NEAR_SURFACE_STEP): that is where a wall behind
      * the surface must not be jumped. */
     float dt = (near ? gi__minf(step, GI_NEAR_SURFACE_STEP) : step) * (float)c->lv[d].s;
-    /* In empty blocks nothing is read until the nearer block's end: skip
-     * the whole steps that land before it. Whole steps keep the samples
-     * where the march would have put them anyway; landing just past the
-     * block's border instead put the first sample of every wall at one
-     * phase of its voxels (the a=0.99 furnace read 0.4 points darker). */
+    /* In empty blocks nothing is read until the nearer block's end: skip the
+     * whole steps before it (landing just past the border put every wall's
+     * first sample at one phase of its voxels: the a=0.99 furnace read darker). */
     float run = gi__minf(clear, clear2);
     if (run > dt) dt *= ceilf(run / dt);
     float as = 1.0f - gi__fast_exp_neg(sig * dt);
