@@ -114,12 +114,13 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
     __m256 pos = CMP(w[a], _mm256_setzero_ps(), _CMP_GT_OQ), nz = CMP(w[a], _mm256_setzero_ps(), _CMP_NEQ_OQ);
     __m256 gap = _mm256_blendv_ps(f[a], _mm256_sub_ps(V1(1.f), f[a]), pos);
     __m256 aw = _mm256_andnot_ps(V1(-0.f), w[a]);
-    __m256 r = _mm256_div_ps(_mm256_mul_ps(gap, sd), aw);
+    __m256 along = _mm256_div_ps(sd, aw); /* one cell's length along w (one division for both runs) */
+    __m256 r = _mm256_mul_ps(gap, along);
     run = _mm256_blendv_ps(run, _mm256_min_ps(r, run), nz);
     __m256i in4 = _mm256_and_si256(i0, _mm256_set1_epi32(GI_EMPTY_BLOCK - 1));
     __m256 more = _mm256_blendv_ps(_mm256_cvtepi32_ps(in4),
                                    _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_set1_epi32(GI_EMPTY_BLOCK - 1), in4)), pos);
-    __m256 r4 = _mm256_div_ps(_mm256_mul_ps(_mm256_add_ps(more, gap), sd), aw);
+    __m256 r4 = _mm256_mul_ps(_mm256_add_ps(more, gap), along);
     run4 = _mm256_blendv_ps(run4, _mm256_min_ps(r4, run4), nz);
     __m256i bi = _mm256_srli_epi32(i0, 2); /* i0 / GI_EMPTY_BLOCK */
     blk4 = a == 0 ? bi : _mm256_add_epi32(blk4, _mm256_mullo_epi32(bi, a == 1 ? nb : _mm256_mullo_epi32(nb, nb)));
