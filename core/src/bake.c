@@ -32,26 +32,17 @@ gi_result gi_cascade_anchor(const gi_scene *s, const double at[3], const gi_qual
   return GI_OK;
 }
 
-static void free_levels(struct gi_cascade *c) {
-  for (int d = 0; d < GI_MAX_LEVELS; d++) {
-    gi__free(c->lv[d].geo);
-    gi__free(c->lv[d].rad);
-    gi__free(c->lv[d].side);
-    gi__free(c->lv[d].direct);
-    gi__free(c->lv[d].occ);
-    gi__free(c->lv[d].busy);
-  }
-}
-
 void gi_cascade_free(gi_cascade *c) {
   if (!c) return;
-  free_levels(c);
+  gi__cascade_free_levels(c);
   gi__move_state_free(c->move_state);
   gi_scene_release(c->scene);
   gi__free(c);
 }
 
-/* geo, rad, side, direct, occ and busy: every per-voxel array a level holds. */
+/* geo, rad, side, direct, occ and busy: every per-voxel array a level holds.
+ * busy4 (one byte per 4^3 cells, 0.01%) is left out: the server's budgets
+ * and tests count whole bytes per voxel. */
 static const size_t GI_VOXEL_BYTES =
     sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t) + sizeof(uint8_t);
 

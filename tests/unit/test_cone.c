@@ -17,9 +17,7 @@
 
 static struct gi_cascade *make(int levels) {
   static struct gi_cascade c;
-  for (int d = 0; d < GI_MAX_LEVELS; d++) {
-    free(c.lv[d].geo); free(c.lv[d].rad); free(c.lv[d].side); free(c.lv[d].direct); free(c.lv[d].occ); free(c.lv[d].busy);
-  }
+  gi__cascade_free_levels(&c);
   memset(&c, 0, sizeof c);
   c.n = levels;
   c.R = 16;

@@ -12,6 +12,9 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 #include "base/alloc_test.h"
 #include "base/internal.h"
 
@@ -58,6 +61,64 @@ void gi__free(void *p) {
   if (!p) return;
   atomic_fetch_sub_explicit(&live, 1, memory_order_relaxed);
   free(p);
+}
+
+/* gi__big_calloc: blocks of at least this size are mapped from the kernel
+ * on 2 MB boundaries and advised for transparent huge pages. */
+#define GI_HUGE_PAGE ((size_t)2 << 20)
+/* The mapping's start and length live this far before the block. */
+#define GI_BIG_HEADER ((size_t)64)
+
+#if defined(__SANITIZE_ADDRESS__)
+#define GI_BIG_MAP 0 /* sanitizers check heap blocks only */
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer)
+#define GI_BIG_MAP 0
+#endif
+#endif
+#if !defined(GI_BIG_MAP) && defined(__linux__) && defined(MADV_HUGEPAGE)
+#define GI_BIG_MAP 1
+#elif !defined(GI_BIG_MAP)
+#define GI_BIG_MAP 0
+#endif
+
+void *gi__big_calloc(size_t n, size_t size) {
+#if GI_BIG_MAP
+  if (size && n > (SIZE_MAX - 2 * GI_HUGE_PAGE) / size) return NULL;
+  size_t bytes = n * size;
+  if (bytes >= GI_HUGE_PAGE) {
+    if (injected_failure()) return NULL;
+    /* Room to align the block and keep the header in front of it. */
+    size_t len = bytes + 2 * GI_HUGE_PAGE;
+    void *map = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (map == MAP_FAILED) return NULL;
+    uintptr_t p = ((uintptr_t)map + GI_BIG_HEADER + GI_HUGE_PAGE - 1) & ~(uintptr_t)(GI_HUGE_PAGE - 1);
+    /* Advice only: without huge pages the block is still zeroed memory. */
+    (void)madvise((void *)p, (bytes + GI_HUGE_PAGE - 1) & ~(GI_HUGE_PAGE - 1), MADV_HUGEPAGE);
+    void **hdr = (void **)(p - GI_BIG_HEADER);
+    hdr[0] = map;
+    hdr[1] = (void *)len;
+    hdr[2] = (void *)p; /* a check that the block came from here */
+    atomic_fetch_add_explicit(&live, 1, memory_order_relaxed);
+    return (void *)p;
+  }
+#endif
+  return gi__calloc(n, size);
+}
+
+void gi__big_free(void *p, size_t n, size_t size) {
+  if (!p) return;
+#if GI_BIG_MAP
+  if (n * size >= GI_HUGE_PAGE) {
+    void **hdr = (void **)((uintptr_t)p - GI_BIG_HEADER);
+    if (hdr[2] == p) {
+      atomic_fetch_sub_explicit(&live, 1, memory_order_relaxed);
+      munmap(hdr[0], (size_t)hdr[1]);
+      return;
+    }
+  }
+#endif
+  gi__free(p);
 }
 
 void gi__alloc_release(void *p) {

@@ -8,25 +8,47 @@
 #include "base/internal.h"
 #include "cascade/cascade_internal.h"
 
-/* calloc may clear recycled memory (tens of MB per array of a large
- * cascade): the token is checked before each array. */
-static int fired(const struct gi_cascade *c) { return gi_cancel_check(c->cancel) != GI_CANCEL_NONE; }
+/* Every array of every level lies in one zeroed block (gi__big_calloc:
+ * huge pages, so first touches cost 17 faults instead of 8,000 on a
+ * default cascade), each array starting on a cache line. */
+#define GI_ARRAY_ALIGN 64
+
+static size_t align_up(size_t n) { return (n + GI_ARRAY_ALIGN - 1) & ~(size_t)(GI_ARRAY_ALIGN - 1); }
+
+/* Bytes of one level's arrays in the block. */
+static size_t level_block_bytes(size_t vox, size_t blocks) {
+  return align_up(vox * sizeof(gi_vgeo)) + align_up(vox * sizeof(gi_vrad)) + 2 * align_up(vox * sizeof(float[2][3])) +
+         align_up(vox * sizeof(uint32_t)) + align_up(vox) + align_up(blocks);
+}
 
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
-  size_t vox = (size_t)c->R * c->R * c->R;
+  size_t vox = (size_t)c->R * c->R * c->R, nb = (size_t)gi__busy4_side(c->R);
   c->rad_scale = 1.0f;
+  if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "allocate");
+  c->block_bytes = (size_t)c->n * level_block_bytes(vox, nb * nb * nb);
+  char *b = c->block = gi__big_calloc(c->block_bytes, 1);
+  if (!b) return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
-    if (fired(c) || !(L->geo = gi__calloc(vox, sizeof *L->geo)) || fired(c) ||
-        !(L->rad = gi__calloc(vox, sizeof *L->rad)) || fired(c) ||
-        !(L->side = gi__calloc(vox, sizeof *L->side)) || fired(c) ||
-        !(L->direct = gi__calloc(vox, sizeof *L->direct)) || fired(c) ||
-        !(L->occ = gi__malloc(vox * sizeof *L->occ)) || fired(c) || !(L->busy = gi__calloc(vox, 1))) {
-      if (fired(c)) return gi__cancel_fail(c->cancel, err, "allocate");
-      return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
-    }
+    L->geo = (gi_vgeo *)b, b += align_up(vox * sizeof *L->geo);
+    L->rad = (gi_vrad *)b, b += align_up(vox * sizeof *L->rad);
+    L->side = (float(*)[2][3])b, b += align_up(vox * sizeof *L->side);
+    L->direct = (float(*)[2][3])b, b += align_up(vox * sizeof *L->direct);
+    L->occ = (uint32_t *)b, b += align_up(vox * sizeof *L->occ);
+    L->busy = (uint8_t *)b, b += align_up(vox);
+    L->busy4 = (uint8_t *)b, b += align_up(nb * nb * nb);
   }
   return GI_OK;
+}
+
+void gi__cascade_free_levels(struct gi_cascade *c) {
+  gi__big_free(c->block, c->block_bytes, 1);
+  c->block = NULL;
+  c->block_bytes = 0;
+  for (int d = 0; d < GI_MAX_LEVELS; d++) {
+    gi_level *L = &c->lv[d];
+    L->geo = NULL, L->rad = NULL, L->side = NULL, L->direct = NULL, L->occ = NULL, L->busy = NULL, L->busy4 = NULL;
+  }
 }
 
 void gi__cascade_place(struct gi_cascade *c) {

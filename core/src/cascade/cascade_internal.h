@@ -84,10 +84,19 @@ typedef struct gi_level {
   float (*side)[2][3]; /* R^3: direct+indirect irradiance on the +n and -n sides */
   float (*direct)[2][3]; /* R^3: the direct part of side */
   uint8_t *busy;       /* per slot: 1 when the 2x2x2 block starting there has any opacity */
+  /* Per GI_EMPTY_BLOCK^3 block of the window's cells (window coordinates,
+   * not slots: rebuilt with busy): 1 when a sample whose trilinear base
+   * cell lies in the block may read opacity, so a cone may cross an empty
+   * block in one step where busy would take one step per cell. */
+  uint8_t *busy4;
   uint32_t *occ;       /* slots of occupied voxels outside the inner region */
   uint32_t num_occ;
   uint64_t num_geo;    /* voxels holding geometry (incl. the inner region) */
 } gi_level;
+
+/* Cells per side of a busy4 block (R is a multiple of 4). */
+#define GI_EMPTY_BLOCK 4 /* march_simd.c divides by it with a shift */
+static inline int gi__busy4_side(int R) { return (R + GI_EMPTY_BLOCK - 1) / GI_EMPTY_BLOCK; }
 
 /* Room in the cascade for the largest diffuse cone set (trace/cones.c: 32). */
 #define GI_MAX_CONES 64
@@ -99,6 +108,12 @@ struct gi_cascade {
   double at_world[3];
   float at[3];         /* viewpoint, local */
   gi_level lv[GI_MAX_LEVELS];
+  /* The one block every level's arrays lie in (gi__cascade_alloc). The
+   * move swaps rad and side with its re-bake's block, so those pointers
+   * may point into either block: both are freed together, never an array
+   * on its own. */
+  void *block;
+  size_t block_bytes;
   gi_bake_report report;
   /* Diffuse cone set around +Z, shared by bounce and gather. */
   int num_cones;
@@ -157,8 +172,10 @@ static inline void gi__slot_cell(const gi_level *L, int R, uint32_t slot, int64_
   for (int a = 0; a < 3; a++) cell[a] = L->cell0[a] + gi__wrap((int64_t)w[a] - gi__wrap(L->cell0[a], R), R);
 }
 
-/* cascade.c */
+/* cascade.c: allocates every level's arrays, zeroed, in one block (c->n, c->R set). */
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err);
+/* Frees that block and clears the level pointers (a cascade never allocated is fine). */
+void gi__cascade_free_levels(struct gi_cascade *c);
 void gi__cascade_place(struct gi_cascade *c);
 /* filter.c: filters the region of level d covered by level d-1 from level d-1's light
  * (compositing along each axis) and geometry. */
@@ -167,7 +184,7 @@ int gi__cascade_filter(struct gi_cascade *c, int threads);
 /* Filters only the nested cells of level d (>= 1) inside its global cells
  * [lo, hi): a move whose finer level changed there. Nonzero when cancelled. */
 int gi__cascade_filter_box(struct gi_cascade *c, int threads, int d, const int64_t lo[3], const int64_t hi[3]);
-/* Rebuilds every level's busy mask from its opacity (after filtering). */
+/* Rebuilds every level's busy and busy4 masks from its opacity (after filtering). */
 void gi__cascade_mark_busy(struct gi_cascade *c);
 /* report.occupied[d]: voxels holding geometry per level, the filtered region included. */
 void gi__cascade_count_occupied(struct gi_cascade *c);
@@ -190,7 +207,7 @@ static inline float gi__vrad_tau(const gi_vrad *r, int a) { return gi__h2f(r->h[
 void gi__move_state_free(struct gi_move_state *m);
 size_t gi__move_state_bytes(const struct gi_cascade *c);
 
-/* voxelize.c */
+/* voxelize.c: fills the geometry of a freshly allocated (zeroed) cascade. */
 gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err);
 /* One triangle's piece in global cell `cell` of L, added to its sums. */
 void gi__voxel_add_tri(gi_level *L, int R, const int64_t cell[3], const float tv[3][3], const gi_material *mat);

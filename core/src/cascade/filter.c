@@ -149,24 +149,46 @@ int gi__is_inner(const gi_level *L, int64_t i, int64_t j, int64_t k) { return in
 /* A trilinear sample reads the 2x2x2 block at its base cell; the mask lets
  * samples in empty space skip those eight reads. Opacity is fixed once the
  * levels are voxelized and filtered (bounces change only radiance). */
+/* The bits of a half other than its sign. */
+#define GI_HALF_MAGNITUDE 0x7fffu
+
+static void mark_busy2(gi_level *L, int R) {
+  memset(L->busy, 0, (size_t)R * R * R);
+  for (int k = 0; k < R; k++)
+    for (int j = 0; j < R; j++)
+      for (int i = 0; i < R; i++) {
+        const gi_vrad *r = &L->rad[(size_t)i + (size_t)R * ((size_t)j + (size_t)R * k)];
+        /* Optical depth is never negative: a half other than +0 and -0 is a
+         * positive one. (A filtered voxel over empty children holds
+         * -log(1) = -0: read as busy, every nested region was.) */
+        if (!((r->h[GI_VRAD_TAU] | r->h[GI_VRAD_TAU + 1] | r->h[GI_VRAD_TAU + 2]) & GI_HALF_MAGNITUDE)) continue;
+        for (int dz = 0; dz < 2; dz++)
+          for (int dy = 0; dy < 2; dy++)
+            for (int dx = 0; dx < 2; dx++) {
+              int bi = (i - dx + R) % R, bj = (j - dy + R) % R, bk = (k - dz + R) % R;
+              L->busy[(size_t)bi + (size_t)R * ((size_t)bj + (size_t)R * bk)] = 1;
+            }
+      }
+}
+
+/* busy4 of a block: any busy base cell in it (window cells, wrapped to slots). */
+static void mark_busy4(gi_level *L, int R) {
+  int nb = gi__busy4_side(R);
+  memset(L->busy4, 0, (size_t)nb * nb * nb);
+  for (int k = 0; k < R; k++)
+    for (int j = 0; j < R; j++) {
+      int sk = (L->slot0[2] + k) % R, sj = (L->slot0[1] + j) % R;
+      const uint8_t *row = &L->busy[(size_t)R * ((size_t)sj + (size_t)R * sk)];
+      uint8_t *brow = &L->busy4[(size_t)nb * ((size_t)(j / GI_EMPTY_BLOCK) + (size_t)nb * (k / GI_EMPTY_BLOCK))];
+      for (int i = 0; i < R; i++)
+        if (row[(L->slot0[0] + i) % R]) brow[i / GI_EMPTY_BLOCK] = 1;
+    }
+}
+
 void gi__cascade_mark_busy(struct gi_cascade *c) {
-  int R = c->R;
   for (int d = 0; d < c->n; d++) {
-    gi_level *L = &c->lv[d];
-    memset(L->busy, 0, (size_t)R * R * R);
-    for (int k = 0; k < R; k++)
-      for (int j = 0; j < R; j++)
-        for (int i = 0; i < R; i++) {
-          const gi_vrad *r = &L->rad[(size_t)i + (size_t)R * ((size_t)j + (size_t)R * k)];
-          /* Optical depth is never negative: a non-zero half is a positive one. */
-          if (!(r->h[GI_VRAD_TAU] | r->h[GI_VRAD_TAU + 1] | r->h[GI_VRAD_TAU + 2])) continue;
-          for (int dz = 0; dz < 2; dz++)
-            for (int dy = 0; dy < 2; dy++)
-              for (int dx = 0; dx < 2; dx++) {
-                int bi = (i - dx + R) % R, bj = (j - dy + R) % R, bk = (k - dz + R) % R;
-                L->busy[(size_t)bi + (size_t)R * ((size_t)bj + (size_t)R * bk)] = 1;
-              }
-        }
+    mark_busy2(&c->lv[d], c->R);
+    mark_busy4(&c->lv[d], c->R);
   }
 }
 

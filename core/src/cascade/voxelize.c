@@ -122,10 +122,8 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
   int R = c->R;
   for (size_t slab = b; slab < e; slab++) {
     int64_t k0 = L->cell0[2] + (int64_t)slab * SLAB, k1 = k0 + SLAB;
-    /* Each worker clears its own z slices: parallel first touches of the
-     * level's pages, and a cancel is seen between slabs, not after 20 MB. */
-    for (int64_t k = k0; k < k1 && k < L->cell0[2] + R; k++)
-      memset(&L->geo[gi__slot(0, 0, k, R)], 0, (size_t)R * R * sizeof *L->geo);
+    /* The sums start from the zeroed block gi__cascade_alloc gave (the
+     * bake voxelizes each level once, right after it): no clearing. */
     for (uint32_t bi = v->bin_start[slab]; bi < v->bin_start[slab + 1]; bi++) {
       uint32_t t = v->bin_tris[bi];
       const uint32_t *ix = &s->indices[3 * t];

@@ -279,6 +279,8 @@ static gi_result replan(struct gi_cascade *c, gi_quality *q, int *tail, int *rel
 typedef struct gi_move_state {
   gi_vrad *rad[GI_MAX_LEVELS];    /* the re-bake's texture (R^3, toroidal like the live one) */
   float (*side[GI_MAX_LEVELS])[2][3];
+  void *block;     /* rad and side of every level, one gi__big_calloc block (see struct gi_cascade) */
+  size_t block_bytes;
   float (*E[GI_MAX_LEVELS])[2][3]; /* this bounce's gathers, per occupied voxel */
   uint32_t ecap[GI_MAX_LEVELS];   /* entries E[d] holds */
   float rad_scale;
@@ -290,11 +292,8 @@ typedef struct gi_move_state {
 
 void gi__move_state_free(struct gi_move_state *m) {
   if (!m) return;
-  for (int d = 0; d < GI_MAX_LEVELS; d++) {
-    gi__free(m->rad[d]);
-    gi__free(m->side[d]);
-    gi__free(m->E[d]);
-  }
+  gi__big_free(m->block, m->block_bytes, 1);
+  for (int d = 0; d < GI_MAX_LEVELS; d++) gi__free(m->E[d]);
   gi__free(m);
 }
 
@@ -318,10 +317,16 @@ static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
   if (c->move_state) return GI_OK;
   gi_move_state *m = gi__calloc(1, sizeof *m);
   size_t vox = (size_t)c->R * c->R * c->R;
-  int ok = m != NULL;
-  for (int d = 0; d < c->n && ok; d++)
-    ok = (m->rad[d] = gi__malloc(vox * sizeof *m->rad[d])) && (m->side[d] = gi__malloc(vox * sizeof *m->side[d]));
-  if (!ok) {
+  /* rad's bytes are a multiple of 16: side stays aligned after it. */
+  size_t per_level = vox * (sizeof *m->rad[0] + sizeof *m->side[0]);
+  char *b = NULL;
+  if (m) m->block_bytes = (size_t)c->n * per_level;
+  if (m && (b = m->block = gi__big_calloc(m->block_bytes, 1)))
+    for (int d = 0; d < c->n; d++) {
+      m->rad[d] = (gi_vrad *)b, b += vox * sizeof *m->rad[d];
+      m->side[d] = (float(*)[2][3])b, b += vox * sizeof *m->side[d];
+    }
+  if (!b) {
     gi__move_state_free(m);
     return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake's texture");
   }

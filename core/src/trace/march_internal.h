@@ -73,8 +73,6 @@ static inline void gi__sum_texels(const gi_vrad *const r[8], const float wt[8], 
 
 /* A sample's trilinear footprint reaches this many of its level's voxels. */
 #define GI_TRILINEAR_REACH 1.5f
-/* How far past an empty block's end (in voxels) the next sample lands. */
-#define GI_CLEAR_OVERSHOOT 1e-3f
 /* A sample whose weighted opacity is below this carries no usable radiance. */
 #define GI_MIN_SAMPLE_WEIGHT 1e-8f
 /* Floor of the height above the surface, so its log stays finite. */

@@ -18,25 +18,39 @@
 /* gi__sample_level with each axis's share scaled by axw[a] (NULL: 1).
  * When the sample's 2x2x2 block is empty, *clear (may be NULL) receives
  * how far along w the point may move and still read only that block:
- * every sample there reads zero, so the march may skip to its end. */
+ * every sample there reads zero, so the march may skip to its end. With
+ * `far` (the cone's level can no longer change: on the coarsest level by
+ * width, with the height above the surface not shrinking, so no sample
+ * in the block reads another level) and the sample's whole busy4 block
+ * empty, *clear reaches that block's end instead. */
 static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], const float w[3], const float *axw,
-                           float prem[3], float *wsum_alpha, float *sigma, float *clear) {
+                           int far, float prem[3], float *wsum_alpha, float *sigma, float *clear) {
   const gi_level *L = &c->lv[d];
   int R = c->R;
   float inv = (float)(1.0 / L->s);
   /* Wrap each axis once: toroidal slots of the two cells the footprint spans. */
   uint32_t off[3][2];
-  float f[3], run = INFINITY;
+  float f[3], run = INFINITY, run4 = INFINITY;
+  int b4[3];
   for (int a = 0; a < 3; a++) {
     float u = (p[a] - L->lo[a]) * inv - 0.5f;
     float fl = floorf(u);
     int i0 = (int)fl;
-    if (i0 < 0) i0 = 0, fl = 0, u = gi__maxf(u, 0.f), run = 0;
-    if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = gi__minf(u, (float)(R - 1)), run = 0;
+    if (i0 < 0) i0 = 0, fl = 0, u = gi__maxf(u, 0.f), run = run4 = 0;
+    if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = gi__minf(u, (float)(R - 1)), run = run4 = 0;
     f[a] = u - fl;
-    /* Inside the block while u stays in [fl, fl + 1]. */
-    if (w[a] > 0) run = gi__minf(run, (1.f - f[a]) * (float)L->s / w[a]);
-    else if (w[a] < 0) run = gi__minf(run, f[a] * (float)L->s / -w[a]);
+    /* Inside the block while u stays in [fl, fl + 1]; inside the busy4
+     * block while u stays in [4 b, 4 b + 4]: `more` whole cells further. */
+    b4[a] = i0 / GI_EMPTY_BLOCK;
+    int in4 = i0 - GI_EMPTY_BLOCK * b4[a];
+    float along = w[a] != 0 ? (float)L->s / fabsf(w[a]) : 0.f; /* one cell's length along w */
+    if (w[a] > 0) {
+      run = gi__minf(run, (1.f - f[a]) * along);
+      run4 = gi__minf(run4, ((float)(GI_EMPTY_BLOCK - 1 - in4) + (1.f - f[a])) * along);
+    } else if (w[a] < 0) {
+      run = gi__minf(run, f[a] * along);
+      run4 = gi__minf(run4, ((float)in4 + f[a]) * along);
+    }
     int s0 = L->slot0[a] + i0;
     if (s0 >= R) s0 -= R;
     int s1 = s0 + 1 == R ? 0 : s0 + 1;
@@ -48,7 +62,10 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
     prem[0] = prem[1] = prem[2] = 0;
     *wsum_alpha = 0;
     *sigma = 0;
-    if (clear) *clear = run;
+    if (clear) {
+      int nb = gi__busy4_side(R);
+      *clear = far && !L->busy4[b4[0] + nb * (b4[1] + nb * b4[2])] ? run4 : run;
+    }
     return 0;
   }
   if (clear) *clear = 0;
@@ -79,7 +96,7 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
 
 int GI_KERNEL(gi__sample_level)(const struct gi_cascade *c, int d, const float p[3], const float w[3],
                                 float prem[3], float *wsum_alpha, float *sigma) {
-  return sample_level_ax(c, d, p, w, NULL, prem, wsum_alpha, sigma, NULL);
+  return sample_level_ax(c, d, p, w, NULL, 0, prem, wsum_alpha, sigma, NULL);
 }
 
 /* h0 < 0: the apex is in free space (a probe). h0 >= 0: the apex is h0
@@ -127,8 +144,11 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
     int d0 = (int)(xb.u >> 23) - 127;
     xb.u = (xb.u & 0x007fffffu) | 0x3f800000u;
     float frac = near ? 0.f : xb.f - 1.f;
-    /* A cone wider than the coarsest voxels keeps sampling the coarsest level. */
-    if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0;
+    /* A cone wider than the coarsest voxels keeps sampling the coarsest
+     * level. There the surface rule no longer holds it finer than its
+     * width (the height allows that level too): the full step, as in free
+     * space. */
+    if (d0 >= c->n - 1) d0 = c->n - 1, frac = 0, near = 0;
     int d = d0;
     while (d < c->n && !gi__span_has(&sp[d], t)) d++;
     if (d >= c->n) break;
@@ -142,16 +162,18 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
      * opacity and radiance lie along its normal, a wall standing on it
      * lies across. */
     float P[3], wal, sig, clear, clear2 = INFINITY;
+    /* Coarsest by width, height not shrinking: the cone reads this level to its end. */
+    int far = d0 == c->n - 1 && (h0 < 0 || nw >= 0);
     if (d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s) {
       float axw[3] = {1 - n[0] * n[0], 1 - n[1] * n[1], 1 - n[2] * n[2]};
-      sample_level_ax(c, d, p, w, axw, P, &wal, &sig, &clear);
+      sample_level_ax(c, d, p, w, axw, far, P, &wal, &sig, &clear);
     } else {
-      sample_level_ax(c, d, p, w, NULL, P, &wal, &sig, &clear);
+      sample_level_ax(c, d, p, w, NULL, far, P, &wal, &sig, &clear);
     }
     samples++;
     if (frac > 0 && d + 1 < c->n && gi__span_has(&sp[d + 1], t)) {
       float P2[3], wal2, sig2;
-      sample_level_ax(c, d + 1, p, w, NULL, P2, &wal2, &sig2, &clear2);
+      sample_level_ax(c, d + 1, p, w, NULL, 0, P2, &wal2, &sig2, &clear2);
       samples++;
       for (int k = 0; k < 3; k++) P[k] += frac * (P2[k] - P[k]);
       wal += frac * (wal2 - wal);
@@ -163,10 +185,11 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
      * step stays short (GI_NEAR_SURFACE_STEP): that is where a wall behind
      * the surface must not be jumped. */
     float dt = (near ? gi__minf(step, GI_NEAR_SURFACE_STEP) : step) * (float)c->lv[d].s;
-    /* In empty blocks nothing is read until the nearer block's end: go there
-     * (a hair beyond, so the next sample reads the next block). */
+    /* In empty blocks nothing is read until the nearer block's end: skip the
+     * whole steps before it (landing just past the border put every wall's
+     * first sample at one phase of its voxels: the a=0.99 furnace read darker). */
     float run = gi__minf(clear, clear2);
-    if (run > dt) dt = run + GI_CLEAR_OVERSHOOT * (float)c->lv[d].s;
+    if (run > dt) dt *= ceilf(run / dt);
     float as = 1.0f - gi__fast_exp_neg(sig * dt);
     if (as > 0 && wal > GI_MIN_SAMPLE_WEIGHT) {
       float k = (1 - a) * as / wal;

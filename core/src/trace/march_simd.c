@@ -29,7 +29,7 @@ typedef struct {
   float s[TAB], inv[TAB], lo[3][TAB];
   int32_t slot0[3][TAB];
   const char *rad[TAB];
-  const uint8_t *busy[TAB];
+  const uint8_t *busy[TAB], *busy4[TAB];
   /* Per lane: the first radiance lane of the face each axis reads, the
    * axis weights w_a^2 (radiance, opacity) and |w_a| (optical depth), and
    * the same across the surface's normal only (x (1 - n_a^2)). */
@@ -83,14 +83,16 @@ static inline __m256 exp_neg8(__m256 x) {
  * 0 where the cell was clamped to the window). Corner 0's slot is also
  * the block's, which the busy mask is indexed by. */
 typedef struct {
-  float wt[8][LANES], run[LANES];
+  float wt[8][LANES], run[LANES], run4[LANES];
   uint32_t corner[8][LANES]; /* bytes: R^3 x 48 < 2^32 for R <= 256 */
   uint32_t block[LANES];      /* corner 0's slot */
+  uint32_t block4[LANES];     /* its busy4 block */
 } cell8;
 
 static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], cell8 *out) {
-  __m256 inv = tab16(b->inv, d), sd = tab16(b->s, d), run = V1(INFINITY);
+  __m256 inv = tab16(b->inv, d), sd = tab16(b->s, d), run = V1(INFINITY), run4 = V1(INFINITY);
   __m256i R = _mm256_set1_epi32(b->R), Rm2 = _mm256_set1_epi32(b->R - 2), one = _mm256_set1_epi32(1);
+  __m256i blk4 = _mm256_setzero_si256(), nb = _mm256_set1_epi32(gi__busy4_side(b->R));
   __m256 f[3];
   __m256i off[3][2];
   for (int a = 0; a < 3; a++) {
@@ -105,13 +107,23 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
     fl = _mm256_blendv_ps(fl, V1((float)(b->R - 2)), high);
     u = _mm256_blendv_ps(u, _mm256_min_ps(u, V1((float)(b->R - 1))), high);
     run = _mm256_andnot_ps(_mm256_or_ps(low, high), run);
+    run4 = _mm256_andnot_ps(_mm256_or_ps(low, high), run4);
     f[a] = _mm256_sub_ps(u, fl);
-    /* Inside the block while u stays in [fl, fl + 1]. */
+    /* Inside the block while u stays in [fl, fl + 1]; inside the busy4
+     * block `more` whole cells further (march_kernel.c). */
     __m256 pos = CMP(w[a], _mm256_setzero_ps(), _CMP_GT_OQ), nz = CMP(w[a], _mm256_setzero_ps(), _CMP_NEQ_OQ);
     __m256 gap = _mm256_blendv_ps(f[a], _mm256_sub_ps(V1(1.f), f[a]), pos);
     __m256 aw = _mm256_andnot_ps(V1(-0.f), w[a]);
-    __m256 r = _mm256_div_ps(_mm256_mul_ps(gap, sd), aw);
+    __m256 along = _mm256_div_ps(sd, aw); /* one cell's length along w (one division for both runs) */
+    __m256 r = _mm256_mul_ps(gap, along);
     run = _mm256_blendv_ps(run, _mm256_min_ps(r, run), nz);
+    __m256i in4 = _mm256_and_si256(i0, _mm256_set1_epi32(GI_EMPTY_BLOCK - 1));
+    __m256 more = _mm256_blendv_ps(_mm256_cvtepi32_ps(in4),
+                                   _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_set1_epi32(GI_EMPTY_BLOCK - 1), in4)), pos);
+    __m256 r4 = _mm256_mul_ps(_mm256_add_ps(more, gap), along);
+    run4 = _mm256_blendv_ps(run4, _mm256_min_ps(r4, run4), nz);
+    __m256i bi = _mm256_srli_epi32(i0, 2); /* i0 / GI_EMPTY_BLOCK */
+    blk4 = a == 0 ? bi : _mm256_add_epi32(blk4, _mm256_mullo_epi32(bi, a == 1 ? nb : _mm256_mullo_epi32(nb, nb)));
     __m256i s0 = _mm256_add_epi32(tab16i(b->slot0[a], d), i0);
     s0 = _mm256_sub_epi32(s0, _mm256_andnot_si256(_mm256_cmpgt_epi32(R, s0), R)); /* s0 >= R: wrap */
     __m256i s1 = _mm256_add_epi32(s0, one);
@@ -121,6 +133,8 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
     off[a][1] = _mm256_mullo_epi32(s1, stride);
   }
   _mm256_storeu_ps(out->run, run);
+  _mm256_storeu_ps(out->run4, run4);
+  _mm256_storeu_si256((__m256i *)out->block4, blk4);
   __m256 g[3][2];
   for (int a = 0; a < 3; a++) g[a][0] = _mm256_sub_ps(V1(1.f), f[a]), g[a][1] = f[a];
   __m256i texel = _mm256_set1_epi32((int)sizeof(gi_vrad));
@@ -139,10 +153,10 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
 enum { ROW_P = 0, ROW_WAL = 3, ROW_TAU = 4, ROW_CLEAR = 5 };
 
 /* One lane's texel reads: sample_level_ax's second half. */
-static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float row[LANES]) {
+static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, int far, float row[LANES]) {
   if (!b->busy[d][cl->block[l]]) {
     _mm256_storeu_ps(row, _mm256_setzero_ps());
-    row[ROW_CLEAR] = cl->run[l];
+    row[ROW_CLEAR] = far && !b->busy4[d][cl->block4[l]] ? cl->run4[l] : cl->run[l];
     return;
   }
   /* gi__sum_texels with the weights and corners read from the lane's column. */
@@ -196,17 +210,18 @@ static inline void transpose8(const float rows[LANES][LANES], __m256 col[LANES])
 }
 
 /* Samples level d (per lane) at p for the lanes in `act`; lanes in `ax`
- * read the axes across the surface's normal only. */
-static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, const __m256 p[3], const __m256 w[3],
-                       sample8 *out) {
+ * read the axes across the surface's normal only; lanes in `far` may
+ * cross an empty busy4 block (march_kernel.c). */
+static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, __m256 far, const __m256 p[3],
+                       const __m256 w[3], sample8 *out) {
   cell8 cl;
   locate(b, d, p, w, &cl);
   int32_t dl[LANES];
   _mm256_storeu_si256((__m256i *)dl, d);
   float rows[LANES][LANES];
-  int m = _mm256_movemask_ps(act), mx = _mm256_movemask_ps(ax);
+  int m = _mm256_movemask_ps(act), mx = _mm256_movemask_ps(ax), mf = _mm256_movemask_ps(far);
   for (int l = 0; l < LANES; l++)
-    if (m >> l & 1) read_lane(b, l, dl[l], &cl, (mx >> l) & 1, rows[l]);
+    if (m >> l & 1) read_lane(b, l, dl[l], &cl, (mx >> l) & 1, (mf >> l) & 1, rows[l]);
     else _mm256_storeu_ps(rows[l], _mm256_setzero_ps());
   __m256 col[LANES];
   transpose8((const float(*)[LANES])rows, col);
@@ -238,7 +253,7 @@ static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m25
                           __m256 *next, __m256i *d0out) {
   __m256 x = _mm256_mul_ps(D, V1(q->inv_s0));
   __m256 surf = CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ);
-  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 h = _mm256_add_ps(st->h0, _mm256_mul_ps(st->t, st->nw)); /* no FMA: see step8 */
   __m256 xh = _mm256_mul_ps(_mm256_max_ps(h, V1(GI_MIN_HEIGHT)), V1(q->inv_ks0));
   *near = _mm256_and_ps(surf, CMP(xh, x, _CMP_LT_OQ));
   x = _mm256_blendv_ps(x, _mm256_max_ps(_mm256_min_ps(x, xh), V1(1.f)), surf);
@@ -251,6 +266,7 @@ static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m25
   __m256 coarsest = _mm256_castsi256_ps(_mm256_cmpgt_epi32(d0, _mm256_set1_epi32(b->n - 2)));
   d0 = _mm256_min_epi32(d0, _mm256_set1_epi32(b->n - 1));
   fr = _mm256_andnot_ps(coarsest, fr);
+  *near = _mm256_andnot_ps(coarsest, *near); /* the full step on the coarsest level */
   __m256i d = _mm256_set1_epi32(b->n);
   __m256 has_next = _mm256_setzero_ps(), prev = _mm256_setzero_ps();
   for (int k = b->n - 1; k >= 0; k--) {
@@ -274,7 +290,7 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
                       __m256 clear2) {
   __m256 dt = _mm256_mul_ps(_mm256_blendv_ps(V1(q->step), V1(gi__minf(q->step, GI_NEAR_SURFACE_STEP)), near), sd);
   __m256 run = _mm256_min_ps(s->clear, clear2);
-  dt = _mm256_blendv_ps(dt, _mm256_fmadd_ps(V1(GI_CLEAR_OVERSHOOT), sd, run), CMP(run, dt, _CMP_GT_OQ));
+  dt = _mm256_blendv_ps(dt, _mm256_mul_ps(dt, _mm256_ceil_ps(_mm256_div_ps(run, dt))), CMP(run, dt, _CMP_GT_OQ));
   __m256 as = _mm256_sub_ps(V1(1.f), exp_neg8(_mm256_mul_ps(s->sig, dt)));
   __m256 a = st->a, ta = _mm256_sub_ps(V1(1.f), a);
   __m256 lit = _mm256_and_ps(act, _mm256_and_ps(CMP(as, _mm256_setzero_ps(), _CMP_GT_OQ),
@@ -285,7 +301,7 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
   __m256 att = _mm256_fmadd_ps(V1(q->ao_lambda * 0.5f), D, V1(1.f));
   occ = _mm256_add_ps(occ, _mm256_div_ps(_mm256_mul_ps(_mm256_sub_ps(V1(1.f), occ), as), att));
   st->occ = _mm256_blendv_ps(st->occ, occ, act);
-  a = _mm256_fmadd_ps(ta, as, a);
+  a = _mm256_add_ps(a, _mm256_mul_ps(ta, as));
   st->a = _mm256_blendv_ps(st->a, a, act);
   st->t = _mm256_blendv_ps(st->t, _mm256_add_ps(st->t, dt), act);
   st->act = _mm256_and_ps(act, CMP(st->a, V1(GI_OPAQUE_ALPHA), _CMP_LT_OQ));
@@ -302,22 +318,29 @@ static void step8(const batch *b, const par8 *q, state8 *st) {
   if (!_mm256_movemask_ps(act)) return;
   st->steps = _mm256_sub_epi32(st->steps, _mm256_castps_si256(act));
   __m256 p[3];
-  for (int a = 0; a < 3; a++) p[a] = _mm256_fmadd_ps(st->t, st->w[a], st->o[a]);
+  /* Positions, heights, steps and opacity round as in the scalar march
+   * (no FMA): they decide levels, blocks and the cone's end, and a fused
+   * rounding there sends a cone down another path now and then. */
+  for (int a = 0; a < 3; a++) p[a] = _mm256_add_ps(st->o[a], _mm256_mul_ps(st->t, st->w[a]));
   __m256 sd = tab16(b->s, d);
   /* Pushed to a coarser level near the surface it started from: read
    * the axes across the normal only (see march_kernel.c). */
-  __m256 h = _mm256_fmadd_ps(st->t, st->nw, st->h0);
+  __m256 h = _mm256_add_ps(st->h0, _mm256_mul_ps(st->t, st->nw));
   __m256 ax = _mm256_and_ps(_mm256_and_ps(CMP(st->h0, _mm256_setzero_ps(), _CMP_GE_OQ),
                                           _mm256_castsi256_ps(_mm256_cmpgt_epi32(d, d0))),
                             CMP(h, _mm256_mul_ps(V1(GI_TRILINEAR_REACH), sd), _CMP_LT_OQ));
+  __m256 far = _mm256_and_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(d0, _mm256_set1_epi32(b->n - 1))),
+                             _mm256_or_ps(CMP(st->h0, _mm256_setzero_ps(), _CMP_LT_OQ),
+                                          CMP(st->nw, _mm256_setzero_ps(), _CMP_GE_OQ)));
   sample8 s;
-  sample8_at(b, d, act, ax, p, st->w, &s);
+  sample8_at(b, d, act, ax, far, p, st->w, &s);
   st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(act));
   __m256 two = _mm256_and_ps(act, _mm256_and_ps(next, CMP(frac, _mm256_setzero_ps(), _CMP_GT_OQ)));
   __m256 clear2 = V1(INFINITY);
   if (_mm256_movemask_ps(two)) {
     sample8 s2;
-    sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), p, st->w, &s2);
+    sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), _mm256_setzero_ps(), p, st->w,
+               &s2);
     st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(two));
     for (int ch = 0; ch < 3; ch++)
       s.P[ch] = _mm256_blendv_ps(s.P[ch], _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.P[ch], s.P[ch]), s.P[ch]), two);
@@ -436,6 +459,7 @@ static void batch_init(batch *b, const struct gi_cascade *c) {
     for (int a = 0; a < 3; a++) b->lo[a][d] = L->lo[a], b->slot0[a][d] = L->slot0[a];
     b->rad[d] = (const char *)L->rad;
     b->busy[d] = L->busy;
+    b->busy4[d] = L->busy4;
   }
 }
 
