@@ -34,8 +34,14 @@ void gi__alloc_release(void *p);
  * the paravirtualised 2-core bench machine a 4 KB page's first touch
  * costs ~20 us of wall time (not counted as user or system time), so a
  * default cascade's 33 MB cost ~160 ms of faults; 17 huge pages ~7 ms.
- * Smaller blocks, and sanitizer builds, use gi__calloc. */
+ * Smaller blocks use gi__calloc (sanitizer builds map as well). */
 void *gi__big_calloc(size_t n, size_t size);
+/* gi__big_calloc of `bytes` that a fired token stops: where the block is
+ * not mapped (under 2 MB, or no huge-page advice) it is cleared in 1 MB
+ * slices with the token checked between them. NULL with
+ * *cancelled = 1 when the token fired (nothing is left allocated), NULL
+ * with *cancelled = 0 when memory ran out. */
+void *gi__big_calloc_cancel(size_t bytes, const gi_cancel *cancel, int *cancelled);
 void gi__big_free(void *p, size_t n, size_t size);
 
 /* Runs fn(ctx, begin, end, worker) over [0, n) in chunks of `grain` on up

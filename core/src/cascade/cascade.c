@@ -26,7 +26,9 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
   c->rad_scale = 1.0f;
   if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "allocate");
   c->block_bytes = (size_t)c->n * level_block_bytes(vox, nb * nb * nb);
-  char *b = c->block = gi__big_calloc(c->block_bytes, 1);
+  int cancelled;
+  char *b = c->block = gi__big_calloc_cancel(c->block_bytes, c->cancel, &cancelled);
+  if (cancelled) return gi__cancel_fail(c->cancel, err, "allocate");
   if (!b) return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
