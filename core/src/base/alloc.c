@@ -105,25 +105,16 @@ void *gi__big_calloc(size_t n, size_t size) {
   return gi__calloc(n, size);
 }
 
-/* Bytes cleared between two checks of the token: 256 first touches of 4 KB pages, ~5 ms here. */
-#define GI_CLEAR_SLICE ((size_t)1 << 20)
-
-void *gi__big_calloc_cancel(size_t bytes, const gi_cancel *cancel, int *cancelled) {
-  *cancelled = 0;
+void *gi__big_malloc(size_t bytes, int *zeroed) {
+  *zeroed = 0;
 #if GI_BIG_MAP
-  if (bytes >= GI_HUGE_PAGE) return gi__big_calloc(bytes, 1); /* mapped: zero pages, no clearing */
-#endif
-  char *p = gi__malloc(bytes ? bytes : 1);
-  if (!p) return NULL;
-  for (size_t at = 0; at < bytes; at += GI_CLEAR_SLICE) {
-    if (gi_cancel_check(cancel) != GI_CANCEL_NONE) {
-      gi__free(p);
-      *cancelled = 1;
-      return NULL;
-    }
-    memset(p + at, 0, bytes - at < GI_CLEAR_SLICE ? bytes - at : GI_CLEAR_SLICE);
+  if (bytes >= GI_HUGE_PAGE) {
+    void *p = gi__big_calloc(bytes, 1); /* mapped: zero pages, nothing to clear */
+    *zeroed = p != NULL;
+    return p;
   }
-  return p;
+#endif
+  return gi__malloc(bytes ? bytes : 1);
 }
 
 void gi__big_free(void *p, size_t n, size_t size) {

@@ -36,12 +36,11 @@ void gi__alloc_release(void *p);
  * default cascade's 33 MB cost ~160 ms of faults; 17 huge pages ~7 ms.
  * Smaller blocks use gi__calloc (sanitizer builds map as well). */
 void *gi__big_calloc(size_t n, size_t size);
-/* gi__big_calloc of `bytes` that a fired token stops: where the block is
- * not mapped (under 2 MB, or no huge-page advice) it is cleared in 1 MB
- * slices with the token checked between them. NULL with
- * *cancelled = 1 when the token fired (nothing is left allocated), NULL
- * with *cancelled = 0 when memory ran out. */
-void *gi__big_calloc_cancel(size_t bytes, const gi_cancel *cancel, int *cancelled);
+/* A block for gi__big_free(p, bytes, 1): mapped and zeroed (*zeroed = 1)
+ * where gi__big_calloc would map it, else uncleared heap memory the
+ * caller clears (*zeroed = 0; the cascade clears it in slices between
+ * checks of its cancel token). NULL when memory ran out. */
+void *gi__big_malloc(size_t bytes, int *zeroed);
 void gi__big_free(void *p, size_t n, size_t size);
 
 /* Runs fn(ctx, begin, end, worker) over [0, n) in chunks of `grain` on up

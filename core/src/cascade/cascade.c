@@ -13,6 +13,9 @@
  * default cascade), each array starting on a cache line. */
 #define GI_ARRAY_ALIGN 64
 
+/* Bytes cleared between two checks of the cancel token (~5 ms of first touches here). */
+#define GI_CLEAR_SLICE ((size_t)1 << 20)
+
 static size_t align_up(size_t n) { return (n + GI_ARRAY_ALIGN - 1) & ~(size_t)(GI_ARRAY_ALIGN - 1); }
 
 /* Bytes of one level's arrays in the block. */
@@ -26,10 +29,18 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
   c->rad_scale = 1.0f;
   if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "allocate");
   c->block_bytes = (size_t)c->n * level_block_bytes(vox, nb * nb * nb);
-  int cancelled;
-  char *b = c->block = gi__big_calloc_cancel(c->block_bytes, c->cancel, &cancelled);
-  if (cancelled) return gi__cancel_fail(c->cancel, err, "allocate");
+  int zeroed;
+  char *b = c->block = gi__big_malloc(c->block_bytes, &zeroed);
   if (!b) return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot allocate %d levels of %d^3 voxels", c->n, c->R);
+  /* Heap memory (small blocks) is cleared in slices a fired token stops. */
+  for (size_t at = 0; !zeroed && at < c->block_bytes; at += GI_CLEAR_SLICE) {
+    if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) {
+      gi__cascade_free_levels(c);
+      return gi__cancel_fail(c->cancel, err, "allocate");
+    }
+    size_t n = c->block_bytes - at < GI_CLEAR_SLICE ? c->block_bytes - at : GI_CLEAR_SLICE;
+    memset(b + at, 0, n);
+  }
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     L->geo = (gi_vgeo *)b, b += align_up(vox * sizeof *L->geo);
