@@ -23,17 +23,8 @@ enum { W = 16, H = 16 };
 
 static void test_plane_rows(void **state) {
   const double a = 0.5, E = 3.0;
-  gi_light sun = {.type = GI_LIGHT_SUN, .color = {E, E, E}, .direction = {(float)(sqrt(3.0) / 2), -0.5f, 0}};
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {a, a, a}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double A[3] = {-100, 0, -100}, B[3] = {-100, 0, 100}, C[3] = {100, 0, 100}, D[3] = {100, 0, -100};
-  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
-  gi_scene *s = NULL;
+  gi_scene *s = tu_sunlit_plane(a, E, 100);
   gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "plane", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
   static float img[W * H * 3];
   const double at[3] = {0, 3, 0};
   gi_render_opts o = {.spp = 8, .seed = 5, .threads = 2};

@@ -14,18 +14,9 @@
 #include "gi/gi.h"
 
 static void test_plane_under_sun(void **state) {
-  const double c60 = 0.5, s60 = sqrt(3.0) / 2, a = 0.5, E = 3.0;
-  gi_light sun = {.type = GI_LIGHT_SUN, .color = {E, E, E}, .direction = {(float)s60, (float)-c60, 0}};
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {a, a, a}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double A[3] = {-100, 0, -100}, B[3] = {-100, 0, 100}, C[3] = {100, 0, 100}, D[3] = {100, 0, -100};
-  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
-  gi_scene *s = NULL;
+  const double c60 = 0.5, a = 0.5, E = 3.0;
+  gi_scene *s = tu_sunlit_plane(a, E, 100);
   gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "plane", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
   gi_quality q = {.levels = 2, .res = 16, .voxel0 = 1};
   gi_cascade *c = NULL;
   double at[3] = {0, 1, 0};

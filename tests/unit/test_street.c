@@ -26,13 +26,6 @@
 #define STREET_PROBES 7
 #define REF_PATHS 16384
 
-static void add_quad(gi_mesh_builder *b, const double p[4][3], uint32_t m) {
-  uint32_t v[4];
-  for (int i = 0; i < 4; i++) v[i] = gi_mesh_builder_add_vertex(b, p[i][0], p[i][1], p[i][2]);
-  gi_mesh_builder_add_triangle(b, v[0], v[1], v[2], m);
-  gi_mesh_builder_add_triangle(b, v[0], v[2], v[3], m);
-}
-
 /* Two closed 20 m blocks either side of a 14 m street along z (x in -7..7),
  * a black street, the sun from the west-southwest 53 degrees up. */
 static gi_scene *canyon_scene(const gi_light *light) {
@@ -42,8 +35,8 @@ static gi_scene *canyon_scene(const gi_light *light) {
   double w0[3] = {-27, 0, -100}, w1[3] = {-7, 20, 100}, e0[3] = {7, 0, -100}, e1[3] = {27, 20, 100};
   gi_mesh_builder_add_box(b, w0, w1, mw);
   gi_mesh_builder_add_box(b, e0, e1, mw);
-  const double ground[4][3] = {{-7, 0, -100}, {-7, 0, 100}, {7, 0, 100}, {7, 0, -100}};
-  add_quad(b, ground, ms);
+  const double g0[3] = {-7, 0, -100}, g1[3] = {-7, 0, 100}, g2[3] = {7, 0, 100}, g3[3] = {7, 0, -100};
+  gi_mesh_builder_add_quad(b, g0, g1, g2, g3, ms);
   gi_scene_options so = {.up = GI_UP_Y, .lights = light, .num_lights = 1};
   gi_scene *s = NULL;
   gi_error_info err = {0};

@@ -1,4 +1,5 @@
 #include "test_util.h"
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -79,4 +80,20 @@ struct gi_scene *tu_furnace_scene(double size, double a, double Le) {
   if (rc != GI_OK) fprintf(stderr, "furnace build: %s\n", err.msg);
   assert_int_equal(rc, GI_OK);
   return sc;
+}
+
+struct gi_scene *tu_sunlit_plane(double a, double E, double z_max) {
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {(float)E, (float)E, (float)E},
+                  .direction = {(float)(sqrt(3.0) / 2), -0.5f, 0}};
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {(float)a, (float)a, (float)a}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {-100, 0, -100}, B[3] = {-100, 0, z_max}, C[3] = {100, 0, z_max}, D[3] = {100, 0, -100};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "plane", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
 }

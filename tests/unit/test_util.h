@@ -25,6 +25,11 @@ struct gi_scene;
  * Le inward (test_furnace, test_hardcases). Caller releases it. */
 struct gi_scene *tu_furnace_scene(double size, double a, double Le);
 
+/* The plane y = 0 over x in [-100, 100], z in [-100, z_max], albedo a, under
+ * a sun of irradiance E travelling along (sin 60, -cos 60, 0): the plane
+ * receives E cos 60 (test_render, test_views, test_ref_panorama). */
+struct gi_scene *tu_sunlit_plane(double a, double E, double z_max);
+
 #define TU_SKIP_IF_NO_SCENE(var, rel)                  \
   const char *var = tu_scene_path(rel);                \
   if (!var) { skip(); }
