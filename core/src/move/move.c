@@ -298,8 +298,9 @@ typedef struct gi_move_state {
   int bounces, tail;
   double S[3][3];  /* the tail's area-weighted sums of the last three bounces (as gi__bounce) */
   uint64_t period; /* slices of the cycle under way (0: the resting period) */
-  uint64_t calls;  /* calls at the current anchor, the one that arrived (or the bake) included */
-  double dwell;    /* running mean of calls per anchor while moving (0: not moved yet) */
+  uint64_t calls;  /* calls at the current anchor, the one that arrived included */
+  double dwell;    /* running mean of calls per anchor while moving (0: none measured yet) */
+  int arrived;     /* 1 once a move arrived at an anchor (the bake's own anchor's dwell is unknown) */
 } gi_move_state;
 
 uint64_t gi_cascade_refresh_period(const gi_cascade *c, int level) {
@@ -349,7 +350,6 @@ static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
     return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake's texture");
   }
   m->closed = 1;
-  m->calls = 1; /* the bake arrived at its anchor */
   c->move_state = m;
   return GI_OK;
 }
@@ -586,8 +586,9 @@ static int refilter(struct gi_cascade *c, int threads, int all, cell_box (*own)[
  * is not worth its work), never above the resting period. */
 static void start_cycle(struct gi_cascade *c) {
   gi_move_state *m = c->move_state;
-  if (m->calls > 0) m->dwell = m->dwell > 0 ? DWELL_WEIGHT * (double)m->calls + (1 - DWELL_WEIGHT) * m->dwell
-                                            : (double)m->calls;
+  if (m->arrived)
+    m->dwell = m->dwell > 0 ? DWELL_WEIGHT * (double)m->calls + (1 - DWELL_WEIGHT) * m->dwell : (double)m->calls;
+  m->arrived = 1;
   m->calls = 1;
   uint64_t rest = resting_period(c), p = m->dwell > 1 ? (uint64_t)(m->dwell - 1) : 0;
   m->period = p >= FAST_MIN_SLICES && p < rest ? p : rest;
