@@ -315,6 +315,54 @@ static void test_bounded(void **state) {
   gi_scene_release(s);
 }
 
+/* A viewer that keeps moving, DWELL calls per anchor, gets a re-bake cycle
+ * of about DWELL - 1 slices (gi_move.h), which closes before its next
+ * crossing and leaves the cascade equal to a cold bake there. One that
+ * crosses on every call keeps the resting cycle (16 calls at 5 levels). */
+#define DWELL 10
+#define DWELL_ANCHORS 10
+static const gi_quality MOVING = {.levels = 5, .res = 16, .light_samples = 4, .probe_samples = 16, .threads = 2};
+static void test_moving_cycle(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  path_start(&cp, WALK_SPEED, at);
+  gi_cascade *c = NULL, *b = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, at, &MOVING, &c, NULL, &err), GI_OK);
+  uint64_t rest = gi_cascade_refresh_period(c, 0), shortest = rest;
+  assert_int_equal(rest, 1u << (MOVING.levels - 1));
+  /* An anchor cell (two finest voxels) in DWELL calls. */
+  double step = 2 * c->s0 / DWELL;
+  int closed = 0;
+  for (int m = 0; m < DWELL * DWELL_ANCHORS; m++) {
+    at[0] += step;
+    gi_move_info mi;
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+    uint64_t p = gi_cascade_refresh_period(c, 0);
+    shortest = p < shortest ? p : shortest;
+    if (!mi.cycle_closed) continue;
+    closed++;
+    assert_int_equal(gi_cascade_bake(s, at, &MOVING, &b, NULL, &err), GI_OK);
+    double mean, worst;
+    compare_light(c, b, 1, &mean, &worst);
+    gi_cascade_free(b);
+  }
+  printf("moving %d calls per anchor: shortest cycle %llu calls (resting %llu), %d cycles closed over %d anchors\n",
+         DWELL, (unsigned long long)shortest, (unsigned long long)rest, closed, DWELL_ANCHORS);
+  assert_true(shortest < DWELL);
+  /* The running mean settles after three anchors; the first is the bake's (measured: 8 of 10 closed). */
+  assert_true(closed >= DWELL_ANCHORS - 5);
+  /* Across an anchor cell on every call: back to the resting cycle. */
+  for (int m = 0; m < DWELL; m++) {
+    at[0] += 2.5 * c->s0;
+    assert_int_equal(gi_cascade_move(c, at, NULL, NULL, &err), GI_OK);
+  }
+  assert_int_equal(gi_cascade_refresh_period(c, 0), rest);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* The probe at the viewpoint as the issue measures it: SH L00 and the
  * irradiance of the 6 axis directions, per channel (21 values). */
 static void probe_figures(const gi_cascade *c, const double at[3], double v[21]) {
@@ -560,6 +608,7 @@ int main(void) {
       cmocka_unit_test(test_walk),
       cmocka_unit_test(test_bounded),
       cmocka_unit_test(test_refilter_exact),
+      cmocka_unit_test(test_moving_cycle),
       cmocka_unit_test(test_probe_drift),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
