@@ -44,7 +44,7 @@ void gi_cascade_free(gi_cascade *c) {
  * busy4 (one byte per 4^3 cells, 0.01%) is left out: the server's budgets
  * and tests count whole bytes per voxel. */
 static const size_t GI_VOXEL_BYTES =
-    sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + sizeof(uint32_t) + sizeof(uint8_t);
+    sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(gi_faces3) + sizeof(uint32_t) + sizeof(uint8_t);
 
 static size_t level_bytes(int levels, int res) {
   return (size_t)levels * (size_t)res * (size_t)res * (size_t)res * GI_VOXEL_BYTES;

@@ -615,6 +615,7 @@ static void test_second_signal_and_grace(void **state) {
 #define CANCEL_INI                                                                                  \
   "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\nworkers = 2\nqueue = 8\n"          \
   "bake_threads = 1\ntmp_dir = .\ntoken_file = token.txt\ndeadline_s = 3\n"                         \
+  "[limits]\ncache_mb = 2048\n" /* room for two COSTLY bakes (845 MB each) at once */               \
   "\n[scene city]\nsource = city\nextent = 300\n"
 /* Workers must be free this soon after the last client left (the bound). */
 #define FREE_WITHIN_MS 1000
@@ -728,13 +729,14 @@ static void test_coalesced_and_deadline(void **state) {
 
 /* ---- 6. memory budget and encoded bytes ---------------------------------------------- */
 
-/* Bytes a res=64 levels=8 bake is admitted for: 8 x 64^3 voxels x 169 bytes
+/* Bytes a res=64 levels=6 bake is admitted for: 6 x 64^3 voxels x 345 bytes
  * (gi_cascade_bytes_estimate; test_anchor checks it against the structs)
- * plus 1/6 for its transient buffers. */
-#define VOXEL_BYTES 169
-#define BIG_CASCADE_BYTES (8.0 * 64 * 64 * 64 * VOXEL_BYTES)
+ * plus 1/6 for its transient buffers: 633 MB, so the budget holds one such
+ * bake and not two. */
+#define VOXEL_BYTES 345
+#define BIG_CASCADE_BYTES (6.0 * 64 * 64 * 64 * VOXEL_BYTES)
 #define BIG_BAKE_BYTES (BIG_CASCADE_BYTES + (double)((size_t)BIG_CASCADE_BYTES / 6))
-#define BUDGET_MB 500
+#define BUDGET_MB 700
 /* server/README.md: RSS stays within cache_mb + the RSS at start + this. */
 #define RSS_SLACK_MB 64
 
@@ -796,11 +798,11 @@ static void run_parallel(const su_server *s, const char *const *paths, int n, bi
 static void test_memory_budget(void **state) {
   su_server s;
   assert_int_equal(su_start(&s, "budget",
-                            HOSTILE_INI("workers = 4\nbake_threads = 2\ndeadline_s = 240\n[limits]\ncache_mb = 500\n")),
+                            HOSTILE_INI("workers = 4\nbake_threads = 2\ndeadline_s = 240\n[limits]\ncache_mb = 700\n")),
                    0);
   const double rss0 = su_rss_mb(&s), limit = BUDGET_MB + rss0 + RSS_SLACK_MB;
   /* Four seeds: four cache keys, so nothing coalesces. */
-#define BIG(seed) "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&res=64&levels=8&seed=" #seed
+#define BIG(seed) "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&res=64&levels=6&seed=" #seed
   const char *big[4] = {BIG(1), BIG(2), BIG(3), BIG(4)};
   big_result res[4] = {{0}};
   double peak = rss0, inflight = 0, t0 = su_now_ms();
@@ -816,7 +818,7 @@ static void test_memory_budget(void **state) {
     }
   }
   double cached = su_metric(&s, "gi_cache_bytes", NULL);
-  printf("  4 concurrent res=64 levels=8 bakes, budget %d MiB, in %.1f s: %d x 200, %d x 503\n", BUDGET_MB,
+  printf("  4 concurrent res=64 levels=6 bakes, budget %d MiB, in %.1f s: %d x 200, %d x 503\n", BUDGET_MB,
          (su_now_ms() - t0) * 1e-3, ok, busy);
   printf("  in-flight bytes seen %.0f (estimate %.0f), cached %.0f; RSS %.0f MB at start, peak %.0f MB (limit %.0f)\n",
          inflight, BIG_BAKE_BYTES, cached, rss0, peak, limit);

@@ -12,7 +12,7 @@
  *   - two clients hammering one session: every request answered, move
  *     numbers 1..N each exactly once (serialised), and the cascade after
  *     it is still a cold bake's once the cycle closes (nothing torn).
- * Two more servers: a 6 MiB budget (a session evicts a cached cascade to
+ * Two more servers: a 12 MiB budget (a session evicts a cached cascade to
  * fit; a second one does not fit: 503) and a 0.3 s deadline (a session
  * whose bake outlives it is a 504, its bake cancelled, no session left). */
 #define _POSIX_C_SOURCE 200809L
@@ -335,12 +335,12 @@ static void test_concurrent_serialised(void **state) {
   delete_session(id);
 }
 
-/* One session at quality=low holds about 3.9 MiB (res 16, 5 levels); a
- * cached low cascade about 3.4 MiB: in 6 MiB one of them fits with room
+/* One session at quality=low holds about 7.8 MiB (res 16, 5 levels); a
+ * cached low cascade about 6.9 MiB: in 12 MiB one of them fits with room
  * for nothing else. */
 #define BUDGET_INI                                                                                     \
   "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 2\nworkers = 2\ntmp_dir = .\n"                   \
-  "[limits]\ncache_mb = 6\nmax_sessions = 4\n[scene city]\nsource = city\nextent = 300\n"
+  "[limits]\ncache_mb = 12\nmax_sessions = 4\n[scene city]\nsource = city\nextent = 300\n"
 
 static void test_budget(void **state) {
   (void)state;

@@ -239,7 +239,7 @@ static void test_bytes_estimate(void **state) {
   assert_int_equal(gi_city_build(&cp, NULL, &s, &err), GI_OK);
   double at[3];
   gi_city_default_viewpoint(&cp, at);
-  const size_t per_voxel = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(float[2][3]) + 4 + 1;
+  const size_t per_voxel = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(gi_faces3) + 4 + 1;
   const int shapes[][2] = {{2, 8}, {3, 16}, {4, 12}};
   for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
     gi_quality req = {.levels = shapes[i][0], .res = shapes[i][1], .light_samples = 4, .probe_samples = 16,

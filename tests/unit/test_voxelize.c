@@ -116,6 +116,60 @@ static void test_snapping_and_nesting(void **state) {
   gi_scene_release(sc);
 }
 
+/* The orientation model (cascade_internal.h) on the box of test_exact_counts
+ * lit by a sun from w = (0.6, 0.8, 0): a voxel on the box's +x/+y edge
+ * holds two faces and shows the +x face through its x faces and the +y
+ * face through its y faces, so each gets its own cosine (0.6, 0.8), where
+ * one mean normal at 45 degrees would give both 0.99; a corner voxel holds
+ * three groups; the box's inside receives nothing. */
+static void test_orientation_groups(void **state) {
+  const double s0 = 0.25;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {-2.5 * s0, -2.5 * s0, -2.5 * s0}, hi[3] = {2.5 * s0, 2.5 * s0, 2.5 * s0};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {1, 1, 1}, .direction = {-0.6f, -0.8f, 0}};
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
+  gi_scene *sc = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "box", &opt, &sc, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_quality q = {.levels = 1, .res = 16, .voxel0 = s0, .bounces = -1, .light_samples = 1, .threads = 2};
+  gi_cascade *cas = NULL;
+  gi_bake_report rep;
+  double at[3] = {0.1 * s0, 0.2 * s0, 0.3 * s0};
+  assert_int_equal(gi_cascade_bake(sc, at, &q, &cas, &rep, &err), GI_OK);
+  const gi_level *L = &cas->lv[0];
+  struct {
+    int64_t cell[3];
+    int groups;
+    float px, nx, py, ny, pz;
+  } want[] = {
+      {{2, 0, 0}, 1, 0.6f, 0, 0, 0, 0},       /* the +x face alone */
+      {{0, 2, -1}, 1, 0, 0, 0.8f, 0, 0},      /* the +y face alone */
+      {{2, 2, 0}, 2, 0.6f, 0, 0.8f, 0, 0},    /* the +x/+y edge */
+      {{2, 2, 2}, 3, 0.6f, 0, 0.8f, 0, 0},    /* the +x/+y/+z corner: +z is grazing */
+      {{-3, 2, 0}, 2, 0, 0, 0.8f, 0, 0},      /* the -x/+y edge: -x faces away */
+  };
+  for (size_t i = 0; i < sizeof want / sizeof *want; i++) {
+    const int64_t *c = want[i].cell;
+    uint32_t slot = gi__slot(c[0], c[1], c[2], cas->R);
+    const gi_vgeo *g = &L->geo[slot];
+    const float *E[6];
+    for (int f = 0; f < 6; f++) E[f] = L->direct[slot][f];
+    printf("cell (%lld,%lld,%lld): %d groups, direct +x %.5f -x %.5f +y %.5f -y %.5f +z %.5f\n", (long long)c[0],
+           (long long)c[1], (long long)c[2], g->groups, E[0][1], E[1][1], E[2][1], E[3][1], E[4][1]);
+    assert_int_equal(g->groups, want[i].groups);
+    const float expect[5] = {want[i].px, want[i].nx, want[i].py, want[i].ny, want[i].pz};
+    for (int f = 0; f < 5; f++)
+      if (g->proj[f / 2] > 0)
+        for (int k = 0; k < 3; k++) assert_float_equal(E[f][k], expect[f], 1e-5);
+  }
+  gi_cascade_free(cas);
+  gi_scene_release(sc);
+}
+
 static void test_query_visits_only_nearby(void **state) {
   /* 200 boxes 10 m apart along x; a one-level 16 x 0.25 m cascade sees one. */
   gi_scene *sc = box_scene(0, 0, 0, 1.25, 200, 10.0);
@@ -138,6 +192,7 @@ int main(void) {
       cmocka_unit_test(test_exact_counts),
       cmocka_unit_test(test_snapping_and_nesting),
       cmocka_unit_test(test_query_visits_only_nearby),
+      cmocka_unit_test(test_orientation_groups),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -185,9 +185,11 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
         float dens = (r->alpha[0] + r->alpha[1] + r->alpha[2]) / 3.f;
         ld->density[o] = dens;
         if (g->area > 0) {
-          /* Shown colour: the brighter side's outgoing radiance plus emission. */
-          float lp = gi__lum(L->side[slot][0]), ln = gi__lum(L->side[slot][1]);
-          const float *E = L->side[slot][lp >= ln ? 0 : 1];
+          /* Shown colour: the brightest face's outgoing radiance plus emission. */
+          int fb = 0;
+          for (int f = 1; f < GI_VOX_FACES; f++)
+            if (gi__lum(L->side[slot][f]) > gi__lum(L->side[slot][fb])) fb = f;
+          const float *E = L->side[slot][fb];
           for (int a = 0; a < 3; a++) {
             ld->cd[3 * o + a] = g->albedo[a] / GI_PI_F * E[a] + g->emission[a];
             ld->albedo[3 * o + a] = g->albedo[a];

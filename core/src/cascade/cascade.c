@@ -20,7 +20,7 @@ static size_t align_up(size_t n) { return (n + GI_ARRAY_ALIGN - 1) & ~(size_t)(G
 
 /* Bytes of one level's arrays in the block. */
 static size_t level_block_bytes(size_t vox, size_t blocks) {
-  return align_up(vox * sizeof(gi_vgeo)) + align_up(vox * sizeof(gi_vrad)) + 2 * align_up(vox * sizeof(float[2][3])) +
+  return align_up(vox * sizeof(gi_vgeo)) + align_up(vox * sizeof(gi_vrad)) + 2 * align_up(vox * sizeof(gi_faces3)) +
          align_up(vox * sizeof(uint32_t)) + align_up(vox) + align_up(blocks);
 }
 
@@ -45,8 +45,8 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
     gi_level *L = &c->lv[d];
     L->geo = (gi_vgeo *)b, b += align_up(vox * sizeof *L->geo);
     L->rad = (gi_vrad *)b, b += align_up(vox * sizeof *L->rad);
-    L->side = (float(*)[2][3])b, b += align_up(vox * sizeof *L->side);
-    L->direct = (float(*)[2][3])b, b += align_up(vox * sizeof *L->direct);
+    L->side = (gi_faces3 *)b, b += align_up(vox * sizeof *L->side);
+    L->direct = (gi_faces3 *)b, b += align_up(vox * sizeof *L->direct);
     L->occ = (uint32_t *)b, b += align_up(vox * sizeof *L->occ);
     L->busy = (uint8_t *)b, b += align_up(vox);
     L->busy4 = (uint8_t *)b, b += align_up(nb * nb * nb);

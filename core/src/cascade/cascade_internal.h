@@ -7,9 +7,16 @@
  * that levels nest on coarse cell borders. Storage is toroidal: cell c lives
  * at slot (c mod R), so re-centring a level later moves no memory.
  *
- * Radiance model (DESIGN section 3). Surfaces are two-sided: each voxel has
- * one orientation n (area-weighted, sign-canonical) and a reflected
- * radiance for its +n side and its -n side. Per axis the voxel stores the
+ * Radiance model (DESIGN section 3). Surfaces are two-sided. What a voxel
+ * shows through its +a and -a faces is the surface seen along axis a: its
+ * orientation is N_a = M e_a, M = sum of area n n^T over the voxel's
+ * pieces (n and -n count alike). A floor meeting a wall shows the wall
+ * through the x faces and the floor through the y faces, where one mean
+ * normal would tilt both by 45 degrees; a coarse voxel holding a closed
+ * building shows each facade on its own side instead of the mean of its
+ * lit walls and dark interior. Axes whose orientations agree share a
+ * group; each side of each group gathers its own light, and each face
+ * reflects the irradiance of the side it shows. Per axis the voxel stores the
  * projected surface area as an opacity alpha and as an optical depth
  * tau = -ln(1 - alpha); tau interpolates linearly without thinning walls,
  * which alpha would. Per face it stores premultiplied radiance: the
@@ -37,15 +44,36 @@
 /* Face order: +X, -X, +Y, -Y, +Z, -Z (face f: axis f/2, sign + when f even). */
 enum { GI_FACE_PX, GI_FACE_NX, GI_FACE_PY, GI_FACE_NY, GI_FACE_PZ, GI_FACE_NZ };
 
+/* Orientation groups per voxel (one per axis at most) and faces. */
+#define GI_VOX_GROUPS 3
+#define GI_VOX_FACES 6
+/* Irradiance per face: what the surface shown through face f receives on
+ * its side facing out of f (faces showing the same side hold the same value). */
+typedef float gi_faces3[GI_VOX_FACES][3];
+
 /* Geometry buffer of one voxel (sums while voxelizing, then normalised). */
 typedef struct gi_vgeo {
   float area;          /* surface area inside the voxel */
   float albedo[3];     /* area-weighted mean */
   float emission[3];   /* area-weighted mean emitted radiance */
-  float normal[3];     /* unit, sign-canonical (two-sided surfaces) */
+  float normal[3];     /* the largest group's orientation (inspection, export) */
   float centroid[3];   /* area-weighted centroid, local coordinates */
   float proj[3];       /* projected area per axis, |A_axis| summed */
   float gloss;         /* area-weighted specular reflectance of glossy materials */
+  union {
+    struct {           /* while voxelizing (gi__voxel_add_tri) */
+      float tensor[6];   /* sum of area n n^T: xx, yy, zz, xy, xz, yz */
+      float acen[3][3];  /* per axis, sum of |A_axis| x piece centroid */
+    } sum;
+    struct {           /* after gi__voxel_finalize */
+      float orient[GI_VOX_GROUPS][3]; /* unit, orient[g] . e_a >= 0 for its first axis */
+      float gcen[GI_VOX_GROUPS][3];   /* centroid of the surfaces seen through the group's axes */
+    } fin;
+  } u;
+  uint8_t groups;      /* 1..GI_VOX_GROUPS when occupied */
+  /* Face f shows side face_side[f] = 2 g + s of group g (s = 0: the side
+   * +orient[g] faces, 1: the -orient[g] side). */
+  uint8_t face_side[GI_VOX_FACES];
 } gi_vgeo;
 
 /* Light buffer of one voxel: what cones sample. 48 bytes, 24 half floats
@@ -81,8 +109,8 @@ typedef struct gi_level {
   int64_t inner0[3], inner1[3]; /* this level's cells covered by level d-1: [inner0, inner1) */
   gi_vgeo *geo;        /* R^3, toroidal */
   gi_vrad *rad;        /* R^3, toroidal */
-  float (*side)[2][3]; /* R^3: direct+indirect irradiance on the +n and -n sides */
-  float (*direct)[2][3]; /* R^3: the direct part of side */
+  gi_faces3 *side;     /* R^3: direct+indirect irradiance per face (see gi_faces3) */
+  gi_faces3 *direct;   /* R^3: the direct part of side */
   uint8_t *busy;       /* per slot: 1 when the 2x2x2 block starting there has any opacity */
   /* Per GI_EMPTY_BLOCK^3 block of the window's cells (window coordinates,
    * not slots: rebuilt with busy): 1 when a sample whose trilinear base

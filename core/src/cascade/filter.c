@@ -66,11 +66,12 @@ static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level
     }
   }
   gi__vrad_pack(c, out, &L->rad[slot]);
-  /* Geometry and side irradiance: area-weighted means, for inspection. */
+  /* Geometry and face irradiance: area-weighted means, for inspection
+   * (export); one orientation group, the children's mean normal. */
   gi_vgeo *g = &L->geo[slot];
   float(*side)[3] = L->side[slot];
   memset(g, 0, sizeof *g);
-  memset(side, 0, sizeof(float[2][3]));
+  memset(side, 0, sizeof(gi_faces3));
   double area = 0;
   for (int z = 0; z < 2; z++)
     for (int y = 0; y < 2; y++)
@@ -86,10 +87,9 @@ static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level
           g->normal[k] += sgn * a * h->normal[k];
           g->centroid[k] += a * h->centroid[k];
           g->proj[k] += h->proj[k];
-          /* A flipped child's sides swap. */
-          side[0][k] += a * ks[z][y][x][sgn > 0 ? 0 : 1][k];
-          side[1][k] += a * ks[z][y][x][sgn > 0 ? 1 : 0][k];
         }
+        for (int f = 0; f < GI_VOX_FACES; f++)
+          for (int k = 0; k < 3; k++) side[f][k] += a * ks[z][y][x][f][k];
         g->gloss += a * h->gloss;
       }
   if (area > 0) {
@@ -99,13 +99,18 @@ static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level
       g->albedo[k] *= ia;
       g->emission[k] *= ia;
       g->centroid[k] *= ia;
-      side[0][k] *= ia;
-      side[1][k] *= ia;
     }
+    for (int f = 0; f < GI_VOX_FACES; f++)
+      for (int k = 0; k < 3; k++) side[f][k] *= ia;
     g->gloss *= ia;
     float nl = gi__len(g->normal);
     if (nl > 0)
       for (int k = 0; k < 3; k++) g->normal[k] /= nl;
+    g->groups = 1;
+    memcpy(g->u.fin.orient[0], g->normal, sizeof g->normal);
+    memcpy(g->u.fin.gcen[0], g->centroid, sizeof g->centroid);
+    for (int f = 0; f < GI_VOX_FACES; f++)
+      g->face_side[f] = (uint8_t)(((f & 1) ? -g->normal[f / 2] : g->normal[f / 2]) >= 0 ? 0 : 1);
   }
 }
 

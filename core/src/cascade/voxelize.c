@@ -69,23 +69,21 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
   }
   float area = gi__len(A);
   if (!(area > 0)) return;
-  /* Orient this piece like what the voxel already holds (two-sided surfaces). */
-  float flip = gi__dot(A, g->normal) < 0 ? -1.f : 1.f;
-  if (g->area == 0) {
-    int m = 0;
-    for (int k = 1; k < 3; k++)
-      if (fabsf(A[k]) > fabsf(A[m])) m = k;
-    flip = A[m] < 0 ? -1.f : 1.f;
-  }
   float gloss = mat->roughness < 0.5f ? mat->specular : 0.f;
+  float *T = g->u.sum.tensor;
+  /* area n n^T = A A^T / area: the same for either winding. */
+  float ia = 1.f / area;
+  T[0] += A[0] * A[0] * ia, T[1] += A[1] * A[1] * ia, T[2] += A[2] * A[2] * ia;
+  T[3] += A[0] * A[1] * ia, T[4] += A[0] * A[2] * ia, T[5] += A[1] * A[2] * ia;
   g->area += area;
   for (int k = 0; k < 3; k++) {
     g->albedo[k] += area * mat->albedo[k];
     g->emission[k] += area * mat->emission[k];
-    g->normal[k] += flip * A[k];
     /* C is area-weighted already; it is relative to the cell corner. */
-    g->centroid[k] += C[k] + area * corner[k];
+    float ck = C[k] + area * corner[k];
+    g->centroid[k] += ck;
     g->proj[k] += fabsf(A[k]);
+    for (int a = 0; a < 3; a++) g->u.sum.acen[a][k] += fabsf(A[a]) * ia * ck;
   }
   g->gloss += area * gloss;
 }
@@ -162,6 +160,65 @@ static int cmp_u32(const void *a, const void *b) {
   return x < y ? -1 : x > y;
 }
 
+/* Axes whose surfaces lie within this angle of a group's share its
+ * gathers (a tilted roof seen along two axes is one surface). */
+#define GROUP_COS 0.866f /* 30 degrees */
+/* An axis showing less than this share of the largest axis's projected
+ * area takes the nearest group's light: too little surface to pay for
+ * gathers of its own. */
+#define GROUP_MINOR 0.25f
+
+/* The voxel's orientation groups from its normal tensor (see
+ * cascade_internal.h): per axis a, N_a = M e_a; the largest axis first. */
+static void orient_groups(gi_vgeo *g) {
+  const float *T = g->u.sum.tensor;
+  const float N[3][3] = {{T[0], T[3], T[4]}, {T[3], T[1], T[5]}, {T[4], T[5], T[2]}};
+  float cen[3][3], dir[GI_VOX_GROUPS][3] = {{0}}, gc[GI_VOX_GROUPS][3] = {{0}}, gw[GI_VOX_GROUPS] = {0};
+  for (int a = 0; a < 3; a++)
+    for (int k = 0; k < 3; k++) cen[a][k] = g->proj[a] > 0 ? g->u.sum.acen[a][k] / g->proj[a] : g->centroid[k];
+  int order[3] = {0, 1, 2}, grp[3], G = 0;
+  for (int i = 1; i < 3; i++)
+    for (int j = i; j > 0 && g->proj[order[j]] > g->proj[order[j - 1]]; j--) {
+      int t = order[j];
+      order[j] = order[j - 1], order[j - 1] = t;
+    }
+  for (int i = 0; i < 3; i++) {
+    int a = order[i];
+    float len = gi__len(N[a]), u[3] = {0, 0, 0};
+    int seen = len > 1e-12f * g->area;
+    if (seen)
+      for (int k = 0; k < 3; k++) u[k] = N[a][k] / len;
+    int best = 0;
+    float bd = -1;
+    for (int h = 0; h < G; h++) {
+      float dd = fabsf(gi__dot(u, dir[h]));
+      if (dd > bd) bd = dd, best = h;
+    }
+    int minor = !seen || g->proj[a] < GROUP_MINOR * g->proj[order[0]];
+    if (G > 0 && (minor || bd >= GROUP_COS)) {
+      grp[a] = best;
+    } else {
+      memcpy(dir[G], u, sizeof u);
+      grp[a] = G++;
+    }
+    gw[grp[a]] += g->proj[a];
+    for (int k = 0; k < 3; k++) gc[grp[a]][k] += g->proj[a] * cen[a][k];
+  }
+  memset(&g->u, 0, sizeof g->u);
+  for (int h = 0; h < G; h++)
+    for (int k = 0; k < 3; k++) {
+      g->u.fin.orient[h][k] = dir[h][k];
+      g->u.fin.gcen[h][k] = gw[h] > 0 ? gc[h][k] / gw[h] : g->centroid[k];
+    }
+  g->groups = (uint8_t)G;
+  memcpy(g->normal, dir[0], sizeof g->normal);
+  for (int f = 0; f < GI_VOX_FACES; f++) {
+    int a = f / 2, h = grp[a];
+    float sf = (f & 1) ? -1.f : 1.f;
+    g->face_side[f] = (uint8_t)(2 * h + (sf * dir[h][a] >= 0 ? 0 : 1));
+  }
+}
+
 /* Normalises one voxel's sums and derives its opacity; clears an empty
  * voxel. Returns 1 when it holds geometry. Shared with the move. */
 int gi__voxel_finalize(gi_level *L, uint32_t slot) {
@@ -180,17 +237,7 @@ int gi__voxel_finalize(gi_level *L, uint32_t slot) {
     g->centroid[a] *= ia;
   }
   g->gloss *= ia;
-  float nl = gi__len(g->normal);
-  if (nl > 1e-12f * g->area) {
-    for (int a = 0; a < 3; a++) g->normal[a] /= nl;
-  } else {
-    /* Opposite pieces cancelled: fall back to the dominant projection axis. */
-    int m = 0;
-    for (int a = 1; a < 3; a++)
-      if (g->proj[a] > g->proj[m]) m = a;
-    g->normal[0] = g->normal[1] = g->normal[2] = 0;
-    g->normal[m] = 1;
-  }
+  orient_groups(g);
   for (int a = 0; a < 3; a++) {
     double al = g->proj[a] / s2;
     if (al > GI_MAX_VOXEL_ALPHA) al = GI_MAX_VOXEL_ALPHA;

@@ -1,7 +1,7 @@
 /* bounce.c: the voxel-to-voxel bounces.
  *
- * Each occupied voxel gathers indirect irradiance on each side with the
- * diffuse cone set (weights sum to pi, see trace/cones.c) by the gather's
+ * Each occupied voxel gathers indirect irradiance on each side of each of
+ * its orientation groups (cascade_internal.h) with the diffuse cone set (weights sum to pi, see trace/cones.c) by the gather's
  * surface rule (trace/gather.c: one voxel off the surface); all voxels
  * gather from the previous bounce's texture (Jacobi), then the texture is
  * reshaded and the nested regions refiltered. A closed furnace of albedo a
@@ -20,59 +20,84 @@
 typedef struct {
   struct gi_cascade *c;
   int d;
-  float (*E)[2][3]; /* per occupied voxel */
-  uint64_t *hit;    /* per occupied voxel: the cones that met opacity on the first bounce */
+  gi_faces3 *E;     /* per occupied voxel */
+  gi_hits *hit;     /* per occupied voxel: the cones that met opacity on the first bounce */
   int first;
   atomic_ullong samples, cones;
 } bounce_ctx;
 
-/* Both sides of a voxel, only the cones in `want` (bit sd * num_cones + ci,
- * cones past bit 63 always run); *hit (may be NULL) receives the cones that met any
- * opacity. A cone that met none took no light and never will: the texture's
- * opacity stays as voxelized through every bounce (shading rewrites
- * radiance only), so the same steps see the same empty space. */
-static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, uint64_t want, float E[2][3],
-                             uint64_t *cones, uint64_t *hit) {
+/* A side of a voxel holding several orientation groups starts half a
+ * voxel off each of the voxel's other surfaces too, on the side of each where
+ * its own surface lies: a floor meeting a wall at the voxel's border
+ * would otherwise start its cones against the wall, whose trilinear
+ * footprint then shows the far side of the wall (a closed box's sky-lit
+ * outside, read from inside). */
+#define AWAY_VOXELS 0.5f
+static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g, int h, gi_gather_start *st) {
+  float s = AWAY_VOXELS * (float)c->lv[d].s;
+  for (int o = 0; o < g->groups; o++) {
+    if (o == h) continue;
+    const float *no = g->u.fin.orient[o];
+    float rel[3];
+    for (int k = 0; k < 3; k++) rel[k] = g->u.fin.gcen[h][k] - g->u.fin.gcen[o][k];
+    float side = gi__dot(no, rel);
+    if (side == 0) continue;
+    float sg = side > 0 ? s : -s;
+    for (int k = 0; k < 3; k++) st->o[k] += sg * no[k];
+  }
+}
+
+/* Every side of every group of a voxel, only the cones in `want` (bit
+ * side * num_cones + cone; cones past the mask always run); *hit (may be
+ * NULL) receives the cones that met any opacity. A cone that met none
+ * took no light and never will: the texture's opacity stays as voxelized
+ * through every bounce (shading rewrites radiance only), so the same
+ * steps see the same empty space. E receives each face's side. */
+static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, const gi_hits *want, gi_faces3 E,
+                             uint64_t *cones, gi_hits *hit) {
   const gi_vgeo *g = &c->lv[d].geo[slot];
   uint64_t samples = 0;
-  memset(E, 0, sizeof(float[2][3]));
-  if (hit) *hit = 0;
-  if (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0) return 0;
-  /* Both sides' cones in one batch: the SIMD march keeps its lanes full
-   * across the two hemispheres. */
-  int nc = c->num_cones, nj = 0;
-  gi_cone_job all[GI_MAX_CONES], jobs[2 * GI_MAX_CONES];
-  gi_cone_out co[2 * GI_MAX_CONES];
-  int8_t which[2 * GI_MAX_CONES];
-  gi_gather_start st;
-  for (int sd = 0; sd < 2; sd++) {
+  memset(E, 0, sizeof(gi_faces3));
+  if (hit) memset(hit, 0, sizeof *hit);
+  if (g->groups == 0 || (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0)) return 0;
+  /* Every side's cones in one batch: the SIMD march keeps its lanes full
+   * across the hemispheres. */
+  int nc = c->num_cones, nj = 0, ns = 2 * g->groups;
+  gi_cone_job all[GI_MAX_CONES], jobs[GI_VOX_FACES * GI_MAX_CONES];
+  gi_cone_out co[GI_VOX_FACES * GI_MAX_CONES];
+  int16_t which[GI_VOX_FACES * GI_MAX_CONES];
+  float Es[GI_VOX_FACES][3] = {{0}};
+  gi_gather_start st = {0};
+  for (int sd = 0; sd < ns; sd++) {
     float n[3];
-    float sg = sd ? -1.f : 1.f;
-    for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
+    float sg = (sd & 1) ? -1.f : 1.f;
+    for (int k = 0; k < 3; k++) n[k] = sg * g->u.fin.orient[sd / 2][k];
     /* A voxel is a surface at its own level's resolution (level d is
      * given, so the start always exists). */
-    gi__gather_start(c, g->centroid, n, GI_GATHER_SURFACE, d, &st);
+    gi__gather_start(c, g->u.fin.gcen[sd / 2], n, GI_GATHER_SURFACE, d, &st);
+    if (ns > 2) away_from_groups(c, d, g, sd / 2, &st);
     gi__hemisphere_jobs(c, &st, n, all);
     for (int ci = 0; ci < nc; ci++) {
-      int bit = sd * nc + ci; /* past 64 bits (more than 32 cones): always traced */
-      if (bit >= 64 || (want >> bit & 1)) which[nj] = (int8_t)bit, jobs[nj++] = all[ci];
+      int bit = sd * nc + ci;
+      if (bit >= GI_HIT_BITS || !want || (want->w[bit / 64] >> (bit % 64) & 1)) which[nj] = (int16_t)bit, jobs[nj++] = all[ci];
     }
   }
-  gi__cone_march_jobs(c, jobs, nj, c->cone_tan, st.step, st.ao_lambda, co);
+  if (nj > 0) gi__cone_march_jobs(c, jobs, nj, c->cone_tan, st.step, st.ao_lambda, co);
   /* In the order of the full set, so skipped cones (exact zeros) leave E's bits as they were. */
   for (int j = 0; j < nj; j++) {
     int sd = which[j] / nc;
     float cw = c->cone_weight[which[j] % nc];
-    for (int k = 0; k < 3; k++) E[sd][k] += cw * co[j].L[k];
+    for (int k = 0; k < 3; k++) Es[sd][k] += cw * co[j].L[k];
     samples += co[j].samples;
-    if (hit && co[j].alpha > 0 && which[j] < 64) *hit |= 1ull << which[j];
+    if (hit && co[j].alpha > 0 && which[j] < GI_HIT_BITS) hit->w[which[j] / 64] |= 1ull << (which[j] % 64);
   }
+  for (int f = 0; f < GI_VOX_FACES; f++) memcpy(E[f], Es[g->face_side[f]], sizeof(float[3]));
   *cones += (uint64_t)nj;
   return samples;
 }
 
-uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, float E[2][3], uint64_t *cones) {
-  return gather_sides(c, d, slot, ~0ull, E, cones, NULL);
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, gi_faces3 E, uint64_t *cones) {
+  return gather_sides(c, d, slot, NULL, E, cones, NULL);
 }
 
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
@@ -82,9 +107,9 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   for (size_t q = b; q < e; q++) {
     uint32_t slot = L->occ[q];
     if (bc->first)
-      samples += gather_sides(bc->c, bc->d, slot, ~0ull, bc->E[q], &cones, &bc->hit[q]);
+      samples += gather_sides(bc->c, bc->d, slot, NULL, bc->E[q], &cones, &bc->hit[q]);
     else
-      samples += gather_sides(bc->c, bc->d, slot, bc->hit[q], bc->E[q], &cones, NULL);
+      samples += gather_sides(bc->c, bc->d, slot, &bc->hit[q], bc->E[q], &cones, NULL);
   }
   atomic_fetch_add(&bc->samples, samples);
   atomic_fetch_add(&bc->cones, cones);
@@ -101,15 +126,15 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
  * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
  * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
  * otherwise multiply its last increment by 99). */
-void gi__bounce_end(struct gi_cascade *c, float (*const E[])[2][3], double S[3][3], int add_tail) {
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], int add_tail) {
   double f[3] = {0, 0, 0};
   for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = S[2][k], S[2][k] = 0;
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
       double a = L->geo[L->occ[i]].area;
-      for (int sd = 0; sd < 2; sd++)
-        for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][sd][k];
+      for (int f = 0; f < GI_VOX_FACES; f++)
+        for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][f][k];
     }
   }
   if (add_tail)
@@ -123,13 +148,13 @@ void gi__bounce_end(struct gi_cascade *c, float (*const E[])[2][3], double S[3][
     gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
       uint32_t slot = L->occ[i];
-      for (int sd = 0; sd < 2; sd++)
+      for (int fc = 0; fc < GI_VOX_FACES; fc++)
         for (int k = 0; k < 3; k++) {
-          float e = E[d][i][sd][k];
+          float e = E[d][i][fc][k];
           /* side - direct is still the previous bounce's E. */
-          float inc = e - (L->side[slot][sd][k] - L->direct[slot][sd][k]);
+          float inc = e - (L->side[slot][fc][k] - L->direct[slot][fc][k]);
           float t = (float)f[k] * inc;
-          L->side[slot][sd][k] = L->direct[slot][sd][k] + e + (t > 0 ? t : 0);
+          L->side[slot][fc][k] = L->direct[slot][fc][k] + e + (t > 0 ? t : 0);
         }
     }
   }
@@ -137,8 +162,8 @@ void gi__bounce_end(struct gi_cascade *c, float (*const E[])[2][3], double S[3][
 }
 
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
-  float(*E[GI_MAX_LEVELS])[2][3] = {0};
-  uint64_t *hit[GI_MAX_LEVELS] = {0};
+  gi_faces3 *E[GI_MAX_LEVELS] = {0};
+  gi_hits *hit[GI_MAX_LEVELS] = {0};
   gi_result rc = GI_OK;
   /* Area-weighted sums of the gathered irradiance per bounce (both sides,
    * every level's own voxels), for the tail's ratio. */

@@ -1,12 +1,12 @@
 /* inject.c: direct light into the voxels.
  *
- * Every occupied voxel gets the direct irradiance on both sides of its
- * surface from every light, with visibility from Embree shadow rays issued
+ * Every occupied voxel gets the direct irradiance on both sides of each
+ * of its orientation groups (cascade_internal.h) from every light, with visibility from Embree shadow rays issued
  * as one stream per voxel. Sun, point and spot lights take one ray each;
  * the sky and emissive surfaces are sampled (stratified, seeded by the
  * voxel's global cell so a bake is deterministic and a voxel's noise does
  * not change when the cascade scrolls). Outgoing radiance per face is then
- * albedo / pi * irradiance of the side facing that way, times the face's
+ * albedo / pi * irradiance of the side that face shows, times the face's
  * covered fraction (gi__shade_voxels). */
 #include <stdlib.h>
 #include <string.h>
@@ -36,13 +36,13 @@ typedef struct {
 #define NEAR_FIELD_REACH 4.0f /* light farther than this many patch radii: the centroid's value stands */
 #define NEAR_RINGS 3
 #define NEAR_SPOKES 8
-static float near_field_factor(const gi_vgeo *g, float voxel, const gi_lsample *ls) {
+static float near_field_factor(const gi_vgeo *g, const float n[3], float voxel, const gi_lsample *ls) {
   /* At most a voxel face's area: more is several surfaces (a corner, a
    * duplicated triangle), not a larger patch. */
   float rd = sqrtf(gi__minf(g->area, voxel * voxel) / GI_PI_F);
   if (!(ls->dist < NEAR_FIELD_REACH * rd)) return 1.f;
   /* The light at height h over the plane and lateral offset (lx, 0). */
-  float h = fabsf(gi__dot(g->normal, ls->w)) * ls->dist;
+  float h = fabsf(gi__dot(n, ls->w)) * ls->dist;
   float lx = sqrtf(fmaxf(ls->dist * ls->dist - h * h, 0.f));
   float hmin = 0.05f * rd; /* a light in the patch's own plane: still finite */
   h = fmaxf(h, hmin);
@@ -56,106 +56,152 @@ static float near_field_factor(const gi_vgeo *g, float voxel, const gi_lsample *
       sum += h / (d2 * sqrtf(d2));
     }
   }
-  float avg = sum / (NEAR_RINGS * NEAR_SPOKES);
+  /* The quadrature overshoots when the light sits just over one of its
+   * points; the true mean cannot: the disc subtends at most 2 pi of the
+   * light's sphere, so the mean irradiance is at most 2 / rd^2 per unit
+   * intensity. */
+  float avg = gi__minf(sum / (NEAR_RINGS * NEAR_SPOKES), 2.f / (rd * rd));
   float d2c = lx * lx + h * h;
   float centre = h / (d2c * sqrtf(d2c));
   return avg / centre;
+}
+
+/* Per-worker buffers of inject_range. */
+typedef struct {
+  gi_ray_scratch sc;
+  gi_lsample *all;     /* the voxel's light samples, before each group's pick */
+  int8_t *side;        /* per picked sample: the side it lights */
+  float *cosw;         /* per picked sample: |cos| to the group's orientation */
+} inject_buf;
+
+/* The orientation group most nearly facing direction w (either side). */
+static int facing_group(const gi_vgeo *g, const float w[3]) {
+  int best = 0;
+  float bc = -1;
+  for (int h = 0; h < g->groups; h++) {
+    float c = fabsf(gi__dot(g->u.fin.orient[h], w));
+    if (c > bc) bc = c, best = h;
+  }
+  return best;
+}
+
+/* Direct light from the samples `all` on both sides of group h, through
+ * shadow rays from the group's centroid; adds to Es per side, returns the rays. */
+static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float voxel, int n, inject_buf *ib,
+                            float Es[GI_VOX_FACES][3]) {
+  const gi_scene *s = ic->c->scene;
+  const float *o = g->u.fin.orient[h];
+  gi_lsample *ls = ib->sc.ls;
+  int m = 0;
+  for (int i = 0; i < n; i++) {
+    float cn = gi__dot(o, ib->all[i].w);
+    if (cn == 0) continue;
+    ls[m] = ib->all[i];
+    if (ls[m].fx == GI_FX_LOCAL) {
+      float nf = near_field_factor(g, o, voxel, &ls[m]);
+      for (int k = 0; k < 3; k++) ls[m].V[k] *= nf;
+    }
+    ib->side[m] = (int8_t)(2 * h + (cn > 0 ? 0 : 1));
+    ib->cosw[m] = fabsf(cn);
+    m++;
+  }
+  /* Each ray leaves from the side of the surface that faces its light. */
+  gi__shadow_rays(s, g->u.fin.gcen[h], o, voxel, ls, m, &ib->sc);
+  uint8_t *vis = ib->sc.vis;
+  /* A point light within the voxel lights the surfaces facing it
+   * whatever the group's centroid sees: the centroid of a small closed
+   * object (a lamp's housing) lies inside it, and its shadow ray meets the
+   * object's own faces. Only the group that faces the light best: the
+   * others' sides facing it are the object's inside (a housing's side
+   * walls seen from a lamp under its floor), which the shadow rays from
+   * their own surfaces decide. */
+  for (int i = 0; i < m; i++)
+    if (ls[i].fx == GI_FX_LOCAL && ls[i].dist < voxel && facing_group(g, ls[i].w) == h) vis[i] = 1;
+  int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
+  for (int i = 0; i < m; i++) {
+    if (!vis[i]) continue;
+    /* Balance heuristic against the cosine samples of emitter_rays. */
+    float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * ib->cosw[i] / GI_PI_F) : 1.f;
+    for (int k = 0; k < 3; k++) Es[ib->side[i]][k] += f * ls[i].V[k] * ib->cosw[i];
+  }
+  return (uint64_t)m;
+}
+
+/* Cosine-weighted rays find emitters that are close and large, which
+ * area sampling almost never picks (the furnace's edges): mb per side of
+ * every group. Returns the rays. */
+static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel, uint64_t *rng,
+                             float Es[GI_VOX_FACES][3]) {
+  const gi_scene *s = ic->c->scene;
+  int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
+  uint64_t rays = 0;
+  for (int sd = 0; sd < 2 * g->groups && mb > 0; sd++) {
+    const float *pc = g->u.fin.gcen[sd / 2];
+    float n[3], t[3], bb[3], o[3];
+    float sg = (sd & 1) ? -1.f : 1.f;
+    for (int k = 0; k < 3; k++) n[k] = sg * g->u.fin.orient[sd / 2][k];
+    /* These rays all leave on side n: the shadow rule's start for it. */
+    float tn = gi__shadow_origin(pc, n, voxel, n, o);
+    gi__basis(n, t, bb);
+    for (int j = 0; j < mb; j++) {
+      float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__u01(rng);
+      float r = sqrtf(u1), phi = 2 * GI_PI_F * u2;
+      float x = r * cosf(phi), y = r * sinf(phi), z = sqrtf(fmaxf(0.f, 1 - u1));
+      float w[3];
+      for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
+      rays++;
+      float V[3];
+      if (!gi__emitter_ray(s, pc, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
+      for (int k = 0; k < 3; k++) Es[sd][k] += V[k] * z;
+    }
+  }
+  return rays;
 }
 
 static void inject_range(void *p, size_t b, size_t e, int worker) {
   inject_ctx *ic = p;
   struct gi_cascade *c = ic->c;
   gi_level *L = &c->lv[ic->d];
-  const gi_scene *s = c->scene;
-  gi_ray_scratch sc = {0};
-  int8_t *side = gi__malloc((size_t)ic->cap);
-  float *cosw = gi__malloc((size_t)ic->cap * sizeof(float));
-  if (!side || !cosw || gi__scratch_alloc(&sc, ic->cap)) {
+  inject_buf ib = {.sc = {0}};
+  ib.all = gi__malloc((size_t)ic->cap * sizeof *ib.all);
+  ib.side = gi__malloc((size_t)ic->cap);
+  ib.cosw = gi__malloc((size_t)ic->cap * sizeof(float));
+  if (!ib.all || !ib.side || !ib.cosw || gi__scratch_alloc(&ib.sc, ic->cap)) {
     atomic_store(&ic->failed, 1);
     goto out;
   }
-  gi_lsample *ls = sc.ls;
-  uint8_t *vis = sc.vis;
   float voxel = (float)L->s;
   uint64_t rays = 0;
   int R = c->R;
   for (size_t q = b; q < e; q++) {
     uint32_t slot = ic->slots[q];
     const gi_vgeo *g = &L->geo[slot];
-    float(*E)[3] = L->direct[slot];
-    memset(E, 0, sizeof(float[2][3]));
+    float Es[GI_VOX_FACES][3] = {{0}}; /* per side 2 g + s */
     /* Seed from the global cell: the same voxel gets the same samples wherever the window is. */
     int64_t cell[3];
     gi__slot_cell(L, R, slot, cell);
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
-    int n = gi__light_samples(s, ic->lp, g->centroid, &rng, ls, ic->cap);
-    int m = 0;
-    for (int i = 0; i < n; i++) {
-      float cn = gi__dot(g->normal, ls[i].w);
-      if (cn == 0) continue;
-      if (ls[i].fx == GI_FX_LOCAL) {
-        float nf = near_field_factor(g, voxel, &ls[i]);
-        for (int k = 0; k < 3; k++) ls[i].V[k] *= nf;
-      }
-      side[m] = (int8_t)(cn > 0 ? 0 : 1);
-      cosw[m] = fabsf(cn);
-      /* Keep the sample index in the V slot order: compact in place. */
-      ls[m] = ls[i];
-      m++;
-    }
-    /* Each ray leaves from the side of the surface that faces its light. */
-    gi__shadow_rays(s, g->centroid, g->normal, voxel, ls, m, &sc);
-    rays += (uint64_t)m;
-    /* A point light within the voxel lights the voxel's own surfaces
-     * whatever its centroid sees: the centroid of a small closed object
-     * (a lamp's housing) lies inside it, and its shadow ray meets the
-     * object's own faces. */
-    for (int i = 0; i < m; i++)
-      if (ls[i].fx == GI_FX_LOCAL && ls[i].dist < voxel) vis[i] = 1;
-    int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
-    for (int i = 0; i < m; i++) {
-      if (!vis[i]) continue;
-      /* Balance heuristic against the cosine samples below. */
-      float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * cosw[i] / GI_PI_F) : 1.f;
-      for (int k = 0; k < 3; k++) E[side[i]][k] += f * ls[i].V[k] * cosw[i];
-    }
-    /* Cosine-weighted rays find emitters that are close and large, which
-     * area sampling almost never picks (the furnace's edges). */
-    for (int sd = 0; sd < 2 && mb > 0; sd++) {
-      float n[3], t[3], bb[3], o[3];
-      float sg = sd ? -1.f : 1.f;
-      for (int k = 0; k < 3; k++) n[k] = sg * g->normal[k];
-      /* These rays all leave on side n: the shadow rule's start for it. */
-      float tn = gi__shadow_origin(g->centroid, n, voxel, n, o);
-      gi__basis(n, t, bb);
-      for (int j = 0; j < mb; j++) {
-        float u1 = ((float)j + gi__u01(&rng)) / (float)mb, u2 = gi__u01(&rng);
-        float r = sqrtf(u1), phi = 2 * GI_PI_F * u2;
-        float x = r * cosf(phi), y = r * sinf(phi), z = sqrtf(fmaxf(0.f, 1 - u1));
-        float w[3];
-        for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
-        rays++;
-        float V[3];
-        if (!gi__emitter_ray(s, g->centroid, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
-        for (int k = 0; k < 3; k++) E[sd][k] += V[k] * z;
-      }
-    }
-    memcpy(L->side[slot], E, sizeof(float[2][3]));
+    int n = gi__light_samples(c->scene, ic->lp, g->centroid, &rng, ib.all, ic->cap);
+    for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, Es);
+    rays += emitter_rays(ic, g, voxel, &rng, Es);
+    for (int f = 0; f < GI_VOX_FACES; f++) memcpy(L->direct[slot][f], Es[g->face_side[f]], sizeof(float[3]));
+    memcpy(L->side[slot], L->direct[slot], sizeof(gi_faces3));
   }
   atomic_fetch_add(&ic->rays, rays);
 out:
-  gi__scratch_free(&sc);
-  gi__free(side);
-  gi__free(cosw);
+  gi__scratch_free(&ib.sc);
+  gi__free(ib.all);
+  gi__free(ib.side);
+  gi__free(ib.cosw);
 }
 
-/* Radiance leaving each side of an occupied voxel (diffuse reflection of
- * what the side receives). */
-static inline void side_radiance(const gi_level *L, uint32_t slot, float Ls[2][3]) {
+/* Radiance leaving through each face of an occupied voxel (diffuse
+ * reflection of what the side it shows receives). */
+static inline void face_radiance(const gi_level *L, uint32_t slot, float Lf[GI_VOX_FACES][3]) {
   const gi_vgeo *g = &L->geo[slot];
-  for (int sd = 0; sd < 2; sd++)
-    for (int k = 0; k < 3; k++) Ls[sd][k] = g->albedo[k] * (1.0f / GI_PI_F) * L->side[slot][sd][k];
+  for (int f = 0; f < GI_VOX_FACES; f++)
+    for (int k = 0; k < 3; k++) Lf[f][k] = g->albedo[k] * (1.0f / GI_PI_F) * L->side[slot][f][k];
 }
 
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {
@@ -163,16 +209,12 @@ void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end)
   float inv = 1.0f / c->rad_scale;
   for (uint32_t q = begin; q < end; q++) {
     uint32_t slot = L->occ[q];
-    const gi_vgeo *g = &L->geo[slot];
     gi_vrad *r = &L->rad[slot];
-    float Ls[2][3];
-    side_radiance(L, slot, Ls);
+    float Lf[GI_VOX_FACES][3];
+    face_radiance(L, slot, Lf);
     for (int f = 0; f < 6; f++) {
-      int a = f / 2;
-      float sf = (f & 1) ? -1.f : 1.f;
-      int sd = sf * g->normal[a] >= 0 ? 0 : 1;
-      float al = gi__vrad_alpha(r, a) * inv;
-      for (int k = 0; k < 3; k++) r->h[3 * f + k] = gi__f2h(al * Ls[sd][k]);
+      float al = gi__vrad_alpha(r, f / 2) * inv;
+      for (int k = 0; k < 3; k++) r->h[3 * f + k] = gi__f2h(al * Lf[f][k]);
     }
   }
 }
@@ -185,10 +227,10 @@ void gi__shade_all(struct gi_cascade *c) {
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t q = 0; q < L->num_occ; q++) {
-      float Ls[2][3];
-      side_radiance(L, L->occ[q], Ls);
-      for (int sd = 0; sd < 2; sd++)
-        for (int k = 0; k < 3; k++) brightest = gi__maxf(brightest, Ls[sd][k]);
+      float Lf[GI_VOX_FACES][3];
+      face_radiance(L, L->occ[q], Lf);
+      for (int f = 0; f < GI_VOX_FACES; f++)
+        for (int k = 0; k < 3; k++) brightest = gi__maxf(brightest, Lf[f][k]);
     }
   }
   gi__vrad_rescale(c, brightest);

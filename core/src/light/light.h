@@ -19,13 +19,20 @@ void gi__shade_all(struct gi_cascade *c);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
  * tail (with bounces >= 2): then adds the orders after the last bounce as
  * a geometric series whose ratio is measured from the last two bounces. */
-/* One voxel's gather from the current texture: E per side; returns the
+/* The cones of a voxel's first bounce that met opacity: bit side *
+ * num_cones + cone (sides 2 g + s of its groups; cones past the mask
+ * always run). */
+#define GI_HIT_BITS (64 * 3)
+typedef struct gi_hits {
+  uint64_t w[GI_HIT_BITS / 64];
+} gi_hits;
+/* One voxel's gather from the current texture: E per face (the side it shows); returns the
  * texture samples taken and adds the cones marched to *cones. */
-uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, float E[2][3], uint64_t *cones);
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, gi_faces3 E, uint64_t *cones);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
 /* The end of one bounce from its gathers E (per level, per occupied voxel):
  * the tail's sums S rolled, side light written, the texture reshaded (the
  * caller refilters). Shared by gi__bounce and the move's re-bake. */
-void gi__bounce_end(struct gi_cascade *c, float (*const E[])[2][3], double S[3][3], int add_tail);
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], int add_tail);
 
 #endif

@@ -289,10 +289,10 @@ static gi_result replan(struct gi_cascade *c, gi_quality *q, int *tail, int *rel
  * and cut into gi_cascade_refresh_period slices of equal gather counts. */
 typedef struct gi_move_state {
   gi_vrad *rad[GI_MAX_LEVELS];    /* the re-bake's texture (R^3, toroidal like the live one) */
-  float (*side[GI_MAX_LEVELS])[2][3];
+  gi_faces3 *side[GI_MAX_LEVELS];
   void *block;     /* rad and side of every level, one gi__big_calloc block (see struct gi_cascade) */
   size_t block_bytes;
-  float (*E[GI_MAX_LEVELS])[2][3]; /* this bounce's gathers, per occupied voxel */
+  gi_faces3 *E[GI_MAX_LEVELS]; /* this bounce's gathers, per occupied voxel */
   uint32_t ecap[GI_MAX_LEVELS];   /* entries E[d] holds */
   float rad_scale;
   int slice;       /* slices run at this anchor */
@@ -345,7 +345,7 @@ static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
   if (m && (b = m->block = gi__big_calloc(m->block_bytes, 1)))
     for (int d = 0; d < c->n; d++) {
       m->rad[d] = (gi_vrad *)b, b += vox * sizeof *m->rad[d];
-      m->side[d] = (float(*)[2][3])b, b += vox * sizeof *m->side[d];
+      m->side[d] = (gi_faces3 *)b, b += vox * sizeof *m->side[d];
     }
   if (!b) {
     gi__move_state_free(m);
@@ -360,7 +360,7 @@ static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
 static void swap_texture(struct gi_cascade *c, gi_move_state *m) {
   for (int d = 0; d < c->n; d++) {
     gi_vrad *r = c->lv[d].rad;
-    float(*sd)[2][3] = c->lv[d].side;
+    gi_faces3 *sd = c->lv[d].side;
     c->lv[d].rad = m->rad[d], m->rad[d] = r;
     c->lv[d].side = m->side[d], m->side[d] = sd;
   }
@@ -372,7 +372,7 @@ typedef struct {
   const struct gi_cascade *c;
   int d;
   const uint32_t *slots;
-  float (*E)[2][3];
+  gi_faces3 *E;
   atomic_ullong samples, cones;
 } gather_ctx;
 
@@ -386,7 +386,7 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
 
 /* Gathers the n voxels slots[] of level d from the current texture into E. */
 static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n,
-                             float (*E)[2][3], gi_error_info *err) {
+                             gi_faces3 *E, gi_error_info *err) {
   gather_ctx g = {.c = c, .d = d, .slots = slots, .E = E};
   atomic_init(&g.samples, 0);
   atomic_init(&g.cones, 0);
@@ -405,7 +405,7 @@ static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uin
  * infinite-bounce answer instead, 5x the probe error). */
 static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fresh, const uint32_t *nfresh,
                               gi_error_info *err) {
-  float(*E[GI_MAX_LEVELS])[2][3] = {0};
+  gi_faces3 *E[GI_MAX_LEVELS] = {0};
   gi_result rc = GI_OK;
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     if (!(E[d] = gi__malloc(((size_t)nfresh[d] + 1) * sizeof *E[d])))
@@ -416,7 +416,7 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
     gi_level *L = &c->lv[d];
     for (uint32_t q = 0; q < nfresh[d]; q++) {
       uint32_t slot = fresh[d][q];
-      for (int sd = 0; sd < 2; sd++)
+      for (int sd = 0; sd < GI_VOX_FACES; sd++)
         for (int k = 0; k < 3; k++) L->side[slot][sd][k] = L->direct[slot][sd][k] + E[d][q][sd][k];
     }
   }

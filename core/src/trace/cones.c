@@ -56,7 +56,7 @@ void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[
   *tan_half = (float)tan(half);
 }
 
-#define PROBE_DENSE_FROM 32 /* bake cones from which probes take the dense set */
+#define PROBE_DENSE_FROM 16 /* bake cones from which probes take the dense set */
 
 int gi__probe_cone_count(int bake_count) {
   return bake_count < PROBE_DENSE_FROM ? bake_count : GI_MAX_CONES;
