@@ -35,12 +35,52 @@ static void set_fx(gi_bake_report *r, gi_effect_id id, int ran, const char *fmt,
   va_end(ap);
 }
 
+/* The default cascade's shape. DEFAULT_LEVELS levels; the coarsest spans
+ * SPAN_MARGIN times the scene's reach: a centred viewpoint then keeps every
+ * wall a few voxels inside the window, clear of the one-voxel border cones
+ * need for filtering. */
+enum { DEFAULT_LEVELS = 6 };
+#define SPAN_MARGIN 1.25
+/* The reach of a wide, flat scene (a city): at most REACH_HEIGHTS times its
+ * height (but at least 1/REACH_WIDTH_DIV of its width). Light from farther
+ * away barely reaches a street, and a cascade over all of a 5 km city would
+ * voxelize every triangle of it for each viewpoint. */
+#define REACH_HEIGHTS 16.0
+#define REACH_WIDTH_DIV 8.0
+/* A scene wider than its reach is a plain of neighbourhoods, and a
+ * viewpoint in one needs the finest voxel a compact piece of it would get:
+ * one LOCAL_HEIGHTS heights across (the 600 m city, compact, is 5 heights
+ * across). Its coarsest level keeps the reach, so levels are added at the
+ * fine end, each halving s0, until s0 is no coarser than the piece's. */
+#define LOCAL_HEIGHTS 4.0
+
+/* Default s0 (and, when auto_levels, the level count) for q->res. A scene
+ * the default levels cover whole keeps DEFAULT_LEVELS and an s0 that grows
+ * with its size. A wider one keeps that reach with more levels, up to
+ * GI_MAX_LEVELS: beyond that s0 grows with the reach again, so memory
+ * (levels x R^3 voxels) and bake time stay bounded. A flat scene (no
+ * height) has no neighbourhood scale: it keeps the extent rule. */
+static void default_voxel(const gi_scene *s, gi_quality *q, int auto_levels) {
+  double lo[3], hi[3], ext = 0;
+  gi_scene_bounds(s, lo, hi);
+  for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
+  int up = gi_scene_up(s) == GI_UP_Z ? 2 : 1;
+  double height = hi[up] - lo[up], reach = fmin(ext, fmax(REACH_HEIGHTS * height, ext / REACH_WIDTH_DIV));
+  if (!(reach > 0)) reach = 1.0;
+  if (auto_levels && height > 0 && ext > reach) {
+    double piece = LOCAL_HEIGHTS * height;
+    while (q->levels < GI_MAX_LEVELS && reach > piece * (double)(1ull << (q->levels - DEFAULT_LEVELS))) q->levels++;
+  }
+  q->voxel0 = SPAN_MARGIN * reach / ((double)q->res * (double)(1ull << (q->levels - 1)));
+}
+
 gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality *q,
                              gi_error_info *err) {
   if (!s || !q) return gi__fail(err, GI_ERR_INVALID_ARG, "quality: scene and output are required");
   gi_quality z = {0};
   *q = in ? *in : z;
-  if (q->levels == 0) q->levels = 6;
+  int auto_levels = q->levels == 0 && q->voxel0 == 0;
+  if (q->levels == 0) q->levels = DEFAULT_LEVELS;
   if (q->res == 0) q->res = 32;
   if (q->cones == 0) q->cones = 16;
   if (q->step == 0) q->step = 1.0f;
@@ -71,23 +111,7 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: bounces must be at most 8, got %d", q->bounces);
   if (q->light_samples < 1 || q->light_samples > 512 || q->probe_samples < 1 || q->probe_samples > 8192)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: light samples must be 1..512 and probe samples 1..8192");
-  if (q->voxel0 == 0) {
-    /* The coarsest level spans 1.25 times the scene's largest side: a
-     * centred viewpoint then keeps every wall a few voxels inside the
-     * window, clear of the one-voxel border cones need for filtering. A
-     * wide, flat scene (a city) spans at most 16 times its height (but at
-     * least an eighth of its width): light from farther away than that
-     * barely reaches a street, and a cascade over all of a 5 km city
-     * would voxelize every triangle of it for each viewpoint. */
-    double lo[3], hi[3], ext = 0;
-    gi_scene_bounds(s, lo, hi);
-    for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
-    int up = gi_scene_up(s) == GI_UP_Z ? 2 : 1;
-    double height = hi[up] - lo[up], cap = fmax(16.0 * height, ext / 8.0);
-    if (cap < ext) ext = cap;
-    if (!(ext > 0)) ext = 1.0;
-    q->voxel0 = 1.25 * ext / ((double)q->res * (double)(1ull << (q->levels - 1)));
-  }
+  if (q->voxel0 == 0) default_voxel(s, q, auto_levels);
   if (!isfinite(q->ao_lambda) || q->ao_lambda < 0)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: ao_lambda must be finite and >= 0");
   if (q->ao_lambda == 0) q->ao_lambda = (float)(1.0 / (4.0 * q->voxel0));

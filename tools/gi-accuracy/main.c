@@ -432,11 +432,15 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
     return 0;
   }
   double s0 = rep.quality.voxel0;
+  /* The default's level count too: a scene wider than its reach gets more
+   * than 6 (gi_quality_resolve), and a knob given s0 alone would get 6. */
+  int n0 = rep.quality.levels;
   float ap16 = rep.quality.aperture_deg;
   gi_cascade_free(c);
   int ok = run_cone(name, ss, ref, &q0, "default", 0, 1, out);
   static const int res_full[] = {16, 24, 48, 64}, res_quick[] = {16, 48};
-  static const int lev[] = {4, 5, 7}, cones[] = {4, 6, 32}, bnc[] = {-1, 1, 2, 3};
+  const int lev[] = {n0 - 2, n0 - 1, n0 < GI_MAX_LEVELS ? n0 + 1 : n0 - 3};
+  static const int cones[] = {4, 6, 32}, bnc[] = {-1, 1, 2, 3};
   static const double vx[] = {0.5, 2.0};
   static const float steps[] = {0.25f, 1.0f}, aps[] = {0.6f, 1.5f};
   const int *res = o->quick ? res_quick : res_full;
@@ -444,6 +448,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   for (int i = 0; ok && sweeps(o, "res") && i < nres; i++) {
     gi_quality q = q0;
     q.res = res[i];
+    q.levels = n0;
     q.voxel0 = s0 * 32.0 / res[i]; /* same extent, finer voxels */
     ok = run_cone(name, ss, ref, &q, "res", res[i], 0, out);
   }
@@ -455,6 +460,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   }
   for (int i = 0; ok && sweeps(o, "voxel0") && i < 2; i++) {
     gi_quality q = q0;
+    q.levels = n0;
     q.voxel0 = s0 * vx[i];
     ok = run_cone(name, ss, ref, &q, "voxel0", q.voxel0, 0, out);
   }
@@ -481,7 +487,7 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   if (ok && !o->quick && sweeps(o, "high")) {
     /* A "high" setting: every knob that helped, together. */
     gi_quality q = q0;
-    q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f; /* bounces: the albedo rule and its tail */
+    q.levels = n0, q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f; /* bounces: the albedo rule and its tail */
     ok = run_cone(name, ss, ref, &q, "high", 1, 0, out);
   }
   for (int s = 1; ok && s <= o->pt_max; s *= 4) ok = run_path(name, ss, ref, s, o->threads, out);

@@ -37,9 +37,14 @@ enum { GI_FX_AUTO = 0, GI_FX_ON = 1, GI_FX_OFF = -1 };
 /* Quality knobs. Zero means default for every field, so
  * `gi_quality q = {0};` is the default quality. */
 typedef struct gi_quality {
-  int levels;          /* cascade levels n; default 6 (1..GI_MAX_LEVELS) */
+  int levels;          /* cascade levels n; default 6, more for a scene wider than its
+                          reach (see voxel0), at most GI_MAX_LEVELS (1..GI_MAX_LEVELS) */
   int res;             /* voxels per side R; default 32 (a multiple of 4, 8..256) */
-  double voxel0;       /* finest voxel size s0; default: the coarsest level spans the scene */
+  double voxel0;       /* finest voxel size s0; default: the coarsest level spans 1.25x the
+                          scene's reach (its largest side, at most 16 heights, at least an
+                          eighth of its width). When levels and voxel0 are both default and
+                          the scene is wider than that reach, levels are added, each halving
+                          s0, until s0 is no coarser than a piece 4 heights across gets. */
   int cones;           /* diffuse cones per hemisphere: 4, 6, 8, 16 or 32; default 16 */
   float aperture_deg;  /* diffuse cone full aperture; default from the cone count */
   float step;          /* march step in voxels of the sampled level; default 1 (near surfaces at most 0.75) */
