@@ -19,22 +19,58 @@ typedef struct {
   int64_t lo[3], hi[3]; /* the cells of level d to filter (inside its nested region) */
 } filter_ctx;
 
-/* One coarse voxel from its 2x2x2 children. */
+/* 1 when a child holds no surface and its texel is all zero bits. */
+static int child_empty(const gi_level *F, uint32_t s) {
+  if (F->geo[s].area > 0) return 0;
+  uint16_t any = 0;
+  for (int i = 0; i < GI_VRAD_LANES; i++) any |= F->rad[s].h[i];
+  return any == 0;
+}
+
+/* What filter_voxel writes for eight empty children (tau = -log(1) packs
+ * as a negative zero): computed by the same expressions, so the shortcut
+ * below writes the same bits. */
+static void empty_texel(const struct gi_cascade *c, gi_vrad *r) {
+  gi_vrad_f o;
+  memset(&o, 0, sizeof o);
+  double T = 0.25 * (4 * exp(-0.0 - 0.0));
+  for (int a = 0; a < 3; a++) o.tau[a] = (float)-log(T), o.alpha[a] = (float)(1.0 - T);
+  gi__vrad_pack(c, &o, r);
+}
+
+/* One coarse voxel from its 2x2x2 children. Most of a city's nested
+ * regions are air: eight empty children give an empty voxel without
+ * the 192 half conversions and 48 exponentials of the general case (every
+ * bounce refilters every nested region). */
 static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level *L, int64_t ci,
                          int64_t cj, int64_t ck) {
   int R = c->R;
+  uint32_t cs[2][2][2];
+  int empty = 1;
+  for (int z = 0; z < 2; z++)
+    for (int y = 0; y < 2; y++)
+      for (int x = 0; x < 2; x++) {
+        cs[z][y][x] = gi__slot(2 * ci + x, 2 * cj + y, 2 * ck + z, R);
+        empty = empty && child_empty(F, cs[z][y][x]);
+      }
+  uint32_t slot = gi__slot(ci, cj, ck, R);
+  if (empty) {
+    empty_texel(c, &L->rad[slot]);
+    memset(&L->geo[slot], 0, sizeof L->geo[slot]);
+    memset(L->side[slot], 0, sizeof(float[2][3]));
+    return;
+  }
   gi_vrad_f kr[2][2][2];
   const gi_vgeo *kg[2][2][2];
   const float(*ks[2][2][2])[3];
   for (int z = 0; z < 2; z++)
     for (int y = 0; y < 2; y++)
       for (int x = 0; x < 2; x++) {
-        uint32_t s = gi__slot(2 * ci + x, 2 * cj + y, 2 * ck + z, R);
+        uint32_t s = cs[z][y][x];
         gi__vrad_unpack(c, &F->rad[s], &kr[z][y][x]);
         kg[z][y][x] = &F->geo[s];
         ks[z][y][x] = F->side[s];
       }
-  uint32_t slot = gi__slot(ci, cj, ck, R);
   gi_vrad_f o, *out = &o;
   memset(out, 0, sizeof *out);
   for (int axis = 0; axis < 3; axis++) {
