@@ -17,24 +17,60 @@ typedef struct {
   struct gi_cascade *c;
   int d;
   int64_t lo[3], hi[3]; /* the cells of level d to filter (inside its nested region) */
+  gi_vrad empty;        /* what an empty voxel's texel holds (empty_texel) */
 } filter_ctx;
 
+/* 1 when a child holds no surface and its texel is all zero bits. */
+static int child_empty(const gi_level *F, uint32_t s) {
+  if (F->geo[s].area > 0) return 0;
+  uint16_t any = 0;
+  for (int i = 0; i < GI_VRAD_LANES; i++) any |= F->rad[s].h[i];
+  return any == 0;
+}
+
+/* What filter_voxel writes for eight empty children (tau = -log(1) packs
+ * as a negative zero): computed by the same expressions, so the shortcut
+ * below writes the same bits. */
+static void empty_texel(const struct gi_cascade *c, gi_vrad *r) {
+  gi_vrad_f o;
+  memset(&o, 0, sizeof o);
+  double T = 0.25 * (4 * exp(-0.0 - 0.0));
+  for (int a = 0; a < 3; a++) o.tau[a] = (float)-log(T), o.alpha[a] = (float)(1.0 - T);
+  gi__vrad_pack(c, &o, r);
+}
+
+/* Most of a city's nested regions are air: eight empty children (slots
+ * cs) give an empty voxel without the 192 half conversions and 48
+ * exponentials of the general case (every bounce refilters every nested
+ * region). Returns 1 when it wrote the voxel. */
+static int filter_empty(const gi_vrad *empty_rad, const gi_level *F, gi_level *L, const uint32_t cs[8], uint32_t slot) {
+  for (int i = 0; i < 8; i++)
+    if (!child_empty(F, cs[i])) return 0;
+  L->rad[slot] = *empty_rad;
+  memset(&L->geo[slot], 0, sizeof L->geo[slot]);
+  memset(L->side[slot], 0, sizeof L->side[slot]);
+  return 1;
+}
+
 /* One coarse voxel from its 2x2x2 children. */
-static void filter_voxel(const struct gi_cascade *c, const gi_level *F, gi_level *L, int64_t ci,
-                         int64_t cj, int64_t ck) {
+static void filter_voxel(const struct gi_cascade *c, const gi_vrad *empty_rad, const gi_level *F, gi_level *L,
+                         int64_t ci, int64_t cj, int64_t ck) {
   int R = c->R;
+  uint32_t cs[8]; /* child x + 2 y + 4 z */
+  for (int i = 0; i < 8; i++) cs[i] = gi__slot(2 * ci + (i & 1), 2 * cj + (i >> 1 & 1), 2 * ck + (i >> 2), R);
+  uint32_t slot = gi__slot(ci, cj, ck, R);
+  if (filter_empty(empty_rad, F, L, cs, slot)) return;
   gi_vrad_f kr[2][2][2];
   const gi_vgeo *kg[2][2][2];
   const float(*ks[2][2][2])[3];
   for (int z = 0; z < 2; z++)
     for (int y = 0; y < 2; y++)
       for (int x = 0; x < 2; x++) {
-        uint32_t s = gi__slot(2 * ci + x, 2 * cj + y, 2 * ck + z, R);
+        uint32_t s = cs[x + 2 * y + 4 * z];
         gi__vrad_unpack(c, &F->rad[s], &kr[z][y][x]);
         kg[z][y][x] = &F->geo[s];
         ks[z][y][x] = F->side[s];
       }
-  uint32_t slot = gi__slot(ci, cj, ck, R);
   gi_vrad_f o, *out = &o;
   memset(out, 0, sizeof *out);
   for (int axis = 0; axis < 3; axis++) {
@@ -124,7 +160,7 @@ static void filter_range(void *p, size_t b, size_t e, int worker) {
     int64_t i = fc->lo[0] + (int64_t)idx % nx;
     int64_t j = fc->lo[1] + ((int64_t)idx / nx) % ny;
     int64_t k = fc->lo[2] + (int64_t)idx / (nx * ny);
-    filter_voxel(c, F, L, i, j, k);
+    filter_voxel(c, &fc->empty, F, L, i, j, k);
   }
 }
 
@@ -132,6 +168,7 @@ int gi__cascade_filter_box(struct gi_cascade *c, int threads, int d, const int64
   gi_level *L = &c->lv[d];
   if (d < 1 || d >= c->n || !L->has_inner) return 0;
   filter_ctx fc = {.c = c, .d = d};
+  empty_texel(c, &fc.empty);
   size_t count = 1;
   for (int a = 0; a < 3; a++) {
     fc.lo[a] = lo[a] > L->inner0[a] ? lo[a] : L->inner0[a];

@@ -93,10 +93,11 @@ static int sky_samples(const gi_light *l, int m, const float up[3], uint64_t *rn
 /* Sample j of m over the emitters: a triangle picked by the light tree
  * (power and distance, stratified in j), a point on it. 0 when it sends
  * nothing to p. */
-static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uint64_t *rng, gi_lsample *q) {
+static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uint64_t *rng, gi_lt_memo *memo,
+                          gi_lsample *q) {
   double u = ((double)j + gi__u01(rng)) / (double)m;
   float pt, ur;
-  uint32_t slot = gi__light_tree_pick(s, p, u, &pt, &ur);
+  uint32_t slot = gi__light_tree_pick_memo(s, p, u, &pt, &ur, memo);
   if (!(pt > 0)) return 0;
   uint32_t tri = s->emitter_tri[slot];
   const uint32_t *ix = &s->indices[3 * tri];
@@ -155,8 +156,12 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
       n = sky_samples(l, lp->sky_samples, up_axis, rng, out, n, max);
     }
   }
-  if (lp->emissive && s->num_emitters > 0)
-    for (int j = 0; j < lp->emit_samples && n < max; j++) n += emitter_sample(s, j, lp->emit_samples, p, rng, &out[n]);
+  if (lp->emissive && s->num_emitters > 0) {
+    gi_lt_memo memo;
+    memset(memo.node, 0, sizeof memo.node);
+    for (int j = 0; j < lp->emit_samples && n < max; j++)
+      n += emitter_sample(s, j, lp->emit_samples, p, rng, &memo, &out[n]);
+  }
   return n;
 }
 
