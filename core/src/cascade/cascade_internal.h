@@ -76,6 +76,14 @@ typedef struct gi_vgeo {
   uint8_t face_side[GI_VOX_FACES];
 } gi_vgeo;
 
+/* The side of group g (orientation o) that face f shows: the one whose
+ * normal points out of f (either, on a face along which o has no
+ * component). Shared by voxelize.c and filter.c. */
+static inline uint8_t gi__face_side(const float o[3], int g, int f) {
+  float sf = (f & 1) ? -1.f : 1.f;
+  return (uint8_t)(2 * g + (sf * o[f / 2] >= 0 ? 0 : 1));
+}
+
 /* Light buffer of one voxel: what cones sample. 48 bytes, 24 half floats
  * (IEEE binary16), the lanes a trilinear sample sums at once:
  *   lanes 3f+k (f < 6, k < 3): radiance of channel k leaving through face f

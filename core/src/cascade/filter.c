@@ -145,8 +145,7 @@ static void filter_voxel(const struct gi_cascade *c, const gi_vrad *empty_rad, c
     g->groups = 1;
     memcpy(g->u.fin.orient[0], g->normal, sizeof g->normal);
     memcpy(g->u.fin.gcen[0], g->centroid, sizeof g->centroid);
-    for (int f = 0; f < GI_VOX_FACES; f++)
-      g->face_side[f] = (uint8_t)(((f & 1) ? -g->normal[f / 2] : g->normal[f / 2]) >= 0 ? 0 : 1);
+    for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(g->normal, 0, f);
   }
 }
 

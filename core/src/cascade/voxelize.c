@@ -212,11 +212,7 @@ static void orient_groups(gi_vgeo *g) {
     }
   g->groups = (uint8_t)G;
   memcpy(g->normal, dir[0], sizeof g->normal);
-  for (int f = 0; f < GI_VOX_FACES; f++) {
-    int a = f / 2, h = grp[a];
-    float sf = (f & 1) ? -1.f : 1.f;
-    g->face_side[f] = (uint8_t)(2 * h + (sf * dir[h][a] >= 0 ? 0 : 1));
-  }
+  for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(dir[grp[f / 2]], grp[f / 2], f);
 }
 
 /* Normalises one voxel's sums and derives its opacity; clears an empty

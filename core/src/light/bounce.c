@@ -1,8 +1,9 @@
 /* bounce.c: the voxel-to-voxel bounces.
  *
  * Each occupied voxel gathers indirect irradiance on each side of each of
- * its orientation groups (cascade_internal.h) with the diffuse cone set (weights sum to pi, see trace/cones.c) by the gather's
- * surface rule (trace/gather.c: one voxel off the surface); all voxels
+ * its orientation groups (cascade_internal.h) with the diffuse cone set
+ * (weights sum to pi, see trace/cones.c) by the gather's surface rule
+ * (trace/gather.c: one voxel off the surface); all voxels
  * gather from the previous bounce's texture (Jacobi), then the texture is
  * reshaded and the nested regions refiltered. A closed furnace of albedo a
  * and emission Le therefore reaches Le (a + ... + a^(k+1)) reflected
