@@ -195,8 +195,8 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w);
 const gi_cascade *gs_entry_cascade(const gs_entry *e);
 void gs_cache_release(gs_cache *c, gs_entry *e);
 void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries);
-/* The bytes a bake of this resolved quality is admitted for: its cascade
- * (gi_cascade_bytes_estimate, exact) plus its transient buffers. */
+/* The bytes a bake of this resolved quality is admitted for: its cascade's
+ * bound (gi_cascade_bytes_estimate) plus its transient buffers. */
 size_t gs_bake_bytes(const gi_quality *resolved);
 /* Admission for bakes outside the cache (jobs): reserves need bytes when
  * cached + in-flight + need fit the budget (evicting unheld entries first);

@@ -40,23 +40,25 @@ void gi_cascade_free(gi_cascade *c) {
   gi__free(c);
 }
 
-/* geo, rad, side, direct, occ and busy: every per-voxel array a level holds.
- * busy4 (one byte per 4^3 cells, 0.01%) is left out: the server's budgets
- * and tests count whole bytes per voxel. */
-static const size_t GI_VOXEL_BYTES =
-    sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(gi_faces3) + sizeof(uint32_t) + sizeof(uint8_t);
-
-static size_t level_bytes(int levels, int res) {
-  return (size_t)levels * (size_t)res * (size_t)res * (size_t)res * GI_VOXEL_BYTES;
+/* The dense arrays per voxel (rad, vix, occ, busy) and, at most, one entry
+ * (geo, side, direct, freed) per voxel. busy4 (one byte per 4^3 cells,
+ * 0.01%) is left out: the server's budgets and tests count whole bytes
+ * per voxel. */
+static size_t level_bytes(int levels, int res, int every_voxel) {
+  size_t vox = (size_t)res * (size_t)res * (size_t)res;
+  return (size_t)levels * vox * (GI_SLOT_BYTES + (every_voxel ? GI_ENTRY_BYTES : 0));
 }
 
 /* A moved cascade also holds its re-bake's buffers. */
-size_t gi_cascade_bytes(const gi_cascade *c) { return level_bytes(c->n, c->R) + gi__move_state_bytes(c); }
+size_t gi_cascade_bytes(const gi_cascade *c) {
+  return level_bytes(c->n, c->R, 0) + gi__entries_bytes(c) + gi__move_state_bytes(c);
+}
 
 size_t gi_cascade_bytes_estimate(const gi_quality *resolved) {
   /* Unresolved (zero) levels or res: no estimate rather than a wrong one. */
   if (!resolved || resolved->levels <= 0 || resolved->res <= 0) return 0;
-  return level_bytes(resolved->levels, resolved->res);
+  /* The bound: every voxel holding geometry (plus each level's entry 0). */
+  return level_bytes(resolved->levels, resolved->res, 1) + (size_t)resolved->levels * GI_ENTRY_BYTES;
 }
 
 const gi_bake_report *gi_cascade_report(const gi_cascade *c) { return &c->report; }

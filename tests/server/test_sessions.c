@@ -335,9 +335,11 @@ static void test_concurrent_serialised(void **state) {
   delete_session(id);
 }
 
-/* One session at quality=low holds about 7.8 MiB (res 16, 5 levels); a
- * cached low cascade about 6.9 MiB: in 12 MiB one of them fits with room
- * for nothing else. */
+/* One session at quality=low (res 16, 5 levels) holds its bounds for its
+ * life, 11.8 MiB: the bake's 8.04 MiB with transients and the move's 3.75
+ * MiB. A cached low cascade holds at least its 1.11 MiB of dense arrays,
+ * and a low bake is admitted for 8.04 MiB: in 12 MiB a session fits with
+ * room for nothing else. */
 #define BUDGET_INI                                                                                     \
   "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 2\nworkers = 2\ntmp_dir = .\n"                   \
   "[limits]\ncache_mb = 12\nmax_sessions = 4\n[scene city]\nsource = city\nextent = 300\n"

@@ -22,6 +22,7 @@
 #include "cascade/cascade_internal.h"
 #include "gi/gi.h"
 #include "gi/gi_city.h"
+#include "test_levels.h"
 
 #define NUM_RANDOM 4             /* random points per cell, besides corners and centre */
 #define NUM_POINTS (8 + 1 + NUM_RANDOM)
@@ -100,10 +101,8 @@ static void assert_same_levels(const gi_cascade *a, const gi_cascade *b) {
   for (int d = 0; d < a->n; d++) {
     const gi_level *A = &a->lv[d], *B = &b->lv[d];
     assert_memory_equal(A->cell0, B->cell0, sizeof A->cell0);
-    assert_true(memcmp(A->geo, B->geo, vox * sizeof *A->geo) == 0);
+    assert_true(tl_same_entries(A, B, a->R, TL_GEO | TL_SIDE | TL_DIRECT));
     assert_true(memcmp(A->rad, B->rad, vox * sizeof *A->rad) == 0);
-    assert_true(memcmp(A->side, B->side, vox * sizeof *A->side) == 0);
-    assert_true(memcmp(A->direct, B->direct, vox * sizeof *A->direct) == 0);
     assert_true(memcmp(A->busy, B->busy, vox) == 0);
     assert_int_equal(A->num_occ, B->num_occ);
   }
@@ -229,8 +228,11 @@ static void test_skylight_sensitivity(void **state) {
 }
 
 /* The server admits a bake by gi_cascade_bytes_estimate before it runs: the
- * estimate must be exactly what the baked cascade then holds, levels x res^3
- * x the per-voxel arrays (geo, rad, side, direct, occ, busy). */
+ * estimate is the most a baked cascade can hold, levels x res^3 x (the
+ * dense arrays rad, vix, occ, busy and one entry of geo, side, direct and
+ * freed), as if every voxel held geometry. A bake then holds the dense
+ * arrays and exactly one entry per voxel holding geometry (own or nested)
+ * plus each level's empty entry 0. */
 static void test_bytes_estimate(void **state) {
   (void)state;
   gi_city_params cp = {.seed = 3, .extent = 300};
@@ -239,7 +241,8 @@ static void test_bytes_estimate(void **state) {
   assert_int_equal(gi_city_build(&cp, NULL, &s, &err), GI_OK);
   double at[3];
   gi_city_default_viewpoint(&cp, at);
-  const size_t per_voxel = sizeof(gi_vgeo) + sizeof(gi_vrad) + 2 * sizeof(gi_faces3) + 4 + 1;
+  const size_t dense = sizeof(gi_vrad) + 4 + 4 + 1;
+  const size_t entry = sizeof(gi_vgeo) + 2 * sizeof(gi_faces3) + 4;
   const int shapes[][2] = {{2, 8}, {3, 16}, {4, 12}};
   for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
     gi_quality req = {.levels = shapes[i][0], .res = shapes[i][1], .light_samples = 4, .probe_samples = 16,
@@ -247,13 +250,23 @@ static void test_bytes_estimate(void **state) {
                q;
     assert_int_equal(gi_quality_resolve(s, &req, &q, &err), GI_OK);
     size_t est = gi_cascade_bytes_estimate(&q);
-    size_t want = (size_t)q.levels * q.res * q.res * q.res * per_voxel;
+    size_t vox = (size_t)q.res * q.res * q.res;
+    size_t want_est = (size_t)q.levels * (vox * (dense + entry) + entry);
     gi_cascade *c = NULL;
     assert_int_equal(gi_cascade_bake(s, at, &req, &c, NULL, &err), GI_OK);
-    printf("levels %d res %d: estimate %zu bytes, baked %zu\n", q.levels, q.res, est, gi_cascade_bytes(c));
-    assert_true(est == want);
-    assert_true(est == gi_cascade_bytes(c));
-    assert_true(est == gi_cascade_report(c)->cascade_bytes);
+    const gi_bake_report *r = gi_cascade_report(c);
+    size_t want = (size_t)q.levels * vox * dense, holding = 0;
+    for (int d = 0; d < q.levels; d++) {
+      want += (r->occupied[d] + 1) * entry;
+      holding += r->occupied[d];
+    }
+    printf("levels %d res %d: estimate %zu bytes, baked %zu (%zu of %zu voxels hold geometry)\n", q.levels, q.res,
+           est, gi_cascade_bytes(c), holding, q.levels * vox);
+    assert_true(holding > 0 && holding < q.levels * vox);
+    assert_true(est == want_est);
+    assert_true(gi_cascade_bytes(c) == want);
+    assert_true(est > gi_cascade_bytes(c));
+    assert_true(r->cascade_bytes == gi_cascade_bytes(c));
     gi_cascade_free(c);
   }
   gi_quality unresolved = {0};

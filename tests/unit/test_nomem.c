@@ -367,7 +367,7 @@ static void test_light_budget(void **state) {
       uint32_t slot = L->occ[i];
       int top = GI_FACE_PY; /* the surface shown from above */
       for (int a = 0; a < 3; a++) {
-        double v = L->direct[slot][top][a];
+        double v = gi__direct(L, slot)[top][a];
         sum[a] += v;
         worst = fmax(worst, fabs(v / want[a] - 1));
       }

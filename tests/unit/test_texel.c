@@ -151,7 +151,7 @@ static int city_jobs(const gi_cascade *c, gi_cone_job *jobs, int cap) {
     const gi_level *L = &c->lv[d];
     /* Every 37th occupied voxel: a spread of places and orientations. */
     for (uint32_t i = 0; i < L->num_occ && nj + 2 * nc <= cap; i += 37) {
-      const gi_vgeo *g = &L->geo[L->occ[i]];
+      const gi_vgeo *g = gi__geo(L, L->occ[i]);
       for (int sd = 0; sd < 2; sd++) {
         float n[3];
         for (int k = 0; k < 3; k++) n[k] = (sd ? -1.f : 1.f) * g->normal[k];

@@ -57,8 +57,9 @@ static void test_exact_counts(void **state) {
     double area = 0;
     int opaque_x = 0;
     for (size_t i = 0; i < 16 * 16 * 16; i++) {
-      area += L->geo[i].area;
-      if (L->geo[i].area > 0 && fabsf(L->geo[i].normal[0]) > 0.999f) {
+      const gi_vgeo *g = gi__geo(L, (uint32_t)i);
+      area += g->area;
+      if (g->area > 0 && fabsf(g->normal[0]) > 0.999f) {
         /* A voxel cut by a full x-face: opaque along x, clear along y and z. */
         const gi_vrad *r = &L->rad[i];
         if (gi__vrad_alpha(r, 0) > 0.998f && gi__vrad_alpha(r, 1) == 0 && gi__vrad_alpha(r, 2) == 0) opaque_x++;
@@ -155,9 +156,9 @@ static void test_orientation_groups(void **state) {
   for (size_t i = 0; i < sizeof want / sizeof *want; i++) {
     const int64_t *c = want[i].cell;
     uint32_t slot = gi__slot(c[0], c[1], c[2], cas->R);
-    const gi_vgeo *g = &L->geo[slot];
+    const gi_vgeo *g = gi__geo(L, slot);
     const float *E[6];
-    for (int f = 0; f < 6; f++) E[f] = L->direct[slot][f];
+    for (int f = 0; f < 6; f++) E[f] = gi__direct(L, slot)[f];
     printf("cell (%lld,%lld,%lld): %d groups, direct +x %.5f -x %.5f +y %.5f -y %.5f +z %.5f\n", (long long)c[0],
            (long long)c[1], (long long)c[2], g->groups, E[0][1], E[1][1], E[2][1], E[3][1], E[4][1]);
     assert_int_equal(g->groups, want[i].groups);

@@ -51,14 +51,17 @@ static void voxel_table(const gi_cascade *c, const gi_bake_report *r, FILE *md) 
 static void memory_table(const gi_cascade *c, const gi_bake_report *r, size_t vdb_max, FILE *md) {
   int n = r->levels, R = r->quality.res;
   double per_voxel = (double)r->cascade_bytes / ((double)n * R * R * R);
-  double side = (double)R * (double)(1u << (n - 1)), dense = per_voxel * side * side * side;
+  /* A dense grid keeps a voxel's whole record everywhere: the cascade's
+   * bytes a voxel as if every voxel held geometry (its admission bound). */
+  double full = (double)gi_cascade_bytes_estimate(&r->quality) / ((double)n * R * R * R);
+  double side = (double)R * (double)(1u << (n - 1)), dense = full * side * side * side;
   vdb_figure v = {0};
   int ok = vdb_figure_measure(c, vdb_max, &v) == 0;
   fprintf(md, "| store | bytes | MiB | store / cascade |\n|---|---|---|---|\n");
-  fprintf(md, "| cascade (cascade_bytes, %d x %d^3 voxels, %.0f B each) | %zu | %.1f | 1x |\n", n, R, per_voxel,
-          r->cascade_bytes, r->cascade_bytes / MIB);
-  fprintf(md, "| dense grid, %.3f m voxels over %.0f m (%.0f^3, computed) | %.4g | %.0f | %.0fx |\n",
-          r->voxel_size[0], side * r->voxel_size[0], side, dense, dense / MIB, dense / (double)r->cascade_bytes);
+  fprintf(md, "| cascade (cascade_bytes, %d x %d^3 voxels, %.0f B a voxel on average) | %zu | %.1f | 1x |\n", n, R,
+          per_voxel, r->cascade_bytes, r->cascade_bytes / MIB);
+  fprintf(md, "| dense grid, %.3f m voxels over %.0f m (%.0f^3 of %.0f B, computed) | %.4g | %.0f | %.0fx |\n",
+          r->voxel_size[0], side * r->voxel_size[0], side, full, dense, dense / MIB, dense / (double)r->cascade_bytes);
   if (ok)
     fprintf(md, "| OpenVDB, %.3f m voxels, 7 Vec3f grids, %llu active (memUsage) | %zu | %.1f | %.1fx |\n",
             r->voxel_size[0], (unsigned long long)v.active, v.bytes, v.bytes / MIB,

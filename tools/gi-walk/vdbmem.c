@@ -20,7 +20,7 @@
  * plane crosses; with m NULL it only counts them. */
 static uint64_t resample_voxel(const gi_cascade *c, int d, uint32_t slot, gi_vdb_mem *m, int *fail) {
   const gi_level *L = &c->lv[d];
-  const gi_vgeo *g = &L->geo[slot];
+  const gi_vgeo *g = gi__geo(L, slot);
   int64_t cell[3];
   gi__slot_cell(L, c->R, slot, cell);
   int64_t f = (int64_t)1 << d;

@@ -86,11 +86,12 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
                              gi_error_info *err);
 void gi_cascade_free(gi_cascade *c); /* accepts NULL */
 size_t gi_cascade_bytes(const gi_cascade *c);
-/* The bytes gi_cascade_bytes will report for a cascade baked with this
+/* The most gi_cascade_bytes can report for a cascade baked with this
  * resolved quality (gi_quality_resolve), known before the bake: levels x
- * res^3 x the per-voxel arrays. A bake's transient buffers come on top
- * (bounce keeps at most one irradiance pair per voxel, 24 bytes, beside the
- * cascade's per-voxel bytes). 0 when levels or res is unresolved. */
+ * res^3 x the dense per-voxel arrays and the per-voxel record of geometry
+ * and light, as if every voxel held a surface (a bake keeps that record
+ * only for the voxels that do, a few percent). A bake's transient buffers
+ * come on top. 0 when levels or res is unresolved. */
 size_t gi_cascade_bytes_estimate(const gi_quality *resolved);
 const gi_bake_report *gi_cascade_report(const gi_cascade *c);
 

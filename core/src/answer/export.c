@@ -179,7 +179,7 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
       for (int i = 0; i < R; i++) {
         uint32_t slot = gi__slot(L->cell0[0] + i, L->cell0[1] + j, L->cell0[2] + k, R);
         size_t o = (size_t)i + (size_t)R * ((size_t)j + (size_t)R * k);
-        const gi_vgeo *g = &L->geo[slot];
+        const gi_vgeo *g = gi__geo(L, slot);
         gi_vrad_f rv, *r = &rv;
         gi__vrad_unpack(c, &L->rad[slot], r);
         float dens = (r->alpha[0] + r->alpha[1] + r->alpha[2]) / 3.f;
@@ -188,8 +188,8 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
           /* Shown colour: the brightest face's outgoing radiance plus emission. */
           int fb = 0;
           for (int f = 1; f < GI_VOX_FACES; f++)
-            if (gi__lum(L->side[slot][f]) > gi__lum(L->side[slot][fb])) fb = f;
-          const float *E = L->side[slot][fb];
+            if (gi__lum(gi__side(L, slot)[f]) > gi__lum(gi__side(L, slot)[fb])) fb = f;
+          const float *E = gi__side(L, slot)[fb];
           for (int a = 0; a < 3; a++) {
             ld->cd[3 * o + a] = g->albedo[a] / GI_PI_F * E[a] + g->emission[a];
             ld->albedo[3 * o + a] = g->albedo[a];

@@ -8,9 +8,10 @@
 #include "base/internal.h"
 #include "cascade/cascade_internal.h"
 
-/* Every array of every level lies in one zeroed block (gi__big_calloc:
- * huge pages, so first touches cost 17 faults instead of 8,000 on a
- * default cascade), each array starting on a cache line. */
+/* Every dense array of every level lies in one zeroed block
+ * (gi__big_calloc: huge pages, so first touches cost few faults), each
+ * array starting on a cache line. The entries (geo, side, direct) are
+ * each level's own allocations, sized to the voxels holding geometry. */
 #define GI_ARRAY_ALIGN 64
 
 /* Bytes cleared between two checks of the cancel token (~5 ms of first touches here). */
@@ -20,8 +21,7 @@ static size_t align_up(size_t n) { return (n + GI_ARRAY_ALIGN - 1) & ~(size_t)(G
 
 /* Bytes of one level's arrays in the block. */
 static size_t level_block_bytes(size_t vox, size_t blocks) {
-  return align_up(vox * sizeof(gi_vgeo)) + align_up(vox * sizeof(gi_vrad)) + 2 * align_up(vox * sizeof(gi_faces3)) +
-         align_up(vox * sizeof(uint32_t)) + align_up(vox) + align_up(blocks);
+  return align_up(vox * sizeof(gi_vrad)) + 2 * align_up(vox * sizeof(uint32_t)) + align_up(vox) + align_up(blocks);
 }
 
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
@@ -43,10 +43,8 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err) {
   }
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
-    L->geo = (gi_vgeo *)b, b += align_up(vox * sizeof *L->geo);
     L->rad = (gi_vrad *)b, b += align_up(vox * sizeof *L->rad);
-    L->side = (gi_faces3 *)b, b += align_up(vox * sizeof *L->side);
-    L->direct = (gi_faces3 *)b, b += align_up(vox * sizeof *L->direct);
+    L->vix = (uint32_t *)b, b += align_up(vox * sizeof *L->vix);
     L->occ = (uint32_t *)b, b += align_up(vox * sizeof *L->occ);
     L->busy = (uint8_t *)b, b += align_up(vox);
     L->busy4 = (uint8_t *)b, b += align_up(nb * nb * nb);
@@ -60,8 +58,69 @@ void gi__cascade_free_levels(struct gi_cascade *c) {
   c->block_bytes = 0;
   for (int d = 0; d < GI_MAX_LEVELS; d++) {
     gi_level *L = &c->lv[d];
+    gi__free(L->geo), gi__free(L->side), gi__free(L->direct), gi__free(L->freed);
     L->geo = NULL, L->rad = NULL, L->side = NULL, L->direct = NULL, L->occ = NULL, L->busy = NULL, L->busy4 = NULL;
+    L->vix = NULL, L->freed = NULL;
+    L->cap = L->used = L->num_freed = 0;
   }
+}
+
+/* Growth of a level's entries beyond what was asked: a move adds a few
+ * hundred voxels at a time. */
+#define GI_ENTRY_SLACK 256
+
+static int grow(void **p, size_t n, size_t size) {
+  void *q = gi__realloc(*p, n * size);
+  if (!q) return 0;
+  *p = q;
+  return 1;
+}
+
+gi_result gi__level_reserve(struct gi_cascade *c, int d, uint32_t entries, int slack, gi_error_info *err) {
+  gi_level *L = &c->lv[d];
+  if (entries <= L->cap) return GI_OK;
+  uint64_t most = (uint64_t)c->R * c->R * c->R + 1;
+  uint64_t want = slack ? (uint64_t)entries + entries / 4 + GI_ENTRY_SLACK : entries;
+  if (want > most) want = most;
+  if (entries > want) return gi__fail(err, GI_ERR_INVALID_ARG, "cascade: %u entries asked of a level of %llu voxels",
+                                      entries, (unsigned long long)most - 1);
+  uint32_t n = (uint32_t)want, old = L->cap;
+  if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "allocate");
+  if (!grow((void **)&L->geo, n, sizeof *L->geo) || !grow((void **)&L->side, n, sizeof *L->side) ||
+      !grow((void **)&L->direct, n, sizeof *L->direct) || !grow((void **)&L->freed, n, sizeof *L->freed))
+    return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot grow level %d to %u voxels holding geometry", d, n);
+  L->cap = n;
+  if (old == 0) {
+    /* Entry 0: what an empty slot reads. */
+    memset(&L->geo[0], 0, sizeof L->geo[0]);
+    memset(L->side[0], 0, sizeof L->side[0]);
+    memset(L->direct[0], 0, sizeof L->direct[0]);
+    L->used = 1;
+  }
+  return GI_OK;
+}
+
+uint32_t gi__level_free_entries(const gi_level *L) { return L->cap - L->used + L->num_freed; }
+
+void gi__level_take(gi_level *L, uint32_t slot) {
+  uint32_t e = L->num_freed > 0 ? L->freed[--L->num_freed] : L->used++;
+  memset(&L->geo[e], 0, sizeof L->geo[e]);
+  memset(L->side[e], 0, sizeof L->side[e]);
+  memset(L->direct[e], 0, sizeof L->direct[e]);
+  L->vix[slot] = e;
+}
+
+void gi__level_release(gi_level *L, uint32_t slot) {
+  uint32_t e = L->vix[slot];
+  if (e == 0) return;
+  L->freed[L->num_freed++] = e;
+  L->vix[slot] = 0;
+}
+
+size_t gi__entries_bytes(const struct gi_cascade *c) {
+  size_t b = 0;
+  for (int d = 0; d < c->n; d++) b += (size_t)c->lv[d].cap * GI_ENTRY_BYTES;
+  return b;
 }
 
 void gi__cascade_place(struct gi_cascade *c) {

@@ -115,10 +115,24 @@ typedef struct gi_level {
   float lo[3], hi[3];  /* window box, local coordinates */
   int has_inner;       /* 1 when level d-1 nests inside (cells filtered from it) */
   int64_t inner0[3], inner1[3]; /* this level's cells covered by level d-1: [inner0, inner1) */
-  gi_vgeo *geo;        /* R^3, toroidal */
   gi_vrad *rad;        /* R^3, toroidal */
-  gi_faces3 *side;     /* R^3: direct+indirect irradiance per face (see gi_faces3) */
-  gi_faces3 *direct;   /* R^3: the direct part of side */
+  /* Geometry and light of the voxels that hold a surface, in entries:
+   * slot s's are entry vix[s] of geo, side and direct (gi__geo, gi__side,
+   * gi__direct). Entry 0 is all zeros and never written, so an empty
+   * slot reads as empty; vix[s] != 0 exactly when the voxel holds
+   * geometry (area > 0). A few percent of a level's voxels hold a
+   * surface: dense arrays cost 5x the memory, and first touches of their
+   * pages took a quarter of a Cornell box bake. The arrays are the
+   * level's own allocations (gi__level_reserve); the move's re-bake
+   * keeps a side array of the same capacity and swaps it with this one. */
+  uint32_t *vix;       /* R^3 */
+  gi_vgeo *geo;        /* cap entries */
+  gi_faces3 *side;     /* cap entries: direct+indirect irradiance per face (see gi_faces3) */
+  gi_faces3 *direct;   /* cap entries: the direct part of side */
+  uint32_t cap;        /* entries allocated (entry 0 included) */
+  uint32_t used;       /* entries handed out so far, entry 0 included: [used, cap) are fresh */
+  uint32_t *freed;     /* cap: entries given back (a move's cells that left), reused first */
+  uint32_t num_freed;
   uint8_t *busy;       /* per slot: 1 when the 2x2x2 block starting there has any opacity */
   /* Per GI_EMPTY_BLOCK^3 block of the window's cells (window coordinates,
    * not slots: rebuilt with busy): 1 when a sample whose trilinear base
@@ -208,7 +222,29 @@ static inline void gi__slot_cell(const gi_level *L, int R, uint32_t slot, int64_
   for (int a = 0; a < 3; a++) cell[a] = L->cell0[a] + gi__wrap((int64_t)w[a] - gi__wrap(L->cell0[a], R), R);
 }
 
-/* cascade.c: allocates every level's arrays, zeroed, in one block (c->n, c->R set). */
+/* A slot's geometry, light and direct light (entry 0, all zeros, when it holds none). */
+static inline gi_vgeo *gi__geo(const gi_level *L, uint32_t slot) { return &L->geo[L->vix[slot]]; }
+static inline float (*gi__side(const gi_level *L, uint32_t slot))[3] { return L->side[L->vix[slot]]; }
+static inline float (*gi__direct(const gi_level *L, uint32_t slot))[3] { return L->direct[L->vix[slot]]; }
+
+/* cascade.c: the entries. gi__level_reserve grows level d's arrays to hold
+ * `entries` (entry 0 included; with `slack`, a quarter more for the next
+ * moves), keeping what they hold; serial, and never while the move has
+ * swapped its texture in (the move grows its own side array to match). gi__level_take gives slot a zeroed entry (room
+ * reserved; the slot must have none); gi__level_release gives it back
+ * (a slot without one is fine). Neither is thread-safe. */
+gi_result gi__level_reserve(struct gi_cascade *c, int d, uint32_t entries, int slack, gi_error_info *err);
+uint32_t gi__level_free_entries(const gi_level *L);
+void gi__level_take(gi_level *L, uint32_t slot);
+void gi__level_release(gi_level *L, uint32_t slot);
+/* Bytes of one entry across geo, side, direct and freed. */
+#define GI_ENTRY_BYTES (sizeof(gi_vgeo) + 2 * sizeof(gi_faces3) + sizeof(uint32_t))
+/* Bytes per slot of the dense arrays: rad, vix, occ, busy. */
+#define GI_SLOT_BYTES (sizeof(gi_vrad) + 2 * sizeof(uint32_t) + sizeof(uint8_t))
+/* The levels' entries' bytes (allocated capacity). */
+size_t gi__entries_bytes(const struct gi_cascade *c);
+
+/* cascade.c: allocates every level's dense arrays, zeroed, in one block (c->n, c->R set). */
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err);
 /* Frees that block and clears the level pointers (a cascade never allocated is fine). */
 void gi__cascade_free_levels(struct gi_cascade *c);
@@ -245,9 +281,16 @@ size_t gi__move_state_bytes(const struct gi_cascade *c);
 
 /* voxelize.c: fills the geometry of a freshly allocated (zeroed) cascade. */
 gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err);
-/* One triangle's piece in global cell `cell` of L, added to its sums. */
-void gi__voxel_add_tri(gi_level *L, int R, const int64_t cell[3], const float tv[3][3], const gi_material *mat);
-/* Normalises one voxel's sums; 1 when it holds geometry (0: cleared). */
-int gi__voxel_finalize(gi_level *L, uint32_t slot);
+/* Gives every nested cell of level d (>= 1) holding geometry below it an
+ * entry and takes the others' back (after level d-1 changed);
+ * gi__nested_need: how many new entries that takes. */
+gi_result gi__nested_entries(struct gi_cascade *c, int d, gi_error_info *err);
+uint32_t gi__nested_need(const struct gi_cascade *c, int d);
+/* One triangle's piece in global cell `cell` (of size s, corner at
+ * cell * s), added to the sums g. */
+void gi__voxel_add_tri(gi_vgeo *g, double s, const int64_t cell[3], const float tv[3][3], const gi_material *mat);
+/* Normalises the sums g of the voxel in slot and writes its texel's
+ * opacity; 1 when it holds geometry (0: g and the texel cleared). */
+int gi__voxel_finalize(gi_level *L, gi_vgeo *g, uint32_t slot);
 
 #endif

@@ -22,7 +22,7 @@ typedef struct {
 
 /* 1 when a child holds no surface and its texel is all zero bits. */
 static int child_empty(const gi_level *F, uint32_t s) {
-  if (F->geo[s].area > 0) return 0;
+  if (F->vix[s] != 0) return 0;
   uint16_t any = 0;
   for (int i = 0; i < GI_VRAD_LANES; i++) any |= F->rad[s].h[i];
   return any == 0;
@@ -46,9 +46,8 @@ static void empty_texel(const struct gi_cascade *c, gi_vrad *r) {
 static int filter_empty(const gi_vrad *empty_rad, const gi_level *F, gi_level *L, const uint32_t cs[8], uint32_t slot) {
   for (int i = 0; i < 8; i++)
     if (!child_empty(F, cs[i])) return 0;
+  /* No child holds geometry, so neither does the voxel: it has no entry (gi__nested_entries). */
   L->rad[slot] = *empty_rad;
-  memset(&L->geo[slot], 0, sizeof L->geo[slot]);
-  memset(L->side[slot], 0, sizeof L->side[slot]);
   return 1;
 }
 
@@ -68,8 +67,8 @@ static void filter_voxel(const struct gi_cascade *c, const gi_vrad *empty_rad, c
       for (int x = 0; x < 2; x++) {
         uint32_t s = cs[x + 2 * y + 4 * z];
         gi__vrad_unpack(c, &F->rad[s], &kr[z][y][x]);
-        kg[z][y][x] = &F->geo[s];
-        ks[z][y][x] = F->side[s];
+        kg[z][y][x] = gi__geo(F, s);
+        ks[z][y][x] = gi__side(F, s);
       }
   gi_vrad_f o, *out = &o;
   memset(out, 0, sizeof *out);
@@ -103,9 +102,11 @@ static void filter_voxel(const struct gi_cascade *c, const gi_vrad *empty_rad, c
   }
   gi__vrad_pack(c, out, &L->rad[slot]);
   /* Geometry and face irradiance: area-weighted means, for inspection
-   * (export); one orientation group, the children's mean normal. */
-  gi_vgeo *g = &L->geo[slot];
-  float(*side)[3] = L->side[slot];
+   * (export); one orientation group, the children's mean normal. A voxel
+   * without an entry has no child holding geometry. */
+  if (L->vix[slot] == 0) return;
+  gi_vgeo *g = gi__geo(L, slot);
+  float(*side)[3] = gi__side(L, slot);
   memset(g, 0, sizeof *g);
   memset(side, 0, sizeof(gi_faces3));
   double area = 0;
@@ -237,7 +238,7 @@ void gi__cascade_count_occupied(struct gi_cascade *c) {
   size_t vox = (size_t)c->R * c->R * c->R;
   for (int d = 0; d < c->n; d++) {
     uint64_t occ = 0;
-    for (size_t i = 0; i < vox; i++) occ += c->lv[d].geo[i].area > 0;
+    for (size_t i = 0; i < vox; i++) occ += c->lv[d].vix[i] != 0;
     c->report.occupied[d] = occ;
   }
 }

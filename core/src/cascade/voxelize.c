@@ -21,12 +21,24 @@
 #define GI_CANCEL_EVERY_TRIS 8192
 #define MAXV 12
 
+/* A slab's voxels that hold geometry, finalized, in the bake's order
+ * (z, y, x from the window's first cell): the level's entries are taken
+ * from these in slab order once every slab is done. */
+typedef struct {
+  uint32_t n;
+  uint32_t *slot;
+  gi_vgeo *geo;
+} slab_out;
+
 typedef struct {
   struct gi_cascade *c;
   int d;
   const uint32_t *tris;
   const uint32_t *bin_start; /* per slab, into bin_tris */
   const uint32_t *bin_tris;
+  gi_vgeo **scratch;         /* per worker: one slab's sums, R^2 SLAB, zeroed between slabs */
+  slab_out *out;             /* per slab */
+  atomic_int failed;         /* a worker ran out of memory */
 } vox_ctx;
 
 /* Clips polygon (n vertices) against axis a: keep x[a] >= lo if sign>0, else x[a] <= hi. */
@@ -88,12 +100,13 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
   g->gloss += area * gloss;
 }
 
-/* Clips triangle tv against global cell `cell` of level L and adds the
- * piece it owns to that voxel's sums. Shared with the move (move/move.c):
- * one code path, so a voxel rebuilt after a scroll is bit-identical. */
-void gi__voxel_add_tri(gi_level *L, int R, const int64_t cell[3], const float tv[3][3], const gi_material *mat) {
-  float sz = (float)L->s;
-  float corner[3] = {(float)(cell[0] * L->s), (float)(cell[1] * L->s), (float)(cell[2] * L->s)};
+/* Clips triangle tv against global cell `cell` (size s) and adds the
+ * piece it owns to that voxel's sums g. Shared with the move
+ * (move/move.c): one code path, so a voxel rebuilt after a scroll is
+ * bit-identical. */
+void gi__voxel_add_tri(gi_vgeo *g, double s, const int64_t cell[3], const float tv[3][3], const gi_material *mat) {
+  float sz = (float)s;
+  float corner[3] = {(float)(cell[0] * s), (float)(cell[1] * s), (float)(cell[2] * s)};
   float pa[MAXV][3], pb[MAXV][3];
   for (int q = 0; q < 3; q++)
     for (int a = 0; a < 3; a++) pa[q][a] = tv[q][a] - corner[a];
@@ -109,7 +122,7 @@ void gi__voxel_add_tri(gi_level *L, int R, const int64_t cell[3], const float tv
   for (int q = 0; q < n; q++)
     for (int a = 0; a < 3; a++) cen[a] += pa[q][a] / (float)n;
   if (cen[0] >= sz || cen[1] >= sz || cen[2] >= sz) return;
-  accumulate(&L->geo[gi__slot(cell[0], cell[1], cell[2], R)], (const float(*)[3])pa, n, corner, mat);
+  accumulate(g, (const float(*)[3])pa, n, corner, mat);
 }
 
 static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
@@ -118,10 +131,12 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
   const gi_scene *s = c->scene;
   gi_level *L = &c->lv[v->d];
   int R = c->R;
+  gi_vgeo *sums = v->scratch[worker];
+  size_t plane = (size_t)R * R;
   for (size_t slab = b; slab < e; slab++) {
     int64_t k0 = L->cell0[2] + (int64_t)slab * SLAB, k1 = k0 + SLAB;
-    /* The sums start from the zeroed block gi__cascade_alloc gave (the
-     * bake voxelizes each level once, right after it): no clearing. */
+    if (k1 > L->cell0[2] + R) k1 = L->cell0[2] + R;
+    memset(sums, 0, (size_t)SLAB * plane * sizeof *sums);
     for (uint32_t bi = v->bin_start[slab]; bi < v->bin_start[slab + 1]; bi++) {
       uint32_t t = v->bin_tris[bi];
       const uint32_t *ix = &s->indices[3 * t];
@@ -149,9 +164,33 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
           for (int64_t i = c0[0]; i < c1[0]; i++) {
             if (gi__is_inner(L, i, j, k)) continue;
             int64_t cell[3] = {i, j, k};
-            gi__voxel_add_tri(L, R, cell, (const float(*)[3])tv, mat);
+            size_t w = (size_t)(k - k0) * plane + (size_t)(j - L->cell0[1]) * (size_t)R + (size_t)(i - L->cell0[0]);
+            gi__voxel_add_tri(&sums[w], L->s, cell, (const float(*)[3])tv, mat);
           }
     }
+    /* Finalize in the bake's order; keep the voxels that hold geometry. */
+    size_t cells = (size_t)(k1 - k0) * plane;
+    uint32_t n = 0;
+    for (size_t w = 0; w < cells; w++) n += sums[w].area > 0;
+    slab_out *o = &v->out[slab];
+    o->n = 0;
+    if (n == 0) continue;
+    o->slot = gi__malloc(n * sizeof *o->slot);
+    o->geo = gi__malloc(n * sizeof *o->geo);
+    if (!o->slot || !o->geo) {
+      atomic_store(&v->failed, 1);
+      return;
+    }
+    for (int64_t k = k0; k < k1; k++)
+      for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
+        for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
+          size_t w = (size_t)(k - k0) * plane + (size_t)(j - L->cell0[1]) * (size_t)R + (size_t)(i - L->cell0[0]);
+          if (!(sums[w].area > 0)) continue;
+          uint32_t slot = gi__slot(i, j, k, R);
+          if (!gi__voxel_finalize(L, &sums[w], slot)) continue;
+          o->slot[o->n] = slot;
+          o->geo[o->n++] = sums[w];
+        }
   }
 }
 
@@ -217,9 +256,8 @@ static void orient_groups(gi_vgeo *g) {
 
 /* Normalises one voxel's sums and derives its opacity; clears an empty
  * voxel. Returns 1 when it holds geometry. Shared with the move. */
-int gi__voxel_finalize(gi_level *L, uint32_t slot) {
+int gi__voxel_finalize(gi_level *L, gi_vgeo *g, uint32_t slot) {
   double s2 = L->s * L->s;
-  gi_vgeo *g = &L->geo[slot];
   gi_vrad *r = &L->rad[slot];
   memset(r, 0, sizeof *r); /* +0 in every half lane */
   if (!(g->area > 0)) {
@@ -243,124 +281,184 @@ int gi__voxel_finalize(gi_level *L, uint32_t slot) {
   return 1;
 }
 
-/* Normalises sums and derives opacity; lists occupied voxels to light.
- * Returns nonzero when c->cancel fired (checked per z slice: a level of
- * 64^3 takes over 100 ms here, mostly first touches of its pages). */
-static int finalize_level(struct gi_cascade *c, gi_level *L) {
-  int R = c->R;
+/* Gives the slabs' voxels their entries, in slab order, and lists them
+ * as the level's occupied voxels to light. */
+static gi_result gather_slabs(struct gi_cascade *c, int d, slab_out *out, int nslab, gi_error_info *err) {
+  gi_level *L = &c->lv[d];
+  uint64_t n = 0;
+  for (int sl = 0; sl < nslab; sl++) n += out[sl].n;
+  /* The level's own voxels and the nested cells above the finer level's: one allocation. */
+  gi_result rc = gi__level_reserve(c, d, (L->used ? L->used : 1) + (uint32_t)n + gi__nested_need(c, d), 0, err);
+  if (rc != GI_OK) return rc;
   L->num_occ = 0;
   L->num_geo = 0;
-  for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++) {
-    if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return 1;
-    for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
-      for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
-        if (gi__is_inner(L, i, j, k)) continue;
-        uint32_t slot = gi__slot(i, j, k, R);
-        if (!gi__voxel_finalize(L, slot)) continue;
-        L->occ[L->num_occ++] = slot;
-        L->num_geo++;
-      }
-  }
+  for (int sl = 0; sl < nslab; sl++)
+    for (uint32_t q = 0; q < out[sl].n; q++) {
+      uint32_t slot = out[sl].slot[q];
+      gi__level_take(L, slot);
+      *gi__geo(L, slot) = out[sl].geo[q];
+      L->occ[L->num_occ++] = slot;
+      L->num_geo++;
+    }
+  return GI_OK;
+}
+
+/* A nested cell holds geometry exactly when one of its eight children
+ * does (the filter then fills it). */
+static int nested_any(const gi_level *F, int R, int64_t i, int64_t j, int64_t k) {
+  for (int q = 0; q < 8; q++)
+    if (F->vix[gi__slot(2 * i + (q & 1), 2 * j + (q >> 1 & 1), 2 * k + (q >> 2), R)] != 0) return 1;
   return 0;
 }
 
-gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
-  const gi_scene *s = c->scene;
+#define FOR_NESTED(L, i, j, k)                                \
+  for (int64_t k = (L)->inner0[2]; k < (L)->inner1[2]; k++)   \
+    for (int64_t j = (L)->inner0[1]; j < (L)->inner1[1]; j++) \
+      for (int64_t i = (L)->inner0[0]; i < (L)->inner1[0]; i++)
+
+uint32_t gi__nested_need(const struct gi_cascade *c, int d) {
+  const gi_level *L = &c->lv[d];
+  uint32_t need = 0;
+  if (d < 1 || !L->has_inner) return 0;
+  FOR_NESTED(L, i, j, k) need += L->vix[gi__slot(i, j, k, c->R)] == 0 && nested_any(&c->lv[d - 1], c->R, i, j, k);
+  return need;
+}
+
+gi_result gi__nested_entries(struct gi_cascade *c, int d, gi_error_info *err) {
+  gi_level *L = &c->lv[d];
   int R = c->R;
-  int nslab = (R + SLAB - 1) / SLAB;
-  uint32_t *tris = NULL, *bin_tris = NULL;
-  size_t ntris = 0, cap = 0;
-  uint32_t *bin_start = gi__calloc((size_t)nslab + 1, sizeof *bin_start);
-  if (!bin_start) return gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory");
-  gi_result rc = GI_OK;
-  for (int d = 0; d < c->n; d++) {
-    gi_level *L = &c->lv[d];
-    /* Clearing, querying and binning a level is serial: check around it. */
-    if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) {
-      rc = gi__cancel_fail(c->cancel, err, "voxelize");
-      goto done;
-    }
-    ntris = 0;
-    if (s->rtc) {
-      rc = gi__query_box(s, L->lo, L->hi, &tris, &ntris, &cap);
-      if (rc != GI_OK) {
-        gi__fail(err, rc, "voxelize: BVH query failed for level %d", d);
-        goto done;
-      }
-    }
-    if (ntris > 1) qsort(tris, ntris, sizeof *tris, cmp_u32); /* deterministic accumulation order */
-    if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) {
-      rc = gi__cancel_fail(c->cancel, err, "voxelize");
-      goto done;
-    }
-    /* Drop triangles wholly inside the finer level's region. */
-    size_t kept = 0;
-    float ilo[3] = {0}, ihi[3] = {0};
-    if (L->has_inner)
-      for (int a = 0; a < 3; a++) {
-        ilo[a] = (float)(L->inner0[a] * L->s);
-        ihi[a] = (float)(L->inner1[a] * L->s);
-      }
-    memset(bin_start, 0, ((size_t)nslab + 1) * sizeof *bin_start);
-    for (size_t q = 0; q < ntris; q++) {
-      if (q % GI_CANCEL_EVERY_TRIS == 0 && gi_cancel_check(c->cancel) != GI_CANCEL_NONE) {
-        rc = gi__cancel_fail(c->cancel, err, "voxelize");
-        goto done;
-      }
-      const uint32_t *ix = &s->indices[3 * tris[q]];
-      float lo[3], hi[3];
-      for (int a = 0; a < 3; a++) {
-        float x0 = s->vertices[3 * ix[0] + a], x1 = s->vertices[3 * ix[1] + a], x2 = s->vertices[3 * ix[2] + a];
-        lo[a] = fminf(x0, fminf(x1, x2));
-        hi[a] = fmaxf(x0, fmaxf(x1, x2));
-      }
-      if (L->has_inner && lo[0] > ilo[0] && hi[0] < ihi[0] && lo[1] > ilo[1] && hi[1] < ihi[1] &&
-          lo[2] > ilo[2] && hi[2] < ihi[2])
-        continue;
-      int64_t k0 = (int64_t)floor((double)lo[2] / L->s) - L->cell0[2];
-      int64_t k1 = (int64_t)floor((double)hi[2] / L->s) - L->cell0[2];
-      if (k1 < 0 || k0 >= R) continue;
-      if (k0 < 0) k0 = 0;
-      if (k1 >= R) k1 = R - 1;
-      tris[kept++] = tris[q];
-      for (int64_t sl = k0 / SLAB; sl <= k1 / SLAB; sl++) bin_start[sl + 1]++;
-    }
-    c->report.triangles_visited += kept;
-    for (int sl = 0; sl < nslab; sl++) bin_start[sl + 1] += bin_start[sl];
-    gi__free(bin_tris);
-    bin_tris = gi__malloc(((size_t)bin_start[nslab] + 1) * sizeof *bin_tris);
-    uint32_t *fill = gi__malloc(((size_t)nslab + 1) * sizeof *fill);
-    if (!bin_tris || !fill) {
-      gi__free(fill);
-      rc = gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory binning level %d", d);
-      goto done;
-    }
-    memcpy(fill, bin_start, ((size_t)nslab + 1) * sizeof *fill);
-    for (size_t q = 0; q < kept; q++) {
-      const uint32_t *ix = &s->indices[3 * tris[q]];
-      float lo = fminf(s->vertices[3 * ix[0] + 2], fminf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
-      float hi = fmaxf(s->vertices[3 * ix[0] + 2], fmaxf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
-      int64_t k0 = (int64_t)floor((double)lo / L->s) - L->cell0[2];
-      int64_t k1 = (int64_t)floor((double)hi / L->s) - L->cell0[2];
-      if (k0 < 0) k0 = 0;
-      if (k1 >= R) k1 = R - 1;
-      for (int64_t sl = k0 / SLAB; sl <= k1 / SLAB; sl++) bin_tris[fill[sl]++] = tris[q];
-    }
-    gi__free(fill);
-    vox_ctx v = {c, d, tris, bin_start, bin_tris};
-    if (gi__parallel_for_cancel((size_t)nslab, 1, threads, voxelize_slabs, &v, NULL, c->cancel)) {
-      rc = gi__cancel_fail(c->cancel, err, "voxelize");
-      goto done;
-    }
-    if (finalize_level(c, L)) {
-      rc = gi__cancel_fail(c->cancel, err, "voxelize");
-      goto done;
-    }
-    c->report.occupied[d] = L->num_geo;
+  if (d < 1 || !L->has_inner) return GI_OK;
+  uint32_t need = gi__nested_need(c, d), room = gi__level_free_entries(L);
+  if (need > room) {
+    gi_result rc = gi__level_reserve(c, d, L->cap + need - room, 1, err);
+    if (rc != GI_OK) return rc;
   }
-done:
-  gi__free(tris);
-  gi__free(bin_tris);
-  gi__free(bin_start);
+  FOR_NESTED(L, i, j, k) {
+    uint32_t slot = gi__slot(i, j, k, R);
+    int any = nested_any(&c->lv[d - 1], R, i, j, k);
+    if (any && L->vix[slot] == 0) gi__level_take(L, slot);
+    else if (!any && L->vix[slot] != 0) gi__level_release(L, slot);
+  }
+  return GI_OK;
+}
+
+/* A level's buffers, reused from level to level. */
+typedef struct {
+  uint32_t *tris, *bin_tris, *bin_start;
+  size_t ntris, cap;
+  int nslab;
+  gi_vgeo **scratch; /* per worker */
+  slab_out *out;     /* per slab */
+} vox_bufs;
+
+/* The triangles over level d's window, but those wholly inside the finer
+ * level's region, binned into slabs (serial). */
+static gi_result bin_level(struct gi_cascade *c, int d, vox_bufs *b, gi_error_info *err) {
+  const gi_scene *s = c->scene;
+  int R = c->R, nslab = b->nslab;
+  gi_result rc = GI_OK;
+  gi_level *L = &c->lv[d];
+  /* Clearing, querying and binning a level is serial: check around it. */
+  if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "voxelize");
+  b->ntris = 0;
+  if (s->rtc) {
+    rc = gi__query_box(s, L->lo, L->hi, &b->tris, &b->ntris, &b->cap);
+    if (rc != GI_OK) return gi__fail(err, rc, "voxelize: BVH query failed for level %d", d);
+  }
+  if (b->ntris > 1) qsort(b->tris, b->ntris, sizeof *b->tris, cmp_u32); /* deterministic accumulation order */
+  if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "voxelize");
+  /* Drop triangles wholly inside the finer level's region. */
+  size_t kept = 0;
+  float ilo[3] = {0}, ihi[3] = {0};
+  if (L->has_inner)
+    for (int a = 0; a < 3; a++) {
+      ilo[a] = (float)(L->inner0[a] * L->s);
+      ihi[a] = (float)(L->inner1[a] * L->s);
+    }
+  memset(b->bin_start, 0, ((size_t)nslab + 1) * sizeof *b->bin_start);
+  for (size_t q = 0; q < b->ntris; q++) {
+    if (q % GI_CANCEL_EVERY_TRIS == 0 && gi_cancel_check(c->cancel) != GI_CANCEL_NONE)
+      return gi__cancel_fail(c->cancel, err, "voxelize");
+    const uint32_t *ix = &s->indices[3 * b->tris[q]];
+    float lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+      float x0 = s->vertices[3 * ix[0] + a], x1 = s->vertices[3 * ix[1] + a], x2 = s->vertices[3 * ix[2] + a];
+      lo[a] = fminf(x0, fminf(x1, x2));
+      hi[a] = fmaxf(x0, fmaxf(x1, x2));
+    }
+    if (L->has_inner && lo[0] > ilo[0] && hi[0] < ihi[0] && lo[1] > ilo[1] && hi[1] < ihi[1] &&
+        lo[2] > ilo[2] && hi[2] < ihi[2])
+      continue;
+    int64_t k0 = (int64_t)floor((double)lo[2] / L->s) - L->cell0[2];
+    int64_t k1 = (int64_t)floor((double)hi[2] / L->s) - L->cell0[2];
+    if (k1 < 0 || k0 >= R) continue;
+    if (k0 < 0) k0 = 0;
+    if (k1 >= R) k1 = R - 1;
+    b->tris[kept++] = b->tris[q];
+    for (int64_t sl = k0 / SLAB; sl <= k1 / SLAB; sl++) b->bin_start[sl + 1]++;
+  }
+  c->report.triangles_visited += kept;
+  for (int sl = 0; sl < nslab; sl++) b->bin_start[sl + 1] += b->bin_start[sl];
+  gi__free(b->bin_tris);
+  b->bin_tris = gi__malloc(((size_t)b->bin_start[nslab] + 1) * sizeof *b->bin_tris);
+  uint32_t *fill = gi__malloc(((size_t)nslab + 1) * sizeof *fill);
+  if (!b->bin_tris || !fill) {
+    gi__free(fill);
+    return gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory binning level %d", d);
+  }
+  memcpy(fill, b->bin_start, ((size_t)nslab + 1) * sizeof *fill);
+  for (size_t q = 0; q < kept; q++) {
+    const uint32_t *ix = &s->indices[3 * b->tris[q]];
+    float lo = fminf(s->vertices[3 * ix[0] + 2], fminf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
+    float hi = fmaxf(s->vertices[3 * ix[0] + 2], fmaxf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
+    int64_t k0 = (int64_t)floor((double)lo / L->s) - L->cell0[2];
+    int64_t k1 = (int64_t)floor((double)hi / L->s) - L->cell0[2];
+    if (k0 < 0) k0 = 0;
+    if (k1 >= R) k1 = R - 1;
+    for (int64_t sl = k0 / SLAB; sl <= k1 / SLAB; sl++) b->bin_tris[fill[sl]++] = b->tris[q];
+  }
+  gi__free(fill);
+  return GI_OK;
+}
+
+/* Voxelizes level d: slabs in parallel, then entries in slab order. */
+static gi_result voxelize_level(struct gi_cascade *c, int d, int threads, vox_bufs *b, gi_error_info *err) {
+  gi_level *L = &c->lv[d];
+  int nslab = b->nslab;
+  gi_result rc = bin_level(c, d, b, err);
+  if (rc != GI_OK) return rc;
+  vox_ctx v = {.c = c, .d = d, .tris = b->tris, .bin_start = b->bin_start, .bin_tris = b->bin_tris,
+               .scratch = b->scratch, .out = b->out};
+  atomic_init(&v.failed, 0);
+  for (int sl = 0; sl < nslab; sl++) gi__free(b->out[sl].slot), gi__free(b->out[sl].geo), b->out[sl] = (slab_out){0};
+  int cancelled = gi__parallel_for_cancel((size_t)nslab, 1, threads, voxelize_slabs, &v, &v.failed, c->cancel);
+  if (atomic_load(&v.failed)) return gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory in level %d", d);
+  if (cancelled) return gi__cancel_fail(c->cancel, err, "voxelize");
+  if ((rc = gather_slabs(c, d, b->out, nslab, err)) != GI_OK) return rc;
+  if ((rc = gi__nested_entries(c, d, err)) != GI_OK) return rc;
+  c->report.occupied[d] = L->num_geo;
+  return GI_OK;
+}
+
+gi_result gi__voxelize(struct gi_cascade *c, int threads, gi_error_info *err) {
+  int R = c->R;
+  vox_bufs b = {.nslab = (R + SLAB - 1) / SLAB};
+  int nw = gi__num_workers(threads);
+  gi_result rc = GI_OK;
+  b.bin_start = gi__calloc((size_t)b.nslab + 1, sizeof *b.bin_start);
+  b.scratch = gi__calloc((size_t)nw, sizeof *b.scratch);
+  b.out = gi__calloc((size_t)b.nslab, sizeof *b.out);
+  if (!b.bin_start || !b.scratch || !b.out) rc = gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory");
+  for (int w = 0; w < nw && rc == GI_OK; w++)
+    if (!(b.scratch[w] = gi__malloc((size_t)SLAB * R * R * sizeof **b.scratch)))
+      rc = gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory");
+  for (int d = 0; d < c->n && rc == GI_OK; d++) rc = voxelize_level(c, d, threads, &b, err);
+  for (int sl = 0; b.out && sl < b.nslab; sl++) gi__free(b.out[sl].slot), gi__free(b.out[sl].geo);
+  for (int w = 0; b.scratch && w < nw; w++) gi__free(b.scratch[w]);
+  gi__free(b.out);
+  gi__free(b.scratch);
+  gi__free(b.tris);
+  gi__free(b.bin_tris);
+  gi__free(b.bin_start);
   return rc;
 }

@@ -56,7 +56,7 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
  * steps see the same empty space. E receives each face's side. */
 static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, const gi_hits *want, gi_faces3 E,
                              uint64_t *cones, gi_hits *hit) {
-  const gi_vgeo *g = &c->lv[d].geo[slot];
+  const gi_vgeo *g = gi__geo(&c->lv[d], slot);
   uint64_t samples = 0;
   memset(E, 0, sizeof(gi_faces3));
   if (hit) memset(hit, 0, sizeof *hit);
@@ -133,7 +133,7 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], 
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
-      double a = L->geo[L->occ[i]].area;
+      double a = gi__geo(L, L->occ[i])->area;
       for (int f = 0; f < GI_VOX_FACES; f++)
         for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][f][k];
     }
@@ -149,13 +149,14 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], 
     gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
       uint32_t slot = L->occ[i];
+      float(*side)[3] = gi__side(L, slot), (*direct)[3] = gi__direct(L, slot);
       for (int fc = 0; fc < GI_VOX_FACES; fc++)
         for (int k = 0; k < 3; k++) {
           float e = E[d][i][fc][k];
           /* side - direct is still the previous bounce's E. */
-          float inc = e - (L->side[slot][fc][k] - L->direct[slot][fc][k]);
+          float inc = e - (side[fc][k] - direct[fc][k]);
           float t = (float)f[k] * inc;
-          L->side[slot][fc][k] = L->direct[slot][fc][k] + e + (t > 0 ? t : 0);
+          side[fc][k] = direct[fc][k] + e + (t > 0 ? t : 0);
         }
     }
   }

@@ -175,7 +175,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   int R = c->R;
   for (size_t q = b; q < e; q++) {
     uint32_t slot = ic->slots[q];
-    const gi_vgeo *g = &L->geo[slot];
+    const gi_vgeo *g = gi__geo(L, slot);
     float Es[GI_VOX_FACES][3] = {{0}}; /* per side 2 g + s */
     /* Seed from the global cell: the same voxel gets the same samples wherever the window is. */
     int64_t cell[3];
@@ -185,8 +185,8 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     int n = gi__light_samples(c->scene, ic->lp, g->centroid, &rng, ib.all, ic->cap);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, Es);
     rays += emitter_rays(ic, g, voxel, &rng, Es);
-    for (int f = 0; f < GI_VOX_FACES; f++) memcpy(L->direct[slot][f], Es[g->face_side[f]], sizeof(float[3]));
-    memcpy(L->side[slot], L->direct[slot], sizeof(gi_faces3));
+    for (int f = 0; f < GI_VOX_FACES; f++) memcpy(gi__direct(L, slot)[f], Es[g->face_side[f]], sizeof(float[3]));
+    memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
   }
   atomic_fetch_add(&ic->rays, rays);
 out:
@@ -199,9 +199,9 @@ out:
 /* Radiance leaving through each face of an occupied voxel (diffuse
  * reflection of what the side it shows receives). */
 static inline void face_radiance(const gi_level *L, uint32_t slot, float Lf[GI_VOX_FACES][3]) {
-  const gi_vgeo *g = &L->geo[slot];
+  const gi_vgeo *g = gi__geo(L, slot);
   for (int f = 0; f < GI_VOX_FACES; f++)
-    for (int k = 0; k < 3; k++) Lf[f][k] = g->albedo[k] * (1.0f / GI_PI_F) * L->side[slot][f][k];
+    for (int k = 0; k < 3; k++) Lf[f][k] = g->albedo[k] * (1.0f / GI_PI_F) * gi__side(L, slot)[f][k];
 }
 
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {

@@ -124,10 +124,8 @@ static uint64_t mark_stale(const gi_level *old, gi_level *L, int R, int rebuild,
       uint32_t slot = gi__slot(i, j, k, R);
       if (L->busy[slot] == CELL_STALE) continue;
       L->busy[slot] = CELL_STALE;
-      memset(&L->geo[slot], 0, sizeof *L->geo);
+      gi__level_release(L, slot);
       memset(&L->rad[slot], 0, sizeof *L->rad);
-      memset(L->side[slot], 0, sizeof *L->side);
-      memset(L->direct[slot], 0, sizeof *L->direct);
       count++;
     }
   return count;
@@ -140,8 +138,9 @@ static int cmp_u32(const void *a, const void *b) {
 
 /* Voxelizes the stale cells of one box: every triangle the BVH finds over
  * the box, in index order (the bake's accumulation order per cell). */
-static gi_result voxelize_box(struct gi_cascade *c, gi_level *L, const cell_box *b, uint32_t **tris,
-                              size_t *cap, gi_error_info *err) {
+static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *b, uint32_t **tris, size_t *cap,
+                              gi_error_info *err) {
+  gi_level *L = &c->lv[d];
   const gi_scene *s = c->scene;
   int R = c->R;
   size_t nt = 0;
@@ -175,9 +174,19 @@ static gi_result voxelize_box(struct gi_cascade *c, gi_level *L, const cell_box 
     }
     const gi_material *mat = &s->materials[s->tri_material[t]];
     FOR_BOX(&tb, i, j, k) {
-      if (L->busy[gi__slot(i, j, k, R)] != CELL_STALE) continue;
+      uint32_t slot = gi__slot(i, j, k, R);
+      if (L->busy[slot] != CELL_STALE) continue;
+      if (L->vix[slot] == 0) {
+        /* The cell's sums get an entry at its first piece (a cell no
+         * piece reaches stays empty). */
+        if (gi__level_free_entries(L) == 0) {
+          gi_result rc = gi__level_reserve(c, d, L->cap + 1, 1, err);
+          if (rc != GI_OK) return rc;
+        }
+        gi__level_take(L, slot);
+      }
       int64_t cell[3] = {i, j, k};
-      gi__voxel_add_tri(L, R, cell, (const float(*)[3])tv, mat);
+      gi__voxel_add_tri(gi__geo(L, slot), L->s, cell, (const float(*)[3])tv, mat);
     }
   }
   /* A cell in two boxes is complete after the first. */
@@ -223,8 +232,12 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh,
         uint32_t slot = gi__slot(i, j, k, R);
         if (L->busy[slot] == CELL_VOXELIZED) {
           any_voxelized = 1;
-          if (!gi__voxel_finalize(L, slot)) continue;
-        } else if (!(L->geo[slot].area > 0)) {
+          if (L->vix[slot] == 0) continue;
+          if (!gi__voxel_finalize(L, gi__geo(L, slot), slot)) {
+            gi__level_release(L, slot);
+            continue;
+          }
+        } else if (L->vix[slot] == 0) {
           continue;
         }
         L->occ[L->num_occ++] = slot;
@@ -258,8 +271,10 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
     cell_box *b = boxes[d];
     int nb = nboxes[d] = stale_boxes(&old[d], L, R, rebuild, b);
     c->report.level_voxelized[d] = mark_stale(&old[d], L, R, rebuild, b, nb);
-    for (int q = 0; q < nb && rc == GI_OK; q++) rc = voxelize_box(c, L, &b[q], &tris, &cap, err);
+    for (int q = 0; q < nb && rc == GI_OK; q++) rc = voxelize_box(c, d, &b[q], &tris, &cap, err);
     if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d], &nnew[d]);
+    /* The nested cells above the finer level, which is final now. */
+    if (rc == GI_OK) rc = gi__nested_entries(c, d, err);
     c->report.voxel_size[d] = L->s;
     for (int a = 0; a < 3; a++)
       c->report.level_origin[d][a] = (double)L->cell0[a] * L->s + c->scene->origin[a];
@@ -289,8 +304,8 @@ static gi_result replan(struct gi_cascade *c, gi_quality *q, int *tail, int *rel
  * and cut into gi_cascade_refresh_period slices of equal gather counts. */
 typedef struct gi_move_state {
   gi_vrad *rad[GI_MAX_LEVELS];    /* the re-bake's texture (R^3, toroidal like the live one) */
-  gi_faces3 *side[GI_MAX_LEVELS];
-  void *block;     /* rad and side of every level, one gi__big_calloc block (see struct gi_cascade) */
+  gi_faces3 *side[GI_MAX_LEVELS]; /* the level's cap entries (gi__level_reserve keeps them equal) */
+  void *block;     /* rad of every level, one gi__big_calloc block (see struct gi_cascade) */
   size_t block_bytes;
   gi_faces3 *E[GI_MAX_LEVELS]; /* this bounce's gathers, per occupied voxel */
   uint32_t ecap[GI_MAX_LEVELS];   /* entries E[d] holds */
@@ -314,22 +329,33 @@ uint64_t gi_cascade_refresh_period(const gi_cascade *c, int level) {
 void gi__move_state_free(struct gi_move_state *m) {
   if (!m) return;
   gi__big_free(m->block, m->block_bytes, 1);
-  for (int d = 0; d < GI_MAX_LEVELS; d++) gi__free(m->E[d]);
+  for (int d = 0; d < GI_MAX_LEVELS; d++) gi__free(m->E[d]), gi__free(m->side[d]);
   gi__free(m);
+}
+
+/* The re-bake's side array of level d at `entries` (the level's cap: both
+ * side arrays always hold cap entries, so the swap keeps every level whole). */
+static gi_result move_state_reserve(struct gi_move_state *m, int d, uint32_t entries) {
+  gi_faces3 *p = gi__realloc(m->side[d], (size_t)entries * sizeof *p);
+  if (!p) return GI_ERR_NOMEM;
+  m->side[d] = p;
+  return GI_OK;
 }
 
 size_t gi__move_state_bytes(const struct gi_cascade *c) {
   const gi_move_state *m = c ? c->move_state : NULL;
   if (!m) return 0;
   size_t vox = (size_t)c->R * c->R * c->R, bytes = sizeof *m;
-  for (int d = 0; d < c->n; d++) bytes += vox * (sizeof *m->rad[d] + sizeof *m->side[d]) + m->ecap[d] * sizeof *m->E[d];
+  for (int d = 0; d < c->n; d++)
+    bytes += vox * sizeof *m->rad[d] + c->lv[d].cap * sizeof *m->side[d] + m->ecap[d] * sizeof *m->E[d];
   return bytes;
 }
 
 size_t gi_cascade_move_bytes_estimate(const gi_quality *q) {
   if (!q || q->levels <= 0 || q->res <= 0) return 0;
   gi_move_state *m = NULL;
-  size_t per_voxel = sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->E[0]; /* E: at most one per voxel */
+  /* At most every voxel holds geometry: one side entry and one E each. */
+  size_t per_voxel = sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->E[0];
   return sizeof *m + (size_t)q->levels * (size_t)q->res * (size_t)q->res * (size_t)q->res * per_voxel;
 }
 
@@ -338,14 +364,14 @@ static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
   if (c->move_state) return GI_OK;
   gi_move_state *m = gi__calloc(1, sizeof *m);
   size_t vox = (size_t)c->R * c->R * c->R;
-  /* rad's bytes are a multiple of 16: side stays aligned after it. */
-  size_t per_level = vox * (sizeof *m->rad[0] + sizeof *m->side[0]);
+  size_t per_level = vox * sizeof *m->rad[0];
   char *b = NULL;
   if (m) m->block_bytes = (size_t)c->n * per_level;
   if (m && (b = m->block = gi__big_calloc(m->block_bytes, 1)))
     for (int d = 0; d < c->n; d++) {
       m->rad[d] = (gi_vrad *)b, b += vox * sizeof *m->rad[d];
-      m->side[d] = (gi_faces3 *)b, b += vox * sizeof *m->side[d];
+      if (move_state_reserve(m, d, c->lv[d].cap) != GI_OK) b = NULL;
+      if (!b) break;
     }
   if (!b) {
     gi__move_state_free(m);
@@ -416,8 +442,9 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
     gi_level *L = &c->lv[d];
     for (uint32_t q = 0; q < nfresh[d]; q++) {
       uint32_t slot = fresh[d][q];
+      float(*side)[3] = gi__side(L, slot), (*direct)[3] = gi__direct(L, slot);
       for (int sd = 0; sd < GI_VOX_FACES; sd++)
-        for (int k = 0; k < 3; k++) L->side[slot][sd][k] = L->direct[slot][sd][k] + E[d][q][sd][k];
+        for (int k = 0; k < 3; k++) side[sd][k] = direct[sd][k] + E[d][q][sd][k];
     }
   }
   for (int d = 0; d < c->n; d++) gi__free(E[d]);
@@ -433,8 +460,9 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     memcpy(m->rad[d], L->rad, vox * sizeof *L->rad);
-    memset(m->side[d], 0, vox * sizeof *m->side[d]);
-    for (uint32_t i = 0; i < L->num_occ; i++) memcpy(m->side[d][L->occ[i]], L->direct[L->occ[i]], sizeof *L->side);
+    memset(m->side[d], 0, L->cap * sizeof *m->side[d]);
+    for (uint32_t i = 0; i < L->num_occ; i++)
+      memcpy(m->side[d][L->vix[L->occ[i]]], gi__direct(L, L->occ[i]), sizeof *L->side);
     if (m->ecap[d] < L->num_occ + 1) {
       gi__free(m->E[d]);
       m->ecap[d] = 0;
@@ -616,6 +644,10 @@ static gi_result scroll_and_update(struct gi_cascade *c, const gi_level *old, gi
   gi_quality q = c->report.quality;
   int tail = c->tail, rebuilt = 0;
   if (rc == GI_OK) rc = scroll_levels(c, old, fresh, nfresh, nnew, boxes, nboxes, mi, err);
+  /* The levels' entries may have grown: the re-bake's side arrays with them. */
+  for (int d = 0; d < c->n && rc == GI_OK; d++)
+    if (move_state_reserve(c->move_state, d, c->lv[d].cap) != GI_OK)
+      rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake's light of level %d", d);
   t[1] = gi__now_ms();
   if (rc == GI_OK) rc = replan(c, &q, &tail, &mi->relit, err);
   c->tail = tail;
