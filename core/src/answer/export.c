@@ -186,10 +186,11 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
         ld->density[o] = dens;
         if (g->area > 0) {
           /* Shown colour: the brightest face's outgoing radiance plus emission. */
+          const float(*side)[3] = gi__side(L, slot);
           int fb = 0;
           for (int f = 1; f < GI_VOX_FACES; f++)
-            if (gi__lum(gi__side(L, slot)[f]) > gi__lum(gi__side(L, slot)[fb])) fb = f;
-          const float *E = gi__side(L, slot)[fb];
+            if (gi__lum(side[f]) > gi__lum(side[fb])) fb = f;
+          const float *E = side[fb];
           for (int a = 0; a < 3; a++) {
             ld->cd[3 * o + a] = g->albedo[a] / GI_PI_F * E[a] + g->emission[a];
             ld->albedo[3 * o + a] = g->albedo[a];

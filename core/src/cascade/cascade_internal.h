@@ -230,9 +230,10 @@ static inline float (*gi__direct(const gi_level *L, uint32_t slot))[3] { return 
 /* cascade.c: the entries. gi__level_reserve grows level d's arrays to hold
  * `entries` (entry 0 included; with `slack`, a quarter more for the next
  * moves), keeping what they hold; serial, and never while the move has
- * swapped its texture in (the move grows its own side array to match). gi__level_take gives slot a zeroed entry (room
- * reserved; the slot must have none); gi__level_release gives it back
- * (a slot without one is fine). Neither is thread-safe. */
+ * swapped its texture in (the move grows its own side array to match).
+ * gi__level_take gives slot a zeroed entry (room reserved; the slot must
+ * have none); gi__level_release gives it back (a slot without one is
+ * fine). Neither is thread-safe. */
 gi_result gi__level_reserve(struct gi_cascade *c, int d, uint32_t entries, int slack, gi_error_info *err);
 uint32_t gi__level_free_entries(const gi_level *L);
 void gi__level_take(gi_level *L, uint32_t slot);

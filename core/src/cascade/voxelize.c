@@ -181,16 +181,15 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
       atomic_store(&v->failed, 1);
       return;
     }
-    for (int64_t k = k0; k < k1; k++)
-      for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
-        for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
-          size_t w = (size_t)(k - k0) * plane + (size_t)(j - L->cell0[1]) * (size_t)R + (size_t)(i - L->cell0[0]);
-          if (!(sums[w].area > 0)) continue;
-          uint32_t slot = gi__slot(i, j, k, R);
-          if (!gi__voxel_finalize(L, &sums[w], slot)) continue;
-          o->slot[o->n] = slot;
-          o->geo[o->n++] = sums[w];
-        }
+    /* The scratch is in z, y, x order from the slab's first cell. */
+    for (size_t w = 0; w < cells; w++) {
+      if (!(sums[w].area > 0)) continue;
+      int64_t i = L->cell0[0] + (int64_t)(w % (size_t)R), j = L->cell0[1] + (int64_t)(w / (size_t)R % (size_t)R);
+      uint32_t slot = gi__slot(i, j, k0 + (int64_t)(w / plane), R);
+      if (!gi__voxel_finalize(L, &sums[w], slot)) continue;
+      o->slot[o->n] = slot;
+      o->geo[o->n++] = sums[w];
+    }
   }
 }
 
@@ -283,12 +282,13 @@ int gi__voxel_finalize(gi_level *L, gi_vgeo *g, uint32_t slot) {
 
 /* Gives the slabs' voxels their entries, in slab order, and lists them
  * as the level's occupied voxels to light. */
-static gi_result gather_slabs(struct gi_cascade *c, int d, slab_out *out, int nslab, gi_error_info *err) {
+static gi_result gather_slabs(struct gi_cascade *c, int d, slab_out *out, int nslab, uint32_t nested,
+                              gi_error_info *err) {
   gi_level *L = &c->lv[d];
   uint64_t n = 0;
   for (int sl = 0; sl < nslab; sl++) n += out[sl].n;
-  /* The level's own voxels and the nested cells above the finer level's: one allocation. */
-  gi_result rc = gi__level_reserve(c, d, (L->used ? L->used : 1) + (uint32_t)n + gi__nested_need(c, d), 0, err);
+  /* The level's own voxels and its `nested` cells above the finer level's: one allocation. */
+  gi_result rc = gi__level_reserve(c, d, (L->used ? L->used : 1) + (uint32_t)n + nested, 0, err);
   if (rc != GI_OK) return rc;
   L->num_occ = 0;
   L->num_geo = 0;
@@ -324,21 +324,27 @@ uint32_t gi__nested_need(const struct gi_cascade *c, int d) {
   return need;
 }
 
-gi_result gi__nested_entries(struct gi_cascade *c, int d, gi_error_info *err) {
+/* Takes and gives back the nested cells' entries (room for `need` reserved). */
+static void nested_assign(struct gi_cascade *c, int d) {
   gi_level *L = &c->lv[d];
   int R = c->R;
-  if (d < 1 || !L->has_inner) return GI_OK;
-  uint32_t need = gi__nested_need(c, d), room = gi__level_free_entries(L);
-  if (need > room) {
-    gi_result rc = gi__level_reserve(c, d, L->cap + need - room, 1, err);
-    if (rc != GI_OK) return rc;
-  }
+  if (d < 1 || !L->has_inner) return;
   FOR_NESTED(L, i, j, k) {
     uint32_t slot = gi__slot(i, j, k, R);
     int any = nested_any(&c->lv[d - 1], R, i, j, k);
     if (any && L->vix[slot] == 0) gi__level_take(L, slot);
     else if (!any && L->vix[slot] != 0) gi__level_release(L, slot);
   }
+}
+
+gi_result gi__nested_entries(struct gi_cascade *c, int d, gi_error_info *err) {
+  gi_level *L = &c->lv[d];
+  uint32_t need = gi__nested_need(c, d), room = gi__level_free_entries(L);
+  if (need > room) {
+    gi_result rc = gi__level_reserve(c, d, L->cap + need - room, 1, err);
+    if (rc != GI_OK) return rc;
+  }
+  nested_assign(c, d);
   return GI_OK;
 }
 
@@ -434,8 +440,8 @@ static gi_result voxelize_level(struct gi_cascade *c, int d, int threads, vox_bu
   int cancelled = gi__parallel_for_cancel((size_t)nslab, 1, threads, voxelize_slabs, &v, &v.failed, c->cancel);
   if (atomic_load(&v.failed)) return gi__fail(err, GI_ERR_NOMEM, "voxelize: out of memory in level %d", d);
   if (cancelled) return gi__cancel_fail(c->cancel, err, "voxelize");
-  if ((rc = gather_slabs(c, d, b->out, nslab, err)) != GI_OK) return rc;
-  if ((rc = gi__nested_entries(c, d, err)) != GI_OK) return rc;
+  if ((rc = gather_slabs(c, d, b->out, nslab, gi__nested_need(c, d), err)) != GI_OK) return rc;
+  nested_assign(c, d);
   c->report.occupied[d] = L->num_geo;
   return GI_OK;
 }

@@ -200,8 +200,9 @@ out:
  * reflection of what the side it shows receives). */
 static inline void face_radiance(const gi_level *L, uint32_t slot, float Lf[GI_VOX_FACES][3]) {
   const gi_vgeo *g = gi__geo(L, slot);
+  const float(*side)[3] = gi__side(L, slot);
   for (int f = 0; f < GI_VOX_FACES; f++)
-    for (int k = 0; k < 3; k++) Lf[f][k] = g->albedo[k] * (1.0f / GI_PI_F) * gi__side(L, slot)[f][k];
+    for (int k = 0; k < 3; k++) Lf[f][k] = g->albedo[k] * (1.0f / GI_PI_F) * side[f][k];
 }
 
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {
