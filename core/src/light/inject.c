@@ -72,7 +72,47 @@ typedef struct {
   gi_lsample *all;     /* the voxel's light samples, before each group's pick */
   int8_t *side;        /* per picked sample: the side it lights */
   float *cosw;         /* per picked sample: |cos| to the group's orientation */
+  float *mis;          /* per picked sample: its MIS weight against emitter_rays */
+  float *share;        /* per picked sample: what it brings unshadowed (roulette) */
 } inject_buf;
+
+/* A point or spot light bringing less than this share of what all the
+ * group's samples would bring unshadowed plays Russian roulette for its
+ * shadow ray: kept with probability share / ROULETTE_SHARE and scaled up
+ * by its inverse, so the sum stays unbiased. In the city most of a
+ * voxel's rays went to street lamps a hundred metres off; the added noise
+ * is at most sqrt(ROULETTE_SHARE) of the unshadowed total per group. Sky,
+ * sun and emitter samples are stratified or importance-sampled already
+ * and each carry a fair share: they always trace. */
+#define ROULETTE_SHARE 0.01f
+
+/* Russian roulette on the weak local-light samples of ls[0..m) (see ROULETTE_SHARE);
+ * compacts the survivors with their side, cosine and MIS weight, returns
+ * how many remain. A sample that brings nothing is dropped. */
+static int roulette(gi_lsample *ls, inject_buf *ib, int m, uint64_t *rng) {
+  float total = 0;
+  for (int i = 0; i < m; i++) {
+    ib->share[i] = (ls[i].V[0] + ls[i].V[1] + ls[i].V[2]) * ib->cosw[i] * ib->mis[i];
+    total += ib->share[i];
+  }
+  float cut = ROULETTE_SHARE * total;
+  int kept = 0;
+  for (int i = 0; i < m; i++) {
+    float c = ib->share[i];
+    if (!(c > 0)) continue;
+    if (c < cut && ls[i].fx == GI_FX_LOCAL) {
+      float p = c / cut;
+      if (gi__u01(rng) >= p) continue;
+      for (int k = 0; k < 3; k++) ls[i].V[k] /= p;
+    }
+    ls[kept] = ls[i];
+    ib->side[kept] = ib->side[i];
+    ib->cosw[kept] = ib->cosw[i];
+    ib->mis[kept] = ib->mis[i];
+    kept++;
+  }
+  return kept;
+}
 
 /* The orientation group most nearly facing direction w (either side). */
 static int facing_group(const gi_vgeo *g, const float w[3]) {
@@ -88,7 +128,7 @@ static int facing_group(const gi_vgeo *g, const float w[3]) {
 /* Direct light from the samples `all` on both sides of group h, through
  * shadow rays from the group's centroid; adds to Es per side, returns the rays. */
 static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float voxel, int n, inject_buf *ib,
-                            float Es[GI_VOX_FACES][3]) {
+                            uint64_t *rng, float Es[GI_VOX_FACES][3]) {
   const gi_scene *s = ic->c->scene;
   const float *o = g->u.fin.orient[h];
   gi_lsample *ls = ib->sc.ls;
@@ -105,6 +145,11 @@ static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float
     ib->cosw[m] = fabsf(cn);
     m++;
   }
+  int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
+  /* Balance heuristic against the cosine samples of emitter_rays. */
+  for (int i = 0; i < m; i++)
+    ib->mis[i] = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * ib->cosw[i] / GI_PI_F) : 1.f;
+  m = roulette(ls, ib, m, rng);
   /* Each ray leaves from the side of the surface that faces its light. */
   gi__shadow_rays(s, g->u.fin.gcen[h], o, voxel, ls, m, &ib->sc);
   uint8_t *vis = ib->sc.vis;
@@ -117,12 +162,9 @@ static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float
    * their own surfaces decide. */
   for (int i = 0; i < m; i++)
     if (ls[i].fx == GI_FX_LOCAL && ls[i].dist < voxel && facing_group(g, ls[i].w) == h) vis[i] = 1;
-  int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
   for (int i = 0; i < m; i++) {
     if (!vis[i]) continue;
-    /* Balance heuristic against the cosine samples of emitter_rays. */
-    float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * ib->cosw[i] / GI_PI_F) : 1.f;
-    for (int k = 0; k < 3; k++) Es[ib->side[i]][k] += f * ls[i].V[k] * ib->cosw[i];
+    for (int k = 0; k < 3; k++) Es[ib->side[i]][k] += ib->mis[i] * ls[i].V[k] * ib->cosw[i];
   }
   return (uint64_t)m;
 }
@@ -166,7 +208,9 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   ib.all = gi__malloc((size_t)ic->cap * sizeof *ib.all);
   ib.side = gi__malloc((size_t)ic->cap);
   ib.cosw = gi__malloc((size_t)ic->cap * sizeof(float));
-  if (!ib.all || !ib.side || !ib.cosw || gi__scratch_alloc(&ib.sc, ic->cap)) {
+  ib.mis = gi__malloc((size_t)ic->cap * sizeof(float));
+  ib.share = gi__malloc((size_t)ic->cap * sizeof(float));
+  if (!ib.all || !ib.side || !ib.cosw || !ib.mis || !ib.share || gi__scratch_alloc(&ib.sc, ic->cap)) {
     atomic_store(&ic->failed, 1);
     goto out;
   }
@@ -183,7 +227,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
     int n = gi__light_samples(c->scene, ic->lp, g->centroid, &rng, ib.all, ic->cap);
-    for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, Es);
+    for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     rays += emitter_rays(ic, g, voxel, &rng, Es);
     for (int f = 0; f < GI_VOX_FACES; f++) memcpy(gi__direct(L, slot)[f], Es[g->face_side[f]], sizeof(float[3]));
     memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
@@ -194,6 +238,8 @@ out:
   gi__free(ib.all);
   gi__free(ib.side);
   gi__free(ib.cosw);
+  gi__free(ib.mis);
+  gi__free(ib.share);
 }
 
 /* Radiance leaving through each face of an occupied voxel (diffuse
