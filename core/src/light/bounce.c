@@ -4,8 +4,11 @@
  * its orientation groups (cascade_internal.h) with the diffuse cone set
  * (weights sum to pi, see trace/cones.c) by the gather's surface rule
  * (trace/gather.c: one voxel off the surface); all voxels
- * gather from the previous bounce's texture (Jacobi), then the texture is
- * reshaded and the nested regions refiltered. A closed furnace of albedo a
+ * gather from the previous bounce's texture (Jacobi). Transport is linear,
+ * so a bounce gathers only the light the previous one added (the direct
+ * light for the first): between bounces the texture holds that increment,
+ * shaded and filtered, and each voxel's side light sums the increments;
+ * after the last bounce the texture is reshaded from the sum. A closed furnace of albedo a
  * and emission Le therefore reaches Le (a + ... + a^(k+1)) reflected
  * radiance after k bounces. When the effect plan capped an automatic
  * bounce count short of what the albedo asks for, the last bounce also
@@ -117,30 +120,33 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
 }
 
 /* The end of one bounce, shared with the move's re-bake (move/move.c) so
- * both give the same bits: rolls the tail's sums S and adds E's, then
- * writes side = direct + E (+ the tail when add_tail) and reshades.
- * The tail: bounce k gathers E_k = E_1 + ... (orders 2..k+1 of the light
- * leaving the voxels); its increment D_k = E_k - E_(k-1) shrinks by the
- * room's mean reflection r = D_k / D_(k-1) (area-weighted over every
+ * both give the same bits: E holds the bounce's gather of the previous
+ * increment, i.e. this bounce's increment D_k; rolls the tail's sums S
+ * (area-weighted D of the last two bounces) and adds side += D_k (side =
+ * direct + E_k, E_k = D_0 + ... + D_k: orders 2..k+1 of the light leaving
+ * the voxels). Not last: the texture is shaded from D_k alone, for the
+ * next bounce to gather. Last: + the tail when add_tail, and the texture
+ * is shaded from side. The tail: D_k shrinks by the room's mean
+ * reflection r = D_k / D_(k-1) (area-weighted over every
  * voxel, per channel; the dominant eigenvalue of the transport once the
  * first bounces have spread the light). The orders left out add
  * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
  * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
  * otherwise multiply its last increment by 99). */
-void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], int add_tail) {
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last) {
   double f[3] = {0, 0, 0};
-  for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = S[2][k], S[2][k] = 0;
+  for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = 0;
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
       double a = gi__geo(L, L->occ[i])->area;
       for (int f = 0; f < GI_VOX_FACES; f++)
-        for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][f][k];
+        for (int k = 0; k < 3; k++) S[1][k] += a * E[d][i][f][k];
     }
   }
   if (add_tail)
     for (int k = 0; k < 3; k++) {
-      double dk = S[2][k] - S[1][k], dk1 = S[1][k] - S[0][k];
+      double dk = S[1][k], dk1 = S[0][k];
       double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
       if (r > 0.95) r = 0.95;
       f[k] = r / (1 - r);
@@ -148,28 +154,26 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], 
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
-      uint32_t slot = L->occ[i];
-      float(*side)[3] = gi__side(L, slot), (*direct)[3] = gi__direct(L, slot);
+      float(*side)[3] = gi__side(L, L->occ[i]);
       for (int fc = 0; fc < GI_VOX_FACES; fc++)
         for (int k = 0; k < 3; k++) {
-          float e = E[d][i][fc][k];
-          /* side - direct is still the previous bounce's E. */
-          float inc = e - (side[fc][k] - direct[fc][k]);
+          float inc = E[d][i][fc][k];
           float t = (float)f[k] * inc;
-          side[fc][k] = direct[fc][k] + e + (t > 0 ? t : 0);
+          side[fc][k] += inc + (t > 0 ? t : 0);
         }
     }
   }
-  gi__shade_all(c);
+  if (last) gi__shade_all(c);
+  else gi__shade_all_from(c, E);
 }
 
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
   gi_faces3 *E[GI_MAX_LEVELS] = {0};
   gi_hits *hit[GI_MAX_LEVELS] = {0};
   gi_result rc = GI_OK;
-  /* Area-weighted sums of the gathered irradiance per bounce (both sides,
+  /* Area-weighted sums of the increment per bounce (both sides,
    * every level's own voxels), for the tail's ratio. */
-  double S[3][3] = {{0}};
+  double S[2][3] = {{0}};
   for (int d = 0; d < c->n; d++) {
     E[d] = gi__malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *E[d]);
     hit[d] = gi__malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *hit[d]);
@@ -191,7 +195,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
         goto done;
       }
     }
-    gi__bounce_end(c, E, S, tail && it + 1 == bounces && it >= 1);
+    gi__bounce_end(c, E, S, tail && it + 1 == bounces && it >= 1, it + 1 == bounces);
     if (gi__cascade_filter(c, q->threads)) {
       rc = gi__cancel_fail(c->cancel, err, "bounce filter");
       goto done;

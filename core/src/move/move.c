@@ -313,7 +313,7 @@ typedef struct gi_move_state {
   int slice;       /* slices run at this anchor */
   int closed;      /* 1: the live cascade equals a cold bake at this anchor */
   int bounces, tail;
-  double S[3][3];  /* the tail's area-weighted sums of the last three bounces (as gi__bounce) */
+  double S[2][3];  /* the tail's area-weighted sums of the last two increments (as gi__bounce) */
   uint64_t period; /* slices of the cycle under way (0: the resting period) */
   uint64_t calls;  /* calls at the current anchor, the one that arrived included */
   double dwell;    /* running mean of calls per anchor while moving (0: none measured yet) */
@@ -483,9 +483,10 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
 
 /* Ends bounce `it` of the re-bake on its (swapped-in) texture with the
  * bake's own bounce end (light/bounce.c), so the result is bit-identical
- * to the bake's; then refilters. */
+ * to the bake's; then refilters. Between bounces that texture holds the
+ * last increment only (the live one stays whole). */
 static int rebake_bounce_end(struct gi_cascade *c, gi_move_state *m, int it, int threads) {
-  gi__bounce_end(c, m->E, m->S, m->tail && it + 1 == m->bounces && it >= 1);
+  gi__bounce_end(c, m->E, m->S, m->tail && it + 1 == m->bounces && it >= 1, it + 1 == m->bounces);
   return gi__cascade_filter(c, threads);
 }
 
