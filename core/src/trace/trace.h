@@ -20,6 +20,13 @@ void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[
  * aperture_deg is the request's (0 = matched to the regions). */
 int gi__probe_cone_count(int bake_count);
 void gi__probe_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half);
+/* The bounces' set for the orders from the third on (light/bounce.c):
+ * 8 wider cones (fewer for a smaller bake set), weights summing to pi.
+ * What those bounces gather is the last order's light alone, which is
+ * small and smooth by then, so half the cones lose little (measured: see
+ * bounce.c). aperture_deg as for the probes' set. */
+int gi__wide_cone_count(int bake_count);
+void gi__wide_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half);
 typedef struct gi_cone_out {
   float L[3];          /* radiance arriving along the cone */
   float alpha;         /* accumulated opacity */
