@@ -30,9 +30,13 @@ void gi__shade_all_from(struct gi_cascade *c, gi_faces3 *const from[]);
 typedef struct gi_hits {
   uint64_t w[GI_HIT_BITS / 64];
 } gi_hits;
-/* One voxel's gather from the current texture: E per face (the side it shows); returns the
+/* One voxel's gather from the current texture with the diffuse or the
+ * wide set: E per face (the side it shows); returns the
  * texture samples taken and adds the cones marched to *cones. */
-uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, gi_faces3 E, uint64_t *cones);
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, int wide, gi_faces3 E, uint64_t *cones);
+/* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
+ * move's re-bake must agree bounce by bounce. */
+int gi__bounce_wide(const struct gi_cascade *c, int it);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
 /* The end of one bounce from its gathers E (per level, per occupied voxel:
  * the bounce's increment): the tail's sums S rolled, side light summed,

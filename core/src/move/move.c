@@ -398,6 +398,7 @@ typedef struct {
   const struct gi_cascade *c;
   int d;
   const uint32_t *slots;
+  int wide;        /* the bounces' wide set (gi__bounce_wide) */
   gi_faces3 *E;
   atomic_ullong samples, cones;
 } gather_ctx;
@@ -405,15 +406,16 @@ typedef struct {
 static void gather_range(void *p, size_t b, size_t e, int worker) {
   gather_ctx *g = p;
   uint64_t samples = 0, cones = 0;
-  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(g->c, g->d, g->slots[q], g->E[q], &cones);
+  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(g->c, g->d, g->slots[q], g->wide, g->E[q], &cones);
   atomic_fetch_add(&g->samples, samples);
   atomic_fetch_add(&g->cones, cones);
 }
 
-/* Gathers the n voxels slots[] of level d from the current texture into E. */
-static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n,
+/* Gathers the n voxels slots[] of level d from the current texture into E
+ * with the diffuse or the wide set. */
+static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n, int wide,
                              gi_faces3 *E, gi_error_info *err) {
-  gather_ctx g = {.c = c, .d = d, .slots = slots, .E = E};
+  gather_ctx g = {.c = c, .d = d, .slots = slots, .wide = wide, .E = E};
   atomic_init(&g.samples, 0);
   atomic_init(&g.cones, 0);
   int cancelled = gi__parallel_for_cancel(n, 16, threads, gather_range, &g, NULL, c->cancel);
@@ -436,7 +438,7 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     if (!(E[d] = gi__malloc(((size_t)nfresh[d] + 1) * sizeof *E[d])))
       rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
-    else rc = gather_list(c, threads, d, fresh[d], nfresh[d], E[d], err);
+    else rc = gather_list(c, threads, d, fresh[d], nfresh[d], 0, E[d], err);
   }
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     gi_level *L = &c->lv[d];
@@ -504,7 +506,7 @@ static gi_result rebake_units(struct gi_cascade *c, gi_move_state *m, uint64_t l
       uint64_t b = lo > base ? lo - base : 0, e = end - base;
       if (e > c->lv[d].num_occ) e = c->lv[d].num_occ;
       if (lo >= base + c->lv[d].num_occ || end <= base || b >= e) continue;
-      rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), m->E[d] + b, err);
+      rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), gi__bounce_wide(c, it), m->E[d] + b, err);
     }
     if (rc == GI_OK && end == (uint64_t)(it + 1) * U && rebake_bounce_end(c, m, it, threads))
       rc = gi__cancel_fail(c->cancel, err, "re-bake filter");

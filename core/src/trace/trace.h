@@ -92,9 +92,11 @@ typedef struct gi_cone_job {
 #define GI_MARCH_LANES_MAX_RES 256
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out);
-/* The cascade's diffuse cone set on the hemisphere around unit n, started
- * from g, as jobs (num_cones of them). */
-void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, const float n[3], gi_cone_job *jobs);
+/* The cascade's diffuse cone set (wide: the bounces' wide set) on the
+ * hemisphere around unit n, started from g, as jobs (num_cones, or
+ * num_wide_cones, of them). */
+void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_start *g, const float n[3],
+                         gi_cone_job *jobs);
 /* What a hemisphere gather returns. */
 typedef struct gi_gather_out {
   float E[3];          /* irradiance: sum over cones of weight x L */
