@@ -106,6 +106,8 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
   c->num_cones = q.cones;
   gi__probe_cone_set(q.cones, q.aperture_deg, c->probe_dir, c->probe_weight, &c->probe_tan);
   c->num_probe_cones = gi__probe_cone_count(q.cones);
+  gi__wide_cone_set(q.cones, q.aperture_deg, c->wide_dir, c->wide_weight, &c->wide_tan);
+  c->num_wide_cones = gi__wide_cone_count(q.cones);
   /* Report every knob resolved, so a JSON answer says exactly what ran. */
   q.aperture_deg = (float)(2.0 * atan((double)c->cone_tan) * 180.0 / 3.14159265358979323846);
   q.threads = gi__num_workers(q.threads);

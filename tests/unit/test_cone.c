@@ -119,6 +119,38 @@ static void test_cone_sets(void **state) {
   }
 }
 
+/* The later bounces' wide set: 8 cones (the bake's own count when that is
+ * smaller), unit directions in the hemisphere, weights summing to pi, each
+ * cone wider than the bake set's; a chosen aperture scales it alike. */
+static void test_wide_cone_set(void **state) {
+  const int counts[] = {4, 6, 8, 16, 32};
+  for (int i = 0; i < 5; i++) {
+    float dirs[64][3], w[64], th, bake_dirs[64][3], bake_w[64], bake_th;
+    int n = gi__wide_cone_count(counts[i]);
+    assert_int_equal(n, counts[i] < 8 ? counts[i] : 8);
+    gi__wide_cone_set(counts[i], 0, dirs, w, &th);
+    gi__cone_set(counts[i], 0, bake_dirs, bake_w, &bake_th);
+    double sum = 0;
+    for (int k = 0; k < n; k++) {
+      sum += w[k];
+      assert_true(w[k] > 0);
+      assert_true(fabsf(gi__len(dirs[k]) - 1) < 1e-5f);
+      assert_true(dirs[k][2] > 0);
+    }
+    printf("wide set of %d bake cones: %d cones, sum w = %.6f, aperture %.2f deg (bake %.2f)\n", counts[i], n, sum,
+           2 * atan(th) * 180 / M_PI, 2 * atan(bake_th) * 180 / M_PI);
+    assert_true(fabs(sum - M_PI) < 1e-5);
+    assert_true(fabs(2 * M_PI * (1 - cos(atan(th))) - 2 * M_PI / n) < 1e-5);
+    if (n < counts[i]) assert_true(th > bake_th);
+    else assert_true(th == bake_th);
+  }
+  /* A 40-degree request on 16 bake cones widens the 8 by the same factor. */
+  float dirs[64][3], w[64], th;
+  gi__wide_cone_set(16, 40.f, dirs, w, &th);
+  double want = 40.0 * acos(1.0 - 1.0 / 8) / acos(1.0 - 1.0 / 16);
+  assert_true(fabs(2 * atan(th) * 180 / M_PI - want) < 1e-3);
+}
+
 static void test_sh_constant(void **state) {
   /* Constant radiance 1 over the sphere: irradiance pi for every normal. */
   float sh[9][3] = {{0}};
@@ -172,6 +204,7 @@ int main(void) {
       cmocka_unit_test(test_level_selection),
       cmocka_unit_test(test_compositing),
       cmocka_unit_test(test_cone_sets),
+      cmocka_unit_test(test_wide_cone_set),
       cmocka_unit_test(test_sh_constant),
       cmocka_unit_test(test_specular_cone),
   };

@@ -31,6 +31,7 @@
 #include "cascade/cascade_internal.h"
 #include "gi/gi.h"
 #include "gi/gi_move.h"
+#include "light/light.h"
 #include "test_levels.h"
 
 #define WALK_MOVES 200
@@ -201,6 +202,40 @@ static void test_walk(void **state) {
   compare_light(c, b, 1, &mean, &worst);
   printf("cycle closed: light against a cold bake: mean %.3g max %.3g relative (bound %.0e)\n", mean, worst,
          FACE_REL_TOL);
+  gi_cascade_free(b);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+/* Three bounces, the third gathered with the wide cone set
+ * (light/bounce.c): the re-bake must take the same set bounce by bounce as
+ * the bake, so a closed cycle still equals a cold bake. */
+static void test_wide_bounce_cycle(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_quality q = SMALL;
+  q.bounces = 3;
+  gi_cascade *c = NULL, *b = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_report(c)->bounces_run, 3);
+  assert_true(!gi__bounce_wide(c, 1) && gi__bounce_wide(c, 2));
+  /* A few finest voxels: level 0 scrolls, the re-bake restarts. */
+  at[0] += 3 * c->s0;
+  gi_move_info mi = {0};
+  assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+  for (uint64_t i = 0; i <= gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+  assert_true(mi.cycle_closed);
+  assert_int_equal(gi_cascade_report(c)->bounces_run, 3);
+  assert_int_equal(gi_cascade_bake(s, at, &q, &b, NULL, &err), GI_OK);
+  assert_same_geometry(c, b);
+  double mean, worst;
+  compare_light(c, b, 1, &mean, &worst);
+  printf("3 bounces, cycle closed: light against a cold bake: mean %.3g max %.3g relative (bound %.0e)\n", mean,
+         worst, FACE_REL_TOL);
   gi_cascade_free(b);
   gi_cascade_free(c);
   gi_scene_release(s);
@@ -609,6 +644,7 @@ int main(void) {
       cmocka_unit_test(test_cancelled_move),
       cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),
+      cmocka_unit_test(test_wide_bounce_cycle),
       cmocka_unit_test(test_bounded),
       cmocka_unit_test(test_refilter_exact),
       cmocka_unit_test(test_moving_cycle),

@@ -157,7 +157,7 @@ static int city_jobs(const gi_cascade *c, gi_cone_job *jobs, int cap) {
         for (int k = 0; k < 3; k++) n[k] = (sd ? -1.f : 1.f) * g->normal[k];
         gi_gather_start st;
         gi__gather_start(c, g->centroid, n, GI_GATHER_SURFACE, d, &st);
-        gi__hemisphere_jobs(c, &st, n, jobs + nj);
+        gi__hemisphere_jobs(c, 0, &st, n, jobs + nj);
         nj += nc;
       }
     }
@@ -168,7 +168,7 @@ static int city_jobs(const gi_cascade *c, gi_cone_job *jobs, int cap) {
     float n[3] = {i % 3 == 0 ? 1.f : 0.f, i % 3 == 1 ? 1.f : 0.f, i % 3 == 2 ? 1.f : 0.f};
     gi_gather_start st;
     if (!gi__gather_start(c, p, n, GI_GATHER_FREE, -1, &st)) continue;
-    gi__hemisphere_jobs(c, &st, n, jobs + nj);
+    gi__hemisphere_jobs(c, 0, &st, n, jobs + nj);
     nj += nc;
   }
   return nj;

@@ -170,6 +170,11 @@ struct gi_cascade {
   float cone_dir[GI_MAX_CONES][3];
   float cone_weight[GI_MAX_CONES]; /* integral of cos over the cone's region; sums to pi */
   float cone_tan;        /* tan(aperture / 2) */
+  /* The bounces' wider, smaller set for the later orders (gi__wide_cone_set). */
+  int num_wide_cones;
+  float wide_dir[GI_MAX_CONES][3];
+  float wide_weight[GI_MAX_CONES];
+  float wide_tan;
   /* The probes' denser final-gather set (gi__probe_cone_set). */
   int num_probe_cones;
   float probe_dir[GI_MAX_CONES][3];

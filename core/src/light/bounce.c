@@ -4,8 +4,13 @@
  * its orientation groups (cascade_internal.h) with the diffuse cone set
  * (weights sum to pi, see trace/cones.c) by the gather's surface rule
  * (trace/gather.c: one voxel off the surface); all voxels
- * gather from the previous bounce's texture (Jacobi), then the texture is
- * reshaded and the nested regions refiltered. A closed furnace of albedo a
+ * gather from the previous bounce's texture (Jacobi). Transport is linear,
+ * so a bounce gathers only the light the previous one added (the direct
+ * light for the first): between bounces the texture holds that increment,
+ * shaded and filtered, and each voxel's side light sums the increments;
+ * after the last bounce the texture is reshaded from the sum. From the
+ * third bounce on the increment is small and smooth, and the gather takes
+ * the wide set (gi__bounce_wide). A closed furnace of albedo a
  * and emission Le therefore reaches Le (a + ... + a^(k+1)) reflected
  * radiance after k bounces. When the effect plan capped an automatic
  * bounce count short of what the albedo asks for, the last bounce also
@@ -22,8 +27,9 @@ typedef struct {
   struct gi_cascade *c;
   int d;
   gi_faces3 *E;     /* per occupied voxel */
-  gi_hits *hit;     /* per occupied voxel: the cones that met opacity on the first bounce */
-  int first;
+  gi_hits *hit;     /* per occupied voxel: the cones of the set that met opacity on its first bounce */
+  int wide;         /* the wide set (gi__bounce_wide) */
+  int first;        /* the set's first bounce: fills hit */
   atomic_ullong samples, cones;
 } bounce_ctx;
 
@@ -48,14 +54,15 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
   }
 }
 
-/* Every side of every group of a voxel, only the cones in `want` (bit
- * side * num_cones + cone; cones past the mask always run); *hit (may be
+/* Every side of every group of a voxel with the diffuse or the wide set,
+ * only the cones in `want` (bit side * set size + cone; cones past the
+ * mask always run); *hit (may be
  * NULL) receives the cones that met any opacity. A cone that met none
  * took no light and never will: the texture's opacity stays as voxelized
  * through every bounce (shading rewrites radiance only), so the same
  * steps see the same empty space. E receives each face's side. */
-static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, const gi_hits *want, gi_faces3 E,
-                             uint64_t *cones, gi_hits *hit) {
+static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, int wide, const gi_hits *want,
+                             gi_faces3 E, uint64_t *cones, gi_hits *hit) {
   const gi_vgeo *g = gi__geo(&c->lv[d], slot);
   uint64_t samples = 0;
   memset(E, 0, sizeof(gi_faces3));
@@ -63,7 +70,8 @@ static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, c
   if (g->groups == 0 || (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0)) return 0;
   /* Every side's cones in one batch: the SIMD march keeps its lanes full
    * across the hemispheres. */
-  int nc = c->num_cones, nj = 0, ns = 2 * g->groups;
+  int nc = wide ? c->num_wide_cones : c->num_cones, nj = 0, ns = 2 * g->groups;
+  const float *weight = wide ? c->wide_weight : c->cone_weight;
   gi_cone_job all[GI_MAX_CONES], jobs[GI_VOX_FACES * GI_MAX_CONES];
   gi_cone_out co[GI_VOX_FACES * GI_MAX_CONES];
   int16_t which[GI_VOX_FACES * GI_MAX_CONES];
@@ -77,17 +85,17 @@ static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, c
      * given, so the start always exists). */
     gi__gather_start(c, g->u.fin.gcen[sd / 2], n, GI_GATHER_SURFACE, d, &st);
     if (ns > 2) away_from_groups(c, d, g, sd / 2, &st);
-    gi__hemisphere_jobs(c, &st, n, all);
+    gi__hemisphere_jobs(c, wide, &st, n, all);
     for (int ci = 0; ci < nc; ci++) {
       int bit = sd * nc + ci;
       if (bit >= GI_HIT_BITS || !want || (want->w[bit / 64] >> (bit % 64) & 1)) which[nj] = (int16_t)bit, jobs[nj++] = all[ci];
     }
   }
-  if (nj > 0) gi__cone_march_jobs(c, jobs, nj, c->cone_tan, st.step, st.ao_lambda, co);
+  if (nj > 0) gi__cone_march_jobs(c, jobs, nj, wide ? c->wide_tan : c->cone_tan, st.step, st.ao_lambda, co);
   /* In the order of the full set, so skipped cones (exact zeros) leave E's bits as they were. */
   for (int j = 0; j < nj; j++) {
     int sd = which[j] / nc;
-    float cw = c->cone_weight[which[j] % nc];
+    float cw = weight[which[j] % nc];
     for (int k = 0; k < 3; k++) Es[sd][k] += cw * co[j].L[k];
     samples += co[j].samples;
     if (hit && co[j].alpha > 0 && which[j] < GI_HIT_BITS) hit->w[which[j] / 64] |= 1ull << (which[j] % 64);
@@ -97,8 +105,20 @@ static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, c
   return samples;
 }
 
-uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, gi_faces3 E, uint64_t *cones) {
-  return gather_sides(c, d, slot, NULL, E, cones, NULL);
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, int wide, gi_faces3 E, uint64_t *cones) {
+  return gather_sides(c, d, slot, wide, NULL, E, cones, NULL);
+}
+
+/* The first two bounces gather the direct light and the first bounce's,
+ * which carry the sharp detail (shadow edges, the lit patch under a lamp);
+ * from the third on the increment has spread through the room. Measured
+ * at 3 bounces, 16 cones: bounce instructions -14% (Cornell), -12%
+ * (Munich), -13% (city), probe indirect within 1.5% of the 16 cones
+ * throughout; 6 wide cones instead of 8 moved Munich's probe 7%. */
+#define WIDE_FROM 2
+
+int gi__bounce_wide(const struct gi_cascade *c, int it) {
+  return it >= WIDE_FROM && c->num_wide_cones < c->num_cones;
 }
 
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
@@ -108,39 +128,42 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   for (size_t q = b; q < e; q++) {
     uint32_t slot = L->occ[q];
     if (bc->first)
-      samples += gather_sides(bc->c, bc->d, slot, NULL, bc->E[q], &cones, &bc->hit[q]);
+      samples += gather_sides(bc->c, bc->d, slot, bc->wide, NULL, bc->E[q], &cones, &bc->hit[q]);
     else
-      samples += gather_sides(bc->c, bc->d, slot, &bc->hit[q], bc->E[q], &cones, NULL);
+      samples += gather_sides(bc->c, bc->d, slot, bc->wide, &bc->hit[q], bc->E[q], &cones, NULL);
   }
   atomic_fetch_add(&bc->samples, samples);
   atomic_fetch_add(&bc->cones, cones);
 }
 
 /* The end of one bounce, shared with the move's re-bake (move/move.c) so
- * both give the same bits: rolls the tail's sums S and adds E's, then
- * writes side = direct + E (+ the tail when add_tail) and reshades.
- * The tail: bounce k gathers E_k = E_1 + ... (orders 2..k+1 of the light
- * leaving the voxels); its increment D_k = E_k - E_(k-1) shrinks by the
- * room's mean reflection r = D_k / D_(k-1) (area-weighted over every
+ * both give the same bits: E holds the bounce's gather of the previous
+ * increment, i.e. this bounce's increment D_k; rolls the tail's sums S
+ * (area-weighted D of the last two bounces) and adds side += D_k (side =
+ * direct + E_k, E_k = D_0 + ... + D_k: orders 2..k+1 of the light leaving
+ * the voxels). Not last: the texture is shaded from D_k alone, for the
+ * next bounce to gather. Last: + the tail when add_tail, and the texture
+ * is shaded from side. The tail: D_k shrinks by the room's mean
+ * reflection r = D_k / D_(k-1) (area-weighted over every
  * voxel, per channel; the dominant eigenvalue of the transport once the
  * first bounces have spread the light). The orders left out add
  * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
  * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
  * otherwise multiply its last increment by 99). */
-void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], int add_tail) {
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last) {
   double f[3] = {0, 0, 0};
-  for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = S[2][k], S[2][k] = 0;
+  for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = 0;
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
       double a = gi__geo(L, L->occ[i])->area;
       for (int f = 0; f < GI_VOX_FACES; f++)
-        for (int k = 0; k < 3; k++) S[2][k] += a * E[d][i][f][k];
+        for (int k = 0; k < 3; k++) S[1][k] += a * E[d][i][f][k];
     }
   }
   if (add_tail)
     for (int k = 0; k < 3; k++) {
-      double dk = S[2][k] - S[1][k], dk1 = S[1][k] - S[0][k];
+      double dk = S[1][k], dk1 = S[0][k];
       double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
       if (r > 0.95) r = 0.95;
       f[k] = r / (1 - r);
@@ -148,39 +171,43 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], 
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
-      uint32_t slot = L->occ[i];
-      float(*side)[3] = gi__side(L, slot), (*direct)[3] = gi__direct(L, slot);
+      float(*side)[3] = gi__side(L, L->occ[i]);
       for (int fc = 0; fc < GI_VOX_FACES; fc++)
         for (int k = 0; k < 3; k++) {
-          float e = E[d][i][fc][k];
-          /* side - direct is still the previous bounce's E. */
-          float inc = e - (side[fc][k] - direct[fc][k]);
+          float inc = E[d][i][fc][k];
           float t = (float)f[k] * inc;
-          side[fc][k] = direct[fc][k] + e + (t > 0 ? t : 0);
+          side[fc][k] += inc + (t > 0 ? t : 0);
         }
     }
   }
-  gi__shade_all(c);
+  if (last) gi__shade_all(c);
+  else gi__shade_all_from(c, E);
 }
 
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
   gi_faces3 *E[GI_MAX_LEVELS] = {0};
-  gi_hits *hit[GI_MAX_LEVELS] = {0};
+  /* Each set's own first-hit mask: the wide set's cones are not the diffuse set's. */
+  gi_hits *hit[2][GI_MAX_LEVELS] = {{0}};
   gi_result rc = GI_OK;
-  /* Area-weighted sums of the gathered irradiance per bounce (both sides,
+  /* Area-weighted sums of the increment per bounce (both sides,
    * every level's own voxels), for the tail's ratio. */
-  double S[3][3] = {{0}};
+  double S[2][3] = {{0}};
+  int any_wide = bounces > 0 && gi__bounce_wide(c, bounces - 1);
   for (int d = 0; d < c->n; d++) {
-    E[d] = gi__malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *E[d]);
-    hit[d] = gi__malloc(((size_t)c->lv[d].num_occ + 1) * sizeof *hit[d]);
-    if (!E[d] || !hit[d]) {
+    size_t n = (size_t)c->lv[d].num_occ + 1;
+    E[d] = gi__malloc(n * sizeof *E[d]);
+    hit[0][d] = gi__malloc(n * sizeof *hit[0][d]);
+    if (any_wide) hit[1][d] = gi__malloc(n * sizeof *hit[1][d]);
+    if (!E[d] || !hit[0][d] || (any_wide && !hit[1][d])) {
       rc = gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory");
       goto done;
     }
   }
   for (int it = 0; it < bounces; it++) {
     for (int d = 0; d < c->n; d++) {
-      bounce_ctx bc = {.c = c, .d = d, .E = E[d], .hit = hit[d], .first = it == 0};
+      int wide = gi__bounce_wide(c, it);
+      bounce_ctx bc = {.c = c, .d = d, .E = E[d], .hit = hit[wide][d], .wide = wide,
+                       .first = it == 0 || (wide && !gi__bounce_wide(c, it - 1))};
       atomic_init(&bc.samples, 0);
       atomic_init(&bc.cones, 0);
       int cancelled = gi__parallel_for_cancel(c->lv[d].num_occ, 16, q->threads, bounce_range, &bc, NULL, c->cancel);
@@ -191,7 +218,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
         goto done;
       }
     }
-    gi__bounce_end(c, E, S, tail && it + 1 == bounces && it >= 1);
+    gi__bounce_end(c, E, S, tail && it + 1 == bounces && it >= 1, it + 1 == bounces);
     if (gi__cascade_filter(c, q->threads)) {
       rc = gi__cancel_fail(c->cancel, err, "bounce filter");
       goto done;
@@ -199,6 +226,6 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     c->report.bounces_run = it + 1;
   }
 done:
-  for (int d = 0; d < c->n; d++) gi__free(E[d]), gi__free(hit[d]);
+  for (int d = 0; d < c->n; d++) gi__free(E[d]), gi__free(hit[0][d]), gi__free(hit[1][d]);
   return rc;
 }

@@ -243,22 +243,26 @@ out:
 }
 
 /* Radiance leaving through each face of an occupied voxel (diffuse
- * reflection of what the side it shows receives). */
-static inline void face_radiance(const gi_level *L, uint32_t slot, float Lf[GI_VOX_FACES][3]) {
+ * reflection of what the side it shows receives: side, or the irradiance
+ * given). */
+static inline void face_radiance(const gi_level *L, uint32_t slot, const float (*side)[3],
+                                 float Lf[GI_VOX_FACES][3]) {
   const gi_vgeo *g = gi__geo(L, slot);
-  const float(*side)[3] = gi__side(L, slot);
+  if (!side) side = (const float(*)[3])gi__side(L, slot);
   for (int f = 0; f < GI_VOX_FACES; f++)
     for (int k = 0; k < 3; k++) Lf[f][k] = g->albedo[k] * (1.0f / GI_PI_F) * side[f][k];
 }
 
-void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {
+/* Occupied voxels [begin, end) of level d from `from` (per occupied voxel;
+ * NULL: their side light). */
+static void shade_range(struct gi_cascade *c, int d, uint32_t begin, uint32_t end, const gi_faces3 *from) {
   gi_level *L = &c->lv[d];
   float inv = 1.0f / c->rad_scale;
   for (uint32_t q = begin; q < end; q++) {
     uint32_t slot = L->occ[q];
     gi_vrad *r = &L->rad[slot];
     float Lf[GI_VOX_FACES][3];
-    face_radiance(L, slot, Lf);
+    face_radiance(L, slot, from ? (const float(*)[3])from[q] : NULL, Lf);
     for (int f = 0; f < 6; f++) {
       float al = gi__vrad_alpha(r, f / 2) * inv;
       for (int k = 0; k < 3; k++) r->h[3 * f + k] = gi__f2h(al * Lf[f][k]);
@@ -266,23 +270,31 @@ void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end)
   }
 }
 
+void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end) {
+  shade_range(c, d, begin, end, NULL);
+}
+
 /* Every occupied voxel of every level, after choosing the texels' scale
  * for the brightest of them (filtering then rewrites the nested regions
  * at the same scale). */
-void gi__shade_all(struct gi_cascade *c) {
+static void shade_all(struct gi_cascade *c, gi_faces3 *const from[]) {
   float brightest = 0;
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t q = 0; q < L->num_occ; q++) {
       float Lf[GI_VOX_FACES][3];
-      face_radiance(L, L->occ[q], Lf);
+      face_radiance(L, L->occ[q], from ? (const float(*)[3])from[d][q] : NULL, Lf);
       for (int f = 0; f < GI_VOX_FACES; f++)
         for (int k = 0; k < 3; k++) brightest = gi__maxf(brightest, Lf[f][k]);
     }
   }
   gi__vrad_rescale(c, brightest);
-  for (int d = 0; d < c->n; d++) gi__shade_voxels(c, d, 0, c->lv[d].num_occ);
+  for (int d = 0; d < c->n; d++) shade_range(c, d, 0, c->lv[d].num_occ, from ? from[d] : NULL);
 }
+
+void gi__shade_all(struct gi_cascade *c) { shade_all(c, NULL); }
+
+void gi__shade_all_from(struct gi_cascade *c, gi_faces3 *const from[]) { shade_all(c, from); }
 
 gi_result gi__inject_slots(struct gi_cascade *c, const gi_quality *q, int d, const uint32_t *slots, uint32_t n,
                            gi_error_info *err) {

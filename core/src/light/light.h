@@ -16,6 +16,10 @@ gi_result gi__inject_slots(struct gi_cascade *c, const gi_quality *q, int d, con
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end);
 /* gi__shade_voxels over every occupied voxel of every level. */
 void gi__shade_all(struct gi_cascade *c);
+/* As gi__shade_all, from the irradiance from[d][q] of level d's occupied
+ * voxel q instead of its side light (a bounce's increment, which the next
+ * bounce gathers alone); side is left as it is. */
+void gi__shade_all_from(struct gi_cascade *c, gi_faces3 *const from[]);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
  * tail (with bounces >= 2): then adds the orders after the last bounce as
  * a geometric series whose ratio is measured from the last two bounces. */
@@ -26,13 +30,19 @@ void gi__shade_all(struct gi_cascade *c);
 typedef struct gi_hits {
   uint64_t w[GI_HIT_BITS / 64];
 } gi_hits;
-/* One voxel's gather from the current texture: E per face (the side it shows); returns the
+/* One voxel's gather from the current texture with the diffuse or the
+ * wide set: E per face (the side it shows); returns the
  * texture samples taken and adds the cones marched to *cones. */
-uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, gi_faces3 E, uint64_t *cones);
+uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, int wide, gi_faces3 E, uint64_t *cones);
+/* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
+ * move's re-bake must agree bounce by bounce. */
+int gi__bounce_wide(const struct gi_cascade *c, int it);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
-/* The end of one bounce from its gathers E (per level, per occupied voxel):
- * the tail's sums S rolled, side light written, the texture reshaded (the
- * caller refilters). Shared by gi__bounce and the move's re-bake. */
-void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[3][3], int add_tail);
+/* The end of one bounce from its gathers E (per level, per occupied voxel:
+ * the bounce's increment): the tail's sums S rolled, side light summed,
+ * the texture reshaded from the increment, or from the whole side light
+ * when `last` (the caller refilters). Shared by gi__bounce and the move's
+ * re-bake. */
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last);
 
 #endif

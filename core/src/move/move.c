@@ -313,7 +313,7 @@ typedef struct gi_move_state {
   int slice;       /* slices run at this anchor */
   int closed;      /* 1: the live cascade equals a cold bake at this anchor */
   int bounces, tail;
-  double S[3][3];  /* the tail's area-weighted sums of the last three bounces (as gi__bounce) */
+  double S[2][3];  /* the tail's area-weighted sums of the last two increments (as gi__bounce) */
   uint64_t period; /* slices of the cycle under way (0: the resting period) */
   uint64_t calls;  /* calls at the current anchor, the one that arrived included */
   double dwell;    /* running mean of calls per anchor while moving (0: none measured yet) */
@@ -398,6 +398,7 @@ typedef struct {
   const struct gi_cascade *c;
   int d;
   const uint32_t *slots;
+  int wide;        /* the bounces' wide set (gi__bounce_wide) */
   gi_faces3 *E;
   atomic_ullong samples, cones;
 } gather_ctx;
@@ -405,15 +406,16 @@ typedef struct {
 static void gather_range(void *p, size_t b, size_t e, int worker) {
   gather_ctx *g = p;
   uint64_t samples = 0, cones = 0;
-  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(g->c, g->d, g->slots[q], g->E[q], &cones);
+  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(g->c, g->d, g->slots[q], g->wide, g->E[q], &cones);
   atomic_fetch_add(&g->samples, samples);
   atomic_fetch_add(&g->cones, cones);
 }
 
-/* Gathers the n voxels slots[] of level d from the current texture into E. */
-static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n,
+/* Gathers the n voxels slots[] of level d from the current texture into E
+ * with the diffuse or the wide set. */
+static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n, int wide,
                              gi_faces3 *E, gi_error_info *err) {
-  gather_ctx g = {.c = c, .d = d, .slots = slots, .E = E};
+  gather_ctx g = {.c = c, .d = d, .slots = slots, .wide = wide, .E = E};
   atomic_init(&g.samples, 0);
   atomic_init(&g.cones, 0);
   int cancelled = gi__parallel_for_cancel(n, 16, threads, gather_range, &g, NULL, c->cancel);
@@ -436,7 +438,7 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     if (!(E[d] = gi__malloc(((size_t)nfresh[d] + 1) * sizeof *E[d])))
       rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
-    else rc = gather_list(c, threads, d, fresh[d], nfresh[d], E[d], err);
+    else rc = gather_list(c, threads, d, fresh[d], nfresh[d], 0, E[d], err);
   }
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     gi_level *L = &c->lv[d];
@@ -483,9 +485,10 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
 
 /* Ends bounce `it` of the re-bake on its (swapped-in) texture with the
  * bake's own bounce end (light/bounce.c), so the result is bit-identical
- * to the bake's; then refilters. */
+ * to the bake's; then refilters. Between bounces that texture holds the
+ * last increment only (the live one stays whole). */
 static int rebake_bounce_end(struct gi_cascade *c, gi_move_state *m, int it, int threads) {
-  gi__bounce_end(c, m->E, m->S, m->tail && it + 1 == m->bounces && it >= 1);
+  gi__bounce_end(c, m->E, m->S, m->tail && it + 1 == m->bounces && it >= 1, it + 1 == m->bounces);
   return gi__cascade_filter(c, threads);
 }
 
@@ -503,7 +506,7 @@ static gi_result rebake_units(struct gi_cascade *c, gi_move_state *m, uint64_t l
       uint64_t b = lo > base ? lo - base : 0, e = end - base;
       if (e > c->lv[d].num_occ) e = c->lv[d].num_occ;
       if (lo >= base + c->lv[d].num_occ || end <= base || b >= e) continue;
-      rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), m->E[d] + b, err);
+      rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), gi__bounce_wide(c, it), m->E[d] + b, err);
     }
     if (rc == GI_OK && end == (uint64_t)(it + 1) * U && rebake_bounce_end(c, m, it, threads))
       rc = gi__cancel_fail(c->cancel, err, "re-bake filter");

@@ -62,14 +62,27 @@ int gi__probe_cone_count(int bake_count) {
   return bake_count < PROBE_DENSE_FROM ? bake_count : GI_MAX_CONES;
 }
 
-void gi__probe_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half) {
-  int count = gi__probe_cone_count(bake_count);
+/* A set of `count` cones derived from the bake's: a chosen aperture
+ * narrows or widens them by the same factor against their matched width
+ * as it does the bake's. */
+static void derived_set(int bake_count, int count, float aperture_deg, float dirs[][3], float weights[],
+                        float *tan_half) {
   float user = 0;
   if (aperture_deg > 0) {
-    /* A chosen aperture narrows or widens the probes' cones by the same
-     * factor against their matched width as it does the bake's. */
     double matched_bake = acos(1.0 - 1.0 / bake_count), matched = acos(1.0 - 1.0 / count);
     user = (float)(aperture_deg * matched / matched_bake);
   }
   gi__cone_set(count, user, dirs, weights, tan_half);
+}
+
+void gi__probe_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half) {
+  derived_set(bake_count, gi__probe_cone_count(bake_count), aperture_deg, dirs, weights, tan_half);
+}
+
+#define WIDE_CONES 8 /* the later bounces' set (1 + 7, 58 degrees matched) */
+
+int gi__wide_cone_count(int bake_count) { return bake_count < WIDE_CONES ? bake_count : WIDE_CONES; }
+
+void gi__wide_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half) {
+  derived_set(bake_count, gi__wide_cone_count(bake_count), aperture_deg, dirs, weights, tan_half);
 }

@@ -60,8 +60,10 @@ static void set_jobs(const cone_set *cs, const gi_gather_start *g, const float n
   }
 }
 
-void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, const float n[3], gi_cone_job *jobs) {
-  cone_set cs = {c->num_cones, c->cone_dir, c->cone_weight, c->cone_tan};
+void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_start *g, const float n[3],
+                         gi_cone_job *jobs) {
+  cone_set cs = wide ? (cone_set){c->num_wide_cones, c->wide_dir, c->wide_weight, c->wide_tan}
+                     : (cone_set){c->num_cones, c->cone_dir, c->cone_weight, c->cone_tan};
   set_jobs(&cs, g, n, jobs);
 }
 

@@ -20,6 +20,13 @@ void gi__cone_set(int count, float aperture_deg, float dirs[][3], float weights[
  * aperture_deg is the request's (0 = matched to the regions). */
 int gi__probe_cone_count(int bake_count);
 void gi__probe_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half);
+/* The bounces' set for the orders from the third on (light/bounce.c):
+ * 8 wider cones (fewer for a smaller bake set), weights summing to pi.
+ * What those bounces gather is the last order's light alone, which is
+ * small and smooth by then, so half the cones lose little (measured: see
+ * bounce.c). aperture_deg as for the probes' set. */
+int gi__wide_cone_count(int bake_count);
+void gi__wide_cone_set(int bake_count, float aperture_deg, float dirs[][3], float weights[], float *tan_half);
 typedef struct gi_cone_out {
   float L[3];          /* radiance arriving along the cone */
   float alpha;         /* accumulated opacity */
@@ -85,9 +92,11 @@ typedef struct gi_cone_job {
 #define GI_MARCH_LANES_MAX_RES 256
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out);
-/* The cascade's diffuse cone set on the hemisphere around unit n, started
- * from g, as jobs (num_cones of them). */
-void gi__hemisphere_jobs(const struct gi_cascade *c, const gi_gather_start *g, const float n[3], gi_cone_job *jobs);
+/* The cascade's diffuse cone set (wide: the bounces' wide set) on the
+ * hemisphere around unit n, started from g, as jobs (num_cones, or
+ * num_wide_cones, of them). */
+void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_start *g, const float n[3],
+                         gi_cone_job *jobs);
 /* What a hemisphere gather returns. */
 typedef struct gi_gather_out {
   float E[3];          /* irradiance: sum over cones of weight x L */
