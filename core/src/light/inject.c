@@ -185,6 +185,12 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
     /* These rays all leave on side n: the shadow rule's start for it. */
     float tn = gi__shadow_origin(pc, n, voxel, n, o);
     gi__basis(n, t, bb);
+    /* A side no emitter faces finds none: skip its rays, drawing their
+     * numbers all the same so the next side's stay as they were. */
+    if (!gi__light_tree_may_face(s, o, n)) {
+      for (int j = 0; j < 2 * mb; j++) (void)gi__u01(rng);
+      continue;
+    }
     for (int j = 0; j < mb; j++) {
       float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__u01(rng);
       float r = sqrtf(u1), phi = 2 * GI_PI_F * u2;

@@ -202,6 +202,47 @@ static float importance(const gi_light_node *n, const float p[3]) {
   return cos_p > 0 ? base * cos_p : 0.f;
 }
 
+/* Whether some emitter under node n may lie in front of plane (o, nrm)
+ * and show o its front: the box reaches past the plane, and the normal
+ * cone widened by the box's angular radius (as in importance) admits the
+ * direction to o. Conservative: 1 when unsure. */
+static int node_may_face(const gi_light_node *n, const float o[3], const float nrm[3]) {
+  float ahead = 0, v[3], d2 = 0, h2 = 0;
+  for (int k = 0; k < 3; k++) {
+    ahead += nrm[k] * ((nrm[k] > 0 ? n->hi[k] : n->lo[k]) - o[k]);
+    float h = 0.5f * (n->hi[k] - n->lo[k]);
+    v[k] = o[k] - 0.5f * (n->lo[k] + n->hi[k]);
+    d2 += v[k] * v[k], h2 += h * h;
+  }
+  if (!(ahead > 0)) return 0;
+  if (n->cos_o <= -1.f || d2 <= h2) return 1;
+  float d = sqrtf(d2);
+  float cos_t = (v[0] * n->axis[0] + v[1] * n->axis[1] + v[2] * n->axis[2]) / d;
+  float sin_t = sqrtf(maxf(0.f, 1 - cos_t * cos_t));
+  float sin_u = sqrtf(h2) / d, cos_u = sqrtf(maxf(0.f, 1 - sin_u * sin_u));
+  float cos_s = n->cos_o * cos_u - n->sin_o * sin_u, sin_s = n->sin_o * cos_u + n->cos_o * sin_u;
+  if (sin_s < 0 || cos_t >= cos_s) return 1;
+  /* A small margin: float rounding must not hide a grazing emitter. */
+  return cos_t * cos_s + sin_t * sin_s > -1e-4f;
+}
+
+int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm[3]) {
+  if (s->num_lnodes == 0) return 0;
+  uint32_t stack[GI_LT_FACE_BUDGET];
+  int top = 0, visits = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const gi_light_node *n = &s->ltree[stack[--top]];
+    if (++visits > GI_LT_FACE_BUDGET) return 1;
+    if (!node_may_face(n, o, nrm)) continue;
+    if (n->slot != UINT32_MAX) return 1;
+    if (top + 2 > GI_LT_FACE_BUDGET) return 1;
+    stack[top++] = n->child;
+    stack[top++] = n->child + 1;
+  }
+  return 0;
+}
+
 /* Probability of taking the left child of internal node n from p. */
 static double left_prob(const gi_scene *s, const gi_light_node *n, const float p[3]) {
   double il = importance(&s->ltree[n->child], p), ir = importance(&s->ltree[n->child + 1], p);

@@ -59,6 +59,12 @@ uint32_t gi__light_tree_pick_memo(const gi_scene *s, const float p[3], double u,
                                   gi_lt_memo *memo);
 /* The probability that a pick from p returns slot. */
 float gi__light_tree_prob(const gi_scene *s, const float p[3], uint32_t slot);
+/* 0 when no emitter can send light to the side of plane (o, nrm) that nrm
+ * points to (none lies ahead of it showing o its front), so a caller can
+ * skip the rays that look for one; 1 when one may, or when telling would
+ * take more than GI_LT_FACE_BUDGET nodes. Thread-safe (reads the tree). */
+#define GI_LT_FACE_BUDGET 16
+int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm[3]);
 /* Which light kinds to sample, and how many rays for sky and emitters. */
 typedef struct gi_light_plan {
   int sun, local, sky, emissive;
