@@ -1,7 +1,8 @@
 /* io/bvh_embree.c: everything that touches Embree.
  *
  * Design: each scene owns one RTCDevice and one committed RTCScene holding a
- * single triangle geometry whose vertex and index buffers are shared with the
+ * single triangle geometry (and, with emitters, a second scene of the
+ * emissive triangles alone, see build_emitters) whose vertex and index buffers are shared with the
  * gi_scene arrays (scene.c pads the vertex array by 16 bytes, which Embree
  * reads past the last vertex). Devices are per scene so the "threads=N"
  * option applies per scene and nothing is global. After the commit the
@@ -39,6 +40,33 @@ static const char *rtc_error_text(enum RTCError e) {
   }
 }
 
+/* A second scene over the emissive triangles alone, sharing the vertices:
+ * a ray looking for an emitter (the MIS companions of light sampling)
+ * asks it first and pays a full-scene shadow ray only when it meets one;
+ * in a closed room most such rays meet a wall and never an emitter. */
+static enum RTCError build_emitters(struct gi_scene *s) {
+  s->rtc_emit = rtcNewScene(s->device);
+  rtcSetSceneFlags(s->rtc_emit, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(s->rtc_emit, RTC_BUILD_QUALITY_MEDIUM);
+  RTCGeometry g = rtcNewGeometry(s->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, s->vertices, 0,
+                             3 * sizeof(float), s->num_vertices);
+  uint32_t *ix = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t),
+                                         s->num_emitters);
+  if (!ix) {
+    rtcReleaseGeometry(g);
+    enum RTCError e = rtcGetDeviceError(s->device);
+    return e != RTC_ERROR_NONE ? e : RTC_ERROR_OUT_OF_MEMORY;
+  }
+  for (uint32_t q = 0; q < s->num_emitters; q++)
+    memcpy(&ix[3 * (size_t)q], &s->indices[3 * (size_t)s->emitter_tri[q]], 3 * sizeof(uint32_t));
+  rtcCommitGeometry(g);
+  rtcAttachGeometryByID(s->rtc_emit, g, 0);
+  rtcReleaseGeometry(g);
+  rtcCommitScene(s->rtc_emit);
+  return rtcGetDeviceError(s->device);
+}
+
 gi_result gi__bvh_build(struct gi_scene *s, int threads, gi_error_info *err) {
   char config[64] = "";
   if (threads > 0) snprintf(config, sizeof config, "threads=%d", threads);
@@ -63,6 +91,7 @@ gi_result gi__bvh_build(struct gi_scene *s, int threads, gi_error_info *err) {
   rtcReleaseGeometry(g);
   rtcCommitScene(s->rtc);
   enum RTCError e = rtcGetDeviceError(s->device);
+  if (e == RTC_ERROR_NONE && s->num_emitters > 0) e = build_emitters(s);
   if (e != RTC_ERROR_NONE) {
     gi__bvh_free(s);
     return gi__fail(err, e == RTC_ERROR_OUT_OF_MEMORY ? GI_ERR_NOMEM : GI_ERR_BACKEND,
@@ -73,8 +102,10 @@ gi_result gi__bvh_build(struct gi_scene *s, int threads, gi_error_info *err) {
 }
 
 void gi__bvh_free(struct gi_scene *s) {
+  if (s->rtc_emit) rtcReleaseScene(s->rtc_emit);
   if (s->rtc) rtcReleaseScene(s->rtc);
   if (s->device) rtcReleaseDevice(s->device);
+  s->rtc_emit = NULL;
   s->rtc = NULL;
   s->device = NULL;
 }
@@ -154,6 +185,29 @@ int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir
     if (!(len > 0)) len = 1;
     for (int k = 0; k < 3; k++) ng[k] = (float)(n[k] / len);
   }
+  return 1;
+}
+
+int gi__emitter_find(const struct gi_scene *s, const float org[3], const float dir[3], float tnear, float tfar,
+                     float *t, uint32_t *tri) {
+  if (!s->rtc_emit) return 0;
+  if (!gi__finite3(org) || !gi__finite3(dir) || !isfinite(tnear) || isnan(tfar) || tnear < 0.f || tnear > tfar)
+    return 0;
+  struct RTCRayHit rh;
+  memset(&rh, 0, sizeof rh);
+  rh.ray.org_x = org[0]; rh.ray.org_y = org[1]; rh.ray.org_z = org[2];
+  rh.ray.dir_x = dir[0]; rh.ray.dir_y = dir[1]; rh.ray.dir_z = dir[2];
+  rh.ray.tnear = tnear;
+  rh.ray.tfar = tfar;
+  rh.ray.mask = UINT32_MAX;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  struct RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  rtcIntersect1(s->rtc_emit, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || rh.hit.primID >= s->num_emitters) return 0;
+  *t = rh.ray.tfar;
+  *tri = s->emitter_tri[rh.hit.primID];
   return 1;
 }
 

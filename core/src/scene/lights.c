@@ -182,6 +182,11 @@ float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t
   return (float)m * (pt / area) * t * t / cos_e;
 }
 
+/* The shadow ray to an emitter found along a ray stops this share short
+ * of it, so the emitter's own triangle (or its neighbour across an edge)
+ * does not block it. */
+#define GI_EMIT_SHADOW_SHORT 1e-4f
+
 static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
   const float *Le = s->materials[s->tri_material[tri]].emission;
   if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0)) return 0;
@@ -195,10 +200,16 @@ static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float 
 
 int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
                     int m_light, float pb, float out[3]) {
-  float th, ng[3], ce;
+  float th, ce;
   uint32_t tri;
-  if (!(pb > 0) || !gi__intersect1(s, o, w, tnear, INFINITY, &th, &tri, ng)) return 0;
+  if (!(pb > 0) || !gi__emitter_find(s, o, w, tnear, INFINITY, &th, &tri)) return 0;
   if (!emitter_hit(s, tri, w, &ce)) return 0;
+  /* Anything in front of that emitter, short of its own plane, blocks it. */
+  float tf = th * (1.f - GI_EMIT_SHADOW_SHORT);
+  uint8_t vis = 0;
+  if (tf > tnear) gi__occluded(s, 1, o, w, &tnear, &tf, &vis);
+  else vis = 1;
+  if (!vis) return 0;
   float mpl = gi__emitter_mpl(s, p, tri, th, ce, m_light);
   const float *Le = s->materials[s->tri_material[tri]].emission;
   for (int k = 0; k < 3; k++) out[k] = Le[k] / (mpl + pb);

@@ -53,6 +53,7 @@ struct gi_scene {
 
   RTCDevice device;
   RTCScene rtc;            /* committed; NULL for an empty scene */
+  RTCScene rtc_emit;       /* the emissive triangles alone (primID = emitter slot); NULL without */
 };
 
 /* --- bvh_embree.c: everything that touches Embree -------------------- */
@@ -73,6 +74,12 @@ void gi__occluded(const struct gi_scene *s, int n, const float *org, const float
  * against dir is NOT guaranteed: it is the triangle's winding normal). */
 int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir[3],
                    float tnear, float tfar, float *t, uint32_t *tri, float ng[3]);
+/* The nearest emissive triangle along org + t dir, t in [tnear, tfar],
+ * ignoring everything else (rtc_emit): 1 with its distance and triangle
+ * index, 0 when none or the scene has no emitters. Whether something
+ * stands in front is the caller's shadow ray. Thread-safe. */
+int gi__emitter_find(const struct gi_scene *s, const float org[3], const float dir[3], float tnear, float tfar,
+                     float *t, uint32_t *tri);
 
 /* Appends to *out the indices of all triangles whose bounding box overlaps the
  * local-space box [lo, hi] (a BVH query, never a scan of all triangles).
