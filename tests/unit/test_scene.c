@@ -851,15 +851,17 @@ static void test_bad_file_matrix(void **state) {
  * reports the probability the MIS side recomputes, stratified picks land
  * in proportion, and an emitter that faces away from a point is never
  * picked from there while others face it. */
-static void test_light_tree(void **state) {
-  enum { NE = 300 };
+enum { NE = 300 };
+
+/* NE emissive triangles at random in a 40 x 20 x 40 block, half facing +x
+ * and half -x: windows on two facades. */
+static gi_scene *windows_scene(void) {
   gi_mesh_builder *b = gi_mesh_builder_new();
   gi_material lit = {.albedo = {0.5f, 0.5f, 0.5f}, .emission = {1, 1, 1}, .roughness = 1};
   gi_mesh_builder_add_material(b, &lit);
   for (int i = 0; i < NE; i++) {
     double c[3] = {rnd() * 40, rnd() * 20, rnd() * 40}, sz = 0.2 + rnd();
     uint32_t v0 = gi_mesh_builder_add_vertex(b, c[0], c[1], c[2]);
-    /* Half face +x, half -x: windows on two facades. */
     double dz = i % 2 ? sz : -sz;
     gi_mesh_builder_add_vertex(b, c[0], c[1] + sz, c[2]);
     gi_mesh_builder_add_vertex(b, c[0], c[1], c[2] + dz);
@@ -868,6 +870,12 @@ static void test_light_tree(void **state) {
   gi_scene *s = NULL;
   gi_error_info err = {0};
   assert_int_equal(gi_scene_build(b, "lt", NULL, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+static void test_light_tree(void **state) {
+  gi_scene *s = windows_scene();
   assert_int_equal(s->num_emitters, NE);
   assert_int_equal(s->num_lnodes, 2 * NE - 1);
   for (int t = 0; t < 20; t++) {
@@ -909,12 +917,17 @@ static void test_light_tree(void **state) {
     }
   }
   assert_int_equal(away, NE / 2);
+  gi_scene_release(s);
+}
 
-  /* gi__light_tree_may_face never says 0 where an emitter lies ahead of
-   * the plane showing o its front (checked by brute force on the
-   * vertices), and says 0 where everything lies behind. In this scene
-   * every triangle emits, so the emitters' own BVH and the full one must
-   * find the same first hit. */
+/* gi__light_tree_may_face never says 0 where an emitter lies ahead of
+ * the plane showing o its front (checked by brute force on the vertices),
+ * and says 0 where everything lies behind. In this scene every triangle
+ * emits, so the emitters' own BVH and the full one must find the same
+ * first hit. Leaves the shared random sequence as it found it. */
+static void test_light_tree_faces(void **state) {
+  uint64_t saved = rng_state;
+  gi_scene *s = windows_scene();
   int said_no = 0;
   for (int t = 0; t < 400; t++) {
     float o[3] = {(float)(rnd() * 60 - 10 - s->origin[0]), (float)(rnd() * 30 - 5 - s->origin[1]),
@@ -952,7 +965,7 @@ static void test_light_tree(void **state) {
   assert_int_equal(gi__light_tree_may_face(s, beyond, (const float[3]){-1, 0, 0}), 1);
   printf("light tree: may_face said 0 for %d of 400 random sides, never wrongly\n", said_no);
   gi_scene_release(s);
-  gi_mesh_builder_free(b);
+  rng_state = saved;
 }
 
 int main(void) {
@@ -962,6 +975,7 @@ int main(void) {
       cmocka_unit_test(test_materials_and_emitters),
       cmocka_unit_test(test_lights),
       cmocka_unit_test(test_light_tree),
+      cmocka_unit_test(test_light_tree_faces),
       cmocka_unit_test(test_empty_scene),
       cmocka_unit_test(test_far_origin),
       cmocka_unit_test(test_occluded_box),
