@@ -151,9 +151,11 @@ void gi__occluded(const struct gi_scene *s, int n, const float *org, const float
   }
 }
 
-int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir[3],
-                   float tnear, float tfar, float *t, uint32_t *tri, float ng[3]) {
-  if (!s->rtc) return 0;
+/* The nearest hit in scene sc along org + t dir, t in [tnear, tfar]: 1
+ * with its distance and primitive, 0 when none or the ray is not finite. */
+static int closest_hit(RTCScene sc, const float org[3], const float dir[3], float tnear, float tfar, float *t,
+                       uint32_t *prim) {
+  if (!sc) return 0;
   if (!gi__finite3(org) || !gi__finite3(dir) || !isfinite(tnear) || isnan(tfar) || tnear < 0.f || tnear > tfar)
     return 0;
   struct RTCRayHit rh;
@@ -167,10 +169,19 @@ int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   struct RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  rtcIntersect1(s->rtc, &ctx, &rh);
+  rtcIntersect1(sc, &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
-  uint32_t p = rh.hit.primID;
-  if (t) *t = rh.ray.tfar;
+  *t = rh.ray.tfar;
+  *prim = rh.hit.primID;
+  return 1;
+}
+
+int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir[3],
+                   float tnear, float tfar, float *t, uint32_t *tri, float ng[3]) {
+  float th;
+  uint32_t p;
+  if (!closest_hit(s->rtc, org, dir, tnear, tfar, &th, &p)) return 0;
+  if (t) *t = th;
   if (tri) *tri = p;
   if (ng) {
     /* Our own winding normal (v1-v0) x (v2-v0), so the convention does not
@@ -190,24 +201,9 @@ int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir
 
 int gi__emitter_find(const struct gi_scene *s, const float org[3], const float dir[3], float tnear, float tfar,
                      float *t, uint32_t *tri) {
-  if (!s->rtc_emit) return 0;
-  if (!gi__finite3(org) || !gi__finite3(dir) || !isfinite(tnear) || isnan(tfar) || tnear < 0.f || tnear > tfar)
-    return 0;
-  struct RTCRayHit rh;
-  memset(&rh, 0, sizeof rh);
-  rh.ray.org_x = org[0]; rh.ray.org_y = org[1]; rh.ray.org_z = org[2];
-  rh.ray.dir_x = dir[0]; rh.ray.dir_y = dir[1]; rh.ray.dir_z = dir[2];
-  rh.ray.tnear = tnear;
-  rh.ray.tfar = tfar;
-  rh.ray.mask = UINT32_MAX;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  struct RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  rtcIntersect1(s->rtc_emit, &ctx, &rh);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || rh.hit.primID >= s->num_emitters) return 0;
-  *t = rh.ray.tfar;
-  *tri = s->emitter_tri[rh.hit.primID];
+  uint32_t slot;
+  if (!closest_hit(s->rtc_emit, org, dir, tnear, tfar, t, &slot) || slot >= s->num_emitters) return 0;
+  *tri = s->emitter_tri[slot];
   return 1;
 }
 

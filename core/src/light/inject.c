@@ -73,7 +73,6 @@ typedef struct {
   int8_t *side;        /* per picked sample: the side it lights */
   float *cosw;         /* per picked sample: |cos| to the group's orientation */
   float *mis;          /* per picked sample: its MIS weight against emitter_rays */
-  float *share;        /* per picked sample: what it brings unshadowed (roulette) */
 } inject_buf;
 
 /* A point or spot light bringing less than this share of what all the
@@ -89,16 +88,17 @@ typedef struct {
 /* Russian roulette on the weak local-light samples of ls[0..m) (see ROULETTE_SHARE);
  * compacts the survivors with their side, cosine and MIS weight, returns
  * how many remain. A sample that brings nothing is dropped. */
+static inline float unshadowed(const gi_lsample *ls, const inject_buf *ib, int i) {
+  return (ls[i].V[0] + ls[i].V[1] + ls[i].V[2]) * ib->cosw[i] * ib->mis[i];
+}
+
 static int roulette(gi_lsample *ls, inject_buf *ib, int m, uint64_t *rng) {
   float total = 0;
-  for (int i = 0; i < m; i++) {
-    ib->share[i] = (ls[i].V[0] + ls[i].V[1] + ls[i].V[2]) * ib->cosw[i] * ib->mis[i];
-    total += ib->share[i];
-  }
+  for (int i = 0; i < m; i++) total += unshadowed(ls, ib, i);
   float cut = ROULETTE_SHARE * total;
   int kept = 0;
   for (int i = 0; i < m; i++) {
-    float c = ib->share[i];
+    float c = unshadowed(ls, ib, i);
     if (!(c > 0)) continue;
     if (c < cut && ls[i].fx == GI_FX_LOCAL) {
       float p = c / cut;
@@ -215,8 +215,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   ib.side = gi__malloc((size_t)ic->cap);
   ib.cosw = gi__malloc((size_t)ic->cap * sizeof(float));
   ib.mis = gi__malloc((size_t)ic->cap * sizeof(float));
-  ib.share = gi__malloc((size_t)ic->cap * sizeof(float));
-  if (!ib.all || !ib.side || !ib.cosw || !ib.mis || !ib.share || gi__scratch_alloc(&ib.sc, ic->cap)) {
+  if (!ib.all || !ib.side || !ib.cosw || !ib.mis || gi__scratch_alloc(&ib.sc, ic->cap)) {
     atomic_store(&ic->failed, 1);
     goto out;
   }
@@ -245,7 +244,6 @@ out:
   gi__free(ib.side);
   gi__free(ib.cosw);
   gi__free(ib.mis);
-  gi__free(ib.share);
 }
 
 /* Radiance leaving through each face of an occupied voxel (diffuse

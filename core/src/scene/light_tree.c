@@ -179,51 +179,53 @@ done:
  * the compiler may assume no NaN (it was 1.5% of the city's bake). */
 static inline float maxf(float a, float b) { return a > b ? a : b; }
 
-/* How much node n matters to point p: power over squared distance, times
- * the cosine of the smallest angle at which one of its emitters could face
- * p (0 when none can). Continuous in p, and without trigonometry. */
-static float importance(const gi_light_node *n, const float p[3]) {
-  float v[3], d2 = 0, h2 = 0;
+/* Where point p lies from node n's box: v from the box's centre, its
+ * squared length d2 and the box's squared half-diagonal h2. */
+static void node_offset(const gi_light_node *n, const float p[3], float v[3], float *d2, float *h2) {
+  *d2 = *h2 = 0;
   for (int k = 0; k < 3; k++) {
     float h = 0.5f * (n->hi[k] - n->lo[k]);
     v[k] = p[k] - 0.5f * (n->lo[k] + n->hi[k]);
-    d2 += v[k] * v[k], h2 += h * h;
+    *d2 += v[k] * v[k], *h2 += h * h;
   }
-  float base = n->power / maxf(maxf(d2, h2), FLT_MIN);
-  if (n->cos_o <= -1.f || d2 <= h2) return base; /* faces everywhere, or p is inside the box */
+}
+
+/* The cosine of the smallest angle at which one of n's emitters could face
+ * p (offset v, d2, h2 from node_offset): 1 when one may face it head-on
+ * (or p is inside the box's sphere), <= 0 when none faces it. */
+static float facing_cos(const gi_light_node *n, const float v[3], float d2, float h2) {
+  if (n->cos_o <= -1.f || d2 <= h2) return 1.f; /* faces everywhere, or p is inside the box */
   float d = sqrtf(d2);
   float cos_t = (v[0] * n->axis[0] + v[1] * n->axis[1] + v[2] * n->axis[2]) / d;
   float sin_t = sqrtf(maxf(0.f, 1 - cos_t * cos_t));
   float sin_u = sqrtf(h2) / d, cos_u = sqrtf(maxf(0.f, 1 - sin_u * sin_u));
   /* theta_o + theta_u: the cone widened by the box's angular radius. */
   float cos_s = n->cos_o * cos_u - n->sin_o * sin_u, sin_s = n->sin_o * cos_u + n->cos_o * sin_u;
-  if (sin_s < 0 || cos_t >= cos_s) return base; /* the widened cone covers p's direction */
-  float cos_p = cos_t * cos_s + sin_t * sin_s;  /* cos(theta - theta_o - theta_u) */
+  if (sin_s < 0 || cos_t >= cos_s) return 1.f; /* the widened cone covers p's direction */
+  return cos_t * cos_s + sin_t * sin_s;         /* cos(theta - theta_o - theta_u) */
+}
+
+/* How much node n matters to point p: power over squared distance, times
+ * the cosine of the smallest angle at which one of its emitters could face
+ * p (0 when none can). Continuous in p, and without trigonometry. */
+static float importance(const gi_light_node *n, const float p[3]) {
+  float v[3], d2, h2;
+  node_offset(n, p, v, &d2, &h2);
+  float base = n->power / maxf(maxf(d2, h2), FLT_MIN);
+  float cos_p = facing_cos(n, v, d2, h2);
   return cos_p > 0 ? base * cos_p : 0.f;
 }
 
 /* Whether some emitter under node n may lie in front of plane (o, nrm)
- * and show o its front: the box reaches past the plane, and the normal
- * cone widened by the box's angular radius (as in importance) admits the
- * direction to o. Conservative: 1 when unsure. */
+ * and show o its front: the box reaches past the plane, and the facing
+ * bound admits o. Conservative: 1 when unsure. */
 static int node_may_face(const gi_light_node *n, const float o[3], const float nrm[3]) {
-  float ahead = 0, v[3], d2 = 0, h2 = 0;
-  for (int k = 0; k < 3; k++) {
-    ahead += nrm[k] * ((nrm[k] > 0 ? n->hi[k] : n->lo[k]) - o[k]);
-    float h = 0.5f * (n->hi[k] - n->lo[k]);
-    v[k] = o[k] - 0.5f * (n->lo[k] + n->hi[k]);
-    d2 += v[k] * v[k], h2 += h * h;
-  }
+  float ahead = 0, v[3], d2, h2;
+  for (int k = 0; k < 3; k++) ahead += nrm[k] * ((nrm[k] > 0 ? n->hi[k] : n->lo[k]) - o[k]);
   if (!(ahead > 0)) return 0;
-  if (n->cos_o <= -1.f || d2 <= h2) return 1;
-  float d = sqrtf(d2);
-  float cos_t = (v[0] * n->axis[0] + v[1] * n->axis[1] + v[2] * n->axis[2]) / d;
-  float sin_t = sqrtf(maxf(0.f, 1 - cos_t * cos_t));
-  float sin_u = sqrtf(h2) / d, cos_u = sqrtf(maxf(0.f, 1 - sin_u * sin_u));
-  float cos_s = n->cos_o * cos_u - n->sin_o * sin_u, sin_s = n->sin_o * cos_u + n->cos_o * sin_u;
-  if (sin_s < 0 || cos_t >= cos_s) return 1;
+  node_offset(n, o, v, &d2, &h2);
   /* A small margin: float rounding must not hide a grazing emitter. */
-  return cos_t * cos_s + sin_t * sin_s > -1e-4f;
+  return facing_cos(n, v, d2, h2) > -1e-4f;
 }
 
 int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm[3]) {
