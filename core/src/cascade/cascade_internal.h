@@ -295,6 +295,12 @@ uint32_t gi__nested_need(const struct gi_cascade *c, int d);
 /* One triangle's piece in global cell `cell` (of size s, corner at
  * cell * s), added to the sums g. */
 void gi__voxel_add_tri(gi_vgeo *g, double s, const int64_t cell[3], const float tv[3][3], const gi_material *mat);
+/* The piece of triangle tv that global cell `cell` (size s) owns, as
+ * voxelizing counts it: returns its vertex count (0: none), the vertices
+ * in poly relative to the cell's corner, and the corner (local coords). */
+#define GI_CLIP_MAXV 12
+int gi__voxel_clip_tri(double s, const int64_t cell[3], const float tv[3][3], float poly[GI_CLIP_MAXV][3],
+                       float corner[3]);
 /* Normalises the sums g of the voxel in slot and writes its texel's
  * opacity; 1 when it holds geometry (0: g and the texel cleared). */
 int gi__voxel_finalize(gi_level *L, gi_vgeo *g, uint32_t slot);

@@ -19,7 +19,7 @@
 /* The serial binning of a level checks the cancel token this often: a
  * coarse level of a large city holds every triangle. */
 #define GI_CANCEL_EVERY_TRIS 8192
-#define MAXV 12
+#define MAXV GI_CLIP_MAXV
 
 /* A slab's voxels that hold geometry, finalized, in the bake's order
  * (z, y, x from the window's first cell): the level's entries are taken
@@ -100,29 +100,36 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
   g->gloss += area * gloss;
 }
 
+int gi__voxel_clip_tri(double s, const int64_t cell[3], const float tv[3][3], float poly[GI_CLIP_MAXV][3],
+                       float corner[3]) {
+  float sz = (float)s;
+  for (int a = 0; a < 3; a++) corner[a] = (float)(cell[a] * s);
+  float pb[MAXV][3];
+  for (int q = 0; q < 3; q++)
+    for (int a = 0; a < 3; a++) poly[q][a] = tv[q][a] - corner[a];
+  int n = 3;
+  for (int a = 0; a < 3 && n >= 3; a++) {
+    n = clip_plane(poly, n, pb, a, 0.f, 1);
+    if (n < 3) break;
+    n = clip_plane(pb, n, poly, a, sz, 0);
+  }
+  if (n < 3) return 0;
+  /* Half-open ownership by the polygon's centroid. */
+  float cen[3] = {0, 0, 0};
+  for (int q = 0; q < n; q++)
+    for (int a = 0; a < 3; a++) cen[a] += poly[q][a] / (float)n;
+  if (cen[0] >= sz || cen[1] >= sz || cen[2] >= sz) return 0;
+  return n;
+}
+
 /* Clips triangle tv against global cell `cell` (size s) and adds the
  * piece it owns to that voxel's sums g. Shared with the move
  * (move/move.c): one code path, so a voxel rebuilt after a scroll is
  * bit-identical. */
 void gi__voxel_add_tri(gi_vgeo *g, double s, const int64_t cell[3], const float tv[3][3], const gi_material *mat) {
-  float sz = (float)s;
-  float corner[3] = {(float)(cell[0] * s), (float)(cell[1] * s), (float)(cell[2] * s)};
-  float pa[MAXV][3], pb[MAXV][3];
-  for (int q = 0; q < 3; q++)
-    for (int a = 0; a < 3; a++) pa[q][a] = tv[q][a] - corner[a];
-  int n = 3;
-  for (int a = 0; a < 3 && n >= 3; a++) {
-    n = clip_plane(pa, n, pb, a, 0.f, 1);
-    if (n < 3) break;
-    n = clip_plane(pb, n, pa, a, sz, 0);
-  }
-  if (n < 3) return;
-  /* Half-open ownership by the polygon's centroid. */
-  float cen[3] = {0, 0, 0};
-  for (int q = 0; q < n; q++)
-    for (int a = 0; a < 3; a++) cen[a] += pa[q][a] / (float)n;
-  if (cen[0] >= sz || cen[1] >= sz || cen[2] >= sz) return;
-  accumulate(g, (const float(*)[3])pa, n, corner, mat);
+  float pa[MAXV][3], corner[3];
+  int n = gi__voxel_clip_tri(s, cell, tv, pa, corner);
+  if (n) accumulate(g, (const float(*)[3])pa, n, corner, mat);
 }
 
 static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {

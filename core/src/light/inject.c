@@ -25,45 +25,16 @@ typedef struct {
   atomic_int failed;   /* a worker ran out of memory */
 } inject_ctx;
 
-/* A point or spot light closer to a voxel than a few times the voxel's
- * surface patch lights that patch very unevenly: 1/r^2 at the centroid
- * can miss most of what the patch receives (a lamp 0.1 m under its
- * housing: the housing's voxel read a tenth of the light it reflects down
- * onto the street, the largest share of a lit city street's indirect
- * light). The patch is taken as a disc of the voxel's surface area (at
- * most a face's) in the voxel's plane, and the irradiance averaged over NEAR_RINGS x NEAR_SPOKES points
- * of equal area; returned as the factor on the centroid's value. */
-#define NEAR_FIELD_REACH 4.0f /* light farther than this many patch radii: the centroid's value stands */
-#define NEAR_RINGS 3
-#define NEAR_SPOKES 8
-static float near_field_factor(const gi_vgeo *g, const float n[3], float voxel, const gi_lsample *ls) {
-  /* At most a voxel face's area: more is several surfaces (a corner, a
-   * duplicated triangle), not a larger patch. */
-  float rd = sqrtf(gi__minf(g->area, voxel * voxel) / GI_PI_F);
-  if (!(ls->dist < NEAR_FIELD_REACH * rd)) return 1.f;
-  /* The light at height h over the plane and lateral offset (lx, 0). */
-  float h = fabsf(gi__dot(n, ls->w)) * ls->dist;
-  float lx = sqrtf(fmaxf(ls->dist * ls->dist - h * h, 0.f));
-  float hmin = 0.05f * rd; /* a light in the patch's own plane: still finite */
-  h = fmaxf(h, hmin);
-  float sum = 0;
-  for (int i = 0; i < NEAR_RINGS; i++) {
-    float r = rd * sqrtf(((float)i + 0.5f) / NEAR_RINGS);
-    for (int j = 0; j < NEAR_SPOKES; j++) {
-      float phi = 2 * GI_PI_F * ((float)j + 0.5f * (float)(i & 1)) / NEAR_SPOKES;
-      float dx = r * cosf(phi) - lx, dy = r * sinf(phi);
-      float d2 = dx * dx + dy * dy + h * h;
-      sum += h / (d2 * sqrtf(d2));
-    }
-  }
-  /* The quadrature overshoots when the light sits just over one of its
-   * points; the true mean cannot: the disc subtends at most 2 pi of the
-   * light's sphere, so the mean irradiance is at most 2 / rd^2 per unit
-   * intensity. */
-  float avg = gi__minf(sum / (NEAR_RINGS * NEAR_SPOKES), 2.f / (rd * rd));
-  float d2c = lx * lx + h * h;
-  float centre = h / (d2c * sqrtf(d2c));
-  return avg / centre;
+/* A point or spot light closer to a voxel's surfaces than NEAR_FIELD_REACH
+ * patch radii lights the voxel piece by piece (near_field.c): 1/r^2 at
+ * the centroid can miss most of what the patch receives (a lamp 0.1 m
+ * under its housing), and misses it differently at each level. The patch
+ * radius is that of a disc of the voxel's surface area, at most a face's:
+ * more is several surfaces (a corner, a duplicated triangle), not a
+ * larger patch. Farther, the centroid's value is within a few percent. */
+#define NEAR_FIELD_REACH 4.0f
+static float near_reach(const gi_vgeo *g, float voxel) {
+  return NEAR_FIELD_REACH * sqrtf(gi__minf(g->area, voxel * voxel) / GI_PI_F);
 }
 
 /* Per-worker buffers of inject_range. */
@@ -73,6 +44,11 @@ typedef struct {
   int8_t *side;        /* per picked sample: the side it lights */
   float *cosw;         /* per picked sample: |cos| to the group's orientation */
   float *mis;          /* per picked sample: its MIS weight against emitter_rays */
+  gi_near_scratch ns;  /* the voxel's triangles for near lights */
+  int64_t cell[3];     /* the voxel's global cell, of size sz */
+  double sz;
+  uint64_t near_rays;  /* shadow rays the near lights traced */
+  int oom;             /* the near-field query ran out of memory */
 } inject_buf;
 
 /* A point or spot light bringing less than this share of what all the
@@ -133,14 +109,21 @@ static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float
   const float *o = g->u.fin.orient[h];
   gi_lsample *ls = ib->sc.ls;
   int m = 0;
+  float reach = near_reach(g, voxel);
   for (int i = 0; i < n; i++) {
-    float cn = gi__dot(o, ib->all[i].w);
-    if (cn == 0) continue;
-    ls[m] = ib->all[i];
-    if (ls[m].fx == GI_FX_LOCAL) {
-      float nf = near_field_factor(g, o, voxel, &ls[m]);
-      for (int k = 0; k < 3; k++) ls[m].V[k] *= nf;
+    const gi_lsample *l = &ib->all[i];
+    if (l->fx == GI_FX_LOCAL && l->dist < reach) {
+      float E[2][3];
+      int r = gi__near_field(s, g, h, ib->sz, ib->cell, l, &ib->ns, E, &ib->near_rays);
+      if (r < 0) ib->oom = 1;
+      if (r) {
+        for (int k = 0; k < 3; k++) Es[2 * h][k] += E[0][k], Es[2 * h + 1][k] += E[1][k];
+        continue;
+      }
     }
+    float cn = gi__dot(o, l->w);
+    if (cn == 0) continue;
+    ls[m] = *l;
     ib->side[m] = (int8_t)(2 * h + (cn > 0 ? 0 : 1));
     ib->cosw[m] = fabsf(cn);
     m++;
@@ -210,7 +193,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   inject_ctx *ic = p;
   struct gi_cascade *c = ic->c;
   gi_level *L = &c->lv[ic->d];
-  inject_buf ib = {.sc = {0}};
+  inject_buf ib = {.sc = {0}, .sz = L->s};
   ib.all = gi__malloc((size_t)ic->cap * sizeof *ib.all);
   ib.side = gi__malloc((size_t)ic->cap);
   ib.cosw = gi__malloc((size_t)ic->cap * sizeof(float));
@@ -227,8 +210,9 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     const gi_vgeo *g = gi__geo(L, slot);
     float Es[GI_VOX_FACES][3] = {{0}}; /* per side 2 g + s */
     /* Seed from the global cell: the same voxel gets the same samples wherever the window is. */
-    int64_t cell[3];
+    int64_t *cell = ib.cell;
     gi__slot_cell(L, R, slot, cell);
+    gi__near_reset(&ib.ns);
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
     int n = gi__light_samples(c->scene, ic->lp, g->centroid, &rng, ib.all, ic->cap);
@@ -237,8 +221,10 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     for (int f = 0; f < GI_VOX_FACES; f++) memcpy(gi__direct(L, slot)[f], Es[g->face_side[f]], sizeof(float[3]));
     memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
   }
-  atomic_fetch_add(&ic->rays, rays);
+  atomic_fetch_add(&ic->rays, rays + ib.near_rays);
+  if (ib.oom) atomic_store(&ic->failed, 1);
 out:
+  gi__near_free(&ib.ns);
   gi__scratch_free(&ib.sc);
   gi__free(ib.all);
   gi__free(ib.side);

@@ -5,6 +5,7 @@
 #define GI_LIGHT_H
 
 #include "cascade/cascade_internal.h"
+#include "scene/lights.h"
 
 /* inject.c: direct light into every occupied voxel (both sides). */
 gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err);
@@ -20,6 +21,24 @@ void gi__shade_all(struct gi_cascade *c);
  * voxel q instead of its side light (a bounce's increment, which the next
  * bounce gathers alone); side is left as it is. */
 void gi__shade_all_from(struct gi_cascade *c, gi_faces3 *const from[]);
+/* near_field.c: a point or spot light near a voxel's own surfaces, lit
+ * piece by piece. The scratch belongs to one worker; gi__near_reset before
+ * each voxel (it caches the voxel's triangles), gi__near_free at the end. */
+typedef struct gi_near_scratch {
+  uint32_t *tris;
+  size_t count, cap;
+  int have;            /* tris holds the current voxel's triangles */
+} gi_near_scratch;
+void gi__near_reset(gi_near_scratch *ns);
+void gi__near_free(gi_near_scratch *ns);
+/* Irradiance E on the two sides (0: the side orient[h] faces) of group h
+ * of voxel g, global cell `cell` of size sz, from local light sample l
+ * taken at g's centroid: the flux its pieces receive over their area.
+ * Adds the shadow rays traced to *rays. Returns 1, 0 when the voxel has no
+ * piece in the group (the caller keeps the centroid's value), -1 when out
+ * of memory. Thread-safe with one scratch per thread. */
+int gi__near_field(const gi_scene *s, const gi_vgeo *g, int h, double sz, const int64_t cell[3],
+                   const gi_lsample *l, gi_near_scratch *ns, float E[2][3], uint64_t *rays);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
  * tail (with bounces >= 2): then adds the orders after the last bounce as
  * a geometric series whose ratio is measured from the last two bounces. */
