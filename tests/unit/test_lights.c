@@ -5,12 +5,17 @@
  *   point of intensity I at height 5 m     -> E(up) = I / 4^2
  *   spot, same, aimed down (30 deg cone)   -> I / 16 below it, 0 at 37 deg off-axis
  *   sky of radiance L, open upper half     -> E(up) = pi L (Monte Carlo, 4096 rays)
- * Delta lights take one shadow ray, so their answers are exact to float. */
+ * Delta lights take one shadow ray, so their answers are exact to float.
+ * A lamp near a voxel's surfaces (light/near_field.c) against the solid
+ * angle of the plate it lights, at two voxel sizes. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 #include "gi/gi.h"
 #include "scene/lights.h"
+#include "cascade/cascade_internal.h"
+#include "light/light.h"
 
 static void direct_at(const gi_light *l, const double pts[][3], int n, float out[][3]) {
   gi_mesh_builder *b = gi_mesh_builder_new();
@@ -118,11 +123,89 @@ static void test_shadow_rule(void **state) {
   gi_scene_release(s);
 }
 
+/* A voxel's flux from a lamp 0.1 m under a 0.4 m plate with a second plate
+ * 0.05 m above it (a housing's floor and roof): over the voxels holding
+ * the plates, sum E * area = I * Omega, Omega the floor's solid angle
+ * from the lamp; all of it on the side facing down, none through the
+ * floor onto the roof. One voxel of 1 m holds both plates (a tiny
+ * triangle at (1, 1, 1) puts the local origin at (0.4, 0.5, 0.4)); voxels
+ * of 1/8 m cut them into pieces, which must add up to the same flux. */
+static double near_flux(const gi_scene *s, double sz, const float P[3], float I, float *up_side) {
+  gi_near_scratch ns = {0};
+  double flux = 0;
+  *up_side = 0;
+  for (int64_t i = -8; i < 0; i++)
+    for (int64_t j = -8; j < 0; j++)
+      for (int64_t k = -8; k < 0; k++) {
+        int64_t cell[3] = {i, j, k};
+        gi_vgeo g;
+        memset(&g, 0, sizeof g);
+        gi_material m = {.albedo = {1, 1, 1}};
+        for (size_t t = 0; t < s->num_triangles; t++) {
+          float tv[3][3];
+          for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * s->indices[3 * t + q]], sizeof tv[q]);
+          gi__voxel_add_tri(&g, sz, cell, (const float(*)[3])tv, &m);
+        }
+        if (!(g.area > 0)) continue;
+        for (int a = 0; a < 3; a++) g.centroid[a] /= g.area;
+        const float o[3] = {0, 1, 0};
+        memcpy(g.u.fin.orient[0], o, sizeof o);
+        g.groups = 1;
+        for (int f = 0; f < GI_VOX_FACES; f++) g.face_side[f] = gi__face_side(o, 0, f);
+        gi_lsample l = {.fx = GI_FX_LOCAL};
+        float d2 = 0;
+        for (int a = 0; a < 3; a++) l.w[a] = P[a] - g.centroid[a], d2 += l.w[a] * l.w[a];
+        l.dist = sqrtf(d2);
+        for (int a = 0; a < 3; a++) l.w[a] /= l.dist, l.V[a] = I / d2;
+        float E[2][3];
+        uint64_t rays = 0;
+        gi__near_reset(&ns);
+        assert_int_equal(gi__near_field(s, &g, 0, sz, cell, &l, &ns, E, &rays), 1);
+        assert_true(rays >= 1);
+        flux += (double)E[1][0] * g.area;
+        *up_side += E[0][0];
+      }
+  gi__near_free(&ns);
+  return flux;
+}
+
+static void test_near_field(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  for (int p = 0; p < 2; p++) {
+    double y = 0.05 * p;
+    double A[3] = {-0.2, y, -0.2}, B[3] = {-0.2, y, 0.2}, C[3] = {0.2, y, 0.2}, D[3] = {0.2, y, -0.2};
+    gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  }
+  double T0[3] = {1, 1, 1}, T1[3] = {0.99, 1, 1}, T2[3] = {1, 1, 0.99}, T3[3] = {0.995, 1, 0.995};
+  gi_mesh_builder_add_quad(b, T0, T1, T3, T2, mat);
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "near", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  const float I = 100.f, h = 0.1f, half = 0.2f;
+  float P[3] = {(float)(0 - s->origin[0]), (float)(-h - s->origin[1]), (float)(0 - s->origin[2])};
+  double omega = 4.0 * atan((double)half * half / (h * sqrt(2.0 * half * half + (double)h * h)));
+  for (int v = 0; v < 2; v++) {
+    double sz = v ? 0.125 : 1.0;
+    float up = 0;
+    double flux = near_flux(s, sz, P, I, &up);
+    printf("near field: voxel %.3f: flux %.4f, I Omega %.4f (rel %.2e), onto the roof %g\n", sz, flux, I * omega,
+           fabs(flux / (I * omega) - 1), (double)up);
+    assert_true(fabs(flux / (I * omega) - 1) < 1e-3);
+    assert_true(up == 0);
+  }
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_delta_lights),
       cmocka_unit_test(test_sky),
       cmocka_unit_test(test_shadow_rule),
+      cmocka_unit_test(test_near_field),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
