@@ -200,12 +200,54 @@ static void test_near_field(void **state) {
   gi_scene_release(s);
 }
 
+/* A voxel holding more triangles than GI_NEAR_MAX_TRIS keeps the centroid's
+ * value (0: no per-piece result) instead of a clip and a ray per piece. */
+static void test_near_field_bound(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  const int n = 48; /* 48 x 48 quads: 4608 triangles in one voxel */
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j < n; j++) {
+      double x0 = 0.01 * i, z0 = 0.01 * j, x1 = x0 + 0.01, z1 = z0 + 0.01;
+      double A[3] = {x0, 0, z0}, B[3] = {x0, 0, z1}, C[3] = {x1, 0, z1}, D[3] = {x1, 0, z0};
+      gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+    }
+  /* A tiny triangle at (1, 1, 1) puts the local origin at (0.5, 0.5, 0.5):
+   * the whole plate lies in cell (-1, -1, -1) of 1 m. */
+  double T0[3] = {1, 1, 1}, T1[3] = {0.99, 1, 1}, T2[3] = {1, 1, 0.99}, T3[3] = {0.995, 1, 0.995};
+  gi_mesh_builder_add_quad(b, T0, T1, T3, T2, mat);
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "dense", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  assert_true(s->num_triangles > GI_NEAR_MAX_TRIS + 2);
+  int64_t cell[3] = {-1, -1, -1};
+  gi_vgeo g;
+  memset(&g, 0, sizeof g);
+  g.area = 0.2304f, g.groups = 1;
+  const float o[3] = {0, 1, 0}, cen[3] = {-0.26f, -0.5f, -0.26f};
+  memcpy(g.centroid, cen, sizeof cen);
+  memcpy(g.u.fin.orient[0], o, sizeof o);
+  for (int f = 0; f < GI_VOX_FACES; f++) g.face_side[f] = gi__face_side(o, 0, f);
+  gi_lsample l = {.w = {0, -1, 0}, .dist = 0.1f, .V = {1, 1, 1}, .fx = GI_FX_LOCAL};
+  gi_near_scratch ns = {0};
+  float E[2][3];
+  uint64_t rays = 0;
+  assert_int_equal(gi__near_field(s, &g, 0, 1.0, cell, &l, &ns, E, &rays), 0);
+  assert_true(rays == 0);
+  gi__near_free(&ns);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_delta_lights),
       cmocka_unit_test(test_sky),
       cmocka_unit_test(test_shadow_rule),
       cmocka_unit_test(test_near_field),
+      cmocka_unit_test(test_near_field_bound),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

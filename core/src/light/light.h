@@ -29,14 +29,19 @@ typedef struct gi_near_scratch {
   size_t count, cap;
   int have;            /* tris holds the current voxel's triangles */
 } gi_near_scratch;
+/* A voxel holding more triangles than this keeps the centroid's value: the
+ * pieces cost a clip and a shadow ray each, per near light, and a coarse
+ * voxel of a dense scanned mesh can hold hundreds of thousands (the
+ * procedural city's largest near voxel holds 80). */
+#define GI_NEAR_MAX_TRIS 4096
 void gi__near_reset(gi_near_scratch *ns);
 void gi__near_free(gi_near_scratch *ns);
 /* Irradiance E on the two sides (0: the side orient[h] faces) of group h
  * of voxel g, global cell `cell` of size sz, from local light sample l
  * taken at g's centroid: the flux its pieces receive over their area.
  * Adds the shadow rays traced to *rays. Returns 1, 0 when the voxel has no
- * piece in the group (the caller keeps the centroid's value), -1 when out
- * of memory. Thread-safe with one scratch per thread. */
+ * piece in the group or too many triangles to light one by one (the caller
+ * keeps the centroid's value), -1 when out of memory. Thread-safe with one scratch per thread. */
 int gi__near_field(const gi_scene *s, const gi_vgeo *g, int h, double sz, const int64_t cell[3],
                    const gi_lsample *l, gi_near_scratch *ns, float E[2][3], uint64_t *rays);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.

@@ -51,6 +51,7 @@ static int voxel_tris(const gi_scene *s, double sz, const int64_t cell[3], gi_ne
 int gi__near_field(const gi_scene *s, const gi_vgeo *g, int h, double sz, const int64_t cell[3],
                    const gi_lsample *l, gi_near_scratch *ns, float E[2][3], uint64_t *rays) {
   if (voxel_tris(s, sz, cell, ns)) return -1;
+  if (ns->count > GI_NEAR_MAX_TRIS) return 0;
   const float *o = g->u.fin.orient[h];
   float P[3], I[3];
   for (int k = 0; k < 3; k++) P[k] = g->centroid[k] + l->dist * l->w[k], I[k] = l->V[k] * l->dist * l->dist;
