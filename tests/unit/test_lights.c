@@ -130,6 +130,14 @@ static void test_shadow_rule(void **state) {
  * floor onto the roof. One voxel of 1 m holds both plates (a tiny
  * triangle at (1, 1, 1) puts the local origin at (0.4, 0.5, 0.4)); voxels
  * of 1/8 m cut them into pieces, which must add up to the same flux. */
+/* Makes g one horizontal group (orientation +y) with its sums' area and centroid. */
+static void flat_group(gi_vgeo *g) {
+  const float o[3] = {0, 1, 0};
+  memcpy(g->u.fin.orient[0], o, sizeof o);
+  g->groups = 1;
+  for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(o, 0, f);
+}
+
 static double near_flux(const gi_scene *s, double sz, const float P[3], float I, float *up_side) {
   gi_near_scratch ns = {0};
   double flux = 0;
@@ -148,19 +156,16 @@ static double near_flux(const gi_scene *s, double sz, const float P[3], float I,
         }
         if (!(g.area > 0)) continue;
         for (int a = 0; a < 3; a++) g.centroid[a] /= g.area;
-        const float o[3] = {0, 1, 0};
-        memcpy(g.u.fin.orient[0], o, sizeof o);
-        g.groups = 1;
-        for (int f = 0; f < GI_VOX_FACES; f++) g.face_side[f] = gi__face_side(o, 0, f);
+        flat_group(&g);
         gi_lsample l = {.fx = GI_FX_LOCAL};
         float d2 = 0;
         for (int a = 0; a < 3; a++) l.w[a] = P[a] - g.centroid[a], d2 += l.w[a] * l.w[a];
         l.dist = sqrtf(d2);
         for (int a = 0; a < 3; a++) l.w[a] /= l.dist, l.V[a] = I / d2;
-        float E[2][3];
+        float E[GI_VOX_FACES][3] = {{0}};
         uint64_t rays = 0;
         gi__near_reset(&ns);
-        assert_int_equal(gi__near_field(s, &g, 0, sz, cell, &l, &ns, E, &rays), 1);
+        assert_int_equal(gi__near_field(s, &g, sz, cell, &l, &ns, E, &rays), 1);
         assert_true(rays >= 1);
         flux += (double)E[1][0] * g.area;
         *up_side += E[0][0];
@@ -224,18 +229,13 @@ static void test_near_field_bound(void **state) {
   gi_mesh_builder_free(b);
   assert_true(s->num_triangles > GI_NEAR_MAX_TRIS + 2);
   int64_t cell[3] = {-1, -1, -1};
-  gi_vgeo g;
-  memset(&g, 0, sizeof g);
-  g.area = 0.2304f, g.groups = 1;
-  const float o[3] = {0, 1, 0}, cen[3] = {-0.26f, -0.5f, -0.26f};
-  memcpy(g.centroid, cen, sizeof cen);
-  memcpy(g.u.fin.orient[0], o, sizeof o);
-  for (int f = 0; f < GI_VOX_FACES; f++) g.face_side[f] = gi__face_side(o, 0, f);
+  gi_vgeo g = {.area = 0.2304f, .centroid = {-0.26f, -0.5f, -0.26f}};
+  flat_group(&g);
   gi_lsample l = {.w = {0, -1, 0}, .dist = 0.1f, .V = {1, 1, 1}, .fx = GI_FX_LOCAL};
   gi_near_scratch ns = {0};
-  float E[2][3];
+  float E[GI_VOX_FACES][3] = {{0}};
   uint64_t rays = 0;
-  assert_int_equal(gi__near_field(s, &g, 0, 1.0, cell, &l, &ns, E, &rays), 0);
+  assert_int_equal(gi__near_field(s, &g, 1.0, cell, &l, &ns, E, &rays), 0);
   assert_true(rays == 0);
   gi__near_free(&ns);
   gi_scene_release(s);

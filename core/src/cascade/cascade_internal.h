@@ -295,6 +295,23 @@ uint32_t gi__nested_need(const struct gi_cascade *c, int d);
 /* One triangle's piece in global cell `cell` (of size s, corner at
  * cell * s), added to the sums g. */
 void gi__voxel_add_tri(gi_vgeo *g, double s, const int64_t cell[3], const float tv[3][3], const gi_material *mat);
+/* Adds to A the vector area and to C the area-weighted centroid sum of the
+ * planar polygon v (n vertices), by a fan from v[0]. */
+static inline void gi__fan_moments(const float v[][3], int n, float A[3], float C[3]) {
+  for (int i = 1; i + 1 < n; i++) {
+    float e1[3], e2[3], x[3];
+    for (int k = 0; k < 3; k++) {
+      e1[k] = v[i][k] - v[0][k];
+      e2[k] = v[i + 1][k] - v[0][k];
+    }
+    gi__cross(e1, e2, x);
+    float a = 0.5f * gi__len(x);
+    for (int k = 0; k < 3; k++) {
+      A[k] += 0.5f * x[k];
+      C[k] += a * (v[0][k] + v[i][k] + v[i + 1][k]) / 3.f;
+    }
+  }
+}
 /* The piece of triangle tv that global cell `cell` (size s) owns, as
  * voxelizing counts it: returns its vertex count (0: none), the vertices
  * in poly relative to the cell's corner, and the corner (local coords). */

@@ -66,19 +66,7 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
                        const gi_material *mat) {
   /* Vector area and area-weighted centroid by fan triangulation. */
   float A[3] = {0, 0, 0}, C[3] = {0, 0, 0};
-  for (int i = 1; i + 1 < n; i++) {
-    float e1[3], e2[3], x[3];
-    for (int k = 0; k < 3; k++) {
-      e1[k] = poly[i][k] - poly[0][k];
-      e2[k] = poly[i + 1][k] - poly[0][k];
-    }
-    gi__cross(e1, e2, x);
-    float a = 0.5f * gi__len(x);
-    for (int k = 0; k < 3; k++) {
-      A[k] += 0.5f * x[k];
-      C[k] += a * (poly[0][k] + poly[i][k] + poly[i + 1][k]) / 3.f;
-    }
-  }
+  gi__fan_moments(poly, n, A, C);
   float area = gi__len(A);
   if (!(area > 0)) return;
   float gloss = mat->roughness < 0.5f ? mat->specular : 0.f;

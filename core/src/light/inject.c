@@ -44,6 +44,7 @@ typedef struct {
   int8_t *side;        /* per picked sample: the side it lights */
   float *cosw;         /* per picked sample: |cos| to the group's orientation */
   float *mis;          /* per picked sample: its MIS weight against emitter_rays */
+  uint8_t *near;       /* per sample of `all`: the groups near_lights lit with it (bit h) */
   gi_near_scratch ns;  /* the voxel's triangles for near lights */
   int64_t cell[3];     /* the voxel's global cell, of size sz */
   double sz;
@@ -101,6 +102,23 @@ static int facing_group(const gi_vgeo *g, const float w[3]) {
   return best;
 }
 
+/* The local lights among the voxel's samples `all` that lie within reach
+ * of its surfaces, lit piece by piece into Es (all groups at once);
+ * ib->near[i] says which groups sample i lit, so light_group skips it
+ * there. */
+static void near_lights(const gi_scene *s, const gi_vgeo *g, float voxel, int n, inject_buf *ib,
+                        float Es[GI_VOX_FACES][3]) {
+  float reach = near_reach(g, voxel);
+  for (int i = 0; i < n; i++) {
+    const gi_lsample *l = &ib->all[i];
+    int r = l->fx == GI_FX_LOCAL && l->dist < reach
+                ? gi__near_field(s, g, ib->sz, ib->cell, l, &ib->ns, Es, &ib->near_rays)
+                : 0;
+    if (r < 0) ib->oom = 1;
+    ib->near[i] = (uint8_t)(r > 0 ? r : 0);
+  }
+}
+
 /* Direct light from the samples `all` on both sides of group h, through
  * shadow rays from the group's centroid; adds to Es per side, returns the rays. */
 static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float voxel, int n, inject_buf *ib,
@@ -109,18 +127,9 @@ static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float
   const float *o = g->u.fin.orient[h];
   gi_lsample *ls = ib->sc.ls;
   int m = 0;
-  float reach = near_reach(g, voxel);
   for (int i = 0; i < n; i++) {
     const gi_lsample *l = &ib->all[i];
-    if (l->fx == GI_FX_LOCAL && l->dist < reach) {
-      float E[2][3];
-      int r = gi__near_field(s, g, h, ib->sz, ib->cell, l, &ib->ns, E, &ib->near_rays);
-      if (r < 0) ib->oom = 1;
-      if (r) {
-        for (int k = 0; k < 3; k++) Es[2 * h][k] += E[0][k], Es[2 * h + 1][k] += E[1][k];
-        continue;
-      }
-    }
+    if (ib->near[i] >> h & 1) continue;
     float cn = gi__dot(o, l->w);
     if (cn == 0) continue;
     ls[m] = *l;
@@ -198,7 +207,8 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   ib.side = gi__malloc((size_t)ic->cap);
   ib.cosw = gi__malloc((size_t)ic->cap * sizeof(float));
   ib.mis = gi__malloc((size_t)ic->cap * sizeof(float));
-  if (!ib.all || !ib.side || !ib.cosw || !ib.mis || gi__scratch_alloc(&ib.sc, ic->cap)) {
+  ib.near = gi__malloc((size_t)ic->cap);
+  if (!ib.all || !ib.side || !ib.cosw || !ib.mis || !ib.near || gi__scratch_alloc(&ib.sc, ic->cap)) {
     atomic_store(&ic->failed, 1);
     goto out;
   }
@@ -216,6 +226,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
     int n = gi__light_samples(c->scene, ic->lp, g->centroid, &rng, ib.all, ic->cap);
+    near_lights(c->scene, g, voxel, n, &ib, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     rays += emitter_rays(ic, g, voxel, &rng, Es);
     for (int f = 0; f < GI_VOX_FACES; f++) memcpy(gi__direct(L, slot)[f], Es[g->face_side[f]], sizeof(float[3]));
@@ -230,6 +241,7 @@ out:
   gi__free(ib.side);
   gi__free(ib.cosw);
   gi__free(ib.mis);
+  gi__free(ib.near);
 }
 
 /* Radiance leaving through each face of an occupied voxel (diffuse

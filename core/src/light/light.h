@@ -36,14 +36,17 @@ typedef struct gi_near_scratch {
 #define GI_NEAR_MAX_TRIS 4096
 void gi__near_reset(gi_near_scratch *ns);
 void gi__near_free(gi_near_scratch *ns);
-/* Irradiance E on the two sides (0: the side orient[h] faces) of group h
- * of voxel g, global cell `cell` of size sz, from local light sample l
- * taken at g's centroid: the flux its pieces receive over their area.
- * Adds the shadow rays traced to *rays. Returns 1, 0 when the voxel has no
- * piece in the group or too many triangles to light one by one (the caller
- * keeps the centroid's value), -1 when out of memory. Thread-safe with one scratch per thread. */
-int gi__near_field(const gi_scene *s, const gi_vgeo *g, int h, double sz, const int64_t cell[3],
-                   const gi_lsample *l, gi_near_scratch *ns, float E[2][3], uint64_t *rays);
+/* Adds to Es[2 h + s] the irradiance on side s (0: the side orient[h]
+ * faces) of every group h of voxel g, global cell `cell` of size sz, from
+ * local light sample l taken at g's centroid: the flux the group's pieces
+ * receive over their area. Each piece is clipped and traced once whatever
+ * the groups it shows in. Adds the shadow rays traced to *rays. Returns
+ * the groups it lit as a bit mask (bit h); a group without a piece, or
+ * every group of a voxel with too many triangles to light one by one,
+ * is left to the caller's centroid value; -1 when out of memory.
+ * Thread-safe with one scratch per thread. */
+int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *l,
+                   gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
  * tail (with bounces >= 2): then adds the orders after the last bounce as
  * a geometric series whose ratio is measured from the last two bounces. */

@@ -48,16 +48,13 @@ static int voxel_tris(const gi_scene *s, double sz, const int64_t cell[3], gi_ne
   return 0;
 }
 
-int gi__near_field(const gi_scene *s, const gi_vgeo *g, int h, double sz, const int64_t cell[3],
-                   const gi_lsample *l, gi_near_scratch *ns, float E[2][3], uint64_t *rays) {
+int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *l,
+                   gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
   if (voxel_tris(s, sz, cell, ns)) return -1;
   if (ns->count > GI_NEAR_MAX_TRIS) return 0;
-  const float *o = g->u.fin.orient[h];
   float P[3], I[3];
   for (int k = 0; k < 3; k++) P[k] = g->centroid[k] + l->dist * l->w[k], I[k] = l->V[k] * l->dist * l->dist;
-  int in_group[3];
-  for (int a = 0; a < 3; a++) in_group[a] = g->face_side[2 * a] / 2 == h;
-  float flux[2] = {0, 0}, wsum = 0, off = gi__shadow_offset((float)sz);
+  float flux[GI_VOX_GROUPS][2] = {{0}}, wsum[GI_VOX_GROUPS] = {0}, off = gi__shadow_offset((float)sz);
   for (size_t i = 0; i < ns->count; i++) {
     const uint32_t *ix = &s->indices[3 * ns->tris[i]];
     float tv[3][3], poly[GI_CLIP_MAXV][3], corner[3];
@@ -68,21 +65,19 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, int h, double sz, const 
     float A[3] = {0, 0, 0}, C[3] = {0, 0, 0}, om = 0, v[GI_CLIP_MAXV][3];
     for (int q = 0; q < n; q++)
       for (int k = 0; k < 3; k++) v[q][k] = poly[q][k] + corner[k] - P[k];
-    for (int q = 1; q + 1 < n; q++) {
-      float e1[3], e2[3], x[3];
-      for (int k = 0; k < 3; k++) e1[k] = v[q][k] - v[0][k], e2[k] = v[q + 1][k] - v[0][k];
-      gi__cross(e1, e2, x);
-      float a = 0.5f * gi__len(x);
-      for (int k = 0; k < 3; k++) A[k] += 0.5f * x[k], C[k] += a * (v[0][k] + v[q][k] + v[q + 1][k]) / 3.f;
-      om += tri_solid_angle(v[0], v[q], v[q + 1]);
-    }
+    gi__fan_moments((const float(*)[3])v, n, A, C);
+    for (int q = 1; q + 1 < n; q++) om += tri_solid_angle(v[0], v[q], v[q + 1]);
     float area = gi__len(A), proj = fabsf(A[0]) + fabsf(A[1]) + fabsf(A[2]);
     if (!(area > 0) || !(proj > 0)) continue;
-    float share = 0;
-    for (int a = 0; a < 3; a++) share += in_group[a] ? fabsf(A[a]) : 0.f;
-    share /= proj;
-    if (share <= 0) continue;
-    wsum += share * area;
+    /* The piece's share in each group: its projected area along the group's axes. */
+    float share[GI_VOX_GROUPS] = {0};
+    int any = 0;
+    for (int h = 0; h < g->groups; h++) {
+      for (int a = 0; a < 3; a++) share[h] += g->face_side[2 * a] / 2 == h ? fabsf(A[a]) : 0.f;
+      share[h] /= proj;
+      if (share[h] > 0) wsum[h] += share[h] * area, any = 1;
+    }
+    if (!any) continue;
     for (int k = 0; k < 3; k++) C[k] /= area; /* relative to P */
     /* The piece's side facing the light: the normal n with n . (P - C) > 0. */
     float nrm[3], sg = gi__dot(A, C) < 0 ? 1.f : -1.f;
@@ -100,10 +95,15 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, int h, double sz, const 
     gi__occluded(s, 1, org, dir, &tn, &tf, &vis);
     (*rays)++;
     if (!vis) continue;
-    flux[gi__dot(o, nrm) >= 0 ? 0 : 1] += share * om;
+    for (int h = 0; h < g->groups; h++)
+      if (share[h] > 0) flux[h][gi__dot(g->u.fin.orient[h], nrm) >= 0 ? 0 : 1] += share[h] * om;
   }
-  if (!(wsum > 0)) return 0;
-  for (int sd = 0; sd < 2; sd++)
-    for (int k = 0; k < 3; k++) E[sd][k] = flux[sd] / wsum * I[k];
-  return 1;
+  int mask = 0;
+  for (int h = 0; h < g->groups; h++) {
+    if (!(wsum[h] > 0)) continue;
+    mask |= 1 << h;
+    for (int sd = 0; sd < 2; sd++)
+      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd] / wsum[h] * I[k];
+  }
+  return mask;
 }
