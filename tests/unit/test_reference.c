@@ -256,27 +256,56 @@ static double delta_irradiance(const gi_light *l, const double p[3]) {
   return f * l->color[1] * w[1] / (isinf(r) ? 1.0 : r * r);
 }
 
-static void test_all_lights_closed_form(void **state) {
-  const double Lsky = 0.5, Le = 2.0, cos25 = cos(25 * PI / 180), cos40 = cos(40 * PI / 180);
-  gi_light lights[4] = {
+/* Every kind of light at once: a sun, a sky of radiance ALL_LSKY, a point
+ * light, a spot light and a black emissive quad of radiance ALL_LE facing
+ * down over the origin (no indirect light at all). */
+#define ALL_LSKY 0.5
+#define ALL_LE 2.0
+static gi_scene *make_all_lights(gi_light lights[4], double Q[4][3]) {
+  const double cos25 = cos(25 * PI / 180), cos40 = cos(40 * PI / 180);
+  gi_light l[4] = {
       {.type = GI_LIGHT_SUN, .color = {1.5, 1.5, 1.5}, .direction = {1.5f, -2.f, 0.5f}},
-      {.type = GI_LIGHT_SKY, .color = {(float)Lsky, (float)Lsky, (float)Lsky}},
+      {.type = GI_LIGHT_SKY, .color = {(float)ALL_LSKY, (float)ALL_LSKY, (float)ALL_LSKY}},
       {.type = GI_LIGHT_POINT, .color = {6, 6, 6}, .position = {3, 2, 0}},
       {.type = GI_LIGHT_SPOT, .color = {30, 30, 30}, .position = {-3, 4, 0}, .direction = {0, -1, 0},
        .cos_inner = (float)cos25, .cos_outer = (float)cos40},
   };
+  memcpy(lights, l, sizeof l);
   gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.emission = {Le, Le, Le}, .roughness = 1}; /* black: no indirect light at all */
+  gi_material m = {.emission = {ALL_LE, ALL_LE, ALL_LE}, .roughness = 1};
   uint32_t mat = gi_mesh_builder_add_material(b, &m);
   /* Wound to face down (-y), toward the points. */
-  double Q[4][3] = {{-QUAD_HALF, QUAD_Y, -QUAD_HALF}, {QUAD_HALF, QUAD_Y, -QUAD_HALF},
+  double q[4][3] = {{-QUAD_HALF, QUAD_Y, -QUAD_HALF}, {QUAD_HALF, QUAD_Y, -QUAD_HALF},
                     {QUAD_HALF, QUAD_Y, QUAD_HALF}, {-QUAD_HALF, QUAD_Y, QUAD_HALF}};
+  memcpy(Q, q, sizeof q);
   gi_mesh_builder_add_quad(b, Q[0], Q[1], Q[2], Q[3], mat);
   gi_scene_options opt = {.up = GI_UP_Y, .lights = lights, .num_lights = 4};
   gi_scene *s = NULL;
   gi_error_info err = {0};
   assert_int_equal(gi_scene_build(b, "all lights", &opt, &s, &err), GI_OK);
   gi_mesh_builder_free(b);
+  return s;
+}
+
+/* The exact direct irradiance at p (facing up) from the kinds in mask
+ * (gi_reference_opts.lights) of make_all_lights's scene. */
+static double all_lights_exact(const gi_light lights[4], double Q[4][3], const double p[3], int mask) {
+  const double up[3] = {0, 1, 0};
+  /* Sky and quad: the quad covers part of the upper hemisphere. */
+  double psa = polygon_psa(p, Q, 4, up), want = 0;
+  if (mask >> GI_FX_SKY & 1) want += ALL_LSKY * (PI - psa);
+  if (mask >> GI_FX_EMISSIVE & 1) want += ALL_LE * psa;
+  for (int l = 0; l < 4; l++) {
+    int fx = lights[l].type == GI_LIGHT_SUN ? GI_FX_SUN : GI_FX_LOCAL;
+    if (lights[l].type != GI_LIGHT_SKY && (mask >> fx & 1)) want += delta_irradiance(&lights[l], p);
+  }
+  return want;
+}
+
+static void test_all_lights_closed_form(void **state) {
+  gi_light lights[4];
+  double Q[4][3];
+  gi_scene *s = make_all_lights(lights, Q);
   /* Under the quad (spot in its falloff), under the spot (inside its inner
    * cone), by the point light (outside the spot), and close under the quad
    * (the sun hidden by it, the sky mostly too). */
@@ -284,11 +313,8 @@ static void test_all_lights_closed_form(void **state) {
   const double up[3] = {0, 1, 0};
   const int seeds = 32;
   for (int i = 0; i < 4; i++) {
-    /* Sky and quad: the quad covers part of the upper hemisphere. */
-    double psa = polygon_psa(P[i], Q, 4, up), want = Lsky * (PI - psa) + Le * psa, deltas = 0;
-    for (int l = 0; l < 4; l++)
-      if (lights[l].type != GI_LIGHT_SKY) deltas += delta_irradiance(&lights[l], P[i]);
-    want += deltas;
+    double psa = polygon_psa(P[i], Q, 4, up), want = all_lights_exact(lights, Q, P[i], GI_REF_LIGHTS_ALL);
+    double deltas = want - all_lights_exact(lights, Q, P[i], 1 << GI_FX_SKY | 1 << GI_FX_EMISSIVE);
     double sum = 0, sum2 = 0, se_rep = 0;
     for (int seed = 1; seed <= seeds; seed++) {
       gi_ref_probe r = ref_at(s, P[i], 1024, -1, (uint64_t)seed);
@@ -303,6 +329,77 @@ static void test_all_lights_closed_form(void **state) {
     assert_true(se < 0.005 * want);                   /* tight enough to mean something */
     assert_true(se_rep > 0.5 * sd && se_rep < 2 * sd); /* and the reported error is honest */
   }
+  gi_scene_release(s);
+}
+
+/* gi_reference_opts.lights: with one kind of light (or two) the direct
+ * irradiance is that kind's exact share of make_all_lights's. */
+static void test_light_mask_closed_form(void **state) {
+  gi_light lights[4];
+  double Q[4][3];
+  gi_scene *s = make_all_lights(lights, Q);
+  static const double P[2][3] = {{0, 0, 0}, {2.5, 0.5, -1}};
+  static const int masks[5] = {1 << GI_FX_SUN, 1 << GI_FX_LOCAL, 1 << GI_FX_SKY, 1 << GI_FX_EMISSIVE,
+                               1 << GI_FX_LOCAL | 1 << GI_FX_SKY};
+  for (int i = 0; i < 2; i++)
+    for (int m = 0; m < 5; m++) {
+      gi_reference_opts o = {.samples = 8192, .max_depth = -1, .seed = 5, .lights = masks[m]};
+      gi_ref_probe r;
+      gi_error_info err = {0};
+      assert_int_equal(gi_reference_irradiance(s, P[i], 1, &o, &r, NULL, &err), GI_OK);
+      double want = all_lights_exact(lights, Q, P[i], masks[m]), se = r.std_err_direct[1];
+      printf("lights %#x at point %d: E %.5f exact %.5f (se %.5f)\n", masks[m], i, r.direct[1], want, se);
+      assert_true(r.indirect[1] == 0);
+      /* A delta light's share has no noise: exact up to float rounding. */
+      assert_true(fabs(r.direct[1] - want) <= 4 * se + 1e-5 * want + 1e-7);
+    }
+  gi_scene_release(s);
+}
+
+/* With a grey floor the light comes back as indirect light: one reference
+ * per kind of light sums to the reference with all of them (within the
+ * standard errors), so the mask neither loses nor double-counts a path
+ * (emitters hit by diffuse rays, the sky escaped to, light tracing from
+ * the point and spot lights). */
+static void test_light_mask_partition(void **state) {
+  gi_light lights[4];
+  double Q[4][3];
+  gi_scene *base = make_all_lights(lights, Q);
+  gi_scene_release(base);
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material em = {.albedo = {0.3f, 0.3f, 0.3f}, .emission = {ALL_LE, ALL_LE, ALL_LE}, .roughness = 1};
+  gi_material fl = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  uint32_t me = gi_mesh_builder_add_material(b, &em), mf = gi_mesh_builder_add_material(b, &fl);
+  gi_mesh_builder_add_quad(b, Q[0], Q[1], Q[2], Q[3], me);
+  double A[3] = {-40, -0.5, -40}, B[3] = {-40, -0.5, 40}, C[3] = {40, -0.5, 40}, D[3] = {40, -0.5, -40};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mf);
+  double w0[3] = {-1.5, -0.5, -2}, w1[3] = {-1.2, 2.5, 2}; /* a wall: light bounces between it and the floor */
+  gi_mesh_builder_add_box(b, w0, w1, mf);
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = lights, .num_lights = 4};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "all lights, floor", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  const double p[3] = {0.4, 0.6, 0.3};
+  static const int kinds[4] = {GI_FX_SUN, GI_FX_LOCAL, GI_FX_SKY, GI_FX_EMISSIVE};
+  gi_reference_opts o = {.samples = 32768, .seed = 9};
+  gi_ref_probe all, one;
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &all, NULL, &err), GI_OK);
+  double sum[2] = {0, 0}, var[2] = {0, 0};
+  for (int k = 0; k < 4; k++) {
+    o.lights = 1 << kinds[k];
+    assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &one, NULL, &err), GI_OK);
+    assert_true(one.indirect[1] > 0); /* every kind reaches the probe by a bounce */
+    sum[0] += one.direct[1], var[0] += (double)one.std_err_direct[1] * one.std_err_direct[1];
+    sum[1] += one.indirect[1], var[1] += (double)one.std_err_indirect[1] * one.std_err_indirect[1];
+    printf("kind %d alone: direct %.4f indirect %.4f\n", kinds[k], one.direct[1], one.indirect[1]);
+  }
+  printf("all: direct %.4f indirect %.4f (se %.4f); the kinds summed: %.4f %.4f (se %.4f)\n", all.direct[1], all.indirect[1], all.std_err_indirect[1], sum[0], sum[1], sqrt(var[1]));
+  double se_d = sqrt(var[0] + (double)all.std_err_direct[1] * all.std_err_direct[1]);
+  double se_i = sqrt(var[1] + (double)all.std_err_indirect[1] * all.std_err_indirect[1]);
+  assert_true(fabs(sum[0] - all.direct[1]) <= 4 * se_d + 1e-5 * all.direct[1]);
+  assert_true(fabs(sum[1] - all.indirect[1]) <= 4 * se_i);
+  assert_true(se_i < 0.03 * all.indirect[1]); /* tight enough to mean something */
   gi_scene_release(s);
 }
 
@@ -365,7 +462,7 @@ static void test_pick_probabilities(void **state) {
   for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
     ref_lights L;
     gi_error_info err = {0};
-    assert_int_equal(ref_lights_init(&L, s, mode, &err), GI_OK);
+    assert_int_equal(ref_lights_init(&L, s, mode, 0, &err), GI_OK);
     assert_int_equal(L.num_emitters, 2 * nq);
     double *count = calloc(L.num_emitters, sizeof *count);
     for (int xi = 0; xi < 3; xi++) {
@@ -497,7 +594,7 @@ static void test_surface_direct_near_emitter(void **state) {
   const int N = 200000;
   for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
     ref_lights L;
-    assert_int_equal(ref_lights_init(&L, s, mode, &err), GI_OK);
+    assert_int_equal(ref_lights_init(&L, s, mode, 0, &err), GI_OK);
     assert_true(L.eps > 0.005f); /* the lift this test is about */
     ref_rng r;
     ref_rng_seed(&r, 5);
@@ -776,6 +873,9 @@ static void test_bad_input(void **state) {
   o.emitter_pick = 0, o.no_light_tracing = 7;
   assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_ERR_INVALID_ARG);
   assert_non_null(strstr(err.msg, "no_light_tracing"));
+  o.no_light_tracing = 0, o.lights = 1 << GI_FX_BOUNCE;
+  assert_int_equal(gi_reference_irradiance(s, p, 1, &o, &r, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "lights"));
   gi_scene_release(s);
 }
 
@@ -786,6 +886,8 @@ int main(void) {
       cmocka_unit_test(test_sun_on_plane),
       cmocka_unit_test(test_sky_on_plane),
       cmocka_unit_test(test_all_lights_closed_form),
+      cmocka_unit_test(test_light_mask_closed_form),
+      cmocka_unit_test(test_light_mask_partition),
       cmocka_unit_test(test_surface_direct_near_emitter),
       cmocka_unit_test(test_pick_probabilities),
       cmocka_unit_test(test_pickers_closed_form),

@@ -34,6 +34,7 @@
 #include <stdint.h>
 #include "gi_error.h"
 #include "gi_camera.h"
+#include "gi_quality.h"
 #include "gi_scene.h"
 
 #ifdef __cplusplus
@@ -74,7 +75,13 @@ typedef struct gi_reference_opts {
   int emitter_pick; /* a gi_ref_pick; default GI_REF_PICK_TREE */
   int no_light_tracing; /* 1: without light tracing from point and spot
                        lights (version 5's estimator), to compare against */
+  int lights;       /* the light kinds the paths see: a mask of 1 << GI_FX_SUN,
+                       GI_FX_LOCAL, GI_FX_SKY and GI_FX_EMISSIVE (gi_quality.h);
+                       0 = every light. Against a bake with only those effects
+                       on, it tells which light a cone tracer's error comes from */
 } gi_reference_opts;
+/* Every light kind gi_reference_opts.lights may name. */
+#define GI_REF_LIGHTS_ALL ((1 << GI_FX_SUN) | (1 << GI_FX_LOCAL) | (1 << GI_FX_SKY) | (1 << GI_FX_EMISSIVE))
 
 /* One reference probe. Same convention as gi_probe: irradiance = direct +
  * indirect on a surface facing up; sh is SH L2 irradiance (cosine

@@ -73,16 +73,21 @@ typedef struct ref_lights {
   float eps;        /* ray offset, scaled to the scene */
   float extent;     /* the scene's largest side */
   int by_tree;      /* GI_REF_PICK_TREE: picks from the scene's light tree, seen from the point */
+  int lights;       /* the light kinds paths see (gi_reference_opts.lights, never 0 here) */
   uint32_t num_emitters;
   ref_emitter *em;  /* NULL when there are none */
 } ref_lights;
 
 /* Builds the table from the scene's triangles and materials; pick is a
  * gi_ref_pick (by power, distance and orientation from the scene's light
- * tree, or by area times mean emission alone). GI_ERR_NOMEM when out of
+ * tree, or by area times mean emission alone); lights (a mask as
+ * gi_reference_opts.lights, 0 = all) leaves out the kinds it does not
+ * name: no sky, no emitter table, delta lights that give nothing. GI_ERR_NOMEM when out of
  * memory, GI_ERR_INTERNAL when the scene's emitter slots disagree with the
  * table (the tree's picks would then name other triangles). */
-gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, gi_error_info *err);
+gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, int lights, gi_error_info *err);
+/* 1 when the paths see light kind fx (a gi_effect_id). */
+static inline int ref_light_on(const ref_lights *L, int fx) { return L->lights >> fx & 1; }
 void ref_lights_free(ref_lights *L);
 /* The table entry u in [0, 1) picks for shading point x, and its probability. */
 uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob);

@@ -89,7 +89,7 @@ static int slots_match(const ref_lights *L) {
   return 1;
 }
 
-gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, gi_error_info *err) {
+gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, int lights, gi_error_info *err) {
   memset(L, 0, sizeof *L);
   L->s = s;
   L->by_tree = pick == GI_REF_PICK_TREE;
@@ -99,14 +99,15 @@ gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, gi_error_i
   L->eps = 2e-5f * ext + 1e-6f;
   L->extent = ext;
   L->up[s->up == GI_UP_Z ? 2 : 1] = 1;
-  for (uint32_t i = 0; i < s->num_lights; i++)
+  L->lights = lights ? lights : GI_REF_LIGHTS_ALL;
+  for (uint32_t i = 0; i < s->num_lights && ref_light_on(L, GI_FX_SKY); i++)
     if (s->lights[i].type == GI_LIGHT_SKY) {
       L->has_sky = 1;
       for (int k = 0; k < 3; k++) L->sky[k] += s->lights[i].color[k];
     }
   uint32_t n = 0;
   for (uint32_t t = 0; t < s->num_triangles; t++) n += emissive(s->materials[s->tri_material[t]].emission);
-  if (!n) return GI_OK;
+  if (!n || !ref_light_on(L, GI_FX_EMISSIVE)) return GI_OK; /* no table: nothing sampled, nothing hit (emitted) */
   L->em = gi__malloc((size_t)n * sizeof *L->em);
   if (!L->em) return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %u emissive triangles", n);
   for (uint32_t t = 0, q = 0; t < s->num_triangles; t++) {
@@ -134,6 +135,7 @@ void ref_lights_free(ref_lights *L) {
 }
 
 int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], float w[3], float *dist, float E[3]) {
+  if (!ref_light_on(L, l->type == GI_LIGHT_SUN ? GI_FX_SUN : GI_FX_LOCAL)) return 0;
   if (l->type == GI_LIGHT_SUN) {
     for (int k = 0; k < 3; k++) w[k] = -l->direction[k], E[k] = l->color[k];
     *dist = INFINITY;
@@ -273,7 +275,7 @@ static void shadow_to(ref_batch *b, const ref_lights *L, const float o[3], const
 #define LT_NEAR_FRACTION 1e-3f
 
 double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]) {
-  if (l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) return 0;
+  if ((l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) || !ref_light_on(L, GI_FX_LOCAL)) return 0;
   double d2 = 0, lum = 0.2126 * l->color[0] + 0.7152 * l->color[1] + 0.0722 * l->color[2];
   for (int k = 0; k < 3; k++) {
     double v = (l->position[k] - L->s->origin[k]) - p[k];

@@ -108,7 +108,7 @@ static int emitted(const ref_lights *L, const float x[3], uint32_t tri, const fl
                    float t, float pb, float out[3]) {
   const float *Le = L->s->materials[L->s->tri_material[tri]].emission;
   float cos_e = -gi__dot(ng, w);
-  if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(cos_e > 0)) return 0;
+  if (!ref_light_on(L, GI_FX_EMISSIVE) || !(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(cos_e > 0)) return 0;
   float f = pb / (pb + ref_emitter_pdf(L, x, tri, t, cos_e));
   for (int k = 0; k < 3; k++) out[k] = f * Le[k];
   return 1;
@@ -117,9 +117,9 @@ static int emitted(const ref_lights *L, const float x[3], uint32_t tri, const fl
 /* Emitted radiance seen along w at a hit, without MIS weight (the glossy
  * lobe's sample, which light sampling never competes with). 0 when not an
  * emitter's front. */
-static int emitted_full(const gi_scene *s, uint32_t tri, const float ng[3], const float w[3], float out[3]) {
-  const float *Le = s->materials[s->tri_material[tri]].emission;
-  if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(-gi__dot(ng, w) > 0)) return 0;
+static int emitted_full(const ref_lights *L, uint32_t tri, const float ng[3], const float w[3], float out[3]) {
+  const float *Le = L->s->materials[L->s->tri_material[tri]].emission;
+  if (!ref_light_on(L, GI_FX_EMISSIVE) || !(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(-gi__dot(ng, w) > 0)) return 0;
   memcpy(out, Le, sizeof(float[3]));
   return 1;
 }
@@ -256,7 +256,7 @@ static int glossy_vertex(const ref_ctx *rc, const float w[3], const float n[3], 
   if (!(gi__dot(n, g->w) > 0)) return 0;
   if (gi__intersect1(rc->s, g->o, g->w, 0, INFINITY, &g->t, &g->tri, g->ng)) {
     g->hit = 1;
-    emitted_full(rc->s, g->tri, g->ng, g->w, Lg);
+    emitted_full(&rc->L, g->tri, g->ng, g->w, Lg);
   } else if (gi__dot(rc->L.up, g->w) > 0) {
     memcpy(Lg, rc->L.sky, sizeof(float[3]));
   }
@@ -503,6 +503,10 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   if (rc.o.no_light_tracing != 0 && rc.o.no_light_tracing != 1)
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference: no_light_tracing must be 0 or 1, got %d",
                     rc.o.no_light_tracing);
+  if (rc.o.lights & ~GI_REF_LIGHTS_ALL)
+    return gi__fail(err, GI_ERR_INVALID_ARG,
+                    "reference: lights must be a mask of 1 << GI_FX_SUN, _LOCAL, _SKY and _EMISSIVE (0 = all), got %#x",
+                    (unsigned)rc.o.lights);
   if (rc.o.emitter_pick != GI_REF_PICK_TREE && rc.o.emitter_pick != GI_REF_PICK_POWER)
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference: emitter_pick must be GI_REF_PICK_TREE or _POWER, got %d",
                     rc.o.emitter_pick);
@@ -511,7 +515,7 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
       return gi__fail(err, GI_ERR_NONFINITE, "reference: point %zu has a non-finite coordinate", i / 3);
   double t0 = gi__now_ms();
   rc.chunks = (rc.o.samples + CHUNK - 1) / CHUNK;
-  gi_result res = ref_lights_init(&rc.L, s, rc.o.emitter_pick, err);
+  gi_result res = ref_lights_init(&rc.L, s, rc.o.emitter_pick, rc.o.lights, err);
   if (res != GI_OK) return res;
   size_t tasks = n * (size_t)rc.chunks;
   rc.acc = gi__calloc(tasks ? tasks : 1, sizeof *rc.acc);
@@ -582,7 +586,7 @@ static gi_result render_view(const gi_scene *s, const ref_cam *k, const gi_rende
   vc.rc.s = s;
   vc.rc.o.seed = o->seed ? o->seed : 1;
   vc.rc.o.rr_depth = 3;
-  gi_result r = ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, err);
+  gi_result r = ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, 0, err);
   if (r != GI_OK) return r;
   size_t np = (size_t)k->w * k->h * 3;
   memset(rgb, 0, np * sizeof(float));
