@@ -53,6 +53,14 @@ assert int(m.group(2)) == 27, m.group(2)       # every lattice point is inside t
 assert [float(x) for x in m.group(1).split(",")] == [2, 2, 2], m.group(1)  # the bounds' centre
 assert abs(float(d[0]["ref_rel_se_total"]) - se) < 1e-4, (d[0]["ref_rel_se_total"], se)
 assert "| cone | **default** |" in md and "| path | samples | 16 |" in md
+# The error by light kind: the box has one kind (its emissive lamp), so that
+# kind's reference is the scene's own (the same paths: share 100%) and its
+# bake the default one (the same indirect error as the default row).
+m = re.search(r"\| box \| (\w+) \| ([0-9.]+)% \| ([0-9.]+)% \| ([0-9.]+) \[", md)
+assert m and "## Indirect light by the light it comes from" in md, md[:3000]
+assert m.group(1) == "emissive" and float(m.group(2)) == 100.0, m.groups()
+assert abs(float(m.group(3)) / 100 - float(d[0]["mre_indirect"])) < 1e-4, (m.group(3), d[0]["mre_indirect"])
+assert len(re.findall(r"\| box \| [a-z/]+ \| [0-9.]+% \|", md)) == 1  # no kind the scene lacks
 PY
 
 # --probes as given, viewpoint their middle, the default --out under the working directory.

@@ -166,12 +166,34 @@ void acc_write_workloads_md(FILE *f, const acc_workload *w, size_t n, const char
 /* out_dir/workloads.csv and workloads.jsonl. Returns 0 on success. */
 int acc_write_workloads_files(const acc_workload *w, size_t n, const char *out_dir);
 
+/* ---- bylight.c: the error split by the light it comes from (issue 16). ---- */
+#define ACC_LIGHT_KINDS 4 /* sun, point/spot, sky, emissive */
+typedef struct acc_light_row {
+  char scene[32];
+  char kind[16];               /* "sun", "point/spot", "sky", "emissive" */
+  double share;                /* this kind's part of the full reference's indirect light */
+  double ref_indirect_sum;     /* the kind's reference indirect luminance summed over the probes */
+  double ref_indirect_se;      /* its standard error */
+  double ref_ms, cone_ms;      /* reference time (0 from the cache), bake + gather */
+  acc_metrics indirect, direct;
+} acc_light_row;
+/* For each light kind the scene's default bake runs: the reference with
+ * only that kind (cached in out_dir) against the default bake with only
+ * that effect on, at ss's probes; full is the scene's own reference.
+ * Appends to out (room for ACC_LIGHT_KINDS more). Returns 1 on success. */
+int acc_run_by_light(const char *name, const acc_scene_set *ss, const gi_ref_probe *full, int threads,
+                     const char *out_dir, int ref_version, acc_light_row *out, size_t *nout);
+/* The markdown section (n = 0: not measured). */
+void acc_write_by_light_md(FILE *f, const acc_light_row *r, size_t n);
+
 /* The workloads as the report takes them. */
 typedef struct acc_wl_report {
   const acc_workload *w;
   size_t n;
   int ran;               /* 0: --no-workloads */
   const char *cycles_note;
+  const acc_light_row *by_light; /* the by-light section's rows (n_by_light 0: not measured) */
+  size_t n_by_light;
 } acc_wl_report;
 /* report.c: writes out_dir/accuracy.csv, accuracy.gp (+ accuracy.png via
  * gnuplot when present) and the markdown report md_path, with the

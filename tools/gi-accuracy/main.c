@@ -39,6 +39,7 @@ typedef struct opts {
   int view_spp;        /* reference paths per pixel of the camera views; 0 = no views */
   int workloads;       /* 1: the workloads at equal error (--no-workloads: 0) */
   int cycles;          /* 1: Blender Cycles on the aerial view when blender is on PATH (--no-cycles: 0) */
+  int by_light;        /* 1: the error split by light kind (--no-by-light: 0) */
   const char *knobs;   /* --knobs: the knobs to sweep; NULL = all */
   acc_file_opts file;  /* --scene FILE and its options */
   char out_buf[1024];  /* the default --out of a --scene run */
@@ -48,7 +49,8 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: gi-accuracy [--scenes LIST] [--scenes-dir DIR] [--out DIR] [--md FILE] [--png FILE]\n"
           "                   [--notes FILE] [--ref-samples N] [--pt-max N] [--threads N] [--repeat N]\n"
-          "                   [--view-samples N] [--no-views] [--no-workloads] [--no-cycles] [--quick]\n"
+          "                   [--view-samples N] [--no-views] [--no-workloads] [--no-cycles] [--no-by-light]\n"
+          "                   [--quick]\n"
           "                   [--knobs LIST]\n"
           "       gi-accuracy --scene FILE [--up y|z] [--at X,Y,Z] [--probes FILE | --above-ground H]\n"
           "                   [--view CAMERA] [the options above but --scenes]\n"
@@ -81,6 +83,8 @@ static void usage(FILE *f) {
           "  --no-workloads     skip the workloads at equal error (20/1000/10000 probes, panorama,\n"
           "                     camera view, Munich's aerial view; out/workloads.csv, .jsonl)\n"
           "  --no-cycles        do not run Blender Cycles on Munich's aerial view (run when on PATH)\n"
+          "  --no-by-light      skip the error split by light kind (a reference and a bake per kind:\n"
+          "                     sun, point/spot, sky, emissive, each alone)\n"
           "  --quick            fewer knob values, views at 64 paths per pixel, workloads' error on 20\n"
           "                     probes and Cycles at 16 samples only (a smoke run)\n"
           "  --knobs LIST       sweep only these: res, levels, voxel0, cones, aperture, step, bounces,\n"
@@ -143,7 +147,7 @@ static int parse_args(int argc, char **argv, opts *o) {
   o->ref_samples = 65536;
   o->pt_max = 4096;
   o->view_spp = -1;
-  o->workloads = o->cycles = 1;
+  o->workloads = o->cycles = o->by_light = 1;
   int no_views = 0;
   const char *list = "cornell,munich,city";
   int scenes_given = 0, out_given = 0;
@@ -163,6 +167,8 @@ static int parse_args(int argc, char **argv, opts *o) {
       o->workloads = 0;
     } else if (!strcmp(a, "--no-cycles")) {
       o->cycles = 0;
+    } else if (!strcmp(a, "--no-by-light")) {
+      o->by_light = 0;
     } else if (!has && takes_value(a)) {
       return ta_fail(&ta, NULL, "option '%s' needs a value", a);
     } else if (!strcmp(a, "--scenes")) list = argv[++i], scenes_given = 1;
@@ -567,6 +573,8 @@ typedef struct results {
   size_t ninfo, nviews;
   acc_workload *wl;
   size_t nwl;
+  acc_light_row by_light[3 * ACC_LIGHT_KINDS];
+  size_t n_by_light;
   char cycles_note[160]; /* why Blender Cycles did not run; "" when it did or was not wanted */
 } results;
 
@@ -618,6 +626,9 @@ static int run_scene(const opts *o, const char *name, const char *md_dir, result
       si->ref_rel_se[p] = m.ref_rel_se;
     }
     R->ninfo++;
+    if (o->by_light &&
+        !acc_run_by_light(name, &ss, ref, o->threads, o->out_dir, REF_VERSION, R->by_light, &R->n_by_light))
+      rc = 1;
     gi_camera cam;
     const acc_view *view = NULL;
     if (o->view_spp > 0 && view_camera(o, name, &ss, &cam)) {
@@ -682,7 +693,8 @@ int main(int argc, char **argv) {
   }
   if (!rc && R->out.n) {
     mark_fronts(&R->out);
-    acc_wl_report wl = {.w = R->wl, .n = R->nwl, .ran = o.workloads, .cycles_note = R->cycles_note};
+    acc_wl_report wl = {.w = R->wl, .n = R->nwl, .ran = o.workloads, .cycles_note = R->cycles_note,
+                        .by_light = R->by_light, .n_by_light = R->n_by_light};
     if (acc_write_reports(R->out.v, R->out.n, R->info, R->ninfo, R->views, R->nviews, &wl, o.out_dir, md, png, machine,
                           cmd, o.notes))
       rc = 1;
