@@ -56,6 +56,13 @@ int acc_keep_lit(acc_scene_set *ss, const double *cand, size_t nc, size_t keep, 
 uint64_t acc_fnv(uint64_t h, const void *p, size_t n);
 int acc_cache_read(const char *path, void *a, size_t na, void *b, size_t nb);
 void acc_cache_write(const char *path, const void *a, size_t na, const void *b, size_t nb);
+/* The probe reference of scene `name` at ss's points (ss->ref_samples
+ * paths, seed 1), seeing the light kinds `lights` (a gi_reference_opts
+ * mask, 0 = all): from out_dir's cache, keyed by all of these and
+ * ref_version, or traced and cached. *ms: the tracing time (0 from the
+ * cache). Returns 1 on success (0 printed). */
+int acc_ref_cached(const char *name, const acc_scene_set *ss, int lights, int threads, const char *out_dir,
+                   int ref_version, gi_ref_probe *ref, double *ms);
 
 /* One camera view at equal error (views.c). */
 #define ACC_VIEW_MAX_PATH 8

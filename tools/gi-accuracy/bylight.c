@@ -23,34 +23,6 @@ static const struct {
 
 static double lum(const float c[3]) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 
-/* The reference with only light kind fx, from the cache or traced. */
-static int kind_ref(const char *name, const acc_scene_set *ss, int k, int threads, const char *out_dir,
-                    int ref_version, gi_ref_probe *ref, double *ms) {
-  int fx = KINDS[k].fx, mask = 1 << fx;
-  uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
-  h = acc_fnv(h, ss->pts, ss->n * 3 * sizeof(double));
-  h = acc_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
-  h = acc_fnv(h, &ref_version, sizeof ref_version);
-  h = acc_fnv(h, &mask, sizeof mask);
-  char path[1100];
-  snprintf(path, sizeof path, "%s/ref-%s-light%d-%016llx.bin", out_dir, name, fx, (unsigned long long)h);
-  *ms = 0;
-  if (acc_cache_read(path, ref, ss->n * sizeof *ref, NULL, 0)) {
-    int ok = 1;
-    for (size_t i = 0; ok && i < ss->n; i++)
-      for (int k = 0; k < 3; k++) ok &= isfinite(ref[i].irradiance[k]) && isfinite(ref[i].std_err[k]);
-    if (ok) return 1;
-  }
-  gi_reference_opts ro = {.samples = ss->ref_samples, .seed = 1, .threads = threads, .lights = mask};
-  gi_error_info err = {0};
-  if (gi_reference_irradiance(ss->s, ss->pts, ss->n, &ro, ref, ms, &err) != GI_OK) {
-    fprintf(stderr, "gi-accuracy: %s: reference for %s light: %s\n", name, KINDS[k].name, err.msg);
-    return 0;
-  }
-  acc_cache_write(path, ref, ss->n * sizeof *ref, NULL, 0);
-  return 1;
-}
-
 /* The default bake with only effect fx among the lights on, gathered at the probes. */
 static int kind_bake(const char *name, const acc_scene_set *ss, int fx, int threads, gi_probe *pr, double *ms) {
   gi_quality q = {.threads = threads};
@@ -95,7 +67,7 @@ int acc_run_by_light(const char *name, const acc_scene_set *ss, const gi_ref_pro
     memset(r, 0, sizeof *r);
     snprintf(r->scene, sizeof r->scene, "%s", name);
     snprintf(r->kind, sizeof r->kind, "%s", KINDS[k].name);
-    ok = kind_ref(name, ss, k, threads, out_dir, ref_version, ref, &r->ref_ms) &&
+    ok = acc_ref_cached(name, ss, 1 << fx, threads, out_dir, ref_version, ref, &r->ref_ms) &&
          kind_bake(name, ss, fx, threads, pr, &r->cone_ms);
     if (!ok) break;
     double ind = 0, se2 = 0;

@@ -300,33 +300,7 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
 /* ---- reference cache ------------------------------------------------- */
 
 static int load_or_make_ref(const opts *o, const char *name, const scene_set *ss, gi_ref_probe *ref, double *ms) {
-  int ver = REF_VERSION;
-  uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
-  h = acc_fnv(h, ss->pts, ss->n * 3 * sizeof(double));
-  h = acc_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
-  h = acc_fnv(h, &ver, sizeof ver);
-  char path[1024];
-  snprintf(path, sizeof path, "%s/ref-%s-%016llx.bin", o->out_dir, name, (unsigned long long)h);
-  *ms = 0;
-  if (acc_cache_read(path, ref, ss->n * sizeof *ref, NULL, 0)) {
-    int ok = 1;
-    for (size_t i = 0; ok && i < ss->n; i++)
-      for (int k = 0; k < 3; k++) ok &= isfinite(ref[i].irradiance[k]) && isfinite(ref[i].std_err[k]);
-    if (ok) {
-      fprintf(stderr, "gi-accuracy: %s: reference from cache %s\n", name, path);
-      return 1;
-    }
-    fprintf(stderr, "gi-accuracy: %s: cache %s unreadable, recomputing\n", name, path);
-  }
-  gi_reference_opts ro = {.samples = ss->ref_samples, .seed = 1, .threads = o->threads};
-  gi_error_info err = {0};
-  fprintf(stderr, "gi-accuracy: %s: reference, %zu probes x %d paths...\n", name, ss->n, ss->ref_samples);
-  if (gi_reference_irradiance(ss->s, ss->pts, ss->n, &ro, ref, ms, &err) != GI_OK) {
-    fprintf(stderr, "gi-accuracy: %s: reference: %s\n", name, err.msg);
-    return 0;
-  }
-  acc_cache_write(path, ref, ss->n * sizeof *ref, NULL, 0);
-  return 1;
+  return acc_ref_cached(name, ss, 0, o->threads, o->out_dir, REF_VERSION, ref, ms);
 }
 
 /* ---- the sweep -------------------------------------------------------- */
