@@ -61,6 +61,14 @@ assert m and "## Indirect light by the light it comes from" in md, md[:3000]
 assert m.group(1) == "emissive" and float(m.group(2)) == 100.0, m.groups()
 assert abs(float(m.group(3)) / 100 - float(d[0]["mre_indirect"])) < 1e-4, (m.group(3), d[0]["mre_indirect"])
 assert len(re.findall(r"\| box \| [a-z/]+ \| [0-9.]+% \|", md)) == 1  # no kind the scene lacks
+# The hand-built cascade: one level keeps the small source's flux up to
+# tau / alpha; across levels the figures are there, finite and ordered.
+m = re.search(r"Thin rays read it on one level: \*\*([0-9.]+)\*\* \(the optical-depth model's own excess is "
+              r"tau/alpha = ([0-9.]+)\).*read across levels \*\*([0-9.]+) on average, ([0-9.]+) to ([0-9.]+)\*\*", md)
+assert m, "hand-over section missing"
+one, ta, mean, lo, hi = (float(x) for x in m.groups())
+assert 1.0 < one < ta + 0.015, (one, ta)
+assert 0 < lo <= mean <= hi < 10, (lo, mean, hi)
 PY
 
 # --probes as given, viewpoint their middle, the default --out under the working directory.

@@ -193,6 +193,20 @@ int acc_run_by_light(const char *name, const acc_scene_set *ss, const gi_ref_pro
 /* The markdown section (n = 0: not measured). */
 void acc_write_by_light_md(FILE *f, const acc_light_row *r, size_t n);
 
+/* ---- handover.c: a small source on a hand-built cascade, within a level
+ * and across levels (the cone march's level hand-over). ---- */
+typedef struct acc_handover {
+  int ran;
+  double one_level;        /* thin rays, one level: beam light / the plate's flux */
+  double tau_over_alpha;   /* what one level should read (the optical-depth model's excess) */
+  double mean, min, max;   /* the probes' cones across levels, over heights x distances */
+  double probe_tan;
+} acc_handover;
+/* Measures it (deterministic, about 10 s on 2 cores). Returns 1 on success. */
+int acc_run_handover(int threads, acc_handover *h);
+/* The markdown section (h NULL or not run: says so). */
+void acc_write_handover_md(FILE *f, const acc_handover *h);
+
 /* The workloads as the report takes them. */
 typedef struct acc_wl_report {
   const acc_workload *w;
@@ -201,6 +215,7 @@ typedef struct acc_wl_report {
   const char *cycles_note;
   const acc_light_row *by_light; /* the by-light section's rows (n_by_light 0: not measured) */
   size_t n_by_light;
+  const acc_handover *handover;  /* the hand-built cascade's figures (NULL: not measured) */
 } acc_wl_report;
 /* report.c: writes out_dir/accuracy.csv, accuracy.gp (+ accuracy.png via
  * gnuplot when present) and the markdown report md_path, with the

@@ -84,7 +84,8 @@ static void usage(FILE *f) {
           "                     camera view, Munich's aerial view; out/workloads.csv, .jsonl)\n"
           "  --no-cycles        do not run Blender Cycles on Munich's aerial view (run when on PATH)\n"
           "  --no-by-light      skip the error split by light kind (a reference and a bake per kind:\n"
-          "                     sun, point/spot, sky, emissive, each alone)\n"
+          "                     sun, point/spot, sky, emissive, each alone) and the hand-built\n"
+          "                     cascade's small source within a level and across levels\n"
           "  --quick            fewer knob values, views at 64 paths per pixel, workloads' error on 20\n"
           "                     probes and Cycles at 16 samples only (a smoke run)\n"
           "  --knobs LIST       sweep only these: res, levels, voxel0, cones, aperture, step, bounces,\n"
@@ -549,6 +550,7 @@ typedef struct results {
   size_t nwl;
   acc_light_row by_light[3 * ACC_LIGHT_KINDS];
   size_t n_by_light;
+  acc_handover handover;
   char cycles_note[160]; /* why Blender Cycles did not run; "" when it did or was not wanted */
 } results;
 
@@ -665,10 +667,13 @@ int main(int argc, char **argv) {
     int r = run_scene(&o, o.file.path ? o.file.name : o.scenes[i], md_dir, R);
     if (r > 0) rc = 1;
   }
+  /* The level hand-over on a hand-built cascade, with the light split (both explain the cities' errors). */
+  if (!rc && R->out.n && o.by_light && !acc_run_handover(o.threads, &R->handover)) rc = 1;
   if (!rc && R->out.n) {
     mark_fronts(&R->out);
     acc_wl_report wl = {.w = R->wl, .n = R->nwl, .ran = o.workloads, .cycles_note = R->cycles_note,
-                        .by_light = R->by_light, .n_by_light = R->n_by_light};
+                        .by_light = R->by_light, .n_by_light = R->n_by_light,
+                        .handover = R->handover.ran ? &R->handover : NULL};
     if (acc_write_reports(R->out.v, R->out.n, R->info, R->ninfo, R->views, R->nviews, &wl, o.out_dir, md, png, machine,
                           cmd, o.notes))
       rc = 1;

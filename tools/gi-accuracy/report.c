@@ -221,6 +221,7 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
   else fprintf(f, "(The plot was not drawn: gnuplot is not installed.)\n\n");
   acc_write_views_md(f, views, nviews);
   if (wl) acc_write_by_light_md(f, wl->by_light, wl->n_by_light);
+  if (wl) acc_write_handover_md(f, wl->handover);
   if (wl && wl->ran) acc_write_workloads_md(f, wl->w, wl->n, wl->cycles_note);
   else fprintf(f, "## At equal error, per workload\n\n(Not measured in this run: --no-workloads.)\n\n");
 
