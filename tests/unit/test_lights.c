@@ -138,6 +138,20 @@ static void flat_group(gi_vgeo *g) {
   for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(o, 0, f);
 }
 
+/* Adds a tiny triangle at (1, 1, 1) (its material mat), which puts the local
+ * origin at (0.5, 0.5, 0.5) for geometry around the world origin, and builds
+ * b into a scene (b freed). */
+static gi_scene *build_near_origin(gi_mesh_builder *b, uint32_t mat, const char *name) {
+  double T0[3] = {1, 1, 1}, T1[3] = {0.99, 1, 1}, T2[3] = {1, 1, 0.99}, T3[3] = {0.995, 1, 0.995};
+  gi_mesh_builder_add_quad(b, T0, T1, T3, T2, mat);
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, name, &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
 static double near_flux(const gi_scene *s, double sz, const float P[3], float I, float *up_side) {
   gi_near_scratch ns = {0};
   double flux = 0;
@@ -183,13 +197,7 @@ static void test_near_field(void **state) {
     double A[3] = {-0.2, y, -0.2}, B[3] = {-0.2, y, 0.2}, C[3] = {0.2, y, 0.2}, D[3] = {0.2, y, -0.2};
     gi_mesh_builder_add_quad(b, A, B, C, D, mat);
   }
-  double T0[3] = {1, 1, 1}, T1[3] = {0.99, 1, 1}, T2[3] = {1, 1, 0.99}, T3[3] = {0.995, 1, 0.995};
-  gi_mesh_builder_add_quad(b, T0, T1, T3, T2, mat);
-  gi_scene_options opt = {.up = GI_UP_Y};
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "near", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
+  gi_scene *s = build_near_origin(b, mat, "near");
   const float I = 100.f, h = 0.1f, half = 0.2f;
   float P[3] = {(float)(0 - s->origin[0]), (float)(-h - s->origin[1]), (float)(0 - s->origin[2])};
   double omega = 4.0 * atan((double)half * half / (h * sqrt(2.0 * half * half + (double)h * h)));
@@ -218,15 +226,8 @@ static void test_near_field_bound(void **state) {
       double A[3] = {x0, 0, z0}, B[3] = {x0, 0, z1}, C[3] = {x1, 0, z1}, D[3] = {x1, 0, z0};
       gi_mesh_builder_add_quad(b, A, B, C, D, mat);
     }
-  /* A tiny triangle at (1, 1, 1) puts the local origin at (0.5, 0.5, 0.5):
-   * the whole plate lies in cell (-1, -1, -1) of 1 m. */
-  double T0[3] = {1, 1, 1}, T1[3] = {0.99, 1, 1}, T2[3] = {1, 1, 0.99}, T3[3] = {0.995, 1, 0.995};
-  gi_mesh_builder_add_quad(b, T0, T1, T3, T2, mat);
-  gi_scene_options opt = {.up = GI_UP_Y};
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "dense", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
+  /* The local origin at (0.5, 0.5, 0.5): the whole plate lies in cell (-1, -1, -1) of 1 m. */
+  gi_scene *s = build_near_origin(b, mat, "dense");
   assert_true(s->num_triangles > GI_NEAR_MAX_TRIS + 2);
   int64_t cell[3] = {-1, -1, -1};
   gi_vgeo g = {.area = 0.2304f, .centroid = {-0.26f, -0.5f, -0.26f}};

@@ -202,7 +202,7 @@ typedef struct acc_handover {
   double mean, min, max;   /* the probes' cones across levels, over heights x distances */
   double probe_tan;
 } acc_handover;
-/* Measures it (deterministic, about 10 s on 2 cores). Returns 1 on success. */
+/* Measures it (deterministic, a few seconds on 2 cores). Returns 1 on success. */
 int acc_run_handover(int threads, acc_handover *h);
 /* The markdown section (h NULL or not run: says so). */
 void acc_write_handover_md(FILE *f, const acc_handover *h);

@@ -45,16 +45,14 @@ static int kind_bake(const char *name, const acc_scene_set *ss, int fx, int thre
 
 int acc_run_by_light(const char *name, const acc_scene_set *ss, const gi_ref_probe *full, int threads,
                      const char *out_dir, int ref_version, acc_light_row *out, size_t *nout) {
-  /* Which kinds the default bake runs. */
+  /* Which kinds the default bake runs: its effect plan, without baking. */
   gi_quality q = {.threads = threads};
-  gi_cascade *c = NULL;
-  gi_bake_report rep;
+  gi_effect plan[GI_FX_COUNT];
   gi_error_info err = {0};
-  if (gi_cascade_bake(ss->s, ss->at, &q, &c, &rep, &err) != GI_OK) {
-    fprintf(stderr, "gi-accuracy: %s: default bake: %s\n", name, err.msg);
+  if (gi_effect_plan(ss->s, ss->at, &q, plan, NULL, &err) != GI_OK) {
+    fprintf(stderr, "gi-accuracy: %s: effect plan: %s\n", name, err.msg);
     return 0;
   }
-  gi_cascade_free(c);
   gi_ref_probe *ref = calloc(ss->n, sizeof *ref);
   gi_probe *pr = calloc(ss->n, sizeof *pr);
   int ok = ref && pr;
@@ -62,7 +60,7 @@ int acc_run_by_light(const char *name, const acc_scene_set *ss, const gi_ref_pro
   for (size_t i = 0; i < ss->n; i++) full_ind += lum(full[i].indirect);
   for (int k = 0; ok && k < ACC_LIGHT_KINDS; k++) {
     int fx = KINDS[k].fx;
-    if (!rep.effects[fx].ran) continue;
+    if (!plan[fx].ran) continue;
     acc_light_row *r = &out[(*nout)++];
     memset(r, 0, sizeof *r);
     snprintf(r->scene, sizeof r->scene, "%s", name);

@@ -12,7 +12,7 @@
  * distance and on where the voxel sits in the coarser cells: the hand-over
  * from one level to the next is where a small bright source (a street
  * lamp's housing) gains or loses light. The figures are over 8 heights of
- * the voxel x 6 distances. Deterministic; about 10 s on 2 cores. */
+ * the voxel x 6 distances. Deterministic; a few seconds on 2 cores. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
