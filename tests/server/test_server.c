@@ -548,8 +548,8 @@ static void test_errors(void **state) {
 
 /* 64 parallel requests for different viewpoints against 1 worker + 1 slot. */
 static void test_overload(void **state) {
-  /* A quality=low bake (5 x 16^3 voxels) is admitted for its bound, 8.04
-   * MiB with transients (gi_cascade_bytes_estimate: 353 bytes a voxel as if
+  /* A quality=low bake (5 x 16^3 voxels) is admitted for its bound, 8.59
+   * MiB with transients (gi_cascade_bytes_estimate: 377 bytes a voxel as if
    * every voxel held geometry, plus 1/6); a cached one holds at least its
    * dense arrays, 1.11 MiB (57 bytes a voxel). 9 MiB admits one bake and
    * not one beside a cached cascade: every bake after the first evicts. */

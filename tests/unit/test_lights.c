@@ -7,7 +7,8 @@
  *   sky of radiance L, open upper half     -> E(up) = pi L (Monte Carlo, 4096 rays)
  * Delta lights take one shadow ray, so their answers are exact to float.
  * A lamp near a voxel's surfaces (light/near_field.c) against the solid
- * angle of the plate it lights, at two voxel sizes. */
+ * angle of the plate it lights, at two voxel sizes. A thin slab inside one
+ * voxel, lit on top, against pi L and pi rho L. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
@@ -242,6 +243,63 @@ static void test_near_field_bound(void **state) {
   gi_scene_release(s);
 }
 
+/* A 0.2 m slab under a sky of radiance 1, both of its faces inside one 1 m
+ * voxel: the voxel's upward side starts its shadow rays at the top face,
+ * not between the faces (inside the slab, where every ray met the top
+ * face from below and the lit slab read black). The top receives pi;
+ * a probe 1.3 m above reads the slab's reflected light, pi rho, from
+ * below (it covers all but 0.03% of that hemisphere's cosine). */
+static void test_thin_slab(void **state) {
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  const float rho = 0.5f;
+  gi_material m = {.albedo = {rho, rho, rho}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {-40, 0.4, -40}, hi[3] = {40, 0.6, 40};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  /* A speck at y = 3 puts the local origin at y = 1.7: the slab lies in cell -2 of 1 m. */
+  double T0[3] = {30, 3, 30}, T1[3] = {30.01, 3, 30}, T2[3] = {30.01, 3, 30.01}, T3[3] = {30, 3, 30.01};
+  gi_mesh_builder_add_quad(b, T0, T1, T2, T3, mat);
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sky, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "slab", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_quality q = {.levels = 4, .res = 16, .voxel0 = 1, .bounces = -1};
+  gi_cascade *c = NULL;
+  double at[3] = {0.3, 1.9, 0.2};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  const gi_level *L = &c->lv[0];
+  int n = 0;
+  double top = 0;
+  float ytop = (float)(0.6 - s->origin[1]), ybot = (float)(0.4 - s->origin[1]);
+  for (uint32_t sl = 0; sl < (uint32_t)(c->R * c->R * c->R); sl++) {
+    if (!L->vix[sl]) continue;
+    const gi_vgeo *g = gi__geo(L, sl);
+    if (g->proj[1] < 1.99f) continue; /* both faces, the voxel fully covered */
+    float p0[3], p1[3];
+    int up = g->u.fin.orient[0][1] > 0 ? 0 : 1; /* the side facing +y */
+    gi__side_centroid(g, up, p0);
+    gi__side_centroid(g, 1 - up, p1);
+    assert_true(g->groups == 1 && fabsf(p0[1] - ytop) < 1e-4f && fabsf(p1[1] - ybot) < 1e-4f);
+    top += gi__direct(L, sl)[GI_FACE_PY][1];
+    n++;
+  }
+  gi_probe p;
+  assert_int_equal(gi_cascade_gather(c, at, 1, &p, NULL, &err), GI_OK);
+  float sh[9][3], down[3] = {0, -1, 0}, e[3];
+  for (int i = 0; i < 9; i++)
+    for (int k = 0; k < 3; k++) sh[i][k] = p.sh[i][k] - p.sh_direct[i][k];
+  gi_sh_eval_irradiance(sh, down, e);
+  printf("thin slab: %d voxels hold both faces; their top receives %.4f (pi %.4f); from 1.3 m above, %.4f "
+         "comes up (pi rho %.4f)\n", n, top / n, M_PI, e[1], M_PI * rho);
+  assert_true(n >= 100);
+  assert_true(fabs(top / n - M_PI) < 0.02 * M_PI);
+  assert_true(fabs(e[1] - M_PI * rho) < 0.08 * M_PI * rho);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_delta_lights),
@@ -249,6 +307,7 @@ int main(void) {
       cmocka_unit_test(test_shadow_rule),
       cmocka_unit_test(test_near_field),
       cmocka_unit_test(test_near_field_bound),
+      cmocka_unit_test(test_thin_slab),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -64,10 +64,19 @@ typedef struct gi_vgeo {
     struct {           /* while voxelizing (gi__voxel_add_tri) */
       float tensor[6];   /* sum of area n n^T: xx, yy, zz, xy, xz, yz */
       float acen[3][3];  /* per axis, sum of |A_axis| x piece centroid */
+      float apos[3];     /* per axis, sum of A_axis over the pieces with A_axis > 0 */
+      float aside[3][2]; /* per axis, sum of |A_axis| x the centroid's coordinate on
+                            that axis, pieces with A_axis > 0 and < 0 apart */
     } sum;
     struct {           /* after gi__voxel_finalize */
       float orient[GI_VOX_GROUPS][3]; /* unit, orient[g] . e_a >= 0 for its first axis */
       float gcen[GI_VOX_GROUPS][3];   /* centroid of the surfaces seen through the group's axes */
+      /* Per side 2 g + s, where the pieces whose normal faces that side
+       * lie: gcen[g] + soff[2 g + s] orient[g] (gi__side_centroid). A
+       * thin closed solid inside one voxel (a slab, a wall) has its two
+       * faces on opposite sides; light and cones start from each face,
+       * not from the middle, which lies inside the solid. */
+      float soff[2 * GI_VOX_GROUPS];
     } fin;
   } u;
   uint8_t groups;      /* 1..GI_VOX_GROUPS when occupied */
@@ -82,6 +91,11 @@ typedef struct gi_vgeo {
 static inline uint8_t gi__face_side(const float o[3], int g, int f) {
   float sf = (f & 1) ? -1.f : 1.f;
   return (uint8_t)(2 * g + (sf * o[f / 2] >= 0 ? 0 : 1));
+}
+
+/* Where side sd (2 g + s) of a finalized voxel's group g starts its shadow rays and cones. */
+static inline void gi__side_centroid(const gi_vgeo *g, int sd, float out[3]) {
+  for (int k = 0; k < 3; k++) out[k] = g->u.fin.gcen[sd / 2][k] + g->u.fin.soff[sd] * g->u.fin.orient[sd / 2][k];
 }
 
 /* Light buffer of one voxel: what cones sample. 48 bytes, 24 half floats

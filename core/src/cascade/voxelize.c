@@ -85,6 +85,10 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
     g->proj[k] += fabsf(A[k]);
     for (int a = 0; a < 3; a++) g->u.sum.acen[a][k] += fabsf(A[a]) * ia * ck;
   }
+  for (int a = 0; a < 3; a++) {
+    g->u.sum.aside[a][A[a] < 0] += fabsf(A[a]) * ia * (C[a] + area * corner[a]);
+    if (A[a] > 0) g->u.sum.apos[a] += A[a];
+  }
   g->gloss += area * gloss;
 }
 
@@ -201,6 +205,26 @@ static int cmp_u32(const void *a, const void *b) {
  * gathers of its own. */
 #define GROUP_MINOR 0.25f
 
+/* Per side sd = 2 h + t of each group h, how far along orient[h] the
+ * pieces facing that side lie from the group's centroid gc[h]: along
+ * each axis a of the group, side 0 (+orient) takes the pieces whose
+ * normal has orient's sign on a. Only the axes' own coordinates are
+ * summed (a slab's two faces differ across it, not along it). */
+static void side_offsets(const gi_vgeo *g, int G, const int grp[3], const float dir[][3], const float gc[][3],
+                         float soff[2 * GI_VOX_GROUPS]) {
+  float num[2 * GI_VOX_GROUPS] = {0}, den[2 * GI_VOX_GROUPS] = {0};
+  for (int a = 0; a < 3; a++)
+    for (int t = 0; t < 2; t++) {
+      int h = grp[a], sd = 2 * h + t, neg = (dir[h][a] < 0) != t;
+      float w = neg ? g->proj[a] - g->u.sum.apos[a] : g->u.sum.apos[a];
+      if (!(w > 0)) continue;
+      float disp = g->u.sum.aside[a][neg] / w - gc[h][a];
+      num[sd] += w * disp * dir[h][a];
+      den[sd] += w * dir[h][a] * dir[h][a];
+    }
+  for (int sd = 0; sd < 2 * GI_VOX_GROUPS; sd++) soff[sd] = sd < 2 * G && den[sd] > 0 ? num[sd] / den[sd] : 0.f;
+}
+
 /* The voxel's orientation groups from its normal tensor (see
  * cascade_internal.h): per axis a, N_a = M e_a; the largest axis first. */
 static void orient_groups(gi_vgeo *g) {
@@ -237,12 +261,16 @@ static void orient_groups(gi_vgeo *g) {
     gw[grp[a]] += g->proj[a];
     for (int k = 0; k < 3; k++) gc[grp[a]][k] += g->proj[a] * cen[a][k];
   }
-  memset(&g->u, 0, sizeof g->u);
   for (int h = 0; h < G; h++)
-    for (int k = 0; k < 3; k++) {
-      g->u.fin.orient[h][k] = dir[h][k];
-      g->u.fin.gcen[h][k] = gw[h] > 0 ? gc[h][k] / gw[h] : g->centroid[k];
-    }
+    for (int k = 0; k < 3; k++) gc[h][k] = gw[h] > 0 ? gc[h][k] / gw[h] : g->centroid[k];
+  float soff[2 * GI_VOX_GROUPS];
+  side_offsets(g, G, grp, dir, gc, soff);
+  memset(&g->u, 0, sizeof g->u);
+  for (int h = 0; h < G; h++) {
+    memcpy(g->u.fin.orient[h], dir[h], sizeof dir[h]);
+    memcpy(g->u.fin.gcen[h], gc[h], sizeof gc[h]);
+  }
+  memcpy(g->u.fin.soff, soff, sizeof soff);
   g->groups = (uint8_t)G;
   memcpy(g->normal, dir[0], sizeof g->normal);
   for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(dir[grp[f / 2]], grp[f / 2], f);

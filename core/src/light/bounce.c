@@ -40,13 +40,14 @@ typedef struct {
  * footprint then shows the far side of the wall (a closed box's sky-lit
  * outside, read from inside). */
 #define AWAY_VOXELS 0.5f
-static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g, int h, gi_gather_start *st) {
+static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g, int sd, gi_gather_start *st) {
   float s = AWAY_VOXELS * (float)c->lv[d].s;
   for (int o = 0; o < g->groups; o++) {
-    if (o == h) continue;
+    if (o == sd / 2) continue;
     const float *no = g->u.fin.orient[o];
     float rel[3];
-    for (int k = 0; k < 3; k++) rel[k] = g->u.fin.gcen[h][k] - g->u.fin.gcen[o][k];
+    gi__side_centroid(g, sd, rel);
+    for (int k = 0; k < 3; k++) rel[k] -= g->u.fin.gcen[o][k];
     float side = gi__dot(no, rel);
     if (side == 0) continue;
     float sg = side > 0 ? s : -s;
@@ -83,8 +84,10 @@ static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, i
     for (int k = 0; k < 3; k++) n[k] = sg * g->u.fin.orient[sd / 2][k];
     /* A voxel is a surface at its own level's resolution (level d is
      * given, so the start always exists). */
-    gi__gather_start(c, g->u.fin.gcen[sd / 2], n, GI_GATHER_SURFACE, d, &st);
-    if (ns > 2) away_from_groups(c, d, g, sd / 2, &st);
+    float pc[3];
+    gi__side_centroid(g, sd, pc);
+    gi__gather_start(c, pc, n, GI_GATHER_SURFACE, d, &st);
+    if (ns > 2) away_from_groups(c, d, g, sd, &st);
     gi__hemisphere_jobs(c, wide, &st, n, all);
     for (int ci = 0; ci < nc; ci++) {
       int bit = sd * nc + ci;

@@ -120,7 +120,7 @@ static void near_lights(const gi_scene *s, const gi_vgeo *g, float voxel, int n,
 }
 
 /* Direct light from the samples `all` on both sides of group h, through
- * shadow rays from the group's centroid; adds to Es per side, returns the rays. */
+ * shadow rays from each side's centroid; adds to Es per side, returns the rays. */
 static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float voxel, int n, inject_buf *ib,
                             uint64_t *rng, float Es[GI_VOX_FACES][3]) {
   const gi_scene *s = ic->c->scene;
@@ -142,8 +142,11 @@ static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float
   for (int i = 0; i < m; i++)
     ib->mis[i] = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * ib->cosw[i] / GI_PI_F) : 1.f;
   m = roulette(ls, ib, m, rng);
-  /* Each ray leaves from the side of the surface that faces its light. */
-  gi__shadow_rays(s, g->u.fin.gcen[h], o, voxel, ls, m, &ib->sc);
+  /* Each ray leaves from the surfaces of the side that faces its light. */
+  float pp[3], pn[3];
+  gi__side_centroid(g, 2 * h, pp);
+  gi__side_centroid(g, 2 * h + 1, pn);
+  gi__shadow_rays_sided(s, pp, pn, o, voxel, ls, m, &ib->sc);
   uint8_t *vis = ib->sc.vis;
   /* A point light within the voxel lights the surfaces facing it
    * whatever the group's centroid sees: the centroid of a small closed
@@ -170,8 +173,8 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
   int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
   uint64_t rays = 0;
   for (int sd = 0; sd < 2 * g->groups && mb > 0; sd++) {
-    const float *pc = g->u.fin.gcen[sd / 2];
-    float n[3], t[3], bb[3], o[3];
+    float pc[3], n[3], t[3], bb[3], o[3];
+    gi__side_centroid(g, sd, pc);
     float sg = (sd & 1) ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * g->u.fin.orient[sd / 2][k];
     /* These rays all leave on side n: the shadow rule's start for it. */

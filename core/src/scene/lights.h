@@ -105,6 +105,11 @@ float gi__shadow_origin(const float p[3], const float *n, float voxel, const flo
  * i is unoccluded. voxel: the local voxel size at p. */
 void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float voxel, const gi_lsample *ls,
                      int count, gi_ray_scratch *sc);
+/* gi__shadow_rays for a surface whose two sides start at different
+ * points: rays toward lights on n's side leave from pp, the others from
+ * pn (a thin solid's two faces in one voxel). */
+void gi__shadow_rays_sided(const gi_scene *s, const float pp[3], const float pn[3], const float *n, float voxel,
+                           const gi_lsample *ls, int count, gi_ray_scratch *sc);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);

@@ -37,9 +37,15 @@ float gi__shadow_origin(const float p[3], const float *n, float voxel, const flo
 
 void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float voxel, const gi_lsample *ls,
                      int count, gi_ray_scratch *sc) {
+  gi__shadow_rays_sided(s, p, p, n, voxel, ls, count, sc);
+}
+
+void gi__shadow_rays_sided(const gi_scene *s, const float pp[3], const float pn[3], const float *n, float voxel,
+                           const gi_lsample *ls, int count, gi_ray_scratch *sc) {
   if (count > sc->cap) count = sc->cap;
   for (int i = 0; i < count; i++) {
     float *o = &sc->org[3 * i], *d = &sc->dir[3 * i];
+    const float *p = n && gi__dot(n, ls[i].w) < 0 ? pn : pp;
     sc->tn[i] = gi__shadow_origin(p, n, voxel, ls[i].w, o);
     memcpy(d, ls[i].w, sizeof(float[3]));
     if (isinf(ls[i].dist)) {
