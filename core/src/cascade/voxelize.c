@@ -225,6 +225,29 @@ static void side_offsets(const gi_vgeo *g, int G, const int grp[3], const float 
   for (int sd = 0; sd < 2 * GI_VOX_GROUPS; sd++) soff[sd] = sd < 2 * G && den[sd] > 0 ? num[sd] / den[sd] : 0.f;
 }
 
+/* The faces of minor axes of single-sheet groups (gi_vgeo.brighter): a
+ * group whose pieces all face one of its sides, on an axis other than
+ * the one its orientation leans on most. apos: per axis, the projected
+ * area of the pieces facing +axis. */
+static uint8_t sheet_minor_faces(const gi_vgeo *g, const int grp[3], const float dir[][3], const float apos[3]) {
+  uint8_t bits = 0;
+  for (int a = 0; a < 3; a++) {
+    int h = grp[a], dom = 0;
+    for (int b = 1; b < 3; b++)
+      if (fabsf(dir[h][b]) > fabsf(dir[h][dom])) dom = b;
+    if (a == dom) continue;
+    float w[2] = {0, 0}; /* projected area facing side 0 (+orient) and side 1 */
+    for (int b = 0; b < 3; b++) {
+      if (grp[b] != h) continue;
+      float pos = apos[b], neg = g->proj[b] - apos[b];
+      int flip = dir[h][b] < 0;
+      w[flip] += pos, w[!flip] += neg;
+    }
+    if ((w[0] > 0) != (w[1] > 0)) bits |= (uint8_t)(3u << (2 * a));
+  }
+  return bits;
+}
+
 /* The voxel's orientation groups from its normal tensor (see
  * cascade_internal.h): per axis a, N_a = M e_a; the largest axis first. */
 static void orient_groups(gi_vgeo *g) {
@@ -263,7 +286,7 @@ static void orient_groups(gi_vgeo *g) {
   }
   for (int h = 0; h < G; h++)
     for (int k = 0; k < 3; k++) gc[h][k] = gw[h] > 0 ? gc[h][k] / gw[h] : g->centroid[k];
-  float soff[2 * GI_VOX_GROUPS];
+  float soff[2 * GI_VOX_GROUPS], apos[3] = {g->u.sum.apos[0], g->u.sum.apos[1], g->u.sum.apos[2]};
   side_offsets(g, G, grp, dir, gc, soff);
   memset(&g->u, 0, sizeof g->u);
   for (int h = 0; h < G; h++) {
@@ -274,6 +297,7 @@ static void orient_groups(gi_vgeo *g) {
   g->groups = (uint8_t)G;
   memcpy(g->normal, dir[0], sizeof g->normal);
   for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(dir[grp[f / 2]], grp[f / 2], f);
+  g->brighter = sheet_minor_faces(g, grp, dir, apos);
 }
 
 /* Normalises one voxel's sums and derives its opacity; clears an empty

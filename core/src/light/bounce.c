@@ -103,7 +103,7 @@ static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, i
     samples += co[j].samples;
     if (hit && co[j].alpha > 0 && which[j] < GI_HIT_BITS) hit->w[which[j] / 64] |= 1ull << (which[j] % 64);
   }
-  for (int f = 0; f < GI_VOX_FACES; f++) memcpy(E[f], Es[g->face_side[f]], sizeof(float[3]));
+  gi__face_light(g, (const float(*)[3])Es, E);
   *cones += (uint64_t)nj;
   return samples;
 }

@@ -232,7 +232,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     near_lights(c->scene, g, voxel, n, &ib, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     rays += emitter_rays(ic, g, voxel, &rng, Es);
-    for (int f = 0; f < GI_VOX_FACES; f++) memcpy(gi__direct(L, slot)[f], Es[g->face_side[f]], sizeof(float[3]));
+    gi__face_light(g, (const float(*)[3])Es, gi__direct(L, slot));
     memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
   }
   atomic_fetch_add(&ic->rays, rays + ib.near_rays);
