@@ -25,11 +25,8 @@ static void direct_at(const gi_light *l, const double pts[][3], int n, float out
   uint32_t mat = gi_mesh_builder_add_material(b, &m);
   double A[3] = {-500, 0, -500}, B[3] = {-500, 0, 500}, C[3] = {500, 0, 500}, D[3] = {500, 0, -500};
   gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = l, .num_lights = 1};
-  gi_scene *s = NULL;
+  gi_scene *s = tu_build(b, "plane", l, 1);
   gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "plane", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
   gi_quality q = {.levels = 2, .res = 16, .voxel0 = 1, .bounces = -1, .probe_samples = 4096};
   gi_cascade *c = NULL;
   gi_bake_report rep;
@@ -146,12 +143,7 @@ static void flat_group(gi_vgeo *g) {
 static gi_scene *build_near_origin(gi_mesh_builder *b, uint32_t mat, const char *name) {
   double T0[3] = {1, 1, 1}, T1[3] = {0.99, 1, 1}, T2[3] = {1, 1, 0.99}, T3[3] = {0.995, 1, 0.995};
   gi_mesh_builder_add_quad(b, T0, T1, T3, T2, mat);
-  gi_scene_options opt = {.up = GI_UP_Y};
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, name, &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
-  return s;
+  return tu_build(b, name, NULL, 0);
 }
 
 static double near_flux(const gi_scene *s, double sz, const float P[3], float I, float *up_side) {
@@ -261,11 +253,8 @@ static void test_thin_slab(void **state) {
   /* A speck at y = 3 puts the local origin at y = 1.7: the slab lies in cell -2 of 1 m. */
   double T0[3] = {30, 3, 30}, T1[3] = {30.01, 3, 30}, T2[3] = {30.01, 3, 30.01}, T3[3] = {30, 3, 30.01};
   gi_mesh_builder_add_quad(b, T0, T1, T2, T3, mat);
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sky, .num_lights = 1};
-  gi_scene *s = NULL;
+  gi_scene *s = tu_build(b, "slab", &sky, 1);
   gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "slab", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
   gi_quality q = {.levels = 4, .res = 16, .voxel0 = 1, .bounces = -1};
   gi_cascade *c = NULL;
   double at[3] = {0.3, 1.9, 0.2};
@@ -315,12 +304,7 @@ static gi_scene *turned_block(double deg, float rho) {
   }
   static const int F[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
   for (int f = 0; f < 6; f++) gi_mesh_builder_add_quad(b, c[F[f][0]], c[F[f][1]], c[F[f][2]], c[F[f][3]], mat);
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sky, .num_lights = 1};
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "block", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
-  return s;
+  return tu_build(b, "block", &sky, 1);
 }
 
 /* The block's facade turned 30 degrees to the grid: its voxels show it

@@ -58,6 +58,17 @@ const char *tu_run(const char *cmd, int *status) {
   return out;
 }
 
+struct gi_scene *tu_build(struct gi_mesh_builder *b, const char *name, const struct gi_light *lights, size_t n) {
+  gi_scene *sc = NULL;
+  gi_error_info err = {0};
+  gi_scene_options opt = {.up = GI_UP_Y, .lights = lights, .num_lights = n};
+  gi_result rc = gi_scene_build(b, name, &opt, &sc, &err);
+  gi_mesh_builder_free(b);
+  if (rc != GI_OK) fprintf(stderr, "%s build: %s\n", name, err.msg);
+  assert_int_equal(rc, GI_OK);
+  return sc;
+}
+
 struct gi_scene *tu_furnace_scene(double size, double a, double Le) {
   gi_mesh_builder *b = gi_mesh_builder_new();
   gi_material m = {.albedo = {a, a, a}, .emission = {Le, Le, Le}, .roughness = 1};
@@ -72,14 +83,7 @@ struct gi_scene *tu_furnace_scene(double size, double a, double Le) {
   }
   static const int q[6][4] = {{0, 2, 6, 4}, {1, 5, 7, 3}, {0, 4, 5, 1}, {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 6, 7, 5}};
   for (int f = 0; f < 6; f++) gi_mesh_builder_add_quad(b, P[q[f][0]], P[q[f][1]], P[q[f][2]], P[q[f][3]], mat);
-  gi_scene *sc = NULL;
-  gi_error_info err = {0};
-  gi_scene_options opt = {.up = GI_UP_Y};
-  gi_result rc = gi_scene_build(b, "furnace", &opt, &sc, &err);
-  gi_mesh_builder_free(b);
-  if (rc != GI_OK) fprintf(stderr, "furnace build: %s\n", err.msg);
-  assert_int_equal(rc, GI_OK);
-  return sc;
+  return tu_build(b, "furnace", NULL, 0);
 }
 
 struct gi_scene *tu_sunlit_plane(double a, double E, double z_max) {
@@ -90,10 +94,5 @@ struct gi_scene *tu_sunlit_plane(double a, double E, double z_max) {
   uint32_t mat = gi_mesh_builder_add_material(b, &m);
   double A[3] = {-100, 0, -100}, B[3] = {-100, 0, z_max}, C[3] = {100, 0, z_max}, D[3] = {100, 0, -100};
   gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "plane", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
-  return s;
+  return tu_build(b, "plane", &sun, 1);
 }

@@ -21,6 +21,12 @@ const char *tu_write_file(const char *name, const void *data, size_t len);
 const char *tu_run(const char *cmd, int *status);
 
 struct gi_scene;
+struct gi_mesh_builder;
+struct gi_light;
+/* Builds b (freed) into a y-up scene named name with n extra lights,
+ * asserting it builds. Caller releases it. */
+struct gi_scene *tu_build(struct gi_mesh_builder *b, const char *name, const struct gi_light *lights, size_t n);
+
 /* The closed white furnace: a cube [0,size]^3 of albedo a whose walls emit
  * Le inward (test_furnace, test_hardcases). Caller releases it. */
 struct gi_scene *tu_furnace_scene(double size, double a, double Le);
