@@ -194,7 +194,8 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
 
 /* What lies in range of the cascade: emissive triangles within half a
  * cascade of it (*emit_in), glossy triangles inside it and the
- * area-weighted albedo (brightest channel) inside it (*abar). Emitters
+ * area-weighted reflectance (brightest channel of the albedo, plus a glossy
+ * lobe's specular) inside it (*abar). Emitters
  * light the cascade from outside it too: an emitter farther away than
  * half a cascade lights it at under a ninth of the irradiance it would
  * give at the border, and the coarsest level already spans the whole scene
@@ -230,8 +231,10 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
     gi__cross(e1, e2, n);
     double ar = 0.5 * gi__len(n);
     area += ar;
-    a_sum += ar * fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2]));
-    *glossy += m->roughness < 0.5f && m->specular > 0;
+    /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
+    int gl = m->roughness < 0.5f && m->specular > 0;
+    a_sum += ar * (fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2])) + (gl ? m->specular : 0.f));
+    *glossy += gl;
   }
   gi__free(tris);
   *abar = area > 0 ? a_sum / area : 0;

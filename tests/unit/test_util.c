@@ -69,9 +69,11 @@ struct gi_scene *tu_build(struct gi_mesh_builder *b, const char *name, const str
   return sc;
 }
 
-struct gi_scene *tu_furnace_scene(double size, double a, double Le) {
+struct gi_scene *tu_furnace_scene(double size, double a, double Le) { return tu_furnace_scene_mirror(size, a, 0, Le); }
+
+struct gi_scene *tu_furnace_scene_mirror(double size, double a, double mirror, double Le) {
   gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {a, a, a}, .emission = {Le, Le, Le}, .roughness = 1};
+  gi_material m = {.albedo = {a, a, a}, .emission = {Le, Le, Le}, .roughness = mirror > 0 ? 0 : 1, .specular = mirror};
   uint32_t mat = gi_mesh_builder_add_material(b, &m);
   double s = size;
   /* Six walls wound so their normals point into the cube (emitters are one-sided). */

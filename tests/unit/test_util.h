@@ -30,6 +30,9 @@ struct gi_scene *tu_build(struct gi_mesh_builder *b, const char *name, const str
 /* The closed white furnace: a cube [0,size]^3 of albedo a whose walls emit
  * Le inward (test_furnace, test_hardcases). Caller releases it. */
 struct gi_scene *tu_furnace_scene(double size, double a, double Le);
+/* The same with walls that are also perfect mirrors reflecting m (a glossy
+ * lobe of roughness 0): every wall reflects a + m of what arrives. */
+struct gi_scene *tu_furnace_scene_mirror(double size, double a, double m, double Le);
 
 /* The plane y = 0 over x in [-100, 100], z in [-100, z_max], albedo a, under
  * a sun of irradiance E travelling along (sin 60, -cos 60, 0): the plane

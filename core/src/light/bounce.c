@@ -68,7 +68,9 @@ static uint64_t gather_sides(const struct gi_cascade *c, int d, uint32_t slot, i
   uint64_t samples = 0;
   memset(E, 0, sizeof(gi_faces3));
   if (hit) memset(hit, 0, sizeof *hit);
-  if (g->groups == 0 || (g->albedo[0] <= 0 && g->albedo[1] <= 0 && g->albedo[2] <= 0)) return 0;
+  /* A side that reflects nothing (no albedo, no glossy lobe) needs no light. */
+  if (g->groups == 0 || (g->albedo[0] + g->gloss <= 0 && g->albedo[1] + g->gloss <= 0 && g->albedo[2] + g->gloss <= 0))
+    return 0;
   /* Every side's cones in one batch: the SIMD march keeps its lanes full
    * across the hemispheres. */
   int nc = wide ? c->num_wide_cones : c->num_cones, nj = 0, ns = 2 * g->groups;

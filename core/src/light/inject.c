@@ -247,15 +247,20 @@ out:
   gi__free(ib.near);
 }
 
-/* Radiance leaving through each face of an occupied voxel (diffuse
- * reflection of what the side it shows receives: side, or the irradiance
- * given). */
+/* Radiance leaving through each face of an occupied voxel (reflection of
+ * what the side it shows receives: side, or the irradiance given). A
+ * glossy material's lobe reflects `gloss` of what arrives, around the
+ * mirror direction (the reference's BRDF, reference.c); the texture keeps
+ * one radiance per face, so it holds that light spread like the diffuse
+ * part. Its energy reaches the gathers, its direction does not: without
+ * it the city's glass walls reflected nothing of the lobe, and every
+ * light's indirect light at the street read low (16.9% -> 15.6%). */
 static inline void face_radiance(const gi_level *L, uint32_t slot, const float (*side)[3],
                                  float Lf[GI_VOX_FACES][3]) {
   const gi_vgeo *g = gi__geo(L, slot);
   if (!side) side = (const float(*)[3])gi__side(L, slot);
   for (int f = 0; f < GI_VOX_FACES; f++)
-    for (int k = 0; k < 3; k++) Lf[f][k] = g->albedo[k] * (1.0f / GI_PI_F) * side[f][k];
+    for (int k = 0; k < 3; k++) Lf[f][k] = (g->albedo[k] + g->gloss) * (1.0f / GI_PI_F) * side[f][k];
 }
 
 /* Occupied voxels [begin, end) of level d from `from` (per occupied voxel;
