@@ -84,10 +84,9 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
     g->centroid[k] += ck;
     g->proj[k] += fabsf(A[k]);
     for (int a = 0; a < 3; a++) g->u.sum.acen[a][k] += fabsf(A[a]) * ia * ck;
-  }
-  for (int a = 0; a < 3; a++) {
-    g->u.sum.aside[a][A[a] < 0] += fabsf(A[a]) * ia * (C[a] + area * corner[a]);
-    if (A[a] > 0) g->u.sum.apos[a] += A[a];
+    /* Along axis k itself, the two signs of the normal apart (side_offsets). */
+    g->u.sum.aside[k][A[k] < 0] += fabsf(A[k]) * ia * ck;
+    if (A[k] > 0) g->u.sum.apos[k] += A[k];
   }
   g->gloss += area * gloss;
 }
@@ -206,17 +205,20 @@ static int cmp_u32(const void *a, const void *b) {
 #define GROUP_MINOR 0.25f
 
 /* Per side sd = 2 h + t of each group h, how far along orient[h] the
- * pieces facing that side lie from the group's centroid gc[h]: along
- * each axis a of the group, side 0 (+orient) takes the pieces whose
- * normal has orient's sign on a. Only the axes' own coordinates are
- * summed (a slab's two faces differ across it, not along it). */
+ * pieces facing that side lie from the group's centroid gc[h] (soff),
+ * and their projected area over the group's axes (sarea): along each
+ * axis a of the group, side 0 (+orient) takes the pieces whose normal
+ * has orient's sign on a. Only the axes' own coordinates are summed (a
+ * slab's two faces differ across it, not along it). */
 static void side_offsets(const gi_vgeo *g, int G, const int grp[3], const float dir[][3], const float gc[][3],
-                         float soff[2 * GI_VOX_GROUPS]) {
+                         float soff[2 * GI_VOX_GROUPS], float sarea[2 * GI_VOX_GROUPS]) {
   float num[2 * GI_VOX_GROUPS] = {0}, den[2 * GI_VOX_GROUPS] = {0};
+  memset(sarea, 0, 2 * GI_VOX_GROUPS * sizeof *sarea);
   for (int a = 0; a < 3; a++)
     for (int t = 0; t < 2; t++) {
       int h = grp[a], sd = 2 * h + t, neg = (dir[h][a] < 0) != t;
       float w = neg ? g->proj[a] - g->u.sum.apos[a] : g->u.sum.apos[a];
+      sarea[sd] += w;
       if (!(w > 0)) continue;
       float disp = g->u.sum.aside[a][neg] / w - gc[h][a];
       num[sd] += w * disp * dir[h][a];
@@ -226,24 +228,15 @@ static void side_offsets(const gi_vgeo *g, int G, const int grp[3], const float 
 }
 
 /* The faces of minor axes of single-sheet groups (gi_vgeo.brighter): a
- * group whose pieces all face one of its sides, on an axis other than
- * the one its orientation leans on most. apos: per axis, the projected
- * area of the pieces facing +axis. */
-static uint8_t sheet_minor_faces(const gi_vgeo *g, const int grp[3], const float dir[][3], const float apos[3]) {
+ * group whose pieces all face one of its sides (sarea, side_offsets), on
+ * an axis other than the one its orientation leans on most. */
+static uint8_t sheet_minor_faces(const int grp[3], const float dir[][3], const float sarea[2 * GI_VOX_GROUPS]) {
   uint8_t bits = 0;
   for (int a = 0; a < 3; a++) {
     int h = grp[a], dom = 0;
     for (int b = 1; b < 3; b++)
       if (fabsf(dir[h][b]) > fabsf(dir[h][dom])) dom = b;
-    if (a == dom) continue;
-    float w[2] = {0, 0}; /* projected area facing side 0 (+orient) and side 1 */
-    for (int b = 0; b < 3; b++) {
-      if (grp[b] != h) continue;
-      float pos = apos[b], neg = g->proj[b] - apos[b];
-      int flip = dir[h][b] < 0;
-      w[flip] += pos, w[!flip] += neg;
-    }
-    if ((w[0] > 0) != (w[1] > 0)) bits |= (uint8_t)(3u << (2 * a));
+    if (a != dom && (sarea[2 * h] > 0) != (sarea[2 * h + 1] > 0)) bits |= (uint8_t)(3u << (2 * a));
   }
   return bits;
 }
@@ -286,8 +279,8 @@ static void orient_groups(gi_vgeo *g) {
   }
   for (int h = 0; h < G; h++)
     for (int k = 0; k < 3; k++) gc[h][k] = gw[h] > 0 ? gc[h][k] / gw[h] : g->centroid[k];
-  float soff[2 * GI_VOX_GROUPS], apos[3] = {g->u.sum.apos[0], g->u.sum.apos[1], g->u.sum.apos[2]};
-  side_offsets(g, G, grp, dir, gc, soff);
+  float soff[2 * GI_VOX_GROUPS], sarea[2 * GI_VOX_GROUPS];
+  side_offsets(g, G, grp, dir, gc, soff, sarea);
   memset(&g->u, 0, sizeof g->u);
   for (int h = 0; h < G; h++) {
     memcpy(g->u.fin.orient[h], dir[h], sizeof dir[h]);
@@ -297,7 +290,7 @@ static void orient_groups(gi_vgeo *g) {
   g->groups = (uint8_t)G;
   memcpy(g->normal, dir[0], sizeof g->normal);
   for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(dir[grp[f / 2]], grp[f / 2], f);
-  g->brighter = sheet_minor_faces(g, grp, dir, apos);
+  g->brighter = sheet_minor_faces(grp, dir, sarea);
 }
 
 /* Normalises one voxel's sums and derives its opacity; clears an empty
