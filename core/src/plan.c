@@ -12,6 +12,13 @@
 #include "plan.h"
 #include "trace/trace.h"
 
+/* The automatic bounce count's cap. Four, not three: the Cornell box
+ * (mean albedo 0.76) left three orders and more to the geometric tail,
+ * which over-added (indirect ratio 1.07 against 0.95 without it); a
+ * fourth bounce took its indirect error from 8.8% to 6.9% and Munich's
+ * from 9.6% to 9.5%, for about 10% more bake time (make accuracy). */
+#define MAX_AUTO_BOUNCES 4
+
 static const char *const fx_names[GI_FX_COUNT] = {"sun", "local_lights", "sky", "emissive",
                                                   "bounce", "specular", "ao"};
 
@@ -299,30 +306,33 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
    * the first one missing weighs a^(B+2). Stop when that is under 2% of
    * the direct light: the probe's own Monte Carlo noise on direct light is
    * about that (measured 1.2% Cornell, 1.6% Munich at 256 probe samples).
-   * At most 3: each bounce is a full cone gather at every voxel. When the
-   * cap stops short of that (a bright closed room: the Cornell box's mean
-   * albedo gives a^5 = 20%), the orders left out are not dropped: the
-   * bounce stage extrapolates them as a geometric series from the last two
-   * bounces (see gi__bounce), which costs no gather. */
+   * At most MAX_AUTO_BOUNCES: each bounce is a cone gather at every voxel.
+   * When the cap stops short of that (a bright closed room: the Cornell
+   * box's mean albedo gives a^6 = 19%), the orders left out are not
+   * dropped: the bounce stage extrapolates them as a geometric series from
+   * the last two bounces (see gi__bounce), which costs no gather. */
   int fb = gi__fx_forced(q, GI_FX_BOUNCE);
   int tail = 0;
   if (auto_bounces) {
     int B = 1;
-    while (B < 3 && pow(abar, B + 2) >= 0.02) B++;
+    while (B < MAX_AUTO_BOUNCES && pow(abar, B + 2) >= 0.02) B++;
     q->bounces = B;
-    tail = B >= 2 && pow(abar, B + 2) >= 0.02;
+    /* At the cap, what is left out is worth a tail even under 2%: a^6
+     * just under it still leaves a^6 / (1 - a) of the direct light (3% at
+     * a = 0.5, which a furnace of that albedo would then miss). */
+    tail = B == MAX_AUTO_BOUNCES;
   }
   if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
   else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
   else if (abar <= 0 && fb != GI_FX_ON) set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
   else if (auto_bounces && tail)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, next "
-                               "bounce would add %.1f%% of direct (stop under 2%%, at most 3)", q->bounces, abar,
-           100 * pow(abar, q->bounces + 2));
+                               "bounce would add %.1f%% of direct (stop under 2%%, at most %d)", q->bounces, abar,
+           100 * pow(abar, q->bounces + 2), MAX_AUTO_BOUNCES);
   else if (auto_bounces)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
-                               "(stop under 2%%, at most 3)", q->bounces, q->bounces > 1 ? "s" : "", abar,
-           100 * pow(abar, q->bounces + 2));
+                               "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "", abar,
+           100 * pow(abar, q->bounces + 2), MAX_AUTO_BOUNCES);
   else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s as requested, mean albedo %.2f in range", q->bounces,
               q->bounces > 1 ? "s" : "", abar);
 

@@ -1,8 +1,9 @@
 /* test_effects.c: the effect plan decides from the scene, says why, and
  * can be overridden per request.
  *   bounces from the albedo: the first bounce left out weighs a^(B+2) of
- *     the direct light; stop under 2%, at most 3: a = 0.2 -> 1, 0.3 -> 2,
- *     0.8 -> 3 (capped);
+ *     the direct light; stop under 2%, at most 4: a = 0.2 -> 1, 0.3 -> 2,
+ *     0.45 -> 3, 0.5 and 0.8 -> 4 (capped: these add the geometric tail of
+ *     the rest, a^6 / (1 - a) = 3% of the direct light at 0.5);
  *   sky only where it is visible: a closed box with a sky light skips it,
  *     the path-traced reference agrees the sky gives nothing there (and
  *     forcing the sky on only adds leaked light); an open plane runs it;
@@ -42,10 +43,10 @@ static void bake_at(const gi_scene *s, const double at[3], const gi_quality *q, 
 }
 
 static void test_bounces_from_albedo(void **state) {
-  const double a[3] = {0.2, 0.3, 0.8};
-  const int want[3] = {1, 2, 3};
+  const double a[5] = {0.2, 0.3, 0.45, 0.5, 0.8};
+  const int want[5] = {1, 2, 3, 4, 4};
   const double at[3] = {0.5, 0.5, 0.5};
-  for (int i = 0; i < 3; i++) {
+  for (int i = 0; i < 5; i++) {
     gi_scene *s = make_box(a[i], 1.0, NULL);
     gi_quality q = {.levels = 2, .res = 16};
     gi_bake_report rep;
@@ -55,6 +56,8 @@ static void test_bounces_from_albedo(void **state) {
     assert_int_equal(rep.quality.bounces, want[i]);
     assert_int_equal(rep.bounces_run, want[i]);
     assert_non_null(strstr(rep.effects[GI_FX_BOUNCE].why, "albedo"));
+    /* Only the capped count adds the tail of the orders left out. */
+    assert_int_equal(strstr(rep.effects[GI_FX_BOUNCE].why, "geometric tail") != NULL, want[i] == 4);
     /* An explicit count wins, and off means none. */
     q.bounces = 2;
     bake_at(s, at, &q, &rep, &p);

@@ -92,7 +92,7 @@ static const char help_text[] =
     "                        across would get)\n"
     "  --cones N             diffuse cones per hemisphere: 4, 6, 8, 16, 32 (16)\n"
     "  --bounces N           voxel-to-voxel bounces, 0..8, 0 = none (default: from\n"
-    "                        the albedo in range, 1..3; the effect plan says why)\n"
+    "                        the albedo in range, 1..4; the effect plan says why)\n"
     "  --samples N           shadow rays per voxel for sky/area lights, 1..512 (16)\n"
     "  --probe-samples N     shadow rays per probe for sky/area lights, 1..8192 (256)\n"
     "  --ao                  also compute ambient occlusion at the probes (off)\n"

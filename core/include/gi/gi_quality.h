@@ -49,7 +49,7 @@ typedef struct gi_quality {
   float aperture_deg;  /* diffuse cone full aperture; default from the cone count */
   float step;          /* march step in voxels of the sampled level; default 1 (near surfaces at most 0.75) */
   int bounces;         /* voxel-to-voxel bounces after injection; 0 = auto from the albedo
-                          in range (1..3, see the effect plan), -1 = none */
+                          in range (1..4, see the effect plan), -1 = none */
   int light_samples;   /* shadow rays per voxel for sky and area lights; default 16 */
   int probe_samples;   /* shadow rays per probe for sky and area lights; default 256 */
   float ao_lambda;     /* AO falloff 1/(1 + lambda r), per metre... scene unit; default 1/(4 s0) */
