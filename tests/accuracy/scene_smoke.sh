@@ -131,6 +131,8 @@ expect_rc() {
 printf '1 2\n' > "$T/badpts.txt"
 expect_rc 2 "cannot be combined with --scenes" --scene "$T/box.obj" --scenes cornell
 expect_rc 2 "need --scene FILE" --at 1,2,3
+expect_rc 2 "unknown scene 'town'" --scenes cornell,town
+expect_rc 2 "'city' named twice" --scenes city,city5k,city
 expect_rc 2 "'--at' needs a value" --scene "$T/box.obj" --at
 expect_rc 2 "--at: expected" --scene "$T/box.obj" --at 1,2
 expect_rc 2 "--up: expected y or z" --scene "$T/box.obj" --up x
