@@ -5,7 +5,7 @@
  *     the sun: street probes 1.7 m up read the facades' light through
  *     coarse voxels whose footprint also holds the ground under the probe.
  *     The probe gather keeps the surface rule over the ground (see
- *     gi__gather_hemisphere_probe): mean ratio cone / reference 1.06,
+ *     gi__gather_hemisphere_probe): mean ratio cone / reference 1.16,
  *     where reading the ground's underside as an occluder gave 0.76.
  * (2) A lamp 0.1 m under its housing: the housing reflects about a quarter
  *     of the lamp's light back down, the largest share of a lit street's
@@ -14,7 +14,14 @@
  *     the reference's 6.75 under the lamp); averaging the irradiance over a
  *     disc of the voxel's area gave 0.41 of the reference; lighting the
  *     voxel's own pieces of triangle by their solid angle from the lamp
- *     (light/near_field.c) gives 0.86.
+ *     (light/near_field.c) gives 0.86 there. Over five probes from under
+ *     the lamp to 3.8 m aside the cones read 0.70 to 1.11 of the reference
+ *     (mean 0.87): the coarse voxels spread the 0.5 m housing over 1-2 m,
+ *     so the cone pointing at it reads part of its light and its
+ *     neighbours the rest. Until the march weighted a voxel's faces by
+ *     their projected area (test_cone's box voxel) tilted cones over-read
+ *     the housing's lit underside, and the same probes read 0.85 to 1.29
+ *     (mean 1.07).
  * (3) gi_scene_clearance, which keeps gi-accuracy's street probes out of
  *     walls, against distances known by construction. */
 #include <math.h>
@@ -84,13 +91,14 @@ static void test_canyon_sun(void **state) {
   street_points(pts);
   double r = street_ratio(s, pts, STREET_PROBES, "sun");
   printf("street canyon, sun: mean ratio cone / reference %.3f\n", r);
-  /* Measured 1.064 (0.756 before the ground rule); the reference's own
-   * error is 1.2%, the rest is the 16 cones' coarse reading of a street
-   * whose light changes 2.4x across it. */
+  /* Measured 1.157 (1.136 with the faces weighted by w_a^2, 0.756 before
+   * the ground rule); the reference's own error is 1.2%, the rest is the
+   * cones' coarse reading of a street whose light changes 2.4x across it. */
   assert_true(r >= 0.9 && r <= 1.2);
   gi_scene_release(s);
 }
 
+#define HOUSING_PROBES 5
 static void test_lamp_housing(void **state) {
   (void)state;
   gi_light lamp = {.type = GI_LIGHT_POINT, .color = {120, 120, 120}, .position = {0, 5.9, 0}};
@@ -105,24 +113,30 @@ static void test_lamp_housing(void **state) {
   gi_error_info err = {0};
   assert_int_equal(gi_scene_build(b, "lamp", &so, &s, &err), GI_OK);
   gi_mesh_builder_free(b);
-  double p[3] = {0.3, 1.7, 0.2};
-  gi_ref_probe ref;
-  gi_reference_opts ro = {.samples = 1 << 18, .max_depth = 1, .seed = 3};
-  assert_int_equal(gi_reference_irradiance(s, p, 1, &ro, &ref, NULL, &err), GI_OK);
-  gi_quality q = {.bounces = -1, .voxel0 = 0.25};
-  gi_cascade *c = NULL;
-  gi_probe pr;
-  assert_int_equal(gi_cascade_bake(s, p, &q, &c, NULL, &err), GI_OK);
-  assert_int_equal(gi_cascade_gather(c, p, 1, &pr, NULL, &err), GI_OK);
-  double r = pr.indirect[1] / ref.indirect[1];
-  printf("lamp housing: indirect under the lamp cone %.4f reference %.4f (+- %.4f) ratio %.3f\n", pr.indirect[1],
-         ref.indirect[1], ref.std_err_indirect[1], r);
-  /* Measured 0.861 (0.407 with the disc, 0 before it). The rest is the
-   * cones': 16 per hemisphere see a 0.5 m housing 4 m away through coarse
-   * voxels (this housing, probes 0.3..3.8 m aside, voxel0 0.1..0.9: mean
-   * ratio 0.97..1.39 by how the grid cuts it). */
-  assert_true(r >= 0.75 && r <= 1.2);
-  gi_cascade_free(c);
+  /* Under the lamp and aside from it, each probe with its own bake (the
+   * cascade centred on it, as a server request would). */
+  const double aside[HOUSING_PROBES] = {0.3, 1.0, 1.8, 2.6, 3.8};
+  double mean = 0, lo = INFINITY, hi = 0;
+  for (int i = 0; i < HOUSING_PROBES; i++) {
+    double p[3] = {aside[i], 1.7, 0.2};
+    gi_ref_probe ref;
+    gi_reference_opts ro = {.samples = 1 << 16, .max_depth = 1, .seed = 3};
+    assert_int_equal(gi_reference_irradiance(s, p, 1, &ro, &ref, NULL, &err), GI_OK);
+    gi_quality q = {.bounces = -1, .voxel0 = 0.25};
+    gi_cascade *c = NULL;
+    gi_probe pr;
+    assert_int_equal(gi_cascade_bake(s, p, &q, &c, NULL, &err), GI_OK);
+    assert_int_equal(gi_cascade_gather(c, p, 1, &pr, NULL, &err), GI_OK);
+    double r = pr.indirect[1] / ref.indirect[1];
+    printf("lamp housing: indirect %.1f m aside, cone %.4f reference %.4f (+- %.4f) ratio %.3f\n", aside[i],
+           pr.indirect[1], ref.indirect[1], ref.std_err_indirect[1], r);
+    mean += r / HOUSING_PROBES, lo = fmin(lo, r), hi = fmax(hi, r);
+    gi_cascade_free(c);
+  }
+  printf("lamp housing: mean ratio %.3f, %.3f to %.3f\n", mean, lo, hi);
+  /* Measured 0.874, 0.701 to 1.108 (see the header). */
+  assert_true(mean >= 0.8 && mean <= 1.2);
+  assert_true(lo >= 0.65 && hi <= 1.2);
   gi_scene_release(s);
 }
 

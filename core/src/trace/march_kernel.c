@@ -78,12 +78,18 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
   }
   gi_lanes s;
   gi__sum_texels(r, wt, &s);
-  /* Light travelling toward the apex (-w) leaves through the face facing -w. */
+  /* Light travelling toward the apex (-w) leaves through the face facing -w.
+   * Each face counts by its projected area along w, |w_a| alpha_a, the
+   * weights the optical depth sums too, so a sample's opacity times its
+   * colour is the faces' light seen from w (test_cone's box voxel). Weights
+   * w_a^2 over-weighted the face most aligned with w: a closed solid's lit
+   * face read 1.2x from 15 degrees, and the city's street probes read its
+   * indirect light at 15.6% error instead of 10.4%. */
   float P[3] = {0, 0, 0}, wal = 0, tau = 0;
   for (int a = 0; a < 3; a++) {
     int face = 2 * a + (w[a] > 0 ? 1 : 0);
     float ax = axw ? axw[a] : 1.f;
-    float k = w[a] * w[a] * ax;
+    float k = fabsf(w[a]) * ax;
     for (int ch = 0; ch < 3; ch++) P[ch] += k * s.v[3 * face + ch];
     wal += k * s.v[GI_VRAD_ALPHA + a];
     tau += fabsf(w[a]) * ax * s.v[GI_VRAD_TAU + a];

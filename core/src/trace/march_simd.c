@@ -413,9 +413,9 @@ static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const fl
     b->o[a][l] = j->o[a];
     b->w[a][l] = w[a];
     b->fb[l][a] = 3 * (2 * a + (w[a] > 0 ? 1 : 0));
-    b->k[l][a] = w[a] * w[a];
+    b->k[l][a] = fabsf(w[a]); /* a face's projected area, as the scalar kernel */
     b->kt[l][a] = fabsf(w[a]);
-    b->kax[l][a] = w[a] * w[a] * across;
+    b->kax[l][a] = fabsf(w[a]) * across;
     b->ktax[l][a] = fabsf(w[a]) * across;
     b->L[a][l] = 0;
   }
