@@ -96,6 +96,49 @@ static void test_compositing(void **state) {
   }
 }
 
+/* One voxel at cell (0, 4, 0) of opacity alpha along the axes in `axes`
+ * (bit a), its -y face sending radiance L down, the other faces dark. */
+static void lit_voxel(struct gi_cascade *c, float alpha, float L, int axes) {
+  gi_vrad_f v;
+  memset(&v, 0, sizeof v);
+  for (int a = 0; a < 3; a++)
+    if (axes >> a & 1) v.alpha[a] = alpha, v.tau[a] = -logf(1 - alpha);
+  for (int ch = 0; ch < 3; ch++) v.p[GI_FACE_NY][ch] = alpha * L;
+  gi__vrad_pack(c, &v, &c->lv[0].rad[gi__slot(0, 4, 0, c->R)]);
+  gi__cascade_mark_busy(c);
+}
+
+/* The light a beam of thin rays along w, 5 m across (past the trilinear
+ * footprint's 2 voxels), gathers from that voxel: radiance times area. */
+static double beam_flux(struct gi_cascade *c, const float w[3], const float u[3]) {
+  const double ctr[3] = {0.5, 4.5, 0.5}, cell = 0.05;
+  const int half = 50;
+  double flux = 0;
+  for (int a = -half; a <= half; a++)
+    for (int b = -half; b <= half; b++) {
+      float o[3] = {(float)(ctr[0] - 3 * w[0] + a * cell * u[0]), (float)(ctr[1] - 3 * w[1] + a * cell * u[1]),
+                    (float)(ctr[2] + b * cell)};
+      gi_cone_out out;
+      gi__cone_march(c, o, w, 1e-4f, 0.f, 1.f, 0.f, -1.f, NULL, &out);
+      flux += out.L[0] * cell * cell;
+    }
+  return flux;
+}
+
+/* Beams at `step` degree intervals up to 60 degrees off -y, in the x-y
+ * plane: each sums L alpha |w_y| s^2 times tau / alpha. */
+static void check_beams(struct gi_cascade *c, const char *what, int step, float alpha, float L) {
+  const float tau = -logf(1 - alpha);
+  for (int deg = 0; deg <= 60; deg += step) {
+    double th = deg * M_PI / 180;
+    float w[3] = {(float)sin(th), (float)cos(th), 0}, u[3] = {(float)cos(th), (float)-sin(th), 0};
+    double flux = beam_flux(c, w, u), face = L * alpha * w[1], ratio = flux / face;
+    printf("%s, rays at %d degrees: %.5f against the lit face's %.5f: %.3f (tau / alpha %.3f)\n", what, deg, flux,
+           face, ratio, tau / alpha);
+    assert_true(ratio > 1.0 && ratio < tau / alpha + 0.015);
+  }
+}
+
 /* One small source at one level: a voxel of opacity 0.1 along y whose -y
  * face sends radiance L down, crossed by a beam of thin rays from below at
  * 0, 30 and 60 degrees. Summed over the beam's cross-section the light is
@@ -107,32 +150,8 @@ static void test_compositing(void **state) {
  * 0.85-1.5x by where it sits in the coarser voxels: docs/accuracy.md.) */
 static void test_small_source_flux(void **state) {
   struct gi_cascade *c = make(1);
-  const float alpha = 0.1f, L = 4.0f, tau = -logf(1 - alpha);
-  gi_vrad_f v;
-  memset(&v, 0, sizeof v);
-  v.alpha[1] = alpha, v.tau[1] = tau;
-  for (int ch = 0; ch < 3; ch++) v.p[GI_FACE_NY][ch] = alpha * L;
-  gi__vrad_pack(c, &v, &c->lv[0].rad[gi__slot(0, 4, 0, c->R)]);
-  gi__cascade_mark_busy(c);
-  const double ctr[3] = {0.5, 4.5, 0.5}, cell = 0.05;
-  const int half = 50; /* +-2.5 m: past the footprint's 2 voxels */
-  for (int deg = 0; deg <= 60; deg += 30) {
-    double th = deg * M_PI / 180;
-    float w[3] = {(float)sin(th), (float)cos(th), 0}, u[3] = {(float)cos(th), (float)-sin(th), 0};
-    double flux = 0;
-    for (int a = -half; a <= half; a++)
-      for (int b = -half; b <= half; b++) {
-        float o[3] = {(float)(ctr[0] - 3 * w[0] + a * cell * u[0]), (float)(ctr[1] - 3 * w[1] + a * cell * u[1]),
-                      (float)(ctr[2] + b * cell)};
-        gi_cone_out out;
-        gi__cone_march(c, o, w, 1e-4f, 0.f, 1.f, 0.f, -1.f, NULL, &out);
-        flux += out.L[0] * cell * cell;
-      }
-    double plate = L * alpha * w[1], ratio = flux / plate;
-    printf("small source, rays at %d degrees: %.5f against the plate's %.5f: %.3f (tau / alpha %.3f)\n", deg, flux,
-           plate, ratio, tau / alpha);
-    assert_true(ratio > 1.0 && ratio < tau / alpha + 0.015);
-  }
+  lit_voxel(c, 0.1f, 4.0f, 2); /* a plate: opacity along y only */
+  check_beams(c, "small source", 30, 0.1f, 4.0f);
 }
 
 /* A small closed solid: a voxel of opacity 0.1 along every axis (a box
@@ -148,32 +167,8 @@ static void test_small_source_flux(void **state) {
  * own weights. */
 static void test_box_voxel_flux(void **state) {
   struct gi_cascade *c = make(1);
-  const float alpha = 0.1f, L = 4.0f, tau = -logf(1 - alpha);
-  gi_vrad_f v;
-  memset(&v, 0, sizeof v);
-  for (int a = 0; a < 3; a++) v.alpha[a] = alpha, v.tau[a] = tau;
-  for (int ch = 0; ch < 3; ch++) v.p[GI_FACE_NY][ch] = alpha * L;
-  gi__vrad_pack(c, &v, &c->lv[0].rad[gi__slot(0, 4, 0, c->R)]);
-  gi__cascade_mark_busy(c);
-  const double ctr[3] = {0.5, 4.5, 0.5}, cell = 0.05;
-  const int half = 50;
-  for (int deg = 0; deg <= 60; deg += 15) {
-    double th = deg * M_PI / 180;
-    float w[3] = {(float)sin(th), (float)cos(th), 0}, u[3] = {(float)cos(th), (float)-sin(th), 0};
-    double flux = 0;
-    for (int a = -half; a <= half; a++)
-      for (int b = -half; b <= half; b++) {
-        float o[3] = {(float)(ctr[0] - 3 * w[0] + a * cell * u[0]), (float)(ctr[1] - 3 * w[1] + a * cell * u[1]),
-                      (float)(ctr[2] + b * cell)};
-        gi_cone_out out;
-        gi__cone_march(c, o, w, 1e-4f, 0.f, 1.f, 0.f, -1.f, NULL, &out);
-        flux += out.L[0] * cell * cell;
-      }
-    double face = L * alpha * w[1], ratio = flux / face;
-    printf("box voxel, rays at %d degrees: %.5f against the lit face's %.5f: %.3f (tau / alpha %.3f)\n", deg, flux,
-           face, ratio, tau / alpha);
-    assert_true(ratio > 1.0 && ratio < tau / alpha + 0.015);
-  }
+  lit_voxel(c, 0.1f, 4.0f, 7);
+  check_beams(c, "box voxel", 15, 0.1f, 4.0f);
 }
 
 static void test_cone_sets(void **state) {
