@@ -119,6 +119,14 @@ assert at[2] == 2 and not (abs(at[0]) < 5 and abs(at[1]) < 5), at  # 2 m up, out
 assert int(m.group(2)) == 24, m.group(2)
 PY
 
+# --spacing sets that grid's pitch (Munich's rule is 12 m): 2 m apart around
+# --at, beside the block, so no point falls inside it.
+"$BIN" --scene "$T/street.obj" --up z --at 12,0,2 --above-ground 2 --spacing 2 --knobs bounces --quick \
+    --ref-samples 256 --pt-max 4 --no-workloads --repeat 1 --threads 2 --no-views --out "$T/sp" > /dev/null 2> "$T/err4"
+rc=$?
+[ $rc -eq 0 ] && grep -q "a 7x7 street-level grid, 2 apart, 2 above the ground (gi_probe_grid_build), 0 inside" \
+    "$T/sp/accuracy.md" && pass "--spacing sets the grid's pitch" || { cat "$T/err4" >&2; fail "--spacing run ($rc)"; }
+
 # Bad arguments: exit 2 naming the option; a missing file exits 1; nothing written.
 expect_rc() {
   want=$1 what=$2; shift 2
@@ -138,6 +146,8 @@ expect_rc 2 "--at: expected" --scene "$T/box.obj" --at 1,2
 expect_rc 2 "--up: expected y or z" --scene "$T/box.obj" --up x
 expect_rc 2 "--above-ground: expected a finite number > 0" --scene "$T/box.obj" --above-ground -1
 expect_rc 2 "cannot be combined with --probes" --scene "$T/box.obj" --above-ground 2 --probes "$T/pts.txt"
+expect_rc 2 "--spacing: is the street grid's spacing: it needs --above-ground" --scene "$T/box.obj" --spacing 2
+expect_rc 2 "--spacing: expected a finite number > 0" --scene "$T/box.obj" --above-ground 2 --spacing 0
 expect_rc 2 "badpts.txt" --scene "$T/box.obj" --probes "$T/badpts.txt"
 expect_rc 2 "--view: expected a Mitsuba" --scene "$T/box.obj" --view 1,2,3
 expect_rc 2 "--view: .*eye" --scene "$T/box.obj" --view 1,1,1,1,1,1,60,8,8

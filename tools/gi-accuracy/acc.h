@@ -237,6 +237,7 @@ typedef struct acc_file_opts {
   double *pts;            /* its points, read while parsing */
   size_t npts;
   double above_ground;    /* --above-ground: street-level probes this far up; 0 = a lattice in the bounds */
+  double spacing;         /* --spacing: the street grid's spacing; 0 = from the scene's width */
   int have_view, cam_up_from_scene;
   gi_camera cam;          /* --view */
 } acc_file_opts;

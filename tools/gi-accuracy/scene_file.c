@@ -50,7 +50,7 @@ static int take_view(struct ta_ctx *ta, acc_file_opts *f, const char *arg) {
 }
 
 int acc_file_option(struct ta_ctx *ta, acc_file_opts *f, int argc, char **argv, int *i) {
-  static const char *const opts[] = {"--scene", "--up", "--at", "--probes", "--above-ground", "--view"};
+  static const char *const opts[] = {"--scene", "--up", "--at", "--probes", "--above-ground", "--view", "--spacing"};
   const char *a = argv[*i];
   size_t k = 0;
   while (k < sizeof opts / sizeof opts[0] && strcmp(a, opts[k])) k++;
@@ -73,7 +73,8 @@ int acc_file_option(struct ta_ctx *ta, acc_file_opts *f, int argc, char **argv, 
     return 1;
   case 3: f->probes_file = v; return 1;
   case 4: return ta_double(ta, "--above-ground", "a finite number > 0", v, 0, HUGE_VAL, &f->above_ground) ? 2 : 1;
-  default: return take_view(ta, f, v) ? 2 : 1;
+  case 5: return take_view(ta, f, v) ? 2 : 1;
+  default: return ta_double(ta, "--spacing", "a finite number > 0", v, 0, HUGE_VAL, &f->spacing) ? 2 : 1;
   }
 }
 
@@ -93,13 +94,15 @@ static void scene_name(const char *path, char *out, size_t n) {
 
 int acc_file_check(struct ta_ctx *ta, acc_file_opts *f) {
   if (!f->path) {
-    if (f->up || f->have_at || f->probes_file || f->above_ground > 0 || f->have_view)
-      return ta_fail(ta, NULL, "--up, --at, --probes, --above-ground and --view need --scene FILE");
+    if (f->up || f->have_at || f->probes_file || f->above_ground > 0 || f->spacing > 0 || f->have_view)
+      return ta_fail(ta, NULL, "--up, --at, --probes, --above-ground, --spacing and --view need --scene FILE");
     return 0;
   }
   if (!f->up) f->up = GI_UP_Y;
   if (f->probes_file && f->above_ground > 0)
     return ta_fail(ta, "--above-ground", "places probes; it cannot be combined with --probes");
+  if (f->spacing > 0 && !(f->above_ground > 0))
+    return ta_fail(ta, "--spacing", "is the street grid's spacing: it needs --above-ground H");
   if (access(f->path, R_OK)) return ta_error(ta, TA_EXIT_RUN, "--scene", "cannot read '%s'", f->path);
   if (f->have_view) {
     gi_camera cam = f->cam;
@@ -142,14 +145,14 @@ static int place_lattice(const acc_file_opts *f, int threads, acc_scene_set *ss,
 }
 
 /* The cities' rule: a 7 x 7 street-level grid around --at (a quarter of the
- * scene's width) or over most of the scene, above_ground up, no probe
- * inside a building. */
+ * scene's width, or --spacing apart as Munich's 12 m) or over most of the
+ * scene, above_ground up, no probe inside a building. */
 static int place_street(const acc_file_opts *f, int threads, acc_scene_set *ss, char *pl, size_t pn) {
   double lo[3], hi[3];
   gi_scene_bounds(ss->s, lo, hi);
   int up = f->up, h0 = 0, h1 = up == GI_UP_Z ? 1 : 2; /* the horizontal axes */
   double width = fmax(hi[h0] - lo[h0], hi[h1] - lo[h1]);
-  double side = width * (f->have_at ? STREET_AT_SHARE : STREET_ALL_SHARE);
+  double side = f->spacing > 0 ? f->spacing * (STREET_SIDE - 1) : width * (f->have_at ? STREET_AT_SHARE : STREET_ALL_SHARE);
   gi_grid_spec spec = {.spacing = side / (STREET_SIDE - 1), .have_region = 1,
                        .above_ground = f->above_ground};
   for (int k = 0; k < 3; k++) {
