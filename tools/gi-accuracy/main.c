@@ -414,6 +414,11 @@ static int sweeps(const opts *o, const char *knob) {
  * and "high" only (a bake there takes 4-25 s). */
 static int scale_only(const opts *o, const char *name) { return !o->file.path && !strcmp(name, "city5k"); }
 
+/* Whether this scene sweeps this knob: --knobs, and on the 5 km city only "high". */
+static int sweeps_here(const opts *o, const char *name, const char *knob) {
+  return (!scale_only(o, name) || !strcmp(knob, "high")) && sweeps(o, knob);
+}
+
 static int sweep_scene(const opts *o, const char *name, const scene_set *ss, const gi_ref_probe *ref, rows *out) {
   gi_quality q0 = {.threads = o->threads};
   /* Resolve the default voxel size once, so `levels` can move alone. */
@@ -438,46 +443,46 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
   static const float steps[] = {0.25f, 1.0f}, aps[] = {0.6f, 1.5f};
   const int *res = o->quick ? res_quick : res_full;
   int nres = o->quick ? 2 : 4;
-  for (int i = 0; ok && !scale_only(o, name) && sweeps(o, "res") && i < nres; i++) {
+  for (int i = 0; ok && sweeps_here(o, name, "res") && i < nres; i++) {
     gi_quality q = q0;
     q.res = res[i];
     q.levels = n0;
     q.voxel0 = s0 * 32.0 / res[i]; /* same extent, finer voxels */
     ok = run_cone(name, ss, ref, &q, "res", res[i], 0, out);
   }
-  for (int i = 0; ok && !scale_only(o, name) && sweeps(o, "levels") && i < 3; i++) {
+  for (int i = 0; ok && sweeps_here(o, name, "levels") && i < 3; i++) {
     gi_quality q = q0;
     q.levels = lev[i];
     q.voxel0 = s0;
     ok = run_cone(name, ss, ref, &q, "levels", lev[i], 0, out);
   }
-  for (int i = 0; ok && !scale_only(o, name) && sweeps(o, "voxel0") && i < 2; i++) {
+  for (int i = 0; ok && sweeps_here(o, name, "voxel0") && i < 2; i++) {
     gi_quality q = q0;
     q.levels = n0;
     q.voxel0 = s0 * vx[i];
     ok = run_cone(name, ss, ref, &q, "voxel0", q.voxel0, 0, out);
   }
-  for (int i = 0; ok && !scale_only(o, name) && sweeps(o, "cones") && i < 3; i++) {
+  for (int i = 0; ok && sweeps_here(o, name, "cones") && i < 3; i++) {
     gi_quality q = q0;
     q.cones = cones[i];
     ok = run_cone(name, ss, ref, &q, "cones", cones[i], 0, out);
   }
-  for (int i = 0; ok && !scale_only(o, name) && sweeps(o, "aperture") && i < 2; i++) {
+  for (int i = 0; ok && sweeps_here(o, name, "aperture") && i < 2; i++) {
     gi_quality q = q0;
     q.aperture_deg = ap16 * aps[i];
     ok = run_cone(name, ss, ref, &q, "aperture", q.aperture_deg, 0, out);
   }
-  for (int i = 0; ok && !scale_only(o, name) && sweeps(o, "step") && i < 2; i++) {
+  for (int i = 0; ok && sweeps_here(o, name, "step") && i < 2; i++) {
     gi_quality q = q0;
     q.step = steps[i];
     ok = run_cone(name, ss, ref, &q, "step", steps[i], 0, out);
   }
-  for (int i = 0; ok && !scale_only(o, name) && sweeps(o, "bounces") && i < 4; i++) {
+  for (int i = 0; ok && sweeps_here(o, name, "bounces") && i < 4; i++) {
     gi_quality q = q0;
     q.bounces = bnc[i];
     ok = run_cone(name, ss, ref, &q, "bounces", bnc[i] < 0 ? 0 : bnc[i], 0, out);
   }
-  if (ok && !o->quick && sweeps(o, "high")) {
+  if (ok && !o->quick && sweeps_here(o, name, "high")) {
     /* A "high" setting: every knob that helped, together. */
     gi_quality q = q0;
     q.levels = n0, q.res = 64, q.voxel0 = s0 * 0.5, q.cones = 32, q.step = 0.25f; /* bounces: the albedo rule and its tail */

@@ -92,7 +92,7 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
     float k = fabsf(w[a]) * ax;
     for (int ch = 0; ch < 3; ch++) P[ch] += k * s.v[3 * face + ch];
     wal += k * s.v[GI_VRAD_ALPHA + a];
-    tau += fabsf(w[a]) * ax * s.v[GI_VRAD_TAU + a];
+    tau += k * s.v[GI_VRAD_TAU + a];
   }
   for (int ch = 0; ch < 3; ch++) prem[ch] = P[ch] * c->rad_scale;
   *wsum_alpha = wal;

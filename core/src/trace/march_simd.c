@@ -31,10 +31,11 @@ typedef struct {
   const char *rad[TAB];
   const uint8_t *busy[TAB], *busy4[TAB];
   /* Per lane: the first radiance lane of the face each axis reads, the
-   * axis weights w_a^2 (radiance, opacity) and |w_a| (optical depth), and
-   * the same across the surface's normal only (x (1 - n_a^2)). */
+   * axis weights |w_a| (a face's projected area: radiance, opacity and
+   * optical depth alike), and the same across the surface's normal only
+   * (x (1 - n_a^2)). */
   int fb[LANES][3];
-  float k[LANES][3], kt[LANES][3], kax[LANES][3], ktax[LANES][3];
+  float k[LANES][3], kax[LANES][3];
   float span_in[GI_MAX_LEVELS][LANES], span_out[GI_MAX_LEVELS][LANES];
   /* Per lane: the cone's start (apex, direction, cosine to the surface
    * normal, apex height: < 0 in free space) and its march so far. */
@@ -167,17 +168,17 @@ static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, flo
   _mm256_storeu_ps(s.v, a0);
   _mm256_storeu_ps(s.v + 8, a1);
   _mm256_storeu_ps(s.v + 16, a2);
-  const float *k = ax ? b->kax[l] : b->k[l], *kt = ax ? b->ktax[l] : b->kt[l];
+  const float *k = ax ? b->kax[l] : b->k[l];
   const int *fb = b->fb[l];
   /* The three channels of each axis's face at once (the fourth is dropped). */
   __m128 P = _mm_mul_ps(_mm_broadcast_ss(&k[0]), _mm_loadu_ps(s.v + fb[0]));
   P = _mm_fmadd_ps(_mm_broadcast_ss(&k[1]), _mm_loadu_ps(s.v + fb[1]), P);
   P = _mm_fmadd_ps(_mm_broadcast_ss(&k[2]), _mm_loadu_ps(s.v + fb[2]), P);
   _mm_storeu_ps(row + ROW_P, P);
-  float wa = k[0] * s.v[GI_VRAD_ALPHA], ta = kt[0] * s.v[GI_VRAD_TAU];
+  float wa = k[0] * s.v[GI_VRAD_ALPHA], ta = k[0] * s.v[GI_VRAD_TAU];
   for (int a = 1; a < 3; a++) {
     wa += k[a] * s.v[GI_VRAD_ALPHA + a];
-    ta += kt[a] * s.v[GI_VRAD_TAU + a];
+    ta += k[a] * s.v[GI_VRAD_TAU + a];
   }
   row[ROW_WAL] = wa;
   row[ROW_TAU] = ta;
@@ -414,9 +415,7 @@ static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const fl
     b->w[a][l] = w[a];
     b->fb[l][a] = 3 * (2 * a + (w[a] > 0 ? 1 : 0));
     b->k[l][a] = fabsf(w[a]); /* a face's projected area, as the scalar kernel */
-    b->kt[l][a] = fabsf(w[a]);
     b->kax[l][a] = fabsf(w[a]) * across;
-    b->ktax[l][a] = fabsf(w[a]) * across;
     b->L[a][l] = 0;
   }
   b->nw[l] = surf ? gi__dot(j->n, w) : 0.f;
