@@ -8,6 +8,10 @@
 #include "gi/gi_camera.h"
 #include "metrics.h"
 
+/* The shipped scenes one run can name (cornell, munich, city, city5k):
+ * every per-scene table of a run holds this many. */
+#define ACC_MAX_SCENES 4
+
 /* One measured configuration: a cone-traced bake (kind "cone") or a
  * path-traced answer (kind "path") at the same probes. */
 typedef struct acc_row {
