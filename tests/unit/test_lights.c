@@ -7,7 +7,8 @@
  *   sky of radiance L, open upper half     -> E(up) = pi L (Monte Carlo, 4096 rays)
  * Delta lights take one shadow ray, so their answers are exact to float.
  * A lamp near a voxel's surfaces (light/near_field.c) against the solid
- * angle of the plate it lights, at two voxel sizes. A thin slab inside one
+ * angle of the plate it lights, at two voxel sizes. The sun on a coarse
+ * voxel part in shadow (light/near_field.c) against its lit share. A thin slab inside one
  * voxel, lit on top, against pi L and pi rho L; a facade turned to the grid
  * against pi L / 2 and against itself unturned. */
 #include "test_util.h"
@@ -236,6 +237,106 @@ static void test_near_field_bound(void **state) {
   gi_scene_release(s);
 }
 
+/* The voxel of 1 m in global cell `cell` holding s's triangles there, as
+ * one flat group facing +y. */
+static void plate_voxel(const gi_scene *s, const int64_t cell[3], gi_vgeo *g) {
+  memset(g, 0, sizeof *g);
+  gi_material m = {.albedo = {1, 1, 1}};
+  for (size_t t = 0; t < s->num_triangles; t++) {
+    float tv[3][3];
+    for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * s->indices[3 * t + q]], sizeof tv[q]);
+    gi__voxel_add_tri(g, 1.0, cell, (const float(*)[3])tv, &m);
+  }
+  for (int a = 0; a < 3; a++) g->centroid[a] /= g->area;
+  flat_group(g);
+}
+
+/* The sun on a coarse voxel from points spread over its surface
+ * (gi__sun_pieces): a 0.4 m plate, the half of it at x < 0.2 under a roof
+ * 0.8 m up. A sun 60 degrees off the zenith toward +x passes the roof:
+ * every point is lit, E cos 60 exactly. A sun at the zenith lights half
+ * the plate: E / 2 on average over the points' seeds and within one
+ * point of it for every seed, where the centroid's single ray (x = 0.2,
+ * the shadow's edge) reads all or nothing. */
+static void test_sun_pieces(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {0, 0, 0}, B[3] = {0, 0, 0.4}, C[3] = {0.4, 0, 0.4}, D[3] = {0.4, 0, 0};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  double R0[3] = {-1, 0.8, -1}, R1[3] = {-1, 0.8, 1}, R2[3] = {0.2, 0.8, 1}, R3[3] = {0.2, 0.8, -1};
+  gi_mesh_builder_add_quad(b, R0, R1, R2, R3, mat);
+  gi_scene *s = build_near_origin(b, mat, "sun");
+  /* The plate's cell of 1 m, wherever the scene put its local origin. */
+  const double mid[3] = {0.2, 0, 0.2};
+  int64_t cell[3];
+  for (int a = 0; a < 3; a++) cell[a] = (int64_t)floor(mid[a] - s->origin[a]);
+  gi_vgeo g;
+  plate_voxel(s, cell, &g);
+  assert_true(fabsf(g.area - 0.16f) < 1e-4f);
+  const float E = 3.f, st = sinf((float)M_PI / 3), ct = cosf((float)M_PI / 3);
+  gi_near_scratch ns = {0};
+  gi_lsample tilted = {.w = {st, ct, 0}, .dist = INFINITY, .V = {E, E, E}, .fx = GI_FX_SUN};
+  gi_lsample zenith = {.w = {0, 1, 0}, .dist = INFINITY, .V = {E, E, E}, .fx = GI_FX_SUN};
+  double mean = 0, lo = 1, hi = 0;
+  const int seeds = 256;
+  for (int i = 0; i < seeds; i++) {
+    uint64_t rng = 0x9e3779b97f4a7c15ull * (uint64_t)(i + 1), rays = 0;
+    float Et[GI_VOX_FACES][3] = {{0}}, Ez[GI_VOX_FACES][3] = {{0}};
+    gi__near_reset(&ns);
+    assert_int_equal(gi__sun_pieces(s, &g, 1.0, cell, &tilted, &rng, &ns, Et, &rays), 1);
+    assert_int_equal(gi__sun_pieces(s, &g, 1.0, cell, &zenith, &rng, &ns, Ez, &rays), 1);
+    assert_true(rays == 2 * GI_SUN_POINTS);
+    assert_true(fabsf(Et[0][0] - E * ct) < 1e-4f * E && Et[1][0] == 0);
+    assert_true(Ez[0][1] >= 0 && Ez[0][1] <= E * (1 + 1e-5f) && Ez[1][1] == 0);
+    mean += Ez[0][1] / seeds;
+    lo = fmin(lo, Ez[0][1] / E), hi = fmax(hi, Ez[0][1] / E);
+  }
+  printf("sun pieces: zenith sun over a half-shaded plate: mean %.4f of E (expected 0.5), seeds %.3f..%.3f\n",
+         mean / E, lo, hi);
+  assert_true(fabs(mean / E - 0.5) < 0.02);
+  /* Stratified points: every seed's estimate within one point of the truth. */
+  assert_true(lo >= 0.5 - 1.0 / GI_SUN_POINTS - 1e-3 && hi <= 0.5 + 1.0 / GI_SUN_POINTS + 1e-3);
+  gi__near_free(&ns);
+  gi_scene_release(s);
+}
+
+/* The same in a bake: a roof 3 m up over x <= 21 shades a ground lit by
+ * a sun at the zenith. The level-2 voxel (4 m) over x in [20, 24), an own
+ * voxel beyond level 1's window, is 3/4 lit: its upward light reads 3/4
+ * of the sun's within one point, where its centroid (x = 22, in the sun)
+ * read all of it. */
+static void test_sun_pieces_bake(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {-50, 0, -50}, B[3] = {-50, 0, 50}, C[3] = {50, 0, 50}, D[3] = {50, 0, -50};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  double R0[3] = {-50, 3, -50}, R1[3] = {-50, 3, 50}, R2[3] = {21, 3, 50}, R3[3] = {21, 3, -50};
+  gi_mesh_builder_add_quad(b, R0, R1, R2, R3, mat);
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {1, 1, 1}, .direction = {0, -1, 0}};
+  gi_scene *s = tu_build(b, "roof", &sun, 1);
+  /* The bounds' centre is the local origin: (0, 1.5, 0). */
+  assert_true(s->origin[0] == 0 && s->origin[1] == 1.5 && s->origin[2] == 0);
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 1, .bounces = -1};
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  const double at[3] = {0, 1, 0};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  const gi_level *L = &c->lv[2];
+  assert_true(L->s == 4.0);
+  int64_t cell[3] = {5, -1, 0}; /* x in [20, 24), the ground at local y -1.5, z in [0, 4) */
+  assert_true(cell[0] >= L->cell0[0] && cell[0] < L->cell0[0] + c->R && !gi__is_inner(L, cell[0], cell[1], cell[2]));
+  uint32_t slot = gi__slot(cell[0], cell[1], cell[2], c->R);
+  assert_true(L->vix[slot] != 0);
+  float up = 0;
+  for (int f = 0; f < GI_VOX_FACES; f++) up = fmaxf(up, gi__direct(L, slot)[f][0]);
+  printf("sun pieces in a bake: the level-2 voxel 3/4 in the sun reads %.3f of it\n", up);
+  assert_true(fabsf(up - 0.75f) <= 1.0f / GI_SUN_POINTS + 1e-3f);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* A 0.2 m slab under a sky of radiance 1, both of its faces inside one 1 m
  * voxel: the voxel's upward side starts its shadow rays at the top face,
  * not between the faces (inside the slab, where every ray met the top
@@ -367,6 +468,8 @@ int main(void) {
       cmocka_unit_test(test_shadow_rule),
       cmocka_unit_test(test_near_field),
       cmocka_unit_test(test_near_field_bound),
+      cmocka_unit_test(test_sun_pieces),
+      cmocka_unit_test(test_sun_pieces_bake),
       cmocka_unit_test(test_thin_slab),
       cmocka_unit_test(test_turned_facade),
   };

@@ -102,18 +102,21 @@ static int facing_group(const gi_vgeo *g, const float w[3]) {
   return best;
 }
 
-/* The local lights among the voxel's samples `all` that lie within reach
- * of its surfaces, lit piece by piece into Es (all groups at once);
- * ib->near[i] says which groups sample i lit, so light_group skips it
- * there. */
-static void near_lights(const gi_scene *s, const gi_vgeo *g, float voxel, int n, inject_buf *ib,
-                        float Es[GI_VOX_FACES][3]) {
+/* The voxel's samples `all` lit over its surface instead of at its
+ * centroid, into Es (all groups at once): local lights within reach of
+ * its surfaces piece by piece, and on a coarse level (d) the sun from
+ * points spread over it (light.h). ib->near[i] says which groups sample
+ * i lit, so light_group skips it there. */
+static void near_lights(const gi_scene *s, const gi_vgeo *g, float voxel, int d, int n, inject_buf *ib,
+                        uint64_t *rng, float Es[GI_VOX_FACES][3]) {
   float reach = near_reach(g, voxel);
   for (int i = 0; i < n; i++) {
     const gi_lsample *l = &ib->all[i];
-    int r = l->fx == GI_FX_LOCAL && l->dist < reach
-                ? gi__near_field(s, g, ib->sz, ib->cell, l, &ib->ns, Es, &ib->near_rays)
-                : 0;
+    int r = 0;
+    if (l->fx == GI_FX_LOCAL && l->dist < reach)
+      r = gi__near_field(s, g, ib->sz, ib->cell, l, &ib->ns, Es, &ib->near_rays);
+    else if (l->fx == GI_FX_SUN && d >= GI_SUN_PIECES_FROM)
+      r = gi__sun_pieces(s, g, ib->sz, ib->cell, l, rng, &ib->ns, Es, &ib->near_rays);
     if (r < 0) ib->oom = 1;
     ib->near[i] = (uint8_t)(r > 0 ? r : 0);
   }
@@ -229,7 +232,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
     int n = gi__light_samples(c->scene, ic->lp, g->centroid, &rng, ib.all, ic->cap);
-    near_lights(c->scene, g, voxel, n, &ib, Es);
+    near_lights(c->scene, g, voxel, ic->d, n, &ib, &rng, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     rays += emitter_rays(ic, g, voxel, &rng, Es);
     gi__face_light(g, (const float(*)[3])Es, gi__direct(L, slot));

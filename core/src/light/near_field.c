@@ -12,7 +12,9 @@
  * facing the light, when a shadow ray from the piece's centroid reaches
  * the light. The group's side irradiance is that flux over the group's
  * area: a coarse voxel's pieces are its children's pieces, so its own
- * light and its children's filtered light agree. */
+ * light and its children's filtered light agree. The sun on a coarse
+ * voxel is lit over its pieces for the same reason (gi__sun_pieces):
+ * there the centroid's one shadow ray is the error, not 1/r^2. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -23,6 +25,7 @@ void gi__near_reset(gi_near_scratch *ns) { ns->have = 0; }
 
 void gi__near_free(gi_near_scratch *ns) {
   gi__free(ns->tris);
+  gi__free(ns->cum);
   memset(ns, 0, sizeof *ns);
 }
 
@@ -48,6 +51,23 @@ static int voxel_tris(const gi_scene *s, double sz, const int64_t cell[3], gi_ne
   return 0;
 }
 
+/* The piece's share in each group of g (its projected area along the
+ * group's axes over its whole projected area); wsum[h] += share area.
+ * Returns 0 when the piece shows in no group. */
+static int piece_shares(const gi_vgeo *g, const float A[3], float area, float share[GI_VOX_GROUPS],
+                        float wsum[GI_VOX_GROUPS]) {
+  float proj = fabsf(A[0]) + fabsf(A[1]) + fabsf(A[2]);
+  int any = 0;
+  if (!(area > 0) || !(proj > 0)) return 0;
+  for (int h = 0; h < g->groups; h++) {
+    share[h] = 0;
+    for (int a = 0; a < 3; a++) share[h] += g->face_side[2 * a] / 2 == h ? fabsf(A[a]) : 0.f;
+    share[h] /= proj;
+    if (share[h] > 0) wsum[h] += share[h] * area, any = 1;
+  }
+  return any;
+}
+
 int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *l,
                    gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
   if (voxel_tris(s, sz, cell, ns)) return -1;
@@ -67,17 +87,8 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
       for (int k = 0; k < 3; k++) v[q][k] = poly[q][k] + corner[k] - P[k];
     gi__fan_moments((const float(*)[3])v, n, A, C);
     for (int q = 1; q + 1 < n; q++) om += tri_solid_angle(v[0], v[q], v[q + 1]);
-    float area = gi__len(A), proj = fabsf(A[0]) + fabsf(A[1]) + fabsf(A[2]);
-    if (!(area > 0) || !(proj > 0)) continue;
-    /* The piece's share in each group: its projected area along the group's axes. */
-    float share[GI_VOX_GROUPS] = {0};
-    int any = 0;
-    for (int h = 0; h < g->groups; h++) {
-      for (int a = 0; a < 3; a++) share[h] += g->face_side[2 * a] / 2 == h ? fabsf(A[a]) : 0.f;
-      share[h] /= proj;
-      if (share[h] > 0) wsum[h] += share[h] * area, any = 1;
-    }
-    if (!any) continue;
+    float area = gi__len(A), share[GI_VOX_GROUPS] = {0};
+    if (!piece_shares(g, A, area, share, wsum)) continue;
     for (int k = 0; k < 3; k++) C[k] /= area; /* relative to P */
     /* The piece's side facing the light: the normal n with n . (P - C) > 0. */
     float nrm[3], sg = gi__dot(A, C) < 0 ? 1.f : -1.f;
@@ -104,6 +115,120 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
     mask |= 1 << h;
     for (int sd = 0; sd < 2; sd++)
       for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd] / wsum[h] * I[k];
+  }
+  return mask;
+}
+
+/* Sun pieces: at most this many triangles in the voxel (more keep the
+ * centroid's ray: clipping them all would cost more than the light). */
+#define SUN_MAX_TRIS 512
+
+/* A point on polygon v (n vertices, total area `area`): u in [0, 1) picks
+ * the fan triangle by area and, by what is left of it, the distance from
+ * v[0]; r2 the place across. With u and r2 stratified the points spread
+ * over the polygon instead of clumping (a Hammersley set on one triangle). */
+static void polygon_point(const float v[][3], int n, float area, float u, float r2, float out[3]) {
+  float acc = 0, target = u * area, r1 = u;
+  int t = 1;
+  for (; t + 1 < n; t++) {
+    float e1[3], e2[3], x[3];
+    for (int k = 0; k < 3; k++) e1[k] = v[t][k] - v[0][k], e2[k] = v[t + 1][k] - v[0][k];
+    gi__cross(e1, e2, x);
+    float a = 0.5f * gi__len(x);
+    if (acc + a >= target || t + 2 >= n) {
+      r1 = a > 0 ? gi__minf(gi__maxf((target - acc) / a, 0.f), 1.f) : 0.5f;
+      break;
+    }
+    acc += a;
+  }
+  if (t + 1 >= n) t = n - 2;
+  float sr = sqrtf(r1), a = 1 - sr, b = sr * (1 - r2), c = sr * r2;
+  for (int k = 0; k < 3; k++) out[k] = a * v[0][k] + b * v[t][k] + c * v[t + 1][k];
+}
+
+/* The radical inverse of j in base 2 (van der Corput). */
+static float radical2(uint32_t j) {
+  j = (j << 16) | (j >> 16);
+  j = ((j & 0x00ff00ffu) << 8) | ((j & 0xff00ff00u) >> 8);
+  j = ((j & 0x0f0f0f0fu) << 4) | ((j & 0xf0f0f0f0u) >> 4);
+  j = ((j & 0x33333333u) << 2) | ((j & 0xccccccccu) >> 2);
+  j = ((j & 0x55555555u) << 1) | ((j & 0xaaaaaaaau) >> 1);
+  return (float)(j >> 8) * 0x1p-24f;
+}
+
+int gi__sun_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *l,
+                   uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
+  if (voxel_tris(s, sz, cell, ns)) return -1;
+  if (ns->count == 0 || ns->count > SUN_MAX_TRIS) return 0;
+  if (ns->cum_cap < ns->count) {
+    float *cum = gi__realloc(ns->cum, ns->count * sizeof *cum);
+    if (!cum) return -1;
+    ns->cum = cum, ns->cum_cap = ns->count;
+  }
+  /* Every piece's area (cumulative) and the groups' areas. */
+  float wsum[GI_VOX_GROUPS] = {0}, total = 0;
+  for (size_t i = 0; i < ns->count; i++) {
+    const uint32_t *ix = &s->indices[3 * ns->tris[i]];
+    float tv[3][3], poly[GI_CLIP_MAXV][3], corner[3], A[3] = {0, 0, 0}, C[3] = {0, 0, 0};
+    for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * ix[q]], sizeof(float[3]));
+    int n = gi__voxel_clip_tri(sz, cell, (const float(*)[3])tv, poly, corner);
+    float share[GI_VOX_GROUPS] = {0}, area = 0;
+    if (n >= 3) {
+      gi__fan_moments((const float(*)[3])poly, n, A, C);
+      area = gi__len(A);
+      if (!piece_shares(g, A, area, share, wsum)) area = 0;
+    }
+    total += area;
+    ns->cum[i] = total;
+  }
+  if (!(total > 0)) return 0;
+  /* GI_SUN_POINTS points over the surface, stratified by area along the
+   * pieces and across each; each point's ray says whether its piece sees
+   * the sun there. */
+  float flux[GI_VOX_GROUPS][2] = {{0}}, off = gi__shadow_offset((float)sz);
+  float rot = gi__u01(rng), rot2 = gi__u01(rng);
+  size_t i = 0;
+  for (int j = 0; j < GI_SUN_POINTS; j++) {
+    float u = ((float)j + rot) / (float)GI_SUN_POINTS * total, r2 = radical2((uint32_t)j) + rot2;
+    r2 -= r2 >= 1 ? 1 : 0;
+    while (i + 1 < ns->count && ns->cum[i] < u) i++;
+    float lo = i ? ns->cum[i - 1] : 0, pa = ns->cum[i] - lo;
+    if (!(pa > 0)) continue;
+    const uint32_t *ix = &s->indices[3 * ns->tris[i]];
+    float tv[3][3], poly[GI_CLIP_MAXV][3], corner[3], A[3] = {0, 0, 0}, C[3] = {0, 0, 0}, share[GI_VOX_GROUPS] = {0};
+    float dummy[GI_VOX_GROUPS] = {0};
+    for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * ix[q]], sizeof(float[3]));
+    int n = gi__voxel_clip_tri(sz, cell, (const float(*)[3])tv, poly, corner);
+    if (n < 3) continue;
+    gi__fan_moments((const float(*)[3])poly, n, A, C);
+    float area = gi__len(A);
+    if (!piece_shares(g, A, area, share, dummy)) continue;
+    float cw = gi__dot(A, l->w) / area;
+    if (cw == 0) continue;
+    /* The side facing the sun; its point, off the surface toward it. */
+    float nrm[3], pt[3], org[3], tn = 0, tf = INFINITY;
+    for (int k = 0; k < 3; k++) nrm[k] = (cw > 0 ? 1.f : -1.f) * A[k] / area;
+    polygon_point((const float(*)[3])poly, n, area, gi__minf((u - lo) / pa, 0.99999f), r2, pt);
+    for (int k = 0; k < 3; k++) org[k] = pt[k] + corner[k] + off * nrm[k];
+    uint8_t vis = 1;
+    gi__occluded(s, 1, org, l->w, &tn, &tf, &vis);
+    (*rays)++;
+    if (!vis) continue;
+    /* Each point stands for total / GI_SUN_POINTS of area at its cosine. */
+    float a = fabsf(cw) * total / (float)GI_SUN_POINTS;
+    for (int h = 0; h < g->groups; h++)
+      if (share[h] > 0) flux[h][gi__dot(g->u.fin.orient[h], nrm) >= 0 ? 0 : 1] += share[h] * a;
+  }
+  /* Each side's flux over all the group's pieces, as gi__near_field and as
+   * the filter of the voxel's children weigh it. Counting only the pieces
+   * wound toward a side (the side centroid's rule) put the drive's worst
+   * shift back to 7.3% (sun alone; 1.6% this way). */
+  int mask = 0;
+  for (int h = 0; h < g->groups; h++) {
+    if (!(wsum[h] > 0)) continue;
+    mask |= 1 << h;
+    for (int sd = 0; sd < 2; sd++)
+      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd] / wsum[h] * l->V[k];
   }
   return mask;
 }
