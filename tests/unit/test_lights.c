@@ -8,7 +8,8 @@
  * Delta lights take one shadow ray, so their answers are exact to float.
  * A lamp near a voxel's surfaces (light/near_field.c) against the solid
  * angle of the plate it lights, at two voxel sizes. The sun on a coarse
- * voxel part in shadow (light/near_field.c) against its lit share. A thin slab inside one
+ * voxel part in shadow (light/near_field.c) against its lit share, and the
+ * sky spread over an open plate against pi L. A thin slab inside one
  * voxel, lit on top, against pi L and pi rho L; a facade turned to the grid
  * against pi L / 2 and against itself unturned. */
 #include "test_util.h"
@@ -252,7 +253,7 @@ static void plate_voxel(const gi_scene *s, const int64_t cell[3], gi_vgeo *g) {
 }
 
 /* The sun on a coarse voxel from points spread over its surface
- * (gi__sun_pieces): a 0.4 m plate, the half of it at x < 0.2 under a roof
+ * (gi__spread_light): a 0.4 m plate, the half of it at x < 0.2 under a roof
  * 0.8 m up. A sun 60 degrees off the zenith toward +x passes the roof:
  * every point is lit, E cos 60 exactly. A sun at the zenith lights half
  * the plate: E / 2 on average over the points' seeds and within one
@@ -284,8 +285,8 @@ static void test_sun_pieces(void **state) {
     uint64_t rng = 0x9e3779b97f4a7c15ull * (uint64_t)(i + 1), rays = 0;
     float Et[GI_VOX_FACES][3] = {{0}}, Ez[GI_VOX_FACES][3] = {{0}};
     gi__near_reset(&ns);
-    assert_int_equal(gi__sun_pieces(s, &g, 1.0, cell, &tilted, &rng, &ns, Et, &rays), 1);
-    assert_int_equal(gi__sun_pieces(s, &g, 1.0, cell, &zenith, &rng, &ns, Ez, &rays), 1);
+    assert_int_equal(gi__spread_light(s, &g, 1.0, cell, &tilted, 1, &rng, &ns, Et, &rays), 1);
+    assert_int_equal(gi__spread_light(s, &g, 1.0, cell, &zenith, 1, &rng, &ns, Ez, &rays), 1);
     assert_true(rays == 2 * GI_SUN_POINTS);
     assert_true(fabsf(Et[0][0] - E * ct) < 1e-4f * E && Et[1][0] == 0);
     assert_true(Ez[0][1] >= 0 && Ez[0][1] <= E * (1 + 1e-5f) && Ez[1][1] == 0);
@@ -297,6 +298,41 @@ static void test_sun_pieces(void **state) {
   assert_true(fabs(mean / E - 0.5) < 0.02);
   /* Stratified points: every seed's estimate within one point of the truth. */
   assert_true(lo >= 0.5 - 1.0 / GI_SUN_POINTS - 1e-3 && hi <= 0.5 + 1.0 / GI_SUN_POINTS + 1e-3);
+  gi__near_free(&ns);
+  gi_scene_release(s);
+}
+
+/* The sky's samples spread one per point over an open plate: with
+ * cos(theta) stratified at its midpoints they sum to pi L exactly,
+ * whichever point each takes. */
+static void test_sky_spread(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {0, 0, 0}, B[3] = {0, 0, 0.4}, C[3] = {0.4, 0, 0.4}, D[3] = {0.4, 0, 0};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  gi_scene *s = build_near_origin(b, mat, "sky");
+  const double mid[3] = {0.2, 0, 0.2};
+  int64_t cell[3];
+  for (int a = 0; a < 3; a++) cell[a] = (int64_t)floor(mid[a] - s->origin[a]);
+  gi_vgeo g;
+  plate_voxel(s, cell, &g);
+  enum { M = 16 };
+  const float L = 2.f;
+  gi_lsample sky[M];
+  for (int j = 0; j < M; j++) {
+    float ct = ((float)j + 0.5f) / M, st = sqrtf(1 - ct * ct), phi = 2.3999632f * (float)j;
+    sky[j] = (gi_lsample){.w = {st * cosf(phi), ct, st * sinf(phi)}, .dist = INFINITY,
+                          .V = {L * 2 * (float)M_PI / M, 0, 0}, .fx = GI_FX_SKY};
+  }
+  gi_near_scratch ns = {0};
+  float E[GI_VOX_FACES][3] = {{0}};
+  uint64_t rng = 7, rays = 0;
+  assert_int_equal(gi__spread_light(s, &g, 1.0, cell, sky, M, &rng, &ns, E, &rays), 1);
+  printf("sky spread: %.5f on the open plate's top (pi L = %.5f), %llu rays\n", E[0][0], M_PI * L,
+         (unsigned long long)rays);
+  assert_true(rays == M);
+  assert_true(fabs(E[0][0] / (M_PI * L) - 1) < 1e-4 && E[1][0] == 0);
   gi__near_free(&ns);
   gi_scene_release(s);
 }
@@ -470,6 +506,7 @@ int main(void) {
       cmocka_unit_test(test_near_field_bound),
       cmocka_unit_test(test_sun_pieces),
       cmocka_unit_test(test_sun_pieces_bake),
+      cmocka_unit_test(test_sky_spread),
       cmocka_unit_test(test_thin_slab),
       cmocka_unit_test(test_turned_facade),
   };

@@ -104,21 +104,26 @@ static int facing_group(const gi_vgeo *g, const float w[3]) {
 
 /* The voxel's samples `all` lit over its surface instead of at its
  * centroid, into Es (all groups at once): local lights within reach of
- * its surfaces piece by piece, and on a coarse level (d) the sun from
- * points spread over it (light.h). ib->near[i] says which groups sample
+ * its surfaces piece by piece, and on a coarse level (d) the sun and the
+ * sky from points spread over it (light.h). ib->near[i] says which groups sample
  * i lit, so light_group skips it there. */
 static void near_lights(const gi_scene *s, const gi_vgeo *g, float voxel, int d, int n, inject_buf *ib,
                         uint64_t *rng, float Es[GI_VOX_FACES][3]) {
   float reach = near_reach(g, voxel);
   for (int i = 0; i < n; i++) {
     const gi_lsample *l = &ib->all[i];
-    int r = 0;
-    if (l->fx == GI_FX_LOCAL && l->dist < reach)
+    int r = 0, m = 1;
+    if (l->fx == GI_FX_LOCAL && l->dist < reach) {
       r = gi__near_field(s, g, ib->sz, ib->cell, l, &ib->ns, Es, &ib->near_rays);
-    else if (l->fx == GI_FX_SUN && d >= GI_SUN_PIECES_FROM)
-      r = gi__sun_pieces(s, g, ib->sz, ib->cell, l, rng, &ib->ns, Es, &ib->near_rays);
+    } else if ((l->fx == GI_FX_SUN || l->fx == GI_FX_SKY) && d >= GI_SPREAD_FROM) {
+      /* A sky's samples are one block (gi__light_samples): spread together. */
+      if (l->fx == GI_FX_SKY)
+        while (i + m < n && ib->all[i + m].fx == GI_FX_SKY) m++;
+      r = gi__spread_light(s, g, ib->sz, ib->cell, l, m, rng, &ib->ns, Es, &ib->near_rays);
+    }
     if (r < 0) ib->oom = 1;
-    ib->near[i] = (uint8_t)(r > 0 ? r : 0);
+    for (int k = 0; k < m; k++) ib->near[i + k] = (uint8_t)(r > 0 ? r : 0);
+    i += m - 1;
   }
 }
 

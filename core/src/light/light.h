@@ -28,7 +28,7 @@ typedef struct gi_near_scratch {
   uint32_t *tris;
   size_t count, cap;
   int have;            /* tris holds the current voxel's triangles */
-  float *cum;          /* gi__sun_pieces: the pieces' cumulative areas */
+  float *cum;          /* gi__spread_light: the pieces' cumulative areas */
   size_t cum_cap;
 } gi_near_scratch;
 /* A voxel holding more triangles than this keeps the centroid's value: the
@@ -49,21 +49,22 @@ void gi__near_free(gi_near_scratch *ns);
  * Thread-safe with one scratch per thread. */
 int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *l,
                    gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays);
-/* Sun light on a coarse voxel (level >= GI_SUN_PIECES_FROM) from
- * GI_SUN_POINTS points spread over its surface by area, each with its own
- * shadow ray, instead of one ray from the group's centroid. A coarse
- * voxel half in a building's shadow is then half lit, as the filter of its
- * children says, not all or nothing: the two disagreed by the whole sun
- * wherever a shadow's edge crossed a voxel, and a grid shift that turned
- * one into the other moved a street probe's dim side 11% (the drive's
- * worst shift, sun alone). Adds to Es as gi__near_field; returns the
- * groups it lit (0: none, or too many triangles: the caller's centroid
- * ray decides), -1 when out of memory. Draws from rng. Thread-safe with
- * one scratch per thread. */
-#define GI_SUN_PIECES_FROM 1
+/* Light on a coarse voxel (level >= GI_SPREAD_FROM) from points spread
+ * over its surface by area, each with its own shadow ray, instead of rays
+ * from its groups' centroids. ls[0..m) are the samples of one light: the
+ * sun (m = 1) takes GI_SUN_POINTS points, the sky's m samples one point
+ * each. A coarse voxel half in a building's shadow is then half lit, as
+ * the filter of its children says, not all or nothing: the two disagreed
+ * by the whole sun wherever a shadow's edge crossed a voxel, and a grid
+ * shift that turned one into the other moved a street probe's dim side
+ * 11% (the drive's worst shift, sun alone). Adds to Es as
+ * gi__near_field; returns the groups it lit (0: none, or too many
+ * triangles: the caller's centroid rays decide), -1 when out of memory.
+ * Draws from rng. Thread-safe with one scratch per thread. */
+#define GI_SPREAD_FROM 1
 #define GI_SUN_POINTS 8
-int gi__sun_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *l,
-                   uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays);
+int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
+                     int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays);
 /* bounce.c: voxel-to-voxel bounces: gathers indirect irradiance at every occupied voxel.
  * tail (with bounces >= 2): then adds the orders after the last bounce as
  * a geometric series whose ratio is measured from the last two bounces. */

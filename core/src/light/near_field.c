@@ -13,7 +13,7 @@
  * the light. The group's side irradiance is that flux over the group's
  * area: a coarse voxel's pieces are its children's pieces, so its own
  * light and its children's filtered light agree. The sun on a coarse
- * voxel is lit over its pieces for the same reason (gi__sun_pieces):
+ * voxel is lit over its pieces for the same reason (gi__spread_light):
  * there the centroid's one shadow ray is the error, not 1/r^2. */
 #include <stdlib.h>
 #include <string.h>
@@ -119,7 +119,7 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
   return mask;
 }
 
-/* Sun pieces: at most this many triangles in the voxel (more keep the
+/* Spread light: at most this many triangles in the voxel (more keep the
  * centroid's ray: clipping them all would cost more than the light). */
 #define SUN_MAX_TRIS 512
 
@@ -156,8 +156,30 @@ static float radical2(uint32_t j) {
   return (float)(j >> 8) * 0x1p-24f;
 }
 
-int gi__sun_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *l,
-                   uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
+/* Which of m samples point j of P takes: a stride coprime with m, so
+ * neighbouring points (along the pieces) take samples far apart in their
+ * strata (the sky's elevation) instead of pairing stratum with place. */
+static int point_sample(int j, int m) {
+  static const int strides[] = {7, 5, 3, 11, 13};
+  if (m <= 1) return 0;
+  int st = 1;
+  for (size_t i = 0; i < sizeof strides / sizeof strides[0]; i++) {
+    int a = m, b = strides[i];
+    while (b) {
+      int t = a % b;
+      a = b, b = t;
+    }
+    if (a == 1 && strides[i] < m) {
+      st = strides[i];
+      break;
+    }
+  }
+  return (int)(((int64_t)j * st) % m);
+}
+
+int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
+                     int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
+  if (m < 1) return 0;
   if (voxel_tris(s, sz, cell, ns)) return -1;
   if (ns->count == 0 || ns->count > SUN_MAX_TRIS) return 0;
   if (ns->cum_cap < ns->count) {
@@ -182,14 +204,16 @@ int gi__sun_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
     ns->cum[i] = total;
   }
   if (!(total > 0)) return 0;
-  /* GI_SUN_POINTS points over the surface, stratified by area along the
-   * pieces and across each; each point's ray says whether its piece sees
-   * the sun there. */
-  float flux[GI_VOX_GROUPS][2] = {{0}}, off = gi__shadow_offset((float)sz);
+  /* P points over the surface, stratified by area along the pieces and
+   * across each; each point's ray says whether its piece sees its sample's
+   * light there. Each point stands for total / P of the area. */
+  int P = m > GI_SUN_POINTS ? m : GI_SUN_POINTS;
+  float flux[GI_VOX_GROUPS][2][3] = {{{0}}}, off = gi__shadow_offset((float)sz);
   float rot = gi__u01(rng), rot2 = gi__u01(rng);
   size_t i = 0;
-  for (int j = 0; j < GI_SUN_POINTS; j++) {
-    float u = ((float)j + rot) / (float)GI_SUN_POINTS * total, r2 = radical2((uint32_t)j) + rot2;
+  for (int j = 0; j < P; j++) {
+    const gi_lsample *l = &ls[point_sample(j, m)];
+    float u = ((float)j + rot) / (float)P * total, r2 = radical2((uint32_t)j) + rot2;
     r2 -= r2 >= 1 ? 1 : 0;
     while (i + 1 < ns->count && ns->cum[i] < u) i++;
     float lo = i ? ns->cum[i - 1] : 0, pa = ns->cum[i] - lo;
@@ -205,7 +229,7 @@ int gi__sun_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
     if (!piece_shares(g, A, area, share, dummy)) continue;
     float cw = gi__dot(A, l->w) / area;
     if (cw == 0) continue;
-    /* The side facing the sun; its point, off the surface toward it. */
+    /* The side facing the light; its point, off the surface toward it. */
     float nrm[3], pt[3], org[3], tn = 0, tf = INFINITY;
     for (int k = 0; k < 3; k++) nrm[k] = (cw > 0 ? 1.f : -1.f) * A[k] / area;
     polygon_point((const float(*)[3])poly, n, area, gi__minf((u - lo) / pa, 0.99999f), r2, pt);
@@ -214,10 +238,13 @@ int gi__sun_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
     gi__occluded(s, 1, org, l->w, &tn, &tf, &vis);
     (*rays)++;
     if (!vis) continue;
-    /* Each point stands for total / GI_SUN_POINTS of area at its cosine. */
-    float a = fabsf(cw) * total / (float)GI_SUN_POINTS;
-    for (int h = 0; h < g->groups; h++)
-      if (share[h] > 0) flux[h][gi__dot(g->u.fin.orient[h], nrm) >= 0 ? 0 : 1] += share[h] * a;
+    /* One sample estimates its point's irradiance as m V cos (V holds 1 / m). */
+    float a = fabsf(cw) * total / (float)P * (float)m;
+    for (int h = 0; h < g->groups; h++) {
+      if (!(share[h] > 0)) continue;
+      int sd = gi__dot(g->u.fin.orient[h], nrm) >= 0 ? 0 : 1;
+      for (int k = 0; k < 3; k++) flux[h][sd][k] += share[h] * a * l->V[k];
+    }
   }
   /* Each side's flux over all the group's pieces, as gi__near_field and as
    * the filter of the voxel's children weigh it. Counting only the pieces
@@ -228,7 +255,7 @@ int gi__sun_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
     if (!(wsum[h] > 0)) continue;
     mask |= 1 << h;
     for (int sd = 0; sd < 2; sd++)
-      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd] / wsum[h] * l->V[k];
+      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd][k] / wsum[h];
   }
   return mask;
 }
