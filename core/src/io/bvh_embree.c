@@ -225,7 +225,9 @@ static bool box_cb(struct RTCPointQueryFunctionArguments *args) {
   for (int k = 0; k < 3; k++) {
     float a = s->vertices[3 * (size_t)ti[0] + k], b = s->vertices[3 * (size_t)ti[1] + k],
           c = s->vertices[3 * (size_t)ti[2] + k];
-    float mn = fminf(a, fminf(b, c)), mx = fmaxf(a, fmaxf(b, c));
+    /* Inline min/max: fminf and fmaxf are libm calls here (vertices are finite). */
+    float mn = a < b ? a : b, mx = a > b ? a : b;
+    mn = c < mn ? c : mn, mx = c > mx ? c : mx;
     if (mx < q->lo[k] || mn > q->hi[k]) return false;
   }
   if (*q->count == *q->cap) {

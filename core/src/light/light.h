@@ -28,8 +28,13 @@ typedef struct gi_near_scratch {
   uint32_t *tris;
   size_t count, cap;
   int have;            /* tris holds the current voxel's triangles */
-  float *cum;          /* gi__spread_light: the pieces' cumulative areas */
-  size_t cum_cap;
+  /* gi__spread_light: the voxel's pieces (clipped once per voxel), their
+   * cumulative areas, and the groups' areas. */
+  struct gi_piece *pieces;
+  float *cum;
+  size_t npieces, pieces_cap;
+  int have_pieces;
+  float wsum[GI_VOX_GROUPS], total;
 } gi_near_scratch;
 /* A voxel holding more triangles than this keeps the centroid's value: the
  * pieces cost a clip and a shadow ray each, per near light, and a coarse

@@ -21,10 +21,11 @@
 #include "light/light.h"
 #include "scene/lights.h"
 
-void gi__near_reset(gi_near_scratch *ns) { ns->have = 0; }
+void gi__near_reset(gi_near_scratch *ns) { ns->have = ns->have_pieces = 0; }
 
 void gi__near_free(gi_near_scratch *ns) {
   gi__free(ns->tris);
+  gi__free(ns->pieces);
   gi__free(ns->cum);
   memset(ns, 0, sizeof *ns);
 }
@@ -177,33 +178,58 @@ static int point_sample(int j, int m) {
   return (int)(((int64_t)j * st) % m);
 }
 
+/* One piece of the voxel's surface: its polygon (relative to the cell's
+ * corner), vector area and share in each group. */
+typedef struct gi_piece {
+  float v[GI_CLIP_MAXV][3];
+  float A[3], area, share[GI_VOX_GROUPS];
+  int n;
+} gi_piece;
+
+/* Clips the voxel's triangles once (the sun's and the sky's calls share
+ * them): pieces, cumulative areas, group areas. -1 when out of memory. */
+static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], gi_near_scratch *ns) {
+  if (ns->have_pieces) return 0;
+  if (ns->pieces_cap < ns->count) {
+    gi_piece *pc = gi__realloc(ns->pieces, ns->count * sizeof *pc);
+    if (!pc) return -1;
+    ns->pieces = pc;
+    float *cum = gi__realloc(ns->cum, ns->count * sizeof *cum);
+    if (!cum) return -1;
+    ns->cum = cum, ns->pieces_cap = ns->count;
+  }
+  memset(ns->wsum, 0, sizeof ns->wsum);
+  ns->total = 0;
+  ns->npieces = 0;
+  for (size_t i = 0; i < ns->count; i++) {
+    const uint32_t *ix = &s->indices[3 * ns->tris[i]];
+    float tv[3][3], corner[3], C[3] = {0, 0, 0};
+    gi_piece *pc = &ns->pieces[ns->npieces];
+    for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * ix[q]], sizeof(float[3]));
+    pc->n = gi__voxel_clip_tri(sz, cell, (const float(*)[3])tv, pc->v, corner);
+    if (pc->n < 3) continue;
+    memset(pc->A, 0, sizeof pc->A);
+    gi__fan_moments((const float(*)[3])pc->v, pc->n, pc->A, C);
+    pc->area = gi__len(pc->A);
+    memset(pc->share, 0, sizeof pc->share);
+    if (!piece_shares(g, pc->A, pc->area, pc->share, ns->wsum)) continue;
+    ns->total += pc->area;
+    ns->cum[ns->npieces++] = ns->total;
+  }
+  ns->have_pieces = 1;
+  return 0;
+}
+
 int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
                      int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
   if (m < 1) return 0;
   if (voxel_tris(s, sz, cell, ns)) return -1;
   if (ns->count == 0 || ns->count > SUN_MAX_TRIS) return 0;
-  if (ns->cum_cap < ns->count) {
-    float *cum = gi__realloc(ns->cum, ns->count * sizeof *cum);
-    if (!cum) return -1;
-    ns->cum = cum, ns->cum_cap = ns->count;
-  }
-  /* Every piece's area (cumulative) and the groups' areas. */
-  float wsum[GI_VOX_GROUPS] = {0}, total = 0;
-  for (size_t i = 0; i < ns->count; i++) {
-    const uint32_t *ix = &s->indices[3 * ns->tris[i]];
-    float tv[3][3], poly[GI_CLIP_MAXV][3], corner[3], A[3] = {0, 0, 0}, C[3] = {0, 0, 0};
-    for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * ix[q]], sizeof(float[3]));
-    int n = gi__voxel_clip_tri(sz, cell, (const float(*)[3])tv, poly, corner);
-    float share[GI_VOX_GROUPS] = {0}, area = 0;
-    if (n >= 3) {
-      gi__fan_moments((const float(*)[3])poly, n, A, C);
-      area = gi__len(A);
-      if (!piece_shares(g, A, area, share, wsum)) area = 0;
-    }
-    total += area;
-    ns->cum[i] = total;
-  }
-  if (!(total > 0)) return 0;
+  if (voxel_pieces(s, g, sz, cell, ns)) return -1;
+  float total = ns->total;
+  if (ns->npieces == 0 || !(total > 0)) return 0;
+  float corner[3];
+  for (int a = 0; a < 3; a++) corner[a] = (float)(cell[a] * sz);
   /* P points over the surface, stratified by area along the pieces and
    * across each; each point's ray says whether its piece sees its sample's
    * light there. Each point stands for total / P of the area. */
@@ -215,24 +241,16 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
     const gi_lsample *l = &ls[point_sample(j, m)];
     float u = ((float)j + rot) / (float)P * total, r2 = radical2((uint32_t)j) + rot2;
     r2 -= r2 >= 1 ? 1 : 0;
-    while (i + 1 < ns->count && ns->cum[i] < u) i++;
-    float lo = i ? ns->cum[i - 1] : 0, pa = ns->cum[i] - lo;
-    if (!(pa > 0)) continue;
-    const uint32_t *ix = &s->indices[3 * ns->tris[i]];
-    float tv[3][3], poly[GI_CLIP_MAXV][3], corner[3], A[3] = {0, 0, 0}, C[3] = {0, 0, 0}, share[GI_VOX_GROUPS] = {0};
-    float dummy[GI_VOX_GROUPS] = {0};
-    for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * ix[q]], sizeof(float[3]));
-    int n = gi__voxel_clip_tri(sz, cell, (const float(*)[3])tv, poly, corner);
-    if (n < 3) continue;
-    gi__fan_moments((const float(*)[3])poly, n, A, C);
-    float area = gi__len(A);
-    if (!piece_shares(g, A, area, share, dummy)) continue;
-    float cw = gi__dot(A, l->w) / area;
+    while (i + 1 < ns->npieces && ns->cum[i] < u) i++;
+    const gi_piece *pc = &ns->pieces[i];
+    float lo = ns->cum[i] - pc->area;
+    float cw = gi__dot(pc->A, l->w) / pc->area;
     if (cw == 0) continue;
     /* The side facing the light; its point, off the surface toward it. */
     float nrm[3], pt[3], org[3], tn = 0, tf = INFINITY;
-    for (int k = 0; k < 3; k++) nrm[k] = (cw > 0 ? 1.f : -1.f) * A[k] / area;
-    polygon_point((const float(*)[3])poly, n, area, gi__minf((u - lo) / pa, 0.99999f), r2, pt);
+    for (int k = 0; k < 3; k++) nrm[k] = (cw > 0 ? 1.f : -1.f) * pc->A[k] / pc->area;
+    polygon_point((const float(*)[3])pc->v, pc->n, pc->area, gi__minf(gi__maxf((u - lo) / pc->area, 0.f), 0.99999f),
+                  r2, pt);
     for (int k = 0; k < 3; k++) org[k] = pt[k] + corner[k] + off * nrm[k];
     uint8_t vis = 1;
     gi__occluded(s, 1, org, l->w, &tn, &tf, &vis);
@@ -241,15 +259,16 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
     /* One sample estimates its point's irradiance as m V cos (V holds 1 / m). */
     float a = fabsf(cw) * total / (float)P * (float)m;
     for (int h = 0; h < g->groups; h++) {
-      if (!(share[h] > 0)) continue;
+      if (!(pc->share[h] > 0)) continue;
       int sd = gi__dot(g->u.fin.orient[h], nrm) >= 0 ? 0 : 1;
-      for (int k = 0; k < 3; k++) flux[h][sd][k] += share[h] * a * l->V[k];
+      for (int k = 0; k < 3; k++) flux[h][sd][k] += pc->share[h] * a * l->V[k];
     }
   }
   /* Each side's flux over all the group's pieces, as gi__near_field and as
    * the filter of the voxel's children weigh it. Counting only the pieces
    * wound toward a side (the side centroid's rule) put the drive's worst
    * shift back to 7.3% (sun alone; 1.6% this way). */
+  const float *wsum = ns->wsum;
   int mask = 0;
   for (int h = 0; h < g->groups; h++) {
     if (!(wsum[h] > 0)) continue;
