@@ -252,6 +252,25 @@ static void plate_voxel(const gi_scene *s, const int64_t cell[3], gi_vgeo *g) {
   flat_group(g);
 }
 
+/* A 0.4 m plate at the origin, facing +y, with (roof) the half of it at
+ * x < 0.2 under a roof 0.8 m up: the scene, the plate's cell of 1 m
+ * (wherever the scene put its local origin) and its voxel. */
+static gi_scene *plate_scene(const char *name, int roof, int64_t cell[3], gi_vgeo *g) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {0, 0, 0}, B[3] = {0, 0, 0.4}, C[3] = {0.4, 0, 0.4}, D[3] = {0.4, 0, 0};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  double R0[3] = {-1, 0.8, -1}, R1[3] = {-1, 0.8, 1}, R2[3] = {0.2, 0.8, 1}, R3[3] = {0.2, 0.8, -1};
+  if (roof) gi_mesh_builder_add_quad(b, R0, R1, R2, R3, mat);
+  gi_scene *s = build_near_origin(b, mat, name);
+  const double mid[3] = {0.2, 0, 0.2};
+  for (int a = 0; a < 3; a++) cell[a] = (int64_t)floor(mid[a] - s->origin[a]);
+  plate_voxel(s, cell, g);
+  assert_true(fabsf(g->area - 0.16f) < 1e-4f);
+  return s;
+}
+
 /* The sun on a coarse voxel from points spread over its surface
  * (gi__spread_light): a 0.4 m plate, the half of it at x < 0.2 under a roof
  * 0.8 m up. A sun 60 degrees off the zenith toward +x passes the roof:
@@ -260,21 +279,9 @@ static void plate_voxel(const gi_scene *s, const int64_t cell[3], gi_vgeo *g) {
  * point of it for every seed, where the centroid's single ray (x = 0.2,
  * the shadow's edge) reads all or nothing. */
 static void test_sun_pieces(void **state) {
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double A[3] = {0, 0, 0}, B[3] = {0, 0, 0.4}, C[3] = {0.4, 0, 0.4}, D[3] = {0.4, 0, 0};
-  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  double R0[3] = {-1, 0.8, -1}, R1[3] = {-1, 0.8, 1}, R2[3] = {0.2, 0.8, 1}, R3[3] = {0.2, 0.8, -1};
-  gi_mesh_builder_add_quad(b, R0, R1, R2, R3, mat);
-  gi_scene *s = build_near_origin(b, mat, "sun");
-  /* The plate's cell of 1 m, wherever the scene put its local origin. */
-  const double mid[3] = {0.2, 0, 0.2};
   int64_t cell[3];
-  for (int a = 0; a < 3; a++) cell[a] = (int64_t)floor(mid[a] - s->origin[a]);
   gi_vgeo g;
-  plate_voxel(s, cell, &g);
-  assert_true(fabsf(g.area - 0.16f) < 1e-4f);
+  gi_scene *s = plate_scene("sun", 1, cell, &g);
   const float E = 3.f, st = sinf((float)M_PI / 3), ct = cosf((float)M_PI / 3);
   gi_near_scratch ns = {0};
   gi_lsample tilted = {.w = {st, ct, 0}, .dist = INFINITY, .V = {E, E, E}, .fx = GI_FX_SUN};
@@ -306,17 +313,9 @@ static void test_sun_pieces(void **state) {
  * cos(theta) stratified at its midpoints they sum to pi L exactly,
  * whichever point each takes. */
 static void test_sky_spread(void **state) {
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double A[3] = {0, 0, 0}, B[3] = {0, 0, 0.4}, C[3] = {0.4, 0, 0.4}, D[3] = {0.4, 0, 0};
-  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  gi_scene *s = build_near_origin(b, mat, "sky");
-  const double mid[3] = {0.2, 0, 0.2};
   int64_t cell[3];
-  for (int a = 0; a < 3; a++) cell[a] = (int64_t)floor(mid[a] - s->origin[a]);
   gi_vgeo g;
-  plate_voxel(s, cell, &g);
+  gi_scene *s = plate_scene("sky", 0, cell, &g);
   enum { M = 16 };
   const float L = 2.f;
   gi_lsample sky[M];
