@@ -35,8 +35,10 @@ lines = [json.loads(l) for l in open(f"{d}/b.jsonl")]
 assert [l["path"] for l in lines] == ["walk", "drive"], lines
 for l in lines:
     for k in ("update_ms_mean", "cold_ms_mean", "speedup_mean", "speedup_p99", "step_ms_mean", "drift_mean",
-              "drift_max", "pop_shift", "pop_pairs_cold"):
+              "drift_max", "pop_shift", "pop_pairs_cold", "pop_shift_cold"):
         assert l[k] is not None and math.isfinite(l[k]), (l["path"], k, l[k])
+    # The largest shift's step is a step of the path, and cold bakes across it were measured.
+    assert 1 <= l["pop_shift_step"] <= l["steps"] and 0 <= l["pop_shift_cold"] < 1, l
     assert l["crossings"] >= 1 and l["cold_bakes"] >= 3 and l["pairs"] >= 1, l
     assert l["update_ms_mean"] > 0 and l["cold_ms_mean"] > 0 and 0 <= l["drift_max"] < 0.5, l
 print("walk_smoke: paths on the streets, JSON figures finite")

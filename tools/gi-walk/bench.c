@@ -87,6 +87,23 @@ static int move_step(gi_cascade *c, const double at[3], step_rec *st) {
   return probe_at(c, at, &st->moved, &st->gather_ms);
 }
 
+/* Cold bakes at both sides of the update that jumped most (p->worst_shift). */
+static int worst_shift_cold(const bench_opts *o, const gi_scene *s, walk_path *p, const step_rec *steps) {
+  p->worst_shift = 0, p->worst_shift_cold = -1;
+  double worst = -1;
+  for (size_t i = 1; i < p->n; i++) {
+    double j = probe_rel(&steps[i].moved, &steps[i].pre);
+    if (steps[i].crossed && j > worst) worst = j, p->worst_shift = i;
+  }
+  if (!p->worst_shift) return 0;
+  step_rec before, after;
+  memset(&before, 0, sizeof before), memset(&after, 0, sizeof after);
+  size_t k = p->worst_shift;
+  if (cold_at(s, &o->q, p->at[k - 1], p->at[k], &before) || cold_at(s, &o->q, p->at[k], NULL, &after)) return -1;
+  p->worst_shift_cold = probe_rel(&after.cold_probe, &before.cold_next);
+  return 0;
+}
+
 int bench_path(const bench_opts *o, const gi_scene *s, walk_path *p, step_rec *steps) {
   memset(steps, 0, p->n * sizeof *steps);
   gi_cascade *c = NULL;
@@ -106,5 +123,6 @@ int bench_path(const bench_opts *o, const gi_scene *s, walk_path *p, step_rec *s
       fprintf(stderr, "gi-walk: %s: step %zu of %zu\n", p->name, i, p->n - 1);
   }
   gi_cascade_free(c);
+  if (!rc) rc = worst_shift_cold(o, s, p, steps);
   return rc;
 }

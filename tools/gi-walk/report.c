@@ -29,7 +29,6 @@ typedef struct figures {
   double drift_mean, drift_max;
   /* At a fixed point across the update (moved) or across the anchors (cold). */
   double pop_shift, pop_all, pop_pairs_moved, pop_pairs_cold;
-  size_t pop_shift_step; /* where pop_shift was measured (0: no shift) */
   /* Between consecutive steps' points: includes the light's change between them. */
   double jump_pairs_moved, jump_pairs_cold, jump_all;
 } figures;
@@ -62,7 +61,7 @@ static void quality_figures(const walk_path *p, const step_rec *st, figures *f, 
     double fixed = probe_rel(&st[i].moved, &st[i].pre), jump = probe_rel(&st[i].moved, &st[i - 1].moved);
     f->pop_all = fmax(f->pop_all, fixed);
     f->jump_all = fmax(f->jump_all, jump);
-    if (st[i].crossed && fixed > f->pop_shift) f->pop_shift = fixed, f->pop_shift_step = i;
+    if (st[i].crossed) f->pop_shift = fmax(f->pop_shift, fixed);
     if (!(st[i].cold && st[i - 1].cold && st[i].crossed)) continue;
     f->pop_pairs_moved = fmax(f->pop_pairs_moved, fixed);
     f->pop_pairs_cold = fmax(f->pop_pairs_cold, probe_rel(&st[i].cold_probe, &st[i - 1].cold_next));
@@ -110,9 +109,10 @@ static void print_figures(const walk_path *p, const figures *f) {
   printf("popping at a fixed point, every grid shift (moved): %s%%  goal <= %.0f%%: %s; any step: %s%%\n",
          num(100 * f->pop_shift, 2), 100 * GOAL_POP_SHIFT, met(f->crossings && f->pop_shift <= GOAL_POP_SHIFT),
          num(100 * f->pop_all, 2));
-  if (f->pop_shift_step)
-    printf("  (the largest jump at a shift: step %zu, at %.2f %.2f %.2f)\n", f->pop_shift_step,
-           p->at[f->pop_shift_step][0], p->at[f->pop_shift_step][1], p->at[f->pop_shift_step][2]);
+  if (p->worst_shift)
+    printf("  (the largest jump at a shift: step %zu, at %.2f %.2f %.2f; cold bakes across that shift: %s%%)\n",
+           p->worst_shift, p->at[p->worst_shift][0], p->at[p->worst_shift][1], p->at[p->worst_shift][2],
+           p->worst_shift_cold >= 0 ? num(100 * p->worst_shift_cold, 2) : "n/a");
   printf("consecutive steps' probes (incl. the light's change between points): sampled shifts moved %s%%, "
          "cold %s%%; any step moved %s%%\n", num(100 * f->jump_pairs_moved, 2), num(100 * f->jump_pairs_cold, 2),
          num(100 * f->jump_all, 2));
@@ -134,7 +134,9 @@ static void json_figures(const bench_opts *o, const walk_path *p, const figures 
       {"speedup_p99", f->cold_p99 / f->upd_p99}, {"update_cpu_ms_mean", f->upd_cpu_mean},
       {"cold_cpu_ms_mean", f->cold_cpu_mean}, {"step_ms_mean", f->step_mean}, {"step_ms_p99", f->step_p99},
       {"gather_ms_mean", f->gather_mean}, {"drift_mean", f->drift_mean}, {"drift_max", f->drift_max},
-      {"pop_shift", f->pop_shift}, {"pop_shift_step", (double)f->pop_shift_step}, {"pop_any_step", f->pop_all}, {"pop_pairs_moved", f->pop_pairs_moved},
+      {"pop_shift", f->pop_shift}, {"pop_shift_step", (double)p->worst_shift},
+      {"pop_shift_cold", p->worst_shift_cold >= 0 ? p->worst_shift_cold : NAN},
+      {"pop_any_step", f->pop_all}, {"pop_pairs_moved", f->pop_pairs_moved},
       {"pop_pairs_cold", f->pop_pairs_cold}, {"jump_pairs_moved", f->jump_pairs_moved},
       {"jump_pairs_cold", f->jump_pairs_cold}, {"jump_any_step", f->jump_all}};
   for (size_t i = 0; i < sizeof kv / sizeof kv[0]; i++) jnum(json, kv[i].k, kv[i].v);

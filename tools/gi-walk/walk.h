@@ -29,6 +29,13 @@ typedef struct walk_path {
   double *t;          /* n times, s */
   double (*at)[3];    /* n world points (city: y up) */
   gi_quality resolved; /* set by bench_path: the quality the cascade was baked with */
+  /* Set by bench_path: the crossing step whose update jumped most at a fixed
+   * point (0: none) and the jump of cold bakes across that same shift (the
+   * bakes at the steps either side, both gathered at its point; < 0 when
+   * not measured): equal jumps are the cascade's structure, a larger moved
+   * one is the move's drift. */
+  size_t worst_shift;
+  double worst_shift_cold;
 } walk_path;
 
 /* A path along the city's street centre lines from the central
