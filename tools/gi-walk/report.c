@@ -57,11 +57,12 @@ static void quality_figures(const walk_path *p, const step_rec *st, figures *f, 
   for (size_t i = 1; i < p->n; i++)
     if (st[i].cold) a[n++] = probe_rel(&st[i].moved, &st[i].cold_probe);
   f->drift_mean = stat_mean(a, n), f->drift_max = stat_max(a, n);
+  /* The largest jump at a shift: bench_path found its step. */
+  if (p->worst_shift) f->pop_shift = probe_rel(&st[p->worst_shift].moved, &st[p->worst_shift].pre);
   for (size_t i = 1; i < p->n; i++) {
     double fixed = probe_rel(&st[i].moved, &st[i].pre), jump = probe_rel(&st[i].moved, &st[i - 1].moved);
     f->pop_all = fmax(f->pop_all, fixed);
     f->jump_all = fmax(f->jump_all, jump);
-    if (st[i].crossed) f->pop_shift = fmax(f->pop_shift, fixed);
     if (!(st[i].cold && st[i - 1].cold && st[i].crossed)) continue;
     f->pop_pairs_moved = fmax(f->pop_pairs_moved, fixed);
     f->pop_pairs_cold = fmax(f->pop_pairs_cold, probe_rel(&st[i].cold_probe, &st[i - 1].cold_next));

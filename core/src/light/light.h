@@ -28,10 +28,9 @@ typedef struct gi_near_scratch {
   uint32_t *tris;
   size_t count, cap;
   int have;            /* tris holds the current voxel's triangles */
-  /* gi__spread_light: the voxel's pieces (clipped once per voxel), their
-   * cumulative areas, and the groups' areas. */
+  /* gi__spread_light: the voxel's pieces (clipped once per voxel) and the
+   * groups' areas. */
   struct gi_piece *pieces;
-  float *cum;
   size_t npieces, pieces_cap;
   int have_pieces;
   float wsum[GI_VOX_GROUPS], total;

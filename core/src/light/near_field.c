@@ -26,7 +26,6 @@ void gi__near_reset(gi_near_scratch *ns) { ns->have = ns->have_pieces = 0; }
 void gi__near_free(gi_near_scratch *ns) {
   gi__free(ns->tris);
   gi__free(ns->pieces);
-  gi__free(ns->cum);
   memset(ns, 0, sizeof *ns);
 }
 
@@ -157,32 +156,29 @@ static float radical2(uint32_t j) {
   return (float)(j >> 8) * 0x1p-24f;
 }
 
-/* Which of m samples point j of P takes: a stride coprime with m, so
- * neighbouring points (along the pieces) take samples far apart in their
- * strata (the sky's elevation) instead of pairing stratum with place. */
-static int point_sample(int j, int m) {
+/* The stride by which points take the m samples (point j takes sample
+ * j * stride mod m): coprime with m, so neighbouring points (along the
+ * pieces) take samples far apart in their strata (the sky's elevation)
+ * instead of pairing stratum with place. */
+static int sample_stride(int m) {
   static const int strides[] = {7, 5, 3, 11, 13};
-  if (m <= 1) return 0;
-  int st = 1;
   for (size_t i = 0; i < sizeof strides / sizeof strides[0]; i++) {
     int a = m, b = strides[i];
     while (b) {
       int t = a % b;
       a = b, b = t;
     }
-    if (a == 1 && strides[i] < m) {
-      st = strides[i];
-      break;
-    }
+    if (a == 1 && strides[i] < m) return strides[i];
   }
-  return (int)(((int64_t)j * st) % m);
+  return 1;
 }
 
 /* One piece of the voxel's surface: its polygon (relative to the cell's
- * corner), vector area and share in each group. */
+ * corner), vector area, share in each group, and the area of the pieces
+ * up to and including it (cum). */
 typedef struct gi_piece {
   float v[GI_CLIP_MAXV][3];
-  float A[3], area, share[GI_VOX_GROUPS];
+  float A[3], area, cum, share[GI_VOX_GROUPS];
   int n;
 } gi_piece;
 
@@ -193,10 +189,7 @@ static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const in
   if (ns->pieces_cap < ns->count) {
     gi_piece *pc = gi__realloc(ns->pieces, ns->count * sizeof *pc);
     if (!pc) return -1;
-    ns->pieces = pc;
-    float *cum = gi__realloc(ns->cum, ns->count * sizeof *cum);
-    if (!cum) return -1;
-    ns->cum = cum, ns->pieces_cap = ns->count;
+    ns->pieces = pc, ns->pieces_cap = ns->count;
   }
   memset(ns->wsum, 0, sizeof ns->wsum);
   ns->total = 0;
@@ -214,7 +207,8 @@ static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const in
     memset(pc->share, 0, sizeof pc->share);
     if (!piece_shares(g, pc->A, pc->area, pc->share, ns->wsum)) continue;
     ns->total += pc->area;
-    ns->cum[ns->npieces++] = ns->total;
+    pc->cum = ns->total;
+    ns->npieces++;
   }
   ns->have_pieces = 1;
   return 0;
@@ -236,14 +230,15 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
   int P = m > GI_SUN_POINTS ? m : GI_SUN_POINTS;
   float flux[GI_VOX_GROUPS][2][3] = {{{0}}}, off = gi__shadow_offset((float)sz);
   float rot = gi__u01(rng), rot2 = gi__u01(rng);
+  int stride = sample_stride(m);
   size_t i = 0;
   for (int j = 0; j < P; j++) {
-    const gi_lsample *l = &ls[point_sample(j, m)];
+    const gi_lsample *l = &ls[(int)(((int64_t)j * stride) % m)];
     float u = ((float)j + rot) / (float)P * total, r2 = radical2((uint32_t)j) + rot2;
     r2 -= r2 >= 1 ? 1 : 0;
-    while (i + 1 < ns->npieces && ns->cum[i] < u) i++;
+    while (i + 1 < ns->npieces && ns->pieces[i].cum < u) i++;
     const gi_piece *pc = &ns->pieces[i];
-    float lo = ns->cum[i] - pc->area;
+    float lo = pc->cum - pc->area;
     float cw = gi__dot(pc->A, l->w) / pc->area;
     if (cw == 0) continue;
     /* The side facing the light; its point, off the surface toward it. */
