@@ -262,7 +262,7 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
   /* Each side's flux over all the group's pieces, as gi__near_field and as
    * the filter of the voxel's children weigh it. Counting only the pieces
    * wound toward a side (the side centroid's rule) put the drive's worst
-   * shift back to 7.3% (sun alone; 1.6% this way). */
+   * shift back to 7.3% (sun alone; 0.64% this way). */
   const float *wsum = ns->wsum;
   int mask = 0;
   for (int h = 0; h < g->groups; h++) {
