@@ -197,29 +197,54 @@ static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *b, ui
   return GI_OK;
 }
 
-/* Marks the kept cells within NEIGHBOUR_CELLS of a rebuilt cell CELL_NEAR
- * (work in proportion to the rebuilt cells, none when nothing scrolled). */
-static void mark_near(gi_level *L, int R) {
-  size_t vox = (size_t)R * R * R;
-  for (size_t slot = 0; slot < vox; slot++) {
-    if (L->busy[slot] != CELL_VOXELIZED) continue;
-    int64_t c[3];
-    gi__slot_cell(L, R, (uint32_t)slot, c);
-    for (int64_t z = c[2] - NEIGHBOUR_CELLS; z <= c[2] + NEIGHBOUR_CELLS; z++)
-      for (int64_t y = c[1] - NEIGHBOUR_CELLS; y <= c[1] + NEIGHBOUR_CELLS; y++)
-        for (int64_t x = c[0] - NEIGHBOUR_CELLS; x <= c[0] + NEIGHBOUR_CELLS; x++) {
-          if (!in_window(L, R, x, y, z)) continue;
-          uint8_t *b = &L->busy[gi__slot(x, y, z, R)];
-          if (*b == CELL_KEEP) *b = CELL_NEAR;
-        }
-  }
+/* One pass of the dilation: in[] grown by `n` cells along window axis a
+ * (no wrap: the window ends at its faces). Lines are R cells; a running
+ * count of set cells in [x - n, x + n] makes the pass linear in R^3. */
+static void dilate_axis(const uint8_t *in, uint8_t *out, int R, int a, int n) {
+  size_t st = a == 0 ? 1 : (a == 1 ? (size_t)R : (size_t)R * R);
+  for (int v = 0; v < R; v++)
+    for (int u = 0; u < R; u++) {
+      /* The line's first cell: the other two axes at (u, v). */
+      size_t base = a == 0 ? (size_t)R * (u + (size_t)R * v)
+                           : (a == 1 ? u + (size_t)R * R * v : u + (size_t)R * v);
+      int count = 0;
+      for (int x = 0; x < n && x < R; x++) count += in[base + x * st];
+      for (int x = 0; x < R; x++) {
+        if (x + n < R) count += in[base + (x + n) * st];
+        if (x - n - 1 >= 0) count -= in[base + (x - n - 1) * st];
+        out[base + x * st] = count > 0;
+      }
+    }
+}
+
+/* Marks the kept cells within NEIGHBOUR_CELLS of a rebuilt cell (in each
+ * axis: a cube) CELL_NEAR: a separable dilation over the window in window
+ * order, three passes of R^3. The cube per rebuilt cell it replaces cost
+ * (2n+1)^3 each: the drive's first 8 s, moves 30.9 -> 27.6 ms at n = 2
+ * and 37.7 -> 31.8 ms at n = 3 (medians of 3). `tmp` holds 2 R^3 bytes. */
+static void mark_near(gi_level *L, int R, uint8_t *tmp) {
+  size_t vox = (size_t)R * R * R, w = 0;
+  uint8_t *a = tmp, *b = tmp + vox;
+  for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++)
+    for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
+      for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) a[w++] = L->busy[gi__slot(i, j, k, R)] == CELL_VOXELIZED;
+  dilate_axis(a, b, R, 0, NEIGHBOUR_CELLS);
+  dilate_axis(b, a, R, 1, NEIGHBOUR_CELLS);
+  dilate_axis(a, b, R, 2, NEIGHBOUR_CELLS);
+  w = 0;
+  for (int64_t k = L->cell0[2]; k < L->cell0[2] + R; k++)
+    for (int64_t j = L->cell0[1]; j < L->cell0[1] + R; j++)
+      for (int64_t i = L->cell0[0]; i < L->cell0[0] + R; i++) {
+        uint8_t *c = &L->busy[gi__slot(i, j, k, R)];
+        if (b[w++] && *c == CELL_KEEP) *c = CELL_NEAR;
+      }
 }
 
 /* Finalizes the voxelized cells and rebuilds the occupied list in the
  * bake's order. Lists in `fresh` the rebuilt occupied voxels and the kept
  * ones next to them (they need a new gather); returns how many, and in
  * *nnew how many of them (the first) were rebuilt. */
-static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh, uint32_t *nnew) {
+static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh, uint32_t *nnew, uint8_t *tmp) {
   int R = c->R;
   uint32_t nf = 0;
   int any_voxelized = 0;
@@ -249,7 +274,7 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh,
   uint32_t nf_rebuilt = nf;
   *nnew = nf_rebuilt;
   if (!any_voxelized) return nf;
-  mark_near(L, R);
+  mark_near(L, R, tmp);
   for (uint32_t q = 0; q < L->num_occ; q++)
     if (L->busy[L->occ[q]] == CELL_NEAR) fresh[nf++] = L->occ[q];
   return nf;
@@ -263,6 +288,8 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
   uint32_t *tris = NULL;
   size_t cap = 0;
   gi_result rc = GI_OK;
+  uint8_t *tmp = gi__malloc(2 * (size_t)R * R * R);
+  if (!tmp) return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the neighbours' mask");
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     gi_level *L = &c->lv[d];
     int rebuild = 0;
@@ -272,7 +299,7 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
     int nb = nboxes[d] = stale_boxes(&old[d], L, R, rebuild, b);
     c->report.level_voxelized[d] = mark_stale(&old[d], L, R, rebuild, b, nb);
     for (int q = 0; q < nb && rc == GI_OK; q++) rc = voxelize_box(c, d, &b[q], &tris, &cap, err);
-    if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d], &nnew[d]);
+    if (rc == GI_OK) nfresh[d] = finish_level(c, L, fresh[d], &nnew[d], tmp);
     /* The nested cells above the finer level, which is final now. */
     if (rc == GI_OK) rc = gi__nested_entries(c, d, err);
     c->report.voxel_size[d] = L->s;
@@ -280,6 +307,7 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
       c->report.level_origin[d][a] = (double)L->cell0[a] * L->s + c->scene->origin[a];
   }
   gi__free(tris);
+  gi__free(tmp);
   return rc;
 }
 
