@@ -40,9 +40,14 @@ enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2, CELL_NEAR = 3 };
 /* A scroll slab per axis and the old nested region. */
 #define MAX_BOXES 4
 /* Own voxels within this many cells of a rebuilt cell are re-gathered with
- * it: their gathers start next to the new geometry (a surface gather
- * starts one voxel off the surface and samples 2x2x2 blocks). */
-#define NEIGHBOUR_CELLS 2
+ * it. A voxel a few cells from a window's face sends most of its cones out
+ * of the window into the coarser level, so what the voxels behind a new
+ * slab gathered at the face no longer holds (8 s of the drive at 14 m/s,
+ * with 2: level 2's kept voxels 1-3 cells behind the new slabs 5-54% off a
+ * cold bake's, under 4% further in). Measured over the 60 s drive against 2: probe drift max
+ * 2.03% -> 1.68%, largest jump at a grid shift 2.29% -> 1.48%, for 1.4x
+ * the gathers per crossing (4: 1.31% and 1.55% for 1.8x). */
+#define NEIGHBOUR_CELLS 3
 /* The re-bake runs in 2^(n-1) slices (32 at the default 6 levels: each
  * about 3% of a bake's gathers), never fewer than this. */
 #define MIN_SLICES 4
@@ -53,7 +58,10 @@ enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2, CELL_NEAR = 3 };
  * it, 54 of the walk's 57 anchors close, for 2.5x the CPU per call, 24 ->
  * 59 ms). Never fewer slices than this: one call does at most 1/8 of a
  * bake's gathers; a viewer crossing faster than that keeps the resting
- * cycle. */
+ * cycle. Such a viewer (a drive) never closes one: its kept voxels keep
+ * what they gathered nearer a window's face, where a cold bake's cones
+ * leave for the coarser level (docs/experiments.md, "Why the drive
+ * drifts"). */
 #define FAST_MIN_SLICES 8
 /* Weight of the newest dwell (calls spent at one anchor) in its running mean. */
 #define DWELL_WEIGHT 0.5
