@@ -144,8 +144,8 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
         memcpy(tv[q], &s->vertices[3 * ix[q]], sizeof(float[3]));
       }
       for (int a = 0; a < 3; a++) {
-        tlo[a] = fminf(tv[0][a], fminf(tv[1][a], tv[2][a]));
-        thi[a] = fmaxf(tv[0][a], fmaxf(tv[1][a], tv[2][a]));
+        tlo[a] = gi__minf(tv[0][a], gi__minf(tv[1][a], tv[2][a]));
+        thi[a] = gi__maxf(tv[0][a], gi__maxf(tv[1][a], tv[2][a]));
       }
       int64_t c0[3], c1[3];
       for (int a = 0; a < 3; a++) {
@@ -479,8 +479,8 @@ static gi_result bin_level(struct gi_cascade *c, int d, vox_bufs *b, gi_error_in
     float lo[3], hi[3];
     for (int a = 0; a < 3; a++) {
       float x0 = s->vertices[3 * ix[0] + a], x1 = s->vertices[3 * ix[1] + a], x2 = s->vertices[3 * ix[2] + a];
-      lo[a] = fminf(x0, fminf(x1, x2));
-      hi[a] = fmaxf(x0, fmaxf(x1, x2));
+      lo[a] = gi__minf(x0, gi__minf(x1, x2));
+      hi[a] = gi__maxf(x0, gi__maxf(x1, x2));
     }
     if (L->has_inner && lo[0] > ilo[0] && hi[0] < ihi[0] && lo[1] > ilo[1] && hi[1] < ihi[1] &&
         lo[2] > ilo[2] && hi[2] < ihi[2])
@@ -505,8 +505,8 @@ static gi_result bin_level(struct gi_cascade *c, int d, vox_bufs *b, gi_error_in
   memcpy(fill, b->bin_start, ((size_t)nslab + 1) * sizeof *fill);
   for (size_t q = 0; q < kept; q++) {
     const uint32_t *ix = &s->indices[3 * b->tris[q]];
-    float lo = fminf(s->vertices[3 * ix[0] + 2], fminf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
-    float hi = fmaxf(s->vertices[3 * ix[0] + 2], fmaxf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
+    float lo = gi__minf(s->vertices[3 * ix[0] + 2], gi__minf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
+    float hi = gi__maxf(s->vertices[3 * ix[0] + 2], gi__maxf(s->vertices[3 * ix[1] + 2], s->vertices[3 * ix[2] + 2]));
     int64_t k0 = (int64_t)floor((double)lo / L->s) - L->cell0[2];
     int64_t k1 = (int64_t)floor((double)hi / L->s) - L->cell0[2];
     if (k0 < 0) k0 = 0;

@@ -174,7 +174,8 @@ static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *b, ui
     for (int v = 0; v < 3; v++) memcpy(tv[v], &s->vertices[3 * ix[v]], sizeof(float[3]));
     cell_box tb;
     for (int a = 0; a < 3; a++) {
-      float tlo = fminf(tv[0][a], fminf(tv[1][a], tv[2][a])), thi = fmaxf(tv[0][a], fmaxf(tv[1][a], tv[2][a]));
+      float tlo = gi__minf(tv[0][a], gi__minf(tv[1][a], tv[2][a]));
+      float thi = gi__maxf(tv[0][a], gi__maxf(tv[1][a], tv[2][a]));
       tb.lo[a] = (int64_t)floor((double)tlo / L->s);
       tb.hi[a] = (int64_t)floor((double)thi / L->s) + 1;
       if (tb.lo[a] < b->lo[a]) tb.lo[a] = b->lo[a];
