@@ -80,7 +80,8 @@ int gi__parallel_for_cancel(size_t n, size_t grain, int threads, gi__range_fn fn
 gi_result gi__cancel_fail(const gi_cancel *c, gi_error_info *err, const char *stage);
 /* Bound on the worker ids gi__parallel_for passes for `threads` (ids are
  * 0..N-1): the size of a per-worker scratch array. At most min(N, cores)
- * of them run at once. */
+ * of them run at once. Never more than GI_MAX_WORKERS. */
+#define GI_MAX_WORKERS 256
 int gi__num_workers(int threads);
 
 /* 1 when the hot loops take their x86-64-v3 build (base/cpu.c). */

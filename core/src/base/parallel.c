@@ -16,8 +16,6 @@
 #include <unistd.h>
 #include "base/internal.h"
 
-#define GI_MAX_WORKERS 256
-
 typedef struct job {
   size_t n, grain;
   atomic_size_t next;   /* first index of the next chunk */

@@ -292,22 +292,56 @@ void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end)
   shade_range(c, d, begin, end, NULL);
 }
 
+/* shade_all's two passes, each one parallel loop over every level's own
+ * voxels (level d's are [start[d], start[d + 1])): each worker keeps its
+ * brightest face in peak[worker]. */
+typedef struct {
+  struct gi_cascade *c;
+  gi_faces3 *const *from;
+  size_t start[GI_MAX_LEVELS + 1];
+  float peak[GI_MAX_WORKERS];
+} shade_ctx;
+
+static void peak_range(void *p, size_t b, size_t e, int worker) {
+  shade_ctx *sc = p;
+  float m = sc->peak[worker];
+  int d = 0;
+  for (size_t q = b; q < e; q++) {
+    while (q >= sc->start[d + 1]) d++;
+    const gi_level *L = &sc->c->lv[d];
+    size_t i = q - sc->start[d];
+    float Lf[GI_VOX_FACES][3];
+    face_radiance(L, L->occ[i], sc->from ? (const float(*)[3])sc->from[d][i] : NULL, Lf);
+    for (int f = 0; f < GI_VOX_FACES; f++)
+      for (int k = 0; k < 3; k++) m = gi__maxf(m, Lf[f][k]);
+  }
+  sc->peak[worker] = m;
+}
+
+static void shade_all_range(void *p, size_t b, size_t e, int worker) {
+  (void)worker;
+  shade_ctx *sc = p;
+  for (int d = 0; d < sc->c->n; d++) {
+    size_t lo = b > sc->start[d] ? b : sc->start[d], hi = e < sc->start[d + 1] ? e : sc->start[d + 1];
+    if (lo < hi)
+      shade_range(sc->c, d, (uint32_t)(lo - sc->start[d]), (uint32_t)(hi - sc->start[d]), sc->from ? sc->from[d] : NULL);
+  }
+}
+
 /* Every occupied voxel of every level, after choosing the texels' scale
  * for the brightest of them (filtering then rewrites the nested regions
- * at the same scale). */
+ * at the same scale). Both passes run on the bake's threads: serial, they
+ * were 2.1-2.4 ms of each move, twice, and of each bounce's end (the
+ * city's 13.5k voxels). The maximum does not depend on the order. */
 static void shade_all(struct gi_cascade *c, gi_faces3 *const from[]) {
+  shade_ctx sc = {.c = c, .from = from};
+  for (int d = 0; d < c->n; d++) sc.start[d + 1] = sc.start[d] + c->lv[d].num_occ;
+  int threads = c->report.quality.threads, nw = gi__num_workers(threads);
+  gi__parallel_for(sc.start[c->n], 256, threads, peak_range, &sc);
   float brightest = 0;
-  for (int d = 0; d < c->n; d++) {
-    const gi_level *L = &c->lv[d];
-    for (uint32_t q = 0; q < L->num_occ; q++) {
-      float Lf[GI_VOX_FACES][3];
-      face_radiance(L, L->occ[q], from ? (const float(*)[3])from[d][q] : NULL, Lf);
-      for (int f = 0; f < GI_VOX_FACES; f++)
-        for (int k = 0; k < 3; k++) brightest = gi__maxf(brightest, Lf[f][k]);
-    }
-  }
+  for (int w = 0; w < nw; w++) brightest = gi__maxf(brightest, sc.peak[w]);
   gi__vrad_rescale(c, brightest);
-  for (int d = 0; d < c->n; d++) shade_range(c, d, 0, c->lv[d].num_occ, from ? from[d] : NULL);
+  gi__parallel_for(sc.start[c->n], 256, threads, shade_all_range, &sc);
 }
 
 void gi__shade_all(struct gi_cascade *c) { shade_all(c, NULL); }
