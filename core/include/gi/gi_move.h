@@ -6,9 +6,9 @@
  *     copied) and voxelizes and injects direct light only into the voxels
  *     that came into range (or left a finer level's region), bit-identical
  *     to a bake's;
- *   - gathers those new voxels and the kept voxels within 2 cells of them
- *     once from the current texture (their cones read the coarser levels
- *     at once); every other kept voxel keeps its light;
+ *   - gathers those new voxels and the kept voxels within 3 cells of them
+ *     once from the current texture (near a window's face a voxel's cones
+ *     read the coarser level at once); other kept voxels keep their light;
  *   - re-bakes in the background: on each call that keeps the anchor
  *     (gi_cascade_anchor), it runs one slice of the bake's own bounce
  *     schedule (k bounces and the tail, from direct light) against a second
@@ -26,9 +26,9 @@
  * restarts the re-bake, so a viewer that crosses cells on almost every
  * call sees the live update alone (measured on the city at default
  * quality, 600 steps at 10 Hz, against cold bakes: a 14 m/s drive reads
- * 0.76% mean / 7.4% max; a 1.4 m/s walk, crossing every ~10 calls, read
- * 1.25% / 2.25% with the resting cycle, which never closed, and 0.06% /
- * 0.49% with the moving one).
+ * 0.40% mean / 1.68% max (docs/experiments.md); a 1.4 m/s walk, crossing
+ * every ~10 calls, read 1.25% / 2.25% with the resting cycle, which never
+ * closed, and 0.06% / 0.49% with the moving one).
  * A level that moves by its extent or more is rebuilt whole; such a move,
  * and one that changes the effect plan's lights (every voxel re-injected),
  * runs the whole re-bake at once (a cold bake's work) and closes the cycle.
