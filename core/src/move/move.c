@@ -44,9 +44,9 @@ enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2, CELL_NEAR = 3 };
  * of the window into the coarser level, so what the voxels behind a new
  * slab gathered at the face no longer holds (8 s of the drive at 14 m/s,
  * with 2: level 2's kept voxels 1-3 cells behind the new slabs 5-54% off a
- * cold bake's, under 4% further in). Measured over the 60 s drive against 2: probe drift max
- * 2.03% -> 1.68%, largest jump at a grid shift 2.29% -> 1.48%, for 1.4x
- * the gathers per crossing (4: 1.31% and 1.55% for 1.8x). */
+ * cold bake's, under 4% further in). Measured over the 60 s drive against
+ * 2: probe drift max 2.03% -> 1.68%, largest jump at a grid shift 2.29% ->
+ * 1.48%, for 1.4x the gathers per crossing (4: 1.31% and 1.55% for 1.8x). */
 #define NEIGHBOUR_CELLS 3
 /* The re-bake runs in 2^(n-1) slices (32 at the default 6 levels: each
  * about 3% of a bake's gathers), never fewer than this. */
