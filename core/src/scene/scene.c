@@ -487,6 +487,7 @@ void gi_scene_release(gi_scene *s) {
   gi__free(s->emitter_tri);
   gi__free(s->emitter_leaf);
   gi__free(s->ltree);
+  gi__free(s->lpair);
   gi__free(s);
 }
 

@@ -21,6 +21,18 @@ typedef struct gi_light_node {
   uint32_t slot;           /* leaves: the emitter slot; UINT32_MAX for internal nodes */
 } gi_light_node;
 
+/* The two children of an internal node side by side, as the light tree's
+ * walk reads them (light_tree.c): each field [2] is (left, right), so
+ * both importances come from one pass of SSE arithmetic. Box centre and
+ * squared half-diagonal are precomputed with the very operations the walk
+ * used to repeat, so picks are unchanged. link: an internal child's own
+ * pair index, or GI_LT_LEAF | slot for a leaf. */
+#define GI_LT_LEAF 0x80000000u
+typedef struct gi_light_pair {
+  float cen[3][2], h2[2], h[2], power[2], axis[3][2], cos_o[2], sin_o[2];
+  uint32_t link[2];
+} gi_light_pair;
+
 struct gi_scene {
   atomic_int refcount;
   char name[128];
@@ -46,6 +58,7 @@ struct gi_scene {
   uint32_t *emitter_tri;   /* triangle index per emitter slot, ascending */
   uint32_t *emitter_leaf;  /* per slot: its leaf in ltree */
   gi_light_node *ltree;    /* 2 num_emitters - 1 nodes, root first */
+  gi_light_pair *lpair;    /* num_emitters - 1 pairs: node n's children are pair (child - 1) / 2 */
   uint32_t num_lnodes;
   float emitter_area_total;
 
