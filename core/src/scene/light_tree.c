@@ -177,15 +177,19 @@ gi_result gi__light_tree_build(gi_scene *s, const float *power, gi_error_info *e
   s->ltree = gi__malloc((2 * (size_t)ne - 1) * sizeof *s->ltree);
   s->emitter_leaf = gi__malloc(ne * sizeof *s->emitter_leaf);
   s->lpair = gi__malloc((ne > 1 ? ne - 1 : 1) * sizeof *s->lpair);
+  s->emitter_geo = gi__malloc(ne * sizeof *s->emitter_geo);
   c.slots = gi__malloc(ne * sizeof *c.slots);
   c.centroid = gi__malloc(3 * (size_t)ne * sizeof *c.centroid);
   gi_result rc = GI_OK;
-  if (!s->ltree || !s->emitter_leaf || !s->lpair || !c.slots || !c.centroid) {
+  if (!s->ltree || !s->emitter_leaf || !s->lpair || !s->emitter_geo || !c.slots || !c.centroid) {
     rc = gi__fail(err, GI_ERR_NOMEM, "out of memory for the light tree of %u emitters", ne);
     goto done;
   }
   for (uint32_t i = 0; i < ne; i++) {
     const uint32_t *ix = &s->indices[3 * s->emitter_tri[i]];
+    gi_emitter_geo *eg = &s->emitter_geo[i];
+    for (int v = 0; v < 3; v++) memcpy(eg->v[v], &s->vertices[3 * ix[v]], sizeof eg->v[v]);
+    memcpy(eg->Le, s->materials[s->tri_material[s->emitter_tri[i]]].emission, sizeof eg->Le);
     for (int k = 0; k < 3; k++)
       c.centroid[3 * i + k] =
           (s->vertices[3 * ix[0] + k] + s->vertices[3 * ix[1] + k] + s->vertices[3 * ix[2] + k]) / 3.f;

@@ -488,6 +488,7 @@ void gi_scene_release(gi_scene *s) {
   gi__free(s->emitter_leaf);
   gi__free(s->ltree);
   gi__free(s->lpair);
+  gi__free(s->emitter_geo);
   gi__free(s);
 }
 

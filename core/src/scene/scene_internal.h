@@ -27,6 +27,14 @@ typedef struct gi_light_node {
  * squared half-diagonal are precomputed with the very operations the walk
  * used to repeat, so picks are unchanged. link: an internal child's own
  * pair index, or GI_LT_LEAF | slot for a leaf. */
+/* An emitter's corners (local coordinates) and emitted radiance, copied
+ * out of the scene's arrays: a light sample then reads one record instead
+ * of an index line, three vertex lines and a material. */
+typedef struct gi_emitter_geo {
+  float v[3][3];
+  float Le[3];
+} gi_emitter_geo;
+
 #define GI_LT_LEAF 0x80000000u
 typedef struct gi_light_pair {
   float cen[3][2], h2[2], h[2], power[2], axis[3][2], cos_o[2], sin_o[2];
@@ -59,6 +67,7 @@ struct gi_scene {
   uint32_t *emitter_leaf;  /* per slot: its leaf in ltree */
   gi_light_node *ltree;    /* 2 num_emitters - 1 nodes, root first */
   gi_light_pair *lpair;    /* num_emitters - 1 pairs: node n's children are pair (child - 1) / 2 */
+  gi_emitter_geo *emitter_geo; /* per slot: the triangle's corners and emission, copied */
   uint32_t num_lnodes;
   float emitter_area_total;
 
