@@ -7,10 +7,13 @@
  * diffuse cone set around the normal by the gather's surface rule (one
  * voxel of the finest level containing the point off the surface, coarse
  * levels kept off it: trace/gather.c), exactly as the voxel bounces
- * gather; the specular pass (gi_cascade_view_plan decides whether it runs
- * and where) adds one specular cone along the mirror direction, weighted
- * by the material's specular reflectance. Pixels are independent: rows
- * run in parallel, each pixel seeded by its index.
+ * gather, at every stride-th pixel of every stride-th row (the anchors,
+ * gathered first) and mixed between them where they lie on the pixel's
+ * surface (see DEFAULT_STRIDE); the specular pass (gi_cascade_view_plan
+ * decides whether it runs and where) adds one specular cone along the
+ * mirror direction, weighted by the material's specular reflectance.
+ * Rows run in parallel, each pixel seeded by its index; a pixel depends
+ * only on the anchors, so a view is the same on any number of threads.
  * */
 #include <stdatomic.h>
 #include <stdio.h>
@@ -68,7 +71,102 @@ typedef struct {
   float *spec_img;     /* optional: specular * L_cone per pixel */
   int cap;             /* light samples per pixel at most (gi__light_sample_cap) */
   atomic_int failed;   /* a worker ran out of memory */
+  int stride;          /* indirect gathered at every stride-th pixel of every stride-th row (1: all) */
+  int aw, ah;          /* anchors per row and per column */
+  struct anchor *anc;  /* aw * ah, or NULL when stride is 1 */
 } render_ctx;
+
+/* ---- indirect light at anchors, interpolated between them ------------ */
+
+/* Diffuse indirect light varies on the scale of the voxels it is gathered
+ * from (one voxel off the surface), not of pixels: it is gathered at the
+ * anchors (every stride-th pixel of every stride-th row), and a pixel
+ * between four anchors that all lie on its own surface within a voxel of
+ * it takes their bilinear mix; any other pixel (an edge, a corner, a thin
+ * object, a far surface) gathers its own. Direct light, emission and the
+ * specular cone stay per pixel. Measured at stride 4 against every pixel
+ * (default quality, 64 light samples): Munich's street view 921,600 ->
+ * 81,456 diffuse cones, render 357 -> 178 ms, pixels 0.04% apart; the
+ * Cornell box's view against its path-traced reference 12.66% -> 12.57%
+ * error (the mix smooths the gathers' pixel-scale ripple). */
+#define DEFAULT_STRIDE 4
+/* An anchor lies on the pixel's surface when their normals are within
+ * about 18 degrees and the anchor lies within ANCHOR_PLANE voxels of the
+ * pixel's tangent plane and ANCHOR_REACH voxels of the pixel (voxels of
+ * the finest level at the pixel). */
+#define ANCHOR_COS 0.95f
+#define ANCHOR_PLANE 0.25f
+#define ANCHOR_REACH 1.0f
+
+typedef struct anchor {
+  float x[3], n[3];    /* the primary hit and its normal, turned to the camera */
+  float E[3];          /* diffuse indirect irradiance */
+  int ok;              /* hit a surface inside the cascade, E gathered */
+} anchor;
+
+/* The primary hit of pixel (px, py): 1 with its point, the normal turned
+ * toward the camera, and its triangle, 0 when the ray leaves the scene. */
+static int primary_hit(const render_ctx *rc, int px, int py, float w[3], float x[3], float n[3], float ng[3],
+                       uint32_t *tri) {
+  float t;
+  gi__cam_ray(rc->k, (float)px + 0.5f, (float)py + 0.5f, w);
+  if (!gi__intersect1(rc->c->scene, rc->k->eye, w, 0, INFINITY, &t, tri, ng)) return 0;
+  float cw = gi__dot(ng, w);
+  for (int a = 0; a < 3; a++) n[a] = cw > 0 ? -ng[a] : ng[a], x[a] = rc->k->eye[a] + t * w[a];
+  return 1;
+}
+
+/* Indirect light by the surface rule, exactly as the voxel bounces gather. */
+static void gather_indirect(const render_ctx *rc, const float x[3], const float n[3], int d, float E[3],
+                            uint64_t *cones) {
+  gi_gather_out go;
+  gi__gather_hemisphere(rc->c, x, n, GI_GATHER_SURFACE, d, &go, NULL, NULL);
+  for (int a = 0; a < 3; a++) E[a] = go.E[a];
+  *cones += (uint64_t)rc->c->num_cones;
+}
+
+static void anchor_rows(void *p, size_t b, size_t e, int worker) {
+  (void)worker;
+  render_ctx *rc = p;
+  uint64_t cones = 0;
+  for (size_t j = b; j < e; j++)
+    for (int i = 0; i < rc->aw; i++) {
+      anchor *an = &rc->anc[j * (size_t)rc->aw + (size_t)i];
+      float w[3], ng[3];
+      uint32_t tri;
+      memset(an, 0, sizeof *an);
+      if (!primary_hit(rc, i * rc->stride, (int)j * rc->stride, w, an->x, an->n, ng, &tri)) continue;
+      int d = gi__finest_level_at(rc->c, an->x);
+      if (d < 0) continue;
+      gather_indirect(rc, an->x, an->n, d, an->E, &cones);
+      an->ok = 1;
+    }
+  atomic_fetch_add(&rc->diffuse_cones, cones);
+}
+
+/* The pixel's indirect light from the four anchors around it: 1 when
+ * all of them lie on its surface (E their bilinear mix), else 0. */
+static int interpolate_indirect(const render_ctx *rc, int px, int py, const float x[3], const float n[3], int d,
+                                float E[3]) {
+  int S = rc->stride, i0 = px / S, j0 = py / S;
+  float fx = (float)(px - i0 * S) / (float)S, fy = (float)(py - j0 * S) / (float)S;
+  float s = (float)rc->c->lv[d].s, wsum = 0, acc[3] = {0, 0, 0};
+  for (int dj = 0; dj < 2; dj++)
+    for (int di = 0; di < 2; di++) {
+      int i = i0 + di, j = j0 + dj;
+      float wt = (di ? fx : 1 - fx) * (dj ? fy : 1 - fy);
+      if (!(wt > 0)) continue;
+      if (i >= rc->aw || j >= rc->ah) return 0;
+      const anchor *an = &rc->anc[(size_t)j * rc->aw + (size_t)i];
+      if (!an->ok || gi__dot(an->n, n) < ANCHOR_COS) return 0;
+      float v[3] = {an->x[0] - x[0], an->x[1] - x[1], an->x[2] - x[2]};
+      if (fabsf(gi__dot(v, n)) > ANCHOR_PLANE * s || gi__dot(v, v) > ANCHOR_REACH * ANCHOR_REACH * s * s) return 0;
+      for (int a = 0; a < 3; a++) acc[a] += wt * an->E[a];
+      wsum += wt;
+    }
+  for (int a = 0; a < 3; a++) E[a] = acc[a] / wsum;
+  return 1;
+}
 
 static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3],
                         float *spec) {
@@ -77,19 +175,16 @@ static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint
   int cap = sc->cap;
   const struct gi_cascade *c = rc->c;
   const gi_scene *s = c->scene;
-  float w[3], t, ng[3];
+  float w[3], ng[3], n[3], x[3];
   uint32_t tri;
   out[0] = out[1] = out[2] = 0;
-  gi__cam_ray(rc->k, (float)px + 0.5f, (float)py + 0.5f, w);
-  if (!gi__intersect1(s, rc->k->eye, w, 0, INFINITY, &t, &tri, ng)) {
+  if (!primary_hit(rc, px, py, w, x, n, ng, &tri)) {
     /* The camera sees the sky itself where the plan lights with it. */
     if (c->report.effects[GI_FX_SKY].ran) gi__sky_radiance(s, out);
     return;
   }
   const gi_material *m = &s->materials[s->tri_material[tri]];
-  float cw = gi__dot(ng, w), n[3], x[3];
-  for (int a = 0; a < 3; a++) n[a] = cw > 0 ? -ng[a] : ng[a], x[a] = rc->k->eye[a] + t * w[a];
-  if (cw < 0) /* emitters are one-sided: their front faces the camera */
+  if (gi__dot(ng, w) < 0) /* emitters are one-sided: their front faces the camera */
     for (int a = 0; a < 3; a++) out[a] += m->emission[a];
   float E[3] = {0, 0, 0};
   gi_light_plan lp = gi__light_plan(&c->report, rc->samples);
@@ -104,13 +199,16 @@ static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint
       float cn = gi__dot(n, ls[i].w);
       for (int a = 0; a < 3; a++) E[a] += ls[i].V[a] * cn;
     }
-  /* Indirect light: the surface rule, exactly as the voxel bounces gather. */
+  /* Indirect light: the anchor's own, the anchors' mix, or the pixel's own gather. */
   int d = gi__finest_level_at(c, x);
   if (d >= 0 && c->report.bounces_run > 0) {
-    gi_gather_out go;
-    gi__gather_hemisphere(c, x, n, GI_GATHER_SURFACE, d, &go, NULL, NULL);
-    for (int a = 0; a < 3; a++) E[a] += go.E[a];
-    cones[0] += (uint64_t)c->num_cones;
+    float Ei[3];
+    int S = rc->stride;
+    if (S > 1 && px % S == 0 && py % S == 0 && rc->anc[(size_t)(py / S) * rc->aw + (size_t)(px / S)].ok)
+      memcpy(Ei, rc->anc[(size_t)(py / S) * rc->aw + (size_t)(px / S)].E, sizeof Ei);
+    else if (S == 1 || !interpolate_indirect(rc, px, py, x, n, d, Ei))
+      gather_indirect(rc, x, n, d, Ei, &cones[0]);
+    for (int a = 0; a < 3; a++) E[a] += Ei[a];
   }
   for (int a = 0; a < 3; a++) out[a] += m->albedo[a] * (1.f / GI_PI_F) * E[a];
   int glossy = m->roughness < 0.5f && m->specular > 0;
@@ -149,6 +247,9 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   if (o.light_samples == 0) o.light_samples = 64;
   if (o.light_samples < 1 || o.light_samples > 4096)
     return gi__fail(err, GI_ERR_INVALID_ARG, "render: light_samples must be 1..4096, got %d", o.light_samples);
+  if (o.indirect_stride < 0 || o.indirect_stride > GI_RENDER_MAX_STRIDE)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "render: indirect_stride must be 0..%d, got %d", GI_RENDER_MAX_STRIDE,
+                    o.indirect_stride);
   gi__cam k;
   gi_result r = gi__cam_setup(c->scene, cam, &k, err);
   if (r != GI_OK) return r;
@@ -161,7 +262,20 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   gi_light_plan lp = gi__light_plan(&c->report, o.light_samples);
   rc.cap = gi__light_sample_cap(c->scene, &lp);
   atomic_init(&rc.failed, 0);
+  atomic_init(&rc.diffuse_cones, 0);
+  atomic_init(&rc.specular_cones, 0);
+  rc.stride = o.indirect_stride ? o.indirect_stride : DEFAULT_STRIDE;
+  if (rc.stride > 1 && c->report.bounces_run > 0) {
+    rc.aw = (k.w - 1) / rc.stride + 1, rc.ah = (k.h - 1) / rc.stride + 1;
+    rc.anc = gi__malloc((size_t)rc.aw * (size_t)rc.ah * sizeof *rc.anc);
+    if (!rc.anc)
+      return gi__fail(err, GI_ERR_NOMEM, "render: out of memory for %d x %d indirect anchors", rc.aw, rc.ah);
+    gi__parallel_for((size_t)rc.ah, 1, o.threads, anchor_rows, &rc);
+  } else {
+    rc.stride = 1;
+  }
   gi__parallel_for_stop((size_t)k.h, 1, o.threads, render_rows, &rc, &rc.failed);
+  gi__free(rc.anc);
   if (atomic_load(&rc.failed))
     return gi__fail(err, GI_ERR_NOMEM, "render: out of memory for the light-sample buffers (%d samples)", rc.cap);
   if (st) {
