@@ -5,7 +5,7 @@ out=$("$BIN" --help); rc=$?
 [ $rc -eq 0 ] && pass "--help exits 0" || fail "--help exited $rc"
 for opt in --at --up --levels --res --voxel --cones --bounces --samples --probe-samples --threads \
            --exr --half --vdb --vdb-faces --json --probes --sun --sky --point --spot --no-default-lights \
-           --ao --effect --render --png --render-samples --city-extent --city-seed --city-detail --help --version \
+           --ao --effect --render --png --render-samples --render-stride --city-extent --city-seed --city-detail --help --version \
            --grid --region --above-ground --shard --resume --manifest; do
   printf '%s\n' "$out" | grep -q -e "$opt\\b" || fail "--help does not mention $opt"
 done

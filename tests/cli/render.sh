@@ -18,6 +18,23 @@ assert png[:8] == b"\x89PNG\r\n\x1a\n"
 w, h = struct.unpack(">II", png[16:24])
 assert (w, h) == (72, 16), (w, h)
 PY
+# --render-stride: 1 gathers at every pixel (16 cones at each one inside the
+# cascade), the default 4 at anchors where a pixel's four lie on its surface
+# within a voxel (160 x 96 pixels: 4 of them span about a voxel of the back
+# wall), so it traces fewer; both report the stride they used.
+cones() {
+  "$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --bounces 1 --json \
+      --render 2,2,0.3,2,2,3,70,160,96 --render-samples 1 --png "$T/s.png" "$@" > "$T/s.json" 2> "$T/err" &&
+    python3 -c 'import json,sys; r=json.load(open(sys.argv[1]))["render"]; print(r["indirect_stride"], r["diffuse_cones"])' "$T/s.json"
+}
+one=$(cones --render-stride 1) && four=$(cones) &&
+  python3 - "$one" "$four" <<'PY' && pass "--render-stride 1: $one; default: $four" || fail "--render-stride: '$one' / '$four'"
+import sys
+s1, c1 = map(int, sys.argv[1].split()); s4, c4 = map(int, sys.argv[2].split())
+assert s1 == 1 and c1 % 16 == 0 and 0 < c1 <= 160 * 96 * 16, (s1, c1)
+assert s4 == 4 and 0 < c4 < c1 // 2, (s4, c4)
+PY
+
 if command -v exrheader > /dev/null 2>&1; then
   exrheader "$T/view.exr" > "$T/hdr" 2>&1
   grep -q 'path\.R' "$T/hdr" && grep -q 'error\.Y' "$T/hdr" && pass "EXR has path.R and error.Y" || fail "EXR channels"
@@ -34,4 +51,12 @@ expect2 "$T/box.obj" --render 2,2,0.3,2,2,3,70,24.5,16 --png "$T/x.png"
 expect2 "$T/box.obj" --render "$T/missing.xml" --png "$T/x.png"
 expect2 "$T/box.obj" --png "$T/x.png"
 expect2 "$T/box.obj" --render 2,2,0.3,2,2,3,70,24,16
+expect2s() {
+  "$BIN" "$@" > /dev/null 2> "$T/err"; rc=$?
+  if [ $rc -eq 2 ] && grep -q -e "--render-stride" "$T/err"; then pass "'$*' -> 2: $(head -n 1 "$T/err")"
+  else fail "'$*' exited $rc: $(cat "$T/err")"; fi
+}
+expect2s "$T/box.obj" --render 2,2,0.3,2,2,3,70,24,16 --png "$T/x.png" --render-stride 0
+expect2s "$T/box.obj" --render 2,2,0.3,2,2,3,70,24,16 --png "$T/x.png" --render-stride 17
+expect2s "$T/box.obj" --render-stride 2
 finish

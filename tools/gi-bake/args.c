@@ -26,7 +26,7 @@ enum {
   OPT_AT = 256, OPT_UP, OPT_LEVELS, OPT_RES, OPT_VOXEL, OPT_CONES, OPT_BOUNCES, OPT_SAMPLES,
   OPT_PROBE_SAMPLES, OPT_THREADS, OPT_EXR, OPT_HALF, OPT_VDB, OPT_VDB_FACES, OPT_JSON, OPT_PROBES,
   OPT_SUN, OPT_SKY, OPT_POINT, OPT_SPOT, OPT_NO_DEFAULT_LIGHTS, OPT_AO, OPT_CITY_EXTENT, OPT_CITY_SEED,
-  OPT_CITY_DETAIL, OPT_EFFECT, OPT_RENDER, OPT_PNG, OPT_RENDER_SAMPLES
+  OPT_CITY_DETAIL, OPT_EFFECT, OPT_RENDER, OPT_PNG, OPT_RENDER_SAMPLES, OPT_RENDER_STRIDE
 };
 
 static const struct option long_opts[] = {
@@ -56,6 +56,7 @@ static const struct option long_opts[] = {
     {"render", required_argument, NULL, OPT_RENDER},
     {"png", required_argument, NULL, OPT_PNG},
     {"render-samples", required_argument, NULL, OPT_RENDER_SAMPLES},
+    {"render-stride", required_argument, NULL, OPT_RENDER_STRIDE},
     {"city-extent", required_argument, NULL, OPT_CITY_EXTENT},
     {"city-seed", required_argument, NULL, OPT_CITY_SEED},
     {"city-detail", required_argument, NULL, OPT_CITY_DETAIL},
@@ -148,6 +149,9 @@ static const char help_text[] =
     "                        --render); with --render, --exr gets the images\n"
     "                        (R,G,B cone-traced, path.R/G/B, error.Y) instead of probes\n"
     "  --render-samples N    paths per pixel of the path-traced view, 1..65536 (64)\n"
+    "  --render-stride N     the cascade's view gathers indirect light at every Nth\n"
+    "                        pixel of every Nth row and mixes it between those on\n"
+    "                        a pixel's own surface; 1 = at every pixel, 1..16 (4)\n"
     "  -h, --help            this text;  -V, --version  the version\n"
     "\n"
     "Exit status: 0 success, 1 the scene, bake or an output failed, 2 bad arguments.\n"
@@ -374,6 +378,8 @@ static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
   case OPT_RENDER: return parse_render(o, arg);
   case OPT_PNG: o->png = arg; return 0;
   case OPT_RENDER_SAMPLES: return ta_int(&ta, "--render-samples", NULL, arg, 1, 65536, &o->render_spp);
+  case OPT_RENDER_STRIDE:
+    return ta_int(&ta, "--render-stride", NULL, arg, 1, GI_RENDER_MAX_STRIDE, &o->render_stride);
   case OPT_CITY_EXTENT: case OPT_CITY_SEED: case OPT_CITY_DETAIL: return city_option(o, c, arg);
   case OPT_GRID: case OPT_REGION: case OPT_ABOVE_GROUND: case OPT_SHARD: case OPT_RESUME: case OPT_MANIFEST:
     return batch_option(&ta, &o->batch, c, arg);
@@ -417,6 +423,7 @@ static int check_combinations(cli_opts *o) {
   if (o->half && !o->exr && !o->lm.out) return ta_fail(&ta, "--half", "needs --exr or --lightmap");
   if ((rc = lightmap_check(o))) return rc;
   if (o->png && !o->render) return ta_fail(&ta, "--png", "needs --render");
+  if (o->render_stride && !o->render) return ta_fail(&ta, "--render-stride", "needs --render");
   if (o->render && !o->png && !o->exr) return ta_fail(&ta, "--render", "needs --png or --exr for the pictures");
   if (o->render && (rc = check_render_camera(o))) return rc;
   if (o->png && (rc = ta_check_output(&ta, "--png", o->png))) return rc;

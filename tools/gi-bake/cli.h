@@ -35,7 +35,7 @@ typedef struct cli_opts {
   size_t num_lights;
   gi_city_params city;
   int city_opts_given;      /* a --city-* option was used */
-  int render, cam_up_from_scene, render_spp;
+  int render, cam_up_from_scene, render_spp, render_stride;
   gi_camera cam;            /* --render */
   const char *png;
   double *probes;           /* extra points from --probes, 3 per point */
@@ -52,7 +52,7 @@ void cli_opts_fini(cli_opts *o);
 /* What --render measured. */
 typedef struct cli_render_stats {
   double cone_ms, path_ms, mre;
-  int width, height, spp;
+  int width, height, spp, stride;
   gi_render_stats view;     /* the cone-traced view: its plan and cone counts */
 } cli_render_stats;
 

@@ -35,7 +35,7 @@ void gi_cascade_view_plan(const gi_cascade *c, gi_effect out[GI_FX_COUNT]);
 /* What one view cost. */
 typedef struct gi_render_stats {
   double ms;                         /* wall clock of the whole view */
-  uint64_t diffuse_cones;            /* diffuse cones traced (all pixels) */
+  uint64_t diffuse_cones;            /* diffuse cones traced: the anchors' and the own gathers' */
   uint64_t specular_cones;           /* specular cones traced: 0 when the pass is skipped */
   gi_effect effects[GI_FX_COUNT];    /* gi_cascade_view_plan, as followed */
 } gi_render_stats;
