@@ -39,6 +39,7 @@ test: all
 bench: all
 	./tests/bench/run-bench.sh $(BUILD)
 	./tests/bench/specular-bench.sh $(BUILD)
+	./tests/bench/render-bench.sh $(BUILD)
 	./tests/bench/speedup.sh $(BUILD)
 
 # Batch probe grids (issue 13): Munich street-level probes at 4 m, 2 m above
