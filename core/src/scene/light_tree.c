@@ -173,6 +173,8 @@ static void fill_pairs(gi_scene *s) {
 gi_result gi__light_tree_build(gi_scene *s, const float *power, gi_error_info *err) {
   uint32_t ne = s->num_emitters;
   if (!ne) return GI_OK;
+  /* A pair's link keeps a leaf's slot below its flag bit. */
+  if (ne >= GI_LT_LEAF) return gi__fail(err, GI_ERR_LIMIT, "light tree: %u emitters, at most %u", ne, GI_LT_LEAF - 1);
   build_ctx c = {.s = s, .power = power, .next = 1};
   s->ltree = gi__malloc((2 * (size_t)ne - 1) * sizeof *s->ltree);
   s->emitter_leaf = gi__malloc(ne * sizeof *s->emitter_leaf);

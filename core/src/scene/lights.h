@@ -52,7 +52,7 @@ uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, floa
  * picks are the same as without it. */
 #define GI_LT_MEMO_DEPTH 64
 typedef struct gi_lt_memo {
-  uint32_t node[GI_LT_MEMO_DEPTH]; /* node index + 1 at each depth (0: none yet) */
+  uint32_t node[GI_LT_MEMO_DEPTH]; /* at each depth, the node's children's pair index + 1 (0: none yet) */
   double pl[GI_LT_MEMO_DEPTH];     /* its left child's probability from p */
 } gi_lt_memo;
 uint32_t gi__light_tree_pick_memo(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest,
