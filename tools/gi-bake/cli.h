@@ -52,7 +52,7 @@ void cli_opts_fini(cli_opts *o);
 /* What --render measured. */
 typedef struct cli_render_stats {
   double cone_ms, path_ms, mre;
-  int width, height, spp, stride;
+  int width, height, spp;
   gi_render_stats view;     /* the cone-traced view: its plan and cone counts */
 } cli_render_stats;
 

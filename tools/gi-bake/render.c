@@ -35,8 +35,8 @@ int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, 
     goto done;
   }
   memset(st, 0, sizeof *st);
-  st->width = w, st->height = h, st->spp = spp, st->stride = o->render_stride ? o->render_stride : 4;
-  gi_render_opts ro = {.threads = o->q.threads, .indirect_stride = st->stride};
+  st->width = w, st->height = h, st->spp = spp;
+  gi_render_opts ro = {.threads = o->q.threads, .indirect_stride = o->render_stride};
   if (gi_cascade_render_ex(cas, &cam, &ro, cone, &st->view, &err) != GI_OK ||
       gi_reference_render(scene, &cam, spp, 1, o->q.threads, path, &st->path_ms, &err) != GI_OK) {
     fprintf(stderr, "gi-bake: --render: %s\n", err.msg);

@@ -150,7 +150,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
     json_object_set_new(rj, "cone_ms", json_real(r->render->cone_ms));
     json_object_set_new(rj, "path_ms", json_real(r->render->path_ms));
     json_object_set_new(rj, "mean_relative_error", json_real(r->render->mre));
-    json_object_set_new(rj, "indirect_stride", json_integer(r->render->stride));
+    json_object_set_new(rj, "indirect_stride", json_integer(r->render->view.indirect_stride));
     json_object_set_new(rj, "diffuse_cones", count(r->render->view.diffuse_cones));
     json_object_set_new(rj, "specular_cones", count(r->render->view.specular_cones));
     json_object_set_new(root, "render", rj);

@@ -36,6 +36,7 @@ void gi_cascade_view_plan(const gi_cascade *c, gi_effect out[GI_FX_COUNT]);
 typedef struct gi_render_stats {
   double ms;                         /* wall clock of the whole view */
   uint64_t diffuse_cones;            /* diffuse cones traced: the anchors' and the own gathers' */
+  int indirect_stride;               /* the anchors' spacing the view used (1 when it gathered no indirect light) */
   uint64_t specular_cones;           /* specular cones traced: 0 when the pass is skipped */
   gi_effect effects[GI_FX_COUNT];    /* gi_cascade_view_plan, as followed */
 } gi_render_stats;

@@ -9,9 +9,10 @@
  * levels kept off it: trace/gather.c), exactly as the voxel bounces
  * gather, at every stride-th pixel of every stride-th row (the anchors,
  * gathered first) and mixed between them where they lie on the pixel's
- * surface (see DEFAULT_STRIDE); the specular pass (gi_cascade_view_plan
- * decides whether it runs and where) adds one specular cone along the
- * mirror direction, weighted by the material's specular reflectance.
+ * surface (see "indirect light at anchors" below); the specular pass
+ * (gi_cascade_view_plan decides whether it runs and where) adds one
+ * specular cone along the mirror direction, weighted by the material's
+ * specular reflectance.
  * Rows run in parallel, each pixel seeded by its index; a pixel depends
  * only on the anchors, so a view is the same on any number of threads.
  * */
@@ -88,8 +89,8 @@ typedef struct {
  * (default quality, 64 light samples): Munich's street view 921,600 ->
  * 81,456 diffuse cones, render 357 -> 178 ms, pixels 0.04% apart; the
  * Cornell box's view against its path-traced reference 12.66% -> 12.57%
- * error (the mix smooths the gathers' pixel-scale ripple). */
-#define DEFAULT_STRIDE 4
+ * error (the mix smooths the gathers' pixel-scale ripple). The default
+ * spacing is GI_RENDER_DEFAULT_STRIDE (gi_camera.h). */
 /* An anchor lies on the pixel's surface when their normals are within
  * about 18 degrees and the anchor lies within ANCHOR_PLANE voxels of the
  * pixel's tangent plane and ANCHOR_REACH voxels of the pixel (voxels of
@@ -203,11 +204,8 @@ static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint
   int d = gi__finest_level_at(c, x);
   if (d >= 0 && c->report.bounces_run > 0) {
     float Ei[3];
-    int S = rc->stride;
-    if (S > 1 && px % S == 0 && py % S == 0 && rc->anc[(size_t)(py / S) * rc->aw + (size_t)(px / S)].ok)
-      memcpy(Ei, rc->anc[(size_t)(py / S) * rc->aw + (size_t)(px / S)].E, sizeof Ei);
-    else if (S == 1 || !interpolate_indirect(rc, px, py, x, n, d, Ei))
-      gather_indirect(rc, x, n, d, Ei, &cones[0]);
+    /* An anchor's own pixel is its cell's corner at weight 1: its own E. */
+    if (rc->stride == 1 || !interpolate_indirect(rc, px, py, x, n, d, Ei)) gather_indirect(rc, x, n, d, Ei, &cones[0]);
     for (int a = 0; a < 3; a++) E[a] += Ei[a];
   }
   for (int a = 0; a < 3; a++) out[a] += m->albedo[a] * (1.f / GI_PI_F) * E[a];
@@ -264,7 +262,7 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   atomic_init(&rc.failed, 0);
   atomic_init(&rc.diffuse_cones, 0);
   atomic_init(&rc.specular_cones, 0);
-  rc.stride = o.indirect_stride ? o.indirect_stride : DEFAULT_STRIDE;
+  rc.stride = o.indirect_stride ? o.indirect_stride : GI_RENDER_DEFAULT_STRIDE;
   if (rc.stride > 1 && c->report.bounces_run > 0) {
     rc.aw = (k.w - 1) / rc.stride + 1, rc.ah = (k.h - 1) / rc.stride + 1;
     rc.anc = gi__malloc((size_t)rc.aw * (size_t)rc.ah * sizeof *rc.anc);
@@ -283,6 +281,7 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
     st->ms = gi__now_ms() - t0;
     st->diffuse_cones = atomic_load(&rc.diffuse_cones);
     st->specular_cones = atomic_load(&rc.specular_cones);
+    st->indirect_stride = rc.stride;
     gi_cascade_view_plan(c, st->effects);
   }
   for (size_t i = 0; i < np; i++)
