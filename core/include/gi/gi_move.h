@@ -7,8 +7,11 @@
  *     that came into range (or left a finer level's region), bit-identical
  *     to a bake's;
  *   - gathers those new voxels and the kept voxels within 3 cells of them
- *     once from the current texture (near a window's face a voxel's cones
- *     read the coarser level at once); other kept voxels keep their light;
+ *     once (near a window's face a voxel's cones read the coarser level at
+ *     once) from a copy of the texture that holds the orders the bake's
+ *     last bounce read: every voxel's light less the last bounce's share,
+ *     the new voxels' from a first gather of their own; other kept voxels
+ *     keep their light;
  *   - re-bakes in the background: on each call that keeps the anchor
  *     (gi_cascade_anchor), it runs one slice of the bake's own bounce
  *     schedule (k bounces and the tail, from direct light) against a second
@@ -26,9 +29,9 @@
  * restarts the re-bake, so a viewer that crosses cells on almost every
  * call sees the live update alone (measured on the city at default
  * quality, 600 steps at 10 Hz, against cold bakes: a 14 m/s drive reads
- * 0.40% mean / 1.68% max (docs/experiments.md); a 1.4 m/s walk, crossing
+ * 0.39% mean / 1.49% max (docs/experiments.md); a 1.4 m/s walk, crossing
  * every ~10 calls, read 1.25% / 2.25% with the resting cycle, which never
- * closed, and 0.06% / 0.49% with the moving one).
+ * closed, and 0.04% / 0.27% with the moving one).
  * A level that moves by its extent or more is rebuilt whole; such a move,
  * and one that changes the effect plan's lights (every voxel re-injected),
  * runs the whole re-bake at once (a cold bake's work) and closes the cycle.

@@ -229,6 +229,11 @@ struct gi_cascade {
   gi_quality plan_q;
   int auto_bounces;
   int tail;            /* the plan's bounce tail (gi__bounce) */
+  /* Per channel, the share of the voxels' indirect light (side - direct,
+   * area-weighted) that the last bounce added: what a gather of the whole
+   * texture returns beyond the bake's orders (move.c). 0 when the tail was
+   * added (the texture then holds every order) or after no bounce. */
+  float last_share[3];
   uint64_t moves;
   /* The effect plan's survey of what lies in the coarsest level's range
    * (plan.c), kept while that level's box stays: a move that scrolls only

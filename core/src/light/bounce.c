@@ -161,6 +161,26 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
  * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
  * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
  * otherwise multiply its last increment by 99). */
+/* c->last_share from the last bounce's area-weighted increment `last`
+ * and the voxels' whole indirect light (side already summed). */
+static void last_bounce_share(struct gi_cascade *c, const double last[3], int add_tail) {
+  double all[3] = {0, 0, 0};
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    for (uint32_t i = 0; i < L->num_occ; i++) {
+      uint32_t s = L->occ[i];
+      double a = gi__geo(L, s)->area;
+      float(*side)[3] = gi__side(L, s), (*direct)[3] = gi__direct(L, s);
+      for (int f = 0; f < GI_VOX_FACES; f++)
+        for (int k = 0; k < 3; k++) all[k] += a * (side[f][k] - direct[f][k]);
+    }
+  }
+  for (int k = 0; k < 3; k++) {
+    double r = !add_tail && all[k] > 0 && last[k] > 0 ? last[k] / all[k] : 0;
+    c->last_share[k] = (float)(r < 1 ? r : 1);
+  }
+}
+
 void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last) {
   double f[3] = {0, 0, 0};
   for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = 0;
@@ -191,6 +211,7 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], 
         }
     }
   }
+  if (last) last_bounce_share(c, S[1], add_tail);
   if (last) gi__shade_all(c);
   else gi__shade_all_from(c, E);
 }
@@ -203,6 +224,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
   /* Area-weighted sums of the increment per bounce (both sides,
    * every level's own voxels), for the tail's ratio. */
   double S[2][3] = {{0}};
+  memset(c->last_share, 0, sizeof c->last_share);
   int any_wide = bounces > 0 && gi__bounce_wide(c, bounces - 1);
   for (int d = 0; d < c->n; d++) {
     size_t n = (size_t)c->lv[d].num_occ + 1;
