@@ -9,9 +9,10 @@
  *   - gathers those new voxels and the kept voxels within 3 cells of them
  *     once (near a window's face a voxel's cones read the coarser level at
  *     once) from a copy of the texture that holds the orders the bake's
- *     last bounce read: every voxel's light less the last bounce's share,
- *     the new voxels' from a first gather of their own; other kept voxels
- *     keep their light;
+ *     last bounce read: every voxel's light less what the last bounce
+ *     added (its own increment since a re-bake closed, before that the
+ *     bounce's share), the new voxels' from a first gather of their own;
+ *     other kept voxels keep their light;
  *   - re-bakes in the background: on each call that keeps the anchor
  *     (gi_cascade_anchor), it runs one slice of the bake's own bounce
  *     schedule (k bounces and the tail, from direct light) against a second
@@ -31,7 +32,7 @@
  * quality, 600 steps at 10 Hz, against cold bakes: a 14 m/s drive reads
  * 0.39% mean / 1.49% max (docs/experiments.md); a 1.4 m/s walk, crossing
  * every ~10 calls, read 1.25% / 2.25% with the resting cycle, which never
- * closed, and 0.04% / 0.27% with the moving one).
+ * closed, and 0.02% / 0.09% with the moving one).
  * A level that moves by its extent or more is rebuilt whole; such a move,
  * and one that changes the effect plan's lights (every voxel re-injected),
  * runs the whole re-bake at once (a cold bake's work) and closes the cycle.
