@@ -323,7 +323,7 @@ static void path_start(const gi_city_params *cp, double speed, double at[3]) {
 /* Nor traces more than this share of a cold bake's cone samples. Measured:
  * at most 36.8% (the drive: a crossing's gathers, near the window's faces,
  * take the diffuse set where the bake's third bounce takes the wide one;
- * 33.1% before the new voxels' first gather, move.c prime_new). */
+ * 33.1% before the new voxels' first gather, move.c fresh_texture). */
 #define SAMPLES_SHARE 0.4
 static void test_bounded(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
@@ -445,11 +445,11 @@ static void probe_figures(const gi_cascade *c, const double at[3], double v[21])
 /* Probe drift along the walk and the drive against cold bakes at the same
  * anchors: mean and largest relative difference of the 21 figures.
  * Measured on these paths (deterministic, both march kernels alike): walk
- * mean 0.0001, max 0.0045; drive mean 0.0019, max 0.0239 (0.0300 while a
- * crossing gathered from the whole texture, one order more than the bake's
- * and the new voxels at their direct light; 0.0031 / 0.0391 with the order
- * taken off but the new voxels still unprimed: move.c, fresh_texture and
- * prime_new). The drive read
+ * mean 0.0001, max 0.0044; drive mean 0.0020, max 0.0249 (0.0019 / 0.0300
+ * while a crossing gathered from the whole texture, one order more than
+ * the bake's, and the new voxels at their direct light; 0.0031 / 0.0391
+ * with the order taken off but the new voxels not primed: move.c,
+ * fresh_texture). The drive read
  * 0.0028 / 0.0677 while only the kept voxels within 2 cells of the new
  * slabs were re-gathered with it (move.c, NEIGHBOUR_CELLS): those 3 cells
  * behind still held what they gathered at the window's face. The bounds

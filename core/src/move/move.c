@@ -12,7 +12,7 @@
  * Indirect light (see gi_move.h): the scene is static, so kept voxels
  * keep their light; the new voxels and their neighbours are gathered once
  * from a copy of the live texture without the last bounce's order
- * (fresh_texture, prime_new). Exactness comes from a re-bake that runs the
+ * (fresh_texture). Exactness comes from a re-bake that runs the
  * bake's own bounces (k bounces and the tail, from direct light) against a
  * second texture, one slice per call that keeps the anchor, and swaps it
  * in when done. Measured at default quality on the city (street walk at
@@ -462,7 +462,7 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
 /* Gathers the n voxels slots[] of level d from the current texture into E
  * with the diffuse or the wide set. The report counts the cones and
  * samples of every gather, the voxels (level_rebounced) once a move: the
- * fresh texture's first gather (prime_new) does not count them. */
+ * new voxels' first gather (fresh_texture's prime) does not count them. */
 static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n, int wide,
                              int count, gi_faces3 *E, gi_error_info *err) {
   gather_ctx g = {.c = c, .d = d, .slots = slots, .wide = wide, .E = E};
@@ -485,9 +485,15 @@ static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uin
  * increment (m->last); before, the last bounce's share of its indirect
  * light (c->last_share): 1.15% -> 1.05% with the share alone, 0.92% with
  * the voxels' own (cold bakes 1.02%) at the walk's worst shift. New
- * voxels hold their direct light. Returns nonzero when cancelled. */
+ * voxels hold their direct light and the same share of prime[d][q], a
+ * first gather of theirs from the live texture (the bounces' wide set
+ * where there is one: it feeds the later orders only); with their direct
+ * light alone the voxels behind a new slab gathered too little from it
+ * (the drive, a new slab at nearly every step: probe 0.46% / 1.98% mean /
+ * max from cold bakes, 0.39% / 1.49% primed). Swaps the fresh texture in
+ * (the caller swaps it out); nonzero when cancelled. */
 static int fresh_texture(struct gi_cascade *c, gi_move_state *m, int threads, uint32_t **fresh,
-                         const uint32_t *nnew) {
+                         const uint32_t *nnew, gi_faces3 *const *prime) {
   size_t vox = (size_t)c->R * c->R * c->R;
   float keep[3];
   for (int k = 0; k < 3; k++) keep[k] = 1 - c->last_share[k];
@@ -503,39 +509,19 @@ static int fresh_texture(struct gi_cascade *c, gi_move_state *m, int threads, ui
           m->side[d][e][f][k] = m->have_last ? L->side[e][f][k] - m->last[d][e][f][k]
                                              : L->direct[e][f][k] + keep[k] * (L->side[e][f][k] - L->direct[e][f][k]);
     }
+    for (uint32_t q = 0; q < nnew[d]; q++) {
+      uint32_t e = L->vix[fresh[d][q]];
+      for (int f = 0; f < GI_VOX_FACES; f++)
+        for (int k = 0; k < 3; k++) m->side[d][e][f][k] = L->direct[e][f][k] + keep[k] * prime[d][q][f][k];
+    }
   }
   swap_texture(c, m);
   gi__shade_all(c);
   return gi__cascade_filter(c, threads);
 }
 
-/* The new voxels' own light in the fresh texture: a first gather (the
- * bounces' wide set where there is one: it feeds the later orders only),
- * less the last bounce's share, then reshaded and refiltered. With their
- * direct light alone, the voxels around a new slab gather too little from
- * it: the drive (14 m/s, a new slab at nearly every step) kept its probe
- * 0.46% / 1.98% (mean / max) from cold bakes against 0.40% / 1.68% with
- * the whole texture. Returns nonzero when cancelled. */
-static gi_result prime_new(struct gi_cascade *c, int threads, uint32_t **fresh, const uint32_t *nnew,
-                           gi_faces3 **E, gi_error_info *err) {
-  int wide = c->num_wide_cones < c->num_cones;
-  gi_result rc = GI_OK;
-  for (int d = 0; d < c->n && rc == GI_OK; d++) rc = gather_list(c, threads, d, fresh[d], nnew[d], wide, 0, E[d], err);
-  for (int d = 0; d < c->n && rc == GI_OK; d++) {
-    gi_level *L = &c->lv[d];
-    for (uint32_t q = 0; q < nnew[d]; q++) {
-      float(*side)[3] = gi__side(L, fresh[d][q]), (*direct)[3] = gi__direct(L, fresh[d][q]);
-      for (int f = 0; f < GI_VOX_FACES; f++)
-        for (int k = 0; k < 3; k++) side[f][k] = direct[f][k] + (1 - c->last_share[k]) * E[d][q][f][k];
-    }
-  }
-  if (rc != GI_OK) return rc;
-  gi__shade_all(c);
-  return gi__cascade_filter(c, threads) ? gi__cancel_fail(c->cancel, err, "move filter") : GI_OK;
-}
-
 /* The live update's light: one Jacobi gather of the new voxels and their
- * kept neighbours (fresh_texture, prime_new). Kept voxels further away
+ * kept neighbours from the fresh texture. Kept voxels further away
  * keep their light: the scene is static, so the light they hold is still
  * the field the bake would find there (measured: re-gathering whole levels
  * drifts toward the infinite-bounce answer instead, 5x the probe error). */
@@ -548,10 +534,14 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
     if (!(E[d] = gi__malloc(((size_t)nfresh[d] + 1) * sizeof *E[d])))
       rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
   if (rc != GI_OK) goto done;
-  if (fresh_texture(c, m, threads, fresh, nnew)) rc = gi__cancel_fail(c->cancel, err, "move filter");
-  if (rc == GI_OK) rc = prime_new(c, threads, fresh, nnew, E, err);
-  for (int d = 0; d < c->n && rc == GI_OK; d++) rc = gather_list(c, threads, d, fresh[d], nfresh[d], 0, 1, E[d], err);
-  swap_texture(c, m);
+  /* The new voxels' first gather, from the live texture (see fresh_texture). */
+  int wide = c->num_wide_cones < c->num_cones;
+  for (int d = 0; d < c->n && rc == GI_OK; d++) rc = gather_list(c, threads, d, fresh[d], nnew[d], wide, 0, E[d], err);
+  if (rc == GI_OK) {
+    if (fresh_texture(c, m, threads, fresh, nnew, E)) rc = gi__cancel_fail(c->cancel, err, "move filter");
+    for (int d = 0; d < c->n && rc == GI_OK; d++) rc = gather_list(c, threads, d, fresh[d], nfresh[d], 0, 1, E[d], err);
+    swap_texture(c, m);
+  }
   for (int d = 0; d < c->n && rc == GI_OK; d++) {
     gi_level *L = &c->lv[d];
     for (uint32_t q = 0; q < nfresh[d]; q++) {
