@@ -1,5 +1,15 @@
 /* gi_move.h: move a baked cascade to a new viewpoint.
  *
+ * Ownership and threads: the caller owns the cascade; a move writes it, so
+ * no reader may run during a move. On error the cascade is left partial
+ * and must be freed. The report (gi_cascade.h) describes the move: its
+ * level_voxelized, level_injected and level_rebounced (voxels gathered,
+ * the live update's and the re-bake slice's, each once a move) and its
+ * stage times count only what the move did; gi_cascade_report returns it
+ * too. A moved cascade holds the re-bake's texture, its side light and
+ * each voxel's last increment beside its own: gi_cascade_bytes counts
+ * them, gi_cascade_move_bytes_estimate bounds them.
+ *
  * The scene is static, so the light field does not change as the viewer
  * moves: the cascade is a window on it. gi_cascade_move therefore
  *   - scrolls each level by whole voxels (toroidal storage: nothing is
@@ -39,16 +49,7 @@
  * So no call that scrolls by less than a level's extent costs more than
  * the new voxels' work (and a refilter above them), and no call that keeps
  * the anchor more than one slice (1/P of a bake's gathers, plus one
- * reshade and refilter per bounce the slice ends).
- *
- * Ownership and threads: the caller owns the cascade; a move writes it, so
- * no reader may run during a move. On error the cascade is left partial
- * and must be freed. The report (gi_cascade.h) describes the move: its
- * level_voxelized, level_injected and level_rebounced (voxel gathers, the
- * live update's and the re-bake slice's) and its stage times count only
- * what the move did; gi_cascade_report returns it too. A moved cascade
- * holds the re-bake's texture beside its own (72 bytes per voxel, about
- * 43% more; gi_cascade_bytes counts it). */
+ * reshade and refilter per bounce the slice ends). */
 #ifndef GI_MOVE_H
 #define GI_MOVE_H
 
