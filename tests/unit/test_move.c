@@ -663,6 +663,46 @@ static void test_relit(void **state) {
   gi_scene_release(s);
 }
 
+/* A crossing keeps the bake's bounce count. In the closed white furnace
+ * (test_furnace.c) with B = 2 explicit bounces a probe's indirect light is
+ * exactly Le (a + a^2 + a^3). Moving 0.1 along x brings the wall at x = 1
+ * into level 2's window: its voxels are new there, and they and their
+ * neighbours are gathered. Gathered from the live texture, which holds
+ * all three orders, they got a fourth (a^4 = 0.41 Le at a = 0.8): the
+ * probe's indirect light read 3.20% over a cold bake at the same anchor
+ * (measured with the fresh texture's order and prime switched off). The
+ * fresh texture (move.c) takes the last bounce's order off: measured
+ * +0.07%; the bound is 0.5%. */
+static void test_crossing_orders(void **state) {
+  const double a = 0.8, Le = 1.0;
+  gi_scene *sc = tu_furnace_scene(1.0, a, Le);
+  gi_quality q = {.levels = 4, .res = 32, .voxel0 = 1.25 / (32 * 4), .bounces = 2, .light_samples = 64,
+                  .probe_samples = 8192, .seed = 1};
+  double at[3] = {0.3, 0.5, 0.5}, to[3] = {0.4, 0.5, 0.5}, pt[3] = {0.43, 0.55, 0.47};
+  gi_cascade *c = NULL, *cold = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(sc, at, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_bake(sc, to, &q, &cold, NULL, &err), GI_OK);
+  gi_move_info mi;
+  assert_int_equal(gi_cascade_move(c, to, NULL, &mi, &err), GI_OK);
+  assert_false(mi.cycle_closed);
+  uint64_t gathered = total(c->report.level_rebounced, c->n);
+  gi_probe pm, pc;
+  assert_int_equal(gi_cascade_gather(c, pt, 1, &pm, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_gather(cold, pt, 1, &pc, NULL, &err), GI_OK);
+  double im = 0, ic = 0;
+  for (int k = 0; k < 3; k++) im += (pm.irradiance[k] - pm.direct[k]) / 3, ic += (pc.irradiance[k] - pc.direct[k]) / 3;
+  double exact = GI_PI * Le * (a + a * a + a * a * a);
+  printf("furnace crossing: %llu voxels gathered; indirect/pi moved %.5f, cold bake %.5f (%+.4f), exact %.5f\n",
+         (unsigned long long)gathered, im / GI_PI, ic / GI_PI, (im - ic) / ic, exact / GI_PI);
+  assert_true(gathered > 0);
+  assert_true(fabs(ic - exact) <= 0.015 * exact); /* test_furnace's bound */
+  assert_true(fabs(im - ic) <= 0.005 * ic);
+  gi_cascade_free(c);
+  gi_cascade_free(cold);
+  gi_scene_release(sc);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_cost),
@@ -676,6 +716,7 @@ int main(void) {
       cmocka_unit_test(test_refilter_exact),
       cmocka_unit_test(test_moving_cycle),
       cmocka_unit_test(test_probe_drift),
+      cmocka_unit_test(test_crossing_orders),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
