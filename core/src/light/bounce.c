@@ -147,20 +147,6 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   atomic_fetch_add(&bc->cones, cones);
 }
 
-/* The end of one bounce, shared with the move's re-bake (move/move.c) so
- * both give the same bits: E holds the bounce's gather of the previous
- * increment, i.e. this bounce's increment D_k; rolls the tail's sums S
- * (area-weighted D of the last two bounces) and adds side += D_k (side =
- * direct + E_k, E_k = D_0 + ... + D_k: orders 2..k+1 of the light leaving
- * the voxels). Not last: the texture is shaded from D_k alone, for the
- * next bounce to gather. Last: + the tail when add_tail, and the texture
- * is shaded from side. The tail: D_k shrinks by the room's mean
- * reflection r = D_k / D_(k-1) (area-weighted over every
- * voxel, per channel; the dominant eigenvalue of the transport once the
- * first bounces have spread the light). The orders left out add
- * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
- * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
- * otherwise multiply its last increment by 99). */
 /* c->last_share from the last bounce's area-weighted increment `last`
  * and the voxels' whole indirect light (side already summed). */
 static void last_bounce_share(struct gi_cascade *c, const double last[3], int add_tail) {
@@ -181,6 +167,21 @@ static void last_bounce_share(struct gi_cascade *c, const double last[3], int ad
   }
 }
 
+/* The end of one bounce, shared with the move's re-bake (move/move.c) so
+ * both give the same bits: E holds the bounce's gather of the previous
+ * increment, i.e. this bounce's increment D_k; rolls the tail's sums S
+ * (area-weighted D of the last two bounces) and adds side += D_k (side =
+ * direct + E_k, E_k = D_0 + ... + D_k: orders 2..k+1 of the light leaving
+ * the voxels). Not last: the texture is shaded from D_k alone, for the
+ * next bounce to gather. Last: + the tail when add_tail, and the texture
+ * is shaded from side. The tail: D_k shrinks by the room's mean
+ * reflection r = D_k / D_(k-1) (area-weighted over every
+ * voxel, per channel; the dominant eigenvalue of the transport once the
+ * first bounces have spread the light). The orders left out add
+ * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
+ * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
+ * otherwise multiply its last increment by 99). Last also records
+ * c->last_share, which a move's fresh gather takes off (move.c). */
 void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last) {
   double f[3] = {0, 0, 0};
   for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = 0;
