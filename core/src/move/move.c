@@ -26,6 +26,7 @@
  * texels' scale changed): skipping the filter before the gather (coarse
  * cells just nested keep their own light) nearly tripled the largest probe
  * error on a drive. */
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -500,8 +501,7 @@ static int fresh_texture(struct gi_cascade *c, gi_move_state *m, int threads, ui
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     memcpy(m->rad[d], L->rad, vox * sizeof *L->rad);
-    /* New voxels hold direct light only (their entries may be reused). */
-    for (uint32_t q = 0; q < nnew[d]; q++) memset(m->last[d][L->vix[fresh[d][q]]], 0, sizeof *m->last[d]);
+    /* New voxels' entries (last may be a released voxel's) are set below. */
     for (uint32_t i = 0; i < L->num_occ; i++) {
       uint32_t e = L->vix[L->occ[i]];
       for (int f = 0; f < GI_VOX_FACES; f++)
@@ -535,7 +535,7 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
       rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
   if (rc != GI_OK) goto done;
   /* The new voxels' first gather, from the live texture (see fresh_texture). */
-  int wide = c->num_wide_cones < c->num_cones;
+  int wide = gi__bounce_wide(c, INT_MAX); /* the set the bounces take for the later orders */
   for (int d = 0; d < c->n && rc == GI_OK; d++) rc = gather_list(c, threads, d, fresh[d], nnew[d], wide, 0, E[d], err);
   if (rc == GI_OK) {
     if (fresh_texture(c, m, threads, fresh, nnew, E)) rc = gi__cancel_fail(c->cancel, err, "move filter");
