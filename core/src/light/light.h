@@ -79,10 +79,13 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
 typedef struct gi_hits {
   uint64_t w[GI_HIT_BITS / 64];
 } gi_hits;
-/* One voxel's gather from the current texture with the diffuse or the
- * wide set: E per face (the side it shows); returns the
- * texture samples taken and adds the cones marched to *cones. */
-uint64_t gi__gather_voxel(const struct gi_cascade *c, int d, uint32_t slot, int wide, gi_faces3 E, uint64_t *cones);
+/* The gathers of level d's voxels slots[0..n) from the current texture
+ * with the diffuse or the wide set: E[i] per face (the side it shows),
+ * each voxel's the same as gathered alone (the cones are marched in
+ * batches across voxels); returns the texture samples taken and adds the
+ * cones marched to *cones. Thread-safe for disjoint E. */
+uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide, gi_faces3 *E,
+                           uint64_t *cones);
 /* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
  * move's re-bake must agree bounce by bounce. */
 int gi__bounce_wide(const struct gi_cascade *c, int it);

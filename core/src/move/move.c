@@ -455,7 +455,7 @@ typedef struct {
 static void gather_range(void *p, size_t b, size_t e, int worker) {
   gather_ctx *g = p;
   uint64_t samples = 0, cones = 0;
-  for (size_t q = b; q < e; q++) samples += gi__gather_voxel(g->c, g->d, g->slots[q], g->wide, g->E[q], &cones);
+  samples += gi__gather_voxels(g->c, g->d, g->slots + b, e - b, g->wide, g->E + b, &cones);
   atomic_fetch_add(&g->samples, samples);
   atomic_fetch_add(&g->cones, cones);
 }

@@ -473,20 +473,33 @@ static void batch_init(batch *b, const struct gi_cascade *c) {
   }
 }
 
-/* At most this many jobs per batch (their spans are computed up front). */
-#define MAX_JOBS 128
+/* The level spans of the group of eight jobs now entering lanes: jobs
+ * enter in order and lane_load copies a job's spans into its lane, so
+ * one group's are enough, and a batch may hold any number of jobs (a
+ * batch drains its lanes at its end: the more jobs, the less idling). */
+typedef struct {
+  int group;
+  float in[GI_MAX_LEVELS][LANES], out[GI_MAX_LEVELS][LANES];
+} span_group;
+
+static void load_job(const struct gi_cascade *c, batch *b, int l, const gi_cone_job *jobs, int count, int j,
+                     span_group *sg) {
+  if (j / LANES != sg->group) {
+    sg->group = j / LANES;
+    spans8(c, jobs + sg->group * LANES, count - sg->group * LANES, sg->in, sg->out);
+  }
+  lane_load(b, l, &jobs[j], j, (const float(*)[LANES])sg->in, (const float(*)[LANES])sg->out);
+}
 
 static void march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, const par8 *q,
                        gi_cone_out *out) {
   batch b;
   batch_init(&b, c);
-  float gin[MAX_JOBS / LANES][GI_MAX_LEVELS][LANES], gout[MAX_JOBS / LANES][GI_MAX_LEVELS][LANES]; /* 12 KB */
-  for (int i = 0; i < count; i += LANES) spans8(c, jobs + i, count - i, gin[i / LANES], gout[i / LANES]);
+  span_group sg = {.group = -1};
   /* Idle lanes hold a copy of job 0 that nobody reads. */
   int next = 0;
   for (int l = 0; l < LANES; l++) {
-    int j = next < count ? next : 0;
-    lane_load(&b, l, &jobs[j], j, gin[j / LANES], gout[j / LANES]);
+    load_job(c, &b, l, jobs, count, next < count ? next : 0, &sg);
     if (next < count) next++;
     else b.live[l] = 0;
   }
@@ -502,7 +515,7 @@ static void march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int 
       int l = __builtin_ctz((unsigned)done);
       lane_finish(&b, l, out);
       if (next < count) {
-        lane_load(&b, l, &jobs[next], next, gin[next / LANES], gout[next / LANES]);
+        load_job(c, &b, l, jobs, count, next, &sg);
         next++;
       } else {
         b.live[l] = 0, busy &= ~(1 << l);
@@ -516,6 +529,5 @@ void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs,
                             float step, float ao_lambda, gi_cone_out *out) {
   float s0 = (float)c->s0;
   par8 q = {tan_half, step, ao_lambda, s0, 1.f / s0, 1.f / (GI_SURFACE_LOD_K * s0)};
-  for (int i = 0; i < count; i += MAX_JOBS)
-    march_jobs(c, jobs + i, count - i < MAX_JOBS ? count - i : MAX_JOBS, &q, out + i);
+  if (count > 0) march_jobs(c, jobs, count, &q, out);
 }
