@@ -22,14 +22,20 @@ void gi__sh_basis(const float w[3], float y[9]);
 void gi__sh_add(float sh[9][3], const float w[3], const float L[3], float weight);
 void gi__sh_radiance_to_irradiance(float sh[9][3]);
 
-/* surface.c: irradiance at a point x on a surface of unit normal n (the
+/* surface.c: irradiance at points x on a surface of unit normal n (the
  * side to gather): direct light by the probes' shadow-ray rule with a
  * normal (light samples balanced against cosine rays that find emitters),
- * indirect light by the cascade's cones with the gather's surface rule.
- * samples: light samples for sky and emitters; seed: this point's stream.
- * sc holds at least gi__light_sample_cap samples. Thread-safe. */
+ * indirect light by the cascade's cones with the gather's surface rule,
+ * the points' gathers marched together (GI_SURFACE_BATCH at a time).
+ * samples: light samples for sky and emitters; seed: each point's
+ * stream. sc holds at least gi__light_sample_cap samples. Thread-safe. */
 struct gi_ray_scratch;
-void gi__surface_irradiance(const struct gi_cascade *c, const float x[3], const float n[3], int samples,
-                            uint64_t seed, struct gi_ray_scratch *sc, float direct[3], float indirect[3]);
+typedef struct gi_surface_pt {
+  float x[3], n[3];
+  uint64_t seed;
+} gi_surface_pt;
+#define GI_SURFACE_BATCH 32
+void gi__surface_irradiance(const struct gi_cascade *c, const gi_surface_pt *pt, size_t count, int samples,
+                            struct gi_ray_scratch *sc, float (*direct)[3], float (*indirect)[3]);
 
 #endif

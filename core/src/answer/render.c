@@ -117,19 +117,32 @@ static int primary_hit(const render_ctx *rc, int px, int py, float w[3], float x
   return 1;
 }
 
-/* Indirect light by the surface rule, exactly as the voxel bounces gather. */
-static void gather_indirect(const render_ctx *rc, const float x[3], const float n[3], int d, float E[3],
-                            uint64_t *cones) {
-  gi_gather_out go;
-  gi__gather_hemisphere(rc->c, x, n, GI_GATHER_SURFACE, d, &go, NULL, NULL);
-  for (int a = 0; a < 3; a++) E[a] = go.E[a];
-  *cones += (uint64_t)rc->c->num_cones;
+/* Gathers marched together (gi__gather_hemispheres): anchors per batch,
+ * and pixels that need their own gather. */
+#define GATHER_BATCH 32
+
+typedef struct {
+  gi_gather_req req[GATHER_BATCH];
+  gi_gather_out out[GATHER_BATCH];
+  int n;
+} gather_batch;
+
+static void anchor_flush(const render_ctx *rc, gather_batch *gb, anchor **who, uint64_t *cones) {
+  gi__gather_hemispheres(rc->c, gb->req, (size_t)gb->n, gb->out);
+  for (int q = 0; q < gb->n; q++) {
+    memcpy(who[q]->E, gb->out[q].E, sizeof who[q]->E);
+    who[q]->ok = 1;
+    *cones += (uint64_t)rc->c->num_cones;
+  }
+  gb->n = 0;
 }
 
 static void anchor_rows(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   render_ctx *rc = p;
   uint64_t cones = 0;
+  gather_batch gb = {.n = 0};
+  anchor *who[GATHER_BATCH];
   for (size_t j = b; j < e; j++)
     for (int i = 0; i < rc->aw; i++) {
       anchor *an = &rc->anc[j * (size_t)rc->aw + (size_t)i];
@@ -139,9 +152,13 @@ static void anchor_rows(void *p, size_t b, size_t e, int worker) {
       if (!primary_hit(rc, i * rc->stride, (int)j * rc->stride, w, an->x, an->n, ng, &tri)) continue;
       int d = gi__finest_level_at(rc->c, an->x);
       if (d < 0) continue;
-      gather_indirect(rc, an->x, an->n, d, an->E, &cones);
-      an->ok = 1;
+      gb.req[gb.n] = (gi_gather_req){.mode = GI_GATHER_SURFACE, .level = d};
+      memcpy(gb.req[gb.n].p, an->x, sizeof an->x);
+      memcpy(gb.req[gb.n].n, an->n, sizeof an->n);
+      who[gb.n++] = an;
+      if (gb.n == GATHER_BATCH) anchor_flush(rc, &gb, who, &cones);
     }
+  anchor_flush(rc, &gb, who, &cones);
   atomic_fetch_add(&rc->diffuse_cones, cones);
 }
 
@@ -169,25 +186,57 @@ static int interpolate_indirect(const render_ctx *rc, int px, int py, const floa
   return 1;
 }
 
-static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3],
-                        float *spec) {
+/* A pixel waiting for its own gather (render_rows): shade_pixel's state
+ * before the indirect light, for finish_pixel after it. */
+typedef struct {
+  float *out, *spec;
+  const gi_material *m;
+  float x[3], n[3], w[3], E[3]; /* E: the direct irradiance */
+  int d;
+} pending_px;
+
+/* Adds the diffuse reflection of irradiance E (direct + indirect) and the
+ * specular cone to pixel out. */
+static void finish_pixel(const render_ctx *rc, const pending_px *pp, uint64_t cones[2]) {
+  const gi_material *m = pp->m;
+  float *out = pp->out;
+  for (int a = 0; a < 3; a++) out[a] += m->albedo[a] * (1.f / GI_PI_F) * pp->E[a];
+  int glossy = m->roughness < 0.5f && m->specular > 0;
+  if (pp->d >= 0 && (rc->spec == SPEC_ALL || (rc->spec == SPEC_GLOSSY && glossy))) {
+    gi_cone_out co;
+    gi__specular_trace(rc->c, pp->x, pp->n, pp->w, m->roughness, &co);
+    cones[1]++;
+    for (int a = 0; a < 3; a++) out[a] += m->specular * co.L[a];
+    if (pp->spec)
+      for (int a = 0; a < 3; a++) pp->spec[a] = m->specular * co.L[a];
+  }
+}
+
+/* Shades pixel (px, py) into out (and spec); returns 1, with *pp filled
+ * and the pixel unfinished, when its indirect light needs a gather of its
+ * own (no anchors, or they do not lie on its surface). */
+static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3],
+                       float *spec, pending_px *pp) {
   gi_lsample *ls = sc->ls;
   uint8_t *vis = sc->vis;
   int cap = sc->cap;
   const struct gi_cascade *c = rc->c;
   const gi_scene *s = c->scene;
-  float w[3], ng[3], n[3], x[3];
+  float ng[3];
   uint32_t tri;
+  pp->out = out, pp->spec = spec;
   out[0] = out[1] = out[2] = 0;
-  if (!primary_hit(rc, px, py, w, x, n, ng, &tri)) {
+  if (!primary_hit(rc, px, py, pp->w, pp->x, pp->n, ng, &tri)) {
     /* The camera sees the sky itself where the plan lights with it. */
     if (c->report.effects[GI_FX_SKY].ran) gi__sky_radiance(s, out);
-    return;
+    return 0;
   }
-  const gi_material *m = &s->materials[s->tri_material[tri]];
-  if (gi__dot(ng, w) < 0) /* emitters are one-sided: their front faces the camera */
+  const float *x = pp->x, *n = pp->n;
+  const gi_material *m = pp->m = &s->materials[s->tri_material[tri]];
+  if (gi__dot(ng, pp->w) < 0) /* emitters are one-sided: their front faces the camera */
     for (int a = 0; a < 3; a++) out[a] += m->emission[a];
-  float E[3] = {0, 0, 0};
+  float *E = pp->E;
+  E[0] = E[1] = E[2] = 0;
   gi_light_plan lp = gi__light_plan(&c->report, rc->samples);
   uint64_t rng = gi__mix64(c->report.quality.seed ^ ((uint64_t)py << 32 | (uint32_t)px));
   int nl = gi__light_samples(s, &lp, x, &rng, ls, cap), k = 0;
@@ -201,23 +250,26 @@ static void shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint
       for (int a = 0; a < 3; a++) E[a] += ls[i].V[a] * cn;
     }
   /* Indirect light: the anchor's own, the anchors' mix, or the pixel's own gather. */
-  int d = gi__finest_level_at(c, x);
+  int d = pp->d = gi__finest_level_at(c, x);
   if (d >= 0 && c->report.bounces_run > 0) {
     float Ei[3];
     /* An anchor's own pixel is its cell's corner at weight 1: its own E. */
-    if (rc->stride == 1 || !interpolate_indirect(rc, px, py, x, n, d, Ei)) gather_indirect(rc, x, n, d, Ei, &cones[0]);
+    if (rc->stride == 1 || !interpolate_indirect(rc, px, py, x, n, d, Ei)) return 1;
     for (int a = 0; a < 3; a++) E[a] += Ei[a];
   }
-  for (int a = 0; a < 3; a++) out[a] += m->albedo[a] * (1.f / GI_PI_F) * E[a];
-  int glossy = m->roughness < 0.5f && m->specular > 0;
-  if (d >= 0 && (rc->spec == SPEC_ALL || (rc->spec == SPEC_GLOSSY && glossy))) {
-    gi_cone_out co;
-    gi__specular_trace(c, x, n, w, m->roughness, &co);
-    cones[1]++;
-    for (int a = 0; a < 3; a++) out[a] += m->specular * co.L[a];
-    if (spec)
-      for (int a = 0; a < 3; a++) spec[a] = m->specular * co.L[a];
+  finish_pixel(rc, pp, cones);
+  return 0;
+}
+
+/* The pending pixels' gathers, then the rest of their shading. */
+static void pixel_flush(const render_ctx *rc, pending_px *pp, gather_batch *gb, uint64_t cones[2]) {
+  gi__gather_hemispheres(rc->c, gb->req, (size_t)gb->n, gb->out);
+  for (int q = 0; q < gb->n; q++) {
+    cones[0] += (uint64_t)rc->c->num_cones;
+    for (int a = 0; a < 3; a++) pp[q].E[a] += gb->out[q].E[a];
+    finish_pixel(rc, &pp[q], cones);
   }
+  gb->n = 0;
 }
 
 static void render_rows(void *p, size_t b, size_t e, int worker) {
@@ -228,10 +280,19 @@ static void render_rows(void *p, size_t b, size_t e, int worker) {
     atomic_store(&rc->failed, 1);
     return;
   }
+  gather_batch gb = {.n = 0};
+  pending_px pp[GATHER_BATCH];
   for (size_t y = b; y < e; y++)
-    for (int x = 0; x < rc->k->w; x++)
-      shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[3 * ((size_t)y * rc->k->w + x)],
-                  rc->spec_img ? &rc->spec_img[3 * ((size_t)y * rc->k->w + x)] : NULL);
+    for (int x = 0; x < rc->k->w; x++) {
+      size_t i = 3 * ((size_t)y * rc->k->w + x);
+      if (!shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[i], rc->spec_img ? &rc->spec_img[i] : NULL, &pp[gb.n]))
+        continue;
+      gb.req[gb.n] = (gi_gather_req){.mode = GI_GATHER_SURFACE, .level = pp[gb.n].d};
+      memcpy(gb.req[gb.n].p, pp[gb.n].x, sizeof pp[gb.n].x);
+      memcpy(gb.req[gb.n].n, pp[gb.n].n, sizeof pp[gb.n].n);
+      if (++gb.n == GATHER_BATCH) pixel_flush(rc, pp, &gb, cones);
+    }
+  pixel_flush(rc, pp, &gb, cones);
   gi__scratch_free(&sc);
   atomic_fetch_add(&rc->diffuse_cones, cones[0]);
   atomic_fetch_add(&rc->specular_cones, cones[1]);

@@ -44,15 +44,31 @@ static void surface_direct(const struct gi_cascade *c, const float x[3], const f
   }
 }
 
-void gi__surface_irradiance(const struct gi_cascade *c, const float x[3], const float n[3], int samples,
-                            uint64_t seed, struct gi_ray_scratch *sc, float direct[3], float indirect[3]) {
-  uint64_t rng = gi__mix64(seed);
-  memset(direct, 0, 3 * sizeof(float));
-  memset(indirect, 0, 3 * sizeof(float));
-  surface_direct(c, x, n, samples, &rng, sc, direct);
-  int d = gi__finest_level_at(c, x);
-  if (d < 0) return;
-  gi_gather_out go;
-  gi__gather_hemisphere(c, x, n, GI_GATHER_SURFACE, d, &go, NULL, NULL);
-  memcpy(indirect, go.E, sizeof go.E);
+/* The queued points' indirect light, marched together. */
+static void flush_gathers(const struct gi_cascade *c, const gi_gather_req *req, const size_t *who, int nq,
+                          float (*indirect)[3]) {
+  gi_gather_out go[GI_SURFACE_BATCH];
+  gi__gather_hemispheres(c, req, (size_t)nq, go);
+  for (int q = 0; q < nq; q++) memcpy(indirect[who[q]], go[q].E, sizeof go[q].E);
+}
+
+void gi__surface_irradiance(const struct gi_cascade *c, const gi_surface_pt *pt, size_t count, int samples,
+                            struct gi_ray_scratch *sc, float (*direct)[3], float (*indirect)[3]) {
+  gi_gather_req req[GI_SURFACE_BATCH];
+  size_t who[GI_SURFACE_BATCH];
+  int nq = 0;
+  for (size_t i = 0; i < count; i++) {
+    uint64_t rng = gi__mix64(pt[i].seed);
+    memset(direct[i], 0, 3 * sizeof(float));
+    memset(indirect[i], 0, 3 * sizeof(float));
+    surface_direct(c, pt[i].x, pt[i].n, samples, &rng, sc, direct[i]);
+    int d = gi__finest_level_at(c, pt[i].x);
+    if (d < 0) continue;
+    req[nq] = (gi_gather_req){.mode = GI_GATHER_SURFACE, .level = d};
+    memcpy(req[nq].p, pt[i].x, sizeof req[nq].p);
+    memcpy(req[nq].n, pt[i].n, sizeof req[nq].n);
+    who[nq++] = i;
+    if (nq == GI_SURFACE_BATCH) flush_gathers(c, req, who, nq, indirect), nq = 0;
+  }
+  if (nq > 0) flush_gathers(c, req, who, nq, indirect);
 }

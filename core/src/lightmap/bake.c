@@ -165,20 +165,26 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
   float reach = gi__voxel_at(g->c, c->centre);
   uint64_t seed = gi__mix64(g->c->report.quality.seed ^
                             ((uint64_t)atlas << 48 | (uint64_t)(uint32_t)y << 24 | (uint32_t)x));
+  /* The footprint's valid points first, then their light in one call:
+   * their gathers march together. */
+  gi_surface_pt pt[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE];
+  uint32_t tri[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE];
   for (int pass = 0; pass < 2 && !nv; pass++)
     for (int sub = 0; sub < ss * ss; sub++) {
       float p[2] = {(float)x + ((float)(sub % ss) + 0.5f) / (float)ss, (float)y + ((float)(sub / ss) + 0.5f) / (float)ss};
-      float X[3], n[3], E[3], I[3];
-      uint32_t tri;
-      if (!footprint_point(g, c, p, pass, reach, &tri, X, n)) continue;
-      gi__surface_irradiance(g->c, X, n, g->samples, gi__mix64(seed + (uint64_t)sub), sc, E, I);
-      const float *alb = s->materials[s->tri_material[tri]].albedo;
-      for (int k = 0; k < 3; k++) {
-        acc[0][k] += alb[k] * (E[k] + I[k]) / GI_PI_F;
-        acc[1][k] += E[k], acc[2][k] += I[k], acc[3][k] += X[k], acc[4][k] += n[k];
-      }
-      nv++;
+      if (!footprint_point(g, c, p, pass, reach, &tri[nv], pt[nv].x, pt[nv].n)) continue;
+      pt[nv++].seed = gi__mix64(seed + (uint64_t)sub);
     }
+  float E[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE][3];
+  float I[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE][3];
+  gi__surface_irradiance(g->c, pt, (size_t)nv, g->samples, sc, E, I);
+  for (int v = 0; v < nv; v++) {
+    const float *alb = s->materials[s->tri_material[tri[v]]].albedo;
+    for (int k = 0; k < 3; k++) {
+      acc[0][k] += alb[k] * (E[v][k] + I[v][k]) / GI_PI_F;
+      acc[1][k] += E[v][k], acc[2][k] += I[v][k], acc[3][k] += pt[v].x[k], acc[4][k] += pt[v].n[k];
+    }
+  }
   if (!nv) return;
   size_t i = (size_t)y * a->w + x;
   float nl = gi__len(acc[4]);

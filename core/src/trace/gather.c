@@ -105,6 +105,45 @@ int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const fl
   return gather_set(c, &cs, p, n, mode, level, -1.f, out, dirs, cones);
 }
 
+/* Cones of one gi__gather_hemispheres march at most (32 gathers of the
+ * default set): enough to keep the lanes busy past a batch's drain. */
+#define GATHER_BATCH_JOBS 512
+
+void gi__gather_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, size_t count, gi_gather_out *out) {
+  cone_set cs = {c->num_cones, c->cone_dir, c->cone_weight, c->cone_tan};
+  gi_cone_job jobs[GATHER_BATCH_JOBS];
+  gi_cone_out co[GATHER_BATCH_JOBS];
+  size_t per = cs.n > 0 ? GATHER_BATCH_JOBS / (size_t)cs.n : 1; /* GI_MAX_CONES <= GATHER_BATCH_JOBS */
+  if (per > 32) per = 32; /* the `in` mask's bits */
+  for (size_t b = 0; b < count; b += per) {
+    size_t e = count - b < per ? count : b + per;
+    int nj = 0;
+    unsigned in = 0; /* bit i - b: request i is inside the cascade */
+    gi_gather_start g;
+    for (size_t i = b; i < e; i++) {
+      memset(&out[i], 0, sizeof out[i]);
+      if (!gi__gather_start(c, req[i].p, req[i].n, req[i].mode, req[i].level, &g)) continue;
+      in |= 1u << (i - b);
+      set_jobs(&cs, &g, req[i].n, jobs + nj);
+      nj += cs.n;
+    }
+    if (!nj) continue;
+    gi__cone_march_jobs(c, jobs, nj, cs.tan, g.step, g.ao_lambda, co);
+    /* As gather_set sums one gather's cones. */
+    const gi_cone_out *o = co;
+    for (size_t i = b; i < e; i++) {
+      if (!(in >> (i - b) & 1)) continue;
+      for (int ci = 0; ci < cs.n; ci++) {
+        float cw = cs.weight[ci];
+        for (int k = 0; k < 3; k++) out[i].E[k] += cw * o[ci].L[k];
+        out[i].occlusion += cw * o[ci].occlusion;
+        out[i].samples += o[ci].samples;
+      }
+      o += cs.n;
+    }
+  }
+}
+
 int gi__gather_hemisphere_probe(const struct gi_cascade *c, const float p[3], const float n[3], float h0,
                                 gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
   cone_set cs = {c->num_probe_cones, c->probe_dir, c->probe_weight, c->probe_tan};

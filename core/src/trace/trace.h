@@ -109,6 +109,18 @@ typedef struct gi_gather_out {
  * level < 0 and p lies outside every level: there is nothing to gather. */
 int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const float n[3], gi_gather_mode mode,
                           int level, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones);
+/* One gather of a batch for gi__gather_hemispheres: gi__gather_hemisphere's
+ * p, n, mode and level. */
+typedef struct gi_gather_req {
+  float p[3], n[3];
+  gi_gather_mode mode;
+  int level;
+} gi_gather_req;
+/* gi__gather_hemisphere (no dirs or cones) for each of req[0..count) into
+ * out[i], the same bits as one call each; the cones of several gathers
+ * are marched together, which keeps the SIMD lanes fuller (one surface
+ * gather's 16 cones kept them 61% busy in a camera view). Thread-safe. */
+void gi__gather_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, size_t count, gi_gather_out *out);
 /* A free-space gather with the probes' set (c->num_probe_cones cones; see
  * gi__probe_cone_set): dirs and cones hold that many. h0 >= 0: p lies h0
  * above a surface whose normal is n (the ground under a street-level
