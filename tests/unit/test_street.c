@@ -5,7 +5,7 @@
  *     the sun: street probes 1.7 m up read the facades' light through
  *     coarse voxels whose footprint also holds the ground under the probe.
  *     The probe gather keeps the surface rule over the ground (see
- *     gi__gather_hemisphere_probe): mean ratio cone / reference 1.16,
+ *     gi__gather_probe_hemispheres): mean ratio cone / reference 1.16,
  *     where reading the ground's underside as an occluder gave 0.76.
  * (2) A lamp 0.1 m under its housing: the housing reflects about a quarter
  *     of the lamp's light back down, the largest share of a lit street's

@@ -33,76 +33,84 @@ static float ground_height(const struct gi_cascade *c, const float p[3], const f
   return t;
 }
 
-static void gather_one(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed,
-                       gi_ray_scratch *scr) {
+/* The probe's direct light: shadow rays from the point itself. Clears pr. */
+static void gather_direct(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed,
+                          gi_ray_scratch *scr) {
   const gi_scene *s = c->scene;
   const gi_quality *q = &c->report.quality;
   memset(pr, 0, sizeof *pr);
   const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
-  /* Direct light: shadow rays from the point itself. */
   gi_light_plan lp = gi__light_plan(&c->report, q->probe_samples);
   int cap = scr->cap;
-  {
-    gi_lsample *ls = scr->ls;
-    uint8_t *vis = scr->vis;
-    uint64_t rng = gi__mix64(seed);
-    int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
-    /* A probe is a point in space: the shadow rule without a normal. */
-    float voxel = gi__voxel_at(c, p);
-    gi__shadow_rays(s, p, NULL, voxel, ls, n, scr);
-    int mb = lp.emissive && s->num_emitters ? q->probe_samples : 0;
-    float pb = (float)mb / (4 * GI_PI_F);
-    for (int i = 0; i < n; i++) {
-      if (!vis[i]) continue;
-      /* Balance heuristic against the uniform sphere samples below. */
-      float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + pb) : 1.f;
-      float V[3] = {f * ls[i].V[0], f * ls[i].V[1], f * ls[i].V[2]};
-      gi__sh_add(pr->sh_direct, ls[i].w, V, 1.0f);
-      float cu = gi__dot(up, ls[i].w);
-      if (cu > 0)
-        for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
-    }
-    /* Uniform sphere rays: near, large emitters (see inject.c). */
-    for (int j = 0; j < mb; j++) {
-      float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
-      float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__u01(&rng);
-      float w[3] = {r * cosf(phi), r * sinf(phi), z};
-      float V[3];
-      float o[3], tn = gi__shadow_origin(p, NULL, voxel, w, o);
-      if (!gi__emitter_ray(s, p, o, w, tn, q->probe_samples, pb, V)) continue;
-      gi__sh_add(pr->sh_direct, w, V, 1.0f);
-      float cu = gi__dot(up, w);
-      if (cu > 0)
-        for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
-    }
+  gi_lsample *ls = scr->ls;
+  uint8_t *vis = scr->vis;
+  uint64_t rng = gi__mix64(seed);
+  int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
+  /* A probe is a point in space: the shadow rule without a normal. */
+  float voxel = gi__voxel_at(c, p);
+  gi__shadow_rays(s, p, NULL, voxel, ls, n, scr);
+  int mb = lp.emissive && s->num_emitters ? q->probe_samples : 0;
+  float pb = (float)mb / (4 * GI_PI_F);
+  for (int i = 0; i < n; i++) {
+    if (!vis[i]) continue;
+    /* Balance heuristic against the uniform sphere samples below. */
+    float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + pb) : 1.f;
+    float V[3] = {f * ls[i].V[0], f * ls[i].V[1], f * ls[i].V[2]};
+    gi__sh_add(pr->sh_direct, ls[i].w, V, 1.0f);
+    float cu = gi__dot(up, ls[i].w);
+    if (cu > 0)
+      for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
+  }
+  /* Uniform sphere rays: near, large emitters (see inject.c). */
+  for (int j = 0; j < mb; j++) {
+    float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
+    float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__u01(&rng);
+    float w[3] = {r * cosf(phi), r * sinf(phi), z};
+    float V[3];
+    float o[3], tn = gi__shadow_origin(p, NULL, voxel, w, o);
+    if (!gi__emitter_ray(s, p, o, w, tn, q->probe_samples, pb, V)) continue;
+    gi__sh_add(pr->sh_direct, w, V, 1.0f);
+    float cu = gi__dot(up, w);
+    if (cu > 0)
+      for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
   }
   gi__sh_radiance_to_irradiance(pr->sh_direct);
+}
 
-  /* Indirect light: the cone set on both hemispheres around up, by the
-   * gather's free-space rule. */
+/* The probe's two gathers: the probes' cone set on both hemispheres
+ * around up, by the gather's free-space rule (the upper one keeps the
+ * ground's level limit, h0). */
+static void probe_requests(const struct gi_cascade *c, const float p[3], gi_gather_req req[2], float h0[2]) {
+  const gi_scene *s = c->scene;
+  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
+  for (int hemi = 0; hemi < 2; hemi++) {
+    req[hemi] = (gi_gather_req){.mode = GI_GATHER_FREE, .level = -1};
+    memcpy(req[hemi].p, p, sizeof req[hemi].p);
+    for (int k = 0; k < 3; k++) req[hemi].n[k] = hemi ? -up[k] : up[k];
+  }
+  h0[0] = ground_height(c, p, up), h0[1] = -1.f;
+}
+
+/* Indirect light from the two gathers (go, dirs and cones per hemisphere)
+ * into SH L2, and the probe's sums. */
+static void probe_finish(const struct gi_cascade *c, const gi_gather_out go[2], const float (*dirs)[3],
+                         const gi_cone_out *cones, gi_probe *pr) {
   float sh_ind[9][3] = {{0}};
   float domega = 2 * GI_PI_F / (float)c->num_probe_cones;
-  float occ = 0;
-  float dirs[GI_MAX_CONES][3];
-  gi_cone_out cones[GI_MAX_CONES];
-  float h0 = ground_height(c, p, up);
-  for (int hemi = 0; hemi < 2; hemi++) {
-    float n[3];
-    for (int k = 0; k < 3; k++) n[k] = hemi ? -up[k] : up[k];
-    gi_gather_out go;
-    gi__gather_hemisphere_probe(c, p, n, hemi ? -1.f : h0, &go, dirs, cones);
-    for (int ci = 0; ci < c->num_probe_cones; ci++) gi__sh_add(sh_ind, dirs[ci], cones[ci].L, domega);
-    if (!hemi) {
-      memcpy(pr->indirect, go.E, sizeof go.E);
-      occ = go.occlusion;
-    }
-  }
+  int nc = c->num_probe_cones;
+  for (int hemi = 0; hemi < 2; hemi++)
+    for (int ci = 0; ci < nc; ci++) gi__sh_add(sh_ind, dirs[hemi * nc + ci], cones[hemi * nc + ci].L, domega);
+  memcpy(pr->indirect, go[0].E, sizeof go[0].E);
+  float occ = go[0].occlusion;
   gi__sh_radiance_to_irradiance(sh_ind);
   for (int i = 0; i < 9; i++)
     for (int k = 0; k < 3; k++) pr->sh[i][k] = pr->sh_direct[i][k] + sh_ind[i][k];
   for (int k = 0; k < 3; k++) pr->irradiance[k] = pr->direct[k] + pr->indirect[k];
   pr->ao = c->report.effects[GI_FX_AO].ran ? 1.0f - occ / GI_PI_F : 1.0f;
 }
+
+/* Probes gathered together: their hemispheres' cones march in one batch. */
+#define PROBE_BATCH 4
 
 static void gather_range(void *p, size_t b, size_t e, int worker) {
   gather_ctx *g = p;
@@ -117,10 +125,23 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
    * the point moves (no popping along a walk; seeding by position made a
    * step of s0/16 change the direct light by up to 40%). */
   const uint64_t seed = gi__mix64(c->report.quality.seed ^ GI_GATHER_SEED_SALT);
-  for (size_t i = b; i < e; i++) {
-    float pl[3];
-    for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * i + k] - c->scene->origin[k]);
-    gather_one(c, pl, &g->out[i], seed, &sc);
+  int nc = c->num_probe_cones;
+  gi_gather_req req[2 * PROBE_BATCH];
+  float h0[2 * PROBE_BATCH];
+  gi_gather_out go[2 * PROBE_BATCH];
+  float dirs[2 * PROBE_BATCH * GI_MAX_CONES][3];
+  gi_cone_out cones[2 * PROBE_BATCH * GI_MAX_CONES];
+  for (size_t i0 = b; i0 < e; i0 += PROBE_BATCH) {
+    size_t m = e - i0 < PROBE_BATCH ? e - i0 : PROBE_BATCH;
+    for (size_t j = 0; j < m; j++) {
+      float pl[3];
+      for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * (i0 + j) + k] - c->scene->origin[k]);
+      gather_direct(c, pl, &g->out[i0 + j], seed, &sc);
+      probe_requests(c, pl, req + 2 * j, h0 + 2 * j);
+    }
+    gi__gather_probe_hemispheres(c, req, h0, 2 * m, go, dirs, cones);
+    for (size_t j = 0; j < m; j++)
+      probe_finish(c, go + 2 * j, (const float(*)[3])(dirs + 2 * j * nc), cones + 2 * j * nc, &g->out[i0 + j]);
   }
   gi__scratch_free(&sc);
 }

@@ -103,35 +103,34 @@ typedef struct gi_gather_out {
   float occlusion;     /* sum of weight x occlusion: pi when fully occluded */
   uint64_t samples;    /* texture samples taken */
 } gi_gather_out;
-/* The cascade's diffuse cone set on the hemisphere around unit n at p.
- * Optional dirs/cones (num_cones each) receive every cone's direction and
- * result, for SH projection. Returns 0 (out, dirs and cones zeroed) when
- * level < 0 and p lies outside every level: there is nothing to gather. */
-int gi__gather_hemisphere(const struct gi_cascade *c, const float p[3], const float n[3], gi_gather_mode mode,
-                          int level, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones);
-/* One gather of a batch for gi__gather_hemispheres: gi__gather_hemisphere's
- * p, n, mode and level. */
+/* One hemisphere gather: at p, around unit n, by the gather's rule for
+ * `mode` at `level` (see gi_gather_mode). */
 typedef struct gi_gather_req {
   float p[3], n[3];
   gi_gather_mode mode;
   int level;
 } gi_gather_req;
-/* gi__gather_hemisphere (no dirs or cones) for each of req[0..count) into
- * out[i], the same bits as one call each; the cones of several gathers
- * are marched together, which keeps the SIMD lanes fuller (one surface
- * gather's 16 cones kept them 61% busy in a camera view). Thread-safe. */
+/* The cascade's diffuse cone set (num_cones) for each gather req[0..count)
+ * into out[i], zeroed where level < 0 and p lies outside every level
+ * (there is nothing to gather). Several gathers' cones march together,
+ * which keeps the SIMD lanes fuller (one surface gather's 16 cones kept
+ * them 61% busy in a camera view); each out[i] has the bits of a gather
+ * alone. Thread-safe. */
 void gi__gather_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, size_t count, gi_gather_out *out);
-/* A free-space gather with the probes' set (c->num_probe_cones cones; see
- * gi__probe_cone_set): dirs and cones hold that many. h0 >= 0: p lies h0
- * above a surface whose normal is n (the ground under a street-level
- * probe), and the cones keep the surface rule's level limit and its
- * across-the-normal reads near that surface, as a voxel's gather does:
- * otherwise a probe outside the finest windows reads coarse voxels whose
- * footprint holds the ground below it, an occluder the cone never meets
- * that darkens it (the city's street probes read 26% of a cone's light
- * off the ground's underside). h0 < 0: plain free space. */
-int gi__gather_hemisphere_probe(const struct gi_cascade *c, const float p[3], const float n[3], float h0,
-                                gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones);
+/* Free-space gathers (mode GI_GATHER_FREE, level -1) with the probes' set
+ * (c->num_probe_cones cones; see gi__probe_cone_set), as
+ * gi__gather_hemispheres: dirs and cones receive every cone's direction
+ * and result for SH projection, num_probe_cones per gather (zeroed for a
+ * gather outside every level). h0[i] >= 0: p lies h0 above a surface
+ * whose normal is n (the ground under a street-level probe), and the
+ * cones keep the surface rule's level limit and its across-the-normal
+ * reads near that surface, as a voxel's gather does: otherwise a probe
+ * outside the finest windows reads coarse voxels whose footprint holds
+ * the ground below it, an occluder the cone never meets that darkens it
+ * (the city's street probes read 26% of a cone's light off the ground's
+ * underside). h0[i] < 0: plain free space. */
+void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, const float *h0, size_t count,
+                                  gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones);
 
 /* Half-angle tangent of the specular cone for a roughness in [0,1]: the
  * half-width at half maximum of the Phong lobe equivalent to Beckmann
