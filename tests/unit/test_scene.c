@@ -43,6 +43,28 @@ static void test_builder_box(void **state) {
 }
 
 
+/* gi_scene_backface_share: every ray from inside a closed box wound outward
+ * meets a side's back; from outside, those that meet it see its front. */
+static void test_backface_share(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = grey();
+  uint32_t mi = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {0, 0, 0}, hi[3] = {2, 3, 4};
+  gi_mesh_builder_add_box(b, lo, hi, mi);
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "box", NULL, &s, &err), GI_OK);
+  double in[3] = {0.7, 1.9, 2.2}, out[3] = {5, 1.5, 2}, above[3] = {1, 10, 2};
+  assert_true(gi_scene_backface_share(s, in) == 1.0);
+  assert_true(gi_scene_backface_share(s, out) == 0.0);
+  assert_true(gi_scene_backface_share(s, above) == 0.0);
+  double bad[3] = {NAN, 0, 0};
+  assert_true(gi_scene_backface_share(s, bad) == 0.0);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+}
+
 /* A triangle with explicit world corners. */
 static void add_tri(gi_mesh_builder *b, const double p[9], uint32_t mat) {
   uint32_t a = gi_mesh_builder_add_vertex(b, p[0], p[1], p[2]);
@@ -988,6 +1010,7 @@ int main(void) {
       cmocka_unit_test(test_obj_materials),
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_bad_file_matrix),
+      cmocka_unit_test(test_backface_share),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -113,6 +113,12 @@ size_t gi_scene_num_lights(const gi_scene *s);
  * is nearer (0 for a non-finite p or max <= 0): the room a probe has (a
  * point in a wall's plane has none). Thread-safe. */
 double gi_scene_clearance(const gi_scene *s, const double p[3], double max);
+/* The share, in [0, 1], of the same 26 directions from world point p whose
+ * first surface shows p its back (winding normal facing away): about 1
+ * inside a closed solid wound outward (a building's volume), where the
+ * truth is darkness and a gather reads only light that leaks in; 0 for a
+ * non-finite p or a scene without surfaces. Thread-safe. */
+double gi_scene_backface_share(const gi_scene *s, const double p[3]);
 const gi_light *gi_scene_light(const gi_scene *s, size_t i);
 size_t gi_scene_num_materials(const gi_scene *s);
 const gi_material *gi_scene_material(const gi_scene *s, size_t i);

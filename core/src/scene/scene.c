@@ -520,6 +520,24 @@ double gi_scene_clearance(const gi_scene *s, const double p[3], double max) {
   return best;
 }
 
+double gi_scene_backface_share(const gi_scene *s, const double p[3]) {
+  if (!s || !p || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) return 0;
+  float o[3];
+  for (int k = 0; k < 3; k++) o[k] = (float)(p[k] - s->origin[k]);
+  int back = 0, n = 0;
+  for (int i = 0; i < 27; i++) {
+    int d[3] = {i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1};
+    if (!d[0] && !d[1] && !d[2]) continue;
+    float w[3] = {(float)d[0], (float)d[1], (float)d[2]}, t, ng[3];
+    float l = sqrtf(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    for (int k = 0; k < 3; k++) w[k] /= l;
+    n++;
+    uint32_t tri;
+    if (gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng) && ng[0] * w[0] + ng[1] * w[1] + ng[2] * w[2] > 0) back++;
+  }
+  return (double)back / n;
+}
+
 gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }
 int gi_scene_has_lightmap_uv(const gi_scene *s) { return s && s->uv2 != NULL; }
 const char *gi_scene_name(const gi_scene *s) { return s->name; }
