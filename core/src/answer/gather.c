@@ -33,13 +33,13 @@ static float ground_height(const struct gi_cascade *c, const float p[3], const f
   return t;
 }
 
-/* The probe's direct light: shadow rays from the point itself. Clears pr. */
-static void gather_direct(const struct gi_cascade *c, const float p[3], gi_probe *pr, uint64_t seed,
-                          gi_ray_scratch *scr) {
+/* The probe's direct light: shadow rays from the point itself (up: the
+ * scene's up axis). Clears pr. */
+static void gather_direct(const struct gi_cascade *c, const float p[3], const float up[3], gi_probe *pr,
+                          uint64_t seed, gi_ray_scratch *scr) {
   const gi_scene *s = c->scene;
   const gi_quality *q = &c->report.quality;
   memset(pr, 0, sizeof *pr);
-  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
   gi_light_plan lp = gi__light_plan(&c->report, q->probe_samples);
   int cap = scr->cap;
   gi_lsample *ls = scr->ls;
@@ -80,14 +80,11 @@ static void gather_direct(const struct gi_cascade *c, const float p[3], gi_probe
 /* The probe's two gathers: the probes' cone set on both hemispheres
  * around up, by the gather's free-space rule (the upper one keeps the
  * ground's level limit, h0). */
-static void probe_requests(const struct gi_cascade *c, const float p[3], gi_gather_req req[2], float h0[2]) {
-  const gi_scene *s = c->scene;
-  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
-  for (int hemi = 0; hemi < 2; hemi++) {
-    req[hemi] = (gi_gather_req){.mode = GI_GATHER_FREE, .level = -1};
-    memcpy(req[hemi].p, p, sizeof req[hemi].p);
-    for (int k = 0; k < 3; k++) req[hemi].n[k] = hemi ? -up[k] : up[k];
-  }
+static void probe_requests(const struct gi_cascade *c, const float p[3], const float up[3], gi_gather_req req[2],
+                           float h0[2]) {
+  const float down[3] = {-up[0], -up[1], -up[2]};
+  req[0] = gi__gather_req(p, up, GI_GATHER_FREE, -1);
+  req[1] = gi__gather_req(p, down, GI_GATHER_FREE, -1);
   h0[0] = ground_height(c, p, up), h0[1] = -1.f;
 }
 
@@ -126,6 +123,7 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
    * step of s0/16 change the direct light by up to 40%). */
   const uint64_t seed = gi__mix64(c->report.quality.seed ^ GI_GATHER_SEED_SALT);
   int nc = c->num_probe_cones;
+  const float up[3] = {0, c->scene->up == GI_UP_Z ? 0.f : 1.f, c->scene->up == GI_UP_Z ? 1.f : 0.f};
   gi_gather_req req[2 * PROBE_BATCH];
   float h0[2 * PROBE_BATCH];
   gi_gather_out go[2 * PROBE_BATCH];
@@ -136,8 +134,8 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
     for (size_t j = 0; j < m; j++) {
       float pl[3];
       for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * (i0 + j) + k] - c->scene->origin[k]);
-      gather_direct(c, pl, &g->out[i0 + j], seed, &sc);
-      probe_requests(c, pl, req + 2 * j, h0 + 2 * j);
+      gather_direct(c, pl, up, &g->out[i0 + j], seed, &sc);
+      probe_requests(c, pl, up, req + 2 * j, h0 + 2 * j);
     }
     gi__gather_probe_hemispheres(c, req, h0, 2 * m, go, dirs, cones);
     for (size_t j = 0; j < m; j++)

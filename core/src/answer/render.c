@@ -152,9 +152,7 @@ static void anchor_rows(void *p, size_t b, size_t e, int worker) {
       if (!primary_hit(rc, i * rc->stride, (int)j * rc->stride, w, an->x, an->n, ng, &tri)) continue;
       int d = gi__finest_level_at(rc->c, an->x);
       if (d < 0) continue;
-      gb.req[gb.n] = (gi_gather_req){.mode = GI_GATHER_SURFACE, .level = d};
-      memcpy(gb.req[gb.n].p, an->x, sizeof an->x);
-      memcpy(gb.req[gb.n].n, an->n, sizeof an->n);
+      gb.req[gb.n] = gi__gather_req(an->x, an->n, GI_GATHER_SURFACE, d);
       who[gb.n++] = an;
       if (gb.n == GATHER_BATCH) anchor_flush(rc, &gb, who, &cones);
     }
@@ -287,9 +285,7 @@ static void render_rows(void *p, size_t b, size_t e, int worker) {
       size_t i = 3 * ((size_t)y * rc->k->w + x);
       if (!shade_pixel(rc, x, (int)y, &sc, cones, &rc->rgb[i], rc->spec_img ? &rc->spec_img[i] : NULL, &pp[gb.n]))
         continue;
-      gb.req[gb.n] = (gi_gather_req){.mode = GI_GATHER_SURFACE, .level = pp[gb.n].d};
-      memcpy(gb.req[gb.n].p, pp[gb.n].x, sizeof pp[gb.n].x);
-      memcpy(gb.req[gb.n].n, pp[gb.n].n, sizeof pp[gb.n].n);
+      gb.req[gb.n] = gi__gather_req(pp[gb.n].x, pp[gb.n].n, GI_GATHER_SURFACE, pp[gb.n].d);
       if (++gb.n == GATHER_BATCH) pixel_flush(rc, pp, &gb, cones);
     }
   pixel_flush(rc, pp, &gb, cones);

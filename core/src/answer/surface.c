@@ -64,9 +64,7 @@ void gi__surface_irradiance(const struct gi_cascade *c, const gi_surface_pt *pt,
     surface_direct(c, pt[i].x, pt[i].n, samples, &rng, sc, direct[i]);
     int d = gi__finest_level_at(c, pt[i].x);
     if (d < 0) continue;
-    req[nq] = (gi_gather_req){.mode = GI_GATHER_SURFACE, .level = d};
-    memcpy(req[nq].p, pt[i].x, sizeof req[nq].p);
-    memcpy(req[nq].n, pt[i].n, sizeof req[nq].n);
+    req[nq] = gi__gather_req(pt[i].x, pt[i].n, GI_GATHER_SURFACE, d);
     who[nq++] = i;
     if (nq == GI_SURFACE_BATCH) flush_gathers(c, req, who, nq, indirect), nq = 0;
   }

@@ -60,16 +60,14 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
 
 /* Cones of several voxels' gathers marched as one batch: the SIMD march
  * drains its lanes at a batch's end, and one voxel's 32-96 cones left a
- * fifth of the lane-steps idle (79% busy on the city). BATCH_JOBS holds
- * any voxel's cones (GI_VOX_FACES x GI_MAX_CONES = 384) and a few
- * default voxels'. */
-#define BATCH_JOBS 512
+ * fifth of the lane-steps idle (79% busy on the city). */
 #define BATCH_VOXELS 32
 typedef struct {
-  gi_cone_job jobs[BATCH_JOBS];
-  gi_cone_out co[BATCH_JOBS];
-  int16_t which[BATCH_JOBS]; /* bit side * set size + cone */
+  gi_cone_job jobs[GI_MARCH_BATCH_JOBS];
+  gi_cone_out co[GI_MARCH_BATCH_JOBS];
+  int16_t which[GI_MARCH_BATCH_JOBS]; /* bit side * set size + cone */
   int nj, nv;
+  float step, ao_lambda; /* the gather's step rule: the quality's, every voxel's alike */
   struct {
     int d, first, count; /* the voxel's level and its jobs [first, first + count) */
     uint32_t slot;
@@ -114,6 +112,7 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
         cb->which[cb->nj] = (int16_t)bit, cb->jobs[cb->nj++] = all[ci];
     }
   }
+  cb->step = st.step, cb->ao_lambda = st.ao_lambda;
   cb->v[cb->nv].d = d, cb->v[cb->nv].slot = slot, cb->v[cb->nv].first = first, cb->v[cb->nv].count = cb->nj - first;
   cb->v[cb->nv].E = &E[0][0], cb->v[cb->nv].hit = hit;
   cb->nv++;
@@ -122,20 +121,15 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
 /* Whether cb has room for one more voxel's cones. */
 static int batch_room(const struct gi_cascade *c, int wide, const cone_batch *cb) {
   int nc = wide ? c->num_wide_cones : c->num_cones;
-  return cb->nv < BATCH_VOXELS && cb->nj + GI_VOX_FACES * nc <= BATCH_JOBS;
+  return cb->nv < BATCH_VOXELS && cb->nj + GI_VOX_FACES * nc <= GI_MARCH_BATCH_JOBS;
 }
 
 /* Marches cb's cones and folds each voxel's into its E (and hit); empties
  * cb. Returns the samples taken. */
 static uint64_t batch_finish(const struct gi_cascade *c, int wide, cone_batch *cb, uint64_t *cones) {
   uint64_t samples = 0;
-  if (cb->nj > 0) {
-    /* The step and AO falloff come from the quality (gi__gather_start):
-     * every voxel of the batch shares them. */
-    gi_gather_start st;
-    gi__gather_start(c, (const float[3]){0, 0, 0}, NULL, GI_GATHER_FREE, 0, &st);
-    gi__cone_march_jobs(c, cb->jobs, cb->nj, wide ? c->wide_tan : c->cone_tan, st.step, st.ao_lambda, cb->co);
-  }
+  if (cb->nj > 0)
+    gi__cone_march_jobs(c, cb->jobs, cb->nj, wide ? c->wide_tan : c->cone_tan, cb->step, cb->ao_lambda, cb->co);
   int nc = wide ? c->num_wide_cones : c->num_cones;
   const float *weight = wide ? c->wide_weight : c->cone_weight;
   for (int v = 0; v < cb->nv; v++) {

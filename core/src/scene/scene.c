@@ -503,18 +503,24 @@ void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]) {
   }
 }
 
+/* Direction i (0..25) of the 26 of a 3x3x3 block's neighbours: axes, face
+ * and cube diagonals, unit length. */
+#define NUM_DIR26 26
+static void dir26(int i, float w[3]) {
+  int j = i < 13 ? i : i + 1; /* skip the block's centre */
+  int d[3] = {j % 3 - 1, (j / 3) % 3 - 1, j / 9 - 1};
+  float l = sqrtf((float)(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+  for (int k = 0; k < 3; k++) w[k] = (float)d[k] / l;
+}
+
 double gi_scene_clearance(const gi_scene *s, const double p[3], double max) {
   if (!s || !p || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]) || !(max > 0)) return 0;
   float o[3];
   for (int k = 0; k < 3; k++) o[k] = (float)(p[k] - s->origin[k]);
   double best = max;
-  /* The 26 directions of a 3x3x3 block's neighbours: axes, face and cube diagonals. */
-  for (int i = 0; i < 27; i++) {
-    int d[3] = {i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1};
-    if (!d[0] && !d[1] && !d[2]) continue;
-    float w[3] = {(float)d[0], (float)d[1], (float)d[2]}, t;
-    float l = sqrtf(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-    for (int k = 0; k < 3; k++) w[k] /= l;
+  for (int i = 0; i < NUM_DIR26; i++) {
+    float w[3], t;
+    dir26(i, w);
     if (gi__intersect1(s, o, w, 0, (float)best, &t, NULL, NULL) && t < best) best = t;
   }
   return best;
@@ -524,18 +530,14 @@ double gi_scene_backface_share(const gi_scene *s, const double p[3]) {
   if (!s || !p || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) return 0;
   float o[3];
   for (int k = 0; k < 3; k++) o[k] = (float)(p[k] - s->origin[k]);
-  int back = 0, n = 0;
-  for (int i = 0; i < 27; i++) {
-    int d[3] = {i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1};
-    if (!d[0] && !d[1] && !d[2]) continue;
-    float w[3] = {(float)d[0], (float)d[1], (float)d[2]}, t, ng[3];
-    float l = sqrtf(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-    for (int k = 0; k < 3; k++) w[k] /= l;
-    n++;
+  int back = 0;
+  for (int i = 0; i < NUM_DIR26; i++) {
+    float w[3], t, ng[3];
     uint32_t tri;
+    dir26(i, w);
     if (gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng) && ng[0] * w[0] + ng[1] * w[1] + ng[2] * w[2] > 0) back++;
   }
-  return (double)back / n;
+  return (double)back / NUM_DIR26;
 }
 
 gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }

@@ -67,10 +67,6 @@ void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_s
   set_jobs(&cs, g, n, jobs);
 }
 
-/* Cones of one march at most (32 gathers of the default set, 8 probe
- * hemispheres): enough to keep the lanes busy past a batch's drain. */
-#define GATHER_BATCH_JOBS 512
-
 /* The gathers req[0..count) with cone set cs into out[i] (and, when given,
  * dirs and cones: cs->n per gather, zeroed for a gather outside every
  * level); h0 (may be NULL) as gi__gather_probe_hemispheres', per gather.
@@ -79,9 +75,9 @@ void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_s
  * view); each gather's sums are those of a gather alone. */
 static void gather_many(const struct gi_cascade *c, const cone_set *cs, const gi_gather_req *req, const float *h0,
                         size_t count, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
-  gi_cone_job jobs[GATHER_BATCH_JOBS];
-  gi_cone_out co[GATHER_BATCH_JOBS];
-  size_t per = GATHER_BATCH_JOBS / (size_t)cs->n; /* GI_MAX_CONES <= GATHER_BATCH_JOBS */
+  gi_cone_job jobs[GI_MARCH_BATCH_JOBS];
+  gi_cone_out co[GI_MARCH_BATCH_JOBS];
+  size_t per = GI_MARCH_BATCH_JOBS / (size_t)cs->n; /* 32 gathers of the default set, 8 probe hemispheres */
   if (per > 32) per = 32; /* the `in` mask's bits */
   for (size_t b = 0; b < count; b += per) {
     size_t e = count - b < per ? count : b + per;

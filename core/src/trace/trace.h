@@ -90,6 +90,10 @@ typedef struct gi_cone_job {
  * more cones one call gets (a voxel's two sides, several gathers), the
  * fuller the lanes stay. */
 #define GI_MARCH_LANES_MAX_RES 256
+/* Cones one batched march takes at most (the bounces' and the gathers'
+ * batches): enough to keep the lanes busy past a batch's drain, and more
+ * than any one voxel's cones (GI_VOX_FACES x GI_MAX_CONES = 384). */
+#define GI_MARCH_BATCH_JOBS 512
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out);
 /* The cascade's diffuse cone set (wide: the bounces' wide set) on the
@@ -110,6 +114,10 @@ typedef struct gi_gather_req {
   gi_gather_mode mode;
   int level;
 } gi_gather_req;
+static inline gi_gather_req gi__gather_req(const float p[3], const float n[3], gi_gather_mode mode, int level) {
+  gi_gather_req r = {.p = {p[0], p[1], p[2]}, .n = {n[0], n[1], n[2]}, .mode = mode, .level = level};
+  return r;
+}
 /* The cascade's diffuse cone set (num_cones) for each gather req[0..count)
  * into out[i], zeroed where level < 0 and p lies outside every level
  * (there is nothing to gather). Several gathers' cones march together,
