@@ -221,11 +221,11 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
  * inside the solid would read it. The direct light guards a scene wound
  * inside out: its lit sides keep their gathers; a scene with a light
  * inside a solid (a room modelled as a box seen from inside) shuts
- * nothing (gi_scene.lit_inside): its shadows there are lit. (Shutting also the sides
- * that see the ground's front face, a building without a floor, took
- * Munich's worst street probe to 0.62 of the reference's indirect light:
- * on a coarse voxel, one centroid speaks for facades on both sides.) Adds
- * the rays cast. */
+ * nothing (gi_scene.lit_inside): its shadows there are lit. (Shutting
+ * also the sides that see the ground's front face, a building without a
+ * floor, took Munich's worst street probe to 0.62 of the reference's
+ * indirect light: on a coarse voxel, one centroid speaks for facades on
+ * both sides.) Adds the rays cast. */
 static uint8_t shut_sides(const gi_scene *s, const gi_vgeo *g, float voxel, const float Es[][3], uint64_t *rays) {
   uint8_t shut = 0;
   for (int sd = 0; sd < 2 * g->groups; sd++) {
