@@ -1,5 +1,4 @@
-/* test_voxelize.c: exact voxelization counts, snapping and nesting, and the
- * sides the injection shuts inside closed solids.
+/* test_voxelize.c: exact voxelization counts, snapping and nesting.
  *
  * The cascade's grid is anchored at the scene's local origin (the centre of
  * its bounds), so a box of width 5 s centred anywhere has its faces at
@@ -189,99 +188,12 @@ static void test_query_visits_only_nearby(void **state) {
   gi_scene_release(sc);
 }
 
-/* A closed building (an outward box with a floor) on a ground plane under
- * sun and sky, and the same with a lamp inside it. */
-static gi_scene *building_scene(int lamp) {
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  /* The ground (facing up) just under the building's floor: coplanar, either could be hit first. */
-  double g0[3] = {-20, -0.01, 20}, g1[3] = {20, -0.01, 20}, g2[3] = {20, -0.01, -20}, g3[3] = {-20, -0.01, -20};
-  gi_mesh_builder_add_quad(b, g0, g1, g2, g3, mat);
-  double lo[3] = {-3.1, 0, -2.9}, hi[3] = {2.9, 4.1, 3.1};
-  gi_mesh_builder_add_box(b, lo, hi, mat);
-  gi_light l[3] = {{.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0.4f, -1, 0.3f}},
-                   {.type = GI_LIGHT_SKY, .color = {0.3f, 0.3f, 0.3f}},
-                   {.type = GI_LIGHT_POINT, .color = {5, 5, 5}, .position = {-1, 3, 0.5}}};
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = l, .num_lights = lamp ? 3 : 2};
-  gi_scene *sc = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, lamp ? "building+lamp" : "building", &opt, &sc, &err), GI_OK);
-  gi_mesh_builder_free(b);
-  return sc;
-}
-
-/* The injection shuts the sides inside a closed solid (gi_vgeo.shut) and
- * only those: each shut side lies inside the building and faces into it,
- * got no direct light and keeps no light through the bounces; a side
- * outside is never shut. With a lamp inside the building nothing is. */
-static void test_shut_sides(void **state) {
-  for (int lamp = 0; lamp < 2; lamp++) {
-    gi_scene *sc = building_scene(lamp);
-    double blo[3], bhi[3], org[3];
-    gi_scene_bounds(sc, blo, bhi);
-    for (int k = 0; k < 3; k++) org[k] = 0.5 * (blo[k] + bhi[k]);
-    assert_int_equal(sc->lit_inside, lamp);
-    gi_quality q = {.levels = 3, .res = 32, .voxel0 = 0.5, .bounces = 2, .light_samples = 4, .threads = 2};
-    gi_cascade *cas = NULL;
-    gi_bake_report rep;
-    gi_error_info err = {0};
-    double at[3] = {6, 1, 0.2};
-    assert_int_equal(gi_cascade_bake(sc, at, &q, &cas, &rep, &err), GI_OK);
-    int shut = 0, outside = 0, sides = 0;
-    for (int d = 0; d < cas->n; d++) {
-      const gi_level *L = &cas->lv[d];
-      for (uint32_t i = 0; i < L->num_occ; i++) {
-        const gi_vgeo *g = gi__geo(L, L->occ[i]);
-        for (int sd = 0; sd < 2 * g->groups; sd++) {
-          float p[3];
-          gi__side_centroid(g, sd, p);
-          double w[3];
-          for (int k = 0; k < 3; k++) w[k] = org[k] + p[k];
-          /* Off the building by more than a voxel: outdoors. */
-          double m = L->s;
-          int out = w[0] < -3.1 - m || w[0] > 2.9 + m || w[1] > 4.1 + m || w[2] < -2.9 - m || w[2] > 3.1 + m;
-          sides++;
-          outside += out;
-          if (!(g->shut >> sd & 1)) continue;
-          shut++;
-          assert_false(out);
-          /* Its faces (but those showing the brighter side) hold no light, direct or bounced. */
-          for (int f = 0; f < GI_VOX_FACES; f++) {
-            if (g->face_side[f] != sd || (g->brighter >> f & 1)) continue;
-            for (int k = 0; k < 3; k++) {
-              assert_true(gi__direct(L, L->occ[i])[f][k] == 0);
-              assert_true(gi__side(L, L->occ[i])[f][k] == 0);
-            }
-          }
-        }
-      }
-    }
-    /* The roof's level-0 voxel over the building's middle: its underside is shut, its top not. */
-    int64_t cell[3];
-    const double roof[3] = {0, 4.1, 0};
-    for (int k = 0; k < 3; k++) cell[k] = (int64_t)floor((roof[k] - org[k]) / cas->lv[0].s);
-    const gi_vgeo *g = gi__geo(&cas->lv[0], gi__slot(cell[0], cell[1], cell[2], cas->R));
-    assert_int_equal(g->groups, 1);
-    int under = g->u.fin.orient[0][1] > 0 ? 1 : 0;
-    printf("%s: %d sides, %d outdoors, %d shut; the roof's voxel: shut mask %u, underside %d\n",
-           lamp ? "building with a lamp" : "building", sides, outside, shut, (unsigned)g->shut, under);
-    assert_int_equal(g->shut, lamp ? 0 : 1u << under);
-    assert_true(outside > sides / 2);
-    if (lamp) assert_int_equal(shut, 0);
-    else assert_true(shut > 0);
-    gi_cascade_free(cas);
-    gi_scene_release(sc);
-  }
-}
-
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_exact_counts),
       cmocka_unit_test(test_snapping_and_nesting),
       cmocka_unit_test(test_query_visits_only_nearby),
       cmocka_unit_test(test_orientation_groups),
-      cmocka_unit_test(test_shut_sides),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

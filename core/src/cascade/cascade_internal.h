@@ -79,14 +79,7 @@ typedef struct gi_vgeo {
       float soff[2 * GI_VOX_GROUPS];
     } fin;
   } u;
-  /* 1..GI_VOX_GROUPS when occupied; a bit field that leaves room for shut
-   * (below) in the same byte, so an entry keeps its size. */
-  unsigned groups : 2;
-  /* Bit sd (2 g + s): side sd faces the inside of a closed solid (a
-   * building's inside wall, the ground under it): no direct light reaches
-   * it and every test ray from it meets a back face first. Set by the
-   * injection (light/inject.c); the bounces gather no light for it. */
-  unsigned shut : 2 * GI_VOX_GROUPS;
+  uint8_t groups;      /* 1..GI_VOX_GROUPS when occupied */
   /* Face f shows side face_side[f] = 2 g + s of group g (s = 0: the side
    * +orient[g] faces, 1: the -orient[g] side). */
   uint8_t face_side[GI_VOX_FACES];
@@ -101,7 +94,6 @@ typedef struct gi_vgeo {
    * reference, 0.968 unturned). */
   uint8_t brighter;
 } gi_vgeo;
-_Static_assert(GI_VOX_GROUPS <= 3, "gi_vgeo.groups holds 0..3");
 
 /* The side of group g (orientation o) that face f shows: the one whose
  * normal points out of f (either, on a face along which o has no

@@ -3,13 +3,11 @@
  * Each occupied voxel gathers indirect irradiance on each side of each of
  * its orientation groups (cascade_internal.h) with the diffuse cone set
  * (weights sum to pi, see trace/cones.c) by the gather's surface rule
- * (trace/gather.c: one voxel off the surface), but for the sides the
- * injection found inside a closed solid (gi_vgeo.shut), which keep no
- * light; all voxels gather from the previous bounce's texture (Jacobi).
- * Transport is linear, so a bounce gathers only the light the previous
- * one added (the direct light for the first): between bounces the texture
- * holds that increment, shaded and filtered, and each voxel's side light
- * sums the increments;
+ * (trace/gather.c: one voxel off the surface); all voxels
+ * gather from the previous bounce's texture (Jacobi). Transport is linear,
+ * so a bounce gathers only the light the previous one added (the direct
+ * light for the first): between bounces the texture holds that increment,
+ * shaded and filtered, and each voxel's side light sums the increments;
  * after the last bounce the texture is reshaded from the sum. From the
  * third bounce on the increment is small and smooth, and the gather takes
  * the wide set (gi__bounce_wide). A closed furnace of albedo a
@@ -98,7 +96,6 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
   gi_cone_job all[GI_MAX_CONES];
   gi_gather_start st = {0};
   for (int sd = 0; sd < ns; sd++) {
-    if (g->shut >> sd & 1) continue; /* a solid's inside: no light to gather (gi_vgeo.shut) */
     float n[3];
     float sg = (sd & 1) ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * g->u.fin.orient[sd / 2][k];
@@ -115,7 +112,7 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
         cb->which[cb->nj] = (int16_t)bit, cb->jobs[cb->nj++] = all[ci];
     }
   }
-  if (cb->nj > first) cb->step = st.step, cb->ao_lambda = st.ao_lambda; /* st is set only by a side gathered */
+  cb->step = st.step, cb->ao_lambda = st.ao_lambda;
   cb->v[cb->nv].d = d, cb->v[cb->nv].slot = slot, cb->v[cb->nv].first = first, cb->v[cb->nv].count = cb->nj - first;
   cb->v[cb->nv].E = &E[0][0], cb->v[cb->nv].hit = hit;
   cb->nv++;

@@ -209,37 +209,6 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
   return rays;
 }
 
-/* Test rays per side for gi_vgeo.shut. A side outside a solid sees the
- * sky or a front face within the first one or two (the first leaves along
- * the normal), so only the insides of solids take all of them. */
-#define SHUT_RAYS 8
-
-/* gi_vgeo.shut from the voxel's direct light Es (per side): the sides
- * that receive none and whose every test ray first meets a back face.
- * Such a side is a closed solid's inside: the light the bounces would
- * gather there is what leaks through its walls, and only cones that start
- * inside the solid would read it. The direct light guards a scene wound
- * inside out: its lit sides keep their gathers; a scene with a light
- * inside a solid (a room modelled as a box seen from inside) shuts
- * nothing (gi_scene.lit_inside): its shadows there are lit. (Shutting
- * also the sides that see the ground's front face, a building without a
- * floor, took Munich's worst street probe to 0.62 of the reference's
- * indirect light: on a coarse voxel, one centroid speaks for facades on
- * both sides.) Adds the rays cast. */
-static uint8_t shut_sides(const gi_scene *s, const gi_vgeo *g, float voxel, const float Es[][3], uint64_t *rays) {
-  uint8_t shut = 0;
-  for (int sd = 0; sd < 2 * g->groups; sd++) {
-    if (Es[sd][0] + Es[sd][1] + Es[sd][2] > 0) continue;
-    float p[3], n[3], sg = (sd & 1) ? -1.f : 1.f;
-    gi__side_centroid(g, sd, p);
-    for (int k = 0; k < 3; k++) n[k] = sg * g->u.fin.orient[sd / 2][k];
-    int back, front;
-    *rays += (uint64_t)gi__backface_rays(s, p, n, voxel, SHUT_RAYS, 1, &back, &front);
-    if (back == SHUT_RAYS) shut |= (uint8_t)(1u << sd);
-  }
-  return shut;
-}
-
 static void inject_range(void *p, size_t b, size_t e, int worker) {
   inject_ctx *ic = p;
   struct gi_cascade *c = ic->c;
@@ -259,7 +228,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
   int R = c->R;
   for (size_t q = b; q < e; q++) {
     uint32_t slot = ic->slots[q];
-    gi_vgeo *g = gi__geo(L, slot);
+    const gi_vgeo *g = gi__geo(L, slot);
     float Es[GI_VOX_FACES][3] = {{0}}; /* per side 2 g + s */
     /* Seed from the global cell: the same voxel gets the same samples wherever the window is. */
     int64_t *cell = ib.cell;
@@ -271,7 +240,6 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     near_lights(c->scene, g, voxel, ic->d, n, &ib, &rng, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     rays += emitter_rays(ic, g, voxel, &rng, Es);
-    g->shut = c->scene->lit_inside ? 0 : shut_sides(c->scene, g, voxel, (const float(*)[3])Es, &rays);
     gi__face_light(g, (const float(*)[3])Es, gi__direct(L, slot));
     memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
   }

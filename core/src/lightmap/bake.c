@@ -98,9 +98,21 @@ static long find_tri(const gi_lightmap *lm, const gi_lm_chart *c, const float p[
 
 /* Back-face share of a few rays over the hemisphere of n from x, and whether any front face was hit. */
 static float backface_share(const gi_scene *s, const float x[3], const float n[3], float reach, int *front) {
-  int back;
-  gi__backface_rays(s, x, n, reach, GI_LM_INSIDE_RAYS, 0, &back, front);
-  *front = *front > 0;
+  float t[3], b[3];
+  gi__basis(n, t, b);
+  int back = 0;
+  *front = 0;
+  for (int i = 0; i < GI_LM_INSIDE_RAYS; i++) {
+    /* A fixed spiral of directions: deterministic, spread over the hemisphere. */
+    float z = 1.f - ((float)i + 0.5f) / GI_LM_INSIDE_RAYS, r = sqrtf(fmaxf(0.f, 1 - z * z));
+    float phi = 2.39996323f * (float)i, w[3], o[3], th, ng[3];
+    for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
+    float tn = gi__shadow_origin(x, n, reach, w, o);
+    uint32_t tri;
+    if (!gi__intersect1(s, o, w, tn, INFINITY, &th, &tri, ng)) continue;
+    if (gi__dot(ng, w) > 0) back++;
+    else *front = 1;
+  }
   return (float)back / GI_LM_INSIDE_RAYS;
 }
 

@@ -100,21 +100,6 @@ int gi__light_sample_cap(const gi_scene *s, const gi_light_plan *lp);
 static inline float gi__shadow_offset(float voxel) { return GI_SHADOW_OFFSET_VOXELS * voxel; }
 /* Start o of a shadow ray toward unit w from p; returns its tnear. */
 float gi__shadow_origin(const float p[3], const float *n, float voxel, const float w[3], float o[3]);
-/* Casts up to `count` rays over the hemisphere of unit n from p (a fixed
- * spiral, the first nearly along n; each starts as a shadow ray toward its
- * direction, voxel the local size) and counts in *back those that first
- * meet a back face (a triangle whose winding normal points along the ray:
- * the inside of a closed solid), in *front those that meet a front face.
- * With `stop`, stops at the first ray that meets no back face. Returns the
- * rays cast. Thread-safe. */
-int gi__backface_rays(const gi_scene *s, const float p[3], const float n[3], float voxel, int count, int stop,
-                      int *back, int *front);
-/* 1 when a point or spot light has half or more of 26 rays around it
- * meet back faces first, or an emitter every ray over its emitting side
- * (at most GI_INSIDE_EMITTERS of them, spread over the list): a light
- * inside a closed solid. Needs the BVH; once per scene build. */
-#define GI_INSIDE_EMITTERS 256
-int gi__lit_inside_solids(const gi_scene *s);
 /* Visibility of the count samples ls (count <= sc->cap) from p by the rule
  * above: fills sc's org/dir/tn/tf, traces them, sc->vis[i] = 1 when sample
  * i is unoccluded. voxel: the local voxel size at p. */

@@ -455,7 +455,6 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
       (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_lights(opt, s, err)) != GI_OK)
     goto done;
   if (t.kept) rc = gi__bvh_build(s, opt->threads, err);
-  if (rc == GI_OK && t.kept) s->lit_inside = gi__lit_inside_solids(s);
 
 done:
   gi__free(t.cls);

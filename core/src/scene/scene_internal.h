@@ -70,10 +70,6 @@ struct gi_scene {
   gi_emitter_geo *emitter_geo; /* per slot: the triangle's corners and emission, copied */
   uint32_t num_lnodes;
   float emitter_area_total;
-  /* 1 when a light sits inside a closed solid (gi__lit_inside_solids): the
-   * scene models a lit room as a solid seen from inside, so a solid's
-   * inside is not dark and the injection shuts no side (gi_vgeo.shut). */
-  int lit_inside;
 
   gi_scene_stats stats;
 

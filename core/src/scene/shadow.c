@@ -1,6 +1,5 @@
 /* shadow.c: shadow-ray batches, with the one rule every stage uses for
  * where a shadow ray starts and where it stops (see lights.h). */
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -34,59 +33,6 @@ float gi__shadow_origin(const float p[3], const float *n, float voxel, const flo
   float sg = gi__dot(n, w) < 0 ? -1.f : 1.f;
   for (int k = 0; k < 3; k++) o[k] = p[k] + sg * off * n[k];
   return 0.f;
-}
-
-int gi__backface_rays(const gi_scene *s, const float p[3], const float n[3], float voxel, int count, int stop,
-                      int *back, int *front) {
-  float t[3], b[3];
-  gi__basis(n, t, b);
-  *back = *front = 0;
-  int i = 0;
-  while (i < count) {
-    float z = 1.f - ((float)i + 0.5f) / (float)count, r = sqrtf(fmaxf(0.f, 1 - z * z));
-    float phi = 2.39996323f * (float)i, w[3], o[3], th, ng[3];
-    for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
-    float tn = gi__shadow_origin(p, n, voxel, w, o);
-    uint32_t tri;
-    int hit = gi__intersect1(s, o, w, tn, INFINITY, &th, &tri, ng), in = hit && gi__dot(ng, w) > 0;
-    i++;
-    if (in) ++*back;
-    else if (hit) ++*front;
-    if (!in && stop) break;
-  }
-  return i;
-}
-
-int gi__lit_inside_solids(const gi_scene *s) {
-  /* A point light shines every way: two hemispheres of 13 rays. */
-  static const float up[3] = {0, 0, 1}, down[3] = {0, 0, -1};
-  int back, front, b2;
-  for (uint32_t i = 0; i < s->num_lights; i++) {
-    const gi_light *l = &s->lights[i];
-    if (l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) continue;
-    float p[3];
-    for (int k = 0; k < 3; k++) p[k] = (float)(l->position[k] - s->origin[k]);
-    gi__backface_rays(s, p, up, 0, 13, 0, &back, &front);
-    gi__backface_rays(s, p, down, 0, 13, 0, &b2, &front);
-    if (2 * (back + b2) >= 26) return 1;
-  }
-  uint32_t step = s->num_emitters > GI_INSIDE_EMITTERS ? s->num_emitters / GI_INSIDE_EMITTERS : 1;
-  for (uint32_t i = 0; i < s->num_emitters; i += step) {
-    const gi_emitter_geo *e = &s->emitter_geo[i];
-    float c[3], e1[3], e2[3], n[3];
-    for (int k = 0; k < 3; k++) {
-      c[k] = (e->v[0][k] + e->v[1][k] + e->v[2][k]) / 3.f;
-      e1[k] = e->v[1][k] - e->v[0][k], e2[k] = e->v[2][k] - e->v[0][k];
-    }
-    gi__cross(e1, e2, n);
-    float len = gi__len(n);
-    if (!(len > 0)) continue;
-    for (int k = 0; k < 3; k++) n[k] /= len;
-    /* Off the triangle by a share of its size, as a shadow ray off a voxel's surface. */
-    gi__backface_rays(s, c, n, sqrtf(len), 8, 1, &back, &front);
-    if (back == 8) return 1;
-  }
-  return 0;
 }
 
 void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float voxel, const gi_lsample *ls,
