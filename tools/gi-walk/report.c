@@ -151,7 +151,7 @@ static void steps_csv(const bench_opts *o, const walk_path *p, const step_rec *s
   snprintf(file, sizeof file, "%s/bench-walk-steps-%s.csv", o->out_dir, p->name);
   FILE *f = fopen(file, "w");
   if (!f) return perror(file);
-  fprintf(f, "step,t,crossed,closed,move_ms,gather_ms,move_cpu_ms,cold_ms,voxelized,injected,regathered,jump,drift,pop");
+  fprintf(f, "step,t,crossed,closed,move_ms,gather_ms,move_cpu_ms,cold_ms,voxelized,injected,regathered,jump,drift,pop,cold_pop");
   for (int k = 0; k < PROBE_FIGS; k++) fprintf(f, ",fig%d", k);
   fprintf(f, "\n");
   for (size_t i = 0; i < p->n; i++) {
@@ -161,6 +161,9 @@ static void steps_csv(const bench_opts *o, const walk_path *p, const step_rec *s
             (unsigned long long)st[i].redone[2], i ? probe_rel(&st[i].moved, &st[i - 1].moved) : 0.0,
             st[i].cold ? probe_rel(&st[i].moved, &st[i].cold_probe) : -1.0);
     fprintf(f, ",%.5f", i ? probe_rel(&st[i].moved, &st[i].pre) : 0.0);
+    /* A sampled pair's cold figure beside the moved one (quality_figures' pairs). */
+    int pair = i > 0 && st[i].crossed && st[i].cold && st[i - 1].cold;
+    fprintf(f, ",%.5f", pair ? probe_rel(&st[i].cold_probe, &st[i - 1].cold_next) : -1.0);
     for (int k = 0; k < PROBE_FIGS; k++) fprintf(f, ",%.6g", st[i].moved.v[k]);
     fprintf(f, "\n");
   }
