@@ -24,7 +24,8 @@ assert rows and all(r["scene"] == "box" for r in rows), {r["scene"] for r in row
 cone = [r for r in rows if r["kind"] == "cone"]
 path = [r for r in rows if r["kind"] == "path"]
 # --quick: each knob of the sweep, and the default once.
-want = {"default": 1, "res": 2, "levels": 3, "voxel0": 2, "cones": 3, "aperture": 2, "step": 2, "bounces": 4}
+want = {"default": 1, "res": 2, "levels": 3, "voxel0": 2, "cones": 3, "aperture": 2, "step": 2, "bounces": 4,
+        "light_samples": 3}
 got = {}
 for r in cone:
     got[r["knob"]] = got.get(r["knob"], 0) + 1

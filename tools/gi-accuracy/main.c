@@ -93,6 +93,7 @@ static void usage(FILE *f) {
           "  --quick            fewer knob values, views at 64 paths per pixel, workloads' error on 20\n"
           "                     probes and Cycles at 16 samples only (a smoke run)\n"
           "  --knobs LIST       sweep only these: res, levels, voxel0, cones, aperture, step, bounces,\n"
+          "                     light_samples (sky and emitter samples per voxel),\n"
           "                     high (comma-separated; the default bake always runs)\n",
           GI_SCENES_DIR);
 }
@@ -109,7 +110,8 @@ static int takes_value(const char *a) {
 
 /* --knobs LIST: names from the sweep, comma-separated. */
 static int check_knobs(const char *list) {
-  static const char *const known[] = {"res", "levels", "voxel0", "cones", "aperture", "step", "bounces", "high"};
+  static const char *const known[] = {"res", "levels", "voxel0", "cones", "aperture", "step", "bounces", "light_samples",
+                                      "high"};
   char buf[128];
   if (!*list || strlen(list) >= sizeof buf) return ta_fail(&ta, "--knobs", "expected a list of knobs, got '%s'", list);
   snprintf(buf, sizeof buf, "%s", list);
@@ -118,7 +120,8 @@ static int check_knobs(const char *list) {
     size_t k = 0;
     while (k < sizeof known / sizeof known[0] && strcmp(t, known[k])) k++;
     if (k == sizeof known / sizeof known[0])
-      return ta_fail(&ta, "--knobs", "unknown knob '%s' (res, levels, voxel0, cones, aperture, step, bounces, high)", t);
+      return ta_fail(&ta, "--knobs",
+                     "unknown knob '%s' (res, levels, voxel0, cones, aperture, step, bounces, light_samples, high)", t);
   }
   return 0;
 }
@@ -493,6 +496,13 @@ static int sweep_scene(const opts *o, const char *name, const scene_set *ss, con
     gi_quality q = q0;
     q.bounces = bnc[i];
     ok = run_cone(name, ss, ref, &q, "bounces", bnc[i] < 0 ? 0 : bnc[i], 0, out);
+  }
+  /* Light samples per voxel (sky, emitters): the inject's cost; the probes keep their own. */
+  static const int lsamp[] = {4, 8, 32};
+  for (int i = 0; ok && sweeps_here(o, name, "light_samples") && i < 3; i++) {
+    gi_quality q = q0;
+    q.light_samples = lsamp[i];
+    ok = run_cone(name, ss, ref, &q, "light_samples", lsamp[i], 0, out);
   }
   if (ok && !o->quick && sweeps_here(o, name, "high")) {
     /* A "high" setting: every knob that helped, together. */

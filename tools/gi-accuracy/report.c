@@ -121,6 +121,7 @@ static const char *knob_what(const char *k) {
   if (!strcmp(k, "aperture")) return "diffuse cone aperture (degrees)";
   if (!strcmp(k, "step")) return "march step, fraction of the cone diameter";
   if (!strcmp(k, "bounces")) return "voxel-to-voxel bounces";
+  if (!strcmp(k, "light_samples")) return "sky and emitter samples per voxel (the injection; probes keep their own)";
   if (!strcmp(k, "high")) return "all the helpful knobs together (R 64, s0/2, 32 cones, step 0.25, bounces from the albedo rule)";
   return k;
 }
