@@ -1,10 +1,12 @@
 #!/bin/sh
 # render-bench.sh BUILD_DIR: what gathering a camera view's indirect light
-# at anchors saves. For each view (the Cornell box's Mitsuba camera; the
-# street views of Munich and the procedural city that gi-accuracy compares)
-# gi-bake renders the same view with --render-stride 1 (16 diffuse cones at
-# every pixel) and with the default (every 4th pixel of every 4th row, mixed
-# between anchors on a pixel's surface), alternating, REPEAT times each, and
+# and its sampled lights' direct light (sky, emitters) at anchors saves.
+# For each view (the Cornell box's Mitsuba camera; the street views of
+# Munich and the procedural city that gi-accuracy compares) gi-bake renders
+# the same view with --render-stride 1 (16 diffuse cones and the sampled
+# lights' 64 shadow rays at every pixel) and with the default (every 4th
+# pixel of every 4th row, mixed between anchors on a pixel's surface),
+# alternating, REPEAT times each, and
 # prints the median cone-traced render milliseconds, the diffuse cones
 # traced and the ratios, measured in the same run. The cone counts are the
 # deterministic part. What the mix does to the error against a path-traced
@@ -28,7 +30,7 @@ command -v python3 > /dev/null 2>&1 || { echo "render-bench: python3 is needed t
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/gi-render.XXXXXX") || exit 0
 trap 'rm -rf "$TMP"' EXIT INT TERM
 
-echo "camera views: indirect light at every pixel (stride 1) against anchors (default stride 4),"
+echo "camera views: indirect and sampled direct light at every pixel (stride 1) against anchors (default stride 4),"
 echo "median of $REPEAT renders each, alternating; default quality, 2 threads, 1 path/pixel for the unused path-traced half"
 printf '%-8s %-9s %12s %14s %12s %12s\n' view stride "render ms" "diffuse cones" "ms ratio" "cone ratio"
 

@@ -42,8 +42,9 @@ typedef struct gi_render_opts {
   uint64_t seed;     /* reference: 0 = 1 */
   int threads;       /* 0 = all cores */
   float *specular;   /* NULL, or width * height * 3 floats, caller-owned, written by the call */
-  int indirect_stride; /* cascade: diffuse indirect gathered at every Nth pixel of every Nth row and
-                          mixed between those on the same surface; 1 = at every pixel;
+  int indirect_stride; /* cascade: diffuse indirect light, and the direct light of the sampled lights
+                          (sky, emitters), gathered at every Nth pixel of every Nth row and mixed
+                          between those on the same surface; 1 = at every pixel;
                           0 = GI_RENDER_DEFAULT_STRIDE */
 } gi_render_opts;
 #define GI_RENDER_DEFAULT_STRIDE 4

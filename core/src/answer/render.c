@@ -9,7 +9,8 @@
  * levels kept off it: trace/gather.c), exactly as the voxel bounces
  * gather, at every stride-th pixel of every stride-th row (the anchors,
  * gathered first) and mixed between them where they lie on the pixel's
- * surface (see "indirect light at anchors" below); the specular pass
+ * surface (see "indirect light at anchors" below), as is the sampled
+ * lights' direct light (sky, emitters); the specular pass
  * (gi_cascade_view_plan decides whether it runs and where) adds one
  * specular cone along the mirror direction, weighted by the material's
  * specular reflectance.
@@ -72,20 +73,25 @@ typedef struct {
   float *spec_img;     /* optional: specular * L_cone per pixel */
   int cap;             /* light samples per pixel at most (gi__light_sample_cap) */
   atomic_int failed;   /* a worker ran out of memory */
-  int stride;          /* indirect gathered at every stride-th pixel of every stride-th row (1: all) */
+  int stride;          /* anchors at every stride-th pixel of every stride-th row (1: none, every pixel its own) */
   int aw, ah;          /* anchors per row and per column */
+  int mix_sampled;     /* the plan samples the sky or emitters: anchors hold their direct light */
   struct anchor *anc;  /* aw * ah, or NULL when stride is 1 */
 } render_ctx;
 
-/* ---- indirect light at anchors, interpolated between them ------------ */
+/* ---- indirect (and sampled direct) light at anchors, mixed ---------- */
 
 /* Diffuse indirect light varies on the scale of the voxels it is gathered
  * from (one voxel off the surface), not of pixels: it is gathered at the
  * anchors (every stride-th pixel of every stride-th row), and a pixel
  * between four anchors that all lie on its own surface within a voxel of
  * it takes their bilinear mix; any other pixel (an edge, a corner, a thin
- * object, a far surface) gathers its own. Direct light, emission and the
- * specular cone stay per pixel. Measured at stride 4 against every pixel
+ * object, a far surface) gathers its own. The sampled lights (sky,
+ * emitters) vary as smoothly over a surface, and their 64 shadow rays per
+ * pixel were most of a view's time: they too are sampled at the anchors
+ * and mixed (a pixel that gathers its own samples them itself). The sun,
+ * point and spot lights (sharp shadows), emission and the specular cone
+ * stay per pixel. Indirect light alone, measured at stride 4 against every pixel
  * (default quality, 64 light samples): Munich's street view 921,600 ->
  * 81,456 diffuse cones, render 357 -> 178 ms, pixels 0.04% apart; the
  * Cornell box's view against its path-traced reference 12.66% -> 12.57%
@@ -101,8 +107,9 @@ typedef struct {
 
 typedef struct anchor {
   float x[3], n[3];    /* the primary hit and its normal, turned to the camera */
-  float E[3];          /* diffuse indirect irradiance */
-  int ok;              /* hit a surface inside the cascade, E gathered */
+  float E[3];          /* diffuse indirect irradiance (0 when the bake ran no bounce) */
+  float Es[3];         /* direct irradiance from the sampled lights (sky, emitters) */
+  int ok;              /* hit a surface inside the cascade, E and Es gathered */
 } anchor;
 
 /* The primary hit of pixel (px, py): 1 with its point, the normal turned
@@ -117,6 +124,38 @@ static int primary_hit(const render_ctx *rc, int px, int py, float w[3], float x
   return 1;
 }
 
+/* The light plan of the lights mixed between anchors (sampled: 1, the
+ * sky and the emitters, whose light varies smoothly over a surface) or of
+ * those every pixel samples itself (0: the sun, point and spot lights,
+ * whose shadows are sharp; all lights when mix is off). */
+static gi_light_plan sampled_plan(const render_ctx *rc, int sampled) {
+  gi_light_plan lp = gi__light_plan(&rc->c->report, rc->samples);
+  if (sampled) lp.sun = lp.local = 0;
+  else if (rc->mix_sampled) lp.sky = lp.emissive = 0;
+  return lp;
+}
+
+/* Direct irradiance at surface point x (normal n) of pixel (px, py) from
+ * the lights of plan lp, by shadow rays (seeded by the pixel). */
+static void direct_light(const render_ctx *rc, const gi_light_plan *lp, int px, int py, const float x[3],
+                         const float n[3], gi_ray_scratch *sc, float E[3]) {
+  const struct gi_cascade *c = rc->c;
+  const gi_scene *s = c->scene;
+  gi_lsample *ls = sc->ls;
+  uint64_t rng = gi__mix64(c->report.quality.seed ^ ((uint64_t)py << 32 | (uint32_t)px));
+  int nl = gi__light_samples(s, lp, x, &rng, ls, sc->cap), k = 0;
+  /* Only lights in front of the surface; compact in place. */
+  for (int i = 0; i < nl; i++)
+    if (gi__dot(n, ls[i].w) > 0) ls[k++] = ls[i];
+  gi__shadow_rays(s, x, n, gi__voxel_at(c, x), ls, k, sc);
+  E[0] = E[1] = E[2] = 0;
+  for (int i = 0; i < k; i++)
+    if (sc->vis[i]) {
+      float cn = gi__dot(n, ls[i].w);
+      for (int a = 0; a < 3; a++) E[a] += ls[i].V[a] * cn;
+    }
+}
+
 /* Gathers marched together (gi__gather_hemispheres): anchors per batch,
  * and pixels that need their own gather. */
 #define GATHER_BATCH 32
@@ -128,12 +167,14 @@ typedef struct {
 } gather_batch;
 
 static void anchor_flush(const render_ctx *rc, gather_batch *gb, anchor **who, uint64_t *cones) {
-  gi__gather_hemispheres(rc->c, gb->req, (size_t)gb->n, gb->out);
-  for (int q = 0; q < gb->n; q++) {
-    memcpy(who[q]->E, gb->out[q].E, sizeof who[q]->E);
-    who[q]->ok = 1;
-    *cones += (uint64_t)rc->c->num_cones;
+  if (rc->c->report.bounces_run > 0) {
+    gi__gather_hemispheres(rc->c, gb->req, (size_t)gb->n, gb->out);
+    for (int q = 0; q < gb->n; q++) {
+      memcpy(who[q]->E, gb->out[q].E, sizeof who[q]->E);
+      *cones += (uint64_t)rc->c->num_cones;
+    }
   }
+  for (int q = 0; q < gb->n; q++) who[q]->ok = 1;
   gb->n = 0;
 }
 
@@ -143,30 +184,40 @@ static void anchor_rows(void *p, size_t b, size_t e, int worker) {
   uint64_t cones = 0;
   gather_batch gb = {.n = 0};
   anchor *who[GATHER_BATCH];
+  gi_ray_scratch sc = {0};
+  if (gi__scratch_alloc(&sc, rc->cap)) {
+    atomic_store(&rc->failed, 1);
+    return;
+  }
+  gi_light_plan lp = sampled_plan(rc, 1);
   for (size_t j = b; j < e; j++)
     for (int i = 0; i < rc->aw; i++) {
       anchor *an = &rc->anc[j * (size_t)rc->aw + (size_t)i];
       float w[3], ng[3];
       uint32_t tri;
       memset(an, 0, sizeof *an);
-      if (!primary_hit(rc, i * rc->stride, (int)j * rc->stride, w, an->x, an->n, ng, &tri)) continue;
+      int px = i * rc->stride, py = (int)j * rc->stride;
+      if (!primary_hit(rc, px, py, w, an->x, an->n, ng, &tri)) continue;
       int d = gi__finest_level_at(rc->c, an->x);
       if (d < 0) continue;
+      if (rc->mix_sampled) direct_light(rc, &lp, px, py, an->x, an->n, &sc, an->Es);
       gb.req[gb.n] = gi__gather_req(an->x, an->n, GI_GATHER_SURFACE, d);
       who[gb.n++] = an;
       if (gb.n == GATHER_BATCH) anchor_flush(rc, &gb, who, &cones);
     }
   anchor_flush(rc, &gb, who, &cones);
+  gi__scratch_free(&sc);
   atomic_fetch_add(&rc->diffuse_cones, cones);
 }
 
-/* The pixel's indirect light from the four anchors around it: 1 when
- * all of them lie on its surface (E their bilinear mix), else 0. */
-static int interpolate_indirect(const render_ctx *rc, int px, int py, const float x[3], const float n[3], int d,
-                                float E[3]) {
+/* The pixel's indirect light and sampled lights' direct light from the
+ * four anchors around it: 1 when all of them lie on its surface (E and Es
+ * their bilinear mix), else 0. */
+static int interpolate_anchors(const render_ctx *rc, int px, int py, const float x[3], const float n[3], int d,
+                               float E[3], float Es[3]) {
   int S = rc->stride, i0 = px / S, j0 = py / S;
   float fx = (float)(px - i0 * S) / (float)S, fy = (float)(py - j0 * S) / (float)S;
-  float s = (float)rc->c->lv[d].s, wsum = 0, acc[3] = {0, 0, 0};
+  float s = (float)rc->c->lv[d].s, wsum = 0, acc[3] = {0, 0, 0}, accs[3] = {0, 0, 0};
   for (int dj = 0; dj < 2; dj++)
     for (int di = 0; di < 2; di++) {
       int i = i0 + di, j = j0 + dj;
@@ -177,10 +228,10 @@ static int interpolate_indirect(const render_ctx *rc, int px, int py, const floa
       if (!an->ok || gi__dot(an->n, n) < ANCHOR_COS) return 0;
       float v[3] = {an->x[0] - x[0], an->x[1] - x[1], an->x[2] - x[2]};
       if (fabsf(gi__dot(v, n)) > ANCHOR_PLANE * s || gi__dot(v, v) > ANCHOR_REACH * ANCHOR_REACH * s * s) return 0;
-      for (int a = 0; a < 3; a++) acc[a] += wt * an->E[a];
+      for (int a = 0; a < 3; a++) acc[a] += wt * an->E[a], accs[a] += wt * an->Es[a];
       wsum += wt;
     }
-  for (int a = 0; a < 3; a++) E[a] = acc[a] / wsum;
+  for (int a = 0; a < 3; a++) E[a] = acc[a] / wsum, Es[a] = accs[a] / wsum;
   return 1;
 }
 
@@ -215,9 +266,6 @@ static void finish_pixel(const render_ctx *rc, const pending_px *pp, uint64_t co
  * own (no anchors, or they do not lie on its surface). */
 static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint64_t cones[2], float out[3],
                        float *spec, pending_px *pp) {
-  gi_lsample *ls = sc->ls;
-  uint8_t *vis = sc->vis;
-  int cap = sc->cap;
   const struct gi_cascade *c = rc->c;
   const gi_scene *s = c->scene;
   float ng[3];
@@ -234,25 +282,16 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   if (gi__dot(ng, pp->w) < 0) /* emitters are one-sided: their front faces the camera */
     for (int a = 0; a < 3; a++) out[a] += m->emission[a];
   float *E = pp->E;
-  E[0] = E[1] = E[2] = 0;
-  gi_light_plan lp = gi__light_plan(&c->report, rc->samples);
-  uint64_t rng = gi__mix64(c->report.quality.seed ^ ((uint64_t)py << 32 | (uint32_t)px));
-  int nl = gi__light_samples(s, &lp, x, &rng, ls, cap), k = 0;
-  /* Only lights in front of the surface; compact in place. */
-  for (int i = 0; i < nl; i++)
-    if (gi__dot(n, ls[i].w) > 0) ls[k++] = ls[i];
-  gi__shadow_rays(s, x, n, gi__voxel_at(c, x), ls, k, sc);
-  for (int i = 0; i < k; i++)
-    if (vis[i]) {
-      float cn = gi__dot(n, ls[i].w);
-      for (int a = 0; a < 3; a++) E[a] += ls[i].V[a] * cn;
-    }
-  /* Indirect light: the anchor's own, the anchors' mix, or the pixel's own gather. */
+  /* The anchors' mix (an anchor's own pixel is its cell's corner at weight
+   * 1: its own light), or the pixel's own light and gather. */
   int d = pp->d = gi__finest_level_at(c, x);
+  float Ei[3] = {0, 0, 0}, Es[3] = {0, 0, 0};
+  int mixed = rc->anc && d >= 0 && interpolate_anchors(rc, px, py, x, n, d, Ei, Es);
+  gi_light_plan lp = mixed ? sampled_plan(rc, 0) : gi__light_plan(&c->report, rc->samples);
+  direct_light(rc, &lp, px, py, x, n, sc, E);
+  for (int a = 0; a < 3; a++) E[a] += Es[a];
   if (d >= 0 && c->report.bounces_run > 0) {
-    float Ei[3];
-    /* An anchor's own pixel is its cell's corner at weight 1: its own E. */
-    if (rc->stride == 1 || !interpolate_indirect(rc, px, py, x, n, d, Ei)) return 1;
+    if (!mixed) return 1;
     for (int a = 0; a < 3; a++) E[a] += Ei[a];
   }
   finish_pixel(rc, pp, cones);
@@ -320,12 +359,13 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   atomic_init(&rc.diffuse_cones, 0);
   atomic_init(&rc.specular_cones, 0);
   rc.stride = o.indirect_stride ? o.indirect_stride : GI_RENDER_DEFAULT_STRIDE;
-  if (rc.stride > 1 && c->report.bounces_run > 0) {
+  rc.mix_sampled = lp.sky || (lp.emissive && c->scene->num_emitters > 0);
+  if (rc.stride > 1 && (c->report.bounces_run > 0 || rc.mix_sampled)) {
     rc.aw = (k.w - 1) / rc.stride + 1, rc.ah = (k.h - 1) / rc.stride + 1;
     rc.anc = gi__malloc((size_t)rc.aw * (size_t)rc.ah * sizeof *rc.anc);
     if (!rc.anc)
       return gi__fail(err, GI_ERR_NOMEM, "render: out of memory for %d x %d indirect anchors", rc.aw, rc.ah);
-    gi__parallel_for((size_t)rc.ah, 1, o.threads, anchor_rows, &rc);
+    gi__parallel_for_stop((size_t)rc.ah, 1, o.threads, anchor_rows, &rc, &rc.failed);
   } else {
     rc.stride = 1;
   }
