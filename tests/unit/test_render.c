@@ -111,14 +111,7 @@ static int off_surface(const float (*nrm)[3], int w, int h, int x, int y) {
 }
 
 static void test_indirect_anchors(void **state) {
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.7f, 0.7f, 0.7f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double lo[3] = {-2, 0, -2}, hi[3] = {2, 2.5, 2}, blo[3] = {-1.6, 0, -1.6}, bhi[3] = {-0.9, 0.7, -0.9};
-  gi_mesh_builder_add_box(b, lo, hi, mat);
-  gi_mesh_builder_add_box(b, blo, bhi, mat);
-  gi_light pl = {.type = GI_LIGHT_POINT, .color = {20, 20, 20}, .position = {0.8, 2.0, 0.8}};
-  gi_scene *s = tu_build(b, "room", &pl, 1);
+  gi_scene *s = tu_lit_room(0.7f);
   gi_error_info err = {0};
   gi_quality q = {.levels = 3, .res = 32, .voxel0 = 0.125};
   gi_cascade *c = NULL;

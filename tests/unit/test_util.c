@@ -98,3 +98,14 @@ struct gi_scene *tu_sunlit_plane(double a, double E, double z_max) {
   gi_mesh_builder_add_quad(b, A, B, C, D, mat);
   return tu_build(b, "plane", &sun, 1);
 }
+
+struct gi_scene *tu_lit_room(float a) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {a, a, a}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {-2, 0, -2}, hi[3] = {2, 2.5, 2}, blo[3] = {-1.6, 0, -1.6}, bhi[3] = {-0.9, 0.7, -0.9};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_mesh_builder_add_box(b, blo, bhi, mat);
+  gi_light pl = {.type = GI_LIGHT_POINT, .color = {20, 20, 20}, .position = {0.8, 2.0, 0.8}};
+  return tu_build(b, "room", &pl, 1);
+}

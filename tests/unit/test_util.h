@@ -39,6 +39,12 @@ struct gi_scene *tu_furnace_scene_mirror(double size, double a, double m, double
  * receives E cos 60 (test_render, test_views, test_ref_panorama). */
 struct gi_scene *tu_sunlit_plane(double a, double E, double z_max);
 
+/* A closed room [-2,2] x [0,2.5] x [-2,2] of albedo a (grey) with a block
+ * on its floor at x, z in [-1.6,-0.9], 0.7 high, lit by a point light of
+ * 20 W/sr at (0.8, 2.0, 0.8): edges, a lit side and a shadowed one
+ * (test_render, test_ref_panorama). Caller releases it. */
+struct gi_scene *tu_lit_room(float a);
+
 #define TU_SKIP_IF_NO_SCENE(var, rel)                  \
   const char *var = tu_scene_path(rel);                \
   if (!var) { skip(); }

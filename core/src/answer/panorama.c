@@ -3,7 +3,7 @@
  * Each pixel is split as the probes are: what a primary ray sees of light
  * sources directly (the front of an emitter, or the sky when it escapes)
  * and what surfaces reflect toward the point, which one cone per pixel
- * gathers from the cascade. The cone's aperture is the pixel's angular
+ * gathers from the cascade (a row's cones march as one batch). The cone's aperture is the pixel's angular
  * size, so the image is as sharp as the texture allows and no sharper.
  * The sun is a delta light: no finite pixel shows it, and its light
  * reaches the image only through the surfaces it lights. */
@@ -13,6 +13,10 @@
 #include "base/internal.h"
 #include "scene/lights.h"
 #include "trace/trace.h"
+
+/* A row's cones march together, in the lanes of gi__cone_march_jobs
+ * (one cone at a time kept 7 of 8 lanes idle). */
+#define PANO_BATCH 256
 
 typedef struct {
   const struct gi_cascade *c;
@@ -45,29 +49,34 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
   /* Primary rays skip hits closer than the shadow rule's offset, as a
    * probe's shadow rays from the same point do. */
   float eps = gi__shadow_offset(gi__voxel_at(c, pc->at));
+  gi_cone_job jobs[PANO_BATCH];
+  gi_cone_out co[PANO_BATCH];
   for (size_t y = b; y < e; y++)
-    for (int x = 0; x < pc->w; x++) {
-      size_t i = 3 * ((size_t)y * (size_t)pc->w + (size_t)x);
-      float w[3], th, ng[3];
-      uint32_t tri;
-      pixel_dir(up_z, pc->w, pc->h, x, (int)y, w);
-      float *D = &pc->direct[i], *I = &pc->indirect[i];
-      D[0] = D[1] = D[2] = 0;
-      if (gi__intersect1(s, pc->at, w, eps, INFINITY, &th, &tri, ng)) {
-        /* Emitters are one-sided, facing their winding normal. */
-        const float *Le = s->materials[s->tri_material[tri]].emission;
-        if (gi__dot(ng, w) < 0 && c->report.effects[GI_FX_EMISSIVE].ran)
-          for (int k = 0; k < 3; k++) D[k] = Le[k];
-      } else {
-        for (int k = 0; k < 3; k++) D[k] = pc->sky[k];
+    for (int x0 = 0; x0 < pc->w; x0 += PANO_BATCH) {
+      int m = pc->w - x0 < PANO_BATCH ? pc->w - x0 : PANO_BATCH;
+      for (int j = 0; j < m; j++) {
+        size_t i = 3 * ((size_t)y * (size_t)pc->w + (size_t)(x0 + j));
+        float *w = jobs[j].w, th, ng[3];
+        uint32_t tri;
+        pixel_dir(up_z, pc->w, pc->h, x0 + j, (int)y, w);
+        float *D = &pc->direct[i];
+        D[0] = D[1] = D[2] = 0;
+        if (gi__intersect1(s, pc->at, w, eps, INFINITY, &th, &tri, ng)) {
+          /* Emitters are one-sided, facing their winding normal. */
+          const float *Le = s->materials[s->tri_material[tri]].emission;
+          if (gi__dot(ng, w) < 0 && c->report.effects[GI_FX_EMISSIVE].ran)
+            for (int k = 0; k < 3; k++) D[k] = Le[k];
+        } else {
+          for (int k = 0; k < 3; k++) D[k] = pc->sky[k];
+        }
+        memcpy(jobs[j].o, g.o, sizeof g.o);
+        memcpy(jobs[j].n, g.n, sizeof g.n);
+        jobs[j].t0 = g.t0, jobs[j].h0 = g.h0;
       }
-      gi_cone_out co;
-      if (inside) {
-        gi__gather_cone(c, &g, w, tan_half, &co);
-      } else {
-        memset(&co, 0, sizeof co);
-      }
-      for (int k = 0; k < 3; k++) I[k] = co.L[k];
+      if (inside) gi__cone_march_jobs(c, jobs, m, tan_half, g.step, g.ao_lambda, co);
+      else memset(co, 0, (size_t)m * sizeof co[0]);
+      for (int j = 0; j < m; j++)
+        memcpy(&pc->indirect[3 * ((size_t)y * (size_t)pc->w + (size_t)(x0 + j))], co[j].L, sizeof co[j].L);
     }
 }
 
