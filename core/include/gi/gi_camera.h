@@ -36,8 +36,9 @@ gi_result gi_camera_validate(const gi_camera *cam, gi_error_info *err);
  * cone), 0 where the hit is not glossy or nothing is hit. Its part is
  * already included in rgb. */
 typedef struct gi_render_opts {
-  int light_samples; /* cascade: shadow rays per pixel for sky and area lights; 0 = 64 (the city's street
-                        view: 35% -> 26% error against the reference, +34% render time) */
+  int light_samples; /* cascade: shadow rays for sky and area lights per pixel (per anchor where the
+                        anchors mix them, see indirect_stride); 0 = 64 (the city's street view: 35% ->
+                        26% error against the reference, +34% render time) */
   int spp;           /* reference: paths per pixel, 1..1048576; 0 = 16 */
   uint64_t seed;     /* reference: 0 = 1 */
   int threads;       /* 0 = all cores */
