@@ -49,8 +49,14 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
   /* Primary rays skip hits closer than the shadow rule's offset, as a
    * probe's shadow rays from the same point do. */
   float eps = gi__shadow_offset(gi__voxel_at(c, pc->at));
+  /* Every cone starts at the eye: only the directions differ. */
   gi_cone_job jobs[PANO_BATCH];
   gi_cone_out co[PANO_BATCH];
+  for (int j = 0; j < PANO_BATCH; j++) {
+    memcpy(jobs[j].o, g.o, sizeof g.o);
+    memcpy(jobs[j].n, g.n, sizeof g.n);
+    jobs[j].t0 = g.t0, jobs[j].h0 = g.h0;
+  }
   for (size_t y = b; y < e; y++)
     for (int x0 = 0; x0 < pc->w; x0 += PANO_BATCH) {
       int m = pc->w - x0 < PANO_BATCH ? pc->w - x0 : PANO_BATCH;
@@ -69,9 +75,6 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
         } else {
           for (int k = 0; k < 3; k++) D[k] = pc->sky[k];
         }
-        memcpy(jobs[j].o, g.o, sizeof g.o);
-        memcpy(jobs[j].n, g.n, sizeof g.n);
-        jobs[j].t0 = g.t0, jobs[j].h0 = g.h0;
       }
       if (inside) gi__cone_march_jobs(c, jobs, m, tan_half, g.step, g.ao_lambda, co);
       else memset(co, 0, (size_t)m * sizeof co[0]);

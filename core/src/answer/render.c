@@ -124,17 +124,6 @@ static int primary_hit(const render_ctx *rc, int px, int py, float w[3], float x
   return 1;
 }
 
-/* The light plan of the lights mixed between anchors (sampled: 1, the
- * sky and the emitters, whose light varies smoothly over a surface) or of
- * those every pixel samples itself (0: the sun, point and spot lights,
- * whose shadows are sharp; all lights when mix is off). */
-static gi_light_plan sampled_plan(const render_ctx *rc, int sampled) {
-  gi_light_plan lp = gi__light_plan(&rc->c->report, rc->samples);
-  if (sampled) lp.sun = lp.local = 0;
-  else if (rc->mix_sampled) lp.sky = lp.emissive = 0;
-  return lp;
-}
-
 /* Direct irradiance at surface point x (normal n) of pixel (px, py) from
  * the lights of plan lp, by shadow rays (seeded by the pixel). */
 static void direct_light(const render_ctx *rc, const gi_light_plan *lp, int px, int py, const float x[3],
@@ -189,7 +178,9 @@ static void anchor_rows(void *p, size_t b, size_t e, int worker) {
     atomic_store(&rc->failed, 1);
     return;
   }
-  gi_light_plan lp = sampled_plan(rc, 1);
+  /* Anchors sample the lights that are mixed: the sky and the emitters. */
+  gi_light_plan lp = gi__light_plan(&rc->c->report, rc->samples);
+  lp.sun = lp.local = 0;
   for (size_t j = b; j < e; j++)
     for (int i = 0; i < rc->aw; i++) {
       anchor *an = &rc->anc[j * (size_t)rc->aw + (size_t)i];
@@ -287,7 +278,9 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   int d = pp->d = gi__finest_level_at(c, x);
   float Ei[3] = {0, 0, 0}, Es[3] = {0, 0, 0};
   int mixed = rc->anc && d >= 0 && interpolate_anchors(rc, px, py, x, n, d, Ei, Es);
-  gi_light_plan lp = mixed ? sampled_plan(rc, 0) : gi__light_plan(&c->report, rc->samples);
+  gi_light_plan lp = gi__light_plan(&c->report, rc->samples);
+  /* A mixed pixel samples only the sharp lights (sun, point, spot) itself. */
+  if (mixed && rc->mix_sampled) lp.sky = lp.emissive = 0;
   direct_light(rc, &lp, px, py, x, n, sc, E);
   for (int a = 0; a < 3; a++) E[a] += Es[a];
   if (d >= 0 && c->report.bounces_run > 0) {
