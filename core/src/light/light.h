@@ -79,22 +79,55 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
 typedef struct gi_hits {
   uint64_t w[GI_HIT_BITS / 64];
 } gi_hits;
+/* between.c: which voxels a bounce fills from gathered neighbours on
+ * their plane instead of gathering. Per occupied voxel of a level (its
+ * index in occ): nb[0] < 0 when it gathers, else the occupied indices of
+ * the four neighbours whose mean it takes (a pair given twice). */
+typedef struct gi_between {
+  int32_t nb[4];
+} gi_between;
+/* 1 when level L's own voxel in `slot` is filled from the four
+ * neighbours in slots nb[] (a pair given twice), which are always
+ * gathered. own[s] >= 0 marks the level's own voxels (its occ list), the
+ * only neighbours it takes. */
+int gi__between_slots(const gi_level *L, int R, const int32_t *own, uint32_t slot, uint32_t nb[4]);
+/* Level d's plan into *plan (num_occ + 1 entries, reallocated; the caller
+ * frees it with gi__free); GI_ERR_NOMEM when out of memory (*plan may
+ * then have grown or stayed). Depends only on the level's voxels. */
+gi_result gi__between_plan(const struct gi_cascade *c, int d, gi_between **plan);
+/* The mean of four neighbours' irradiance per face into out when they
+ * agree (between.c says how closely); 0 when they do not, and the voxel
+ * between them must be gathered. */
+int gi__between_mean(const float (*const v[4])[3], float out[GI_VOX_FACES][3]);
+/* Level d's planned voxels (plan: its plan; E: the bounce's gathers of
+ * its other voxels) whose neighbours agree take their mean; lists the
+ * others' occupied indices in redo (num_occ room) and returns how many. */
+uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *plan, gi_faces3 *E, uint32_t *redo);
 /* The gathers of level d's voxels slots[0..n) from the current texture
  * with the diffuse or the wide set: E[i] per face (the side it shows),
  * each voxel's the same as gathered alone (the cones are marched in
  * batches across voxels); returns the texture samples taken and adds the
- * cones marched to *cones. Thread-safe for disjoint E. */
-uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide, gi_faces3 *E,
-                           uint64_t *cones);
+ * cones marched to *cones. plan (NULL: none) is the slots' own plan
+ * entries: a voxel it fills from its neighbours is skipped, E[i] left as
+ * it is. Thread-safe for disjoint E. */
+uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide,
+                           const gi_between *plan, gi_faces3 *E, uint64_t *cones);
 /* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
  * move's re-bake must agree bounce by bounce. */
 int gi__bounce_wide(const struct gi_cascade *c, int it);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
+/* The end of a bounce's gathers (plan[d]: every level's plan; E: the
+ * bounce's gathers of every other voxel): gi__between_fill, then the
+ * voxels it turned down gathered with the bounce's set. Adds the samples
+ * and cones marched; GI_ERR_NOMEM, or GI_ERR_CANCELLED when the
+ * cascade's token fired. Shared by gi__bounce and the move's re-bake. */
+gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
+                             int threads, uint64_t *samples, uint64_t *cones, gi_error_info *err);
 /* The end of one bounce from its gathers E (per level, per occupied voxel:
- * the bounce's increment): the tail's sums S rolled, side light summed,
- * the texture reshaded from the increment, or from the whole side light
- * when `last` (the caller refilters). Shared by gi__bounce and the move's
- * re-bake. */
+ * the bounce's increment, gi__bounce_between done): the tail's sums S
+ * rolled, side light summed, the texture reshaded from the increment, or
+ * from the whole side light when `last` (the caller refilters). Shared by
+ * gi__bounce and the move's re-bake. */
 void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last);
 
 #endif
