@@ -1,18 +1,23 @@
 /* test_between.c: the voxels a bounce fills from their gathered neighbours
  * instead of gathering (light/between.c).
  *
- * test_mean: the agreement rule on hand-made faces (a spread within 20% of
- * the mean, or 5% of the voxel's brightest face on a dark face; never NaN).
+ * test_mean: the agreement rule on hand-made sides (a spread within 20% of
+ * the mean, or 5% of the brighter side on a dark side; never NaN).
+ * test_sides: a voxel's two sides read from the faces across its major
+ * axis, and faced back as a gather would.
  * test_plan_cells: on a lit plane's finest level, every voxel whose
  * in-plane cells are not both even is planned, from exactly the cells one
  * step along its odd axes, unless one of those lies outside the window;
  * no other voxel is.
+ * test_plan_tilted: on a plane 10 degrees off the grid, neighbours a
+ * layer up or down, on the plane.
  * test_fill_fields: a linear field over the plane is filled exactly (the
  * mean of symmetric neighbours is the field at the voxel); a step in it
  * sends the voxels whose neighbours straddle the step to be gathered, and
  * fills every other one exactly. */
 #include "test_util.h"
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "cascade/cascade_internal.h"
@@ -24,33 +29,62 @@ static void set_faces(float f[GI_VOX_FACES][3], float v) {
     for (int k = 0; k < 3; k++) f[i][k] = v;
 }
 
+/* Neighbour i's two sides all at x[i]. */
+static void set_sides(float v[4][2][3], const float x[4]) {
+  for (int i = 0; i < 4; i++)
+    for (int sd = 0; sd < 2; sd++)
+      for (int k = 0; k < 3; k++) v[i][sd][k] = x[i];
+}
+
 static void test_mean(void **state) {
   (void)state;
-  float a[GI_VOX_FACES][3], b[GI_VOX_FACES][3], c[GI_VOX_FACES][3], d[GI_VOX_FACES][3], out[GI_VOX_FACES][3];
-  const float(*v[4])[3] = {(const float(*)[3])a, (const float(*)[3])b, (const float(*)[3])c,
-                           (const float(*)[3])d};
-  set_faces(a, 1.0f), set_faces(b, 1.1f), set_faces(c, 0.9f), set_faces(d, 1.0f);
+  float v[4][2][3], out[2][3];
+  set_sides(v, (const float[4]){1.0f, 1.1f, 0.9f, 1.0f});
   assert_int_equal(gi__between_mean(v, out), 1);
-  for (int f = 0; f < GI_VOX_FACES; f++)
-    for (int k = 0; k < 3; k++) assert_true(fabsf(out[f][k] - 1.0f) < 1e-6f);
+  for (int sd = 0; sd < 2; sd++)
+    for (int k = 0; k < 3; k++) assert_true(fabsf(out[sd][k] - 1.0f) < 1e-6f);
   /* One neighbour 0.225 from the mean of 1.075: more than 20%. */
-  set_faces(b, 1.3f), set_faces(c, 1.0f);
+  set_sides(v, (const float[4]){1.0f, 1.3f, 1.0f, 1.0f});
   out[0][0] = -7;
   assert_int_equal(gi__between_mean(v, out), 0);
   assert_true(out[0][0] == -7); /* untouched */
-  /* A dark face beside a bright one: 0.01 apart on a voxel whose brightest face is 1. */
-  set_faces(b, 1.0f);
-  a[3][1] = 0.0f, b[3][1] = 0.02f, c[3][1] = 0.01f, d[3][1] = 0.01f;
+  /* A dark side beside a bright one: 0.01 apart where the bright side is 1. */
+  set_sides(v, (const float[4]){1.0f, 1.0f, 1.0f, 1.0f});
+  v[0][1][1] = 0.0f, v[1][1][1] = 0.02f, v[2][1][1] = 0.01f, v[3][1][1] = 0.01f;
   assert_int_equal(gi__between_mean(v, out), 1);
-  assert_true(fabsf(out[3][1] - 0.01f) < 1e-7f);
+  assert_true(fabsf(out[1][1] - 0.01f) < 1e-7f);
   /* The same spread on a voxel that is dark all over disagrees. */
-  set_faces(a, 0.01f), set_faces(b, 0.01f), set_faces(c, 0.01f), set_faces(d, 0.01f);
-  a[3][1] = 0.0f, b[3][1] = 0.02f;
+  set_sides(v, (const float[4]){0.01f, 0.01f, 0.01f, 0.01f});
+  v[0][1][1] = 0.0f, v[1][1][1] = 0.02f;
   assert_int_equal(gi__between_mean(v, out), 0);
   /* A NaN never agrees. */
-  set_faces(a, 1.0f), set_faces(b, 1.0f), set_faces(c, 1.0f), set_faces(d, 1.0f);
-  c[5][2] = NAN;
+  set_sides(v, (const float[4]){1.0f, 1.0f, 1.0f, 1.0f});
+  v[2][0][2] = NAN;
   assert_int_equal(gi__between_mean(v, out), 0);
+}
+
+/* A voxel's two sides from its faces: the faces across its major axis, whatever its minor faces show. */
+static void test_sides(void **state) {
+  (void)state;
+  gi_vgeo g;
+  memset(&g, 0, sizeof g);
+  g.groups = 1;
+  g.u.fin.orient[0][0] = 0.1f, g.u.fin.orient[0][1] = 0.995f; /* major axis y */
+  for (int f = 0; f < GI_VOX_FACES; f++) g.face_side[f] = gi__face_side(g.u.fin.orient[0], 0, f);
+  float E[GI_VOX_FACES][3], Es[2][3];
+  for (int f = 0; f < GI_VOX_FACES; f++)
+    for (int k = 0; k < 3; k++) E[f][k] = (float)(f + 1);
+  assert_int_equal(gi__between_sides(&g, E, Es), 1);
+  assert_true(Es[0][0] == 3.0f && Es[1][2] == 4.0f); /* +y shows side 0, -y side 1 */
+  /* Faced back through gi__face_light, the sides give every face what its side holds. */
+  float back[GI_VOX_FACES][3];
+  gi__face_light(&g, (const float(*)[3])Es, back);
+  for (int f = 0; f < GI_VOX_FACES; f++) assert_true(back[f][0] == Es[g.face_side[f]][0]);
+  /* A major face showing the brighter side instead, or two groups: no sides. */
+  g.brighter = 1u << 3;
+  assert_int_equal(gi__between_sides(&g, E, Es), 0);
+  g.brighter = 0, g.groups = 2;
+  assert_int_equal(gi__between_sides(&g, E, Es), 0);
 }
 
 /* A bake of the sunlit plane y = 0 around the origin (level 0 is all
@@ -124,6 +158,53 @@ static void test_plan_cells(void **state) {
   gi_scene_release(s);
 }
 
+/* A plane tilted 10 degrees about z climbs a cell every 5.7 along x: the
+ * neighbours a voxel is planned from may lie a layer up or down, never
+ * further, and always on the plane. */
+static void test_plan_tilted(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double t = tan(10 * M_PI / 180);
+  double A[3] = {-100, -100 * t, -100}, B[3] = {-100, -100 * t, 100}, C[3] = {100, 100 * t, 100},
+         D[3] = {100, 100 * t, -100};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
+  gi_scene *s = tu_build(b, "tilted", &sky, 1);
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 1.0, .threads = 2};
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, (const double[3]){0.3, 2.0, 0.3}, &q, &c, NULL, &err), GI_OK);
+  gi_between *plan = NULL;
+  assert_int_equal(gi__between_plan(c, 0, &plan), GI_OK);
+  const gi_level *L = &c->lv[0];
+  int planned = 0, climbed = 0;
+  for (uint32_t i = 0; i < L->num_occ; i++) {
+    if (plan[i].nb[0] < 0) continue;
+    planned++;
+    int64_t cell[3];
+    cell_of(c, 0, (int32_t)i, cell);
+    const gi_vgeo *g = gi__geo(L, L->occ[i]);
+    for (int k = 0; k < 4; k++) {
+      int64_t nc[3];
+      cell_of(c, 0, plan[i].nb[k], nc);
+      assert_true(llabs(nc[1] - cell[1]) <= 1);
+      climbed += nc[1] != cell[1];
+      const gi_vgeo *h = gi__geo(L, L->occ[plan[i].nb[k]]);
+      float off = 0;
+      for (int a = 0; a < 3; a++) off += g->u.fin.orient[0][a] * (h->u.fin.gcen[0][a] - g->u.fin.gcen[0][a]);
+      assert_true(fabsf(off) <= 0.25f * (float)L->s);
+    }
+  }
+  printf("tilted plane: %d of %u voxels planned, %d neighbours a layer off\n", planned, L->num_occ, climbed);
+  assert_true(planned > (int)L->num_occ / 3);
+  assert_true(climbed > 0);
+  gi__free(plan);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* field(cell): linear in x and z, or with a step at x = step_x when step. */
 static float field(const int64_t cell[3], int step, int64_t step_x) {
   if (step) return cell[0] < step_x ? 1.0f : 2.0f;
@@ -182,7 +263,9 @@ static void test_fill_fields(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_mean),
+      cmocka_unit_test(test_sides),
       cmocka_unit_test(test_plan_cells),
+      cmocka_unit_test(test_plan_tilted),
       cmocka_unit_test(test_fill_fields),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

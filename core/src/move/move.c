@@ -554,21 +554,21 @@ static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const 
   uint32_t redo = 0;
   for (uint32_t q = 0; q < n && rc == GI_OK; q++) {
     if (plan[q].nb[0] < 0) continue;
-    const float(*v[4])[3];
-    float kept[4][GI_VOX_FACES][3];
-    for (int k = 0; k < 4; k++) {
+    float v[4][2][3], mean[2][3];
+    int ok = 1;
+    for (int k = 0; k < 4 && ok; k++) {
       uint32_t ns = (uint32_t)plan[q].nb[k];
       int32_t p = own[ns];
-      if (p != INT32_MAX) {
-        v[k] = (const float(*)[3])E[p];
-        continue;
+      float kept[GI_VOX_FACES][3];
+      if (p == INT32_MAX) {
+        const float(*dir)[3] = gi__direct(L, ns);
+        for (int f = 0; f < GI_VOX_FACES; f++)
+          for (int ch = 0; ch < 3; ch++) kept[f][ch] = side[L->vix[ns]][f][ch] - dir[f][ch];
       }
-      const float(*dir)[3] = gi__direct(L, ns);
-      for (int f = 0; f < GI_VOX_FACES; f++)
-        for (int ch = 0; ch < 3; ch++) kept[k][f][ch] = side[L->vix[ns]][f][ch] - dir[f][ch];
-      v[k] = (const float(*)[3])kept[k];
+      ok = gi__between_sides(gi__geo(L, ns), p == INT32_MAX ? (const float(*)[3])kept : (const float(*)[3])E[p], v[k]);
     }
-    if (!gi__between_mean(v, E[q])) plan[q].nb[0] = -2, redo++;
+    if (ok && gi__between_mean((const float(*)[2][3])v, mean)) gi__face_light(gi__geo(L, slots[q]), (const float(*)[3])mean, E[q]);
+    else plan[q].nb[0] = -2, redo++;
   }
   if (rc == GI_OK && redo) {
     /* The list of slots and E to gather, reusing plan's memory is not possible: own sized scratch. */
