@@ -21,7 +21,6 @@
  * above. */
 #include <stdlib.h>
 #include <string.h>
-#include <stdio.h>
 #include "base/internal.h"
 #include "light/light.h"
 #include "trace/trace.h"
@@ -193,9 +192,7 @@ gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_
     const gi_level *L = &c->lv[d];
     uint32_t *at = gi__malloc(((size_t)L->num_occ + 1) * sizeof *at), n;
     if (!at) return gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory for level %d's voxels between", d);
-    n = gi__between_fill(c, d, plan[d], E[d], at);
-    if (getenv("DBGB")) { uint32_t pl = 0; for (uint32_t i = 0; i < L->num_occ; i++) pl += plan[d][i].nb[0] >= 0; fprintf(stderr, "wide %d level %d occ %u planned %u redo %u\n", wide, d, L->num_occ, pl, n); }
-    if (!n) {
+    if (!(n = gi__between_fill(c, d, plan[d], E[d], at))) {
       gi__free(at);
       continue;
     }
