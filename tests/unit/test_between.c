@@ -11,6 +11,8 @@
  * no other voxel is.
  * test_plan_tilted: on a plane 10 degrees off the grid, neighbours a
  * layer up or down, on the plane.
+ * test_plan_edge: a wall on a floor: the edge's voxels odd along it are
+ * planned between their neighbours along it.
  * test_fill_fields: a linear field over the plane is filled exactly (the
  * mean of symmetric neighbours is the field at the voxel); a step in it
  * sends the voxels whose neighbours straddle the step to be gathered, and
@@ -29,62 +31,81 @@ static void set_faces(float f[GI_VOX_FACES][3], float v) {
     for (int k = 0; k < 3; k++) f[i][k] = v;
 }
 
-/* Neighbour i's two sides all at x[i]. */
-static void set_sides(float v[4][2][3], const float x[4]) {
+/* Neighbour i's sides all at x[i]. */
+static void set_sides(float v[4][2 * GI_VOX_GROUPS][3], const float x[4]) {
   for (int i = 0; i < 4; i++)
-    for (int sd = 0; sd < 2; sd++)
+    for (int sd = 0; sd < 2 * GI_VOX_GROUPS; sd++)
       for (int k = 0; k < 3; k++) v[i][sd][k] = x[i];
 }
 
+typedef const float (*sides4)[2 * GI_VOX_GROUPS][3];
+
 static void test_mean(void **state) {
   (void)state;
-  float v[4][2][3], out[2][3];
+  float v[4][2 * GI_VOX_GROUPS][3], out[2 * GI_VOX_GROUPS][3];
   set_sides(v, (const float[4]){1.0f, 1.1f, 0.9f, 1.0f});
-  assert_int_equal(gi__between_mean(v, out), 1);
+  assert_int_equal(gi__between_mean(2, (sides4)v, out), 1);
   for (int sd = 0; sd < 2; sd++)
     for (int k = 0; k < 3; k++) assert_true(fabsf(out[sd][k] - 1.0f) < 1e-6f);
   /* One neighbour 0.225 from the mean of 1.075: more than 20%. */
   set_sides(v, (const float[4]){1.0f, 1.3f, 1.0f, 1.0f});
   out[0][0] = -7;
-  assert_int_equal(gi__between_mean(v, out), 0);
+  assert_int_equal(gi__between_mean(2, (sides4)v, out), 0);
   assert_true(out[0][0] == -7); /* untouched */
   /* A dark side beside a bright one: 0.01 apart where the bright side is 1. */
   set_sides(v, (const float[4]){1.0f, 1.0f, 1.0f, 1.0f});
   v[0][1][1] = 0.0f, v[1][1][1] = 0.02f, v[2][1][1] = 0.01f, v[3][1][1] = 0.01f;
-  assert_int_equal(gi__between_mean(v, out), 1);
+  assert_int_equal(gi__between_mean(2, (sides4)v, out), 1);
   assert_true(fabsf(out[1][1] - 0.01f) < 1e-7f);
   /* The same spread on a voxel that is dark all over disagrees. */
   set_sides(v, (const float[4]){0.01f, 0.01f, 0.01f, 0.01f});
   v[0][1][1] = 0.0f, v[1][1][1] = 0.02f;
-  assert_int_equal(gi__between_mean(v, out), 0);
+  assert_int_equal(gi__between_mean(2, (sides4)v, out), 0);
   /* A NaN never agrees. */
   set_sides(v, (const float[4]){1.0f, 1.0f, 1.0f, 1.0f});
   v[2][0][2] = NAN;
-  assert_int_equal(gi__between_mean(v, out), 0);
+  assert_int_equal(gi__between_mean(2, (sides4)v, out), 0);
 }
 
-/* A voxel's two sides from its faces: the faces across its major axis, whatever its minor faces show. */
+/* A voxel's sides from its faces: the faces across each group's major
+ * axis, whatever its minor faces show, in the order of the planned voxel's
+ * groups. */
 static void test_sides(void **state) {
   (void)state;
-  gi_vgeo g;
+  gi_vgeo g, h;
   memset(&g, 0, sizeof g);
   g.groups = 1;
   g.u.fin.orient[0][0] = 0.1f, g.u.fin.orient[0][1] = 0.995f; /* major axis y */
   for (int f = 0; f < GI_VOX_FACES; f++) g.face_side[f] = gi__face_side(g.u.fin.orient[0], 0, f);
-  float E[GI_VOX_FACES][3], Es[2][3];
+  float E[GI_VOX_FACES][3], Es[2 * GI_VOX_GROUPS][3];
   for (int f = 0; f < GI_VOX_FACES; f++)
     for (int k = 0; k < 3; k++) E[f][k] = (float)(f + 1);
-  assert_int_equal(gi__between_sides(&g, E, Es), 1);
+  assert_int_equal(gi__between_sides(&g, &g, E, Es), 1);
   assert_true(Es[0][0] == 3.0f && Es[1][2] == 4.0f); /* +y shows side 0, -y side 1 */
   /* Faced back through gi__face_light, the sides give every face what its side holds. */
   float back[GI_VOX_FACES][3];
   gi__face_light(&g, (const float(*)[3])Es, back);
   for (int f = 0; f < GI_VOX_FACES; f++) assert_true(back[f][0] == Es[g.face_side[f]][0]);
-  /* A major face showing the brighter side instead, or two groups: no sides. */
+  /* A major face showing the brighter side instead: no sides. */
   g.brighter = 1u << 3;
-  assert_int_equal(gi__between_sides(&g, E, Es), 0);
-  g.brighter = 0, g.groups = 2;
-  assert_int_equal(gi__between_sides(&g, E, Es), 0);
+  assert_int_equal(gi__between_sides(&g, &g, E, Es), 0);
+  g.brighter = 0;
+  /* An edge: a floor (group 0, y) and a wall (group 1, x); h lists them the other way round. */
+  g.groups = 2;
+  memset(g.u.fin.orient, 0, sizeof g.u.fin.orient);
+  g.u.fin.orient[0][1] = 1, g.u.fin.orient[1][0] = 1;
+  h = g;
+  memcpy(h.u.fin.orient[0], g.u.fin.orient[1], sizeof h.u.fin.orient[0]);
+  memcpy(h.u.fin.orient[1], g.u.fin.orient[0], sizeof h.u.fin.orient[1]);
+  /* h's faces: x shows its group 0 (the wall), y its group 1 (the floor), z the floor's top. */
+  const uint8_t hs[GI_VOX_FACES] = {0, 1, 2, 3, 2, 2};
+  memcpy(h.face_side, hs, sizeof hs);
+  assert_int_equal(gi__between_sides(&g, &h, E, Es), 1);
+  assert_true(Es[0][0] == 3.0f && Es[1][0] == 4.0f); /* g's floor: h's y faces */
+  assert_true(Es[2][0] == 1.0f && Es[3][0] == 2.0f); /* g's wall: h's x faces */
+  /* Groups that do not match g's: no sides. */
+  h.u.fin.orient[0][0] = 0, h.u.fin.orient[0][2] = 1;
+  assert_int_equal(gi__between_sides(&g, &h, E, Es), 0);
 }
 
 /* A bake of the sunlit plane y = 0 around the origin (level 0 is all
@@ -205,6 +226,50 @@ static void test_plan_tilted(void **state) {
   gi_scene_release(s);
 }
 
+/* A wall standing on the floor: the voxels holding both, odd along the
+ * edge's axis (z), are planned between the edge voxels one cell along it;
+ * no other two-group voxel is. */
+static void test_plan_edge(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  gi_mesh_builder_add_quad(b, (const double[3]){-100, 0, -100}, (const double[3]){-100, 0, 100},
+                           (const double[3]){100, 0, 100}, (const double[3]){100, 0, -100}, mat);
+  gi_mesh_builder_add_quad(b, (const double[3]){0.4, 0, -100}, (const double[3]){0.4, 50, -100},
+                           (const double[3]){0.4, 50, 100}, (const double[3]){0.4, 0, 100}, mat);
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
+  gi_scene *s = tu_build(b, "edge", &sky, 1);
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 1.0, .threads = 2};
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, (const double[3]){2.3, 2.0, 0.3}, &q, &c, NULL, &err), GI_OK);
+  gi_between *plan = NULL;
+  assert_int_equal(gi__between_plan(c, 0, &plan), GI_OK);
+  const gi_level *L = &c->lv[0];
+  int edges = 0, planned = 0;
+  for (uint32_t i = 0; i < L->num_occ; i++) {
+    if (gi__geo(L, L->occ[i])->groups != 2) continue;
+    edges++;
+    int64_t cell[3];
+    cell_of(c, 0, (int32_t)i, cell);
+    int inside = cell[2] > L->cell0[2] && cell[2] < L->cell0[2] + c->R - 1;
+    assert_int_equal(plan[i].nb[0] >= 0, (int)(cell[2] & 1) && inside);
+    if (plan[i].nb[0] < 0) continue;
+    planned++;
+    for (int k = 0; k < 4; k++) {
+      int64_t nc[3];
+      cell_of(c, 0, plan[i].nb[k], nc);
+      assert_true(nc[0] == cell[0] && nc[1] == cell[1] && llabs(nc[2] - cell[2]) == 1);
+    }
+  }
+  printf("edge: %d of %d two-group voxels planned\n", planned, edges);
+  assert_true(edges >= c->R && planned >= edges / 2 - 2);
+  gi__free(plan);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* field(cell): linear in x and z, or with a step at x = step_x when step. */
 static float field(const int64_t cell[3], int step, int64_t step_x) {
   if (step) return cell[0] < step_x ? 1.0f : 2.0f;
@@ -266,6 +331,7 @@ int main(void) {
       cmocka_unit_test(test_sides),
       cmocka_unit_test(test_plan_cells),
       cmocka_unit_test(test_plan_tilted),
+      cmocka_unit_test(test_plan_edge),
       cmocka_unit_test(test_fill_fields),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

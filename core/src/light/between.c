@@ -5,22 +5,24 @@
  * (a floor, a wall, a street), a bounce gathers one voxel of each 2x2
  * block of the plane's two in-plane axes: the one whose cells along both
  * are even. The others are planned between gathered neighbours one cell
- * away: along the odd axis (two), or on both diagonals (four). Once those
- * are gathered, a planned voxel whose neighbours agree (every face within
- * AGREE of their mean) takes the mean; where they do not (the light
- * changes across the plane: the ground beside a lit facade, a wall's dark
- * inside near a corner that leaks) it is gathered after all. Voxels
- * beside any other surface (a wall meeting the floor, a box on it) hold
- * two groups, so neither they nor the voxels between them are planned.
+ * away: along the odd axis (two), or on both diagonals (four). Along an
+ * edge, where two surfaces meet in a line of voxels (a facade on the
+ * street), every other voxel is planned between its two neighbours on
+ * the line. Once those are gathered, a planned voxel whose neighbours
+ * agree (every side within AGREE of their mean) takes the mean; where
+ * they do not (the light changes across the plane: the ground beside a
+ * lit facade, a wall's dark inside near a corner that leaks) it is
+ * gathered after all. Corners (three surfaces) and voxels beside any
+ * other surface are always gathered.
  *
  * Measured at default quality (2026-12-03, 2-core Xeon VM): cones per
- * bake -46% on the Cornell box, -14% in the city, -7% in Munich (its
+ * bake -48% on the Cornell box, -17% in the city, -10% in Munich (its
  * buildings are off the grid's axes, its coarse voxels hold several
- * surfaces); bake 1.53x, 1.02x, 1.05x faster; probe indirect error
- * 6.46 -> 5.99%, 9.66 -> 9.76%, 7.93 -> 7.99%. Per face, the city's
- * indirect light moved 0.0-2.6% (L1, by level) from gathering every
- * voxel; without the agreement test 3.7-8.4%, and a street probe's light
- * from the ground 4% under a crossing's exact gathers (test_move's drive).
+ * surfaces); probe indirect error 6.46 -> 5.99%, 9.66 -> 9.76%,
+ * 7.93 -> 8.00%. Per face, the city's indirect light moved 0.0-2.6% (L1,
+ * by level; planes alone) from gathering every voxel; without the
+ * agreement test 3.7-8.4%, and a street probe's light from the ground 4%
+ * under a crossing's exact gathers (test_move's drive).
  *
  * The plan and the test depend only on the level's voxels and the
  * gathers, so a cold bake and the move's re-bake at one anchor fill and
@@ -38,35 +40,80 @@
  * (its blocks, 17 degrees off the axes). */
 #define PLANE_COS 0.98f
 #define PLANE_OFFSET 0.25f
-/* A voxel's orientation must lie this close to one axis (18 degrees):
- * farther off, its in-plane neighbours sit a cell up or down. */
-#define AXIS_COS 0.95f
+/* A plane's orientation must lie this close to one axis (45 degrees):
+ * farther off, its in-plane neighbours climb more than a cell per cell. An
+ * edge's line (where two groups meet) must lie within 18 degrees of one:
+ * its neighbours are taken one cell along that axis, no layer off. */
+#define AXIS_COS 0.7f
+#define LINE_COS 0.95f
 /* The neighbours agree when each side and channel lies within AGREE of
  * their mean, or of DARK of the brighter side where that is more (a dark
  * side's few percent of noise). */
 #define AGREE 0.2f
 #define DARK 0.05f
 
-static int same_plane(const gi_level *L, const gi_vgeo *g, uint32_t slot) {
+/* The group of h oriented as group i of g, or -1. */
+static int match_group(const gi_vgeo *g, int i, const gi_vgeo *h) {
+  for (int j = 0; j < h->groups; j++)
+    if (gi__dot(h->u.fin.orient[j], g->u.fin.orient[i]) >= PLANE_COS) return j;
+  return -1;
+}
+
+/* h holds the same surfaces as g: as many groups, each oriented as one of
+ * g's and lying on its plane. */
+static int same_surfaces(const gi_level *L, const gi_vgeo *g, uint32_t slot) {
   const gi_vgeo *h = gi__geo(L, slot);
-  if (h->groups != 1) return 0;
-  const float *n = g->u.fin.orient[0];
-  if (gi__dot(h->u.fin.orient[0], n) < PLANE_COS) return 0;
-  float off = 0;
-  for (int k = 0; k < 3; k++) off += n[k] * (h->u.fin.gcen[0][k] - g->u.fin.gcen[0][k]);
-  return fabsf(off) <= PLANE_OFFSET * (float)L->s;
+  if (h->groups != g->groups) return 0;
+  int used = 0;
+  for (int i = 0; i < g->groups; i++) {
+    int j = match_group(g, i, h);
+    if (j < 0 || (used >> j & 1)) return 0;
+    used |= 1 << j;
+    const float *n = g->u.fin.orient[i];
+    float off = 0;
+    for (int k = 0; k < 3; k++) off += n[k] * (h->u.fin.gcen[j][k] - g->u.fin.gcen[i][k]);
+    if (!(fabsf(off) <= PLANE_OFFSET * (float)L->s)) return 0;
+  }
+  return 1;
+}
+
+/* The axis v lies closest to, when within cos_min of it; else -1. */
+static int near_axis(const float v[3], float cos_min) {
+  int a = 0;
+  for (int k = 1; k < 3; k++)
+    if (fabsf(v[k]) > fabsf(v[a])) a = k;
+  float l = gi__len(v);
+  return l > 0 && fabsf(v[a]) >= cos_min * l ? a : -1;
+}
+
+/* A two-group voxel on an edge (a facade meeting the street): odd along
+ * the edge's axis, between the cells one step along it that hold the same
+ * two surfaces. */
+static int edge_slots(const gi_level *L, int R, const int32_t *own, const gi_vgeo *g, const int64_t cell[3],
+                      uint32_t nb[4]) {
+  float line[3];
+  gi__cross(g->u.fin.orient[0], g->u.fin.orient[1], line);
+  int a = near_axis(line, LINE_COS);
+  if (a < 0 || !(cell[a] & 1)) return 0;
+  for (int i = 0; i < 2; i++) {
+    int64_t c[3] = {cell[0], cell[1], cell[2]};
+    c[a] += i ? 1 : -1;
+    if (c[a] < L->cell0[a] || c[a] >= L->cell0[a] + R) return 0;
+    uint32_t s = gi__slot(c[0], c[1], c[2], R);
+    if (own[s] < 0 || !same_surfaces(L, g, s)) return 0;
+    nb[i] = nb[i + 2] = s;
+  }
+  return 1;
 }
 
 int gi__between_slots(const gi_level *L, int R, const int32_t *own, uint32_t slot, uint32_t nb[4]) {
   const gi_vgeo *g = gi__geo(L, slot);
-  if (g->groups != 1) return 0;
-  const float *n = g->u.fin.orient[0];
-  int a = 0;
-  for (int k = 1; k < 3; k++)
-    if (fabsf(n[k]) > fabsf(n[a])) a = k;
-  if (fabsf(n[a]) < AXIS_COS) return 0;
+  if (g->groups != 1 && g->groups != 2) return 0;
   int64_t cell[3];
   gi__slot_cell(L, R, slot, cell);
+  if (g->groups == 2) return edge_slots(L, R, own, g, cell, nb);
+  int a = near_axis(g->u.fin.orient[0], AXIS_COS);
+  if (a < 0) return 0;
   int u = (a + 1) % 3, v = (a + 2) % 3;
   int odd_u = (int)(cell[u] & 1), odd_v = (int)(cell[v] & 1);
   if (!odd_u && !odd_v) return 0;
@@ -88,7 +135,7 @@ int gi__between_slots(const gi_level *L, int R, const int32_t *own, uint32_t slo
         if (ca < L->cell0[a] || ca >= L->cell0[a] + R) continue;
         c[a] = ca;
         uint32_t s = gi__slot(c[0], c[1], c[2], R);
-        if (own[s] >= 0 && same_plane(L, g, s)) nb[m++] = s, found = 1;
+        if (own[s] >= 0 && same_surfaces(L, g, s)) nb[m++] = s, found = 1;
       }
       if (!found) return 0;
     }
@@ -119,34 +166,42 @@ gi_result gi__between_plan(const struct gi_cascade *c, int d, gi_between **out) 
   return GI_OK;
 }
 
-int gi__between_sides(const gi_vgeo *g, const float E[GI_VOX_FACES][3], float Es[2][3]) {
-  if (g->groups != 1) return 0;
-  const float *o = g->u.fin.orient[0];
-  int a = 0;
-  for (int k = 1; k < 3; k++)
-    if (fabsf(o[k]) > fabsf(o[a])) a = k;
-  int f0 = 2 * a, f1 = 2 * a + 1;
-  /* The faces across the major axis show one side each, never the brighter instead. */
-  if (g->face_side[f0] == g->face_side[f1] || (g->brighter >> f0 & 1) || (g->brighter >> f1 & 1)) return 0;
-  memcpy(Es[g->face_side[f0]], E[f0], sizeof Es[0]);
-  memcpy(Es[g->face_side[f1]], E[f1], sizeof Es[0]);
+int gi__between_sides(const gi_vgeo *g, const gi_vgeo *h, const float E[GI_VOX_FACES][3],
+                      float Es[2 * GI_VOX_GROUPS][3]) {
+  if (h->groups != g->groups || h->groups > 2) return 0;
+  int axes = 0;
+  for (int j = 0; j < h->groups; j++) {
+    int i = -1;
+    for (int k = 0; k < g->groups && i < 0; k++)
+      if (match_group(g, k, h) == j) i = k;
+    int a = near_axis(h->u.fin.orient[j], 0.f);
+    if (i < 0 || (axes >> a & 1)) return 0;
+    axes |= 1 << a;
+    /* The faces across the group's major axis show its two sides, never the brighter instead. */
+    int f0 = 2 * a, f1 = 2 * a + 1;
+    if (h->face_side[f0] / 2 != j || h->face_side[f1] / 2 != j || h->face_side[f0] == h->face_side[f1] ||
+        (h->brighter >> f0 & 1) || (h->brighter >> f1 & 1))
+      return 0;
+    memcpy(Es[2 * i + h->face_side[f0] % 2], E[f0], sizeof Es[0]);
+    memcpy(Es[2 * i + h->face_side[f1] % 2], E[f1], sizeof Es[0]);
+  }
   return 1;
 }
 
-int gi__between_mean(const float v[4][2][3], float out[2][3]) {
-  float mean[2][3], top = 0;
-  for (int sd = 0; sd < 2; sd++)
+int gi__between_mean(int sides, const float v[4][2 * GI_VOX_GROUPS][3], float out[2 * GI_VOX_GROUPS][3]) {
+  float mean[2 * GI_VOX_GROUPS][3], top = 0;
+  for (int sd = 0; sd < sides; sd++)
     for (int k = 0; k < 3; k++) {
       mean[sd][k] = 0.25f * ((v[0][sd][k] + v[1][sd][k]) + (v[2][sd][k] + v[3][sd][k]));
       top = gi__maxf(top, mean[sd][k]);
     }
-  for (int sd = 0; sd < 2; sd++)
+  for (int sd = 0; sd < sides; sd++)
     for (int k = 0; k < 3; k++) {
       float room = gi__maxf(AGREE * mean[sd][k], DARK * top);
       for (int i = 0; i < 4; i++)
         if (!(fabsf(v[i][sd][k] - mean[sd][k]) <= room)) return 0;
     }
-  memcpy(out, mean, sizeof mean);
+  memcpy(out, mean, (size_t)sides * sizeof mean[0]);
   return 1;
 }
 
@@ -156,10 +211,12 @@ uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *p
   for (uint32_t i = 0; i < L->num_occ; i++) {
     const int32_t *nb = plan[i].nb;
     if (nb[0] < 0) continue;
-    float v[4][2][3], mean[2][3];
+    const gi_vgeo *g = gi__geo(L, L->occ[i]);
+    float v[4][2 * GI_VOX_GROUPS][3], mean[2 * GI_VOX_GROUPS][3];
     int ok = 1;
-    for (int k = 0; k < 4 && ok; k++) ok = gi__between_sides(gi__geo(L, L->occ[nb[k]]), E[nb[k]], v[k]);
-    if (ok && gi__between_mean(v, mean)) gi__face_light(gi__geo(L, L->occ[i]), mean, E[i]);
+    for (int k = 0; k < 4 && ok; k++) ok = gi__between_sides(g, gi__geo(L, L->occ[nb[k]]), E[nb[k]], v[k]);
+    if (ok && gi__between_mean(2 * g->groups, (const float(*)[2 * GI_VOX_GROUPS][3])v, mean))
+      gi__face_light(g, (const float(*)[3])mean, E[i]);
     else redo[n++] = i;
   }
   return n;

@@ -95,14 +95,16 @@ int gi__between_slots(const gi_level *L, int R, const int32_t *own, uint32_t slo
  * frees it with gi__free); GI_ERR_NOMEM when out of memory (*plan may
  * then have grown or stayed). Depends only on the level's voxels. */
 gi_result gi__between_plan(const struct gi_cascade *c, int d, gi_between **plan);
-/* The irradiance on the two sides of single-group voxel g from its per-face
- * irradiance E (the faces across its major axis show one side each);
- * 0 when they do not. */
-int gi__between_sides(const gi_vgeo *g, const float E[GI_VOX_FACES][3], float Es[2][3]);
-/* The mean of four neighbours' side irradiance into out when they agree
- * (between.c says how closely); 0 when they do not, and the voxel between
- * them must be gathered. */
-int gi__between_mean(const float v[4][2][3], float out[2][3]);
+/* The irradiance on the sides of voxel h (one or two groups) from its
+ * per-face irradiance E (the faces across each group's major axis show its
+ * two sides), in the order of the groups of g, which h's match (the voxel
+ * planned between h and others); 0 when they cannot be read so. */
+int gi__between_sides(const gi_vgeo *g, const gi_vgeo *h, const float E[GI_VOX_FACES][3],
+                      float Es[2 * GI_VOX_GROUPS][3]);
+/* The mean of four neighbours' irradiance on `sides` sides into out when
+ * they agree (between.c says how closely); 0 when they do not, and the
+ * voxel between them must be gathered. */
+int gi__between_mean(int sides, const float v[4][2 * GI_VOX_GROUPS][3], float out[2 * GI_VOX_GROUPS][3]);
 /* Level d's planned voxels (plan: its plan; E: the bounce's gathers of
  * its other voxels) whose neighbours agree take their mean; lists the
  * others' occupied indices in redo (num_occ room) and returns how many. */

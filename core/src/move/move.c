@@ -554,7 +554,8 @@ static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const 
   uint32_t redo = 0;
   for (uint32_t q = 0; q < n && rc == GI_OK; q++) {
     if (plan[q].nb[0] < 0) continue;
-    float v[4][2][3], mean[2][3];
+    const gi_vgeo *g = gi__geo(L, slots[q]);
+    float v[4][2 * GI_VOX_GROUPS][3], mean[2 * GI_VOX_GROUPS][3];
     int ok = 1;
     for (int k = 0; k < 4 && ok; k++) {
       uint32_t ns = (uint32_t)plan[q].nb[k];
@@ -565,9 +566,11 @@ static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const 
         for (int f = 0; f < GI_VOX_FACES; f++)
           for (int ch = 0; ch < 3; ch++) kept[f][ch] = side[L->vix[ns]][f][ch] - dir[f][ch];
       }
-      ok = gi__between_sides(gi__geo(L, ns), p == INT32_MAX ? (const float(*)[3])kept : (const float(*)[3])E[p], v[k]);
+      const float(*from)[3] = p == INT32_MAX ? (const float(*)[3])kept : (const float(*)[3])E[p];
+      ok = gi__between_sides(g, gi__geo(L, ns), from, v[k]);
     }
-    if (ok && gi__between_mean((const float(*)[2][3])v, mean)) gi__face_light(gi__geo(L, slots[q]), (const float(*)[3])mean, E[q]);
+    if (ok && gi__between_mean(2 * g->groups, (const float(*)[2 * GI_VOX_GROUPS][3])v, mean))
+      gi__face_light(g, (const float(*)[3])mean, E[q]);
     else plan[q].nb[0] = -2, redo++;
   }
   if (rc == GI_OK && redo) {
