@@ -80,7 +80,7 @@ typedef struct gi_hits {
   uint64_t w[GI_HIT_BITS / 64];
 } gi_hits;
 /* between.c: which voxels a bounce fills from gathered neighbours on
- * their plane instead of gathering. Per occupied voxel of a level (its
+ * their plane or edge instead of gathering. Per occupied voxel of a level (its
  * index in occ): nb[0] < 0 when it gathers, else the occupied indices of
  * the four neighbours whose mean it takes (a pair given twice). */
 typedef struct gi_between {

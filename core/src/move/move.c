@@ -407,7 +407,8 @@ size_t gi_cascade_move_bytes_estimate(const gi_quality *q) {
   if (!q || q->levels <= 0 || q->res <= 0) return 0;
   gi_move_state *m = NULL;
   /* At most every voxel holds geometry: one side, last, E and plan entry each. */
-  size_t per_voxel = sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->last[0] + sizeof *m->E[0] + sizeof *m->plan[0];
+  size_t per_voxel =
+      sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->last[0] + sizeof *m->E[0] + sizeof *m->plan[0];
   return sizeof *m + (size_t)q->levels * (size_t)q->res * (size_t)q->res * (size_t)q->res * per_voxel;
 }
 
@@ -459,15 +460,16 @@ typedef struct {
 static void gather_range(void *p, size_t b, size_t e, int worker) {
   gather_ctx *g = p;
   uint64_t samples = 0, cones = 0;
-  samples += gi__gather_voxels(g->c, g->d, g->slots + b, e - b, g->wide, g->plan ? g->plan + b : NULL, g->E + b, &cones);
+  const gi_between *plan = g->plan ? g->plan + b : NULL;
+  samples += gi__gather_voxels(g->c, g->d, g->slots + b, e - b, g->wide, plan, g->E + b, &cones);
   atomic_fetch_add(&g->samples, samples);
   atomic_fetch_add(&g->cones, cones);
 }
 
 /* Gathers the n voxels slots[] of level d from the current texture into E
- * with the diffuse or the wide set, but those plan (the slots' own
- * entries; NULL: none) fills from their neighbours. The report counts the cones and
- * samples of every gather, the voxels (level_rebounced) once a move: the
+ * with the diffuse or the wide set, except those plan (the slots' own
+ * entries, or NULL) fills from their neighbours. The report counts the
+ * cones and samples of every gather, the voxels (level_rebounced) once a move: the
  * new voxels' first gather (fresh_texture's prime) does not count them. */
 static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n, int wide,
                              const gi_between *plan, int count, gi_faces3 *E, gi_error_info *err) {
@@ -529,9 +531,10 @@ static int fresh_texture(struct gi_cascade *c, gi_move_state *m, int threads, ui
  * fills from their neighbours (light/between.c) take their neighbours'
  * mean here too: a listed neighbour's gather, or the indirect light the
  * others hold (side, the live side entries, less direct). A crossing's
- * gather matches the bake's planned voxels so (the drive's probe read
- * 0.42% / 12.8% mean / max from cold bakes with every listed voxel
- * gathered), and costs what the bake saves. own: R^3 scratch. */
+ * gather matches the bake's planned voxels so (with every listed voxel
+ * gathered, and before the agreement test, the drive's probe read 0.42% /
+ * 12.8% mean / max from cold bakes), and saves what the bake saves. own:
+ * R^3 scratch. */
 static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n,
                                 int wide, int count, const gi_faces3 *side, gi_faces3 *E, int32_t *own,
                                 gi_error_info *err) {
@@ -574,7 +577,7 @@ static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const 
     else plan[q].nb[0] = -2, redo++;
   }
   if (rc == GI_OK && redo) {
-    /* The list of slots and E to gather, reusing plan's memory is not possible: own sized scratch. */
+    /* The turned-down voxels: their slots, their places in the list, their gathers. */
     uint32_t *rs = gi__malloc((size_t)redo * sizeof *rs), *at = gi__malloc((size_t)redo * sizeof *at);
     gi_faces3 *got = gi__malloc((size_t)redo * sizeof *got);
     if (!rs || !at || !got) rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
