@@ -3,8 +3,9 @@
  *
  * test_mean: the agreement rule on hand-made sides (a spread within 20% of
  * the mean, or 5% of the brighter side on a dark side; never NaN).
- * test_sides: a voxel's two sides read from the faces across its major
- * axis, and faced back as a gather would.
+ * test_sides: a voxel's sides read from the faces across each surface's
+ * major axis, in the planned voxel's order of surfaces (a neighbour may
+ * hold more surfaces than it), and faced back as a gather would.
  * test_plan_cells: on a lit plane's finest level, every voxel whose
  * in-plane cells are not both even is planned, from exactly the cells one
  * step along its odd axes, unless one of those lies outside the window;
@@ -103,6 +104,14 @@ static void test_sides(void **state) {
   assert_int_equal(gi__between_sides(&g, &h, E, Es), 1);
   assert_true(Es[0][0] == 3.0f && Es[1][0] == 4.0f); /* g's floor: h's y faces */
   assert_true(Es[2][0] == 1.0f && Es[3][0] == 2.0f); /* g's wall: h's x faces */
+  /* A plane's voxel beside the edge: g holds the floor alone, h the floor and the wall. */
+  gi_vgeo f = g;
+  f.groups = 1;
+  memset(Es, 0, sizeof Es);
+  assert_int_equal(gi__between_sides(&f, &h, E, Es), 1);
+  assert_true(Es[0][0] == 3.0f && Es[1][0] == 4.0f && Es[2][0] == 0.0f); /* the floor's sides only */
+  /* The other way round, fewer surfaces than g's: no sides. */
+  assert_int_equal(gi__between_sides(&h, &f, E, Es), 0);
   /* Groups that do not match g's: no sides. */
   h.u.fin.orient[0][0] = 0, h.u.fin.orient[0][2] = 1;
   assert_int_equal(gi__between_sides(&g, &h, E, Es), 0);

@@ -13,7 +13,7 @@
  * the wide set (gi__bounce_wide). On a plane, three voxels in four wait
  * for their gathered neighbours and take their mean where those agree,
  * and every other voxel along an edge (between.c: the Cornell box's bake
- * marches 48% fewer cones). A closed furnace of albedo a
+ * marches 50% fewer cones). A closed furnace of albedo a
  * and emission Le therefore reaches Le (a + ... + a^(k+1)) reflected
  * radiance after k bounces. When the effect plan capped an automatic
  * bounce count short of what the albedo asks for, the last bounce also

@@ -95,10 +95,10 @@ int gi__between_slots(const gi_level *L, int R, const int32_t *own, uint32_t slo
  * frees it with gi__free); GI_ERR_NOMEM when out of memory (*plan may
  * then have grown or stayed). Depends only on the level's voxels. */
 gi_result gi__between_plan(const struct gi_cascade *c, int d, gi_between **plan);
-/* The irradiance on the sides of voxel h (one or two groups) from its
- * per-face irradiance E (the faces across each group's major axis show its
- * two sides), in the order of the groups of g, which h's match (the voxel
- * planned between h and others); 0 when they cannot be read so. */
+/* The irradiance on the sides of g's surfaces in voxel h from h's per-face
+ * irradiance E (the faces across each surface's major axis show its two
+ * sides), in the order of g's groups (g: the voxel planned between h and
+ * others; h may hold more surfaces); 0 when they cannot be read so. */
 int gi__between_sides(const gi_vgeo *g, const gi_vgeo *h, const float E[GI_VOX_FACES][3],
                       float Es[2 * GI_VOX_GROUPS][3]);
 /* The mean of four neighbours' irradiance on `sides` sides into out when
