@@ -138,6 +138,13 @@ static void cell_of(const gi_cascade *c, int d, int32_t occ, int64_t cell[3]) {
   gi__slot_cell(&c->lv[d], c->R, c->lv[d].occ[occ], cell);
 }
 
+/* Every planned voxel's neighbours are gathered ones: the fill reads their
+ * gathers, never another planned voxel's stale light. */
+static void expect_gathered_neighbours(const gi_cascade *c, int d, const gi_between *plan) {
+  for (uint32_t i = 0; i < c->lv[d].num_occ; i++)
+    for (int k = 0; k < 4 && plan[i].nb[0] >= 0; k++) assert_true(plan[plan[i].nb[k]].nb[0] < 0);
+}
+
 static void test_plan_cells(void **state) {
   (void)state;
   gi_scene *s;
@@ -182,6 +189,7 @@ static void test_plan_cells(void **state) {
     else assert_int_equal(seen[0][0] + seen[0][1] + seen[1][0] + seen[1][1], 2);
   }
   assert_int_equal(planned, expected);
+  expect_gathered_neighbours(c, 0, plan);
   assert_true(planned > (int)L->num_occ / 2); /* three in four, less the border */
   gi__free(plan);
   gi_cascade_free(c);
@@ -230,6 +238,7 @@ static void test_plan_tilted(void **state) {
   printf("tilted plane: %d of %u voxels planned, %d neighbours a layer off\n", planned, L->num_occ, climbed);
   assert_true(planned > (int)L->num_occ / 3);
   assert_true(climbed > 0);
+  expect_gathered_neighbours(c, 0, plan);
   gi__free(plan);
   gi_cascade_free(c);
   gi_scene_release(s);
@@ -274,6 +283,8 @@ static void test_plan_edge(void **state) {
   }
   printf("edge: %d of %d two-group voxels planned\n", planned, edges);
   assert_true(edges >= c->R && planned >= edges / 2 - 2);
+  /* The floor beside the edge takes only gathered edge voxels as neighbours. */
+  expect_gathered_neighbours(c, 0, plan);
   gi__free(plan);
   gi_cascade_free(c);
   gi_scene_release(s);

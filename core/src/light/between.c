@@ -91,7 +91,11 @@ static int near_axis(const float v[3], float cos_min) {
 
 /* A two-group voxel on an edge (a facade meeting the street): odd along
  * the edge's axis, between the cells one step along it that hold the same
- * two surfaces. */
+ * two surfaces. A plane's voxel may take an edge voxel as a neighbour,
+ * never a planned one: the edge's line is perpendicular to the plane's
+ * orientation, so its axis is one of the plane's two in-plane axes
+ * (within 18 and 45 degrees of them, the two cannot coincide), along
+ * which the plane's neighbours are even. */
 static int edge_slots(const gi_level *L, int R, const int32_t *own, const gi_vgeo *g, const int64_t cell[3],
                       uint32_t nb[4]) {
   float line[3];
