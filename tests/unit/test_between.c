@@ -119,19 +119,30 @@ static void test_sides(void **state) {
 
 /* A bake of the sunlit plane y = 0 around the origin (level 0 is all
  * plane) and level 0's plan. */
-static gi_cascade *plane_plan(gi_scene **s, gi_between **plan) {
-  *s = tu_sunlit_plane(0.5, 1.0, 100);
-  gi_quality q = {0};
-  q.levels = 3;
-  q.res = 16;
-  q.voxel0 = 1.0;
-  q.threads = 2;
+/* A bake of s at `at` (3 levels of 16^3, finest voxel 1) and level 0's plan. */
+static gi_cascade *bake_plan(gi_scene *s, const double at[3], gi_between **plan) {
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 1.0, .threads = 2};
   gi_cascade *c = NULL;
   gi_error_info err = {0};
-  assert_int_equal(gi_cascade_bake(*s, (const double[3]){0.3, 2.0, 0.3}, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
   *plan = NULL;
   assert_int_equal(gi__between_plan(c, 0, plan), GI_OK);
   return c;
+}
+
+static gi_cascade *plane_plan(gi_scene **s, gi_between **plan) {
+  *s = tu_sunlit_plane(0.5, 1.0, 100);
+  return bake_plan(*s, (const double[3]){0.3, 2.0, 0.3}, plan);
+}
+
+/* Grey quads (corners abcd each) under a white sky. */
+static gi_scene *grey_quads(const char *name, const double (*q)[4][3], int n) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  for (int i = 0; i < n; i++) gi_mesh_builder_add_quad(b, q[i][0], q[i][1], q[i][2], q[i][3], mat);
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
+  return tu_build(b, name, &sky, 1);
 }
 
 static void cell_of(const gi_cascade *c, int d, int32_t occ, int64_t cell[3]) {
@@ -201,21 +212,12 @@ static void test_plan_cells(void **state) {
  * further, and always on the plane. */
 static void test_plan_tilted(void **state) {
   (void)state;
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
   double t = tan(10 * M_PI / 180);
-  double A[3] = {-100, -100 * t, -100}, B[3] = {-100, -100 * t, 100}, C[3] = {100, 100 * t, 100},
-         D[3] = {100, 100 * t, -100};
-  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
-  gi_scene *s = tu_build(b, "tilted", &sky, 1);
-  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 1.0, .threads = 2};
-  gi_cascade *c = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_cascade_bake(s, (const double[3]){0.3, 2.0, 0.3}, &q, &c, NULL, &err), GI_OK);
-  gi_between *plan = NULL;
-  assert_int_equal(gi__between_plan(c, 0, &plan), GI_OK);
+  const double quad[1][4][3] = {
+      {{-100, -100 * t, -100}, {-100, -100 * t, 100}, {100, 100 * t, 100}, {100, 100 * t, -100}}};
+  gi_scene *s = grey_quads("tilted", quad, 1);
+  gi_between *plan;
+  gi_cascade *c = bake_plan(s, (const double[3]){0.3, 2.0, 0.3}, &plan);
   const gi_level *L = &c->lv[0];
   int planned = 0, climbed = 0;
   for (uint32_t i = 0; i < L->num_occ; i++) {
@@ -249,21 +251,11 @@ static void test_plan_tilted(void **state) {
  * no other two-group voxel is. */
 static void test_plan_edge(void **state) {
   (void)state;
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  gi_mesh_builder_add_quad(b, (const double[3]){-100, 0, -100}, (const double[3]){-100, 0, 100},
-                           (const double[3]){100, 0, 100}, (const double[3]){100, 0, -100}, mat);
-  gi_mesh_builder_add_quad(b, (const double[3]){0.4, 0, -100}, (const double[3]){0.4, 50, -100},
-                           (const double[3]){0.4, 50, 100}, (const double[3]){0.4, 0, 100}, mat);
-  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
-  gi_scene *s = tu_build(b, "edge", &sky, 1);
-  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 1.0, .threads = 2};
-  gi_cascade *c = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_cascade_bake(s, (const double[3]){2.3, 2.0, 0.3}, &q, &c, NULL, &err), GI_OK);
-  gi_between *plan = NULL;
-  assert_int_equal(gi__between_plan(c, 0, &plan), GI_OK);
+  const double quads[2][4][3] = {{{-100, 0, -100}, {-100, 0, 100}, {100, 0, 100}, {100, 0, -100}},
+                                 {{0.4, 0, -100}, {0.4, 50, -100}, {0.4, 50, 100}, {0.4, 0, 100}}};
+  gi_scene *s = grey_quads("edge", quads, 2);
+  gi_between *plan;
+  gi_cascade *c = bake_plan(s, (const double[3]){2.3, 2.0, 0.3}, &plan);
   const gi_level *L = &c->lv[0];
   int edges = 0, planned = 0;
   for (uint32_t i = 0; i < L->num_occ; i++) {

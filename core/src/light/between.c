@@ -208,19 +208,26 @@ int gi__between_mean(int sides, const float v[4][2 * GI_VOX_GROUPS][3], float ou
   return 1;
 }
 
+int gi__between_take(const gi_vgeo *g, const gi_vgeo *const h[4], const float (*const from[4])[3],
+                     float E[GI_VOX_FACES][3]) {
+  float v[4][2 * GI_VOX_GROUPS][3], mean[2 * GI_VOX_GROUPS][3];
+  for (int k = 0; k < 4; k++)
+    if (!gi__between_sides(g, h[k], from[k], v[k])) return 0;
+  if (!gi__between_mean(2 * g->groups, (const float(*)[2 * GI_VOX_GROUPS][3])v, mean)) return 0;
+  gi__face_light(g, (const float(*)[3])mean, E);
+  return 1;
+}
+
 uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *plan, gi_faces3 *E, uint32_t *redo) {
   const gi_level *L = &c->lv[d];
   uint32_t n = 0;
   for (uint32_t i = 0; i < L->num_occ; i++) {
     const int32_t *nb = plan[i].nb;
     if (nb[0] < 0) continue;
-    const gi_vgeo *g = gi__geo(L, L->occ[i]);
-    float v[4][2 * GI_VOX_GROUPS][3], mean[2 * GI_VOX_GROUPS][3];
-    int ok = 1;
-    for (int k = 0; k < 4 && ok; k++) ok = gi__between_sides(g, gi__geo(L, L->occ[nb[k]]), E[nb[k]], v[k]);
-    if (ok && gi__between_mean(2 * g->groups, (const float(*)[2 * GI_VOX_GROUPS][3])v, mean))
-      gi__face_light(g, (const float(*)[3])mean, E[i]);
-    else redo[n++] = i;
+    const gi_vgeo *h[4];
+    const float(*from[4])[3];
+    for (int k = 0; k < 4; k++) h[k] = gi__geo(L, L->occ[nb[k]]), from[k] = (const float(*)[3])E[nb[k]];
+    if (!gi__between_take(gi__geo(L, L->occ[i]), h, from, E[i])) redo[n++] = i;
   }
   return n;
 }

@@ -105,6 +105,12 @@ int gi__between_sides(const gi_vgeo *g, const gi_vgeo *h, const float E[GI_VOX_F
  * they agree (between.c says how closely); 0 when they do not, and the
  * voxel between them must be gathered. */
 int gi__between_mean(int sides, const float v[4][2 * GI_VOX_GROUPS][3], float out[2 * GI_VOX_GROUPS][3]);
+/* Voxel g's irradiance per face into E from its four neighbours h[k]
+ * (per-face irradiance from[k]) when their sides agree (gi__between_sides,
+ * gi__between_mean, faced back by gi__face_light); 0 (E untouched) when
+ * they do not, and g must be gathered. */
+int gi__between_take(const gi_vgeo *g, const gi_vgeo *const h[4], const float (*const from[4])[3],
+                     float E[GI_VOX_FACES][3]);
 /* Level d's planned voxels (plan: its plan; E: the bounce's gathers of
  * its other voxels) whose neighbours agree take their mean; lists the
  * others' occupied indices in redo (num_occ room) and returns how many. */

@@ -557,24 +557,20 @@ static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const 
   uint32_t redo = 0;
   for (uint32_t q = 0; q < n && rc == GI_OK; q++) {
     if (plan[q].nb[0] < 0) continue;
-    const gi_vgeo *g = gi__geo(L, slots[q]);
-    float v[4][2 * GI_VOX_GROUPS][3], mean[2 * GI_VOX_GROUPS][3];
-    int ok = 1;
-    for (int k = 0; k < 4 && ok; k++) {
+    const gi_vgeo *h[4];
+    const float(*from[4])[3];
+    float kept[4][GI_VOX_FACES][3];
+    for (int k = 0; k < 4; k++) {
       uint32_t ns = (uint32_t)plan[q].nb[k];
       int32_t p = own[ns];
-      float kept[GI_VOX_FACES][3];
-      if (p == INT32_MAX) {
-        const float(*dir)[3] = gi__direct(L, ns);
-        for (int f = 0; f < GI_VOX_FACES; f++)
-          for (int ch = 0; ch < 3; ch++) kept[f][ch] = side[L->vix[ns]][f][ch] - dir[f][ch];
-      }
-      const float(*from)[3] = p == INT32_MAX ? (const float(*)[3])kept : (const float(*)[3])E[p];
-      ok = gi__between_sides(g, gi__geo(L, ns), from, v[k]);
+      h[k] = gi__geo(L, ns);
+      from[k] = p == INT32_MAX ? (const float(*)[3])kept[k] : (const float(*)[3])E[p];
+      if (p != INT32_MAX) continue;
+      const float(*dir)[3] = gi__direct(L, ns);
+      for (int f = 0; f < GI_VOX_FACES; f++)
+        for (int ch = 0; ch < 3; ch++) kept[k][f][ch] = side[L->vix[ns]][f][ch] - dir[f][ch];
     }
-    if (ok && gi__between_mean(2 * g->groups, (const float(*)[2 * GI_VOX_GROUPS][3])v, mean))
-      gi__face_light(g, (const float(*)[3])mean, E[q]);
-    else plan[q].nb[0] = -2, redo++;
+    if (!gi__between_take(gi__geo(L, slots[q]), h, from, E[q])) plan[q].nb[0] = -2, redo++;
   }
   if (rc == GI_OK && redo) {
     /* The turned-down voxels: their slots, their places in the list, their gathers. */
