@@ -61,10 +61,12 @@ static void gather_direct(const struct gi_cascade *c, const float p[3], const fl
     if (cu > 0)
       for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
   }
-  /* Uniform sphere rays: near, large emitters (see inject.c). */
+  /* Uniform sphere rays: near, large emitters (see inject.c); stratified
+   * in z and, by the radical inverse, in azimuth. */
+  float rot = mb ? gi__u01(&rng) : 0.f;
   for (int j = 0; j < mb; j++) {
     float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
-    float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__u01(&rng);
+    float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__radical2_rot((uint32_t)j, rot);
     float w[3] = {r * cosf(phi), r * sinf(phi), z};
     float V[3];
     float o[3], tn = gi__shadow_origin(p, NULL, voxel, w, o);

@@ -34,8 +34,10 @@ static void surface_direct(const struct gi_cascade *c, const float x[3], const f
   float t[3], b[3], o[3];
   float tn = gi__shadow_origin(x, n, voxel, n, o);
   gi__basis(n, t, b);
+  /* Stratified in u1 and, by the radical inverse, in azimuth. */
+  float rot = gi__u01(rng);
   for (int j = 0; j < mb; j++) {
-    float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__u01(rng);
+    float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__radical2_rot((uint32_t)j, rot);
     float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
     float w[3], V[3];
     for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];

@@ -119,6 +119,25 @@ static inline float gi__u01(uint64_t *state) {
   return (float)(gi__mix64(*state) >> 40) * (1.0f / 16777216.0f);
 }
 
+/* The radical inverse of j in base 2 (van der Corput), in [0, 1). Paired
+ * with a stratum (j + u) / m it makes m points stratified in two
+ * dimensions (a jittered Hammersley set), where a second random number
+ * would leave the second dimension plain Monte Carlo. */
+static inline float gi__radical2(uint32_t j) {
+  j = (j << 16) | (j >> 16);
+  j = ((j & 0x00ff00ffu) << 8) | ((j & 0xff00ff00u) >> 8);
+  j = ((j & 0x0f0f0f0fu) << 4) | ((j & 0xf0f0f0f0u) >> 4);
+  j = ((j & 0x33333333u) << 2) | ((j & 0xccccccccu) >> 2);
+  j = ((j & 0x55555555u) << 1) | ((j & 0xaaaaaaaau) >> 1);
+  return (float)(j >> 8) * 0x1p-24f;
+}
+/* gi__radical2(j) shifted by rot in [0, 1), wrapped (a random shift
+ * keeps the estimate unbiased). */
+static inline float gi__radical2_rot(uint32_t j, float rot) {
+  float r = gi__radical2(j) + rot;
+  return r >= 1.f ? r - 1.f : r;
+}
+
 /* Branch-free min and max: without -ffinite-math-only, fminf and fmaxf
  * are library calls, and the hot loops need neither NaN rule. */
 static inline float gi__minf(float a, float b) { return a < b ? a : b; }

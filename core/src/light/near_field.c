@@ -146,16 +146,6 @@ static void polygon_point(const float v[][3], int n, float area, float u, float 
   for (int k = 0; k < 3; k++) out[k] = a * v[0][k] + b * v[t][k] + c * v[t + 1][k];
 }
 
-/* The radical inverse of j in base 2 (van der Corput). */
-static float radical2(uint32_t j) {
-  j = (j << 16) | (j >> 16);
-  j = ((j & 0x00ff00ffu) << 8) | ((j & 0xff00ff00u) >> 8);
-  j = ((j & 0x0f0f0f0fu) << 4) | ((j & 0xf0f0f0f0u) >> 4);
-  j = ((j & 0x33333333u) << 2) | ((j & 0xccccccccu) >> 2);
-  j = ((j & 0x55555555u) << 1) | ((j & 0xaaaaaaaau) >> 1);
-  return (float)(j >> 8) * 0x1p-24f;
-}
-
 /* The stride by which points take the m samples (point j takes sample
  * j * stride mod m): coprime with m, so neighbouring points (along the
  * pieces) take samples far apart in their strata (the sky's elevation)
@@ -234,8 +224,7 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
   size_t i = 0;
   for (int j = 0; j < P; j++) {
     const gi_lsample *l = &ls[(int)(((int64_t)j * stride) % m)];
-    float u = ((float)j + rot) / (float)P * total, r2 = radical2((uint32_t)j) + rot2;
-    r2 -= r2 >= 1 ? 1 : 0;
+    float u = ((float)j + rot) / (float)P * total, r2 = gi__radical2_rot((uint32_t)j, rot2);
     while (i + 1 < ns->npieces && ns->pieces[i].cum < u) i++;
     const gi_piece *pc = &ns->pieces[i];
     float lo = pc->cum - pc->area;
