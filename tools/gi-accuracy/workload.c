@@ -168,13 +168,26 @@ static int cone_probes(const acc_wl_opts *o, const char *name, const acc_scene_s
   return ok;
 }
 
-/* The path tracer on the subset at 1, 4, .. pt_max paths per probe. */
+/* Whether the sweep's last count is still worse than the cone tracer on
+ * either error (the subset's or its first 20 points'). */
+static int path_above_cone(const probe_run *r) {
+  int k = r->num_path - 1;
+  return k < 0 || r->mre_m[k] > r->cone_mre_m || r->mre_20[k] > r->cone_mre_20;
+}
+
+/* The path tracer on the subset at 1, 4, .. pt_max paths per probe, and
+ * on past pt_max while it is still worse than the cone tracer, up to a
+ * quarter of the reference's paths (beyond that the reference's own noise
+ * is most of what it measures): without the count that reaches the cone's
+ * error, the comparison would be a bound, not a figure. */
 static int path_probes(const acc_wl_opts *o, const char *name, const acc_scene_set *ss, const gi_ref_probe *ref,
                        probe_run *r) {
   gi_ref_probe *got = malloc(r->m * sizeof *got);
   gi_error_info err = {0};
   int ok = got != NULL;
-  for (int spp = 1; ok && spp <= o->pt_max && r->num_path < ACC_WL_MAX_PATH; spp *= 4) {
+  for (int spp = 1; ok && r->num_path < ACC_WL_MAX_PATH &&
+                    (spp <= o->pt_max || (spp <= ss->ref_samples / 4 && path_above_cone(r)));
+       spp *= 4) {
     gi_reference_opts ro = {.samples = spp, .seed = 2, .threads = o->threads}; /* seed 2: not the reference's */
     double best = INFINITY;
     for (int i = 0; ok && i < o->repeat; i++) {
@@ -470,7 +483,8 @@ void acc_write_workloads_md(FILE *f, const acc_workload *w, size_t n, const char
              "see direct light (not inside solids), in random order; the 20 and 1,000 probes are the first of them. "
              "The cone tracer's gather is timed over the full count; the error is measured on the first %d points "
              "(all 20 of the smallest workload) against a reference at the scene's reference paths per probe "
-             "(cached), where the path tracer is also swept; its time at the sample counts around the cone's error "
+             "(cached), where the path tracer is also swept (1, 4, .. --pt-max paths, and on by factors of 4 up to a "
+             "quarter of the reference's paths while it is still worse than the cone tracer); its time at the sample counts around the cone's error "
              "is then measured again on the full count (*scaled*: that would have taken over %.0f s, %.0f s with --quick, so the "
              "subset's time is scaled to the count by its mean cost per probe). Panorama: %dx%d lat-long at the viewpoint "
              "(gi_cascade_panorama, direct + indirect) against gi_reference_panorama. Camera view: the view of the "
