@@ -4,7 +4,9 @@
 # workloads.csv, workloads.jsonl and the markdown's section; read back,
 # every figure is finite, the derived columns follow from the measured
 # ones (total = bake + answer, ratio = path / cone, the crossover from
-# the formula), the goals sit on the 10000-probe row and the camera view.
+# the formula), the probes' path-tracer sweep goes past --pt-max only
+# while it is worse than the cone tracer, and the goals sit on the
+# 10000-probe row and the camera view.
 # --no-workloads writes neither file and says so in the markdown.
 # Usage: sh workload_smoke.sh path/to/gi-accuracy
 . "$(dirname "$0")/../cli/common.sh"
@@ -53,7 +55,13 @@ for r, j in zip(rows, js):
     if r["unit"] == "probe":
         # The error subset: all 20 points of the smallest workload, 20 of the others (--quick).
         assert f["err_points"] == 20 and f["count"] == int(r["workload"].split()[0]), r
-        assert [p["spp"] for p in j["path"]] == [1, 4, 16, 64], j["path"]
+        # 1 .. --pt-max, then on by 4x (up to a quarter of --ref-samples) only while the
+        # path tracer's last count was still worse than the cone tracer.
+        sp = [p["spp"] for p in j["path"]]
+        assert sp[:4] == [1, 4, 16, 64] and sp[-1] <= 256, j["path"]
+        assert all(b == 4 * a for a, b in zip(sp, sp[1:])), j["path"]
+        for k in range(4, len(sp)):
+            assert j["path"][k - 1]["mre"] > f["cone_mre"] * (1 - 1e-5), (j["path"], f["cone_mre"])
     else:
         assert f["count"] == 1 and 0 < f["err_points"] <= (256 * 128 if r["unit"] == "panorama" else 32 * 18), r
         assert [p["spp"] for p in j["path"]] == [1, 4], j["path"]  # a quarter of --view-samples 16
