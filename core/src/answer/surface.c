@@ -41,7 +41,7 @@ static void surface_direct(const struct gi_cascade *c, const float x[3], const f
     float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
     float w[3], V[3];
     for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
-    if (!gi__emitter_ray(s, x, o, w, tn, lp.emit_samples, (float)mb * z / GI_PI_F, V)) continue;
+    if (!gi__emitter_ray(s, x, o, w, tn, lp.emit_samples, (float)mb * z / GI_PI_F, 0, V)) continue;
     for (int k = 0; k < 3; k++) E[k] += V[k] * z;
   }
 }

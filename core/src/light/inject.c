@@ -202,7 +202,7 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
       for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
       rays++;
       float V[3];
-      if (!gi__emitter_ray(s, pc, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, V)) continue;
+      if (!gi__emitter_ray(s, pc, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, 0, V)) continue;
       for (int k = 0; k < 3; k++) Es[sd][k] += V[k] * z;
     }
   }

@@ -200,7 +200,7 @@ static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float 
 }
 
 int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
-                    int m_light, float pb, float out[3]) {
+                    int m_light, float pb, int power, float out[3]) {
   float th, ce;
   uint32_t tri;
   if (!(pb > 0) || !gi__emitter_find(s, o, w, tnear, INFINITY, &th, &tri)) return 0;
@@ -213,6 +213,6 @@ int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const
   if (!vis) return 0;
   float mpl = gi__emitter_mpl(s, p, tri, th, ce, m_light);
   const float *Le = s->materials[s->tri_material[tri]].emission;
-  for (int k = 0; k < 3; k++) out[k] = Le[k] / (mpl + pb);
+  for (int k = 0; k < 3; k++) out[k] = power ? Le[k] * pb / (mpl * mpl + pb * pb) : Le[k] / (mpl + pb);
   return 1;
 }

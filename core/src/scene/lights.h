@@ -24,11 +24,20 @@ typedef struct gi_lsample {
 float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t, float cos_e, int m);
 /* MIS companion of emitter light sampling at point p: traces o + t w
  * (t > tnear; o is p's shadow-ray start); when it meets an emitter's front,
- * out = Le / (mpl + pb) with mpl the light strategy's pdf for that point
- * (m_light samples) and pb the caller's own pdf times its sample count.
+ * out = Le w_b / pb, with w_b this ray's MIS weight: pb / (mpl + pb) by the
+ * balance heuristic (power 0), pb^2 / (mpl^2 + pb^2) by the power heuristic
+ * (power 1), mpl being the light strategy's pdf for that point (m_light
+ * samples) and pb the caller's own pdf times its sample count. The caller
+ * weights its light samples by the same heuristic (gi__mis_light).
  * Returns 0 (out untouched) otherwise. */
 int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
-                    int m_light, float pb, float out[3]);
+                    int m_light, float pb, int power, float out[3]);
+/* A light sample's MIS weight against the caller's rays (pdf pb times
+ * their count), by the balance (power 0) or power (power 1) heuristic. */
+static inline float gi__mis_light(float mpl, float pb, int power) {
+  if (!(mpl > 0)) return 1.f;
+  return power ? mpl * mpl / (mpl * mpl + pb * pb) : mpl / (mpl + pb);
+}
 /* Triangle tri's winding normal, unnormalised (length: twice its area). */
 static inline void gi__tri_cross(const gi_scene *s, uint32_t tri, float ng[3]) {
   const uint32_t *ix = &s->indices[3 * tri];
