@@ -66,6 +66,30 @@ static void test_delta_lights(void **state) {
   assert_true(e[1][0] == 0);
 }
 
+/* A light sample's MIS weight (gi__mis_light) follows the balance and the
+ * power heuristics, and stays finite in [0, 1] where the squares would
+ * overflow: a tiny emitter far off (mpl 1e30) or a huge near one (mpl
+ * 1e-30). gi__emitter_ray gives its ray the rest, by the same ratio. */
+static void test_mis_weights(void **state) {
+  (void)state;
+  const float mpl[] = {1e-30f, 1e-3f, 0.5f, 1.f, 3.f, 1e4f, 1e30f, 3e38f};
+  const float pb[] = {1e-30f, 0.2f, 1.f, 20.f, 1e30f};
+  for (size_t i = 0; i < sizeof mpl / sizeof *mpl; i++)
+    for (size_t j = 0; j < sizeof pb / sizeof *pb; j++)
+      for (int power = 0; power < 2; power++) {
+        float w = gi__mis_light(mpl[i], pb[j], power);
+        assert_true(isfinite(w) && w >= 0.f && w <= 1.f);
+        double r = (double)pb[j] / mpl[i];
+        double want = power ? 1.0 / (1.0 + r * r) : 1.0 / (1.0 + r);
+        assert_true(fabs(w - want) <= 1e-6);
+      }
+  /* The power heuristic leans harder on the better strategy. */
+  assert_true(gi__mis_light(10.f, 1.f, 1) > gi__mis_light(10.f, 1.f, 0));
+  assert_true(gi__mis_light(1.f, 10.f, 1) < gi__mis_light(1.f, 10.f, 0));
+  /* No light pdf (a delta light, or an emitter the tree cannot pick): 1. */
+  assert_true(gi__mis_light(0.f, 5.f, 1) == 1.f && gi__mis_light(0.f, 5.f, 0) == 1.f);
+}
+
 static void test_sky(void **state) {
   const double below[1][3] = {{0, 1, 0}};
   float e[1][3];
@@ -499,6 +523,7 @@ static void test_turned_facade(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_delta_lights),
+      cmocka_unit_test(test_mis_weights),
       cmocka_unit_test(test_sky),
       cmocka_unit_test(test_shadow_rule),
       cmocka_unit_test(test_near_field),

@@ -33,10 +33,14 @@ float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t
 int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
                     int m_light, float pb, int power, float out[3]);
 /* A light sample's MIS weight against the caller's rays (pdf pb times
- * their count), by the balance (power 0) or power (power 1) heuristic. */
+ * their count), by the balance (power 0) or power (power 1) heuristic.
+ * The power form goes through the ratio pb / mpl, so a tiny far emitter
+ * (mpl near float's limit) gives 1, not inf / inf. */
 static inline float gi__mis_light(float mpl, float pb, int power) {
   if (!(mpl > 0)) return 1.f;
-  return power ? mpl * mpl / (mpl * mpl + pb * pb) : mpl / (mpl + pb);
+  if (!power) return mpl / (mpl + pb);
+  float r = pb / mpl;
+  return 1.f / (1.f + r * r);
 }
 /* Triangle tri's winding normal, unnormalised (length: twice its area). */
 static inline void gi__tri_cross(const gi_scene *s, uint32_t tri, float ng[3]) {
