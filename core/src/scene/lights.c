@@ -213,8 +213,12 @@ int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const
   if (!vis) return 0;
   float mpl = gi__emitter_mpl(s, p, tri, th, ce, m_light);
   const float *Le = s->materials[s->tri_material[tri]].emission;
-  /* The power heuristic through the ratio mpl / pb: finite whatever the pdfs. */
-  float q = mpl / pb, wb = 1.f / (1.f + q * q);
-  for (int k = 0; k < 3; k++) out[k] = power ? Le[k] * wb / pb : Le[k] / (mpl + pb);
+  if (power) {
+    /* The light sample's weight with the roles swapped: one formula, finite whatever the pdfs. */
+    float wb = gi__mis_light(pb, mpl, 1);
+    for (int k = 0; k < 3; k++) out[k] = Le[k] * wb / pb;
+  } else {
+    for (int k = 0; k < 3; k++) out[k] = Le[k] / (mpl + pb);
+  }
   return 1;
 }
