@@ -2,8 +2,10 @@
  * can be overridden per request.
  *   bounces from the albedo: the first bounce left out weighs a^(B+2) of
  *     the direct light; stop under 2%, at most 4: a = 0.2 -> 1, 0.3 -> 2,
- *     0.45 -> 3, 0.5 and 0.8 -> 4 (capped: these add the geometric tail of
- *     the rest, a^6 / (1 - a) = 3% of the direct light at 0.5);
+ *     0.45 -> 3; 0.5, 0.62 and 0.8 reach the cap and add the geometric
+ *     tail of the rest, which replaces the fourth bounce where the orders
+ *     after the third, a^5 / (1 - a), are at most 20% of the direct light:
+ *     0.5 (6%) -> 3, 0.62 (24%) and 0.8 (164%) -> 4;
  *   sky only where it is visible: a closed box with a sky light skips it,
  *     the path-traced reference agrees the sky gives nothing there (and
  *     forcing the sky on only adds leaked light); an open plane runs it;
@@ -43,21 +45,21 @@ static void bake_at(const gi_scene *s, const double at[3], const gi_quality *q, 
 }
 
 static void test_bounces_from_albedo(void **state) {
-  const double a[5] = {0.2, 0.3, 0.45, 0.5, 0.8};
-  const int want[5] = {1, 2, 3, 4, 4};
+  const double a[6] = {0.2, 0.3, 0.45, 0.5, 0.62, 0.8};
+  const int want[6] = {1, 2, 3, 3, 4, 4}, tail[6] = {0, 0, 0, 1, 1, 1};
   const double at[3] = {0.5, 0.5, 0.5};
-  for (int i = 0; i < 5; i++) {
+  for (int i = 0; i < 6; i++) {
     gi_scene *s = make_box(a[i], 1.0, NULL);
     gi_quality q = {.levels = 2, .res = 16};
     gi_bake_report rep;
     gi_probe p;
     bake_at(s, at, &q, &rep, &p);
-    printf("albedo %.1f: %d bounces (%s)\n", a[i], rep.bounces_run, rep.effects[GI_FX_BOUNCE].why);
+    printf("albedo %.2f: %d bounces (%s)\n", a[i], rep.bounces_run, rep.effects[GI_FX_BOUNCE].why);
     assert_int_equal(rep.quality.bounces, want[i]);
     assert_int_equal(rep.bounces_run, want[i]);
     assert_non_null(strstr(rep.effects[GI_FX_BOUNCE].why, "albedo"));
-    /* Only the capped count adds the tail of the orders left out. */
-    assert_int_equal(strstr(rep.effects[GI_FX_BOUNCE].why, "geometric tail") != NULL, want[i] == 4);
+    /* Only a count that reached the cap adds the tail of the orders left out. */
+    assert_int_equal(strstr(rep.effects[GI_FX_BOUNCE].why, "geometric tail") != NULL, tail[i]);
     /* An explicit count wins, and off means none. */
     q.bounces = 2;
     bake_at(s, at, &q, &rep, &p);
