@@ -147,17 +147,29 @@ static int cmp_u32(const void *a, const void *b) {
 }
 
 /* Voxelizes the stale cells of one box: every triangle the BVH finds over
- * the box, in index order (the bake's accumulation order per cell). */
-static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *b, uint32_t **tris, size_t *cap,
+ * them, in index order (the bake's accumulation order per cell). */
+static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *in, uint32_t **tris, size_t *cap,
                               uint64_t *visited, gi_error_info *err) {
   gi_level *L = &c->lv[d];
   const gi_scene *s = c->scene;
   int R = c->R;
   size_t nt = 0;
-  /* The old nested region is a box every move; usually nothing in it is stale. */
-  int any = 0;
-  FOR_BOX(b, i, j, k) any |= L->busy[gi__slot(i, j, k, R)] == CELL_STALE;
-  if (!any) return GI_OK;
+  /* The old nested region is a box every move; usually nothing in it is
+   * stale, or a slab at one side (what the finer level left): the query
+   * takes the stale cells' bounds only. Over the whole region it returned
+   * 72,000 of the city's triangles for a level-5 slab of 16 x 16 x 1 cells
+   * (5 ms of query and sort on the walk's slowest updates). */
+  cell_box sb, *b = &sb;
+  for (int a = 0; a < 3; a++) sb.lo[a] = in->hi[a], sb.hi[a] = in->lo[a];
+  FOR_BOX(in, i, j, k) {
+    if (L->busy[gi__slot(i, j, k, R)] != CELL_STALE) continue;
+    int64_t cl[3] = {i, j, k};
+    for (int a = 0; a < 3; a++) {
+      if (cl[a] < sb.lo[a]) sb.lo[a] = cl[a];
+      if (cl[a] + 1 > sb.hi[a]) sb.hi[a] = cl[a] + 1;
+    }
+  }
+  if (sb.lo[0] >= sb.hi[0]) return GI_OK;
   if (s->rtc) {
     float lo[3], hi[3];
     for (int a = 0; a < 3; a++) {
