@@ -27,7 +27,8 @@ static void surface_direct(const struct gi_cascade *c, const float x[3], const f
   for (int i = 0; i < m; i++) {
     if (!sc->vis[i]) continue;
     float cn = gi__dot(n, ls[i].w);
-    float f = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * cn / GI_PI_F) : 1.f;
+    /* Balance heuristic against the cosine rays below. */
+    float f = gi__mis_light(ls[i].mpl, (float)mb * cn / GI_PI_F, 0);
     for (int k = 0; k < 3; k++) E[k] += f * ls[i].V[k] * cn;
   }
   if (!mb) return;

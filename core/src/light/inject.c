@@ -148,7 +148,7 @@ static uint64_t light_group(const inject_ctx *ic, const gi_vgeo *g, int h, float
   int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
   /* Balance heuristic against the cosine samples of emitter_rays. */
   for (int i = 0; i < m; i++)
-    ib->mis[i] = ls[i].mpl > 0 ? ls[i].mpl / (ls[i].mpl + (float)mb * ib->cosw[i] / GI_PI_F) : 1.f;
+    ib->mis[i] = gi__mis_light(ls[i].mpl, (float)mb * ib->cosw[i] / GI_PI_F, 0);
   m = roulette(ls, ib, m, rng);
   /* Each ray leaves from the surfaces of the side that faces its light. */
   float pp[3], pn[3];
