@@ -191,11 +191,6 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
   }
 }
 
-static int cmp_u32(const void *a, const void *b) {
-  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-  return x < y ? -1 : x > y;
-}
-
 /* Axes whose surfaces lie within this angle of a group's share its
  * gathers (a tilted roof seen along two axes is one surface). */
 #define GROUP_COS 0.866f /* 30 degrees */
@@ -419,31 +414,6 @@ static gi_result all_tris(const gi_scene *s, vox_bufs *b) {
   return GI_OK;
 }
 
-/* Ascending triangle order, so accumulation (and a bake) is deterministic
- * whatever order the BVH visits; each triangle once. A large result is
- * ordered through a bitmap over the scene's triangles, linear where qsort
- * took a sixth of a city level's voxelization; without memory for the
- * bitmap, qsort. */
-#define ORDER_BITMAP_MIN 4096
-static void order_tris(const gi_scene *s, vox_bufs *b) {
-  size_t n = b->ntris;
-  uint64_t *bits = n >= ORDER_BITMAP_MIN ? gi__calloc(((size_t)s->num_triangles + 63) / 64, sizeof *bits) : NULL;
-  if (bits) {
-    for (size_t q = 0; q < n; q++) bits[b->tris[q] / 64] |= 1ull << (b->tris[q] % 64);
-    size_t m = 0;
-    for (size_t w = 0; w < ((size_t)s->num_triangles + 63) / 64; w++)
-      for (uint64_t x = bits[w]; x; x &= x - 1) b->tris[m++] = (uint32_t)(w * 64 + (size_t)__builtin_ctzll(x));
-    b->ntris = m;
-    gi__free(bits);
-    return;
-  }
-  if (n > 1) qsort(b->tris, n, sizeof *b->tris, cmp_u32);
-  size_t m = 0;
-  for (size_t q = 0; q < n; q++)
-    if (m == 0 || b->tris[q] != b->tris[m - 1]) b->tris[m++] = b->tris[q];
-  b->ntris = m;
-}
-
 /* The triangles over level d's window, but those wholly inside the finer
  * level's region, binned into slabs (serial). */
 static gi_result bin_level(struct gi_cascade *c, int d, vox_bufs *b, gi_error_info *err) {
@@ -460,7 +430,7 @@ static gi_result bin_level(struct gi_cascade *c, int d, vox_bufs *b, gi_error_in
   } else if (s->rtc) {
     rc = gi__query_box(s, L->lo, L->hi, &b->tris, &b->ntris, &b->cap);
     if (rc != GI_OK) return gi__fail(err, rc, "voxelize: BVH query failed for level %d", d);
-    order_tris(s, b);
+    gi__order_tris(s, b->tris, &b->ntris);
   }
   if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "voxelize");
   /* Drop triangles wholly inside the finer level's region. */

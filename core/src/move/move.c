@@ -141,14 +141,6 @@ static uint64_t mark_stale(const gi_level *old, gi_level *L, int R, int rebuild,
   return count;
 }
 
-/* A box's BVH query runs in at most this many parts along its longest side. */
-#define QUERY_PARTS 8
-
-static int cmp_u32(const void *a, const void *b) {
-  uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-  return x < y ? -1 : x > y;
-}
-
 /* Voxelizes the stale cells of one box: every triangle the BVH finds over
  * them, in index order (the bake's accumulation order per cell). */
 static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *in, uint32_t **tris, size_t *cap,
@@ -174,35 +166,14 @@ static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *in, u
   }
   if (sb.lo[0] >= sb.hi[0]) return GI_OK;
   if (s->rtc) {
-    /* The BVH's box query visits everything within the sphere around the
-     * box: for a scroll slab, 32 x 32 x 2 cells of level 5, most of the
-     * city (1.9 ms for a slab holding no triangle). Nearly cubic parts,
-     * at most QUERY_PARTS a side, keep the spheres close to the slab; a
-     * triangle over several parts is listed once (sorted, then unique). */
-    int64_t thin = INT64_MAX, wide = 0;
+    float lo[3], hi[3];
     for (int a = 0; a < 3; a++) {
-      int64_t e = b->hi[a] - b->lo[a];
-      thin = e < thin ? e : thin, wide = e > wide ? e : wide;
+      lo[a] = (float)(b->lo[a] * L->s);
+      hi[a] = (float)(b->hi[a] * L->s);
     }
-    int64_t edge = thin > (wide + QUERY_PARTS - 1) / QUERY_PARTS ? thin : (wide + QUERY_PARTS - 1) / QUERY_PARTS;
-    cell_box part;
-    for (part.lo[2] = b->lo[2]; part.lo[2] < b->hi[2]; part.lo[2] += edge)
-      for (part.lo[1] = b->lo[1]; part.lo[1] < b->hi[1]; part.lo[1] += edge)
-        for (part.lo[0] = b->lo[0]; part.lo[0] < b->hi[0]; part.lo[0] += edge) {
-          float lo[3], hi[3];
-          for (int a = 0; a < 3; a++) {
-            part.hi[a] = part.lo[a] + edge < b->hi[a] ? part.lo[a] + edge : b->hi[a];
-            lo[a] = (float)(part.lo[a] * L->s);
-            hi[a] = (float)(part.hi[a] * L->s);
-          }
-          gi_result rc = gi__query_box(s, lo, hi, tris, &nt, cap);
-          if (rc != GI_OK) return gi__fail(err, rc, "move: BVH query failed");
-        }
-    if (nt > 1) qsort(*tris, nt, sizeof **tris, cmp_u32);
-    size_t u = 0;
-    for (size_t q = 0; q < nt; q++)
-      if (u == 0 || (*tris)[q] != (*tris)[u - 1]) (*tris)[u++] = (*tris)[q];
-    nt = u;
+    gi_result rc = gi__query_box(s, lo, hi, tris, &nt, cap);
+    if (rc != GI_OK) return gi__fail(err, rc, "move: BVH query failed");
+    gi__order_tris(s, *tris, &nt);
   }
   *visited += nt;
   for (size_t q = 0; q < nt; q++) {

@@ -104,10 +104,16 @@ int gi__emitter_find(const struct gi_scene *s, const float org[3], const float d
                      float *t, uint32_t *tri);
 
 /* Appends to *out the indices of all triangles whose bounding box overlaps the
- * local-space box [lo, hi] (a BVH query, never a scan of all triangles).
- * *out is realloc'ed; *count and *cap are updated. Returns GI_ERR_NOMEM on
- * allocation failure. Thread-safe. */
+ * local-space box [lo, hi] (a BVH query, never a scan of all triangles),
+ * each once: in the BVH's order for a nearly cubic box, ascending for a
+ * thin one (queried in parts, see bvh_embree.c). *out is realloc'ed;
+ * *count and *cap are updated. Returns GI_ERR_NOMEM on allocation
+ * failure. Thread-safe. */
 gi_result gi__query_box(const struct gi_scene *s, const float lo[3], const float hi[3],
                         uint32_t **out, size_t *count, size_t *cap);
+/* tris[0..*count) in ascending order, each triangle once (*count shrinks
+ * by the repeats), so accumulating them does not depend on the order a
+ * BVH visits. Thread-safe on distinct lists. */
+void gi__order_tris(const struct gi_scene *s, uint32_t *tris, size_t *count);
 
 #endif
