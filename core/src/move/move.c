@@ -310,27 +310,31 @@ typedef struct {
   uint64_t visited[GI_MAX_LEVELS];
   gi_result rc[GI_MAX_LEVELS];
   gi_error_info err[GI_MAX_LEVELS];
+  /* Per worker, kept across its levels: the triangle list and the
+   * neighbours' mask (2 R^3 bytes: 33 MB at R 256, written whole per level). */
+  struct {
+    uint32_t *tris;
+    size_t cap;
+    uint8_t *tmp;
+  } w[GI_MAX_WORKERS];
 } scroll_ctx;
 
 static void voxelize_levels(void *p, size_t b, size_t e, int worker) {
-  (void)worker;
   scroll_ctx *x = p;
   struct gi_cascade *c = x->c;
   int R = c->R;
-  uint32_t *tris = NULL;
-  size_t cap = 0;
-  uint8_t *tmp = gi__malloc(2 * (size_t)R * R * R);
+  if (!x->w[worker].tmp) x->w[worker].tmp = gi__malloc(2 * (size_t)R * R * R);
+  uint8_t *tmp = x->w[worker].tmp;
   for (size_t i = b; i < e; i++) {
     /* Coarsest first: its slabs hold the most triangles, so it should not start last. */
     size_t d = (size_t)c->n - 1 - i;
     gi_result rc = tmp ? GI_OK : gi__fail(&x->err[d], GI_ERR_NOMEM, "move: out of memory for the neighbours' mask");
     for (int q = 0; q < x->nboxes[d] && rc == GI_OK; q++)
-      rc = voxelize_box(c, (int)d, &x->boxes[d][q], &tris, &cap, &x->visited[d], &x->err[d]);
+      rc = voxelize_box(c, (int)d, &x->boxes[d][q], &x->w[worker].tris, &x->w[worker].cap, &x->visited[d],
+                        &x->err[d]);
     if (rc == GI_OK) x->nfresh[d] = finish_level(c, &c->lv[d], x->fresh[d], &x->nnew[d], tmp);
     x->rc[d] = rc;
   }
-  gi__free(tris);
-  gi__free(tmp);
 }
 
 /* Scrolls every level and rebuilds the geometry of its stale cells. */
@@ -362,6 +366,7 @@ static gi_result scroll_levels(struct gi_cascade *c, const gi_level *old, uint32
     for (int a = 0; a < 3; a++)
       c->report.level_origin[d][a] = (double)L->cell0[a] * L->s + c->scene->origin[a];
   }
+  for (int w = 0; w < gi__num_workers(c->report.quality.threads); w++) gi__free(x->w[w].tris), gi__free(x->w[w].tmp);
   gi__free(x);
   return rc;
 }
