@@ -300,8 +300,8 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
     int tested = 0, seen = sky_rays(c, &tested);
     if (seen) set_fx(r, GI_FX_SKY, 1, "sky seen by %d of %d test rays, %d samples per voxel", seen, tested,
                      q->light_samples);
-    else set_fx(r, GI_FX_SKY, 0, "sky light present, but none of %d upward test rays from the viewpoint's cell "
-                                 "and the finest level's faces escapes", tested);
+    else set_fx(r, GI_FX_SKY, 0, "sky light present, but none of %d upward test rays around the viewpoint "
+                                 "escapes: no voxel takes it (probes, views and texels still sample it)", tested);
   }
 
   uint32_t emit_in = 0, glossy = 0;

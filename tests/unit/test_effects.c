@@ -8,7 +8,9 @@
  *     0.5 (6%) -> 3, 0.62 (24%) and 0.8 (164%) -> 4;
  *   sky only where it is visible: a closed box with a sky light skips it,
  *     the path-traced reference agrees the sky gives nothing there (and
- *     forcing the sky on only adds leaked light); an open plane runs it;
+ *     forcing the sky on only adds leaked light); a probe outside the box,
+ *     gathered from that cascade, still sees the sky by its own rays (pi
+ *     over the lid, as the reference); an open plane runs it;
  *   Munich (diffuse only, shared scene) never runs the specular cone, and
  *     forcing it on changes no probe value and no pixel of a street view,
  *     though the forced pass traces a cone at every pixel it shades;
@@ -90,6 +92,21 @@ static void test_sky_only_where_visible(void **state) {
   assert_int_equal(gi_reference_irradiance(s, at, 1, &ro, &r, NULL, &err), GI_OK);
   assert_true(r.irradiance[0] == 0 && r.irradiance[1] == 0 && r.irradiance[2] == 0);
   assert_true(auto_p.irradiance[0] == 0 && auto_p.irradiance[1] == 0 && auto_p.irradiance[2] == 0);
+  /* The plan is about the voxels: a probe outside the box, from the same
+   * cascade (its viewpoint inside), still sees the sky with its own rays.
+   * Over the lid it sees the whole upper hemisphere: E(up) = pi x 1. */
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
+  assert_false(rep.effects[GI_FX_SKY].ran);
+  const double over[3] = {0.5, 1.3, 0.5};
+  gi_probe out_p;
+  assert_int_equal(gi_cascade_gather(c, over, 1, &out_p, NULL, &err), GI_OK);
+  gi_reference_opts ro_over = {.samples = 4096};
+  assert_int_equal(gi_reference_irradiance(s, over, 1, &ro_over, &r, NULL, &err), GI_OK);
+  printf("closed box, probe over its lid: direct %g, reference %g (pi)\n", out_p.direct[0], r.direct[0]);
+  assert_true(fabs(out_p.direct[0] - 3.14159265) < 0.02 * 3.14159265);
+  assert_true(fabs(r.direct[0] - 3.14159265) < 0.02 * 3.14159265);
+  gi_cascade_free(c);
   /* Forced on, it runs; the probe's own shadow rays still find no sky, but
    * the walls' outsides are sky-lit and two-sided voxels leak some of that
    * inward (measured 1.3e-4 against a truth of 0): skipping is both cheaper

@@ -47,7 +47,7 @@ static void gather_direct(const struct gi_cascade *c, const float p[3], const fl
   const gi_scene *s = c->scene;
   const gi_quality *q = &c->report.quality;
   memset(pr, 0, sizeof *pr);
-  gi_light_plan lp = gi__light_plan(&c->report, q->probe_samples);
+  gi_light_plan lp = gi__answer_light_plan(s, &c->report, q->probe_samples);
   int cap = scr->cap;
   gi_lsample *ls = scr->ls;
   uint8_t *vis = scr->vis;
@@ -165,7 +165,7 @@ gi_result gi_cascade_gather_ex(const gi_cascade *c, const double *pts, size_t n,
     if (!isfinite(pts[i]))
       return gi__fail(err, GI_ERR_NONFINITE, "gather: point %zu has a non-finite coordinate", i / 3);
   double t0 = gi__now_ms();
-  gi_light_plan lp = gi__light_plan(&c->report, c->report.quality.probe_samples);
+  gi_light_plan lp = gi__answer_light_plan(c->scene, &c->report, c->report.quality.probe_samples);
   gather_ctx g = {.c = c, .pts = pts, .out = out, .cap = gi__light_sample_cap(c->scene, &lp)};
   atomic_init(&g.failed, 0);
   if (gi__parallel_for_cancel(n, 1, c->report.quality.threads, gather_range, &g, &g.failed, cancel))

@@ -97,7 +97,7 @@ gi_result gi_cascade_panorama(const gi_cascade *c, const double at[3], int w, in
   }
   double t0 = gi__now_ms();
   pano_ctx pc = {.c = c, .at = p, .w = w, .h = h, .direct = direct, .indirect = indirect};
-  if (c->report.effects[GI_FX_SKY].ran) gi__sky_radiance(c->scene, pc.sky);
+  if (gi__answer_sky(c->scene, &c->report)) gi__sky_radiance(c->scene, pc.sky);
   gi__parallel_for((size_t)h, 1, c->report.quality.threads, pano_rows, &pc);
   if (ms) *ms = gi__now_ms() - t0;
   return GI_OK;

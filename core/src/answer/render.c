@@ -179,7 +179,7 @@ static void anchor_rows(void *p, size_t b, size_t e, int worker) {
     return;
   }
   /* Anchors sample the lights that are mixed: the sky and the emitters. */
-  gi_light_plan lp = gi__light_plan(&rc->c->report, rc->samples);
+  gi_light_plan lp = gi__answer_light_plan(rc->c->scene, &rc->c->report, rc->samples);
   lp.sun = lp.local = 0;
   for (size_t j = b; j < e; j++)
     for (int i = 0; i < rc->aw; i++) {
@@ -264,8 +264,8 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   pp->out = out, pp->spec = spec;
   out[0] = out[1] = out[2] = 0;
   if (!primary_hit(rc, px, py, pp->w, pp->x, pp->n, ng, &tri)) {
-    /* The camera sees the sky itself where the plan lights with it. */
-    if (c->report.effects[GI_FX_SKY].ran) gi__sky_radiance(s, out);
+    /* The camera sees the sky itself where answers sample it. */
+    if (gi__answer_sky(s, &c->report)) gi__sky_radiance(s, out);
     return 0;
   }
   const float *x = pp->x, *n = pp->n;
@@ -278,7 +278,7 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   int d = pp->d = gi__finest_level_at(c, x);
   float Ei[3] = {0, 0, 0}, Es[3] = {0, 0, 0};
   int mixed = rc->anc && d >= 0 && interpolate_anchors(rc, px, py, x, n, d, Ei, Es);
-  gi_light_plan lp = gi__light_plan(&c->report, rc->samples);
+  gi_light_plan lp = gi__answer_light_plan(c->scene, &c->report, rc->samples);
   /* A mixed pixel samples only the sharp lights (sun, point, spot) itself. */
   if (mixed && rc->mix_sampled) lp.sky = lp.emissive = 0;
   direct_light(rc, &lp, px, py, x, n, sc, E);
@@ -346,7 +346,7 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   if (o.specular) memset(o.specular, 0, np * sizeof(float));
   render_ctx rc = {.c = c, .k = &k, .samples = o.light_samples, .spec = spec_mode(c), .rgb = rgb,
                    .spec_img = o.specular};
-  gi_light_plan lp = gi__light_plan(&c->report, o.light_samples);
+  gi_light_plan lp = gi__answer_light_plan(c->scene, &c->report, o.light_samples);
   rc.cap = gi__light_sample_cap(c->scene, &lp);
   atomic_init(&rc.failed, 0);
   atomic_init(&rc.diffuse_cones, 0);

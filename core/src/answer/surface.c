@@ -16,7 +16,7 @@
 static void surface_direct(const struct gi_cascade *c, const float x[3], const float n[3], int samples, uint64_t *rng,
                            gi_ray_scratch *sc, float E[3]) {
   const gi_scene *s = c->scene;
-  gi_light_plan lp = gi__light_plan(&c->report, samples);
+  gi_light_plan lp = gi__answer_light_plan(s, &c->report, samples);
   gi_lsample *ls = sc->ls;
   int nl = gi__light_samples(s, &lp, x, rng, ls, sc->cap), m = 0;
   for (int i = 0; i < nl; i++)

@@ -261,7 +261,7 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   /* The probe's light-sample budget, shared by the texel's footprint points. */
   int samples = rq->probe_samples / (ss * ss);
   tile_ctx g = {.lm = lm, .c = c, .jobs = jobs, .rows = rows, .samples = samples < 1 ? 1 : samples};
-  gi_light_plan lp = gi__light_plan(&br, g.samples);
+  gi_light_plan lp = gi__answer_light_plan(lm->scene, &br, g.samples);
   g.cap = gi__light_sample_cap(lm->scene, &lp);
   atomic_init(&g.failed, 0);
   if (gi__parallel_for_cancel(nj, 1, rq->threads, tile_rows, &g, &g.failed, cancel)) {

@@ -28,6 +28,20 @@ gi_light_plan gi__light_plan(const gi_bake_report *r, int samples) {
   return lp;
 }
 
+int gi__answer_sky(const gi_scene *s, const gi_bake_report *r) {
+  if (r->effects[GI_FX_SKY].ran) return 1;
+  if (r->quality.effects[GI_FX_SKY] == GI_FX_OFF) return 0;
+  float sky[3];
+  gi__sky_radiance(s, sky);
+  return sky[0] > 0 || sky[1] > 0 || sky[2] > 0;
+}
+
+gi_light_plan gi__answer_light_plan(const gi_scene *s, const gi_bake_report *r, int samples) {
+  gi_light_plan lp = gi__light_plan(r, samples);
+  lp.sky = gi__answer_sky(s, r);
+  return lp;
+}
+
 void gi__sky_radiance(const gi_scene *s, float out[3]) {
   out[0] = out[1] = out[2] = 0;
   for (uint32_t i = 0; i < s->num_lights; i++)

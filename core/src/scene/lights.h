@@ -86,6 +86,17 @@ typedef struct gi_light_plan {
 /* The light kinds the effect plan of report r enabled, with `samples` rays
  * for sky and emitters. */
 gi_light_plan gi__light_plan(const gi_bake_report *r, int samples);
+/* The lights an answer at a point samples (a probe, a camera view's or a
+ * lightmap's surface point): report r's plan, and the sky of scene s
+ * whenever it has one the request did not turn off. The plan leaves the
+ * sky out of the voxels when no test ray from around the viewpoint
+ * escapes (a closed room), but an answer's shadow rays start at its own
+ * point, which may see the sky all the same: a probe outside the closed
+ * object that a viewpoint at a model's centre lies in. */
+gi_light_plan gi__answer_light_plan(const gi_scene *s, const gi_bake_report *r, int samples);
+/* 1 when answers sample the sky by the rule above (a camera's or a
+ * panorama's ray that escapes also sees it). */
+int gi__answer_sky(const gi_scene *s, const gi_bake_report *r);
 /* Per-thread buffers for one batch of light samples and their shadow rays. */
 typedef struct gi_ray_scratch {
   int cap;
