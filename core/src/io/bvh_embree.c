@@ -297,6 +297,65 @@ static gi_result query_sphere(const struct gi_scene *s, const float lo[3], const
   return q.oom ? GI_ERR_NOMEM : GI_OK;
 }
 
+/* The point of triangle abc nearest p, by the Voronoi region of p: a
+ * vertex, an edge or the face (the standard barycentric case split). */
+static void tri_closest(const float p[3], const float a[3], const float b[3], const float c[3], float out[3]) {
+  float ab[3], ac[3], ap[3], bp[3], cp[3];
+  for (int k = 0; k < 3; k++)
+    ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k], bp[k] = p[k] - b[k], cp[k] = p[k] - c[k];
+  float d1 = gi__dot(ab, ap), d2 = gi__dot(ac, ap), d3 = gi__dot(ab, bp), d4 = gi__dot(ac, bp);
+  float d5 = gi__dot(ab, cp), d6 = gi__dot(ac, cp);
+  float u = 0, v = 0; /* out = a + u ab + v ac */
+  float va = d3 * d6 - d5 * d4, vb = d5 * d2 - d1 * d6, vc = d1 * d4 - d3 * d2;
+  if (d1 <= 0 && d2 <= 0) u = v = 0;
+  else if (d3 >= 0 && d4 <= d3) u = 1, v = 0;
+  else if (d6 >= 0 && d5 <= d6) u = 0, v = 1;
+  else if (vc <= 0 && d1 >= 0 && d3 <= 0) u = d1 / (d1 - d3), v = 0;
+  else if (vb <= 0 && d2 >= 0 && d6 <= 0) u = 0, v = d2 / (d2 - d6);
+  else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+    float w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    u = 1 - w, v = w;
+  } else {
+    float den = va + vb + vc;
+    if (den > 0) u = vb / den, v = vc / den;
+  }
+  for (int k = 0; k < 3; k++) out[k] = a[k] + u * ab[k] + v * ac[k];
+}
+
+typedef struct {
+  const struct gi_scene *s;
+  float p[3], q[3], d2;
+  int found;
+} near_query;
+
+static bool near_cb(struct RTCPointQueryFunctionArguments *args) {
+  near_query *nq = args->userPtr;
+  const struct gi_scene *s = nq->s;
+  const uint32_t *ti = s->indices + 3 * (size_t)args->primID;
+  float q[3];
+  tri_closest(nq->p, &s->vertices[3 * (size_t)ti[0]], &s->vertices[3 * (size_t)ti[1]],
+              &s->vertices[3 * (size_t)ti[2]], q);
+  float e[3] = {q[0] - nq->p[0], q[1] - nq->p[1], q[2] - nq->p[2]}, d2 = gi__dot(e, e);
+  if (!(d2 < nq->d2)) return false;
+  nq->d2 = d2, nq->found = 1;
+  memcpy(nq->q, q, sizeof nq->q);
+  args->query->radius = sqrtf(d2); /* nothing farther can win now */
+  return true;
+}
+
+int gi__closest_point(const struct gi_scene *s, const float p[3], float radius, float q[3], float *dist) {
+  if (!s->rtc || !gi__finite3(p) || !(radius > 0)) return 0;
+  near_query nq = {.s = s, .p = {p[0], p[1], p[2]}, .d2 = radius * radius};
+  struct RTCPointQuery pq = {.x = p[0], .y = p[1], .z = p[2], .time = 0.f, .radius = radius};
+  struct RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(s->rtc, &pq, &ctx, near_cb, &nq);
+  if (!nq.found) return 0;
+  memcpy(q, nq.q, sizeof nq.q);
+  *dist = sqrtf(nq.d2);
+  return 1;
+}
+
 /* A box more than this many times longer than it is thick is queried in
  * nearly cubic parts, at most QUERY_PARTS along a side: one sphere around
  * a moving cascade's scroll slab (32 x 32 x 2 cells of its coarsest level)
