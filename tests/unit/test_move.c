@@ -455,8 +455,13 @@ static void probe_figures(const gi_cascade *c, const double at[3], double v[21])
  * behind still held what they gathered at the window's face. The bounds
  * leave 1.5x for other compilers (the walk's mean, 2x: it is tiny); the
  * scheme this replaced (whole levels re-gathered on a clock) measured 5x
- * the mean at default quality. */
-static const double DRIFT_MEAN_BOUND[2] = {0.0004, 0.0029}, DRIFT_MAX_BOUND[2] = {0.0065, 0.036};
+ * the mean at default quality. By 13d9cdc the drive's max read 0.0347;
+ * since the probes read a surface nearer than their first sample in one
+ * sample (answer/gather.c) it reads 0.0379, the walk 0.0039: the figure is
+ * E(-y), 0.2 against E(+y)'s 2, at steps 36-38, where the moved texture
+ * differs from the cold one by 4% in the street under the probe and the
+ * down cones now read it unblended. Bound 1.2x that. */
+static const double DRIFT_MEAN_BOUND[2] = {0.0004, 0.0029}, DRIFT_MAX_BOUND[2] = {0.0065, 0.045};
 static void test_probe_drift(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
   gi_scene *s = city(&cp);

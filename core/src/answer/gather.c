@@ -40,6 +40,115 @@ static float ground_height(const struct gi_cascade *c, const float p[3], const f
   return t;
 }
 
+/* The surface nearest a probe, within the reach of the coarsest level's
+ * footprint. A cone leaving it (w . n > 0) has its first samples'
+ * trilinear footprint on that surface's voxels, whose far side (the back
+ * of a wall, lit from the other side) it would read as light in front of
+ * it: unless it has a surface already (the ground, for the upper
+ * hemisphere), it takes the surface rule of a surface gather, h above
+ * that surface, and starts no nearer to it than its first samples'
+ * footprint reaches. A cone toward a surface nearer than its first
+ * sample reads it where it meets it instead of stepping past it
+ * (read_surface). Beside a sunlit wall (the closing note's wall scene),
+ * probes 0.1-1 of their level's voxel from it read 2.8-3x the path
+ * tracer's indirect light, now 0.8-0.9x; a 5 cm sphere's probes 2.1x,
+ * now 1.6x. The gathers of a probe near a surface take more samples:
+ * 4000 random probes in Munich, 20% more gather time. */
+typedef struct {
+  int have;            /* a surface lies within reach */
+  float n[3], h;       /* unit direction from it to the probe; distance */
+} near_surface;
+
+typedef struct {
+  const struct gi_cascade *c;
+  const near_surface *near; /* per gather */
+} near_ctx;
+
+static near_surface nearest_surface(const struct gi_cascade *c, const float p[3]) {
+  near_surface ns = {0};
+  float reach = GI_TRILINEAR_REACH * (float)c->lv[c->n - 1].s, q[3], h;
+  if (!gi__closest_point(c->scene, p, reach, q, &h) || !(h > 0)) return ns;
+  for (int k = 0; k < 3; k++) ns.n[k] = (p[k] - q[k]) / h;
+  ns.h = h, ns.have = 1;
+  return ns;
+}
+
+/* A cone meeting a surface at x (unit normal m, on the cone's side),
+ * nearer than its first sample: narrower than a voxel there, it is a
+ * ray, and sees the light that surface's voxels send toward it, not what
+ * lies behind (marched on from its first sample, past the surface, it
+ * read half the surface's voxels and half those behind it, and let a lit
+ * room through a thin wall: test_hardcases). One sample in the layer of
+ * voxels holding x across m's main axis (the cone's side of x first; for
+ * a sheet on a cell border, the cell that owns it), trilinear along the
+ * surface, so it moves smoothly with x. Half a voxel in front of x,
+ * trilinear in all three axes, read Munich's street probes at 8.5%
+ * indirect error against 8.0% (the march from the first sample: 7.7%);
+ * one voxel, nearest in all axes, 7.5%, but it jumps as hits cross voxel
+ * borders. 0 when nothing there faces the cone. */
+static int read_surface(const struct gi_cascade *c, const float x[3], const float m[3], const float w[3], float t,
+                        gi_cone_out *o) {
+  int d = gi__finest_level_at(c, x);
+  if (d < 0) return 0;
+  const gi_level *L = &c->lv[d];
+  float s = (float)L->s, q[3], prem[3], wal = 0, sig;
+  int ax = 0;
+  for (int a = 1; a < 3; a++)
+    if (fabsf(m[a]) > fabsf(m[ax])) ax = a;
+  for (int side = 0; side < 2 && !(wal > GI_MIN_SAMPLE_WEIGHT); side++) {
+    memcpy(q, x, sizeof q);
+    float y = x[ax] + (side ? -1e-2f : 1e-2f) * s * m[ax];
+    q[ax] = L->lo[ax] + (floorf((y - L->lo[ax]) / s) + 0.5f) * s;
+    gi__sample_level(c, d, q, w, prem, &wal, &sig);
+  }
+  if (!(wal > GI_MIN_SAMPLE_WEIGHT)) return 0;
+  for (int k = 0; k < 3; k++) o->L[k] = prem[k] / wal;
+  float D = gi__maxf(2.f * t * c->probe_tan, (float)c->s0);
+  o->alpha = 1.f;
+  o->occlusion = 1.f / (1.f + c->report.quality.ao_lambda * 0.5f * D);
+  o->samples = 1;
+  return 1;
+}
+
+static void near_surface_rule(void *ctx, size_t gather, gi_cone_job *jobs, int n, uint8_t *done, gi_cone_out *out) {
+  const near_ctx *nc = ctx;
+  const near_surface *ns = &nc->near[gather];
+  if (!ns->have) return;
+  for (int i = 0; i < n; i++) {
+    gi_cone_job *j = &jobs[i];
+    float t, ng[3], s = j->t0; /* the voxel of the probe's level */
+    uint32_t tri;
+    if (ns->h < j->t0 && gi__intersect1(nc->c->scene, j->o, j->w, 0, j->t0, &t, &tri, ng)) {
+      float x[3] = {j->o[0] + t * j->w[0], j->o[1] + t * j->w[1], j->o[2] + t * j->w[2]};
+      float len = gi__len(ng), m[3];
+      float sg = gi__dot(ng, j->w) > 0 ? -1.f : 1.f; /* facing the cone */
+      for (int k = 0; k < 3; k++) m[k] = len > 0 ? sg * ng[k] / len : -j->w[k];
+      if (read_surface(nc->c, x, m, j->w, t, &out[i])) {
+        done[i] = 1;
+        continue;
+      }
+      j->t0 = t;
+    }
+    if (j->h0 >= 0 || !(gi__dot(j->w, ns->n) > 0)) continue;
+    memcpy(j->n, ns->n, sizeof j->n);
+    j->h0 = ns->h;
+    /* Nearer than its footprint, even the finest level there reaches
+     * back: the cone starts where the first samples' footprint clears the
+     * surface, as a surface gather's starts clear of its own (there a
+     * voxel up). test_hardcases' thin wall leaked 59% into a probe a
+     * quarter voxel from it; 4.8% lifted a voxel, 2.4% lifted 1.5. Reading
+     * only the axes across the normal wherever the footprint reached the
+     * surface instead (no lift) leaked 3.7% and took Munich's indirect
+     * error from 7.7 to 8.5%: at coarse levels it hid the facade across
+     * the street too. */
+    float lift = GI_TRILINEAR_REACH * s;
+    if (ns->h < lift) {
+      for (int k = 0; k < 3; k++) j->o[k] += (lift - ns->h) * ns->n[k];
+      j->h0 = lift;
+    }
+  }
+}
+
 /* The probe's direct light: shadow rays from the point itself (up: the
  * scene's up axis). Clears pr. */
 static void gather_direct(const struct gi_cascade *c, const float p[3], const float up[3], gi_probe *pr,
@@ -135,6 +244,7 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
   const float up[3] = {0, c->scene->up == GI_UP_Z ? 0.f : 1.f, c->scene->up == GI_UP_Z ? 1.f : 0.f};
   gi_gather_req req[2 * PROBE_BATCH];
   float h0[2 * PROBE_BATCH];
+  near_surface near[2 * PROBE_BATCH];
   gi_gather_out go[2 * PROBE_BATCH];
   float dirs[2 * PROBE_BATCH * GI_MAX_CONES][3];
   gi_cone_out cones[2 * PROBE_BATCH * GI_MAX_CONES];
@@ -145,8 +255,10 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
       for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * (i0 + j) + k] - c->scene->origin[k]);
       gather_direct(c, pl, up, &g->out[i0 + j], seed, &sc);
       probe_requests(c, pl, up, req + 2 * j, h0 + 2 * j);
+      near[2 * j] = near[2 * j + 1] = nearest_surface(c, pl);
     }
-    gi__gather_probe_hemispheres(c, req, h0, 2 * m, go, dirs, cones);
+    near_ctx nctx = {c, near};
+    gi__gather_probe_hemispheres_adj(c, req, h0, 2 * m, near_surface_rule, &nctx, go, dirs, cones);
     for (size_t j = 0; j < m; j++)
       probe_finish(c, go + 2 * j, (const float(*)[3])(dirs + 2 * j * nc), cones + 2 * j * nc, &g->out[i0 + j]);
   }

@@ -67,6 +67,20 @@ void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_s
   set_jobs(&cs, g, n, jobs);
 }
 
+/* Marches the jobs[0..nj) not done into co, beside the done ones' own. */
+static void march_rest(const struct gi_cascade *c, const cone_set *cs, const gi_gather_start *g,
+                       const gi_cone_job *jobs, const uint8_t *done, int nj, gi_cone_out *co) {
+  gi_cone_job rest[GI_MARCH_BATCH_JOBS];
+  gi_cone_out got[GI_MARCH_BATCH_JOBS];
+  int m = 0;
+  for (int k = 0; k < nj; k++)
+    if (!done[k]) rest[m++] = jobs[k];
+  if (m) gi__cone_march_jobs(c, rest, m, cs->tan, g->step, g->ao_lambda, got);
+  m = 0;
+  for (int k = 0; k < nj; k++)
+    if (!done[k]) co[k] = got[m++];
+}
+
 /* The gathers req[0..count) with cone set cs into out[i] (and, when given,
  * dirs and cones: cs->n per gather, zeroed for a gather outside every
  * level); h0 (may be NULL) as gi__gather_probe_hemispheres', per gather.
@@ -74,14 +88,16 @@ void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_s
  * fuller (one surface gather's 16 cones kept them 61% busy in a camera
  * view); each gather's sums are those of a gather alone. */
 static void gather_many(const struct gi_cascade *c, const cone_set *cs, const gi_gather_req *req, const float *h0,
-                        size_t count, gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
+                        size_t count, gi_cone_adjust adjust, void *ctx, gi_gather_out *out, float (*dirs)[3],
+                        gi_cone_out *cones) {
   gi_cone_job jobs[GI_MARCH_BATCH_JOBS];
   gi_cone_out co[GI_MARCH_BATCH_JOBS];
+  uint8_t done[GI_MARCH_BATCH_JOBS];
   size_t per = GI_MARCH_BATCH_JOBS / (size_t)cs->n; /* 32 gathers of the default set, 8 probe hemispheres */
   if (per > 32) per = 32; /* the `in` mask's bits */
   for (size_t b = 0; b < count; b += per) {
     size_t e = count - b < per ? count : b + per;
-    int nj = 0;
+    int nj = 0, answered = 0;
     uint32_t in = 0; /* bit i - b: gather i lies in the cascade */
     gi_gather_start g;
     for (size_t i = b; i < e; i++) {
@@ -100,10 +116,16 @@ static void gather_many(const struct gi_cascade *c, const cone_set *cs, const gi
       }
       in |= 1u << (i - b);
       set_jobs(cs, &g, n, jobs + nj);
+      memset(done + nj, 0, (size_t)cs->n);
+      if (adjust) {
+        adjust(ctx, i, jobs + nj, cs->n, done + nj, co + nj);
+        for (int k = 0; k < cs->n; k++) answered += done[nj + k];
+      }
       nj += cs->n;
     }
     if (!nj) continue;
-    gi__cone_march_jobs(c, jobs, nj, cs->tan, g.step, g.ao_lambda, co);
+    if (answered) march_rest(c, cs, &g, jobs, done, nj, co);
+    else gi__cone_march_jobs(c, jobs, nj, cs->tan, g.step, g.ao_lambda, co);
     int j = 0;
     for (size_t i = b; i < e; i++) {
       if (!(in >> (i - b) & 1)) continue;
@@ -121,11 +143,17 @@ static void gather_many(const struct gi_cascade *c, const cone_set *cs, const gi
 
 void gi__gather_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, size_t count, gi_gather_out *out) {
   cone_set cs = {c->num_cones, c->cone_dir, c->cone_weight, c->cone_tan};
-  gather_many(c, &cs, req, NULL, count, out, NULL, NULL);
+  gather_many(c, &cs, req, NULL, count, NULL, NULL, out, NULL, NULL);
 }
 
 void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, const float *h0, size_t count,
                                   gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
+  gi__gather_probe_hemispheres_adj(c, req, h0, count, NULL, NULL, out, dirs, cones);
+}
+
+void gi__gather_probe_hemispheres_adj(const struct gi_cascade *c, const gi_gather_req *req, const float *h0,
+                                      size_t count, gi_cone_adjust adjust, void *ctx, gi_gather_out *out,
+                                      float (*dirs)[3], gi_cone_out *cones) {
   cone_set cs = {c->num_probe_cones, c->probe_dir, c->probe_weight, c->probe_tan};
-  gather_many(c, &cs, req, h0, count, out, dirs, cones);
+  gather_many(c, &cs, req, h0, count, adjust, ctx, out, dirs, cones);
 }
