@@ -1,14 +1,17 @@
 # bake_json.sh: a tiny closed box with an emissive quad bakes; --json is one
 # parseable object with finite SH, every timing and effect key and
-# cascade_bytes > 0; --probes adds points; the EXR exists, no temporary
-# file is left behind, and exrheader lists the SH channels.
+# cascade_bytes > 0; --probes adds points, and one outside the cascade is
+# flagged (in_cascade false, indirect 0, a note on stderr); the EXR exists,
+# no temporary file is left behind, and exrheader lists the SH channels.
 . "$(dirname "$0")/common.sh"
 make_box_scene
-printf '# extra points\n1 1 1\n3 2 3  # near a corner\n' > "$T/pts.txt"
+printf '# extra points\n1 1 1\n3 2 3  # near a corner\n1000 1000 1000  # outside the cascade\n' > "$T/pts.txt"
 
 "$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --bounces 1 --threads 2 --json \
     --probes "$T/pts.txt" --exr "$T/probe.exr" > "$T/out.json" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && pass "bake exits 0" || { cat "$T/err" >&2; fail "bake exited $rc"; finish; }
+grep -q "1 of 4 points lie outside the cascade" "$T/err" && pass "the point outside the cascade is noted" \
+    || { cat "$T/err" >&2; fail "no note for the point outside the cascade"; }
 
 python3 - "$T/out.json" <<'PY' && pass "JSON checks" || fail "JSON checks"
 import json, math, sys
@@ -21,8 +24,11 @@ def probe_ok(p, what):
         assert len(p[k]) == 3 and all(finite(v) for v in p[k]), what + ": " + k
     assert finite(p["ao"]), what + ": ao"
 probe_ok(d["probe"], "probe")
-assert len(d["probes"]) == 2, "probes: %d" % len(d["probes"])
+assert len(d["probes"]) == 3, "probes: %d" % len(d["probes"])
 for i, p in enumerate(d["probes"]): probe_ok(p, "probes[%d]" % i)
+assert d["probe"]["in_cascade"] is True and [p["in_cascade"] for p in d["probes"]] == [True, True, False], \
+    "in_cascade flags"
+assert d["probes"][2]["indirect"] == [0, 0, 0], "outside: indirect %r" % d["probes"][2]["indirect"]
 for k in ("load", "voxelize", "inject", "filter", "bounce", "gather", "encode", "total"):
     assert finite(d["timings_ms"][k]) and d["timings_ms"][k] >= 0, "timing " + k
 for k in ("sun", "local_lights", "sky", "emissive", "bounce", "specular", "ao"):
@@ -44,7 +50,7 @@ leftover=$(find "$T" -name '*.tmp.*')
 if command -v exrheader > /dev/null 2>&1; then
   exrheader "$T/probe.exr" > "$T/hdr" 2>&1
   grep -q 'sh\.L00\.R' "$T/hdr" && pass "exrheader lists sh.L00.R" || fail "exrheader: no sh.L00.R"
-  grep -q 'dataWindow.*(0 0) - (2 0)' "$T/hdr" && pass "EXR has 3 pixels" || fail "EXR is not 3x1"
+  grep -q 'dataWindow.*(0 0) - (3 0)' "$T/hdr" && pass "EXR has 4 pixels" || fail "EXR is not 4x1"
 else
   skip "exrheader not installed (package openexr): EXR channel check skipped"
 fi

@@ -505,6 +505,26 @@ static void test_empty_and_outside(void **state) {
   assert_true(mean3(pr[0].indirect) == 0 && mean3(pr[1].indirect) == 0);
 }
 
+/* gi_cascade_covers tells a point inside the cascade from one outside
+ * every level, where the gather answers direct light only. */
+static void test_covers(void **state) {
+  const double o[3] = {0, 0, 0};
+  gi_scene *s = room_scene(o, 0.6f, 10.f);
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, room_at, &small_q, &c, NULL, &err), GI_OK);
+  const double far[3] = {room_at[0] + 1e4, room_at[1], room_at[2]}, nan_pt[3] = {NAN, 0, 0};
+  assert_int_equal(gi_cascade_covers(c, room_at), 1);
+  assert_int_equal(gi_cascade_covers(c, far), 0);
+  assert_int_equal(gi_cascade_covers(c, nan_pt), 0);
+  assert_int_equal(gi_cascade_covers(NULL, room_at), 0);
+  gi_probe p;
+  assert_int_equal(gi_cascade_gather(c, far, 1, &p, NULL, &err), GI_OK);
+  assert_true(p.indirect[0] == 0 && p.indirect[1] == 0 && p.indirect[2] == 0);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* ---- the furnace at albedo 0.99 ------------------------------------------ */
 
 static void test_furnace_099(void **state) {
@@ -542,6 +562,7 @@ int main(void) {
       cmocka_unit_test(test_thin_wall_view),
       cmocka_unit_test(test_thin_wall_near_probes),
       cmocka_unit_test(test_probes_beside_wall),
+      cmocka_unit_test(test_covers),
       cmocka_unit_test(test_border_steps),
       cmocka_unit_test(test_degenerate_triangles),
       cmocka_unit_test(test_albedo_extremes),

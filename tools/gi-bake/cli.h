@@ -64,6 +64,7 @@ typedef struct cli_run {
   const gi_probe *probes;   /* viewpoint first, then o->probes */
   size_t num_probes;
   const double *points;     /* 3 per probe */
+  const uint8_t *covered;   /* per probe: 1 inside the cascade (gi_cascade_covers) */
   double load_ms, gather_ms, encode_ms, total_ms;
   int threads;              /* resolved worker count */
   const cli_render_stats *render; /* NULL without --render */

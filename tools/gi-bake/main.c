@@ -89,6 +89,17 @@ static void note_inside(const cli_opts *o, const gi_scene *scene) {
             "that leaks in)\n", in, o->num_probes);
 }
 
+/* Which points the cascade covers, and a note on stderr about the --probes
+ * points it does not: their indirect light is 0, not measured. */
+static void note_outside(const cli_opts *o, const gi_cascade *cas, const double *pts, size_t n, uint8_t *covered) {
+  size_t out = 0;
+  for (size_t i = 0; i < n; i++) out += !(covered[i] = (uint8_t)gi_cascade_covers(cas, pts + 3 * i));
+  if (out)
+    fprintf(stderr, "gi-bake: note: %zu of %zu points lie outside the cascade around (%g, %g, %g): their "
+            "indirect light is 0 and only their direct light is answered (\"in_cascade\": false in --json); "
+            "bake with --at nearer them, or with more --levels\n", out, n, o->at[0], o->at[1], o->at[2]);
+}
+
 /* The gather points, viewpoint first, then --probes; and room for their probes. */
 static int make_points(const cli_opts *o, double **pts, gi_probe **probes, size_t *n) {
   *n = 1 + o->num_probes;
@@ -135,6 +146,7 @@ int main(int argc, char **argv) {
   gi_scene *scene = NULL;
   gi_cascade *cas = NULL;
   gi_probe *probes = NULL;
+  uint8_t *covered = NULL;
   double *pts = NULL;
   size_t n = 0;
   gi_error_info err;
@@ -168,6 +180,13 @@ int main(int argc, char **argv) {
     goto done;
   }
 
+  if (!(covered = malloc(n))) {
+    fprintf(stderr, "gi-bake: out of memory for %zu probes\n", n);
+    rc = EXIT_RUN;
+    goto done;
+  }
+  note_outside(&o, cas, pts, n, covered);
+
   double t_enc = now_ms();
   cli_render_stats rs;
   memset(&rs, 0, sizeof rs);
@@ -183,6 +202,7 @@ int main(int argc, char **argv) {
       .probes = probes,
       .num_probes = n,
       .points = pts,
+      .covered = covered,
       .load_ms = load_ms,
       .gather_ms = gather_ms,
       .encode_ms = encode_ms,
@@ -193,6 +213,7 @@ int main(int argc, char **argv) {
   rc = cli_report(&run, o.json);
 
 done:
+  free(covered);
   free(probes);
   free(pts);
   gi_cascade_free(cas);

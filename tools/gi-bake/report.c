@@ -40,9 +40,10 @@ static json_t *vec3f(jctx *j, const float v[3], const char *where) {
 
 static json_t *count(uint64_t v) { return json_integer((json_int_t)v); }
 
-static json_t *probe_json(jctx *j, const gi_probe *p, const double at[3]) {
+static json_t *probe_json(jctx *j, const gi_probe *p, const double at[3], int covered) {
   json_t *o = json_object(), *sh = json_array();
   json_object_set_new(o, "at", vec3d(j, at, "probe position"));
+  json_object_set_new(o, "in_cascade", json_boolean(covered));
   for (int i = 0; i < 9; i++) json_array_append_new(sh, vec3f(j, p->sh[i], "probe sh"));
   json_object_set_new(o, "sh", sh);
   json_object_set_new(o, "irradiance", vec3f(j, p->irradiance, "probe irradiance"));
@@ -112,10 +113,10 @@ static json_t *build_json(const cli_run *r, jctx *j) {
 
   json_object_set_new(root, "viewpoint", vec3d(j, r->points, "viewpoint"));
   json_object_set_new(root, "quality", quality_json(j, &rep->quality, r->threads));
-  json_object_set_new(root, "probe", probe_json(j, &r->probes[0], r->points));
+  json_object_set_new(root, "probe", probe_json(j, &r->probes[0], r->points, !r->covered || r->covered[0]));
   json_t *pa = json_array();
   for (size_t i = 1; i < r->num_probes; i++)
-    json_array_append_new(pa, probe_json(j, &r->probes[i], &r->points[3 * i]));
+    json_array_append_new(pa, probe_json(j, &r->probes[i], &r->points[3 * i], !r->covered || r->covered[i]));
   json_object_set_new(root, "probes", pa);
 
   json_t *t = json_object();

@@ -41,6 +41,12 @@ gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi
 gi_result gi_cascade_gather_ex(const gi_cascade *c, const double *pts, size_t n, const gi_cancel *cancel,
                                gi_probe *out, double *ms, gi_error_info *err);
 
+/* 1 when world point p lies inside one of c's levels, where a gather
+ * reads indirect light from the cascade; 0 outside every level (or p not
+ * finite), where a probe's indirect light and ao are 0 and only its direct
+ * light, from its own shadow rays, is answered. Thread-safe. */
+int gi_cascade_covers(const gi_cascade *c, const double p[3]);
+
 /* Evaluates SH L2 irradiance coefficients at unit normal n. */
 void gi_sh_eval_irradiance(const float sh[9][3], const float n[3], float out[3]);
 

@@ -265,6 +265,16 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
   gi__scratch_free(&sc);
 }
 
+int gi_cascade_covers(const gi_cascade *c, const double p[3]) {
+  if (!c || !p) return 0;
+  float pl[3];
+  for (int k = 0; k < 3; k++) {
+    if (!isfinite(p[k])) return 0;
+    pl[k] = (float)(p[k] - c->scene->origin[k]);
+  }
+  return gi__finite3(pl) && gi__finest_level_at(c, pl) >= 0;
+}
+
 gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi_probe *out,
                             double *ms, gi_error_info *err) {
   return gi_cascade_gather_ex(c, pts, n, NULL, out, ms, err);
