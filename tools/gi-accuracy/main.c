@@ -369,6 +369,14 @@ static int run_cone(const char *name, const scene_set *ss, const gi_ref_probe *r
     double b = rep.ms.voxelize + rep.ms.inject + rep.ms.filter + rep.ms.bounce;
     if (b + gms < best) best = b + gms, bake = b;
   }
+  /* A probe outside the cascade reads no indirect light: its error is the
+   * cascade's reach, not its accuracy. Said once, for the default. */
+  size_t out_n = 0;
+  for (size_t i = 0; is_default && i < ss->n; i++) out_n += !gi_cascade_covers(c, ss->pts + 3 * i);
+  if (out_n)
+    fprintf(stderr, "gi-accuracy: %s: note: %zu of %zu probes lie outside the default cascade around (%g, %g, %g): "
+            "their indirect light reads 0 (give --at nearer them)\n", name, out_n, ss->n, ss->at[0], ss->at[1],
+            ss->at[2]);
   acc_row *r = push(out);
   if (!r) return 0;
   snprintf(r->scene, sizeof r->scene, "%s", name);
