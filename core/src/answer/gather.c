@@ -258,7 +258,7 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
       near[2 * j] = near[2 * j + 1] = nearest_surface(c, pl);
     }
     near_ctx nctx = {c, near};
-    gi__gather_probe_hemispheres_adj(c, req, h0, 2 * m, near_surface_rule, &nctx, go, dirs, cones);
+    gi__gather_probe_hemispheres(c, req, h0, 2 * m, near_surface_rule, &nctx, go, dirs, cones);
     for (size_t j = 0; j < m; j++)
       probe_finish(c, go + 2 * j, (const float(*)[3])(dirs + 2 * j * nc), cones + 2 * j * nc, &g->out[i0 + j]);
   }

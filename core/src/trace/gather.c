@@ -147,13 +147,8 @@ void gi__gather_hemispheres(const struct gi_cascade *c, const gi_gather_req *req
 }
 
 void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, const float *h0, size_t count,
-                                  gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones) {
-  gi__gather_probe_hemispheres_adj(c, req, h0, count, NULL, NULL, out, dirs, cones);
-}
-
-void gi__gather_probe_hemispheres_adj(const struct gi_cascade *c, const gi_gather_req *req, const float *h0,
-                                      size_t count, gi_cone_adjust adjust, void *ctx, gi_gather_out *out,
-                                      float (*dirs)[3], gi_cone_out *cones) {
+                                  gi_cone_adjust adjust, void *ctx, gi_gather_out *out, float (*dirs)[3],
+                                  gi_cone_out *cones) {
   cone_set cs = {c->num_probe_cones, c->probe_dir, c->probe_weight, c->probe_tan};
   gather_many(c, &cs, req, h0, count, adjust, ctx, out, dirs, cones);
 }

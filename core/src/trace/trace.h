@@ -136,19 +136,17 @@ void gi__gather_hemispheres(const struct gi_cascade *c, const gi_gather_req *req
  * outside the finest windows reads coarse voxels whose footprint holds
  * the ground below it, an occluder the cone never meets that darkens it
  * (the city's street probes read 26% of a cone's light off the ground's
- * underside). h0[i] < 0: plain free space. */
-void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, const float *h0, size_t count,
-                                  gi_gather_out *out, float (*dirs)[3], gi_cone_out *cones);
-/* As gi__gather_probe_hemispheres, with adjust (may be NULL) called on
- * each gather's jobs once they are set up and before they march: gather
- * i's n cones, to change their start (the probe's nearest surface,
- * answer/gather.c), or to answer cone k itself: it then sets done[k] = 1
- * and fills out[k], and that cone does not march. done[] arrives zeroed. */
+ * underside). h0[i] < 0: plain free space. adjust (may be NULL) is
+ * called on each gather's jobs once they are set up and before they
+ * march: gather i's n cones, to change their start (the probe's nearest
+ * surface, answer/gather.c), or to answer cone k itself: it then sets
+ * done[k] = 1 and fills out[k], and that cone does not march. done[]
+ * arrives zeroed. */
 typedef void (*gi_cone_adjust)(void *ctx, size_t gather, gi_cone_job *jobs, int n, uint8_t *done,
                                gi_cone_out *out);
-void gi__gather_probe_hemispheres_adj(const struct gi_cascade *c, const gi_gather_req *req, const float *h0,
-                                      size_t count, gi_cone_adjust adjust, void *ctx, gi_gather_out *out,
-                                      float (*dirs)[3], gi_cone_out *cones);
+void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_req *req, const float *h0, size_t count,
+                                  gi_cone_adjust adjust, void *ctx, gi_gather_out *out, float (*dirs)[3],
+                                  gi_cone_out *cones);
 
 /* Half-angle tangent of the specular cone for a roughness in [0,1]: the
  * half-width at half maximum of the Phong lobe equivalent to Beckmann
