@@ -205,6 +205,40 @@ static void test_thin_wall_near_probes(void **state) {
   gi_scene_release(s);
 }
 
+/* A probe in a gap one voxel wide between two thin walls splitting the
+ * lit room from the dark one, 0.1 voxel from the dark side's wall: the
+ * cones leaving that wall start half way across the gap, not 1.5 voxels
+ * out, past the far wall, in the lit room. (A gap much narrower than a
+ * voxel is past what the texture resolves: at 0.3 voxels the probe reads
+ * a quarter of the lit room either way.) */
+static void test_probe_in_gap(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.7f, 0.7f, 0.7f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  const double lo[3] = {-2, 0, 0}, hi[3] = {2, 2, 2}, t = WALL_S0 / 10, xb = WALL_S0;
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  const double alo[3] = {-t / 2, 0, 0}, ahi[3] = {t / 2, 2, 2}, blo[3] = {xb - t / 2, 0, 0}, bhi[3] = {xb + t / 2, 2, 2};
+  gi_mesh_builder_add_box(b, alo, ahi, mat);
+  gi_mesh_builder_add_box(b, blo, bhi, mat);
+  gi_light pl = {.type = GI_LIGHT_POINT, .color = {20, 20, 20}, .position = {1.2, 1.6, 1.1}};
+  gi_scene *s = build(b, "gap", &pl, 1);
+  gi_quality q = wall_q;
+  const double at[3] = {0, 1, 1};
+  /* In the gap, 0.1 voxel from wall A; and in the lit room for scale. */
+  double pts[6] = {0.1 * WALL_S0, 1, 1, 1.0, 1, 1};
+  gi_probe pr[2];
+  bake_gather(s, at, &q, pts, 2, pr);
+  double gap = mean3(pr[0].sh[0]), lit = mean3(pr[1].sh[0]);
+  printf("hardcase: probe in a gap of a voxel between two thin walls: %.5f against the lit room's %.5f "
+         "(leak %.4f)\n", gap, lit, gap / lit);
+  assert_true(lit > 0);
+  /* Measured 0.074 (0.111 with a gap of 1.3 voxels) while a leaving cone
+   * was lifted 1.5 voxels whatever stood there, 0.022 with the lift held
+   * to half the gap. Bound 0.04. */
+  assert_true(gap / lit < 0.04);
+  gi_scene_release(s);
+}
+
 /* A 20 x 20 m wall standing alone (one two-sided quad at x = 0) under a
  * sun that lights its far side and a sky, at default quality, and probes
  * 0.02-0.4 m from its shaded side, the nearest inside a voxel of their
@@ -562,6 +596,7 @@ int main(void) {
       cmocka_unit_test(test_thin_wall_view),
       cmocka_unit_test(test_thin_wall_near_probes),
       cmocka_unit_test(test_probes_beside_wall),
+      cmocka_unit_test(test_probe_in_gap),
       cmocka_unit_test(test_covers),
       cmocka_unit_test(test_border_steps),
       cmocka_unit_test(test_degenerate_triangles),

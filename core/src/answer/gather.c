@@ -113,10 +113,15 @@ static int read_surface(const struct gi_cascade *c, const float x[3], const floa
 static void near_surface_rule(void *ctx, size_t gather, gi_cone_job *jobs, int n, uint8_t *done, gi_cone_out *out) {
   const near_ctx *nc = ctx;
   const near_surface *ns = &nc->near[gather];
-  if (!ns->have) return;
+  if (!ns->have || n < 1) return;
+  /* How far the leaving cones may be lifted (below): in a gap narrower
+   * than that, no further than half way to the surface across it. */
+  float lift = GI_TRILINEAR_REACH * jobs[0].t0, room = lift - ns->h, t_gap, ng_gap[3];
+  uint32_t tri_gap;
+  if (room > 0 && gi__intersect1(nc->c->scene, jobs[0].o, ns->n, 0, room, &t_gap, &tri_gap, ng_gap)) room = 0.5f * t_gap;
   for (int i = 0; i < n; i++) {
     gi_cone_job *j = &jobs[i];
-    float t, ng[3], s = j->t0; /* the voxel of the probe's level */
+    float t, ng[3];
     uint32_t tri;
     if (ns->h < j->t0 && gi__intersect1(nc->c->scene, j->o, j->w, 0, j->t0, &t, &tri, ng)) {
       float x[3] = {j->o[0] + t * j->w[0], j->o[1] + t * j->w[1], j->o[2] + t * j->w[2]};
@@ -141,10 +146,9 @@ static void near_surface_rule(void *ctx, size_t gather, gi_cone_job *jobs, int n
      * surface instead (no lift) leaked 3.7% and took Munich's indirect
      * error from 7.7 to 8.5%: at coarse levels it hid the facade across
      * the street too. */
-    float lift = GI_TRILINEAR_REACH * s;
-    if (ns->h < lift) {
-      for (int k = 0; k < 3; k++) j->o[k] += (lift - ns->h) * ns->n[k];
-      j->h0 = lift;
+    if (room > 0) {
+      for (int k = 0; k < 3; k++) j->o[k] += room * ns->n[k];
+      j->h0 = ns->h + room;
     }
   }
 }
