@@ -281,6 +281,51 @@ static void test_probes_beside_wall(void **state) {
   gi_scene_release(s);
 }
 
+/* A panorama from an eye 1 cm from the lone wall's shaded side, the cascade
+ * baked there (its finest voxel 2.4 cm): the eye's nearest surface takes
+ * the probes' rule. Mean relative error of the pixels' luminance against
+ * the path tracer's panorama, sky pixels left out. */
+static void test_panorama_beside_wall(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  const double A[3] = {0, 0, -10}, B[3] = {0, 20, -10}, C[3] = {0, 20, 10}, D[3] = {0, 0, 10};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  const gi_light l[2] = {{.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0.37f, -0.86f, 0.35f}},
+                         {.type = GI_LIGHT_SKY, .color = {0.3f, 0.3f, 0.3f}}};
+  gi_scene *s = build(b, "lone-wall", l, 2);
+  enum { W = 64, H = 32 };
+  const double at[3] = {0.01, 10, 0};
+  gi_quality q = {.threads = 2};
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  static float dir[W * H * 3], ind[W * H * 3], ref[W * H * 3];
+  assert_int_equal(gi_cascade_panorama(c, at, W, H, dir, ind, NULL, &err), GI_OK);
+  gi_render_opts ro = {.spp = 1024, .seed = 5, .threads = 2};
+  assert_int_equal(gi_reference_panorama(s, at, W, H, &ro, ref, NULL, &err), GI_OK);
+  double mean = 0, e = 0;
+  int kept = 0;
+  for (int i = 0; i < W * H; i++) {
+    int sky = dir[3 * i] == 0.3f && dir[3 * i + 1] == 0.3f && dir[3 * i + 2] == 0.3f;
+    if (!sky) mean += mean3(&ref[3 * i]), kept++;
+  }
+  assert_true(kept > 0);
+  mean /= kept;
+  for (int i = 0; i < W * H; i++) {
+    if (dir[3 * i] == 0.3f && dir[3 * i + 1] == 0.3f && dir[3 * i + 2] == 0.3f) continue;
+    float x[3] = {dir[3 * i] + ind[3 * i], dir[3 * i + 1] + ind[3 * i + 1], dir[3 * i + 2] + ind[3 * i + 2]};
+    e += fabs(mean3(x) - mean3(&ref[3 * i])) / fmax(mean3(&ref[3 * i]), 0.05 * mean);
+  }
+  e /= kept;
+  printf("hardcase: panorama 1 cm from a lone wall: error %.4f over %d pixels\n", e, kept);
+  /* Measured 0.209 while the eye's cones stepped past the wall and read
+   * its sunlit side, 0.101 with the probes' rule. Bound 0.15. */
+  assert_true(e < 0.15);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* The same rooms through the camera: a view of the wall and the floor at
  * its foot from each side, 0.6 from it. No light reaches the dark room, so
  * its mean over the lit room's is what leaked. */
@@ -597,6 +642,7 @@ int main(void) {
       cmocka_unit_test(test_thin_wall_near_probes),
       cmocka_unit_test(test_probes_beside_wall),
       cmocka_unit_test(test_probe_in_gap),
+      cmocka_unit_test(test_panorama_beside_wall),
       cmocka_unit_test(test_covers),
       cmocka_unit_test(test_border_steps),
       cmocka_unit_test(test_degenerate_triangles),

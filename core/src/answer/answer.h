@@ -4,6 +4,7 @@
 #define GI_ANSWER_H
 
 #include "cascade/cascade_internal.h"
+#include "trace/trace.h"
 
 /* camera.c: a camera set up in the scene's local frame, shared by the
  * cone-traced and the path-traced views. */
@@ -16,6 +17,33 @@ typedef struct gi__cam {
 gi_result gi__cam_setup(const gi_scene *s, const struct gi_camera *cam, gi__cam *k, gi_error_info *err);
 /* Unit direction through image position (px, py), in pixels from the top-left. */
 void gi__cam_ray(const gi__cam *k, float px, float py, float dir[3]);
+
+/* gather.c: the surface nearest a point in free space (a probe, a
+ * panorama's eye), within the reach of the coarsest level's
+ * footprint. A cone leaving it (w . n > 0) has its first samples'
+ * trilinear footprint on that surface's voxels, whose far side (the back
+ * of a wall, lit from the other side) it would read as light in front of
+ * it: unless it has a surface already (the ground, for the upper
+ * hemisphere), it takes the surface rule of a surface gather, h above
+ * that surface, and starts no nearer to it than its first samples'
+ * footprint reaches. A cone toward a surface nearer than its first
+ * sample reads it where it meets it instead of stepping past it
+ * (gather.c's read_surface). Beside a sunlit wall (the closing note's wall scene),
+ * probes 0.1-1 of their level's voxel from it read 2.8-3x the path
+ * tracer's indirect light, now 0.8-0.9x; a 5 cm sphere's probes 2.1x,
+ * now 1.6x. The gathers of a probe near a surface take more samples:
+ * 4000 random probes in Munich, 20% more gather time. Panoramas take
+ * the same rule at their eye. Thread-safe. */
+typedef struct gi_near_surface {
+  int have;            /* a surface lies within reach */
+  float n[3], h;       /* unit direction from it to the point; distance */
+} gi_near_surface;
+gi_near_surface gi__near_surface(const struct gi_cascade *c, const float p[3]);
+/* Applies the rule to n free-space cone jobs from point ns was found for
+ * (jobs[0].o, first sample at jobs[0].t0, the voxel of the point's level):
+ * changes their starts, or answers cone k itself (done[k] = 1, out[k]). */
+void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns, gi_cone_job *jobs, int n,
+                           uint8_t *done, gi_cone_out *out);
 
 /* sh.c */
 void gi__sh_basis(const float w[3], float y[9]);

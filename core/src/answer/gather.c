@@ -40,32 +40,14 @@ static float ground_height(const struct gi_cascade *c, const float p[3], const f
   return t;
 }
 
-/* The surface nearest a probe, within the reach of the coarsest level's
- * footprint. A cone leaving it (w . n > 0) has its first samples'
- * trilinear footprint on that surface's voxels, whose far side (the back
- * of a wall, lit from the other side) it would read as light in front of
- * it: unless it has a surface already (the ground, for the upper
- * hemisphere), it takes the surface rule of a surface gather, h above
- * that surface, and starts no nearer to it than its first samples'
- * footprint reaches. A cone toward a surface nearer than its first
- * sample reads it where it meets it instead of stepping past it
- * (read_surface). Beside a sunlit wall (the closing note's wall scene),
- * probes 0.1-1 of their level's voxel from it read 2.8-3x the path
- * tracer's indirect light, now 0.8-0.9x; a 5 cm sphere's probes 2.1x,
- * now 1.6x. The gathers of a probe near a surface take more samples:
- * 4000 random probes in Munich, 20% more gather time. */
-typedef struct {
-  int have;            /* a surface lies within reach */
-  float n[3], h;       /* unit direction from it to the probe; distance */
-} near_surface;
-
+/* The probes' nearest-surface rule (answer.h): per gather, its probe's. */
 typedef struct {
   const struct gi_cascade *c;
-  const near_surface *near; /* per gather */
+  const gi_near_surface *near; /* per gather */
 } near_ctx;
 
-static near_surface nearest_surface(const struct gi_cascade *c, const float p[3]) {
-  near_surface ns = {0};
+gi_near_surface gi__near_surface(const struct gi_cascade *c, const float p[3]) {
+  gi_near_surface ns = {0};
   float reach = GI_TRILINEAR_REACH * (float)c->lv[c->n - 1].s, q[3], h;
   if (!gi__closest_point(c->scene, p, reach, q, &h) || !(h > 0)) return ns;
   for (int k = 0; k < 3; k++) ns.n[k] = (p[k] - q[k]) / h;
@@ -110,25 +92,24 @@ static int read_surface(const struct gi_cascade *c, const float x[3], const floa
   return 1;
 }
 
-static void near_surface_rule(void *ctx, size_t gather, gi_cone_job *jobs, int n, uint8_t *done, gi_cone_out *out) {
-  const near_ctx *nc = ctx;
-  const near_surface *ns = &nc->near[gather];
+void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns, gi_cone_job *jobs, int n,
+                           uint8_t *done, gi_cone_out *out) {
   if (!ns->have || n < 1) return;
   /* How far the leaving cones may be lifted (below): in a gap narrower
    * than that, no further than half way to the surface across it. */
   float lift = GI_TRILINEAR_REACH * jobs[0].t0, room = lift - ns->h, t_gap, ng_gap[3];
   uint32_t tri_gap;
-  if (room > 0 && gi__intersect1(nc->c->scene, jobs[0].o, ns->n, 0, room, &t_gap, &tri_gap, ng_gap)) room = 0.5f * t_gap;
+  if (room > 0 && gi__intersect1(c->scene, jobs[0].o, ns->n, 0, room, &t_gap, &tri_gap, ng_gap)) room = 0.5f * t_gap;
   for (int i = 0; i < n; i++) {
     gi_cone_job *j = &jobs[i];
     float t, ng[3];
     uint32_t tri;
-    if (ns->h < j->t0 && gi__intersect1(nc->c->scene, j->o, j->w, 0, j->t0, &t, &tri, ng)) {
+    if (ns->h < j->t0 && gi__intersect1(c->scene, j->o, j->w, 0, j->t0, &t, &tri, ng)) {
       float x[3] = {j->o[0] + t * j->w[0], j->o[1] + t * j->w[1], j->o[2] + t * j->w[2]};
       float len = gi__len(ng), m[3];
       float sg = gi__dot(ng, j->w) > 0 ? -1.f : 1.f; /* facing the cone */
       for (int k = 0; k < 3; k++) m[k] = len > 0 ? sg * ng[k] / len : -j->w[k];
-      if (read_surface(nc->c, x, m, j->w, t, &out[i])) {
+      if (read_surface(c, x, m, j->w, t, &out[i])) {
         done[i] = 1;
         continue;
       }
@@ -151,6 +132,11 @@ static void near_surface_rule(void *ctx, size_t gather, gi_cone_job *jobs, int n
       j->h0 = ns->h + room;
     }
   }
+}
+
+static void near_adjust(void *ctx, size_t gather, gi_cone_job *jobs, int n, uint8_t *done, gi_cone_out *out) {
+  const near_ctx *nc = ctx;
+  gi__near_surface_rule(nc->c, &nc->near[gather], jobs, n, done, out);
 }
 
 /* The probe's direct light: shadow rays from the point itself (up: the
@@ -248,7 +234,7 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
   const float up[3] = {0, c->scene->up == GI_UP_Z ? 0.f : 1.f, c->scene->up == GI_UP_Z ? 1.f : 0.f};
   gi_gather_req req[2 * PROBE_BATCH];
   float h0[2 * PROBE_BATCH];
-  near_surface near[2 * PROBE_BATCH];
+  gi_near_surface near[2 * PROBE_BATCH];
   gi_gather_out go[2 * PROBE_BATCH];
   float dirs[2 * PROBE_BATCH * GI_MAX_CONES][3];
   gi_cone_out cones[2 * PROBE_BATCH * GI_MAX_CONES];
@@ -259,10 +245,10 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
       for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * (i0 + j) + k] - c->scene->origin[k]);
       gather_direct(c, pl, up, &g->out[i0 + j], seed, &sc);
       probe_requests(c, pl, up, req + 2 * j, h0 + 2 * j);
-      near[2 * j] = near[2 * j + 1] = nearest_surface(c, pl);
+      near[2 * j] = near[2 * j + 1] = gi__near_surface(c, pl);
     }
     near_ctx nctx = {c, near};
-    gi__gather_probe_hemispheres(c, req, h0, 2 * m, near_surface_rule, &nctx, go, dirs, cones);
+    gi__gather_probe_hemispheres(c, req, h0, 2 * m, near_adjust, &nctx, go, dirs, cones);
     for (size_t j = 0; j < m; j++)
       probe_finish(c, go + 2 * j, (const float(*)[3])(dirs + 2 * j * nc), cones + 2 * j * nc, &g->out[i0 + j]);
   }

@@ -67,17 +67,16 @@ void gi__hemisphere_jobs(const struct gi_cascade *c, int wide, const gi_gather_s
   set_jobs(&cs, g, n, jobs);
 }
 
-/* Marches the jobs[0..nj) not done into co, beside the done ones' own. */
-static void march_rest(const struct gi_cascade *c, const cone_set *cs, const gi_gather_start *g,
-                       const gi_cone_job *jobs, const uint8_t *done, int nj, gi_cone_out *co) {
+void gi__cone_march_rest(const struct gi_cascade *c, const gi_cone_job *jobs, const uint8_t *done, int nj,
+                         float tan_half, float step, float ao_lambda, gi_cone_out *co) {
   gi_cone_job rest[GI_MARCH_BATCH_JOBS];
   gi_cone_out got[GI_MARCH_BATCH_JOBS];
   int m = 0;
-  for (int k = 0; k < nj; k++)
+  for (int k = 0; k < nj && k < GI_MARCH_BATCH_JOBS; k++)
     if (!done[k]) rest[m++] = jobs[k];
-  if (m) gi__cone_march_jobs(c, rest, m, cs->tan, g->step, g->ao_lambda, got);
+  if (m) gi__cone_march_jobs(c, rest, m, tan_half, step, ao_lambda, got);
   m = 0;
-  for (int k = 0; k < nj; k++)
+  for (int k = 0; k < nj && k < GI_MARCH_BATCH_JOBS; k++)
     if (!done[k]) co[k] = got[m++];
 }
 
@@ -124,7 +123,7 @@ static void gather_many(const struct gi_cascade *c, const cone_set *cs, const gi
       nj += cs->n;
     }
     if (!nj) continue;
-    if (answered) march_rest(c, cs, &g, jobs, done, nj, co);
+    if (answered) gi__cone_march_rest(c, jobs, done, nj, cs->tan, g.step, g.ao_lambda, co);
     else gi__cone_march_jobs(c, jobs, nj, cs->tan, g.step, g.ao_lambda, co);
     int j = 0;
     for (size_t i = b; i < e; i++) {

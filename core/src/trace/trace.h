@@ -96,6 +96,10 @@ typedef struct gi_cone_job {
 #define GI_MARCH_BATCH_JOBS 512
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out);
+/* The same for the jobs[0..nj) whose done[k] is 0 (nj <= GI_MARCH_BATCH_JOBS);
+ * out[k] of the others is left as it is (trace/gather.c). */
+void gi__cone_march_rest(const struct gi_cascade *c, const gi_cone_job *jobs, const uint8_t *done, int nj,
+                         float tan_half, float step, float ao_lambda, gi_cone_out *out);
 /* The cascade's diffuse cone set (wide: the bounces' wide set) on the
  * hemisphere around unit n, started from g, as jobs (num_cones, or
  * num_wide_cones, of them). */
