@@ -115,8 +115,8 @@ static void gather_many(const struct gi_cascade *c, const cone_set *cs, const gi
       }
       in |= 1u << (i - b);
       set_jobs(cs, &g, n, jobs + nj);
-      memset(done + nj, 0, (size_t)cs->n);
       if (adjust) {
+        memset(done + nj, 0, (size_t)cs->n);
         adjust(ctx, i, jobs + nj, cs->n, done + nj, co + nj);
         for (int k = 0; k < cs->n; k++) answered += done[nj + k];
       }
