@@ -231,6 +231,23 @@ static void test_lights(void **state) {
   l[0].direction[2] = 0;
   assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_INVALID_ARG);
   assert_non_null(strstr(err.msg, "light 0"));
+  /* Brighter than GI_MAX_LIGHT_VALUE: refused, naming the light; at it: taken. */
+  l[0].direction[2] = -1;
+  l[1].color[2] = 2 * GI_MAX_LIGHT_VALUE;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_LIMIT);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, "light 1"));
+  l[1].color[2] = GI_MAX_LIGHT_VALUE;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_OK);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+  /* The same for a material's emission, naming the material. */
+  b = gi_mesh_builder_new();
+  gi_material hot = {.albedo = {0.5f, 0.5f, 0.5f}, .emission = {1, 2 * GI_MAX_LIGHT_VALUE, 1}, .name = "hot"};
+  gi_mesh_builder_add_box(b, lo, hi, gi_mesh_builder_add_material(b, &hot));
+  assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_ERR_LIMIT);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, "material 0 ('hot')"));
   gi_mesh_builder_free(b);
 }
 

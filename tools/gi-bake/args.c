@@ -11,7 +11,6 @@
  * a slow load; the core checks them again (it trusts no caller). Defaults
  * stay zero in gi_quality so the core resolves them in one place. */
 #define _POSIX_C_SOURCE 200809L
-#include <float.h>
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
@@ -164,10 +163,10 @@ static const char help_text[] =
 
 static ta_ctx ta = TA_CTX("gi-bake");
 
-/* A light colour: three finite non-negative values that survive the cast to float. */
+/* A light colour: three finite values in [0, GI_MAX_LIGHT_VALUE] (gi_scene.h says why). */
 static int colour_ok(const double c[3]) {
   for (int k = 0; k < 3; k++)
-    if (!(c[k] >= 0) || c[k] > FLT_MAX) return 0;
+    if (!(c[k] >= 0) || c[k] > GI_MAX_LIGHT_VALUE) return 0;
   return 1;
 }
 
@@ -188,7 +187,7 @@ static int parse_spot(const char *opt, const char *arg, gi_light *l) {
     return ta_fail(&ta, opt, "direction DX,DY,DZ must be a non-zero finite vector, got '%s'", arg);
   if (!(v[6] > 0 && v[6] <= v[7] && v[7] < 180))
     return ta_fail(&ta, opt, "cone angles must satisfy 0 < INNER <= OUTER < 180 degrees, got '%s'", arg);
-  if (!colour_ok(v + 8)) return ta_fail(&ta, opt, "intensity R,G,B must be finite and >= 0, got '%s'", arg);
+  if (!colour_ok(v + 8)) return ta_fail(&ta, opt, "intensity R,G,B must be finite, >= 0 and at most 1e20, got '%s'", arg);
   l->type = GI_LIGHT_SPOT;
   for (int k = 0; k < 3; k++) {
     l->position[k] = v[k];
@@ -207,7 +206,7 @@ static int parse_sun(const char *opt, const char *arg, gi_light *l) {
   if (rc) return rc;
   if (!unit_direction(v, l->direction))
     return ta_fail(&ta, opt, "direction DX,DY,DZ must be a non-zero finite vector, got '%s'", arg);
-  if (!colour_ok(v + 3)) return ta_fail(&ta, opt, "irradiance R,G,B must be finite and >= 0, got '%s'", arg);
+  if (!colour_ok(v + 3)) return ta_fail(&ta, opt, "irradiance R,G,B must be finite, >= 0 and at most 1e20, got '%s'", arg);
   l->type = GI_LIGHT_SUN;
   for (int k = 0; k < 3; k++) l->color[k] = (float)v[3 + k];
   return 0;
@@ -215,7 +214,7 @@ static int parse_sun(const char *opt, const char *arg, gi_light *l) {
 
 /* --sky R,G,B */
 static int parse_sky(const char *opt, const char *arg, gi_light *l) {
-  static const char what[] = "three finite numbers R,G,B >= 0";
+  static const char what[] = "three finite numbers R,G,B in 0..1e20";
   double v[3];
   int rc = ta_doubles(&ta, opt, what, arg, 3, v);
   if (rc) return rc;
@@ -230,7 +229,7 @@ static int parse_point(const char *opt, const char *arg, gi_light *l) {
   double v[6];
   int rc = ta_doubles(&ta, opt, "six finite numbers X,Y,Z,R,G,B", arg, 6, v);
   if (rc) return rc;
-  if (!colour_ok(v + 3)) return ta_fail(&ta, opt, "intensity R,G,B must be finite and >= 0, got '%s'", arg);
+  if (!colour_ok(v + 3)) return ta_fail(&ta, opt, "intensity R,G,B must be finite, >= 0 and at most 1e20, got '%s'", arg);
   l->type = GI_LIGHT_POINT;
   for (int k = 0; k < 3; k++) {
     l->position[k] = v[k];

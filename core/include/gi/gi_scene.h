@@ -54,6 +54,15 @@ typedef enum gi_light_type {
   GI_LIGHT_SKY = 3   /* uniform radiance from every unoccluded direction */
 } gi_light_type;
 
+/* The largest light colour component and material emission a scene
+ * takes; more is refused with GI_ERR_LIMIT (naming the light or the
+ * material). The answers multiply light by 1/r^2 at a voxel's scale and
+ * sum it over samples and bands in float: a sky of 1e38 overflowed a
+ * probe's SH and a point light of 1e32 a millimetre off a surface did
+ * too. 1e20 leaves 1e18 of headroom, and lies far above any physical
+ * source (the sun's disc: about 2e7 W m^-2 sr^-1). */
+#define GI_MAX_LIGHT_VALUE 1e20f
+
 /* A light. color: sun = irradiance E (on a surface facing the sun), point and
  * spot = intensity I, sky = radiance L. direction: the way the light
  * travels (sun, spot), unit length. position: world coordinates. */

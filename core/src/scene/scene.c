@@ -189,6 +189,10 @@ static gi_result check_light(gi_light *l, size_t i, gi_error_info *err) {
     return gi__fail(err, GI_ERR_NONFINITE, "light %zu: colour is not finite", i);
   if (l->color[0] < 0 || l->color[1] < 0 || l->color[2] < 0)
     return gi__fail(err, GI_ERR_INVALID_ARG, "light %zu: colour is negative", i);
+  for (int k = 0; k < 3; k++)
+    if (l->color[k] > GI_MAX_LIGHT_VALUE)
+      return gi__fail(err, GI_ERR_LIMIT, "light %zu: colour component %g exceeds %g (GI_MAX_LIGHT_VALUE)", i,
+                      (double)l->color[k], (double)GI_MAX_LIGHT_VALUE);
   if ((l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) && !finite3d(l->position))
     return gi__fail(err, GI_ERR_NONFINITE, "light %zu: position is not finite", i);
   if (l->type == GI_LIGHT_SUN || l->type == GI_LIGHT_SPOT) {
@@ -344,7 +348,14 @@ static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, gi_error_
     m->roughness = 1.f;
     snprintf(m->name, sizeof m->name, "default");
   }
-  for (size_t i = 0; i < nm; i++) s->stats.clamped_albedo += (uint64_t)sanitize_material(&s->materials[i]);
+  for (size_t i = 0; i < nm; i++) {
+    gi_material *m = &s->materials[i];
+    s->stats.clamped_albedo += (uint64_t)sanitize_material(m);
+    for (int k = 0; k < 3; k++)
+      if (m->emission[k] > GI_MAX_LIGHT_VALUE)
+        return gi__fail(err, GI_ERR_LIMIT, "material %zu ('%s'): emission %g exceeds %g (GI_MAX_LIGHT_VALUE)", i,
+                        m->name, (double)m->emission[k], (double)GI_MAX_LIGHT_VALUE);
+  }
   s->stats.materials = (uint32_t)nm;
   return GI_OK;
 }
