@@ -83,4 +83,11 @@ W; rc=$?
 [ $rc -eq 2 ] && grep -q -F "'walk' needs --path FILE" "$T/err" && pass "no --path -> 2" || fail "no --path: exit $rc"
 "$BIN" --server "$URL" metrics > "$T/m" 2> /dev/null
 grep -q "^gi_sessions_created_total 2$" "$T/m" || fail "a refused walk opened a session: $(grep created "$T/m")"
+
+# A coordinate printed with an exponent (1e+06) arrives whole: a query's '+'
+# reads as a space, and the step was a 400 before the walk encoded it.
+printf '0,5,1.7,3\n1,1000000,1.7,3\n' > "$T/far.csv"
+W --path "$T/far.csv" --rate 0; rc=$?
+[ $rc -eq 0 ] && grep -q "^walk city: 2 steps, 1 crossed a cell, 1 cycles closed, 0 errors, " "$T/out" &&
+  pass "a step at x = 1e+06 -> answered" || fail "step at 1e+06: exit $rc: $(cat "$T/out" "$T/err")"
 finish

@@ -155,19 +155,22 @@ static void print_summary(const gc_opts *o, const char *sid, walk_stats *w) {
   fflush(stdout);
 }
 
-/* The session lighting URL of one step. */
+/* The session lighting URL of one step. Each coordinate is percent-encoded:
+ * a query's '+' reads as a space, and 1e+12 arrived as '1e 12' (a 400). */
 static char *step_url(const gc_opts *o, CURL *c, const char *sid, const double at[3]) {
-  char *e = curl_easy_escape(c, sid, 0);
-  char x[32], y[32], z[32];
-  gc_fmt_double(x, sizeof x, at[0]);
-  gc_fmt_double(y, sizeof y, at[1]);
-  gc_fmt_double(z, sizeof z, at[2]);
-  size_t n = strlen(o->server) + 200;
-  char *url = e ? malloc(n) : NULL;
+  char *e = curl_easy_escape(c, sid, 0), *q[3] = {NULL, NULL, NULL};
+  for (int k = 0; k < 3; k++) {
+    char v[32];
+    gc_fmt_double(v, sizeof v, at[k]);
+    q[k] = curl_easy_escape(c, v, 0);
+  }
+  size_t n = strlen(o->server) + 300;
+  char *url = e && q[0] && q[1] && q[2] ? malloc(n) : NULL;
   if (url)
-    snprintf(url, n, "%s/v1/sessions/%s/lighting?at=%s,%s,%s%s%s", o->server, e, x, y, z, o->kind ? "&kind=" : "",
-             o->kind ? o->kind : "");
+    snprintf(url, n, "%s/v1/sessions/%s/lighting?at=%s,%s,%s%s%s", o->server, e, q[0], q[1], q[2],
+             o->kind ? "&kind=" : "", o->kind ? o->kind : "");
   curl_free(e);
+  for (int k = 0; k < 3; k++) curl_free(q[k]);
   return url;
 }
 
