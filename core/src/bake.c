@@ -27,6 +27,10 @@ gi_result gi_cascade_anchor(const gi_scene *s, const double at[3], const gi_qual
     float al = (float)(at[a] - s->origin[a]);
     if (!isfinite(at[a]) || !isfinite(al))
       return gi__fail(err, GI_ERR_NONFINITE, "anchor: viewpoint is not finite");
+    if (!gi__cells_ok(al, 2.0 * resolved->voxel0))
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "anchor: the voxel size %g is too small for a viewpoint %g units from the scene's origin "
+                      "(more than 2^52 cells)", resolved->voxel0, fabs((double)al));
     anchor[a] = (int64_t)floor((double)al / (2.0 * resolved->voxel0));
   }
   return GI_OK;
@@ -100,6 +104,14 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
     gi_cascade_free(c);
     return gi__fail(err, GI_ERR_INVALID_ARG, "bake: viewpoint is more than 1e9 units from the scene");
   }
+  for (int a = 0; a < 3; a++)
+    if (!gi__cells_ok(c->at[a], c->s0)) {
+      double far = fabs((double)c->at[a]);
+      gi_cascade_free(c);
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "bake: the voxel size %g is too small for a viewpoint %g units from the scene's origin "
+                      "(more than 2^52 voxels)", q.voxel0, far);
+    }
   c->report.quality = q;
   c->report.levels = q.levels;
   gi__cone_set(q.cones, q.aperture_deg, c->cone_dir, c->cone_weight, &c->cone_tan);

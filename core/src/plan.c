@@ -388,9 +388,12 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   c->s0 = q.voxel0;
   for (int a = 0; a < 3; a++) {
     c->at[a] = (float)(at[a] - s->origin[a]);
-    if (!isfinite(at[a]) || !isfinite(c->at[a]) || fabs(at[a] - s->origin[a]) > 1e9) {
+    if (!isfinite(at[a]) || !isfinite(c->at[a]) || fabs(at[a] - s->origin[a]) > 1e9 ||
+        !gi__cells_ok(c->at[a], c->s0)) {
       gi__free(c);
-      return gi__fail(err, GI_ERR_INVALID_ARG, "plan: viewpoint is not finite or more than 1e9 units from the scene");
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "plan: viewpoint is not finite, more than 1e9 units from the scene, or more than 2^52 voxels "
+                      "from its origin");
     }
   }
   gi__cascade_place(c);

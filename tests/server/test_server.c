@@ -508,6 +508,7 @@ static void test_errors(void **state) {
       {NULL, "/v1/scenes/city/lighting?at=1,2,3&kind=lightmap&atlas=8", NULL, 400, "bad_request", "'atlas'"},
       {NULL, "/v1/scenes/city/lightmap-uv.glb?at=1,2,3&kind=lightmap", NULL, 400, "bad_request", "'kind'"},
       {NULL, "/v1/scenes/city/lighting?at=1e12,2,3", NULL, 400, "bad_request", "1e9"},
+      {NULL, "/v1/scenes/city/lighting?at=1,2,3&voxel=1e-300", NULL, 400, "bad_request", "too small"},
       {NULL, "/v1/scenes/atlantis/lighting?at=1,2,3", NULL, 404, "not_found", "atlantis"},
       {NULL, "/v1/scenes/..%2Fetc/lighting?at=1,2,3", NULL, 404, "not_found", NULL},
       {NULL, "/v2/everything", NULL, 404, "not_found", "no such endpoint"},

@@ -307,6 +307,22 @@ static void test_cell_centre(void **state) {
   assert_non_null(strstr(err.msg, "too far"));
   gi_quality unresolved = {0};
   assert_int_equal(gi_cascade_cell_centre(s, cells[0], &unresolved, c, &err), GI_ERR_INVALID_ARG);
+  /* A voxel far too small for the viewpoint's distance: refused, where the
+   * cell index wrapped to INT64_MIN (a server's 307 to a cell of no cascade). */
+  gi_quality tiny_req = {.levels = 3, .res = 16, .voxel0 = 1e-300}, tiny;
+  assert_int_equal(gi_quality_resolve(s, &tiny_req, &tiny, &err), GI_OK);
+  const double at[3] = {org[0] + 50, org[1] + 2, org[2] - 30};
+  int64_t cell[3];
+  assert_int_equal(gi_cascade_anchor(s, at, &tiny, cell, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "voxel size 1e-300 is too small"));
+  gi_cascade *cc = NULL;
+  assert_int_equal(gi_cascade_bake(s, at, &tiny_req, &cc, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_null(cc);
+  assert_non_null(strstr(err.msg, "voxel size 1e-300 is too small"));
+  /* 2^50 voxels away is still addressed. */
+  tiny_req.voxel0 = 30.0 / (double)(1ull << 51);
+  assert_int_equal(gi_quality_resolve(s, &tiny_req, &tiny, &err), GI_OK);
+  assert_int_equal(gi_cascade_anchor(s, at, &tiny, cell, &err), GI_OK);
   gi_scene_release(s);
 }
 

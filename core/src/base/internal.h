@@ -93,6 +93,14 @@ void gi__cpu_force(int v3);
 /* Monotonic clock in milliseconds. */
 double gi__now_ms(void);
 
+/* Cells of size `cell` a viewpoint at local coordinate al (from the
+ * scene's origin) may lie from it: cascades index cells in int64 and
+ * place windows in double, so a cell index must stay an exact double.
+ * Past this the voxel is too small for the distance (voxel 1e-300 from
+ * a server's query wrapped the anchor to INT64_MIN). */
+#define GI_MAX_CELL_INDEX 4503599627370496.0 /* 2^52 */
+static inline int gi__cells_ok(double al, double cell) { return fabs(al / cell) < GI_MAX_CELL_INDEX; }
+
 static inline int gi__finite3(const float v[3]) {
   return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
 }

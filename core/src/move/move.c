@@ -813,6 +813,8 @@ static gi_result check_viewpoint(const gi_cascade *c, const double at[3], gi_err
   for (int a = 0; a < 3; a++)
     if (fabs(at[a] - c->scene->origin[a]) > MAX_VIEW_DISTANCE)
       return gi__fail(err, GI_ERR_INVALID_ARG, "move: viewpoint is more than 1e9 units from the scene");
+    else if (!gi__cells_ok(at[a] - c->scene->origin[a], c->s0))
+      return gi__fail(err, GI_ERR_INVALID_ARG, "move: viewpoint is more than 2^52 voxels from the scene's origin");
   return GI_OK;
 }
 
