@@ -6,6 +6,8 @@
 # 2 threads, and once more per run on 1 thread with this tree (thread scaling).
 # Prints medians and `speed-up: N.Nx` per scene, samples per cone and ns per
 # sample per thread, and appends one JSON line per scene to out/bench.jsonl.
+# Each run also bakes twice at once on 1 thread each: the ceiling column is
+# what two cores give this workload when they share a cache and memory.
 #
 # The bake is the cascade's stages (voxelize, inject, filter, bounce), not the
 # scene's load or the probe's gather. A benchmark prints figures and never
@@ -49,11 +51,12 @@ git -C "$ROOT" diff --quiet HEAD -- 2> /dev/null || REV="$REV-dirty"
 STAMP=$(date -u +%Y-%m-%dT%H:%M:%SZ)
 
 # bake FILE BIN THREADS ARGS...: one line "bake_ms samples cones ns" to $TMP/FILE.
-# (sh functions share variables: these names are bake's own.)
+# (sh functions share variables: these names are bake's own; two bakes at
+# once run in subshells, each with its own FILE.)
 bake() {
   b_file=$1; b_bin=$2; b_thr=$3; shift 3
-  if "$b_bin" "$@" --threads "$b_thr" --json > "$TMP/run.json" 2> "$TMP/run.err"; then
-    python3 - "$TMP/run.json" >> "$TMP/$b_file" <<'PY'
+  if "$b_bin" "$@" --threads "$b_thr" --json > "$TMP/$b_file.json" 2> "$TMP/$b_file.err"; then
+    python3 - "$TMP/$b_file.json" >> "$TMP/$b_file" <<'PY'
 import json, sys
 d = json.load(open(sys.argv[1]))
 t = d["timings_ms"]
@@ -61,45 +64,52 @@ bake = sum(t[k] for k in ("voxelize", "inject", "filter", "bounce"))
 print(bake, d.get("cone_samples", 0), d.get("cones_traced", 0), d.get("ns_per_sample", 0))
 PY
   else
-    say "$b_file: $(tail -n 1 "$TMP/run.err")"
+    say "$b_file: $(tail -n 1 "$TMP/$b_file.err")"
   fi
 }
 
 echo "cold bake, v0.1.0 ($BASE_REV) against $REV, $RUNS alternating runs, $(nproc) cpus, $STAMP"
-printf '%-10s %12s %12s %10s %12s %14s %14s\n' scene "v0.1.0 ms" "now ms" speed-up "samples/cone" "ns/sample/thr" "2 thr vs 1"
+echo "ceiling: what two 1-thread bakes run at once give over one alone (2 x alone / together), the"
+echo "most 2 threads can give on this machine when the cores slow each other (shared cache, memory)"
+printf '%-10s %12s %12s %10s %12s %14s %14s %9s\n' scene "v0.1.0 ms" "now ms" speed-up "samples/cone" "ns/sample/thr" \
+  "2 thr vs 1" ceiling
 
 # scene LABEL ARGS...
 scene() {
   label=$1; shift
-  rm -f "$TMP/$label.old" "$TMP/$label.now" "$TMP/$label.one"
+  rm -f "$TMP/$label.old" "$TMP/$label.now" "$TMP/$label.one" "$TMP/$label.pa" "$TMP/$label.pb"
   i=0
   while [ $i -lt "$RUNS" ]; do
     bake "$label.old" "$OLD" 2 "$@"
     bake "$label.now" "$NOW" 2 "$@"
     bake "$label.one" "$NOW" 1 "$@"
+    (bake "$label.pa" "$NOW" 1 "$@") & (bake "$label.pb" "$NOW" 1 "$@"); wait
     i=$((i + 1))
   done
-  python3 - "$TMP/$label.old" "$TMP/$label.now" "$TMP/$label.one" "$label" "$REV" "$BASE_REV" "$STAMP" "$JSONL" "$*" <<'PY' ||
+  python3 - "$TMP/$label" "$label" "$REV" "$BASE_REV" "$STAMP" "$JSONL" "$*" <<'PY' ||
 import json, statistics, sys
-old, now, one, label, rev, base, stamp, jsonl, args = sys.argv[1:10]
+pre, label, rev, base, stamp, jsonl, args = sys.argv[1:8]
 def rows(p):
     try:
-        return [list(map(float, l.split())) for l in open(p) if l.strip()]
+        return [list(map(float, l.split())) for l in open(pre + "." + p) if l.strip()]
     except OSError:
         return []
-o, n, s = rows(old), rows(now), rows(one)
+o, n, s, pair = rows("old"), rows("now"), rows("one"), rows("pa") + rows("pb")
 if not o or not n:
     print("%-10s  not measured" % label); sys.exit(0)
 mo, mn = statistics.median(r[0] for r in o), statistics.median(r[0] for r in n)
 ms1 = statistics.median(r[0] for r in s) if s else float("nan")
+mp = statistics.median(r[0] for r in pair) if pair else float("nan")
 spc = n[0][1] / n[0][2] if n[0][2] else float("nan")
 ns = statistics.median(r[3] for r in n)
-print("%-10s %12.1f %12.1f %9.1fx %12.1f %14.1f %13.2fx" % (label, mo, mn, mo / mn, spc, ns, ms1 / mn))
+print("%-10s %12.1f %12.1f %9.1fx %12.1f %14.1f %13.2fx %8.2fx" %
+      (label, mo, mn, mo / mn, spc, ns, ms1 / mn, 2 * ms1 / mp))
 print("%-10s speed-up: %.1fx" % (label, mo / mn))
 with open(jsonl, "a") as f:
     f.write(json.dumps({"bench": "speedup", "scene": label, "args": args, "rev": rev, "base": base,
                         "stamp": stamp, "runs": len(n), "v010_bake_ms": mo, "bake_ms": mn,
                         "speedup": mo / mn, "one_thread_ms": ms1, "thread_scaling": ms1 / mn,
+                        "pair_one_thread_ms": mp, "thread_ceiling": 2 * ms1 / mp,
                         "samples_per_cone": spc, "ns_per_sample": ns,
                         "cone_samples": n[0][1], "v010_cone_samples": o[0][1]}) + "\n")
 PY
