@@ -150,7 +150,12 @@ int ta_double(ta_ctx *c, const char *opt, const char *what, const char *s, doubl
     *out = v;
     return 0;
   }
-  return ta_fail(c, opt, "expected %s, got '%s'", what ? what : "a finite number", s);
+  if (what) return ta_fail(c, opt, "expected %s, got '%s'", what, s);
+  /* Without a description the bounds say what was expected. */
+  if (isinf(above) && isinf(at_most)) return ta_fail(c, opt, "expected a finite number, got '%s'", s);
+  if (isinf(at_most)) return ta_fail(c, opt, "expected a finite number > %g, got '%s'", above, s);
+  if (isinf(above)) return ta_fail(c, opt, "expected a finite number <= %g, got '%s'", at_most, s);
+  return ta_fail(c, opt, "expected a number in (%g, %g], got '%s'", above, at_most, s);
 }
 
 int ta_doubles(ta_ctx *c, const char *opt, const char *what, const char *s, int n, double *out) {

@@ -65,7 +65,8 @@ int ta_error(ta_ctx *c, int rc, const char *opt, const char *fmt, ...) __attribu
 int ta_int(ta_ctx *c, const char *opt, const char *what, const char *s, int lo, int hi, int *out);
 int ta_ll(ta_ctx *c, const char *opt, const char *what, const char *s, long long lo, long long hi, long long *out);
 int ta_u64(ta_ctx *c, const char *opt, const char *what, const char *s, uint64_t *out);
-/* A finite number v with above < v <= at_most (use -HUGE_VAL / HUGE_VAL for none). */
+/* A finite number v with above < v <= at_most (use -HUGE_VAL / HUGE_VAL for none);
+ * what (may be NULL: the bounds are named instead) describes it in the error. */
 int ta_double(ta_ctx *c, const char *opt, const char *what, const char *s, double above, double at_most,
               double *out);
 int ta_doubles(ta_ctx *c, const char *opt, const char *what, const char *s, int n, double *out);

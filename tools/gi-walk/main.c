@@ -46,7 +46,7 @@ static int run_bench(const bench_opts *o, int paths_only) {
                     kinds[k].name, p[k].n, file);
   }
   FILE *json = (!rc && o->jsonl && !paths_only) ? fopen(o->jsonl, "a") : NULL;
-  if (!rc && o->jsonl && !paths_only && !json) perror(o->jsonl);
+  if (!rc && o->jsonl && !paths_only && !json) walk_file_error(o->jsonl);
   for (int k = 0; k < 2 && !rc && !paths_only; k++) {
     step_rec *st = calloc(p[k].n, sizeof *st);
     rc = !st || bench_path(o, s, &p[k], st);
@@ -114,7 +114,7 @@ static int run_tables(all_opts *a, ta_ctx *ctx) {
   a->t.city = a->b.city;
   a->t.q = a->b.q;
   FILE *md = fopen(a->md, "a");
-  if (!md) return perror(a->md), 1;
+  if (!md) return walk_file_error(a->md), 1;
   int rc = tables_run(&a->t, md);
   fclose(md);
   return rc ? 1 : 0;

@@ -174,10 +174,10 @@ int walk_path_check(const gi_scene *s, const gi_city_params *cp, const walk_path
 
 int walk_path_write_csv(const walk_path *p, const char *file) {
   FILE *f = fopen(file, "w");
-  if (!f) return perror(file), -1;
+  if (!f) return walk_file_error(file), -1;
   for (size_t i = 0; i < p->n; i++)
     fprintf(f, "%.3f,%.4f,%.4f,%.4f\n", p->t[i], p->at[i][0], p->at[i][1], p->at[i][2]);
-  if (fclose(f) != 0) return perror(file), -1;
+  if (fclose(f) != 0) return walk_file_error(file), -1;
   return 0;
 }
 

@@ -150,7 +150,7 @@ static void steps_csv(const bench_opts *o, const walk_path *p, const step_rec *s
   char file[1024];
   snprintf(file, sizeof file, "%s/bench-walk-steps-%s.csv", o->out_dir, p->name);
   FILE *f = fopen(file, "w");
-  if (!f) return perror(file);
+  if (!f) return walk_file_error(file);
   fprintf(f, "step,t,crossed,closed,move_ms,gather_ms,move_cpu_ms,cold_ms,voxelized,injected,regathered,jump,drift,pop,cold_pop");
   for (int k = 0; k < PROBE_FIGS; k++) fprintf(f, ",fig%d", k);
   fprintf(f, "\n");
@@ -167,7 +167,7 @@ static void steps_csv(const bench_opts *o, const walk_path *p, const step_rec *s
     for (int k = 0; k < PROBE_FIGS; k++) fprintf(f, ",%.6g", st[i].moved.v[k]);
     fprintf(f, "\n");
   }
-  if (fclose(f) != 0) perror(file);
+  if (fclose(f) != 0) walk_file_error(file);
 }
 
 void report_path(const bench_opts *o, const walk_path *p, const step_rec *steps, FILE *json) {

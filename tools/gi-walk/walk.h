@@ -13,8 +13,10 @@
 #ifndef GI_WALK_H
 #define GI_WALK_H
 
+#include <errno.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <string.h>
 #include "gi/gi.h"
 #include "gi/gi_move.h"
 
@@ -127,5 +129,10 @@ typedef struct vdb_figure {
  * coarse voxel's surface plane, through its centroid along its normal) into
  * OpenVDB Vec3f grids: 6 face radiances and the opacity per axis. */
 int vdb_figure_measure(const gi_cascade *c, size_t max_voxels, vdb_figure *out);
+
+/* A file gi-walk could not open or finish: which one and why, on stderr. */
+static inline void walk_file_error(const char *file) {
+  fprintf(stderr, "gi-walk: cannot write '%s': %s\n", file, strerror(errno));
+}
 
 #endif
