@@ -206,7 +206,10 @@ static int parse_args(int argc, char **argv, opts *o) {
     else if (!strcmp(a, "--ref-samples")) {
       if (ta_int(&ta, "--ref-samples", NULL, argv[++i], 64, 1 << 22, &o->ref_samples)) return 2;
     } else if (!strcmp(a, "--pt-max")) {
-      if (ta_int(&ta, "--pt-max", NULL, argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
+      if (ta_int(&ta, "--pt-max", "a power of 4 in 1..1048576", argv[++i], 1, 1 << 20, &o->pt_max)) return 2;
+      int p4 = 1;
+      while (p4 < o->pt_max) p4 *= 4;
+      if (p4 != o->pt_max) return ta_fail(&ta, "--pt-max", "expected a power of 4 in 1..1048576, got '%s'", argv[i]);
     } else if (!strcmp(a, "--repeat")) {
       if (ta_int(&ta, "--repeat", NULL, argv[++i], 1, 20, &g_repeat)) return 2;
     } else if (!strcmp(a, "--view-samples")) {
