@@ -41,6 +41,7 @@
 #include <time.h>
 #include <unistd.h>
 #include "server.h"
+#include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
 /* More query parameters than this is a 400 (the contract's limit). */
 #define GS_MAX_PARAMS 64

@@ -14,6 +14,7 @@
 #include <unistd.h>
 #include "server.h"
 #include "toolargs.h"
+#include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
 static const char help_text[] =
     "Usage: gi-server [--config FILE] [--port N] [--bind ADDR] [--port-file F]\n"

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "server.h"
+#include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
 static const char *const ep_names[GS_EP_COUNT] = {"health", "scenes", "scene",      "lighting", "cascades",
                                                   "probes", "job",    "job_result", "metrics",  "lightmap_uv",

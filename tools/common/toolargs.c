@@ -12,6 +12,7 @@
 #include <string.h>
 #include <unistd.h>
 #include "gi/gi_points.h"
+#include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
 static int is_digit(char ch) { return ch >= '0' && ch <= '9'; }
 
@@ -210,9 +211,6 @@ int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, dou
 const char *ta_version(void) {
 #ifndef GI_VERSION
 #define GI_VERSION "0.0.0"
-#endif
-#ifndef GI_GIT_REV
-#define GI_GIT_REV "unknown"
 #endif
   return GI_VERSION " (" GI_GIT_REV ")";
 }

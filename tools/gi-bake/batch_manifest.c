@@ -14,6 +14,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 #include "batch_run.h"
+#include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
 #define SH_TEXT "SH L2 irradiance, real basis L00 L1-1 L10 L11 L2-2 L2-1 L20 L21 L22 over world x,y,z; E(n) = sum sh_i Y_i(n)"
 #define BAR_WIDTH 30

@@ -10,6 +10,7 @@
 #include "cascade/cascade_internal.h"
 #include "gi/gi_exr.h"
 #include "gi/gi_vdb.h"
+#include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
 static const char *const sh_names[9] = {"L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22"};
 static const char rgb[3] = {'R', 'G', 'B'};
