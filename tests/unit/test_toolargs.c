@@ -291,6 +291,24 @@ static void test_files(void **state) {
   free(pts);
   assert_int_equal(ta_read_points(&c, "--points", "/no-such-dir-gi/p.txt", 16, &pts, &n), TA_EXIT_RUN);
   assert_non_null(strstr(c.msg, "--points: "));
+  /* A binary file's bytes are not echoed to the terminal; a long line is cut. */
+  static const char bin[] = "\xff\x1b[2J1 2 3 x\n";
+  p = tu_write_file("bin.txt", bin, sizeof bin - 1);
+  pts = NULL;
+  assert_int_equal(ta_read_points(&c, "--probes", p, 16, &pts, &n), TA_EXIT_USAGE);
+  assert_non_null(strstr(c.msg, "got '??[2J1 2 3 x'"));
+  free(pts);
+  char longl[300];
+  memset(longl, 'y', sizeof longl);
+  memcpy(longl, "1 2 x", 5);
+  longl[sizeof longl - 1] = '\n';
+  p = tu_write_file("long.txt", longl, sizeof longl);
+  pts = NULL;
+  assert_int_equal(ta_read_points(&c, "--probes", p, 16, &pts, &n), TA_EXIT_USAGE);
+  assert_non_null(strstr(c.msg, "got '1 2 xyyy"));
+  assert_non_null(strstr(c.msg, "...'"));
+  assert_true(strlen(c.msg) < 200);
+  free(pts);
 }
 
 int main(void) {

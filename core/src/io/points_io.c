@@ -26,6 +26,16 @@ static int parse_line(const char *p, double v[3]) {
   return *q ? -1 : 0;
 }
 
+/* The start of a bad line for an error message: a binary file's bytes
+ * (control characters, bytes past ASCII) become '?', so the message
+ * cannot drive a terminal; a long line is cut with "...". */
+static void printable(const char *p, char *out, size_t cap) {
+  size_t i = 0;
+  for (; p[i] && i + 4 < cap; i++) out[i] = (unsigned char)p[i] < 0x20 || (unsigned char)p[i] > 0x7e ? '?' : p[i];
+  if (p[i]) memcpy(out + i, "...", 3), i += 3;
+  out[i] = 0;
+}
+
 gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, gi_error_info *err) {
   *pts = NULL;
   *n = 0;
@@ -47,7 +57,10 @@ gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, 
       p[--len] = '\0';
     double v[3];
     if (parse_line(p, v)) {
-      rc = gi__fail(err, GI_ERR_FORMAT, "%s:%zu: expected three finite numbers 'x y z', got '%s'", path, lineno, p);
+      char shown[64];
+      printable(p, shown, sizeof shown);
+      rc = gi__fail(err, GI_ERR_FORMAT, "%s:%zu: expected three finite numbers 'x y z', got '%s'", path, lineno,
+                    shown);
       break;
     }
     if (*n >= max) {
