@@ -82,6 +82,10 @@ void gc_response_free(gc_response *r);
 void gc_fmt_double(char *dst, size_t cap, double v);
 /* POST /v1/scenes/ID/sessions with the walk's first point and quality (malloc'ed). */
 char *gc_session_url(const gc_opts *o, CURL *c);
+/* GET .../sessions/SID/lighting?at=..[&kind=..] for one step of a walk,
+ * the values percent-encoded as every query (a '+' would read as a space).
+ * The caller frees it; NULL when out of memory. */
+char *gc_step_url(const gc_opts *o, CURL *c, const char *sid, const double at[3]);
 /* walk.c: reads --path FILE ('t,x,y,z' lines); 0, or an exit code after the message. */
 int gc_read_path(ta_ctx *ta, const char *path, gc_step **out, size_t *n);
 /* walk.c: the walk command. */

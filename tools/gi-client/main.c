@@ -369,6 +369,24 @@ void gc_response_free(gc_response *r) {
 
 char *gc_session_url(const gc_opts *o, CURL *c) { return build_url(o, c, "/v1/scenes/", o->id, "/sessions"); }
 
+char *gc_step_url(const gc_opts *o, CURL *c, const char *sid, const double at[3]) {
+  buf b = {0};
+  int first = 1;
+  char v[100];
+  fmt_at(v, sizeof v, at);
+  char *e = curl_easy_escape(c, sid, 0); /* a path segment, as build_url's ids */
+  int fail = !e || buf_add(&b, o->server, strlen(o->server)) || buf_add(&b, "/v1/sessions/", 13) ||
+             buf_add(&b, e, strlen(e)) || buf_add(&b, "/lighting", 9) || add_param(&b, &first, "at", v);
+  curl_free(e);
+  if (!fail && o->kind) fail = add_param(&b, &first, "kind", o->kind);
+  if (fail) {
+    free(b.p);
+    fputs("gi-client: out of memory\n", stderr);
+    return NULL;
+  }
+  return b.p;
+}
+
 /* The POST probes body: {"points":[[x,y,z],..],"at":[..],"quality":..,"half":..,"ao":..}.
  * Written by hand: a million points as jansson objects would cost ~150 MB. */
 static char *probes_body(const gc_opts *o, size_t *len) {

@@ -155,25 +155,6 @@ static void print_summary(const gc_opts *o, const char *sid, walk_stats *w) {
   fflush(stdout);
 }
 
-/* The session lighting URL of one step. Each coordinate is percent-encoded:
- * a query's '+' reads as a space, and 1e+12 arrived as '1e 12' (a 400). */
-static char *step_url(const gc_opts *o, CURL *c, const char *sid, const double at[3]) {
-  char *e = curl_easy_escape(c, sid, 0), *q[3] = {NULL, NULL, NULL};
-  for (int k = 0; k < 3; k++) {
-    char v[32];
-    gc_fmt_double(v, sizeof v, at[k]);
-    q[k] = curl_easy_escape(c, v, 0);
-  }
-  size_t n = strlen(o->server) + 300;
-  char *url = e && q[0] && q[1] && q[2] ? malloc(n) : NULL;
-  if (url)
-    snprintf(url, n, "%s/v1/sessions/%s/lighting?at=%s,%s,%s%s%s", o->server, e, q[0], q[1], q[2],
-             o->kind ? "&kind=" : "", o->kind ? o->kind : "");
-  curl_free(e);
-  for (int k = 0; k < 3; k++) curl_free(q[k]);
-  return url;
-}
-
 /* Runs the steps, counting into w; a 404 (the session ended) stops the walk. */
 static void walk_steps(const gc_opts *o, CURL *c, const char *sid, walk_stats *w) {
   gc_opts quiet = *o;
@@ -185,7 +166,7 @@ static void walk_steps(const gc_opts *o, CURL *c, const char *sid, walk_stats *w
                                 : t0 + (o->steps[i].t - o->steps[0].t);
     sleep_until(due);
     if (g_walk_stop) break;
-    char *url = step_url(o, c, sid, o->steps[i].at);
+    char *url = gc_step_url(o, c, sid, o->steps[i].at);
     if (!url) {
       w->errors++;
       break;
