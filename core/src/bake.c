@@ -72,22 +72,6 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
   return gi_cascade_bake_ex(scene, at, qin, NULL, out, report, err);
 }
 
-/* A viewpoint (al: from the scene's origin, in float) beyond float range
- * of the scene would lose all precision, and one more than 2^52 voxels
- * out would wrap the cascade's cell indices. */
-static gi_result check_far(const gi_scene *scene, const double at[3], const float al[3], double s0,
-                           gi_error_info *err) {
-  for (int a = 0; a < 3; a++) {
-    if (!isfinite(al[a]) || fabs(at[a] - scene->origin[a]) > 1e9)
-      return gi__fail(err, GI_ERR_INVALID_ARG, "bake: viewpoint is more than 1e9 units from the scene");
-    if (!gi__cells_ok(al[a], s0))
-      return gi__fail(err, GI_ERR_INVALID_ARG,
-                      "bake: the voxel size %g is too small for a viewpoint %g units from the scene's origin "
-                      "(more than 2^52 voxels)", s0, fabs((double)al[a]));
-  }
-  return GI_OK;
-}
-
 gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi_quality *qin,
                              const gi_cancel *cancel, gi_cascade **out, gi_bake_report *report,
                              gi_error_info *err) {
@@ -113,7 +97,7 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
     c->at_world[a] = at[a];
     c->at[a] = (float)(at[a] - scene->origin[a]);
   }
-  if ((rc = check_far(scene, at, c->at, q.voxel0, err)) != GI_OK) {
+  if ((rc = gi__viewpoint_range(scene, at, q.voxel0, "bake", err)) != GI_OK) {
     gi_cascade_free(c);
     return rc;
   }

@@ -386,16 +386,14 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   c->n = q.levels;
   c->R = q.res;
   c->s0 = q.voxel0;
-  for (int a = 0; a < 3; a++) {
-    c->at[a] = (float)(at[a] - s->origin[a]);
-    if (!isfinite(at[a]) || !isfinite(c->at[a]) || fabs(at[a] - s->origin[a]) > 1e9 ||
-        !gi__cells_ok(c->at[a], c->s0)) {
-      gi__free(c);
-      return gi__fail(err, GI_ERR_INVALID_ARG,
-                      "plan: viewpoint is not finite, more than 1e9 units from the scene, or more than 2^52 voxels "
-                      "from its origin");
-    }
+  rc = isfinite(at[0]) && isfinite(at[1]) && isfinite(at[2])
+           ? gi__viewpoint_range(s, at, c->s0, "plan", err)
+           : gi__fail(err, GI_ERR_INVALID_ARG, "plan: viewpoint is not finite");
+  if (rc != GI_OK) {
+    gi__free(c);
+    return rc;
   }
+  for (int a = 0; a < 3; a++) c->at[a] = (float)(at[a] - s->origin[a]);
   gi__cascade_place(c);
   int tail;
   rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err);
@@ -406,5 +404,18 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   memcpy(out, c->report.effects, sizeof c->report.effects);
   if (resolved) *resolved = q;
   gi__free(c);
+  return GI_OK;
+}
+
+gi_result gi__viewpoint_range(const gi_scene *s, const double at[3], double s0, const char *who, gi_error_info *err) {
+  for (int a = 0; a < 3; a++) {
+    float al = (float)(at[a] - s->origin[a]);
+    if (!isfinite(al) || fabs(at[a] - s->origin[a]) > GI_MAX_VIEW_DISTANCE)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "%s: viewpoint is more than 1e9 units from the scene", who);
+    if (!gi__cells_ok(al, s0))
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "%s: the voxel size %g is too small for a viewpoint %g units from the scene's origin "
+                      "(more than 2^52 voxels)", who, s0, fabs((double)al));
+  }
   return GI_OK;
 }

@@ -17,4 +17,13 @@ int gi__fx_forced(const gi_quality *q, gi_effect_id id);
 gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r,
                            int *tail, gi_error_info *err);
 
+/* A finite viewpoint a cascade of finest voxel s0 can be placed at:
+ * within GI_MAX_VIEW_DISTANCE of the scene's origin (farther, float
+ * positions lose all precision) and within 2^52 voxels of it (cells are
+ * indexed in int64 and placed in double, gi__cells_ok). Else
+ * GI_ERR_INVALID_ARG, the message starting with `who`. Shared by the
+ * bake, the effect plan and a move. */
+#define GI_MAX_VIEW_DISTANCE 1e9
+gi_result gi__viewpoint_range(const gi_scene *s, const double at[3], double s0, const char *who, gi_error_info *err);
+
 #endif

@@ -67,8 +67,6 @@ enum { CELL_KEEP = 0, CELL_STALE = 1, CELL_VOXELIZED = 2, CELL_NEAR = 3 };
 #define FAST_MIN_SLICES 8
 /* Weight of the newest dwell (calls spent at one anchor) in its running mean. */
 #define DWELL_WEIGHT 0.5
-/* Viewpoints farther than this from the scene origin lose float precision (as in the bake). */
-#define MAX_VIEW_DISTANCE 1e9
 
 typedef struct {
   int64_t lo[3], hi[3]; /* global cells [lo, hi) of one level */
@@ -810,12 +808,7 @@ static gi_result check_viewpoint(const gi_cascade *c, const double at[3], gi_err
   if (!c || !at) return gi__fail(err, GI_ERR_INVALID_ARG, "move: cascade and viewpoint are required");
   if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
     return gi__fail(err, GI_ERR_NONFINITE, "move: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
-  for (int a = 0; a < 3; a++)
-    if (fabs(at[a] - c->scene->origin[a]) > MAX_VIEW_DISTANCE)
-      return gi__fail(err, GI_ERR_INVALID_ARG, "move: viewpoint is more than 1e9 units from the scene");
-    else if (!gi__cells_ok(at[a] - c->scene->origin[a], c->s0))
-      return gi__fail(err, GI_ERR_INVALID_ARG, "move: viewpoint is more than 2^52 voxels from the scene's origin");
-  return GI_OK;
+  return gi__viewpoint_range(c->scene, at, c->s0, "move", err);
 }
 
 /* Counters describe this move only. */
