@@ -189,12 +189,17 @@ static void test_option_messages(void **state) {
 
   assert_int_equal(ta_double(&c, "--voxel", NULL, "0.25", 0, HUGE_VAL, &d), 0);
   assert_true(d == 0.25);
-  expect_msg(&c, ta_double(&c, "--voxel", NULL, "1e999", 0, HUGE_VAL, &d), "--voxel: expected a finite number > 0, got '1e999'");
-  expect_msg(&c, ta_double(&c, "--voxel", NULL, "nan", 0, HUGE_VAL, &d), "--voxel: expected a finite number > 0, got 'nan'");
-  expect_msg(&c, ta_double(&c, "--voxel", NULL, "0", 0, HUGE_VAL, &d), "--voxel: expected a finite number > 0, got '0'");
-  expect_msg(&c, ta_double(&c, "--voxel", NULL, "+1", 0, HUGE_VAL, &d), "--voxel: expected a finite number > 0, got '+1'");
+  expect_msg(&c, ta_double(&c, "--voxel", NULL, "1e999", 0, HUGE_VAL, &d),
+             "--voxel: expected a finite number > 0, got '1e999'");
+  expect_msg(&c, ta_double(&c, "--voxel", NULL, "nan", 0, HUGE_VAL, &d),
+             "--voxel: expected a finite number > 0, got 'nan'");
+  expect_msg(&c, ta_double(&c, "--voxel", NULL, "0", 0, HUGE_VAL, &d),
+             "--voxel: expected a finite number > 0, got '0'");
+  expect_msg(&c, ta_double(&c, "--voxel", NULL, "+1", 0, HUGE_VAL, &d),
+             "--voxel: expected a finite number > 0, got '+1'");
   /* Without a description, a bounded range is named: 0 is finite but not in it. */
-  expect_msg(&c, ta_double(&c, "--seconds", NULL, "0", 0, 3600, &d), "--seconds: expected a number in (0, 3600], got '0'");
+  expect_msg(&c, ta_double(&c, "--seconds", NULL, "0", 0, 3600, &d),
+             "--seconds: expected a number in (0, 3600], got '0'");
   expect_msg(&c, ta_double(&c, "--x", NULL, "x", -HUGE_VAL, HUGE_VAL, &d), "--x: expected a finite number, got 'x'");
   expect_msg(&c, ta_double(&c, "--x", NULL, "2", -HUGE_VAL, 1, &d), "--x: expected a finite number <= 1, got '2'");
   assert_true(d == 0.25);

@@ -170,6 +170,11 @@ static int colour_ok(const double c[3]) {
   return 1;
 }
 
+/* The error of a colour colour_ok refused; what names it (intensity, irradiance). */
+static int colour_fail(const char *opt, const char *what, const char *arg) {
+  return ta_fail(&ta, opt, "%s R,G,B must be finite, >= 0 and at most 1e20, got '%s'", what, arg);
+}
+
 /* The unit vector along d[0..2] into out; 0 when d is zero or not finite. */
 static int unit_direction(const double d[3], float out[3]) {
   double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -187,7 +192,7 @@ static int parse_spot(const char *opt, const char *arg, gi_light *l) {
     return ta_fail(&ta, opt, "direction DX,DY,DZ must be a non-zero finite vector, got '%s'", arg);
   if (!(v[6] > 0 && v[6] <= v[7] && v[7] < 180))
     return ta_fail(&ta, opt, "cone angles must satisfy 0 < INNER <= OUTER < 180 degrees, got '%s'", arg);
-  if (!colour_ok(v + 8)) return ta_fail(&ta, opt, "intensity R,G,B must be finite, >= 0 and at most 1e20, got '%s'", arg);
+  if (!colour_ok(v + 8)) return colour_fail(opt, "intensity", arg);
   l->type = GI_LIGHT_SPOT;
   for (int k = 0; k < 3; k++) {
     l->position[k] = v[k];
@@ -206,7 +211,7 @@ static int parse_sun(const char *opt, const char *arg, gi_light *l) {
   if (rc) return rc;
   if (!unit_direction(v, l->direction))
     return ta_fail(&ta, opt, "direction DX,DY,DZ must be a non-zero finite vector, got '%s'", arg);
-  if (!colour_ok(v + 3)) return ta_fail(&ta, opt, "irradiance R,G,B must be finite, >= 0 and at most 1e20, got '%s'", arg);
+  if (!colour_ok(v + 3)) return colour_fail(opt, "irradiance", arg);
   l->type = GI_LIGHT_SUN;
   for (int k = 0; k < 3; k++) l->color[k] = (float)v[3 + k];
   return 0;
@@ -229,7 +234,7 @@ static int parse_point(const char *opt, const char *arg, gi_light *l) {
   double v[6];
   int rc = ta_doubles(&ta, opt, "six finite numbers X,Y,Z,R,G,B", arg, 6, v);
   if (rc) return rc;
-  if (!colour_ok(v + 3)) return ta_fail(&ta, opt, "intensity R,G,B must be finite, >= 0 and at most 1e20, got '%s'", arg);
+  if (!colour_ok(v + 3)) return colour_fail(opt, "intensity", arg);
   l->type = GI_LIGHT_POINT;
   for (int k = 0; k < 3; k++) {
     l->position[k] = v[k];
