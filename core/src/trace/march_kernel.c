@@ -43,7 +43,9 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
      * block while u stays in [4 b, 4 b + 4]: `more` whole cells further. */
     b4[a] = i0 / GI_EMPTY_BLOCK;
     int in4 = i0 - GI_EMPTY_BLOCK * b4[a];
-    float along = w[a] != 0 ? (float)L->s / fabsf(w[a]) : 0.f; /* one cell's length along w */
+    /* One cell's length along w, by the reciprocal as the eight-lane march
+     * takes it (once per cone there, not a division per sample). */
+    float along = w[a] != 0 ? (float)L->s * (1.f / fabsf(w[a])) : 0.f;
     if (w[a] > 0) {
       run = gi__minf(run, (1.f - f[a]) * along);
       run4 = gi__minf(run4, ((float)(GI_EMPTY_BLOCK - 1 - in4) + (1.f - f[a])) * along);

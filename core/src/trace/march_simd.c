@@ -30,16 +30,16 @@ typedef struct {
   int32_t slot0[3][TAB];
   const char *rad[TAB];
   const uint8_t *busy[TAB], *busy4[TAB];
-  /* Per lane: the first radiance lane of the face each axis reads, the
-   * axis weights |w_a| (a face's projected area: radiance, opacity and
-   * optical depth alike), and the same across the surface's normal only
-   * (x (1 - n_a^2)). */
+  /* Per lane: the face each axis reads (its first lane in read_lane's
+   * register for that axis), the axis weights |w_a| (a face's projected
+   * area: radiance, opacity and optical depth alike), and the same across
+   * the surface's normal only (x (1 - n_a^2)). */
   int fb[LANES][3];
   float k[LANES][3], kax[LANES][3];
   float span_in[GI_MAX_LEVELS][LANES], span_out[GI_MAX_LEVELS][LANES];
   /* Per lane: the cone's start (apex, direction, cosine to the surface
    * normal, apex height: < 0 in free space) and its march so far. */
-  float o[3][LANES], w[3][LANES], nw[LANES], h0[LANES];
+  float o[3][LANES], w[3][LANES], iw[3][LANES], nw[LANES], h0[LANES];
   float t[LANES], a[LANES], occ[LANES], L[3][LANES], live[LANES];
   int32_t samples[LANES], steps[LANES], job[LANES];
 } batch;
@@ -90,7 +90,7 @@ typedef struct {
   uint32_t block4[LANES];     /* its busy4 block */
 } cell8;
 
-static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], cell8 *out) {
+static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], const __m256 iw[3], cell8 *out) {
   __m256 inv = tab16(b->inv, d), sd = tab16(b->s, d), run = V1(INFINITY), run4 = V1(INFINITY);
   __m256i R = _mm256_set1_epi32(b->R), Rm2 = _mm256_set1_epi32(b->R - 2), one = _mm256_set1_epi32(1);
   __m256i blk4 = _mm256_setzero_si256(), nb = _mm256_set1_epi32(gi__busy4_side(b->R));
@@ -114,8 +114,7 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
      * block `more` whole cells further (march_kernel.c). */
     __m256 pos = CMP(w[a], _mm256_setzero_ps(), _CMP_GT_OQ), nz = CMP(w[a], _mm256_setzero_ps(), _CMP_NEQ_OQ);
     __m256 gap = _mm256_blendv_ps(f[a], _mm256_sub_ps(V1(1.f), f[a]), pos);
-    __m256 aw = _mm256_andnot_ps(V1(-0.f), w[a]);
-    __m256 along = _mm256_div_ps(sd, aw); /* one cell's length along w (one division for both runs) */
+    __m256 along = _mm256_mul_ps(sd, iw[a]); /* one cell's length along w (march_kernel.c) */
     __m256 r = _mm256_mul_ps(gap, along);
     run = _mm256_blendv_ps(run, _mm256_min_ps(r, run), nz);
     __m256i in4 = _mm256_and_si256(i0, _mm256_set1_epi32(GI_EMPTY_BLOCK - 1));
@@ -153,8 +152,11 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
  * weight, optical depth; transposed into sample8 after. */
 enum { ROW_P = 0, ROW_WAL = 3, ROW_TAU = 4 };
 
-/* One busy lane's texel reads: sample_level_ax's second half. */
-static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, float row[LANES]) {
+/* One busy lane's texel reads: sample_level_ax's second half, as one row
+ * (lanes 5-7 unused). The sum stays in registers: storing it and reading
+ * each face back with a load that straddled two of the stores (faces 2
+ * and 5) stalled store forwarding, a sixth of this function's time. */
+static __m256 read_lane(const batch *b, int l, int d, const cell8 *cl, int ax) {
   /* gi__sum_texels with the weights and corners read from the lane's column. */
   __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
   for (int i = 0; i < 8; i++) {
@@ -164,24 +166,23 @@ static void read_lane(const batch *b, int l, int d, const cell8 *cl, int ax, flo
     a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
     a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
   }
-  gi_lanes s;
-  _mm256_storeu_ps(s.v, a0);
-  _mm256_storeu_ps(s.v + 8, a1);
-  _mm256_storeu_ps(s.v + 16, a2);
+  /* Each axis's face from the one register holding all of it (x: texel
+   * lanes 4-11, faces 2 and 3; y: lanes 12-19, faces 4 and 5) into lanes
+   * 0-2, and its opacity (lane 18 + a) and depth (21 + a) into lanes 3, 4. */
+  __m256 src[3] = {a0, _mm256_permute2f128_ps(a0, a1, 0x21), _mm256_permute2f128_ps(a1, a2, 0x21)};
+  const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const float *k = ax ? b->kax[l] : b->k[l];
-  const int *fb = b->fb[l];
-  /* The three channels of each axis's face at once (the fourth is dropped). */
-  __m128 P = _mm_mul_ps(_mm_broadcast_ss(&k[0]), _mm_loadu_ps(s.v + fb[0]));
-  P = _mm_fmadd_ps(_mm_broadcast_ss(&k[1]), _mm_loadu_ps(s.v + fb[1]), P);
-  P = _mm_fmadd_ps(_mm_broadcast_ss(&k[2]), _mm_loadu_ps(s.v + fb[2]), P);
-  _mm_storeu_ps(row + ROW_P, P);
-  float wa = k[0] * s.v[GI_VRAD_ALPHA], ta = k[0] * s.v[GI_VRAD_TAU];
-  for (int a = 1; a < 3; a++) {
-    wa += k[a] * s.v[GI_VRAD_ALPHA + a];
-    ta += k[a] * s.v[GI_VRAD_TAU + a];
+  __m256 T[3];
+  for (int a = 0; a < 3; a++) {
+    __m256 face = _mm256_permutevar8x32_ps(src[a], _mm256_add_epi32(_mm256_set1_epi32(b->fb[l][a]), iota));
+    __m256 at = _mm256_permutevar8x32_ps(a2, _mm256_setr_epi32(0, 0, 0, 2 + a, 5 + a, 0, 0, 0));
+    T[a] = _mm256_blend_ps(face, at, 0x18);
   }
-  row[ROW_WAL] = wa;
-  row[ROW_TAU] = ta;
+  /* The scalar kernel's order: P with fused steps, the opacity and depth without. */
+  __m256 k0 = _mm256_broadcast_ss(&k[0]), k1 = _mm256_broadcast_ss(&k[1]), k2 = _mm256_broadcast_ss(&k[2]);
+  __m256 P = _mm256_fmadd_ps(k2, T[2], _mm256_fmadd_ps(k1, T[1], _mm256_mul_ps(k0, T[0])));
+  __m256 W = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(k0, T[0]), _mm256_mul_ps(k1, T[1])), _mm256_mul_ps(k2, T[2]));
+  return _mm256_blend_ps(P, W, 0x18);
 }
 
 /* rows[l][j] -> col[j] lane l: the 8x8 transpose. */
@@ -211,9 +212,9 @@ static inline void transpose8(const float rows[LANES][LANES], __m256 col[LANES])
  * lane on busy (60-75% of samples are empty) mispredicted often and each
  * miss threw away the texel loads already in flight. */
 static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, __m256 far, const __m256 p[3],
-                       const __m256 w[3], sample8 *out) {
+                       const __m256 w[3], const __m256 iw[3], sample8 *out) {
   cell8 cl;
-  locate(b, d, p, w, &cl);
+  locate(b, d, p, w, iw, &cl);
   int32_t dl[LANES];
   _mm256_storeu_si256((__m256i *)dl, d);
   int m = _mm256_movemask_ps(act), mx = _mm256_movemask_ps(ax), busy = 0, open4 = 0;
@@ -223,11 +224,15 @@ static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, __m256 
     open4 |= (b->busy4[dd][cl.block4[l]] == 0) << l;
   }
   busy &= m;
+  /* Whole rows, each one store, so the transpose's loads forward. The
+   * idle lanes' zeros by mask: a loop over all eight, or a memset, became
+   * rep stos, 7% of this function. */
   float rows[LANES][LANES];
-  memset(rows, 0, sizeof rows);
+  for (int todo = ~busy & 0xff; todo; todo &= todo - 1)
+    _mm256_storeu_ps(rows[__builtin_ctz((unsigned)todo)], _mm256_setzero_ps());
   for (int todo = busy; todo; todo &= todo - 1) {
     int l = __builtin_ctz((unsigned)todo);
-    read_lane(b, l, dl[l], &cl, (mx >> l) & 1, rows[l]);
+    _mm256_storeu_ps(rows[l], read_lane(b, l, dl[l], &cl, (mx >> l) & 1));
   }
   __m256 col[LANES];
   transpose8((const float(*)[LANES])rows, col);
@@ -254,7 +259,7 @@ typedef struct {
 typedef struct {
   __m256 t, a, occ, L[3], act;
   __m256i samples, steps;
-  __m256 o[3], w[3], nw, h0;
+  __m256 o[3], w[3], iw[3], nw, h0;
 } state8;
 
 /* The level each lane samples, as the scalar march picks it: the cone's
@@ -345,14 +350,14 @@ static void step8(const batch *b, const par8 *q, state8 *st) {
                              _mm256_or_ps(CMP(st->h0, _mm256_setzero_ps(), _CMP_LT_OQ),
                                           CMP(st->nw, _mm256_setzero_ps(), _CMP_GE_OQ)));
   sample8 s;
-  sample8_at(b, d, act, ax, far, p, st->w, &s);
+  sample8_at(b, d, act, ax, far, p, st->w, st->iw, &s);
   st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(act));
   __m256 two = _mm256_and_ps(act, _mm256_and_ps(next, CMP(frac, _mm256_setzero_ps(), _CMP_GT_OQ)));
   __m256 clear2 = V1(INFINITY);
   if (_mm256_movemask_ps(two)) {
     sample8 s2;
     sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), _mm256_setzero_ps(), p, st->w,
-               &s2);
+               st->iw, &s2);
     st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(two));
     for (int ch = 0; ch < 3; ch++)
       s.P[ch] = _mm256_blendv_ps(s.P[ch], _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.P[ch], s.P[ch]), s.P[ch]), two);
@@ -413,7 +418,8 @@ static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const fl
     float across = surf ? 1 - j->n[a] * j->n[a] : 1.f;
     b->o[a][l] = j->o[a];
     b->w[a][l] = w[a];
-    b->fb[l][a] = 3 * (2 * a + (w[a] > 0 ? 1 : 0));
+    b->iw[a][l] = 1.f / fabsf(w[a]); /* inf for 0: that axis never ends a run */
+    b->fb[l][a] = 3 * (2 * a + (w[a] > 0 ? 1 : 0)) - (a == 0 ? 0 : a == 1 ? 4 : 12); /* in read_lane's src[a] */
     b->k[l][a] = fabsf(w[a]); /* a face's projected area, as the scalar kernel */
     b->kax[l][a] = fabsf(w[a]) * across;
     b->L[a][l] = 0;
@@ -432,7 +438,8 @@ static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const fl
 #define STOREV(dst, src) _mm256_storeu_ps(dst, src)
 
 static void lanes_to_regs(const batch *b, state8 *st) {
-  for (int a = 0; a < 3; a++) LOADV(st->o[a], b->o[a]), LOADV(st->w[a], b->w[a]), LOADV(st->L[a], b->L[a]);
+  for (int a = 0; a < 3; a++) LOADV(st->o[a], b->o[a]), LOADV(st->w[a], b->w[a]), LOADV(st->iw[a], b->iw[a]),
+                            LOADV(st->L[a], b->L[a]);
   LOADV(st->nw, b->nw), LOADV(st->h0, b->h0), LOADV(st->t, b->t), LOADV(st->a, b->a), LOADV(st->occ, b->occ);
   st->samples = _mm256_loadu_si256((const __m256i *)b->samples);
   st->steps = _mm256_loadu_si256((const __m256i *)b->steps);
