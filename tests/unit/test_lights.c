@@ -396,6 +396,87 @@ static void test_sun_pieces_bake(void **state) {
   gi_scene_release(s);
 }
 
+/* Irradiance at (x, y0, z) on an up-facing surface from a down-facing
+ * emitter of radiance 1, the square [e0, e1]^2 in x and z at height
+ * y0 + h: the integral of h^2 / r^4 over it, by the midpoint rule. */
+static double under_square(double x, double z, double h, double e0, double e1) {
+  const int n = 48;
+  double d = (e1 - e0) / n, sum = 0;
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j < n; j++) {
+      double dx = e0 + (i + 0.5) * d - x, dz = e0 + (j + 0.5) * d - z, r2 = dx * dx + dz * dz + h * h;
+      sum += h * h / (r2 * r2);
+    }
+  return sum * d * d;
+}
+
+/* The emitters on a coarse voxel from points spread over its surface
+ * (gi__spread_emitters): a 0.9 m plate lit by a 0.2 m window 0.2 m
+ * above one of its corners. The plate's mean irradiance (what the filter
+ * of its children reads) is 3.6x its centroid's (both by quadrature);
+ * over 8000 seeds the spread estimate's mean reads the plate's mean, to
+ * its noise (about 1%). A fixed pairing of points and light-tree strata
+ * read 4.8% high on this plate's cousin, rays started off the surface
+ * 2.8% high. */
+static void test_emitter_spread(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  gi_material glow = {.albedo = {0, 0, 0}, .emission = {1, 1, 1}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m), emat = gi_mesh_builder_add_material(b, &glow);
+  const double p0 = -0.45, p1 = 0.45, e0 = -0.45, e1 = -0.25, y = 0.35, h = 0.2;
+  double A[3] = {p0, y, p0}, B[3] = {p0, y, p1}, C[3] = {p1, y, p1}, D[3] = {p1, y, p0};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  /* Facing down: its winding normal is -y. */
+  double EA[3] = {e0, y + h, e0}, EB[3] = {e1, y + h, e0}, EC[3] = {e1, y + h, e1}, ED[3] = {e0, y + h, e1};
+  gi_mesh_builder_add_quad(b, EA, EB, EC, ED, emat);
+  /* Two specks that put the local origin at (0.5, 0.5, 0.5): the plate is
+   * in cell (-1, -1, -1) of 1 m, the window in the cell above it. */
+  for (int k = 0; k < 2; k++) {
+    double c = k ? 2.0 : -1.0, e = k ? -0.01 : 0.01; /* inward, so c stays the bound */
+    double T0[3] = {c, c, c}, T1[3] = {c + e, c, c}, T2[3] = {c, c, c + e}, T3[3] = {c + e / 2, c, c + e / 2};
+    gi_mesh_builder_add_quad(b, T0, T1, T3, T2, mat);
+  }
+  gi_scene *s = tu_build(b, "window", NULL, 0);
+  assert_true(s->origin[0] == 0.5 && s->origin[1] == 0.5 && s->origin[2] == 0.5);
+  assert_int_equal(s->num_emitters, 2);
+  int64_t cell[3] = {-1, -1, -1};
+  gi_vgeo g;
+  memset(&g, 0, sizeof g);
+  for (size_t t = 0; t < s->num_triangles; t++) {
+    float tv[3][3];
+    for (int q = 0; q < 3; q++) memcpy(tv[q], &s->vertices[3 * s->indices[3 * t + q]], sizeof tv[q]);
+    gi__voxel_add_tri(&g, 1.0, cell, (const float(*)[3])tv, &m);
+  }
+  assert_true(fabsf(g.area - 0.81f) < 1e-4f);
+  for (int a = 0; a < 3; a++) g.centroid[a] /= g.area;
+  flat_group(&g);
+  /* The plate's mean irradiance and its centroid's. */
+  const int n = 60;
+  double mean_ref = 0;
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j < n; j++)
+      mean_ref += under_square(p0 + (i + 0.5) * (p1 - p0) / n, p0 + (j + 0.5) * (p1 - p0) / n, h, e0, e1);
+  mean_ref /= n * n;
+  double centre = under_square(0, 0, h, e0, e1);
+  enum { M = 16, SEEDS = 8000 };
+  gi_near_scratch ns = {0};
+  double mean = 0;
+  for (int i = 0; i < SEEDS; i++) {
+    uint64_t rng = 0x9e3779b97f4a7c15ull * (uint64_t)(i + 1), rays = 0;
+    float E[GI_VOX_FACES][3] = {{0}};
+    gi__near_reset(&ns);
+    assert_int_equal(gi__spread_emitters(s, &g, 1.0, cell, M, &rng, &ns, E, &rays), 1);
+    assert_true(rays <= 3 * M);
+    assert_true(E[1][0] == 0); /* nothing lights the plate's underside */
+    mean += E[0][0] / SEEDS;
+  }
+  printf("emitter spread: plate mean %.5f (quadrature %.5f, its centroid's %.5f)\n", mean, mean_ref, centre);
+  assert_true(mean_ref > 3 * centre); /* the centroid is no estimate of the mean here */
+  assert_true(fabs(mean / mean_ref - 1) < 0.04);
+  gi__near_free(&ns);
+  gi_scene_release(s);
+}
+
 /* A 0.2 m slab under a sky of radiance 1, both of its faces inside one 1 m
  * voxel: the voxel's upward side starts its shadow rays at the top face,
  * not between the faces (inside the slab, where every ray met the top
@@ -531,6 +612,7 @@ int main(void) {
       cmocka_unit_test(test_sun_pieces),
       cmocka_unit_test(test_sun_pieces_bake),
       cmocka_unit_test(test_sky_spread),
+      cmocka_unit_test(test_emitter_spread),
       cmocka_unit_test(test_thin_slab),
       cmocka_unit_test(test_turned_facade),
   };

@@ -17,6 +17,7 @@
 typedef struct {
   struct gi_cascade *c;
   const gi_light_plan *lp;
+  gi_light_plan lp_other; /* lp without the emitters (a voxel that spread them) */
   int d;
   const uint32_t *slots; /* the voxels to light (a level's occ list, or a move's new voxels) */
   uint64_t seed;
@@ -236,10 +237,25 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     gi__near_reset(&ib.ns);
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
                                                     (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
-    int n = gi__light_samples(c->scene, ic->lp, g->centroid, &rng, ib.all, ic->cap);
+    /* A coarse voxel with an emitter near takes the emitters' light over its
+     * surface when it can (gi__spread_emitters); then its centroids sample
+     * the other lights only. */
+    const gi_light_plan *lp = ic->lp;
+    int spread = 0;
+    if (ic->d >= GI_EMIT_SPREAD_FROM && lp->emissive && c->scene->num_emitters &&
+        gi__light_tree_within(c->scene, g->centroid, GI_EMIT_SPREAD_REACH * voxel)) {
+      float Ee[GI_VOX_FACES][3] = {{0}};
+      int r = gi__spread_emitters(c->scene, g, ib.sz, cell, lp->emit_samples, &rng, &ib.ns, Ee, &ib.near_rays);
+      if (r < 0) ib.oom = 1;
+      spread = r > 0 && r == (1 << g->groups) - 1;
+      if (spread)
+        for (int f = 0; f < GI_VOX_FACES; f++)
+          for (int k = 0; k < 3; k++) Es[f][k] += Ee[f][k];
+    }
+    int n = gi__light_samples(c->scene, spread ? &ic->lp_other : lp, g->centroid, &rng, ib.all, ic->cap);
     near_lights(c->scene, g, voxel, ic->d, n, &ib, &rng, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
-    rays += emitter_rays(ic, g, voxel, &rng, Es);
+    if (!spread) rays += emitter_rays(ic, g, voxel, &rng, Es);
     gi__face_light(g, (const float(*)[3])Es, gi__direct(L, slot));
     memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
   }
@@ -352,7 +368,8 @@ gi_result gi__inject_slots(struct gi_cascade *c, const gi_quality *q, int d, con
                            gi_error_info *err) {
   gi_light_plan lp = gi__light_plan(&c->report, q->light_samples);
   int cap = gi__light_sample_cap(c->scene, &lp);
-  inject_ctx ic = {.c = c, .lp = &lp, .d = d, .slots = slots, .seed = q->seed, .cap = cap};
+  inject_ctx ic = {.c = c, .lp = &lp, .lp_other = lp, .d = d, .slots = slots, .seed = q->seed, .cap = cap};
+  ic.lp_other.emissive = 0;
   atomic_init(&ic.rays, 0);
   atomic_init(&ic.failed, 0);
   int cancelled = gi__parallel_for_cancel(n, 32, q->threads, inject_range, &ic, &ic.failed, c->cancel);

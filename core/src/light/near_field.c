@@ -14,7 +14,9 @@
  * area: a coarse voxel's pieces are its children's pieces, so its own
  * light and its children's filtered light agree. The sun on a coarse
  * voxel is lit over its pieces for the same reason (gi__spread_light):
- * there the centroid's one shadow ray is the error, not 1/r^2. */
+ * there the centroid's one shadow ray is the error, not 1/r^2. So are
+ * the emitters (gi__spread_emitters): across a street of lit windows a
+ * coarse voxel's centroid is no measure of its surface's light. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -204,6 +206,20 @@ static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const in
   return 0;
 }
 
+/* Each group side's flux over the group's area (wsum, the pieces' shares)
+ * into Es; returns the groups that have area. */
+static int sides_from_flux(const gi_vgeo *g, const float wsum[GI_VOX_GROUPS], const float flux[][2][3],
+                           float Es[GI_VOX_FACES][3]) {
+  int mask = 0;
+  for (int h = 0; h < g->groups; h++) {
+    if (!(wsum[h] > 0)) continue;
+    mask |= 1 << h;
+    for (int sd = 0; sd < 2; sd++)
+      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd][k] / wsum[h];
+  }
+  return mask;
+}
+
 int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
                      int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
   if (m < 1) return 0;
@@ -252,13 +268,119 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
    * the filter of the voxel's children weigh it. Counting only the pieces
    * wound toward a side (the side centroid's rule) put the drive's worst
    * shift back to 7.3% (sun alone; 0.64% this way). */
-  const float *wsum = ns->wsum;
-  int mask = 0;
-  for (int h = 0; h < g->groups; h++) {
-    if (!(wsum[h] > 0)) continue;
-    mask |= 1 << h;
-    for (int sd = 0; sd < 2; sd++)
-      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd][k] / wsum[h];
+  return sides_from_flux(g, ns->wsum, (const float(*)[2][3])flux, Es);
+}
+
+/* A random permutation of 0..m-1 into perm (Fisher-Yates). */
+static void shuffle(int *perm, int m, uint64_t *rng) {
+  for (int j = 0; j < m; j++) perm[j] = j;
+  for (int j = m - 1; j > 0; j--) {
+    int r = (int)(gi__u01(rng) * (float)(j + 1));
+    if (r > j) r = j;
+    int t = perm[j];
+    perm[j] = perm[r], perm[r] = t;
   }
-  return mask;
+}
+
+/* A point of stratum k of m in [0, 1). */
+static float stratum(int k, int m, uint64_t *rng) {
+  return gi__minf(((float)k + gi__u01(rng)) / (float)m, 0.99999994f);
+}
+
+int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], int m, uint64_t *rng,
+                        gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
+  if (m < 1 || s->num_emitters == 0) return 0;
+  if (m > GI_MAX_EMIT_POINTS) m = GI_MAX_EMIT_POINTS;
+  if (voxel_tris(s, sz, cell, ns)) return -1;
+  if (ns->count == 0 || ns->count > SUN_MAX_TRIS) return 0;
+  if (voxel_pieces(s, g, sz, cell, ns)) return -1;
+  float total = ns->total;
+  if (ns->npieces == 0 || !(total > 0)) return 0;
+  float corner[3];
+  for (int a = 0; a < 3; a++) corner[a] = (float)(cell[a] * sz);
+  float flux[GI_VOX_GROUPS][2][3] = {{{0}}}, off = gi__shadow_offset((float)sz), wpt = total / (float)m;
+  float rot = gi__u01(rng), rot2 = gi__u01(rng);
+  /* Point j's pick takes stratum perm[j] of the light tree's u, perm a
+   * random permutation (Latin hypercube): the picks stay stratified and
+   * the pairing of place and stratum is random. A fixed pairing (a stride,
+   * as the sky's) is biased where the light depends on both, as a window's
+   * does on where the point and the window's sample lie: +4.8% at 16
+   * samples over test_emitter_spread's plate. The same for the place on
+   * the window (pw) and the cosine rays' two dimensions (pu, pv). With one
+   * unstratified ray per point the spread read noisier than the
+   * centroid's 16 stratified ones, and a street probe jumped more at grid
+   * shifts (1.6% against 0.7%). */
+  int perm[GI_MAX_EMIT_POINTS], pw[GI_MAX_EMIT_POINTS], pu[GI_MAX_EMIT_POINTS], pv[GI_MAX_EMIT_POINTS];
+  shuffle(perm, m, rng), shuffle(pw, m, rng), shuffle(pu, m, rng), shuffle(pv, m, rng);
+  size_t i = 0, faced = SIZE_MAX;
+  int ahead[2] = {0, 0};
+  for (int j = 0; j < m; j++) {
+    float u = ((float)j + rot) / (float)m * total;
+    while (i + 1 < ns->npieces && ns->pieces[i].cum < u) i++;
+    const gi_piece *pc = &ns->pieces[i];
+    float lo = pc->cum - pc->area, n0[3], pt[3];
+    for (int k = 0; k < 3; k++) n0[k] = pc->A[k] / pc->area;
+    if (faced != i) {
+      /* A side of the piece's plane that no emitter lies in front of finds
+       * none: its cosine rays are skipped (a box's outside, a floor's
+       * underside). One test per piece: it holds on the whole plane. */
+      float nn[3], p0[3];
+      for (int k = 0; k < 3; k++) nn[k] = -n0[k], p0[k] = pc->v[0][k] + corner[k];
+      ahead[0] = gi__light_tree_ahead(s, p0, n0), ahead[1] = gi__light_tree_ahead(s, p0, nn);
+      faced = i;
+    }
+    polygon_point((const float(*)[3])pc->v, pc->n, pc->area, gi__minf(gi__maxf((u - lo) / pc->area, 0.f), 0.99999f),
+                  gi__radical2_rot((uint32_t)j, rot2), pt);
+    for (int k = 0; k < 3; k++) pt[k] += corner[k];
+    float E[2][3] = {{0}}; /* irradiance on the side n0 faces (0) and the other (1) */
+    /* One light sample, weighed against the cosine rays below (one per side). */
+    gi_lsample l;
+    double ul = ((double)perm[j] + gi__u01(rng)) / (double)m;
+    if (gi__emitter_sample_one(s, pt, ul, stratum(pw[j], m, rng), &l)) {
+      float cw = gi__dot(n0, l.w);
+      if (cw != 0) {
+        int sd = cw > 0 ? 0 : 1;
+        float org[3], dir[3], len, tn = 0;
+        for (int k = 0; k < 3; k++) org[k] = pt[k] + (sd ? -off : off) * n0[k];
+        for (int k = 0; k < 3; k++) dir[k] = pt[k] + l.dist * l.w[k] - org[k];
+        len = gi__len(dir);
+        if (len > 0) {
+          for (int k = 0; k < 3; k++) dir[k] /= len;
+          float tf = len * (1.f - GI_SHADOW_SHORTEN);
+          uint8_t vis = 1;
+          gi__occluded(s, 1, org, dir, &tn, &tf, &vis);
+          (*rays)++;
+          float f = gi__mis_light(l.mpl, fabsf(cw) / GI_PI_F, 0) * fabsf(cw);
+          if (vis)
+            for (int k = 0; k < 3; k++) E[sd][k] += f * l.V[k];
+        }
+      }
+    }
+    /* A cosine-weighted ray on each side: near, large emitters (inject.c).
+     * It leaves from the point itself and skips the first `off` of its
+     * way (it climbs away from the piece's plane, so that plane cannot
+     * stop it): started off the surface, it measured the light `off`
+     * nearer the window than the point, +9% under a window 0.1 voxel away. */
+    for (int sd = 0; sd < 2; sd++) {
+      float n[3], t[3], b[3], w[3], V[3];
+      for (int k = 0; k < 3; k++) n[k] = (sd ? -1.f : 1.f) * n0[k];
+      gi__basis(n, t, b);
+      float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
+      if (!ahead[sd]) continue; /* its numbers drawn all the same: the next ray's stay as they were */
+      float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
+      for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
+      (*rays)++;
+      if (gi__emitter_ray(s, pt, pt, w, off, 1, z / GI_PI_F, 0, V))
+        for (int k = 0; k < 3; k++) E[sd][k] += V[k] * z;
+    }
+    for (int h = 0; h < g->groups; h++) {
+      if (!(pc->share[h] > 0)) continue;
+      int gs = gi__dot(g->u.fin.orient[h], n0) >= 0 ? 0 : 1; /* the group side n0 faces */
+      for (int k = 0; k < 3; k++) {
+        flux[h][gs][k] += pc->share[h] * wpt * E[0][k];
+        flux[h][gs ^ 1][k] += pc->share[h] * wpt * E[1][k];
+      }
+    }
+  }
+  return sides_from_flux(g, ns->wsum, (const float(*)[2][3])flux, Es);
 }

@@ -265,6 +265,47 @@ int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm
   return 0;
 }
 
+int gi__light_tree_within(const gi_scene *s, const float p[3], float r) {
+  if (s->num_lnodes == 0) return 0;
+  uint32_t stack[GI_LT_FACE_BUDGET];
+  int top = 0, visits = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const gi_light_node *n = &s->ltree[stack[--top]];
+    if (++visits > GI_LT_FACE_BUDGET) return 1;
+    float d2 = 0;
+    for (int k = 0; k < 3; k++) {
+      float e = p[k] < n->lo[k] ? n->lo[k] - p[k] : p[k] > n->hi[k] ? p[k] - n->hi[k] : 0.f;
+      d2 += e * e;
+    }
+    if (!(d2 <= r * r)) continue;
+    if (n->slot != UINT32_MAX) return 1;
+    if (top + 2 > GI_LT_FACE_BUDGET) return 1;
+    stack[top++] = n->child;
+    stack[top++] = n->child + 1;
+  }
+  return 0;
+}
+
+int gi__light_tree_ahead(const gi_scene *s, const float o[3], const float nrm[3]) {
+  if (s->num_lnodes == 0) return 0;
+  uint32_t stack[GI_LT_FACE_BUDGET];
+  int top = 0, visits = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const gi_light_node *n = &s->ltree[stack[--top]];
+    if (++visits > GI_LT_FACE_BUDGET) return 1;
+    float ahead = 0;
+    for (int k = 0; k < 3; k++) ahead += nrm[k] * ((nrm[k] > 0 ? n->hi[k] : n->lo[k]) - o[k]);
+    if (!(ahead > 0)) continue;
+    if (n->slot != UINT32_MAX) return 1;
+    if (top + 2 > GI_LT_FACE_BUDGET) return 1;
+    stack[top++] = n->child;
+    stack[top++] = n->child + 1;
+  }
+  return 0;
+}
+
 /* The two floats of a pair's field in lanes 0 and 1 (2 and 3: zero). */
 static inline __m128 load2(const float v[2]) {
   return _mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)v);

@@ -104,12 +104,10 @@ static int sky_samples(const gi_light *l, int m, const float up[3], uint64_t *rn
   return n;
 }
 
-/* Sample j of m over the emitters: a triangle picked by the light tree
- * (power and distance, stratified in j), a point on it. 0 when it sends
- * nothing to p. */
-static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uint64_t *rng, float rot2,
-                          gi_lt_memo *memo, gi_lsample *q) {
-  double u = ((double)j + gi__u01(rng)) / (double)m;
+/* The emitter sample that u picks (light tree) and, with what is left of
+ * u and r2, the point on it; V holds 1 / m of the estimate. */
+static int emitter_at(const gi_scene *s, double u, float r2, int m, const float p[3], gi_lt_memo *memo,
+                      gi_lsample *q) {
   float pt, ur;
   uint32_t slot = gi__light_tree_pick_memo(s, p, u, &pt, &ur, memo);
   if (!(pt > 0)) return 0;
@@ -117,9 +115,8 @@ static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uin
   const float *A = eg->v[0], *B = eg->v[1], *C = eg->v[2];
   /* The pick's leftover u places the point: strata that share a triangle
    * spread over it instead of landing at random (Cornell's direct error at
-   * the probes 0.72% from 1.88%). Across it, the radical inverse of j:
-   * the points a triangle gets are stratified in both directions. */
-  float r1 = ur, r2 = gi__radical2_rot((uint32_t)j, rot2);
+   * the probes 0.72% from 1.88%). */
+  float r1 = ur;
   float sr = sqrtf(r1), ba = 1 - sr, bb = sr * (1 - r2), bc = sr * r2;
   float e1[3], e2[3], ng[3], y[3], v[3];
   for (int k = 0; k < 3; k++) {
@@ -147,6 +144,21 @@ static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uin
   q->dist = r;
   q->fx = GI_FX_EMISSIVE;
   return 1;
+}
+
+/* Sample j of m over the emitters: a triangle picked by the light tree
+ * (power and distance, stratified in j), a point on it. 0 when it sends
+ * nothing to p. */
+static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uint64_t *rng, float rot2,
+                          gi_lt_memo *memo, gi_lsample *q) {
+  double u = ((double)j + gi__u01(rng)) / (double)m;
+  /* Across the triangle, the radical inverse of j: the points a triangle
+   * gets are stratified in both directions. */
+  return emitter_at(s, u, gi__radical2_rot((uint32_t)j, rot2), m, p, memo, q);
+}
+
+int gi__emitter_sample_one(const gi_scene *s, const float p[3], double u, float r2, gi_lsample *q) {
+  return s->num_emitters > 0 && emitter_at(s, u, r2, 1, p, NULL, q);
 }
 
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,

@@ -78,6 +78,13 @@ float gi__light_tree_prob(const gi_scene *s, const float p[3], uint32_t slot);
  * take more than GI_LT_FACE_BUDGET nodes. Thread-safe (reads the tree). */
 #define GI_LT_FACE_BUDGET 16
 int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm[3]);
+/* Whether some emitter's box lies within distance r of p; conservative
+ * (1 when telling would take more than GI_LT_FACE_BUDGET nodes). Thread-safe. */
+int gi__light_tree_within(const gi_scene *s, const float p[3], float r);
+/* Whether some emitter's box reaches in front of the plane through o with
+ * normal nrm: the same answer for every point of that plane (no facing
+ * test), conservative, at most GI_LT_FACE_BUDGET nodes. Thread-safe. */
+int gi__light_tree_ahead(const gi_scene *s, const float o[3], const float nrm[3]);
 /* Which light kinds to sample, and how many rays for sky and emitters. */
 typedef struct gi_light_plan {
   int sun, local, sky, emissive;
@@ -134,6 +141,10 @@ void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float 
  * pn (a thin solid's two faces in one voxel). */
 void gi__shadow_rays_sided(const gi_scene *s, const float pp[3], const float pn[3], const float *n, float voxel,
                            const gi_lsample *ls, int count, gi_ray_scratch *sc);
+/* One emitter sample for point p (the whole estimate in V, mpl for one
+ * sample): u in [0, 1) picks the emitter by the light tree, what is left
+ * of it and r2 in [0, 1) the point on it. 0 when it sends nothing to p. */
+int gi__emitter_sample_one(const gi_scene *s, const float p[3], double u, float r2, gi_lsample *q);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);
