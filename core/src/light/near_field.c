@@ -220,16 +220,26 @@ static int sides_from_flux(const gi_vgeo *g, const float wsum[GI_VOX_GROUPS], co
   return mask;
 }
 
-int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
-                     int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
-  if (m < 1) return 0;
+/* The voxel's pieces for spreading light over them, and its corner: 1
+ * when ready, 0 when it has none or too many triangles (the caller
+ * samples at its centroids), -1 when out of memory. */
+static int spread_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], gi_near_scratch *ns,
+                         float corner[3]) {
   if (voxel_tris(s, sz, cell, ns)) return -1;
   if (ns->count == 0 || ns->count > SUN_MAX_TRIS) return 0;
   if (voxel_pieces(s, g, sz, cell, ns)) return -1;
-  float total = ns->total;
-  if (ns->npieces == 0 || !(total > 0)) return 0;
-  float corner[3];
+  if (ns->npieces == 0 || !(ns->total > 0)) return 0;
   for (int a = 0; a < 3; a++) corner[a] = (float)(cell[a] * sz);
+  return 1;
+}
+
+int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
+                     int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
+  if (m < 1) return 0;
+  float corner[3];
+  int ready = spread_pieces(s, g, sz, cell, ns, corner);
+  if (ready <= 0) return ready;
+  float total = ns->total;
   /* P points over the surface, stratified by area along the pieces and
    * across each; each point's ray says whether its piece sees its sample's
    * light there. Each point stands for total / P of the area. */
@@ -291,13 +301,10 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
                         gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
   if (m < 1 || s->num_emitters == 0) return 0;
   if (m > GI_MAX_EMIT_POINTS) m = GI_MAX_EMIT_POINTS;
-  if (voxel_tris(s, sz, cell, ns)) return -1;
-  if (ns->count == 0 || ns->count > SUN_MAX_TRIS) return 0;
-  if (voxel_pieces(s, g, sz, cell, ns)) return -1;
-  float total = ns->total;
-  if (ns->npieces == 0 || !(total > 0)) return 0;
   float corner[3];
-  for (int a = 0; a < 3; a++) corner[a] = (float)(cell[a] * sz);
+  int ready = spread_pieces(s, g, sz, cell, ns, corner);
+  if (ready <= 0) return ready;
+  float total = ns->total;
   float flux[GI_VOX_GROUPS][2][3] = {{{0}}}, off = gi__shadow_offset((float)sz), wpt = total / (float)m;
   float rot = gi__u01(rng), rot2 = gi__u01(rng);
   /* Point j's pick takes stratum perm[j] of the light tree's u, perm a

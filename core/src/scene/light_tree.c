@@ -239,16 +239,26 @@ static float facing_cos(const gi_light_node *n, const float v[3], float d2, floa
 /* Whether some emitter under node n may lie in front of plane (o, nrm)
  * and show o its front: the box reaches past the plane, and the facing
  * bound admits o. Conservative: 1 when unsure. */
-static int node_may_face(const gi_light_node *n, const float o[3], const float nrm[3]) {
-  float ahead = 0, v[3], d2, h2;
+/* Whether node n's box reaches past plane (o, nrm) on nrm's side. */
+static int node_ahead(const gi_light_node *n, const float *o, const float *nrm) {
+  float ahead = 0;
   for (int k = 0; k < 3; k++) ahead += nrm[k] * ((nrm[k] > 0 ? n->hi[k] : n->lo[k]) - o[k]);
-  if (!(ahead > 0)) return 0;
+  return ahead > 0;
+}
+
+static int node_may_face(const gi_light_node *n, const float *o, const float *nrm) {
+  float v[3], d2, h2;
+  if (!node_ahead(n, o, nrm)) return 0;
   node_offset(n, o, v, &d2, &h2);
   /* A small margin: float rounding must not hide a grazing emitter. */
   return facing_cos(n, v, d2, h2) > -1e-4f;
 }
 
-int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm[3]) {
+/* Whether some leaf under the root passes `keep` (which a node must pass
+ * for any leaf under it to): a depth-first walk of at most
+ * GI_LT_FACE_BUDGET nodes, 1 (may) when that is not enough to tell. */
+static inline int any_leaf(const gi_scene *s, int (*keep)(const gi_light_node *, const float *, const float *),
+                           const float *a, const float *b) {
   if (s->num_lnodes == 0) return 0;
   uint32_t stack[GI_LT_FACE_BUDGET];
   int top = 0, visits = 0;
@@ -256,7 +266,7 @@ int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm
   while (top > 0) {
     const gi_light_node *n = &s->ltree[stack[--top]];
     if (++visits > GI_LT_FACE_BUDGET) return 1;
-    if (!node_may_face(n, o, nrm)) continue;
+    if (!keep(n, a, b)) continue;
     if (n->slot != UINT32_MAX) return 1;
     if (top + 2 > GI_LT_FACE_BUDGET) return 1;
     stack[top++] = n->child;
@@ -265,45 +275,24 @@ int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm
   return 0;
 }
 
-int gi__light_tree_within(const gi_scene *s, const float p[3], float r) {
-  if (s->num_lnodes == 0) return 0;
-  uint32_t stack[GI_LT_FACE_BUDGET];
-  int top = 0, visits = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const gi_light_node *n = &s->ltree[stack[--top]];
-    if (++visits > GI_LT_FACE_BUDGET) return 1;
-    float d2 = 0;
-    for (int k = 0; k < 3; k++) {
-      float e = p[k] < n->lo[k] ? n->lo[k] - p[k] : p[k] > n->hi[k] ? p[k] - n->hi[k] : 0.f;
-      d2 += e * e;
-    }
-    if (!(d2 <= r * r)) continue;
-    if (n->slot != UINT32_MAX) return 1;
-    if (top + 2 > GI_LT_FACE_BUDGET) return 1;
-    stack[top++] = n->child;
-    stack[top++] = n->child + 1;
-  }
-  return 0;
+int gi__light_tree_may_face(const gi_scene *s, const float o[3], const float nrm[3]) {
+  return any_leaf(s, node_may_face, o, nrm);
 }
+
+/* Node n's box within distance *r of p. */
+static int node_within(const gi_light_node *n, const float *p, const float *r) {
+  float d2 = 0;
+  for (int k = 0; k < 3; k++) {
+    float e = p[k] < n->lo[k] ? n->lo[k] - p[k] : p[k] > n->hi[k] ? p[k] - n->hi[k] : 0.f;
+    d2 += e * e;
+  }
+  return d2 <= *r * *r;
+}
+
+int gi__light_tree_within(const gi_scene *s, const float p[3], float r) { return any_leaf(s, node_within, p, &r); }
 
 int gi__light_tree_ahead(const gi_scene *s, const float o[3], const float nrm[3]) {
-  if (s->num_lnodes == 0) return 0;
-  uint32_t stack[GI_LT_FACE_BUDGET];
-  int top = 0, visits = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const gi_light_node *n = &s->ltree[stack[--top]];
-    if (++visits > GI_LT_FACE_BUDGET) return 1;
-    float ahead = 0;
-    for (int k = 0; k < 3; k++) ahead += nrm[k] * ((nrm[k] > 0 ? n->hi[k] : n->lo[k]) - o[k]);
-    if (!(ahead > 0)) continue;
-    if (n->slot != UINT32_MAX) return 1;
-    if (top + 2 > GI_LT_FACE_BUDGET) return 1;
-    stack[top++] = n->child;
-    stack[top++] = n->child + 1;
-  }
-  return 0;
+  return any_leaf(s, node_ahead, o, nrm);
 }
 
 /* The two floats of a pair's field in lanes 0 and 1 (2 and 3: zero). */
