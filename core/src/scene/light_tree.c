@@ -236,9 +236,6 @@ static float facing_cos(const gi_light_node *n, const float v[3], float d2, floa
   return cos_t * cos_s + sin_t * sin_s;         /* cos(theta - theta_o - theta_u) */
 }
 
-/* Whether some emitter under node n may lie in front of plane (o, nrm)
- * and show o its front: the box reaches past the plane, and the facing
- * bound admits o. Conservative: 1 when unsure. */
 /* Whether node n's box reaches past plane (o, nrm) on nrm's side. */
 static int node_ahead(const gi_light_node *n, const float *o, const float *nrm) {
   float ahead = 0;
@@ -246,6 +243,9 @@ static int node_ahead(const gi_light_node *n, const float *o, const float *nrm) 
   return ahead > 0;
 }
 
+/* Whether some emitter under node n may lie in front of plane (o, nrm)
+ * and show o its front: the box reaches past the plane, and the facing
+ * bound admits o. Conservative: 1 when unsure. */
 static int node_may_face(const gi_light_node *n, const float *o, const float *nrm) {
   float v[3], d2, h2;
   if (!node_ahead(n, o, nrm)) return 0;
