@@ -87,9 +87,10 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
 #define GI_MAX_EMIT_POINTS 512
 /* The emitters' light on a coarse voxel (level >= GI_EMIT_SPREAD_FROM) from
  * m points spread over its surface by area, each with one light sample
- * (the light tree picks from that point) and one cosine-weighted ray per
- * side, weighed by the balance heuristic, instead of m samples and m
- * rays per side taken at its groups' centroids. Across a street of lit
+ * (m stratified light-tree picks from the voxel's centroid, one per
+ * point) and one cosine-weighted ray per side, weighed by the balance
+ * heuristic, instead of m samples and m rays per side taken at its
+ * groups' centroids. Across a street of lit
  * windows the centroid's irradiance is not the surface's mean, and the
  * filter of the voxel's children takes the mean: a grid shift that
  * turned one into the other moved a probe on the 900 m city's drive by

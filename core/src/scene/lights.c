@@ -104,19 +104,13 @@ static int sky_samples(const gi_light *l, int m, const float up[3], uint64_t *rn
   return n;
 }
 
-/* The emitter sample that u picks (light tree) and, with what is left of
- * u and r2, the point on it; V holds 1 / m of the estimate. */
-static int emitter_at(const gi_scene *s, double u, float r2, int m, const float p[3], gi_lt_memo *memo,
-                      gi_lsample *q) {
-  float pt, ur;
-  uint32_t slot = gi__light_tree_pick_memo(s, p, u, &pt, &ur, memo);
+/* The sample of emitter slot (picked with probability pt) that r1, r2
+ * place on it, seen from p; V holds 1 / m of the estimate. */
+static int emitter_point(const gi_scene *s, uint32_t slot, float pt, float r1, float r2, int m, const float p[3],
+                         gi_lsample *q) {
   if (!(pt > 0)) return 0;
   const gi_emitter_geo *eg = &s->emitter_geo[slot];
   const float *A = eg->v[0], *B = eg->v[1], *C = eg->v[2];
-  /* The pick's leftover u places the point: strata that share a triangle
-   * spread over it instead of landing at random (Cornell's direct error at
-   * the probes 0.72% from 1.88%). */
-  float r1 = ur;
   float sr = sqrtf(r1), ba = 1 - sr, bb = sr * (1 - r2), bc = sr * r2;
   float e1[3], e2[3], ng[3], y[3], v[3];
   for (int k = 0; k < 3; k++) {
@@ -146,6 +140,18 @@ static int emitter_at(const gi_scene *s, double u, float r2, int m, const float 
   return 1;
 }
 
+/* The emitter sample that u picks (light tree, from p) and, with what is
+ * left of u and r2, the point on it; V holds 1 / m of the estimate. The
+ * pick's leftover u places the point: strata that share a triangle spread
+ * over it instead of landing at random (Cornell's direct error at the
+ * probes 0.72% from 1.88%). */
+static int emitter_at(const gi_scene *s, double u, float r2, int m, const float p[3], gi_lt_memo *memo,
+                      gi_lsample *q) {
+  float pt, ur;
+  uint32_t slot = gi__light_tree_pick_memo(s, p, u, &pt, &ur, memo);
+  return emitter_point(s, slot, pt, ur, r2, m, p, q);
+}
+
 /* Sample j of m over the emitters: a triangle picked by the light tree
  * (power and distance, stratified in j), a point on it. 0 when it sends
  * nothing to p. */
@@ -157,8 +163,19 @@ static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uin
   return emitter_at(s, u, gi__radical2_rot((uint32_t)j, rot2), m, p, memo, q);
 }
 
-int gi__emitter_sample_one(const gi_scene *s, const float p[3], double u, float r2, gi_lsample *q) {
-  return s->num_emitters > 0 && emitter_at(s, u, r2, 1, p, NULL, q);
+int gi__emitter_picks(const gi_scene *s, const float c[3], int m, uint64_t *rng, gi_emitter_pick *out) {
+  if (s->num_emitters == 0) return 0;
+  gi_lt_memo memo;
+  memset(memo.node, 0, sizeof memo.node);
+  for (int k = 0; k < m; k++) {
+    double u = ((double)k + gi__u01(rng)) / (double)m;
+    out[k].slot = gi__light_tree_pick_memo(s, c, u, &out[k].prob, &out[k].u_rest, &memo);
+  }
+  return 1;
+}
+
+int gi__emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float r2, const float p[3], gi_lsample *q) {
+  return emitter_point(s, pk->slot, pk->prob, pk->u_rest, r2, 1, p, q);
 }
 
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,

@@ -141,10 +141,19 @@ void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float 
  * pn (a thin solid's two faces in one voxel). */
 void gi__shadow_rays_sided(const gi_scene *s, const float pp[3], const float pn[3], const float *n, float voxel,
                            const gi_lsample *ls, int count, gi_ray_scratch *sc);
-/* One emitter sample for point p (the whole estimate in V, mpl for one
- * sample): u in [0, 1) picks the emitter by the light tree, what is left
- * of it and r2 in [0, 1) the point on it. 0 when it sends nothing to p. */
-int gi__emitter_sample_one(const gi_scene *s, const float p[3], double u, float r2, gi_lsample *q);
+/* An emitter picked by the light tree: its slot, the probability of the
+ * pick and what is left of the pick's u (uniform in [0, 1) again). */
+typedef struct gi_emitter_pick {
+  uint32_t slot;
+  float prob, u_rest;
+} gi_emitter_pick;
+/* m picks from point c, stratum k of u into out[k], sharing the walk
+ * down the tree (in stratum order); 0 when the scene has no emitter. */
+int gi__emitter_picks(const gi_scene *s, const float c[3], int m, uint64_t *rng, gi_emitter_pick *out);
+/* The sample of pick pk (made from any point) at point p: the whole
+ * estimate in V and mpl for one sample, with pk's probability; u_rest
+ * and r2 place it on the triangle. 0 when it sends nothing to p. */
+int gi__emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float r2, const float p[3], gi_lsample *q);
 /* Fills out (capacity max) with samples for point p; returns the count. */
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max);
