@@ -346,10 +346,10 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
   int perm[GI_MAX_EMIT_POINTS], pw[GI_MAX_EMIT_POINTS], pu[GI_MAX_EMIT_POINTS], pv[GI_MAX_EMIT_POINTS];
   shuffle(perm, m, rng), shuffle(pw, m, rng), shuffle(pu, m, rng), shuffle(pv, m, rng);
   /* The picks are made from the voxel's centroid, m strata in one walk
-   * down the tree (a walk per point cost the city's injection 6 ms of
-   * its 208). Each point weighs its sample, and the
-   * cosine rays weigh what they find, by that same strategy's pdf, so the
-   * estimate stays unbiased; only its noise depends on the proposal. */
+   * down the tree (a walk per point cost the city's injection 6 ms of its
+   * 208). Each point weighs its sample, and the cosine rays weigh what
+   * they find, by that same strategy's pdf, so the estimate stays
+   * unbiased; only its noise depends on the proposal. */
   gi_emitter_pick picks[GI_MAX_EMIT_POINTS];
   if (!gi__emitter_picks(s, g->centroid, m, rng, picks)) return 0;
   size_t i = 0, faced = SIZE_MAX;
@@ -380,11 +380,11 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
      * stop it): started off the surface, it measured the light `off`
      * nearer the window than the point, +9% under a window 0.1 voxel away. */
     for (int sd = 0; sd < 2; sd++) {
+      float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
+      if (!ahead[sd]) continue; /* its numbers drawn all the same: the next ray's stay as they were */
       float n[3], t[3], b[3], w[3], V[3];
       for (int k = 0; k < 3; k++) n[k] = (sd ? -1.f : 1.f) * n0[k];
       gi__basis(n, t, b);
-      float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
-      if (!ahead[sd]) continue; /* its numbers drawn all the same: the next ray's stay as they were */
       float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
       for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
       (*rays)++;
