@@ -59,9 +59,14 @@ const char *tu_run(const char *cmd, int *status) {
 }
 
 struct gi_scene *tu_build(struct gi_mesh_builder *b, const char *name, const struct gi_light *lights, size_t n) {
+  return tu_build_up(b, name, GI_UP_Y, lights, n);
+}
+
+struct gi_scene *tu_build_up(struct gi_mesh_builder *b, const char *name, int up, const struct gi_light *lights,
+                             size_t n) {
   gi_scene *sc = NULL;
   gi_error_info err = {0};
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = lights, .num_lights = n};
+  gi_scene_options opt = {.up = up, .lights = lights, .num_lights = n};
   gi_result rc = gi_scene_build(b, name, &opt, &sc, &err);
   gi_mesh_builder_free(b);
   if (rc != GI_OK) fprintf(stderr, "%s build: %s\n", name, err.msg);

@@ -26,6 +26,9 @@ struct gi_light;
 /* Builds b (freed) into a y-up scene named name with n extra lights,
  * asserting it builds. Caller releases it. */
 struct gi_scene *tu_build(struct gi_mesh_builder *b, const char *name, const struct gi_light *lights, size_t n);
+/* The same with up axis `up` (a gi_up_axis value: GI_UP_Y or GI_UP_Z). */
+struct gi_scene *tu_build_up(struct gi_mesh_builder *b, const char *name, int up, const struct gi_light *lights,
+                             size_t n);
 
 /* The closed white furnace: a cube [0,size]^3 of albedo a whose walls emit
  * Le inward (test_furnace, test_hardcases). Caller releases it. */

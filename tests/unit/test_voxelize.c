@@ -27,12 +27,7 @@ static gi_scene *box_scene(double cx, double cy, double cz, double width, int co
     double hi[3] = {cx + width / 2 + off, cy + width / 2, cz + width / 2};
     gi_mesh_builder_add_box(b, lo, hi, mat);
   }
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  gi_scene_options opt = {.up = GI_UP_Y};
-  assert_int_equal(gi_scene_build(b, "boxes", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
-  return s;
+  return tu_build(b, "boxes", NULL, 0);
 }
 
 static void test_exact_counts(void **state) {
@@ -204,11 +199,8 @@ static void test_order_and_threads(void **state) {
       double lo[3] = {-30 + 10.0 * i, -30 + 10.0 * j, 0}, hi[3] = {lo[0] + 6, lo[1] + 4, 3 + (i * 7 + j * 3) % 11};
       gi_mesh_builder_add_box(b, lo, hi, mat);
     }
-  gi_scene *sc = NULL;
+  gi_scene *sc = tu_build_up(b, "street", GI_UP_Z, NULL, 0);
   gi_error_info err = {0};
-  gi_scene_options opt = {.up = GI_UP_Z};
-  assert_int_equal(gi_scene_build(b, "street", &opt, &sc, &err), GI_OK);
-  gi_mesh_builder_free(b);
   gi_cascade *cas[2] = {NULL, NULL};
   for (int t = 0; t < 2; t++) {
     gi_quality q = {.levels = 4, .res = 16, .voxel0 = 0.6, .bounces = -1, .light_samples = 1, .threads = t + 1};
