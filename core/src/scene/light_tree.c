@@ -300,29 +300,36 @@ static inline __m128 load2(const float v[2]) {
   return _mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)v);
 }
 
-/* How much each child of pair q matters to point p: power over squared
+/* How much each child of pair qa (lanes 0 and 1) and of pair qb (lanes 2
+ * and 3; NULL: zeros, dropped) matters to point p: power over squared
  * distance, times the cosine of the smallest angle at which one of its
  * emitters could face p (facing_cos; 0 when none can). Continuous in p,
- * and without trigonometry. Both children in two SSE lanes, by the
- * operations facing_cos and node_offset make, in their order (no fused
- * multiply-add in this build), so a pick is the same as one child at a
- * time. The picks of a city bake and 3000 probes took 1.5x less CPU
- * (perf, 523 -> 341 ms). Lanes 2 and 3 compute on zeros and are dropped. */
-static void pair_importance(const gi_light_pair *q, const float p[3], float out[4]) {
+ * and without trigonometry. Lane by lane, by the operations facing_cos
+ * and node_offset make, in their order (no fused multiply-add in this
+ * build), so a pair weighs the same in either half and alone. The picks
+ * of a city bake and 3000 probes took 1.5x less CPU than a child at a
+ * time (perf, 523 -> 341 ms). */
+static inline __m128 load4(const float a[2], const float *b) {
+  __m128 lo = load2(a);
+  return b ? _mm_loadh_pi(lo, (const __m64 *)b) : lo;
+}
+
+static void pairs_importance(const gi_light_pair *qa, const gi_light_pair *qb, const float p[3], float out[4]) {
+#define GI_LT_F(f) load4(qa->f, qb ? qb->f : NULL)
   __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.f);
-  __m128 vx = _mm_sub_ps(_mm_set1_ps(p[0]), load2(q->cen[0]));
-  __m128 vy = _mm_sub_ps(_mm_set1_ps(p[1]), load2(q->cen[1]));
-  __m128 vz = _mm_sub_ps(_mm_set1_ps(p[2]), load2(q->cen[2]));
+  __m128 vx = _mm_sub_ps(_mm_set1_ps(p[0]), GI_LT_F(cen[0]));
+  __m128 vy = _mm_sub_ps(_mm_set1_ps(p[1]), GI_LT_F(cen[1]));
+  __m128 vz = _mm_sub_ps(_mm_set1_ps(p[2]), GI_LT_F(cen[2]));
   __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, vx), _mm_mul_ps(vy, vy)), _mm_mul_ps(vz, vz));
-  __m128 h2 = load2(q->h2), cos_o = load2(q->cos_o), sin_o = load2(q->sin_o);
+  __m128 h2 = GI_LT_F(h2), cos_o = GI_LT_F(cos_o), sin_o = GI_LT_F(sin_o);
   /* maxf(a, b) is a > b ? a : b, which is what maxps returns. */
-  __m128 base = _mm_div_ps(load2(q->power), _mm_max_ps(_mm_max_ps(d2, h2), _mm_set1_ps(FLT_MIN)));
+  __m128 base = _mm_div_ps(GI_LT_F(power), _mm_max_ps(_mm_max_ps(d2, h2), _mm_set1_ps(FLT_MIN)));
   __m128 d = _mm_sqrt_ps(d2);
-  __m128 dot = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, load2(q->axis[0])), _mm_mul_ps(vy, load2(q->axis[1]))),
-                          _mm_mul_ps(vz, load2(q->axis[2])));
+  __m128 dot = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, GI_LT_F(axis[0])), _mm_mul_ps(vy, GI_LT_F(axis[1]))),
+                          _mm_mul_ps(vz, GI_LT_F(axis[2])));
   __m128 cos_t = _mm_div_ps(dot, d);
   __m128 sin_t = _mm_sqrt_ps(_mm_max_ps(zero, _mm_sub_ps(one, _mm_mul_ps(cos_t, cos_t))));
-  __m128 sin_u = _mm_div_ps(load2(q->h), d);
+  __m128 sin_u = _mm_div_ps(GI_LT_F(h), d);
   __m128 cos_u = _mm_sqrt_ps(_mm_max_ps(zero, _mm_sub_ps(one, _mm_mul_ps(sin_u, sin_u))));
   __m128 cos_s = _mm_sub_ps(_mm_mul_ps(cos_o, cos_u), _mm_mul_ps(sin_o, sin_u));
   __m128 sin_s = _mm_add_ps(_mm_mul_ps(sin_o, cos_u), _mm_mul_ps(cos_o, sin_u));
@@ -332,14 +339,19 @@ static void pair_importance(const gi_light_pair *q, const float p[3], float out[
                           _mm_or_ps(_mm_cmplt_ps(sin_s, zero), _mm_cmpge_ps(cos_t, cos_s)));
   cosp = _mm_or_ps(_mm_and_ps(full, one), _mm_andnot_ps(full, cosp));
   _mm_storeu_ps(out, _mm_and_ps(_mm_cmpgt_ps(cosp, zero), _mm_mul_ps(base, cosp)));
+#undef GI_LT_F
+}
+
+/* The left child's probability from two children's importance. */
+static inline double left_of(float il, float ir) {
+  return (double)il + (double)ir > 0 ? (double)il / ((double)il + (double)ir) : 0.5;
 }
 
 /* Probability of taking the left child of the node whose children are pair q. */
 static double left_prob(const gi_light_pair *q, const float p[3]) {
   float imp[4];
-  pair_importance(q, p, imp);
-  double il = imp[0], ir = imp[1];
-  return il + ir > 0 ? il / (il + ir) : 0.5;
+  pairs_importance(q, NULL, p, imp);
+  return left_of(imp[0], imp[1]);
 }
 
 uint32_t gi__light_tree_pick_memo(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest,
@@ -374,6 +386,64 @@ uint32_t gi__light_tree_pick_memo(const gi_scene *s, const float p[3], double u,
 
 uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest) {
   return gi__light_tree_pick_memo(s, p, u, prob, u_rest, NULL);
+}
+
+/* Picks per batch of gi__light_tree_picks (its buffers live on the stack). */
+enum { PICK_BATCH = 64 };
+
+/* One batch of gi__light_tree_picks: n <= PICK_BATCH picks. */
+static void picks_batch(const gi_scene *s, const float p[3], const double *u, int n, gi_emitter_pick *out) {
+  uint32_t link[PICK_BATCH];
+  double uu[PICK_BATCH], pr[PICK_BATCH], pl[PICK_BATCH];
+  int live[PICK_BATCH], head[PICK_BATCH], nl = 0;
+  uint32_t root = s->ltree[0].slot != UINT32_MAX ? GI_LT_LEAF | s->ltree[0].slot : 0;
+  for (int k = 0; k < n; k++) {
+    link[k] = root, uu[k] = u[k], pr[k] = 1;
+    if (!(root & GI_LT_LEAF)) live[nl++] = k;
+  }
+  while (nl > 0) {
+    /* The picks at one node are neighbours in u: weigh each node once. */
+    int nh = 0;
+    for (int i = 0; i < nl; i++)
+      if (i == 0 || link[live[i]] != link[live[i - 1]]) head[nh++] = i;
+    for (int j = 0; j < nh; j += 2) {
+      float imp[4];
+      const gi_light_pair *qb = j + 1 < nh ? &s->lpair[link[live[head[j + 1]]]] : NULL;
+      pairs_importance(&s->lpair[link[live[head[j]]]], qb, p, imp);
+      pl[head[j]] = left_of(imp[0], imp[1]);
+      if (qb) pl[head[j + 1]] = left_of(imp[2], imp[3]);
+    }
+    /* Each pick one step down, as gi__light_tree_pick_memo steps. */
+    int nn = 0;
+    double l = 0.5;
+    uint32_t at = UINT32_MAX; /* the node whose weight l is */
+    for (int i = 0; i < nl; i++) {
+      int k = live[i];
+      const gi_light_pair *q = &s->lpair[link[k]];
+      if (link[k] != at) at = link[k], l = pl[i];
+      if (uu[k] < l) {
+        uu[k] = uu[k] / l;
+        pr[k] *= l;
+        link[k] = q->link[0];
+      } else {
+        uu[k] = (uu[k] - l) / (1 - l);
+        pr[k] *= 1 - l;
+        link[k] = q->link[1];
+      }
+      uu[k] = uu[k] < 0 ? 0 : uu[k] >= 1 ? 0x1.fffffffffffffp-1 : uu[k];
+      if (!(link[k] & GI_LT_LEAF)) live[nn++] = k;
+    }
+    nl = nn;
+  }
+  for (int k = 0; k < n; k++) {
+    out[k].slot = link[k] & ~GI_LT_LEAF;
+    out[k].prob = (float)pr[k];
+    out[k].u_rest = (float)uu[k];
+  }
+}
+
+void gi__light_tree_picks(const gi_scene *s, const float p[3], const double *u, int m, gi_emitter_pick *out) {
+  for (int b = 0; b < m; b += PICK_BATCH) picks_batch(s, p, u + b, m - b < PICK_BATCH ? m - b : PICK_BATCH, out + b);
 }
 
 float gi__light_tree_prob(const gi_scene *s, const float p[3], uint32_t slot) {

@@ -13,6 +13,9 @@
 #include "base/internal.h"
 #include "scene/lights.h"
 
+/* Picks per gi__light_tree_picks call (their u on the stack). */
+#define GI_PICK_BATCH 64
+
 /* The fractional golden ratio: the low-discrepancy step of sky azimuths. */
 #define GI_GOLDEN 0.6180339887f
 
@@ -165,11 +168,11 @@ static int emitter_sample(const gi_scene *s, int j, int m, const float p[3], uin
 
 int gi__emitter_picks(const gi_scene *s, const float c[3], int m, uint64_t *rng, gi_emitter_pick *out) {
   if (s->num_emitters == 0) return 0;
-  gi_lt_memo memo;
-  memset(memo.node, 0, sizeof memo.node);
-  for (int k = 0; k < m; k++) {
-    double u = ((double)k + gi__u01(rng)) / (double)m;
-    out[k].slot = gi__light_tree_pick_memo(s, c, u, &out[k].prob, &out[k].u_rest, &memo);
+  double u[GI_PICK_BATCH];
+  for (int b = 0; b < m; b += GI_PICK_BATCH) {
+    int n = m - b < GI_PICK_BATCH ? m - b : GI_PICK_BATCH;
+    for (int k = 0; k < n; k++) u[k] = ((double)(b + k) + gi__u01(rng)) / (double)m;
+    gi__light_tree_picks(s, c, u, n, out + b);
   }
   return 1;
 }
@@ -200,11 +203,25 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
     }
   }
   if (lp->emissive && s->num_emitters > 0) {
-    gi_lt_memo memo;
-    memset(memo.node, 0, sizeof memo.node);
+    int m = lp->emit_samples;
     float rot2 = gi__u01(rng);
-    for (int j = 0; j < lp->emit_samples && n < max; j++)
-      n += emitter_sample(s, j, lp->emit_samples, p, rng, rot2, &memo, &out[n]);
+    if (max - n >= m) {
+      /* Room for every sample (the usual case): the picks walk the tree together. */
+      double u[GI_PICK_BATCH];
+      gi_emitter_pick pk[GI_PICK_BATCH];
+      for (int b = 0; b < m; b += GI_PICK_BATCH) {
+        int c = m - b < GI_PICK_BATCH ? m - b : GI_PICK_BATCH;
+        for (int k = 0; k < c; k++) u[k] = ((double)(b + k) + gi__u01(rng)) / (double)m;
+        gi__light_tree_picks(s, p, u, c, pk);
+        for (int k = 0; k < c; k++)
+          n += emitter_point(s, pk[k].slot, pk[k].prob, pk[k].u_rest, gi__radical2_rot((uint32_t)(b + k), rot2), m,
+                             p, &out[n]);
+      }
+    } else {
+      gi_lt_memo memo;
+      memset(memo.node, 0, sizeof memo.node);
+      for (int j = 0; j < m && n < max; j++) n += emitter_sample(s, j, m, p, rng, rot2, &memo, &out[n]);
+    }
   }
   return n;
 }

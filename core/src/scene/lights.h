@@ -150,6 +150,12 @@ typedef struct gi_emitter_pick {
 /* m picks from point c, stratum k of u into out[k], sharing the walk
  * down the tree (in stratum order); 0 when the scene has no emitter. */
 int gi__emitter_picks(const gi_scene *s, const float c[3], int m, uint64_t *rng, gi_emitter_pick *out);
+/* m picks from p, pick k at u[k] (each as gi__light_tree_pick makes it);
+ * with u ascending (stratified) the picks share their walk: the tree is
+ * walked a level at a time, each node weighed once, two nodes per vector
+ * step, so the nodes of one level overlap instead of waiting on one
+ * another. Thread-safe (reads the tree). */
+void gi__light_tree_picks(const gi_scene *s, const float p[3], const double *u, int m, gi_emitter_pick *out);
 /* The sample of pick pk (made from any point) at point p: the whole
  * estimate in V and mpl for one sample, with pk's probability; u_rest
  * and r2 place it on the triangle. 0 when it sends nothing to p. */
