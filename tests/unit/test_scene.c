@@ -959,6 +959,37 @@ static void test_light_tree(void **state) {
   gi_scene_release(s);
 }
 
+/* gi__light_tree_picks makes each pick exactly as gi__light_tree_pick
+ * does: for stratified u (ascending, over more than one batch of 64),
+ * for u in random order (picks at one node then are not neighbours), and
+ * for repeated u. Leaves the shared random sequence as it found it. */
+static void test_light_tree_picks(void **state) {
+  uint64_t saved = rng_state;
+  gi_scene *s = windows_scene();
+  enum { M = 150 };
+  int differ = 0;
+  for (int t = 0; t < 30; t++) {
+    float p[3] = {(float)(rnd() * 60 - 10 - s->origin[0]), (float)(rnd() * 30 - 5 - s->origin[1]),
+                  (float)(rnd() * 60 - 10 - s->origin[2])};
+    double u[M];
+    for (int k = 0; k < M; k++) u[k] = t % 3 == 0 ? (k + rnd()) / M : t % 3 == 1 ? rnd() : (k / 4 + 0.5) / M;
+    gi_emitter_pick pk[M];
+    gi__light_tree_picks(s, p, u, M, pk);
+    for (int k = 0; k < M; k++) {
+      float pr, ur;
+      uint32_t slot = gi__light_tree_pick(s, p, u[k], &pr, &ur);
+      assert_int_equal(pk[k].slot, slot);
+      assert_true(pk[k].prob == pr);
+      assert_true(pk[k].u_rest == ur);
+      differ += k > 0 && pk[k].slot != pk[k - 1].slot;
+    }
+  }
+  /* Not one emitter picked every time. */
+  assert_true(differ > 30 * M / 4);
+  gi_scene_release(s);
+  rng_state = saved;
+}
+
 /* gi__light_tree_may_face never says 0 where an emitter lies ahead of
  * the plane showing o its front (checked by brute force on the vertices),
  * and says 0 where everything lies behind. In this scene every triangle
@@ -1014,6 +1045,7 @@ int main(void) {
       cmocka_unit_test(test_materials_and_emitters),
       cmocka_unit_test(test_lights),
       cmocka_unit_test(test_light_tree),
+      cmocka_unit_test(test_light_tree_picks),
       cmocka_unit_test(test_light_tree_faces),
       cmocka_unit_test(test_empty_scene),
       cmocka_unit_test(test_far_origin),
