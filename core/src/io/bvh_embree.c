@@ -145,7 +145,8 @@ void gi__occluded(const struct gi_scene *s, int n, const float *org, const float
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-    rtcOccluded1M(s->rtc, &ctx, rays, (unsigned)m, sizeof(struct RTCRay));
+    if (m == 1) rtcOccluded1(s->rtc, &ctx, &rays[0]);
+    else rtcOccluded1M(s->rtc, &ctx, rays, (unsigned)m, sizeof(struct RTCRay));
     /* Embree sets tfar to -inf on a hit; disabled rays keep tfar = -1. */
     for (int i = 0; i < m; i++) visible[base + i] = !(rays[i].tfar == -INFINITY);
   }
