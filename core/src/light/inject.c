@@ -67,8 +67,9 @@ typedef struct {
 #define ROULETTE_SHARE 0.01f
 
 /* Russian roulette on the weak local-light samples of ls[0..m) (see
- * ROULETTE_SHARE; base: the light the group has already); compacts the survivors with their side, cosine and MIS weight, returns
- * how many remain. A sample that brings nothing is dropped. */
+ * ROULETTE_SHARE; base: the light the group has already); compacts the
+ * survivors with their side, cosine and MIS weight, returns how many
+ * remain. A sample that brings nothing is dropped. */
 static inline float unshadowed(const gi_lsample *ls, const inject_buf *ib, int i) {
   return (ls[i].V[0] + ls[i].V[1] + ls[i].V[2]) * ib->cosw[i] * ib->mis[i];
 }
