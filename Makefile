@@ -33,6 +33,7 @@ bake: all
 	$(BUILD)/bin/gi-bake city --exr out/city-probe.exr --vdb out/city-cascades.vdb
 
 test: all
+	@./scripts/install-deps.sh test
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
 # Benchmarks print figures; they never decide pass or fail.

@@ -1,7 +1,11 @@
 #!/bin/sh
 # Installs the Debian 12 packages the build, the tests and the tools need.
 # Idempotent: does nothing when every package is already installed.
-# Optional groups for opt-in make targets, never needed by `make test`:
+# Groups for make targets beyond the build:
+#   test      Blender, for `make test`'s lightmap round trip through it and
+#             its Cycles against our path tracer (both skip loudly only
+#             where Blender cannot be had)
+# and for the opt-in ones, never needed by `make test`:
 #   fuzz      clang and its libFuzzer runtime (make fuzz)
 #   valgrind  valgrind (make valgrind)
 #   nginx     nginx (make test-scale: tests/scale/nginx.sh)
@@ -14,11 +18,12 @@ libcurl4-openssl-dev libinih-dev libpng-dev libjpeg62-turbo-dev python3
 python3-yaml wrk gnuplot-nox"
 for group in "$@"; do
   case "$group" in
+    test) PKGS="$PKGS blender" ;;
     fuzz) PKGS="$PKGS clang-14 libclang-rt-14-dev" ;;
     valgrind) PKGS="$PKGS valgrind" ;;
     nginx) PKGS="$PKGS nginx" ;;
     slurm) PKGS="$PKGS slurm-wlm munge" ;;
-    *) echo "install-deps: unknown group '$group' (known: fuzz, valgrind, nginx, slurm)" >&2; exit 2 ;;
+    *) echo "install-deps: unknown group '$group' (known: test, fuzz, valgrind, nginx, slurm)" >&2; exit 2 ;;
   esac
 done
 missing=""
