@@ -354,6 +354,7 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
   if (!gi__emitter_picks(s, g->centroid, m, rng, picks)) return 0;
   size_t i = 0, faced = SIZE_MAX;
   int ahead[2] = {0, 0};
+  float n[2][3], t[2][3], bt[2][3]; /* per side of the piece: its normal and tangents */
   for (int j = 0; j < m; j++) {
     float u = ((float)j + rot) / (float)m * total;
     while (i + 1 < ns->npieces && ns->pieces[i].cum < u) i++;
@@ -367,6 +368,10 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
       float nn[3], p0[3];
       for (int k = 0; k < 3; k++) nn[k] = -n0[k], p0[k] = pc->v[0][k] + corner[k];
       ahead[0] = gi__light_tree_ahead(s, p0, n0), ahead[1] = gi__light_tree_ahead(s, p0, nn);
+      for (int sd = 0; sd < 2; sd++) {
+        memcpy(n[sd], sd ? nn : n0, sizeof n[sd]);
+        gi__basis(n[sd], t[sd], bt[sd]);
+      }
       faced = i;
     }
     polygon_point((const float(*)[3])pc->v, pc->n, pc->area, gi__minf(gi__maxf((u - lo) / pc->area, 0.f), 0.99999f),
@@ -382,11 +387,9 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
     for (int sd = 0; sd < 2; sd++) {
       float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
       if (!ahead[sd]) continue; /* its numbers drawn all the same: the next ray's stay as they were */
-      float n[3], t[3], b[3], w[3], V[3];
-      for (int k = 0; k < 3; k++) n[k] = (sd ? -1.f : 1.f) * n0[k];
-      gi__basis(n, t, b);
+      float w[3], V[3];
       float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
-      for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
+      for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[sd][k] + r * sinf(phi) * bt[sd][k] + z * n[sd][k];
       (*rays)++;
       /* The light strategy's pdf for what it finds: picked from the centroid. */
       if (gi__emitter_ray(s, g->centroid, pt, w, off, 1, z / GI_PI_F, 0, V))

@@ -354,38 +354,39 @@ static double left_prob(const gi_light_pair *q, const float p[3]) {
   return left_of(imp[0], imp[1]);
 }
 
-uint32_t gi__light_tree_pick_memo(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest,
-                                  gi_lt_memo *memo) {
+/* The link of the tree's root (a leaf when there is one emitter). */
+static inline uint32_t root_link(const gi_scene *s) {
+  return s->ltree[0].slot != UINT32_MAX ? GI_LT_LEAF | s->ltree[0].slot : 0;
+}
+
+/* One step down from the node whose children are pair q, taking the left
+ * child with probability l: returns the child's link, rescales *u within
+ * the branch taken and multiplies *pr by its probability. */
+static inline uint32_t step_down(const gi_light_pair *q, double l, double *u, double *pr) {
+  uint32_t next;
+  if (*u < l) {
+    *u = *u / l;
+    *pr *= l;
+    next = q->link[0];
+  } else {
+    *u = (*u - l) / (1 - l);
+    *pr *= 1 - l;
+    next = q->link[1];
+  }
+  *u = *u < 0 ? 0 : *u >= 1 ? 0x1.fffffffffffffp-1 : *u;
+  return next;
+}
+
+uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest) {
   double pr = 1;
-  uint32_t link = s->ltree[0].slot != UINT32_MAX ? GI_LT_LEAF | s->ltree[0].slot : 0;
-  /* The memo knows a node by its children's pair. */
-  for (int depth = 0; !(link & GI_LT_LEAF); depth++) {
+  uint32_t link = root_link(s);
+  while (!(link & GI_LT_LEAF)) {
     const gi_light_pair *q = &s->lpair[link];
-    double pl;
-    if (memo && depth < GI_LT_MEMO_DEPTH && memo->node[depth] == link + 1) {
-      pl = memo->pl[depth];
-    } else {
-      pl = left_prob(q, p);
-      if (memo && depth < GI_LT_MEMO_DEPTH) memo->node[depth] = link + 1, memo->pl[depth] = pl;
-    }
-    if (u < pl) {
-      u = u / pl;
-      pr *= pl;
-      link = q->link[0];
-    } else {
-      u = (u - pl) / (1 - pl);
-      pr *= 1 - pl;
-      link = q->link[1];
-    }
-    u = u < 0 ? 0 : u >= 1 ? 0x1.fffffffffffffp-1 : u;
+    link = step_down(q, left_prob(q, p), &u, &pr);
   }
   *prob = (float)pr;
   *u_rest = (float)u;
   return link & ~GI_LT_LEAF;
-}
-
-uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest) {
-  return gi__light_tree_pick_memo(s, p, u, prob, u_rest, NULL);
 }
 
 /* Picks per batch of gi__light_tree_picks (its buffers live on the stack). */
@@ -396,7 +397,7 @@ static void picks_batch(const gi_scene *s, const float p[3], const double *u, in
   uint32_t link[PICK_BATCH];
   double uu[PICK_BATCH], pr[PICK_BATCH], pl[PICK_BATCH];
   int live[PICK_BATCH], head[PICK_BATCH], nl = 0;
-  uint32_t root = s->ltree[0].slot != UINT32_MAX ? GI_LT_LEAF | s->ltree[0].slot : 0;
+  uint32_t root = root_link(s);
   for (int k = 0; k < n; k++) {
     link[k] = root, uu[k] = u[k], pr[k] = 1;
     if (!(root & GI_LT_LEAF)) live[nl++] = k;
@@ -413,24 +414,14 @@ static void picks_batch(const gi_scene *s, const float p[3], const double *u, in
       pl[head[j]] = left_of(imp[0], imp[1]);
       if (qb) pl[head[j + 1]] = left_of(imp[2], imp[3]);
     }
-    /* Each pick one step down, as gi__light_tree_pick_memo steps. */
+    /* Each pick one step down, as gi__light_tree_pick steps. */
     int nn = 0;
     double l = 0.5;
     uint32_t at = UINT32_MAX; /* the node whose weight l is */
     for (int i = 0; i < nl; i++) {
       int k = live[i];
-      const gi_light_pair *q = &s->lpair[link[k]];
       if (link[k] != at) at = link[k], l = pl[i];
-      if (uu[k] < l) {
-        uu[k] = uu[k] / l;
-        pr[k] *= l;
-        link[k] = q->link[0];
-      } else {
-        uu[k] = (uu[k] - l) / (1 - l);
-        pr[k] *= 1 - l;
-        link[k] = q->link[1];
-      }
-      uu[k] = uu[k] < 0 ? 0 : uu[k] >= 1 ? 0x1.fffffffffffffp-1 : uu[k];
+      link[k] = step_down(&s->lpair[link[k]], l, &uu[k], &pr[k]);
       if (!(link[k] & GI_LT_LEAF)) live[nn++] = k;
     }
     nl = nn;

@@ -58,18 +58,6 @@ gi_result gi__light_tree_build(gi_scene *s, const float *power, gi_error_info *e
  * and u rescaled within the pick (uniform in [0, 1) again: stratified
  * picks that land on one emitter spread it evenly). */
 uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest);
-/* The same for several picks from one point p: memo (zeroed before the
- * first pick from p, never shared between points) keeps the last pick's
- * choice per depth, so picks in ascending u (stratified samples), which
- * share the top of their paths, weigh each node's children once. The
- * picks are the same as without it. */
-#define GI_LT_MEMO_DEPTH 64
-typedef struct gi_lt_memo {
-  uint32_t node[GI_LT_MEMO_DEPTH]; /* at each depth, the node's children's pair index + 1 (0: none yet) */
-  double pl[GI_LT_MEMO_DEPTH];     /* its left child's probability from p */
-} gi_lt_memo;
-uint32_t gi__light_tree_pick_memo(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest,
-                                  gi_lt_memo *memo);
 /* The probability that a pick from p returns slot. */
 float gi__light_tree_prob(const gi_scene *s, const float p[3], uint32_t slot);
 /* 0 when no emitter can send light to the side of plane (o, nrm) that nrm
