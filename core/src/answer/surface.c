@@ -39,9 +39,7 @@ static void surface_direct(const struct gi_cascade *c, const float x[3], const f
   float rot = gi__u01(rng);
   for (int j = 0; j < mb; j++) {
     float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__radical2_rot((uint32_t)j, rot);
-    float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
-    float w[3], V[3];
-    for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[k] + r * sinf(phi) * b[k] + z * n[k];
+    float w[3], V[3], z = gi__cosine_dir(t, b, n, u1, u2, w);
     if (!gi__emitter_ray(s, x, o, w, tn, lp.emit_samples, (float)mb * z / GI_PI_F, 0, V)) continue;
     for (int k = 0; k < 3; k++) E[k] += V[k] * z;
   }

@@ -185,4 +185,14 @@ static inline void gi__basis(const float n[3], float t[3], float b[3]) {
   b[2] = -n[1];
 }
 
+/* The cosine-weighted direction that u1, u2 in [0, 1) give about n (with
+ * gi__basis's t, b) into w; returns its cosine to n. */
+static inline float gi__cosine_dir(const float t[3], const float b[3], const float n[3], float u1, float u2,
+                                   float w[3]) {
+  float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
+  float x = r * cosf(phi), y = r * sinf(phi);
+  for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * b[k] + z * n[k];
+  return z;
+}
+
 #endif

@@ -203,10 +203,7 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
     }
     for (int j = 0; j < mb; j++) {
       float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__u01(rng);
-      float r = sqrtf(u1), phi = 2 * GI_PI_F * u2;
-      float x = r * cosf(phi), y = r * sinf(phi), z = sqrtf(fmaxf(0.f, 1 - u1));
-      float w[3];
-      for (int k = 0; k < 3; k++) w[k] = x * t[k] + y * bb[k] + z * n[k];
+      float w[3], z = gi__cosine_dir(t, bb, n, u1, u2, w);
       rays++;
       float V[3];
       if (!gi__emitter_ray(s, pc, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, 0, V)) continue;

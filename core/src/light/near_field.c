@@ -387,9 +387,7 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
     for (int sd = 0; sd < 2; sd++) {
       float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
       if (!ahead[sd]) continue; /* its numbers drawn all the same: the next ray's stay as they were */
-      float w[3], V[3];
-      float r = sqrtf(u1), phi = 2 * GI_PI_F * u2, z = sqrtf(fmaxf(0.f, 1 - u1));
-      for (int k = 0; k < 3; k++) w[k] = r * cosf(phi) * t[sd][k] + r * sinf(phi) * bt[sd][k] + z * n[sd][k];
+      float w[3], V[3], z = gi__cosine_dir(t[sd], bt[sd], n[sd], u1, u2, w);
       (*rays)++;
       /* The light strategy's pdf for what it finds: picked from the centroid. */
       if (gi__emitter_ray(s, g->centroid, pt, w, off, 1, z / GI_PI_F, 0, V))
