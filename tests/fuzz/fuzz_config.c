@@ -9,11 +9,16 @@
 #include <unistd.h>
 #include "server.h"
 
+static char dir[64];
+
+/* Each input's file is unlinked after it; the folder goes at exit. */
+static void remove_dir(void) { rmdir(dir); }
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
-  static char dir[64];
   if (!dir[0]) {
     snprintf(dir, sizeof dir, "/tmp/gi-fuzz-config-XXXXXX");
     if (!mkdtemp(dir)) abort();
+    atexit(remove_dir);
   }
   char path[128];
   snprintf(path, sizeof path, "%s/gi-server.ini", dir);

@@ -1,8 +1,10 @@
+#define _XOPEN_SOURCE 700 /* nftw under -std=c11 */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <ftw.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include "gi/gi.h"
@@ -17,13 +19,35 @@ const char *tu_scene_path(const char *rel) {
   return buf;
 }
 
-const char *tu_tmpdir(void) {
-  static char dir[256];
-  if (!dir[0]) {
-    snprintf(dir, sizeof dir, "/tmp/gi-test-XXXXXX");
-    if (!mkdtemp(dir)) { perror("mkdtemp"); abort(); }
+static char tmp_dir[256];
+static pid_t tmp_owner;
+
+static int remove_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw) {
+  (void)st, (void)flag, (void)ftw;
+  if (remove(path) != 0) perror(path);
+  return 0;
+}
+
+/* At the test binary's exit: every run left its folder behind (a thousand
+ * of them in /tmp after a day's work). A forked child that returns
+ * through exit() must not remove its parent's files. */
+static void tmpdir_cleanup(void) {
+  if (getpid() != tmp_owner) return;
+  if (getenv("GI_KEEP_TEST_TMP")) {
+    fprintf(stderr, "test files kept in %s (GI_KEEP_TEST_TMP)\n", tmp_dir);
+    return;
   }
-  return dir;
+  nftw(tmp_dir, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
+}
+
+const char *tu_tmpdir(void) {
+  if (!tmp_dir[0]) {
+    snprintf(tmp_dir, sizeof tmp_dir, "/tmp/gi-test-XXXXXX");
+    if (!mkdtemp(tmp_dir)) { perror("mkdtemp"); abort(); }
+    tmp_owner = getpid();
+    atexit(tmpdir_cleanup);
+  }
+  return tmp_dir;
 }
 
 const char *tu_write_file(const char *name, const void *data, size_t len) {
