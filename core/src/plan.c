@@ -35,7 +35,7 @@
  * three its tail over-added (above). */
 #define TAIL_SHARE 0.20
 
-/* What the bounce stage does with an automatic count of b (gi__bounce_gathers). */
+/* What the bounce stage does with an automatic count of b ending in the tail (gi__bounce_gathers). */
 #define STR_(x) #x
 #define STR(x) STR_(x)
 static const char *extrapolated(int b) {
@@ -359,9 +359,9 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
            extrapolated(q->bounces), abar, 100 * pow(abar, q->bounces + 2) / (1 - abar), MAX_AUTO_BOUNCES,
            MAX_AUTO_BOUNCES - 1, 100 * TAIL_SHARE);
   else if (auto_bounces)
-    set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
-                               "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "",
-           extrapolated(q->bounces), abar, 100 * pow(abar, q->bounces + 2), MAX_AUTO_BOUNCES);
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
+                               "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "", abar,
+           100 * pow(abar, q->bounces + 2), MAX_AUTO_BOUNCES);
   else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s as requested, mean albedo %.2f in range", q->bounces,
               q->bounces > 1 ? "s" : "", abar);
 

@@ -159,10 +159,10 @@ uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *sl
 /* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
  * move's re-bake must agree bounce by bounce. */
 int gi__bounce_wide(const struct gi_cascade *c, int it);
-/* 1 when bounce `it` (from 0) gathers: always with an explicit bounce
- * count, the first GI_GATHERED_BOUNCES of an automatic one; gi__bounce_end
- * extrapolates the others from the last two increments (bounce.c says
- * why). */
+/* 1 when bounce `it` (from 0) gathers: only the first GI_GATHERED_BOUNCES
+ * of an automatic count that ends in the geometric tail (c->tail), every
+ * bounce otherwise; gi__bounce_end extrapolates the others from the last
+ * two increments (bounce.c says why). */
 #define GI_GATHERED_BOUNCES 2
 int gi__bounce_gathers(const struct gi_cascade *c, int it);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
