@@ -82,6 +82,24 @@ int su_start(su_server *s, const char *name, const char *ini) {
   return -1;
 }
 
+/* The last lines of the server's log on stderr: a server killed by a
+ * signal (an abort's message, say) is seen in the test's output, since
+ * the log's folder goes when the test exits. */
+static void print_log_tail(const su_server *s, int status) {
+  char path[600];
+  snprintf(path, sizeof path, "%s/server.log", s->dir);
+  FILE *f = fopen(path, "r");
+  if (!f) return;
+  static char buf[4096];
+  fseek(f, 0, SEEK_END);
+  long end = ftell(f), from = end > (long)sizeof buf - 1 ? end - (long)sizeof buf + 1 : 0;
+  fseek(f, from, SEEK_SET);
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  buf[n] = 0;
+  fclose(f);
+  fprintf(stderr, "gi-server ended with status %d; the end of %s:\n%s\n", status, path, buf);
+}
+
 int su_signal_wait(su_server *s, int sig, int wait_ms, double *ms) {
   if (s->pid <= 0) return -1;
   double t0 = su_now_ms();
@@ -91,6 +109,7 @@ int su_signal_wait(su_server *s, int sig, int wait_ms, double *ms) {
     if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
       if (ms) *ms = su_now_ms() - t0;
       s->pid = 0;
+      if (WIFSIGNALED(st) && WTERMSIG(st) != sig) print_log_tail(s, 128 + WTERMSIG(st));
       return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
     }
     su_sleep_ms(5);
