@@ -9,7 +9,6 @@
 #include <string.h>
 #include "base/internal.h"
 #include "cascade/cascade_internal.h"
-#include "light/light.h"
 #include "plan.h"
 #include "trace/trace.h"
 
@@ -34,14 +33,6 @@
  * Munich and Florence. The Cornell box (a 0.76, 80%) keeps four: at
  * three its tail over-added (above). */
 #define TAIL_SHARE 0.20
-
-/* What the bounce stage does with an automatic count of b ending in the tail (gi__bounce_gathers). */
-#define STR_(x) #x
-#define STR(x) STR_(x)
-static const char *extrapolated(int b) {
-  return b > GI_GATHERED_BOUNCES ? " (the first " STR(GI_GATHERED_BOUNCES) " gathered, the rest extrapolated)"
-                                 : "";
-}
 
 static const char *const fx_names[GI_FX_COUNT] = {"sun", "local_lights", "sky", "emissive",
                                                   "bounce", "specular", "ao"};
@@ -354,10 +345,9 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
   else if (abar <= 0 && fb != GI_FX_ON) set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
   else if (auto_bounces && tail)
-    set_fx(r, GI_FX_BOUNCE, 1, "%d bounces%s and the geometric tail of the rest: mean albedo %.2f in range, the "
-                               "tail brings %.1f%% of direct (at most %d, %d when it brings <= %.0f%%)", q->bounces,
-           extrapolated(q->bounces), abar, 100 * pow(abar, q->bounces + 2) / (1 - abar), MAX_AUTO_BOUNCES,
-           MAX_AUTO_BOUNCES - 1, 100 * TAIL_SHARE);
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, the "
+                               "tail brings %.1f%% of direct (at most %d, %d when it brings <= %.0f%%)", q->bounces, abar,
+           100 * pow(abar, q->bounces + 2) / (1 - abar), MAX_AUTO_BOUNCES, MAX_AUTO_BOUNCES - 1, 100 * TAIL_SHARE);
   else if (auto_bounces)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
                                "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "", abar,

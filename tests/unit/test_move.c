@@ -241,38 +241,6 @@ static void test_wide_bounce_cycle(void **state) {
   gi_scene_release(s);
 }
 
-/* A bright furnace's automatic bounces end in the geometric tail, and the
- * bounces after the second are extrapolated, not gathered
- * (light/bounce.c): the re-bake runs them at its last gathering bounce's
- * end, so a closed cycle still equals a cold bake. */
-static void test_extrapolated_cycle(void **state) {
-  gi_scene *sc = tu_furnace_scene(1.0, 0.8, 1.0);
-  gi_quality q = {.levels = 4, .res = 16, .voxel0 = 1.25 / (16 * 4), .light_samples = 4, .probe_samples = 16,
-                  .threads = 2};
-  double at[3] = {0.3, 0.5, 0.5}, to[3] = {0.45, 0.5, 0.5};
-  gi_cascade *c = NULL, *b = NULL;
-  gi_error_info err = {0};
-  assert_int_equal(gi_cascade_bake(sc, at, &q, &c, NULL, &err), GI_OK);
-  assert_int_equal(gi_cascade_report(c)->bounces_run, 4);
-  assert_true(c->tail && gi__bounce_gathers(c, 1) && !gi__bounce_gathers(c, 2));
-  gi_move_info mi = {0};
-  assert_int_equal(gi_cascade_move(c, to, NULL, &mi, &err), GI_OK);
-  assert_false(mi.cycle_closed);
-  for (uint64_t i = 0; i <= gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
-    assert_int_equal(gi_cascade_move(c, to, NULL, &mi, &err), GI_OK);
-  assert_true(mi.cycle_closed);
-  assert_int_equal(gi_cascade_report(c)->bounces_run, 4);
-  assert_int_equal(gi_cascade_bake(sc, to, &q, &b, NULL, &err), GI_OK);
-  assert_same_geometry(c, b);
-  double mean, worst;
-  compare_light(c, b, 1, &mean, &worst);
-  printf("4 bounces, 2 extrapolated, cycle closed: light against a cold bake: mean %.3g max %.3g relative "
-         "(bound %.0e)\n", mean, worst, FACE_REL_TOL);
-  gi_cascade_free(b);
-  gi_cascade_free(c);
-  gi_scene_release(sc);
-}
-
 static uint64_t total(const uint64_t *v, int n) {
   uint64_t t = 0;
   for (int d = 0; d < n; d++) t += v[d];
@@ -749,7 +717,6 @@ int main(void) {
       cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),
       cmocka_unit_test(test_wide_bounce_cycle),
-      cmocka_unit_test(test_extrapolated_cycle),
       cmocka_unit_test(test_bounded),
       cmocka_unit_test(test_refilter_exact),
       cmocka_unit_test(test_moving_cycle),

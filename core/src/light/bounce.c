@@ -9,10 +9,8 @@
  * light for the first): between bounces the texture holds that increment,
  * shaded and filtered, and each voxel's side light sums the increments;
  * after the last bounce the texture is reshaded from the sum. From the
- * third bounce on the increment is small and smooth: a count that ends in
- * the geometric tail (below) extrapolates it instead of gathering it
- * (gi__bounce_gathers), others gather it with the wide set
- * (gi__bounce_wide). On a plane, three voxels in four wait
+ * third bounce on the increment is small and smooth, and the gather takes
+ * the wide set (gi__bounce_wide). On a plane, three voxels in four wait
  * for their gathered neighbours and take their mean where those agree,
  * and every other voxel along an edge (between.c: the Cornell box's bake
  * marches 50% fewer cones). A closed furnace of albedo a
@@ -21,7 +19,7 @@
  * bounce count short of what the albedo asks for, the last bounce also
  * adds the geometric tail of the orders left out (ratio measured from the
  * last two bounces); an explicit bounce count keeps the exact k-bounce sum
- * above, and so does the extrapolation in a furnace. */
+ * above. */
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
@@ -231,28 +229,6 @@ int gi__bounce_wide(const struct gi_cascade *c, int it) {
   return it >= WIDE_FROM && c->num_wide_cones < c->num_cones;
 }
 
-/* A bounce count that ends in the geometric tail (the effect plan's, at
- * its cap: a bright scene) models the orders after its last bounce as
- * shrinking by the ratio of the last two bounces' sums; from the third
- * bounce on it extrapolates with that ratio instead of gathering: the
- * increment has spread by then and keeps its shape while it shrinks. In a
- * furnace the ratio is the albedo and the sum stays exact. Measured at
- * default quality against 16,384-path references (indirect error, bounce
- * samples): Cornell box 6.47 -> 6.11% (high 4.69 -> 4.04%), -28%; Munich
- * 7.95 -> 7.76% (high 5.35 -> 6.39%), -19%. Each level's own ratio (the
- * city's: 0.22-0.31 on levels 0-1, 0.36-0.46 on 2-4) made the largest
- * probe jump at a grid shift on the 600 m city's walk 1.21% (0.87%
- * gathered), since a cell passing from a finer level's filter to its own
- * level changed its extrapolated light with the ratio; each voxel's own
- * ratio, 2.46%. A count without the tail (its next order weighs under 2%
- * of the direct light) gathers every bounce: a moving viewer's crossings
- * gather their new voxels' light whole, and against an extrapolated third
- * bounce the 1500 m city's drive drifted 1.20% from cold bakes (0.76%
- * gathered), for 9% of the city's bake. So does an explicit count. */
-int gi__bounce_gathers(const struct gi_cascade *c, int it) {
-  return !(c->auto_bounces && c->tail) || it < GI_GATHERED_BOUNCES;
-}
-
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   bounce_ctx *bc = p;
@@ -298,55 +274,35 @@ static void last_bounce_share(struct gi_cascade *c, const double last[3], int ad
 
 /* The end of one bounce, shared with the move's re-bake (move/move.c) so
  * both give the same bits: E holds the bounce's gather of the previous
- * increment, i.e. this bounce's increment D_k (or, when the bounce does
- * not gather, D_(k-1), scaled here into D_k); rolls
- * the sums S (area-weighted D of the last two bounces) and adds side +=
- * D_k (side = direct + E_k, E_k = D_0 + ... + D_k: orders 2..k+1 of the
- * light leaving the voxels). Not last: the texture is shaded from D_k
- * alone, for the next bounce to gather (not when that one extrapolates).
- * Last: + the tail when add_tail, and the texture is shaded from side.
- * The tail: D_k shrinks by the room's mean reflection r = D_k / D_(k-1)
- * (area-weighted over every voxel, per channel; the dominant eigenvalue
- * of the transport once the first bounces have spread the light). The
- * orders left out add D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel
- * scaled by its own last increment. r is capped at 0.95 (a furnace of
- * albedo 0.99 would otherwise multiply its last increment by 99). Last
- * also records c->last_share, which a move's fresh gather takes off
- * (move.c). */
-#define MAX_RATIO 0.95
-
-static double ratio(double newer, double older) {
-  double r = older > 0 && newer > 0 ? newer / older : 0;
-  return r < MAX_RATIO ? r : MAX_RATIO;
-}
-
-/* D_(k-1) -> D_k on every voxel by the ratio of the last two bounces'
- * sums (gi__bounce_gathers). */
-static void extrapolate(struct gi_cascade *c, gi_faces3 *const E[], const double S[2][3]) {
-  float r[3];
-  for (int k = 0; k < 3; k++) r[k] = (float)ratio(S[1][k], S[0][k]);
-  for (int d = 0; d < c->n; d++)
-    for (uint32_t i = 0; i < c->lv[d].num_occ; i++)
-      for (int f = 0; f < GI_VOX_FACES; f++)
-        for (int k = 0; k < 3; k++) E[d][i][f][k] *= r[k];
-}
-
-int gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int it, int bounces, int tail) {
-  int last = it + 1 == bounces, add_tail = tail && last && it >= 1;
-  if (!gi__bounce_gathers(c, it)) extrapolate(c, E, S);
+ * increment, i.e. this bounce's increment D_k; rolls the tail's sums S
+ * (area-weighted D of the last two bounces) and adds side += D_k (side =
+ * direct + E_k, E_k = D_0 + ... + D_k: orders 2..k+1 of the light leaving
+ * the voxels). Not last: the texture is shaded from D_k alone, for the
+ * next bounce to gather. Last: + the tail when add_tail, and the texture
+ * is shaded from side. The tail: D_k shrinks by the room's mean
+ * reflection r = D_k / D_(k-1) (area-weighted over every
+ * voxel, per channel; the dominant eigenvalue of the transport once the
+ * first bounces have spread the light). The orders left out add
+ * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
+ * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
+ * otherwise multiply its last increment by 99). Last also records
+ * c->last_share, which a move's fresh gather takes off (move.c). */
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last) {
   double f[3] = {0, 0, 0};
   for (int k = 0; k < 3; k++) S[0][k] = S[1][k], S[1][k] = 0;
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
       double a = gi__geo(L, L->occ[i])->area;
-      for (int fc = 0; fc < GI_VOX_FACES; fc++)
-        for (int k = 0; k < 3; k++) S[1][k] += a * E[d][i][fc][k];
+      for (int f = 0; f < GI_VOX_FACES; f++)
+        for (int k = 0; k < 3; k++) S[1][k] += a * E[d][i][f][k];
     }
   }
   if (add_tail)
     for (int k = 0; k < 3; k++) {
-      double r = ratio(S[1][k], S[0][k]);
+      double dk = S[1][k], dk1 = S[0][k];
+      double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
+      if (r > 0.95) r = 0.95;
       f[k] = r / (1 - r);
     }
   for (int d = 0; d < c->n; d++) {
@@ -361,34 +317,9 @@ int gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], i
         }
     }
   }
-  if (last) {
-    last_bounce_share(c, S[1], add_tail);
-    gi__shade_all(c);
-    return 1;
-  }
-  if (!gi__bounce_gathers(c, it + 1)) return 0;
-  gi__shade_all_from(c, E);
-  return 1;
-}
-
-/* The gathers of bounce `it` into E: every voxel's, then the voxels between. */
-static gi_result gather_bounce(struct gi_cascade *c, const gi_quality *q, gi_faces3 **E, gi_hits *hit[2][GI_MAX_LEVELS],
-                               gi_between **plan, int it, gi_error_info *err) {
-  int wide = gi__bounce_wide(c, it);
-  bounce_ctx bc = {.c = c, .E = E, .hit = hit[wide], .plan = plan, .wide = wide,
-                   .first = it == 0 || (wide && !gi__bounce_wide(c, it - 1))};
-  for (int d = 0; d < c->n; d++) bc.start[d + 1] = bc.start[d] + c->lv[d].num_occ;
-  atomic_init(&bc.samples, 0);
-  atomic_init(&bc.cones, 0);
-  int cancelled = gi__parallel_for_cancel(bc.start[c->n], 16, q->threads, bounce_range, &bc, NULL, c->cancel);
-  c->report.cone_samples += atomic_load(&bc.samples);
-  c->report.cones_traced += atomic_load(&bc.cones);
-  if (cancelled) return gi__cancel_fail(c->cancel, err, "bounce");
-  uint64_t samples = 0, cones = 0;
-  gi_result rc = gi__bounce_between(c, plan, E, wide, q->threads, &samples, &cones, err);
-  c->report.cone_samples += samples;
-  c->report.cones_traced += cones;
-  return rc;
+  if (last) last_bounce_share(c, S[1], add_tail);
+  if (last) gi__shade_all(c);
+  else gi__shade_all_from(c, E);
 }
 
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err) {
@@ -398,12 +329,10 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
   gi_between *plan[GI_MAX_LEVELS] = {0};
   gi_result rc = GI_OK;
   /* Area-weighted sums of the increment per bounce (both sides,
-   * every level's own voxels), for the ratio of the tail and of the
-   * extrapolated bounces. */
+   * every level's own voxels), for the tail's ratio. */
   double S[2][3] = {{0}};
   memset(c->last_share, 0, sizeof c->last_share);
-  int any_wide = 0;
-  for (int it = 0; it < bounces; it++) any_wide |= gi__bounce_gathers(c, it) && gi__bounce_wide(c, it);
+  int any_wide = bounces > 0 && gi__bounce_wide(c, bounces - 1);
   for (int d = 0; d < c->n; d++) {
     size_t n = (size_t)c->lv[d].num_occ + 1;
     E[d] = gi__malloc(n * sizeof *E[d]);
@@ -415,8 +344,26 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     }
   }
   for (int it = 0; it < bounces; it++) {
-    if (gi__bounce_gathers(c, it) && (rc = gather_bounce(c, q, E, hit, plan, it, err)) != GI_OK) goto done;
-    if (gi__bounce_end(c, E, S, it, bounces, tail) && gi__cascade_filter(c, q->threads)) {
+    int wide = gi__bounce_wide(c, it);
+    bounce_ctx bc = {.c = c, .E = E, .hit = hit[wide], .plan = plan, .wide = wide,
+                     .first = it == 0 || (wide && !gi__bounce_wide(c, it - 1))};
+    for (int d = 0; d < c->n; d++) bc.start[d + 1] = bc.start[d] + c->lv[d].num_occ;
+    atomic_init(&bc.samples, 0);
+    atomic_init(&bc.cones, 0);
+    int cancelled = gi__parallel_for_cancel(bc.start[c->n], 16, q->threads, bounce_range, &bc, NULL, c->cancel);
+    c->report.cone_samples += atomic_load(&bc.samples);
+    c->report.cones_traced += atomic_load(&bc.cones);
+    if (cancelled) {
+      rc = gi__cancel_fail(c->cancel, err, "bounce");
+      goto done;
+    }
+    uint64_t samples = 0, cones = 0;
+    rc = gi__bounce_between(c, plan, E, wide, q->threads, &samples, &cones, err);
+    c->report.cone_samples += samples;
+    c->report.cones_traced += cones;
+    if (rc != GI_OK) goto done;
+    gi__bounce_end(c, E, S, tail && it + 1 == bounces && it >= 1, it + 1 == bounces);
+    if (gi__cascade_filter(c, q->threads)) {
       rc = gi__cancel_fail(c->cancel, err, "bounce filter");
       goto done;
     }

@@ -159,12 +159,6 @@ uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *sl
 /* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
  * move's re-bake must agree bounce by bounce. */
 int gi__bounce_wide(const struct gi_cascade *c, int it);
-/* 1 when bounce `it` (from 0) gathers: only the first GI_GATHERED_BOUNCES
- * of an automatic count that ends in the geometric tail (c->tail), every
- * bounce otherwise; gi__bounce_end extrapolates the others from the last
- * two increments (bounce.c says why). */
-#define GI_GATHERED_BOUNCES 2
-int gi__bounce_gathers(const struct gi_cascade *c, int it);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
 /* The end of a bounce's gathers (plan[d]: every level's plan; E: the
  * bounce's gathers of every other voxel): gi__between_fill, then the
@@ -173,14 +167,11 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
  * cascade's token fired. Shared by gi__bounce and the move's re-bake. */
 gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
                              int threads, uint64_t *samples, uint64_t *cones, gi_error_info *err);
-/* The end of bounce `it` of `bounces` from its gathers E (per level, per
- * occupied voxel: the bounce's increment, gi__bounce_between done; for a
- * bounce that does not gather, the previous increment, which it scales):
- * the sums rolled, side light summed, the tail added after the last when
- * `tail`, the texture reshaded from the increment when the next bounce
- * gathers it, or from the whole side light after the last. Returns 1 when
- * it reshaded (the caller then refilters). Shared by gi__bounce and the
- * move's re-bake. */
-int gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int it, int bounces, int tail);
+/* The end of one bounce from its gathers E (per level, per occupied voxel:
+ * the bounce's increment, gi__bounce_between done): the tail's sums S
+ * rolled, side light summed, the texture reshaded from the increment, or
+ * from the whole side light when `last` (the caller refilters). Shared by
+ * gi__bounce and the move's re-bake. */
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last);
 
 #endif

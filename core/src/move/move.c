@@ -407,7 +407,7 @@ typedef struct gi_move_state {
   int slice;       /* slices run at this anchor */
   int closed;      /* 1: the live cascade equals a cold bake at this anchor */
   int bounces, tail;
-  double S[2][3];  /* the area-weighted sums of the last two increments (as gi__bounce) */
+  double S[2][3];  /* the tail's area-weighted sums of the last two increments (as gi__bounce) */
   uint64_t period; /* slices of the cycle under way (0: the resting period) */
   uint64_t calls;  /* calls at the current anchor, the one that arrived included */
   double dwell;    /* running mean of calls per anchor while moving (0: none measured yet) */
@@ -717,23 +717,16 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
 
 /* Ends bounce `it` of the re-bake on its (swapped-in) texture with the
  * bake's own bounce end (light/bounce.c), so the result is bit-identical
- * to the bake's; then refilters when it reshaded. Between bounces that
- * texture holds the last increment only (the live one stays whole). */
+ * to the bake's; then refilters. Between bounces that texture holds the
+ * last increment only (the live one stays whole). */
 static int rebake_bounce_end(struct gi_cascade *c, gi_move_state *m, int it, int threads) {
-  return gi__bounce_end(c, m->E, m->S, it, m->bounces, m->tail) && gi__cascade_filter(c, threads);
-}
-
-/* The re-bake's bounces that gather (the first ones: gi__bounce_gathers). */
-static int gathered_bounces(const struct gi_cascade *c, const gi_move_state *m) {
-  int g = 0;
-  while (g < m->bounces && gi__bounce_gathers(c, g)) g++;
-  return g;
+  gi__bounce_end(c, m->E, m->S, m->tail && it + 1 == m->bounces && it >= 1, it + 1 == m->bounces);
+  return gi__cascade_filter(c, threads);
 }
 
 /* Gathers units [lo, hi) of the re-bake (unit u: bounce u / U, then the
- * levels' occupied voxels in order, U voxels per gathering bounce) from
- * its texture, ending each bounce whose last unit falls in the range; the
- * last gathering bounce's end runs the extrapolated ones after it. */
+ * levels' occupied voxels in order, U voxels per bounce) from its texture,
+ * ending each bounce whose last unit falls in the range. */
 static gi_result rebake_units(struct gi_cascade *c, gi_move_state *m, uint64_t lo, uint64_t hi, uint64_t U,
                               int threads, gi_error_info *err) {
   gi_result rc = GI_OK;
@@ -753,9 +746,7 @@ static gi_result rebake_units(struct gi_cascade *c, gi_move_state *m, uint64_t l
       rc = gi__bounce_between(c, m->plan, m->E, gi__bounce_wide(c, it), threads, &samples, &cones, err);
       c->report.cone_samples += samples;
       c->report.cones_traced += cones;
-      int upto = it + 1 == gathered_bounces(c, m) ? m->bounces : it + 1;
-      for (int x = it; x < upto && rc == GI_OK; x++)
-        if (rebake_bounce_end(c, m, x, threads)) rc = gi__cancel_fail(c->cancel, err, "re-bake filter");
+      if (rc == GI_OK && rebake_bounce_end(c, m, it, threads)) rc = gi__cancel_fail(c->cancel, err, "re-bake filter");
     }
     lo = end;
   }
@@ -785,7 +776,7 @@ static gi_result rebake_slice(struct gi_cascade *c, const gi_quality *q, int tai
   if (m->slice == 0 && (rc = rebake_start(c, q, tail, err)) != GI_OK) return rc;
   uint64_t U = 0;
   for (int d = 0; d < c->n; d++) U += c->lv[d].num_occ;
-  uint64_t W = U * (uint64_t)gathered_bounces(c, m), s = (uint64_t)m->slice;
+  uint64_t W = U * (uint64_t)m->bounces, s = (uint64_t)m->slice;
   if (W > 0 && (rc = rebake_units(c, m, s * W / P, (s + 1) * W / P, U, q->threads, err)) != GI_OK) return rc;
   mi->slice = ++m->slice;
   if ((uint64_t)m->slice < P) return GI_OK;
