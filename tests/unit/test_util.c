@@ -1,4 +1,5 @@
 #define _XOPEN_SOURCE 700 /* nftw under -std=c11 */
+#define _DEFAULT_SOURCE  /* on_exit */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
@@ -29,12 +30,15 @@ static int remove_entry(const char *path, const struct stat *st, int flag, struc
 }
 
 /* At the test binary's exit: every run left its folder behind (a thousand
- * of them in /tmp after a day's work). A forked child that returns
- * through exit() must not remove its parent's files. */
-static void tmpdir_cleanup(void) {
+ * of them in /tmp after a day's work). A failed run keeps it (cmocka's
+ * main returns the failures: a server's log there shows what went wrong).
+ * A forked child that returns through exit() must not remove its parent's
+ * files. */
+static void tmpdir_cleanup(int status, void *arg) {
+  (void)arg;
   if (getpid() != tmp_owner) return;
-  if (getenv("GI_KEEP_TEST_TMP")) {
-    fprintf(stderr, "test files kept in %s (GI_KEEP_TEST_TMP)\n", tmp_dir);
+  if (status != 0 || getenv("GI_KEEP_TEST_TMP")) {
+    fprintf(stderr, "test files kept in %s (%s)\n", tmp_dir, status ? "the run failed" : "GI_KEEP_TEST_TMP");
     return;
   }
   nftw(tmp_dir, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
@@ -45,7 +49,7 @@ const char *tu_tmpdir(void) {
     snprintf(tmp_dir, sizeof tmp_dir, "/tmp/gi-test-XXXXXX");
     if (!mkdtemp(tmp_dir)) { perror("mkdtemp"); abort(); }
     tmp_owner = getpid();
-    atexit(tmpdir_cleanup);
+    on_exit(tmpdir_cleanup, NULL);
   }
   return tmp_dir;
 }
