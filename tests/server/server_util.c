@@ -83,8 +83,8 @@ int su_start(su_server *s, const char *name, const char *ini) {
 }
 
 /* The last lines of the server's log on stderr: a server killed by a
- * signal (an abort's message, say) is seen in the test's output, since
- * the log's folder goes when the test exits. */
+ * signal (an abort's message, say) is seen in the test's output, which is
+ * what a CI run keeps. */
 static void print_log_tail(const su_server *s, int status) {
   char path[600];
   snprintf(path, sizeof path, "%s/server.log", s->dir);
