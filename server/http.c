@@ -127,6 +127,7 @@ struct gs_http {
   pthread_mutex_t conn_mu;  /* guards conns and cut_logged; never held with mu */
   gs_conn *conns;
   unsigned long cuts, cuts_logged;
+  atomic_int closing;       /* shutting down: new connections are closed at accept */
 };
 
 static void req_release(gs_req *r) {
@@ -1066,6 +1067,21 @@ static void mhd_log(void *cls, const char *fmt, va_list ap) {
   fprintf(stderr, "gi-server: libmicrohttpd: %s\n", esc);
 }
 
+/* libmicrohttpd aborts the process on an internal error it cannot handle;
+ * its reason goes to the log first, so the abort is not a mystery. */
+static void mhd_panic(void *cls, const char *file, unsigned int line, const char *reason) {
+  (void)cls;
+  fprintf(stderr, "gi-server: libmicrohttpd gave up at %s:%u: %s\n", file ? file : "?", line,
+          reason ? reason : "(no reason)");
+  abort();
+}
+
+/* At shutdown a new connection is closed as soon as it is accepted (see gs_http_stop). */
+static enum MHD_Result on_accept(void *cls, const struct sockaddr *addr, socklen_t len) {
+  (void)addr, (void)len;
+  return atomic_load(&((gs_http *)cls)->closing) ? MHD_NO : MHD_YES;
+}
+
 gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
   const gs_config *cfg = svc->cfg;
   struct sockaddr_in sa;
@@ -1085,8 +1101,10 @@ gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
   pthread_mutex_init(&h->mu, NULL);
   pthread_cond_init(&h->stop_cv, NULL);
   pthread_mutex_init(&h->conn_mu, NULL);
+  atomic_init(&h->closing, 0);
+  MHD_set_panic_func(mhd_panic, NULL);
   unsigned flags = MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG;
-  h->d = MHD_start_daemon(flags, 0, NULL, NULL, on_request, h, MHD_OPTION_EXTERNAL_LOGGER, mhd_log, h,
+  h->d = MHD_start_daemon(flags, 0, on_accept, h, on_request, h, MHD_OPTION_EXTERNAL_LOGGER, mhd_log, h,
                           MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&sa, MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->connection_threads,
                           MHD_OPTION_CONNECTION_LIMIT, GS_MAX_CONNECTIONS,
                           MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)cfg->max_connections_per_ip,
@@ -1118,9 +1136,14 @@ int gs_http_port(const gs_http *h) { return h->port; }
 void gs_http_stop(gs_http *h) {
   if (!h) return;
   /* No new connections; let suspended ones be answered (by their worker or
-   * at their deadline), then stop. */
-  MHD_socket fd = MHD_quiesce_daemon(h->d);
-  if (fd != MHD_INVALID_SOCKET) close(fd);
+   * at their deadline), then stop. Not MHD_quiesce_daemon: with epoll and
+   * a thread pool (0.9.75) its worker threads race it to take the listen
+   * socket out of their epoll sets, and the loser aborts the process (a
+   * rare SIGABRT at SIGTERM); and the socket it hands back may only be
+   * closed after MHD_stop_daemon, which this once did first. Connections
+   * accepted meanwhile are closed at once (on_accept); MHD_stop_daemon
+   * closes the listen socket. */
+  atomic_store(&h->closing, 1);
   for (;;) {
     pthread_mutex_lock(&h->mu);
     int busy = h->waiting != NULL;

@@ -590,6 +590,20 @@ static void test_second_signal_and_grace(void **state) {
   double ms;
   kill(s.pid, SIGTERM);
   su_sleep_ms(200);
+  /* Shutting down: a new client is turned away at once, not served and not left waiting. */
+  int late = su_connect(&s, NULL);
+  const char *health = "GET /v1/health HTTP/1.1\r\nHost: x\r\n\r\n";
+  char got[256] = "";
+  double t0 = su_now_ms();
+  if (late >= 0) {
+    send(late, health, strlen(health), MSG_NOSIGNAL);
+    su_read(late, got, sizeof got, 3000);
+    close(late);
+  }
+  printf("  a new connection during the shutdown: %s, %zu bytes of answer, closed after %.0f ms\n",
+         late >= 0 ? "accepted" : "refused", strlen(got), su_now_ms() - t0);
+  assert_int_equal(strlen(got), 0);
+  assert_true(su_now_ms() - t0 < 1000);
   int st = su_signal_wait(&s, SIGTERM, 10000, &ms);
   printf("  a bake running, SIGTERM then SIGTERM 200 ms later: exit %d %.0f ms after the second\n", st, ms);
   assert_int_equal(st, GS_EXIT_FORCED);
