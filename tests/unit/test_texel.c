@@ -124,6 +124,20 @@ static double bake_city_irradiance(int v3, uint64_t *samples) {
   return pr.indirect[0] + pr.indirect[1] + pr.indirect[2];
 }
 
+/* The CPUID reading of x86-64-v3 (cpu.c) against GCC's own test of the
+ * level, where the compiler has one (GCC 12 does; clang 14 does not). */
+static void test_cpu_level_matches_compiler(void **state) {
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+  __builtin_cpu_init();
+  int gcc = __builtin_cpu_supports("x86-64-v3") ? 1 : 0;
+  printf("  x86-64-v3: CPUID says %d, GCC says %d\n", gi_cpu_has_v3(), gcc);
+  assert_int_equal(gi_cpu_has_v3(), gcc);
+#else
+  printf("SKIP: this compiler cannot name x86-64-v3 for __builtin_cpu_supports\n");
+  skip();
+#endif
+}
+
 /* Both builds of the march: same samples, same light (FMA rounds a few
  * products differently, nothing more). */
 static void test_both_march_builds_agree(void **state) {
@@ -252,6 +266,7 @@ int main(void) {
       cmocka_unit_test(test_every_half_round_trips),
       cmocka_unit_test(test_floats_round_to_nearest),
       cmocka_unit_test(test_pack_keeps_precision),
+      cmocka_unit_test(test_cpu_level_matches_compiler),
       cmocka_unit_test(test_both_march_builds_agree),
       cmocka_unit_test(test_lanes_match_scalar_march),
       cmocka_unit_test(test_bounces_keep_opacity),

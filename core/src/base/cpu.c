@@ -1,20 +1,48 @@
 /* cpu.c: the choice between the march's baseline and x86-64-v3 builds.
  *
- * Decided once per process and cached: __builtin_cpu_supports reads
- * CPUID data the compiler's runtime gathered at start-up. */
+ * Decided once per process and cached. The features are read from CPUID
+ * directly rather than by __builtin_cpu_supports("x86-64-v3"): clang 14
+ * (the fuzz build's compiler) does not know that name, and the level is
+ * only a fixed list of features plus the OS saving the AVX registers. */
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__x86_64__)
+#include <cpuid.h>
+#endif
 #include "base/internal.h"
 #include "gi/gi_cpu.h"
 
 /* 0: not decided yet, 1: baseline, 2: x86-64-v3. */
 static atomic_int chosen;
 
+#if defined(__x86_64__) && defined(GI_HAVE_V3_BUILD)
+/* x86-64-v3 (the psABI's levels): v2's CMPXCHG16B, LAHF/SAHF, POPCNT,
+ * SSE3, SSSE3, SSE4.1, SSE4.2, then AVX, AVX2, BMI1, BMI2, F16C, FMA,
+ * LZCNT, MOVBE, and XSAVE enabled by the OS for the XMM and YMM state. */
+static int cpuid_has_v3(void) {
+  unsigned a, b, c, d;
+  if (!__get_cpuid(1, &a, &b, &c, &d)) return 0;
+  /* SSE3, SSSE3, FMA, CX16, SSE4.1, SSE4.2, MOVBE, POPCNT, OSXSAVE, AVX, F16C */
+  const unsigned need1 = 1u << 0 | 1u << 9 | 1u << 12 | 1u << 13 | 1u << 19 | 1u << 20 | 1u << 22 | 1u << 23 |
+                         1u << 27 | 1u << 28 | 1u << 29;
+  if ((c & need1) != need1) return 0;
+  unsigned lo, hi;
+  __asm__ volatile("xgetbv" : "=a"(lo), "=d"(hi) : "c"(0));
+  if ((lo & 6u) != 6u) return 0; /* XMM and YMM state */
+  if (__get_cpuid_max(0, NULL) < 7) return 0;
+  __cpuid_count(7, 0, a, b, c, d);
+  const unsigned need7 = 1u << 3 | 1u << 5 | 1u << 8; /* BMI1 AVX2 BMI2 */
+  if ((b & need7) != need7) return 0;
+  if (!__get_cpuid(0x80000001u, &a, &b, &c, &d)) return 0;
+  const unsigned needx = 1u << 0 | 1u << 5; /* LAHF/SAHF, LZCNT */
+  return (c & needx) == needx;
+}
+#endif
+
 int gi_cpu_has_v3(void) {
 #if defined(__x86_64__) && defined(GI_HAVE_V3_BUILD)
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("x86-64-v3") ? 1 : 0;
+  return cpuid_has_v3();
 #else
   return 0;
 #endif
