@@ -863,6 +863,31 @@ static void test_bad_file_matrix(void **state) {
                           "property float y\nproperty float z\nelement face 900000000\n"
                           "property list uchar int vertex_indices\nend_header\n";
   expect_bad(tu_write_file("huge2.ply", ply_huge, strlen(ply_huge)), GI_ERR_FORMAT, "face");
+  /* Header lines assimp would misread (fuzz_scene: it spun forever on one):
+   * a line that is no PLY keyword, a vertical tab for a separator, data
+   * after end_header on its line. */
+  snprintf(ply, sizeof ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\neend_helement face 1\nend_header\n0 0 0\n1 0 0\n0 1 0\n");
+  expect_bad(tu_write_file("keyword.ply", ply, strlen(ply)), GI_ERR_FORMAT, "line 7: expected a PLY header line");
+  snprintf(ply, sizeof ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty\vfloat x\nend_header\n0\n1\n2\n");
+  expect_bad(tu_write_file("vtab.ply", ply, strlen(ply)), GI_ERR_FORMAT, "line 4: control character 0x0b");
+  snprintf(ply, sizeof ply, "%.*s 0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", (int)strlen(ply_head) - 1, ply_head);
+  expect_bad(tu_write_file("glued.ply", ply, strlen(ply)), GI_ERR_FORMAT, "line 9: end_header must stand alone");
+  /* Still read: comments, obj_info, a blank line and CRLF line ends. */
+  const char ply_ok[] = "ply\r\nformat ascii 1.0\r\ncomment made by hand\r\nobj_info a test\r\n\r\n"
+                        "element vertex 3\r\nproperty float x\r\nproperty float y\r\nproperty float z\r\n"
+                        "element face 1\r\nproperty list uchar int vertex_indices\r\nend_header\r\n"
+                        "0 0 0\r\n1 0 0\r\n0 1 0\r\n3 0 1 2\r\n";
+  {
+    gi_scene *s = NULL;
+    gi_error_info err = {0};
+    gi_result r = gi_scene_load(tu_write_file("crlf.ply", ply_ok, strlen(ply_ok)), NULL, &s, &err);
+    if (r != GI_OK) fail_msg("crlf.ply: %s", err.msg);
+    gi_scene_stats st;
+    gi_scene_get_stats(s, &st);
+    assert_int_equal(st.triangles, 1);
+    gi_scene_release(s);
+  }
   /* glTF */
   const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   const uint16_t idx[3] = {0, 1, 2};

@@ -259,12 +259,22 @@ static gi_result ply_header(const char *path, char *text, size_t size, ply_eleme
     char *nl = memchr(p, '\n', (size_t)(end - p));
     if (!nl) break;
     *nl = 0;
+    /* Tokens are split by spaces and tabs alone: another control character
+     * (a vertical tab, a NUL) is whitespace to sscanf but not to assimp,
+     * whose PLY reader then never finds the header's end and spins (a
+     * 319-byte file, found by fuzz_scene). */
+    size_t len = (size_t)(nl - p) - (nl > p && nl[-1] == '\r');
+    if (line == 1 && (len != 3 || memcmp(p, "ply", 3)))
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line 1: expected the PLY magic number 'ply'", path);
+    for (const char *q = p; q < nl; q++)
+      if ((unsigned char)*q < 0x20 && *q != '\t' && !(*q == '\r' && q + 1 == nl))
+        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: control character 0x%02x in the PLY header",
+                        path, line, (unsigned)(unsigned char)*q);
     char a[64] = "", b[64] = "", c[64] = "", d[64] = "", e[64] = "";
     int n = sscanf(p, "%63s %63s %63s %63s %63s", a, b, c, d, e);
     p = nl + 1;
     if (line == 1) {
-      if (strcmp(a, "ply") != 0)
-        return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line 1: expected the PLY magic number 'ply'", path);
+      /* checked above */
     } else if (!strcmp(a, "format") && n >= 2) {
       format = 1;
       *ascii = !strcmp(b, "ascii");
@@ -297,10 +307,17 @@ static gi_result ply_header(const char *path, char *text, size_t size, ply_eleme
       if (P->type == T_NONE || (list && (P->count_type == T_NONE || n < 5)))
         return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: expected 'property TYPE NAME' or 'property list "
                         "TYPE TYPE NAME' with a PLY scalar type", path, line);
-    } else if (!strcmp(a, "end_header")) {
+    } else if (!strcmp(a, "end_header") && n == 1) {
       if (!format) return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY header has no format line", path);
       *body_start = (size_t)(p - text);
       return GI_OK;
+    } else if (!strcmp(a, "end_header")) {
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: end_header must stand alone on its line, found "
+                      "'%s' after it", path, line, b);
+    } else if (n > 0 && strcmp(a, "comment") && strcmp(a, "obj_info")) {
+      /* What assimp would skip or misread: the header says what it is, or the file is not PLY. */
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: expected a PLY header line (format, comment, "
+                      "obj_info, element, property or end_header alone), found '%s'", path, line, a);
     }
   }
   return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY header has no end_header", path);
