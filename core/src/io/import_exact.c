@@ -97,11 +97,11 @@ static gi_result obj_vertex(const char *path, size_t line, char *s, gi__exact_me
   return GI_OK;
 }
 
-/* "f a b c ...", each corner v, v/t, v//n or v/t/n; negative counts back
- * from the last vertex. The polygon is fanned from its first corner. */
-static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, gi__exact_mesh *m,
-                          gi_error_info *err) {
-  uint32_t poly[PLY_MAX_POLYGON + 1];
+/* The vertex indices of an "f", "l" or "p" statement (what: "face",
+ * "line" or "point") into poly, *count of them, at least min: each v,
+ * v/t, v//n or v/t/n; negative counts back from the last vertex. */
+static gi_result obj_indices(const char *path, size_t line, char *s, const char *what, int min, const gi__exact_mesh *m,
+                             uint32_t poly[PLY_MAX_POLYGON + 1], int *count, gi_error_info *err) {
   int n = 0;
   for (;;) {
     s = skip_blank(s);
@@ -110,24 +110,35 @@ static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, 
     errno = 0;
     long long i = strtoll(s, &e, 10);
     if (e == s || errno || (*e && *e != '/' && !is_blank(*e)))
-      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: face corner %d: expected a vertex index, found '%.*s'",
-                      path, line, n + 1, token_len(s), s);
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: %s corner %d: expected a vertex index, found '%.*s'",
+                      path, line, what, n + 1, token_len(s), s);
     long long k = i > 0 ? i - 1 : (long long)m->nv + i;
     if (i == 0 || k < 0 || k >= (long long)m->nv)
       return gi__fail(err, GI_ERR_FORMAT,
-                      "scene file '%s' line %zu: face corner %d: vertex %lld: index out of range "
+                      "scene file '%s' line %zu: %s corner %d: vertex %lld: index out of range "
                       "(%zu vertices defined so far)", path,
-                      line, n + 1, i, m->nv);
+                      line, what, n + 1, i, m->nv);
     if (n == PLY_MAX_POLYGON)
-      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a face has more than %d corners", path, line,
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a %s has more than %d corners", path, line, what,
                       PLY_MAX_POLYGON);
     poly[n++] = (uint32_t)k;
     while (*e && !is_blank(*e)) e++; /* texture and normal indices are not used */
     s = e;
   }
-  if (n < 3)
-    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a face needs at least 3 corners, found %d", path,
-                    line, n);
+  if (n < min)
+    return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a %s needs at least %d corner%s, found %d", path,
+                    line, what, min, min == 1 ? "" : "s", n);
+  *count = n;
+  return GI_OK;
+}
+
+/* "f a b c ...": fanned from its first corner. */
+static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, gi__exact_mesh *m,
+                          gi_error_info *err) {
+  uint32_t poly[PLY_MAX_POLYGON + 1];
+  int n = 0;
+  gi_result rc = obj_indices(path, line, s, "face", 3, m, poly, &n, err);
+  if (rc != GI_OK) return rc;
   for (int t = 1; t + 1 < n; t++)
     if (!push_tri(m, poly[0], poly[t], poly[t + 1], mat))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
@@ -165,8 +176,22 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
       if (!n) rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: usemtl needs a material name", path, line);
       else if ((mat = intern_name(m, rest)) == GI__EXACT_NO_MATERIAL)
         rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+    } else if (keyword(s, "l", &rest) || keyword(s, "p", &rest)) {
+      /* Not geometry we use, but checked: assimp builds them, and a line of
+       * one vertex sent its OBJ reader down a path that leaks (fuzz_scene). */
+      uint32_t poly[PLY_MAX_POLYGON + 1];
+      int n = 0, l = s[0] == 'l';
+      rc = obj_indices(path, line, rest, l ? "line" : "point", l ? 2 : 1, m, poly, &n, err);
+    } else if (s[0] == 'f' || s[0] == 'l' || s[0] == 'p') {
+      /* assimp takes any line starting with f, l or p for a face, line or
+       * point ("foo 1" is a face of one corner to it, the spec's "lod 1" a
+       * line): refuse rather than let the two readers see different files. */
+      const char *kind = s[0] == 'f' ? "face" : s[0] == 'l' ? "line" : "point";
+      rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: cannot read statement '%.*s': assimp (which reads "
+                    "this file's materials) takes any line starting with '%c' for a %s; expected '%c' alone", path,
+                    line, token_len(s), s, s[0], kind, s[0]);
     }
-    /* vt, vn, o, g, s, mtllib, l, p, comments: not geometry we use. */
+    /* vt, vn, o, g, s, mtllib, comments: not geometry we use. */
   }
   if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error after line %zu", path, line);
   free(buf); /* getline's buffer comes from libc malloc */
