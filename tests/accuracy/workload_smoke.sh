@@ -47,7 +47,13 @@ for r, j in zip(rows, js):
         tol = 1 + 5e-4 / gain + f["bake_ms"] * dgain / (gain * (gain - dgain)) if gain > 0 else 0
         assert want == -1 and f["crossover"] == -1 or abs(f["crossover"] - want) <= tol, (r, want, tol)
     assert (j["crossover"] is None) == (f["crossover"] == -1), (j, r)
-    assert r["path_how"] in ("-1", "0", "1") and r["path_timed_full"] == "1", r
+    # Timed on the full count unless that would pass --quick's 20 s (a slow
+    # build, as under ThreadSanitizer): then scaled, and the markdown says so.
+    assert r["path_how"] in ("-1", "0", "1") and r["path_timed_full"] in ("0", "1"), r
+    assert r["path_timed_full"] == "1" or r["unit"] == "probe", r
+    if r["path_timed_full"] == "0":
+        row = [l for l in md.splitlines() if l.startswith("| box | " + r["workload"] + " |")]
+        assert len(row) == 1 and "(scaled)" in row[0], row
     assert abs(j["cone_mre"] - f["cone_mre"]) < 1e-6 and abs(j["bake_ms"] - f["bake_ms"]) < 1e-3
     spp = [p["spp"] for p in j["path"]]
     assert spp == sorted(spp) and spp[0] == 1, spp

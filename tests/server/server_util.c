@@ -192,7 +192,7 @@ su_resp su_http(const su_server *s, const char *method, const char *path, const 
 }
 
 const char *su_header(const su_resp *r, const char *name) {
-  static char val[1024];
+  static _Thread_local char val[1024]; /* test_sessions reads headers on two threads at once */
   size_t n = strlen(name);
   for (const char *p = r->headers; p && *p;) {
     if (!strncasecmp(p, name, n) && p[n] == ':') {

@@ -47,7 +47,7 @@ CURL *su_make_req(const su_server *s, const char *method, const char *path, cons
 /* One request (method NULL = GET, token NULL = none); fails the test when
  * curl cannot complete it. */
 su_resp su_http(const su_server *s, const char *method, const char *path, const char *body, const char *token);
-/* A header's value (case-insensitive name), or NULL. Static buffer. */
+/* A header's value (case-insensitive name), or NULL. A per-thread buffer, valid until the thread's next call. */
 const char *su_header(const su_resp *r, const char *name);
 /* Asserts an error answer: status, a JSON error body (Content-Type too), its name, and needle in its message. */
 void su_expect_error(const su_resp *r, long status, const char *name, const char *needle);

@@ -48,6 +48,15 @@ struct gi_scene *tu_sunlit_plane(double a, double E, double z_max);
  * (test_render, test_ref_panorama). Caller releases it. */
 struct gi_scene *tu_lit_room(float a);
 
+/* ThreadSanitizer runs code 5-15x slower and keeps 4 bytes of shadow for
+ * each byte of memory touched: a test's bounds on wall time and on RSS
+ * growth scale by this under `make tsan` (1 in every other build). */
+#if defined(__SANITIZE_THREAD__)
+#define TU_TSAN_FACTOR 5
+#else
+#define TU_TSAN_FACTOR 1
+#endif
+
 #define TU_SKIP_IF_NO_SCENE(var, rel)                  \
   const char *var = tu_scene_path(rel);                \
   if (!var) { skip(); }
