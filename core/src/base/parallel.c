@@ -38,6 +38,7 @@ static struct {
   pthread_cond_t work;  /* a job was published, or shares grew */
   job *head;            /* published jobs, oldest first */
   atomic_int active;    /* calls running on the pool (their callers included) */
+  atomic_uint published; /* bumped (under the lock) whenever pool.work is broadcast */
   atomic_int stop;
   int cores;            /* helpers + 1 */
   int num_helpers;
@@ -99,13 +100,41 @@ static void help(job *j, int id) {
   }
 }
 
+static inline void cpu_relax(void) {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#endif
+}
+
+/* How long an idle helper polls for the next job before it sleeps. A bake
+ * runs about fifty parallel loops with a little serial work between them,
+ * and a helper woken from its sleep for each started late: the Cornell
+ * box's 2-thread bake ran 105.7 -> 98.0 ms with this (1.75x -> 1.88x of
+ * one thread); 50 us was too short to help. */
+#define SPIN_NS 200000
+
+/* Waits for pool.work with the lock held: polls `published` for up to
+ * SPIN_NS first, then sleeps. A broadcast made while it polled is seen by
+ * the check under the lock, and one made after it by the wait. */
+static void idle_wait(void) {
+  unsigned seen = atomic_load_explicit(&pool.published, memory_order_relaxed);
+  pthread_mutex_unlock(&pool.lock);
+  double end = gi__now_ms() + SPIN_NS * 1e-6;
+  while (atomic_load_explicit(&pool.published, memory_order_relaxed) == seen && !atomic_load(&pool.stop) &&
+         gi__now_ms() < end)
+    for (int i = 0; i < 32; i++) cpu_relax();
+  pthread_mutex_lock(&pool.lock);
+  if (atomic_load_explicit(&pool.published, memory_order_relaxed) == seen && !atomic_load(&pool.stop))
+    pthread_cond_wait(&pool.work, &pool.lock);
+}
+
 static void *helper_main(void *unused) {
   (void)unused;
   pthread_mutex_lock(&pool.lock);
   while (!atomic_load(&pool.stop)) {
     job *j = pick_job();
     if (!j) {
-      pthread_cond_wait(&pool.work, &pool.lock);
+      idle_wait();
       continue;
     }
     int id = j->free_ids[--j->num_free];
@@ -206,6 +235,7 @@ int gi__parallel_for_cancel(size_t n, size_t grain, int threads, gi__range_fn fn
   } else {
     pool.head = &j;
   }
+  atomic_fetch_add_explicit(&pool.published, 1, memory_order_relaxed);
   pthread_cond_broadcast(&pool.work);
   pthread_mutex_unlock(&pool.lock);
 
@@ -222,7 +252,10 @@ int gi__parallel_for_cancel(size_t n, size_t grain, int threads, gi__range_fn fn
   while (atomic_load_explicit(&j.helpers, memory_order_relaxed) > 0) pthread_cond_wait(&j.done, &pool.lock);
   atomic_fetch_sub(&pool.active, 1);
   /* Shares just grew: idle helpers may join the calls still running. */
-  if (pool.head) pthread_cond_broadcast(&pool.work);
+  if (pool.head) {
+    atomic_fetch_add_explicit(&pool.published, 1, memory_order_relaxed);
+    pthread_cond_broadcast(&pool.work);
+  }
   pthread_mutex_unlock(&pool.lock);
   pthread_cond_destroy(&j.done);
   /* Chunks nobody took: only a stop or the token can leave any. */
