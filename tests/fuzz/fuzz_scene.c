@@ -3,9 +3,10 @@
  *
  * gi_scene_load reads a path and picks the importer by extension, so the
  * input is written to a private temporary file whose extension is sniffed
- * from its first bytes: "ply" -> .ply, "glTF" -> .glb, '{' -> .gltf, else
- * .obj. The seed corpus (tests/fuzz/corpus/scene) holds one small valid file
- * per format. Loading must either succeed or fail with a message naming the
+ * from its first bytes: "ply" -> .ply, "glTF" -> .glb, "MM" -> .3ds,
+ * "Kaydara FBX Binary" or "; FBX" -> .fbx, '{' -> .gltf, else .obj. The
+ * seed corpus (tests/fuzz/corpus/scene) holds one small valid file per
+ * format. Loading must either succeed or fail with a message naming the
  * file; it must never crash, hang or leak. Built two ways: with libFuzzer
  * (make fuzz, clang) and with the replay driver in every ctest run. */
 #include <stdint.h>
@@ -18,6 +19,8 @@
 static const char *sniff_ext(const uint8_t *d, size_t n) {
   if (n >= 3 && (memcmp(d, "ply", 3) == 0 || memcmp(d, "PLY", 3) == 0)) return "ply";
   if (n >= 4 && memcmp(d, "glTF", 4) == 0) return "glb";
+  if (n >= 2 && d[0] == 0x4d && d[1] == 0x4d) return "3ds"; /* its main chunk's id */
+  if ((n >= 18 && memcmp(d, "Kaydara FBX Binary", 18) == 0) || (n >= 5 && memcmp(d, "; FBX", 5) == 0)) return "fbx";
   for (size_t i = 0; i < n && i < 16; i++) {
     if (d[i] == '{') return "gltf";
     if (d[i] != ' ' && d[i] != '\n' && d[i] != '\r' && d[i] != '\t') break;

@@ -936,6 +936,144 @@ static void test_bad_files_assimp_misreads(void **state) {
   expect_one_triangle("crlf.ply", ply_ok);
 }
 
+/* ---- FBX: connection loops (fbx_check.c) ---------------------------------- */
+
+/* A binary FBX being written: version 7500 and later use 64-bit record fields. */
+typedef struct {
+  unsigned char b[2048];
+  size_t n;
+  int w; /* 4 or 8 */
+} fbxw;
+
+static void fbx_u(fbxw *f, uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; i++) f->b[f->n++] = (unsigned char)(v >> (8 * i));
+}
+
+static void fbx_raw(fbxw *f, const void *p, size_t k) {
+  memcpy(f->b + f->n, p, k);
+  f->n += k;
+}
+
+/* Starts a record; the caller writes its properties, then fbx_props, nested records, fbx_end. */
+static size_t fbx_begin(fbxw *f, const char *name) {
+  size_t at = f->n;
+  fbx_u(f, 0, 3 * f->w);
+  f->b[f->n++] = (unsigned char)strlen(name);
+  fbx_raw(f, name, strlen(name));
+  return at;
+}
+
+static void fbx_props(fbxw *f, size_t at, int nprops) {
+  size_t start = at + 3 * (size_t)f->w + 1 + f->b[at + 3 * f->w], n = f->n;
+  f->n = at + (size_t)f->w;
+  fbx_u(f, (uint64_t)nprops, f->w);
+  fbx_u(f, n - start, f->w);
+  f->n = n;
+}
+
+static void fbx_end(fbxw *f, size_t at, int nested) {
+  if (nested) fbx_u(f, 0, 3 * f->w + 1);
+  size_t n = f->n;
+  f->n = at;
+  fbx_u(f, n, f->w);
+  f->n = n;
+}
+
+static void fbx_L(fbxw *f, int64_t v) { f->b[f->n++] = 'L', fbx_u(f, (uint64_t)v, 8); }
+static void fbx_I(fbxw *f, int32_t v) { f->b[f->n++] = 'I', fbx_u(f, (uint32_t)v, 4); }
+static void fbx_S(fbxw *f, const char *s, size_t k) { f->b[f->n++] = 'S', fbx_u(f, k, 4), fbx_raw(f, s, k); }
+
+/* One record holding one int property. */
+static void fbx_leaf_I(fbxw *f, const char *name, int32_t v) {
+  size_t r = fbx_begin(f, name);
+  fbx_I(f, v);
+  fbx_props(f, r, 1);
+  fbx_end(f, r, 0);
+}
+
+/* A quad (model 200, geometry 100) whose model's parent is `parent` (0: the scene). */
+static const char *fbx_quad(const char *name, int version, int64_t parent) {
+  fbxw f = {.w = version >= 7500 ? 8 : 4};
+  fbx_raw(&f, "Kaydara FBX Binary  \0\x1a\0", 23);
+  fbx_u(&f, (uint64_t)version, 4);
+  size_t hx = fbx_begin(&f, "FBXHeaderExtension");
+  fbx_props(&f, hx, 0);
+  fbx_leaf_I(&f, "FBXHeaderVersion", 1003);
+  fbx_leaf_I(&f, "FBXVersion", version);
+  fbx_end(&f, hx, 1);
+  size_t obj = fbx_begin(&f, "Objects");
+  fbx_props(&f, obj, 0);
+  size_t geo = fbx_begin(&f, "Geometry");
+  fbx_L(&f, 100), fbx_S(&f, "quad\0\1Geometry", 14), fbx_S(&f, "Mesh", 4);
+  fbx_props(&f, geo, 3);
+  size_t v = fbx_begin(&f, "Vertices");
+  const double xyz[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  f.b[f.n++] = 'd', fbx_u(&f, 12, 4), fbx_u(&f, 0, 4), fbx_u(&f, sizeof xyz, 4), fbx_raw(&f, xyz, sizeof xyz);
+  fbx_props(&f, v, 1);
+  fbx_end(&f, v, 0);
+  size_t pv = fbx_begin(&f, "PolygonVertexIndex");
+  const int32_t idx[4] = {0, 1, 2, -4};
+  f.b[f.n++] = 'i', fbx_u(&f, 4, 4), fbx_u(&f, 0, 4), fbx_u(&f, sizeof idx, 4), fbx_raw(&f, idx, sizeof idx);
+  fbx_props(&f, pv, 1);
+  fbx_end(&f, pv, 0);
+  fbx_leaf_I(&f, "GeometryVersion", 124);
+  fbx_end(&f, geo, 1);
+  size_t mod = fbx_begin(&f, "Model");
+  fbx_L(&f, 200), fbx_S(&f, "quad\0\1Model", 11), fbx_S(&f, "Mesh", 4);
+  fbx_props(&f, mod, 3);
+  fbx_leaf_I(&f, "Version", 232);
+  fbx_end(&f, mod, 1);
+  fbx_end(&f, obj, 1);
+  size_t con = fbx_begin(&f, "Connections");
+  fbx_props(&f, con, 0);
+  const int64_t pairs[2][2] = {{100, 200}, {200, parent}};
+  for (int i = 0; i < 2; i++) {
+    size_t c = fbx_begin(&f, "C");
+    fbx_S(&f, "OO", 2), fbx_L(&f, pairs[i][0]), fbx_L(&f, pairs[i][1]);
+    fbx_props(&f, c, 3);
+    fbx_end(&f, c, 0);
+  }
+  fbx_end(&f, con, 1);
+  fbx_u(&f, 0, 3 * f.w + 1);
+  return tu_write_file(name, f.b, f.n);
+}
+
+/* assimp recursed without end on a connection loop and the process died
+ * (fuzz_scene: a 414-byte ASCII FBX): refused now, in both encodings and
+ * both record widths; the same quad without the loop still loads. */
+static void test_fbx_connection_loops(void **state) {
+  (void)state;
+  char name[64];
+  for (int v = 0; v < 2; v++) {
+    int version = v ? 7500 : 7400;
+    snprintf(name, sizeof name, "quad%d.fbx", version);
+    const char *ok = fbx_quad(name, version, 0);
+    gi_scene *s = NULL;
+    gi_error_info err = {0};
+    if (gi_scene_load(ok, NULL, &s, &err) != GI_OK) fail_msg("%s: %s", ok, err.msg);
+    gi_scene_stats st;
+    gi_scene_get_stats(s, &st);
+    assert_int_equal(st.triangles, 2);
+    gi_scene_release(s);
+    snprintf(name, sizeof name, "self%d.fbx", version);
+    expect_bad(fbx_quad(name, version, 200), GI_ERR_FORMAT, "loop (object 200 is its own ancestor)");
+    snprintf(name, sizeof name, "pair%d.fbx", version);
+    expect_bad(fbx_quad(name, version, 100), GI_ERR_FORMAT, "its FBX connections form a loop");
+    /* Cut inside the Objects record: a record runs past the file's end. */
+    FILE *f = fopen(ok, "rb");
+    unsigned char buf[2048];
+    size_t n = fread(buf, 1, sizeof buf, f);
+    fclose(f);
+    snprintf(name, sizeof name, "cut%d.fbx", version);
+    expect_bad(tu_write_file(name, buf, n / 2), GI_ERR_FORMAT, "runs past its parent or the file's end");
+  }
+  const char ascii[] = "; FBX 7.4.0 project file\nObjects:  {\n\tGeometry: 100, \"Geometry::q\", \"Mesh\" {\n"
+                       "\t\tVertices: *9 {\n\t\t\ta: 0,0,0,1,0,0,0,1,0\n\t\t}\n\t\tPolygonVertexIndex: *3 {\n"
+                       "\t\t\ta: 0,1,-3\n\t\t}\n\t}\n\tModel: 200, \"Model::q\", \"Mesh\" {\n\t}\n}\n"
+                       "Connections:  {\n\tC: \"OO\",100,200\n\tC: \"OO\",200,300\n\tC: \"OO\",300,200\n}\n";
+  expect_bad(tu_write_file("loop_ascii.fbx", ascii, strlen(ascii)), GI_ERR_FORMAT, "connections form a loop");
+}
+
 /* The light tree: every point's pick probabilities sum to one, a pick
  * reports the probability the MIS side recomputes, stratified picks land
  * in proportion, and an emitter that faces away from a point is never
@@ -1110,6 +1248,7 @@ int main(void) {
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_bad_file_matrix),
       cmocka_unit_test(test_bad_files_assimp_misreads),
+      cmocka_unit_test(test_fbx_connection_loops),
       cmocka_unit_test(test_backface_share),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -3,7 +3,9 @@
  * Design: before assimp sees a file we check that it opens, is a regular
  * non-empty file and, for PLY, that the element counts in its header fit in
  * the bytes that follow (a header claiming 10^9 faces would otherwise make
- * assimp reserve gigabytes). assimp then triangulates, joins vertices and
+ * assimp reserve gigabytes), and for FBX that its object connections do
+ * not loop (io/fbx_check.c: assimp recursed until the stack ran out).
+ * assimp then triangulates, joins vertices and
  * pre-transforms everything into world space (lights included), and we copy
  * triangle meshes into a gi_mesh_builder; points and lines are skipped.
  * OBJ and PLY geometry comes instead from our own double-precision readers
@@ -38,6 +40,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include "base/internal.h"
+#include "io/fbx_check.h"
 #include "io/gltf_recentre.h"
 #include "io/import_exact.h"
 #include "io/texture_image.h"
@@ -769,6 +772,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   double scale = o.scale == 0 ? 1.0 : o.scale;
   if (!isfinite(scale)) return gi__fail(err, GI_ERR_NONFINITE, "scene file '%s': scale is not finite", path);
   gi_result rc = check_file(path, err);
+  if (rc == GI_OK && ends_with_ci(path, ".fbx")) rc = gi__fbx_check(path, err);
   if (rc != GI_OK) return rc;
 
   const struct aiScene *as = NULL;

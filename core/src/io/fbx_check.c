@@ -1,0 +1,267 @@
+/* io/fbx_check.c: an FBX file's object connections, checked for loops
+ * before assimp follows them (fbx_check.h says why).
+ *
+ * Binary FBX (the "Kaydara FBX Binary" header): node records, each with
+ * its end offset, property count and length, name, properties and nested
+ * records; the top-level "Connections" record holds one "C" record per
+ * connection, whose properties are a type string and the child's and the
+ * parent's ids (64-bit integers). ASCII FBX: lines `C: "OO",child,parent`.
+ * Either way the connections become edges child -> parent, and a
+ * topological sort (Kahn) finds whether any loop. */
+#define _POSIX_C_SOURCE 200809L
+#include "io/fbx_check.h"
+#include <errno.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "base/internal.h"
+
+typedef struct {
+  int64_t *e; /* child, parent pairs */
+  size_t n, cap;
+} edges;
+
+static int add_edge(edges *g, int64_t child, int64_t parent) {
+  if (g->n == g->cap) {
+    size_t nc = g->cap ? 2 * g->cap : 256;
+    int64_t *ne = gi__realloc(g->e, nc * 2 * sizeof *ne);
+    if (!ne) return 0;
+    g->e = ne, g->cap = nc;
+  }
+  g->e[2 * g->n] = child, g->e[2 * g->n + 1] = parent;
+  g->n++;
+  return 1;
+}
+
+/* ---- binary ----------------------------------------------------------------- */
+
+#define FBX_MAGIC "Kaydara FBX Binary  "
+#define FBX_HEADER 27 /* magic, NUL, 0x1a 0x00, version */
+
+typedef struct {
+  const unsigned char *d;
+  size_t size;
+  int wide; /* 7.5 and later: 64-bit offsets and counts */
+} bin;
+
+static uint64_t le(const unsigned char *p, int bytes) {
+  uint64_t v = 0;
+  for (int i = bytes - 1; i >= 0; i--) v = v << 8 | p[i];
+  return v;
+}
+
+/* The record at *at: its end, property count, property bytes and name.
+ * 0 when it does not fit in the file; *null set for the list's end. */
+typedef struct {
+  uint64_t end, nprops, proplen;
+  const char *name;
+  int namelen;
+  size_t props; /* offset of the first property */
+} record;
+
+static int read_record(const bin *b, size_t at, record *r, int *null) {
+  int w = b->wide ? 8 : 4;
+  size_t head = 3 * (size_t)w + 1;
+  if (at > b->size || b->size - at < head) return 0;
+  r->end = le(b->d + at, w);
+  r->nprops = le(b->d + at + w, w);
+  r->proplen = le(b->d + at + 2 * w, w);
+  r->namelen = b->d[at + 3 * w];
+  *null = r->end == 0 && r->nprops == 0 && r->proplen == 0 && r->namelen == 0;
+  if (*null) return 1;
+  r->name = (const char *)b->d + at + head;
+  r->props = at + head + (size_t)r->namelen;
+  return r->end > at && r->end <= b->size && r->props <= r->end && r->proplen <= r->end - r->props;
+}
+
+/* A property's size in bytes at p (within [p, end)), or 0 when unknown or past the end. */
+static size_t prop_size(const unsigned char *p, const unsigned char *end) {
+  if (p >= end) return 0;
+  size_t left = (size_t)(end - p) - 1, n;
+  switch (p[0]) {
+    case 'C': n = 1; break;
+    case 'Y': n = 2; break;
+    case 'I': case 'F': n = 4; break;
+    case 'L': case 'D': n = 8; break;
+    case 'S': case 'R': n = left >= 4 ? 4 + (size_t)le(p + 1, 4) : SIZE_MAX; break;
+    case 'f': case 'd': case 'l': case 'i': case 'b': n = left >= 12 ? 12 + (size_t)le(p + 9, 4) : SIZE_MAX; break;
+    default: return 0;
+  }
+  return n <= left ? 1 + n : 0;
+}
+
+/* One "C" record: its string, then two 64-bit ids (child, parent). */
+static int connection(const bin *b, const record *r, edges *g, int *oom) {
+  const unsigned char *p = b->d + r->props, *end = p + r->proplen;
+  int64_t id[2];
+  int got = 0;
+  for (uint64_t i = 0; i < r->nprops && got < 2; i++) {
+    size_t n = prop_size(p, end);
+    if (!n) return 0;
+    if (i > 0 && p[0] == 'L') id[got++] = (int64_t)le(p + 1, 8);
+    p += n;
+  }
+  if (got == 2 && !add_edge(g, id[0], id[1])) *oom = 1;
+  return 1;
+}
+
+/* The top-level records up to "Connections", then its "C" records. 0 when a record does not fit. */
+static int binary_edges(const bin *b, edges *g, int *oom) {
+  size_t at = FBX_HEADER;
+  for (;;) {
+    record r;
+    int null;
+    if (!read_record(b, at, &r, &null)) return 0;
+    if (null) return 1;
+    if (r.namelen == 11 && !memcmp(r.name, "Connections", 11)) {
+      size_t c = r.props + r.proplen;
+      while (c < r.end) {
+        record k;
+        int knull;
+        if (!read_record(b, c, &k, &knull) || (!knull && k.end > r.end)) return 0;
+        if (knull) break;
+        if (k.namelen == 1 && k.name[0] == 'C' && !connection(b, &k, g, oom)) return 0;
+        if (*oom) return 1;
+        c = (size_t)k.end;
+      }
+    }
+    at = (size_t)r.end;
+  }
+}
+
+/* ---- ASCII ------------------------------------------------------------------ */
+
+/* Lines `C: "TYPE",child,parent[,...]`, anywhere (only Connections has them). */
+static void ascii_edges(const char *t, size_t size, edges *g, int *oom) {
+  const char *end = t + size;
+  for (const char *p = t; p < end && !*oom;) {
+    const char *nl = memchr(p, '\n', (size_t)(end - p));
+    const char *eol = nl ? nl : end;
+    while (p < eol && (*p == ' ' || *p == '\t')) p++;
+    if (eol - p > 3 && p[0] == 'C' && p[1] == ':') {
+      const char *q = memchr(p, '"', (size_t)(eol - p));
+      q = q ? memchr(q + 1, '"', (size_t)(eol - q - 1)) : NULL;
+      int64_t id[2];
+      int got = 0;
+      while (q && got < 2) {
+        q = memchr(q, ',', (size_t)(eol - q));
+        if (!q) break;
+        q++;
+        char *e;
+        errno = 0;
+        long long v = strtoll(q, &e, 10);
+        if (e == q || errno) break;
+        id[got++] = v;
+        q = e;
+      }
+      if (got == 2 && !add_edge(g, id[0], id[1])) *oom = 1;
+    }
+    p = nl ? nl + 1 : end;
+  }
+}
+
+/* ---- loops ------------------------------------------------------------------ */
+
+static int cmp_i64(const void *a, const void *b) {
+  int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+  return x < y ? -1 : x > y;
+}
+
+static size_t index_of(const int64_t *ids, size_t n, int64_t id) {
+  const int64_t *f = bsearch(&id, ids, n, sizeof *ids, cmp_i64);
+  return (size_t)(f - ids);
+}
+
+/* Edges grouped by their `from` end (counting sort): first[v] .. first[v + 1]
+ * index `to` for node v. */
+static void group(const size_t *from, const size_t *to, size_t m, size_t n, size_t *first, size_t *fill, size_t *out) {
+  memset(first, 0, (n + 1) * sizeof *first);
+  memset(fill, 0, n * sizeof *fill);
+  for (size_t k = 0; k < m; k++) first[from[k] + 1]++;
+  for (size_t v = 0; v < n; v++) first[v + 1] += first[v];
+  for (size_t k = 0; k < m; k++) out[first[from[k]] + fill[from[k]]++] = to[k];
+}
+
+/* 1 and an id on a loop in *where when g has one; 0 without; -1 out of memory. */
+static int find_loop(const edges *g, int64_t *where) {
+  size_t n = 0, m = g->n, nn = 2 * m + 1;
+  int64_t *ids = gi__malloc(nn * sizeof *ids);
+  size_t *ci = gi__malloc((m + 1) * sizeof *ci), *pi = gi__malloc((m + 1) * sizeof *pi);
+  size_t *up = gi__malloc((nn + 1) * sizeof *up), *upv = gi__malloc((m + 1) * sizeof *upv);
+  size_t *down = gi__malloc((nn + 1) * sizeof *down), *downv = gi__malloc((m + 1) * sizeof *downv);
+  size_t *indeg = gi__malloc(nn * sizeof *indeg), *queue = gi__malloc(nn * sizeof *queue);
+  int rc = -1;
+  if (!ids || !ci || !pi || !up || !upv || !down || !downv || !indeg || !queue) goto out;
+  memcpy(ids, g->e, 2 * m * sizeof *ids);
+  qsort(ids, 2 * m, sizeof *ids, cmp_i64);
+  for (size_t i = 0; i < 2 * m; i++)
+    if (i == 0 || ids[i] != ids[n - 1]) ids[n++] = ids[i];
+  for (size_t k = 0; k < m; k++) ci[k] = index_of(ids, n, g->e[2 * k]), pi[k] = index_of(ids, n, g->e[2 * k + 1]);
+  group(ci, pi, m, n, up, indeg, upv);     /* child -> its parents */
+  group(pi, ci, m, n, down, indeg, downv); /* parent -> its children */
+  /* Kahn from the leaves up: an object goes once all its children have. */
+  size_t head = 0, tail = 0;
+  for (size_t v = 0; v < n; v++)
+    if (!(indeg[v] = down[v + 1] - down[v])) queue[tail++] = v;
+  while (head < tail) {
+    size_t v = queue[head++];
+    for (size_t k = up[v]; k < up[v + 1]; k++)
+      if (--indeg[upv[k]] == 0) queue[tail++] = upv[k];
+  }
+  rc = tail < n;
+  if (rc) {
+    /* Every object left has a child left: stepping from child to child n
+     * times from any of them ends on a loop. */
+    size_t v = 0;
+    while (!indeg[v]) v++;
+    for (size_t step = 0; step < n; step++)
+      for (size_t k = down[v]; k < down[v + 1]; k++)
+        if (indeg[downv[k]]) {
+          v = downv[k];
+          break;
+        }
+    *where = ids[v];
+  }
+out:
+  gi__free(ids), gi__free(ci), gi__free(pi), gi__free(up), gi__free(upv);
+  gi__free(down), gi__free(downv), gi__free(indeg), gi__free(queue);
+  return rc;
+}
+
+gi_result gi__fbx_check(const char *path, gi_error_info *err) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return gi__fail(err, GI_ERR_IO, "scene file '%s': cannot open: %s", path, strerror(errno));
+  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  unsigned char *d = n >= 0 ? gi__malloc((size_t)n + 1) : NULL;
+  gi_result rc = GI_OK;
+  if (n < 0) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': cannot size it", path);
+  else if (!d) rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  else if (fseek(f, 0, SEEK_SET) != 0 || fread(d, 1, (size_t)n, f) != (size_t)n)
+    rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error", path);
+  fclose(f);
+  if (rc != GI_OK) {
+    gi__free(d);
+    return rc;
+  }
+  edges g = {0};
+  int oom = 0;
+  size_t size = (size_t)n;
+  if (size >= FBX_HEADER && !memcmp(d, FBX_MAGIC, strlen(FBX_MAGIC))) {
+    bin b = {d, size, le(d + 23, 4) >= 7500};
+    if (!binary_edges(&b, &g, &oom))
+      rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': an FBX record runs past its parent or the file's end; "
+                    "the file is truncated or corrupt", path);
+  } else {
+    ascii_edges((const char *)d, size, &g, &oom);
+  }
+  int64_t where = 0;
+  int loop = rc == GI_OK && !oom ? find_loop(&g, &where) : 0;
+  if (oom || loop < 0) rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  else if (loop)
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': its FBX connections form a loop (object %lld is its own "
+                  "ancestor), which no valid file has", path, (long long)where);
+  gi__free(g.e);
+  gi__free(d);
+  return rc;
+}
