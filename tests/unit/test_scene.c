@@ -1072,6 +1072,14 @@ static void test_fbx_connection_loops(void **state) {
                        "\t\t\ta: 0,1,-3\n\t\t}\n\t}\n\tModel: 200, \"Model::q\", \"Mesh\" {\n\t}\n}\n"
                        "Connections:  {\n\tC: \"OO\",100,200\n\tC: \"OO\",200,300\n\tC: \"OO\",300,200\n}\n";
   expect_bad(tu_write_file("loop_ascii.fbx", ascii, strlen(ascii)), GI_ERR_FORMAT, "connections form a loop");
+  /* No connections at all: nothing to check (fuzz_scene: the empty list once reached memcpy as NULL). */
+  const char bare[] = "; FBX 7.4.0 project file\nObjects:  {\n}\n";
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_result r = gi_scene_load(tu_write_file("bare.fbx", bare, strlen(bare)), NULL, &s, &err);
+  printf("  bare.fbx -> %s: %s\n", gi_err_name(r), err.msg);
+  assert_int_not_equal(r, GI_OK);
+  assert_null(strstr(err.msg, "loop"));
 }
 
 /* The light tree: every point's pick probabilities sum to one, a pick

@@ -185,6 +185,7 @@ static void group(const size_t *from, const size_t *to, size_t m, size_t n, size
 
 /* 1 and an id on a loop in *where when g has one; 0 without; -1 out of memory. */
 static int find_loop(const edges *g, int64_t *where) {
+  if (g->n == 0) return 0;
   size_t n = 0, m = g->n, nn = 2 * m + 1;
   int64_t *ids = gi__malloc(nn * sizeof *ids);
   size_t *ci = gi__malloc((m + 1) * sizeof *ci), *pi = gi__malloc((m + 1) * sizeof *pi);
