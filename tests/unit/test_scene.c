@@ -904,14 +904,17 @@ static void test_bad_files_assimp_misreads(void **state) {
   /* What assimp reads otherwise than we do (fuzz_scene: it leaked on these):
    * a statement starting with f, l or p that is none of them, a line of one
    * vertex, a point outside the vertices. */
-  const char obj_foo[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nfoo 1\n";
-  expect_bad(tu_write_file("foo.obj", obj_foo, strlen(obj_foo)), GI_ERR_FORMAT, "line 5: cannot read statement 'foo'");
-  const char obj_l1[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no x\nl 1\n";
-  expect_bad(tu_write_file("l1.obj", obj_l1, strlen(obj_l1)), GI_ERR_FORMAT, "line 6: a line needs at least 2 corners");
-  const char obj_p9[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\np 9\n";
-  expect_bad(tu_write_file("p9.obj", obj_p9, strlen(obj_p9)), GI_ERR_FORMAT, "line 5: point corner 1: vertex 9");
-  const char obj_lod[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nlod 1\n";
-  expect_bad(tu_write_file("lod.obj", obj_lod, strlen(obj_lod)), GI_ERR_FORMAT, "takes any line starting with 'l'");
+  static const struct { const char *name, *tail, *want; } objs[] = {
+      {"foo.obj", "foo 1\n", "line 5: cannot read statement 'foo'"},
+      {"l1.obj", "o x\nl 1\n", "line 6: a line needs at least 2 corners"},
+      {"p9.obj", "p 9\n", "line 5: point corner 1: vertex 9"},
+      {"lod.obj", "lod 1\n", "takes any line starting with 'l'"},
+  };
+  for (size_t i = 0; i < sizeof objs / sizeof objs[0]; i++) {
+    char text[256];
+    snprintf(text, sizeof text, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n%s", objs[i].tail);
+    expect_bad(tu_write_file(objs[i].name, text, strlen(text)), GI_ERR_FORMAT, objs[i].want);
+  }
   /* Lines and points themselves are fine (and not geometry we bake). */
   const char obj_lp[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nl 1 2 3\np 1 -1\n";
   expect_one_triangle("lp.obj", obj_lp);
