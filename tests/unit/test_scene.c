@@ -994,15 +994,25 @@ static void fbx_leaf_I(fbxw *f, const char *name, int32_t v) {
   fbx_end(f, r, 0);
 }
 
-/* A quad (model 200, geometry 100) whose model's parent is `parent` (0: the scene). */
-static const char *fbx_quad(const char *name, int version, int64_t parent) {
+/* A quad (model 200, geometry 100) whose model's parent is `parent` (0: the
+ * scene); bad_length: the FBXVersion record's property length 2043 short
+ * of wrapping around (fuzz_scene: on a 7500 file assimp's cursor ran past
+ * the file's end and an assertion aborted the process). */
+static const char *fbx_quad_ex(const char *name, int version, int64_t parent, int bad_length) {
   fbxw f = {.w = version >= 7500 ? 8 : 4};
   fbx_raw(&f, "Kaydara FBX Binary  \0\x1a\0", 23);
   fbx_u(&f, (uint64_t)version, 4);
   size_t hx = fbx_begin(&f, "FBXHeaderExtension");
   fbx_props(&f, hx, 0);
   fbx_leaf_I(&f, "FBXHeaderVersion", 1003);
+  size_t fv = f.n;
   fbx_leaf_I(&f, "FBXVersion", version);
+  if (bad_length) {
+    size_t n = f.n;
+    f.n = fv + 2 * (size_t)f.w;
+    fbx_u(&f, (f.w == 8 ? UINT64_MAX : UINT32_MAX) - 2042, f.w);
+    f.n = n;
+  }
   fbx_end(&f, hx, 1);
   size_t obj = fbx_begin(&f, "Objects");
   fbx_props(&f, obj, 0);
@@ -1029,8 +1039,9 @@ static const char *fbx_quad(const char *name, int version, int64_t parent) {
   fbx_end(&f, obj, 1);
   size_t con = fbx_begin(&f, "Connections");
   fbx_props(&f, con, 0);
-  const int64_t pairs[2][2] = {{100, 200}, {200, parent}};
-  for (int i = 0; i < 2; i++) {
+  /* A looped model keeps its link to the scene too: assimp reaches it from the root. */
+  const int64_t pairs[3][2] = {{100, 200}, {200, parent}, {200, 0}};
+  for (int i = 0; i < (parent ? 3 : 2); i++) {
     size_t c = fbx_begin(&f, "C");
     fbx_S(&f, "OO", 2), fbx_L(&f, pairs[i][0]), fbx_L(&f, pairs[i][1]);
     fbx_props(&f, c, 3);
@@ -1039,6 +1050,10 @@ static const char *fbx_quad(const char *name, int version, int64_t parent) {
   fbx_end(&f, con, 1);
   fbx_u(&f, 0, 3 * f.w + 1);
   return tu_write_file(name, f.b, f.n);
+}
+
+static const char *fbx_quad(const char *name, int version, int64_t parent) {
+  return fbx_quad_ex(name, version, parent, 0);
 }
 
 /* assimp recursed without end on a connection loop and the process died
@@ -1069,6 +1084,8 @@ static void test_fbx_connection_loops(void **state) {
     fclose(f);
     snprintf(name, sizeof name, "cut%d.fbx", version);
     expect_bad(tu_write_file(name, buf, n / 2), GI_ERR_FORMAT, "runs past its parent or the file's end");
+    snprintf(name, sizeof name, "length%d.fbx", version);
+    expect_bad(fbx_quad_ex(name, version, 0, 1), GI_ERR_FORMAT, "holds a property assimp cannot read");
   }
   const char ascii[] = "; FBX 7.4.0 project file\nObjects:  {\n\tGeometry: 100, \"Geometry::q\", \"Mesh\" {\n"
                        "\t\tVertices: *9 {\n\t\t\ta: 0,0,0,1,0,0,0,1,0\n\t\t}\n\t\tPolygonVertexIndex: *3 {\n"

@@ -75,7 +75,11 @@ static int read_record(const bin *b, size_t at, record *r, int *null) {
   return r->end > at && r->end <= b->size && r->props <= r->end && r->proplen <= r->end - r->props;
 }
 
-/* A property's size in bytes at p (within [p, end)), or 0 when unknown or past the end. */
+/* A property's size in bytes at p (within [p, end)), or 0 when unknown, past
+ * the end, or what assimp's tokenizer cannot take: a raw array whose byte
+ * count is not its length times its element size (assimp checks that only
+ * for f, i, d and l, and asserts, aborting, on a raw bool array), or an
+ * array encoding other than raw (0) and deflate (1). */
 static size_t prop_size(const unsigned char *p, const unsigned char *end) {
   if (p >= end) return 0;
   size_t left = (size_t)(end - p) - 1, n;
@@ -85,49 +89,68 @@ static size_t prop_size(const unsigned char *p, const unsigned char *end) {
     case 'I': case 'F': n = 4; break;
     case 'L': case 'D': n = 8; break;
     case 'S': case 'R': n = left >= 4 ? 4 + (size_t)le(p + 1, 4) : SIZE_MAX; break;
-    case 'f': case 'd': case 'l': case 'i': case 'b': n = left >= 12 ? 12 + (size_t)le(p + 9, 4) : SIZE_MAX; break;
+    case 'f': case 'd': case 'l': case 'i': case 'b': {
+      if (left < 12) return 0;
+      uint64_t count = le(p + 1, 4), enc = le(p + 5, 4), bytes = le(p + 9, 4);
+      uint64_t elem = p[0] == 'b' ? 1 : p[0] == 'f' || p[0] == 'i' ? 4 : 8;
+      if (enc > 1 || (enc == 0 && (p[0] == 'b' || count * elem != bytes))) return 0;
+      n = 12 + (size_t)bytes;
+      break;
+    }
     default: return 0;
   }
   return n <= left ? 1 + n : 0;
 }
 
 /* One "C" record: its string, then two 64-bit ids (child, parent). */
-static int connection(const bin *b, const record *r, edges *g, int *oom) {
+static void connection(const bin *b, const record *r, edges *g, int *oom) {
   const unsigned char *p = b->d + r->props, *end = p + r->proplen;
   int64_t id[2];
   int got = 0;
   for (uint64_t i = 0; i < r->nprops && got < 2; i++) {
-    size_t n = prop_size(p, end);
-    if (!n) return 0;
     if (i > 0 && p[0] == 'L') id[got++] = (int64_t)le(p + 1, 8);
-    p += n;
+    p += prop_size(p, end); /* walk checked every size */
   }
   if (got == 2 && !add_edge(g, id[0], id[1])) *oom = 1;
-  return 1;
 }
 
-/* The top-level records up to "Connections", then its "C" records. 0 when a record does not fit. */
-static int binary_edges(const bin *b, edges *g, int *oom) {
-  size_t at = FBX_HEADER;
-  for (;;) {
+/* Records nest this deep at most (a real file: 5 or 6). */
+#define FBX_MAX_DEPTH 64
+
+/* The record list at [at, limit), as assimp's tokenizer reads it: every
+ * record inside its parent, its properties exactly filling their length,
+ * a nested list followed by its zero sentinel; the top level ends at a
+ * zero record or the file's end. The "C" records of the top-level
+ * "Connections" become edges. 0 when anything does not fit. */
+static int walk(const bin *b, size_t at, size_t limit, int depth, int conn, edges *g, int *oom) {
+  size_t sentinel = 3 * (size_t)(b->wide ? 8 : 4) + 1;
+  if (depth > FBX_MAX_DEPTH) return 0;
+  while (at < limit && !*oom) {
     record r;
     int null;
     if (!read_record(b, at, &r, &null)) return 0;
-    if (null) return 1;
-    if (r.namelen == 11 && !memcmp(r.name, "Connections", 11)) {
-      size_t c = r.props + r.proplen;
-      while (c < r.end) {
-        record k;
-        int knull;
-        if (!read_record(b, c, &k, &knull) || (!knull && k.end > r.end)) return 0;
-        if (knull) break;
-        if (k.namelen == 1 && k.name[0] == 'C' && !connection(b, &k, g, oom)) return 0;
-        if (*oom) return 1;
-        c = (size_t)k.end;
-      }
+    if (null) return depth == 0;
+    if (r.end > limit) return 0;
+    const unsigned char *p = b->d + r.props, *pe = p + r.proplen;
+    for (uint64_t i = 0; i < r.nprops; i++) {
+      size_t n = prop_size(p, pe);
+      if (!n) return 0;
+      p += n;
+    }
+    if (p != pe) return 0;
+    if (conn && r.namelen == 1 && r.name[0] == 'C') connection(b, &r, g, oom);
+    size_t nested = r.props + (size_t)r.proplen;
+    if (nested < r.end) {
+      if (r.end - nested < sentinel) return 0;
+      size_t stop = (size_t)r.end - sentinel;
+      for (size_t k = stop; k < r.end; k++)
+        if (b->d[k]) return 0;
+      int sub = depth == 0 && r.namelen == 11 && !memcmp(r.name, "Connections", 11);
+      if (!walk(b, nested, stop, depth + 1, sub, g, oom)) return 0;
     }
     at = (size_t)r.end;
   }
+  return at == limit || *oom;
 }
 
 /* ---- ASCII ------------------------------------------------------------------ */
@@ -250,9 +273,9 @@ gi_result gi__fbx_check(const char *path, gi_error_info *err) {
   size_t size = (size_t)n;
   if (size >= FBX_HEADER && !memcmp(d, FBX_MAGIC, strlen(FBX_MAGIC))) {
     bin b = {d, size, le(d + 23, 4) >= 7500};
-    if (!binary_edges(&b, &g, &oom))
-      rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': an FBX record runs past its parent or the file's end; "
-                    "the file is truncated or corrupt", path);
+    if (!walk(&b, FBX_HEADER, size, 0, 0, &g, &oom))
+      rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': an FBX record runs past its parent or the file's end, or "
+                    "holds a property assimp cannot read; the file is truncated or corrupt", path);
   } else {
     ascii_edges((const char *)d, size, &g, &oom);
   }
