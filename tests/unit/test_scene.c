@@ -949,7 +949,7 @@ typedef struct {
 } fbxw;
 
 static void fbx_u(fbxw *f, uint64_t v, int bytes) {
-  for (int i = 0; i < bytes; i++) f->b[f->n++] = (unsigned char)(v >> (8 * i));
+  for (int i = 0; i < bytes; i++) f->b[f->n++] = i < 8 ? (unsigned char)(v >> (8 * i)) : 0;
 }
 
 static void fbx_raw(fbxw *f, const void *p, size_t k) {

@@ -174,7 +174,7 @@ static void ascii_edges(const char *t, size_t size, edges *g, int *oom) {
         char *e;
         errno = 0;
         long long v = strtoll(q, &e, 10);
-        if (e == q || errno) break;
+        if (e == q || e > eol || errno) break; /* a number on the line, not past it */
         id[got++] = v;
         q = e;
       }
@@ -268,6 +268,7 @@ gi_result gi__fbx_check(const char *path, gi_error_info *err) {
     gi__free(d);
     return rc;
   }
+  d[n] = 0; /* the ASCII scan's numbers end here at the latest */
   edges g = {0};
   int oom = 0;
   size_t size = (size_t)n;
