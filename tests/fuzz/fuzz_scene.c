@@ -53,19 +53,22 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   gi_scene *s = NULL;
   gi_error_info err = {0};
   gi_scene_options opt = {.threads = 1};
-  /* assimp 5.2's FBX reader leaks on nearly every malformed file (a failed
-   * load, once per process: not ours to fix, and nothing to check for it
-   * up front); its allocations are not counted, so the fuzzer goes on to
-   * look for crashes and hangs there. Every other format is leak-checked. */
-  int fbx = !strcmp(sniff_ext(data, size), "fbx");
+  /* assimp 5.2's FBX and 3DS readers leak on malformed files (a failed
+   * load, once per process: not ours to fix; the 3DS one on a chunk longer
+   * than its parent, found by fuzz_scene); their allocations are not
+   * counted, so the fuzzer goes on to look for crashes and hangs there.
+   * OBJ, PLY and glTF stay leak-checked: our readers refuse what makes
+   * assimp leak there. */
+  const char *ext = sniff_ext(data, size);
+  int uncounted = !strcmp(ext, "fbx") || !strcmp(ext, "3ds");
 #ifdef GI_FUZZ_LSAN
-  if (fbx) __lsan_disable();
+  if (uncounted) __lsan_disable();
 #endif
   gi_result rc = gi_scene_load(path, &opt, &s, &err);
 #ifdef GI_FUZZ_LSAN
-  if (fbx) __lsan_enable();
+  if (uncounted) __lsan_enable();
 #endif
-  (void)fbx;
+  (void)uncounted;
   if (rc == GI_OK) {
     gi_scene_stats st;
     gi_scene_get_stats(s, &st);
