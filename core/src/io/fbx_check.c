@@ -8,14 +8,12 @@
  * parent's ids (64-bit integers). ASCII FBX: lines `C: "OO",child,parent`.
  * Either way the connections become edges child -> parent, and a
  * topological sort (Kahn) finds whether any loop. */
-#define _POSIX_C_SOURCE 200809L
 #include "io/fbx_check.h"
-#include <errno.h>
 #include <stdint.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
+#include "io/texture_image.h" /* gi__read_file */
 
 typedef struct {
   int64_t *e; /* child, parent pairs */
@@ -155,6 +153,25 @@ static int walk(const bin *b, size_t at, size_t limit, int depth, int conn, edge
 
 /* ---- ASCII ------------------------------------------------------------------ */
 
+/* A decimal id at *q, within the line (before eol): spaces, an optional
+ * sign, digits. 0 when there is none or it overflows 64 bits. */
+static int line_id(const char **q, const char *eol, int64_t *out) {
+  const char *p = *q;
+  while (p < eol && (*p == ' ' || *p == '\t')) p++;
+  int neg = p < eol && *p == '-';
+  if (p < eol && (*p == '-' || *p == '+')) p++;
+  uint64_t v = 0;
+  const char *digits = p;
+  for (; p < eol && *p >= '0' && *p <= '9'; p++) {
+    if (v > (UINT64_MAX - 9) / 10) return 0;
+    v = 10 * v + (uint64_t)(*p - '0');
+  }
+  if (p == digits || v > (uint64_t)INT64_MAX) return 0;
+  *out = neg ? -(int64_t)v : (int64_t)v;
+  *q = p;
+  return 1;
+}
+
 /* Lines `C: "TYPE",child,parent[,...]`, anywhere (only Connections has them). */
 static void ascii_edges(const char *t, size_t size, edges *g, int *oom) {
   const char *end = t + size;
@@ -171,12 +188,8 @@ static void ascii_edges(const char *t, size_t size, edges *g, int *oom) {
         q = memchr(q, ',', (size_t)(eol - q));
         if (!q) break;
         q++;
-        char *e;
-        errno = 0;
-        long long v = strtoll(q, &e, 10);
-        if (e == q || e > eol || errno) break; /* a number on the line, not past it */
-        id[got++] = v;
-        q = e;
+        if (!line_id(&q, eol, &id[got])) break;
+        got++;
       }
       if (got == 2 && !add_edge(g, id[0], id[1])) *oom = 1;
     }
@@ -254,24 +267,14 @@ out:
 }
 
 gi_result gi__fbx_check(const char *path, gi_error_info *err) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return gi__fail(err, GI_ERR_IO, "scene file '%s': cannot open: %s", path, strerror(errno));
-  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
-  unsigned char *d = n >= 0 ? gi__malloc((size_t)n + 1) : NULL;
-  gi_result rc = GI_OK;
-  if (n < 0) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': cannot size it", path);
-  else if (!d) rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
-  else if (fseek(f, 0, SEEK_SET) != 0 || fread(d, 1, (size_t)n, f) != (size_t)n)
-    rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error", path);
-  fclose(f);
-  if (rc != GI_OK) {
-    gi__free(d);
-    return rc;
-  }
-  d[n] = 0; /* the ASCII scan's numbers end here at the latest */
+  void *data;
+  size_t size;
+  /* No size limit of ours: assimp reads the whole file next anyway. */
+  gi_result rc = gi__read_file(path, SIZE_MAX, &data, &size, err);
+  if (rc != GI_OK) return rc;
+  const unsigned char *d = data;
   edges g = {0};
   int oom = 0;
-  size_t size = (size_t)n;
   if (size >= FBX_HEADER && !memcmp(d, FBX_MAGIC, strlen(FBX_MAGIC))) {
     bin b = {d, size, le(d + 23, 4) >= 7500};
     if (!walk(&b, FBX_HEADER, size, 0, 0, &g, &oom))
@@ -287,6 +290,6 @@ gi_result gi__fbx_check(const char *path, gi_error_info *err) {
     rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': its FBX connections form a loop (object %lld is its own "
                   "ancestor), which no valid file has", path, (long long)where);
   gi__free(g.e);
-  gi__free(d);
+  gi__free(data);
   return rc;
 }
