@@ -1,8 +1,9 @@
 /* lights.c: the light sampler shared by injection, probes and camera views.
  *
- * A point gets one sample per sun, point and spot light, stratified
- * samples over the sky's upper hemisphere and over emissive triangles
- * picked by power and distance (light_tree.c). Each sample carries what a surface facing it receives,
+ * A point gets one sample per sun, point and spot light (a light cut's
+ * samples when there are thousands: local_tree.c), stratified samples
+ * over the sky's upper hemisphere and over emissive triangles picked by
+ * power and distance (light_tree.c). Each sample carries what a surface facing it receives,
  * with solid-angle and pdf weights folded in, so callers only add up
  * visible samples (shadow.c decides visibility). Emitter samples also carry
  * their pdf for multiple importance sampling against the callers' own
@@ -28,6 +29,8 @@ gi_light_plan gi__light_plan(const gi_bake_report *r, int samples) {
       .sky_samples = samples,
       .emit_samples = samples,
   };
+  long cut = (long)GI_LOCAL_CUT_PER_SAMPLE * samples;
+  lp.local_cut = (int)(cut < GI_LOCAL_CUT_MIN ? GI_LOCAL_CUT_MIN : cut > GI_LOCAL_CUT_MAX ? GI_LOCAL_CUT_MAX : cut);
   return lp;
 }
 
@@ -54,35 +57,16 @@ void gi__sky_radiance(const gi_scene *s, float out[3]) {
 
 int gi__light_sample_cap(const gi_scene *s, const gi_light_plan *lp) {
   size_t n = 0;
-  for (uint32_t i = 0; i < s->num_lights; i++)
-    n += s->lights[i].type == GI_LIGHT_SKY ? (size_t)(lp->sky_samples > 0 ? lp->sky_samples : 0) : 1;
+  int cut = gi__local_by_cut(s, lp);
+  for (uint32_t i = 0; i < s->num_lights; i++) {
+    const gi_light *l = &s->lights[i];
+    if (cut && (l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT)) continue;
+    n += l->type == GI_LIGHT_SKY ? (size_t)(lp->sky_samples > 0 ? lp->sky_samples : 0) : 1;
+  }
+  if (cut) n += (size_t)lp->local_cut;
   if (s->num_emitters > 0 && lp->emit_samples > 0) n += (size_t)lp->emit_samples;
   /* Beyond INT_MAX the buffer cannot be allocated anyway: the caller reports out of memory. */
   return n > INT_MAX ? INT_MAX : (int)(n ? n : 1);
-}
-
-/* A point or spot light seen from p into *o; 0 when it sends nothing there. */
-static int local_sample(const gi_scene *s, const gi_light *l, const float p[3], gi_lsample *o) {
-  float v[3];
-  for (int k = 0; k < 3; k++) v[k] = (float)(l->position[k] - s->origin[k]) - p[k];
-  float r2 = gi__dot(v, v);
-  if (!(r2 > 1e-12f)) return 0;
-  float r = sqrtf(r2);
-  for (int k = 0; k < 3; k++) o->w[k] = v[k] / r;
-  float f = 1.0f;
-  if (l->type == GI_LIGHT_SPOT) {
-    float c = -gi__dot(o->w, l->direction);
-    if (c <= l->cos_outer) return 0;
-    if (c < l->cos_inner) {
-      float t = (c - l->cos_outer) / fmaxf(l->cos_inner - l->cos_outer, 1e-6f);
-      f = t * t * (3 - 2 * t);
-    }
-  }
-  o->dist = r;
-  for (int k = 0; k < 3; k++) o->V[k] = f * l->color[k] / r2;
-  o->fx = GI_FX_LOCAL;
-  o->mpl = 0;
-  return 1;
 }
 
 /* m samples of one sky light over the upper hemisphere, stratified in
@@ -164,7 +148,7 @@ int gi__emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float r2
 
 int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[3], uint64_t *rng,
                       gi_lsample *out, int max) {
-  int n = 0;
+  int n = 0, cut = gi__local_by_cut(s, lp);
   const float *up_axis = s->up == GI_UP_Z ? (const float[3]){0, 0, 1} : (const float[3]){0, 1, 0};
   for (uint32_t i = 0; i < s->num_lights && n < max; i++) {
     const gi_light *l = &s->lights[i];
@@ -178,11 +162,13 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
       o->mpl = 0;
       n++;
     } else if (l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) {
-      if (lp->local) n += local_sample(s, l, p, o);
+      if (lp->local && !cut) n += gi__local_sample(s, l, p, o);
     } else if (l->type == GI_LIGHT_SKY && lp->sky && lp->sky_samples > 0) {
       n = sky_samples(l, lp->sky_samples, up_axis, rng, out, n, max);
     }
   }
+  /* Many point and spot lights: the light cut's samples (local_tree.c). */
+  if (cut) n += gi__local_cut_samples(s, p, lp->local_cut, rng, out + n, max - n);
   if (lp->emissive && s->num_emitters > 0) {
     /* Sample j of m: a triangle picked by the light tree (power and
      * distance, stratified in j), and a point on it. The pick's leftover u

@@ -50,6 +50,32 @@ static inline void gi__tri_cross(const gi_scene *s, uint32_t tri, float ng[3]) {
   for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
   gi__cross(e1, e2, ng);
 }
+/* --- local_tree.c: point and spot lights --------------------------------- */
+/* A point or spot light l seen from p into *o; 0 when it sends nothing there. */
+int gi__local_sample(const gi_scene *s, const gi_light *l, const float p[3], gi_lsample *o);
+/* A point samples the scene's point and spot lights through a light cut
+ * when they are more than GI_LOCAL_EXACT_RATIO times the cut: at most the
+ * plan's local_cut samples, every light that may bring more than
+ * GI_LOCAL_CUT_SHARE of the cut's total its own, the rest one light per
+ * group picked by intensity over distance squared (unbiased). The cut is
+ * GI_LOCAL_CUT_PER_SAMPLE times the plan's sky and emitter samples,
+ * within [GI_LOCAL_CUT_MIN, GI_LOCAL_CUT_MAX]: a voxel's 16 give 64 (its
+ * noise averages out over the bounces' cones), a probe's 256 the most.
+ * With fewer lights each takes its own sample: cheaper than the cut (a
+ * 64-sample cut over 256 lamps made the injection 20% slower) and
+ * without its noise. */
+#define GI_LOCAL_EXACT_RATIO 4
+#define GI_LOCAL_CUT_MIN 64
+#define GI_LOCAL_TREE_MIN (GI_LOCAL_EXACT_RATIO * GI_LOCAL_CUT_MIN + 1)
+#define GI_LOCAL_CUT_MAX 1024
+#define GI_LOCAL_CUT_PER_SAMPLE 4
+#define GI_LOCAL_CUT_SHARE 0.002f
+/* Builds s->local_tree when the scene has GI_LOCAL_TREE_MIN point and
+ * spot lights or more (needs s->lights and s->origin). */
+gi_result gi__local_tree_build(gi_scene *s, gi_error_info *err);
+/* The light cut's samples seen from p into out (at most min(max, cut,
+ * GI_LOCAL_CUT_MAX)); draws from rng once per group. 0 without a tree. */
+int gi__local_cut_samples(const gi_scene *s, const float p[3], int cut, uint64_t *rng, gi_lsample *out, int max);
 /* --- light_tree.c: emitters picked by power and distance ---------------- */
 /* Builds s->ltree and s->emitter_leaf over the s->num_emitters slots of
  * s->emitter_tri, power[slot] = luminance x area. */
@@ -77,7 +103,13 @@ int gi__light_tree_ahead(const gi_scene *s, const float o[3], const float nrm[3]
 typedef struct gi_light_plan {
   int sun, local, sky, emissive;
   int sky_samples, emit_samples;
+  int local_cut; /* the most samples of a light cut (local_tree.c) */
 } gi_light_plan;
+/* 1 when plan lp samples s's point and spot lights through the light cut
+ * (local_tree.c, GI_LOCAL_EXACT_RATIO). */
+static inline int gi__local_by_cut(const gi_scene *s, const gi_light_plan *lp) {
+  return lp->local && s->local_tree && s->num_local > (uint32_t)(GI_LOCAL_EXACT_RATIO * lp->local_cut);
+}
 /* The light kinds the effect plan of report r enabled, with `samples` rays
  * for sky and emitters. */
 gi_light_plan gi__light_plan(const gi_bake_report *r, int samples);

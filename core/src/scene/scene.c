@@ -463,7 +463,8 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
   for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
   if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_uv2(b, s, &t, err)) != GI_OK ||
       (rc = copy_materials(b, s, err)) != GI_OK ||
-      (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_lights(opt, s, err)) != GI_OK)
+      (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_lights(opt, s, err)) != GI_OK ||
+      (rc = gi__local_tree_build(s, err)) != GI_OK)
     goto done;
   if (t.kept) rc = gi__bvh_build(s, opt->threads, err);
 
@@ -495,6 +496,7 @@ void gi_scene_release(gi_scene *s) {
   gi__free(s->tri_material);
   gi__free(s->materials);
   gi__free(s->lights);
+  gi__free(s->local_tree);
   gi__free(s->emitter_tri);
   gi__free(s->emitter_leaf);
   gi__free(s->ltree);

@@ -21,6 +21,16 @@ typedef struct gi_light_node {
   uint32_t slot;           /* leaves: the emitter slot; UINT32_MAX for internal nodes */
 } gi_light_node;
 
+/* A node of the point and spot lights' tree (local_tree.c): the box of
+ * its lights' positions (local coordinates), their summed colour, the
+ * box's centre and squared half-diagonal. Inner nodes have children child
+ * and child + 1 and light UINT32_MAX; a leaf has its index in lights. */
+typedef struct gi_local_node {
+  float lo[3], hi[3], cen[3], h2;
+  float power;
+  uint32_t child, light;
+} gi_local_node;
+
 /* The two children of an internal node side by side, as the light tree's
  * walk reads them (light_tree.c): each field [2] is (left, right), so
  * both importances come from one pass of SSE arithmetic. Box centre and
@@ -60,6 +70,11 @@ struct gi_scene {
 
   uint32_t num_lights;
   gi_light *lights;        /* positions in world coordinates, as given */
+  /* With GI_LOCAL_TREE_MIN point and spot lights or more, their tree
+   * (root first; num_local_nodes 0 when every one is dark); else NULL. */
+  gi_local_node *local_tree;
+  uint32_t num_local_nodes;
+  uint32_t num_local;      /* point and spot lights */
 
   /* Emissive triangles, for sampling them as area lights (light_tree.c). */
   uint32_t num_emitters;
