@@ -779,6 +779,56 @@ static void test_gltf(void **state) {
   gi_scene_release(s);
 }
 
+/* Two KHR_lights_punctual spots: one turned to shine down (-90 degrees
+ * about x) with inner and outer half-angles 0.3 and 0.5 rad, one with an
+ * empty spot object (the spec's defaults, 0 and pi/4) shining down -z.
+ * glTF's angles are half-angles, as ours are; assimp's glTF reader passes
+ * them on as they are, where its other readers give full angles. */
+static const char gltf_spots[] =
+    "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,"
+    "\"scenes\":[{\"nodes\":[0,1,2]}],"
+    "\"nodes\":[{\"mesh\":0},{\"translation\":[0,5,0],\"rotation\":[-0.70710678,0,0,0.70710678],"
+    "\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+    "{\"translation\":[2,5,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}}],"
+    "\"extensionsUsed\":[\"KHR_lights_punctual\"],"
+    "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":["
+    "{\"type\":\"spot\",\"color\":[1,1,1],\"intensity\":100,\"spot\":{\"innerConeAngle\":0.3,\"outerConeAngle\":0.5}},"
+    "{\"type\":\"spot\",\"color\":[1,1,1],\"intensity\":50,\"spot\":{}}]}},"
+    "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+    "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
+    "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}],"
+    "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+    "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
+    "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+    "\"min\":[0,0,0],\"max\":[1,1,0]},"
+    "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}";
+
+static void test_gltf_spots(void **state) {
+  (void)state;
+  gi_scene *s = load_ok(tu_write_file("spots.gltf", gltf_spots, strlen(gltf_spots)), NULL);
+  assert_int_equal(gi_scene_num_lights(s), 2);
+  const gi_light *a = gi_scene_light(s, 0), *b = gi_scene_light(s, 1);
+  if (a->position[0] != 0) {
+    const gi_light *t = a;
+    a = b, b = t;
+  }
+  printf("spot 0: cos inner %.6f outer %.6f (want %.6f %.6f), direction %g %g %g\n", a->cos_inner, a->cos_outer,
+         cos(0.3), cos(0.5), a->direction[0], a->direction[1], a->direction[2]);
+  assert_int_equal(a->type, GI_LIGHT_SPOT);
+  assert_float_equal(a->cos_inner, cos(0.3), 1e-6);
+  assert_float_equal(a->cos_outer, cos(0.5), 1e-6);
+  assert_float_equal(a->direction[1], -1.0, 1e-5);
+  assert_float_equal(a->position[1], 5.0, 1e-6);
+  assert_float_equal(a->color[0], 100.0, 1e-4);
+  printf("spot 1: cos inner %.6f outer %.6f (want 1 %.6f), direction %g %g %g\n", b->cos_inner, b->cos_outer,
+         cos(M_PI / 4), b->direction[0], b->direction[1], b->direction[2]);
+  assert_float_equal(b->cos_inner, 1.0, 1e-6);
+  assert_float_equal(b->cos_outer, cos(M_PI / 4), 1e-6);
+  assert_float_equal(b->direction[2], -1.0, 1e-5);
+  assert_float_equal(b->position[0], 2.0, 1e-6);
+  gi_scene_release(s);
+}
+
 /* ---- bad files, every kind for OBJ, PLY and glTF ------------------------- */
 
 static void b64(const unsigned char *in, size_t n, char *out) {
@@ -1274,6 +1324,7 @@ int main(void) {
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
       cmocka_unit_test(test_gltf),
+      cmocka_unit_test(test_gltf_spots),
       cmocka_unit_test(test_bad_file_matrix),
       cmocka_unit_test(test_bad_files_assimp_misreads),
       cmocka_unit_test(test_fbx_connection_loops),

@@ -540,9 +540,13 @@ static gi_result convert_light(const char *path, const struct aiLight *al, const
   l->direction[0] = al->mDirection.x;
   l->direction[1] = al->mDirection.y;
   l->direction[2] = al->mDirection.z;
-  /* assimp's cone angles are full angles; ours are cosines of half-angles. */
-  l->cos_inner = cosf(0.5f * al->mAngleInnerCone);
-  l->cos_outer = cosf(0.5f * al->mAngleOuterCone);
+  /* assimp's cone angles are full angles; ours are cosines of half-angles.
+   * Its glTF reader (5.2) passes KHR_lights_punctual's angles through,
+   * and those are half-angles already: halved again, a glTF spot lit half
+   * its cone (0 at 0.4 rad off-axis under a 0.5 rad outer angle). */
+  float half = ends_with_ci(path, ".gltf") || ends_with_ci(path, ".glb") ? 1.f : 0.5f;
+  l->cos_inner = cosf(half * al->mAngleInnerCone);
+  l->cos_outer = cosf(half * al->mAngleOuterCone);
   int bad = !gi__finite3(l->color) || !isfinite(l->position[0]) || !isfinite(l->position[1]) ||
             !isfinite(l->position[2]) ||
             (l->type != GI_LIGHT_POINT && (!gi__finite3(l->direction) || !isfinite(l->cos_inner) ||
