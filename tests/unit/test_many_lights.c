@@ -189,11 +189,60 @@ static void test_cut_probe(void **state) {
   free(l);
 }
 
+/* A glTF of 5000 lamps under one parent node 4000 km east: all of them
+ * load, each where its node puts it to 1e-6 m (float would round 4e6 m
+ * to 0.25 m). assimp 5.2 matched every light to its node by name through the
+ * whole graph, twice (16,384 lamps: 3.6 s); the file's own reader places
+ * them in one walk. */
+static void test_many_lamps_file(void **state) {
+  (void)state;
+  const int n = 5000;
+  size_t cap = (size_t)n * 128 + 4096, len = 0;
+  char *j = malloc(cap);
+  len += (size_t)snprintf(j + len, cap - len,
+                          "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0,1]}],"
+                          "\"extensionsUsed\":[\"KHR_lights_punctual\"],\"extensions\":{\"KHR_lights_punctual\":"
+                          "{\"lights\":[{\"type\":\"point\",\"intensity\":50}]}},"
+                          "\"nodes\":[{\"mesh\":0},{\"translation\":[4000000.1,0,0],\"children\":[");
+  for (int i = 0; i < n; i++) len += (size_t)snprintf(j + len, cap - len, "%s%d", i ? "," : "", i + 2);
+  len += (size_t)snprintf(j + len, cap - len, "]}");
+  for (int i = 0; i < n; i++)
+    len += (size_t)snprintf(j + len, cap - len,
+                            ",{\"translation\":[%d.25,%d,%d],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}",
+                            i % 100, 3 + i % 5, i / 100);
+  len += (size_t)snprintf(j + len, cap - len,
+                          "],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+                          "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
+                          "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}],"
+                          "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+                          "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
+                          "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,"
+                          "\"type\":\"VEC3\",\"min\":[0,0,0],\"max\":[1,1,0]},"
+                          "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}");
+  assert_true(len < cap);
+  const char *path = tu_write_file("lamps.gltf", j, len);
+  free(j);
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_load(path, NULL, &s, &err), GI_OK);
+  assert_int_equal(gi_scene_num_lights(s), n);
+  assert_non_null(s->local_tree);
+  for (int i = 0; i < n; i += 997) {
+    const gi_light *l = gi_scene_light(s, (size_t)i);
+    assert_int_equal(l->type, GI_LIGHT_POINT);
+    assert_float_equal(l->position[0], 4000000.1 + i % 100 + 0.25, 1e-6);
+    assert_true(l->position[1] == 3 + i % 5 && l->position[2] == i / 100);
+    assert_float_equal(l->color[1], 50.0, 0);
+  }
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_cut_unbiased),
       cmocka_unit_test(test_few_lights_exact),
       cmocka_unit_test(test_cut_probe),
+      cmocka_unit_test(test_many_lamps_file),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

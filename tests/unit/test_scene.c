@@ -782,8 +782,8 @@ static void test_gltf(void **state) {
 /* Two KHR_lights_punctual spots: one turned to shine down (-90 degrees
  * about x) with inner and outer half-angles 0.3 and 0.5 rad, one with an
  * empty spot object (the spec's defaults, 0 and pi/4) shining down -z.
- * glTF's angles are half-angles, as ours are; assimp's glTF reader passes
- * them on as they are, where its other readers give full angles. */
+ * glTF's angles are half-angles, as ours are (assimp 5.2's glTF reader
+ * passed them on as full angles: a spot lit half its cone). */
 static const char gltf_spots[] =
     "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,"
     "\"scenes\":[{\"nodes\":[0,1,2]}],"
@@ -827,6 +827,70 @@ static void test_gltf_spots(void **state) {
   assert_float_equal(b->direction[2], -1.0, 1e-5);
   assert_float_equal(b->position[0], 2.0, 1e-6);
   gi_scene_release(s);
+}
+
+/* The one-triangle glTF of gltf_spots with the given nodes after the
+ * mesh's node 0, scene roots and light definitions. */
+static const char *gltf_lights(const char *name, const char *nodes, const char *roots, const char *lights) {
+  static char json[4096];
+  snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[%s]}],"
+           "\"nodes\":[{\"mesh\":0},%s],\"extensionsUsed\":[\"KHR_lights_punctual\"],"
+           "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[%s]}},"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+           "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
+           "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+           "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+           "\"min\":[0,0,0],\"max\":[1,1,0]},"
+           "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}",
+           roots, nodes, lights);
+  return tu_write_file(name, json, strlen(json));
+}
+
+static void expect_bad(const char *path, gi_result code, const char *what);
+
+/* Lights are read with the node graph (gltf_recentre.c): a light under a
+ * translated, turned (90 degrees about y) and scaled (2) parent sits and
+ * points where the parent takes it; a definition two nodes use is two
+ * lights (assimp kept one); a bad reference, type or colour is an error
+ * that names the node or the light. */
+static void test_gltf_light_nodes(void **state) {
+  (void)state;
+  const char *spot = "{\"type\":\"spot\",\"color\":[1,0.5,0.25],\"intensity\":4,\"spot\":{\"outerConeAngle\":0.6}}";
+  const char *nodes = "{\"translation\":[10,0,0],\"rotation\":[0,0.70710678,0,0.70710678],\"scale\":[2,2,2],"
+                      "\"children\":[2]},{\"translation\":[1,0,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+                      "{\"translation\":[0,3,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}}";
+  gi_scene *s = load_ok(gltf_lights("nested.gltf", nodes, "0,1,3", spot), NULL);
+  assert_int_equal(gi_scene_num_lights(s), 2);
+  const gi_light *a = gi_scene_light(s, 0), *b = gi_scene_light(s, 1);
+  printf("nested: at %g %g %g toward %g %g %g; second at %g %g %g\n", a->position[0], a->position[1],
+         a->position[2], a->direction[0], a->direction[1], a->direction[2], b->position[0], b->position[1],
+         b->position[2]);
+  const double want_a[3] = {10, 0, -2}, want_b[3] = {0, 3, 0};
+  for (int k = 0; k < 3; k++) {
+    assert_float_equal(a->position[k], want_a[k], 1e-6);
+    assert_float_equal(b->position[k], want_b[k], 1e-6);
+    assert_float_equal(a->direction[k], k == 0 ? -1.0 : 0.0, 1e-6);
+    assert_float_equal(b->direction[k], k == 2 ? -1.0 : 0.0, 1e-6);
+  }
+  assert_float_equal(a->color[0], 4.0, 1e-6);
+  assert_float_equal(a->color[2], 1.0, 1e-6);
+  assert_float_equal(a->cos_outer, cos(0.6), 1e-6);
+  assert_float_equal(a->cos_inner, 1.0, 1e-6);
+  gi_scene_release(s);
+  const char *one = "{\"translation\":[1,2,3],\"extensions\":{\"KHR_lights_punctual\":{\"light\":%s}}}";
+  char node[256];
+  snprintf(node, sizeof node, one, "5");
+  expect_bad(gltf_lights("badref.gltf", node, "0,1", spot), GI_ERR_FORMAT, "glTF node 1");
+  snprintf(node, sizeof node, one, "0");
+  expect_bad(gltf_lights("badtype.gltf", node, "0,1", "{\"type\":\"area\"}"), GI_ERR_FORMAT,
+             "glTF light 0: type must be directional, point or spot");
+  expect_bad(gltf_lights("badcolor.gltf", node, "0,1", "{\"type\":\"point\",\"color\":[1,\"x\",1]}"),
+             GI_ERR_FORMAT, "glTF light 0: 'color' must be an array of 3 finite numbers");
+  expect_bad(gltf_lights("nospot.gltf", node, "0,1", "{\"type\":\"spot\"}"), GI_ERR_FORMAT,
+             "needs its 'spot' object");
 }
 
 /* ---- bad files, every kind for OBJ, PLY and glTF ------------------------- */
@@ -1325,6 +1389,7 @@ int main(void) {
       cmocka_unit_test(test_obj_materials),
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_gltf_spots),
+      cmocka_unit_test(test_gltf_light_nodes),
       cmocka_unit_test(test_bad_file_matrix),
       cmocka_unit_test(test_bad_files_assimp_misreads),
       cmocka_unit_test(test_fbx_connection_loops),

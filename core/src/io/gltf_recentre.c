@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
+#include "gi/gi_scene.h"
 
 #define GLB_MAGIC 0x46546C67u      /* "glTF" */
 #define GLB_CHUNK_JSON 0x4E4F534Au /* "JSON" */
@@ -180,6 +181,107 @@ static int flatten(json_t *scene, walk *w, double t[3]) {
   return json_object_set_new(scene, "nodes", roots) ? -1 : 0;
 }
 
+/* ---- KHR_lights_punctual: read here, hidden from assimp ----------------- */
+
+#define KHR_LIGHTS "KHR_lights_punctual"
+
+/* The light reference of a node, or NULL. */
+static json_t *node_light(json_t *node) { return json_object_get(json_object_get(node, "extensions"), KHR_LIGHTS); }
+
+/* Member key of light definition li: n finite numbers into out (left as
+ * they are when absent); -1 with err set when it is not that. */
+static int light_numbers(json_t *def, const char *key, double *out, size_t n, const char *path, size_t li,
+                         gi_error_info *err) {
+  json_t *a = json_object_get(def, key);
+  if (!a) return 0;
+  for (size_t i = 0; i < n; i++) {
+    json_t *v = n == 1 ? a : json_array_get(a, i);
+    double x = json_is_number(v) ? json_number_value(v) : NAN;
+    if ((n > 1 && (!json_is_array(a) || json_array_size(a) != n)) || !isfinite(x)) {
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF light %zu: '%s' must be %s%zu finite number%s", path, li,
+               key, n > 1 ? "an array of " : "", n, n > 1 ? "s" : "");
+      return -1;
+    }
+    out[i] = x;
+  }
+  return 1;
+}
+
+/* The light node idx refers to, placed by its world matrix m (column-major:
+ * a light sits at the node's origin and shines down its -z), into *l. */
+static int read_light(json_t *defs, json_t *node, size_t idx, const double m[16], const char *path, gi_light *l,
+                      gi_error_info *err) {
+  json_t *ref = json_object_get(node_light(node), "light");
+  json_int_t li = json_is_integer(ref) ? json_integer_value(ref) : -1;
+  json_t *def = li >= 0 ? json_array_get(defs, (size_t)li) : NULL;
+  if (!json_is_object(def)) {
+    gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF node %zu: its light is not one of the file's %zu lights",
+             path, idx, json_array_size(defs));
+    return -1;
+  }
+  const char *type = json_string_value(json_object_get(def, "type"));
+  memset(l, 0, sizeof *l);
+  if (type && !strcmp(type, "directional")) l->type = GI_LIGHT_SUN;
+  else if (type && !strcmp(type, "point")) l->type = GI_LIGHT_POINT;
+  else if (type && !strcmp(type, "spot")) l->type = GI_LIGHT_SPOT;
+  else {
+    gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF light %lld: type must be directional, point or spot", path,
+             (long long)li);
+    return -1;
+  }
+  double c[3] = {1, 1, 1}, in = 1, cone[2] = {0, GI_PI / 4};
+  json_t *spot = json_object_get(def, "spot");
+  if (light_numbers(def, "color", c, 3, path, (size_t)li, err) < 0 ||
+      light_numbers(def, "intensity", &in, 1, path, (size_t)li, err) < 0 ||
+      light_numbers(spot, "innerConeAngle", &cone[0], 1, path, (size_t)li, err) < 0 ||
+      light_numbers(spot, "outerConeAngle", &cone[1], 1, path, (size_t)li, err) < 0)
+    return -1;
+  if (l->type == GI_LIGHT_SPOT && !json_is_object(spot)) {
+    gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF light %lld: a spot light needs its 'spot' object", path,
+             (long long)li);
+    return -1;
+  }
+  for (int k = 0; k < 3; k++) {
+    l->color[k] = (float)(c[k] * in);
+    l->position[k] = m[12 + k];
+    l->direction[k] = (float)-m[8 + k];
+  }
+  /* glTF's cone angles are half-angles, as ours are. */
+  l->cos_inner = (float)cos(cone[0]);
+  l->cos_outer = (float)cos(cone[1]);
+  return 0;
+}
+
+/* The lights of the content nodes into out (world matrices in w), then
+ * every trace of the extension taken out of root for assimp. */
+static int take_lights(json_t *root, walk *w, gi__gltf_shift *out) {
+  json_t *defs = json_object_get(json_object_get(json_object_get(root, "extensions"), KHR_LIGHTS), "lights");
+  size_t n = 0;
+  for (size_t k = 0; k < w->count; k++) n += node_light(json_array_get(w->nodes, w->order[k])) != NULL;
+  if (n && !(out->lights = gi__calloc(n, sizeof *out->lights))) {
+    gi__fail(w->err, GI_ERR_NOMEM, "scene file '%s': out of memory for %zu glTF lights", w->path, n);
+    return -1;
+  }
+  for (size_t k = 0; k < w->count; k++) {
+    json_t *node = json_array_get(w->nodes, w->order[k]);
+    if (!node_light(node)) continue;
+    if (read_light(defs, node, w->order[k], &w->world[16 * w->order[k]], w->path, &out->lights[out->num_lights],
+                   w->err) < 0)
+      return -1;
+    out->num_lights++;
+    json_object_del(json_object_get(node, "extensions"), KHR_LIGHTS);
+  }
+  json_object_del(json_object_get(root, "extensions"), KHR_LIGHTS);
+  const char *lists[2] = {"extensionsUsed", "extensionsRequired"};
+  for (int i = 0; i < 2; i++) {
+    json_t *a = json_object_get(root, lists[i]);
+    for (size_t j = json_array_size(a); j-- > 0;)
+      if (!strcmp(json_string_value(json_array_get(a, j)) ? json_string_value(json_array_get(a, j)) : "", KHR_LIGHTS))
+        json_array_remove(a, j);
+  }
+  return 0;
+}
+
 /* The default scene, or NULL when the file has none to place. */
 static json_t *default_scene(json_t *root) {
   json_t *scenes = json_object_get(root, "scenes");
@@ -191,7 +293,7 @@ static json_t *default_scene(json_t *root) {
 
 /* Rewrites root's scene graph in place; 1 when it did, 0 when there was
  * nothing to place, -1 on error (err set). */
-static int recentre_json(json_t *root, const char *path, double t[3], gi_error_info *err) {
+static int recentre_json(json_t *root, const char *path, gi__gltf_shift *out, gi_error_info *err) {
   json_t *scene = default_scene(root), *nodes = json_object_get(root, "nodes");
   if (!scene || !json_is_array(nodes) || json_array_size(nodes) == 0) return 0;
   size_t n = json_array_size(nodes);
@@ -215,7 +317,8 @@ static int recentre_json(json_t *root, const char *path, double t[3], gi_error_i
     if (visit(&w, (size_t)json_integer_value(v), identity, 0) < 0) goto done;
   }
   rc = 0;
-  if (w.count && (rc = flatten(scene, &w, t) < 0 ? -1 : 1) < 0)
+  if (w.count && take_lights(root, &w, out) < 0) rc = -1;
+  else if (w.count && (rc = flatten(scene, &w, out->t) < 0 ? -1 : 1) < 0)
     gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory rewriting the glTF scene", path);
 done:
   gi__free(w.seen);
@@ -279,7 +382,7 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
                   "JSON line %d column %d: %s", path, je.line, je.column, je.text);
     goto done;
   }
-  int r = recentre_json(root, path, out->t, err);
+  int r = recentre_json(root, path, out, err);
   char *text = r > 0 ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(JSON_PRECISION)) : NULL;
   json_decref(root);
   if (r < 0) {
@@ -296,8 +399,10 @@ done:
 
 void gi__gltf_shift_free(gi__gltf_shift *s) {
   gi__free(s->data);
+  gi__free(s->lights);
   s->data = NULL;
-  s->len = 0;
+  s->lights = NULL;
+  s->len = s->num_lights = 0;
 }
 
 /* ---- the assimp file system: the rewritten file from memory ------------- */

@@ -12,6 +12,12 @@
  * memory: gi__gltf_open_io serves it to assimp under the original path, so
  * external buffers still resolve beside the file.
  *
+ * Lights (KHR_lights_punctual) are read here too, one per node that holds
+ * one, at its world position in double, and taken out of what assimp
+ * sees: assimp 5.2 matches each light to its node by name, through the
+ * whole node graph, in its validation and again when it moves lights to
+ * world space, and 16,384 lamps took 3.6 s to load that way.
+ *
  * Ownership: gi__gltf_recentre fills a gi__gltf_shift the caller releases
  * with gi__gltf_shift_free. Not shared between threads. */
 #ifndef GI_GLTF_RECENTRE_H
@@ -22,11 +28,17 @@
 
 struct aiFileIO;
 
+struct gi_light;
+
 typedef struct gi__gltf_shift {
   double t[3];         /* add to every position assimp returns */
   unsigned char *data; /* the rewritten file, or NULL: let assimp read the file as it is */
   size_t len;
   const char *path;    /* the file the data stands for (borrowed) */
+  /* With data: the file's lights in world coordinates (t included,
+   * unscaled; the rewritten file has none left), owned; else NULL. */
+  struct gi_light *lights;
+  size_t num_lights;
 } gi__gltf_shift;
 
 /* For the .gltf (glb 0) or .glb (glb 1) at path: the shift and the rewritten file. A file

@@ -13,7 +13,9 @@
  * float, which moves a georeferenced vertex (UTM, ~5e6) by up to 0.5 m
  * before the scene can subtract its origin. glTF node matrices are composed
  * in double (io/gltf_recentre.c) and the file assimp reads is recentred on
- * its first mesh; the offset is added back here, in double.
+ * its first mesh; the offset is added back here, in double. A glTF's lights
+ * are read there too, one per node that holds one, and kept from assimp,
+ * whose name matching made thousands of lights load in seconds.
  * Non-finite positions are passed through so that gi_scene_build drops and
  * counts those triangles; an index outside its mesh is a malformed file.
  * Materials map OBJ (Kd, Ke, Ks, Ns) and glTF (baseColor, emissive,
@@ -723,19 +725,25 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
   return GI_OK;
 }
 
-/* The file's lights (already in world space), then the caller's, into a
- * new array *lights (caller frees) that o then points at. */
-static gi_result collect_lights(const struct aiScene *as, const char *path, const double shift[3], double scale,
+/* The file's lights (already in world space: assimp's, and a glTF's own,
+ * gltf_recentre.c), then the caller's, into a new array *lights (caller
+ * frees) that o then points at. */
+static gi_result collect_lights(const struct aiScene *as, const gi__gltf_shift *gs, const char *path, double scale,
                                 gi_scene_options *o, gi_light **lights, gi_error_info *err) {
   if (o->num_lights && !o->lights)
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", o->num_lights);
   size_t nl = 0;
-  gi_light *l = *lights = gi__calloc(as->mNumLights + o->num_lights + 1, sizeof *l);
+  gi_light *l = *lights = gi__calloc(as->mNumLights + gs->num_lights + o->num_lights + 1, sizeof *l);
   if (!l) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
   for (unsigned i = 0; i < as->mNumLights; i++) {
-    gi_result r = convert_light(path, as->mLights[i], shift, scale, &l[nl], err);
+    gi_result r = convert_light(path, as->mLights[i], gs->t, scale, &l[nl], err);
     if (r == GI_OK) nl++;
     else if (r != GI_ERR_NOT_FOUND) return r;
+  }
+  for (size_t i = 0; i < gs->num_lights; i++) {
+    l[nl] = gs->lights[i];
+    for (int k = 0; k < 3; k++) l[nl].position[k] *= scale;
+    nl++;
   }
   for (size_t i = 0; i < o->num_lights; i++) l[nl++] = o->lights[i];
   o->lights = l;
@@ -804,7 +812,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   if ((rc = add_materials(as, &tc, b, matmap, err)) == GI_OK &&
       (rc = exact ? add_exact_meshes(as, matmap, &em, b, path, err)
                   : add_meshes(as, matmap, gs.t, b, path, err)) == GI_OK &&
-      (rc = collect_lights(as, path, gs.t, scale, &o, &lights, err)) == GI_OK)
+      (rc = collect_lights(as, &gs, path, scale, &o, &lights, err)) == GI_OK)
     rc = build(b, path, &o, &tc, out, err);
 
 done:
