@@ -42,6 +42,7 @@ bench: all
 	./tests/bench/specular-bench.sh $(BUILD)
 	./tests/bench/render-bench.sh $(BUILD)
 	./tests/bench/speedup.sh $(BUILD)
+	./tests/bench/lights-bench.sh $(BUILD)
 
 # Batch probe grids (issue 13): Munich street-level probes at 4 m, 2 m above
 # the ground, on 2 threads: probes, tiles, time, probes/s, peak RSS. Figures only.

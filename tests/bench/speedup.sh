@@ -21,9 +21,6 @@ NOW="$BUILD/bin/gi-bake"
 BASE_REV=${BENCH_BASE_REV:-db8404f}
 RUNS=${BENCH_RUNS:-5}
 OUT="$ROOT/out"
-SRC="$OUT/v0.1.0-src"
-BLD="$OUT/v0.1.0-build"
-OLD="$BLD/bin/gi-bake"
 SCENES=${GI_SCENES_DIR:-$ROOT/../shared/scenes}
 JSONL="$OUT/bench.jsonl"
 
@@ -33,16 +30,9 @@ command -v python3 > /dev/null 2>&1 || { say "python3 is needed to read gi-bake 
 mkdir -p "$OUT" || exit 0
 
 # v0.1.0, built once with its own build rules (its CMake default: Release).
-if [ ! -x "$OLD" ]; then
-  if [ ! -d "$SRC" ]; then
-    git -C "$ROOT" worktree add --detach "$SRC" "$BASE_REV" > /dev/null 2>&1 ||
-      { say "cannot check out $BASE_REV into $SRC (is this a git clone with history?)"; exit 0; }
-  fi
-  say "building v0.1.0 ($BASE_REV) in $BLD, once"
-  (cmake -S "$SRC" -B "$BLD" -DCMAKE_BUILD_TYPE=Release > "$OUT/v0.1.0-build.log" 2>&1 &&
-    cmake --build "$BLD" -j "$(nproc)" --target gi-bake >> "$OUT/v0.1.0-build.log" 2>&1) ||
-    { say "building v0.1.0 failed (see $OUT/v0.1.0-build.log)"; exit 0; }
-fi
+. "$ROOT/tests/bench/base-build.sh"
+base_gi_bake "$BASE_REV" v0.1.0 || exit 0
+OLD=$BASE_BIN
 
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/gi-speedup.XXXXXX") || exit 0
 trap 'rm -rf "$TMP"' EXIT INT TERM
