@@ -246,7 +246,8 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
   double area = 0, a_sum = 0;
   for (size_t i = 0; i < nt; i++) {
     const uint32_t *ix = &s->indices[3 * tris[i]];
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    gi_material tm;
+    const gi_material *m = gi__tri_material(s, tris[i], &tm);
     const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
     float e1[3], e2[3], n[3];
     for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];

@@ -601,6 +601,48 @@ static void test_turned_facade(void **state) {
   assert_true(read[1] > 0.92 * read[0] && read[1] < 1.05 * read[0]);
 }
 
+/* A floor of white material whose corners are coloured (1, 0.25, 0) bakes
+ * exactly as the same floor of material albedo 0.8 x that colour: every
+ * stage reads a triangle's albedo through gi__tri_material. Its reflected
+ * light at a probe above (L00 less the direct) is 4 : 1 : 0 under a white sun. */
+static void probe_over_floor(int colored, gi_probe *out) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  if (!colored) m.albedo[1] = 0.2f, m.albedo[2] = 0.f;
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {-10, 0, -10}, B[3] = {-10, 0, 10}, C[3] = {10, 0, 10}, D[3] = {10, 0, -10};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  for (uint32_t v = 0; colored && v < 4; v++) gi_mesh_builder_set_vertex_color(b, v, 1, 0.25, 0);
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0.3f, -1, 0.2f}};
+  gi_scene *s = tu_build(b, "floor", &sun, 1);
+  assert_non_null(s);
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.5, .bounces = 2};
+  gi_cascade *c = NULL;
+  gi_bake_report rep;
+  gi_error_info err = {0};
+  double at[3] = {0, 1, 0};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
+  assert_int_equal(gi_cascade_gather(c, at, 1, out, NULL, &err), GI_OK);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+static void test_vertex_color_floor(void **state) {
+  (void)state;
+  gi_probe a, b;
+  probe_over_floor(1, &a);
+  probe_over_floor(0, &b);
+  printf("coloured floor: L00 %g %g %g, direct L00 %g %g %g; material floor L00 %g %g %g\n", a.sh[0][0], a.sh[0][1],
+         a.sh[0][2], a.sh_direct[0][0], a.sh_direct[0][1], a.sh_direct[0][2], b.sh[0][0], b.sh[0][1], b.sh[0][2]);
+  /* The floor's light (total less direct): its albedo's 0.8 : 0.2 : 0. */
+  float ind[3];
+  for (int k = 0; k < 3; k++) ind[k] = a.sh[0][k] - a.sh_direct[0][k];
+  assert_true(ind[0] > 0.1f * a.sh_direct[0][0]);
+  assert_float_equal(ind[0] / ind[1], 4.0, 0.04);
+  assert_true(fabsf(ind[2]) <= 1e-6f * a.sh[0][2]);
+  assert_memory_equal(&a, &b, sizeof a);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_delta_lights),
@@ -615,6 +657,7 @@ int main(void) {
       cmocka_unit_test(test_emitter_spread),
       cmocka_unit_test(test_thin_slab),
       cmocka_unit_test(test_turned_facade),
+      cmocka_unit_test(test_vertex_color_floor),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

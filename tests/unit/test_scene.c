@@ -723,6 +723,17 @@ static void test_obj_materials(void **state) {
   gi_scene_release(s);
 }
 
+/* The buffer, views and accessors of one triangle (0,0,0),(1,0,0),(0,1,0):
+ * 9 floats + 3 uint16 + pad; the end of a glTF's top-level object. */
+#define TRI_GLTF_DATA \
+  "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64," \
+  "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}]," \
+  "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36}," \
+  "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}]," \
+  "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"," \
+  "\"min\":[0,0,0],\"max\":[1,1,0]}," \
+  "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]"
+
 /* One triangle (0,0,0),(1,0,0),(0,1,0), an emissive material and a point
  * light on a node translated to (1,2,3). Buffer: 9 floats + 3 uint16 + pad. */
 static const char gltf[] =
@@ -734,13 +745,7 @@ static const char gltf[] =
     "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1,\"material\":0}]}],"
     "\"materials\":[{\"name\":\"glow\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.2,0.4,0.6,1],"
     "\"metallicFactor\":0,\"roughnessFactor\":0.5},\"emissiveFactor\":[1,0.5,0.25]}],"
-    "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
-    "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}],"
-    "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
-    "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
-    "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
-    "\"min\":[0,0,0],\"max\":[1,1,0]},"
-    "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}";
+    TRI_GLTF_DATA "}";
 
 static void test_gltf(void **state) {
   gi_scene_options o = {.scale = 2.0};
@@ -779,33 +784,33 @@ static void test_gltf(void **state) {
   gi_scene_release(s);
 }
 
+/* A one-triangle glTF with the given nodes after the mesh's node 0, scene
+ * roots and KHR_lights_punctual light definitions. */
+static const char *gltf_lights(const char *name, const char *nodes, const char *roots, const char *lights) {
+  static char json[4096];
+  snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[%s]}],"
+           "\"nodes\":[{\"mesh\":0},%s],\"extensionsUsed\":[\"KHR_lights_punctual\"],"
+           "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[%s]}},"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}]," TRI_GLTF_DATA "}",
+           roots, nodes, lights);
+  return tu_write_file(name, json, strlen(json));
+}
+
 /* Two KHR_lights_punctual spots: one turned to shine down (-90 degrees
  * about x) with inner and outer half-angles 0.3 and 0.5 rad, one with an
  * empty spot object (the spec's defaults, 0 and pi/4) shining down -z.
  * glTF's angles are half-angles, as ours are (assimp 5.2's glTF reader
  * passed them on as full angles: a spot lit half its cone). */
-static const char gltf_spots[] =
-    "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,"
-    "\"scenes\":[{\"nodes\":[0,1,2]}],"
-    "\"nodes\":[{\"mesh\":0},{\"translation\":[0,5,0],\"rotation\":[-0.70710678,0,0,0.70710678],"
-    "\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
-    "{\"translation\":[2,5,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}}],"
-    "\"extensionsUsed\":[\"KHR_lights_punctual\"],"
-    "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":["
-    "{\"type\":\"spot\",\"color\":[1,1,1],\"intensity\":100,\"spot\":{\"innerConeAngle\":0.3,\"outerConeAngle\":0.5}},"
-    "{\"type\":\"spot\",\"color\":[1,1,1],\"intensity\":50,\"spot\":{}}]}},"
-    "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
-    "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
-    "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}],"
-    "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
-    "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
-    "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
-    "\"min\":[0,0,0],\"max\":[1,1,0]},"
-    "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}";
-
 static void test_gltf_spots(void **state) {
   (void)state;
-  gi_scene *s = load_ok(tu_write_file("spots.gltf", gltf_spots, strlen(gltf_spots)), NULL);
+  const char *nodes = "{\"translation\":[0,5,0],\"rotation\":[-0.70710678,0,0,0.70710678],"
+                      "\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+                      "{\"translation\":[2,5,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}}";
+  const char *lights = "{\"type\":\"spot\",\"color\":[1,1,1],\"intensity\":100,"
+                       "\"spot\":{\"innerConeAngle\":0.3,\"outerConeAngle\":0.5}},"
+                       "{\"type\":\"spot\",\"color\":[1,1,1],\"intensity\":50,\"spot\":{}}";
+  gi_scene *s = load_ok(gltf_lights("spots.gltf", nodes, "0,1,2", lights), NULL);
   assert_int_equal(gi_scene_num_lights(s), 2);
   const gi_light *a = gi_scene_light(s, 0), *b = gi_scene_light(s, 1);
   if (a->position[0] != 0) {
@@ -827,26 +832,6 @@ static void test_gltf_spots(void **state) {
   assert_float_equal(b->direction[2], -1.0, 1e-5);
   assert_float_equal(b->position[0], 2.0, 1e-6);
   gi_scene_release(s);
-}
-
-/* The one-triangle glTF of gltf_spots with the given nodes after the
- * mesh's node 0, scene roots and light definitions. */
-static const char *gltf_lights(const char *name, const char *nodes, const char *roots, const char *lights) {
-  static char json[4096];
-  snprintf(json, sizeof json,
-           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[%s]}],"
-           "\"nodes\":[{\"mesh\":0},%s],\"extensionsUsed\":[\"KHR_lights_punctual\"],"
-           "\"extensions\":{\"KHR_lights_punctual\":{\"lights\":[%s]}},"
-           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
-           "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
-           "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"}],"
-           "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
-           "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6}],"
-           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
-           "\"min\":[0,0,0],\"max\":[1,1,0]},"
-           "{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}",
-           roots, nodes, lights);
-  return tu_write_file(name, json, strlen(json));
 }
 
 static void expect_bad(const char *path, gi_result code, const char *what);
@@ -891,6 +876,78 @@ static void test_gltf_light_nodes(void **state) {
              GI_ERR_FORMAT, "glTF light 0: 'color' must be an array of 3 finite numbers");
   expect_bad(gltf_lights("nospot.gltf", node, "0,1", "{\"type\":\"spot\"}"), GI_ERR_FORMAT,
              "needs its 'spot' object");
+}
+
+/* ---- vertex colours --------------------------------------------------------- */
+
+static void b64(const unsigned char *in, size_t n, char *out);
+
+static double srgb(double c) { return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4); }
+
+/* Triangle t's albedo against want (material albedo times the mean corner colour). */
+static void expect_albedo(const gi_scene *s, uint32_t t, const double want[3], const char *what) {
+  gi_material tm;
+  const float *a = gi__tri_material(s, t, &tm)->albedo;
+  printf("%s: triangle %u albedo %.6f %.6f %.6f (want %.6f %.6f %.6f)\n", what, t, a[0], a[1], a[2], want[0], want[1],
+         want[2]);
+  for (int k = 0; k < 3; k++) assert_float_equal(a[k], want[k], 1e-6);
+}
+
+/* A PLY's red/green/blue (uchar, sRGB-encoded), an OBJ's "v x y z r g b"
+ * (floats, sRGB-encoded; a vertex without one is white) and a glTF's
+ * COLOR_0 (linear) each multiply the triangle's material albedo by the mean
+ * of its corners' colours; a file without colours keeps no per-triangle
+ * albedo at all. */
+static void test_vertex_colors_files(void **state) {
+  (void)state;
+  static const char ply[] = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                            "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+                            "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+                            "0 0 0 255 0 0\n1 0 0 255 0 0\n0 1 0 255 0 0\n1 1 0 128 128 128\n3 0 1 2\n3 1 3 2\n";
+  gi_scene *s = load_ok(tu_write_file("colors.ply", ply, strlen(ply)), NULL);
+  const float *m = gi_scene_material(s, 0)->albedo;
+  double g = srgb(128 / 255.0);
+  double w0[3] = {m[0], 0, 0}, w1[3] = {m[0] * (2 + g) / 3, m[1] * (2 * 0 + g) / 3, m[2] * g / 3};
+  expect_albedo(s, 0, w0, "ply");
+  expect_albedo(s, 1, w1, "ply");
+  gi_scene_release(s);
+
+  static const char obj[] = "v 0 0 0 0 0.5 1\nv 1 0 0 0 0.5 1\nv 0 1 0 0 0.5 1\nv 1 1 0\nf 1 2 3\nf 2 4 3\n";
+  s = load_ok(tu_write_file("colors.obj", obj, strlen(obj)), NULL);
+  m = gi_scene_material(s, 0)->albedo;
+  double h = srgb(0.5);
+  double v0[3] = {0, m[1] * h, m[2]}, v1[3] = {m[0] / 3, m[1] * (2 * h + 1) / 3, m[2]};
+  expect_albedo(s, 0, v0, "obj");
+  expect_albedo(s, 1, v1, "obj");
+  gi_scene_release(s);
+
+  /* glTF: positions, COLOR_0 (VEC3 float) and indices in one buffer. */
+  unsigned char buf[80] = {0};
+  const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, col[9] = {1, 0.5f, 0.25f, 1, 0.5f, 0.25f, 0.5f, 0.5f, 0.25f};
+  const uint16_t idx[3] = {0, 1, 2};
+  memcpy(buf, pos, 36), memcpy(buf + 36, col, 36), memcpy(buf + 72, idx, 6);
+  char enc[120], json[2048];
+  b64(buf, sizeof buf, enc);
+  snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"COLOR_0\":1},\"indices\":2,\"material\":0}]}],"
+           "\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.8,0.6,0.4,1],\"metallicFactor\":0}}],"
+           "\"buffers\":[{\"byteLength\":80,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},{\"buffer\":0,\"byteOffset\":36,"
+           "\"byteLength\":36},{\"buffer\":0,\"byteOffset\":72,\"byteLength\":6}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\",\"min\":[0,0,0],"
+           "\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"},"
+           "{\"bufferView\":2,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"}]}",
+           enc);
+  s = load_ok(tu_write_file("colors.gltf", json, strlen(json)), NULL);
+  double gw[3] = {0.8 * (2.5 / 3), 0.6 * 0.5, 0.4 * 0.25};
+  expect_albedo(s, 0, gw, "gltf");
+  gi_scene_release(s);
+
+  static const char plain[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  s = load_ok(tu_write_file("plain.obj", plain, strlen(plain)), NULL);
+  assert_null(s->tri_albedo);
+  gi_scene_release(s);
 }
 
 /* ---- bad files, every kind for OBJ, PLY and glTF ------------------------- */
@@ -1390,6 +1447,7 @@ int main(void) {
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_gltf_spots),
       cmocka_unit_test(test_gltf_light_nodes),
+      cmocka_unit_test(test_vertex_colors_files),
       cmocka_unit_test(test_bad_file_matrix),
       cmocka_unit_test(test_bad_files_assimp_misreads),
       cmocka_unit_test(test_fbx_connection_loops),

@@ -146,6 +146,11 @@ void gi_mesh_builder_add_triangle(gi_mesh_builder *b, uint32_t a, uint32_t c, ui
  * every vertex its triangles use has finite ones; gi_lightmap_layout then
  * bakes into them instead of making charts. */
 void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double u, double v);
+/* The colour of an added vertex, linear RGB (a scan's or glTF's COLOR_0):
+ * a triangle's albedo is its material's times the mean of its three
+ * corners' colours, clamped to [0, 1]. A vertex never given one is white;
+ * a non-finite component counts as 1. */
+void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, double r, double g, double bl);
 /* 1 when the scene kept lightmap UVs (a file's second UV set, or the builder's). */
 int gi_scene_has_lightmap_uv(const gi_scene *s);
 /* Convenience: a quad a,b,c,d (counter-clockwise seen from the front) as two triangles. */

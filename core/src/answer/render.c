@@ -231,6 +231,7 @@ static int interpolate_anchors(const render_ctx *rc, int px, int py, const float
 typedef struct {
   float *out, *spec;
   const gi_material *m;
+  float albedo[3];              /* the hit triangle's (gi__tri_material) */
   float x[3], n[3], w[3], E[3]; /* E: the direct irradiance */
   int d;
 } pending_px;
@@ -240,7 +241,7 @@ typedef struct {
 static void finish_pixel(const render_ctx *rc, const pending_px *pp, uint64_t cones[2]) {
   const gi_material *m = pp->m;
   float *out = pp->out;
-  for (int a = 0; a < 3; a++) out[a] += m->albedo[a] * (1.f / GI_PI_F) * pp->E[a];
+  for (int a = 0; a < 3; a++) out[a] += pp->albedo[a] * (1.f / GI_PI_F) * pp->E[a];
   int glossy = m->roughness < 0.5f && m->specular > 0;
   if (pp->d >= 0 && (rc->spec == SPEC_ALL || (rc->spec == SPEC_GLOSSY && glossy))) {
     gi_cone_out co;
@@ -270,6 +271,8 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   }
   const float *x = pp->x, *n = pp->n;
   const gi_material *m = pp->m = &s->materials[s->tri_material[tri]];
+  gi_material tm;
+  memcpy(pp->albedo, gi__tri_material(s, tri, &tm)->albedo, sizeof pp->albedo);
   if (gi__dot(ng, pp->w) < 0) /* emitters are one-sided: their front faces the camera */
     for (int a = 0; a < 3; a++) out[a] += m->emission[a];
   float *E = pp->E;

@@ -173,7 +173,8 @@ static void voxelize_slabs(void *p, size_t b, size_t e, int worker) {
       if (c1[2] > k1) c1[2] = k1;
       if (c0[1] < j0) c0[1] = j0;
       if (c1[1] > j1) c1[1] = j1;
-      const gi_material *mat = &s->materials[s->tri_material[t]];
+      gi_material tm;
+      const gi_material *mat = gi__tri_material(s, t, &tm);
       for (int64_t k = c0[2]; k < c1[2]; k++)
         for (int64_t j = c0[1]; j < c1[1]; j++)
           for (int64_t i = c0[0]; i < c1[0]; i++) {

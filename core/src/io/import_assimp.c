@@ -22,6 +22,8 @@
  * metallic/roughness) onto gi_material; a diffuse or base-colour texture
  * multiplies the colour factor by its average linear colour (we bake at
  * voxel scale, so one colour per material is what the pipeline can use).
+ * Vertex colours multiply it per triangle (gi_mesh_builder_set_vertex_color:
+ * assimp's first colour set, or the exact readers' for OBJ and PLY).
  * Textures are decoded once per load (cached by path), embedded ones from
  * the aiScene, and one that cannot be read costs a warning on stderr and a
  * count in the stats, never the load. assimp keeps its last error in a
@@ -650,8 +652,15 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
   return GI_OK;
 }
 
+/* A vertex colour channel as linear: glTF's COLOR_0 is linear by its spec;
+ * other formats' colours are taken as sRGB-encoded, as their textures are. */
+static double vertex_linear(const char *path, float c) {
+  if (ends_with_ci(path, ".gltf") || ends_with_ci(path, ".glb")) return c;
+  return c > 0 && c <= 1 ? gi__srgb_to_linear(c) : c;
+}
+
 /* Every triangle mesh's vertices (unscaled: gi_scene_build applies
- * opt->scale) and faces into b. */
+ * opt->scale), their colours, and faces into b. */
 static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, const double shift[3],
                             gi_mesh_builder *b, const char *path, gi_error_info *err) {
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
@@ -664,6 +673,10 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, co
       uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x + shift[0], m->mVertices[v].y + shift[1],
                                                m->mVertices[v].z + shift[2]);
       if (v == 0) base = id;
+      if (m->mColors[0])
+        gi_mesh_builder_set_vertex_color(b, id, vertex_linear(path, m->mColors[0][v].r),
+                                         vertex_linear(path, m->mColors[0][v].g),
+                                         vertex_linear(path, m->mColors[0][v].b));
       /* The second UV set is the lightmap's (glTF TEXCOORD_1); assimp's V runs up. */
       if (m->mTextureCoords[1])
         gi_mesh_builder_set_lightmap_uv(b, id, m->mTextureCoords[1][v].x, 1.0 - m->mTextureCoords[1][v].y);
@@ -717,6 +730,7 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
   for (size_t v = 0; v < m.nv; v++) {
     uint32_t id = gi_mesh_builder_add_vertex(b, m.v[3 * v], m.v[3 * v + 1], m.v[3 * v + 2]);
     if (v == 0) base = id;
+    if (m.col) gi_mesh_builder_set_vertex_color(b, id, m.col[3 * v], m.col[3 * v + 1], m.col[3 * v + 2]);
   }
   for (size_t t = 0; t < m.nt; t++)
     gi_mesh_builder_add_triangle(b, base + m.tri[3 * t], base + m.tri[3 * t + 1], base + m.tri[3 * t + 2],

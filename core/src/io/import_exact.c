@@ -3,6 +3,7 @@
  * PLY) or element record (binary PLY), and what was expected. */
 #define _POSIX_C_SOURCE 200809L /* getline */
 #include "io/import_exact.h"
+#include "io/texture_image.h"
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -23,6 +24,7 @@ void gi__exact_free(gi__exact_mesh *m) {
   gi__free(m->v);
   gi__free(m->tri);
   gi__free(m->mat);
+  gi__free(m->col);
   memset(m, 0, sizeof *m);
 }
 
@@ -41,6 +43,28 @@ static int grow(void **p, size_t *cap, size_t n, size_t sz) {
 static int push_vertex(gi__exact_mesh *m, const double p[3]) {
   if (m->nv >= UINT32_MAX - 1 || !grow((void **)&m->v, &m->cap_v, 3 * (m->nv + 1), sizeof *m->v)) return 0;
   memcpy(m->v + 3 * m->nv++, p, 3 * sizeof *p);
+  return 1;
+}
+
+/* The colour of the last vertex pushed (sRGB-encoded, [0, 1] nominal), stored
+ * linear; the first colour makes every earlier vertex white. 0: out of memory. */
+static int set_color(gi__exact_mesh *m, const double c[3]) {
+  size_t old = m->col ? m->cap_c : 0;
+  if (!grow((void **)&m->col, &m->cap_c, 3 * m->nv, sizeof *m->col)) return 0;
+  for (size_t i = old; i < m->cap_c; i++) m->col[i] = 1.f;
+  for (int k = 0; k < 3; k++) {
+    double x = c[k] < 0 ? 0 : c[k];
+    m->col[3 * (m->nv - 1) + k] = (float)(x <= 1 ? gi__srgb_to_linear(x) : x);
+  }
+  return 1;
+}
+
+/* White for the last vertex pushed once colours exist (grown as vertices come). */
+static int keep_white(gi__exact_mesh *m) {
+  if (!m->col || 3 * m->nv <= m->cap_c) return 1;
+  size_t old = m->cap_c;
+  if (!grow((void **)&m->col, &m->cap_c, 3 * m->nv, sizeof *m->col)) return 0;
+  for (size_t i = old; i < m->cap_c; i++) m->col[i] = 1.f;
   return 1;
 }
 
@@ -77,7 +101,7 @@ static int token_len(const char *s) {
 
 /* "v x y z [w | r g b]": three numbers, and only numbers after them. */
 static gi_result obj_vertex(const char *path, size_t line, char *s, gi__exact_mesh *m, gi_error_info *err) {
-  double p[3];
+  double p[6];
   int n = 0;
   for (;; n++) {
     s = skip_blank(s);
@@ -87,13 +111,14 @@ static gi_result obj_vertex(const char *path, size_t line, char *s, gi__exact_me
     if (e == s || (*e && !is_blank(*e)))
       return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: vertex coordinate %d is not a number: '%.*s'",
                       path, line, n + 1, token_len(s), s);
-    if (n < 3) p[n] = x;
+    if (n < 6) p[n] = x;
     s = e;
   }
   if (n < 3)
     return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a vertex needs x y z, found %d number%s", path, line,
                     n, n == 1 ? "" : "s");
-  if (!push_vertex(m, p)) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory or too many vertices", path);
+  if (!push_vertex(m, p) || !(n == 6 ? set_color(m, p + 3) : keep_white(m)))
+    return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory or too many vertices", path);
   return GI_OK;
 }
 
@@ -349,6 +374,20 @@ static gi_result ply_header(const char *path, char *text, size_t size, ply_eleme
 }
 
 /* Index of the scalar property called name, or -1. */
+/* A PLY colour value as a fraction: integers over their type's largest
+ * value (uchar 255), floats as they are. */
+static double color_unit(ply_type t, double x) {
+  switch (t) {
+    case T_U8: return x / 255.0;
+    case T_I8: return x / 127.0;
+    case T_U16: return x / 65535.0;
+    case T_I16: return x / 32767.0;
+    case T_U32: return x / 4294967295.0;
+    case T_I32: return x / 2147483647.0;
+    default: return x;
+  }
+}
+
 static int find_prop(const ply_element *e, const char *name, int list) {
   for (int i = 0; i < e->nprops; i++)
     if (!strcmp(e->prop[i].name, name) && (e->prop[i].count_type != T_NONE) == list) return i;
@@ -361,6 +400,9 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
   int is_v = !strcmp(E->name, "vertex"), is_f = !strcmp(E->name, "face");
   int ix = is_v ? find_prop(E, "x", 0) : -1, iy = is_v ? find_prop(E, "y", 0) : -1, iz = is_v ? find_prop(E, "z", 0) : -1;
   int il = is_f ? find_prop(E, "vertex_indices", 1) : -1;
+  int ic[3] = {is_v ? find_prop(E, "red", 0) : -1, is_v ? find_prop(E, "green", 0) : -1,
+               is_v ? find_prop(E, "blue", 0) : -1};
+  int colored = ic[0] >= 0 && ic[1] >= 0 && ic[2] >= 0;
   if (is_f && il < 0) il = find_prop(E, "vertex_index", 1);
   char w[128];
   if (is_v && (ix < 0 || iy < 0 || iz < 0))
@@ -368,7 +410,7 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
   if (is_f && il < 0)
     return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY face element needs a list property vertex_indices", b->path);
   for (long long i = 0; i < E->count; i++) {
-    double pos[3] = {0, 0, 0};
+    double pos[3] = {0, 0, 0}, col[3] = {1, 1, 1};
     for (int p = 0; p < E->nprops; p++) {
       const ply_prop *P = &E->prop[p];
       double n = 1, x;
@@ -390,6 +432,7 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
       for (int k = 0; !r && k < (int)n; k++) {
         if ((r = body_value(b, P->type, &x))) break;
         if (p == ix || p == iy || p == iz) pos[p == ix ? 0 : p == iy ? 1 : 2] = x;
+        if (colored && (p == ic[0] || p == ic[1] || p == ic[2])) col[p == ic[0] ? 0 : p == ic[1] ? 1 : 2] = color_unit(P->type, x);
         if (p == il) {
           if (!(x >= 0 && x < (double)nverts && x == floor(x))) {
             body_where(b, E, i, w, sizeof w);
@@ -410,7 +453,7 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
           if (!push_tri(m, poly[0], poly[t], poly[t + 1], GI__EXACT_NO_MATERIAL))
             return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", b->path);
     }
-    if (is_v && !push_vertex(m, pos))
+    if (is_v && (!push_vertex(m, pos) || (colored && !set_color(m, col))))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory or too many vertices", b->path);
   }
   return GI_OK;

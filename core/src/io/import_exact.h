@@ -24,13 +24,19 @@ typedef struct gi__exact_mesh {
   size_t nt, cap_t, cap_m;
   char **names;    /* OBJ usemtl names in first-use order */
   size_t nnames, cap_names;
+  float *col;      /* 3 per vertex, linear, when any vertex has a colour (others white); else NULL */
+  size_t cap_c;
 } gi__exact_mesh;
 
-/* OBJ: v, f (v, v/t, v//n, v/t/n, negative = relative), usemtl; other
- * statements are ignored. A bad number or index fails with file and line. */
+/* OBJ: v (with the common "v x y z r g b" colour extension), f (v, v/t,
+ * v//n, v/t/n, negative = relative), usemtl; other statements are ignored.
+ * A bad number or index fails with file and line. */
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err);
 /* PLY: ascii, binary_little_endian, binary_big_endian; x/y/z of any scalar
- * type (float and double included); faces from vertex_indices/vertex_index. */
+ * type (float and double included), red/green/blue colours when present;
+ * faces from vertex_indices/vertex_index. Colours in both formats are taken
+ * as sRGB-encoded (8-bit values over 255, floats as they are) and stored
+ * linear. */
 gi_result gi__exact_read_ply(const char *path, gi__exact_mesh *m, gi_error_info *err);
 void gi__exact_free(gi__exact_mesh *m);
 

@@ -45,7 +45,7 @@ static int accum_init(accum *a, unsigned levels) {
   return a->hist != NULL;
 }
 
-static double srgb_to_linear(double c) {
+double gi__srgb_to_linear(double c) {
   return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
@@ -56,7 +56,7 @@ static void accum_finish(const accum *a, int linear, float rgb[3]) {
     double sum = 0.0;
     const uint64_t *h = a->hist + (size_t)c * a->levels;
     for (unsigned v = 0; v < a->levels; v++)
-      if (h[v]) sum += (double)h[v] * (linear ? v / max : srgb_to_linear(v / max));
+      if (h[v]) sum += (double)h[v] * (linear ? v / max : gi__srgb_to_linear(v / max));
     rgb[c] = (float)(sum / (double)a->pixels);
   }
 }

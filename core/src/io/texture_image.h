@@ -30,6 +30,10 @@ gi_result gi__image_average(const void *data, size_t size, const char *what, flo
 gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, const char *what, float rgb[3],
                              gi_error_info *err);
 
+/* One 8-bit-style sRGB-encoded value in [0, 1] to linear (the exact
+ * transfer function); also for vertex colours (import_exact.c). */
+double gi__srgb_to_linear(double c);
+
 /* Reads a whole regular file into a malloc'ed buffer (*data, freed by the
  * caller; *size bytes). A missing file gives GI_ERR_NOT_FOUND, a file larger
  * than max_size GI_ERR_LIMIT, any other failure GI_ERR_IO. */

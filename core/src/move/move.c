@@ -188,7 +188,8 @@ static gi_result voxelize_box(struct gi_cascade *c, int d, const cell_box *in, u
       if (tb.lo[a] < b->lo[a]) tb.lo[a] = b->lo[a];
       if (tb.hi[a] > b->hi[a]) tb.hi[a] = b->hi[a];
     }
-    const gi_material *mat = &s->materials[s->tri_material[t]];
+    gi_material tm;
+    const gi_material *mat = gi__tri_material(s, t, &tm);
     FOR_BOX(&tb, i, j, k) {
       uint32_t slot = gi__slot(i, j, k, R);
       if (L->busy[slot] != CELL_STALE) continue;

@@ -31,6 +31,8 @@ struct gi_mesh_builder {
   size_t nm, cap_m;
   float *uv2;         /* 2 per vertex up to cap_uv2/2: lightmap UVs, NaN when unset */
   size_t cap_uv2;
+  float *col;         /* 3 per vertex up to cap_col/3: vertex colours, 1 when unset; NULL: none */
+  size_t cap_col;
   int oom;            /* an add_* ran out of memory */
   int overflow;       /* more than 2^32-1 vertices or materials */
 };
@@ -59,7 +61,17 @@ void gi_mesh_builder_free(gi_mesh_builder *b) {
   gi__free(b->mat);
   gi__free(b->mats);
   gi__free(b->uv2);
+  gi__free(b->col);
   gi__free(b);
+}
+
+void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, double r, double g, double bl) {
+  if (vertex >= b->nv) { b->overflow = 1; return; }
+  size_t old = b->cap_col;
+  if (!grow((void **)&b->col, &b->cap_col, 3 * (size_t)b->nv, sizeof *b->col)) { b->oom = 1; return; }
+  for (size_t i = old; i < b->cap_col; i++) b->col[i] = 1.f;
+  const double c[3] = {r, g, bl};
+  for (int k = 0; k < 3; k++) b->col[3 * (size_t)vertex + k] = isfinite(c[k]) ? (float)c[k] : 1.f;
 }
 
 void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double u, double v) {
@@ -364,6 +376,31 @@ static int emits(const float e[3]) { return e[0] > 0 || e[1] > 0 || e[2] > 0; }
 
 /* Kept triangles in input order, and the emitters among them with a cdf by
  * power (luminance times area) for light sampling. */
+/* A vertex's colour component k (white when never set). */
+static float vertex_color(const gi_mesh_builder *b, uint32_t v, int k) {
+  return 3 * (size_t)v + 2 < b->cap_col ? b->col[3 * (size_t)v + k] : 1.f;
+}
+
+/* Per kept triangle: its material's albedo times its corners' mean colour,
+ * in [0, 1], when the builder has vertex colours (else none is kept). */
+static gi_result copy_tri_albedo(const gi_mesh_builder *b, gi_scene *s, const build_tmp *t, gi_error_info *err) {
+  if (!b->col || !t->kept) return GI_OK;
+  if (!(s->tri_albedo = gi__malloc(3 * t->kept * sizeof *s->tri_albedo)))
+    return gi__fail(err, GI_ERR_NOMEM, "out of memory for the albedo of %zu triangles", t->kept);
+  size_t j = 0;
+  for (size_t tr = 0; tr < b->nt; tr++) {
+    if (t->cls[tr] != TRI_KEEP) continue;
+    const float *a = s->materials[b->mat[tr]].albedo;
+    for (int k = 0; k < 3; k++) {
+      float c = (vertex_color(b, b->tri[3 * tr], k) + vertex_color(b, b->tri[3 * tr + 1], k) +
+                 vertex_color(b, b->tri[3 * tr + 2], k)) / 3.f;
+      s->tri_albedo[3 * j + k] = gi__minf(gi__maxf(a[k] * c, 0.f), 1.f);
+    }
+    j++;
+  }
+  return GI_OK;
+}
+
 static gi_result copy_triangles(const gi_mesh_builder *b, gi_scene *s, build_tmp *t, gi_error_info *err) {
   size_t j = 0, ne = 0;
   for (size_t tr = 0; tr < b->nt; tr++) {
@@ -463,7 +500,8 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
   for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
   if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_uv2(b, s, &t, err)) != GI_OK ||
       (rc = copy_materials(b, s, err)) != GI_OK ||
-      (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_lights(opt, s, err)) != GI_OK ||
+      (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_tri_albedo(b, s, &t, err)) != GI_OK ||
+      (rc = copy_lights(opt, s, err)) != GI_OK ||
       (rc = gi__local_tree_build(s, err)) != GI_OK)
     goto done;
   if (t.kept) rc = gi__bvh_build(s, opt->threads, err);
@@ -494,6 +532,7 @@ void gi_scene_release(gi_scene *s) {
   gi__free(s->uv2);
   gi__free(s->indices);
   gi__free(s->tri_material);
+  gi__free(s->tri_albedo);
   gi__free(s->materials);
   gi__free(s->lights);
   gi__free(s->local_tree);

@@ -64,6 +64,7 @@ struct gi_scene {
   uint32_t num_triangles;
   uint32_t *indices;       /* 3 per triangle */
   uint32_t *tri_material;  /* material index per triangle */
+  float *tri_albedo;       /* 3 per triangle with vertex colours (gi__tri_material), else NULL */
 
   uint32_t num_materials;
   gi_material *materials;  /* albedo already clamped to [0,1] */
@@ -135,5 +136,16 @@ gi_result gi__query_box(const struct gi_scene *s, const float lo[3], const float
  * by the repeats), so accumulating them does not depend on the order a
  * BVH visits. Thread-safe on distinct lists. */
 void gi__order_tris(const struct gi_scene *s, uint32_t *tris, size_t *count);
+
+/* Triangle tri's material: its own, or a copy in *tmp with the albedo its
+ * vertex colours give (gi_mesh_builder_set_vertex_color). Every stage that
+ * reads a triangle's albedo goes through here. */
+static inline const gi_material *gi__tri_material(const gi_scene *s, uint32_t tri, gi_material *tmp) {
+  const gi_material *m = &s->materials[s->tri_material[tri]];
+  if (!s->tri_albedo) return m;
+  *tmp = *m;
+  for (int k = 0; k < 3; k++) tmp->albedo[k] = s->tri_albedo[3 * (size_t)tri + k];
+  return tmp;
+}
 
 #endif
