@@ -150,8 +150,11 @@ int gi__light_samples(const gi_scene *s, const gi_light_plan *lp, const float p[
                       gi_lsample *out, int max) {
   int n = 0, cut = gi__local_by_cut(s, lp);
   const float *up_axis = s->up == GI_UP_Z ? (const float[3]){0, 0, 1} : (const float[3]){0, 1, 0};
-  for (uint32_t i = 0; i < s->num_lights && n < max; i++) {
-    const gi_light *l = &s->lights[i];
+  /* With the cut, only the other lights one by one: a loop over all of
+   * them was a quarter of a 16,384-lamp bake. */
+  uint32_t count = cut ? s->num_other : s->num_lights;
+  for (uint32_t i = 0; i < count && n < max; i++) {
+    const gi_light *l = &s->lights[cut ? s->other_lights[i] : i];
     gi_lsample *o = &out[n];
     if (l->type == GI_LIGHT_SUN) {
       if (!lp->sun) continue;

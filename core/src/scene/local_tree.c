@@ -118,11 +118,14 @@ gi_result gi__local_tree_build(gi_scene *s, gi_error_info *err) {
   if (n < GI_LOCAL_TREE_MIN) return GI_OK;
   tree_item *it = gi__malloc((size_t)n * sizeof *it);
   gi_local_node *nodes = gi__calloc(2 * (size_t)n, sizeof *nodes);
-  if (!it || !nodes) {
+  s->other_lights = gi__malloc((size_t)(s->num_lights - n + 1) * sizeof *s->other_lights);
+  if (!it || !nodes || !s->other_lights) {
     gi__free(it);
     gi__free(nodes);
     return gi__fail(err, GI_ERR_NOMEM, "out of memory for the tree of %u point and spot lights", n);
   }
+  for (uint32_t i = 0; i < s->num_lights; i++)
+    if (s->lights[i].type != GI_LIGHT_POINT && s->lights[i].type != GI_LIGHT_SPOT) s->other_lights[s->num_other++] = i;
   /* Lights that send nothing take no place in the cut: their samples were zero. */
   uint32_t m = 0;
   for (uint32_t i = 0; i < s->num_lights; i++) {

@@ -536,6 +536,7 @@ void gi_scene_release(gi_scene *s) {
   gi__free(s->materials);
   gi__free(s->lights);
   gi__free(s->local_tree);
+  gi__free(s->other_lights);
   gi__free(s->emitter_tri);
   gi__free(s->emitter_leaf);
   gi__free(s->ltree);

@@ -76,6 +76,8 @@ struct gi_scene {
   gi_local_node *local_tree;
   uint32_t num_local_nodes;
   uint32_t num_local;      /* point and spot lights */
+  uint32_t *other_lights;  /* with the tree: the indices of the other lights (sun, sky), in order */
+  uint32_t num_other;
 
   /* Emissive triangles, for sampling them as area lights (light_tree.c). */
   uint32_t num_emitters;
