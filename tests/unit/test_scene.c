@@ -876,6 +876,9 @@ static void test_gltf_light_nodes(void **state) {
              GI_ERR_FORMAT, "glTF light 0: 'color' must be an array of 3 finite numbers");
   expect_bad(gltf_lights("nospot.gltf", node, "0,1", "{\"type\":\"spot\"}"), GI_ERR_FORMAT,
              "needs its 'spot' object");
+  expect_bad(gltf_lights("cone.gltf", node, "0,1",
+                         "{\"type\":\"spot\",\"spot\":{\"innerConeAngle\":0.8,\"outerConeAngle\":0.5}}"),
+             GI_ERR_FORMAT, "expected 0 <= innerConeAngle < outerConeAngle <= pi/2");
 }
 
 /* ---- vertex colours --------------------------------------------------------- */
