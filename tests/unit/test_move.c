@@ -21,7 +21,9 @@
  *   refilter exact: the nested cells a move refilters are all that a full
  *     refilter would change.
  *   probe drift: the probe at the viewpoint along the walk and the drive
- *     stays within measured bounds of cold bakes at the same anchors. */
+ *     stays within measured bounds of cold bakes at the same anchors.
+ *   lamps: with 600 more street lamps (sampled through the light cut) the
+ *     moved voxels still equal cold bakes, and the closed cycle too. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
@@ -32,6 +34,7 @@
 #include "gi/gi.h"
 #include "gi/gi_move.h"
 #include "light/light.h"
+#include "scene/lights.h"
 #include "test_levels.h"
 
 #define WALK_MOVES 200
@@ -554,6 +557,60 @@ static void test_bad_viewpoint(void **state) {
   gi_scene_release(s);
 }
 
+/* The city under 600 more street lamps, so injection samples its point
+ * lights through the light cut (scene/local_tree.c): a cut's random picks
+ * are seeded by the voxel's global cell like every other sample, so moved
+ * voxels equal a cold bake's bit for bit, and the closed cycle equals a
+ * cold bake within the walk's bound. */
+#define LAMP_MOVES 24
+static void test_lamps_move(void **state) {
+  (void)state;
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_light lamps[600];
+  uint64_t r = 77;
+  memset(lamps, 0, sizeof lamps);
+  for (int i = 0; i < 600; i++) {
+    lamps[i].type = GI_LIGHT_POINT;
+    lamps[i].position[0] = (gi__u01(&r) - 0.5) * 290;
+    lamps[i].position[1] = 3 + 3 * gi__u01(&r);
+    lamps[i].position[2] = (gi__u01(&r) - 0.5) * 290;
+    for (int k = 0; k < 3; k++) lamps[i].color[k] = 20 + 80 * gi__u01(&r);
+  }
+  gi_scene_options o = {.lights = lamps, .num_lights = 600};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&cp, &o, &s, &err), GI_OK);
+  gi_light_plan lp = gi__light_plan(&(gi_bake_report){.effects[GI_FX_LOCAL].ran = 1}, SMALL.light_samples);
+  assert_true(gi__local_by_cut(s, &lp));
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *c = bake(s, at);
+  uint64_t rng = 0x1a3e;
+  gi_move_info mi = {0};
+  for (int m = 1; m <= LAMP_MOVES; m++) {
+    next_point(&cp, c->s0, &rng, at);
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+    if (m % 8 == 0) {
+      gi_cascade *b = bake(s, at);
+      assert_same_geometry(c, b);
+      gi_cascade_free(b);
+    }
+  }
+  printf("lamps: last move: slice %d closed %d\n", mi.slice, mi.cycle_closed);
+  /* Stand still until the cycle closes (at once when the last move closed it). */
+  for (uint64_t i = 0; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
+    assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
+  assert_true(mi.cycle_closed);
+  gi_cascade *b = bake(s, at);
+  assert_same_geometry(c, b);
+  double mean, worst;
+  compare_light(c, b, 1, &mean, &worst);
+  printf("lamps: cycle closed: light against a cold bake: mean %.3g max %.3g relative\n", mean, worst);
+  gi_cascade_free(b);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* Two cascades walked along the same path hold the same bytes at every step
  * (also between cycle ends): the refresh runs on the move clock alone. */
 #define DETERMINISM_MOVES 20
@@ -722,6 +779,7 @@ int main(void) {
       cmocka_unit_test(test_moving_cycle),
       cmocka_unit_test(test_probe_drift),
       cmocka_unit_test(test_crossing_orders),
+      cmocka_unit_test(test_lamps_move),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
