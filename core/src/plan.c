@@ -10,6 +10,7 @@
 #include "base/internal.h"
 #include "cascade/cascade_internal.h"
 #include "plan.h"
+#include "scene/lights.h"
 #include "trace/trace.h"
 
 /* The automatic bounce count's cap. Four, not three: the Cornell box
@@ -268,6 +269,23 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
   return GI_OK;
 }
 
+/* The local lights' reason: how many, and whether voxels and answers take
+ * them one by one or through the light cut (scene/local_tree.c). */
+static void local_why(const gi_scene *s, const gi_quality *q, gi_bake_report *r, int local) {
+  int vc = gi__local_cut_size(q->light_samples), pc = gi__local_cut_size(q->probe_samples);
+  int voxel_cut = s->local_tree && s->num_local > (uint32_t)(GI_LOCAL_EXACT_RATIO * vc);
+  int probe_cut = s->local_tree && s->num_local > (uint32_t)(GI_LOCAL_EXACT_RATIO * pc);
+  if (!voxel_cut && !probe_cut) {
+    set_fx(r, GI_FX_LOCAL, 1, "%d point/spot light%s", local, local > 1 ? "s" : "");
+  } else if (!probe_cut) {
+    set_fx(r, GI_FX_LOCAL, 1, "%d point/spot lights: voxels take them through a light cut of %d rays, probes one by "
+           "one", local, vc);
+  } else {
+    set_fx(r, GI_FX_LOCAL, 1, "%d point/spot lights through a light cut: %d rays per voxel, %d per probe", local, vc,
+           pc);
+  }
+}
+
 /* The effect plan: what this scene and request call for, with reasons.
  * Runs after placement (it looks at what lies inside the cascade). May set
  * q->bounces when the request left it to the plan (auto_bounces). *tail is
@@ -290,7 +308,7 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   else if (sun) set_fx(r, GI_FX_SUN, 1, "%d directional light%s", sun, sun > 1 ? "s" : "");
   else set_fx(r, GI_FX_SUN, 0, "no directional light in the scene");
   if (gi__fx_forced(q, GI_FX_LOCAL) == GI_FX_OFF) set_fx(r, GI_FX_LOCAL, 0, "turned off by the request");
-  else if (local) set_fx(r, GI_FX_LOCAL, 1, "%d point/spot light%s", local, local > 1 ? "s" : "");
+  else if (local) local_why(s, q, r, local);
   else set_fx(r, GI_FX_LOCAL, 0, "no point or spot light in the scene");
 
   int fs = gi__fx_forced(q, GI_FX_SKY);

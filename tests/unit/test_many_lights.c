@@ -164,6 +164,10 @@ static void test_cut_probe(void **state) {
   gi_error_info err = {0};
   double at[3] = {0, 1, 0};
   assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
+  /* The plan says how it samples them. */
+  printf("local lights: %s\n", rep.effects[GI_FX_LOCAL].why);
+  assert_string_equal(rep.effects[GI_FX_LOCAL].why, "3000 point/spot lights through a light cut: 64 rays per voxel, "
+                                                    "256 per probe");
   const double pts[6][3] = {{0, 1, 0}, {10, 1, 3}, {-25, 1, 18}, {40, 1, -40}, {-58, 1, -5}, {5, 1, 55}};
   double worst = 0, mean = 0;
   for (int i = 0; i < 6; i++) {

@@ -29,8 +29,7 @@ gi_light_plan gi__light_plan(const gi_bake_report *r, int samples) {
       .sky_samples = samples,
       .emit_samples = samples,
   };
-  long cut = (long)GI_LOCAL_CUT_PER_SAMPLE * samples;
-  lp.local_cut = (int)(cut < GI_LOCAL_CUT_MIN ? GI_LOCAL_CUT_MIN : cut > GI_LOCAL_CUT_MAX ? GI_LOCAL_CUT_MAX : cut);
+  lp.local_cut = gi__local_cut_size(samples);
   return lp;
 }
 

@@ -105,6 +105,11 @@ typedef struct gi_light_plan {
   int sky_samples, emit_samples;
   int local_cut; /* the most samples of a light cut (local_tree.c) */
 } gi_light_plan;
+/* The cut a plan of `samples` sky/emitter samples takes (GI_LOCAL_CUT_*). */
+static inline int gi__local_cut_size(int samples) {
+  long cut = (long)GI_LOCAL_CUT_PER_SAMPLE * samples;
+  return (int)(cut < GI_LOCAL_CUT_MIN ? GI_LOCAL_CUT_MIN : cut > GI_LOCAL_CUT_MAX ? GI_LOCAL_CUT_MAX : cut);
+}
 /* 1 when plan lp samples s's point and spot lights through the light cut
  * (local_tree.c, GI_LOCAL_EXACT_RATIO). */
 static inline int gi__local_by_cut(const gi_scene *s, const gi_light_plan *lp) {
