@@ -4,18 +4,18 @@
  * ray each (lights.h says where the line is). A city of street lamps has
  * thousands: each voxel, probe and pixel then paid one sample per lamp
  * (16,384 lamps: 1.46 s of injection, 0.5 ms per probe), and a lamp
- * across town brings next to nothing. The lights are kept in a binary tree (median
- * splits along the widest axis of their positions; a node holds its
- * lights' box and summed intensity). Per point, a light cut in the manner
- * of Lightcuts (Walter et al. 2005): starting from the root, the node
- * that could bring the most, intensity / squared distance to its box, is
- * split into its children until every node left could bring at most
- * GI_LOCAL_CUT_SHARE of the cut's estimated total, or the cut holds
- * GI_LOCAL_CUT_MAX nodes. A leaf of the cut is its light's own sample. A
- * node is one light picked inside it, walking down with probability
- * proportional to each child's intensity over its squared distance, and
- * divided by that probability: the sum stays unbiased, and only nodes
- * that bring little are sampled. Spot cones are left out of the bounds
+ * across town brings next to nothing. The lights are kept in a binary
+ * tree (median splits along the widest axis of their positions; a node
+ * holds its lights' box and summed intensity). Per point, a light cut in
+ * the manner of Lightcuts (Walter et al. 2005): starting from the root,
+ * the node that could bring the most, intensity / squared distance to its
+ * box, is split into its children until every node left could bring at
+ * most GI_LOCAL_CUT_SHARE of the cut's estimated total, or the cut is
+ * full (the plan's local_cut, lights.h). A leaf of the cut is its light's
+ * own sample. A node is one light picked inside it, walking down with
+ * probability proportional to each child's intensity over its squared
+ * distance, and divided by that probability: the sum stays unbiased, and
+ * only nodes that bring little are sampled. Spot cones are left out of the bounds
  * (a spot aimed away is a sample of zero). Built once with the scene,
  * read-only afterwards: thread-safe. */
 #include <float.h>
@@ -208,8 +208,9 @@ static cut_entry heap_pop(cut_entry *h, int *n) {
 }
 
 /* One light of inner node `node`, picked from p: its light index, and the
- * probability of the pick in *prob. */
-static uint32_t pick_light(const gi_scene *s, uint32_t node, const float p[3], double u, float *prob) {
+ * probability of the pick in *prob (in double: a float could round a rare
+ * pick's to 0 and drop its light from the sum). */
+static uint32_t pick_light(const gi_scene *s, uint32_t node, const float p[3], double u, double *prob) {
   const gi_local_node *t = s->local_tree;
   double pr = 1.0;
   while (t[node].light == UINT32_MAX) {
@@ -227,7 +228,7 @@ static uint32_t pick_light(const gi_scene *s, uint32_t node, const float p[3], d
     }
     if (!(u < 1.0)) u = nextafter(1.0, 0.0);
   }
-  *prob = (float)pr;
+  *prob = pr;
   return t[node].light;
 }
 
@@ -261,11 +262,12 @@ int gi__local_cut_samples(const gi_scene *s, const float p[3], int cut, uint64_t
   for (int i = 0; i < nl; i++) n += gi__local_sample(s, &s->lights[t[leaves[i]].light], p, &out[n]);
   /* The nodes left whole: one light each, in heap order (deterministic). */
   for (int i = 0; i < nh; i++) {
-    float prob;
-    double u = (double)gi__u01(rng);
+    double prob, u = (double)gi__u01(rng);
     uint32_t li = pick_light(s, heap[i].node, p, u, &prob);
     if (!(prob > 0) || !gi__local_sample(s, &s->lights[li], p, &out[n])) continue;
-    for (int k = 0; k < 3; k++) out[n].V[k] /= prob;
+    /* Finite whatever the pick: a lamp far nearer than its group's centre
+     * (a full cut around the point) could exceed float's range. */
+    for (int k = 0; k < 3; k++) out[n].V[k] = (float)fmin((double)out[n].V[k] / prob, FLT_MAX);
     n++;
   }
   return n;
