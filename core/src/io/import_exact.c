@@ -373,7 +373,6 @@ static gi_result ply_header(const char *path, char *text, size_t size, ply_eleme
   return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY header has no end_header", path);
 }
 
-/* Index of the scalar property called name, or -1. */
 /* A PLY colour value as a fraction: integers over their type's largest
  * value (uchar 255), floats as they are. */
 static double color_unit(ply_type t, double x) {
@@ -388,6 +387,7 @@ static double color_unit(ply_type t, double x) {
   }
 }
 
+/* Index of the scalar property called name, or -1. */
 static int find_prop(const ply_element *e, const char *name, int list) {
   for (int i = 0; i < e->nprops; i++)
     if (!strcmp(e->prop[i].name, name) && (e->prop[i].count_type != T_NONE) == list) return i;

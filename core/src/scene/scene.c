@@ -374,8 +374,6 @@ static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, gi_error_
 
 static int emits(const float e[3]) { return e[0] > 0 || e[1] > 0 || e[2] > 0; }
 
-/* Kept triangles in input order, and the emitters among them with a cdf by
- * power (luminance times area) for light sampling. */
 /* A vertex's colour component k (white when never set). */
 static float vertex_color(const gi_mesh_builder *b, uint32_t v, int k) {
   return 3 * (size_t)v + 2 < b->cap_col ? b->col[3 * (size_t)v + k] : 1.f;
@@ -401,6 +399,8 @@ static gi_result copy_tri_albedo(const gi_mesh_builder *b, gi_scene *s, const bu
   return GI_OK;
 }
 
+/* Kept triangles in input order, and the emitters among them with a cdf by
+ * power (luminance times area) for light sampling. */
 static gi_result copy_triangles(const gi_mesh_builder *b, gi_scene *s, build_tmp *t, gi_error_info *err) {
   size_t j = 0, ne = 0;
   for (size_t tr = 0; tr < b->nt; tr++) {
