@@ -10,6 +10,7 @@
 #include <png.h>
 #include "gi/gi_scene.h"
 #include "io/texture_image.h"
+#include "scene/scene_internal.h"
 
 /* The exact sRGB transfer function, in double. */
 static double lin(double v8) {
@@ -490,6 +491,129 @@ static void test_gltf_base_color_texture(void **state) {
   free(png);
 }
 
+/* --- per-triangle textures ------------------------------------------- */
+
+/* The grid of the 4x4 half-red, half-grey image: its top two rows red,
+ * the rest grey, linear; a triangle over each half reads that half; an
+ * interlaced PNG keeps no grid (its passes are not rows). */
+static void test_texture_grid(void **state) {
+  (void)state;
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  size_t n;
+  void *png = png_mem(rgba, 4, 4, PNG_FORMAT_RGBA, NULL, 0, &n);
+  float rgb[3];
+  gi__tex_grid g = {0};
+  gi_error_info err = {0};
+  assert_int_equal(gi__image_average_grid(png, n, "grid.png", rgb, &g, &err), GI_OK);
+  assert_int_equal(g.w, 4);
+  assert_int_equal(g.h, 4);
+  for (int y = 0; y < 4; y++)
+    for (int x = 0; x < 4; x++) {
+      const float *c = &g.rgb[3 * (4 * y + x)];
+      assert_float_equal(c[0], y < 2 ? 1.0 : GREY128, 1e-6);
+      assert_float_equal(c[1], y < 2 ? 0.0 : GREY128, 1e-6);
+    }
+  /* v runs up: v in [0.6, 1] is the image's top (red), [0, 0.4] its bottom. */
+  const float top[3][2] = {{0, 0.6f}, {1, 0.6f}, {0, 1}}, bottom[3][2] = {{0, 0}, {1, 0}, {0, 0.4f}};
+  /* Repeating: the same top half one tile over. */
+  const float tiled[3][2] = {{3, 1.6f}, {4, 1.6f}, {3, 2}};
+  float t[3], b[3], r[3];
+  gi__tex_grid_triangle(&g, top, t);
+  gi__tex_grid_triangle(&g, bottom, b);
+  gi__tex_grid_triangle(&g, tiled, r);
+  printf("top %g %g %g, bottom %g %g %g\n", t[0], t[1], t[2], b[0], b[1], b[2]);
+  assert_float_equal(t[0], 1.0, 1e-6);
+  assert_float_equal(t[1], 0.0, 1e-6);
+  assert_float_equal(b[0], GREY128, 1e-6);
+  assert_memory_equal(t, r, sizeof t);
+  gi__tex_grid_free(&g);
+  free(png);
+  /* JPEG and raw texels fill their grids too. */
+  static unsigned char px[8 * 8 * 3];
+  for (int i = 0; i < 64; i++) px[3 * i] = 200, px[3 * i + 1] = 100, px[3 * i + 2] = 50;
+  void *jpg = jpeg_mem(px, 8, 8, 3, &n);
+  assert_int_equal(gi__image_average_grid(jpg, n, "grid.jpg", rgb, &g, &err), GI_OK);
+  assert_int_equal(g.w * g.h, 64);
+  for (int i = 0; i < 64; i++) assert_true(fabs(g.rgb[3 * i] - lin(200)) <= lin(201) - lin(200));
+  gi__tex_grid_free(&g);
+  free(jpg);
+  const unsigned char bgra[8] = {0, 0, 255, 255, 255, 0, 0, 255}; /* red, then blue */
+  assert_int_equal(gi__texels_average_grid(bgra, 2, 1, "raw", rgb, &g, &err), GI_OK);
+  assert_true(g.w == 2 && g.h == 1 && g.rgb[0] == 1.f && g.rgb[2] == 0.f && g.rgb[3] == 0.f && g.rgb[5] == 1.f);
+  gi__tex_grid_free(&g);
+  /* Interlaced: the average, no grid. */
+  unsigned char rgb8[48];
+  for (int i = 0; i < 16; i++) memcpy(rgb8 + 3 * i, rgba + 4 * i, 3);
+  png = png_mem_rgb(rgb8, 4, 4, 1, &n);
+  assert_int_equal(gi__image_average_grid(png, n, "il.png", rgb, &g, &err), GI_OK);
+  assert_int_equal(g.w, 0);
+  assert_null(g.rgb);
+  free(png);
+}
+
+/* An OBJ whose one textured material covers two triangles, one on each
+ * half of the image: each takes its own half times the factor, where the
+ * material (and a triangle without vt) keeps the whole image's average. */
+static void test_obj_texture_per_triangle(void **state) {
+  (void)state;
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  png_file("halves.png", rgba, 4, 4);
+  const char mtl[] = "newmtl halves\nKd 0.5 0.5 0.5\nmap_Kd halves.png\n";
+  tu_write_file("halves.mtl", mtl, strlen(mtl));
+  const char obj[] = "mtllib halves.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                     "vt 0 0.6\nvt 1 0.6\nvt 0 1\nvt 0 0\nvt 1 0\nvt 0 0.4\n"
+                     "usemtl halves\nf 1/1 2/2 3/3\nf 1/4 2/5 3/6\nf 1 2 3\n";
+  gi_scene *s = load_ok(tu_write_file("halves.obj", obj, strlen(obj)));
+  gi_material tm;
+  const float *top = gi__tri_material(s, 0, &tm)->albedo;
+  printf("top triangle %g %g %g\n", top[0], top[1], top[2]);
+  assert_float_equal(top[0], 0.5, 1e-6);
+  assert_float_equal(top[1], 0.0, 1e-6);
+  const float *bottom = gi__tri_material(s, 1, &tm)->albedo;
+  assert_float_equal(bottom[0], 0.5 * GREY128, 1e-6);
+  assert_float_equal(bottom[2], 0.5 * GREY128, 1e-6);
+  const float *plain = gi__tri_material(s, 2, &tm)->albedo;
+  assert_float_equal(plain[0], 0.5 * HALF_RED_R, 1e-4);
+  assert_albedo(find_mat(s, "halves"), 0.5 * HALF_RED_R, 0.5 * HALF_RED_GB, 0.5 * HALF_RED_GB);
+  gi_scene_release(s);
+}
+
+/* glTF's texture coordinates run down from the image's top: a triangle
+ * over v in [0, 0.4] reads the red top half (assimp turns v up, the grid
+ * turns it back). */
+static void test_gltf_texture_per_triangle(void **state) {
+  (void)state;
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  size_t n;
+  void *png = png_mem(rgba, 4, 4, PNG_FORMAT_RGBA, NULL, 0, &n);
+  tu_write_file("gltf_halves.png", png, n);
+  free(png);
+  unsigned char buf[68] = {0};
+  const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, uv[6] = {0, 0, 1, 0, 0, 0.4f};
+  const uint16_t idx[3] = {0, 1, 2};
+  memcpy(buf, pos, 36), memcpy(buf + 36, uv, 24), memcpy(buf + 60, idx, 6);
+  char *geo = base64(buf, sizeof buf), *doc = gltf_doc("gltf_halves.png");
+  /* gltf_doc's geometry is one triangle over the image's top-left half; put ours in. */
+  static const char old[] =
+      "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAABAAIAAAA=";
+  char *at = strstr(doc, old);
+  assert_non_null(at);
+  assert_int_equal(strlen(geo), strlen(old));
+  memcpy(at, geo, strlen(geo));
+  gi_scene *s = load_ok(tu_write_file("halves.gltf", doc, strlen(doc)));
+  gi_material tm;
+  const float *a = gi__tri_material(s, 0, &tm)->albedo;
+  printf("glTF triangle over the top: %g %g %g\n", a[0], a[1], a[2]);
+  assert_float_equal(a[0], 0.5, 1e-6);  /* factor 0.5 x red */
+  assert_float_equal(a[1], 0.0, 1e-6);
+  gi_scene_release(s);
+  free(doc);
+  free(geo);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_png_average),
@@ -502,6 +626,9 @@ int main(void) {
       cmocka_unit_test(test_obj_map_kd),
       cmocka_unit_test(test_obj_bad_textures),
       cmocka_unit_test(test_gltf_base_color_texture),
+      cmocka_unit_test(test_texture_grid),
+      cmocka_unit_test(test_obj_texture_per_triangle),
+      cmocka_unit_test(test_gltf_texture_per_triangle),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -151,6 +151,13 @@ void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double
  * corners' colours, clamped to [0, 1]. A vertex never given one is white;
  * a non-finite component counts as 1. */
 void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, double r, double g, double bl);
+/* How many triangles the builder holds (the next one's index). */
+size_t gi_mesh_builder_num_triangles(const gi_mesh_builder *b);
+/* The albedo of an added triangle in place of its material's (a texture
+ * averaged over the triangle's own part of it), linear RGB; vertex colours
+ * still multiply it, and the result is clamped to [0, 1]. A non-finite
+ * component keeps the material's. */
+void gi_mesh_builder_set_triangle_albedo(gi_mesh_builder *b, size_t tri, double r, double g, double bl);
 /* 1 when the scene kept lightmap UVs (a file's second UV set, or the builder's). */
 int gi_scene_has_lightmap_uv(const gi_scene *s);
 /* Convenience: a quad a,b,c,d (counter-clockwise seen from the front) as two triangles. */

@@ -20,10 +20,13 @@
  * counts those triangles; an index outside its mesh is a malformed file.
  * Materials map OBJ (Kd, Ke, Ks, Ns) and glTF (baseColor, emissive,
  * metallic/roughness) onto gi_material; a diffuse or base-colour texture
- * multiplies the colour factor by its average linear colour (we bake at
- * voxel scale, so one colour per material is what the pipeline can use).
- * Vertex colours multiply it per triangle (gi_mesh_builder_set_vertex_color:
- * assimp's first colour set, or the exact readers' for OBJ and PLY).
+ * multiplies the colour factor by its average linear colour. A triangle
+ * with texture coordinates takes instead the average of its own part of
+ * the texture (read on a grid of at most 128 x 128 cells,
+ * gi_mesh_builder_set_triangle_albedo): a city's facades often share one
+ * atlas, and its average made every building the same colour. Vertex
+ * colours multiply either (gi_mesh_builder_set_vertex_color: assimp's first
+ * colour set, or the exact readers' for OBJ and PLY).
  * Textures are decoded once per load (cached by path), embedded ones from
  * the aiScene, and one that cannot be read costs a warning on stderr and a
  * count in the stats, never the load. assimp keeps its last error in a
@@ -257,13 +260,23 @@ static int get_float(const struct aiMaterial *m, const char *key, unsigned type,
 
 /* --- diffuse textures ------------------------------------------------ */
 
-/* One texture's average, computed once per load: key is "*N" for an
- * embedded texture, else the resolved file path. */
+/* One texture's average and grid, computed once per load: key is "*N"
+ * for an embedded texture, else the resolved file path. */
 typedef struct tex_entry {
   char *key;
   int ok;
   float rgb[3];
+  gi__tex_grid grid; /* the texture on a coarse grid, for its triangles' own parts */
 } tex_entry;
+
+/* Per material of ours: the texture its triangles sample (index in
+ * tc->tex; -1: none readable), the colour factor that multiplies it, and
+ * the UV set it reads. */
+typedef struct mat_tex {
+  long tex;
+  float factor[3];
+  unsigned uv;
+} mat_tex;
 
 /* An OBJ material's name and whether its MTL block has a Kd line. */
 typedef struct mtl_entry {
@@ -280,10 +293,12 @@ typedef struct tex_ctx {
   int mtl_scanned;    /* OBJ: the MTL files were read into mtl[] */
   mtl_entry *mtl;
   size_t nmtl, capmtl;
+  mat_tex *mt;        /* per material of ours (add_materials) */
 } tex_ctx;
 
 static void tex_ctx_fini(tex_ctx *tc) {
-  for (size_t i = 0; i < tc->ntex; i++) gi__free(tc->tex[i].key);
+  for (size_t i = 0; i < tc->ntex; i++) gi__free(tc->tex[i].key), gi__tex_grid_free(&tc->tex[i].grid);
+  gi__free(tc->mt);
   for (size_t i = 0; i < tc->nmtl; i++) gi__free(tc->mtl[i].name);
   gi__free(tc->tex);
   gi__free(tc->mtl);
@@ -359,9 +374,9 @@ static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const
     const struct aiTexture *t = as->mTextures[ei];
     snprintf(what, sizeof what, "embedded texture *%ld", ei);
     if (t->mHeight == 0)
-      r = gi__image_average(t->pcData, t->mWidth, what, e->rgb, &te);
+      r = gi__image_average_grid(t->pcData, t->mWidth, what, e->rgb, &e->grid, &te);
     else
-      r = gi__texels_average(t->pcData, t->mWidth, t->mHeight, what, e->rgb, &te);
+      r = gi__texels_average_grid(t->pcData, t->mWidth, t->mHeight, what, e->rgb, &e->grid, &te);
   } else {
     void *data = NULL;
     size_t size = 0;
@@ -376,7 +391,7 @@ static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const
       if (r2 == GI_OK || r2 == GI_ERR_NOMEM) r = r2;
       gi__free(near);
     }
-    if (r == GI_OK) r = gi__image_average(data, size, key, e->rgb, &te);
+    if (r == GI_OK) r = gi__image_average_grid(data, size, key, e->rgb, &e->grid, &te);
     gi__free(data);
   }
   /* Out of memory fails the load; only a texture that cannot be read falls back to the colour. */
@@ -470,8 +485,10 @@ static int texture_factor(tex_ctx *tc, const char *mat_name, float c[3]) {
  * times the average of the diffuse (or base-colour) texture when there is
  * one; a texture that cannot be read leaves the factor alone. Fails only
  * when out of memory. */
-static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_material *m, gi_error_info *err) {
+static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_material *m, mat_tex *mt,
+                                  gi_error_info *err) {
   memset(m, 0, sizeof *m);
+  mt->tex = -1;
   struct aiString name;
   if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
     snprintf(m->name, sizeof m->name, "%.*s", (int)(name.length < sizeof m->name ? name.length : sizeof m->name - 1),
@@ -480,9 +497,10 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   /* glTF's base colour is the truer albedo when both are present. */
   int has_factor = get_color(am, AI_MATKEY_BASE_COLOR, c) || get_color(am, AI_MATKEY_COLOR_DIFFUSE, c);
   struct aiString tpath;
-  int has_tex = aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tpath, NULL, NULL, NULL, NULL, NULL, NULL) ==
+  unsigned uv = 0;
+  int has_tex = aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tpath, NULL, &uv, NULL, NULL, NULL, NULL) ==
                     aiReturn_SUCCESS ||
-                aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tpath, NULL, NULL, NULL, NULL, NULL, NULL) ==
+                aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tpath, NULL, &uv, NULL, NULL, NULL, NULL) ==
                     aiReturn_SUCCESS;
   if (has_tex && tpath.length == 0) has_tex = 0;
   if (has_tex) {
@@ -491,8 +509,10 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     if ((has_factor && !texture_factor(tc, m->name, c)) || !(t = texture_average(tc, m->name, tpath.data)))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': material '%s': out of memory for its texture", tc->path,
                       m->name);
-    if (t->ok)
+    if (t->ok) {
+      *mt = (mat_tex){.tex = (long)(t - tc->tex), .factor = {c[0], c[1], c[2]}, .uv = uv};
       for (int i = 0; i < 3; i++) c[i] *= t->rgb[i];
+    }
     has_factor = 1;
   }
   if (has_factor)
@@ -633,15 +653,20 @@ static gi_result check_counts(const struct aiScene *as, const char *path, gi_err
 static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_builder *b, uint32_t *matmap,
                                gi_error_info *err) {
   uint32_t nmat = 0;
+  if (!(tc->mt = gi__malloc((as->mNumMaterials + 1) * sizeof *tc->mt)))
+    return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
+  tc->mt[0].tex = -1;
   for (unsigned i = 0; i < as->mNumMaterials; i++) {
     gi_material m;
-    gi_result rc = convert_material(as->mMaterials[i], tc, &m, err);
+    mat_tex mt;
+    gi_result rc = convert_material(as->mMaterials[i], tc, &m, &mt, err);
     if (rc != GI_OK) return rc;
     int used = 0;
     for (unsigned j = 0; j < as->mNumMeshes && !used; j++)
       used = as->mMeshes[j]->mMaterialIndex == i && (as->mMeshes[j]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
     matmap[i] = UINT32_MAX;
     if (!used && (strcmp(m.name, AI_DEFAULT_MATERIAL_NAME) == 0 || m.name[0] == 0)) continue;
+    tc->mt[nmat] = mt;
     matmap[i] = nmat++;
     gi_mesh_builder_add_material(b, &m);
   }
@@ -659,15 +684,30 @@ static double vertex_linear(const char *path, float c) {
   return c > 0 && c <= 1 ? gi__srgb_to_linear(c) : c;
 }
 
+/* The texture of our material mat over the triangle b holds as tri, from
+ * its corners' uv: the triangle's own albedo (a facade's part of a city's
+ * atlas, not the whole atlas's average). Nothing when mat has no texture
+ * or it has no grid. */
+static void texture_triangle(const tex_ctx *tc, uint32_t mat, const float uv[3][2], gi_mesh_builder *b, size_t tri) {
+  const mat_tex *mt = &tc->mt[mat];
+  if (mt->tex < 0 || tc->tex[mt->tex].grid.w == 0) return;
+  float c[3];
+  gi__tex_grid_triangle(&tc->tex[mt->tex].grid, uv, c);
+  gi_mesh_builder_set_triangle_albedo(b, tri, mt->factor[0] * c[0], mt->factor[1] * c[1], mt->factor[2] * c[2]);
+}
+
 /* Every triangle mesh's vertices (unscaled: gi_scene_build applies
- * opt->scale), their colours, and faces into b. */
+ * opt->scale), their colours, and faces into b, each textured triangle
+ * with its own part of its texture. */
 static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, const double shift[3],
-                            gi_mesh_builder *b, const char *path, gi_error_info *err) {
+                            const tex_ctx *tc, gi_mesh_builder *b, const char *path, gi_error_info *err) {
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
     const struct aiMesh *m = as->mMeshes[i];
     if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
     uint32_t mat = m->mMaterialIndex < as->mNumMaterials ? matmap[m->mMaterialIndex] : 0;
     if (mat == UINT32_MAX) mat = 0;
+    unsigned uvset = tc->mt[mat].uv;
+    const struct aiVector3D *tuv = uvset < AI_MAX_NUMBER_OF_TEXTURECOORDS ? m->mTextureCoords[uvset] : NULL;
     uint32_t base = 0;
     for (unsigned v = 0; v < m->mNumVertices; v++) {
       uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x + shift[0], m->mVertices[v].y + shift[1],
@@ -688,7 +728,13 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, co
         if (fc->mIndices[k] >= m->mNumVertices)
           return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': mesh '%.*s' face %u uses vertex %u of %u", path,
                           (int)m->mName.length, m->mName.data, t, fc->mIndices[k], m->mNumVertices);
+      size_t tri = gi_mesh_builder_num_triangles(b);
       gi_mesh_builder_add_triangle(b, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2], mat);
+      if (tuv) {
+        float uv[3][2];
+        for (int k = 0; k < 3; k++) uv[k][0] = tuv[fc->mIndices[k]].x, uv[k][1] = tuv[fc->mIndices[k]].y;
+        texture_triangle(tc, mat, (const float(*)[2])uv, b, tri);
+      }
     }
   }
   return GI_OK;
@@ -704,7 +750,7 @@ static uint32_t our_material(const struct aiScene *as, const uint32_t *matmap, u
  * origin. Materials stay assimp's, matched to usemtl by name; a face before
  * any usemtl (and every PLY face) takes the material of assimp's first mesh. */
 static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matmap, const gi__exact_mesh *mp,
-                                  gi_mesh_builder *b, const char *path, gi_error_info *err) {
+                                  const tex_ctx *tc, gi_mesh_builder *b, const char *path, gi_error_info *err) {
   const gi__exact_mesh m = *mp;
   uint32_t fallback = 0;
   for (unsigned i = 0; i < as->mNumMaterials; i++) {
@@ -732,9 +778,17 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
     if (v == 0) base = id;
     if (m.col) gi_mesh_builder_set_vertex_color(b, id, m.col[3 * v], m.col[3 * v + 1], m.col[3 * v + 2]);
   }
-  for (size_t t = 0; t < m.nt; t++)
-    gi_mesh_builder_add_triangle(b, base + m.tri[3 * t], base + m.tri[3 * t + 1], base + m.tri[3 * t + 2],
-                                 m.mat[t] == GI__EXACT_NO_MATERIAL ? fallback : map[m.mat[t]]);
+  for (size_t t = 0; t < m.nt; t++) {
+    uint32_t mat = m.mat[t] == GI__EXACT_NO_MATERIAL ? fallback : map[m.mat[t]];
+    size_t tri = gi_mesh_builder_num_triangles(b);
+    gi_mesh_builder_add_triangle(b, base + m.tri[3 * t], base + m.tri[3 * t + 1], base + m.tri[3 * t + 2], mat);
+    const uint32_t *tx = m.tuv ? &m.tuv[3 * t] : NULL;
+    if (tx && tx[0] != GI__EXACT_NO_UV && tx[1] != GI__EXACT_NO_UV && tx[2] != GI__EXACT_NO_UV) {
+      float uv[3][2];
+      for (int k = 0; k < 3; k++) uv[k][0] = m.uv[2 * tx[k]], uv[k][1] = m.uv[2 * tx[k] + 1];
+      texture_triangle(tc, mat, (const float(*)[2])uv, b, tri);
+    }
+  }
   gi__free(map);
   return GI_OK;
 }
@@ -824,8 +878,8 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     goto done;
   }
   if ((rc = add_materials(as, &tc, b, matmap, err)) == GI_OK &&
-      (rc = exact ? add_exact_meshes(as, matmap, &em, b, path, err)
-                  : add_meshes(as, matmap, gs.t, b, path, err)) == GI_OK &&
+      (rc = exact ? add_exact_meshes(as, matmap, &em, &tc, b, path, err)
+                  : add_meshes(as, matmap, gs.t, &tc, b, path, err)) == GI_OK &&
       (rc = collect_lights(as, &gs, path, scale, &o, &lights, err)) == GI_OK)
     rc = build(b, path, &o, &tc, out, err);
 

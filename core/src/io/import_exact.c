@@ -25,6 +25,8 @@ void gi__exact_free(gi__exact_mesh *m) {
   gi__free(m->tri);
   gi__free(m->mat);
   gi__free(m->col);
+  gi__free(m->uv);
+  gi__free(m->tuv);
   memset(m, 0, sizeof *m);
 }
 
@@ -68,13 +70,24 @@ static int keep_white(gi__exact_mesh *m) {
   return 1;
 }
 
-static int push_tri(gi__exact_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint32_t mat) {
+/* A triangle; tex (NULL: none) its corners' vt indices. 0: out of memory. */
+static int push_tri_uv(gi__exact_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint32_t mat, const uint32_t *tex) {
   if (!grow((void **)&m->tri, &m->cap_t, 3 * (m->nt + 1), sizeof *m->tri) ||
       !grow((void **)&m->mat, &m->cap_m, m->nt + 1, sizeof *m->mat))
     return 0;
+  if (tex || m->tuv) {
+    size_t old = m->tuv ? m->cap_tuv : 0;
+    if (!grow((void **)&m->tuv, &m->cap_tuv, 3 * (m->nt + 1), sizeof *m->tuv)) return 0;
+    for (size_t i = old; i < m->cap_tuv; i++) m->tuv[i] = GI__EXACT_NO_UV;
+    for (int k = 0; k < 3 && tex; k++) m->tuv[3 * m->nt + k] = tex[k];
+  }
   m->tri[3 * m->nt] = a, m->tri[3 * m->nt + 1] = b, m->tri[3 * m->nt + 2] = c;
   m->mat[m->nt++] = mat;
   return 1;
+}
+
+static int push_tri(gi__exact_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint32_t mat) {
+  return push_tri_uv(m, a, b, c, mat, NULL);
 }
 
 /* Index of name in m->names, added when new; GI__EXACT_NO_MATERIAL when out of memory. */
@@ -122,11 +135,47 @@ static gi_result obj_vertex(const char *path, size_t line, char *s, gi__exact_me
   return GI_OK;
 }
 
+/* The vt index after a corner's vertex index (at e: "/t", "/t/n"), or
+ * GI__EXACT_NO_UV when it has none or it is out of range. */
+static uint32_t obj_tex_index(const char *e, const gi__exact_mesh *m) {
+  if (*e != '/' || e[1] == '/' || !e[1] || is_blank(e[1])) return GI__EXACT_NO_UV;
+  char *end;
+  errno = 0;
+  long long i = strtoll(e + 1, &end, 10);
+  long long k = i > 0 ? i - 1 : (long long)m->nuv + i;
+  if (end == e + 1 || errno || i == 0 || k < 0 || k >= (long long)m->nuv) return GI__EXACT_NO_UV;
+  return (uint32_t)k;
+}
+
+/* "vt u [v [w]]": the first two; a missing v is 0. */
+static gi_result obj_texcoord(const char *path, size_t line, char *s, gi__exact_mesh *m, gi_error_info *err) {
+  double t[2] = {0, 0};
+  for (int n = 0;; n++) {
+    s = skip_blank(s);
+    if (!*s) {
+      if (n == 0) return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: vt needs a coordinate", path, line);
+      break;
+    }
+    char *e;
+    double x = strtod(s, &e);
+    if (e == s || (*e && !is_blank(*e)) || !isfinite(x))
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: texture coordinate %d is not a finite number: "
+                      "'%.*s'", path, line, n + 1, token_len(s), s);
+    if (n < 2) t[n] = x;
+    s = e;
+  }
+  if (!grow((void **)&m->uv, &m->cap_uv, 2 * (m->nuv + 1), sizeof *m->uv))
+    return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  m->uv[2 * m->nuv] = (float)t[0], m->uv[2 * m->nuv + 1] = (float)t[1];
+  m->nuv++;
+  return GI_OK;
+}
+
 /* The vertex indices of an "f", "l" or "p" statement (what: "face",
  * "line" or "point") into poly, *count of them, at least min: each v,
  * v/t, v//n or v/t/n; negative counts back from the last vertex. */
 static gi_result obj_indices(const char *path, size_t line, char *s, const char *what, int min, const gi__exact_mesh *m,
-                             uint32_t poly[PLY_MAX_POLYGON + 1], int *count, gi_error_info *err) {
+                             uint32_t poly[PLY_MAX_POLYGON + 1], uint32_t *tex, int *count, gi_error_info *err) {
   int n = 0;
   for (;;) {
     s = skip_blank(s);
@@ -146,8 +195,9 @@ static gi_result obj_indices(const char *path, size_t line, char *s, const char 
     if (n == PLY_MAX_POLYGON)
       return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a %s has more than %d corners", path, line, what,
                       PLY_MAX_POLYGON);
+    if (tex) tex[n] = obj_tex_index(e, m);
     poly[n++] = (uint32_t)k;
-    while (*e && !is_blank(*e)) e++; /* texture and normal indices are not used */
+    while (*e && !is_blank(*e)) e++; /* normal indices are not used */
     s = e;
   }
   if (n < min)
@@ -160,13 +210,17 @@ static gi_result obj_indices(const char *path, size_t line, char *s, const char 
 /* "f a b c ...": fanned from its first corner. */
 static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, gi__exact_mesh *m,
                           gi_error_info *err) {
-  uint32_t poly[PLY_MAX_POLYGON + 1];
+  uint32_t poly[PLY_MAX_POLYGON + 1], tex[PLY_MAX_POLYGON + 1];
   int n = 0;
-  gi_result rc = obj_indices(path, line, s, "face", 3, m, poly, &n, err);
+  gi_result rc = obj_indices(path, line, s, "face", 3, m, poly, tex, &n, err);
   if (rc != GI_OK) return rc;
-  for (int t = 1; t + 1 < n; t++)
-    if (!push_tri(m, poly[0], poly[t], poly[t + 1], mat))
+  int has_uv = 0;
+  for (int k = 0; k < n; k++) has_uv |= tex[k] != GI__EXACT_NO_UV;
+  for (int t = 1; t + 1 < n; t++) {
+    uint32_t t3[3] = {tex[0], tex[t], tex[t + 1]};
+    if (!push_tri_uv(m, poly[0], poly[t], poly[t + 1], mat, has_uv ? t3 : NULL))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  }
   return GI_OK;
 }
 
@@ -191,6 +245,8 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
     char *s = skip_blank(buf);
     if (keyword(s, "v", &rest)) {
       rc = obj_vertex(path, line, rest, m, err);
+    } else if (keyword(s, "vt", &rest)) {
+      rc = obj_texcoord(path, line, rest, m, err);
     } else if (keyword(s, "f", &rest)) {
       rc = obj_face(path, line, rest, mat, m, err);
     } else if (keyword(s, "usemtl", &rest)) {
@@ -206,7 +262,7 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
        * one vertex sent its OBJ reader down a path that leaks (fuzz_scene). */
       uint32_t poly[PLY_MAX_POLYGON + 1];
       int n = 0, l = s[0] == 'l';
-      rc = obj_indices(path, line, rest, l ? "line" : "point", l ? 2 : 1, m, poly, &n, err);
+      rc = obj_indices(path, line, rest, l ? "line" : "point", l ? 2 : 1, m, poly, NULL, &n, err);
     } else if (s[0] == 'f' || s[0] == 'l' || s[0] == 'p') {
       /* assimp takes any line starting with f, l or p for a face, line or
        * point ("foo 1" is a face of one corner to it, the spec's "lod 1" a
@@ -216,7 +272,7 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
                     "this file's materials) takes any line starting with '%c' for a %s; expected '%c' alone", path,
                     line, token_len(s), s, s[0], kind, s[0]);
     }
-    /* vt, vn, o, g, s, mtllib, comments: not geometry we use. */
+    /* vn, o, g, s, mtllib, comments: not geometry we use. */
   }
   if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error after line %zu", path, line);
   free(buf); /* getline's buffer comes from libc malloc */

@@ -26,11 +26,18 @@ typedef struct gi__exact_mesh {
   size_t nnames, cap_names;
   float *col;      /* 3 per vertex, linear, when any vertex has a colour (others white); else NULL */
   size_t cap_c;
+  float *uv;       /* OBJ: 2 per vt line (u, v up) */
+  size_t nuv, cap_uv;
+  uint32_t *tuv;   /* OBJ: 3 per triangle, each corner's vt (GI__EXACT_NO_UV: none) once any face has them; else NULL */
+  size_t cap_tuv;
 } gi__exact_mesh;
 
-/* OBJ: v (with the common "v x y z r g b" colour extension), f (v, v/t,
- * v//n, v/t/n, negative = relative), usemtl; other statements are ignored.
- * A bad number or index fails with file and line. */
+#define GI__EXACT_NO_UV UINT32_MAX
+
+/* OBJ: v (with the common "v x y z r g b" colour extension), vt, f (v,
+ * v/t, v//n, v/t/n, negative = relative), usemtl; other statements are
+ * ignored. A bad number or vertex index fails with file and line; a
+ * texture index out of range leaves that corner without coordinates. */
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err);
 /* PLY: ascii, binary_little_endian, binary_big_endian; x/y/z of any scalar
  * type (float and double included), red/green/blue colours when present;

@@ -31,11 +31,18 @@
  * 2 bytes per pixel per component. */
 #define JPEG_MEMORY_MAX (768L << 20)
 
-/* Per-channel histograms of encoded values: hist[c * levels + v]. */
+/* Per-channel histograms of encoded values: hist[c * levels + v]; and,
+ * when a grid is asked for, linear sums per grid cell. */
 typedef struct accum {
   uint64_t *hist;
   unsigned levels; /* 256 or 65536 */
   uint64_t pixels;
+  gi__tex_grid *grid; /* NULL: none asked for */
+  double *gsum;       /* 3 per cell */
+  uint32_t *gcnt;
+  uint32_t *gcol;     /* per image column: its grid column */
+  uint32_t grow;      /* the grid row of the rows now added */
+  float *lut;         /* encoded value -> linear */
 } accum;
 
 static int accum_init(accum *a, unsigned levels) {
@@ -43,6 +50,54 @@ static int accum_init(accum *a, unsigned levels) {
   a->pixels = 0;
   a->hist = gi__calloc((size_t)3 * levels, sizeof *a->hist);
   return a->hist != NULL;
+}
+
+static void accum_free(accum *a) {
+  gi__free(a->hist);
+  gi__free(a->gsum);
+  gi__free(a->gcnt);
+  gi__free(a->gcol);
+  gi__free(a->lut);
+  a->hist = NULL, a->gsum = NULL, a->gcnt = NULL, a->gcol = NULL, a->lut = NULL;
+}
+
+/* Sets up the grid of a w x h image (values linear already, or sRGB); 0
+ * when out of memory. Without a grid asked for, nothing to do. */
+static int accum_grid_init(accum *a, gi__tex_grid *grid, uint32_t w, uint32_t h, int linear) {
+  a->grid = grid;
+  if (!grid) return 1;
+  grid->w = (int)(w < GI__TEX_GRID_SIDE ? w : GI__TEX_GRID_SIDE);
+  grid->h = (int)(h < GI__TEX_GRID_SIDE ? h : GI__TEX_GRID_SIDE);
+  size_t cells = (size_t)grid->w * (size_t)grid->h;
+  a->gsum = gi__calloc(3 * cells, sizeof *a->gsum);
+  a->gcnt = gi__calloc(cells, sizeof *a->gcnt);
+  a->gcol = gi__malloc((size_t)w * sizeof *a->gcol);
+  a->lut = gi__malloc(a->levels * sizeof *a->lut);
+  grid->rgb = gi__malloc(3 * cells * sizeof *grid->rgb);
+  if (!a->gsum || !a->gcnt || !a->gcol || !a->lut || !grid->rgb) return 0;
+  for (uint32_t x = 0; x < w; x++) a->gcol[x] = (uint32_t)((uint64_t)x * (uint64_t)grid->w / w);
+  double max = (double)(a->levels - 1);
+  for (unsigned v = 0; v < a->levels; v++) a->lut[v] = (float)(linear ? v / max : gi__srgb_to_linear(v / max));
+  return 1;
+}
+
+/* Row y of an h-row image will be added next. */
+static void accum_grid_row(accum *a, uint32_t y, uint32_t h) {
+  if (a->grid) a->grow = (uint32_t)((uint64_t)y * (uint64_t)a->grid->h / h);
+}
+
+/* One pixel (encoded values) at column x of the current row. */
+static inline void accum_grid_px(accum *a, uint32_t x, unsigned r, unsigned g, unsigned b) {
+  size_t cell = (size_t)a->grow * (size_t)a->grid->w + a->gcol[x];
+  a->gsum[3 * cell] += a->lut[r], a->gsum[3 * cell + 1] += a->lut[g], a->gsum[3 * cell + 2] += a->lut[b];
+  a->gcnt[cell]++;
+}
+
+static void accum_grid_finish(const accum *a) {
+  if (!a->grid) return;
+  size_t cells = (size_t)a->grid->w * (size_t)a->grid->h;
+  for (size_t i = 0; i < cells; i++)
+    for (int c = 0; c < 3; c++) a->grid->rgb[3 * i + c] = a->gcnt[i] ? (float)(a->gsum[3 * i + c] / a->gcnt[i]) : 0.f;
 }
 
 double gi__srgb_to_linear(double c) {
@@ -92,7 +147,8 @@ static void png_read_mem(png_structp png, png_bytep out, png_size_t len) {
   c->pos += len;
 }
 
-static gi_result png_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err) {
+static gi_result png_average(const void *data, size_t size, const char *what, float rgb[3], gi__tex_grid *grid,
+                             gi_error_info *err) {
   png_ctx ctx = {.data = data, .size = size};
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, png_on_error, png_on_warning);
   png_infop info = png ? png_create_info_struct(png) : NULL;
@@ -130,11 +186,13 @@ static gi_result png_average(const void *data, size_t size, const char *what, fl
   int depth = png_get_bit_depth(png, info);
   if (png_get_channels(png, info) != 3 || (depth != 8 && depth != 16))
     png_error(png, "unexpected pixel layout after conversion");
-  if (!accum_init(&a, depth == 16 ? 65536u : 256u)) {
+  acc = &a;
+  /* An interlaced image's passes are not rows of the image: no grid (its
+   * triangles take the average). */
+  if (!accum_init(&a, depth == 16 ? 65536u : 256u) || !accum_grid_init(&a, interlaced ? NULL : grid, w, h, linear)) {
     rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
     goto done;
   }
-  acc = &a;
   row = gi__malloc(png_get_rowbytes(png, info));
   if (!row) {
     rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
@@ -147,17 +205,21 @@ static gi_result png_average(const void *data, size_t size, const char *what, fl
     for (png_uint_32 y = 0; y < rows; y++) {
       png_read_row(png, row, NULL);
       const unsigned char *p = row;
+      accum_grid_row(&a, y, rows);
       if (depth == 8) {
         for (png_uint_32 x = 0; x < cols; x++, p += 3) {
           a.hist[p[0]]++;
           a.hist[256 + p[1]]++;
           a.hist[512 + p[2]]++;
+          if (a.grid) accum_grid_px(&a, x, p[0], p[1], p[2]);
         }
       } else {
         for (png_uint_32 x = 0; x < cols; x++, p += 6) {
-          a.hist[(p[0] << 8) | p[1]]++;
-          a.hist[65536 + ((p[2] << 8) | p[3])]++;
-          a.hist[131072 + ((p[4] << 8) | p[5])]++;
+          unsigned r = (p[0] << 8) | p[1], g = (p[2] << 8) | p[3], b = (p[4] << 8) | p[5];
+          a.hist[r]++;
+          a.hist[65536 + g]++;
+          a.hist[131072 + b]++;
+          if (a.grid) accum_grid_px(&a, x, r, g, b);
         }
       }
       a.pixels += cols;
@@ -165,10 +227,11 @@ static gi_result png_average(const void *data, size_t size, const char *what, fl
   }
   png_read_end(png, NULL); /* the rest of the file, so truncation and bad CRCs show */
   accum_finish(&a, linear, rgb);
+  accum_grid_finish(&a);
 done:
   png_destroy_read_struct(png ? &png : NULL, info ? &info : NULL, NULL);
   gi__free(row);
-  if (acc) gi__free(acc->hist);
+  if (acc) accum_free(acc);
   return rc;
 }
 
@@ -200,7 +263,8 @@ static void jpeg_on_message(j_common_ptr ci, int level) {
   }
 }
 
-static gi_result jpeg_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err) {
+static gi_result jpeg_average(const void *data, size_t size, const char *what, float rgb[3], gi__tex_grid *grid,
+                              gi_error_info *err) {
   struct jpeg_decompress_struct ci;
   jpeg_fail_mgr je;
   unsigned char *volatile row = NULL;
@@ -234,7 +298,7 @@ static gi_result jpeg_average(const void *data, size_t size, const char *what, f
     goto done;
   }
   row = gi__malloc((size_t)ci.output_width * (size_t)n);
-  if (!row) {
+  if (!row || !accum_grid_init(&a, grid, ci.output_width, ci.output_height, 0)) {
     rc = gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
     goto done;
   }
@@ -242,20 +306,19 @@ static gi_result jpeg_average(const void *data, size_t size, const char *what, f
   int inverted = ci.saw_Adobe_marker;
   while (ci.output_scanline < ci.output_height) {
     JSAMPROW rows[1] = {row};
+    accum_grid_row(&a, ci.output_scanline, ci.output_height);
     if (jpeg_read_scanlines(&ci, rows, 1) != 1) break;
     const unsigned char *p = row;
     for (JDIMENSION x = 0; x < ci.output_width; x++, p += n) {
+      unsigned v[3] = {p[0], p[1], p[2]};
       if (cmyk) {
         unsigned k = inverted ? p[3] : 255u - p[3];
-        for (int c = 0; c < 3; c++) {
-          unsigned v = inverted ? p[c] : 255u - p[c];
-          a.hist[c * 256 + (v * k + 127) / 255]++;
-        }
-      } else {
-        a.hist[p[0]]++;
-        a.hist[256 + p[1]]++;
-        a.hist[512 + p[2]]++;
+        for (int c = 0; c < 3; c++) v[c] = ((inverted ? p[c] : 255u - p[c]) * k + 127) / 255;
       }
+      a.hist[v[0]]++;
+      a.hist[256 + v[1]]++;
+      a.hist[512 + v[2]]++;
+      if (a.grid) accum_grid_px(&a, x, v[0], v[1], v[2]);
     }
     a.pixels += ci.output_width;
   }
@@ -265,44 +328,107 @@ static gi_result jpeg_average(const void *data, size_t size, const char *what, f
   }
   jpeg_finish_decompress(&ci);
   accum_finish(&a, 0, rgb);
+  accum_grid_finish(&a);
 done:
   jpeg_destroy_decompress(&ci);
   gi__free(row);
-  gi__free(a.hist);
+  accum_free(&a);
   return rc;
 }
 
 /* --- entry points ---------------------------------------------------- */
 
-gi_result gi__image_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err) {
+void gi__tex_grid_free(gi__tex_grid *g) {
+  if (!g) return;
+  gi__free(g->rgb);
+  memset(g, 0, sizeof *g);
+}
+
+gi_result gi__image_average_grid(const void *data, size_t size, const char *what, float rgb[3], gi__tex_grid *grid,
+                                 gi_error_info *err) {
   static const unsigned char png_magic[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   static const unsigned char jpeg_magic[3] = {0xff, 0xd8, 0xff};
   if (!what) what = "(unnamed)";
+  if (grid) memset(grid, 0, sizeof *grid);
   if (!data || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "texture '%s': no data", what);
-  if (size >= 8 && memcmp(data, png_magic, 8) == 0) return png_average(data, size, what, rgb, err);
-  if (size >= 3 && memcmp(data, jpeg_magic, 3) == 0) return jpeg_average(data, size, what, rgb, err);
-  return gi__fail(err, GI_ERR_FORMAT, "texture '%s': not a PNG or JPEG image (%zu bytes)", what, size);
+  gi_result rc;
+  if (size >= 8 && memcmp(data, png_magic, 8) == 0) rc = png_average(data, size, what, rgb, grid, err);
+  else if (size >= 3 && memcmp(data, jpeg_magic, 3) == 0) rc = jpeg_average(data, size, what, rgb, grid, err);
+  else rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': not a PNG or JPEG image (%zu bytes)", what, size);
+  if (rc != GI_OK) gi__tex_grid_free(grid);
+  return rc;
+}
+
+gi_result gi__image_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err) {
+  return gi__image_average_grid(data, size, what, rgb, NULL, err);
+}
+
+gi_result gi__texels_average_grid(const void *bgra, uint32_t width, uint32_t height, const char *what, float rgb[3],
+                                  gi__tex_grid *grid, gi_error_info *err) {
+  if (!what) what = "(unnamed)";
+  if (grid) memset(grid, 0, sizeof *grid);
+  if (!bgra || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "texture '%s': no data", what);
+  gi_result rc = check_size(width, height, what, "raw", err);
+  if (rc != GI_OK) return rc;
+  accum a = {0};
+  if (!accum_init(&a, 256) || !accum_grid_init(&a, grid, width, height, 0)) {
+    accum_free(&a);
+    gi__tex_grid_free(grid);
+    return gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
+  }
+  const unsigned char *p = bgra;
+  for (uint32_t y = 0; y < height; y++) {
+    accum_grid_row(&a, y, height);
+    for (uint32_t x = 0; x < width; x++, p += 4) {
+      a.hist[p[2]]++;
+      a.hist[256 + p[1]]++;
+      a.hist[512 + p[0]]++;
+      if (a.grid) accum_grid_px(&a, x, p[2], p[1], p[0]);
+    }
+  }
+  a.pixels = (size_t)width * height;
+  accum_finish(&a, 0, rgb);
+  accum_grid_finish(&a);
+  accum_free(&a);
+  return GI_OK;
 }
 
 gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, const char *what, float rgb[3],
                              gi_error_info *err) {
-  if (!what) what = "(unnamed)";
-  if (!bgra || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "texture '%s': no data", what);
-  gi_result rc = check_size(width, height, what, "raw", err);
-  if (rc != GI_OK) return rc;
-  accum a;
-  if (!accum_init(&a, 256)) return gi__fail(err, GI_ERR_NOMEM, "texture '%s': out of memory", what);
-  const unsigned char *p = bgra;
-  size_t n = (size_t)width * height;
-  for (size_t i = 0; i < n; i++, p += 4) {
-    a.hist[p[2]]++;
-    a.hist[256 + p[1]]++;
-    a.hist[512 + p[0]]++;
+  return gi__texels_average_grid(bgra, width, height, what, rgb, NULL, err);
+}
+
+/* The grid cell under texture coordinate (u, v): repeating, v up. */
+static const float *grid_at(const gi__tex_grid *g, double u, double v) {
+  double fu = u - floor(u), fv = v - floor(v);
+  int x = (int)(fu * g->w), y = (int)((1.0 - fv) * g->h);
+  x = x < 0 ? 0 : x >= g->w ? g->w - 1 : x;
+  y = y < 0 ? 0 : y >= g->h ? g->h - 1 : y;
+  return &g->rgb[3 * ((size_t)y * (size_t)g->w + (size_t)x)];
+}
+
+void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float out[3]) {
+  /* Subdivided n times a side, the triangle's n^2 small triangles have
+   * centroids that weigh it evenly; n grows with its extent in cells. */
+  double ext = 0;
+  for (int k = 0; k < 2; k++) {
+    double lo = fmin(uv[0][k], fmin(uv[1][k], uv[2][k])), hi = fmax(uv[0][k], fmax(uv[1][k], uv[2][k]));
+    ext = fmax(ext, (hi - lo) * (k ? g->h : g->w));
   }
-  a.pixels = n;
-  accum_finish(&a, 0, rgb);
-  gi__free(a.hist);
-  return GI_OK;
+  int n = ext < 4 ? 2 : ext > 2 * GI__TEX_TRI_SPLIT ? GI__TEX_TRI_SPLIT : (int)(ext / 2);
+  double sum[3] = {0, 0, 0};
+  int count = 0;
+  for (int i = 0; i < n; i++)
+    for (int j = 0; i + j < n; j++)
+      for (int up = 0; up < 2; up++) {
+        if (up && i + j == n - 1) continue;
+        double a = (i + (up ? 2.0 : 1.0) / 3.0) / n, b = (j + (up ? 2.0 : 1.0) / 3.0) / n, c = 1.0 - a - b;
+        const float *t = grid_at(g, a * uv[0][0] + b * uv[1][0] + c * uv[2][0], a * uv[0][1] + b * uv[1][1] +
+                                 c * uv[2][1]);
+        for (int k = 0; k < 3; k++) sum[k] += t[k];
+        count++;
+      }
+  for (int k = 0; k < 3; k++) out[k] = (float)(sum[k] / count);
 }
 
 gi_result gi__read_file(const char *path, size_t max_size, void **data, size_t *size, gi_error_info *err) {

@@ -16,6 +16,23 @@
 /* Largest texture file gi__read_file is asked to read (512 MiB). */
 #define GI__TEXTURE_FILE_MAX ((size_t)512 << 20)
 
+/* A texture box-filtered onto a grid of at most GI__TEX_GRID_SIDE cells a
+ * side (fewer for a smaller image), linear RGB, 3 floats per cell, row 0
+ * at the image's top. w == 0 (rgb NULL): none (an interlaced PNG, whose
+ * passes are not rows of the image). Freed with gi__tex_grid_free. */
+#define GI__TEX_GRID_SIDE 128
+typedef struct gi__tex_grid {
+  int w, h;
+  float *rgb;
+} gi__tex_grid;
+void gi__tex_grid_free(gi__tex_grid *g); /* accepts NULL */
+/* The mean of grid g over a triangle with texture coordinates uv (u
+ * right, v up, as assimp and OBJ give them; repeating), from points spread
+ * evenly over it: 4 for a triangle a few cells wide, at most
+ * GI__TEX_TRI_SPLIT^2. g must have cells (w > 0). */
+#define GI__TEX_TRI_SPLIT 8
+void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float out[3]);
+
 /* Decodes a PNG or JPEG held in memory (the format is told by its magic
  * bytes) and stores in rgb the plain mean over all pixels of the LINEAR
  * colour: 8- and 16-bit values are taken as sRGB-encoded and converted with
@@ -24,11 +41,16 @@
  * gives GI_ERR_FORMAT, an image over the size limits GI_ERR_LIMIT; neither
  * ever aborts the process. Memory use is one row, not the whole image. */
 gi_result gi__image_average(const void *data, size_t size, const char *what, float rgb[3], gi_error_info *err);
+/* The same, and the image's grid into *grid (when not NULL; emptied on an error). */
+gi_result gi__image_average_grid(const void *data, size_t size, const char *what, float rgb[3], gi__tex_grid *grid,
+                                 gi_error_info *err);
 
 /* The same for width*height uncompressed texels of 4 bytes in B, G, R, A
  * order (assimp's aiTexel), sRGB-encoded. */
 gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, const char *what, float rgb[3],
                              gi_error_info *err);
+gi_result gi__texels_average_grid(const void *bgra, uint32_t width, uint32_t height, const char *what, float rgb[3],
+                                  gi__tex_grid *grid, gi_error_info *err);
 
 /* One 8-bit-style sRGB-encoded value in [0, 1] to linear (the exact
  * transfer function); also for vertex colours (import_exact.c). */

@@ -33,6 +33,8 @@ struct gi_mesh_builder {
   size_t cap_uv2;
   float *col;         /* 3 per vertex up to cap_col/3: vertex colours, 1 when unset; NULL: none */
   size_t cap_col;
+  float *talb;        /* 3 per triangle up to cap_talb/3: albedo overrides, NaN when unset; NULL: none */
+  size_t cap_talb;
   int oom;            /* an add_* ran out of memory */
   int overflow;       /* more than 2^32-1 vertices or materials */
 };
@@ -62,6 +64,7 @@ void gi_mesh_builder_free(gi_mesh_builder *b) {
   gi__free(b->mats);
   gi__free(b->uv2);
   gi__free(b->col);
+  gi__free(b->talb);
   gi__free(b);
 }
 
@@ -72,6 +75,17 @@ void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, doubl
   for (size_t i = old; i < b->cap_col; i++) b->col[i] = 1.f;
   const double c[3] = {r, g, bl};
   for (int k = 0; k < 3; k++) b->col[3 * (size_t)vertex + k] = isfinite(c[k]) ? (float)c[k] : 1.f;
+}
+
+size_t gi_mesh_builder_num_triangles(const gi_mesh_builder *b) { return b->nt; }
+
+void gi_mesh_builder_set_triangle_albedo(gi_mesh_builder *b, size_t tri, double r, double g, double bl) {
+  if (tri >= b->nt) { b->overflow = 1; return; }
+  size_t old = b->cap_talb;
+  if (!grow((void **)&b->talb, &b->cap_talb, 3 * b->nt, sizeof *b->talb)) { b->oom = 1; return; }
+  for (size_t i = old; i < b->cap_talb; i++) b->talb[i] = NAN;
+  const double c[3] = {r, g, bl};
+  for (int k = 0; k < 3; k++) b->talb[3 * tri + k] = isfinite(c[k]) ? (float)c[k] : NAN;
 }
 
 void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double u, double v) {
@@ -379,20 +393,22 @@ static float vertex_color(const gi_mesh_builder *b, uint32_t v, int k) {
   return 3 * (size_t)v + 2 < b->cap_col ? b->col[3 * (size_t)v + k] : 1.f;
 }
 
-/* Per kept triangle: its material's albedo times its corners' mean colour,
- * in [0, 1], when the builder has vertex colours (else none is kept). */
+/* Per kept triangle: its own albedo (else its material's) times its
+ * corners' mean colour, in [0, 1], when the builder has either (else none
+ * is kept). */
 static gi_result copy_tri_albedo(const gi_mesh_builder *b, gi_scene *s, const build_tmp *t, gi_error_info *err) {
-  if (!b->col || !t->kept) return GI_OK;
+  if ((!b->col && !b->talb) || !t->kept) return GI_OK;
   if (!(s->tri_albedo = gi__malloc(3 * t->kept * sizeof *s->tri_albedo)))
     return gi__fail(err, GI_ERR_NOMEM, "out of memory for the albedo of %zu triangles", t->kept);
   size_t j = 0;
   for (size_t tr = 0; tr < b->nt; tr++) {
     if (t->cls[tr] != TRI_KEEP) continue;
-    const float *a = s->materials[b->mat[tr]].albedo;
+    const float *m = s->materials[b->mat[tr]].albedo;
     for (int k = 0; k < 3; k++) {
       float c = (vertex_color(b, b->tri[3 * tr], k) + vertex_color(b, b->tri[3 * tr + 1], k) +
                  vertex_color(b, b->tri[3 * tr + 2], k)) / 3.f;
-      s->tri_albedo[3 * j + k] = gi__minf(gi__maxf(a[k] * c, 0.f), 1.f);
+      float own = 3 * tr + k < b->cap_talb ? b->talb[3 * tr + k] : NAN, a = isfinite(own) ? own : m[k];
+      s->tri_albedo[3 * j + k] = gi__minf(gi__maxf(a * c, 0.f), 1.f);
     }
     j++;
   }
