@@ -527,6 +527,10 @@ static void test_texture_grid(void **state) {
   assert_float_equal(t[1], 0.0, 1e-6);
   assert_float_equal(b[0], GREY128, 1e-6);
   assert_memory_equal(t, r, sizeof t);
+  /* A malformed file's coordinates read some cell, never outside the grid. */
+  const float bad[3][2] = {{NAN, 0.7f}, {INFINITY, 1e30f}, {-1e30f, -INFINITY}};
+  gi__tex_grid_triangle(&g, bad, r);
+  for (int k = 0; k < 3; k++) assert_true(r[k] >= 0 && r[k] <= 1);
   gi__tex_grid_free(&g);
   free(png);
   /* JPEG and raw texels fill their grids too. */

@@ -398,9 +398,12 @@ gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, 
   return gi__texels_average_grid(bgra, width, height, what, rgb, NULL, err);
 }
 
-/* The grid cell under texture coordinate (u, v): repeating, v up. */
+/* The grid cell under texture coordinate (u, v): repeating, v up; a
+ * non-finite coordinate (a malformed file's) reads as 0. */
 static const float *grid_at(const gi__tex_grid *g, double u, double v) {
   double fu = u - floor(u), fv = v - floor(v);
+  if (!(fu >= 0 && fu < 1)) fu = 0;
+  if (!(fv >= 0 && fv < 1)) fv = 0;
   int x = (int)(fu * g->w), y = (int)((1.0 - fv) * g->h);
   x = x < 0 ? 0 : x >= g->w ? g->w - 1 : x;
   y = y < 0 ? 0 : y >= g->h ? g->h - 1 : y;
