@@ -155,6 +155,23 @@ static void next_point(const gi_city_params *cp, double s0, uint64_t *rng, doubl
   if (at[1] < 0.5) at[1] = 0.5;
 }
 
+/* A cascade whose cycle has closed (mi: its last move) against a cold
+ * bake at the same anchor: geometry bit for bit, every face within
+ * FACE_REL_TOL; frees both and the scene. */
+static void assert_closed_equals_cold(const char *what, gi_cascade *c, gi_scene *s, const double at[3],
+                                      const gi_move_info *mi) {
+  assert_true(mi->cycle_closed);
+  gi_cascade *b = bake(s, at);
+  assert_same_geometry(c, b);
+  double mean, worst;
+  compare_light(c, b, 1, &mean, &worst);
+  printf("%s: cycle closed: light against a cold bake: mean %.3g max %.3g relative (bound %.0e)\n", what, mean, worst,
+         FACE_REL_TOL);
+  gi_cascade_free(b);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 static void test_walk(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
   gi_scene *s = city(&cp);
@@ -198,16 +215,7 @@ static void test_walk(void **state) {
   assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
   for (uint64_t i = 1; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
     assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
-  assert_true(mi.cycle_closed);
-  gi_cascade *b = bake(s, at);
-  assert_same_geometry(c, b);
-  double mean, worst;
-  compare_light(c, b, 1, &mean, &worst);
-  printf("cycle closed: light against a cold bake: mean %.3g max %.3g relative (bound %.0e)\n", mean, worst,
-         FACE_REL_TOL);
-  gi_cascade_free(b);
-  gi_cascade_free(c);
-  gi_scene_release(s);
+  assert_closed_equals_cold("walk", c, s, at, &mi);
 }
 
 /* Three bounces, the third gathered with the wide cone set
@@ -600,15 +608,7 @@ static void test_lamps_move(void **state) {
   /* Stand still until the cycle closes (at once when the last move closed it). */
   for (uint64_t i = 0; i < gi_cascade_refresh_period(c, c->n - 1) && !mi.cycle_closed; i++)
     assert_int_equal(gi_cascade_move(c, at, NULL, &mi, &err), GI_OK);
-  assert_true(mi.cycle_closed);
-  gi_cascade *b = bake(s, at);
-  assert_same_geometry(c, b);
-  double mean, worst;
-  compare_light(c, b, 1, &mean, &worst);
-  printf("lamps: cycle closed: light against a cold bake: mean %.3g max %.3g relative\n", mean, worst);
-  gi_cascade_free(b);
-  gi_cascade_free(c);
-  gi_scene_release(s);
+  assert_closed_equals_cold("lamps", c, s, at, &mi);
 }
 
 /* Two cascades walked along the same path hold the same bytes at every step
