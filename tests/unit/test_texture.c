@@ -618,6 +618,52 @@ static void test_gltf_texture_per_triangle(void **state) {
   free(geo);
 }
 
+/* An emissive texture multiplies the emission by its average (glTF's
+ * emissiveTexture, an MTL's map_Ke): a facade lit at its windows emits
+ * that share, not all over. */
+static void test_emissive_texture(void **state) {
+  (void)state;
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  png_file("glow.png", rgba, 4, 4);
+  const char mtl[] = "newmtl glow\nKd 0.5 0.5 0.5\nKe 2 2 2\nmap_Ke glow.png\nnewmtl flat\nKe 2 2 2\n";
+  tu_write_file("glow.mtl", mtl, strlen(mtl));
+  char obj[512];
+  snprintf(obj, sizeof obj, "mtllib glow.mtl\n%susemtl glow\nf 1/1 2/2 3/3\nusemtl flat\nf 1/1 2/2 3/3\n", tri_obj_head);
+  gi_scene *s = load_ok(tu_write_file("glow.obj", obj, strlen(obj)));
+  const gi_material *g = find_mat(s, "glow"), *f = find_mat(s, "flat");
+  printf("map_Ke: emission %g %g %g (want %g %g %g)\n", g->emission[0], g->emission[1], g->emission[2],
+         2 * HALF_RED_R, 2 * HALF_RED_GB, 2 * HALF_RED_GB);
+  assert_float_equal(g->emission[0], 2 * HALF_RED_R, 1e-4);
+  assert_float_equal(g->emission[1], 2 * HALF_RED_GB, 1e-4);
+  assert_float_equal(f->emission[0], 2.0, 1e-6);
+  assert_albedo(g, 0.5, 0.5, 0.5); /* map_Ke is not a diffuse texture */
+  gi_scene_release(s);
+  /* glTF: emissiveFactor x emissiveTexture; the base colour stays the factor. */
+  char *doc = gltf_doc("glow.png");
+  static const char bct[] = "\"baseColorTexture\":{\"index\":0},";
+  char *at = strstr(doc, bct);
+  assert_non_null(at);
+  memmove(at, at + strlen(bct), strlen(at + strlen(bct)) + 1);
+  static const char name[] = "\"name\":\"textured\",";
+  static const char emit[] = "\"emissiveFactor\":[1,0.5,1],\"emissiveTexture\":{\"index\":0},";
+  char *doc2 = malloc(strlen(doc) + sizeof emit);
+  at = strstr(doc, name);
+  assert_non_null(at);
+  size_t head = (size_t)(at - doc) + strlen(name);
+  memcpy(doc2, doc, head);
+  strcpy(doc2 + head, emit);
+  strcat(doc2, doc + head);
+  s = load_ok(tu_write_file("glow.gltf", doc2, strlen(doc2)));
+  g = find_mat(s, "textured");
+  assert_float_equal(g->emission[0], HALF_RED_R, 1e-4);
+  assert_float_equal(g->emission[1], 0.5 * HALF_RED_GB, 1e-4);
+  assert_albedo(g, 0.5, 0.25, 1.0);
+  gi_scene_release(s);
+  free(doc2);
+  free(doc);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_png_average),
@@ -633,6 +679,7 @@ int main(void) {
       cmocka_unit_test(test_texture_grid),
       cmocka_unit_test(test_obj_texture_per_triangle),
       cmocka_unit_test(test_gltf_texture_per_triangle),
+      cmocka_unit_test(test_emissive_texture),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -340,8 +340,9 @@ static long embedded_index(const struct aiScene *as, const char *p) {
 
 /* Average of one texture, decoded the first time it is asked for. Returns
  * the cache entry, or NULL when out of memory. A texture that cannot be
- * read is counted and reported once (naming the first material using it). */
-static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const char *tpath) {
+ * read is counted and reported once (naming the first material using it
+ * and what it is for: kind). */
+static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const char *kind, const char *tpath) {
   const struct aiScene *as = tc->as;
   long ei = embedded_index(as, tpath);
   char *key = NULL;
@@ -399,8 +400,8 @@ static const tex_entry *texture_average(tex_ctx *tc, const char *mat_name, const
   e->ok = r == GI_OK && gi__finite3(e->rgb);
   if (!e->ok) {
     tc->unreadable++;
-    fprintf(stderr, "gi: warning: scene file '%s': material '%s': diffuse texture '%s' is unreadable, using the "
-            "material's colour alone: %s\n", tc->path, mat_name, tpath, te.msg[0] ? te.msg : "non-finite average");
+    fprintf(stderr, "gi: warning: scene file '%s': material '%s': %s texture '%s' is unreadable, using the "
+            "material's colour alone: %s\n", tc->path, mat_name, kind, tpath, te.msg[0] ? te.msg : "non-finite average");
   }
   return e;
 }
@@ -481,6 +482,27 @@ static int texture_factor(tex_ctx *tc, const char *mat_name, float c[3]) {
   return 1;
 }
 
+/* An emissive texture (glTF's emissiveTexture, an MTL's map_Ke) multiplies
+ * the emission by its average: emitters are per material here, so a facade
+ * whose texture lights only its windows emits that share over its whole
+ * surface, where ignoring the texture made all of it glow. A texture that
+ * cannot be read leaves the factor alone (counted and warned, as a diffuse
+ * one). Fails only when out of memory. */
+static gi_result emissive_texture(const struct aiMaterial *am, tex_ctx *tc, gi_material *m, gi_error_info *err) {
+  struct aiString epath;
+  if (aiGetMaterialTexture(am, aiTextureType_EMISSIVE, 0, &epath, NULL, NULL, NULL, NULL, NULL, NULL) !=
+          aiReturn_SUCCESS ||
+      epath.length == 0)
+    return GI_OK;
+  const tex_entry *t = texture_average(tc, m->name, "emissive", epath.data);
+  if (!t)
+    return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': material '%s': out of memory for its emissive texture",
+                    tc->path, m->name);
+  if (t->ok)
+    for (int i = 0; i < 3; i++) m->emission[i] *= t->rgb[i];
+  return GI_OK;
+}
+
 /* Maps one assimp material onto ours. The albedo is the colour factor
  * times the average of the diffuse (or base-colour) texture when there is
  * one; a texture that cannot be read leaves the factor alone. Fails only
@@ -506,7 +528,7 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   if (has_tex) {
     if (!has_factor) c[0] = c[1] = c[2] = 1.f;
     const tex_entry *t = NULL;
-    if ((has_factor && !texture_factor(tc, m->name, c)) || !(t = texture_average(tc, m->name, tpath.data)))
+    if ((has_factor && !texture_factor(tc, m->name, c)) || !(t = texture_average(tc, m->name, "diffuse", tpath.data)))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': material '%s': out of memory for its texture", tc->path,
                       m->name);
     if (t->ok) {
@@ -523,6 +545,8 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     float k = 1.f;
     if (get_float(am, AI_MATKEY_EMISSIVE_INTENSITY, &k) && !(k >= 0.f)) k = 0.f;
     for (int i = 0; i < 3; i++) m->emission[i] = c[i] * k;
+    gi_result rc = emissive_texture(am, tc, m, err);
+    if (rc != GI_OK) return rc;
   }
   float rough, metal, ns = 0.f, ks[3] = {0, 0, 0};
   int has_rough = get_float(am, AI_MATKEY_ROUGHNESS_FACTOR, &rough);
