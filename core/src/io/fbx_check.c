@@ -34,7 +34,9 @@ static int add_edge(edges *g, int64_t child, int64_t parent) {
 
 /* ---- binary ----------------------------------------------------------------- */
 
-#define FBX_MAGIC "Kaydara FBX Binary  "
+/* What assimp compares to take a file for binary (18 bytes: whatever
+ * follows, even "Binary! ", it tokenizes as binary). */
+#define FBX_MAGIC "Kaydara FBX Binary"
 #define FBX_HEADER 27 /* magic, NUL, 0x1a 0x00, version */
 
 typedef struct {
