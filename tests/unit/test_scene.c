@@ -1105,6 +1105,15 @@ static void test_bad_files_assimp_misreads(void **state) {
   expect_bad(tu_write_file("vtab.ply", ply, strlen(ply)), GI_ERR_FORMAT, "line 4: control character 0x0b");
   snprintf(ply, sizeof ply, "%.*s 0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", (int)strlen(ply_head) - 1, ply_head);
   expect_bad(tu_write_file("glued.ply", ply, strlen(ply)), GI_ERR_FORMAT, "line 9: end_header must stand alone");
+  /* A property line of other than 3 or (list) 5 words: assimp misread
+   * "property uchar int name" and leaked (fuzz_scene). */
+  snprintf(ply, sizeof ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nproperty uchar int red\nend_header\n0 0 0 1\n1 0 0 1\n0 1 0 1\n");
+  expect_bad(tu_write_file("words.ply", ply, strlen(ply)), GI_ERR_FORMAT, "line 7: expected 'property TYPE NAME'");
+  snprintf(ply, sizeof ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 1\nproperty list uchar int vertex_indices x\nend_header\n0 0 0\n1 0 0\n"
+           "0 1 0\n3 0 1 2\n");
+  expect_bad(tu_write_file("listwords.ply", ply, strlen(ply)), GI_ERR_FORMAT, "line 8: expected 'property TYPE NAME'");
   /* Still read: comments, obj_info, a blank line and CRLF line ends. */
   const char ply_ok[] = "ply\r\nformat ascii 1.0\r\ncomment made by hand\r\nobj_info a test\r\n\r\n"
                         "element vertex 3\r\nproperty float x\r\nproperty float y\r\nproperty float z\r\n"

@@ -376,8 +376,8 @@ static gi_result ply_header(const char *path, char *text, size_t size, ply_eleme
       if ((unsigned char)*q < 0x20 && *q != '\t' && !(*q == '\r' && q + 1 == nl))
         return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: control character 0x%02x in the PLY header",
                         path, line, (unsigned)(unsigned char)*q);
-    char a[64] = "", b[64] = "", c[64] = "", d[64] = "", e[64] = "";
-    int n = sscanf(p, "%63s %63s %63s %63s %63s", a, b, c, d, e);
+    char a[64] = "", b[64] = "", c[64] = "", d[64] = "", e[64] = "", f[64] = "";
+    int n = sscanf(p, "%63s %63s %63s %63s %63s %63s", a, b, c, d, e, f);
     p = nl + 1;
     if (line == 1) {
       /* checked above */
@@ -410,7 +410,9 @@ static gi_result ply_header(const char *path, char *text, size_t size, ply_eleme
       P->count_type = list ? type_of(c) : T_NONE;
       P->type = type_of(list ? d : b);
       snprintf(P->name, sizeof P->name, "%s", list ? e : c);
-      if (P->type == T_NONE || (list && (P->count_type == T_NONE || n < 5)))
+      /* Exactly those words: assimp misread "property uchar int name" (a
+       * leak in its reader, found by fuzz_scene) where we read a uchar. */
+      if (P->type == T_NONE || n != (list ? 5 : 3) || (list && P->count_type == T_NONE))
         return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: expected 'property TYPE NAME' or 'property list "
                         "TYPE TYPE NAME' with a PLY scalar type", path, line);
     } else if (!strcmp(a, "end_header") && n == 1) {
