@@ -247,8 +247,8 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
   double area = 0, a_sum = 0;
   for (size_t i = 0; i < nt; i++) {
     const uint32_t *ix = &s->indices[3 * tris[i]];
-    gi_material tm;
-    const gi_material *m = gi__tri_material(s, tris[i], &tm);
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    const float *alb = gi__tri_albedo(s, tris[i]);
     const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
     float e1[3], e2[3], n[3];
     for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
@@ -257,7 +257,7 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
     area += ar;
     /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
     int gl = m->roughness < 0.5f && m->specular > 0;
-    a_sum += ar * (fmaxf(m->albedo[0], fmaxf(m->albedo[1], m->albedo[2])) + (gl ? m->specular : 0.f));
+    a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + (gl ? m->specular : 0.f));
     *glossy += gl;
   }
   gi__free(tris);
@@ -273,8 +273,7 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
  * them one by one or through the light cut (scene/local_tree.c). */
 static void local_why(const gi_scene *s, const gi_quality *q, gi_bake_report *r, int local) {
   int vc = gi__local_cut_size(q->light_samples), pc = gi__local_cut_size(q->probe_samples);
-  int voxel_cut = s->local_tree && s->num_local > (uint32_t)(GI_LOCAL_EXACT_RATIO * vc);
-  int probe_cut = s->local_tree && s->num_local > (uint32_t)(GI_LOCAL_EXACT_RATIO * pc);
+  int voxel_cut = gi__local_cut_on(s, vc), probe_cut = gi__local_cut_on(s, pc);
   if (!voxel_cut && !probe_cut) {
     set_fx(r, GI_FX_LOCAL, 1, "%d point/spot light%s", local, local > 1 ? "s" : "");
   } else if (!probe_cut) {

@@ -231,7 +231,7 @@ static int interpolate_anchors(const render_ctx *rc, int px, int py, const float
 typedef struct {
   float *out, *spec;
   const gi_material *m;
-  float albedo[3];              /* the hit triangle's (gi__tri_material) */
+  float albedo[3];              /* the hit triangle's (gi__tri_albedo) */
   float x[3], n[3], w[3], E[3]; /* E: the direct irradiance */
   int d;
 } pending_px;
@@ -271,8 +271,7 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   }
   const float *x = pp->x, *n = pp->n;
   const gi_material *m = pp->m = &s->materials[s->tri_material[tri]];
-  gi_material tm;
-  memcpy(pp->albedo, gi__tri_material(s, tri, &tm)->albedo, sizeof pp->albedo);
+  memcpy(pp->albedo, gi__tri_albedo(s, tri), sizeof pp->albedo);
   if (gi__dot(ng, pp->w) < 0) /* emitters are one-sided: their front faces the camera */
     for (int a = 0; a < 3; a++) out[a] += m->emission[a];
   float *E = pp->E;

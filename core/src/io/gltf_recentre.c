@@ -281,9 +281,10 @@ static int take_lights(json_t *root, walk *w, gi__gltf_shift *out) {
   const char *lists[2] = {"extensionsUsed", "extensionsRequired"};
   for (int i = 0; i < 2; i++) {
     json_t *a = json_object_get(root, lists[i]);
-    for (size_t j = json_array_size(a); j-- > 0;)
-      if (!strcmp(json_string_value(json_array_get(a, j)) ? json_string_value(json_array_get(a, j)) : "", KHR_LIGHTS))
-        json_array_remove(a, j);
+    for (size_t j = json_array_size(a); j-- > 0;) {
+      const char *name = json_string_value(json_array_get(a, j));
+      if (name && !strcmp(name, KHR_LIGHTS)) json_array_remove(a, j);
+    }
   }
   return 0;
 }

@@ -66,6 +66,9 @@ static int ends_with_ci(const char *s, const char *suffix) {
   return 1;
 }
 
+/* A glTF file, text or binary. */
+static int is_gltf(const char *path) { return ends_with_ci(path, ".gltf") || ends_with_ci(path, ".glb"); }
+
 /* Size in bytes of a PLY scalar type name; 0 when unknown. */
 static int ply_type_size(const char *t) {
   static const struct { const char *name; int size; } types[] = {
@@ -592,7 +595,7 @@ static gi_result convert_light(const char *path, const struct aiLight *al, const
    * Its glTF reader (5.2) passes KHR_lights_punctual's angles through,
    * and those are half-angles already: halved again, a glTF spot lit half
    * its cone (0 at 0.4 rad off-axis under a 0.5 rad outer angle). */
-  float half = ends_with_ci(path, ".gltf") || ends_with_ci(path, ".glb") ? 1.f : 0.5f;
+  float half = is_gltf(path) ? 1.f : 0.5f;
   l->cos_inner = cosf(half * al->mAngleInnerCone);
   l->cos_outer = cosf(half * al->mAngleOuterCone);
   int bad = !gi__finite3(l->color) || !isfinite(l->position[0]) || !isfinite(l->position[1]) ||
@@ -701,11 +704,11 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
   return GI_OK;
 }
 
-/* A vertex colour channel as linear: glTF's COLOR_0 is linear by its spec;
- * other formats' colours are taken as sRGB-encoded, as their textures are. */
-static double vertex_linear(const char *path, float c) {
-  if (ends_with_ci(path, ".gltf") || ends_with_ci(path, ".glb")) return c;
-  return c > 0 && c <= 1 ? gi__srgb_to_linear(c) : c;
+/* A vertex colour channel as linear: glTF's COLOR_0 is linear by its spec
+ * (linear set); other formats' colours are taken as sRGB-encoded, as their
+ * textures are. */
+static double vertex_linear(int linear, float c) {
+  return linear || !(c > 0 && c <= 1) ? c : gi__srgb_to_linear(c);
 }
 
 /* The texture of our material mat over the triangle b holds as tri, from
@@ -731,6 +734,7 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, co
     uint32_t mat = m->mMaterialIndex < as->mNumMaterials ? matmap[m->mMaterialIndex] : 0;
     if (mat == UINT32_MAX) mat = 0;
     unsigned uvset = tc->mt[mat].uv;
+    int linear = is_gltf(path);
     const struct aiVector3D *tuv = uvset < AI_MAX_NUMBER_OF_TEXTURECOORDS ? m->mTextureCoords[uvset] : NULL;
     uint32_t base = 0;
     for (unsigned v = 0; v < m->mNumVertices; v++) {
@@ -738,9 +742,9 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, co
                                                m->mVertices[v].z + shift[2]);
       if (v == 0) base = id;
       if (m->mColors[0])
-        gi_mesh_builder_set_vertex_color(b, id, vertex_linear(path, m->mColors[0][v].r),
-                                         vertex_linear(path, m->mColors[0][v].g),
-                                         vertex_linear(path, m->mColors[0][v].b));
+        gi_mesh_builder_set_vertex_color(b, id, vertex_linear(linear, m->mColors[0][v].r),
+                                         vertex_linear(linear, m->mColors[0][v].g),
+                                         vertex_linear(linear, m->mColors[0][v].b));
       /* The second UV set is the lightmap's (glTF TEXCOORD_1); assimp's V runs up. */
       if (m->mTextureCoords[1])
         gi_mesh_builder_set_lightmap_uv(b, id, m->mTextureCoords[1][v].x, 1.0 - m->mTextureCoords[1][v].y);
@@ -891,8 +895,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   if (exact && (rc = ends_with_ci(path, ".obj") ? gi__exact_read_obj(path, &em, err)
                                                 : gi__exact_read_ply(path, &em, err)) != GI_OK)
     goto done;
-  int glb = ends_with_ci(path, ".glb");
-  if ((glb || ends_with_ci(path, ".gltf")) && (rc = gi__gltf_recentre(path, glb, &gs, err)) != GI_OK) goto done;
+  if (is_gltf(path) && (rc = gi__gltf_recentre(path, ends_with_ci(path, ".glb"), &gs, err)) != GI_OK) goto done;
   if ((rc = import_file(path, &gs, &as, err)) != GI_OK || (rc = check_counts(as, path, err)) != GI_OK) goto done;
   tc.as = as;
   b = gi_mesh_builder_new();

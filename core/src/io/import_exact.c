@@ -48,12 +48,18 @@ static int push_vertex(gi__exact_mesh *m, const double p[3]) {
   return 1;
 }
 
-/* The colour of the last vertex pushed (sRGB-encoded, [0, 1] nominal), stored
- * linear; the first colour makes every earlier vertex white. 0: out of memory. */
-static int set_color(gi__exact_mesh *m, const double c[3]) {
+/* Room in m->col for every vertex pushed, the new part white. 0: out of memory. */
+static int color_room(gi__exact_mesh *m) {
   size_t old = m->col ? m->cap_c : 0;
   if (!grow((void **)&m->col, &m->cap_c, 3 * m->nv, sizeof *m->col)) return 0;
   for (size_t i = old; i < m->cap_c; i++) m->col[i] = 1.f;
+  return 1;
+}
+
+/* The colour of the last vertex pushed (sRGB-encoded, [0, 1] nominal), stored
+ * linear; the first colour makes every earlier vertex white. 0: out of memory. */
+static int set_color(gi__exact_mesh *m, const double c[3]) {
+  if (!color_room(m)) return 0;
   for (int k = 0; k < 3; k++) {
     double x = c[k] < 0 ? 0 : c[k];
     m->col[3 * (m->nv - 1) + k] = (float)(x <= 1 ? gi__srgb_to_linear(x) : x);
@@ -61,14 +67,8 @@ static int set_color(gi__exact_mesh *m, const double c[3]) {
   return 1;
 }
 
-/* White for the last vertex pushed once colours exist (grown as vertices come). */
-static int keep_white(gi__exact_mesh *m) {
-  if (!m->col || 3 * m->nv <= m->cap_c) return 1;
-  size_t old = m->cap_c;
-  if (!grow((void **)&m->col, &m->cap_c, 3 * m->nv, sizeof *m->col)) return 0;
-  for (size_t i = old; i < m->cap_c; i++) m->col[i] = 1.f;
-  return 1;
-}
+/* White for the last vertex pushed once colours exist. */
+static int keep_white(gi__exact_mesh *m) { return !m->col || color_room(m); }
 
 /* A triangle; tex (NULL: none) its corners' vt indices. 0: out of memory. */
 static int push_tri_uv(gi__exact_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint32_t mat, const uint32_t *tex) {

@@ -179,8 +179,7 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
   float I[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE][3];
   gi__surface_irradiance(g->c, pt, (size_t)nv, g->samples, sc, E, I);
   for (int v = 0; v < nv; v++) {
-    gi_material tm;
-    const float *alb = gi__tri_material(s, tri[v], &tm)->albedo;
+    const float *alb = gi__tri_albedo(s, tri[v]);
     for (int k = 0; k < 3; k++) {
       acc[0][k] += alb[k] * (E[v][k] + I[v][k]) / GI_PI_F;
       acc[1][k] += E[v][k], acc[2][k] += I[v][k], acc[3][k] += pt[v].x[k], acc[4][k] += pt[v].n[k];

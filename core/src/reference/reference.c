@@ -192,8 +192,7 @@ static int lt_sample(const ref_ctx *rc, const float x[3], const float *n, const 
   uint8_t vis = 0;
   gi__occluded(s, 1, o, dir, &tn, &tf, &vis);
   if (!vis) return 0;
-  gi_material tm;
-  const float *a = gi__tri_material(s, tri, &tm)->albedo;
+  const float *a = gi__tri_albedo(s, tri);
   for (int k = 0; k < 3; k++) Lr[k] = a[k] / (float)GI_PI * E[k] * c;
   *g = cy / (d * d);
   return 1;
@@ -282,9 +281,8 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
   float hx[3], px[3];
   ref_lt here = {.p = hx}, prev = {.p = px};
   for (int depth = depth0;; depth++) {
-    gi_material tm;
-    const gi_material *mat = gi__tri_material(s, tri, &tm);
-    const float *a = mat->albedo;
+    const gi_material *mat = &s->materials[s->tri_material[tri]];
+    const float *a = gi__tri_albedo(s, tri);
     float n[3], sg = gi__dot(ng, w) > 0 ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * ng[k];
     int last = depth >= maxd;

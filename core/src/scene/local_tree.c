@@ -159,14 +159,14 @@ static float box_d2(const gi_local_node *nd, const float p[3]) {
   return d2;
 }
 
-/* What node nd may bring to p at most (infinite from inside its box), and
- * a guess of what it brings (the picking weight: intensity over the
- * squared distance to its centre, no nearer than its half-diagonal). */
+/* What node nd may bring to p at most (infinite from inside its box). */
 static float node_bound(const gi_local_node *nd, const float p[3]) {
   float d2 = box_d2(nd, p);
   return d2 > 0 ? nd->power / d2 : INFINITY;
 }
 
+/* A guess of what node nd brings to p, the picking weight: intensity over
+ * the squared distance to its centre, no nearer than its half-diagonal. */
 static float node_weight(const gi_local_node *nd, const float p[3]) {
   float d2 = 0;
   for (int k = 0; k < 3; k++) {

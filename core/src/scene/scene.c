@@ -68,33 +68,35 @@ void gi_mesh_builder_free(gi_mesh_builder *b) {
   gi__free(b);
 }
 
+/* Item i's `width` floats of the per-item array *p (capacity *cap floats),
+ * grown to `items` items with the new part set to `unset`; NULL (flagged
+ * in b) when i is past the items or out of memory. The builder's optional
+ * per-vertex and per-triangle attributes all live in such arrays. */
+static float *item_slot(gi_mesh_builder *b, float **p, size_t *cap, size_t items, size_t i, int width, float unset) {
+  if (i >= items) { b->overflow = 1; return NULL; }
+  size_t old = *cap;
+  if (!grow((void **)p, cap, (size_t)width * items, sizeof **p)) { b->oom = 1; return NULL; }
+  for (size_t k = old; k < *cap; k++) (*p)[k] = unset;
+  return *p + (size_t)width * i;
+}
+
 void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, double r, double g, double bl) {
-  if (vertex >= b->nv) { b->overflow = 1; return; }
-  size_t old = b->cap_col;
-  if (!grow((void **)&b->col, &b->cap_col, 3 * (size_t)b->nv, sizeof *b->col)) { b->oom = 1; return; }
-  for (size_t i = old; i < b->cap_col; i++) b->col[i] = 1.f;
-  const double c[3] = {r, g, bl};
-  for (int k = 0; k < 3; k++) b->col[3 * (size_t)vertex + k] = isfinite(c[k]) ? (float)c[k] : 1.f;
+  float *c = item_slot(b, &b->col, &b->cap_col, b->nv, vertex, 3, 1.f);
+  const double v[3] = {r, g, bl};
+  for (int k = 0; c && k < 3; k++) c[k] = isfinite(v[k]) ? (float)v[k] : 1.f;
 }
 
 size_t gi_mesh_builder_num_triangles(const gi_mesh_builder *b) { return b->nt; }
 
 void gi_mesh_builder_set_triangle_albedo(gi_mesh_builder *b, size_t tri, double r, double g, double bl) {
-  if (tri >= b->nt) { b->overflow = 1; return; }
-  size_t old = b->cap_talb;
-  if (!grow((void **)&b->talb, &b->cap_talb, 3 * b->nt, sizeof *b->talb)) { b->oom = 1; return; }
-  for (size_t i = old; i < b->cap_talb; i++) b->talb[i] = NAN;
-  const double c[3] = {r, g, bl};
-  for (int k = 0; k < 3; k++) b->talb[3 * tri + k] = isfinite(c[k]) ? (float)c[k] : NAN;
+  float *a = item_slot(b, &b->talb, &b->cap_talb, b->nt, tri, 3, NAN);
+  const double v[3] = {r, g, bl};
+  for (int k = 0; a && k < 3; k++) a[k] = isfinite(v[k]) ? (float)v[k] : NAN;
 }
 
 void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double u, double v) {
-  if (vertex >= b->nv) { b->overflow = 1; return; }
-  size_t old = b->cap_uv2;
-  if (!grow((void **)&b->uv2, &b->cap_uv2, 2 * (size_t)b->nv, sizeof *b->uv2)) { b->oom = 1; return; }
-  for (size_t i = old; i < b->cap_uv2; i++) b->uv2[i] = NAN;
-  b->uv2[2 * (size_t)vertex] = (float)u;
-  b->uv2[2 * (size_t)vertex + 1] = (float)v;
+  float *t = item_slot(b, &b->uv2, &b->cap_uv2, b->nv, vertex, 2, NAN);
+  if (t) t[0] = (float)u, t[1] = (float)v;
 }
 
 uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m) {

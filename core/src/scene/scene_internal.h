@@ -6,6 +6,7 @@
 #define GI_SCENE_INTERNAL_H
 
 #include <stdatomic.h>
+#include <string.h>
 #include <embree3/rtcore.h>
 #include "gi/gi_scene.h"
 
@@ -64,7 +65,7 @@ struct gi_scene {
   uint32_t num_triangles;
   uint32_t *indices;       /* 3 per triangle */
   uint32_t *tri_material;  /* material index per triangle */
-  float *tri_albedo;       /* 3 per triangle with vertex colours (gi__tri_material), else NULL */
+  float *tri_albedo;       /* 3 per triangle with its own albedo (vertex colours, texture), else NULL */
 
   uint32_t num_materials;
   gi_material *materials;  /* albedo already clamped to [0,1] */
@@ -139,14 +140,21 @@ gi_result gi__query_box(const struct gi_scene *s, const float lo[3], const float
  * BVH visits. Thread-safe on distinct lists. */
 void gi__order_tris(const struct gi_scene *s, uint32_t *tris, size_t *count);
 
-/* Triangle tri's material: its own, or a copy in *tmp with the albedo its
- * vertex colours give (gi_mesh_builder_set_vertex_color). Every stage that
- * reads a triangle's albedo goes through here. */
+/* Triangle tri's albedo: its own (vertex colours, its part of a texture:
+ * gi_mesh_builder_set_vertex_color, _set_triangle_albedo), else its
+ * material's. Every stage that reads a triangle's albedo goes through here
+ * or gi__tri_material. */
+static inline const float *gi__tri_albedo(const gi_scene *s, uint32_t tri) {
+  return s->tri_albedo ? &s->tri_albedo[3 * (size_t)tri] : s->materials[s->tri_material[tri]].albedo;
+}
+
+/* Triangle tri's material with gi__tri_albedo's albedo: its own, or a copy
+ * in *tmp (for the voxelizer, which takes a whole material). */
 static inline const gi_material *gi__tri_material(const gi_scene *s, uint32_t tri, gi_material *tmp) {
   const gi_material *m = &s->materials[s->tri_material[tri]];
   if (!s->tri_albedo) return m;
   *tmp = *m;
-  for (int k = 0; k < 3; k++) tmp->albedo[k] = s->tri_albedo[3 * (size_t)tri + k];
+  memcpy(tmp->albedo, gi__tri_albedo(s, tri), sizeof tmp->albedo);
   return tmp;
 }
 
