@@ -90,4 +90,19 @@ printf '0,5,1.7,3\n1,1000000,1.7,3\n' > "$T/far.csv"
 W --path "$T/far.csv" --rate 0; rc=$?
 [ $rc -eq 0 ] && grep -q "^walk city: 2 steps, 1 crossed a cell, 1 cycles closed, 0 errors, " "$T/out" &&
   pass "a step at x = 1e+06 -> answered" || fail "step at 1e+06: exit $rc: $(cat "$T/out" "$T/err")"
+
+# A spreadsheet's CSV: a header line of column names and CRLF line ends.
+# The header is skipped on the first line only; later it is a bad line.
+printf 't_s, x , y,z\r\n0,5,1.7,3\r\n0.1,5.1,1.7,3\r\n' > "$T/hdr.csv"
+W --path "$T/hdr.csv" --rate 0; rc=$?
+[ $rc -eq 0 ] && grep -q "^walk city: 2 steps, 0 crossed a cell, 0 cycles closed, 0 errors, " "$T/out" &&
+  pass "header line and CRLF -> 2 steps" || fail "header line: exit $rc: $(cat "$T/out" "$T/err")"
+printf '0,5,1.7,3\nt,x,y,z\n' > "$T/hdr2.csv"
+W --path "$T/hdr2.csv"; rc=$?
+[ $rc -eq 2 ] && grep -q -F "hdr2.csv:2: expected t,x,y,z (four finite numbers), got 't,x,y,z'" "$T/err" &&
+  pass "header after a step -> 2" || fail "late header: exit $rc: $(cat "$T/err")"
+printf 't,x,y\n0,5,1.7,3\n' > "$T/hdr3.csv"
+W --path "$T/hdr3.csv"; rc=$?
+[ $rc -eq 2 ] && grep -q -F "hdr3.csv:1: expected t,x,y,z (four finite numbers), got 't,x,y'" "$T/err" &&
+  pass "three-name header -> 2" || fail "three-name header: exit $rc: $(cat "$T/err")"
 finish

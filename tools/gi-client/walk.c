@@ -41,13 +41,25 @@ static int parse_line(char *line, double v[4]) {
   return ta_parse_doubles(line, v, 4) == TA_OK ? 0 : -1;
 }
 
+/* A column header ("t,x,y,z", "time_s,x,y,z"): four comma-separated names,
+ * each starting with a letter, as spreadsheets and pandas write them.
+ * Allowed on the first line only; line holds parse_line's blank-free text. */
+static int is_header(const char *line) {
+  int fields = 0;
+  for (const char *f = line; f; f = strchr(f, ',') ? strchr(f, ',') + 1 : NULL) {
+    if (!((*f >= 'a' && *f <= 'z') || (*f >= 'A' && *f <= 'Z'))) return 0;
+    fields++;
+  }
+  return fields == 4;
+}
+
 int gc_read_path(ta_ctx *ta, const char *path, gc_step **out, size_t *n) {
   FILE *f = fopen(path, "r");
   if (!f) return ta_error(ta, EXIT_RUN, "--path", "cannot open '%s': %s", path, strerror(errno));
   gc_step *s = NULL;
   size_t cap = 0, k = 0;
   char line[WALK_LINE_MAX + 2];
-  int rc = 0;
+  int rc = 0, seen = 0; /* seen: a line that is not blank or a comment, so no header may follow */
   for (long no = 1; !rc && fgets(line, sizeof line, f); no++) {
     if (!strchr(line, '\n') && !feof(f)) {
       rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: line longer than %d bytes", path, no, WALK_LINE_MAX);
@@ -59,6 +71,11 @@ int gc_read_path(ta_ctx *ta, const char *path, gc_step **out, size_t *n) {
     double v[4];
     int st = parse_line(line, v);
     if (st > 0) continue;
+    if (st < 0 && !k && !seen && is_header(line)) {
+      seen = 1;
+      continue;
+    }
+    seen = 1;
     if (st < 0) rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: expected t,x,y,z (four finite numbers), got '%.80s'",
                               path, no, copy);
     else if (k && v[0] < s[k - 1].t)
