@@ -784,6 +784,83 @@ static void test_gltf(void **state) {
   gi_scene_release(s);
 }
 
+/* A one-triangle glTF whose triangle uses material 0 of `materials`, written
+ * as .gltf (glb 0: TRI_GLTF_DATA's buffer) or as a .glb whose BIN chunk
+ * holds the same 44 bytes. */
+static const char *gltf_materials(const char *name, const char *materials, int glb) {
+  static char json[4096], file[4400];
+  const char *data = TRI_GLTF_DATA;
+  const char *bin_data = strstr(TRI_GLTF_DATA, "\"bufferViews\"");
+  int n = snprintf(json, sizeof json,
+                   "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
+                   "\"nodes\":[{\"mesh\":0}],\"extensionsUsed\":[\"KHR_materials_emissive_strength\"],"
+                   "\"materials\":[%s],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},"
+                   "\"indices\":1,\"material\":0}]}],%s%s}",
+                   materials, glb ? "\"buffers\":[{\"byteLength\":44}]," : "", glb ? bin_data : data);
+  if (!glb) return tu_write_file(name, json, (size_t)n);
+  const float v[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const uint16_t ix[4] = {0, 1, 2, 0};
+  uint32_t padded = ((uint32_t)n + 3) & ~3u, total = 12 + 8 + padded + 8 + 44;
+  uint32_t head[5] = {0x46546C67u, 2, total, padded, 0x4E4F534Au}, bin[2] = {44, 0x004E4942u};
+  memcpy(file, head, sizeof head);
+  memcpy(file + 20, json, (size_t)n);
+  memset(file + 20 + n, ' ', padded - (uint32_t)n);
+  memcpy(file + 20 + padded, bin, sizeof bin);
+  memcpy(file + 28 + padded, v, sizeof v);
+  memcpy(file + 28 + padded + sizeof v, ix, sizeof ix);
+  return tu_write_file(name, file, total);
+}
+
+/* KHR_materials_emissive_strength (Blender writes every emitter brighter
+ * than 1 so) multiplies emissiveFactor; assimp 5.2 ignores it, and
+ * Blender's Cornell box read 18.4x too dark. */
+static void test_gltf_emissive_strength(void **state) {
+  static const char lamp[] = "{\"name\":\"lamp\",\"emissiveFactor\":[1,0.5,0.25],"
+                             "\"extensions\":{\"KHR_materials_emissive_strength\":{\"emissiveStrength\":18.4}}}";
+  for (int glb = 0; glb < 2; glb++) {
+    gi_scene *s = load_ok(gltf_materials(glb ? "strong.glb" : "strong.gltf", lamp, glb), NULL);
+    const gi_material *m = gi_scene_material(s, 0);
+    assert_string_equal(m->name, "lamp");
+    assert_float_equal(m->emission[0], 18.4, 1e-5);
+    assert_float_equal(m->emission[1], 9.2, 1e-5);
+    assert_float_equal(m->emission[2], 4.6, 1e-5);
+    gi_scene_release(s);
+  }
+  /* A strength without a factor: the factor's default [0,0,0] stays dark.
+   * No strength given: the extension's default 1. */
+  gi_scene *s = load_ok(gltf_materials("nofactor.gltf",
+                                       "{\"extensions\":{\"KHR_materials_emissive_strength\":{\"emissiveStrength\":5}}}",
+                                       0),
+                        NULL);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.emissive_triangles, 0);
+  gi_scene_release(s);
+  s = load_ok(gltf_materials("default.gltf",
+                             "{\"emissiveFactor\":[0.5,0.5,0.5],"
+                             "\"extensions\":{\"KHR_materials_emissive_strength\":{}}}",
+                             0),
+              NULL);
+  assert_float_equal(gi_scene_material(s, 0)->emission[1], 0.5, 1e-6);
+  gi_scene_release(s);
+  /* A strength that is not a finite number >= 0: an error naming the material. */
+  const char *bad[3] = {"\"x\"", "-1", "null"};
+  for (int i = 0; i < 3; i++) {
+    char m[256];
+    snprintf(m, sizeof m,
+             "{},{\"emissiveFactor\":[1,1,1],\"extensions\":{\"KHR_materials_emissive_strength\":"
+             "{\"emissiveStrength\":%s}}}",
+             bad[i]);
+    const char *path = gltf_materials("badstrength.gltf", m, 0);
+    gi_error_info err = {0};
+    s = (gi_scene *)1;
+    assert_int_equal(gi_scene_load(path, NULL, &s, &err), GI_ERR_FORMAT);
+    printf("  %s\n", err.msg);
+    assert_null(s);
+    assert_non_null(strstr(err.msg, "glTF material 1: KHR_materials_emissive_strength emissiveStrength must be"));
+  }
+}
+
 /* A one-triangle glTF with the given nodes after the mesh's node 0, scene
  * roots and KHR_lights_punctual light definitions. */
 static const char *gltf_lights(const char *name, const char *nodes, const char *roots, const char *lights) {
@@ -1467,6 +1544,7 @@ int main(void) {
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
       cmocka_unit_test(test_gltf),
+      cmocka_unit_test(test_gltf_emissive_strength),
       cmocka_unit_test(test_gltf_spots),
       cmocka_unit_test(test_gltf_light_nodes),
       cmocka_unit_test(test_vertex_colors_files),

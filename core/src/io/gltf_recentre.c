@@ -334,6 +334,50 @@ done:
   return rc;
 }
 
+#define KHR_EMISSIVE_STRENGTH "KHR_materials_emissive_strength"
+
+/* KHR_materials_emissive_strength multiplies a material's emissiveFactor
+ * (held in [0, 1] by the core spec) by its emissiveStrength. assimp 5.2
+ * ignores the extension, and Blender writes every emitter brighter than 1
+ * that way: its Cornell box's lamp read 18.4x too dark. The strength is
+ * folded into the factor here and the extension taken off the material.
+ * Returns the materials changed, -1 with err set on a strength that is not
+ * a finite number >= 0 or a factor that is not three numbers. */
+static int fold_emissive_strength(json_t *root, const char *path, gi_error_info *err) {
+  json_t *mats = json_object_get(root, "materials");
+  int changed = 0;
+  for (size_t i = 0; i < json_array_size(mats); i++) {
+    json_t *m = json_array_get(mats, i), *ext = json_object_get(m, "extensions");
+    json_t *es = json_object_get(ext, KHR_EMISSIVE_STRENGTH);
+    if (!es) continue;
+    json_t *sv = json_object_get(es, "emissiveStrength");
+    double k = sv ? (json_is_number(sv) ? json_number_value(sv) : NAN) : 1.0; /* the spec's default */
+    if (!(k >= 0) || !isfinite(k)) {
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF material %zu: " KHR_EMISSIVE_STRENGTH
+               " emissiveStrength must be a finite number >= 0", path, i);
+      return -1;
+    }
+    json_t *f = json_object_get(m, "emissiveFactor");
+    if (f && (!json_is_array(f) || json_array_size(f) != 3)) {
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF material %zu: emissiveFactor must be an array of 3 numbers",
+               path, i);
+      return -1;
+    }
+    for (size_t c = 0; c < json_array_size(f); c++) {
+      json_t *v = json_array_get(f, c);
+      double x = json_is_number(v) ? json_number_value(v) : NAN;
+      if (!isfinite(x) || json_array_set_new(f, c, json_real(x * k)) < 0) {
+        gi__fail(err, isfinite(x) ? GI_ERR_NOMEM : GI_ERR_FORMAT,
+                 "scene file '%s': glTF material %zu: emissiveFactor must be an array of 3 numbers", path, i);
+        return -1;
+      }
+    }
+    json_object_del(ext, KHR_EMISSIVE_STRENGTH);
+    changed++;
+  }
+  return changed;
+}
+
 /* The JSON text of a .gltf, or the JSON chunk of a .glb. */
 static int split_glb(const unsigned char *buf, size_t len, size_t *json_off, size_t *json_len) {
   if (len < GLB_HEADER + GLB_CHUNK_HEADER || le32(buf) != GLB_MAGIC || le32(buf + 12 + 4) != GLB_CHUNK_JSON) return -1;
@@ -389,7 +433,9 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
                   "JSON line %d column %d: %s", path, je.line, je.column, je.text);
     goto done;
   }
-  int r = recentre_json(root, path, out, err);
+  int folded = fold_emissive_strength(root, path, err);
+  int r = folded < 0 ? -1 : recentre_json(root, path, out, err);
+  if (r == 0 && folded > 0) r = 1; /* no scene graph to place, but the materials changed */
   char *text = r > 0 ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(JSON_PRECISION)) : NULL;
   json_decref(root);
   if (r < 0) {

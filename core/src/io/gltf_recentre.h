@@ -18,6 +18,9 @@
  * whole node graph, in its validation and again when it moves lights to
  * world space, and 16,384 lamps took 3.6 s to load that way.
  *
+ * Materials' KHR_materials_emissive_strength, which assimp 5.2 ignores,
+ * is folded into their emissiveFactor in the same rewrite.
+ *
  * Ownership: gi__gltf_recentre fills a gi__gltf_shift the caller releases
  * with gi__gltf_shift_free. Not shared between threads. */
 #ifndef GI_GLTF_RECENTRE_H
