@@ -1372,6 +1372,49 @@ static void test_fbx_connection_loops(void **state) {
   assert_null(strstr(err.msg, "loop"));
 }
 
+/* A triangle 100 units wide in an ASCII FBX, GlobalSettings' UnitScaleFactor
+ * `factor` (NULL: no GlobalSettings). */
+static const char *fbx_units(const char *name, const char *factor) {
+  char text[1024], gs[256] = "";
+  if (factor)
+    snprintf(gs, sizeof gs,
+             "GlobalSettings:  {\n\tVersion: 1000\n\tProperties70:  {\n"
+             "\t\tP: \"UnitScaleFactor\", \"double\", \"Number\", \"\",%s\n\t}\n}\n",
+             factor);
+  int n = snprintf(text, sizeof text,
+                   "; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n"
+                   "\tFBXVersion: 7400\n}\n%sObjects:  {\n\tGeometry: 100, \"Geometry::q\", \"Mesh\" {\n"
+                   "\t\tVertices: *9 {\n\t\t\ta: 0,0,0,100,0,0,0,100,0\n\t\t}\n\t\tPolygonVertexIndex: *3 {\n"
+                   "\t\t\ta: 0,1,-3\n\t\t}\n\t}\n\tModel: 200, \"Model::q\", \"Mesh\" {\n\t}\n}\n"
+                   "Connections:  {\n\tC: \"OO\",100,200\n\tC: \"OO\",200,0\n}\n",
+                   gs);
+  return tu_write_file(name, text, (size_t)n);
+}
+
+/* FBX positions are in UnitScaleFactor centimetres (Maya's, 3ds Max's and
+ * Blender's exports: centimetres): loaded in metres, as Collada's <unit>
+ * and glTF's metres are. Blender's Cornell box came in 100x too large. */
+static void test_fbx_units(void **state) {
+  (void)state;
+  const struct {
+    const char *factor;
+    double metres; /* the triangle's width */
+  } c[4] = {{"1", 1.0}, {"2.54", 2.54}, {"100", 100.0}, {NULL, 1.0}};
+  for (int i = 0; i < 4; i++) {
+    char name[32];
+    snprintf(name, sizeof name, "units%d.fbx", i);
+    gi_scene_options o = {.scale = 2.0}; /* the caller's scale multiplies the file's */
+    gi_scene *s = load_ok(fbx_units(name, c[i].factor), &o);
+    double lo[3], hi[3];
+    gi_scene_bounds(s, lo, hi);
+    printf("  UnitScaleFactor %s: %g m wide\n", c[i].factor ? c[i].factor : "(none)", hi[0] - lo[0]);
+    assert_float_equal(hi[0] - lo[0], 2.0 * c[i].metres, 1e-9 * c[i].metres);
+    assert_float_equal(hi[1] - lo[1], 2.0 * c[i].metres, 1e-9 * c[i].metres);
+    gi_scene_release(s);
+  }
+  expect_bad(fbx_units("units-neg.fbx", "-1"), GI_ERR_FORMAT, "FBX UnitScaleFactor is -1; expected a finite number > 0");
+}
+
 /* The light tree: every point's pick probabilities sum to one, a pick
  * reports the probability the MIS side recomputes, stratified picks land
  * in proportion, and an emitter that faces away from a point is never
@@ -1551,6 +1594,7 @@ int main(void) {
       cmocka_unit_test(test_bad_file_matrix),
       cmocka_unit_test(test_bad_files_assimp_misreads),
       cmocka_unit_test(test_fbx_connection_loops),
+      cmocka_unit_test(test_fbx_units),
       cmocka_unit_test(test_backface_share),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -654,6 +654,34 @@ static gi_result import_file(const char *path, const gi__gltf_shift *gs, const s
   return rc;
 }
 
+/* Metres per unit of an FBX file. Its UnitScaleFactor is centimetres per
+ * unit (Maya, 3ds Max and Blender's exporter write centimetres), and
+ * assimp 5.2 converts only under aiProcess_GlobalScale, which would scale
+ * every format's positions in float; here the factor joins the scale the
+ * positions get in double, as Collada's <unit> and glTF's metres arrive.
+ * A file without the factor is taken as centimetres, FBX's default. */
+static gi_result fbx_metres(const struct aiScene *as, const char *path, double *metres, gi_error_info *err) {
+  *metres = 0.01;
+  const struct aiMetadata *md = as->mMetaData;
+  for (unsigned i = 0; md && i < md->mNumProperties; i++) {
+    if (strcmp(md->mKeys[i].data, "UnitScaleFactor")) continue;
+    const struct aiMetadataEntry *e = &md->mValues[i];
+    double f = e->mType == AI_DOUBLE ? *(const double *)e->mData : NAN;
+    if (e->mType == AI_FLOAT) {
+      /* assimp keeps the file's double as a float: its shortest decimal
+       * (2.54, not 2.5399999618) keeps an inch file's metres exact. */
+      char txt[32];
+      snprintf(txt, sizeof txt, "%.7g", *(const float *)e->mData);
+      f = strtod(txt, NULL);
+    }
+    if (!(f > 0) || !isfinite(f))
+      return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': FBX UnitScaleFactor is %g; expected a finite number > 0",
+                      path, f);
+    *metres = f * 0.01;
+  }
+  return GI_OK;
+}
+
 /* Counts in 64 bits, so a huge file fails before we allocate. */
 static gi_result check_counts(const struct aiScene *as, const char *path, gi_error_info *err) {
   uint64_t ntri = 0, nvert = 0;
@@ -897,6 +925,12 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     goto done;
   if (is_gltf(path) && (rc = gi__gltf_recentre(path, ends_with_ci(path, ".glb"), &gs, err)) != GI_OK) goto done;
   if ((rc = import_file(path, &gs, &as, err)) != GI_OK || (rc = check_counts(as, path, err)) != GI_OK) goto done;
+  if (ends_with_ci(path, ".fbx")) {
+    double metres;
+    if ((rc = fbx_metres(as, path, &metres, err)) != GI_OK) goto done;
+    scale *= metres;
+    o.scale = scale;
+  }
   tc.as = as;
   b = gi_mesh_builder_new();
   matmap = gi__malloc((as->mNumMaterials + 1) * sizeof *matmap);
