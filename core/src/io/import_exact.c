@@ -232,16 +232,50 @@ static int keyword(char *s, const char *kw, char **rest) {
   return 1;
 }
 
+/* A backslash ending a line (before its \r\n or \n) joins the next line to
+ * it, the backslash and the line end dropped: the OBJ spec's continuation,
+ * read as assimp (which reads this file's materials) reads it. Reads one
+ * statement into *buf (getline's buffer); *no counts physical lines, *first
+ * gets the statement's first. Returns its length, -1 at the end or on a
+ * read error, -2 out of memory. */
+static ssize_t obj_statement(FILE *f, char **buf, size_t *cap, char **more, size_t *more_cap, size_t *no,
+                             size_t *first) {
+  ssize_t n = getline(buf, cap, f);
+  if (n < 0) return -1;
+  *first = ++*no;
+  for (;;) {
+    ssize_t e = n;
+    while (e > 0 && ((*buf)[e - 1] == '\n' || (*buf)[e - 1] == '\r')) e--;
+    if (e == 0 || (*buf)[e - 1] != '\\') return n;
+    (*buf)[e - 1] = 0;
+    n = e - 1;
+    ssize_t k = getline(more, more_cap, f);
+    if (k < 0) return n;
+    ++*no;
+    if ((size_t)(n + k + 1) > *cap) {
+      char *g = realloc(*buf, (size_t)(n + k + 1)); /* getline's buffer: libc's allocator */
+      if (!g) return -2;
+      *buf = g, *cap = (size_t)(n + k + 1);
+    }
+    memcpy(*buf + n, *more, (size_t)k + 1);
+    n += k;
+  }
+}
+
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err) {
   memset(m, 0, sizeof *m);
   FILE *f = fopen(path, "rb");
   if (!f) return gi__fail(err, GI_ERR_IO, "scene file '%s': cannot open: %s", path, strerror(errno));
-  char *buf = NULL, *rest;
-  size_t cap = 0, line = 0;
+  char *buf = NULL, *more = NULL, *rest;
+  size_t cap = 0, more_cap = 0, no = 0, line = 0;
   uint32_t mat = GI__EXACT_NO_MATERIAL;
   gi_result rc = GI_OK;
-  while (rc == GI_OK && getline(&buf, &cap, f) >= 0) {
-    line++;
+  ssize_t got;
+  while (rc == GI_OK && (got = obj_statement(f, &buf, &cap, &more, &more_cap, &no, &line)) != -1) {
+    if (got == -2) {
+      rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory at line %zu", path, line);
+      break;
+    }
     char *s = skip_blank(buf);
     if (keyword(s, "v", &rest)) {
       rc = obj_vertex(path, line, rest, m, err);
@@ -274,8 +308,9 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
     }
     /* vn, o, g, s, mtllib, comments: not geometry we use. */
   }
-  if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error after line %zu", path, line);
-  free(buf); /* getline's buffer comes from libc malloc */
+  if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error after line %zu", path, no);
+  free(buf); /* getline's buffers come from libc malloc */
+  free(more);
   fclose(f);
   if (rc != GI_OK) gi__exact_free(m);
   return rc;
