@@ -9,6 +9,7 @@
 #include <string.h>
 #include "base/internal.h"
 #include "cascade/cascade_internal.h"
+#include "light/light.h"
 #include "plan.h"
 #include "scene/lights.h"
 #include "trace/trace.h"
@@ -215,6 +216,14 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
   return seen;
 }
 
+/* What the geometric tail after B bounces brings, as a share of the direct
+ * light, at mean albedo a: a^(B+2) / (1 - a), the ratio capped as the bake
+ * caps it (a material reflects at most 1, scene.c, so a may reach 1). */
+static double tail_share(double a, int B) {
+  double r = fmin(a, GI_TAIL_RATIO_MAX);
+  return pow(a, B + 2) / (1 - r);
+}
+
 /* What lies in range of the cascade: emissive triangles within half a
  * cascade of it (*emit_in), glossy triangles inside it and the
  * area-weighted reflectance (brightest channel of the albedo, plus a glossy
@@ -256,8 +265,8 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
     double ar = 0.5 * gi__len(n);
     area += ar;
     /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
-    int gl = m->roughness < 0.5f && m->specular > 0;
-    a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + (gl ? m->specular : 0.f));
+    int gl = gi__gloss(m) > 0;
+    a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gi__gloss(m));
     *glossy += gl;
   }
   gi__free(tris);
@@ -356,7 +365,7 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
      * just under it still leaves a^6 / (1 - a) of the direct light (3% at
      * a = 0.5, which a furnace of that albedo would then miss). */
     tail = B == MAX_AUTO_BOUNCES;
-    if (tail && pow(abar, B + 1) / (1 - abar) <= TAIL_SHARE) B--;
+    if (tail && tail_share(abar, B - 1) <= TAIL_SHARE) B--;
     q->bounces = B;
   }
   if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
@@ -365,7 +374,7 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   else if (auto_bounces && tail)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, the "
                                "tail brings %.1f%% of direct (at most %d, %d when it brings <= %.0f%%)", q->bounces, abar,
-           100 * pow(abar, q->bounces + 2) / (1 - abar), MAX_AUTO_BOUNCES, MAX_AUTO_BOUNCES - 1, 100 * TAIL_SHARE);
+           100 * tail_share(abar, q->bounces), MAX_AUTO_BOUNCES, MAX_AUTO_BOUNCES - 1, 100 * TAIL_SHARE);
   else if (auto_bounces)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
                                "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "", abar,

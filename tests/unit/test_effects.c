@@ -19,6 +19,7 @@
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include "gi/gi.h"
 
@@ -72,6 +73,37 @@ static void test_bounces_from_albedo(void **state) {
     assert_false(rep.effects[GI_FX_BOUNCE].ran);
     gi_scene_release(s);
   }
+}
+
+/* A closed box of Blender's default material as an OBJ gives it (albedo
+ * 0.8, glossy lobe 0.5): reflected 130% before scene.c scaled it to 100%,
+ * and the plan's tail read -1237%, then inf%. The plan reports mean
+ * albedo 1.00 and a finite, positive tail (its ratio capped as the bake
+ * caps it); the probe is finite. */
+static void test_tail_at_full_reflectance(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .emission = {1, 1, 1}, .roughness = 0.1f, .specular = 0.5f};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1}, at[3] = {0.5, 0.5, 0.5};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_scene_options opt = {.up = GI_UP_Y};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "box", &opt, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_quality q = {.levels = 2, .res = 16};
+  gi_bake_report rep;
+  gi_probe p;
+  bake_at(s, at, &q, &rep, &p);
+  const char *why = rep.effects[GI_FX_BOUNCE].why, *t = strstr(why, "the tail brings ");
+  printf("albedo 0.8 + gloss 0.5: %s\n", why);
+  assert_non_null(strstr(why, "mean albedo 1.00 in range"));
+  assert_non_null(t);
+  double share = strtod(t + strlen("the tail brings "), NULL);
+  assert_true(isfinite(share) && share > 0);
+  for (int k = 0; k < 3; k++) assert_true(isfinite(p.irradiance[k]) && p.irradiance[k] > 0);
+  gi_scene_release(s);
 }
 
 static void test_sky_only_where_visible(void **state) {
@@ -254,6 +286,7 @@ static void test_bad_override(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bounces_from_albedo),
+      cmocka_unit_test(test_tail_at_full_reflectance),
       cmocka_unit_test(test_sky_only_where_visible),
       cmocka_unit_test(test_munich_no_specular),
       cmocka_unit_test(test_view_traces_glossy_pixels_only),

@@ -692,6 +692,63 @@ static void test_nonfinite_obj(void **state) {
   gi_scene_release(s);
 }
 
+/* A material reflects at most what it receives: Blender's default exported
+ * as OBJ (Kd 0.8, Ks 0.5, Ns 250) reflected 130%, every bounce brighter than
+ * the last. Albedo and glossy lobe are scaled together to sum to 1, and so
+ * are the triangles' own albedos; a rough material's Ks (no lobe) and a sum
+ * of exactly 1 stay; the effect plan's tail stays finite and positive. */
+static void test_energy_conservation(void **state) {
+  (void)state;
+  const char mtl[] = "newmtl blender\nKd 0.8 0.6 0.4\nKs 0.5 0.5 0.5\nNs 250\n"
+                     "newmtl rough\nKd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nNs 0\n"
+                     "newmtl edge\nKd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nNs 250\n";
+  tu_write_file("energy.mtl", mtl, strlen(mtl));
+  const char obj[] = "mtllib energy.mtl\nv 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nv 0 0 4\nv 4 0 4\n"
+                     "usemtl blender\nf 1 2 3\nusemtl rough\nf 1 3 4\nusemtl edge\nf 1 2 6 5\n";
+  gi_scene *s = load_ok(tu_write_file("energy.obj", obj, strlen(obj)), NULL);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.clamped_albedo, 1);
+  for (size_t i = 0; i < gi_scene_num_materials(s); i++) {
+    const gi_material *m = gi_scene_material(s, i);
+    printf("  %s: albedo %g %g %g specular %g roughness %g\n", m->name, m->albedo[0], m->albedo[1], m->albedo[2],
+           m->specular, m->roughness);
+    if (!strcmp(m->name, "blender")) {
+      assert_float_equal(m->albedo[0], 0.8 / 1.3, 1e-6);
+      assert_float_equal(m->albedo[2], 0.4 / 1.3, 1e-6);
+      assert_float_equal(m->specular, 0.5 / 1.3, 1e-6);
+      assert_float_equal(m->albedo[0] + m->specular, 1.0, 1e-6);
+    } else if (!strcmp(m->name, "rough")) {
+      assert_true(m->albedo[0] == 0.8f && m->specular == 0.5f && m->roughness == 1.f);
+    } else {
+      assert_string_equal(m->name, "edge");
+      assert_true(m->albedo[0] == 0.5f && m->specular == 0.5f);
+    }
+  }
+  gi_scene_release(s);
+
+  /* A triangle's own albedo (a texture's part, vertex colours) is scaled with its material. */
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.9f, 0.9f, 0.9f}, .roughness = 0.2f, .specular = 0.6f};
+  uint32_t mi = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {0, 0, 0}, hi[3] = {2, 2, 2};
+  gi_mesh_builder_add_box(b, lo, hi, mi);
+  gi_mesh_builder_set_triangle_albedo(b, 0, 0.9, 0.45, 0.3);
+  gi_scene_options o = {.default_lights = 1};
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "box", &o, &s, &err), GI_OK);
+  const gi_material *sm = gi_scene_material(s, 0);
+  assert_float_equal(sm->albedo[0], 0.6, 1e-6);
+  assert_float_equal(sm->specular, 0.4, 1e-6);
+  const float *t0 = gi__tri_albedo(s, 0), *t1 = gi__tri_albedo(s, 1);
+  assert_float_equal(t0[0], 0.6, 1e-6);
+  assert_float_equal(t0[1], 0.3, 1e-6);
+  assert_float_equal(t0[2], 0.2, 1e-6);
+  assert_float_equal(t1[0], 0.6, 1e-6); /* no albedo of its own: the material's */
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+}
+
 static void test_obj_materials(void **state) {
   const char mtl[] = "newmtl glossy\nKd 0.2 0.3 0.4\nKs 0.5 0.5 0.5\nNs 98\n"
                      "newmtl lamp\nKd 1.5 0.5 0.5\nKe 2 3 4\n";
@@ -1611,6 +1668,7 @@ int main(void) {
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
       cmocka_unit_test(test_obj_continuation),
+      cmocka_unit_test(test_energy_conservation),
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_gltf_emissive_strength),
       cmocka_unit_test(test_gltf_spots),

@@ -38,7 +38,10 @@ typedef enum gi_up_axis { GI_UP_Y = 1, GI_UP_Z = 2 } gi_up_axis;
 /* A surface's material. Units: albedo is reflectance in [0,1] (larger input
  * is clamped and counted); emission is radiance (W m^-2 sr^-1, or the
  * scene's own radiometric unit); roughness in [0,1] (1 = fully diffuse);
- * specular is the scalar normal-incidence reflectance of the glossy lobe. */
+ * specular is the scalar normal-incidence reflectance of the glossy lobe
+ * (used when roughness < 0.5). A scene scales a material whose brightest
+ * albedo channel plus that lobe exceed 1, and its triangles' own albedos,
+ * so that it reflects at most what it receives. */
 typedef struct gi_material {
   float albedo[3];
   float emission[3];
@@ -90,7 +93,8 @@ typedef struct gi_scene_stats {
   uint64_t triangles;          /* kept */
   uint64_t dropped_nonfinite;  /* NaN/Inf positions */
   uint64_t dropped_degenerate; /* zero area (incl. repeated vertices) */
-  uint64_t clamped_albedo;     /* materials whose albedo exceeded 1 */
+  uint64_t clamped_albedo;     /* materials whose albedo exceeded 1, or whose brightest albedo
+                                  channel plus glossy reflectance did (both scaled to sum to 1) */
   uint32_t materials;
   uint32_t lights;
   uint32_t emissive_triangles;

@@ -242,7 +242,7 @@ static void finish_pixel(const render_ctx *rc, const pending_px *pp, uint64_t co
   const gi_material *m = pp->m;
   float *out = pp->out;
   for (int a = 0; a < 3; a++) out[a] += pp->albedo[a] * (1.f / GI_PI_F) * pp->E[a];
-  int glossy = m->roughness < 0.5f && m->specular > 0;
+  int glossy = gi__gloss(m) > 0;
   if (pp->d >= 0 && (rc->spec == SPEC_ALL || (rc->spec == SPEC_GLOSSY && glossy))) {
     gi_cone_out co;
     gi__specular_trace(rc->c, pp->x, pp->n, pp->w, m->roughness, &co);

@@ -79,7 +79,7 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
   gi__fan_moments(poly, n, A, C);
   float area = gi__len(A);
   if (!(area > 0)) return;
-  float gloss = mat->roughness < 0.5f ? mat->specular : 0.f;
+  float gloss = gi__gloss(mat);
   float *T = g->u.sum.tensor;
   /* area n n^T = A A^T / area: the same for either winding. */
   float ia = 1.f / area;

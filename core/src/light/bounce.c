@@ -284,8 +284,7 @@ static void last_bounce_share(struct gi_cascade *c, const double last[3], int ad
  * voxel, per channel; the dominant eigenvalue of the transport once the
  * first bounces have spread the light). The orders left out add
  * D_k (r + r^2 + ...) = D_k r / (1 - r), each voxel scaled by its own last
- * increment. r is capped at 0.95 (a furnace of albedo 0.99 would
- * otherwise multiply its last increment by 99). Last also records
+ * increment. r is capped at GI_TAIL_RATIO_MAX. Last also records
  * c->last_share, which a move's fresh gather takes off (move.c). */
 void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last) {
   double f[3] = {0, 0, 0};
@@ -302,7 +301,7 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], 
     for (int k = 0; k < 3; k++) {
       double dk = S[1][k], dk1 = S[0][k];
       double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
-      if (r > 0.95) r = 0.95;
+      if (r > GI_TAIL_RATIO_MAX) r = GI_TAIL_RATIO_MAX;
       f[k] = r / (1 - r);
     }
   for (int d = 0; d < c->n; d++) {

@@ -167,6 +167,10 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
  * cascade's token fired. Shared by gi__bounce and the move's re-bake. */
 gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
                              int threads, uint64_t *samples, uint64_t *cones, gi_error_info *err);
+/* The largest ratio the bounces' geometric tail takes (gi__bounce_end): a
+ * furnace of albedo 0.99 would otherwise multiply its last increment by
+ * 99. The effect plan's estimate of the tail takes the same cap. */
+#define GI_TAIL_RATIO_MAX 0.95
 /* The end of one bounce from its gathers E (per level, per occupied voxel:
  * the bounce's increment, gi__bounce_between done): the tail's sums S
  * rolled, side light summed, the texture reshaded from the increment, or

@@ -129,7 +129,7 @@ static int emitted_full(const ref_lights *L, uint32_t tri, const float ng[3], co
  * 0 when the material is not glossy (roughness < 0.5 and specular > 0 is
  * glossy, as for the cone tracer). INFINITY is a perfect mirror. */
 static double glossy_exponent(const gi_material *m) {
-  if (!(m->roughness < 0.5f && m->specular > 0)) return 0;
+  if (!(gi__gloss(m) > 0)) return 0;
   double a = (double)m->roughness * m->roughness;
   return a < MIRROR_A ? INFINITY : 2.0 / (a * a) - 2.0;
 }

@@ -174,8 +174,15 @@ static int clampf(float *x, float lo, float hi, float bad) {
 }
 
 /* Sanitises m in place; returns 1 when the albedo (or any non-finite value)
- * had to be changed, which is what stats.clamped_albedo counts. */
-static int sanitize_material(gi_material *m) {
+ * had to be changed, which is what stats.clamped_albedo counts. *energy
+ * receives the factor the albedo and the glossy lobe were scaled by so that
+ * together they reflect at most what arrives (1: they did already). An
+ * OBJ's or Collada's Ks is taken as the glossy lobe's reflectance, and
+ * Blender writes its default material as Kd 0.8 with Ks 0.5 (0.4 in
+ * Collada): 130% reflected, every bounce brighter than the last and the
+ * plan's geometric tail negative. Scaling both keeps their balance and is
+ * continuous at 1. */
+static int sanitize_material(gi_material *m, float *energy) {
   int changed = 0;
   for (int k = 0; k < 3; k++) {
     changed |= clampf(&m->albedo[k], 0.f, 1.f, 0.f);
@@ -188,6 +195,13 @@ static int sanitize_material(gi_material *m) {
   if (!isfinite(m->specular)) { m->specular = 0.f; changed = 1; }
   clampf(&m->specular, 0.f, 1.f, 0.f);
   m->name[sizeof m->name - 1] = 0;
+  float total = gi__maxf(m->albedo[0], gi__maxf(m->albedo[1], m->albedo[2])) + gi__gloss(m);
+  *energy = total > 1.f ? 1.f / total : 1.f;
+  if (total > 1.f) {
+    for (int k = 0; k < 3; k++) m->albedo[k] *= *energy;
+    m->specular *= *energy;
+    changed = 1;
+  }
   return changed;
 }
 
@@ -248,6 +262,7 @@ enum { TRI_KEEP = 0, TRI_NONFINITE = 1, TRI_DEGENERATE = 2 };
 /* Scratch of one build: per input triangle and vertex. */
 typedef struct build_tmp {
   uint8_t *cls;      /* TRI_* per input triangle */
+  float *energy;     /* per material: sanitize_material's factor, which its triangles' own albedos take too */
   uint32_t *remap;   /* input vertex -> kept vertex, UINT32_MAX when unused */
   double *area;      /* per input triangle, then compacted to kept triangles */
   size_t kept, kept_v;
@@ -363,11 +378,12 @@ static gi_result copy_uv2(const gi_mesh_builder *b, gi_scene *s, const build_tmp
 }
 
 /* The builder's materials (or one grey default), sanitized. */
-static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, gi_error_info *err) {
+static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, build_tmp *t, gi_error_info *err) {
   size_t nm = b->nm ? b->nm : 1;
   s->num_materials = (uint32_t)nm;
   s->materials = gi__calloc(nm, sizeof *s->materials);
-  if (!s->materials) return gi__fail(err, GI_ERR_NOMEM, "out of memory copying materials");
+  t->energy = gi__malloc(nm * sizeof *t->energy);
+  if (!s->materials || !t->energy) return gi__fail(err, GI_ERR_NOMEM, "out of memory copying materials");
   if (b->nm) {
     memcpy(s->materials, b->mats, nm * sizeof *s->materials);
   } else {
@@ -378,7 +394,7 @@ static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, gi_error_
   }
   for (size_t i = 0; i < nm; i++) {
     gi_material *m = &s->materials[i];
-    s->stats.clamped_albedo += (uint64_t)sanitize_material(m);
+    s->stats.clamped_albedo += (uint64_t)sanitize_material(m, &t->energy[i]);
     for (int k = 0; k < 3; k++)
       if (m->emission[k] > GI_MAX_LIGHT_VALUE)
         return gi__fail(err, GI_ERR_LIMIT, "material %zu ('%s'): emission %g exceeds %g (GI_MAX_LIGHT_VALUE)", i,
@@ -409,7 +425,8 @@ static gi_result copy_tri_albedo(const gi_mesh_builder *b, gi_scene *s, const bu
     for (int k = 0; k < 3; k++) {
       float c = (vertex_color(b, b->tri[3 * tr], k) + vertex_color(b, b->tri[3 * tr + 1], k) +
                  vertex_color(b, b->tri[3 * tr + 2], k)) / 3.f;
-      float own = 3 * tr + k < b->cap_talb ? b->talb[3 * tr + k] : NAN, a = isfinite(own) ? own : m[k];
+      float own = 3 * tr + k < b->cap_talb ? b->talb[3 * tr + k] : NAN;
+      float a = isfinite(own) ? own * t->energy[b->mat[tr]] : m[k];
       s->tri_albedo[3 * j + k] = gi__minf(gi__maxf(a * c, 0.f), 1.f);
     }
     j++;
@@ -517,7 +534,7 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
   classify(b, scale, s, &t, lo, hi);
   for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
   if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_uv2(b, s, &t, err)) != GI_OK ||
-      (rc = copy_materials(b, s, err)) != GI_OK ||
+      (rc = copy_materials(b, s, &t, err)) != GI_OK ||
       (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_tri_albedo(b, s, &t, err)) != GI_OK ||
       (rc = copy_lights(opt, s, err)) != GI_OK ||
       (rc = gi__local_tree_build(s, err)) != GI_OK)
@@ -526,6 +543,7 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
 
 done:
   gi__free(t.cls);
+  gi__free(t.energy);
   gi__free(t.remap);
   gi__free(t.area);
   if (rc == GI_OK) {

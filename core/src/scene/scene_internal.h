@@ -140,6 +140,15 @@ gi_result gi__query_box(const struct gi_scene *s, const float lo[3], const float
  * BVH visits. Thread-safe on distinct lists. */
 void gi__order_tris(const struct gi_scene *s, uint32_t *tris, size_t *count);
 
+/* A material rougher than this has no glossy lobe: its `specular` is not
+ * used (every stage's rule: voxelizer, renderer, reference, plan). */
+#define GI_GLOSSY_ROUGHNESS 0.5f
+
+/* The reflectance of m's glossy lobe: specular when m is glossy, else 0. */
+static inline float gi__gloss(const gi_material *m) {
+  return m->roughness < GI_GLOSSY_ROUGHNESS && m->specular > 0 ? m->specular : 0.f;
+}
+
 /* Triangle tri's albedo: its own (vertex colours, its part of a texture:
  * gi_mesh_builder_set_vertex_color, _set_triangle_albedo), else its
  * material's. Every stage that reads a triangle's albedo goes through here
