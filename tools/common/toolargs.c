@@ -10,6 +10,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include "gi/gi_points.h"
 #include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
@@ -198,6 +199,22 @@ int ta_check_output(ta_ctx *c, const char *opt, const char *path) {
   if (access(d, W_OK | X_OK) != 0)
     rc = ta_error(c, TA_EXIT_RUN, opt, "cannot write into '%s' for '%s': %s", d, path, strerror(errno));
   free(dir);
+  return rc;
+}
+
+int ta_mkdirs(ta_ctx *c, const char *opt, const char *path) {
+  char *b = strdup(path);
+  if (!b) return ta_error(c, TA_EXIT_RUN, opt, "out of memory");
+  int rc = 0;
+  for (char *s = b + 1; *s && !rc; s++)
+    if (*s == '/') {
+      *s = 0;
+      if (mkdir(b, 0777) && errno != EEXIST) rc = ta_error(c, TA_EXIT_RUN, opt, "cannot create '%s': %s", b, strerror(errno));
+      *s = '/';
+    }
+  if (!rc && mkdir(b, 0777) && errno != EEXIST)
+    rc = ta_error(c, TA_EXIT_RUN, opt, "cannot create '%s': %s", b, strerror(errno));
+  free(b);
   return rc;
 }
 

@@ -82,6 +82,11 @@ int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_op
  * work. Returns 0, TA_EXIT_USAGE (empty name) or TA_EXIT_RUN. */
 int ta_check_output(ta_ctx *c, const char *opt, const char *path);
 
+/* Creates folder path and its parents as needed (mode 0777 less the
+ * umask), as mkdir -p. Returns 0, or TA_EXIT_RUN with the folder and
+ * errno's reason said. */
+int ta_mkdirs(ta_ctx *c, const char *opt, const char *path);
+
 /* Reads a points file (gi_points.h: one 'x y z' per line, '#' comments) of
  * at most max points. Returns 0, TA_EXIT_USAGE (a bad line, named by file
  * and number, or too many) or TA_EXIT_RUN (cannot read). */

@@ -563,18 +563,6 @@ static const char *dir_of(const char *path, char *buf, size_t n) {
   return buf;
 }
 
-static int mkdirs(const char *p) {
-  char b[1024];
-  snprintf(b, sizeof b, "%s", p);
-  for (char *s = b + 1; *s; s++)
-    if (*s == '/') {
-      *s = 0;
-      if (mkdir(b, 0777) && errno != EEXIST) return 0;
-      *s = '/';
-    }
-  return !mkdir(b, 0777) || errno == EEXIST;
-}
-
 static void machine_name(char *out, size_t n) {
   snprintf(out, n, "unknown CPU");
   FILE *f = fopen("/proc/cpuinfo", "r");
@@ -697,10 +685,7 @@ int main(int argc, char **argv) {
   opts o;
   int rc = parse_args(argc, argv, &o);
   if (rc) return rc < 0 ? 0 : rc;
-  if (!mkdirs(o.out_dir)) {
-    fprintf(stderr, "gi-accuracy: cannot create %s: %s\n", o.out_dir, strerror(errno));
-    return 1;
-  }
+  if (ta_mkdirs(&ta, "--out", o.out_dir)) return 1;
   char md[1024], png[1024], machine[256], cmd[1024] = "", md_dir[1024];
   snprintf(md, sizeof md, "%s", o.md ? o.md : "");
   if (!o.md) snprintf(md, sizeof md, "%s/accuracy.md", o.out_dir);

@@ -136,6 +136,7 @@ int main(int argc, char **argv) {
   }
   if (optind < argc) return ta_fail(&ctx, NULL, "unexpected argument '%s'", argv[optind]);
   if (!strcmp(argv[1], "tables")) return run_tables(&a, &ctx);
+  if (ta_mkdirs(&ctx, "--out", a.b.out_dir)) return 1;
   a.b.q.threads = 0;
   return run_bench(&a.b, a.paths_only);
 }
