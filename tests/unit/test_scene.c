@@ -747,6 +747,19 @@ static void test_energy_conservation(void **state) {
   assert_float_equal(t1[0], 0.6, 1e-6); /* no albedo of its own: the material's */
   gi_scene_release(s);
   gi_mesh_builder_free(b);
+  /* A triangle brighter than its material (0.5 + lobe 0.5: no scaling) is held to 1 with the lobe. */
+  b = gi_mesh_builder_new();
+  gi_material half = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 0.2f, .specular = 0.5f};
+  mi = gi_mesh_builder_add_material(b, &half);
+  gi_mesh_builder_add_box(b, lo, hi, mi);
+  gi_mesh_builder_set_triangle_albedo(b, 0, 0.9, 0.45, 0.3);
+  assert_int_equal(gi_scene_build(b, "box", &o, &s, &err), GI_OK);
+  t0 = gi__tri_albedo(s, 0);
+  assert_float_equal(t0[0], 0.5, 1e-6);
+  assert_float_equal(t0[1], 0.25, 1e-6);
+  assert_float_equal(gi_scene_material(s, 0)->specular, 0.5, 0);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
 }
 
 static void test_obj_materials(void **state) {

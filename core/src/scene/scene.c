@@ -413,7 +413,9 @@ static float vertex_color(const gi_mesh_builder *b, uint32_t v, int k) {
 
 /* Per kept triangle: its own albedo (else its material's) times its
  * corners' mean colour, in [0, 1], when the builder has either (else none
- * is kept). */
+ * is kept). An own albedo takes its material's energy factor, and is held
+ * so that its brightest channel plus the material's glossy lobe stay <= 1
+ * (it may be brighter than its material's). */
 static gi_result copy_tri_albedo(const gi_mesh_builder *b, gi_scene *s, const build_tmp *t, gi_error_info *err) {
   if ((!b->col && !b->talb) || !t->kept) return GI_OK;
   if (!(s->tri_albedo = gi__malloc(3 * t->kept * sizeof *s->tri_albedo)))
@@ -421,15 +423,19 @@ static gi_result copy_tri_albedo(const gi_mesh_builder *b, gi_scene *s, const bu
   size_t j = 0;
   for (size_t tr = 0; tr < b->nt; tr++) {
     if (t->cls[tr] != TRI_KEEP) continue;
-    const float *m = s->materials[b->mat[tr]].albedo;
+    const gi_material *mat = &s->materials[b->mat[tr]];
+    float *out = &s->tri_albedo[3 * j++], mx = 0;
     for (int k = 0; k < 3; k++) {
       float c = (vertex_color(b, b->tri[3 * tr], k) + vertex_color(b, b->tri[3 * tr + 1], k) +
                  vertex_color(b, b->tri[3 * tr + 2], k)) / 3.f;
       float own = 3 * tr + k < b->cap_talb ? b->talb[3 * tr + k] : NAN;
-      float a = isfinite(own) ? own * t->energy[b->mat[tr]] : m[k];
-      s->tri_albedo[3 * j + k] = gi__minf(gi__maxf(a * c, 0.f), 1.f);
+      float a = isfinite(own) ? own * t->energy[b->mat[tr]] : mat->albedo[k];
+      out[k] = gi__minf(gi__maxf(a * c, 0.f), 1.f);
+      mx = gi__maxf(mx, out[k]);
     }
-    j++;
+    float room = 1.f - gi__gloss(mat);
+    if (mx > room)
+      for (int k = 0; k < 3; k++) out[k] *= room / mx;
   }
   return GI_OK;
 }
