@@ -75,4 +75,17 @@ PY
 "$BIN" "$T/box.obj" --levels 3 --res 16 --bounces 1 > "$T/human" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && grep -q voxelize "$T/human" && grep -q 'centre of the scene bounds' "$T/err" \
   && pass "human summary, default viewpoint noted" || fail "human summary (rc $rc)"
+grep -q 'flat along z' "$T/err" && fail "a 4 m cube was taken for a z-up city: $(cat "$T/err")"
+
+# A city-like file flat along z (an OpenStreetMap export) read with the
+# default y up: a note with the fix; none with --up given either way.
+printf 'v 0 0 0\nv 100 0 0\nv 100 80 0\nv 0 80 0\nv 10 10 0\nv 20 10 0\nv 20 10 12\nv 10 10 12\nf 1 2 3 4\nf 5 6 7 8\n' \
+  > "$T/flat.obj"
+"$BIN" "$T/flat.obj" --levels 3 --res 16 --bounces 1 --json > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q -F "gi-bake: note: the scene is flat along z (100 x 80 x 12) but read with y up (the default): if z is up, as in OpenStreetMap and GIS exports, pass --up z" "$T/err" \
+  && pass "flat along z without --up: noted" || fail "flat along z (rc $rc): $(cat "$T/err")"
+for up in y z; do
+  "$BIN" "$T/flat.obj" --up $up --levels 3 --res 16 --bounces 1 --json > /dev/null 2> "$T/err"; rc=$?
+  [ $rc -eq 0 ] && ! grep -q 'flat along z' "$T/err" && pass "--up $up given: no note" || fail "--up $up: $(cat "$T/err")"
+done
 finish
