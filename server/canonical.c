@@ -44,7 +44,8 @@ int gs_scene_version(const gs_scene_conf *sc, uint64_t *out, char *err, size_t e
   char params[256];
   /* How the scene is built from its bytes is part of its version. */
   snprintf(params, sizeof params, "city=%d extent=%.17g seed=%" PRIu64 " detail=%d up=%d", sc->is_city,
-           sc->is_city ? sc->extent : 0.0, sc->is_city ? sc->seed : 0, sc->is_city ? sc->detail : 0, (int)sc->up);
+           sc->is_city ? sc->extent : 0.0, sc->is_city ? sc->seed : 0, sc->is_city ? sc->detail : 0,
+           (int)(sc->up ? sc->up : GI_UP_Y)); /* not given is y */
   uint64_t h = hash_str(FNV_OFFSET, params);
   if (!sc->is_city) {
     FILE *f = fopen(sc->source, "rb");

@@ -11,6 +11,20 @@
 #include <unistd.h>
 #include "server.h"
 
+/* A scene file without `up` whose bounds are flat along z (under a quarter
+ * of both other sides) is most likely z-up (OpenStreetMap, GIS): read with
+ * the default y, its sun lights it from the side. A note, not an error. */
+static void note_up_axis(const gs_config *cfg, const gs_scene_conf *sc, const gi_scene *scene) {
+  if (sc->is_city || sc->up) return;
+  double lo[3], hi[3], e[3];
+  gi_scene_bounds(scene, lo, hi);
+  for (int k = 0; k < 3; k++) e[k] = hi[k] - lo[k];
+  if (e[2] < 0.25 * e[0] && e[2] < 0.25 * e[1])
+    fprintf(stderr, "gi-server: note: %s:%d: [scene %s] is flat along z (%g x %g x %g) and has no 'up': read with y "
+            "up; if z is up, as in OpenStreetMap and GIS exports, add 'up = z'\n", cfg->path, sc->line, sc->id, e[0],
+            e[1], e[2]);
+}
+
 int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t errsize) {
   memset(cat, 0, sizeof *cat);
   cat->scenes = calloc(cfg->num_scenes ? cfg->num_scenes : 1, sizeof *cat->scenes);
@@ -22,7 +36,7 @@ int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t err
     const gs_scene_conf *sc = &cfg->scenes[i];
     gs_scene *s = &cat->scenes[cat->num];
     gi_error_info e = {0};
-    gi_scene_options opt = {.up = sc->up, .threads = cfg->bake_threads, .default_lights = 1};
+    gi_scene_options opt = {.up = sc->up ? sc->up : GI_UP_Y, .threads = cfg->bake_threads, .default_lights = 1};
     double t0 = gs_now_ms();
     gi_result rc;
     if (sc->is_city) {
@@ -65,6 +79,7 @@ int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t err
     gi_scene_get_stats(s->scene, &st);
     fprintf(stderr, "gi-server: scene '%s': %llu triangles, %u lights, loaded in %.0f ms\n", s->id,
             (unsigned long long)st.triangles, st.lights, s->load_ms);
+    note_up_axis(cfg, sc, s->scene);
     cat->num++;
   }
   return 0;

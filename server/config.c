@@ -262,8 +262,7 @@ static int on_entry(void *user, const char *section, const char *name, const cha
       x->cur = &c->scenes[c->num_scenes++];
       memset(x->cur, 0, sizeof *x->cur);
       snprintf(x->cur->id, sizeof x->cur->id, "%s", id);
-      x->cur->up = GI_UP_Y;
-      x->cur->line = x->line;
+      x->cur->line = x->line; /* up stays 0 until given: y, but a flat scene gets a note (catalog.c) */
     }
     return scene_key(x, section, name, value);
   }

@@ -31,7 +31,7 @@ typedef struct gs_scene_conf {
   double extent;        /* city only */
   uint64_t seed;        /* city only */
   int detail;           /* city only */
-  gi_up_axis up;
+  gi_up_axis up;        /* 0 = not given: y */
   int optional;         /* a missing file is a warning, not an error */
   int line;             /* where the section starts, for messages */
 } gs_scene_conf;

@@ -71,6 +71,14 @@ expect tmpdir 1 "tmp_dir: '$T/nowhere' is not a writable folder"
 expect absent 1 "absent.ini: cannot open config"
 printf '[limits]\nmax_probes_inline = 10\nmax_probes_job = 5\n%s\n' "$scene" > "$T/order.ini"
 expect order 1 "max_probes_inline (10) exceeds max_probes_job (5)"
+# A scene file flat along z without 'up' (an OpenStreetMap export): loaded
+# with y up and a note naming the fix; none once 'up' is given.
+printf 'v 0 0 0\nv 100 0 0\nv 100 80 0\nv 0 80 0\nv 10 10 0\nv 10 10 12\nv 20 10 12\nf 1 2 3 4\nf 5 6 7\n' > "$T/flat.obj"
+printf '[scene flat]\nsource = flat.obj\n' > "$T/flat.ini"
+expect flat 0 "[scene flat] is flat along z (100 x 80 x 12) and has no 'up': read with y up; if z is up"
+printf '[scene flat]\nsource = flat.obj\nup = z\n' > "$T/flatz.ini"
+expect flatz 0 "is valid: 1 scene(s)"
+case "$("$BIN" --config "$T/flatz.ini" --check-config 2>&1)" in *"flat along z"*) fail "flatz: a note with up = z";; esac
 
 # Bad command lines exit 2.
 "$BIN" --port 70000 >/dev/null 2>&1; [ $? -eq 2 ] || fail "--port 70000 should exit 2"
