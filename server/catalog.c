@@ -11,18 +11,15 @@
 #include <unistd.h>
 #include "server.h"
 
-/* A scene file without `up` whose bounds are flat along z (under a quarter
- * of both other sides) is most likely z-up (OpenStreetMap, GIS): read with
- * the default y, its sun lights it from the side. A note, not an error. */
+/* A scene file without `up` that looks z-up (gi_scene_looks_z_up): read
+ * with y, its sun lights it from the side. A note, not an error. */
 static void note_up_axis(const gs_config *cfg, const gs_scene_conf *sc, const gi_scene *scene) {
-  if (sc->is_city || sc->up) return;
-  double lo[3], hi[3], e[3];
+  if (sc->is_city || sc->up || !gi_scene_looks_z_up(scene)) return;
+  double lo[3], hi[3];
   gi_scene_bounds(scene, lo, hi);
-  for (int k = 0; k < 3; k++) e[k] = hi[k] - lo[k];
-  if (e[2] < 0.25 * e[0] && e[2] < 0.25 * e[1])
-    fprintf(stderr, "gi-server: note: %s:%d: [scene %s] is flat along z (%g x %g x %g) and has no 'up': read with y "
-            "up; if z is up, as in OpenStreetMap and GIS exports, add 'up = z'\n", cfg->path, sc->line, sc->id, e[0],
-            e[1], e[2]);
+  fprintf(stderr, "gi-server: note: %s:%d: [scene %s] is flat along z (%g x %g x %g) and has no 'up': read with y "
+          "up; if z is up, as in OpenStreetMap and GIS exports, add 'up = z'\n", cfg->path, sc->line, sc->id,
+          hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
 }
 
 int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t errsize) {

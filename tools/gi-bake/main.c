@@ -48,18 +48,14 @@ static int load_scene(const cli_opts *o, gi_scene **scene) {
   return r == GI_OK ? 0 : fail(o->is_city ? "city" : "scene", &err, r);
 }
 
-/* A scene file read with the default y up whose bounds are flat along z
- * (under a quarter of both other sides) is most likely z-up, as
- * OpenStreetMap and GIS exports are: its sun and sky would light it from
- * the side. Still a valid request, so only a note, with the fix. */
+/* A scene file read with the default y up that looks z-up
+ * (gi_scene_looks_z_up): still a valid request, so only a note, with the fix. */
 static void note_up_axis(const cli_opts *o, const gi_scene *scene) {
-  if (o->is_city || o->up) return;
-  double lo[3], hi[3], e[3];
+  if (o->is_city || o->up || !gi_scene_looks_z_up(scene)) return;
+  double lo[3], hi[3];
   gi_scene_bounds(scene, lo, hi);
-  for (int k = 0; k < 3; k++) e[k] = hi[k] - lo[k];
-  if (e[2] < 0.25 * e[0] && e[2] < 0.25 * e[1])
-    fprintf(stderr, "gi-bake: note: the scene is flat along z (%g x %g x %g) but read with y up (the default): "
-            "if z is up, as in OpenStreetMap and GIS exports, pass --up z\n", e[0], e[1], e[2]);
+  fprintf(stderr, "gi-bake: note: the scene is flat along z (%g x %g x %g) but read with y up (the default): "
+          "if z is up, as in OpenStreetMap and GIS exports, pass --up z\n", hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
 }
 
 /* Without --at: the city's street corner, or the centre of the bounds (said

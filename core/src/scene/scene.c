@@ -598,6 +598,13 @@ void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]) {
   }
 }
 
+int gi_scene_looks_z_up(const gi_scene *s) {
+  if (!s || s->up == GI_UP_Z) return 0;
+  double e[3];
+  for (int k = 0; k < 3; k++) e[k] = (double)s->hi[k] - (double)s->lo[k];
+  return e[2] < 0.25 * e[0] && e[2] < 0.25 * e[1];
+}
+
 /* Direction i (0..25) of the 26 of a 3x3x3 block's neighbours: axes, face
  * and cube diagonals, unit length. */
 #define NUM_DIR26 26
