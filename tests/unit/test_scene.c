@@ -795,6 +795,30 @@ static void test_obj_materials(void **state) {
 
 static void expect_bad(const char *path, gi_result code, const char *what);
 
+/* gi_scene_looks_z_up: a 100 x 80 x 12 block read with y up is a z-up
+ * export by its bounds; the same with z up is not, nor a 100 x 80 x 30
+ * block or a cube. */
+static void test_looks_z_up(void **state) {
+  (void)state;
+  const double dims[3][3] = {{100, 80, 12}, {100, 80, 30}, {10, 10, 10}};
+  const int want[3] = {1, 0, 0};
+  for (int i = 0; i < 3; i++)
+    for (int up = GI_UP_Y; up <= GI_UP_Z; up++) {
+      gi_mesh_builder *b = gi_mesh_builder_new();
+      gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+      double lo[3] = {0, 0, 0};
+      gi_mesh_builder_add_box(b, lo, dims[i], gi_mesh_builder_add_material(b, &m));
+      gi_scene_options o = {.up = (gi_up_axis)up};
+      gi_scene *s = NULL;
+      gi_error_info err = {0};
+      assert_int_equal(gi_scene_build(b, "box", &o, &s, &err), GI_OK);
+      assert_int_equal(gi_scene_looks_z_up(s), up == GI_UP_Y ? want[i] : 0);
+      gi_scene_release(s);
+      gi_mesh_builder_free(b);
+    }
+  assert_int_equal(gi_scene_looks_z_up(NULL), 0);
+}
+
 /* The OBJ spec's line continuation (a backslash ending a line), as assimp
  * reads it for the materials: the backslash and the line end dropped. Our
  * reader refused "f 1 2 \\" as a face corner '\\'. A usemtl continued
@@ -1680,6 +1704,7 @@ int main(void) {
       cmocka_unit_test(test_bad_files),
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
+      cmocka_unit_test(test_looks_z_up),
       cmocka_unit_test(test_obj_continuation),
       cmocka_unit_test(test_energy_conservation),
       cmocka_unit_test(test_gltf),
