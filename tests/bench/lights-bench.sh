@@ -74,6 +74,11 @@ for n in (256, 4096, 16384):
                         "min": [-100, 0, -100], "max": [100, 12, 100]},
                        {"bufferView": 1, "componentType": 5125, "count": len(I), "type": "SCALAR"}]}
     json.dump(g, open("%s/lamps%d.gltf" % (d, n), "w"))
+    # This tree reads glTF intensities as candela (683 lm/W), the base as W/sr:
+    # the same lamps in those units, so both builds bake the same W/sr.
+    for l in lights:
+        l["intensity"] *= 683
+    json.dump(g, open("%s/lamps%d-cd.gltf" % (d, n), "w"))
 rnd = random.Random(2)
 with open(d + "/probes.txt", "w") as f:
     for _ in range(1000):
@@ -86,8 +91,9 @@ for n in 256 4096 16384; do
   i=0
   while [ $i -lt "$RUNS" ]; do
     for side in old now; do
-      bin=$OLD; [ $side = now ] && bin=$NOW
-      "$bin" "$TMP/lamps$n.gltf" --at 0,2,0 --threads 2 --probes "$TMP/probes.txt" --json \
+      bin=$OLD scene="$TMP/lamps$n.gltf"
+      [ $side = now ] && bin=$NOW scene="$TMP/lamps$n-cd.gltf"
+      "$bin" "$scene" --at 0,2,0 --threads 2 --probes "$TMP/probes.txt" --json \
         > "$TMP/$n.$side.$i.json" 2> "$TMP/err" || say "$n lamps ($side): $(tail -n 1 "$TMP/err")"
     done
     i=$((i + 1))

@@ -236,7 +236,7 @@ static void test_many_lamps_file(void **state) {
     assert_int_equal(l->type, GI_LIGHT_POINT);
     assert_float_equal(l->position[0], 4000000.1 + i % 100 + 0.25, 1e-6);
     assert_true(l->position[1] == 3 + i % 5 && l->position[2] == i / 100);
-    assert_float_equal(l->color[1], 50.0, 0);
+    assert_float_equal(l->color[1], 50.0 / 683, 1e-7); /* candela to W/sr */
   }
   gi_scene_release(s);
 }

@@ -896,10 +896,10 @@ static void test_gltf(void **state) {
   assert_float_equal(l->position[0], 2.0, 1e-6);
   assert_float_equal(l->position[1], 4.0, 1e-6);
   assert_float_equal(l->position[2], 6.0, 1e-6);
-  /* assimp folds KHR_lights_punctual's intensity into the colour. */
-  assert_float_equal(l->color[0], 10.0, 1e-5);
-  assert_float_equal(l->color[1], 5.0, 1e-5);
-  assert_float_equal(l->color[2], 2.5, 1e-5);
+  /* Colour times intensity, candela to W/sr (683 lm/W, gltf_recentre.c). */
+  assert_float_equal(l->color[0], 10.0 / 683, 1e-7);
+  assert_float_equal(l->color[1], 5.0 / 683, 1e-7);
+  assert_float_equal(l->color[2], 2.5 / 683, 1e-7);
   assert_string_equal(gi_scene_name(s), "tri");
   gi_scene_release(s);
 }
@@ -994,6 +994,31 @@ static const char *gltf_lights(const char *name, const char *nodes, const char *
   return tu_write_file(name, json, strlen(json));
 }
 
+/* KHR_lights_punctual's units are photometric: Blender writes a 1000 W
+ * point lamp as 54351.4 cd (1000 / 4 pi W/sr at 683 lm/W) and a sun of
+ * 3 W/m^2 as 2049 lux. They load as those radiometric values (they baked
+ * 683x too bright before). */
+static void test_gltf_light_units(void **state) {
+  (void)state;
+  const char *nodes = "{\"translation\":[0,3,0],\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+                      "{\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}}";
+  const char *lights = "{\"type\":\"point\",\"intensity\":54351.41306588226},"
+                       "{\"type\":\"directional\",\"color\":[1,0.5,1],\"intensity\":2049}";
+  gi_scene *s = load_ok(gltf_lights("units.gltf", nodes, "0,1,2", lights), NULL);
+  assert_int_equal(gi_scene_num_lights(s), 2);
+  for (size_t i = 0; i < 2; i++) {
+    const gi_light *l = gi_scene_light(s, i);
+    if (l->type == GI_LIGHT_POINT) {
+      assert_float_equal(l->color[0], 1000 / (4 * M_PI), 1e-4);
+    } else {
+      assert_int_equal(l->type, GI_LIGHT_SUN);
+      assert_float_equal(l->color[0], 3.0, 1e-6);
+      assert_float_equal(l->color[1], 1.5, 1e-6);
+    }
+  }
+  gi_scene_release(s);
+}
+
 /* Two KHR_lights_punctual spots: one turned to shine down (-90 degrees
  * about x) with inner and outer half-angles 0.3 and 0.5 rad, one with an
  * empty spot object (the spec's defaults, 0 and pi/4) shining down -z.
@@ -1021,7 +1046,7 @@ static void test_gltf_spots(void **state) {
   assert_float_equal(a->cos_outer, cos(0.5), 1e-6);
   assert_float_equal(a->direction[1], -1.0, 1e-5);
   assert_float_equal(a->position[1], 5.0, 1e-6);
-  assert_float_equal(a->color[0], 100.0, 1e-4);
+  assert_float_equal(a->color[0], 100.0 / 683, 1e-6); /* candela to W/sr */
   printf("spot 1: cos inner %.6f outer %.6f (want 1 %.6f), direction %g %g %g\n", b->cos_inner, b->cos_outer,
          cos(M_PI / 4), b->direction[0], b->direction[1], b->direction[2]);
   assert_float_equal(b->cos_inner, 1.0, 1e-6);
@@ -1055,8 +1080,8 @@ static void test_gltf_light_nodes(void **state) {
     assert_float_equal(a->direction[k], k == 0 ? -1.0 : 0.0, 1e-6);
     assert_float_equal(b->direction[k], k == 2 ? -1.0 : 0.0, 1e-6);
   }
-  assert_float_equal(a->color[0], 4.0, 1e-6);
-  assert_float_equal(a->color[2], 1.0, 1e-6);
+  assert_float_equal(a->color[0], 4.0 / 683, 1e-8);
+  assert_float_equal(a->color[2], 1.0 / 683, 1e-8);
   assert_float_equal(a->cos_outer, cos(0.6), 1e-6);
   assert_float_equal(a->cos_inner, 1.0, 1e-6);
   gi_scene_release(s);
@@ -1709,6 +1734,7 @@ int main(void) {
       cmocka_unit_test(test_energy_conservation),
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_gltf_emissive_strength),
+      cmocka_unit_test(test_gltf_light_units),
       cmocka_unit_test(test_gltf_spots),
       cmocka_unit_test(test_gltf_light_nodes),
       cmocka_unit_test(test_vertex_colors_files),

@@ -184,6 +184,12 @@ static int flatten(json_t *scene, walk *w, double t[3]) {
 /* ---- KHR_lights_punctual: read here, hidden from assimp ----------------- */
 
 #define KHR_LIGHTS "KHR_lights_punctual"
+/* KHR_lights_punctual's intensities are photometric: candela for point and
+ * spot lights, lux for directional ones. Ours are radiometric (W/sr, W/m^2):
+ * divided by the luminous efficacy the glTF exporters convert with (683
+ * lm/W; Blender writes a 1000 W lamp as 54351 cd and a sun of 3 W/m^2 as
+ * 2049 lux). Read as they were, Blender's lights baked 683x too bright. */
+#define GLTF_LUMENS_PER_WATT 683.0
 
 /* The light reference of a node, or NULL. */
 static json_t *node_light(json_t *node) { return json_object_get(json_object_get(node, "extensions"), KHR_LIGHTS); }
@@ -248,7 +254,7 @@ static int read_light(json_t *defs, json_t *node, size_t idx, const double m[16]
     return -1;
   }
   for (int k = 0; k < 3; k++) {
-    l->color[k] = (float)(c[k] * in);
+    l->color[k] = (float)(c[k] * in / GLTF_LUMENS_PER_WATT);
     l->position[k] = m[12 + k];
     l->direction[k] = (float)-m[8 + k];
   }
