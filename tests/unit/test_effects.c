@@ -75,8 +75,8 @@ static void test_bounces_from_albedo(void **state) {
   }
 }
 
-/* A closed box of Blender's default material as an OBJ gives it (albedo
- * 0.8, glossy lobe 0.5): reflected 130% before scene.c scaled it to 100%,
+/* A closed box of albedo 0.8 with a glossy lobe of 0.5 (as Blender's
+ * default material read from an OBJ was): reflected 130% before scene.c scaled it to 100%,
  * and the plan's tail read -1237%, then inf%. The plan reports mean
  * albedo 1.00 and a finite, positive tail (its ratio capped as the bake
  * caps it); the probe is finite. */

@@ -692,19 +692,23 @@ static void test_nonfinite_obj(void **state) {
   gi_scene_release(s);
 }
 
-/* A material reflects at most what it receives: Blender's default exported
- * as OBJ (Kd 0.8, Ks 0.5, Ns 250) reflected 130%, every bounce brighter than
- * the last. Albedo and glossy lobe are scaled together to sum to 1, and so
- * are the triangles' own albedos; a rough material's Ks (no lobe) and a sum
- * of exactly 1 stay; the effect plan's tail stays finite and positive. */
+/* A material reflects at most what it receives: Kd 0.8 under a lobe of
+ * reflectance 0.5 (Ks 1, Ns 8: 8 / (Ns + 8) of Ks) reflected 130%, every
+ * bounce brighter than the last. Albedo and glossy lobe are scaled
+ * together to sum to 1, and so are the triangles' own albedos; a rough
+ * material's Ks (no lobe) and a sum of exactly 1 stay. Blender's default
+ * (Kd 0.8, Ks 0.5, Ns 250) is a lobe of 1.55% (MTL's unnormalised
+ * Blinn-Phong), not a 50% mirror. */
 static void test_energy_conservation(void **state) {
   (void)state;
-  const char mtl[] = "newmtl blender\nKd 0.8 0.6 0.4\nKs 0.5 0.5 0.5\nNs 250\n"
+  const char mtl[] = "newmtl blender\nKd 0.8 0.6 0.4\nKs 1 1 1\nNs 8\n"
                      "newmtl rough\nKd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nNs 0\n"
-                     "newmtl edge\nKd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nNs 250\n";
+                     "newmtl edge\nKd 0.5 0.5 0.5\nKs 1 1 1\nNs 8\n"
+                     "newmtl default\nKd 0.8 0.8 0.8\nKs 0.5 0.5 0.5\nNs 250\n";
   tu_write_file("energy.mtl", mtl, strlen(mtl));
   const char obj[] = "mtllib energy.mtl\nv 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nv 0 0 4\nv 4 0 4\n"
-                     "usemtl blender\nf 1 2 3\nusemtl rough\nf 1 3 4\nusemtl edge\nf 1 2 6 5\n";
+                     "usemtl blender\nf 1 2 3\nusemtl rough\nf 1 3 4\nusemtl edge\nf 1 2 6 5\n"
+                     "usemtl default\nf 2 3 6\n";
   gi_scene *s = load_ok(tu_write_file("energy.obj", obj, strlen(obj)), NULL);
   gi_scene_stats st;
   gi_scene_get_stats(s, &st);
@@ -720,6 +724,9 @@ static void test_energy_conservation(void **state) {
       assert_float_equal(m->albedo[0] + m->specular, 1.0, 1e-6);
     } else if (!strcmp(m->name, "rough")) {
       assert_true(m->albedo[0] == 0.8f && m->specular == 0.5f && m->roughness == 1.f);
+    } else if (!strcmp(m->name, "default")) {
+      assert_true(m->albedo[0] == 0.8f);
+      assert_float_equal(m->specular, 0.5 * 8 / 258.0, 1e-7);
     } else {
       assert_string_equal(m->name, "edge");
       assert_true(m->albedo[0] == 0.5f && m->specular == 0.5f);
@@ -784,7 +791,7 @@ static void test_obj_materials(void **state) {
   assert_non_null(g);
   assert_non_null(l);
   assert_float_equal(g->roughness, sqrt(2.0 / 100.0), 1e-6);
-  assert_float_equal(g->specular, 0.5, 1e-6);
+  assert_float_equal(g->specular, 0.5 * 8 / 106.0, 1e-7); /* Ks 0.5, Ns 98: 8 / (Ns + 8) of Ks */
   assert_float_equal(g->albedo[2], 0.4, 1e-6);
   assert_true(l->albedo[0] == 1.f);
   assert_float_equal(l->emission[1], 3.0, 1e-6);

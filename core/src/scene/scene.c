@@ -176,12 +176,11 @@ static int clampf(float *x, float lo, float hi, float bad) {
 /* Sanitises m in place; returns 1 when the albedo (or any non-finite value)
  * had to be changed, which is what stats.clamped_albedo counts. *energy
  * receives the factor the albedo and the glossy lobe were scaled by so that
- * together they reflect at most what arrives (1: they did already). An
- * OBJ's or Collada's Ks is taken as the glossy lobe's reflectance, and
- * Blender writes its default material as Kd 0.8 with Ks 0.5 (0.4 in
- * Collada): 130% reflected, every bounce brighter than the last and the
- * plan's geometric tail negative. Scaling both keeps their balance and is
- * continuous at 1. */
+ * together they reflect at most what arrives (1: they did already). A
+ * material of albedo 0.8 with a glossy lobe of 0.5 (a file's Kd 0.8, Ks 1,
+ * Ns 8, or a builder's) reflected 130%: every bounce brighter than the
+ * last and the plan's geometric tail negative. Scaling both keeps their
+ * balance and is continuous at 1. */
 static int sanitize_material(gi_material *m, float *energy) {
   int changed = 0;
   for (int k = 0; k < 3; k++) {
