@@ -115,8 +115,8 @@ void gi_scene_release(gi_scene *s);
 void gi_scene_get_stats(const gi_scene *s, gi_scene_stats *out);
 /* World-space bounds of the kept triangles (min, max). Empty scene: origin both. */
 void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]);
-/* 1 when the bounds are flat along the file's z (its extent under a quarter
- * of both others) while the scene was read with y up: most likely a z-up
+/* 1 when the bounds are flat along the file's z (its extent above 0 and
+ * under a quarter of both others) while the scene was read with y up: most likely a z-up
  * export (OpenStreetMap, GIS) whose sun and sky would light it from the
  * side. For tools to note; the scene is valid either way. */
 int gi_scene_looks_z_up(const gi_scene *s);

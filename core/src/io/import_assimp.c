@@ -417,10 +417,16 @@ static char *trim(char *l) {
   return l;
 }
 
-/* Records which materials of one MTL file have a Kd line. 0: out of memory. */
+/* Records which materials of one MTL file have a Kd line; one that cannot
+ * be read is a warning (assimp goes on without it, every material it holds
+ * grey). 0: out of memory. */
 static int scan_mtl(tex_ctx *tc, const char *mtl_path) {
   FILE *f = fopen(mtl_path, "rb");
-  if (!f) return 1;
+  if (!f) {
+    fprintf(stderr, "gi: warning: scene file '%s': material library '%s' cannot be read (%s): its materials "
+            "load as assimp's grey default (albedo 0.6)\n", tc->path, mtl_path, strerror(errno));
+    return 1;
+  }
   char line[1024];
   long cur = -1;
   int ok = 1;
@@ -471,6 +477,20 @@ static int scan_obj_mtllibs(tex_ctx *tc) {
   return ok;
 }
 
+/* OBJ only: warns when material `name` (ours, maybe cut to gi_material's
+ * name length) is used but defined in none of the file's MTL files: assimp
+ * makes it grey (0.6), as a typo in usemtl or newmtl would. 0: out of memory. */
+static int check_obj_material(tex_ctx *tc, const char *name) {
+  if (!ends_with_ci(tc->path, ".obj") || !strcmp(name, AI_DEFAULT_MATERIAL_NAME)) return 1;
+  if (!scan_obj_mtllibs(tc)) return 0;
+  size_t n = strlen(name), cut = sizeof(((gi_material *)0)->name) - 1; /* n == cut: ours may be cut short */
+  for (size_t i = 0; i < tc->nmtl; i++)
+    if (n == cut ? !strncmp(tc->mtl[i].name, name, n) : !strcmp(tc->mtl[i].name, name)) return 1;
+  fprintf(stderr, "gi: warning: scene file '%s': material '%s' is used but defined in none of its material "
+          "libraries: grey (albedo 0.6)\n", tc->path, name);
+  return 1;
+}
+
 /* The factor that goes with a diffuse texture. assimp reports Kd 0.6 for an
  * OBJ material without a Kd line, and map_Kd alone means "the texture as is",
  * so for OBJ the MTL is consulted: no Kd line gives a factor of 1. 0: out of memory. */
@@ -518,6 +538,7 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
     snprintf(m->name, sizeof m->name, "%.*s", (int)(name.length < sizeof m->name ? name.length : sizeof m->name - 1),
              name.data);
+  if (!check_obj_material(tc, m->name)) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
   float c[3];
   /* glTF's base colour is the truer albedo when both are present. */
   int has_factor = get_color(am, AI_MATKEY_BASE_COLOR, c) || get_color(am, AI_MATKEY_COLOR_DIFFUSE, c);

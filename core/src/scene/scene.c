@@ -601,7 +601,7 @@ int gi_scene_looks_z_up(const gi_scene *s) {
   if (!s || s->up == GI_UP_Z) return 0;
   double e[3];
   for (int k = 0; k < 3; k++) e[k] = (double)s->hi[k] - (double)s->lo[k];
-  return e[2] < 0.25 * e[0] && e[2] < 0.25 * e[1];
+  return e[2] > 0 && e[2] < 0.25 * e[0] && e[2] < 0.25 * e[1]; /* a plane alone may stand either way */
 }
 
 /* Direction i (0..25) of the 26 of a 3x3x3 block's neighbours: axes, face
