@@ -218,6 +218,82 @@ int ta_mkdirs(ta_ctx *c, const char *opt, const char *path) {
   return rc;
 }
 
+/* A path line's fields: "t,x,y,z" with blanks around, '#' starts a comment. */
+static int path_line(char *line, double v[4]) {
+  char *hash = strchr(line, '#');
+  if (hash) *hash = 0;
+  char *p = line, *q = line;
+  for (; *p; p++)
+    if (*p != ' ' && *p != '\t' && *p != '\r' && *p != '\n') *q++ = *p;
+  *q = 0;
+  if (!*line) return 1; /* blank or comment only */
+  return ta_parse_doubles(line, v, 4) == TA_OK ? 0 : -1;
+}
+
+/* A column header ("t,x,y,z", "time_s,x,y,z"): four comma-separated names,
+ * each starting with a letter, as spreadsheets and pandas write them.
+ * Allowed on the first line only; line holds path_line's blank-free text. */
+static int path_header(const char *line) {
+  int fields = 0;
+  for (const char *f = line; f; f = strchr(f, ',') ? strchr(f, ',') + 1 : NULL) {
+    if (!((*f >= 'a' && *f <= 'z') || (*f >= 'A' && *f <= 'Z'))) return 0;
+    fields++;
+  }
+  return fields == 4;
+}
+
+int ta_read_path(ta_ctx *ta, const char *opt, const char *path, ta_step **out, size_t *n) {
+  FILE *f = fopen(path, "r");
+  if (!f) return ta_error(ta, TA_EXIT_RUN, opt, "cannot open '%s': %s", path, strerror(errno));
+  ta_step *s = NULL;
+  size_t cap = 0, k = 0;
+  char line[TA_PATH_LINE_MAX + 2];
+  int rc = 0, seen = 0; /* seen: a line that is not blank or a comment, so no header may follow */
+  for (long no = 1; !rc && fgets(line, sizeof line, f); no++) {
+    if (!strchr(line, '\n') && !feof(f)) {
+      rc = ta_error(ta, TA_EXIT_USAGE, opt, "%s:%ld: line longer than %d bytes", path, no, TA_PATH_LINE_MAX);
+      break;
+    }
+    char copy[sizeof line];
+    snprintf(copy, sizeof copy, "%s", line);
+    copy[strcspn(copy, "\r\n")] = 0;
+    double v[4] = {0, 0, 0, 0};
+    int st = path_line(line, v);
+    if (st > 0) continue;
+    if (st < 0 && !k && !seen && path_header(line)) {
+      seen = 1;
+      continue;
+    }
+    seen = 1;
+    if (st < 0) rc = ta_error(ta, TA_EXIT_USAGE, opt, "%s:%ld: expected t,x,y,z (four finite numbers), got '%.80s'",
+                              path, no, copy);
+    else if (k && v[0] < s[k - 1].t)
+      rc = ta_error(ta, TA_EXIT_USAGE, opt, "%s:%ld: t = %g goes back in time (the line before has %g)", path, no,
+                    v[0], s[k - 1].t);
+    if (rc) break;
+    if (k == cap) {
+      cap = cap ? 2 * cap : 64;
+      ta_step *ns = realloc(s, cap * sizeof *ns);
+      if (!ns) {
+        rc = ta_error(ta, TA_EXIT_RUN, opt, "out of memory");
+        break;
+      }
+      s = ns;
+    }
+    s[k++] = (ta_step){v[0], {v[1], v[2], v[3]}};
+  }
+  if (!rc && ferror(f)) rc = ta_error(ta, TA_EXIT_RUN, opt, "cannot read '%s'", path);
+  fclose(f);
+  if (!rc && !k) rc = ta_error(ta, TA_EXIT_USAGE, opt, "%s: no steps (one 't,x,y,z' per line expected)", path);
+  if (rc) {
+    free(s);
+    return rc;
+  }
+  *out = s;
+  *n = k;
+  return 0;
+}
+
 int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, double **pts, size_t *n) {
   gi_error_info e = {0};
   gi_result rc = gi_points_read(path, max, pts, n, &e);

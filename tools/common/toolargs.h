@@ -87,6 +87,20 @@ int ta_check_output(ta_ctx *c, const char *opt, const char *path);
  * errno's reason said. */
 int ta_mkdirs(ta_ctx *c, const char *opt, const char *path);
 
+/* One step of a path file: its time (seconds) and viewpoint. */
+typedef struct ta_step {
+  double t;
+  double at[3];
+} ta_step;
+/* Longest path line read; longer is an error naming the line. */
+#define TA_PATH_LINE_MAX 512
+/* Reads a path file: one 't,x,y,z' per line (blanks around fields, '#'
+ * comments, CRLF, an optional first line of four column names such as
+ * "t,x,y,z"), t in seconds and not decreasing. *out is malloc'ed (the
+ * caller frees it). Returns 0, TA_EXIT_USAGE (a bad line, named by file and
+ * number; no steps) or TA_EXIT_RUN (cannot read, out of memory). */
+int ta_read_path(ta_ctx *c, const char *opt, const char *path, ta_step **out, size_t *n);
+
 /* Reads a points file (gi_points.h: one 'x y z' per line, '#' comments) of
  * at most max points. Returns 0, TA_EXIT_USAGE (a bad line, named by file
  * and number, or too many) or TA_EXIT_RUN (cannot read). */

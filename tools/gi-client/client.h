@@ -14,10 +14,7 @@ typedef enum gc_command {
 } gc_command;
 
 /* One step of a walk's path: its time (seconds) and viewpoint. */
-typedef struct gc_step {
-  double t;
-  double at[3];
-} gc_step;
+typedef ta_step gc_step;
 
 #define GC_MAX_SETS 16
 
@@ -86,8 +83,6 @@ char *gc_session_url(const gc_opts *o, CURL *c);
  * the values percent-encoded as every query (a '+' would read as a space).
  * The caller frees it; NULL when out of memory. */
 char *gc_step_url(const gc_opts *o, CURL *c, const char *sid, const double at[3]);
-/* walk.c: reads --path FILE ('t,x,y,z' lines); 0, or an exit code after the message. */
-int gc_read_path(ta_ctx *ta, const char *path, gc_step **out, size_t *n);
 /* walk.c: the walk command. */
 int gc_walk(const gc_opts *o, CURL *c);
 

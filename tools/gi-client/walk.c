@@ -20,89 +20,10 @@
 #include "client.h"
 #include "gi_proto.h"
 
-/* Longest path line read; longer is an error naming the line. */
-#define WALK_LINE_MAX 512
-
 static volatile sig_atomic_t g_walk_stop;
 static void on_walk_signal(int sig) {
   (void)sig;
   g_walk_stop = 1;
-}
-
-/* A path line's fields: "t,x,y,z" with blanks around, '#' starts a comment. */
-static int parse_line(char *line, double v[4]) {
-  char *hash = strchr(line, '#');
-  if (hash) *hash = 0;
-  char *p = line, *q = line;
-  for (; *p; p++)
-    if (*p != ' ' && *p != '\t' && *p != '\r' && *p != '\n') *q++ = *p;
-  *q = 0;
-  if (!*line) return 1; /* blank or comment only */
-  return ta_parse_doubles(line, v, 4) == TA_OK ? 0 : -1;
-}
-
-/* A column header ("t,x,y,z", "time_s,x,y,z"): four comma-separated names,
- * each starting with a letter, as spreadsheets and pandas write them.
- * Allowed on the first line only; line holds parse_line's blank-free text. */
-static int is_header(const char *line) {
-  int fields = 0;
-  for (const char *f = line; f; f = strchr(f, ',') ? strchr(f, ',') + 1 : NULL) {
-    if (!((*f >= 'a' && *f <= 'z') || (*f >= 'A' && *f <= 'Z'))) return 0;
-    fields++;
-  }
-  return fields == 4;
-}
-
-int gc_read_path(ta_ctx *ta, const char *path, gc_step **out, size_t *n) {
-  FILE *f = fopen(path, "r");
-  if (!f) return ta_error(ta, EXIT_RUN, "--path", "cannot open '%s': %s", path, strerror(errno));
-  gc_step *s = NULL;
-  size_t cap = 0, k = 0;
-  char line[WALK_LINE_MAX + 2];
-  int rc = 0, seen = 0; /* seen: a line that is not blank or a comment, so no header may follow */
-  for (long no = 1; !rc && fgets(line, sizeof line, f); no++) {
-    if (!strchr(line, '\n') && !feof(f)) {
-      rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: line longer than %d bytes", path, no, WALK_LINE_MAX);
-      break;
-    }
-    char copy[sizeof line];
-    snprintf(copy, sizeof copy, "%s", line);
-    copy[strcspn(copy, "\r\n")] = 0;
-    double v[4];
-    int st = parse_line(line, v);
-    if (st > 0) continue;
-    if (st < 0 && !k && !seen && is_header(line)) {
-      seen = 1;
-      continue;
-    }
-    seen = 1;
-    if (st < 0) rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: expected t,x,y,z (four finite numbers), got '%.80s'",
-                              path, no, copy);
-    else if (k && v[0] < s[k - 1].t)
-      rc = ta_error(ta, EXIT_USAGE, "--path", "%s:%ld: t = %g goes back in time (the line before has %g)", path, no,
-                    v[0], s[k - 1].t);
-    if (rc) break;
-    if (k == cap) {
-      cap = cap ? 2 * cap : 64;
-      gc_step *ns = realloc(s, cap * sizeof *ns);
-      if (!ns) {
-        rc = ta_error(ta, EXIT_RUN, "--path", "out of memory");
-        break;
-      }
-      s = ns;
-    }
-    s[k++] = (gc_step){v[0], {v[1], v[2], v[3]}};
-  }
-  if (!rc && ferror(f)) rc = ta_error(ta, EXIT_RUN, "--path", "cannot read '%s'", path);
-  fclose(f);
-  if (!rc && !k) rc = ta_error(ta, EXIT_USAGE, "--path", "%s: no steps (one 't,x,y,z' per line expected)", path);
-  if (rc) {
-    free(s);
-    return rc;
-  }
-  *out = s;
-  *n = k;
-  return 0;
 }
 
 static double mono_s(void) {
