@@ -2,7 +2,8 @@
 # (extents 200 m and 2500 m): it creates the --out folder with its parents,
 # writes both paths as t,x,y,z with 601 points 0.1 s apart at the walk's
 # and the drive's speed (1.4 and 14 m/s, eye 1.7 and 1.2 m; a corner's step
-# is a shorter chord), and names an --out it cannot create.
+# is a shorter chord), and names an --out it cannot create; --path replays
+# a path file through the city (its figures, JSON line and errors).
 . "$(dirname "$0")/common.sh"
 WALK="$(dirname "$BIN")/gi-walk"
 [ -x "$WALK" ] || { skip "gi-walk not built next to gi-bake"; exit 77; }
@@ -27,6 +28,30 @@ for name, speed, eye in (("walk", 1.4, 1.7), ("drive", 14.0, 1.2)):
     print(f"{name}: 601 points, steps {0.1 * speed:g} m, eye {eye} m")
 PY
 done
+# --path: a path file (a spreadsheet's: header, CRLF) replayed through the
+# 300 m city: the figures are named after the file, the JSON line has the
+# steps, no eye height and the city's extent.
+"$WALK" bench --extent 300 --paths-only --out "$T/gen" > /dev/null 2>&1
+{ printf 't,x,y,z\r\n'; head -n 30 "$T/gen/walk-drive.csv" | sed 's/$/\r/'; } > "$T/my drive.csv"
+"$WALK" bench --extent 300 --path "$T/my drive.csv" --samples 2 --out "$T/pb" --json "$T/pb.jsonl" \
+  > "$T/out" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q "^== my_drive: 14.0 m/s, eye n/a m, 29 steps at 10 Hz, " "$T/out" \
+  && grep -q "^speed-up: [0-9.]*x (mean)" "$T/out" && [ -s "$T/pb/bench-walk-steps-my_drive.csv" ] \
+  && pass "--path replayed: $(grep '^speed-up' "$T/out" | head -1)" || fail "--path (rc $rc): $(cat "$T/out" "$T/err")"
+/usr/bin/python3 - "$T/pb.jsonl" <<'PY' || fail "--path JSON: $(cat "$T/pb.jsonl")"
+import json, sys
+j = json.loads(open(sys.argv[1]).read().splitlines()[-1])
+assert j["path"] == "my_drive" and j["steps"] == 29 and j["eye_m"] is None and j["city_extent_m"] == 300, j
+assert j["cold_bakes"] >= 3 and j["speedup_mean"] > 0 and 0 <= j["drift_max"] < 1, j
+PY
+printf '0,1,2,3\n0.1,1,2\n' > "$T/bad.csv"
+"$WALK" bench --extent 300 --path "$T/bad.csv" --out "$T/pb" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q -F "gi-walk: --path: $T/bad.csv:2: expected t,x,y,z (four finite numbers), got '0.1,1,2'" "$T/err" \
+  && pass "bad path line -> 2, named" || fail "bad path line (rc $rc): $(cat "$T/err")"
+"$WALK" bench --scene "$T/bad.csv" --out "$T/pb" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q -- "--scene: bench takes a scene file with --path FILE only" "$T/err" \
+  && pass "--scene without --path -> 2" || fail "--scene without --path (rc $rc): $(cat "$T/err")"
+
 "$WALK" bench --paths-only --out /proc/gi-walk-test > "$T/out" 2> "$T/err"; rc=$?
 [ $rc -eq 1 ] && grep -q -F "gi-walk: --out: cannot create '/proc/gi-walk-test'" "$T/err" &&
   pass "uncreatable --out -> 1, named" || fail "uncreatable --out: exit $rc: $(cat "$T/err")"

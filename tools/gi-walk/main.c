@@ -2,6 +2,7 @@
  *
  *   gi-walk bench [--extent M] [--levels N] [--res R] [--seconds S] [--rate HZ]
  *                 [--samples N] [--out DIR] [--json FILE] [--paths-only]
+ *                 [--path FILE.csv [--scene FILE [--up y|z]]]
  *   gi-walk tables --label TEXT (--extent M | --scene FILE [--up y|z]) [--at X,Y,Z]
  *                  [--levels N] [--res R] [--moves N] [--vdb-max N] --md FILE
  * Exit 0 when the work ran (figures never fail it), 1 when it could not (a
@@ -19,16 +20,67 @@
 #define DEFAULT_SAMPLES 12
 #define DEFAULT_MOVES 8
 #define DEFAULT_VDB_MAX 60000000ull
+/* A point from which this share of directions meets a surface's back lies
+ * inside a solid (gi-bake's rule). */
+#define INSIDE_SHARE 0.5
 
 static const char USAGE[] =
     "usage: gi-walk bench [--extent M] [--levels N] [--res R] [--seconds S] [--rate HZ]\n"
     "                     [--samples N] [--out DIR] [--json FILE] [--paths-only]\n"
+    "                     [--path FILE.csv [--scene FILE [--up y|z]]]\n"
     "       gi-walk tables --label TEXT (--extent M | --scene FILE [--up y|z]) [--at X,Y,Z]\n"
     "                      [--levels N] [--res R] [--moves N] [--vdb-max N] --md FILE\n"
     "bench: a street walk (1.4 m/s, eye 1.7 m) and a drive (14 m/s, eye 1.2 m) through the\n"
     "  city; writes DIR/walk-walk.csv and DIR/walk-drive.csv (t,x,y,z), moves one cascade\n"
     "  along each and compares with cold bakes at N sampled grid shifts (pairs).\n"
+    "  --path FILE.csv: that path instead (t,x,y,z per line, as gi-client walk reads), through\n"
+    "  the city or --scene FILE; the figures are named after the file.\n"
     "tables: the paper's tables for one scene, appended to FILE as markdown.\n";
+
+/* The bench's scene: the city, or --scene FILE with --up. */
+static gi_scene *bench_scene(const bench_opts *o) {
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_scene_options so = {.up = o->up ? o->up : GI_UP_Y, .default_lights = 1};
+  gi_result r = o->scene_file ? gi_scene_load(o->scene_file, &so, &s, &err) : gi_city_build(&o->city, NULL, &s, &err);
+  if (r != GI_OK) fprintf(stderr, "gi-walk: %s: %s\n", o->scene_file ? "scene" : "city", err.msg);
+  return s;
+}
+
+/* --path FILE: the bench along that path (read as gi-client walk reads it). */
+static int run_path_file(const bench_opts *o, ta_ctx *ta) {
+  ta_step *st = NULL;
+  size_t n = 0;
+  int rc = ta_read_path(ta, "--path", o->path_file, &st, &n);
+  if (rc) return rc;
+  walk_path p = {0};
+  if (walk_path_from_steps(o->path_file, st, n, &p) != 0) {
+    free(st);
+    return fprintf(stderr, "gi-walk: out of memory\n"), 1;
+  }
+  free(st);
+  gi_scene *s = bench_scene(o);
+  /* A path through buildings is a valid path, but a probe inside a solid
+   * holds only leaked light: its drift and jumps mean little. Say how many. */
+  size_t inside = 0;
+  for (size_t i = 0; s && i < p.n; i++) inside += gi_scene_backface_share(s, p.at[i]) >= INSIDE_SHARE;
+  if (inside)
+    fprintf(stderr, "gi-walk: note: %zu of %zu points of %s lie inside solids (most directions meet a surface's "
+            "back): their probes hold only light that leaks in, and their drift and jumps mean little\n", inside,
+            p.n, o->path_file);
+  step_rec *steps = s ? calloc(p.n, sizeof *steps) : NULL;
+  rc = !steps || bench_path(o, s, &p, steps);
+  if (!rc) {
+    FILE *json = o->jsonl ? fopen(o->jsonl, "a") : NULL;
+    if (o->jsonl && !json) walk_file_error(o->jsonl);
+    report_path(o, &p, steps, json);
+    if (json) fclose(json);
+  }
+  free(steps);
+  walk_path_free(&p);
+  gi_scene_release(s);
+  return rc ? 1 : 0;
+}
 
 static int run_bench(const bench_opts *o, int paths_only) {
   gi_scene *s = NULL;
@@ -60,7 +112,7 @@ static int run_bench(const bench_opts *o, int paths_only) {
 }
 
 enum { O_EXTENT = 1, O_LEVELS, O_RES, O_SECONDS, O_RATE, O_SAMPLES, O_OUT, O_JSON, O_PATHS, O_LABEL, O_SCENE,
-       O_UP, O_AT, O_MOVES, O_VDBMAX, O_MD };
+       O_UP, O_AT, O_MOVES, O_VDBMAX, O_MD, O_PATH };
 
 static const struct option LONG_OPTS[] = {
     {"extent", required_argument, NULL, O_EXTENT}, {"levels", required_argument, NULL, O_LEVELS},
@@ -71,6 +123,7 @@ static const struct option LONG_OPTS[] = {
     {"scene", required_argument, NULL, O_SCENE},   {"up", required_argument, NULL, O_UP},
     {"at", required_argument, NULL, O_AT},         {"moves", required_argument, NULL, O_MOVES},
     {"vdb-max", required_argument, NULL, O_VDBMAX}, {"md", required_argument, NULL, O_MD},
+    {"path", required_argument, NULL, O_PATH},
     {NULL, 0, NULL, 0}};
 
 typedef struct all_opts {
@@ -103,6 +156,7 @@ static int parse_one(ta_ctx *ctx, int ch, const char *v, all_opts *a) {
     case O_MOVES: return ta_int(ctx, "--moves", NULL, v, 0, 100000, &a->t.moves);
     case O_VDBMAX: r = ta_u64(ctx, "--vdb-max", NULL, v, &u); a->t.vdb_max_voxels = (size_t)u; break;
     case O_MD: a->md = v; break;
+    case O_PATH: a->b.path_file = v; break;
     default: return TA_EXIT_USAGE;
   }
   return r;
@@ -138,5 +192,12 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "tables")) return run_tables(&a, &ctx);
   if (ta_mkdirs(&ctx, "--out", a.b.out_dir)) return 1;
   a.b.q.threads = 0;
+  if (a.t.scene_file && !a.b.path_file)
+    return ta_fail(&ctx, "--scene", "bench takes a scene file with --path FILE only (its walk and drive follow the city's streets)");
+  if (a.b.path_file) {
+    if (a.paths_only) return ta_fail(&ctx, "--paths-only", "writes the city's generated paths; not with --path");
+    a.b.scene_file = a.t.scene_file, a.b.up = a.t.up;
+    return run_path_file(&a.b, &ctx);
+  }
   return run_bench(&a.b, a.paths_only);
 }

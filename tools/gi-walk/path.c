@@ -11,6 +11,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "toolargs.h"
 #include "walk.h"
 #include "scene/scene_internal.h"
 
@@ -185,4 +186,35 @@ void walk_path_free(walk_path *p) {
   free(p->t);
   free(p->at);
   p->t = NULL, p->at = NULL, p->n = 0;
+}
+
+int walk_path_from_steps(const char *file, const ta_step *st, size_t n, walk_path *out) {
+  memset(out, 0, sizeof *out);
+  const char *base = strrchr(file, '/');
+  base = base ? base + 1 : file;
+  size_t k = 0;
+  for (; base[k] && base[k] != '.' && k + 1 < sizeof out->name_buf; k++) {
+    char c = base[k];
+    int ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+    out->name_buf[k] = ok ? c : '_';
+  }
+  if (!k) out->name_buf[k++] = '_';
+  out->name_buf[k] = 0;
+  out->name = out->name_buf;
+  out->t = malloc(n * sizeof *out->t);
+  out->at = malloc(n * sizeof *out->at);
+  if (!out->t || !out->at) return walk_path_free(out), -1;
+  double len = 0;
+  for (size_t i = 0; i < n; i++) {
+    out->t[i] = st[i].t;
+    memcpy(out->at[i], st[i].at, sizeof out->at[i]);
+    if (i) len += sqrt(pow(st[i].at[0] - st[i - 1].at[0], 2) + pow(st[i].at[1] - st[i - 1].at[1], 2) +
+                       pow(st[i].at[2] - st[i - 1].at[2], 2));
+  }
+  out->n = n;
+  double dur = n > 1 ? st[n - 1].t - st[0].t : 0;
+  out->speed = dur > 0 ? len / dur : NAN;
+  out->rate = dur > 0 ? (double)(n - 1) / dur : NAN;
+  out->eye = NAN;
+  return 0;
 }

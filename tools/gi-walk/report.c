@@ -89,8 +89,9 @@ static const char *num(double v, int prec) {
 
 static void print_figures(const walk_path *p, const figures *f) {
   double su_mean = f->cold_mean / f->upd_mean, su_p99 = f->cold_p99 / f->upd_p99;
-  printf("== %s: %.1f m/s, eye %.1f m, %zu steps at %.0f Hz, %zu crossing a cell boundary, %zu cold bakes "
-         "(%d levels of %d^3, finest voxel %.3f m)\n", p->name, p->speed, p->eye, f->steps, p->rate, f->crossings,
+  printf("== %s: %s m/s, eye %s m, %zu steps at %s Hz, %zu crossing a cell boundary, %zu cold bakes "
+         "(%d levels of %d^3, finest voxel %.3f m)\n", p->name, num(p->speed, 1), num(p->eye, 1), f->steps,
+         num(p->rate, 0), f->crossings,
          f->colds, p->resolved.levels, p->resolved.res, p->resolved.voxel0);
   printf("update (crossing steps): mean %s ms, p99 %s ms; cold bake: mean %s ms, p99 %s ms\n", num(f->upd_mean, 1),
          num(f->upd_p99, 1), num(f->cold_mean, 1), num(f->cold_p99, 1));
@@ -129,7 +130,7 @@ static void json_figures(const bench_opts *o, const walk_path *p, const figures 
   fprintf(json, "{\"bench\":\"walk\",\"path\":\"%s\",\"steps\":%zu,\"crossings\":%zu,\"cold_bakes\":%zu,\"pairs\":%zu",
           p->name, f->steps, f->crossings, f->colds, f->pairs);
   const struct { const char *k; double v; } kv[] = {
-      {"speed_mps", p->speed}, {"eye_m", p->eye}, {"rate_hz", p->rate}, {"city_extent_m", o->city.extent},
+      {"speed_mps", p->speed}, {"eye_m", p->eye}, {"rate_hz", p->rate}, {"city_extent_m", o->scene_file ? NAN : o->city.extent},
       {"levels", p->resolved.levels}, {"res", p->resolved.res}, {"voxel0_m", p->resolved.voxel0}, {"update_ms_mean", f->upd_mean}, {"update_ms_p99", f->upd_p99},
       {"cold_ms_mean", f->cold_mean}, {"cold_ms_p99", f->cold_p99}, {"speedup_mean", f->cold_mean / f->upd_mean},
       {"speedup_p99", f->cold_p99 / f->upd_p99}, {"update_cpu_ms_mean", f->upd_cpu_mean},

@@ -23,7 +23,8 @@
 /* --- path.c ---------------------------------------------------------------- */
 
 typedef struct walk_path {
-  const char *name;   /* "walk" or "drive" */
+  const char *name;   /* "walk" or "drive", or a --path file's base name (owned: name_buf) */
+  char name_buf[64];
   double speed;       /* m/s */
   double eye;         /* eye height above the street, m */
   double rate;        /* samples per second */
@@ -49,6 +50,12 @@ int walk_path_make(const gi_city_params *cp, const char *name, double speed, dou
  * segment to the next point is clear. Prints the first violation; 0 = ok. */
 int walk_path_check(const gi_scene *s, const gi_city_params *cp, const walk_path *p);
 int walk_path_write_csv(const walk_path *p, const char *file);
+/* A path from a file's steps (ta_read_path), named after the file's base
+ * name (characters other than letters, digits, '.', '_' and '-' become
+ * '_'); its speed is its length over its duration, its rate its steps
+ * over it, its eye height unknown (NAN). 0, or -1 when out of memory. */
+struct ta_step;
+int walk_path_from_steps(const char *file, const struct ta_step *st, size_t n, walk_path *out);
 void walk_path_free(walk_path *p);
 
 /* --- stats.c --------------------------------------------------------------- */
@@ -83,6 +90,9 @@ typedef struct bench_opts {
   int samples;          /* cold bake pairs per path */
   const char *out_dir;
   const char *jsonl;    /* appended to; NULL: none */
+  const char *path_file; /* --path: replay this file instead of the city's walk and drive */
+  const char *scene_file; /* with --path: this scene instead of the city */
+  gi_up_axis up;         /* the scene file's, 0: y */
 } bench_opts;
 
 /* One step of a path. */
