@@ -533,7 +533,7 @@ static gi_result emissive_texture(const struct aiMaterial *am, tex_ctx *tc, gi_m
 static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_material *m, mat_tex *mt,
                                   gi_error_info *err) {
   memset(m, 0, sizeof *m);
-  mt->tex = -1;
+  *mt = (mat_tex){.tex = -1}; /* add_meshes reads its uv set for every material */
   struct aiString name;
   if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
     snprintf(m->name, sizeof m->name, "%.*s", (int)(name.length < sizeof m->name ? name.length : sizeof m->name - 1),
@@ -735,7 +735,7 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
   uint32_t nmat = 0;
   if (!(tc->mt = gi__malloc((as->mNumMaterials + 1) * sizeof *tc->mt)))
     return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
-  tc->mt[0].tex = -1;
+  tc->mt[0] = (mat_tex){.tex = -1}; /* the default material's, when no material is kept */
   for (unsigned i = 0; i < as->mNumMaterials; i++) {
     gi_material m;
     mat_tex mt;
