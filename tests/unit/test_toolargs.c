@@ -316,12 +316,56 @@ static void test_files(void **state) {
   free(pts);
 }
 
+/* Spreadsheet files: a first line naming the columns is skipped (points:
+ * three names, paths: four), CRLF too; a header later, a header of the
+ * wrong width, and "nan" columns (bad numbers, not names) are errors. */
+static void test_headers(void **state) {
+  (void)state;
+  ta_ctx c = quiet_ctx();
+  double *pts = NULL;
+  size_t n = 0;
+  static const char ph[] = "# exported\r\nx, y, z\r\n1,2,3\r\n4 5 6\r\n";
+  assert_int_equal(ta_read_points(&c, "--probes", tu_write_file("ph.csv", ph, sizeof ph - 1), 16, &pts, &n), 0);
+  assert_int_equal(n, 2);
+  assert_true(pts[0] == 1 && pts[5] == 6);
+  free(pts);
+  const char *bad_pts[3] = {"1 2 3\nx y z\n", "x,y\n1,2,3\n", "nan nan nan\n1 2 3\n"};
+  const char *bad_at[3] = {"bph0.csv:2", "bph1.csv:1", "bph2.csv:1"};
+  for (int i = 0; i < 3; i++) {
+    char name[32];
+    snprintf(name, sizeof name, "bph%d.csv", i);
+    pts = NULL;
+    assert_int_equal(ta_read_points(&c, "--probes", tu_write_file(name, bad_pts[i], strlen(bad_pts[i])), 16, &pts, &n),
+                     TA_EXIT_USAGE);
+    assert_non_null(strstr(c.msg, bad_at[i]));
+    free(pts);
+  }
+  ta_step *st = NULL;
+  static const char path[] = "t_s,x,y,z\r\n0,1,2,3\r\n# pause\r\n\r\n0.5, 4 ,5,6\r\n";
+  assert_int_equal(ta_read_path(&c, "--path", tu_write_file("p.csv", path, sizeof path - 1), &st, &n), 0);
+  assert_int_equal(n, 2);
+  assert_true(st[0].t == 0 && st[0].at[2] == 3 && st[1].t == 0.5 && st[1].at[0] == 4);
+  free(st);
+  const char *bad_paths[4] = {"0,1,2,3\nt,x,y,z\n", "t,x,y\n0,1,2,3\n", "nan,nan,nan,nan\n", "1,0,0,0\n0,0,0,0\n"};
+  const char *why[4] = {"bp0.csv:2: expected t,x,y,z", "bp1.csv:1: expected t,x,y,z", "bp2.csv:1: expected t,x,y,z",
+                        "bp3.csv:2: t = 0 goes back in time"};
+  for (int i = 0; i < 4; i++) {
+    char name[32];
+    snprintf(name, sizeof name, "bp%d.csv", i);
+    st = NULL;
+    assert_int_equal(ta_read_path(&c, "--path", tu_write_file(name, bad_paths[i], strlen(bad_paths[i])), &st, &n),
+                     TA_EXIT_USAGE);
+    assert_non_null(strstr(c.msg, why[i]));
+    free(st);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_int_accepts),    cmocka_unit_test(test_int_rejects), cmocka_unit_test(test_u64),
       cmocka_unit_test(test_double_accepts), cmocka_unit_test(test_double_rejects), cmocka_unit_test(test_lists),
       cmocka_unit_test(test_option_messages), cmocka_unit_test(test_printed),   cmocka_unit_test(test_getopt),
-      cmocka_unit_test(test_files),
+      cmocka_unit_test(test_files),          cmocka_unit_test(test_headers),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -10,6 +10,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include "gi/gi_points.h"
@@ -237,6 +238,11 @@ static int path_header(const char *line) {
   int fields = 0;
   for (const char *f = line; f; f = strchr(f, ',') ? strchr(f, ',') + 1 : NULL) {
     if (!((*f >= 'a' && *f <= 'z') || (*f >= 'A' && *f <= 'Z'))) return 0;
+    /* "nan" and "inf" are bad numbers, not names: the line stays an error. */
+    size_t len = strcspn(f, ",");
+    if ((len == 3 && (!strncasecmp(f, "nan", 3) || !strncasecmp(f, "inf", 3))) ||
+        (len == 8 && !strncasecmp(f, "infinity", 8)))
+      return 0;
     fields++;
   }
   return fields == 4;

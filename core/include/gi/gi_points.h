@@ -1,6 +1,7 @@
 /* gi_points.h: the probe-point file both command-line tools read
  * (gi-bake --probes, gi-client --points): one "x y z" per line (blanks or a
- * comma between numbers), '#' starts a comment, blank lines are skipped.
+ * comma between numbers), '#' starts a comment, blank lines are skipped,
+ * and the first line may name the three columns ("x,y,z").
  * Thread-safe; the caller owns *pts (free()). */
 #ifndef GI_POINTS_H
 #define GI_POINTS_H

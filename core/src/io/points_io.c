@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include "gi/gi_points.h"
 #include "base/internal.h"
 
@@ -26,6 +27,28 @@ static int parse_line(const char *p, double v[3]) {
   return *q ? -1 : 0;
 }
 
+/* A column header ("x,y,z", "X Y Z", "px, py, pz"): three names, each
+ * starting with a letter, separated as the numbers are. Spreadsheets and
+ * pandas write one; it is taken on the first line only. */
+static int header_line(const char *p) {
+  int fields = 0;
+  while (*p) {
+    if (!((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z'))) return 0;
+    const char *f = p;
+    while (*p && *p != ' ' && *p != '\t' && *p != ',') p++;
+    /* "nan" and "inf" are bad numbers, not names: the line stays an error. */
+    int len = (int)(p - f);
+    if ((len == 3 && (!strncasecmp(f, "nan", 3) || !strncasecmp(f, "inf", 3))) ||
+        (len == 8 && !strncasecmp(f, "infinity", 8)))
+      return 0;
+    fields++;
+    while (*p == ' ' || *p == '\t') p++;
+    if (*p == ',') p++;
+    while (*p == ' ' || *p == '\t') p++;
+  }
+  return fields == 3;
+}
+
 /* The start of a bad line for an error message: a binary file's bytes
  * (control characters, bytes past ASCII) become '?', so the message
  * cannot drive a terminal; a long line is cut with "...". */
@@ -43,6 +66,7 @@ gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, 
   if (!f) return gi__fail(err, GI_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
   char *line = NULL;
   size_t cap = 0, alloc = 0, lineno = 0;
+  int seen = 0; /* a line with content: no header after it */
   double *out = NULL;
   gi_result rc = GI_OK;
   while (getline(&line, &cap, f) >= 0) {
@@ -56,6 +80,7 @@ gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, 
     while (len && (p[len - 1] == ' ' || p[len - 1] == '\t' || p[len - 1] == '\r' || p[len - 1] == '\n'))
       p[--len] = '\0';
     double v[3];
+    if (!seen++ && header_line(p)) continue;
     if (parse_line(p, v)) {
       char shown[64];
       printable(p, shown, sizeof shown);
