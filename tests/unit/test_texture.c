@@ -618,6 +618,65 @@ static void test_gltf_texture_per_triangle(void **state) {
   free(geo);
 }
 
+/* A glTF of one triangle with texture coordinates uv over the half-red
+ * image, its base-colour texture carrying KHR_texture_transform `tf` (a
+ * JSON object's members, "" for none); returns the triangle's albedo. */
+static void gltf_transformed(const char *name, const float uv[6], const char *tf, float out[3]) {
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  size_t n;
+  void *png = png_mem(rgba, 4, 4, PNG_FORMAT_RGBA, NULL, 0, &n);
+  tu_write_file("tf_halves.png", png, n);
+  free(png);
+  unsigned char buf[68] = {0};
+  const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const uint16_t idx[3] = {0, 1, 2};
+  memcpy(buf, pos, 36), memcpy(buf + 36, uv, 24), memcpy(buf + 60, idx, 6);
+  char *geo = base64(buf, sizeof buf), *doc = gltf_doc("tf_halves.png");
+  static const char old[] =
+      "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAIA/AAABAAIAAAA=";
+  char *at = strstr(doc, old);
+  assert_non_null(at);
+  memcpy(at, geo, strlen(geo));
+  static const char bct[] = "\"baseColorTexture\":{\"index\":0}";
+  char *b = strstr(doc, bct), full[4096];
+  assert_non_null(b);
+  snprintf(full, sizeof full, "%.*s\"baseColorTexture\":{\"index\":0,\"extensions\":{\"KHR_texture_transform\":{%s}}}%s",
+           (int)(b - doc), doc, tf, b + strlen(bct));
+  gi_scene *s = load_ok(tu_write_file(name, full, strlen(full)));
+  gi_material tm;
+  memcpy(out, gi__tri_material(s, 0, &tm)->albedo, 3 * sizeof(float));
+  printf("%s: %s -> %g %g %g\n", name, tf, out[0], out[1], out[2]);
+  gi_scene_release(s);
+  free(doc);
+  free(geo);
+}
+
+/* KHR_texture_transform moves a triangle's coordinates before it reads the
+ * texture (an atlas packer's offset and scale; assimp 5.2 only records
+ * it): the triangle over v in [0, 0.4] (red without a transform) reads grey
+ * offset by 0.5 in v, or scaled 0.5 in u with the offset; a quarter turn
+ * (the extension's reference shader: u' = u cos - v sin, v' = u sin + v cos)
+ * takes a triangle at u in [0, 0.4], v in [0.6, 1] (grey as it is) to
+ * v' = u, the red top; texCoord 1 names a set the file lacks: no texture. */
+static void test_gltf_texture_transform(void **state) {
+  (void)state;
+  const float top[6] = {0, 0, 1, 0, 0, 0.4f}, side[6] = {0, 0.6f, 0.4f, 0.6f, 0, 1};
+  float a[3];
+  gltf_transformed("tf0.gltf", top, "", a);
+  assert_float_equal(a[0], 0.5, 1e-6), assert_float_equal(a[1], 0.0, 1e-6);
+  gltf_transformed("tf1.gltf", top, "\"offset\":[0,0.5]", a);
+  assert_float_equal(a[0], 0.5 * GREY128, 1e-6), assert_float_equal(a[2], GREY128, 1e-6);
+  gltf_transformed("tf2.gltf", top, "\"offset\":[0.25,0.5],\"scale\":[0.5,1]", a);
+  assert_float_equal(a[0], 0.5 * GREY128, 1e-6);
+  gltf_transformed("tf3.gltf", side, "", a);
+  assert_float_equal(a[0], 0.5 * GREY128, 1e-6);
+  gltf_transformed("tf4.gltf", side, "\"rotation\":1.5707963267948966", a);
+  assert_float_equal(a[0], 0.5, 1e-5), assert_float_equal(a[1], 0.0, 1e-5);
+  gltf_transformed("tf5.gltf", top, "\"texCoord\":1", a); /* the material's average */
+  assert_float_equal(a[0], 0.5 * HALF_RED_R, 1e-4);
+}
+
 /* An emissive texture multiplies the emission by its average (glTF's
  * emissiveTexture, an MTL's map_Ke): a facade lit at its windows emits
  * that share, not all over. */
@@ -679,6 +738,7 @@ int main(void) {
       cmocka_unit_test(test_texture_grid),
       cmocka_unit_test(test_obj_texture_per_triangle),
       cmocka_unit_test(test_gltf_texture_per_triangle),
+      cmocka_unit_test(test_gltf_texture_transform),
       cmocka_unit_test(test_emissive_texture),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -384,6 +384,51 @@ static int fold_emissive_strength(json_t *root, const char *path, gi_error_info 
   return changed;
 }
 
+#define KHR_TEXTURE_TRANSFORM "KHR_texture_transform"
+
+/* Each material's base-colour texture transform into out->uv_tf (see the
+ * header); 0, or -1 with err set on a transform whose numbers are not
+ * finite (or out of memory). */
+static int read_uv_transforms(json_t *root, const char *path, gi__gltf_shift *out, gi_error_info *err) {
+  json_t *mats = json_object_get(root, "materials");
+  size_t n = json_array_size(mats);
+  for (size_t i = 0; i < n; i++) {
+    json_t *ti = json_object_get(json_object_get(json_array_get(mats, i), "pbrMetallicRoughness"), "baseColorTexture");
+    json_t *tf = json_object_get(json_object_get(ti, "extensions"), KHR_TEXTURE_TRANSFORM);
+    if (!json_is_object(tf)) continue;
+    if (!out->uv_tf) {
+      if (!(out->uv_tf = gi__malloc(n * sizeof *out->uv_tf))) {
+        gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory for texture transforms", path);
+        return -1;
+      }
+      for (size_t k = 0; k < n; k++)
+        for (int j = 0; j < GI_GLTF_UV_TF; j++) out->uv_tf[k][j] = j == 3 || j == 4 ? 1 : j == 5 ? -1 : 0;
+      out->num_uv_tf = n;
+    }
+    double *o = out->uv_tf[i];
+    const char *keys[3] = {"offset", "rotation", "scale"};
+    const int at[3] = {0, 2, 3}, len[3] = {2, 1, 2};
+    for (int k = 0; k < 3; k++) {
+      json_t *v = json_object_get(tf, keys[k]);
+      if (!v) continue;
+      for (int j = 0; j < len[k]; j++) {
+        json_t *x = len[k] == 1 ? v : json_array_get(v, (size_t)j);
+        double d = json_is_number(x) ? json_number_value(x) : NAN;
+        if (!isfinite(d) || (len[k] > 1 && json_array_size(v) != (size_t)len[k])) {
+          gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF material %zu: " KHR_TEXTURE_TRANSFORM " '%s' must be "
+                   "%s finite number%s", path, i, keys[k], len[k] > 1 ? "2" : "a", len[k] > 1 ? "s" : "");
+          return -1;
+        }
+        o[at[k] + j] = d;
+      }
+    }
+    json_t *tc = json_object_get(tf, "texCoord");
+    if (json_is_integer(tc) && json_integer_value(tc) >= 0 && json_integer_value(tc) < 8)
+      o[5] = (double)json_integer_value(tc);
+  }
+  return 0;
+}
+
 /* The JSON text of a .gltf, or the JSON chunk of a .glb. */
 static int split_glb(const unsigned char *buf, size_t len, size_t *json_off, size_t *json_len) {
   if (len < GLB_HEADER + GLB_CHUNK_HEADER || le32(buf) != GLB_MAGIC || le32(buf + 12 + 4) != GLB_CHUNK_JSON) return -1;
@@ -439,7 +484,7 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
                   "JSON line %d column %d: %s", path, je.line, je.column, je.text);
     goto done;
   }
-  int folded = fold_emissive_strength(root, path, err);
+  int folded = read_uv_transforms(root, path, out, err) < 0 ? -1 : fold_emissive_strength(root, path, err);
   int r = folded < 0 ? -1 : recentre_json(root, path, out, err);
   if (r == 0 && folded > 0) r = 1; /* no scene graph to place, but the materials changed */
   char *text = r > 0 ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(JSON_PRECISION)) : NULL;
@@ -459,9 +504,11 @@ done:
 void gi__gltf_shift_free(gi__gltf_shift *s) {
   gi__free(s->data);
   gi__free(s->lights);
+  gi__free(s->uv_tf);
   s->data = NULL;
   s->lights = NULL;
-  s->len = s->num_lights = 0;
+  s->uv_tf = NULL;
+  s->len = s->num_lights = s->num_uv_tf = 0;
 }
 
 /* ---- the assimp file system: the rewritten file from memory ------------- */

@@ -33,6 +33,8 @@ struct aiFileIO;
 
 struct gi_light;
 
+#define GI_GLTF_UV_TF 6
+
 typedef struct gi__gltf_shift {
   double t[3];         /* add to every position assimp returns */
   unsigned char *data; /* the rewritten file, or NULL: let assimp read the file as it is */
@@ -42,6 +44,12 @@ typedef struct gi__gltf_shift {
    * unscaled; the rewritten file has none left), owned; else NULL. */
   struct gi_light *lights;
   size_t num_lights;
+  /* Per glTF material (assimp keeps their order), its base-colour
+   * texture's KHR_texture_transform: offset u, v, rotation, scale u, v,
+   * texCoord (-1: the texture's own), or NULL when no material has one;
+   * owned. assimp 5.2 does not apply it to the coordinates. */
+  double (*uv_tf)[GI_GLTF_UV_TF];
+  size_t num_uv_tf;
 } gi__gltf_shift;
 
 /* For the .gltf (glb 0) or .glb (glb 1) at path: the shift and the rewritten file. A file

@@ -279,6 +279,7 @@ typedef struct mat_tex {
   long tex;
   float factor[3];
   unsigned uv;
+  const double *uv_tf; /* glTF: KHR_texture_transform (gi__gltf_shift.uv_tf), or NULL */
 } mat_tex;
 
 /* An OBJ material's name and whether its MTL block has a Kd line. */
@@ -297,6 +298,7 @@ typedef struct tex_ctx {
   mtl_entry *mtl;
   size_t nmtl, capmtl;
   mat_tex *mt;        /* per material of ours (add_materials) */
+  const gi__gltf_shift *gs; /* glTF: the file's transforms, or NULL */
 } tex_ctx;
 
 static void tex_ctx_fini(tex_ctx *tc) {
@@ -741,6 +743,10 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
     mat_tex mt;
     gi_result rc = convert_material(as->mMaterials[i], tc, &m, &mt, err);
     if (rc != GI_OK) return rc;
+    if (mt.tex >= 0 && tc->gs && i < tc->gs->num_uv_tf) {
+      mt.uv_tf = tc->gs->uv_tf[i];
+      if (mt.uv_tf[5] >= 0) mt.uv = (unsigned)mt.uv_tf[5]; /* the transform's own texCoord */
+    }
     int used = 0;
     for (unsigned j = 0; j < as->mNumMeshes && !used; j++)
       used = as->mMeshes[j]->mMaterialIndex == i && (as->mMeshes[j]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
@@ -771,7 +777,20 @@ static double vertex_linear(int linear, float c) {
 static void texture_triangle(const tex_ctx *tc, uint32_t mat, const float uv[3][2], gi_mesh_builder *b, size_t tri) {
   const mat_tex *mt = &tc->mt[mat];
   if (mt->tex < 0 || tc->tex[mt->tex].grid.w == 0) return;
-  float c[3];
+  float c[3], tuv[3][2];
+  if (mt->uv_tf) {
+    /* glTF's transform, in glTF's coordinates (v down; assimp gave 1 - v):
+     * translation * rotation * scale, the rotation's columns (cos, sin) and
+     * (-sin, cos) as KHR_texture_transform's reference shader has them. */
+    const double *t = mt->uv_tf;
+    double cr = cos(t[2]), sr = sin(t[2]);
+    for (int k = 0; k < 3; k++) {
+      double u = t[3] * uv[k][0], v = t[4] * (1.0 - uv[k][1]);
+      tuv[k][0] = (float)(t[0] + cr * u - sr * v);
+      tuv[k][1] = (float)(1.0 - (t[1] + sr * u + cr * v));
+    }
+    uv = (const float(*)[2])tuv;
+  }
   gi__tex_grid_triangle(&tc->tex[mt->tex].grid, uv, c);
   gi_mesh_builder_set_triangle_albedo(b, tri, mt->factor[0] * c[0], mt->factor[1] * c[1], mt->factor[2] * c[2]);
 }
@@ -957,6 +976,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     o.scale = scale;
   }
   tc.as = as;
+  tc.gs = is_gltf(path) ? &gs : NULL;
   b = gi_mesh_builder_new();
   matmap = gi__malloc((as->mNumMaterials + 1) * sizeof *matmap);
   if (!b || !matmap) {
