@@ -19,8 +19,9 @@
  * Non-finite positions are passed through so that gi_scene_build drops and
  * counts those triangles; an index outside its mesh is a malformed file.
  * Materials map OBJ (Kd, Ke, Ks, Ns: an unnormalised Blinn-Phong lobe) and
- * glTF (baseColor, emissive, metallic/roughness) onto gi_material; a diffuse or base-colour texture
- * multiplies the colour factor by its average linear colour. A triangle
+ * glTF (baseColor, emissive, metallic/roughness) onto gi_material; a
+ * diffuse or base-colour texture multiplies the colour factor by its
+ * average linear colour. A triangle
  * with texture coordinates takes instead the average of its own part of
  * the texture (read on a grid of at most 128 x 128 cells,
  * gi_mesh_builder_set_triangle_albedo): a city's facades often share one
