@@ -193,7 +193,8 @@ int main(int argc, char **argv) {
   if (ta_mkdirs(&ctx, "--out", a.b.out_dir)) return 1;
   a.b.q.threads = 0;
   if (a.t.scene_file && !a.b.path_file)
-    return ta_fail(&ctx, "--scene", "bench takes a scene file with --path FILE only (its walk and drive follow the city's streets)");
+    return ta_fail(&ctx, "--scene",
+                   "bench takes a scene file with --path FILE only (its walk and drive follow the city's streets)");
   if (a.b.path_file) {
     if (a.paths_only) return ta_fail(&ctx, "--paths-only", "writes the city's generated paths; not with --path");
     a.b.scene_file = a.t.scene_file, a.b.up = a.t.up;

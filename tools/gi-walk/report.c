@@ -136,7 +136,8 @@ static void json_figures(const bench_opts *o, const walk_path *p, const figures 
   fprintf(json, "{\"bench\":\"walk\",\"path\":\"%s\",\"steps\":%zu,\"crossings\":%zu,\"cold_bakes\":%zu,\"pairs\":%zu",
           p->name, f->steps, f->crossings, f->colds, f->pairs);
   const struct { const char *k; double v; } kv[] = {
-      {"speed_mps", p->speed}, {"eye_m", p->eye}, {"rate_hz", p->rate}, {"city_extent_m", o->scene_file ? NAN : o->city.extent},
+      {"speed_mps", p->speed}, {"eye_m", p->eye}, {"rate_hz", p->rate},
+      {"city_extent_m", o->scene_file ? NAN : o->city.extent},
       {"levels", p->resolved.levels}, {"res", p->resolved.res}, {"voxel0_m", p->resolved.voxel0}, {"update_ms_mean", f->upd_mean}, {"update_ms_p99", f->upd_p99},
       {"cold_ms_mean", f->cold_mean}, {"cold_ms_p99", f->cold_p99}, {"speedup_mean", f->cold_mean / f->upd_mean},
       {"speedup_p99", f->cold_p99 / f->upd_p99}, {"update_cpu_ms_mean", f->upd_cpu_mean},
