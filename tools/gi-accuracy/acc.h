@@ -235,6 +235,7 @@ typedef struct acc_file_opts {
   const char *path;       /* --scene; NULL: the shipped scenes */
   char name[32];          /* the file's base name without extension, safe for CSV and gnuplot */
   int up;                 /* GI_UP_Y or GI_UP_Z (--up) */
+  int up_given;           /* --up was on the command line */
   int have_at;
   double at[3];           /* --at: the cone tracer's viewpoint */
   const char *probes_file;/* --probes */
