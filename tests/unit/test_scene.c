@@ -826,6 +826,69 @@ static void test_looks_z_up(void **state) {
   assert_int_equal(gi_scene_looks_z_up(NULL), 0);
 }
 
+/* Sum of the scene's triangle areas, and whether every triangle's centroid
+ * lies inside(x, y) (the polygons below lie in z = 0 or y = 0). */
+static double scene_area(const gi_scene *s, int (*inside)(double, double), int *all_inside) {
+  double area = 0;
+  *all_inside = 1;
+  for (uint32_t t = 0; t < s->num_triangles; t++) {
+    const float *v[3];
+    for (int k = 0; k < 3; k++) v[k] = &s->vertices[3 * (size_t)s->indices[3 * t + k]];
+    double e1[3], e2[3], c[3] = {0, 0, 0};
+    for (int k = 0; k < 3; k++) e1[k] = v[1][k] - v[0][k], e2[k] = v[2][k] - v[0][k];
+    double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+    area += 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+    for (int k = 0; k < 3; k++)
+      for (int j = 0; j < 3; j++) c[j] += (s->origin[j] + v[k][j]) / 3.0;
+    *all_inside &= inside(c[0], c[1] != 0 ? c[1] : c[2]);
+  }
+  return area;
+}
+
+/* An L of 4 x 4 less its 2 x 2 corner at x, y > 2. */
+static int in_l(double x, double y) { return x > 0 && y > 0 && x < 4 && y < 4 && !(x > 2 && y > 2); }
+
+/* A concave polygon (an L-shaped roof, as OpenStreetMap exports have) is
+ * cut ear by ear: its triangles cover the L exactly (area 12), where a fan
+ * from a corner before the notch laid triangles over the notch. OBJ and
+ * PLY, both windings, in the xy and xz planes (the projection's sign); a
+ * convex quad still fans from its first corner, as before. */
+static void test_concave_polygons(void **state) {
+  (void)state;
+  /* Starting at (4, 2), just before the notch: a fan from there crosses it. */
+  const char *l_ccw = "v 4 2 0\nv 2 2 0\nv 2 4 0\nv 0 4 0\nv 0 0 0\nv 4 0 0\nf 1 2 3 4 5 6\n";
+  const char *l_cw = "v 4 2 0\nv 2 2 0\nv 2 4 0\nv 0 4 0\nv 0 0 0\nv 4 0 0\nf 6 5 4 3 2 1\n";
+  const char *l_xz = "v 4 0 2\nv 2 0 2\nv 2 0 4\nv 0 0 4\nv 0 0 0\nv 4 0 0\nf 1 2 3 4 5 6\n";
+  const char *objs[3] = {l_ccw, l_cw, l_xz};
+  for (int i = 0; i < 3; i++) {
+    char name[32];
+    snprintf(name, sizeof name, "l%d.obj", i);
+    gi_scene *s = load_ok(tu_write_file(name, objs[i], strlen(objs[i])), NULL);
+    int inside;
+    double a = scene_area(s, in_l, &inside);
+    printf("  %s: %u triangles, area %g, all inside %d\n", name, s->num_triangles, a, inside);
+    assert_int_equal(s->num_triangles, 4);
+    assert_float_equal(a, 12.0, 1e-4);
+    assert_true(inside);
+    gi_scene_release(s);
+  }
+  const char ply[] = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
+                     "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                     "4 2 0\n2 2 0\n2 4 0\n0 4 0\n0 0 0\n4 0 0\n6 0 1 2 3 4 5\n";
+  gi_scene *s = load_ok(tu_write_file("l.ply", ply, strlen(ply)), NULL);
+  int inside;
+  assert_float_equal(scene_area(s, in_l, &inside), 12.0, 1e-4);
+  assert_true(inside);
+  gi_scene_release(s);
+  /* A convex quad: the fan from corner 1, (1 2 3) and (1 3 4). */
+  const char quad[] = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+  s = load_ok(tu_write_file("quad.obj", quad, strlen(quad)), NULL);
+  assert_int_equal(s->num_triangles, 2);
+  const uint32_t *ix = s->indices;
+  assert_true(ix[0] == ix[3] && ix[2] == ix[4]);
+  gi_scene_release(s);
+}
+
 /* The OBJ spec's line continuation (a backslash ending a line), as assimp
  * reads it for the materials: the backslash and the line end dropped. Our
  * reader refused "f 1 2 \\" as a face corner '\\'. A usemtl continued
@@ -1737,6 +1800,7 @@ int main(void) {
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
       cmocka_unit_test(test_looks_z_up),
+      cmocka_unit_test(test_concave_polygons),
       cmocka_unit_test(test_obj_continuation),
       cmocka_unit_test(test_energy_conservation),
       cmocka_unit_test(test_gltf),

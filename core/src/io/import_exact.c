@@ -90,6 +90,86 @@ static int push_tri(gi__exact_mesh *m, uint32_t a, uint32_t b, uint32_t c, uint3
   return push_tri_uv(m, a, b, c, mat, NULL);
 }
 
+/* --- polygons ------------------------------------------------------------ */
+
+/* Corner k of polygon poly in the plane that drops axis `drop` (the
+ * largest of its Newell normal's), as 2D doubles. */
+static void corner2(const gi__exact_mesh *m, const uint32_t *poly, int k, int drop, double out[2]) {
+  const double *v = &m->v[3 * (size_t)poly[k]];
+  out[0] = v[drop == 0 ? 1 : 0], out[1] = v[drop == 2 ? 1 : 2];
+}
+
+static double cross2(const double a[2], const double b[2], const double c[2]) {
+  return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+/* Whether p lies inside or on triangle abc of orientation sg (+1 or -1). */
+static int in_tri2(const double a[2], const double b[2], const double c[2], const double p[2], double sg) {
+  return sg * cross2(a, b, p) >= 0 && sg * cross2(b, c, p) >= 0 && sg * cross2(c, a, p) >= 0;
+}
+
+/* The triangles of polygon poly[0..n) (n <= PLY_MAX_POLYGON) as corner
+ * triples into out (3 (n - 2) of them), in the polygon's winding. A convex
+ * polygon is fanned from its first corner (what this reader always did);
+ * a concave one (an L-shaped roof, a courtyard's footprint) is cut ear by
+ * ear in the plane of its Newell normal, as assimp's triangulation does:
+ * a fan there laid triangles over the notch. A polygon no ear can be cut
+ * from (self-intersecting) fans what is left. Returns the triangles. */
+static int polygon_triangles(const gi__exact_mesh *m, const uint32_t *poly, int n, uint8_t out[][3]) {
+  int placed = 1; /* a PLY may list its faces before its vertices: then fan */
+  for (int k = 0; k < n; k++) placed &= poly[k] < m->nv;
+  if (!placed || n == 3) {
+    for (int t = 1; t + 1 < n; t++) out[t - 1][0] = 0, out[t - 1][1] = (uint8_t)t, out[t - 1][2] = (uint8_t)(t + 1);
+    return n - 2;
+  }
+  double nrm[3] = {0, 0, 0};
+  for (int k = 0; k < n; k++) {
+    const double *a = &m->v[3 * (size_t)poly[k]], *b = &m->v[3 * (size_t)poly[(k + 1) % n]];
+    nrm[0] += (a[1] - b[1]) * (a[2] + b[2]);
+    nrm[1] += (a[2] - b[2]) * (a[0] + b[0]);
+    nrm[2] += (a[0] - b[0]) * (a[1] + b[1]);
+  }
+  int drop = fabs(nrm[0]) >= fabs(nrm[1]) && fabs(nrm[0]) >= fabs(nrm[2]) ? 0 : fabs(nrm[1]) >= fabs(nrm[2]) ? 1 : 2;
+  /* The projection keeps the winding when the dropped component is positive. */
+  double sg = nrm[drop] >= 0 ? 1 : -1;
+  if (drop == 1) sg = -sg; /* (z, x) order for y: corner2 gives (x, z) */
+  double p[PLY_MAX_POLYGON][2];
+  int convex = n == 3;
+  for (int k = 0; k < n; k++) corner2(m, poly, k, drop, p[k]);
+  if (!convex) {
+    convex = 1;
+    for (int k = 0; k < n && convex; k++) convex = sg * cross2(p[k], p[(k + 1) % n], p[(k + 2) % n]) >= 0;
+  }
+  int nt = 0;
+  if (convex) {
+    for (int t = 1; t + 1 < n; t++) out[nt][0] = 0, out[nt][1] = (uint8_t)t, out[nt][2] = (uint8_t)(t + 1), nt++;
+    return nt;
+  }
+  uint8_t idx[PLY_MAX_POLYGON];
+  int left = n;
+  for (int k = 0; k < n; k++) idx[k] = (uint8_t)k;
+  for (int guard = 0; left > 3 && guard < n * n; guard++) {
+    int cut = -1;
+    for (int i = 0; i < left && cut < 0; i++) {
+      int a = idx[(i + left - 1) % left], b = idx[i], c = idx[(i + 1) % left];
+      if (!(sg * cross2(p[a], p[b], p[c]) > 0)) continue; /* reflex or flat: not an ear */
+      int clear = 1;
+      for (int j = 0; j < left && clear; j++) {
+        int q = idx[j];
+        if (q != a && q != b && q != c) clear = !in_tri2(p[a], p[b], p[c], p[q], sg);
+      }
+      if (clear) cut = i;
+    }
+    if (cut < 0) break;
+    out[nt][0] = idx[(cut + left - 1) % left], out[nt][1] = idx[cut], out[nt][2] = idx[(cut + 1) % left];
+    nt++;
+    memmove(&idx[cut], &idx[cut + 1], (size_t)(left - cut - 1));
+    left--;
+  }
+  for (int t = 1; t + 1 < left; t++) out[nt][0] = idx[0], out[nt][1] = idx[t], out[nt][2] = idx[t + 1], nt++;
+  return nt;
+}
+
 /* Index of name in m->names, added when new; GI__EXACT_NO_MATERIAL when out of memory. */
 static uint32_t intern_name(gi__exact_mesh *m, const char *name) {
   for (size_t i = 0; i < m->nnames; i++)
@@ -207,7 +287,7 @@ static gi_result obj_indices(const char *path, size_t line, char *s, const char 
   return GI_OK;
 }
 
-/* "f a b c ...": fanned from its first corner. */
+/* "f a b c ...": triangulated by polygon_triangles. */
 static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, gi__exact_mesh *m,
                           gi_error_info *err) {
   uint32_t poly[PLY_MAX_POLYGON + 1], tex[PLY_MAX_POLYGON + 1];
@@ -216,9 +296,12 @@ static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, 
   if (rc != GI_OK) return rc;
   int has_uv = 0;
   for (int k = 0; k < n; k++) has_uv |= tex[k] != GI__EXACT_NO_UV;
-  for (int t = 1; t + 1 < n; t++) {
-    uint32_t t3[3] = {tex[0], tex[t], tex[t + 1]};
-    if (!push_tri_uv(m, poly[0], poly[t], poly[t + 1], mat, has_uv ? t3 : NULL))
+  uint8_t tris[PLY_MAX_POLYGON][3];
+  int nt = polygon_triangles(m, poly, n, tris);
+  for (int t = 0; t < nt; t++) {
+    const uint8_t *c = tris[t];
+    uint32_t t3[3] = {tex[c[0]], tex[c[1]], tex[c[2]]};
+    if (!push_tri_uv(m, poly[c[0]], poly[c[1]], poly[c[2]], mat, has_uv ? t3 : NULL))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
   }
   return GI_OK;
@@ -541,10 +624,13 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
         return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' %s: property '%s': %s", b->path, w, P->name,
                         r == -1 ? "the data ends here; the file is truncated" : "expected a number");
       }
-      if (p == il)
-        for (int t = 1; t + 1 < (int)n; t++)
-          if (!push_tri(m, poly[0], poly[t], poly[t + 1], GI__EXACT_NO_MATERIAL))
+      if (p == il) {
+        uint8_t tris[PLY_MAX_POLYGON][3];
+        int nt = polygon_triangles(m, poly, (int)n, tris);
+        for (int t = 0; t < nt; t++)
+          if (!push_tri(m, poly[tris[t][0]], poly[tris[t][1]], poly[tris[t][2]], GI__EXACT_NO_MATERIAL))
             return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", b->path);
+      }
     }
     if (is_v && (!push_vertex(m, pos) || (colored && !set_color(m, col))))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory or too many vertices", b->path);

@@ -19,7 +19,7 @@
 typedef struct gi__exact_mesh {
   double *v;       /* 3 per vertex, as written in the file */
   size_t nv, cap_v;
-  uint32_t *tri;   /* 3 per triangle (polygons fan-triangulated) */
+  uint32_t *tri;   /* 3 per triangle (convex polygons fanned, concave ones cut ear by ear) */
   uint32_t *mat;   /* per triangle: index into names, or GI__EXACT_NO_MATERIAL */
   size_t nt, cap_t, cap_m;
   char **names;    /* OBJ usemtl names in first-use order */
