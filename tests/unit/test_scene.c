@@ -1049,6 +1049,16 @@ static void test_gltf_emissive_strength(void **state) {
     assert_null(s);
     assert_non_null(strstr(err.msg, "glTF material 1: KHR_materials_emissive_strength emissiveStrength must be"));
   }
+  /* A product past float is refused by name (it became inf, then a dark 0). */
+  const char *path = gltf_materials("hugestrength.gltf",
+                                    "{\"emissiveFactor\":[1,1,1],\"extensions\":{\"KHR_materials_emissive_strength\":"
+                                    "{\"emissiveStrength\":1e300}}}",
+                                    0);
+  gi_error_info err = {0};
+  s = (gi_scene *)1;
+  assert_int_equal(gi_scene_load(path, NULL, &s, &err), GI_ERR_LIMIT);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, "glTF material 0: emissiveFactor 1 x emissiveStrength 1e+300 overflows"));
 }
 
 /* A one-triangle glTF with the given nodes after the mesh's node 0, scene

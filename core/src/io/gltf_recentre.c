@@ -4,6 +4,7 @@
 #define _DEFAULT_SOURCE /* realpath */
 #include "io/gltf_recentre.h"
 #include <assimp/cfileio.h>
+#include <float.h>
 #include <jansson.h>
 #include <limits.h>
 #include <math.h>
@@ -372,6 +373,12 @@ static int fold_emissive_strength(json_t *root, const char *path, gi_error_info 
     for (size_t c = 0; c < json_array_size(f); c++) {
       json_t *v = json_array_get(f, c);
       double x = json_is_number(v) ? json_number_value(v) : NAN;
+      if (isfinite(x) && !(fabs(x * k) <= FLT_MAX)) {
+        /* Past float: the scene's own limit (GI_MAX_LIGHT_VALUE) can no longer name it. */
+        gi__fail(err, GI_ERR_LIMIT, "scene file '%s': glTF material %zu: emissiveFactor %g x emissiveStrength %g "
+                 "overflows", path, i, x, k);
+        return -1;
+      }
       if (!isfinite(x) || json_array_set_new(f, c, json_real(x * k)) < 0) {
         gi__fail(err, isfinite(x) ? GI_ERR_NOMEM : GI_ERR_FORMAT,
                  "scene file '%s': glTF material %zu: emissiveFactor must be an array of 3 numbers", path, i);
