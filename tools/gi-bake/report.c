@@ -197,7 +197,7 @@ static void print_human(const cli_run *r) {
          (unsigned long long)st.input_triangles, (unsigned long long)st.dropped_nonfinite,
          (unsigned long long)st.dropped_degenerate);
   printf("           %u materials%s, %u lights%s, %u emissive triangles\n", st.materials,
-         st.clamped_albedo ? " (some reflected over 100%: scaled to 1)" : "", st.lights,
+         st.clamped_albedo ? " (some out of range or reflecting over 100%: corrected)" : "", st.lights,
          st.default_lights_added ? " (default sun + sky added)" : "", st.emissive_triangles);
   if (st.textures_unreadable)
     printf("           %llu texture%s unreadable: their materials keep the plain colour factor\n",
