@@ -802,6 +802,36 @@ static void test_obj_materials(void **state) {
 
 static void expect_bad(const char *path, gi_result code, const char *what);
 
+/* PLY and STL carry no materials: assimp invented a white one (diffuse and
+ * specular 1), and a scan baked as a perfect reflector. They get the grey
+ * default (0.8) now, or albedo 1 when the vertices carry colours (the
+ * colours are the albedo: a coloured triangle reads its colour). */
+static void test_formats_without_materials(void **state) {
+  (void)state;
+  const char ply[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                     "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  const char stl[] = "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
+                     "endfacet\nendsolid t\n";
+  const char cply[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                      "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\n"
+                      "property list uchar int vertex_indices\nend_header\n0 0 0 255 0 0\n1 0 0 255 0 0\n0 1 0 255 0 0\n"
+                      "3 0 1 2\n";
+  const char *names[3] = {"plain.ply", "plain.stl", "red.ply"}, *texts[3] = {ply, stl, cply};
+  for (int i = 0; i < 3; i++) {
+    gi_scene *s = load_ok(tu_write_file(names[i], texts[i], strlen(texts[i])), NULL);
+    const gi_material *m = gi_scene_material(s, 0);
+    printf("  %s: albedo %g %g %g, specular %g\n", names[i], m->albedo[0], m->albedo[1], m->albedo[2], m->specular);
+    assert_int_equal(gi_scene_num_materials(s), 1);
+    assert_float_equal(m->albedo[1], i < 2 ? 0.8 : 1.0, 0);
+    assert_true(m->specular == 0.f && m->roughness == 1.f);
+    if (i == 2) {
+      const float *t = gi__tri_albedo(s, 0);
+      assert_true(t[0] == 1.f && t[1] == 0.f && t[2] == 0.f);
+    }
+    gi_scene_release(s);
+  }
+}
+
 /* gi_scene_looks_z_up: a 100 x 80 x 12 block read with y up is a z-up
  * export by its bounds; the same with z up is not, nor a 100 x 80 x 30
  * block or a cube. */
@@ -1809,6 +1839,7 @@ int main(void) {
       cmocka_unit_test(test_bad_files),
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
+      cmocka_unit_test(test_formats_without_materials),
       cmocka_unit_test(test_looks_z_up),
       cmocka_unit_test(test_concave_polygons),
       cmocka_unit_test(test_obj_continuation),

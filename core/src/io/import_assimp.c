@@ -729,12 +729,19 @@ static gi_result check_counts(const struct aiScene *as, const char *path, gi_err
   return GI_OK;
 }
 
+/* PLY and STL carry no materials; assimp makes one up, white (diffuse and
+ * specular 1), and a scan baked as a perfect white reflector, every bounce
+ * at the tail's cap. Such a file gets the grey default every format gets
+ * without a colour (0.8), or, when its vertices carry colours (a coloured
+ * scan), albedo 1: the colours are the albedo. */
+static int no_materials(const char *path) { return ends_with_ci(path, ".ply") || ends_with_ci(path, ".stl"); }
+
 /* The file's materials into b; matmap[i] is material i's index in b.
  * assimp adds a material of its own (OBJ: "DefaultMaterial", glTF: an
  * unnamed one); it is kept only when a mesh uses it, so the material list
- * matches the file's. */
+ * matches the file's. colored: the vertices carry colours (no_materials). */
 static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_builder *b, uint32_t *matmap,
-                               gi_error_info *err) {
+                               int colored, gi_error_info *err) {
   uint32_t nmat = 0;
   if (!(tc->mt = gi__malloc((as->mNumMaterials + 1) * sizeof *tc->mt)))
     return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
@@ -744,6 +751,11 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
     mat_tex mt;
     gi_result rc = convert_material(as->mMaterials[i], tc, &m, &mt, err);
     if (rc != GI_OK) return rc;
+    if (no_materials(tc->path)) {
+      float a = colored ? 1.f : 0.8f;
+      m = (gi_material){.albedo = {a, a, a}, .roughness = 1.f, .name = "default"};
+      mt = (mat_tex){.tex = -1};
+    }
     if (mt.tex >= 0 && tc->gs && i < tc->gs->num_uv_tf) {
       mt.uv_tf = tc->gs->uv_tf[i];
       if (mt.uv_tf[5] >= 0) mt.uv = (unsigned)mt.uv_tf[5]; /* the transform's own texCoord */
@@ -984,7 +996,9 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     goto done;
   }
-  if ((rc = add_materials(as, &tc, b, matmap, err)) == GI_OK &&
+  int colored = em.col != NULL;
+  for (unsigned i = 0; i < as->mNumMeshes && !colored; i++) colored = as->mMeshes[i]->mColors[0] != NULL;
+  if ((rc = add_materials(as, &tc, b, matmap, colored, err)) == GI_OK &&
       (rc = exact ? add_exact_meshes(as, matmap, &em, &tc, b, path, err)
                   : add_meshes(as, matmap, gs.t, &tc, b, path, err)) == GI_OK &&
       (rc = collect_lights(as, &gs, path, scale, &o, &lights, err)) == GI_OK)
