@@ -195,18 +195,20 @@ static int flatten(json_t *scene, walk *w, double t[3]) {
 /* The light reference of a node, or NULL. */
 static json_t *node_light(json_t *node) { return json_object_get(json_object_get(node, "extensions"), KHR_LIGHTS); }
 
-/* Member key of light definition li: n finite numbers into out (left as
- * they are when absent); -1 with err set when it is not that. */
-static int light_numbers(json_t *def, const char *key, double *out, size_t n, const char *path, size_t li,
-                         gi_error_info *err) {
+/* Member key of object def (a light's definition, a material's texture
+ * transform; `what` names it in the message, "light 3"): n finite numbers
+ * into out (one number for n = 1, else an array), left as they are when
+ * absent. 1 when read, 0 when absent, -1 with err set when it is not that. */
+static int member_numbers(json_t *def, const char *key, double *out, size_t n, const char *path, const char *what,
+                          gi_error_info *err) {
   json_t *a = json_object_get(def, key);
   if (!a) return 0;
   for (size_t i = 0; i < n; i++) {
     json_t *v = n == 1 ? a : json_array_get(a, i);
     double x = json_is_number(v) ? json_number_value(v) : NAN;
     if ((n > 1 && (!json_is_array(a) || json_array_size(a) != n)) || !isfinite(x)) {
-      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF light %zu: '%s' must be %s%zu finite number%s", path, li,
-               key, n > 1 ? "an array of " : "", n, n > 1 ? "s" : "");
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF %s: '%s' must be %s%zu finite number%s", path, what, key,
+               n > 1 ? "an array of " : "", n, n > 1 ? "s" : "");
       return -1;
     }
     out[i] = x;
@@ -238,10 +240,12 @@ static int read_light(json_t *defs, json_t *node, size_t idx, const double m[16]
   }
   double c[3] = {1, 1, 1}, in = 1, cone[2] = {0, GI_PI / 4};
   json_t *spot = json_object_get(def, "spot");
-  if (light_numbers(def, "color", c, 3, path, (size_t)li, err) < 0 ||
-      light_numbers(def, "intensity", &in, 1, path, (size_t)li, err) < 0 ||
-      light_numbers(spot, "innerConeAngle", &cone[0], 1, path, (size_t)li, err) < 0 ||
-      light_numbers(spot, "outerConeAngle", &cone[1], 1, path, (size_t)li, err) < 0)
+  char what[32];
+  snprintf(what, sizeof what, "light %lld", (long long)li);
+  if (member_numbers(def, "color", c, 3, path, what, err) < 0 ||
+      member_numbers(def, "intensity", &in, 1, path, what, err) < 0 ||
+      member_numbers(spot, "innerConeAngle", &cone[0], 1, path, what, err) < 0 ||
+      member_numbers(spot, "outerConeAngle", &cone[1], 1, path, what, err) < 0)
     return -1;
   if (l->type == GI_LIGHT_SPOT && !json_is_object(spot)) {
     gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF light %lld: a spot light needs its 'spot' object", path,
@@ -364,24 +368,20 @@ static int fold_emissive_strength(json_t *root, const char *path, gi_error_info 
                " emissiveStrength must be a finite number >= 0", path, i);
       return -1;
     }
-    json_t *f = json_object_get(m, "emissiveFactor");
-    if (f && (!json_is_array(f) || json_array_size(f) != 3)) {
-      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF material %zu: emissiveFactor must be an array of 3 numbers",
-               path, i);
-      return -1;
-    }
-    for (size_t c = 0; c < json_array_size(f); c++) {
-      json_t *v = json_array_get(f, c);
-      double x = json_is_number(v) ? json_number_value(v) : NAN;
-      if (isfinite(x) && !(fabs(x * k) <= FLT_MAX)) {
+    char what[32];
+    snprintf(what, sizeof what, "material %zu", i);
+    double f[3];
+    int has = member_numbers(m, "emissiveFactor", f, 3, path, what, err);
+    if (has < 0) return -1;
+    for (size_t c = 0; has && c < 3; c++) {
+      if (!(fabs(f[c] * k) <= FLT_MAX)) {
         /* Past float: the scene's own limit (GI_MAX_LIGHT_VALUE) can no longer name it. */
         gi__fail(err, GI_ERR_LIMIT, "scene file '%s': glTF material %zu: emissiveFactor %g x emissiveStrength %g "
-                 "overflows", path, i, x, k);
+                 "overflows", path, i, f[c], k);
         return -1;
       }
-      if (!isfinite(x) || json_array_set_new(f, c, json_real(x * k)) < 0) {
-        gi__fail(err, isfinite(x) ? GI_ERR_NOMEM : GI_ERR_FORMAT,
-                 "scene file '%s': glTF material %zu: emissiveFactor must be an array of 3 numbers", path, i);
+      if (json_array_set_new(json_object_get(m, "emissiveFactor"), c, json_real(f[c] * k)) < 0) {
+        gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
         return -1;
       }
     }
@@ -413,22 +413,12 @@ static int read_uv_transforms(json_t *root, const char *path, gi__gltf_shift *ou
       out->num_uv_tf = n;
     }
     double *o = out->uv_tf[i];
-    const char *keys[3] = {"offset", "rotation", "scale"};
-    const int at[3] = {0, 2, 3}, len[3] = {2, 1, 2};
-    for (int k = 0; k < 3; k++) {
-      json_t *v = json_object_get(tf, keys[k]);
-      if (!v) continue;
-      for (int j = 0; j < len[k]; j++) {
-        json_t *x = len[k] == 1 ? v : json_array_get(v, (size_t)j);
-        double d = json_is_number(x) ? json_number_value(x) : NAN;
-        if (!isfinite(d) || (len[k] > 1 && json_array_size(v) != (size_t)len[k])) {
-          gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF material %zu: " KHR_TEXTURE_TRANSFORM " '%s' must be "
-                   "%s finite number%s", path, i, keys[k], len[k] > 1 ? "2" : "a", len[k] > 1 ? "s" : "");
-          return -1;
-        }
-        o[at[k] + j] = d;
-      }
-    }
+    char what[64];
+    snprintf(what, sizeof what, "material %zu: " KHR_TEXTURE_TRANSFORM, i);
+    if (member_numbers(tf, "offset", &o[0], 2, path, what, err) < 0 ||
+        member_numbers(tf, "rotation", &o[2], 1, path, what, err) < 0 ||
+        member_numbers(tf, "scale", &o[3], 2, path, what, err) < 0)
+      return -1;
     json_t *tc = json_object_get(tf, "texCoord");
     if (json_is_integer(tc) && json_integer_value(tc) >= 0 && json_integer_value(tc) < 8)
       o[5] = (double)json_integer_value(tc);
