@@ -265,9 +265,9 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
     double ar = 0.5 * gi__len(n);
     area += ar;
     /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
-    int gl = gi__gloss(m) > 0;
-    a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gi__gloss(m));
-    *glossy += gl;
+    float gl = gi__gloss(m);
+    a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gl);
+    *glossy += gl > 0;
   }
   gi__free(tris);
   *abar = area > 0 ? a_sum / area : 0;

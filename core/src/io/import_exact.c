@@ -134,12 +134,9 @@ static int polygon_triangles(const gi__exact_mesh *m, const uint32_t *poly, int 
   double sg = nrm[drop] >= 0 ? 1 : -1;
   if (drop == 1) sg = -sg; /* (z, x) order for y: corner2 gives (x, z) */
   double p[PLY_MAX_POLYGON][2];
-  int convex = n == 3;
+  int convex = 1;
   for (int k = 0; k < n; k++) corner2(m, poly, k, drop, p[k]);
-  if (!convex) {
-    convex = 1;
-    for (int k = 0; k < n && convex; k++) convex = sg * cross2(p[k], p[(k + 1) % n], p[(k + 2) % n]) >= 0;
-  }
+  for (int k = 0; k < n && convex; k++) convex = sg * cross2(p[k], p[(k + 1) % n], p[(k + 2) % n]) >= 0;
   int nt = 0;
   if (convex) {
     for (int t = 1; t + 1 < n; t++) out[nt][0] = 0, out[nt][1] = (uint8_t)t, out[nt][2] = (uint8_t)(t + 1), nt++;
