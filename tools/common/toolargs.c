@@ -10,7 +10,6 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include "gi/gi_points.h"
@@ -210,7 +209,8 @@ int ta_mkdirs(ta_ctx *c, const char *opt, const char *path) {
   for (char *s = b + 1; *s && !rc; s++)
     if (*s == '/') {
       *s = 0;
-      if (mkdir(b, 0777) && errno != EEXIST) rc = ta_error(c, TA_EXIT_RUN, opt, "cannot create '%s': %s", b, strerror(errno));
+      if (mkdir(b, 0777) && errno != EEXIST)
+        rc = ta_error(c, TA_EXIT_RUN, opt, "cannot create '%s': %s", b, strerror(errno));
       *s = '/';
     }
   if (!rc && mkdir(b, 0777) && errno != EEXIST)
@@ -238,11 +238,9 @@ static int path_header(const char *line) {
   int fields = 0;
   for (const char *f = line; f; f = strchr(f, ',') ? strchr(f, ',') + 1 : NULL) {
     if (!((*f >= 'a' && *f <= 'z') || (*f >= 'A' && *f <= 'Z'))) return 0;
-    /* "nan" and "inf" are bad numbers, not names: the line stays an error. */
-    size_t len = strcspn(f, ",");
-    if ((len == 3 && (!strncasecmp(f, "nan", 3) || !strncasecmp(f, "inf", 3))) ||
-        (len == 8 && !strncasecmp(f, "infinity", 8)))
-      return 0;
+    char *end;
+    strtod(f, &end);
+    if (end == f + strcspn(f, ",")) return 0; /* "nan", "inf": bad numbers, not names; the line stays an error */
     fields++;
   }
   return fields == 4;

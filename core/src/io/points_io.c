@@ -5,7 +5,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 #include "gi/gi_points.h"
 #include "base/internal.h"
 
@@ -35,12 +34,10 @@ static int header_line(const char *p) {
   while (*p) {
     if (!((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z'))) return 0;
     const char *f = p;
+    char *end;
+    strtod(f, &end);
     while (*p && *p != ' ' && *p != '\t' && *p != ',') p++;
-    /* "nan" and "inf" are bad numbers, not names: the line stays an error. */
-    int len = (int)(p - f);
-    if ((len == 3 && (!strncasecmp(f, "nan", 3) || !strncasecmp(f, "inf", 3))) ||
-        (len == 8 && !strncasecmp(f, "infinity", 8)))
-      return 0;
+    if (end == p) return 0; /* "nan", "inf": bad numbers, not names; the line stays an error */
     fields++;
     while (*p == ' ' || *p == '\t') p++;
     if (*p == ',') p++;
