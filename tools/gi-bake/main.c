@@ -85,15 +85,14 @@ static void choose_viewpoint(cli_opts *o, const gi_scene *scene) {
  * its probe reads only light that leaks in, where the truth is darkness
  * (the issue's own Munich viewpoint, 0,0,2, is inside a building). Notes
  * it, and how many --probes points are, on stderr: still valid requests. */
-#define INSIDE_SHARE 0.5
 static void note_inside(const cli_opts *o, const gi_scene *scene) {
   double share = gi_scene_backface_share(scene, o->at);
-  if (share > INSIDE_SHARE)
+  if (share > GI_INSIDE_SHARE)
     fprintf(stderr, "gi-bake: note: the viewpoint (%g, %g, %g) looks inside a solid (%.0f%% of 26 rays from it "
             "meet a surface's back first): its probe holds only light that leaks in\n",
             o->at[0], o->at[1], o->at[2], 100 * share);
   size_t in = 0;
-  for (size_t i = 0; i < o->num_probes; i++) in += gi_scene_backface_share(scene, o->probes + 3 * i) > INSIDE_SHARE;
+  for (size_t i = 0; i < o->num_probes; i++) in += gi_scene_backface_share(scene, o->probes + 3 * i) > GI_INSIDE_SHARE;
   if (in)
     fprintf(stderr, "gi-bake: note: %zu of %zu --probes points look inside a solid (their probes hold only light "
             "that leaks in)\n", in, o->num_probes);

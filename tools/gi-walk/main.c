@@ -20,9 +20,6 @@
 #define DEFAULT_SAMPLES 12
 #define DEFAULT_MOVES 8
 #define DEFAULT_VDB_MAX 60000000ull
-/* A point from which this share of directions meets a surface's back lies
- * inside a solid (gi-bake's rule). */
-#define INSIDE_SHARE 0.5
 
 static const char USAGE[] =
     "usage: gi-walk bench [--extent M] [--levels N] [--res R] [--seconds S] [--rate HZ]\n"
@@ -63,7 +60,7 @@ static int run_path_file(const bench_opts *o, ta_ctx *ta) {
   /* A path through buildings is a valid path, but a probe inside a solid
    * holds only leaked light: its drift and jumps mean little. Say how many. */
   size_t inside = 0;
-  for (size_t i = 0; s && i < p.n; i++) inside += gi_scene_backface_share(s, p.at[i]) >= INSIDE_SHARE;
+  for (size_t i = 0; s && i < p.n; i++) inside += gi_scene_backface_share(s, p.at[i]) > GI_INSIDE_SHARE;
   if (inside)
     fprintf(stderr, "gi-walk: note: %zu of %zu points of %s lie inside solids (most directions meet a surface's "
             "back): their probes hold only light that leaks in, and their drift and jumps mean little\n", inside,
@@ -83,9 +80,8 @@ static int run_path_file(const bench_opts *o, ta_ctx *ta) {
 }
 
 static int run_bench(const bench_opts *o, int paths_only) {
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  if (gi_city_build(&o->city, NULL, &s, &err) != GI_OK) return fprintf(stderr, "gi-walk: city: %s\n", err.msg), 1;
+  gi_scene *s = bench_scene(o);
+  if (!s) return 1;
   struct { const char *name; double speed, eye; } kinds[2] = {{"walk", WALK_SPEED, WALK_EYE}, {"drive", DRIVE_SPEED, DRIVE_EYE}};
   walk_path p[2] = {{0}};
   int rc = 0;

@@ -135,8 +135,10 @@ double gi_scene_clearance(const gi_scene *s, const double p[3], double max);
  * first surface shows p its back (winding normal facing away): about 1
  * inside a closed solid wound outward (a building's volume), where the
  * truth is darkness and a gather reads only light that leaks in; 0 for a
- * non-finite p or a scene without surfaces. Thread-safe. */
+ * non-finite p or a scene without surfaces. Thread-safe. A share above
+ * GI_INSIDE_SHARE is what the tools call inside a solid. */
 double gi_scene_backface_share(const gi_scene *s, const double p[3]);
+#define GI_INSIDE_SHARE 0.5
 const gi_light *gi_scene_light(const gi_scene *s, size_t i);
 size_t gi_scene_num_materials(const gi_scene *s);
 const gi_material *gi_scene_material(const gi_scene *s, size_t i);
