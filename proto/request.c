@@ -45,8 +45,9 @@ static int parse_real(const char *s, char stop, double abs_max, double *out, con
   errno = 0;
   double v = strtod(s, &end);
   if (end != s + n) return -1;
-  /* ERANGE: over- or underflow of a well-formed number, so finite but out of range. */
-  if (errno == ERANGE || !isfinite(v) || fabs(v) > abs_max) return -2;
+  /* ERANGE with |v| < 1 is underflow: a number within 1e-308 of 0, which it is
+   * (0 or subnormal). ERANGE otherwise is overflow: out of range. */
+  if ((errno == ERANGE && fabs(v) >= 1.0) || !isfinite(v) || fabs(v) > abs_max) return -2;
   *out = v;
   *end_out = end;
   return 0;

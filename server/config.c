@@ -79,7 +79,8 @@ static int get_num(load_ctx *x, const char *sec, const char *key, const char *v,
   char *end;
   errno = 0;
   double d = strtod(v, &end);
-  if (end == v || *end || errno == ERANGE || !isfinite(d) || d < lo || d > hi)
+  /* ERANGE with |d| < 1 is underflow: a number within 1e-308 of 0, kept. */
+  if (end == v || *end || (errno == ERANGE && fabs(d) >= 1.0) || !isfinite(d) || d < lo || d > hi)
     return fail(x, sec, key, "expected a number in %g..%g, got '%s'", lo, hi, v);
   *out = d;
   return 1;

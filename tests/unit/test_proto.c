@@ -172,6 +172,13 @@ static void test_strict_numbers(void **state) {
   expect_fail(KV({"at", "1e300,0,0"}), 1, 400, "parameter 'at': out of range");
   expect_fail(KV({"at", "0,0,-2e30"}), 1, 400, "parameter 'at': out of range");
   expect_fail(KV({"at", "1e999,0,0"}), 1, 400, "parameter 'at': out of range");
+  /* Underflow is a number within 1e-308 of 0: in range, and a voxel of 0. */
+  {
+    double v[3];
+    assert_int_equal(gi_proto_parse_vec3("1e-320,-1e-400,2", v), 0);
+    assert_true(v[0] > 0 && v[0] < 1e-319 && v[1] == 0.0 && v[2] == 2.0);
+  }
+  expect_fail(KV({"at", "0,0,0"}, {"voxel", "1e-400"}), 2, 400, "parameter 'voxel': expected a voxel size in (0, 1e7]");
   expect_fail(KV({"at", "0,0,0"}, {"voxel", "1e400"}), 2, 400, "parameter 'voxel': '1e400' is out of range");
   expect_fail(KV({"at", "0,0,0"}, {"voxel", "1e300"}), 2, 400, "parameter 'voxel': expected a voxel size in (0, 1e7], got 1e+300 (out of range)");
   /* A value that is not a multiple of 4 is wrong, not out of range. */

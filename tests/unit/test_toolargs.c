@@ -112,7 +112,7 @@ static void test_double_rejects(void **state) {
       {"0x1p3", TA_SYNTAX},  {"1e", TA_SYNTAX},   {"e5", TA_SYNTAX},   {".", TA_SYNTAX},
       {"-", TA_SYNTAX},      {" 1", TA_SYNTAX},   {"1 ", TA_SYNTAX},   {"1,2", TA_SYNTAX},
       {"5s", TA_SYNTAX},     {"1.2.3", TA_SYNTAX}, {"1e5.0", TA_SYNTAX}, {"--1", TA_SYNTAX},
-      {"1e999", TA_RANGE},   {"-1e999", TA_RANGE}, {"1e-400", TA_RANGE},
+      {"1e999", TA_RANGE},   {"-1e999", TA_RANGE},
   };
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     double v = -1234;
@@ -121,6 +121,18 @@ static void test_double_rejects(void **state) {
     assert_int_equal(st, bad[i].st);
     assert_true(v == -1234);
   }
+}
+
+/* Underflow is a number within 1e-308 of 0, not out of range. */
+static void test_double_underflow(void **state) {
+  double v = -1;
+  assert_int_equal(ta_parse_double("1e-400", &v), TA_OK);
+  assert_true(v == 0.0);
+  assert_int_equal(ta_parse_double("-2.5e-320", &v), TA_OK);
+  assert_true(v < 0 && v > -1e-319);
+  double t[3];
+  assert_int_equal(ta_parse_doubles("1e-320,2,3", t, 3), TA_OK);
+  assert_true(t[0] > 0 && t[0] < 1e-319 && t[1] == 2.0 && t[2] == 3.0);
 }
 
 static void test_lists(void **state) {
@@ -363,7 +375,8 @@ static void test_headers(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_int_accepts),    cmocka_unit_test(test_int_rejects), cmocka_unit_test(test_u64),
-      cmocka_unit_test(test_double_accepts), cmocka_unit_test(test_double_rejects), cmocka_unit_test(test_lists),
+      cmocka_unit_test(test_double_accepts), cmocka_unit_test(test_double_rejects),
+      cmocka_unit_test(test_double_underflow), cmocka_unit_test(test_lists),
       cmocka_unit_test(test_option_messages), cmocka_unit_test(test_printed),   cmocka_unit_test(test_getopt),
       cmocka_unit_test(test_files),          cmocka_unit_test(test_headers),
   };

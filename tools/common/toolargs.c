@@ -75,7 +75,8 @@ static ta_status number_at(const char *s, char end, double *out) {
   if (n == 0 || s[n] != end) return s[0] == '\0' || s[0] == ',' ? TA_EMPTY : TA_SYNTAX;
   errno = 0;
   double v = strtod(s, NULL);
-  if (errno == ERANGE || !isfinite(v)) return TA_RANGE;
+  /* ERANGE with |v| < 1 is underflow: a number within 1e-308 of 0, kept. */
+  if ((errno == ERANGE && fabs(v) >= 1.0) || !isfinite(v)) return TA_RANGE;
   *out = v;
   return TA_OK;
 }

@@ -15,7 +15,8 @@ static int parse_line(const char *p, double v[3]) {
     char *end;
     errno = 0;
     v[i] = strtod(q, &end);
-    if (end == q || errno == ERANGE || !isfinite(v[i])) return -1;
+    /* ERANGE with |v| < 1 is underflow: a number within 1e-308 of 0, kept. */
+    if (end == q || (errno == ERANGE && fabs(v[i]) >= 1.0) || !isfinite(v[i])) return -1;
     if (i < 2) {
       if (*end != ' ' && *end != '\t' && *end != ',') return -1;
       while (*end == ' ' || *end == '\t') end++;
