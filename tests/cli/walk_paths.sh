@@ -44,6 +44,41 @@ j = json.loads(open(sys.argv[1]).read().splitlines()[-1])
 assert j["path"] == "my_drive" and j["steps"] == 29 and j["eye_m"] is None and j["city_extent_m"] == 300, j
 assert j["cold_bakes"] >= 3 and j["speedup_mean"] > 0 and 0 <= j["drift_max"] < 1, j
 PY
+# A path through a closed block: its 10 points inside are counted and left
+# out of drift and popping (their probes hold only leaked light).
+cat > "$T/block.obj" <<'OBJ'
+v -40 0 -40
+v 40 0 -40
+v 40 0 40
+v -40 0 40
+f 1 4 3 2
+v -5 0 -5
+v 5 0 -5
+v 5 0 5
+v -5 0 5
+v -5 10 -5
+v 5 10 -5
+v 5 10 5
+v -5 10 5
+f 5 6 7 8
+f 9 12 11 10
+f 5 9 10 6
+f 6 10 11 7
+f 7 11 12 8
+f 8 12 9 5
+OBJ
+/usr/bin/python3 -c "
+for i in range(40): print('%.1f,%.1f,2,0.5' % (i / 10, -19.5 + i))" > "$T/through.csv"
+"$WALK" bench --path "$T/through.csv" --scene "$T/block.obj" --samples 4 --out "$T/pt" --json "$T/pt.jsonl" \
+  > "$T/out" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q "note: 10 of 40 points of $T/through.csv lie inside solids" "$T/err" \
+  && grep -q "^(10 of 40 points lie inside solids: drift and popping leave them out)" "$T/out" \
+  && pass "--path through a solid: 10 points inside, left out" || fail "--path through a solid (rc $rc): $(cat "$T/out" "$T/err")"
+/usr/bin/python3 - "$T/pt.jsonl" <<'PY' || fail "--path through a solid, JSON: $(cat "$T/pt.jsonl")"
+import json, sys
+j = json.loads(open(sys.argv[1]).read().splitlines()[-1])
+assert j["points_inside"] == 10 and 1 <= j["drift_points"] <= 8, j
+PY
 printf '0,1,2,3\n0.1,1,2\n' > "$T/bad.csv"
 "$WALK" bench --extent 300 --path "$T/bad.csv" --out "$T/pb" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 2 ] && grep -q -F "gi-walk: --path: $T/bad.csv:2: expected t,x,y,z (four finite numbers), got '0.1,1,2'" "$T/err" \

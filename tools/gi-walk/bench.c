@@ -41,16 +41,22 @@ static int mark_crossings(const gi_scene *s, const gi_quality *resolved, const w
   return 0;
 }
 
-/* Marks the cold-bake subsample: every k-th crossing step and the step before it. */
+/* Whether step i is a crossing the cold bakes may sample: both its points
+ * outside solids (a probe inside one holds only leaked light). */
+static int sampled_crossing(const walk_path *p, const step_rec *steps, size_t i) {
+  return steps[i].crossed && !walk_point_inside(p, i) && !walk_point_inside(p, i - 1);
+}
+
+/* Marks the cold-bake subsample: every k-th such crossing step and the step before it. */
 static void mark_cold(const walk_path *p, int samples, step_rec *steps) {
   size_t ncross = 0, seen = 0;
-  for (size_t i = 1; i < p->n; i++) ncross += (size_t)steps[i].crossed;
+  for (size_t i = 1; i < p->n; i++) ncross += (size_t)sampled_crossing(p, steps, i);
   if (!ncross || samples < 1) return;
   size_t k = ncross / (size_t)samples;
   if (k < 1) k = 1;
   int made = 0;
   for (size_t i = 1; i < p->n && made < samples; i++) {
-    if (!steps[i].crossed) continue;
+    if (!sampled_crossing(p, steps, i)) continue;
     /* The middle of each group of k, so the first sample is not the first step. */
     if (seen++ % k == k / 2) steps[i].cold = steps[i - 1].cold = 1, made++;
   }
@@ -93,7 +99,7 @@ static int worst_shift_cold(const bench_opts *o, const gi_scene *s, walk_path *p
   double worst = -1;
   for (size_t i = 1; i < p->n; i++) {
     double j = probe_rel(&steps[i].moved, &steps[i].pre);
-    if (steps[i].crossed && j > worst) worst = j, p->worst_shift = i;
+    if (steps[i].crossed && !walk_point_inside(p, i) && j > worst) worst = j, p->worst_shift = i;
   }
   if (!p->worst_shift) return 0;
   step_rec before, after;

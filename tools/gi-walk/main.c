@@ -58,14 +58,15 @@ static int run_path_file(const bench_opts *o, ta_ctx *ta) {
   free(st);
   gi_scene *s = bench_scene(o);
   /* A path through buildings is a valid path, but a probe inside a solid
-   * holds only leaked light: its drift and jumps mean little. Say how many. */
-  size_t inside = 0;
-  for (size_t i = 0; s && i < p.n; i++) inside += gi_scene_backface_share(s, p.at[i]) > GI_INSIDE_SHARE;
-  if (inside)
+   * holds only leaked light: the figures leave those points out. */
+  p.inside = s ? calloc(p.n, 1) : NULL;
+  for (size_t i = 0; p.inside && i < p.n; i++)
+    p.num_inside += p.inside[i] = gi_scene_backface_share(s, p.at[i]) > GI_INSIDE_SHARE;
+  if (p.num_inside)
     fprintf(stderr, "gi-walk: note: %zu of %zu points of %s lie inside solids (most directions meet a surface's "
-            "back): their probes hold only light that leaks in, and their drift and jumps mean little\n", inside,
+            "back): their probes hold only light that leaks in; drift and popping leave them out\n", p.num_inside,
             p.n, o->path_file);
-  step_rec *steps = s ? calloc(p.n, sizeof *steps) : NULL;
+  step_rec *steps = s && p.inside ? calloc(p.n, sizeof *steps) : NULL;
   rc = !steps || bench_path(o, s, &p, steps);
   if (!rc) {
     FILE *json = o->jsonl ? fopen(o->jsonl, "a") : NULL;

@@ -183,9 +183,10 @@ int walk_path_write_csv(const walk_path *p, const char *file) {
 }
 
 void walk_path_free(walk_path *p) {
+  free(p->inside);
   free(p->t);
   free(p->at);
-  p->t = NULL, p->at = NULL, p->n = 0;
+  p->t = NULL, p->at = NULL, p->inside = NULL, p->n = p->num_inside = 0;
 }
 
 int walk_path_from_steps(const char *file, const ta_step *st, size_t n, walk_path *out) {

@@ -39,7 +39,13 @@ typedef struct walk_path {
    * one is the move's drift. */
   size_t worst_shift;
   double worst_shift_cold;
+  /* Per point: 1 inside a solid (GI_INSIDE_SHARE), owned; NULL: none is. A
+   * probe there holds only leaked light, so drift and popping leave it out. */
+  unsigned char *inside;
+  size_t num_inside;
 } walk_path;
+
+static inline int walk_point_inside(const walk_path *p, size_t i) { return p->inside && p->inside[i]; }
 
 /* A path along the city's street centre lines from the central
  * intersection, turning at intersections (seeded), kept inside the city. */
