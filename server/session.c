@@ -287,6 +287,8 @@ static int bake_session(gs_service *svc, gs_session *s, const double at[3], cons
     gs_metrics_bake(svc->metrics, (gs_now_ms() - t0) * 1e-3);
     rc = gi_cascade_anchor(s->scene->scene, at, &s->resolved, s->anchor, &e);
   }
+  /* What moves need, now: the first move does not pay for it. */
+  if (rc == GI_OK) rc = gi_cascade_move_prepare(s->cascade, &e);
   if (rc != GI_OK) {
     gi_cascade_free(s->cascade);
     gs_cache_unhold(svc->cache, need);

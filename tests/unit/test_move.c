@@ -29,6 +29,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "base/alloc_test.h"
 #include "base/internal.h"
 #include "cascade/cascade_internal.h"
 #include "gi/gi.h"
@@ -708,6 +709,50 @@ static void test_deterministic(void **state) {
   gi_scene_release(s);
 }
 
+/* gi_cascade_move_prepare: each allocation's failure is GI_ERR_NOMEM with
+ * the cascade as it was (no move state); once made, again is a no-op; and
+ * a prepared cascade moves to the same bits as one that was not. */
+static void test_prepare(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  gi_cascade *a = bake(s, at), *b = bake(s, at);
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_move_prepare(NULL, &err), GI_ERR_INVALID_ARG);
+  long n = 0, live0 = gi__alloc_live();
+  for (;; n++) {
+    gi__alloc_fail_after(n);
+    gi_result rc = gi_cascade_move_prepare(b, &err);
+    int hit = !gi__alloc_fail_armed();
+    gi__alloc_fail_after(-1);
+    if (!hit) {
+      assert_int_equal(rc, GI_OK);
+      break;
+    }
+    assert_int_equal(rc, GI_ERR_NOMEM);
+    assert_null(b->move_state);
+    assert_int_equal(gi__alloc_live(), live0); /* nothing kept */
+  }
+  assert_true(n > 0);
+  const void *made = b->move_state;
+  assert_true(gi__move_state_bytes(b) > 0);
+  assert_int_equal(gi_cascade_move_prepare(b, &err), GI_OK);
+  assert_ptr_equal(b->move_state, made);
+  uint64_t rng = 0x9e9a;
+  size_t vox = (size_t)a->R * a->R * a->R;
+  for (int m = 0; m < DETERMINISM_MOVES; m++) {
+    next_point(&cp, a->s0, &rng, at);
+    assert_int_equal(gi_cascade_move(a, at, NULL, NULL, &err), GI_OK);
+    assert_int_equal(gi_cascade_move(b, at, NULL, NULL, &err), GI_OK);
+    assert_true(a->rad_scale == b->rad_scale);
+    for (int d = 0; d < a->n; d++) assert_true(memcmp(a->lv[d].rad, b->lv[d].rad, vox * sizeof *a->lv[d].rad) == 0);
+  }
+  gi_cascade_free(a);
+  gi_cascade_free(b);
+  gi_scene_release(s);
+}
+
 /* A move a client stopped: a far move (every level rebuilt, a cold bake's
  * work) with a fired token returns GI_ERR_CANCELLED, saying so; a small
  * one too. The cascade is then partial: freed, never read. */
@@ -836,6 +881,7 @@ int main(void) {
       cmocka_unit_test(test_cost),
       cmocka_unit_test(test_bad_viewpoint),
       cmocka_unit_test(test_deterministic),
+      cmocka_unit_test(test_prepare),
       cmocka_unit_test(test_cancelled_move),
       cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),

@@ -1,6 +1,8 @@
 /* bench.c: one cascade moved along a path, against cold bakes.
  *
- * Step 0 bakes the cascade cold at the path's first point. Every later step
+ * Step 0 bakes the cascade cold at the path's first point and makes what
+ * moves need (gi_cascade_move_prepare, timed apart: a session does it when
+ * it starts, not on a step). Every later step
  * calls gi_cascade_move (also when the eye stays in its cell: each call is
  * one tick of the refresh clock, as a session's request would be) and then
  * gathers the probe at the eye. A step "crosses" when its level-0 anchor
@@ -116,6 +118,15 @@ int bench_path(const bench_opts *o, const gi_scene *s, walk_path *p, step_rec *s
   step_rec *s0 = &steps[0];
   if (cold_bake(s, &o->q, p->at[0], &c, &s0->cold_ms, &s0->cold_cpu_ms) != 0) return -1;
   gi_quality resolved = p->resolved = gi_cascade_report(c)->quality;
+  /* What moves need, made once as a server session does at its start. */
+  gi_error_info err = {0};
+  double w0 = now_ms();
+  if (gi_cascade_move_prepare(c, &err) != GI_OK) {
+    fprintf(stderr, "gi-walk: move setup: %s\n", err.msg);
+    gi_cascade_free(c);
+    return -1;
+  }
+  p->setup_ms = now_ms() - w0;
   int rc = probe_at(c, p->at[0], &s0->moved, &s0->gather_ms);
   s0->cold_probe = s0->moved, s0->cold = 1;
   if (!rc && p->n > 1) rc = probe_at(c, p->at[1], &s0->cold_next, NULL);

@@ -108,8 +108,9 @@ static void print_figures(const walk_path *p, const figures *f) {
   printf("  (CPU time: update mean %s ms, p99 %s ms; cold mean %s ms, p99 %s ms: %sx mean, %sx p99)\n",
          num(f->upd_cpu_mean, 1), num(f->upd_cpu_p99, 1), num(f->cold_cpu_mean, 1), num(f->cold_cpu_p99, 1),
          num(f->cold_cpu_mean / f->upd_cpu_mean, 1), num(f->cold_cpu_p99 / f->upd_cpu_p99, 1));
-  printf("per step (move + gather, every step): mean %s ms, p99 %s ms (gather alone: mean %s ms)\n",
-         num(f->step_mean, 2), num(f->step_p99, 2), num(f->gather_mean, 2));
+  printf("per step (move + gather, every step): mean %s ms, p99 %s ms (gather alone: mean %s ms); "
+         "move setup once at the start (as a session's): %s ms\n",
+         num(f->step_mean, 2), num(f->step_p99, 2), num(f->gather_mean, 2), num(p->setup_ms, 1));
   if (p->num_inside)
     printf("(%zu of %zu points lie inside solids: drift and popping leave them out)\n", p->num_inside, p->n);
   printf("drift (probe vs cold bake, %zu points): mean %s%% goal <= %.0f%%: %s; max %s%% goal <= %.0f%%: %s\n",
@@ -147,7 +148,7 @@ static void json_figures(const bench_opts *o, const walk_path *p, const figures 
       {"cold_ms_mean", f->cold_mean}, {"cold_ms_p99", f->cold_p99}, {"speedup_mean", f->cold_mean / f->upd_mean},
       {"speedup_p99", f->cold_p99 / f->upd_p99}, {"update_cpu_ms_mean", f->upd_cpu_mean},
       {"cold_cpu_ms_mean", f->cold_cpu_mean}, {"step_ms_mean", f->step_mean}, {"step_ms_p99", f->step_p99},
-      {"gather_ms_mean", f->gather_mean}, {"points_inside", (double)p->num_inside},
+      {"gather_ms_mean", f->gather_mean}, {"setup_ms", p->setup_ms}, {"points_inside", (double)p->num_inside},
       {"drift_points", (double)f->drift_points}, {"drift_mean", f->drift_mean}, {"drift_max", f->drift_max},
       {"pop_shift", f->pop_shift}, {"pop_shift_step", (double)p->worst_shift},
       {"pop_shift_cold", p->worst_shift_cold >= 0 ? p->worst_shift_cold : NAN},

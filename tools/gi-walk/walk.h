@@ -39,6 +39,7 @@ typedef struct walk_path {
    * one is the move's drift. */
   size_t worst_shift;
   double worst_shift_cold;
+  double setup_ms; /* set by bench_path: gi_cascade_move_prepare after the first bake */
   /* Per point: 1 inside a solid (GI_INSIDE_SHARE), owned; NULL: none is. A
    * probe there holds only leaked light, so drift and popping leave it out. */
   unsigned char *inside;
