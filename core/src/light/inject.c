@@ -14,12 +14,16 @@
 #include "light/light.h"
 #include "scene/lights.h"
 
+/* One parallel loop over the listed voxels of every level (level d's are
+ * [start[d], start[d + 1])): a loop per level waited for its slowest
+ * chunk six times, and the Cornell box's coarse levels hold a few chunks
+ * each. Each voxel's light depends on its cell alone, not on the order. */
 typedef struct {
   struct gi_cascade *c;
   const gi_light_plan *lp;
   gi_light_plan lp_other; /* lp without the emitters (a voxel that spread them) */
-  int d;
-  const uint32_t *slots; /* the voxels to light (a level's occ list, or a move's new voxels) */
+  const uint32_t *const *slots; /* per level: the voxels to light (its occ list, or a move's new voxels) */
+  size_t start[GI_MAX_LEVELS + 1];
   uint64_t seed;
   int cap;             /* light samples per voxel at most (gi__light_sample_cap) */
   atomic_ullong rays;
@@ -214,10 +218,10 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
 }
 
 static void inject_range(void *p, size_t b, size_t e, int worker) {
+  (void)worker;
   inject_ctx *ic = p;
   struct gi_cascade *c = ic->c;
-  gi_level *L = &c->lv[ic->d];
-  inject_buf ib = {.sc = {0}, .sz = L->s};
+  inject_buf ib = {.sc = {0}};
   ib.all = gi__malloc((size_t)ic->cap * sizeof *ib.all);
   ib.side = gi__malloc((size_t)ic->cap);
   ib.cosw = gi__malloc((size_t)ic->cap * sizeof(float));
@@ -227,11 +231,14 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     atomic_store(&ic->failed, 1);
     goto out;
   }
-  float voxel = (float)L->s;
   uint64_t rays = 0;
-  int R = c->R;
+  int R = c->R, d = 0;
   for (size_t q = b; q < e; q++) {
-    uint32_t slot = ic->slots[q];
+    while (q >= ic->start[d + 1]) d++;
+    gi_level *L = &c->lv[d];
+    float voxel = (float)L->s;
+    ib.sz = L->s;
+    uint32_t slot = ic->slots[d][q - ic->start[d]];
     const gi_vgeo *g = gi__geo(L, slot);
     float Es[GI_VOX_FACES][3] = {{0}}; /* per side 2 g + s */
     /* Seed from the global cell: the same voxel gets the same samples wherever the window is. */
@@ -239,13 +246,13 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     gi__slot_cell(L, R, slot, cell);
     gi__near_reset(&ib.ns);
     uint64_t rng = gi__mix64(ic->seed ^ gi__mix64((uint64_t)cell[0] * 73856093ull ^ (uint64_t)cell[1] * 19349663ull ^
-                                                    (uint64_t)cell[2] * 83492791ull ^ (uint64_t)ic->d << 56));
+                                                    (uint64_t)cell[2] * 83492791ull ^ (uint64_t)d << 56));
     /* A coarse voxel with an emitter near takes the emitters' light over its
      * surface when it can (gi__spread_emitters); then its centroids sample
      * the other lights only. */
     const gi_light_plan *lp = ic->lp;
     int spread = 0;
-    if (ic->d >= GI_EMIT_SPREAD_FROM && lp->emissive && c->scene->num_emitters &&
+    if (d >= GI_EMIT_SPREAD_FROM && lp->emissive && c->scene->num_emitters &&
         gi__light_tree_within(c->scene, g->centroid, GI_EMIT_SPREAD_REACH * voxel)) {
       float Ee[GI_VOX_FACES][3] = {{0}};
       int r = gi__spread_emitters(c->scene, g, ib.sz, cell, lp->emit_samples, &rng, &ib.ns, Ee, &ib.near_rays);
@@ -256,7 +263,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
           for (int k = 0; k < 3; k++) Es[f][k] += Ee[f][k];
     }
     int n = gi__light_samples(c->scene, spread ? &ic->lp_other : lp, g->centroid, &rng, ib.all, ic->cap);
-    near_lights(c->scene, g, voxel, ic->d, n, &ib, &rng, Es);
+    near_lights(c->scene, g, voxel, d, n, &ib, &rng, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     if (!spread) rays += emitter_rays(ic, g, voxel, &rng, Es);
     gi__face_light(g, (const float(*)[3])Es, gi__direct(L, slot));
@@ -367,28 +374,28 @@ void gi__shade_all(struct gi_cascade *c) { shade_all(c, NULL); }
 
 void gi__shade_all_from(struct gi_cascade *c, gi_faces3 *const from[]) { shade_all(c, from); }
 
-gi_result gi__inject_slots(struct gi_cascade *c, const gi_quality *q, int d, const uint32_t *slots, uint32_t n,
-                           gi_error_info *err) {
+gi_result gi__inject_levels(struct gi_cascade *c, const gi_quality *q, const uint32_t *const slots[],
+                            const uint32_t count[], gi_error_info *err) {
   gi_light_plan lp = gi__light_plan(&c->report, q->light_samples);
   int cap = gi__light_sample_cap(c->scene, &lp);
-  inject_ctx ic = {.c = c, .lp = &lp, .lp_other = lp, .d = d, .slots = slots, .seed = q->seed, .cap = cap};
+  inject_ctx ic = {.c = c, .lp = &lp, .lp_other = lp, .slots = slots, .seed = q->seed, .cap = cap};
   ic.lp_other.emissive = 0;
+  for (int d = 0; d < c->n; d++) ic.start[d + 1] = ic.start[d] + count[d];
   atomic_init(&ic.rays, 0);
   atomic_init(&ic.failed, 0);
-  int cancelled = gi__parallel_for_cancel(n, 32, q->threads, inject_range, &ic, &ic.failed, c->cancel);
+  int cancelled = gi__parallel_for_cancel(ic.start[c->n], 32, q->threads, inject_range, &ic, &ic.failed, c->cancel);
   if (cancelled) return gi__cancel_fail(c->cancel, err, "inject");
   if (atomic_load(&ic.failed))
-    return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for the light-sample buffers (%d samples) of level %d",
-                    cap, d);
+    return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for the light-sample buffers (%d samples)", cap);
   c->report.shadow_rays += atomic_load(&ic.rays);
   return GI_OK;
 }
 
 gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err) {
-  for (int d = 0; d < c->n; d++) {
-    gi_result rc = gi__inject_slots(c, q, d, c->lv[d].occ, c->lv[d].num_occ, err);
-    if (rc != GI_OK) return rc;
-  }
-  gi__shade_all(c);
-  return GI_OK;
+  const uint32_t *slots[GI_MAX_LEVELS];
+  uint32_t count[GI_MAX_LEVELS];
+  for (int d = 0; d < c->n; d++) slots[d] = c->lv[d].occ, count[d] = c->lv[d].num_occ;
+  gi_result rc = gi__inject_levels(c, q, slots, count, err);
+  if (rc == GI_OK) gi__shade_all(c);
+  return rc;
 }

@@ -9,10 +9,11 @@
 
 /* inject.c: direct light into every occupied voxel (both sides). */
 gi_result gi__inject(struct gi_cascade *c, const gi_quality *q, gi_error_info *err);
-/* Direct light into the listed voxels of level d only (a move's new voxels);
- * the caller reshades (gi__shade_all). */
-gi_result gi__inject_slots(struct gi_cascade *c, const gi_quality *q, int d, const uint32_t *slots, uint32_t n,
-                           gi_error_info *err);
+/* Direct light into the listed voxels of every level (slots[d][0..count[d]),
+ * a move's new voxels), in one parallel loop; the caller reshades
+ * (gi__shade_all). */
+gi_result gi__inject_levels(struct gi_cascade *c, const gi_quality *q, const uint32_t *const slots[],
+                            const uint32_t count[], gi_error_info *err);
 /* Recomputes each occupied voxel's face radiance from its side irradiance. */
 void gi__shade_voxels(struct gi_cascade *c, int d, uint32_t begin, uint32_t end);
 /* gi__shade_voxels over every occupied voxel of every level. */

@@ -802,14 +802,16 @@ static gi_result rebake_slice(struct gi_cascade *c, const gi_quality *q, int tai
 /* Direct light into the rebuilt voxels (every own voxel when relit). */
 static gi_result inject_fresh(struct gi_cascade *c, const gi_quality *q, int relit, uint32_t **fresh,
                               const uint32_t *nnew, gi_error_info *err) {
+  const uint32_t *slots[GI_MAX_LEVELS];
+  uint32_t count[GI_MAX_LEVELS];
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
-    const uint32_t *slots = relit ? L->occ : fresh[d];
-    uint32_t n = relit ? L->num_occ : nnew[d];
-    gi_result rc = gi__inject_slots(c, q, d, slots, n, err);
-    if (rc != GI_OK) return rc;
-    c->report.level_injected[d] = n;
+    slots[d] = relit ? L->occ : fresh[d];
+    count[d] = relit ? L->num_occ : nnew[d];
   }
+  gi_result rc = gi__inject_levels(c, q, slots, count, err);
+  if (rc != GI_OK) return rc;
+  for (int d = 0; d < c->n; d++) c->report.level_injected[d] = count[d];
   gi__shade_all(c);
   return GI_OK;
 }
