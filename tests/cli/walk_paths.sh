@@ -79,6 +79,11 @@ import json, sys
 j = json.loads(open(sys.argv[1]).read().splitlines()[-1])
 assert j["points_inside"] == 10 and 1 <= j["drift_points"] <= 8, j
 PY
+# The same block with z up, read without --up: a note names the fix.
+awk '$1 == "v" { print "v", $2, $4, $3; next } { print }' "$T/block.obj" > "$T/block-z.obj"
+"$WALK" bench --path "$T/through.csv" --scene "$T/block-z.obj" --samples 1 --out "$T/pz" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q "note: $T/block-z.obj is flat along z but read with y up (the default): .* pass --up z" "$T/err" \
+  && pass "--scene that looks z-up without --up: noted" || fail "z-up note (rc $rc): $(cat "$T/err")"
 printf '0,1,2,3\n0.1,1,2\n' > "$T/bad.csv"
 "$WALK" bench --extent 300 --path "$T/bad.csv" --out "$T/pb" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 2 ] && grep -q -F "gi-walk: --path: $T/bad.csv:2: expected t,x,y,z (four finite numbers), got '0.1,1,2'" "$T/err" \

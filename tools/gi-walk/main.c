@@ -38,9 +38,10 @@ static const char USAGE[] =
 static gi_scene *bench_scene(const bench_opts *o) {
   gi_scene *s = NULL;
   gi_error_info err = {0};
-  gi_scene_options so = {.up = o->up ? o->up : GI_UP_Y, .default_lights = 1};
+  gi_scene_options so = {.up = o->up, .default_lights = 1}; /* 0: y */
   gi_result r = o->scene_file ? gi_scene_load(o->scene_file, &so, &s, &err) : gi_city_build(&o->city, NULL, &s, &err);
   if (r != GI_OK) fprintf(stderr, "gi-walk: %s: %s\n", o->scene_file ? "scene" : "city", err.msg);
+  walk_note_up(o->scene_file, o->up, s);
   return s;
 }
 
@@ -177,7 +178,7 @@ int main(int argc, char **argv) {
   if (argc < 2 || (strcmp(argv[1], "bench") && strcmp(argv[1], "tables")))
     return fputs(USAGE, argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr), argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
   all_opts a = {.b = {.seconds = 60, .rate = 10, .samples = DEFAULT_SAMPLES, .out_dir = "out"},
-                .t = {.moves = DEFAULT_MOVES, .vdb_max_voxels = DEFAULT_VDB_MAX, .up = GI_UP_Y}};
+                .t = {.moves = DEFAULT_MOVES, .vdb_max_voxels = DEFAULT_VDB_MAX}};
   int ch;
   optind = 2;
   while ((ch = getopt_long(argc, argv, ":", LONG_OPTS, NULL)) != -1) {

@@ -22,6 +22,7 @@ static int load_scene(const tables_opts *o, gi_scene **s) {
   if (o->scene_file) {
     gi_scene_options opt = {.up = o->up, .default_lights = 1};
     r = gi_scene_load(o->scene_file, &opt, s, &err);
+    if (r == GI_OK) walk_note_up(o->scene_file, o->up, *s);
   } else {
     r = gi_city_build(&o->city, NULL, s, &err);
   }

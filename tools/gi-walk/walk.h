@@ -64,6 +64,9 @@ int walk_path_write_csv(const walk_path *p, const char *file);
 struct ta_step;
 int walk_path_from_steps(const char *file, const struct ta_step *st, size_t n, walk_path *out);
 void walk_path_free(walk_path *p);
+/* A scene file read without --up that looks z-up (gi_scene_looks_z_up): a
+ * note on stderr naming the fix (the paths' points are then read wrongly). */
+void walk_note_up(const char *file, gi_up_axis up, const gi_scene *s);
 
 /* --- stats.c --------------------------------------------------------------- */
 
