@@ -15,8 +15,9 @@
 #include "server.h"
 
 /* Bytes per texel while a lightmap is baked and encoded: six RGB float
- * arrays, valid and chart (80), and the EXR's 13 planar channels (52). */
-#define GS_LIGHTMAP_TEXEL_BYTES 132
+ * arrays, valid and chart (80), the texels' tiles while the bake sorts
+ * them (12) and the EXR's 13 planar channels (52). */
+#define GS_LIGHTMAP_TEXEL_BYTES 144
 
 static void fail(gs_answer *a, int status, const char *msg) {
   gi_proto_error pe;

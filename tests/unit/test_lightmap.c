@@ -466,6 +466,78 @@ static void test_bake_deterministic_and_tiled(void **state) {
   gi_scene_release(s);
 }
 
+/* A 200 m street (twenty quads of 10 x 20 m) and, at its far
+ * end (x = 90), a 10 m wall facing back along it in the sun: the street in
+ * front of the wall takes the wall's bounce. */
+static gi_scene *long_street(void) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  for (int i = 0; i < 20; i++) {
+    double x0 = -100 + 10 * i, x1 = x0 + 10;
+    double q[4][3] = {{x0, 0, -10}, {x0, 0, 10}, {x1, 0, 10}, {x1, 0, -10}};
+    gi_mesh_builder_add_quad(b, q[0], q[1], q[2], q[3], mat);
+  }
+  double w[4][3] = {{90, 0, -10}, {90, 0, 10}, {90, 10, 10}, {90, 10, -10}};
+  gi_mesh_builder_add_quad(b, w[0], w[1], w[2], w[3], mat);
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0.70710678f, -0.70710678f, 0}};
+  gi_scene_options so = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "street", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* Mean indirect light (green) of the street's texels 1-6 m in front of the wall. */
+static double street_indirect(gi_scene *s, const gi_lightmap_opts *o, int *tiles) {
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, o, &lm, &err), GI_OK);
+  gi_quality q = {.levels = 4, .res = 16, .probe_samples = 16, .cones = 6};
+  gi_lightmap_report rep;
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_OK);
+  *tiles = rep.tiles;
+  double org[3], sum = 0;
+  size_t n = 0;
+  gi_lightmap_origin(lm, org);
+  for (size_t k = 0; k < gi_lightmap_num_atlases(lm); k++) {
+    gi_lightmap_atlas a;
+    gi_lightmap_get_atlas(lm, k, &a);
+    for (size_t i = 0; i < (size_t)a.width * a.height; i++) {
+      double x = org[0] + a.point[3 * i], z = org[2] + a.point[3 * i + 2];
+      if (a.valid[i] == 0 || a.normal[3 * i + 1] < 0.99f || x < 84 || x > 89 || fabs(z) > 8) continue;
+      sum += a.indirect[3 * i + 1];
+      n++;
+    }
+  }
+  assert_true(n > 100);
+  gi_lightmap_free(lm);
+  return sum / (double)n;
+}
+
+/* Texels belong to the tile holding them, not to their chart's: the whole
+ * street is one chart centred at x = 0, yet with 20 m tiles the texels in
+ * front of the far wall read their bounce as a bake of that corner alone
+ * does. (By the chart's centre they were all gathered from the middle
+ * tile's cascade, 85 m away in its coarse levels.) */
+static void test_big_chart_tiles(void **state) {
+  (void)state;
+  gi_scene *s = long_street();
+  gi_lightmap_opts all = {.texel = 0.5, .atlas = 512, .tile = 20};
+  gi_lightmap_opts corner = all;
+  corner.have_region = 1;
+  double lo[3] = {78, -1, -11}, hi[3] = {101, 11, 11};
+  memcpy(corner.region_lo, lo, sizeof lo), memcpy(corner.region_hi, hi, sizeof hi);
+  int ta, tc;
+  double ea = street_indirect(s, &all, &ta), ec = street_indirect(s, &corner, &tc);
+  printf("street: indirect light in front of the far wall: whole street (%d tiles) %.4f, the corner alone (%d "
+         "tiles) %.4f\n", ta, ea, tc, ec);
+  assert_true(ec > 0.05);
+  assert_true(fabs(ea - ec) <= 0.1 * ec);
+  gi_scene_release(s);
+}
+
 /* A floor of two charts meeting at x = 2 under the light: the texels on
  * both sides of the seam are as close to the reference, and no darker
  * against it, than the texels 0.3 m beside them inside their charts. */
@@ -540,6 +612,7 @@ int main(void) {
       cmocka_unit_test(test_exr_read_back),
       cmocka_unit_test(test_gltf_read_back),
       cmocka_unit_test(test_bake_deterministic_and_tiled),
+      cmocka_unit_test(test_big_chart_tiles),
       cmocka_unit_test(test_no_dark_seams),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

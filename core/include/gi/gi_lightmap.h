@@ -12,7 +12,8 @@
  * cascade exactly as the probes gather (direct light by shadow rays,
  * indirect light by the cascade's cones), averaged over the texel's
  * footprint. The region is baked tile by tile, one cascade per tile, so
- * memory stays bounded by one cascade whatever the region's size.
+ * memory stays bounded by one cascade whatever the region's size; a texel
+ * belongs to the tile holding its surface point (a chart may span many).
  *
  * Texels whose surface point lies inside other geometry (a floor under a
  * box) are marked invalid and filled from their neighbours in the same

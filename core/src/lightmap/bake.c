@@ -2,9 +2,11 @@
  *
  * Design. The region is cut into a grid of tiles no wider than opts.tile
  * (default: 0.8 of the coarsest cascade level, so a tile lies inside it);
- * each chart belongs to the tile holding its centre, and each tile with
- * charts is one cascade bake, gathered, then freed: memory stays one
- * cascade. A texel takes supersample^2 points of its footprint; each point
+ * each texel belongs to the tile holding its anchor (the first point of its
+ * footprint on its chart), and each tile with texels is one cascade bake,
+ * gathered, then freed: memory stays one cascade. (By its chart's centre, a
+ * ground plane's texels all went to the middle tile, and those far from it
+ * read the coarse levels there.) A texel takes supersample^2 points of its footprint; each point
  * finds its triangle through the chart's bins (or the nearest point of the
  * nearest triangle within half a texel, so texels straddling a chart's
  * edge see the surface, not what lies beyond it), is tested for lying
@@ -35,11 +37,13 @@
 #define GI_LM_INSIDE_RAYS 12
 #define GI_LM_INSIDE_SHARE 0.5f
 
+/* A texel of a tile's list: its chart, and its place in the chart's rectangle. */
+#define GI_LM_TEXEL(chart, dx, dy) ((uint64_t)(chart) << 32 | (uint64_t)(dy) << 16 | (uint64_t)(dx))
+
 typedef struct {
   const gi_lightmap *lm;
   const struct gi_cascade *c;
-  const uint32_t *jobs;        /* chart index per job ... */
-  const int *rows;             /* ... and the row of its rectangle */
+  const uint64_t *texels;      /* GI_LM_TEXEL entries */
   int samples, cap;
   atomic_int failed;
 } tile_ctx;
@@ -94,6 +98,34 @@ static long find_tri(const gi_lightmap *lm, const gi_lm_chart *c, const float p[
   if (best >= 0 && *outside)
     for (int j = 0; j < 3; j++) bary[j] = (1 - GI_LM_INSET) * bary[j] + GI_LM_INSET / 3;
   return best;
+}
+
+/* The texel's footprint point p (its sub-point `sub`, row-major). */
+static void sub_point(int x, int y, int ss, int sub, float p[2]) {
+  p[0] = (float)x + ((float)(sub % ss) + 0.5f) / (float)ss;
+  p[1] = (float)y + ((float)(sub / ss) + 0.5f) / (float)ss;
+}
+
+/* The texel's anchor: its first footprint point on the chart (inside its
+ * triangles, else the nearest edge point within reach), as bake_texel
+ * takes them; 0 when it has none (a gutter). Local coordinates. */
+static int texel_anchor(const gi_lightmap *lm, const gi_lm_chart *c, int x, int y, float X[3]) {
+  const gi_scene *s = lm->scene;
+  int ss = lm->opts.supersample;
+  for (int pass = 0; pass < 2; pass++)
+    for (int sub = 0; sub < ss * ss; sub++) {
+      float p[2], bary[3] = {0, 0, 0};
+      int outside;
+      sub_point(x, y, ss, sub, p);
+      long t = find_tri(lm, c, p, bary, &outside);
+      if (t < 0 || (outside && pass == 0)) continue;
+      uint32_t tri = lm->tri[t];
+      for (int k = 0; k < 3; k++) X[k] = 0;
+      for (int j = 0; j < 3; j++)
+        for (int k = 0; k < 3; k++) X[k] += bary[j] * s->vertices[3 * (size_t)s->indices[3 * (size_t)tri + j] + k];
+      return 1;
+    }
+  return 0;
 }
 
 /* Back-face share of a few rays over the hemisphere of n from x, and whether any front face was hit. */
@@ -162,7 +194,9 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
   const gi_scene *s = g->lm->scene;
   int ss = g->lm->opts.supersample, nv = 0;
   float acc[5][3] = {{0}}; /* radiance, direct, indirect, point, normal */
-  float reach = gi__voxel_at(g->c, c->centre);
+  float anchor[3];
+  if (!texel_anchor(g->lm, c, x, y, anchor)) return;
+  float reach = gi__voxel_at(g->c, anchor);
   uint64_t seed = gi__mix64(g->c->report.quality.seed ^
                             ((uint64_t)atlas << 48 | (uint64_t)(uint32_t)y << 24 | (uint32_t)x));
   /* The footprint's valid points first, then their light in one call:
@@ -171,7 +205,8 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
   uint32_t tri[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE];
   for (int pass = 0; pass < 2 && !nv; pass++)
     for (int sub = 0; sub < ss * ss; sub++) {
-      float p[2] = {(float)x + ((float)(sub % ss) + 0.5f) / (float)ss, (float)y + ((float)(sub / ss) + 0.5f) / (float)ss};
+      float p[2];
+      sub_point(x, y, ss, sub, p);
       if (!footprint_point(g, c, p, pass, reach, &tri[nv], pt[nv].x, pt[nv].n)) continue;
       pt[nv++].seed = gi__mix64(seed + (uint64_t)sub);
     }
@@ -199,7 +234,7 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
   a->valid[i] = 1.f;
 }
 
-static void tile_rows(void *p, size_t b, size_t e, int worker) {
+static void tile_texels(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   tile_ctx *g = p;
   gi_ray_scratch sc = {0};
@@ -208,9 +243,10 @@ static void tile_rows(void *p, size_t b, size_t e, int worker) {
     return;
   }
   for (size_t j = b; j < e; j++) {
-    const gi_lm_chart *c = &g->lm->charts[g->jobs[j]];
+    uint64_t t = g->texels[j];
+    const gi_lm_chart *c = &g->lm->charts[t >> 32];
     gi_lm_atlas *a = &g->lm->atlases[c->pub.atlas];
-    for (int x = c->pub.x; x < c->pub.x + c->pub.w; x++) bake_texel(g, c, a, c->pub.atlas, x, g->rows[j], &sc);
+    bake_texel(g, c, a, c->pub.atlas, c->pub.x + (int)(t & 0xffff), c->pub.y + (int)(t >> 16 & 0xffff), &sc);
   }
   gi__scratch_free(&sc);
 }
@@ -234,24 +270,11 @@ static int tile_of(const gi_lightmap *lm, const float p[3], const int nt[3], con
   return (id[2] * nt[1] + id[1]) * nt[0] + id[0];
 }
 
-/* One tile: bake its cascade, gather its charts' texels, free the cascade. */
-static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel, const uint32_t *charts,
-                           size_t nc, const double at[3], gi_lightmap_report *rep, gi_error_info *err) {
-  size_t nj = 0;
-  for (size_t i = 0; i < nc; i++) nj += (size_t)lm->charts[charts[i]].pub.h;
-  uint32_t *jobs = gi__malloc(nj * sizeof *jobs);
-  int *rows = gi__malloc(nj * sizeof *rows);
+/* One tile: bake its cascade, gather its texels, free the cascade. */
+static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel, const uint64_t *texels,
+                           size_t nj, const double at[3], gi_lightmap_report *rep, gi_error_info *err) {
   gi_cascade *c = NULL;
   gi_result rc = GI_OK;
-  if (!jobs || !rows) {
-    rc = gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu texel rows", nj);
-    goto done;
-  }
-  nj = 0;
-  for (size_t i = 0; i < nc; i++) {
-    const gi_lightmap_chart *ch = &lm->charts[charts[i]].pub;
-    for (int y = ch->y; y < ch->y + ch->h; y++) jobs[nj] = charts[i], rows[nj++] = y;
-  }
   double t0 = gi__now_ms();
   gi_bake_report br;
   if ((rc = gi_cascade_bake_ex(lm->scene, at, q, cancel, &c, &br, err)) != GI_OK) goto done;
@@ -260,11 +283,11 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   int ss = lm->opts.supersample;
   /* The probe's light-sample budget, shared by the texel's footprint points. */
   int samples = rq->probe_samples / (ss * ss);
-  tile_ctx g = {.lm = lm, .c = c, .jobs = jobs, .rows = rows, .samples = samples < 1 ? 1 : samples};
+  tile_ctx g = {.lm = lm, .c = c, .texels = texels, .samples = samples < 1 ? 1 : samples};
   gi_light_plan lp = gi__answer_light_plan(lm->scene, &br, g.samples);
   g.cap = gi__light_sample_cap(lm->scene, &lp);
   atomic_init(&g.failed, 0);
-  if (gi__parallel_for_cancel(nj, 1, rq->threads, tile_rows, &g, &g.failed, cancel)) {
+  if (gi__parallel_for_cancel(nj, 64, rq->threads, tile_texels, &g, &g.failed, cancel)) {
     rc = gi__cancel_fail(cancel, err, "lightmap");
     goto done;
   }
@@ -277,27 +300,68 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   rep->tiles++;
 done:
   gi_cascade_free(c);
-  gi__free(jobs);
-  gi__free(rows);
   return rc;
 }
 
-/* Charts grouped by tile (counting sort: order inside a tile stays chart order). */
-static gi_result group_by_tile(const gi_lightmap *lm, const int nt[3], const double size[3], uint32_t **start,
-                               uint32_t **list, gi_error_info *err) {
-  size_t ntiles = (size_t)nt[0] * nt[1] * nt[2];
-  *start = gi__calloc(ntiles + 1, sizeof **start);
-  *list = gi__malloc(lm->num_charts * sizeof **list);
-  if (!*start || !*list) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
-  for (size_t i = 0; i < lm->num_charts; i++) (*start)[tile_of(lm, lm->charts[i].centre, nt, size) + 1]++;
-  for (size_t t = 0; t < ntiles; t++) (*start)[t + 1] += (*start)[t];
-  uint32_t *fill = gi__calloc(ntiles ? ntiles : 1, sizeof *fill);
-  if (!fill) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
-  for (size_t i = 0; i < lm->num_charts; i++) {
-    int t = tile_of(lm, lm->charts[i].centre, nt, size);
-    (*list)[(*start)[t] + fill[t]++] = (uint32_t)i;
+/* Every chart texel's tile (tile_of its anchor; -1: none), charts in
+ * parallel; tid[base[i] + dy * w + dx] for chart i's rectangle. */
+typedef struct {
+  const gi_lightmap *lm;
+  const int *nt;
+  const double *size;
+  const size_t *base;
+  int32_t *tid;
+} anchor_ctx;
+
+static void anchor_charts(void *p, size_t b, size_t e, int worker) {
+  (void)worker;
+  anchor_ctx *x = p;
+  for (size_t i = b; i < e; i++) {
+    const gi_lm_chart *c = &x->lm->charts[i];
+    int32_t *t = x->tid + x->base[i];
+    for (int dy = 0; dy < c->pub.h; dy++)
+      for (int dx = 0; dx < c->pub.w; dx++) {
+        float X[3];
+        *t++ = texel_anchor(x->lm, c, c->pub.x + dx, c->pub.y + dy, X) ? tile_of(x->lm, X, x->nt, x->size) : -1;
+      }
   }
-  gi__free(fill);
+}
+
+/* The texels of each tile, [start[t], start[t + 1]) of list (counting
+ * sort: chart order, then row-major, inside a tile). */
+static gi_result texels_by_tile(const gi_lightmap *lm, const int nt[3], const double size[3], int threads,
+                                size_t **start, uint64_t **list, gi_error_info *err) {
+  size_t ntiles = (size_t)nt[0] * nt[1] * nt[2], total = 0;
+  size_t *base = gi__malloc((lm->num_charts + 1) * sizeof *base);
+  if (base)
+    for (size_t i = 0; i < lm->num_charts; i++) base[i] = total, total += (size_t)lm->charts[i].pub.w * lm->charts[i].pub.h;
+  int32_t *tid = base ? gi__malloc((total ? total : 1) * sizeof *tid) : NULL;
+  *start = gi__calloc(ntiles + 1, sizeof **start);
+  if (!tid || !*start) {
+    gi__free(base), gi__free(tid);
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the tiles of %zu texels", total);
+  }
+  anchor_ctx ax = {.lm = lm, .nt = nt, .size = size, .base = base, .tid = tid};
+  gi__parallel_for(lm->num_charts, 1, threads, anchor_charts, &ax);
+  size_t listed = 0;
+  for (size_t k = 0; k < total; k++)
+    if (tid[k] >= 0) (*start)[tid[k] + 1]++, listed++;
+  for (size_t t = 0; t < ntiles; t++) (*start)[t + 1] += (*start)[t];
+  *list = gi__malloc((listed ? listed : 1) * sizeof **list);
+  size_t *fill = gi__calloc(ntiles ? ntiles : 1, sizeof *fill);
+  if (!*list || !fill) {
+    gi__free(base), gi__free(tid), gi__free(fill);
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the tiles of %zu texels", listed);
+  }
+  for (size_t i = 0; i < lm->num_charts; i++) {
+    const gi_lm_chart *c = &lm->charts[i];
+    for (int dy = 0; dy < c->pub.h; dy++)
+      for (int dx = 0; dx < c->pub.w; dx++) {
+        int32_t t = tid[base[i] + (size_t)dy * c->pub.w + dx];
+        if (t >= 0) (*list)[(*start)[t] + fill[t]++] = GI_LM_TEXEL(i, dx, dy);
+      }
+  }
+  gi__free(base), gi__free(tid), gi__free(fill);
   return GI_OK;
 }
 
@@ -393,8 +457,9 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   int nt[3];
   double size[3];
   tile_grid(lm, side, nt, size);
-  uint32_t *start = NULL, *list = NULL;
-  if ((rc = group_by_tile(lm, nt, size, &start, &list, err)) != GI_OK) goto done;
+  size_t *start = NULL;
+  uint64_t *list = NULL;
+  if ((rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, err)) != GI_OK) goto done;
   for (int tz = 0; tz < nt[2] && rc == GI_OK; tz++)
     for (int ty = 0; ty < nt[1] && rc == GI_OK; ty++)
       for (int tx = 0; tx < nt[0] && rc == GI_OK; tx++) {
