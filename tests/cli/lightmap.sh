@@ -20,6 +20,15 @@ d = json.load(open(sys.argv[1]))["lightmap"]
 assert d["charts"] == 7 and d["triangles"] == 14 and d["atlases"] == 2, d
 assert d["texels"] == d["texels_gathered"] + d["texels_filled"] and d["texels_gathered"] > 0, d
 PY
+# --tile 2 over the 4 m box: 2 x 2 x 2 tiles, each texel gathered once (as many as one tile gathers).
+# shellcheck disable=SC2086
+"$BIN" "$T/box.obj" $Q --lightmap "$T/lt.exr" --texel 0.5 --atlas 32 --tile 2 --json > "$T/tiles.json" 2> "$T/err" \
+  && python3 - "$T/out.json" "$T/tiles.json" <<'PY' && pass "--tile 2: 8 tiles, the same texels gathered" || fail "--tile: $(cat "$T/err" "$T/tiles.json")"
+import json, sys
+one, many = (json.load(open(f))["lightmap"] for f in sys.argv[1:3])
+assert one["tiles"] == 1 and many["tiles"] == 8, (one["tiles"], many["tiles"])
+assert many["texels_gathered"] == one["texels_gathered"], (one, many)
+PY
 # The glTF: one mesh per atlas, TEXCOORD_0 and TEXCOORD_1 inside [0,1].
 python3 - "$T/lm.glb" <<'PY' && pass "glb has two UV sets in [0,1]" || fail "glb check"
 import json, struct, sys
@@ -82,6 +91,8 @@ expect_usage --lightmap "$B" --lightmap "$T/bad.png"
 expect_usage --uv-out "$B" --lightmap "$T/bad.exr" --uv-out "$T/bad.gltf"
 expect_usage --lightmap "$B" --lightmap "$T/bad.exr" --exr "$T/bad2.exr"
 expect_usage --at "$B" --lightmap "$T/bad.exr" --at 1,1,1
+expect_usage --tile "$B" --lightmap "$T/bad.exr" --tile 0
+expect_usage --tile "$B" --tile 2
 # These load the scene first: the region misses it, or one wall is larger than the atlas.
 # shellcheck disable=SC2086
 expect_usage --region "$B" $Q --lightmap "$T/bad.exr" --uv-out "$T/bad.glb" --region 10,10,10,11,11,11

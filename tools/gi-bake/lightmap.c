@@ -27,6 +27,8 @@ int lightmap_option(cli_opts *o, int c, const char *arg) {
     return ta_double(&ta, "--texel", "a texel size in world units > 0", arg, 0, HUGE_VAL, &l->opts.texel);
   case LM_OPT_ATLAS:
     return ta_int(&ta, "--atlas", NULL, arg, GI_LIGHTMAP_MIN_ATLAS, GI_LIGHTMAP_MAX_ATLAS, &l->opts.atlas);
+  case LM_OPT_TILE:
+    return ta_double(&ta, "--tile", "a tile side in world units > 0", arg, 0, HUGE_VAL, &l->opts.tile);
   default: return 0;
   }
 }
@@ -43,6 +45,7 @@ int lightmap_check(const cli_opts *o) {
     if (l->uv_out) return ta_fail(&ta, "--uv-out", "needs --lightmap");
     if (l->opts.texel) return ta_fail(&ta, "--texel", "needs --lightmap");
     if (l->opts.atlas) return ta_fail(&ta, "--atlas", "needs --lightmap");
+    if (l->opts.tile) return ta_fail(&ta, "--tile", "needs --lightmap");
     return 0;
   }
   /* --region is shared with --grid (parsed into o->batch); a lightmap's box
