@@ -150,6 +150,15 @@ static void test_bad_options(void **state) {
   o = (gi_lightmap_opts){.have_region = 1, .region_lo = {1, 1, 1}, .region_hi = {0, 2, 2}};
   assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_INVALID_ARG);
   assert_non_null(strstr(err.msg, "min < max"));
+  /* Tiles of 1 mm over the 5 m room: 4096^3 cascade bakes, refused before any. */
+  o = (gi_lightmap_opts){.texel = 0.5, .atlas = 64, .tile = 1e-3};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_lightmap_report rep = {0};
+  assert_int_equal(gi_lightmap_bake(lm, NULL, NULL, &rep, &err), GI_ERR_LIMIT);
+  printf("tiles too small: %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "raise tile"));
+  assert_int_equal(rep.tiles, 0);
+  gi_lightmap_free(lm);
   gi_scene_release(s);
 }
 

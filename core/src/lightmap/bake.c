@@ -28,6 +28,8 @@
 
 /* Default tile side as a fraction of the coarsest level's side. */
 #define GI_LM_TILE_FRACTION 0.8
+/* The most tiles one bake takes: each is a cascade bake. */
+#define GI_LM_MAX_TILES (1 << 20)
 /* A footprint point farther than this (texels) from its chart is not on it. */
 #define GI_LM_EDGE_REACH 0.5f
 /* How far such a point moves toward its triangle's centre (a fraction of the way). */
@@ -457,6 +459,10 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   int nt[3];
   double size[3];
   tile_grid(lm, side, nt, size);
+  /* Each tile is a cascade bake: past this many the request is a mistake (and tile ids stay ints). */
+  if ((size_t)nt[0] * nt[1] * nt[2] > GI_LM_MAX_TILES)
+    return gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region into %d x %d x %d tiles, more than %d "
+                    "cascade bakes: raise tile", side, nt[0], nt[1], nt[2], GI_LM_MAX_TILES);
   size_t *start = NULL;
   uint64_t *list = NULL;
   if ((rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, err)) != GI_OK) goto done;
