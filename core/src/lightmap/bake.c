@@ -108,24 +108,34 @@ static void sub_point(int x, int y, int ss, int sub, float p[2]) {
   p[1] = (float)y + ((float)(sub / ss) + 0.5f) / (float)ss;
 }
 
-/* The texel's anchor: its first footprint point on the chart (inside its
- * triangles, else the nearest edge point within reach), as bake_texel
- * takes them; 0 when it has none (a gutter). Local coordinates. */
-static int texel_anchor(const gi_lightmap *lm, const gi_lm_chart *c, int x, int y, float X[3]) {
+/* The chart's surface point under atlas point p: its triangle and local
+ * position. pass 0 takes points inside the chart's triangles only, pass 1
+ * the nearest edge points too; 0 when p is on neither. */
+static int chart_point(const gi_lightmap *lm, const gi_lm_chart *c, const float p[2], int pass, uint32_t *tri,
+                       float X[3]) {
   const gi_scene *s = lm->scene;
+  float bary[3] = {0, 0, 0};
+  int outside;
+  long t = find_tri(lm, c, p, bary, &outside);
+  if (t < 0 || (outside && pass == 0)) return 0;
+  *tri = lm->tri[t];
+  for (int k = 0; k < 3; k++) X[k] = 0;
+  for (int j = 0; j < 3; j++)
+    for (int k = 0; k < 3; k++) X[k] += bary[j] * s->vertices[3 * (size_t)s->indices[3 * (size_t)*tri + j] + k];
+  return 1;
+}
+
+/* The texel's anchor: the first of its footprint points on the chart, in
+ * bake_texel's order (pass 0's first, else pass 1's); 0 when it has none
+ * (a gutter). Local coordinates. */
+static int texel_anchor(const gi_lightmap *lm, const gi_lm_chart *c, int x, int y, float X[3]) {
   int ss = lm->opts.supersample;
   for (int pass = 0; pass < 2; pass++)
     for (int sub = 0; sub < ss * ss; sub++) {
-      float p[2], bary[3] = {0, 0, 0};
-      int outside;
+      float p[2];
+      uint32_t tri;
       sub_point(x, y, ss, sub, p);
-      long t = find_tri(lm, c, p, bary, &outside);
-      if (t < 0 || (outside && pass == 0)) continue;
-      uint32_t tri = lm->tri[t];
-      for (int k = 0; k < 3; k++) X[k] = 0;
-      for (int j = 0; j < 3; j++)
-        for (int k = 0; k < 3; k++) X[k] += bary[j] * s->vertices[3 * (size_t)s->indices[3 * (size_t)tri + j] + k];
-      return 1;
+      if (chart_point(lm, c, p, pass, &tri, X)) return 1;
     }
   return 0;
 }
@@ -172,23 +182,6 @@ static int surface_side(const gi_scene *s, uint32_t tri, const float x[3], float
   return 0;
 }
 
-/* The surface point and side for footprint point p, if it is on the chart
- * and not inside geometry. pass 0 takes points inside the chart's
- * triangles only, pass 1 the nearest edge points too. */
-static int footprint_point(const tile_ctx *g, const gi_lm_chart *c, const float p[2], int pass, float reach,
-                           uint32_t *tri, float X[3], float n[3]) {
-  const gi_scene *s = g->lm->scene;
-  float bary[3] = {0, 0, 0};
-  int outside;
-  long t = find_tri(g->lm, c, p, bary, &outside);
-  if (t < 0 || (outside && pass == 0)) return 0;
-  *tri = g->lm->tri[t];
-  for (int k = 0; k < 3; k++) X[k] = 0;
-  for (int j = 0; j < 3; j++)
-    for (int k = 0; k < 3; k++) X[k] += bary[j] * s->vertices[3 * (size_t)s->indices[3 * (size_t)*tri + j] + k];
-  return surface_side(s, *tri, X, reach, n);
-}
-
 /* One texel: the mean over the valid points of its footprint that lie on
  * the chart; a texel the chart only grazes takes the nearest edge points. */
 static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int atlas, int x, int y,
@@ -196,9 +189,7 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
   const gi_scene *s = g->lm->scene;
   int ss = g->lm->opts.supersample, nv = 0;
   float acc[5][3] = {{0}}; /* radiance, direct, indirect, point, normal */
-  float anchor[3];
-  if (!texel_anchor(g->lm, c, x, y, anchor)) return;
-  float reach = gi__voxel_at(g->c, anchor);
+  float reach = -1; /* the voxel at the texel's anchor (texel_anchor), its first point on the chart */
   uint64_t seed = gi__mix64(g->c->report.quality.seed ^
                             ((uint64_t)atlas << 48 | (uint64_t)(uint32_t)y << 24 | (uint32_t)x));
   /* The footprint's valid points first, then their light in one call:
@@ -209,7 +200,10 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
     for (int sub = 0; sub < ss * ss; sub++) {
       float p[2];
       sub_point(x, y, ss, sub, p);
-      if (!footprint_point(g, c, p, pass, reach, &tri[nv], pt[nv].x, pt[nv].n)) continue;
+      if (!chart_point(g->lm, c, p, pass, &tri[nv], pt[nv].x)) continue;
+      if (reach < 0) reach = gi__voxel_at(g->c, pt[nv].x);
+      /* Not inside geometry: from the side that is not (surface_side). */
+      if (!surface_side(s, tri[nv], pt[nv].x, reach, pt[nv].n)) continue;
       pt[nv++].seed = gi__mix64(seed + (uint64_t)sub);
     }
   float E[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE][3];
