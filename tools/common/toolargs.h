@@ -42,6 +42,10 @@ ta_status ta_parse_double(const char *s, double *out);
 /* Exactly n numbers separated by single commas. */
 ta_status ta_parse_doubles(const char *s, double *out, int n);
 
+/* The tools' note for a scene file read with the default y up that looks
+ * z-up (gi_scene_looks_z_up), after "PROG: note: <the scene> is flat along z". */
+#define TA_NOTE_Z_UP_FIX "but read with y up (the default): if z is up, as in OpenStreetMap and GIS exports, pass --up z"
+
 /* Where a tool's messages go, and the last one (for tests). */
 typedef struct ta_ctx {
   const char *prog;  /* "gi-bake": prefixes every message */

@@ -193,8 +193,7 @@ int acc_file_setup(const acc_file_opts *f, int ref_samples, int threads, acc_sce
   if (gi_scene_load(f->path, &so, &ss->s, &err) != GI_OK)
     return fprintf(stderr, "gi-accuracy: --scene: %s\n", err.msg), 0;
   if (!f->up_given && gi_scene_looks_z_up(ss->s))
-    fprintf(stderr, "gi-accuracy: note: %s is flat along z but read with y up (the default): if z is up, as in "
-            "OpenStreetMap and GIS exports, pass --up z\n", f->path);
+    fprintf(stderr, "gi-accuracy: note: %s is flat along z " TA_NOTE_Z_UP_FIX "\n", f->path);
   if (f->have_at) memcpy(ss->at, f->at, sizeof ss->at);
   if (f->above_ground > 0) return place_street(f, threads, ss, placement, placement_size);
   if (!f->pts) return place_lattice(f, threads, ss, placement, placement_size);

@@ -54,8 +54,8 @@ static void note_up_axis(const cli_opts *o, const gi_scene *scene) {
   if (o->is_city || o->up || !gi_scene_looks_z_up(scene)) return;
   double lo[3], hi[3];
   gi_scene_bounds(scene, lo, hi);
-  fprintf(stderr, "gi-bake: note: the scene is flat along z (%g x %g x %g) but read with y up (the default): "
-          "if z is up, as in OpenStreetMap and GIS exports, pass --up z\n", hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+  fprintf(stderr, "gi-bake: note: the scene is flat along z (%g x %g x %g) " TA_NOTE_Z_UP_FIX "\n", hi[0] - lo[0],
+          hi[1] - lo[1], hi[2] - lo[2]);
 }
 
 /* Without --at: the city's street corner, or the centre of the bounds (said

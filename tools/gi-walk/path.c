@@ -222,6 +222,5 @@ int walk_path_from_steps(const char *file, const ta_step *st, size_t n, walk_pat
 
 void walk_note_up(const char *file, gi_up_axis up, const gi_scene *s) {
   if (!file || up || !s || !gi_scene_looks_z_up(s)) return;
-  fprintf(stderr, "gi-walk: note: %s is flat along z but read with y up (the default): if z is up, as in "
-          "OpenStreetMap and GIS exports, pass --up z\n", file);
+  fprintf(stderr, "gi-walk: note: %s is flat along z " TA_NOTE_Z_UP_FIX "\n", file);
 }
