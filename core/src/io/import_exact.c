@@ -116,53 +116,47 @@ static int in_tri2(const double a[2], const double b[2], const double c[2], cons
  * a fan there laid triangles over the notch. A polygon no ear can be cut
  * from (self-intersecting) fans what is left. Returns the triangles. */
 static int polygon_triangles(const gi__exact_mesh *m, const uint32_t *poly, int n, uint8_t out[][3]) {
+  uint8_t idx[PLY_MAX_POLYGON];
+  int left = n, nt = 0;
+  for (int k = 0; k < n; k++) idx[k] = (uint8_t)k;
   int placed = 1; /* a PLY may list its faces before its vertices: then fan */
   for (int k = 0; k < n; k++) placed &= poly[k] < m->nv;
-  if (!placed || n == 3) {
-    for (int t = 1; t + 1 < n; t++) out[t - 1][0] = 0, out[t - 1][1] = (uint8_t)t, out[t - 1][2] = (uint8_t)(t + 1);
-    return n - 2;
-  }
-  double nrm[3] = {0, 0, 0};
-  for (int k = 0; k < n; k++) {
-    const double *a = &m->v[3 * (size_t)poly[k]], *b = &m->v[3 * (size_t)poly[(k + 1) % n]];
-    nrm[0] += (a[1] - b[1]) * (a[2] + b[2]);
-    nrm[1] += (a[2] - b[2]) * (a[0] + b[0]);
-    nrm[2] += (a[0] - b[0]) * (a[1] + b[1]);
-  }
-  int drop = fabs(nrm[0]) >= fabs(nrm[1]) && fabs(nrm[0]) >= fabs(nrm[2]) ? 0 : fabs(nrm[1]) >= fabs(nrm[2]) ? 1 : 2;
-  /* The projection keeps the winding when the dropped component is positive. */
-  double sg = nrm[drop] >= 0 ? 1 : -1;
-  if (drop == 1) sg = -sg; /* (z, x) order for y: corner2 gives (x, z) */
-  double p[PLY_MAX_POLYGON][2];
-  int convex = 1;
-  for (int k = 0; k < n; k++) corner2(m, poly, k, drop, p[k]);
-  for (int k = 0; k < n && convex; k++) convex = sg * cross2(p[k], p[(k + 1) % n], p[(k + 2) % n]) >= 0;
-  int nt = 0;
-  if (convex) {
-    for (int t = 1; t + 1 < n; t++) out[nt][0] = 0, out[nt][1] = (uint8_t)t, out[nt][2] = (uint8_t)(t + 1), nt++;
-    return nt;
-  }
-  uint8_t idx[PLY_MAX_POLYGON];
-  int left = n;
-  for (int k = 0; k < n; k++) idx[k] = (uint8_t)k;
-  for (int guard = 0; left > 3 && guard < n * n; guard++) {
-    int cut = -1;
-    for (int i = 0; i < left && cut < 0; i++) {
-      int a = idx[(i + left - 1) % left], b = idx[i], c = idx[(i + 1) % left];
-      if (!(sg * cross2(p[a], p[b], p[c]) > 0)) continue; /* reflex or flat: not an ear */
-      int clear = 1;
-      for (int j = 0; j < left && clear; j++) {
-        int q = idx[j];
-        if (q != a && q != b && q != c) clear = !in_tri2(p[a], p[b], p[c], p[q], sg);
-      }
-      if (clear) cut = i;
+  if (placed && n > 3) {
+    double nrm[3] = {0, 0, 0};
+    for (int k = 0; k < n; k++) {
+      const double *a = &m->v[3 * (size_t)poly[k]], *b = &m->v[3 * (size_t)poly[(k + 1) % n]];
+      nrm[0] += (a[1] - b[1]) * (a[2] + b[2]);
+      nrm[1] += (a[2] - b[2]) * (a[0] + b[0]);
+      nrm[2] += (a[0] - b[0]) * (a[1] + b[1]);
     }
-    if (cut < 0) break;
-    out[nt][0] = idx[(cut + left - 1) % left], out[nt][1] = idx[cut], out[nt][2] = idx[(cut + 1) % left];
-    nt++;
-    memmove(&idx[cut], &idx[cut + 1], (size_t)(left - cut - 1));
-    left--;
+    int drop = fabs(nrm[0]) >= fabs(nrm[1]) && fabs(nrm[0]) >= fabs(nrm[2]) ? 0 : fabs(nrm[1]) >= fabs(nrm[2]) ? 1 : 2;
+    /* The projection keeps the winding when the dropped component is positive. */
+    double sg = nrm[drop] >= 0 ? 1 : -1;
+    if (drop == 1) sg = -sg; /* (z, x) order for y: corner2 gives (x, z) */
+    double p[PLY_MAX_POLYGON][2];
+    int convex = 1;
+    for (int k = 0; k < n; k++) corner2(m, poly, k, drop, p[k]);
+    for (int k = 0; k < n && convex; k++) convex = sg * cross2(p[k], p[(k + 1) % n], p[(k + 2) % n]) >= 0;
+    for (int guard = 0; !convex && left > 3 && guard < n * n; guard++) {
+      int cut = -1;
+      for (int i = 0; i < left && cut < 0; i++) {
+        int a = idx[(i + left - 1) % left], b = idx[i], c = idx[(i + 1) % left];
+        if (!(sg * cross2(p[a], p[b], p[c]) > 0)) continue; /* reflex or flat: not an ear */
+        int clear = 1;
+        for (int j = 0; j < left && clear; j++) {
+          int q = idx[j];
+          if (q != a && q != b && q != c) clear = !in_tri2(p[a], p[b], p[c], p[q], sg);
+        }
+        if (clear) cut = i;
+      }
+      if (cut < 0) break;
+      out[nt][0] = idx[(cut + left - 1) % left], out[nt][1] = idx[cut], out[nt][2] = idx[(cut + 1) % left];
+      nt++;
+      memmove(&idx[cut], &idx[cut + 1], (size_t)(left - cut - 1));
+      left--;
+    }
   }
+  /* The fan of what is left: the whole polygon when convex (or unplaced). */
   for (int t = 1; t + 1 < left; t++) out[nt][0] = idx[0], out[nt][1] = idx[t], out[nt][2] = idx[t + 1], nt++;
   return nt;
 }
