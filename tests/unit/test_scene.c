@@ -1668,6 +1668,104 @@ static void test_fbx_units(void **state) {
   expect_bad(fbx_units("units-neg.fbx", "-1"), GI_ERR_FORMAT, "FBX UnitScaleFactor is -1; expected a finite number > 0");
 }
 
+/* A Collada file: a <lambert> and a <phong> triangle, a 500-unit point
+ * light 2 m up and a sun of 3, written by `tool`. */
+static const char *collada_lights(const char *name, const char *tool) {
+  char text[4096];
+  int n = snprintf(
+      text, sizeof text,
+      "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
+      "<COLLADA xmlns=\"http://www.collada.org/2005/11/COLLADASchema\" version=\"1.4.1\">\n"
+      "<asset><contributor><authoring_tool>%s</authoring_tool></contributor><unit name=\"meter\" meter=\"1\"/>"
+      "<up_axis>Y_UP</up_axis></asset>\n<library_lights>\n"
+      "<light id=\"P\"><technique_common><point><color>500 500 500</color></point></technique_common></light>\n"
+      "<light id=\"S\"><technique_common><directional><color>3 3 3</color></directional></technique_common></light>\n"
+      "</library_lights>\n<library_effects>\n"
+      "<effect id=\"e0\"><profile_COMMON><technique sid=\"c\"><lambert><diffuse><color>0.6 0.5 0.4 1</color>"
+      "</diffuse></lambert></technique></profile_COMMON></effect>\n"
+      "<effect id=\"e1\"><profile_COMMON><technique sid=\"c\"><phong><diffuse><color>0.6 0.5 0.4 1</color></diffuse>"
+      "<specular><color>0.5 0.5 0.5 1</color></specular><shininess><float>50</float></shininess></phong></technique>"
+      "</profile_COMMON></effect>\n</library_effects>\n<library_materials>\n"
+      "<material id=\"m0\"><instance_effect url=\"#e0\"/></material>\n"
+      "<material id=\"m1\"><instance_effect url=\"#e1\"/></material>\n</library_materials>\n"
+      "<library_geometries><geometry id=\"g\"><mesh>\n<source id=\"p\"><float_array id=\"pa\" count=\"12\">"
+      "0 0 0 1 0 0 0 1 0 1 1 0</float_array><technique_common><accessor source=\"#pa\" count=\"4\" stride=\"3\">"
+      "<param name=\"X\" type=\"float\"/><param name=\"Y\" type=\"float\"/><param name=\"Z\" type=\"float\"/>"
+      "</accessor></technique_common></source>\n<vertices id=\"v\"><input semantic=\"POSITION\" source=\"#p\"/>"
+      "</vertices>\n<triangles material=\"m0\" count=\"1\"><input semantic=\"VERTEX\" source=\"#v\" offset=\"0\"/>"
+      "<p>0 1 2</p></triangles>\n<triangles material=\"m1\" count=\"1\"><input semantic=\"VERTEX\" source=\"#v\" "
+      "offset=\"0\"/><p>1 3 2</p></triangles>\n</mesh></geometry></library_geometries>\n"
+      "<library_visual_scenes><visual_scene id=\"s\">\n<node id=\"n\"><instance_geometry url=\"#g\"><bind_material>"
+      "<technique_common><instance_material symbol=\"m0\" target=\"#m0\"/><instance_material symbol=\"m1\" "
+      "target=\"#m1\"/></technique_common></bind_material></instance_geometry></node>\n"
+      "<node id=\"lp\"><translate>0 0 2</translate><instance_light url=\"#P\"/></node>\n"
+      "<node id=\"ls\"><instance_light url=\"#S\"/></node>\n</visual_scene></library_visual_scenes>\n"
+      "<scene><instance_visual_scene url=\"#s\"/></scene>\n</COLLADA>\n",
+      tool);
+  return tu_write_file(name, text, (size_t)n);
+}
+
+/* An ASCII FBX with one triangle, a point light of intensity 50000 (assimp
+ * reads FBX intensities / 100: 500) and a sun of 300 (3), by `creator`. */
+static const char *fbx_lights(const char *name, const char *creator) {
+  char text[2048];
+  int n = snprintf(text, sizeof text,
+                   "; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n"
+                   "\tFBXVersion: 7400\n\tCreator: \"%s\"\n}\nObjects:  {\n"
+                   "\tGeometry: 100, \"Geometry::q\", \"Mesh\" {\n\t\tVertices: *9 {\n\t\t\ta: 0,0,0,100,0,0,0,100,0\n"
+                   "\t\t}\n\t\tPolygonVertexIndex: *3 {\n\t\t\ta: 0,1,-3\n\t\t}\n\t}\n"
+                   "\tModel: 200, \"Model::q\", \"Mesh\" {\n\t}\n"
+                   "\tNodeAttribute: 300, \"NodeAttribute::P\", \"Light\" {\n\t\tProperties70:  {\n"
+                   "\t\t\tP: \"LightType\", \"enum\", \"\", \"\",0\n\t\t\tP: \"Color\", \"Color\", \"\", \"A\",1,1,1\n"
+                   "\t\t\tP: \"Intensity\", \"Number\", \"\", \"A\",50000\n\t\t}\n\t}\n"
+                   "\tModel: 400, \"Model::P\", \"Light\" {\n\t}\n"
+                   "\tNodeAttribute: 500, \"NodeAttribute::S\", \"Light\" {\n\t\tProperties70:  {\n"
+                   "\t\t\tP: \"LightType\", \"enum\", \"\", \"\",1\n\t\t\tP: \"Color\", \"Color\", \"\", \"A\",1,1,1\n"
+                   "\t\t\tP: \"Intensity\", \"Number\", \"\", \"A\",300\n\t\t}\n\t}\n"
+                   "\tModel: 600, \"Model::S\", \"Light\" {\n\t}\n}\n"
+                   "Connections:  {\n\tC: \"OO\",100,200\n\tC: \"OO\",200,0\n\tC: \"OO\",300,400\n"
+                   "\tC: \"OO\",400,0\n\tC: \"OO\",500,600\n\tC: \"OO\",600,0\n}\n",
+                   creator);
+  return tu_write_file(name, text, (size_t)n);
+}
+
+/* Blender's FBX and Collada exporters write a lamp's power in watts, the
+ * power Cycles spreads over the sphere (its glTF exporter writes the same
+ * lamp as 500 / 4 pi x 683 cd): a Blender FBX lamp lit 4 pi times brighter
+ * than the same lamp from its glTF. Other tools' intensities have no
+ * physical unit and stay as they are; a sun's strength is irradiance in
+ * all of them. A Collada <lambert> has no specular term: assimp's default
+ * Ks 0.4 made every Blender Collada surface 18% glossy. */
+static void test_blender_light_units(void **state) {
+  (void)state;
+  const double watts = 500.0 / (4.0 * GI_PI);
+  const struct {
+    const char *path;
+    double point;
+  } c[4] = {{collada_lights("blender.dae", "Blender 3.4.1"), watts},
+            {collada_lights("maya.dae", "Maya 2024"), 500.0},
+            {fbx_lights("blender.fbx", "Blender (stable FBX IO) - 3.4.1 - 4.37.1"), watts},
+            {fbx_lights("maya.fbx", "FBX SDK/FBX Plugins version 2020.2"), 500.0}};
+  for (int i = 0; i < 4; i++) {
+    gi_scene *s = load_ok(c[i].path, NULL);
+    assert_int_equal(gi_scene_num_lights(s), 2);
+    for (size_t k = 0; k < 2; k++) {
+      const gi_light *l = gi_scene_light(s, k);
+      double want = l->type == GI_LIGHT_SUN ? 3.0 : c[i].point;
+      printf("  %s: %s %g (want %g)\n", c[i].path, l->type == GI_LIGHT_SUN ? "sun" : "point", l->color[0], want);
+      assert_true(l->type == GI_LIGHT_SUN || l->type == GI_LIGHT_POINT);
+      for (int ch = 0; ch < 3; ch++) assert_float_equal(l->color[ch], want, 1e-6 * want);
+    }
+    if (i < 2) {
+      const gi_material *lambert = gi_scene_material(s, 0), *phong = gi_scene_material(s, 1);
+      assert_float_equal(lambert->albedo[0], 0.6, 1e-6);
+      assert_float_equal(lambert->specular, 0.0, 0);
+      assert_float_equal(phong->specular, 0.5 * 8.0 / 58.0, 1e-6); /* Ks 8 / (Ns + 8) */
+    }
+    gi_scene_release(s);
+  }
+}
+
 /* The light tree: every point's pick probabilities sum to one, a pick
  * reports the probability the MIS side recomputes, stratified picks land
  * in proportion, and an emitter that faces away from a point is never
@@ -1854,6 +1952,7 @@ int main(void) {
       cmocka_unit_test(test_bad_files_assimp_misreads),
       cmocka_unit_test(test_fbx_connection_loops),
       cmocka_unit_test(test_fbx_units),
+      cmocka_unit_test(test_blender_light_units),
       cmocka_unit_test(test_backface_share),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

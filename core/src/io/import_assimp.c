@@ -44,6 +44,7 @@
 #include <sys/stat.h>
 #include <assimp/cfileio.h>
 #include <assimp/cimport.h>
+#include <assimp/commonMetaData.h>
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -529,6 +530,17 @@ static gi_result emissive_texture(const struct aiMaterial *am, tex_ctx *tc, gi_m
   return GI_OK;
 }
 
+/* A Collada <lambert> or <constant> material has no specular term; assimp
+ * 5.2 still reports its default Ks 0.4 at shininess 10 for it, which read
+ * as an 18% glossy lobe on every diffuse surface Blender writes. (An OBJ's
+ * shading model cannot tell: assimp maps illum 3 and up to Gouraud too.) */
+static int collada_diffuse_only(const struct aiMaterial *am, const char *path) {
+  int model = 0;
+  if (!ends_with_ci(path, ".dae") || aiGetMaterialIntegerArray(am, AI_MATKEY_SHADING_MODEL, &model, NULL) != aiReturn_SUCCESS)
+    return 0;
+  return model == aiShadingMode_Gouraud || model == aiShadingMode_NoShading || model == aiShadingMode_Flat;
+}
+
 /* Maps one assimp material onto ours. The albedo is the colour factor
  * times the average of the diffuse (or base-colour) texture when there is
  * one; a texture that cannot be read leaves the factor alone. Fails only
@@ -575,10 +587,11 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     gi_result rc = emissive_texture(am, tc, m, err);
     if (rc != GI_OK) return rc;
   }
-  float rough, metal, ns = 0.f, ks[3] = {0, 0, 0};
+  float rough = 1.f, metal = 0.f, ns = 0.f, ks[3] = {0, 0, 0};
   int has_rough = get_float(am, AI_MATKEY_ROUGHNESS_FACTOR, &rough);
   int has_metal = get_float(am, AI_MATKEY_METALLIC_FACTOR, &metal);
-  int has_ks = get_color(am, AI_MATKEY_COLOR_SPECULAR, ks) && (ks[0] > 0 || ks[1] > 0 || ks[2] > 0);
+  int has_ks = !collada_diffuse_only(am, tc->path) && get_color(am, AI_MATKEY_COLOR_SPECULAR, ks) &&
+               (ks[0] > 0 || ks[1] > 0 || ks[2] > 0);
   if (has_rough) {
     m->roughness = rough;
     /* Metallic/roughness: normal-incidence reflectance between 4 % (dielectric) and the base colour (metal). */
@@ -601,8 +614,26 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   return GI_OK;
 }
 
+/* What one unit of a point or spot light's colour is in W/sr. Blender's
+ * FBX and Collada exporters write a lamp's power in watts (a 500 W lamp
+ * reads 500), the power Cycles spreads over the sphere; its glTF exporter
+ * writes the same lamp as 500 / 4 pi x 683 cd. Read as W/sr, a Blender
+ * FBX lamp lit 4 pi times brighter than the same lamp from its glTF. Other
+ * tools' intensities have no physical unit: taken as they are. A sun's
+ * strength is irradiance (W/m^2) in all three. */
+static float point_light_unit(const struct aiScene *as, const char *path) {
+  const struct aiMetadata *md = as->mMetaData;
+  if (is_gltf(path)) return 1.f;
+  for (unsigned i = 0; md && i < md->mNumProperties; i++) {
+    if (strcmp(md->mKeys[i].data, AI_METADATA_SOURCE_GENERATOR) || md->mValues[i].mType != AI_AISTRING) continue;
+    const struct aiString *g = md->mValues[i].mData;
+    if (!strncmp(g->data, "Blender", 7)) return (float)(1.0 / (4.0 * GI_PI));
+  }
+  return 1.f;
+}
+
 static gi_result convert_light(const char *path, const struct aiLight *al, const double shift[3], double scale,
-                               gi_light *l, gi_error_info *err) {
+                               float point_unit, gi_light *l, gi_error_info *err) {
   memset(l, 0, sizeof *l);
   switch (al->mType) {
     case aiLightSource_DIRECTIONAL: l->type = GI_LIGHT_SUN; break;
@@ -613,6 +644,8 @@ static gi_result convert_light(const char *path, const struct aiLight *al, const
   l->color[0] = al->mColorDiffuse.r;
   l->color[1] = al->mColorDiffuse.g;
   l->color[2] = al->mColorDiffuse.b;
+  if (l->type != GI_LIGHT_SUN)
+    for (int k = 0; k < 3; k++) l->color[k] *= point_unit;
   l->position[0] = (al->mPosition.x + shift[0]) * scale;
   l->position[1] = (al->mPosition.y + shift[1]) * scale;
   l->position[2] = (al->mPosition.z + shift[2]) * scale;
@@ -916,8 +949,9 @@ static gi_result collect_lights(const struct aiScene *as, const gi__gltf_shift *
   size_t nl = 0;
   gi_light *l = *lights = gi__calloc(as->mNumLights + gs->num_lights + o->num_lights + 1, sizeof *l);
   if (!l) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  float unit = point_light_unit(as, path);
   for (unsigned i = 0; i < as->mNumLights; i++) {
-    gi_result r = convert_light(path, as->mLights[i], gs->t, scale, &l[nl], err);
+    gi_result r = convert_light(path, as->mLights[i], gs->t, scale, unit, &l[nl], err);
     if (r == GI_OK) nl++;
     else if (r != GI_ERR_NOT_FOUND) return r;
   }
