@@ -1208,7 +1208,18 @@ static void test_gltf_light_nodes(void **state) {
              "needs its 'spot' object");
   expect_bad(gltf_lights("cone.gltf", node, "0,1",
                          "{\"type\":\"spot\",\"spot\":{\"innerConeAngle\":0.8,\"outerConeAngle\":0.5}}"),
-             GI_ERR_FORMAT, "expected 0 <= innerConeAngle < outerConeAngle <= pi/2");
+             GI_ERR_FORMAT, "expected 0 <= innerConeAngle <= outerConeAngle <= pi/2");
+  expect_bad(gltf_lights("cone0.gltf", node, "0,1",
+                         "{\"type\":\"spot\",\"spot\":{\"innerConeAngle\":0,\"outerConeAngle\":0}}"),
+             GI_ERR_FORMAT, "outerConeAngle > 0");
+  /* Blender writes a spot with no blend as equal angles: a hard edge. */
+  s = load_ok(gltf_lights("hard.gltf", node, "0,1",
+                          "{\"type\":\"spot\",\"spot\":{\"innerConeAngle\":0.5,\"outerConeAngle\":0.5}}"),
+              NULL);
+  assert_int_equal(gi_scene_num_lights(s), 1);
+  assert_float_equal(gi_scene_light(s, 0)->cos_inner, cos(0.5), 1e-6);
+  assert_float_equal(gi_scene_light(s, 0)->cos_outer, cos(0.5), 1e-6);
+  gi_scene_release(s);
 }
 
 /* ---- vertex colours --------------------------------------------------------- */
@@ -1669,8 +1680,9 @@ static void test_fbx_units(void **state) {
 }
 
 /* A Collada file: a <lambert> and a <phong> triangle, a 500-unit point
- * light 2 m up and a sun of 3, written by `tool`. */
-static const char *collada_lights(const char *name, const char *tool) {
+ * light 2 m up, a sun of 3 and a 60 degree spot of 100 with falloff
+ * exponent `ex`, written by `tool`. */
+static const char *collada_lights(const char *name, const char *tool, const char *ex) {
   char text[4096];
   int n = snprintf(
       text, sizeof text,
@@ -1680,6 +1692,8 @@ static const char *collada_lights(const char *name, const char *tool) {
       "<up_axis>Y_UP</up_axis></asset>\n<library_lights>\n"
       "<light id=\"P\"><technique_common><point><color>500 500 500</color></point></technique_common></light>\n"
       "<light id=\"S\"><technique_common><directional><color>3 3 3</color></directional></technique_common></light>\n"
+      "<light id=\"T\"><technique_common><spot><color>100 100 100</color><falloff_angle>60</falloff_angle>"
+      "<falloff_exponent>%s</falloff_exponent></spot></technique_common></light>\n"
       "</library_lights>\n<library_effects>\n"
       "<effect id=\"e0\"><profile_COMMON><technique sid=\"c\"><lambert><diffuse><color>0.6 0.5 0.4 1</color>"
       "</diffuse></lambert></technique></profile_COMMON></effect>\n"
@@ -1699,9 +1713,10 @@ static const char *collada_lights(const char *name, const char *tool) {
       "<technique_common><instance_material symbol=\"m0\" target=\"#m0\"/><instance_material symbol=\"m1\" "
       "target=\"#m1\"/></technique_common></bind_material></instance_geometry></node>\n"
       "<node id=\"lp\"><translate>0 0 2</translate><instance_light url=\"#P\"/></node>\n"
-      "<node id=\"ls\"><instance_light url=\"#S\"/></node>\n</visual_scene></library_visual_scenes>\n"
+      "<node id=\"ls\"><instance_light url=\"#S\"/></node>\n<node id=\"lt\"><instance_light url=\"#T\"/></node>\n"
+      "</visual_scene></library_visual_scenes>\n"
       "<scene><instance_visual_scene url=\"#s\"/></scene>\n</COLLADA>\n",
-      tool);
+      tool, ex);
   return tu_write_file(name, text, (size_t)n);
 }
 
@@ -1734,29 +1749,37 @@ static const char *fbx_lights(const char *name, const char *creator) {
  * lamp as 500 / 4 pi x 683 cd): a Blender FBX lamp lit 4 pi times brighter
  * than the same lamp from its glTF. Other tools' intensities have no
  * physical unit and stay as they are; a sun's strength is irradiance in
- * all of them. A Collada <lambert> has no specular term: assimp's default
- * Ks 0.4 made every Blender Collada surface 18% glossy. */
+ * all of them. A Collada spot's cone is its <falloff_angle> (assimp made
+ * a 60 degree cone 150 wide), and Blender's blend is its exponent. A
+ * Collada <lambert> has no specular term: assimp's default Ks 0.4 made
+ * every Blender Collada surface 18% glossy. */
 static void test_blender_light_units(void **state) {
   (void)state;
-  const double watts = 500.0 / (4.0 * GI_PI);
+  const double watts = 500.0 / (4.0 * GI_PI), half = 30.0 * GI_PI / 180.0;
   const struct {
     const char *path;
-    double point;
-  } c[4] = {{collada_lights("blender.dae", "Blender 3.4.1"), watts},
-            {collada_lights("maya.dae", "Maya 2024"), 500.0},
-            {fbx_lights("blender.fbx", "Blender (stable FBX IO) - 3.4.1 - 4.37.1"), watts},
-            {fbx_lights("maya.fbx", "FBX SDK/FBX Plugins version 2020.2"), 500.0}};
-  for (int i = 0; i < 4; i++) {
+    double point, spot, inner; /* the spot's half-angle of full light */
+  } c[5] = {{collada_lights("blender.dae", "Blender 3.4.1", "0.3"), watts, 100.0 / (4.0 * GI_PI), 0.7 * half},
+            {collada_lights("blender0.dae", "Blender 3.4.1", "0"), watts, 100.0 / (4.0 * GI_PI), half},
+            {collada_lights("maya.dae", "Maya 2024", "0.3"), 500.0, 100.0, half},
+            {fbx_lights("blender.fbx", "Blender (stable FBX IO) - 3.4.1 - 4.37.1"), watts, 0, 0},
+            {fbx_lights("maya.fbx", "FBX SDK/FBX Plugins version 2020.2"), 500.0, 0, 0}};
+  for (int i = 0; i < 5; i++) {
     gi_scene *s = load_ok(c[i].path, NULL);
-    assert_int_equal(gi_scene_num_lights(s), 2);
-    for (size_t k = 0; k < 2; k++) {
+    int collada = i < 3;
+    assert_int_equal(gi_scene_num_lights(s), collada ? 3 : 2);
+    for (size_t k = 0; k < gi_scene_num_lights(s); k++) {
       const gi_light *l = gi_scene_light(s, k);
-      double want = l->type == GI_LIGHT_SUN ? 3.0 : c[i].point;
-      printf("  %s: %s %g (want %g)\n", c[i].path, l->type == GI_LIGHT_SUN ? "sun" : "point", l->color[0], want);
-      assert_true(l->type == GI_LIGHT_SUN || l->type == GI_LIGHT_POINT);
+      double want = l->type == GI_LIGHT_SUN ? 3.0 : l->type == GI_LIGHT_POINT ? c[i].point : c[i].spot;
+      printf("  %s: light %zu (type %d) %g (want %g)\n", c[i].path, k, (int)l->type, l->color[0], want);
       for (int ch = 0; ch < 3; ch++) assert_float_equal(l->color[ch], want, 1e-6 * want);
+      if (l->type != GI_LIGHT_SPOT) continue;
+      printf("    cone: cos inner %.6f outer %.6f (want %.6f %.6f)\n", l->cos_inner, l->cos_outer, cos(c[i].inner),
+             cos(half));
+      assert_float_equal(l->cos_outer, cos(half), 1e-5);
+      assert_float_equal(l->cos_inner, cos(c[i].inner), 1e-4);
     }
-    if (i < 2) {
+    if (collada) {
       const gi_material *lambert = gi_scene_material(s, 0), *phong = gi_scene_material(s, 1);
       assert_float_equal(lambert->albedo[0], 0.6, 1e-6);
       assert_float_equal(lambert->specular, 0.0, 0);

@@ -252,10 +252,12 @@ static int read_light(json_t *defs, json_t *node, size_t idx, const double m[16]
              (long long)li);
     return -1;
   }
-  /* The spec's ranges (assimp refused an inner cone wider than the outer). */
-  if (l->type == GI_LIGHT_SPOT && !(cone[0] >= 0 && cone[0] < cone[1] && cone[1] <= GI_PI / 2)) {
+  /* The spec's ranges (assimp refused an inner cone wider than the outer),
+   * but for equal angles: the spec asks inner < outer, and Blender writes
+   * a spot with no blend (a hard edge, its FBX's too) as inner = outer. */
+  if (l->type == GI_LIGHT_SPOT && !(cone[0] >= 0 && cone[0] <= cone[1] && cone[1] > 0 && cone[1] <= GI_PI / 2)) {
     gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF light %lld: cone angles %g and %g; expected 0 <= "
-             "innerConeAngle < outerConeAngle <= pi/2", path, (long long)li, cone[0], cone[1]);
+             "innerConeAngle <= outerConeAngle <= pi/2, outerConeAngle > 0", path, (long long)li, cone[0], cone[1]);
     return -1;
   }
   for (int k = 0; k < 3; k++) {

@@ -614,26 +614,36 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   return GI_OK;
 }
 
-/* What one unit of a point or spot light's colour is in W/sr. Blender's
- * FBX and Collada exporters write a lamp's power in watts (a 500 W lamp
- * reads 500), the power Cycles spreads over the sphere; its glTF exporter
- * writes the same lamp as 500 / 4 pi x 683 cd. Read as W/sr, a Blender
- * FBX lamp lit 4 pi times brighter than the same lamp from its glTF. Other
- * tools' intensities have no physical unit: taken as they are. A sun's
- * strength is irradiance (W/m^2) in all three. */
-static float point_light_unit(const struct aiScene *as, const char *path) {
+/* Blender's own export (its FBX and Collada exporters name themselves in
+ * the file's generator): its lamps' units are known (convert_light). */
+static int written_by_blender(const struct aiScene *as) {
   const struct aiMetadata *md = as->mMetaData;
-  if (is_gltf(path)) return 1.f;
   for (unsigned i = 0; md && i < md->mNumProperties; i++) {
     if (strcmp(md->mKeys[i].data, AI_METADATA_SOURCE_GENERATOR) || md->mValues[i].mType != AI_AISTRING) continue;
     const struct aiString *g = md->mValues[i].mData;
-    if (!strncmp(g->data, "Blender", 7)) return (float)(1.0 / (4.0 * GI_PI));
+    return !strncmp(g->data, "Blender", 7);
   }
-  return 1.f;
+  return 0;
+}
+
+/* A Collada spot's cone: <falloff_angle> is the full cone (assimp's inner
+ * angle); assimp invents an outer angle from <falloff_exponent>
+ * (acos(0.1^(1/e)) wider: a 60 degree Blender spot lit 150 degrees), from
+ * which e comes back. Blender writes its spot blend as e: full light within
+ * (1 - blend) of the cone, as its glTF and FBX exports say. Other tools'
+ * exponents shape a cos^e falloff we do not model: a hard edge at the cone. */
+static void collada_spot(const struct aiLight *al, int blender, float *inner, float *outer) {
+  double cone = al->mAngleInnerCone, spread = al->mAngleOuterCone - cone, blend = 0;
+  /* assimp takes e = 0 as 1: that spread is Blender's blend 0 (its default
+   * is 0.15; a blend of 1 reads as 0, a hard edge). */
+  if (blender && spread > 0 && spread < 0.5 * GI_PI && fabs(spread - acos(0.1)) > 1e-5)
+    blend = log(0.1) / log(cos(spread));
+  *outer = (float)cone;
+  *inner = (float)(cone * (1.0 - (blend < 1 ? blend : 1)));
 }
 
 static gi_result convert_light(const char *path, const struct aiLight *al, const double shift[3], double scale,
-                               float point_unit, gi_light *l, gi_error_info *err) {
+                               int blender, gi_light *l, gi_error_info *err) {
   memset(l, 0, sizeof *l);
   switch (al->mType) {
     case aiLightSource_DIRECTIONAL: l->type = GI_LIGHT_SUN; break;
@@ -644,8 +654,14 @@ static gi_result convert_light(const char *path, const struct aiLight *al, const
   l->color[0] = al->mColorDiffuse.r;
   l->color[1] = al->mColorDiffuse.g;
   l->color[2] = al->mColorDiffuse.b;
-  if (l->type != GI_LIGHT_SUN)
-    for (int k = 0; k < 3; k++) l->color[k] *= point_unit;
+  /* Blender's FBX and Collada exporters write a lamp's power in watts (a
+   * 500 W lamp reads 500), the power Cycles spreads over the sphere; its
+   * glTF exporter writes the same lamp as 500 / 4 pi x 683 cd. Read as
+   * W/sr, a Blender FBX lamp lit 4 pi times brighter than the same lamp
+   * from its glTF. Other tools' intensities have no physical unit: as
+   * they are. A sun's strength is irradiance (W/m^2) in all three. */
+  if (l->type != GI_LIGHT_SUN && blender && !is_gltf(path))
+    for (int k = 0; k < 3; k++) l->color[k] *= (float)(1.0 / (4.0 * GI_PI));
   l->position[0] = (al->mPosition.x + shift[0]) * scale;
   l->position[1] = (al->mPosition.y + shift[1]) * scale;
   l->position[2] = (al->mPosition.z + shift[2]) * scale;
@@ -656,9 +672,10 @@ static gi_result convert_light(const char *path, const struct aiLight *al, const
    * Its glTF reader (5.2) passes KHR_lights_punctual's angles through,
    * and those are half-angles already: halved again, a glTF spot lit half
    * its cone (0 at 0.4 rad off-axis under a 0.5 rad outer angle). */
-  float half = is_gltf(path) ? 1.f : 0.5f;
-  l->cos_inner = cosf(half * al->mAngleInnerCone);
-  l->cos_outer = cosf(half * al->mAngleOuterCone);
+  float half = is_gltf(path) ? 1.f : 0.5f, inner = al->mAngleInnerCone, outer = al->mAngleOuterCone;
+  if (l->type == GI_LIGHT_SPOT && ends_with_ci(path, ".dae")) collada_spot(al, blender, &inner, &outer);
+  l->cos_inner = cosf(half * inner);
+  l->cos_outer = cosf(half * outer);
   int bad = !gi__finite3(l->color) || !isfinite(l->position[0]) || !isfinite(l->position[1]) ||
             !isfinite(l->position[2]) ||
             (l->type != GI_LIGHT_POINT && (!gi__finite3(l->direction) || !isfinite(l->cos_inner) ||
@@ -949,9 +966,9 @@ static gi_result collect_lights(const struct aiScene *as, const gi__gltf_shift *
   size_t nl = 0;
   gi_light *l = *lights = gi__calloc(as->mNumLights + gs->num_lights + o->num_lights + 1, sizeof *l);
   if (!l) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
-  float unit = point_light_unit(as, path);
+  int blender = written_by_blender(as);
   for (unsigned i = 0; i < as->mNumLights; i++) {
-    gi_result r = convert_light(path, as->mLights[i], gs->t, scale, unit, &l[nl], err);
+    gi_result r = convert_light(path, as->mLights[i], gs->t, scale, blender, &l[nl], err);
     if (r == GI_OK) nl++;
     else if (r != GI_ERR_NOT_FOUND) return r;
   }
