@@ -1680,8 +1680,8 @@ static void test_fbx_units(void **state) {
 }
 
 /* A Collada file: a <lambert> and a <phong> triangle, a 500-unit point
- * light 2 m up, a sun of 3 and a 60 degree spot of 100 with falloff
- * exponent `ex`, written by `tool`. */
+ * light 2 m up, a sun of 3, a 60 degree spot of 100 with falloff exponent
+ * `ex` and an ambient light, written by `tool`. */
 static const char *collada_lights(const char *name, const char *tool, const char *ex) {
   char text[4096];
   int n = snprintf(
@@ -1694,6 +1694,7 @@ static const char *collada_lights(const char *name, const char *tool, const char
       "<light id=\"S\"><technique_common><directional><color>3 3 3</color></directional></technique_common></light>\n"
       "<light id=\"T\"><technique_common><spot><color>100 100 100</color><falloff_angle>60</falloff_angle>"
       "<falloff_exponent>%s</falloff_exponent></spot></technique_common></light>\n"
+      "<light id=\"A\"><technique_common><ambient><color>1 1 1</color></ambient></technique_common></light>\n"
       "</library_lights>\n<library_effects>\n"
       "<effect id=\"e0\"><profile_COMMON><technique sid=\"c\"><lambert><diffuse><color>0.6 0.5 0.4 1</color>"
       "</diffuse></lambert></technique></profile_COMMON></effect>\n"
@@ -1714,6 +1715,7 @@ static const char *collada_lights(const char *name, const char *tool, const char
       "target=\"#m1\"/></technique_common></bind_material></instance_geometry></node>\n"
       "<node id=\"lp\"><translate>0 0 2</translate><instance_light url=\"#P\"/></node>\n"
       "<node id=\"ls\"><instance_light url=\"#S\"/></node>\n<node id=\"lt\"><instance_light url=\"#T\"/></node>\n"
+      "<node id=\"la\"><instance_light url=\"#A\"/></node>\n"
       "</visual_scene></library_visual_scenes>\n"
       "<scene><instance_visual_scene url=\"#s\"/></scene>\n</COLLADA>\n",
       tool, ex);
@@ -1721,7 +1723,8 @@ static const char *collada_lights(const char *name, const char *tool, const char
 }
 
 /* An ASCII FBX with one triangle, a point light of intensity 50000 (assimp
- * reads FBX intensities / 100: 500) and a sun of 300 (3), by `creator`. */
+ * reads FBX intensities / 100: 500), a sun of 300 (3) and an area light,
+ * by `creator`. */
 static const char *fbx_lights(const char *name, const char *creator) {
   char text[2048];
   int n = snprintf(text, sizeof text,
@@ -1737,9 +1740,13 @@ static const char *fbx_lights(const char *name, const char *creator) {
                    "\tNodeAttribute: 500, \"NodeAttribute::S\", \"Light\" {\n\t\tProperties70:  {\n"
                    "\t\t\tP: \"LightType\", \"enum\", \"\", \"\",1\n\t\t\tP: \"Color\", \"Color\", \"\", \"A\",1,1,1\n"
                    "\t\t\tP: \"Intensity\", \"Number\", \"\", \"A\",300\n\t\t}\n\t}\n"
-                   "\tModel: 600, \"Model::S\", \"Light\" {\n\t}\n}\n"
+                   "\tModel: 600, \"Model::S\", \"Light\" {\n\t}\n"
+                   "\tNodeAttribute: 700, \"NodeAttribute::A\", \"Light\" {\n\t\tProperties70:  {\n"
+                   "\t\t\tP: \"LightType\", \"enum\", \"\", \"\",3\n\t\t}\n\t}\n"
+                   "\tModel: 800, \"Model::A\", \"Light\" {\n\t}\n}\n"
                    "Connections:  {\n\tC: \"OO\",100,200\n\tC: \"OO\",200,0\n\tC: \"OO\",300,400\n"
-                   "\tC: \"OO\",400,0\n\tC: \"OO\",500,600\n\tC: \"OO\",600,0\n}\n",
+                   "\tC: \"OO\",400,0\n\tC: \"OO\",500,600\n\tC: \"OO\",600,0\n\tC: \"OO\",700,800\n"
+                   "\tC: \"OO\",800,0\n}\n",
                    creator);
   return tu_write_file(name, text, (size_t)n);
 }
@@ -1752,7 +1759,8 @@ static const char *fbx_lights(const char *name, const char *creator) {
  * all of them. A Collada spot's cone is its <falloff_angle> (assimp made
  * a 60 degree cone 150 wide), and Blender's blend is its exponent. A
  * Collada <lambert> has no specular term: assimp's default Ks 0.4 made
- * every Blender Collada surface 18% glossy. */
+ * every Blender Collada surface 18% glossy. Ambient and area lights are
+ * skipped and counted. */
 static void test_blender_light_units(void **state) {
   (void)state;
   const double watts = 500.0 / (4.0 * GI_PI), half = 30.0 * GI_PI / 180.0;
@@ -1768,6 +1776,9 @@ static void test_blender_light_units(void **state) {
     gi_scene *s = load_ok(c[i].path, NULL);
     int collada = i < 3;
     assert_int_equal(gi_scene_num_lights(s), collada ? 3 : 2);
+    gi_scene_stats st;
+    gi_scene_get_stats(s, &st);
+    assert_int_equal(st.lights_skipped, 1); /* Collada's ambient light, the FBX's area light */
     for (size_t k = 0; k < gi_scene_num_lights(s); k++) {
       const gi_light *l = gi_scene_light(s, k);
       double want = l->type == GI_LIGHT_SUN ? 3.0 : l->type == GI_LIGHT_POINT ? c[i].point : c[i].spot;

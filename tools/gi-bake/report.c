@@ -104,6 +104,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(sc, "textures_unreadable", count(st.textures_unreadable));
   json_object_set_new(sc, "materials", count(st.materials));
   json_object_set_new(sc, "lights", count(st.lights));
+  json_object_set_new(sc, "lights_skipped", count(st.lights_skipped));
   json_object_set_new(sc, "emissive_triangles", count(st.emissive_triangles));
   json_object_set_new(sc, "default_lights_added", json_boolean(st.default_lights_added));
   json_array_append_new(b, vec3d(j, lo, "scene bounds"));
@@ -199,6 +200,10 @@ static void print_human(const cli_run *r) {
   printf("           %u materials%s, %u lights%s, %u emissive triangles\n", st.materials,
          st.clamped_albedo ? " (some out of range or reflecting over 100%: corrected)" : "", st.lights,
          st.default_lights_added ? " (default sun + sky added)" : "", st.emissive_triangles);
+  if (st.lights_skipped)
+    printf("           %u light%s skipped: area and ambient lights are not modelled (make an area light an "
+           "emissive surface)\n",
+           st.lights_skipped, st.lights_skipped > 1 ? "s" : "");
   if (st.textures_unreadable)
     printf("           %llu texture%s unreadable: their materials keep the plain colour factor\n",
            (unsigned long long)st.textures_unreadable, st.textures_unreadable > 1 ? "s" : "");

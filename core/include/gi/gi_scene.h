@@ -100,6 +100,8 @@ typedef struct gi_scene_stats {
   uint32_t emissive_triangles;
   int default_lights_added;    /* 1 when a default sun + sky were added */
   uint64_t textures_unreadable; /* diffuse textures missing or undecodable (factor used alone) */
+  uint32_t lights_skipped;     /* a file's lights of kinds not modelled (area, ambient, undefined):
+                                  not in `lights`; an area light is better an emissive surface */
 } gi_scene_stats;
 
 /* Loads a scene file through assimp (OBJ+MTL, PLY, glTF 2.0, 3DS, FBX...).

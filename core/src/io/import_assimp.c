@@ -960,7 +960,7 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
  * gltf_recentre.c), then the caller's, into a new array *lights (caller
  * frees) that o then points at. */
 static gi_result collect_lights(const struct aiScene *as, const gi__gltf_shift *gs, const char *path, double scale,
-                                gi_scene_options *o, gi_light **lights, gi_error_info *err) {
+                                gi_scene_options *o, gi_light **lights, uint32_t *skipped, gi_error_info *err) {
   if (o->num_lights && !o->lights)
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", o->num_lights);
   size_t nl = 0;
@@ -970,7 +970,8 @@ static gi_result collect_lights(const struct aiScene *as, const gi__gltf_shift *
   for (unsigned i = 0; i < as->mNumLights; i++) {
     gi_result r = convert_light(path, as->mLights[i], gs->t, scale, blender, &l[nl], err);
     if (r == GI_OK) nl++;
-    else if (r != GI_ERR_NOT_FOUND) return r;
+    else if (r == GI_ERR_NOT_FOUND) ++*skipped;
+    else return r;
   }
   for (size_t i = 0; i < gs->num_lights; i++) {
     l[nl] = gs->lights[i];
@@ -1022,6 +1023,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   const struct aiScene *as = NULL;
   gi_mesh_builder *b = NULL;
   gi_light *lights = NULL;
+  uint32_t skipped = 0;
   uint32_t *matmap = NULL;
   tex_ctx tc = {.path = path};
   /* Our strict reader first: its errors name the line, assimp's do not. */
@@ -1052,8 +1054,9 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   if ((rc = add_materials(as, &tc, b, matmap, colored, err)) == GI_OK &&
       (rc = exact ? add_exact_meshes(as, matmap, &em, &tc, b, path, err)
                   : add_meshes(as, matmap, gs.t, &tc, b, path, err)) == GI_OK &&
-      (rc = collect_lights(as, &gs, path, scale, &o, &lights, err)) == GI_OK)
-    rc = build(b, path, &o, &tc, out, err);
+      (rc = collect_lights(as, &gs, path, scale, &o, &lights, &skipped, err)) == GI_OK &&
+      (rc = build(b, path, &o, &tc, out, err)) == GI_OK)
+    (*out)->stats.lights_skipped = skipped;
 
 done:
   if (as) aiReleaseImport(as);
