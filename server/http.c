@@ -553,10 +553,10 @@ static void scene_info(gs_service *svc, const gs_scene *s, const query *qy, gs_a
                          "voxel", q->voxel0, "cones", q->cones, "aperture_deg", ap, "step",
                          (double)q->step, "bounces", q->bounces, "samples", q->light_samples, "probe_samples",
                          q->probe_samples);
-  json_t *o = json_pack("{s:s, s:s, s:I, s:{s:I, s:I}, s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:f}", "id", s->id, "up",
+  json_t *o = json_pack("{s:s, s:s, s:I, s:{s:I, s:I, s:I}, s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:f}", "id", s->id, "up",
                         gi_scene_up(s->scene) == GI_UP_Z ? "z" : "y", "triangles", (json_int_t)st.triangles,
                         "dropped", "nonfinite", (json_int_t)st.dropped_nonfinite, "degenerate",
-                        (json_int_t)st.dropped_degenerate, "materials", (int)st.materials, "emissive_triangles",
+                        (json_int_t)st.dropped_degenerate, "see_through", (json_int_t)st.dropped_see_through, "materials", (int)st.materials, "emissive_triangles",
                         (int)st.emissive_triangles, "lights", lights, "bounds", bounds_json(s->scene),
                         "default_viewpoint", vec3(s->default_at), "quality", qj, "effects", fx, "load_ms",
                         s->load_ms);

@@ -4,6 +4,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "gi/gi_cascade.h"
+#include "gi/gi_probe.h"
 #include "gi/gi_scene.h"
 #include "scene/lights.h"
 #include "scene/scene_internal.h"
@@ -1679,6 +1681,97 @@ static void test_fbx_units(void **state) {
   expect_bad(fbx_units("units-neg.fbx", "-1"), GI_ERR_FORMAT, "FBX UnitScaleFactor is -1; expected a finite number > 0");
 }
 
+/* Materials passing at least half the light straight through are left
+ * out and counted: the voxels and shadow rays model opaque surfaces only,
+ * and a pane taken as opaque left the room behind it dark. glTF: its
+ * transmission, or alpha under BLEND (MASK: under the cutoff passes all;
+ * OPAQUE ignores alpha); an MTL's d and Tr. A file whose every material is
+ * see-through keeps them (an MTL that says Tr 1 for opaque). */
+static void see_through_counts(const char *path, uint64_t kept, uint64_t left_out) {
+  gi_scene *s = load_ok(path, NULL);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  printf("  %s: %llu kept, %llu see-through left out, of %llu\n", path, (unsigned long long)st.triangles,
+         (unsigned long long)st.dropped_see_through, (unsigned long long)st.input_triangles);
+  assert_int_equal(st.triangles, kept);
+  assert_int_equal(st.dropped_see_through, left_out);
+  assert_int_equal(st.input_triangles, kept + left_out);
+  gi_scene_release(s);
+}
+
+static void test_see_through(void **state) {
+  (void)state;
+  char json[4096];
+  const char *prim = "{\"attributes\":{\"POSITION\":0},\"indices\":1,\"material\":%d}";
+  char prims[512] = "";
+  for (int m = 0; m < 5; m++) {
+    char one[128];
+    snprintf(one, sizeof one, prim, m);
+    strcat(prims, m ? "," : "");
+    strcat(prims, one);
+  }
+  snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+           "\"extensionsUsed\":[\"KHR_materials_transmission\"],\"meshes\":[{\"primitives\":[%s]}],"
+           "\"materials\":[{\"name\":\"wall\"},"
+           "{\"name\":\"glass\",\"extensions\":{\"KHR_materials_transmission\":{\"transmissionFactor\":1}}},"
+           "{\"name\":\"veil\",\"alphaMode\":\"BLEND\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[1,1,1,0.2]}},"
+           "{\"name\":\"cut\",\"alphaMode\":\"MASK\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[1,1,1,0.3]}},"
+           "{\"name\":\"solid\",\"pbrMetallicRoughness\":{\"baseColorFactor\":[1,1,1,0.2]}}]," TRI_GLTF_DATA "}",
+           prims);
+  see_through_counts(tu_write_file("glass.gltf", json, strlen(json)), 2, 3);
+  const char mtl[] = "newmtl wall\nKd 0.5 0.5 0.5\nnewmtl veil\nKd 1 1 1\nd 0.2\n"
+                     "newmtl tinted\nKd 1 1 1\nTr 0.3\nnewmtl clear\nKd 1 1 1\nTr 0.9\n";
+  tu_write_file("glass.mtl", mtl, strlen(mtl));
+  const char obj[] = "mtllib glass.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nusemtl wall\nf 1 2 3\n"
+                     "usemtl veil\nf 2 4 3\nusemtl tinted\nf 1 3 4\nusemtl clear\nf 1 2 4\n";
+  see_through_counts(tu_write_file("glass.obj", obj, strlen(obj)), 2, 2);
+  const char all_mtl[] = "newmtl inverted\nKd 0.5 0.5 0.5\nTr 1\n";
+  tu_write_file("inverted.mtl", all_mtl, strlen(all_mtl));
+  const char all_obj[] = "mtllib inverted.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl inverted\nf 1 2 3\n";
+  see_through_counts(tu_write_file("inverted.obj", all_obj, strlen(all_obj)), 1, 0);
+}
+
+/* A closed box room whose one window is a pane: see-through, the sun
+ * through it lights the floor and the room; opaque, the room is dark. */
+static void test_glass_window(void **state) {
+  (void)state;
+  double e[2];
+  for (int glass = 0; glass < 2; glass++) {
+    char mtl[128];
+    snprintf(mtl, sizeof mtl, "newmtl wall\nKd 0.5 0.5 0.5\nnewmtl pane\nKd 0.5 0.5 0.5\nd %s\n", glass ? "0.1" : "1");
+    tu_write_file("room.mtl", mtl, strlen(mtl));
+    /* [0,4] x [0,3] x [0,4]; the wall x = 4 has a window y in [1,2.5], z in [1,3]. */
+    const char obj[] =
+        "mtllib room.mtl\n"
+        "v 0 0 0\nv 4 0 0\nv 4 0 4\nv 0 0 4\nv 0 3 0\nv 4 3 0\nv 4 3 4\nv 0 3 4\n"
+        "v 4 1 1\nv 4 1 3\nv 4 2.5 3\nv 4 2.5 1\n"
+        "usemtl wall\nf 1 2 3 4\nf 5 8 7 6\nf 1 5 6 2\nf 4 3 7 8\nf 1 4 8 5\n"
+        "f 2 6 12 9\nf 6 7 11 12\nf 7 3 10 11\nf 3 2 9 10\n"
+        "usemtl pane\nf 9 12 11 10\n";
+    gi_scene_options o = {0};
+    gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {-1, -0.6f, 0}};
+    o.lights = &sun;
+    o.num_lights = 1;
+    gi_scene *s = load_ok(tu_write_file("room.obj", obj, strlen(obj)), &o);
+    gi_quality q = {.levels = 3, .res = 32, .voxel0 = 0.125, .bounces = 1};
+    gi_cascade *c = NULL;
+    gi_error_info err = {0};
+    double at[3] = {2, 1, 2};
+    assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+    gi_probe p;
+    assert_int_equal(gi_cascade_gather(c, at, 1, &p, NULL, &err), GI_OK);
+    float down[3] = {0, -1, 0}, E[3];
+    gi_sh_eval_irradiance(p.sh, down, E); /* the sunlit floor's light, seen from above it */
+    e[glass] = E[1];
+    gi_cascade_free(c);
+    gi_scene_release(s);
+  }
+  printf("  a room's probe under its window: %.4f through a pane left out, %.4f behind an opaque one\n", e[1], e[0]);
+  assert_true(e[1] > 0.05);
+  assert_true(e[0] < 0.01 * e[1]);
+}
+
 /* A Collada file: a <lambert> and a <phong> triangle, a 500-unit point
  * light 2 m up, a sun of 3, a 60 degree spot of 100 with falloff exponent
  * `ex` and an ambient light, written by `tool`. */
@@ -1987,6 +2080,8 @@ int main(void) {
       cmocka_unit_test(test_fbx_connection_loops),
       cmocka_unit_test(test_fbx_units),
       cmocka_unit_test(test_blender_light_units),
+      cmocka_unit_test(test_see_through),
+      cmocka_unit_test(test_glass_window),
       cmocka_unit_test(test_backface_share),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -100,6 +100,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(sc, "input_triangles", count(st.input_triangles));
   json_object_set_new(sc, "dropped_nonfinite", count(st.dropped_nonfinite));
   json_object_set_new(sc, "dropped_degenerate", count(st.dropped_degenerate));
+  json_object_set_new(sc, "dropped_see_through", count(st.dropped_see_through));
   json_object_set_new(sc, "clamped_albedo", count(st.clamped_albedo));
   json_object_set_new(sc, "textures_unreadable", count(st.textures_unreadable));
   json_object_set_new(sc, "materials", count(st.materials));
@@ -200,6 +201,10 @@ static void print_human(const cli_run *r) {
   printf("           %u materials%s, %u lights%s, %u emissive triangles\n", st.materials,
          st.clamped_albedo ? " (some out of range or reflecting over 100%: corrected)" : "", st.lights,
          st.default_lights_added ? " (default sun + sky added)" : "", st.emissive_triangles);
+  if (st.dropped_see_through)
+    printf("           %llu triangle%s of see-through materials (glass, alpha-blended) left out: light passes "
+           "them\n",
+           (unsigned long long)st.dropped_see_through, st.dropped_see_through > 1 ? "s" : "");
   if (st.lights_skipped)
     printf("           %u light%s skipped: area and ambient lights are not modelled (make an area light an "
            "emissive surface)\n",

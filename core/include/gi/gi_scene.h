@@ -93,6 +93,8 @@ typedef struct gi_scene_stats {
   uint64_t triangles;          /* kept */
   uint64_t dropped_nonfinite;  /* NaN/Inf positions */
   uint64_t dropped_degenerate; /* zero area (incl. repeated vertices) */
+  uint64_t dropped_see_through; /* of materials passing >= half the light straight through (glass,
+                                   alpha-blended): left out, they pass it all */
   uint64_t clamped_albedo;     /* materials whose albedo exceeded 1, or whose brightest albedo
                                   channel plus glossy reflectance did (both scaled to sum to 1) */
   uint32_t materials;

@@ -296,6 +296,7 @@ typedef struct tex_ctx {
   tex_entry *tex;
   size_t ntex, captex;
   uint64_t unreadable;
+  uint64_t see_through; /* triangles of see-through materials, left out (add_materials) */
   int mtl_scanned;    /* OBJ: the MTL files were read into mtl[] */
   mtl_entry *mtl;
   size_t nmtl, capmtl;
@@ -786,6 +787,42 @@ static gi_result check_counts(const struct aiScene *as, const char *path, gi_err
  * scan), albedo 1: the colours are the albedo. */
 static int no_materials(const char *path) { return ends_with_ci(path, ".ply") || ends_with_ci(path, ".stl"); }
 
+/* Whether a triangle mesh uses assimp material i. */
+static int material_used(const struct aiScene *as, unsigned i) {
+  for (unsigned j = 0; j < as->mNumMeshes; j++)
+    if (as->mMeshes[j]->mMaterialIndex == i && (as->mMeshes[j]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) return 1;
+  return 0;
+}
+
+/* matmap's mark for a see-through material, whose triangles are left out. */
+#define MAT_SEE_THROUGH (UINT32_MAX - 1)
+/* A material passing at least this share of light straight through is
+ * left out of the scene: the voxels and shadow rays model opaque surfaces
+ * only, and a window pane taken as opaque left the room behind it dark.
+ * Left out, it passes all the light and reflects none (a pane's 4-8%). */
+#define SEE_THROUGH_SHARE 0.5f
+
+/* The share of light material am passes straight through: glTF's
+ * KHR_materials_transmission, or one minus its opacity where the format
+ * blends by it (glTF only under alphaMode BLEND; MASK with the factor under
+ * the cutoff passes all; an OBJ's d or Tr, an FBX's opacity). Textured
+ * alpha is not read. */
+static float see_through_share(const struct aiMaterial *am, const char *path) {
+  float t = 0.f, op = 1.f;
+  if (get_float(am, AI_MATKEY_TRANSMISSION_FACTOR, &t) && !(t >= 0.f && t <= 1.f)) t = 0.f;
+  int has_op = get_float(am, AI_MATKEY_OPACITY, &op) && op >= 0.f && op <= 1.f;
+  if (has_op && is_gltf(path)) {
+    struct aiString mode;
+    float cutoff = 0.5f;
+    if (aiGetMaterialString(am, "$mat.gltf.alphaMode", 0, 0, &mode) != aiReturn_SUCCESS) mode.data[0] = 0;
+    get_float(am, "$mat.gltf.alphaCutoff", 0, 0, &cutoff);
+    if (!strcmp(mode.data, "MASK")) op = op < cutoff ? 0.f : 1.f;
+    else if (strcmp(mode.data, "BLEND") != 0) op = 1.f; /* OPAQUE: alpha is ignored */
+  }
+  if (has_op && 1.f - op > t) t = 1.f - op;
+  return t;
+}
+
 /* The file's materials into b; matmap[i] is material i's index in b.
  * assimp adds a material of its own (OBJ: "DefaultMaterial", glTF: an
  * unnamed one); it is kept only when a mesh uses it, so the material list
@@ -796,7 +833,16 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
   if (!(tc->mt = gi__malloc((as->mNumMaterials + 1) * sizeof *tc->mt)))
     return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", tc->path);
   tc->mt[0] = (mat_tex){.tex = -1}; /* the default material's, when no material is kept */
+  /* Every used material see-through is more likely a file that says
+   * opacity the other way round (an MTL's Tr 1 for opaque): kept then. */
+  int opaque_used = 0;
+  for (unsigned i = 0; i < as->mNumMaterials && !opaque_used; i++)
+    opaque_used = material_used(as, i) && see_through_share(as->mMaterials[i], tc->path) < SEE_THROUGH_SHARE;
   for (unsigned i = 0; i < as->mNumMaterials; i++) {
+    if (opaque_used && see_through_share(as->mMaterials[i], tc->path) >= SEE_THROUGH_SHARE) {
+      matmap[i] = MAT_SEE_THROUGH;
+      continue;
+    }
     gi_material m;
     mat_tex mt;
     gi_result rc = convert_material(as->mMaterials[i], tc, &m, &mt, err);
@@ -810,9 +856,7 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
       mt.uv_tf = tc->gs->uv_tf[i];
       if (mt.uv_tf[5] >= 0) mt.uv = (unsigned)mt.uv_tf[5]; /* the transform's own texCoord */
     }
-    int used = 0;
-    for (unsigned j = 0; j < as->mNumMeshes && !used; j++)
-      used = as->mMeshes[j]->mMaterialIndex == i && (as->mMeshes[j]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
+    int used = material_used(as, i);
     matmap[i] = UINT32_MAX;
     if (!used && (strcmp(m.name, AI_DEFAULT_MATERIAL_NAME) == 0 || m.name[0] == 0)) continue;
     tc->mt[nmat] = mt;
@@ -861,13 +905,17 @@ static void texture_triangle(const tex_ctx *tc, uint32_t mat, const float uv[3][
 /* Every triangle mesh's vertices (unscaled: gi_scene_build applies
  * opt->scale), their colours, and faces into b, each textured triangle
  * with its own part of its texture. */
-static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, const double shift[3],
-                            const tex_ctx *tc, gi_mesh_builder *b, const char *path, gi_error_info *err) {
+static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, const double shift[3], tex_ctx *tc,
+                            gi_mesh_builder *b, const char *path, gi_error_info *err) {
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
     const struct aiMesh *m = as->mMeshes[i];
     if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
     uint32_t mat = m->mMaterialIndex < as->mNumMaterials ? matmap[m->mMaterialIndex] : 0;
     if (mat == UINT32_MAX) mat = 0;
+    if (mat == MAT_SEE_THROUGH) {
+      for (unsigned t = 0; t < m->mNumFaces; t++) tc->see_through += m->mFaces[t].mNumIndices == 3;
+      continue;
+    }
     unsigned uvset = tc->mt[mat].uv;
     int linear = is_gltf(path);
     const struct aiVector3D *tuv = uvset < AI_MAX_NUMBER_OF_TEXTURECOORDS ? m->mTextureCoords[uvset] : NULL;
@@ -903,7 +951,8 @@ static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, co
   return GI_OK;
 }
 
-/* Our material index for assimp material i; 0 when assimp's was dropped. */
+/* Our material index for assimp material i; 0 when assimp's was dropped,
+ * MAT_SEE_THROUGH when its triangles are left out. */
 static uint32_t our_material(const struct aiScene *as, const uint32_t *matmap, unsigned i) {
   return i < as->mNumMaterials && matmap[i] != UINT32_MAX ? matmap[i] : 0;
 }
@@ -913,7 +962,7 @@ static uint32_t our_material(const struct aiScene *as, const uint32_t *matmap, u
  * origin. Materials stay assimp's, matched to usemtl by name; a face before
  * any usemtl (and every PLY face) takes the material of assimp's first mesh. */
 static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matmap, const gi__exact_mesh *mp,
-                                  const tex_ctx *tc, gi_mesh_builder *b, const char *path, gi_error_info *err) {
+                                  tex_ctx *tc, gi_mesh_builder *b, const char *path, gi_error_info *err) {
   const gi__exact_mesh m = *mp;
   uint32_t fallback = 0;
   for (unsigned i = 0; i < as->mNumMaterials; i++) {
@@ -943,6 +992,10 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
   }
   for (size_t t = 0; t < m.nt; t++) {
     uint32_t mat = m.mat[t] == GI__EXACT_NO_MATERIAL ? fallback : map[m.mat[t]];
+    if (mat == MAT_SEE_THROUGH) {
+      tc->see_through++;
+      continue;
+    }
     size_t tri = gi_mesh_builder_num_triangles(b);
     gi_mesh_builder_add_triangle(b, base + m.tri[3 * t], base + m.tri[3 * t + 1], base + m.tri[3 * t + 2], mat);
     const uint32_t *tx = m.tuv ? &m.tuv[3 * t] : NULL;
@@ -997,6 +1050,8 @@ static gi_result build(const gi_mesh_builder *b, const char *path, const gi_scen
   gi_result rc = gi_scene_build(b, name, o, out, &e2);
   if (rc != GI_OK) return gi__fail(err, rc, "scene file '%s': %s", path, e2.msg);
   (*out)->stats.textures_unreadable = tc->unreadable;
+  (*out)->stats.dropped_see_through = tc->see_through;
+  (*out)->stats.input_triangles += tc->see_through;
   gi_scene_stats ss;
   gi_scene_get_stats(*out, &ss);
   if (ss.triangles > 0) return GI_OK;
