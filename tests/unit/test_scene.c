@@ -1681,6 +1681,36 @@ static void test_fbx_units(void **state) {
   expect_bad(fbx_units("units-neg.fbx", "-1"), GI_ERR_FORMAT, "FBX UnitScaleFactor is -1; expected a finite number > 0");
 }
 
+/* A node that mirrors (a negative determinant: Blender's scale -1) keeps
+ * its triangles facing the way they face in the file, as glTF asks and
+ * Blender draws: assimp's pre-transform kept the winding, and the mirrored
+ * copy came out inside out. The triangle (0,0,0),(1,0,0),(0,1,0), facing
+ * +z, under four nodes: as it is (+z), mirrored in x (+z: the mirror is
+ * across its plane's normal), mirrored in z under a parent mirrored in y
+ * (a half turn about x: -z) and turned half round y (-z). */
+static void test_mirrored_nodes(void **state) {
+  (void)state;
+  const char json[] =
+      "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0,1,2,4]}],"
+      "\"nodes\":[{\"mesh\":0},{\"mesh\":0,\"translation\":[5,0,0],\"scale\":[-1,1,1]},"
+      "{\"scale\":[1,-1,1],\"translation\":[10,0,0],\"children\":[3]},{\"mesh\":0,\"scale\":[1,1,-1]},"
+      "{\"mesh\":0,\"translation\":[15,0,0],\"rotation\":[0,1,0,0]}],"
+      "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}]," TRI_GLTF_DATA "}";
+  gi_scene *s = load_ok(tu_write_file("mirror.gltf", json, strlen(json)), NULL);
+  assert_int_equal(s->num_triangles, 4);
+  for (uint32_t t = 0; t < 4; t++) {
+    const float *v[3];
+    for (int k = 0; k < 3; k++) v[k] = &s->vertices[3 * s->indices[3 * t + k]];
+    float e1[3], e2[3];
+    for (int k = 0; k < 3; k++) e1[k] = v[1][k] - v[0][k], e2[k] = v[2][k] - v[0][k];
+    double nz = e1[0] * e2[1] - e1[1] * e2[0], cx = (v[0][0] + v[1][0] + v[2][0]) / 3 + s->origin[0];
+    int turned = cx > 7.5; /* the last two nodes turn it over */
+    printf("  triangle %u around x = %.2f: normal z %+.2f (want %+d)\n", t, cx, nz, turned ? -1 : 1);
+    assert_float_equal(nz, turned ? -1.0 : 1.0, 1e-6);
+  }
+  gi_scene_release(s);
+}
+
 /* Materials passing at least half the light straight through are left
  * out and counted: the voxels and shadow rays model opaque surfaces only,
  * and a pane taken as opaque left the room behind it dark. glTF: its
@@ -2081,6 +2111,7 @@ int main(void) {
       cmocka_unit_test(test_fbx_units),
       cmocka_unit_test(test_blender_light_units),
       cmocka_unit_test(test_see_through),
+      cmocka_unit_test(test_mirrored_nodes),
       cmocka_unit_test(test_glass_window),
       cmocka_unit_test(test_backface_share),
   };

@@ -5,9 +5,10 @@
  * the bytes that follow (a header claiming 10^9 faces would otherwise make
  * assimp reserve gigabytes), and for FBX that its object connections do
  * not loop (io/fbx_check.c: assimp recursed until the stack ran out).
- * assimp then triangulates, joins vertices and
- * pre-transforms everything into world space (lights included), and we copy
- * triangle meshes into a gi_mesh_builder; points and lines are skipped.
+ * assimp then triangulates and joins vertices, and we walk its node graph
+ * (io/assimp_nodes.h: world transforms in double, mirrored nodes' winding
+ * reversed) to copy every instance of its triangle meshes into a
+ * gi_mesh_builder and to place its lights; points and lines are skipped.
  * OBJ and PLY geometry comes instead from our own double-precision readers
  * (io/import_exact.c), run before assimp: assimp parses positions into
  * float, which moves a georeferenced vertex (UTM, ~5e6) by up to 0.5 m
@@ -49,6 +50,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include "base/internal.h"
+#include "io/assimp_nodes.h"
 #include "io/fbx_check.h"
 #include "io/gltf_recentre.h"
 #include "io/import_exact.h"
@@ -643,8 +645,8 @@ static void collada_spot(const struct aiLight *al, int blender, float *inner, fl
   *inner = (float)(cone * (1.0 - (blend < 1 ? blend : 1)));
 }
 
-static gi_result convert_light(const char *path, const struct aiLight *al, const double shift[3], double scale,
-                               int blender, gi_light *l, gi_error_info *err) {
+static gi_result convert_light(const char *path, const struct aiLight *al, const gi__xform *w, const double shift[3],
+                               double scale, int blender, gi_light *l, gi_error_info *err) {
   memset(l, 0, sizeof *l);
   switch (al->mType) {
     case aiLightSource_DIRECTIONAL: l->type = GI_LIGHT_SUN; break;
@@ -663,12 +665,17 @@ static gi_result convert_light(const char *path, const struct aiLight *al, const
    * they are. A sun's strength is irradiance (W/m^2) in all three. */
   if (l->type != GI_LIGHT_SUN && blender && !is_gltf(path))
     for (int k = 0; k < 3; k++) l->color[k] *= (float)(1.0 / (4.0 * GI_PI));
-  l->position[0] = (al->mPosition.x + shift[0]) * scale;
-  l->position[1] = (al->mPosition.y + shift[1]) * scale;
-  l->position[2] = (al->mPosition.z + shift[2]) * scale;
-  l->direction[0] = al->mDirection.x;
-  l->direction[1] = al->mDirection.y;
-  l->direction[2] = al->mDirection.z;
+  /* A light is placed by the node of its name (assimp's rule), or where it
+   * says when none has it. */
+  const gi__xform id = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+  if (!w) w = &id;
+  double p[3], dir[3];
+  gi__xform_point(w, al->mPosition.x, al->mPosition.y, al->mPosition.z, p);
+  gi__xform_dir(w, al->mDirection.x, al->mDirection.y, al->mDirection.z, dir);
+  for (int k = 0; k < 3; k++) {
+    l->position[k] = (p[k] + shift[k]) * scale;
+    l->direction[k] = (float)dir[k];
+  }
   /* assimp's cone angles are full angles; ours are cosines of half-angles.
    * Its glTF reader (5.2) passes KHR_lights_punctual's angles through,
    * and those are half-angles already: halved again, a glTF spot lit half
@@ -711,7 +718,7 @@ static gi_result check_file(const char *path, gi_error_info *err) {
 static gi_result import_file(const char *path, const gi__gltf_shift *gs, const struct aiScene **out,
                              gi_error_info *err) {
   const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
-                         aiProcess_PreTransformVertices | aiProcess_SortByPType;
+                         aiProcess_SortByPType; /* not PreTransformVertices: io/assimp_nodes.h */
   struct aiFileIO io;
   gi__gltf_open_io(&io, gs);
   pthread_mutex_lock(&assimp_lock);
@@ -762,14 +769,30 @@ static gi_result fbx_metres(const struct aiScene *as, const char *path, double *
 }
 
 /* Counts in 64 bits, so a huge file fails before we allocate. */
-static gi_result check_counts(const struct aiScene *as, const char *path, gi_error_info *err) {
-  uint64_t ntri = 0, nvert = 0;
-  for (unsigned i = 0; i < as->mNumMeshes; i++) {
-    const struct aiMesh *m = as->mMeshes[i];
+typedef struct {
+  const struct aiScene *as;
+  uint64_t ntri, nvert;
+} count_walk;
+
+static gi_result count_node(void *ctx, const struct aiNode *nd, const gi__xform *w, int mirrored) {
+  (void)w, (void)mirrored;
+  count_walk *cw = ctx;
+  for (unsigned i = 0; i < nd->mNumMeshes; i++) {
+    if (nd->mMeshes[i] >= cw->as->mNumMeshes) continue;
+    const struct aiMesh *m = cw->as->mMeshes[nd->mMeshes[i]];
     if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-    ntri += m->mNumFaces;
-    nvert += m->mNumVertices;
+    cw->ntri += m->mNumFaces;
+    cw->nvert += m->mNumVertices;
   }
+  return GI_OK;
+}
+
+/* Counts every instance (a mesh a thousand nodes use is a thousand). */
+static gi_result check_counts(const struct aiScene *as, const char *path, gi_error_info *err) {
+  count_walk cw = {.as = as};
+  gi_result rc = gi__assimp_walk(as, count_node, &cw, err);
+  if (rc != GI_OK) return rc;
+  uint64_t ntri = cw.ntri, nvert = cw.nvert;
   if (ntri > ((uint64_t)1 << 31))
     return gi__fail(err, GI_ERR_LIMIT, "scene file '%s': %llu triangles; the limit is 2^31", path,
                     (unsigned long long)ntri);
@@ -902,53 +925,87 @@ static void texture_triangle(const tex_ctx *tc, uint32_t mat, const float uv[3][
   gi_mesh_builder_set_triangle_albedo(b, tri, mt->factor[0] * c[0], mt->factor[1] * c[1], mt->factor[2] * c[2]);
 }
 
-/* Every triangle mesh's vertices (unscaled: gi_scene_build applies
- * opt->scale), their colours, and faces into b, each textured triangle
- * with its own part of its texture. */
-static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, const double shift[3], tex_ctx *tc,
-                            gi_mesh_builder *b, const char *path, gi_error_info *err) {
-  for (unsigned i = 0; i < as->mNumMeshes; i++) {
-    const struct aiMesh *m = as->mMeshes[i];
-    if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-    uint32_t mat = m->mMaterialIndex < as->mNumMaterials ? matmap[m->mMaterialIndex] : 0;
-    if (mat == UINT32_MAX) mat = 0;
-    if (mat == MAT_SEE_THROUGH) {
-      for (unsigned t = 0; t < m->mNumFaces; t++) tc->see_through += m->mFaces[t].mNumIndices == 3;
-      continue;
-    }
-    unsigned uvset = tc->mt[mat].uv;
-    int linear = is_gltf(path);
-    const struct aiVector3D *tuv = uvset < AI_MAX_NUMBER_OF_TEXTURECOORDS ? m->mTextureCoords[uvset] : NULL;
-    uint32_t base = 0;
-    for (unsigned v = 0; v < m->mNumVertices; v++) {
-      uint32_t id = gi_mesh_builder_add_vertex(b, m->mVertices[v].x + shift[0], m->mVertices[v].y + shift[1],
-                                               m->mVertices[v].z + shift[2]);
-      if (v == 0) base = id;
-      if (m->mColors[0])
-        gi_mesh_builder_set_vertex_color(b, id, vertex_linear(linear, m->mColors[0][v].r),
-                                         vertex_linear(linear, m->mColors[0][v].g),
-                                         vertex_linear(linear, m->mColors[0][v].b));
-      /* The second UV set is the lightmap's (glTF TEXCOORD_1); assimp's V runs up. */
-      if (m->mTextureCoords[1])
-        gi_mesh_builder_set_lightmap_uv(b, id, m->mTextureCoords[1][v].x, 1.0 - m->mTextureCoords[1][v].y);
-    }
-    for (unsigned t = 0; t < m->mNumFaces; t++) {
-      const struct aiFace *fc = &m->mFaces[t];
-      if (fc->mNumIndices != 3) continue; /* a point or line left in a mixed mesh */
-      for (int k = 0; k < 3; k++)
-        if (fc->mIndices[k] >= m->mNumVertices)
-          return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': mesh '%.*s' face %u uses vertex %u of %u", path,
-                          (int)m->mName.length, m->mName.data, t, fc->mIndices[k], m->mNumVertices);
-      size_t tri = gi_mesh_builder_num_triangles(b);
-      gi_mesh_builder_add_triangle(b, base + fc->mIndices[0], base + fc->mIndices[1], base + fc->mIndices[2], mat);
-      if (tuv) {
-        float uv[3][2];
-        for (int k = 0; k < 3; k++) uv[k][0] = tuv[fc->mIndices[k]].x, uv[k][1] = tuv[fc->mIndices[k]].y;
-        texture_triangle(tc, mat, (const float(*)[2])uv, b, tri);
-      }
+/* add_meshes' walk. */
+typedef struct {
+  const struct aiScene *as;
+  const uint32_t *matmap;
+  const double *shift;
+  tex_ctx *tc;
+  gi_mesh_builder *b;
+  const char *path;
+  gi_error_info *err;
+} mesh_walk;
+
+/* One instance of mesh m under a node's world transform w (winding
+ * reversed where w mirrors). */
+static gi_result add_instance(mesh_walk *mw, const struct aiMesh *m, const gi__xform *w, int mirrored) {
+  const struct aiScene *as = mw->as;
+  tex_ctx *tc = mw->tc;
+  gi_mesh_builder *b = mw->b;
+  uint32_t mat = m->mMaterialIndex < as->mNumMaterials ? mw->matmap[m->mMaterialIndex] : 0;
+  if (mat == UINT32_MAX) mat = 0;
+  if (mat == MAT_SEE_THROUGH) {
+    for (unsigned t = 0; t < m->mNumFaces; t++) tc->see_through += m->mFaces[t].mNumIndices == 3;
+    return GI_OK;
+  }
+  unsigned uvset = tc->mt[mat].uv;
+  int linear = is_gltf(mw->path);
+  const struct aiVector3D *tuv = uvset < AI_MAX_NUMBER_OF_TEXTURECOORDS ? m->mTextureCoords[uvset] : NULL;
+  uint32_t base = 0;
+  for (unsigned v = 0; v < m->mNumVertices; v++) {
+    double p[3];
+    gi__xform_point(w, m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z, p);
+    uint32_t id = gi_mesh_builder_add_vertex(b, p[0] + mw->shift[0], p[1] + mw->shift[1], p[2] + mw->shift[2]);
+    if (v == 0) base = id;
+    if (m->mColors[0])
+      gi_mesh_builder_set_vertex_color(b, id, vertex_linear(linear, m->mColors[0][v].r),
+                                       vertex_linear(linear, m->mColors[0][v].g),
+                                       vertex_linear(linear, m->mColors[0][v].b));
+    /* The second UV set is the lightmap's (glTF TEXCOORD_1); assimp's V runs up. */
+    if (m->mTextureCoords[1])
+      gi_mesh_builder_set_lightmap_uv(b, id, m->mTextureCoords[1][v].x, 1.0 - m->mTextureCoords[1][v].y);
+  }
+  const int order[2][3] = {{0, 1, 2}, {0, 2, 1}};
+  const int *o = order[mirrored != 0];
+  for (unsigned t = 0; t < m->mNumFaces; t++) {
+    const struct aiFace *fc = &m->mFaces[t];
+    if (fc->mNumIndices != 3) continue; /* a point or line left in a mixed mesh */
+    for (int k = 0; k < 3; k++)
+      if (fc->mIndices[k] >= m->mNumVertices)
+        return gi__fail(mw->err, GI_ERR_FORMAT, "scene file '%s': mesh '%.*s' face %u uses vertex %u of %u",
+                        mw->path, (int)m->mName.length, m->mName.data, t, fc->mIndices[k], m->mNumVertices);
+    size_t tri = gi_mesh_builder_num_triangles(b);
+    gi_mesh_builder_add_triangle(b, base + fc->mIndices[o[0]], base + fc->mIndices[o[1]], base + fc->mIndices[o[2]],
+                                 mat);
+    if (tuv) {
+      float uv[3][2];
+      for (int k = 0; k < 3; k++) uv[k][0] = tuv[fc->mIndices[o[k]]].x, uv[k][1] = tuv[fc->mIndices[o[k]]].y;
+      texture_triangle(tc, mat, (const float(*)[2])uv, b, tri);
     }
   }
   return GI_OK;
+}
+
+static gi_result add_node_meshes(void *ctx, const struct aiNode *nd, const gi__xform *w, int mirrored) {
+  mesh_walk *mw = ctx;
+  for (unsigned i = 0; i < nd->mNumMeshes; i++) {
+    if (nd->mMeshes[i] >= mw->as->mNumMeshes) continue; /* assimp's validation refuses these */
+    const struct aiMesh *m = mw->as->mMeshes[nd->mMeshes[i]];
+    if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    gi_result rc = add_instance(mw, m, w, mirrored);
+    if (rc != GI_OK) return rc;
+  }
+  return GI_OK;
+}
+
+/* Every node's triangle meshes, in world space (io/assimp_nodes.h):
+ * vertices (unscaled: gi_scene_build applies opt->scale), their colours,
+ * and faces into b, each textured triangle with its own part of its
+ * texture; a mesh several nodes use, once per node. */
+static gi_result add_meshes(const struct aiScene *as, const uint32_t *matmap, const double shift[3], tex_ctx *tc,
+                            gi_mesh_builder *b, const char *path, gi_error_info *err) {
+  mesh_walk mw = {.as = as, .matmap = matmap, .shift = shift, .tc = tc, .b = b, .path = path, .err = err};
+  return gi__assimp_walk(as, add_node_meshes, &mw, err);
 }
 
 /* Our material index for assimp material i; 0 when assimp's was dropped,
@@ -1009,7 +1066,53 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
   return GI_OK;
 }
 
-/* The file's lights (already in world space: assimp's, and a glTF's own,
+/* The world transform of each assimp light's node, found by name. */
+typedef struct {
+  const struct aiScene *as;
+  unsigned *by_name;  /* light indices sorted by name */
+  gi__xform *world;   /* per light */
+  unsigned char *placed;
+} light_walk;
+
+static void light_walk_free(light_walk *lw) {
+  gi__free(lw->by_name);
+  gi__free(lw->world);
+  gi__free(lw->placed);
+}
+
+static int name_cmp(const struct aiString *a, const struct aiString *b) {
+  unsigned n = a->length < b->length ? a->length : b->length;
+  int c = memcmp(a->data, b->data, n);
+  return c ? c : (a->length > b->length) - (a->length < b->length);
+}
+
+/* qsort takes no context: the scene whose lights light_name_cmp sorts, per
+ * thread (scenes load on several threads at once). */
+static _Thread_local const struct aiScene *sort_lights;
+
+static int light_name_cmp(const void *x, const void *y) {
+  const struct aiLight *const *L = (const struct aiLight *const *)sort_lights->mLights;
+  return name_cmp(&L[*(const unsigned *)x]->mName, &L[*(const unsigned *)y]->mName);
+}
+
+/* The first node of a light's name places it. */
+static gi_result place_light(void *ctx, const struct aiNode *nd, const gi__xform *w, int mirrored) {
+  (void)mirrored;
+  light_walk *lw = ctx;
+  unsigned lo = 0, hi = lw->as->mNumLights;
+  while (lo < hi) {
+    unsigned mid = lo + (hi - lo) / 2;
+    if (name_cmp(&lw->as->mLights[lw->by_name[mid]]->mName, &nd->mName) < 0) lo = mid + 1;
+    else hi = mid;
+  }
+  for (; lo < lw->as->mNumLights && !name_cmp(&lw->as->mLights[lw->by_name[lo]]->mName, &nd->mName); lo++) {
+    unsigned i = lw->by_name[lo];
+    if (!lw->placed[i]) lw->world[i] = *w, lw->placed[i] = 1;
+  }
+  return GI_OK;
+}
+
+/* The file's lights (assimp's, placed by their nodes, and a glTF's own,
  * gltf_recentre.c), then the caller's, into a new array *lights (caller
  * frees) that o then points at. */
 static gi_result collect_lights(const struct aiScene *as, const gi__gltf_shift *gs, const char *path, double scale,
@@ -1020,12 +1123,36 @@ static gi_result collect_lights(const struct aiScene *as, const gi__gltf_shift *
   gi_light *l = *lights = gi__calloc(as->mNumLights + gs->num_lights + o->num_lights + 1, sizeof *l);
   if (!l) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
   int blender = written_by_blender(as);
+  light_walk lw = {.as = as};
+  if (as->mNumLights) {
+    lw.by_name = gi__malloc(as->mNumLights * sizeof *lw.by_name);
+    lw.world = gi__malloc(as->mNumLights * sizeof *lw.world);
+    lw.placed = gi__calloc(as->mNumLights, 1);
+    if (!lw.by_name || !lw.world || !lw.placed) {
+      light_walk_free(&lw);
+      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+    }
+    for (unsigned i = 0; i < as->mNumLights; i++) lw.by_name[i] = i;
+    sort_lights = as;
+    qsort(lw.by_name, as->mNumLights, sizeof *lw.by_name, light_name_cmp);
+    sort_lights = NULL;
+    gi_result rc = gi__assimp_walk(as, place_light, &lw, err);
+    if (rc != GI_OK) {
+      light_walk_free(&lw);
+      return rc;
+    }
+  }
   for (unsigned i = 0; i < as->mNumLights; i++) {
-    gi_result r = convert_light(path, as->mLights[i], gs->t, scale, blender, &l[nl], err);
+    gi_result r = convert_light(path, as->mLights[i], lw.placed[i] ? &lw.world[i] : NULL, gs->t, scale, blender,
+                                &l[nl], err);
     if (r == GI_OK) nl++;
     else if (r == GI_ERR_NOT_FOUND) ++*skipped;
-    else return r;
+    else {
+      light_walk_free(&lw);
+      return r;
+    }
   }
+  light_walk_free(&lw);
   for (size_t i = 0; i < gs->num_lights; i++) {
     l[nl] = gs->lights[i];
     for (int k = 0; k < 3; k++) l[nl].position[k] *= scale;
