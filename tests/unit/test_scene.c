@@ -1874,6 +1874,58 @@ static const char *fbx_lights(const char *name, const char *creator) {
   return tu_write_file(name, text, (size_t)n);
 }
 
+/* An ASCII FBX triangle of a Phong material (diffuse and specular colour
+ * 0.6 0.5 0.4, shininess exponent 64, reflection factor `refl`), by `creator`. */
+static const char *fbx_material(const char *name, const char *creator, int refl) {
+  char text[4096];
+  int n = snprintf(text, sizeof text,
+                   "; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n"
+                   "\tFBXVersion: 7400\n\tCreator: \"%s\"\n}\nObjects:  {\n"
+                   "\tGeometry: 100, \"Geometry::q\", \"Mesh\" {\n\t\tVertices: *9 {\n\t\t\ta: 0,0,0,100,0,0,0,100,0\n"
+                   "\t\t}\n\t\tPolygonVertexIndex: *3 {\n\t\t\ta: 0,1,-3\n\t\t}\n"
+                   "\t\tLayerElementMaterial: 0 {\n\t\t\tVersion: 101\n\t\t\tName: \"\"\n"
+                   "\t\t\tMappingInformationType: \"AllSame\"\n\t\t\tReferenceInformationType: \"IndexToDirect\"\n"
+                   "\t\t\tMaterials: *1 {\n\t\t\t\ta: 0\n\t\t\t}\n\t\t}\n"
+                   "\t\tLayer: 0 {\n\t\t\tVersion: 100\n\t\t\tLayerElement:  {\n"
+                   "\t\t\t\tType: \"LayerElementMaterial\"\n\t\t\t\tTypedIndex: 0\n\t\t\t}\n\t\t}\n\t}\n"
+                   "\tModel: 200, \"Model::q\", \"Mesh\" {\n\t}\n"
+                   "\tMaterial: 300, \"Material::shiny\", \"\" {\n\t\tShadingModel: \"phong\"\n"
+                   "\t\tProperties70:  {\n\t\t\tP: \"DiffuseColor\", \"Color\", \"\", \"A\",0.6,0.5,0.4\n"
+                   "\t\t\tP: \"SpecularColor\", \"Color\", \"\", \"A\",0.6,0.5,0.4\n"
+                   "\t\t\tP: \"ShininessExponent\", \"Number\", \"\", \"A\",64\n"
+                   "\t\t\tP: \"ReflectionFactor\", \"Number\", \"\", \"A\",%d\n\t\t}\n\t}\n}\n"
+                   "Connections:  {\n\tC: \"OO\",100,200\n\tC: \"OO\",200,0\n\tC: \"OO\",300,200\n}\n",
+                   creator, refl);
+  return tu_write_file(name, text, (size_t)n);
+}
+
+/* assimp 5.2 makes every FBX material's roughness up from its shininess
+ * (1 - sqrt(64) / 10 = 0.2), and its Ks then stood for the whole lobe: a
+ * Blender dielectric of roughness 0.2 was a 46% mirror (its glTF: 4%). A
+ * Blender FBX is its Principled material (roughness, the reflection
+ * factor as metallic); another tool's is a Blinn-Phong one. */
+static void test_fbx_materials(void **state) {
+  (void)state;
+  const double lum = 0.2126 * 0.6 + 0.7152 * 0.5 + 0.0722 * 0.4;
+  const char *blender = "Blender (stable FBX IO) - 3.4.1 - 4.37.1", *maya = "FBX SDK/FBX Plugins version 2020.2";
+  const struct {
+    const char *path;
+    double rough, spec;
+  } c[3] = {{fbx_material("bdiel.fbx", blender, 0), 0.2, 0.04},
+            /* the base colour's luminance, with the albedo scaled so 0.6 + lobe = 1 */
+            {fbx_material("bmetal.fbx", blender, 1), 0.2, lum / (0.6 + lum)},
+            {fbx_material("maya.fbx", maya, 0), sqrt(2.0 / 66.0), lum * 8.0 / 72.0}};
+  for (int i = 0; i < 3; i++) {
+    gi_scene *s = load_ok(c[i].path, NULL);
+    const gi_material *m = gi_scene_material(s, 0);
+    printf("  %s: roughness %.4f specular %.4f (want %.4f %.4f)\n", c[i].path, m->roughness, m->specular, c[i].rough,
+           c[i].spec);
+    assert_float_equal(m->roughness, c[i].rough, 1e-4);
+    assert_float_equal(m->specular, c[i].spec, 2e-3);
+    gi_scene_release(s);
+  }
+}
+
 /* Blender's FBX and Collada exporters write a lamp's power in watts, the
  * power Cycles spreads over the sphere (its glTF exporter writes the same
  * lamp as 500 / 4 pi x 683 cd): a Blender FBX lamp lit 4 pi times brighter
@@ -2110,6 +2162,7 @@ int main(void) {
       cmocka_unit_test(test_fbx_connection_loops),
       cmocka_unit_test(test_fbx_units),
       cmocka_unit_test(test_blender_light_units),
+      cmocka_unit_test(test_fbx_materials),
       cmocka_unit_test(test_see_through),
       cmocka_unit_test(test_mirrored_nodes),
       cmocka_unit_test(test_glass_window),

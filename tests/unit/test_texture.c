@@ -383,6 +383,83 @@ static void test_obj_map_kd(void **state) {
   gi_scene_release(s);
 }
 
+/* An MTL Blender wrote is its Principled material: map_Kd replaces the
+ * Kd 0.8 Blender writes beside it (its importer reads it so; the texture
+ * read 20% dark against the same glTF), Ns = 1000 (1 - roughness)^2 and Ks
+ * its specular level (reflectance 0.08 Ks). The same MTL from another
+ * tool keeps the format's rules: Kd times the texture, Blinn-Phong. */
+static void test_blender_mtl(void **state) {
+  (void)state;
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  png_file("btex.png", rgba, 4, 4);
+  const char body[] = "newmtl tex\nNs 250.000000\nKa 1.000000 1.000000 1.000000\nKd 0.800000 0.800000 0.800000\n"
+                      "Ks 0.500000 0.500000 0.500000\nNi 1.450000\nd 1.000000\nillum 2\nmap_Kd btex.png\n"
+                      "newmtl shiny\nNs 640.000000\nKd 0.6 0.5 0.4\nKs 0.5 0.5 0.5\nillum 2\n";
+  for (int blender = 0; blender < 2; blender++) {
+    char mtl[1024], obj[512], name[32];
+    snprintf(mtl, sizeof mtl, "%s%s", blender ? "# Blender MTL File: 'None'\n# Material Count: 2\n\n" : "", body);
+    snprintf(name, sizeof name, "b%d.mtl", blender);
+    tu_write_file(name, mtl, strlen(mtl));
+    snprintf(obj, sizeof obj, "mtllib b%d.mtl\n%susemtl tex\nf 1/1 2/2 3/3\nusemtl shiny\nf 1/1 2/2 3/3\n", blender,
+             tri_obj_head);
+    snprintf(name, sizeof name, "b%d.obj", blender);
+    gi_scene *s = load_ok(tu_write_file(name, obj, strlen(obj)));
+    const gi_material *t = find_mat(s, "tex"), *sh = find_mat(s, "shiny");
+    printf("  %s: tex albedo %.4f roughness %.4f specular %.4f; shiny roughness %.4f specular %.4f\n",
+           blender ? "Blender's MTL" : "another MTL", t->albedo[0], t->roughness, t->specular, sh->roughness,
+           sh->specular);
+    double k = blender ? 1.0 : 0.8;
+    assert_albedo(t, k * HALF_RED_R, k * HALF_RED_GB, k * HALF_RED_GB);
+    if (blender) {
+      assert_float_equal(t->roughness, 1 - sqrt(0.25), 1e-5);
+      assert_float_equal(sh->roughness, 1 - sqrt(0.64), 1e-5);
+      assert_float_equal(t->specular, 0.04, 1e-6);
+      assert_float_equal(sh->specular, 0.04, 1e-6);
+    } else {
+      assert_float_equal(t->roughness, sqrt(2.0 / 252.0), 1e-5);
+      assert_float_equal(sh->roughness, sqrt(2.0 / 642.0), 1e-5);
+      assert_float_equal(t->specular, 0.5 * 8.0 / 258.0, 1e-6);
+      assert_float_equal(sh->specular, 0.5 * 8.0 / 648.0, 1e-6);
+    }
+    gi_scene_release(s);
+  }
+}
+
+/* An FBX texture connected to the diffuse colour takes the colour's place
+ * (Blender writes its unused default 0.8 there: the texture read 20% dark
+ * against the same glTF). */
+static void test_fbx_texture_replaces_colour(void **state) {
+  (void)state;
+  unsigned char rgba[64];
+  half_red_half_grey(rgba);
+  png_file("ftex.png", rgba, 4, 4);
+  const char fbx[] =
+      "; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n\tFBXVersion: 7400\n}\n"
+      "Objects:  {\n\tGeometry: 100, \"Geometry::q\", \"Mesh\" {\n\t\tVertices: *9 {\n\t\t\ta: 0,0,0,100,0,0,0,100,0\n"
+      "\t\t}\n\t\tPolygonVertexIndex: *3 {\n\t\t\ta: 0,1,-3\n\t\t}\n"
+      "\t\tLayerElementMaterial: 0 {\n\t\t\tVersion: 101\n\t\t\tName: \"\"\n\t\t\tMappingInformationType: \"AllSame\"\n"
+      "\t\t\tReferenceInformationType: \"IndexToDirect\"\n\t\t\tMaterials: *1 {\n\t\t\t\ta: 0\n\t\t\t}\n\t\t}\n"
+      "\t\tLayer: 0 {\n\t\t\tVersion: 100\n\t\t\tLayerElement:  {\n\t\t\t\tType: \"LayerElementMaterial\"\n"
+      "\t\t\t\tTypedIndex: 0\n\t\t\t}\n\t\t}\n\t}\n"
+      "\tModel: 200, \"Model::q\", \"Mesh\" {\n\t}\n"
+      "\tMaterial: 300, \"Material::tex\", \"\" {\n\t\tShadingModel: \"lambert\"\n\t\tProperties70:  {\n"
+      "\t\t\tP: \"DiffuseColor\", \"Color\", \"\", \"A\",0.8,0.8,0.8\n\t\t}\n\t}\n"
+      "\tTexture: 400, \"Texture::ftex\", \"\" {\n\t\tType: \"TextureVideoClip\"\n\t\tFileName: \"ftex.png\"\n"
+      "\t\tRelativeFilename: \"ftex.png\"\n\t}\n}\n"
+      "Connections:  {\n\tC: \"OO\",100,200\n\tC: \"OO\",200,0\n\tC: \"OO\",300,200\n"
+      "\tC: \"OP\",400,300,\"DiffuseColor\"\n}\n";
+  gi_scene *s = load_ok(tu_write_file("ftex.fbx", fbx, strlen(fbx)));
+  const gi_material *m = find_mat(s, "tex");
+  printf("  FBX texture on a diffuse colour of 0.8: albedo %.4f %.4f %.4f\n", m->albedo[0], m->albedo[1],
+         m->albedo[2]);
+  assert_albedo(m, HALF_RED_R, HALF_RED_GB, HALF_RED_GB);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.textures_unreadable, 0);
+  gi_scene_release(s);
+}
+
 static void test_obj_bad_textures(void **state) {
   const char corrupt[] = "\x89PNG\r\n\x1a\n\0\0\0\rIHDR garbage garbage";
   tu_write_file("corrupt.png", corrupt, sizeof corrupt - 1);
@@ -715,6 +792,8 @@ int main(void) {
       cmocka_unit_test(test_size_limits),
       cmocka_unit_test(test_read_file),
       cmocka_unit_test(test_obj_map_kd),
+      cmocka_unit_test(test_blender_mtl),
+      cmocka_unit_test(test_fbx_texture_replaces_colour),
       cmocka_unit_test(test_obj_bad_textures),
       cmocka_unit_test(test_gltf_base_color_texture),
       cmocka_unit_test(test_texture_grid),

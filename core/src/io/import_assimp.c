@@ -286,10 +286,12 @@ typedef struct mat_tex {
   const double *uv_tf; /* glTF: KHR_texture_transform (gi__gltf_shift.uv_tf), or NULL */
 } mat_tex;
 
-/* An OBJ material's name and whether its MTL block has a Kd line. */
+/* An OBJ material's name, whether its MTL block has a Kd line, and
+ * whether Blender wrote its MTL file. */
 typedef struct mtl_entry {
   char *name;
   int has_kd;
+  int by_blender;
 } mtl_entry;
 
 typedef struct tex_ctx {
@@ -436,9 +438,11 @@ static int scan_mtl(tex_ctx *tc, const char *mtl_path) {
   }
   char line[1024];
   long cur = -1;
-  int ok = 1;
+  int ok = 1, first = 1, blender = 0;
   while (ok && fgets(line, sizeof line, f)) {
     char *l = trim(line);
+    /* Its first line: "# Blender MTL File" (3.4's), "# Blender 3.6.0 MTL File". */
+    if (first && l[0]) blender = !strncmp(l, "# Blender", 9) && strstr(l, "MTL File") != NULL, first = 0;
     if (strncmp(l, "newmtl", 6) == 0 && (l[6] == ' ' || l[6] == '\t')) {
       char *name = trim(l + 6);
       cur = -1;
@@ -454,7 +458,7 @@ static int scan_mtl(tex_ctx *tc, const char *mtl_path) {
       }
       char *copy = gi__strdup(name);
       if (!copy) { ok = 0; break; }
-      tc->mtl[tc->nmtl] = (mtl_entry){copy, 0};
+      tc->mtl[tc->nmtl] = (mtl_entry){copy, 0, blender};
       cur = (long)tc->nmtl++;
     } else if (cur >= 0 && (l[0] == 'K' || l[0] == 'k') && l[1] == 'd' && (l[2] == ' ' || l[2] == '\t')) {
       tc->mtl[cur].has_kd = 1;
@@ -500,16 +504,29 @@ static int check_obj_material(tex_ctx *tc, const char *name) {
 
 /* The factor that goes with a diffuse texture. assimp reports Kd 0.6 for an
  * OBJ material without a Kd line, and map_Kd alone means "the texture as is",
- * so for OBJ the MTL is consulted: no Kd line gives a factor of 1. 0: out of memory. */
+ * so for OBJ the MTL is consulted: no Kd line gives a factor of 1. Blender
+ * writes its base colour's unused default (Kd 0.8) beside the texture that
+ * replaces it, and reads map_Kd back as the colour: its MTLs' textures
+ * stand alone too (they read 20% dark against the same glTF). Otherwise Kd
+ * multiplies the texture, as the MTL format says. 0: out of memory. */
 static int texture_factor(tex_ctx *tc, const char *mat_name, float c[3]) {
-  if (!ends_with_ci(tc->path, ".obj") || c[0] != 0.6f || c[1] != 0.6f || c[2] != 0.6f) return 1;
+  if (!ends_with_ci(tc->path, ".obj")) return 1;
   if (!scan_obj_mtllibs(tc)) return 0;
   for (size_t i = 0; i < tc->nmtl; i++)
     if (strcmp(tc->mtl[i].name, mat_name) == 0) {
-      if (!tc->mtl[i].has_kd) c[0] = c[1] = c[2] = 1.f;
+      if (tc->mtl[i].by_blender || (!tc->mtl[i].has_kd && c[0] == 0.6f && c[1] == 0.6f && c[2] == 0.6f))
+        c[0] = c[1] = c[2] = 1.f;
       break;
     }
   return 1;
+}
+
+/* Whether an OBJ material's MTL file was written by Blender. */
+static int obj_by_blender(tex_ctx *tc, const char *mat_name) {
+  if (!ends_with_ci(tc->path, ".obj") || !scan_obj_mtllibs(tc)) return 0; /* out of memory: the general rule */
+  for (size_t i = 0; i < tc->nmtl; i++)
+    if (strcmp(tc->mtl[i].name, mat_name) == 0) return tc->mtl[i].by_blender;
+  return 0;
 }
 
 /* An emissive texture (glTF's emissiveTexture, an MTL's map_Ke) multiplies
@@ -531,6 +548,18 @@ static gi_result emissive_texture(const struct aiMaterial *am, tex_ctx *tc, gi_m
   if (t->ok)
     for (int i = 0; i < 3; i++) m->emission[i] *= t->rgb[i];
   return GI_OK;
+}
+
+/* Blender's own export (its FBX and Collada exporters name themselves in
+ * the file's generator): its lamps' units are known (convert_light). */
+static int written_by_blender(const struct aiScene *as) {
+  const struct aiMetadata *md = as->mMetaData;
+  for (unsigned i = 0; md && i < md->mNumProperties; i++) {
+    if (strcmp(md->mKeys[i].data, AI_METADATA_SOURCE_GENERATOR) || md->mValues[i].mType != AI_AISTRING) continue;
+    const struct aiString *g = md->mValues[i].mData;
+    return !strncmp(g->data, "Blender", 7);
+  }
+  return 0;
 }
 
 /* A Collada <lambert> or <constant> material has no specular term; assimp
@@ -568,7 +597,10 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
                     aiReturn_SUCCESS;
   if (has_tex && tpath.length == 0) has_tex = 0;
   if (has_tex) {
-    if (!has_factor) c[0] = c[1] = c[2] = 1.f;
+    /* An FBX texture connected to the diffuse colour takes its place (the
+     * colour is what shows without it): Blender writes its default 0.8
+     * there, and the texture read 20% dark against the same glTF. */
+    if (!has_factor || ends_with_ci(tc->path, ".fbx")) c[0] = c[1] = c[2] = 1.f;
     const tex_entry *t = NULL;
     if ((has_factor && !texture_factor(tc, m->name, c)) || !(t = texture_average(tc, m->name, "diffuse", tpath.data)))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': material '%s': out of memory for its texture", tc->path,
@@ -595,11 +627,36 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   int has_metal = get_float(am, AI_MATKEY_METALLIC_FACTOR, &metal);
   int has_ks = !collada_diffuse_only(am, tc->path) && get_color(am, AI_MATKEY_COLOR_SPECULAR, ks) &&
                (ks[0] > 0 || ks[1] > 0 || ks[2] > 0);
+  /* assimp 5.2 makes every FBX material's roughness up from its shininess
+   * (1 - sqrt(Ns) / 10, Blender's rule), and the metallic/roughness rule
+   * below then took its Ks as the lobe's whole reflectance: a Blender
+   * dielectric of roughness 0.2 became a 46% mirror (its glTF: 4%). An FBX
+   * Blender wrote is that rule's material: its roughness, its metallic as
+   * the reflection factor, Ks (its base colour) ignored. Other FBX files
+   * are Phong materials: the Blinn-Phong rule. */
+  if (ends_with_ci(tc->path, ".fbx")) {
+    if (written_by_blender(tc->as)) {
+      has_ks = 0;
+      has_metal = get_float(am, AI_MATKEY_REFLECTIVITY, &metal);
+      if (!(metal >= 0.f && metal <= 1.f)) metal = 0.f;
+    } else {
+      has_rough = 0;
+    }
+  }
   if (has_rough) {
     m->roughness = rough;
     /* Metallic/roughness: normal-incidence reflectance between 4 % (dielectric) and the base colour (metal). */
     float mt = has_metal ? metal : 0.f;
     m->specular = has_ks ? lum(ks) : 0.04f * (1.f - mt) + mt * lum(m->albedo);
+  } else if (has_ks && obj_by_blender(tc, m->name)) {
+    /* Blender's MTL is its Principled material's: Ns = 1000 (1 - roughness)^2
+     * and Ks its specular level, whose reflectance is 0.08 x that (its
+     * default 0.5: 4%), as its OBJ importer reads them back. The Blinn-Phong
+     * rule made its roughness 0.8 a glossy 0.22 (its glTF: 0.8). */
+    get_float(am, AI_MATKEY_SHININESS, &ns);
+    ns = ns >= 0.f && ns <= 1000.f ? ns : ns > 1000.f ? 1000.f : 0.f;
+    m->roughness = 1.f - sqrtf(ns / 1000.f);
+    m->specular = 0.08f * lum(ks);
   } else if (has_ks) {
     /* Phong exponent to roughness, the usual Beckmann correspondence. */
     get_float(am, AI_MATKEY_SHININESS, &ns);
@@ -615,18 +672,6 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     m->specular = 0.f;
   }
   return GI_OK;
-}
-
-/* Blender's own export (its FBX and Collada exporters name themselves in
- * the file's generator): its lamps' units are known (convert_light). */
-static int written_by_blender(const struct aiScene *as) {
-  const struct aiMetadata *md = as->mMetaData;
-  for (unsigned i = 0; md && i < md->mNumProperties; i++) {
-    if (strcmp(md->mKeys[i].data, AI_METADATA_SOURCE_GENERATOR) || md->mValues[i].mType != AI_AISTRING) continue;
-    const struct aiString *g = md->mValues[i].mData;
-    return !strncmp(g->data, "Blender", 7);
-  }
-  return 0;
 }
 
 /* A Collada spot's cone: <falloff_angle> is the full cone (assimp's inner
