@@ -1711,6 +1711,67 @@ static void test_mirrored_nodes(void **state) {
   gi_scene_release(s);
 }
 
+/* A glTF whose node draws the triangle (0,0,0),(1,0,0),(0,1,0) through
+ * EXT_mesh_gpu_instancing: accessors 2 (TRANSLATION, VEC3 floats) and 3
+ * (ROTATION, VEC4 normalized shorts) over buffer 1, `data` (base64), plus
+ * `attrs_extra` inside the attributes object. */
+static const char *gltf_instanced(const char *name, const char *data, int data_len, const char *attrs, int count) {
+  static char json[4096];
+  snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
+           "\"extensionsUsed\":[\"EXT_mesh_gpu_instancing\"],"
+           "\"nodes\":[{\"mesh\":0,\"translation\":[0,0,5],\"extensions\":{\"EXT_mesh_gpu_instancing\":"
+           "{\"attributes\":{%s}}}}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1}]}],"
+           "\"buffers\":[{\"byteLength\":44,\"uri\":\"data:application/octet-stream;base64,"
+           "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"},"
+           "{\"byteLength\":%d,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+           "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6},{\"buffer\":1,\"byteOffset\":0,\"byteLength\":24},"
+           "{\"buffer\":1,\"byteOffset\":24,\"byteLength\":16}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+           "\"min\":[0,0,0],\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"},"
+           "{\"bufferView\":2,\"componentType\":5126,\"count\":%d,\"type\":\"VEC3\"},"
+           "{\"bufferView\":3,\"componentType\":5122,\"normalized\":true,\"count\":2,\"type\":\"VEC4\"}]}",
+           attrs, data_len, data, count);
+  return tu_write_file(name, json, strlen(json));
+}
+
+/* EXT_mesh_gpu_instancing draws a node's mesh once per instance (its
+ * transform after the node's): assimp 5.2 ignores it, and an instanced
+ * forest or street of lamps loaded as one tree, one lamp. Two instances:
+ * as it is, and turned a quarter round z (normalized shorts) 10 m along x;
+ * the node itself sits 5 m along z. Bad instance data is a clear error. */
+static void test_gpu_instancing(void **state) {
+  (void)state;
+  /* TRANSLATION (0,0,0), (10,0,0); ROTATION (0,0,0,1), (0,0,0.7071,0.7071) as shorts. */
+  const char *data = "AAAAAAAAAAAAAAAAAAAgQQAAAAAAAAAAAAAAAAAA/38AAAAAglqCWg==";
+  gi_scene *s = load_ok(gltf_instanced("inst.gltf", data, 40, "\"TRANSLATION\":2,\"ROTATION\":3", 2), NULL);
+  assert_int_equal(s->num_triangles, 2);
+  const double want[2][3][3] = {{{0, 0, 5}, {1, 0, 5}, {0, 1, 5}}, {{10, 0, 5}, {10, 1, 5}, {9, 0, 5}}};
+  for (uint32_t t = 0; t < 2; t++) {
+    const float *v0 = &s->vertices[3 * s->indices[3 * t]];
+    int which = v0[0] + s->origin[0] > 5; /* the instance 10 m along */
+    for (int k = 0; k < 3; k++) {
+      const float *v = &s->vertices[3 * s->indices[3 * t + k]];
+      printf("  instance %d corner %d: %.4f %.4f %.4f\n", which, k, v[0] + s->origin[0], v[1] + s->origin[1],
+             v[2] + s->origin[2]);
+      for (int a = 0; a < 3; a++) assert_float_equal(v[a] + s->origin[a], want[which][k][a], 2e-4);
+    }
+  }
+  gi_scene_release(s);
+  expect_bad(gltf_instanced("inst-count.gltf", data, 40, "\"TRANSLATION\":2,\"ROTATION\":3", 1), GI_ERR_FORMAT,
+             "ROTATION has 2 elements where the others have 1");
+  expect_bad(gltf_instanced("inst-ref.gltf", data, 40, "\"TRANSLATION\":9", 2), GI_ERR_FORMAT,
+             "accessor 9 does not exist");
+  expect_bad(gltf_instanced("inst-short.gltf", data, 40, "\"TRANSLATION\":2", 3), GI_ERR_FORMAT,
+             "reaches past its buffer's end");
+  expect_bad(gltf_instanced("inst-none.gltf", data, 40, "", 2), GI_ERR_FORMAT, "no TRANSLATION, ROTATION or SCALE");
+  expect_bad(gltf_instanced("inst-nan.gltf", "AAAAAAAAAAAAAAAAAADAfwAAAAAAAAAAAAAAAAAA/38AAAAAglqCWg==", 40,
+                            "\"TRANSLATION\":2", 2),
+             GI_ERR_NONFINITE, "instance 1 has a non-finite value");
+}
+
 /* Materials passing at least half the light straight through are left
  * out and counted: the voxels and shadow rays model opaque surfaces only,
  * and a pane taken as opaque left the room behind it dark. glTF: its
@@ -2165,6 +2226,7 @@ int main(void) {
       cmocka_unit_test(test_fbx_materials),
       cmocka_unit_test(test_see_through),
       cmocka_unit_test(test_mirrored_nodes),
+      cmocka_unit_test(test_gpu_instancing),
       cmocka_unit_test(test_glass_window),
       cmocka_unit_test(test_backface_share),
   };

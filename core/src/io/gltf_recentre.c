@@ -3,6 +3,7 @@
  * of a .glb is kept byte for byte. */
 #define _DEFAULT_SOURCE /* realpath */
 #include "io/gltf_recentre.h"
+#include "io/gltf_accessors.h"
 #include <assimp/cfileio.h>
 #include <float.h>
 #include <jansson.h>
@@ -17,6 +18,7 @@
 
 #define GLB_MAGIC 0x46546C67u      /* "glTF" */
 #define GLB_CHUNK_JSON 0x4E4F534Au /* "JSON" */
+#define GLB_CHUNK_BIN 0x004E4942u  /* "BIN\0" */
 #define GLB_HEADER 12
 #define GLB_CHUNK_HEADER 8
 /* Digits that carry a double through text unchanged. */
@@ -87,14 +89,8 @@ static int numbers(json_t *node, const char *key, double *out, size_t n, const c
   return 1;
 }
 
-/* Node idx's own matrix: 'matrix', or translation * rotation * scale. */
-static int local_matrix(json_t *node, const char *path, size_t idx, double m[16], gi_error_info *err) {
-  int has = numbers(node, "matrix", m, 16, path, idx, err);
-  if (has) return has < 0 ? -1 : 0;
-  double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
-  if (numbers(node, "translation", t, 3, path, idx, err) < 0 || numbers(node, "rotation", q, 4, path, idx, err) < 0 ||
-      numbers(node, "scale", s, 3, path, idx, err) < 0)
-    return -1;
+/* translation * rotation (a quaternion x, y, z, w) * scale. */
+static void trs_matrix(const double t[3], const double q[4], const double s[3], double m[16]) {
   double x = q[0], y = q[1], z = q[2], w = q[3];
   double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),
                  2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
@@ -104,6 +100,17 @@ static int local_matrix(json_t *node, const char *path, size_t idx, double m[16]
     m[c * 4 + 3] = 0;
   }
   m[12] = t[0], m[13] = t[1], m[14] = t[2], m[15] = 1;
+}
+
+/* Node idx's own matrix: 'matrix', or translation * rotation * scale. */
+static int local_matrix(json_t *node, const char *path, size_t idx, double m[16], gi_error_info *err) {
+  int has = numbers(node, "matrix", m, 16, path, idx, err);
+  if (has) return has < 0 ? -1 : 0;
+  double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+  if (numbers(node, "translation", t, 3, path, idx, err) < 0 || numbers(node, "rotation", q, 4, path, idx, err) < 0 ||
+      numbers(node, "scale", s, 3, path, idx, err) < 0)
+    return -1;
+  trs_matrix(t, q, s, m);
   return 0;
 }
 
@@ -114,7 +121,10 @@ static int carries_content(json_t *node) {
 }
 
 typedef struct walk {
+  json_t *root;
   json_t *nodes;
+  const gi__gltf_bin *bin; /* the file's buffers (EXT_mesh_gpu_instancing) */
+  size_t instances;        /* expanded so far */
   const char *path;
   unsigned char *seen;
   size_t *order; /* content nodes in depth-first order */
@@ -155,22 +165,115 @@ static int visit(walk *w, size_t idx, const double pm[16], int depth) {
   return 0;
 }
 
+/* m less t as a JSON matrix. */
+static json_t *matrix_json(const double world[16], const double t[3]) {
+  double m[16];
+  memcpy(m, world, sizeof m);
+  for (int i = 0; i < 3; i++) m[12 + i] -= t[i];
+  json_t *arr = json_array();
+  for (int i = 0; arr && i < 16; i++)
+    if (json_array_append_new(arr, json_real(m[i]))) {
+      json_decref(arr);
+      return NULL;
+    }
+  return arr;
+}
+
+/* ---- EXT_mesh_gpu_instancing: each instance a node of its own ----------- */
+
+#define GPU_INSTANCING "EXT_mesh_gpu_instancing"
+/* Instances a file may expand to, in all: each becomes a node and a copy
+ * of its mesh (the triangle count is checked after, io/import_assimp.c). */
+#define GLTF_MAX_INSTANCES ((size_t)1 << 20)
+
+/* Node k's instances (its extension's TRANSLATION, ROTATION and SCALE, each
+ * optional, of one count) as roots: new nodes holding its mesh at world x
+ * instance, less t; the node itself keeps no mesh. 1 when it has the
+ * extension, 0 when not, -1 on error (w->err set). */
+static int expand_instances(walk *w, size_t k, const double t[3], json_t *roots) {
+  json_t *node = json_array_get(w->nodes, w->order[k]), *ext = json_object_get(node, "extensions");
+  json_t *inst = json_object_get(ext, GPU_INSTANCING), *mesh = json_object_get(node, "mesh");
+  if (!inst || !mesh) return 0;
+  json_t *attrs = json_object_get(inst, "attributes");
+  static const char *const names[3] = {"TRANSLATION", "ROTATION", "SCALE"};
+  double *v[3] = {NULL, NULL, NULL};
+  size_t n = SIZE_MAX;
+  int rc = 0;
+  char what[96];
+  snprintf(what, sizeof what, "glTF node %zu's " GPU_INSTANCING, w->order[k]);
+  for (int a = 0; a < 3 && rc == 0; a++) {
+    json_t *ai = json_object_get(attrs, names[a]);
+    if (!ai) continue;
+    size_t c = 0, room = GLTF_MAX_INSTANCES - w->instances;
+    if (!json_is_integer(ai) || gi__gltf_accessor_read(w->root, w->bin, json_integer_value(ai), a == 1 ? 4 : 3, a == 1,
+                                                      room, what, &v[a], &c, w->err) != GI_OK) {
+      if (!json_is_integer(ai))
+        gi__fail(w->err, GI_ERR_FORMAT, "scene file '%s': %s: %s is not an accessor index", w->path, what, names[a]);
+      rc = -1;
+    } else if (n != SIZE_MAX && c != n) {
+      gi__fail(w->err, GI_ERR_FORMAT, "scene file '%s': %s: %s has %zu elements where the others have %zu", w->path,
+               what, names[a], c, n);
+      rc = -1;
+    }
+    n = c;
+  }
+  if (rc == 0 && n == SIZE_MAX) {
+    gi__fail(w->err, GI_ERR_FORMAT, "scene file '%s': %s: no TRANSLATION, ROTATION or SCALE", w->path, what);
+    rc = -1;
+  }
+  for (size_t i = 0; rc == 0 && i < n; i++) {
+    double tr[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1}, lm[16], wm[16];
+    if (v[0]) memcpy(tr, &v[0][3 * i], sizeof tr);
+    if (v[1]) memcpy(q, &v[1][4 * i], sizeof q);
+    if (v[2]) memcpy(s, &v[2][3 * i], sizeof s);
+    int finite = 1;
+    for (int c = 0; c < 4; c++) finite &= isfinite(q[c]) && (c == 3 || (isfinite(tr[c]) && isfinite(s[c])));
+    if (!finite) {
+      gi__fail(w->err, GI_ERR_NONFINITE, "scene file '%s': %s: instance %zu has a non-finite value", w->path, what, i);
+      rc = -1;
+      break;
+    }
+    trs_matrix(tr, q, s, lm);
+    mat_mul(&w->world[16 * w->order[k]], lm, wm);
+    /* jansson's _new calls take their argument's reference even when they fail. */
+    json_t *nn = json_object(), *mj = matrix_json(wm, t);
+    int bad = !nn || !mj;
+    if (!bad) bad = json_object_set_new(nn, "matrix", mj), mj = NULL;
+    if (!bad) bad = json_object_set(nn, "mesh", mesh);
+    if (!bad) bad = json_array_append_new(w->nodes, nn), nn = NULL;
+    if (!bad) bad = json_array_append_new(roots, json_integer((json_int_t)json_array_size(w->nodes) - 1));
+    if (bad) {
+      json_decref(nn);
+      json_decref(mj);
+      gi__fail(w->err, GI_ERR_NOMEM, "scene file '%s': out of memory expanding %s", w->path, what);
+      rc = -1;
+    }
+  }
+  for (int a = 0; a < 3; a++) gi__free(v[a]);
+  if (rc < 0) return -1;
+  w->instances += n;
+  json_object_del(node, "mesh");
+  json_object_del(ext, GPU_INSTANCING);
+  return 1;
+}
+
 /* Replaces the default scene by its content nodes as roots, each with its
- * world matrix less t. */
+ * world matrix less t (an instanced mesh's node by one node per instance). */
 static int flatten(json_t *scene, walk *w, double t[3]) {
   const double *first = &w->world[16 * w->order[0]];
   t[0] = first[12], t[1] = first[13], t[2] = first[14];
   json_t *roots = json_array();
-  if (!roots) return -1;
+  if (!roots) {
+    gi__fail(w->err, GI_ERR_NOMEM, "scene file '%s': out of memory rewriting the glTF scene", w->path);
+    return -1;
+  }
   for (size_t k = 0; k < w->count; k++) {
     json_t *node = json_array_get(w->nodes, w->order[k]);
-    double m[16];
-    memcpy(m, &w->world[16 * w->order[k]], sizeof m);
-    for (int i = 0; i < 3; i++) m[12 + i] -= t[i];
-    json_t *arr = json_array();
-    for (int i = 0; arr && i < 16; i++) json_array_append_new(arr, json_real(m[i]));
-    if (!arr || json_object_set_new(node, "matrix", arr) || json_array_append_new(roots, json_integer(
-                                                                 (json_int_t)w->order[k]))) {
+    int inst = expand_instances(w, k, t, roots);
+    json_t *arr = inst == 0 ? matrix_json(&w->world[16 * w->order[k]], t) : NULL;
+    if (inst < 0 || (inst == 0 && (!arr || json_object_set_new(node, "matrix", arr) ||
+                                   json_array_append_new(roots, json_integer((json_int_t)w->order[k]))))) {
+      if (inst == 0) gi__fail(w->err, GI_ERR_NOMEM, "scene file '%s': out of memory rewriting the glTF scene", w->path);
       json_decref(roots);
       return -1;
     }
@@ -313,11 +416,12 @@ static json_t *default_scene(json_t *root) {
 
 /* Rewrites root's scene graph in place; 1 when it did, 0 when there was
  * nothing to place, -1 on error (err set). */
-static int recentre_json(json_t *root, const char *path, gi__gltf_shift *out, gi_error_info *err) {
+static int recentre_json(json_t *root, const gi__gltf_bin *bin, gi__gltf_shift *out, gi_error_info *err) {
   json_t *scene = default_scene(root), *nodes = json_object_get(root, "nodes");
   if (!scene || !json_is_array(nodes) || json_array_size(nodes) == 0) return 0;
   size_t n = json_array_size(nodes);
-  walk w = {.nodes = nodes, .path = path, .err = err};
+  const char *path = bin->path;
+  walk w = {.root = root, .nodes = nodes, .bin = bin, .path = path, .err = err};
   w.seen = gi__calloc(n, 1);
   w.order = gi__malloc(n * sizeof *w.order);
   w.world = gi__malloc(n * 16 * sizeof *w.world);
@@ -338,8 +442,7 @@ static int recentre_json(json_t *root, const char *path, gi__gltf_shift *out, gi
   }
   rc = 0;
   if (w.count && take_lights(root, &w, out) < 0) rc = -1;
-  else if (w.count && (rc = flatten(scene, &w, out->t) < 0 ? -1 : 1) < 0)
-    gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory rewriting the glTF scene", path);
+  else if (w.count) rc = flatten(scene, &w, out->t) < 0 ? -1 : 1;
 done:
   gi__free(w.seen);
   gi__free(w.order);
@@ -438,6 +541,15 @@ static int split_glb(const unsigned char *buf, size_t len, size_t *json_off, siz
   return 0;
 }
 
+/* A .glb's binary chunk, the one after the JSON chunk (at off), if any. */
+static void glb_bin_chunk(const unsigned char *buf, size_t len, size_t off, gi__gltf_bin *bin) {
+  if (off > len || len - off < GLB_CHUNK_HEADER || le32(buf + off + 4) != GLB_CHUNK_BIN) return;
+  size_t cl = le32(buf + off);
+  if (cl > len - off - GLB_CHUNK_HEADER) return;
+  bin->glb_bin = buf + off + GLB_CHUNK_HEADER;
+  bin->glb_bin_len = cl;
+}
+
 /* The new file: text alone, or a .glb with text as its JSON chunk and the
  * original chunks after it. */
 static int assemble(gi__gltf_shift *out, const char *text, const unsigned char *buf, size_t len, int glb,
@@ -484,7 +596,9 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
     goto done;
   }
   int folded = read_uv_transforms(root, path, out, err) < 0 ? -1 : fold_emissive_strength(root, path, err);
-  int r = folded < 0 ? -1 : recentre_json(root, path, out, err);
+  gi__gltf_bin bin = {.path = path};
+  if (glb) glb_bin_chunk(buf, len, json_off + json_len, &bin);
+  int r = folded < 0 ? -1 : recentre_json(root, &bin, out, err);
   if (r == 0 && folded > 0) r = 1; /* no scene graph to place, but the materials changed */
   char *text = r > 0 ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(JSON_PRECISION)) : NULL;
   json_decref(root);

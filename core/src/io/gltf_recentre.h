@@ -19,7 +19,9 @@
  * world space, and 16,384 lamps took 3.6 s to load that way.
  *
  * Materials' KHR_materials_emissive_strength, which assimp 5.2 ignores,
- * is folded into their emissiveFactor in the same rewrite.
+ * is folded into their emissiveFactor in the same rewrite, and a node's
+ * EXT_mesh_gpu_instancing (ignored too) becomes one root per instance,
+ * its instance data read by io/gltf_accessors.c.
  *
  * Ownership: gi__gltf_recentre fills a gi__gltf_shift the caller releases
  * with gi__gltf_shift_free. Not shared between threads. */
