@@ -1416,24 +1416,24 @@ static void expect_one_triangle(const char *name, const char *text) {
 
 /* Files our readers and assimp would read differently, which sent
  * assimp into a leak or an endless loop (fuzz_scene): refused up front,
- * naming the line. */
+ * naming the line, or (an OBJ's geometry, which assimp no longer reads)
+ * read as the format says. */
 static void test_bad_files_assimp_misreads(void **state) {
-  /* What assimp reads otherwise than we do (fuzz_scene: it leaked on these):
-   * a statement starting with f, l or p that is none of them, a line of one
-   * vertex, a point outside the vertices. */
+  /* A line of one vertex, a point outside the vertices (assimp leaked on
+   * these): bad files. */
   static const struct { const char *name, *tail, *want; } objs[] = {
-      {"foo.obj", "foo 1\n", "line 5: cannot read statement 'foo'"},
       {"l1.obj", "o x\nl 1\n", "line 6: a line needs at least 2 corners"},
       {"p9.obj", "p 9\n", "line 5: point corner 1: vertex 9"},
-      {"lod.obj", "lod 1\n", "takes any line starting with 'l'"},
   };
   for (size_t i = 0; i < sizeof objs / sizeof objs[0]; i++) {
     char text[256];
     snprintf(text, sizeof text, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n%s", objs[i].tail);
     expect_bad(tu_write_file(objs[i].name, text, strlen(text)), GI_ERR_FORMAT, objs[i].want);
   }
-  /* Lines and points themselves are fine (and not geometry we bake). */
-  const char obj_lp[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nl 1 2 3\np 1 -1\n";
+  /* Lines and points themselves are fine (and not geometry we bake), and
+   * so are statements that start with f, l or p and are none of them
+   * (assimp took "foo 1" for a face and the spec's "lod 1" for a line). */
+  const char obj_lp[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nl 1 2 3\np 1 -1\nfoo 1\nlod 1\n";
   expect_one_triangle("lp.obj", obj_lp);
   const char ply_head[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                           "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";

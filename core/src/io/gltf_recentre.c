@@ -684,11 +684,14 @@ static int same_path(const char *a, const char *b) {
 }
 
 static struct aiFile *io_open(struct aiFileIO *io, const char *name, const char *mode) {
-  const gi__gltf_shift *s = (const gi__gltf_shift *)io->UserData;
+  gi__gltf_shift *s = (gi__gltf_shift *)io->UserData;
   if (mode && strchr(mode, 'w')) return NULL;
   struct aiFile *af = gi__calloc(1, sizeof *af);
   mem_file *m = gi__calloc(1, sizeof *m);
-  if (!af || !m) goto fail;
+  if (!af || !m) {
+    s->io_oom = 1;
+    goto fail;
+  }
   if (s->data && same_path(name, s->path)) {
     m->data = s->data;
     m->len = s->len;
@@ -718,7 +721,7 @@ static void io_close(struct aiFileIO *io, struct aiFile *af) {
   gi__free(af);
 }
 
-void gi__gltf_open_io(struct aiFileIO *io, const gi__gltf_shift *s) {
+void gi__gltf_open_io(struct aiFileIO *io, gi__gltf_shift *s) {
   io->OpenProc = io_open;
   io->CloseProc = io_close;
   io->UserData = (aiUserData)s;

@@ -52,6 +52,7 @@ typedef struct gi__gltf_shift {
    * owned. assimp 5.2 does not apply it to the coordinates. */
   double (*uv_tf)[GI_GLTF_UV_TF];
   size_t num_uv_tf;
+  int io_oom; /* gi__gltf_open_io's file system ran out of memory */
 } gi__gltf_shift;
 
 /* For the .gltf (glb 0) or .glb (glb 1) at path: the shift and the rewritten file. A file
@@ -62,7 +63,9 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
 void gi__gltf_shift_free(gi__gltf_shift *s);
 
 /* An assimp file system that reads s->path from s->data and every other
- * file from disk. io must outlive the import; s must outlive io. */
-void gi__gltf_open_io(struct aiFileIO *io, const gi__gltf_shift *s);
+ * file from disk; an open that ran out of memory sets s->io_oom (assimp
+ * then says only that it could not open the file). io must outlive the
+ * import; s must outlive io. */
+void gi__gltf_open_io(struct aiFileIO *io, gi__gltf_shift *s);
 
 #endif

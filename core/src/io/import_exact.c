@@ -27,6 +27,7 @@ void gi__exact_free(gi__exact_mesh *m) {
   gi__free(m->col);
   gi__free(m->uv);
   gi__free(m->tuv);
+  gi__free(m->mtllib);
   memset(m, 0, sizeof *m);
 }
 
@@ -336,6 +337,44 @@ static ssize_t obj_statement(FILE *f, char **buf, size_t *cap, char **more, size
   }
 }
 
+/* Appends an mtllib statement and a line end to m->mtllib. 0: out of memory. */
+static int keep_mtllib(gi__exact_mesh *m, const char *stmt) {
+  size_t n = strlen(stmt);
+  char *g = gi__realloc(m->mtllib, m->mtllib_len + n + 2);
+  if (!g) return 0;
+  memcpy(g + m->mtllib_len, stmt, n);
+  m->mtllib_len += n;
+  g[m->mtllib_len++] = '\n';
+  g[m->mtllib_len] = 0;
+  m->mtllib = g;
+  return 1;
+}
+
+char *gi__exact_obj_stub(const gi__exact_mesh *m, size_t *len) {
+  static const char tri[] = "f 1 2 3\n";
+  int unnamed = 0;
+  for (size_t t = 0; t < m->nt && !unnamed; t++) unnamed = m->mat[t] == GI__EXACT_NO_MATERIAL;
+  size_t cap = m->mtllib_len + 64 + (unnamed ? sizeof tri : 0);
+  for (size_t k = 0; k < m->nnames; k++) cap += strlen(m->names[k]) + 8 + sizeof tri;
+  char *s = gi__malloc(cap);
+  if (!s) return NULL;
+  size_t n = 0;
+  if (m->mtllib) memcpy(s, m->mtllib, m->mtllib_len), n = m->mtllib_len;
+  n += (size_t)snprintf(s + n, cap - n, "v 0 0 0\nv 1 0 0\nv 0 1 0\n%s", unnamed ? tri : "");
+  for (size_t k = 0; k < m->nnames; k++) n += (size_t)snprintf(s + n, cap - n, "usemtl %s\n%s", m->names[k], tri);
+  *len = n;
+  return s;
+}
+
+char *gi__exact_ply_stub(size_t *len) {
+  static const char ply[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                            "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                            "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  char *s = gi__malloc(sizeof ply);
+  if (s) memcpy(s, ply, sizeof ply), *len = sizeof ply - 1;
+  return s;
+}
+
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err) {
   memset(m, 0, sizeof *m);
   FILE *f = fopen(path, "rb");
@@ -366,21 +405,17 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
       else if ((mat = intern_name(m, rest)) == GI__EXACT_NO_MATERIAL)
         rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     } else if (keyword(s, "l", &rest) || keyword(s, "p", &rest)) {
-      /* Not geometry we use, but checked: assimp builds them, and a line of
-       * one vertex sent its OBJ reader down a path that leaks (fuzz_scene). */
+      /* Not geometry we use, but checked: a bad index is a bad file. */
       uint32_t poly[PLY_MAX_POLYGON + 1];
       int n = 0, l = s[0] == 'l';
       rc = obj_indices(path, line, rest, l ? "line" : "point", l ? 2 : 1, m, poly, NULL, &n, err);
-    } else if (s[0] == 'f' || s[0] == 'l' || s[0] == 'p') {
-      /* assimp takes any line starting with f, l or p for a face, line or
-       * point ("foo 1" is a face of one corner to it, the spec's "lod 1" a
-       * line): refuse rather than let the two readers see different files. */
-      const char *kind = s[0] == 'f' ? "face" : s[0] == 'l' ? "line" : "point";
-      rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: cannot read statement '%.*s': assimp (which reads "
-                    "this file's materials) takes any line starting with '%c' for a %s; expected '%c' alone", path,
-                    line, token_len(s), s, s[0], kind, s[0]);
+    } else if (keyword(s, "mtllib", &rest)) {
+      rc = keep_mtllib(m, s) ? GI_OK : gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     }
-    /* vn, o, g, s, mtllib, comments: not geometry we use. */
+    /* vn, o, g, s, lod, comments: not geometry we use. assimp reads a stub
+     * of this file (gi__exact_obj_stub), never these lines: it took any
+     * line starting with f, l or p for a face, line or point, and leaked or
+     * looped on some (fuzz_scene). */
   }
   if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error after line %zu", path, no);
   free(buf); /* getline's buffers come from libc malloc */

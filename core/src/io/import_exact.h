@@ -30,13 +30,15 @@ typedef struct gi__exact_mesh {
   size_t nuv, cap_uv;
   uint32_t *tuv;   /* OBJ: 3 per triangle, each corner's vt (GI__EXACT_NO_UV: none) once any face has them; else NULL */
   size_t cap_tuv;
+  char *mtllib;    /* OBJ: its mtllib statements, one per line, NUL-terminated; or NULL */
+  size_t mtllib_len;
 } gi__exact_mesh;
 
 #define GI__EXACT_NO_UV UINT32_MAX
 
 /* OBJ: v (with the common "v x y z r g b" colour extension), vt, f (v,
- * v/t, v//n, v/t/n, negative = relative), usemtl; other statements are
- * ignored. A bad number or vertex index fails with file and line; a
+ * v/t, v//n, v/t/n, negative = relative), usemtl, mtllib (kept as written
+ * for gi__exact_obj_stub); other statements are ignored. A bad number or vertex index fails with file and line; a
  * texture index out of range leaves that corner without coordinates. */
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err);
 /* PLY: ascii, binary_little_endian, binary_big_endian; x/y/z of any scalar
@@ -46,5 +48,15 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
  * linear. */
 gi_result gi__exact_read_ply(const char *path, gi__exact_mesh *m, gi_error_info *err);
 void gi__exact_free(gi__exact_mesh *m);
+
+/* The OBJ assimp reads in place of a read one, for its materials alone: m's
+ * mtllib statements, then a triangle per material in first-use order (and
+ * one before them when a face had no usemtl), so assimp makes the same
+ * materials and meshes that use them without parsing the geometry again
+ * (2M triangles: it doubled the load's time). NULL when out of memory;
+ * the caller frees it (gi__free), *len its length. */
+char *gi__exact_obj_stub(const gi__exact_mesh *m, size_t *len);
+/* The same for a PLY, which carries no materials: one ASCII triangle. */
+char *gi__exact_ply_stub(size_t *len);
 
 #endif
