@@ -76,4 +76,42 @@ timeout 60 "$BIN" "$T/mtl/typo.obj" --levels 2 --res 8 --bounces 1 > /dev/null 2
 timeout 60 "$BIN" "$T/mtl/fine.obj" --levels 2 --res 8 --bounces 1 > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && ! grep -q "warning" "$T/err" && pass "materials all found -> no warning" \
   || fail "fine.obj (rc $rc): $(cat "$T/err")"
+
+# Blender's Collada export writes an emitter's colour without its strength:
+# said once, naming the material; the same file from another tool is not.
+dae() { # TOOL FILE: a floor and an emissive quad above it, with an ambient light
+  cat > "$2" <<DAE
+<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+<asset><contributor><authoring_tool>$1</authoring_tool></contributor><up_axis>Y_UP</up_axis></asset>
+<library_lights><light id="A"><technique_common><ambient><color>1 1 1</color></ambient></technique_common></light></library_lights>
+<library_effects><effect id="e"><profile_COMMON><technique sid="c"><lambert><emission><color>1 0.8 0.6 1</color>
+</emission><diffuse><color>0.5 0.5 0.5 1</color></diffuse></lambert></technique></profile_COMMON></effect>
+<effect id="f"><profile_COMMON><technique sid="c"><lambert><diffuse><color>0.5 0.5 0.5 1</color></diffuse></lambert>
+</technique></profile_COMMON></effect></library_effects>
+<library_materials><material id="glow" name="glow"><instance_effect url="#e"/></material>
+<material id="floor" name="floor"><instance_effect url="#f"/></material></library_materials>
+<library_geometries><geometry id="g"><mesh><source id="p"><float_array id="pa" count="24">0 0 0 4 0 0 4 0 4 0 0 4
+1 2 1 3 2 1 3 2 3 1 2 3</float_array><technique_common><accessor source="#pa" count="8" stride="3"><param name="X"
+type="float"/><param name="Y" type="float"/><param name="Z" type="float"/></accessor></technique_common></source>
+<vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+<triangles material="floor" count="2"><input semantic="VERTEX" source="#v" offset="0"/><p>0 2 1 0 3 2</p></triangles>
+<triangles material="glow" count="2"><input semantic="VERTEX" source="#v" offset="0"/><p>4 5 6 4 6 7</p></triangles>
+</mesh></geometry></library_geometries>
+<library_visual_scenes><visual_scene id="s"><node id="n"><instance_geometry url="#g"><bind_material><technique_common>
+<instance_material symbol="floor" target="#floor"/><instance_material symbol="glow" target="#glow"/>
+</technique_common></bind_material></instance_geometry></node><node id="la"><instance_light url="#A"/></node>
+</visual_scene></library_visual_scenes><scene><instance_visual_scene url="#s"/></scene></COLLADA>
+DAE
+}
+dae "Blender 3.4.1" "$T/mtl/blender.dae"
+dae "Maya 2024" "$T/mtl/maya.dae"
+timeout 60 "$BIN" "$T/mtl/blender.dae" --at 2,0.5,2 --levels 2 --res 8 --bounces 1 > "$T/dae.out" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && [ "$(grep -c "Blender's Collada export writes an emitter's colour without its strength" "$T/err")" = 1 ] \
+  && grep -q -F "material 'glow'" "$T/err" && grep -q "1 light skipped: area and ambient" "$T/dae.out" \
+  && pass "Blender Collada emitter -> warned once; ambient light skipped, said" \
+  || fail "blender.dae (rc $rc): $(cat "$T/err") $(grep skipped "$T/dae.out")"
+timeout 60 "$BIN" "$T/mtl/maya.dae" --at 2,0.5,2 --levels 2 --res 8 --bounces 1 > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && ! grep -q "warning" "$T/err" && pass "another tool's Collada emitter -> no warning" \
+  || fail "maya.dae (rc $rc): $(cat "$T/err")"
 finish

@@ -301,6 +301,7 @@ typedef struct tex_ctx {
   size_t ntex, captex;
   uint64_t unreadable;
   uint64_t see_through; /* triangles of see-through materials, left out (add_materials) */
+  int warned_dae_emission; /* the Blender Collada emission warning was given */
   int mtl_scanned;    /* OBJ: the MTL files were read into mtl[] */
   mtl_entry *mtl;
   size_t nmtl, capmtl;
@@ -619,6 +620,14 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     float k = 1.f;
     if (get_float(am, AI_MATKEY_EMISSIVE_INTENSITY, &k) && !(k >= 0.f)) k = 0.f;
     for (int i = 0; i < 3; i++) m->emission[i] = c[i] * k;
+    if ((c[0] > 0 || c[1] > 0 || c[2] > 0) && !tc->warned_dae_emission && ends_with_ci(tc->path, ".dae") &&
+        written_by_blender(tc->as)) {
+      /* The file holds the colour alone (a strength of 20 reads as 1). */
+      fprintf(stderr, "gi: warning: scene file '%s': material '%s': Blender's Collada export writes an emitter's "
+              "colour without its strength, so emitters may light less than in Blender (its glTF and FBX exports "
+              "keep it)\n", tc->path, m->name);
+      tc->warned_dae_emission = 1;
+    }
     gi_result rc = emissive_texture(am, tc, m, err);
     if (rc != GI_OK) return rc;
   }
