@@ -574,6 +574,59 @@ static int collada_diffuse_only(const struct aiMaterial *am, const char *path) {
   return model == aiShadingMode_Gouraud || model == aiShadingMode_NoShading || model == aiShadingMode_Flat;
 }
 
+/* m's glossy lobe (roughness, specular) from am, its albedo already set. */
+static void material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material *m) {
+  float rough = 1.f, metal = 0.f, ns = 0.f, ks[3] = {0, 0, 0};
+  int has_rough = get_float(am, AI_MATKEY_ROUGHNESS_FACTOR, &rough);
+  int has_metal = get_float(am, AI_MATKEY_METALLIC_FACTOR, &metal);
+  int has_ks = !collada_diffuse_only(am, tc->path) && get_color(am, AI_MATKEY_COLOR_SPECULAR, ks) &&
+               (ks[0] > 0 || ks[1] > 0 || ks[2] > 0);
+  /* assimp 5.2 makes every FBX material's roughness up from its shininess
+   * (1 - sqrt(Ns) / 10, Blender's rule), and the metallic/roughness rule
+   * below then took its Ks as the lobe's whole reflectance: a Blender
+   * dielectric of roughness 0.2 became a 46% mirror (its glTF: 4%). An FBX
+   * Blender wrote is that rule's material: its roughness, its metallic as
+   * the reflection factor, Ks (its base colour) ignored. Other FBX files
+   * are Phong materials: the Blinn-Phong rule. */
+  if (ends_with_ci(tc->path, ".fbx")) {
+    if (written_by_blender(tc->as)) {
+      has_ks = 0;
+      has_metal = get_float(am, AI_MATKEY_REFLECTIVITY, &metal);
+      if (!(metal >= 0.f && metal <= 1.f)) metal = 0.f;
+    } else {
+      has_rough = 0;
+    }
+  }
+  if (has_rough) {
+    m->roughness = rough;
+    /* Metallic/roughness: normal-incidence reflectance between 4 % (dielectric) and the base colour (metal). */
+    float mt = has_metal ? metal : 0.f;
+    m->specular = has_ks ? lum(ks) : 0.04f * (1.f - mt) + mt * lum(m->albedo);
+  } else if (has_ks && obj_by_blender(tc, m->name)) {
+    /* Blender's MTL is its Principled material's: Ns = 1000 (1 - roughness)^2
+     * and Ks its specular level, whose reflectance is 0.08 x that (its
+     * default 0.5: 4%), as its OBJ importer reads them back. The Blinn-Phong
+     * rule made its roughness 0.8 a glossy 0.22 (its glTF: 0.8). */
+    get_float(am, AI_MATKEY_SHININESS, &ns);
+    ns = ns >= 0.f && ns <= 1000.f ? ns : ns > 1000.f ? 1000.f : 0.f;
+    m->roughness = 1.f - sqrtf(ns / 1000.f);
+    m->specular = 0.08f * lum(ks);
+  } else if (has_ks) {
+    /* Phong exponent to roughness, the usual Beckmann correspondence. */
+    get_float(am, AI_MATKEY_SHININESS, &ns);
+    if (!(ns >= 0.f)) ns = 0.f;
+    m->roughness = sqrtf(2.f / (ns + 2.f));
+    /* Ks is the peak of an unnormalised Blinn-Phong lobe (MTL's illum 2,
+     * Collada's <blinn>): Ks (N.H)^Ns reflects about Ks 8 / (Ns + 8) of what
+     * arrives. Taken as the lobe's whole reflectance, Blender's default
+     * material (Kd 0.8, Ks 0.5, Ns 250) was a 50% mirror over 80% diffuse. */
+    m->specular = lum(ks) * 8.f / (ns + 8.f);
+  } else {
+    m->roughness = 1.f;
+    m->specular = 0.f;
+  }
+}
+
 /* Maps one assimp material onto ours. The albedo is the colour factor
  * times the average of the diffuse (or base-colour) texture when there is
  * one; a texture that cannot be read leaves the factor alone. Fails only
@@ -631,55 +684,7 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     gi_result rc = emissive_texture(am, tc, m, err);
     if (rc != GI_OK) return rc;
   }
-  float rough = 1.f, metal = 0.f, ns = 0.f, ks[3] = {0, 0, 0};
-  int has_rough = get_float(am, AI_MATKEY_ROUGHNESS_FACTOR, &rough);
-  int has_metal = get_float(am, AI_MATKEY_METALLIC_FACTOR, &metal);
-  int has_ks = !collada_diffuse_only(am, tc->path) && get_color(am, AI_MATKEY_COLOR_SPECULAR, ks) &&
-               (ks[0] > 0 || ks[1] > 0 || ks[2] > 0);
-  /* assimp 5.2 makes every FBX material's roughness up from its shininess
-   * (1 - sqrt(Ns) / 10, Blender's rule), and the metallic/roughness rule
-   * below then took its Ks as the lobe's whole reflectance: a Blender
-   * dielectric of roughness 0.2 became a 46% mirror (its glTF: 4%). An FBX
-   * Blender wrote is that rule's material: its roughness, its metallic as
-   * the reflection factor, Ks (its base colour) ignored. Other FBX files
-   * are Phong materials: the Blinn-Phong rule. */
-  if (ends_with_ci(tc->path, ".fbx")) {
-    if (written_by_blender(tc->as)) {
-      has_ks = 0;
-      has_metal = get_float(am, AI_MATKEY_REFLECTIVITY, &metal);
-      if (!(metal >= 0.f && metal <= 1.f)) metal = 0.f;
-    } else {
-      has_rough = 0;
-    }
-  }
-  if (has_rough) {
-    m->roughness = rough;
-    /* Metallic/roughness: normal-incidence reflectance between 4 % (dielectric) and the base colour (metal). */
-    float mt = has_metal ? metal : 0.f;
-    m->specular = has_ks ? lum(ks) : 0.04f * (1.f - mt) + mt * lum(m->albedo);
-  } else if (has_ks && obj_by_blender(tc, m->name)) {
-    /* Blender's MTL is its Principled material's: Ns = 1000 (1 - roughness)^2
-     * and Ks its specular level, whose reflectance is 0.08 x that (its
-     * default 0.5: 4%), as its OBJ importer reads them back. The Blinn-Phong
-     * rule made its roughness 0.8 a glossy 0.22 (its glTF: 0.8). */
-    get_float(am, AI_MATKEY_SHININESS, &ns);
-    ns = ns >= 0.f && ns <= 1000.f ? ns : ns > 1000.f ? 1000.f : 0.f;
-    m->roughness = 1.f - sqrtf(ns / 1000.f);
-    m->specular = 0.08f * lum(ks);
-  } else if (has_ks) {
-    /* Phong exponent to roughness, the usual Beckmann correspondence. */
-    get_float(am, AI_MATKEY_SHININESS, &ns);
-    if (!(ns >= 0.f)) ns = 0.f;
-    m->roughness = sqrtf(2.f / (ns + 2.f));
-    /* Ks is the peak of an unnormalised Blinn-Phong lobe (MTL's illum 2,
-     * Collada's <blinn>): Ks (N.H)^Ns reflects about Ks 8 / (Ns + 8) of what
-     * arrives. Taken as the lobe's whole reflectance, Blender's default
-     * material (Kd 0.8, Ks 0.5, Ns 250) was a 50% mirror over 80% diffuse. */
-    m->specular = lum(ks) * 8.f / (ns + 8.f);
-  } else {
-    m->roughness = 1.f;
-    m->specular = 0.f;
-  }
+  material_lobe(am, tc, m);
   return GI_OK;
 }
 
