@@ -570,6 +570,50 @@ static void test_gltf_base_color_texture(void **state) {
 
 /* --- per-triangle textures ------------------------------------------- */
 
+/* A triangle's mean over a 4 x 4 checker (red and blue cells) against a
+ * dense reference (400 x 400 points over it, each reading its cell): one
+ * point per four cells read Blender's checker floor all red from one
+ * format and all blue from another, where each half holds both colours. */
+static void test_texture_grid_checker(void **state) {
+  (void)state;
+  unsigned char rgba[64];
+  for (int y = 0; y < 4; y++)
+    for (int x = 0; x < 4; x++) {
+      unsigned char *p = &rgba[4 * (4 * y + x)];
+      int red = (x + y) % 2;
+      p[0] = red ? 255 : 0, p[1] = 0, p[2] = red ? 0 : 255, p[3] = 255;
+    }
+  size_t n;
+  void *png = png_mem(rgba, 4, 4, PNG_FORMAT_RGBA, NULL, 0, &n);
+  float rgb[3];
+  gi__tex_grid g = {0};
+  gi_error_info err = {0};
+  assert_int_equal(gi__image_average_grid(png, n, "checker.png", rgb, &g, &err), GI_OK);
+  const float tris[3][3][2] = {{{0, 0}, {1, 0}, {0, 1}}, {{1, 0}, {1, 1}, {0, 1}}, {{0.1f, 0.05f}, {0.9f, 0.3f}, {0.3f, 0.95f}}};
+  for (int t = 0; t < 3; t++) {
+    float got[3];
+    gi__tex_grid_triangle(&g, tris[t], got);
+    double want = 0; /* the red share, densely */
+    int count = 0;
+    const int N = 400;
+    for (int i = 0; i < N; i++)
+      for (int j = 0; i + j < N; j++) {
+        double a = (i + 1.0 / 3) / N, b = (j + 1.0 / 3) / N, c = 1 - a - b;
+        double u = a * tris[t][0][0] + b * tris[t][1][0] + c * tris[t][2][0];
+        double v = a * tris[t][0][1] + b * tris[t][1][1] + c * tris[t][2][1];
+        int x = (int)(u * 4), y = (int)((1 - v) * 4);
+        x = x > 3 ? 3 : x, y = y > 3 ? 3 : y;
+        want += (x + y) % 2, count++;
+      }
+    want /= count;
+    printf("  checker triangle %d: red %.3f blue %.3f (dense: red share %.3f)\n", t, got[0], got[2], want);
+    assert_float_equal(got[0], want, 0.03);
+    assert_float_equal(got[2], 1 - want, 0.03);
+  }
+  gi__tex_grid_free(&g);
+  free(png);
+}
+
 /* The grid of the 4x4 half-red, half-grey image: its top two rows red,
  * the rest grey, linear; a triangle over each half reads that half; an
  * interlaced PNG keeps no grid (its passes are not rows). */
@@ -797,6 +841,7 @@ int main(void) {
       cmocka_unit_test(test_obj_bad_textures),
       cmocka_unit_test(test_gltf_base_color_texture),
       cmocka_unit_test(test_texture_grid),
+      cmocka_unit_test(test_texture_grid_checker),
       cmocka_unit_test(test_obj_texture_per_triangle),
       cmocka_unit_test(test_gltf_texture_per_triangle),
       cmocka_unit_test(test_gltf_texture_transform),

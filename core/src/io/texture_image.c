@@ -418,7 +418,12 @@ void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float ou
     double lo = fmin(uv[0][k], fmin(uv[1][k], uv[2][k])), hi = fmax(uv[0][k], fmax(uv[1][k], uv[2][k]));
     ext = fmax(ext, (hi - lo) * (k ? g->h : g->w));
   }
-  int n = ext < 4 ? 2 : ext > 2 * GI__TEX_TRI_SPLIT ? GI__TEX_TRI_SPLIT : (int)(ext / 2);
+  /* n = four times the extent in cells: about 30 points per cell, where
+   * a regular lattice against a checker is within a few percent. One
+   * point per four cells (n = ext / 2) read Blender's 4 x 4 checker floor
+   * all red from its glTF and all blue from its Collada (each half holds
+   * both). */
+  int n = ext < 0.5 ? 2 : 4 * ext >= GI__TEX_TRI_SPLIT ? GI__TEX_TRI_SPLIT : (int)ceil(4 * ext);
   double sum[3] = {0, 0, 0};
   int count = 0;
   for (int i = 0; i < n; i++)

@@ -28,9 +28,9 @@ typedef struct gi__tex_grid {
 void gi__tex_grid_free(gi__tex_grid *g); /* accepts NULL */
 /* The mean of grid g over a triangle with texture coordinates uv (u
  * right, v up, as assimp and OBJ give them; repeating), from points spread
- * evenly over it: 4 for a triangle a few cells wide, at most
- * GI__TEX_TRI_SPLIT^2. g must have cells (w > 0). */
-#define GI__TEX_TRI_SPLIT 8
+ * evenly over it, about 30 per cell it covers (4 for a triangle under
+ * half a cell wide), at most GI__TEX_TRI_SPLIT^2. g must have cells (w > 0). */
+#define GI__TEX_TRI_SPLIT 32
 void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float out[3]);
 
 /* Decodes a PNG or JPEG held in memory (the format is told by its magic
