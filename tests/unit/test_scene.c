@@ -1715,7 +1715,8 @@ static void test_mirrored_nodes(void **state) {
  * EXT_mesh_gpu_instancing: accessors 2 (TRANSLATION, VEC3 floats) and 3
  * (ROTATION, VEC4 normalized shorts) over buffer 1, `data` (base64), plus
  * `attrs_extra` inside the attributes object. */
-static const char *gltf_instanced(const char *name, const char *data, int data_len, const char *attrs, int count) {
+static const char *gltf_instanced_view(const char *name, const char *data, int data_len, const char *attrs, int count,
+                                       const char *view2) {
   static char json[4096];
   snprintf(json, sizeof json,
            "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
@@ -1727,14 +1728,18 @@ static const char *gltf_instanced(const char *name, const char *data, int data_l
            "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA=\"},"
            "{\"byteLength\":%d,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
            "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
-           "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6},{\"buffer\":1,\"byteOffset\":0,\"byteLength\":24},"
+           "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":6},{\"buffer\":1,\"byteOffset\":0,\"byteLength\":24%s},"
            "{\"buffer\":1,\"byteOffset\":24,\"byteLength\":16}],"
            "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
            "\"min\":[0,0,0],\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5123,\"count\":3,\"type\":\"SCALAR\"},"
            "{\"bufferView\":2,\"componentType\":5126,\"count\":%d,\"type\":\"VEC3\"},"
            "{\"bufferView\":3,\"componentType\":5122,\"normalized\":true,\"count\":2,\"type\":\"VEC4\"}]}",
-           attrs, data_len, data, count);
+           attrs, data_len, data, view2, count);
   return tu_write_file(name, json, strlen(json));
+}
+
+static const char *gltf_instanced(const char *name, const char *data, int data_len, const char *attrs, int count) {
+  return gltf_instanced_view(name, data, data_len, attrs, count, "");
 }
 
 /* EXT_mesh_gpu_instancing draws a node's mesh once per instance (its
@@ -1767,6 +1772,10 @@ static void test_gpu_instancing(void **state) {
   expect_bad(gltf_instanced("inst-short.gltf", data, 40, "\"TRANSLATION\":2", 3), GI_ERR_FORMAT,
              "reaches past its buffer's end");
   expect_bad(gltf_instanced("inst-none.gltf", data, 40, "", 2), GI_ERR_FORMAT, "no TRANSLATION, ROTATION or SCALE");
+  /* A stride past the spec's 252 wraps the end of the data read: 4 x 2^62 is 0 in 64 bits. */
+  expect_bad(gltf_instanced_view("inst-stride.gltf", data, 40, "\"TRANSLATION\":2", 5,
+                                 ",\"byteStride\":4611686018427387904"),
+             GI_ERR_FORMAT, "bufferView 2 is missing or bad");
   expect_bad(gltf_instanced("inst-nan.gltf", "AAAAAAAAAAAAAAAAAADAfwAAAAAAAAAAAAAAAAAA/38AAAAAglqCWg==", 40,
                             "\"TRANSLATION\":2", 2),
              GI_ERR_NONFINITE, "instance 1 has a non-finite value");

@@ -133,7 +133,10 @@ gi_result gi__gltf_accessor_read(json_t *root, const gi__gltf_bin *bin, json_int
   json_int_t boff = int_member(bv, "byteOffset", 0), blen = int_member(bv, "byteLength", -1);
   json_int_t stride = int_member(bv, "byteStride", 0), buf = int_member(bv, "buffer", -1);
   size_t csize = ct == GLTF_FLOAT ? 4 : ct == GLTF_SHORT ? 2 : 1, esize = csize * (size_t)ncomp;
-  if (!json_is_object(bv) || boff < 0 || blen < 0 || stride < 0 || buf < 0 || (stride && (size_t)stride < esize))
+  /* The spec's stride is at most 252; a larger one (or an offset past the
+   * view) could wrap the end computed below. */
+  if (!json_is_object(bv) || boff < 0 || blen < 0 || stride < 0 || stride > 252 || buf < 0 ||
+      (stride && (size_t)stride < esize) || aoff > blen)
     return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': %s: accessor %lld: its bufferView %lld is missing or bad",
                     path, what, (long long)index, (long long)view);
   size_t step = stride ? (size_t)stride : esize;
