@@ -77,6 +77,8 @@ enum { DEFAULT_LEVELS = 6 };
  * across). Its coarsest level keeps the reach, so levels are added at the
  * fine end, each halving s0, until s0 is no coarser than the piece's. */
 #define LOCAL_HEIGHTS 4.0
+/* Below this share of its extent a scene's height is rounding: flat. */
+#define FLAT_SHARE 1e-6
 
 /* Default s0 (and, when auto_levels, the level count) for q->res. A scene
  * the default levels cover whole keeps DEFAULT_LEVELS and an s0 that grows
@@ -89,7 +91,12 @@ static void default_voxel(const gi_scene *s, gi_quality *q, int auto_levels) {
   gi_scene_bounds(s, lo, hi);
   for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
   int up = gi_scene_up(s) == GI_UP_Z ? 2 : 1;
-  double height = hi[up] - lo[up], reach = fmin(ext, fmax(REACH_HEIGHTS * height, ext / REACH_WIDTH_DIV));
+  double height = hi[up] - lo[up];
+  /* A height under FLAT_SHARE of the extent is float rounding (Blender's
+   * 20 m plane, turned, is 8.7e-7 m high), not a neighbourhood: flat. It
+   * added levels to the cap and a finest voxel of 4.8e-5 m. */
+  if (height < FLAT_SHARE * ext) height = 0;
+  double reach = fmin(ext, fmax(REACH_HEIGHTS * height, ext / REACH_WIDTH_DIV));
   if (!(reach > 0)) reach = 1.0;
   if (auto_levels && height > 0 && ext > reach) {
     double piece = LOCAL_HEIGHTS * height;

@@ -3,6 +3,7 @@
  * levels spans 1.25x the scene); a scene wider than a street's reach keeps
  * that reach and gets more levels, not coarser voxels. */
 #include <math.h>
+#include <stdio.h>
 #include "gi/gi.h"
 #include "test_util.h"
 
@@ -153,6 +154,23 @@ static void test_levels_capped_and_unit_free(void **state) {
   a = resolve(m, NULL);
   assert_int_equal(a.levels, DEFAULT_LEVELS);
   assert_near(a.voxel0, 1.25 * (w / 8) / (R * 32.0), 1e-9);
+  gi_scene_release(m);
+
+  /* A plane whose height is rounding (Blender's 20 m plane, turned, is
+   * 8.7e-7 m high) is flat too: it took 12 levels and a 4.8e-5 m voxel. */
+  gi_mesh_builder *bn = gi_mesh_builder_new();
+  gi_material mat = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mi = gi_mesh_builder_add_material(bn, &mat);
+  double A[3] = {-10, 0, -10}, B[3] = {-10, 4.4e-7, 10}, C[3] = {10, 8.7e-7, 10}, D[3] = {10, 4.4e-7, -10};
+  gi_mesh_builder_add_quad(bn, A, B, C, D, mi);
+  gi_scene_options o = {.default_lights = 1};
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(bn, "noise", &o, &m, &err), GI_OK);
+  gi_mesh_builder_free(bn);
+  a = resolve(m, NULL);
+  printf("  a 20 m plane 8.7e-7 high: %d levels, s0 %g\n", a.levels, a.voxel0);
+  assert_int_equal(a.levels, DEFAULT_LEVELS);
+  assert_near(a.voxel0, 1.25 * (20.0 / 8) / (R * 32.0), 1e-9);
   gi_scene_release(m);
 }
 
