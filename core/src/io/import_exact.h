@@ -24,6 +24,8 @@ typedef struct gi__exact_mesh {
   size_t nt, cap_t, cap_m;
   char **names;    /* OBJ usemtl names in first-use order */
   size_t nnames, cap_names;
+  uint32_t *name_slots; /* OBJ: open-addressing table of names (index + 1, 0 empty), cap_slots a power of 2 */
+  size_t cap_slots;
   float *col;      /* 3 per vertex, linear, when any vertex has a colour (others white); else NULL */
   size_t cap_c;
   float *uv;       /* OBJ: 2 per vt line (u, v up) */
