@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "base/internal.h"
+#include "io/texture_image.h" /* gi__read_file */
 
 enum { GLTF_BYTE = 5120, GLTF_SHORT = 5122, GLTF_FLOAT = 5126 };
 
@@ -47,7 +48,8 @@ static int b64_decode(const char *s, bytes *out) {
   return 0;
 }
 
-/* A relative URI beside the glTF (percent escapes decoded), read whole. */
+/* A relative URI beside the glTF (percent escapes decoded), read whole:
+ * 0, -1 when it cannot be read, -2 out of memory. */
 static int read_beside(const char *gltf, const char *uri, bytes *out) {
   char rel[4096], full[8192];
   size_t k = 0;
@@ -60,17 +62,12 @@ static int read_beside(const char *gltf, const char *uri, bytes *out) {
   const char *slash = strrchr(gltf, '/');
   int dl = slash ? (int)(slash - gltf + 1) : 0;
   if (snprintf(full, sizeof full, "%.*s%s", dl, gltf, rel) >= (int)sizeof full) return -1;
-  FILE *f = fopen(full, "rb");
-  if (!f) return -1;
-  int rc = -1;
-  if (fseek(f, 0, SEEK_END) == 0) {
-    long n = ftell(f);
-    if (n >= 0 && fseek(f, 0, SEEK_SET) == 0 && (out->owned = gi__malloc((size_t)n + 1)) != NULL &&
-        fread(out->owned, 1, (size_t)n, f) == (size_t)n)
-      out->p = out->owned, out->len = (size_t)n, rc = 0;
-  }
-  fclose(f);
-  return rc;
+  void *data = NULL;
+  gi_error_info e = {0};
+  gi_result r = gi__read_file(full, SIZE_MAX, &data, &out->len, &e);
+  if (r != GI_OK) return r == GI_ERR_NOMEM ? -2 : -1;
+  out->owned = data, out->p = out->owned;
+  return 0;
 }
 
 static int buffer_bytes(json_t *root, const gi__gltf_bin *bin, json_int_t b, bytes *out) {
