@@ -500,6 +500,10 @@ static int scan_obj_mtllibs(tex_ctx *tc) {
   for (const char *l = tc->mtllib; ok && l && *l;) {
     const char *end = strchr(l, '\n');
     size_t n = end ? (size_t)(end - l) : strlen(l);
+    if (n < 6) { /* not a statement: "mtllib" and its file */
+      l = end ? end + 1 : l + n;
+      continue;
+    }
     char *stmt = gi__malloc(n + 1);
     if (!stmt) return 0;
     memcpy(stmt, l, n), stmt[n] = 0;

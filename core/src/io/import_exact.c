@@ -364,9 +364,11 @@ static ssize_t obj_statement(FILE *f, char **buf, size_t *cap, char **more, size
   }
 }
 
-/* Appends an mtllib statement and a line end to m->mtllib. 0: out of memory. */
+/* Appends an mtllib statement, less the line end it was read with, and one
+ * '\n' to m->mtllib. 0: out of memory. */
 static int keep_mtllib(gi__exact_mesh *m, const char *stmt) {
   size_t n = strlen(stmt);
+  while (n && is_blank(stmt[n - 1])) n--;
   char *g = gi__realloc(m->mtllib, m->mtllib_len + n + 2);
   if (!g) return 0;
   memcpy(g + m->mtllib_len, stmt, n);
