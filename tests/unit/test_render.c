@@ -57,6 +57,132 @@ static void test_mitsuba_camera(void **state) {
   assert_true(cam.eye[0] == 278 && cam.eye[1] == 273 && cam.eye[2] == -800);
   assert_true(cam.target[2] == -799 && cam.up[1] == 1 && cam.up[0] == 0);
   assert_true(fabs(cam.fov_deg - 39.3077) < 1e-9);
+  /* Its film is "$res" x "$res", with <default name="res" value="256"/>. */
+  assert_int_equal(cam.width, 256);
+  assert_int_equal(cam.height, 256);
+}
+
+/* Reads XML text as a Mitsuba sensor; returns the result, err filled. */
+static gi_result mitsuba_text(const char *xml, gi_camera *cam, gi_error_info *err) {
+  const char *path = tu_write_file("sensor.xml", xml, strlen(xml));
+  memset(cam, 0, sizeof *cam);
+  memset(err, 0, sizeof *err);
+  return gi_camera_from_mitsuba(path, cam, err);
+}
+
+/* The unit view direction and up of cam (up made square to the view). */
+static void cam_axes(const gi_camera *cam, double fwd[3], double up[3]) {
+  double l = 0, d = 0;
+  for (int k = 0; k < 3; k++) fwd[k] = cam->target[k] - cam->eye[k], l += fwd[k] * fwd[k];
+  for (int k = 0; k < 3; k++) fwd[k] /= sqrt(l), d += cam->up[k] * fwd[k];
+  l = 0;
+  for (int k = 0; k < 3; k++) up[k] = cam->up[k] - d * fwd[k], l += up[k] * up[k];
+  for (int k = 0; k < 3; k++) up[k] /= sqrt(l);
+}
+
+static void assert_vec(const double *got, double x, double y, double z, double tol) {
+  printf("  (%.9f, %.9f, %.9f) want (%g, %g, %g)\n", got[0], got[1], got[2], x, y, z);
+  assert_true(fabs(got[0] - x) <= tol && fabs(got[1] - y) <= tol && fabs(got[2] - z) <= tol);
+}
+
+static double deg(double rad) { return rad * 180 / 3.14159265358979323846; }
+static double rad(double deg) { return deg * 3.14159265358979323846 / 180; }
+
+/* Published scenes write their sensors in Mitsuba 0.6 and 3 syntax, by a
+ * matrix, a lookat or a chain of transforms, with a fov along x, y or the
+ * diagonal, or a focal length: each reads as Mitsuba places the camera. */
+static void test_mitsuba_sensor_forms(void **state) {
+  gi_camera cam, cam2;
+  gi_error_info err;
+  double f[3], u[3], f2[3], u2[3];
+  /* 0.6, as most published scenes: a matrix (x axis = the image's left), fov along x by default. */
+  const char *v06 = "<?xml version=\"1.0\"?>\n<scene version=\"0.6.0\">\n <sensor type=\"perspective\">\n"
+                    "  <float name=\"fov\" value=\"19.5\"/>\n  <transform name=\"toWorld\">\n"
+                    "   <matrix value=\"-1 0 0 0 0 1 0 1 0 0 -1 6.8 0 0 0 1\"/>\n  </transform>\n"
+                    "  <sampler type=\"independent\"><integer name=\"sampleCount\" value=\"64\"/></sampler>\n"
+                    "  <film type=\"ldrfilm\"><integer name=\"width\" value=\"1024\"/>"
+                    "<integer name=\"height\" value=\"1024\"/></film>\n </sensor>\n</scene>\n";
+  assert_int_equal(mitsuba_text(v06, &cam, &err), GI_OK);
+  cam_axes(&cam, f, u);
+  assert_vec(cam.eye, 0, 1, 6.8, 1e-12);
+  assert_vec(f, 0, 0, -1, 1e-12);
+  assert_vec(u, 0, 1, 0, 1e-12);
+  assert_true(cam.fov_deg == 19.5 && cam.width == 1024 && cam.height == 1024);
+  /* The same camera as a 0.6 lookAt: the same view (the matrix's x axis is up x forward). */
+  const char *look = "<scene version=\"0.6.0\"><sensor type=\"perspective\"><string name=\"fovAxis\" value=\"smaller\"/>"
+                     "<float name=\"fov\" value=\"19.5\"/><transform name=\"toWorld\"><lookAt origin=\"0, 1, 6.8\" "
+                     "target=\"0,1,5.8\" up=\"0 1 0\"/></transform></sensor></scene>";
+  assert_int_equal(mitsuba_text(look, &cam2, &err), GI_OK);
+  cam_axes(&cam2, f2, u2);
+  assert_vec(f2, f[0], f[1], f[2], 1e-12);
+  assert_vec(u2, u[0], u[1], u[2], 1e-12);
+  /* No film: Mitsuba's 768 x 576. */
+  assert_true(cam2.width == 768 && cam2.height == 576);
+  /* Mitsuba 3 with <default> values, a fov along x (its default) on a 16:9 film, and a lookat
+   * turned 90 degrees about y and moved: forward +z turns to +x, the eye goes to (1, 2, 3). */
+  const char *v3 = "<scene version=\"3.0.0\">\n<default name=\"fov\" value=\"60\"/>\n"
+                   "<default name=\"w\" value=\"1920\"/><default name=\"h\" value=\"1080\"/>\n"
+                   "<!-- <sensor type=\"orthographic\"> an old camera, commented out </sensor> -->\n"
+                   "<sensor type=\"perspective\"><float name=\"fov\" value=\"$fov\"/>\n"
+                   "<transform name=\"to_world\"><lookat origin=\"0,0,0\" target=\"0,0,1\" up=\"0,1,0\"/>"
+                   "<rotate y=\"1\" angle=\"90\"/><translate value=\"1 2 3\"/></transform>\n"
+                   "<film type=\"hdrfilm\"><integer name=\"width\" value=\"$w\"/>"
+                   "<integer name=\"height\" value=\"$h\"/></film></sensor></scene>";
+  assert_int_equal(mitsuba_text(v3, &cam, &err), GI_OK);
+  cam_axes(&cam, f, u);
+  assert_vec(cam.eye, 1, 2, 3, 1e-12);
+  assert_vec(f, 1, 0, 0, 1e-12);
+  assert_vec(u, 0, 1, 0, 1e-12);
+  double want = deg(2 * atan(tan(rad(30)) * 1080.0 / 1920.0));
+  printf("  fov 60 along x on 1920 x 1080: %.9f across the smaller side, want %.9f\n", cam.fov_deg, want);
+  assert_true(fabs(cam.fov_deg - want) < 1e-9 && cam.width == 1920 && cam.height == 1080);
+  gi_camera_fit(&cam, 256);
+  assert_true(cam.width == 256 && cam.height == 144);
+  /* A 35 mm focal length is along the film's diagonal (Mitsuba's rule). */
+  const char *focal = "<scene version=\"3.0.0\"><sensor type=\"perspective\"><string name=\"focal_length\" "
+                      "value=\"35mm\"/><film type=\"hdrfilm\"><integer name=\"width\" value=\"800\"/>"
+                      "<integer name=\"height\" value=\"600\"/></film></sensor></scene>";
+  assert_int_equal(mitsuba_text(focal, &cam, &err), GI_OK);
+  double td = sqrt(36.0 * 36 + 24 * 24) / 70, ty = td / sqrt(1 + 9.0 / 16) * 0.75;
+  printf("  35mm on 800 x 600: %.9f, want %.9f\n", cam.fov_deg, deg(2 * atan(ty)));
+  assert_true(fabs(cam.fov_deg - deg(2 * atan(ty))) < 1e-9);
+  /* No transform: at the origin looking along +z. */
+  cam_axes(&cam, f, u);
+  assert_vec(f, 0, 0, 1, 0);
+}
+
+/* Sensors that cannot be drawn as written fail naming the file's line and what is wrong. */
+static void test_mitsuba_sensor_errors(void **state) {
+  gi_camera cam;
+  gi_error_info err;
+  static const struct {
+    const char *xml, *says;
+  } bad[] = {
+      {"<scene>\n<sensor type=\"perspective\"><transform name=\"to_world\"><scale x=\"-1\"/>"
+       "<lookat origin=\"0,0,0\" target=\"0,0,1\" up=\"0,1,0\"/></transform></sensor></scene>", "mirrors"},
+      {"<scene>\n\n<sensor type=\"perspective\"><float name=\"fov\" value=\"$fov\"/></sensor></scene>",
+       "line 3: attribute 'value' uses $fov"},
+      {"<scene><sensor type=\"thinlens\"/></scene>", "'thinlens'"},
+      {"<scene><sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/><string name=\"focal_length\" "
+       "value=\"50mm\"/></sensor></scene>", "both fov and focal_length"},
+      {"<scene><sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/><string name=\"fov_axis\" "
+       "value=\"z\"/></sensor></scene>", "fov_axis"},
+      {"<scene><sensor type=\"perspective\"><transform name=\"to_world\"><skew value=\"1\"/></transform>"
+       "</sensor></scene>", "<skew>"},
+      {"<scene><sensor type=\"perspective\"><transform name=\"to_world\"><matrix value=\"1 0 0\"/></transform>"
+       "</sensor></scene>", "16 numbers"},
+      {"<scene><sensor type=\"perspective\"><film type=\"hdrfilm\"><integer name=\"width\" value=\"0\"/></film>"
+       "</sensor></scene>", "film width"},
+      {"<scene><sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/>", "not closed"},
+      {"<scene><!-- <sensor type=\"perspective\"/> --></scene>", "no <sensor>"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    assert_int_equal(mitsuba_text(bad[i].xml, &cam, &err), GI_ERR_FORMAT);
+    printf("  %s\n", err.msg);
+    assert_non_null(strstr(err.msg, bad[i].says));
+    assert_non_null(strstr(err.msg, "sensor.xml"));
+  }
+  assert_int_equal(gi_camera_from_mitsuba("/nonexistent/cam.xml", &cam, &err), GI_ERR_NOT_FOUND);
 }
 
 static void test_bad_cameras(void **state) {
@@ -235,6 +361,8 @@ int main(void) {
       cmocka_unit_test(test_plane_under_sun),
       cmocka_unit_test(test_mitsuba_camera),
       cmocka_unit_test(test_bad_cameras),
+      cmocka_unit_test(test_mitsuba_sensor_forms),
+      cmocka_unit_test(test_mitsuba_sensor_errors),
       cmocka_unit_test(test_indirect_anchors),
       cmocka_unit_test(test_sampled_light_anchors),
   };

@@ -542,7 +542,7 @@ static int view_camera(const opts *o, const char *name, const scene_set *ss, gi_
       fprintf(stderr, "gi-accuracy: SKIP cornell view: %s\n", err.msg);
       return 0;
     }
-    cam->width = cam->height = 192;
+    gi_camera_fit(cam, 192);
     return 1;
   }
   int up = gi_scene_up(ss->s) == GI_UP_Z ? 2 : 1, along = up == 2 ? 1 : 0;

@@ -24,7 +24,7 @@
 #define STREET_CLEARANCE 0.25 /* room a street probe needs around it, in heights above the ground */
 #define STREET_AT_SHARE 0.25 /* with --at: the street grid spans this share of the scene's width */
 #define STREET_ALL_SHARE 0.8 /* without --at: this share, centred on the bounds */
-#define VIEW_XML_SIDE 192    /* a Mitsuba sensor's pixels per side (its file often holds "$res") */
+#define VIEW_XML_SIDE 192    /* a Mitsuba sensor's pixels along its film's longer side */
 
 static int take_view(struct ta_ctx *ta, acc_file_opts *f, const char *arg) {
   double c[9];
@@ -33,7 +33,7 @@ static int take_view(struct ta_ctx *ta, acc_file_opts *f, const char *arg) {
   if (dot && !strcmp(dot, ".xml")) {
     gi_error_info e = {0};
     if (gi_camera_from_mitsuba(arg, &f->cam, &e) != GI_OK) return ta_fail(ta, "--view", "%s", e.msg);
-    f->cam.width = f->cam.height = VIEW_XML_SIDE;
+    gi_camera_fit(&f->cam, VIEW_XML_SIDE);
   } else if (ta_parse_doubles(arg, c, 9) == TA_OK) {
     memcpy(f->cam.eye, c, sizeof(double[3]));
     memcpy(f->cam.target, c + 3, sizeof(double[3]));

@@ -148,8 +148,9 @@ static const char help_text[] =
     "                        TEXCOORD_1, one mesh per atlas\n"
     "\n"
     "Pictures (the view from the cascade beside the same view path-traced)\n"
-    "  --render CAMERA       a Mitsuba XML file's perspective sensor (lookat, fov;\n"
-    "                        256 x 256), or X,Y,Z,TX,TY,TZ,FOV,W,H: eye, target,\n"
+    "  --render CAMERA       a Mitsuba XML file's perspective sensor (0.6 or 3:\n"
+    "                        to_world, fov or focal_length, its film's aspect at\n"
+    "                        256 pixels across), or X,Y,Z,TX,TY,TZ,FOV,W,H: eye, target,\n"
     "                        fov in degrees across the smaller side, pixels\n"
     "                        (up = the scene's up axis)\n"
     "  --png OUT.png         cone-traced | path-traced | error side by side (needs\n"
@@ -294,7 +295,7 @@ static int parse_render(cli_opts *o, const char *arg) {
   if (dot && !strcmp(dot, ".xml")) {
     gi_error_info e = {0};
     if (gi_camera_from_mitsuba(arg, &o->cam, &e) != GI_OK) return ta_fail(&ta, "--render", "%s", e.msg);
-    o->cam.width = o->cam.height = 256;
+    gi_camera_fit(&o->cam, 256); /* the film's aspect; its longer side 256 pixels */
   } else if (ta_parse_doubles(arg, c, 9) == TA_OK) {
     memcpy(o->cam.eye, c, sizeof(double[3]));
     memcpy(o->cam.target, c + 3, sizeof(double[3]));

@@ -20,10 +20,19 @@ typedef struct gi_camera {
   int width, height;
 } gi_camera;
 
-/* Reads the first perspective sensor of a Mitsuba XML scene: lookat origin,
- * target and up, and fov. Width and height are left as they are (Mitsuba
- * files often hold "$res"). Errors name the file and the missing field. */
+/* Reads the first perspective sensor of a Mitsuba XML scene (0.6 or 3
+ * syntax): its to_world transform (matrix, lookat, translate, rotate,
+ * scale, in order), its fov and fov_axis (default x) or focal_length
+ * (35 mm equivalent, default 50mm), and its film's width and height
+ * (Mitsuba's 768 x 576 when absent), with "$name" values from the file's
+ * <default> elements. fov_deg is converted to the smaller side. A
+ * transform that mirrors the image is refused. Errors name the file, the
+ * line and the field. Thread-safe. */
 gi_result gi_camera_from_mitsuba(const char *path, gi_camera *cam, gi_error_info *err);
+
+/* Scales width and height so the longer side is `longest` pixels, keeping
+ * the aspect (fov_deg stays across the smaller side). */
+void gi_camera_fit(gi_camera *cam, int longest);
 
 /* Checks a camera: finite, eye != target, up not along the view, fov in
  * (0, 180), 1..8192 pixels per side. */
