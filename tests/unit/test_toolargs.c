@@ -284,12 +284,18 @@ static void test_getopt(void **state) {
 
 static void test_files(void **state) {
   ta_ctx c = quiet_ctx();
-  expect_msg(&c, ta_check_output(&c, "--exr", ""), "--exr: expected a file name, got ''");
-  assert_int_equal(ta_check_output(&c, "--exr", "/no-such-dir-gi/x.exr"), TA_EXIT_RUN);
+  const char *empty = "", *missing = "/no-such-dir-gi/x.exr";
+  expect_msg(&c, ta_check_output(&c, "--exr", &empty), "--exr: expected a file name, got ''");
+  assert_int_equal(ta_check_output(&c, "--exr", &missing), TA_EXIT_RUN);
   assert_non_null(strstr(c.msg, "--exr: cannot write into '/no-such-dir-gi' for '/no-such-dir-gi/x.exr'"));
   char path[1200];
   snprintf(path, sizeof path, "%s/out.exr", tu_tmpdir());
-  assert_int_equal(ta_check_output(&c, "--exr", path), 0);
+  const char *out = path, *dir = tu_tmpdir();
+  assert_int_equal(ta_check_output(&c, "--exr", &out), 0);
+  assert_string_equal(out, path);
+  assert_int_equal(ta_check_output(&c, "--exr", &dir), TA_EXIT_USAGE);
+  assert_non_null(strstr(c.msg, "is a folder"));
+  assert_int_equal(ta_outputs_finish(&c, 1), 0);
 
   static const char good[] = "# points\n1 2 3\n-4.5 5 6e1  # note\n";
   const char *p = tu_write_file("pts.txt", good, sizeof good - 1);

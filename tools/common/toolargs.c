@@ -185,24 +185,6 @@ int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_op
   return ta_fail(c, NULL, "unknown option '%s'", argv[optind - 1]);
 }
 
-int ta_check_output(ta_ctx *c, const char *opt, const char *path) {
-  if (!*path) return ta_fail(c, opt, "expected a file name, got ''");
-  char *dir = strdup(path);
-  if (!dir) return TA_EXIT_RUN;
-  char *slash = strrchr(dir, '/');
-  const char *d = ".";
-  if (slash) {
-    if (slash == dir) slash[1] = '\0';
-    else *slash = '\0';
-    d = dir;
-  }
-  int rc = 0;
-  if (access(d, W_OK | X_OK) != 0)
-    rc = ta_error(c, TA_EXIT_RUN, opt, "cannot write into '%s' for '%s': %s", d, path, strerror(errno));
-  free(dir);
-  return rc;
-}
-
 int ta_mkdirs(ta_ctx *c, const char *opt, const char *path) {
   char *b = strdup(path);
   if (!b) return ta_error(c, TA_EXIT_RUN, opt, "out of memory");

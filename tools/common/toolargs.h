@@ -82,9 +82,22 @@ int ta_triple(ta_ctx *c, const char *opt, const char *s, double out[3]);
  * "option '--at' needs a value", "unknown option '-x'". Returns TA_EXIT_USAGE. */
 int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_opts);
 
-/* An output file's folder must exist and be writable: checked before slow
- * work. Returns 0, TA_EXIT_USAGE (empty name) or TA_EXIT_RUN. */
-int ta_check_output(ta_ctx *c, const char *opt, const char *path);
+/* outpath.c: an output file the user named, checked before slow work: its
+ * folder must exist and be writable, and it must not be a folder. *path
+ * becomes the path to give the writers (which write "<path>.tmp.<pid>"
+ * and rename it into place): a symlink's target, or for a device or FIFO
+ * (/dev/stdout) a private temporary file that ta_outputs_finish copies
+ * into it. The strings live until ta_outputs_finish. A SIGINT, SIGTERM,
+ * SIGHUP or SIGPIPE then removes the outputs' temporary files before the
+ * process dies of it. Returns 0, TA_EXIT_USAGE (empty name, a folder) or
+ * TA_EXIT_RUN. Main thread only. */
+int ta_check_output(ta_ctx *c, const char *opt, const char **path);
+/* Whether path (as ta_check_output returned it) stands for a device or FIFO. */
+int ta_output_is_special(const char *path);
+/* At the end of a run: when ok, copies each special output that was
+ * written into its device or FIFO; always removes the temporary files and
+ * frees the paths. Returns 0, or TA_EXIT_RUN when a copy failed. */
+int ta_outputs_finish(ta_ctx *c, int ok);
 
 /* Creates folder path and its parents as needed (mode 0777 less the
  * umask), as mkdir -p. Returns 0, or TA_EXIT_RUN with the folder and

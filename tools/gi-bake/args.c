@@ -440,10 +440,10 @@ static int check_combinations(cli_opts *o) {
   if (o->render_stride && !o->render) return ta_fail(&ta, "--render-stride", "needs --render");
   if (o->render && !o->png && !o->exr) return ta_fail(&ta, "--render", "needs --png or --exr for the pictures");
   if (o->render && (rc = check_render_camera(o))) return rc;
-  if (o->png && (rc = ta_check_output(&ta, "--png", o->png))) return rc;
+  if (o->png && (rc = ta_check_output(&ta, "--png", &o->png))) return rc;
   if (o->vdb_faces && !o->vdb) return ta_fail(&ta, "--vdb-faces", "needs --vdb");
-  if (o->exr && (rc = ta_check_output(&ta, "--exr", o->exr))) return rc;
-  if (o->vdb && (rc = ta_check_output(&ta, "--vdb", o->vdb))) return rc;
+  if (o->exr && (rc = ta_check_output(&ta, "--exr", &o->exr))) return rc;
+  if (o->vdb && (rc = ta_check_output(&ta, "--vdb", &o->vdb))) return rc;
   if ((rc = batch_check(&ta, o))) return rc;
   /* The viewpoint takes one of the probe EXR's pixels. */
   if (o->probes_file &&

@@ -56,7 +56,7 @@ enum { OPT_GRID = 400, OPT_REGION, OPT_ABOVE_GROUND, OPT_SHARD, OPT_RESUME, OPT_
 /* One batch option; c is OPT_GRID .. OPT_MANIFEST. Returns 0 or an exit code. */
 int batch_option(ta_ctx *ta, cli_batch *b, int c, const char *arg);
 /* Combinations, once all options are read. */
-int batch_check(ta_ctx *ta, const struct cli_opts *o);
+int batch_check(ta_ctx *ta, struct cli_opts *o);
 /* The grid bake, after the scene is loaded. Returns an exit code. */
 int batch_run(const struct cli_opts *o, const gi_scene *scene, double load_ms);
 /* gi-bake merge ARGS (argv[0] = "merge"). Returns an exit code. */

@@ -50,8 +50,8 @@ int batch_option(ta_ctx *ta, cli_batch *b, int c, const char *arg) {
   }
 }
 
-int batch_check(ta_ctx *ta, const cli_opts *o) {
-  const cli_batch *b = &o->batch;
+int batch_check(ta_ctx *ta, cli_opts *o) {
+  cli_batch *b = &o->batch; /* --manifest becomes the path to write (ta_check_output) */
   int rc;
   if (b->grid <= 0) {
     if (b->have_region && !o->lm.out) return ta_fail(ta, "--region", "needs --grid or --lightmap");
@@ -69,6 +69,6 @@ int batch_check(ta_ctx *ta, const cli_opts *o) {
   if (b->have_shard && !o->exr) return ta_fail(ta, "--shard", "needs --exr (the merge reads the shards' EXRs)");
   if (!o->exr && !o->vdb && !b->manifest && !o->json && !b->resume)
     return ta_fail(ta, "--grid", "needs an output: --exr, --vdb, --manifest, --resume or --json");
-  if (b->manifest && (rc = ta_check_output(ta, "--manifest", b->manifest))) return rc;
+  if (b->manifest && (rc = ta_check_output(ta, "--manifest", &b->manifest))) return rc;
   return 0;
 }

@@ -69,8 +69,8 @@ static int parse_merge(int argc, char **argv, merge_opts *m) {
   }
   if (!m->exr && !m->vdb) return ta_fail(&ta, NULL, "needs --exr OUT.exr and/or --vdb OUT.vdb");
   if (optind >= argc) return ta_fail(&ta, NULL, "no shard EXRs given");
-  if (m->exr && (rc = ta_check_output(&ta, "--exr", m->exr))) return rc;
-  if (m->vdb && (rc = ta_check_output(&ta, "--vdb", m->vdb))) return rc;
+  if (m->exr && (rc = ta_check_output(&ta, "--exr", &m->exr))) return rc;
+  if (m->vdb && (rc = ta_check_output(&ta, "--vdb", &m->vdb))) return rc;
   m->inputs = argv + optind;
   m->num_inputs = argc - optind;
   return 0;

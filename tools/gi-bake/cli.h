@@ -84,7 +84,7 @@ int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, 
  * the lightmap options and their combinations (0 or an exit code); the
  * --lightmap run on a loaded scene (0, EXIT_USAGE or EXIT_RUN). */
 int lightmap_option(cli_opts *o, int c, const char *arg);
-int lightmap_check(const cli_opts *o);
+int lightmap_check(cli_opts *o);
 int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, double (*now_ms)(void));
 
 #endif

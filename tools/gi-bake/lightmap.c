@@ -38,8 +38,8 @@ static int ends_with_ci(const char *s, const char *suffix) {
   return n >= m && !strcasecmp(s + n - m, suffix);
 }
 
-int lightmap_check(const cli_opts *o) {
-  const cli_lightmap *l = &o->lm;
+int lightmap_check(cli_opts *o) {
+  cli_lightmap *l = &o->lm; /* its paths become the ones to write (ta_check_output) */
   int rc;
   if (!l->out) {
     if (l->uv_out) return ta_fail(&ta, "--uv-out", "needs --lightmap");
@@ -62,8 +62,11 @@ int lightmap_check(const cli_opts *o) {
   if (!ends_with_ci(l->out, ".exr")) return ta_fail(&ta, "--lightmap", "expected an .exr file name, got '%s'", l->out);
   if (l->uv_out && !ends_with_ci(l->uv_out, ".glb"))
     return ta_fail(&ta, "--uv-out", "expected a binary glTF .glb file name, got '%s'", l->uv_out);
-  if ((rc = ta_check_output(&ta, "--lightmap", l->out))) return rc;
-  if (l->uv_out && (rc = ta_check_output(&ta, "--uv-out", l->uv_out))) return rc;
+  if ((rc = ta_check_output(&ta, "--lightmap", &l->out))) return rc;
+  /* Several atlases go to OUT.0001.exr, ...: names beside a file, not a device's. */
+  if (ta_output_is_special(l->out))
+    return ta_fail(&ta, "--lightmap", "expected a file name (a lightmap may be several files), got a device or pipe");
+  if (l->uv_out && (rc = ta_check_output(&ta, "--uv-out", &l->uv_out))) return rc;
   return 0;
 }
 

@@ -144,11 +144,17 @@ static int write_outputs(const cli_opts *o, const gi_scene *scene, const gi_casc
 }
 
 int main(int argc, char **argv) {
-  if (argc > 1 && !strcmp(argv[1], "merge")) return batch_merge_main(argc - 1, argv + 1);
+  static ta_ctx fin = TA_CTX("gi-bake");
+  if (argc > 1 && !strcmp(argv[1], "merge")) {
+    int mrc = batch_merge_main(argc - 1, argv + 1);
+    int frc = ta_outputs_finish(&fin, mrc == 0);
+    return mrc ? mrc : frc;
+  }
   cli_opts o;
   int rc = cli_parse(argc, argv, &o);
   if (rc) {
     cli_opts_fini(&o);
+    ta_outputs_finish(&fin, 0);
     return rc < 0 ? 0 : rc;
   }
 
@@ -229,5 +235,7 @@ done:
   gi_cascade_free(cas);
   gi_scene_release(scene);
   cli_opts_fini(&o);
-  return rc;
+  /* Outputs named as a device or FIFO get their bytes now, after success. */
+  int frc = ta_outputs_finish(&fin, rc == 0);
+  return rc ? rc : frc;
 }

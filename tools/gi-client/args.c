@@ -478,7 +478,7 @@ int gc_parse(int argc, char **argv, gc_opts *o) {
   if (p.token && p.token_file) return ta_fail(&ta, "--token-file", "give --token or --token-file, not both");
   if ((rc = resolve_server(o, p.server))) return rc;
   if ((rc = resolve_token(o, &p))) return rc;
-  if (o->out && (rc = ta_check_output(&ta, "-o", o->out))) return rc;
+  if (o->out && (rc = ta_check_output(&ta, "-o", &o->out))) return rc;
   if (o->points_file && (rc = read_points(o, o->points_file))) return rc;
   if (o->path_file && (rc = ta_read_path(&ta, "--path", o->path_file, &o->steps, &o->num_steps))) return rc;
   return 0;

@@ -599,8 +599,10 @@ out:
 int main(int argc, char **argv) {
   gc_opts o;
   int rc = gc_parse(argc, argv, &o);
+  static ta_ctx fin = TA_CTX("gi-client");
   if (rc) {
     gc_opts_fini(&o);
+    ta_outputs_finish(&fin, 0);
     return rc < 0 ? 0 : rc;
   }
   signal(SIGINT, on_signal);
@@ -621,5 +623,6 @@ int main(int argc, char **argv) {
   }
   curl_global_cleanup();
   gc_opts_fini(&o);
-  return rc;
+  int frc = ta_outputs_finish(&fin, rc == 0);
+  return rc ? rc : frc;
 }

@@ -1,0 +1,70 @@
+# out_paths.sh: outputs named as a symlink, a FIFO, a device or a folder.
+# Writers put "<path>.tmp.<pid>" and rename it into place; a rename over a
+# symlink or a device replaced it with a plain file (as root, --exr
+# /dev/null broke /dev/null). Now a symlink's target gets the file and the
+# link stays, a FIFO or device gets the bytes after the run, a folder is
+# refused, and a killed run leaves no temporary file behind.
+. "$(dirname "$0")/common.sh"
+make_box_scene
+Q="--at 2,1.5,2 --levels 2 --res 8 --bounces 1"
+
+"$BIN" "$T/box.obj" $Q --exr "$T/plain.exr" > /dev/null 2> "$T/err" || fail "plain --exr: $(cat "$T/err")"
+magic() { od -A n -t x1 -N 4 "$1" | tr -d ' \n'; }
+[ "$(magic "$T/plain.exr")" = "762f3101" ] && pass "plain EXR written" || fail "plain EXR magic $(magic "$T/plain.exr")"
+
+# A symlink: the file it names is replaced, the link is kept.
+echo old > "$T/target.exr"
+ln -s target.exr "$T/link.exr"
+"$BIN" "$T/box.obj" $Q --exr "$T/link.exr" > /dev/null 2> "$T/err"; rc=$?
+if [ $rc -eq 0 ] && [ -L "$T/link.exr" ] && [ "$(readlink "$T/link.exr")" = target.exr ] &&
+   cmp -s "$T/target.exr" "$T/plain.exr"; then pass "a symlink keeps pointing at the new file"
+else fail "symlink: rc $rc, $(ls -l "$T/link.exr" "$T/target.exr" 2>&1 | tr '\n' ' ')"; fi
+
+# A FIFO: a reader gets the whole file, the FIFO stays a FIFO.
+mkfifo "$T/pipe.exr"
+cat "$T/pipe.exr" > "$T/from-pipe" &
+reader=$!
+"$BIN" "$T/box.obj" $Q --exr "$T/pipe.exr" > /dev/null 2> "$T/err"; rc=$?
+wait $reader
+if [ $rc -eq 0 ] && [ -p "$T/pipe.exr" ] && cmp -s "$T/from-pipe" "$T/plain.exr"; then pass "a FIFO gets the EXR's bytes"
+else fail "FIFO: rc $rc, $(cat "$T/err")"; fi
+
+# Standard output through a pipe (--exr /dev/stdout | ...).
+"$BIN" "$T/box.obj" $Q --exr /dev/stdout 2> "$T/err" > "$T/stdout.bin"; rc=$?
+# The summary comes first on stdout, the EXR after it: find the EXR's magic.
+python3 - "$T/stdout.bin" "$T/plain.exr" <<'PY' && [ $rc -eq 0 ] && pass "--exr /dev/stdout writes the EXR" ||
+import sys
+out, want = open(sys.argv[1], "rb").read(), open(sys.argv[2], "rb").read()
+assert out.endswith(want), (len(out), len(want))
+PY
+  fail "--exr /dev/stdout: rc $rc, $(cat "$T/err")"
+
+# A character device (root only: mknod), as /dev/null is: still a device after the run.
+if mknod -m 666 "$T/null" c 1 3 2> /dev/null; then
+  "$BIN" "$T/box.obj" $Q --exr "$T/null" --vdb "$T/null" > /dev/null 2> "$T/err"; rc=$?
+  [ $rc -eq 0 ] && [ -c "$T/null" ] && pass "a device stays a device" || fail "device: rc $rc, $(ls -l "$T/null")"
+else
+  skip "not root: no device node to write to (mknod)"
+fi
+
+# A folder is a usage error, before any work.
+"$BIN" "$T/box.obj" $Q --exr "$T" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q "is a folder" "$T/err" && pass "a folder: exit 2, $(head -n 1 "$T/err")" ||
+  fail "folder: rc $rc, $(cat "$T/err")"
+
+# A run killed before its output is in place leaves no temporary file: a
+# run whose FIFO has no reader yet waits for one, holding the finished EXR
+# in a private folder under TMPDIR; SIGTERM then removes it.
+mkdir "$T/tmp"
+mkfifo "$T/lonely.exr"
+TMPDIR="$T/tmp" "$BIN" "$T/box.obj" $Q --exr "$T/lonely.exr" > /dev/null 2>&1 &
+pid=$!
+i=0
+while [ $i -lt 600 ] && [ -z "$(find "$T/tmp" -name lonely.exr 2> /dev/null)" ]; do sleep 0.05; i=$((i + 1)); done
+held=$(find "$T/tmp" -name lonely.exr | head -n 1)
+sleep 0.2
+kill -TERM $pid; wait $pid; rc=$?
+left=$(find "$T/tmp" -mindepth 1 | tr '\n' ' ')
+[ -n "$held" ] && [ $rc -eq 143 ] && [ -z "$left" ] && pass "SIGTERM while waiting to deliver: nothing left in TMPDIR" ||
+  fail "SIGTERM: held '$held', rc $rc, left '$left'"
+finish
