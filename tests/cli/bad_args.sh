@@ -62,6 +62,20 @@ expect_usage --city-extent "$T/x.obj" --city-extent 100
 printf '1 2 3\n# comment\n4 5 x\n' > "$T/pts.txt"
 expect_usage "pts.txt:3" city --probes "$T/pts.txt"
 
+# Coordinates past Embree's ray range (about 1.8e18) aborted the process
+# (its ray.valid() assertion): a viewpoint there is refused (1, named), a
+# probe or a lamp there is answered; no signal either way.
+far() {
+  want=$1; shift
+  "$BIN" city --levels 2 --res 8 --bounces 1 "$@" > /dev/null 2> "$T/err"; rc=$?
+  [ $rc -eq "$want" ] && pass "'$*' -> $rc" || fail "'$*' exited $rc (want $want): $(tail -n 2 "$T/err")"
+}
+far 1 --at 1e20,1.7,0
+far 1 --at 1.9e18,1.7,0
+printf '1e20 1 1\n0 1.7 0\n' > "$T/far.txt"
+far 0 --probes "$T/far.txt"
+far 0 --point 1e19,1,1,1,1,1
+
 # A missing scene file is a runtime error (1) naming the file.
 missing="$T/no-such-dir/missing-scene.obj"
 "$BIN" "$missing" > "$T/out" 2> "$T/err"; rc=$?

@@ -92,6 +92,11 @@ printf '0,1,2,3\n0.1,1,2\n' > "$T/bad.csv"
 [ $rc -eq 2 ] && grep -q -- "--scene: bench takes a scene file with --path FILE only" "$T/err" \
   && pass "--scene without --path -> 2" || fail "--scene without --path (rc $rc): $(cat "$T/err")"
 
+# A step past Embree's ray range (1e20) aborted the bench; now it is refused, named.
+printf '0,0,1.7,0\n0.1,1e20,1.7,0\n' > "$T/far.csv"
+"$WALK" bench --extent 300 --path "$T/far.csv" --samples 1 --out "$T/pf" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 1 ] && grep -q "1e+20" "$T/err" && pass "a step at 1e20 -> 1, named" || fail "step at 1e20: exit $rc: $(cat "$T/err")"
+
 "$WALK" bench --paths-only --out /proc/gi-walk-test > "$T/out" 2> "$T/err"; rc=$?
 [ $rc -eq 1 ] && grep -q -F "gi-walk: --out: cannot create '/proc/gi-walk-test'" "$T/err" &&
   pass "uncreatable --out -> 1, named" || fail "uncreatable --out: exit $rc: $(cat "$T/err")"

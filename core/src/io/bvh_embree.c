@@ -112,6 +112,18 @@ void gi__bvh_free(struct gi_scene *s) {
 
 enum { CHUNK = 256 };
 
+/* Embree asserts (and aborts the process) on a ray whose origin or
+ * direction has a coordinate beyond about 1.8e18 (its ray.valid()): such a
+ * ray is no ray here. The callers' own limits (points within 1e9 of the
+ * scene) stop them well before; this keeps a missed check from killing a
+ * server. */
+#define RAY_LARGE 1e18f
+static inline int ray_ok(const float org[3], const float dir[3]) {
+  for (int k = 0; k < 3; k++)
+    if (!(fabsf(org[k]) <= RAY_LARGE) || !(fabsf(dir[k]) <= RAY_LARGE)) return 0;
+  return 1;
+}
+
 void gi__occluded(const struct gi_scene *s, int n, const float *org, const float *dir,
                   const float *tnear, const float *tfar, uint8_t *visible) {
   if (!s->rtc) {
@@ -138,9 +150,14 @@ void gi__occluded(const struct gi_scene *s, int n, const float *org, const float
       ray->flags = 0;
       /* A segment that is empty or not finite blocks nothing: Embree skips
        * rays with tfar < tnear, so disable it that way. */
-      int ok = gi__finite3(&org[3 * r]) && gi__finite3(&dir[3 * r]) && isfinite(tnear[r]) &&
-               !isnan(tfar[r]) && tnear[r] >= 0.f && tnear[r] <= tfar[r];
-      if (!ok) { ray->tnear = 0.f; ray->tfar = -1.f; }
+      int ok = ray_ok(&org[3 * r], &dir[3 * r]) && isfinite(tnear[r]) && !isnan(tfar[r]) && tnear[r] >= 0.f &&
+               tnear[r] <= tfar[r];
+      if (!ok) {
+        ray->org_x = ray->org_y = ray->org_z = ray->dir_x = ray->dir_y = 0.f;
+        ray->dir_z = 1.f;
+        ray->tnear = 0.f;
+        ray->tfar = -1.f;
+      }
     }
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
@@ -157,8 +174,7 @@ void gi__occluded(const struct gi_scene *s, int n, const float *org, const float
 static int closest_hit(RTCScene sc, const float org[3], const float dir[3], float tnear, float tfar, float *t,
                        uint32_t *prim) {
   if (!sc) return 0;
-  if (!gi__finite3(org) || !gi__finite3(dir) || !isfinite(tnear) || isnan(tfar) || tnear < 0.f || tnear > tfar)
-    return 0;
+  if (!ray_ok(org, dir) || !isfinite(tnear) || isnan(tfar) || tnear < 0.f || tnear > tfar) return 0;
   struct RTCRayHit rh;
   memset(&rh, 0, sizeof rh);
   rh.ray.org_x = org[0]; rh.ray.org_y = org[1]; rh.ray.org_z = org[2];
@@ -291,6 +307,8 @@ static gi_result query_sphere(const struct gi_scene *s, const float lo[3], const
   pq.time = 0.f;
   /* Circumscribed sphere, widened so float rounding of the centre cannot cut off a corner. */
   double r = sqrt(h2);
+  /* A box beyond Embree's ray range (RAY_LARGE) holds none of the scene's triangles. */
+  if (!(fabs(c[0]) + r <= RAY_LARGE && fabs(c[1]) + r <= RAY_LARGE && fabs(c[2]) + r <= RAY_LARGE)) return GI_OK;
   pq.radius = (float)(r * (1.0 + 1e-5) + 1e-6 * (fabs(c[0]) + fabs(c[1]) + fabs(c[2])) + 1e-30);
   struct RTCPointQueryContext ctx;
   rtcInitPointQueryContext(&ctx);
@@ -345,7 +363,7 @@ static bool near_cb(struct RTCPointQueryFunctionArguments *args) {
 }
 
 int gi__closest_point(const struct gi_scene *s, const float p[3], float radius, float q[3], float *dist) {
-  if (!s->rtc || !gi__finite3(p) || !(radius > 0)) return 0;
+  if (!s->rtc || !ray_ok(p, p) || !(radius > 0) || !(radius <= RAY_LARGE)) return 0;
   near_query nq = {.s = s, .p = {p[0], p[1], p[2]}, .d2 = radius * radius};
   struct RTCPointQuery pq = {.x = p[0], .y = p[1], .z = p[2], .time = 0.f, .radius = radius};
   struct RTCPointQueryContext ctx;
