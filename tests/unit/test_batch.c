@@ -84,6 +84,40 @@ static void test_street_level_against_geometry(void **state) {
   gi_scene_release(s);
 }
 
+/* A grid over the scene's bounds puts its last row and column on the
+ * ground's outer edge; Embree counts a ray along a boundary edge on one
+ * side only, so those columns all read "no ground" (21 of 121 here). */
+static void test_street_level_on_the_bounds(void **state) {
+  (void)state;
+  /* A 200 m ground in 4 x 4 quads, wound as an exporter wrote one (a, d, c, b). */
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  for (int i = 0; i < 4; i++)
+    for (int j = 0; j < 4; j++) {
+      double x0 = -100 + 50 * i, x1 = x0 + 50, z0 = -100 + 50 * j, z1 = z0 + 50;
+      double qa[3] = {x0, 0, z0}, qb[3] = {x1, 0, z0}, qc[3] = {x1, 0, z1}, qd[3] = {x0, 0, z1};
+      gi_mesh_builder_add_quad(b, qa, qd, qc, qb, mat);
+    }
+  gi_scene_options so = {.up = GI_UP_Y, .threads = 1};
+  gi_scene *s = NULL;
+  gi_error_info e0 = {0};
+  assert_int_equal(gi_scene_build(b, "ground", &so, &s, &e0), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_grid_spec spec = {.spacing = 20, .above_ground = HEIGHT};
+  gi_probe_grid g;
+  gi_error_info err = {0};
+  assert_int_equal(gi_probe_grid_build(s, &spec, &g, &err), GI_OK);
+  assert_int_equal(g.counts[0], 11);
+  assert_int_equal(g.counts[2], 11);
+  printf("plane's bounds, 11 x 11 columns: %zu valid, %zu without ground\n", g.num_valid, g.num_no_ground);
+  assert_int_equal(g.num_no_ground, 0);
+  assert_int_equal(g.num_valid, 121);
+  for (size_t i = 0; i < g.n; i++) assert_float_equal(g.pos[3 * i + 1], HEIGHT, 1e-4);
+  gi_probe_grid_free(&g);
+  gi_scene_release(s);
+}
+
 static void test_lattice_and_bad_specs(void **state) {
   (void)state;
   gi_scene *s = street_scene();
@@ -206,6 +240,7 @@ static void test_volume_exr_read_back(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_street_level_against_geometry),
+      cmocka_unit_test(test_street_level_on_the_bounds),
       cmocka_unit_test(test_lattice_and_bad_specs),
       cmocka_unit_test(test_volume_vdb_read_back),
       cmocka_unit_test(test_volume_exr_read_back),

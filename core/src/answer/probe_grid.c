@@ -45,6 +45,23 @@ static int column_ground(const ray_ctx *c, float a, float b, float *ground) {
   return found;
 }
 
+/* A column on the scene's outer edge (a grid over the bounds puts its last
+ * row there) runs along the ground's boundary edge, which Embree's edge
+ * rule counts on one side only: the max edge's columns all missed. Such a
+ * column looks for ground just inside the bounds. 0 when it is not on an
+ * edge or finds nothing there either. */
+static int edge_ground(const ray_ctx *c, const float local[3], float *ground) {
+  const int ax[2] = {c->h0, c->h1};
+  float q[2] = {local[c->h0], local[c->h1]};
+  int moved = 0;
+  for (int i = 0; i < 2; i++) {
+    float lo = c->s->lo[ax[i]], hi = c->s->hi[ax[i]];
+    if (fabsf(q[i] - hi) <= c->eps) q[i] = hi - c->eps, moved = 1;
+    else if (fabsf(q[i] - lo) <= c->eps) q[i] = lo + c->eps, moved = 1;
+  }
+  return moved && column_ground(c, q[0], q[1], ground);
+}
+
 /* Covered and enclosed: see the file comment. */
 static int inside_building(const ray_ctx *c, const float p[3]) {
   float dir[3] = {0, 0, 0}, t;
@@ -128,7 +145,7 @@ static void place_above_ground(const gi_scene *scene, const gi_grid_spec *spec, 
     float local[3];
     for (int a = 0; a < 3; a++) local[a] = (float)(p[a] - s->origin[a]);
     float ground;
-    if (!column_ground(&c, local[c.h0], local[c.h1], &ground)) {
+    if (!column_ground(&c, local[c.h0], local[c.h1], &ground) && !edge_ground(&c, local, &ground)) {
       g->state[i] = GI_GRID_NO_GROUND;
       g->num_no_ground++;
       continue;
