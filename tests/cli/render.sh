@@ -64,6 +64,19 @@ m=$(view m "$T/cam06.xml") && n=$(view n 2,2,3,2,2,2,30,256,128) && [ "$m" = "25
   cmp -s "$T/m.exr" "$T/n.exr" && pass "a Mitsuba 0.6 matrix sensor draws as the same camera in numbers ($m)" ||
   { cat "$T/err" >&2; fail "Mitsuba 0.6 sensor: '$m' against '$n', or the images differ"; }
 
+# An eye inside a closed, unlit solid: the reference is black, so each
+# pixel's error is floored at the cone view's mean (20x at most, 2000%);
+# with a floor of 1e-30 the figure read 4e29%.
+printf 'v -2 0 -2\nv -2 0 2\nv -2 4 -2\nv -2 4 2\nv 2 0 -2\nv 2 0 2\nv 2 4 -2\nv 2 4 2\n' > "$T/closed.obj"
+printf 'v -10 0 -10\nv 10 0 -10\nv 10 0 10\nv -10 0 10\n' >> "$T/closed.obj"
+printf 'f 1 5 6\nf 1 6 2\nf 3 4 8\nf 3 8 7\nf 1 2 4\nf 1 4 3\nf 5 7 8\nf 5 8 6\nf 1 3 7\nf 1 7 5\nf 2 6 8\nf 2 8 4\n' >> "$T/closed.obj"
+printf 'f 9 12 11\nf 9 11 10\n' >> "$T/closed.obj"
+"$BIN" "$T/closed.obj" --at 5,1,5 --levels 3 --res 16 --json --render 0,2,0,1,2,0,60,32,32 --render-samples 4 \
+    --png "$T/closed.png" > "$T/closed.json" 2> "$T/err" &&
+  python3 -c 'import json,sys; e=json.load(open(sys.argv[1]))["render"]["mean_relative_error"]; assert 0 <= e <= 20.0001, e; print(e)' \
+    "$T/closed.json" > "$T/mre" && pass "a black reference: mean relative error $(cat "$T/mre") (<= 20)" ||
+  fail "black reference: $(cat "$T/err" "$T/mre" 2> /dev/null)"
+
 if command -v exrheader > /dev/null 2>&1; then
   exrheader "$T/view.exr" > "$T/hdr" 2>&1
   grep -q 'path\.R' "$T/hdr" && grep -q 'error\.Y' "$T/hdr" && pass "EXR has path.R and error.Y" || fail "EXR channels"
@@ -74,6 +87,10 @@ expect2() {
   if [ $rc -eq 2 ] && grep -q -e "--render\|--png" "$T/err"; then pass "'$*' -> 2: $(head -n 1 "$T/err")"
   else fail "'$*' exited $rc: $(cat "$T/err")"; fi
 }
+# Straight down (a plan view) has no up in the compact form: north goes to the top.
+"$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --bounces 1 --render 2,3.5,2,2,0,2,90,16,16 --render-samples 1 \
+    --png "$T/down.png" > /dev/null 2> "$T/err" && pass "a view straight down renders" ||
+  fail "straight down: $(cat "$T/err")"
 expect2 "$T/box.obj" --render 2,2,0.3,2,2,0.3,70,24,16 --png "$T/x.png"
 expect2 "$T/box.obj" --render 2,2,0.3,2,2,3,0,24,16 --png "$T/x.png"
 expect2 "$T/box.obj" --render 2,2,0.3,2,2,3,70,24.5,16 --png "$T/x.png"

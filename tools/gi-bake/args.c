@@ -152,7 +152,8 @@ static const char help_text[] =
     "                        to_world, fov or focal_length, its film's aspect at\n"
     "                        256 pixels across), or X,Y,Z,TX,TY,TZ,FOV,W,H: eye, target,\n"
     "                        fov in degrees across the smaller side, pixels\n"
-    "                        (up = the scene's up axis)\n"
+    "                        (up = the scene's up axis; looking straight down\n"
+    "                        or up, north: +y for z up, -z for y up)\n"
     "  --png OUT.png         cone-traced | path-traced | error side by side (needs\n"
     "                        --render); with --render, --exr gets the images\n"
     "                        (R,G,B cone-traced, path.R/G/B, error.Y) instead of probes\n"
@@ -417,13 +418,8 @@ static int take_scene(int argc, char **argv, cli_opts *o) {
 static int check_render_camera(const cli_opts *o) {
   gi_camera cam = o->cam;
   gi_error_info e = {0};
-  /* The up axis is known only after loading, where it is checked again:
-   * here take whichever of y and z lies farther from the view. */
-  if (o->cam_up_from_scene) {
-    double d[3];
-    for (int a = 0; a < 3; a++) d[a] = cam.target[a] - cam.eye[a];
-    cam.up[fabs(d[1]) <= fabs(d[2]) ? 1 : 2] = 1;
-  }
+  /* The up axis is known only after loading, where it is set again. */
+  if (o->cam_up_from_scene) cli_render_up(&cam, o->up == GI_UP_Z);
   if (gi_camera_validate(&cam, &e) != GI_OK) return ta_fail(&ta, "--render", "%s", e.msg);
   return 0;
 }

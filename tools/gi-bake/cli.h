@@ -75,6 +75,10 @@ typedef struct cli_run {
  * number, which must never reach the output). */
 int cli_report(const cli_run *r, int json);
 
+/* The compact --render camera's up: the scene's up axis (z_up: z, else
+ * y), or for a view along it north (+y for z up, -z for y up) at the top. */
+void cli_render_up(gi_camera *cam, int z_up);
+
 /* render.c: the --render pictures (cone-traced, path-traced, error) to
  * o->png and/or o->exr; fills st with what it measured. Returns 0,
  * EXIT_USAGE (bad camera for this scene) or EXIT_RUN. */

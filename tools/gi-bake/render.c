@@ -14,12 +14,19 @@
 
 static float lum(const float *c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
 
+void cli_render_up(gi_camera *cam, int z_up) {
+  double d[3], l = 0;
+  for (int a = 0; a < 3; a++) d[a] = cam->target[a] - cam->eye[a], l += d[a] * d[a];
+  memset(cam->up, 0, sizeof cam->up);
+  /* Within 2.6 degrees of straight up or down the up axis leaves no
+   * picture; north goes to the top instead, as on a map. */
+  if (fabs(d[z_up ? 2 : 1]) >= 0.999 * sqrt(l)) cam->up[z_up ? 1 : 2] = z_up ? 1 : -1;
+  else cam->up[z_up ? 2 : 1] = 1;
+}
+
 int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, cli_render_stats *st) {
   gi_camera cam = o->cam;
-  if (o->cam_up_from_scene) {
-    memset(cam.up, 0, sizeof cam.up);
-    cam.up[gi_scene_up(scene) == GI_UP_Z ? 2 : 1] = 1;
-  }
+  if (o->cam_up_from_scene) cli_render_up(&cam, gi_scene_up(scene) == GI_UP_Z);
   gi_error_info err = {0};
   if (gi_camera_validate(&cam, &err) != GI_OK) {
     fprintf(stderr, "gi-bake: --render: %s\n", err.msg);
@@ -43,13 +50,17 @@ int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, 
     goto done;
   }
   st->cone_ms = st->view.ms;
-  double mean = 0;
-  for (size_t i = 0; i < np; i++) mean += lum(&path[3 * i]) / (double)np;
-  float floor_l = (float)(0.05 * mean), exposure = mean > 0 ? (float)(0.18 / mean) : 1.f;
+  double mean = 0, cone_mean = 0;
+  for (size_t i = 0; i < np; i++) mean += lum(&path[3 * i]) / (double)np, cone_mean += lum(&cone[3 * i]) / (double)np;
+  /* Errors relative to each pixel, floored at 5% of the mean: a dark pixel
+   * is not divided by nothing. A black reference (an eye inside a closed,
+   * unlit solid) floors at the cone view's mean instead, which read
+   * 4e29% when the floor was 1e-30; both black is no error. */
+  float floor_l = (float)(0.05 * (mean > 0 ? mean : cone_mean)), exposure = mean > 0 ? (float)(0.18 / mean) : 1.f;
   double sum = 0;
   for (size_t i = 0; i < np; i++) {
     float lc = lum(&cone[3 * i]), lp = lum(&path[3 * i]);
-    errimg[i] = fabsf(lc - lp) / fmaxf(lp, floor_l > 0 ? floor_l : 1e-30f);
+    errimg[i] = floor_l > 0 ? fabsf(lc - lp) / fmaxf(lp, floor_l) : 0.f;
     sum += errimg[i];
   }
   st->mre = sum / (double)np;
