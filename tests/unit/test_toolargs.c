@@ -364,6 +364,15 @@ static void test_headers(void **state) {
   assert_int_equal(n, 2);
   assert_true(st[0].t == 0 && st[0].at[2] == 3 && st[1].t == 0.5 && st[1].at[0] == 4);
   free(st);
+  /* Excel's "CSV UTF-8" starts with a byte-order mark, before the header. */
+  static const char bom_path[] = "\xEF\xBB\xBFt,x,y,z\n0,1,2,3\n";
+  assert_int_equal(ta_read_path(&c, "--path", tu_write_file("bom.csv", bom_path, sizeof bom_path - 1), &st, &n), 0);
+  assert_true(n == 1 && st[0].at[0] == 1);
+  free(st);
+  static const char bom_pts[] = "\xEF\xBB\xBF" "1 2 3\n";
+  assert_int_equal(ta_read_points(&c, "--probes", tu_write_file("bom.txt", bom_pts, sizeof bom_pts - 1), 16, &pts, &n), 0);
+  assert_true(n == 1 && pts[0] == 1 && pts[2] == 3);
+  free(pts);
   const char *bad_paths[4] = {"0,1,2,3\nt,x,y,z\n", "t,x,y\n0,1,2,3\n", "nan,nan,nan,nan\n", "1,0,0,0\n0,0,0,0\n"};
   const char *why[4] = {"bp0.csv:2: expected t,x,y,z", "bp1.csv:1: expected t,x,y,z", "bp2.csv:1: expected t,x,y,z",
                         "bp3.csv:2: t = 0 goes back in time"};

@@ -241,6 +241,8 @@ int ta_read_path(ta_ctx *ta, const char *opt, const char *path, ta_step **out, s
       rc = ta_error(ta, TA_EXIT_USAGE, opt, "%s:%ld: line longer than %d bytes", path, no, TA_PATH_LINE_MAX);
       break;
     }
+    /* A UTF-8 byte-order mark (Excel's "CSV UTF-8") starts some files. */
+    if (no == 1 && !strncmp(line, "\xEF\xBB\xBF", 3)) memmove(line, line + 3, strlen(line + 3) + 1);
     char copy[sizeof line];
     snprintf(copy, sizeof copy, "%s", line);
     copy[strcspn(copy, "\r\n")] = 0;

@@ -72,6 +72,8 @@ gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, 
     char *hash = strchr(line, '#');
     if (hash) *hash = '\0';
     char *p = line;
+    /* A UTF-8 byte-order mark (Notepad's and Excel's "CSV UTF-8") starts some files. */
+    if (lineno == 1 && !strncmp(p, "\xEF\xBB\xBF", 3)) p += 3;
     while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') p++;
     if (!*p) continue;
     size_t len = strlen(p);
