@@ -428,6 +428,63 @@ static void test_gltf_read_back(void **state) {
   gi_scene_release(s);
 }
 
+/* A 10 m plate of two triangles with lightmap UVs (u, v) = k (x, z) / 10 + off. */
+static gi_scene *plate_with_uv(double k, double off) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m), v[4];
+  static const double xz[4][2] = {{0, 0}, {10, 0}, {10, 10}, {0, 10}};
+  for (int i = 0; i < 4; i++) {
+    v[i] = gi_mesh_builder_add_vertex(b, xz[i][0], 0, xz[i][1]);
+    gi_mesh_builder_set_lightmap_uv(b, v[i], k * xz[i][0] / 10 + off, k * xz[i][1] / 10 + off);
+  }
+  gi_mesh_builder_add_triangle(b, v[0], v[2], v[1], mat);
+  gi_mesh_builder_add_triangle(b, v[0], v[3], v[2], mat);
+  gi_scene_options so = {.up = GI_UP_Y, .threads = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "plate", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  assert_true(gi_scene_has_lightmap_uv(s));
+  return s;
+}
+
+/* A scene's own UVs are a layout only inside [0, 1] and with area: moved by
+ * a whole tile they baked nothing, all at one point they gathered one
+ * texel for the whole atlas, both with success. Each fails now, naming
+ * the way out; --own-charts (scene_uv = -1) still bakes. */
+static void test_scene_uv_checked(void **state) {
+  (void)state;
+  static const struct {
+    double k, off;
+    gi_result want;
+    const char *says;
+  } cases[] = {{1, 0, GI_OK, NULL},
+               {0.98, 0.01, GI_OK, NULL},
+               {1, 3, GI_ERR_FORMAT, "put 2 of 2 triangles outside [0, 1]"},
+               {10, 0, GI_ERR_FORMAT, "outside [0, 1]"},
+               {0, 0.5, GI_ERR_FORMAT, "100.0% of the surface no area"},
+               {1e-9, 0.5, GI_ERR_FORMAT, "no area"}};
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    gi_scene *s = plate_with_uv(cases[i].k, cases[i].off);
+    gi_lightmap_opts o = {.atlas = 64};
+    gi_lightmap *lm = NULL;
+    gi_error_info err = {0};
+    assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), cases[i].want);
+    if (cases[i].says) {
+      printf("uv x %g + %g: %s\n", cases[i].k, cases[i].off, err.msg);
+      assert_non_null(strstr(err.msg, cases[i].says));
+      assert_non_null(strstr(err.msg, "scene_uv = -1"));
+      o.scene_uv = -1;
+      assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+    } else {
+      assert_int_equal(gi_lightmap_num_charts(lm), 1);
+    }
+    gi_lightmap_free(lm);
+    gi_scene_release(s);
+  }
+}
+
 /* The bake does not depend on threads or on how the region is tiled per
  * texel seed; a second bake of the same lightmap gives the same atlas. */
 static void test_bake_deterministic_and_tiled(void **state) {
@@ -620,6 +677,7 @@ int main(void) {
       cmocka_unit_test(test_cornell_against_reference),
       cmocka_unit_test(test_exr_read_back),
       cmocka_unit_test(test_gltf_read_back),
+      cmocka_unit_test(test_scene_uv_checked),
       cmocka_unit_test(test_bake_deterministic_and_tiled),
       cmocka_unit_test(test_big_chart_tiles),
       cmocka_unit_test(test_no_dark_seams),

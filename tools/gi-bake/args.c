@@ -65,6 +65,7 @@ static const struct option long_opts[] = {
     {"texel", required_argument, NULL, LM_OPT_TEXEL},
     {"atlas", required_argument, NULL, LM_OPT_ATLAS},
     {"tile", required_argument, NULL, LM_OPT_TILE},
+    {"own-charts", no_argument, NULL, LM_OPT_OWN_CHARTS},
     {"help", no_argument, NULL, 'h'},
     {"version", no_argument, NULL, 'V'},
     {NULL, 0, NULL, 0}};
@@ -146,6 +147,8 @@ static const char help_text[] =
     "                        with one tile, 600, 300, 150, 100 m (21-48 s at --texel 2)\n"
     "  --uv-out OUT.glb      the lightmap's triangles as glTF 2.0, lightmap UVs in\n"
     "                        TEXCOORD_1, one mesh per atlas\n"
+    "  --own-charts          make charts even when the scene has lightmap UVs of its\n"
+    "                        own (a second UV set, which must lie in [0, 1])\n"
     "\n"
     "Pictures (the view from the cascade beside the same view path-traced)\n"
     "  --render CAMERA       a Mitsuba XML file's perspective sensor (0.6 or 3:\n"
@@ -398,7 +401,7 @@ static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
   case OPT_CITY_EXTENT: case OPT_CITY_SEED: case OPT_CITY_DETAIL: return city_option(o, c, arg);
   case OPT_GRID: case OPT_REGION: case OPT_ABOVE_GROUND: case OPT_SHARD: case OPT_RESUME: case OPT_MANIFEST:
     return batch_option(&ta, &o->batch, c, arg);
-  case LM_OPT_OUT: case LM_OPT_UV_OUT: case LM_OPT_TEXEL: case LM_OPT_ATLAS: case LM_OPT_TILE:
+  case LM_OPT_OUT: case LM_OPT_UV_OUT: case LM_OPT_TEXEL: case LM_OPT_ATLAS: case LM_OPT_TILE: case LM_OPT_OWN_CHARTS:
     return lightmap_option(o, c, arg);
   default: return ta_getopt_fail(&ta, c, argv, long_opts);
   }

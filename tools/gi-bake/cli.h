@@ -19,7 +19,7 @@ typedef struct cli_lightmap {
   gi_lightmap_opts opts;    /* zero fields = core defaults */
 } cli_lightmap;
 /* getopt_long values of the lightmap options (after args.c's own). */
-enum { LM_OPT_OUT = 512, LM_OPT_UV_OUT, LM_OPT_TEXEL, LM_OPT_ATLAS, LM_OPT_TILE }; /* --region: batch.h's, shared */
+enum { LM_OPT_OUT = 512, LM_OPT_UV_OUT, LM_OPT_TEXEL, LM_OPT_ATLAS, LM_OPT_TILE, LM_OPT_OWN_CHARTS }; /* --region: batch.h's, shared */
 
 /* Everything the command line asked for, after strict parsing. */
 typedef struct cli_opts {

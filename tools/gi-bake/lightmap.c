@@ -29,6 +29,7 @@ int lightmap_option(cli_opts *o, int c, const char *arg) {
     return ta_int(&ta, "--atlas", NULL, arg, GI_LIGHTMAP_MIN_ATLAS, GI_LIGHTMAP_MAX_ATLAS, &l->opts.atlas);
   case LM_OPT_TILE:
     return ta_double(&ta, "--tile", "a tile side in world units > 0", arg, 0, HUGE_VAL, &l->opts.tile);
+  case LM_OPT_OWN_CHARTS: l->opts.scene_uv = -1; return 0;
   default: return 0;
   }
 }
@@ -43,6 +44,7 @@ int lightmap_check(cli_opts *o) {
   int rc;
   if (!l->out) {
     if (l->uv_out) return ta_fail(&ta, "--uv-out", "needs --lightmap");
+    if (l->opts.scene_uv) return ta_fail(&ta, "--own-charts", "needs --lightmap");
     if (l->opts.texel) return ta_fail(&ta, "--texel", "needs --lightmap");
     if (l->opts.atlas) return ta_fail(&ta, "--atlas", "needs --lightmap");
     if (l->opts.tile) return ta_fail(&ta, "--tile", "needs --lightmap");

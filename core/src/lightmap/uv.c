@@ -236,6 +236,54 @@ static gi_result grow_charts(struct gi_lightmap *lm, const uint32_t *sel, size_t
   return GI_OK;
 }
 
+/* Share of the selected triangles' area whose UVs may have no area (float
+ * rounding of a sliver) before the UV set counts as broken. */
+#define UV_FLAT_SHARE 0.01
+/* How far outside [0, 1] a UV may round (the file's float32, times the atlas). */
+#define UV_SLACK 1e-4f
+
+/* The scene's UV set must be a lightmap layout: inside [0, 1] (outside, the
+ * texels fell off the atlas: a UV set moved by a whole tile baked nothing)
+ * and with area (all UVs at one point gathered one texel for the whole
+ * atlas). Fails naming the first bad triangle and the way out. */
+static gi_result check_scene_uv(const struct gi_lightmap *lm, const uint32_t *sel, size_t n, gi_error_info *err) {
+  const gi_scene *s = lm->scene;
+  float N = (float)lm->opts.atlas, lo = -UV_SLACK * N, hi = (1 + UV_SLACK) * N;
+  size_t outside = 0, first = SIZE_MAX;
+  int bad = 0; /* first's vertex outside */
+  double area = 0, flat = 0;
+  for (size_t i = 0; i < n; i++) {
+    const float *u = &lm->uv[6 * i];
+    int out = 0;
+    for (int j = 0; j < 3; j++)
+      if (!(u[2 * j] >= lo && u[2 * j] <= hi && u[2 * j + 1] >= lo && u[2 * j + 1] <= hi)) {
+        if (!out && first == SIZE_MAX) first = i, bad = j;
+        out = 1;
+      }
+    outside += (size_t)out;
+    const uint32_t *ix = &s->indices[3 * (size_t)sel[i]];
+    float e1[3], e2[3], x[3];
+    for (int k = 0; k < 3; k++)
+      e1[k] = s->vertices[3 * (size_t)ix[1] + k] - s->vertices[3 * (size_t)ix[0] + k],
+      e2[k] = s->vertices[3 * (size_t)ix[2] + k] - s->vertices[3 * (size_t)ix[0] + k];
+    gi__cross(e1, e2, x);
+    double a = 0.5 * gi__len(x), uv_area = 0.5 * fabs((double)(u[2] - u[0]) * (u[5] - u[1]) - (double)(u[4] - u[0]) * (u[3] - u[1]));
+    area += a;
+    if (!(uv_area > 1e-6)) flat += a; /* under a millionth of a texel */
+  }
+  const char *way = "fix the UV set, or make charts instead (gi-bake --own-charts, gi_lightmap_opts.scene_uv = -1)";
+  if (outside)
+    return gi__fail(err, GI_ERR_FORMAT,
+                    "lightmap: the scene's own lightmap UVs (its second UV set) put %zu of %zu triangles outside [0, 1] "
+                    "(triangle %u has %g, %g); %s", outside, n, sel[first], lm->uv[6 * first + 2 * bad] / N,
+                    lm->uv[6 * first + 2 * bad + 1] / N, way);
+  if (flat > UV_FLAT_SHARE * area)
+    return gi__fail(err, GI_ERR_FORMAT,
+                    "lightmap: the scene's own lightmap UVs (its second UV set) give %.1f%% of the surface no area on "
+                    "the atlas; %s", 100 * flat / area, way);
+  return GI_OK;
+}
+
 /* The scene's own lightmap UVs: every selected triangle in one chart that
  * covers the whole atlas, in texel units (texel centres at j + 0.5). */
 static gi_result scene_chart(struct gi_lightmap *lm, uint32_t *sel, size_t n, gi_error_info *err) {
@@ -251,6 +299,8 @@ static gi_result scene_chart(struct gi_lightmap *lm, uint32_t *sel, size_t n, gi
       lm->uv[6 * i + 2 * j + 1] = s->uv2[2 * (size_t)v + 1] * N;
       for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], s->vertices[3 * (size_t)v + k]), hi[k] = fmaxf(hi[k], s->vertices[3 * (size_t)v + k]);
     }
+  gi_result rc = check_scene_uv(lm, sel, n, err);
+  if (rc != GI_OK) return rc;
   gi_lm_chart *c = &lm->charts[0];
   c->pub.count = n;
   c->cw = c->ch = lm->opts.atlas;
