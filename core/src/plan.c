@@ -88,7 +88,7 @@ enum { DEFAULT_LEVELS = 6 };
  * height) has no neighbourhood scale: it keeps the extent rule. */
 static void default_voxel(const gi_scene *s, gi_quality *q, int auto_levels) {
   double lo[3], hi[3], ext = 0;
-  gi_scene_bounds(s, lo, hi);
+  gi_scene_bulk_bounds(s, lo, hi); /* stray far triangles (a leftover at 0,0,0) set no scale */
   for (int a = 0; a < 3; a++) ext = fmax(ext, hi[a] - lo[a]);
   int up = gi_scene_up(s) == GI_UP_Z ? 2 : 1;
   double height = hi[up] - lo[up];

@@ -116,6 +116,58 @@ static void test_far_origin(void **state) {
 }
 
 
+/* The room in map coordinates, with one stray triangle left at 0,0,0 (an
+ * exporter's leftover): before, the origin sat halfway (float steps of
+ * 0.5 m on the room) and the default voxel followed 5e6 m of bounds, so
+ * the room read no indirect light. The stray is counted, and the room
+ * bakes as it does alone, at default voxel size. */
+static void test_stray_triangle(void **state) {
+  (void)state;
+  const double o[3] = {500000.3217, 12.5, 5000000.3217};
+  gi_quality q = {.levels = 3, .res = 16, .bounces = 1, .light_samples = 4, .probe_samples = 16, .threads = 2};
+  double at[3] = {o[0] + 2, o[1] + 1.5, o[2] + 2};
+  double pts[6] = {o[0] + 2, o[1] + 1.5, o[2] + 2, o[0] + 0.7, o[1] + 0.4, o[2] + 3.1};
+  gi_probe alone[2], with[2];
+  gi_scene *s = room_scene(o, 0.6f, 10.f);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.far_triangles, 0);
+  double lo[3], hi[3], blo[3], bhi[3];
+  gi_scene_bounds(s, lo, hi);
+  bake_gather(s, at, &q, pts, 2, alone);
+  gi_scene_release(s);
+
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material wall = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1}, red = {.albedo = {0.7f, 0.1f, 0.1f}, .roughness = 1};
+  uint32_t mw = gi_mesh_builder_add_material(b, &wall), mr = gi_mesh_builder_add_material(b, &red);
+  double rlo[3] = {o[0], o[1], o[2]}, rhi[3] = {o[0] + 4, o[1] + 3, o[2] + 4};
+  gi_mesh_builder_add_box(b, rlo, rhi, mw);
+  double klo[3] = {o[0] + 2.3, o[1], o[2] + 1.1}, khi[3] = {o[0] + 3.1, o[1] + 1.4, o[2] + 2.0};
+  gi_mesh_builder_add_box(b, klo, khi, mr);
+  uint32_t v0 = gi_mesh_builder_add_vertex(b, 0, 0, 0), v1 = gi_mesh_builder_add_vertex(b, 1, 0, 0),
+           v2 = gi_mesh_builder_add_vertex(b, 0, 0, 1);
+  gi_mesh_builder_add_triangle(b, v0, v2, v1, mw);
+  gi_light pl = {.type = GI_LIGHT_POINT, .color = {10, 10, 10}, .position = {o[0] + 1.3, o[1] + 2.6, o[2] + 1.7}};
+  s = build(b, "room+stray", &pl, 1);
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.far_triangles, 1);
+  gi_scene_bulk_bounds(s, blo, bhi);
+  for (int k = 0; k < 3; k++) assert_true(blo[k] == lo[k] && bhi[k] == hi[k]);
+  gi_scene_bounds(s, lo, hi);
+  assert_true(fabs(lo[0]) < 1 && fabs(hi[2] - rhi[2]) < 1); /* float steps there: the stray is far */
+  bake_gather(s, at, &q, pts, 2, with);
+  gi_scene_release(s);
+  for (int p = 0; p < 2; p++) {
+    printf("hardcase: stray triangle at 0,0,0: probe %d indirect %.5f (alone %.5f), direct %.5f (alone %.5f)\n", p,
+           mean3(with[p].indirect), mean3(alone[p].indirect), mean3(with[p].direct), mean3(alone[p].direct));
+    assert_true(mean3(alone[p].indirect) > 0.01);
+    for (int k = 0; k < 3; k++) {
+      assert_true(fabs(with[p].indirect[k] - alone[p].indirect[k]) <= 1e-3 * alone[p].indirect[k]);
+      assert_true(fabs(with[p].direct[k] - alone[p].direct[k]) <= 1e-3 * fmax(alone[p].direct[k], 1e-3));
+    }
+  }
+}
+
 /* ---- walls thinner than a voxel ---------------------------------------- */
 
 /* Two 2 x 2 x 2 rooms side by side along x, split by a wall of thickness
@@ -639,6 +691,7 @@ static void test_furnace_099(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_far_origin),
+      cmocka_unit_test(test_stray_triangle),
       cmocka_unit_test(test_thin_wall),
       cmocka_unit_test(test_thin_wall_view),
       cmocka_unit_test(test_thin_wall_near_probes),

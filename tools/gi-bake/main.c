@@ -61,15 +61,18 @@ static void note_up_axis(const cli_opts *o, const gi_scene *scene) {
 /* Without --at: the city's street corner, or the centre of the bounds (said
  * on stderr). With --at outside the bounds: a note, usually a wrong --up or unit. */
 static void choose_viewpoint(cli_opts *o, const gi_scene *scene) {
-  double lo[3], hi[3];
+  double lo[3], hi[3], blo[3], bhi[3];
   gi_scene_bounds(scene, lo, hi);
+  gi_scene_bulk_bounds(scene, blo, bhi); /* not between a model and a stray triangle far off */
   if (!o->have_at) {
     if (o->is_city) {
       gi_city_default_viewpoint(&o->city, o->at);
     } else {
-      for (int k = 0; k < 3; k++) o->at[k] = 0.5 * (lo[k] + hi[k]);
-      fprintf(stderr, "gi-bake: no --at given; baking at the centre of the scene bounds (%.9g, %.9g, %.9g)\n",
-              o->at[0], o->at[1], o->at[2]);
+      for (int k = 0; k < 3; k++) o->at[k] = 0.5 * (blo[k] + bhi[k]);
+      gi_scene_stats st;
+      gi_scene_get_stats(scene, &st);
+      fprintf(stderr, "gi-bake: no --at given; baking at the centre of the scene bounds%s (%.9g, %.9g, %.9g)\n",
+              st.far_triangles ? " less its stray far triangles" : "", o->at[0], o->at[1], o->at[2]);
     }
     return;
   }

@@ -106,6 +106,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(sc, "materials", count(st.materials));
   json_object_set_new(sc, "lights", count(st.lights));
   json_object_set_new(sc, "lights_skipped", count(st.lights_skipped));
+  json_object_set_new(sc, "far_triangles", count(st.far_triangles));
   json_object_set_new(sc, "emissive_triangles", count(st.emissive_triangles));
   json_object_set_new(sc, "default_lights_added", json_boolean(st.default_lights_added));
   json_array_append_new(b, vec3d(j, lo, "scene bounds"));
@@ -209,6 +210,14 @@ static void print_human(const cli_run *r) {
     printf("           %u light%s skipped: area and ambient lights are not modelled (make an area light an "
            "emissive surface)\n",
            st.lights_skipped, st.lights_skipped > 1 ? "s" : "");
+  if (st.far_triangles) {
+    double blo[3], bhi[3];
+    gi_scene_bulk_bounds(r->scene, blo, bhi);
+    printf("           %llu stray triangle%s far from the rest, which lies in (%g, %g, %g) .. (%g, %g, %g): the\n"
+           "           default voxel size and viewpoint follow the rest\n",
+           (unsigned long long)st.far_triangles, st.far_triangles > 1 ? "s" : "", blo[0], blo[1], blo[2], bhi[0],
+           bhi[1], bhi[2]);
+  }
   if (st.textures_unreadable)
     printf("           %llu texture%s unreadable: their materials keep the plain colour factor\n",
            (unsigned long long)st.textures_unreadable, st.textures_unreadable > 1 ? "s" : "");

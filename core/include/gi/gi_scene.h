@@ -104,6 +104,10 @@ typedef struct gi_scene_stats {
   uint64_t textures_unreadable; /* diffuse textures missing or undecodable (factor used alone) */
   uint32_t lights_skipped;     /* a file's lights of kinds not modelled (area, ambient, undefined):
                                   not in `lights`; an area light is better an emissive surface */
+  uint64_t far_triangles;      /* kept, but stray: at most 1% of the triangles, more than 100 times
+                                  the rest's extent away (a leftover at 0,0,0 beside a model in
+                                  map coordinates); the origin and the default voxel size follow
+                                  the rest (gi_scene_bulk_bounds) */
 } gi_scene_stats;
 
 /* Loads a scene file through assimp (OBJ+MTL, PLY, glTF 2.0, 3DS, FBX...).
@@ -119,6 +123,9 @@ void gi_scene_release(gi_scene *s);
 void gi_scene_get_stats(const gi_scene *s, gi_scene_stats *out);
 /* World-space bounds of the kept triangles (min, max). Empty scene: origin both. */
 void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]);
+/* The world box of the scene less its stray far triangles (see
+ * gi_scene_stats.far_triangles); the same as gi_scene_bounds without them. */
+void gi_scene_bulk_bounds(const gi_scene *s, double lo[3], double hi[3]);
 /* 1 when the bounds are flat along the file's z (its extent above 0 and
  * under a quarter of both others) while the scene was read with y up: most likely a z-up
  * export (OpenStreetMap, GIS) whose sun and sky would light it from the

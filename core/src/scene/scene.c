@@ -333,6 +333,79 @@ static void classify(const gi_mesh_builder *b, double scale, gi_scene *s, build_
   }
 }
 
+/* Stray triangles: at most STRAY_SHARE of them (at least one), farther
+ * than STRAY_RATIO times the rest's extent. The rest is found from a
+ * sample of at most STRAY_SAMPLE centroids: per axis the narrowest run of
+ * sorted centroids that leaves out at most that share. */
+#define STRAY_SHARE 0.01
+#define STRAY_RATIO 100.0
+#define STRAY_SAMPLE 65536
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+static void centroid(const gi_mesh_builder *b, double scale, size_t tr, double c[3]) {
+  const uint32_t *ti = b->tri + 3 * tr;
+  for (int k = 0; k < 3; k++)
+    c[k] = (b->v[3 * (size_t)ti[0] + k] + b->v[3 * (size_t)ti[1] + k] + b->v[3 * (size_t)ti[2] + k]) * scale / 3;
+}
+
+/* The bulk box of the kept triangles: the whole bounds (lo, hi), unless a
+ * few stray triangles lie far from the rest. Then the box is the rest's,
+ * grown by its extent, and the strays are counted: a leftover triangle at
+ * 0,0,0 beside a city in map coordinates put the origin halfway (float
+ * steps of 0.25 m on the city) and the default voxel at 763 m (no
+ * indirect light). Without memory for the sample, the whole bounds. */
+static void bulk_box(const gi_mesh_builder *b, double scale, gi_scene *s, const build_tmp *t, const double lo[3],
+                     const double hi[3]) {
+  memcpy(s->bulk_lo, lo, sizeof s->bulk_lo), memcpy(s->bulk_hi, hi, sizeof s->bulk_hi);
+  size_t stride = t->kept > STRAY_SAMPLE ? (t->kept + STRAY_SAMPLE - 1) / STRAY_SAMPLE : 1, m = 0, k = 0;
+  double *c = t->kept >= 2 ? gi__malloc(3 * (t->kept / stride + 1) * sizeof *c) : NULL;
+  if (!c) return;
+  for (size_t tr = 0; tr < b->nt; tr++)
+    if (t->cls[tr] == TRI_KEEP && k++ % stride == 0) {
+      double p[3];
+      centroid(b, scale, tr, p);
+      for (int a = 0; a < 3; a++) c[a * (t->kept / stride + 1) + m] = p[a];
+      m++;
+    }
+  double qlo[3], qhi[3], ext = 0, full = 0;
+  size_t leave = (size_t)fmax(1.0, STRAY_SHARE * (double)m);
+  for (int a = 0; a < 3; a++) {
+    double *col = c + a * (t->kept / stride + 1);
+    qsort(col, m, sizeof *col, cmp_double);
+    qlo[a] = col[0], qhi[a] = col[m - 1];
+    for (size_t i = 0; i <= leave && i + m - leave - 1 < m; i++)
+      if (col[i + m - 1 - leave] - col[i] < qhi[a] - qlo[a]) qlo[a] = col[i], qhi[a] = col[i + m - 1 - leave];
+    ext = fmax(ext, qhi[a] - qlo[a]), full = fmax(full, hi[a] - lo[a]);
+  }
+  gi__free(c);
+  if (!(ext > 0) || !(full > STRAY_RATIO * ext)) return;
+  double blo[3], bhi[3];
+  for (int a = 0; a < 3; a++) blo[a] = qlo[a] - ext, bhi[a] = qhi[a] + ext;
+  uint64_t far = 0;
+  double nlo[3] = {INFINITY, INFINITY, INFINITY}, nhi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t tr = 0; tr < b->nt; tr++) {
+    if (t->cls[tr] != TRI_KEEP) continue;
+    double p[3];
+    centroid(b, scale, tr, p);
+    int out = 0;
+    for (int a = 0; a < 3; a++) out |= p[a] < blo[a] || p[a] > bhi[a];
+    if (out) far++;
+    else
+      for (int j = 0; j < 3; j++) {
+        double v[3];
+        for (int a = 0; a < 3; a++) v[a] = b->v[3 * (size_t)b->tri[3 * tr + j] + a] * scale;
+        grow_box(v, nlo, nhi);
+      }
+  }
+  if (far == 0 || (double)far > fmax(1.0, STRAY_SHARE * (double)t->kept) || !(nlo[0] <= nhi[0])) return;
+  s->stats.far_triangles = far;
+  memcpy(s->bulk_lo, nlo, sizeof nlo), memcpy(s->bulk_hi, nhi, sizeof nhi);
+}
+
 /* Kept vertices relative to the origin, in float, and their local bounds. */
 static gi_result copy_vertices(const gi_mesh_builder *b, double scale, gi_scene *s, const build_tmp *t,
                                gi_error_info *err) {
@@ -537,7 +610,9 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
 
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   classify(b, scale, s, &t, lo, hi);
-  for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (lo[k] + hi[k]) : 0.0;
+  bulk_box(b, scale, s, &t, lo, hi);
+  /* The origin at the bulk's centre: float positions are finest where the scene is. */
+  for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (s->bulk_lo[k] + s->bulk_hi[k]) : 0.0;
   if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_uv2(b, s, &t, err)) != GI_OK ||
       (rc = copy_materials(b, s, &t, err)) != GI_OK ||
       (rc = copy_triangles(b, s, &t, err)) != GI_OK || (rc = copy_tri_albedo(b, s, &t, err)) != GI_OK ||
@@ -595,6 +670,14 @@ void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]) {
     lo[k] = s->origin[k] + (double)s->lo[k];
     hi[k] = s->origin[k] + (double)s->hi[k];
   }
+}
+
+void gi_scene_bulk_bounds(const gi_scene *s, double lo[3], double hi[3]) {
+  if (!s->stats.far_triangles) {
+    gi_scene_bounds(s, lo, hi);
+    return;
+  }
+  memcpy(lo, s->bulk_lo, sizeof s->bulk_lo), memcpy(hi, s->bulk_hi, sizeof s->bulk_hi);
 }
 
 int gi_scene_looks_z_up(const gi_scene *s) {

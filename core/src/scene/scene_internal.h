@@ -57,6 +57,7 @@ struct gi_scene {
   char name[128];
   gi_up_axis up;
   double origin[3];        /* world position of local (0,0,0) */
+  double bulk_lo[3], bulk_hi[3]; /* world box of all but stray far triangles (gi_scene_bulk_bounds) */
   float lo[3], hi[3];      /* local bounds of kept triangles */
 
   uint32_t num_vertices;
