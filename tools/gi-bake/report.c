@@ -117,10 +117,10 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(root, "viewpoint", vec3d(j, r->points, "viewpoint"));
   json_object_set_new(root, "quality", quality_json(j, &rep->quality, r->threads));
   json_object_set_new(root, "probe", probe_json(j, &r->probes[0], r->points, !r->covered || r->covered[0]));
-  json_t *pa = json_array();
-  for (size_t i = 1; i < r->num_probes; i++)
-    json_array_append_new(pa, probe_json(j, &r->probes[i], &r->points[3 * i], !r->covered || r->covered[i]));
-  json_object_set_new(root, "probes", pa);
+  /* "probes" is streamed by print_json: a million of them as one jansson
+   * tree took 7 GB. Here each is only checked for finite numbers. */
+  for (size_t i = 1; i < r->num_probes && !j->bad; i++)
+    json_decref(probe_json(j, &r->probes[i], &r->points[3 * i], !r->covered || r->covered[i]));
 
   json_t *t = json_object();
   json_object_set_new(t, "load", num(j, r->load_ms, "timings_ms.load"));
@@ -267,6 +267,37 @@ static void print_human(const cli_run *r) {
          r->o->vdb ? r->o->vdb : "(none, use --vdb)");
 }
 
+/* The report, then its "probes" array one probe at a time (JSON object
+ * members have no order; this one comes last). */
+static int print_json(const cli_run *r, json_t *root) {
+  const size_t flags = JSON_INDENT(2) | JSON_REAL_PRECISION(17);
+  char *s = json_dumps(root, flags);
+  char *close = s ? strrchr(s, '}') : NULL;
+  if (!close) {
+    free(s);
+    fprintf(stderr, "gi-bake: internal error: cannot encode the JSON report\n");
+    return EXIT_RUN;
+  }
+  while (close > s && (close[-1] == '\n' || close[-1] == ' ')) close--;
+  fwrite(s, 1, (size_t)(close - s), stdout);
+  free(s);
+  fputs(",\n  \"probes\": [", stdout);
+  jctx j = {0};
+  for (size_t i = 1; i < r->num_probes; i++) {
+    json_t *p = probe_json(&j, &r->probes[i], &r->points[3 * i], !r->covered || r->covered[i]);
+    char *ps = p ? json_dumps(p, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
+    json_decref(p);
+    if (!ps) {
+      fprintf(stderr, "gi-bake: internal error: cannot encode probe %zu\n", i);
+      return EXIT_RUN;
+    }
+    printf("%s\n    %s", i > 1 ? "," : "", ps);
+    free(ps);
+  }
+  fputs(r->num_probes > 1 ? "\n  ]\n}\n" : "]\n}\n", stdout);
+  return 0;
+}
+
 int cli_report(const cli_run *r, int json) {
   jctx j = {0};
   json_t *root = build_json(r, &j);
@@ -279,15 +310,7 @@ int cli_report(const cli_run *r, int json) {
     fprintf(stderr, "gi-bake: internal error: non-finite value in %s; no result printed\n", j.where);
     rc = EXIT_RUN;
   } else if (json) {
-    char *s = json_dumps(root, JSON_INDENT(2) | JSON_REAL_PRECISION(17));
-    if (!s) {
-      fprintf(stderr, "gi-bake: internal error: cannot encode the JSON report\n");
-      rc = EXIT_RUN;
-    } else {
-      fputs(s, stdout);
-      fputc('\n', stdout);
-      free(s);
-    }
+    rc = print_json(r, root);
   } else {
     print_human(r);
   }
