@@ -369,6 +369,16 @@ static void test_headers(void **state) {
   assert_int_equal(ta_read_path(&c, "--path", tu_write_file("bom.csv", bom_path, sizeof bom_path - 1), &st, &n), 0);
   assert_true(n == 1 && st[0].at[0] == 1);
   free(st);
+  /* Plain decimals only: strtod alone read "0x10" as 16. */
+  static const char hex_pts[] = "0x10 1 1\n";
+  assert_int_equal(ta_read_points(&c, "--probes", tu_write_file("hex.txt", hex_pts, sizeof hex_pts - 1), 16, &pts, &n),
+                   TA_EXIT_USAGE);
+  assert_non_null(strstr(c.msg, "hex.txt:1"));
+  static const char forms[] = "1. .5 -2e3\n+1 1E+2 0.25e-1\n";
+  assert_int_equal(ta_read_points(&c, "--probes", tu_write_file("forms.txt", forms, sizeof forms - 1), 16, &pts, &n), 0);
+  assert_true(n == 2 && pts[0] == 1 && pts[1] == 0.5 && pts[2] == -2000 && pts[3] == 1 && pts[4] == 100 &&
+              pts[5] == 0.025);
+  free(pts);
   static const char bom_pts[] = "\xEF\xBB\xBF" "1 2 3\n";
   assert_int_equal(ta_read_points(&c, "--probes", tu_write_file("bom.txt", bom_pts, sizeof bom_pts - 1), 16, &pts, &n), 0);
   assert_true(n == 1 && pts[0] == 1 && pts[2] == 3);

@@ -8,13 +8,33 @@
 #include "gi/gi_points.h"
 #include "base/internal.h"
 
+/* Length of the plain decimal number at p ([+-]d[.d][e[+-]d], digits on
+ * at least one side of the point), 0 when there is none: strtod alone also
+ * takes hex ("0x10" read as 16), "infinity" and locale forms. */
+static size_t decimal_len(const char *p) {
+  size_t i = (*p == '+' || *p == '-'), d = 0;
+  while (p[i] >= '0' && p[i] <= '9') i++, d++;
+  if (p[i] == '.')
+    for (i++; p[i] >= '0' && p[i] <= '9'; i++) d++;
+  if (!d) return 0;
+  if (p[i] == 'e' || p[i] == 'E') {
+    size_t j = i + 1 + (p[i + 1] == '+' || p[i + 1] == '-'), e = j;
+    while (p[j] >= '0' && p[j] <= '9') j++;
+    if (j > e) i = j;
+  }
+  return i;
+}
+
 /* Three finite numbers separated by blanks (or a comma, for pasted X,Y,Z). */
 static int parse_line(const char *p, double v[3]) {
   const char *q = p;
   for (int i = 0; i < 3; i++) {
     char *end;
     errno = 0;
+    size_t len = decimal_len(q);
+    if (!len) return -1;
     v[i] = strtod(q, &end);
+    if ((size_t)(end - q) != len) return -1;
     /* ERANGE with |v| < 1 is underflow: a number within 1e-308 of 0, kept. */
     if (end == q || (errno == ERANGE && fabs(v[i]) >= 1.0) || !isfinite(v[i])) return -1;
     if (i < 2) {
