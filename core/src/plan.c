@@ -134,6 +134,10 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: cones must be 4, 6, 8, 16 or 32, got %d", q->cones);
   if (!isfinite(q->voxel0) || q->voxel0 < 0)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: voxel size must be a positive finite number");
+  /* Larger, the cascade's extent leaves float range (1e38 failed in a triangle query). */
+  if (q->voxel0 > GI_MAX_VOXEL)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: voxel size must be at most %g units, got %g", GI_MAX_VOXEL,
+                    q->voxel0);
   if (!isfinite(q->aperture_deg) || q->aperture_deg < 0 || q->aperture_deg >= 180)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: aperture must be in (0, 180) degrees");
   if (!isfinite(q->step) || q->step < 0.05f || q->step > 4)

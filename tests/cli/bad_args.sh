@@ -55,6 +55,7 @@ expect_usage --effect city --effect glow=on
 expect_usage --effect city --effect sky=maybe
 expect_usage --effect city --effect sky
 expect_usage --at city --at
+expect_usage --voxel city --voxel 1e38
 expect_usage --bogus city --bogus
 expect_usage SCENE
 expect_usage --city-extent "$T/x.obj" --city-extent 100

@@ -4,6 +4,7 @@
  * that reach and gets more levels, not coarser voxels. */
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 #include "gi/gi.h"
 #include "test_util.h"
 
@@ -171,6 +172,13 @@ static void test_levels_capped_and_unit_free(void **state) {
   printf("  a 20 m plane 8.7e-7 high: %d levels, s0 %g\n", a.levels, a.voxel0);
   assert_int_equal(a.levels, DEFAULT_LEVELS);
   assert_near(a.voxel0, 1.25 * (20.0 / 8) / (R * 32.0), 1e-9);
+  /* A voxel size past GI_MAX_VOXEL is refused by name (1e38 failed deep in
+   * the bake with "triangle query ... non-finite value"). */
+  gi_quality big = {.voxel0 = 1e38}, out;
+  assert_int_equal(gi_quality_resolve(m, &big, &out, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "voxel size must be at most"));
+  big.voxel0 = GI_MAX_VOXEL;
+  assert_int_equal(gi_quality_resolve(m, &big, &out, &err), GI_OK);
   gi_scene_release(m);
 }
 

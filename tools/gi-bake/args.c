@@ -342,7 +342,7 @@ static int quality_option(cli_opts *o, int c, const char *arg) {
       rc = ta_fail(&ta, "--res", "expected %s, got '%s'", what, arg);
     return rc;
   }
-  case OPT_VOXEL: return ta_double(&ta, "--voxel", "a finite number > 0", arg, 0, HUGE_VAL, &q->voxel0);
+  case OPT_VOXEL: return ta_double(&ta, "--voxel", "a voxel size in (0, 1e7] (the server's range)", arg, 0, 1e7, &q->voxel0);
   case OPT_CONES: {
     static const char what[] = "4, 6, 8, 16 or 32";
     int v = 0;

@@ -18,6 +18,8 @@ extern "C" {
 #endif
 
 #define GI_MAX_LEVELS 12
+/* Largest voxel size a caller may ask for, world units (the server's limit too). */
+#define GI_MAX_VOXEL 1e7
 
 /* The effects a bake can simulate (the effect plan decides which run). */
 typedef enum gi_effect_id {
