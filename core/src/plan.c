@@ -352,7 +352,8 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   else if (emit_in || fe == GI_FX_ON)
     set_fx(r, GI_FX_EMISSIVE, 1, "%u emissive triangles (%u within reach of the cascade%s), %d samples per voxel",
            s->num_emitters, emit_in, emit_in ? "" : ", forced on", q->light_samples);
-  else set_fx(r, GI_FX_EMISSIVE, 0, "%u emissive triangles, none within half a cascade of it", s->num_emitters);
+  else set_fx(r, GI_FX_EMISSIVE, 0, "%u emissive triangles, none within half a cascade of it: no voxel takes "
+                                    "their light (probes, views and texels still sample it)", s->num_emitters);
 
   /* Bounces from the albedo: the k-th reflection adds about a^k of the
    * direct light (a = area-weighted albedo, brightest channel, of what lies

@@ -636,6 +636,31 @@ static void test_empty_and_outside(void **state) {
   assert_int_equal(occ, 0);
   assert_true(fabs(mean3(pr[0].irradiance) - 2.4) <= 1e-5);
   assert_true(mean3(pr[0].indirect) == 0 && mean3(pr[1].indirect) == 0);
+
+  /* A lamp panel (emitting 10 down) 1 m over a floor, the cascade 1000
+   * units away: the plan leaves the emitter out of the voxels, but a probe
+   * under it still reads its direct light, as a bake there does (it read
+   * 0: a probe in the Cornell box baked from the box's camera). */
+  b = gi_mesh_builder_new();
+  mat = gi_mesh_builder_add_material(b, &m);
+  gi_material lamp = {.albedo = {0, 0, 0}, .roughness = 1, .emission = {10, 10, 10}};
+  uint32_t ml = gi_mesh_builder_add_material(b, &lamp);
+  double f0[3] = {-2, 0, -2}, f1[3] = {-2, 0, 2}, f2[3] = {2, 0, 2}, f3[3] = {2, 0, -2};
+  gi_mesh_builder_add_quad(b, f0, f1, f2, f3, mat);
+  double l0[3] = {-0.5, 1, -0.5}, l1[3] = {0.5, 1, -0.5}, l2[3] = {0.5, 1, 0.5}, l3[3] = {-0.5, 1, 0.5};
+  gi_mesh_builder_add_quad(b, l0, l1, l2, l3, ml);
+  s = build(b, "far-lamp", NULL, 0);
+  double under[3] = {0, 0.2, 0}, far_at[3] = {1000, 1, 0};
+  gi_probe near_pr, far_pr;
+  bake_gather_rep(s, under, &small_q, under, 1, &near_pr, &rep);
+  assert_true(rep.effects[GI_FX_EMISSIVE].ran);
+  bake_gather_rep(s, far_at, &small_q, under, 1, &far_pr, &rep);
+  gi_scene_release(s);
+  printf("hardcase: an emitter out of the cascade's reach (%s): probe under it, direct %.5f (baked there %.5f)\n",
+         rep.effects[GI_FX_EMISSIVE].why, mean3(far_pr.direct), mean3(near_pr.direct));
+  assert_false(rep.effects[GI_FX_EMISSIVE].ran);
+  assert_true(mean3(near_pr.direct) > 1);
+  for (int k = 0; k < 3; k++) assert_true(fabs(far_pr.direct[k] - near_pr.direct[k]) <= 1e-5 * near_pr.direct[k]);
 }
 
 /* gi_cascade_covers tells a point inside the cascade from one outside

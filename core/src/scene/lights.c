@@ -44,6 +44,10 @@ int gi__answer_sky(const gi_scene *s, const gi_bake_report *r) {
 gi_light_plan gi__answer_light_plan(const gi_scene *s, const gi_bake_report *r, int samples) {
   gi_light_plan lp = gi__light_plan(r, samples);
   lp.sky = gi__answer_sky(s, r);
+  /* The plan leaves emitters farther than half a cascade out of the
+   * voxels; a point far from the viewpoint may sit right under one (a
+   * probe inside the Cornell box, baked from its camera, read 0). */
+  lp.emissive |= s->num_emitters > 0 && r->quality.effects[GI_FX_EMISSIVE] != GI_FX_OFF;
   return lp;
 }
 

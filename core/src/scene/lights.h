@@ -128,7 +128,9 @@ gi_light_plan gi__light_plan(const gi_bake_report *r, int samples);
  * sky out of the voxels when no test ray from around the viewpoint
  * escapes (a closed room), but an answer's shadow rays start at its own
  * point, which may see the sky all the same: a probe outside the closed
- * object that a viewpoint at a model's centre lies in. */
+ * object that a viewpoint at a model's centre lies in. Likewise the
+ * emitters, which the plan leaves out when none lies within half a
+ * cascade of the viewpoint. */
 gi_light_plan gi__answer_light_plan(const gi_scene *s, const gi_bake_report *r, int samples);
 /* 1 when answers sample the sky by the rule above (a camera's or a
  * panorama's ray that escapes also sees it). */
