@@ -38,8 +38,10 @@ int gi_proto_error_parse(const char *json, size_t len, gi_proto_error *out);
  * whatever the scene: products of such values stay finite. (The server
  * also refuses points more than 1e9 units from its scene, as the core does.) */
 #define GI_PROTO_MAX_COORD 1e30
-/* A panorama's width or height. */
-#define GI_PROTO_MAX_PANORAMA_SIDE 16384
+/* A panorama's width and height: the core's gi_cascade_panorama limits
+ * (2..16384 x 1..8192), checked here so a refusal costs no bake. */
+#define GI_PROTO_MAX_PANORAMA_WIDTH 16384
+#define GI_PROTO_MAX_PANORAMA_HEIGHT 8192
 
 /* Request limits (from the server's config). */
 typedef struct gi_proto_limits {

@@ -348,6 +348,30 @@ static void test_effect_override(void **state) {
   free(b.body);
 }
 
+/* The core's panorama is 2..16384 x 1..8192: a taller one is refused from
+ * the query, naming 'height', before any bake or redirect; 8192 is served. */
+static void test_panorama_limits(void) {
+  const char *tall[] = {
+      "/v1/scenes/city/lighting?at=-61,2,-59&quality=low&kind=panorama&width=2&height=8193",
+      "/v1/scenes/city/lighting?at=-61,2,-59&quality=low&kind=panorama&width=2&height=16384&redirect=0",
+  };
+  double bakes = su_metric(&S_main, "gi_bakes_total", NULL);
+  for (size_t i = 0; i < 2; i++) {
+    su_resp r = GET(&S_main, tall[i]); /* a 307 would be followed to the cell URL */
+    su_expect_error(&r, 400, "bad_request", "parameter 'height'");
+    assert_non_null(strstr(r.body, "1..8192"));
+    free(r.body);
+  }
+  assert_true(su_metric(&S_main, "gi_bakes_total", NULL) == bakes);
+  su_resp r = GET(&S_main, "/v1/scenes/city/lighting?at=-61,2,-59&quality=low&kind=panorama&width=2&height=8192");
+  assert_int_equal(r.status, 200);
+  gi_exr_file *x = su_read_exr(&S_main, &r, "tall.exr");
+  assert_int_equal(gi_exr_file_width(x), 2);
+  assert_int_equal(gi_exr_file_height(x), 8192);
+  gi_exr_file_free(x);
+  free(r.body);
+}
+
 static void test_panorama(void **state) {
   su_resp r = GET(&S_main, "/v1/scenes/city/lighting?at=31,2,29&quality=low&kind=panorama&width=32&height=16");
   assert_int_equal(r.status, 200);
@@ -377,6 +401,7 @@ static void test_panorama(void **state) {
   gi_exr_file_free(x);
   gi_scene_release(s);
   free(r.body);
+  test_panorama_limits();
 }
 
 /* kind=lightmap and lightmap-uv.glb describe the same charts: the glb's
