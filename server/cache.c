@@ -252,6 +252,7 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w) {
       cancelled = 1;
     }
   }
+  pthread_cond_broadcast(&c->done); /* a blocking waiter stops waiting */
   pthread_mutex_unlock(&c->mu);
   return cancelled;
 }
@@ -272,7 +273,7 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_ent
     *out = e;
     return GI_OK;
   }
-  if (e->state == BAKING && w) {
+  if (e->state == BAKING && w && !w->blocking) {
     /* Waiters do not hold a worker: the baker wakes them. */
     join(e, w);
     w->coalesced = 1;
@@ -282,12 +283,21 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_ent
   }
   e->refs++;
   if (e->state == BAKING) {
-    e->interest++;
-    while (e->state == BAKING) pthread_cond_wait(&c->done, &c->mu);
-    e->interest--;
+    /* A blocking waiter's interest is its link, which gs_cache_leave drops. */
+    if (w) join(e, w);
+    else e->interest++;
+    while (e->state == BAKING && !(w && w->left)) pthread_cond_wait(&c->done, &c->mu);
+    if (!w) e->interest--;
+    else if (w->entry == e) drop_waiter(w);
   }
+  int gave_up = w && w->left;
   pthread_mutex_unlock(&c->mu);
   if (c->metrics) gs_metrics_cache(c->metrics, *how);
+  if (gave_up) {
+    if (err) snprintf(err->msg, sizeof err->msg, "bake: the request was given up while it waited for the bake");
+    gs_cache_release(c, e);
+    return GI_ERR_CANCELLED;
+  }
   if (e->state == FAILED) {
     if (err) *err = e->err;
     gi_result rc = e->rc;
@@ -322,15 +332,22 @@ static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, g
     if (rc == GI_OK) snprintf(e->err.msg, sizeof e->err.msg, "bake: cancelled as it finished (nobody waited)");
     unlink_entry(c, e);
   }
-  gs_waiter *woken = e->waiters;
-  e->waiters = NULL;
-  for (gs_waiter *w = woken; w; w = w->next) {
+  /* Blocking waiters read e themselves once the lock is let go (and may
+   * reuse their waiter at once): only the others are kept to be woken. */
+  gs_waiter *woken = NULL;
+  for (gs_waiter *w = e->waiters, *n; w; w = n) {
+    n = w->next;
     w->entry = NULL;
+    w->next = NULL;
     e->interest--;
+    if (w->blocking) continue;
     w->rc = e->state == FAILED ? e->rc : GI_OK;
     if (e->state == FAILED) w->err = e->err;
     w->hold(w->arg);
+    w->next = woken;
+    woken = w;
   }
+  e->waiters = NULL;
   pthread_cond_broadcast(&c->done);
   pthread_mutex_unlock(&c->mu);
   for (gs_waiter *w = woken, *n; w; w = n) {

@@ -96,7 +96,7 @@ typedef struct gs_req {
   int dispatched, suspended, done;
   int gone;                 /* the client hung up while it waited: close without an answer */
   gs_waiter w;              /* its interest in a bake (cache.c) */
-  gi_cancel *cancel;        /* session work: set when it is given up (deadline, hang-up) */
+  gi_cancel *cancel;        /* its other work: set when it is given up (deadline, hang-up) */
   gs_answer ans;
   gi_proto_bake bake;
   gi_proto_probes probes;
@@ -264,11 +264,11 @@ static void task(void *arg) {
   pthread_mutex_unlock(&h->mu);
   if (!skip) {
     gs_answer a = {.fd = -1};
-    if (r->ep == GS_EP_PROBES) gs_serve_probes(h->svc, r->scene, &r->probes, r->t_start, &a);
+    if (r->ep == GS_EP_PROBES) gs_serve_probes(h->svc, r->scene, &r->probes, r->t_start, &r->w, r->cancel, &a);
     else if (r->ep == GS_EP_SESSIONS) gs_session_create(h->svc, r->scene, &r->bake, r->cancel, r->t_start, &a);
     else if (r->ep == GS_EP_SESSION_LIGHTING)
       gs_session_lighting(h->svc, r->id, &r->bake, r->t_start, r->cancel, &a);
-    else gs_serve_bake(h->svc, r->scene, r->ep, &r->bake, r->t_start, &r->w, &a);
+    else gs_serve_bake(h->svc, r->scene, r->ep, &r->bake, r->t_start, &r->w, r->cancel, &a);
     /* Status 0: it waits for another request's bake; wake_request queues it again. */
     if (a.status) complete(h, r, &a);
   }
@@ -473,11 +473,12 @@ static void *reaper_main(void *p) {
 
 /* Queues r's work and suspends the connection; 503 when the queue is full. */
 static enum MHD_Result dispatch(gs_http *h, gs_req *r) {
-  if (r->ep == GS_EP_SESSIONS || r->ep == GS_EP_SESSION_LIGHTING) {
-    /* Session work stops on this token (without one, at its own pace). */
-    r->cancel = gi_cancel_new();
-    if (r->cancel) gi_cancel_set_deadline(r->cancel, gi_now_ms() + (r->deadline - gs_now_ms()));
-  }
+  /* Work that is not a cached bake (sessions, lightmaps, gathers) stops on
+   * this token (without one, at its own pace); cached bakes stop through the
+   * waiter. A probe list waits for its tiles' bakes on its own worker. */
+  r->cancel = gi_cancel_new();
+  if (r->cancel) gi_cancel_set_deadline(r->cancel, gi_now_ms() + (r->deadline - gs_now_ms()));
+  r->w.blocking = r->ep == GS_EP_PROBES;
   pthread_mutex_lock(&h->mu);
   r->dispatched = 1;
   atomic_fetch_add(&r->refs, 1);

@@ -123,7 +123,8 @@ static void run_job(gs_jobs *j, job *jb) {
     prog_ctx pc = {j, jb};
     gi_bake_report rep;
     e.msg[0] = 0;
-    rc = gs_gather_tiles(svc, jb->scene, &jb->req, &jb->q, jb->p.points, tiles, nt, 0, pr, &rep, NULL, NULL, on_tile, &pc, &e);
+    rc = gs_gather_tiles(svc, jb->scene, &jb->req, &jb->q, jb->p.points, tiles, nt, 0, NULL, NULL, pr, &rep, NULL,
+                         NULL, on_tile, &pc, &e);
     if (rc == GI_OK) {
       char path[1200], ntiles[32];
       gs_tmp_path(svc, ".exr", path, sizeof path);

@@ -55,7 +55,7 @@ static gi_result encode(gs_service *svc, const gi_lightmap *lm, gs_endpoint ep, 
 }
 
 void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
-                       gs_answer *a) {
+                       const gi_cancel *cancel, gs_answer *a) {
   gi_error_info e = {0};
   gi_quality req = b->quality, q;
   req.threads = svc->cfg->bake_threads;
@@ -86,7 +86,12 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
     gi_lightmap_free(lm);
     return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
   }
-  rc = ep == GS_EP_LIGHTMAP_UV ? GI_OK : gi_lightmap_bake(lm, &req, NULL, &rep, &e);
+  if (ep != GS_EP_LIGHTMAP_UV) {
+    /* Stops once nobody waits (deadline, hang-up): counted as a cancelled bake. */
+    gs_metrics_bake_begin(svc->metrics);
+    rc = gi_lightmap_bake(lm, &req, cancel, &rep, &e);
+    gs_metrics_bake_end(svc->metrics, rc == GI_ERR_CANCELLED);
+  }
   /* Server-Timing's gather stage carries the whole lightmap bake (its tiles' cascades included). */
   if (rc == GI_OK && ep != GS_EP_LIGHTMAP_UV) ms.gather = rep.bake_ms;
   double t1 = gs_now_ms();

@@ -228,9 +228,9 @@ gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascad
 }
 
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
-                   gs_waiter *w, gs_answer *a) {
+                   gs_waiter *w, const gi_cancel *cancel, gs_answer *a) {
   if (ep == GS_EP_LIGHTMAP_UV || (ep == GS_EP_LIGHTING && b->kind == GI_PROTO_LIGHTMAP))
-    return gs_serve_lightmap(svc, s, ep, b, t_start_ms, a);
+    return gs_serve_lightmap(svc, s, ep, b, t_start_ms, cancel, a);
   gi_error_info e = {0};
   gi_result rc;
   gi_quality req, q = gs_resolve_request(svc, s, &b->quality, &req, &e, &rc);
@@ -252,7 +252,7 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
       snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-cascades.vdb\"", s->id);
     if (rc == GI_OK) finish_headers(a, rep, &ms, cache_names[how], t_start_ms);
   } else {
-    rc = gs_answer_lighting(svc, s, c, b, NULL, cache_names[how], &ms, t_start_ms, a, &e);
+    rc = gs_answer_lighting(svc, s, c, b, cancel, cache_names[how], &ms, t_start_ms, a, &e);
   }
   if (rc != GI_OK) gs_answer_core_error(a, rc, &e);
   gs_cache_release(svc->cache, ent);
@@ -346,8 +346,8 @@ static gi_result reserve_waiting(gs_service *svc, size_t need, gi_error_info *er
 }
 
 gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *req, const gi_quality *q,
-                          const double *pts,
-                          const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
+                          const double *pts, const gs_tile *tiles, size_t num_tiles, int use_cache,
+                          gs_waiter *w, const gi_cancel *cancel, gi_probe *out,
                           gi_bake_report *rep, gi_timings *ms, gs_cache_how *how_out,
                           int (*progress)(void *ctx, size_t tile, size_t probes, gi_error_info *err), void *ctx,
                           gi_error_info *err) {
@@ -376,7 +376,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
     const gi_cascade *c;
     gs_cache_how how = GS_CACHE_MISS;
     if (use_cache) {
-      if ((rc = gs_cache_get(svc->cache, s, tl->at, req, q, NULL, &ent, &how, err)) != GI_OK) break;
+      if ((rc = gs_cache_get(svc->cache, s, tl->at, req, q, w, &ent, &how, err)) != GI_OK) break;
       c = gs_entry_cascade(ent);
     } else {
       double t0 = gs_now_ms();
@@ -395,7 +395,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
     if (how_out && how != GS_CACHE_HIT) *how_out = how;
     for (size_t i = 0; i < tl->n; i++) memcpy(&tp[3 * i], &pts[3 * tl->idx[i]], 3 * sizeof(double));
     double g = 0;
-    rc = gi_cascade_gather(c, tp, tl->n, tr, &g, err);
+    rc = gi_cascade_gather_ex(c, tp, tl->n, cancel, tr, &g, err);
     if (ms) ms->gather += g;
     if (rc == GI_OK)
       for (size_t i = 0; i < tl->n; i++) out[tl->idx[i]] = tr[i];
@@ -410,7 +410,8 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
   return rc;
 }
 
-void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_answer *a) {
+void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_waiter *w,
+                     const gi_cancel *cancel, gs_answer *a) {
   gi_error_info e = {0};
   gi_result rc;
   gi_quality req, q = gs_resolve_request(svc, s, &p->bake.quality, &req, &e, &rc);
@@ -471,8 +472,8 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     rc = GI_ERR_NOMEM;
     snprintf(e.msg, sizeof e.msg, "probes: out of memory");
   } else {
-    rc = gs_gather_tiles(svc, s, &req, &q, p->points, tiles ? tiles : &one, nt, 1, pr, &rep, &ms, &how, NULL, NULL,
-                         &e);
+    rc = gs_gather_tiles(svc, s, &req, &q, p->points, tiles ? tiles : &one, nt, 1, w, cancel, pr, &rep, &ms, &how,
+                         NULL, NULL, &e);
   }
   if (rc == GI_OK) {
     char path[1200], timing[320], ntiles[32];

@@ -166,6 +166,11 @@ typedef struct gs_waiter {
   void (*hold)(void *arg); /* called under the cache lock: keep arg alive until wake */
   void (*wake)(void *arg); /* the bake it waited for ended: run the request again (no lock held) */
   void *arg;
+  /* Set by the owner before first use: the request waits on its own
+   * thread (a probe list's tiles) instead of being woken; it still counts
+   * as interested, so gs_cache_leave stops a bake only it wants. hold and
+   * wake are then unused. */
+  int blocking;
   /* The cache's, under its lock. */
   gs_entry *entry;         /* the bake it is interested in, or NULL */
   struct gs_waiter *next;
@@ -180,10 +185,11 @@ typedef struct gs_waiter {
 /* A baked cascade for (scene, at, resolved quality): from the cache, from a
  * bake already running for the same key, or baked now on the calling
  * thread. With a waiter, a running bake gives GS_PENDING (see gs_waiter)
- * and the call's own bake counts w as interested; without one (NULL) the
- * call blocks until the running bake ends. A bake nobody is interested in
- * any more is cancelled and never cached. The entry stays valid until
- * gs_cache_release. */
+ * and the call's own bake counts w as interested; a blocking waiter, and
+ * no waiter (NULL), block until the running bake ends (a blocking waiter
+ * also until gs_cache_leave: GI_ERR_CANCELLED). A bake nobody is
+ * interested in any more is cancelled and never cached. The entry stays
+ * valid until gs_cache_release. */
 /* req is the request's quality as gi_cascade_bake takes it (zero = auto);
  * resolved is gi_quality_resolve's answer for it (placement, key). */
 gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
@@ -328,16 +334,22 @@ void gs_answer_free(gs_answer *a);
 
 /* Lighting (probe, panorama) or cascades for one viewpoint. */
 /* w (may be NULL: block for a running bake) as in gs_cache_get: out->status
- * stays 0 when the request waits for another request's bake. */
+ * stays 0 when the request waits for another request's bake. cancel (may
+ * be NULL) fires when nobody waits for the answer: a gather or a lightmap
+ * bake stops on it. */
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b,
-                   double t_start_ms, gs_waiter *w, gs_answer *out);
+                   double t_start_ms, gs_waiter *w, const gi_cancel *cancel, gs_answer *out);
 /* lightmap.c: kind=lightmap (the EXR atlas) or lightmap-uv.glb (ep) for
- * b's region, baked tile by tile outside the cascade cache. */
+ * b's region, baked tile by tile outside the cascade cache; the bake stops
+ * on cancel (may be NULL). */
 void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b,
-                       double t_start_ms, gs_answer *out);
-/* Probe points: inline when small, else a job (202). Frees p's points. */
-void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms,
-                     gs_answer *out);
+                       double t_start_ms, const gi_cancel *cancel, gs_answer *out);
+/* Probe points: inline when small, else a job (202). Frees p's points.
+ * w (a blocking waiter, or NULL) and cancel (or NULL) are the request's:
+ * once it is given up, its tiles' bakes nobody else wants stop (never
+ * cached) and so do its gathers. */
+void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_waiter *w,
+                     const gi_cancel *cancel, gs_answer *out);
 /* Tiles: probe points grouped by the cascade that answers them. */
 typedef struct gs_tile {
   double at[3];
@@ -351,10 +363,11 @@ void gs_tiles_free(gs_tile *t, size_t n);
 /* Gathers the points of every tile into probes; progress callback per
  * tile, which returns nonzero to stop before the next tile (GI_ERR_LIMIT,
  * its message in err).
- * use_cache = 0 bakes privately (batch jobs must not evict interactive views). */
+ * use_cache = 0 bakes privately (batch jobs must not evict interactive views).
+ * w and cancel as in gs_serve_probes (cached bakes only; both may be NULL). */
 gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *req, const gi_quality *resolved,
-                          const double *pts,
-                          const gs_tile *tiles, size_t num_tiles, int use_cache, gi_probe *out,
+                          const double *pts, const gs_tile *tiles, size_t num_tiles, int use_cache,
+                          gs_waiter *w, const gi_cancel *cancel, gi_probe *out,
                           gi_bake_report *rep, gi_timings *ms, gs_cache_how *how,
                           int (*progress)(void *ctx, size_t tile, size_t probes, gi_error_info *err), void *ctx,
                           gi_error_info *err);

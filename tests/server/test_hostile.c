@@ -16,7 +16,8 @@
  *   cancelling        costly bakes whose clients hang up, or whose request
  *                     passes its deadline (504 + Retry-After), are
  *                     cancelled within 1 s; a coalesced waiter holds no
- *                     worker and keeps the shared bake alive;
+ *                     worker and keeps the shared bake alive; so are a
+ *                     probe list's and a lightmap's bakes, never cached;
  *   memory budget     four concurrent res=64 levels=8 bakes under a
  *                     500 MiB budget: one runs, three get 503 with
  *                     Retry-After, in-flight bytes on /metrics are the
@@ -747,6 +748,79 @@ static void test_coalesced_and_deadline(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* A POST on a raw socket that the test closes without reading. */
+static int send_post(const su_server *s, const char *path, const char *body) {
+  char req[2048];
+  snprintf(req, sizeof req,
+           "POST %s HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN "\r\nContent-Length: %zu\r\n\r\n%s",
+           path, strlen(body), body);
+  int fd = su_connect(s, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  return fd;
+}
+
+/* Milliseconds until no worker is busy, or -1 after ms. */
+static double wait_workers_free(const su_server *s, int ms) {
+  double t0 = su_now_ms();
+  while (su_now_ms() - t0 < ms) {
+    if (su_metric(s, "gi_workers_busy", NULL) == 0) return su_now_ms() - t0;
+    su_sleep_ms(10);
+  }
+  return -1;
+}
+
+/* COSTLY's quality as a probe list's body (one point: answered inline). */
+#define COSTLY_BODY                                                                                      \
+  "{\"points\":[[2.1,1.7,1.4]],\"quality\":{\"preset\":\"high\",\"res\":64,\"levels\":8,\"samples\":512,"   \
+  "\"probe_samples\":8192,\"bounces\":8,\"cones\":32,\"step\":0.05}}"
+#define COSTLY_LIGHTMAP COSTLY "&kind=lightmap&region=20,0,20,40,10,40&texel=1&atlas=256"
+
+/* A probe list and a lightmap bake whose clients hang up, and a probe list
+ * past its deadline (504): each bake stops within 1 s, frees its worker,
+ * counts as cancelled and leaves nothing in the cache. */
+static void test_probes_and_lightmap_cancelled(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "cancel-probes", CANCEL_INI), 0);
+  int fd = send_post(&s, "/v1/scenes/city/probes", COSTLY_BODY);
+  assert_true(wait_bakes(&s, 1, 0, 5000) >= 0);
+  su_sleep_ms(500);
+  close(fd);
+  double ms = wait_bakes(&s, 0, 1, 5000), free_ms = wait_workers_free(&s, 5000);
+  printf("  probe list, client gone: bake cancelled after %.0f ms, workers free after %.0f ms\n", ms, free_ms);
+  assert_true(ms >= 0 && ms < FREE_WITHIN_MS);
+  assert_true(free_ms >= 0 && free_ms < FREE_WITHIN_MS);
+  assert_true(su_metric(&s, "gi_cache_entries", NULL) == 0);
+
+  fd = send_get(&s, COSTLY_LIGHTMAP);
+  assert_true(wait_bakes(&s, 1, 1, 5000) >= 0);
+  su_sleep_ms(500);
+  close(fd);
+  ms = wait_bakes(&s, 0, 2, 5000);
+  free_ms = wait_workers_free(&s, 5000);
+  printf("  lightmap, client gone: bake cancelled after %.0f ms, workers free after %.0f ms\n", ms, free_ms);
+  assert_true(ms >= 0 && ms < FREE_WITHIN_MS);
+  assert_true(free_ms >= 0 && free_ms < FREE_WITHIN_MS);
+
+  su_resp r = su_http(&s, "POST", "/v1/scenes/city/probes", COSTLY_BODY, SU_TOKEN);
+  su_expect_error(&r, 504, "timeout", "deadline");
+  free(r.body);
+  ms = wait_bakes(&s, 0, 3, 5000);
+  free_ms = wait_workers_free(&s, 5000);
+  printf("  probe list past its deadline: 504, bake cancelled %.0f ms later, workers free after %.0f ms\n", ms,
+         free_ms);
+  assert_true(ms >= 0 && ms < FREE_WITHIN_MS);
+  assert_true(free_ms >= 0 && free_ms < FREE_WITHIN_MS);
+  assert_true(su_metric(&s, "gi_cache_entries", NULL) == 0);
+  assert_true(su_metric(&s, "gi_bakes_total", NULL) == 0);
+  /* A cheap request right after is answered, not queued behind a stale bake. */
+  char cache[16];
+  assert_int_equal(timed_get(&s, CHEAP, &ms, cache), 200);
+  printf("  then a cheap request: 200 in %.0f ms (%s)\n", ms, cache);
+  assert_true(ms < 2000);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* ---- 6. memory budget and encoded bytes ---------------------------------------------- */
 
 /* Bytes a res=64 levels=6 bake is admitted for: the bound of
@@ -989,6 +1063,7 @@ int main(void) {
       cmocka_unit_test(test_second_signal_and_grace),
       cmocka_unit_test(test_hangups_cancel_bakes),
       cmocka_unit_test(test_coalesced_and_deadline),
+      cmocka_unit_test(test_probes_and_lightmap_cancelled),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }

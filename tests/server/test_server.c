@@ -673,7 +673,7 @@ static void test_nomem_not_cached(void **state) {
   for (int i = 0; i < 3; i++) {
     gs_answer a = {.fd = -1};
     if (i == 0) gi__alloc_fail_after(0);
-    gs_serve_bake(&svc, &sc, GS_EP_LIGHTING, &b, gs_now_ms(), NULL, &a);
+    gs_serve_bake(&svc, &sc, GS_EP_LIGHTING, &b, gs_now_ms(), NULL, NULL, &a);
     if (i == 0) {
       assert_false(gi__alloc_fail_armed()); /* the bake reached the failure */
       gi__alloc_fail_after(-1);
