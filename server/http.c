@@ -173,6 +173,8 @@ static void answer_fail(gs_answer *a, int status, const char *fmt, const char *a
 static const char *allowed_methods(gs_endpoint ep) {
   if (ep == GS_EP_PROBES || ep == GS_EP_SESSIONS) return "POST";
   if (ep == GS_EP_JOB || ep == GS_EP_SESSION) return "GET, HEAD, DELETE";
+  /* A session's GET moves its cascade: a HEAD must change nothing, so it has none. */
+  if (ep == GS_EP_SESSION_LIGHTING) return "GET";
   return "GET, HEAD";
 }
 
@@ -752,7 +754,7 @@ static int check_headers(gs_http *h, gs_req *r, const char *url) {
   }
   int post = r->ep == GS_EP_PROBES || r->ep == GS_EP_SESSIONS;
   int del = (r->ep == GS_EP_JOB || r->ep == GS_EP_SESSION) && !strcmp(r->method, "DELETE");
-  int get_ok = !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
+  int get_ok = !strcmp(r->method, "GET") || (!strcmp(r->method, "HEAD") && r->ep != GS_EP_SESSION_LIGHTING);
   if (post ? strcmp(r->method, "POST") : !(get_ok || del)) {
     answer_fail(a, 405, "this endpoint takes %s", allowed_methods(r->ep));
     return -1;

@@ -22,10 +22,12 @@
  * leaving the table; its cascade is freed when the last request lets go.
  *
  * Cancelling: a request waiting for its session's lock gives up when its
- * token fires (deadline, hang-up); a started move stops on the same token
- * (gi_cascade_move_ex) and leaves a partial cascade, so it ends the
- * session like any other failed move; the gather after it checks the
- * token too. */
+ * token fires (deadline, hang-up). A started move runs to its end whatever
+ * the token says (openapi.yaml): a stopped move leaves the cascade partial,
+ * and a walking client that drops a stale request or times out must keep
+ * its session. A move costs about a cold bake's work at most (gi_move.h),
+ * which the session's creation did within the deadline. The gather after
+ * the move stops on the token. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <fcntl.h>
@@ -352,11 +354,12 @@ static void move_and_answer(gs_service *svc, gs_session *s, const gi_proto_bake 
   gi_bake_report rep;
   gi_move_info mi;
   double t0 = gs_now_ms();
-  gi_result rc = gi_cascade_move_ex(s->cascade, b->at, cancel, &rep, &mi, &e);
+  /* No cancel token: a move stopped half way would tear the cascade. */
+  gi_result rc = gi_cascade_move(s->cascade, b->at, &rep, &mi, &e);
   if (rc == GI_ERR_NONFINITE || rc == GI_ERR_INVALID_ARG)
     return fail(a, 400, 0, "parameter 'at': %s", e.msg[0] ? e.msg : gi_strerror(rc)); /* cascade untouched */
   if (rc != GI_OK) {
-    /* A failed move leaves the cascade partial: the session cannot go on. */
+    /* A failed move (out of memory) leaves the cascade partial: the session cannot go on. */
     pthread_mutex_lock(&svc->sessions->mu);
     unlink_session(svc->sessions, s);
     pthread_mutex_unlock(&svc->sessions->mu);

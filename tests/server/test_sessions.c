@@ -6,7 +6,10 @@
  *     rounding of texels aside), and every answer carries the move's
  *     Server-Timing stages and X-GI-Move;
  *   - bad input: unknown session 404, non-finite and far 'at' 400 naming it,
- *     kind=lightmap 400, quality knobs on a session 400, DELETE then 404;
+ *     kind=lightmap 400, quality knobs on a session 400, a panorama taller
+ *     than 8192 400, HEAD 405 (Allow: GET) without moving, DELETE then 404;
+ *   - a client hanging up during a far move keeps its session: the move
+ *     ends, the session stands there and moves on;
  *   - limits: a third session is a 503 with Retry-After; an idle one
  *     expires after the TTL (404, gi_sessions_expired_total);
  *   - two clients hammering one session: every request answered, move
@@ -25,6 +28,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
 #include "gi/gi.h"
 
 #define TOKEN SU_TOKEN
@@ -102,6 +107,36 @@ static void delete_session(const char *id) {
   su_resp r = su_http(&S, "DELETE", path, NULL, TOKEN);
   assert_int_equal(r.status, 204);
   free(r.body);
+}
+
+/* A HEAD request's status, and its Allow header into allow (empty: none). */
+static long head_status(const char *path, char *allow, size_t size) {
+  su_resp r = {0};
+  struct curl_slist *hd;
+  CURL *c = su_make_req(&S, NULL, path, NULL, TOKEN, &r, &hd);
+  curl_easy_setopt(c, CURLOPT_NOBODY, 1L);
+  long status = -1;
+  if (curl_easy_perform(c) == CURLE_OK) curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &status);
+  const char *a = su_header(&r, "Allow");
+  snprintf(allow, size, "%s", a ? a : "");
+  curl_slist_free_all(hd);
+  curl_easy_cleanup(c);
+  free(r.body);
+  return status;
+}
+
+/* The session's JSON: its moves and at[0] (moves -1 when it is not 200). */
+static long session_moves(const char *id, double *x) {
+  char path[128];
+  snprintf(path, sizeof path, "/v1/sessions/%s", id);
+  su_resp r = GET(path);
+  long moves = -1;
+  json_t *o = r.status == 200 ? json_loadb(r.body, r.len, 0, NULL) : NULL;
+  if (o) moves = (long)json_integer_value(json_object_get(o, "moves"));
+  if (o && x) *x = json_number_value(json_array_get(json_object_get(o, "at"), 0));
+  json_decref(o);
+  free(r.body);
+  return moves;
 }
 
 /* A field of X-GI-Move ("n=3 cycle=0 ..."), or -1. */
@@ -229,6 +264,18 @@ static void test_bad_input(void **state) {
   r = GET(path);
   su_expect_error(&r, 400, "bad_request", "parameter 'at' is required");
   free(r.body);
+  snprintf(path, sizeof path, "/v1/sessions/%s/lighting?at=1,2,3&kind=panorama&width=2&height=8193", id);
+  r = GET(path);
+  su_expect_error(&r, 400, "bad_request", "parameter 'height'");
+  free(r.body);
+  /* HEAD would move the cascade: 405 naming GET, and nothing moved. */
+  char allow[64];
+  snprintf(path, sizeof path, "/v1/sessions/%s/lighting?at=40,2,40", id);
+  assert_int_equal(head_status(path, allow, sizeof allow), 405);
+  assert_string_equal(allow, "GET");
+  double x = 0;
+  assert_int_equal(session_moves(id, &x), 0);
+  assert_true(x == 5);
   /* The refused moves left the cascade alone: the next is move 1. */
   r = move_to(id, "5,2,5");
   assert_int_equal(r.status, 200);
@@ -254,6 +301,39 @@ static void test_bad_input(void **state) {
   r = su_http(&S, "DELETE", path, NULL, TOKEN);
   su_expect_error(&r, 404, "not_found", id);
   free(r.body);
+}
+
+/* A client that hangs up while its session moves far (every level
+ * rebuilt: a cold bake's work) keeps its session: the move runs to its
+ * end, and the next request moves on from there. */
+static void test_hangup_keeps_session(void **state) {
+  (void)state;
+  char id[64], req[512];
+  snprintf(id, sizeof id, "%s", open_session("?quality=high&at=0,1.7,0", NULL));
+  snprintf(req, sizeof req,
+           "GET /v1/sessions/%s/lighting?at=100,1.7,0 HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN "\r\n\r\n",
+           id);
+  int fd = su_connect(&S, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  su_sleep_ms(50); /* the move has started */
+  close(fd);
+  double t0 = su_now_ms(), x = 0;
+  long moves;
+  while ((moves = session_moves(id, &x)) == 0 && su_now_ms() - t0 < 30000) su_sleep_ms(20);
+  printf("  client gone during a far move: session has %ld move(s) at x = %g after %.0f ms\n", moves, x,
+         su_now_ms() - t0);
+  assert_int_equal(moves, 1);
+  assert_true(x == 100);
+  su_resp r = move_to(id, "100,1.7,0");
+  assert_int_equal(r.status, 200);
+  assert_int_equal(move_field(&r, "n"), 2);
+  assert_int_equal(move_field(&r, "crossed"), 0);
+  float rgb[3];
+  exr_rgb(&r, rgb);
+  for (int k = 0; k < 3; k++) assert_true(isfinite(rgb[k]) && rgb[k] > 0);
+  free(r.body);
+  delete_session(id);
 }
 
 static void test_limit_and_expiry(void **state) {
@@ -412,6 +492,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_walk_matches_cold_bake),
       cmocka_unit_test(test_bad_input),
+      cmocka_unit_test(test_hangup_keeps_session),
       cmocka_unit_test(test_limit_and_expiry),
       cmocka_unit_test(test_concurrent_serialised),
       cmocka_unit_test(test_budget),
