@@ -1,0 +1,75 @@
+#!/bin/sh
+# walk_sessions.sh: gi-client walk keeps walking when a request is dropped
+# or the server ends its session (city extent 300, session_ttl_s = 2).
+#   - a step that times out on the client (--timeout 0.2) while its move
+#     jumps from empty space into the city (a cold bake's work, ~1 s at
+#     quality high) does not end the session: the later steps are answered
+#     in the same session (1 error, 0 reopened);
+#   - a pause longer than the TTL: the step after it finds the session gone
+#     (404), a new one is opened there, said on stderr and counted, and the
+#     walk goes on (0 errors, 1 reopened, exit 0).
+# Usage: sh walk_sessions.sh path/to/gi-server path/to/gi-client
+set -u
+SERVER=${1:?usage: sh walk_sessions.sh path/to/gi-server path/to/gi-client}
+CLIENT=${2:?usage: sh walk_sessions.sh path/to/gi-server path/to/gi-client}
+T=$(mktemp -d "${TMPDIR:-/tmp}/gi-walk-sessions.XXXXXX")
+FAILS=0
+fail() { echo "FAIL: $*" >&2; FAILS=$((FAILS + 1)); }
+pass() { echo "ok: $*"; }
+cat > "$T/s.ini" <<INI
+[server]
+bind = 127.0.0.1
+port = 0
+workers = 2
+bake_threads = 2
+tmp_dir = $T
+[limits]
+max_sessions = 2
+session_ttl_s = 2
+[scene city]
+source = city
+extent = 300
+INI
+"$SERVER" --config "$T/s.ini" --port-file "$T/port" > "$T/server.out" 2> "$T/server.log" & SRV=$!
+trap 'kill $SRV 2>/dev/null; wait $SRV 2>/dev/null; rm -rf "$T"' EXIT INT TERM
+i=0; while [ ! -s "$T/port" ] && [ $i -lt 300 ]; do sleep 0.1; i=$((i + 1)); done
+[ -s "$T/port" ] || { echo "FAIL: gi-server did not start: $(cat "$T/server.log")" >&2; exit 1; }
+URL=http://127.0.0.1:$(cat "$T/port")
+unset GI_TOKEN GI_SERVER
+# check FILE PYTHON-ASSERTION: the --json summary in FILE satisfies it.
+check() { /usr/bin/python3 -c "import json, sys; j = json.load(open(sys.argv[1])); assert $2, j" "$1"; }
+metric() { "$CLIENT" --server "$URL" metrics 2> /dev/null | sed -n "s/^$1 //p"; }
+
+# Opened in empty space (a bake of nothing), then a jump into the city that
+# outlasts the client's 0.2 s timeout, then small steps once it has ended.
+printf '0,5000,1.7,0\n0.5,0,1.7,0\n3,0.1,1.7,0\n3.1,0.2,1.7,0\n3.2,0.3,1.7,0\n' > "$T/enter.csv"
+"$CLIENT" --server "$URL" --timeout 0.2 walk city --quality high --path "$T/enter.csv" --json > "$T/out" 2> "$T/err"
+rc=$?
+if [ $rc -eq 1 ] && check "$T/out" 'j["steps"] == 5 and j["errors"] == 1 and j["reopened"] == 0'; then
+  pass "a timed-out far move keeps the session: $(cat "$T/out")"
+else
+  fail "timed-out far move: exit $rc: $(cat "$T/out" "$T/err")"
+fi
+grep -q "HTTP 404" "$T/err" && fail "a step found the session gone: $(cat "$T/err")"
+[ "$(metric gi_sessions_created_total)" = 1 ] || fail "sessions created: $(metric gi_sessions_created_total)"
+
+# A pause of 3.4 s, past the 2 s TTL: the session expires meanwhile.
+printf '0,5,1.7,3\n0.1,5.1,1.7,3\n3.5,5.2,1.7,3\n3.6,5.3,1.7,3\n' > "$T/pause.csv"
+"$CLIENT" --server "$URL" walk city --quality low --path "$T/pause.csv" --json > "$T/out" 2> "$T/err"
+rc=$?
+if [ $rc -eq 0 ] && check "$T/out" 'j["steps"] == 4 and j["errors"] == 0 and j["reopened"] == 1'; then
+  pass "a pause past the TTL reopens the session: $(cat "$T/out")"
+else
+  fail "pause past the TTL: exit $rc: $(cat "$T/out" "$T/err")"
+fi
+grep -q "gi-client: walk: session [0-9a-f]* has ended (HTTP 404); opening a new one at 5.2,1.7,3$" "$T/err" ||
+  fail "reopening not said on stderr: $(cat "$T/err")"
+[ "$(metric gi_sessions_expired_total)" = 1 ] || fail "sessions expired: $(metric gi_sessions_expired_total)"
+[ "$(metric gi_sessions_created_total)" = 3 ] || fail "sessions created: $(metric gi_sessions_created_total)"
+[ "$(metric gi_sessions_open)" = 0 ] || fail "sessions left open: $(metric gi_sessions_open)"
+# The text summary says it too.
+"$CLIENT" --server "$URL" walk city --quality low --path "$T/pause.csv" > "$T/out" 2> "$T/err"
+grep -q "^walk city: 4 steps, .*, 0 errors, 1 sessions reopened, " "$T/out" || fail "text summary: $(cat "$T/out")"
+[ "$FAILS" -eq 0 ] && { echo "all passed"; exit 0; }
+echo "$FAILS failure(s)" >&2
+exit 1
