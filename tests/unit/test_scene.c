@@ -63,6 +63,15 @@ static void test_backface_share(void **state) {
   assert_true(gi_scene_backface_share(s, above) == 0.0);
   double bad[3] = {NAN, 0, 0};
   assert_true(gi_scene_backface_share(s, bad) == 0.0);
+  /* gi_scene_escape_share: no direction leaves the closed box, whatever its
+   * winding; from 3 m beside it or 7 m above it, all but the one straight
+   * at it (the diagonals pass it by). */
+  assert_true(gi_scene_escape_share(s, in) == 0.0);
+  double e_out = gi_scene_escape_share(s, out), e_above = gi_scene_escape_share(s, above);
+  printf("escape share beside the box %.3f, above it %.3f\n", e_out, e_above);
+  assert_true(fabs(e_out - 25.0 / 26.0) < 1e-12);
+  assert_true(fabs(e_above - 25.0 / 26.0) < 1e-12);
+  assert_true(gi_scene_escape_share(s, bad) == 1.0);
   gi_scene_release(s);
   gi_mesh_builder_free(b);
 }

@@ -7,6 +7,7 @@
  *                  [--levels N] [--res R] [--moves N] [--vdb-max N] --md FILE
  * Exit 0 when the work ran (figures never fail it), 1 when it could not (a
  * path leaving the streets is such a failure), 2 for usage errors. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include "toolargs.h"
@@ -45,6 +46,41 @@ static gi_scene *bench_scene(const bench_opts *o) {
   return s;
 }
 
+/* Direct-light paths per point for the darkness test below. */
+#define DARK_SAMPLES 64
+
+/* p->inside: points whose probes hold only leaked light. Inside a solid
+ * wound outward most directions meet a back face; OpenStreetMap's
+ * buildings promise no winding, so also a point that no direction leaves
+ * (a closed volume) and that no light reaches directly (the reference's
+ * direct light, sun, sky, lamps and emitters, is 0): Munich along y = 0 at
+ * 2 m read 0.1 of leaked light in rooms the reference has at 0.0001, and
+ * the moved and cold cascades' leaks differed by up to 34%. A closed room
+ * with a lamp in it stays in. Returns -1 when out of memory. */
+static int mark_inside(const gi_scene *s, walk_path *p) {
+  double *pts = malloc(p->n * 3 * sizeof *pts);
+  size_t *idx = malloc(p->n * sizeof *idx), m = 0;
+  int rc = pts && idx ? 0 : -1;
+  for (size_t i = 0; !rc && i < p->n; i++) {
+    p->inside[i] = gi_scene_backface_share(s, p->at[i]) > GI_INSIDE_SHARE;
+    if (!p->inside[i] && gi_scene_escape_share(s, p->at[i]) == 0)
+      memcpy(&pts[3 * m], p->at[i], sizeof(double[3])), idx[m++] = i;
+  }
+  gi_ref_probe *ref = !rc && m ? malloc(m * sizeof *ref) : NULL;
+  gi_reference_opts ro = {.samples = DARK_SAMPLES, .max_depth = -1};
+  gi_error_info err = {0};
+  if (m && (!ref || gi_reference_irradiance(s, pts, m, &ro, ref, NULL, &err) != GI_OK)) rc = -1;
+  for (size_t k = 0; !rc && k < m; k++) {
+    double sum = 0;
+    for (int j = 0; j < 9; j++) sum += fabs(ref[k].sh[j][0]) + fabs(ref[k].sh[j][1]) + fabs(ref[k].sh[j][2]);
+    p->inside[idx[k]] = sum == 0;
+  }
+  p->num_inside = 0;
+  for (size_t i = 0; i < p->n; i++) p->num_inside += p->inside[i];
+  free(ref), free(idx), free(pts);
+  return rc;
+}
+
 /* --path FILE: the bench along that path (read as gi-client walk reads it). */
 static int run_path_file(const bench_opts *o, ta_ctx *ta) {
   ta_step *st = NULL;
@@ -61,12 +97,15 @@ static int run_path_file(const bench_opts *o, ta_ctx *ta) {
   /* A path through buildings is a valid path, but a probe inside a solid
    * holds only leaked light: the figures leave those points out. */
   p.inside = s ? calloc(p.n, 1) : NULL;
-  for (size_t i = 0; p.inside && i < p.n; i++)
-    p.num_inside += p.inside[i] = gi_scene_backface_share(s, p.at[i]) > GI_INSIDE_SHARE;
+  if (p.inside && mark_inside(s, &p) != 0) {
+    walk_path_free(&p);
+    gi_scene_release(s);
+    return fprintf(stderr, "gi-walk: out of memory\n"), 1;
+  }
   if (p.num_inside)
     fprintf(stderr, "gi-walk: note: %zu of %zu points of %s lie inside solids (most directions meet a surface's "
-            "back): their probes hold only light that leaks in; drift and popping leave them out\n", p.num_inside,
-            p.n, o->path_file);
+            "back, or none leaves and no light reaches them): their probes hold only light that leaks in; drift "
+            "and popping leave them out\n", p.num_inside, p.n, o->path_file);
   step_rec *steps = s && p.inside ? calloc(p.n, sizeof *steps) : NULL;
   rc = !steps || bench_path(o, s, &p, steps);
   if (!rc) {

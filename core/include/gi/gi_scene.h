@@ -150,6 +150,11 @@ double gi_scene_clearance(const gi_scene *s, const double p[3], double max);
  * GI_INSIDE_SHARE is what the tools call inside a solid. */
 double gi_scene_backface_share(const gi_scene *s, const double p[3]);
 #define GI_INSIDE_SHARE 0.5
+/* The share, in [0, 1], of the same 26 directions from world point p that
+ * meet no surface at all: 0 in a closed room or a solid of any winding
+ * (OpenStreetMap's buildings promise none), 1 for a non-finite p or a
+ * scene without surfaces. Thread-safe. */
+double gi_scene_escape_share(const gi_scene *s, const double p[3]);
 const gi_light *gi_scene_light(const gi_scene *s, size_t i);
 size_t gi_scene_num_materials(const gi_scene *s);
 const gi_material *gi_scene_material(const gi_scene *s, size_t i);

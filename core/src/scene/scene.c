@@ -724,6 +724,19 @@ double gi_scene_backface_share(const gi_scene *s, const double p[3]) {
   return (double)back / NUM_DIR26;
 }
 
+double gi_scene_escape_share(const gi_scene *s, const double p[3]) {
+  if (!s || !p || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) return 1;
+  float o[3];
+  for (int k = 0; k < 3; k++) o[k] = (float)(p[k] - s->origin[k]);
+  int open = 0;
+  for (int i = 0; i < NUM_DIR26; i++) {
+    float w[3], t;
+    dir26(i, w);
+    open += !gi__intersect1(s, o, w, 0, INFINITY, &t, NULL, NULL);
+  }
+  return (double)open / NUM_DIR26;
+}
+
 gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }
 int gi_scene_has_lightmap_uv(const gi_scene *s) { return s && s->uv2 != NULL; }
 const char *gi_scene_name(const gi_scene *s) { return s->name; }
