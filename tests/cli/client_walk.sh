@@ -6,25 +6,8 @@
 . "$(dirname "$0")/common.sh"
 SERVER="$(dirname "$BIN")/gi-server"
 [ -x "$SERVER" ] || { skip "gi-server not built next to gi-client"; exit 77; }
-cat > "$T/s.ini" <<INI
-[server]
-bind = 127.0.0.1
-port = 0
-workers = 2
-bake_threads = 2
-tmp_dir = $T
-[limits]
-max_sessions = 2
-session_ttl_s = 30
-[scene city]
-source = city
-extent = 300
-INI
-"$SERVER" --config "$T/s.ini" --port-file "$T/port" > "$T/server.out" 2> "$T/server.log" & SRV=$!
-trap 'kill $SRV 2>/dev/null; wait $SRV 2>/dev/null; rm -rf "$T"' EXIT INT TERM
-i=0; while [ ! -s "$T/port" ] && [ $i -lt 300 ]; do sleep 0.1; i=$((i + 1)); done
-[ -s "$T/port" ] || { fail "gi-server did not start: $(cat "$T/server.log")"; finish; }
-URL=http://127.0.0.1:$(cat "$T/port")
+start_city_server "$SERVER" 30
+URL=http://127.0.0.1:$PORT
 unset GI_TOKEN GI_SERVER
 W() { "$BIN" --server "$URL" --timeout 60 walk city --quality low "$@" > "$T/out" 2> "$T/err"; }
 

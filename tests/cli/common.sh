@@ -46,3 +46,28 @@ usemtl lamp
 f 9 10 11 12
 OBJ
 }
+
+# start_city_server SERVER TTL: a gi-server on an ephemeral port serving the
+# 300 m city, 2 sessions at most, idle sessions ended after TTL seconds;
+# PORT is its port; stopped on exit. Fails the test when it does not start.
+start_city_server() {
+  cat > "$T/s.ini" <<INI
+[server]
+bind = 127.0.0.1
+port = 0
+workers = 2
+bake_threads = 2
+tmp_dir = $T
+[limits]
+max_sessions = 2
+session_ttl_s = $2
+[scene city]
+source = city
+extent = 300
+INI
+  "$1" --config "$T/s.ini" --port-file "$T/port" > "$T/server.out" 2> "$T/server.log" & SRV=$!
+  trap 'kill $SRV 2>/dev/null; wait $SRV 2>/dev/null; rm -rf "$T"' EXIT INT TERM
+  i=0; while [ ! -s "$T/port" ] && [ $i -lt 300 ]; do sleep 0.1; i=$((i + 1)); done
+  [ -s "$T/port" ] || { fail "gi-server did not start: $(cat "$T/server.log")"; finish; }
+  PORT=$(cat "$T/port")
+}

@@ -12,29 +12,11 @@
 set -u
 SERVER=${1:?usage: sh walk_sessions.sh path/to/gi-server path/to/gi-client}
 CLIENT=${2:?usage: sh walk_sessions.sh path/to/gi-server path/to/gi-client}
-T=$(mktemp -d "${TMPDIR:-/tmp}/gi-walk-sessions.XXXXXX")
-FAILS=0
-fail() { echo "FAIL: $*" >&2; FAILS=$((FAILS + 1)); }
-pass() { echo "ok: $*"; }
-cat > "$T/s.ini" <<INI
-[server]
-bind = 127.0.0.1
-port = 0
-workers = 2
-bake_threads = 2
-tmp_dir = $T
-[limits]
-max_sessions = 2
-session_ttl_s = 2
-[scene city]
-source = city
-extent = 300
-INI
-"$SERVER" --config "$T/s.ini" --port-file "$T/port" > "$T/server.out" 2> "$T/server.log" & SRV=$!
-trap 'kill $SRV 2>/dev/null; wait $SRV 2>/dev/null; rm -rf "$T"' EXIT INT TERM
-i=0; while [ ! -s "$T/port" ] && [ $i -lt 300 ]; do sleep 0.1; i=$((i + 1)); done
-[ -s "$T/port" ] || { echo "FAIL: gi-server did not start: $(cat "$T/server.log")" >&2; exit 1; }
-URL=http://127.0.0.1:$(cat "$T/port")
+# The CLI tests' helpers (T, fail, pass, finish, start_city_server), with gi-client as their BIN.
+set -- "$CLIENT"
+. "$(dirname "$0")/../cli/common.sh"
+start_city_server "$SERVER" 2
+URL=http://127.0.0.1:$PORT
 unset GI_TOKEN GI_SERVER
 # check FILE PYTHON-ASSERTION: the --json summary in FILE satisfies it.
 check() { /usr/bin/python3 -c "import json, sys; j = json.load(open(sys.argv[1])); assert $2, j" "$1"; }
@@ -70,6 +52,4 @@ grep -q "gi-client: walk: session [0-9a-f]* has ended (HTTP 404); opening a new 
 # The text summary says it too.
 "$CLIENT" --server "$URL" walk city --quality low --path "$T/pause.csv" > "$T/out" 2> "$T/err"
 grep -q "^walk city: 4 steps, .*, 0 errors, 1 sessions reopened, " "$T/out" || fail "text summary: $(cat "$T/out")"
-[ "$FAILS" -eq 0 ] && { echo "all passed"; exit 0; }
-echo "$FAILS failure(s)" >&2
-exit 1
+finish
