@@ -357,13 +357,14 @@ static void centroid(const gi_mesh_builder *b, double scale, size_t tr, double c
  * grown by its extent, and the strays are counted: a leftover triangle at
  * 0,0,0 beside a city in map coordinates put the origin halfway (float
  * steps of 0.25 m on the city) and the default voxel at 763 m (no
- * indirect light). Without memory for the sample, the whole bounds. */
-static void bulk_box(const gi_mesh_builder *b, double scale, gi_scene *s, const build_tmp *t, const double lo[3],
-                     const double hi[3]) {
+ * indirect light). GI_ERR_NOMEM without memory for the sample. */
+static gi_result bulk_box(const gi_mesh_builder *b, double scale, gi_scene *s, const build_tmp *t, const double lo[3],
+                          const double hi[3], gi_error_info *err) {
   memcpy(s->bulk_lo, lo, sizeof s->bulk_lo), memcpy(s->bulk_hi, hi, sizeof s->bulk_hi);
   size_t stride = t->kept > STRAY_SAMPLE ? (t->kept + STRAY_SAMPLE - 1) / STRAY_SAMPLE : 1, m = 0, k = 0;
-  double *c = t->kept >= 2 ? gi__malloc(3 * (t->kept / stride + 1) * sizeof *c) : NULL;
-  if (!c) return;
+  if (t->kept < 2) return GI_OK;
+  double *c = gi__malloc(3 * (t->kept / stride + 1) * sizeof *c);
+  if (!c) return gi__fail(err, GI_ERR_NOMEM, "out of memory building scene (finding stray triangles)");
   for (size_t tr = 0; tr < b->nt; tr++)
     if (t->cls[tr] == TRI_KEEP && k++ % stride == 0) {
       double p[3];
@@ -382,7 +383,7 @@ static void bulk_box(const gi_mesh_builder *b, double scale, gi_scene *s, const 
     ext = fmax(ext, qhi[a] - qlo[a]), full = fmax(full, hi[a] - lo[a]);
   }
   gi__free(c);
-  if (!(ext > 0) || !(full > STRAY_RATIO * ext)) return;
+  if (!(ext > 0) || !(full > STRAY_RATIO * ext)) return GI_OK;
   double blo[3], bhi[3];
   for (int a = 0; a < 3; a++) blo[a] = qlo[a] - ext, bhi[a] = qhi[a] + ext;
   uint64_t far = 0;
@@ -401,9 +402,10 @@ static void bulk_box(const gi_mesh_builder *b, double scale, gi_scene *s, const 
         grow_box(v, nlo, nhi);
       }
   }
-  if (far == 0 || (double)far > fmax(1.0, STRAY_SHARE * (double)t->kept) || !(nlo[0] <= nhi[0])) return;
+  if (far == 0 || (double)far > fmax(1.0, STRAY_SHARE * (double)t->kept) || !(nlo[0] <= nhi[0])) return GI_OK;
   s->stats.far_triangles = far;
   memcpy(s->bulk_lo, nlo, sizeof nlo), memcpy(s->bulk_hi, nhi, sizeof nhi);
+  return GI_OK;
 }
 
 /* Kept vertices relative to the origin, in float, and their local bounds. */
@@ -610,7 +612,7 @@ gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_sc
 
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   classify(b, scale, s, &t, lo, hi);
-  bulk_box(b, scale, s, &t, lo, hi);
+  if ((rc = bulk_box(b, scale, s, &t, lo, hi, err)) != GI_OK) goto done;
   /* The origin at the bulk's centre: float positions are finest where the scene is. */
   for (int k = 0; k < 3; k++) s->origin[k] = lo[k] <= hi[k] ? 0.5 * (s->bulk_lo[k] + s->bulk_hi[k]) : 0.0;
   if ((rc = copy_vertices(b, scale, s, &t, err)) != GI_OK || (rc = copy_uv2(b, s, &t, err)) != GI_OK ||
