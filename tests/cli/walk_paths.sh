@@ -97,6 +97,10 @@ printf '0,0,1.7,0\n0.1,1e20,1.7,0\n' > "$T/far.csv"
 "$WALK" bench --extent 300 --path "$T/far.csv" --samples 1 --out "$T/pf" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 1 ] && grep -q "1e+20" "$T/err" && pass "a step at 1e20 -> 1, named" || fail "step at 1e20: exit $rc: $(cat "$T/err")"
 
+"$WALK" bench --help > "$T/out" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q "^usage: gi-walk bench" "$T/out" && pass "bench --help -> usage, 0" ||
+  fail "bench --help: exit $rc: $(cat "$T/err")"
+
 "$WALK" bench --paths-only --out /proc/gi-walk-test > "$T/out" 2> "$T/err"; rc=$?
 [ $rc -eq 1 ] && grep -q -F "gi-walk: --out: cannot create '/proc/gi-walk-test'" "$T/err" &&
   pass "uncreatable --out -> 1, named" || fail "uncreatable --out: exit $rc: $(cat "$T/err")"

@@ -214,8 +214,10 @@ static int run_tables(all_opts *a, ta_ctx *ctx) {
 int main(int argc, char **argv) {
   ta_ctx ctx = TA_CTX("gi-walk");
   setvbuf(stdout, NULL, _IOLBF, 0); /* figures show up as they come, also through tee */
-  if (argc < 2 || (strcmp(argv[1], "bench") && strcmp(argv[1], "tables")))
-    return fputs(USAGE, argc >= 2 && !strcmp(argv[1], "--help") ? stdout : stderr), argc >= 2 && !strcmp(argv[1], "--help") ? 0 : 2;
+  /* --help or -h anywhere (gi-walk bench --help too) prints the usage. */
+  for (int i = 1; i < argc; i++)
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) return fputs(USAGE, stdout), 0;
+  if (argc < 2 || (strcmp(argv[1], "bench") && strcmp(argv[1], "tables"))) return fputs(USAGE, stderr), 2;
   all_opts a = {.b = {.seconds = 60, .rate = 10, .samples = DEFAULT_SAMPLES, .out_dir = "out"},
                 .t = {.moves = DEFAULT_MOVES, .vdb_max_voxels = DEFAULT_VDB_MAX}};
   int ch;
