@@ -153,6 +153,15 @@ int ta_output_is_special(const char *path) {
   return 0;
 }
 
+int ta_output_is_stdout(void) {
+  struct stat out, st;
+  if (fstat(STDOUT_FILENO, &out) != 0) return 0;
+  for (int i = 0; i < num_outs; i++)
+    if (outs[i].special && stat(outs[i].special, &st) == 0 && st.st_dev == out.st_dev && st.st_ino == out.st_ino)
+      return 1;
+  return 0;
+}
+
 /* Copies file `from` into the device or FIFO `to`. 0, or errno. */
 static int copy_into(const char *from, const char *to) {
   int in = open(from, O_RDONLY), out = in < 0 ? -1 : open(to, O_WRONLY | O_NOCTTY);

@@ -94,6 +94,9 @@ int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_op
 int ta_check_output(ta_ctx *c, const char *opt, const char **path);
 /* Whether path (as ta_check_output returned it) stands for a device or FIFO. */
 int ta_output_is_special(const char *path);
+/* Whether an output is this process's standard output (--exr /dev/stdout):
+ * a tool then prints its report elsewhere, so the stream holds the file alone. */
+int ta_output_is_stdout(void);
 /* At the end of a run: when ok, copies each special output that was
  * written into its device or FIFO; always removes the temporary files and
  * frees the paths. Returns 0, or TA_EXIT_RUN when a copy failed. */

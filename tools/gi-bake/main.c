@@ -229,7 +229,13 @@ int main(int argc, char **argv) {
       .threads = resolved_threads(rep.quality.threads),
       .render = o.render ? &rs : NULL,
   };
+  /* With an output on standard output (--exr /dev/stdout | ...), the
+   * report goes to stderr, so the stream holds the file alone. */
+  int saved = -1;
+  if (ta_output_is_stdout() && fflush(stdout) == 0 && (saved = dup(STDOUT_FILENO)) >= 0)
+    dup2(STDERR_FILENO, STDOUT_FILENO);
   rc = cli_report(&run, o.json);
+  if (saved >= 0) fflush(stdout), dup2(saved, STDOUT_FILENO), close(saved);
 
 done:
   free(covered);
