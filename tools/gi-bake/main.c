@@ -146,6 +146,17 @@ static int write_outputs(const cli_opts *o, const gi_scene *scene, const gi_casc
   return 0;
 }
 
+/* cli_report, to stderr when an output is standard output (--exr
+ * /dev/stdout | ...), so that stream holds the file alone. */
+static int report(const cli_run *run, int json) {
+  int saved = -1;
+  if (ta_output_is_stdout() && fflush(stdout) == 0 && (saved = dup(STDOUT_FILENO)) >= 0)
+    dup2(STDERR_FILENO, STDOUT_FILENO);
+  int rc = cli_report(run, json);
+  if (saved >= 0) fflush(stdout), dup2(saved, STDOUT_FILENO), close(saved);
+  return rc;
+}
+
 int main(int argc, char **argv) {
   static ta_ctx fin = TA_CTX("gi-bake");
   if (argc > 1 && !strcmp(argv[1], "merge")) {
@@ -229,13 +240,7 @@ int main(int argc, char **argv) {
       .threads = resolved_threads(rep.quality.threads),
       .render = o.render ? &rs : NULL,
   };
-  /* With an output on standard output (--exr /dev/stdout | ...), the
-   * report goes to stderr, so the stream holds the file alone. */
-  int saved = -1;
-  if (ta_output_is_stdout() && fflush(stdout) == 0 && (saved = dup(STDOUT_FILENO)) >= 0)
-    dup2(STDERR_FILENO, STDOUT_FILENO);
-  rc = cli_report(&run, o.json);
-  if (saved >= 0) fflush(stdout), dup2(saved, STDOUT_FILENO), close(saved);
+  rc = report(&run, o.json);
 
 done:
   free(covered);
