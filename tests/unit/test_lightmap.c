@@ -449,6 +449,32 @@ static gi_scene *plate_with_uv(double k, double off) {
   return s;
 }
 
+/* A UV set that misses a vertex (a mesh without TEXCOORD_1, a NaN) is not
+ * used, and the scene counts the vertices that made it so. */
+static void test_scene_uv_incomplete(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m), v[4];
+  static const double xz[4][2] = {{0, 0}, {10, 0}, {10, 10}, {0, 10}};
+  for (int i = 0; i < 4; i++) {
+    v[i] = gi_mesh_builder_add_vertex(b, xz[i][0], 0, xz[i][1]);
+    gi_mesh_builder_set_lightmap_uv(b, v[i], i == 2 ? NAN : xz[i][0] / 10, xz[i][1] / 10);
+  }
+  gi_mesh_builder_add_triangle(b, v[0], v[2], v[1], mat);
+  gi_mesh_builder_add_triangle(b, v[0], v[3], v[2], mat);
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  gi_scene_options so = {.up = GI_UP_Y, .threads = 1};
+  assert_int_equal(gi_scene_build(b, "plate", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_false(gi_scene_has_lightmap_uv(s));
+  assert_int_equal(st.uv2_missing, 1);
+  gi_scene_release(s);
+}
+
 /* A scene's own UVs are a layout only inside [0, 1] and with area: moved by
  * a whole tile they baked nothing, all at one point they gathered one
  * texel for the whole atlas, both with success. Each fails now, naming
@@ -678,6 +704,7 @@ int main(void) {
       cmocka_unit_test(test_exr_read_back),
       cmocka_unit_test(test_gltf_read_back),
       cmocka_unit_test(test_scene_uv_checked),
+      cmocka_unit_test(test_scene_uv_incomplete),
       cmocka_unit_test(test_bake_deterministic_and_tiled),
       cmocka_unit_test(test_big_chart_tiles),
       cmocka_unit_test(test_no_dark_seams),

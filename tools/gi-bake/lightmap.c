@@ -115,6 +115,11 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
     memcpy(opts.region_hi, o->batch.region + 3, sizeof(double[3]));
     opts.have_region = 1;
   }
+  gi_scene_stats st;
+  gi_scene_get_stats(scene, &st);
+  if (st.uv2_missing && opts.scene_uv == 0)
+    fprintf(stderr, "gi-bake: note: the scene's lightmap UVs (its second UV set) are not used: %llu vertices have none "
+            "or non-finite ones; charts are made instead\n", (unsigned long long)st.uv2_missing);
   gi_result r = gi_lightmap_layout(scene, &opts, &lm, &err);
   if (r != GI_OK) return layout_failed(&err, r);
   gi_lightmap_report rep;

@@ -107,6 +107,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(sc, "lights", count(st.lights));
   json_object_set_new(sc, "lights_skipped", count(st.lights_skipped));
   json_object_set_new(sc, "far_triangles", count(st.far_triangles));
+  json_object_set_new(sc, "uv2_missing", count(st.uv2_missing));
   json_object_set_new(sc, "emissive_triangles", count(st.emissive_triangles));
   json_object_set_new(sc, "default_lights_added", json_boolean(st.default_lights_added));
   json_array_append_new(b, vec3d(j, lo, "scene bounds"));

@@ -104,6 +104,9 @@ typedef struct gi_scene_stats {
   uint64_t textures_unreadable; /* diffuse textures missing or undecodable (factor used alone) */
   uint32_t lights_skipped;     /* a file's lights of kinds not modelled (area, ambient, undefined):
                                   not in `lights`; an area light is better an emissive surface */
+  uint64_t uv2_missing;        /* kept vertices without finite lightmap UVs in a scene where others
+                                  have them: the set is then not used (gi_scene_has_lightmap_uv is 0)
+                                  and a lightmap makes charts of its own */
   uint64_t far_triangles;      /* kept, but stray: at most 1% of the triangles, more than 100 times
                                   the rest's extent away (a leftover at 0,0,0 beside a model in
                                   map coordinates); the origin and the default voxel size follow

@@ -441,9 +441,16 @@ static gi_result copy_vertices(const gi_mesh_builder *b, double scale, gi_scene 
  * finite UVs (a partial set cannot lay out a lightmap). */
 static gi_result copy_uv2(const gi_mesh_builder *b, gi_scene *s, const build_tmp *t, gi_error_info *err) {
   if (!b->uv2 || !t->kept_v) return GI_OK;
+  /* A set that misses some vertices (a mesh without TEXCOORD_1, a NaN) is
+   * not a layout: it is dropped, and the count says why. */
+  uint64_t missing = 0;
   for (size_t i = 0; i < b->nv; i++)
-    if (t->remap[i] != UINT32_MAX && (2 * i + 1 >= b->cap_uv2 || !isfinite(b->uv2[2 * i]) || !isfinite(b->uv2[2 * i + 1])))
-      return GI_OK;
+    missing += t->remap[i] != UINT32_MAX &&
+               (2 * i + 1 >= b->cap_uv2 || !isfinite(b->uv2[2 * i]) || !isfinite(b->uv2[2 * i + 1]));
+  if (missing) {
+    s->stats.uv2_missing = missing;
+    return GI_OK;
+  }
   if (!(s->uv2 = gi__malloc(2 * t->kept_v * sizeof *s->uv2)))
     return gi__fail(err, GI_ERR_NOMEM, "out of memory for %zu lightmap UVs", t->kept_v);
   for (size_t i = 0; i < b->nv; i++)
