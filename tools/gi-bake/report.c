@@ -85,14 +85,13 @@ static void add_march_figures(json_t *root, const gi_bake_report *rep) {
   json_object_set_new(root, "cpu_path", json_string(gi_cpu_path()));
 }
 
-static json_t *build_json(const cli_run *r, jctx *j) {
-  const gi_bake_report *rep = r->rep;
+/* The report's "scene" object: what the scene holds and what was dropped. */
+static json_t *scene_json(const cli_run *r, jctx *j) {
   gi_scene_stats st;
   gi_scene_get_stats(r->scene, &st);
   double lo[3], hi[3];
   gi_scene_bounds(r->scene, lo, hi);
-
-  json_t *root = json_object(), *sc = json_object(), *b = json_array();
+  json_t *sc = json_object(), *b = json_array();
   json_object_set_new(sc, "name", json_string(gi_scene_name(r->scene) ? gi_scene_name(r->scene) : ""));
   json_object_set_new(sc, "path", r->o->is_city ? json_null() : json_string(r->o->scene));
   json_object_set_new(sc, "up", json_string(gi_scene_up(r->scene) == GI_UP_Z ? "z" : "y"));
@@ -113,7 +112,13 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_array_append_new(b, vec3d(j, lo, "scene bounds"));
   json_array_append_new(b, vec3d(j, hi, "scene bounds"));
   json_object_set_new(sc, "bounds", b);
-  json_object_set_new(root, "scene", sc);
+  return sc;
+}
+
+static json_t *build_json(const cli_run *r, jctx *j) {
+  const gi_bake_report *rep = r->rep;
+  json_t *root = json_object();
+  json_object_set_new(root, "scene", scene_json(r, j));
 
   json_object_set_new(root, "viewpoint", vec3d(j, r->points, "viewpoint"));
   json_object_set_new(root, "quality", quality_json(j, &rep->quality, r->threads));
