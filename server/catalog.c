@@ -48,7 +48,7 @@ int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t err
       rc = gi_scene_load(sc->source, &opt, &s->scene, &e);
       if (rc == GI_OK) {
         double lo[3], hi[3];
-        gi_scene_bounds(s->scene, lo, hi);
+        gi_scene_bulk_bounds(s->scene, lo, hi); /* not between a model and a stray triangle far off */
         for (int a = 0; a < 3; a++) s->default_at[a] = 0.5 * (lo[a] + hi[a]);
       }
     }

@@ -564,6 +564,8 @@ static void scene_info(gs_service *svc, const gs_scene *s, const query *qy, gs_a
                         "default_viewpoint", vec3(s->default_at), "quality", qj, "effects", fx, "load_ms",
                         s->load_ms);
   json_object_set_new(o, "lights_skipped", json_integer(st.lights_skipped));
+  json_object_set_new(o, "far_triangles", json_integer((json_int_t)st.far_triangles));
+  json_object_set_new(o, "uv2_missing", json_integer((json_int_t)st.uv2_missing));
   json_object_set_new(o, "grid", gs_canon_grid_json(s, &canon));
   /* Full precision: a client snaps with origin and cell_size bit for bit. */
   answer_json_precise(a, 200, o);

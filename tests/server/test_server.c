@@ -110,6 +110,10 @@ static void test_catalog_and_scene(void **state) {
   gi_scene_stats st;
   gi_scene_get_stats(s, &st);
   assert_int_equal(json_integer_value(json_object_get(o, "triangles")), st.triangles);
+  /* The scene counters gi-bake --json has: present, and 0 for the city. */
+  assert_true(json_is_integer(json_object_get(o, "far_triangles")));
+  assert_int_equal(json_integer_value(json_object_get(o, "far_triangles")), 0);
+  assert_true(json_is_integer(json_object_get(o, "uv2_missing")));
   json_t *fx = json_object_get(o, "effects");
   assert_int_equal(json_object_size(fx), GI_FX_COUNT);
   for (int i = 0; i < GI_FX_COUNT; i++) {
