@@ -410,6 +410,29 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
   return rc;
 }
 
+/* With 'at', every point must lie within the one cascade around it: a
+ * point outside got direct light only, its indirect light 0, with a 200
+ * (the Cornell box's probes asked from its camera). A level's window
+ * reaches at least (R/2 - 2) of its voxels from its snapped centre, so
+ * that much of the coarsest level is sure; 1 and a 400 naming the first
+ * point beyond it. */
+static int beyond_reach(const gi_proto_probes *p, const gi_quality *q, gi_proto_error *pe) {
+  double reach = (q->res / 2 - 2) * q->voxel0 * (double)(1ull << (q->levels - 1));
+  for (size_t i = 0; i < p->num_points; i++) {
+    double d = 0;
+    for (int k = 0; k < 3; k++) d = fmax(d, fabs(p->points[3 * i + k] - p->bake.at[k]));
+    if (d > reach) {
+      gi_proto_fail(pe, 400,
+                    "body: points[%zu] (%g, %g, %g) lies %g units from 'at' along an axis, beyond its cascade's "
+                    "reach of %g: its indirect light would be 0; leave 'at' out (the server places cascades "
+                    "around the points) or ask for more levels", i, p->points[3 * i], p->points[3 * i + 1],
+                    p->points[3 * i + 2], d, reach);
+      return 1;
+    }
+  }
+  return 0;
+}
+
 void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_waiter *w,
                      const gi_cancel *cancel, gs_answer *a) {
   gi_error_info e = {0};
@@ -423,6 +446,12 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
   size_t nt = 0;
   int far = 0;
   size_t *all = NULL;
+  gi_proto_error pe;
+  if (p->bake.has_at && beyond_reach(p, &q, &pe)) {
+    gs_answer_error(a, &pe);
+    gi_proto_probes_free(p);
+    return;
+  }
   if (p->bake.has_at) {
     /* The client chose one cascade for all points. */
     all = malloc(p->num_points * sizeof *all);
@@ -436,7 +465,6 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     nt = 0;
   }
   if (nt == 0 || (p->bake.has_at && !all)) {
-    gi_proto_error pe;
     if (far) gi_proto_fail(&pe, 400, "body: points: a point is too far from the scene for voxels of %g", q.voxel0);
     else gi_proto_fail(&pe, 503, "probes: out of memory for %zu points", p->num_points);
     gs_answer_error(a, &pe);

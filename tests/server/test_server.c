@@ -479,6 +479,11 @@ static void test_probes_inline_and_job(void **state) {
   assert_string_equal(gi_exr_file_attr(x, "gi.tiles"), "1");
   gi_exr_file_free(x);
   free(r.body);
+  /* With 'at' 60 m off, within its cascade's reach: answered from that one cascade. */
+  r = su_http(&S_main, "POST", "/v1/scenes/city/probes",
+              "{\"points\":[[31,2,29],[31.2,2,29.1]],\"at\":[-29,2,29],\"quality\":\"low\"}", TOKEN);
+  assert_int_equal(r.status, 200);
+  free(r.body);
 
   /* Over max_probes_inline (2): a job. */
   r = su_http(&S_main, "POST", "/v1/scenes/city/probes",
@@ -546,6 +551,9 @@ static void test_errors(void **state) {
       {"POST", "/v1/scenes/city/probes", "{\"points\":[[1,2]]}", 400, "bad_request", "points[0]"},
       {"POST", "/v1/scenes/city/probes", "{\"points\":[[1,2,3]],\"bogus\":1}", 400, "bad_request", "'bogus'"},
       {"POST", "/v1/scenes/city/probes", "not json", 400, "bad_request", "line 1"},
+      /* With 'at', a point beyond its one cascade would read no indirect light. */
+      {"POST", "/v1/scenes/city/probes", "{\"points\":[[-140,2,-140],[140,2,140]],\"at\":[-140,2,-140]}", 400,
+       "bad_request", "points[1] (140, 2, 140) lies 280 units from 'at'"},
       {NULL, "/v1/health?verbose=1", NULL, 400, "bad_request", "'verbose'"},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
