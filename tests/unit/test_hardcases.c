@@ -61,8 +61,9 @@ static void bake_gather(const gi_scene *s, const double at[3], const gi_quality 
   bake_gather_rep(s, at, q, pts, n, out, NULL);
 }
 
-/* A closed 4 x 3 x 4 room with a red box in it and a point light, moved by o. */
-static gi_scene *room_scene2(const double o[3], float albedo, float box, float light) {
+/* The mesh of a closed 4 x 3 x 4 room (material 0) with a red box in it
+ * (material 1), moved by o. */
+static gi_mesh_builder *room_mesh(const double o[3], float albedo, float box) {
   gi_mesh_builder *b = gi_mesh_builder_new();
   gi_material wall = {.albedo = {albedo, albedo, albedo}, .roughness = 1};
   gi_material red = {.albedo = {box, box / 7, box / 7}, .roughness = 1};
@@ -71,9 +72,19 @@ static gi_scene *room_scene2(const double o[3], float albedo, float box, float l
   gi_mesh_builder_add_box(b, lo, hi, mw);
   double blo[3] = {o[0] + 2.3, o[1], o[2] + 1.1}, bhi[3] = {o[0] + 3.1, o[1] + 1.4, o[2] + 2.0};
   gi_mesh_builder_add_box(b, blo, bhi, mr);
-  gi_light pl = {.type = GI_LIGHT_POINT, .color = {light, light, light},
-                 .position = {o[0] + 1.3, o[1] + 2.6, o[2] + 1.7}};
-  return build(b, "room", &pl, 1);
+  return b;
+}
+
+/* The room's point light. */
+static gi_light room_light(const double o[3], float light) {
+  return (gi_light){.type = GI_LIGHT_POINT, .color = {light, light, light},
+                    .position = {o[0] + 1.3, o[1] + 2.6, o[2] + 1.7}};
+}
+
+/* The room with its box and light. */
+static gi_scene *room_scene2(const double o[3], float albedo, float box, float light) {
+  gi_light pl = room_light(o, light);
+  return build(room_mesh(o, albedo, box), "room", &pl, 1);
 }
 
 static gi_scene *room_scene(const double o[3], float albedo, float light) {
@@ -137,24 +148,18 @@ static void test_stray_triangle(void **state) {
   bake_gather(s, at, &q, pts, 2, alone);
   gi_scene_release(s);
 
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material wall = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1}, red = {.albedo = {0.7f, 0.1f, 0.1f}, .roughness = 1};
-  uint32_t mw = gi_mesh_builder_add_material(b, &wall), mr = gi_mesh_builder_add_material(b, &red);
-  double rlo[3] = {o[0], o[1], o[2]}, rhi[3] = {o[0] + 4, o[1] + 3, o[2] + 4};
-  gi_mesh_builder_add_box(b, rlo, rhi, mw);
-  double klo[3] = {o[0] + 2.3, o[1], o[2] + 1.1}, khi[3] = {o[0] + 3.1, o[1] + 1.4, o[2] + 2.0};
-  gi_mesh_builder_add_box(b, klo, khi, mr);
+  gi_mesh_builder *b = room_mesh(o, 0.6f, 0.7f);
   uint32_t v0 = gi_mesh_builder_add_vertex(b, 0, 0, 0), v1 = gi_mesh_builder_add_vertex(b, 1, 0, 0),
            v2 = gi_mesh_builder_add_vertex(b, 0, 0, 1);
-  gi_mesh_builder_add_triangle(b, v0, v2, v1, mw);
-  gi_light pl = {.type = GI_LIGHT_POINT, .color = {10, 10, 10}, .position = {o[0] + 1.3, o[1] + 2.6, o[2] + 1.7}};
+  gi_mesh_builder_add_triangle(b, v0, v2, v1, 0);
+  gi_light pl = room_light(o, 10.f);
   s = build(b, "room+stray", &pl, 1);
   gi_scene_get_stats(s, &st);
   assert_int_equal(st.far_triangles, 1);
   gi_scene_bulk_bounds(s, blo, bhi);
   for (int k = 0; k < 3; k++) assert_true(blo[k] == lo[k] && bhi[k] == hi[k]);
   gi_scene_bounds(s, lo, hi);
-  assert_true(fabs(lo[0]) < 1 && fabs(hi[2] - rhi[2]) < 1); /* float steps there: the stray is far */
+  assert_true(fabs(lo[0]) < 1 && fabs(hi[2] - (o[2] + 4)) < 1); /* float steps there: the stray is far */
   bake_gather(s, at, &q, pts, 2, with);
   gi_scene_release(s);
   for (int p = 0; p < 2; p++) {

@@ -428,15 +428,16 @@ static void test_gltf_read_back(void **state) {
   gi_scene_release(s);
 }
 
-/* A 10 m plate of two triangles with lightmap UVs (u, v) = k (x, z) / 10 + off. */
-static gi_scene *plate_with_uv(double k, double off) {
+/* A 10 m plate of two triangles with lightmap UVs (u, v) = k (x, z) / 10 +
+ * off, but u = NaN at vertex nan_at (-1: none). */
+static gi_scene *plate_with_uv(double k, double off, int nan_at) {
   gi_mesh_builder *b = gi_mesh_builder_new();
   gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
   uint32_t mat = gi_mesh_builder_add_material(b, &m), v[4];
   static const double xz[4][2] = {{0, 0}, {10, 0}, {10, 10}, {0, 10}};
   for (int i = 0; i < 4; i++) {
     v[i] = gi_mesh_builder_add_vertex(b, xz[i][0], 0, xz[i][1]);
-    gi_mesh_builder_set_lightmap_uv(b, v[i], k * xz[i][0] / 10 + off, k * xz[i][1] / 10 + off);
+    gi_mesh_builder_set_lightmap_uv(b, v[i], i == nan_at ? NAN : k * xz[i][0] / 10 + off, k * xz[i][1] / 10 + off);
   }
   gi_mesh_builder_add_triangle(b, v[0], v[2], v[1], mat);
   gi_mesh_builder_add_triangle(b, v[0], v[3], v[2], mat);
@@ -445,7 +446,6 @@ static gi_scene *plate_with_uv(double k, double off) {
   gi_error_info err = {0};
   assert_int_equal(gi_scene_build(b, "plate", &so, &s, &err), GI_OK);
   gi_mesh_builder_free(b);
-  assert_true(gi_scene_has_lightmap_uv(s));
   return s;
 }
 
@@ -453,21 +453,7 @@ static gi_scene *plate_with_uv(double k, double off) {
  * used, and the scene counts the vertices that made it so. */
 static void test_scene_uv_incomplete(void **state) {
   (void)state;
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m), v[4];
-  static const double xz[4][2] = {{0, 0}, {10, 0}, {10, 10}, {0, 10}};
-  for (int i = 0; i < 4; i++) {
-    v[i] = gi_mesh_builder_add_vertex(b, xz[i][0], 0, xz[i][1]);
-    gi_mesh_builder_set_lightmap_uv(b, v[i], i == 2 ? NAN : xz[i][0] / 10, xz[i][1] / 10);
-  }
-  gi_mesh_builder_add_triangle(b, v[0], v[2], v[1], mat);
-  gi_mesh_builder_add_triangle(b, v[0], v[3], v[2], mat);
-  gi_scene *s = NULL;
-  gi_error_info err = {0};
-  gi_scene_options so = {.up = GI_UP_Y, .threads = 1};
-  assert_int_equal(gi_scene_build(b, "plate", &so, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
+  gi_scene *s = plate_with_uv(1, 0, 2);
   gi_scene_stats st;
   gi_scene_get_stats(s, &st);
   assert_false(gi_scene_has_lightmap_uv(s));
@@ -492,7 +478,8 @@ static void test_scene_uv_checked(void **state) {
                {0, 0.5, GI_ERR_FORMAT, "100.0% of the surface no area"},
                {1e-9, 0.5, GI_ERR_FORMAT, "no area"}};
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-    gi_scene *s = plate_with_uv(cases[i].k, cases[i].off);
+    gi_scene *s = plate_with_uv(cases[i].k, cases[i].off, -1);
+    assert_true(gi_scene_has_lightmap_uv(s));
     gi_lightmap_opts o = {.atlas = 64};
     gi_lightmap *lm = NULL;
     gi_error_info err = {0};

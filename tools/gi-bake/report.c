@@ -40,6 +40,23 @@ static json_t *vec3f(jctx *j, const float v[3], const char *where) {
 
 static json_t *count(uint64_t v) { return json_integer((json_int_t)v); }
 
+/* n floats of field `where`, for finite numbers only (num's rule, without a JSON value). */
+static void check_f(jctx *j, const float *v, int n, const char *where) {
+  for (int i = 0; i < n && !j->bad; i++)
+    if (!isfinite(v[i])) snprintf(j->where, sizeof j->where, "%s", where), j->bad = 1;
+}
+
+/* probe_json's numbers checked as it would, before any of the streamed array is printed. */
+static void check_probe(jctx *j, const gi_probe *p, const double at[3]) {
+  for (int k = 0; k < 3 && !j->bad; k++)
+    if (!isfinite(at[k])) snprintf(j->where, sizeof j->where, "probe position"), j->bad = 1;
+  check_f(j, &p->sh[0][0], 27, "probe sh");
+  check_f(j, p->irradiance, 3, "probe irradiance");
+  check_f(j, p->direct, 3, "probe direct");
+  check_f(j, p->indirect, 3, "probe indirect");
+  check_f(j, &p->ao, 1, "probe ao");
+}
+
 static json_t *probe_json(jctx *j, const gi_probe *p, const double at[3], int covered) {
   json_t *o = json_object(), *sh = json_array();
   json_object_set_new(o, "at", vec3d(j, at, "probe position"));
@@ -125,8 +142,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(root, "probe", probe_json(j, &r->probes[0], r->points, !r->covered || r->covered[0]));
   /* "probes" is streamed by print_json: a million of them as one jansson
    * tree took 7 GB. Here each is only checked for finite numbers. */
-  for (size_t i = 1; i < r->num_probes && !j->bad; i++)
-    json_decref(probe_json(j, &r->probes[i], &r->points[3 * i], !r->covered || r->covered[i]));
+  for (size_t i = 1; i < r->num_probes && !j->bad; i++) check_probe(j, &r->probes[i], &r->points[3 * i]);
 
   json_t *t = json_object();
   json_object_set_new(t, "load", num(j, r->load_ms, "timings_ms.load"));

@@ -719,31 +719,31 @@ double gi_scene_clearance(const gi_scene *s, const double p[3], double max) {
   return best;
 }
 
-double gi_scene_backface_share(const gi_scene *s, const double p[3]) {
+/* Of the 26 directions from world point p: how many first meet a
+ * surface's back, and how many meet nothing. 0 for a non-finite p. */
+static int dir26_hits(const gi_scene *s, const double p[3], int *back, int *open) {
+  *back = *open = 0;
   if (!s || !p || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) return 0;
   float o[3];
   for (int k = 0; k < 3; k++) o[k] = (float)(p[k] - s->origin[k]);
-  int back = 0;
   for (int i = 0; i < NUM_DIR26; i++) {
     float w[3], t, ng[3];
     uint32_t tri;
     dir26(i, w);
-    if (gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng) && ng[0] * w[0] + ng[1] * w[1] + ng[2] * w[2] > 0) back++;
+    if (!gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng)) (*open)++;
+    else if (ng[0] * w[0] + ng[1] * w[1] + ng[2] * w[2] > 0) (*back)++;
   }
-  return (double)back / NUM_DIR26;
+  return 1;
+}
+
+double gi_scene_backface_share(const gi_scene *s, const double p[3]) {
+  int back, open;
+  return dir26_hits(s, p, &back, &open) ? (double)back / NUM_DIR26 : 0;
 }
 
 double gi_scene_escape_share(const gi_scene *s, const double p[3]) {
-  if (!s || !p || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) return 1;
-  float o[3];
-  for (int k = 0; k < 3; k++) o[k] = (float)(p[k] - s->origin[k]);
-  int open = 0;
-  for (int i = 0; i < NUM_DIR26; i++) {
-    float w[3], t;
-    dir26(i, w);
-    open += !gi__intersect1(s, o, w, 0, INFINITY, &t, NULL, NULL);
-  }
-  return (double)open / NUM_DIR26;
+  int back, open;
+  return dir26_hits(s, p, &back, &open) ? (double)open / NUM_DIR26 : 1;
 }
 
 gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }
