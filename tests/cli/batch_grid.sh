@@ -82,6 +82,41 @@ fi
 [ $rc -eq 1 ] && grep -q 'box.obj' "$T/e4" && pass "merge of a non-EXR: exit 1 naming it" || fail "non-EXR: rc $rc"
 "$BIN" merge "$T/s0.exr" 2> "$T/e5"; rc=$?
 [ $rc -eq 2 ] && pass "merge without an output: exit 2" || fail "merge without output: rc $rc"
+# A shard whose image is not its gi.grid's size (re-saved or cropped by
+# another tool, same header): refused by name, not read past its end. Only
+# the first shard's size was checked; the others were read as the grid's.
+python3 - "$T/s1.exr" "$T/crop.exr" 3 3 <<'PY' || fail "could not write the cropped shard"
+import struct, sys
+src, dst, w, h = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+b = open(src, "rb").read()
+pos, attrs = 8, []
+def cstr(p):
+    e = b.index(b"\0", p)
+    return b[p:e].decode(), e + 1
+while b[pos] != 0:  # the header's attributes, kept but for the windows and compression
+    name, pos = cstr(pos)
+    typ, pos = cstr(pos)
+    (size,) = struct.unpack_from("<i", b, pos)
+    attrs.append([name, typ, b[pos + 4:pos + 4 + size]])
+    pos += 4 + size
+ch, p, nch = [a for a in attrs if a[0] == "channels"][0][2], 0, 0
+while ch[p] != 0:
+    p, nch = ch.index(b"\0", p) + 17, nch + 1
+for a in attrs:
+    if a[0] in ("dataWindow", "displayWindow"): a[2] = struct.pack("<4i", 0, 0, w - 1, h - 1)
+    if a[0] == "compression": a[2] = b"\0"
+out = bytearray(b[:8])
+for n, t, v in attrs: out += n.encode() + b"\0" + t.encode() + b"\0" + struct.pack("<i", len(v)) + v
+out += b"\0"
+line = 4 * w * nch  # float channels, uncompressed scanlines of zeros
+start = len(out) + 8 * h
+for y in range(h): out += struct.pack("<Q", start + y * (8 + line))
+for y in range(h): out += struct.pack("<ii", y, line) + bytes(line)
+open(dst, "wb").write(bytes(out))
+PY
+"$BIN" merge --exr "$T/bad.exr" "$T/s0.exr" "$T/crop.exr" "$T/s2.exr" 2> "$T/e7"; rc=$?
+[ $rc -eq 1 ] && grep -q "crop.exr: image is 3 x 3, but its gi.grid needs 9 x 81" "$T/e7" && [ ! -e "$T/bad.exr" ] \
+  && pass "merge of a shard of the wrong size: exit 1 naming it" || fail "wrong size: rc $rc: $(cat "$T/e7")"
 
 # A checkpoint folder of another bake is refused, not mixed in.
 "$BIN" "$T/box.obj" $BOXQ --resume "$T/ckb" --exr "$T/b1.exr" > /dev/null 2>&1

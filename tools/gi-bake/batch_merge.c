@@ -87,8 +87,6 @@ static int first_shard(merge_state *s, const char *file, const gi_exr_file *f, c
   for (int i = 0; i < HDR_COUNT; i++)
     if (vals[i] && !(s->values[i] = strdup(vals[i]))) return bad(file, "out of memory");
   if (layout_parse(vals[HDR_GRID], &s->L) != 0) return bad(file, "gi.grid does not describe a probe grid");
-  if (gi_exr_file_width(f) != s->L.counts[0] || gi_exr_file_height(f) != s->L.counts[1] * s->L.counts[2])
-    return bad(file, "image size does not match its gi.grid");
   s->ao = gi_exr_file_channel(f, "ao.Y") != NULL;
   s->seen = calloc((size_t)s->shards, sizeof *s->seen);
   s->probes = calloc(s->L.n, sizeof *s->probes);
@@ -133,6 +131,12 @@ static int check_header(merge_state *s, const char *file, const gi_exr_file *f, 
     }
   if (sn != s->shards) {
     snprintf(why, sizeof why, "is shard %d of %d, but %s is one of %d", si, sn, s->first, s->shards);
+    return bad(file, why);
+  }
+  /* Every shard, not only the first: its points are read as the grid's. */
+  if (gi_exr_file_width(f) != s->L.counts[0] || gi_exr_file_height(f) != s->L.counts[1] * s->L.counts[2]) {
+    snprintf(why, sizeof why, "image is %d x %d, but its gi.grid needs %d x %d", gi_exr_file_width(f),
+             gi_exr_file_height(f), s->L.counts[0], s->L.counts[1] * s->L.counts[2]);
     return bad(file, why);
   }
   if (s->seen[si]) {
