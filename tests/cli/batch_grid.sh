@@ -117,6 +117,12 @@ PY
 "$BIN" merge --exr "$T/bad.exr" "$T/s0.exr" "$T/crop.exr" "$T/s2.exr" 2> "$T/e7"; rc=$?
 [ $rc -eq 1 ] && grep -q "crop.exr: image is 3 x 3, but its gi.grid needs 9 x 81" "$T/e7" && [ ! -e "$T/bad.exr" ] \
   && pass "merge of a shard of the wrong size: exit 1 naming it" || fail "wrong size: rc $rc: $(cat "$T/e7")"
+# An output that is one of the shards would replace it with the merged file
+# (no gi.shard): the merge could never be run again. Refused, shard intact.
+cp "$T/s0.exr" "$T/s0copy.exr"
+"$BIN" merge --exr "$T/./s0copy.exr" "$T/s0copy.exr" "$T/s1.exr" "$T/s2.exr" 2> "$T/e8"; rc=$?
+[ $rc -eq 2 ] && grep -q -- "--exr: .* is also the shard input" "$T/e8" && cmp -s "$T/s0copy.exr" "$T/s0.exr" \
+  && pass "merge onto a shard input: exit 2, shard intact" || fail "output = input: rc $rc: $(cat "$T/e8")"
 
 # A checkpoint folder of another bake is refused, not mixed in.
 "$BIN" "$T/box.obj" $BOXQ --resume "$T/ckb" --exr "$T/b1.exr" > /dev/null 2>&1
