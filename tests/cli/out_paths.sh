@@ -48,6 +48,12 @@ fi
 [ $rc -eq 2 ] && grep -q "is a folder" "$T/err" && pass "a folder: exit 2, $(head -n 1 "$T/err")" ||
   fail "folder: rc $rc, $(cat "$T/err")"
 
+# Two outputs on one plain file: the second rename replaced the first output
+# and the run exited 0 having "written" both. A usage error, before any work.
+"$BIN" "$T/box.obj" $Q --exr "$T/both.out" --vdb "$T/./both.out" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q -- "--vdb: .* is also the --exr output" "$T/err" && [ ! -e "$T/both.out" ] &&
+  pass "--exr and --vdb on one file: exit 2" || fail "one file twice: rc $rc, $(cat "$T/err")"
+
 # A run killed before its output is in place leaves no temporary file: a
 # run whose FIFO has no reader yet waits for one, holding the finished EXR
 # in a private folder under TMPDIR; SIGTERM then removes it.

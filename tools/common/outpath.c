@@ -31,6 +31,8 @@ typedef struct {
   char *special;        /* a device or FIFO to copy into after success, or NULL (owned) */
   char *dir;            /* the private folder holding `write` for a special output (owned) */
   char sig_tmp[PATH_MAX + 32]; /* the writer's "<write>.tmp.<pid>", removed on a signal */
+  char *canon;          /* `write` with its folder resolved, for a plain file; else NULL (owned) */
+  const char *opt;      /* the option that named it */
 } ta_output;
 
 static ta_output outs[TA_MAX_OUTPUTS];
@@ -93,6 +95,20 @@ static int check_folder(ta_ctx *c, const char *opt, const char *path, const char
   return rc;
 }
 
+/* path with its folder resolved (realpath), so "a.exr" and "./a.exr" compare equal. */
+static char *canonical(const char *path) {
+  char *copy = strdup(path), *copy2 = strdup(path);
+  char *dir = copy ? realpath(dirname(copy), NULL) : NULL;
+  const char *base = copy2 ? basename(copy2) : NULL;
+  char *out = NULL;
+  if (dir && base) {
+    size_t len = strlen(dir) + 1 + strlen(base) + 1;
+    if ((out = malloc(len))) snprintf(out, len, "%s/%s", dir, base);
+  }
+  free(copy), free(copy2), free(dir);
+  return out;
+}
+
 /* A private folder and file for special output `dev` (its name's last part kept). */
 static int special_file(ta_ctx *c, const char *opt, const char *dev, ta_output *o) {
   const char *tmpdir = getenv("TMPDIR");
@@ -135,11 +151,20 @@ int ta_check_output(ta_ctx *c, const char *opt, const char **path) {
   } else if (!(rc = check_folder(c, opt, p, *path)) && !o->write && !(o->write = strdup(p))) {
     rc = ta_error(c, TA_EXIT_RUN, opt, "out of memory");
   }
+  /* Two outputs on one plain file: the second rename would replace the first
+   * output and the run would still say it wrote both. */
+  if (!rc && !o->special && (o->canon = canonical(o->write)))
+    for (int i = 0; i < num_outs; i++)
+      if (outs[i].canon && !strcmp(outs[i].canon, o->canon)) {
+        rc = ta_fail(c, opt, "'%s' is also the %s output; each output needs a file of its own", *path, outs[i].opt);
+        break;
+      }
   if (rc) {
     if (o->dir) rmdir(o->dir);
-    free(o->write), free(o->special), free(o->dir);
+    free(o->write), free(o->special), free(o->dir), free(o->canon);
     return rc;
   }
+  o->opt = opt;
   snprintf(o->sig_tmp, sizeof o->sig_tmp, "%s.tmp.%d", o->write, (int)getpid());
   if (num_outs == 0) watch_signals();
   num_outs++;
@@ -196,6 +221,6 @@ int ta_outputs_finish(ta_ctx *c, int ok) {
   /* No signal may read the list while it is freed. */
   int n = num_outs;
   num_outs = 0;
-  for (int i = 0; i < n; i++) free(outs[i].write), free(outs[i].special), free(outs[i].dir);
+  for (int i = 0; i < n; i++) free(outs[i].write), free(outs[i].special), free(outs[i].dir), free(outs[i].canon);
   return rc;
 }
