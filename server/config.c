@@ -48,6 +48,11 @@ typedef struct {
   int line;            /* current line, counted by our reader */
   gs_scene_conf *cur;  /* the [scene ID] being read */
   char token_file[1024];
+  struct seen_key {    /* every key set so far, to refuse a second value */
+    char sec[80], key[64];
+    int line;
+  } *seen;
+  size_t num_seen;
 } load_ctx;
 
 static int fail(load_ctx *x, const char *section, const char *key, const char *fmt, ...)
@@ -245,11 +250,30 @@ static int valid_id(const char *id) {
   return 1;
 }
 
+/* A key given twice in a section (or in a repeated [server] or [limits]) is
+ * refused: the last value silently won. inih also hands an indented line
+ * to the key above it as a second value, so "workers = 2" then "  8" on the
+ * next line would have set 8. Called once the value was accepted. */
+static int once(load_ctx *x, const char *section, const char *name) {
+  for (size_t i = 0; i < x->num_seen; i++)
+    if (!strcmp(x->seen[i].sec, section) && !strcmp(x->seen[i].key, name))
+      return fail(x, section, name, "given twice (first on line %d; an indented line continues the key above it)",
+                  x->seen[i].line);
+  struct seen_key *ns = realloc(x->seen, (x->num_seen + 1) * sizeof *ns);
+  if (!ns) return fail(x, section, name, "out of memory");
+  x->seen = ns;
+  struct seen_key *k = &ns[x->num_seen++];
+  snprintf(k->sec, sizeof k->sec, "%s", section);
+  snprintf(k->key, sizeof k->key, "%s", name);
+  k->line = x->line;
+  return 1;
+}
+
 static int on_entry(void *user, const char *section, const char *name, const char *value) {
   load_ctx *x = user;
   if (x->err[0]) return 0;
-  if (!strcmp(section, "server")) return server_key(x, name, value);
-  if (!strcmp(section, "limits")) return limits_key(x, name, value);
+  if (!strcmp(section, "server")) return server_key(x, name, value) && once(x, section, name);
+  if (!strcmp(section, "limits")) return limits_key(x, name, value) && once(x, section, name);
   if (!strncmp(section, "scene ", 6)) {
     const char *id = section + 6;
     if (!valid_id(id)) return fail(x, section, name, "scene id '%s' must be 1..63 of [A-Za-z0-9_-]", id);
@@ -265,7 +289,7 @@ static int on_entry(void *user, const char *section, const char *name, const cha
       snprintf(x->cur->id, sizeof x->cur->id, "%s", id);
       x->cur->line = x->line; /* up stays 0 until given: y, but a flat scene gets a note (catalog.c) */
     }
-    return scene_key(x, section, name, value);
+    return scene_key(x, section, name, value) && once(x, section, name);
   }
   return fail(x, section, name, "unknown section (expected [server], [limits] or [scene ID])");
 }
@@ -314,6 +338,7 @@ int gs_config_load(const char *path, gs_config *c, char *err, size_t errsize) {
   void *stream[2] = {f, &x};
   int rc = ini_parse_stream(read_line, stream, on_entry, &x);
   fclose(f);
+  free(x.seen);
   if (x.err[0]) {
     snprintf(err, errsize, "%s", x.err);
     return -1;

@@ -71,6 +71,17 @@ expect tmpdir 1 "tmp_dir: '$T/nowhere' is not a writable folder"
 expect absent 1 "absent.ini: cannot open config"
 printf '[limits]\nmax_probes_inline = 10\nmax_probes_job = 5\n%s\n' "$scene" > "$T/order.ini"
 expect order 1 "max_probes_inline (10) exceeds max_probes_job (5)"
+# A key given twice: the last value silently won, also across a repeated
+# [limits] and for an indented line (inih makes it a second value of the key
+# above: "workers = 2" then "  8" set 8 workers).
+printf '[server]\nworkers = 2\nport = 0\nworkers = 8\n%s\n' "$scene" > "$T/dupkey.ini"
+expect dupkey 1 "dupkey.ini:4: [server] workers: given twice (first on line 2"
+printf '[limits]\nmax_res = 32\n[server]\nport = 0\n[limits]\nmax_res = 16\n%s\n' "$scene" > "$T/dupsec.ini"
+expect dupsec 1 "dupsec.ini:6: [limits] max_res: given twice (first on line 2"
+printf '[server]\nworkers = 2\n   8\n%s\n' "$scene" > "$T/indent.ini"
+expect indent 1 "indent.ini:3: [server] workers: given twice (first on line 2; an indented line"
+printf '%s\nup = y\nup = z\n' "$scene" > "$T/dupscene.ini"
+expect dupscene 1 "dupscene.ini:5: [scene city] up: given twice (first on line 4"
 # A scene file flat along z without 'up' (an OpenStreetMap export): loaded
 # with y up and a note naming the fix; none once 'up' is given.
 printf 'v 0 0 0\nv 100 0 0\nv 100 80 0\nv 0 80 0\nv 10 10 0\nv 10 10 12\nv 20 10 12\nf 1 2 3 4\nf 5 6 7\n' > "$T/flat.obj"
