@@ -6,6 +6,7 @@
  * fails at start, never on the first request. Scene paths are resolved
  * against the config file's folder so the same file works from any cwd. */
 #define _POSIX_C_SOURCE 200809L
+#include <arpa/inet.h>
 #include <errno.h>
 #include <ini.h>
 #include <limits.h>
@@ -110,7 +111,9 @@ static int server_key(load_ctx *x, const char *k, const char *v) {
   double d = 0;
   const char *S = "server";
   if (!strcmp(k, "bind")) {
-    if (!*v || strlen(v) >= sizeof c->bind) return fail(x, S, k, "expected an IPv4 address, got '%s'", v);
+    struct in_addr a; /* checked here, so --check-config sees it and the line is named */
+    if (!*v || strlen(v) >= sizeof c->bind || inet_pton(AF_INET, v, &a) != 1)
+      return fail(x, S, k, "expected an IPv4 address, got '%s'", v);
     snprintf(c->bind, sizeof c->bind, "%s", v);
   } else if (!strcmp(k, "port")) {
     if (!get_int(x, S, k, v, 0, 65535, &n)) return 0;

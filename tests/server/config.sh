@@ -82,6 +82,10 @@ printf '[server]\nworkers = 2\n   8\n%s\n' "$scene" > "$T/indent.ini"
 expect indent 1 "indent.ini:3: [server] workers: given twice (first on line 2; an indented line"
 printf '%s\nup = y\nup = z\n' "$scene" > "$T/dupscene.ini"
 expect dupscene 1 "dupscene.ini:5: [scene city] up: given twice (first on line 4"
+# bind is an IPv4 address: checked with its line, and by --check-config
+# (which said "valid" while the real start then failed without a line).
+printf '[server]\nport = 0\nbind = localhost\n%s\n' "$scene" > "$T/bind.ini"
+expect bind 1 "bind.ini:3: [server] bind: expected an IPv4 address, got 'localhost'"
 # A scene file flat along z without 'up' (an OpenStreetMap export): loaded
 # with y up and a note naming the fix; none once 'up' is given.
 printf 'v 0 0 0\nv 100 0 0\nv 100 80 0\nv 0 80 0\nv 10 10 0\nv 10 10 12\nv 20 10 12\nf 1 2 3 4\nf 5 6 7\n' > "$T/flat.obj"
