@@ -297,12 +297,35 @@ static int on_entry(void *user, const char *section, const char *name, const cha
   return fail(x, section, name, "unknown section (expected [server], [limits] or [scene ID])");
 }
 
-/* inih's reader callback: counts lines so messages can name them. */
+/* inih's reader callback: counts lines so messages can name them, and
+ * stops at what inih would misread: a line longer than its buffer (inih
+ * parsed the rest as a line of its own, under the wrong number), a NUL byte
+ * (the rest of the line ignored) and a read error (a folder read as an
+ * empty file, reported as "no [scene ID] sections"). */
 static char *read_line(char *str, int num, void *stream) {
+  FILE *f = ((void **)stream)[0];
   load_ctx *x = ((void **)stream)[1];
-  char *r = fgets(str, num, ((void **)stream)[0]);
-  if (r) x->line++;
-  return r;
+  int n = 0, c = 0;
+  while (n < num - 1 && (c = getc(f)) != EOF && c != '\0') {
+    str[n++] = (char)c;
+    if (c == '\n') break;
+  }
+  if (c == EOF && ferror(f)) {
+    snprintf(x->err, sizeof x->err, "%s: cannot read config: %s", x->c->path, strerror(errno));
+    return NULL;
+  }
+  if (n == 0 && c == EOF) return NULL;
+  x->line++;
+  if (c == '\0') {
+    snprintf(x->err, sizeof x->err, "%s:%d: a NUL byte (not a text file?)", x->c->path, x->line);
+    return NULL;
+  }
+  if (n == num - 1 && str[n - 1] != '\n' && (c = getc(f)) != '\n' && c != EOF) {
+    snprintf(x->err, sizeof x->err, "%s:%d: line longer than %d characters", x->c->path, x->line, num - 1);
+    return NULL;
+  }
+  str[n] = '\0';
+  return str;
 }
 
 static int read_token(load_ctx *x, const char *path) {

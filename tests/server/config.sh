@@ -86,6 +86,19 @@ expect dupscene 1 "dupscene.ini:5: [scene city] up: given twice (first on line 4
 # (which said "valid" while the real start then failed without a line).
 printf '[server]\nport = 0\nbind = localhost\n%s\n' "$scene" > "$T/bind.ini"
 expect bind 1 "bind.ini:3: [server] bind: expected an IPv4 address, got 'localhost'"
+# What inih misreads is refused with its line: a line longer than inih's
+# buffer (the rest became a "line 3" syntax error, or a second value for
+# the key when it began with a space), a NUL byte (the rest of the line
+# dropped), and a folder given as the config (read as an empty file).
+long=$(printf 'w%.0s' $(seq 1 250))
+printf '[scene x]\nsource = %s.obj\n' "$long" > "$T/long.ini"
+expect long 1 "long.ini:2: line longer than 199 characters"
+printf '[server]\nport = 0 ; %s\n%s\n' "$(printf 'word %.0s' $(seq 1 60))" "$scene" > "$T/longc.ini"
+expect longc 1 "longc.ini:2: line longer than 199 characters"
+printf '[server]\nport = 0\000 1\n%s\n' "$scene" > "$T/nul.ini"
+expect nul 1 "nul.ini:2: a NUL byte"
+mkdir "$T/dir.ini"
+expect dir 1 "dir.ini: cannot read config: Is a directory"
 # A scene file flat along z without 'up' (an OpenStreetMap export): loaded
 # with y up and a note naming the fix; none once 'up' is given.
 printf 'v 0 0 0\nv 100 0 0\nv 100 80 0\nv 0 80 0\nv 10 10 0\nv 10 10 12\nv 20 10 12\nf 1 2 3 4\nf 5 6 7\n' > "$T/flat.obj"
