@@ -498,6 +498,68 @@ static void test_scene_uv_checked(void **state) {
   }
 }
 
+/* Two 10 m plates 5 m apart, each a 2 x 2 grid of quads (edges shared
+ * inside, texel centres on the diagonals), with lightmap UVs on half the
+ * atlas each: the first at u in [0, 0.5], the second shifted by `shift`. */
+static gi_scene *plates_with_uv(double shift) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  for (int p = 0; p < 2; p++) {
+    uint32_t v[3][3];
+    for (int i = 0; i < 3; i++)
+      for (int j = 0; j < 3; j++) {
+        v[i][j] = gi_mesh_builder_add_vertex(b, 5.0 * i, 5.0 * p, 5.0 * j);
+        gi_mesh_builder_set_lightmap_uv(b, v[i][j], 0.25 * i + (p ? shift : 0), 0.5 * j);
+      }
+    for (int i = 0; i < 2; i++)
+      for (int j = 0; j < 2; j++) {
+        gi_mesh_builder_add_triangle(b, v[i][j], v[i + 1][j + 1], v[i + 1][j], mat);
+        gi_mesh_builder_add_triangle(b, v[i][j], v[i][j + 1], v[i + 1][j + 1], mat);
+      }
+  }
+  gi_scene_options so = {.up = GI_UP_Y, .threads = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "plates", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* Two surfaces on one texel cannot both keep their light: the bake finds
+ * one triangle per texel and the other showed its light, silently. Islands
+ * side by side (edges shared, texel centres on them) pass; stacked or
+ * overlapping islands fail naming a shared texel and the way out. */
+static void test_scene_uv_overlap(void **state) {
+  (void)state;
+  static const struct {
+    double shift;
+    gi_result want;
+    const char *says;
+  } cases[] = {{0.5, GI_OK, NULL},
+               {0.25, GI_ERR_FORMAT, "overlap: 33.3% of the texels they cover belong to two triangles"},
+               {0, GI_ERR_FORMAT, "overlap: 100.0%"}};
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    gi_scene *s = plates_with_uv(cases[i].shift);
+    gi_lightmap_opts o = {.atlas = 64};
+    gi_lightmap *lm = NULL;
+    gi_error_info err = {0};
+    assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), cases[i].want);
+    if (cases[i].says) {
+      printf("plates shifted %g: %s\n", cases[i].shift, err.msg);
+      assert_non_null(strstr(err.msg, cases[i].says));
+      assert_non_null(strstr(err.msg, "scene_uv = -1"));
+      o.scene_uv = -1;
+      assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+      assert_true(gi_lightmap_num_charts(lm) >= 2);
+    } else {
+      assert_int_equal(gi_lightmap_num_charts(lm), 1);
+    }
+    gi_lightmap_free(lm);
+    gi_scene_release(s);
+  }
+}
+
 /* The bake does not depend on threads or on how the region is tiled per
  * texel seed; a second bake of the same lightmap gives the same atlas. */
 static void test_bake_deterministic_and_tiled(void **state) {
@@ -691,6 +753,7 @@ int main(void) {
       cmocka_unit_test(test_exr_read_back),
       cmocka_unit_test(test_gltf_read_back),
       cmocka_unit_test(test_scene_uv_checked),
+      cmocka_unit_test(test_scene_uv_overlap),
       cmocka_unit_test(test_scene_uv_incomplete),
       cmocka_unit_test(test_bake_deterministic_and_tiled),
       cmocka_unit_test(test_big_chart_tiles),

@@ -242,10 +242,92 @@ static gi_result grow_charts(struct gi_lightmap *lm, const uint32_t *sel, size_t
 /* How far outside [0, 1] a UV may round (the file's float32, times the atlas). */
 #define UV_SLACK 1e-4f
 
+/* Share of the texels a UV set covers that a second triangle may claim too
+ * (a mirrored or stacked island) before the set counts as broken: the bake
+ * finds one triangle per texel, so the other surfaces would show its light. */
+#define UV_OVERLAP_SHARE 0.01
+/* A texel centre belongs to a triangle only this far (texels) inside its
+ * row's span: neighbours across a shared edge never both take one. */
+#define UV_INSET 0.01f
+
+/* Row y's texels whose centres lie inside triangle u (texel units, 6
+ * floats): [*x0, *x1], empty when *x0 > *x1. Each edge is evaluated from
+ * its lower end, so two triangles sharing it meet at the same u. */
+static void row_span(const float *u, int y, int N, int *x0, int *x1) {
+  float vc = (float)y + 0.5f, lo = INFINITY, hi = -INFINITY;
+  for (int e = 0; e < 3; e++) {
+    const float *a = u + 2 * e, *b = u + 2 * ((e + 1) % 3);
+    if (a[1] > b[1] || (a[1] == b[1] && a[0] > b[0])) {
+      const float *t = a;
+      a = b, b = t;
+    }
+    if (!(vc >= a[1] && vc <= b[1]) || a[1] == b[1]) continue;
+    float x = a[0] + (vc - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+    lo = gi__minf(lo, x), hi = gi__maxf(hi, x);
+  }
+  *x0 = 1, *x1 = 0;
+  if (!(lo + UV_INSET < hi - UV_INSET)) return;
+  float a = ceilf(lo + UV_INSET - 0.5f), b = floorf(hi - UV_INSET - 0.5f);
+  *x0 = a > 0 ? (int)a : 0;
+  *x1 = b < (float)(N - 1) ? (int)b : N - 1;
+}
+
+/* Rows of triangle u that may hold texel centres, clamped to the atlas. */
+static void tri_rows(const float *u, int N, int *y0, int *y1) {
+  float lo = gi__minf(u[1], gi__minf(u[3], u[5])), hi = gi__maxf(u[1], gi__maxf(u[3], u[5]));
+  float a = ceilf(lo - 0.5f), b = floorf(hi - 0.5f);
+  *y0 = a > 0 ? (int)a : 0;
+  *y1 = b < (float)(N - 1) ? (int)b : N - 1;
+}
+
+/* No texel may belong to two triangles of the scene's UV set beyond
+ * UV_OVERLAP_SHARE of those it covers. Fails naming a pair and a texel. */
+static gi_result check_uv_overlap(const struct gi_lightmap *lm, const uint32_t *sel, size_t n, const char *way,
+                                  gi_error_info *err) {
+  int N = lm->opts.atlas;
+  uint64_t *bits = gi__calloc(((size_t)N * N + 63) / 64, sizeof *bits);
+  if (!bits) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory checking the UV set of a %d atlas", N);
+  size_t covered = 0, twice = 0, first = SIZE_MAX;
+  int fx = 0, fy = 0;
+  for (size_t i = 0; i < n; i++) {
+    const float *u = &lm->uv[6 * i];
+    int y0, y1, x0, x1;
+    tri_rows(u, N, &y0, &y1);
+    for (int y = y0; y <= y1; y++) {
+      row_span(u, y, N, &x0, &x1);
+      for (int x = x0; x <= x1; x++) {
+        size_t t = (size_t)y * N + (size_t)x;
+        if (bits[t / 64] >> (t % 64) & 1) {
+          if (!twice++) first = i, fx = x, fy = y;
+        } else {
+          bits[t / 64] |= 1ull << (t % 64), covered++;
+        }
+      }
+    }
+  }
+  gi__free(bits);
+  if (!(twice > UV_OVERLAP_SHARE * (double)covered)) return GI_OK;
+  size_t other = 0; /* the earlier triangle that claimed the first shared texel */
+  for (size_t j = 0; j < first; j++) {
+    int x0, x1;
+    row_span(&lm->uv[6 * j], fy, N, &x0, &x1);
+    if (fx >= x0 && fx <= x1) {
+      other = j;
+      break;
+    }
+  }
+  return gi__fail(err, GI_ERR_FORMAT,
+                  "lightmap: the scene's own lightmap UVs (its second UV set) overlap: %.1f%% of the texels they "
+                  "cover belong to two triangles or more (triangles %u and %u share texel %d, %d of the %d atlas), "
+                  "and a texel holds one surface's light; %s", 100.0 * (double)twice / (double)covered, sel[other],
+                  sel[first], fx, fy, N, way);
+}
+
 /* The scene's UV set must be a lightmap layout: inside [0, 1] (outside, the
  * texels fell off the atlas: a UV set moved by a whole tile baked nothing)
  * and with area (all UVs at one point gathered one texel for the whole
- * atlas). Fails naming the first bad triangle and the way out. */
+ * atlas), and without overlaps. Fails naming the first bad triangle and
+ * the way out. */
 static gi_result check_scene_uv(const struct gi_lightmap *lm, const uint32_t *sel, size_t n, gi_error_info *err) {
   const gi_scene *s = lm->scene;
   float N = (float)lm->opts.atlas, lo = -UV_SLACK * N, hi = (1 + UV_SLACK) * N;
@@ -281,7 +363,7 @@ static gi_result check_scene_uv(const struct gi_lightmap *lm, const uint32_t *se
     return gi__fail(err, GI_ERR_FORMAT,
                     "lightmap: the scene's own lightmap UVs (its second UV set) give %.1f%% of the surface no area on "
                     "the atlas; %s", 100 * flat / area, way);
-  return GI_OK;
+  return check_uv_overlap(lm, sel, n, way, err);
 }
 
 /* The scene's own lightmap UVs: every selected triangle in one chart that
