@@ -48,10 +48,12 @@
 #include <unistd.h>
 
 /* A small city, one bake worker, a 3 s request deadline and 16 connections per address. */
-#define HOSTILE_INI(extra)                                                                          \
-  "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\nworkers = 1\nqueue = 8\n"          \
-  "bake_threads = 1\ntmp_dir = .\ntoken_file = token.txt\nrequest_timeout_s = 3\n"                  \
+/* work: the workers, queue and bake_threads keys (a config sets each key once). */
+#define HOSTILE_INI_WORK(work, extra)                                                               \
+  "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\n" work                              \
+  "tmp_dir = .\ntoken_file = token.txt\nrequest_timeout_s = 3\n"                                     \
   "max_connections_per_ip = 16\n" extra "\n[scene city]\nsource = city\nextent = 300\n"
+#define HOSTILE_INI(extra) HOSTILE_INI_WORK("workers = 1\nqueue = 8\nbake_threads = 1\n", extra)
 #define REQUEST_TIMEOUT_MS 3000
 #define PER_IP_LIMIT 16
 /* Points 5 m apart along a street: each one its own quality=low tile (about 4.7 m). */
@@ -899,7 +901,8 @@ static void run_parallel(const su_server *s, const char *const *paths, int n, bi
 static void test_memory_budget(void **state) {
   su_server s;
   assert_int_equal(su_start(&s, "budget",
-                            HOSTILE_INI("workers = 4\nbake_threads = 2\ndeadline_s = 240\n[limits]\ncache_mb = 700\n")),
+                            HOSTILE_INI_WORK("workers = 4\nqueue = 8\nbake_threads = 2\n",
+                                             "deadline_s = 240\n[limits]\ncache_mb = 700\n")),
                    0);
   const double rss0 = su_rss_mb(&s), limit = BUDGET_MB + rss0 + RSS_SLACK_MB;
   /* Four seeds: four cache keys, so nothing coalesces. */
@@ -984,7 +987,7 @@ static int open_files(pid_t pid, int *total) {
 
 static void test_vdb_from_memory(void **state) {
   su_server s;
-  assert_int_equal(su_start(&s, "vdb-memory", HOSTILE_INI("workers = 2\nqueue = 256\n")), 0);
+  assert_int_equal(su_start(&s, "vdb-memory", HOSTILE_INI_WORK("workers = 2\nqueue = 256\nbake_threads = 1\n", "")), 0);
   su_resp a = su_http(&s, NULL, VDB_PATH, NULL, SU_TOKEN);
   double misses = su_metric(&s, "gi_encode_misses_total", NULL);
   su_resp b = su_http(&s, NULL, VDB_PATH, NULL, SU_TOKEN);
