@@ -49,6 +49,7 @@ typedef struct {
   int line;            /* current line, counted by our reader */
   gs_scene_conf *cur;  /* the [scene ID] being read */
   char token_file[1024];
+  int token_line;      /* where token_file was set */
   struct seen_key {    /* every key set so far, to refuse a second value */
     char sec[80], key[64];
     int line;
@@ -143,6 +144,7 @@ static int server_key(load_ctx *x, const char *k, const char *v) {
     if (!get_num(x, S, k, v, 0.1, 3600, &d)) return 0;
     c->shutdown_grace_s = d;
   } else if (!strcmp(k, "token_file")) {
+    x->token_line = x->line;
     if (*v) return resolve_path(x, S, k, v, x->token_file, sizeof x->token_file);
   } else if (!strcmp(k, "tmp_dir")) {
     if (*v) return resolve_path(x, S, k, v, c->tmp_dir, sizeof c->tmp_dir);
@@ -328,11 +330,21 @@ static char *read_line(char *str, int num, void *stream) {
   return str;
 }
 
+const char *gs_token_bad(const char *tok) {
+  size_t n = strlen(tok);
+  if (n < 16 || n > 255) return "must hold one token of 16..255 characters";
+  /* A line break or a space inside could never arrive in an Authorization
+   * header as written: every request would be a 401. */
+  for (const char *p = tok; *p; p++)
+    if (*p <= ' ' || *p == 0x7f) return "must hold one token of visible ASCII characters (no spaces, one line)";
+  return NULL;
+}
+
 static int read_token(load_ctx *x, const char *path) {
   FILE *f = fopen(path, "r");
   if (!f) {
-    snprintf(x->err, sizeof x->err, "%s: [server] token_file: cannot open '%s': %s", x->c->path, path,
-             strerror(errno));
+    snprintf(x->err, sizeof x->err, "%s:%d: [server] token_file: cannot open '%s': %s", x->c->path, x->token_line,
+             path, strerror(errno));
     return -1;
   }
   char buf[sizeof x->c->token + 1];
@@ -340,9 +352,10 @@ static int read_token(load_ctx *x, const char *path) {
   fclose(f);
   buf[n] = 0;
   while (n && (buf[n - 1] == '\n' || buf[n - 1] == '\r' || buf[n - 1] == ' ')) buf[--n] = 0;
-  if (n < 16 || n >= sizeof x->c->token) {
-    snprintf(x->err, sizeof x->err, "%s: [server] token_file: '%s' must hold one token of 16..255 characters",
-             x->c->path, path);
+  const char *why = n >= sizeof x->c->token || strlen(buf) != n ? "must hold one token of 16..255 characters"
+                                                                : gs_token_bad(buf);
+  if (why) {
+    snprintf(x->err, sizeof x->err, "%s:%d: [server] token_file: '%s' %s", x->c->path, x->token_line, path, why);
     return -1;
   }
   snprintf(x->c->token, sizeof x->c->token, "%s", buf);

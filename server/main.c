@@ -114,8 +114,9 @@ static int load_config(const server_args *a, gs_config *cfg) {
   if (a->bind) snprintf(cfg->bind, sizeof cfg->bind, "%s", a->bind);
   const char *tok = getenv("GI_SERVER_TOKEN");
   if (tok && *tok) {
-    if (strlen(tok) < 16 || strlen(tok) >= sizeof cfg->token) {
-      fprintf(stderr, "gi-server: GI_SERVER_TOKEN must be 16..255 characters\n");
+    const char *why = gs_token_bad(tok);
+    if (why) {
+      fprintf(stderr, "gi-server: GI_SERVER_TOKEN %s\n", why);
       return 1;
     }
     snprintf(cfg->token, sizeof cfg->token, "%s", tok);

@@ -63,6 +63,8 @@ void gs_config_defaults(gs_config *c);
 /* Reads and validates path over the defaults. On error returns -1 with a
  * message naming the file, line and key in err. */
 int gs_config_load(const char *path, gs_config *c, char *err, size_t errsize);
+/* Why tok cannot be the bearer token (length, spaces, control bytes), or NULL. */
+const char *gs_token_bad(const char *tok);
 void gs_config_free(gs_config *c);
 
 /* ---- catalog.c: scenes loaded once, shared read-only ------------------- */

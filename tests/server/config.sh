@@ -66,6 +66,14 @@ expect empty 1 "no [scene ID] sections"
 printf 'short\n' > "$T/tok"
 printf '[server]\ntoken_file = tok\n%s\n' "$scene" > "$T/token.ini"
 expect token 1 "token_file: '$T/tok' must hold one token of 16..255 characters"
+# A token no client can send (a line break or a space inside) made every
+# request a 401: refused at start, with the config line; so is the variable.
+printf 'abcdefghijklmnop\nqrstuvwxyz012345\n' > "$T/tok2"
+printf '[server]\nport = 0\ntoken_file = tok2\n%s\n' "$scene" > "$T/token2.ini"
+expect token2 1 "token2.ini:3: [server] token_file: '$T/tok2' must hold one token of visible ASCII"
+out=$(GI_SERVER_TOKEN='0123456789abcdef 0123' "$BIN" --config "$T/good.ini" --check-config 2>&1); st=$?
+[ "$st" -eq 1 ] && case "$out" in *"GI_SERVER_TOKEN must hold one token of visible ASCII"*) true;; *) false;; esac \
+  && echo "ok: GI_SERVER_TOKEN with a space: $out" || fail "GI_SERVER_TOKEN with a space: exit $st: $out"
 printf '[server]\ntmp_dir = nowhere\n%s\n' "$scene" > "$T/tmpdir.ini"
 expect tmpdir 1 "tmp_dir: '$T/nowhere' is not a writable folder"
 expect absent 1 "absent.ini: cannot open config"
