@@ -108,6 +108,28 @@ static void retire(gs_jobs *j) {
   }
 }
 
+/* The job's tiles: with 'at', the one cascade the client chose, as an inline
+ * answer uses (the points were checked to lie within its reach); else the
+ * server's tiles around the points. 0, or -1 out of memory. */
+static int job_tiles(const job *jb, gs_tile **out, size_t *nt) {
+  size_t n = jb->p.num_points;
+  if (!jb->p.bake.has_at) return gs_tiles_make(jb->scene, &jb->q, jb->p.points, n, out, nt) == 0 && *out ? 0 : -1;
+  gs_tile *t = malloc(sizeof *t);
+  size_t *idx = malloc(n * sizeof *idx); /* gs_tiles_free frees t[0].idx and t */
+  if (!t || !idx) {
+    free(t);
+    free(idx);
+    return -1;
+  }
+  for (size_t i = 0; i < n; i++) idx[i] = i;
+  memcpy(t->at, jb->p.bake.at, sizeof t->at);
+  t->idx = idx;
+  t->n = n;
+  *out = t;
+  *nt = 1;
+  return 0;
+}
+
 static void run_job(gs_jobs *j, job *jb) {
   gs_service *svc = j->svc;
   gi_error_info e = {0};
@@ -116,7 +138,7 @@ static void run_job(gs_jobs *j, job *jb) {
   gi_probe *pr = malloc(jb->p.num_points * sizeof *pr);
   gi_result rc = GI_ERR_NOMEM;
   snprintf(e.msg, sizeof e.msg, "job: out of memory for %zu probes", jb->p.num_points);
-  if (pr && gs_tiles_make(jb->scene, &jb->q, jb->p.points, jb->p.num_points, &tiles, &nt) == 0) {
+  if (pr && job_tiles(jb, &tiles, &nt) == 0) {
     pthread_mutex_lock(&j->mu);
     jb->st.tiles = (int)nt;
     pthread_mutex_unlock(&j->mu);

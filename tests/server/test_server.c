@@ -533,6 +533,52 @@ static void test_probes_inline_and_job(void **state) {
   free(r.body);
 }
 
+/* Polls job loc until it ends; returns its final status object (the caller frees it). */
+static json_t *wait_job(const char *loc) {
+  for (int i = 0; i < 600; i++) {
+    su_resp r = GET(&S_main, loc);
+    assert_int_equal(r.status, 200);
+    json_t *o = json_loadb(r.body, r.len, 0, NULL);
+    free(r.body);
+    const char *st = json_string_value(json_object_get(o, "state"));
+    if (strcmp(st, "queued") && strcmp(st, "running")) return o;
+    json_decref(o);
+    su_sleep_ms(100);
+  }
+  fail_msg("job %s did not end within 60 s", loc);
+  return NULL;
+}
+
+/* A list with 'at' long enough to become a job is still gathered from the
+ * one cascade around 'at', as its inline answer would be: the job baked
+ * its own tiles around the points instead (here 3 tiles, at another
+ * viewpoint), against the contract and at several times the cost. */
+static void test_probes_job_at(void **state) {
+  (void)state;
+  su_resp r = su_http(&S_main, "POST", "/v1/scenes/city/probes",
+                      "{\"points\":[[31,2,29],[31.2,2,29.1],[-20,2,29],[-29,2,20]],\"at\":[0,2,29],"
+                      "\"quality\":\"low\"}",
+                      TOKEN);
+  assert_int_equal(r.status, 202);
+  char loc[128];
+  snprintf(loc, sizeof loc, "%s", su_header(&r, "Location"));
+  free(r.body);
+  json_t *o = wait_job(loc);
+  assert_string_equal(json_string_value(json_object_get(o, "state")), "done");
+  assert_int_equal(json_integer_value(json_object_get(o, "tiles")), 1);
+  json_decref(o);
+  char res[160];
+  snprintf(res, sizeof res, "%s/result", loc);
+  r = GET(&S_main, res);
+  assert_int_equal(r.status, 200);
+  gi_exr_file *x = su_read_exr(&S_main, &r, "job-at.exr");
+  assert_int_equal(gi_exr_file_width(x), 4);
+  assert_string_equal(gi_exr_file_attr(x, "gi.viewpoint"), "0,2,29");
+  assert_string_equal(gi_exr_file_attr(x, "gi.tiles"), "1");
+  gi_exr_file_free(x);
+  free(r.body);
+}
+
 static void test_errors(void **state) {
   struct { const char *method, *path, *body; long status; const char *name, *needle; } cases[] = {
       {NULL, "/v1/scenes/city/lighting?at=1,2", NULL, 400, "bad_request", "'at'"},
@@ -815,6 +861,7 @@ int main(void) {
       cmocka_unit_test(test_lightmap),
       cmocka_unit_test(test_cascades_vdb),
       cmocka_unit_test(test_probes_inline_and_job),
+      cmocka_unit_test(test_probes_job_at),
       cmocka_unit_test(test_errors),
       cmocka_unit_test(test_overload),
       cmocka_unit_test(test_deadline),
