@@ -77,6 +77,27 @@ timeout 60 "$BIN" "$T/mtl/fine.obj" --levels 2 --res 8 --bounces 1 > /dev/null 2
 [ $rc -eq 0 ] && ! grep -q "warning" "$T/err" && pass "materials all found -> no warning" \
   || fail "fine.obj (rc $rc): $(cat "$T/err")"
 
+# An MTL colour of one number is grey (the MTL format: g and b equal r;
+# assimp read "Kd 0.7" as red and failed the whole OBJ on "Kd 0.7 "); one
+# of two numbers is an error naming the library and its line.
+make_box_scene
+mkdir -p "$T/one"
+sed 's/^mtllib box.mtl/mtllib one.mtl/' "$T/box.obj" > "$T/one/one.obj"
+for blank in '' ' '; do
+  printf "newmtl white\nKd 0.7$blank\nnewmtl lamp\nKd 0$blank\nKe 10$blank\n" > "$T/one/one.mtl"
+  timeout 60 "$BIN" "$T/one/one.obj" --at 2,2,2 --levels 2 --res 8 --bounces 1 --json > "$T/one.json" 2> "$T/err"; rc=$?
+  one=$(python3 -c "import json,sys; print(*json.load(open(sys.argv[1]))['probe']['irradiance'])" "$T/one.json" 2>&1)
+  # shellcheck disable=SC2086
+  set -- $one
+  [ $rc -eq 0 ] && [ $# -eq 3 ] && [ "$1" = "$2" ] && [ "$1" = "$3" ] && python3 -c "import sys; sys.exit(not float(sys.argv[1]) > 1)" "$1" \
+    && pass "MTL colours of one number ('Kd 0.7$blank', 'Ke 10$blank') -> grey: $one" \
+    || fail "one-number MTL, blank '$blank' (rc $rc): $one $(cat "$T/err")"
+done
+printf 'newmtl white\nKd 0.7 0.6\nnewmtl lamp\nKe 10 10 10\n' > "$T/one/one.mtl"
+timeout 60 "$BIN" "$T/one/one.obj" --at 2,2,2 --levels 2 --res 8 --bounces 1 > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 1 ] && grep -q -F "material library '$T/one/one.mtl' line 2: 'Kd' needs 1 or 3 numbers" "$T/err" \
+  && pass "MTL colour of two numbers -> 1: $(cat "$T/err")" || fail "two-number MTL (rc $rc): $(cat "$T/err")"
+
 # Blender's Collada export writes an emitter's colour without its strength:
 # said once, naming the material; the same file from another tool is not.
 dae() { # TOOL FILE: a floor and an emissive quad above it, with an ambient light

@@ -4,6 +4,8 @@
 #define _DEFAULT_SOURCE /* realpath */
 #include "io/gltf_recentre.h"
 #include "io/gltf_accessors.h"
+#include "io/import_exact.h" /* gi__exact_mtl_normalise */
+#include "io/texture_image.h"  /* gi__read_file */
 #include <assimp/cfileio.h>
 #include <float.h>
 #include <jansson.h>
@@ -13,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h> /* strcasecmp */
 #include "base/internal.h"
 #include "gi/gi_scene.h"
 
@@ -630,6 +633,7 @@ typedef struct mem_file {
   const unsigned char *data; /* NULL: read f */
   size_t len, pos;
   FILE *f;
+  char *owned; /* data when it is ours to free (a rewritten MTL file) */
 } mem_file;
 
 static size_t io_read(struct aiFile *af, char *buf, size_t size, size_t count) {
@@ -692,9 +696,24 @@ static struct aiFile *io_open(struct aiFileIO *io, const char *name, const char 
     s->io_oom = 1;
     goto fail;
   }
+  size_t nl = strlen(name);
   if (s->data && same_path(name, s->path)) {
     m->data = s->data;
     m->len = s->len;
+  } else if (nl > 4 && !strcasecmp(name + nl - 4, ".mtl")) {
+    /* An OBJ's material library, its colours as the MTL format means them. */
+    void *text = NULL;
+    size_t len = 0;
+    gi_error_info e = {0};
+    gi_result rc = gi__read_file(name, GI__TEXTURE_FILE_MAX, &text, &len, &e);
+    if (rc != GI_OK) {
+      s->io_oom |= rc == GI_ERR_NOMEM;
+      goto fail; /* unreadable: assimp goes on without it, and scan_mtl warns */
+    }
+    m->owned = gi__exact_mtl_normalise(name, text, len, &m->len, s->io_err, sizeof s->io_err);
+    gi__free(text);
+    if (!m->owned) goto fail;
+    m->data = (const unsigned char *)m->owned;
   } else if (!(m->f = fopen(name, "rb"))) {
     goto fail;
   }
@@ -717,6 +736,7 @@ static void io_close(struct aiFileIO *io, struct aiFile *af) {
   if (!af) return;
   mem_file *m = (mem_file *)af->UserData;
   if (m && m->f) fclose(m->f);
+  if (m) gi__free(m->owned);
   gi__free(m);
   gi__free(af);
 }

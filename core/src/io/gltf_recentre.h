@@ -53,6 +53,7 @@ typedef struct gi__gltf_shift {
   double (*uv_tf)[GI_GLTF_UV_TF];
   size_t num_uv_tf;
   int io_oom; /* gi__gltf_open_io's file system ran out of memory */
+  char io_err[512]; /* an MTL file it refused (gi__exact_mtl_normalise), or "" */
 } gi__gltf_shift;
 
 /* For the .gltf (glb 0) or .glb (glb 1) at path: the shift and the rewritten file. A file
@@ -63,9 +64,10 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
 void gi__gltf_shift_free(gi__gltf_shift *s);
 
 /* An assimp file system that reads s->path from s->data and every other
- * file from disk; an open that ran out of memory sets s->io_oom (assimp
- * then says only that it could not open the file). io must outlive the
- * import; s must outlive io. */
+ * file from disk, an OBJ's .mtl files through gi__exact_mtl_normalise; an
+ * open that ran out of memory sets s->io_oom, an MTL file with a bad colour
+ * s->io_err (assimp then says only that it could not open the file). io
+ * must outlive the import; s must outlive io. */
 void gi__gltf_open_io(struct aiFileIO *io, gi__gltf_shift *s);
 
 #endif

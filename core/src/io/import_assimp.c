@@ -827,6 +827,11 @@ static gi_result import_file(const char *path, gi__gltf_shift *gs, const struct 
     if (*out) aiReleaseImport(*out);
     *out = NULL;
     rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory opening its files for assimp", path);
+  } else if (gs->io_err[0]) {
+    /* assimp would go on without that material library: every material grey. */
+    if (*out) aiReleaseImport(*out);
+    *out = NULL;
+    rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': %s", path, gs->io_err);
   } else if (!*out) {
     const char *msg = aiGetErrorString();
     msg = msg && msg[0] ? msg : "unknown error";

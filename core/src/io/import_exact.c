@@ -404,6 +404,73 @@ char *gi__exact_ply_stub(size_t *len) {
   return s;
 }
 
+/* The colour statements assimp reads three numbers from (K then a, d, s or
+ * e, any case for the K; Tf), and how many leading chars are the keyword. */
+static int mtl_colour_keyword(const char *s, size_t n) {
+  if (n < 2 || (n > 2 && s[2] != ' ' && s[2] != '\t')) return 0;
+  if ((s[0] == 'K' || s[0] == 'k') && (s[1] == 'a' || s[1] == 'd' || s[1] == 's' || s[1] == 'e')) return 2;
+  return s[0] == 'T' && s[1] == 'f' ? 2 : 0;
+}
+
+char *gi__exact_mtl_normalise(const char *mtl_path, const char *text, size_t len, size_t *out_len, char *msg,
+                              size_t msg_len) {
+  /* A one-number line grows to at most three times its length. */
+  size_t cap = 3 * len + 1, n = 0, line = 0;
+  char *out = gi__malloc(cap), *buf = NULL;
+  if (!out) {
+    snprintf(msg, msg_len, "material library '%s': out of memory", mtl_path);
+    return NULL;
+  }
+  for (size_t at = 0; at < len; line++) {
+    const char *l = text + at, *nl = memchr(l, '\n', len - at);
+    size_t ll = nl ? (size_t)(nl - l) : len - at;
+    at += ll + (nl != NULL);
+    size_t b = 0, e = ll;
+    while (b < e && (l[b] == ' ' || l[b] == '\t')) b++;
+    while (e > b && is_blank(l[e - 1])) e--;
+    int kw = mtl_colour_keyword(l + b, e - b);
+    if (!kw) { /* as it was */
+      memcpy(out + n, l, ll), n += ll;
+      if (nl) out[n++] = '\n';
+      continue;
+    }
+    /* The numbers after the keyword, parsed on a NUL-terminated copy. */
+    gi__free(buf);
+    if (!(buf = gi__malloc(e - b + 1))) {
+      snprintf(msg, msg_len, "material library '%s': out of memory", mtl_path);
+      gi__free(out);
+      return NULL;
+    }
+    memcpy(buf, l + b, e - b), buf[e - b] = 0;
+    char *p = buf + kw, *first = NULL, *end;
+    int count = 0, numeric = 1;
+    for (p = skip_blank(p); *p; p = skip_blank(end)) {
+      strtod(p, &end);
+      if (end == p || (*end && !is_blank(*end))) { numeric = 0; break; }
+      if (!count++) first = p;
+    }
+    if (numeric && (count == 0 || count == 2)) {
+      snprintf(msg, msg_len, "material library '%s' line %zu: '%.2s' needs 1 or 3 numbers (r, or r g b), found %d",
+               mtl_path, line + 1, buf, count);
+      gi__free(buf);
+      gi__free(out);
+      return NULL;
+    }
+    if (numeric && count == 1) {
+      /* The MTL format: "if only r is specified, g and b are equal to r". */
+      size_t fl = strcspn(first, " \t");
+      n += (size_t)sprintf(out + n, "%.2s %.*s %.*s %.*s", buf, (int)fl, first, (int)fl, first, (int)fl, first);
+    } else {
+      memcpy(out + n, l + b, e - b), n += e - b;
+    }
+    if (nl) out[n++] = '\n';
+  }
+  gi__free(buf);
+  out[n] = 0;
+  *out_len = n;
+  return out;
+}
+
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err) {
   memset(m, 0, sizeof *m);
   FILE *f = fopen(path, "rb");
