@@ -11,9 +11,10 @@
  * kept until max_jobs_retained newer jobs have finished; then the oldest
  * finished job and its file go.
  *
- * A job stops between tiles when it is cancelled (DELETE, shutdown) or
- * outlives job_deadline_s; the tile being baked finishes first (the core
- * cannot be interrupted yet). */
+ * A job stops when it is cancelled (DELETE, shutdown) or outlives
+ * job_deadline_s: its token (gi_cancel) stops the bake or gather it is in
+ * within a chunk's time, since one tile may hold every point of the list
+ * and gather for minutes. */
 #define _POSIX_C_SOURCE 200809L
 #include <dirent.h>
 #include <errno.h>
@@ -35,8 +36,9 @@ typedef struct job {
   double t_start;
   char path[1200];          /* result file when done */
   uint64_t order;           /* submission order, for retention */
-  int cancel;               /* stop between tiles (guarded) */
+  int cancel;               /* cancelled: DELETE or shutdown (guarded) */
   int timed_out;            /* stopped by job_deadline_s (guarded) */
+  gi_cancel *token;         /* stops the bake or gather in flight: DELETE, deadline */
   struct job *next;
 } job;
 
@@ -90,6 +92,12 @@ static int on_tile(void *ctx, size_t tile, size_t probes, gi_error_info *err) {
   return stop;
 }
 
+static void job_free(job *b) {
+  gi_proto_probes_free(&b->p);
+  gi_cancel_free(b->token);
+  free(b);
+}
+
 /* Drops the oldest finished jobs beyond the retention limit. Locked. */
 static void retire(gs_jobs *j) {
   int finished = 0;
@@ -102,8 +110,7 @@ static void retire(gs_jobs *j) {
     job *old = *pp;
     *pp = old->next;
     if (old->path[0]) unlink(old->path);
-    gi_proto_probes_free(&old->p);
-    free(old);
+    job_free(old);
     finished--;
   }
 }
@@ -145,8 +152,20 @@ static void run_job(gs_jobs *j, job *jb) {
     prog_ctx pc = {j, jb};
     gi_bake_report rep;
     e.msg[0] = 0;
-    rc = gs_gather_tiles(svc, jb->scene, &jb->req, &jb->q, jb->p.points, tiles, nt, 0, NULL, NULL, pr, &rep, NULL,
-                         NULL, on_tile, &pc, &e);
+    gi_cancel_set_deadline(jb->token, gi_now_ms() + svc->cfg->job_deadline_s * 1e3);
+    rc = gs_gather_tiles(svc, jb->scene, &jb->req, &jb->q, jb->p.points, tiles, nt, 0, NULL, jb->token, pr, &rep,
+                         NULL, NULL, on_tile, &pc, &e);
+    if (rc == GI_ERR_CANCELLED) {
+      /* Stopped inside a tile by the token: said as on_tile says it between tiles. */
+      pthread_mutex_lock(&j->mu);
+      int done = jb->st.tiles_done;
+      if (!jb->cancel) jb->timed_out = 1;
+      pthread_mutex_unlock(&j->mu);
+      if (jb->timed_out)
+        snprintf(e.msg, sizeof e.msg, "job: stopped after %d tile(s): it ran longer than the job deadline of %g s",
+                 done, svc->cfg->job_deadline_s);
+      else snprintf(e.msg, sizeof e.msg, "job: cancelled after %d tile(s)", done);
+    }
     if (rc == GI_OK) {
       char path[1200], ntiles[32];
       gs_tmp_path(svc, ".exr", path, sizeof path);
@@ -287,14 +306,13 @@ void gs_jobs_free(gs_jobs *j) {
   j->stop = 1;
   pthread_cond_broadcast(&j->cv);
   pthread_mutex_unlock(&j->mu);
-  /* A running job stops after its tile (gs_jobs_cancel_all), else finishes:
-   * the core cannot be interrupted inside a bake. */
+  /* A running job stops inside its tile once cancelled (gs_jobs_cancel_all),
+   * else finishes. */
   for (int i = 0; i < j->nthreads; i++) pthread_join(j->threads[i], NULL);
   for (job *b = j->all, *n; b; b = n) {
     n = b->next;
     if (b->path[0]) unlink(b->path);
-    gi_proto_probes_free(&b->p);
-    free(b);
+    job_free(b);
   }
   if (j->dir[0]) remove_folder(j->dir);
   j->svc->work_dir[0] = 0;
@@ -312,7 +330,8 @@ int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_q
     return gi_proto_fail(err, 503, "jobs: %d jobs are already queued; retry later", j->queued);
   }
   job *jb = calloc(1, sizeof *jb);
-  if (!jb) {
+  if (!jb || !(jb->token = gi_cancel_new())) {
+    free(jb);
     pthread_mutex_unlock(&j->mu);
     return gi_proto_fail(err, 503, "jobs: out of memory");
   }
@@ -427,7 +446,7 @@ void gs_jobs_cancel(gs_jobs *j, const char *id, gs_answer *a) {
     return gs_answer_error(a, &pe);
   }
   if (was == GI_JOB_QUEUED) cancel_queued(j, b);
-  else b->cancel = 1; /* the runner stops after the tile it is baking */
+  else b->cancel = 1, gi_cancel_set(b->token); /* the runner stops within its bake or gather */
   gi_proto_job st = b->st;
   if (was == GI_JOB_RUNNING) st.elapsed_s = (gs_now_ms() - b->t_start) * 1e-3;
   if (was == GI_JOB_QUEUED) retire(j); /* may free b: st is a copy */
@@ -441,7 +460,7 @@ void gs_jobs_cancel_all(gs_jobs *j) {
   pthread_mutex_lock(&j->mu);
   for (job *b = j->all; b; b = b->next) {
     if (b->st.state == GI_JOB_QUEUED) cancel_queued(j, b);
-    else if (b->st.state == GI_JOB_RUNNING) b->cancel = 1;
+    else if (b->st.state == GI_JOB_RUNNING) b->cancel = 1, gi_cancel_set(b->token);
   }
   pthread_mutex_unlock(&j->mu);
 }

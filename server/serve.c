@@ -380,7 +380,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
       c = gs_entry_cascade(ent);
     } else {
       double t0 = gs_now_ms();
-      if ((rc = gi_cascade_bake(s->scene, tl->at, req, &own, NULL, err)) != GI_OK) break;
+      if ((rc = gi_cascade_bake_ex(s->scene, tl->at, req, cancel, &own, NULL, err)) != GI_OK) break;
       gs_metrics_bake(svc->metrics, (gs_now_ms() - t0) * 1e-3);
       c = own;
     }

@@ -45,7 +45,7 @@ typedef struct gs_config {
   int max_connections_per_ip; /* libmicrohttpd refuses more from one address */
   double request_timeout_s;   /* headers and body must arrive within this, whatever the pace */
   double shutdown_grace_s;    /* SIGTERM: exit within this */
-  double job_deadline_s;      /* a job running longer fails between tiles */
+  double job_deadline_s;      /* a job running longer fails (its token's deadline) */
   char token[256];      /* empty: no authentication */
   char tmp_dir[1024];
   gi_proto_limits lim;
@@ -366,7 +366,8 @@ void gs_tiles_free(gs_tile *t, size_t n);
  * tile, which returns nonzero to stop before the next tile (GI_ERR_LIMIT,
  * its message in err).
  * use_cache = 0 bakes privately (batch jobs must not evict interactive views).
- * w and cancel as in gs_serve_probes (cached bakes only; both may be NULL). */
+ * w as in gs_serve_probes (cached bakes only); cancel stops private bakes and every
+ * gather; both may be NULL. */
 gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *req, const gi_quality *resolved,
                           const double *pts, const gs_tile *tiles, size_t num_tiles, int use_cache,
                           gs_waiter *w, const gi_cancel *cancel, gi_probe *out,
@@ -392,7 +393,7 @@ void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a);
  * tiles (202); its status JSON either way. 409 when it has finished, 404
  * when unknown. */
 void gs_jobs_cancel(gs_jobs *j, const char *id, gs_answer *a);
-/* Shutdown: queued and running jobs are cancelled (running ones between tiles). */
+/* Shutdown: queued and running jobs are cancelled (running ones inside their tile). */
 void gs_jobs_cancel_all(gs_jobs *j);
 /* A forced exit: removes the private folder (results, scratch files) now. */
 void gs_jobs_abandon(gs_jobs *j);

@@ -3,7 +3,7 @@
  * main.c waits for the first signal, calls gs_shutdown_begin, then stops
  * the front (no new connections), the worker pool and the job runners in
  * that order and exits 0. What could make that wait long is cut here:
- * running jobs are cancelled (they stop after the tile being baked), a
+ * running jobs are cancelled (they stop inside their bake or gather), a
  * second signal exits at once, and when shutdown_grace_s passes with work
  * still running the process exits anyway. Both forced exits remove the
  * private folder and use status GS_EXIT_FORCED, so a supervisor can tell

@@ -480,6 +480,58 @@ static void test_job_deadline(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* A job of n points 2 cm apart in one tile, gathered with 8192 samples:
+ * one tile that gathers for seconds (about 2 ms a point on one thread). */
+static void submit_one_tile(const su_server *s, int n, char id[64]) {
+  char *b = malloc(96 + 40 * (size_t)n);
+  strcpy(b, "{\"quality\":{\"preset\":\"low\",\"probe_samples\":8192},\"points\":[");
+  for (int i = 0; i < n; i++) sprintf(b + strlen(b), "%s[%.2f,2,%.2f]", i ? "," : "", 0.02 * (i % 50), 0.02 * (i / 50));
+  strcat(b, "]}");
+  su_resp r = su_http(s, "POST", "/v1/scenes/city/probes", b, SU_TOKEN);
+  free(b);
+  assert_int_equal(r.status, 202);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  snprintf(id, 64, "%s", json_string_value(json_object_get(o, "job")));
+  json_decref(o);
+  free(r.body);
+}
+
+/* A job whose points share one tile stops inside that tile: DELETE and
+ * job_deadline_s only took effect between tiles, so such a job (up to
+ * max_probes_job points) ran to its end, "done", however long it took. */
+static void test_job_stops_inside_tile(void **state) {
+  char id[64], path[160];
+  submit_one_tile(&S, 4000, id);
+  job_status js = job_wait(&S, id, "running", 30000);
+  assert_string_equal(js.state, "running");
+  su_sleep_ms(500); /* into the gather */
+  snprintf(path, sizeof path, "/v1/jobs/%s", id);
+  double t0 = su_now_ms();
+  su_resp r = su_http(&S, "DELETE", path, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 202);
+  free(r.body);
+  js = job_wait(&S, id, "cancelled|done|failed", 60000);
+  double ms = su_now_ms() - t0;
+  printf("  one-tile job of 4000 points: %s %.0f ms after DELETE (%d of %d tiles)\n", js.state, ms, js.tiles_done,
+         js.tiles);
+  assert_string_equal(js.state, "cancelled");
+  assert_true(ms < 1000 * TU_TSAN_FACTOR);
+
+  su_server s;
+  assert_int_equal(su_start(&s, "job-deadline-tile", HOSTILE_INI("[limits]\nmax_probes_inline = 2\njob_deadline_s = 1\n")),
+                   0);
+  submit_one_tile(&s, 4000, id);
+  t0 = su_now_ms();
+  js = job_wait(&s, id, "done|failed|cancelled", 60000);
+  double secs = (su_now_ms() - t0) * 1e-3;
+  printf("  one-tile job, job_deadline_s = 1: %s after %.2f s: %ld %s\n", js.state, secs, js.code, js.message);
+  assert_string_equal(js.state, "failed");
+  assert_int_equal(js.code, 504);
+  assert_non_null(strstr(js.message, "job deadline of 1 s"));
+  assert_true(secs < 1 + 1.0 * TU_TSAN_FACTOR);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* The folder gi-server-jobs.PID.* in dir, or "" (static buffer). */
 static const char *jobs_folder(const char *dir, pid_t pid) {
   static char out[1024];
@@ -1061,6 +1113,7 @@ int main(void) {
       cmocka_unit_test(test_slow_clients),
       cmocka_unit_test(test_job_cancel),
       cmocka_unit_test(test_job_deadline),
+      cmocka_unit_test(test_job_stops_inside_tile),
       cmocka_unit_test(test_job_files_private),
       cmocka_unit_test(test_sigterm_with_running_job),
       cmocka_unit_test(test_memory_budget),
