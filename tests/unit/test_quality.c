@@ -179,7 +179,23 @@ static void test_levels_capped_and_unit_free(void **state) {
   assert_non_null(strstr(err.msg, "voxel size must be at most"));
   big.voxel0 = GI_MAX_VOXEL;
   assert_int_equal(gi_quality_resolve(m, &big, &out, &err), GI_OK);
+  /* Below GI_MIN_VOXEL too (1e-40 failed after the bake: ao_lambda inf). */
+  big.voxel0 = 1e-40;
+  assert_int_equal(gi_quality_resolve(m, &big, &out, &err), GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "voxel size must be at least"));
+  big.voxel0 = GI_MIN_VOXEL;
+  assert_int_equal(gi_quality_resolve(m, &big, &out, &err), GI_OK);
   gi_scene_release(m);
+  /* A default outside that range is refused by name: a box 1e10 across
+   * baked half its indirect light, 1e12 a NaN probe, 1e-10 nothing at all. */
+  const double sides[3] = {1e10, 1e12, 1e-10};
+  for (int i = 0; i < 3; i++) {
+    m = plain(sides[i], sides[i], 1);
+    assert_int_equal(gi_quality_resolve(m, NULL, &out, &err), GI_ERR_INVALID_ARG);
+    printf("  a box %g across: %s\n", sides[i], err.msg);
+    assert_non_null(strstr(err.msg, sides[i] > 1 ? "too large for a default voxel" : "too small for a default voxel"));
+    gi_scene_release(m);
+  }
 }
 
 int main(void) {

@@ -20,6 +20,9 @@ extern "C" {
 #define GI_MAX_LEVELS 12
 /* Largest voxel size a caller may ask for, world units (the server's limit too). */
 #define GI_MAX_VOXEL 1e7
+/* Smallest: below it the voxelizer's squared polygon areas (float, ~s^4)
+ * underflow and levels read empty (a 1e-13 voxel held nothing). */
+#define GI_MIN_VOXEL 1e-9
 
 /* The effects a bake can simulate (the effect plan decides which run). */
 typedef enum gi_effect_id {
@@ -46,7 +49,9 @@ typedef struct gi_quality {
                           scene's reach (its largest side, at most 16 heights, at least an
                           eighth of its width). When levels and voxel0 are both default and
                           the scene is wider than that reach, levels are added, each halving
-                          s0, until s0 is no coarser than a piece 4 heights across gets. */
+                          s0, until s0 is no coarser than a piece 4 heights across gets.
+                          GI_MIN_VOXEL..GI_MAX_VOXEL, given or default (a scene whose
+                          default falls outside fails: give one). */
   int cones;           /* diffuse cones per hemisphere: 4, 6, 8, 16 or 32; default 16 */
   float aperture_deg;  /* diffuse cone full aperture; default from the cone count */
   float step;          /* march step in voxels of the sampled level; default 1 (near surfaces at most 0.75) */
