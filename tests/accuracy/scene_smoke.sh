@@ -157,4 +157,24 @@ expect_rc 2 "--knobs: unknown knob 'foo'" --scene "$T/box.obj" --knobs res,foo
 expect_rc 2 "--knobs: unknown knob ''" --scene "$T/box.obj" --knobs res,
 expect_rc 1 "cannot read" --scene "$T/missing.obj"
 expect_rc 1 "missing.txt" --scene "$T/box.obj" --probes "$T/missing.txt"
+
+# What the run writes or reads at its end is checked before the sweep: an
+# unwritable --md or --png, a missing --notes and an --out that is a file
+# only failed (or were left out, exit 0) after the whole run, hours for
+# `make accuracy`. Each exits before any reference or CSV is made.
+echo "a file" > "$T/plain"
+expect_before() {
+  want=$1 what=$2; shift 2
+  "$BIN" --scene "$T/box.obj" $QUICK "$@" > /dev/null 2> "$T/e"; rc=$?
+  if [ $rc -eq "$want" ] && grep -q -e "$what" "$T/e" && [ -z "$(find "$T/eb" -name 'accuracy.csv' -o -name 'ref-*')" ]
+  then pass "$* -> $want before the sweep ($what)"
+  else fail "$*: exited $rc, expected $want saying '$what' before the sweep: $(tail -n 2 "$T/e")"; fi
+}
+mkdir -p "$T/eb"
+expect_before 1 "--md: cannot write into '$T/nowhere'" --out "$T/eb" --md "$T/nowhere/r.md"
+expect_before 2 "--md: '$T' is a folder" --out "$T/eb" --md "$T"
+expect_before 1 "--png: cannot write into '$T/nowhere'" --out "$T/eb" --png "$T/nowhere/p.png"
+expect_before 1 "--notes: cannot read '$T/nonotes.md'" --out "$T/eb" --notes "$T/nonotes.md"
+expect_before 1 "--notes: '$T' is not a file" --out "$T/eb" --notes "$T"
+expect_before 1 "--out: '$T/plain' exists and is not a folder" --out "$T/plain"
 finish

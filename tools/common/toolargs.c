@@ -198,6 +198,13 @@ int ta_mkdirs(ta_ctx *c, const char *opt, const char *path) {
     }
   if (!rc && mkdir(b, 0777) && errno != EEXIST)
     rc = ta_error(c, TA_EXIT_RUN, opt, "cannot create '%s': %s", b, strerror(errno));
+  /* EEXIST is also a plain file of that name: the run would fail at its
+   * first write into it, perhaps hours later. */
+  struct stat st;
+  if (!rc && (stat(b, &st) != 0 || !S_ISDIR(st.st_mode)))
+    rc = ta_error(c, TA_EXIT_RUN, opt, "'%s' exists and is not a folder", b);
+  else if (!rc && access(b, W_OK | X_OK) != 0)
+    rc = ta_error(c, TA_EXIT_RUN, opt, "cannot write into '%s': %s", b, strerror(errno));
   free(b);
   return rc;
 }

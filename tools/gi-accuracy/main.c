@@ -681,11 +681,27 @@ static void mark_fronts(rows *out) {
   }
 }
 
+/* --notes must be a readable file: it is read only when the report is
+ * written, after the whole sweep, and was then left out with exit 0. */
+static int check_notes(const char *path) {
+  struct stat st;
+  FILE *f = fopen(path, "r");
+  if (!f) return ta_error(&ta, TA_EXIT_RUN, "--notes", "cannot read '%s': %s", path, strerror(errno));
+  int plain = fstat(fileno(f), &st) == 0 && S_ISREG(st.st_mode);
+  fclose(f);
+  return plain ? 0 : ta_error(&ta, TA_EXIT_RUN, "--notes", "'%s' is not a file", path);
+}
+
 int main(int argc, char **argv) {
   opts o;
   int rc = parse_args(argc, argv, &o);
   if (rc) return rc < 0 ? 0 : rc;
   if (ta_mkdirs(&ta, "--out", o.out_dir)) return 1;
+  /* What the run writes and reads at its very end is checked now, not
+   * after a sweep of hours (--out's folder exists by now: --md may be in it). */
+  if ((o.md && (rc = ta_check_output(&ta, "--md", &o.md))) || (o.png && (rc = ta_check_output(&ta, "--png", &o.png))) ||
+      (o.notes && (rc = check_notes(o.notes))))
+    return rc;
   char md[1024], png[1024], machine[256], cmd[1024] = "", md_dir[1024];
   snprintf(md, sizeof md, "%s", o.md ? o.md : "");
   if (!o.md) snprintf(md, sizeof md, "%s/accuracy.md", o.out_dir);
@@ -721,5 +737,6 @@ int main(int argc, char **argv) {
   free(R->wl);
   free(R);
   free(o.file.pts);
-  return rc;
+  int frc = ta_outputs_finish(&ta, rc == 0); /* a device or FIFO named by --md or --png gets its bytes */
+  return rc ? rc : frc;
 }
