@@ -26,4 +26,12 @@ if command -v exrheader > /dev/null 2>&1; then
 else
   skip "exrheader not installed: --half check skipped"
 fi
+# Half floats end at 65504: a brighter probe is stored as 65504, and said
+# so (it was silent); the dim bake above clamped nothing and says nothing.
+! grep -q "half-float range" "$T/err" && pass "--half within range -> no warning" \
+  || fail "--half within range warned: $(cat "$T/err")"
+"$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --bounces 1 --point 2,2,2,1e6,1e6,1e6 \
+    --exr "$T/bright.exr" --half > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q "EXR file '$T/bright.exr': [0-9]* values beyond the half-float range were stored as" "$T/err" \
+  && pass "--half past 65504 -> warned: $(cat "$T/err")" || fail "--half past 65504 (rc $rc): $(cat "$T/err")"
 finish

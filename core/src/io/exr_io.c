@@ -12,7 +12,9 @@
  * rounds to nearest even). Finite values beyond the half range (+-65504)
  * would become infinities, which viewers and later maths treat as poison,
  * so they are clamped to +-65504 before conversion: a saturated pixel is
- * more useful to a user than a refused bake. FLOAT output is stored as is.
+ * more useful to a user than a refused bake, but a warning on stderr says
+ * how many values were clamped (a 4e6 probe read back as 65504, silently).
+ * FLOAT output is stored as is.
  *
  * The reader decodes every channel of part 0 into float planes (half is
  * widened by the library) and keeps every string attribute. Tiled, deep
@@ -147,7 +149,7 @@ static exr_result_t compress_or_raw(exr_encode_pipeline_t *enc) {
 /* Writes every chunk of the part. For HALF output the chunk's rows are first
  * copied into `scratch` with the clamp described at the top of the file. */
 static exr_result_t write_chunks(exr_context_t ctx, int part, const gi_exr_image *img, float *scratch,
-                                 int lines_per_chunk, const char **what) {
+                                 int lines_per_chunk, const char **what, size_t *clamped) {
   exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
   exr_result_t rv = EXR_ERR_SUCCESS;
   int started = 0;
@@ -174,7 +176,10 @@ static exr_result_t write_chunks(exr_context_t ctx, int part, const gi_exr_image
       if (img->use_half) {
         float *dst = scratch + (size_t)c * (size_t)lines_per_chunk * w;
         size_t n = (size_t)cinfo.height * w;
-        for (size_t i = 0; i < n; i++) dst[i] = fminf(fmaxf(rows[i], -HALF_MAX), HALF_MAX);
+        for (size_t i = 0; i < n; i++) {
+          dst[i] = fminf(fmaxf(rows[i], -HALF_MAX), HALF_MAX);
+          *clamped += dst[i] != rows[i];
+        }
         rows = dst;
       }
       ec->user_bytes_per_element = 4;
@@ -267,7 +272,8 @@ gi_result gi_exr_write(const char *path, const gi_exr_image *img, gi_error_info 
       goto fail_cleanup;
     }
   }
-  rv = write_chunks(ctx, part, img, scratch, lines, &what);
+  size_t clamped = 0;
+  rv = write_chunks(ctx, part, img, scratch, lines, &what, &clamped);
   if (rv != EXR_ERR_SUCCESS) goto fail;
 
   /* exr_finish writes the chunk offset table: its result matters. */
@@ -281,6 +287,9 @@ gi_result gi_exr_write(const char *path, const gi_exr_image *img, gi_error_info 
     unlink(tmp);
     return gi__fail(err, GI_ERR_IO, "EXR file '%s': cannot rename '%s' into place: %s", path, tmp, strerror(e));
   }
+  if (clamped)
+    fprintf(stderr, "gi: warning: EXR file '%s': %zu values beyond the half-float range were stored as +-65504; "
+            "write it as float to keep them\n", path, clamped);
   return GI_OK;
 
 fail:
