@@ -32,7 +32,11 @@ double gs_now_ms(void) {
 
 void gs_tmp_path(gs_service *svc, const char *ext, char *buf, size_t size) {
   unsigned long n = atomic_fetch_add(&svc->tmp_counter, 1);
-  /* The private folder (jobs.c, mode 0700) once it exists. */
+  /* The private folder (jobs.c, mode 0700) once it exists; made again when
+   * something removed it (a /tmp cleaner), or every answer written through
+   * it would fail until a restart. Normally one mkdir failing with EEXIST. */
+  if (svc->work_dir[0] && mkdir(svc->work_dir, 0700) == 0)
+    fprintf(stderr, "gi-server: %s had been removed: made again\n", svc->work_dir);
   snprintf(buf, size, "%s/gi-server-%ld-%lu%s", svc->work_dir[0] ? svc->work_dir : svc->cfg->tmp_dir, (long)getpid(),
            n, ext);
 }

@@ -604,6 +604,41 @@ static void test_job_files_private(void **state) {
   rmdir(mine);
 }
 
+/* The private folder removed under a running server (a /tmp cleaner): it
+ * is made again. Every EXR answer and job result is written there first,
+ * and all of them were 500s ("Unable to open file for write") until the
+ * server was restarted. */
+static void test_private_folder_removed(void **state) {
+  su_server s;
+  char dir[600], folder[1100], f[1400];
+  assert_int_equal(su_start(&s, "folder-gone", HOSTILE_INI("[limits]\nmax_probes_inline = 2\n")), 0);
+  snprintf(dir, sizeof dir, "%s/folder-gone", tu_tmpdir());
+  snprintf(folder, sizeof folder, "%s", jobs_folder(dir, s.pid));
+  assert_true(folder[0]);
+  DIR *d = opendir(folder);
+  for (struct dirent *e; d && (e = readdir(d));)
+    if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) snprintf(f, sizeof f, "%s/%s", folder, e->d_name), unlink(f);
+  if (d) closedir(d);
+  assert_int_equal(rmdir(folder), 0);
+  su_resp r = su_http(&s, "POST", "/v1/scenes/city/probes", "{\"points\":[[31,2,29]],\"quality\":\"low\"}", SU_TOKEN);
+  printf("  POST probes after the folder went: %ld\n", r.status);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  char id[64], path[160];
+  submit(&s, 3, id);
+  job_status js = job_wait(&s, id, "done|failed|cancelled", 60000);
+  printf("  job after the folder went: %s %s\n", js.state, js.message);
+  assert_string_equal(js.state, "done");
+  snprintf(path, sizeof path, "/v1/jobs/%s/result", id);
+  r = su_http(&s, NULL, path, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  struct stat st;
+  assert_int_equal(stat(folder, &st), 0);
+  assert_int_equal(st.st_mode & 0777, 0700);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 static void test_sigterm_with_running_job(void **state) {
   const double grace_s = 10;
   su_server s;
@@ -1115,6 +1150,7 @@ int main(void) {
       cmocka_unit_test(test_job_deadline),
       cmocka_unit_test(test_job_stops_inside_tile),
       cmocka_unit_test(test_job_files_private),
+      cmocka_unit_test(test_private_folder_removed),
       cmocka_unit_test(test_sigterm_with_running_job),
       cmocka_unit_test(test_memory_budget),
       cmocka_unit_test(test_vdb_from_memory),
