@@ -325,7 +325,12 @@ int gs_jobs_submit(gs_jobs *j, const gs_scene *s, gi_proto_probes *p, const gi_q
                    char id[40],
                    gi_proto_error *err) {
   pthread_mutex_lock(&j->mu);
-  if (j->queued >= j->svc->cfg->max_jobs_queued) {
+  /* A job an idle runner takes at once does not wait, so it does not count
+   * against max_jobs_queued (as the worker pool's queue): with 0, jobs
+   * were refused even with every runner idle. */
+  int running = 0;
+  for (job *b = j->all; b; b = b->next) running += b->st.state == GI_JOB_RUNNING;
+  if (j->queued >= j->svc->cfg->max_jobs_queued + (j->nthreads - running)) {
     pthread_mutex_unlock(&j->mu);
     return gi_proto_fail(err, 503, "jobs: %d jobs are already queued; retry later", j->queued);
   }

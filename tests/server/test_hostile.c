@@ -532,6 +532,34 @@ static void test_job_stops_inside_tile(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* max_jobs_queued bounds the jobs that wait: a job an idle runner takes
+ * does not wait. With 0 every job was a 503 (+ Retry-After: 1, forever),
+ * runners idle; now the first runs and the next, which would wait, is 503. */
+static void test_job_queue_limit(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "job-queue",
+                            HOSTILE_INI("[limits]\nmax_probes_inline = 2\nmax_jobs = 1\nmax_jobs_queued = 0\n")),
+                   0);
+  char a[64], path[160];
+  submit(&s, 40, a);
+  job_status js = job_wait(&s, a, "running", 30000);
+  assert_string_equal(js.state, "running");
+  char *b = job_body(40);
+  su_resp r = su_http(&s, "POST", "/v1/scenes/city/probes", b, SU_TOKEN);
+  free(b);
+  su_expect_error(&r, 503, "overloaded", "already queued");
+  assert_non_null(su_header(&r, "Retry-After"));
+  free(r.body);
+  snprintf(path, sizeof path, "/v1/jobs/%s", a);
+  r = su_http(&s, "DELETE", path, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 202);
+  free(r.body);
+  assert_string_equal(job_wait(&s, a, "cancelled|done|failed", 30000).state, "cancelled");
+  submit(&s, 3, a); /* the runner is idle again */
+  assert_string_equal(job_wait(&s, a, "done|failed|cancelled", 60000).state, "done");
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* The folder gi-server-jobs.PID.* in dir, or "" (static buffer). */
 static const char *jobs_folder(const char *dir, pid_t pid) {
   static char out[1024];
@@ -1149,6 +1177,7 @@ int main(void) {
       cmocka_unit_test(test_job_cancel),
       cmocka_unit_test(test_job_deadline),
       cmocka_unit_test(test_job_stops_inside_tile),
+      cmocka_unit_test(test_job_queue_limit),
       cmocka_unit_test(test_job_files_private),
       cmocka_unit_test(test_private_folder_removed),
       cmocka_unit_test(test_sigterm_with_running_job),
