@@ -85,9 +85,12 @@ fi
 # A shard whose image is not its gi.grid's size (re-saved or cropped by
 # another tool, same header): refused by name, not read past its end. Only
 # the first shard's size was checked; the others were read as the grid's.
-python3 - "$T/s1.exr" "$T/crop.exr" 3 3 <<'PY' || fail "could not write the cropped shard"
+cat > "$T/reshape.py" <<'PY'
+# reshape.py IN OUT W H [CHANNEL]: IN's header around a W x H image of
+# zeros, uncompressed, without CHANNEL when given.
 import struct, sys
 src, dst, w, h = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+drop = sys.argv[5].encode() if len(sys.argv) > 5 else None
 b = open(src, "rb").read()
 pos, attrs = 8, []
 def cstr(p):
@@ -99,9 +102,13 @@ while b[pos] != 0:  # the header's attributes, kept but for the windows and comp
     (size,) = struct.unpack_from("<i", b, pos)
     attrs.append([name, typ, b[pos + 4:pos + 4 + size]])
     pos += 4 + size
-ch, p, nch = [a for a in attrs if a[0] == "channels"][0][2], 0, 0
+chl = [a for a in attrs if a[0] == "channels"][0]
+ch, p, nch, kept = chl[2], 0, 0, b""
 while ch[p] != 0:
-    p, nch = ch.index(b"\0", p) + 17, nch + 1
+    e = ch.index(b"\0", p) + 17
+    if ch[p:e - 17] != drop: kept, nch = kept + ch[p:e], nch + 1
+    p = e
+chl[2] = kept + b"\0"
 for a in attrs:
     if a[0] in ("dataWindow", "displayWindow"): a[2] = struct.pack("<4i", 0, 0, w - 1, h - 1)
     if a[0] == "compression": a[2] = b"\0"
@@ -114,9 +121,15 @@ for y in range(h): out += struct.pack("<Q", start + y * (8 + line))
 for y in range(h): out += struct.pack("<ii", y, line) + bytes(line)
 open(dst, "wb").write(bytes(out))
 PY
+python3 "$T/reshape.py" "$T/s1.exr" "$T/crop.exr" 3 3 || fail "could not write the cropped shard"
 "$BIN" merge --exr "$T/bad.exr" "$T/s0.exr" "$T/crop.exr" "$T/s2.exr" 2> "$T/e7"; rc=$?
 [ $rc -eq 1 ] && grep -q "crop.exr: image is 3 x 3, but its gi.grid needs 9 x 81" "$T/e7" && [ ! -e "$T/bad.exr" ] \
   && pass "merge of a shard of the wrong size: exit 1 naming it" || fail "wrong size: rc $rc: $(cat "$T/e7")"
+# A shard without one of the channels: the message names the channel.
+python3 "$T/reshape.py" "$T/s1.exr" "$T/nopy.exr" 9 81 P.Y || fail "could not write the shard without P.Y"
+"$BIN" merge --exr "$T/bad.exr" "$T/s0.exr" "$T/nopy.exr" "$T/s2.exr" 2> "$T/e9"; rc=$?
+[ $rc -eq 1 ] && grep -q "nopy.exr: probe-grid channel P.Y is missing" "$T/e9" && [ ! -e "$T/bad.exr" ] \
+  && pass "merge of a shard without P.Y: exit 1 naming the channel" || fail "no P.Y: rc $rc: $(cat "$T/e9")"
 # An output that is one of the shards would replace it with the merged file
 # (no gi.shard): the merge could never be run again. Refused, shard intact.
 cp "$T/s0.exr" "$T/s0copy.exr"

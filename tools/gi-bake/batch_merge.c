@@ -159,23 +159,35 @@ static int check_header(merge_state *s, const char *file, const gi_exr_file *f, 
   return 0;
 }
 
+/* Channel `name` of f; the first one missing is kept in *missing. */
+static const float *channel(const gi_exr_file *f, const char *name, char missing[32]) {
+  const float *c = gi_exr_file_channel(f, name);
+  if (!c && !missing[0]) snprintf(missing, 32, "%s", name);
+  return c;
+}
+
 /* Copies the points of the tiles this shard owns. */
 static int take_points(merge_state *s, const char *file, const gi_exr_file *f, int shard) {
   static const char *const sh_names[9] = {"L00", "L1-1", "L10", "L11", "L2-2", "L2-1", "L20", "L21", "L22"};
   const float *irr[3], *dir[3], *ind[3], *sh[9][3], *P[3], *val, *ao = NULL;
-  char name[32];
-  int ok = (val = gi_exr_file_channel(f, "valid.Y")) != NULL;
+  char name[32], missing[32] = "";
+  val = channel(f, "valid.Y", missing);
   for (int k = 0; k < 3; k++) {
     char c = "RGB"[k];
-    snprintf(name, sizeof name, "irradiance.%c", c), ok &= (irr[k] = gi_exr_file_channel(f, name)) != NULL;
-    snprintf(name, sizeof name, "direct.%c", c), ok &= (dir[k] = gi_exr_file_channel(f, name)) != NULL;
-    snprintf(name, sizeof name, "indirect.%c", c), ok &= (ind[k] = gi_exr_file_channel(f, name)) != NULL;
-    snprintf(name, sizeof name, "P.%c", "XYZ"[k]), ok &= (P[k] = gi_exr_file_channel(f, name)) != NULL;
+    snprintf(name, sizeof name, "irradiance.%c", c), irr[k] = channel(f, name, missing);
+    snprintf(name, sizeof name, "direct.%c", c), dir[k] = channel(f, name, missing);
+    snprintf(name, sizeof name, "indirect.%c", c), ind[k] = channel(f, name, missing);
+    snprintf(name, sizeof name, "P.%c", "XYZ"[k]), P[k] = channel(f, name, missing);
     for (int i = 0; i < 9; i++)
-      snprintf(name, sizeof name, "sh.%s.%c", sh_names[i], c), ok &= (sh[i][k] = gi_exr_file_channel(f, name)) != NULL;
+      snprintf(name, sizeof name, "sh.%s.%c", sh_names[i], c), sh[i][k] = channel(f, name, missing);
   }
-  if (s->ao && !(ao = gi_exr_file_channel(f, "ao.Y"))) ok = 0;
-  if (!ok) return bad(file, "a probe-grid channel is missing");
+  if (s->ao) ao = channel(f, "ao.Y", missing);
+  if (missing[0]) {
+    char why[160];
+    snprintf(why, sizeof why, "probe-grid channel %s is missing%s", missing,
+             s->ao && !ao ? " (the first shard has ao.Y)" : "");
+    return bad(file, why);
+  }
   for (size_t i = 0; i < s->L.n; i++) {
     if ((int)(layout_tile_of(&s->L, i) % (size_t)s->shards) != shard) continue;
     gi_probe *p = &s->probes[i];
