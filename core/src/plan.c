@@ -4,6 +4,7 @@
  * (defaults, validation). The effect plan then decides which effects the
  * scene and request call for around a placed cascade, and says why, so a
  * bake pays only for what the scene holds. */
+#include <float.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -138,10 +139,6 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
   if (q->voxel0 > GI_MAX_VOXEL)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: voxel size must be at most %g units, got %g", GI_MAX_VOXEL,
                     q->voxel0);
-  /* Smaller, 1e-40 failed after the bake with "non-finite value in quality.ao_lambda". */
-  if (q->voxel0 > 0 && q->voxel0 < GI_MIN_VOXEL)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: voxel size must be at least %g units, got %g", GI_MIN_VOXEL,
-                    q->voxel0);
   if (!isfinite(q->aperture_deg) || q->aperture_deg < 0 || q->aperture_deg >= 180)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: aperture must be in (0, 180) degrees");
   if (!isfinite(q->step) || q->step < 0.05f || q->step > 4)
@@ -155,14 +152,19 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
     /* The default follows the scene's size; out of the range a caller may
      * give, the bake went wrong quietly (a box 1e10 across: half its
      * indirect light; 1e12: a NaN probe; 1e-10: every level empty). */
-    if (q->voxel0 > GI_MAX_VOXEL || q->voxel0 < GI_MIN_VOXEL)
-      return gi__fail(err, GI_ERR_INVALID_ARG, "quality: the scene is too %s for a default voxel size (%g units, "
-                      "outside %g..%g); give one in that range, or rescale the scene",
-                      q->voxel0 > GI_MAX_VOXEL ? "large" : "small", q->voxel0, GI_MIN_VOXEL, GI_MAX_VOXEL);
+    if (q->voxel0 > GI_MAX_VOXEL)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "quality: the scene is too large for a default voxel size (%g units, "
+                      "over %g); give one, or rescale the scene", q->voxel0, GI_MAX_VOXEL);
+    if (q->voxel0 < GI_MIN_VOXEL)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "quality: the scene is too small for a default voxel size (%g units, "
+                      "under %g, where the voxelizer's float areas underflow); rescale the scene", q->voxel0,
+                      GI_MIN_VOXEL);
   }
   if (!isfinite(q->ao_lambda) || q->ao_lambda < 0)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: ao_lambda must be finite and >= 0");
-  if (q->ao_lambda == 0) q->ao_lambda = (float)(1.0 / (4.0 * q->voxel0));
+  /* A given voxel is judged against the viewpoint's distance (the anchor);
+   * at the origin 1e-40 passed, and 1 / 4 s0 overflowed float into Inf. */
+  if (q->ao_lambda == 0) q->ao_lambda = (float)fmin(1.0 / (4.0 * q->voxel0), FLT_MAX);
   return GI_OK;
 }
 

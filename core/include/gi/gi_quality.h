@@ -20,8 +20,10 @@ extern "C" {
 #define GI_MAX_LEVELS 12
 /* Largest voxel size a caller may ask for, world units (the server's limit too). */
 #define GI_MAX_VOXEL 1e7
-/* Smallest: below it the voxelizer's squared polygon areas (float, ~s^4)
- * underflow and levels read empty (a 1e-13 voxel held nothing). */
+/* Smallest default voxel size (a scene under ~1e-8 units across): below
+ * it the voxelizer's squared polygon areas (float, ~s^4) underflow and
+ * levels read empty (a 1e-13 voxel held nothing). A given voxel0 is judged
+ * against the viewpoint's distance instead (gi_cascade_anchor). */
 #define GI_MIN_VOXEL 1e-9
 
 /* The effects a bake can simulate (the effect plan decides which run). */
@@ -50,8 +52,8 @@ typedef struct gi_quality {
                           eighth of its width). When levels and voxel0 are both default and
                           the scene is wider than that reach, levels are added, each halving
                           s0, until s0 is no coarser than a piece 4 heights across gets.
-                          GI_MIN_VOXEL..GI_MAX_VOXEL, given or default (a scene whose
-                          default falls outside fails: give one). */
+                          At most GI_MAX_VOXEL; a scene whose default falls outside
+                          GI_MIN_VOXEL..GI_MAX_VOXEL fails, naming the reason. */
   int cones;           /* diffuse cones per hemisphere: 4, 6, 8, 16 or 32; default 16 */
   float aperture_deg;  /* diffuse cone full aperture; default from the cone count */
   float step;          /* march step in voxels of the sampled level; default 1 (near surfaces at most 0.75) */
