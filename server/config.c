@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include "server.h"
 
@@ -362,32 +363,27 @@ static int read_token(load_ctx *x, const char *path) {
   return 0;
 }
 
-int gs_config_load(const char *path, gs_config *c, char *err, size_t errsize) {
-  load_ctx x;
-  memset(&x, 0, sizeof x);
-  x.c = c;
-  snprintf(c->path, sizeof c->path, "%s", path);
-  const char *slash = strrchr(path, '/');
-  if (slash) snprintf(x.dir, sizeof x.dir, "%.*s", (int)(slash - path), path);
-  FILE *f = fopen(path, "r");
-  if (!f) {
-    snprintf(err, errsize, "%s: cannot open config: %s", path, strerror(errno));
-    return -1;
-  }
-  void *stream[2] = {f, &x};
-  int rc = ini_parse_stream(read_line, stream, on_entry, &x);
-  fclose(f);
-  free(x.seen);
-  if (x.err[0]) {
-    snprintf(err, errsize, "%s", x.err);
+/* The line where [section] key was set, else 0. */
+static int line_of(const load_ctx *x, const char *section, const char *key) {
+  for (size_t i = 0; i < x->num_seen; i++)
+    if (!strcmp(x->seen[i].sec, section) && !strcmp(x->seen[i].key, key)) return x->seen[i].line;
+  return 0;
+}
+
+/* After the parse (rc: inih's): its errors, then what no one key shows. */
+static int check_loaded(load_ctx *x, int rc, char *err, size_t errsize) {
+  const gs_config *c = x->c;
+  const char *path = c->path;
+  if (x->err[0]) {
+    snprintf(err, errsize, "%s", x->err);
     return -1;
   }
   if (rc != 0) {
     snprintf(err, errsize, "%s:%d: syntax error (expected [section] or key = value)", path, rc);
     return -1;
   }
-  if (x.token_file[0] && read_token(&x, x.token_file)) {
-    snprintf(err, errsize, "%s", x.err);
+  if (x->token_file[0] && read_token(x, x->token_file)) {
+    snprintf(err, errsize, "%s", x->err);
     return -1;
   }
   for (size_t i = 0; i < c->num_scenes; i++) {
@@ -403,12 +399,41 @@ int gs_config_load(const char *path, gs_config *c, char *err, size_t errsize) {
       return -1;
     }
   }
+  struct stat st; /* main.c checks TMPDIR's folder too; this one has a line */
+  if (c->tmp_dir[0] && (stat(c->tmp_dir, &st) != 0 || !S_ISDIR(st.st_mode) || access(c->tmp_dir, W_OK) != 0)) {
+    snprintf(err, errsize, "%s:%d: [server] tmp_dir: '%s' is not a writable folder", path,
+             line_of(x, "server", "tmp_dir"), c->tmp_dir);
+    return -1;
+  }
   if (c->lim.max_probes_inline > c->lim.max_probes_job) {
-    snprintf(err, errsize, "%s: [limits] max_probes_inline (%zu) exceeds max_probes_job (%zu)", path,
-             c->lim.max_probes_inline, c->lim.max_probes_job);
+    /* Named where the later of the two was set (the defaults have no line). */
+    int li = line_of(x, "limits", "max_probes_inline"), lj = line_of(x, "limits", "max_probes_job");
+    const char *key = li > lj ? "max_probes_inline" : "max_probes_job";
+    snprintf(err, errsize, "%s:%d: [limits] %s: max_probes_inline (%zu) exceeds max_probes_job (%zu)", path,
+             li > lj ? li : lj, key, c->lim.max_probes_inline, c->lim.max_probes_job);
     return -1;
   }
   return 0;
+}
+
+int gs_config_load(const char *path, gs_config *c, char *err, size_t errsize) {
+  load_ctx x;
+  memset(&x, 0, sizeof x);
+  x.c = c;
+  snprintf(c->path, sizeof c->path, "%s", path);
+  const char *slash = strrchr(path, '/');
+  if (slash) snprintf(x.dir, sizeof x.dir, "%.*s", (int)(slash - path), path);
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    snprintf(err, errsize, "%s: cannot open config: %s", path, strerror(errno));
+    return -1;
+  }
+  void *stream[2] = {f, &x};
+  int rc = ini_parse_stream(read_line, stream, on_entry, &x);
+  fclose(f);
+  rc = check_loaded(&x, rc, err, errsize);
+  free(x.seen);
+  return rc;
 }
 
 void gs_config_free(gs_config *c) {

@@ -79,6 +79,10 @@ expect tmpdir 1 "tmp_dir: '$T/nowhere' is not a writable folder"
 expect absent 1 "absent.ini: cannot open config"
 printf '[limits]\nmax_probes_inline = 10\nmax_probes_job = 5\n%s\n' "$scene" > "$T/order.ini"
 expect order 1 "max_probes_inline (10) exceeds max_probes_job (5)"
+# Errors found after the parse name the line too: the later of the two keys,
+# and where tmp_dir was set.
+expect order 1 "order.ini:3: [limits] max_probes_job: max_probes_inline (10) exceeds"
+expect tmpdir 1 "tmpdir.ini:2: [server] tmp_dir: '$T/nowhere' is not a writable folder"
 # A key given twice: the last value silently won, also across a repeated
 # [limits] and for an indented line (inih makes it a second value of the key
 # above: "workers = 2" then "  8" set 8 workers).
