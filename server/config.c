@@ -281,23 +281,47 @@ static int on_entry(void *user, const char *section, const char *name, const cha
   if (!strcmp(section, "server")) return server_key(x, name, value) && once(x, section, name);
   if (!strcmp(section, "limits")) return limits_key(x, name, value) && once(x, section, name);
   if (!strncmp(section, "scene ", 6)) {
-    const char *id = section + 6;
-    if (!valid_id(id)) return fail(x, section, name, "scene id '%s' must be 1..63 of [A-Za-z0-9_-]", id);
-    if (!x->cur || strcmp(x->cur->id, id)) {
-      gs_config *c = x->c;
-      for (size_t i = 0; i < c->num_scenes; i++)
-        if (!strcmp(c->scenes[i].id, id)) return fail(x, section, name, "scene '%s' is defined twice", id);
-      gs_scene_conf *ns = realloc(c->scenes, (c->num_scenes + 1) * sizeof *ns);
-      if (!ns) return fail(x, section, name, "out of memory");
-      c->scenes = ns;
-      x->cur = &c->scenes[c->num_scenes++];
-      memset(x->cur, 0, sizeof *x->cur);
-      snprintf(x->cur->id, sizeof x->cur->id, "%s", id);
-      x->cur->line = x->line; /* up stays 0 until given: y, but a flat scene gets a note (catalog.c) */
-    }
-    return scene_key(x, section, name, value) && once(x, section, name);
+    /* scene_header made it, with its whole id: inih cuts a section's name
+     * at 49 bytes, so a long id would read as another scene's. */
+    if (!x->cur) return fail(x, section, name, "no [scene ID] header seen (a byte-order mark?)");
+    char sec[80];
+    snprintf(sec, sizeof sec, "scene %s", x->cur->id);
+    return scene_key(x, sec, name, value) && once(x, sec, name);
   }
   return fail(x, section, name, "unknown section (expected [server], [limits] or [scene ID])");
+}
+
+/* A "[scene ID]" header line, seen by read_line before inih: the scene is
+ * made here, so an id is never cut short, a section without keys is still
+ * a scene (and needs its source), and a second header for an id, even
+ * right after the first, is refused. Other headers are left to inih. */
+static int scene_header(load_ctx *x, const char *name, size_t len) {
+  if (len < 6 || strncmp(name, "scene ", 6)) return 1;
+  char id[80];
+  snprintf(id, sizeof id, "%.*s", (int)(len - 6 < sizeof id ? len - 6 : sizeof id - 1), name + 6);
+  const char *why = NULL;
+  int first = 0;
+  gs_config *c = x->c;
+  if (len - 6 >= sizeof id || !valid_id(id)) why = "must be 1..63 of [A-Za-z0-9_-]";
+  for (size_t i = 0; !why && i < c->num_scenes; i++)
+    if (!strcmp(c->scenes[i].id, id)) why = "is defined twice", first = c->scenes[i].line;
+  if (why) {
+    snprintf(x->err, sizeof x->err, "%s:%d: [scene %s]: scene%s '%s' %s", c->path, x->line, id,
+             first ? "" : " id", id, why);
+    if (first) snprintf(x->err + strlen(x->err), sizeof x->err - strlen(x->err), " (first on line %d)", first);
+    return 0;
+  }
+  gs_scene_conf *ns = realloc(c->scenes, (c->num_scenes + 1) * sizeof *ns);
+  if (!ns) {
+    snprintf(x->err, sizeof x->err, "%s:%d: [scene %s]: out of memory", c->path, x->line, id);
+    return 0;
+  }
+  c->scenes = ns;
+  x->cur = &c->scenes[c->num_scenes++];
+  memset(x->cur, 0, sizeof *x->cur);
+  snprintf(x->cur->id, sizeof x->cur->id, "%s", id);
+  x->cur->line = x->line; /* up stays 0 until given: y, but a flat scene gets a note (catalog.c) */
+  return 1;
 }
 
 /* inih's reader callback: counts lines so messages can name them, and
@@ -328,6 +352,11 @@ static char *read_line(char *str, int num, void *stream) {
     return NULL;
   }
   str[n] = '\0';
+  const char *p = str;
+  if (x->line == 1 && !strncmp(p, "\xEF\xBB\xBF", 3)) p += 3; /* a UTF-8 byte-order mark, as inih skips it */
+  while (*p == ' ' || *p == '\t') p++;
+  const char *end = *p == '[' ? strchr(p, ']') : NULL;
+  if (end && !scene_header(x, p + 1, (size_t)(end - p - 1))) return NULL;
   return str;
 }
 

@@ -55,6 +55,17 @@ printf '[scene a b]\nsource = city\n' > "$T/badid.ini"
 expect badid 1 "scene id 'a b' must be"
 printf '[scene city]\nup = y\n' > "$T/nosource.ini"
 expect nosource 1 "[scene city]: 'source' is required"
+# Scene sections are taken at their header: an id of 44..63 characters was
+# cut to 43 by inih (the scene served under another id), a section with no
+# keys was no scene at all, and a header repeated right after the first
+# merged into it.
+long_id=$(printf 'a%.0s' $(seq 1 60))
+printf '[scene %s]\nsource = city\nextent = 150\n' "$long_id" > "$T/longid.ini"
+expect longid 0 "scene '$long_id': "
+printf '%s\n[scene empty]\n' "$scene" > "$T/emptyscene.ini"
+expect emptyscene 1 "emptyscene.ini:4: [scene empty]: 'source' is required"
+printf '%s\n[scene city]\nseed = 2\n' "$scene" > "$T/twice.ini"
+expect twice 1 "twice.ini:4: [scene city]: scene 'city' is defined twice (first on line 1)"
 printf '[scene x]\nsource = missing.obj\n' > "$T/missing.ini"
 expect missing 1 "missing.obj"
 printf '[scene x]\nsource = missing.obj\noptional = yes\n%s\n' "$scene" > "$T/optional.ini"
