@@ -292,6 +292,61 @@ static void test_empty_scene(void **state) {
   gi_mesh_builder_free(NULL);
 }
 
+/* A 30 x 12 m plate of 72,000 triangles (past the 65,536-point sample:
+ * every other centroid is read; thousands share each coordinate) and
+ * `strays` triangles 1e5 m off, half on each side, mixed in among the
+ * plate's (every 1 in 4 of the sample's strays sits on an odd index). */
+static gi_scene *plate_with_strays(int strays) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  int every = 36000 / strays, k = 0;
+  for (int q = 0; q < 36000; q++) {
+    double x = 0.1 * (q % 300), z = 0.1 * (q / 300);
+    uint32_t a = gi_mesh_builder_add_vertex(b, x, 0, z), c = gi_mesh_builder_add_vertex(b, x + 0.1, 0, z),
+             d = gi_mesh_builder_add_vertex(b, x + 0.1, 0, z + 0.1), e = gi_mesh_builder_add_vertex(b, x, 0, z + 0.1);
+    gi_mesh_builder_add_triangle(b, a, d, c, mat);
+    gi_mesh_builder_add_triangle(b, a, e, d, mat);
+    if (q % every == 0 && k < strays) {
+      double off = (k % 2 ? 1e5 : -1e5) + k;
+      k++;
+      a = gi_mesh_builder_add_vertex(b, off, 0, off), c = gi_mesh_builder_add_vertex(b, off + 1, 0, off),
+      d = gi_mesh_builder_add_vertex(b, off, 0, off + 1);
+      gi_mesh_builder_add_triangle(b, a, d, c, mat);
+    }
+  }
+  assert_int_equal(k, strays);
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "plate+strays", NULL, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* Stray triangles are at most 1% of them (gi_scene_stats.far_triangles):
+ * 300 (0.4%) on both sides of a plate leave the bulk box the plate's,
+ * 1500 (2%) are part of the scene. The bulk box reads the sample's
+ * extreme centroids only, which a partial sort finds (scene.c). */
+static void test_stray_share(void **state) {
+  (void)state;
+  gi_scene_stats st;
+  double lo[3], hi[3];
+  gi_scene *s = plate_with_strays(300);
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.triangles, 72300);
+  assert_int_equal(st.far_triangles, 300);
+  gi_scene_bulk_bounds(s, lo, hi);
+  printf("300 strays: bulk x %.3f .. %.3f, z %.3f .. %.3f\n", lo[0], hi[0], lo[2], hi[2]);
+  assert_true(fabs(lo[0]) < 1e-9 && fabs(hi[0] - 30) < 1e-9 && fabs(lo[2]) < 1e-9 && fabs(hi[2] - 12) < 1e-9);
+  gi_scene_release(s);
+  s = plate_with_strays(1500);
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.far_triangles, 0);
+  gi_scene_bulk_bounds(s, lo, hi);
+  assert_true(lo[0] < -9e4 && hi[0] > 9e4);
+  gi_scene_release(s);
+}
+
 static void test_far_origin(void **state) {
   gi_scene *s[2] = {NULL, NULL};
   const double base[2][3] = {{0, 0, 0}, {1e7, 0, 1e7}};
@@ -2216,6 +2271,7 @@ int main(void) {
       cmocka_unit_test(test_light_tree_picks),
       cmocka_unit_test(test_light_tree_faces),
       cmocka_unit_test(test_empty_scene),
+      cmocka_unit_test(test_stray_share),
       cmocka_unit_test(test_far_origin),
       cmocka_unit_test(test_occluded_box),
       cmocka_unit_test(test_intersect1_box),
