@@ -46,11 +46,32 @@ typedef struct {
   const gi_near_surface *near; /* per gather */
 } near_ctx;
 
+/* Nearer a surface than this share of s0, p - q is float noise (0 on
+ * it), and the side is chosen (gi__near_surface). */
+#define NEAR_SURFACE_ON 1e-3f
+/* A surface whose normal is within ~84 degrees of up is a floor or a
+ * ceiling for that choice, steeper ones walls. */
+#define NEAR_SURFACE_LEVEL 0.1f
+
 gi_near_surface gi__near_surface(const struct gi_cascade *c, const float p[3]) {
   gi_near_surface ns = {0};
-  float reach = GI_TRILINEAR_REACH * (float)c->lv[c->n - 1].s, q[3], h;
-  if (!gi__closest_point(c->scene, p, reach, q, &h) || !(h > 0)) return ns;
-  for (int k = 0; k < 3; k++) ns.n[k] = (p[k] - q[k]) / h;
+  float reach = GI_TRILINEAR_REACH * (float)c->lv[c->n - 1].s, q[3], h, ng[3];
+  if (!gi__closest_point(c->scene, p, reach, q, &h, ng) || !(h >= 0)) return ns;
+  if (h > NEAR_SURFACE_ON * (float)c->s0) {
+    for (int k = 0; k < 3; k++) ns.n[k] = (p[k] - q[k]) / h;
+  } else {
+    /* A probe on a floor took no rule at all: its upward cones began
+     * inside the floor's voxels and read its underside, 0.03 of the
+     * indirect light a probe a voxel higher reads (0.26). On a level
+     * surface it is taken above it, as a probe stands on the ground (a
+     * room's floor is wound either way); on a wall, on the side p - q
+     * says, else the side the wall faces. */
+    const float up[3] = {0, c->scene->up == GI_UP_Z ? 0.f : 1.f, c->scene->up == GI_UP_Z ? 1.f : 0.f};
+    float e[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]}, cu = gi__dot(ng, up), d = gi__dot(e, ng);
+    float sg = fabsf(cu) > NEAR_SURFACE_LEVEL ? (cu < 0 ? -1.f : 1.f) : d < 0 ? -1.f : 1.f;
+    for (int k = 0; k < 3; k++) ns.n[k] = sg * ng[k];
+    if (!(gi__dot(ns.n, ns.n) > 0)) return ns;
+  }
   ns.h = h, ns.have = 1;
   return ns;
 }
@@ -98,13 +119,15 @@ void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns
   /* How far the leaving cones may be lifted (below): in a gap narrower
    * than that, no further than half way to the surface across it. */
   float lift = GI_TRILINEAR_REACH * jobs[0].t0, room = lift - ns->h, t_gap, ng_gap[3];
+  /* Rays leaving a point on the surface skip that surface (hit at t = 0). */
+  float on = NEAR_SURFACE_ON * (float)c->s0;
   uint32_t tri_gap;
-  if (room > 0 && gi__intersect1(c->scene, jobs[0].o, ns->n, 0, room, &t_gap, &tri_gap, ng_gap)) room = 0.5f * t_gap;
+  if (room > 0 && gi__intersect1(c->scene, jobs[0].o, ns->n, on, room, &t_gap, &tri_gap, ng_gap)) room = 0.5f * t_gap;
   for (int i = 0; i < n; i++) {
     gi_cone_job *j = &jobs[i];
-    float t, ng[3];
+    float t, ng[3], tn = gi__dot(j->w, ns->n) > 0 ? on : 0.f;
     uint32_t tri;
-    if (ns->h < j->t0 && gi__intersect1(c->scene, j->o, j->w, 0, j->t0, &t, &tri, ng)) {
+    if (ns->h < j->t0 && gi__intersect1(c->scene, j->o, j->w, tn, j->t0, &t, &tri, ng)) {
       float x[3] = {j->o[0] + t * j->w[0], j->o[1] + t * j->w[1], j->o[2] + t * j->w[2]};
       float len = gi__len(ng), m[3];
       float sg = gi__dot(ng, j->w) > 0 ? -1.f : 1.f; /* facing the cone */
@@ -115,7 +138,7 @@ void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns
       }
       j->t0 = t;
     }
-    if (j->h0 >= 0 || !(gi__dot(j->w, ns->n) > 0)) continue;
+    if ((j->h0 >= 0 && !(room > 0)) || !(gi__dot(j->w, ns->n) > 0)) continue;
     memcpy(j->n, ns->n, sizeof j->n);
     j->h0 = ns->h;
     /* Nearer than its footprint, even the finest level there reaches

@@ -345,6 +345,7 @@ typedef struct {
   const struct gi_scene *s;
   float p[3], q[3], d2;
   int found;
+  uint32_t tri; /* the triangle q lies on */
 } near_query;
 
 static bool near_cb(struct RTCPointQueryFunctionArguments *args) {
@@ -356,13 +357,14 @@ static bool near_cb(struct RTCPointQueryFunctionArguments *args) {
               &s->vertices[3 * (size_t)ti[2]], q);
   float e[3] = {q[0] - nq->p[0], q[1] - nq->p[1], q[2] - nq->p[2]}, d2 = gi__dot(e, e);
   if (!(d2 < nq->d2)) return false;
-  nq->d2 = d2, nq->found = 1;
+  nq->d2 = d2, nq->found = 1, nq->tri = args->primID;
   memcpy(nq->q, q, sizeof nq->q);
   args->query->radius = sqrtf(d2); /* nothing farther can win now */
   return true;
 }
 
-int gi__closest_point(const struct gi_scene *s, const float p[3], float radius, float q[3], float *dist) {
+int gi__closest_point(const struct gi_scene *s, const float p[3], float radius, float q[3], float *dist,
+                      float n[3]) {
   if (!s->rtc || !ray_ok(p, p) || !(radius > 0) || !(radius <= RAY_LARGE)) return 0;
   near_query nq = {.s = s, .p = {p[0], p[1], p[2]}, .d2 = radius * radius};
   struct RTCPointQuery pq = {.x = p[0], .y = p[1], .z = p[2], .time = 0.f, .radius = radius};
@@ -372,6 +374,15 @@ int gi__closest_point(const struct gi_scene *s, const float p[3], float radius, 
   if (!nq.found) return 0;
   memcpy(q, nq.q, sizeof nq.q);
   *dist = sqrtf(nq.d2);
+  if (n) {
+    const uint32_t *ti = s->indices + 3 * (size_t)nq.tri;
+    const float *a = &s->vertices[3 * (size_t)ti[0]], *b = &s->vertices[3 * (size_t)ti[1]],
+                *c = &s->vertices[3 * (size_t)ti[2]];
+    float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    gi__cross(e1, e2, n);
+    float l = gi__len(n);
+    for (int k = 0; k < 3; k++) n[k] = l > 0 ? n[k] / l : 0.f;
+  }
   return 1;
 }
 

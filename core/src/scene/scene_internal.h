@@ -124,10 +124,12 @@ int gi__emitter_find(const struct gi_scene *s, const float org[3], const float d
                      float *t, uint32_t *tri);
 
 /* The surface point nearest p within `radius` (local coordinates): 1 with
- * it in q and its distance in *dist, 0 when no triangle comes that close
- * (or the scene is empty). A BVH point query whose radius shrinks to the
- * nearest point found so far. Thread-safe. */
-int gi__closest_point(const struct gi_scene *s, const float p[3], float radius, float q[3], float *dist);
+ * it in q, its distance in *dist and (n not NULL) its triangle's unit
+ * winding normal in n, 0 when no triangle comes that close (or the scene
+ * is empty). A BVH point query whose radius shrinks to the nearest point
+ * found so far. Thread-safe. */
+int gi__closest_point(const struct gi_scene *s, const float p[3], float radius, float q[3], float *dist,
+                      float n[3]);
 /* Appends to *out the indices of all triangles whose bounding box overlaps the
  * local-space box [lo, hi] (a BVH query, never a scan of all triangles),
  * each once: in the BVH's order for a nearly cubic box, ascending for a
