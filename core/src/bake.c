@@ -17,8 +17,12 @@
 
 gi_result gi_cascade_anchor(const gi_scene *s, const double at[3], const gi_quality *resolved,
                             int64_t anchor[3], gi_error_info *err) {
-  if (!s || !at || !resolved || !(resolved->voxel0 > 0))
-    return gi__fail(err, GI_ERR_INVALID_ARG, "anchor: scene, viewpoint and a resolved quality are required");
+  if (!s || !at || !resolved || !anchor)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "anchor: %s is NULL",
+                    !s ? "scene" : !at ? "viewpoint" : !resolved ? "resolved" : "anchor");
+  if (!(resolved->voxel0 > 0) || !isfinite(resolved->voxel0))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "anchor: resolved->voxel0 is %g, not a resolved voxel size",
+                    resolved->voxel0);
   for (int a = 0; a < 3; a++) {
     /* The same float rounding and snapping as gi_cascade_bake and
      * gi__cascade_place: level 0's window starts at 2 floor(at / 2 s0) - R/2
@@ -75,8 +79,10 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
 gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi_quality *qin,
                              const gi_cancel *cancel, gi_cascade **out, gi_bake_report *report,
                              gi_error_info *err) {
+  /* out is checked first: every other failure writes NULL through it. */
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "bake: out is NULL");
   *out = NULL;
-  if (!scene || !at) return gi__fail(err, GI_ERR_INVALID_ARG, "bake: scene and viewpoint are required");
+  if (!scene || !at) return gi__fail(err, GI_ERR_INVALID_ARG, "bake: %s is NULL", !scene ? "scene" : "viewpoint");
   if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
     return gi__fail(err, GI_ERR_NONFINITE, "bake: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
   gi_quality q;

@@ -1,0 +1,72 @@
+/* test_api_edges.c: the public API called as a careless program would:
+ * NULL where no NULL is allowed, sizes no memory holds, values out of
+ * range. Each call must fail with a gi_result whose message names the
+ * argument, never crash or answer quietly from garbage. Scenes are a small
+ * room made in code, baked at the lowest quality. */
+#include "test_util.h"
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+#include "gi/gi.h"
+
+static gi_scene *room(void) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {{0.7f, 0.7f, 0.7f}, {0}, 1, 0, "white"};
+  uint32_t mi = gi_mesh_builder_add_material(b, &m);
+  const double lo[3] = {-1, 0, -1}, hi[3] = {1, 2, 1};
+  gi_mesh_builder_add_box(b, lo, hi, mi);
+  gi_light l = {.type = GI_LIGHT_POINT, .color = {5, 5, 5}, .position = {0, 1.8, 0}};
+  return tu_build(b, "room", &l, 1);
+}
+
+static const double AT[3] = {0, 0.5, 0};
+
+static gi_quality low_quality(void) {
+  gi_quality q = {.levels = 2, .res = 8, .threads = 2, .light_samples = 2, .probe_samples = 4, .bounces = 1};
+  return q;
+}
+
+/* The message names the argument: `word` appears in it. */
+static void assert_names(const gi_error_info *err, const char *word) {
+  if (!strstr(err->msg, word)) fail_msg("message '%s' does not name '%s'", err->msg, word);
+}
+
+/* gi_cascade_bake wrote *out = NULL before any check: a NULL out crashed. */
+static void test_bake_null_out(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_quality q = low_quality();
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, AT, &q, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "out");
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, NULL, &q, &c, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_null(c);
+  assert_names(&err, "viewpoint");
+  gi_scene_release(s);
+}
+
+/* gi_cascade_anchor wrote through a NULL anchor, and called an infinite
+ * voxel size a non-finite viewpoint. */
+static void test_anchor_args(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_quality q;
+  gi_error_info err = {0};
+  assert_int_equal(gi_quality_resolve(s, NULL, &q, &err), GI_OK);
+  assert_int_equal(gi_cascade_anchor(s, AT, &q, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "anchor is NULL");
+  int64_t a[3];
+  q.voxel0 = INFINITY;
+  assert_int_equal(gi_cascade_anchor(s, AT, &q, a, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "voxel0");
+  gi_scene_release(s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_bake_null_out),
+      cmocka_unit_test(test_anchor_args),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
