@@ -63,10 +63,41 @@ static void test_anchor_args(void **state) {
   gi_scene_release(s);
 }
 
+/* n past what memory holds: 3 * n wrapped, so a gather checked a few
+ * points and then gathered n probes from memory it does not own (and the
+ * reference's n x chunks tasks wrapped too). */
+static void test_huge_n(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_quality q = low_quality();
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, AT, &q, &c, NULL, &err), GI_OK);
+  gi_probe p;
+  size_t huge = SIZE_MAX / 3 + 2; /* 3 * huge wraps to 5 */
+  assert_int_equal(gi_cascade_gather(c, AT, huge, &p, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "n = ");
+  gi_ref_probe rp;
+  gi_reference_opts o = {.samples = 4, .threads = 2};
+  assert_int_equal(gi_reference_irradiance(s, AT, huge, &o, &rp, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "n = ");
+  /* 2^50 probes: 3n does not wrap, n x chunks (2^18 chunks of 64 samples) does. */
+  gi_reference_opts d = {.samples = 1 << 24, .threads = 2};
+  assert_int_equal(gi_reference_irradiance(s, AT, (size_t)1 << 50, &d, &rp, NULL, &err), GI_ERR_INVALID_ARG);
+  /* And a NULL array is named ("missing arguments" named none). */
+  assert_int_equal(gi_cascade_gather(c, NULL, 1, &p, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "pts is NULL");
+  assert_int_equal(gi_reference_irradiance(s, AT, 1, &o, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "out is NULL");
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
       cmocka_unit_test(test_anchor_args),
+      cmocka_unit_test(test_huge_n),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

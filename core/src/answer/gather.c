@@ -295,7 +295,12 @@ gi_result gi_cascade_gather(const gi_cascade *c, const double *pts, size_t n, gi
 
 gi_result gi_cascade_gather_ex(const gi_cascade *c, const double *pts, size_t n, const gi_cancel *cancel,
                                gi_probe *out, double *ms, gi_error_info *err) {
-  if (!c || (!pts && n) || (!out && n)) return gi__fail(err, GI_ERR_INVALID_ARG, "gather: missing arguments");
+  if (!c || (!pts && n) || (!out && n))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "gather: %s is NULL", !c ? "cascade" : !pts ? "pts" : "out");
+  /* No caller holds 3n doubles and n probes past this: 3 * n below would
+   * wrap, check a few points and gather the rest from unread memory. */
+  if (n > SIZE_MAX / sizeof *out)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "gather: n = %zu probes cannot fit in memory", n);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(pts[i]))
       return gi__fail(err, GI_ERR_NONFINITE, "gather: point %zu has a non-finite coordinate", i / 3);

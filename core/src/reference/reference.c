@@ -487,7 +487,8 @@ static int finish_probe(const ref_ctx *rc, size_t i, gi_ref_probe *o) {
 
 gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n, const gi_reference_opts *opts,
                                   gi_ref_probe *out, double *ms, gi_error_info *err) {
-  if (!s || (n && (!pts || !out))) return gi__fail(err, GI_ERR_INVALID_ARG, "reference: missing arguments");
+  if (!s || (n && (!pts || !out)))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference: %s is NULL", !s ? "scene" : !pts ? "pts" : "out");
   ref_ctx rc = {.s = s, .pts = pts};
   if (opts) rc.o = *opts;
   if (rc.o.samples == 0) rc.o.samples = 1024;
@@ -510,6 +511,10 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   if (rc.o.emitter_pick != GI_REF_PICK_TREE && rc.o.emitter_pick != GI_REF_PICK_POWER)
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference: emitter_pick must be GI_REF_PICK_TREE or _POWER, got %d",
                     rc.o.emitter_pick);
+  /* As a gather: past this no caller holds the arrays, and 3 * n and the
+   * n x chunks tasks below would wrap. */
+  if (n > SIZE_MAX / sizeof *out || n > SIZE_MAX / (size_t)((rc.o.samples + CHUNK - 1) / CHUNK))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "reference: n = %zu probes cannot fit in memory", n);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(pts[i]))
       return gi__fail(err, GI_ERR_NONFINITE, "reference: point %zu has a non-finite coordinate", i / 3);
