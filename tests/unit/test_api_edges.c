@@ -6,6 +6,7 @@
 #include "test_util.h"
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 #include "gi/gi.h"
 
@@ -93,11 +94,61 @@ static void test_huge_n(void **state) {
   gi_scene_release(s);
 }
 
+/* The answer writers said "nothing to write" or "missing arguments" for
+ * any NULL; a probe volume's counts passed when two were negative (their
+ * product matched n) and reached the file writers. */
+static void test_writer_args(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_quality q = low_quality();
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, AT, &q, &c, NULL, &err), GI_OK);
+  const gi_bake_report *rep = gi_cascade_report(c);
+  char path[512];
+  snprintf(path, sizeof path, "%s/edges.exr", tu_tmpdir());
+  gi_probe p;
+  assert_int_equal(gi_cascade_gather(c, AT, 1, &p, NULL, &err), GI_OK);
+  assert_int_equal(gi_probes_write_exr(path, &p, 1, s, AT, NULL, 0, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "rep is NULL");
+  assert_int_equal(gi_probes_write_exr(path, &p, 0, s, AT, rep, 0, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "n is 0");
+  float px[3 * 2 * 1] = {0};
+  assert_int_equal(gi_cascade_panorama(c, AT, 2, 1, px, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "indirect is NULL");
+  assert_int_equal(gi_panorama_write_exr(path, 2, 1, px, px, s, AT, NULL, 0, NULL, 0, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "rep is NULL");
+  assert_int_equal(gi_panorama_write_exr(path, 0, 1, px, px, s, AT, rep, 0, NULL, 0, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "size 0x1");
+  assert_int_equal(gi_cascade_write_vdb(c, NULL, 0, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "path is NULL");
+  gi_camera cam = {{0, 1, 0.9}, {0, 1, 0}, {0, 1, 0}, 60, 2, 2};
+  assert_int_equal(gi_cascade_render(c, &cam, 1, 2, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "rgb is NULL");
+
+  gi_probe probes[2] = {p, p};
+  float pos[6] = {0, 0.5f, 0, 0.5f, 0.5f, 0};
+  uint8_t valid[2] = {1, 1};
+  gi_probe_volume v = {.counts = {-2, -1, 1}, .spacing = 0.5, .up_axis = 1, .n = 2, .pos = pos, .valid = valid,
+                       .probes = probes};
+  assert_int_equal(gi_probe_volume_write_exr(path, &v, NULL, 0, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "counts -2 x -1 x 1");
+  snprintf(path, sizeof path, "%s/edges.vdb", tu_tmpdir());
+  assert_int_equal(gi_probe_volume_write_vdb(path, &v, "edges", &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "counts -2 x -1 x 1");
+  v.counts[0] = 2, v.counts[1] = 1, v.probes = NULL;
+  assert_int_equal(gi_probe_volume_write_vdb(path, &v, "edges", &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "probes is NULL");
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
       cmocka_unit_test(test_anchor_args),
       cmocka_unit_test(test_huge_n),
+      cmocka_unit_test(test_writer_args),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -72,8 +72,10 @@ gi_result gi_probes_write_exr(const char *path, const gi_probe *probes, size_t n
 gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *direct, const float *indirect,
                                 const gi_scene *scene, const double at[3], const gi_bake_report *rep,
                                 int use_half, const gi_exr_extra *extra, size_t num_extra, gi_error_info *err) {
-  if (!path || !direct || !indirect || !rep || !at || w < 1 || h < 1)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "panorama EXR: nothing to write");
+  if (!path || !direct || !indirect || !rep || !at)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "panorama EXR: %s is NULL",
+                    !path ? "path" : !direct ? "direct" : !indirect ? "indirect" : !rep ? "rep" : "at");
+  if (w < 1 || h < 1) return gi__fail(err, GI_ERR_INVALID_ARG, "panorama EXR: size %dx%d is empty", w, h);
   size_t px = (size_t)w * (size_t)h;
   float *planes = gi__malloc(9 * px * sizeof(float));
   if (!planes) return gi__fail(err, GI_ERR_NOMEM, "panorama EXR: out of memory");
@@ -104,8 +106,10 @@ gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *dir
 gi_result gi_probes_write_exr_ex(const char *path, const gi_probe *probes, size_t n, const gi_scene *scene,
                                  const double at[3], const gi_bake_report *rep, int use_half,
                                  const gi_exr_extra *extra, size_t num_extra, gi_error_info *err) {
-  if (!path || !probes || n == 0 || !rep || !at)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "probe EXR: nothing to write");
+  if (!path || !probes || !rep || !at)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "probe EXR: %s is NULL",
+                    !path ? "path" : !probes ? "probes" : !rep ? "rep" : "at");
+  if (n == 0) return gi__fail(err, GI_ERR_INVALID_ARG, "probe EXR: n is 0, no probes to write");
   if (n > (1u << 24)) return gi__fail(err, GI_ERR_LIMIT, "probe EXR: %zu probes exceed 2^24", n);
   enum { MAXCH = 3 + 3 + 3 + 3 + 1 + 27 };
   char names[MAXCH][32];
@@ -206,7 +210,7 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
 }
 
 gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces, gi_error_info *err) {
-  if (!c || !path) return gi__fail(err, GI_ERR_INVALID_ARG, "VDB: nothing to write");
+  if (!c || !path) return gi__fail(err, GI_ERR_INVALID_ARG, "VDB: %s is NULL", !c ? "cascade" : "path");
   static const char *const face_names[6] = {"px", "nx", "py", "ny", "pz", "nz"};
   int n = c->n;
   int per = 4 + (faces ? 6 : 0);

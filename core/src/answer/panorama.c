@@ -93,7 +93,9 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
 
 gi_result gi_cascade_panorama(const gi_cascade *c, const double at[3], int w, int h, float *direct,
                               float *indirect, double *ms, gi_error_info *err) {
-  if (!c || !at || !direct || !indirect) return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: missing arguments");
+  if (!c || !at || !direct || !indirect)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: %s is NULL",
+                    !c ? "cascade" : !at ? "viewpoint" : !direct ? "direct" : "indirect");
   if (w < 2 || h < 1 || w > 16384 || h > 8192)
     return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: size %dx%d outside 2..16384 x 1..8192", w, h);
   float p[3];

@@ -76,9 +76,13 @@ static void fill_planes(planes_t *p, const gi_probe_volume *v) {
 }
 
 static gi_result check_volume(const gi_probe_volume *v, gi_error_info *err) {
-  if (!v || !v->pos || !v->valid || !v->probes || v->n == 0)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "probe volume: nothing to write");
-  if ((size_t)v->counts[0] * v->counts[1] * v->counts[2] != v->n || v->n > GI_GRID_MAX_POINTS)
+  if (!v || !v->pos || !v->valid || !v->probes)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "probe volume: %s is NULL",
+                    !v ? "volume" : !v->pos ? "pos" : !v->valid ? "valid" : "probes");
+  if (v->n == 0) return gi__fail(err, GI_ERR_INVALID_ARG, "probe volume: n is 0, no probes to write");
+  /* Each count on its own: two negative ones multiply to a positive n. */
+  if (v->counts[0] < 1 || v->counts[1] < 1 || v->counts[2] < 1 ||
+      (size_t)v->counts[0] * v->counts[1] * v->counts[2] != v->n || v->n > GI_GRID_MAX_POINTS)
     return gi__fail(err, GI_ERR_INVALID_ARG, "probe volume: counts %d x %d x %d do not match %zu points",
                     v->counts[0], v->counts[1], v->counts[2], v->n);
   if (!(v->spacing > 0) || !isfinite(v->spacing))
