@@ -69,4 +69,19 @@ kill -TERM $pid; wait $pid; rc=$?
 left=$(find "$T/tmp" -mindepth 1 | tr '\n' ' ')
 [ -n "$held" ] && [ $rc -eq 143 ] && [ -z "$left" ] && pass "SIGTERM while waiting to deliver: nothing left in TMPDIR" ||
   fail "SIGTERM: held '$held', rc $rc, left '$left'"
+
+# An output naming an input (the scene, the --probes file; directly or by
+# a link) is refused before anything runs: the rename into place wrote the
+# EXR over the scene it had just read.
+cp "$T/box.obj" "$T/keep.obj"
+printf '1 1 1\n' > "$T/pts.txt"
+ln -s keep.obj "$T/keep-link.obj"
+for args in "--exr $T/keep.obj" "--vdb $T/keep.obj" "--exr $T/keep-link.obj" "--exr $T/pts.txt --probes $T/pts.txt"; do
+  # shellcheck disable=SC2086
+  "$BIN" "$T/keep.obj" $Q $args > /dev/null 2> "$T/err"; rc=$?
+  [ $rc -eq 2 ] && grep -q "is also the .*; write the output elsewhere" "$T/err" && cmp -s "$T/box.obj" "$T/keep.obj" \
+    && [ "$(cat "$T/pts.txt")" = "1 1 1" ] && pass "$args: refused, input intact: $(head -n 1 "$T/err")" \
+    || fail "$args: rc $rc, $(head -n 1 "$T/err")"
+  cp "$T/box.obj" "$T/keep.obj"
+done
 finish

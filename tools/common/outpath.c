@@ -172,6 +172,16 @@ int ta_check_output(ta_ctx *c, const char *opt, const char **path) {
   return 0;
 }
 
+int ta_check_outputs_spare(ta_ctx *c, const char *what, const char *input) {
+  struct stat si, so;
+  if (!input || stat(input, &si) != 0 || !S_ISREG(si.st_mode)) return 0;
+  for (int i = 0; i < num_outs; i++)
+    if (!outs[i].special && stat(outs[i].write, &so) == 0 && so.st_dev == si.st_dev && so.st_ino == si.st_ino)
+      return ta_fail(c, outs[i].opt, "'%s' is also the %s '%s'; write the output elsewhere", outs[i].write, what,
+                     input);
+  return 0;
+}
+
 int ta_output_is_special(const char *path) {
   for (int i = 0; i < num_outs; i++)
     if (outs[i].special && !strcmp(outs[i].write, path)) return 1;

@@ -92,6 +92,11 @@ int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_op
  * process dies of it. Returns 0, TA_EXIT_USAGE (empty name, a folder) or
  * TA_EXIT_RUN. Main thread only. */
 int ta_check_output(ta_ctx *c, const char *opt, const char **path);
+/* 0 when no output checked so far is the existing file `input` (what
+ * names it: "scene file"); else TA_EXIT_USAGE, naming both: the rename
+ * into place would replace an input the run reads (gi-bake box.obj --exr
+ * box.obj wrote its EXR over the scene). Main thread only. */
+int ta_check_outputs_spare(ta_ctx *c, const char *what, const char *input);
 /* Whether path (as ta_check_output returned it) stands for a device or FIFO. */
 int ta_output_is_special(const char *path);
 /* Whether an output is this process's standard output (--exr /dev/stdout):

@@ -444,6 +444,10 @@ static int check_combinations(cli_opts *o) {
   if (o->exr && (rc = ta_check_output(&ta, "--exr", &o->exr))) return rc;
   if (o->vdb && (rc = ta_check_output(&ta, "--vdb", &o->vdb))) return rc;
   if ((rc = batch_check(&ta, o))) return rc;
+  /* An output renamed over an input would destroy it (after reading it). */
+  if ((!o->is_city && (rc = ta_check_outputs_spare(&ta, "scene file", o->scene))) ||
+      (rc = ta_check_outputs_spare(&ta, "--probes file", o->probes_file)))
+    return rc;
   /* The viewpoint takes one of the probe EXR's pixels. */
   if (o->probes_file &&
       (rc = ta_read_points(&ta, "--probes", o->probes_file, MAX_POINTS - 1, &o->probes, &o->num_probes)))
