@@ -157,6 +157,10 @@ expect_rc 2 "--knobs: unknown knob 'foo'" --scene "$T/box.obj" --knobs res,foo
 expect_rc 2 "--knobs: unknown knob ''" --scene "$T/box.obj" --knobs res,
 expect_rc 1 "cannot read" --scene "$T/missing.obj"
 expect_rc 1 "missing.txt" --scene "$T/box.obj" --probes "$T/missing.txt"
+# A shared scene --scenes names must be there: it was skipped, exit 0 (with
+# every named scene missing: "no scene was available", exit 0).
+expect_rc 1 "--scenes: munich: cannot read '$T/noscenes/munich/munich.obj'" --scenes city,munich \
+  --scenes-dir "$T/noscenes"
 
 # What the run writes or reads at its end is checked before the sweep: an
 # unwritable --md or --png, a missing --notes and an --out that is a file

@@ -42,6 +42,7 @@ typedef struct opts {
   int cycles;          /* 1: Blender Cycles on the aerial view when blender is on PATH (--no-cycles: 0) */
   int by_light;        /* 1: the error split by light kind (--no-by-light: 0) */
   const char *knobs;   /* --knobs: the knobs to sweep; NULL = all */
+  int scenes_given;    /* --scenes named the scenes: a missing one is an error, not a SKIP */
   acc_file_opts file;  /* --scene FILE and its options */
   char out_buf[1024];  /* the default --out of a --scene run */
 } opts;
@@ -71,7 +72,9 @@ static void usage(FILE *f) {
           "                     with --at, most of it without; Munich's is 12)\n"
           "  --view CAMERA      also compare a camera view: a Mitsuba .xml sensor or\n"
           "                     X,Y,Z,TX,TY,TZ,FOV,W,H (as gi-bake --render)\n"
-          "  --scenes-dir DIR   the shared scenes (default %s)\n"
+          "  --scenes-dir DIR   the shared scenes (default %s); a scene\n"
+          "                     --scenes names must be there (else exit 1 before any work),\n"
+          "                     the default list skips a missing one\n"
           "  --out DIR          CSV, plot script and reference cache (default out/accuracy)\n"
           "  --md FILE          the markdown report (default OUT/accuracy.md)\n"
           "  --png FILE         the plot (default OUT/accuracy.png; needs gnuplot)\n"
@@ -173,7 +176,7 @@ static int parse_args(int argc, char **argv, opts *o) {
   o->workloads = o->cycles = o->by_light = 1;
   int no_views = 0;
   const char *list = "cornell,munich,city,city5k";
-  int scenes_given = 0, out_given = 0;
+  int out_given = 0;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
     int has = i + 1 < argc, took = acc_file_option(&ta, &o->file, argc, argv, &i);
@@ -194,7 +197,7 @@ static int parse_args(int argc, char **argv, opts *o) {
       o->by_light = 0;
     } else if (!has && takes_value(a)) {
       return ta_fail(&ta, NULL, "option '%s' needs a value", a);
-    } else if (!strcmp(a, "--scenes")) list = argv[++i], scenes_given = 1;
+    } else if (!strcmp(a, "--scenes")) list = argv[++i], o->scenes_given = 1;
     else if (!strcmp(a, "--scenes-dir")) o->scenes_dir = argv[++i];
     else if (!strcmp(a, "--out")) o->out_dir = argv[++i], out_given = 1;
     else if (!strcmp(a, "--md")) o->md = argv[++i];
@@ -226,7 +229,7 @@ static int parse_args(int argc, char **argv, opts *o) {
   if (no_views) o->view_spp = 0;
   else if (o->view_spp < 0) o->view_spp = o->quick ? 64 : 1024;
   if (o->file.path) {
-    if (scenes_given) return ta_fail(&ta, "--scene", "cannot be combined with --scenes");
+    if (o->scenes_given) return ta_fail(&ta, "--scene", "cannot be combined with --scenes");
     if (!out_given) {
       snprintf(o->out_buf, sizeof o->out_buf, "out/accuracy-%s", o->file.name);
       o->out_dir = o->out_buf;
@@ -267,6 +270,25 @@ int acc_keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int 
   return ss->n > 0;
 }
 
+/* The shared scene file behind a scene name, or 0 for the generated ones. */
+static int shared_file(const opts *o, const char *name, char *path, size_t size) {
+  if (!strcmp(name, "cornell")) return snprintf(path, size, "%s/cornell-box/cornell-box.obj", o->scenes_dir), 1;
+  if (!strcmp(name, "munich")) return snprintf(path, size, "%s/munich/munich.obj", o->scenes_dir), 1;
+  return 0;
+}
+
+/* Scenes named by --scenes must be there, checked before hours of work on
+ * the others: a missing one was skipped with exit 0 (all of them: "no
+ * scene was available", exit 0). The default list still skips. */
+static int check_shared(const opts *o) {
+  char path[1024];
+  for (int i = 0; o->scenes_given && i < o->num_scenes; i++)
+    if (shared_file(o, o->scenes[i], path, sizeof path) && access(path, R_OK) != 0)
+      return ta_error(&ta, TA_EXIT_RUN, "--scenes", "%s: cannot read '%s': %s (the shared scenes are --scenes-dir %s)",
+                      o->scenes[i], path, strerror(errno), o->scenes_dir);
+  return 0;
+}
+
 static int setup_scene(const opts *o, const char *name, scene_set *ss) {
   memset(ss, 0, sizeof *ss);
   /* Every scene takes the same paths: since the reference traces light
@@ -278,7 +300,7 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
   gi_scene_options so = {.up = GI_UP_Y, .threads = o->threads, .default_lights = 1};
   char path[1024];
   if (!strcmp(name, "cornell")) {
-    snprintf(path, sizeof path, "%s/cornell-box/cornell-box.obj", o->scenes_dir);
+    shared_file(o, name, path, sizeof path);
     if (access(path, R_OK)) return fprintf(stderr, "gi-accuracy: SKIP cornell: %s not found\n", path), -1;
     if (gi_scene_load(path, &so, &ss->s, &err)) return fprintf(stderr, "gi-accuracy: %s\n", err.msg), 0;
     ss->at[0] = 278, ss->at[1] = 273, ss->at[2] = 279.6;
@@ -294,7 +316,7 @@ static int setup_scene(const opts *o, const char *name, scene_set *ss) {
   }
   double cand[3 * 49];
   if (!strcmp(name, "munich")) {
-    snprintf(path, sizeof path, "%s/munich/munich.obj", o->scenes_dir);
+    shared_file(o, name, path, sizeof path);
     if (access(path, R_OK)) return fprintf(stderr, "gi-accuracy: SKIP munich: %s not found\n", path), -1;
     so.up = GI_UP_Z;
     if (gi_scene_load(path, &so, &ss->s, &err)) return fprintf(stderr, "gi-accuracy: %s\n", err.msg), 0;
@@ -696,6 +718,7 @@ int main(int argc, char **argv) {
   opts o;
   int rc = parse_args(argc, argv, &o);
   if (rc) return rc < 0 ? 0 : rc;
+  if ((rc = check_shared(&o))) return rc;
   if (ta_mkdirs(&ta, "--out", o.out_dir)) return 1;
   /* What the run writes and reads at its very end is checked now, not
    * after a sweep of hours (--out's folder exists by now: --md may be in it). */
