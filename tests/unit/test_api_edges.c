@@ -143,12 +143,36 @@ static void test_writer_args(void **state) {
   gi_scene_release(s);
 }
 
+/* A deadline is a double; a long long held it. A negative one (a budget
+ * computed below zero) meant "no deadline" although it has passed, and one
+ * past 2^63 us was converted with undefined behaviour (UBSan's
+ * float-cast-overflow; it read as "none" by luck). */
+static void test_cancel_deadline_range(void **state) {
+  (void)state;
+  gi_cancel *c = gi_cancel_new();
+  assert_non_null(c);
+  gi_cancel_set_deadline(c, -5);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_DEADLINE);
+  gi_cancel_set_deadline(c, 0);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_NONE);
+  gi_cancel_set_deadline(c, NAN);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_DEADLINE);
+  gi_cancel_set_deadline(c, 1e300);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_NONE);
+  gi_cancel_set_deadline(c, INFINITY);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_NONE);
+  gi_cancel_set_deadline(c, gi_now_ms() - 1);
+  assert_int_equal(gi_cancel_check(c), GI_CANCEL_DEADLINE);
+  gi_cancel_free(c);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
       cmocka_unit_test(test_anchor_args),
       cmocka_unit_test(test_huge_n),
       cmocka_unit_test(test_writer_args),
+      cmocka_unit_test(test_cancel_deadline_range),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

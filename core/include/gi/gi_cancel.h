@@ -33,7 +33,8 @@ gi_cancel *gi_cancel_new(void);
 void gi_cancel_free(gi_cancel *c); /* accepts NULL */
 /* Asks every call holding the token to stop. */
 void gi_cancel_set(gi_cancel *c);
-/* Calls stop once gi_now_ms() passes deadline_ms; 0 removes the deadline. */
+/* Calls stop once gi_now_ms() passes deadline_ms; 0 removes the deadline.
+ * A negative or NaN deadline has passed; +Inf is never reached. */
 void gi_cancel_set_deadline(gi_cancel *c, double deadline_ms);
 /* Whether the token fired, and why (a request wins over a deadline).
  * NULL never fires. */

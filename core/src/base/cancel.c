@@ -3,6 +3,7 @@
  * The flag and the deadline are atomics: one thread sets them while the
  * workers of any number of calls read them. The deadline is kept in whole
  * microseconds so it fits an atomic integer. */
+#include <limits.h>
 #include <stdatomic.h>
 #include "base/internal.h"
 #include "gi/gi_cancel.h"
@@ -30,10 +31,17 @@ void gi_cancel_set(gi_cancel *c) {
 
 void gi_cancel_set_deadline(gi_cancel *c, double deadline_ms) {
   if (!c) return;
-  long long us = deadline_ms > 0 ? (long long)(deadline_ms * GI_US_PER_MS) : 0;
-  /* A deadline at time 0 would read as "none": keep it in the past instead. */
-  if (deadline_ms > 0 && us == 0) us = 1;
-  atomic_store(&c->deadline_us, us);
+  double us = deadline_ms * GI_US_PER_MS;
+  long long v;
+  if (deadline_ms == 0) v = 0; /* none */
+  /* Negative or NaN has passed (the clock is never below 0): stopping is
+   * safer than a bake that runs on; 1 keeps it apart from "none". */
+  else if (!(us >= 1)) v = 1;
+  /* Past what a long long holds the conversion is undefined (1e300 gave
+   * LLONG_MIN, "none" by luck); such a deadline is never reached. */
+  else if (us >= 0x1p63) v = LLONG_MAX;
+  else v = (long long)us;
+  atomic_store(&c->deadline_us, v);
 }
 
 gi_cancel_reason gi_cancel_check(const gi_cancel *c) {
