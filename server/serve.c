@@ -482,7 +482,16 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     gs_tiles_free(tiles, nt);
     char id[40];
     gi_proto_error pe;
-    size_t n = p->num_points;
+    size_t n = p->num_points, need = gs_bake_bytes(&q), budget = svc->cfg->cache_bytes;
+    /* A bake larger than the whole budget never runs: 413 now, as for a short
+     * list, not a 202 for a job that can only fail. */
+    if (budget && need > budget) {
+      gi_proto_fail(&pe, 413, "memory: this bake needs about %zu MiB, more than the whole budget (%zu MiB)",
+                    need >> 20, budget >> 20);
+      gi_proto_probes_free(p);
+      gs_answer_error(a, &pe);
+      return;
+    }
     if (gs_jobs_submit(svc->jobs, s, p, &req, &q, id, &pe) != 0) {
       gi_proto_probes_free(p);
       gs_answer_error(a, &pe);

@@ -683,6 +683,15 @@ static void test_overload(void **state) {
   su_resp hr = su_http(&S_tight, NULL, "/v1/health", NULL, NULL);
   assert_int_equal(hr.status, 200);
   free(hr.body);
+  /* A bake larger than the whole 9 MiB: a short list is a 413, and so is a
+   * list long enough for a job (it was a 202, then a job failed with 413). */
+  const char *probes[] = {"{\"points\":[[31,2,29]]}",
+                          "{\"points\":[[31,2,29],[-60,2,29],[90,2,-29],[120,2,29],[-20,2,-140]]}"};
+  for (int i = 0; i < 2; i++) {
+    hr = su_http(&S_tight, "POST", "/v1/scenes/city/probes", probes[i], NULL);
+    su_expect_error(&hr, 413, "payload_too_large", "more than the whole budget (9 MiB)");
+    free(hr.body);
+  }
   assert_int_equal(su_stop(&S_tight), 0);
 }
 
