@@ -150,6 +150,8 @@ expect_rc 2 "cannot be combined with --probes" --scene "$T/box.obj" --above-grou
 expect_rc 2 "--spacing: is the street grid's spacing: it needs --above-ground" --scene "$T/box.obj" --spacing 2
 expect_rc 2 "--spacing: expected a finite number > 0" --scene "$T/box.obj" --above-ground 2 --spacing 0
 expect_rc 2 "badpts.txt" --scene "$T/box.obj" --probes "$T/badpts.txt"
+printf '# no points here\n\n' > "$T/nopts.txt"
+expect_rc 2 "--probes: '$T/nopts.txt' holds no points" --scene "$T/box.obj" --probes "$T/nopts.txt"
 expect_rc 2 "--view: expected a Mitsuba" --scene "$T/box.obj" --view 1,2,3
 expect_rc 2 "--view: .*eye" --scene "$T/box.obj" --view 1,1,1,1,1,1,60,8,8
 expect_rc 2 "cannot be combined with --no-views" --scene "$T/box.obj" --view 1,1,1,2,2,2,60,8,8 --no-views
