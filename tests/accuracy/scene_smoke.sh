@@ -183,4 +183,10 @@ expect_before 1 "--png: cannot write into '$T/nowhere'" --out "$T/eb" --png "$T/
 expect_before 1 "--notes: cannot read '$T/nonotes.md'" --out "$T/eb" --notes "$T/nonotes.md"
 expect_before 1 "--notes: '$T' is not a file" --out "$T/eb" --notes "$T"
 expect_before 1 "--out: '$T/plain' exists and is not a folder" --out "$T/plain"
+# A viewpoint or probe the bake cannot place (more than 1e9 from the scene)
+# is refused before the reference, not by the bake after it.
+printf '1 1 1\n1e12 0 0\n' > "$T/farpts.txt"
+expect_before 1 "--at (1e+12, 0, 0) is more than 1e9 units from the scene" --out "$T/eb" --at 1e12,0,0
+expect_before 1 "--probes: $T/farpts.txt: point 2 (1e+12, 0, 0) is more than 1e9" --out "$T/eb" \
+  --probes "$T/farpts.txt"
 finish

@@ -188,6 +188,29 @@ static int place_street(const acc_file_opts *f, int threads, acc_scene_set *ss, 
   return ok;
 }
 
+/* Whether the bake could be placed at p: finite, within 1e9 of the scene's
+ * origin on each axis (the core's limit for a viewpoint) and its cell
+ * addressable (gi_cascade_anchor); else 0 after saying why, naming what.
+ * Checked before the reference, which takes minutes before the bake
+ * refused the point. */
+static int placeable(const acc_scene_set *ss, const double p[3], const char *what) {
+  double o[3];
+  gi_scene_origin(ss->s, o);
+  for (int a = 0; a < 3; a++)
+    if (!(fabs(p[a] - o[a]) <= 1e9)) {
+      fprintf(stderr, "gi-accuracy: %s (%g, %g, %g) is more than 1e9 units from the scene (origin %g, %g, %g)\n",
+              what, p[0], p[1], p[2], o[0], o[1], o[2]);
+      return 0;
+    }
+  gi_quality q = {0}, r;
+  int64_t cell[3];
+  gi_error_info err = {0};
+  if (gi_quality_resolve(ss->s, &q, &r, &err) == GI_OK && gi_cascade_anchor(ss->s, p, &r, cell, &err) == GI_OK)
+    return 1;
+  fprintf(stderr, "gi-accuracy: %s (%g, %g, %g): %s\n", what, p[0], p[1], p[2], err.msg);
+  return 0;
+}
+
 int acc_file_setup(const acc_file_opts *f, int ref_samples, int threads, acc_scene_set *ss, char *placement,
                    size_t placement_size) {
   memset(ss, 0, sizeof *ss);
@@ -199,12 +222,18 @@ int acc_file_setup(const acc_file_opts *f, int ref_samples, int threads, acc_sce
   if (!f->up_given && gi_scene_looks_z_up(ss->s))
     fprintf(stderr, "gi-accuracy: note: %s is flat along z " TA_NOTE_Z_UP_FIX "\n", f->path);
   if (f->have_at) memcpy(ss->at, f->at, sizeof ss->at);
+  if (f->have_at && !placeable(ss, ss->at, "--at")) return 0;
   if (f->above_ground > 0) return place_street(f, threads, ss, placement, placement_size);
   if (!f->pts) return place_lattice(f, threads, ss, placement, placement_size);
   ss->pts = malloc(3 * f->npts * sizeof *ss->pts);
   if (!ss->pts) return fprintf(stderr, "gi-accuracy: out of memory\n"), 0;
   memcpy(ss->pts, f->pts, 3 * f->npts * sizeof *ss->pts);
   ss->n = f->npts;
+  char what[1200];
+  for (size_t i = 0; i < ss->n; i++) {
+    snprintf(what, sizeof what, "--probes: %s: point %zu", f->probes_file, i + 1);
+    if (!placeable(ss, &ss->pts[3 * i], what)) return 0;
+  }
   /* Without --at, bake around the probes' middle. */
   if (!f->have_at)
     for (size_t i = 0; i < ss->n; i++)
