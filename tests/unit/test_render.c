@@ -47,6 +47,38 @@ static void test_plane_under_sun(void **state) {
   gi_scene_release(s);
 }
 
+/* A camera standing on the floor sees the room as one a hair above it
+ * does, in both views: they read 0.21x and 0.20x of it, black wherever
+ * they looked up (their first rays met the floor itself at t = 0, from
+ * its unlit side: the room's floor faces down). */
+static void test_camera_on_floor(void **state) {
+  (void)state;
+  gi_scene *s = tu_lit_room(0.7f);
+  gi_error_info err = {0};
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.1};
+  gi_cascade *c = NULL;
+  double at[3] = {0.5, 0.5, 0.5};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  enum { W = 12, H = 8 };
+  double mean[2][2] = {{0}};
+  for (int k = 0; k < 2; k++) {
+    gi_camera cam = {.eye = {0.5, k ? 1e-3 : 0, 0.5}, .target = {-1.5, 1.2, -1.5}, .up = {0, 1, 0}, .fov_deg = 60,
+                     .width = W, .height = H};
+    float cone[W * H * 3], path[W * H * 3];
+    assert_int_equal(gi_cascade_render(c, &cam, 0, 0, cone, NULL, &err), GI_OK);
+    assert_int_equal(gi_reference_render(s, &cam, 16, 1, 0, path, NULL, &err), GI_OK);
+    for (int i = 0; i < W * H * 3; i++) mean[k][0] += cone[i] / (W * H * 3), mean[k][1] += path[i] / (W * H * 3);
+  }
+  printf("camera on the floor: cone %.5f path %.5f; 1 mm up: cone %.5f path %.5f\n", mean[0][0], mean[0][1],
+         mean[1][0], mean[1][1]);
+  for (int v = 0; v < 2; v++) {
+    assert_true(mean[1][v] > 0);
+    assert_true(fabs(mean[0][v] - mean[1][v]) <= 0.05 * mean[1][v]);
+  }
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 static void test_mitsuba_camera(void **state) {
   TU_SKIP_IF_NO_SCENE(path, "cornell-box/cbox-mitsuba.xml");
   gi_camera cam = {0};
@@ -359,6 +391,7 @@ static void test_sampled_light_anchors(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_plane_under_sun),
+      cmocka_unit_test(test_camera_on_floor),
       cmocka_unit_test(test_mitsuba_camera),
       cmocka_unit_test(test_bad_cameras),
       cmocka_unit_test(test_mitsuba_sensor_forms),

@@ -118,7 +118,7 @@ static int primary_hit(const render_ctx *rc, int px, int py, float w[3], float x
                        uint32_t *tri) {
   float t;
   gi__cam_ray(rc->k, (float)px + 0.5f, (float)py + 0.5f, w);
-  if (!gi__intersect1(rc->c->scene, rc->k->eye, w, 0, INFINITY, &t, tri, ng)) return 0;
+  if (!gi__camera_hit(rc->c->scene, rc->k->eye, w, &t, tri, ng)) return 0;
   float cw = gi__dot(ng, w);
   for (int a = 0; a < 3; a++) n[a] = cw > 0 ? -ng[a] : ng[a], x[a] = rc->k->eye[a] + t * w[a];
   return 1;

@@ -14,6 +14,8 @@
  * splits), so every triangle sits in exactly one leaf and a point query
  * visits it at most once. An empty scene (rtc == NULL) is handled in every
  * entry point. */
+#include <float.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -214,6 +216,28 @@ int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir
     for (int k = 0; k < 3; k++) ng[k] = (float)(n[k] / len);
   }
   return 1;
+}
+
+/* Within this many float steps of the eye's largest coordinate a hit is
+ * on the surface the eye lies on. */
+#define EYE_ON_SURFACE_ULPS 4.0f
+/* A surface within ~84 degrees of level is a floor (the eye stands on it). */
+#define EYE_LEVEL_COS 0.1f
+
+int gi__camera_hit(const struct gi_scene *s, const float eye[3], const float w[3], float *t, uint32_t *tri,
+                   float ng[3]) {
+  if (!gi__intersect1(s, eye, w, 0, INFINITY, t, tri, ng)) return 0;
+  float m = fmaxf(fabsf(eye[0]), fmaxf(fabsf(eye[1]), fabsf(eye[2])));
+  float eps = EYE_ON_SURFACE_ULPS * FLT_EPSILON * (1.f + m);
+  if (*t > eps) return 1;
+  /* The eye's side: above a level surface (rooms are wound either way),
+   * else the side it faces. A ray into it sees it; one leaving it, what
+   * lies beyond (it met the surface from behind at t = 0: a camera on a
+   * floor saw only black, as did the path tracer beside it). */
+  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
+  float cu = gi__dot(ng, up), side = fabsf(cu) > EYE_LEVEL_COS && cu < 0 ? -1.f : 1.f;
+  if (side * gi__dot(ng, w) <= 0) return 1;
+  return gi__intersect1(s, eye, w, eps, INFINITY, t, tri, ng);
 }
 
 int gi__emitter_find(const struct gi_scene *s, const float org[3], const float dir[3], float tnear, float tfar,

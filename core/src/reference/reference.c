@@ -560,7 +560,7 @@ static void view_pixel(const view_ctx *vc, int x, int y) {
     uint32_t tri;
     float px = (float)x + ref_u01(&rng), py = (float)y + ref_u01(&rng);
     ref_cam_dir(k, px, py, w);
-    if (!gi__intersect1(s, k->eye, w, 0, INFINITY, &t, &tri, ng)) {
+    if (!gi__camera_hit(s, k->eye, w, &t, &tri, ng)) {
       /* The camera sees the sky itself, as the cone-traced view does. */
       for (int a = 0; a < 3; a++) acc[a] += rc->L.sky[a];
       continue;

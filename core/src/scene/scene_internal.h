@@ -116,6 +116,12 @@ void gi__occluded(const struct gi_scene *s, int n, const float *org, const float
  * against dir is NOT guaranteed: it is the triangle's winding normal). */
 int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir[3],
                    float tnear, float tfar, float *t, uint32_t *tri, float ng[3]);
+/* A camera's first hit from eye along w (unit), as gi__intersect1 from 0,
+ * except that a surface the eye lies on is seen only by rays going into
+ * it from the eye's side (above a level surface, else its front): the
+ * cone-traced and the path-traced views share it. Thread-safe. */
+int gi__camera_hit(const struct gi_scene *s, const float eye[3], const float w[3], float *t, uint32_t *tri,
+                   float ng[3]);
 /* The nearest emissive triangle along org + t dir, t in [tnear, tfar],
  * ignoring everything else (rtc_emit): 1 with its distance and triangle
  * index, 0 when none or the scene has no emitters. Whether something
