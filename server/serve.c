@@ -338,11 +338,16 @@ void gs_tiles_free(gs_tile *t, size_t n) {
 }
 
 /* A job's bakes wait for room in the budget (interactive bakes finish in
- * seconds) rather than fail at the first busy moment. */
-static gi_result reserve_waiting(gs_service *svc, size_t need, gi_error_info *err) {
+ * seconds) rather than fail at the first busy moment; a cancelled job (or
+ * one past its deadline) stops waiting at once, not after the whole wait. */
+static gi_result reserve_waiting(gs_service *svc, size_t need, const gi_cancel *cancel, gi_error_info *err) {
   double t0 = gs_now_ms();
   gi_result rc;
   while ((rc = gs_cache_reserve(svc->cache, need, err)) == GI_ERR_NOMEM && gs_now_ms() - t0 < GS_JOB_ADMIT_WAIT_MS) {
+    if (gi_cancel_check(cancel) != GI_CANCEL_NONE) {
+      snprintf(err->msg, sizeof err->msg, "probes: stopped while waiting for room in the memory budget");
+      return GI_ERR_CANCELLED;
+    }
     struct timespec ts = {0, GS_JOB_ADMIT_POLL_MS * 1000000L};
     nanosleep(&ts, NULL);
   }
@@ -370,7 +375,7 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
   gi_result rc = GI_OK;
   if (!use_cache) {
     need = gs_bake_bytes(q);
-    if ((rc = reserve_waiting(svc, need, err)) != GI_OK) need = 0;
+    if ((rc = reserve_waiting(svc, need, cancel, err)) != GI_OK) need = 0;
   }
   if (how_out) *how_out = GS_CACHE_HIT;
   for (size_t t = 0; t < num_tiles && rc == GI_OK; t++) {

@@ -532,6 +532,32 @@ static void test_job_stops_inside_tile(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* A job waiting for room in the memory budget (here a session holds it
+ * all) stops waiting when cancelled: it waited out its 30 s first. */
+static void test_job_cancel_while_waiting_for_memory(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "job-budget", HOSTILE_INI("[limits]\nmax_probes_inline = 2\ncache_mb = 15\n")), 0);
+  su_resp r = su_http(&s, "POST", "/v1/scenes/city/sessions?quality=low", NULL, SU_TOKEN);
+  assert_int_equal(r.status, 201);
+  free(r.body);
+  char id[64], path[160];
+  submit(&s, 3, id);
+  assert_string_equal(job_wait(&s, id, "running", 30000).state, "running");
+  su_sleep_ms(500); /* waiting for the budget, no tile done */
+  assert_int_equal(job_get(&s, id).tiles_done, 0);
+  snprintf(path, sizeof path, "/v1/jobs/%s", id);
+  double t0 = su_now_ms();
+  r = su_http(&s, "DELETE", path, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 202);
+  free(r.body);
+  job_status js = job_wait(&s, id, "cancelled|done|failed", 60000);
+  double ms = su_now_ms() - t0;
+  printf("  job waiting for memory: %s %.0f ms after DELETE\n", js.state, ms);
+  assert_string_equal(js.state, "cancelled");
+  assert_true(ms < 1000 * TU_TSAN_FACTOR);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* max_jobs_queued bounds the jobs that wait: a job an idle runner takes
  * does not wait. With 0 every job was a 503 (+ Retry-After: 1, forever),
  * runners idle; now the first runs and the next, which would wait, is 503. */
@@ -1178,6 +1204,7 @@ int main(void) {
       cmocka_unit_test(test_job_deadline),
       cmocka_unit_test(test_job_stops_inside_tile),
       cmocka_unit_test(test_job_queue_limit),
+      cmocka_unit_test(test_job_cancel_while_waiting_for_memory),
       cmocka_unit_test(test_job_files_private),
       cmocka_unit_test(test_private_folder_removed),
       cmocka_unit_test(test_sigterm_with_running_job),
