@@ -237,7 +237,7 @@ int main(int argc, char **argv) {
   int bound = gs_http_port(h);
   if (args.port_file && write_port_file(args.port_file, bound)) {
     fprintf(stderr, "gi-server: --port-file: cannot write '%s': %s\n", args.port_file, strerror(errno));
-    gs_http_stop(h);
+    stop_service(h, &svc, &cat, &cfg); /* the private folder too, not left for the next start */
     return 1;
   }
   announce(&cfg, &cat, bound);

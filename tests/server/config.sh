@@ -131,6 +131,15 @@ printf '[scene flat]\nsource = flat.obj\nup = z\n' > "$T/flatz.ini"
 expect flatz 0 "is valid: 1 scene(s)"
 case "$("$BIN" --config "$T/flatz.ini" --check-config 2>&1)" in *"flat along z"*) fail "flatz: a note with up = z";; esac
 
+# A --port-file that cannot be written stops the start (exit 1) and takes
+# the private folder it had made in tmp_dir with it.
+mkdir "$T/tmpd"
+printf '[server]\nport = 0\ntmp_dir = tmpd\n%s\n' "$scene" > "$T/pf.ini"
+"$BIN" --config "$T/pf.ini" --port-file "$T/nowhere/port" > /dev/null 2> "$T/pf.err"; st=$?
+left=$(ls "$T/tmpd")
+[ "$st" -eq 1 ] && grep -q -- "--port-file: cannot write" "$T/pf.err" && [ -z "$left" ] \
+  && echo "ok: unwritable --port-file: exit 1, nothing left in tmp_dir" || fail "port-file: exit $st, left '$left'"
+
 # Bad command lines exit 2.
 "$BIN" --port 70000 >/dev/null 2>&1; [ $? -eq 2 ] || fail "--port 70000 should exit 2"
 "$BIN" --frobnicate >/dev/null 2>&1; [ $? -eq 2 ] || fail "--frobnicate should exit 2"
