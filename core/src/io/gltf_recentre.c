@@ -710,9 +710,14 @@ static struct aiFile *io_open(struct aiFileIO *io, const char *name, const char 
       s->io_oom |= rc == GI_ERR_NOMEM;
       goto fail; /* unreadable: assimp goes on without it, and scan_mtl warns */
     }
-    m->owned = gi__exact_mtl_normalise(name, text, len, &m->len, s->io_err, sizeof s->io_err);
+    char msg[sizeof s->io_err];
+    m->owned = gi__exact_mtl_normalise(name, text, len, &m->len, msg, sizeof msg);
     gi__free(text);
-    if (!m->owned) goto fail;
+    if (!m->owned) {
+      if (!msg[0]) s->io_oom = 1;
+      else if (!s->io_err[0]) memcpy(s->io_err, msg, sizeof msg); /* the first bad library */
+      goto fail;
+    }
     m->data = (const unsigned char *)m->owned;
   } else if (!(m->f = fopen(name, "rb"))) {
     goto fail;

@@ -417,10 +417,8 @@ char *gi__exact_mtl_normalise(const char *mtl_path, const char *text, size_t len
   /* A one-number line grows to at most three times its length. */
   size_t cap = 3 * len + 1, n = 0, line = 0;
   char *out = gi__malloc(cap), *buf = NULL;
-  if (!out) {
-    snprintf(msg, msg_len, "material library '%s': out of memory", mtl_path);
-    return NULL;
-  }
+  if (msg_len) msg[0] = 0; /* out of memory, unless a bad line says otherwise */
+  if (!out) return NULL;
   for (size_t at = 0; at < len; line++) {
     const char *l = text + at, *nl = memchr(l, '\n', len - at);
     size_t ll = nl ? (size_t)(nl - l) : len - at;
@@ -437,7 +435,6 @@ char *gi__exact_mtl_normalise(const char *mtl_path, const char *text, size_t len
     /* The numbers after the keyword, parsed on a NUL-terminated copy. */
     gi__free(buf);
     if (!(buf = gi__malloc(e - b + 1))) {
-      snprintf(msg, msg_len, "material library '%s': out of memory", mtl_path);
       gi__free(out);
       return NULL;
     }

@@ -66,9 +66,9 @@ char *gi__exact_ply_stub(size_t *len);
  * format's rule), which assimp 5.2 reads as (r, 0, 0), and a blank after
  * the last number makes it fail the whole OBJ. Such statements come back
  * as "Kd r r r" and every colour line without trailing blanks. Returns
- * the new text (gi__free; *out_len its length), or NULL with msg set: a
- * colour of two numbers or none, naming mtl_path and the line, or out of
- * memory. */
+ * the new text (gi__free; *out_len its length), or NULL: with msg set
+ * for a colour of two numbers or none (naming mtl_path and the line), with
+ * msg "" when out of memory. */
 char *gi__exact_mtl_normalise(const char *mtl_path, const char *text, size_t len, size_t *out_len, char *msg,
                               size_t msg_len);
 
