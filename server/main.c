@@ -4,6 +4,7 @@
  * scene is loaded before the port opens, so "listening" means "ready".
  * SIGINT/SIGTERM stop accepting, let running requests finish, and exit 0. */
 #define _POSIX_C_SOURCE 200809L
+#include <arpa/inet.h>
 #include <errno.h>
 #include <getopt.h>
 #include <signal.h>
@@ -85,7 +86,17 @@ static int parse_args(int argc, char **argv, server_args *a) {
         return 2;
       }
       break;
-    case 'b': a->bind = optarg; break;
+    case 'b': {
+      /* Checked here: at listen time the error blamed the config's [server]
+       * bind, with exit 1, after every scene had loaded. */
+      struct in_addr ia;
+      if (strlen(optarg) >= sizeof ((gs_config *)0)->bind || inet_pton(AF_INET, optarg, &ia) != 1) {
+        fprintf(stderr, "gi-server: --bind: expected an IPv4 address, got '%s'\n", optarg);
+        return 2;
+      }
+      a->bind = optarg;
+      break;
+    }
     case 'f': a->port_file = optarg; break;
     case 'k': a->check = 1; break;
     case 'V': printf("gi-server %s (%s)\n", GI_VERSION, GI_GIT_REV); return 0;

@@ -144,6 +144,11 @@ left=$(ls "$T/tmpd")
 "$BIN" --port 70000 >/dev/null 2>&1; [ $? -eq 2 ] || fail "--port 70000 should exit 2"
 "$BIN" --frobnicate >/dev/null 2>&1; [ $? -eq 2 ] || fail "--frobnicate should exit 2"
 "$BIN" --config >/dev/null 2>&1; [ $? -eq 2 ] || fail "--config without a value should exit 2"
+# --bind is checked as an argument (exit 2 naming it), not at listen time
+# as the config's [server] bind (exit 1, after loading every scene).
+out=$("$BIN" --config "$T/good.ini" --bind localhost --check-config 2>&1); st=$?
+[ "$st" -eq 2 ] && case "$out" in *"--bind: expected an IPv4 address, got 'localhost'"*) true;; *) false;; esac \
+  && echo "ok: --bind localhost: exit 2" || fail "--bind localhost: exit $st: $out"
 "$BIN" --help | grep -q -- "--port-file" || fail "--help lacks --port-file"
 
 [ "$FAILS" -eq 0 ] && { echo "all passed"; exit 0; }
