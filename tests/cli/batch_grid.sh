@@ -82,6 +82,9 @@ fi
 [ $rc -eq 1 ] && grep -q 'box.obj' "$T/e4" && pass "merge of a non-EXR: exit 1 naming it" || fail "non-EXR: rc $rc"
 "$BIN" merge "$T/s0.exr" 2> "$T/e5"; rc=$?
 [ $rc -eq 2 ] && pass "merge without an output: exit 2" || fail "merge without output: rc $rc"
+"$BIN" merge --exr "$T/m1.exr" --exr "$T/m2.exr" "$T/s0.exr" "$T/s1.exr" "$T/s2.exr" 2> "$T/e10"; rc=$?
+[ $rc -eq 2 ] && grep -q -- "--exr: given twice" "$T/e10" && [ ! -e "$T/m1.exr" ] && [ ! -e "$T/m2.exr" ] \
+  && pass "merge with --exr twice: exit 2, nothing written" || fail "--exr twice: rc $rc: $(cat "$T/e10")"
 # A shard whose image is not its gi.grid's size (re-saved or cropped by
 # another tool, same header): refused by name, not read past its end. Only
 # the first shard's size was checked; the others were read as the grid's.

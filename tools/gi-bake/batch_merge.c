@@ -64,9 +64,11 @@ static int parse_merge(int argc, char **argv, merge_opts *m) {
       fputs(merge_help, stdout);
       return -1;
     }
-    if (c == 'e') m->exr = optarg;
-    else if (c == 'v') m->vdb = optarg;
-    else return ta_getopt_fail(&ta, c, argv, opts);
+    /* A second --exr (meant as --vdb?) silently replaced the first. */
+    const char **out = c == 'e' ? &m->exr : c == 'v' ? &m->vdb : NULL;
+    if (!out) return ta_getopt_fail(&ta, c, argv, opts);
+    if (*out) return ta_fail(&ta, c == 'e' ? "--exr" : "--vdb", "given twice ('%s' and '%s')", *out, optarg);
+    *out = optarg;
   }
   if (!m->exr && !m->vdb) return ta_fail(&ta, NULL, "needs --exr OUT.exr and/or --vdb OUT.vdb");
   if (optind >= argc) return ta_fail(&ta, NULL, "no shard EXRs given");
