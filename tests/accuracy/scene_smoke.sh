@@ -157,6 +157,8 @@ expect_rc 2 "--view: .*eye" --scene "$T/box.obj" --view 1,1,1,1,1,1,60,8,8
 expect_rc 2 "cannot be combined with --no-views" --scene "$T/box.obj" --view 1,1,1,2,2,2,60,8,8 --no-views
 expect_rc 2 "--knobs: unknown knob 'foo'" --scene "$T/box.obj" --knobs res,foo
 expect_rc 2 "--knobs: unknown knob ''" --scene "$T/box.obj" --knobs res,
+expect_rc 2 "--md: given twice" --scene "$T/box.obj" --md "$T/a.md" --md "$T/b.md"
+expect_rc 2 "--at: given twice" --scene "$T/box.obj" --at 1,1,1 --at 2,2,2
 expect_rc 1 "cannot read" --scene "$T/missing.obj"
 expect_rc 1 "missing.txt" --scene "$T/box.obj" --probes "$T/missing.txt"
 # A shared scene --scenes names must be there: it was skipped, exit 0 (with

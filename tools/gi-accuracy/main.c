@@ -113,6 +113,20 @@ static int takes_value(const char *a) {
   return 0;
 }
 
+/* An option given twice: the second value silently won ('--md a.md --md
+ * b.md' wrote b.md only). Each takes one value. */
+static int repeated(const char *a, const char **seen, int *n) {
+  static const char *const file_opts[] = {"--scene", "--up", "--at", "--probes", "--above-ground", "--view",
+                                          "--spacing"};
+  int value = takes_value(a);
+  for (size_t k = 0; k < sizeof file_opts / sizeof file_opts[0]; k++) value |= !strcmp(a, file_opts[k]);
+  if (!value) return 0;
+  for (int k = 0; k < *n; k++)
+    if (!strcmp(seen[k], a)) return ta_fail(&ta, a, "given twice (it takes one value)");
+  seen[(*n)++] = a; /* at most one entry per option: fewer than 32 */
+  return 0;
+}
+
 /* --knobs LIST: names from the sweep, comma-separated. */
 static int check_knobs(const char *list) {
   static const char *const known[] = {"res", "levels", "voxel0", "cones", "aperture", "step", "bounces", "light_samples",
@@ -176,9 +190,11 @@ static int parse_args(int argc, char **argv, opts *o) {
   o->workloads = o->cycles = o->by_light = 1;
   int no_views = 0;
   const char *list = "cornell,munich,city,city5k";
-  int out_given = 0;
+  int out_given = 0, nseen = 0;
+  const char *seen[32];
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
+    if (repeated(a, seen, &nseen)) return 2;
     int has = i + 1 < argc, took = acc_file_option(&ta, &o->file, argc, argv, &i);
     if (took == 2) return 2;
     if (took) continue;
