@@ -600,6 +600,25 @@ static int check_sparse(json_t *root, const char *path, gi_error_info *err) {
   return 0;
 }
 
+/* Points and lines (primitive modes 0-3) are no surface to bake, and
+ * assimp 5.2 crashes on a line loop whose indices pass its vertex count (a
+ * segfault; with one index, an assertion abort): they leave the file
+ * before assimp reads it, as the import would skip them after. Returns
+ * how many were taken out. */
+static int drop_points_and_lines(json_t *root) {
+  json_t *meshes = json_object_get(root, "meshes");
+  int n = 0;
+  for (size_t i = 0; i < json_array_size(meshes); i++) {
+    json_t *prims = json_object_get(json_array_get(meshes, i), "primitives");
+    for (size_t j = json_array_size(prims); j-- > 0;) {
+      json_t *mode = json_object_get(json_array_get(prims, j), "mode");
+      json_int_t m = json_is_integer(mode) ? json_integer_value(mode) : 4; /* the spec's default: triangles */
+      if (m >= 0 && m <= 3 && json_array_remove(prims, j) == 0) n++;
+    }
+  }
+  return n;
+}
+
 /* The JSON text of a .gltf, or the JSON chunk of a .glb. */
 static int split_glb(const unsigned char *buf, size_t len, size_t *json_off, size_t *json_len) {
   if (len < GLB_HEADER + GLB_CHUNK_HEADER || le32(buf) != GLB_MAGIC || le32(buf + 12 + 4) != GLB_CHUNK_JSON) return -1;
@@ -667,10 +686,11 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
   int folded = check_sparse(root, path, err) < 0 || read_uv_transforms(root, path, out, err) < 0
                    ? -1
                    : fold_emissive_strength(root, path, err);
+  if (folded >= 0) folded += drop_points_and_lines(root);
   gi__gltf_bin bin = {.path = path};
   if (glb) glb_bin_chunk(buf, len, json_off + json_len, &bin);
   int r = folded < 0 ? -1 : recentre_json(root, &bin, out, err);
-  if (r == 0 && folded > 0) r = 1; /* no scene graph to place, but the materials changed */
+  if (r == 0 && folded > 0) r = 1; /* no scene graph to place, but the materials or primitives changed */
   char *text = r > 0 ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(JSON_PRECISION)) : NULL;
   json_decref(root);
   if (r < 0) {
