@@ -124,6 +124,9 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
                       fx_names[i], q->effects[i]);
   if (q->specular < -1 || q->specular > 1)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: specular must be -1, 0 or 1, got %d", q->specular);
+  /* Any other value read as "on": ao = -1, off in specular's convention, ran AO. */
+  if (q->ao != 0 && q->ao != 1)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: ao must be 0 or 1, got %d", q->ao);
   if (q->light_samples == 0) q->light_samples = 16;
   if (q->probe_samples == 0) q->probe_samples = 256;
   if (q->seed == 0) q->seed = 1;

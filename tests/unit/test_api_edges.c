@@ -166,6 +166,22 @@ static void test_cancel_deadline_range(void **state) {
   gi_cancel_free(c);
 }
 
+/* gi_quality.ao is a flag, but any value passed and counted as on: ao =
+ * -1, "off" in the convention of specular and effects[], ran AO. */
+static void test_quality_ao_flag(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_error_info err = {0};
+  gi_quality in = {.ao = -1}, q;
+  assert_int_equal(gi_quality_resolve(s, &in, &q, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "ao must be 0 or 1, got -1");
+  in.ao = 7;
+  assert_int_equal(gi_quality_resolve(s, &in, &q, &err), GI_ERR_INVALID_ARG);
+  in.ao = 1;
+  assert_int_equal(gi_quality_resolve(s, &in, &q, &err), GI_OK);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -173,6 +189,7 @@ int main(void) {
       cmocka_unit_test(test_huge_n),
       cmocka_unit_test(test_writer_args),
       cmocka_unit_test(test_cancel_deadline_range),
+      cmocka_unit_test(test_quality_ao_flag),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
