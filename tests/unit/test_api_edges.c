@@ -182,6 +182,38 @@ static void test_quality_ao_flag(void **state) {
   gi_scene_release(s);
 }
 
+/* The builder's void calls: a NULL material crashed add_material, and an
+ * index past the vertices or triangles failed the build as "more than
+ * 2^32-1 vertices or materials" (GI_ERR_LIMIT), naming neither the call
+ * nor the index. */
+static void test_builder_bad_calls(void **state) {
+  (void)state;
+  gi_error_info err = {0};
+  gi_scene *s = NULL;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  assert_int_equal(gi_mesh_builder_add_material(b, NULL), UINT32_MAX);
+  assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_ERR_INVALID_ARG);
+  assert_null(s);
+  assert_names(&err, "gi_mesh_builder_add_material: m is NULL");
+  gi_mesh_builder_free(b);
+
+  b = gi_mesh_builder_new();
+  const double lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+  gi_mesh_builder_add_box(b, lo, hi, 0);
+  gi_mesh_builder_set_vertex_color(b, 8, 1, 0, 0); /* 8 vertices: 0..7 */
+  gi_mesh_builder_set_triangle_albedo(b, 99, 1, 0, 0);
+  assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "gi_mesh_builder_set_vertex_color: vertex 8, but the builder has 8");
+  gi_mesh_builder_free(b);
+
+  b = gi_mesh_builder_new();
+  gi_mesh_builder_add_box(b, lo, hi, 0);
+  gi_mesh_builder_set_lightmap_uv(b, UINT32_MAX, 0, 0);
+  assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "gi_mesh_builder_set_lightmap_uv: vertex 4294967295");
+  gi_mesh_builder_free(b);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -190,6 +222,7 @@ int main(void) {
       cmocka_unit_test(test_writer_args),
       cmocka_unit_test(test_cancel_deadline_range),
       cmocka_unit_test(test_quality_ao_flag),
+      cmocka_unit_test(test_builder_bad_calls),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -196,7 +196,9 @@ void gi_mesh_builder_add_quad(gi_mesh_builder *b, const double a[3], const doubl
 /* Convenience: an axis-aligned box with outward-facing sides. */
 void gi_mesh_builder_add_box(gi_mesh_builder *b, const double lo[3], const double hi[3], uint32_t material);
 /* Builds the scene (drops bad triangles, builds the BVH). The builder stays
- * valid and unchanged. name is copied (may be NULL). */
+ * valid and unchanged. name is copied (may be NULL). GI_ERR_INVALID_ARG
+ * names the first builder call given a bad argument (a NULL material, a
+ * vertex or triangle index past those added). */
 gi_result gi_scene_build(const gi_mesh_builder *b, const char *name, const gi_scene_options *opt,
                          gi_scene **out, gi_error_info *err);
 

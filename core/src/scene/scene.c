@@ -14,6 +14,7 @@
  * builder with no materials gets one default grey diffuse material, so a
  * quick test or generator need not define one. After gi_scene_build returns
  * the scene is read-only; only its reference count changes. */
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,6 +38,7 @@ struct gi_mesh_builder {
   size_t cap_talb;
   int oom;            /* an add_* ran out of memory */
   int overflow;       /* more than 2^32-1 vertices or materials */
+  char bad[160];      /* the first call given a bad argument, for gi_scene_build's error; "" when none */
 };
 
 /* Grows *p (elements of size sz) so that it holds at least need elements. */
@@ -68,12 +70,28 @@ void gi_mesh_builder_free(gi_mesh_builder *b) {
   gi__free(b);
 }
 
+/* Notes the first bad argument: the void add_* and set_* calls cannot
+ * fail, so gi_scene_build reports it, naming the call. */
+static void note_bad(gi_mesh_builder *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void note_bad(gi_mesh_builder *b, const char *fmt, ...) {
+  if (b->bad[0]) return;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(b->bad, sizeof b->bad, fmt, ap);
+  va_end(ap);
+}
+
 /* Item i's `width` floats of the per-item array *p (capacity *cap floats),
  * grown to `items` items with the new part set to `unset`; NULL (flagged
  * in b) when i is past the items or out of memory. The builder's optional
- * per-vertex and per-triangle attributes all live in such arrays. */
-static float *item_slot(gi_mesh_builder *b, float **p, size_t *cap, size_t items, size_t i, int width, float unset) {
-  if (i >= items) { b->overflow = 1; return NULL; }
+ * per-vertex and per-triangle attributes all live in such arrays. `call`
+ * and `item` name them for the error. */
+static float *item_slot(gi_mesh_builder *b, float **p, size_t *cap, size_t items, size_t i, int width, float unset,
+                        const char *call, const char *item) {
+  if (i >= items) {
+    note_bad(b, "%s: %s %zu, but the builder has %zu", call, item, i, items);
+    return NULL;
+  }
   size_t old = *cap;
   if (!grow((void **)p, cap, (size_t)width * items, sizeof **p)) { b->oom = 1; return NULL; }
   for (size_t k = old; k < *cap; k++) (*p)[k] = unset;
@@ -81,7 +99,8 @@ static float *item_slot(gi_mesh_builder *b, float **p, size_t *cap, size_t items
 }
 
 void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, double r, double g, double bl) {
-  float *c = item_slot(b, &b->col, &b->cap_col, b->nv, vertex, 3, 1.f);
+  float *c = item_slot(b, &b->col, &b->cap_col, b->nv, vertex, 3, 1.f,
+                       "gi_mesh_builder_set_vertex_color", "vertex");
   const double v[3] = {r, g, bl};
   for (int k = 0; c && k < 3; k++) c[k] = isfinite(v[k]) ? (float)v[k] : 1.f;
 }
@@ -89,17 +108,23 @@ void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, doubl
 size_t gi_mesh_builder_num_triangles(const gi_mesh_builder *b) { return b->nt; }
 
 void gi_mesh_builder_set_triangle_albedo(gi_mesh_builder *b, size_t tri, double r, double g, double bl) {
-  float *a = item_slot(b, &b->talb, &b->cap_talb, b->nt, tri, 3, NAN);
+  float *a = item_slot(b, &b->talb, &b->cap_talb, b->nt, tri, 3, NAN,
+                       "gi_mesh_builder_set_triangle_albedo", "triangle");
   const double v[3] = {r, g, bl};
   for (int k = 0; a && k < 3; k++) a[k] = isfinite(v[k]) ? (float)v[k] : NAN;
 }
 
 void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double u, double v) {
-  float *t = item_slot(b, &b->uv2, &b->cap_uv2, b->nv, vertex, 2, NAN);
+  float *t = item_slot(b, &b->uv2, &b->cap_uv2, b->nv, vertex, 2, NAN,
+                       "gi_mesh_builder_set_lightmap_uv", "vertex");
   if (t) t[0] = (float)u, t[1] = (float)v;
 }
 
 uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m) {
+  if (!m) {
+    note_bad(b, "gi_mesh_builder_add_material: m is NULL");
+    return UINT32_MAX;
+  }
   if (b->nm >= UINT32_MAX) { b->overflow = 1; return UINT32_MAX; }
   if (!grow((void **)&b->mats, &b->cap_m, b->nm + 1, sizeof *b->mats)) { b->oom = 1; return UINT32_MAX; }
   b->mats[b->nm] = *m;
@@ -270,6 +295,7 @@ typedef struct build_tmp {
 /* Rejects builders and options that cannot make a scene, before any allocation. */
 static gi_result check_input(const gi_mesh_builder *b, const gi_scene_options *opt, gi_error_info *err) {
   if (b->oom) return gi__fail(err, GI_ERR_NOMEM, "mesh builder ran out of memory while adding data");
+  if (b->bad[0]) return gi__fail(err, GI_ERR_INVALID_ARG, "mesh builder: %s", b->bad);
   if (b->overflow) return gi__fail(err, GI_ERR_LIMIT, "mesh builder: more than 2^32-1 vertices or materials");
   if (b->nt > ((size_t)1 << 31))
     return gi__fail(err, GI_ERR_LIMIT, "scene has %zu triangles; the limit is 2^31", b->nt);
