@@ -63,8 +63,11 @@ size_t gi_cascade_bytes(const gi_cascade *c) {
 }
 
 size_t gi_cascade_bytes_estimate(const gi_quality *resolved) {
-  /* Unresolved (zero) levels or res: no estimate rather than a wrong one. */
-  if (!resolved || resolved->levels <= 0 || resolved->res <= 0) return 0;
+  /* Unresolved (zero) or out-of-range levels or res: no estimate rather
+   * than a wrong one (res 2^20 wrapped size_t into a few bytes). */
+  if (!resolved || resolved->levels <= 0 || resolved->res <= 0 || resolved->levels > GI_MAX_LEVELS ||
+      resolved->res > GI_MAX_RES)
+    return 0;
   /* The bound: every voxel holding geometry (plus each level's entry 0). */
   return level_bytes(resolved->levels, resolved->res, 1) + (size_t)resolved->levels * GI_ENTRY_BYTES;
 }

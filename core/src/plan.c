@@ -132,8 +132,9 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
   if (q->seed == 0) q->seed = 1;
   if (q->levels < 1 || q->levels > GI_MAX_LEVELS)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: levels must be 1..%d, got %d", GI_MAX_LEVELS, q->levels);
-  if (q->res < 8 || q->res > 256 || q->res % 4)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: res must be a multiple of 4 in 8..256, got %d", q->res);
+  if (q->res < 8 || q->res > GI_MAX_RES || q->res % 4)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: res must be a multiple of 4 in 8..%d, got %d", GI_MAX_RES,
+                    q->res);
   if (q->cones != 4 && q->cones != 6 && q->cones != 8 && q->cones != 16 && q->cones != 32)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: cones must be 4, 6, 8, 16 or 32, got %d", q->cones);
   if (!isfinite(q->voxel0) || q->voxel0 < 0)

@@ -214,6 +214,22 @@ static void test_builder_bad_calls(void **state) {
   gi_mesh_builder_free(b);
 }
 
+/* The estimates multiply levels x res^3 x bytes in size_t: a quality that
+ * was never resolved (res 2^20) wrapped into a few hundred bytes instead of
+ * "0: unresolved". */
+static void test_bytes_estimate_range(void **state) {
+  (void)state;
+  gi_quality q = {.levels = 12, .res = 1 << 20};
+  assert_int_equal(gi_cascade_bytes_estimate(&q), 0);
+  assert_int_equal(gi_cascade_move_bytes_estimate(&q), 0);
+  q.res = 256, q.levels = 13;
+  assert_int_equal(gi_cascade_bytes_estimate(&q), 0);
+  assert_int_equal(gi_cascade_move_bytes_estimate(&q), 0);
+  q.levels = 12;
+  assert_true(gi_cascade_bytes_estimate(&q) > (size_t)12 * 256 * 256 * 256);
+  assert_true(gi_cascade_move_bytes_estimate(&q) > (size_t)12 * 256 * 256 * 256);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -223,6 +239,7 @@ int main(void) {
       cmocka_unit_test(test_cancel_deadline_range),
       cmocka_unit_test(test_quality_ao_flag),
       cmocka_unit_test(test_builder_bad_calls),
+      cmocka_unit_test(test_bytes_estimate_range),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

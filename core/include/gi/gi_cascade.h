@@ -91,7 +91,7 @@ size_t gi_cascade_bytes(const gi_cascade *c);
  * res^3 x the dense per-voxel arrays and the per-voxel record of geometry
  * and light, as if every voxel held a surface (a bake keeps that record
  * only for the voxels that do, a few percent). A bake's transient buffers
- * come on top. 0 when levels or res is unresolved. */
+ * come on top. 0 when levels or res is unresolved or out of range. */
 size_t gi_cascade_bytes_estimate(const gi_quality *resolved);
 const gi_bake_report *gi_cascade_report(const gi_cascade *c);
 

@@ -91,7 +91,8 @@ gi_result gi_cascade_move_prepare(gi_cascade *c, gi_error_info *err);
 /* The most bytes gi_cascade_move adds to a cascade baked with this
  * resolved quality (the re-bake's texture, irradiance and gathers: up to
  * 96 bytes per voxel), known before the first move, so a holder of a
- * moving cascade can reserve them. 0 when levels or res is unresolved.
+ * moving cascade can reserve them. 0 when levels or res is unresolved or
+ * out of range.
  * Thread-safe. */
 size_t gi_cascade_move_bytes_estimate(const gi_quality *resolved);
 /* P: the calls at one anchor that complete the re-bake (the refresh cycle)

@@ -34,6 +34,9 @@
 #include "base/internal.h"
 #include "scene/scene_internal.h"
 
+/* The largest gi_quality.res (voxels per side) a cascade takes. */
+#define GI_MAX_RES 256
+
 /* A voxel's opacity along an axis stays below 1 (its optical depth finite,
  * tau = -ln(1 - alpha) <= 6.9), so a voxel covered twice over still
  * interpolates; the filter keeps a coarse voxel's transmittance above

@@ -452,7 +452,8 @@ size_t gi__move_state_bytes(const struct gi_cascade *c) {
 }
 
 size_t gi_cascade_move_bytes_estimate(const gi_quality *q) {
-  if (!q || q->levels <= 0 || q->res <= 0) return 0;
+  /* Out of range, as gi_cascade_bytes_estimate: the product would wrap. */
+  if (!q || q->levels <= 0 || q->res <= 0 || q->levels > GI_MAX_LEVELS || q->res > GI_MAX_RES) return 0;
   gi_move_state *m = NULL;
   /* At most every voxel holds geometry: one side, last, E and plan entry each. */
   size_t per_voxel =
