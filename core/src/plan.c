@@ -108,7 +108,7 @@ static void default_voxel(const gi_scene *s, gi_quality *q, int auto_levels) {
 
 gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality *q,
                              gi_error_info *err) {
-  if (!s || !q) return gi__fail(err, GI_ERR_INVALID_ARG, "quality: scene and output are required");
+  if (!s || !q) return gi__fail(err, GI_ERR_INVALID_ARG, "quality: %s is NULL", !s ? "scene" : "out");
   gi_quality z = {0};
   *q = in ? *in : z;
   int auto_levels = q->levels == 0 && q->voxel0 == 0;
@@ -432,7 +432,8 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
 
 gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality *qin, gi_effect out[GI_FX_COUNT],
                          gi_quality *resolved, gi_error_info *err) {
-  if (!s || !at || !out) return gi__fail(err, GI_ERR_INVALID_ARG, "plan: scene, viewpoint and output are required");
+  if (!s || !at || !out)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "plan: %s is NULL", !s ? "scene" : !at ? "viewpoint" : "out");
   gi_quality q;
   gi_result rc = gi_quality_resolve(s, qin, &q, err);
   if (rc != GI_OK) return rc;
@@ -446,7 +447,7 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   c->s0 = q.voxel0;
   rc = isfinite(at[0]) && isfinite(at[1]) && isfinite(at[2])
            ? gi__viewpoint_range(s, at, c->s0, "plan", err)
-           : gi__fail(err, GI_ERR_INVALID_ARG, "plan: viewpoint is not finite");
+           : gi__fail(err, GI_ERR_NONFINITE, "plan: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
   if (rc != GI_OK) {
     gi__free(c);
     return rc;

@@ -230,6 +230,27 @@ static void test_bytes_estimate_range(void **state) {
   assert_true(gi_cascade_move_bytes_estimate(&q) > (size_t)12 * 256 * 256 * 256);
 }
 
+/* The effect plan answered a non-finite viewpoint with GI_ERR_INVALID_ARG
+ * where the bake it previews (and move, gather, panorama) answers
+ * GI_ERR_NONFINITE; its NULL messages and the quality's named nothing. */
+static void test_plan_viewpoint(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_error_info err = {0};
+  gi_effect fx[GI_FX_COUNT];
+  const double bad[3] = {0, NAN, 0};
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, bad, NULL, &c, NULL, &err), GI_ERR_NONFINITE);
+  assert_int_equal(gi_effect_plan(s, bad, NULL, fx, NULL, &err), GI_ERR_NONFINITE);
+  assert_names(&err, "viewpoint");
+  assert_int_equal(gi_effect_plan(s, AT, NULL, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "out is NULL");
+  gi_quality q;
+  assert_int_equal(gi_quality_resolve(NULL, NULL, &q, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "scene is NULL");
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -240,6 +261,7 @@ int main(void) {
       cmocka_unit_test(test_quality_ao_flag),
       cmocka_unit_test(test_builder_bad_calls),
       cmocka_unit_test(test_bytes_estimate_range),
+      cmocka_unit_test(test_plan_viewpoint),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
