@@ -251,6 +251,71 @@ static void test_plan_viewpoint(void **state) {
   gi_scene_release(s);
 }
 
+/* A floor strip x in [-10, 10] under a point light; its lightmap covers
+ * x in [0, 10] in tiles of 1, so the tiles run away from the scene origin
+ * (x = 0). */
+static gi_lightmap *strip_lightmap(gi_scene **s, double tile) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {{0.6f, 0.6f, 0.6f}, {0}, 1, 0, "floor"};
+  uint32_t mi = gi_mesh_builder_add_material(b, &m);
+  for (int i = -10; i < 10; i++) {
+    const double a[3] = {i, 0, 1}, c[3] = {i + 1, 0, 1}, d[3] = {i + 1, 0, -1}, e[3] = {i, 0, -1};
+    gi_mesh_builder_add_quad(b, a, c, d, e, mi);
+  }
+  gi_light l = {.type = GI_LIGHT_POINT, .color = {50, 50, 50}, .position = {5, 3, 0}};
+  *s = tu_build(b, "strip", &l, 1);
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256, .tile = tile, .have_region = 1,
+                        .region_lo = {0, -1, -2}, .region_hi = {10, 1, 2}};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(*s, &o, &lm, &err), GI_OK);
+  return lm;
+}
+
+static double atlas_sum(const gi_lightmap *lm) {
+  double sum = 0;
+  for (size_t a = 0; a < gi_lightmap_num_atlases(lm); a++) {
+    gi_lightmap_atlas at;
+    assert_int_equal(gi_lightmap_get_atlas(lm, a, &at), 0);
+    for (size_t i = 0; i < 3 * (size_t)at.width * at.height; i++)
+      sum += fabs(at.radiance[i]) + fabs(at.irradiance[i]) + fabs(at.direct[i]) + fabs(at.indirect[i]);
+    for (size_t i = 0; i < (size_t)at.width * at.height; i++) sum += at.valid[i];
+  }
+  return sum;
+}
+
+/* gi_lightmap_bake cleared the atlases first, then baked tile by tile: a
+ * bake whose tile count was refused wiped the previous bake, and one that
+ * failed part way (here: the tiles past x = 5 lie more than 2^52 voxels of
+ * 1.1e-15 from the origin) left the first tiles baked beside zeros. */
+static void test_lightmap_failed_bake(void **state) {
+  (void)state;
+  gi_scene *s = NULL;
+  gi_lightmap *lm = strip_lightmap(&s, 1.0);
+  gi_quality q = {.levels = 1, .res = 8, .threads = 2, .light_samples = 2, .probe_samples = 4, .bounces = -1};
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, NULL, &err), GI_OK);
+  assert_true(atlas_sum(lm) > 0);
+  gi_quality tiny = q;
+  tiny.voxel0 = 5.0 / 4503599627370496.0; /* 5 / 2^52 */
+  assert_int_not_equal(gi_lightmap_bake(lm, &tiny, NULL, NULL, &err), GI_OK);
+  assert_true(atlas_sum(lm) == 0);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+
+  /* Default tiles (tile = 0) follow the cascade: a voxel of 1e-6 cuts the
+   * strip into 4096 x 1 x 4096 tiles, refused before anything changes. */
+  lm = strip_lightmap(&s, 0);
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, NULL, &err), GI_OK);
+  double baked = atlas_sum(lm);
+  assert_true(baked > 0);
+  tiny.voxel0 = 1e-6;
+  assert_int_equal(gi_lightmap_bake(lm, &tiny, NULL, NULL, &err), GI_ERR_LIMIT);
+  assert_true(atlas_sum(lm) == baked);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -262,6 +327,7 @@ int main(void) {
       cmocka_unit_test(test_builder_bad_calls),
       cmocka_unit_test(test_bytes_estimate_range),
       cmocka_unit_test(test_plan_viewpoint),
+      cmocka_unit_test(test_lightmap_failed_bake),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

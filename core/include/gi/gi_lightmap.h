@@ -86,7 +86,10 @@ gi_result gi_lightmap_layout(const gi_scene *scene, const gi_lightmap_opts *opts
                              gi_error_info *err);
 /* Bakes every texel with quality q (may be NULL: defaults; `threads` and
  * `seed` are honoured), checking cancel (may be NULL) between texels.
- * report (may be NULL) receives counts and timings. */
+ * report (may be NULL) receives counts and timings. A bad quality, or one
+ * cutting the region into too many tiles, leaves the lightmap as it was;
+ * a bake that fails after it started (cancelled included) leaves every
+ * atlas zero, as before any bake, never part of one. */
 gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel,
                            gi_lightmap_report *report, gi_error_info *err);
 void gi_lightmap_free(gi_lightmap *lm); /* accepts NULL */

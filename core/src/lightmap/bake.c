@@ -431,6 +431,17 @@ static gi_result fill_atlas(gi_lm_atlas *a, uint64_t *filled, gi_error_info *err
   return GI_OK;
 }
 
+/* Every atlas's gathered arrays to zero: unbaked. */
+static void clear_atlases(gi_lightmap *lm) {
+  for (size_t a = 0; a < lm->num_atlases; a++) {
+    gi_lm_atlas *A = &lm->atlases[a];
+    size_t n = (size_t)A->w * A->h;
+    float *rgb[] = {A->radiance, A->irradiance, A->direct, A->indirect, A->point, A->normal};
+    for (size_t i = 0; i < sizeof rgb / sizeof rgb[0]; i++) memset(rgb[i], 0, 3 * n * sizeof(float));
+    memset(A->valid, 0, n * sizeof(float));
+  }
+}
+
 gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel,
                            gi_lightmap_report *report, gi_error_info *err) {
   if (!lm) return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: lightmap is NULL");
@@ -440,14 +451,6 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   gi_quality rq;
   gi_result rc = gi_quality_resolve(lm->scene, q, &rq, err);
   if (rc != GI_OK) return rc;
-  /* A second bake starts from empty atlases. */
-  for (size_t a = 0; a < lm->num_atlases; a++) {
-    gi_lm_atlas *A = &lm->atlases[a];
-    size_t n = (size_t)A->w * A->h;
-    float *rgb[] = {A->radiance, A->irradiance, A->direct, A->indirect, A->point, A->normal};
-    for (size_t i = 0; i < sizeof rgb / sizeof rgb[0]; i++) memset(rgb[i], 0, 3 * n * sizeof(float));
-    memset(A->valid, 0, n * sizeof(float));
-  }
   double side = lm->opts.tile > 0 ? lm->opts.tile
                                   : GI_LM_TILE_FRACTION * rq.res * rq.voxel0 * (double)(1u << (rq.levels - 1));
   int nt[3];
@@ -457,6 +460,11 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   if ((size_t)nt[0] * nt[1] * nt[2] > GI_LM_MAX_TILES)
     return gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region into %d x %d x %d tiles, more than %d "
                     "cascade bakes: raise tile", side, nt[0], nt[1], nt[2], GI_LM_MAX_TILES);
+  /* Refused requests above leave a baked lightmap as it was; from here a
+   * bake starts from empty atlases, and a failed one (cancelled, or a tile
+   * whose cascade fails) clears them again at `done`: tiles baked before
+   * the failure beside zeros were not a lightmap. */
+  clear_atlases(lm);
   size_t *start = NULL;
   uint64_t *list = NULL;
   if ((rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, err)) != GI_OK) goto done;
@@ -484,6 +492,7 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
 done:
   gi__free(start);
   gi__free(list);
+  if (rc != GI_OK) clear_atlases(lm);
   rep.bake_ms = gi__now_ms() - t0;
   if (report) *report = rep;
   return rc;
