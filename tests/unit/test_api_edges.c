@@ -316,6 +316,29 @@ static void test_lightmap_failed_bake(void **state) {
   gi_scene_release(s);
 }
 
+/* Grid points are float: a height above ground of 1e39, or a region of
+ * +-1e300 (which overlaps the scene, so it passed), built "valid" probes
+ * at +-Inf that every gather and writer then refused. */
+static void test_grid_float_range(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_error_info err = {0};
+  gi_probe_grid g = {0};
+  gi_grid_spec high = {.spacing = 0.5, .above_ground = 1e39};
+  assert_int_equal(gi_probe_grid_build(s, &high, &g, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "beyond float range");
+  assert_null(g.pos);
+  assert_int_equal(g.n, 0);
+  gi_grid_spec wide = {.spacing = 1e300, .have_region = 1, .lo = {-1e300, -1e300, -1e300}, .hi = {1e300, 1e300, 1e300}};
+  assert_int_equal(gi_probe_grid_build(s, &wide, &g, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "beyond float range");
+  high.above_ground = 1e30; /* far, but a float */
+  assert_int_equal(gi_probe_grid_build(s, &high, &g, &err), GI_OK);
+  assert_true(g.n > 0);
+  gi_probe_grid_free(&g);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -328,6 +351,7 @@ int main(void) {
       cmocka_unit_test(test_bytes_estimate_range),
       cmocka_unit_test(test_plan_viewpoint),
       cmocka_unit_test(test_lightmap_failed_bake),
+      cmocka_unit_test(test_grid_float_range),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

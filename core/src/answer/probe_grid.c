@@ -182,6 +182,15 @@ gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, g
     return rc;
   }
   if (spec->above_ground > 0) place_above_ground(scene, spec, hi, out);
+  /* Points are stored as float: a region or a height past its range (1e39)
+   * gave valid probes at Inf, which every gather and writer refuses. */
+  for (size_t i = 0; i < 3 * out->n; i++)
+    if (!isfinite(out->pos[i])) {
+      double at = out->pos[i];
+      gi_probe_grid_free(out);
+      return gi__fail(err, GI_ERR_INVALID_ARG, "grid point %zu lies at %g on axis %c, beyond float range: "
+                      "the region or above_ground is too large", i / 3, at, "xyz"[i % 3]);
+    }
   return GI_OK;
 }
 
@@ -189,6 +198,7 @@ void gi_probe_grid_free(gi_probe_grid *g) {
   if (!g) return;
   gi__free(g->pos);
   gi__free(g->state);
-  g->pos = NULL;
-  g->state = NULL;
+  /* Zeroed whole: a build that fails after laying out leaves no counts
+   * (n, counts) beside NULL arrays. */
+  memset(g, 0, sizeof *g);
 }
