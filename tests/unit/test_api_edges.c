@@ -339,6 +339,23 @@ static void test_grid_float_range(void **state) {
   gi_scene_release(s);
 }
 
+/* A reference probe at 1e39 (a finite double, an Inf float offset) traced
+ * NaN paths and then failed as "a probe came out non-finite (scene values
+ * too large?)", blaming the scene; the reference panorama already refused
+ * an eye past 1e9 up front, naming it. */
+static void test_reference_far_point(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_error_info err = {0};
+  gi_ref_probe rp;
+  gi_reference_opts o = {.samples = 4, .threads = 2};
+  const double far[3] = {0, 1e39, 0};
+  assert_int_equal(gi_reference_irradiance(s, far, 1, &o, &rp, NULL, &err), GI_ERR_NONFINITE);
+  assert_names(&err, "point 0 is 1e+39 units from the scene on axis y");
+  assert_int_equal(gi_reference_irradiance(s, AT, 1, &o, &rp, NULL, &err), GI_OK);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -352,6 +369,7 @@ int main(void) {
       cmocka_unit_test(test_plan_viewpoint),
       cmocka_unit_test(test_lightmap_failed_bake),
       cmocka_unit_test(test_grid_float_range),
+      cmocka_unit_test(test_reference_far_point),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

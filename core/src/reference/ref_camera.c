@@ -6,9 +6,6 @@
 #include <string.h>
 #include "reference/ref_internal.h"
 
-/* An eye further than this from the scene's origin loses its float precision. */
-#define MAX_EYE_DIST 1e9
-
 gi_result ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_error_info *err) {
   gi_result rc = gi_camera_validate(cam, err);
   if (rc != GI_OK) return rc;
@@ -23,7 +20,7 @@ gi_result ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_e
   double r[3] = {f[1] * u[2] - f[2] * u[1], f[2] * u[0] - f[0] * u[2], f[0] * u[1] - f[1] * u[0]};
   for (int a = 0; a < 3; a++) {
     double e = cam->eye[a] - s->origin[a];
-    if (!(fabs(e) <= MAX_EYE_DIST))
+    if (!(fabs(e) <= REF_MAX_DIST))
       return gi__fail(err, GI_ERR_INVALID_ARG, "camera: eye is more than 1e9 units from the scene");
     k->eye[a] = (float)e;
     k->fwd[a] = (float)f[a], k->up[a] = (float)u[a], k->right[a] = (float)r[a];
@@ -45,7 +42,7 @@ gi_result ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], int w
   memset(k, 0, sizeof *k);
   for (int a = 0; a < 3; a++) {
     double e = at[a] - s->origin[a];
-    if (!(fabs(e) <= MAX_EYE_DIST))
+    if (!(fabs(e) <= REF_MAX_DIST))
       return gi__fail(err, GI_ERR_NONFINITE, "reference panorama: point is not finite or too far from the scene");
     k->eye[a] = (float)e;
   }

@@ -94,6 +94,10 @@ uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, doubl
 /* The probability that a pick for x returns entry q (what MIS must use). */
 double ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q);
 
+/* An eye or a probe further than this from the scene's origin loses its
+ * float precision (past 3.4e38 its offset is Inf and a path NaN). */
+#define REF_MAX_DIST 1e9
+
 /* A sun, point or spot light seen from x: unit direction w toward it,
  * distance (INFINITY for the sun) and the irradiance E it gives a surface
  * facing it. 0 when it gives x nothing (outside a spot's cone, a sky). */

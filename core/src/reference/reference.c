@@ -515,9 +515,15 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
    * n x chunks tasks below would wrap. */
   if (n > SIZE_MAX / sizeof *out || n > SIZE_MAX / (size_t)((rc.o.samples + CHUNK - 1) / CHUNK))
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference: n = %zu probes cannot fit in memory", n);
-  for (size_t i = 0; i < 3 * n; i++)
+  for (size_t i = 0; i < 3 * n; i++) {
     if (!isfinite(pts[i]))
       return gi__fail(err, GI_ERR_NONFINITE, "reference: point %zu has a non-finite coordinate", i / 3);
+    /* As the reference panorama's eye: a point at 1e39 failed after its
+     * paths, blaming "scene values too large". */
+    if (!(fabs(pts[i] - s->origin[i % 3]) <= REF_MAX_DIST))
+      return gi__fail(err, GI_ERR_NONFINITE, "reference: point %zu is %g units from the scene on axis %c, past %g",
+                      i / 3, fabs(pts[i] - s->origin[i % 3]), "xyz"[i % 3], REF_MAX_DIST);
+  }
   double t0 = gi__now_ms();
   rc.chunks = (rc.o.samples + CHUNK - 1) / CHUNK;
   gi_result res = ref_lights_init(&rc.L, s, rc.o.emitter_pick, rc.o.lights, err);
