@@ -4,6 +4,7 @@
  * argument, never crash or answer quietly from garbage. Scenes are a small
  * room made in code, baked at the lowest quality. */
 #include "test_util.h"
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -356,6 +357,27 @@ static void test_reference_far_point(void **state) {
   gi_scene_release(s);
 }
 
+/* gi_lightmap_atlas_path compared snprintf's length with (int)cap for a
+ * single atlas: a cap past INT_MAX (a caller's "no limit") turned negative
+ * and a path that fits came back -1 (the several-atlas branch was right). */
+static void test_atlas_path_cap(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_lightmap *lm = NULL;
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256};
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  assert_int_equal(gi_lightmap_num_atlases(lm), 1);
+  char buf[64];
+  assert_int_equal(gi_lightmap_atlas_path(lm, "out.exr", 0, buf, sizeof buf), 0);
+  assert_string_equal(buf, "out.exr");
+  assert_int_equal(gi_lightmap_atlas_path(lm, "out.exr", 0, buf, (size_t)INT_MAX + 1), 0);
+  assert_string_equal(buf, "out.exr");
+  assert_int_equal(gi_lightmap_atlas_path(lm, "out.exr", 0, buf, 7), -1); /* no room for the NUL */
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -370,6 +392,7 @@ int main(void) {
       cmocka_unit_test(test_lightmap_failed_bake),
       cmocka_unit_test(test_grid_float_range),
       cmocka_unit_test(test_reference_far_point),
+      cmocka_unit_test(test_atlas_path_cap),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -16,7 +16,11 @@
 
 int gi_lightmap_atlas_path(const gi_lightmap *lm, const char *path, size_t i, char *buf, size_t cap) {
   if (!lm || !path || !buf || i >= lm->num_atlases) return -1;
-  if (lm->num_atlases == 1) return snprintf(buf, cap, "%s", path) < (int)cap ? 0 : -1;
+  if (lm->num_atlases == 1) {
+    /* Compared as size_t: (int)cap was negative for a cap past INT_MAX. */
+    int n = snprintf(buf, cap, "%s", path);
+    return n >= 0 && (size_t)n < cap ? 0 : -1;
+  }
   const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
   size_t stem = dot && (!slash || dot > slash) ? (size_t)(dot - path) : strlen(path);
   int n = snprintf(buf, cap, "%.*s.%04zu%s", (int)stem, path, i + 1, path + stem);
