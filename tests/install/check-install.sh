@@ -50,6 +50,12 @@ test -z "$missing" || fail "declared but not exported by libgi.so: $missing"
 extra=$(comm -13 "$tmp/declared" "$tmp/exported")
 test -z "$extra" || fail "exported by libgi.so but in no public header: $extra"
 echo "libgi.so ($soname) exports the $(wc -l <"$tmp/exported") public functions and nothing else"
+# libgi.a hides nothing: a static link puts every global symbol of the
+# members it pulls beside the program's own, so the C ones carry the gi_
+# prefix too (the reference's ref_hash clashed with a program's own).
+nm -g --defined-only "$lib/libgi.a" 2>/dev/null | awk 'NF == 3 && $2 ~ /^[TDBR]$/ {print $3}' \
+  | grep -v '^gi_' | sort -u >"$tmp/archive_extra" || true
+test ! -s "$tmp/archive_extra" || fail "libgi.a defines global symbols without the gi_ prefix: $(tr '\n' ' ' <"$tmp/archive_extra")"
 
 # A program built against libgi.so needs it, and none of its dependencies.
 only_libgi() { # PROGRAM

@@ -447,7 +447,7 @@ static gi_scene *make_emitter_field(int with_floor, double Q[][4][3], int *nq) {
 }
 
 /* Pick probabilities from the tree and from the power table sum to 1, the
- * pick returns the same probability that ref_emitter_pick_prob (what MIS
+ * pick returns the same probability that gi__ref_emitter_pick_prob (what MIS
  * uses) gives, and the frequencies of many picks match them (each within
  * 4.5 sigma of its binomial count; a chi-square over all of them). */
 static void test_pick_probabilities(void **state) {
@@ -462,27 +462,27 @@ static void test_pick_probabilities(void **state) {
   for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
     ref_lights L;
     gi_error_info err = {0};
-    assert_int_equal(ref_lights_init(&L, s, mode, 0, &err), GI_OK);
+    assert_int_equal(gi__ref_lights_init(&L, s, mode, 0, &err), GI_OK);
     assert_int_equal(L.num_emitters, 2 * nq);
     double *count = calloc(L.num_emitters, sizeof *count);
     for (int xi = 0; xi < 3; xi++) {
       double sum = 0, chi2 = 0, worst = 0;
-      for (uint32_t q = 0; q < L.num_emitters; q++) sum += ref_emitter_pick_prob(&L, X[xi], q);
+      for (uint32_t q = 0; q < L.num_emitters; q++) sum += gi__ref_emitter_pick_prob(&L, X[xi], q);
       assert_true(fabs(sum - 1) < 1e-5);
       memset(count, 0, L.num_emitters * sizeof *count);
       ref_rng r;
-      ref_rng_seed(&r, 21 + xi);
+      gi__ref_rng_seed(&r, 21 + xi);
       for (int d = 0; d < draws; d++) {
         double prob;
-        uint32_t q = ref_emitter_pick(&L, X[xi], ref_u01d(&r), &prob);
+        uint32_t q = gi__ref_emitter_pick(&L, X[xi], ref_u01d(&r), &prob);
         assert_true(q < L.num_emitters);
-        double want = ref_emitter_pick_prob(&L, X[xi], q);
+        double want = gi__ref_emitter_pick_prob(&L, X[xi], q);
         assert_true(fabs(prob - want) <= 1e-6 * want);
         count[q]++;
       }
       int cells = 0;
       for (uint32_t q = 0; q < L.num_emitters; q++) {
-        double p = ref_emitter_pick_prob(&L, X[xi], q), mu = draws * p, sd = sqrt(mu * (1 - p));
+        double p = gi__ref_emitter_pick_prob(&L, X[xi], q), mu = draws * p, sd = sqrt(mu * (1 - p));
         if (p == 0) assert_true(count[q] == 0);
         if (mu < 5) continue;
         worst = fmax(worst, fabs(count[q] - mu) / sd);
@@ -498,7 +498,7 @@ static void test_pick_probabilities(void **state) {
       assert_true(z < 5);
     }
     free(count);
-    ref_lights_free(&L);
+    gi__ref_lights_free(&L);
   }
   gi_scene_release(s);
 }
@@ -565,7 +565,7 @@ static void test_pickers_agree_with_indirect(void **state) {
 }
 
 /* Direct irradiance at a point on a 400 m floor, 1 m under a 0.6 m square
- * emitter facing it, as a path vertex there gathers it: ref_direct's MIS-
+ * emitter facing it, as a path vertex there gathers it: gi__ref_direct's MIS-
  * weighted emitter sample plus the cosine sample's MIS-weighted hit (as
  * diffuse_vertex adds it), against Lambert's formula. The floor makes the
  * scene large, so the shadow ray starts 8 mm off the surface: aimed along
@@ -594,21 +594,21 @@ static void test_surface_direct_near_emitter(void **state) {
   const int N = 200000;
   for (int mode = GI_REF_PICK_TREE; mode <= GI_REF_PICK_POWER; mode++) {
     ref_lights L;
-    assert_int_equal(ref_lights_init(&L, s, mode, 0, &err), GI_OK);
+    assert_int_equal(gi__ref_lights_init(&L, s, mode, 0, &err), GI_OK);
     assert_true(L.eps > 0.005f); /* the lift this test is about */
     ref_rng r;
-    ref_rng_seed(&r, 5);
+    gi__ref_rng_seed(&r, 5);
     double sum = 0, sum2 = 0;
     for (int i = 0; i < N; i++) {
       float E[3] = {0, 0, 0}, w[3], o[3], t, ng[3];
       uint32_t tri;
-      ref_direct(&L, x, n, &r, E, NULL);
-      ref_cosine(n, &r, w);
+      gi__ref_direct(&L, x, n, &r, E, NULL);
+      gi__ref_cosine(n, &r, w);
       for (int k = 0; k < 3; k++) o[k] = x[k] + L.eps * n[k];
       if (gi__intersect1(s, o, w, 0, INFINITY, &t, &tri, ng) && s->materials[s->tri_material[tri]].emission[1] > 0) {
         float cos_e = -gi__dot(ng, w), pb = w[1] / (float)PI, y[3];
         for (int k = 0; k < 3; k++) y[k] = o[k] + t * w[k] - x[k];
-        if (cos_e > 0) E[1] += (float)(PI * Le) * pb / (pb + ref_emitter_pdf(&L, x, tri, gi__len(y), cos_e));
+        if (cos_e > 0) E[1] += (float)(PI * Le) * pb / (pb + gi__ref_emitter_pdf(&L, x, tri, gi__len(y), cos_e));
       }
       sum += E[1], sum2 += (double)E[1] * E[1];
     }
@@ -616,7 +616,7 @@ static void test_surface_direct_near_emitter(void **state) {
     near_se(mode == GI_REF_PICK_TREE ? "surface under a square, tree pick" : "surface under a square, power pick",
             mean, want, se);
     assert_true(se < 0.01 * want);
-    ref_lights_free(&L);
+    gi__ref_lights_free(&L);
   }
   gi_scene_release(s);
 }
@@ -793,22 +793,22 @@ static void test_camera(void **state) {
   for (int c = 0; c < 3; c++) {
     ref_cam k;
     gi__cam g;
-    assert_int_equal(ref_cam_init(&k, s, &cams[c], &err), GI_OK);
+    assert_int_equal(gi__ref_cam_init(&k, s, &cams[c], &err), GI_OK);
     assert_int_equal(gi__cam_setup(s, &cams[c], &g, &err), GI_OK);
     double maxd = 0;
     for (int y = 0; y <= 4; y++)
       for (int x = 0; x <= 4; x++) {
         float px = cams[c].width * x / 4.0f, py = cams[c].height * y / 4.0f, a[3], b[3];
-        ref_cam_dir(&k, px, py, a);
+        gi__ref_cam_dir(&k, px, py, a);
         gi__cam_ray(&g, px, py, b);
         for (int i = 0; i < 3; i++) maxd = fmax(maxd, fabs(a[i] - b[i]));
       }
     /* The middle of the smaller side's edge is fov / 2 from the view axis. */
     float mid[3], edge[3];
     int w = cams[c].width, h = cams[c].height;
-    ref_cam_dir(&k, 0.5f * w, 0.5f * h, mid);
-    if (w <= h) ref_cam_dir(&k, 0, 0.5f * h, edge);
-    else ref_cam_dir(&k, 0.5f * w, 0, edge);
+    gi__ref_cam_dir(&k, 0.5f * w, 0.5f * h, mid);
+    if (w <= h) gi__ref_cam_dir(&k, 0, 0.5f * h, edge);
+    else gi__ref_cam_dir(&k, 0.5f * w, 0, edge);
     double ang = acos(mid[0] * edge[0] + mid[1] * edge[1] + mid[2] * edge[2]) * 180 / PI;
     printf("camera %d: largest difference from the view's camera %.2g, half fov %.4f deg (want %.4f)\n", c, maxd, ang,
            cams[c].fov_deg / 2);
@@ -819,7 +819,7 @@ static void test_camera(void **state) {
   gi_camera bad = cams[0];
   bad.fov_deg = 180;
   ref_cam k;
-  assert_int_equal(ref_cam_init(&k, s, &bad, &err), GI_ERR_INVALID_ARG);
+  assert_int_equal(gi__ref_cam_init(&k, s, &bad, &err), GI_ERR_INVALID_ARG);
   assert_non_null(strstr(err.msg, "fov"));
   gi_scene_release(s);
 }
@@ -834,13 +834,13 @@ static void test_rng_and_frame(void **state) {
   r.state += 42u;
   (void)ref_rng_u32(&r);
   for (int i = 0; i < 6; i++) assert_int_equal(ref_rng_u32(&r), want[i]);
-  ref_rng_seed(&r, 7);
+  gi__ref_rng_seed(&r, 7);
   double worst = 0;
   for (int i = 0; i < 1000; i++) {
     float n[3], t[3], b[3], c[3];
     if (i < 6) n[0] = n[1] = n[2] = 0, n[i % 3] = i < 3 ? 1.f : -1.f;
-    else ref_sphere(&r, n);
-    ref_frame(n, t, b);
+    else gi__ref_sphere(&r, n);
+    gi__ref_frame(n, t, b);
     c[0] = t[1] * b[2] - t[2] * b[1], c[1] = t[2] * b[0] - t[0] * b[2], c[2] = t[0] * b[1] - t[1] * b[0];
     const float *v[3] = {t, b, n};
     for (int p = 0; p < 3; p++)

@@ -6,7 +6,7 @@
 #include <string.h>
 #include "reference/ref_internal.h"
 
-gi_result ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_error_info *err) {
+gi_result gi__ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_error_info *err) {
   gi_result rc = gi_camera_validate(cam, err);
   if (rc != GI_OK) return rc;
   /* Forward, then the up vector made orthogonal to it (Gram-Schmidt), then right. */
@@ -35,7 +35,7 @@ gi_result ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_e
 #define PANO_MAX_W 16384
 #define PANO_MAX_H 8192
 
-gi_result ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], int w, int h, gi_error_info *err) {
+gi_result gi__ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], int w, int h, gi_error_info *err) {
   if (!at) return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: missing point");
   if (w < 2 || h < 1 || w > PANO_MAX_W || h > PANO_MAX_H)
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: size %dx%d outside 2..16384 x 1..8192", w, h);
@@ -60,7 +60,7 @@ static void pano_dir(const ref_cam *k, float px, float py, float w[3]) {
   w[2] = k->up_z ? ct : st * sinf(ph);
 }
 
-void ref_cam_dir(const ref_cam *k, float px, float py, float w[3]) {
+void gi__ref_cam_dir(const ref_cam *k, float px, float py, float w[3]) {
   if (k->pano) {
     pano_dir(k, px, py, w);
     return;

@@ -38,22 +38,22 @@ static inline double ref_u01d(ref_rng *r) {
   return ((double)a * 67108864.0 + (double)b) * (1.0 / 9007199254740992.0);
 }
 /* A stream from a key: both state and increment are hashed from it. */
-void ref_rng_seed(ref_rng *r, uint64_t key);
+void gi__ref_rng_seed(ref_rng *r, uint64_t key);
 /* Mixes v into the hash h (MurmurHash3's 64-bit finaliser). */
-uint64_t ref_hash(uint64_t h, uint64_t v);
+uint64_t gi__ref_hash(uint64_t h, uint64_t v);
 
 /* Orthonormal t, b with unit n as the third axis: Gram-Schmidt of the
  * world axis least aligned with n. */
-void ref_frame(const float n[3], float t[3], float b[3]);
+void gi__ref_frame(const float n[3], float t[3], float b[3]);
 /* Cosine-weighted direction about unit n (pdf cos / pi). */
-void ref_cosine(const float n[3], ref_rng *r, float w[3]);
+void gi__ref_cosine(const float n[3], ref_rng *r, float w[3]);
 /* Uniform direction on the sphere (pdf 1 / (4 pi)). */
-void ref_sphere(ref_rng *r, float w[3]);
+void gi__ref_sphere(ref_rng *r, float w[3]);
 
 /* SH L2 in the gi_bake.h basis order: adds weight * Y(w) * L. */
-void ref_sh_add(float sh[9][3], const float w[3], const float L[3], float weight);
+void gi__ref_sh_add(float sh[9][3], const float w[3], const float L[3], float weight);
 /* Radiance coefficients to irradiance ones (the clamped-cosine convolution). */
-void ref_sh_to_irradiance(float sh[9][3]);
+void gi__ref_sh_to_irradiance(float sh[9][3]);
 
 /* ---- ref_lights.c: next-event estimation ---------------------------- */
 
@@ -85,14 +85,14 @@ typedef struct ref_lights {
  * name: no sky, no emitter table, delta lights that give nothing. GI_ERR_NOMEM when out of
  * memory, GI_ERR_INTERNAL when the scene's emitter slots disagree with the
  * table (the tree's picks would then name other triangles). */
-gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, int lights, gi_error_info *err);
+gi_result gi__ref_lights_init(ref_lights *L, const gi_scene *s, int pick, int lights, gi_error_info *err);
 /* 1 when the paths see light kind fx (a gi_effect_id). */
 static inline int ref_light_on(const ref_lights *L, int fx) { return L->lights >> fx & 1; }
-void ref_lights_free(ref_lights *L);
+void gi__ref_lights_free(ref_lights *L);
 /* The table entry u in [0, 1) picks for shading point x, and its probability. */
-uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob);
+uint32_t gi__ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob);
 /* The probability that a pick for x returns entry q (what MIS must use). */
-double ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q);
+double gi__ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q);
 
 /* An eye or a probe further than this from the scene's origin loses its
  * float precision (past 3.4e38 its offset is Inf and a path NaN). */
@@ -101,15 +101,15 @@ double ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q);
 /* A sun, point or spot light seen from x: unit direction w toward it,
  * distance (INFINITY for the sun) and the irradiance E it gives a surface
  * facing it. 0 when it gives x nothing (outside a spot's cone, a sky). */
-int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], float w[3], float *dist, float E[3]);
+int gi__ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], float w[3], float *dist, float E[3]);
 /* One area sample of the emitters seen from x: direction, distance, the
  * sample's solid-angle pdf and the emitted radiance. 0 when the point is
  * behind its triangle (one-sided) or there are no emitters. */
-int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
+int gi__ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
                        float Le[3]);
-/* Solid-angle pdf with which ref_emitter_sample from x draws the point at
+/* Solid-angle pdf with which gi__ref_emitter_sample from x draws the point at
  * distance t on triangle tri, seen at cosine cos_e; 0 for a non-emitter. */
-float ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float t, float cos_e);
+float gi__ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float t, float cos_e);
 /* A shadow ray stops this fraction short of the light's sample point, so it
  * does not hit the emitter it aims at. */
 #define REF_SHADOW_SHORTEN 0.999f
@@ -123,11 +123,11 @@ typedef struct ref_batch {
   uint8_t vis[REF_BATCH];
 } ref_batch;
 /* Queues the segment o + t w, t in [tnear, tfar], carrying V; flushes first when full. */
-void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
+void gi__ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
                    const float V[3], float E[3], float sh[9][3]);
 /* Traces the queued rays; each unblocked one adds V to E or, with sh,
  * V along its direction to sh and V times its cosine to the up axis to E. */
-void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]);
+void gi__ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]);
 /* Light tracing from point and spot lights toward a probe (reference.c):
  * the light reflected once from a point light is a spike on the few
  * surfaces next to it (a street lamp's own head, 10 cm above its light,
@@ -139,21 +139,21 @@ void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][
 typedef struct ref_lt {
   const float *p;   /* the probe */
   float pb;         /* solid-angle pdf of the probe path's direction */
-  double total;     /* sum of ref_lt_weight over the scene's lights; 0: no light tracing */
+  double total;     /* sum of gi__ref_lt_weight over the scene's lights; 0: no light tracing */
 } ref_lt;
 /* Light l's pick weight seen from probe p: lum(I) / max(d^2, floor) for a
  * point or spot light, 0 for others. */
-double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]);
-double ref_lt_total(const ref_lights *L, const float p[3]);
+double gi__ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]);
+double gi__ref_lt_total(const ref_lights *L, const float p[3]);
 /* Area pdf with which light tracing from lt's probe reaches a point at
  * distance dist from light l, seen from it at cosine c. */
-double ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist);
+double gi__ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist);
 /* Direct irradiance at x on the side n from sun, point and spot lights and
  * one emitter sample (balance heuristic against a cosine sample, pdf
  * cos / pi). The sky is left to the cosine sample (it has no other). With
  * lt (x is then the first vertex of that probe's path), each point and
  * spot light's term is weighted against light tracing. */
-void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt);
+void gi__ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt);
 
 /* ---- ref_camera.c: the pinhole camera ---------------------------------- */
 
@@ -165,10 +165,10 @@ typedef struct ref_cam {
   int up_z;         /* the panorama's up axis is Z (else Y) */
 } ref_cam;
 /* Validates cam and sets it up in the scene's local frame. */
-gi_result ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_error_info *err);
+gi_result gi__ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, gi_error_info *err);
 /* A lat-long panorama of w x h pixels seen from at (world coordinates). */
-gi_result ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], int w, int h, gi_error_info *err);
+gi_result gi__ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], int w, int h, gi_error_info *err);
 /* Unit direction through image point (px, py), pixels from the top-left corner. */
-void ref_cam_dir(const ref_cam *k, float px, float py, float w[3]);
+void gi__ref_cam_dir(const ref_cam *k, float px, float py, float w[3]);
 
 #endif

@@ -89,7 +89,7 @@ static int slots_match(const ref_lights *L) {
   return 1;
 }
 
-gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, int lights, gi_error_info *err) {
+gi_result gi__ref_lights_init(ref_lights *L, const gi_scene *s, int pick, int lights, gi_error_info *err) {
   memset(L, 0, sizeof *L);
   L->s = s;
   L->by_tree = pick == GI_REF_PICK_TREE;
@@ -117,24 +117,24 @@ gi_result ref_lights_init(ref_lights *L, const gi_scene *s, int pick, int lights
   }
   L->num_emitters = n;
   if (!power_table(L)) { /* only degenerate emitters: nothing can be sampled or hit */
-    ref_lights_free(L);
+    gi__ref_lights_free(L);
     return GI_OK;
   }
   if (L->by_tree && !slots_match(L)) {
-    ref_lights_free(L);
+    gi__ref_lights_free(L);
     return gi__fail(err, GI_ERR_INTERNAL, "reference: the scene's %u emitter slots are not its %u emissive triangles",
                     s->num_emitters, n);
   }
   return GI_OK;
 }
 
-void ref_lights_free(ref_lights *L) {
+void gi__ref_lights_free(ref_lights *L) {
   gi__free(L->em);
   L->em = NULL;
   L->num_emitters = 0;
 }
 
-int ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], float w[3], float *dist, float E[3]) {
+int gi__ref_delta_light(const ref_lights *L, const gi_light *l, const float x[3], float w[3], float *dist, float E[3]) {
   if (!ref_light_on(L, l->type == GI_LIGHT_SUN ? GI_FX_SUN : GI_FX_LOCAL)) return 0;
   if (l->type == GI_LIGHT_SUN) {
     for (int k = 0; k < 3; k++) w[k] = -l->direction[k], E[k] = l->color[k];
@@ -174,7 +174,7 @@ static uint32_t power_pick(const ref_lights *L, double u) {
   return lo;
 }
 
-uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob) {
+uint32_t gi__ref_emitter_pick(const ref_lights *L, const float x[3], double u, double *prob) {
   if (!L->by_tree) {
     uint32_t q = power_pick(L, u);
     *prob = L->em[q].pick;
@@ -186,16 +186,16 @@ uint32_t ref_emitter_pick(const ref_lights *L, const float x[3], double u, doubl
   return q;
 }
 
-double ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q) {
+double gi__ref_emitter_pick_prob(const ref_lights *L, const float x[3], uint32_t q) {
   return L->by_tree ? gi__light_tree_prob(L->s, x, q) : L->em[q].pick;
 }
 
-int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
+int gi__ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float w[3], float *dist, float *pdf,
                        float Le[3]) {
   if (!L->num_emitters) return 0;
   const gi_scene *s = L->s;
   double prob;
-  const ref_emitter *e = &L->em[ref_emitter_pick(L, x, ref_u01d(r), &prob)];
+  const ref_emitter *e = &L->em[gi__ref_emitter_pick(L, x, ref_u01d(r), &prob)];
   float u = ref_u01(r), v = ref_u01(r);
   if (u + v > 1) u = 1 - u, v = 1 - v; /* fold the square onto the triangle */
   const float *P[3];
@@ -215,7 +215,7 @@ int ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, float 
   return 1;
 }
 
-float ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float t, float cos_e) {
+float gi__ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float t, float cos_e) {
   if (!L->num_emitters || !(cos_e > 0)) return 0;
   uint32_t lo = 0, hi = L->num_emitters;
   while (lo < hi) {
@@ -224,16 +224,16 @@ float ref_emitter_pdf(const ref_lights *L, const float x[3], uint32_t tri, float
     else hi = mid;
   }
   if (lo >= L->num_emitters || L->em[lo].tri != tri || !(L->em[lo].area > 0)) return 0;
-  return (float)(ref_emitter_pick_prob(L, x, lo) / L->em[lo].area) * t * t / cos_e;
+  return (float)(gi__ref_emitter_pick_prob(L, x, lo) / L->em[lo].area) * t * t / cos_e;
 }
 
-void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]) {
+void gi__ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][3]) {
   gi__occluded(L->s, b->n, b->org, b->dir, b->tn, b->tf, b->vis);
   for (int i = 0; i < b->n; i++) {
     if (!b->vis[i]) continue;
     float f = 1;
     if (sh) {
-      ref_sh_add(sh, &b->dir[3 * i], b->V[i], 1.f);
+      gi__ref_sh_add(sh, &b->dir[3 * i], b->V[i], 1.f);
       f = fmaxf(0.f, gi__dot(L->up, &b->dir[3 * i]));
     }
     for (int k = 0; k < 3; k++) E[k] += f * b->V[i][k];
@@ -241,9 +241,9 @@ void ref_batch_flush(ref_batch *b, const ref_lights *L, float E[3], float sh[9][
   b->n = 0;
 }
 
-void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
+void gi__ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const float w[3], float tnear, float tfar,
                    const float V[3], float E[3], float sh[9][3]) {
-  if (b->n == REF_BATCH) ref_batch_flush(b, L, E, sh);
+  if (b->n == REF_BATCH) gi__ref_batch_flush(b, L, E, sh);
   int i = b->n++;
   memcpy(&b->org[3 * i], o, sizeof(float[3]));
   memcpy(&b->dir[3 * i], w, sizeof(float[3]));
@@ -259,7 +259,7 @@ void ref_batch_add(ref_batch *b, const ref_lights *L, const float o[3], const fl
 static void shadow_to(ref_batch *b, const ref_lights *L, const float o[3], const float x[3], const float w[3],
                       float dist, const float V[3], float E[3]) {
   if (isinf(dist)) {
-    ref_batch_add(b, L, o, w, 0, INFINITY, V, E, NULL);
+    gi__ref_batch_add(b, L, o, w, 0, INFINITY, V, E, NULL);
     return;
   }
   float d[3];
@@ -267,14 +267,14 @@ static void shadow_to(ref_batch *b, const ref_lights *L, const float o[3], const
   float l = gi__len(d);
   if (!(l > 0)) return;
   for (int k = 0; k < 3; k++) d[k] /= l;
-  ref_batch_add(b, L, o, d, 0, l * REF_SHADOW_SHORTEN, V, E, NULL);
+  gi__ref_batch_add(b, L, o, d, 0, l * REF_SHADOW_SHORTEN, V, E, NULL);
 }
 
 /* A light's light-tracing weight lum(I) / d^2 stops growing closer to
  * the point than this fraction of the scene's extent. */
 #define LT_NEAR_FRACTION 1e-3f
 
-double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]) {
+double gi__ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]) {
   if ((l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) || !ref_light_on(L, GI_FX_LOCAL)) return 0;
   double d2 = 0, lum = 0.2126 * l->color[0] + 0.7152 * l->color[1] + 0.0722 * l->color[2];
   for (int k = 0; k < 3; k++) {
@@ -285,15 +285,15 @@ double ref_lt_weight(const ref_lights *L, const gi_light *l, const float p[3]) {
   return lum > 0 ? lum / fmax(d2, near * near) : 0;
 }
 
-double ref_lt_total(const ref_lights *L, const float p[3]) {
+double gi__ref_lt_total(const ref_lights *L, const float p[3]) {
   double t = 0;
-  for (uint32_t i = 0; i < L->s->num_lights; i++) t += ref_lt_weight(L, &L->s->lights[i], p);
+  for (uint32_t i = 0; i < L->s->num_lights; i++) t += gi__ref_lt_weight(L, &L->s->lights[i], p);
   return t;
 }
 
-double ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist) {
+double gi__ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, float c, float dist) {
   if (!(lt->total > 0)) return 0;
-  double pick = ref_lt_weight(L, l, lt->p) / lt->total;
+  double pick = gi__ref_lt_weight(L, l, lt->p) / lt->total;
   return pick * c / (4 * GI_PI * (double)dist * dist);
 }
 
@@ -301,7 +301,7 @@ double ref_lt_pdf(const ref_lights *L, const ref_lt *lt, const gi_light *l, floa
  * vertex x (side n) of lt's probe path, against light tracing. */
 static float lt_weight_at(const ref_lights *L, const ref_lt *lt, const gi_light *l, const float x[3],
                           const float n[3], float c, float dist) {
-  double plt = ref_lt_pdf(L, lt, l, c, dist);
+  double plt = gi__ref_lt_pdf(L, lt, l, c, dist);
   if (!(plt > 0)) return 1;
   float v[3];
   for (int k = 0; k < 3; k++) v[k] = lt->p[k] - x[k];
@@ -310,14 +310,14 @@ static float lt_weight_at(const ref_lights *L, const ref_lt *lt, const gi_light 
   return (float)(ppp / (ppp + plt));
 }
 
-void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt) {
+void gi__ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng *r, float E[3], const ref_lt *lt) {
   const gi_scene *s = L->s;
   float o[3], w[3], dist, V[3];
   ref_batch b;
   b.n = 0;
   for (int k = 0; k < 3; k++) o[k] = x[k] + L->eps * n[k];
   for (uint32_t i = 0; i < s->num_lights; i++) {
-    if (!ref_delta_light(L, &s->lights[i], x, w, &dist, V)) continue;
+    if (!gi__ref_delta_light(L, &s->lights[i], x, w, &dist, V)) continue;
     float c = gi__dot(n, w);
     if (!(c > 0)) continue;
     float f = lt && !isinf(dist) ? lt_weight_at(L, lt, &s->lights[i], x, n, c, dist) : 1.f;
@@ -325,11 +325,11 @@ void ref_direct(const ref_lights *L, const float x[3], const float n[3], ref_rng
     shadow_to(&b, L, o, x, w, dist, V, E);
   }
   float pdf, Le[3];
-  if (ref_emitter_sample(L, x, r, w, &dist, &pdf, Le)) {
+  if (gi__ref_emitter_sample(L, x, r, w, &dist, &pdf, Le)) {
     float c = gi__dot(n, w);
     /* Balance heuristic: Le c / pdf * pdf / (pdf + c / pi). */
     for (int k = 0; k < 3; k++) V[k] = Le[k] * c / (pdf + c / (float)GI_PI);
     if (c > 0) shadow_to(&b, L, o, x, w, dist, V, E);
   }
-  ref_batch_flush(&b, L, E, NULL);
+  gi__ref_batch_flush(&b, L, E, NULL);
 }

@@ -109,7 +109,7 @@ static int emitted(const ref_lights *L, const float x[3], uint32_t tri, const fl
   const float *Le = L->s->materials[L->s->tri_material[tri]].emission;
   float cos_e = -gi__dot(ng, w);
   if (!ref_light_on(L, GI_FX_EMISSIVE) || !(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(cos_e > 0)) return 0;
-  float f = pb / (pb + ref_emitter_pdf(L, x, tri, t, cos_e));
+  float f = pb / (pb + gi__ref_emitter_pdf(L, x, tri, t, cos_e));
   for (int k = 0; k < 3; k++) out[k] = f * Le[k];
   return 1;
 }
@@ -141,7 +141,7 @@ static void phong_dir(const float r[3], double ns, ref_rng *rng, float w[3]) {
     return;
   }
   float t[3], b[3];
-  ref_frame(r, t, b);
+  gi__ref_frame(r, t, b);
   /* Inverting the cdf 1 - cos^(ns+1); 1 - u in (0, 1]: no 0^0. */
   double ct = pow(1.0 - (double)ref_u01(rng), 1.0 / (ns + 1.0));
   float st = (float)sqrt(fmax(0.0, 1 - ct * ct)), phi = 2 * (float)GI_PI * ref_u01(rng);
@@ -162,7 +162,7 @@ static int lt_sample(const ref_ctx *rc, const float x[3], const float *n, const 
   double u = ref_u01d(rng) * lt->total, acc = 0;
   const gi_light *l = NULL;
   for (uint32_t i = 0; i < s->num_lights; i++) {
-    double wl = ref_lt_weight(L, &s->lights[i], x);
+    double wl = gi__ref_lt_weight(L, &s->lights[i], x);
     if (!(wl > 0)) continue;
     l = &s->lights[i]; /* the last one with weight, should rounding leave u past the sum */
     if (u < (acc += wl)) break;
@@ -171,18 +171,18 @@ static int lt_sample(const ref_ctx *rc, const float x[3], const float *n, const 
   uint32_t tri;
   if (!l) return 0;
   for (int k = 0; k < 3; k++) lp[k] = (float)(l->position[k] - s->origin[k]);
-  ref_sphere(rng, om);
+  gi__ref_sphere(rng, om);
   if (!gi__intersect1(s, lp, om, 0, INFINITY, &t, &tri, ng)) return 0;
   float ln = gi__len(ng), sg = gi__dot(ng, om) > 0 ? -1.f : 1.f;
   for (int k = 0; k < 3; k++) y[k] = lp[k] + t * om[k], ng[k] *= sg / ln; /* ng faces the light */
   for (int k = 0; k < 3; k++) v[k] = x[k] - y[k];
   float d = gi__len(v), cy = d > 0 ? gi__dot(ng, v) / d : 0.f;
-  if (!(cy > 0) || !ref_delta_light(L, l, y, wl, &dist, E)) return 0;
+  if (!(cy > 0) || !gi__ref_delta_light(L, l, y, wl, &dist, E)) return 0;
   for (int k = 0; k < 3; k++) wd[k] = -v[k] / d;
   float c = gi__dot(ng, wl);
-  *plt = ref_lt_pdf(L, lt, l, c, dist);
+  *plt = gi__ref_lt_pdf(L, lt, l, c, dist);
   if (!(c > 0) || !(*plt > 0) || (n && !(gi__dot(n, wd) > 0))) return 0;
-  /* From a surface the ray starts lifted off it and aims at y (as ref_direct's). */
+  /* From a surface the ray starts lifted off it and aims at y (as gi__ref_direct's). */
   float o[3], dir[3], tn = n ? 0.f : L->eps, tf;
   for (int k = 0; k < 3; k++) o[k] = n ? x[k] + L->eps * n[k] : x[k], dir[k] = y[k] - o[k];
   float dl = gi__len(dir);
@@ -222,9 +222,9 @@ static void surface_lt(const ref_ctx *rc, const float x[3], const float n[3], co
 static void diffuse_vertex(const ref_ctx *rc, const float x[3], const float n[3], int last, const ref_lt *lt_in,
                            const ref_lt *lt_here, ref_rng *rng, float E[3], seg *d) {
   const ref_lights *L = &rc->L;
-  ref_direct(L, x, n, rng, E, lt_in);
+  gi__ref_direct(L, x, n, rng, E, lt_in);
   surface_lt(rc, x, n, lt_here, rng, E);
-  ref_cosine(n, rng, d->w);
+  gi__ref_cosine(n, rng, d->w);
   for (int k = 0; k < 3; k++) d->o[k] = x[k] + L->eps * n[k];
   d->hit = 0;
   float cn = gi__dot(n, d->w);
@@ -289,7 +289,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     float E[3] = {0, 0, 0};
     seg d, g = {.hit = 0};
     memcpy(hx, x, sizeof hx);
-    here.total = last || rc->o.no_light_tracing ? 0 : ref_lt_total(&rc->L, x);
+    here.total = last || rc->o.no_light_tracing ? 0 : gi__ref_lt_total(&rc->L, x);
     diffuse_vertex(rc, x, n, last, lt, &here, rng, E, &d);
     for (int k = 0; k < 3; k++) L[k] += T[k] * a[k] * (1.f / (float)GI_PI) * E[k];
     int dcont = !last && d.hit;
@@ -357,16 +357,16 @@ static void probe_direct(const ref_ctx *rc, const float p[3], ref_rng *rng, floa
   ref_batch b;
   b.n = 0;
   for (uint32_t i = 0; i < s->num_lights; i++)
-    if (ref_delta_light(L, &s->lights[i], p, w, &dist, V))
-      ref_batch_add(&b, L, p, w, L->eps, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN, V, Ed, sh);
+    if (gi__ref_delta_light(L, &s->lights[i], p, w, &dist, V))
+      gi__ref_batch_add(&b, L, p, w, L->eps, isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN, V, Ed, sh);
   float pl, Le[3];
-  if (ref_emitter_sample(L, p, rng, w, &dist, &pl, Le)) {
+  if (gi__ref_emitter_sample(L, p, rng, w, &dist, &pl, Le)) {
     /* Balance heuristic against the path direction: Le / pl * pl / (pl + pb). */
     float f = 1.f / (pl + mixture_pdf(gi__dot(L->up, w)));
     for (int k = 0; k < 3; k++) V[k] = Le[k] * f;
-    ref_batch_add(&b, L, p, w, L->eps, dist * REF_SHADOW_SHORTEN, V, Ed, sh);
+    gi__ref_batch_add(&b, L, p, w, L->eps, dist * REF_SHADOW_SHORTEN, V, Ed, sh);
   }
-  ref_batch_flush(&b, L, Ed, sh);
+  gi__ref_batch_flush(&b, L, Ed, sh);
 }
 
 /* One path from the probe along a direction of the mixture: emitters and
@@ -375,20 +375,20 @@ static void probe_path(const ref_ctx *rc, const float p[3], double lt_total, ref
                        float shi[9][3], float Ed[3], float Ei[3]) {
   const ref_lights *L = &rc->L;
   float w[3];
-  if (ref_u01(rng) < 0.5f) ref_cosine(L->up, rng, w);
-  else ref_sphere(rng, w);
+  if (ref_u01(rng) < 0.5f) gi__ref_cosine(L->up, rng, w);
+  else gi__ref_sphere(rng, w);
   float cu = gi__dot(L->up, w), pb = mixture_pdf(cu);
   float t, ng[3];
   uint32_t tri;
   if (!gi__intersect1(rc->s, p, w, L->eps, INFINITY, &t, &tri, ng)) {
     if (!L->has_sky || !(cu > 0)) return;
-    ref_sh_add(shd, w, L->sky, 1.f / pb);
+    gi__ref_sh_add(shd, w, L->sky, 1.f / pb);
     for (int k = 0; k < 3; k++) Ed[k] += L->sky[k] * cu / pb;
     return;
   }
   float Le[3], Lr[3] = {0, 0, 0};
   if (emitted(L, p, tri, ng, w, t, pb, Le)) {
-    ref_sh_add(shd, w, Le, 1.f / pb);
+    gi__ref_sh_add(shd, w, Le, 1.f / pb);
     if (cu > 0)
       for (int k = 0; k < 3; k++) Ed[k] += Le[k] * cu / pb;
   }
@@ -397,7 +397,7 @@ static void probe_path(const ref_ctx *rc, const float p[3], double lt_total, ref
   float wc[3] = {w[0], w[1], w[2]};
   ref_lt lt = {.p = p, .pb = pb, .total = lt_total};
   reflected(rc, x, wc, tri, ng, &lt, rng, Lr, NULL);
-  ref_sh_add(shi, w, Lr, 1.f / pb);
+  gi__ref_sh_add(shi, w, Lr, 1.f / pb);
   if (cu > 0)
     for (int k = 0; k < 3; k++) Ei[k] += Lr[k] * cu / pb;
 }
@@ -411,7 +411,7 @@ static void probe_lt(const ref_ctx *rc, const float p[3], double total, ref_rng 
   double plt;
   if (!(total > 0) || rc->o.max_depth < 0 || !lt_sample(rc, p, NULL, &lt, rng, wd, Lr, &g, &plt)) return;
   float cu = gi__dot(rc->L.up, wd), f = (float)(g / (plt + mixture_pdf(cu) * g));
-  ref_sh_add(shi, wd, Lr, f);
+  gi__ref_sh_add(shi, wd, Lr, f);
   if (cu > 0)
     for (int k = 0; k < 3; k++) Ei[k] += Lr[k] * f * cu;
 }
@@ -424,16 +424,16 @@ static void ref_range(void *p, size_t b, size_t e, int worker) {
     chunk_acc *A = &rc->acc[task];
     float pt[3];
     /* The stream depends on the seed, the probe's position and the chunk only. */
-    uint64_t key = ref_hash(rc->o.seed, KEY_PROBE);
+    uint64_t key = gi__ref_hash(rc->o.seed, KEY_PROBE);
     for (int k = 0; k < 3; k++) {
       pt[k] = (float)(rc->pts[3 * pi + k] - s->origin[k]);
       uint32_t bits;
       memcpy(&bits, &pt[k], 4);
-      key = ref_hash(key, bits);
+      key = gi__ref_hash(key, bits);
     }
     ref_rng rng;
-    ref_rng_seed(&rng, ref_hash(key, ci));
-    double lt_total = rc->o.no_light_tracing ? 0 : ref_lt_total(&rc->L, pt);
+    gi__ref_rng_seed(&rng, gi__ref_hash(key, ci));
+    double lt_total = rc->o.no_light_tracing ? 0 : gi__ref_lt_total(&rc->L, pt);
     int first = (int)ci * CHUNK, count = rc->o.samples - first < CHUNK ? rc->o.samples - first : CHUNK;
     for (int j = 0; j < count; j++) {
       float Ed[3] = {0, 0, 0}, Ei[3] = {0, 0, 0};
@@ -476,7 +476,7 @@ static int finish_probe(const ref_ctx *rc, size_t i, gi_ref_probe *o) {
   float shr[9][3];
   for (int j = 0; j < 9; j++)
     for (int k = 0; k < 3; k++) shr[j][k] = (float)(T.sh[j][k] / N);
-  ref_sh_to_irradiance(shr);
+  gi__ref_sh_to_irradiance(shr);
   memcpy(o->sh, shr, sizeof shr);
   int ok = 1;
   for (int k = 0; k < 3; k++) ok &= isfinite(o->irradiance[k]) && isfinite(o->std_err[k]);
@@ -526,19 +526,19 @@ gi_result gi_reference_irradiance(const gi_scene *s, const double *pts, size_t n
   }
   double t0 = gi__now_ms();
   rc.chunks = (rc.o.samples + CHUNK - 1) / CHUNK;
-  gi_result res = ref_lights_init(&rc.L, s, rc.o.emitter_pick, rc.o.lights, err);
+  gi_result res = gi__ref_lights_init(&rc.L, s, rc.o.emitter_pick, rc.o.lights, err);
   if (res != GI_OK) return res;
   size_t tasks = n * (size_t)rc.chunks;
   rc.acc = gi__calloc(tasks ? tasks : 1, sizeof *rc.acc);
   if (!rc.acc) {
-    ref_lights_free(&rc.L);
+    gi__ref_lights_free(&rc.L);
     return gi__fail(err, GI_ERR_NOMEM, "reference: out of memory for %zu sample chunks", tasks);
   }
   gi__parallel_for(tasks, 1, rc.o.threads, ref_range, &rc);
   int ok = 1;
   for (size_t i = 0; i < n; i++) ok &= finish_probe(&rc, i, &out[i]);
   gi__free(rc.acc);
-  ref_lights_free(&rc.L);
+  gi__ref_lights_free(&rc.L);
   if (ms) *ms = gi__now_ms() - t0;
   if (!ok) return gi__fail(err, GI_ERR_NONFINITE, "reference: a probe came out non-finite (scene values too large?)");
   return GI_OK;
@@ -559,13 +559,13 @@ static void view_pixel(const view_ctx *vc, int x, int y) {
   const gi_scene *s = rc->s;
   const ref_cam *k = vc->k;
   ref_rng rng;
-  ref_rng_seed(&rng, ref_hash(ref_hash(ref_hash(rc->o.seed, KEY_PIXEL), (uint64_t)y), (uint64_t)x));
+  gi__ref_rng_seed(&rng, gi__ref_hash(gi__ref_hash(gi__ref_hash(rc->o.seed, KEY_PIXEL), (uint64_t)y), (uint64_t)x));
   double acc[3] = {0, 0, 0}, accs[3] = {0, 0, 0};
   for (int j = 0; j < vc->spp; j++) {
     float w[3], t, ng[3], L[3] = {0, 0, 0}, Ls[3] = {0, 0, 0};
     uint32_t tri;
     float px = (float)x + ref_u01(&rng), py = (float)y + ref_u01(&rng);
-    ref_cam_dir(k, px, py, w);
+    gi__ref_cam_dir(k, px, py, w);
     if (!gi__camera_hit(s, k->eye, w, &t, &tri, ng)) {
       /* The camera sees the sky itself, as the cone-traced view does. */
       for (int a = 0; a < 3; a++) acc[a] += rc->L.sky[a];
@@ -597,13 +597,13 @@ static gi_result render_view(const gi_scene *s, const ref_cam *k, const gi_rende
   vc.rc.s = s;
   vc.rc.o.seed = o->seed ? o->seed : 1;
   vc.rc.o.rr_depth = 3;
-  gi_result r = ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, 0, err);
+  gi_result r = gi__ref_lights_init(&vc.rc.L, s, GI_REF_PICK_TREE, 0, err);
   if (r != GI_OK) return r;
   size_t np = (size_t)k->w * k->h * 3;
   memset(rgb, 0, np * sizeof(float));
   if (o->specular) memset(o->specular, 0, np * sizeof(float));
   gi__parallel_for((size_t)k->h, 1, o->threads, view_rows, &vc);
-  ref_lights_free(&vc.rc.L);
+  gi__ref_lights_free(&vc.rc.L);
   if (ms) *ms = gi__now_ms() - t0;
   for (size_t i = 0; i < np; i++)
     if (!isfinite(rgb[i]) || (o->specular && !isfinite(o->specular[i])))
@@ -628,7 +628,7 @@ gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const 
   gi_result r = view_opts(opts, &o, err);
   if (r != GI_OK) return r;
   ref_cam k;
-  r = ref_cam_init(&k, s, cam, err);
+  r = gi__ref_cam_init(&k, s, cam, err);
   if (r != GI_OK) return r;
   return render_view(s, &k, &o, rgb, ms, err);
 }
@@ -640,7 +640,7 @@ gi_result gi_reference_panorama(const gi_scene *s, const double at[3], int w, in
   gi_result r = view_opts(opts, &o, err);
   if (r != GI_OK) return r;
   ref_cam k;
-  r = ref_pano_init(&k, s, at, w, h, err);
+  r = gi__ref_pano_init(&k, s, at, w, h, err);
   if (r != GI_OK) return r;
   return render_view(s, &k, &o, rgb, ms, err);
 }
