@@ -76,8 +76,18 @@ static int parse_args(int argc, char **argv, server_args *a) {
                                        {NULL, 0, NULL, 0}};
   *a = (server_args){.config = "configs/gi-server.ini", .port = -1};
   opterr = 0;
-  int o;
-  while ((o = getopt_long(argc, argv, ":hV", opts, NULL)) != -1) {
+  int o, idx = -1;
+  unsigned seen = 0; /* options with a value, by index in opts */
+  while ((o = getopt_long(argc, argv, ":hV", opts, &idx)) != -1) {
+    /* A second --config (or --port, ...) silently replaced the first. */
+    if (idx >= 0 && opts[idx].has_arg && o != ':') {
+      if (seen & (1u << idx)) {
+        fprintf(stderr, "gi-server: --%s given twice (it takes one value)\n", opts[idx].name);
+        return 2;
+      }
+      seen |= 1u << idx;
+    }
+    idx = -1;
     switch (o) {
     case 'c': a->config = optarg; break;
     case 'p':

@@ -149,6 +149,9 @@ left=$(ls "$T/tmpd")
 out=$("$BIN" --config "$T/good.ini" --bind localhost --check-config 2>&1); st=$?
 [ "$st" -eq 2 ] && case "$out" in *"--bind: expected an IPv4 address, got 'localhost'"*) true;; *) false;; esac \
   && echo "ok: --bind localhost: exit 2" || fail "--bind localhost: exit $st: $out"
+out=$("$BIN" --config "$T/good.ini" --config "$T/workers.ini" --check-config 2>&1); st=$?
+[ "$st" -eq 2 ] && case "$out" in *"--config given twice"*) true;; *) false;; esac \
+  && echo "ok: --config twice: exit 2" || fail "--config twice: exit $st: $out"
 "$BIN" --help | grep -q -- "--port-file" || fail "--help lacks --port-file"
 
 [ "$FAILS" -eq 0 ] && { echo "all passed"; exit 0; }
