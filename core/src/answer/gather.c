@@ -52,6 +52,9 @@ typedef struct {
 /* A surface whose normal is within ~84 degrees of up is a floor or a
  * ceiling for that choice, steeper ones walls. */
 #define NEAR_SURFACE_LEVEL 0.1f
+/* The nearest surface is the ground under an upper hemisphere when its
+ * direction to the point lies within ~25 degrees of that hemisphere's up. */
+#define GROUND_COS 0.9f
 
 gi_near_surface gi__near_surface(const struct gi_cascade *c, const float p[3]) {
   gi_near_surface ns = {0};
@@ -138,7 +141,18 @@ void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns
       }
       j->t0 = t;
     }
-    if ((j->h0 >= 0 && !(room > 0)) || !(gi__dot(j->w, ns->n) > 0)) continue;
+    /* A cone under the ground's level rule (h0 >= 0: a probe's upper
+     * hemisphere) takes the lift only from the ground it stands on (the
+     * nearest surface, below it) and within a finest voxel of it, by at
+     * most what is left of that voxel, so the lift fades to none at s0:
+     * only that near did its first samples' footprint hold the floor's own
+     * voxels (their dark underside). Lifted from farther up or off a
+     * facade, Munich's street probes (2 m up, 1.1 s0) read the path
+     * tracer's indirect light worse: 8.21 -> 9.90%, and 8.69% with the
+     * voxel's limit alone (gi-accuracy, default quality). */
+    float r = room;
+    if (j->h0 >= 0) r = gi__dot(ns->n, j->n) > GROUND_COS ? gi__minf(room, (float)c->s0 - ns->h) : 0.f;
+    if ((j->h0 >= 0 && !(r > 0)) || !(gi__dot(j->w, ns->n) > 0)) continue;
     memcpy(j->n, ns->n, sizeof j->n);
     j->h0 = ns->h;
     /* Nearer than its footprint, even the finest level there reaches
@@ -150,9 +164,9 @@ void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns
      * surface instead (no lift) leaked 3.7% and took Munich's indirect
      * error from 7.7 to 8.5%: at coarse levels it hid the facade across
      * the street too. */
-    if (room > 0) {
-      for (int k = 0; k < 3; k++) j->o[k] += room * ns->n[k];
-      j->h0 = ns->h + room;
+    if (r > 0) {
+      for (int k = 0; k < 3; k++) j->o[k] += r * ns->n[k];
+      j->h0 = ns->h + r;
     }
   }
 }
