@@ -31,6 +31,8 @@ typedef struct {
   char *special;        /* a device or FIFO to copy into after success, or NULL (owned) */
   char *dir;            /* the private folder holding `write` for a special output (owned) */
   char sig_tmp[PATH_MAX + 32]; /* the writer's "<write>.tmp.<pid>", removed on a signal */
+  char sig_tmp2[PATH_MAX + 64]; /* "<sig_tmp>.tmp.<pid>": a writer's temporary for a file
+                                 * that waits at sig_tmp for its sibling (gi-bake --grid) */
   char *canon;          /* `write` with its folder resolved, for a plain file; else NULL (owned) */
   const char *opt;      /* the option that named it */
 } ta_output;
@@ -43,6 +45,7 @@ static volatile sig_atomic_t num_outs;
 static void on_signal(int sig) {
   for (int i = 0; i < num_outs; i++) {
     unlink(outs[i].sig_tmp);
+    unlink(outs[i].sig_tmp2);
     if (outs[i].special) unlink(outs[i].write), rmdir(outs[i].dir);
   }
   signal(sig, SIG_DFL);
@@ -166,6 +169,7 @@ int ta_check_output(ta_ctx *c, const char *opt, const char **path) {
   }
   o->opt = opt;
   snprintf(o->sig_tmp, sizeof o->sig_tmp, "%s.tmp.%d", o->write, (int)getpid());
+  snprintf(o->sig_tmp2, sizeof o->sig_tmp2, "%s.tmp.%d.tmp.%d", o->write, (int)getpid(), (int)getpid());
   if (num_outs == 0) watch_signals();
   num_outs++;
   *path = o->write;

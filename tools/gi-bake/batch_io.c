@@ -73,9 +73,12 @@ size_t batch_attrs(const char *const values[HDR_COUNT], gi_exr_attr attrs[HDR_CO
   return n;
 }
 
-/* "<path>.part.<pid>": where an output waits for its sibling. */
+/* "<path>.tmp.<pid>": where an output waits for its sibling. It is the
+ * name ta_check_output removes on SIGINT/SIGTERM (with the writer's own
+ * "<it>.tmp.<pid>"), so a killed run leaves nothing; ".part.<pid>" files
+ * were left behind, tens of MB each for a large grid. */
 static void part_name(const char *path, char *buf, size_t size) {
-  snprintf(buf, size, "%s.part.%ld", path, (long)getpid());
+  snprintf(buf, size, "%s.tmp.%ld", path, (long)getpid());
 }
 
 int batch_write_outputs(const char *exr, const char *vdb, const gi_probe_volume *v, const gi_exr_attr *attrs,
