@@ -378,6 +378,26 @@ static void test_atlas_path_cap(void **state) {
   gi_scene_release(s);
 }
 
+/* gi_scene_options.scale = -1 was taken: positions were inverted through
+ * the origin, and with them every triangle's facing, so a closed room lit
+ * by its ceiling came out dark and read as the inside of a solid. */
+static void test_negative_scale(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  const double lo[3] = {-1, 0, -1}, hi[3] = {1, 2, 1};
+  gi_mesh_builder_add_box(b, lo, hi, 0);
+  gi_scene_options o = {.scale = -1, .default_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_INVALID_ARG);
+  assert_null(s);
+  assert_names(&err, "scale must be > 0");
+  o.scale = 2;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_OK);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -393,6 +413,7 @@ int main(void) {
       cmocka_unit_test(test_grid_float_range),
       cmocka_unit_test(test_reference_far_point),
       cmocka_unit_test(test_atlas_path_cap),
+      cmocka_unit_test(test_negative_scale),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -81,7 +81,7 @@ typedef struct gi_light {
 typedef struct gi_scene_options {
   gi_up_axis up;        /* default GI_UP_Y */
   int threads;          /* Embree build threads; 0 = all cores */
-  double scale;         /* multiply input positions by this; 0 = 1 */
+  double scale;         /* multiply input positions by this, > 0; 0 = 1 */
   const gi_light *lights; /* extra lights (command line, config); copied */
   size_t num_lights;
   int default_lights;   /* 1: add a sun and a sky when the scene has neither lights nor emitters */

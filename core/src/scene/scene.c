@@ -302,6 +302,11 @@ static gi_result check_input(const gi_mesh_builder *b, const gi_scene_options *o
   if (opt->num_lights && !opt->lights)
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: num_lights is %zu but lights is NULL", opt->num_lights);
   if (opt->scale != 0 && !isfinite(opt->scale)) return gi__fail(err, GI_ERR_NONFINITE, "options: scale is not finite");
+  /* -1 inverted the scene through its origin and every normal with it: a
+   * room lit by its ceiling came out dark, its inside reading as a solid. */
+  if (opt->scale < 0)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "options: scale must be > 0 (0 = 1), got %g: a negative one turns "
+                    "every surface inside out", opt->scale);
   if (opt->up != 0 && opt->up != GI_UP_Y && opt->up != GI_UP_Z)
     return gi__fail(err, GI_ERR_INVALID_ARG, "options: up axis %d is neither Y (1) nor Z (2)", (int)opt->up);
   size_t nm = b->nm ? b->nm : 1;
