@@ -398,6 +398,31 @@ static void test_negative_scale(void **state) {
   gi_mesh_builder_free(b);
 }
 
+/* More NULL messages that named nothing ("camera: missing", "no scene or
+ * spec", "missing lightmap or path", "missing scene or image"). */
+static void test_more_null_names(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_error_info err = {0};
+  assert_int_equal(gi_camera_validate(NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "cam is NULL");
+  gi_probe_grid g;
+  assert_int_equal(gi_probe_grid_build(s, NULL, &g, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "spec is NULL");
+  gi_lightmap *lm = NULL;
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  assert_int_equal(gi_lightmap_write_exr(lm, "", 0, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "path is empty");
+  gi_lightmap_free(lm);
+  gi_camera cam = {{0, 1, 0.9}, {0, 1, 0}, {0, 1, 0}, 60, 2, 2};
+  assert_int_equal(gi_reference_render(s, &cam, 1, 1, 2, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "rgb is NULL");
+  assert_int_equal(gi_reference_panorama(NULL, AT, 2, 1, NULL, NULL, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "scene is NULL");
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -414,6 +439,7 @@ int main(void) {
       cmocka_unit_test(test_reference_far_point),
       cmocka_unit_test(test_atlas_path_cap),
       cmocka_unit_test(test_negative_scale),
+      cmocka_unit_test(test_more_null_names),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

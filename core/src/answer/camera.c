@@ -8,7 +8,7 @@
 #include "gi/gi_render.h"
 
 gi_result gi_camera_validate(const gi_camera *cam, gi_error_info *err) {
-  if (!cam) return gi__fail(err, GI_ERR_INVALID_ARG, "camera: missing");
+  if (!cam) return gi__fail(err, GI_ERR_INVALID_ARG, "camera: cam is NULL");
   for (int k = 0; k < 3; k++)
     if (!isfinite(cam->eye[k]) || !isfinite(cam->target[k]) || !isfinite(cam->up[k]))
       return gi__fail(err, GI_ERR_NONFINITE, "camera: eye, target and up must be finite");

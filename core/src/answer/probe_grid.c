@@ -163,9 +163,10 @@ static void place_above_ground(const gi_scene *scene, const gi_grid_spec *spec, 
 
 gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
                               gi_error_info *err) {
-  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "probe grid: no output");
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "probe grid: out is NULL");
   memset(out, 0, sizeof *out);
-  if (!scene || !spec) return gi__fail(err, GI_ERR_INVALID_ARG, "probe grid: no scene or spec");
+  if (!scene || !spec)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "probe grid: %s is NULL", !scene ? "scene" : "spec");
   if (!(spec->spacing > 0) || !isfinite(spec->spacing))
     return gi__fail(err, GI_ERR_INVALID_ARG, "grid spacing must be finite and > 0, got %g", spec->spacing);
   if (!(spec->above_ground >= 0) || !isfinite(spec->above_ground))

@@ -68,7 +68,9 @@ static gi_result write_one(const gi_lightmap *lm, size_t i, const char *file, in
 }
 
 gi_result gi_lightmap_write_exr(const gi_lightmap *lm, const char *path, int half, gi_error_info *err) {
-  if (!lm || !path || !*path) return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: missing lightmap or path");
+  if (!lm || !path || !*path)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: %s",
+                    !lm ? "lm is NULL" : !path ? "path is NULL" : "path is empty");
   char file[4096];
   gi_result rc = GI_OK;
   size_t i = 0;

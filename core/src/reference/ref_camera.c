@@ -36,7 +36,7 @@ gi_result gi__ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, 
 #define PANO_MAX_H 8192
 
 gi_result gi__ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], int w, int h, gi_error_info *err) {
-  if (!at) return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: missing point");
+  if (!at) return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: at is NULL");
   if (w < 2 || h < 1 || w > PANO_MAX_W || h > PANO_MAX_H)
     return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: size %dx%d outside 2..16384 x 1..8192", w, h);
   memset(k, 0, sizeof *k);

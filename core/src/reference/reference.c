@@ -624,7 +624,7 @@ static gi_result view_opts(const gi_render_opts *opts, gi_render_opts *o, gi_err
 gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
                                  double *ms, gi_error_info *err) {
   gi_render_opts o;
-  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: missing scene or image");
+  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference render: %s is NULL", !s ? "scene" : "rgb");
   gi_result r = view_opts(opts, &o, err);
   if (r != GI_OK) return r;
   ref_cam k;
@@ -636,7 +636,7 @@ gi_result gi_reference_render_ex(const gi_scene *s, const gi_camera *cam, const 
 gi_result gi_reference_panorama(const gi_scene *s, const double at[3], int w, int h, const gi_render_opts *opts,
                                 float *rgb, double *ms, gi_error_info *err) {
   gi_render_opts o;
-  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: missing scene or image");
+  if (!s || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "reference panorama: %s is NULL", !s ? "scene" : "rgb");
   gi_result r = view_opts(opts, &o, err);
   if (r != GI_OK) return r;
   ref_cam k;
