@@ -191,4 +191,19 @@ printf '1 1 1\n1e12 0 0\n' > "$T/farpts.txt"
 expect_before 1 "--at (1e+12, 0, 0) is more than 1e9 units from the scene" --out "$T/eb" --at 1e12,0,0
 expect_before 1 "--probes: $T/farpts.txt: point 2 (1e+12, 0, 0) is more than 1e9" --out "$T/eb" \
   --probes "$T/farpts.txt"
+
+# The reference cache knows the scene it was made from: an unchanged rerun
+# reads it, an edited .mtl (a brighter lamp) renders it again. It was keyed
+# by the file's base name: the edited scene was measured against the old
+# scene's reference.
+mkdir "$T/ed"
+cp "$T/box.obj" "$T/box.mtl" "$T/ed/"
+"$BIN" --scene "$T/ed/box.obj" $QUICK --out "$T/edo" > /dev/null 2> "$T/ed1" || fail "edit run 1: $(tail -n 2 "$T/ed1")"
+"$BIN" --scene "$T/ed/box.obj" $QUICK --out "$T/edo" > /dev/null 2> "$T/ed2" || fail "edit run 2: $(tail -n 2 "$T/ed2")"
+sed -i 's/^Ke 10 10 10/Ke 40 40 40/' "$T/ed/box.mtl"
+"$BIN" --scene "$T/ed/box.obj" $QUICK --out "$T/edo" > /dev/null 2> "$T/ed3" || fail "edit run 3: $(tail -n 2 "$T/ed3")"
+if grep -q "box: reference from cache" "$T/ed2" && grep -q "box: reference, 27 probes" "$T/ed3" \
+   && ! grep -q "box: reference from cache" "$T/ed3"; then
+  pass "reference cache: reused for the same scene, made again after its .mtl changed"
+else fail "reference cache: rerun '$(grep 'box: reference' "$T/ed2")', edited '$(grep 'box: reference' "$T/ed3")'"; fi
 finish

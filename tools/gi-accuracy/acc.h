@@ -58,6 +58,11 @@ int acc_keep_lit(acc_scene_set *ss, const double *cand, size_t nc, size_t keep, 
  * success; write through a temporary name renamed into place (a failure
  * is printed, the run goes on without the cache). */
 uint64_t acc_fnv(uint64_t h, const void *p, size_t n);
+/* The start of every reference cache key: the scene's name, and for a
+ * --scene FILE run what was loaded (acc_cache_scene_version), so an edited
+ * file never reuses the references of its former self. */
+uint64_t acc_cache_key(const char *name);
+void acc_cache_scene_version(uint64_t v); /* 0 (the built-in scenes): keys as before */
 int acc_cache_read(const char *path, void *a, size_t na, void *b, size_t nb);
 void acc_cache_write(const char *path, const void *a, size_t na, const void *b, size_t nb);
 /* The probe reference of scene `name` at ss's points (ss->ref_samples

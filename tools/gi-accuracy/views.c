@@ -100,7 +100,7 @@ static int cone_image(const gi_cascade *c, const img_src *src, int threads, floa
 static int reference_halves(const char *name, const gi_scene *s, const img_src *src, int spp, int threads,
                             const char *out_dir, int ref_version, float *A, float *B, double *ms) {
   size_t nf = (size_t)src->w * src->h * 3;
-  uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
+  uint64_t h = acc_cache_key(name);
   if (src->cam) h = acc_fnv(h, src->cam, sizeof *src->cam);
   else h = acc_fnv(acc_fnv(acc_fnv(h, "pano", 4), src->at, sizeof src->at), &src->w, 2 * sizeof src->w);
   h = acc_fnv(h, &spp, sizeof spp);

@@ -98,7 +98,7 @@ static int place_in_box(const acc_scene_set *ss, const double lo[3], const doubl
 static int subset_reference(const acc_wl_opts *o, const char *name, const acc_scene_set *ss, const double *pts,
                             size_t m, gi_ref_probe *ref) {
   int ver = o->ref_version;
-  uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
+  uint64_t h = acc_cache_key(name);
   h = acc_fnv(h, pts, m * 3 * sizeof *pts);
   h = acc_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
   h = acc_fnv(h, &ver, sizeof ver);
