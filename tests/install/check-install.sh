@@ -91,6 +91,16 @@ if readelf -d "$tmp/prog_pc_static" | grep -q 'libgi\.so'; then fail "prog_pc_st
   || { cat "$tmp/cmake.log"; fail "find_package(gi) project"; }
 only_libgi "$tmp/cmake/prog"
 if readelf -d "$tmp/cmake/prog_static" | grep -q 'libgi\.so'; then fail "prog_static needs libgi.so"; fi
+# A C-only project asking for gi::gi_static learns it must enable C++
+# (OpenVDB's package needs a C++ compiler), not a Boost internal error.
+mkdir -p "$tmp/conly"
+printf 'cmake_minimum_required(VERSION 3.16)\nproject(conly C)\nfind_package(gi REQUIRED COMPONENTS static)\n' \
+  >"$tmp/conly/CMakeLists.txt"
+if "$cmake" -S "$tmp/conly" -B "$tmp/conly/b" -DCMAKE_PREFIX_PATH="$prefix" >"$tmp/conly.log" 2>&1; then
+  fail "find_package(gi COMPONENTS static) passed in a C-only project"
+fi
+tr -s ' \n' ' ' <"$tmp/conly.log" | grep -q 'needs C++ enabled' \
+  || { cat "$tmp/conly.log"; fail "find_package(gi COMPONENTS static) in a C-only project does not say C++ is needed"; }
 
 # Debian's python3 (a pyenv shim on PATH costs seconds per call).
 py=python3; test -x /usr/bin/python3 && py=/usr/bin/python3
