@@ -49,6 +49,8 @@ if command -v exrheader > /dev/null 2>&1; then
   exrheader "$T/full.exr" > "$T/hdr"
   grep -q "gi.bake_hash (type string): \"$hash\"" "$T/hdr" && pass "EXR header carries the manifest's hash" \
     || fail "EXR gi.bake_hash is not $hash"
+  grep -q 'gi.version (type string): "gi-bake ' "$T/hdr" && pass "EXR says gi-bake wrote it" \
+    || fail "EXR gi.version: $(grep gi.version "$T/hdr")"
   for c in P.X P.Y P.Z valid.Y sh.L22.B irradiance.R; do
     grep -q "^    $c, 32-bit" "$T/hdr" || fail "EXR has no float channel $c"
   done

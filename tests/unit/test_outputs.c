@@ -101,6 +101,8 @@ static void test_probe_exr(void **state) {
     assert_non_null(strstr(gi_exr_file_attr(f, "gi.viewpoint"), "1002"));
     assert_non_null(strstr(gi_exr_file_attr(f, "gi.effects"), "emissive=ran"));
     assert_non_null(strstr(gi_exr_file_attr(f, "gi.quality"), "levels=3 res=16"));
+    /* The library wrote it, whichever program called it (it said "gi-server" from gi-bake too). */
+    assert_true(strncmp(gi_exr_file_attr(f, "gi.version"), "libgi ", 6) == 0);
     gi_exr_file_free(f);
   }
   /* Irradiance is positive and finite everywhere inside the lit box. */

@@ -72,7 +72,7 @@ int batch_identify(batch_state *st) {
   quality_text(&st->resolved, st->quality, sizeof st->quality);
   effects_text(st->plan, st->effects, sizeof st->effects);
   layout_text(&st->L, st->grid_text, sizeof st->grid_text);
-  snprintf(st->version, sizeof st->version, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
+  snprintf(st->version, sizeof st->version, "gi-bake %s (%s)", GI_VERSION, GI_GIT_REV);
   const cli_batch *b = &st->o->batch;
   if (b->have_shard) snprintf(st->shard, sizeof st->shard, "%d/%d", b->shard_i, b->shard_n);
   const char *texts[] = {st->quality, st->effects, st->grid_text, st->version, st->o->q.ao ? "ao" : "no-ao"};

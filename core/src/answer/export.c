@@ -42,12 +42,16 @@ typedef struct {
   size_t n;
 } exr_header;
 
+/* Every file says the library that wrote it: gi-bake's files said
+ * "gi-server", as if the server had made them. */
+static void version_text(char *out, size_t size) { snprintf(out, size, "libgi %s (%s)", GI_VERSION, GI_GIT_REV); }
+
 static void header_fill(exr_header *h, const gi_scene *scene, const double at[3], const gi_bake_report *rep,
                         const char *kind, const gi_exr_extra *extra, size_t num_extra) {
   snprintf(h->vp, sizeof h->vp, "%.17g,%.17g,%.17g", at[0], at[1], at[2]);
   quality_text(&rep->quality, h->qual, sizeof h->qual);
   effects_text(rep, h->fx, sizeof h->fx);
-  snprintf(h->ver, sizeof h->ver, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
+  version_text(h->ver, sizeof h->ver);
   gi_exr_attr base[] = {
       {"gi.scene", scene ? gi_scene_name(scene) : ""},
       {"gi.viewpoint", h->vp},
@@ -276,7 +280,7 @@ gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces,
     }
   }
   char ver[64];
-  snprintf(ver, sizeof ver, "gi-server %s (%s)", GI_VERSION, GI_GIT_REV);
+  version_text(ver, sizeof ver);
   gi_vdb_meta fm[] = {{"gi.scene", gi_scene_name(c->scene), 0}, {"gi.viewpoint", viewpoint, 0},
                       {"gi.levels", NULL, n}, {"gi.version", ver, 0}};
   rc = gi_vdb_write(path, grids, g, fm, sizeof fm / sizeof fm[0], err);
