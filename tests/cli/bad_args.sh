@@ -62,6 +62,9 @@ expect_usage --city-extent "$T/x.obj" --city-extent 100
 
 printf '1 2 3\n# comment\n4 5 x\n' > "$T/pts.txt"
 expect_usage "pts.txt:3" city --probes "$T/pts.txt"
+# A list of comments only baked the viewpoint alone, exit 0.
+printf '# 1 2 3\n\n' > "$T/nopts.txt"
+expect_usage "nopts.txt' holds no points" city --probes "$T/nopts.txt"
 
 # Coordinates past Embree's ray range (about 1.8e18) aborted the process
 # (its ray.valid() assertion): a viewpoint there is refused (1, named), a

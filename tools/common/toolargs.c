@@ -293,8 +293,13 @@ int ta_read_path(ta_ctx *ta, const char *opt, const char *path, ta_step **out, s
 int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, double **pts, size_t *n) {
   gi_error_info e = {0};
   gi_result rc = gi_points_read(path, max, pts, n, &e);
-  if (rc == GI_OK) return 0;
-  return ta_error(c, rc == GI_ERR_FORMAT || rc == GI_ERR_LIMIT ? TA_EXIT_USAGE : TA_EXIT_RUN, opt, "%s", e.msg);
+  if (rc != GI_OK)
+    return ta_error(c, rc == GI_ERR_FORMAT || rc == GI_ERR_LIMIT ? TA_EXIT_USAGE : TA_EXIT_RUN, opt, "%s", e.msg);
+  /* A file of comments only (the wrong file, a commented-out list) is a
+   * mistake every tool must say: gi-bake baked the viewpoint alone and
+   * gi-accuracy measured its default points instead, both with success. */
+  if (*n == 0) return ta_fail(c, opt, "'%s' holds no points (expected one 'x y z' per line)", path);
+  return 0;
 }
 
 const char *ta_version(void) {

@@ -225,11 +225,7 @@ static int read_token_file(gc_opts *o, const char *path) {
 /* Reads --points FILE (gi_points.h, as gi-bake --probes). Returns 0, EXIT_RUN
  * (cannot read) or EXIT_USAGE (a bad line, named by file and number). */
 static int read_points(gc_opts *o, const char *path) {
-  int rc = ta_read_points(&ta, "--points", path, MAX_POINTS, &o->points, &o->num_points);
-  if (rc) return rc;
-  if (o->num_points == 0)
-    return ta_error(&ta, EXIT_USAGE, "--points", "%s: no points (one 'x y z' per line expected)", path);
-  return 0;
+  return ta_read_points(&ta, "--points", path, MAX_POINTS, &o->points, &o->num_points);
 }
 
 /* Checks one --set KEY=VALUE for form; the command's key list is checked later. */
