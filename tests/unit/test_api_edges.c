@@ -423,6 +423,33 @@ static void test_more_null_names(void **state) {
   gi_scene_release(s);
 }
 
+/* The VDB writer reads a street-level probe's height on up_axis: 9 (or
+ * -1) read pos and wrote the voxel index out of bounds (ASan: a
+ * stack-buffer-overflow in voxel_of), and a height 1e10 spacings up was
+ * narrowed to an int index, wrapping to 1.4e9 with GI_OK. */
+static void test_street_volume_axis(void **state) {
+  (void)state;
+  gi_probe probes[2];
+  memset(probes, 0, sizeof probes);
+  float pos[6] = {0, 1, 0, 1, 1, 0};
+  uint8_t valid[2] = {1, 1};
+  gi_probe_volume v = {.counts = {2, 1, 1}, .spacing = 1, .up_axis = 9, .street_level = 1, .n = 2, .pos = pos,
+                       .valid = valid, .probes = probes};
+  gi_error_info err = {0};
+  char path[512];
+  snprintf(path, sizeof path, "%s/street.vdb", tu_tmpdir());
+  assert_int_equal(gi_probe_volume_write_vdb(path, &v, "street", &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "up_axis must be 1 (y) or 2 (z)");
+  v.up_axis = -1;
+  assert_int_equal(gi_probe_volume_write_vdb(path, &v, "street", &err), GI_ERR_INVALID_ARG);
+  v.up_axis = 1;
+  pos[1] = 1e10f;
+  assert_int_equal(gi_probe_volume_write_vdb(path, &v, "street", &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "probe 0's height");
+  pos[1] = 1;
+  assert_int_equal(gi_probe_volume_write_vdb(path, &v, "street", &err), GI_OK);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -440,6 +467,7 @@ int main(void) {
       cmocka_unit_test(test_atlas_path_cap),
       cmocka_unit_test(test_negative_scale),
       cmocka_unit_test(test_more_null_names),
+      cmocka_unit_test(test_street_volume_axis),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -65,8 +65,9 @@ typedef struct gi_probe_volume {
   int counts[3];
   double origin[3];
   double spacing;
-  int up_axis;
-  int street_level;      /* 1: one probe per column; the VDB places it at its own height */
+  int up_axis;           /* 1 = y, 2 = z: a street-level volume needs one of them */
+  int street_level;      /* 1: one probe per column; the VDB places it at its own height (within
+                            +-2^31 spacings of origin: VDB's indices are int32) */
   size_t n;
   const float *pos;      /* 3n */
   const uint8_t *valid;  /* n, 0 or 1 */

@@ -5,6 +5,7 @@
  * pid, no random file id), because merging a sharded bake must give the
  * bytes of the unsharded one. The files are written through temporary
  * names by the glue (io/exr_io.c, io/vdb_shim.cpp). */
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -85,6 +86,11 @@ static gi_result check_volume(const gi_probe_volume *v, gi_error_info *err) {
       (size_t)v->counts[0] * v->counts[1] * v->counts[2] != v->n || v->n > GI_GRID_MAX_POINTS)
     return gi__fail(err, GI_ERR_INVALID_ARG, "probe volume: counts %d x %d x %d do not match %zu points",
                     v->counts[0], v->counts[1], v->counts[2], v->n);
+  /* A street-level probe's height is read on this axis: 9 read pos and
+   * wrote the voxel index out of bounds. */
+  if (v->street_level && v->up_axis != 1 && v->up_axis != 2)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "probe volume: up_axis must be 1 (y) or 2 (z) for a street-level "
+                    "volume, got %d", v->up_axis);
   if (!(v->spacing > 0) || !isfinite(v->spacing))
     return gi__fail(err, GI_ERR_INVALID_ARG, "probe volume: spacing must be finite and > 0");
   return GI_OK;
@@ -121,16 +127,21 @@ static void uuid_from(const char *id, char out[37]) {
            (unsigned)a & 0xffffu, (unsigned)(b >> 48), (unsigned long long)(b & 0xffffffffffffull));
 }
 
-/* Voxel index of valid point i (x fastest), street-level probes at their height. */
-static void voxel_of(const gi_probe_volume *v, size_t i, int ijk[3]) {
+/* Voxel index of valid point i (x fastest), street-level probes at their
+ * height; -1 when that height is no int voxel index (VDB's coordinates are
+ * int32: 1e10 voxels up wrapped to 1.4e9). */
+static int voxel_of(const gi_probe_volume *v, size_t i, int ijk[3]) {
   size_t nx = (size_t)v->counts[0], ny = (size_t)v->counts[1];
   ijk[0] = (int)(i % nx);
   ijk[1] = (int)((i / nx) % ny);
   ijk[2] = (int)(i / (nx * ny));
   if (v->street_level) {
     int u = v->up_axis;
-    ijk[u] = (int)lround(((double)v->pos[3 * i + u] - v->origin[u]) / v->spacing);
+    double h = ((double)v->pos[3 * i + u] - v->origin[u]) / v->spacing;
+    if (!(fabs(h) < INT_MAX)) return -1;
+    ijk[u] = (int)lround(h);
   }
+  return 0;
 }
 
 typedef struct {
@@ -139,7 +150,7 @@ typedef struct {
   size_t count;
 } voxels_t;
 
-static gi_result gather_voxels(const gi_probe_volume *v, voxels_t *vx) {
+static gi_result gather_voxels(const gi_probe_volume *v, voxels_t *vx, const char *path, gi_error_info *err) {
   size_t m = 0;
   for (size_t i = 0; i < v->n; i++) m += v->valid[i] != 0;
   vx->count = m;
@@ -148,11 +159,15 @@ static gi_result gather_voxels(const gi_probe_volume *v, voxels_t *vx) {
   vx->sh = gi__malloc(cap * 27 * sizeof(float));
   vx->irr = gi__malloc(cap * 3 * sizeof(float));
   vx->pos = gi__malloc(cap * 3 * sizeof(float));
-  if (!vx->ijk || !vx->sh || !vx->irr || !vx->pos) return GI_ERR_NOMEM;
+  if (!vx->ijk || !vx->sh || !vx->irr || !vx->pos)
+    return gi__fail(err, GI_ERR_NOMEM, "probe VDB '%s': out of memory", path ? path : "");
   size_t o = 0;
   for (size_t i = 0; i < v->n; i++) {
     if (!v->valid[i]) continue;
-    voxel_of(v, i, vx->ijk + 3 * o);
+    if (voxel_of(v, i, vx->ijk + 3 * o))
+      return gi__fail(err, GI_ERR_INVALID_ARG, "probe VDB '%s': probe %zu's height %g is %g spacings from the "
+                      "origin, past a VDB index", path ? path : "", i, (double)v->pos[3 * i + v->up_axis],
+                      ((double)v->pos[3 * i + v->up_axis] - v->origin[v->up_axis]) / v->spacing);
     /* SH grid c holds coefficient c's RGB: stored grid by grid. */
     for (int c = 0; c < 9; c++)
       for (int k = 0; k < 3; k++) vx->sh[((size_t)c * m + o) * 3 + k] = v->probes[i].sh[c][k];
@@ -171,10 +186,7 @@ gi_result gi_probe_volume_write_vdb(const char *path, const gi_probe_volume *v, 
   if (rc != GI_OK) return rc;
   voxels_t vx;
   memset(&vx, 0, sizeof vx);
-  if (gather_voxels(v, &vx) != GI_OK) {
-    rc = gi__fail(err, GI_ERR_NOMEM, "probe VDB '%s': out of memory", path ? path : "");
-    goto done;
-  }
+  if ((rc = gather_voxels(v, &vx, path, err)) != GI_OK) goto done;
   char names[9][16];
   gi_vdb_sparse grids[11];
   gi_vdb_sparse base = {.kind = GI_VDB_VEC3, .count = vx.count, .ijk = vx.ijk, .voxel_size = v->spacing};
