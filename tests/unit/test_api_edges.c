@@ -450,6 +450,45 @@ static void test_street_volume_axis(void **state) {
   assert_int_equal(gi_probe_volume_write_vdb(path, &v, "street", &err), GI_OK);
 }
 
+/* The EXR writers' extra attributes: a NULL array with num_extra 2
+ * crashed, extras past 16 were dropped with GI_OK, and one named gi.scene
+ * replaced the scene's name in the file. */
+static void test_exr_extras(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_quality q = low_quality();
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, AT, &q, &c, NULL, &err), GI_OK);
+  gi_probe p;
+  assert_int_equal(gi_cascade_gather(c, AT, 1, &p, NULL, &err), GI_OK);
+  const gi_bake_report *rep = gi_cascade_report(c);
+  char path[512];
+  snprintf(path, sizeof path, "%s/extras.exr", tu_tmpdir());
+  assert_int_equal(gi_probes_write_exr_ex(path, &p, 1, s, AT, rep, 0, NULL, 2, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "extra is NULL");
+  gi_exr_extra ex[20];
+  char names[20][16];
+  for (int i = 0; i < 20; i++) {
+    snprintf(names[i], sizeof names[i], "x.k%d", i);
+    ex[i] = (gi_exr_extra){names[i], "v"};
+  }
+  assert_int_equal(gi_probes_write_exr_ex(path, &p, 1, s, AT, rep, 0, ex, 20, &err), GI_ERR_LIMIT);
+  assert_names(&err, "20 extra attributes");
+  assert_int_equal(gi_probes_write_exr_ex(path, &p, 1, s, AT, rep, 0, ex, 16, &err), GI_OK);
+  gi_exr_file *f = NULL;
+  assert_int_equal(gi_exr_read(path, &f, &err), GI_OK);
+  for (int i = 0; i < 16; i++) assert_non_null(gi_exr_file_attr(f, names[i]));
+  gi_exr_file_free(f);
+  gi_exr_extra spoof = {"gi.scene", "spoof"};
+  assert_int_equal(gi_probes_write_exr_ex(path, &p, 1, s, AT, rep, 0, &spoof, 1, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "'gi.scene') is one the writer sets");
+  float px[3 * 2] = {0};
+  assert_int_equal(gi_panorama_write_exr(path, 2, 1, px, px, s, AT, rep, 0, ex, 17, &err), GI_ERR_LIMIT);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -468,6 +507,7 @@ int main(void) {
       cmocka_unit_test(test_negative_scale),
       cmocka_unit_test(test_more_null_names),
       cmocka_unit_test(test_street_volume_axis),
+      cmocka_unit_test(test_exr_extras),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -31,7 +31,10 @@ typedef struct gi_exr_extra {
   const char *value;
 } gi_exr_extra;
 
-/* gi_probes_write_exr with extra header attributes (timings, cache state). */
+/* gi_probes_write_exr with extra header attributes (timings, cache state):
+ * at most 16, none named as an attribute the writer sets (gi.scene,
+ * gi.viewpoint, gi.quality, gi.effects, gi.version, gi.kind, gi.sh,
+ * gi.panorama); more is GI_ERR_LIMIT, such a name GI_ERR_INVALID_ARG. */
 gi_result gi_probes_write_exr_ex(const char *path, const gi_probe *probes, size_t n,
                                  const gi_scene *scene, const double at[3],
                                  const gi_bake_report *rep, int use_half,

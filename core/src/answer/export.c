@@ -46,6 +46,27 @@ typedef struct {
  * "gi-server", as if the server had made them. */
 static void version_text(char *out, size_t size) { snprintf(out, size, "libgi %s (%s)", GI_VERSION, GI_GIT_REV); }
 
+/* The attributes the writers set themselves (header_fill's six, then the
+ * kind's own), and how many of the caller's extras fit beside them. */
+static const char *const own_attrs[] = {"gi.scene", "gi.viewpoint", "gi.quality", "gi.effects",
+                                        "gi.version", "gi.kind", "gi.sh", "gi.panorama"};
+enum { MAX_EXTRA = GI_MAX_EXR_ATTRS - 2 - 6 };
+
+/* The caller's extras: header_fill dereferenced a NULL array, dropped those
+ * past MAX_EXTRA quietly, and let one named gi.scene replace the scene's. */
+static gi_result check_extra(const gi_exr_extra *extra, size_t num_extra, const char *who, gi_error_info *err) {
+  if (num_extra && !extra) return gi__fail(err, GI_ERR_INVALID_ARG, "%s: extra is NULL but num_extra is %zu", who,
+                                           num_extra);
+  if (num_extra > MAX_EXTRA)
+    return gi__fail(err, GI_ERR_LIMIT, "%s: %zu extra attributes, at most %d fit", who, num_extra, MAX_EXTRA);
+  for (size_t i = 0; i < num_extra; i++)
+    for (size_t k = 0; extra[i].name && k < sizeof own_attrs / sizeof own_attrs[0]; k++)
+      if (!strcmp(extra[i].name, own_attrs[k]))
+        return gi__fail(err, GI_ERR_INVALID_ARG, "%s: extra attribute %zu ('%s') is one the writer sets", who, i,
+                        extra[i].name);
+  return GI_OK;
+}
+
 static void header_fill(exr_header *h, const gi_scene *scene, const double at[3], const gi_bake_report *rep,
                         const char *kind, const gi_exr_extra *extra, size_t num_extra) {
   snprintf(h->vp, sizeof h->vp, "%.17g,%.17g,%.17g", at[0], at[1], at[2]);
@@ -80,6 +101,8 @@ gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *dir
     return gi__fail(err, GI_ERR_INVALID_ARG, "panorama EXR: %s is NULL",
                     !path ? "path" : !direct ? "direct" : !indirect ? "indirect" : !rep ? "rep" : "at");
   if (w < 1 || h < 1) return gi__fail(err, GI_ERR_INVALID_ARG, "panorama EXR: size %dx%d is empty", w, h);
+  gi_result rc = check_extra(extra, num_extra, "panorama EXR", err);
+  if (rc != GI_OK) return rc;
   size_t px = (size_t)w * (size_t)h;
   float *planes = gi__malloc(9 * px * sizeof(float));
   if (!planes) return gi__fail(err, GI_ERR_NOMEM, "panorama EXR: out of memory");
@@ -102,7 +125,7 @@ gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *dir
   if (hd.n < GI_MAX_EXR_ATTRS) hd.attrs[hd.n++] = (gi_exr_attr){"gi.panorama", map};
   gi_exr_image img = {.width = w, .height = h, .use_half = use_half, .compression = GI_EXR_ZIP,
                       .num_channels = 9, .channels = ch, .num_attrs = hd.n, .attrs = hd.attrs};
-  gi_result rc = gi_exr_write(path, &img, err);
+  rc = gi_exr_write(path, &img, err);
   gi__free(planes);
   return rc;
 }
@@ -114,6 +137,8 @@ gi_result gi_probes_write_exr_ex(const char *path, const gi_probe *probes, size_
     return gi__fail(err, GI_ERR_INVALID_ARG, "probe EXR: %s is NULL",
                     !path ? "path" : !probes ? "probes" : !rep ? "rep" : "at");
   if (n == 0) return gi__fail(err, GI_ERR_INVALID_ARG, "probe EXR: n is 0, no probes to write");
+  gi_result erc = check_extra(extra, num_extra, "probe EXR", err);
+  if (erc != GI_OK) return erc;
   if (n > (1u << 24)) return gi__fail(err, GI_ERR_LIMIT, "probe EXR: %zu probes exceed 2^24", n);
   enum { MAXCH = 3 + 3 + 3 + 3 + 1 + 27 };
   char names[MAXCH][32];
