@@ -95,7 +95,8 @@ gi_result gi_vdb_mem_new(int vec3_grids, gi_vdb_mem **out, gi_error_info *err);
  * floats, grid g's value at vals[3g..3g+2]. GI_ERR_NOMEM on allocation
  * failure (the builder stays usable for gi_vdb_mem_free). */
 gi_result gi_vdb_mem_set(gi_vdb_mem *m, int i, int j, int k, const float *vals, gi_error_info *err);
-/* The sum of the grids' memUsage() in bytes and the active voxels of one grid. */
+/* The sum of the grids' memUsage() in bytes and the active voxels of one grid
+ * (0 and 0 for a NULL m; a NULL output is skipped). */
 void gi_vdb_mem_usage(const gi_vdb_mem *m, size_t *bytes, uint64_t *active);
 void gi_vdb_mem_free(gi_vdb_mem *m); /* accepts NULL */
 

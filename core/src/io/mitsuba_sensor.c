@@ -455,6 +455,8 @@ static gi_result camera_from(const mx_file *f, const mx_xform *x, gi_camera *cam
 }
 
 gi_result gi_camera_from_mitsuba(const char *path, gi_camera *cam, gi_error_info *err) {
+  if (!path || !cam)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "gi_camera_from_mitsuba: %s is NULL", path ? "cam" : "path");
   void *data = NULL;
   size_t size = 0;
   gi_error_info re = {0};

@@ -78,8 +78,10 @@ static void printable(const char *p, char *out, size_t cap) {
 }
 
 gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, gi_error_info *err) {
+  if (!pts || !n) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_points_read: %s is NULL", pts ? "n" : "pts");
   *pts = NULL;
   *n = 0;
+  if (!path) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_points_read: path is NULL");
   FILE *f = fopen(path, "r");
   if (!f) return gi__fail(err, GI_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
   char *line = NULL;

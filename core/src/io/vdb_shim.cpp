@@ -114,12 +114,21 @@ typename GridT::Ptr build_grid(const gi_vdb_grid &g, Get value_at) {
   return grid;
 }
 
+// A caller's kind as the int it holds: loading a C enum past its values as
+// the C++ enum is undefined (UBSan: "not a valid value for type").
+int kind_value(const gi_vdb_kind &k) {
+  static_assert(sizeof(int) == sizeof(gi_vdb_kind), "a C enum is an int");
+  int v;
+  std::memcpy(&v, &k, sizeof v);
+  return v;
+}
+
 openvdb::GridBase::Ptr make_grid(const gi_vdb_grid &g, size_t gi) {
   std::string where = "grid " + std::to_string(gi);
   if (!g.name || !g.name[0]) throw Fail{GI_ERR_INVALID_ARG, where + " has an empty name"};
   where = "grid '" + std::string(g.name) + "'";
-  if (g.kind != GI_VDB_FLOAT && g.kind != GI_VDB_VEC3)
-    throw Fail{GI_ERR_INVALID_ARG, where + ": unknown kind " + std::to_string((int)g.kind)};
+  if (kind_value(g.kind) != GI_VDB_FLOAT && kind_value(g.kind) != GI_VDB_VEC3)
+    throw Fail{GI_ERR_INVALID_ARG, where + ": unknown kind " + std::to_string(kind_value(g.kind))};
   if (g.dims[0] <= 0 || g.dims[1] <= 0 || g.dims[2] <= 0)
     throw Fail{GI_ERR_INVALID_ARG, where + ": dims must be > 0"};
   if (!g.data) throw Fail{GI_ERR_INVALID_ARG, where + ": no data"};
@@ -149,8 +158,8 @@ openvdb::GridBase::Ptr make_sparse_grid(const gi_vdb_sparse &g, size_t gi) {
   std::string where = "grid " + std::to_string(gi);
   if (!g.name || !g.name[0]) throw Fail{GI_ERR_INVALID_ARG, where + " has an empty name"};
   where = "grid '" + std::string(g.name) + "'";
-  if (g.kind != GI_VDB_FLOAT && g.kind != GI_VDB_VEC3)
-    throw Fail{GI_ERR_INVALID_ARG, where + ": unknown kind " + std::to_string((int)g.kind)};
+  if (kind_value(g.kind) != GI_VDB_FLOAT && kind_value(g.kind) != GI_VDB_VEC3)
+    throw Fail{GI_ERR_INVALID_ARG, where + ": unknown kind " + std::to_string(kind_value(g.kind))};
   if (g.count && (!g.ijk || !g.data)) throw Fail{GI_ERR_INVALID_ARG, where + ": no voxels"};
   if (!(g.voxel_size > 0) || !std::isfinite(g.voxel_size))
     throw Fail{GI_ERR_INVALID_ARG, where + ": voxel_size must be finite and > 0"};
@@ -434,6 +443,7 @@ struct gi_vdb_mem {
 };
 
 extern "C" gi_result gi_vdb_mem_new(int vec3_grids, gi_vdb_mem **out, gi_error_info *err) {
+  if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_vdb_mem_new: out is NULL");
   *out = nullptr;
   if (vec3_grids < 1 || vec3_grids > 64)
     return gi__fail(err, GI_ERR_INVALID_ARG, "gi_vdb_mem_new: vec3_grids must be 1..64, got %d", vec3_grids);
@@ -454,6 +464,7 @@ extern "C" gi_result gi_vdb_mem_new(int vec3_grids, gi_vdb_mem **out, gi_error_i
 }
 
 extern "C" gi_result gi_vdb_mem_set(gi_vdb_mem *m, int i, int j, int k, const float *vals, gi_error_info *err) {
+  if (!m || !vals) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_vdb_mem_set: %s is NULL", m ? "vals" : "m");
   return guard("(memory)", false, err, [&] {
     openvdb::Coord ijk(i, j, k);
     for (size_t g = 0; g < m->acc.size(); g++)
@@ -463,9 +474,13 @@ extern "C" gi_result gi_vdb_mem_set(gi_vdb_mem *m, int i, int j, int k, const fl
 
 extern "C" void gi_vdb_mem_usage(const gi_vdb_mem *m, size_t *bytes, uint64_t *active) {
   size_t sum = 0;
-  for (const auto &g : m->grids) sum += (size_t)g->memUsage();
-  *bytes = sum;
-  *active = m->grids.empty() ? 0 : (uint64_t)m->grids[0]->activeVoxelCount();
+  uint64_t on = 0;
+  if (m) {
+    for (const auto &g : m->grids) sum += (size_t)g->memUsage();
+    on = m->grids.empty() ? 0 : (uint64_t)m->grids[0]->activeVoxelCount();
+  }
+  if (bytes) *bytes = sum;
+  if (active) *active = on;
 }
 
 extern "C" void gi_vdb_mem_free(gi_vdb_mem *m) { delete m; }
