@@ -43,8 +43,9 @@ gi_result gi_cascade_gather_ex(const gi_cascade *c, const double *pts, size_t n,
 
 /* 1 when world point p lies inside one of c's levels, where a gather
  * reads indirect light from the cascade; 0 outside every level (or p not
- * finite), where a probe's indirect light and ao are 0 and only its direct
- * light, from its own shadow rays, is answered. Thread-safe. */
+ * finite), where a probe's indirect light is 0, its ao 1 (no voxel there
+ * to occlude it) and only its direct light, from its own shadow rays, is
+ * answered. Thread-safe. */
 int gi_cascade_covers(const gi_cascade *c, const double p[3]);
 
 /* Evaluates SH L2 irradiance coefficients at unit normal n. */
