@@ -79,6 +79,40 @@ static void test_camera_on_floor(void **state) {
   gi_scene_release(s);
 }
 
+/* A view square into a room's far half: its corner pixels' rays meet the
+ * ceiling exactly on its edge with a side wall. Their point lay on both
+ * planes, so every shadow ray left from the wall's plane and met it at
+ * t = 0: the corners had no direct light at all (0 against 0.09-0.35
+ * around them and 0.96 in the path tracer). */
+static void test_edge_pixels(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.7f, 0.7f, 0.7f}, .roughness = 1};
+  const double lo[3] = {-1, 0, -1}, hi[3] = {1, 2, 1};
+  gi_mesh_builder_add_box(b, lo, hi, gi_mesh_builder_add_material(b, &m));
+  gi_light l = {.type = GI_LIGHT_POINT, .color = {5, 5, 5}, .position = {0, 1.8, 0}};
+  gi_scene *s = tu_build(b, "edge-room", &l, 1);
+  gi_error_info err = {0};
+  gi_quality q = {.levels = 3, .res = 16, .bounces = 0, .effects = {[GI_FX_BOUNCE] = GI_FX_OFF}};
+  gi_cascade *c = NULL;
+  double at[3] = {0, 1, 0};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  enum { W = 16 };
+  gi_camera cam = {.eye = {0, 1, 0.9}, .target = {0, 1, -1}, .up = {0, 1, 0}, .fov_deg = 60, .width = W, .height = W};
+  float cone[W * W * 3], path[W * W * 3];
+  assert_int_equal(gi_cascade_render(c, &cam, 0, 0, cone, NULL, &err), GI_OK);
+  assert_int_equal(gi_reference_render(s, &cam, 256, 1, 0, path, NULL, &err), GI_OK);
+  const int corner[4] = {0, W - 1, W * (W - 1), W * W - 1};
+  for (int i = 0; i < 4; i++) {
+    float cv = cone[3 * corner[i]], pv = path[3 * corner[i]];
+    printf("edge pixel %d: cone %.4f, path %.4f\n", corner[i], cv, pv);
+    /* Direct light only in the cone view, all light in the path tracer's. */
+    assert_true(cv > 0.05f && cv <= pv);
+  }
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 static void test_mitsuba_camera(void **state) {
   TU_SKIP_IF_NO_SCENE(path, "cornell-box/cbox-mitsuba.xml");
   gi_camera cam = {0};
@@ -392,6 +426,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_plane_under_sun),
       cmocka_unit_test(test_camera_on_floor),
+      cmocka_unit_test(test_edge_pixels),
       cmocka_unit_test(test_mitsuba_camera),
       cmocka_unit_test(test_bad_cameras),
       cmocka_unit_test(test_mitsuba_sensor_forms),

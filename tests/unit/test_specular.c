@@ -255,6 +255,7 @@ static void cone_spec(const gi_cascade *c, const gi_scene *s, float rough, float
       if (mask) mask[y * W + x] = hit && fabsf(ng[1]) > 0.99f;
       if (!hit || !(fabsf(ng[1]) > 0.99f)) continue;
       float cw = gi__dot(ng, w);
+      t *= 1.f - GI_PRIMARY_PULL; /* the renderer's shading point */
       for (int a = 0; a < 3; a++) n[a] = cw > 0 ? -ng[a] : ng[a], p[a] = k.eye[a] + t * w[a];
       if (gi__finest_level_at(c, p) < 0) continue;
       gi_cone_out co;

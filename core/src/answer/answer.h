@@ -18,6 +18,14 @@ gi_result gi__cam_setup(const gi_scene *s, const struct gi_camera *cam, gi__cam 
 /* Unit direction through image position (px, py), in pixels from the top-left. */
 void gi__cam_ray(const gi__cam *k, float px, float py, float dir[3]);
 
+/* render.c: a primary hit is shaded this share of its distance nearer the
+ * eye. A hit on an edge (a ray square into a room's corner) lay on two
+ * planes, and every shadow ray, leaving along one plane's normal, started
+ * on the other and met it at t = 0: such pixels had no direct light.
+ * 1e-5 of the distance moves the point off any plane the ray is not
+ * parallel to and shifts nothing a voxel or a shadow ray can see. */
+#define GI_PRIMARY_PULL 1e-5f
+
 /* gather.c: the surface nearest a point in free space (a probe, a
  * panorama's eye), within the reach of the coarsest level's
  * footprint. A cone leaving it (w . n > 0) has its first samples'

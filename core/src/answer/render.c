@@ -120,6 +120,7 @@ static int primary_hit(const render_ctx *rc, int px, int py, float w[3], float x
   gi__cam_ray(rc->k, (float)px + 0.5f, (float)py + 0.5f, w);
   if (!gi__camera_hit(rc->c->scene, rc->k->eye, w, &t, tri, ng)) return 0;
   float cw = gi__dot(ng, w);
+  t *= 1.f - GI_PRIMARY_PULL;
   for (int a = 0; a < 3; a++) n[a] = cw > 0 ? -ng[a] : ng[a], x[a] = rc->k->eye[a] + t * w[a];
   return 1;
 }
