@@ -81,7 +81,13 @@ const char *gi_effect_name(gi_effect_id id); /* "sun", "local_lights", ... */
 int gi_effect_from_name(const char *name);
 
 /* Resolves every default of in (may be NULL) for scene and validates it,
- * exactly as gi_cascade_bake will. Thread-safe. */
+ * exactly as gi_cascade_bake will, but for three that the bake decides
+ * later: bounces 0 (automatic) comes out as 2, a placeholder the effect
+ * plan replaces at the viewpoint (gi_effect_plan's `resolved` has the
+ * count; baking with out as given would ask for 2 exactly, without the
+ * plan's tail); aperture_deg 0 stays 0 (the cone set's matched width,
+ * 40.7 degrees for 16 cones) and threads 0 stays 0 (all cores). The bake's
+ * report holds all three as run. Thread-safe. */
 gi_result gi_quality_resolve(const gi_scene *scene, const gi_quality *in, gi_quality *out,
                              gi_error_info *err);
 
