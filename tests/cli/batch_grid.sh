@@ -165,6 +165,22 @@ else skip "the merge finished (rc $rc) before the kill: leftovers not checked"; 
   && pass "--resume with another bake's tiles: exit 1 naming the file" || fail "resume mismatch: rc $rc: $(cat "$T/e6")"
 cmp "$T/b1.exr" "$T/full.exr" && pass "a --resume bake equals the plain bake" || fail "--resume changed the EXR"
 
+# An edited scene is another bake: a wall's colour in the .mtl, or a vertex
+# moved in the .obj (same triangle count, same grid points), refuses the old
+# tiles. Both kept the hash, and --resume wrote the old scene's answers.
+mkdir "$T/ed"
+cp "$T/box.obj" "$T/box.mtl" "$T/ed/"
+"$BIN" "$T/ed/box.obj" $BOXQ --resume "$T/cke" --exr "$T/e1.exr" > /dev/null 2>&1
+sed -i 's/^Kd 0.7 0.7 0.7/Kd 0.2 0.7 0.7/' "$T/ed/box.mtl"
+"$BIN" "$T/ed/box.obj" $BOXQ --resume "$T/cke" --exr "$T/e2.exr" > /dev/null 2> "$T/e7"; rc=$?
+[ $rc -eq 1 ] && grep -q "belongs to a different bake" "$T/e7" && [ ! -e "$T/e2.exr" ] \
+  && pass "--resume after the .mtl changed: the old tiles are refused" || fail "edited .mtl: rc $rc: $(tail -1 "$T/e7")"
+cp "$T/box.mtl" "$T/ed/"
+sed -i 's/^v 2.5 3.9 2.5/v 2.4 3.9 2.5/' "$T/ed/box.obj"
+"$BIN" "$T/ed/box.obj" $BOXQ --resume "$T/cke" --exr "$T/e3.exr" > /dev/null 2> "$T/e8"; rc=$?
+[ $rc -eq 1 ] && grep -q "belongs to a different bake" "$T/e8" && [ ! -e "$T/e3.exr" ] \
+  && pass "--resume after the .obj changed: the old tiles are refused" || fail "edited .obj: rc $rc: $(tail -1 "$T/e8")"
+
 # Bad arguments: exit 2 naming the option, before any work, no output.
 expect_usage() { # OPTION-NAME ARGS...
   name=$1; shift

@@ -42,7 +42,22 @@ static void effects_text(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size
   }
 }
 
-/* Scene name, size and lights, as text for the hash. */
+/* The scene file's bytes (its geometry: an edit that keeps the triangle
+ * count and the grid's points kept the hash, and --resume reused tiles
+ * baked from the old file). The city has no file: its options are the
+ * name and counts. */
+static uint64_t hash_file(const char *path, uint64_t h) {
+  FILE *f = fopen(path, "rb");
+  char buf[1 << 16];
+  size_t k;
+  while (f && (k = fread(buf, 1, sizeof buf, f)) > 0) h = batch_fnv(buf, k, h);
+  if (f) fclose(f);
+  return h;
+}
+
+/* Scene name, size, materials and lights, as text for the hash. The
+ * materials: an edited .mtl (a wall's colour) changes every answer but
+ * not the name or counts, and resumed tiles of the old colour were kept. */
 static uint64_t hash_scene(const gi_scene *s, uint64_t h) {
   char buf[512];
   gi_scene_stats ss;
@@ -50,6 +65,12 @@ static uint64_t hash_scene(const gi_scene *s, uint64_t h) {
   snprintf(buf, sizeof buf, "%s|%llu|%u|%zu", gi_scene_name(s), (unsigned long long)ss.triangles, ss.materials,
            gi_scene_num_lights(s));
   h = batch_fnv(buf, strlen(buf), h);
+  for (size_t i = 0; i < gi_scene_num_materials(s); i++) {
+    const gi_material *m = gi_scene_material(s, i);
+    snprintf(buf, sizeof buf, "m %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g", m->albedo[0], m->albedo[1], m->albedo[2],
+             m->emission[0], m->emission[1], m->emission[2], m->roughness, m->specular);
+    h = batch_fnv(buf, strlen(buf), h);
+  }
   for (size_t i = 0; i < gi_scene_num_lights(s); i++) {
     const gi_light *l = gi_scene_light(s, i);
     snprintf(buf, sizeof buf, "%d %.9g %.9g %.9g %.17g %.17g %.17g %.9g %.9g %.9g %.9g %.9g", (int)l->type,
@@ -79,6 +100,7 @@ int batch_identify(batch_state *st) {
   uint64_t h = BATCH_FNV_BASIS;
   for (size_t i = 0; i < sizeof texts / sizeof texts[0]; i++) h = batch_fnv(texts[i], strlen(texts[i]) + 1, h);
   h = hash_scene(st->scene, h);
+  if (!st->o->is_city) h = hash_file(st->o->scene, h);
   h = batch_fnv(st->grid.pos, st->grid.n * 3 * sizeof(float), h);
   h = batch_fnv(st->grid.state, st->grid.n, h);
   snprintf(st->hash, sizeof st->hash, "%016llx", (unsigned long long)h);
