@@ -25,6 +25,19 @@ const char *gi_proto_status_name(int status) {
   }
 }
 
+/* Length of the well-formed UTF-8 sequence at p (1..4; no overlong form,
+ * surrogate or code point past U+10FFFF), 0 when it is not one. */
+static size_t utf8_len(const unsigned char *p) {
+  unsigned c = p[0];
+  unsigned n = c < 0x80 ? 1 : c < 0xC2 ? 0 : c < 0xE0 ? 2 : c < 0xF0 ? 3 : c < 0xF5 ? 4 : 0;
+  for (unsigned i = 1; i < n; i++)
+    if ((p[i] & 0xC0) != 0x80) return 0;
+  if ((c == 0xE0 && p[1] < 0xA0) || (c == 0xED && p[1] >= 0xA0) || (c == 0xF0 && p[1] < 0x90) ||
+      (c == 0xF4 && p[1] >= 0x90))
+    return 0;
+  return n;
+}
+
 int gi_proto_fail(gi_proto_error *e, int status, const char *fmt, ...) {
   if (!e) return status;
   e->status = status;
@@ -33,6 +46,14 @@ int gi_proto_fail(gi_proto_error *e, int status, const char *fmt, ...) {
   va_start(ap, fmt);
   vsnprintf(e->message, sizeof e->message, fmt, ap);
   va_end(ap);
+  /* A message quotes what the client sent (a path, a %ff in a query) and may
+   * be cut mid-character: jansson refuses invalid UTF-8, which left the
+   * error's body empty. Each byte that is not part of a character is '?'. */
+  for (unsigned char *p = (unsigned char *)e->message; *p;) {
+    size_t n = utf8_len(p);
+    if (n) p += n;
+    else *p++ = '?';
+  }
   return status;
 }
 

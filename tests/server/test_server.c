@@ -601,6 +601,9 @@ static void test_errors(void **state) {
       {"POST", "/v1/scenes/city/probes", "{\"points\":[[-140,2,-140],[140,2,140]],\"at\":[-140,2,-140]}", 400,
        "bad_request", "points[1] (140, 2, 140) lies 280 units from 'at'"},
       {NULL, "/v1/health?verbose=1", NULL, 400, "bad_request", "'verbose'"},
+      /* Bytes that are not UTF-8, quoted in the message, once left the body empty. */
+      {NULL, "/v1/%ff%c0%af", NULL, 404, "not_found", "no such endpoint: /v1/???"},
+      {NULL, "/v1/scenes/city/lighting?at=1,2,3&levels=%ff", NULL, 400, "bad_request", "'levels'"},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     su_resp r = su_http(&S_main, cases[i].method, cases[i].path, cases[i].body, TOKEN);

@@ -302,6 +302,14 @@ static void test_error_roundtrip(void **state) {
   assert_string_equal(back.name, "overloaded");
   assert_string_equal(back.message, "busy \"now\" 7");
   free(js);
+  /* A message quoting bytes that are not UTF-8 (or cut inside a character)
+   * still encodes: each such byte is '?', a whole character is kept. */
+  gi_proto_fail(&e, 404, "no such endpoint: %s", "/a\xff\xc0\xaf\xed\xa0\x80\xc3\xa9\xe2\x82");
+  js = gi_proto_error_json(&e);
+  assert_non_null(js);
+  assert_int_equal(gi_proto_error_parse(js, strlen(js), &back), 0);
+  assert_string_equal(back.message, "no such endpoint: /a??????\xc3\xa9??");
+  free(js);
   assert_int_equal(gi_proto_error_parse("{\"x\":1}", 7, &back), -1);
   assert_string_equal(gi_proto_status_name(413), "payload_too_large");
   assert_string_equal(gi_proto_status_name(504), "timeout");
