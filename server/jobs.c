@@ -8,8 +8,9 @@
  * Progress is counted per tile.
  * The result is an EXR (0600) in the server's private folder in tmp_dir
  * (0700, removed at exit, and at the next start if the server was killed),
- * kept until max_jobs_retained newer jobs have finished; then the oldest
- * finished job and its file go.
+ * kept while at most max_jobs_retained finished jobs are; past that the
+ * oldest finished job without a result (failed, cancelled) goes first,
+ * then the oldest result and its file.
  *
  * A job stops when it is cancelled (DELETE, shutdown) or outlives
  * job_deadline_s: its token (gi_cancel) stops the bake or gather it is in
@@ -98,14 +99,23 @@ static void job_free(job *b) {
   free(b);
 }
 
-/* Drops the oldest finished jobs beyond the retention limit. Locked. */
+/* Whether finished job a goes before b: one without a result (failed,
+ * cancelled) before one with a result to fetch, then the older. A client
+ * that started and cancelled jobs pushed other clients' unfetched
+ * results out, oldest first. */
+static int retire_before(const job *a, const job *b) {
+  int ra = a->st.state == GI_JOB_DONE, rb = b->st.state == GI_JOB_DONE;
+  return ra != rb ? rb : a->order < b->order;
+}
+
+/* Drops finished jobs beyond the retention limit (retire_before's order). Locked. */
 static void retire(gs_jobs *j) {
   int finished = 0;
   for (job *b = j->all; b; b = b->next) finished += b->st.state >= GI_JOB_DONE;
   while (finished > j->svc->cfg->max_jobs_retained) {
     job **pp = NULL, **it;
     for (it = &j->all; *it; it = &(*it)->next)
-      if ((*it)->st.state >= GI_JOB_DONE && (!pp || (*it)->order < (*pp)->order)) pp = it;
+      if ((*it)->st.state >= GI_JOB_DONE && (!pp || retire_before(*it, *pp))) pp = it;
     if (!pp) break;
     job *old = *pp;
     *pp = old->next;

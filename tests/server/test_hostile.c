@@ -586,6 +586,38 @@ static void test_job_queue_limit(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* A client that starts and cancels jobs cannot push another client's
+ * finished result out of retention: jobs without a result go first (the
+ * oldest finished job went, whatever it held). */
+static void test_job_retention_keeps_results(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "job-retention",
+                            HOSTILE_INI("[limits]\nmax_probes_inline = 2\nmax_jobs = 1\nmax_jobs_queued = 8\n"
+                                        "max_jobs_retained = 2\n")),
+                   0);
+  char done[64], run[64], q[3][64], path[256];
+  submit(&s, 3, done);
+  assert_string_equal(job_wait(&s, done, "done|failed|cancelled", 60000).state, "done");
+  submit(&s, 40, run);
+  assert_string_equal(job_wait(&s, run, "running", 30000).state, "running");
+  for (int i = 0; i < 3; i++) {
+    submit(&s, 3, q[i]);
+    snprintf(path, sizeof path, "/v1/jobs/%s", q[i]);
+    su_resp r = su_http(&s, "DELETE", path, NULL, SU_TOKEN);
+    assert_int_equal(r.status, 200); /* cancelled while queued */
+    free(r.body);
+  }
+  snprintf(path, sizeof path, "/v1/jobs/%s/result", done);
+  su_resp r = su_http(&s, NULL, path, NULL, SU_TOKEN);
+  printf("  finished result after 3 cancelled jobs (2 retained): %ld\n", (long)r.status);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  snprintf(path, sizeof path, "/v1/jobs/%s", run);
+  r = su_http(&s, "DELETE", path, NULL, SU_TOKEN);
+  free(r.body);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* The folder gi-server-jobs.PID.* in dir, or "" (static buffer). */
 static const char *jobs_folder(const char *dir, pid_t pid) {
   static char out[1024];
@@ -1204,6 +1236,7 @@ int main(void) {
       cmocka_unit_test(test_job_deadline),
       cmocka_unit_test(test_job_stops_inside_tile),
       cmocka_unit_test(test_job_queue_limit),
+      cmocka_unit_test(test_job_retention_keeps_results),
       cmocka_unit_test(test_job_cancel_while_waiting_for_memory),
       cmocka_unit_test(test_job_files_private),
       cmocka_unit_test(test_private_folder_removed),
