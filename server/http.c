@@ -694,12 +694,18 @@ typedef struct {
   int count;            /* Content-Length headers */
   int differ;           /* two of them disagree */
   int chunked;          /* Transfer-Encoding present */
+  int unknown_coding;   /* a Transfer-Encoding other than "chunked" alone */
   const char *length;   /* the first Content-Length */
 } framing;
 
 static enum MHD_Result collect_framing(void *cls, enum MHD_ValueKind kind, const char *key, const char *value) {
   framing *f = cls;
-  if (!strcasecmp(key, "Transfer-Encoding")) f->chunked = 1;
+  if (!strcasecmp(key, "Transfer-Encoding")) {
+    /* libmicrohttpd decodes "chunked" only; any other coding (gzip, "gzip,
+     * chunked", identity) it reads as a body without an end, and the client
+     * waited for request_timeout_s and got no answer at all. */
+    if (f->chunked++ || !value || strcasecmp(value, "chunked")) f->unknown_coding = 1;
+  }
   if (strcasecmp(key, "Content-Length")) return MHD_YES;
   if (f->count++ && strcmp(f->length, value ? value : "")) f->differ = 1;
   if (!f->length) f->length = value ? value : "";
@@ -717,6 +723,10 @@ static int check_framing(gs_http *h, gs_req *r, gs_answer *a) {
   }
   if (f.count && f.chunked) {
     answer_fail(a, 400, "%s", "Content-Length and Transfer-Encoding: a request may have only one of them");
+    return -1;
+  }
+  if (f.unknown_coding) {
+    answer_fail(a, 501, "%s", "Transfer-Encoding: only 'chunked' is supported (RFC 9112 6.1: 501)");
     return -1;
   }
   if (!f.count) return 0;

@@ -22,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -633,6 +634,40 @@ static void test_errors(void **state) {
   free(r.body);
 }
 
+/* A Transfer-Encoding libmicrohttpd cannot decode (anything but "chunked"):
+ * read as a body without an end, it was answered by nothing until the request
+ * deadline closed the connection. RFC 9112 6.1: 501, at once. */
+static void test_unknown_transfer_coding(void **state) {
+  const char *reqs[] = {
+      "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN "\r\nTransfer-Encoding: gzip\r\n\r\n",
+      "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
+      "\r\nTransfer-Encoding: gzip, chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n",
+  };
+  for (size_t i = 0; i < sizeof reqs / sizeof reqs[0]; i++) {
+    char buf[4096];
+    int fd = su_connect(&S_main, NULL);
+    assert_true(fd >= 0);
+    assert_int_equal(send(fd, reqs[i], strlen(reqs[i]), MSG_NOSIGNAL), (ssize_t)strlen(reqs[i]));
+    double t0 = su_now_ms();
+    su_read(fd, buf, sizeof buf, 2000);
+    close(fd);
+    printf("  request %zu: %.*s in %.0f ms\n", i, (int)strcspn(buf, "\r\n"), buf, su_now_ms() - t0);
+    assert_true(!strncmp(buf, "HTTP/1.1 501", 12));
+    assert_non_null(strstr(buf, "\"name\":\"not_implemented\""));
+  }
+  /* "chunked" itself is decoded as before: the body reaches the JSON parser. */
+  const char *ok = "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
+                   "\r\nTransfer-Encoding: Chunked\r\nConnection: close\r\n\r\n8\r\nnot json\r\n0\r\n\r\n";
+  char buf[4096];
+  int fd = su_connect(&S_main, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, ok, strlen(ok), MSG_NOSIGNAL), (ssize_t)strlen(ok));
+  su_read(fd, buf, sizeof buf, 2000);
+  close(fd);
+  assert_true(!strncmp(buf, "HTTP/1.1 400", 12));
+  assert_non_null(strstr(buf, "line 1"));
+}
+
 /* 64 parallel requests for different viewpoints against 1 worker + 1 slot. */
 static void test_overload(void **state) {
   /* A quality=low bake (5 x 16^3 voxels) is admitted for its bound, 8.59
@@ -875,6 +910,7 @@ int main(void) {
       cmocka_unit_test(test_probes_inline_and_job),
       cmocka_unit_test(test_probes_job_at),
       cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_unknown_transfer_coding),
       cmocka_unit_test(test_overload),
       cmocka_unit_test(test_deadline),
       cmocka_unit_test(test_nomem_not_cached),
