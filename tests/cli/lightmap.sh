@@ -98,4 +98,7 @@ expect_usage --tile "$B" --tile 2
 expect_usage --region "$B" $Q --lightmap "$T/bad.exr" --uv-out "$T/bad.glb" --region 10,10,10,11,11,11
 # shellcheck disable=SC2086
 expect_usage --atlas "$B" $Q --lightmap "$T/bad.exr" --uv-out "$T/bad.glb" --texel 0.1 --atlas 16
+# A --tile so small the region needs more than 2^20 cascades: exit 2 naming --tile (it was exit 1).
+# shellcheck disable=SC2086
+expect_usage "--tile:" "$B" $Q --lightmap "$T/bad.exr" --uv-out "$T/bad.glb" --tile 0.01
 finish

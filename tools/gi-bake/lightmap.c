@@ -124,7 +124,11 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
   if (r != GI_OK) return layout_failed(&err, r);
   gi_lightmap_report rep;
   int rc = 0;
-  if ((r = gi_lightmap_bake(lm, &o->q, NULL, &rep, &err)) != GI_OK) {
+  if ((r = gi_lightmap_bake(lm, &o->q, NULL, &rep, &err)) != GI_OK && r == GI_ERR_LIMIT && o->lm.opts.tile > 0) {
+    /* Too many tiles for --tile: the option's fault, like an atlas too
+     * small (exit 2 naming it), not a failed bake (it was exit 1). */
+    rc = ta_fail(&ta, "--tile", "%s", err.msg);
+  } else if (r != GI_OK) {
     fprintf(stderr, "gi-bake: lightmap bake: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
     rc = EXIT_RUN;
   } else if (o->lm.uv_out && (r = gi_lightmap_write_gltf(lm, o->lm.uv_out, &err)) != GI_OK) {
