@@ -611,8 +611,8 @@ static void metrics(gs_service *svc, gs_answer *a) {
 /* ---- routing ------------------------------------------------------------ */
 
 /* Constant-time comparison: the time taken does not depend on where a guess differs. */
-static int token_ok(const char *want, const char *got) {
-  size_t n = strlen(want), m = got ? strlen(got) : 0;
+static int token_ok(const char *want, const char *got, size_t m) {
+  size_t n = strlen(want);
   unsigned char diff = (unsigned char)(n != m);
   for (size_t i = 0; i < n; i++) diff |= (unsigned char)(want[i] ^ (i < m ? got[i] : 0));
   return diff == 0;
@@ -681,12 +681,18 @@ static int route(gs_req *r, const char *url, char *id, size_t idsize) {
   return 1;
 }
 
-/* The bearer token from Authorization, or NULL. The scheme is
- * case-insensitive (RFC 7235); one or more spaces follow it. */
-static const char *bearer_token(const char *auth) {
+/* The bearer token from Authorization and its length in *len, or NULL. The
+ * scheme is case-insensitive (RFC 7235); one or more spaces follow it.
+ * Trailing spaces and tabs are not part of a field's value (RFC 9110 5.5),
+ * but libmicrohttpd 0.9.75 keeps them: they are not part of the token. */
+static const char *bearer_token(const char *auth, size_t *len) {
+  *len = 0;
   if (!auth || strncasecmp(auth, "Bearer", 6) || auth[6] != ' ') return NULL;
   auth += 6;
   while (*auth == ' ') auth++;
+  size_t n = strlen(auth);
+  while (n && (auth[n - 1] == ' ' || auth[n - 1] == '\t')) n--;
+  *len = n;
   return auth;
 }
 
@@ -759,7 +765,9 @@ static int check_headers(gs_http *h, gs_req *r, const char *url) {
   }
   if (r->ep != GS_EP_HEALTH && svc->cfg->token[0]) {
     const char *auth = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Authorization");
-    if (!token_ok(svc->cfg->token, bearer_token(auth))) {
+    size_t len;
+    const char *got = bearer_token(auth, &len);
+    if (!token_ok(svc->cfg->token, got, len)) {
       answer_fail(a, 401, "%s", auth ? "the bearer token is not valid" : "an Authorization: Bearer token is required");
       return -1;
     }

@@ -70,6 +70,18 @@ static int teardown(void **state) {
   return st == 0 ? 0 : -1;
 }
 
+/* Sends req as it is on a new connection; what the server answers within ms
+ * (static buffer). */
+static const char *raw_req(const su_server *s, const char *req, int ms) {
+  static char buf[8192];
+  int fd = su_connect(s, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  su_read(fd, buf, sizeof buf, ms);
+  close(fd);
+  return buf;
+}
+
 static void test_health_and_auth(void **state) {
   su_resp r = su_http(&S_main, NULL, "/v1/health", NULL, NULL); /* health needs no token */
   assert_int_equal(r.status, 200);
@@ -90,6 +102,14 @@ static void test_health_and_auth(void **state) {
   r = su_http(&S_main, NULL, "/v1/scenes/city/lighting?at=0,2,0", NULL, "short");
   su_expect_error(&r, 401, "unauthorized", NULL);
   free(r.body);
+  /* Whitespace after a field's value is not part of it (RFC 9110 5.5), but
+   * libmicrohttpd keeps it: the token with a trailing space was refused. */
+  const char *a = raw_req(&S_main, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
+                          " \t \r\nConnection: close\r\n\r\n", 2000);
+  assert_true(!strncmp(a, "HTTP/1.1 200", 12));
+  a = raw_req(&S_main, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
+              "x \r\nConnection: close\r\n\r\n", 2000);
+  assert_true(!strncmp(a, "HTTP/1.1 401", 12));
 }
 
 static void test_catalog_and_scene(void **state) {
@@ -644,13 +664,8 @@ static void test_unknown_transfer_coding(void **state) {
       "\r\nTransfer-Encoding: gzip, chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n",
   };
   for (size_t i = 0; i < sizeof reqs / sizeof reqs[0]; i++) {
-    char buf[4096];
-    int fd = su_connect(&S_main, NULL);
-    assert_true(fd >= 0);
-    assert_int_equal(send(fd, reqs[i], strlen(reqs[i]), MSG_NOSIGNAL), (ssize_t)strlen(reqs[i]));
     double t0 = su_now_ms();
-    su_read(fd, buf, sizeof buf, 2000);
-    close(fd);
+    const char *buf = raw_req(&S_main, reqs[i], 2000);
     printf("  request %zu: %.*s in %.0f ms\n", i, (int)strcspn(buf, "\r\n"), buf, su_now_ms() - t0);
     assert_true(!strncmp(buf, "HTTP/1.1 501", 12));
     assert_non_null(strstr(buf, "\"name\":\"not_implemented\""));
@@ -658,12 +673,7 @@ static void test_unknown_transfer_coding(void **state) {
   /* "chunked" itself is decoded as before: the body reaches the JSON parser. */
   const char *ok = "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
                    "\r\nTransfer-Encoding: Chunked\r\nConnection: close\r\n\r\n8\r\nnot json\r\n0\r\n\r\n";
-  char buf[4096];
-  int fd = su_connect(&S_main, NULL);
-  assert_true(fd >= 0);
-  assert_int_equal(send(fd, ok, strlen(ok), MSG_NOSIGNAL), (ssize_t)strlen(ok));
-  su_read(fd, buf, sizeof buf, 2000);
-  close(fd);
+  const char *buf = raw_req(&S_main, ok, 2000);
   assert_true(!strncmp(buf, "HTTP/1.1 400", 12));
   assert_non_null(strstr(buf, "line 1"));
 }
