@@ -202,6 +202,9 @@ expect_usage --shard --grid 1 --shard 1/0
 expect_usage --shard --grid 1 --shard -1/2
 expect_usage --shard --grid 1 --shard x/2
 expect_usage --grid --grid 1e-4
+# A spacing past the largest voxel (the finest voxel defaults to it): the
+# message said only "quality: voxel size must be at most 1e+07".
+expect_usage "--grid (the finest voxel" --grid 1e8
 
 # Street level on a corner of the city: probes inside buildings dropped.
 CITYQ="--grid 15 --above-ground 2 --region -90,-10,-90,90,200,90 --res 8 --levels 4 --bounces 1 --cones 4 --samples 1 --probe-samples 4 --threads 1"

@@ -48,7 +48,10 @@ static int plan_tiles(batch_state *st) {
   if (st->q.voxel0 <= 0) st->q.voxel0 = st->grid.spacing;
   gi_result r = gi_quality_resolve(st->scene, &st->q, &st->resolved, &err);
   if (r != GI_OK) {
-    fprintf(stderr, "gi-bake: quality: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
+    /* Name the option: without --voxel the finest voxel is --grid's spacing,
+     * and "quality: voxel size must be at most 1e+07" named neither. */
+    const char *opt = st->o->q.voxel0 > 0 ? "--voxel" : "--grid (the finest voxel is the spacing unless --voxel)";
+    fprintf(stderr, "gi-bake: %s: %s\n", opt, err.msg[0] ? err.msg : gi_strerror(r));
     return EXIT_USAGE;
   }
   batch_layout *L = &st->L;
