@@ -860,6 +860,25 @@ static enum MHD_Result redirect(gs_http *h, gs_req *r, const char *url, const ch
   return send_answer(h, r);
 }
 
+typedef struct {
+  const char *etag;
+  int match;
+} inm_ctx;
+
+static enum MHD_Result collect_inm(void *cls, enum MHD_ValueKind kind, const char *key, const char *value) {
+  inm_ctx *c = cls;
+  if (!strcasecmp(key, "If-None-Match") && gs_etag_matches(value, c->etag)) c->match = 1;
+  return MHD_YES;
+}
+
+/* Whether an If-None-Match names etag. A list may span several field lines
+ * (RFC 9110 5.3); libmicrohttpd's lookup gives only the first of them. */
+static int if_none_match(struct MHD_Connection *conn, const char *etag) {
+  inm_ctx c = {etag, 0};
+  MHD_get_connection_values(conn, MHD_HEADER_KIND, collect_inm, &c);
+  return c.match;
+}
+
 /* Lighting and cascades (canonical.c): a viewpoint URL redirects to its
  * cell's URL (or, with redirect=0, is answered as it); a cell URL with a
  * stale q redirects to the current one; a cell answer is immutable, with
@@ -902,7 +921,7 @@ static enum MHD_Result lighting(gs_http *h, gs_req *r, const query *q) {
   /* A viewpoint URL's answer changes with the scene's version: revalidate it. */
   r->cache_control = r->cell_url ? "public, max-age=" GS_STR(GS_CELL_MAX_AGE_S) ", immutable" : "no-cache";
   if (!r->cell_url) snprintf(r->content_location, sizeof r->content_location, "%s", url);
-  if (gs_etag_matches(MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "If-None-Match"), r->etag)) {
+  if (if_none_match(r->conn, r->etag)) {
     r->ans.status = 304;
     return send_answer(h, r);
   }
