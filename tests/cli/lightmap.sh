@@ -67,6 +67,25 @@ else
   skip "exrheader not installed: EXR channel check skipped (test_lightmap reads the channels back)"
 fi
 
+# SIGTERM while the atlases are written: every atlas and the glTF, or none,
+# and no temporary file. Each atlas was renamed into place as written, so
+# the kill left the glTF, the first atlases and the next one's temporary.
+mkdir "$T/kill"
+# shellcheck disable=SC2086
+"$BIN" "$T/box.obj" --levels 3 --res 16 --probe-samples 4 --cones 4 --lightmap "$T/kill/k.exr" --texel 0.02 \
+  --atlas 256 --uv-out "$T/kill/k.glb" > /dev/null 2> "$T/kill.err" &
+pid=$!
+n=0
+while [ ! -e "$T/kill/k.0001.exr" ] && [ $n -lt 3000 ] && kill -0 $pid 2> /dev/null; do sleep 0.01; n=$((n + 1)); done
+kill -TERM $pid 2> /dev/null; wait $pid
+left=$(ls "$T/kill" | tr '\n' ' ')
+case "$left" in
+  *tmp*) fail "killed while writing: temporary files left: $left" ;;
+  "" | "k.0001.exr k.0002.exr k.0003.exr k.0004.exr k.0005.exr k.0006.exr k.0007.exr k.glb ")
+    pass "killed while writing: all files or none ($(echo $left | wc -w))" ;;
+  *) fail "killed while writing: a partial set left: $left ($(cat "$T/kill.err"))" ;;
+esac
+
 # expect_usage OPTION ARGS...: exit 2, the message names OPTION, no output files.
 expect_usage() {
   name=$1; shift

@@ -10,6 +10,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include <jansson.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 #include <stdlib.h>
@@ -72,6 +73,30 @@ int lightmap_check(cli_opts *o) {
   return 0;
 }
 
+static const int held_sigs[3] = {SIGINT, SIGTERM, SIGHUP};
+static struct sigaction held_old[3];
+static volatile sig_atomic_t held_sig;
+
+static void hold_signal(int sig) { held_sig = sig; }
+
+/* on: later SIGINT/TERM/HUP are only noted; off: the former handlers back,
+ * and a noted signal raised again for them. One ignored stays ignored. */
+static void hold_signals(int on) {
+  for (int i = 0; i < 3; i++) {
+    if (on) {
+      struct sigaction sa;
+      memset(&sa, 0, sizeof sa);
+      sa.sa_handler = hold_signal;
+      sigemptyset(&sa.sa_mask);
+      sigaction(held_sigs[i], NULL, &held_old[i]);
+      if (held_old[i].sa_handler != SIG_IGN) sigaction(held_sigs[i], &sa, NULL);
+    } else {
+      sigaction(held_sigs[i], &held_old[i], NULL);
+    }
+  }
+  if (!on && held_sig) raise(held_sig);
+}
+
 /* A layout the options make impossible is a usage error naming the option. */
 static int layout_failed(const gi_error_info *err, gi_result r) {
   if (r != GI_ERR_INVALID_ARG) {
@@ -131,13 +156,22 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
   } else if (r != GI_OK) {
     fprintf(stderr, "gi-bake: lightmap bake: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
     rc = EXIT_RUN;
-  } else if (o->lm.uv_out && (r = gi_lightmap_write_gltf(lm, o->lm.uv_out, &err)) != GI_OK) {
-    fprintf(stderr, "gi-bake: --uv-out: %s\n", err.msg);
-    rc = EXIT_RUN;
-  } else if ((r = gi_lightmap_write_exr(lm, o->lm.out, o->half, &err)) != GI_OK) {
-    fprintf(stderr, "gi-bake: --lightmap: %s\n", err.msg);
-    if (o->lm.uv_out) remove(o->lm.uv_out);
-    rc = EXIT_RUN;
+  } else {
+    /* SIGINT, SIGTERM and SIGHUP wait until every file is in place: each
+     * atlas is renamed into place as it is written, so a signal between two
+     * left the glTF and the first atlases under their final names, and the
+     * next atlas's temporary file (not one the signal handler knows).
+     * Worker threads exist already, so a signal mask would not do. */
+    hold_signals(1);
+    if (o->lm.uv_out && (r = gi_lightmap_write_gltf(lm, o->lm.uv_out, &err)) != GI_OK) {
+      fprintf(stderr, "gi-bake: --uv-out: %s\n", err.msg);
+      rc = EXIT_RUN;
+    } else if ((r = gi_lightmap_write_exr(lm, o->lm.out, o->half, &err)) != GI_OK) {
+      fprintf(stderr, "gi-bake: --lightmap: %s\n", err.msg);
+      if (o->lm.uv_out) remove(o->lm.uv_out);
+      rc = EXIT_RUN;
+    }
+    hold_signals(0); /* a signal held meanwhile ends the run now */
   }
   if (!rc) {
     for (size_t i = 0; i < gi_lightmap_num_atlases(lm); i++) {
