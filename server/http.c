@@ -65,6 +65,8 @@
 #define GS_STR(x) GS_STR_(x)
 /* How often the reaper looks at deadlines. */
 #define GS_REAPER_PERIOD_MS 50
+/* libmicrohttpd messages logged per second at most; the rest are counted. */
+#define GS_MHD_LOG_PER_S 20
 
 typedef struct {
   gi_proto_kv kv[GS_MAX_PARAMS];
@@ -128,6 +130,10 @@ struct gs_http {
   gs_conn *conns;
   unsigned long cuts, cuts_logged;
   atomic_int closing;       /* shutting down: new connections are closed at accept */
+  pthread_mutex_t log_mu;   /* guards the libmicrohttpd log budget below */
+  double log_second;        /* when the current second of the budget began */
+  unsigned log_lines;       /* lines logged in it */
+  unsigned long log_dropped; /* lines not logged since the last note */
 };
 
 static void req_release(gs_req *r) {
@@ -453,6 +459,8 @@ static void cut_slow_connections(gs_http *h, double *last_log) {
             h->svc->cfg->request_timeout_s, cuts);
 }
 
+static void mhd_log_note(gs_http *h, double now);
+
 static void *reaper_main(void *p) {
   gs_http *h = p;
   double last_log = 0;
@@ -466,6 +474,9 @@ static void *reaper_main(void *p) {
     reap_deadlines(h);
     pthread_mutex_unlock(&h->mu);
     cut_slow_connections(h, &last_log);
+    pthread_mutex_lock(&h->log_mu);
+    mhd_log_note(h, gs_now_ms()); /* the count, even when the flood has stopped */
+    pthread_mutex_unlock(&h->log_mu);
     gs_sessions_sweep(h->svc->sessions);
     pthread_mutex_lock(&h->mu);
   }
@@ -1100,8 +1111,31 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
   req_release(r);
 }
 
-/* libmicrohttpd's messages can quote what a client sent: escaped like ours. */
+/* Says how many libmicrohttpd lines were not logged, once their second is
+ * over. Called with log_mu held. */
+static void mhd_log_note(gs_http *h, double now) {
+  if (now - h->log_second < 1000) return;
+  if (h->log_dropped)
+    fprintf(stderr, "gi-server: libmicrohttpd: %lu more message(s) not logged (at most %d a second)\n",
+            h->log_dropped, GS_MHD_LOG_PER_S);
+  h->log_dropped = 0;
+  h->log_lines = 0;
+  h->log_second = now;
+}
+
+/* libmicrohttpd's messages can quote what a client sent: escaped like ours.
+ * A client can make one per connection attempt ("Server reached connection
+ * limit" for each one refused at accept): tens of thousands a second filled
+ * the log by megabytes a second. At most GS_MHD_LOG_PER_S lines a second. */
 static void mhd_log(void *cls, const char *fmt, va_list ap) {
+  gs_http *h = cls;
+  pthread_mutex_lock(&h->log_mu);
+  mhd_log_note(h, gs_now_ms());
+  int skip = h->log_lines >= GS_MHD_LOG_PER_S;
+  if (skip) h->log_dropped++;
+  else h->log_lines++;
+  pthread_mutex_unlock(&h->log_mu);
+  if (skip) return;
   char raw[512], esc[4 * sizeof raw];
   vsnprintf(raw, sizeof raw, fmt, ap);
   size_t n = strlen(raw);
@@ -1144,6 +1178,7 @@ gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
   pthread_mutex_init(&h->mu, NULL);
   pthread_cond_init(&h->stop_cv, NULL);
   pthread_mutex_init(&h->conn_mu, NULL);
+  pthread_mutex_init(&h->log_mu, NULL);
   atomic_init(&h->closing, 0);
   MHD_set_panic_func(mhd_panic, NULL);
   unsigned flags = MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG;
@@ -1159,6 +1194,7 @@ gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
     snprintf(err, errsize, "cannot listen on %s:%d (in use, or not permitted)", cfg->bind, cfg->port);
     pthread_mutex_destroy(&h->mu);
     pthread_mutex_destroy(&h->conn_mu);
+    pthread_mutex_destroy(&h->log_mu);
     pthread_cond_destroy(&h->stop_cv);
     free(h);
     return NULL;
@@ -1203,6 +1239,7 @@ void gs_http_stop(gs_http *h) {
   MHD_stop_daemon(h->d);
   pthread_mutex_destroy(&h->mu);
   pthread_mutex_destroy(&h->conn_mu);
+  pthread_mutex_destroy(&h->log_mu);
   pthread_cond_destroy(&h->stop_cv);
   free(h);
 }

@@ -750,6 +750,37 @@ static void test_overload(void **state) {
   assert_int_equal(su_stop(&S_tight), 0);
 }
 
+/* Each connection refused at accept made libmicrohttpd log a line: a client
+ * retrying in a loop wrote the log at megabytes a second. Now at most 20
+ * lines a second, then one line with the count of the rest. */
+static void test_log_flood(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "logflood", SERVER_INI("max_connections_per_ip = 2\n")), 0);
+  int held[2];
+  for (int i = 0; i < 2; i++) assert_true((held[i] = su_connect(&s, NULL)) >= 0);
+  su_sleep_ms(200);
+  for (int i = 0; i < 3000; i++) {
+    int fd = su_connect(&s, NULL);
+    if (fd >= 0) close(fd);
+  }
+  su_sleep_ms(1500); /* the count is logged once its second is over */
+  for (int i = 0; i < 2; i++) close(held[i]);
+  char path[700], line[1024];
+  snprintf(path, sizeof path, "%s/server.log", s.dir);
+  FILE *f = fopen(path, "r");
+  assert_non_null(f);
+  int limit_lines = 0, notes = 0;
+  while (fgets(line, sizeof line, f)) {
+    if (strstr(line, "connection limit")) limit_lines++;
+    if (strstr(line, "more message(s) not logged")) notes++;
+  }
+  fclose(f);
+  printf("  3000 refused connections: %d log lines, %d notes of the rest\n", limit_lines, notes);
+  assert_true(limit_lines <= 100);
+  assert_true(notes >= 1);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* A request past its deadline is a 504 with Retry-After (the deadline,
  * rounded up); nobody else waits for its bake, so the bake is cancelled
  * and never cached. */
@@ -930,6 +961,7 @@ int main(void) {
       cmocka_unit_test(test_unknown_transfer_coding),
       cmocka_unit_test(test_overload),
       cmocka_unit_test(test_deadline),
+      cmocka_unit_test(test_log_flood),
       cmocka_unit_test(test_nomem_not_cached),
       cmocka_unit_test(test_scene_version),
       cmocka_unit_test(test_canonical_knobs),
