@@ -144,7 +144,9 @@ def claim_mounts(obj):
 
 def check_bake(docs, p):
     pvc = one(docs, "PersistentVolumeClaim", lambda o: True, p, "the bake folder")
-    shard = one(docs, "Job", lambda o: "--shard" in " ".join(command_text(c) for c in containers(o)), p, "the shards")
+    # The main containers: the merge's init container runs a --shard owning no tile (for the bake hash).
+    shard = one(docs, "Job", lambda o: "--shard" in " ".join(command_text(c) for c in pod_spec(o).get("containers") or []),
+                p, "the shards")
     merge = one(docs, "Job", lambda o: "gi-bake merge" in " ".join(command_text(c) for c in containers(o)), p, "merge")
     claim = pvc["metadata"]["name"] if pvc else None
     if pvc and "ReadWriteMany" not in (pvc["spec"].get("accessModes") or []):
