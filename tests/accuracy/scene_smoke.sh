@@ -128,6 +128,16 @@ rc=$?
 [ $rc -eq 0 ] && grep -q "a 7x7 street-level grid, 2 apart, 2 above the ground (gi_probe_grid_build), 0 inside" \
     "$T/sp/accuracy.md" && pass "--spacing sets the grid's pitch" || { cat "$T/err4" >&2; fail "--spacing run ($rc)"; }
 
+# A gnuplot that fails: the report says it failed (it said "not installed").
+mkdir -p "$T/fakebin"
+printf '#!/bin/sh\nexit 1\n' > "$T/fakebin/gnuplot"
+chmod +x "$T/fakebin/gnuplot"
+PATH="$T/fakebin:$PATH" "$BIN" --scene "$T/street.obj" --up z --at 12,0,2 --above-ground 2 --spacing 2 --knobs bounces \
+    --quick --ref-samples 256 --pt-max 4 --no-workloads --repeat 1 --threads 2 --no-views --out "$T/gf" > /dev/null \
+    2> "$T/err5"
+grep -q "gnuplot failed on its script" "$T/gf/accuracy.md" && grep -q "gnuplot failed on" "$T/err5" \
+  && pass "a failing gnuplot is reported as failing" || fail "failing gnuplot: $(grep -i 'plot was not' "$T/gf/accuracy.md")"
+
 # Bad arguments: exit 2 naming the option; a missing file exits 1; nothing written.
 expect_rc() {
   want=$1 what=$2; shift 2

@@ -106,7 +106,7 @@ static int write_plot(const acc_scene_info *sc, size_t nsc, const char *csv, con
     char cmd[2200];
     snprintf(cmd, sizeof cmd, "gnuplot '%s'", gp);
     if (system(cmd) == 0) *drawn = 1;
-    else fprintf(stderr, "gi-accuracy: gnuplot failed on %s\n", gp);
+    else *drawn = -1, fprintf(stderr, "gi-accuracy: gnuplot failed on %s\n", gp);
   } else {
     fprintf(stderr, "gi-accuracy: gnuplot not installed (package gnuplot-nox): %s not drawn\n", png);
   }
@@ -236,8 +236,10 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
     fprintf(f, "\n");
   }
   write_standing(f, r, n, sc, nsc);
-  if (drawn && slash) fprintf(f, "![error against time](%s)\n\n", slash + 1);
-  else if (drawn) fprintf(f, "![error against time](%s)\n\n", png);
+  /* drawn: 1 drawn, 0 gnuplot missing, -1 gnuplot failed (it said "not installed" then too). */
+  if (drawn > 0 && slash) fprintf(f, "![error against time](%s)\n\n", slash + 1);
+  else if (drawn > 0) fprintf(f, "![error against time](%s)\n\n", png);
+  else if (drawn < 0) fprintf(f, "(The plot was not drawn: gnuplot failed on its script, accuracy.gp.)\n\n");
   else fprintf(f, "(The plot was not drawn: gnuplot is not installed.)\n\n");
   acc_write_views_md(f, views, nviews);
   if (wl) acc_write_by_light_md(f, wl->by_light, wl->n_by_light);
@@ -304,7 +306,7 @@ int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, s
   if (write_plot(sc, nsc, csv, out_dir, png_path, &drawn)) return 1;
   if (wl && wl->ran && acc_write_workloads_files(wl->w, wl->n, out_dir)) return 1;
   if (write_md(rows, n, sc, nsc, views, nviews, wl, md_path, png_path, drawn, machine, cmdline, notes)) return 1;
-  fprintf(stderr, "gi-accuracy: wrote %s, %s%s and %s\n", csv, drawn ? png_path : "", drawn ? "" : "(no plot)",
+  fprintf(stderr, "gi-accuracy: wrote %s, %s%s and %s\n", csv, drawn > 0 ? png_path : "", drawn > 0 ? "" : "(no plot)",
           md_path);
   return 0;
 }
