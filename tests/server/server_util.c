@@ -304,3 +304,13 @@ long su_read(int fd, char *buf, size_t size, int ms) {
   buf[n] = 0;
   return (long)n;
 }
+
+const char *su_raw(const su_server *s, const char *req, int ms) {
+  static char buf[8192];
+  int fd = su_connect(s, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  su_read(fd, buf, sizeof buf, ms);
+  close(fd);
+  return buf;
+}

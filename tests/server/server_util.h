@@ -65,5 +65,9 @@ int su_connect(const su_server *s, const char *src);
 /* Reads what the server sends within ms milliseconds (or until it closes)
  * into buf (NUL-terminated); returns the byte count, -1 on error. */
 long su_read(int fd, char *buf, size_t size, int ms);
+/* Sends req as it is on a new connection and returns what the server
+ * answers within ms (a static buffer of 8 KiB, overwritten by the next
+ * call; not thread-safe). */
+const char *su_raw(const su_server *s, const char *req, int ms);
 
 #endif

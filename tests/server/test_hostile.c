@@ -80,17 +80,6 @@ static int teardown(void **state) {
   return st == 0 ? 0 : -1;
 }
 
-/* Sends raw bytes and returns what the server answers within ms (static buffer). */
-static const char *raw(const su_server *s, const char *req, int ms) {
-  static char buf[8192];
-  int fd = su_connect(s, NULL);
-  assert_true(fd >= 0);
-  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
-  su_read(fd, buf, sizeof buf, ms);
-  close(fd);
-  return buf;
-}
-
 /* ---- 1. strict parsing ----------------------------------------------------- */
 
 static void test_strict_parsing(void **state) {
@@ -134,7 +123,7 @@ static void test_strict_parsing(void **state) {
 }
 
 static void test_framing_and_bearer(void **state) {
-  const char *a = raw(&S,
+  const char *a = su_raw(&S,
                       "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN
                       "\r\nContent-Length: 5\r\nContent-Length: 7\r\n\r\nhello",
                       2000);
@@ -142,14 +131,14 @@ static void test_framing_and_bearer(void **state) {
   assert_true(!strncmp(a, "HTTP/1.1 400", 12));
   assert_non_null(strstr(a, "Content-Length: the request has two different values"));
   /* RFC 7235: the scheme is case-insensitive. */
-  a = raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nauthorization: bearer " SU_TOKEN "\r\nConnection: close\r\n\r\n",
+  a = su_raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nauthorization: bearer " SU_TOKEN "\r\nConnection: close\r\n\r\n",
           2000);
   printf("  lowercase 'bearer': %.*s\n", (int)strcspn(a, "\r\n"), a);
   assert_true(!strncmp(a, "HTTP/1.1 200", 12));
-  a = raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: BEARER  " SU_TOKEN "\r\nConnection: close\r\n\r\n",
+  a = su_raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: BEARER  " SU_TOKEN "\r\nConnection: close\r\n\r\n",
           2000);
   assert_true(!strncmp(a, "HTTP/1.1 200", 12));
-  a = raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearerx" SU_TOKEN "\r\nConnection: close\r\n\r\n",
+  a = su_raw(&S, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearerx" SU_TOKEN "\r\nConnection: close\r\n\r\n",
           2000);
   assert_true(!strncmp(a, "HTTP/1.1 401", 12));
 }
@@ -180,14 +169,14 @@ static void test_log_escapes_control_chars(void **state) {
 /* ---- 3. authentication before the body ------------------------------------------ */
 
 static void test_refused_from_headers(void **state) {
-  const char *a = raw(&S,
+  const char *a = su_raw(&S,
                       "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nContent-Length: 1048576\r\n"
                       "Expect: 100-continue\r\n\r\n",
                       2000);
   printf("  no token, Expect: 100-continue: %.*s\n", (int)strcspn(a, "\r\n"), a);
   assert_true(!strncmp(a, "HTTP/1.1 401", 12));
   assert_null(strstr(a, "100 Continue"));
-  a = raw(&S,
+  a = su_raw(&S,
           "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN
           "\r\nContent-Length: 104857600\r\nExpect: 100-continue\r\n\r\n",
           2000);
@@ -196,7 +185,7 @@ static void test_refused_from_headers(void **state) {
   assert_null(strstr(a, "100 Continue"));
   assert_non_null(strstr(a, "104857600 bytes exceed the server limit of 1048576"));
   /* Without Expect: the 413 arrives though not one body byte was sent. */
-  a = raw(&S,
+  a = su_raw(&S,
           "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN
           "\r\nContent-Length: 104857600\r\n\r\n",
           2000);

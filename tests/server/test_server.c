@@ -70,18 +70,6 @@ static int teardown(void **state) {
   return st == 0 ? 0 : -1;
 }
 
-/* Sends req as it is on a new connection; what the server answers within ms
- * (static buffer). */
-static const char *raw_req(const su_server *s, const char *req, int ms) {
-  static char buf[8192];
-  int fd = su_connect(s, NULL);
-  assert_true(fd >= 0);
-  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
-  su_read(fd, buf, sizeof buf, ms);
-  close(fd);
-  return buf;
-}
-
 static void test_health_and_auth(void **state) {
   su_resp r = su_http(&S_main, NULL, "/v1/health", NULL, NULL); /* health needs no token */
   assert_int_equal(r.status, 200);
@@ -104,10 +92,10 @@ static void test_health_and_auth(void **state) {
   free(r.body);
   /* Whitespace after a field's value is not part of it (RFC 9110 5.5), but
    * libmicrohttpd keeps it: the token with a trailing space was refused. */
-  const char *a = raw_req(&S_main, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
+  const char *a = su_raw(&S_main, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
                           " \t \r\nConnection: close\r\n\r\n", 2000);
   assert_true(!strncmp(a, "HTTP/1.1 200", 12));
-  a = raw_req(&S_main, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
+  a = su_raw(&S_main, "GET /v1/scenes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
               "x \r\nConnection: close\r\n\r\n", 2000);
   assert_true(!strncmp(a, "HTTP/1.1 401", 12));
 }
@@ -295,7 +283,7 @@ static void test_cell_urls(void **state) {
   snprintf(two, sizeof two, "GET %s HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
            "\r\nIf-None-Match: W/\"0000000000000000\"\r\nIf-None-Match: %s\r\nConnection: close\r\n\r\n",
            loc, etag);
-  assert_true(!strncmp(raw_req(&S_main, two, 5000), "HTTP/1.1 304", 12));
+  assert_true(!strncmp(su_raw(&S_main, two, 5000), "HTTP/1.1 304", 12));
   /* Another cell, another quality or another kind: another ETag. */
   char other[1100];
   snprintf(other, sizeof other, "%s&half=1", loc);
@@ -672,7 +660,7 @@ static void test_unknown_transfer_coding(void **state) {
   };
   for (size_t i = 0; i < sizeof reqs / sizeof reqs[0]; i++) {
     double t0 = su_now_ms();
-    const char *buf = raw_req(&S_main, reqs[i], 2000);
+    const char *buf = su_raw(&S_main, reqs[i], 2000);
     printf("  request %zu: %.*s in %.0f ms\n", i, (int)strcspn(buf, "\r\n"), buf, su_now_ms() - t0);
     assert_true(!strncmp(buf, "HTTP/1.1 501", 12));
     assert_non_null(strstr(buf, "\"name\":\"not_implemented\""));
@@ -680,7 +668,7 @@ static void test_unknown_transfer_coding(void **state) {
   /* "chunked" itself is decoded as before: the body reaches the JSON parser. */
   const char *ok = "POST /v1/scenes/city/probes HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN
                    "\r\nTransfer-Encoding: Chunked\r\nConnection: close\r\n\r\n8\r\nnot json\r\n0\r\n\r\n";
-  const char *buf = raw_req(&S_main, ok, 2000);
+  const char *buf = su_raw(&S_main, ok, 2000);
   assert_true(!strncmp(buf, "HTTP/1.1 400", 12));
   assert_non_null(strstr(buf, "line 1"));
 }
