@@ -308,3 +308,18 @@ const char *ta_version(void) {
 #endif
   return GI_VERSION " (" GI_GIT_REV ")";
 }
+
+uint64_t ta_fnv(uint64_t h, const void *p, size_t n) {
+  const unsigned char *b = p;
+  for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 1099511628211ull;
+  return h;
+}
+
+uint64_t ta_fnv_file(uint64_t h, const char *path) {
+  FILE *f = fopen(path, "rb");
+  char buf[1 << 16];
+  size_t k;
+  while (f && (k = fread(buf, 1, sizeof buf, f)) > 0) h = ta_fnv(h, buf, k);
+  if (f) fclose(f);
+  return h;
+}

@@ -133,5 +133,11 @@ int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, dou
 
 /* "VERSION (GIT_REV)" of this build. */
 const char *ta_version(void);
+/* FNV-1a (64 bits) of n bytes at p, continuing from h: the tools' cache
+ * keys and bake hashes. */
+uint64_t ta_fnv(uint64_t h, const void *p, size_t n);
+/* ta_fnv over the bytes of the file at path (h unchanged when it cannot
+ * be read: the caller has read it already or will fail on it). */
+uint64_t ta_fnv_file(uint64_t h, const char *path);
 
 #endif

@@ -8,20 +8,15 @@
 #include <string.h>
 #include <unistd.h>
 #include "acc.h"
-
-uint64_t acc_fnv(uint64_t h, const void *p, size_t n) {
-  const unsigned char *b = p;
-  for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * 1099511628211ull;
-  return h;
-}
+#include "toolargs.h"
 
 static uint64_t scene_version; /* see acc_cache_key */
 
 void acc_cache_scene_version(uint64_t v) { scene_version = v; }
 
 uint64_t acc_cache_key(const char *name) {
-  uint64_t h = acc_fnv(1469598103934665603ull, name, strlen(name));
-  return scene_version ? acc_fnv(h, &scene_version, sizeof scene_version) : h;
+  uint64_t h = ta_fnv(1469598103934665603ull, name, strlen(name));
+  return scene_version ? ta_fnv(h, &scene_version, sizeof scene_version) : h;
 }
 
 int acc_cache_read(const char *path, void *a, size_t na, void *b, size_t nb) {
@@ -46,12 +41,12 @@ void acc_cache_write(const char *path, const void *a, size_t na, const void *b, 
 int acc_ref_cached(const char *name, const acc_scene_set *ss, int lights, int threads, const char *out_dir,
                    int ref_version, gi_ref_probe *ref, double *ms) {
   uint64_t h = acc_cache_key(name);
-  h = acc_fnv(h, ss->pts, ss->n * 3 * sizeof(double));
-  h = acc_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
-  h = acc_fnv(h, &ref_version, sizeof ref_version);
+  h = ta_fnv(h, ss->pts, ss->n * 3 * sizeof(double));
+  h = ta_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
+  h = ta_fnv(h, &ref_version, sizeof ref_version);
   char path[1100], what[48] = "";
   if (lights) { /* every light: the key (and file) the cache had before light kinds */
-    h = acc_fnv(h, &lights, sizeof lights);
+    h = ta_fnv(h, &lights, sizeof lights);
     snprintf(what, sizeof what, "-lights%x", (unsigned)lights);
   }
   snprintf(path, sizeof path, "%s/ref-%s%s-%016llx.bin", out_dir, name, what, (unsigned long long)h);

@@ -211,26 +211,21 @@ static int placeable(const acc_scene_set *ss, const double p[3], const char *wha
  * lights (an edited .mtl beside an OBJ). The cache was keyed by the file's
  * base name alone: an edited scene read its former references. */
 static uint64_t scene_version(const char *path, const struct gi_scene *s) {
-  uint64_t h = acc_fnv(1469598103934665603ull, "scene-file", 10);
-  FILE *fp = fopen(path, "rb");
-  char buf[1 << 16];
-  size_t k;
-  while (fp && (k = fread(buf, 1, sizeof buf, fp)) > 0) h = acc_fnv(h, buf, k);
-  if (fp) fclose(fp);
+  uint64_t h = ta_fnv_file(ta_fnv(1469598103934665603ull, "scene-file", 10), path);
   gi_scene_stats st;
   gi_scene_get_stats(s, &st);
-  h = acc_fnv(h, &st.triangles, sizeof st.triangles);
+  h = ta_fnv(h, &st.triangles, sizeof st.triangles);
   for (size_t i = 0; i < gi_scene_num_materials(s); i++) {
     const gi_material *m = gi_scene_material(s, i);
     float v[8] = {m->albedo[0], m->albedo[1], m->albedo[2], m->emission[0], m->emission[1], m->emission[2],
                   m->roughness, m->specular};
-    h = acc_fnv(h, v, sizeof v);
+    h = ta_fnv(h, v, sizeof v);
   }
   for (size_t i = 0; i < gi_scene_num_lights(s); i++) {
     const gi_light *l = gi_scene_light(s, i);
     double v[12] = {l->type, l->color[0], l->color[1], l->color[2], l->position[0], l->position[1], l->position[2],
                     l->direction[0], l->direction[1], l->direction[2], l->cos_inner, l->cos_outer};
-    h = acc_fnv(h, v, sizeof v);
+    h = ta_fnv(h, v, sizeof v);
   }
   return h ? h : 1; /* 0 means a built-in scene */
 }

@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "acc.h"
+#include "toolargs.h"
 #include "gi/gi.h"
 
 static float lum(const float *c) { return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2]; }
@@ -101,10 +102,10 @@ static int reference_halves(const char *name, const gi_scene *s, const img_src *
                             const char *out_dir, int ref_version, float *A, float *B, double *ms) {
   size_t nf = (size_t)src->w * src->h * 3;
   uint64_t h = acc_cache_key(name);
-  if (src->cam) h = acc_fnv(h, src->cam, sizeof *src->cam);
-  else h = acc_fnv(acc_fnv(acc_fnv(h, "pano", 4), src->at, sizeof src->at), &src->w, 2 * sizeof src->w);
-  h = acc_fnv(h, &spp, sizeof spp);
-  h = acc_fnv(h, &ref_version, sizeof ref_version);
+  if (src->cam) h = ta_fnv(h, src->cam, sizeof *src->cam);
+  else h = ta_fnv(ta_fnv(ta_fnv(h, "pano", 4), src->at, sizeof src->at), &src->w, 2 * sizeof src->w);
+  h = ta_fnv(h, &spp, sizeof spp);
+  h = ta_fnv(h, &ref_version, sizeof ref_version);
   const char *kind = src->cam ? "view" : "pano";
   char path[1024];
   snprintf(path, sizeof path, "%s/%s-%s-%016llx.bin", out_dir, kind, name, (unsigned long long)h);

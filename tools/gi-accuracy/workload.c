@@ -21,6 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "acc.h"
+#include "toolargs.h"
 #include "gi/gi.h"
 
 /* Probe counts of the probe workloads, and the subset the error is measured on. */
@@ -99,9 +100,9 @@ static int subset_reference(const acc_wl_opts *o, const char *name, const acc_sc
                             size_t m, gi_ref_probe *ref) {
   int ver = o->ref_version;
   uint64_t h = acc_cache_key(name);
-  h = acc_fnv(h, pts, m * 3 * sizeof *pts);
-  h = acc_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
-  h = acc_fnv(h, &ver, sizeof ver);
+  h = ta_fnv(h, pts, m * 3 * sizeof *pts);
+  h = ta_fnv(h, &ss->ref_samples, sizeof ss->ref_samples);
+  h = ta_fnv(h, &ver, sizeof ver);
   char path[1024];
   snprintf(path, sizeof path, "%s/wlref-%s-%016llx.bin", o->out_dir, name, (unsigned long long)h);
   if (acc_cache_read(path, ref, m * sizeof *ref, NULL, 0)) {

@@ -17,11 +17,7 @@
 const char *const batch_attr_names[HDR_COUNT] = {"gi.kind", "gi.scene",     "gi.version", "gi.quality", "gi.effects",
                                                  "gi.grid", "gi.bake_hash", "gi.sh",      "gi.shard"};
 
-uint64_t batch_fnv(const void *data, size_t len, uint64_t h) {
-  const unsigned char *p = data;
-  for (size_t i = 0; i < len; i++) h = (h ^ p[i]) * 1099511628211ull;
-  return h;
-}
+uint64_t batch_fnv(const void *data, size_t len, uint64_t h) { return ta_fnv(h, data, len); }
 
 void layout_tiles(batch_layout *L) {
   L->tiles = 1;

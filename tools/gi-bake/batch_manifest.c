@@ -42,19 +42,6 @@ static void effects_text(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size
   }
 }
 
-/* The scene file's bytes (its geometry: an edit that keeps the triangle
- * count and the grid's points kept the hash, and --resume reused tiles
- * baked from the old file). The city has no file: its options are the
- * name and counts. */
-static uint64_t hash_file(const char *path, uint64_t h) {
-  FILE *f = fopen(path, "rb");
-  char buf[1 << 16];
-  size_t k;
-  while (f && (k = fread(buf, 1, sizeof buf, f)) > 0) h = batch_fnv(buf, k, h);
-  if (f) fclose(f);
-  return h;
-}
-
 /* Scene name, size, materials and lights, as text for the hash. The
  * materials: an edited .mtl (a wall's colour) changes every answer but
  * not the name or counts, and resumed tiles of the old colour were kept. */
@@ -100,7 +87,11 @@ int batch_identify(batch_state *st) {
   uint64_t h = BATCH_FNV_BASIS;
   for (size_t i = 0; i < sizeof texts / sizeof texts[0]; i++) h = batch_fnv(texts[i], strlen(texts[i]) + 1, h);
   h = hash_scene(st->scene, h);
-  if (!st->o->is_city) h = hash_file(st->o->scene, h);
+  /* The scene file's bytes (its geometry: an edit that keeps the triangle
+   * count and the grid's points kept the hash, and --resume reused tiles
+   * baked from the old file). The city has no file: its options are the
+   * name and counts. */
+  if (!st->o->is_city) h = ta_fnv_file(h, st->o->scene);
   h = batch_fnv(st->grid.pos, st->grid.n * 3 * sizeof(float), h);
   h = batch_fnv(st->grid.state, st->grid.n, h);
   snprintf(st->hash, sizeof st->hash, "%016llx", (unsigned long long)h);
