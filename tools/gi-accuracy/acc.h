@@ -53,11 +53,10 @@ typedef struct acc_scene_set {
  * ss->clearance of room around them, at most keep, in their order. Returns 1 when at least one is kept. */
 int acc_keep_lit(acc_scene_set *ss, const double *cand, size_t nc, size_t keep, int threads);
 
-/* cache.c: FNV-1a over bytes (the cache files' names), and the cache
- * files themselves: read exactly na (+ nb when b is not NULL) bytes, 1 on
- * success; write through a temporary name renamed into place (a failure
- * is printed, the run goes on without the cache). */
-uint64_t acc_fnv(uint64_t h, const void *p, size_t n);
+/* cache.c: the cache files' names (keys hashed with toolargs' ta_fnv),
+ * and the cache files themselves: read exactly na (+ nb when b is not
+ * NULL) bytes, 1 on success; write through a temporary name renamed into
+ * place (a failure is printed, the run goes on without the cache). */
 /* The start of every reference cache key: the scene's name, and for a
  * --scene FILE run what was loaded (acc_cache_scene_version), so an edited
  * file never reuses the references of its former self. */
