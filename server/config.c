@@ -256,15 +256,22 @@ static int valid_id(const char *id) {
   return 1;
 }
 
+/* The line where [section] key was set, else 0. */
+static int line_of(const load_ctx *x, const char *section, const char *key) {
+  for (size_t i = 0; i < x->num_seen; i++)
+    if (!strcmp(x->seen[i].sec, section) && !strcmp(x->seen[i].key, key)) return x->seen[i].line;
+  return 0;
+}
+
 /* A key given twice in a section (or in a repeated [server] or [limits]) is
  * refused: the last value silently won. inih also hands an indented line
  * to the key above it as a second value, so "workers = 2" then "  8" on the
  * next line would have set 8. Called once the value was accepted. */
 static int once(load_ctx *x, const char *section, const char *name) {
-  for (size_t i = 0; i < x->num_seen; i++)
-    if (!strcmp(x->seen[i].sec, section) && !strcmp(x->seen[i].key, name))
-      return fail(x, section, name, "given twice (first on line %d; an indented line continues the key above it)",
-                  x->seen[i].line);
+  int first = line_of(x, section, name);
+  if (first)
+    return fail(x, section, name, "given twice (first on line %d; an indented line continues the key above it)",
+                first);
   struct seen_key *ns = realloc(x->seen, (x->num_seen + 1) * sizeof *ns);
   if (!ns) return fail(x, section, name, "out of memory");
   x->seen = ns;
@@ -389,13 +396,6 @@ static int read_token(load_ctx *x, const char *path) {
     return -1;
   }
   snprintf(x->c->token, sizeof x->c->token, "%s", buf);
-  return 0;
-}
-
-/* The line where [section] key was set, else 0. */
-static int line_of(const load_ctx *x, const char *section, const char *key) {
-  for (size_t i = 0; i < x->num_seen; i++)
-    if (!strcmp(x->seen[i].sec, section) && !strcmp(x->seen[i].key, key)) return x->seen[i].line;
   return 0;
 }
 

@@ -129,22 +129,8 @@ static void retire(gs_jobs *j) {
  * answer uses (the points were checked to lie within its reach); else the
  * server's tiles around the points. 0, or -1 out of memory. */
 static int job_tiles(const job *jb, gs_tile **out, size_t *nt) {
-  size_t n = jb->p.num_points;
-  if (!jb->p.bake.has_at) return gs_tiles_make(jb->scene, &jb->q, jb->p.points, n, out, nt) == 0 && *out ? 0 : -1;
-  gs_tile *t = malloc(sizeof *t);
-  size_t *idx = malloc(n * sizeof *idx); /* gs_tiles_free frees t[0].idx and t */
-  if (!t || !idx) {
-    free(t);
-    free(idx);
-    return -1;
-  }
-  for (size_t i = 0; i < n; i++) idx[i] = i;
-  memcpy(t->at, jb->p.bake.at, sizeof t->at);
-  t->idx = idx;
-  t->n = n;
-  *out = t;
-  *nt = 1;
-  return 0;
+  if (jb->p.bake.has_at) return gs_tile_around(jb->p.bake.at, jb->p.num_points, out, nt);
+  return gs_tiles_make(jb->scene, &jb->q, jb->p.points, jb->p.num_points, out, nt) == 0 && *out ? 0 : -1;
 }
 
 static void run_job(gs_jobs *j, job *jb) {

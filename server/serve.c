@@ -337,6 +337,21 @@ void gs_tiles_free(gs_tile *t, size_t n) {
   free(t);
 }
 
+int gs_tile_around(const double at[3], size_t n, gs_tile **out, size_t *num_tiles) {
+  gs_tile *t = malloc(sizeof *t);
+  size_t *idx = malloc((n ? n : 1) * sizeof *idx);
+  *out = NULL, *num_tiles = 0;
+  if (!t || !idx) {
+    free(t), free(idx);
+    return -1;
+  }
+  for (size_t i = 0; i < n; i++) idx[i] = i;
+  memcpy(t->at, at, sizeof t->at);
+  t->idx = idx, t->n = n;
+  *out = t, *num_tiles = 1;
+  return 0;
+}
+
 /* A job's bakes wait for room in the budget (interactive bakes finish in
  * seconds) rather than fail at the first busy moment; a cancelled job (or
  * one past its deadline) stops waiting at once, not after the whole wait. */
@@ -451,39 +466,26 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     gi_proto_probes_free(p);
     return gs_answer_core_error(a, rc, &e);
   }
-  gs_tile *tiles = NULL, one;
+  gs_tile *tiles = NULL;
   size_t nt = 0;
   int far = 0;
-  size_t *all = NULL;
   gi_proto_error pe;
   if (p->bake.has_at && beyond_reach(p, &q, &pe)) {
     gs_answer_error(a, &pe);
     gi_proto_probes_free(p);
     return;
   }
-  if (p->bake.has_at) {
-    /* The client chose one cascade for all points. */
-    all = malloc(p->num_points * sizeof *all);
-    if (all)
-      for (size_t i = 0; i < p->num_points; i++) all[i] = i;
-    memcpy(one.at, p->bake.at, sizeof one.at);
-    one.idx = all;
-    one.n = p->num_points;
-    nt = 1;
-  } else if ((far = gs_tiles_make(s, &q, p->points, p->num_points, &tiles, &nt) == -2) || !tiles) {
-    nt = 0;
-  }
-  if (nt == 0 || (p->bake.has_at && !all)) {
+  if (p->bake.has_at) gs_tile_around(p->bake.at, p->num_points, &tiles, &nt); /* the client chose one cascade */
+  else if ((far = gs_tiles_make(s, &q, p->points, p->num_points, &tiles, &nt) == -2) || !tiles) nt = 0;
+  if (nt == 0) {
     if (far) gi_proto_fail(&pe, 400, "body: points: a point is too far from the scene for voxels of %g", q.voxel0);
     else gi_proto_fail(&pe, 503, "probes: out of memory for %zu points", p->num_points);
     gs_answer_error(a, &pe);
-    free(all);
     gi_proto_probes_free(p);
     return;
   }
   if (p->num_points > svc->cfg->lim.max_probes_inline || nt > (size_t)svc->cfg->max_tiles_inline) {
     /* Too much for one answer: a job, polled at /v1/jobs/{id}. */
-    free(all);
     gs_tiles_free(tiles, nt);
     char id[40];
     gi_proto_error pe;
@@ -518,7 +520,7 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     rc = GI_ERR_NOMEM;
     snprintf(e.msg, sizeof e.msg, "probes: out of memory");
   } else {
-    rc = gs_gather_tiles(svc, s, &req, &q, p->points, tiles ? tiles : &one, nt, 1, w, cancel, pr, &rep, &ms, &how,
+    rc = gs_gather_tiles(svc, s, &req, &q, p->points, tiles, nt, 1, w, cancel, pr, &rep, &ms, &how,
                          NULL, NULL, &e);
   }
   if (rc == GI_OK) {
@@ -528,7 +530,7 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", cache_names[how]}, {"gi.tiles", ntiles}};
     gs_tmp_path(svc, ".exr", path, sizeof path);
     double t0 = gs_now_ms();
-    const double *vp = p->bake.has_at ? p->bake.at : (tiles ? tiles[0].at : p->points);
+    const double *vp = tiles[0].at; /* 'at' itself when given */
     rc = gi_probes_write_exr_ex(path, pr, p->num_points, s->scene, vp, &rep, p->bake.half, extra, 3, &e);
     ms.encode = gs_now_ms() - t0;
     if (rc == GI_OK && (rc = take_file(a, path, "image/x-exr", &e)) == GI_OK)
@@ -536,7 +538,6 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
   }
   if (rc != GI_OK) gs_answer_core_error(a, rc, &e);
   free(pr);
-  free(all);
   gs_tiles_free(tiles, nt);
   gi_proto_probes_free(p);
 }

@@ -362,6 +362,9 @@ typedef struct gs_tile {
 int gs_tiles_make(const gs_scene *s, const gi_quality *resolved, const double *pts, size_t n, gs_tile **out,
                   size_t *num_tiles);
 void gs_tiles_free(gs_tile *t, size_t n);
+/* The one tile around at holding all n points (a request's 'at': the client
+ * chose one cascade for them), for gs_tiles_free; 0, or -1 out of memory. */
+int gs_tile_around(const double at[3], size_t n, gs_tile **out, size_t *num_tiles);
 /* Gathers the points of every tile into probes; progress callback per
  * tile, which returns nonzero to stop before the next tile (GI_ERR_LIMIT,
  * its message in err).

@@ -13,7 +13,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include "batch.h"
 #include "batch_internal.h"
 
@@ -78,15 +77,8 @@ static int parse_merge(int argc, char **argv, merge_opts *m) {
   m->num_inputs = argc - optind;
   /* An output on a shard would replace that shard with the merged file (no
    * gi.shard), so the same merge could never run again. */
-  const char *outs[2][2] = {{"--exr", m->exr}, {"--vdb", m->vdb}};
-  for (int o = 0; o < 2; o++) {
-    struct stat so, si;
-    if (!outs[o][1] || stat(outs[o][1], &so) != 0) continue;
-    for (int k = 0; k < m->num_inputs; k++)
-      if (stat(m->inputs[k], &si) == 0 && si.st_dev == so.st_dev && si.st_ino == so.st_ino)
-        return ta_fail(&ta, outs[o][0], "'%s' is also the shard input '%s'; write the merge elsewhere", outs[o][1],
-                       m->inputs[k]);
-  }
+  for (int k = 0; k < m->num_inputs; k++)
+    if ((rc = ta_check_outputs_spare(&ta, "shard input", m->inputs[k]))) return rc;
   return 0;
 }
 
