@@ -59,6 +59,11 @@ expect_usage --voxel city --voxel 1e38
 expect_usage --bogus city --bogus
 expect_usage SCENE
 expect_usage --city-extent "$T/x.obj" --city-extent 100
+# A value given twice: the second silently replaced the first (here a bake
+# at res 32 where 16 was asked too; --exr wrote one file of two).
+expect_usage "--res: given twice" city --res 16 --res 32
+expect_usage "--exr: given twice" city --exr "$T/a.exr" --exr "$T/b.exr"
+expect_usage "--effect: 'sun' given twice" city --effect sun=off --effect sun=on
 
 printf '1 2 3\n# comment\n4 5 x\n' > "$T/pts.txt"
 expect_usage "pts.txt:3" city --probes "$T/pts.txt"

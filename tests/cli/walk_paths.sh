@@ -84,6 +84,9 @@ awk '$1 == "v" { print "v", $2, $4, $3; next } { print }' "$T/block.obj" > "$T/b
 "$WALK" bench --path "$T/through.csv" --scene "$T/block-z.obj" --samples 1 --out "$T/pz" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && grep -q "note: $T/block-z.obj is flat along z but read with y up (the default): .* pass --up z" "$T/err" \
   && pass "--scene that looks z-up without --up: noted" || fail "z-up note (rc $rc): $(cat "$T/err")"
+"$WALK" bench --path "$T/through.csv" --path "$T/bad.csv" --out "$T/pb" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q -F "gi-walk: --path: given twice (it takes one value)" "$T/err" \
+  && pass "--path twice -> 2" || fail "--path twice (rc $rc): $(cat "$T/err")"
 printf '0,1,2,3\n0.1,1,2\n' > "$T/bad.csv"
 "$WALK" bench --extent 300 --path "$T/bad.csv" --out "$T/pb" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 2 ] && grep -q -F "gi-walk: --path: $T/bad.csv:2: expected t,x,y,z (four finite numbers), got '0.1,1,2'" "$T/err" \

@@ -185,6 +185,22 @@ int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_op
   return ta_fail(c, NULL, "unknown option '%s'", argv[optind - 1]);
 }
 
+int ta_once(ta_ctx *c, const struct option *long_opts, int val, const int *repeatable, unsigned char *seen) {
+  for (const int *r = repeatable; r && *r; r++)
+    if (*r == val) return 0;
+  for (int i = 0; long_opts[i].name; i++) {
+    if (long_opts[i].val != val || long_opts[i].has_arg == no_argument) continue;
+    if (seen[i]) {
+      char opt[64];
+      snprintf(opt, sizeof opt, "--%s", long_opts[i].name);
+      return ta_fail(c, opt, "given twice (it takes one value)");
+    }
+    seen[i] = 1;
+    return 0;
+  }
+  return 0;
+}
+
 int ta_mkdirs(ta_ctx *c, const char *opt, const char *path) {
   char *b = strdup(path);
   if (!b) return ta_error(c, TA_EXIT_RUN, opt, "out of memory");

@@ -82,6 +82,15 @@ int ta_triple(ta_ctx *c, const char *opt, const char *s, double out[3]);
  * "option '--at' needs a value", "unknown option '-x'". Returns TA_EXIT_USAGE. */
 int ta_getopt_fail(ta_ctx *c, int ret, char **argv, const struct option *long_opts);
 
+/* A long option that takes a value, given a second time: the second value
+ * would silently replace the first ('--exr a.exr --exr b.exr' wrote b.exr
+ * only). Call with each option getopt_long returns; `repeatable` lists the
+ * vals that may repeat (lights, effects), ended by 0; `seen` has one byte
+ * per entry of long_opts, zeroed by the caller. Returns 0, or
+ * TA_EXIT_USAGE after "--NAME: given twice (it takes one value)". Flags
+ * without a value may repeat: a second --json changes nothing. */
+int ta_once(ta_ctx *c, const struct option *long_opts, int val, const int *repeatable, unsigned char *seen);
+
 /* outpath.c: an output file the user named, checked before slow work: its
  * folder must exist and be writable, and it must not be a folder. *path
  * becomes the path to give the writers (which write "<path>.tmp.<pid>"

@@ -285,6 +285,9 @@ static int parse_effect(cli_opts *o, const char *arg) {
   if (id < 0)
     return ta_fail(&ta, "--effect", "unknown effect '%s' (sun, local_lights, sky, emissive, bounce, specular, ao)",
                    name);
+  /* Repeatable for different effects; the same one twice silently took the last. */
+  if (o->effect_given[id]) return ta_fail(&ta, "--effect", "'%s' given twice", name);
+  o->effect_given[id] = 1;
   if (!strcmp(eq + 1, "on")) o->q.effects[id] = GI_FX_ON;
   else if (!strcmp(eq + 1, "off")) o->q.effects[id] = GI_FX_OFF;
   else if (!strcmp(eq + 1, "auto")) o->q.effects[id] = GI_FX_AUTO;
@@ -459,8 +462,12 @@ int cli_parse(int argc, char **argv, cli_opts *o) {
   memset(o, 0, sizeof *o);
   opterr = 0; /* our messages, with our program name */
   int c, rc;
+  /* Lights and effects repeat; every other value is given at most once. */
+  static const int repeatable[] = {OPT_SUN, OPT_SKY, OPT_POINT, OPT_SPOT, OPT_EFFECT, 0};
+  unsigned char given[sizeof long_opts / sizeof long_opts[0]] = {0};
   while ((c = getopt_long(argc, argv, ":hV", long_opts, NULL)) != -1)
-    if ((rc = apply_option(o, c, optarg, argv))) return rc;
+    if ((rc = ta_once(&ta, long_opts, c, repeatable, given)) || (rc = apply_option(o, c, optarg, argv)))
+      return rc;
   if ((rc = take_scene(argc, argv, o))) return rc;
   return check_combinations(o);
 }

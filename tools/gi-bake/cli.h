@@ -35,6 +35,7 @@ typedef struct cli_opts {
   size_t num_lights;
   gi_city_params city;
   int city_opts_given;      /* a --city-* option was used */
+  unsigned char effect_given[GI_FX_COUNT]; /* --effect NAME=... seen for that NAME */
   int render, cam_up_from_scene, render_spp, render_stride;
   gi_camera cam;            /* --render */
   const char *png;

@@ -467,8 +467,12 @@ int gc_parse(int argc, char **argv, gc_opts *o) {
   opterr = 0; /* our messages, with our program name */
   pending p = {0};
   int c, rc, ci = -1;
+  /* --set repeats (one key each); every other value is given at most once. */
+  static const int repeatable[] = {OPT_SET, 0};
+  unsigned char given[sizeof long_opts / sizeof long_opts[0]] = {0};
   while ((c = getopt_long(argc, argv, ":o:qhV", long_opts, NULL)) != -1)
-    if ((rc = apply_option(o, &p, c, optarg, argv))) return rc;
+    if ((rc = ta_once(&ta, long_opts, c, repeatable, given)) || (rc = apply_option(o, &p, c, optarg, argv)))
+      return rc;
   if ((rc = take_command(argc, argv, o, &ci))) return rc;
   if ((rc = check_command_options(o, ci, p.given))) return rc;
   if (p.token && p.token_file) return ta_fail(&ta, "--token-file", "give --token or --token-file, not both");

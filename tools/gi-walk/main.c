@@ -222,9 +222,12 @@ int main(int argc, char **argv) {
                 .t = {.moves = DEFAULT_MOVES, .vdb_max_voxels = DEFAULT_VDB_MAX}};
   int ch;
   optind = 2;
+  unsigned char given[sizeof LONG_OPTS / sizeof LONG_OPTS[0]] = {0};
   while ((ch = getopt_long(argc, argv, ":", LONG_OPTS, NULL)) != -1) {
     if (ch == ':' || ch == '?') return ta_getopt_fail(&ctx, ch, argv, LONG_OPTS);
-    int r = parse_one(&ctx, ch, optarg, &a);
+    /* Each value once: a second --out silently replaced the first. */
+    int r = ta_once(&ctx, LONG_OPTS, ch, NULL, given);
+    if (!r) r = parse_one(&ctx, ch, optarg, &a);
     if (r) return r;
   }
   if (optind < argc) return ta_fail(&ctx, NULL, "unexpected argument '%s'", argv[optind]);
