@@ -206,13 +206,14 @@ static int start_service(gs_service *svc, const gs_config *cfg, const gs_catalog
   return 0;
 }
 
-/* The "listening" line and a curl command that works against this server. */
+/* The "listening" line and a curl command that works against this server
+ * (-L: the viewpoint URL answers 307 to its cell, whose body is the EXR). */
 static void announce(const gs_config *cfg, const gs_catalog *cat, int bound) {
   const gs_scene *first = &cat->scenes[0];
   printf("gi-server %s listening on http://%s:%d (%zu scene(s), %d workers, queue %d, cache %zu MiB%s)\n",
          GI_VERSION, cfg->bind, bound, cat->num, cfg->workers, cfg->queue, cfg->cache_bytes >> 20,
          cfg->token[0] ? ", bearer token required" : "");
-  printf("try: curl -o %s-probe.exr 'http://%s:%d/v1/scenes/%s/lighting?at=%.6g,%.6g,%.6g'%s\n", first->id,
+  printf("try: curl -L -o %s-probe.exr 'http://%s:%d/v1/scenes/%s/lighting?at=%.6g,%.6g,%.6g'%s\n", first->id,
          cfg->bind, bound, first->id, first->default_at[0], first->default_at[1], first->default_at[2],
          cfg->token[0] ? " -H \"Authorization: Bearer $TOKEN\"" : "");
   fflush(stdout);
