@@ -175,7 +175,7 @@ static const char help_text[] =
     "  gi-client lighting city --at 10,1.7,-4 --kind panorama --set width=512 \\\n"
     "            --set height=256 -o pano.exr\n"
     "  gi-client cascades city --at 10,1.7,-4 --set levels=4 -o city.vdb\n"
-    "  GI_TOKEN=s3cret gi-client probes city --points pts.txt -o probes.exr\n";
+    "  GI_TOKEN=s3cret-token-0123456 gi-client probes city --points pts.txt -o probes.exr\n";
 
 static ta_ctx ta = TA_CTX("gi-client");
 
