@@ -17,6 +17,23 @@ BOXQ2=$(echo "$BOXQ" | sed 's/--bounces 1/--bounces 2/')
 grep -q 'progress tile=7 done=8/8 probes=729/729 ' "$T/err" && pass "one progress line per tile" \
   || fail "progress lines: $(grep progress "$T/err" | tail -2)"
 
+# Automatic bounces and the default aperture: the manifest and the EXR's
+# gi.quality say what the bake ran (the plan's count, the cones' matched
+# aperture), not gi_quality_resolve's placeholders (bounces=2, aperture 0).
+AUTOQ=$(echo "$BOXQ" | sed 's/--bounces 1 //')
+"$BIN" "$T/box.obj" $AUTOQ --manifest "$T/auto.json" > /dev/null 2> "$T/auto.err" \
+  || { cat "$T/auto.err" >&2; fail "grid bake with automatic bounces failed"; }
+python3 - "$T/auto.json" <<'PY' && pass "manifest quality: the plan's bounces, the cones' aperture" \
+  || fail "manifest quality with automatic bounces: $(cat "$T/auto.json")"
+import json, re, sys
+m = json.load(open(sys.argv[1]))
+why = m["effects"]["bounce"]["why"]
+planned = int(re.match(r"(\d+) bounce", why).group(1))
+q = m["quality"]
+assert q["bounces"] == planned, (q["bounces"], why)
+assert "bounces=%d " % planned in q["text"] and "aperture_deg=0 " not in q["text"], q["text"]
+PY
+
 # Three shards, merged in a shuffled order.
 for i in 0 1 2; do
   "$BIN" "$T/box.obj" $BOXQ --shard $i/3 --exr "$T/s$i.exr" > /dev/null 2> "$T/s$i.err" \

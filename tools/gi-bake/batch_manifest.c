@@ -8,6 +8,7 @@
  * the manifest, never into the EXR or VDB. */
 #define _POSIX_C_SOURCE 200809L
 #include <jansson.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/resource.h>
@@ -72,11 +73,18 @@ int batch_identify(batch_state *st) {
   double centre[3];
   for (int a = 0; a < 3; a++) centre[a] = st->L.origin[a] + 0.5 * (st->L.counts[a] - 1) * st->L.spacing;
   gi_error_info err = {0};
-  gi_result r = gi_effect_plan(st->scene, centre, &st->q, st->plan, NULL, &err);
+  gi_quality planned;
+  gi_result r = gi_effect_plan(st->scene, centre, &st->q, st->plan, &planned, &err);
   if (r != GI_OK) {
     fprintf(stderr, "gi-bake: effect plan: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
     return EXIT_RUN;
   }
+  /* Record what the bake runs, not gi_quality_resolve's placeholders: the
+   * plan's bounce count (automatic bounces resolve to 2) and the cones'
+   * matched aperture (resolve leaves 0), as a single bake reports them. */
+  st->resolved.bounces = planned.bounces;
+  if (!(st->resolved.aperture_deg > 0))
+    st->resolved.aperture_deg = (float)(2.0 * acos(1.0 - 1.0 / st->resolved.cones) * 180.0 / 3.14159265358979);
   quality_text(&st->resolved, st->quality, sizeof st->quality);
   effects_text(st->plan, st->effects, sizeof st->effects);
   layout_text(&st->L, st->grid_text, sizeof st->grid_text);
