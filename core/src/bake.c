@@ -23,18 +23,20 @@ gi_result gi_cascade_anchor(const gi_scene *s, const double at[3], const gi_qual
   if (!(resolved->voxel0 > 0) || !isfinite(resolved->voxel0))
     return gi__fail(err, GI_ERR_INVALID_ARG, "anchor: resolved->voxel0 is %g, not a resolved voxel size",
                     resolved->voxel0);
+  if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
+    return gi__fail(err, GI_ERR_NONFINITE, "anchor: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
+  /* A viewpoint the bake and a move refuse has no placement. A finite one
+   * past float range (1e39) was called "not finite", and one past 1e9 got
+   * an anchor that no bake could have: gi-walk replayed a path up to such
+   * a point and only its move failed. */
+  gi_result rc = gi__viewpoint_range(s, at, resolved->voxel0, "anchor", err);
+  if (rc != GI_OK) return rc;
   for (int a = 0; a < 3; a++) {
     /* The same float rounding and snapping as gi_cascade_bake and
      * gi__cascade_place: level 0's window starts at 2 floor(at / 2 s0) - R/2
      * and every coarser level follows from it, so equal anchors mean equal
      * cascades. */
     float al = (float)(at[a] - s->origin[a]);
-    if (!isfinite(at[a]) || !isfinite(al))
-      return gi__fail(err, GI_ERR_NONFINITE, "anchor: viewpoint is not finite");
-    if (!gi__cells_ok(al, 2.0 * resolved->voxel0))
-      return gi__fail(err, GI_ERR_INVALID_ARG,
-                      "anchor: the voxel size %g is too small for a viewpoint %g units from the scene's origin "
-                      "(more than 2^52 cells)", resolved->voxel0, fabs((double)al));
     anchor[a] = (int64_t)floor((double)al / (2.0 * resolved->voxel0));
   }
   return GI_OK;

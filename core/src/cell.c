@@ -14,16 +14,16 @@ void gi_scene_origin(const gi_scene *s, double out[3]) {
 
 gi_result gi_cascade_cell_centre(const gi_scene *s, const int64_t cell[3], const gi_quality *resolved,
                                  double at[3], gi_error_info *err) {
-  if (!s || !cell || !resolved || !at || !(resolved->voxel0 > 0))
+  if (!s || !cell || !resolved || !at || !(resolved->voxel0 > 0) || !isfinite(resolved->voxel0))
     return gi__fail(err, GI_ERR_INVALID_ARG, "cell: scene, cell and a resolved quality are required");
   double side = 2.0 * resolved->voxel0;
   for (int a = 0; a < 3; a++) at[a] = s->origin[a] + ((double)cell[a] + 0.5) * side;
   /* Far cells lose the float precision the snapping works in: the centre
-   * must snap back to the same cell or the cell has no cascade. */
+   * must snap back to the same cell or the cell has no cascade (past 1e9
+   * units it has no anchor at all). */
   int64_t back[3];
-  gi_result rc = gi_cascade_anchor(s, at, resolved, back, err);
-  if (rc != GI_OK) return rc;
-  if (back[0] != cell[0] || back[1] != cell[1] || back[2] != cell[2])
+  if (gi_cascade_anchor(s, at, resolved, back, NULL) != GI_OK || back[0] != cell[0] || back[1] != cell[1] ||
+      back[2] != cell[2])
     return gi__fail(err, GI_ERR_INVALID_ARG, "cell: (%lld, %lld, %lld) is too far from the scene to address",
                     (long long)cell[0], (long long)cell[1], (long long)cell[2]);
   return GI_OK;

@@ -99,6 +99,16 @@ printf '0,1,2,3\n0.1,1,2\n' > "$T/bad.csv"
 printf '0,0,1.7,0\n0.1,1e20,1.7,0\n' > "$T/far.csv"
 "$WALK" bench --extent 300 --path "$T/far.csv" --samples 1 --out "$T/pf" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 1 ] && grep -q "1e+20" "$T/err" && pass "a step at 1e20 -> 1, named" || fail "step at 1e20: exit $rc: $(cat "$T/err")"
+# A point past 1e9 units is refused before any move, named with the reason:
+# at 2e9 the path was replayed up to it (only its move failed, naming no
+# point), and 1e39 (finite) was "not finite".
+for v in 2e9 1e39; do
+  printf '0,0,1.7,0\n0.1,1,1.7,0\n0.2,%s,1.7,0\n0.3,2,1.7,0\n' $v > "$T/far.csv"
+  "$WALK" bench --extent 300 --path "$T/far.csv" --samples 1 --out "$T/pf" > /dev/null 2> "$T/err"; rc=$?
+  [ $rc -eq 1 ] && grep -q -F "gi-walk: $T/far.csv: point 3 of 4 (t = 0.2 s) at (" "$T/err" \
+    && grep -q "anchor: viewpoint is more than 1e9 units from the scene" "$T/err" \
+    && pass "a point at $v -> 1, named before any move" || fail "point at $v: exit $rc: $(cat "$T/err")"
+done
 
 "$WALK" bench --help > "$T/out" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && grep -q "^usage: gi-walk bench" "$T/out" && pass "bench --help -> usage, 0" ||

@@ -50,7 +50,9 @@ static void test_bake_null_out(void **state) {
 }
 
 /* gi_cascade_anchor wrote through a NULL anchor, and called an infinite
- * voxel size a non-finite viewpoint. */
+ * voxel size a non-finite viewpoint. It also called a finite viewpoint past
+ * float range (1e39) non-finite, and gave one past 1e9 an anchor where the
+ * bake and a move refuse it (gi-walk replayed a path up to that point). */
 static void test_anchor_args(void **state) {
   (void)state;
   gi_scene *s = room();
@@ -60,6 +62,15 @@ static void test_anchor_args(void **state) {
   assert_int_equal(gi_cascade_anchor(s, AT, &q, NULL, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "anchor is NULL");
   int64_t a[3];
+  const double huge[3] = {0, 1e39, 0}, far[3] = {2e9, 0, 0}, nan_at[3] = {0, 0, NAN};
+  assert_int_equal(gi_cascade_anchor(s, huge, &q, a, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "viewpoint is more than 1e9 units from the scene");
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, far, &q, &c, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_int_equal(gi_cascade_anchor(s, far, &q, a, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "viewpoint is more than 1e9 units from the scene");
+  assert_int_equal(gi_cascade_anchor(s, nan_at, &q, a, &err), GI_ERR_NONFINITE);
+  assert_names(&err, "is not finite");
   q.voxel0 = INFINITY;
   assert_int_equal(gi_cascade_anchor(s, AT, &q, a, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "voxel0");

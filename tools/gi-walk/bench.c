@@ -30,13 +30,17 @@ static int cold_bake(const gi_scene *s, const gi_quality *q, const double at[3],
   return r == GI_OK ? 0 : -1;
 }
 
-/* crossed[i] for every step, from the anchors alone (no bake). */
-static int mark_crossings(const gi_scene *s, const gi_quality *resolved, const walk_path *p, step_rec *steps) {
+/* crossed[i] for every step, from the anchors alone (no bake). A point no
+ * cascade can be placed at is named (the path's file or name, its number
+ * and time) before any move runs: the move reaching it would fail later. */
+static int mark_crossings(const gi_scene *s, const gi_quality *resolved, const char *label, const walk_path *p,
+                          step_rec *steps) {
   int64_t prev[3] = {0}, cur[3];
   gi_error_info err = {0};
   for (size_t i = 0; i < p->n; i++) {
     if (gi_cascade_anchor(s, p->at[i], resolved, cur, &err) != GI_OK)
-      return fprintf(stderr, "gi-walk: anchor: %s\n", err.msg), -1;
+      return fprintf(stderr, "gi-walk: %s: point %zu of %zu (t = %g s) at (%g, %g, %g): %s\n", label, i + 1, p->n,
+                     p->t[i], p->at[i][0], p->at[i][1], p->at[i][2], err.msg), -1;
     steps[i].crossed = i > 0 && memcmp(cur, prev, sizeof cur) != 0;
     memcpy(prev, cur, sizeof cur);
   }
@@ -130,7 +134,7 @@ int bench_path(const bench_opts *o, const gi_scene *s, walk_path *p, step_rec *s
   int rc = probe_at(c, p->at[0], &s0->moved, &s0->gather_ms);
   s0->cold_probe = s0->moved, s0->cold = 1;
   if (!rc && p->n > 1) rc = probe_at(c, p->at[1], &s0->cold_next, NULL);
-  if (!rc) rc = mark_crossings(s, &resolved, p, steps);
+  if (!rc) rc = mark_crossings(s, &resolved, o->path_file ? o->path_file : p->name, p, steps);
   if (!rc) mark_cold(p, o->samples, steps);
   for (size_t i = 1; i < p->n && !rc; i++) {
     rc = move_step(c, p->at[i], &steps[i]);
