@@ -533,11 +533,26 @@ static int probes_flags(json_t *root, gi_proto_bake *b, gi_proto_error *err) {
   return 0;
 }
 
+/* The keys of a body's 'quality' object besides 'preset'. */
+static int is_body_knob(const char *key) {
+  static const char *const knobs[] = {"levels", "res",   "voxel",         "cones", "aperture", "step",
+                                      "bounces", "samples", "probe_samples", "seed",  "ao",       "effects"};
+  for (size_t i = 0; i < sizeof knobs / sizeof knobs[0]; i++)
+    if (!strcmp(key, knobs[i])) return 1;
+  return 0;
+}
+
 /* One knob of a 'quality' object (not the preset). */
 static int probes_knob(gi_proto_bake *b, const char *key, json_t *x, const gi_proto_limits *lim,
                        gi_proto_error *err) {
   char where[96];
   snprintf(where, sizeof where, "body: quality.%.64s", key);
+  /* Named before its value is typed: "quality.quality: expected a number"
+   * sent a client looking for a number where the key itself was wrong. */
+  if (!is_body_knob(key))
+    return gi_proto_fail(err, 400,
+                         "%s: unknown quality knob (expected preset, levels, res, voxel, cones, aperture, step, "
+                         "bounces, samples, probe_samples, seed, ao, effects)", where);
   if (!strcmp(key, "effects")) {
     if (!json_is_string(x)) return gi_proto_fail(err, 400, "%s: expected a string NAME:on|off|auto[,...]", where);
     return set_effects(&b->quality, json_string_value(x), err, where) ? err->status : 0;

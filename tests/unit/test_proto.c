@@ -211,6 +211,11 @@ static void test_strict_numbers(void **state) {
       {"{\"points\":[[1e300,2,3]]}", "points[0]: out of range"},
       {"{\"points\":[[1,2,3]],\"at\":[0,0,1e31]}", "'at': out of range"},
       {"{\"points\":[[1,2,3]],\"quality\":{\"effects\":\"sky:off,sky:on\"}}", "effect 'sky' given twice"},
+      /* An unknown key is named as such whatever its value (a string or a
+       * boolean read "expected a number"), with the keys the object takes. */
+      {"{\"points\":[[1,2,3]],\"quality\":{\"quality\":\"low\"}}", "quality.quality: unknown quality knob (expected preset,"},
+      {"{\"points\":[[1,2,3]],\"quality\":{\"half\":true}}", "quality.half: unknown quality knob"},
+      {"{\"points\":[[1,2,3]],\"quality\":{\"width\":4}}", "quality.width: unknown quality knob"},
   };
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     int st = gi_proto_parse_probes(bad[i][0], strlen(bad[i][0]), &l, &p, &e);
