@@ -10,7 +10,9 @@ make_box_scene
 [ $rc -eq 0 ] && pass "render exits 0" || { cat "$T/err" >&2; fail "render exited $rc"; finish; }
 python3 - "$T/out.json" "$T/view.png" <<'PY' && pass "PNG 72x16 and JSON figures" || fail "render outputs"
 import json, math, struct, sys
-d = json.load(open(sys.argv[1]))["render"]
+j = json.load(open(sys.argv[1]))
+assert j["outputs"]["png"] == sys.argv[2] and j["outputs"]["exr"].endswith("view.exr"), j["outputs"]
+d = j["render"]
 assert d["width"] == 24 and d["height"] == 16 and d["path_samples"] == 4, d
 for k in ("cone_ms", "path_ms", "mean_relative_error"): assert math.isfinite(d[k]) and d[k] >= 0, k
 png = open(sys.argv[2], "rb").read(32)

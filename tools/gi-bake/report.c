@@ -203,6 +203,8 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_t *out = json_object();
   json_object_set_new(out, "exr", r->o->exr ? json_string(r->o->exr) : json_null());
   json_object_set_new(out, "vdb", r->o->vdb ? json_string(r->o->vdb) : json_null());
+  /* Every file the run wrote: --render's picture too. */
+  json_object_set_new(out, "png", r->o->png ? json_string(r->o->png) : json_null());
   json_object_set_new(root, "outputs", out);
   json_object_set_new(root, "version", json_string(ta_version()));
   return root;
@@ -287,6 +289,7 @@ static void print_human(const cli_run *r) {
            r->o->probes_file);
   printf("outputs    exr: %s\n           vdb: %s\n", r->o->exr ? r->o->exr : "(none, use --exr)",
          r->o->vdb ? r->o->vdb : "(none, use --vdb)");
+  if (r->o->png) printf("           png: %s\n", r->o->png);
 }
 
 /* The report, then its "probes" array one probe at a time (JSON object
