@@ -427,6 +427,15 @@ static int check_loaded(load_ctx *x, int rc, char *err, size_t errsize) {
                s->line, s->id);
       return -1;
     }
+    if (s->is_city && s->up == GI_UP_Z) {
+      /* The core builds the city Y-up whatever it is told: up = z was
+       * accepted and ignored (gi-bake refuses city --up z). */
+      char sec[80];
+      snprintf(sec, sizeof sec, "scene %s", s->id);
+      snprintf(err, errsize, "%s:%d: [scene %s] up: the procedural city is always Y-up; up = z applies to scene files",
+               path, line_of(x, sec, "up"), s->id);
+      return -1;
+    }
   }
   struct stat st; /* main.c checks TMPDIR's folder too; this one has a line */
   if (c->tmp_dir[0] && (stat(c->tmp_dir, &st) != 0 || !S_ISDIR(st.st_mode) || access(c->tmp_dir, W_OK) != 0)) {

@@ -55,6 +55,11 @@ printf '[scene a b]\nsource = city\n' > "$T/badid.ini"
 expect badid 1 "scene id 'a b' must be"
 printf '[scene city]\nup = y\n' > "$T/nosource.ini"
 expect nosource 1 "[scene city]: 'source' is required"
+# The city is always Y-up: up = z was accepted and silently ignored.
+printf '[scene city]\nsource = city\nup = z\n' > "$T/cityz.ini"
+expect cityz 1 "cityz.ini:3: [scene city] up: the procedural city is always Y-up"
+printf '[scene city]\nup = y\nsource = city\n' > "$T/cityy.ini"
+expect cityy 0 "is valid: 1 scene(s)"
 # Scene sections are taken at their header: an id of 44..63 characters was
 # cut to 43 by inih (the scene served under another id), a section with no
 # keys was no scene at all, and a header repeated right after the first
