@@ -88,4 +88,32 @@ for up in y z; do
   "$BIN" "$T/flat.obj" --up $up --levels 3 --res 16 --bounces 1 --json > /dev/null 2> "$T/err"; rc=$?
   [ $rc -eq 0 ] && ! grep -q 'flat along z' "$T/err" && pass "--up $up given: no note" || fail "--up $up: $(cat "$T/err")"
 done
+# Probes past the default cascade (it spans the scene, a 4 m sunlit plate)
+# took no indirect light; with --levels and --voxel left to the default the
+# bake adds levels until it holds them (noted), and the probe 1 m past the
+# plate's edge then reads the plate's reflected light as a bake of the same
+# levels centred on it does (within 10%), where the old 6 levels gave none.
+printf 'v 0 0 0\nv 0 0 4\nv 4 0 4\nv 4 0 0\nf 1 2 3 4\n' > "$T/plate.obj"
+printf '2 1 5\n' > "$T/past.txt"
+LIGHT="--no-default-lights --sun 0.3,-1,-0.2,5,5,5 --threads 2"
+"$BIN" "$T/plate.obj" $LIGHT --probes "$T/past.txt" --json > "$T/grow.json" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q "gi-bake: note: --probes reach .* levels instead of 6" "$T/err" \
+  && pass "--probes past the scene: levels added, noted" || fail "levels for far probes (rc $rc): $(cat "$T/err")"
+"$BIN" "$T/plate.obj" $LIGHT --levels 6 --probes "$T/past.txt" --json > "$T/six.json" 2> /dev/null
+# The same levels and voxel centred on the probe: the answer to match.
+GROWN=$(python3 -c 'import json,sys; q=json.load(open(sys.argv[1]))["quality"]; print("--levels %d --voxel %.17g" % (q["levels"], q["voxel0"]))' "$T/grow.json")
+"$BIN" "$T/plate.obj" $LIGHT $GROWN --at 2,1,5 --json > "$T/near.json" 2> /dev/null
+python3 - "$T/grow.json" "$T/six.json" "$T/near.json" <<'PY' && pass "a probe past the scene reads its indirect light" \
+  || fail "probe past the scene"
+import json, sys
+g, six, near = (json.load(open(f)) for f in sys.argv[1:4])
+pg, p6, pn = g["probes"][0], six["probes"][0], near["probe"]
+assert pg["in_cascade"] and not p6["in_cascade"], (pg["in_cascade"], p6["in_cascade"])
+assert g["quality"]["levels"] > 6 and g["quality"]["voxel0"] == six["quality"]["voxel0"], g["quality"]
+# L00 (all directions): the direct part is the same shadow rays in all three.
+l_g, l_6, l_n = pg["sh"][0][1], p6["sh"][0][1], pn["sh"][0][1]
+print("L00: grown %.4f, 6 levels %.4f, centred %.4f" % (l_g, l_6, l_n))
+assert l_g > 1.05 * l_6, "no indirect light added"
+assert abs(l_g - l_n) <= 0.1 * (l_n - l_6), "grown %.4f against centred %.4f" % (l_g, l_n)
+PY
 finish

@@ -9,6 +9,7 @@
  * a failed or killed run leaves no truncated file behind. Exit codes:
  * 0 success, 1 the work failed, 2 bad arguments. */
 #define _POSIX_C_SOURCE 200809L
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -82,6 +83,31 @@ static void choose_viewpoint(cli_opts *o, const gi_scene *scene) {
   if (!inside)
     fprintf(stderr, "gi-bake: note: --at (%g, %g, %g) lies outside the scene bounds (%g, %g, %g) .. (%g, %g, %g)\n",
             o->at[0], o->at[1], o->at[2], lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
+}
+
+/* --probes beyond the default cascade (around one object, probes just
+ * past its bounds) took no indirect light at all: the coarsest level
+ * spans the scene, not the points. With --levels and --voxel both left
+ * to the default, adds levels (finest voxel kept) until the coarsest
+ * window holds every point, at most GI_MAX_LEVELS; each level costs
+ * about what the coarsest one did. A point farther still keeps the note
+ * after the bake. */
+#define COVER_MARGIN_VOXELS 2 /* the window snaps to the coarsest grid; gathers need a voxel inside */
+static void cover_probes(cli_opts *o, const gi_scene *scene) {
+  if (!o->num_probes || o->q.levels || o->q.voxel0 > 0) return;
+  gi_quality rq;
+  gi_error_info e = {0};
+  if (gi_quality_resolve(scene, &o->q, &rq, &e) != GI_OK) return; /* the bake reports it */
+  double reach = 0;
+  for (size_t i = 0; i < o->num_probes; i++)
+    for (int k = 0; k < 3; k++) reach = fmax(reach, fabs(o->probes[3 * i + k] - o->at[k]));
+  int levels = rq.levels;
+  double coarsest = rq.voxel0 * ldexp(1.0, levels - 1);
+  while (levels < GI_MAX_LEVELS && reach > (0.5 * rq.res - COVER_MARGIN_VOXELS) * coarsest) levels++, coarsest *= 2;
+  if (levels == rq.levels) return;
+  o->q.levels = levels, o->q.voxel0 = rq.voxel0;
+  fprintf(stderr, "gi-bake: note: --probes reach %g from the viewpoint: %d levels instead of %d (the finest voxel "
+          "kept at %g) so the cascade holds them\n", reach, levels, rq.levels, rq.voxel0);
 }
 
 /* A point whose surroundings show it surfaces' backs lies inside a solid:
@@ -196,6 +222,7 @@ int main(int argc, char **argv) {
   }
   choose_viewpoint(&o, scene);
   note_inside(&o, scene);
+  cover_probes(&o, scene);
   if ((rc = make_points(&o, &pts, &probes, &n))) goto done;
 
   gi_bake_report rep;
