@@ -58,6 +58,9 @@ expect_bad "$T/in/missing.obj"
 expect_bad "$T/in/missing.ply"
 expect_bad "$T/in/missing.gltf"
 for f in "$T"/in/*; do expect_bad "$f"; done
+# A FIFO: its open waited for a writer forever (gi-bake hung); it is no
+# regular file, refused at once like a folder or /dev/null.
+mkfifo "$T/fifo.obj" && expect_bad "$T/fifo.obj"
 
 # A failing run must not touch an output that already exists.
 printf 'precious' > "$T/out/probe.exr"

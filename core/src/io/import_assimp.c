@@ -793,7 +793,7 @@ static gi_result convert_light(const char *path, const struct aiLight *al, const
 
 /* Our own checks first: assimp's messages for these cases are vague. */
 static gi_result check_file(const char *path, gi_error_info *err) {
-  FILE *f = fopen(path, "rb");
+  FILE *f = gi__fopen_read(path);
   if (!f) {
     int e = errno;
     return gi__fail(err, e == ENOENT ? GI_ERR_NOT_FOUND : GI_ERR_IO, "scene file '%s': cannot open: %s", path,

@@ -16,12 +16,14 @@
  * own memory (progressive files keep all coefficients) is capped. */
 #include "io/texture_image.h"
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <jpeglib.h>
 #include <jerror.h>
 #include <png.h>
@@ -439,10 +441,22 @@ void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float ou
   for (int k = 0; k < 3; k++) out[k] = (float)(sum[k] / count);
 }
 
+FILE *gi__fopen_read(const char *path) {
+  int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return NULL;
+  FILE *f = fdopen(fd, "rb");
+  if (!f) {
+    int e = errno;
+    close(fd);
+    errno = e;
+  }
+  return f;
+}
+
 gi_result gi__read_file(const char *path, size_t max_size, void **data, size_t *size, gi_error_info *err) {
   *data = NULL;
   *size = 0;
-  FILE *f = fopen(path, "rb");
+  FILE *f = gi__fopen_read(path);
   if (!f) {
     int e = errno;
     return gi__fail(err, e == ENOENT || e == ENOTDIR ? GI_ERR_NOT_FOUND : GI_ERR_IO, "'%s': cannot open: %s", path,

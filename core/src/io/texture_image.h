@@ -7,6 +7,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include "gi/gi_error.h"
 
 /* Largest image we decode: each side at most GI__IMAGE_MAX_SIDE pixels and at
@@ -55,6 +56,11 @@ gi_result gi__texels_average_grid(const void *bgra, uint32_t width, uint32_t hei
 /* One 8-bit-style sRGB-encoded value in [0, 1] to linear (the exact
  * transfer function); also for vertex colours (import_exact.c). */
 double gi__srgb_to_linear(double c);
+
+/* fopen(path, "rb") that does not wait: a FIFO's open blocks until some
+ * writer appears (gi-bake hung on one), so it is opened non-blocking and
+ * left for the caller's S_ISREG check to refuse. NULL with errno set. */
+FILE *gi__fopen_read(const char *path);
 
 /* Reads a whole regular file into a malloc'ed buffer (*data, freed by the
  * caller; *size bytes). A missing file gives GI_ERR_NOT_FOUND, a file larger
