@@ -84,6 +84,10 @@ far 1 --at 1.9e18,1.7,0
 printf '1e20 1 1\n0 1.7 0\n' > "$T/far.txt"
 far 0 --probes "$T/far.txt"
 far 0 --point 1e19,1,1,1,1,1
+# The core's message names its stage once ("bake: bake: the voxel size" stuttered).
+far 1 --at 1e7,0,0 --voxel 1e-9
+grep -q "^gi-bake: bake: the voxel size 1e-09 is too small" "$T/err" && pass "a bake error names 'bake:' once" \
+  || fail "bake error: $(cat "$T/err")"
 
 # A missing scene file is a runtime error (1) naming the file.
 missing="$T/no-such-dir/missing-scene.obj"

@@ -31,7 +31,11 @@ static int resolved_threads(int threads) {
 }
 
 static int fail(const char *what, const gi_error_info *err, gi_result rc) {
-  fprintf(stderr, "gi-bake: %s: %s\n", what, err->msg[0] ? err->msg : gi_strerror(rc));
+  const char *msg = err->msg[0] ? err->msg : gi_strerror(rc);
+  size_t n = strlen(what);
+  /* The core's messages often start with the stage: "bake: bake: ..." read as a stutter. */
+  if (!strncmp(msg, what, n) && msg[n] == ':') fprintf(stderr, "gi-bake: %s\n", msg);
+  else fprintf(stderr, "gi-bake: %s: %s\n", what, msg);
   return EXIT_RUN;
 }
 
