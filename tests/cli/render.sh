@@ -107,4 +107,8 @@ expect2s() {
 expect2s "$T/box.obj" --render 2,2,0.3,2,2,3,70,24,16 --png "$T/x.png" --render-stride 0
 expect2s "$T/box.obj" --render 2,2,0.3,2,2,3,70,24,16 --png "$T/x.png" --render-stride 17
 expect2s "$T/box.obj" --render-stride 2
+# --render-samples alone was accepted and ignored, where --render-stride and --png say they need --render.
+"$BIN" "$T/box.obj" --render-samples 4 > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q -e "--render-samples: needs --render" "$T/err" && pass "--render-samples alone -> 2" \
+  || fail "--render-samples alone exited $rc: $(cat "$T/err")"
 finish

@@ -440,6 +440,7 @@ static int check_combinations(cli_opts *o) {
   if ((rc = lightmap_check(o))) return rc;
   if (o->png && !o->render) return ta_fail(&ta, "--png", "needs --render");
   if (o->render_stride && !o->render) return ta_fail(&ta, "--render-stride", "needs --render");
+  if (o->render_spp && !o->render) return ta_fail(&ta, "--render-samples", "needs --render");
   if (o->render && !o->png && !o->exr) return ta_fail(&ta, "--render", "needs --png or --exr for the pictures");
   if (o->render && (rc = check_render_camera(o))) return rc;
   if (o->png && (rc = ta_check_output(&ta, "--png", &o->png))) return rc;
