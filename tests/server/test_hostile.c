@@ -18,8 +18,8 @@
  *                     cancelled within 1 s; a coalesced waiter holds no
  *                     worker and keeps the shared bake alive; so are a
  *                     probe list's and a lightmap's bakes, never cached;
- *   memory budget     four concurrent res=64 levels=8 bakes under a
- *                     500 MiB budget: one runs, three get 503 with
+ *   memory budget     four concurrent res=64 levels=6 bakes under a
+ *                     700 MiB budget: one runs, three get 503 with
  *                     Retry-After, in-flight bytes on /metrics are the
  *                     estimate, VmRSS stays under budget + slack; a bake
  *                     that does not fit evicts the cached one;
