@@ -55,6 +55,9 @@ typedef struct {
 /* The nearest surface is the ground under an upper hemisphere when its
  * direction to the point lies within ~25 degrees of that hemisphere's up. */
 #define GROUND_COS 0.9f
+/* An axis ray's hit whose normal lies within ~25 degrees of the nearest
+ * surface's direction is that surface (or one parallel to it). */
+#define NEAR_OTHER_SAME 0.9f
 
 gi_near_surface gi__near_surface(const struct gi_cascade *c, const float p[3]) {
   gi_near_surface ns = {0};
@@ -101,11 +104,18 @@ static int read_surface(const struct gi_cascade *c, const float x[3], const floa
   int ax = 0;
   for (int a = 1; a < 3; a++)
     if (fabsf(m[a]) > fabsf(m[ax])) ax = a;
+  /* Only the face along that axis: the sample's trilinear reach along the
+   * surface holds the neighbouring surfaces' voxels too, and read along w
+   * their other faces showed what those send away from the point (a probe
+   * 5 cm from a sealed room's corner read the sunlit roof's top through
+   * the ceiling's voxels, L00 1.1-1.7 where the truth is 0: test_hardcases). */
+  float wa[3] = {0, 0, 0};
+  wa[ax] = w[ax] < 0 ? -1.f : 1.f;
   for (int side = 0; side < 2 && !(wal > GI_MIN_SAMPLE_WEIGHT); side++) {
     memcpy(q, x, sizeof q);
     float y = x[ax] + (side ? -1e-2f : 1e-2f) * s * m[ax];
     q[ax] = L->lo[ax] + (floorf((y - L->lo[ax]) / s) + 0.5f) * s;
-    gi__sample_level(c, d, q, w, prem, &wal, &sig);
+    gi__sample_level(c, d, q, wa, prem, &wal, &sig);
   }
   if (!(wal > GI_MIN_SAMPLE_WEIGHT)) return 0;
   for (int k = 0; k < 3; k++) o->L[k] = prem[k] / wal;
@@ -114,6 +124,33 @@ static int read_surface(const struct gi_cascade *c, const float x[3], const floa
   o->occlusion = 1.f / (1.f + c->report.quality.ao_lambda * 0.5f * D);
   o->samples = 1;
   return 1;
+}
+
+/* The surfaces other than the nearest within `lift` of point o, found
+ * along the six axes (a room's corner: the ceiling and the other wall
+ * besides the nearest wall): per surface its unit normal toward o (m) and
+ * how far a cone leaving it is lifted (r: to `lift` from it, but at most
+ * half way to whatever lies behind o across it, as the nearest surface's
+ * lift). Returns how many. */
+#define NEAR_OTHER_MAX 6
+static int other_surfaces(const struct gi_cascade *c, const gi_near_surface *ns, const float o[3], float lift,
+                          float on, float m[NEAR_OTHER_MAX][3], float r[NEAR_OTHER_MAX]) {
+  int k = 0;
+  for (int a = 0; a < 2 * 3; a++) {
+    float e[3] = {0, 0, 0}, th, ng[3];
+    uint32_t tri;
+    e[a / 2] = (a & 1) ? -1.f : 1.f;
+    if (!gi__intersect1(c->scene, o, e, on, lift, &th, &tri, ng)) continue;
+    float len = gi__len(ng), sg = gi__dot(ng, e) > 0 ? -1.f : 1.f;
+    if (!(len > 0)) continue;
+    for (int i = 0; i < 3; i++) m[k][i] = sg * ng[i] / len;
+    if (gi__dot(m[k], ns->n) > NEAR_OTHER_SAME) continue; /* the nearest surface's plane */
+    float room = lift - th, tb;
+    if (!(room > 0)) continue;
+    if (gi__intersect1(c->scene, o, m[k], on, room, &tb, &tri, ng)) room = 0.5f * tb;
+    r[k++] = room;
+  }
+  return k;
 }
 
 void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns, gi_cone_job *jobs, int n,
@@ -126,8 +163,18 @@ void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns
   float on = NEAR_SURFACE_ON * (float)c->s0;
   uint32_t tri_gap;
   if (room > 0 && gi__intersect1(c->scene, jobs[0].o, ns->n, on, room, &t_gap, &tri_gap, ng_gap)) room = 0.5f * t_gap;
+  /* A point near several surfaces (a corner) lifts the cones leaving
+   * each of them as the nearest's below: started within a voxel of the
+   * ceiling, a cone leaving it read the roof's top through the ceiling's
+   * coarse voxels. Free cones only: those under the ground's rule keep
+   * its limits (below). */
+  float om[NEAR_OTHER_MAX][3], orr[NEAR_OTHER_MAX];
+  int no = other_surfaces(c, ns, jobs[0].o, lift, on, om, orr);
   for (int i = 0; i < n; i++) {
     gi_cone_job *j = &jobs[i];
+    for (int q = 0; q < no && j->h0 < 0; q++)
+      if (gi__dot(j->w, om[q]) > 0)
+        for (int k = 0; k < 3; k++) j->o[k] += orr[q] * om[q][k];
     float t, ng[3], tn = gi__dot(j->w, ns->n) > 0 ? on : 0.f;
     uint32_t tri;
     if (ns->h < j->t0 && gi__intersect1(c->scene, j->o, j->w, tn, j->t0, &t, &tri, ng)) {
