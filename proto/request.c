@@ -252,9 +252,12 @@ static int set_query_number(gi_proto_bake *out, const char *k, const char *v, co
   if (rc == -3) return gi_proto_fail(err, 400, "%s: expected an integer without leading zeros, got '%.64s'", where, v);
   if (rc) return gi_proto_fail(err, 400, "%s: expected an integer (decimal digits), got '%.64s'", where, v);
   if (strcmp(k, "width") && strcmp(k, "height")) return set_int_knob(&out->quality, k, i, v, lim, err, where);
-  int max = strcmp(k, "width") ? GI_PROTO_MAX_PANORAMA_HEIGHT : GI_PROTO_MAX_PANORAMA_WIDTH;
-  if (i < 1 || i > max)
-    return gi_proto_fail(err, 400, "%s: expected an integer in 1..%d, got '%.40s' (out of range)", where, max, v);
+  int w = !strcmp(k, "width"), max = w ? GI_PROTO_MAX_PANORAMA_WIDTH : GI_PROTO_MAX_PANORAMA_HEIGHT;
+  /* A lat-long image needs two columns: the range said 1.. and width=1 was refused after all. */
+  int min = w ? 2 : 1;
+  if (i < min || i > max)
+    return gi_proto_fail(err, 400, "%s: expected an integer in %d..%d, got '%.40s' (out of range)", where, min, max,
+                         v);
   *(!strcmp(k, "width") ? &out->width : &out->height) = (int)i;
   return 0;
 }

@@ -167,7 +167,9 @@ static void test_strict_numbers(void **state) {
   expect_fail(KV({"at", "0,0,0"}, {"bounces", "-1"}), 2, 400, "parameter 'bounces': expected 0..8, got -1 (out of range)");
   expect_fail(KV({"at", "0,0,0"}, {"kind", "panorama"}, {"width", "64.0"}), 3, 400, "parameter 'width': expected an integer");
   expect_fail(KV({"at", "0,0,0"}, {"kind", "panorama"}, {"width", "20000"}), 3, 400,
-              "parameter 'width': expected an integer in 1..16384, got '20000' (out of range)");
+              "parameter 'width': expected an integer in 2..16384, got '20000' (out of range)");
+  expect_fail(KV({"at", "0,0,0"}, {"kind", "panorama"}, {"width", "1"}), 3, 400,
+              "parameter 'width': expected an integer in 2..16384, got '1' (out of range)");
   /* Finite but too large is "out of range", never "not finite". */
   expect_fail(KV({"at", "1e300,0,0"}), 1, 400, "parameter 'at': out of range");
   expect_fail(KV({"at", "0,0,-2e30"}), 1, 400, "parameter 'at': out of range");
