@@ -34,6 +34,10 @@ else fail "FIFO: rc $rc, $(cat "$T/err")"; fi
 "$BIN" "$T/box.obj" $Q --exr /dev/stdout 2> "$T/err" | cat > "$T/stdout.bin"
 if cmp -s "$T/stdout.bin" "$T/plain.exr" && grep -q "^probe" "$T/err"; then pass "--exr /dev/stdout | cat: the EXR alone"
 else fail "--exr /dev/stdout: $(wc -c < "$T/stdout.bin") bytes, $(head -n 3 "$T/err")"; fi
+# "-" is standard output too (it wrote a file named '-').
+(cd "$T" && "$BIN" box.obj $Q --exr - 2> "$T/err" | cat > "$T/dash.bin")
+if cmp -s "$T/dash.bin" "$T/plain.exr" && [ ! -e "$T/-" ]; then pass "--exr - | cat: the EXR on stdout, no file '-'"
+else fail "--exr -: $(wc -c < "$T/dash.bin") bytes, file '-' $( [ -e "$T/-" ] && echo exists)"; fi
 
 # A character device (root only: mknod), as /dev/null is: still a device after the run.
 if mknod -m 666 "$T/null" c 1 3 2> /dev/null; then

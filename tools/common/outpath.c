@@ -134,6 +134,9 @@ static int special_file(ta_ctx *c, const char *opt, const char *dev, ta_output *
 
 int ta_check_output(ta_ctx *c, const char *opt, const char **path) {
   if (!**path) return ta_fail(c, opt, "expected a file name, got ''");
+  /* "-" is standard output, as for curl -o - (a file of that name is ./-):
+   * gi-client -o - wrote a file named '-'. */
+  if (!strcmp(*path, "-")) *path = "/dev/stdout";
   if (num_outs == TA_MAX_OUTPUTS) return ta_error(c, TA_EXIT_RUN, opt, "more than %d outputs", TA_MAX_OUTPUTS);
   ta_output *o = &outs[num_outs];
   memset(o, 0, sizeof *o);

@@ -95,8 +95,8 @@ int ta_once(ta_ctx *c, const struct option *long_opts, int val, const int *repea
  * folder must exist and be writable, and it must not be a folder. *path
  * becomes the path to give the writers (which write "<path>.tmp.<pid>"
  * and rename it into place): a symlink's target, or for a device or FIFO
- * (/dev/stdout) a private temporary file that ta_outputs_finish copies
- * into it. The strings live until ta_outputs_finish. A SIGINT, SIGTERM,
+ * (/dev/stdout, also spelt "-") a private temporary file that
+ * ta_outputs_finish copies into it. The strings live until ta_outputs_finish. A SIGINT, SIGTERM,
  * SIGHUP or SIGPIPE then removes the outputs' temporary files before the
  * process dies of it. Returns 0, TA_EXIT_USAGE (empty name, a folder) or
  * TA_EXIT_RUN. Main thread only. */
