@@ -11,6 +11,8 @@
 make_box_scene
 QUICK="--quick --ref-samples 1024 --pt-max 16 --repeat 1 --threads 2 --no-views --no-workloads"
 
+"$BIN" --version > "$T/v" 2>&1; rc=$?
+[ $rc -eq 0 ] && grep -q "^gi-accuracy [0-9]" "$T/v" && pass "--version -> 0" || fail "--version: exit $rc: $(cat "$T/v")"
 "$BIN" --scene "$T/box.obj" $QUICK --out "$T/acc" > "$T/stdout" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && pass "--scene run exits 0" || { cat "$T/err" >&2; fail "--scene run exited $rc"; finish; }
 [ -s "$T/acc/accuracy.csv" ] && [ -s "$T/acc/accuracy.md" ] && [ -s "$T/acc/accuracy.gp" ] \

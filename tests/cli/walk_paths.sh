@@ -113,6 +113,9 @@ done
 "$WALK" bench --help > "$T/out" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && grep -q "^usage: gi-walk bench" "$T/out" && pass "bench --help -> usage, 0" ||
   fail "bench --help: exit $rc: $(cat "$T/err")"
+"$WALK" --version > "$T/out" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && grep -q "^gi-walk [0-9]" "$T/out" && grep -q "^cpu path: " "$T/out" && pass "--version -> 0" ||
+  fail "--version: exit $rc: $(cat "$T/out" "$T/err")"
 
 "$WALK" bench --paths-only --out /proc/gi-walk-test > "$T/out" 2> "$T/err"; rc=$?
 [ $rc -eq 1 ] && grep -q -F "gi-walk: --out: cannot create '/proc/gi-walk-test'" "$T/err" &&

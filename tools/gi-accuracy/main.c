@@ -99,7 +99,8 @@ static void usage(FILE *f) {
           "                     probes and Cycles at 16 samples only (a smoke run)\n"
           "  --knobs LIST       sweep only these: res, levels, voxel0, cones, aperture, step, bounces,\n"
           "                     light_samples (sky and emitter samples per voxel),\n"
-          "                     high (comma-separated; the default bake always runs)\n",
+          "                     high (comma-separated; the default bake always runs)\n"
+          "  -h, --help         this text;  -V, --version  the version and the march's CPU path\n",
           GI_SCENES_DIR);
 }
 
@@ -200,6 +201,9 @@ static int parse_args(int argc, char **argv, opts *o) {
     if (took) continue;
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       usage(stdout);
+      return -1;
+    } else if (!strcmp(a, "--version") || !strcmp(a, "-V")) {
+      printf("gi-accuracy %s\ncpu path: %s\n", ta_version(), gi_cpu_path());
       return -1;
     } else if (!strcmp(a, "--quick")) {
       o->quick = 1;

@@ -10,6 +10,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "gi/gi_cpu.h"
 #include "toolargs.h"
 #include "walk.h"
 
@@ -33,7 +34,8 @@ static const char USAGE[] =
     "  along each and compares with cold bakes at N sampled grid shifts (pairs).\n"
     "  --path FILE.csv: that path instead (t,x,y,z per line, as gi-client walk reads), through\n"
     "  the city or --scene FILE; the figures are named after the file.\n"
-    "tables: the paper's tables for one scene, appended to FILE as markdown.\n";
+    "tables: the paper's tables for one scene, appended to FILE as markdown.\n"
+    "-h, --help: this text; -V, --version: the version and the march's CPU path.\n";
 
 /* The bench's scene: the city, or --scene FILE with --up. */
 static gi_scene *bench_scene(const bench_opts *o) {
@@ -217,6 +219,10 @@ int main(int argc, char **argv) {
   /* --help or -h anywhere (gi-walk bench --help too) prints the usage. */
   for (int i = 1; i < argc; i++)
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) return fputs(USAGE, stdout), 0;
+  /* As gi-bake, gi-client and gi-server. */
+  for (int i = 1; i < argc; i++)
+    if (!strcmp(argv[i], "--version") || !strcmp(argv[i], "-V"))
+      return printf("gi-walk %s\ncpu path: %s\n", ta_version(), gi_cpu_path()), 0;
   if (argc < 2 || (strcmp(argv[1], "bench") && strcmp(argv[1], "tables"))) return fputs(USAGE, stderr), 2;
   all_opts a = {.b = {.seconds = 60, .rate = 10, .samples = DEFAULT_SAMPLES, .out_dir = "out"},
                 .t = {.moves = DEFAULT_MOVES, .vdb_max_voxels = DEFAULT_VDB_MAX}};
