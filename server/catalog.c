@@ -53,7 +53,9 @@ int gs_catalog_load(const gs_config *cfg, gs_catalog *cat, char *err, size_t err
       }
     }
     if (rc != GI_OK) {
-      snprintf(err, errsize, "%s:%d: [scene %s]: %s", cfg->path, sc->line, sc->id, e.msg);
+      /* The line that names the file, not the section's (a helper's find). */
+      snprintf(err, errsize, "%s:%d: [scene %s] source: %s", cfg->path, sc->source_line ? sc->source_line : sc->line,
+               sc->id, e.msg);
       gs_catalog_free(cat);
       return -1;
     }

@@ -218,6 +218,7 @@ static int scene_key(load_ctx *x, const char *sec, const char *k, const char *v)
   double d = 0;
   if (!strcmp(k, "source")) {
     if (!*v) return fail(x, sec, k, "expected 'city' or a scene file path");
+    s->source_line = x->line;
     if (!strcmp(v, "city")) {
       s->is_city = 1;
       snprintf(s->source, sizeof s->source, "city");

@@ -34,6 +34,7 @@ typedef struct gs_scene_conf {
   gi_up_axis up;        /* 0 = not given: y */
   int optional;         /* a missing file is a warning, not an error */
   int line;             /* where the section starts, for messages */
+  int source_line;      /* where its source is given (0: not given) */
 } gs_scene_conf;
 
 typedef struct gs_config {

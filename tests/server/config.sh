@@ -73,6 +73,10 @@ printf '%s\n[scene city]\nseed = 2\n' "$scene" > "$T/twice.ini"
 expect twice 1 "twice.ini:4: [scene city]: scene 'city' is defined twice (first on line 1)"
 printf '[scene x]\nsource = missing.obj\n' > "$T/missing.ini"
 expect missing 1 "missing.obj"
+# A file that does not load is named at its source line, not the section's.
+printf '[server]\nport = 0\n\n[scene x]\nsource = missing.obj\n' > "$T/missing5.ini"
+expect missing5 1 "missing5.ini:5: [scene x] source: scene file"
+
 printf '[scene x]\nsource = missing.obj\noptional = yes\n%s\n' "$scene" > "$T/optional.ini"
 expect optional 0 "is valid: 1 scene(s)"
 printf '[scene x]\nsource = missing.obj\nextent = 300\n' > "$T/cityonly.ini"
