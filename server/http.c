@@ -1159,6 +1159,28 @@ static enum MHD_Result on_accept(void *cls, const struct sockaddr *addr, socklen
   return atomic_load(&((gs_http *)cls)->closing) ? MHD_NO : MHD_YES;
 }
 
+/* Why the daemon could not listen at sa: libmicrohttpd says only that it
+ * failed, so a socket of our own repeats the bind and keeps errno ("in
+ * use, or not permitted" was also printed for an address this host does
+ * not have). */
+static void listen_failure(const gs_config *cfg, const struct sockaddr_in *sa, char *err, size_t errsize) {
+  int fd = socket(AF_INET, SOCK_STREAM, 0), e = 0, one = 1;
+  if (fd >= 0) {
+    (void)setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (bind(fd, (const struct sockaddr *)sa, sizeof *sa) != 0) e = errno;
+    else if (listen(fd, 1) != 0) e = errno;
+    close(fd);
+  } else {
+    e = errno;
+  }
+  const char *why = e == EADDRNOTAVAIL ? "no interface of this host has that address"
+                    : e == EADDRINUSE  ? "another process listens there"
+                    : e == EACCES      ? "a port below 1024 needs privileges"
+                    : e                ? strerror(e)
+                                       : "libmicrohttpd refused it";
+  snprintf(err, errsize, "cannot listen on %s:%d: %s", cfg->bind, cfg->port, why);
+}
+
 gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
   const gs_config *cfg = svc->cfg;
   struct sockaddr_in sa;
@@ -1191,7 +1213,7 @@ gs_http *gs_http_start(gs_service *svc, char *err, size_t errsize) {
                           MHD_OPTION_NOTIFY_COMPLETED, on_completed, h, MHD_OPTION_NOTIFY_CONNECTION, on_connection, h,
                           MHD_OPTION_URI_LOG_CALLBACK, on_uri, h, MHD_OPTION_END);
   if (!h->d) {
-    snprintf(err, errsize, "cannot listen on %s:%d (in use, or not permitted)", cfg->bind, cfg->port);
+    listen_failure(cfg, &sa, err, errsize);
     pthread_mutex_destroy(&h->mu);
     pthread_mutex_destroy(&h->conn_mu);
     pthread_mutex_destroy(&h->log_mu);

@@ -163,5 +163,21 @@ out=$("$BIN" --config "$T/good.ini" --config "$T/workers.ini" --check-config 2>&
   && echo "ok: --config twice: exit 2" || fail "--config twice: exit $st: $out"
 "$BIN" --help | grep -q -- "--port-file" || fail "--help lacks --port-file"
 
+# Why it cannot listen: the address is not this host's, or another process
+# listens on the port (both were "in use, or not permitted").
+out=$(timeout 60 "$BIN" --config "$T/good.ini" --bind 192.0.2.1 --port 0 2>&1); st=$?
+[ "$st" -ne 0 ] && case "$out" in *"cannot listen on 192.0.2.1:0: no interface of this host has that address"*) true;;
+  *) false;; esac && echo "ok: an address not on this host is named as such" || fail "bind 192.0.2.1: exit $st: $out"
+python3 -c 'import socket, sys, time
+s = socket.socket(); s.bind(("127.0.0.1", 0)); s.listen(1)
+print(s.getsockname()[1], flush=True); time.sleep(60)' > "$T/busy" &
+busy=$!
+for _ in 1 2 3 4 5 6 7 8 9 10; do [ -s "$T/busy" ] && break; sleep 0.2; done
+port=$(cat "$T/busy")
+out=$(timeout 60 "$BIN" --config "$T/good.ini" --bind 127.0.0.1 --port "$port" 2>&1); st=$?
+kill $busy 2> /dev/null
+[ "$st" -ne 0 ] && case "$out" in *"cannot listen on 127.0.0.1:$port: another process listens there"*) true;;
+  *) false;; esac && echo "ok: a port in use is named as such" || fail "port $port in use: exit $st: $out"
+
 [ "$FAILS" -eq 0 ] && { echo "all passed"; exit 0; }
 echo "$FAILS failure(s)" >&2; exit 1
