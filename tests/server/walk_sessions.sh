@@ -16,8 +16,10 @@ CLIENT=${2:?usage: sh walk_sessions.sh path/to/gi-server path/to/gi-client}
 set -- "$CLIENT"
 . "$(dirname "$0")/../cli/common.sh"
 # The first case's server keeps idle sessions 60 s: the steps after the jump
-# come 15 s later, long after its move ends even under ASan (5x slower).
-start_city_server "$SERVER" 60
+# come 15 s later, long after its move ends even under ASan (5x slower);
+# both times stretch by GI_TEST_SLOWDOWN (make tsan: 4, TSan is ~15x slower).
+SLOW=${GI_TEST_SLOWDOWN:-1}
+start_city_server "$SERVER" $((60 * SLOW))
 URL=http://127.0.0.1:$PORT
 unset GI_TOKEN GI_SERVER
 # check FILE PYTHON-ASSERTION: the --json summary in FILE satisfies it.
@@ -26,7 +28,8 @@ metric() { "$CLIENT" --server "$URL" metrics 2> /dev/null | sed -n "s/^$1 //p"; 
 
 # Opened in empty space (a bake of nothing), then a jump into the city that
 # outlasts the client's 0.2 s timeout, then small steps once it has ended.
-printf '0,5000,1.7,0\n0.5,0,1.7,0\n15,0.1,1.7,0\n15.1,0.2,1.7,0\n15.2,0.3,1.7,0\n' > "$T/enter.csv"
+GAP=$((15 * SLOW))
+printf '0,5000,1.7,0\n0.5,0,1.7,0\n%s,0.1,1.7,0\n%s.1,0.2,1.7,0\n%s.2,0.3,1.7,0\n' $GAP $GAP $GAP > "$T/enter.csv"
 "$CLIENT" --server "$URL" --timeout 0.2 walk city --quality high --path "$T/enter.csv" --json > "$T/out" 2> "$T/err"
 rc=$?
 if [ $rc -eq 1 ] && check "$T/out" 'j["steps"] == 5 and j["errors"] == 1 and j["reopened"] == 0'; then
