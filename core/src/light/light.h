@@ -112,6 +112,11 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
 typedef struct gi_hits {
   uint64_t w[GI_HIT_BITS / 64];
 } gi_hits;
+/* Per side 2 g + s of an occupied voxel: how far its gathers' apex moves
+ * off the surfaces beside it (bounce.c, away_from_beside). */
+typedef struct gi_shift6 {
+  float v[GI_VOX_FACES][3];
+} gi_shift6;
 /* between.c: which voxels a bounce fills from gathered neighbours on
  * their plane or edge instead of gathering. Per occupied voxel of a level (its
  * index in occ): nb[0] < 0 when it gathers, else the occupied indices of
