@@ -77,6 +77,23 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
  * without rays. The shift depends on the geometry alone: a bake's first
  * bounce computes it, the later ones reuse it (gi_shift6). */
 #define BESIDE_REACH 1.5f
+
+/* 1 when every cell of level d that o + t e crosses for t in [0, reach]
+ * (e an axis) is in the window and holds no surface: the ray along e can
+ * meet nothing, and is not cast (Munich's bounce spent 16 ms on them). */
+static int cells_empty_along(const struct gi_cascade *c, int d, const float o[3], const float e[3], float reach) {
+  const gi_level *L = &c->lv[d];
+  for (float t = 0; t <= reach; t += 0.5f * (float)L->s) {
+    int64_t cell[3];
+    for (int a = 0; a < 3; a++) {
+      cell[a] = (int64_t)floor(((double)o[a] + (double)t * e[a]) / L->s);
+      if (cell[a] < L->cell0[a] || cell[a] >= L->cell0[a] + c->R) return 0;
+    }
+    if (L->vix[gi__slot(cell[0], cell[1], cell[2], c->R)]) return 0;
+  }
+  return 1;
+}
+
 static void away_from_beside(const struct gi_cascade *c, int d, const float n[3], const float o[3], float out[3]) {
   float reach = BESIDE_REACH * (float)c->lv[d].s, on = 1e-3f * (float)c->s0;
   out[0] = out[1] = out[2] = 0;
@@ -85,7 +102,7 @@ static void away_from_beside(const struct gi_cascade *c, int d, const float n[3]
     uint32_t tri;
     e[a / 2] = (a & 1) ? -1.f : 1.f;
     if (fabsf(gi__dot(e, n)) > 0.5f) continue; /* along the normal: its own surface, or what it faces */
-    if (!gi__intersect1(c->scene, o, e, on, reach, &th, &tri, ng)) continue;
+    if (cells_empty_along(c, d, o, e, reach) || !gi__intersect1(c->scene, o, e, on, reach, &th, &tri, ng)) continue;
     float len = gi__len(ng), sg = gi__dot(ng, e) > 0 ? -1.f : 1.f;
     if (!(len > 0)) continue;
     for (int k = 0; k < 3; k++) m[k] = sg * ng[k] / len;
