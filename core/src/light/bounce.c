@@ -83,7 +83,10 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
  * meet nothing, and is not cast (Munich's bounce spent 16 ms on them). */
 static int cells_empty_along(const struct gi_cascade *c, int d, const float o[3], const float e[3], float reach) {
   const gi_level *L = &c->lv[d];
-  for (float t = 0; t <= reach; t += 0.5f * (float)L->s) {
+  /* Every half cell, the last at reach itself: no cell the ray crosses is skipped. */
+  int steps = (int)ceilf(2.f * reach / (float)L->s);
+  for (int i = 0; i <= steps; i++) {
+    float t = gi__minf((float)i * 0.5f * (float)L->s, reach);
     int64_t cell[3];
     for (int a = 0; a < 3; a++) {
       cell[a] = (int64_t)floor(((double)o[a] + (double)t * e[a]) / L->s);
