@@ -126,33 +126,6 @@ static int read_surface(const struct gi_cascade *c, const float x[3], const floa
   return 1;
 }
 
-/* The surfaces other than the nearest within `lift` of point o, found
- * along the six axes (a room's corner: the ceiling and the other wall
- * besides the nearest wall): per surface its unit normal toward o (m) and
- * how far a cone leaving it is lifted (r: to `lift` from it, but at most
- * half way to whatever lies behind o across it, as the nearest surface's
- * lift). Returns how many. */
-#define NEAR_OTHER_MAX 6
-static int other_surfaces(const struct gi_cascade *c, const gi_near_surface *ns, const float o[3], float lift,
-                          float on, float m[NEAR_OTHER_MAX][3], float r[NEAR_OTHER_MAX]) {
-  int k = 0;
-  for (int a = 0; a < 2 * 3; a++) {
-    float e[3] = {0, 0, 0}, th, ng[3];
-    uint32_t tri;
-    e[a / 2] = (a & 1) ? -1.f : 1.f;
-    if (!gi__intersect1(c->scene, o, e, on, lift, &th, &tri, ng)) continue;
-    float len = gi__len(ng), sg = gi__dot(ng, e) > 0 ? -1.f : 1.f;
-    if (!(len > 0)) continue;
-    for (int i = 0; i < 3; i++) m[k][i] = sg * ng[i] / len;
-    if (gi__dot(m[k], ns->n) > NEAR_OTHER_SAME) continue; /* the nearest surface's plane */
-    float room = lift - th, tb;
-    if (!(room > 0)) continue;
-    if (gi__intersect1(c->scene, o, m[k], on, room, &tb, &tri, ng)) room = 0.5f * tb;
-    r[k++] = room;
-  }
-  return k;
-}
-
 void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns, gi_cone_job *jobs, int n,
                            uint8_t *done, gi_cone_out *out) {
   if (!ns->have || n < 1) return;
@@ -168,8 +141,8 @@ void gi__near_surface_rule(const struct gi_cascade *c, const gi_near_surface *ns
    * ceiling, a cone leaving it read the roof's top through the ceiling's
    * coarse voxels. Free cones only: those under the ground's rule keep
    * its limits (below). */
-  float om[NEAR_OTHER_MAX][3], orr[NEAR_OTHER_MAX];
-  int no = other_surfaces(c, ns, jobs[0].o, lift, on, om, orr);
+  float om[6][3], orr[6];
+  int no = gi__surfaces_beside(c, jobs[0].o, lift, on, 0x3fu /* all six axes */, ns->n, NEAR_OTHER_SAME, om, orr);
   for (int i = 0; i < n; i++) {
     gi_cone_job *j = &jobs[i];
     for (int q = 0; q < no && j->h0 < 0; q++)

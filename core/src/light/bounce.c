@@ -24,7 +24,6 @@
 #include <string.h>
 #include "base/internal.h"
 #include "light/light.h"
-#include "scene/scene_internal.h"
 #include "trace/trace.h"
 
 /* One bounce over every level's own voxels as one parallel loop (level d's
@@ -98,21 +97,18 @@ static int cells_empty_along(const struct gi_cascade *c, int d, const float o[3]
 }
 
 static void away_from_beside(const struct gi_cascade *c, int d, const float n[3], const float o[3], float out[3]) {
-  float reach = BESIDE_REACH * (float)c->lv[d].s, on = 1e-3f * (float)c->s0;
-  out[0] = out[1] = out[2] = 0;
+  float reach = BESIDE_REACH * (float)c->lv[d].s, m[6][3], r[6];
+  unsigned axes = 0;
   for (int a = 0; a < 6; a++) {
-    float e[3] = {0, 0, 0}, th, ng[3], tb, m[3];
-    uint32_t tri;
+    float e[3] = {0, 0, 0};
     e[a / 2] = (a & 1) ? -1.f : 1.f;
-    if (fabsf(gi__dot(e, n)) > 0.5f) continue; /* along the normal: its own surface, or what it faces */
-    if (cells_empty_along(c, d, o, e, reach) || !gi__intersect1(c->scene, o, e, on, reach, &th, &tri, ng)) continue;
-    float len = gi__len(ng), sg = gi__dot(ng, e) > 0 ? -1.f : 1.f;
-    if (!(len > 0)) continue;
-    for (int k = 0; k < 3; k++) m[k] = sg * ng[k] / len;
-    float room = reach - th;
-    if (gi__intersect1(c->scene, o, m, on, room, &tb, &tri, ng)) room = 0.5f * tb;
-    for (int k = 0; k < 3; k++) out[k] += room * m[k];
+    /* Along the normal lie its own surface and what it faces. */
+    if (fabsf(gi__dot(e, n)) <= 0.5f && !cells_empty_along(c, d, o, e, reach)) axes |= 1u << a;
   }
+  int k = gi__surfaces_beside(c, o, reach, 1e-3f * (float)c->s0, axes, NULL, 0, m, r);
+  out[0] = out[1] = out[2] = 0;
+  for (int i = 0; i < k; i++)
+    for (int a = 0; a < 3; a++) out[a] += r[i] * m[i][a];
 }
 
 /* Cones of several voxels' gathers marched as one batch: the SIMD march

@@ -8,6 +8,7 @@
  * starts at itself. */
 #include <string.h>
 #include "base/internal.h"
+#include "scene/scene_internal.h"
 #include "trace/trace.h"
 
 /* Step along a cone, in voxels of the sampled level, when the cascade
@@ -150,4 +151,25 @@ void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_re
                                   gi_cone_out *cones) {
   cone_set cs = {c->num_probe_cones, c->probe_dir, c->probe_weight, c->probe_tan};
   gather_many(c, &cs, req, h0, count, adjust, ctx, out, dirs, cones);
+}
+
+int gi__surfaces_beside(const struct gi_cascade *c, const float o[3], float reach, float on, unsigned axes,
+                        const float *skip_n, float skip_cos, float m[6][3], float r[6]) {
+  int k = 0;
+  for (int a = 0; a < 6; a++) {
+    if (!(axes >> a & 1)) continue;
+    float e[3] = {0, 0, 0}, th, ng[3], tb;
+    uint32_t tri;
+    e[a / 2] = (a & 1) ? -1.f : 1.f;
+    if (!gi__intersect1(c->scene, o, e, on, reach, &th, &tri, ng)) continue;
+    float len = gi__len(ng), sg = gi__dot(ng, e) > 0 ? -1.f : 1.f;
+    if (!(len > 0)) continue;
+    for (int i = 0; i < 3; i++) m[k][i] = sg * ng[i] / len;
+    if (skip_n && gi__dot(m[k], skip_n) > skip_cos) continue;
+    float room = reach - th;
+    if (!(room > 0)) continue;
+    if (gi__intersect1(c->scene, o, m[k], on, room, &tb, &tri, ng)) room = 0.5f * tb;
+    r[k++] = room;
+  }
+  return k;
 }

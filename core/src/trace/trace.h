@@ -74,6 +74,17 @@ typedef struct gi_gather_start {
  * every level (g is then set up with the finest voxel size). */
 int gi__gather_start(const struct gi_cascade *c, const float p[3], const float *n, gi_gather_mode mode, int level,
                      gi_gather_start *g);
+/* The surfaces a cone's start o has beside it: along each axis in `axes`
+ * (bit 2a: +a, 2a + 1: -a) the first surface within reach (hits nearer
+ * than `on` skipped: the one o lies on), unless its normal lies within
+ * acos(skip_cos) of skip_n (may be NULL: none skipped). Per surface m[k]
+ * is its unit normal toward o and r[k] how far a start lifted off it
+ * goes: to `reach` from it, at most half way to what lies behind o along
+ * m[k] (a gap's far wall). Returns how many (at most 6). Bounce sides
+ * (light/bounce.c) and probes (answer/gather.c) start their cones off
+ * them. Thread-safe. */
+int gi__surfaces_beside(const struct gi_cascade *c, const float o[3], float reach, float on, unsigned axes,
+                        const float *skip_n, float skip_cos, float m[6][3], float r[6]);
 /* One cone of half-angle tangent tan_half along unit w from g. */
 void gi__gather_cone(const struct gi_cascade *c, const gi_gather_start *g, const float w[3], float tan_half,
                      gi_cone_out *out);
