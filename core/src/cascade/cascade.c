@@ -123,15 +123,38 @@ size_t gi__entries_bytes(const struct gi_cascade *c) {
   return b;
 }
 
+/* The value in [lo, hi] nearest v (lo <= hi). */
+static int64_t clamp_i64(int64_t v, int64_t lo, int64_t hi) {
+  return v < lo ? lo : (v > hi ? hi : v);
+}
+
 void gi__cascade_place(struct gi_cascade *c) {
   int R = c->R;
   double at[3] = {(double)c->at[0], (double)c->at[1], (double)c->at[2]};
+  /* The scene's bulk box, local (a cascade built without a scene has none: empty). */
+  double blo[3] = {1, 1, 1}, bhi[3] = {0, 0, 0};
+  if (c->scene) gi_scene_bulk_bounds(c->scene, blo, bhi);
+  for (int a = 0; a < 3 && c->scene; a++) blo[a] -= c->scene->origin[a], bhi[a] -= c->scene->origin[a];
   for (int d = 0; d < c->n; d++) {
     gi_level *L = &c->lv[d];
     L->s = c->s0 * (double)(1ull << d);
     for (int a = 0; a < 3; a++) {
       int64_t centre = (int64_t)floor(at[a] / L->s);
       L->cell0[a] = gi__floordiv(centre - R / 2, 2) * 2;
+      /* A coarse level wide enough to hold the whole scene along this axis
+       * holds it, as far as holding the finer level allows: centred on a
+       * viewer near one side of a compact scene it left the other side out
+       * (the Cornell box from z = 500: its back wall), and moved with the
+       * viewer, so a walk re-voxelized and re-lit the box's far side. */
+      /* (The bulk's centre is the origin: a box that fits is within R/2 cells of it.) */
+      if (d > 0 && blo[a] <= bhi[a] && bhi[a] - blo[a] <= (double)R * L->s) {
+        int64_t slo = gi__floordiv((int64_t)ceil(bhi[a] / L->s) - R + 1, 2) * 2;
+        int64_t shi = gi__floordiv((int64_t)floor(blo[a] / L->s), 2) * 2;
+        int64_t f0 = c->lv[d - 1].cell0[a] / 2;
+        int64_t nlo = f0 + R / 2 - R, nhi = f0;
+        nlo = gi__floordiv(nlo + 1, 2) * 2, nhi = gi__floordiv(nhi, 2) * 2;
+        if (nlo <= nhi) L->cell0[a] = clamp_i64(clamp_i64(L->cell0[a], slo, shi), nlo, nhi);
+      }
       L->slot0[a] = gi__wrap(L->cell0[a], R);
       L->lo[a] = (float)(L->cell0[a] * L->s);
       L->hi[a] = (float)((L->cell0[a] + R) * L->s);
