@@ -31,7 +31,9 @@ static const char help_text[] =
     "  --check-config  validate the config and load the scenes, then exit\n"
     "  -V, --version   print the version;  -h, --help  this text\n"
     "\n"
-    "Environment: GI_SERVER_TOKEN overrides [server] token_file (bearer token).\n"
+    "Environment: GI_SERVER_TOKEN overrides [server] token_file (bearer token);\n"
+    "GI_CPU_PATH=baseline|x86-64-v3|auto picks the cone march's build (another\n"
+    "value: exit 2).\n"
     "Exit status: 0 clean shutdown or valid config, 1 start-up failed, 2 bad arguments,\n"
     "3 shutdown forced (a second signal, or work still running after shutdown_grace_s).\n";
 
@@ -234,6 +236,12 @@ static void stop_service(gs_http *h, gs_service *svc, gs_catalog *cat, gs_config
 
 int main(int argc, char **argv) {
   server_args args;
+  char why[256];
+  /* Before anything: /v1/health would report a path the user did not ask for. */
+  if (gi_cpu_path_check(why, sizeof why)) {
+    fprintf(stderr, "gi-server: %s\n", why);
+    return 2;
+  }
   int rc = parse_args(argc, argv, &args);
   if (rc >= 0) return rc;
   static gs_config cfg;

@@ -12,6 +12,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include "gi/gi_cpu.h"
 #include "gi/gi_points.h"
 #include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
@@ -323,6 +324,12 @@ const char *ta_version(void) {
 #define GI_VERSION "0.0.0"
 #endif
   return GI_VERSION " (" GI_GIT_REV ")";
+}
+
+int ta_check_cpu_path(ta_ctx *c) {
+  char why[256];
+  if (!gi_cpu_path_check(why, sizeof why)) return 0;
+  return ta_error(c, TA_EXIT_USAGE, NULL, "%s", why);
 }
 
 uint64_t ta_fnv(uint64_t h, const void *p, size_t n) {

@@ -140,6 +140,12 @@ int ta_read_path(ta_ctx *c, const char *opt, const char *path, ta_step **out, si
  * and number, or too many) or TA_EXIT_RUN (cannot read). */
 int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, double **pts, size_t *n);
 
+/* GI_CPU_PATH (gi/gi_cpu.h) before anything else: 0 when it is unset or a
+ * path this process can run, else TA_EXIT_USAGE after "PROG: GI_CPU_PATH=...
+ * is not recognised: expected ...". A tool that went on would time or bake
+ * on a path the user did not ask for. */
+int ta_check_cpu_path(ta_ctx *c);
+
 /* "VERSION (GIT_REV)" of this build. */
 const char *ta_version(void);
 /* FNV-1a (64 bits) of n bytes at p, continuing from h: the tools' cache

@@ -736,7 +736,9 @@ static int check_notes(const char *path) {
 
 int main(int argc, char **argv) {
   opts o;
-  int rc = parse_args(argc, argv, &o);
+  int rc = ta_check_cpu_path(&ta);
+  if (rc) return rc;
+  rc = parse_args(argc, argv, &o);
   if (rc) return rc < 0 ? 0 : rc;
   if ((rc = check_shared(&o))) return rc;
   if (ta_mkdirs(&ta, "--out", o.out_dir)) return 1;

@@ -189,6 +189,8 @@ static int report(const cli_run *run, int json) {
 
 int main(int argc, char **argv) {
   static ta_ctx fin = TA_CTX("gi-bake");
+  int crc = ta_check_cpu_path(&fin);
+  if (crc) return crc;
   if (argc > 1 && !strcmp(argv[1], "merge")) {
     int mrc = batch_merge_main(argc - 1, argv + 1);
     int frc = ta_outputs_finish(&fin, mrc == 0);

@@ -5,6 +5,7 @@
  * (the fuzz build's compiler) does not know that name, and the level is
  * only a fixed list of features plus the OS saving the AVX registers. */
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #if defined(__x86_64__)
@@ -48,11 +49,43 @@ int gi_cpu_has_v3(void) {
 #endif
 }
 
+/* What GI_CPU_PATH asks for. Unset and "" are auto, as before the check. */
+enum { WANT_AUTO, WANT_BASELINE, WANT_V3, WANT_BAD };
+
+static int cpu_path_wanted(const char **value) {
+  const char *env = getenv("GI_CPU_PATH");
+  *value = env ? env : "";
+  if (!env || !*env || !strcmp(env, "auto")) return WANT_AUTO;
+  if (!strcmp(env, "baseline")) return WANT_BASELINE;
+  if (!strcmp(env, "x86-64-v3")) return WANT_V3;
+  return WANT_BAD;
+}
+
+int gi_cpu_path_check(char *why, size_t size) {
+  const char *v;
+  int want = cpu_path_wanted(&v);
+  /* The value is quoted and cut short: it may be any bytes. */
+  if (want == WANT_BAD)
+    snprintf(why, size,
+             "GI_CPU_PATH='%.64s' is not recognised: expected baseline, x86-64-v3 or auto "
+             "(auto, the default when unset, takes %s on this CPU)",
+             v, gi_cpu_has_v3() ? "x86-64-v3" : "baseline");
+  else if (want == WANT_V3 && !gi_cpu_has_v3())
+    snprintf(why, size,
+             "GI_CPU_PATH=x86-64-v3, but this CPU or build cannot run that path (it needs AVX2, FMA, "
+             "F16C and BMI2): use baseline or auto");
+  else
+    return 0;
+  return -1;
+}
+
 int gi__cpu_v3(void) {
   int c = atomic_load_explicit(&chosen, memory_order_relaxed);
   if (c) return c == 2;
-  const char *env = getenv("GI_CPU_PATH");
-  int want_base = env && !strcmp(env, "baseline");
+  const char *v;
+  /* A value gi_cpu_path_check refuses takes the default: the tools exit on
+   * it before any bake, and a library does not end its host. */
+  int want_base = cpu_path_wanted(&v) == WANT_BASELINE;
   c = !want_base && gi_cpu_has_v3() ? 2 : 1;
   atomic_store_explicit(&chosen, c, memory_order_relaxed);
   return c == 2;
