@@ -61,14 +61,14 @@ static const struct {
     {"metrics", GC_METRICS, 0, 0, 0, ""},
     {"job", GC_JOB, 2, 0, 0, ""},
     {"lighting", GC_LIGHTING, 1, F_AT | F_KIND | F_QUALITY | F_SET, 1,
-     "levels res voxel cones aperture step bounces samples probe_samples seed ao half width height"},
+     "levels res voxel cones aperture step bounces samples probe_samples seed ao half width height effects"},
     /* probe_samples and ao act at gather points only: a cascade does not change with them. */
     {"cascades", GC_CASCADES, 1, F_AT | F_FACES | F_QUALITY | F_SET, 1,
-     "levels res voxel cones aperture step bounces samples seed"},
+     "levels res voxel cones aperture step bounces samples seed effects"},
     {"probes", GC_PROBES, 1, F_AT | F_QUALITY | F_SET | F_HALF | F_AO | F_NO_WAIT | F_POINTS, 1,
-     "levels res voxel cones aperture step bounces samples probe_samples seed"},
+     "levels res voxel cones aperture step bounces samples probe_samples seed effects"},
     {"walk", GC_WALK, 1, F_KIND | F_QUALITY | F_SET | F_PATH | F_RATE | F_JSON, 0,
-     "levels res voxel cones aperture step bounces samples probe_samples seed"},
+     "levels res voxel cones aperture step bounces samples probe_samples seed effects"},
 };
 
 static const struct option long_opts[] = {
@@ -145,6 +145,10 @@ static const char help_text[] =
     "                        the cone diameter) (numbers > 0); lighting also\n"
     "                        ao=0|1, half=0|1, width, height (panorama only,\n"
     "                        default 256x128); cascades takes no probe_samples.\n"
+    "                        effects=NAME:on|off|auto[,...] overrides the effect\n"
+    "                        plan, e.g. effects=sky:off,ao:on (NAME: sun,\n"
+    "                        local_lights, sky, emissive, bounce, specular, ao;\n"
+    "                        each once).\n"
     "                        Ranges come from the server's config: it answers\n"
     "                        400 naming the parameter\n"
     "  --half, --ao          probes: half-float EXR; ambient occlusion channel\n"
@@ -229,6 +233,22 @@ static int read_points(gc_opts *o, const char *path) {
   return ta_read_points(&ta, "--points", path, MAX_POINTS, &o->points, &o->num_points);
 }
 
+/* effects=NAME:MODE[,...] through the contract's own parser (the server's
+ * wording and effect names); the value goes into a probes body as a JSON
+ * string unescaped, which this keeps safe: names and modes are plain words. */
+static int check_effects(const char *label, const char *val) {
+  gi_proto_kv kv[] = {{"at", "0,0,0"}, {"effects", val}};
+  gi_proto_limits lim;
+  gi_proto_limits_default(&lim);
+  gi_proto_bake b;
+  gi_proto_error e;
+  if (!gi_proto_parse_lighting(kv, 2, &lim, &b, &e)) return 0;
+  /* The label names the key already. */
+  const char *m = e.message, *tag = "parameter 'effects': ";
+  if (!strncmp(m, tag, strlen(tag))) m += strlen(tag);
+  return ta_fail(&ta, label, "%s", m);
+}
+
 /* Checks one --set KEY=VALUE for form; the command's key list is checked later. */
 static int add_set(gc_opts *o, char *arg) {
   char *eq = strchr(arg, '=');
@@ -242,8 +262,11 @@ static int add_set(gc_opts *o, char *arg) {
   snprintf(label, sizeof label, "--set: %s", key);
   long long l;
   double d;
-  int is_int = 1, rc = 0;
-  if (!strcmp(key, "ao") || !strcmp(key, "half")) {
+  int is_int = 1, is_text = 0, rc = 0;
+  if (!strcmp(key, "effects")) {
+    rc = check_effects(label, val);
+    is_int = 0, is_text = 1;
+  } else if (!strcmp(key, "ao") || !strcmp(key, "half")) {
     if (strcmp(val, "0") && strcmp(val, "1")) rc = ta_fail(&ta, label, "expected 0 or 1, got '%s'", val);
   } else if (!strcmp(key, "voxel") || !strcmp(key, "aperture") || !strcmp(key, "step")) {
     rc = ta_double(&ta, label, "a finite number > 0", val, 0, HUGE_VAL, &d);
@@ -256,10 +279,10 @@ static int add_set(gc_opts *o, char *arg) {
     rc = ta_ll(&ta, label, "an integer >= 1", val, 1, 9007199254740992LL, &l);
   } else {
     rc = ta_fail(&ta, "--set", "unknown key '%s' (levels, res, voxel, cones, aperture, step, bounces, samples, "
-                 "probe_samples, seed, ao, half, width, height)", key);
+                 "probe_samples, seed, ao, half, width, height, effects)", key);
   }
   if (rc) return rc;
-  o->sets[o->num_sets++] = (gc_set){key, val, is_int};
+  o->sets[o->num_sets++] = (gc_set){key, val, is_int, is_text};
   return 0;
 }
 

@@ -18,11 +18,12 @@ typedef ta_step gc_step;
 
 #define GC_MAX_SETS 16
 
-/* One --set KEY=VALUE, checked for type (integer, number, 0|1) by args.c. */
+/* One --set KEY=VALUE, checked for type (integer, number, 0|1, effects) by args.c. */
 typedef struct gc_set {
   const char *key;
   const char *value;
   int is_int;        /* 1: value is an integer (JSON integer in a probes body) */
+  int is_text;       /* 1: value is a word list (JSON string in a probes body): effects */
 } gc_set;
 
 /* Everything the command line asked for, after strict parsing. */

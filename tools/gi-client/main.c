@@ -420,6 +420,12 @@ static char *probes_body(const gc_opts *o, size_t *len) {
     }
     for (int i = 0; i < o->num_sets; i++) {
       /* Keys and values were checked by args.c: plain words and numbers. */
+      if (o->sets[i].is_text) {
+        int k = snprintf(n, sizeof n, "%s\"%s\":\"", i ? "," : "", o->sets[i].key);
+        fail |= buf_add(&b, n, (size_t)k) || buf_add(&b, o->sets[i].value, strlen(o->sets[i].value)) ||
+                buf_add(&b, "\"", 1);
+        continue;
+      }
       double v = strtod(o->sets[i].value, NULL);
       char num[32];
       if (o->sets[i].is_int) snprintf(num, sizeof num, "%lld", strtoll(o->sets[i].value, NULL, 10));
