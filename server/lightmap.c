@@ -92,8 +92,8 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
     rc = gi_lightmap_bake(lm, &req, cancel, &rep, &e);
     gs_metrics_bake_end(svc->metrics, rc == GI_ERR_CANCELLED);
   }
-  /* Server-Timing's gather stage carries the whole lightmap bake (its tiles' cascades included). */
-  if (rc == GI_OK && ep != GS_EP_LIGHTMAP_UV) ms.gather = rep.bake_ms;
+  /* Server-Timing's stages as for a probe: the tiles' cascade stages summed, gather the texels. */
+  if (rc == GI_OK && ep != GS_EP_LIGHTMAP_UV) ms = rep.ms;
   double t1 = gs_now_ms();
   if (rc == GI_OK) rc = encode(svc, lm, ep, b->half, a, &e);
   ms.encode = gs_now_ms() - t1;

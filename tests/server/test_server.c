@@ -424,6 +424,30 @@ static void test_panorama(void **state) {
   test_panorama_limits();
 }
 
+/* A lightmap's Server-Timing: the stages of any bake answer, in order,
+ * each finite and >= 0, the cascade stages and the gather run (each tile
+ * bakes a cascade with a bounce at quality low), and their sum within the
+ * total (each value is rounded to 0.01 ms, hence the slack). */
+static void expect_lightmap_timing(const char *st) {
+  static const char *const names[] = {"voxelize", "inject", "filter", "bounce", "gather", "encode", "total"};
+  double dur[7], sum = 0;
+  const char *p = st;
+  for (int k = 0; k < 7; k++) {
+    char key[32];
+    int n = snprintf(key, sizeof key, "%s%s;dur=", k ? ", " : "", names[k]);
+    assert_true(p && !strncmp(p, key, (size_t)n));
+    char *end;
+    dur[k] = strtod(p + n, &end);
+    assert_true(end > p + n && isfinite(dur[k]) && dur[k] >= 0);
+    if (k < 6) sum += dur[k];
+    p = end;
+  }
+  assert_true(*p == 0);
+  printf("  lightmap Server-Timing: %s (stages %.2f ms)\n", st, sum);
+  assert_true(dur[0] > 0 && dur[1] > 0 && dur[3] > 0 && dur[4] > 0);
+  assert_true(sum <= dur[6] + 0.07);
+}
+
 /* kind=lightmap and lightmap-uv.glb describe the same charts: the glb's
  * one mesh per atlas, the EXR's one atlas with gathered, lit texels. */
 static void test_lightmap(void **state) {
@@ -433,6 +457,7 @@ static void test_lightmap(void **state) {
   su_resp r = GET(&S_main, url);
   assert_int_equal(r.status, 200);
   assert_string_equal(su_header(&r, "X-GI-Cache"), "miss");
+  expect_lightmap_timing(su_header(&r, "Server-Timing"));
   gi_exr_file *x = su_read_exr(&S_main, &r, "lightmap.exr");
   assert_string_equal(gi_exr_file_attr(x, "gi.kind"), "lightmap");
   assert_int_equal(gi_exr_file_width(x), 256);

@@ -37,6 +37,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "gi_cancel.h"
+#include "gi_cascade.h"
 #include "gi_error.h"
 #include "gi_quality.h"
 #include "gi_scene.h"
@@ -76,6 +77,10 @@ typedef struct gi_lightmap_report {
   uint64_t texels_filled;    /* texels filled from neighbours (invalid or gutter) */
   int tiles;                 /* cascades baked */
   double layout_ms, bake_ms, cascade_ms, gather_ms, fill_ms;
+  /* The bake by stage, as a cascade bake reports it: voxelize, inject,
+   * filter and bounce summed over the tiles' cascades, gather the texels'
+   * gathers and the fill from neighbours; encode 0 (the caller writes). */
+  gi_timings ms;
 } gi_lightmap_report;
 
 /* Charts and packing for the triangles of opts' region. Fails with

@@ -293,6 +293,10 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   }
   rep->cascade_ms += t1 - t0;
   rep->gather_ms += gi__now_ms() - t1;
+  rep->ms.voxelize += br.ms.voxelize;
+  rep->ms.inject += br.ms.inject;
+  rep->ms.filter += br.ms.filter;
+  rep->ms.bounce += br.ms.bounce;
   rep->tiles++;
 done:
   gi_cascade_free(c);
@@ -489,6 +493,8 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
     rc = fill_atlas(&lm->atlases[a], &rep.texels_filled, err);
   }
   rep.fill_ms = gi__now_ms() - tf;
+  /* Filling finishes what the gathers left: one stage, as in a probe answer. */
+  rep.ms.gather = rep.gather_ms + rep.fill_ms;
 done:
   gi__free(start);
   gi__free(list);
