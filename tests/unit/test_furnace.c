@@ -138,26 +138,32 @@ static void test_furnace_mirror_walls(void **state) {
   assert_true(fabs(ind - want_ind) <= 0.03 * want_ind);
 }
 
-/* A viewpoint near a wall: the coarsest level (1.25x the cube) holds the
- * whole cube (cascade.c, gi__cascade_place), so probes across the cube
- * get the exact answer too. Centred on this viewpoint it ended at x =
- * 0.70: cones toward the far walls left it, and even the probe beside the
- * viewpoint read 1.154 of the exact 1.440 indirect at 1 bounce (-20%).
+/* Viewpoints near walls and in a corner: the coarsest level (1.25x the
+ * cube) holds the whole cube (cascade.c, cover_scene), so probes across
+ * the cube get the exact answer too. Centred on the first viewpoint it
+ * ended at x = 0.70: cones toward the far walls left it, and even the
+ * probe beside the viewpoint read 1.154 of the exact 1.440 indirect at 1
+ * bounce (-20%). From the corner (0.04, 0.96, 0.07), with the finer level
+ * centred and half outside the cube, holding that level left the far
+ * walls out again (-32%): the finer level now stays inside the cube.
  * Bounds as test_furnace_bounces. */
 static void test_furnace_off_centre(void **state) {
-  const double a = 0.8, Le = 1.0, at[3] = {0.12, 0.5, 0.5};
+  const double a = 0.8, Le = 1.0;
+  const double at[4][3] = {{0.12, 0.5, 0.5}, {0.9, 0.2, 0.75}, {0.04, 0.96, 0.07}, {0.5, 0.5, 0.93}};
   const double pts[3][3] = {{0.15, 0.52, 0.47}, {0.62, 0.45, 0.55}, {0.85, 0.55, 0.47}};
-  for (int B = 1; B <= 2; B++)
-    for (int i = 0; i < 3; i++) {
-      double r[2];
-      run_furnace_at(a, 0, Le, B, 1, at, pts[i], r);
-      double want_ind = furnace_expect(a, Le, B + 1) - Le, ind = r[1] - r[0];
-      printf("furnace viewed from x = %.2f, probe at x = %.2f, %d bounces: direct/pi=%.5f indirect/pi=%.5f "
-             "(exact %.5f) rel.err=%+.4f\n",
-             at[0], pts[i][0], B, r[0], ind, want_ind, (ind - want_ind) / want_ind);
-      assert_true(fabs(r[0] - Le) <= 0.055 * Le);
-      assert_true(fabs(ind - want_ind) <= 0.015 * want_ind);
-    }
+  for (int v = 0; v < 4; v++)
+    for (int B = 1; B <= 2; B++)
+      for (int i = 0; i < 3; i++) {
+        double r[2];
+        run_furnace_at(a, 0, Le, B, 1, at[v], pts[i], r);
+        double want_ind = furnace_expect(a, Le, B + 1) - Le, ind = r[1] - r[0];
+        printf("furnace viewed from (%.2f %.2f %.2f), probe at (%.2f %.2f %.2f), %d bounces: direct/pi=%.5f "
+               "indirect/pi=%.5f (exact %.5f) rel.err=%+.4f\n",
+               at[v][0], at[v][1], at[v][2], pts[i][0], pts[i][1], pts[i][2], B, r[0], ind, want_ind,
+               (ind - want_ind) / want_ind);
+        assert_true(fabs(r[0] - Le) <= 0.055 * Le);
+        assert_true(fabs(ind - want_ind) <= 0.015 * want_ind);
+      }
 }
 
 static void test_furnace_noise(void **state) {

@@ -128,6 +128,40 @@ static int64_t clamp_i64(int64_t v, int64_t lo, int64_t hi) {
   return v < lo ? lo : (v > hi ? hi : v);
 }
 
+/* Cells kept free between a held scene and its level's faces: a cone
+ * samples a level only one voxel inside its window (trace/march.c), and
+ * the trilinear footprint reaches one cell further. */
+#define HOLD_MARGIN 2
+
+/* Even cells: the nearest at or above x, at or below x. */
+static int64_t even_up(int64_t x) { return gi__floordiv(x + 1, 2) * 2; }
+static int64_t even_down(int64_t x) { return gi__floordiv(x, 2) * 2; }
+
+/* A level above the finest covers as much of the scene as it can while
+ * holding the finer level: one wide enough holds the whole scene along the
+ * axis, a narrower one stays inside it. Centred on a viewer near one side
+ * of a compact scene, the coarsest level left the other side out (the
+ * Cornell box from z = 500: its back wall) and moved with the viewer, so a
+ * walk re-voxelized and re-lit the far walls; the finer levels spent half
+ * their cells outside the scene. blo/bhi: the scene's local bulk box. */
+static int64_t cover_scene(const struct gi_cascade *c, int d, int a, int64_t cell0, const double blo[3],
+                           const double bhi[3]) {
+  int R = c->R;
+  double s = c->lv[d].s, far = 0x1p52; /* viewpoints lie within 2^52 cells of the origin (gi__viewpoint_range) */
+  if (d == 0 || !(blo[a] <= bhi[a])) return cell0;
+  int64_t first = (int64_t)fmax(floor(blo[a] / s), -far), last = (int64_t)fmin(floor(bhi[a] / s), far);
+  /* Holding the scene with its margins: cell0 in [lo, hi]; when that is
+   * empty the level is narrower, and cell0 in [hi, lo] keeps it inside. */
+  int64_t lo = last + HOLD_MARGIN + 1 - R, hi = first - HOLD_MARGIN, want_lo, want_hi;
+  if (lo <= hi) want_lo = even_up(lo), want_hi = even_down(hi);
+  else want_lo = even_up(hi), want_hi = even_down(lo);
+  /* Within an even cell of fitting: the scene in the middle. */
+  if (want_lo > want_hi) want_lo = want_hi = even_down(gi__floordiv(first + last + 1 - R, 2));
+  /* cell0 of the finer level is even, so f0 is exact; the finer window is [f0, f0 + R/2). */
+  int64_t f0 = c->lv[d - 1].cell0[a] / 2, nlo = even_up(f0 - R / 2), nhi = even_down(f0);
+  return nlo <= nhi ? clamp_i64(clamp_i64(cell0, want_lo, want_hi), nlo, nhi) : cell0;
+}
+
 void gi__cascade_place(struct gi_cascade *c) {
   int R = c->R;
   double at[3] = {(double)c->at[0], (double)c->at[1], (double)c->at[2]};
@@ -140,21 +174,7 @@ void gi__cascade_place(struct gi_cascade *c) {
     L->s = c->s0 * (double)(1ull << d);
     for (int a = 0; a < 3; a++) {
       int64_t centre = (int64_t)floor(at[a] / L->s);
-      L->cell0[a] = gi__floordiv(centre - R / 2, 2) * 2;
-      /* A coarse level wide enough to hold the whole scene along this axis
-       * holds it, as far as holding the finer level allows: centred on a
-       * viewer near one side of a compact scene it left the other side out
-       * (the Cornell box from z = 500: its back wall), and moved with the
-       * viewer, so a walk re-voxelized and re-lit the box's far side. */
-      /* (The bulk's centre is the origin: a box that fits is within R/2 cells of it.) */
-      if (d > 0 && blo[a] <= bhi[a] && bhi[a] - blo[a] <= (double)R * L->s) {
-        int64_t slo = gi__floordiv((int64_t)ceil(bhi[a] / L->s) - R + 1, 2) * 2;
-        int64_t shi = gi__floordiv((int64_t)floor(blo[a] / L->s), 2) * 2;
-        int64_t f0 = c->lv[d - 1].cell0[a] / 2;
-        int64_t nlo = f0 + R / 2 - R, nhi = f0;
-        nlo = gi__floordiv(nlo + 1, 2) * 2, nhi = gi__floordiv(nhi, 2) * 2;
-        if (nlo <= nhi) L->cell0[a] = clamp_i64(clamp_i64(L->cell0[a], slo, shi), nlo, nhi);
-      }
+      L->cell0[a] = cover_scene(c, d, a, gi__floordiv(centre - R / 2, 2) * 2, blo, bhi);
       L->slot0[a] = gi__wrap(L->cell0[a], R);
       L->lo[a] = (float)(L->cell0[a] * L->s);
       L->hi[a] = (float)((L->cell0[a] + R) * L->s);
