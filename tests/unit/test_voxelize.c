@@ -107,6 +107,20 @@ static void test_snapping_and_nesting(void **state) {
     for (int a = 0; a < 3; a++) {
       assert_true(at[a] >= rep.level_origin[0][a] + 0.5 * 7 && at[a] <= rep.level_origin[0][a] + 0.5 * 9 + 0.5);
     }
+    /* From inside the box (10 wide), levels 2 and 3 (32 and 64 wide) hold
+     * all of it two cells clear of their faces (cascade.c, cover_scene).
+     * Level 1 (16) does too unless holding level 0 (8, centred on the
+     * viewpoint) stops it: then a face lies within one of its cells of
+     * level 0's (levels start on even cells of their own). */
+    int inside = 1;
+    for (int a = 0; a < 3; a++) inside &= fabs(at[a]) < 5;
+    for (int d = 1; d < q.levels && inside; d++)
+      for (int a = 0; a < 3; a++) {
+        double o = rep.level_origin[d][a], S = rep.voxel_size[d], e = 16 * S;
+        double o0 = rep.level_origin[0][a], e0 = 16 * rep.voxel_size[0];
+        int holds = o <= -5 - 2 * S && o + e >= 5 + 2 * S;
+        assert_true(holds || (d == 1 && (fabs(o - o0) <= S || fabs(o + e - o0 - e0) <= S)));
+      }
     gi_cascade_free(cas);
   }
   gi_scene_release(sc);
