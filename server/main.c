@@ -13,9 +13,9 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include "gi/gi_cpu.h"
 #include "server.h"
 #include "toolargs.h"
-#include "gi_git_rev.h" /* GI_GIT_REV: generated at build time (cmake/git_rev.cmake) */
 
 static const char help_text[] =
     "Usage: gi-server [--config FILE] [--port N] [--bind ADDR] [--port-file F]\n"
@@ -29,7 +29,7 @@ static const char help_text[] =
     "  --bind ADDR     override [server] bind (an IPv4 address)\n"
     "  --port-file F   write the bound port number to F once listening\n"
     "  --check-config  validate the config and load the scenes, then exit\n"
-    "  -V, --version   print the version;  -h, --help  this text\n"
+    "  -V, --version   the version and the march's CPU path;  -h, --help  this text\n"
     "\n"
     "Environment: GI_SERVER_TOKEN overrides [server] token_file (bearer token);\n"
     "GI_CPU_PATH=baseline|x86-64-v3|auto picks the cone march's build (another\n"
@@ -111,7 +111,7 @@ static int parse_args(int argc, char **argv, server_args *a) {
     }
     case 'f': a->port_file = optarg; break;
     case 'k': a->check = 1; break;
-    case 'V': printf("gi-server %s (%s)\n", GI_VERSION, GI_GIT_REV); return 0;
+    case 'V': printf("gi-server %s\ncpu path: %s\n", ta_version(), gi_cpu_path()); return 0;
     case 'h': fputs(help_text, stdout); return 0;
     case ':': fprintf(stderr, "gi-server: %s needs a value\n", argv[optind - 1]); return 2;
     default: fprintf(stderr, "gi-server: unknown option '%s' (see --help)\n", argv[optind - 1]); return 2;

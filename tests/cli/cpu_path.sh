@@ -2,7 +2,8 @@
 # x86-64-v3, auto; unset or empty is auto), and any other value stops
 # gi-bake with exit 2 and a line naming the variable, the value and the
 # accepted values, before it writes anything: a typo used to pass silently
-# for a forced path.
+# for a forced path. gi-server, gi-walk and gi-accuracy --version name the
+# path as gi-bake does.
 . "$(dirname "$0")/common.sh"
 
 # version VALUE: gi-bake --version with GI_CPU_PATH=VALUE; rc, out, err.
@@ -41,6 +42,24 @@ for v in baselin avx2 BASELINE x86-64-v4 " baseline"; do
   else
     fail "'$v': exit $rc, stdout '$(cat "$T/out")', stderr '$(cat "$T/err")'"
   fi
+done
+
+# Every tool that marches says its path the same way: gi-server printed
+# its version alone. Its first line names the tool, its second the path.
+for tool in gi-server gi-walk gi-accuracy; do
+  exe="$(dirname "$BIN")/$tool"
+  [ -x "$exe" ] || { fail "$tool not built next to gi-bake"; continue; }
+  for v in "" baseline; do
+    GI_CPU_PATH=$v "$exe" --version > "$T/out" 2> "$T/err"; rc=$?
+    want=$auto
+    [ -n "$v" ] && want=$v
+    if [ $rc -eq 0 ] && sed -n 1p "$T/out" | grep -q "^$tool [0-9][^ ]* (.*)\$" && [ "$(sed -n 2p "$T/out")" = "cpu path: $want" ] &&
+      [ "$(wc -l < "$T/out")" -eq 2 ]; then
+      pass "$tool --version with '$v': cpu path: $want"
+    else
+      fail "$tool --version with '$v': exit $rc, stdout '$(cat "$T/out")', stderr '$(cat "$T/err")'"
+    fi
+  done
 done
 
 # A bake with a bad value writes nothing.
