@@ -87,9 +87,10 @@ int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, 
 
 /* lightmap.c: one lightmap option (LM_OPT_*) into o->lm; the checks of
  * the lightmap options and their combinations (0 or an exit code); the
- * --lightmap run on a loaded scene (0, EXIT_USAGE or EXIT_RUN). */
+ * --lightmap run on a loaded scene (0, EXIT_USAGE or EXIT_RUN), which
+ * took load_ms to load. */
 int lightmap_option(cli_opts *o, int c, const char *arg);
 int lightmap_check(cli_opts *o);
-int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, double (*now_ms)(void));
+int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, double load_ms, double (*now_ms)(void));
 
 #endif

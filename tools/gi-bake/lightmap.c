@@ -107,22 +107,38 @@ static int layout_failed(const gi_error_info *err, gi_result r) {
   return ta_fail(&ta, opt, "%s", err->msg);
 }
 
-static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_lightmap_report *r, double total_ms) {
+/* The run's stages, named as a probe bake's timings_ms: load, the layout,
+ * the tiles' cascade stages summed, gather (the texels and the fill), and
+ * encode (writing the glTF and the atlases). */
+typedef struct lm_times {
+  double load, encode, total;
+} lm_times;
+
+static json_t *timings_json(const gi_lightmap_report *r, const lm_times *t) {
+  return json_pack("{s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f}", "load", t->load, "layout", r->layout_ms, "voxelize",
+                   r->ms.voxelize, "inject", r->ms.inject, "filter", r->ms.filter, "bounce", r->ms.bounce, "gather",
+                   r->ms.gather, "encode", t->encode, "total", t->total);
+}
+
+static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_lightmap_report *r, const lm_times *t) {
   size_t na = gi_lightmap_num_atlases(lm);
   if (!o->json) {
     printf("lightmap: %zu triangles in %zu charts, %zu atlas%s, %llu texels (%llu gathered, %llu filled), %d tile%s\n",
            r->triangles, r->charts, na, na == 1 ? "" : "es", (unsigned long long)r->texels,
            (unsigned long long)r->texels_valid, (unsigned long long)r->texels_filled, r->tiles, r->tiles == 1 ? "" : "s");
     printf("time: layout %.1f ms, cascades %.1f ms, gather %.1f ms, fill %.1f ms, total %.1f ms\n", r->layout_ms,
-           r->cascade_ms, r->gather_ms, r->fill_ms, total_ms);
+           r->cascade_ms, r->gather_ms, r->fill_ms, t->total);
+    printf("stages (ms): load %.2f, layout %.2f, voxelize %.2f, inject %.2f, filter %.2f, bounce %.2f, gather %.2f, "
+           "encode %.2f, total %.2f\n", t->load, r->layout_ms, r->ms.voxelize, r->ms.inject, r->ms.filter,
+           r->ms.bounce, r->ms.gather, t->encode, t->total);
     return;
   }
-  json_t *j = json_pack("{s:I,s:I,s:I,s:I,s:I,s:I,s:i,s:f,s:f,s:f,s:f,s:f,s:s,s:s?}", "triangles",
+  json_t *j = json_pack("{s:I,s:I,s:I,s:I,s:I,s:I,s:i,s:f,s:f,s:f,s:f,s:f,s:o,s:s,s:s?}", "triangles",
                         (json_int_t)r->triangles, "charts", (json_int_t)r->charts, "atlases", (json_int_t)na, "texels",
                         (json_int_t)r->texels, "texels_gathered", (json_int_t)r->texels_valid, "texels_filled",
                         (json_int_t)r->texels_filled, "tiles", r->tiles, "layout_ms", r->layout_ms, "cascade_ms",
-                        r->cascade_ms, "gather_ms", r->gather_ms, "fill_ms", r->fill_ms, "total_ms", total_ms, "exr",
-                        o->lm.out, "glb", o->lm.uv_out);
+                        r->cascade_ms, "gather_ms", r->gather_ms, "fill_ms", r->fill_ms, "total_ms", t->total,
+                        "timings_ms", timings_json(r, t), "exr", o->lm.out, "glb", o->lm.uv_out);
   json_t *root = json_pack("{s:o}", "lightmap", j);
   char *s = json_dumps(root, JSON_INDENT(2));
   if (s) puts(s);
@@ -130,7 +146,7 @@ static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_ligh
   json_decref(root);
 }
 
-int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, double (*now_ms)(void)) {
+int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, double load_ms, double (*now_ms)(void)) {
   gi_error_info err;
   memset(&err, 0, sizeof err);
   gi_lightmap *lm = NULL;
@@ -148,6 +164,7 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
   gi_result r = gi_lightmap_layout(scene, &opts, &lm, &err);
   if (r != GI_OK) return layout_failed(&err, r);
   gi_lightmap_report rep;
+  lm_times t = {.load = load_ms};
   int rc = 0;
   if ((r = gi_lightmap_bake(lm, &o->q, NULL, &rep, &err)) != GI_OK && r == GI_ERR_LIMIT && o->lm.opts.tile > 0) {
     /* Too many tiles for --tile: the option's fault, like an atlas too
@@ -163,6 +180,7 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
      * next atlas's temporary file (not one the signal handler knows).
      * Worker threads exist already, so a signal mask would not do. */
     hold_signals(1);
+    double te = now_ms();
     if (o->lm.uv_out && (r = gi_lightmap_write_gltf(lm, o->lm.uv_out, &err)) != GI_OK) {
       fprintf(stderr, "gi-bake: --uv-out: %s\n", err.msg);
       rc = EXIT_RUN;
@@ -171,6 +189,7 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
       if (o->lm.uv_out) remove(o->lm.uv_out);
       rc = EXIT_RUN;
     }
+    t.encode = now_ms() - te;
     hold_signals(0); /* a signal held meanwhile ends the run now */
   }
   if (!rc) {
@@ -182,7 +201,8 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
         fprintf(stderr, "gi-bake: wrote %s (%d x %d)\n", file, a.width, a.height);
     }
     if (o->lm.uv_out) fprintf(stderr, "gi-bake: wrote %s\n", o->lm.uv_out);
-    print_report(o, lm, &rep, now_ms() - t_start_ms);
+    t.total = now_ms() - t_start_ms;
+    print_report(o, lm, &rep, &t);
   }
   gi_lightmap_free(lm);
   return rc;

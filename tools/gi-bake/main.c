@@ -223,7 +223,7 @@ int main(int argc, char **argv) {
     goto done;
   }
   if (o.lm.out) {
-    rc = lightmap_run(&o, scene, t_start, now_ms);
+    rc = lightmap_run(&o, scene, t_start, load_ms, now_ms);
     goto done;
   }
   choose_viewpoint(&o, scene);
