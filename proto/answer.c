@@ -179,6 +179,11 @@ void gi_proto_server_timing(const gi_timings *t, double total_ms, char *buf, siz
            t->voxelize, t->inject, t->filter, t->bounce, t->gather, t->encode, total_ms);
 }
 
+void gi_proto_server_timing_layout(double layout_ms, const gi_timings *t, double total_ms, char *buf, size_t size) {
+  int n = snprintf(buf, size, "layout;dur=%.2f, ", layout_ms);
+  if (n >= 0 && (size_t)n < size) gi_proto_server_timing(t, total_ms, buf + n, size - (size_t)n);
+}
+
 void gi_proto_effects_header(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size) {
   size_t off = 0;
   buf[0] = 0;

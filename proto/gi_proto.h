@@ -166,6 +166,8 @@ int gi_proto_session_parse(const char *json, size_t len, gi_proto_session *out);
 
 /* Header values. Server-Timing: "voxelize;dur=1.2, inject;dur=...". */
 void gi_proto_server_timing(const gi_timings *t, double total_ms, char *buf, size_t size);
+/* The same led by "layout;dur=...": a lightmap's charts, packing and texels sorted into tiles. */
+void gi_proto_server_timing_layout(double layout_ms, const gi_timings *t, double total_ms, char *buf, size_t size);
 /* X-GI-Effects: "sun=ran, local_lights=skipped, ...". */
 void gi_proto_effects_header(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size);
 

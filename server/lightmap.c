@@ -56,6 +56,7 @@ static gi_result encode(gs_service *svc, const gi_lightmap *lm, gs_endpoint ep, 
 
 void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
                        const gi_cancel *cancel, gs_answer *a) {
+  double t0 = gs_now_ms();
   gi_error_info e = {0};
   gi_quality req = b->quality, q;
   req.threads = svc->cfg->bake_threads;
@@ -66,6 +67,7 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
     lightmap_opts(b, &q, &o);
     rc = gi_lightmap_layout(s->scene, &o, &lm, &e);
   }
+  double layout_ms = gs_now_ms() - t0;
   if (rc != GI_OK) return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
   size_t na = gi_lightmap_num_atlases(lm);
   if (na > 1) {
@@ -92,8 +94,12 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
     rc = gi_lightmap_bake(lm, &req, cancel, &rep, &e);
     gs_metrics_bake_end(svc->metrics, rc == GI_ERR_CANCELLED);
   }
-  /* Server-Timing's stages as for a probe: the tiles' cascade stages summed, gather the texels. */
-  if (rc == GI_OK && ep != GS_EP_LIGHTMAP_UV) ms = rep.ms;
+  /* Server-Timing's stages as for a probe: the tiles' cascade stages summed, gather the texels;
+   * layout leads them, with the bake's sorting of texels into tiles. */
+  if (rc == GI_OK && ep != GS_EP_LIGHTMAP_UV) {
+    ms = rep.ms;
+    layout_ms += rep.sort_ms;
+  }
   double t1 = gs_now_ms();
   if (rc == GI_OK) rc = encode(svc, lm, ep, b->half, a, &e);
   ms.encode = gs_now_ms() - t1;
@@ -105,7 +111,7 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   for (int k = 0; k < 3; k++) centre[k] = 0.5 * (o.region_lo[k] + o.region_hi[k]);
   if (gi_effect_plan(s->scene, centre, &req, fx, NULL, &e) == GI_OK)
     gi_proto_effects_header(fx, a->effects, sizeof a->effects);
-  gi_proto_server_timing(&ms, gs_now_ms() - t_start_ms, a->server_timing, sizeof a->server_timing);
+  gi_proto_server_timing_layout(layout_ms, &ms, gs_now_ms() - t_start_ms, a->server_timing, sizeof a->server_timing);
   a->cache = "miss";
   snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-lightmap%s\"", s->id,
            ep == GS_EP_LIGHTMAP_UV ? "-uv.glb" : ".exr");

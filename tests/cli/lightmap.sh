@@ -32,7 +32,8 @@ names = ["load", "layout", "voxelize", "inject", "filter", "bounce", "gather", "
 assert list(t) == names, list(t)
 assert all(isinstance(t[k], float) and math.isfinite(t[k]) and t[k] >= 0 for k in names), t
 assert t["voxelize"] > 0 and t["bounce"] > 0 and t["gather"] > 0 and t["encode"] > 0, t
-assert t["layout"] == d["layout_ms"] and t["total"] == d["total_ms"], (t, d)
+# layout adds the texels sorted into tiles to the charts' layout_ms.
+assert t["layout"] >= d["layout_ms"] and t["total"] == d["total_ms"], (t, d)
 assert abs(t["gather"] - (d["gather_ms"] + d["fill_ms"])) <= 1e-9 * t["gather"], (t, d)
 assert t["voxelize"] + t["inject"] + t["filter"] + t["bounce"] <= d["cascade_ms"], (t, d)
 assert sum(t[k] for k in names[:-1]) <= t["total"], t

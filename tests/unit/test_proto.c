@@ -403,6 +403,12 @@ static void test_headers(void **state) {
   gi_proto_server_timing(&t, 16.25, buf, sizeof buf);
   assert_string_equal(buf, "voxelize;dur=1.50, inject;dur=2.00, filter;dur=0.25, bounce;dur=10.00, "
                            "gather;dur=0.50, encode;dur=1.00, total;dur=16.25");
+  gi_proto_server_timing_layout(0.4, &t, 16.5, buf, sizeof buf);
+  assert_string_equal(buf, "layout;dur=0.40, voxelize;dur=1.50, inject;dur=2.00, filter;dur=0.25, bounce;dur=10.00, "
+                           "gather;dur=0.50, encode;dur=1.00, total;dur=16.50");
+  /* Cut short, never past the buffer. */
+  gi_proto_server_timing_layout(3, &t, 16.5, buf, 8);
+  assert_string_equal(buf, "layout;");
   gi_effect fx[GI_FX_COUNT] = {{0}};
   fx[GI_FX_SUN].ran = 1;
   fx[GI_FX_BOUNCE].ran = 1;

@@ -107,17 +107,18 @@ static int layout_failed(const gi_error_info *err, gi_result r) {
   return ta_fail(&ta, opt, "%s", err->msg);
 }
 
-/* The run's stages, named as a probe bake's timings_ms: load, the layout,
- * the tiles' cascade stages summed, gather (the texels and the fill), and
+/* The run's stages, named as a probe bake's timings_ms: load, the layout
+ * (with the texels sorted into tiles, as the server's layout stage), the
+ * tiles' cascade stages summed, gather (the texels and the fill), and
  * encode (writing the glTF and the atlases). */
 typedef struct lm_times {
   double load, encode, total;
 } lm_times;
 
 static json_t *timings_json(const gi_lightmap_report *r, const lm_times *t) {
-  return json_pack("{s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f}", "load", t->load, "layout", r->layout_ms, "voxelize",
-                   r->ms.voxelize, "inject", r->ms.inject, "filter", r->ms.filter, "bounce", r->ms.bounce, "gather",
-                   r->ms.gather, "encode", t->encode, "total", t->total);
+  return json_pack("{s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f}", "load", t->load, "layout", r->layout_ms + r->sort_ms,
+                   "voxelize", r->ms.voxelize, "inject", r->ms.inject, "filter", r->ms.filter, "bounce", r->ms.bounce,
+                   "gather", r->ms.gather, "encode", t->encode, "total", t->total);
 }
 
 static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_lightmap_report *r, const lm_times *t) {
@@ -129,8 +130,8 @@ static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_ligh
     printf("time: layout %.1f ms, cascades %.1f ms, gather %.1f ms, fill %.1f ms, total %.1f ms\n", r->layout_ms,
            r->cascade_ms, r->gather_ms, r->fill_ms, t->total);
     printf("stages (ms): load %.2f, layout %.2f, voxelize %.2f, inject %.2f, filter %.2f, bounce %.2f, gather %.2f, "
-           "encode %.2f, total %.2f\n", t->load, r->layout_ms, r->ms.voxelize, r->ms.inject, r->ms.filter,
-           r->ms.bounce, r->ms.gather, t->encode, t->total);
+           "encode %.2f, total %.2f\n", t->load, r->layout_ms + r->sort_ms, r->ms.voxelize, r->ms.inject,
+           r->ms.filter, r->ms.bounce, r->ms.gather, t->encode, t->total);
     return;
   }
   json_t *j = json_pack("{s:I,s:I,s:I,s:I,s:I,s:I,s:i,s:f,s:f,s:f,s:f,s:f,s:o,s:s,s:s?}", "triangles",

@@ -81,6 +81,9 @@ typedef struct gi_lightmap_report {
    * filter and bounce summed over the tiles' cascades, gather the texels'
    * gathers and the fill from neighbours; encode 0 (the caller writes). */
   gi_timings ms;
+  /* The bake's own share of the layout: the atlases cleared and the
+   * texels sorted into tiles. With layout_ms it is the layout stage. */
+  double sort_ms;
 } gi_lightmap_report;
 
 /* Charts and packing for the triangles of opts' region. Fails with

@@ -468,10 +468,13 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
    * bake starts from empty atlases, and a failed one (cancelled, or a tile
    * whose cascade fails) clears them again at `done`: tiles baked before
    * the failure beside zeros were not a lightmap. */
+  double ts = gi__now_ms();
   clear_atlases(lm);
   size_t *start = NULL;
   uint64_t *list = NULL;
-  if ((rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, err)) != GI_OK) goto done;
+  rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, err);
+  rep.sort_ms = gi__now_ms() - ts;
+  if (rc != GI_OK) goto done;
   for (int tz = 0; tz < nt[2] && rc == GI_OK; tz++)
     for (int ty = 0; ty < nt[1] && rc == GI_OK; ty++)
       for (int tx = 0; tx < nt[0] && rc == GI_OK; tx++) {
