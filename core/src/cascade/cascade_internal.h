@@ -68,8 +68,11 @@ typedef struct gi_vgeo {
       float tensor[6];   /* sum of area n n^T: xx, yy, zz, xy, xz, yz */
       float acen[3][3];  /* per axis, sum of |A_axis| x piece centroid */
       float apos[3];     /* per axis, sum of A_axis over the pieces with A_axis > 0 */
-      float aside[3][2]; /* per axis, sum of |A_axis| x the centroid's coordinate on
-                            that axis, pieces with A_axis > 0 and < 0 apart */
+      float afront[3][2]; /* per axis, the front-most centroid of the pieces facing
+                             mostly along it, A_axis > 0 and < 0 apart: s + the
+                             coordinate from the cell's low corner (> 0, the
+                             largest) or 2 s - it (< 0, the smallest); 0 when
+                             none (see side_offsets) */
     } sum;
     struct {           /* after gi__voxel_finalize */
       float orient[GI_VOX_GROUPS][3]; /* unit, orient[g] . e_a >= 0 for its first axis */
@@ -362,8 +365,9 @@ static inline void gi__fan_moments(const float v[][3], int n, float A[3], float 
 #define GI_CLIP_MAXV 12
 int gi__voxel_clip_tri(double s, const int64_t cell[3], const float tv[3][3], float poly[GI_CLIP_MAXV][3],
                        float corner[3]);
-/* Normalises the sums g of the voxel in slot and writes its texel's
- * opacity; 1 when it holds geometry (0: g and the texel cleared). */
-int gi__voxel_finalize(gi_level *L, gi_vgeo *g, uint32_t slot);
+/* Normalises the sums g of the voxel in slot (global cell `cell`) and
+ * writes its texel's opacity; 1 when it holds geometry (0: g and the
+ * texel cleared). */
+int gi__voxel_finalize(gi_level *L, gi_vgeo *g, uint32_t slot, const int64_t cell[3]);
 
 #endif

@@ -275,7 +275,8 @@ static uint32_t finish_level(struct gi_cascade *c, gi_level *L, uint32_t *fresh,
         if (L->busy[slot] == CELL_VOXELIZED) {
           any_voxelized = 1;
           if (L->vix[slot] == 0) continue;
-          if (!gi__voxel_finalize(L, gi__geo(L, slot), slot)) {
+          int64_t cell[3] = {i, j, k};
+          if (!gi__voxel_finalize(L, gi__geo(L, slot), slot, cell)) {
             gi__level_release(L, slot);
             continue;
           }
