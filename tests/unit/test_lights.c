@@ -318,6 +318,7 @@ static void test_sun_pieces(void **state) {
     gi__near_reset(&ns);
     assert_int_equal(gi__spread_light(s, &g, 1.0, cell, &tilted, 1, &rng, &ns, Et, &rays), 1);
     assert_int_equal(gi__spread_light(s, &g, 1.0, cell, &zenith, 1, &rng, &ns, Ez, &rays), 1);
+    /* A ray a point; none to ask whether a piece hides another: the plate's two are coplanar. */
     assert_true(rays == 2 * GI_SUN_POINTS);
     assert_true(fabsf(Et[0][0] - E * ct) < 1e-4f * E && Et[1][0] == 0);
     assert_true(Ez[0][1] >= 0 && Ez[0][1] <= E * (1 + 1e-5f) && Ez[1][1] == 0);
@@ -354,6 +355,7 @@ static void test_sky_spread(void **state) {
   assert_int_equal(gi__spread_light(s, &g, 1.0, cell, sky, M, &rng, &ns, E, &rays), 1);
   printf("sky spread: %.5f on the open plate's top (pi L = %.5f), %llu rays\n", E[0][0], M_PI * L,
          (unsigned long long)rays);
+  /* A ray a point; none to ask whether a piece hides another: the plate's two are coplanar. */
   assert_true(rays == M);
   assert_true(fabs(E[0][0] / (M_PI * L) - 1) < 1e-4 && E[1][0] == 0);
   gi__near_free(&ns);

@@ -35,6 +35,7 @@ typedef struct gi_near_scratch {
   size_t npieces, pieces_cap;
   int have_pieces;
   float wsum[GI_VOX_GROUPS], total;
+  float wside[GI_VOX_GROUPS][2]; /* per group side, the area of the pieces seen from it */
 } gi_near_scratch;
 /* A voxel holding more triangles than this keeps the centroid's value: the
  * pieces cost a clip and a shadow ray each, per near light, and a coarse

@@ -180,11 +180,55 @@ static int sample_stride(int m) {
 typedef struct gi_piece {
   float v[GI_CLIP_MAXV][3];
   float A[3], area, cum, share[GI_VOX_GROUPS];
+  float c[3];     /* centroid, relative to the cell's corner */
   int n;
+  uint8_t hidden; /* bit 0: the side A faces is hidden (hidden_side), bit 1: the other */
 } gi_piece;
 
+/* A piece within this angle of parallel to another can hide it (60 degrees). */
+#define HIDE_COS 0.5f
+
+/* 1 when x (in q's plane) lies inside q's convex polygon, wound as q->A. */
+static int in_piece(const gi_piece *q, const float x[3]) {
+  for (int k = 0; k < q->n; k++) {
+    const float *a = q->v[k], *b = q->v[(k + 1) % q->n];
+    float e[3], r[3], cr[3];
+    for (int m = 0; m < 3; m++) e[m] = b[m] - a[m], r[m] = x[m] - a[m];
+    gi__cross(e, r, cr);
+    if (gi__dot(cr, q->A) < -1e-6f * q->area * q->area) return 0;
+  }
+  return 1;
+}
+
+/* 1 when another piece of the voxel (size sz) lies in front of piece i's
+ * centroid along unit n, inside the cell: that side of piece i is hidden
+ * from outside the voxel (a wall 0.3 m behind a facade, inside the
+ * building). Pieces more than 60 degrees off parallel are not asked (a
+ * wall meeting a floor). The ray meets the pieces here: Embree's rays
+ * for every piece cost the city's bake 40% more shadow rays. */
+static int hidden_side(const gi_piece *pcs, size_t np, size_t i, const float n[3], float sz) {
+  const gi_piece *p = &pcs[i];
+  float tmax = INFINITY;
+  for (int k = 0; k < 3; k++) {
+    if (n[k] > 0) tmax = gi__minf(tmax, (sz - p->c[k]) / n[k]);
+    else if (n[k] < 0) tmax = gi__minf(tmax, -p->c[k] / n[k]);
+  }
+  for (size_t j = 0; j < np; j++) {
+    const gi_piece *q = &pcs[j];
+    float an = gi__dot(q->A, n), d[3], x[3];
+    if (j == i || fabsf(an) < HIDE_COS * q->area) continue;
+    for (int k = 0; k < 3; k++) d[k] = q->c[k] - p->c[k];
+    float t = gi__dot(q->A, d) / an;
+    if (!(t > 1e-3f * sz) || t >= tmax) continue;
+    for (int k = 0; k < 3; k++) x[k] = p->c[k] + t * n[k];
+    if (in_piece(q, x)) return 1;
+  }
+  return 0;
+}
+
 /* Clips the voxel's triangles once (the sun's and the sky's calls share
- * them): pieces, cumulative areas, group areas. -1 when out of memory. */
+ * them): pieces, cumulative areas, group areas, and which sides of each
+ * piece other pieces hide. -1 when out of memory. */
 static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], gi_near_scratch *ns) {
   if (ns->have_pieces) return 0;
   if (ns->pieces_cap < ns->count) {
@@ -193,6 +237,7 @@ static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const in
     ns->pieces = pc, ns->pieces_cap = ns->count;
   }
   memset(ns->wsum, 0, sizeof ns->wsum);
+  memset(ns->wside, 0, sizeof ns->wside);
   ns->total = 0;
   ns->npieces = 0;
   for (size_t i = 0; i < ns->count; i++) {
@@ -207,24 +252,42 @@ static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const in
     pc->area = gi__len(pc->A);
     memset(pc->share, 0, sizeof pc->share);
     if (!piece_shares(g, pc->A, pc->area, pc->share, ns->wsum)) continue;
+    for (int k = 0; k < 3; k++) pc->c[k] = C[k] / pc->area;
     ns->total += pc->area;
     pc->cum = ns->total;
     ns->npieces++;
+  }
+  for (size_t i = 0; i < ns->npieces; i++) {
+    gi_piece *pc = &ns->pieces[i];
+    pc->hidden = 0;
+    for (int t = 0; t < 2; t++) {
+      float n[3];
+      for (int k = 0; k < 3; k++) n[k] = (t ? -1.f : 1.f) * pc->A[k] / pc->area;
+      if (hidden_side(ns->pieces, ns->npieces, i, n, (float)sz)) {
+        pc->hidden |= (uint8_t)(1u << t);
+        continue;
+      }
+      for (int h = 0; h < g->groups; h++)
+        if (pc->share[h] > 0) ns->wside[h][gi__dot(g->u.fin.orient[h], n) >= 0 ? 0 : 1] += pc->share[h] * pc->area;
+    }
   }
   ns->have_pieces = 1;
   return 0;
 }
 
-/* Each group side's flux over the group's area (wsum, the pieces' shares)
- * into Es; returns the groups that have area. */
-static int sides_from_flux(const gi_vgeo *g, const float wsum[GI_VOX_GROUPS], const float flux[][2][3],
-                           float Es[GI_VOX_FACES][3]) {
+/* Each group side's flux over the area of the group's pieces seen from
+ * that side (wside; the group's whole area, wsum, when other pieces hide
+ * them all) into Es; returns the groups that have area. */
+static int sides_from_flux(const gi_vgeo *g, const float wsum[GI_VOX_GROUPS], const float wside[][2],
+                           const float flux[][2][3], float Es[GI_VOX_FACES][3]) {
   int mask = 0;
   for (int h = 0; h < g->groups; h++) {
     if (!(wsum[h] > 0)) continue;
     mask |= 1 << h;
-    for (int sd = 0; sd < 2; sd++)
-      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd][k] / wsum[h];
+    for (int sd = 0; sd < 2; sd++) {
+      float w = wside[h][sd] > 0 ? wside[h][sd] : wsum[h];
+      for (int k = 0; k < 3; k++) Es[2 * h + sd][k] += flux[h][sd][k] / w;
+    }
   }
   return mask;
 }
@@ -264,7 +327,8 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
     const gi_piece *pc = &ns->pieces[i];
     float lo = pc->cum - pc->area;
     float cw = gi__dot(pc->A, l->w) / pc->area;
-    if (cw == 0) continue;
+    /* A side other pieces hide sends no light out of the voxel (sides_from_flux). */
+    if (cw == 0 || (pc->hidden >> (cw > 0 ? 0 : 1) & 1)) continue;
     /* The side facing the light; its point, off the surface toward it. */
     float nrm[3], pt[3], org[3], tn = 0, tf = INFINITY;
     for (int k = 0; k < 3; k++) nrm[k] = (cw > 0 ? 1.f : -1.f) * pc->A[k] / pc->area;
@@ -287,7 +351,7 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
    * the filter of the voxel's children weigh it. Counting only the pieces
    * wound toward a side (the side centroid's rule) put the drive's worst
    * shift back to 7.3% (sun alone; 0.64% this way). */
-  return sides_from_flux(g, ns->wsum, (const float(*)[2][3])flux, Es);
+  return sides_from_flux(g, ns->wsum, (const float(*)[2])ns->wside, (const float(*)[2][3])flux, Es);
 }
 
 /* A random permutation of 0..m-1 into perm (Fisher-Yates). */
@@ -396,11 +460,13 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
     for (int h = 0; h < g->groups; h++) {
       if (!(pc->share[h] > 0)) continue;
       int gs = gi__dot(g->u.fin.orient[h], n0) >= 0 ? 0 : 1; /* the group side n0 faces */
+      /* A side other pieces hide sends no light out of the voxel (sides_from_flux). */
+      float keep0 = pc->hidden & 1 ? 0.f : 1.f, keep1 = pc->hidden & 2 ? 0.f : 1.f;
       for (int k = 0; k < 3; k++) {
-        flux[h][gs][k] += pc->share[h] * wpt * E[0][k];
-        flux[h][gs ^ 1][k] += pc->share[h] * wpt * E[1][k];
+        flux[h][gs][k] += keep0 * pc->share[h] * wpt * E[0][k];
+        flux[h][gs ^ 1][k] += keep1 * pc->share[h] * wpt * E[1][k];
       }
     }
   }
-  return sides_from_flux(g, ns->wsum, (const float(*)[2][3])flux, Es);
+  return sides_from_flux(g, ns->wsum, (const float(*)[2])ns->wside, (const float(*)[2][3])flux, Es);
 }
