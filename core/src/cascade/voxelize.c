@@ -11,7 +11,6 @@
  * centroid is inside the half-open cell [lo, hi): a face lying exactly on
  * a cell border is counted once, in the upper cell. */
 #include <stdlib.h>
-#include <stdlib.h>
 #include <string.h>
 #include "cascade/cascade_internal.h"
 #include "base/internal.h"
