@@ -211,7 +211,6 @@ static int in_piece(const gi_piece *q, const float x[3]) {
  * for every piece cost the city's bake 40% more shadow rays. */
 static int hidden_side(const gi_piece *pcs, size_t np, size_t i, const float n[3], float sz) {
   const gi_piece *p = &pcs[i];
-  if (np > HIDE_MAX_PIECES) return 0; /* see HIDE_MAX_PIECES */
   float tmax = INFINITY;
   for (int k = 0; k < 3; k++) {
     if (n[k] > 0) tmax = gi__minf(tmax, (sz - p->c[k]) / n[k]);
@@ -261,13 +260,14 @@ static int voxel_pieces(const gi_scene *s, const gi_vgeo *g, double sz, const in
     pc->cum = ns->total;
     ns->npieces++;
   }
+  int ask = ns->npieces <= HIDE_MAX_PIECES;
   for (size_t i = 0; i < ns->npieces; i++) {
     gi_piece *pc = &ns->pieces[i];
     pc->hidden = 0;
     for (int t = 0; t < 2; t++) {
       float n[3];
       for (int k = 0; k < 3; k++) n[k] = (t ? -1.f : 1.f) * pc->A[k] / pc->area;
-      if (hidden_side(ns->pieces, ns->npieces, i, n, (float)sz)) {
+      if (ask && hidden_side(ns->pieces, ns->npieces, i, n, (float)sz)) {
         pc->hidden |= (uint8_t)(1u << t);
         continue;
       }
@@ -378,12 +378,13 @@ static float stratum(int k, int m, uint64_t *rng) {
  * shadow offset off), weighed against one cosine ray per side, into the
  * irradiance E of the side it lights (0: the side n0 faces). */
 static void emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float r2, const float pt[3],
-                              const float n0[3], float off, float E[2][3], uint64_t *rays) {
+                              const float n0[3], float off, uint8_t hidden, float E[2][3], uint64_t *rays) {
   gi_lsample l;
   if (!gi__emitter_sample_at(s, pk, r2, pt, &l)) return;
   float cw = gi__dot(n0, l.w);
   if (cw == 0) return;
   int sd = cw > 0 ? 0 : 1;
+  if (hidden >> sd & 1) return; /* a side other pieces hide sends nothing out (sides_from_flux) */
   float org[3], to[3];
   for (int k = 0; k < 3; k++) org[k] = pt[k] + (sd ? -off : off) * n0[k], to[k] = pt[k] + l.dist * l.w[k];
   if (shadow_to(s, org, to, rays) <= 0) return;
@@ -446,7 +447,7 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
                   gi__radical2_rot((uint32_t)j, rot2), pt);
     for (int k = 0; k < 3; k++) pt[k] += corner[k];
     float E[2][3] = {{0}}; /* irradiance on the side n0 faces (0) and the other (1) */
-    emitter_sample_at(s, &picks[perm[j]], stratum(pw[j], m, rng), pt, n0, off, E, rays);
+    emitter_sample_at(s, &picks[perm[j]], stratum(pw[j], m, rng), pt, n0, off, pc->hidden, E, rays);
     /* A cosine-weighted ray on each side: near, large emitters (inject.c).
      * It leaves from the point itself and skips the first `off` of its
      * way (it climbs away from the piece's plane, so that plane cannot
@@ -454,7 +455,8 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
      * nearer the window than the point, +9% under a window 0.1 voxel away. */
     for (int sd = 0; sd < 2; sd++) {
       float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
-      if (!ahead[sd]) continue; /* its numbers drawn all the same: the next ray's stay as they were */
+      /* Its numbers drawn all the same: the next ray's stay as they were. */
+      if (!ahead[sd] || (pc->hidden >> sd & 1)) continue;
       float w[3], V[3], z = gi__cosine_dir(t[sd], bt[sd], n[sd], u1, u2, w);
       (*rays)++;
       /* The light strategy's pdf for what it finds: picked from the centroid. */
@@ -464,11 +466,9 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
     for (int h = 0; h < g->groups; h++) {
       if (!(pc->share[h] > 0)) continue;
       int gs = gi__dot(g->u.fin.orient[h], n0) >= 0 ? 0 : 1; /* the group side n0 faces */
-      /* A side other pieces hide sends no light out of the voxel (sides_from_flux). */
-      float keep0 = pc->hidden & 1 ? 0.f : 1.f, keep1 = pc->hidden & 2 ? 0.f : 1.f;
       for (int k = 0; k < 3; k++) {
-        flux[h][gs][k] += keep0 * pc->share[h] * wpt * E[0][k];
-        flux[h][gs ^ 1][k] += keep1 * pc->share[h] * wpt * E[1][k];
+        flux[h][gs][k] += pc->share[h] * wpt * E[0][k];
+        flux[h][gs ^ 1][k] += pc->share[h] * wpt * E[1][k];
       }
     }
   }
