@@ -69,6 +69,8 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
  * Draws from rng. Thread-safe with one scratch per thread. */
 #define GI_SPREAD_FROM 1
 #define GI_SUN_POINTS 8
+/* The most points it takes: the most light samples a quality may ask for (plan.c). */
+#define GI_SPREAD_MAX_POINTS 512
 int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
                      int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays);
 /* Injection spreads the emitters over voxels of this level and coarser.

@@ -323,9 +323,19 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
   float flux[GI_VOX_GROUPS][2][3] = {{{0}}}, off = gi__shadow_offset((float)sz);
   float rot = gi__u01(rng), rot2 = gi__u01(rng);
   int stride = sample_stride(m);
+  /* The points' rays go out as one stream (a call per ray cost the city's
+   * injection its Embree setup 317k times); a point keeps its piece and
+   * sample for the sum after. */
+  float org[GI_SPREAD_MAX_POINTS][3], dir[GI_SPREAD_MAX_POINTS][3], tn[GI_SPREAD_MAX_POINTS],
+      tf[GI_SPREAD_MAX_POINTS];
+  uint8_t vis[GI_SPREAD_MAX_POINTS];
+  struct { uint32_t piece; int sample; } at[GI_SPREAD_MAX_POINTS];
+  int nr = 0;
   size_t i = 0;
+  if (P > GI_SPREAD_MAX_POINTS) P = GI_SPREAD_MAX_POINTS;
   for (int j = 0; j < P; j++) {
-    const gi_lsample *l = &ls[(int)(((int64_t)j * stride) % m)];
+    int si = (int)(((int64_t)j * stride) % m);
+    const gi_lsample *l = &ls[si];
     float u = ((float)j + rot) / (float)P * total, r2 = gi__radical2_rot((uint32_t)j, rot2);
     while (i + 1 < ns->npieces && ns->pieces[i].cum < u) i++;
     const gi_piece *pc = &ns->pieces[i];
@@ -334,15 +344,23 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
     /* A side other pieces hide sends no light out of the voxel (sides_from_flux). */
     if (cw == 0 || (pc->hidden >> (cw > 0 ? 0 : 1) & 1)) continue;
     /* The side facing the light; its point, off the surface toward it. */
-    float nrm[3], pt[3], org[3], tn = 0, tf = INFINITY;
-    for (int k = 0; k < 3; k++) nrm[k] = (cw > 0 ? 1.f : -1.f) * pc->A[k] / pc->area;
+    float sg = cw > 0 ? 1.f : -1.f, pt[3];
     polygon_point((const float(*)[3])pc->v, pc->n, pc->area, gi__minf(gi__maxf((u - lo) / pc->area, 0.f), 0.99999f),
                   r2, pt);
-    for (int k = 0; k < 3; k++) org[k] = pt[k] + corner[k] + off * nrm[k];
-    uint8_t vis = 1;
-    gi__occluded(s, 1, org, l->w, &tn, &tf, &vis);
-    (*rays)++;
-    if (!vis) continue;
+    for (int k = 0; k < 3; k++) org[nr][k] = pt[k] + corner[k] + off * sg * pc->A[k] / pc->area;
+    memcpy(dir[nr], l->w, sizeof dir[nr]);
+    tn[nr] = 0, tf[nr] = INFINITY;
+    at[nr].piece = (uint32_t)i, at[nr].sample = si;
+    nr++;
+  }
+  gi__occluded(s, nr, &org[0][0], &dir[0][0], tn, tf, vis);
+  *rays += (uint64_t)nr;
+  for (int r = 0; r < nr; r++) {
+    if (!vis[r]) continue;
+    const gi_piece *pc = &ns->pieces[at[r].piece];
+    const gi_lsample *l = &ls[at[r].sample];
+    float cw = gi__dot(pc->A, l->w) / pc->area, nrm[3];
+    for (int k = 0; k < 3; k++) nrm[k] = (cw > 0 ? 1.f : -1.f) * pc->A[k] / pc->area;
     /* One sample estimates its point's irradiance as m V cos (V holds 1 / m). */
     float a = fabsf(cw) * total / (float)P * (float)m;
     for (int h = 0; h < g->groups; h++) {
@@ -375,21 +393,28 @@ static float stratum(int k, int m, uint64_t *rng) {
 }
 
 /* One light sample of pick pk at point pt (unit normal n0 of its piece,
- * shadow offset off), weighed against one cosine ray per side, into the
- * irradiance E of the side it lights (0: the side n0 faces). */
-static void emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float r2, const float pt[3],
-                              const float n0[3], float off, uint8_t hidden, float E[2][3], uint64_t *rays) {
+ * shadow offset off), weighed against one cosine ray per side: its shadow
+ * ray (org, dir, *tf) and what it brings when nothing blocks it (E, on
+ * side *sd; 0 is the side n0 faces). 0 when it brings nothing and needs
+ * no ray: *tf is then -1, a ray gi__occluded skips. */
+static int emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float r2, const float pt[3],
+                             const float n0[3], float off, uint8_t hidden, float org[3], float dir[3], float *tf,
+                             float E[3], int8_t *sd) {
   gi_lsample l;
-  if (!gi__emitter_sample_at(s, pk, r2, pt, &l)) return;
-  float cw = gi__dot(n0, l.w);
-  if (cw == 0) return;
-  int sd = cw > 0 ? 0 : 1;
-  if (hidden >> sd & 1) return; /* a side other pieces hide sends nothing out (sides_from_flux) */
-  float org[3], to[3];
-  for (int k = 0; k < 3; k++) org[k] = pt[k] + (sd ? -off : off) * n0[k], to[k] = pt[k] + l.dist * l.w[k];
-  if (shadow_to(s, org, to, rays) <= 0) return;
+  float cw, len, to[3];
+  *tf = -1.f;
+  memset(org, 0, sizeof(float[3])), memset(dir, 0, sizeof(float[3]));
+  if (!gi__emitter_sample_at(s, pk, r2, pt, &l) || (cw = gi__dot(n0, l.w)) == 0) return 0;
+  *sd = cw > 0 ? 0 : 1;
+  if (hidden >> *sd & 1) return 0; /* a side other pieces hide sends nothing out (sides_from_flux) */
+  for (int k = 0; k < 3; k++) org[k] = pt[k] + (*sd ? -off : off) * n0[k], to[k] = pt[k] + l.dist * l.w[k];
+  for (int k = 0; k < 3; k++) dir[k] = to[k] - org[k];
+  if (!((len = gi__len(dir)) > 0)) return 0; /* shadow_to's rule: no ray from the point itself */
+  for (int k = 0; k < 3; k++) dir[k] /= len;
+  *tf = len * (1.f - GI_SHADOW_SHORTEN);
   float f = gi__mis_light(l.mpl, fabsf(cw) / GI_PI_F, 0) * fabsf(cw);
-  for (int k = 0; k < 3; k++) E[sd][k] += f * l.V[k];
+  for (int k = 0; k < 3; k++) E[k] = f * l.V[k];
+  return 1;
 }
 
 int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], int m, uint64_t *rng,
@@ -424,6 +449,15 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
   size_t i = 0, faced = SIZE_MAX;
   int ahead[2] = {0, 0};
   float n[2][3], t[2][3], bt[2][3]; /* per side of the piece: its normal and tangents */
+  /* The points' light samples trace as one stream after the loop (as
+   * gi__spread_light's); each point keeps its piece and its cosine rays'
+   * light until then. */
+  float org[GI_MAX_EMIT_POINTS][3], dir[GI_MAX_EMIT_POINTS][3], tn[GI_MAX_EMIT_POINTS], tf[GI_MAX_EMIT_POINTS];
+  float El[GI_MAX_EMIT_POINTS][3], Ec[GI_MAX_EMIT_POINTS][2][3];
+  uint32_t piece[GI_MAX_EMIT_POINTS];
+  int8_t side[GI_MAX_EMIT_POINTS];
+  uint8_t vis[GI_MAX_EMIT_POINTS];
+  uint64_t traced = 0;
   for (int j = 0; j < m; j++) {
     float u = ((float)j + rot) / (float)m * total;
     while (i + 1 < ns->npieces && ns->pieces[i].cum < u) i++;
@@ -446,13 +480,16 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
     polygon_point((const float(*)[3])pc->v, pc->n, pc->area, gi__minf(gi__maxf((u - lo) / pc->area, 0.f), 0.99999f),
                   gi__radical2_rot((uint32_t)j, rot2), pt);
     for (int k = 0; k < 3; k++) pt[k] += corner[k];
-    float E[2][3] = {{0}}; /* irradiance on the side n0 faces (0) and the other (1) */
-    emitter_sample_at(s, &picks[perm[j]], stratum(pw[j], m, rng), pt, n0, off, pc->hidden, E, rays);
+    piece[j] = (uint32_t)i;
+    tn[j] = 0;
+    traced += (uint64_t)emitter_sample_at(s, &picks[perm[j]], stratum(pw[j], m, rng), pt, n0, off, pc->hidden,
+                                          org[j], dir[j], &tf[j], El[j], &side[j]);
     /* A cosine-weighted ray on each side: near, large emitters (inject.c).
      * It leaves from the point itself and skips the first `off` of its
      * way (it climbs away from the piece's plane, so that plane cannot
      * stop it): started off the surface, it measured the light `off`
      * nearer the window than the point, +9% under a window 0.1 voxel away. */
+    memset(Ec[j], 0, sizeof Ec[j]);
     for (int sd = 0; sd < 2; sd++) {
       float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
       /* Its numbers drawn all the same: the next ray's stay as they were. */
@@ -461,8 +498,18 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
       (*rays)++;
       /* The light strategy's pdf for what it finds: picked from the centroid. */
       if (gi__emitter_ray(s, g->centroid, pt, w, off, 1, z / GI_PI_F, 0, V))
-        for (int k = 0; k < 3; k++) E[sd][k] += V[k] * z;
+        for (int k = 0; k < 3; k++) Ec[j][sd][k] += V[k] * z;
     }
+  }
+  gi__occluded(s, m, &org[0][0], &dir[0][0], tn, tf, vis);
+  *rays += traced;
+  for (int j = 0; j < m; j++) {
+    const gi_piece *pc = &ns->pieces[piece[j]];
+    float E[2][3] = {{0}}, n0[3]; /* irradiance on the side n0 faces (0) and the other (1) */
+    if (tf[j] >= 0 && vis[j]) memcpy(E[side[j]], El[j], sizeof E[0]);
+    for (int sd = 0; sd < 2; sd++)
+      for (int k = 0; k < 3; k++) E[sd][k] += Ec[j][sd][k];
+    for (int k = 0; k < 3; k++) n0[k] = pc->A[k] / pc->area;
     for (int h = 0; h < g->groups; h++) {
       if (!(pc->share[h] > 0)) continue;
       int gs = gi__dot(g->u.fin.orient[h], n0) >= 0 ? 0 : 1; /* the group side n0 faces */
