@@ -417,6 +417,22 @@ static int emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float
   return 1;
 }
 
+/* Adds what a point of piece pc standing for area wpt receives (E: on the
+ * side the piece's winding faces, 0, and the other) to its groups' sides. */
+static void piece_flux(const gi_vgeo *g, const gi_piece *pc, float wpt, const float E[2][3],
+                       float flux[GI_VOX_GROUPS][2][3]) {
+  float n0[3];
+  for (int k = 0; k < 3; k++) n0[k] = pc->A[k] / pc->area;
+  for (int h = 0; h < g->groups; h++) {
+    if (!(pc->share[h] > 0)) continue;
+    int gs = gi__dot(g->u.fin.orient[h], n0) >= 0 ? 0 : 1; /* the group side n0 faces */
+    for (int k = 0; k < 3; k++) {
+      flux[h][gs][k] += pc->share[h] * wpt * E[0][k];
+      flux[h][gs ^ 1][k] += pc->share[h] * wpt * E[1][k];
+    }
+  }
+}
+
 int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], int m, uint64_t *rng,
                         gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
   if (m < 1 || s->num_emitters == 0) return 0;
@@ -504,20 +520,11 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
   gi__occluded(s, m, &org[0][0], &dir[0][0], tn, tf, vis);
   *rays += traced;
   for (int j = 0; j < m; j++) {
-    const gi_piece *pc = &ns->pieces[piece[j]];
-    float E[2][3] = {{0}}, n0[3]; /* irradiance on the side n0 faces (0) and the other (1) */
+    float E[2][3] = {{0}}; /* irradiance on the side the piece faces (0) and the other (1) */
     if (tf[j] >= 0 && vis[j]) memcpy(E[side[j]], El[j], sizeof E[0]);
     for (int sd = 0; sd < 2; sd++)
       for (int k = 0; k < 3; k++) E[sd][k] += Ec[j][sd][k];
-    for (int k = 0; k < 3; k++) n0[k] = pc->A[k] / pc->area;
-    for (int h = 0; h < g->groups; h++) {
-      if (!(pc->share[h] > 0)) continue;
-      int gs = gi__dot(g->u.fin.orient[h], n0) >= 0 ? 0 : 1; /* the group side n0 faces */
-      for (int k = 0; k < 3; k++) {
-        flux[h][gs][k] += pc->share[h] * wpt * E[0][k];
-        flux[h][gs ^ 1][k] += pc->share[h] * wpt * E[1][k];
-      }
-    }
+    piece_flux(g, &ns->pieces[piece[j]], wpt, (const float(*)[3])E, flux);
   }
   return sides_from_flux(g, ns->wsum, (const float(*)[2])ns->wside, (const float(*)[2][3])flux, Es);
 }
