@@ -42,6 +42,35 @@ gi_result gi_cascade_anchor(const gi_scene *s, const double at[3], const gi_qual
   return GI_OK;
 }
 
+gi_result gi_cascade_would_cover(const gi_scene *s, const double at[3], const gi_quality *resolved,
+                                 const double *pts, size_t n, uint8_t *covered, size_t *num_covered,
+                                 gi_error_info *err) {
+  if (num_covered) *num_covered = 0;
+  if (!s || !at || !resolved || (n && !pts))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "cover: %s is NULL",
+                    !s ? "scene" : !at ? "viewpoint" : !resolved ? "resolved" : "pts");
+  if (resolved->levels < 1 || resolved->levels > GI_MAX_LEVELS || resolved->res < 8 || resolved->res > GI_MAX_RES ||
+      resolved->res % 4 || !(resolved->voxel0 > 0) || !isfinite(resolved->voxel0))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "cover: levels %d, res %d, voxel0 %g: not a resolved quality",
+                    resolved->levels, resolved->res, resolved->voxel0);
+  struct gi_cascade *c;
+  gi_result rc = gi__cascade_placed(s, at, resolved, "cover", &c, err);
+  if (rc != GI_OK) return rc;
+  size_t count = 0;
+  for (size_t i = 0; i < n; i++) {
+    const double *p = pts + 3 * i;
+    float pl[3];
+    for (int k = 0; k < 3; k++) pl[k] = (float)(p[k] - s->origin[k]);
+    /* gi_cascade_covers' test on the same levels. */
+    int in = isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]) && gi__finite3(pl) && gi__finest_level_at(c, pl) >= 0;
+    if (covered) covered[i] = (uint8_t)in;
+    count += (size_t)in;
+  }
+  gi__free(c);
+  if (num_covered) *num_covered = count;
+  return GI_OK;
+}
+
 void gi_cascade_free(gi_cascade *c) {
   if (!c) return;
   gi__cascade_free_levels(c);

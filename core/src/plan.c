@@ -430,6 +430,30 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   return GI_OK;
 }
 
+gi_result gi__cascade_placed(const gi_scene *s, const double at[3], const gi_quality *q, const char *who,
+                             struct gi_cascade **out, gi_error_info *err) {
+  *out = NULL;
+  struct gi_cascade *c = gi__calloc(1, sizeof *c);
+  if (!c) return gi__fail(err, GI_ERR_NOMEM, "%s: out of memory", who);
+  c->scene = (gi_scene *)s;
+  c->n = q->levels;
+  c->R = q->res;
+  c->s0 = q->voxel0;
+  gi_result rc = isfinite(at[0]) && isfinite(at[1]) && isfinite(at[2])
+                     ? gi__viewpoint_range(s, at, c->s0, who, err)
+                     : gi__fail(err, GI_ERR_NONFINITE, "%s: viewpoint (%g, %g, %g) is not finite", who, at[0], at[1],
+                                at[2]);
+  if (rc != GI_OK) {
+    gi__free(c);
+    return rc;
+  }
+  /* The bake's float rounding: the placement depends on the anchor alone. */
+  for (int a = 0; a < 3; a++) c->at[a] = (float)(at[a] - s->origin[a]);
+  gi__cascade_place(c);
+  *out = c;
+  return GI_OK;
+}
+
 gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality *qin, gi_effect out[GI_FX_COUNT],
                          gi_quality *resolved, gi_error_info *err) {
   if (!s || !at || !out)
@@ -437,23 +461,9 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   gi_quality q;
   gi_result rc = gi_quality_resolve(s, qin, &q, err);
   if (rc != GI_OK) return rc;
-  /* The plan looks at what lies inside the placed cascade: place one
-   * without its voxel arrays, as gi_cascade_bake would. */
-  struct gi_cascade *c = gi__calloc(1, sizeof *c);
-  if (!c) return gi__fail(err, GI_ERR_NOMEM, "plan: out of memory");
-  c->scene = (gi_scene *)s;
-  c->n = q.levels;
-  c->R = q.res;
-  c->s0 = q.voxel0;
-  rc = isfinite(at[0]) && isfinite(at[1]) && isfinite(at[2])
-           ? gi__viewpoint_range(s, at, c->s0, "plan", err)
-           : gi__fail(err, GI_ERR_NONFINITE, "plan: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
-  if (rc != GI_OK) {
-    gi__free(c);
-    return rc;
-  }
-  for (int a = 0; a < 3; a++) c->at[a] = (float)(at[a] - s->origin[a]);
-  gi__cascade_place(c);
+  /* The plan looks at what lies inside the placed cascade. */
+  struct gi_cascade *c;
+  if ((rc = gi__cascade_placed(s, at, &q, "plan", &c, err)) != GI_OK) return rc;
   int tail;
   rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err);
   if (rc != GI_OK) {

@@ -26,4 +26,12 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
 #define GI_MAX_VIEW_DISTANCE 1e9
 gi_result gi__viewpoint_range(const gi_scene *s, const double at[3], double s0, const char *who, gi_error_info *err);
 
+/* A cascade as gi_cascade_bake would place it at `at` with resolved
+ * quality q (levels' windows, no voxel arrays), for questions asked before
+ * a bake: what the plan surveys, which points the bake will cover. The
+ * caller frees *out with gi__free; it borrows s. Errors as the bake's for
+ * the viewpoint (messages start with `who`), GI_ERR_NOMEM. */
+gi_result gi__cascade_placed(const gi_scene *s, const double at[3], const gi_quality *q, const char *who,
+                             struct gi_cascade **out, gi_error_info *err);
+
 #endif

@@ -326,6 +326,72 @@ static void test_cell_centre(void **state) {
   gi_scene_release(s);
 }
 
+/* gi_cascade_would_cover, asked before a bake, answers what
+ * gi_cascade_covers answers after it, point by point, from viewpoints
+ * in the middle, at the edges and corners and above the roofs of a city,
+ * for points over a box half again as wide as the city. Only the finest
+ * level is centred on the viewpoint; the coarser ones lean toward the
+ * scene, so the points a reach measured from the viewpoint (as if every
+ * level were centred) gets wrong must turn up both ways: covered beyond
+ * that reach and uncovered within it. */
+static void test_would_cover(void **state) {
+  (void)state;
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&cp, NULL, &s, &err), GI_OK);
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  gi_quality req = {.levels = 3, .res = 16, .light_samples = 1, .probe_samples = 1, .bounces = -1, .threads = 2}, q;
+  assert_int_equal(gi_quality_resolve(s, &req, &q, &err), GI_OK);
+  const double views[][3] = {{0, 2, 0}, {140, 2, 0}, {-145, 2, -145}, {0, 60, 148}, {-100, 130, 30}, {149, 2, 149}};
+  enum { NPTS = 400 };
+  static double pts[NPTS][3];
+  uint8_t before[NPTS];
+  uint64_t rng = 0xc0ffee;
+  int beyond_but_covered = 0, within_but_not = 0, covered_all = 0, outside_all = 0;
+  double reach = (q.res / 2 - 2) * q.voxel0 * (double)(1ull << (q.levels - 1));
+  for (size_t v = 0; v < sizeof views / sizeof views[0]; v++) {
+    for (int i = 0; i < NPTS; i++)
+      for (int a = 0; a < 3; a++) {
+        double mid = 0.5 * (lo[a] + hi[a]), half = 0.75 * (hi[a] - lo[a]);
+        pts[i][a] = mid + (2 * gi__u01(&rng) - 1) * half;
+      }
+    size_t held = 0;
+    assert_int_equal(gi_cascade_would_cover(s, views[v], &q, &pts[0][0], NPTS, before, &held, &err), GI_OK);
+    gi_cascade *c = NULL;
+    assert_int_equal(gi_cascade_bake(s, views[v], &req, &c, NULL, &err), GI_OK);
+    size_t count = 0;
+    for (int i = 0; i < NPTS; i++) {
+      int after = gi_cascade_covers(c, pts[i]);
+      assert_int_equal(before[i], after);
+      count += (size_t)after;
+      double d = 0;
+      for (int a = 0; a < 3; a++) d = fmax(d, fabs(pts[i][a] - views[v][a]));
+      beyond_but_covered += after && d > reach;
+      within_but_not += !after && d <= reach;
+    }
+    assert_true(held == count);
+    covered_all += (int)count, outside_all += NPTS - (int)count;
+    gi_cascade_free(c);
+  }
+  printf("would_cover: %d points covered, %d not; against a centred reach of %g: %d covered beyond it, %d not "
+         "covered within it\n", covered_all, outside_all, reach, beyond_but_covered, within_but_not);
+  assert_true(covered_all > 0 && outside_all > 0);
+  assert_true(beyond_but_covered > 0 && within_but_not > 0);
+  /* A non-finite point is not covered; a refused viewpoint or quality fails as the bake does. */
+  double odd[2][3] = {{0, 2, 0}, {NAN, 2, 0}};
+  assert_int_equal(gi_cascade_would_cover(s, views[0], &q, &odd[0][0], 2, before, NULL, &err), GI_OK);
+  assert_true(before[0] == 1 && before[1] == 0);
+  const double nan_at[3] = {NAN, 2, 0};
+  assert_int_equal(gi_cascade_would_cover(s, nan_at, &q, &odd[0][0], 1, NULL, NULL, &err), GI_ERR_NONFINITE);
+  gi_quality unresolved = {0};
+  assert_int_equal(gi_cascade_would_cover(s, views[0], &unresolved, &odd[0][0], 1, NULL, NULL, &err),
+                   GI_ERR_INVALID_ARG);
+  assert_non_null(strstr(err.msg, "not a resolved quality"));
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_city_cell),
@@ -333,6 +399,7 @@ int main(void) {
       cmocka_unit_test(test_skylight_sensitivity),
       cmocka_unit_test(test_bytes_estimate),
       cmocka_unit_test(test_cell_centre),
+      cmocka_unit_test(test_would_cover),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -75,6 +75,18 @@ gi_result gi_cascade_anchor(const gi_scene *scene, const double at[3], const gi_
 gi_result gi_cascade_cell_centre(const gi_scene *scene, const int64_t cell[3], const gi_quality *resolved,
                                  double at[3], gi_error_info *err);
 
+/* Which of the n world points pts (3 doubles each) a cascade baked at `at`
+ * with this resolved quality would cover, by gi_cascade_covers' rule,
+ * known before the bake from its placement alone: only the finest level is
+ * centred on the viewpoint, each coarser one holds as much of the scene as
+ * it can, so a distance from `at` does not say. covered[i] (may be NULL)
+ * gets 1 or 0, *num_covered (may be NULL) the count; a non-finite point is
+ * not covered. Fails as the bake would for the viewpoint or the quality
+ * (GI_ERR_NONFINITE, GI_ERR_INVALID_ARG), or GI_ERR_NOMEM. Thread-safe. */
+gi_result gi_cascade_would_cover(const gi_scene *scene, const double at[3], const gi_quality *resolved,
+                                 const double *pts, size_t n, uint8_t *covered, size_t *num_covered,
+                                 gi_error_info *err);
+
 /* Builds the cascade around `at` (world) and lights it. q may be NULL
  * (defaults). On success the caller owns *out (gi_cascade_free). */
 gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_quality *q,
