@@ -436,25 +436,39 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
 
 /* With 'at', every point must lie within the one cascade around it: a
  * point outside got direct light only, its indirect light 0, with a 200
- * (the Cornell box's probes asked from its camera). A level's window
- * reaches at least (R/2 - 2) of its voxels from its snapped centre, so
- * that much of the coarsest level is sure; 1 and a 400 naming the first
- * point beyond it. */
-static int beyond_reach(const gi_proto_probes *p, const gi_quality *q, gi_proto_error *pe) {
-  double reach = (q->res / 2 - 2) * q->voxel0 * (double)(1ull << (q->levels - 1));
-  for (size_t i = 0; i < p->num_points; i++) {
-    double d = 0;
-    for (int k = 0; k < 3; k++) d = fmax(d, fabs(p->points[3 * i + k] - p->bake.at[k]));
-    if (d > reach) {
-      gi_proto_fail(pe, 400,
-                    "body: points[%zu] (%g, %g, %g) lies %g units from 'at' along an axis, beyond its cascade's "
-                    "reach of %g: its indirect light would be 0; leave 'at' out (the server places cascades "
-                    "around the points) or ask for more levels", i, p->points[3 * i], p->points[3 * i + 1],
-                    p->points[3 * i + 2], d, reach);
-      return 1;
-    }
+ * (the Cornell box's probes asked from its camera). Asked of the placement
+ * the bake will make (gi_cascade_would_cover): the coarse levels lean
+ * toward the scene, so a distance from 'at' does not say. 1 and a 400
+ * naming the first point beyond it (or a 503/400 when the question
+ * itself fails), 0 when all are inside. */
+static int beyond_reach(const gs_scene *s, const gi_proto_probes *p, const gi_quality *q, gi_proto_error *pe) {
+  size_t n = p->num_points, held = 0;
+  uint8_t *in = malloc(n ? n : 1);
+  gi_error_info e = {0};
+  if (!in) {
+    gi_proto_fail(pe, 503, "probes: out of memory for %zu points", n);
+    return 1;
   }
-  return 0;
+  gi_result rc = gi_cascade_would_cover(s->scene, p->bake.at, q, p->points, n, in, &held, &e);
+  if (rc != GI_OK) {
+    free(in);
+    gi_proto_fail(pe, rc == GI_ERR_NOMEM ? 503 : 400, "body: 'at': %s", e.msg);
+    return 1;
+  }
+  for (size_t i = 0; held < n && i < n; i++) {
+    if (in[i]) continue;
+    const double *x = &p->points[3 * i];
+    double d = 0;
+    for (int k = 0; k < 3; k++) d = fmax(d, fabs(x[k] - p->bake.at[k]));
+    gi_proto_fail(pe, 400,
+                  "body: points[%zu] (%g, %g, %g) lies outside the cascade baked around 'at' (%g units from it "
+                  "along an axis; %d levels, coarsest voxel %g): its indirect light would be 0; leave 'at' out "
+                  "(the server places cascades around the points) or ask for more levels", i, x[0], x[1], x[2], d,
+                  q->levels, ldexp(q->voxel0, q->levels - 1));
+    break;
+  }
+  free(in);
+  return held < n;
 }
 
 void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, double t_start_ms, gs_waiter *w,
@@ -470,7 +484,7 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
   size_t nt = 0;
   int far = 0;
   gi_proto_error pe;
-  if (p->bake.has_at && beyond_reach(p, &q, &pe)) {
+  if (p->bake.has_at && beyond_reach(s, p, &q, &pe)) {
     gs_answer_error(a, &pe);
     gi_proto_probes_free(p);
     return;

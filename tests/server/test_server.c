@@ -530,6 +530,16 @@ static void test_probes_inline_and_job(void **state) {
               "{\"points\":[[31,2,29],[31.2,2,29.1]],\"at\":[-29,2,29],\"quality\":\"low\"}", TOKEN);
   assert_int_equal(r.status, 200);
   free(r.body);
+  /* Across the city from 'at': the coarsest level holds the whole city (it
+   * leans toward the scene), so the point is answered, where a reach
+   * measured from 'at' as if every level were centred refused it. */
+  r = su_http(&S_main, "POST", "/v1/scenes/city/probes",
+              "{\"points\":[[140,2,140]],\"at\":[-140,2,-140],\"quality\":\"low\"}", TOKEN);
+  assert_int_equal(r.status, 200);
+  x = su_read_exr(&S_main, &r, "across.exr");
+  assert_true(isfinite(gi_exr_file_channel(x, "R")[0]) && gi_exr_file_channel(x, "R")[0] > 0);
+  gi_exr_file_free(x);
+  free(r.body);
 
   /* Over max_probes_inline (2): a job. */
   r = su_http(&S_main, "POST", "/v1/scenes/city/probes",
@@ -644,8 +654,8 @@ static void test_errors(void **state) {
       {"POST", "/v1/scenes/city/probes", "{\"points\":[[1,2,3]],\"bogus\":1}", 400, "bad_request", "'bogus'"},
       {"POST", "/v1/scenes/city/probes", "not json", 400, "bad_request", "line 1"},
       /* With 'at', a point beyond its one cascade would read no indirect light. */
-      {"POST", "/v1/scenes/city/probes", "{\"points\":[[-140,2,-140],[140,2,140]],\"at\":[-140,2,-140]}", 400,
-       "bad_request", "points[1] (140, 2, 140) lies 280 units from 'at'"},
+      {"POST", "/v1/scenes/city/probes", "{\"points\":[[-140,2,-140],[900,2,900]],\"at\":[-140,2,-140]}", 400,
+       "bad_request", "points[1] (900, 2, 900) lies outside the cascade baked around 'at' (1040 units"},
       {NULL, "/v1/health?verbose=1", NULL, 400, "bad_request", "'verbose'"},
       /* Bytes that are not UTF-8, quoted in the message, once left the body empty. */
       {NULL, "/v1/%ff%c0%af", NULL, 404, "not_found", "no such endpoint: /v1/???"},

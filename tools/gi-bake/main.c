@@ -92,26 +92,27 @@ static void choose_viewpoint(cli_opts *o, const gi_scene *scene) {
 /* --probes beyond the default cascade (around one object, probes just
  * past its bounds) took no indirect light at all: the coarsest level
  * spans the scene, not the points. With --levels and --voxel both left
- * to the default, adds levels (finest voxel kept) until the coarsest
- * window holds every point, at most GI_MAX_LEVELS; each level costs
- * about what the coarsest one did. A point farther still keeps the note
- * after the bake. */
-#define COVER_MARGIN_VOXELS 2 /* the window snaps to the coarsest grid; gathers need a voxel inside */
+ * to the default, adds levels (finest voxel kept) until the cascade, as
+ * the bake will place it, holds every point, at most GI_MAX_LEVELS; each
+ * level costs about what the coarsest one did. A point farther still
+ * keeps the note after the bake. */
 static void cover_probes(cli_opts *o, const gi_scene *scene) {
   if (!o->num_probes || o->q.levels || o->q.voxel0 > 0) return;
   gi_quality rq;
   gi_error_info e = {0};
   if (gi_quality_resolve(scene, &o->q, &rq, &e) != GI_OK) return; /* the bake reports it */
-  double reach = 0;
-  for (size_t i = 0; i < o->num_probes; i++)
-    for (int k = 0; k < 3; k++) reach = fmax(reach, fabs(o->probes[3 * i + k] - o->at[k]));
-  int levels = rq.levels;
-  double coarsest = rq.voxel0 * ldexp(1.0, levels - 1);
-  while (levels < GI_MAX_LEVELS && reach > (0.5 * rq.res - COVER_MARGIN_VOXELS) * coarsest) levels++, coarsest *= 2;
-  if (levels == rq.levels) return;
-  o->q.levels = levels, o->q.voxel0 = rq.voxel0;
-  fprintf(stderr, "gi-bake: note: --probes reach %g from the viewpoint: %d levels instead of %d (the finest voxel "
-          "kept at %g) so the cascade holds them\n", reach, levels, rq.levels, rq.voxel0);
+  int base = rq.levels;
+  size_t held = 0;
+  for (;;) {
+    if (gi_cascade_would_cover(scene, o->at, &rq, o->probes, o->num_probes, NULL, &held, &e) != GI_OK)
+      return; /* the bake reports it */
+    if (held == o->num_probes || rq.levels >= GI_MAX_LEVELS) break;
+    rq.levels++;
+  }
+  if (rq.levels == base) return;
+  o->q.levels = rq.levels, o->q.voxel0 = rq.voxel0;
+  fprintf(stderr, "gi-bake: note: %d levels instead of %d (the finest voxel kept at %g) so the cascade holds the "
+          "--probes points (%zu of %zu)\n", rq.levels, base, rq.voxel0, held, o->num_probes);
 }
 
 /* A point whose surroundings show it surfaces' backs lies inside a solid:
