@@ -4,6 +4,7 @@
  * argument, never crash or answer quietly from garbage. Scenes are a small
  * room made in code, baked at the lowest quality. */
 #include "test_util.h"
+#include "base/alloc_test.h"
 #include <limits.h>
 #include <math.h>
 #include <stdint.h>
@@ -299,19 +300,35 @@ static double atlas_sum(const gi_lightmap *lm) {
 
 /* gi_lightmap_bake cleared the atlases first, then baked tile by tile: a
  * bake whose tile count was refused wiped the previous bake, and one that
- * failed part way (here: the tiles past x = 5 lie more than 2^52 voxels of
- * 1.1e-15 from the origin) left the first tiles baked beside zeros. */
+ * failed part way left the first tiles baked beside zeros. A refused bake
+ * (here: tiles past x = 5 lie more than 2^52 voxels of 1.1e-15 from the
+ * origin, and every tile leaves its texels outside so small a cascade)
+ * now leaves the previous bake as it was; one that fails part way (an
+ * allocation of a later tile's cascade) leaves zeros. */
 static void test_lightmap_failed_bake(void **state) {
   (void)state;
   gi_scene *s = NULL;
   gi_lightmap *lm = strip_lightmap(&s, 1.0);
-  gi_quality q = {.levels = 1, .res = 8, .threads = 2, .light_samples = 2, .probe_samples = 4, .bounces = -1};
+  /* A 4 m window for 1 m tiles: every texel inside its tile's cascade. */
+  gi_quality q = {.levels = 1, .res = 8, .voxel0 = 0.5, .threads = 1, .light_samples = 2, .probe_samples = 4,
+                  .bounces = -1};
   gi_error_info err = {0};
-  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, NULL, &err), GI_OK);
-  assert_true(atlas_sum(lm) > 0);
+  long a0 = gi__alloc_attempts();
+  gi_result rc = gi_lightmap_bake(lm, &q, NULL, NULL, &err);
+  if (rc) printf("%s\n", err.msg);
+  assert_int_equal(rc, GI_OK);
+  long per_bake = gi__alloc_attempts() - a0;
+  double baked = atlas_sum(lm);
+  assert_true(baked > 0);
   gi_quality tiny = q;
   tiny.voxel0 = 5.0 / 4503599627370496.0; /* 5 / 2^52 */
   assert_int_not_equal(gi_lightmap_bake(lm, &tiny, NULL, NULL, &err), GI_OK);
+  assert_true(atlas_sum(lm) == baked);
+  gi__alloc_fail_after(per_bake * 3 / 4);
+  rc = gi_lightmap_bake(lm, &q, NULL, NULL, &err);
+  gi__alloc_fail_after(-1);
+  printf("an allocation %ld of %ld failed: %s\n", per_bake * 3 / 4, per_bake, err.msg);
+  assert_int_equal(rc, GI_ERR_NOMEM);
   assert_true(atlas_sum(lm) == 0);
   gi_lightmap_free(lm);
   gi_scene_release(s);
@@ -320,7 +337,7 @@ static void test_lightmap_failed_bake(void **state) {
    * strip into 4096 x 1 x 4096 tiles, refused before anything changes. */
   lm = strip_lightmap(&s, 0);
   assert_int_equal(gi_lightmap_bake(lm, &q, NULL, NULL, &err), GI_OK);
-  double baked = atlas_sum(lm);
+  baked = atlas_sum(lm);
   assert_true(baked > 0);
   tiny.voxel0 = 1e-6;
   assert_int_equal(gi_lightmap_bake(lm, &tiny, NULL, NULL, &err), GI_ERR_LIMIT);

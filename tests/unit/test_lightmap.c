@@ -745,6 +745,69 @@ static void test_no_dark_seams(void **state) {
   gi_scene_release(s);
 }
 
+/* Valid texels of every atlas of lm, and how many read no indirect light. */
+static void count_unlit(const gi_lightmap *lm, size_t *valid, size_t *unlit) {
+  *valid = *unlit = 0;
+  for (size_t k = 0; k < gi_lightmap_num_atlases(lm); k++) {
+    gi_lightmap_atlas a;
+    assert_int_equal(gi_lightmap_get_atlas(lm, k, &a), 0);
+    for (size_t i = 0; i < (size_t)a.width * a.height; i++) {
+      if (!(a.valid[i] > 0)) continue;
+      (*valid)++;
+      *unlit += a.indirect[3 * i] + a.indirect[3 * i + 1] + a.indirect[3 * i + 2] == 0;
+    }
+  }
+}
+
+/* Every texel of a closed lit room takes bounce light, whatever the
+ * cascade's size, but where the box stands on the floor (its underside, 25
+ * texels at every res): at res 8 the default tile (0.8 of the coarsest
+ * level) reached past the level's border and most texels read none (84%
+ * of the Cornell box's). The default now shrinks until each tile's
+ * cascade holds its texels; a tile the caller chose too large is refused,
+ * naming it, and leaves the previous bake as it was. */
+static void test_small_res_tiles(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality def = {.probe_samples = 16, .cones = 6, .threads = 2};
+  gi_lightmap_report rep;
+  assert_int_equal(gi_lightmap_bake(lm, &def, NULL, &rep, &err), GI_OK);
+  size_t valid_def, unlit_def, valid, unlit;
+  count_unlit(lm, &valid_def, &unlit_def);
+  gi_quality q = {.levels = 2, .res = 8, .probe_samples = 16, .cones = 6, .threads = 2};
+  gi_result rc = gi_lightmap_bake(lm, &q, NULL, &rep, &err);
+  if (rc) printf("%s\n", err.msg);
+  assert_int_equal(rc, GI_OK);
+  count_unlit(lm, &valid, &unlit);
+  printf("room: %zu valid texels; without indirect light %zu at the default quality, %zu at res 8 and 2 levels "
+         "(%d tiles)\n", valid, unlit_def, unlit, rep.tiles);
+  assert_true(valid == valid_def && valid > 1000);
+  assert_true(unlit_def < valid / 50);
+  assert_true(unlit <= unlit_def);
+  assert_true(rep.tiles > 1);
+  gi_lightmap_free(lm);
+
+  o.tile = 4;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality big = q;
+  big.levels = 4, big.res = 16;
+  assert_int_equal(gi_lightmap_bake(lm, &big, NULL, &rep, &err), GI_OK);
+  count_unlit(lm, &valid, &unlit);
+  assert_true(valid == valid_def && unlit <= unlit_def);
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_ERR_INVALID_ARG);
+  printf("tile 4 at 2 levels of 8: %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "lie outside its cascade"));
+  size_t valid2, unlit2;
+  count_unlit(lm, &valid2, &unlit2);
+  assert_true(valid2 == valid && unlit2 == unlit);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
@@ -757,6 +820,7 @@ int main(void) {
       cmocka_unit_test(test_scene_uv_incomplete),
       cmocka_unit_test(test_bake_deterministic_and_tiled),
       cmocka_unit_test(test_big_chart_tiles),
+      cmocka_unit_test(test_small_res_tiles),
       cmocka_unit_test(test_no_dark_seams),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -61,7 +61,8 @@ typedef struct gi_lightmap_opts {
   int supersample;     /* sample points per texel side, 1..8; default 2 */
   int have_region;     /* 1: only triangles whose centre lies in [region_lo, region_hi] */
   double region_lo[3], region_hi[3]; /* world box; default: the whole scene */
-  double tile;         /* tile side, world units; default 0.8 x the coarsest cascade level */
+  double tile;         /* tile side, world units; default 0.8 x the coarsest cascade level, smaller
+                          until every tile's cascade holds its texels (a larger tile is refused) */
   int scene_uv;        /* 0: bake into the scene's own lightmap UVs when it has them
                           (gi_scene_has_lightmap_uv: one atlas of `atlas` texels, one chart,
                           texel unused); -1: always make charts */
@@ -81,8 +82,9 @@ typedef struct gi_lightmap_report {
    * filter and bounce summed over the tiles' cascades, gather the texels'
    * gathers and the fill from neighbours; encode 0 (the caller writes). */
   gi_timings ms;
-  /* The bake's own share of the layout: the atlases cleared and the
-   * texels sorted into tiles. With layout_ms it is the layout stage. */
+  /* The bake's own share of the layout: the texels sorted into tiles
+   * (again for each smaller default tile tried).
+   * With layout_ms it is the layout stage. */
   double sort_ms;
 } gi_lightmap_report;
 
@@ -94,8 +96,10 @@ gi_result gi_lightmap_layout(const gi_scene *scene, const gi_lightmap_opts *opts
                              gi_error_info *err);
 /* Bakes every texel with quality q (may be NULL: defaults; `threads` and
  * `seed` are honoured), checking cancel (may be NULL) between texels.
- * report (may be NULL) receives counts and timings. A bad quality, or one
- * cutting the region into too many tiles, leaves the lightmap as it was;
+ * report (may be NULL) receives counts and timings. A bad quality, one
+ * cutting the region into too many tiles, or a tile whose cascade would
+ * leave some of its texels outside every level (GI_ERR_INVALID_ARG: their
+ * indirect light would be 0) leaves the lightmap as it was;
  * a bake that fails after it started (cancelled included) leaves every
  * atlas zero, as before any bake, never part of one. */
 gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel,

@@ -1,7 +1,8 @@
 /* bake.c: gi_lightmap_bake, every texel's irradiance from a cascade.
  *
  * Design. The region is cut into a grid of tiles no wider than opts.tile
- * (default: 0.8 of the coarsest cascade level, so a tile lies inside it);
+ * (default: 0.8 of the coarsest cascade level, smaller until every tile's
+ * cascade, as the bake places it, holds its texels: place_tiles);
  * each texel belongs to the tile holding its anchor (the first point of its
  * footprint on its chart), and each tile with texels is one cascade bake,
  * gathered, then freed: memory stays one cascade. (By its chart's centre, a
@@ -23,11 +24,16 @@
 #include "base/internal.h"
 #include "gi/gi_cascade.h"
 #include "lightmap/lightmap_internal.h"
+#include "plan.h"
 #include "scene/lights.h"
 #include "trace/trace.h"
 
 /* Default tile side as a fraction of the coarsest level's side. */
 #define GI_LM_TILE_FRACTION 0.8
+/* A default tile whose cascade leaves texels outside shrinks by this
+ * factor, at most this many times. */
+#define GI_LM_SHRINK 0.75
+#define GI_LM_SHRINK_TRIES 12
 /* The most tiles one bake takes: each is a cascade bake. */
 #define GI_LM_MAX_TILES (1 << 20)
 /* A footprint point farther than this (texels) from its chart is not on it. */
@@ -311,6 +317,7 @@ typedef struct {
   const double *size;
   const size_t *base;
   int32_t *tid;
+  float *anc; /* 3 per texel, as tid: its anchor (local) */
 } anchor_ctx;
 
 static void anchor_charts(void *p, size_t b, size_t e, int worker) {
@@ -319,29 +326,33 @@ static void anchor_charts(void *p, size_t b, size_t e, int worker) {
   for (size_t i = b; i < e; i++) {
     const gi_lm_chart *c = &x->lm->charts[i];
     int32_t *t = x->tid + x->base[i];
+    float *X = x->anc + 3 * x->base[i];
     for (int dy = 0; dy < c->pub.h; dy++)
-      for (int dx = 0; dx < c->pub.w; dx++) {
-        float X[3];
+      for (int dx = 0; dx < c->pub.w; dx++, X += 3)
         *t++ = texel_anchor(x->lm, c, c->pub.x + dx, c->pub.y + dy, X) ? tile_of(x->lm, X, x->nt, x->size) : -1;
-      }
   }
 }
 
 /* The texels of each tile, [start[t], start[t + 1]) of list (counting
- * sort: chart order, then row-major, inside a tile). */
+ * sort: chart order, then row-major, inside a tile), and the box of their
+ * anchors, box[t] = lo[3], hi[3] (local; empty for a tile without). */
 static gi_result texels_by_tile(const gi_lightmap *lm, const int nt[3], const double size[3], int threads,
-                                size_t **start, uint64_t **list, gi_error_info *err) {
+                                size_t **start, uint64_t **list, float (**box)[6], gi_error_info *err) {
   size_t ntiles = (size_t)nt[0] * nt[1] * nt[2], total = 0;
   size_t *base = gi__malloc((lm->num_charts + 1) * sizeof *base);
   if (base)
     for (size_t i = 0; i < lm->num_charts; i++) base[i] = total, total += (size_t)lm->charts[i].pub.w * lm->charts[i].pub.h;
   int32_t *tid = base ? gi__malloc((total ? total : 1) * sizeof *tid) : NULL;
+  float *anc = tid ? gi__malloc((total ? total : 1) * 3 * sizeof *anc) : NULL;
   *start = gi__calloc(ntiles + 1, sizeof **start);
-  if (!tid || !*start) {
-    gi__free(base), gi__free(tid);
+  *box = gi__malloc((ntiles ? ntiles : 1) * sizeof **box);
+  if (!anc || !*start || !*box) {
+    gi__free(base), gi__free(tid), gi__free(anc);
     return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the tiles of %zu texels", total);
   }
-  anchor_ctx ax = {.lm = lm, .nt = nt, .size = size, .base = base, .tid = tid};
+  for (size_t t = 0; t < ntiles; t++)
+    for (int k = 0; k < 3; k++) (*box)[t][k] = INFINITY, (*box)[t][3 + k] = -INFINITY;
+  anchor_ctx ax = {.lm = lm, .nt = nt, .size = size, .base = base, .tid = tid, .anc = anc};
   gi__parallel_for(lm->num_charts, 1, threads, anchor_charts, &ax);
   size_t listed = 0;
   for (size_t k = 0; k < total; k++)
@@ -350,18 +361,22 @@ static gi_result texels_by_tile(const gi_lightmap *lm, const int nt[3], const do
   *list = gi__malloc((listed ? listed : 1) * sizeof **list);
   size_t *fill = gi__calloc(ntiles ? ntiles : 1, sizeof *fill);
   if (!*list || !fill) {
-    gi__free(base), gi__free(tid), gi__free(fill);
+    gi__free(base), gi__free(tid), gi__free(anc), gi__free(fill);
     return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the tiles of %zu texels", listed);
   }
   for (size_t i = 0; i < lm->num_charts; i++) {
     const gi_lm_chart *c = &lm->charts[i];
     for (int dy = 0; dy < c->pub.h; dy++)
       for (int dx = 0; dx < c->pub.w; dx++) {
-        int32_t t = tid[base[i] + (size_t)dy * c->pub.w + dx];
-        if (t >= 0) (*list)[(*start)[t] + fill[t]++] = GI_LM_TEXEL(i, dx, dy);
+        size_t k = base[i] + (size_t)dy * c->pub.w + dx;
+        int32_t t = tid[k];
+        if (t < 0) continue;
+        (*list)[(*start)[t] + fill[t]++] = GI_LM_TEXEL(i, dx, dy);
+        for (int a = 0; a < 3; a++)
+          (*box)[t][a] = fminf((*box)[t][a], anc[3 * k + a]), (*box)[t][3 + a] = fmaxf((*box)[t][3 + a], anc[3 * k + a]);
       }
   }
-  gi__free(base), gi__free(tid), gi__free(fill);
+  gi__free(base), gi__free(tid), gi__free(anc), gi__free(fill);
   return GI_OK;
 }
 
@@ -446,6 +461,62 @@ static void clear_atlases(gi_lightmap *lm) {
   }
 }
 
+/* How far a texel's footprint points may lie from its anchor, in texels
+ * (its own square, and the half texel a point may snap to its chart). */
+#define GI_LM_FOOTPRINT_TEXELS 2.0
+
+/* *in = 1 when the cascade baked at `at` holds box b (lo[3], hi[3],
+ * local) with `margin` around it, within the scene's bounds (gathered
+ * points lie on its triangles), inside its coarsest level less the
+ * one-voxel border gi_cascade_covers keeps (finer levels lie inside it). */
+static gi_result cascade_holds(const gi_lightmap *lm, const gi_quality *rq, const double at[3], const float b[6],
+                               double margin, int *in, gi_error_info *err) {
+  struct gi_cascade *c;
+  gi_result rc = gi__cascade_placed(lm->scene, at, rq, "lightmap", &c, err);
+  if (rc != GI_OK) return rc;
+  const gi_level *L = &c->lv[c->n - 1];
+  *in = 1;
+  for (int k = 0; k < 3; k++) {
+    double lo = fmax(b[k] - margin, lm->scene->lo[k]), hi = fmin(b[3 + k] + margin, lm->scene->hi[k]);
+    *in &= lo >= (double)L->lo[k] + L->s && hi <= (double)L->hi[k] - L->s;
+  }
+  gi__free(c);
+  return GI_OK;
+}
+
+/* The viewpoint of each tile holding texels (tat[t], world): its centre,
+ * or, when its cascade there would leave some of its texels outside every
+ * level (their indirect light would read 0), the centre of its texels'
+ * box. *held = 1 when every tile's cascade holds its texels, else 0 and
+ * *bad says which tile does not. At res 8 the default tile, 0.8 of the
+ * coarsest level, reached past its border: 84% of the Cornell box's
+ * texels read no indirect light. */
+static gi_result place_tiles(const gi_lightmap *lm, const gi_quality *rq, const int nt[3], const double size[3],
+                             const size_t *start, const float (*box)[6], double (*tat)[3], int *held, size_t *bad,
+                             gi_error_info *err) {
+  double margin = GI_LM_FOOTPRINT_TEXELS * lm->opts.texel;
+  size_t ntiles = (size_t)nt[0] * nt[1] * nt[2];
+  *held = 1;
+  for (size_t t = 0; t < ntiles; t++) {
+    if (start[t] == start[t + 1]) continue;
+    int id[3] = {(int)(t % (size_t)nt[0]), (int)(t / (size_t)nt[0] % (size_t)nt[1]),
+                 (int)(t / ((size_t)nt[0] * nt[1]))}, in;
+    for (int k = 0; k < 3; k++) tat[t][k] = lm->scene->origin[k] + lm->lo[k] + (id[k] + 0.5) * size[k];
+    gi_result rc = cascade_holds(lm, rq, tat[t], box[t], margin, &in, err);
+    if (rc == GI_OK && !in) {
+      /* Texels of triangles reaching past the region lie outside their tile. */
+      for (int k = 0; k < 3; k++) tat[t][k] = lm->scene->origin[k] + 0.5 * ((double)box[t][k] + box[t][3 + k]);
+      rc = cascade_holds(lm, rq, tat[t], box[t], margin, &in, err);
+    }
+    if (rc != GI_OK) return rc;
+    if (!in) {
+      *held = 0, *bad = t;
+      return GI_OK;
+    }
+  }
+  return GI_OK;
+}
+
 gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel,
                            gi_lightmap_report *report, gi_error_info *err) {
   if (!lm) return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: lightmap is NULL");
@@ -459,32 +530,55 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
                                   : GI_LM_TILE_FRACTION * rq.res * rq.voxel0 * (double)(1u << (rq.levels - 1));
   int nt[3];
   double size[3];
-  tile_grid(lm, side, nt, size);
-  /* Each tile is a cascade bake: past this many the request is a mistake (and tile ids stay ints). */
-  if ((size_t)nt[0] * nt[1] * nt[2] > GI_LM_MAX_TILES)
-    return gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region into %d x %d x %d tiles, more than %d "
-                    "cascade bakes: raise tile", side, nt[0], nt[1], nt[2], GI_LM_MAX_TILES);
-  /* Refused requests above leave a baked lightmap as it was; from here a
-   * bake starts from empty atlases, and a failed one (cancelled, or a tile
-   * whose cascade fails) clears them again at `done`: tiles baked before
-   * the failure beside zeros were not a lightmap. */
-  double ts = gi__now_ms();
-  clear_atlases(lm);
   size_t *start = NULL;
   uint64_t *list = NULL;
-  rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, err);
-  rep.sort_ms = gi__now_ms() - ts;
+  float(*box)[6] = NULL;
+  double(*tat)[3] = NULL;
+  int cleared = 0;
+  /* The default side shrinks until every tile's cascade holds its texels;
+   * a side the caller chose that does not is refused. Refused requests
+   * leave a baked lightmap as it was; from the first tile's bake on, a
+   * failed one (cancelled, or a tile whose cascade fails) clears the
+   * atlases at `done`: tiles baked before the failure beside zeros were
+   * not a lightmap. */
+  for (int tries = 0;; tries++) {
+    tile_grid(lm, side, nt, size);
+    /* Each tile is a cascade bake: past this many the request is a mistake (and tile ids stay ints). */
+    if ((size_t)nt[0] * nt[1] * nt[2] > GI_LM_MAX_TILES) {
+      rc = gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region into %d x %d x %d tiles, more than "
+                    "%d cascade bakes: raise tile", side, nt[0], nt[1], nt[2], GI_LM_MAX_TILES);
+      goto done;
+    }
+    double ts = gi__now_ms();
+    rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, &box, err);
+    rep.sort_ms += gi__now_ms() - ts;
+    if (rc != GI_OK) goto done;
+    size_t ntiles = (size_t)nt[0] * nt[1] * nt[2], bad = 0;
+    int held = 0;
+    if (!(tat = gi__malloc((ntiles ? ntiles : 1) * sizeof *tat))) {
+      rc = gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
+      goto done;
+    }
+    rc = place_tiles(lm, &rq, nt, size, start, (const float(*)[6])box, tat, &held, &bad, err);
+    if (rc != GI_OK || held) break;
+    if (lm->opts.tile > 0 || tries >= GI_LM_SHRINK_TRIES) {
+      const double *o = lm->scene->origin;
+      rc = gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: texels of the tile of side %g at (%g, %g, %g) .. (%g, %g, %g) "
+                    "lie outside its cascade (%d levels of %d voxels, the finest %g): their indirect light would be "
+                    "0; %s", side, box[bad][0] + o[0], box[bad][1] + o[1], box[bad][2] + o[2], box[bad][3] + o[0],
+                    box[bad][4] + o[1], box[bad][5] + o[2], rq.levels, rq.res, rq.voxel0,
+                    lm->opts.tile > 0 ? "use a smaller tile (the default shrinks until it fits) or more levels"
+                                      : "use more levels or a larger res");
+      goto done;
+    }
+    gi__free(start), gi__free(list), gi__free(box), gi__free(tat);
+    start = NULL, list = NULL, box = NULL, tat = NULL;
+    side *= GI_LM_SHRINK;
+  }
   if (rc != GI_OK) goto done;
-  for (int tz = 0; tz < nt[2] && rc == GI_OK; tz++)
-    for (int ty = 0; ty < nt[1] && rc == GI_OK; ty++)
-      for (int tx = 0; tx < nt[0] && rc == GI_OK; tx++) {
-        size_t t = ((size_t)tz * nt[1] + ty) * nt[0] + tx;
-        if (start[t] == start[t + 1]) continue;
-        int id[3] = {tx, ty, tz};
-        double at[3];
-        for (int k = 0; k < 3; k++) at[k] = lm->scene->origin[k] + lm->lo[k] + (id[k] + 0.5) * size[k];
-        rc = bake_tile(lm, q, cancel, list + start[t], start[t + 1] - start[t], at, &rep, err);
-      }
+  clear_atlases(lm), cleared = 1;
+  for (size_t t = 0; t < (size_t)nt[0] * nt[1] * nt[2] && rc == GI_OK; t++)
+    if (start[t] != start[t + 1]) rc = bake_tile(lm, q, cancel, list + start[t], start[t + 1] - start[t], tat[t], &rep, err);
   if (rc != GI_OK) goto done;
   double tf = gi__now_ms();
   for (size_t a = 0; a < lm->num_atlases && rc == GI_OK; a++) {
@@ -501,7 +595,9 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
 done:
   gi__free(start);
   gi__free(list);
-  if (rc != GI_OK) clear_atlases(lm);
+  gi__free(box);
+  gi__free(tat);
+  if (rc != GI_OK && cleared) clear_atlases(lm);
   rep.bake_ms = gi__now_ms() - t0;
   if (report) *report = rep;
   return rc;
