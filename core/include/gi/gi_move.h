@@ -89,11 +89,10 @@ gi_result gi_cascade_move_ex(gi_cascade *c, const double at[3], const gi_cancel 
  * move, does nothing. Not thread-safe with other calls on c. */
 gi_result gi_cascade_move_prepare(gi_cascade *c, gi_error_info *err);
 /* The most bytes gi_cascade_move adds to a cascade baked with this
- * resolved quality (the re-bake's texture, irradiance and gathers: up to
- * 96 bytes per voxel), known before the first move, so a holder of a
- * moving cascade can reserve them. 0 when levels or res is unresolved or
- * out of range.
- * Thread-safe. */
+ * resolved quality (the re-bake's texture, irradiance and gathers, and
+ * each voxel's apex shift: up to 352 bytes per voxel), known before the
+ * first move, so a holder of a moving cascade can reserve them. 0 when
+ * levels or res is unresolved or out of range. Thread-safe. */
 size_t gi_cascade_move_bytes_estimate(const gi_quality *resolved);
 /* P: the calls at one anchor that complete the re-bake (the refresh cycle)
  * under way, or the next one at rest; the same for every level (the bake's

@@ -58,8 +58,9 @@ void gi__cascade_free_levels(struct gi_cascade *c) {
   c->block_bytes = 0;
   for (int d = 0; d < GI_MAX_LEVELS; d++) {
     gi_level *L = &c->lv[d];
-    gi__free(L->geo), gi__free(L->side), gi__free(L->direct), gi__free(L->freed);
+    gi__free(L->geo), gi__free(L->side), gi__free(L->direct), gi__free(L->shift), gi__free(L->freed);
     L->geo = NULL, L->rad = NULL, L->side = NULL, L->direct = NULL, L->occ = NULL, L->busy = NULL, L->busy4 = NULL;
+    L->shift = NULL;
     L->vix = NULL, L->freed = NULL;
     L->cap = L->used = L->num_freed = 0;
   }
@@ -87,7 +88,8 @@ gi_result gi__level_reserve(struct gi_cascade *c, int d, uint32_t entries, int s
   uint32_t n = (uint32_t)want, old = L->cap;
   if (gi_cancel_check(c->cancel) != GI_CANCEL_NONE) return gi__cancel_fail(c->cancel, err, "allocate");
   if (!grow((void **)&L->geo, n, sizeof *L->geo) || !grow((void **)&L->side, n, sizeof *L->side) ||
-      !grow((void **)&L->direct, n, sizeof *L->direct) || !grow((void **)&L->freed, n, sizeof *L->freed))
+      !grow((void **)&L->direct, n, sizeof *L->direct) || !grow((void **)&L->freed, n, sizeof *L->freed) ||
+      (L->shift && !grow((void **)&L->shift, n, sizeof *L->shift)))
     return gi__fail(err, GI_ERR_NOMEM, "cascade: cannot grow level %d to %u voxels holding geometry", d, n);
   L->cap = n;
   if (old == 0) {
@@ -107,6 +109,7 @@ void gi__level_take(gi_level *L, uint32_t slot) {
   memset(&L->geo[e], 0, sizeof L->geo[e]);
   memset(L->side[e], 0, sizeof L->side[e]);
   memset(L->direct[e], 0, sizeof L->direct[e]);
+  if (L->shift) L->shift[e].v[0][0] = NAN; /* found at its first gather */
   L->vix[slot] = e;
 }
 

@@ -150,6 +150,16 @@ typedef struct gi_vrad_f {
   float tau[3];
 } gi_vrad_f;
 
+/* Per side 2 g + s of an occupied voxel: how far its gathers' apex moves
+ * off the surfaces beside it (light/bounce.c, away_from_beside). It
+ * depends on the voxel's geometry alone: a bake's first bounce finds it
+ * for its later ones, and a moving cascade keeps it with each entry (a
+ * move regathers a voxel many times, and recasting its rays took a sixth
+ * of Munich's walk). */
+typedef struct gi_shift6 {
+  float v[GI_VOX_FACES][3]; /* in a level's shift array, v[0][0] NaN: not found yet */
+} gi_shift6;
+
 typedef struct gi_level {
   double s;            /* voxel size */
   int64_t cell0[3];    /* first cell of the window */
@@ -171,6 +181,8 @@ typedef struct gi_level {
   gi_vgeo *geo;        /* cap entries */
   gi_faces3 *side;     /* cap entries: direct+indirect irradiance per face (see gi_faces3) */
   gi_faces3 *direct;   /* cap entries: the direct part of side */
+  gi_shift6 *shift;    /* cap entries once the cascade moves (gi__move_shift_alloc), else NULL:
+                          the gathers' apex shift (gi_shift6), kept across moves */
   uint32_t cap;        /* entries allocated (entry 0 included) */
   uint32_t used;       /* entries handed out so far, entry 0 included: [used, cap) are fresh */
   uint32_t *freed;     /* cap: entries given back (a move's cells that left), reused first */
@@ -290,7 +302,8 @@ gi_result gi__level_reserve(struct gi_cascade *c, int d, uint32_t entries, int s
 uint32_t gi__level_free_entries(const gi_level *L);
 void gi__level_take(gi_level *L, uint32_t slot);
 void gi__level_release(gi_level *L, uint32_t slot);
-/* Bytes of one entry across geo, side, direct and freed. */
+/* Bytes of one entry across geo, side, direct and freed (a moving
+ * cascade's shift is the move's: gi__move_state_bytes). */
 #define GI_ENTRY_BYTES (sizeof(gi_vgeo) + 2 * sizeof(gi_faces3) + sizeof(uint32_t))
 /* Bytes per slot of the dense arrays: rad, vix, occ, busy. */
 #define GI_SLOT_BYTES (sizeof(gi_vrad) + 2 * sizeof(uint32_t) + sizeof(uint8_t))

@@ -74,7 +74,8 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
  * room lit through a window read 30.7% indirect error (21.8% after).
  * away_from_groups does the same for the voxel's own other surfaces,
  * without rays. The shift depends on the geometry alone: a bake's first
- * bounce computes it, the later ones reuse it (gi_shift6). */
+ * bounce computes it, the later ones reuse it, and a moving cascade keeps
+ * it per entry across its moves (gi_shift6). */
 #define BESIDE_REACH 1.5f
 
 /* 1 when every cell of level d that o + t e crosses for t in [0, reach]
@@ -215,10 +216,12 @@ uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *sl
   cone_batch cb;
   cb.nj = cb.nv = 0;
   uint64_t samples = 0;
+  const gi_level *L = &c->lv[d];
   for (size_t i = 0; i < n; i++) {
     if (plan && plan[i].nb[0] >= 0) continue;
     if (!batch_room(c, wide, &cb)) samples += batch_finish(c, wide, &cb, cones);
-    batch_add(c, d, slots[i], wide, NULL, E[i], NULL, NULL, 0, &cb);
+    gi_shift6 *sh = L->shift ? &L->shift[L->vix[slots[i]]] : NULL;
+    batch_add(c, d, slots[i], wide, NULL, E[i], NULL, sh, sh && !isnan(sh->v[0][0]), &cb);
   }
   return samples + batch_finish(c, wide, &cb, cones);
 }

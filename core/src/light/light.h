@@ -115,11 +115,6 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
 typedef struct gi_hits {
   uint64_t w[GI_HIT_BITS / 64];
 } gi_hits;
-/* Per side 2 g + s of an occupied voxel: how far its gathers' apex moves
- * off the surfaces beside it (bounce.c, away_from_beside). */
-typedef struct gi_shift6 {
-  float v[GI_VOX_FACES][3];
-} gi_shift6;
 /* between.c: which voxels a bounce fills from gathered neighbours on
  * their plane or edge instead of gathering. Per occupied voxel of a level (its
  * index in occ): nb[0] < 0 when it gathers, else the occupied indices of
@@ -162,7 +157,9 @@ uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *p
  * batches across voxels); returns the texture samples taken and adds the
  * cones marched to *cones. plan (NULL: none) is the slots' own plan
  * entries: a voxel it fills from its neighbours is skipped, E[i] left as
- * it is. Thread-safe for disjoint E. */
+ * it is. A level with a shift array (a moving cascade) takes each voxel's
+ * apex shift from it, finding and keeping it at the voxel's first gather.
+ * Thread-safe for disjoint E and slots. */
 uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide,
                            const gi_between *plan, gi_faces3 *E, uint64_t *cones);
 /* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the

@@ -447,7 +447,8 @@ size_t gi__move_state_bytes(const struct gi_cascade *c) {
   if (!m) return 0;
   size_t vox = (size_t)c->R * c->R * c->R, bytes = sizeof *m;
   for (int d = 0; d < c->n; d++)
-    bytes += vox * sizeof *m->rad[d] + c->lv[d].cap * (sizeof *m->side[d] + sizeof *m->last[d]) +
+    bytes += vox * sizeof *m->rad[d] +
+             c->lv[d].cap * (sizeof *m->side[d] + sizeof *m->last[d] + sizeof *c->lv[d].shift) +
              m->ecap[d] * sizeof *m->E[d] + m->plan_len[d] * sizeof *m->plan[d];
   return bytes;
 }
@@ -456,10 +457,20 @@ size_t gi_cascade_move_bytes_estimate(const gi_quality *q) {
   /* Out of range, as gi_cascade_bytes_estimate: the product would wrap. */
   if (!q || q->levels <= 0 || q->res <= 0 || q->levels > GI_MAX_LEVELS || q->res > GI_MAX_RES) return 0;
   gi_move_state *m = NULL;
-  /* At most every voxel holds geometry: one side, last, E and plan entry each. */
-  size_t per_voxel =
-      sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->last[0] + sizeof *m->E[0] + sizeof *m->plan[0];
+  /* At most every voxel holds geometry: one side, last, E, plan and shift entry each. */
+  size_t per_voxel = sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->last[0] + sizeof *m->E[0] +
+                     sizeof *m->plan[0] + sizeof(gi_shift6);
   return sizeof *m + (size_t)q->levels * (size_t)q->res * (size_t)q->res * (size_t)q->res * per_voxel;
+}
+
+/* Level L's apex shifts, kept per entry from now on (gi_shift6), all
+ * still to be found: the bake's were its own. */
+static gi_result shift_alloc(gi_level *L) {
+  if (L->shift) return GI_OK;
+  /* A level with no entry yet gets one slot: gi__level_reserve grows what exists. */
+  if (!(L->shift = gi__malloc((size_t)(L->cap ? L->cap : 1) * sizeof *L->shift))) return GI_ERR_NOMEM;
+  for (uint32_t e = 0; e < L->cap; e++) L->shift[e].v[0][0] = NAN;
+  return GI_OK;
 }
 
 /* A freshly baked cascade is its anchor's bake: the state starts closed. */
@@ -473,11 +484,12 @@ static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
   if (m && (b = m->block = gi__big_calloc(m->block_bytes, 1)))
     for (int d = 0; d < c->n; d++) {
       m->rad[d] = (gi_vrad *)b, b += vox * sizeof *m->rad[d];
-      if (move_state_reserve(m, d, c->lv[d].cap) != GI_OK) b = NULL;
+      if (move_state_reserve(m, d, c->lv[d].cap) != GI_OK || shift_alloc(&c->lv[d]) != GI_OK) b = NULL;
       if (!b) break;
     }
   if (!b) {
     gi__move_state_free(m);
+    for (int d = 0; d < c->n; d++) gi__free(c->lv[d].shift), c->lv[d].shift = NULL;
     return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake's texture");
   }
   /* Touched now (it starts as the live texture): left to the first
