@@ -525,7 +525,7 @@ static void test_job_stops_inside_tile(void **state) {
  * all) stops waiting when cancelled: it waited out its 30 s first. */
 static void test_job_cancel_while_waiting_for_memory(void **state) {
   su_server s;
-  assert_int_equal(su_start(&s, "job-budget", HOSTILE_INI("[limits]\nmax_probes_inline = 2\ncache_mb = 15\n")), 0);
+  assert_int_equal(su_start(&s, "job-budget", HOSTILE_INI("[limits]\nmax_probes_inline = 2\ncache_mb = 16\n")), 0);
   su_resp r = su_http(&s, "POST", "/v1/scenes/city/sessions?quality=low", NULL, SU_TOKEN);
   assert_int_equal(r.status, 201);
   free(r.body);
