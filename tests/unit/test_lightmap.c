@@ -808,6 +808,60 @@ static void test_small_res_tiles(void **state) {
   gi_scene_release(s);
 }
 
+/* A ground strip 300 m long whose centre lies in a 10 m region, beside a
+ * sunlit wall along all of it: the strip's texels far out of the region
+ * fell in the region's edge tile, outside every level of its cascade (the
+ * bake said so, or before that read indirect 0). Tiles now reach them:
+ * every texel takes the wall's light, 100 m out as at the middle. */
+static void test_region_reaching_texels(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.6f, 0.6f, 0.6f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  uint32_t v0 = gi_mesh_builder_add_vertex(b, -150, 0, -1), v1 = gi_mesh_builder_add_vertex(b, 0, 0, 2),
+           v2 = gi_mesh_builder_add_vertex(b, 150, 0, -1);
+  gi_mesh_builder_add_triangle(b, v0, v1, v2, mat); /* up: centre (0, 0, 0) */
+  double w[4][3] = {{-150, 0, 3}, {-150, 4, 3}, {150, 4, 3}, {150, 0, 3}}; /* facing -z */
+  gi_mesh_builder_add_quad(b, w[0], w[1], w[2], w[3], mat);
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0, -0.70710678f, 0.70710678f}};
+  gi_scene *s = tu_build(b, "strip", &sun, 1);
+  gi_lightmap_opts o = {.texel = 0.5, .atlas = 1024, .have_region = 1, .region_lo = {-5, -1, -5},
+                        .region_hi = {5, 5, 5}};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality q = {.probe_samples = 16, .cones = 6, .threads = 2};
+  gi_lightmap_report rep;
+  gi_result rc = gi_lightmap_bake(lm, &q, NULL, &rep, &err);
+  if (rc) printf("%s\n", err.msg);
+  assert_int_equal(rc, GI_OK);
+  double org[3];
+  gi_scene_origin(s, org);
+  size_t valid = 0, unlit = 0, far = 0;
+  double near_sum = 0, far_sum = 0;
+  size_t near_n = 0;
+  for (size_t k = 0; k < gi_lightmap_num_atlases(lm); k++) {
+    gi_lightmap_atlas a;
+    assert_int_equal(gi_lightmap_get_atlas(lm, k, &a), 0);
+    for (size_t i = 0; i < (size_t)a.width * a.height; i++) {
+      if (!(a.valid[i] > 0) || a.normal[3 * i + 1] < 0.99f) continue; /* the strip's texels */
+      double x = org[0] + a.point[3 * i], z = org[2] + a.point[3 * i + 2];
+      valid++;
+      unlit += a.indirect[3 * i + 1] == 0;
+      if (z < -0.5 || z > 0) continue; /* one band across the strip, 3-3.5 m from the wall */
+      if (fabs(x) > 100 && fabs(x) < 120) far_sum += a.indirect[3 * i + 1], far++;
+      if (fabs(x) < 20) near_sum += a.indirect[3 * i + 1], near_n++;
+    }
+  }
+  printf("strip: %d tiles, %zu texels, %zu without indirect light; indirect 100-120 m out %.4f (%zu), within 20 m "
+         "%.4f (%zu)\n", rep.tiles, valid, unlit, far_sum / (double)far, far, near_sum / (double)near_n, near_n);
+  assert_true(rep.tiles > 1 && far > 20 && near_n > 20);
+  assert_true(unlit <= valid / 100);
+  assert_true(fabs(far_sum / far - near_sum / near_n) <= 0.15 * (near_sum / near_n));
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
@@ -821,6 +875,7 @@ int main(void) {
       cmocka_unit_test(test_bake_deterministic_and_tiled),
       cmocka_unit_test(test_big_chart_tiles),
       cmocka_unit_test(test_small_res_tiles),
+      cmocka_unit_test(test_region_reaching_texels),
       cmocka_unit_test(test_no_dark_seams),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -253,23 +253,72 @@ static void tile_texels(void *p, size_t b, size_t e, int worker) {
   gi__scratch_free(&sc);
 }
 
-/* Tile counts and sizes over the region. */
-static void tile_grid(const gi_lightmap *lm, double side, int nt[3], double size[3]) {
+/* The tile grid: tiles of `size` from the region's corner lm->lo, nreg
+ * of them over the region, and whole tiles beyond it where texels lie more
+ * than half a tile past it (a triangle whose centre is in the region may
+ * reach far out: in its edge tile those texels lay outside every level of
+ * the tile's cascade). Tile index i along an axis is grid cell first + i. */
+typedef struct {
+  int nt[3], nreg[3], first[3];
+  double size[3];
+} lm_grid;
+
+/* The grid cell holding p along axis k: within half a tile past the
+ * region, the region's edge tile. */
+static int64_t grid_cell(const gi_lightmap *lm, const lm_grid *g, const float p[3], int k) {
+  if (!(g->size[k] > 0)) return 0;
+  double v = floor(((double)p[k] - lm->lo[k]) / g->size[k]);
+  if (v < 0 && (double)p[k] >= lm->lo[k] - 0.5 * g->size[k]) v = 0;
+  if (v > g->nreg[k] - 1 && (double)p[k] <= lm->hi[k] + 0.5 * g->size[k]) v = g->nreg[k] - 1;
+  /* Anchors lie on the scene's triangles, so within float range: clamp only for safety. */
+  return (int64_t)fmax(fmin(v, 1e9), -1e9);
+}
+
+/* The grid for tiles of side at most `side` over the region and the
+ * anchors anc[0..total) (3 floats each, NaN: none). 0 when its tiles number
+ * more than max (g->nt then says how many along each axis). */
+static int grid_make(const gi_lightmap *lm, double side, const float *anc, size_t total, size_t max, lm_grid *g) {
+  int64_t lo[3] = {0, 0, 0}, hi[3];
   for (int k = 0; k < 3; k++) {
     double ext = (double)lm->hi[k] - lm->lo[k];
     double n = ceil(ext / side);
-    nt[k] = n < 1 ? 1 : n > 4096 ? 4096 : (int)n;
-    size[k] = ext / nt[k];
+    g->nreg[k] = n < 1 ? 1 : n > 4096 ? 4096 : (int)n;
+    g->size[k] = ext / g->nreg[k];
+    hi[k] = g->nreg[k] - 1;
   }
+  for (size_t i = 0; i < total; i++) {
+    const float *p = anc + 3 * i;
+    if (isnan(p[0])) continue;
+    for (int k = 0; k < 3; k++) {
+      int64_t v = grid_cell(lm, g, p, k);
+      if (v < lo[k]) lo[k] = v;
+      if (v > hi[k]) hi[k] = v;
+    }
+  }
+  uint64_t count = 1;
+  for (int k = 0; k < 3; k++) {
+    uint64_t n = (uint64_t)(hi[k] - lo[k] + 1);
+    g->first[k] = (int)lo[k];
+    g->nt[k] = n > (uint64_t)INT32_MAX ? INT32_MAX : (int)n;
+    count = count > max ? count : count * n;
+  }
+  return count <= max;
 }
 
-static int tile_of(const gi_lightmap *lm, const float p[3], const int nt[3], const double size[3]) {
+static int tile_of(const gi_lightmap *lm, const lm_grid *g, const float p[3]) {
   int id[3];
   for (int k = 0; k < 3; k++) {
-    int v = size[k] > 0 ? (int)floor((p[k] - lm->lo[k]) / size[k]) : 0;
-    id[k] = v < 0 ? 0 : v >= nt[k] ? nt[k] - 1 : v;
+    int64_t v = grid_cell(lm, g, p, k) - g->first[k];
+    id[k] = v < 0 ? 0 : v >= g->nt[k] ? g->nt[k] - 1 : (int)v;
   }
-  return (id[2] * nt[1] + id[1]) * nt[0] + id[0];
+  return (id[2] * g->nt[1] + id[1]) * g->nt[0] + id[0];
+}
+
+/* Tile t's centre (world). */
+static void tile_centre(const gi_lightmap *lm, const lm_grid *g, size_t t, double at[3]) {
+  size_t id[3] = {t % (size_t)g->nt[0], t / (size_t)g->nt[0] % (size_t)g->nt[1], t / ((size_t)g->nt[0] * g->nt[1])};
+  for (int k = 0; k < 3; k++)
+    at[k] = lm->scene->origin[k] + lm->lo[k] + ((double)g->first[k] + (double)id[k] + 0.5) * g->size[k];
 }
 
 /* One tile: bake its cascade, gather its texels, free the cascade. */
@@ -309,15 +358,12 @@ done:
   return rc;
 }
 
-/* Every chart texel's tile (tile_of its anchor; -1: none), charts in
- * parallel; tid[base[i] + dy * w + dx] for chart i's rectangle. */
+/* Every chart texel's anchor (NaN: none), charts in parallel;
+ * anc[3 * (base[i] + dy * w + dx)] for chart i's rectangle. */
 typedef struct {
   const gi_lightmap *lm;
-  const int *nt;
-  const double *size;
   const size_t *base;
-  int32_t *tid;
-  float *anc; /* 3 per texel, as tid: its anchor (local) */
+  float *anc;
 } anchor_ctx;
 
 static void anchor_charts(void *p, size_t b, size_t e, int worker) {
@@ -325,43 +371,54 @@ static void anchor_charts(void *p, size_t b, size_t e, int worker) {
   anchor_ctx *x = p;
   for (size_t i = b; i < e; i++) {
     const gi_lm_chart *c = &x->lm->charts[i];
-    int32_t *t = x->tid + x->base[i];
     float *X = x->anc + 3 * x->base[i];
     for (int dy = 0; dy < c->pub.h; dy++)
       for (int dx = 0; dx < c->pub.w; dx++, X += 3)
-        *t++ = texel_anchor(x->lm, c, c->pub.x + dx, c->pub.y + dy, X) ? tile_of(x->lm, X, x->nt, x->size) : -1;
+        if (!texel_anchor(x->lm, c, c->pub.x + dx, c->pub.y + dy, X)) X[0] = NAN;
   }
 }
 
-/* The texels of each tile, [start[t], start[t + 1]) of list (counting
- * sort: chart order, then row-major, inside a tile), and the box of their
- * anchors, box[t] = lo[3], hi[3] (local; empty for a tile without). */
-static gi_result texels_by_tile(const gi_lightmap *lm, const int nt[3], const double size[3], int threads,
-                                size_t **start, uint64_t **list, float (**box)[6], gi_error_info *err) {
-  size_t ntiles = (size_t)nt[0] * nt[1] * nt[2], total = 0;
-  size_t *base = gi__malloc((lm->num_charts + 1) * sizeof *base);
-  if (base)
-    for (size_t i = 0; i < lm->num_charts; i++) base[i] = total, total += (size_t)lm->charts[i].pub.w * lm->charts[i].pub.h;
-  int32_t *tid = base ? gi__malloc((total ? total : 1) * sizeof *tid) : NULL;
-  float *anc = tid ? gi__malloc((total ? total : 1) * 3 * sizeof *anc) : NULL;
+/* The anchors of every chart texel (anchor_charts), found once whatever
+ * the tiles: *base[i] is chart i's first texel, *total their count. */
+static gi_result texel_anchors(const gi_lightmap *lm, int threads, size_t **base, float **anc, size_t *total,
+                               gi_error_info *err) {
+  size_t n = 0;
+  *anc = NULL;
+  if (!(*base = gi__malloc((lm->num_charts + 1) * sizeof **base)))
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu charts", lm->num_charts);
+  for (size_t i = 0; i < lm->num_charts; i++) (*base)[i] = n, n += (size_t)lm->charts[i].pub.w * lm->charts[i].pub.h;
+  *total = n;
+  if (!(*anc = gi__malloc((n ? n : 1) * 3 * sizeof **anc)))
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the anchors of %zu texels", n);
+  anchor_ctx ax = {.lm = lm, .base = *base, .anc = *anc};
+  gi__parallel_for(lm->num_charts, 1, threads, anchor_charts, &ax);
+  return GI_OK;
+}
+
+/* The texels of each tile of g, [start[t], start[t + 1]) of list
+ * (counting sort: chart order, then row-major, inside a tile), and the box
+ * of their anchors, box[t] = lo[3], hi[3] (local; empty for a tile without). */
+static gi_result texels_by_tile(const gi_lightmap *lm, const lm_grid *g, const size_t *base, const float *anc,
+                                size_t total, size_t **start, uint64_t **list, float (**box)[6], gi_error_info *err) {
+  size_t ntiles = (size_t)g->nt[0] * g->nt[1] * g->nt[2], listed = 0;
   *start = gi__calloc(ntiles + 1, sizeof **start);
   *box = gi__malloc((ntiles ? ntiles : 1) * sizeof **box);
-  if (!anc || !*start || !*box) {
-    gi__free(base), gi__free(tid), gi__free(anc);
+  int32_t *tid = gi__malloc((total ? total : 1) * sizeof *tid);
+  if (!*start || !*box || !tid) {
+    gi__free(tid);
     return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the tiles of %zu texels", total);
   }
   for (size_t t = 0; t < ntiles; t++)
     for (int k = 0; k < 3; k++) (*box)[t][k] = INFINITY, (*box)[t][3 + k] = -INFINITY;
-  anchor_ctx ax = {.lm = lm, .nt = nt, .size = size, .base = base, .tid = tid, .anc = anc};
-  gi__parallel_for(lm->num_charts, 1, threads, anchor_charts, &ax);
-  size_t listed = 0;
-  for (size_t k = 0; k < total; k++)
+  for (size_t k = 0; k < total; k++) {
+    tid[k] = isnan(anc[3 * k]) ? -1 : tile_of(lm, g, anc + 3 * k);
     if (tid[k] >= 0) (*start)[tid[k] + 1]++, listed++;
+  }
   for (size_t t = 0; t < ntiles; t++) (*start)[t + 1] += (*start)[t];
   *list = gi__malloc((listed ? listed : 1) * sizeof **list);
   size_t *fill = gi__calloc(ntiles ? ntiles : 1, sizeof *fill);
   if (!*list || !fill) {
-    gi__free(base), gi__free(tid), gi__free(anc), gi__free(fill);
+    gi__free(tid), gi__free(fill);
     return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the tiles of %zu texels", listed);
   }
   for (size_t i = 0; i < lm->num_charts; i++) {
@@ -376,7 +433,7 @@ static gi_result texels_by_tile(const gi_lightmap *lm, const int nt[3], const do
           (*box)[t][a] = fminf((*box)[t][a], anc[3 * k + a]), (*box)[t][3 + a] = fmaxf((*box)[t][3 + a], anc[3 * k + a]);
       }
   }
-  gi__free(base), gi__free(tid), gi__free(anc), gi__free(fill);
+  gi__free(tid), gi__free(fill);
   return GI_OK;
 }
 
@@ -491,20 +548,18 @@ static gi_result cascade_holds(const gi_lightmap *lm, const gi_quality *rq, cons
  * *bad says which tile does not. At res 8 the default tile, 0.8 of the
  * coarsest level, reached past its border: 84% of the Cornell box's
  * texels read no indirect light. */
-static gi_result place_tiles(const gi_lightmap *lm, const gi_quality *rq, const int nt[3], const double size[3],
-                             const size_t *start, const float (*box)[6], double (*tat)[3], int *held, size_t *bad,
-                             gi_error_info *err) {
+static gi_result place_tiles(const gi_lightmap *lm, const gi_quality *rq, const lm_grid *g, const size_t *start,
+                             const float (*box)[6], double (*tat)[3], int *held, size_t *bad, gi_error_info *err) {
   double margin = GI_LM_FOOTPRINT_TEXELS * lm->opts.texel;
-  size_t ntiles = (size_t)nt[0] * nt[1] * nt[2];
+  size_t ntiles = (size_t)g->nt[0] * g->nt[1] * g->nt[2];
   *held = 1;
   for (size_t t = 0; t < ntiles; t++) {
     if (start[t] == start[t + 1]) continue;
-    int id[3] = {(int)(t % (size_t)nt[0]), (int)(t / (size_t)nt[0] % (size_t)nt[1]),
-                 (int)(t / ((size_t)nt[0] * nt[1]))}, in;
-    for (int k = 0; k < 3; k++) tat[t][k] = lm->scene->origin[k] + lm->lo[k] + (id[k] + 0.5) * size[k];
+    int in;
+    tile_centre(lm, g, t, tat[t]);
     gi_result rc = cascade_holds(lm, rq, tat[t], box[t], margin, &in, err);
     if (rc == GI_OK && !in) {
-      /* Texels of triangles reaching past the region lie outside their tile. */
+      /* Its texels off its centre (past the region, within half a tile). */
       for (int k = 0; k < 3; k++) tat[t][k] = lm->scene->origin[k] + 0.5 * ((double)box[t][k] + box[t][3 + k]);
       rc = cascade_holds(lm, rq, tat[t], box[t], margin, &in, err);
     }
@@ -517,6 +572,56 @@ static gi_result place_tiles(const gi_lightmap *lm, const gi_quality *rq, const 
   return GI_OK;
 }
 
+/* The tiles' texels (start, list) and viewpoints (tat) for quality rq:
+ * the default side shrinks until every tile's cascade holds its texels; a
+ * side the caller chose that does not is refused (as is a grid of more
+ * than GI_LM_MAX_TILES), nothing changed. */
+typedef struct {
+  lm_grid g;
+  size_t *start;
+  uint64_t *list;
+  float (*box)[6];
+  double (*tat)[3];
+} lm_tiling;
+
+static void tiling_free(lm_tiling *T) {
+  gi__free(T->start), gi__free(T->list), gi__free(T->box), gi__free(T->tat);
+  T->start = NULL, T->list = NULL, T->box = NULL, T->tat = NULL;
+}
+
+static gi_result plan_tiling(const gi_lightmap *lm, const gi_quality *rq, const size_t *base, const float *anc,
+                             size_t total, lm_tiling *T, gi_error_info *err) {
+  double side = lm->opts.tile > 0 ? lm->opts.tile
+                                  : GI_LM_TILE_FRACTION * rq->res * rq->voxel0 * (double)(1u << (rq->levels - 1));
+  for (int tries = 0;; tries++) {
+    /* Each tile is a cascade bake: past this many the request is a mistake (and tile ids stay ints). */
+    if (!grid_make(lm, side, anc, total, GI_LM_MAX_TILES, &T->g))
+      return gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region and its texels into %d x %d x %d "
+                      "tiles, more than %d cascade bakes: raise tile", side, T->g.nt[0], T->g.nt[1], T->g.nt[2],
+                      GI_LM_MAX_TILES);
+    size_t ntiles = (size_t)T->g.nt[0] * T->g.nt[1] * T->g.nt[2], bad = 0;
+    gi_result rc = texels_by_tile(lm, &T->g, base, anc, total, &T->start, &T->list, &T->box, err);
+    if (rc != GI_OK) return rc;
+    if (!(T->tat = gi__malloc((ntiles ? ntiles : 1) * sizeof *T->tat)))
+      return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
+    int held = 0;
+    rc = place_tiles(lm, rq, &T->g, T->start, (const float(*)[6])T->box, T->tat, &held, &bad, err);
+    if (rc != GI_OK || held) return rc;
+    if (lm->opts.tile > 0 || tries >= GI_LM_SHRINK_TRIES) {
+      const double *o = lm->scene->origin;
+      const float *b = T->box[bad];
+      return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: texels of the tile of side %g at (%g, %g, %g) .. (%g, %g, "
+                      "%g) lie outside its cascade (%d levels of %d voxels, the finest %g): their indirect light would "
+                      "be 0; %s", side, b[0] + o[0], b[1] + o[1], b[2] + o[2], b[3] + o[0], b[4] + o[1], b[5] + o[2],
+                      rq->levels, rq->res, rq->voxel0,
+                      lm->opts.tile > 0 ? "use a smaller tile (the default shrinks until it fits) or more levels"
+                                        : "use more levels or a larger res");
+    }
+    tiling_free(T);
+    side *= GI_LM_SHRINK;
+  }
+}
+
 gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel,
                            gi_lightmap_report *report, gi_error_info *err) {
   if (!lm) return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: lightmap is NULL");
@@ -526,59 +631,23 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   gi_quality rq;
   gi_result rc = gi_quality_resolve(lm->scene, q, &rq, err);
   if (rc != GI_OK) return rc;
-  double side = lm->opts.tile > 0 ? lm->opts.tile
-                                  : GI_LM_TILE_FRACTION * rq.res * rq.voxel0 * (double)(1u << (rq.levels - 1));
-  int nt[3];
-  double size[3];
-  size_t *start = NULL;
-  uint64_t *list = NULL;
-  float(*box)[6] = NULL;
-  double(*tat)[3] = NULL;
+  lm_tiling T = {0};
+  size_t *base = NULL, total = 0;
+  float *anc = NULL;
   int cleared = 0;
-  /* The default side shrinks until every tile's cascade holds its texels;
-   * a side the caller chose that does not is refused. Refused requests
-   * leave a baked lightmap as it was; from the first tile's bake on, a
-   * failed one (cancelled, or a tile whose cascade fails) clears the
-   * atlases at `done`: tiles baked before the failure beside zeros were
-   * not a lightmap. */
-  for (int tries = 0;; tries++) {
-    tile_grid(lm, side, nt, size);
-    /* Each tile is a cascade bake: past this many the request is a mistake (and tile ids stay ints). */
-    if ((size_t)nt[0] * nt[1] * nt[2] > GI_LM_MAX_TILES) {
-      rc = gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region into %d x %d x %d tiles, more than "
-                    "%d cascade bakes: raise tile", side, nt[0], nt[1], nt[2], GI_LM_MAX_TILES);
-      goto done;
-    }
-    double ts = gi__now_ms();
-    rc = texels_by_tile(lm, nt, size, rq.threads, &start, &list, &box, err);
-    rep.sort_ms += gi__now_ms() - ts;
-    if (rc != GI_OK) goto done;
-    size_t ntiles = (size_t)nt[0] * nt[1] * nt[2], bad = 0;
-    int held = 0;
-    if (!(tat = gi__malloc((ntiles ? ntiles : 1) * sizeof *tat))) {
-      rc = gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
-      goto done;
-    }
-    rc = place_tiles(lm, &rq, nt, size, start, (const float(*)[6])box, tat, &held, &bad, err);
-    if (rc != GI_OK || held) break;
-    if (lm->opts.tile > 0 || tries >= GI_LM_SHRINK_TRIES) {
-      const double *o = lm->scene->origin;
-      rc = gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: texels of the tile of side %g at (%g, %g, %g) .. (%g, %g, %g) "
-                    "lie outside its cascade (%d levels of %d voxels, the finest %g): their indirect light would be "
-                    "0; %s", side, box[bad][0] + o[0], box[bad][1] + o[1], box[bad][2] + o[2], box[bad][3] + o[0],
-                    box[bad][4] + o[1], box[bad][5] + o[2], rq.levels, rq.res, rq.voxel0,
-                    lm->opts.tile > 0 ? "use a smaller tile (the default shrinks until it fits) or more levels"
-                                      : "use more levels or a larger res");
-      goto done;
-    }
-    gi__free(start), gi__free(list), gi__free(box), gi__free(tat);
-    start = NULL, list = NULL, box = NULL, tat = NULL;
-    side *= GI_LM_SHRINK;
-  }
+  /* Refused requests leave a baked lightmap as it was; from the first
+   * tile's bake on, a failed one (cancelled, or a tile whose cascade
+   * fails) clears the atlases at `done`: tiles baked before the failure
+   * beside zeros were not a lightmap. */
+  double ts = gi__now_ms();
+  rc = texel_anchors(lm, rq.threads, &base, &anc, &total, err);
+  if (rc == GI_OK) rc = plan_tiling(lm, &rq, base, anc, total, &T, err);
+  rep.sort_ms = gi__now_ms() - ts;
   if (rc != GI_OK) goto done;
   clear_atlases(lm), cleared = 1;
-  for (size_t t = 0; t < (size_t)nt[0] * nt[1] * nt[2] && rc == GI_OK; t++)
-    if (start[t] != start[t + 1]) rc = bake_tile(lm, q, cancel, list + start[t], start[t + 1] - start[t], tat[t], &rep, err);
+  for (size_t t = 0; t < (size_t)T.g.nt[0] * T.g.nt[1] * T.g.nt[2] && rc == GI_OK; t++)
+    if (T.start[t] != T.start[t + 1])
+      rc = bake_tile(lm, q, cancel, T.list + T.start[t], T.start[t + 1] - T.start[t], T.tat[t], &rep, err);
   if (rc != GI_OK) goto done;
   double tf = gi__now_ms();
   for (size_t a = 0; a < lm->num_atlases && rc == GI_OK; a++) {
@@ -593,10 +662,9 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   /* Filling finishes what the gathers left: one stage, as in a probe answer. */
   rep.ms.gather = rep.gather_ms + rep.fill_ms;
 done:
-  gi__free(start);
-  gi__free(list);
-  gi__free(box);
-  gi__free(tat);
+  tiling_free(&T);
+  gi__free(base);
+  gi__free(anc);
   if (rc != GI_OK && cleared) clear_atlases(lm);
   rep.bake_ms = gi__now_ms() - t0;
   if (report) *report = rep;
