@@ -14,6 +14,7 @@
 #include "gi/gi.h"
 #include "answer/answer.h"
 #include "base/internal.h"
+#include "trace/trace.h"
 
 static void test_plane_under_sun(void **state) {
   const double c60 = 0.5, a = 0.5, E = 3.0;
@@ -422,6 +423,50 @@ static void test_sampled_light_anchors(void **state) {
   gi_scene_release(s);
 }
 
+/* A view reaching past what the cascade holds says how much of it: the
+ * pixels whose surface lies outside every level (direct light alone) are
+ * counted, as the plane's hits, found here by hand, say. None for a view
+ * inside the cascade. */
+static void test_pixels_outside(void **state) {
+  (void)state;
+  gi_scene *s = tu_sunlit_plane(0.5, 3.0, 100);
+  gi_error_info err = {0};
+  gi_quality q = {.levels = 2, .res = 16, .voxel0 = 1};
+  gi_cascade *c = NULL;
+  double at[3] = {0, 1, 0}, org[3];
+  gi_scene_origin(s, org);
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  const gi_camera cams[2] = {{.eye = {0, 5, 0}, .target = {0, 0, 0}, .up = {0, 0, 1}, .fov_deg = 40, .width = 16,
+                              .height = 12},
+                             {.eye = {0, 40, 0}, .target = {0, 0, 0}, .up = {0, 0, 1}, .fov_deg = 90, .width = 32,
+                              .height = 24}};
+  for (int v = 0; v < 2; v++) {
+    const gi_camera *cam = &cams[v];
+    float *rgb = malloc((size_t)cam->width * cam->height * 3 * sizeof *rgb);
+    assert_non_null(rgb);
+    gi_render_stats st;
+    assert_int_equal(gi_cascade_render_ex(c, cam, NULL, rgb, &st, &err), GI_OK);
+    gi__cam k;
+    assert_int_equal(gi__cam_setup(s, cam, &k, &err), GI_OK);
+    uint64_t want = 0;
+    for (int py = 0; py < cam->height; py++)
+      for (int px = 0; px < cam->width; px++) {
+        float w[3], x[3];
+        gi__cam_ray(&k, (float)px + 0.5f, (float)py + 0.5f, w);
+        float t = ((float)-org[1] - k.eye[1]) / w[1] * (1.f - GI_PRIMARY_PULL); /* the plane y = 0 */
+        for (int a = 0; a < 3; a++) x[a] = k.eye[a] + t * w[a];
+        want += gi__finest_level_at(c, x) < 0;
+      }
+    printf("view %d: %llu of %d pixels outside the cascade (%llu by hand)\n", v,
+           (unsigned long long)st.pixels_outside, cam->width * cam->height, (unsigned long long)want);
+    assert_true(v == 0 ? want == 0 : want > 100 && want < (uint64_t)(cam->width * cam->height));
+    assert_true(st.pixels_outside + 2 >= want && st.pixels_outside <= want + 2);
+    free(rgb);
+  }
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_plane_under_sun),
@@ -433,6 +478,7 @@ int main(void) {
       cmocka_unit_test(test_mitsuba_sensor_errors),
       cmocka_unit_test(test_indirect_anchors),
       cmocka_unit_test(test_sampled_light_anchors),
+      cmocka_unit_test(test_pixels_outside),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -50,6 +50,10 @@ int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, 
     goto done;
   }
   st->cone_ms = st->view.ms;
+  if (st->view.pixels_outside)
+    fprintf(stderr, "gi-bake: note: %llu of %zu pixels see surfaces outside the cascade around the viewpoint: their "
+            "indirect light is 0 and only their direct light is drawn; bake with more --levels, or nearer what the "
+            "camera sees\n", (unsigned long long)st->view.pixels_outside, np);
   double mean = 0, cone_mean = 0;
   for (size_t i = 0; i < np; i++) mean += lum(&path[3 * i]) / (double)np, cone_mean += lum(&cone[3 * i]) / (double)np;
   /* Errors relative to each pixel, floored at 5% of the mean: a dark pixel

@@ -179,6 +179,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
     json_object_set_new(rj, "indirect_stride", json_integer(r->render->view.indirect_stride));
     json_object_set_new(rj, "diffuse_cones", count(r->render->view.diffuse_cones));
     json_object_set_new(rj, "specular_cones", count(r->render->view.specular_cones));
+    json_object_set_new(rj, "pixels_outside", count(r->render->view.pixels_outside));
     json_object_set_new(root, "render", rj);
   }
   json_t *lv = json_array();

@@ -38,6 +38,9 @@ typedef struct gi_render_stats {
   uint64_t diffuse_cones;            /* diffuse cones traced: the anchors' and the own gathers' */
   int indirect_stride;               /* the anchors' spacing the view used (1 when it gathered no indirect light) */
   uint64_t specular_cones;           /* specular cones traced: 0 when the pass is skipped */
+  uint64_t pixels_outside;           /* pixels whose surface lies outside every level of the cascade:
+                                        their direct light alone, no indirect (a view reaching past
+                                        what the cascade holds) */
   gi_effect effects[GI_FX_COUNT];    /* gi_cascade_view_plan, as followed */
 } gi_render_stats;
 

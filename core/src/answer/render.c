@@ -69,7 +69,7 @@ typedef struct {
   int samples;
   int spec;            /* SPEC_* */
   float *rgb;
-  _Atomic uint64_t diffuse_cones, specular_cones;
+  _Atomic uint64_t diffuse_cones, specular_cones, outside;
   float *spec_img;     /* optional: specular * L_cone per pixel */
   int cap;             /* light samples per pixel at most (gi__light_sample_cap) */
   atomic_int failed;   /* a worker ran out of memory */
@@ -279,6 +279,7 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   /* The anchors' mix (an anchor's own pixel is its cell's corner at weight
    * 1: its own light), or the pixel's own light and gather. */
   int d = pp->d = gi__finest_level_at(c, x);
+  if (d < 0) atomic_fetch_add_explicit(&rc->outside, 1, memory_order_relaxed);
   float Ei[3] = {0, 0, 0}, Es[3] = {0, 0, 0};
   int mixed = rc->anc && d >= 0 && interpolate_anchors(rc, px, py, x, n, d, Ei, Es);
   gi_light_plan lp = gi__answer_light_plan(c->scene, &c->report, rc->samples);
@@ -354,6 +355,7 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
   atomic_init(&rc.failed, 0);
   atomic_init(&rc.diffuse_cones, 0);
   atomic_init(&rc.specular_cones, 0);
+  atomic_init(&rc.outside, 0);
   rc.stride = o.indirect_stride ? o.indirect_stride : GI_RENDER_DEFAULT_STRIDE;
   rc.mix_sampled = lp.sky || (lp.emissive && c->scene->num_emitters > 0);
   if (rc.stride > 1 && (c->report.bounces_run > 0 || rc.mix_sampled)) {
@@ -374,6 +376,7 @@ gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const 
     st->ms = gi__now_ms() - t0;
     st->diffuse_cones = atomic_load(&rc.diffuse_cones);
     st->specular_cones = atomic_load(&rc.specular_cones);
+    st->pixels_outside = atomic_load(&rc.outside);
     st->indirect_stride = rc.stride;
     gi_cascade_view_plan(c, st->effects);
   }
