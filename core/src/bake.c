@@ -58,11 +58,8 @@ gi_result gi_cascade_would_cover(const gi_scene *s, const double at[3], const gi
   if (rc != GI_OK) return rc;
   size_t count = 0;
   for (size_t i = 0; i < n; i++) {
-    const double *p = pts + 3 * i;
-    float pl[3];
-    for (int k = 0; k < 3; k++) pl[k] = (float)(p[k] - s->origin[k]);
-    /* gi_cascade_covers' test on the same levels. */
-    int in = isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]) && gi__finite3(pl) && gi__finest_level_at(c, pl) >= 0;
+    /* The placed levels answer as the baked ones will. */
+    int in = gi_cascade_covers(c, pts + 3 * i);
     if (covered) covered[i] = (uint8_t)in;
     count += (size_t)in;
   }

@@ -181,7 +181,7 @@ typedef struct gi_level {
   gi_vgeo *geo;        /* cap entries */
   gi_faces3 *side;     /* cap entries: direct+indirect irradiance per face (see gi_faces3) */
   gi_faces3 *direct;   /* cap entries: the direct part of side */
-  gi_shift6 *shift;    /* cap entries once the cascade moves (gi__move_shift_alloc), else NULL:
+  gi_shift6 *shift;    /* cap entries once the cascade moves (move.c, shift_alloc), else NULL:
                           the gathers' apex shift (gi_shift6), kept across moves */
   uint32_t cap;        /* entries allocated (entry 0 included) */
   uint32_t used;       /* entries handed out so far, entry 0 included: [used, cap) are fresh */

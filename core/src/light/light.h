@@ -69,7 +69,8 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
  * Draws from rng. Thread-safe with one scratch per thread. */
 #define GI_SPREAD_FROM 1
 #define GI_SUN_POINTS 8
-/* The most points it takes: the most light samples a quality may ask for (plan.c). */
+/* The most points a spread (gi__spread_light, gi__spread_emitters) takes:
+ * the most light samples per voxel a quality may ask for (plan.c). */
 #define GI_SPREAD_MAX_POINTS 512
 int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
                      int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays);
@@ -86,9 +87,6 @@ int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64
  * Cornell box's injection 36 -> 55 ms on one thread when every coarse
  * voxel spread). */
 #define GI_EMIT_SPREAD_REACH 8.0f
-/* The most points gi__spread_emitters takes: the most light samples per
- * voxel a quality may ask for (plan.c). */
-#define GI_MAX_EMIT_POINTS 512
 /* The emitters' light on a coarse voxel (level >= GI_EMIT_SPREAD_FROM) from
  * m points spread over its surface by area, each with one light sample
  * (m stratified light-tree picks from the voxel's centroid, one per

@@ -436,7 +436,7 @@ static void piece_flux(const gi_vgeo *g, const gi_piece *pc, float wpt, const fl
 int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], int m, uint64_t *rng,
                         gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays) {
   if (m < 1 || s->num_emitters == 0) return 0;
-  if (m > GI_MAX_EMIT_POINTS) m = GI_MAX_EMIT_POINTS;
+  if (m > GI_SPREAD_MAX_POINTS) m = GI_SPREAD_MAX_POINTS;
   float corner[3];
   int ready = spread_pieces(s, g, sz, cell, ns, corner);
   if (ready <= 0) return ready;
@@ -453,14 +453,14 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
    * unstratified ray per point the spread read noisier than the
    * centroid's 16 stratified ones, and a street probe jumped more at grid
    * shifts (1.6% against 0.7%). */
-  int perm[GI_MAX_EMIT_POINTS], pw[GI_MAX_EMIT_POINTS], pu[GI_MAX_EMIT_POINTS], pv[GI_MAX_EMIT_POINTS];
+  int perm[GI_SPREAD_MAX_POINTS], pw[GI_SPREAD_MAX_POINTS], pu[GI_SPREAD_MAX_POINTS], pv[GI_SPREAD_MAX_POINTS];
   shuffle(perm, m, rng), shuffle(pw, m, rng), shuffle(pu, m, rng), shuffle(pv, m, rng);
   /* The picks are made from the voxel's centroid, m strata in one walk
    * down the tree (a walk per point cost the city's injection 6 ms of its
    * 208). Each point weighs its sample, and the cosine rays weigh what
    * they find, by that same strategy's pdf, so the estimate stays
    * unbiased; only its noise depends on the proposal. */
-  gi_emitter_pick picks[GI_MAX_EMIT_POINTS];
+  gi_emitter_pick picks[GI_SPREAD_MAX_POINTS];
   if (!gi__emitter_picks(s, g->centroid, m, rng, picks)) return 0;
   size_t i = 0, faced = SIZE_MAX;
   int ahead[2] = {0, 0};
@@ -468,11 +468,11 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
   /* The points' light samples trace as one stream after the loop (as
    * gi__spread_light's); each point keeps its piece and its cosine rays'
    * light until then. */
-  float org[GI_MAX_EMIT_POINTS][3], dir[GI_MAX_EMIT_POINTS][3], tn[GI_MAX_EMIT_POINTS], tf[GI_MAX_EMIT_POINTS];
-  float El[GI_MAX_EMIT_POINTS][3], Ec[GI_MAX_EMIT_POINTS][2][3];
-  uint32_t piece[GI_MAX_EMIT_POINTS];
-  int8_t side[GI_MAX_EMIT_POINTS];
-  uint8_t vis[GI_MAX_EMIT_POINTS];
+  float org[GI_SPREAD_MAX_POINTS][3], dir[GI_SPREAD_MAX_POINTS][3], tn[GI_SPREAD_MAX_POINTS], tf[GI_SPREAD_MAX_POINTS];
+  float El[GI_SPREAD_MAX_POINTS][3], Ec[GI_SPREAD_MAX_POINTS][2][3];
+  uint32_t piece[GI_SPREAD_MAX_POINTS];
+  int8_t side[GI_SPREAD_MAX_POINTS];
+  uint8_t vis[GI_SPREAD_MAX_POINTS];
   uint64_t traced = 0;
   for (int j = 0; j < m; j++) {
     float u = ((float)j + rot) / (float)m * total;
