@@ -227,17 +227,27 @@ static void gather_direct(const struct gi_cascade *c, const float p[3], const fl
   /* Uniform sphere rays: near, large emitters (see inject.c); stratified
    * in z and, by the radical inverse, in azimuth. */
   float rot = mb ? gi__u01(&rng) : 0.f;
-  for (int j = 0; j < mb; j++) {
-    float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
-    float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__radical2_rot((uint32_t)j, rot);
-    float w[3] = {r * cosf(phi), r * sinf(phi), z};
-    float V[3];
-    float o[3], tn = gi__shadow_origin(p, NULL, voxel, w, o);
-    if (!gi__emitter_ray(s, p, o, w, tn, q->probe_samples, pb, GI_PROBE_MIS_POWER, V)) continue;
-    gi__sh_add(pr->sh_direct, w, V, 1.0f);
-    float cu = gi__dot(up, w);
-    if (cu > 0)
-      for (int k = 0; k < 3; k++) pr->direct[k] += V[k] * cu;
+  float w[GI_EMIT_RAYS][3], o[GI_EMIT_RAYS][3], tn[GI_EMIT_RAYS], pbs[GI_EMIT_RAYS], V[GI_EMIT_RAYS][3];
+  uint8_t hit[GI_EMIT_RAYS];
+  for (int b = 0; b < mb; b += GI_EMIT_RAYS) {
+    int nb = mb - b < GI_EMIT_RAYS ? mb - b : GI_EMIT_RAYS;
+    for (int i = 0; i < nb; i++) {
+      int j = b + i;
+      float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
+      float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__radical2_rot((uint32_t)j, rot);
+      w[i][0] = r * cosf(phi), w[i][1] = r * sinf(phi), w[i][2] = z;
+      tn[i] = gi__shadow_origin(p, NULL, voxel, w[i], o[i]);
+      pbs[i] = pb;
+    }
+    gi__emitter_rays(s, p, nb, (const float(*)[3])o, (const float(*)[3])w, tn, q->probe_samples, pbs,
+                     GI_PROBE_MIS_POWER, V, hit);
+    for (int i = 0; i < nb; i++) {
+      if (!hit[i]) continue;
+      gi__sh_add(pr->sh_direct, w[i], V[i], 1.0f);
+      float cu = gi__dot(up, w[i]);
+      if (cu > 0)
+        for (int k = 0; k < 3; k++) pr->direct[k] += V[i][k] * cu;
+    }
   }
   gi__sh_radiance_to_irradiance(pr->sh_direct);
 }

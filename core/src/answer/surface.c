@@ -32,17 +32,11 @@ static void surface_direct(const struct gi_cascade *c, const float x[3], const f
     for (int k = 0; k < 3; k++) E[k] += f * ls[i].V[k] * cn;
   }
   if (!mb) return;
-  float t[3], b[3], o[3];
+  float o[3];
   float tn = gi__shadow_origin(x, n, voxel, n, o);
-  gi__basis(n, t, b);
   /* Stratified in u1 and, by the radical inverse, in azimuth. */
   float rot = gi__u01(rng);
-  for (int j = 0; j < mb; j++) {
-    float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__radical2_rot((uint32_t)j, rot);
-    float w[3], V[3], z = gi__cosine_dir(t, b, n, u1, u2, w);
-    if (!gi__emitter_ray(s, x, o, w, tn, lp.emit_samples, (float)mb * z / GI_PI_F, 0, V)) continue;
-    for (int k = 0; k < 3; k++) E[k] += V[k] * z;
-  }
+  gi__emitter_cosine_rays(s, x, o, tn, n, mb, lp.emit_samples, rng, &rot, E);
 }
 
 /* The queued points' indirect light, marched together. */

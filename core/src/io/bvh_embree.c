@@ -240,12 +240,48 @@ int gi__camera_hit(const struct gi_scene *s, const float eye[3], const float w[3
   return gi__intersect1(s, eye, w, eps, INFINITY, t, tri, ng);
 }
 
-int gi__emitter_find(const struct gi_scene *s, const float org[3], const float dir[3], float tnear, float tfar,
-                     float *t, uint32_t *tri) {
-  uint32_t slot;
-  if (!closest_hit(s->rtc_emit, org, dir, tnear, tfar, t, &slot) || slot >= s->num_emitters) return 0;
-  *tri = s->emitter_tri[slot];
-  return 1;
+/* n closest-hit queries on the emitters' scene as one stream
+ * (rtcIntersect1M): a probe's or a voxel side's hundreds of MIS rays paid
+ * Embree's per-call setup one by one. Rays closest_hit would refuse
+ * (not finite, empty segment) are disabled the same way gi__occluded
+ * disables them and find nothing. */
+void gi__emitter_find_n(const struct gi_scene *s, int n, const float (*org)[3], const float (*dir)[3],
+                        const float *tnear, float *t, uint32_t *tri, uint8_t *found) {
+  if (!s->rtc_emit) {
+    if (n > 0) memset(found, 0, (size_t)n);
+    return;
+  }
+  struct RTCRayHit rh[CHUNK];
+  for (int base = 0; base < n; base += CHUNK) {
+    int m = n - base < CHUNK ? n - base : CHUNK;
+    for (int i = 0; i < m; i++) {
+      int r = base + i;
+      struct RTCRayHit *h = &rh[i];
+      memset(h, 0, sizeof *h);
+      int ok = ray_ok(org[r], dir[r]) && isfinite(tnear[r]) && tnear[r] >= 0.f;
+      h->ray.org_x = ok ? org[r][0] : 0.f, h->ray.org_y = ok ? org[r][1] : 0.f, h->ray.org_z = ok ? org[r][2] : 0.f;
+      h->ray.dir_x = ok ? dir[r][0] : 0.f, h->ray.dir_y = ok ? dir[r][1] : 0.f, h->ray.dir_z = ok ? dir[r][2] : 1.f;
+      h->ray.tnear = ok ? tnear[r] : 0.f;
+      h->ray.tfar = ok ? INFINITY : -1.f;
+      h->ray.mask = UINT32_MAX;
+      h->ray.id = (unsigned)i;
+      h->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      h->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    }
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    if (m == 1) rtcIntersect1(s->rtc_emit, &ctx, &rh[0]);
+    else rtcIntersect1M(s->rtc_emit, &ctx, rh, (unsigned)m, sizeof(struct RTCRayHit));
+    for (int i = 0; i < m; i++) {
+      int r = base + i;
+      uint32_t slot = rh[i].hit.primID;
+      found[r] = rh[i].hit.geomID != RTC_INVALID_GEOMETRY_ID && slot < s->num_emitters;
+      if (!found[r]) continue;
+      t[r] = rh[i].ray.tfar;
+      tri[r] = s->emitter_tri[slot];
+    }
+  }
 }
 
 /* State of one box query, passed to the point-query callback. */

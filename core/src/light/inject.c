@@ -192,27 +192,20 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
   int mb = ic->lp->emissive && s->num_emitters ? ic->lp->emit_samples : 0;
   uint64_t rays = 0;
   for (int sd = 0; sd < 2 * g->groups && mb > 0; sd++) {
-    float pc[3], n[3], t[3], bb[3], o[3];
+    float pc[3], n[3], o[3];
     gi__side_centroid(g, sd, pc);
     float sg = (sd & 1) ? -1.f : 1.f;
     for (int k = 0; k < 3; k++) n[k] = sg * g->u.fin.orient[sd / 2][k];
     /* These rays all leave on side n: the shadow rule's start for it. */
     float tn = gi__shadow_origin(pc, n, voxel, n, o);
-    gi__basis(n, t, bb);
     /* A side no emitter faces finds none: skip its rays, drawing their
      * numbers all the same so the next side's stay as they were. */
     if (!gi__light_tree_may_face(s, o, n)) {
       for (int j = 0; j < 2 * mb; j++) (void)gi__u01(rng);
       continue;
     }
-    for (int j = 0; j < mb; j++) {
-      float u1 = ((float)j + gi__u01(rng)) / (float)mb, u2 = gi__u01(rng);
-      float w[3], z = gi__cosine_dir(t, bb, n, u1, u2, w);
-      rays++;
-      float V[3];
-      if (!gi__emitter_ray(s, pc, o, w, tn, ic->lp->emit_samples, (float)mb * z / GI_PI_F, 0, V)) continue;
-      for (int k = 0; k < 3; k++) Es[sd][k] += V[k] * z;
-    }
+    gi__emitter_cosine_rays(s, pc, o, tn, n, mb, ic->lp->emit_samples, rng, NULL, Es[sd]);
+    rays += (uint64_t)mb;
   }
   return rays;
 }

@@ -417,6 +417,24 @@ static int emitter_sample_at(const gi_scene *s, const gi_emitter_pick *pk, float
   return 1;
 }
 
+/* gi__spread_emitters' cosine rays, as streams: ray r from co[r]
+ * along cw[r] past ctn[r], pdf cpb[r] and cosine cz[r], adds what it finds
+ * to Ec of its point and side (who[r] = 2 point + side). p is where the
+ * picks were made from. */
+static void cosine_rays(const gi_scene *s, const float p[3], int nc, const float (*co)[3], const float (*cw)[3],
+                        const float *ctn, const float *cpb, const float *cz, const int16_t *who,
+                        float (*Ec)[2][3]) {
+  for (int b = 0; b < nc; b += GI_EMIT_RAYS) {
+    int nb = nc - b < GI_EMIT_RAYS ? nc - b : GI_EMIT_RAYS;
+    float V[GI_EMIT_RAYS][3];
+    uint8_t hit[GI_EMIT_RAYS];
+    gi__emitter_rays(s, p, nb, co + b, cw + b, ctn + b, 1, cpb + b, 0, V, hit);
+    for (int r = 0; r < nb; r++)
+      if (hit[r])
+        for (int k = 0; k < 3; k++) Ec[who[b + r] / 2][who[b + r] % 2][k] += V[r][k] * cz[b + r];
+  }
+}
+
 /* Adds what a point of piece pc standing for area wpt receives (E: on the
  * side the piece's winding faces, 0, and the other) to its groups' sides. */
 static void piece_flux(const gi_vgeo *g, const gi_piece *pc, float wpt, const float E[2][3],
@@ -473,6 +491,11 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
   uint32_t piece[GI_SPREAD_MAX_POINTS];
   int8_t side[GI_SPREAD_MAX_POINTS];
   uint8_t vis[GI_SPREAD_MAX_POINTS];
+  /* Up to two cosine rays per point, traced after the loop. */
+  float co[2 * GI_SPREAD_MAX_POINTS][3], cw[2 * GI_SPREAD_MAX_POINTS][3], ctn[2 * GI_SPREAD_MAX_POINTS];
+  float cpb[2 * GI_SPREAD_MAX_POINTS], cz[2 * GI_SPREAD_MAX_POINTS];
+  int16_t cwho[2 * GI_SPREAD_MAX_POINTS];
+  int nc = 0;
   uint64_t traced = 0;
   for (int j = 0; j < m; j++) {
     float u = ((float)j + rot) / (float)m * total;
@@ -510,15 +533,15 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
       float u1 = stratum(pu[j], m, rng), u2 = stratum(pv[j], m, rng);
       /* Its numbers drawn all the same: the next ray's stay as they were. */
       if (!ahead[sd] || (pc->hidden >> sd & 1)) continue;
-      float w[3], V[3], z = gi__cosine_dir(t[sd], bt[sd], n[sd], u1, u2, w);
-      (*rays)++;
-      /* The light strategy's pdf for what it finds: picked from the centroid. */
-      if (gi__emitter_ray(s, g->centroid, pt, w, off, 1, z / GI_PI_F, 0, V))
-        for (int k = 0; k < 3; k++) Ec[j][sd][k] += V[k] * z;
+      float z = gi__cosine_dir(t[sd], bt[sd], n[sd], u1, u2, cw[nc]);
+      memcpy(co[nc], pt, sizeof co[nc]);
+      ctn[nc] = off, cz[nc] = z, cpb[nc] = z / GI_PI_F, cwho[nc++] = (int16_t)(2 * j + sd);
     }
   }
   gi__occluded(s, m, &org[0][0], &dir[0][0], tn, tf, vis);
-  *rays += traced;
+  *rays += traced + (uint64_t)nc;
+  /* The light strategy's pdf for what they find: the picks', made from the centroid. */
+  cosine_rays(s, g->centroid, nc, (const float(*)[3])co, (const float(*)[3])cw, ctn, cpb, cz, cwho, Ec);
   for (int j = 0; j < m; j++) {
     float E[2][3] = {{0}}; /* irradiance on the side the piece faces (0) and the other (1) */
     if (tf[j] >= 0 && vis[j]) memcpy(E[side[j]], El[j], sizeof E[0]);

@@ -229,26 +229,74 @@ static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float 
   return *cos_e > 0;
 }
 
+void gi__emitter_rays(const gi_scene *s, const float p[3], int n, const float (*o)[3], const float (*w)[3],
+                      const float *tnear, int m_light, const float *pb, int power, float (*out)[3], uint8_t *hit) {
+  if (n <= 0) return;
+  if (n > GI_EMIT_RAYS) n = GI_EMIT_RAYS;
+  float tn[GI_EMIT_RAYS], th[GI_EMIT_RAYS], ce[GI_EMIT_RAYS];
+  uint32_t tri[GI_EMIT_RAYS];
+  /* A ray with no pdf finds nothing: a NaN start disables it. */
+  for (int i = 0; i < n; i++) tn[i] = pb[i] > 0 ? tnear[i] : NAN;
+  gi__emitter_find_n(s, n, o, w, tn, th, tri, hit);
+  /* Anything in front of an emitter found, short of its own plane, blocks it. */
+  float so[GI_EMIT_RAYS][3], sw[GI_EMIT_RAYS][3], stn[GI_EMIT_RAYS], stf[GI_EMIT_RAYS];
+  uint8_t vis[GI_EMIT_RAYS];
+  int who[GI_EMIT_RAYS], k = 0;
+  for (int i = 0; i < n; i++) {
+    if (hit[i] && !emitter_hit(s, tri[i], w[i], &ce[i])) hit[i] = 0;
+    if (!hit[i]) continue;
+    float tf = th[i] * (1.f - GI_EMIT_SHADOW_SHORT);
+    if (!(tf > tnear[i])) continue;
+    memcpy(so[k], o[i], sizeof so[k]);
+    memcpy(sw[k], w[i], sizeof sw[k]);
+    stn[k] = tnear[i], stf[k] = tf, who[k++] = i;
+  }
+  gi__occluded(s, k, &so[0][0], &sw[0][0], stn, stf, vis);
+  for (int j = 0; j < k; j++) hit[who[j]] = vis[j];
+  for (int i = 0; i < n; i++) {
+    if (!hit[i]) continue;
+    float mpl = gi__emitter_mpl(s, p, tri[i], th[i], ce[i], m_light);
+    const float *Le = s->materials[s->tri_material[tri[i]]].emission;
+    if (power) {
+      /* The light sample's weight with the roles swapped: one formula, finite whatever the pdfs. */
+      float wb = gi__mis_light(pb[i], mpl, 1);
+      for (int c = 0; c < 3; c++) out[i][c] = Le[c] * wb / pb[i];
+    } else {
+      for (int c = 0; c < 3; c++) out[i][c] = Le[c] / (mpl + pb[i]);
+    }
+  }
+}
+
+void gi__emitter_cosine_rays(const gi_scene *s, const float p[3], const float o[3], float tnear, const float n[3],
+                             int mb, int m_light, uint64_t *rng, const float *rot, float E[3]) {
+  float t[3], b[3];
+  gi__basis(n, t, b);
+  float w[GI_EMIT_RAYS][3], oo[GI_EMIT_RAYS][3], tn[GI_EMIT_RAYS], pb[GI_EMIT_RAYS], z[GI_EMIT_RAYS];
+  float V[GI_EMIT_RAYS][3];
+  uint8_t hit[GI_EMIT_RAYS];
+  for (int j0 = 0; j0 < mb; j0 += GI_EMIT_RAYS) {
+    int nb = mb - j0 < GI_EMIT_RAYS ? mb - j0 : GI_EMIT_RAYS;
+    for (int i = 0; i < nb; i++) {
+      int j = j0 + i;
+      float u1 = ((float)j + gi__u01(rng)) / (float)mb;
+      float u2 = rot ? gi__radical2_rot((uint32_t)j, *rot) : gi__u01(rng);
+      z[i] = gi__cosine_dir(t, b, n, u1, u2, w[i]);
+      memcpy(oo[i], o, sizeof oo[i]);
+      tn[i] = tnear, pb[i] = (float)mb * z[i] / GI_PI_F;
+    }
+    gi__emitter_rays(s, p, nb, (const float(*)[3])oo, (const float(*)[3])w, tn, m_light, pb, 0, V, hit);
+    /* In ray order, as one ray at a time added them. */
+    for (int i = 0; i < nb; i++)
+      if (hit[i])
+        for (int k = 0; k < 3; k++) E[k] += V[i][k] * z[i];
+  }
+}
+
 int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
                     int m_light, float pb, int power, float out[3]) {
-  float th, ce;
-  uint32_t tri;
-  if (!(pb > 0) || !gi__emitter_find(s, o, w, tnear, INFINITY, &th, &tri)) return 0;
-  if (!emitter_hit(s, tri, w, &ce)) return 0;
-  /* Anything in front of that emitter, short of its own plane, blocks it. */
-  float tf = th * (1.f - GI_EMIT_SHADOW_SHORT);
-  uint8_t vis = 0;
-  if (tf > tnear) gi__occluded(s, 1, o, w, &tnear, &tf, &vis);
-  else vis = 1;
-  if (!vis) return 0;
-  float mpl = gi__emitter_mpl(s, p, tri, th, ce, m_light);
-  const float *Le = s->materials[s->tri_material[tri]].emission;
-  if (power) {
-    /* The light sample's weight with the roles swapped: one formula, finite whatever the pdfs. */
-    float wb = gi__mis_light(pb, mpl, 1);
-    for (int k = 0; k < 3; k++) out[k] = Le[k] * wb / pb;
-  } else {
-    for (int k = 0; k < 3; k++) out[k] = Le[k] / (mpl + pb);
-  }
-  return 1;
+  uint8_t hit;
+  float V[1][3];
+  gi__emitter_rays(s, p, 1, (const float(*)[3])o, (const float(*)[3])w, &tnear, m_light, &pb, power, V, &hit);
+  if (hit) memcpy(out, V[0], sizeof V[0]);
+  return hit;
 }

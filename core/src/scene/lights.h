@@ -32,6 +32,21 @@ float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t
  * Returns 0 (out untouched) otherwise. */
 int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
                     int m_light, float pb, int power, float out[3]);
+/* Rays per gi__emitter_rays call: its buffers live on the stack. */
+#define GI_EMIT_RAYS 64
+/* gi__emitter_ray for n <= GI_EMIT_RAYS rays from the same point p, as
+ * two streams (the emitters found, then the shadow rays in front of them):
+ * ray i from o[i] along w[i] past tnear[i] with pdf pb[i]; hit[i] = 1 with
+ * out[i] when gi__emitter_ray would return 1, else 0 (out[i] untouched). */
+void gi__emitter_rays(const gi_scene *s, const float p[3], int n, const float (*o)[3], const float (*w)[3],
+                      const float *tnear, int m_light, const float *pb, int power, float (*out)[3], uint8_t *hit);
+/* mb cosine-weighted rays about unit normal n from o (past tnear), for
+ * the light of point p (m_light light samples): stratum j's u1 is
+ * (j + u) / mb, its u2 drawn (rot NULL) or the radical inverse of j
+ * rotated by *rot. Adds what their emitters give a surface facing n,
+ * by the balance heuristic, to E. */
+void gi__emitter_cosine_rays(const gi_scene *s, const float p[3], const float o[3], float tnear, const float n[3],
+                             int mb, int m_light, uint64_t *rng, const float *rot, float E[3]);
 /* A light sample's MIS weight against the caller's rays (pdf pb times
  * their count), by the balance (power 0) or power (power 1) heuristic.
  * The power form goes through the ratio pb / mpl, so a tiny far emitter

@@ -122,12 +122,13 @@ int gi__intersect1(const struct gi_scene *s, const float org[3], const float dir
  * cone-traced and the path-traced views share it. Thread-safe. */
 int gi__camera_hit(const struct gi_scene *s, const float eye[3], const float w[3], float *t, uint32_t *tri,
                    float ng[3]);
-/* The nearest emissive triangle along org + t dir, t in [tnear, tfar],
- * ignoring everything else (rtc_emit): 1 with its distance and triangle
- * index, 0 when none or the scene has no emitters. Whether something
- * stands in front is the caller's shadow ray. Thread-safe. */
-int gi__emitter_find(const struct gi_scene *s, const float org[3], const float dir[3], float tnear, float tfar,
-                     float *t, uint32_t *tri);
+/* The nearest emissive triangle along org[i] + t dir[i], t from tnear[i]
+ * on, ignoring everything else (rtc_emit), for n rays as one stream:
+ * found[i] = 1 with its distance t[i] and triangle index tri[i], else 0
+ * (none, a ray not finite, or no emitters). Whether something stands in
+ * front is the caller's shadow ray. Thread-safe. */
+void gi__emitter_find_n(const struct gi_scene *s, int n, const float (*org)[3], const float (*dir)[3],
+                        const float *tnear, float *t, uint32_t *tri, uint8_t *found);
 
 /* The surface point nearest p within `radius` (local coordinates): 1 with
  * it in q, its distance in *dist and (n not NULL) its triangle's unit
