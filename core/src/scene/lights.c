@@ -7,7 +7,7 @@
  * with solid-angle and pdf weights folded in, so callers only add up
  * visible samples (shadow.c decides visibility). Emitter samples also carry
  * their pdf for multiple importance sampling against the callers' own
- * cosine or sphere rays (gi__emitter_ray). */
+ * cosine or sphere rays (gi__emitter_rays). */
 #include <limits.h>
 #include <stdlib.h>
 #include <string.h>
@@ -292,11 +292,3 @@ void gi__emitter_cosine_rays(const gi_scene *s, const float p[3], const float o[
   }
 }
 
-int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
-                    int m_light, float pb, int power, float out[3]) {
-  uint8_t hit;
-  float V[1][3];
-  gi__emitter_rays(s, p, 1, (const float(*)[3])o, (const float(*)[3])w, &tnear, m_light, &pb, power, V, &hit);
-  if (hit) memcpy(out, V[0], sizeof V[0]);
-  return hit;
-}

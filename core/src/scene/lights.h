@@ -22,22 +22,18 @@ typedef struct gi_lsample {
  * light samples reach emissive triangle tri along a ray of length t meeting
  * it at cosine cos_e. */
 float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t, float cos_e, int m);
-/* MIS companion of emitter light sampling at point p: traces o + t w
- * (t > tnear; o is p's shadow-ray start); when it meets an emitter's front,
- * out = Le w_b / pb, with w_b this ray's MIS weight: pb / (mpl + pb) by the
- * balance heuristic (power 0), pb^2 / (mpl^2 + pb^2) by the power heuristic
- * (power 1), mpl being the light strategy's pdf for that point (m_light
- * samples) and pb the caller's own pdf times its sample count. The caller
- * weights its light samples by the same heuristic (gi__mis_light).
- * Returns 0 (out untouched) otherwise. */
-int gi__emitter_ray(const gi_scene *s, const float p[3], const float o[3], const float w[3], float tnear,
-                    int m_light, float pb, int power, float out[3]);
 /* Rays per gi__emitter_rays call: its buffers live on the stack. */
 #define GI_EMIT_RAYS 64
-/* gi__emitter_ray for n <= GI_EMIT_RAYS rays from the same point p, as
- * two streams (the emitters found, then the shadow rays in front of them):
- * ray i from o[i] along w[i] past tnear[i] with pdf pb[i]; hit[i] = 1 with
- * out[i] when gi__emitter_ray would return 1, else 0 (out[i] untouched). */
+/* MIS companion of emitter light sampling at point p, for n <=
+ * GI_EMIT_RAYS rays as two streams (the emitters found, then the shadow
+ * rays in front of them). Ray i traces o[i] + t w[i] (t > tnear[i]; o[i]
+ * is p's shadow-ray start); when it meets an emitter's front, hit[i] = 1
+ * and out[i] = Le w_b / pb[i], with w_b its MIS weight: pb / (mpl + pb) by
+ * the balance heuristic (power 0), pb^2 / (mpl^2 + pb^2) by the power
+ * heuristic (power 1), mpl being the light strategy's pdf for that point
+ * (m_light samples) and pb[i] the caller's own pdf times its sample count.
+ * Else hit[i] = 0 and out[i] is untouched. The caller weights its light
+ * samples by the same heuristic (gi__mis_light). */
 void gi__emitter_rays(const gi_scene *s, const float p[3], int n, const float (*o)[3], const float (*w)[3],
                       const float *tnear, int m_light, const float *pb, int power, float (*out)[3], uint8_t *hit);
 /* mb cosine-weighted rays about unit normal n from o (past tnear), for
