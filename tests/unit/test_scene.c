@@ -212,6 +212,19 @@ static void test_lights(void **state) {
   gi_scene_get_stats(s, &st);
   assert_int_equal(st.default_lights_added, 1);
   assert_int_equal(st.lights, 2);
+  /* The same sun with z up: north is +y there, -z here (x, y, z) ->
+   * (x, -z, y), so a scene turned from one axis to the other is lit alike. */
+  gi_mesh_builder *bz = gi_mesh_builder_new();
+  gi_mesh_builder_add_box(bz, lo, hi, 0);
+  gi_scene *sz = NULL;
+  gi_scene_options oz = {.default_lights = 1, .up = GI_UP_Z};
+  assert_int_equal(gi_scene_build(bz, NULL, &oz, &sz, &err), GI_OK);
+  const float *dy = sun->direction, *dz = gi_scene_light(sz, 0)->direction;
+  assert_float_equal(dz[0], dy[0], 1e-6);
+  assert_float_equal(dz[1], -dy[2], 1e-6);
+  assert_float_equal(dz[2], dy[1], 1e-6);
+  gi_scene_release(sz);
+  gi_mesh_builder_free(bz);
   gi_scene_release(s);
 
   o.up = GI_UP_Z;

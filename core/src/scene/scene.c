@@ -632,8 +632,12 @@ static gi_result copy_triangles(const gi_mesh_builder *b, gi_scene *s, build_tmp
 
 /* A sun down the up axis and a little sideways (so walls facing two ways
  * get some), and a sky. */
+/* One sun for either up axis: north is +y with z up and -z with y up
+ * (README), so z up's (0.4, 0.3, -1) is y up's (0.4, -1, -0.3). A y-up
+ * copy of a z-up file was lit from the mirrored side (+z for -z): the
+ * same street read its shadowed and its sunlit side swapped. */
 static void default_lights(gi_scene *s, gi_light *sun, gi_light *sky) {
-  double d[3] = {0.4, -1.0, 0.3};
+  double d[3] = {0.4, -1.0, -0.3};
   if (s->up == GI_UP_Z) { d[1] = 0.3; d[2] = -1.0; }
   double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
   sun->type = GI_LIGHT_SUN;
