@@ -119,4 +119,18 @@ print("L00: grown %.4f, 6 levels %.4f, centred %.4f" % (l_g, l_6, l_n))
 assert l_g > 1.05 * l_6, "no indirect light added"
 assert abs(l_g - l_n) <= 0.1 * (l_n - l_6), "grown %.4f against centred %.4f" % (l_g, l_n)
 PY
+# A point no cascade of up to 12 levels holds (1e7 m off) adds no level:
+# the added ones changed the other probes' light and still left it out.
+printf '2 1 5
+1e7 0 0
+' > "$T/unreach.txt"
+"$BIN" "$T/plate.obj" $LIGHT --probes "$T/unreach.txt" --json > "$T/unreach.json" 2> "$T/err"; rc=$?
+python3 - "$T/grow.json" "$T/unreach.json" <<'PY' && [ $rc -eq 0 ] && grep -q "1 of 3 points lie outside the cascade" "$T/err" \
+  && pass "an unreachable --probes point adds no levels" || fail "unreachable probe (rc $rc): $(cat "$T/err")"
+import json, sys
+g, u = (json.load(open(f)) for f in sys.argv[1:3])
+assert u["quality"]["levels"] == g["quality"]["levels"], (u["quality"]["levels"], g["quality"]["levels"])
+assert not u["probes"][1]["in_cascade"] and u["probes"][0]["in_cascade"]
+assert u["probes"][0]["sh"] == g["probes"][0]["sh"], "the held point's answer changed"
+PY
 finish

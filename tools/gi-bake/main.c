@@ -93,26 +93,29 @@ static void choose_viewpoint(cli_opts *o, const gi_scene *scene) {
  * past its bounds) took no indirect light at all: the coarsest level
  * spans the scene, not the points. With --levels and --voxel both left
  * to the default, adds levels (finest voxel kept) until the cascade, as
- * the bake will place it, holds every point, at most GI_MAX_LEVELS; each
- * level costs about what the coarsest one did. A point farther still
- * keeps the note after the bake. */
+ * the bake will place it, holds as many points as any level count up to
+ * GI_MAX_LEVELS would; each level costs about what the coarsest one did.
+ * A point no count holds adds nothing: levels added for it changed the
+ * other probes' light (+10% at one) and still left it out. It keeps the
+ * note after the bake. */
 static void cover_probes(cli_opts *o, const gi_scene *scene) {
   if (!o->num_probes || o->q.levels || o->q.voxel0 > 0) return;
   gi_quality rq;
   gi_error_info e = {0};
   if (gi_quality_resolve(scene, &o->q, &rq, &e) != GI_OK) return; /* the bake reports it */
-  int base = rq.levels;
-  size_t held = 0;
-  for (;;) {
-    if (gi_cascade_would_cover(scene, o->at, &rq, o->probes, o->num_probes, NULL, &held, &e) != GI_OK)
+  int base = rq.levels, best = base;
+  size_t held[GI_MAX_LEVELS + 1] = {0};
+  for (int L = base; L <= GI_MAX_LEVELS; L++) {
+    rq.levels = L;
+    if (gi_cascade_would_cover(scene, o->at, &rq, o->probes, o->num_probes, NULL, &held[L], &e) != GI_OK)
       return; /* the bake reports it */
-    if (held == o->num_probes || rq.levels >= GI_MAX_LEVELS) break;
-    rq.levels++;
+    if (held[L] > held[best]) best = L;
+    if (held[L] == o->num_probes) break;
   }
-  if (rq.levels == base) return;
-  o->q.levels = rq.levels, o->q.voxel0 = rq.voxel0;
+  if (best == base) return;
+  o->q.levels = best, o->q.voxel0 = rq.voxel0;
   fprintf(stderr, "gi-bake: note: %d levels instead of %d (the finest voxel kept at %g) so the cascade holds the "
-          "--probes points (%zu of %zu)\n", rq.levels, base, rq.voxel0, held, o->num_probes);
+          "--probes points (%zu of %zu)\n", best, base, rq.voxel0, held[best], o->num_probes);
 }
 
 /* A point whose surroundings show it surfaces' backs lies inside a solid:
