@@ -357,6 +357,29 @@ static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, g
   }
 }
 
+int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
+                          const gi_quality *q, gs_waiter *w) {
+  if (!w || w->blocking) return 0;
+  int64_t anchor[3];
+  if (gi_cascade_anchor(s->scene, at, q, anchor, NULL) != GI_OK) return 0; /* the worker reports it */
+  char key[512];
+  make_key(s, anchor, req, q, key, sizeof key);
+  pthread_mutex_lock(&c->mu);
+  gs_entry *e = c->head;
+  while (e && strcmp(e->key, key)) e = e->next;
+  if (!e || e->state != BAKING || w->left || w->entry) {
+    pthread_mutex_unlock(&c->mu);
+    return 0;
+  }
+  unlink_entry(c, e);
+  push_front(c, e);
+  join(e, w);
+  w->coalesced = 1;
+  pthread_mutex_unlock(&c->mu);
+  if (c->metrics) gs_metrics_cache(c->metrics, GS_CACHE_COALESCED);
+  return 1;
+}
+
 gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
                        const gi_quality *q, gs_waiter *w, gs_entry **out, gs_cache_how *how, gi_error_info *err) {
   *out = NULL;

@@ -300,7 +300,8 @@ static void wake_request(void *arg) {
     req_release(r);
     return;
   }
-  if (gs_pool_submit(h->svc->pool, task, r) == 0) return; /* the task takes the hold */
+  /* It waited its turn already: ahead of the queue, not behind other bakes. */
+  if (gs_pool_submit_first(h->svc->pool, task, r) == 0) return; /* the task takes the hold */
   gi_proto_error e;
   gi_proto_fail(&e, 503, "%s", "the server is busy: the bake this request waited for is done, but no worker "
                                "could take it; retry after 1 s");
@@ -484,6 +485,16 @@ static void *reaper_main(void *p) {
   return NULL;
 }
 
+/* r waits for its answer: on the waiting list (the reaper's deadlines),
+ * its connection suspended. Locked. */
+static void suspend(gs_http *h, gs_req *r) {
+  r->next = h->waiting;
+  if (h->waiting) h->waiting->prev = r;
+  h->waiting = r;
+  r->suspended = 1;
+  MHD_suspend_connection(r->conn);
+}
+
 /* Queues r's work and suspends the connection; 503 when the queue is full. */
 static enum MHD_Result dispatch(gs_http *h, gs_req *r) {
   /* Work that is not a cached bake (sessions, lightmaps, gathers) stops on
@@ -494,6 +505,14 @@ static enum MHD_Result dispatch(gs_http *h, gs_req *r) {
   r->w.blocking = r->ep == GS_EP_PROBES;
   pthread_mutex_lock(&h->mu);
   r->dispatched = 1;
+  /* A bake for the same cell already running: wait for it without a
+   * worker or a queue slot (it wakes r when it ends; the mutex held keeps
+   * that wake from completing r before it is suspended). */
+  if (gs_serve_join_running(h->svc, r->scene, r->ep, &r->bake, &r->w)) {
+    suspend(h, r);
+    pthread_mutex_unlock(&h->mu);
+    return MHD_YES;
+  }
   atomic_fetch_add(&r->refs, 1);
   if (gs_pool_submit(h->svc->pool, task, r) != 0) {
     atomic_fetch_sub(&r->refs, 1);
@@ -508,11 +527,7 @@ static enum MHD_Result dispatch(gs_http *h, gs_req *r) {
   }
   if (!r->done) {
     /* The task cannot resume before this: it takes the same mutex. */
-    r->next = h->waiting;
-    if (h->waiting) h->waiting->prev = r;
-    h->waiting = r;
-    r->suspended = 1;
-    MHD_suspend_connection(r->conn);
+    suspend(h, r);
     pthread_mutex_unlock(&h->mu);
     return MHD_YES;
   }

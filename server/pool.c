@@ -14,11 +14,18 @@ typedef struct {
   void *arg;
 } task;
 
+/* A task of gs_pool_submit_first, in a list of its own. */
+typedef struct first_task {
+  task t;
+  struct first_task *next;
+} first_task;
+
 struct gs_pool {
   pthread_mutex_t mu;
   pthread_cond_t cv;
   task *ring;
   int cap, queue, head, count, busy, stop;
+  first_task *first, *first_tail; /* taken before the ring's */
   int nthreads;
   pthread_t *threads;
 };
@@ -27,11 +34,20 @@ static void *worker(void *p) {
   gs_pool *pl = p;
   pthread_mutex_lock(&pl->mu);
   for (;;) {
-    while (!pl->count && !pl->stop) pthread_cond_wait(&pl->cv, &pl->mu);
-    if (!pl->count && pl->stop) break;
-    task t = pl->ring[pl->head];
-    pl->head = (pl->head + 1) % pl->cap;
-    pl->count--;
+    while (!pl->count && !pl->first && !pl->stop) pthread_cond_wait(&pl->cv, &pl->mu);
+    if (!pl->count && !pl->first && pl->stop) break;
+    task t;
+    if (pl->first) {
+      first_task *f = pl->first;
+      t = f->t;
+      pl->first = f->next;
+      if (!pl->first) pl->first_tail = NULL;
+      free(f);
+    } else {
+      t = pl->ring[pl->head];
+      pl->head = (pl->head + 1) % pl->cap;
+      pl->count--;
+    }
     pl->busy++;
     pthread_mutex_unlock(&pl->mu);
     t.fn(t.arg);
@@ -77,6 +93,24 @@ int gs_pool_submit(gs_pool *p, gs_task_fn fn, void *arg) {
   }
   p->ring[(p->head + p->count) % p->cap] = (task){fn, arg};
   p->count++;
+  pthread_cond_signal(&p->cv);
+  pthread_mutex_unlock(&p->mu);
+  return 0;
+}
+
+int gs_pool_submit_first(gs_pool *p, gs_task_fn fn, void *arg) {
+  first_task *f = malloc(sizeof *f);
+  if (!f) return -1;
+  *f = (first_task){{fn, arg}, NULL};
+  pthread_mutex_lock(&p->mu);
+  if (p->stop) {
+    pthread_mutex_unlock(&p->mu);
+    free(f);
+    return -1;
+  }
+  if (p->first_tail) p->first_tail->next = f;
+  else p->first = f;
+  p->first_tail = f;
   pthread_cond_signal(&p->cv);
   pthread_mutex_unlock(&p->mu);
   return 0;

@@ -231,6 +231,15 @@ gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascad
   return rc;
 }
 
+int gs_serve_join_running(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, gs_waiter *w) {
+  if ((ep != GS_EP_LIGHTING && ep != GS_EP_CASCADES) || (ep == GS_EP_LIGHTING && b->kind == GI_PROTO_LIGHTMAP))
+    return 0;
+  gi_error_info e = {0};
+  gi_result rc;
+  gi_quality req, q = gs_resolve_request(svc, s, &b->quality, &req, &e, &rc);
+  return rc == GI_OK && gs_cache_join_running(svc->cache, s, b->at, &req, &q, w);
+}
+
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
                    gs_waiter *w, const gi_cancel *cancel, gs_answer *a) {
   if (ep == GS_EP_LIGHTMAP_UV || (ep == GS_EP_LIGHTING && b->kind == GI_PROTO_LIGHTMAP))

@@ -200,6 +200,13 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
                        gi_error_info *err);
 /* The request behind w gave up (deadline, hang-up): it stops counting as
  * interested. Returns 1 when that cancelled the bake (nobody else waits). */
+/* Before a request takes a worker: when a bake for its key is running,
+ * w (not blocking) joins it as gs_cache_get would and 1 is returned; the
+ * request then waits without a worker or a queue slot and w->wake comes
+ * when the bake ends (its rerun is a coalesced hit, or the bake's error).
+ * 0: no such bake; run the request as usual. */
+int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
+                          const gi_quality *resolved, gs_waiter *w);
 int gs_cache_leave(gs_cache *c, gs_waiter *w);
 const gi_cascade *gs_entry_cascade(const gs_entry *e);
 void gs_cache_release(gs_cache *c, gs_entry *e);
@@ -232,6 +239,10 @@ typedef void (*gs_task_fn)(void *arg);
 gs_pool *gs_pool_new(int workers, int queue_capacity);
 /* Queues fn(arg); returns -1 when the queue is full (the caller answers 503). */
 int gs_pool_submit(gs_pool *p, gs_task_fn fn, void *arg);
+/* A task that already waited its turn (a request woken by the bake it
+ * waited for): taken before the queue's, and never refused for a full
+ * queue. -1 when the pool stops or there is no memory for it. */
+int gs_pool_submit_first(gs_pool *p, gs_task_fn fn, void *arg);
 void gs_pool_stats(gs_pool *p, int *depth, int *capacity, int *busy);
 /* Runs what is queued, then joins the workers. */
 void gs_pool_free(gs_pool *p);
@@ -335,6 +346,10 @@ gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascad
                              gs_answer *a, gi_error_info *e);
 void gs_answer_free(gs_answer *a);
 
+/* gs_cache_join_running for the cached bake gs_serve_bake would make or
+ * wait for (lighting other than lightmaps, cascades); 0 for any other
+ * request or when its quality does not resolve (the worker reports it). */
+int gs_serve_join_running(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, gs_waiter *w);
 /* Lighting (probe, panorama) or cascades for one viewpoint. */
 /* w (may be NULL: block for a running bake) as in gs_cache_get: out->status
  * stays 0 when the request waits for another request's bake. cancel (may

@@ -918,6 +918,78 @@ static void test_coalesced_and_deadline(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* One worker and a queue of one: a bake running, another queued. */
+#define ONE_WORKER_INI                                                                              \
+  "[server]\nbind = 127.0.0.1\nport = 0\nconnection_threads = 4\nworkers = 1\nqueue = 1\n"          \
+  "bake_threads = 1\ntmp_dir = .\ntoken_file = token.txt\ndeadline_s = 60\n"                        \
+  "[limits]\ncache_mb = 2048\n\n[scene city]\nsource = city\nextent = 300\n"
+#define RUNNING "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&res=48"
+#define JOINERS 4
+
+/* A GET that asks the server to close the connection after its answer. */
+static int send_get_close(const su_server *s, const char *path) {
+  char req[1024];
+  snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " SU_TOKEN
+           "\r\nConnection: close\r\n\r\n", path);
+  int fd = su_connect(s, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  return fd;
+}
+
+/* Requests for the cell a bake is running for wait for it without a
+ * worker or a queue slot, and are answered when it ends, ahead of the
+ * bake queued behind it. They used to take queue slots on the way (503
+ * beyond) and to wait behind the queued bake. */
+static void test_coalesced_without_queue(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "coalesce-queue", ONE_WORKER_INI), 0);
+  int fd[JOINERS + 2];
+  fd[0] = send_get_close(&s, RUNNING);
+  assert_true(wait_bakes(&s, 1, 0, 5000) >= 0);
+  fd[1] = send_get_close(&s, RUNNING "&seed=2"); /* the one queue slot */
+  su_sleep_ms(100);
+  for (int i = 0; i < JOINERS; i++) fd[2 + i] = send_get_close(&s, RUNNING);
+  for (int i = 0; i < 250 && su_metric(&s, "gi_cache_coalesced_total", NULL) < JOINERS; i++) su_sleep_ms(20);
+  assert_true(su_metric(&s, "gi_cache_coalesced_total", NULL) == JOINERS);
+  /* Every answer, and when its connection closed. */
+  static char buf[JOINERS + 2][65536];
+  size_t len[JOINERS + 2] = {0};
+  double end[JOINERS + 2] = {0}, t0 = su_now_ms();
+  int open = JOINERS + 2;
+  while (open > 0 && su_now_ms() - t0 < 60000) {
+    struct pollfd p[JOINERS + 2];
+    for (int i = 0; i < JOINERS + 2; i++) p[i] = (struct pollfd){end[i] > 0 ? -1 : fd[i], POLLIN, 0};
+    if (poll(p, JOINERS + 2, 1000) <= 0) continue;
+    for (int i = 0; i < JOINERS + 2; i++) {
+      if (!(p[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      ssize_t k = recv(fd[i], buf[i] + len[i], sizeof buf[i] - 1 - len[i], 0);
+      if (k > 0 && len[i] + (size_t)k < sizeof buf[i] - 1) {
+        len[i] += (size_t)k;
+        continue;
+      }
+      end[i] = su_now_ms() - t0, open--;
+    }
+  }
+  for (int i = 0; i < JOINERS + 2; i++) {
+    buf[i][len[i]] = 0;
+    close(fd[i]);
+    assert_true(end[i] > 0);
+    assert_non_null(strstr(buf[i], "HTTP/1.1 200"));
+  }
+  double last = 0;
+  for (int i = 0; i < JOINERS; i++) {
+    assert_non_null(strstr(buf[2 + i], "X-GI-Cache: coalesced"));
+    last = end[2 + i] > last ? end[2 + i] : last;
+  }
+  printf("  %d requests for a running bake with the queue full: all 200 (coalesced), the last %.0f ms after the "
+         "first answer; the queued bake answered at %.0f ms\n", JOINERS, last - end[0], end[1]);
+  assert_true(last < end[1]);
+  assert_true(su_metric(&s, "gi_rejected_total", NULL) == 0);
+  assert_true(su_metric(&s, "gi_bakes_total", NULL) == 2);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* A POST on a raw socket that the test closes without reading. */
 static int send_post(const su_server *s, const char *path, const char *body) {
   char req[2048];
@@ -1235,7 +1307,10 @@ int main(void) {
       cmocka_unit_test(test_second_signal_and_grace),
       cmocka_unit_test(test_hangups_cancel_bakes),
       cmocka_unit_test(test_coalesced_and_deadline),
+      cmocka_unit_test(test_coalesced_without_queue),
       cmocka_unit_test(test_probes_and_lightmap_cancelled),
   };
+  /* One test by name while working on it: GI_TEST_FILTER=test_name. */
+  if (getenv("GI_TEST_FILTER")) cmocka_set_test_filter(getenv("GI_TEST_FILTER"));
   return cmocka_run_group_tests(tests, setup, teardown);
 }
