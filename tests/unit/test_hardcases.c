@@ -378,6 +378,47 @@ static void test_sealed_room_inside(void **state) {
   gi_scene_release(s);
 }
 
+/* Points a hair inside the sealed room, under its ceiling and beside a
+ * wall (2e-3 to 0.019 of a voxel: nearer than the shadow rays' offset,
+ * farther than the 1e-3 within which a point is on the surface, and taken
+ * above a level one, as on the roof below),
+ * get no sun and no sky: the surface between them and the light shadows
+ * them. They read full sun through it (3.42 at 1 mm under a ceiling, 0
+ * at 5 mm): a point in space ignored hits nearer than the offset. Just
+ * above the roof, and on it, they read what a point a voxel up does. */
+static void test_probe_under_ceiling(void **state) {
+  gi_scene *s = sealed_room_scene();
+  gi_quality q = {.threads = 2}, rq;
+  gi_error_info err = {0};
+  assert_int_equal(gi_quality_resolve(s, &q, &rq, &err), GI_OK);
+  enum { N = 5 };
+  const double d[N] = {2e-3, 5e-3, 1e-2, 1.5e-2, 1.9e-2}, s0 = rq.voxel0;
+  double pts[3 * (3 * N + 2)];
+  for (int i = 0; i < N; i++) {
+    double *under = pts + 3 * i, *wall = pts + 3 * (N + i), *above = pts + 3 * (2 * N + i);
+    under[0] = 2, under[1] = 3 - d[i] * s0, under[2] = 2;
+    wall[0] = d[i] * s0, wall[1] = 1.5, wall[2] = 2.5;
+    above[0] = 2, above[1] = 3 + d[i] * s0, above[2] = 2;
+  }
+  double *on = pts + 3 * 3 * N, *up = pts + 3 * (3 * N + 1);
+  on[0] = 2, on[1] = 3, on[2] = 2;
+  up[0] = 2, up[1] = 3 + s0, up[2] = 2;
+  gi_probe pr[3 * N + 2];
+  bake_gather(s, (const double[3]){3, 1.2, 2.5}, &q, pts, 3 * N + 2, pr);
+  double lit = mean3(pr[3 * N + 1].direct);
+  assert_true(lit > 1);
+  for (int i = 0; i < N; i++) {
+    double u = mean3(pr[i].direct), w = mean3(pr[N + i].direct), a = mean3(pr[2 * N + i].direct);
+    printf("hardcase: %.4f voxels inside the ceiling: direct %.4f, inside the wall %.4f; above the roof %.4f "
+           "(a voxel up %.4f)\n", d[i], u, w, a, lit);
+    assert_true(u == 0 && w == 0);
+    assert_true(fabs(a / lit - 1) < 0.02);
+  }
+  printf("hardcase: on the roof: direct %.4f\n", mean3(pr[3 * N].direct));
+  assert_true(fabs(mean3(pr[3 * N].direct) / lit - 1) < 0.02);
+  gi_scene_release(s);
+}
+
 /* A 20 x 20 m wall standing alone (one two-sided quad at x = 0) under a
  * sun that lights its -x side and a sky of radiance LONE_WALL_SKY. */
 #define LONE_WALL_SKY 0.3f
@@ -852,6 +893,7 @@ int main(void) {
       cmocka_unit_test(test_probe_in_gap),
       cmocka_unit_test(test_sealed_room_corner),
       cmocka_unit_test(test_sealed_room_inside),
+      cmocka_unit_test(test_probe_under_ceiling),
       cmocka_unit_test(test_panorama_beside_wall),
       cmocka_unit_test(test_covers),
       cmocka_unit_test(test_border_steps),

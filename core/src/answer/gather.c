@@ -198,8 +198,8 @@ static void near_adjust(void *ctx, size_t gather, gi_cone_job *jobs, int n, uint
 
 /* The probe's direct light: shadow rays from the point itself (up: the
  * scene's up axis). Clears pr. */
-static void gather_direct(const struct gi_cascade *c, const float p[3], const float up[3], gi_probe *pr,
-                          uint64_t seed, gi_ray_scratch *scr) {
+static void gather_direct(const struct gi_cascade *c, const float p[3], const float up[3], const gi_near_surface *ns,
+                          gi_probe *pr, uint64_t seed, gi_ray_scratch *scr) {
   const gi_scene *s = c->scene;
   const gi_quality *q = &c->report.quality;
   memset(pr, 0, sizeof *pr);
@@ -209,9 +209,21 @@ static void gather_direct(const struct gi_cascade *c, const float p[3], const fl
   uint8_t *vis = scr->vis;
   uint64_t rng = gi__mix64(seed);
   int n = gi__light_samples(s, &lp, p, &rng, ls, cap);
-  /* A probe is a point in space: the shadow rule without a normal. */
-  float voxel = gi__voxel_at(c, p);
-  gi__shadow_rays(s, p, NULL, voxel, ls, n, scr);
+  /* A probe is a point in space: the shadow rule without a normal, whose
+   * rays ignore hits nearer than the offset. A point nearer a surface than
+   * that starts its rays the offset off it, on the side the near-surface
+   * rule gives it, and ignores nothing: 1 mm under a sunlit ceiling it
+   * read full sun through it (the path tracer's rays ignore 2e-5 of the
+   * scene's extent). */
+  float voxel = gi__voxel_at(c, p), off = gi__shadow_offset(voxel), o0[3], tn0 = off;
+  memcpy(o0, p, sizeof o0);
+  if (ns->have && ns->h < off) {
+    for (int k = 0; k < 3; k++) o0[k] = p[k] + (off - ns->h) * ns->n[k];
+    tn0 = 0.f;
+    gi__shadow_rays_from(s, p, o0, tn0, ls, n, scr);
+  } else {
+    gi__shadow_rays(s, p, NULL, voxel, ls, n, scr);
+  }
   int mb = lp.emissive && s->num_emitters ? q->probe_samples : 0;
   float pb = (float)mb / (4 * GI_PI_F);
   for (int i = 0; i < n; i++) {
@@ -236,7 +248,8 @@ static void gather_direct(const struct gi_cascade *c, const float p[3], const fl
       float z = 1 - 2 * ((float)j + gi__u01(&rng)) / (float)mb;
       float r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = 2 * GI_PI_F * gi__radical2_rot((uint32_t)j, rot);
       w[i][0] = r * cosf(phi), w[i][1] = r * sinf(phi), w[i][2] = z;
-      tn[i] = gi__shadow_origin(p, NULL, voxel, w[i], o[i]);
+      memcpy(o[i], o0, sizeof o[i]);
+      tn[i] = tn0;
       pbs[i] = pb;
     }
     gi__emitter_rays(s, p, nb, (const float(*)[3])o, (const float(*)[3])w, tn, q->probe_samples, pbs,
@@ -310,9 +323,9 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
     for (size_t j = 0; j < m; j++) {
       float pl[3];
       for (int k = 0; k < 3; k++) pl[k] = (float)(g->pts[3 * (i0 + j) + k] - c->scene->origin[k]);
-      gather_direct(c, pl, up, &g->out[i0 + j], seed, &sc);
-      probe_requests(c, pl, up, req + 2 * j, h0 + 2 * j);
       near[2 * j] = near[2 * j + 1] = gi__near_surface(c, pl);
+      gather_direct(c, pl, up, &near[2 * j], &g->out[i0 + j], seed, &sc);
+      probe_requests(c, pl, up, req + 2 * j, h0 + 2 * j);
     }
     near_ctx nctx = {c, near};
     gi__gather_probe_hemispheres(c, req, h0, 2 * m, near_adjust, &nctx, go, dirs, cones);

@@ -165,7 +165,8 @@ int gi__light_sample_cap(const gi_scene *s, const gi_light_plan *lp);
  * GI_SHADOW_OFFSET_VOXELS local voxels off the surface, on the side of n
  * that faces the light, so the surface cannot shadow itself; from a point
  * in space (n NULL) it starts at the point and ignores hits closer than
- * that. A ray toward a light at a finite distance aims from its start at
+ * that (a probe nearer a surface than that starts off it instead:
+ * gi__shadow_rays_from). A ray toward a light at a finite distance aims from its start at
  * the sampled light point and stops GI_SHADOW_SHORTEN of the way short of
  * it, so the light's own surface does not block it. */
 #define GI_SHADOW_OFFSET_VOXELS 0.02f
@@ -183,6 +184,11 @@ void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float 
  * pn (a thin solid's two faces in one voxel). */
 void gi__shadow_rays_sided(const gi_scene *s, const float pp[3], const float pn[3], const float *n, float voxel,
                            const gi_lsample *ls, int count, gi_ray_scratch *sc);
+/* gi__shadow_rays for point p's samples with the rays leaving from o past
+ * tnear instead (a point in space moved off a surface it nearly touches:
+ * answer/gather.c); finite ones aim at the sampled light point. */
+void gi__shadow_rays_from(const gi_scene *s, const float p[3], const float o[3], float tnear, const gi_lsample *ls,
+                          int count, gi_ray_scratch *sc);
 /* An emitter picked by the light tree: its slot, the probability of the
  * pick and what is left of the pick's u (uniform in [0, 1) again). */
 typedef struct gi_emitter_pick {

@@ -70,3 +70,27 @@ void gi__shadow_rays_sided(const gi_scene *s, const float pp[3], const float pn[
   }
   gi__occluded(s, count, sc->org, sc->dir, sc->tn, sc->tf, sc->vis);
 }
+
+void gi__shadow_rays_from(const gi_scene *s, const float p[3], const float o[3], float tnear, const gi_lsample *ls,
+                          int count, gi_ray_scratch *sc) {
+  if (count > sc->cap) count = sc->cap;
+  for (int i = 0; i < count; i++) {
+    float *d = &sc->dir[3 * i];
+    memcpy(&sc->org[3 * i], o, sizeof(float[3]));
+    memcpy(d, ls[i].w, sizeof(float[3]));
+    sc->tn[i] = tnear;
+    float len = ls[i].dist;
+    if (isfinite(len)) {
+      /* Aimed at the sampled point, as from a surface's offset start. */
+      float e[3];
+      for (int k = 0; k < 3; k++) e[k] = p[k] + ls[i].dist * ls[i].w[k] - o[k];
+      float l = gi__len(e);
+      if (l > 0) {
+        for (int k = 0; k < 3; k++) d[k] = e[k] / l;
+        len = l;
+      }
+    }
+    sc->tf[i] = isinf(len) ? INFINITY : len * (1.f - GI_SHADOW_SHORTEN);
+  }
+  gi__occluded(s, count, sc->org, sc->dir, sc->tn, sc->tf, sc->vis);
+}
