@@ -218,4 +218,37 @@ if grep -q "box: reference from cache" "$T/ed2" && grep -q "box: reference, 27 p
    && ! grep -q "box: reference from cache" "$T/ed3"; then
   pass "reference cache: reused for the same scene, made again after its .mtl changed"
 else fail "reference cache: rerun '$(grep 'box: reference' "$T/ed2")', edited '$(grep 'box: reference' "$T/ed3")'"; fi
+
+# Probes are chosen by the luminance of their direct light: a lamp lit in
+# red alone kept none by the green channel, and the run exited 1 without a
+# word. A lone triangle's indirect light is 0 at every probe: its relative
+# error is undefined (nan in the CSV, n/a in the report), not 1e28. A
+# sealed box's lattice sees no light at all: an error that says so.
+TINY="--quick --ref-samples 256 --pt-max 4 --repeat 1 --threads 2 --no-views --no-workloads --no-cycles \
+  --no-by-light --knobs res"
+mkdir "$T/red"
+cp "$T/box.obj" "$T/red/"
+sed 's/^Ke 10 10 10/Ke 30 0 0/' "$T/box.mtl" > "$T/red/box.mtl"
+"$BIN" --scene "$T/red/box.obj" $TINY --out "$T/redo" > /dev/null 2> "$T/rederr"; rc=$?
+[ $rc -eq 0 ] && grep -q "^box,cone" "$T/redo/accuracy.csv" && pass "a red-only lamp: probes chosen, measured" \
+  || fail "red-only lamp: exit $rc: $(tail -n 2 "$T/rederr")"
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' > "$T/tri.obj"
+"$BIN" --scene "$T/tri.obj" $TINY --out "$T/trio" > /dev/null 2> "$T/trierr"; rc=$?
+python3 - "$T/trio/accuracy.csv" "$T/trio/accuracy.md" <<'PY' && [ $rc -eq 0 ] \
+  && pass "a lone triangle: indirect error n/a, total finite" || fail "lone triangle: exit $rc: $(tail -n 2 "$T/trierr")"
+import csv, math, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert rows
+for r in rows:
+    assert math.isnan(float(r["mre_indirect"])), r["mre_indirect"]
+    assert math.isfinite(float(r["mre_total"])), r["mre_total"]
+md = open(sys.argv[2]).read()
+assert "| n/a |" in md and "nan%" not in md
+PY
+printf 'v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nv 0 0 2\nv 2 0 2\nv 2 2 2\nv 0 2 2\n' > "$T/sealed.obj"
+printf 'f 1 2 3 4\nf 5 8 7 6\nf 1 5 6 2\nf 4 3 7 8\nf 1 4 8 5\nf 2 6 7 3\n' >> "$T/sealed.obj"
+"$BIN" --scene "$T/sealed.obj" $TINY --out "$T/sealo" > /dev/null 2> "$T/sealerr"; rc=$?
+[ $rc -eq 1 ] && grep -q "probe selection: none of the 27 candidate points sees direct light" "$T/sealerr" \
+  && grep -q -- "--probes FILE" "$T/sealerr" && pass "a sealed box: no lit probe, said so, exit 1" \
+  || fail "sealed box: exit $rc: $(cat "$T/sealerr")"
 finish

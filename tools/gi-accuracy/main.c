@@ -267,7 +267,11 @@ typedef acc_scene_set scene_set;
 
 /* Candidate points on a grid; keeps those that see direct light above 2%
  * of the best candidate (drops points inside buildings and inside the
- * Cornell box's blocks, where the truth is darkness), at most `keep`. */
+ * Cornell box's blocks, where the truth is darkness), at most `keep`.
+ * By luminance: a scene lit in red alone kept nothing by its green
+ * channel and gi-accuracy exited 1 without a word (the shared scenes keep
+ * the same points either way). 0 after saying why when none is kept. */
+static double lum709(const float c[3]) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
 int acc_keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int threads) {
   gi_ref_probe *r = calloc(nc, sizeof *r);
   gi_reference_opts o = {.samples = 64, .max_depth = -1, .seed = 7, .threads = threads};
@@ -278,15 +282,24 @@ int acc_keep_lit(scene_set *ss, const double *cand, size_t nc, size_t keep, int 
     return 0;
   }
   double best = 0;
-  for (size_t i = 0; i < nc; i++) best = fmax(best, r[i].direct[1]);
+  for (size_t i = 0; i < nc; i++) best = fmax(best, lum709(r[i].direct));
   ss->pts = malloc(3 * keep * sizeof(double));
   ss->n = 0;
+  size_t lit = 0;
   for (size_t i = 0; i < nc && ss->n < keep && ss->pts; i++) {
-    if (!(r[i].direct[1] > 0.02 * best)) continue;
+    if (!(lum709(r[i].direct) > 0.02 * best)) continue;
+    lit++;
     if (ss->clearance > 0 && gi_scene_clearance(ss->s, &cand[3 * i], ss->clearance) < ss->clearance) continue;
     memcpy(&ss->pts[3 * ss->n++], &cand[3 * i], 3 * sizeof(double));
   }
   free(r);
+  if (!ss->pts) fprintf(stderr, "gi-accuracy: probe selection: out of memory for %zu points\n", keep);
+  else if (!(best > 0))
+    fprintf(stderr, "gi-accuracy: probe selection: none of the %zu candidate points sees direct light (the scene's "
+            "lights and emitters reach none of them); give the points with --probes FILE\n", nc);
+  else if (!ss->n)
+    fprintf(stderr, "gi-accuracy: probe selection: the %zu of %zu candidate points that see direct light all lie "
+            "within %g of a surface; give the points with --probes FILE\n", lit, nc, ss->clearance);
   return ss->n > 0;
 }
 

@@ -2,7 +2,9 @@
  *
  * Irradiance is compared by its luminance (Rec. 709 weights) per probe,
  * the figure a viewer sees; the floor keeps probes in near darkness from
- * turning a tiny absolute error into a huge relative one. */
+ * turning a tiny absolute error into a huge relative one. A part the
+ * reference reads as 0 at every probe has no relative error: NaN ("nan"
+ * in the CSV and the report). */
 #include "metrics.h"
 #include <math.h>
 
@@ -36,6 +38,9 @@ static void compare(const float *const *x, const gi_ref_probe *ref, size_t n, ac
   double m = (double)(n ? n : 1);
   o->rel_mse = se_ / m;
   o->mre = ae / m;
+  /* Nothing to be relative to (a lone triangle's indirect light is 0 at
+   * every probe): the errors are undefined, not 1e58. */
+  if (!(mean > 1e-30)) o->rel_mse = o->mre = NAN;
   o->ref_rel_se = rs / m;
   if (nr) o->ratio_mean /= (double)nr;
   else o->ratio_mean = o->ratio_min = o->ratio_max = 1;

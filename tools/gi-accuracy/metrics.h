@@ -17,8 +17,8 @@ typedef enum { ACC_TOTAL = 0, ACC_DIRECT = 1, ACC_INDIRECT = 2 } acc_part;
  * ratios (test / reference): the bias, 1 = unbiased. ref_rel_se
  * is the reference's own mean relative standard error over the probes. */
 typedef struct acc_metrics {
-  double rel_mse;      /* mean of (x - r)^2 / max(r, floor)^2 */
-  double mre;          /* mean of |x - r| / max(r, floor) */
+  double rel_mse;      /* mean of (x - r)^2 / max(r, floor)^2; NaN when r is 0 at every probe */
+  double mre;          /* mean of |x - r| / max(r, floor); NaN likewise */
   double ratio_mean, ratio_min, ratio_max;
   double ref_rel_se;
 } acc_metrics;

@@ -14,6 +14,18 @@
 #include <unistd.h>
 #include "acc.h"
 
+
+/* A relative error's table cell: "n/a" where the reference reads 0 at
+ * every probe (metrics.c gives NaN), else a percentage / a number. */
+static void pct_cell(double v, char *buf, size_t size) {
+  if (isnan(v)) snprintf(buf, size, "n/a");
+  else snprintf(buf, size, "%.2f%%", 100 * v);
+}
+static void num_cell(double v, char *buf, size_t size) {
+  if (isnan(v)) snprintf(buf, size, "n/a");
+  else snprintf(buf, size, "%.3g", v);
+}
+
 static FILE *open_tmp(const char *path, char *tmp, size_t n) {
   snprintf(tmp, n, "%s.tmp.%d", path, (int)getpid());
   FILE *f = fopen(tmp, "w");
@@ -263,23 +275,29 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
     for (size_t i = 0; i < n; i++) {
       const acc_row *x = &r[i];
       if (strcmp(x->scene, name)) continue;
-      fprintf(f, "| %s | %s | %g | %.1f | %.1f | %.1f | %.2f%% | %.2f%% | %.2f%% | %.3g | %.3g | %.3f [%.3f, %.3f] | %s |\n",
-              x->kind, x->is_default ? "**default**" : x->knob, x->value, x->ms, x->bake_ms, x->gather_ms,
-              100 * x->m[0].mre, 100 * x->m[1].mre, 100 * x->m[2].mre, x->m[0].rel_mse, x->m[2].rel_mse,
-              x->m[2].ratio_mean, x->m[2].ratio_min, x->m[2].ratio_max, x->on_front ? "yes" : "");
+      char e[3][24], rm[2][24];
+      for (int p = 0; p < 3; p++) pct_cell(x->m[p].mre, e[p], sizeof e[p]);
+      for (int p = 0; p < 2; p++) num_cell(x->m[2 * p].rel_mse, rm[p], sizeof rm[p]);
+      fprintf(f, "| %s | %s | %g | %.1f | %.1f | %.1f | %s | %s | %s | %s | %s | %.3f [%.3f, %.3f] | %s |\n",
+              x->kind, x->is_default ? "**default**" : x->knob, x->value, x->ms, x->bake_ms, x->gather_ms, e[0], e[1],
+              e[2], rm[0], rm[1], x->m[2].ratio_mean, x->m[2].ratio_min, x->m[2].ratio_max, x->on_front ? "yes" : "");
     }
     if (!d) continue;
-    fprintf(f, "\n**What each knob buys here** (against the default: %.1f ms, indirect MRE %.2f%%, total %.2f%%):\n\n",
-            d->ms, 100 * d->m[2].mre, 100 * d->m[0].mre);
+    /* The knobs move the indirect light, unless the scene has none: then the total. */
+    int by = isnan(d->m[2].mre) ? 0 : 2;
+    char de_cell[24];
+    pct_cell(d->m[2].mre, de_cell, sizeof de_cell);
+    fprintf(f, "\n**What each knob buys here** (against the default: %.1f ms, indirect MRE %s, total %.2f%%):\n\n",
+            d->ms, de_cell, 100 * d->m[0].mre);
     for (size_t i = 0; i < n; i++) {
       const acc_row *x = &r[i];
       if (strcmp(x->scene, name) || strcmp(x->kind, "cone") || x->is_default) continue;
-      double dt = x->ms - d->ms, de = x->m[2].mre - d->m[2].mre;
+      double dt = x->ms - d->ms, de = x->m[by].mre - d->m[by].mre;
       const char *verdict = de < -0.002 ? (dt > 0 ? "buys accuracy for time" : "better and cheaper")
                            : de > 0.002 ? (dt < 0 ? "saves time, costs accuracy" : "worse and slower")
                                         : (dt < 0 ? "saves time at no cost" : "costs time, buys nothing");
-      fprintf(f, "- %s = %g: %+.1f ms (%+.0f%%), indirect MRE %+.2f points -> %s.\n", knob_what(x->knob), x->value,
-              dt, 100 * dt / d->ms, 100 * de, verdict);
+      fprintf(f, "- %s = %g: %+.1f ms (%+.0f%%), %s MRE %+.2f points -> %s.\n", knob_what(x->knob), x->value,
+              dt, 100 * dt / d->ms, by ? "indirect" : "total", 100 * de, verdict);
     }
     double pt = path_ms_at(r, n, name, d->m[0].mre);
     fprintf(f, "\nThe default is %son the Pareto front. ", d->on_front ? "" : "**not** ");
