@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include "gi/gi_city.h"
 #include "scene/scene_internal.h"
 
@@ -244,6 +245,31 @@ static void expect_invalid(gi_city_params p, const char *field) {
   gi_mesh_builder_free(b);
 }
 
+/* The memory estimate: near the triangles a 1.2 km city makes, and a city
+ * whose estimate exceeds the machine's memory is refused before it is
+ * made (a 20 km one was killed by the kernel at 23.9 GB of 24). */
+static void test_memory_estimate(void **state) {
+  gi_scene *s = build(1, 1200, 2);
+  double est_tris, bytes = gi_city_bytes_estimate(&(gi_city_params){.extent = 1200}, &est_tris);
+  printf("city 1200 m: %llu triangles, estimated %.0f (%.0f MB)\n", (unsigned long long)tris(s), est_tris, bytes / 1e6);
+  assert_true(est_tris > 0.8 * (double)tris(s) && est_tris < 1.5 * (double)tris(s));
+  gi_scene_release(s);
+  assert_true(gi_city_bytes_estimate(&(gi_city_params){.extent = -1}, NULL) == 0);
+  gi_city_params big = {.extent = 20000, .detail = 8};
+  double need = gi_city_bytes_estimate(&big, NULL), have = (double)sysconf(_SC_PHYS_PAGES) * sysconf(_SC_PAGESIZE);
+  if (!(need > have)) {
+    printf("SKIP: this machine's %.0f GiB hold a 20 km city at detail 8 (%.0f GiB): not built here\n", have / 1073741824.0,
+           need / 1073741824.0);
+    return;
+  }
+  gi_scene *out = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&big, NULL, &out, &err), GI_ERR_NOMEM);
+  assert_null(out);
+  printf("refused: %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "more than this machine's"));
+}
+
 static void test_bad_params(void **state) {
   expect_invalid((gi_city_params){.extent = -1}, "extent");
   expect_invalid((gi_city_params){.extent = NAN}, "extent");
@@ -297,6 +323,7 @@ int main(void) {
       cmocka_unit_test(test_generate_light_caps),
       cmocka_unit_test(test_viewpoint),
       cmocka_unit_test(test_bad_params),
+      cmocka_unit_test(test_memory_estimate),
       cmocka_unit_test(test_odd_sizes),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -32,6 +32,13 @@ gi_result gi_city_generate(const gi_city_params *p, gi_mesh_builder *b, gi_light
 gi_result gi_city_build(const gi_city_params *p, const gi_scene_options *opt, gi_scene **out,
                         gi_error_info *err);
 
+/* About how many bytes generating, building and baking the city takes at
+ * its peak (measured per triangle on 1-2 km cities, rounded up), and into
+ * *triangles (may be NULL) about how many triangles it makes; 0 when p is
+ * invalid. gi_city_generate refuses a city whose estimate exceeds the
+ * machine's physical memory (GI_ERR_NOMEM, with the figures). */
+double gi_city_bytes_estimate(const gi_city_params *p, double *triangles);
+
 /* A sensible default viewpoint at street level (world coordinates). */
 void gi_city_default_viewpoint(const gi_city_params *p, double at[3]);
 
