@@ -1048,10 +1048,22 @@ static enum MHD_Result take_upload(gs_http *h, gs_req *r, const char *upload, si
   return MHD_YES;
 }
 
+/* on_uri's mark for a path with a NUL byte (%00) in it: libmicrohttpd
+ * decodes it and the handler sees the path cut there (/v1/health%00zzz
+ * answered as /v1/health, aliasing a cell URL's cached answer). */
+static char nul_in_path;
+
+static int path_has_nul(const char *uri) {
+  for (const char *p = uri; *p && *p != '?'; p++)
+    if (p[0] == '%' && p[1] == '0' && p[2] == '0') return 1;
+  return 0;
+}
+
 static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const char *url, const char *method,
                                   const char *version, const char *upload, size_t *upload_size, void **con_cls) {
   gs_http *h = cls;
-  gs_req *r = *con_cls;
+  int nul_path = *con_cls == &nul_in_path;
+  gs_req *r = nul_path ? NULL : *con_cls;
   if (!r) {
     r = calloc(1, sizeof *r);
     if (!r) return MHD_NO;
@@ -1065,6 +1077,11 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
     snprintf(r->method, sizeof r->method, "%s", method);
     snprintf(r->path, sizeof r->path, "%s", url);
     *con_cls = r;
+    if (nul_path) {
+      r->ep = GS_EP_OTHER;
+      answer_fail(&r->ans, 400, "%s", "the path holds a NUL byte (%00), which no path may hold");
+      return send_answer(h, r);
+    }
     /* Answered now, a refused request's body is never read. */
     if (check_headers(h, r, url)) return send_answer(h, r);
     return MHD_YES;
@@ -1098,6 +1115,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
  * allows, which always fit) closes the connection at once instead. */
 static void *on_uri(void *cls, const char *uri, struct MHD_Connection *conn) {
   gs_http *h = cls;
+  if (path_has_nul(uri)) return &nul_in_path;
   const char *q = strchr(uri, '?');
   if (!q) return NULL;
   size_t params = 1;
@@ -1116,6 +1134,7 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
   gs_http *h = cls;
   conn_request_done(h, conn);
   gs_req *r = *con_cls;
+  if (r == (void *)&nul_in_path) r = NULL; /* on_request never ran */
   if (!r) return;
   *con_cls = NULL;
   /* Closed before its answer went out: it no longer wants its bake. */
