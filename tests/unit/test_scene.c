@@ -1408,6 +1408,49 @@ static const char *gltf_tri(const char *name, const float pos[9], const uint16_t
   return tu_write_file(name, json, (size_t)n);
 }
 
+/* A triangle whose TEXCOORD_0 and TEXCOORD_1 differ, its attributes object
+ * listing them in the order `attrs` gives. */
+static const char *gltf_two_uvs(const char *name, const char *attrs) {
+  unsigned char buf[84] = {0};
+  const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, uv0[6] = {0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f},
+              uv1[6] = {0.1f, 0.2f, 0.9f, 0.2f, 0.1f, 0.8f};
+  memcpy(buf, pos, 36), memcpy(buf + 36, uv0, 24), memcpy(buf + 60, uv1, 24);
+  char enc[120];
+  b64(buf, sizeof buf, enc);
+  static char json[2048];
+  int n = snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{%s}}]}],"
+           "\"buffers\":[{\"byteLength\":84,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":36},"
+           "{\"buffer\":0,\"byteOffset\":36,\"byteLength\":24},{\"buffer\":0,\"byteOffset\":60,\"byteLength\":24}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\","
+           "\"min\":[0,0,0],\"max\":[1,1,0]},{\"bufferView\":1,\"componentType\":5126,\"count\":3,\"type\":\"VEC2\"},"
+           "{\"bufferView\":2,\"componentType\":5126,\"count\":3,\"type\":\"VEC2\"}]}",
+           attrs, enc);
+  return tu_write_file(name, json, (size_t)n);
+}
+
+/* A JSON object has no order: a primitive listing TEXCOORD_1 before
+ * TEXCOORD_0 is valid glTF, which assimp 5.2 refused ("must start with 0
+ * and be continuous"). It loads now with the same lightmap UVs as the file
+ * listing them in order. */
+static void test_gltf_uv_order(void **state) {
+  gi_scene *a = load_ok(gltf_two_uvs("uv_in_order.gltf", "\"POSITION\":0,\"TEXCOORD_0\":1,\"TEXCOORD_1\":2"), NULL);
+  gi_scene *b = load_ok(gltf_two_uvs("uv_swapped.gltf", "\"TEXCOORD_1\":2,\"POSITION\":0,\"TEXCOORD_0\":1"), NULL);
+  assert_non_null(a->uv2);
+  assert_non_null(b->uv2);
+  assert_int_equal(a->num_vertices, b->num_vertices);
+  float umin = 1, umax = 0;
+  for (uint32_t i = 0; i < 2 * a->num_vertices; i++) assert_true(a->uv2[i] == b->uv2[i]);
+  for (uint32_t i = 0; i < a->num_vertices; i++) umin = fminf(umin, a->uv2[2 * i]), umax = fmaxf(umax, a->uv2[2 * i]);
+  /* TEXCOORD_1's u spans 0.1..0.9 (TEXCOORD_0's is 0.5 throughout). */
+  assert_float_equal(umin, 0.1, 1e-6);
+  assert_float_equal(umax, 0.9, 1e-6);
+  gi_scene_release(a);
+  gi_scene_release(b);
+}
+
 /* Loading must fail with `code`, and the message must name the file and
  * contain `what` (the problem, in words a user can act on). */
 static void expect_bad(const char *path, gi_result code, const char *what) {
@@ -2310,6 +2353,7 @@ int main(void) {
       cmocka_unit_test(test_light_tree),
       cmocka_unit_test(test_light_tree_picks),
       cmocka_unit_test(test_light_tree_faces),
+      cmocka_unit_test(test_gltf_uv_order),
       cmocka_unit_test(test_empty_scene),
       cmocka_unit_test(test_stray_share),
       cmocka_unit_test(test_far_origin),

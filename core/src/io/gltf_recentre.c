@@ -619,6 +619,54 @@ static int drop_points_and_lines(json_t *root) {
   return n;
 }
 
+/* assimp 5.2 reads a primitive's TEXCOORD_n (and COLOR_n, JOINTS_n,
+ * WEIGHTS_n) in the order its attributes object lists them and refuses
+ * the file unless they come 0, 1, ... ("must start with 0 and be
+ * continuous"); a JSON object has no order, so a valid file listing
+ * TEXCOORD_1 first was refused. Such a set is listed again in index
+ * order. Returns how many primitives changed. */
+#define ATTR_SET_MAX 64
+static int order_attribute_sets(json_t *root) {
+  static const char *const sets[] = {"TEXCOORD_", "COLOR_", "JOINTS_", "WEIGHTS_"};
+  json_t *meshes = json_object_get(root, "meshes");
+  int changed = 0;
+  for (size_t i = 0; i < json_array_size(meshes); i++) {
+    json_t *prims = json_object_get(json_array_get(meshes, i), "primitives");
+    for (size_t j = 0; j < json_array_size(prims); j++) {
+      json_t *attrs = json_object_get(json_array_get(prims, j), "attributes");
+      if (!json_is_object(attrs)) continue;
+      int moved = 0;
+      for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {
+        size_t pl = strlen(sets[k]);
+        long last = -1, top = -1;
+        int sorted = 1;
+        const char *key;
+        json_t *v;
+        json_object_foreach(attrs, key, v) {
+          char *end;
+          if (strncmp(key, sets[k], pl) || !key[pl]) continue;
+          long n = strtol(key + pl, &end, 10);
+          if (*end || n < 0 || n >= ATTR_SET_MAX) continue; /* not an index: assimp says what it makes of it */
+          if (n < last) sorted = 0;
+          last = n, top = n > top ? n : top;
+        }
+        for (long n = 0; !sorted && n <= top; n++) {
+          char name[32];
+          snprintf(name, sizeof name, "%s%ld", sets[k], n);
+          json_t *val = json_object_get(attrs, name);
+          if (!val) continue;
+          json_incref(val);
+          json_object_del(attrs, name);
+          json_object_set_new(attrs, name, val); /* now after the ones before it */
+        }
+        moved |= !sorted;
+      }
+      changed += moved;
+    }
+  }
+  return changed;
+}
+
 /* The JSON text of a .gltf, or the JSON chunk of a .glb. */
 static int split_glb(const unsigned char *buf, size_t len, size_t *json_off, size_t *json_len) {
   if (len < GLB_HEADER + GLB_CHUNK_HEADER || le32(buf) != GLB_MAGIC || le32(buf + 12 + 4) != GLB_CHUNK_JSON) return -1;
@@ -686,7 +734,7 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
   int folded = check_sparse(root, path, err) < 0 || read_uv_transforms(root, path, out, err) < 0
                    ? -1
                    : fold_emissive_strength(root, path, err);
-  if (folded >= 0) folded += drop_points_and_lines(root);
+  if (folded >= 0) folded += drop_points_and_lines(root) + order_attribute_sets(root);
   gi__gltf_bin bin = {.path = path};
   if (glb) glb_bin_chunk(buf, len, json_off + json_len, &bin);
   int r = folded < 0 ? -1 : recentre_json(root, &bin, out, err);

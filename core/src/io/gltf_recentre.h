@@ -21,7 +21,9 @@
  * Materials' KHR_materials_emissive_strength, which assimp 5.2 ignores,
  * is folded into their emissiveFactor in the same rewrite, and a node's
  * EXT_mesh_gpu_instancing (ignored too) becomes one root per instance,
- * its instance data read by io/gltf_accessors.c.
+ * its instance data read by io/gltf_accessors.c. A primitive's indexed
+ * attributes (TEXCOORD_n, COLOR_n, ...) are listed in index order, which
+ * assimp 5.2 requires and JSON does not promise.
  *
  * Ownership: gi__gltf_recentre fills a gi__gltf_shift the caller releases
  * with gi__gltf_shift_free. Not shared between threads. */
