@@ -498,14 +498,15 @@ static void test_scene_uv_checked(void **state) {
   }
 }
 
-/* Two 10 m plates 5 m apart, each a 2 x 2 grid of quads (edges shared
- * inside, texel centres on the diagonals), with lightmap UVs on half the
- * atlas each: the first at u in [0, 0.5], the second shifted by `shift`. */
-static gi_scene *plates_with_uv(double shift) {
+/* Plates 10 m wide 5 m apart (two, or `count`), each a 2 x 2 grid of
+ * quads (edges shared inside, texel centres on the diagonals), with
+ * lightmap UVs on half the atlas each: the first at u in [0, 0.5], the
+ * others shifted by `shift`. */
+static gi_scene *plates_with_uv_n(double shift, int count) {
   gi_mesh_builder *b = gi_mesh_builder_new();
   gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
   uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  for (int p = 0; p < 2; p++) {
+  for (int p = 0; p < count; p++) {
     uint32_t v[3][3];
     for (int i = 0; i < 3; i++)
       for (int j = 0; j < 3; j++) {
@@ -525,6 +526,8 @@ static gi_scene *plates_with_uv(double shift) {
   gi_mesh_builder_free(b);
   return s;
 }
+
+static gi_scene *plates_with_uv(double shift) { return plates_with_uv_n(shift, 2); }
 
 /* Two surfaces on one texel cannot both keep their light: the bake finds
  * one triangle per texel and the other showed its light, silently. Islands
@@ -558,6 +561,16 @@ static void test_scene_uv_overlap(void **state) {
     gi_lightmap_free(lm);
     gi_scene_release(s);
   }
+  /* Four plates on one spot: every texel they cover is shared, 100% (each
+   * extra claim counted read 300%). */
+  gi_scene *s = plates_with_uv_n(0, 4);
+  gi_lightmap_opts o = {.atlas = 64};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_FORMAT);
+  printf("four plates stacked: %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "overlap: 100.0% of the texels"));
+  gi_scene_release(s);
 }
 
 /* The bake does not depend on threads or on how the region is tiled per

@@ -285,8 +285,14 @@ static void tri_rows(const float *u, int N, int *y0, int *y1) {
 static gi_result check_uv_overlap(const struct gi_lightmap *lm, const uint32_t *sel, size_t n, const char *way,
                                   gi_error_info *err) {
   int N = lm->opts.atlas;
+  /* Texels claimed once, and twice or more: each shared texel counts once
+   * (counting every extra claim read 3700% for 38 triangles on one spot). */
   uint64_t *bits = gi__calloc(((size_t)N * N + 63) / 64, sizeof *bits);
-  if (!bits) return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory checking the UV set of a %d atlas", N);
+  uint64_t *multi = bits ? gi__calloc(((size_t)N * N + 63) / 64, sizeof *multi) : NULL;
+  if (!multi) {
+    gi__free(bits);
+    return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory checking the UV set of a %d atlas", N);
+  }
   size_t covered = 0, twice = 0, first = SIZE_MAX;
   int fx = 0, fy = 0;
   for (size_t i = 0; i < n; i++) {
@@ -298,7 +304,8 @@ static gi_result check_uv_overlap(const struct gi_lightmap *lm, const uint32_t *
       for (int x = x0; x <= x1; x++) {
         size_t t = (size_t)y * N + (size_t)x;
         if (bits[t / 64] >> (t % 64) & 1) {
-          if (!twice++) first = i, fx = x, fy = y;
+          if (!twice) first = i, fx = x, fy = y;
+          if (!(multi[t / 64] >> (t % 64) & 1)) multi[t / 64] |= 1ull << (t % 64), twice++;
         } else {
           bits[t / 64] |= 1ull << (t % 64), covered++;
         }
@@ -306,6 +313,7 @@ static gi_result check_uv_overlap(const struct gi_lightmap *lm, const uint32_t *
     }
   }
   gi__free(bits);
+  gi__free(multi);
   if (!(twice > UV_OVERLAP_SHARE * (double)covered)) return GI_OK;
   size_t other = 0; /* the earlier triangle that claimed the first shared texel */
   for (size_t j = 0; j < first; j++) {
