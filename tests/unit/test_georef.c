@@ -324,6 +324,12 @@ static void test_malformed(void **state) {
   expect_bad("bad-f.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", "line 4: face corner 3: expected a vertex index");
   expect_bad("zero-f.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "line 4: face corner 1: vertex 0: index out of range");
   expect_bad("neg-f.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n", "vertex -4: index out of range");
+  /* A texture coordinate index past the vt lines, or not a number: refused
+   * as a vertex index is (the corner's UVs were dropped without a word). */
+  expect_bad("vt-oor.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/5/9 3/1\n",
+             "line 5: face corner 2: texture coordinate index '5' is not one of the 1 texture coordinates");
+  expect_bad("vt-word.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/q\n",
+             "line 5: face corner 3: texture coordinate index 'q'");
   expect_bad("usemtl.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl  \nf 1 2 3\n", "line 4: usemtl needs a material name");
   const char *head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
                      "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";

@@ -234,16 +234,22 @@ static gi_result obj_vertex(const char *path, size_t line, char *s, gi__exact_me
   return GI_OK;
 }
 
-/* The vt index after a corner's vertex index (at e: "/t", "/t/n"), or
- * GI__EXACT_NO_UV when it has none or it is out of range. */
-static uint32_t obj_tex_index(const char *e, const gi__exact_mesh *m) {
-  if (*e != '/' || e[1] == '/' || !e[1] || is_blank(e[1])) return GI__EXACT_NO_UV;
+/* The vt index after a corner's vertex index (at e: "/t", "/t/n") into
+ * *k, GI__EXACT_NO_UV when it has none; -1 when it is not an index or out
+ * of range (that corner's UVs were dropped without a word, the vertex's
+ * own index being refused). */
+static int obj_tex_index(const char *e, const gi__exact_mesh *m, uint32_t *k) {
+  *k = GI__EXACT_NO_UV;
+  if (*e != '/' || e[1] == '/' || !e[1] || is_blank(e[1])) return 0;
   char *end;
   errno = 0;
   long long i = strtoll(e + 1, &end, 10);
-  long long k = i > 0 ? i - 1 : (long long)m->nuv + i;
-  if (end == e + 1 || errno || i == 0 || k < 0 || k >= (long long)m->nuv) return GI__EXACT_NO_UV;
-  return (uint32_t)k;
+  long long t = i > 0 ? i - 1 : (long long)m->nuv + i;
+  if (end == e + 1 || errno || (*end && *end != '/' && !is_blank(*end)) || i == 0 || t < 0 ||
+      t >= (long long)m->nuv)
+    return -1;
+  *k = (uint32_t)t;
+  return 0;
 }
 
 /* "vt u [v [w]]": the first two; a missing v is 0. */
@@ -294,7 +300,13 @@ static gi_result obj_indices(const char *path, size_t line, char *s, const char 
     if (n == PLY_MAX_POLYGON)
       return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a %s has more than %d corners", path, line, what,
                       PLY_MAX_POLYGON);
-    if (tex) tex[n] = obj_tex_index(e, m);
+    uint32_t t = GI__EXACT_NO_UV;
+    if (tex && obj_tex_index(e, m, &t) < 0)
+      return gi__fail(err, GI_ERR_FORMAT,
+                      "scene file '%s' line %zu: %s corner %d: texture coordinate index '%.*s' is not one of the "
+                      "%zu texture coordinates (vt) defined so far", path, line, what, n + 1,
+                      (int)strcspn(e + 1, "/ \t\r\n\f\v"), e + 1, m->nuv);
+    if (tex) tex[n] = t;
     poly[n++] = (uint32_t)k;
     while (*e && !is_blank(*e)) e++; /* normal indices are not used */
     s = e;
