@@ -119,6 +119,16 @@ print("L00: grown %.4f, 6 levels %.4f, centred %.4f" % (l_g, l_6, l_n))
 assert l_g > 1.05 * l_6, "no indirect light added"
 assert abs(l_g - l_n) <= 0.1 * (l_n - l_6), "grown %.4f against centred %.4f" % (l_g, l_n)
 PY
+# A sun direction need not be unit length: (0, -1e300, 0) is (0, -1, 0),
+# where its length overflowed and it was refused as not finite.
+for d in 0,-1,0 0,-1e300,0 0,-1e-300,0; do
+  "$BIN" "$T/plate.obj" --no-default-lights --sun $d,5,5,5 --levels 2 --res 8 --bounces 1 --json 2> "$T/err" \
+    | python3 -c 'import json,sys; print(json.load(sys.stdin)["probe"]["direct"])' > "$T/sun_$d" \
+    || fail "--sun $d: $(cat "$T/err")"
+done
+cmp -s "$T/sun_0,-1,0" "$T/sun_0,-1e300,0" && cmp -s "$T/sun_0,-1,0" "$T/sun_0,-1e-300,0" \
+  && pass "--sun (0, -1e300, 0) and (0, -1e-300, 0) light as (0, -1, 0)" \
+  || fail "sun scale: $(cat "$T/sun_0,-1,0") / $(cat "$T/sun_0,-1e300,0") / $(cat "$T/sun_0,-1e-300,0")"
 # A point no cascade of up to 12 levels holds (1e7 m off) adds no level:
 # the added ones changed the other probes' light and still left it out.
 printf '2 1 5

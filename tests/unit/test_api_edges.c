@@ -543,6 +543,15 @@ static void test_io_null_args(void **state) {
   assert_int_equal(gi_points_read(path, 10, &pts, &n, &err), GI_OK);
   assert_int_equal(n, 1);
   free(pts);
+  /* A NUL byte in a line hid the rest of it (a second point, dropped). */
+  f = fopen(path, "wb");
+  assert_non_null(f);
+  fwrite("1 2 3\0 4 5 6\n7 8 9\n", 1, 20, f);
+  fclose(f);
+  pts = NULL;
+  assert_int_equal(gi_points_read(path, 10, &pts, &n, &err), GI_ERR_FORMAT);
+  assert_non_null(strstr(err.msg, "pts.txt:1: a NUL byte in the line"));
+  assert_null(pts);
   gi_camera cam;
   assert_int_equal(gi_camera_from_mitsuba(NULL, &cam, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "path");

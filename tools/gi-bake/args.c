@@ -195,11 +195,14 @@ static int colour_fail(const char *opt, const char *what, const char *arg) {
   return ta_fail(&ta, opt, "%s R,G,B must be finite, >= 0 and at most 1e20, got '%s'", what, arg);
 }
 
-/* The unit vector along d[0..2] into out; 0 when d is zero or not finite. */
+/* The unit vector along d[0..2] into out; 0 when d is zero or not finite.
+ * Scaled by its largest component first: the length of (0, -1e300, 0)
+ * overflowed and a finite, non-zero direction was refused as neither. */
 static int unit_direction(const double d[3], float out[3]) {
-  double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-  if (!(len > 1e-12) || !isfinite(len)) return 0;
-  for (int k = 0; k < 3; k++) out[k] = (float)(d[k] / len);
+  double m = fmax(fabs(d[0]), fmax(fabs(d[1]), fabs(d[2])));
+  if (!(m > 0) || !isfinite(m)) return 0;
+  double e[3] = {d[0] / m, d[1] / m, d[2] / m}, len = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+  for (int k = 0; k < 3; k++) out[k] = (float)(e[k] / len);
   return 1;
 }
 

@@ -89,8 +89,16 @@ gi_result gi_points_read(const char *path, size_t max, double **pts, size_t *n, 
   int seen = 0; /* a line with content: no header after it */
   double *out = NULL;
   gi_result rc = GI_OK;
-  while (getline(&line, &cap, f) >= 0) {
+  ssize_t got;
+  while ((got = getline(&line, &cap, f)) >= 0) {
     lineno++;
+    /* The line is read as a C string: a NUL byte in it hid the rest (the
+     * second point of "1 2 3\0 4 5 6" was dropped without a word). */
+    if (memchr(line, '\0', (size_t)got)) {
+      rc = gi__fail(err, GI_ERR_FORMAT, "%s:%zu: a NUL byte in the line (a binary file?); expected 'x y z'", path,
+                    lineno);
+      break;
+    }
     char *hash = strchr(line, '#');
     if (hash) *hash = '\0';
     char *p = line;
