@@ -236,8 +236,13 @@ static int scene_key(load_ctx *x, const char *sec, const char *k, const char *v)
     if (!get_num(x, sec, k, v, 100, 20000, &d)) return 0;
     s->extent = d;
   } else if (!strcmp(k, "seed")) {
-    if (!get_int(x, sec, k, v, 0, LLONG_MAX, &n)) return 0;
-    s->seed = (uint64_t)n;
+    /* The full unsigned 64-bit range, as gi-bake --city-seed takes it. */
+    char *end;
+    errno = 0;
+    unsigned long long u = strtoull(v, &end, 10);
+    if (end == v || *end || errno == ERANGE || v[strspn(v, " \t")] == '-')
+      return fail(x, sec, k, "expected an integer in 0..%llu, got '%s'", (unsigned long long)UINT64_MAX, v);
+    s->seed = (uint64_t)u;
   } else if (!strcmp(k, "detail")) {
     if (!get_int(x, sec, k, v, 1, 8, &n)) return 0;
     s->detail = (int)n;

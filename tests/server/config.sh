@@ -53,6 +53,13 @@ printf '[server]\nport = 0\nthis line has no equals sign\n%s\n' "$scene" > "$T/s
 expect syntax 1 "syntax.ini:3: syntax error"
 printf '[scene a b]\nsource = city\n' > "$T/badid.ini"
 expect badid 1 "scene id 'a b' must be"
+# The city's seed takes the full unsigned 64-bit range, as gi-bake --city-seed does.
+printf '[server]\nport = 0\n[scene city]\nsource = city\nextent = 150\nseed = 18446744073709551615\n' > "$T/seedmax.ini"
+expect seedmax 0 "is valid: 1 scene(s)"
+printf '[server]\nport = 0\n[scene city]\nsource = city\nextent = 150\nseed = 18446744073709551616\n' > "$T/seedover.ini"
+expect seedover 1 "seedover.ini:6: [scene city] seed: expected an integer in 0..18446744073709551615"
+printf '[server]\nport = 0\n[scene city]\nsource = city\nextent = 150\nseed = -1\n' > "$T/seedneg.ini"
+expect seedneg 1 "[scene city] seed: expected an integer in 0..18446744073709551615, got '-1'"
 printf '[scene city]\nup = y\n' > "$T/nosource.ini"
 expect nosource 1 "[scene city]: 'source' is required"
 # The city is always Y-up: up = z was accepted and silently ignored.
