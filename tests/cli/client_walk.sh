@@ -88,4 +88,15 @@ printf 't,x,y\n0,5,1.7,3\n' > "$T/hdr3.csv"
 W --path "$T/hdr3.csv"; rc=$?
 [ $rc -eq 2 ] && grep -q -F "hdr3.csv:1: expected t,x,y,z (four finite numbers), got 't,x,y'" "$T/err" &&
   pass "three-name header -> 2" || fail "three-name header: exit $rc: $(cat "$T/err")"
+
+# A step due 1e308 s on is waited for (till Ctrl-C here), not taken at
+# once: its wait converted to time_t out of range and did not wait at all.
+printf '0,5,1.7,3\n1e308,5.1,1.7,3\n' > "$T/late.csv"
+timeout -s INT 3 "$BIN" --server "$URL" --timeout 60 walk city --quality low --path "$T/late.csv" --json \
+  > "$T/out" 2> "$T/err"
+/usr/bin/python3 - "$T/out" <<'PY' && pass "a step due at t = 1e308 is waited for" || fail "late step: $(cat "$T/out" "$T/err")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["steps"] == 1 and j["interrupted"] and j["elapsed_s"] >= 2.5, j
+PY
 finish

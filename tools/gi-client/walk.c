@@ -35,12 +35,18 @@ static double mono_s(void) {
   return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
-/* Sleeps until monotonic time t (seconds); returns early on a signal. */
+/* Sleeps until monotonic time t (seconds); returns early on a signal. In
+ * spans of at most an hour: a step due 1e308 s on converted to time_t
+ * out of range and was not waited for at all. */
+#define SLEEP_SPAN_S 3600.0
 static void sleep_until(double t) {
-  double d = t - mono_s();
-  if (d <= 0 || g_walk_stop) return;
-  struct timespec ts = {(time_t)d, (long)((d - floor(d)) * 1e9)};
-  nanosleep(&ts, NULL);
+  for (;;) {
+    double d = t - mono_s();
+    if (!(d > 0) || g_walk_stop) return;
+    if (d > SLEEP_SPAN_S) d = SLEEP_SPAN_S;
+    struct timespec ts = {(time_t)d, (long)((d - floor(d)) * 1e9)};
+    if (nanosleep(&ts, NULL) != 0) return;
+  }
 }
 
 static int cmp_double(const void *a, const void *b) {
