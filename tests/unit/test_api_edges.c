@@ -141,7 +141,7 @@ static void test_writer_args(void **state) {
   assert_names(&err, "rgb is NULL");
 
   gi_probe probes[2] = {p, p};
-  float pos[6] = {0, 0.5f, 0, 0.5f, 0.5f, 0};
+  double pos[6] = {0, 0.5, 0, 0.5, 0.5, 0};
   uint8_t valid[2] = {1, 1};
   gi_probe_volume v = {.counts = {-2, -1, 1}, .spacing = 0.5, .up_axis = 1, .n = 2, .pos = pos, .valid = valid,
                        .probes = probes};
@@ -460,7 +460,7 @@ static void test_street_volume_axis(void **state) {
   (void)state;
   gi_probe probes[2];
   memset(probes, 0, sizeof probes);
-  float pos[6] = {0, 1, 0, 1, 1, 0};
+  double pos[6] = {0, 1, 0, 1, 1, 0};
   uint8_t valid[2] = {1, 1};
   gi_probe_volume v = {.counts = {2, 1, 1}, .spacing = 1, .up_axis = 9, .street_level = 1, .n = 2, .pos = pos,
                        .valid = valid, .probes = probes};

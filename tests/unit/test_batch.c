@@ -45,6 +45,54 @@ static gi_scene *street_scene(void) {
   return s;
 }
 
+/* A closed 4 x 2 x 2 room moved by off on every axis. */
+static gi_scene *room_at(double off) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.8f, 0.8f, 0.8f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {off, off, off}, hi[3] = {off + 4, off + 2, off + 2};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_scene_options so = {.up = GI_UP_Y, .threads = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "room", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  return s;
+}
+
+/* A grid 1e7 from the origin, 0.25 apart, and 1e6 away, 0.02 apart: the
+ * same points relative to the scene as at the origin. Positions were
+ * float, 1 unit coarse at 1e7: 45 distinct points of 1377, each baked
+ * where its neighbours were (1261 probes more than 1% off). Both the lattice
+ * and street-level columns. */
+static void test_grid_far_from_origin(void **state) {
+  (void)state;
+  const double offs[2] = {1e7, 1e6}, steps[2] = {0.25, 0.02};
+  for (int k = 0; k < 2; k++)
+    for (int street = 0; street < 2; street++) {
+      gi_probe_grid g[2];
+      for (int f = 0; f < 2; f++) {
+        double o = f ? offs[k] : 0;
+        gi_scene *s = room_at(o);
+        /* The whole room at 1e7 (17 x 9 x 9), a corner of it at 1e6. */
+        gi_grid_spec spec = {.spacing = steps[k], .have_region = 1, .above_ground = street ? 0.5 : 0,
+                             .lo = {o + (k ? 0.9 : 0), o + (k ? 0.1 : 0), o + (k ? 0.9 : 0)},
+                             .hi = {o + (k ? 1.1 : 4), o + (k ? 1.0 : 2), o + (k ? 1.0 : 2)}};
+        gi_error_info err = {0};
+        assert_int_equal(gi_probe_grid_build(s, &spec, &g[f], &err), GI_OK);
+        gi_scene_release(s);
+      }
+      assert_int_equal(g[0].n, g[1].n);
+      assert_int_equal(g[0].num_valid, g[1].num_valid);
+      double worst = 0;
+      for (size_t i = 0; i < 3 * g[0].n; i++) worst = fmax(worst, fabs((g[1].pos[i] - offs[k]) - g[0].pos[i]));
+      printf("grid %g apart %g from the origin%s: %zu points, largest shift from the origin's %.3g\n", steps[k],
+             offs[k], street ? ", street level" : "", g[0].n, worst);
+      assert_true(worst < 1e-6);
+      for (int f = 0; f < 2; f++) gi_probe_grid_free(&g[f]);
+    }
+}
+
 static int in_building(double x, double z) {
   for (int i = 0; i < 2; i++)
     if (x > kBuildings[i][0] && x < kBuildings[i][2] && z > kBuildings[i][1] && z < kBuildings[i][3]) return 1;
@@ -152,7 +200,7 @@ static void test_lattice_and_bad_specs(void **state) {
 /* A small street-level volume with made-up answers. */
 #define VX 4
 #define VZ 3
-static float vpos[3 * VX * VZ];
+static double vpos[3 * VX * VZ];
 static uint8_t vvalid[VX * VZ];
 static gi_probe vprobes[VX * VZ];
 
@@ -160,9 +208,9 @@ static gi_probe_volume make_volume(void) {
   gi_probe_volume v = {.counts = {VX, 1, VZ}, .origin = {100, 0, -20}, .spacing = 2, .up_axis = 1,
                        .street_level = 1, .n = VX * VZ, .pos = vpos, .valid = vvalid, .probes = vprobes};
   for (int i = 0; i < VX * VZ; i++) {
-    vpos[3 * i] = (float)(100 + 2 * (i % VX));
-    vpos[3 * i + 1] = (float)(0.5 + 2.0 * (i % 3)); /* voxel rows 0, 1, 2 (0.25, 1.25, 2.25 rounded) */
-    vpos[3 * i + 2] = (float)(-20 + 2 * (i / VX));
+    vpos[3 * i] = (double)(100 + 2 * (i % VX));
+    vpos[3 * i + 1] = (double)(0.5 + 2.0 * (i % 3)); /* voxel rows 0, 1, 2 (0.25, 1.25, 2.25 rounded) */
+    vpos[3 * i + 2] = (double)(-20 + 2 * (i / VX));
     vvalid[i] = i != 5;
     for (int c = 0; c < 9; c++)
       for (int k = 0; k < 3; k++) vprobes[i].sh[c][k] = (float)(i + 0.01 * c + 0.001 * k);
@@ -239,6 +287,7 @@ static void test_volume_exr_read_back(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_grid_far_from_origin),
       cmocka_unit_test(test_street_level_against_geometry),
       cmocka_unit_test(test_street_level_on_the_bounds),
       cmocka_unit_test(test_lattice_and_bad_specs),

@@ -100,7 +100,7 @@ int batch_identify(batch_state *st) {
    * baked from the old file). The city has no file: its options are the
    * name and counts. */
   if (!st->o->is_city) h = ta_fnv_file(h, st->o->scene);
-  h = batch_fnv(st->grid.pos, st->grid.n * 3 * sizeof(float), h);
+  h = batch_fnv(st->grid.pos, st->grid.n * 3 * sizeof(double), h);
   h = batch_fnv(st->grid.state, st->grid.n, h);
   snprintf(st->hash, sizeof st->hash, "%016llx", (unsigned long long)h);
   return 0;

@@ -43,7 +43,7 @@ typedef struct {
   int shards, ao;
   int *seen;               /* per shard index: the input number + 1 */
   gi_probe *probes;
-  float *pos;
+  double *pos;
   uint8_t *valid;
 } merge_state;
 

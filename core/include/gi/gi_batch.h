@@ -47,7 +47,9 @@ typedef struct gi_probe_grid {
   int up_axis;           /* 1 = y, 2 = z */
   double above_ground;   /* 0: full lattice */
   size_t n;              /* counts[0] * counts[1] * counts[2] */
-  float *pos;            /* 3 per point, world (float: what the files store) */
+  double *pos;           /* 3 per point, world, in double: a float position 1e7 from the origin is
+                            1 unit coarse, and a 0.25 m grid baked 45 distinct points of 1377 (the
+                            files store float) */
   uint8_t *state;        /* GI_GRID_VALID, GI_GRID_NO_GROUND or GI_GRID_INSIDE per point */
   size_t num_valid, num_no_ground, num_inside;
 } gi_probe_grid;
@@ -69,7 +71,7 @@ typedef struct gi_probe_volume {
   int street_level;      /* 1: one probe per column; the VDB places it at its own height (within
                             +-2^31 spacings of origin: VDB's indices are int32) */
   size_t n;
-  const float *pos;      /* 3n */
+  const double *pos;     /* 3n, world (written as float) */
   const uint8_t *valid;  /* n, 0 or 1 */
   const gi_probe *probes;/* n */
   int ao;                /* 1: the EXR carries ao.Y */

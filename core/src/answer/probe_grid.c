@@ -8,6 +8,7 @@
  * rays hit something): a street is open to the sky, an arcade or a bridge
  * is open along the street, a room is neither. This needs no consistent
  * winding, which OSM meshes do not promise. */
+#include <float.h>
 #include <math.h>
 #include <string.h>
 #include "base/internal.h"
@@ -104,7 +105,11 @@ static gi_result lay_out(const gi_grid_spec *spec, int u, const double lo[3], co
                          gi_error_info *err) {
   double total = 1;
   for (int a = 0; a < 3; a++) {
-    double c = (spec->above_ground > 0 && a == u) ? 1 : floor((hi[a] - lo[a]) / spec->spacing + 1e-9) + 1;
+    /* A point on the region's far face counts, whatever the rounding of
+     * its ends: 1e6 away, 0.9 of 0.02 steps read 44.99999999 (45 points
+     * where the same region at the origin has 46). */
+    double tol = 1e-9 + 8 * DBL_EPSILON * (fabs(lo[a]) + fabs(hi[a])) / spec->spacing;
+    double c = (spec->above_ground > 0 && a == u) ? 1 : floor((hi[a] - lo[a]) / spec->spacing + tol) + 1;
     total *= c;
     if (total > (double)GI_GRID_MAX_POINTS)
       return gi__fail(err, GI_ERR_LIMIT, "grid spacing %g gives more than %zu probes over the region", spec->spacing,
@@ -113,7 +118,7 @@ static gi_result lay_out(const gi_grid_spec *spec, int u, const double lo[3], co
     g->origin[a] = lo[a];
   }
   g->n = (size_t)total;
-  g->pos = gi__malloc(g->n * 3 * sizeof(float));
+  g->pos = gi__malloc(g->n * 3 * sizeof(double));
   g->state = gi__malloc(g->n);
   if (!g->pos || !g->state) return gi__fail(err, GI_ERR_NOMEM, "probe grid: out of memory for %zu probes", g->n);
   size_t i = 0;
@@ -121,7 +126,7 @@ static gi_result lay_out(const gi_grid_spec *spec, int u, const double lo[3], co
     for (int y = 0; y < g->counts[1]; y++)
       for (int x = 0; x < g->counts[0]; x++, i++) {
         int idx[3] = {x, y, z};
-        for (int a = 0; a < 3; a++) g->pos[3 * i + a] = (float)(g->origin[a] + idx[a] * spec->spacing);
+        for (int a = 0; a < 3; a++) g->pos[3 * i + a] = g->origin[a] + idx[a] * spec->spacing;
         g->state[i] = GI_GRID_VALID;
       }
   g->num_valid = g->n;
@@ -141,7 +146,7 @@ static void place_above_ground(const gi_scene *scene, const gi_grid_spec *spec, 
   c.floor_ = (float)(g->origin[c.u] - s->origin[c.u]) - 10 * c.eps; /* a ground exactly at the floor counts */
   g->num_valid = 0;
   for (size_t i = 0; i < g->n; i++) {
-    float *p = g->pos + 3 * i;
+    double *p = g->pos + 3 * i;
     float local[3];
     for (int a = 0; a < 3; a++) local[a] = (float)(p[a] - s->origin[a]);
     float ground;
@@ -151,7 +156,7 @@ static void place_above_ground(const gi_scene *scene, const gi_grid_spec *spec, 
       continue;
     }
     local[c.u] = ground + (float)spec->above_ground;
-    p[c.u] = (float)(s->origin[c.u] + local[c.u]);
+    p[c.u] = s->origin[c.u] + local[c.u];
     if (inside_building(&c, local)) {
       g->state[i] = GI_GRID_INSIDE;
       g->num_inside++;
@@ -183,10 +188,10 @@ gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, g
     return rc;
   }
   if (spec->above_ground > 0) place_above_ground(scene, spec, hi, out);
-  /* Points are stored as float: a region or a height past its range (1e39)
-   * gave valid probes at Inf, which every gather and writer refuses. */
+  /* The files store points as float: a region or a height past its range
+   * (1e39) gave valid probes at Inf, which every gather and writer refuses. */
   for (size_t i = 0; i < 3 * out->n; i++)
-    if (!isfinite(out->pos[i])) {
+    if (!(fabs(out->pos[i]) <= FLT_MAX)) {
       double at = out->pos[i];
       gi_probe_grid_free(out);
       return gi__fail(err, GI_ERR_INVALID_ARG, "grid point %zu lies at %g on axis %c, beyond float range: "

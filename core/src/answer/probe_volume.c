@@ -70,7 +70,7 @@ static void fill_planes(planes_t *p, const gi_probe_volume *v) {
   for (int a = 0; a < 3; a++) {
     snprintf(name, sizeof name, "P.%c", "XYZ"[a]);
     float *pp = add_plane(p, name);
-    for (size_t i = 0; i < n; i++) pp[i] = v->pos[3 * i + a];
+    for (size_t i = 0; i < n; i++) pp[i] = (float)v->pos[3 * i + a];
   }
   float *val = add_plane(p, "valid.Y");
   for (size_t i = 0; i < n; i++) val[i] = v->valid[i] ? 1.f : 0.f;
@@ -137,7 +137,7 @@ static int voxel_of(const gi_probe_volume *v, size_t i, int ijk[3]) {
   ijk[2] = (int)(i / (nx * ny));
   if (v->street_level) {
     int u = v->up_axis;
-    double h = ((double)v->pos[3 * i + u] - v->origin[u]) / v->spacing;
+    double h = (v->pos[3 * i + u] - v->origin[u]) / v->spacing;
     if (!(fabs(h) < INT_MAX)) return -1;
     ijk[u] = (int)lround(h);
   }
@@ -173,7 +173,7 @@ static gi_result gather_voxels(const gi_probe_volume *v, voxels_t *vx, const cha
       for (int k = 0; k < 3; k++) vx->sh[((size_t)c * m + o) * 3 + k] = v->probes[i].sh[c][k];
     for (int k = 0; k < 3; k++) {
       vx->irr[3 * o + k] = v->probes[i].irradiance[k];
-      vx->pos[3 * o + k] = v->pos[3 * i + k];
+      vx->pos[3 * o + k] = (float)v->pos[3 * i + k];
     }
     o++;
   }
