@@ -35,6 +35,18 @@ static void test_plane_under_sun(void **state) {
     /* The cone view adds what the voxels bounce back: a flat plane has nothing above it. */
     assert_true(fabs(cone[i] - want) < 1e-3 * want);
   }
+  /* The same plane from 1e6 units off, at 45 degrees, the view narrowed
+   * to a 20-unit patch: the path tracer's hits, rebuilt as eye + t w in
+   * float, lay up to 0.06 off the plane, and those below it read 0. */
+  gi_camera far = cam;
+  far.eye[0] = 0, far.eye[1] = 7e5, far.eye[2] = -7e5;
+  far.up[0] = 0, far.up[1] = 1, far.up[2] = 0;
+  far.fov_deg = 2 * atan(10 / 9.9e5) * 180 / 3.14159265358979;
+  assert_int_equal(gi_reference_render(s, &far, 4, 1, 0, path, NULL, &err), GI_OK);
+  double worst = 0;
+  for (int i = 0; i < 16 * 12 * 3; i++) worst = fmax(worst, fabs(path[i] - want) / want);
+  printf("plane seen from 1e6 off: path tracer's largest relative error %.2g\n", worst);
+  assert_true(worst < 1e-4);
   /* A PNG of it: written atomically, non-empty. */
   const char *png = tu_write_file("view.png", "", 0);
   assert_int_equal(gi_image_write_png(png, cone, 16, 12, 1.0f, &err), GI_OK);

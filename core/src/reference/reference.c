@@ -553,6 +553,17 @@ typedef struct {
   float *rgb, *spec;
 } view_ctx;
 
+/* The camera's hit eye + t w, put back on its triangle's plane (unit
+ * normal ng) in double: a camera 1e6 from the scene placed it up to 0.06
+ * units off the surface, and the paths leaving it met the surface again
+ * (the Cornell box's walls went black, 18494% error at 1e6). */
+static void onto_plane(const gi_scene *s, uint32_t tri, const float ng[3], float p[3]) {
+  const float *a = s->vertices + 3 * (size_t)s->indices[3 * (size_t)tri];
+  double d = 0;
+  for (int k = 0; k < 3; k++) d += ((double)p[k] - a[k]) * ng[k];
+  for (int k = 0; k < 3; k++) p[k] = (float)((double)p[k] - d * ng[k]);
+}
+
 /* One pixel: spp paths through jittered points of its square. */
 static void view_pixel(const view_ctx *vc, int x, int y) {
   const ref_ctx *rc = &vc->rc;
@@ -574,6 +585,7 @@ static void view_pixel(const view_ctx *vc, int x, int y) {
     if (gi__dot(ng, w) < 0) /* an emitter seen from the front */
       for (int a = 0; a < 3; a++) L[a] += s->materials[s->tri_material[tri]].emission[a];
     float p[3] = {k->eye[0] + t * w[0], k->eye[1] + t * w[1], k->eye[2] + t * w[2]};
+    onto_plane(s, tri, ng, p);
     reflected(rc, p, w, tri, ng, NULL, &rng, L, Ls);
     for (int a = 0; a < 3; a++) acc[a] += L[a], accs[a] += Ls[a];
   }
