@@ -78,6 +78,9 @@ for i in range(40): print('%.1f,%.1f,2,0.5' % (i / 10, -19.5 + i))" > "$T/throug
 import json, sys
 j = json.loads(open(sys.argv[1]).read().splitlines()[-1])
 assert j["points_inside"] == 10 and 1 <= j["drift_points"] <= 8, j
+# The worst grid shift is one of the steps 'any step' counts: never larger
+# (a shift from inside the block read more than every step did).
+assert j["pop_shift"] <= j["pop_any_step"], (j["pop_shift"], j["pop_any_step"])
 PY
 # The same block with z up, read without --up: a note names the fix.
 awk '$1 == "v" { print "v", $2, $4, $3; next } { print }' "$T/block.obj" > "$T/block-z.obj"
