@@ -269,6 +269,14 @@ static void give_slot(gs_sessions *t) {
   pthread_mutex_unlock(&t->mu);
 }
 
+/* Bytes sessions hold, up (sign 1) or down (-1). */
+static void add_bytes(gs_sessions *t, size_t n, int sign) {
+  pthread_mutex_lock(&t->mu);
+  if (sign > 0) t->bytes += n;
+  else t->bytes -= n;
+  pthread_mutex_unlock(&t->mu);
+}
+
 /* The new session's cascade, baked at at: 0, or the answer is in a. */
 static int bake_session(gs_service *svc, gs_session *s, const double at[3], const gi_cancel *cancel, gs_answer *a) {
   gi_error_info e = {0};
@@ -281,6 +289,9 @@ static int bake_session(gs_service *svc, gs_session *s, const double at[3], cons
     if (rc == GI_ERR_NOMEM) gs_metrics_session(svc->metrics, GS_SESSION_REJECTED);
     return gs_answer_core_error(a, rc, &e), -1;
   }
+  /* Counted from now, as the budget counts it: while the bake ran,
+   * /metrics read 0 session bytes beside a 503 naming 501 MiB of them. */
+  add_bytes(svc->sessions, need, 1);
   double t0 = gs_now_ms();
   gs_metrics_bake_begin(svc->metrics);
   rc = gi_cascade_bake_ex(s->scene->scene, at, &s->req, cancel, &s->cascade, NULL, &e);
@@ -293,6 +304,7 @@ static int bake_session(gs_service *svc, gs_session *s, const double at[3], cons
   if (rc == GI_OK) rc = gi_cascade_move_prepare(s->cascade, &e);
   if (rc != GI_OK) {
     gi_cascade_free(s->cascade);
+    add_bytes(svc->sessions, need, -1);
     gs_cache_unhold(svc->cache, need);
     return gs_answer_core_error(a, rc, &e), -1;
   }
@@ -321,7 +333,6 @@ void gs_session_create(gs_service *svc, const gs_scene *sc, const gi_proto_bake 
   pthread_mutex_lock(&t->mu);
   t->creating--;
   t->open++;
-  t->bytes += s->held;
   s->last_used_ms = gs_now_ms();
   s->next = t->head;
   t->head = s;

@@ -464,6 +464,34 @@ static void test_budget(void **state) {
   S_budget.pid = 0;
 }
 
+/* A session being baked holds its bytes in the budget, and /metrics says
+ * so: gi_session_bytes read 0 while a 503 named the MiB it held. */
+static void test_creation_bytes(void **state) {
+  (void)state;
+  assert_int_equal(su_start(&S_deadline, "creating",
+                            "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 1\nworkers = 2\ntmp_dir = .\n"
+                            "[scene city]\nsource = city\nextent = 300\n"),
+                   0);
+  const char *req = "POST /v1/scenes/city/sessions?quality=high HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\n"
+                    "Connection: close\r\n\r\n";
+  int fd = su_connect(&S_deadline, NULL);
+  assert_true(fd >= 0);
+  assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+  double t0 = su_now_ms();
+  while (su_metric(&S_deadline, "gi_bakes_in_flight", NULL) < 1 && su_now_ms() - t0 < 10000) su_sleep_ms(10);
+  double during = su_metric(&S_deadline, "gi_session_bytes", NULL), flight = su_metric(&S_deadline, "gi_bakes_in_flight", NULL);
+  static char buf[8192];
+  su_read(fd, buf, sizeof buf, 60000);
+  close(fd);
+  assert_non_null(strstr(buf, "HTTP/1.1 201"));
+  double after = su_metric(&S_deadline, "gi_session_bytes", NULL);
+  printf("  a high-quality session while it bakes: gi_session_bytes %.0f (after: %.0f)\n", during, after);
+  assert_true(flight == 1);
+  assert_true(during > 0 && during == after);
+  assert_int_equal(su_stop(&S_deadline), 0);
+  S_deadline.pid = 0;
+}
+
 static void test_deadline_cancels_creation(void **state) {
   (void)state;
   assert_int_equal(su_start(&S_deadline, "deadline",
@@ -496,6 +524,7 @@ int main(void) {
       cmocka_unit_test(test_limit_and_expiry),
       cmocka_unit_test(test_concurrent_serialised),
       cmocka_unit_test(test_budget),
+      cmocka_unit_test(test_creation_bytes),
       cmocka_unit_test(test_deadline_cancels_creation),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
