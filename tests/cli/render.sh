@@ -8,6 +8,7 @@ make_box_scene
     --render 2,2,0.3,2,2,3,70,24,16 --render-samples 4 --png "$T/view.png" --exr "$T/view.exr" \
     > "$T/out.json" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && pass "render exits 0" || { cat "$T/err" >&2; fail "render exited $rc"; finish; }
+grep -q "looks inside a solid" "$T/err" && fail "a camera in the room noted as inside a solid: $(cat "$T/err")"
 python3 - "$T/out.json" "$T/view.png" <<'PY' && pass "PNG 72x16 and JSON figures" || fail "render outputs"
 import json, math, struct, sys
 j = json.load(open(sys.argv[1]))
@@ -78,6 +79,9 @@ printf 'f 9 12 11\nf 9 11 10\n' >> "$T/closed.obj"
   python3 -c 'import json,sys; e=json.load(open(sys.argv[1]))["render"]["mean_relative_error"]; assert 0 <= e <= 20.0001, e; print(e)' \
     "$T/closed.json" > "$T/mre" && pass "a black reference: mean relative error $(cat "$T/mre") (<= 20)" ||
   fail "black reference: $(cat "$T/err" "$T/mre" 2> /dev/null)"
+# That camera stands inside the closed cube: a note says its cone view is leaked light.
+grep -q "gi-bake: note: the camera (0, 2, 0) looks inside a solid (" "$T/err" \
+  && pass "a camera inside a solid: noted" || fail "inside-solid camera note: $(cat "$T/err")"
 
 if command -v exrheader > /dev/null 2>&1; then
   exrheader "$T/view.exr" > "$T/hdr" 2>&1

@@ -50,6 +50,13 @@ int cli_render(const cli_opts *o, const gi_scene *scene, const gi_cascade *cas, 
     goto done;
   }
   st->cone_ms = st->view.ms;
+  /* The cone view shows light leaked into a solid the camera stands in;
+   * the path-traced one is black there (as the probes' note says). */
+  double eye[3] = {cam.eye[0], cam.eye[1], cam.eye[2]}, share = gi_scene_backface_share(scene, eye);
+  if (share > GI_INSIDE_SHARE)
+    fprintf(stderr, "gi-bake: note: the camera (%g, %g, %g) looks inside a solid (%.0f%% of 26 rays from it meet a "
+            "surface's back first): the cone-traced view shows only light that leaks in\n", eye[0], eye[1], eye[2],
+            100 * share);
   if (st->view.pixels_outside)
     fprintf(stderr, "gi-bake: note: %llu of %zu pixels see surfaces outside the cascade around the viewpoint: their "
             "indirect light is 0 and only their direct light is drawn; bake with more --levels, or nearer what the "
