@@ -512,6 +512,10 @@ static void test_exr_extras(void **state) {
   gi_exr_extra spoof = {"gi.scene", "spoof"};
   assert_int_equal(gi_probes_write_exr_ex(path, &p, 1, s, AT, rep, 0, &spoof, 1, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "'gi.scene') is one the writer sets");
+  /* Named by the caller's own index (the writer's list put it at 6). */
+  gi_exr_extra blank[2] = {{"x.ok", "v"}, {NULL, "v"}};
+  assert_int_equal(gi_probes_write_exr_ex(path, &p, 1, s, AT, rep, 0, blank, 2, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "extra attribute 1 has an empty name or no value");
   float px[3 * 2] = {0};
   assert_int_equal(gi_panorama_write_exr(path, 2, 1, px, px, s, AT, rep, 0, ex, 17, &err), GI_ERR_LIMIT);
   gi_cascade_free(c);

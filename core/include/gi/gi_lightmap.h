@@ -5,7 +5,9 @@
  * channel), else new ones: triangles are grouped into charts (edge-connected, near coplanar:
  * a building's wall is one chart), each chart is projected onto its plane
  * at a texel density given in world units, and the charts are packed
- * (shelves, a gutter around each) into one or more square atlases. The
+ * (shelves, a gutter around each) into one or more atlases as wide as
+ * gi_lightmap_opts.atlas and as tall as their shelves need (rounded up to
+ * a multiple of 4: gi_lightmap_get_atlas gives each one's size). The
  * layout depends only on the scene and the options: the same inputs give
  * the same charts, bit for bit. gi_lightmap_bake then fills every texel
  * with the irradiance at its surface point and normal, gathered from a

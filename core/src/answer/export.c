@@ -59,11 +59,15 @@ static gi_result check_extra(const gi_exr_extra *extra, size_t num_extra, const 
                                            num_extra);
   if (num_extra > MAX_EXTRA)
     return gi__fail(err, GI_ERR_LIMIT, "%s: %zu extra attributes, at most %d fit", who, num_extra, MAX_EXTRA);
-  for (size_t i = 0; i < num_extra; i++)
-    for (size_t k = 0; extra[i].name && k < sizeof own_attrs / sizeof own_attrs[0]; k++)
+  for (size_t i = 0; i < num_extra; i++) {
+    /* Named by the caller's index here: the writer's own list put it at 6. */
+    if (!extra[i].name || !extra[i].name[0] || !extra[i].value)
+      return gi__fail(err, GI_ERR_INVALID_ARG, "%s: extra attribute %zu has an empty name or no value", who, i);
+    for (size_t k = 0; k < sizeof own_attrs / sizeof own_attrs[0]; k++)
       if (!strcmp(extra[i].name, own_attrs[k]))
         return gi__fail(err, GI_ERR_INVALID_ARG, "%s: extra attribute %zu ('%s') is one the writer sets", who, i,
                         extra[i].name);
+  }
   return GI_OK;
 }
 
