@@ -1110,6 +1110,34 @@ static const char *gltf_materials(const char *name, const char *materials, int g
   return tu_write_file(name, file, total);
 }
 
+/* glTF's metallic/roughness model: the diffuse part is base x (1 -
+ * metallic), the lobe's reflectance mixes 4% and the base colour. A
+ * glossy metal's base colour was its diffuse albedo as well as its lobe:
+ * a metal floor of base 0.5 lit the room as a white one, an all-metal
+ * room of 0.8 read 6.6x a diffuse one's indirect light. A rough lobe is
+ * dropped by every stage (GI_GLOSSY_ROUGHNESS), so a rough metal keeps
+ * its base colour as diffuse. */
+static void test_gltf_metal(void **state) {
+  static const struct {
+    float base, metal, rough, albedo, specular;
+  } cases[] = {{0.5f, 1, 0.2f, 0, 0.5f}, {0.5f, 1, 0.8f, 0.5f, 0.5f}, {0.6f, 0.5f, 0.2f, 0.3f, 0.32f},
+               {0.6f, 0, 0.2f, 0.6f, 0.04f}};
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    char mat[256];
+    snprintf(mat, sizeof mat,
+             "{\"pbrMetallicRoughness\":{\"baseColorFactor\":[%g,%g,%g,1],\"metallicFactor\":%g,"
+             "\"roughnessFactor\":%g}}",
+             cases[i].base, cases[i].base, cases[i].base, cases[i].metal, cases[i].rough);
+    gi_scene *s = load_ok(gltf_materials("metal.gltf", mat, 0), NULL);
+    const gi_material *m = gi_scene_material(s, 0);
+    printf("  base %.1f metallic %.1f roughness %.1f: albedo %.3f specular %.3f\n", cases[i].base, cases[i].metal,
+           cases[i].rough, m->albedo[1], m->specular);
+    for (int k = 0; k < 3; k++) assert_float_equal(m->albedo[k], cases[i].albedo, 1e-6);
+    assert_float_equal(m->specular, cases[i].specular, 1e-6);
+    gi_scene_release(s);
+  }
+}
+
 /* KHR_materials_emissive_strength (Blender writes every emitter brighter
  * than 1 so) multiplies emissiveFactor; assimp 5.2 ignores it, and
  * Blender's Cornell box read 18.4x too dark. */
@@ -2102,8 +2130,9 @@ static void test_fbx_materials(void **state) {
     const char *path;
     double rough, spec;
   } c[3] = {{fbx_material("bdiel.fbx", blender, 0), 0.2, 0.04},
-            /* the base colour's luminance, with the albedo scaled so 0.6 + lobe = 1 */
-            {fbx_material("bmetal.fbx", blender, 1), 0.2, lum / (0.6 + lum)},
+            /* a glossy metal: the base colour's luminance is its lobe, and it has no diffuse part (the
+             * base colour was both, 0.6 + lobe, then scaled down to 1 in all: lum / (0.6 + lum)) */
+            {fbx_material("bmetal.fbx", blender, 1), 0.2, lum},
             {fbx_material("maya.fbx", maya, 0), sqrt(2.0 / 66.0), lum * 8.0 / 72.0}};
   for (int i = 0; i < 3; i++) {
     gi_scene *s = load_ok(c[i].path, NULL);
@@ -2112,6 +2141,7 @@ static void test_fbx_materials(void **state) {
            c[i].spec);
     assert_float_equal(m->roughness, c[i].rough, 1e-4);
     assert_float_equal(m->specular, c[i].spec, 2e-3);
+    if (i == 1) assert_true(m->albedo[0] == 0 && m->albedo[1] == 0 && m->albedo[2] == 0);
     gi_scene_release(s);
   }
 }
@@ -2354,6 +2384,7 @@ int main(void) {
       cmocka_unit_test(test_light_tree_picks),
       cmocka_unit_test(test_light_tree_faces),
       cmocka_unit_test(test_gltf_uv_order),
+      cmocka_unit_test(test_gltf_metal),
       cmocka_unit_test(test_empty_scene),
       cmocka_unit_test(test_stray_share),
       cmocka_unit_test(test_far_origin),

@@ -612,8 +612,13 @@ static int collada_diffuse_only(const struct aiMaterial *am, const char *path) {
   return model == aiShadingMode_Gouraud || model == aiShadingMode_NoShading || model == aiShadingMode_Flat;
 }
 
-/* m's glossy lobe (roughness, specular) from am, its albedo already set. */
-static void material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material *m) {
+/* m's glossy lobe (roughness, specular) from am, its albedo already set.
+ * Returns what the diffuse albedo keeps: a glossy metal's base colour is
+ * its lobe's, not also its diffuse part (glTF's model: diffuse = base x
+ * (1 - metallic)); a metal floor of base 0.5 reflected 0.5 twice, an
+ * all-metal room 6.6x a diffuse one's light. A rough one (no lobe: every
+ * stage drops it, GI_GLOSSY_ROUGHNESS) keeps its base colour as diffuse. */
+static float material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material *m) {
   float rough = 1.f, metal = 0.f, ns = 0.f, ks[3] = {0, 0, 0};
   int has_rough = get_float(am, AI_MATKEY_ROUGHNESS_FACTOR, &rough);
   int has_metal = get_float(am, AI_MATKEY_METALLIC_FACTOR, &metal);
@@ -639,7 +644,10 @@ static void material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material 
     m->roughness = rough;
     /* Metallic/roughness: normal-incidence reflectance between 4 % (dielectric) and the base colour (metal). */
     float mt = has_metal ? metal : 0.f;
+    if (!(mt >= 0.f)) mt = 0.f;
+    if (mt > 1.f) mt = 1.f;
     m->specular = has_ks ? lum(ks) : 0.04f * (1.f - mt) + mt * lum(m->albedo);
+    if (!has_ks && rough < GI_GLOSSY_ROUGHNESS) return 1.f - mt;
   } else if (has_ks && obj_by_blender(tc, m->name)) {
     /* Blender's MTL is its Principled material's: Ns = 1000 (1 - roughness)^2
      * and Ks its specular level, whose reflectance is 0.08 x that (its
@@ -663,6 +671,7 @@ static void material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material 
     m->roughness = 1.f;
     m->specular = 0.f;
   }
+  return 1.f;
 }
 
 /* Maps one assimp material onto ours. The albedo is the colour factor
@@ -722,7 +731,8 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     gi_result rc = emissive_texture(am, tc, m, err);
     if (rc != GI_OK) return rc;
   }
-  material_lobe(am, tc, m);
+  float keep = material_lobe(am, tc, m);
+  for (int k = 0; k < 3; k++) m->albedo[k] *= keep, mt->factor[k] *= keep;
   return GI_OK;
 }
 
