@@ -1351,6 +1351,47 @@ static gi_result build(const gi_mesh_builder *b, const char *path, const gi_scen
                   (unsigned long long)ss.dropped_degenerate);
 }
 
+/* A Collada file's <up_axis> (in its first 64 KiB): 'Z' or 'X', else 0
+ * (Y_UP, none, or unreadable). */
+static char collada_up(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return 0;
+  static const size_t cap = 65536;
+  char *buf = gi__malloc(cap + 1);
+  size_t n = buf ? fread(buf, 1, cap, f) : 0;
+  fclose(f);
+  char up = 0;
+  if (buf) {
+    buf[n] = 0;
+    const char *t = strstr(buf, "<up_axis>");
+    if (t) {
+      t += strlen("<up_axis>");
+      while (*t == ' ' || *t == '\t' || *t == '\r' || *t == '\n') t++;
+      if (!strncmp(t, "Z_UP", 4)) up = 'Z';
+      else if (!strncmp(t, "X_UP", 4)) up = 'X';
+    }
+  }
+  gi__free(buf);
+  return up;
+}
+
+/* assimp turns every Collada file Y-up (a Z_UP file's y is its z, its z
+ * the file's -y): --up z then laid a Blender room on its side, and points
+ * given in the file's own coordinates missed it. Refused with z up; a note
+ * names the frame otherwise. */
+static gi_result check_collada_up(const char *path, gi_up_axis up, gi_error_info *err) {
+  char ax = ends_with_ci(path, ".dae") ? collada_up(path) : 0;
+  if (!ax) return GI_OK;
+  if (up == GI_UP_Z)
+    return gi__fail(err, GI_ERR_INVALID_ARG,
+                    "scene file '%s' declares <up_axis>%c_UP</up_axis>, and assimp reads every Collada file turned "
+                    "Y-up: load it with up y (gi-bake's default), not z", path, ax);
+  fprintf(stderr, "gi: note: scene file '%s' declares <up_axis>%c_UP</up_axis> and is read turned Y-up: points and "
+          "bounds are in that frame (%s)\n", path, ax,
+          ax == 'Z' ? "its y is the file's z, its z the file's -y" : "its y is the file's x");
+  return GI_OK;
+}
+
 gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene **out, gi_error_info *err) {
   gi_scene_options o = {0};
   if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "gi_scene_load: out is NULL");
@@ -1361,6 +1402,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
   if (!isfinite(scale)) return gi__fail(err, GI_ERR_NONFINITE, "scene file '%s': scale is not finite", path);
   gi_result rc = check_file(path, err);
   if (rc == GI_OK && ends_with_ci(path, ".fbx")) rc = gi__fbx_check(path, err);
+  if (rc == GI_OK) rc = check_collada_up(path, o.up, err);
   if (rc != GI_OK) return rc;
 
   const struct aiScene *as = NULL;
