@@ -1399,6 +1399,9 @@ static void test_vertex_colors_files(void **state) {
   static const char obj[] = "v 0 0 0 0 0.5 1\nv 1 0 0 0 0.5 1\nv 0 1 0 0 0.5 1\nv 1 1 0\nf 1 2 3\nf 2 4 3\n";
   s = load_ok(tu_write_file("colors.obj", obj, strlen(obj)), NULL);
   m = gi_scene_material(s, 0)->albedo;
+  /* No MTL: the colours are the albedo, as a PLY's are (assimp's own
+   * DefaultMaterial, Kd 0.6, darkened them 40%). */
+  assert_float_equal(m[0], 1.0, 1e-6);
   double h = srgb(0.5);
   double v0[3] = {0, m[1] * h, m[2]}, v1[3] = {m[0] / 3, m[1] * (2 * h + 1) / 3, m[2]};
   expect_albedo(s, 0, v0, "obj");
@@ -1431,6 +1434,9 @@ static void test_vertex_colors_files(void **state) {
   static const char plain[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
   s = load_ok(tu_write_file("plain.obj", plain, strlen(plain)), NULL);
   assert_null(s->tri_albedo);
+  /* Colourless, without an MTL: the default grey a PLY gets (0.8), not 0.6. */
+  assert_int_equal(gi_scene_num_materials(s), 1);
+  assert_float_equal(gi_scene_material(s, 0)->albedo[1], 0.8, 1e-6);
   gi_scene_release(s);
 }
 

@@ -995,7 +995,13 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
     mat_tex mt;
     gi_result rc = convert_material(as->mMaterials[i], tc, &m, &mt, err);
     if (rc != GI_OK) return rc;
-    if (no_materials(tc->path)) {
+    /* An OBJ's faces before any usemtl (a file with no MTL at all: a scan)
+     * take assimp's DefaultMaterial, Kd 0.6: colourless, they take the
+     * default every colourless surface gets, as the same mesh as a PLY
+     * does (the OBJ read 40% darker, its vertex colours times 0.6). */
+    int assimps = strcmp(m.name, AI_DEFAULT_MATERIAL_NAME) == 0 || m.name[0] == 0;
+    int colourless = no_materials(tc->path) || (ends_with_ci(tc->path, ".obj") && assimps);
+    if (colourless) {
       float a = colored ? 1.f : 0.8f;
       m = (gi_material){.albedo = {a, a, a}, .roughness = 1.f, .name = "default"};
       mt = (mat_tex){.tex = -1};
@@ -1005,7 +1011,7 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
       if (mt.uv_tf[5] >= 0) mt.uv = (unsigned)mt.uv_tf[5]; /* the transform's own texCoord */
     }
     matmap[i] = UINT32_MAX;
-    if (!used && (strcmp(m.name, AI_DEFAULT_MATERIAL_NAME) == 0 || m.name[0] == 0)) continue;
+    if (!used && (assimps || (no_materials(tc->path) && !strcmp(m.name, "default")))) continue;
     tc->mt[nmat] = mt;
     matmap[i] = nmat++;
     gi_mesh_builder_add_material(b, &m);
