@@ -33,8 +33,11 @@
 
 enum { BAKING, READY, FAILED };
 
+/* Keys: scene id, cell and every knob (make_key). */
+#define GS_KEY_SIZE 512
+
 struct gs_entry {
-  char key[512];
+  char key[GS_KEY_SIZE];
   int state;
   int refs;               /* requests holding or waiting for it */
   gi_cascade *cascade;
@@ -257,6 +260,28 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w) {
   return cancelled;
 }
 
+/* The table's key of at's cell (its anchor into anchor) at quality (req
+ * as asked, q resolved). */
+static gi_result key_of(const gs_scene *s, const double at[3], const gi_quality *req, const gi_quality *q,
+                        int64_t anchor[3], char key[GS_KEY_SIZE], gi_error_info *err) {
+  gi_result rc = gi_cascade_anchor(s->scene, at, q, anchor, err);
+  if (rc == GI_OK) make_key(s, anchor, req, q, key, GS_KEY_SIZE);
+  return rc;
+}
+
+/* The entry under key, or NULL. Locked. */
+static gs_entry *lookup(gs_cache *c, const char *key) {
+  gs_entry *e = c->head;
+  while (e && strcmp(e->key, key)) e = e->next;
+  return e;
+}
+
+/* w waits for e's bake without a worker: the baker wakes it. Locked. */
+static void coalesce(gs_entry *e, gs_waiter *w) {
+  join(e, w);
+  w->coalesced = 1;
+}
+
 /* An entry found in the table: a hit, a pending waiter, or a blocking
  * wait for the bake. Called locked; returns unlocked. */
 static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_entry **out, gs_cache_how *how,
@@ -274,9 +299,7 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_ent
     return GI_OK;
   }
   if (e->state == BAKING && w && !w->blocking) {
-    /* Waiters do not hold a worker: the baker wakes them. */
-    join(e, w);
-    w->coalesced = 1;
+    coalesce(e, w);
     pthread_mutex_unlock(&c->mu);
     if (c->metrics) gs_metrics_cache(c->metrics, *how);
     return GS_PENDING;
@@ -359,22 +382,18 @@ static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, g
 
 int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
                           const gi_quality *q, gs_waiter *w) {
-  if (!w || w->blocking) return 0;
   int64_t anchor[3];
-  if (gi_cascade_anchor(s->scene, at, q, anchor, NULL) != GI_OK) return 0; /* the worker reports it */
-  char key[512];
-  make_key(s, anchor, req, q, key, sizeof key);
+  char key[GS_KEY_SIZE];
+  if (!w || w->blocking || key_of(s, at, req, q, anchor, key, NULL) != GI_OK) return 0; /* the worker reports it */
   pthread_mutex_lock(&c->mu);
-  gs_entry *e = c->head;
-  while (e && strcmp(e->key, key)) e = e->next;
+  gs_entry *e = lookup(c, key);
   if (!e || e->state != BAKING || w->left || w->entry) {
     pthread_mutex_unlock(&c->mu);
     return 0;
   }
   unlink_entry(c, e);
   push_front(c, e);
-  join(e, w);
-  w->coalesced = 1;
+  coalesce(e, w);
   pthread_mutex_unlock(&c->mu);
   if (c->metrics) gs_metrics_cache(c->metrics, GS_CACHE_COALESCED);
   return 1;
@@ -391,10 +410,9 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     return rc;
   }
   int64_t anchor[3];
-  gi_result rc = gi_cascade_anchor(s->scene, at, q, anchor, err);
+  char key[GS_KEY_SIZE];
+  gi_result rc = key_of(s, at, req, q, anchor, key, err);
   if (rc != GI_OK) return rc;
-  char key[512];
-  make_key(s, anchor, req, q, key, sizeof key);
   int woken = w && w->coalesced;
   if (w) w->coalesced = 0;
   pthread_mutex_lock(&c->mu);
@@ -404,8 +422,7 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     if (err) snprintf(err->msg, sizeof err->msg, "bake: the request was given up before its bake started");
     return GI_ERR_CANCELLED;
   }
-  gs_entry *e = c->head;
-  while (e && strcmp(e->key, key)) e = e->next;
+  gs_entry *e = lookup(c, key);
   if (e) return found(c, e, w, woken, out, how, err);
   size_t need = gs_bake_bytes(q);
   if ((rc = admit(c, need, err)) != GI_OK) {

@@ -291,4 +291,3 @@ void gi__emitter_cosine_rays(const gi_scene *s, const float p[3], const float o[
         for (int k = 0; k < 3; k++) E[k] += V[i][k] * z[i];
   }
 }
-

@@ -40,33 +40,38 @@ void gi__shadow_rays(const gi_scene *s, const float p[3], const float *n, float 
   gi__shadow_rays_sided(s, p, p, n, voxel, ls, count, sc);
 }
 
+/* Ray i toward sample l from start o: its direction into d and its far
+ * end. A light at a finite distance is aimed at (aim: from the offset
+ * start at the sampled point itself, else along w from o); the segment
+ * stops GI_SHADOW_SHORTEN short of it. p is the point l was sampled for.
+ * Aiming matters: along w from the start, the segment would end up to the
+ * offset past the light and meet an emitter's own surface (Cornell's
+ * default bake: indirect bias 0.91 instead of 1.04 at 0.02 voxels, 0.63
+ * at 0.05). */
+static float segment(const float p[3], const float o[3], const gi_lsample *l, int aim, float d[3]) {
+  memcpy(d, l->w, sizeof(float[3]));
+  if (isinf(l->dist)) return INFINITY;
+  float len = l->dist;
+  if (aim) {
+    float e[3];
+    for (int k = 0; k < 3; k++) e[k] = p[k] + l->dist * l->w[k] - o[k];
+    float el = gi__len(e);
+    if (el > 0) {
+      for (int k = 0; k < 3; k++) d[k] = e[k] / el;
+      len = el;
+    }
+  }
+  return len * (1.f - GI_SHADOW_SHORTEN);
+}
+
 void gi__shadow_rays_sided(const gi_scene *s, const float pp[3], const float pn[3], const float *n, float voxel,
                            const gi_lsample *ls, int count, gi_ray_scratch *sc) {
   if (count > sc->cap) count = sc->cap;
   for (int i = 0; i < count; i++) {
-    float *o = &sc->org[3 * i], *d = &sc->dir[3 * i];
+    float *o = &sc->org[3 * i];
     const float *p = n && gi__dot(n, ls[i].w) < 0 ? pn : pp;
     sc->tn[i] = gi__shadow_origin(p, n, voxel, ls[i].w, o);
-    memcpy(d, ls[i].w, sizeof(float[3]));
-    if (isinf(ls[i].dist)) {
-      sc->tf[i] = INFINITY;
-      continue;
-    }
-    float len = ls[i].dist;
-    if (n) {
-      /* Aim from the offset start at the sampled point itself: along w from
-       * the start, the segment would end up to the offset past the light
-       * and meet an emitter's own surface (Cornell's default bake: indirect
-       * bias 0.91 instead of 1.04 at 0.02 voxels, 0.63 at 0.05). */
-      float e[3], l;
-      for (int k = 0; k < 3; k++) e[k] = p[k] + ls[i].dist * ls[i].w[k] - o[k];
-      l = gi__len(e);
-      if (l > 0) {
-        for (int k = 0; k < 3; k++) d[k] = e[k] / l;
-        len = l;
-      }
-    }
-    sc->tf[i] = len * (1.f - GI_SHADOW_SHORTEN);
+    sc->tf[i] = segment(p, o, &ls[i], n != NULL, &sc->dir[3 * i]);
   }
   gi__occluded(s, count, sc->org, sc->dir, sc->tn, sc->tf, sc->vis);
 }
@@ -75,22 +80,9 @@ void gi__shadow_rays_from(const gi_scene *s, const float p[3], const float o[3],
                           int count, gi_ray_scratch *sc) {
   if (count > sc->cap) count = sc->cap;
   for (int i = 0; i < count; i++) {
-    float *d = &sc->dir[3 * i];
     memcpy(&sc->org[3 * i], o, sizeof(float[3]));
-    memcpy(d, ls[i].w, sizeof(float[3]));
     sc->tn[i] = tnear;
-    float len = ls[i].dist;
-    if (isfinite(len)) {
-      /* Aimed at the sampled point, as from a surface's offset start. */
-      float e[3];
-      for (int k = 0; k < 3; k++) e[k] = p[k] + ls[i].dist * ls[i].w[k] - o[k];
-      float l = gi__len(e);
-      if (l > 0) {
-        for (int k = 0; k < 3; k++) d[k] = e[k] / l;
-        len = l;
-      }
-    }
-    sc->tf[i] = isinf(len) ? INFINITY : len * (1.f - GI_SHADOW_SHORTEN);
+    sc->tf[i] = segment(p, o, &ls[i], 1, &sc->dir[3 * i]);
   }
   gi__occluded(s, count, sc->org, sc->dir, sc->tn, sc->tf, sc->vis);
 }
