@@ -156,7 +156,7 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
   c->auto_bounces = !qin || qin->bounces == 0;
   int tail;
   if ((rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err)) != GI_OK) goto fail;
-  if (c->report.effects[GI_FX_AO].ran) q.ao = 1;
+  q.ao = c->report.effects[GI_FX_AO].ran; /* the plan decides: --effect ao=off wins over --ao */
   c->report.quality = q;
   c->tail = tail;
   for (int d = 0; d < c->n; d++) {

@@ -401,7 +401,8 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   }
   if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
   else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
-  else if (abar <= 0 && fb != GI_FX_ON) set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
+  else if (abar <= 0 && fb != GI_FX_ON)
+    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
   else if (auto_bounces && tail)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, the "
                                "tail brings %.1f%% of direct (at most %d, %d when it brings <= %.0f%%)", q->bounces, abar,
@@ -424,7 +425,9 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
     set_fx(r, GI_FX_SPECULAR, 0, "%u glossy triangle%s in range: camera views trace it; probe output has no view "
                                  "direction", glossy, glossy > 1 ? "s" : "");
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
-  if (gi__fx_forced(q, GI_FX_AO) == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
+  int fao = gi__fx_forced(q, GI_FX_AO);
+  if (fao == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
+  else if (fao == GI_FX_OFF) set_fx(r, GI_FX_AO, 0, "turned off by the request");
   else set_fx(r, GI_FX_AO, 0, "not requested");
   *tail_out = tail && r->effects[GI_FX_BOUNCE].ran;
   return GI_OK;

@@ -15,7 +15,9 @@
  *     forcing it on changes no probe value and no pixel of a street view,
  *     though the forced pass traces a cone at every pixel it shades;
  *   a camera view of a scene with one glossy quad traces the specular cone
- *     at exactly the glossy quad's pixels on auto, at none when off. */
+ *     at exactly the glossy quad's pixels on auto, at none when off;
+ *   the report's quality says what ran (bounces, ao) where the plan
+ *     overrode the request. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
@@ -283,6 +285,35 @@ static void test_bad_override(void **state) {
   gi_scene_release(s);
 }
 
+/* The report says what ran: a black box (albedo 0, its own emission)
+ * skips the bounce and reports 0 bounces (it said 1); ao asked for and
+ * turned off by an override reports ao off, "turned off" (it said "not
+ * requested", with quality.ao still 1), and the probe carries no ao. */
+static void test_report_matches_plan(void **state) {
+  gi_scene *s = make_box(0.0, 1.0, NULL);
+  const double at[3] = {0.5, 0.5, 0.5};
+  gi_quality q = {.levels = 2, .res = 16};
+  gi_bake_report rep;
+  gi_probe p;
+  bake_at(s, at, &q, &rep, &p);
+  assert_false(rep.effects[GI_FX_BOUNCE].ran);
+  assert_int_equal(rep.quality.bounces, 0);
+  assert_int_equal(rep.bounces_run, 0);
+  gi_scene_release(s);
+  s = make_box(0.5, 1.0, NULL);
+  q.ao = 1;
+  bake_at(s, at, &q, &rep, &p);
+  assert_true(rep.effects[GI_FX_AO].ran);
+  assert_int_equal(rep.quality.ao, 1);
+  q.effects[GI_FX_AO] = GI_FX_OFF;
+  bake_at(s, at, &q, &rep, &p);
+  assert_false(rep.effects[GI_FX_AO].ran);
+  assert_int_equal(rep.quality.ao, 0);
+  assert_string_equal(rep.effects[GI_FX_AO].why, "turned off by the request");
+  assert_float_equal(p.ao, 1.0, 0);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bounces_from_albedo),
@@ -291,6 +322,7 @@ int main(void) {
       cmocka_unit_test(test_munich_no_specular),
       cmocka_unit_test(test_view_traces_glossy_pixels_only),
       cmocka_unit_test(test_bad_override),
+      cmocka_unit_test(test_report_matches_plan),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -379,7 +379,7 @@ static gi_result replan(struct gi_cascade *c, gi_quality *q, int *tail, int *rel
   *q = c->plan_q;
   gi_result rc = gi__plan_effects(c, q, c->auto_bounces, &c->report, tail, err);
   if (rc != GI_OK) return rc;
-  if (c->report.effects[GI_FX_AO].ran) q->ao = 1;
+  q->ao = c->report.effects[GI_FX_AO].ran;
   c->report.quality = *q;
   *relit = 0;
   for (size_t i = 0; i < sizeof lights / sizeof lights[0]; i++)
