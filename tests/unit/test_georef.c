@@ -330,6 +330,20 @@ static void test_malformed(void **state) {
              "line 5: face corner 2: texture coordinate index '5' is not one of the 1 texture coordinates");
   expect_bad("vt-word.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/q\n",
              "line 5: face corner 3: texture coordinate index 'q'");
+  /* A normal index past the vn lines, or not a number: refused the same
+   * way, though normals are not read (such a file was taken as it was). */
+  expect_bad("vn-oor.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//2\n",
+             "line 5: face corner 3: normal index '2' is not one of the 1 normals (vn)");
+  expect_bad("vn-word.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1/x 2/1 3/1\n",
+             "line 5: face corner 1: normal index 'x' is not one of the 0 normals");
+  {
+    const char *ok = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1//1 2/1/-1 3/1/1\nf 1 2/1 3\n";
+    const char *path = tu_write_file("vn-ok.obj", ok, strlen(ok));
+    gi_scene *s = NULL;
+    gi_error_info err = {0};
+    assert_int_equal(gi_scene_load(path, NULL, &s, &err), GI_OK);
+    gi_scene_release(s);
+  }
   expect_bad("usemtl.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl  \nf 1 2 3\n", "line 4: usemtl needs a material name");
   const char *head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
                      "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";

@@ -252,6 +252,21 @@ static int obj_tex_index(const char *e, const gi__exact_mesh *m, uint32_t *k) {
   return 0;
 }
 
+/* 0 when the corner at e ("/t", "/t/n", "//n" or nothing) names no
+ * normal or one of the m->nvn defined so far; -1 otherwise (a file with a
+ * bad normal index is a bad file, though normals are not read). */
+static int obj_normal_index(const char *e, const gi__exact_mesh *m) {
+  if (*e != '/') return 0;
+  const char *n = strchr(e + 1, '/');
+  if (!n || (n - e) > (long)strcspn(e, " \t\r\n\f\v")) return 0;
+  char *end;
+  errno = 0;
+  long long i = strtoll(n + 1, &end, 10);
+  long long k = i > 0 ? i - 1 : (long long)m->nvn + i;
+  if (end == n + 1 || errno || (*end && !is_blank(*end)) || i == 0 || k < 0 || k >= (long long)m->nvn) return -1;
+  return 0;
+}
+
 /* "vt u [v [w]]": the first two; a missing v is 0. */
 static gi_result obj_texcoord(const char *path, size_t line, char *s, gi__exact_mesh *m, gi_error_info *err) {
   double t[2] = {0, 0};
@@ -306,9 +321,15 @@ static gi_result obj_indices(const char *path, size_t line, char *s, const char 
                       "scene file '%s' line %zu: %s corner %d: texture coordinate index '%.*s' is not one of the "
                       "%zu texture coordinates (vt) defined so far", path, line, what, n + 1,
                       (int)strcspn(e + 1, "/ \t\r\n\f\v"), e + 1, m->nuv);
+    if (obj_normal_index(e, m) < 0) {
+      const char *ni = strchr(e + 1, '/') + 1;
+      return gi__fail(err, GI_ERR_FORMAT,
+                      "scene file '%s' line %zu: %s corner %d: normal index '%.*s' is not one of the %zu normals "
+                      "(vn) defined so far", path, line, what, n + 1, (int)strcspn(ni, " \t\r\n\f\v"), ni, m->nvn);
+    }
     if (tex) tex[n] = t;
     poly[n++] = (uint32_t)k;
-    while (*e && !is_blank(*e)) e++; /* normal indices are not used */
+    while (*e && !is_blank(*e)) e++;
     s = e;
   }
   if (n < min)
@@ -499,6 +520,8 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
       rc = obj_vertex(path, line, rest, m, err);
     } else if (keyword(s, "vt", &rest)) {
       rc = obj_texcoord(path, line, rest, m, err);
+    } else if (keyword(s, "vn", &rest)) {
+      m->nvn++;
     } else if (keyword(s, "f", &rest)) {
       rc = obj_face(path, line, rest, mat, m, err);
     } else if (keyword(s, "usemtl", &rest)) {

@@ -30,6 +30,7 @@ typedef struct gi__exact_mesh {
   size_t cap_c;
   float *uv;       /* OBJ: 2 per vt line (u, v up) */
   size_t nuv, cap_uv;
+  size_t nvn;         /* OBJ vn statements seen: normals are not read, their indices are checked */
   uint32_t *tuv;   /* OBJ: 3 per triangle, each corner's vt (GI__EXACT_NO_UV: none) once any face has them; else NULL */
   size_t cap_tuv;
   char *mtllib;    /* OBJ: its mtllib statements, one per line, NUL-terminated; or NULL */
