@@ -94,7 +94,10 @@ static void test_builder_drops(void **state) {
   const double ninf[9] = {0, 0, 0, 1, 0, 0, 0, 1, -INFINITY};
   const double coll[9] = {0, 0, 0, 1, 1, 1, 2, 2, 2};
   const double tiny[9] = {0, 0, 0, 1, 0, 0, 2, 1e-14, 0}; /* height 1e-14 over length 2 */
+  /* Finite in double, past float: it made the bounds Inf and the default viewpoint NaN. */
+  const double huge[9] = {0, 0, 0, 1e39, 0, 0, 0, 1e39, 0};
   add_tri(b, good, mi);
+  add_tri(b, huge, mi);
   add_tri(b, nan1, mi);
   add_tri(b, inf1, mi);
   add_tri(b, ninf, mi);
@@ -108,9 +111,9 @@ static void test_builder_drops(void **state) {
   assert_int_equal(gi_scene_build(b, NULL, NULL, &s, &err), GI_OK);
   gi_scene_stats st;
   gi_scene_get_stats(s, &st);
-  assert_int_equal(st.input_triangles, 7);
+  assert_int_equal(st.input_triangles, 8);
   assert_int_equal(st.triangles, 1);
-  assert_int_equal(st.dropped_nonfinite, 3);
+  assert_int_equal(st.dropped_nonfinite, 4);
   assert_int_equal(st.dropped_degenerate, 3);
   /* Only the kept triangle's vertices remain; the origin is its bounds' centre. */
   assert_int_equal(s->num_vertices, 3);

@@ -91,7 +91,7 @@ typedef struct gi_scene_options {
 typedef struct gi_scene_stats {
   uint64_t input_triangles;
   uint64_t triangles;          /* kept */
-  uint64_t dropped_nonfinite;  /* NaN/Inf positions */
+  uint64_t dropped_nonfinite;  /* NaN/Inf positions, or past float's range (3.4e38) */
   uint64_t dropped_degenerate; /* zero area (incl. repeated vertices) */
   uint64_t dropped_see_through; /* of materials passing >= half the light straight through (glass,
                                    alpha-blended): left out, they pass it all */

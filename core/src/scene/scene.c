@@ -14,6 +14,7 @@
  * builder with no materials gets one default grey diffuse material, so a
  * quick test or generator need not define one. After gi_scene_build returns
  * the scene is read-only; only its reference count changes. */
+#include <float.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -247,6 +248,13 @@ static int finite3d(const double *p) {
   return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
 }
 
+/* Finite in float too: the scene's bounds and every stage after the load
+ * hold positions as floats off an origin, so a corner past 3.4e38 (finite
+ * in the file's double) made the bounds Inf and the default viewpoint NaN. */
+static int float_finite3d(const double *p) {
+  return finite3d(p) && fabs(p[0]) <= FLT_MAX && fabs(p[1]) <= FLT_MAX && fabs(p[2]) <= FLT_MAX;
+}
+
 /* Validates and copies one light; the message names the light by index. */
 static gi_result check_light(gi_light *l, size_t i, gi_error_info *err) {
   if ((int)l->type < GI_LIGHT_SUN || (int)l->type > GI_LIGHT_SKY)
@@ -339,7 +347,7 @@ static void classify(const gi_mesh_builder *b, double scale, gi_scene *s, build_
     int fin = 1;
     for (int j = 0; j < 3; j++) {
       for (int k = 0; k < 3; k++) p[j][k] = b->v[3 * (size_t)ti[j] + k] * scale;
-      fin &= finite3d(p[j]);
+      fin &= float_finite3d(p[j]);
     }
     if (!fin) { t->cls[tr] = TRI_NONFINITE; s->stats.dropped_nonfinite++; continue; }
     double longest2, a2 = tri_area2(p[0], p[1], p[2], &longest2);
@@ -359,7 +367,7 @@ static void classify(const gi_mesh_builder *b, double scale, gi_scene *s, build_
     /* Empty scene: the origin is the centre of whatever finite vertices exist, else 0. */
     for (size_t i = 0; i < b->nv; i++) {
       double p[3] = {b->v[3 * i] * scale, b->v[3 * i + 1] * scale, b->v[3 * i + 2] * scale};
-      if (finite3d(p)) grow_box(p, lo, hi);
+      if (float_finite3d(p)) grow_box(p, lo, hi);
     }
   }
 }
