@@ -713,10 +713,12 @@ static void test_albedo_extremes(void **state) {
 static void test_light_extremes(void **state) {
   const double o[3] = {0, 0, 0};
   /* Up to the brightest light a scene takes (gi_scene.h). */
-  const float light[] = {1.f, 1e-6f, 1e6f, GI_MAX_LIGHT_VALUE};
-  gi_probe pr[4][2];
+  /* 1e-36: the texels' scale went subnormal under 1.5e-35 and every
+   * answer NaN (texel.c). */
+  const float light[] = {1.f, 1e-6f, 1e6f, GI_MAX_LIGHT_VALUE, 1e-36f};
+  gi_probe pr[5][2];
   double worst = 0;
-  for (int i = 0; i < 4; i++) {
+  for (int i = 0; i < 5; i++) {
     gi_scene *s = room_scene(o, 0.6f, light[i]);
     bake_gather(s, room_at, &small_q, room_pts, 2, pr[i]);
     gi_scene_release(s);
@@ -727,7 +729,7 @@ static void test_light_extremes(void **state) {
       }
     printf("hardcase: light %.0e: probe E %.6g\n", light[i], mean3(pr[i][0].irradiance));
   }
-  printf("hardcase: lights 1e-6, 1e6 and 1e20: largest departure from linear scaling %.3g\n", worst);
+  printf("hardcase: lights 1e-6, 1e6, 1e20 and 1e-36: largest departure from linear scaling %.3g\n", worst);
   /* Light transport is linear; in float the pipeline is linear to rounding
    * (measured 4.9e-6 with the 1e20 light, 7.6e-8 up to 1e6). Bound 1e-4. */
   assert_true(worst <= 1e-4);

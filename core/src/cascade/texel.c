@@ -6,6 +6,7 @@
  * near half's largest, 65504. The scale is proportional to the light (not
  * rounded to a power of two), so a scene lit a million times brighter
  * stores the same halves: lighting stays linear in the lights. */
+#include <float.h>
 #include <math.h>
 #include "cascade/cascade_internal.h"
 
@@ -33,6 +34,10 @@ void gi__vrad_pack(const struct gi_cascade *c, const gi_vrad_f *in, gi_vrad *r) 
   }
 }
 
+/* At least FLT_MIN: under 1.5e-35 of brightest the scale went subnormal,
+ * its inverse Inf, and an unlit texel's 0 x Inf NaN (a scene lit only by
+ * a 1e-35 sun failed). Light that dim keeps half's precision relative to
+ * FLT_MIN instead, which loses nothing a float could show. */
 void gi__vrad_rescale(struct gi_cascade *c, float brightest) {
-  c->rad_scale = brightest > 0 && isfinite(brightest) ? brightest / GI_RAD_BRIGHTEST_STORED : 1.0f;
+  c->rad_scale = brightest > 0 && isfinite(brightest) ? fmaxf(brightest / GI_RAD_BRIGHTEST_STORED, FLT_MIN) : 1.0f;
 }
