@@ -84,6 +84,12 @@ far 1 --at 1.9e18,1.7,0
 printf '1e20 1 1\n0 1.7 0\n' > "$T/far.txt"
 far 0 --probes "$T/far.txt"
 far 0 --point 1e19,1,1,1,1,1
+# Past 1e30 a lamp's position is refused (2, named): at 1e39 it went Inf in
+# float and every answer NaN ('internal error: non-finite value').
+far 2 --point 1e39,1,1,1,1,1
+grep -q "^gi-bake: --point: position X,Y,Z must be within 1e30" "$T/err" && pass "a far lamp is named" \
+  || fail "far lamp: $(cat "$T/err")"
+far 2 --spot 0,-1e31,0,0,1,0,10,20,1,1,1
 # The core's message names its stage once ("bake: bake: the voxel size" stuttered).
 far 1 --at 1e7,0,0 --voxel 1e-9
 grep -q "^gi-bake: bake: the voxel size 1e-09 is too small" "$T/err" && pass "a bake error names 'bake:' once" \

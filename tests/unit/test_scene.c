@@ -254,6 +254,11 @@ static void test_lights(void **state) {
   assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_NONFINITE);
   assert_null(s);
   assert_non_null(strstr(err.msg, "light 1"));
+  /* Past float's range: refused, naming the light (it went NaN in the bake). */
+  l[1].position[0] = 1e39;
+  assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_INVALID_ARG);
+  assert_null(s);
+  assert_non_null(strstr(err.msg, "light 1: position (1e+39, 2, 3) is out of range"));
   l[1].position[0] = 0;
   l[0].direction[2] = 0;
   assert_int_equal(gi_scene_build(b, NULL, &o, &s, &err), GI_ERR_INVALID_ARG);

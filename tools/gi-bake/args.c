@@ -206,11 +206,19 @@ static int unit_direction(const double d[3], float out[3]) {
   return 1;
 }
 
+/* A lamp's position within 1e30 of the origin (the server's bound for a
+ * point): past float's range its direction went NaN inside the bake. */
+static int position_ok(const char *opt, const double v[3], const char *arg) {
+  for (int k = 0; k < 3; k++)
+    if (!(fabs(v[k]) <= 1e30)) return ta_fail(&ta, opt, "position X,Y,Z must be within 1e30 of the origin, got '%s'", arg);
+  return 0;
+}
+
 /* --spot X,Y,Z,DX,DY,DZ,INNER,OUTER,R,G,B */
 static int parse_spot(const char *opt, const char *arg, gi_light *l) {
   double v[11];
   int rc = ta_doubles(&ta, opt, "eleven finite numbers X,Y,Z,DX,DY,DZ,INNER,OUTER,R,G,B", arg, 11, v);
-  if (rc) return rc;
+  if (rc || (rc = position_ok(opt, v, arg))) return rc;
   if (!unit_direction(v + 3, l->direction))
     return ta_fail(&ta, opt, "direction DX,DY,DZ must be a non-zero finite vector, got '%s'", arg);
   if (!(v[6] > 0 && v[6] <= v[7] && v[7] < 180))
@@ -256,7 +264,7 @@ static int parse_sky(const char *opt, const char *arg, gi_light *l) {
 static int parse_point(const char *opt, const char *arg, gi_light *l) {
   double v[6];
   int rc = ta_doubles(&ta, opt, "six finite numbers X,Y,Z,R,G,B", arg, 6, v);
-  if (rc) return rc;
+  if (rc || (rc = position_ok(opt, v, arg))) return rc;
   if (!colour_ok(v + 3)) return colour_fail(opt, "intensity", arg);
   l->type = GI_LIGHT_POINT;
   for (int k = 0; k < 3; k++) {

@@ -269,6 +269,11 @@ static gi_result check_light(gi_light *l, size_t i, gi_error_info *err) {
                       (double)l->color[k], (double)GI_MAX_LIGHT_VALUE);
   if ((l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) && !finite3d(l->position))
     return gi__fail(err, GI_ERR_NONFINITE, "light %zu: position is not finite", i);
+  /* Positions become floats off the scene's origin: past float's range a
+   * lamp's direction went NaN and every answer with it. */
+  if ((l->type == GI_LIGHT_POINT || l->type == GI_LIGHT_SPOT) && !float_finite3d(l->position))
+    return gi__fail(err, GI_ERR_INVALID_ARG, "light %zu: position (%g, %g, %g) is out of range: expected |x|, |y|, "
+                    "|z| <= %g", i, l->position[0], l->position[1], l->position[2], (double)FLT_MAX);
   if (l->type == GI_LIGHT_SUN || l->type == GI_LIGHT_SPOT) {
     if (!gi__finite3(l->direction))
       return gi__fail(err, GI_ERR_NONFINITE, "light %zu: direction is not finite", i);
