@@ -110,6 +110,12 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
 gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi_quality *qin,
                              const gi_cancel *cancel, gi_cascade **out, gi_bake_report *report,
                              gi_error_info *err) {
+  return gi__cascade_bake_at(scene, at, qin, cancel, NULL, 0, out, report, err);
+}
+
+gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const gi_quality *qin,
+                              const gi_cancel *cancel, const float *pts, int npts, gi_cascade **out,
+                              gi_bake_report *report, gi_error_info *err) {
   /* out is checked first: every other failure writes NULL through it. */
   if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "bake: out is NULL");
   *out = NULL;
@@ -155,7 +161,10 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
   c->plan_q = q;
   c->auto_bounces = !qin || qin->bounces == 0;
   int tail;
-  if ((rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err)) != GI_OK) goto fail;
+  c->answer_pts = pts, c->num_answer_pts = pts ? npts : 0;
+  rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err);
+  c->answer_pts = NULL, c->num_answer_pts = 0; /* the caller's array */
+  if (rc != GI_OK) goto fail;
   q.ao = c->report.effects[GI_FX_AO].ran; /* the plan decides: --effect ao=off wins over --ao */
   c->report.quality = q;
   c->tail = tail;

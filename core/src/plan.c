@@ -210,12 +210,18 @@ static gi_result tris_in_range(const struct gi_cascade *c, float grow, uint32_t 
  * stops them all. The origins come from the snapped placement, not the raw
  * viewpoint, so viewpoints with equal anchors get the same plan. The cell
  * centre sits on an odd multiple of s0, off the even grid lines where
- * axis-aligned walls of round coordinates tend to lie. */
+ * axis-aligned walls of round coordinates tend to lie. Where the caller
+ * names the points its answers are gathered at (a lightmap tile's
+ * texels), HINT_PER rays from half a voxel off each side of each of them
+ * too: a tile's centre inside a box on a sky-lit floor saw no sky, and
+ * every texel around it lost the sky's bounce light. */
+#define MAX_HINTS 32
+#define HINT_PER 8
 static int sky_rays(const struct gi_cascade *c, int *tested) {
   const gi_scene *s = c->scene;
-  enum { ORG = 7, PER = 32 };
-  float org[3 * ORG * PER], dir[3 * ORG * PER], tn[ORG * PER], tf[ORG * PER];
-  uint8_t vis[ORG * PER];
+  enum { ORG = 7, PER = 32, MAXR = ORG * PER + 2 * MAX_HINTS * HINT_PER };
+  float org[3 * MAXR], dir[3 * MAXR], tn[MAXR], tf[MAXR];
+  uint8_t vis[MAXR];
   const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
   float t[3], b[3];
   gi__basis(up, t, b);
@@ -233,6 +239,23 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
       float phi = 2 * GI_PI_F * gi__u01(&rng);
       for (int k = 0; k < 3; k++) {
         org[3 * n + k] = p[k];
+        dir[3 * n + k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + ct * up[k];
+      }
+      tn[n] = 0;
+      tf[n] = INFINITY;
+    }
+  }
+  int nh = c->num_answer_pts < MAX_HINTS ? c->num_answer_pts : MAX_HINTS;
+  for (int h = 0; h < 2 * nh; h++) {
+    /* Evenly over the caller's points, each side in turn. */
+    const float *P = c->answer_pts + 6 * ((size_t)(h / 2) * (size_t)c->num_answer_pts / (size_t)nh);
+    float off = (h & 1 ? -0.5f : 0.5f) * (float)L0->s;
+    uint64_t rng = gi__mix64(0x5c2ull + (uint64_t)h);
+    for (int j = 0; j < HINT_PER; j++, n++) {
+      float ct = ((float)j + gi__u01(&rng)) / HINT_PER, st = sqrtf(fmaxf(0.f, 1 - ct * ct));
+      float phi = 2 * GI_PI_F * gi__u01(&rng);
+      for (int k = 0; k < 3; k++) {
+        org[3 * n + k] = P[k] + off * P[3 + k];
         dir[3 * n + k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + ct * up[k];
       }
       tn[n] = 0;
@@ -322,6 +345,14 @@ static void local_why(const gi_scene *s, const gi_quality *q, gi_bake_report *r,
     set_fx(r, GI_FX_LOCAL, 1, "%d point/spot lights through a light cut: %d rays per voxel, %d per probe", local, vc,
            pc);
   }
+}
+
+/* Ambient occlusion runs when asked for (--ao, or forced on), unless an override turns it off. */
+static void plan_ao(const gi_quality *q, gi_bake_report *r) {
+  int fao = gi__fx_forced(q, GI_FX_AO);
+  if (fao == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
+  else if (fao == GI_FX_OFF) set_fx(r, GI_FX_AO, 0, "turned off by the request");
+  else set_fx(r, GI_FX_AO, 0, "not requested");
 }
 
 /* The effect plan: what this scene and request call for, with reasons.
@@ -425,10 +456,7 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
     set_fx(r, GI_FX_SPECULAR, 0, "%u glossy triangle%s in range: camera views trace it; probe output has no view "
                                  "direction", glossy, glossy > 1 ? "s" : "");
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
-  int fao = gi__fx_forced(q, GI_FX_AO);
-  if (fao == GI_FX_ON) set_fx(r, GI_FX_AO, 1, "requested, lambda %.3g per unit", q->ao_lambda);
-  else if (fao == GI_FX_OFF) set_fx(r, GI_FX_AO, 0, "turned off by the request");
-  else set_fx(r, GI_FX_AO, 0, "not requested");
+  plan_ao(q, r);
   *tail_out = tail && r->effects[GI_FX_BOUNCE].ran;
   return GI_OK;
 }

@@ -875,6 +875,60 @@ static void test_region_reaching_texels(void **state) {
   gi_scene_release(s);
 }
 
+/* Mean indirect light (red) of the valid texels whose normal is horizontal
+ * (a box's sides), and the report, of a lightmap of s with quality q. */
+static double side_indirect(gi_scene *s, const gi_quality *q, gi_lightmap_report *rep) {
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  assert_int_equal(gi_lightmap_bake(lm, q, NULL, rep, &err), GI_OK);
+  double sum = 0;
+  size_t n = 0;
+  gi_lightmap_atlas a;
+  gi_lightmap_get_atlas(lm, 0, &a);
+  for (size_t i = 0; i < (size_t)a.width * a.height; i++)
+    if (a.valid[i] != 0 && fabsf(a.normal[3 * i + 1]) < 0.01f) sum += a.indirect[3 * i], n++;
+  assert_true(n > 16);
+  gi_lightmap_free(lm);
+  return sum / (double)n;
+}
+
+/* A tile's cascade centred inside a solid box on a sky-lit floor: the
+ * plan tested the sky only around the tile's centre, saw none, and every
+ * texel lost the sky's bounce (the box's sides read 0). The plan now tests
+ * from the tile's texels too: the sides read as with the sky forced on. */
+static void test_tile_centre_inside_solid(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double f[4][3] = {{-5, 0, -5}, {-5, 0, 5}, {5, 0, 5}, {5, 0, -5}}, lo[3] = {-0.5, 0, -0.5}, hi[3] = {0.5, 1, 0.5};
+  gi_mesh_builder_add_quad(b, f[0], f[1], f[2], f[3], mat);
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
+  gi_scene_options so = {.up = GI_UP_Y, .lights = &sky, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "box-on-floor", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  /* Level 0 (0.64 across) lies inside the box: every origin of the old test did. */
+  gi_quality q = {.levels = 6, .res = 16, .voxel0 = 0.04, .probe_samples = 16, .cones = 6};
+  gi_lightmap_report rep;
+  double autos = side_indirect(s, &q, &rep);
+  assert_int_equal(rep.tiles, 1);
+  printf("box on a sky-lit floor, tile centred inside it: sky %s (%s), sides' indirect %.4f\n",
+         rep.effects[GI_FX_SKY].ran ? "ran" : "skipped", rep.effects[GI_FX_SKY].why, autos);
+  assert_true(rep.effects[GI_FX_SKY].ran);
+  assert_int_equal(rep.effect_tiles[GI_FX_SKY], 1);
+  q.effects[GI_FX_SKY] = GI_FX_ON;
+  double forced = side_indirect(s, &q, &rep);
+  printf("  forced on: %.4f\n", forced);
+  assert_true(autos > 0.2);
+  assert_true(fabs(autos - forced) <= 1e-6 * forced);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
@@ -890,6 +944,7 @@ int main(void) {
       cmocka_unit_test(test_small_res_tiles),
       cmocka_unit_test(test_region_reaching_texels),
       cmocka_unit_test(test_no_dark_seams),
+      cmocka_unit_test(test_tile_centre_inside_solid),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

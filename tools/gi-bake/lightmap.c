@@ -121,6 +121,17 @@ static json_t *timings_json(const gi_lightmap_report *r, const lm_times *t) {
                    "gather", r->ms.gather, "encode", t->encode, "total", t->total);
 }
 
+/* The tiles' effect plans, as gi-bake's own report gives one bake's (its
+ * JSON adds how many tiles ran each). */
+static json_t *effects_json(const gi_lightmap_report *r) {
+  json_t *fx = json_object();
+  for (int i = 0; i < GI_FX_COUNT; i++)
+    json_object_set_new(fx, gi_effect_name((gi_effect_id)i),
+                        json_pack("{s:b,s:i,s:s}", "ran", r->effects[i].ran, "tiles", r->effect_tiles[i], "why",
+                                  r->effects[i].why));
+  return fx;
+}
+
 static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_lightmap_report *r, const lm_times *t) {
   size_t na = gi_lightmap_num_atlases(lm);
   if (!o->json) {
@@ -132,6 +143,11 @@ static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_ligh
     printf("stages (ms): load %.2f, layout %.2f, voxelize %.2f, inject %.2f, filter %.2f, bounce %.2f, gather %.2f, "
            "encode %.2f, total %.2f\n", t->load, r->layout_ms + r->sort_ms, r->ms.voxelize, r->ms.inject,
            r->ms.filter, r->ms.bounce, r->ms.gather, t->encode, t->total);
+    printf("effects (of %d tile%s)\n", r->tiles, r->tiles == 1 ? "" : "s");
+    for (int i = 0; i < GI_FX_COUNT; i++)
+      printf("           %-13s %-8s %d tile%s: %s\n", gi_effect_name((gi_effect_id)i),
+             r->effects[i].ran ? "ran" : "skipped", r->effect_tiles[i], r->effect_tiles[i] == 1 ? "" : "s",
+             r->effects[i].why);
     return;
   }
   json_t *j = json_pack("{s:I,s:I,s:I,s:I,s:I,s:I,s:i,s:f,s:f,s:f,s:f,s:f,s:o,s:s,s:s?}", "triangles",
@@ -140,6 +156,7 @@ static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_ligh
                         (json_int_t)r->texels_filled, "tiles", r->tiles, "layout_ms", r->layout_ms, "cascade_ms",
                         r->cascade_ms, "gather_ms", r->gather_ms, "fill_ms", r->fill_ms, "total_ms", t->total,
                         "timings_ms", timings_json(r, t), "exr", o->lm.out, "glb", o->lm.uv_out);
+  json_object_set_new(j, "effects", effects_json(r));
   json_t *root = json_pack("{s:o}", "lightmap", j);
   char *s = json_dumps(root, JSON_INDENT(2));
   if (s) puts(s);

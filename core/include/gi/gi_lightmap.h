@@ -88,6 +88,11 @@ typedef struct gi_lightmap_report {
    * (again for each smaller default tile tried).
    * With layout_ms it is the layout stage. */
   double sort_ms;
+  /* The tiles' effect plans: effects[i].ran when any tile ran effect i,
+   * its why that of the first tile that ran it (else of the first tile),
+   * effect_tiles[i] how many tiles ran it. */
+  gi_effect effects[GI_FX_COUNT];
+  int effect_tiles[GI_FX_COUNT];
 } gi_lightmap_report;
 
 /* Charts and packing for the triangles of opts' region. Fails with

@@ -265,7 +265,18 @@ struct gi_cascade {
   } survey;
   /* The move's re-bake in slices (move/move.c); NULL until the first move. */
   struct gi_move_state *move_state;
+  /* Points the answers will be gathered at, besides the viewpoint, during
+   * gi__cascade_bake_at only (the caller's array; NULL otherwise): 6 floats
+   * each, a surface point and its normal, local. The plan tests the sky
+   * from both sides of each too (plan.c). */
+  const float *answer_pts;
+  int num_answer_pts;
 };
+
+/* gi_cascade_bake_ex for answers gathered at pts (see answer_pts). */
+gi_result gi__cascade_bake_at(const struct gi_scene *scene, const double at[3], const gi_quality *q,
+                              const gi_cancel *cancel, const float *pts, int npts, gi_cascade **out,
+                              gi_bake_report *report, gi_error_info *err);
 
 static inline int64_t gi__floordiv(int64_t a, int64_t b) {
   int64_t q = a / b;

@@ -134,16 +134,47 @@ static int chart_point(const gi_lightmap *lm, const gi_lm_chart *c, const float 
 /* The texel's anchor: the first of its footprint points on the chart, in
  * bake_texel's order (pass 0's first, else pass 1's); 0 when it has none
  * (a gutter). Local coordinates. */
-static int texel_anchor(const gi_lightmap *lm, const gi_lm_chart *c, int x, int y, float X[3]) {
+static int texel_anchor_tri(const gi_lightmap *lm, const gi_lm_chart *c, int x, int y, float X[3], uint32_t *tri) {
   int ss = lm->opts.supersample;
   for (int pass = 0; pass < 2; pass++)
     for (int sub = 0; sub < ss * ss; sub++) {
       float p[2];
-      uint32_t tri;
       sub_point(x, y, ss, sub, p);
-      if (chart_point(lm, c, p, pass, &tri, X)) return 1;
+      if (chart_point(lm, c, p, pass, tri, X)) return 1;
     }
   return 0;
+}
+
+static int texel_anchor(const gi_lightmap *lm, const gi_lm_chart *c, int x, int y, float X[3]) {
+  uint32_t tri;
+  return texel_anchor_tri(lm, c, x, y, X, &tri);
+}
+
+/* Up to TILE_HINTS of a tile's texels, evenly spread over its list, as
+ * the plan's answer points (cascade_internal.h): anchor and its triangle's
+ * unit normal. Returns how many. */
+#define TILE_HINTS 32
+static int tile_hints(const gi_lightmap *lm, const uint64_t *texels, size_t nj, float out[TILE_HINTS][6]) {
+  int n = 0;
+  size_t want = nj < TILE_HINTS ? nj : TILE_HINTS;
+  for (size_t i = 0; i < want; i++) {
+    uint64_t t = texels[i * nj / want];
+    const gi_lm_chart *c = &lm->charts[t >> 32];
+    uint32_t tri;
+    if (!texel_anchor_tri(lm, c, c->pub.x + (int)(t & 0xffff), c->pub.y + (int)(t >> 16 & 0xffff), out[n], &tri))
+      continue;
+    const uint32_t *ix = &lm->scene->indices[3 * (size_t)tri];
+    const float *A = &lm->scene->vertices[3 * ix[0]], *B = &lm->scene->vertices[3 * ix[1]];
+    const float *C = &lm->scene->vertices[3 * ix[2]];
+    float e1[3], e2[3], nrm[3];
+    for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
+    gi__cross(e1, e2, nrm);
+    float len = gi__len(nrm);
+    if (!(len > 0)) continue;
+    for (int k = 0; k < 3; k++) out[n][3 + k] = nrm[k] / len;
+    n++;
+  }
+  return n;
 }
 
 /* Back-face share of a few rays over the hemisphere of n from x, and whether any front face was hit. */
@@ -328,7 +359,9 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   gi_result rc = GI_OK;
   double t0 = gi__now_ms();
   gi_bake_report br;
-  if ((rc = gi_cascade_bake_ex(lm->scene, at, q, cancel, &c, &br, err)) != GI_OK) goto done;
+  float hints[TILE_HINTS][6];
+  int nh = tile_hints(lm, texels, nj, hints);
+  if ((rc = gi__cascade_bake_at(lm->scene, at, q, cancel, &hints[0][0], nh, &c, &br, err)) != GI_OK) goto done;
   double t1 = gi__now_ms();
   const gi_quality *rq = &br.quality;
   int ss = lm->opts.supersample;
@@ -352,6 +385,10 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   rep->ms.inject += br.ms.inject;
   rep->ms.filter += br.ms.filter;
   rep->ms.bounce += br.ms.bounce;
+  for (int i = 0; i < GI_FX_COUNT; i++) {
+    if (rep->tiles == 0 || (br.effects[i].ran && !rep->effect_tiles[i])) rep->effects[i] = br.effects[i];
+    rep->effect_tiles[i] += br.effects[i].ran != 0;
+  }
   rep->tiles++;
 done:
   gi_cascade_free(c);
