@@ -113,6 +113,22 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
   return gi__cascade_bake_at(scene, at, qin, cancel, NULL, 0, out, report, err);
 }
 
+gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
+                              const gi_quality *q, const gi_cancel *cancel, gi_cascade **out,
+                              gi_bake_report *report, gi_error_info *err) {
+  enum { MAX_PTS = 32 };
+  float hint[MAX_PTS][6];
+  int nh = 0;
+  size_t want = n < MAX_PTS ? n : MAX_PTS;
+  for (size_t i = 0; pts && scene && i < want; i++) {
+    const double *p = pts + 3 * (i * n / want);
+    if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) continue;
+    for (int k = 0; k < 3; k++) hint[nh][k] = (float)(p[k] - scene->origin[k]), hint[nh][3 + k] = 0;
+    nh++;
+  }
+  return gi__cascade_bake_at(scene, at, q, cancel, &hint[0][0], nh, out, report, err);
+}
+
 gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const gi_quality *qin,
                               const gi_cancel *cancel, const float *pts, int npts, gi_cascade **out,
                               gi_bake_report *report, gi_error_info *err) {

@@ -212,8 +212,8 @@ static gi_result tris_in_range(const struct gi_cascade *c, float grow, uint32_t 
  * centre sits on an odd multiple of s0, off the even grid lines where
  * axis-aligned walls of round coordinates tend to lie. Where the caller
  * names the points its answers are gathered at (a lightmap tile's
- * texels), HINT_PER rays from half a voxel off each side of each of them
- * too: a tile's centre inside a box on a sky-lit floor saw no sky, and
+ * texels; probes, with no normal: from the point itself), HINT_PER rays
+ * from half a voxel off each side of each of them too: a tile's centre inside a box on a sky-lit floor saw no sky, and
  * every texel around it lost the sky's bounce light. */
 #define MAX_HINTS 32
 #define HINT_PER 8
@@ -249,6 +249,7 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
   for (int h = 0; h < 2 * nh; h++) {
     /* Evenly over the caller's points, each side in turn. */
     const float *P = c->answer_pts + 6 * ((size_t)(h / 2) * (size_t)c->num_answer_pts / (size_t)nh);
+    if ((h & 1) && P[3] == 0 && P[4] == 0 && P[5] == 0) continue; /* a point in space: one side */
     float off = (h & 1 ? -0.5f : 0.5f) * (float)L0->s;
     uint64_t rng = gi__mix64(0x5c2ull + (uint64_t)h);
     for (int j = 0; j < HINT_PER; j++, n++) {

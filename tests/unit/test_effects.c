@@ -314,6 +314,46 @@ static void test_report_matches_plan(void **state) {
   gi_scene_release(s);
 }
 
+/* A viewpoint inside a solid box on a sky-lit floor sees no sky, and the
+ * plan skipped it: a probe beside the box lost the lit floor's bounce
+ * (indirect 0). Baked for that probe (gi_cascade_bake_for), the plan tests
+ * the sky from it too: the probe reads as with the sky forced on, and a
+ * bake for no points is the plain bake. */
+static void test_sky_from_answer_points(void **state) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double f[4][3] = {{-5, 0, -5}, {-5, 0, 5}, {5, 0, 5}, {5, 0, -5}}, lo[3] = {-0.5, 0, -0.5}, hi[3] = {0.5, 1, 0.5};
+  gi_mesh_builder_add_quad(b, f[0], f[1], f[2], f[3], mat);
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
+  gi_scene_options so = {.up = GI_UP_Y, .lights = &sky, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "box-on-floor", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  const double at[3] = {0, 0.5, 0}, beside[3] = {1.5, 0.5, 0};
+  gi_quality q = {.levels = 6, .res = 16, .voxel0 = 0.04, .probe_samples = 64};
+  gi_probe p[3];
+  gi_bake_report rep;
+  for (int i = 0; i < 3; i++) {
+    gi_cascade *c = NULL;
+    if (i == 2) q.effects[GI_FX_SKY] = GI_FX_ON;
+    if (i == 0) assert_int_equal(gi_cascade_bake_for(s, at, NULL, 0, &q, NULL, &c, &rep, &err), GI_OK);
+    else assert_int_equal(gi_cascade_bake_for(s, at, beside, 1, &q, NULL, &c, &rep, &err), GI_OK);
+    assert_int_equal(rep.effects[GI_FX_SKY].ran, i > 0);
+    assert_int_equal(gi_cascade_gather(c, beside, 1, &p[i], NULL, &err), GI_OK);
+    printf("box on a sky-lit floor, viewpoint inside: %s: sky %s, probe beside it indirect %.4f\n",
+           i == 0 ? "no points" : i == 1 ? "for the probe" : "sky forced on", rep.effects[GI_FX_SKY].ran ? "ran" : "skipped",
+           p[i].indirect[0]);
+    gi_cascade_free(c);
+  }
+  assert_true(p[0].indirect[0] == 0);
+  assert_true(p[1].indirect[0] > 0.02);
+  assert_true(p[1].indirect[0] == p[2].indirect[0]);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bounces_from_albedo),
@@ -323,6 +363,7 @@ int main(void) {
       cmocka_unit_test(test_view_traces_glossy_pixels_only),
       cmocka_unit_test(test_bad_override),
       cmocka_unit_test(test_report_matches_plan),
+      cmocka_unit_test(test_sky_from_answer_points),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

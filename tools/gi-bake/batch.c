@@ -120,7 +120,7 @@ static int bake_tile(batch_state *st, size_t t) {
   gi_bake_report rep;
   gi_cascade *cas = NULL;
   double t0 = batch_now_ms(), gms = 0;
-  gi_result r = gi_cascade_bake(st->scene, at, &st->q, &cas, &rep, &err);
+  gi_result r = gi_cascade_bake_for(st->scene, at, st->pts, m, &st->q, NULL, &cas, &rep, &err);
   double t1 = batch_now_ms();
   if (r == GI_OK) r = gi_cascade_gather(cas, st->pts, m, st->tile_probes, &gms, &err);
   gi_cascade_free(cas);

@@ -237,7 +237,8 @@ int main(int argc, char **argv) {
 
   gi_bake_report rep;
   memset(&rep, 0, sizeof rep);
-  if ((r = gi_cascade_bake(scene, o.at, &o.q, &cas, &rep, &err)) != GI_OK) {
+  /* The extra probes (after the viewpoint) count in the plan's sky test. */
+  if ((r = gi_cascade_bake_for(scene, o.at, pts + 3, n - 1, &o.q, NULL, &cas, &rep, &err)) != GI_OK) {
     rc = fail("bake", &err, r);
     goto done;
   }

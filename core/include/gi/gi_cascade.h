@@ -98,6 +98,15 @@ gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_qu
 gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi_quality *q,
                              const gi_cancel *cancel, gi_cascade **out, gi_bake_report *report,
                              gi_error_info *err);
+/* As gi_cascade_bake_ex, for answers to be gathered at pts (n world
+ * points, x y z each; may be NULL when n is 0) as well as at `at`: the
+ * effect plan also tests the sky from up to 32 of them (a viewpoint inside
+ * a solid box saw no sky and skipped it, and probes beside the box lost
+ * the sky-lit ground's bounce). Non-finite points are ignored. The
+ * cascade is otherwise the one gi_cascade_bake_ex makes. */
+gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
+                              const gi_quality *q, const gi_cancel *cancel, gi_cascade **out,
+                              gi_bake_report *report, gi_error_info *err);
 void gi_cascade_free(gi_cascade *c); /* accepts NULL */
 size_t gi_cascade_bytes(const gi_cascade *c);
 /* The most gi_cascade_bytes can report for a cascade baked with this

@@ -267,8 +267,8 @@ struct gi_cascade {
   struct gi_move_state *move_state;
   /* Points the answers will be gathered at, besides the viewpoint, during
    * gi__cascade_bake_at only (the caller's array; NULL otherwise): 6 floats
-   * each, a surface point and its normal, local. The plan tests the sky
-   * from both sides of each too (plan.c). */
+   * each, a surface point and its normal (0 for a point in space), local.
+   * The plan tests the sky from both sides of each too (plan.c). */
   const float *answer_pts;
   int num_answer_pts;
 };
