@@ -97,7 +97,9 @@ static void default_voxel(const gi_scene *s, gi_quality *q, int auto_levels) {
    * 20 m plane, turned, is 8.7e-7 m high), not a neighbourhood: flat. It
    * added levels to the cap and a finest voxel of 4.8e-5 m. */
   if (height < FLAT_SHARE * ext) height = 0;
-  double reach = fmin(ext, fmax(REACH_HEIGHTS * height, ext / REACH_WIDTH_DIV));
+  /* Flat: the whole extent (ext / 8 made a 10 m floor's coarsest level
+   * 1.6 m across, and its lightmap 676 tiles or none). */
+  double reach = height > 0 ? fmin(ext, fmax(REACH_HEIGHTS * height, ext / REACH_WIDTH_DIV)) : ext;
   if (!(reach > 0)) reach = 1.0;
   if (auto_levels && height > 0 && ext > reach) {
     double piece = LOCAL_HEIGHTS * height;
