@@ -1526,6 +1526,57 @@ static void test_gltf_uv_order(void **state) {
   gi_scene_release(b);
 }
 
+/* Two quads sharing the edge x = 0 with the same TEXCOORD_0 along it, each
+ * its own lightmap island (TEXCOORD_1 u 0.05..0.45 left, 0.55..0.95 right):
+ * a seam of the second UV set only. assimp 5.2 joined the edge's vertices
+ * (it compares the first UV set only): 8 vertices became 6 and the right
+ * quad's edge took the left island's u = 0.45, stretching it across both. */
+static void test_gltf_lightmap_seam(void **state) {
+  unsigned char buf[248] = {0};
+  const float pos[24] = {-4, 0, -2, 0, 0, -2, 0, 0, 2, -4, 0, 2, 0, 0, -2, 4, 0, -2, 4, 0, 2, 0, 0, 2};
+  float uv0[16], uv1[16];
+  const float u1[8] = {0.05f, 0.45f, 0.45f, 0.05f, 0.55f, 0.95f, 0.95f, 0.55f};
+  const float v1[8] = {0.05f, 0.05f, 0.45f, 0.45f, 0.05f, 0.05f, 0.45f, 0.45f};
+  for (int i = 0; i < 8; i++) {
+    uv0[2 * i] = (pos[3 * i] + 4) / 8, uv0[2 * i + 1] = (pos[3 * i + 2] + 2) / 4;
+    uv1[2 * i] = u1[i], uv1[2 * i + 1] = v1[i];
+  }
+  const unsigned short idx[12] = {0, 2, 1, 0, 3, 2, 4, 6, 5, 4, 7, 6};
+  memcpy(buf, pos, 96), memcpy(buf + 96, uv0, 64), memcpy(buf + 160, uv1, 64), memcpy(buf + 224, idx, 24);
+  char enc[340];
+  b64(buf, sizeof buf, enc);
+  static char json[2048];
+  int n = snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"TEXCOORD_0\":1,\"TEXCOORD_1\":2},"
+           "\"indices\":3}]}],"
+           "\"buffers\":[{\"byteLength\":248,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":96},"
+           "{\"buffer\":0,\"byteOffset\":96,\"byteLength\":64},{\"buffer\":0,\"byteOffset\":160,\"byteLength\":64},"
+           "{\"buffer\":0,\"byteOffset\":224,\"byteLength\":24}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":8,\"type\":\"VEC3\","
+           "\"min\":[-4,0,-2],\"max\":[4,0,2]},{\"bufferView\":1,\"componentType\":5126,\"count\":8,\"type\":\"VEC2\"},"
+           "{\"bufferView\":2,\"componentType\":5126,\"count\":8,\"type\":\"VEC2\"},"
+           "{\"bufferView\":3,\"componentType\":5123,\"count\":12,\"type\":\"SCALAR\"}]}",
+           enc);
+  gi_scene *s = load_ok(tu_write_file("lm_seam.gltf", json, (size_t)n), NULL);
+  assert_non_null(s->uv2);
+  assert_int_equal(s->num_triangles, 4);
+  assert_int_equal(s->num_vertices, 8);
+  for (uint32_t t = 0; t < 4; t++) {
+    double cx = 0;
+    for (int k = 0; k < 3; k++) cx += (s->vertices[3 * s->indices[3 * t + k]] + s->origin[0]) / 3;
+    /* Every corner in its own quad's island, at one of that island's two u. */
+    const float lo = cx > 0 ? 0.55f : 0.05f, hi = cx > 0 ? 0.95f : 0.45f;
+    for (int k = 0; k < 3; k++) {
+      float u = s->uv2[2 * s->indices[3 * t + k]];
+      if (fabsf(u - lo) > 1e-6f && fabsf(u - hi) > 1e-6f)
+        fail_msg("triangle %u (centre x %.2f): corner %d has lightmap u %.4f, not %.2f or %.2f", t, cx, k, u, lo, hi);
+    }
+  }
+  gi_scene_release(s);
+}
+
 /* Loading must fail with `code`, and the message must name the file and
  * contain `what` (the problem, in words a user can act on). */
 static void expect_bad(const char *path, gi_result code, const char *what) {
@@ -2431,6 +2482,7 @@ int main(void) {
       cmocka_unit_test(test_light_tree_picks),
       cmocka_unit_test(test_light_tree_faces),
       cmocka_unit_test(test_gltf_uv_order),
+      cmocka_unit_test(test_gltf_lightmap_seam),
       cmocka_unit_test(test_gltf_metal),
       cmocka_unit_test(test_collada_z_up),
       cmocka_unit_test(test_empty_scene),

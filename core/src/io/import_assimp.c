@@ -5,7 +5,8 @@
  * the bytes that follow (a header claiming 10^9 faces would otherwise make
  * assimp reserve gigabytes), and for FBX that its object connections do
  * not loop (io/fbx_check.c: assimp recursed until the stack ran out).
- * assimp then triangulates and joins vertices, and we walk its node graph
+ * assimp then triangulates and joins vertices (not in a scene with lightmap
+ * UVs: import_file), and we walk its node graph
  * (io/assimp_nodes.h: world transforms in double, mirrored nodes' winding
  * reversed) to copy every instance of its triangle meshes into a
  * gi_mesh_builder and to place its lights; points and lines are skipped.
@@ -821,15 +822,31 @@ static gi_result check_file(const char *path, gi_error_info *err) {
   return rc;
 }
 
-/* assimp's import under its lock (its error string is global). */
+/* Whether a mesh of the scene has a second UV set (the lightmap's). */
+static int has_second_uv(const struct aiScene *as) {
+  for (unsigned i = 0; i < as->mNumMeshes; i++)
+    if (as->mMeshes[i] && as->mMeshes[i]->mTextureCoords[1]) return 1;
+  return 0;
+}
+
+/* assimp's import under its lock (its error string is global). Vertices
+ * are joined afterwards, and only in a scene without lightmap UVs: assimp
+ * 5.2's JoinIdenticalVertices compares position, normal and the first UV
+ * set only, so a seam of the second set (two vertices that differ only in
+ * TEXCOORD_1) was welded, one island stretched onto its neighbour's edge.
+ * Unjoined, an unindexed format (FBX, Collada) costs up to three vertices
+ * per triangle; glTF arrives indexed anyway. */
 static gi_result import_file(const char *path, gi__gltf_shift *gs, const struct aiScene **out,
                              gi_error_info *err) {
-  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure |
+  const unsigned flags = aiProcess_Triangulate | aiProcess_ValidateDataStructure |
                          aiProcess_SortByPType; /* not PreTransformVertices: io/assimp_nodes.h */
   struct aiFileIO io;
   gi__gltf_open_io(&io, gs);
   pthread_mutex_lock(&assimp_lock);
   *out = gs->data ? aiImportFileEx(path, flags, &io) : aiImportFile(path, flags);
+  /* NULL when the step fails: the scene is released, reported below. */
+  if (*out && !gs->io_oom && !gs->io_err[0] && !has_second_uv(*out))
+    *out = aiApplyPostProcessing(*out, aiProcess_JoinIdenticalVertices);
   gi_result rc = GI_OK;
   if (gs->io_oom) {
     /* Even when assimp went on without the file it could not open (an
