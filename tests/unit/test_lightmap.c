@@ -428,6 +428,73 @@ static void test_gltf_read_back(void **state) {
   gi_scene_release(s);
 }
 
+/* glTF is Y up. A Z-up scene (a block 4 x 3 x 6 m tall, far from the
+ * origin, as a city's) is written turned (x, y, z) -> (x, z, -y): its roof
+ * faces +Y, its top at glTF y = 6, and the root translation turned with
+ * it. The file was written Z up: Munich lay on its side in Blender. */
+static void test_gltf_z_up(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material mat = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t m0 = gi_mesh_builder_add_material(b, &mat);
+  const double lo[3] = {1000, 2000, 0}, hi[3] = {1004, 2003, 6};
+  gi_mesh_builder_add_box(b, lo, hi, m0);
+  gi_scene_options so = {.up = GI_UP_Z};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "block", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_lightmap_opts o = {.texel = 0.5, .atlas = 128};
+  gi_lightmap *lm = NULL;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  char path[512];
+  snprintf(path, sizeof path, "%s/block-uv.glb", tu_tmpdir());
+  assert_int_equal(gi_lightmap_write_gltf(lm, path, &err), GI_OK);
+  const struct aiScene *as = aiImportFile(path, 0);
+  assert_non_null(as);
+  assert_int_equal(as->mNumMeshes, 1);
+  double org[3];
+  gi_lightmap_origin(lm, org);
+  const struct aiMatrix4x4 *root = &as->mRootNode->mTransformation;
+  assert_float_equal(root->a4, org[0], 1e-3);
+  assert_float_equal(root->b4, org[2], 1e-3);
+  assert_float_equal(root->c4, -org[1], 1e-3);
+  const struct aiMesh *m = as->mMeshes[0];
+  size_t nt = gi_lightmap_num_triangles(lm), roof = 0;
+  assert_int_equal(m->mNumFaces, nt);
+  assert_non_null(m->mNormals);
+  for (size_t t = 0; t < nt; t++) {
+    float xyz[9];
+    gi_lightmap_triangle(lm, t, NULL, NULL, xyz, NULL);
+    const struct aiFace *fc = &m->mFaces[t];
+    int top = 1;
+    for (int j = 0; j < 3; j++) {
+      unsigned v = fc->mIndices[j];
+      assert_float_equal(m->mVertices[v].x, xyz[3 * j], 1e-5);
+      assert_float_equal(m->mVertices[v].y, xyz[3 * j + 2], 1e-5);
+      assert_float_equal(m->mVertices[v].z, -xyz[3 * j + 1], 1e-5);
+      top &= fabs(m->mVertices[v].y + root->b4 - 6) < 1e-3;
+    }
+    if (!top) continue;
+    /* The roof: up in glTF is +Y, and its corners lie over the block's
+     * footprint turned, x 1000..1004, z -2003..-2000. */
+    roof++;
+    const struct aiVector3D *n = &m->mNormals[fc->mIndices[0]];
+    assert_float_equal(n->x, 0, 1e-6);
+    assert_float_equal(n->y, 1, 1e-6);
+    assert_float_equal(n->z, 0, 1e-6);
+    for (int j = 0; j < 3; j++) {
+      const struct aiVector3D *p = &m->mVertices[fc->mIndices[j]];
+      assert_true(p->x + root->a4 > 1000 - 1e-3 && p->x + root->a4 < 1004 + 1e-3);
+      assert_true(p->z + root->c4 > -2003 - 1e-3 && p->z + root->c4 < -2000 + 1e-3);
+    }
+  }
+  assert_int_equal(roof, 2);
+  aiReleaseImport(as);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 /* A 10 m plate of two triangles with lightmap UVs (u, v) = k (x, z) / 10 +
  * off, but u = NaN at vertex nan_at (-1: none). */
 static gi_scene *plate_with_uv(double k, double off, int nan_at) {
@@ -976,6 +1043,7 @@ int main(void) {
       cmocka_unit_test(test_cornell_against_reference),
       cmocka_unit_test(test_exr_read_back),
       cmocka_unit_test(test_gltf_read_back),
+      cmocka_unit_test(test_gltf_z_up),
       cmocka_unit_test(test_scene_uv_checked),
       cmocka_unit_test(test_scene_uv_overlap),
       cmocka_unit_test(test_scene_uv_incomplete),

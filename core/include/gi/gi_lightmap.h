@@ -160,7 +160,9 @@ int gi_lightmap_atlas_path(const gi_lightmap *lm, const char *path, size_t i, ch
  * through assimp's exporter: one node, mesh and material per atlas, named
  * "lightmap.NNNN" after the atlas's number, under a root node translated
  * to the scene origin (positions are local to it), TEXCOORD_1 = the lightmap UVs and TEXCOORD_0 = the
- * same (the core keeps no texture UVs). Temporary name, then rename. */
+ * same (the core keeps no texture UVs). Y up, as glTF defines it: a Z-up
+ * scene's positions, normals and origin are turned (x, y, z) -> (x, z, -y).
+ * Temporary name, then rename. */
 gi_result gi_lightmap_write_gltf(const gi_lightmap *lm, const char *path, gi_error_info *err);
 
 #ifdef __cplusplus

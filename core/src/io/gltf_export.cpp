@@ -8,11 +8,15 @@
 // handed to Assimp::Exporter as "glb2". assimp's glTF exporter flips V
 // (its scenes use OpenGL's V-up convention, glTF's V runs down), so the
 // UVs go in as 1 - v and come out in glTF's convention, matching the EXR's
-// first scanline at v = 0. The file is written under a temporary name and
-// renamed; assimp keeps exporter state per Exporter object, but its error
-// string is per object too, so concurrent writes are safe. The file reads
-// the lightmap through its public accessors only (the core's internal
-// headers are C11, with atomics C++ does not share).
+// first scanline at v = 0. glTF is Y up: a Z-up scene's positions, normals
+// and root translation are turned (x, y, z) -> (x, z, -y), a rotation, so
+// windings and the normals they give stay outward and Blender or an
+// engine shows the scene standing. The file is written under a temporary
+// name and renamed; assimp keeps exporter state per Exporter object, but
+// its error string is per object too, so concurrent writes are safe. The
+// file reads the lightmap through its public accessors only (the core's
+// internal headers are C11, with atomics C++ does not share), and its up
+// axis through io/gltf_export_up.h.
 #include <assimp/Exporter.hpp>
 #include <assimp/material.h>
 #include <assimp/scene.h>
@@ -23,6 +27,7 @@
 #include <unistd.h>
 
 #include "gi/gi_lightmap.h"
+#include "io/gltf_export_up.h"
 
 namespace {
 
@@ -45,8 +50,13 @@ bool ends_with(const std::string &s, const char *suffix) {
   return true;
 }
 
+// A point or direction of the scene in glTF's frame (Y up).
+aiVector3D to_gltf(double x, double y, double z, bool z_up) {
+  return z_up ? aiVector3D((ai_real)x, (ai_real)z, (ai_real)-y) : aiVector3D((ai_real)x, (ai_real)y, (ai_real)z);
+}
+
 // One mesh: the triangles of atlas `atlas`, three corners each.
-aiMesh *atlas_mesh(const gi_lightmap *lm, size_t atlas) {
+aiMesh *atlas_mesh(const gi_lightmap *lm, size_t atlas, bool z_up) {
   size_t nt = 0, n = gi_lightmap_num_triangles(lm);
   int chart;
   gi_lightmap_chart ch;
@@ -72,7 +82,8 @@ aiMesh *atlas_mesh(const gi_lightmap *lm, size_t atlas) {
     if (gi_lightmap_triangle(lm, t, nullptr, uv, p, &chart) || gi_lightmap_get_chart(lm, (size_t)chart, &ch) ||
         (size_t)ch.atlas != atlas)
       continue;
-    aiVector3D a(p[0], p[1], p[2]), b(p[3], p[4], p[5]), c(p[6], p[7], p[8]);
+    aiVector3D a = to_gltf(p[0], p[1], p[2], z_up), b = to_gltf(p[3], p[4], p[5], z_up),
+               c = to_gltf(p[6], p[7], p[8], z_up);
     aiVector3D nrm = ((b - a) ^ (c - a)).Normalize();
     aiFace &face = m->mFaces[f];
     face.mNumIndices = 3;
@@ -80,7 +91,7 @@ aiMesh *atlas_mesh(const gi_lightmap *lm, size_t atlas) {
     for (int j = 0; j < 3; j++) {
       unsigned v = (unsigned)(3 * f + j);
       face.mIndices[j] = v;
-      m->mVertices[v] = aiVector3D(p[3 * j], p[3 * j + 1], p[3 * j + 2]);
+      m->mVertices[v] = j == 0 ? a : j == 1 ? b : c;
       m->mNormals[v] = nrm;
       for (int set = 0; set < 2; set++) m->mTextureCoords[set][v] = aiVector3D(uv[2 * j], 1.f - uv[2 * j + 1], 0.f);
     }
@@ -94,8 +105,9 @@ aiScene *build_scene(const gi_lightmap *lm) {
   size_t n = gi_lightmap_num_atlases(lm);
   double o[3];
   gi_lightmap_origin(lm, o);
+  const bool z_up = gi__lightmap_up(lm) == GI_UP_Z;
   sc->mRootNode = new aiNode("lightmap");
-  aiMatrix4x4::Translation(aiVector3D((ai_real)o[0], (ai_real)o[1], (ai_real)o[2]), sc->mRootNode->mTransformation);
+  aiMatrix4x4::Translation(to_gltf(o[0], o[1], o[2], z_up), sc->mRootNode->mTransformation);
   sc->mRootNode->mNumChildren = (unsigned)n;
   sc->mRootNode->mChildren = new aiNode *[n]();
   sc->mNumMeshes = sc->mNumMaterials = (unsigned)n;
@@ -110,7 +122,7 @@ aiScene *build_scene(const gi_lightmap *lm) {
     child->mNumMeshes = 1;
     child->mMeshes = new unsigned[1]{(unsigned)i};
     sc->mRootNode->mChildren[i] = child;
-    sc->mMeshes[i] = atlas_mesh(lm, i);
+    sc->mMeshes[i] = atlas_mesh(lm, i, z_up);
     sc->mMeshes[i]->mName = aiString(name);
     sc->mMaterials[i] = new aiMaterial();
     aiString s(name);
