@@ -347,9 +347,21 @@ static void test_headers(void **state) {
   assert_int_equal(n, 2);
   assert_true(pts[0] == 1 && pts[5] == 6);
   free(pts);
-  const char *bad_pts[3] = {"1 2 3\nx y z\n", "x,y\n1,2,3\n", "nan nan nan\n1 2 3\n"};
-  const char *bad_at[3] = {"bph0.csv:2", "bph1.csv:1", "bph2.csv:1"};
-  for (int i = 0; i < 3; i++) {
+  /* A comma with blanks around it, as numpy and Python print a list (it
+   * was refused: "expected three finite numbers"), under a header quoted
+   * as a CSV writer quotes every field (an error at line 1 before). */
+  static const char pq[] = "\"x\",\"y\", \"z\"\n1, 0.5, 2\n3 ,4 , 5\n6\t,\t7,8\n";
+  assert_int_equal(ta_read_points(&c, "--probes", tu_write_file("pq.csv", pq, sizeof pq - 1), 16, &pts, &n), 0);
+  assert_int_equal(n, 3);
+  const double want[9] = {1, 0.5, 2, 3, 4, 5, 6, 7, 8};
+  for (int i = 0; i < 9; i++) assert_true(pts[i] == want[i]);
+  free(pts);
+  /* Two commas, a quoted header later, one cut short or of two names: errors. */
+  const char *bad_pts[7] = {"1 2 3\nx y z\n", "x,y\n1,2,3\n", "nan nan nan\n1 2 3\n", "1,,2,3\n",
+                            "1 2 3\n\"x\",\"y\",\"z\"\n", "\"x\",\"y\",\"z\n1 2 3\n", "\"x\",\"y\"\n1 2 3\n"};
+  const char *bad_at[7] = {"bph0.csv:2", "bph1.csv:1", "bph2.csv:1", "bph3.csv:1", "bph4.csv:2", "bph5.csv:1",
+                           "bph6.csv:1"};
+  for (int i = 0; i < 7; i++) {
     char name[32];
     snprintf(name, sizeof name, "bph%d.csv", i);
     pts = NULL;

@@ -1,7 +1,8 @@
 /* gi_points.h: the probe-point file both command-line tools read
- * (gi-bake --probes, gi-client --points): one "x y z" per line (blanks or a
- * comma between numbers), '#' starts a comment, blank lines are skipped,
- * and the first line may name the three columns ("x,y,z").
+ * (gi-bake --probes, gi-client --points): one "x y z" per line (blanks,
+ * one comma, or both between numbers: "1, 0.5, 2"), '#' starts a comment,
+ * blank lines are skipped, and the first line may name the three columns
+ * ("x,y,z", or quoted: "\"x\",\"y\",\"z\"").
  * Thread-safe; the caller owns *pts (free()). */
 #ifndef GI_POINTS_H
 #define GI_POINTS_H

@@ -25,7 +25,8 @@ static size_t decimal_len(const char *p) {
   return i;
 }
 
-/* Three finite numbers separated by blanks (or a comma, for pasted X,Y,Z). */
+/* Three finite numbers separated by blanks, one comma, or both ("1 2 3",
+ * "1,2,3", and "1, 0.5, 2" as numpy and Python print a list). */
 static int parse_line(const char *p, double v[3]) {
   const char *q = p;
   for (int i = 0; i < 3; i++) {
@@ -41,24 +42,33 @@ static int parse_line(const char *p, double v[3]) {
       if (*end != ' ' && *end != '\t' && *end != ',') return -1;
       while (*end == ' ' || *end == '\t') end++;
       if (*end == ',') end++;
+      while (*end == ' ' || *end == '\t') end++;
     }
     q = end;
   }
   return *q ? -1 : 0;
 }
 
-/* A column header ("x,y,z", "X Y Z", "px, py, pz"): three names, each
+/* A column header ("x,y,z", "X Y Z", "px, py, pz", and quoted as a CSV
+ * writer quotes every field: "\"x\",\"y\",\"z\""): three names, each
  * starting with a letter, separated as the numbers are. Spreadsheets and
  * pandas write one; it is taken on the first line only. */
 static int header_line(const char *p) {
   int fields = 0;
   while (*p) {
+    int quoted = *p == '"';
+    p += quoted;
     if (!((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z'))) return 0;
     const char *f = p;
     char *end;
     strtod(f, &end);
-    while (*p && *p != ' ' && *p != '\t' && *p != ',') p++;
+    if (quoted)
+      while (*p && *p != '"') p++;
+    else
+      while (*p && *p != ' ' && *p != '\t' && *p != ',') p++;
     if (end == p) return 0; /* "nan", "inf": bad numbers, not names; the line stays an error */
+    if (quoted && *p++ != '"') return 0; /* no closing quote */
+    if (*p && *p != ' ' && *p != '\t' && *p != ',') return 0;
     fields++;
     while (*p == ' ' || *p == '\t') p++;
     if (*p == ',') p++;
