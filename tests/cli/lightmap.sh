@@ -148,4 +148,15 @@ expect_usage --atlas "$B" $Q --lightmap "$T/bad.exr" --uv-out "$T/bad.glb" --tex
 # A --tile so small the region needs more than 2^20 cascades: exit 2 naming --tile (it was exit 1).
 # shellcheck disable=SC2086
 expect_usage "--tile:" "$B" $Q --lightmap "$T/bad.exr" --uv-out "$T/bad.glb" --tile 0.01
+# A --tile past the region is one tile; one whose cascade cannot hold its texels (the coarsest of
+# 3 levels of 16 voxels of 0.02 spans 1.28 for the 4 m box) exits 2 naming --tile and that side.
+# --help said a tile larger than the default was refused; it was accepted, and the real refusal
+# exited 1.
+# shellcheck disable=SC2086
+"$BIN" "$B" $Q --lightmap "$T/big.exr" --texel 0.5 --atlas 64 --tile 1e9 --json > "$T/big.json" 2> "$T/err" \
+  && python3 -c 'import json,sys; assert json.load(open(sys.argv[1]))["lightmap"]["tiles"] == 1' "$T/big.json" \
+  && pass "--tile 1e9 on the 4 m box: one tile" || fail "--tile 1e9: $(cat "$T/err")"
+# shellcheck disable=SC2086
+expect_usage "--tile: .*coarsest cascade level spans 1.28 world units" "$B" $Q --voxel 0.02 --lightmap "$T/bad.exr" \
+  --uv-out "$T/bad.glb" --texel 0.5 --atlas 64 --tile 1e9
 finish

@@ -44,7 +44,8 @@ enum { OPT_GRID = 400, OPT_REGION, OPT_ABOVE_GROUND, OPT_SHARD, OPT_RESUME, OPT_
   "  --grid S              bake a regular grid of probes S world units apart\n"       \
   "                        instead of one viewpoint; --exr gets one pixel per\n"      \
   "                        grid point (plus P.X,P.Y,P.Z, valid.Y), --vdb the probe\n" \
-  "                        volume (sh_L00..sh_L22, irradiance, P)\n"                  \
+  "                        volume (sh_L00..sh_L22, irradiance, P); not with\n"       \
+  "                        --half, --vdb-faces, --at, --probes or --render\n"         \
   "  --region X0,Y0,Z0,X1,Y1,Z1  the grid's box (default: the scene's bounds)\n"      \
   "  --above-ground H      one probe per column, H above the ground found by a\n"     \
   "                        downward ray; probes inside buildings are dropped\n"       \

@@ -4,7 +4,8 @@
  * asks for their checks (lightmap_check) before any scene is loaded; main.c
  * runs lightmap_run after loading the scene instead of the viewpoint bake.
  * The run lays out the charts (a chart too large for the atlas or a region
- * outside the scene is a usage error naming the option, exit 2), bakes
+ * outside the scene is a usage error naming the option, exit 2, as is a
+ * --tile cutting too many tiles or too large for its cascade), bakes
  * every tile, then writes the glTF and the EXR atlases; when the second
  * write fails the first file is removed, so a failed run leaves nothing. */
 #define _POSIX_C_SOURCE 200809L
@@ -184,10 +185,17 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
   gi_lightmap_report rep;
   lm_times t = {.load = load_ms};
   int rc = 0;
+  gi_quality rq;
   if ((r = gi_lightmap_bake(lm, &o->q, NULL, &rep, &err)) != GI_OK && r == GI_ERR_LIMIT && o->lm.opts.tile > 0) {
     /* Too many tiles for --tile: the option's fault, like an atlas too
      * small (exit 2 naming it), not a failed bake (it was exit 1). */
     rc = ta_fail(&ta, "--tile", "%s", err.msg);
+  } else if (r == GI_ERR_INVALID_ARG && o->lm.opts.tile > 0 && gi_quality_resolve(scene, &o->q, &rq, NULL) == GI_OK) {
+    /* With a valid quality the bake refuses only a tile whose cascade
+     * cannot hold its texels: --tile's fault too (it was exit 1), and the
+     * coarsest level's side is the limit to compare it with. */
+    rc = ta_fail(&ta, "--tile", "%s (the coarsest cascade level spans %g world units)", err.msg,
+                 rq.res * rq.voxel0 * (double)(1u << (rq.levels - 1)));
   } else if (r != GI_OK) {
     fprintf(stderr, "gi-bake: lightmap bake: %s\n", err.msg[0] ? err.msg : gi_strerror(r));
     rc = EXIT_RUN;

@@ -64,7 +64,8 @@ typedef struct gi_lightmap_opts {
   int have_region;     /* 1: only triangles whose centre lies in [region_lo, region_hi] */
   double region_lo[3], region_hi[3]; /* world box; default: the whole scene */
   double tile;         /* tile side, world units; default 0.8 x the coarsest cascade level, smaller
-                          until every tile's cascade holds its texels (a larger tile is refused) */
+                          until every tile's cascade holds its texels; a tile given whose cascade
+                          cannot hold them is refused, one larger than the region is one tile) */
   int scene_uv;        /* 0: bake into the scene's own lightmap UVs when it has them
                           (gi_scene_has_lightmap_uv: one atlas of `atlas` texels, one chart,
                           texel unused); -1: always make charts */
