@@ -118,7 +118,9 @@ int gi_proto_parse_session(const gi_proto_kv *kv, size_t n, const char *body, si
  * half, width, height; quality knobs are the session's (400 here). */
 int gi_proto_parse_session_lighting(const gi_proto_kv *kv, size_t n, const gi_proto_limits *lim,
                                     gi_proto_bake *out, gi_proto_error *err);
-/* A cell path segment "i,j,k" (plain integers, no leading zeros): 0 or -1. */
+/* A cell path segment "i,j,k" (plain integers, no leading zeros): 0, -1
+ * when it is not one, or -2 when it is but an index has more than 18
+ * digits (too far to address; out is then incomplete). */
 int gi_proto_parse_cell(const char *s, long long out[3]);
 /* A request that takes no parameters: any parameter is a 400. */
 int gi_proto_parse_none(const gi_proto_kv *kv, size_t n, gi_proto_error *err);

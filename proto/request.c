@@ -454,16 +454,19 @@ int gi_proto_parse_session_lighting(const gi_proto_kv *kv, size_t n, const gi_pr
 
 int gi_proto_parse_cell(const char *s, long long out[3]) {
   const char *p = s;
+  int far = 0;
   for (int i = 0; i < 3; i++) {
     const char *d = p + (*p == '-');
     size_t nd = strspn(d, "0123456789");
-    /* Plain integers: no sign but '-', no leading zeros, at most 18 digits. */
-    if (nd == 0 || nd > 18 || (d[0] == '0' && nd > 1) || (*p == '-' && d[0] == '0')) return -1;
-    out[i] = strtoll(p, NULL, 10);
+    /* Plain integers: no sign but '-', no leading zeros. */
+    if (nd == 0 || (d[0] == '0' && nd > 1) || (*p == '-' && d[0] == '0')) return -1;
+    /* Past 18 digits an index may not fit int64; no scene reaches that far anyway. */
+    if (nd > 18) far = 1;
+    else out[i] = strtoll(p, NULL, 10);
     p = d + nd;
     if (i < 2 && *p++ != ',') return -1;
   }
-  return *p ? -1 : 0;
+  return *p ? -1 : far ? -2 : 0;
 }
 
 int gi_proto_parse_none(const gi_proto_kv *kv, size_t n, gi_proto_error *err) {

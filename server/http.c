@@ -85,6 +85,7 @@ typedef struct gs_req {
   char id[64];              /* the scene or job id the route named */
   int cell_url;             /* /v1/scenes/{id}/cells/{i},{j},{k}/...: cell names the cascade */
   int64_t cell[3];
+  char cell_far[112];       /* a cell URL whose index has too many digits to address: "(i, j, k)" */
   /* A cell answer's headers, sent with a 200 or 304 (canonical.c). */
   char etag[24];
   const char *cache_control;
@@ -653,21 +654,39 @@ static int valid_id(const char *s, size_t n) {
   return 1;
 }
 
-/* "/cells/{i},{j},{k}/lighting" or ".../cascades.vdb": 1 when it matches. */
+/* "(i, j, k)" for a message, each index of more than 24 digits shortened
+ * to its first 20 and its digit count (the path may be 256 KiB long). */
+static void cell_text(const char *seg, char *out, size_t size) {
+  size_t o = (size_t)snprintf(out, size, "(");
+  for (int i = 0; i < 3 && o < size; i++) {
+    size_t n = strcspn(seg, ","), nd = n - (seg[0] == '-');
+    int w = nd > 24 ? snprintf(out + o, size - o, "%.*s...(%zu digits)", (int)(n - nd + 20), seg, nd)
+                    : snprintf(out + o, size - o, "%.*s", (int)n, seg);
+    o += w > 0 ? (size_t)w : 0;
+    if (o < size) o += (size_t)snprintf(out + o, size - o, "%s", i < 2 ? ", " : ")");
+    seg += n + (i < 2);
+  }
+}
+
+/* "/cells/{i},{j},{k}/lighting" or ".../cascades.vdb": 1 when it matches.
+ * Indices too long to address still route, so the answer is the 400 that
+ * names the cell (lighting()), not a 404 for a path that exists. */
 static int route_cell(gs_req *r, const char *tail) {
   if (strncmp(tail, "/cells/", 7)) return 0;
   const char *seg = tail + 7, *end = strchr(seg, '/');
-  char buf[64];
   long long c[3];
-  if (!end || (size_t)(end - seg) >= sizeof buf) return 0;
-  memcpy(buf, seg, (size_t)(end - seg));
-  buf[end - seg] = 0;
-  if (gi_proto_parse_cell(buf, c)) return 0;
+  if (!end) return 0;
+  char *buf = strndup(seg, (size_t)(end - seg));
+  if (!buf) return 0;
+  int st = gi_proto_parse_cell(buf, c);
+  if (st == -2) cell_text(buf, r->cell_far, sizeof r->cell_far);
+  free(buf);
+  if (st == -1) return 0;
   if (!strcmp(end, "/lighting")) r->ep = GS_EP_LIGHTING;
   else if (!strcmp(end, "/cascades.vdb")) r->ep = GS_EP_CASCADES;
   else return 0;
   r->cell_url = 1;
-  for (int a = 0; a < 3; a++) r->cell[a] = c[a];
+  for (int a = 0; a < 3; a++) r->cell[a] = st ? 0 : c[a];
   return 1;
 }
 
@@ -918,6 +937,8 @@ static enum MHD_Result lighting(gs_http *h, gs_req *r, const query *q) {
                               : gi_proto_parse_cell_cascades(q->kv, q->n, lim, &r->bake, &pe);
   else st = light ? gi_proto_parse_lighting(q->kv, q->n, lim, &r->bake, &pe)
                   : gi_proto_parse_cascades(q->kv, q->n, lim, &r->bake, &pe);
+  if (!st && r->cell_far[0])
+    st = gi_proto_fail(&pe, 400, "cell: %s is too far from the scene to address", r->cell_far);
   if (st || (!r->cell_url && check_near(r->scene, r->bake.at, 1, "parameter 'at'", &pe))) {
     gs_answer_error(&r->ans, &pe);
     return send_answer(h, r);

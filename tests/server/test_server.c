@@ -308,7 +308,15 @@ static void test_cell_urls(void **state) {
   su_expect_error(&wat, 400, "bad_request", "'at'");
   su_resp far = GET(&S_main, "/v1/scenes/city/cells/900000000000000000,0,0/lighting?q=0123456789abcdef");
   assert_true(far.status == 400 || far.status == 307);
-  su_resp *all[] = {&a, &b, &d, &z, &n, &hf, &st, &bad, &noq, &wat, &far};
+  /* 19 digits and more were a 404 "no such endpoint": the same 400 naming the cell. */
+  su_resp f19 = GET(&S_main, "/v1/scenes/city/cells/1000000000000000000,0,0/lighting?q=0123456789abcdef");
+  su_expect_error(&f19, 400, "bad_request", "cell: (1000000000000000000, 0, 0) is too far from the scene to address");
+  su_resp fneg = GET(&S_main, "/v1/scenes/city/cells/0,-12345678901234567890,7/cascades.vdb?q=0123456789abcdef");
+  su_expect_error(&fneg, 400, "bad_request", "cell: (0, -12345678901234567890, 7) is too far from the scene");
+  su_resp f40 = GET(&S_main, "/v1/scenes/city/cells/5,1234567890123456789012345678901234567890,0/lighting?q=0123456789"
+                             "abcdef&kind=panorama");
+  su_expect_error(&f40, 400, "bad_request", "cell: (5, 12345678901234567890...(40 digits), 0) is too far");
+  su_resp *all[] = {&a, &b, &d, &z, &n, &hf, &st, &bad, &noq, &wat, &far, &f19, &fneg, &f40};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]->body);
 }
 

@@ -427,8 +427,11 @@ static void test_cell_requests(void **state) {
   assert_int_equal(gi_proto_parse_cell("-123456789012345678,1,1", c), 0);
   assert_true(c[0] == -123456789012345678ll);
   const char *bad[] = {"1,2", "1,2,3,", "1,,3", "01,2,3", "-0,1,1", "+1,2,3", "1,2,3x", "1.5,2,3", "", "a,b,c",
-                       "1234567890123456789,0,0", "1, 2,3"};
+                       "1, 2,3", "12345678901234567890,0,x"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) assert_int_equal(gi_proto_parse_cell(bad[i], c), -1);
+  /* Well-formed but too long to address: told apart, so the server names the cell (400, not 404). */
+  const char *far[] = {"1234567890123456789,0,0", "0,-1000000000000000000,0", "1,2,99999999999999999999999999"};
+  for (size_t i = 0; i < sizeof far / sizeof far[0]; i++) assert_int_equal(gi_proto_parse_cell(far[i], c), -2);
 
   gi_proto_limits l = lim();
   gi_proto_bake b;
