@@ -36,6 +36,7 @@ typedef struct job {
   gi_proto_probes p;        /* owned */
   double t_start;
   char path[1200];          /* result file when done */
+  char effects[200];        /* X-GI-Effects of the result, as an inline answer's */
   uint64_t order;           /* submission order, for retention */
   int cancel;               /* cancelled: DELETE or shutdown (guarded) */
   int timed_out;            /* stopped by job_deadline_s (guarded) */
@@ -147,10 +148,11 @@ static void run_job(gs_jobs *j, job *jb) {
     pthread_mutex_unlock(&j->mu);
     prog_ctx pc = {j, jb};
     gi_bake_report rep;
+    gi_timings ms = {0};
     e.msg[0] = 0;
     gi_cancel_set_deadline(jb->token, gi_now_ms() + svc->cfg->job_deadline_s * 1e3);
     rc = gs_gather_tiles(svc, jb->scene, &jb->req, &jb->q, jb->p.points, tiles, nt, 0, NULL, jb->token, pr, &rep,
-                         NULL, NULL, on_tile, &pc, &e);
+                         &ms, NULL, on_tile, &pc, &e);
     if (rc == GI_ERR_CANCELLED) {
       /* Stopped inside a tile by the token: said as on_tile says it between tiles. */
       pthread_mutex_lock(&j->mu);
@@ -163,12 +165,17 @@ static void run_job(gs_jobs *j, job *jb) {
       else snprintf(e.msg, sizeof e.msg, "job: cancelled after %d tile(s)", done);
     }
     if (rc == GI_OK) {
-      char path[1200], ntiles[32];
+      /* The header an inline probe list's EXR has (README): the job's stages
+       * and its total since it started; its bakes are its own (miss). */
+      char path[1200], ntiles[32], timing[320];
       gs_tmp_path(svc, ".exr", path, sizeof path);
       snprintf(ntiles, sizeof ntiles, "%zu", nt);
-      gi_exr_extra extra[] = {{"gi.job", jb->st.id}, {"gi.tiles", ntiles}};
+      gi_proto_server_timing(&ms, gs_now_ms() - jb->t_start, timing, sizeof timing);
+      gi_exr_extra extra[] = {{"gi.timings", timing}, {"gi.cache", "miss"}, {"gi.tiles", ntiles},
+                              {"gi.job", jb->st.id}};
       rc = gi_probes_write_exr_ex(path, pr, jb->p.num_points, jb->scene->scene, tiles[0].at, &rep, jb->p.bake.half,
-                                  extra, 2, &e);
+                                  extra, 4, &e);
+      gi_proto_effects_header(rep.effects, jb->effects, sizeof jb->effects);
       /* The folder is private already; the file is too, for a copy moved out of it. */
       if (rc == GI_OK && chmod(path, S_IRUSR | S_IWUSR) != 0) {
         rc = GI_ERR_IO;
@@ -406,6 +413,7 @@ void gs_jobs_result(gs_jobs *j, const char *id, gs_answer *a) {
   }
   /* Opened under the lock: retirement cannot unlink it in between. */
   int fd = open(b->path, O_RDONLY | O_CLOEXEC);
+  snprintf(a->effects, sizeof a->effects, "%s", b->effects);
   pthread_mutex_unlock(&j->mu);
   struct stat st;
   if (fd < 0 || fstat(fd, &st) != 0) {

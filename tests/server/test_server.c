@@ -590,6 +590,20 @@ static void test_probes_inline_and_job(void **state) {
   assert_true(gi_exr_file_channel_is_half(x, 0));
   assert_string_equal(gi_exr_file_attr(x, "gi.job"), id);
   for (int i = 0; i < 5; i++) assert_true(isfinite(gi_exr_file_channel(x, "R")[i]));
+  /* As an inline list's answer (README): X-GI-Effects, and the EXR repeats
+   * the timings and the cache outcome; the job baked its 5 tiles itself. */
+  const char *fx = su_header(&r, "X-GI-Effects");
+  assert_non_null(fx);
+  assert_true(!strncmp(fx, "sun=ran, ", 9) && strstr(fx, "bounce=ran"));
+  assert_string_equal(gi_exr_file_attr(x, "gi.cache"), "miss");
+  assert_string_equal(gi_exr_file_attr(x, "gi.tiles"), "5");
+  const char *tm = gi_exr_file_attr(x, "gi.timings");
+  assert_non_null(tm);
+  double vox = -1, total = -1;
+  assert_int_equal(sscanf(tm, "voxelize;dur=%lf", &vox), 1);
+  assert_non_null(strstr(tm, "total;dur="));
+  total = atof(strstr(tm, "total;dur=") + 10);
+  assert_true(vox > 0 && total >= vox);
   gi_exr_file_free(x);
   free(r.body);
   r = GET(&S_main, "/v1/jobs/000000000000000000000000/result");
