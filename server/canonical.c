@@ -106,6 +106,43 @@ static void canonical_knobs(const gi_quality *q, char *buf, size_t size) {
   if (fx[0]) knob(buf, size, "effects", "%s", fx);
 }
 
+/* Whether two resolved qualities bake the same cascade: every field the
+ * bake reads (padding aside, so not memcmp). */
+static int same_resolved(const gi_quality *a, const gi_quality *b) {
+  return a->levels == b->levels && a->res == b->res && a->voxel0 == b->voxel0 && a->cones == b->cones &&
+         a->aperture_deg == b->aperture_deg && a->step == b->step && a->bounces == b->bounces &&
+         a->light_samples == b->light_samples && a->probe_samples == b->probe_samples &&
+         a->ao_lambda == b->ao_lambda && a->ao == b->ao && a->specular == b->specular && a->threads == b->threads &&
+         a->seed == b->seed && !memcmp(a->effects, b->effects, sizeof a->effects);
+}
+
+/* Knobs a request set to what the core would choose anyway, cleared in
+ * *q: levels=6 or seed=1 alone gave another q, another ETag and another
+ * cache entry for the same bytes. A knob is cleared only when the quality
+ * without it resolves to the same one, field for field, for this scene
+ * (explicit levels=6 is not the default on a scene wide enough to get
+ * more levels). Not bounces, whose default is the plan's choice at the
+ * viewpoint (bounces=4 is not "auto" though auto may pick 4), nor
+ * aperture, which the bake derives from the cone count. */
+static void drop_defaults(const gi_scene *scene, const gi_quality *resolved, gi_quality *q) {
+  gi_quality t, r;
+  for (int k = 0; k < 8; k++) {
+    t = *q;
+    switch (k) {
+    case 0: t.levels = 0; break;
+    case 1: t.res = 0; break;
+    case 2: t.voxel0 = 0; break;
+    case 3: t.cones = 0; break;
+    case 4: t.step = 0; break;
+    case 5: t.light_samples = 0; break;
+    case 6: t.probe_samples = 0; break;
+    default: t.seed = 0; break;
+    }
+    if (!memcmp(&t, q, sizeof t)) continue; /* not set */
+    if (gi_quality_resolve(scene, &t, &r, NULL) == GI_OK && same_resolved(&r, resolved)) *q = t;
+  }
+}
+
 gi_result gs_canon_quality(const gs_service *svc, const gs_scene *s, const gi_quality *in, gs_canon *out,
                            gi_error_info *err) {
   memset(out, 0, sizeof *out);
@@ -113,7 +150,9 @@ gi_result gs_canon_quality(const gs_service *svc, const gs_scene *s, const gi_qu
   out->req.threads = svc->cfg->bake_threads;
   gi_result rc = gi_quality_resolve(s->scene, &out->req, &out->resolved, err);
   if (rc != GI_OK) return rc;
-  canonical_knobs(in, out->knobs, sizeof out->knobs);
+  gi_quality canon = out->req;
+  drop_defaults(s->scene, &out->resolved, &canon);
+  canonical_knobs(&canon, out->knobs, sizeof out->knobs);
   uint64_t h = gs_hash_bytes(FNV_OFFSET, &s->version, sizeof s->version);
   h = hash_str(h, out->knobs);
   h = hash_str(h, GI_VERSION " " GI_GIT_REV);

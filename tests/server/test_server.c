@@ -308,7 +308,15 @@ static void test_cell_urls(void **state) {
   su_expect_error(&wat, 400, "bad_request", "'at'");
   su_resp far = GET(&S_main, "/v1/scenes/city/cells/900000000000000000,0,0/lighting?q=0123456789abcdef");
   assert_true(far.status == 400 || far.status == 307);
-  /* 19 digits and more were a 404 "no such endpoint": the same 400 naming the cell. */
+  su_resp *all[] = {&a, &b, &d, &z, &n, &hf, &st, &bad, &noq, &wat, &far};
+  for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]->body);
+}
+
+/* Cell URLs at the edges: indices of 19 digits and more were a 404 "no
+ * such endpoint" (18 gave the 400 naming the cell); a knob at its default
+ * for the preset in force named another cell URL. */
+static void test_cell_edges(void **state) {
+  (void)state;
   su_resp f19 = GET(&S_main, "/v1/scenes/city/cells/1000000000000000000,0,0/lighting?q=0123456789abcdef");
   su_expect_error(&f19, 400, "bad_request", "cell: (1000000000000000000, 0, 0) is too far from the scene to address");
   su_resp fneg = GET(&S_main, "/v1/scenes/city/cells/0,-12345678901234567890,7/cascades.vdb?q=0123456789abcdef");
@@ -316,7 +324,14 @@ static void test_cell_urls(void **state) {
   su_resp f40 = GET(&S_main, "/v1/scenes/city/cells/5,1234567890123456789012345678901234567890,0/lighting?q=0123456789"
                              "abcdef&kind=panorama");
   su_expect_error(&f40, 400, "bad_request", "cell: (5, 12345678901234567890...(40 digits), 0) is too far");
-  su_resp *all[] = {&a, &b, &d, &z, &n, &hf, &st, &bad, &noq, &wat, &far, &f19, &fneg, &f40};
+  su_resp want = get_nofollow("/v1/scenes/city/lighting?at=-71.5,4,18.25&quality=low", NULL);
+  su_resp dflt = get_nofollow("/v1/scenes/city/lighting?at=-71.5,4,18.25&quality=low&levels=5&seed=1&step=1", NULL);
+  assert_int_equal(want.status, 307);
+  assert_int_equal(dflt.status, 307);
+  char loc[1024];
+  snprintf(loc, sizeof loc, "%s", su_header(&want, "Location"));
+  assert_string_equal(su_header(&dflt, "Location"), loc);
+  su_resp *all[] = {&f19, &fneg, &f40, &want, &dflt};
   for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) free(all[i]->body);
 }
 
@@ -994,12 +1009,93 @@ static void test_canonical_knobs(void **state) {
   gi_scene_release(s.scene);
 }
 
+/* The canonical knobs of a query on scene s (gs_canon_quality), into knobs. */
+static void canon_of(const gs_scene *s, const char *const *q, char *knobs, size_t size, char qhash[17]) {
+  gs_config cfg;
+  gs_config_defaults(&cfg);
+  gs_service svc = {.cfg = &cfg};
+  gi_proto_kv kv[16];
+  size_t n = 0;
+  for (; q[2 * n]; n++) kv[n] = (gi_proto_kv){q[2 * n], q[2 * n + 1]};
+  gi_proto_bake b;
+  gi_proto_error pe = {0};
+  assert_int_equal(gi_proto_parse_scene(kv, n, &cfg.lim, &b, &pe), 0);
+  gs_canon c;
+  gi_error_info e = {0};
+  assert_int_equal(gs_canon_quality(&svc, s, &b.quality, &c, &e), GI_OK);
+  snprintf(knobs, size, "%s", c.knobs);
+  snprintf(qhash, 17, "%s", c.q);
+}
+
+/* Knobs set to what the core would choose anyway drop out of the canonical
+ * form: levels=6 (or res=32, seed=1, ...) alone gave another q and ETag,
+ * a separate cache miss for byte-identical answers. A knob whose default
+ * depends on the scene or the viewpoint's plan stays. */
+static void test_canonical_defaults(void **state) {
+  (void)state;
+  gs_scene room = {.id = "k", .scene = tu_furnace_scene(1.0, 0.5, 1.0), .version = 42};
+  char base[512], bq[17], k[512], q[17];
+  const char *none[] = {NULL};
+  canon_of(&room, none, base, sizeof base, bq);
+  assert_string_equal(base, "");
+  gi_quality r;
+  assert_int_equal(gi_quality_resolve(room.scene, NULL, &r, NULL), GI_OK);
+  char vox[32];
+  snprintf(vox, sizeof vox, "%.17g", r.voxel0);
+  const char *same[][16] = {{"levels", "6", NULL}, {"res", "32", NULL}, {"seed", "1", NULL}, {"cones", "16", NULL},
+                            {"step", "1", NULL}, {"samples", "16", NULL}, {"probe_samples", "256", NULL},
+                            {"voxel", vox, NULL}, {"quality", "default", "levels", "6", "res", "32", "voxel", vox,
+                            "cones", "16", "step", "1", "seed", "1", NULL}};
+  for (size_t i = 0; i < sizeof same / sizeof same[0]; i++) {
+    canon_of(&room, same[i], k, sizeof k, q);
+    assert_string_equal(k, "");
+    assert_string_equal(q, bq);
+  }
+  /* A preset's own values stay (they are not the core's defaults); its knobs repeated change nothing. */
+  const char *low[] = {"quality", "low", NULL}, *low5[] = {"quality", "low", "levels", "5", "seed", "1", NULL};
+  char lk[512], lq[17];
+  canon_of(&room, low, lk, sizeof lk, lq);
+  assert_string_equal(lk, "levels=5&res=16&cones=6&bounces=1&samples=8&probe_samples=64");
+  canon_of(&room, low5, k, sizeof k, q);
+  assert_string_equal(k, lk);
+  assert_string_equal(q, lq);
+  /* high sets step 0.35: step=1 there is the core's default again. */
+  const char *high1[] = {"quality", "high", "step", "1", NULL};
+  canon_of(&room, high1, k, sizeof k, q);
+  assert_string_equal(k, "cones=32&bounces=3&samples=64&probe_samples=1024");
+  /* Explicit bounces is never the plan's automatic count. */
+  const char *b2[] = {"bounces", "2", NULL};
+  canon_of(&room, b2, k, sizeof k, q);
+  assert_string_equal(k, "bounces=2");
+  gi_scene_release(room.scene);
+  /* A scene wider than 6 levels reach (100 x 1 x 100) gets more by default:
+   * levels=6 is a choice there, and stays. */
+  gi_mesh_builder *mb = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(mb, &m);
+  double lo[3] = {-50, 0, -50}, hi[3] = {50, 1, 50};
+  gi_mesh_builder_add_box(mb, lo, hi, mat);
+  gs_scene wide = {.id = "w", .scene = tu_build(mb, "wide", NULL, 0), .version = 7};
+  assert_int_equal(gi_quality_resolve(wide.scene, NULL, &r, NULL), GI_OK);
+  assert_true(r.levels > 6);
+  const char *l6[] = {"levels", "6", NULL}, *ln[] = {"levels", NULL, NULL};
+  canon_of(&wide, l6, k, sizeof k, q);
+  assert_string_equal(k, "levels=6");
+  char lv[8];
+  snprintf(lv, sizeof lv, "%d", r.levels);
+  ln[1] = lv;
+  canon_of(&wide, ln, k, sizeof k, q); /* the automatic count given: the default again */
+  assert_string_equal(k, "");
+  gi_scene_release(wide.scene);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_health_and_auth),
       cmocka_unit_test(test_catalog_and_scene),
       cmocka_unit_test(test_lighting_probe_matches_core),
       cmocka_unit_test(test_cell_urls),
+      cmocka_unit_test(test_cell_edges),
       cmocka_unit_test(test_coalescing),
       cmocka_unit_test(test_effect_override),
       cmocka_unit_test(test_panorama),
@@ -1015,6 +1111,7 @@ int main(void) {
       cmocka_unit_test(test_nomem_not_cached),
       cmocka_unit_test(test_scene_version),
       cmocka_unit_test(test_canonical_knobs),
+      cmocka_unit_test(test_canonical_defaults),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }
