@@ -510,6 +510,49 @@ static void test_lightmap(void **state) {
   free(r.body);
 }
 
+/* A lightmap without region= from above the city: level 0's box around
+ * 'at' holds no triangle, so the default region is the smallest larger
+ * level box that does (was: a 400 blaming a region nobody gave). Without
+ * texel=, the texel is level 0's voxel, doubled until one atlas holds it. */
+static void test_lightmap_default_region(void **state) {
+  (void)state;
+  su_resp r = GET(&S_main, "/v1/scenes/city?quality=low");
+  assert_int_equal(r.status, 200);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  double s0 = json_real_value(json_object_get(json_object_get(o, "grid"), "voxel"));
+  json_decref(o);
+  free(r.body);
+  assert_true(s0 > 0 && 150 - 0.5 * 16 * s0 > 115.5); /* level 0's box is above the tallest roof */
+  const char *at = "at=0,150,0&quality=low&kind=lightmap";
+  char url[256];
+  double texel[2] = {s0, 2 * s0};
+  const char *atlas[2] = {"", "&atlas=128"};
+  for (int i = 0; i < 2; i++) {
+    snprintf(url, sizeof url, "/v1/scenes/city/lighting?%s%s", at, atlas[i]);
+    r = GET(&S_main, url);
+    assert_int_equal(r.status, 200);
+    gi_exr_file *x = su_read_exr(&S_main, &r, "lm-default.exr");
+    assert_true(fabs(atof(gi_exr_file_attr(x, "gi.texel")) - texel[i]) < 1e-9 * texel[i]);
+    assert_int_equal(gi_exr_file_width(x), i ? 128 : 1024);
+    const float *valid = gi_exr_file_channel(x, "valid.Y"), *irr = gi_exr_file_channel(x, "irradiance.G");
+    size_t n = (size_t)gi_exr_file_width(x) * gi_exr_file_height(x), lit = 0;
+    for (size_t k = 0; k < n; k++) lit += valid[k] > 0 && irr[k] > 0;
+    printf("  default region: texel %s, %zu lit texels\n", gi_exr_file_attr(x, "gi.texel"), lit);
+    assert_true(lit > 100);
+    gi_exr_file_free(x);
+    free(r.body);
+  }
+  r = GET(&S_main, "/v1/scenes/city/lightmap-uv.glb?at=0,150,0&quality=low");
+  assert_int_equal(r.status, 200);
+  assert_true(r.len > 20 && !memcmp(r.body, "glTF", 4));
+  free(r.body);
+  /* Nothing within the coarsest level's reach: the error says the region was the default. */
+  r = GET(&S_main, "/v1/scenes/city/lighting?at=0,2000,0&quality=low&kind=lightmap");
+  su_expect_error(&r, 400, "bad_request", "in the default region, the cascade's boxes around 'at' up to its coarsest");
+  assert_non_null(strstr(r.body, "give region=x0,y0,z0,x1,y1,z1"));
+  free(r.body);
+}
+
 static void test_cascades_vdb(void **state) {
   su_resp r = GET(&S_main, "/v1/scenes/city/cascades.vdb?at=31,2,29&levels=3&res=16&voxel=0.5&bounces=0");
   assert_int_equal(r.status, 200);
@@ -1100,6 +1143,7 @@ int main(void) {
       cmocka_unit_test(test_effect_override),
       cmocka_unit_test(test_panorama),
       cmocka_unit_test(test_lightmap),
+      cmocka_unit_test(test_lightmap_default_region),
       cmocka_unit_test(test_cascades_vdb),
       cmocka_unit_test(test_probes_inline_and_job),
       cmocka_unit_test(test_probes_job_at),
