@@ -28,6 +28,7 @@
 #include <arpa/inet.h>
 #include <errno.h>
 #include <jansson.h>
+#include <limits.h>
 #include <math.h>
 #include <microhttpd.h>
 #include <netinet/in.h>
@@ -783,15 +784,17 @@ static int check_framing(gs_http *h, gs_req *r, gs_answer *a) {
   if (!f.count) return 0;
   const char *d = f.length;
   size_t n = strspn(d, "0123456789");
-  if (!n || d[n] || n > 19) {
+  if (!n || d[n]) {
     answer_fail(a, 400, "Content-Length: expected a number of bytes, got '%.32s'", d);
     return -1;
   }
+  /* 20 digits up to 2^64 - 1 reach here (libmicrohttpd answers longer
+   * ones itself): a length, too large, not a malformed one. */
   size_t lim = h->svc->cfg->lim.max_body_bytes;
-  unsigned long long len = strtoull(d, NULL, 10);
+  unsigned long long len = n > 19 ? ULLONG_MAX : strtoull(d, NULL, 10);
   if (len > lim) {
     gi_proto_error pe;
-    gi_proto_fail(&pe, 413, "body: %llu bytes exceed the server limit of %zu", len, lim);
+    gi_proto_fail(&pe, 413, "body: %.32s bytes exceed the server limit of %zu", d, lim);
     gs_answer_error(a, &pe);
     return -1;
   }
