@@ -92,6 +92,22 @@ no_tmp
 C probes city --points "$T/four.txt" --no-wait -o "$T/nw.exr"; rc=$?; check "probes --no-wait" 0
 has "$T/out" '"job": "j4"'
 [ -e "$T/nw.exr" ] && fail "--no-wait wrote the output"
+# --no-wait prints the job: it insisted on -o, then left it unused. A list
+# answered at once is an EXR, which needs -o: said, not written to stdout.
+C probes city --points "$T/four.txt" --no-wait; rc=$?; check "probes --no-wait without -o" 0
+has "$T/out" '"job": "j4"'
+C probes city --points "$T/two.txt" --no-wait; rc=$?; check "probes --no-wait answered at once, no -o" 1
+has "$T/err" "the server answered at once (HTTP 200, an EXR, not a job): give -o OUT to keep it"
+[ -s "$T/out" ] && fail "--no-wait without -o wrote an EXR to stdout: $(cat "$T/out")"
+# Ctrl-C while a job is polled cancels it on the server (it ran on for nobody), exit 130.
+printf '0 0 0\n1 1 1\n2 2 2\n3 3 3\n4 4 4\n5 5 5\n' > "$T/six.txt"
+timeout --preserve-status -s INT 2 "$BIN" --server "$URL" --timeout 20 probes city --points "$T/six.txt" \
+  -o "$T/slow.exr" > "$T/out" 2> "$T/err"; rc=$?; check "Ctrl-C while polling" 130
+has "$T/err" "gi-client: job jslow: interrupted; cancelled it on the server"
+[ -e "$T/slow.exr" ] && fail "an interrupted job wrote the output"
+no_tmp
+C job jslow; rc=$?; check "the interrupted job" 0
+has "$T/out" '"state": "cancelled"'
 C job j4; rc=$?; check "job JOBID" 0
 has "$T/out" '"state": "queued"'
 printf '0 0 0\n1 1 1\n2 2 2\n' > "$T/three.txt"

@@ -10,6 +10,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 TIMING = "voxelize;dur=12.1, inject;dur=3, filter;dur=1, bounce;dur=9, gather;dur=2, encode;dur=1, total;dur=28.1"
 polls = {}
+cancelled = set()  # jobs a DELETE cancelled; "jslow" (6 points) runs until then
 
 
 class H(BaseHTTPRequestHandler):
@@ -86,6 +87,10 @@ class H(BaseHTTPRequestHandler):
                 return self.send(200, "RESULT " + job, "image/x-exr", gi)
             n = polls[job] = polls.get(job, 0) + 1
             base = {"id": job, "probes": 40, "tiles": 4, "elapsed_s": n * 0.5}
+            if job in cancelled:
+                return self.send(200, dict(base, state="cancelled", progress=0.25, probes_done=10, tiles_done=1))
+            if job == "jslow":
+                return self.send(200, dict(base, state="running", progress=0.25, probes_done=10, tiles_done=1))
             if job == "jfail" and n >= 2:
                 return self.send(200, dict(base, state="failed", progress=0.25, probes_done=10, tiles_done=1,
                                            error={"code": 500, "name": "internal", "message": "bake failed: out of memory"}))
@@ -105,11 +110,21 @@ class H(BaseHTTPRequestHandler):
             pts = json.loads(body)["points"]
             if len(pts) <= 2:
                 return self.send(200, body, "image/x-exr", [("Server-Timing", TIMING), ("X-GI-Cache", "hit")])
-            job = "jfail" if len(pts) == 3 else "j%d" % len(pts)
+            job = "jfail" if len(pts) == 3 else "jslow" if len(pts) == 6 else "j%d" % len(pts)
             polls.pop(job, None)
+            cancelled.discard(job)
             return self.send(202, {"job": job, "href": "/v1/jobs/" + job, "state": "queued", "probes": len(pts)},
                              headers=[("Location", "/v1/jobs/" + job)])
         return self.error(404, "not_found", "no route " + path)
+
+
+    def do_DELETE(self):
+        parts = self.path.split("?")[0].split("/")
+        if len(parts) == 4 and parts[1:3] == ["v1", "jobs"]:
+            cancelled.add(parts[3])
+            return self.send(202, {"id": parts[3], "state": "running", "probes": 40, "probes_done": 10,
+                                   "progress": 0.25, "tiles": 4, "tiles_done": 1, "elapsed_s": 1.0})
+        return self.error(404, "not_found", "no route " + self.path)
 
 
 srv = ThreadingHTTPServer(("127.0.0.1", 0), H)

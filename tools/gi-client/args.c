@@ -120,7 +120,7 @@ static const char help_text[] =
     "  metrics               GET /metrics (Prometheus text)\n"
     "  job JOBID             GET /v1/jobs/JOBID: state and progress of a probe job\n"
     "\n"
-    "Commands that download a file (-o OUT required)\n"
+    "Commands that download a file (-o OUT required; probes --no-wait excepted)\n"
     "  lighting ID --at X,Y,Z [--kind probe|panorama] [--quality Q] [--set K=V ...]\n"
     "                        GET /v1/scenes/ID/lighting -> EXR (kind default probe)\n"
     "  cascades ID --at X,Y,Z [--faces] [--quality Q] [--set K=V ...]\n"
@@ -133,7 +133,11 @@ static const char help_text[] =
     "                        ok (the format of gi-bake --probes). A large set becomes\n"
     "                        a job: gi-client polls it (progress bar on a terminal,\n"
     "                        a line per 10% otherwise) and downloads the result;\n"
-    "                        --no-wait prints the job instead (see 'job JOBID')\n"
+    "                        Ctrl-C while it polls cancels the job (DELETE) and\n"
+    "                        exits 130. --no-wait prints the job on stdout instead\n"
+    "                        (see 'job JOBID') and needs no -o, but a list the\n"
+    "                        server answers at once is an EXR: without -o that is\n"
+    "                        an error (exit 1)\n"
     "\n"
     "  --at X,Y,Z            viewpoint, three finite numbers in world units\n"
     "  --quality Q           preset: low, default or high\n"
@@ -172,7 +176,8 @@ static const char help_text[] =
     "\n"
     "Exit status: 0 success, 1 the request failed (network error, HTTP status not\n"
     "2xx, failed job, unwritable output), 2 bad arguments, 130 a walk stopped by\n"
-    "Ctrl-C (its summary printed, its session deleted).\n"
+    "Ctrl-C (its summary printed, its session deleted) or a probe job's wait\n"
+    "stopped by Ctrl-C (the job cancelled).\n"
     "\n"
     "Examples\n"
     "  gi-client health\n"
@@ -455,7 +460,9 @@ static int check_command_options(const gc_opts *o, int ci, int given) {
   if (o->cmd == GC_WALK && (rc = check_session_knobs(o))) return rc;
   if ((o->cmd == GC_LIGHTING || o->cmd == GC_CASCADES || o->cmd == GC_PROBES) && (rc = check_with_proto(o)))
     return rc;
-  if (commands[ci].needs_out && !o->out) return ta_fail(&ta, "-o", "'%s' downloads a file: give -o OUT", cmd);
+  /* --no-wait prints the job: -o is needed only if the server answers the list at once (main.c). */
+  if (commands[ci].needs_out && !o->out && !(o->cmd == GC_PROBES && o->no_wait))
+    return ta_fail(&ta, "-o", "'%s' downloads a file: give -o OUT", cmd);
   return 0;
 }
 

@@ -27,8 +27,9 @@
 #define MAX_MEM_BODY (1 << 20) /* error and job bodies are small; refuse a runaway one */
 #define POLL_MS 500
 
-/* 202: a job to poll; ALL: a poll answer; DROP: a walk's step (counted, not kept) */
-enum { MEM_NONE = 0, MEM_202 = 1, MEM_ALL = GC_MEM_ALL, MEM_DROP = GC_MEM_DROP };
+/* 202: a job to poll; ALL: a poll answer; DROP: a walk's step (counted, not kept);
+ * JOB_ONLY: a 202 kept, any other 2xx refused (probes --no-wait without -o) */
+enum { MEM_NONE = 0, MEM_202 = 1, MEM_ALL = GC_MEM_ALL, MEM_DROP = GC_MEM_DROP, MEM_JOB_ONLY = 4 };
 
 /* --- output file: temp name, renamed on success ------------------------------ */
 
@@ -36,11 +37,25 @@ enum { MEM_NONE = 0, MEM_202 = 1, MEM_ALL = GC_MEM_ALL, MEM_DROP = GC_MEM_DROP }
  * leave OUT.tmp.<pid> behind. */
 static char g_tmp_path[4200];
 static volatile sig_atomic_t g_tmp_live;
+/* While a probe job is polled, Ctrl-C only asks the loop to stop: the job
+ * it started is then cancelled on the server (DELETE) before the exit,
+ * as walk deletes its session; it kept running for nobody. */
+static volatile sig_atomic_t g_polling, g_cancelling, g_stop;
 
 static void on_signal(int sig) {
+  if (g_polling || g_cancelling) {
+    g_stop = 1;
+    return;
+  }
   if (g_tmp_live) unlink(g_tmp_path);
   signal(sig, SIG_DFL);
   raise(sig);
+}
+
+/* A poll in flight when Ctrl-C came ends at once (the server may hang). */
+static int on_progress(void *ud, curl_off_t dt, curl_off_t dn, curl_off_t ut, curl_off_t un) {
+  (void)ud, (void)dt, (void)dn, (void)ut, (void)un;
+  return g_polling && g_stop;
 }
 
 /* --- one request --------------------------------------------------------------- */
@@ -133,8 +148,13 @@ static size_t on_body(char *p, size_t size, size_t nmemb, void *ud) {
   if (!a->decided) {
     curl_easy_getinfo(a->curl, CURLINFO_RESPONSE_CODE, &a->status);
     a->decided = 1;
+    int keep202 = a->status == 202 && (a->mem_mode == MEM_202 || a->mem_mode == MEM_JOB_ONLY);
     int ok2xx = a->status >= 200 && a->status < 300 && a->mem_mode != MEM_ALL && a->mem_mode != MEM_DROP &&
-                !(a->status == 202 && a->mem_mode == MEM_202);
+                !keep202;
+    if (ok2xx && a->mem_mode == MEM_JOB_ONLY) {
+      a->write_failed = -2; /* no OUT for this answer: reported below */
+      return 0;
+    }
     if (ok2xx && open_sink(a)) return 0; /* aborts the transfer: reported below */
   }
   if (a->mem_mode == MEM_DROP && a->status >= 200 && a->status < 300) {
@@ -179,6 +199,25 @@ static void print_http_error(const answer *a) {
   fputc('\n', stderr);
 }
 
+/* The whole answer is in OUT.tmp.<pid>: flushed and synced, then renamed,
+ * so OUT is either the old file or the whole new one. */
+static int commit_out(const gc_opts *o, answer *a, const char *out) {
+  int bad = fflush(a->fp) != 0 || fsync(fileno(a->fp)) != 0;
+  int e = errno;
+  bad |= fclose(a->fp) != 0;
+  a->fp = NULL;
+  if (bad || rename(g_tmp_path, out) != 0) {
+    if (!bad) e = errno;
+    fprintf(stderr, "gi-client: cannot write '%s': %s\n", out, strerror(e));
+    unlink(g_tmp_path);
+    g_tmp_live = 0;
+    return EXIT_RUN;
+  }
+  g_tmp_live = 0;
+  if (!o->quiet) fprintf(stderr, "gi-client: wrote %s (%zu bytes)\n", out, a->bytes);
+  return 0;
+}
+
 /* Runs one request. On success (2xx) returns 0 with the body in the sink
  * (committed to OUT for downloads) or, for a 202 kept in memory, in a->mem.
  * On failure prints why and returns EXIT_RUN. The caller frees a->mem.p. */
@@ -208,6 +247,8 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
   curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, on_body);
   curl_easy_setopt(c, CURLOPT_WRITEDATA, a);
   curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
+  curl_easy_setopt(c, CURLOPT_XFERINFOFUNCTION, on_progress);
+  curl_easy_setopt(c, CURLOPT_NOPROGRESS, 0L);
   /* A viewpoint URL answers 307 to its cell URL on the same server. */
   if (!body) curl_easy_setopt(c, CURLOPT_FOLLOWLOCATION, 1L);
   curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT_MS, 10000L);
@@ -227,6 +268,11 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
     if (a->timing[0]) fprintf(stderr, "Server-Timing: %s\n", a->timing);
     if (a->cache[0]) fprintf(stderr, "X-GI-Cache: %s\n", a->cache);
   }
+  if (a->write_failed == -2) {
+    fprintf(stderr, "gi-client: %s %s: the server answered at once (HTTP %ld, an EXR, not a job): give -o OUT to "
+                    "keep it\n", method, url, a->status);
+    return EXIT_RUN;
+  }
   if (a->write_failed) {
     if (a->write_failed == -1)
       fprintf(stderr, "gi-client: %s %s: answer (HTTP %ld) longer than %d bytes\n", method, url, a->status,
@@ -237,6 +283,7 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
     drop_tmp(a);
     return EXIT_RUN;
   }
+  if (cr == CURLE_ABORTED_BY_CALLBACK && g_stop) return EXIT_RUN; /* Ctrl-C: the caller says so */
   if (cr != CURLE_OK) {
     fprintf(stderr, "gi-client: %s %s: %s\n", method, url, err[0] ? err : curl_easy_strerror(cr));
     drop_tmp(a);
@@ -247,7 +294,9 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
     drop_tmp(a);
     return EXIT_RUN;
   }
-  if (mem_mode == MEM_ALL || mem_mode == MEM_DROP || (a->status == 202 && mem_mode == MEM_202)) return 0;
+  if (mem_mode == MEM_ALL || mem_mode == MEM_DROP || (a->status == 202 && (mem_mode == MEM_202 ||
+      mem_mode == MEM_JOB_ONLY)))
+    return 0;
   if (!a->decided && open_sink(a)) { /* an empty 2xx body: still an (empty) answer */
     fprintf(stderr, "gi-client: cannot write '%s': %s\n", g_tmp_path, strerror(a->write_failed));
     return EXIT_RUN;
@@ -262,21 +311,7 @@ static int run_request(const gc_opts *o, CURL *c, const char *method, const char
     }
     return 0;
   }
-  /* Flushed and synced before the rename: OUT is either the old file or the whole new one. */
-  int bad = fflush(a->fp) != 0 || fsync(fileno(a->fp)) != 0;
-  int e = errno;
-  bad |= fclose(a->fp) != 0;
-  a->fp = NULL;
-  if (bad || rename(g_tmp_path, out) != 0) {
-    if (!bad) e = errno;
-    fprintf(stderr, "gi-client: cannot write '%s': %s\n", out, strerror(e));
-    unlink(g_tmp_path);
-    g_tmp_live = 0;
-    return EXIT_RUN;
-  }
-  g_tmp_live = 0;
-  if (!o->quiet) fprintf(stderr, "gi-client: wrote %s (%zu bytes)\n", out, a->bytes);
-  return 0;
+  return commit_out(o, a, out);
 }
 
 /* --- URLs and bodies --------------------------------------------------------- */
@@ -457,7 +492,25 @@ static double now_s(void) {
 
 static void sleep_ms(long ms) {
   struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
-  while (nanosleep(&ts, &ts) && errno == EINTR) {}
+  while (nanosleep(&ts, &ts) && errno == EINTR && !g_stop) {}
+}
+
+/* Ctrl-C while polling: DELETE the job, then exit 130. More signals (a
+ * second Ctrl-C, `timeout -s INT` signalling the process and then its
+ * group) do not stop it; at most CANCEL_MS bounds it. */
+#define CANCEL_MS 10000L
+static int cancel_job(const gc_opts *o, CURL *c, const char *id, const char *url) {
+  g_cancelling = 1;
+  g_polling = 0; /* this request is not aborted */
+  gc_opts q = *o;
+  q.quiet = 1;
+  if (!q.timeout_ms || q.timeout_ms > CANCEL_MS) q.timeout_ms = CANCEL_MS;
+  answer a;
+  int rc = run_request(&q, c, "DELETE", url, NULL, 0, NULL, MEM_ALL, &a);
+  free(a.mem.p);
+  if (rc) fprintf(stderr, "gi-client: job %s: interrupted, and it could not be cancelled (above)\n", id);
+  else fprintf(stderr, "gi-client: job %s: interrupted; cancelled it on the server\n", id);
+  return 130;
 }
 
 /* Progress on stderr: a bar redrawn in place on a terminal, else one line
@@ -504,17 +557,26 @@ static int wait_job(const gc_opts *o, CURL *c, const char *id) {
   double t0 = now_s();
   if (!url || !result_url) goto done;
   if (!o->quiet) fprintf(stderr, "gi-client: job %s: waiting (%s)\n", id, url);
+  g_polling = 1;
   for (;;) {
     answer a;
     gc_opts q = *o;
     q.quiet = 1; /* no header lines for every poll */
-    if (run_request(&q, c, "GET", url, NULL, 0, NULL, MEM_ALL, &a)) {
+    memset(&a, 0, sizeof a);
+    int bad = g_stop ? EXIT_RUN : run_request(&q, c, "GET", url, NULL, 0, NULL, MEM_ALL, &a);
+    if (g_stop) {
+      progress_end(&pg);
+      free(a.mem.p);
+      rc = cancel_job(o, c, id, url);
+      goto done;
+    }
+    if (bad) {
       progress_end(&pg);
       free(a.mem.p);
       goto done;
     }
     gi_proto_job j;
-    int bad = gi_proto_job_parse(a.mem.p ? a.mem.p : "", a.mem.n, &j);
+    bad = gi_proto_job_parse(a.mem.p ? a.mem.p : "", a.mem.n, &j);
     free(a.mem.p);
     if (bad) {
       progress_end(&pg);
@@ -536,10 +598,12 @@ static int wait_job(const gc_opts *o, CURL *c, const char *id) {
     }
     sleep_ms(POLL_MS);
   }
+  g_polling = 0;
   answer a;
   rc = run_request(o, c, "GET", result_url, NULL, 0, o->out, MEM_NONE, &a);
   free(a.mem.p);
 done:
+  g_polling = 0;
   free(url);
   free(result_url);
   return rc;
@@ -576,7 +640,8 @@ static int run(const gc_opts *o, CURL *c) {
   }
   size_t len = 0;
   if (!(body = probes_body(o, &len))) goto out;
-  if ((rc = run_request(o, c, "POST", url, body, len, o->out, MEM_202, &a))) goto out_a;
+  int mode = o->no_wait && !o->out ? MEM_JOB_ONLY : MEM_202;
+  if ((rc = run_request(o, c, "POST", url, body, len, o->out, mode, &a))) goto out_a;
   if (a.status != 202) goto out_a; /* 200: the EXR is already in place */
   rc = EXIT_RUN;
   json_error_t je;
@@ -611,8 +676,15 @@ int main(int argc, char **argv) {
     ta_outputs_finish(&fin, 0);
     return rc < 0 ? 0 : rc;
   }
-  signal(SIGINT, on_signal);
-  signal(SIGTERM, on_signal);
+  /* sigaction, not signal(): this signal() resets the handler after one
+   * signal, and `timeout -s INT` sends two (to the process, then to its
+   * group), so a polled job's Ctrl-C died before its DELETE. */
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
   signal(SIGPIPE, SIG_IGN); /* a closed stdout is a write error, reported */
   if (curl_global_init(CURL_GLOBAL_DEFAULT)) {
     fputs("gi-client: cannot initialise libcurl\n", stderr);
