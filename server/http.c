@@ -580,10 +580,10 @@ static void scene_info(gs_service *svc, const gs_scene *s, const query *qy, gs_a
   /* The core derives the aperture from the cone count at bake time: a cone
    * whose solid angle is its region's, 2 pi (1 - cos h) = 2 pi / N. */
   double ap = q->aperture_deg > 0 ? q->aperture_deg : 2.0 * acos(1.0 - 1.0 / q->cones) * 180.0 / 3.14159265358979;
-  json_t *qj = json_pack("{s:i, s:i, s:f, s:i, s:f, s:f, s:i, s:i, s:i}", "levels", q->levels, "res", q->res,
+  json_t *qj = json_pack("{s:i, s:i, s:f, s:i, s:f, s:f, s:i, s:b, s:i, s:i}", "levels", q->levels, "res", q->res,
                          "voxel", q->voxel0, "cones", q->cones, "aperture_deg", ap, "step",
-                         (double)q->step, "bounces", q->bounces, "samples", q->light_samples, "probe_samples",
-                         q->probe_samples);
+                         (double)q->step, "bounces", q->bounces, "bounce_tail", q->bounce_tail, "samples",
+                         q->light_samples, "probe_samples", q->probe_samples);
   json_t *o = json_pack("{s:s, s:s, s:I, s:{s:I, s:I, s:I}, s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:f}", "id", s->id, "up",
                         gi_scene_up(s->scene) == GI_UP_Z ? "z" : "y", "triangles", (json_int_t)st.triangles,
                         "dropped", "nonfinite", (json_int_t)st.dropped_nonfinite, "degenerate",

@@ -118,6 +118,7 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
   if (q->res == 0) q->res = 32;
   if (q->cones == 0) q->cones = 16;
   if (q->step == 0) q->step = 1.0f;
+  q->bounce_tail = 0; /* out only: the plan sets it */
   if (q->bounces == 0) q->bounces = 2; /* auto: the effect plan replaces it */
   else if (q->bounces < 0) q->bounces = 0;
   for (int i = 0; i < GI_FX_COUNT; i++)
@@ -461,6 +462,7 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   else set_fx(r, GI_FX_SPECULAR, 0, "no glossy material within the cascade");
   plan_ao(q, r);
   *tail_out = tail && r->effects[GI_FX_BOUNCE].ran;
+  q->bounce_tail = *tail_out;
   return GI_OK;
 }
 

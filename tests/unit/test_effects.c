@@ -65,10 +65,20 @@ static void test_bounces_from_albedo(void **state) {
     assert_non_null(strstr(rep.effects[GI_FX_BOUNCE].why, "albedo"));
     /* Only a count that reached the cap adds the tail of the orders left out. */
     assert_int_equal(strstr(rep.effects[GI_FX_BOUNCE].why, "geometric tail") != NULL, tail[i]);
-    /* An explicit count wins, and off means none. */
+    /* The resolved quality says so too (bounces=4 with and without the
+     * tail read alike in gi.quality), in the report and in the plan's. */
+    assert_int_equal(rep.quality.bounce_tail, tail[i]);
+    gi_effect fx[GI_FX_COUNT];
+    gi_quality res;
+    gi_error_info err = {0};
+    assert_int_equal(gi_effect_plan(s, at, &q, fx, &res, &err), GI_OK);
+    assert_int_equal(res.bounce_tail, tail[i]);
+    /* An explicit count wins, has no tail, and off means none. */
     q.bounces = 2;
+    q.bounce_tail = 1; /* out only: ignored */
     bake_at(s, at, &q, &rep, &p);
     assert_int_equal(rep.bounces_run, 2);
+    assert_int_equal(rep.quality.bounce_tail, 0);
     q.effects[GI_FX_BOUNCE] = GI_FX_OFF;
     bake_at(s, at, &q, &rep, &p);
     assert_int_equal(rep.bounces_run, 0);

@@ -26,10 +26,10 @@ int batch_is_dir(const char *path) {
 }
 
 static void quality_text(const gi_quality *q, char *buf, size_t size) {
-  snprintf(buf, size, "levels=%d res=%d voxel0=%.17g cones=%d aperture_deg=%.9g step=%.9g bounces=%d "
+  snprintf(buf, size, "levels=%d res=%d voxel0=%.17g cones=%d aperture_deg=%.9g step=%.9g bounces=%d bounce_tail=%d "
                       "light_samples=%d probe_samples=%d ao=%d specular=%d seed=%llu",
-           q->levels, q->res, q->voxel0, q->cones, q->aperture_deg, q->step, q->bounces, q->light_samples,
-           q->probe_samples, q->ao, q->specular, (unsigned long long)q->seed);
+           q->levels, q->res, q->voxel0, q->cones, q->aperture_deg, q->step, q->bounces, q->bounce_tail,
+           q->light_samples, q->probe_samples, q->ao, q->specular, (unsigned long long)q->seed);
 }
 
 static void effects_text(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size) {

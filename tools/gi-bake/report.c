@@ -80,6 +80,7 @@ static json_t *quality_json(jctx *j, const gi_quality *q, int threads) {
   json_object_set_new(o, "aperture_deg", num(j, q->aperture_deg, "quality.aperture_deg"));
   json_object_set_new(o, "step", num(j, q->step, "quality.step"));
   json_object_set_new(o, "bounces", json_integer(q->bounces));
+  json_object_set_new(o, "bounce_tail", json_boolean(q->bounce_tail));
   json_object_set_new(o, "light_samples", json_integer(q->light_samples));
   json_object_set_new(o, "probe_samples", json_integer(q->probe_samples));
   json_object_set_new(o, "ao_lambda", num(j, q->ao_lambda, "quality.ao_lambda"));

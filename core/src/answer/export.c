@@ -28,9 +28,9 @@ static void effects_text(const gi_bake_report *rep, char *buf, size_t size) {
 }
 
 static void quality_text(const gi_quality *q, char *buf, size_t size) {
-  snprintf(buf, size, "levels=%d res=%d voxel0=%.9g cones=%d aperture_deg=%g step=%g bounces=%d "
+  snprintf(buf, size, "levels=%d res=%d voxel0=%.9g cones=%d aperture_deg=%g step=%g bounces=%d bounce_tail=%d "
                       "light_samples=%d probe_samples=%d seed=%llu",
-           q->levels, q->res, q->voxel0, q->cones, q->aperture_deg, q->step, q->bounces,
+           q->levels, q->res, q->voxel0, q->cones, q->aperture_deg, q->step, q->bounces, q->bounce_tail,
            q->light_samples, q->probe_samples, (unsigned long long)q->seed);
 }
 
