@@ -149,10 +149,13 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   gi_lightmap_free(lm);
   if (need) gs_cache_unreserve(svc->cache, need);
   if (rc != GI_OK) return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+  /* The atlas: what its tiles ran (each tile plans from its centre and
+   * texels). The glTF bakes nothing: the plan at the region's centre. */
   gi_effect fx[GI_FX_COUNT];
   double centre[3];
   for (int k = 0; k < 3; k++) centre[k] = 0.5 * (o.region_lo[k] + o.region_hi[k]);
-  if (gi_effect_plan(s->scene, centre, &req, fx, NULL, &e) == GI_OK)
+  if (ep != GS_EP_LIGHTMAP_UV) gi_proto_effects_header(rep.effects, a->effects, sizeof a->effects);
+  else if (gi_effect_plan(s->scene, centre, &req, fx, NULL, &e) == GI_OK)
     gi_proto_effects_header(fx, a->effects, sizeof a->effects);
   gi_proto_server_timing_layout(layout_ms, &ms, gs_now_ms() - t_start_ms, a->server_timing, sizeof a->server_timing);
   a->cache = "miss";
