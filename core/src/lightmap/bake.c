@@ -632,10 +632,12 @@ static gi_result plan_tiling(const gi_lightmap *lm, const gi_quality *rq, const 
                                   : GI_LM_TILE_FRACTION * rq->res * rq->voxel0 * (double)(1u << (rq->levels - 1));
   for (int tries = 0;; tries++) {
     /* Each tile is a cascade bake: past this many the request is a mistake (and tile ids stay ints). */
+    /* "raise tile" said to a caller who gave none (the default shrank) was no help. */
     if (!grid_make(lm, side, anc, total, GI_LM_MAX_TILES, &T->g))
       return gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region and its texels into %d x %d x %d "
-                      "tiles, more than %d cascade bakes: raise tile", side, T->g.nt[0], T->g.nt[1], T->g.nt[2],
-                      GI_LM_MAX_TILES);
+                      "tiles, more than %d cascade bakes: %s", side, T->g.nt[0], T->g.nt[1], T->g.nt[2],
+                      GI_LM_MAX_TILES, lm->opts.tile > 0 ? "raise tile" :
+                      "the default tile shrank to fit its cascade; use a larger voxel, more levels or a smaller region");
     size_t ntiles = (size_t)T->g.nt[0] * T->g.nt[1] * T->g.nt[2], bad = 0;
     gi_result rc = texels_by_tile(lm, &T->g, base, anc, total, &T->start, &T->list, &T->box, err);
     if (rc != GI_OK) return rc;
