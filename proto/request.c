@@ -432,8 +432,12 @@ static int session_body(const char *body, size_t len, const gi_proto_limits *lim
 
 int gi_proto_parse_session(const gi_proto_kv *kv, size_t n, const char *body, size_t len,
                            const gi_proto_limits *lim, gi_proto_bake *out, gi_proto_error *err) {
-  if (len && n)
-    return gi_proto_fail(err, 400, "give the session's quality in the JSON body or in the query, not both");
+  /* Name what was given twice: the message blamed the quality when only 'at' was. */
+  if (len && n) {
+    const char *k = kv[0].key ? kv[0].key : "";
+    return gi_proto_fail(err, 400, "the session's start 'at' and quality come in the JSON body or in the query, not "
+                         "both: the query has '%s' and there is a body", k);
+  }
   if (len) return session_body(body, len, lim, out, err);
   return parse_query(kv, n, P_AT | P_AT_OPT | P_QUALITY, lim, out, err);
 }

@@ -361,6 +361,12 @@ static void test_sessions(void **state) {
   assert_int_equal(b.quality.res, 16);
   assert_int_equal(gi_proto_parse_session(q, NKV(q), body, strlen(body), &l, &b, &e), 400);
   assert_non_null(strstr(e.message, "not both"));
+  /* 'at' alone in both places: the message names 'at', not the quality. */
+  gi_proto_kv qa[] = {{"at", "1,2.5,-3"}};
+  const char *at_body = "{\"at\":[1,2.5,-3]}";
+  assert_int_equal(gi_proto_parse_session(qa, NKV(qa), at_body, strlen(at_body), &l, &b, &e), 400);
+  assert_non_null(strstr(e.message, "start 'at' and quality come in the JSON body or in the query, not both: the "
+                                    "query has 'at'"));
   const char *bad = "{\"points\":[[0,0,0]]}";
   assert_int_equal(gi_proto_parse_session(NULL, 0, bad, strlen(bad), &l, &b, &e), 400);
   assert_non_null(strstr(e.message, "unknown field 'points'"));

@@ -395,10 +395,12 @@ static void test_headers(void **state) {
   assert_int_equal(ta_read_points(&c, "--probes", tu_write_file("bom.txt", bom_pts, sizeof bom_pts - 1), 16, &pts, &n), 0);
   assert_true(n == 1 && pts[0] == 1 && pts[2] == 3);
   free(pts);
-  const char *bad_paths[4] = {"0,1,2,3\nt,x,y,z\n", "t,x,y\n0,1,2,3\n", "nan,nan,nan,nan\n", "1,0,0,0\n0,0,0,0\n"};
-  const char *why[4] = {"bp0.csv:2: expected t,x,y,z", "bp1.csv:1: expected t,x,y,z", "bp2.csv:1: expected t,x,y,z",
-                        "bp3.csv:2: t = 0 goes back in time"};
-  for (int i = 0; i < 4; i++) {
+  /* A blank inside a field: "2 1" read as 21 (blanks were stripped everywhere). */
+  const char *bad_paths[5] = {"0,1,2,3\nt,x,y,z\n", "t,x,y\n0,1,2,3\n", "nan,nan,nan,nan\n", "1,0,0,0\n0,0,0,0\n",
+                              "0,0,2,2\n0.1,2 1,0,2\n"};
+  const char *why[5] = {"bp0.csv:2: expected t,x,y,z", "bp1.csv:1: expected t,x,y,z", "bp2.csv:1: expected t,x,y,z",
+                        "bp3.csv:2: t = 0 goes back in time", "bp4.csv:2: expected t,x,y,z"};
+  for (int i = 0; i < 5; i++) {
     char name[32];
     snprintf(name, sizeof name, "bp%d.csv", i);
     st = NULL;

@@ -227,15 +227,28 @@ int ta_mkdirs(ta_ctx *c, const char *opt, const char *path) {
 }
 
 /* A path line's fields: "t,x,y,z" with blanks around, '#' starts a comment. */
+static int path_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+
 static int path_line(char *line, double v[4]) {
   char *hash = strchr(line, '#');
   if (hash) *hash = 0;
+  /* Blanks around the commas only: "0.1,2 1,0,2" read x as 21. A field
+   * with a blank inside is refused (after the strip, so the caller's
+   * header test still sees the text). */
+  int inside = 0;
+  char prev = 0;
+  for (const char *p = line; *p; p++) {
+    if (!path_blank(*p)) {
+      if (prev && !path_blank(prev) && prev != ',' && *p != ',' && p > line && path_blank(p[-1])) inside = 1;
+      prev = *p;
+    }
+  }
   char *p = line, *q = line;
   for (; *p; p++)
-    if (*p != ' ' && *p != '\t' && *p != '\r' && *p != '\n') *q++ = *p;
+    if (!path_blank(*p)) *q++ = *p;
   *q = 0;
   if (!*line) return 1; /* blank or comment only */
-  return ta_parse_doubles(line, v, 4) == TA_OK ? 0 : -1;
+  return !inside && ta_parse_doubles(line, v, 4) == TA_OK ? 0 : -1;
 }
 
 /* A column header ("t,x,y,z", "time_s,x,y,z"): four comma-separated names,
