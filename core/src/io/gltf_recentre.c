@@ -667,6 +667,69 @@ static int order_attribute_sets(json_t *root) {
   return changed;
 }
 
+/* The extensions a file may require: what this loader reads (lights,
+ * emissive strength, the base colour's texture transform, transmission as
+ * a see-through share, GPU instancing: here and in import_assimp.c) and
+ * what assimp 5.2 decodes (Draco, through libdraco). Sorted. */
+static const char *const supported_required[] = {
+    "EXT_mesh_gpu_instancing", "KHR_draco_mesh_compression", "KHR_lights_punctual",
+    "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_texture_transform"};
+#define NUM_SUPPORTED_REQUIRED (sizeof supported_required / sizeof supported_required[0])
+
+/* extensionsRequired: the spec says a loader that lacks one must fail.
+ * assimp 5.2 never checks, and a file of quantized positions
+ * (KHR_mesh_quantization: SHORT read as float bits, bounds of 9e-41) or
+ * of KTX2 or WebP textures alone loaded quietly wrong. 0, or -1 with err
+ * naming every extension missing and those that are read. */
+static int check_required(json_t *root, const char *path, gi_error_info *err) {
+  json_t *req = json_object_get(root, "extensionsRequired");
+  char missing[256] = "", known[256] = "";
+  size_t nm = 0, len = 0;
+  for (size_t i = 0; i < json_array_size(req); i++) {
+    const char *name = json_string_value(json_array_get(req, i));
+    if (!name) {
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF extensionsRequired[%zu] is not a string", path, i);
+      return -1;
+    }
+    size_t k = 0;
+    while (k < NUM_SUPPORTED_REQUIRED && strcmp(name, supported_required[k])) k++;
+    if (k < NUM_SUPPORTED_REQUIRED) continue;
+    /* snprintf cuts a long list short; the first names are the message. */
+    if (len < sizeof missing) len += (size_t)snprintf(missing + len, sizeof missing - len, "%s%s", nm ? ", " : "", name);
+    nm++;
+  }
+  if (!nm) return 0;
+  for (size_t k = 0, n = 0; k < NUM_SUPPORTED_REQUIRED; k++)
+    n += (size_t)snprintf(known + n, sizeof known - n, "%s%s", k ? ", " : "", supported_required[k]);
+  gi__fail(err, GI_ERR_FORMAT, "scene file '%s': the glTF requires extension%s %s, which %s not supported (the "
+           "extensions read are %s)", path, nm == 1 ? "" : "s", missing, nm == 1 ? "is" : "are", known);
+  return -1;
+}
+
+/* A texture whose image is only in an extension (KHR_texture_basisu's
+ * KTX2, EXT_texture_webp's WebP) and that has no fallback 'source': assimp
+ * 5.2 gives the material no texture at all, and its colour factor went
+ * on alone without a word. The extension's image becomes the texture's
+ * source, which the texture reader refuses as it does a missing PNG: a
+ * warning naming it, counted as textures_unreadable. Returns how many
+ * textures changed. */
+static int expose_extension_images(json_t *root) {
+  json_t *texs = json_object_get(root, "textures");
+  int changed = 0;
+  for (size_t i = 0; i < json_array_size(texs); i++) {
+    json_t *t = json_array_get(texs, i), *ext = json_object_get(t, "extensions"), *v;
+    const char *key;
+    if (!json_is_object(t) || json_object_get(t, "source")) continue;
+    json_object_foreach(ext, key, v) {
+      json_t *src = json_object_get(v, "source");
+      if (!json_is_integer(src) || json_integer_value(src) < 0) continue;
+      if (json_object_set(t, "source", src) == 0) changed++;
+      break;
+    }
+  }
+  return changed;
+}
+
 /* The JSON text of a .gltf, or the JSON chunk of a .glb. */
 static int split_glb(const unsigned char *buf, size_t len, size_t *json_off, size_t *json_len) {
   if (len < GLB_HEADER + GLB_CHUNK_HEADER || le32(buf) != GLB_MAGIC || le32(buf + 12 + 4) != GLB_CHUNK_JSON) return -1;
@@ -731,10 +794,11 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
                   "JSON line %d column %d: %s", path, je.line, je.column, je.text);
     goto done;
   }
-  int folded = check_sparse(root, path, err) < 0 || read_uv_transforms(root, path, out, err) < 0
+  int folded = check_required(root, path, err) < 0 || check_sparse(root, path, err) < 0 ||
+                       read_uv_transforms(root, path, out, err) < 0
                    ? -1
                    : fold_emissive_strength(root, path, err);
-  if (folded >= 0) folded += drop_points_and_lines(root) + order_attribute_sets(root);
+  if (folded >= 0) folded += drop_points_and_lines(root) + order_attribute_sets(root) + expose_extension_images(root);
   gi__gltf_bin bin = {.path = path};
   if (glb) glb_bin_chunk(buf, len, json_off + json_len, &bin);
   int r = folded < 0 ? -1 : recentre_json(root, &bin, out, err);

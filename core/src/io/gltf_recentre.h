@@ -23,7 +23,10 @@
  * EXT_mesh_gpu_instancing (ignored too) becomes one root per instance,
  * its instance data read by io/gltf_accessors.c. A primitive's indexed
  * attributes (TEXCOORD_n, COLOR_n, ...) are listed in index order, which
- * assimp 5.2 requires and JSON does not promise.
+ * assimp 5.2 requires and JSON does not promise. A file requiring an
+ * extension we do not read (extensionsRequired) is refused, and a texture
+ * whose image only an extension names (KTX2, WebP) gets it as its source,
+ * for the texture reader to refuse with a warning.
  *
  * Ownership: gi__gltf_recentre fills a gi__gltf_shift the caller releases
  * with gi__gltf_shift_free. Not shared between threads. */

@@ -350,12 +350,17 @@ gi_result gi__image_average_grid(const void *data, size_t size, const char *what
                                  gi_error_info *err) {
   static const unsigned char png_magic[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   static const unsigned char jpeg_magic[3] = {0xff, 0xd8, 0xff};
+  static const unsigned char ktx2_magic[12] = {0xab, 'K', 'T', 'X', ' ', '2', '0', 0xbb, '\r', '\n', 0x1a, '\n'};
   if (!what) what = "(unnamed)";
   if (grid) memset(grid, 0, sizeof *grid);
   if (!data || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "texture '%s': no data", what);
   gi_result rc;
   if (size >= 8 && memcmp(data, png_magic, 8) == 0) rc = png_average(data, size, what, rgb, grid, err);
   else if (size >= 3 && memcmp(data, jpeg_magic, 3) == 0) rc = jpeg_average(data, size, what, rgb, grid, err);
+  else if (size >= 12 && !memcmp(data, ktx2_magic, 12))
+    rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': a KTX2 (Basis Universal) image; only PNG and JPEG are read", what);
+  else if (size >= 12 && !memcmp(data, "RIFF", 4) && !memcmp((const char *)data + 8, "WEBP", 4))
+    rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': a WebP image; only PNG and JPEG are read", what);
   else rc = gi__fail(err, GI_ERR_FORMAT, "texture '%s': not a PNG or JPEG image (%zu bytes)", what, size);
   if (rc != GI_OK) gi__tex_grid_free(grid);
   return rc;
