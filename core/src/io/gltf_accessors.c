@@ -70,20 +70,45 @@ static int read_beside(const char *gltf, const char *uri, bytes *out) {
   return 0;
 }
 
-static int buffer_bytes(json_t *root, const gi__gltf_bin *bin, json_int_t b, bytes *out) {
-  json_t *buf = json_array_get(json_object_get(root, "buffers"), b < 0 ? SIZE_MAX : (size_t)b);
+/* A buffer as read (or not yet: state 0; 1 read, -1 unreadable). */
+struct gi__gltf_buf {
+  bytes b;
+  int state;
+};
+
+void gi__gltf_bin_fini(gi__gltf_bin *bin) {
+  for (size_t i = 0; i < bin->ncache; i++) gi__free(bin->cache[i].b.owned);
+  gi__free(bin->cache);
+  bin->cache = NULL, bin->ncache = 0;
+}
+
+/* Buffer b's bytes into *out, borrowed from bin's cache (read the first
+ * time): 0, -1 when it cannot be read, -2 out of memory. */
+static int buffer_bytes(json_t *root, gi__gltf_bin *bin, json_int_t b, bytes *out) {
+  json_t *bufs = json_object_get(root, "buffers"), *buf = json_array_get(bufs, b < 0 ? SIZE_MAX : (size_t)b);
   if (!json_is_object(buf)) return -1;
-  const char *uri = json_string_value(json_object_get(buf, "uri"));
-  if (!uri) {
-    if (b != 0 || !bin->glb_bin) return -1;
-    out->p = bin->glb_bin, out->len = bin->glb_bin_len;
-    return 0;
+  if (!bin->cache) {
+    if (!(bin->cache = gi__calloc(json_array_size(bufs), sizeof *bin->cache))) return -2;
+    bin->ncache = json_array_size(bufs);
   }
-  if (!strncmp(uri, "data:", 5)) {
-    const char *comma = strstr(uri, ";base64,");
-    return comma ? b64_decode(comma + 8, out) : -1;
+  struct gi__gltf_buf *c = &bin->cache[b];
+  if (c->state == 0) {
+    const char *uri = json_string_value(json_object_get(buf, "uri"));
+    int r = -1;
+    if (!uri) {
+      if (b == 0 && bin->glb_bin) c->b.p = bin->glb_bin, c->b.len = bin->glb_bin_len, r = 0;
+    } else if (!strncmp(uri, "data:", 5)) {
+      const char *comma = strstr(uri, ";base64,");
+      r = comma ? b64_decode(comma + 8, &c->b) : -1;
+    } else {
+      r = read_beside(bin->path, uri, &c->b);
+    }
+    if (r == -2) return -2; /* not remembered: out of memory may pass */
+    c->state = r == 0 ? 1 : -1;
   }
-  return read_beside(bin->path, uri, out);
+  if (c->state < 0) return -1;
+  *out = (bytes){.p = c->b.p, .len = c->b.len};
+  return 0;
 }
 
 static double component(const unsigned char *p, int type) {
@@ -99,12 +124,16 @@ static double component(const unsigned char *p, int type) {
   return fmax((int8_t)p[0] / 127.0, -1.0);
 }
 
+static uint32_t le32(const unsigned char *p) {
+  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
 static json_int_t int_member(json_t *o, const char *key, json_int_t dflt) {
   json_t *v = json_object_get(o, key);
   return json_is_integer(v) ? json_integer_value(v) : v ? -1 : dflt;
 }
 
-gi_result gi__gltf_accessor_read(json_t *root, const gi__gltf_bin *bin, json_int_t index, int ncomp, int normalized_ok,
+gi_result gi__gltf_accessor_read(json_t *root, gi__gltf_bin *bin, json_int_t index, int ncomp, int normalized_ok,
                                  size_t max_count, const char *what, double **out, size_t *count, gi_error_info *err) {
   *out = NULL, *count = 0;
   const char *path = bin->path;
@@ -157,6 +186,39 @@ gi_result gi__gltf_accessor_read(json_t *root, const gi__gltf_bin *bin, json_int
       for (int c = 0; c < ncomp; c++) (*out)[i * ncomp + c] = component(p + (size_t)i * step + (size_t)c * csize, (int)ct);
     *count = (size_t)n;
   }
-  gi__free(b.owned);
   return rc;
+}
+
+int gi__gltf_indices_past(json_t *root, gi__gltf_bin *bin, json_int_t index, uint64_t vertices, size_t *at,
+                          uint64_t *value, gi_error_info *err) {
+  *at = SIZE_MAX, *value = 0;
+  json_t *acc = json_array_get(json_object_get(root, "accessors"), index < 0 ? SIZE_MAX : (size_t)index);
+  json_int_t ct = int_member(acc, "componentType", -1), n = int_member(acc, "count", -1);
+  json_int_t view = int_member(acc, "bufferView", -1), aoff = int_member(acc, "byteOffset", 0);
+  const char *type = json_string_value(json_object_get(acc, "type"));
+  size_t size = ct == 5121 ? 1 : ct == 5123 ? 2 : ct == 5125 ? 4 : 0;
+  json_t *bv = json_array_get(json_object_get(root, "bufferViews"), view < 0 ? SIZE_MAX : (size_t)view);
+  json_int_t boff = int_member(bv, "byteOffset", 0), blen = int_member(bv, "byteLength", -1);
+  json_int_t stride = int_member(bv, "byteStride", 0), buf = int_member(bv, "buffer", -1);
+  if (!size || !type || strcmp(type, "SCALAR") || n < 0 || aoff < 0 || json_object_get(acc, "sparse") ||
+      !json_is_object(bv) || boff < 0 || blen < 0 || stride < 0 || stride > 252 || buf < 0 || aoff > blen)
+    return 0;
+  size_t step = stride ? (size_t)stride : size;
+  uint64_t need = n ? (uint64_t)aoff + (uint64_t)(n - 1) * step + size : 0;
+  bytes b = {0};
+  int got = buffer_bytes(root, bin, buf, &b);
+  if (got == -2) {
+    gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory reading buffer %lld", bin->path, (long long)buf);
+    return -1;
+  }
+  if (got < 0 || need > (uint64_t)blen || (uint64_t)boff + (uint64_t)blen > b.len) return 0;
+  const unsigned char *p = b.p + boff + aoff;
+  for (json_int_t i = 0; i < n; i++, p += step) {
+    uint64_t v = size == 1 ? p[0] : size == 2 ? (uint64_t)(p[0] | p[1] << 8) : (uint64_t)le32(p);
+    if (v >= vertices) {
+      *at = (size_t)i, *value = v;
+      break;
+    }
+  }
+  return 1;
 }

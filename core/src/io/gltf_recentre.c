@@ -126,7 +126,7 @@ static int carries_content(json_t *node) {
 typedef struct walk {
   json_t *root;
   json_t *nodes;
-  const gi__gltf_bin *bin; /* the file's buffers (EXT_mesh_gpu_instancing) */
+  gi__gltf_bin *bin; /* the file's buffers (EXT_mesh_gpu_instancing) */
   size_t instances;        /* expanded so far */
   const char *path;
   unsigned char *seen;
@@ -419,7 +419,7 @@ static json_t *default_scene(json_t *root) {
 
 /* Rewrites root's scene graph in place; 1 when it did, 0 when there was
  * nothing to place, -1 on error (err set). */
-static int recentre_json(json_t *root, const gi__gltf_bin *bin, gi__gltf_shift *out, gi_error_info *err) {
+static int recentre_json(json_t *root, gi__gltf_bin *bin, gi__gltf_shift *out, gi_error_info *err) {
   json_t *scene = default_scene(root), *nodes = json_object_get(root, "nodes");
   if (!scene || !json_is_array(nodes) || json_array_size(nodes) == 0) return 0;
   size_t n = json_array_size(nodes);
@@ -619,6 +619,40 @@ static int drop_points_and_lines(json_t *root) {
   return n;
 }
 
+/* Every primitive's indices against its vertex count (POSITION's count):
+ * assimp 5.2 drops a triangle with an index past them without a word (rc
+ * 0, the triangle gone from input_triangles), where the OBJ and PLY
+ * readers refuse such a file. A Draco primitive's indices are the
+ * decoder's, and assimp checks those. 0, or -1 with err naming the mesh,
+ * the primitive and the index. Each buffer is read once (bin's cache). */
+static int check_indices(json_t *root, gi__gltf_bin *bin, const char *path, gi_error_info *err) {
+  json_t *meshes = json_object_get(root, "meshes"), *accs = json_object_get(root, "accessors");
+  for (size_t i = 0; i < json_array_size(meshes); i++) {
+    json_t *mesh = json_array_get(meshes, i), *prims = json_object_get(mesh, "primitives");
+    for (size_t j = 0; j < json_array_size(prims); j++) {
+      json_t *prim = json_array_get(prims, j), *ix = json_object_get(prim, "indices");
+      json_t *pos = json_object_get(json_object_get(prim, "attributes"), "POSITION");
+      if (!json_is_integer(ix) || !json_is_integer(pos) ||
+          json_object_get(json_object_get(prim, "extensions"), "KHR_draco_mesh_compression"))
+        continue;
+      json_t *pc = json_object_get(json_array_get(accs, (size_t)json_integer_value(pos)), "count");
+      if (!json_is_integer(pc) || json_integer_value(pc) < 0) continue; /* assimp says what is wrong */
+      uint64_t nv = (uint64_t)json_integer_value(pc), v;
+      size_t at;
+      int r = gi__gltf_indices_past(root, bin, json_integer_value(ix), nv, &at, &v, err);
+      if (r < 0) return -1;
+      if (r == 0 || at == SIZE_MAX) continue;
+      const char *name = json_string_value(json_object_get(mesh, "name"));
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF mesh %zu%s%s%s primitive %zu: index %llu (element %zu of "
+               "accessor %lld) is out of range; expected 0..%llu (its POSITION accessor has %llu vertices)", path, i,
+               name ? " '" : "", name ? name : "", name ? "'" : "", j, (unsigned long long)v, at,
+               (long long)json_integer_value(ix), (unsigned long long)(nv ? nv - 1 : 0), (unsigned long long)nv);
+      return -1;
+    }
+  }
+  return 0;
+}
+
 /* assimp 5.2 reads a primitive's TEXCOORD_n (and COLOR_n, JOINTS_n,
  * WEIGHTS_n) in the order its attributes object lists them and refuses
  * the file unless they come 0, 1, ... ("must start with 0 and be
@@ -794,14 +828,16 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
                   "JSON line %d column %d: %s", path, je.line, je.column, je.text);
     goto done;
   }
+  gi__gltf_bin bin = {.path = path};
+  if (glb) glb_bin_chunk(buf, len, json_off + json_len, &bin);
   int folded = check_required(root, path, err) < 0 || check_sparse(root, path, err) < 0 ||
                        read_uv_transforms(root, path, out, err) < 0
                    ? -1
                    : fold_emissive_strength(root, path, err);
   if (folded >= 0) folded += drop_points_and_lines(root) + order_attribute_sets(root) + expose_extension_images(root);
-  gi__gltf_bin bin = {.path = path};
-  if (glb) glb_bin_chunk(buf, len, json_off + json_len, &bin);
+  if (folded >= 0 && check_indices(root, &bin, path, err) < 0) folded = -1;
   int r = folded < 0 ? -1 : recentre_json(root, &bin, out, err);
+  gi__gltf_bin_fini(&bin); /* before assimp reads the buffers again */
   if (r == 0 && folded > 0) r = 1; /* no scene graph to place, but the materials or primitives changed */
   char *text = r > 0 ? json_dumps(root, JSON_COMPACT | JSON_REAL_PRECISION(JSON_PRECISION)) : NULL;
   json_decref(root);
