@@ -887,6 +887,29 @@ static void test_obj_materials(void **state) {
   gi_scene_release(s);
 }
 
+/* "mtllib la.mtl lb.mtl", the OBJ spec's form for several libraries,
+ * was read (as assimp 5.2 reads it) as one file "la.mtl lb.mtl": both
+ * materials grey (0.6) with a warning for each. Each file is read now; a
+ * name with a space that is a file (Blender writes it so) stays one. */
+static void test_obj_mtllibs(void **state) {
+  (void)state;
+  const char *libs[3][2] = {{"la.mtl", "newmtl a\nKd 0.5 0.5 0.5\n"}, {"lb.mtl", "newmtl b\nKd 0.3 0.3 0.3\n"},
+                            {"my lib.mtl", "newmtl c\nKd 0.2 0.2 0.2\n"}};
+  for (int i = 0; i < 3; i++) tu_write_file(libs[i][0], libs[i][1], strlen(libs[i][1]));
+  const char obj[] = "mtllib  la.mtl\tlb.mtl \nmtllib my lib.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                     "usemtl a\nf 1 2 3\nusemtl b\nf 1 3 4\nusemtl c\nf 2 3 4\n";
+  gi_scene *s = load_ok(tu_write_file("libs.obj", obj, strlen(obj)), NULL);
+  const float want[3] = {0.5f, 0.3f, 0.2f};
+  assert_int_equal(gi_scene_num_materials(s), 3);
+  for (size_t i = 0; i < 3; i++) {
+    const gi_material *m = gi_scene_material(s, i);
+    printf("  material %s: albedo %g\n", m->name, m->albedo[0]);
+    assert_int_equal(m->name[0], 'a' + (int)i);
+    assert_float_equal(m->albedo[0], want[i], 1e-6);
+  }
+  gi_scene_release(s);
+}
+
 static void expect_bad(const char *path, gi_result code, const char *what);
 
 /* PLY and STL carry no materials: assimp invented a white one (diffuse and
@@ -2599,6 +2622,7 @@ int main(void) {
       cmocka_unit_test(test_bad_files),
       cmocka_unit_test(test_nonfinite_obj),
       cmocka_unit_test(test_obj_materials),
+      cmocka_unit_test(test_obj_mtllibs),
       cmocka_unit_test(test_formats_without_materials),
       cmocka_unit_test(test_looks_z_up),
       cmocka_unit_test(test_concave_polygons),

@@ -508,7 +508,7 @@ static int scan_obj_mtllibs(tex_ctx *tc) {
     char *stmt = gi__malloc(n + 1);
     if (!stmt) return 0;
     memcpy(stmt, l, n), stmt[n] = 0;
-    char *name = trim(stmt + 6); /* past "mtllib"; like assimp: the rest is one file name */
+    char *name = trim(stmt + 6); /* past "mtllib": one file a line (import_exact.c split the statement) */
     char *mp = resolve_path(tc->path, name, strlen(name));
     ok = mp && scan_mtl(tc, mp);
     gi__free(mp);

@@ -397,18 +397,60 @@ static ssize_t obj_statement(FILE *f, char **buf, size_t *cap, char **more, size
   }
 }
 
-/* Appends an mtllib statement, less the line end it was read with, and one
- * '\n' to m->mtllib. 0: out of memory. */
-static int keep_mtllib(gi__exact_mesh *m, const char *stmt) {
-  size_t n = strlen(stmt);
-  while (n && is_blank(stmt[n - 1])) n--;
-  char *g = gi__realloc(m->mtllib, m->mtllib_len + n + 2);
+/* Appends "mtllib " and name[0..n) and a '\n' to m->mtllib. 0: out of memory. */
+static int keep_mtllib_line(gi__exact_mesh *m, const char *name, size_t n) {
+  char *g = gi__realloc(m->mtllib, m->mtllib_len + n + 9);
   if (!g) return 0;
-  memcpy(g + m->mtllib_len, stmt, n);
-  m->mtllib_len += n;
-  g[m->mtllib_len++] = '\n';
-  g[m->mtllib_len] = 0;
+  m->mtllib_len += (size_t)sprintf(g + m->mtllib_len, "mtllib %.*s\n", (int)n, name);
   m->mtllib = g;
+  return 1;
+}
+
+/* Whether the file `name` (n chars, relative to the OBJ at path's folder,
+ * backslashes as slashes, as the importer resolves it) can be opened; -1
+ * out of memory. */
+static int lib_exists(const char *path, const char *name, size_t n) {
+  const char *slash = strrchr(path, '/');
+  size_t dl = name[0] == '/' || name[0] == '\\' || !slash ? 0 : (size_t)(slash - path) + 1;
+  char *full = gi__malloc(dl + n + 1);
+  if (!full) return -1;
+  memcpy(full, path, dl);
+  for (size_t i = 0; i < n; i++) full[dl + i] = name[i] == '\\' ? '/' : name[i];
+  full[dl + n] = 0;
+  FILE *f = fopen(full, "rb");
+  gi__free(full);
+  if (f) fclose(f);
+  return f != NULL;
+}
+
+/* An mtllib statement (rest: after the keyword) as one "mtllib NAME" line
+ * per library into m->mtllib, for assimp's stub and the MTL scan. The OBJ
+ * spec's form names several files ("mtllib a.mtl b.mtl"), which assimp
+ * 5.2 read as one file "a.mtl b.mtl" (every material grey); Blender writes
+ * a name with a space as it is. So the rest names one file when a file of
+ * that name exists or none of its words does, else each word is a file.
+ * 0: out of memory. */
+static int keep_mtllib(gi__exact_mesh *m, const char *path, char *rest) {
+  rest = skip_blank(rest);
+  size_t n = strlen(rest);
+  while (n && is_blank(rest[n - 1])) n--;
+  if (!n) return 1;
+  int several = 0, found = 0, whole = 0;
+  for (size_t i = 0; i < n; i++) several |= is_blank(rest[i]);
+  for (size_t i = 0; several && i < n && !found;) {
+    size_t w = 0;
+    while (i + w < n && !is_blank(rest[i + w])) w++;
+    if ((found = lib_exists(path, rest + i, w)) < 0) return 0;
+    for (i += w; i < n && is_blank(rest[i]); i++) {}
+  }
+  if (found && (whole = lib_exists(path, rest, n)) < 0) return 0;
+  if (!found || whole) return keep_mtllib_line(m, rest, n);
+  for (size_t i = 0; i < n;) {
+    size_t w = 0;
+    while (i + w < n && !is_blank(rest[i + w])) w++;
+    if (!keep_mtllib_line(m, rest + i, w)) return 0;
+    for (i += w; i < n && is_blank(rest[i]); i++) {}
+  }
   return 1;
 }
 
@@ -538,7 +580,7 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
       int n = 0, l = s[0] == 'l';
       rc = obj_indices(path, line, rest, l ? "line" : "point", l ? 2 : 1, m, poly, NULL, &n, err);
     } else if (keyword(s, "mtllib", &rest)) {
-      rc = keep_mtllib(m, s) ? GI_OK : gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+      rc = keep_mtllib(m, path, rest) ? GI_OK : gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     }
     /* vn, o, g, s, lod, comments: not geometry we use. assimp reads a stub
      * of this file (gi__exact_obj_stub), never these lines: it took any

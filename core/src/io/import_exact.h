@@ -33,16 +33,18 @@ typedef struct gi__exact_mesh {
   size_t nvn;         /* OBJ vn statements seen: normals are not read, their indices are checked */
   uint32_t *tuv;   /* OBJ: 3 per triangle, each corner's vt (GI__EXACT_NO_UV: none) once any face has them; else NULL */
   size_t cap_tuv;
-  char *mtllib;    /* OBJ: its mtllib statements, one per line, NUL-terminated; or NULL */
+  char *mtllib;    /* OBJ: "mtllib NAME" per library it names, one per line, NUL-terminated; or NULL */
   size_t mtllib_len;
 } gi__exact_mesh;
 
 #define GI__EXACT_NO_UV UINT32_MAX
 
 /* OBJ: v (with the common "v x y z r g b" colour extension), vt, f (v,
- * v/t, v//n, v/t/n, negative = relative), usemtl, mtllib (kept as written
- * for gi__exact_obj_stub); other statements are ignored. A bad number or vertex index fails with file and line; a
- * texture index out of range leaves that corner without coordinates. */
+ * v/t, v//n, v/t/n, negative = relative), usemtl, mtllib (one line per
+ * library for gi__exact_obj_stub: "mtllib a.mtl b.mtl" is two); other
+ * statements are ignored. A bad number or vertex index fails with file and
+ * line; a texture index out of range leaves that corner without
+ * coordinates. */
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err);
 /* PLY: ascii, binary_little_endian, binary_big_endian; x/y/z of any scalar
  * type (float and double included), red/green/blue colours when present;
