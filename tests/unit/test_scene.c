@@ -1029,6 +1029,54 @@ static void test_concave_polygons(void **state) {
   gi_scene_release(s);
 }
 
+static int in_disc(double x, double y) { return x * x + y * y < 1.0; }
+
+/* An OBJ disc or star of n corners around the origin in z = 0 (radii 1,
+ * or 1 and 0.6 alternating), as one face; a heap string (free it). */
+static char *ngon_obj(int n, int star) {
+  char *s = malloc((size_t)n * 64 + 64);
+  size_t k = 0;
+  for (int i = 0; i < n; i++) {
+    double r = star && i % 2 ? 0.6 : 1.0, a = 2 * M_PI * i / n;
+    k += (size_t)sprintf(s + k, "v %.17g %.17g 0\n", r * cos(a), r * sin(a));
+  }
+  k += (size_t)sprintf(s + k, "f");
+  for (int i = 0; i < n; i++) k += (size_t)sprintf(s + k, " %d", i + 1);
+  sprintf(s + k, "\n");
+  return s;
+}
+
+/* Blender writes an n-gon cap (a disc, a cylinder's end) as one face: a
+ * face of more than 255 corners was refused. A 1000-corner disc (convex,
+ * fanned) and a 1000-corner star (concave, cut ear by ear with corner
+ * indices past 255) cover their polygon's area exactly, no triangle
+ * overlapping another; past 4096 corners a face is refused. */
+static void test_obj_big_faces(void **state) {
+  (void)state;
+  for (int star = 0; star < 2; star++) {
+    const int n = 1000;
+    char *obj = ngon_obj(n, star);
+    gi_scene *s = load_ok(tu_write_file("ngon.obj", obj, strlen(obj)), NULL);
+    free(obj);
+    double want = 0; /* the polygon's own area, triangle by triangle from the centre */
+    for (int i = 0; i < n; i++) {
+      double r0 = star && i % 2 ? 0.6 : 1.0, r1 = star && (i + 1) % 2 ? 0.6 : 1.0;
+      want += 0.5 * r0 * r1 * sin(2 * M_PI / n);
+    }
+    int inside;
+    double a = scene_area(s, in_disc, &inside);
+    printf("  %s of %d corners: %u triangles, area %.6f (polygon %.6f)\n", star ? "star" : "disc", n,
+           s->num_triangles, a, want);
+    assert_int_equal(s->num_triangles, n - 2);
+    assert_float_equal(a, want, 1e-5 * want);
+    assert_true(inside);
+    gi_scene_release(s);
+  }
+  char *big = ngon_obj(4097, 0);
+  expect_bad(tu_write_file("ngon-big.obj", big, strlen(big)), GI_ERR_FORMAT, "line 4098: a face has more than 4096 corners");
+  free(big);
+}
+
 /* The OBJ spec's line continuation (a backslash ending a line), as assimp
  * reads it for the materials: the backslash and the line end dropped. Our
  * reader refused "f 1 2 \\" as a face corner '\\'. A usemtl continued
@@ -2626,6 +2674,7 @@ int main(void) {
       cmocka_unit_test(test_formats_without_materials),
       cmocka_unit_test(test_looks_z_up),
       cmocka_unit_test(test_concave_polygons),
+      cmocka_unit_test(test_obj_big_faces),
       cmocka_unit_test(test_obj_continuation),
       cmocka_unit_test(test_energy_conservation),
       cmocka_unit_test(test_gltf),

@@ -16,6 +16,15 @@
 #define PLY_MAX_ELEMENTS 16
 #define PLY_MAX_PROPERTIES 32
 #define PLY_MAX_POLYGON 255
+/* An OBJ face's corners: Blender writes an n-gon cap (a disc, a
+ * cylinder's end) as one face, and 255 refused a 360-corner disc. The
+ * triangulator's corner indices are 16-bit; its work is bounded below. */
+#define OBJ_MAX_POLYGON 4096
+/* Point-in-triangle tests one polygon's ear cutting may make before it
+ * fans what is left (as for a polygon no ear can be cut from): ~0.3 s. A
+ * 255-corner polygon needs at most ~5.5e6, so only a hostile one of
+ * thousands of corners ever stops early. */
+#define EAR_TEST_BUDGET (1LL << 27)
 
 void gi__exact_free(gi__exact_mesh *m) {
   if (!m) return;
@@ -110,17 +119,24 @@ static int in_tri2(const double a[2], const double b[2], const double c[2], cons
   return sg * cross2(a, b, p) >= 0 && sg * cross2(b, c, p) >= 0 && sg * cross2(c, a, p) >= 0;
 }
 
-/* The triangles of polygon poly[0..n) (n <= PLY_MAX_POLYGON) as corner
+/* The triangles of polygon poly[0..n) (n <= OBJ_MAX_POLYGON) as corner
  * triples into out (3 (n - 2) of them), in the polygon's winding. A convex
  * polygon is fanned from its first corner (what this reader always did);
  * a concave one (an L-shaped roof, a courtyard's footprint) is cut ear by
  * ear in the plane of its Newell normal, as assimp's triangulation does:
  * a fan there laid triangles over the notch. A polygon no ear can be cut
- * from (self-intersecting) fans what is left. Returns the triangles. */
-static int polygon_triangles(const gi__exact_mesh *m, const uint32_t *poly, int n, uint8_t out[][3]) {
-  uint8_t idx[PLY_MAX_POLYGON];
+ * from (self-intersecting) fans what is left. Returns the triangles, -1
+ * out of memory (a polygon over PLY_MAX_POLYGON corners works on the heap). */
+static int polygon_triangles(const gi__exact_mesh *m, const uint32_t *poly, int n, uint16_t out[][3]) {
+  uint16_t idx_small[PLY_MAX_POLYGON], *idx = idx_small;
+  double p_small[PLY_MAX_POLYGON][2], (*p)[2] = p_small;
+  void *heap = NULL;
+  if (n > PLY_MAX_POLYGON) {
+    if (!(heap = gi__malloc((size_t)n * (sizeof *p + sizeof *idx)))) return -1;
+    p = heap, idx = (uint16_t *)(p + n);
+  }
   int left = n, nt = 0;
-  for (int k = 0; k < n; k++) idx[k] = (uint8_t)k;
+  for (int k = 0; k < n; k++) idx[k] = (uint16_t)k;
   int placed = 1; /* a PLY may list its faces before its vertices: then fan */
   for (int k = 0; k < n; k++) placed &= poly[k] < m->nv;
   if (placed && n > 3) {
@@ -135,13 +151,13 @@ static int polygon_triangles(const gi__exact_mesh *m, const uint32_t *poly, int 
     /* The projection keeps the winding when the dropped component is positive. */
     double sg = nrm[drop] >= 0 ? 1 : -1;
     if (drop == 1) sg = -sg; /* (z, x) order for y: corner2 gives (x, z) */
-    double p[PLY_MAX_POLYGON][2];
     int convex = 1;
+    long long budget = EAR_TEST_BUDGET;
     for (int k = 0; k < n; k++) corner2(m, poly, k, drop, p[k]);
     for (int k = 0; k < n && convex; k++) convex = sg * cross2(p[k], p[(k + 1) % n], p[(k + 2) % n]) >= 0;
-    for (int guard = 0; !convex && left > 3 && guard < n * n; guard++) {
+    for (int guard = 0; !convex && left > 3 && guard < n && budget > 0; guard++) {
       int cut = -1;
-      for (int i = 0; i < left && cut < 0; i++) {
+      for (int i = 0; i < left && cut < 0 && budget > 0; i++) {
         int a = idx[(i + left - 1) % left], b = idx[i], c = idx[(i + 1) % left];
         if (!(sg * cross2(p[a], p[b], p[c]) > 0)) continue; /* reflex or flat: not an ear */
         int clear = 1;
@@ -149,17 +165,19 @@ static int polygon_triangles(const gi__exact_mesh *m, const uint32_t *poly, int 
           int q = idx[j];
           if (q != a && q != b && q != c) clear = !in_tri2(p[a], p[b], p[c], p[q], sg);
         }
+        budget -= left;
         if (clear) cut = i;
       }
       if (cut < 0) break;
       out[nt][0] = idx[(cut + left - 1) % left], out[nt][1] = idx[cut], out[nt][2] = idx[(cut + 1) % left];
       nt++;
-      memmove(&idx[cut], &idx[cut + 1], (size_t)(left - cut - 1));
+      memmove(&idx[cut], &idx[cut + 1], (size_t)(left - cut - 1) * sizeof *idx);
       left--;
     }
   }
   /* The fan of what is left: the whole polygon when convex (or unplaced). */
   for (int t = 1; t + 1 < left; t++) out[nt][0] = idx[0], out[nt][1] = idx[t], out[nt][2] = idx[t + 1], nt++;
+  gi__free(heap);
   return nt;
 }
 
@@ -295,7 +313,7 @@ static gi_result obj_texcoord(const char *path, size_t line, char *s, gi__exact_
  * "line" or "point") into poly, *count of them, at least min: each v,
  * v/t, v//n or v/t/n; negative counts back from the last vertex. */
 static gi_result obj_indices(const char *path, size_t line, char *s, const char *what, int min, const gi__exact_mesh *m,
-                             uint32_t poly[PLY_MAX_POLYGON + 1], uint32_t *tex, int *count, gi_error_info *err) {
+                             uint32_t poly[OBJ_MAX_POLYGON], uint32_t *tex, int *count, gi_error_info *err) {
   int n = 0;
   for (;;) {
     s = skip_blank(s);
@@ -312,9 +330,9 @@ static gi_result obj_indices(const char *path, size_t line, char *s, const char 
                       "scene file '%s' line %zu: %s corner %d: vertex %lld: index out of range "
                       "(%zu vertices defined so far)", path,
                       line, what, n + 1, i, m->nv);
-    if (n == PLY_MAX_POLYGON)
+    if (n == OBJ_MAX_POLYGON)
       return gi__fail(err, GI_ERR_FORMAT, "scene file '%s' line %zu: a %s has more than %d corners", path, line, what,
-                      PLY_MAX_POLYGON);
+                      OBJ_MAX_POLYGON);
     uint32_t t = GI__EXACT_NO_UV;
     if (tex && obj_tex_index(e, m, &t) < 0)
       return gi__fail(err, GI_ERR_FORMAT,
@@ -339,21 +357,26 @@ static gi_result obj_indices(const char *path, size_t line, char *s, const char 
   return GI_OK;
 }
 
+/* One OBJ polygon's corners and triangles, off the stack (~56 KiB). */
+typedef struct {
+  uint32_t poly[OBJ_MAX_POLYGON], tex[OBJ_MAX_POLYGON];
+  uint16_t tris[OBJ_MAX_POLYGON][3];
+} obj_work;
+
 /* "f a b c ...": triangulated by polygon_triangles. */
-static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, gi__exact_mesh *m,
+static gi_result obj_face(const char *path, size_t line, char *s, uint32_t mat, gi__exact_mesh *m, obj_work *w,
                           gi_error_info *err) {
-  uint32_t poly[PLY_MAX_POLYGON + 1], tex[PLY_MAX_POLYGON + 1];
   int n = 0;
-  gi_result rc = obj_indices(path, line, s, "face", 3, m, poly, tex, &n, err);
+  gi_result rc = obj_indices(path, line, s, "face", 3, m, w->poly, w->tex, &n, err);
   if (rc != GI_OK) return rc;
   int has_uv = 0;
-  for (int k = 0; k < n; k++) has_uv |= tex[k] != GI__EXACT_NO_UV;
-  uint8_t tris[PLY_MAX_POLYGON][3];
-  int nt = polygon_triangles(m, poly, n, tris);
+  for (int k = 0; k < n; k++) has_uv |= w->tex[k] != GI__EXACT_NO_UV;
+  int nt = polygon_triangles(m, w->poly, n, w->tris);
+  if (nt < 0) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
   for (int t = 0; t < nt; t++) {
-    const uint8_t *c = tris[t];
-    uint32_t t3[3] = {tex[c[0]], tex[c[1]], tex[c[2]]};
-    if (!push_tri_uv(m, poly[c[0]], poly[c[1]], poly[c[2]], mat, has_uv ? t3 : NULL))
+    const uint16_t *c = w->tris[t];
+    uint32_t t3[3] = {w->tex[c[0]], w->tex[c[1]], w->tex[c[2]]};
+    if (!push_tri_uv(m, w->poly[c[0]], w->poly[c[1]], w->poly[c[2]], mat, has_uv ? t3 : NULL))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
   }
   return GI_OK;
@@ -547,6 +570,11 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
   memset(m, 0, sizeof *m);
   FILE *f = fopen(path, "rb");
   if (!f) return gi__fail(err, GI_ERR_IO, "scene file '%s': cannot open: %s", path, strerror(errno));
+  obj_work *w = gi__malloc(sizeof *w);
+  if (!w) {
+    fclose(f);
+    return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
+  }
   char *buf = NULL, *more = NULL, *rest;
   size_t cap = 0, more_cap = 0, no = 0, line = 0;
   uint32_t mat = GI__EXACT_NO_MATERIAL;
@@ -565,7 +593,7 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
     } else if (keyword(s, "vn", &rest)) {
       m->nvn++;
     } else if (keyword(s, "f", &rest)) {
-      rc = obj_face(path, line, rest, mat, m, err);
+      rc = obj_face(path, line, rest, mat, m, w, err);
     } else if (keyword(s, "usemtl", &rest)) {
       /* Like assimp: the rest of the line, trimmed, is the name. */
       rest = skip_blank(rest);
@@ -576,9 +604,8 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
         rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     } else if (keyword(s, "l", &rest) || keyword(s, "p", &rest)) {
       /* Not geometry we use, but checked: a bad index is a bad file. */
-      uint32_t poly[PLY_MAX_POLYGON + 1];
       int n = 0, l = s[0] == 'l';
-      rc = obj_indices(path, line, rest, l ? "line" : "point", l ? 2 : 1, m, poly, NULL, &n, err);
+      rc = obj_indices(path, line, rest, l ? "line" : "point", l ? 2 : 1, m, w->poly, NULL, &n, err);
     } else if (keyword(s, "mtllib", &rest)) {
       rc = keep_mtllib(m, path, rest) ? GI_OK : gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     }
@@ -590,6 +617,7 @@ gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info 
   if (rc == GI_OK && ferror(f)) rc = gi__fail(err, GI_ERR_IO, "scene file '%s': read error after line %zu", path, no);
   free(buf); /* getline's buffers come from libc malloc */
   free(more);
+  gi__free(w);
   fclose(f);
   if (rc != GI_OK) gi__exact_free(m);
   return rc;
@@ -821,8 +849,9 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
                         r == -1 ? "the data ends here; the file is truncated" : "expected a number");
       }
       if (p == il) {
-        uint8_t tris[PLY_MAX_POLYGON][3];
+        uint16_t tris[PLY_MAX_POLYGON][3];
         int nt = polygon_triangles(m, poly, (int)n, tris);
+        if (nt < 0) return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", b->path);
         for (int t = 0; t < nt; t++)
           if (!push_tri(m, poly[tris[t][0]], poly[tris[t][1]], poly[tris[t][2]], GI__EXACT_NO_MATERIAL))
             return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", b->path);
