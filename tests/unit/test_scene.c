@@ -1577,6 +1577,57 @@ static void test_vertex_colors_files(void **state) {
   gi_scene_release(s);
 }
 
+/* A PLY's colours on its faces (MeshLab writes red green blue after the
+ * index list) were dropped: grey 0.8. They are the face's triangles'
+ * albedo now, sRGB-encoded as vertex colours are, ASCII and binary; the
+ * scanners' diffuse_red ... and a bare r g b name vertex colours too. A
+ * file whose surface is only a 'tristrips' element says that is not read
+ * (it said it held no triangles). */
+static void test_ply_colors(void **state) {
+  (void)state;
+  static const char head[] = "ply\nformat %s 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                             "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+                             "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+  const float v[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  for (int bin = 0; bin < 2; bin++) {
+    char text[1024];
+    size_t n = (size_t)snprintf(text, sizeof text, head, bin ? "binary_little_endian" : "ascii");
+    if (!bin) {
+      n += (size_t)snprintf(text + n, sizeof text - n, "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 255 0 0\n"
+                            "3 0 2 3 0 128 255\n");
+    } else {
+      memcpy(text + n, v, sizeof v), n += sizeof v;
+      const unsigned char f0[16] = {3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0, 255, 0, 0};
+      const unsigned char f1[16] = {3, 0, 0, 0, 0, 2, 0, 0, 0, 3, 0, 0, 0, 0, 128, 255};
+      memcpy(text + n, f0, 16), memcpy(text + n + 16, f1, 16), n += 32;
+    }
+    gi_scene *s = load_ok(tu_write_file("facecol.ply", text, n), NULL);
+    assert_float_equal(gi_scene_material(s, 0)->albedo[0], 1.0, 0); /* the colours are the albedo */
+    double red[3] = {1, 0, 0}, blue[3] = {0, srgb(128 / 255.0), 1};
+    expect_albedo(s, 0, red, bin ? "binary face colours" : "ascii face colours");
+    expect_albedo(s, 1, blue, bin ? "binary face colours" : "ascii face colours");
+    gi_scene_release(s);
+  }
+  static const char *const names[2] = {"diffuse_red diffuse_green diffuse_blue", "r g b"};
+  for (int i = 0; i < 2; i++) {
+    char ply[1024], p[3][32];
+    sscanf(names[i], "%31s %31s %31s", p[0], p[1], p[2]);
+    int n = snprintf(ply, sizeof ply, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                     "property float z\nproperty uchar %s\nproperty uchar %s\nproperty uchar %s\nelement face 1\n"
+                     "property list uchar int vertex_indices\nend_header\n0 0 0 255 0 0\n1 0 0 255 0 0\n"
+                     "0 1 0 0 0 255\n3 0 1 2\n", p[0], p[1], p[2]);
+    gi_scene *s = load_ok(tu_write_file("vcol.ply", ply, (size_t)n), NULL);
+    double want[3] = {2.0 / 3, 0, 1.0 / 3};
+    expect_albedo(s, 0, want, names[i]);
+    gi_scene_release(s);
+  }
+  static const char strips[] = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                               "property float z\nelement tristrips 1\nproperty list int int vertex_indices\n"
+                               "end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n";
+  expect_bad(tu_write_file("strips.ply", strips, strlen(strips)), GI_ERR_FORMAT,
+             "its surface is a PLY 'tristrips' element (1 record), which is not read; only 'face' elements");
+}
+
 /* ---- bad files, every kind for OBJ, PLY and glTF ------------------------- */
 
 static void b64(const unsigned char *in, size_t n, char *out) {
@@ -2683,6 +2734,7 @@ int main(void) {
       cmocka_unit_test(test_gltf_spots),
       cmocka_unit_test(test_gltf_light_nodes),
       cmocka_unit_test(test_vertex_colors_files),
+      cmocka_unit_test(test_ply_colors),
       cmocka_unit_test(test_bad_file_matrix),
       cmocka_unit_test(test_bad_files_assimp_misreads),
       cmocka_unit_test(test_fbx_connection_loops),

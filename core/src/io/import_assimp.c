@@ -943,8 +943,8 @@ static gi_result check_counts(const struct aiScene *as, const char *path, gi_err
 /* PLY and STL carry no materials; assimp makes one up, white (diffuse and
  * specular 1), and a scan baked as a perfect white reflector, every bounce
  * at the tail's cap. Such a file gets the grey default every format gets
- * without a colour (0.8), or, when its vertices carry colours (a coloured
- * scan), albedo 1: the colours are the albedo. */
+ * without a colour (0.8), or, when its vertices or faces carry colours (a
+ * coloured scan), albedo 1: the colours are the albedo. */
 static int no_materials(const char *path) { return ends_with_ci(path, ".ply") || ends_with_ci(path, ".stl"); }
 
 /* matmap[i] = 1 where a triangle mesh uses assimp material i, else 0, in
@@ -1239,6 +1239,8 @@ static gi_result add_exact_meshes(const struct aiScene *as, const uint32_t *matm
     }
     size_t tri = gi_mesh_builder_num_triangles(b);
     gi_mesh_builder_add_triangle(b, base + m.tri[3 * t], base + m.tri[3 * t + 1], base + m.tri[3 * t + 2], mat);
+    /* A PLY face's colour is its triangles' albedo (NAN: the material's). */
+    if (t < m.ntc) gi_mesh_builder_set_triangle_albedo(b, tri, m.tcol[3 * t], m.tcol[3 * t + 1], m.tcol[3 * t + 2]);
     const uint32_t *tx = m.tuv ? &m.tuv[3 * t] : NULL;
     if (tx && tx[0] != GI__EXACT_NO_UV && tx[1] != GI__EXACT_NO_UV && tx[2] != GI__EXACT_NO_UV) {
       float uv[3][2];
@@ -1473,7 +1475,7 @@ gi_result gi_scene_load(const char *path, const gi_scene_options *opt, gi_scene 
     rc = gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", path);
     goto done;
   }
-  int colored = em.col != NULL;
+  int colored = em.col != NULL || em.tcol != NULL;
   for (unsigned i = 0; i < as->mNumMeshes && !colored; i++) colored = as->mMeshes[i]->mColors[0] != NULL;
   if ((rc = add_materials(as, &tc, b, matmap, colored, err)) == GI_OK &&
       (rc = exact ? add_exact_meshes(as, matmap, &em, &tc, b, path, err)

@@ -34,6 +34,7 @@ void gi__exact_free(gi__exact_mesh *m) {
   gi__free(m->tri);
   gi__free(m->mat);
   gi__free(m->col);
+  gi__free(m->tcol);
   gi__free(m->uv);
   gi__free(m->tuv);
   gi__free(m->mtllib);
@@ -67,14 +68,27 @@ static int color_room(gi__exact_mesh *m) {
   return 1;
 }
 
+/* A colour channel as the file holds it (sRGB-encoded, [0, 1] nominal) as linear. */
+static float color_linear(double x) {
+  x = x < 0 ? 0 : x;
+  return (float)(x <= 1 ? gi__srgb_to_linear(x) : x);
+}
+
 /* The colour of the last vertex pushed (sRGB-encoded, [0, 1] nominal), stored
  * linear; the first colour makes every earlier vertex white. 0: out of memory. */
 static int set_color(gi__exact_mesh *m, const double c[3]) {
   if (!color_room(m)) return 0;
-  for (int k = 0; k < 3; k++) {
-    double x = c[k] < 0 ? 0 : c[k];
-    m->col[3 * (m->nv - 1) + k] = (float)(x <= 1 ? gi__srgb_to_linear(x) : x);
-  }
+  for (int k = 0; k < 3; k++) m->col[3 * (m->nv - 1) + k] = color_linear(c[k]);
+  return 1;
+}
+
+/* A face's colour (as set_color's) for its triangles, from..m->nt; earlier
+ * triangles without one get NAN (their material's). 0: out of memory. */
+static int set_face_color(gi__exact_mesh *m, size_t from, const double c[3]) {
+  if (!grow((void **)&m->tcol, &m->cap_tc, 3 * m->nt, sizeof *m->tcol)) return 0;
+  for (size_t t = m->ntc; t < m->nt; t++)
+    for (int k = 0; k < 3; k++) m->tcol[3 * t + k] = t < from ? NAN : color_linear(c[k]);
+  m->ntc = m->nt;
   return 1;
 }
 
@@ -794,15 +808,30 @@ static int find_prop(const ply_element *e, const char *name, int list) {
   return -1;
 }
 
-/* One element's records: vertices keep x, y, z; faces keep their index list. */
+/* The scalar colour properties of element e into ic (red, green, blue),
+ * under the names writers use: red green blue (MeshLab, CloudCompare),
+ * diffuse_red ... (the Stanford scanners'), r g b. 1 when all three are there. */
+static int find_color(const ply_element *e, int ic[3]) {
+  static const char *const names[3][3] = {
+      {"red", "green", "blue"}, {"diffuse_red", "diffuse_green", "diffuse_blue"}, {"r", "g", "b"}};
+  for (int n = 0; n < 3; n++) {
+    for (int k = 0; k < 3; k++) ic[k] = find_prop(e, names[n][k], 0);
+    if (ic[0] >= 0 && ic[1] >= 0 && ic[2] >= 0) return 1;
+  }
+  ic[0] = ic[1] = ic[2] = -1;
+  return 0;
+}
+
+/* One element's records: vertices keep x, y, z and their colour; faces
+ * keep their index list and their colour (MeshLab writes it after the
+ * list), which becomes their triangles' albedo. */
 static gi_result ply_element_body(ply_body *b, const ply_element *E, long long nverts, gi__exact_mesh *m,
                                   gi_error_info *err) {
   int is_v = !strcmp(E->name, "vertex"), is_f = !strcmp(E->name, "face");
   int ix = is_v ? find_prop(E, "x", 0) : -1, iy = is_v ? find_prop(E, "y", 0) : -1, iz = is_v ? find_prop(E, "z", 0) : -1;
   int il = is_f ? find_prop(E, "vertex_indices", 1) : -1;
-  int ic[3] = {is_v ? find_prop(E, "red", 0) : -1, is_v ? find_prop(E, "green", 0) : -1,
-               is_v ? find_prop(E, "blue", 0) : -1};
-  int colored = ic[0] >= 0 && ic[1] >= 0 && ic[2] >= 0;
+  int ic[3] = {-1, -1, -1};
+  int colored = (is_v || is_f) && find_color(E, ic);
   if (is_f && il < 0) il = find_prop(E, "vertex_index", 1);
   char w[128];
   if (is_v && (ix < 0 || iy < 0 || iz < 0))
@@ -811,6 +840,7 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
     return gi__fail(err, GI_ERR_FORMAT, "scene file '%s': PLY face element needs a list property vertex_indices", b->path);
   for (long long i = 0; i < E->count; i++) {
     double pos[3] = {0, 0, 0}, col[3] = {1, 1, 1};
+    size_t first_tri = m->nt;
     for (int p = 0; p < E->nprops; p++) {
       const ply_prop *P = &E->prop[p];
       double n = 1, x;
@@ -859,6 +889,8 @@ static gi_result ply_element_body(ply_body *b, const ply_element *E, long long n
     }
     if (is_v && (!push_vertex(m, pos) || (colored && !set_color(m, col))))
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory or too many vertices", b->path);
+    if (is_f && colored && !set_face_color(m, first_tri, col))
+      return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory", b->path);
   }
   return GI_OK;
 }
@@ -908,6 +940,14 @@ gi_result gi__exact_read_ply(const char *path, gi__exact_mesh *m, gi_error_info 
   /* ASCII line numbers count from the file's first line. */
   for (size_t i = 0; ascii && i < start; i++) b.line += text[i] == '\n';
   for (int e = 0; rc == GI_OK && e < nel; e++) rc = ply_element_body(&b, &el[e], nverts, m, err);
+  /* Triangle strips (a Stanford range scan's 'tristrips', -1 between
+   * strips) are not read: a file of strips alone said only that it held
+   * no triangles. */
+  for (int e = 0; rc == GI_OK && m->nt == 0 && e < nel; e++)
+    if (!strcmp(el[e].name, "tristrips") && el[e].count > 0)
+      rc = gi__fail(err, GI_ERR_FORMAT, "scene file '%s': its surface is a PLY 'tristrips' element (%lld record%s), "
+                    "which is not read; only 'face' elements (vertex_indices lists) are", path, el[e].count,
+                    el[e].count == 1 ? "" : "s");
   gi__free(text);
   if (rc != GI_OK) gi__exact_free(m);
   return rc;

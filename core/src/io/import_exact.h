@@ -28,6 +28,8 @@ typedef struct gi__exact_mesh {
   size_t cap_slots;
   float *col;      /* 3 per vertex, linear, when any vertex has a colour (others white); else NULL */
   size_t cap_c;
+  float *tcol;     /* PLY: 3 per triangle, its face's colour (linear; NAN: none), for triangles 0..ntc; or NULL */
+  size_t ntc, cap_tc;
   float *uv;       /* OBJ: 2 per vt line (u, v up) */
   size_t nuv, cap_uv;
   size_t nvn;         /* OBJ vn statements seen: normals are not read, their indices are checked */
@@ -47,9 +49,11 @@ typedef struct gi__exact_mesh {
  * coordinates. */
 gi_result gi__exact_read_obj(const char *path, gi__exact_mesh *m, gi_error_info *err);
 /* PLY: ascii, binary_little_endian, binary_big_endian; x/y/z of any scalar
- * type (float and double included), red/green/blue colours when present;
- * faces from vertex_indices/vertex_index. Colours in both formats are taken
- * as sRGB-encoded (8-bit values over 255, floats as they are) and stored
+ * type (float and double included), colours when present (red green blue,
+ * diffuse_red ..., or r g b) on vertices and on faces; faces from
+ * vertex_indices/vertex_index; a file whose only surface is a 'tristrips'
+ * element is refused, saying so. Colours in both formats are taken as
+ * sRGB-encoded (8-bit values over 255, floats as they are) and stored
  * linear. */
 gi_result gi__exact_read_ply(const char *path, gi__exact_mesh *m, gi_error_info *err);
 void gi__exact_free(gi__exact_mesh *m);
