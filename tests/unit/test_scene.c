@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include "gi/gi_cascade.h"
 #include "gi/gi_probe.h"
 #include "gi/gi_scene.h"
@@ -1406,6 +1407,53 @@ static void test_gltf_light_units(void **state) {
   gi_scene_release(s);
 }
 
+/* gi_scene_load with its stderr caught into buf (n bytes, NUL-terminated). */
+static gi_result load_stderr(const char *path, gi_scene **s, char *buf, size_t n) {
+  char name[4300];
+  snprintf(name, sizeof name, "%s/stderr.txt", tu_tmpdir());
+  fflush(stderr);
+  int saved = dup(fileno(stderr));
+  FILE *f = fopen(name, "w+");
+  assert_non_null(f);
+  dup2(fileno(f), fileno(stderr));
+  gi_error_info err = {0};
+  gi_result r = gi_scene_load(path, NULL, s, &err);
+  fflush(stderr);
+  dup2(saved, fileno(stderr));
+  close(saved);
+  rewind(f);
+  size_t got = fread(buf, 1, n - 1, f);
+  buf[got] = 0;
+  fclose(f);
+  fprintf(stderr, "%s", buf);
+  return r;
+}
+
+/* KHR_lights_punctual's range: gi_light has no cutoff, so a point light
+ * of range 1 lit a probe 2 m away as if it had none, without a word. It
+ * still does (lights fall off as 1/d^2), and the load says so once per
+ * file, counting the lights that give one; a sun's range is not one. */
+static void test_gltf_light_range(void **state) {
+  (void)state;
+  const char *nodes = "{\"extensions\":{\"KHR_lights_punctual\":{\"light\":0}}},"
+                      "{\"extensions\":{\"KHR_lights_punctual\":{\"light\":1}}},"
+                      "{\"extensions\":{\"KHR_lights_punctual\":{\"light\":2}}}";
+  const char *lights = "{\"type\":\"point\",\"range\":1.5},{\"type\":\"spot\",\"range\":4,\"spot\":{}},"
+                       "{\"type\":\"directional\",\"range\":2}";
+  char out[2048];
+  gi_scene *s = NULL;
+  assert_int_equal(load_stderr(gltf_lights("range.gltf", nodes, "0,1,2,3", lights), &s, out, sizeof out), GI_OK);
+  assert_int_equal(gi_scene_num_lights(s), 3);
+  gi_scene_release(s);
+  assert_non_null(strstr(out, "range.gltf': 2 glTF point or spot lights give a range (the first 1.5), which is "
+                              "ignored: lights fall off as 1/d^2 without a cutoff"));
+  assert_int_equal(load_stderr(gltf_lights("norange.gltf", nodes, "0,1,2,3", "{\"type\":\"point\"},"
+                                           "{\"type\":\"point\"},{\"type\":\"directional\",\"range\":2}"),
+                               &s, out, sizeof out), GI_OK);
+  gi_scene_release(s);
+  assert_null(strstr(out, "range"));
+}
+
 /* Two KHR_lights_punctual spots: one turned to shine down (-90 degrees
  * about x) with inner and outer half-angles 0.3 and 0.5 rad, one with an
  * empty spot object (the spec's defaults, 0 and pi/4) shining down -z.
@@ -2731,6 +2779,7 @@ int main(void) {
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_gltf_emissive_strength),
       cmocka_unit_test(test_gltf_light_units),
+      cmocka_unit_test(test_gltf_light_range),
       cmocka_unit_test(test_gltf_spots),
       cmocka_unit_test(test_gltf_light_nodes),
       cmocka_unit_test(test_vertex_colors_files),

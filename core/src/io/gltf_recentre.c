@@ -323,9 +323,10 @@ static int member_numbers(json_t *def, const char *key, double *out, size_t n, c
 }
 
 /* The light node idx refers to, placed by its world matrix m (column-major:
- * a light sits at the node's origin and shines down its -z), into *l. */
+ * a light sits at the node's origin and shines down its -z), into *l;
+ * *range its point or spot light's range (0: none given). */
 static int read_light(json_t *defs, json_t *node, size_t idx, const double m[16], const char *path, gi_light *l,
-                      gi_error_info *err) {
+                      double *range, gi_error_info *err) {
   json_t *ref = json_object_get(node_light(node), "light");
   json_int_t li = json_is_integer(ref) ? json_integer_value(ref) : -1;
   json_t *def = li >= 0 ? json_array_get(defs, (size_t)li) : NULL;
@@ -374,6 +375,8 @@ static int read_light(json_t *defs, json_t *node, size_t idx, const double m[16]
   /* glTF's cone angles are half-angles, as ours are. */
   l->cos_inner = (float)cos(cone[0]);
   l->cos_outer = (float)cos(cone[1]);
+  json_t *r = json_object_get(def, "range");
+  *range = l->type != GI_LIGHT_SUN && json_is_number(r) && json_number_value(r) > 0 ? json_number_value(r) : 0;
   return 0;
 }
 
@@ -387,15 +390,25 @@ static int take_lights(json_t *root, walk *w, gi__gltf_shift *out) {
     gi__fail(w->err, GI_ERR_NOMEM, "scene file '%s': out of memory for %zu glTF lights", w->path, n);
     return -1;
   }
+  size_t ranged = 0;
+  double first_range = 0;
   for (size_t k = 0; k < w->count; k++) {
     json_t *node = json_array_get(w->nodes, w->order[k]);
+    double range;
     if (!node_light(node)) continue;
     if (read_light(defs, node, w->order[k], &w->world[16 * w->order[k]], w->path, &out->lights[out->num_lights],
-                   w->err) < 0)
+                   &range, w->err) < 0)
       return -1;
+    if (range > 0 && !ranged++) first_range = range;
     out->num_lights++;
     json_object_del(json_object_get(node, "extensions"), KHR_LIGHTS);
   }
+  /* gi_light has no cutoff: a light with a range lights past it, as the
+   * spec's "infinite" range would. Said once per file, not per lamp. */
+  if (ranged)
+    fprintf(stderr, "gi: note: scene file '%s': %zu glTF point or spot light%s a range (the first %g), which is "
+            "ignored: lights fall off as 1/d^2 without a cutoff\n", w->path, ranged, ranged == 1 ? " gives" : "s give",
+            first_range);
   json_object_del(json_object_get(root, "extensions"), KHR_LIGHTS);
   const char *lists[2] = {"extensionsUsed", "extensionsRequired"};
   for (int i = 0; i < 2; i++) {
