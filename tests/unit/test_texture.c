@@ -708,7 +708,14 @@ static void test_obj_texture_per_triangle(void **state) {
 /* A glTF of one triangle with texture coordinates uv over the half-red
  * image, its base-colour texture carrying KHR_texture_transform `tf` (a
  * JSON object's members; NULL: no extension); returns the triangle's albedo. */
+static void gltf_sampled(const char *name, const float uv[6], const char *tf, const char *sampler, float out[3]);
+
 static void gltf_transformed(const char *name, const float uv[6], const char *tf, float out[3]) {
+  gltf_sampled(name, uv, tf, NULL, out);
+}
+
+/* The same with the texture's sampler (a JSON object's members; NULL: none). */
+static void gltf_sampled(const char *name, const float uv[6], const char *tf, const char *sampler, float out[3]) {
   unsigned char rgba[64];
   half_red_half_grey(rgba);
   size_t n;
@@ -734,6 +741,14 @@ static void gltf_transformed(const char *name, const float uv[6], const char *tf
              (int)(b - doc), doc, tf, b + strlen(bct));
   else
     snprintf(full, sizeof full, "%s", doc);
+  static const char tex[] = "\"textures\":[{\"source\":0}]";
+  char *t = strstr(full, tex), with[4096];
+  assert_non_null(t);
+  if (sampler) {
+    snprintf(with, sizeof with, "%.*s\"samplers\":[{%s}],\"textures\":[{\"source\":0,\"sampler\":0}]%s",
+             (int)(t - full), full, sampler, t + strlen(tex));
+    memcpy(full, with, strlen(with) + 1);
+  }
   gi_scene *s = load_ok(tu_write_file(name, full, strlen(full)));
   gi_material tm;
   memcpy(out, gi__tri_material(s, 0, &tm)->albedo, 3 * sizeof(float));
@@ -778,6 +793,34 @@ static void test_gltf_texture_transform(void **state) {
   assert_float_equal(a[0], 0.5, 1e-5), assert_float_equal(a[1], 0.0, 1e-5);
   gltf_transformed("tf5.gltf", top, "\"texCoord\":1", a); /* the material's average */
   assert_float_equal(a[0], 0.5 * HALF_RED_R, 1e-4);
+}
+
+/* glTF's sampler wrap modes: coordinates past the image repeat
+ * (REPEAT, the default), hold at its edge (CLAMP_TO_EDGE) or repeat
+ * mirrored (MIRRORED_REPEAT). All read as repeating before: a triangle at
+ * v in [1.1, 1.4] (glTF's v runs down: the red top, repeated) reads the
+ * grey bottom row clamped and the grey [0.6, 0.9] mirrored; one at v in
+ * [1.6, 1.9] reads grey repeated and clamped, red mirrored. */
+static void test_gltf_sampler_wrap(void **state) {
+  (void)state;
+  const float near[6] = {0, 1.1f, 1, 1.1f, 0, 1.4f}, far[6] = {0, 1.6f, 1, 1.6f, 0, 1.9f};
+  static const char *const wraps[3] = {"\"wrapS\":10497,\"wrapT\":10497", "\"wrapS\":33071,\"wrapT\":33071",
+                                       "\"wrapS\":33648,\"wrapT\":33648"};
+  const double red = 0.5, grey = 0.5 * GREY128; /* the factor's red channel, 0.5, times the texture's */
+  const double want_near[3] = {red, grey, grey}, want_far[3] = {grey, grey, red};
+  for (int i = 0; i < 3; i++) {
+    float a[3], b[3];
+    gltf_sampled("wrap_near.gltf", near, NULL, wraps[i], a);
+    gltf_sampled("wrap_far.gltf", far, NULL, wraps[i], b);
+    assert_float_equal(a[0], want_near[i], 1e-5);
+    assert_float_equal(b[0], want_far[i], 1e-5);
+  }
+  /* Each axis its own: wrapT is v's (mirrored: red), wrapS u's. */
+  float c[3];
+  gltf_sampled("wrap_st.gltf", far, NULL, "\"wrapS\":33071,\"wrapT\":33648", c);
+  assert_float_equal(c[0], red, 1e-5);
+  gltf_sampled("wrap_ts.gltf", far, NULL, "\"wrapS\":33648,\"wrapT\":33071", c);
+  assert_float_equal(c[0], grey, 1e-5);
 }
 
 /* An emissive texture multiplies the emission by its average (glTF's
@@ -845,6 +888,7 @@ int main(void) {
       cmocka_unit_test(test_obj_texture_per_triangle),
       cmocka_unit_test(test_gltf_texture_per_triangle),
       cmocka_unit_test(test_gltf_texture_transform),
+      cmocka_unit_test(test_gltf_sampler_wrap),
       cmocka_unit_test(test_emissive_texture),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

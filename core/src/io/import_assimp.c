@@ -285,7 +285,13 @@ typedef struct mat_tex {
   float factor[3];
   unsigned uv;
   const double *uv_tf; /* glTF: KHR_texture_transform (gi__gltf_shift.uv_tf), or NULL */
+  gi__tex_wrap wrap[2]; /* u, v outside [0, 1] (glTF's sampler wrapS, wrapT); repeat unless said */
 } mat_tex;
+
+/* assimp's mapping mode for one axis (glTF's sampler, an MTL's -clamp) as ours. */
+static gi__tex_wrap tex_wrap(enum aiTextureMapMode m) {
+  return m == aiTextureMapMode_Clamp ? GI__TEX_CLAMP : m == aiTextureMapMode_Mirror ? GI__TEX_MIRROR : GI__TEX_REPEAT;
+}
 
 /* An OBJ material's name, whether its MTL block has a Kd line, and
  * whether Blender wrote its MTL file; seq orders repeats (see sort_mtl). */
@@ -693,9 +699,10 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
   int has_factor = get_color(am, AI_MATKEY_BASE_COLOR, c) || get_color(am, AI_MATKEY_COLOR_DIFFUSE, c);
   struct aiString tpath;
   unsigned uv = 0;
-  int has_tex = aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tpath, NULL, &uv, NULL, NULL, NULL, NULL) ==
+  enum aiTextureMapMode mode[2] = {aiTextureMapMode_Wrap, aiTextureMapMode_Wrap};
+  int has_tex = aiGetMaterialTexture(am, aiTextureType_BASE_COLOR, 0, &tpath, NULL, &uv, NULL, NULL, mode, NULL) ==
                     aiReturn_SUCCESS ||
-                aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tpath, NULL, &uv, NULL, NULL, NULL, NULL) ==
+                aiGetMaterialTexture(am, aiTextureType_DIFFUSE, 0, &tpath, NULL, &uv, NULL, NULL, mode, NULL) ==
                     aiReturn_SUCCESS;
   if (has_tex && tpath.length == 0) has_tex = 0;
   if (has_tex) {
@@ -708,7 +715,8 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
       return gi__fail(err, GI_ERR_NOMEM, "scene file '%s': material '%s': out of memory for its texture", tc->path,
                       m->name);
     if (t->ok) {
-      *mt = (mat_tex){.tex = (long)(t - tc->tex), .factor = {c[0], c[1], c[2]}, .uv = uv};
+      *mt = (mat_tex){.tex = (long)(t - tc->tex), .factor = {c[0], c[1], c[2]}, .uv = uv,
+                      .wrap = {tex_wrap(mode[0]), tex_wrap(mode[1])}};
       for (int i = 0; i < 3; i++) c[i] *= t->rgb[i];
     }
     has_factor = 1;
@@ -1068,7 +1076,7 @@ static void texture_triangle(const tex_ctx *tc, uint32_t mat, const float uv[3][
     }
     uv = (const float(*)[2])tuv;
   }
-  gi__tex_grid_triangle(&tc->tex[mt->tex].grid, uv, c);
+  gi__tex_grid_triangle_wrap(&tc->tex[mt->tex].grid, uv, mt->wrap[0], mt->wrap[1], c);
   gi_mesh_builder_set_triangle_albedo(b, tri, mt->factor[0] * c[0], mt->factor[1] * c[1], mt->factor[2] * c[2]);
 }
 

@@ -405,12 +405,24 @@ gi_result gi__texels_average(const void *bgra, uint32_t width, uint32_t height, 
   return gi__texels_average_grid(bgra, width, height, what, rgb, NULL, err);
 }
 
-/* The grid cell under texture coordinate (u, v): repeating, v up; a
- * non-finite coordinate (a malformed file's) reads as 0. */
-static const float *grid_at(const gi__tex_grid *g, double u, double v) {
-  double fu = u - floor(u), fv = v - floor(v);
-  if (!(fu >= 0 && fu < 1)) fu = 0;
-  if (!(fv >= 0 && fv < 1)) fv = 0;
+/* A texture coordinate in [0, 1] as wrap reads it: the fraction
+ * (repeating), held to [0, 1] (clamped), or folded back every other tile
+ * (mirrored: 1.2 reads 0.8, -0.2 reads 0.2). */
+static double wrap_coord(double x, gi__tex_wrap wrap) {
+  if (wrap == GI__TEX_CLAMP) return x < 0 ? 0 : x > 1 ? 1 : x;
+  if (wrap == GI__TEX_MIRROR) {
+    double t = x - 2 * floor(x / 2); /* [0, 2) */
+    return t > 1 ? 2 - t : t;
+  }
+  return x - floor(x);
+}
+
+/* The grid cell under texture coordinate (u, v), v up, each wrapped as
+ * its wrap says; a non-finite coordinate (a malformed file's) reads as 0. */
+static const float *grid_at(const gi__tex_grid *g, double u, double v, gi__tex_wrap wu, gi__tex_wrap wv) {
+  double fu = wrap_coord(u, wu), fv = wrap_coord(v, wv);
+  if (!(fu >= 0 && fu <= 1)) fu = 0;
+  if (!(fv >= 0 && fv <= 1)) fv = 0;
   int x = (int)(fu * g->w), y = (int)((1.0 - fv) * g->h);
   x = x < 0 ? 0 : x >= g->w ? g->w - 1 : x;
   y = y < 0 ? 0 : y >= g->h ? g->h - 1 : y;
@@ -418,6 +430,11 @@ static const float *grid_at(const gi__tex_grid *g, double u, double v) {
 }
 
 void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float out[3]) {
+  gi__tex_grid_triangle_wrap(g, uv, GI__TEX_REPEAT, GI__TEX_REPEAT, out);
+}
+
+void gi__tex_grid_triangle_wrap(const gi__tex_grid *g, const float uv[3][2], gi__tex_wrap wrap_u,
+                                gi__tex_wrap wrap_v, float out[3]) {
   /* Subdivided n times a side, the triangle's n^2 small triangles have
    * centroids that weigh it evenly; n grows with its extent in cells. */
   double ext = 0;
@@ -439,7 +456,7 @@ void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float ou
         if (up && i + j == n - 1) continue;
         double a = (i + (up ? 2.0 : 1.0) / 3.0) / n, b = (j + (up ? 2.0 : 1.0) / 3.0) / n, c = 1.0 - a - b;
         const float *t = grid_at(g, a * uv[0][0] + b * uv[1][0] + c * uv[2][0], a * uv[0][1] + b * uv[1][1] +
-                                 c * uv[2][1]);
+                                 c * uv[2][1], wrap_u, wrap_v);
         for (int k = 0; k < 3; k++) sum[k] += t[k];
         count++;
       }

@@ -33,6 +33,13 @@ void gi__tex_grid_free(gi__tex_grid *g); /* accepts NULL */
  * half a cell wide), at most GI__TEX_TRI_SPLIT^2. g must have cells (w > 0). */
 #define GI__TEX_TRI_SPLIT 32
 void gi__tex_grid_triangle(const gi__tex_grid *g, const float uv[3][2], float out[3]);
+/* How a coordinate outside [0, 1] reads the texture (glTF's sampler wrapS
+ * and wrapT, assimp's aiTextureMapMode): repeating, held at the edge, or
+ * repeating mirrored every other tile. */
+typedef enum { GI__TEX_REPEAT, GI__TEX_CLAMP, GI__TEX_MIRROR } gi__tex_wrap;
+/* gi__tex_grid_triangle with u and v wrapped as wrap_u and wrap_v say. */
+void gi__tex_grid_triangle_wrap(const gi__tex_grid *g, const float uv[3][2], gi__tex_wrap wrap_u,
+                                gi__tex_wrap wrap_v, float out[3]);
 
 /* Decodes a PNG or JPEG held in memory (the format is told by its magic
  * bytes) and stores in rgb the plain mean over all pixels of the LINEAR
