@@ -330,18 +330,8 @@ static void test_report_matches_plan(void **state) {
  * the sky from it too: the probe reads as with the sky forced on, and a
  * bake for no points is the plain bake. */
 static void test_sky_from_answer_points(void **state) {
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double f[4][3] = {{-5, 0, -5}, {-5, 0, 5}, {5, 0, 5}, {5, 0, -5}}, lo[3] = {-0.5, 0, -0.5}, hi[3] = {0.5, 1, 0.5};
-  gi_mesh_builder_add_quad(b, f[0], f[1], f[2], f[3], mat);
-  gi_mesh_builder_add_box(b, lo, hi, mat);
-  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
-  gi_scene_options so = {.up = GI_UP_Y, .lights = &sky, .num_lights = 1};
-  gi_scene *s = NULL;
+  gi_scene *s = tu_box_on_sky_floor();
   gi_error_info err = {0};
-  assert_int_equal(gi_scene_build(b, "box-on-floor", &so, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
   const double at[3] = {0, 0.5, 0}, beside[3] = {1.5, 0.5, 0};
   gi_quality q = {.levels = 6, .res = 16, .voxel0 = 0.04, .probe_samples = 64};
   gi_probe p[3];

@@ -132,6 +132,17 @@ struct gi_scene *tu_sunlit_plane(double a, double E, double z_max) {
   return tu_build(b, "plane", &sun, 1);
 }
 
+struct gi_scene *tu_box_on_sky_floor(void) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double f[4][3] = {{-5, 0, -5}, {-5, 0, 5}, {5, 0, 5}, {5, 0, -5}}, lo[3] = {-0.5, 0, -0.5}, hi[3] = {0.5, 1, 0.5};
+  gi_mesh_builder_add_quad(b, f[0], f[1], f[2], f[3], mat);
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {1, 1, 1}};
+  return tu_build(b, "box-on-floor", &sky, 1);
+}
+
 struct gi_scene *tu_lit_room(float a) {
   gi_mesh_builder *b = gi_mesh_builder_new();
   gi_material m = {.albedo = {a, a, a}, .roughness = 1};

@@ -48,6 +48,11 @@ struct gi_scene *tu_sunlit_plane(double a, double E, double z_max);
  * (test_render, test_ref_panorama). Caller releases it. */
 struct gi_scene *tu_lit_room(float a);
 
+/* A solid box [-0.5,0.5] x [0,1] x [-0.5,0.5] (outward faces) on a floor
+ * 10 x 10 at y = 0, albedo 0.5, under a uniform sky of 1: a viewpoint at
+ * the box's centre sees no sky (test_effects, test_lightmap). */
+struct gi_scene *tu_box_on_sky_floor(void);
+
 /* ThreadSanitizer runs code 5-15x slower and keeps 4 bytes of shadow for
  * each byte of memory touched: a test's bounds on wall time and on RSS
  * growth scale by this under `make tsan` (1 in every other build). */
