@@ -122,6 +122,9 @@ def check_server(docs, p):
         p.append("Deployment: token Secret %s/%s is not the one token-secret.example.yaml defines" %
                  (tok.get("name"), tok.get("key")))
     if svc:
+        # Jobs and sessions live on one replica: spread at random, their polls and moves read 404.
+        if svc["spec"].get("sessionAffinity") != "ClientIP":
+            p.append("Service: sessionAffinity must be ClientIP (jobs and sessions live on one replica)")
         ssel = svc["spec"].get("selector") or {}
         if not ssel or any(labels.get(k) != v for k, v in ssel.items()):
             p.append("Service: selector %s does not select the server pods %s" % (ssel, labels))
@@ -232,6 +235,7 @@ def main():
             "persistentVolumeClaim", {"claimName": "other"})),
         ("service port", lambda d: [o for o in d if o.get("kind") == "Service"][0]["spec"]["ports"][0].__setitem__(
             "targetPort", 9999)),
+        ("session affinity", lambda d: [o for o in d if o.get("kind") == "Service"][0]["spec"].pop("sessionAffinity")),
     ]
     for what, breaker in breakers:
         broken = copy.deepcopy(docs)

@@ -9,6 +9,8 @@
 #      server's answer for its cell URL, and each cell baked exactly once
 #      across the replicas (gi_bakes_total from their /metrics);
 #   2. the same walk again: served from nginx's cache, zero bakes;
+#   2b. a probe job and a session walk with gi-client through nginx: every
+#      poll and move reaches the replica that owns the job or session;
 #   3. a walk at another seed (new cells) with replica 2 killed (SIGKILL)
 #      after 100 steps: every request still 200 (nginx retries the dead
 #      replica's on the next one: proxy_next_upstream), the retried ones
@@ -174,6 +176,26 @@ echo "walk 2 (repeat): $S2; bakes $((B2 - B1)); ${WALK_S}"
 [ "$(field "$S2" hits)" = $STEPS ] || fail "walk 2: $(field "$S2" hits) of $STEPS answers from nginx's cache"
 shas() { $PY -c 'import json, sys; [print(json.loads(l)["sha"]) for l in open(sys.argv[1])]' "$1"; }
 cmp -s <(shas "$T/first.jsonl") <(shas "$T/second.jsonl") || fail "walk 2: answers differ from walk 1's"
+
+# ---- 2b. a job and a session through nginx ----------------------------------------
+# They live on the replica that made them: hashed by URL, a poll or a move
+# reached another replica and read 404 (the job unknown, the session
+# reopened at every step).
+CLIENT=$BUILD/bin/gi-client
+NG="--server http://127.0.0.1:$NGINX_PORT --token $TOKEN"
+for i in $(seq 1 24); do echo "$i 1.7 $((i % 5))"; done > "$T/pts.txt"   # more than max_probes_inline: a job
+"$CLIENT" $NG probes city --points "$T/pts.txt" --quality low -o "$T/job.exr" > "$T/job.out" 2>&1 \
+  || fail "a probe job through nginx: $(tail -n 3 "$T/job.out")"
+grep -q "job " "$T/job.out" || fail "24 points were answered inline, not as a job: $(cat "$T/job.out")"
+printf 't,x,y,z\n' > "$T/walk.csv"; for i in $(seq 0 9); do echo "$i,$((3 * i)),1.7,2" >> "$T/walk.csv"; done
+"$CLIENT" $NG walk city --path "$T/walk.csv" --rate 0 --quality low --json > "$T/walk.json" 2> "$T/walk.err" \
+  || fail "a session walk through nginx: $(cat "$T/walk.json" "$T/walk.err")"
+$PY - "$T/walk.json" <<'EOF' || fail "session walk through nginx: $(cat "$T/walk.json")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["steps"] == 10 and j["errors"] == 0 and j["reopened"] == 0, j
+EOF
+echo "a 24-point job and a 10-step session walk through nginx: every poll and move on its own replica"
 
 # ---- 3. new cells, replica 2 killed after KILL_AFTER steps ----------------------------
 before=$(wc -l < "$T/access.log")
