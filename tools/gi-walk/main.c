@@ -178,7 +178,13 @@ static int parse_one(ta_ctx *ctx, int ch, const char *v, all_opts *a) {
   switch (ch) {
     case O_EXTENT: r = ta_double(ctx, "--extent", NULL, v, 0, 20000, &a->b.city.extent); a->have_extent = 1; break;
     case O_LEVELS: return ta_int(ctx, "--levels", NULL, v, 1, GI_MAX_LEVELS, &a->b.q.levels);
-    case O_RES: return ta_int(ctx, "--res", NULL, v, 8, 256, &a->b.q.res);
+    case O_RES: {
+      /* As gi-bake: 18 passed here and failed after the first outputs were written. */
+      static const char what[] = "a multiple of 4 in 8..256";
+      if (!(r = ta_int(ctx, "--res", what, v, 8, 256, &a->b.q.res)) && a->b.q.res % 4)
+        r = ta_fail(ctx, "--res", "expected %s, got '%s'", what, v);
+      return r;
+    }
     case O_SECONDS: return ta_double(ctx, "--seconds", NULL, v, 0, 3600, &a->b.seconds);
     case O_RATE: return ta_double(ctx, "--rate", NULL, v, 0, 1000, &a->b.rate);
     case O_SAMPLES: return ta_int(ctx, "--samples", NULL, v, 0, 10000, &a->b.samples);
