@@ -17,6 +17,10 @@ QUICK="--quick --ref-samples 1024 --pt-max 16 --repeat 1 --threads 2 --no-views 
 [ $rc -eq 0 ] && pass "--scene run exits 0" || { cat "$T/err" >&2; fail "--scene run exited $rc"; finish; }
 [ -s "$T/acc/accuracy.csv" ] && [ -s "$T/acc/accuracy.md" ] && [ -s "$T/acc/accuracy.gp" ] \
   && pass "CSV, markdown and plot script written to --out" || fail "outputs missing: $(ls "$T/acc")"
+# The sweep's own top (--pt-max 16), not 4096 whatever was swept.
+grep -q "tracer runs at 1..16 samples per probe" "$T/acc/accuracy.md" && grep -q "path tracer, 1..16 samples" \
+  "$T/acc/accuracy.gp" && ! grep -q 4096 "$T/acc/accuracy.gp" && pass "the report names the sweep's 16 samples" \
+  || fail "sample range in the report: $(grep -o '1\.\.[0-9]* samples' "$T/acc/accuracy.md" "$T/acc/accuracy.gp")"
 
 python3 - "$T/acc/accuracy.csv" "$T/acc/accuracy.md" <<'PY' && pass "CSV and markdown read back" || fail "CSV / markdown"
 import csv, math, re, sys
@@ -81,6 +85,12 @@ printf '# two points\n1 1 1\n3 2 3\n' > "$T/pts.txt"
 grep -q 'Viewpoint (2, 1.5, 2), 2 probes (2 points from pts.txt, as given)' "$T/out/accuracy-box/accuracy.md" \
   && pass "--probes taken as given, default --out out/accuracy-box" \
   || fail "--probes run: $(ls -R "$T/out" 2>&1 | head -5)"
+# Points no light reaches (under the closed box): every relative error
+# would be 0/0; it wrote NaN figures and exited 0. Now 1, saying why.
+printf '2 -3 2\n1 -2 1\n' > "$T/dark.txt"
+"$BIN" --scene "$T/box.obj" --probes "$T/dark.txt" $QUICK --out "$T/dark" > /dev/null 2> "$T/err3"; rc=$?
+[ $rc -eq 1 ] && grep -q "the reference reads no light at any of the 2 probes" "$T/err3" && [ ! -e "$T/dark/accuracy.csv" ] \
+  && pass "--probes no light reaches -> 1, named, no CSV" || fail "dark --probes (rc $rc): $(cat "$T/err3")"
 
 # Street level (the cities' rule) on a ground with one closed block, Z up:
 # a 7 x 7 grid 2 m up, the probe inside the block dropped, the viewpoint a

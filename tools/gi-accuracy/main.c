@@ -672,6 +672,17 @@ static int scene_workloads(const opts *o, const char *name, const scene_set *ss,
   return acc_run_workloads(&wo, name, ss, view, munich, &R->wl, &R->nwl);
 }
 
+/* Whether the reference reads any light at the probes; says why not. With
+ * none, every relative error is 0/0: --probes points inside a closed box
+ * gave NaN figures, "nan%" in the report and exit 0. */
+static int ref_has_light(const char *name, const gi_ref_probe *ref, size_t n) {
+  for (size_t i = 0; i < n; i++)
+    if (lum709(ref[i].irradiance) > 0) return 1;
+  fprintf(stderr, "gi-accuracy: %s: the reference reads no light at any of the %zu probes (the scene's lights and "
+          "emitters reach none of them): relative errors are undefined; give points the light reaches\n", name, n);
+  return 0;
+}
+
 /* One scene: probes, reference, sweep, view, workloads. 0 done, 1 failed, -1 skipped. */
 static int run_scene(const opts *o, const char *name, const char *md_dir, results *R) {
   scene_set ss;
@@ -683,7 +694,8 @@ static int run_scene(const opts *o, const char *name, const char *md_dir, result
   gi_ref_probe *ref = st ? calloc(ss.n, sizeof *ref) : NULL;
   int rc = 0;
   memset(si, 0, sizeof *si);
-  if (!st || !ref || !load_or_make_ref(o, name, &ss, ref, &si->ref_ms) || !sweep_scene(o, name, &ss, ref, &R->out)) {
+  if (!st || !ref || !load_or_make_ref(o, name, &ss, ref, &si->ref_ms) || !ref_has_light(name, ref, ss.n) ||
+      !sweep_scene(o, name, &ss, ref, &R->out)) {
     rc = 1;
   } else {
     snprintf(si->name, sizeof si->name, "%s", name);

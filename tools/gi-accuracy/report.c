@@ -52,6 +52,15 @@ static const acc_row *find_default(const acc_row *r, size_t n, const char *scene
 /* Path-tracing time to reach error e (total MRE), by log-log interpolation
  * between the measured sample counts; -1 when the curve never reaches e,
  * 0 when even one sample is better. */
+/* The largest path-tracer sample count in the rows (of scene; NULL: any):
+ * the report said 4096 whatever --pt-max swept. */
+static int path_max(const acc_row *r, size_t n, const char *scene) {
+  double m = 0;
+  for (size_t i = 0; i < n; i++)
+    if (!strcmp(r[i].kind, "path") && (!scene || !strcmp(r[i].scene, scene))) m = fmax(m, r[i].value);
+  return (int)m;
+}
+
 static double path_ms_at(const acc_row *r, size_t n, const char *scene, double e) {
   const acc_row *prev = NULL;
   for (size_t i = 0; i < n; i++) {
@@ -86,8 +95,8 @@ static int write_csv(const acc_row *r, size_t n, const char *path) {
 }
 
 /* One panel per scene: cone bakes, default, path tracer, Pareto front. */
-static int write_plot(const acc_scene_info *sc, size_t nsc, const char *csv, const char *out_dir, const char *png,
-                      int *drawn) {
+static int write_plot(const acc_row *r, size_t n, const acc_scene_info *sc, size_t nsc, const char *csv,
+                      const char *out_dir, const char *png, int *drawn) {
   char gp[1024], tmp[1100];
   snprintf(gp, sizeof gp, "%s/accuracy.gp", out_dir);
   FILE *f = open_tmp(gp, tmp, sizeof tmp);
@@ -101,15 +110,15 @@ static int write_plot(const acc_scene_info *sc, size_t nsc, const char *csv, con
              "set multiplot layout 1,%zu\n",
           (int)(520 * (nsc ? nsc : 1)), (int)(520 * (nsc ? nsc : 1)), png, nsc ? nsc : 1);
   for (size_t s = 0; s < nsc; s++) {
-    const char *n = sc[s].name;
+    const char *nm = sc[s].name;
     fprintf(f,
             "set title '%s (%zu probes)'\n"
             "plot '%s' u ((strcol(1) eq '%s' && strcol(2) eq 'cone') ? $6 : 1/0):10 w p pt 7 ps 0.8 lc rgb '#4477aa' t 'cone tracer (one knob moved)', \\\n"
             "     '' u ((strcol(1) eq '%s' && strcol(2) eq 'cone') ? $6 : 1/0):10:(strcol(3)) w labels offset 0,0.7 font ',6' notitle, \\\n"
             "     '' u ((strcol(1) eq '%s' && $5 == 1) ? $6 : 1/0):10 w p pt 6 ps 2.5 lw 2 lc rgb '#000000' t 'default quality', \\\n"
-            "     '' u ((strcol(1) eq '%s' && strcol(2) eq 'path') ? $6 : 1/0):10 w lp pt 5 ps 0.8 lc rgb '#cc3311' t 'path tracer, 1..4096 samples', \\\n"
+            "     '' u ((strcol(1) eq '%s' && strcol(2) eq 'path') ? $6 : 1/0):10 w lp pt 5 ps 0.8 lc rgb '#cc3311' t 'path tracer, 1..%d samples', \\\n"
             "     '' u ((strcol(1) eq '%s' && $19 == 1) ? $6 : 1/0):10 smooth unique w l lw 2 dt 2 lc rgb '#228833' t 'Pareto front'\n",
-            n, sc[s].probes, csv, n, n, n, n, n);
+            nm, sc[s].probes, csv, nm, nm, nm, nm, path_max(r, n, nm), nm);
   }
   fprintf(f, "unset multiplot\n");
   if (close_rename(f, tmp, gp)) return 1;
@@ -202,9 +211,12 @@ static void write_standing(FILE *f, const acc_row *r, size_t n, const acc_scene_
     if (pt > 0)
       fprintf(f, "| %s | %.1f | %.2f | %.2f%% | %.2f | %.3gx | %.3gx |\n", sc[s].name, x->ms, x->gather_ms,
               100 * x->m[ACC_TOTAL].mre, pt, pt / x->ms, x->gather_ms > 0 ? pt / x->gather_ms : 0);
+    else if (pt == 0)
+      fprintf(f, "| %s | %.1f | %.2f | %.2f%% | 1 sample already better | - | - |\n", sc[s].name, x->ms,
+              x->gather_ms, 100 * x->m[ACC_TOTAL].mre);
     else
-      fprintf(f, "| %s | %.1f | %.2f | %.2f%% | %s | - | - |\n", sc[s].name, x->ms, x->gather_ms,
-              100 * x->m[ACC_TOTAL].mre, pt == 0 ? "1 sample already better" : "not reached by 4096 samples");
+      fprintf(f, "| %s | %.1f | %.2f | %.2f%% | not reached by %d samples | - | - |\n", sc[s].name, x->ms,
+              x->gather_ms, 100 * x->m[ACC_TOTAL].mre, path_max(r, n, sc[s].name));
   }
   fprintf(f, "\n(A speed-up below 1 means the path tracer is faster at that error. Probe answers: the cone "
              "tracer's bake is paid once per viewpoint and amortised over every probe gathered from it, the path "
@@ -234,10 +246,11 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
              "(`gi_reference_irradiance`: next-event estimation, MIS for emitters, unbounded depth with Russian "
              "roulette, fixed seeds). The cone tracer bakes around the viewpoint and gathers at the points; its "
              "time is bake + gather. One knob moves at a time around the default (`gi_quality q = {0}`). The path "
-             "tracer runs at 1..4096 samples per probe with a different seed from the reference. Errors are on "
+             "tracer runs at 1..%d samples per probe with a different seed from the reference. Errors are on "
              "each probe's luminance (Rec. 709), averaged over probes: *MRE* = mean |x - ref| / ref, *relMSE* = mean (x - ref)^2 / ref^2 (ref "
              "floored at 1%% of its mean); *bias* = per-probe ratio of indirect irradiance to the reference "
-             "(mean [min, max]). Direct and indirect are the same split as the probe EXR's channels.\n\n");
+             "(mean [min, max]). Direct and indirect are the same split as the probe EXR's channels.\n\n",
+          path_max(r, n, NULL));
   FILE *nf = notes ? fopen(notes, "r") : NULL;
   if (notes && !nf) fprintf(stderr, "gi-accuracy: notes %s not readable: left out\n", notes);
   if (nf) {
@@ -321,7 +334,7 @@ int acc_write_reports(const acc_row *rows, size_t n, const acc_scene_info *sc, s
   snprintf(csv, sizeof csv, "%s/accuracy.csv", out_dir);
   int drawn = 0;
   if (write_csv(rows, n, csv)) return 1;
-  if (write_plot(sc, nsc, csv, out_dir, png_path, &drawn)) return 1;
+  if (write_plot(rows, n, sc, nsc, csv, out_dir, png_path, &drawn)) return 1;
   if (wl && wl->ran && acc_write_workloads_files(wl->w, wl->n, out_dir)) return 1;
   if (write_md(rows, n, sc, nsc, views, nviews, wl, md_path, png_path, drawn, machine, cmdline, notes)) return 1;
   fprintf(stderr, "gi-accuracy: wrote %s, %s%s and %s\n", csv, drawn > 0 ? png_path : "", drawn > 0 ? "" : "(no plot)",
