@@ -249,8 +249,7 @@ static int write_md(const acc_row *r, size_t n, const acc_scene_info *sc, size_t
              "tracer runs at 1..%d samples per probe with a different seed from the reference. Errors are on "
              "each probe's luminance (Rec. 709), averaged over probes: *MRE* = mean |x - ref| / ref, *relMSE* = mean (x - ref)^2 / ref^2 (ref "
              "floored at 1%% of its mean); *bias* = per-probe ratio of indirect irradiance to the reference "
-             "(mean [min, max]). Direct and indirect are the same split as the probe EXR's channels.\n\n",
-          path_max(r, n, NULL));
+             "(mean [min, max]). Direct and indirect are the same split as the probe EXR's channels.\n\n", path_max(r, n, NULL));
   FILE *nf = notes ? fopen(notes, "r") : NULL;
   if (notes && !nf) fprintf(stderr, "gi-accuracy: notes %s not readable: left out\n", notes);
   if (nf) {
