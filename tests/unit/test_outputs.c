@@ -123,6 +123,12 @@ static void test_cascade_vdb(void **state) {
   gi_error_info err = {0};
   double at[3] = {1002, 1.5, -18};
   assert_int_equal(gi_cascade_bake(s, at, &q, &c, &rep, &err), GI_OK);
+  /* What the writer holds while it writes (dense copies of each level): the
+   * server admits the encode by it. 3 levels of 16^3 voxels, 10 floats each
+   * (28 with the face grids). */
+  assert_true(gi_cascade_vdb_bytes_estimate(c, 0) == 3 * 4096 * 10 * sizeof(float));
+  assert_true(gi_cascade_vdb_bytes_estimate(c, 1) == 3 * 4096 * 28 * sizeof(float));
+  assert_true(gi_cascade_vdb_bytes_estimate(NULL, 1) == 0);
   char path[512];
   snprintf(path, sizeof path, "%s/cascade.vdb", tu_tmpdir());
   assert_int_equal(gi_cascade_write_vdb(c, path, 1, &err), GI_OK);

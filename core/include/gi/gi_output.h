@@ -52,6 +52,11 @@ gi_result gi_panorama_write_exr(const char *path, int w, int h, const float *dir
  * plain density and Cd. faces = 1 adds per-face grids L<d>_face_px ... */
 gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces,
                                gi_error_info *err);
+/* The memory gi_cascade_write_vdb holds while it writes c (its dense
+ * copies of every level: levels x res^3 x 10 floats, 28 with faces), for
+ * callers that admit work by bytes: at 8 levels of 64^3 with faces it is
+ * 235 MB whatever the cascade holds. */
+size_t gi_cascade_vdb_bytes_estimate(const gi_cascade *c, int faces);
 
 /* Writes an 8-bit sRGB PNG from linear RGB floats times `exposure`,
  * through a temporary file renamed into place. */

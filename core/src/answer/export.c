@@ -242,6 +242,12 @@ static gi_result fill_dense(const struct gi_cascade *c, int d, int faces, level_
   return GI_OK;
 }
 
+size_t gi_cascade_vdb_bytes_estimate(const gi_cascade *c, int faces) {
+  if (!c) return 0;
+  size_t vox = (size_t)c->R * c->R * c->R;
+  return (size_t)c->n * vox * (size_t)(10 + (faces ? 18 : 0)) * sizeof(float);
+}
+
 gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces, gi_error_info *err) {
   if (!c || !path) return gi__fail(err, GI_ERR_INVALID_ARG, "VDB: %s is NULL", !c ? "cascade" : "path");
   static const char *const face_names[6] = {"px", "nx", "py", "ny", "pz", "nz"};
