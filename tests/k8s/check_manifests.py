@@ -192,11 +192,17 @@ def check_bake(docs, p):
             cmd = " ".join(command_text(c) for c in containers(merge))
             shard_cmd = command_text([c for c in containers(shard) if "--shard" in command_text(c)][0])
             exr = re.findall(r"--exr\s+\"?([^\s\"]+)", shard_cmd)
-            glob_in = re.search(r"gi-bake merge .*?(\S+\*\S*)", cmd)
-            if not exr or not glob_in or not re.fullmatch(glob_in.group(1).replace(".", r"\.").replace("*", ".*"),
-                                                          exr[0].replace("$JOB_COMPLETION_INDEX", "0")):
-                p.append("merge Job: its inputs %s are not the shards' outputs %s" %
-                         (glob_in.group(1) if glob_in else None, exr))
+            # The shards by number, 0 .. SHARDS-1: a glob also took a previous run's higher-numbered ones.
+            named = re.search(r'in="\$in (\S+)"', cmd)
+            want = exr[0].replace("$JOB_COMPLETION_INDEX", "$i") if exr else None
+            mcmd = " ".join(command_text(c) for c in containers(merge) if "gi-bake merge" in command_text(c))
+            if "*" in mcmd or not named or named.group(1) != want or "$in" not in mcmd.split("gi-bake merge")[-1]:
+                p.append("merge Job: its inputs %s are not the shards' outputs %s by number" %
+                         (named.group(1) if named else None, want))
+            menv = {k: v for c in containers(merge) for k, v in env(c).items()}
+            if str(menv.get("SHARDS", {}).get("value")) != str(shard["spec"].get("completions")):
+                p.append("merge Job: SHARDS=%s but the bake's completions=%s" %
+                         (menv.get("SHARDS", {}).get("value"), shard["spec"].get("completions")))
 
 
 def check(docs):
