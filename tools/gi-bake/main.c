@@ -147,6 +147,23 @@ static void note_outside(const cli_opts *o, const gi_cascade *cas, const double 
 }
 
 /* The gather points, viewpoint first, then --probes; and room for their probes. */
+/* A --render eye the renderer will refuse (more than 1e9 from the scene's
+ * origin, as the core's camera rule), refused before the bake: it failed
+ * with exit 1 after a whole bake, where every other bad camera exits 2 at
+ * once. */
+static int check_render_eye(const cli_opts *o, const gi_scene *scene) {
+  if (!o->render) return 0;
+  double org[3];
+  gi_scene_origin(scene, org);
+  for (int a = 0; a < 3; a++)
+    if (!(fabs(o->cam.eye[a] - org[a]) <= 1e9)) {
+      fprintf(stderr, "gi-bake: --render: the eye (%g, %g, %g) is more than 1e9 units from the scene\n", o->cam.eye[0],
+              o->cam.eye[1], o->cam.eye[2]);
+      return EXIT_USAGE;
+    }
+  return 0;
+}
+
 static int make_points(const cli_opts *o, double **pts, gi_probe **probes, size_t *n) {
   *n = 1 + o->num_probes;
   *pts = malloc(*n * 3 * sizeof **pts);
@@ -230,6 +247,7 @@ int main(int argc, char **argv) {
     rc = lightmap_run(&o, scene, t_start, load_ms, now_ms);
     goto done;
   }
+  if ((rc = check_render_eye(&o, scene))) goto done;
   choose_viewpoint(&o, scene);
   note_inside(&o, scene);
   cover_probes(&o, scene);
