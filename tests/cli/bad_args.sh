@@ -92,7 +92,7 @@ grep -q "^gi-bake: --point: position X,Y,Z must be within 1e30" "$T/err" && pass
 far 2 --spot 0,-1e31,0,0,1,0,10,20,1,1,1
 # A --render eye past 1e9: refused (2) before the bake, as every other bad
 # camera is; it failed (1) after a whole bake.
-far 2 --render 1e300,5,10,0,0,0,60,8,8
+far 2 --render 1e300,5,10,0,0,0,60,8,8 --exr "$T/far.exr"
 grep -q "^gi-bake: --render: the eye (1e+300, 5, 10) is more than 1e9 units from the scene" "$T/err" \
   && pass "a far --render eye is named" || fail "far --render eye: $(cat "$T/err")"
 # The core's message names its stage once ("bake: bake: the voxel size" stuttered).
