@@ -247,11 +247,10 @@ int main(int argc, char **argv) {
     rc = lightmap_run(&o, scene, t_start, load_ms, now_ms);
     goto done;
   }
-  if ((rc = check_render_eye(&o, scene))) goto done;
   choose_viewpoint(&o, scene);
   note_inside(&o, scene);
   cover_probes(&o, scene);
-  if ((rc = make_points(&o, &pts, &probes, &n))) goto done;
+  if ((rc = check_render_eye(&o, scene)) || (rc = make_points(&o, &pts, &probes, &n))) goto done;
 
   gi_bake_report rep;
   memset(&rep, 0, sizeof rep);
