@@ -192,8 +192,18 @@ static void test_lattice_and_bad_specs(void **state) {
   double far_lo[3] = {500, 0, 0}, far_hi[3] = {600, 10, 10};
   memcpy(spec.lo, far_lo, sizeof far_lo), memcpy(spec.hi, far_hi, sizeof far_hi);
   assert_int_equal(gi_probe_grid_build(s, &spec, &g, &err), GI_ERR_INVALID_ARG);
-  assert_non_null(strstr(err.msg, "outside the scene bounds"));
+  assert_non_null(strstr(err.msg, "beside the scene bounds"));
   assert_null(g.pos);
+  /* Wholly above the bounds (probes over the roofs): taken; it was refused
+   * while a box reaching 1 cm into the bounds baked the same probes. */
+  double lo[3], hi[3];
+  gi_scene_bounds(s, lo, hi);
+  double up_lo[3] = {lo[0], hi[1] + 5, lo[2]}, up_hi[3] = {lo[0] + 20, hi[1] + 15, lo[2] + 20};
+  memcpy(spec.lo, up_lo, sizeof up_lo), memcpy(spec.hi, up_hi, sizeof up_hi);
+  assert_int_equal(gi_probe_grid_build(s, &spec, &g, &err), GI_OK);
+  printf("region above the bounds: %d x %d x %d points\n", g.counts[0], g.counts[1], g.counts[2]);
+  assert_true(g.n > 0 && g.pos[1] >= hi[1] + 5);
+  gi_probe_grid_free(&g);
   gi_scene_release(s);
 }
 

@@ -55,7 +55,8 @@ typedef struct gi_probe_grid {
 } gi_probe_grid;
 
 /* Builds the grid. Errors: GI_ERR_INVALID_ARG (spacing not finite and > 0,
- * region empty, not finite, or outside the scene's bounds, a point beyond
+ * region empty, not finite, or beside the scene's bounds (above or below
+ * them is taken: probes over the roofs), a point beyond
  * float range: the message names it), GI_ERR_LIMIT (more than
  * GI_GRID_MAX_POINTS points), GI_ERR_NOMEM. Deterministic; thread-safe. */
 gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,

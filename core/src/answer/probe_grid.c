@@ -92,10 +92,14 @@ static gi_result region_of(const gi_scene *scene, const gi_grid_spec *spec, doub
       return gi__fail(err, GI_ERR_INVALID_ARG, "region: min must not exceed max on axis %c (%g > %g)", "xyz"[a],
                       lo[a], hi[a]);
   }
+  /* Beside the scene, not above or below it: probes over the roofs (an
+   * aerial box wholly above the bounds) are a fair request; it was refused
+   * while one reaching 1 cm into the bounds baked the same probes. */
+  int up = gi_scene_up(scene) == GI_UP_Z ? 2 : 1;
   for (int a = 0; a < 3; a++)
-    if (hi[a] < slo[a] || lo[a] > shi[a])
+    if (a != up && (hi[a] < slo[a] || lo[a] > shi[a]))
       return gi__fail(err, GI_ERR_INVALID_ARG,
-                      "region (%g,%g,%g)..(%g,%g,%g) lies outside the scene bounds (%g,%g,%g)..(%g,%g,%g)", lo[0],
+                      "region (%g,%g,%g)..(%g,%g,%g) lies beside the scene bounds (%g,%g,%g)..(%g,%g,%g)", lo[0],
                       lo[1], lo[2], hi[0], hi[1], hi[2], slo[0], slo[1], slo[2], shi[0], shi[1], shi[2]);
   return GI_OK;
 }
