@@ -2,7 +2,7 @@
  *
  * Start-up fails early and loudly: the config is validated and every
  * scene is loaded before the port opens, so "listening" means "ready".
- * SIGINT/SIGTERM stop accepting, let running requests finish, and exit 0. */
+ * SIGINT/SIGTERM/SIGHUP stop accepting, let running requests finish, and exit 0. */
 #define _POSIX_C_SOURCE 200809L
 #include <arpa/inet.h>
 #include <errno.h>
@@ -166,6 +166,9 @@ static void block_signals(sigset_t *sigs) {
   sigemptyset(sigs);
   sigaddset(sigs, SIGINT);
   sigaddset(sigs, SIGTERM);
+  /* A closed terminal: the same clean stop (it killed the server outright,
+   * its private folder left for the next start). There is no reload. */
+  sigaddset(sigs, SIGHUP);
   pthread_sigmask(SIG_BLOCK, sigs, NULL);
   signal(SIGPIPE, SIG_IGN);
 }
@@ -273,8 +276,7 @@ int main(int argc, char **argv) {
   announce(&cfg, &cat, bound);
   int sig = 0;
   sigwait(&sigs, &sig);
-  fprintf(stderr, "gi-server: %s: stopping: jobs cancelled, requests given shutdown_grace_s\n",
-          sig == SIGINT ? "SIGINT" : "SIGTERM");
+  fprintf(stderr, "gi-server: %s: stopping: jobs cancelled, requests given shutdown_grace_s\n", gs_signal_name(sig));
   gs_shutdown_begin(&svc, &sigs);
   stop_service(h, &svc, &cat, &cfg);
   return 0;

@@ -460,4 +460,9 @@ int gs_http_port(const gs_http *h);
 /* Stops accepting, lets queued work finish, answers, and stops. */
 void gs_http_stop(gs_http *h);
 
+/* The name of a stop signal (SIGINT, SIGTERM or SIGHUP) for the log. */
+static inline const char *gs_signal_name(int sig) {
+  return sig == SIGINT ? "SIGINT" : sig == SIGHUP ? "SIGHUP" : "SIGTERM";
+}
+
 #endif

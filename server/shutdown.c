@@ -34,7 +34,7 @@ static void *watchdog(void *p) {
     struct timespec ts = {(time_t)floor(left), (long)((left - floor(left)) * 1e9)};
     int sig = sigtimedwait(&w->sigs, NULL, &ts);
     if (sig > 0) {
-      fprintf(stderr, "gi-server: second %s: exiting now\n", sig == SIGINT ? "SIGINT" : "SIGTERM");
+      fprintf(stderr, "gi-server: second %s: exiting now\n", gs_signal_name(sig));
       gs_jobs_abandon(w->jobs);
       _exit(GS_EXIT_FORCED);
     }

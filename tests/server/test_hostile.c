@@ -726,6 +726,26 @@ static void test_job_files_private(void **state) {
  * is made again. Every EXR answer and job result is written there first,
  * and all of them were 500s ("Unable to open file for write") until the
  * server was restarted. */
+/* SIGHUP (a closed terminal) stops the server as SIGTERM does: exit 0, its
+ * private folder removed. It killed the server outright (exit 129, the
+ * folder left for the next start's sweep). */
+static void test_sighup_stops_cleanly(void **state) {
+  su_server s;
+  char dir[600], folder[1100];
+  assert_int_equal(su_start(&s, "hup", HOSTILE_INI("")), 0);
+  snprintf(dir, sizeof dir, "%s/hup", tu_tmpdir());
+  snprintf(folder, sizeof folder, "%s", jobs_folder(dir, s.pid));
+  assert_true(folder[0]);
+  su_resp r = su_http(&s, NULL, "/v1/health", NULL, NULL);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  int st = su_signal_wait(&s, SIGHUP, 60000, NULL);
+  struct stat sb;
+  printf("  SIGHUP: exit %d, private folder %s\n", st, stat(folder, &sb) == 0 ? "left" : "removed");
+  assert_int_equal(st, 0);
+  assert_int_not_equal(stat(folder, &sb), 0);
+}
+
 static void test_private_folder_removed(void **state) {
   su_server s;
   char dir[600], folder[1100], f[1400];
@@ -1344,6 +1364,7 @@ int main(void) {
       cmocka_unit_test(test_job_cancel_while_waiting_for_memory),
       cmocka_unit_test(test_job_files_private),
       cmocka_unit_test(test_private_folder_removed),
+      cmocka_unit_test(test_sighup_stops_cleanly),
       cmocka_unit_test(test_sigterm_with_running_job),
       cmocka_unit_test(test_memory_budget),
       cmocka_unit_test(test_vdb_from_memory),
