@@ -94,6 +94,10 @@ printf '0,1,2,3\n0.1,1,2\n' > "$T/bad.csv"
 "$WALK" bench --extent 300 --path "$T/bad.csv" --out "$T/pb" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 2 ] && grep -q -F "gi-walk: --path: $T/bad.csv:2: expected t,x,y,z (four finite numbers), got '0.1,1,2'" "$T/err" \
   && pass "bad path line -> 2, named" || fail "bad path line (rc $rc): $(cat "$T/err")"
+# --up without --scene: refused (the city is y up; it was taken and ignored).
+"$WALK" bench --extent 200 --path "$T/through.csv" --up z --out "$T/upz" > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q -F "gi-walk: --up: applies to a --scene file (the city is y up)" "$T/err" \
+  && pass "--up without --scene -> 2" || fail "--up without --scene (rc $rc): $(cat "$T/err")"
 # --res as gi-bake takes it: 18 passed, wrote the paths' CSVs, then failed (1) at the first bake.
 "$WALK" bench --extent 200 --res 18 --seconds 1 --out "$T/r18" > /dev/null 2> "$T/err"; rc=$?
 [ $rc -eq 2 ] && [ ! -e "$T/r18" ] && grep -q -F "gi-walk: --res: expected a multiple of 4 in 8..256, got '18'" "$T/err" \

@@ -169,7 +169,7 @@ typedef struct all_opts {
   bench_opts b;
   tables_opts t;
   const char *md;
-  int paths_only, have_extent;
+  int paths_only, have_extent, up_given;
 } all_opts;
 
 static int parse_one(ta_ctx *ctx, int ch, const char *v, all_opts *a) {
@@ -196,6 +196,7 @@ static int parse_one(ta_ctx *ctx, int ch, const char *v, all_opts *a) {
     case O_UP:
       if (strcmp(v, "y") && strcmp(v, "z")) return ta_fail(ctx, "--up", "expected y or z, got '%s'", v);
       a->t.up = v[0] == 'z' ? GI_UP_Z : GI_UP_Y;
+      a->up_given = 1;
       break;
     case O_AT: r = ta_triple(ctx, "--at", v, a->t.at); a->t.have_at = 1; break;
     case O_MOVES: return ta_int(ctx, "--moves", NULL, v, 0, 100000, &a->t.moves);
@@ -245,6 +246,8 @@ int main(int argc, char **argv) {
     if (r) return r;
   }
   if (optind < argc) return ta_fail(&ctx, NULL, "unexpected argument '%s'", argv[optind]);
+  /* The city is y up: --up z without a file was taken and ignored. */
+  if (a.up_given && !a.t.scene_file) return ta_fail(&ctx, "--up", "applies to a --scene file (the city is y up)");
   if (!strcmp(argv[1], "tables")) return run_tables(&a, &ctx);
   if (ta_mkdirs(&ctx, "--out", a.b.out_dir)) return 1;
   a.b.q.threads = 0;
