@@ -216,56 +216,61 @@ static gi_result tris_in_range(const struct gi_cascade *c, float grow, uint32_t 
  * axis-aligned walls of round coordinates tend to lie. Where the caller
  * names the points its answers are gathered at (a lightmap tile's
  * texels; probes, with no normal: from the point itself), HINT_PER rays
- * from half a voxel off each side of each of them too: a tile's centre inside a box on a sky-lit floor saw no sky, and
- * every texel around it lost the sky's bounce light. */
+ * from half a voxel off each side of each of them too: a tile's centre
+ * inside a box on a sky-lit floor saw no sky, and every texel around it
+ * lost the sky's bounce light. */
 #define MAX_HINTS 32
 #define HINT_PER 8
+
+/* The upward rays' frame, and the arrays sky_rays fills. */
+typedef struct {
+  float up[3], t[3], b[3];
+  float *org, *dir, *tn, *tf;
+  int n;
+} sky_batch;
+
+/* per stratified upward rays from p (cos theta in per strata), seeded. */
+static void upward_rays(sky_batch *sb, const float p[3], int per, uint64_t seed) {
+  uint64_t rng = gi__mix64(seed);
+  for (int j = 0; j < per; j++, sb->n++) {
+    float ct = ((float)j + gi__u01(&rng)) / (float)per, st = sqrtf(fmaxf(0.f, 1 - ct * ct));
+    float phi = 2 * GI_PI_F * gi__u01(&rng);
+    for (int k = 0; k < 3; k++) {
+      sb->org[3 * sb->n + k] = p[k];
+      sb->dir[3 * sb->n + k] = st * cosf(phi) * sb->t[k] + st * sinf(phi) * sb->b[k] + ct * sb->up[k];
+    }
+    sb->tn[sb->n] = 0;
+    sb->tf[sb->n] = INFINITY;
+  }
+}
+
 static int sky_rays(const struct gi_cascade *c, int *tested) {
   const gi_scene *s = c->scene;
   enum { ORG = 7, PER = 32, MAXR = ORG * PER + 2 * MAX_HINTS * HINT_PER };
   float org[3 * MAXR], dir[3 * MAXR], tn[MAXR], tf[MAXR];
   uint8_t vis[MAXR];
-  const float up[3] = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f};
-  float t[3], b[3];
-  gi__basis(up, t, b);
+  sky_batch sb = {.up = {0, s->up == GI_UP_Z ? 0.f : 1.f, s->up == GI_UP_Z ? 1.f : 0.f},
+                  .org = org, .dir = dir, .tn = tn, .tf = tf};
+  gi__basis(sb.up, sb.t, sb.b);
   const gi_level *L0 = &c->lv[0];
   float half = (float)(0.5 * c->R * L0->s), centre[3];
   /* Level 0 starts R/2 cells below the anchor cell's first cell (cascade.c). */
   for (int a = 0; a < 3; a++) centre[a] = (float)(((double)L0->cell0[a] + c->R / 2 + 1) * L0->s);
-  int n = 0;
   for (int o = 0; o < ORG; o++) {
     float p[3] = {centre[0], centre[1], centre[2]};
     if (o) p[(o - 1) / 2] += (o & 1) ? half : -half;
-    uint64_t rng = gi__mix64(0x5c1ull + (uint64_t)o);
-    for (int j = 0; j < PER; j++, n++) {
-      float ct = ((float)j + gi__u01(&rng)) / PER, st = sqrtf(fmaxf(0.f, 1 - ct * ct));
-      float phi = 2 * GI_PI_F * gi__u01(&rng);
-      for (int k = 0; k < 3; k++) {
-        org[3 * n + k] = p[k];
-        dir[3 * n + k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + ct * up[k];
-      }
-      tn[n] = 0;
-      tf[n] = INFINITY;
-    }
+    upward_rays(&sb, p, PER, 0x5c1ull + (uint64_t)o);
   }
   int nh = c->num_answer_pts < MAX_HINTS ? c->num_answer_pts : MAX_HINTS;
   for (int h = 0; h < 2 * nh; h++) {
     /* Evenly over the caller's points, each side in turn. */
     const float *P = c->answer_pts + 6 * ((size_t)(h / 2) * (size_t)c->num_answer_pts / (size_t)nh);
     if ((h & 1) && P[3] == 0 && P[4] == 0 && P[5] == 0) continue; /* a point in space: one side */
-    float off = (h & 1 ? -0.5f : 0.5f) * (float)L0->s;
-    uint64_t rng = gi__mix64(0x5c2ull + (uint64_t)h);
-    for (int j = 0; j < HINT_PER; j++, n++) {
-      float ct = ((float)j + gi__u01(&rng)) / HINT_PER, st = sqrtf(fmaxf(0.f, 1 - ct * ct));
-      float phi = 2 * GI_PI_F * gi__u01(&rng);
-      for (int k = 0; k < 3; k++) {
-        org[3 * n + k] = P[k] + off * P[3 + k];
-        dir[3 * n + k] = st * cosf(phi) * t[k] + st * sinf(phi) * b[k] + ct * up[k];
-      }
-      tn[n] = 0;
-      tf[n] = INFINITY;
-    }
+    float off = (h & 1 ? -0.5f : 0.5f) * (float)L0->s, p[3];
+    for (int k = 0; k < 3; k++) p[k] = P[k] + off * P[3 + k];
+    upward_rays(&sb, p, HINT_PER, 0x5c2ull + (uint64_t)h);
   }
+  int n = sb.n;
   gi__occluded(s, n, org, dir, tn, tf, vis);
   int seen = 0;
   for (int i = 0; i < n; i++) seen += vis[i];

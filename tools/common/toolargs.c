@@ -236,12 +236,11 @@ static int path_line(char *line, double v[4]) {
    * with a blank inside is refused (after the strip, so the caller's
    * header test still sees the text). */
   int inside = 0;
-  char prev = 0;
+  char prev = 0; /* the last non-blank */
   for (const char *p = line; *p; p++) {
-    if (!path_blank(*p)) {
-      if (prev && !path_blank(prev) && prev != ',' && *p != ',' && p > line && path_blank(p[-1])) inside = 1;
-      prev = *p;
-    }
+    if (path_blank(*p)) continue;
+    if (prev && prev != ',' && *p != ',' && path_blank(p[-1])) inside = 1;
+    prev = *p;
   }
   char *p = line, *q = line;
   for (; *p; p++)
