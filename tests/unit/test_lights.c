@@ -412,6 +412,73 @@ static double under_square(double x, double z, double h, double e0, double e1) {
   return sum * d * d;
 }
 
+/* A 1 m lamp panel (radiance 1) 0.8 m over a probe, above a grey floor,
+ * built three ways: facing down (its front toward the probe), facing up
+ * and two-sided (the probe sees its back), facing up one-sided. A
+ * two-sided panel emits from its back as from its front (glTF's
+ * doubleSided): the probe's direct light, its light off the floor the
+ * panel lights, and the path tracer's direct light all read what the
+ * front-facing panel gives (direct: the quadrature under_square); the
+ * one-sided panel seen from behind gives none. (Before two-sided
+ * emitters, the two-sided panel read as the one-sided one: 0 under it
+ * and 0 off the floor, in both tracers.) */
+static void lamp_panel_at(int face_up, int two_sided, gi_probe pr[2], gi_ref_probe ref[2]) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  gi_material glow = {.albedo = {0, 0, 0}, .emission = {1, 1, 1}, .roughness = 1, .two_sided = two_sided};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m), emat = gi_mesh_builder_add_material(b, &glow);
+  double F0[3] = {-3, 0, -3}, F1[3] = {-3, 0, 3}, F2[3] = {3, 0, 3}, F3[3] = {3, 0, -3};
+  gi_mesh_builder_add_quad(b, F0, F1, F2, F3, mat);
+  double A[3] = {-0.5, 1, -0.5}, B[3] = {0.5, 1, -0.5}, C[3] = {0.5, 1, 0.5}, D[3] = {-0.5, 1, 0.5};
+  if (face_up) gi_mesh_builder_add_quad(b, A, D, C, B, emat);
+  else gi_mesh_builder_add_quad(b, A, B, C, D, emat);
+  gi_scene *s = tu_build(b, "panel", NULL, 0);
+  gi_quality q = {.levels = 3, .res = 32, .voxel0 = 0.1, .bounces = 1, .light_samples = 16, .probe_samples = 4096,
+                  .threads = 2};
+  double at[3] = {0, 0.5, 0}, pts[6] = {0, 0.2, 0, 1.4, 0.3, 0.2};
+  gi_cascade *c = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_gather(c, pts, 2, pr, NULL, &err), GI_OK);
+  gi_reference_opts o = {.samples = 16384, .seed = 3, .threads = 2};
+  assert_int_equal(gi_reference_irradiance(s, pts, 2, &o, ref, NULL, &err), GI_OK);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
+/* E toward -y (the floor) of a probe's whole SH. */
+static double down_irradiance(const float sh[9][3]) {
+  const float down[3] = {0, -1, 0};
+  float e[3];
+  gi_sh_eval_irradiance(sh, down, e);
+  return e[0];
+}
+
+static void test_two_sided_emitter(void **state) {
+  gi_probe front[2], back2[2], back1[2];
+  gi_ref_probe rf[2], rb2[2], rb1[2];
+  lamp_panel_at(0, 0, front, rf);
+  lamp_panel_at(1, 1, back2, rb2);
+  lamp_panel_at(1, 0, back1, rb1);
+  double exact = under_square(0, 0, 0.8, -0.5, 0.5);
+  double fl_f = down_irradiance(front[1].sh), fl_b2 = down_irradiance(back2[1].sh), fl_b1 = down_irradiance(back1[1].sh);
+  double rfl_f = down_irradiance(rf[1].sh), rfl_b2 = down_irradiance(rb2[1].sh), rfl_b1 = down_irradiance(rb1[1].sh);
+  printf("two-sided panel: direct under it %.4f (its front %.4f, exact %.4f; one-sided back %.4f), path tracer "
+         "%.4f (front %.4f); beside it, E from the floor %.4f (front %.4f; one-sided back %.4f), path tracer %.4f "
+         "(front %.4f; one-sided back %.4f)\n",
+         back2[0].direct[0], front[0].direct[0], exact, back1[0].direct[0], rb2[0].direct[0], rf[0].direct[0], fl_b2,
+         fl_f, fl_b1, rfl_b2, rfl_f, rfl_b1);
+  assert_true(fabs(front[0].direct[0] / exact - 1) < 0.03);
+  assert_true(fabs(back2[0].direct[0] / exact - 1) < 0.03);
+  assert_true(fabs(rb2[0].direct[0] / exact - 1) < 0.03);
+  assert_true(fabs(rf[0].direct[0] / exact - 1) < 0.03);
+  assert_true(back1[0].direct[0] == 0 && rb1[0].direct[0] == 0);
+  assert_true(fabs(fl_b2 / fl_f - 1) < 0.05);
+  assert_true(fabs(rfl_b2 / rfl_f - 1) < 0.05);
+  assert_true(fabs(fl_b2 / rfl_b2 - 1) < 0.12);
+  assert_true(fl_b1 < 0.02 * fl_f && rfl_b1 < 0.02 * rfl_f);
+}
+
 /* The emitters on a coarse voxel from points spread over its surface
  * (gi__spread_emitters): a 0.9 m plate lit by a 0.2 m window 0.2 m
  * above one of its corners. The plate's mean irradiance (what the filter
@@ -657,6 +724,7 @@ int main(void) {
       cmocka_unit_test(test_sun_pieces_bake),
       cmocka_unit_test(test_sky_spread),
       cmocka_unit_test(test_emitter_spread),
+      cmocka_unit_test(test_two_sided_emitter),
       cmocka_unit_test(test_thin_slab),
       cmocka_unit_test(test_turned_facade),
       cmocka_unit_test(test_vertex_color_floor),

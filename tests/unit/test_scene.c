@@ -1369,6 +1369,29 @@ static void test_gltf_emissive_strength(void **state) {
   assert_non_null(strstr(err.msg, "glTF material 0: emissiveFactor 1 x emissiveStrength 1e+300 overflows"));
 }
 
+/* glTF's doubleSided reaches gi_material.two_sided (an emitter's back
+ * emits as its front: test_lights' test_two_sided_emitter); absent or
+ * false, a material has a front only. It was dropped: every glTF lamp
+ * panel lit one side. */
+static void test_gltf_double_sided(void **state) {
+  const char *mats[3] = {"{\"emissiveFactor\":[1,1,1],\"doubleSided\":true}",
+                         "{\"emissiveFactor\":[1,1,1],\"doubleSided\":false}", "{\"emissiveFactor\":[1,1,1]}"};
+  for (int i = 0; i < 3; i++)
+    for (int glb = 0; glb < 2; glb++) {
+      gi_scene *s = load_ok(gltf_materials(glb ? "sided.glb" : "sided.gltf", mats[i], glb), NULL);
+      assert_int_equal(gi_scene_material(s, 0)->two_sided, i == 0);
+      gi_scene_release(s);
+    }
+  /* OBJ has no such flag: its emitters keep a front only. */
+  static const char obj[] = "mtllib lamp.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\n";
+  static const char mtl[] = "newmtl lamp\nKd 0 0 0\nKe 1 1 1\n";
+  tu_write_file("lamp.mtl", mtl, strlen(mtl));
+  gi_scene *s = load_ok(tu_write_file("lamp.obj", obj, strlen(obj)), NULL);
+  assert_true(gi_scene_material(s, 0)->emission[0] == 1);
+  assert_int_equal(gi_scene_material(s, 0)->two_sided, 0);
+  gi_scene_release(s);
+}
+
 /* A one-triangle glTF with the given nodes after the mesh's node 0, scene
  * roots and KHR_lights_punctual light definitions. */
 static const char *gltf_lights(const char *name, const char *nodes, const char *roots, const char *lights) {
@@ -2778,6 +2801,7 @@ int main(void) {
       cmocka_unit_test(test_energy_conservation),
       cmocka_unit_test(test_gltf),
       cmocka_unit_test(test_gltf_emissive_strength),
+      cmocka_unit_test(test_gltf_double_sided),
       cmocka_unit_test(test_gltf_light_units),
       cmocka_unit_test(test_gltf_light_range),
       cmocka_unit_test(test_gltf_spots),

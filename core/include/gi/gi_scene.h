@@ -48,6 +48,11 @@ typedef struct gi_material {
   float roughness;
   float specular;
   char name[64];
+  /* Emission leaves both sides of the surface (glTF's doubleSided, a
+   * lamp panel modelled as one plane); 0, the default: only its front,
+   * the side its winding's normal points to. Reflection is two-sided
+   * either way. Last, so positional initialisers stay valid. */
+  int two_sided;
 } gi_material;
 
 typedef enum gi_light_type {

@@ -72,9 +72,9 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
         float *D = &pc->direct[i];
         D[0] = D[1] = D[2] = 0;
         if (gi__intersect1(s, pc->at, w, eps, INFINITY, &th, &tri, ng)) {
-          /* Emitters are one-sided, facing their winding normal. */
+          /* Emitters face their winding normal (both ways when two-sided). */
           const float *Le = s->materials[s->tri_material[tri]].emission;
-          if (gi__dot(ng, w) < 0 && c->report.effects[GI_FX_EMISSIVE].ran)
+          if (gi__emitter_cos(s, tri, -gi__dot(ng, w)) > 0 && c->report.effects[GI_FX_EMISSIVE].ran)
             for (int k = 0; k < 3; k++) D[k] = Le[k];
         } else {
           for (int k = 0; k < 3; k++) D[k] = pc->sky[k];

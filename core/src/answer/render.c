@@ -273,7 +273,7 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   const float *x = pp->x, *n = pp->n;
   const gi_material *m = pp->m = &s->materials[s->tri_material[tri]];
   memcpy(pp->albedo, gi__tri_albedo(s, tri), sizeof pp->albedo);
-  if (gi__dot(ng, pp->w) < 0) /* emitters are one-sided: their front faces the camera */
+  if (gi__emitter_cos(s, tri, -gi__dot(ng, pp->w)) > 0) /* an emitter's front (or two-sided) faces the camera */
     for (int a = 0; a < 3; a++) out[a] += m->emission[a];
   float *E = pp->E;
   /* The anchors' mix (an anchor's own pixel is its cell's corner at weight

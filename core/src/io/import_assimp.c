@@ -740,6 +740,12 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
     gi_result rc = emissive_texture(am, tc, m, err);
     if (rc != GI_OK) return rc;
   }
+  /* glTF's doubleSided (assimp's two-sided flag; Blender writes it unless
+   * backface culling is on) lights a surface's back as its front: a lamp
+   * panel modelled as one plane emits both ways, as the renderers that
+   * read the file show it. */
+  int two = 0;
+  if (aiGetMaterialIntegerArray(am, AI_MATKEY_TWOSIDED, &two, NULL) == aiReturn_SUCCESS) m->two_sided = two != 0;
   float keep = material_lobe(am, tc, m);
   for (int k = 0; k < 3; k++) m->albedo[k] *= keep, mt->factor[k] *= keep;
   return GI_OK;

@@ -7,7 +7,8 @@
  * smoothstep from its outer cone (0) to its inner cone (1); a sky is
  * radiance `color` over the upper hemisphere about the scene's up axis;
  * emissive triangles emit their material's radiance from the side their
- * winding normal faces only. Sun, point and spot are evaluated exactly.
+ * winding normal faces only, or from both when the material is two-sided.
+ * Sun, point and spot are evaluated exactly.
  * Emitters are sampled by area: a triangle picked, then a uniform point on
  * it by folding the unit square. The sky has no light sample: callers meet
  * it with their own cosine or mixture directions.
@@ -207,7 +208,7 @@ int gi__ref_emitter_sample(const ref_lights *L, const float x[3], ref_rng *r, fl
   if (!(r2 > 0) || !(ln > 0) || !(prob > 0) || !(e->area > 0)) return 0;
   float rr = sqrtf(r2);
   for (int k = 0; k < 3; k++) w[k] = d[k] / rr;
-  float cos_e = -gi__dot(ng, w) / ln;
+  float cos_e = gi__emitter_cos(s, e->tri, -gi__dot(ng, w) / ln);
   if (!(cos_e > 0)) return 0; /* the back of a one-sided emitter */
   *dist = rr;
   *pdf = (float)(prob / e->area) * r2 / cos_e;

@@ -107,7 +107,7 @@ typedef struct {
 static int emitted(const ref_lights *L, const float x[3], uint32_t tri, const float ng[3], const float w[3],
                    float t, float pb, float out[3]) {
   const float *Le = L->s->materials[L->s->tri_material[tri]].emission;
-  float cos_e = -gi__dot(ng, w);
+  float cos_e = gi__emitter_cos(L->s, tri, -gi__dot(ng, w));
   if (!ref_light_on(L, GI_FX_EMISSIVE) || !(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(cos_e > 0)) return 0;
   float f = pb / (pb + gi__ref_emitter_pdf(L, x, tri, t, cos_e));
   for (int k = 0; k < 3; k++) out[k] = f * Le[k];
@@ -119,7 +119,8 @@ static int emitted(const ref_lights *L, const float x[3], uint32_t tri, const fl
  * emitter's front. */
 static int emitted_full(const ref_lights *L, uint32_t tri, const float ng[3], const float w[3], float out[3]) {
   const float *Le = L->s->materials[L->s->tri_material[tri]].emission;
-  if (!ref_light_on(L, GI_FX_EMISSIVE) || !(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(-gi__dot(ng, w) > 0)) return 0;
+  if (!ref_light_on(L, GI_FX_EMISSIVE) || !(Le[0] > 0 || Le[1] > 0 || Le[2] > 0) || !(gi__emitter_cos(L->s, tri, -gi__dot(ng, w)) > 0))
+    return 0;
   memcpy(out, Le, sizeof(float[3]));
   return 1;
 }
@@ -582,7 +583,7 @@ static void view_pixel(const view_ctx *vc, int x, int y) {
       for (int a = 0; a < 3; a++) acc[a] += rc->L.sky[a];
       continue;
     }
-    if (gi__dot(ng, w) < 0) /* an emitter seen from the front */
+    if (gi__emitter_cos(s, tri, -gi__dot(ng, w)) > 0) /* an emitter seen from the front (or two-sided) */
       for (int a = 0; a < 3; a++) L[a] += s->materials[s->tri_material[tri]].emission[a];
     float p[3] = {k->eye[0] + t * w[0], k->eye[1] + t * w[1], k->eye[2] + t * w[2]};
     onto_plane(s, tri, ng, p);

@@ -9,7 +9,7 @@
  * with probability proportional to its importance seen from the point,
  * power / max(distance to its box centre^2, half its diagonal^2), times
  * how far its emitters can face the point (a cone bounding their normals,
- * widened by the angle the box subtends: emitters are one-sided). The
+ * widened by the angle the box subtends: most emitters are one-sided). The
  * importance is continuous in the point, so with the same random numbers
  * the choice changes little as the point moves. The probability of any
  * emitter is the product of the choices on its path, recomputed from its
@@ -42,13 +42,14 @@ static void tri_bounds(const gi_scene *s, uint32_t tri, float lo[3], float hi[3]
     }
 }
 
-/* The cone of normals of one emitter (one-sided: its winding normal). */
+/* The cone of normals of one emitter: its winding normal, or every
+ * direction for a two-sided one. */
 static void leaf_cone(const gi_scene *s, uint32_t tri, gi_light_node *n) {
   float ng[3];
   gi__tri_cross(s, tri, ng);
   float l = gi__len(ng);
   for (int k = 0; k < 3; k++) n->axis[k] = l > 0 ? ng[k] / l : (k == 0);
-  n->cos_o = l > 0 ? 1.f : -1.f, n->sin_o = 0.f;
+  n->cos_o = l > 0 && !s->materials[s->tri_material[tri]].two_sided ? 1.f : -1.f, n->sin_o = 0.f;
 }
 
 /* The smallest cone (of this construction) holding the cones of a and b. */
@@ -194,6 +195,7 @@ gi_result gi__light_tree_build(gi_scene *s, const float *power, gi_error_info *e
     gi_emitter_geo *eg = &s->emitter_geo[i];
     for (int v = 0; v < 3; v++) memcpy(eg->v[v], &s->vertices[3 * ix[v]], sizeof eg->v[v]);
     memcpy(eg->Le, s->materials[s->tri_material[s->emitter_tri[i]]].emission, sizeof eg->Le);
+    eg->two_sided = s->materials[s->tri_material[s->emitter_tri[i]]].two_sided != 0;
     for (int k = 0; k < 3; k++)
       c.centroid[3 * i + k] =
           (s->vertices[3 * ix[0] + k] + s->vertices[3 * ix[1] + k] + s->vertices[3 * ix[2] + k]) / 3.f;

@@ -116,9 +116,10 @@ static int emitter_point(const gi_scene *s, uint32_t slot, float pt, float r1, f
   if (!(r2d > 0)) return 0;
   float r = sqrtf(r2d);
   for (int k = 0; k < 3; k++) q->w[k] = v[k] / r;
-  /* Emitters are one-sided, facing their winding normal. */
+  /* An emitter faces its winding normal, or both ways when two-sided. */
   float cos_e = -gi__dot(ng, q->w) / area2;
-  if (cos_e <= 0) return 0;
+  if (eg->two_sided) cos_e = fabsf(cos_e);
+  if (!(cos_e > 0)) return 0;
   float area = 0.5f * area2;
   float pdf_area = pt / area;
   const float *Le = eg->Le;
@@ -225,7 +226,7 @@ static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float 
   gi__tri_cross(s, tri, ng);
   float l = gi__len(ng);
   if (!(l > 0)) return 0;
-  *cos_e = -gi__dot(ng, w) / l;
+  *cos_e = gi__emitter_cos(s, tri, -gi__dot(ng, w) / l);
   return *cos_e > 0;
 }
 

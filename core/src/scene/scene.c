@@ -633,7 +633,8 @@ static gi_result copy_triangles(const gi_mesh_builder *b, gi_scene *s, build_tmp
     if (!emits(e)) continue;
     s->emitter_tri[q] = (uint32_t)tr;
     asum += t->area[tr];
-    power[q++] = luminance(e) * t->area[tr];
+    /* A two-sided emitter sends its radiance out of both sides: twice the power. */
+    power[q++] = luminance(e) * t->area[tr] * (s->materials[s->tri_material[tr]].two_sided ? 2.f : 1.f);
   }
   s->emitter_area_total = (float)asum;
   s->num_emitters = (uint32_t)ne;

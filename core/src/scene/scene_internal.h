@@ -5,6 +5,7 @@
 #ifndef GI_SCENE_INTERNAL_H
 #define GI_SCENE_INTERNAL_H
 
+#include <math.h>
 #include <stdatomic.h>
 #include <string.h>
 #include <embree3/rtcore.h>
@@ -44,6 +45,7 @@ typedef struct gi_local_node {
 typedef struct gi_emitter_geo {
   float v[3][3];
   float Le[3];
+  int two_sided; /* its material's */
 } gi_emitter_geo;
 
 #define GI_LT_LEAF 0x80000000u
@@ -97,6 +99,15 @@ struct gi_scene {
   RTCScene rtc;            /* committed; NULL for an empty scene */
   RTCScene rtc_emit;       /* the emissive triangles alone (primID = emitter slot); NULL without */
 };
+
+/* The cosine at emissive triangle tri of the light it sends back along a
+ * ray that meets it, from cos_front = -(unit winding normal . ray
+ * direction): cos_front for an emitter with a front only, its magnitude
+ * for a two-sided one (gi_material.two_sided). It emits along the ray
+ * when this is > 0. */
+static inline float gi__emitter_cos(const struct gi_scene *s, uint32_t tri, float cos_front) {
+  return s->materials[s->tri_material[tri]].two_sided ? fabsf(cos_front) : cos_front;
+}
 
 /* --- bvh_embree.c: everything that touches Embree -------------------- */
 
