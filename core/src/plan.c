@@ -286,10 +286,84 @@ static double tail_share(double a, int B) {
   return pow(a, B + 2) / (1 - r);
 }
 
+/* The area of triangle P (local coordinates) inside the box [lo, hi]:
+ * the triangle clipped by the box's six planes (in double: a city's
+ * ground triangle is kilometres across, a level's box metres). */
+#define CLIP_MAXV 9
+static double area_in_box(const float *P[3], const float lo[3], const float hi[3]) {
+  double a[CLIP_MAXV][3], b[CLIP_MAXV][3];
+  int n = 3;
+  for (int v = 0; v < 3; v++)
+    for (int k = 0; k < 3; k++) a[v][k] = P[v][k];
+  for (int pl = 0; pl < 6 && n > 0; pl++) {
+    int ax = pl >> 1;
+    double sg = pl & 1 ? -1 : 1, lim = pl & 1 ? hi[ax] : lo[ax];
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+      const double *p = a[i], *q = a[(i + 1) % n];
+      double dp = sg * (p[ax] - lim), dq = sg * (q[ax] - lim);
+      if (dp >= 0) memcpy(b[m++], p, sizeof b[0]);
+      if ((dp >= 0) != (dq >= 0) && m < CLIP_MAXV) {
+        double t = dp / (dp - dq);
+        for (int k = 0; k < 3; k++) b[m][k] = p[k] + t * (q[k] - p[k]);
+        m++;
+      }
+    }
+    n = m;
+    memcpy(a, b, (size_t)n * sizeof a[0]);
+  }
+  double c[3] = {0, 0, 0};
+  for (int i = 1; i + 1 < n; i++) {
+    double e1[3], e2[3];
+    for (int k = 0; k < 3; k++) e1[k] = a[i][k] - a[0][k], e2[k] = a[i + 1][k] - a[0][k];
+    c[0] += e1[1] * e2[2] - e1[2] * e2[1];
+    c[1] += e1[2] * e2[0] - e1[0] * e2[2];
+    c[2] += e1[0] * e2[1] - e1[1] * e2[0];
+  }
+  return 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+}
+
+/* The reflectance (brightest channel of the albedo, plus a glossy lobe's
+ * specular) that sets the bounce count: each level's area-weighted mean
+ * over the surfaces inside its box, and the brightest of those means.
+ * Every level has as many voxels and the answers read all of them, so a
+ * bright room round the viewpoint calls for its bounces whatever lies
+ * around it: one mean over the coarsest box let a 60 m grey ground
+ * outside a white room (0.33 against the room's 0.65) cut the room's
+ * bounces to 2 and its indirect light to half the path tracer's, and a
+ * black ground (0.05) to 1 bounce, though a black ground takes no more
+ * light from the room than the open sky would. A level holding less
+ * surface than a strip one voxel wide across it (a corner of a wall)
+ * does not count, unless no level holds more. */
+static double level_albedo(const struct gi_cascade *c, const uint32_t *tris, size_t nt) {
+  const gi_scene *s = c->scene;
+  double area[GI_MAX_LEVELS] = {0}, a_sum[GI_MAX_LEVELS] = {0};
+  for (size_t i = 0; i < nt; i++) {
+    const uint32_t *ix = &s->indices[3 * tris[i]];
+    const float *P[3] = {&s->vertices[3 * ix[0]], &s->vertices[3 * ix[1]], &s->vertices[3 * ix[2]]};
+    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
+    const float *alb = gi__tri_albedo(s, tris[i]);
+    /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
+    double refl = fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gi__gloss(m);
+    for (int d = c->n - 1; d >= 0; d--) {
+      double ar = area_in_box(P, c->lv[d].lo, c->lv[d].hi);
+      if (!(ar > 0)) break; /* the finer boxes lie inside this one */
+      area[d] += ar, a_sum[d] += ar * refl;
+    }
+  }
+  double best = 0, any = 0;
+  for (int d = 0; d < c->n; d++) {
+    if (!(area[d] > 0)) continue;
+    double mean = a_sum[d] / area[d];
+    any = fmax(any, mean);
+    if (area[d] >= (double)c->R * c->lv[d].s * c->lv[d].s) best = fmax(best, mean);
+  }
+  return best > 0 ? best : any;
+}
+
 /* What lies in range of the cascade: emissive triangles within half a
- * cascade of it (*emit_in), glossy triangles inside it and the
- * area-weighted reflectance (brightest channel of the albedo, plus a glossy
- * lobe's specular) inside it (*abar). Emitters
+ * cascade of it (*emit_in), glossy triangles inside it and their
+ * reflectance (level_albedo, *abar). Emitters
  * light the cascade from outside it too: an emitter farther away than
  * half a cascade lights it at under a ninth of the irradiance it would
  * give at the border, and the coarsest level already spans the whole scene
@@ -315,24 +389,9 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
   gi__free(tris);
   if ((rc = tris_in_range(c, 0.f, &tris, &nt)) != GI_OK)
     return gi__fail(err, rc, "plan: triangle query inside the cascade failed (%s)", gi_strerror(rc));
-  double area = 0, a_sum = 0;
-  for (size_t i = 0; i < nt; i++) {
-    const uint32_t *ix = &s->indices[3 * tris[i]];
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
-    const float *alb = gi__tri_albedo(s, tris[i]);
-    const float *A = &s->vertices[3 * ix[0]], *B = &s->vertices[3 * ix[1]], *C = &s->vertices[3 * ix[2]];
-    float e1[3], e2[3], n[3];
-    for (int k = 0; k < 3; k++) e1[k] = B[k] - A[k], e2[k] = C[k] - A[k];
-    gi__cross(e1, e2, n);
-    double ar = 0.5 * gi__len(n);
-    area += ar;
-    /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
-    float gl = gi__gloss(m);
-    a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gl);
-    *glossy += gl > 0;
-  }
+  for (size_t i = 0; i < nt; i++) *glossy += gi__gloss(&s->materials[s->tri_material[tris[i]]]) > 0;
+  *abar = level_albedo(c, tris, nt);
   gi__free(tris);
-  *abar = area > 0 ? a_sum / area : 0;
   c->survey.valid = 1;
   memcpy(c->survey.lo, top->lo, sizeof top->lo);
   memcpy(c->survey.hi, top->hi, sizeof top->hi);

@@ -5,7 +5,9 @@
  *     0.45 -> 3; 0.5, 0.62 and 0.8 reach the cap and add the geometric
  *     tail of the rest, which replaces the fourth bounce where the orders
  *     after the third, a^5 / (1 - a), are at most 20% of the direct light:
- *     0.5 (6%) -> 3, 0.62 (24%) and 0.8 (164%) -> 4;
+ *     0.5 (6%) -> 3, 0.62 (24%) and 0.8 (164%) -> 4; a bright room keeps
+ *     its bounces and the tail on a black or grey ground (the brightest
+ *     level's mean counts, not the coarsest box's);
  *   sky only where it is visible: a closed box with a sky light skips it,
  *     the path-traced reference agrees the sky gives nothing there (and
  *     forcing the sky on only adds leaked light); a probe outside the box,
@@ -84,6 +86,52 @@ static void test_bounces_from_albedo(void **state) {
     assert_int_equal(rep.bounces_run, 0);
     assert_false(rep.effects[GI_FX_BOUNCE].ran);
     gi_scene_release(s);
+  }
+}
+
+/* A 6 x 3 x 5 m room of albedo 0.7 (4 bounces and the tail) alone, and
+ * on a 60 m ground of albedo 0 and 0.3, the viewpoint inside: the room
+ * calls for its bounces and the tail whatever lies around it. One area-weighted mean
+ * over the coarsest box planned 1 and 2 bounces on those grounds (mean
+ * albedo 0.05, 0.33), and a window-lit room of helper scenes read half
+ * the path tracer's indirect light. */
+static void test_bounces_round_viewpoint(void **state) {
+  (void)state;
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {3, 3, 3}, .direction = {0.3, -0.8, 0.2}};
+  int bounces[3], tail[3];
+  for (int g = 0; g < 3; g++) {
+    gi_mesh_builder *b = gi_mesh_builder_new();
+    gi_material wall = {.albedo = {0.7f, 0.7f, 0.7f}, .roughness = 1};
+    float ga = g == 2 ? 0.3f : 0.f;
+    gi_material ground = {.albedo = {ga, ga, ga}, .roughness = 1};
+    uint32_t mw = gi_mesh_builder_add_material(b, &wall), mg = gi_mesh_builder_add_material(b, &ground);
+    double lo[3] = {0, 0, 0}, hi[3] = {6, 3, 5};
+    gi_mesh_builder_add_box(b, lo, hi, mw);
+    if (g > 0) {
+      double A[3] = {-27, -0.01, -27}, B[3] = {-27, -0.01, 33}, C[3] = {33, -0.01, 33}, D[3] = {33, -0.01, -27};
+      gi_mesh_builder_add_quad(b, A, B, C, D, mg);
+    }
+    gi_scene_options opt = {.up = GI_UP_Y, .lights = &sun, .num_lights = 1};
+    gi_scene *s = NULL;
+    gi_error_info err = {0};
+    assert_int_equal(gi_scene_build(b, "room", &opt, &s, &err), GI_OK);
+    gi_mesh_builder_free(b);
+    const double at[3] = {3, 1.5, 2.5};
+    gi_effect fx[GI_FX_COUNT];
+    gi_quality q;
+    assert_int_equal(gi_effect_plan(s, at, NULL, fx, &q, &err), GI_OK);
+    printf("room of 0.7 on %s: %s\n", g == 0 ? "nothing" : g == 1 ? "a black ground" : "a 0.3 ground",
+           fx[GI_FX_BOUNCE].why);
+    bounces[g] = q.bounces, tail[g] = q.bounce_tail;
+    gi_scene_release(s);
+  }
+  /* On a ground, each level holding the room's floor holds as much ground
+   * under it (area counts, hidden or not): 0.48 and 0.58, 3 bounces and
+   * the tail, which the bounce stage measures from the room's own light. */
+  assert_int_equal(bounces[0], 4);
+  for (int g = 0; g < 3; g++) {
+    assert_true(bounces[g] >= 3);
+    assert_int_equal(tail[g], 1);
   }
 }
 
@@ -357,6 +405,7 @@ static void test_sky_from_answer_points(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bounces_from_albedo),
+      cmocka_unit_test(test_bounces_round_viewpoint),
       cmocka_unit_test(test_tail_at_full_reflectance),
       cmocka_unit_test(test_sky_only_where_visible),
       cmocka_unit_test(test_munich_no_specular),
