@@ -119,6 +119,9 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
   if (q->cones == 0) q->cones = 16;
   if (q->step == 0) q->step = 1.0f;
   q->bounce_tail = 0; /* out only: the plan sets it */
+  if (q->bounces < 0 && q->effects[GI_FX_BOUNCE] == GI_FX_ON)
+    return gi__fail(err, GI_ERR_INVALID_ARG, "quality: bounces is none (-1) while effects[bounce] is forced on: "
+                    "ask for one or the other");
   if (q->bounces == 0) q->bounces = 2; /* auto: the effect plan replaces it */
   else if (q->bounces < 0) q->bounces = 0;
   for (int i = 0; i < GI_FX_COUNT; i++)
@@ -334,52 +337,81 @@ static double area_in_box(const float *P[3], const float lo[3], const float hi[3
  * black ground (0.05) to 1 bounce, though a black ground takes no more
  * light from the room than the open sky would. A level holding less
  * surface than a strip one voxel wide across it (a corner of a wall)
- * does not count, unless no level holds more. */
-static double level_albedo(const struct gi_cascade *c, const uint32_t *tris, size_t nt) {
+ * does not count, unless no level holds more. level_sums: level d's
+ * clipped area and albedo-weighted area into c->survey.lvl[d]. */
+static gi_result level_sums(struct gi_cascade *c, int d) {
   const gi_scene *s = c->scene;
-  double area[GI_MAX_LEVELS] = {0}, a_sum[GI_MAX_LEVELS] = {0};
-  for (size_t i = 0; i < nt; i++) {
+  const gi_level *L = &c->lv[d];
+  if (c->survey.lvl[d].valid && !memcmp(c->survey.lvl[d].lo, L->lo, sizeof L->lo) &&
+      !memcmp(c->survey.lvl[d].hi, L->hi, sizeof L->hi))
+    return GI_OK;
+  size_t n = 0, cap = 0;
+  uint32_t *tris = NULL;
+  gi_result rc = gi__query_box(s, L->lo, L->hi, &tris, &n, &cap);
+  if (rc != GI_OK) {
+    gi__free(tris);
+    return rc;
+  }
+  double area = 0, a_sum = 0;
+  for (size_t i = 0; i < n; i++) {
     const uint32_t *ix = &s->indices[3 * tris[i]];
     const float *P[3] = {&s->vertices[3 * ix[0]], &s->vertices[3 * ix[1]], &s->vertices[3 * ix[2]]};
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
     const float *alb = gi__tri_albedo(s, tris[i]);
+    double ar = area_in_box(P, L->lo, L->hi);
     /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
-    double refl = fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gi__gloss(m);
-    for (int d = c->n - 1; d >= 0; d--) {
-      double ar = area_in_box(P, c->lv[d].lo, c->lv[d].hi);
-      if (!(ar > 0)) break; /* the finer boxes lie inside this one */
-      area[d] += ar, a_sum[d] += ar * refl;
-    }
+    area += ar, a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gi__gloss(&s->materials[s->tri_material[tris[i]]]));
   }
+  gi__free(tris);
+  c->survey.lvl[d].valid = 1;
+  memcpy(c->survey.lvl[d].lo, L->lo, sizeof L->lo);
+  memcpy(c->survey.lvl[d].hi, L->hi, sizeof L->hi);
+  c->survey.lvl[d].area = area, c->survey.lvl[d].a_sum = a_sum;
+  return GI_OK;
+}
+
+/* The brightest level's mean (above); *surfaces 0 when no level holds any.
+ * Each level's sums depend on its box alone and are kept while it stays
+ * (a move that scrolls only the finest level queries that level again),
+ * so a moved cascade plans as a cold bake at its anchor does. */
+static gi_result level_albedo(struct gi_cascade *c, double *abar, int *surfaces) {
   double best = 0, any = 0;
+  *surfaces = 0;
   for (int d = 0; d < c->n; d++) {
-    if (!(area[d] > 0)) continue;
-    double mean = a_sum[d] / area[d];
+    gi_result rc = level_sums(c, d);
+    if (rc != GI_OK) return rc;
+    double area = c->survey.lvl[d].area;
+    if (!(area > 0)) continue;
+    *surfaces = 1;
+    double mean = c->survey.lvl[d].a_sum / area;
     any = fmax(any, mean);
-    if (area[d] >= (double)c->R * c->lv[d].s * c->lv[d].s) best = fmax(best, mean);
+    if (area >= (double)c->R * c->lv[d].s * c->lv[d].s) best = fmax(best, mean);
   }
-  return best > 0 ? best : any;
+  *abar = best > 0 ? best : any;
+  return GI_OK;
 }
 
 /* What lies in range of the cascade: emissive triangles within half a
  * cascade of it (*emit_in), glossy triangles inside it and their
- * reflectance (level_albedo, *abar). Emitters
+ * reflectance (level_albedo, *abar; *surfaces 0 when the cascade holds
+ * none). Emitters
  * light the cascade from outside it too: an emitter farther away than
  * half a cascade lights it at under a ninth of the irradiance it would
  * give at the border, and the coarsest level already spans the whole scene
- * by default. Albedo and gloss: inside only. */
-static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar,
+ * by default. Gloss: inside only. */
+static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar, int *surfaces,
                               gi_error_info *err) {
   const gi_scene *s = c->scene;
   const gi_level *top = &c->lv[c->n - 1];
+  gi_result rc = level_albedo(c, abar, surfaces);
+  if (rc != GI_OK) return gi__fail(err, rc, "plan: triangle query in a level failed (%s)", gi_strerror(rc));
   if (c->survey.valid && !memcmp(c->survey.lo, top->lo, sizeof top->lo) &&
       !memcmp(c->survey.hi, top->hi, sizeof top->hi)) {
-    *emit_in = c->survey.emit_in, *glossy = c->survey.glossy, *abar = c->survey.abar;
+    *emit_in = c->survey.emit_in, *glossy = c->survey.glossy;
     return GI_OK;
   }
   size_t ne = 0, nt = 0;
   uint32_t *tris;
-  gi_result rc = tris_in_range(c, 0.5f, &tris, &ne);
+  rc = tris_in_range(c, 0.5f, &tris, &ne);
   if (rc != GI_OK) return gi__fail(err, rc, "plan: triangle query around the cascade failed (%s)", gi_strerror(rc));
   *emit_in = *glossy = 0;
   for (size_t i = 0; i < ne; i++) {
@@ -390,12 +422,11 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
   if ((rc = tris_in_range(c, 0.f, &tris, &nt)) != GI_OK)
     return gi__fail(err, rc, "plan: triangle query inside the cascade failed (%s)", gi_strerror(rc));
   for (size_t i = 0; i < nt; i++) *glossy += gi__gloss(&s->materials[s->tri_material[tris[i]]]) > 0;
-  *abar = level_albedo(c, tris, nt);
   gi__free(tris);
   c->survey.valid = 1;
   memcpy(c->survey.lo, top->lo, sizeof top->lo);
   memcpy(c->survey.hi, top->hi, sizeof top->hi);
-  c->survey.emit_in = *emit_in, c->survey.glossy = *glossy, c->survey.abar = *abar;
+  c->survey.emit_in = *emit_in, c->survey.glossy = *glossy;
   return GI_OK;
 }
 
@@ -462,7 +493,8 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
 
   uint32_t emit_in = 0, glossy = 0;
   double abar = 0;
-  gi_result rc = survey_range(c, &emit_in, &glossy, &abar, err);
+  int surfaces = 0;
+  gi_result rc = survey_range(c, &emit_in, &glossy, &abar, &surfaces, err);
   if (rc != GI_OK) return rc;
   int fe = gi__fx_forced(q, GI_FX_EMISSIVE);
   if (fe == GI_FX_OFF) set_fx(r, GI_FX_EMISSIVE, 0, "turned off by the request");
@@ -498,10 +530,20 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
     if (tail && tail_share(abar, B - 1) <= TAIL_SHARE) B--;
     q->bounces = B;
   }
+  /* The voxels hold light only from the kinds that ran for them: with
+   * none, every bounce gathers zeros (a room with no lights, every light
+   * turned off by the request). */
+  int lit = r->effects[GI_FX_SUN].ran || r->effects[GI_FX_LOCAL].ran || r->effects[GI_FX_SKY].ran ||
+            r->effects[GI_FX_EMISSIVE].ran;
   if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
   else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
+  else if (!surfaces && fb != GI_FX_ON)
+    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "no surface inside the cascade: a bounce would add nothing");
   else if (abar <= 0 && fb != GI_FX_ON)
     q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
+  else if (!lit && fb != GI_FX_ON)
+    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "no light reaches the voxels (sun, local lights, sky and emitters "
+                                               "all skipped): a bounce would add nothing");
   else if (auto_bounces && tail)
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, the "
                                "tail brings %.1f%% of direct (at most %d, %d when it brings <= %.0f%%)", q->bounces, abar,

@@ -56,11 +56,12 @@ else
 fi
 
 # The effect plan can be overridden per request, and says so: the lamp
-# turned off leaves the box dark; the bounce count chosen from the albedo
-# (0.69 -> 4, capped, with the tail) is reported with its reason. The mean
-# is area-weighted over what the coarsest level holds: the whole box, 96 m2
-# of walls at 0.7 and the 1 m2 lamp at 0 (0.70 while that level, centred
-# on the viewpoint, ended at y = 3.75 and left the ceiling and lamp out).
+# turned off leaves the box dark, and with no light in the voxels the
+# bounces are skipped, saying why (they ran 4 and the tail for nothing).
+# With the lamp on, the bounce count chosen from the albedo (0.69 -> 4,
+# capped, with the tail) is reported with its reason. The mean is the
+# brightest level's, area-weighted over the surfaces inside its box: the
+# coarsest holds the whole box, 96 m2 of walls at 0.7 and the 1 m2 lamp at 0.
 "$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --effect emissive=off --effect ao=on --json \
     > "$T/off.json" 2> "$T/err"; rc=$?
 [ $rc -eq 0 ] && python3 - "$T/off.json" <<'PY' && pass "--effect overrides the plan" || fail "--effect (rc $rc)"
@@ -70,9 +71,20 @@ e = d["effects"]
 assert not e["emissive"]["ran"] and "turned off by the request" in e["emissive"]["why"], e["emissive"]
 assert e["ao"]["ran"], e["ao"]
 assert sum(d["probe"]["irradiance"]) == 0, d["probe"]["irradiance"]
+assert not e["bounce"]["ran"] and "no light reaches the voxels" in e["bounce"]["why"], e["bounce"]
+assert d["quality"]["bounces"] == 0, d["quality"]
+PY
+"$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --json > "$T/on.json" 2> "$T/err"; rc=$?
+[ $rc -eq 0 ] && python3 - "$T/on.json" <<'PY' && pass "bounces from the albedo, with reason" || fail "bounce plan (rc $rc)"
+import json, sys
+d = json.load(open(sys.argv[1]))
+e = d["effects"]
 assert e["bounce"]["ran"] and "albedo 0.69" in e["bounce"]["why"] and d["quality"]["bounces"] == 4, e["bounce"]
 assert "geometric tail" in e["bounce"]["why"], e["bounce"]
 PY
+"$BIN" "$T/box.obj" --bounces 0 --effect bounce=on > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 2 ] && grep -q "contradicts --effect bounce=on" "$T/err" && pass "--bounces 0 with bounce=on refused" ||
+  fail "--bounces 0 --effect bounce=on: rc $rc, $(cat "$T/err")"
 
 # The human summary works on the same scene and prints the stages.
 "$BIN" "$T/box.obj" --levels 3 --res 16 --bounces 1 > "$T/human" 2> "$T/err"; rc=$?

@@ -340,7 +340,49 @@ static void test_bad_override(void **state) {
   assert_non_null(strstr(err.msg, "effects[sky]"));
   assert_int_equal(gi_effect_from_name("specular"), GI_FX_SPECULAR);
   assert_int_equal(gi_effect_from_name("glow"), -1);
+  /* No bounces (-1) with the bounce forced on: a contradiction, refused
+   * (it ran none and said "set to none by the request"). */
+  q.effects[GI_FX_SKY] = GI_FX_AUTO;
+  q.bounces = -1;
+  q.effects[GI_FX_BOUNCE] = GI_FX_ON;
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_ERR_INVALID_ARG);
+  printf("  %s\n", err.msg);
+  assert_non_null(strstr(err.msg, "bounces is none (-1) while effects[bounce] is forced on"));
   gi_scene_release(s);
+}
+
+/* Bounces run only where they can add light: a grey room with no light
+ * at all, and one whose only light (its emission) the request turns off,
+ * skip them (they ran 3 and the tail, 14 ms of 42, for 0), as does a
+ * cascade holding no surface (it said "every albedo in range is 0" in
+ * a room of 0.5); forced on, they run. */
+static void test_bounces_need_light(void **state) {
+  const double at[3] = {0.5, 0.5, 0.5};
+  gi_scene *dark = make_box(0.5, 0.0, NULL), *lit = make_box(0.5, 1.0, NULL);
+  gi_quality q = {.levels = 2, .res = 16};
+  gi_effect fx[GI_FX_COUNT];
+  gi_quality r;
+  gi_error_info err = {0};
+  assert_int_equal(gi_effect_plan(dark, at, &q, fx, &r, &err), GI_OK);
+  printf("no light: %s\n", fx[GI_FX_BOUNCE].why);
+  assert_false(fx[GI_FX_BOUNCE].ran);
+  assert_int_equal(r.bounces, 0);
+  assert_non_null(strstr(fx[GI_FX_BOUNCE].why, "no light reaches the voxels"));
+  q.effects[GI_FX_EMISSIVE] = GI_FX_OFF;
+  assert_int_equal(gi_effect_plan(lit, at, &q, fx, &r, &err), GI_OK);
+  assert_false(fx[GI_FX_BOUNCE].ran);
+  q.effects[GI_FX_BOUNCE] = GI_FX_ON;
+  assert_int_equal(gi_effect_plan(lit, at, &q, fx, &r, &err), GI_OK);
+  assert_true(fx[GI_FX_BOUNCE].ran);
+  assert_true(r.bounces > 0);
+  /* One level of 1 mm voxels in the middle of the 1 m box: no surface. */
+  gi_quality tiny = {.levels = 1, .res = 16, .voxel0 = 0.001};
+  assert_int_equal(gi_effect_plan(lit, at, &tiny, fx, &r, &err), GI_OK);
+  printf("no surface: %s\n", fx[GI_FX_BOUNCE].why);
+  assert_false(fx[GI_FX_BOUNCE].ran);
+  assert_non_null(strstr(fx[GI_FX_BOUNCE].why, "no surface inside the cascade"));
+  gi_scene_release(dark);
+  gi_scene_release(lit);
 }
 
 /* The report says what ran: a black box (albedo 0, its own emission)
@@ -411,6 +453,7 @@ int main(void) {
       cmocka_unit_test(test_munich_no_specular),
       cmocka_unit_test(test_view_traces_glossy_pixels_only),
       cmocka_unit_test(test_bad_override),
+      cmocka_unit_test(test_bounces_need_light),
       cmocka_unit_test(test_report_matches_plan),
       cmocka_unit_test(test_sky_from_answer_points),
   };

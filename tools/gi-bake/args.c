@@ -457,6 +457,8 @@ static int check_render_camera(const cli_opts *o) {
 static int check_combinations(cli_opts *o) {
   int rc;
   if (o->is_city && o->up == GI_UP_Z) return ta_fail(&ta, "--up", "the procedural city is always Y-up");
+  if (o->q.bounces < 0 && o->q.effects[GI_FX_BOUNCE] == GI_FX_ON)
+    return ta_fail(&ta, "--bounces", "0 (none) contradicts --effect bounce=on: give one or the other");
   if (!o->is_city && o->city_opts_given)
     return ta_fail(&ta, NULL, "--city-extent, --city-seed and --city-detail apply only to the scene 'city'");
   if (o->half && !o->exr && !o->lm.out) return ta_fail(&ta, "--half", "needs --exr or --lightmap");

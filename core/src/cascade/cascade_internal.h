@@ -261,7 +261,13 @@ struct gi_cascade {
     int valid;
     float lo[3], hi[3];
     uint32_t emit_in, glossy;
-    double abar;
+    /* Per level: its box, and the area and albedo-weighted area of the
+     * surfaces clipped to it (plan.c's level_sums). */
+    struct {
+      int valid;
+      float lo[3], hi[3];
+      double area, a_sum;
+    } lvl[GI_MAX_LEVELS];
   } survey;
   /* The move's re-bake in slices (move/move.c); NULL until the first move. */
   struct gi_move_state *move_state;
