@@ -454,6 +454,63 @@ static void plan_ao(const gi_quality *q, gi_bake_report *r) {
   else set_fx(r, GI_FX_AO, 0, "not requested");
 }
 
+/* The bounce entry of the plan (after the light kinds'): sets q->bounces
+ * when auto_bounces; returns 1 when the plan reached the cap and adds the
+ * tail (before the entry's own ran is known: the caller combines them). */
+static int plan_bounces(gi_quality *q, int auto_bounces, double abar, int surfaces, gi_bake_report *r) {
+  /* From the albedo: the k-th reflection adds about a^k of the
+   * direct light (a = the brightest level's area-weighted albedo, level_albedo,
+   * in the cascade). With B voxel bounces the gather holds k = B + 1, so
+   * the first one missing weighs a^(B+2). Stop when that is under 2% of
+   * the direct light: the probe's own Monte Carlo noise on direct light is
+   * about that (measured 1.2% Cornell, 1.6% Munich at 256 probe samples).
+   * At most MAX_AUTO_BOUNCES: each bounce is a cone gather at every voxel.
+   * When the cap stops short of that (a bright closed room: the Cornell
+   * box's mean albedo gives a^6 = 19%), the orders left out are not
+   * dropped: the bounce stage extrapolates them as a geometric series from
+   * the last two bounces (see gi__bounce), which costs no gather; and when
+   * that series is small enough, it replaces the last bounce too
+   * (TAIL_SHARE). */
+  int fb = gi__fx_forced(q, GI_FX_BOUNCE);
+  int tail = 0;
+  if (auto_bounces) {
+    int B = 1;
+    while (B < MAX_AUTO_BOUNCES && pow(abar, B + 2) >= ORDER_LEFT) B++;
+    /* At the cap, what is left out is worth a tail even under 2%: a^6
+     * just under it still leaves a^6 / (1 - a) of the direct light (3% at
+     * a = 0.5, which a furnace of that albedo would then miss). */
+    tail = B == MAX_AUTO_BOUNCES;
+    if (tail && tail_share(abar, B - 1) <= TAIL_SHARE) B--;
+    q->bounces = B;
+  }
+  /* The voxels hold light only from the kinds that ran for them: with
+   * none, every bounce gathers zeros (a room with no lights, every light
+   * turned off by the request). */
+  int lit = r->effects[GI_FX_SUN].ran || r->effects[GI_FX_LOCAL].ran || r->effects[GI_FX_SKY].ran ||
+            r->effects[GI_FX_EMISSIVE].ran;
+  if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
+  else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
+  else if (!surfaces && fb != GI_FX_ON)
+    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "no surface inside the cascade: a bounce would add nothing");
+  else if (abar <= 0 && fb != GI_FX_ON)
+    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
+  else if (!lit && fb != GI_FX_ON)
+    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "no light reaches the voxels (sun, local lights, sky and emitters "
+                                               "all skipped): a bounce would add nothing");
+  else if (auto_bounces && tail)
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, the "
+                               "tail brings %.1f%% of direct (at most %d, %d when it brings <= %.0f%%)", q->bounces, abar,
+           100 * tail_share(abar, q->bounces), MAX_AUTO_BOUNCES, MAX_AUTO_BOUNCES - 1, 100 * TAIL_SHARE);
+  else if (auto_bounces)
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
+                               "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "", abar,
+           100 * pow(abar, q->bounces + 2), MAX_AUTO_BOUNCES);
+  else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s as requested, mean albedo %.2f in range", q->bounces,
+              q->bounces > 1 ? "s" : "", abar);
+
+  return tail;
+}
+
 /* The effect plan: what this scene and request call for, with reasons.
  * Runs after placement (it looks at what lies inside the cascade). May set
  * q->bounces when the request left it to the plan (auto_bounces). *tail is
@@ -505,55 +562,7 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   else set_fx(r, GI_FX_EMISSIVE, 0, "%u emissive triangles, none within half a cascade of it: no voxel takes "
                                     "their light (probes, views and texels still sample it)", s->num_emitters);
 
-  /* Bounces from the albedo: the k-th reflection adds about a^k of the
-   * direct light (a = area-weighted albedo, brightest channel, of what lies
-   * in the cascade). With B voxel bounces the gather holds k = B + 1, so
-   * the first one missing weighs a^(B+2). Stop when that is under 2% of
-   * the direct light: the probe's own Monte Carlo noise on direct light is
-   * about that (measured 1.2% Cornell, 1.6% Munich at 256 probe samples).
-   * At most MAX_AUTO_BOUNCES: each bounce is a cone gather at every voxel.
-   * When the cap stops short of that (a bright closed room: the Cornell
-   * box's mean albedo gives a^6 = 19%), the orders left out are not
-   * dropped: the bounce stage extrapolates them as a geometric series from
-   * the last two bounces (see gi__bounce), which costs no gather; and when
-   * that series is small enough, it replaces the last bounce too
-   * (TAIL_SHARE). */
-  int fb = gi__fx_forced(q, GI_FX_BOUNCE);
-  int tail = 0;
-  if (auto_bounces) {
-    int B = 1;
-    while (B < MAX_AUTO_BOUNCES && pow(abar, B + 2) >= ORDER_LEFT) B++;
-    /* At the cap, what is left out is worth a tail even under 2%: a^6
-     * just under it still leaves a^6 / (1 - a) of the direct light (3% at
-     * a = 0.5, which a furnace of that albedo would then miss). */
-    tail = B == MAX_AUTO_BOUNCES;
-    if (tail && tail_share(abar, B - 1) <= TAIL_SHARE) B--;
-    q->bounces = B;
-  }
-  /* The voxels hold light only from the kinds that ran for them: with
-   * none, every bounce gathers zeros (a room with no lights, every light
-   * turned off by the request). */
-  int lit = r->effects[GI_FX_SUN].ran || r->effects[GI_FX_LOCAL].ran || r->effects[GI_FX_SKY].ran ||
-            r->effects[GI_FX_EMISSIVE].ran;
-  if (fb == GI_FX_OFF) q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "turned off by the request");
-  else if (q->bounces == 0) set_fx(r, GI_FX_BOUNCE, 0, "bounces set to none by the request");
-  else if (!surfaces && fb != GI_FX_ON)
-    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "no surface inside the cascade: a bounce would add nothing");
-  else if (abar <= 0 && fb != GI_FX_ON)
-    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "every albedo in range is 0: a bounce would add nothing");
-  else if (!lit && fb != GI_FX_ON)
-    q->bounces = 0, set_fx(r, GI_FX_BOUNCE, 0, "no light reaches the voxels (sun, local lights, sky and emitters "
-                                               "all skipped): a bounce would add nothing");
-  else if (auto_bounces && tail)
-    set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest: mean albedo %.2f in range, the "
-                               "tail brings %.1f%% of direct (at most %d, %d when it brings <= %.0f%%)", q->bounces, abar,
-           100 * tail_share(abar, q->bounces), MAX_AUTO_BOUNCES, MAX_AUTO_BOUNCES - 1, 100 * TAIL_SHARE);
-  else if (auto_bounces)
-    set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
-                               "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "", abar,
-           100 * pow(abar, q->bounces + 2), MAX_AUTO_BOUNCES);
-  else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s as requested, mean albedo %.2f in range", q->bounces,
-              q->bounces > 1 ? "s" : "", abar);
+  int tail = plan_bounces(q, auto_bounces, abar, surfaces, r);
 
   /* The specular cone needs a view direction; probes have none. Camera
    * views re-decide this entry (gi_cascade_view_plan) from the same count. */
