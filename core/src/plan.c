@@ -390,14 +390,40 @@ static gi_result level_albedo(struct gi_cascade *c, double *abar, int *surfaces)
   return GI_OK;
 }
 
-/* What lies in range of the cascade: emissive triangles within half a
- * cascade of it (*emit_in), glossy triangles inside it and their
+/* The emissive triangles within reach of the cascade: no farther from its
+ * box than half its side, or than twice their own size (the diagonal of
+ * their bounds). Emitters light the cascade from outside it too: a small
+ * one farther away than half a cascade lights it at under a ninth of the
+ * irradiance it would give at the border, and one twice its own size
+ * away at about a twelfth of what it gives up close. The size term keeps
+ * a large panel near a small cascade (a hall's glowing ceiling 5 m above
+ * a 3 m cascade: the voxels took none of its light, and the floor's
+ * bounce light was lost). The coarsest level already spans the whole
+ * scene by default. */
+static uint32_t emitters_in_reach(const struct gi_cascade *c) {
+  const gi_scene *s = c->scene;
+  const gi_level *L = &c->lv[c->n - 1];
+  uint32_t n = 0;
+  for (uint32_t e = 0; e < s->num_emitters; e++) {
+    const uint32_t *ix = &s->indices[3 * s->emitter_tri[e]];
+    double gap = 0, diag2 = 0;
+    for (int a = 0; a < 3; a++) {
+      double lo = s->vertices[3 * ix[0] + a], hi = lo;
+      for (int v = 1; v < 3; v++) lo = fmin(lo, s->vertices[3 * ix[v] + a]), hi = fmax(hi, s->vertices[3 * ix[v] + a]);
+      gap = fmax(gap, fmax((double)L->lo[a] - hi, lo - (double)L->hi[a]));
+      diag2 += (hi - lo) * (hi - lo);
+    }
+    /* Per axis, as the box grown by half its side on every face was. */
+    double reach = fmax(0.5 * ((double)L->hi[0] - L->lo[0]), 2 * sqrt(diag2));
+    n += gap <= reach;
+  }
+  return n;
+}
+
+/* What lies in range of the cascade: emissive triangles in reach of it
+ * (emitters_in_reach, *emit_in), glossy triangles inside it and their
  * reflectance (level_albedo, *abar; *surfaces 0 when the cascade holds
- * none). Emitters
- * light the cascade from outside it too: an emitter farther away than
- * half a cascade lights it at under a ninth of the irradiance it would
- * give at the border, and the coarsest level already spans the whole scene
- * by default. Gloss: inside only. */
+ * none). Gloss: inside only. */
 static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar, int *surfaces,
                               gi_error_info *err) {
   const gi_scene *s = c->scene;
@@ -409,16 +435,10 @@ static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t 
     *emit_in = c->survey.emit_in, *glossy = c->survey.glossy;
     return GI_OK;
   }
-  size_t ne = 0, nt = 0;
+  size_t nt = 0;
   uint32_t *tris;
-  rc = tris_in_range(c, 0.5f, &tris, &ne);
-  if (rc != GI_OK) return gi__fail(err, rc, "plan: triangle query around the cascade failed (%s)", gi_strerror(rc));
-  *emit_in = *glossy = 0;
-  for (size_t i = 0; i < ne; i++) {
-    const gi_material *m = &s->materials[s->tri_material[tris[i]]];
-    *emit_in += m->emission[0] > 0 || m->emission[1] > 0 || m->emission[2] > 0;
-  }
-  gi__free(tris);
+  *emit_in = emitters_in_reach(c);
+  *glossy = 0;
   if ((rc = tris_in_range(c, 0.f, &tris, &nt)) != GI_OK)
     return gi__fail(err, rc, "plan: triangle query inside the cascade failed (%s)", gi_strerror(rc));
   for (size_t i = 0; i < nt; i++) *glossy += gi__gloss(&s->materials[s->tri_material[tris[i]]]) > 0;
@@ -559,7 +579,8 @@ gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces
   else if (emit_in || fe == GI_FX_ON)
     set_fx(r, GI_FX_EMISSIVE, 1, "%u emissive triangles (%u within reach of the cascade%s), %d samples per voxel",
            s->num_emitters, emit_in, emit_in ? "" : ", forced on", q->light_samples);
-  else set_fx(r, GI_FX_EMISSIVE, 0, "%u emissive triangles, none within half a cascade of it: no voxel takes "
+  else set_fx(r, GI_FX_EMISSIVE, 0, "%u emissive triangles, none in reach (half a cascade, twice their size): "
+                                    "no voxel takes "
                                     "their light (probes, views and texels still sample it)", s->num_emitters);
 
   int tail = plan_bounces(q, auto_bounces, abar, surfaces, r);

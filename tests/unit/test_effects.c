@@ -351,6 +351,39 @@ static void test_bad_override(void **state) {
   gi_scene_release(s);
 }
 
+/* Emitters in reach of the voxels: a 40 m glowing ceiling 5.5 m over a
+ * 3.2 m cascade (two levels of 5 cm voxels) lights it and is taken (it
+ * was skipped as farther than half a cascade, and the floor's bounce light
+ * under it lost: E from below 0 where a third level reads 1.77); a 10 cm
+ * lamp at that height is not. */
+static void test_emitter_reach_by_size(void **state) {
+  (void)state;
+  for (int big = 0; big < 2; big++) {
+    gi_mesh_builder *b = gi_mesh_builder_new();
+    gi_material floor = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+    gi_material glow = {.albedo = {0, 0, 0}, .emission = {1, 1, 1}, .roughness = 1};
+    uint32_t mf = gi_mesh_builder_add_material(b, &floor), mg = gi_mesh_builder_add_material(b, &glow);
+    double F0[3] = {-20, 0, -20}, F1[3] = {-20, 0, 20}, F2[3] = {20, 0, 20}, F3[3] = {20, 0, -20};
+    gi_mesh_builder_add_quad(b, F0, F1, F2, F3, mf);
+    double h = big ? 20 : 0.05;
+    double C0[3] = {-h, 6, -h}, C1[3] = {h, 6, -h}, C2[3] = {h, 6, h}, C3[3] = {-h, 6, h}; /* facing down */
+    gi_mesh_builder_add_quad(b, C0, C1, C2, C3, mg);
+    gi_scene_options opt = {.up = GI_UP_Y};
+    gi_scene *s = NULL;
+    gi_error_info err = {0};
+    assert_int_equal(gi_scene_build(b, "hall", &opt, &s, &err), GI_OK);
+    gi_mesh_builder_free(b);
+    const double at[3] = {0, 0.5, 0};
+    gi_quality q = {.levels = 2, .voxel0 = 0.05};
+    gi_effect fx[GI_FX_COUNT];
+    assert_int_equal(gi_effect_plan(s, at, &q, fx, NULL, &err), GI_OK);
+    printf("%s emitter 5.5 m over the cascade: %s (%s)\n", big ? "40 m" : "10 cm",
+           fx[GI_FX_EMISSIVE].ran ? "ran" : "skipped", fx[GI_FX_EMISSIVE].why);
+    assert_int_equal(fx[GI_FX_EMISSIVE].ran, big);
+    gi_scene_release(s);
+  }
+}
+
 /* Bounces run only where they can add light: a grey room with no light
  * at all, and one whose only light (its emission) the request turns off,
  * skip them (they ran 3 and the tail, 14 ms of 42, for 0), as does a
@@ -454,6 +487,7 @@ int main(void) {
       cmocka_unit_test(test_view_traces_glossy_pixels_only),
       cmocka_unit_test(test_bad_override),
       cmocka_unit_test(test_bounces_need_light),
+      cmocka_unit_test(test_emitter_reach_by_size),
       cmocka_unit_test(test_report_matches_plan),
       cmocka_unit_test(test_sky_from_answer_points),
   };
