@@ -253,12 +253,12 @@ static void test_specular_cone(void **state) {
   float p[3] = {0.5f, -2.0f, 0.2f}, n[3] = {0, 1, 0};
   float v[3] = {0.70710678f, -0.70710678f, 0};
   gi_cone_out o;
-  gi__specular_trace(c, p, n, v, 0.1f, &o);
+  gi__specular_trace(c, p, n, v, 0.1f, 1, &o);
   printf("specular: L=%.4f a=%.4f\n", o.L[0], o.alpha);
   assert_true(fabsf(o.L[0] - 2.0f) < 0.02f && o.alpha >= 0.99f);
   /* Reflected away from the wall: nothing. */
   float v2[3] = {-0.70710678f, -0.70710678f, 0};
-  gi__specular_trace(c, p, n, v2, 0.1f, &o);
+  gi__specular_trace(c, p, n, v2, 0.1f, 1, &o);
   assert_true(o.L[0] == 0);
   /* The cone widens with roughness (strictly once above the half-degree
    * floor) and stays a lobe. */

@@ -235,6 +235,7 @@ typedef struct {
   float albedo[3];              /* the hit triangle's (gi__tri_albedo) */
   float x[3], n[3], w[3], E[3]; /* E: the direct irradiance */
   int d;
+  uint64_t seed; /* the pixel's own: its specular emitter rays */
 } pending_px;
 
 /* Adds the diffuse reflection of irradiance E (direct + indirect) and the
@@ -246,7 +247,7 @@ static void finish_pixel(const render_ctx *rc, const pending_px *pp, uint64_t co
   int glossy = gi__gloss(m) > 0;
   if (pp->d >= 0 && (rc->spec == SPEC_ALL || (rc->spec == SPEC_GLOSSY && glossy))) {
     gi_cone_out co;
-    gi__specular_trace(rc->c, pp->x, pp->n, pp->w, m->roughness, &co);
+    gi__specular_trace(rc->c, pp->x, pp->n, pp->w, m->roughness, pp->seed, &co);
     cones[1]++;
     for (int a = 0; a < 3; a++) out[a] += m->specular * co.L[a];
     if (pp->spec)
@@ -264,6 +265,7 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   float ng[3];
   uint32_t tri;
   pp->out = out, pp->spec = spec;
+  pp->seed = c->report.quality.seed ^ ((uint64_t)py << 32 | (uint32_t)px);
   out[0] = out[1] = out[2] = 0;
   if (!primary_hit(rc, px, py, pp->w, pp->x, pp->n, ng, &tri)) {
     /* The camera sees the sky itself where answers sample it. */

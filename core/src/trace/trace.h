@@ -168,12 +168,14 @@ void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_re
  * alpha = roughness^2 (exponent 2 / alpha^2 - 2), at least 0.5 degree. */
 float gi__specular_tan(float roughness);
 /* Radiance arriving along the mirror direction of view v (unit, pointing
- * from the eye to p) about unit normal n, through one cone. */
+ * from the eye to p) about unit normal n, through one cone, plus the sky
+ * where the cone escapes and the emitters within it (rays seeded by seed:
+ * the caller's pixel, so a view is the same on any thread count). */
 void gi__specular_trace(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
-                        float roughness, gi_cone_out *out);
+                        float roughness, uint64_t seed, gi_cone_out *out);
 /* The same with the cone's half-angle tangent given (aperture sweeps in tests). */
 void gi__specular_trace_tan(const struct gi_cascade *c, const float p[3], const float n[3], const float v[3],
-                            float tan_half, gi_cone_out *out);
+                            float tan_half, uint64_t seed, gi_cone_out *out);
 /* Samples the texture at local p for direction w (the faces facing -w),
  * trilinearly on level d: premultiplied radiance and optical depth per unit length. */
 int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const float w[3],
