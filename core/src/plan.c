@@ -185,29 +185,6 @@ int gi__fx_forced(const gi_quality *q, gi_effect_id id) {
   return f;
 }
 
-/* Triangles whose bounds overlap the coarsest level's box grown by `grow`
- * times its side on every face into *t (caller frees; *n = 0 on an empty
- * scene). A failed query is an error: a plan from a partial list would
- * silently drop effects. */
-static gi_result tris_in_range(const struct gi_cascade *c, float grow, uint32_t **t, size_t *n) {
-  size_t cap = 0;
-  *t = NULL;
-  *n = 0;
-  const gi_level *L = &c->lv[c->n - 1];
-  float lo[3], hi[3];
-  for (int a = 0; a < 3; a++) {
-    float m = grow * (L->hi[a] - L->lo[a]);
-    lo[a] = L->lo[a] - m, hi[a] = L->hi[a] + m;
-  }
-  gi_result rc = gi__query_box(c->scene, lo, hi, t, n, &cap);
-  if (rc != GI_OK) {
-    gi__free(*t);
-    *t = NULL;
-    *n = 0;
-  }
-  return rc;
-}
-
 /* Sky visibility: 32 stratified upward rays from the centre of the
  * viewpoint's anchor cell (the 2 s0 cell that places level 0, see
  * gi_cascade_anchor) and from the points half the finest level's side away
@@ -330,10 +307,14 @@ static double tail_share(double a, int B) {
 #define CLIP_MAXV 9
 static double area_in_box(const float *P[3], const float lo[3], const float hi[3]) {
   double a[CLIP_MAXV][3], b[CLIP_MAXV][3];
-  int n = 3;
+  int n = 3, inside = 1;
   for (int v = 0; v < 3; v++)
-    for (int k = 0; k < 3; k++) a[v][k] = P[v][k];
-  for (int pl = 0; pl < 6 && n > 0; pl++) {
+    for (int k = 0; k < 3; k++) {
+      a[v][k] = P[v][k];
+      inside &= P[v][k] >= lo[k] && P[v][k] <= hi[k];
+    }
+  /* Most triangles of a level lie wholly inside its box: no clipping. */
+  for (int pl = 0; pl < 6 && n > 0 && !inside; pl++) {
     int ax = pl >> 1;
     double sg = pl & 1 ? -1 : 1, lim = pl & 1 ? hi[ax] : lo[ax];
     int m = 0;
@@ -388,19 +369,22 @@ static gi_result level_sums(struct gi_cascade *c, int d) {
     return rc;
   }
   double area = 0, a_sum = 0;
+  uint32_t glossy = 0;
   for (size_t i = 0; i < n; i++) {
     const uint32_t *ix = &s->indices[3 * tris[i]];
     const float *P[3] = {&s->vertices[3 * ix[0]], &s->vertices[3 * ix[1]], &s->vertices[3 * ix[2]]};
     const float *alb = gi__tri_albedo(s, tris[i]);
     double ar = area_in_box(P, L->lo, L->hi);
     /* A glossy lobe reflects `specular` more (the texture holds it as diffuse light, inject.c). */
-    area += ar, a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gi__gloss(&s->materials[s->tri_material[tris[i]]]));
+    float gl = gi__gloss(&s->materials[s->tri_material[tris[i]]]);
+    area += ar, a_sum += ar * (fmaxf(alb[0], fmaxf(alb[1], alb[2])) + gl);
+    glossy += gl > 0;
   }
   gi__free(tris);
   c->survey.lvl[d].valid = 1;
   memcpy(c->survey.lvl[d].lo, L->lo, sizeof L->lo);
   memcpy(c->survey.lvl[d].hi, L->hi, sizeof L->hi);
-  c->survey.lvl[d].area = area, c->survey.lvl[d].a_sum = a_sum;
+  c->survey.lvl[d].area = area, c->survey.lvl[d].a_sum = a_sum, c->survey.lvl[d].glossy = glossy;
   return GI_OK;
 }
 
@@ -461,27 +445,18 @@ static uint32_t emitters_in_reach(const struct gi_cascade *c) {
  * none). Gloss: inside only. */
 static gi_result survey_range(struct gi_cascade *c, uint32_t *emit_in, uint32_t *glossy, double *abar, int *surfaces,
                               gi_error_info *err) {
-  const gi_scene *s = c->scene;
   const gi_level *top = &c->lv[c->n - 1];
   gi_result rc = level_albedo(c, abar, surfaces);
   if (rc != GI_OK) return gi__fail(err, rc, "plan: triangle query in a level failed (%s)", gi_strerror(rc));
-  if (c->survey.valid && !memcmp(c->survey.lo, top->lo, sizeof top->lo) &&
-      !memcmp(c->survey.hi, top->hi, sizeof top->hi)) {
-    *emit_in = c->survey.emit_in, *glossy = c->survey.glossy;
-    return GI_OK;
+  *glossy = c->survey.lvl[c->n - 1].glossy; /* the coarsest box: everything in the cascade */
+  if (!(c->survey.valid && !memcmp(c->survey.lo, top->lo, sizeof top->lo) &&
+        !memcmp(c->survey.hi, top->hi, sizeof top->hi))) {
+    c->survey.emit_in = emitters_in_reach(c);
+    c->survey.valid = 1;
+    memcpy(c->survey.lo, top->lo, sizeof top->lo);
+    memcpy(c->survey.hi, top->hi, sizeof top->hi);
   }
-  size_t nt = 0;
-  uint32_t *tris;
-  *emit_in = emitters_in_reach(c);
-  *glossy = 0;
-  if ((rc = tris_in_range(c, 0.f, &tris, &nt)) != GI_OK)
-    return gi__fail(err, rc, "plan: triangle query inside the cascade failed (%s)", gi_strerror(rc));
-  for (size_t i = 0; i < nt; i++) *glossy += gi__gloss(&s->materials[s->tri_material[tris[i]]]) > 0;
-  gi__free(tris);
-  c->survey.valid = 1;
-  memcpy(c->survey.lo, top->lo, sizeof top->lo);
-  memcpy(c->survey.hi, top->hi, sizeof top->hi);
-  c->survey.emit_in = *emit_in, c->survey.glossy = *glossy;
+  *emit_in = c->survey.emit_in;
   return GI_OK;
 }
 

@@ -260,13 +260,14 @@ struct gi_cascade {
   struct {
     int valid;
     float lo[3], hi[3];
-    uint32_t emit_in, glossy;
-    /* Per level: its box, and the area and albedo-weighted area of the
-     * surfaces clipped to it (plan.c's level_sums). */
+    uint32_t emit_in;
+    /* Per level: its box, the area and albedo-weighted area of the
+     * surfaces clipped to it, and its glossy triangles (plan.c's level_sums). */
     struct {
       int valid;
       float lo[3], hi[3];
       double area, a_sum;
+      uint32_t glossy;
     } lvl[GI_MAX_LEVELS];
   } survey;
   /* The move's re-bake in slices (move/move.c); NULL until the first move. */
