@@ -118,7 +118,10 @@ gi_result gi_quality_resolve(const gi_scene *s, const gi_quality *in, gi_quality
   if (q->res == 0) q->res = 32;
   if (q->cones == 0) q->cones = 16;
   if (q->step == 0) q->step = 1.0f;
-  q->bounce_tail = 0; /* out only: the plan sets it */
+  /* With an explicit count of 2 or more, a caller may ask for the tail
+   * too (a tiled bake giving every tile the plan of its brightest); with
+   * an automatic count the plan sets it. */
+  q->bounce_tail = q->bounces >= 2 && q->bounce_tail ? 1 : 0;
   if (q->bounces < 0 && q->effects[GI_FX_BOUNCE] == GI_FX_ON)
     return gi__fail(err, GI_ERR_INVALID_ARG, "quality: bounces is none (-1) while effects[bounce] is forced on: "
                     "ask for one or the other");
@@ -502,7 +505,7 @@ static int plan_bounces(gi_quality *q, int auto_bounces, double abar, int surfac
    * that series is small enough, it replaces the last bounce too
    * (TAIL_SHARE). */
   int fb = gi__fx_forced(q, GI_FX_BOUNCE);
-  int tail = 0;
+  int tail = !auto_bounces && q->bounce_tail;
   if (auto_bounces) {
     int B = 1;
     while (B < MAX_AUTO_BOUNCES && pow(abar, B + 2) >= ORDER_LEFT) B++;
@@ -535,6 +538,9 @@ static int plan_bounces(gi_quality *q, int auto_bounces, double abar, int surfac
     set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s: mean albedo %.2f in range, next bounce would add %.1f%% of direct "
                                "(stop under 2%%, at most %d)", q->bounces, q->bounces > 1 ? "s" : "", abar,
            100 * pow(abar, q->bounces + 2), MAX_AUTO_BOUNCES);
+  else if (tail)
+    set_fx(r, GI_FX_BOUNCE, 1, "%d bounces and the geometric tail of the rest as requested, mean albedo %.2f in range",
+           q->bounces, abar);
   else set_fx(r, GI_FX_BOUNCE, 1, "%d bounce%s as requested, mean albedo %.2f in range", q->bounces,
               q->bounces > 1 ? "s" : "", abar);
 
@@ -639,6 +645,11 @@ gi_result gi__cascade_placed(const gi_scene *s, const double at[3], const gi_qua
 
 gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality *qin, gi_effect out[GI_FX_COUNT],
                          gi_quality *resolved, gi_error_info *err) {
+  return gi__effect_plan_for(s, at, qin, NULL, 0, out, resolved, err);
+}
+
+gi_result gi__effect_plan_for(const gi_scene *s, const double at[3], const gi_quality *qin, const float *pts, int npts,
+                              gi_effect out[GI_FX_COUNT], gi_quality *resolved, gi_error_info *err) {
   if (!s || !at || !out)
     return gi__fail(err, GI_ERR_INVALID_ARG, "plan: %s is NULL", !s ? "scene" : !at ? "viewpoint" : "out");
   gi_quality q;
@@ -648,6 +659,7 @@ gi_result gi_effect_plan(const gi_scene *s, const double at[3], const gi_quality
   struct gi_cascade *c;
   if ((rc = gi__cascade_placed(s, at, &q, "plan", &c, err)) != GI_OK) return rc;
   int tail;
+  c->answer_pts = pts, c->num_answer_pts = pts ? npts : 0;
   rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err);
   if (rc != GI_OK) {
     gi__free(c);

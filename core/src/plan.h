@@ -16,6 +16,11 @@ int gi__fx_forced(const gi_quality *q, gi_effect_id id);
  * cap leaves out. Fails (GI_ERR_NOMEM) when the triangle query does. */
 gi_result gi__plan_effects(struct gi_cascade *c, gi_quality *q, int auto_bounces, gi_bake_report *r,
                            int *tail, gi_error_info *err);
+/* gi_effect_plan with the points the answers will be gathered at (as
+ * gi__cascade_bake_at's pts: 6 floats each, local position and normal;
+ * NULL, 0: none), which the sky test looks up from too. */
+gi_result gi__effect_plan_for(const gi_scene *s, const double at[3], const gi_quality *qin, const float *pts, int npts,
+                              gi_effect out[GI_FX_COUNT], gi_quality *resolved, gi_error_info *err);
 
 /* A finite viewpoint a cascade of finest voxel s0 can be placed at:
  * within GI_MAX_VIEW_DISTANCE of the scene's origin (farther, float

@@ -985,6 +985,51 @@ static void test_tile_centre_inside_solid(void **state) {
   gi_scene_release(s);
 }
 
+/* Tiles share one bounce count: a white room (0.7, a lamp inside) on a
+ * 40 m black ground, baked in 2 m tiles. Each tile's own plan follows the
+ * brightest level round it: a tile out on the ground plans fewer bounces
+ * than the room's (checked below), and the light stepped where they met.
+ * Every tile now runs the most any tile planned, with the tail. */
+static void test_tiles_share_bounces(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material wall = {.albedo = {0.7f, 0.7f, 0.7f}, .roughness = 1}, black = {.roughness = 1};
+  uint32_t mw = gi_mesh_builder_add_material(b, &wall), mg = gi_mesh_builder_add_material(b, &black);
+  double lo[3] = {0, 0, 0}, hi[3] = {4, 3, 5};
+  gi_mesh_builder_add_box(b, lo, hi, mw);
+  double g[4][3] = {{-18, -0.01, -18}, {-18, -0.01, 22}, {22, -0.01, 22}, {22, -0.01, -18}};
+  gi_mesh_builder_add_quad(b, g[0], g[1], g[2], g[3], mg);
+  gi_light lamp = {.type = GI_LIGHT_POINT, .color = {20, 20, 20}, .position = {2, 2.5, 2.5}};
+  gi_scene_options so = {.up = GI_UP_Y, .lights = &lamp, .num_lights = 1};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "room on black", &so, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_quality q = {.levels = 4, .res = 16, .cones = 6, .probe_samples = 16, .light_samples = 4};
+  gi_lightmap_opts o = {.texel = 0.5, .atlas = 512, .tile = 2};
+  gi_lightmap *lm = NULL;
+  gi_lightmap_report rep;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_OK);
+  printf("room on a black ground, %d tiles: bounce %s in %d (%s)\n", (int)rep.tiles,
+         rep.effects[GI_FX_BOUNCE].ran ? "ran" : "skipped", (int)rep.effect_tiles[GI_FX_BOUNCE], rep.effects[GI_FX_BOUNCE].why);
+  assert_true(rep.tiles > 4);
+  gi_effect fx[GI_FX_COUNT];
+  gi_quality room, ground;
+  const double in_room[3] = {2, 1.5, 2.5}, out_there[3] = {-15, 0.5, -15};
+  assert_int_equal(gi_effect_plan(s, in_room, &q, fx, &room, &err), GI_OK);
+  assert_int_equal(gi_effect_plan(s, out_there, &q, fx, &ground, &err), GI_OK);
+  printf("  plans: in the room %d bounces, tail %d; out on the ground %d, tail %d\n", room.bounces, room.bounce_tail,
+         ground.bounces, ground.bounce_tail);
+  assert_true(room.bounces > ground.bounces || room.bounce_tail > ground.bounce_tail);
+  char want[64];
+  snprintf(want, sizeof want, "%d bounces%s in every tile", room.bounces, room.bounce_tail ? " and the geometric tail" : "");
+  assert_non_null(strstr(rep.effects[GI_FX_BOUNCE].why, want));
+  assert_int_equal(rep.effect_tiles[GI_FX_BOUNCE], rep.tiles);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 /* A flat floor alone (no height): the default cascade spanned an eighth of
  * it, the default tiles were 4 cm, and --texel 1 failed ("texels ... lie
  * outside its cascade") while 0.25 took 676 tiles. Now one tile holds it,
@@ -1043,6 +1088,7 @@ int main(void) {
       cmocka_unit_test(test_no_dark_seams),
       cmocka_unit_test(test_tile_centre_inside_solid),
       cmocka_unit_test(test_flat_floor_one_tile),
+      cmocka_unit_test(test_tiles_share_bounces),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -68,10 +68,12 @@ typedef struct gi_quality {
   uint64_t seed;       /* sampling seed; default 1 (bakes are deterministic) */
   int effects[GI_FX_COUNT]; /* per effect: GI_FX_AUTO (0, the plan decides), GI_FX_ON, GI_FX_OFF.
                                `specular` and `ao` above still count when their entry is auto. */
-  int bounce_tail;     /* out only (ignored on input): 1 when the plan's automatic count reached
-                          its cap and the last bounce adds the geometric tail of the orders left
-                          out; an explicit count never does. Set in reports and in
-                          gi_effect_plan's `resolved`, so a resolved quality says which it was. */
+  int bounce_tail;     /* 1 when the last bounce adds the geometric tail of the orders left out.
+                          Out: set in reports and in gi_effect_plan's `resolved` (the plan's
+                          automatic count adds it at its cap), so a resolved quality says which
+                          it was, and baking it again (bounces and bounce_tail as reported)
+                          runs the same. In: with an explicit bounces >= 2, 1 adds the tail
+                          too; ignored with an automatic count (the plan decides). */
 } gi_quality;
 
 /* What the plan decided for one effect, and why (for reports and headers). */

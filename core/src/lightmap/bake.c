@@ -18,6 +18,7 @@
  * threads. Afterwards, invalid texels and gutters are filled layer by
  * layer from their already-filled neighbours in the same chart. */
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "answer/answer.h"
@@ -661,6 +662,38 @@ static gi_result plan_tiling(const gi_lightmap *lm, const gi_quality *rq, const 
   }
 }
 
+/* One bounce count for every tile: each tile's cascade plans its own
+ * (the brightest level's albedo round the tile), so a room's tiles took 4
+ * bounces and the tail and the ground's beside them 2, and the light
+ * stepped at their border. Left to the plan (q's bounces automatic), the
+ * tiles share the most any of them plans and the tail if any adds it; an
+ * explicit count is every tile's already. *tq: q with that count; *shared
+ * 1 when it was chosen here. */
+static gi_result shared_bounces(const gi_lightmap *lm, const gi_quality *q, const lm_tiling *T, gi_quality *tq,
+                                int *shared, gi_error_info *err) {
+  gi_quality z = {0};
+  *tq = q ? *q : z;
+  *shared = 0;
+  if (tq->bounces != 0) return GI_OK;
+  int most = 0, tail = 0;
+  for (size_t t = 0; t < (size_t)T->g.nt[0] * T->g.nt[1] * T->g.nt[2]; t++) {
+    if (T->start[t] == T->start[t + 1]) continue;
+    gi_effect fx[GI_FX_COUNT];
+    gi_quality r;
+    float hints[TILE_HINTS][6]; /* as bake_tile gives its bake: the same sky test */
+    int nh = tile_hints(lm, T->list + T->start[t], T->start[t + 1] - T->start[t], hints);
+    gi_result rc = gi__effect_plan_for(lm->scene, T->tat[t], q, &hints[0][0], nh, fx, &r, err);
+    if (rc != GI_OK) return rc;
+    if (!fx[GI_FX_BOUNCE].ran) continue;
+    most = r.bounces > most ? r.bounces : most;
+    tail |= r.bounce_tail;
+  }
+  tq->bounces = most > 0 ? most : -1;
+  tq->bounce_tail = tail;
+  *shared = 1;
+  return GI_OK;
+}
+
 gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel,
                            gi_lightmap_report *report, gi_error_info *err) {
   if (!lm) return gi__fail(err, GI_ERR_INVALID_ARG, "lightmap: lightmap is NULL");
@@ -682,12 +715,19 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   rc = texel_anchors(lm, rq.threads, &base, &anc, &total, err);
   if (rc == GI_OK) rc = plan_tiling(lm, &rq, base, anc, total, &T, err);
   rep.sort_ms = gi__now_ms() - ts;
+  gi_quality tq;
+  int shared = 0;
+  if (rc == GI_OK) rc = shared_bounces(lm, q, &T, &tq, &shared, err);
   if (rc != GI_OK) goto done;
   clear_atlases(lm), cleared = 1;
   for (size_t t = 0; t < (size_t)T.g.nt[0] * T.g.nt[1] * T.g.nt[2] && rc == GI_OK; t++)
     if (T.start[t] != T.start[t + 1])
-      rc = bake_tile(lm, q, cancel, T.list + T.start[t], T.start[t + 1] - T.start[t], T.tat[t], &rep, err);
+      rc = bake_tile(lm, &tq, cancel, T.list + T.start[t], T.start[t + 1] - T.start[t], T.tat[t], &rep, err);
   if (rc != GI_OK) goto done;
+  if (shared && rep.effect_tiles[GI_FX_BOUNCE])
+    snprintf(rep.effects[GI_FX_BOUNCE].why, sizeof rep.effects[GI_FX_BOUNCE].why,
+             "%d bounces%s in every tile: the most any tile's plan chose (one count: no step at their borders)",
+             tq.bounces, tq.bounce_tail ? " and the geometric tail" : "");
   double tf = gi__now_ms();
   for (size_t a = 0; a < lm->num_atlases && rc == GI_OK; a++) {
     const gi_lm_atlas *A = &lm->atlases[a];
