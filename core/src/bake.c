@@ -113,11 +113,10 @@ gi_result gi_cascade_bake_ex(const gi_scene *scene, const double at[3], const gi
   return gi__cascade_bake_at(scene, at, qin, cancel, NULL, 0, out, report, err);
 }
 
-gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
-                              const gi_quality *q, const gi_cancel *cancel, gi_cascade **out,
-                              gi_bake_report *report, gi_error_info *err) {
-  enum { MAX_PTS = 32 };
-  float hint[MAX_PTS][6];
+/* Up to MAX_PTS of n world points, evenly, as the plan's answer points
+ * (local position, no normal); non-finite ones skipped. */
+enum { MAX_PTS = 32 };
+static int point_hints(const gi_scene *scene, const double *pts, size_t n, float hint[MAX_PTS][6]) {
   int nh = 0;
   size_t want = n < MAX_PTS ? n : MAX_PTS;
   for (size_t i = 0; pts && scene && i < want; i++) {
@@ -126,7 +125,23 @@ gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const d
     for (int k = 0; k < 3; k++) hint[nh][k] = (float)(p[k] - scene->origin[k]), hint[nh][3 + k] = 0;
     nh++;
   }
+  return nh;
+}
+
+gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
+                              const gi_quality *q, const gi_cancel *cancel, gi_cascade **out,
+                              gi_bake_report *report, gi_error_info *err) {
+  float hint[MAX_PTS][6];
+  int nh = point_hints(scene, pts, n, hint);
   return gi__cascade_bake_at(scene, at, q, cancel, &hint[0][0], nh, out, report, err);
+}
+
+gi_result gi_effect_plan_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
+                             const gi_quality *q, gi_effect out[GI_FX_COUNT], gi_quality *resolved,
+                             gi_error_info *err) {
+  float hint[MAX_PTS][6];
+  int nh = point_hints(scene, pts, n, hint);
+  return gi__effect_plan_for(scene, at, q, &hint[0][0], nh, out, resolved, err);
 }
 
 gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const gi_quality *qin,

@@ -237,6 +237,51 @@ assert g["dropped_inside"] > 0 and g["valid"] > 0, g
 assert g["valid"] + g["dropped_inside"] + g["no_ground"] == g["points"], g
 PY
 
+# Tiles share one bounce count: a white room with a lamp on a black 40 m
+# ground. Each tile's own plan follows the albedo round it (the room's
+# tiles more bounces than the ground's), and neighbouring tiles' probes
+# stepped where they met; every tile now bakes the most any planned.
+cat > "$T/room.mtl" <<'MTL'
+newmtl white
+Kd 0.7 0.7 0.7
+newmtl black
+Kd 0 0 0
+MTL
+cat > "$T/room.obj" <<'OBJ'
+mtllib room.mtl
+v 0 0 0
+v 4 0 0
+v 4 0 5
+v 0 0 5
+v 0 3 0
+v 4 3 0
+v 4 3 5
+v 0 3 5
+v -18 -0.01 -18
+v 22 -0.01 -18
+v 22 -0.01 22
+v -18 -0.01 22
+usemtl white
+f 1 2 3 4
+f 5 8 7 6
+f 1 5 6 2
+f 2 6 7 3
+f 3 7 8 4
+f 4 8 5 1
+usemtl black
+f 9 12 11 10
+OBJ
+ROOMQ="--grid 1 --region -18,0.5,-18,22,2.5,22 --res 8 --levels 4 --cones 4 --samples 1 --probe-samples 4 --threads 1"
+"$BIN" "$T/room.obj" $ROOMQ --point 2,2.5,2.5,20,20,20 --no-default-lights --exr "$T/room.exr" --json \
+  > "$T/room.json" 2> "$T/rerr" || { cat "$T/rerr" >&2; fail "room grid bake failed"; finish; }
+python3 - "$T/room.json" <<'PY' && pass "grid tiles share one bounce count" || fail "grid bounce count"
+import json, sys
+d = json.load(open(sys.argv[1]))
+b = d["effects"]["bounce"]
+assert b["ran"] and "in every tile" in b["why"] and b["tiles_ran"] == d["tiles"]["baked"], (b, d["tiles"])
+assert d["quality"]["bounces"] >= 2, d["quality"]
+PY
+
 # kill -9 in the middle, then --resume: only unfinished tiles are baked again.
 "$BIN" city $CITYQ --resume "$T/ck" --exr "$T/r.exr" > /dev/null 2> "$T/r1.err" &
 pid=$!

@@ -75,12 +75,23 @@ static void test_bounces_from_albedo(void **state) {
     gi_error_info err = {0};
     assert_int_equal(gi_effect_plan(s, at, &q, fx, &res, &err), GI_OK);
     assert_int_equal(res.bounce_tail, tail[i]);
-    /* An explicit count wins, has no tail, and off means none. */
+    /* An explicit count wins and has no tail unless asked for (bounce_tail
+     * in: a report's quality baked again runs the same; tiled bakes give
+     * every tile one count so); one bounce has no ratio to extrapolate;
+     * off means none. */
     q.bounces = 2;
-    q.bounce_tail = 1; /* out only: ignored */
     bake_at(s, at, &q, &rep, &p);
     assert_int_equal(rep.bounces_run, 2);
     assert_int_equal(rep.quality.bounce_tail, 0);
+    q.bounce_tail = 1;
+    bake_at(s, at, &q, &rep, &p);
+    assert_int_equal(rep.bounces_run, 2);
+    assert_int_equal(rep.quality.bounce_tail, 1);
+    assert_non_null(strstr(rep.effects[GI_FX_BOUNCE].why, "geometric tail of the rest as requested"));
+    q.bounces = 1;
+    bake_at(s, at, &q, &rep, &p);
+    assert_int_equal(rep.quality.bounce_tail, 0);
+    q.bounces = 2;
     q.effects[GI_FX_BOUNCE] = GI_FX_OFF;
     bake_at(s, at, &q, &rep, &p);
     assert_int_equal(rep.bounces_run, 0);

@@ -96,6 +96,16 @@ static int alloc_state(batch_state *st) {
       st->order[st->tile_start[t] + fill[t]++] = (uint32_t)i;
     }
   free(fill);
+  /* One tile's points and answers at a time (the plan's pass and the bakes). */
+  size_t maxm = 1;
+  for (size_t t = 0; t < st->L.tiles; t++)
+    if (st->tile_start[t + 1] - st->tile_start[t] > maxm) maxm = st->tile_start[t + 1] - st->tile_start[t];
+  st->pts = malloc(maxm * 3 * sizeof *st->pts);
+  st->tile_probes = malloc(maxm * sizeof *st->tile_probes);
+  if (!st->pts || !st->tile_probes) {
+    fprintf(stderr, "gi-bake: out of memory for a tile of %zu probes\n", maxm);
+    return EXIT_RUN;
+  }
   return 0;
 }
 
@@ -104,11 +114,12 @@ int batch_owns(const batch_state *st, size_t t) {
   return !b->have_shard || (int)(t % (size_t)b->shard_n) == b->shard_i;
 }
 
-/* Bakes tile t's probes (m of them, at order[]) around the middle of their box. */
-static int bake_tile(batch_state *st, size_t t) {
+/* Tile t's probes into st->pts (returns how many, at order[]) and the
+ * middle of their box, where its cascade is baked. */
+static size_t tile_points(batch_state *st, size_t t, double at[3]) {
   const uint32_t *idx = st->order + st->tile_start[t];
   size_t m = st->tile_start[t + 1] - st->tile_start[t];
-  double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}, at[3];
+  double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
   for (size_t j = 0; j < m; j++)
     for (int a = 0; a < 3; a++) {
       double v = st->grid.pos[3 * (size_t)idx[j] + a];
@@ -116,6 +127,43 @@ static int bake_tile(batch_state *st, size_t t) {
       st->pts[3 * j + a] = v;
     }
   for (int a = 0; a < 3; a++) at[a] = 0.5 * (lo[a] + hi[a]);
+  return m;
+}
+
+/* One bounce count for every tile, as a lightmap's tiles share one: each
+ * tile's cascade plans its own from the albedo round it, and neighbouring
+ * tiles' probes stepped where a bright room's tiles met the street's.
+ * Left to the plan, every tile (every shard's: the count must not depend
+ * on the shard) is planned first and all bake the most any chose, with
+ * the tail if any adds it. */
+static int shared_bounces(batch_state *st) {
+  if (st->q.bounces != 0) return 0;
+  int most = 0, tail = 0;
+  for (size_t t = 0; t < st->L.tiles; t++) {
+    if (st->tile_start[t] == st->tile_start[t + 1]) continue;
+    double at[3];
+    size_t m = tile_points(st, t, at);
+    gi_effect fx[GI_FX_COUNT];
+    gi_quality r;
+    gi_error_info err = {0};
+    if (gi_effect_plan_for(st->scene, at, st->pts, m, &st->q, fx, &r, &err) != GI_OK) {
+      fprintf(stderr, "gi-bake: tile %zu: effect plan: %s\n", t, err.msg);
+      return EXIT_RUN;
+    }
+    if (!fx[GI_FX_BOUNCE].ran) continue;
+    most = r.bounces > most ? r.bounces : most;
+    tail |= r.bounce_tail;
+  }
+  st->q.bounces = most > 0 ? most : -1;
+  st->q.bounce_tail = tail;
+  st->shared_bounces = 1;
+  return 0;
+}
+
+/* Bakes tile t's probes around the middle of their box. */
+static int bake_tile(batch_state *st, size_t t) {
+  double at[3];
+  size_t m = tile_points(st, t, at);
   gi_error_info err = {0};
   gi_bake_report rep;
   gi_cascade *cas = NULL;
@@ -133,6 +181,7 @@ static int bake_tile(batch_state *st, size_t t) {
   if (rep.cascade_bytes > st->peak_cascade_bytes) st->peak_cascade_bytes = rep.cascade_bytes;
   for (int e = 0; e < GI_FX_COUNT; e++) st->fx_ran[e] += rep.effects[e].ran != 0;
   double span = rep.voxel_size[0] * rep.quality.res;
+  const uint32_t *idx = st->order + st->tile_start[t];
   for (size_t j = 0; j < m; j++) {
     int out = 0;
     for (int a = 0; a < 3; a++)
@@ -177,20 +226,12 @@ static int run_tile(batch_state *st, size_t t) {
 }
 
 static int run_tiles(batch_state *st) {
-  size_t maxm = 1;
   for (size_t t = 0; t < st->L.tiles; t++) {
     size_t m = st->tile_start[t + 1] - st->tile_start[t];
     if (batch_owns(st, t)) {
       st->tiles_owned++;
       st->probes_owned += m;
     }
-    if (m > maxm) maxm = m;
-  }
-  st->pts = malloc(maxm * 3 * sizeof *st->pts);
-  st->tile_probes = malloc(maxm * sizeof *st->tile_probes);
-  if (!st->pts || !st->tile_probes) {
-    fprintf(stderr, "gi-bake: out of memory for a tile of %zu probes\n", maxm);
-    return EXIT_RUN;
   }
   if (st->o->batch.resume && mkdir(st->o->batch.resume, 0777) != 0 && !batch_is_dir(st->o->batch.resume)) {
     fprintf(stderr, "gi-bake: --resume: cannot create folder '%s'\n", st->o->batch.resume);
@@ -222,6 +263,7 @@ int batch_run(const cli_opts *o, const gi_scene *scene, double load_ms) {
   int rc = make_grid(o, scene, &st.grid);
   if (!rc) rc = plan_tiles(&st);
   if (!rc) rc = alloc_state(&st);
+  if (!rc) rc = shared_bounces(&st);
   if (!rc) rc = batch_identify(&st);
   st.plan_ms = batch_now_ms() - t0;
   if (!rc) rc = run_tiles(&st);

@@ -83,6 +83,11 @@ int batch_identify(batch_state *st) {
    * plan's bounce count (automatic bounces resolve to 2) and the cones'
    * matched aperture (resolve leaves 0), as a single bake reports them. */
   st->resolved.bounces = planned.bounces;
+  st->resolved.bounce_tail = planned.bounce_tail;
+  if (st->shared_bounces && st->plan[GI_FX_BOUNCE].ran)
+    snprintf(st->plan[GI_FX_BOUNCE].why, sizeof st->plan[GI_FX_BOUNCE].why,
+             "%d bounces%s in every tile: the most any tile's plan chose (one count: no step between tiles)",
+             planned.bounces, planned.bounce_tail ? " and the geometric tail" : "");
   if (!(st->resolved.aperture_deg > 0))
     st->resolved.aperture_deg = (float)(2.0 * acos(1.0 - 1.0 / st->resolved.cones) * 180.0 / 3.14159265358979);
   quality_text(&st->resolved, st->quality, sizeof st->quality);

@@ -24,6 +24,7 @@ typedef struct batch_state {
   /* The bake's name and the EXR header values. */
   char hash[17], quality[320], effects[1400], grid_text[400], version[80], shard[48];
   gi_effect plan[GI_FX_COUNT];
+  int shared_bounces;        /* q's bounce count is the tiles' shared one (batch.c) */
   int tty;
   /* What happened. */
   size_t tiles_owned, tiles_baked, tiles_resumed, tiles_empty;

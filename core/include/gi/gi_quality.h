@@ -103,6 +103,13 @@ gi_result gi_quality_resolve(const gi_scene *scene, const gi_quality *in, gi_qua
  * Thread-safe. */
 gi_result gi_effect_plan(const gi_scene *scene, const double at[3], const gi_quality *q,
                          gi_effect out[GI_FX_COUNT], gi_quality *resolved, gi_error_info *err);
+/* The plan gi_cascade_bake_for would follow for answers at pts (n world
+ * points; may be NULL when n is 0): its sky test also looks up from them.
+ * A tiled bake plans every tile so before baking any, to give them all one
+ * bounce count (resolved's bounces and bounce_tail, baked back as given). */
+gi_result gi_effect_plan_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
+                             const gi_quality *q, gi_effect out[GI_FX_COUNT], gi_quality *resolved,
+                             gi_error_info *err);
 
 #ifdef __cplusplus
 }
