@@ -13,6 +13,19 @@ leftover=$(find "$T" -name '*.tmp.*')
 python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["outputs"]["vdb"].endswith("cascades.vdb")' \
   "$T/out.json" && pass "JSON names the VDB" || fail "JSON outputs.vdb"
 
+# A disk that fills up during the write (no root needed): the file size
+# limit (16 blocks: 8 or 16 KiB as the shell counts) refuses bytes past it as a full disk would (EFBIG instead of
+# ENOSPC; SIGXFSZ ignored so the write fails instead of killing). The VDB
+# writer ignored failed writes: exit 0 and a truncated file in place.
+vdb_size=$(wc -c < "$T/cascades.vdb")
+[ "$vdb_size" -gt 16384 ] && pass "VDB is $vdb_size bytes (over the limit below)" || fail "VDB only $vdb_size bytes"
+(trap '' XFSZ; ulimit -f 16; exec "$BIN" "$T/box.obj" --at 2,1.5,2 --levels 3 --res 16 --bounces 1 \
+    --vdb "$T/full.vdb") > /dev/null 2> "$T/err"; rc=$?
+[ $rc -eq 1 ] && grep -q "VDB file '$T/full.vdb': cannot write '$T/full.vdb.tmp.[0-9]*': File too large" "$T/err" \
+  && pass "--vdb on a full disk -> exit 1: $(cat "$T/err")" || fail "--vdb on a full disk (rc $rc): $(cat "$T/err")"
+[ ! -e "$T/full.vdb" ] && [ -z "$(find "$T" -name 'full.vdb.tmp.*')" ] && pass "nothing left of the failed VDB" \
+  || fail "the failed VDB left files: $(ls "$T")"
+
 if command -v vdb_print > /dev/null 2>&1; then
   vdb_print "$T/cascades.vdb" > "$T/grids" 2>&1
   grep -q 'L0_density' "$T/grids" && pass "vdb_print lists L0_density" || fail "vdb_print: no L0_density: $(cat "$T/grids")"

@@ -22,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -959,6 +960,62 @@ static void test_nomem_not_cached(void **state) {
   gi_scene_release(sc.scene);
 }
 
+/* In-process: a cascades.vdb encoded onto a full disk (the file size
+ * limit refuses bytes past 1 KiB, as a full tmp_dir would, without root)
+ * is a 500 that says why, and its truncated bytes are not kept with the
+ * cascade: the VDB writer ignored its failed writes, the answer was a 200
+ * with the first bytes only, and every later request got them from the
+ * cache ("hit") with an immutable Cache-Control. */
+static void test_vdb_full_disk_not_cached(void **state) {
+  (void)state;
+  gs_config cfg;
+  gs_config_defaults(&cfg);
+  cfg.bake_threads = 1;
+  snprintf(cfg.tmp_dir, sizeof cfg.tmp_dir, "%s", tu_tmpdir());
+  gs_service svc = {.cfg = &cfg, .metrics = gs_metrics_new()};
+  svc.cache = gs_cache_new((size_t)1 << 30, svc.metrics);
+  assert_non_null(svc.cache);
+  gs_scene sc = {.id = "furnace", .scene = tu_furnace_scene(1.0, 0.5, 1.0)};
+  gi_proto_bake b = {.has_at = 1, .at = {0.5, 0.5, 0.5}, .quality = {.levels = 2, .res = 16, .bounces = 1}};
+  struct rlimit old, lim;
+  assert_int_equal(getrlimit(RLIMIT_FSIZE, &old), 0);
+  lim = old;
+  lim.rlim_cur = 1024;
+  const int want_status[3] = {500, 200, 200};
+  size_t sizes[3] = {0};
+  for (int i = 0; i < 3; i++) {
+    gs_answer a = {.fd = -1};
+    void (*prev)(int) = signal(SIGXFSZ, SIG_IGN);
+    if (i == 0) assert_int_equal(setrlimit(RLIMIT_FSIZE, &lim), 0);
+    gs_serve_bake(&svc, &sc, GS_EP_CASCADES, &b, gs_now_ms(), NULL, NULL, &a);
+    setrlimit(RLIMIT_FSIZE, &old);
+    signal(SIGXFSZ, prev);
+    printf("  request %d: status %d, %zu bytes%s%s\n", i, a.status, a.size, a.json ? ", " : "", a.json ? a.json : "");
+    assert_int_equal(a.status, want_status[i]);
+    if (i == 0) {
+      assert_null(a.blob);
+      assert_non_null(strstr(a.json, strerror(EFBIG)));
+    } else {
+      assert_non_null(a.blob);
+      sizes[i] = a.size;
+    }
+    gs_answer_free(&a);
+  }
+  /* Encoded once, by the second request, whole: the third is the same bytes. */
+  assert_true(sizes[1] > 4096);
+  assert_int_equal(sizes[2], sizes[1]);
+  char *m = gs_metrics_render(svc.metrics, &(gs_gauges){0});
+  assert_non_null(strstr(m, "gi_encode_misses_total 2\n"));
+  assert_non_null(strstr(m, "gi_encode_hits_total 1\n"));
+  free(m);
+  char cmd[600];
+  snprintf(cmd, sizeof cmd, "ls '%s' | grep -q '\\.tmp\\.'", tu_tmpdir());
+  assert_int_not_equal(system(cmd), 0);
+  gs_cache_free(svc.cache);
+  gs_metrics_free(svc.metrics);
+  gi_scene_release(sc.scene);
+}
+
 /* A scene whose file changes gets another version, hence another q: no
  * cache keyed by the old cell URLs can answer for it. Equal bytes and
  * build options give the same version on any replica. */
@@ -1153,9 +1210,12 @@ int main(void) {
       cmocka_unit_test(test_deadline),
       cmocka_unit_test(test_log_flood),
       cmocka_unit_test(test_nomem_not_cached),
+      cmocka_unit_test(test_vdb_full_disk_not_cached),
       cmocka_unit_test(test_scene_version),
       cmocka_unit_test(test_canonical_knobs),
       cmocka_unit_test(test_canonical_defaults),
   };
+  /* One test by name while working on it: GI_TEST_FILTER=test_name. */
+  if (getenv("GI_TEST_FILTER")) cmocka_set_test_filter(getenv("GI_TEST_FILTER"));
   return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -7,10 +7,13 @@
  * against the leaf buffers it must hold at least. */
 #define _POSIX_C_SOURCE 200809L
 #include "test_util.h"
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <signal.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include "gi/gi_vdb.h"
@@ -277,6 +280,66 @@ static void test_write_errors(void **s) {
   assert_int_not_equal(system(cmd), 0);
 }
 
+/* A disk that fills up during the write, made without root: RLIMIT_FSIZE
+ * makes the kernel refuse bytes past the limit (EFBIG, with SIGXFSZ
+ * ignored), as a full disk refuses them (ENOSPC). OpenVDB's io::File
+ * ignored the failed writes: the call returned GI_OK and renamed the
+ * truncated file into place. */
+static void test_write_full_disk(void **s) {
+  (void)s;
+  const char *path = write_good("full.vdb");
+  FILE *f = fopen(path, "rb");
+  assert_non_null(f);
+  static unsigned char before[1 << 16], after[1 << 16];
+  size_t n = fread(before, 1, sizeof before, f);
+  fclose(f);
+  assert_true(n > 1500 && n < sizeof before);
+  /* New values, so a file that got through would differ from the old one. */
+  for (int i = 0; i < NV; i++) density[i] = density[i] != 0.f ? density[i] + 1.f : 0.f;
+  struct rlimit old, lim;
+  assert_int_equal(getrlimit(RLIMIT_FSIZE, &old), 0);
+  lim = old;
+  lim.rlim_cur = 1024; /* under the file's size */
+  void (*prev)(int) = signal(SIGXFSZ, SIG_IGN);
+  assert_int_equal(setrlimit(RLIMIT_FSIZE, &lim), 0);
+  gi_error_info err = {0};
+  gi_result r = gi_vdb_write(path, grids, 3, kFileMeta, 3, &err);
+  setrlimit(RLIMIT_FSIZE, &old);
+  signal(SIGXFSZ, prev);
+  assert_int_equal(r, GI_ERR_IO);
+  assert_non_null(strstr(err.msg, path));
+  assert_non_null(strstr(err.msg, strerror(EFBIG)));
+  /* The old file is untouched and no temp file is left. */
+  f = fopen(path, "rb");
+  assert_non_null(f);
+  assert_int_equal(fread(after, 1, sizeof after, f), n);
+  fclose(f);
+  assert_memory_equal(before, after, n);
+  char cmd[600];
+  snprintf(cmd, sizeof cmd, "ls '%s' | grep -q 'full\\.vdb\\.tmp\\.'", tu_tmpdir());
+  assert_int_not_equal(system(cmd), 0);
+  /* The same through the sparse writer (probe volumes), onto a new path. */
+  const char *fresh = tmp_path("full-sparse.vdb");
+  int ijk[3 * 200];
+  float vals[3 * 200];
+  for (int i = 0; i < 200; i++) {
+    ijk[3 * i] = i, ijk[3 * i + 1] = 2 * i, ijk[3 * i + 2] = 3 * i;
+    vals[3 * i] = 1.f + (float)i, vals[3 * i + 1] = 2.f, vals[3 * i + 2] = 3.f;
+  }
+  gi_vdb_sparse sp = {.name = "sh", .kind = GI_VDB_VEC3, .count = 200, .ijk = ijk, .data = vals,
+                      .voxel_size = 1.0};
+  prev = signal(SIGXFSZ, SIG_IGN);
+  assert_int_equal(setrlimit(RLIMIT_FSIZE, &lim), 0);
+  r = gi_vdb_write_sparse(fresh, &sp, 1, NULL, 0, NULL, &err);
+  setrlimit(RLIMIT_FSIZE, &old);
+  signal(SIGXFSZ, prev);
+  assert_int_equal(r, GI_ERR_IO);
+  assert_non_null(strstr(err.msg, strerror(EFBIG)));
+  assert_int_not_equal(access(fresh, F_OK), 0);
+  snprintf(cmd, sizeof cmd, "ls '%s' | grep -q 'full-sparse\\.vdb\\.tmp\\.'", tu_tmpdir());
+  assert_int_not_equal(system(cmd), 0);
+}
+
 static void expect_read_fails(const char *path, gi_result want) {
   gi_vdb_grid_info info[4];
   size_t n = 99;
@@ -355,6 +418,7 @@ int main(void) {
       cmocka_unit_test(test_metadata),    cmocka_unit_test(test_vdb_print),
       cmocka_unit_test(test_pyopenvdb),   cmocka_unit_test(test_write_errors),
       cmocka_unit_test(test_read_bad_files), cmocka_unit_test(test_mem_usage),
+      cmocka_unit_test(test_write_full_disk),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -38,7 +38,9 @@ typedef struct gi_vdb_grid {
 } gi_vdb_grid;
 
 /* Writes the grids (and file-level metadata) to path via a temporary name
- * and a rename. */
+ * and a rename. A write the OS refuses (a full disk) is GI_ERR_IO naming
+ * the file and the reason; the temporary file is removed and path is left
+ * as it was. */
 gi_result gi_vdb_write(const char *path, const gi_vdb_grid *grids, size_t num_grids,
                        const gi_vdb_meta *file_meta, size_t num_file_meta, gi_error_info *err);
 

@@ -7,7 +7,9 @@
 // and anything else GI_ERR_BACKEND with what() in the message. The writer
 // turns dense blocks into sparse grids (only values != 0, the background,
 // become active), gives each grid the transform described in gi_vdb.h, and
-// writes "<path>.tmp.<pid>" before a rename, like the EXR writer. Readers
+// writes "<path>.tmp.<pid>" before a rename, like the EXR writer; a write
+// the OS refuses (a full disk) is GI_ERR_IO with its reason, the temp file
+// removed and nothing renamed (write_checked). Readers
 // load the whole file through a stream that throws on a short read (see
 // load()), so damaged files fail fast instead of hanging.
 // openvdb::initialize() runs once per process under std::call_once.
@@ -216,6 +218,42 @@ void set_uuid(const std::string &file, const char *uuid) {
   if (!ok) throw Fail{GI_ERR_IO, "cannot set the file id in '" + file + "'"};
 }
 
+// io::File::write never looks at its stream after writing: on a full disk
+// it returned normally and left a truncated file, renamed into place as if
+// whole. This writes the same bytes (Archive::write, seekable, as File
+// does) through a stream whose failures are errors naming the OS reason.
+struct CheckedFile : openvdb::io::File {
+  explicit CheckedFile(const std::string &name) : File(name) {}
+  void put(std::ostream &os, const openvdb::GridCPtrVec &grids, const openvdb::MetaMap &meta) const {
+    Archive::write(os, grids, /*seekable=*/true, meta);
+  }
+};
+
+// "cannot write '<tmp>': <strerror>" from the errno of the call that failed.
+[[noreturn]] void write_failed(const std::string &tmp, int e) {
+  throw Fail{GI_ERR_IO, "cannot write '" + tmp + "': " + (e ? std::strerror(e) : "write failed")};
+}
+
+void write_checked(const std::string &tmp, const openvdb::GridPtrVec &vec, const openvdb::MetaMap &meta) {
+  std::ofstream out;
+  out.open(tmp, std::ios::out | std::ios::binary | std::ios::trunc);
+  if (!out) write_failed(tmp, errno);
+  // badbit throws from the write that failed, while errno still says why.
+  out.exceptions(std::ios::badbit);
+  openvdb::GridCPtrVec grids(vec.begin(), vec.end());
+  try {
+    errno = 0;
+    CheckedFile(tmp).put(out, grids, meta);
+    out.flush();
+  } catch (const std::ios_base::failure &) {
+    write_failed(tmp, errno);
+  }
+  out.exceptions(std::ios::goodbit);
+  errno = 0;
+  out.close(); // the last buffered bytes are written here
+  if (out.fail()) write_failed(tmp, errno);
+}
+
 void write_grids(const char *path, const openvdb::GridPtrVec &vec, const gi_vdb_meta *file_meta,
                  size_t num_file_meta, const char *uuid) {
   if (uuid && !uuid_ok(uuid)) throw Fail{GI_ERR_INVALID_ARG, "file id is not a 36-character UUID"};
@@ -224,9 +262,7 @@ void write_grids(const char *path, const openvdb::GridPtrVec &vec, const gi_vdb_
 
   std::string tmp = std::string(path) + ".tmp." + std::to_string((long)getpid());
   try {
-    openvdb::io::File file(tmp);
-    file.write(vec, meta);
-    file.close();
+    write_checked(tmp, vec, meta);
     if (uuid) set_uuid(tmp, uuid);
   } catch (...) {
     std::remove(tmp.c_str());
