@@ -187,6 +187,8 @@ static void run_job(gs_jobs *j, job *jb) {
   }
   free(pr);
   gs_tiles_free(tiles, nt);
+  char buf[256];
+  const char *msg = rc == GI_OK ? "" : gs_client_message(rc, &e, buf, sizeof buf); /* logs a private path */
   pthread_mutex_lock(&j->mu);
   jb->st.elapsed_s = (gs_now_ms() - jb->t_start) * 1e-3;
   if (rc == GI_OK) {
@@ -195,7 +197,7 @@ static void run_job(gs_jobs *j, job *jb) {
     jb->st.state = GI_JOB_CANCELLED;
   } else {
     jb->st.state = GI_JOB_FAILED;
-    gi_proto_fail(&jb->st.error, jb->timed_out ? 504 : gs_status_of(rc), "%s", e.msg[0] ? e.msg : gi_strerror(rc));
+    gi_proto_fail(&jb->st.error, jb->timed_out ? 504 : gs_status_of(rc), "%s", msg);
   }
   /* The points are no longer needed; a retained job keeps only its status. */
   gi_proto_probes_free(&jb->p);
@@ -231,19 +233,30 @@ static void *runner(void *p) {
 
 #define DIR_PREFIX "gi-server-jobs."
 
-/* Removes the regular files of a folder we own, then the folder. */
-static void remove_folder(const char *path) {
-  DIR *d = opendir(path);
-  if (!d) return;
+/* Removes a folder we own and everything in it, depth first, never
+ * following a symbolic link (the link itself goes); 0, or -1 with errno
+ * when the folder itself stays. It removed only the regular files, so a
+ * stale folder holding a subfolder stayed (and was logged as removed). */
+#define GS_REMOVE_MAX_DEPTH 32
+static int remove_tree_at(int parent, const char *name, int depth) {
+  int fd = openat(parent, name, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  DIR *d = fd >= 0 ? fdopendir(fd) : NULL;
+  if (!d) {
+    if (fd >= 0) close(fd);
+    return -1;
+  }
   for (struct dirent *e; (e = readdir(d));) {
     if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
     struct stat st;
-    if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) == 0 && S_ISREG(st.st_mode))
-      unlinkat(dirfd(d), e->d_name, 0);
+    if (fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0) continue;
+    if (!S_ISDIR(st.st_mode)) unlinkat(dirfd(d), e->d_name, 0);
+    else if (depth < GS_REMOVE_MAX_DEPTH) remove_tree_at(dirfd(d), e->d_name, depth + 1);
   }
   closedir(d);
-  rmdir(path);
+  return unlinkat(parent, name, AT_REMOVEDIR);
 }
+
+static int remove_folder(const char *path) { return remove_tree_at(AT_FDCWD, path, 0); }
 
 /* Folders "gi-server-jobs.PID.XXXXXX" in tmp_dir whose server (PID) is gone:
  * what a killed server left (results and scratch files). Ours only: same
@@ -263,8 +276,11 @@ static void remove_stale(const char *tmp_dir) {
       continue;
     char path[1400];
     snprintf(path, sizeof path, "%s/%s", tmp_dir, e->d_name);
-    remove_folder(path);
-    fprintf(stderr, "gi-server: removed %s, left by server process %ld which is gone\n", path, pid);
+    if (remove_folder(path) == 0)
+      fprintf(stderr, "gi-server: removed %s, left by server process %ld which is gone\n", path, pid);
+    else
+      fprintf(stderr, "gi-server: cannot remove %s, left by server process %ld which is gone: %s\n", path, pid,
+              strerror(errno));
   }
   closedir(d);
 }

@@ -111,7 +111,7 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   gi_lightmap *lm = NULL;
   if (rc == GI_OK) rc = layout(s, b, &q, &o, &lm, &e);
   double layout_ms = gs_now_ms() - t0;
-  if (rc != GI_OK) return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+  if (rc != GI_OK) return gs_answer_core_error(a, rc, &e);
   size_t na = gi_lightmap_num_atlases(lm);
   if (na > 1) {
     char msg[256];
@@ -129,7 +129,7 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   size_t need = ep == GS_EP_LIGHTMAP_UV ? 0 : gs_bake_bytes(&q) + (size_t)at.width * at.height * GS_LIGHTMAP_TEXEL_BYTES;
   if (need && (rc = gs_cache_reserve(svc->cache, need, &e)) != GI_OK) {
     gi_lightmap_free(lm);
-    return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+    return gs_answer_core_error(a, rc, &e);
   }
   if (ep != GS_EP_LIGHTMAP_UV) {
     /* Stops once nobody waits (deadline, hang-up): counted as a cancelled bake. */
@@ -148,7 +148,7 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   ms.encode = gs_now_ms() - t1;
   gi_lightmap_free(lm);
   if (need) gs_cache_unreserve(svc->cache, need);
-  if (rc != GI_OK) return fail(a, gs_status_of(rc), e.msg[0] ? e.msg : gi_strerror(rc));
+  if (rc != GI_OK) return gs_answer_core_error(a, rc, &e);
   /* The atlas: what its tiles ran (each tile plans from its centre and
    * texels). The glTF bakes nothing: the plan at the region's centre. */
   gi_effect fx[GI_FX_COUNT];

@@ -112,9 +112,27 @@ void gs_answer_free(gs_answer *a) {
   a->fd = -1;
 }
 
+const char *gs_client_message(gi_result rc, const gi_error_info *e, char *buf, size_t size) {
+  const char *msg = e->msg[0] ? e->msg : gi_strerror(rc);
+  if (rc != GI_ERR_IO) return msg;
+  /* An answer's file in the private folder (a full disk): its path stays in
+   * the log; the client learns the OS reason only, when the message has one. */
+  fprintf(stderr, "gi-server: %s\n", msg);
+  char reason[128];
+  for (int n = 1; n < 256; n++) {
+    if (strerror_r(n, reason, sizeof reason) == 0 && strncmp(reason, "Unknown error", 13) && strstr(msg, reason)) {
+      snprintf(buf, size, "could not write the answer: %s", reason);
+      return buf;
+    }
+  }
+  snprintf(buf, size, "could not write the answer");
+  return buf;
+}
+
 void gs_answer_core_error(gs_answer *a, gi_result rc, const gi_error_info *e) {
   gi_proto_error pe;
-  gi_proto_fail(&pe, gs_status_of(rc), "%s", e->msg[0] ? e->msg : gi_strerror(rc));
+  char msg[256];
+  gi_proto_fail(&pe, gs_status_of(rc), "%s", gs_client_message(rc, e, msg, sizeof msg));
   gs_answer_error(a, &pe);
 }
 

@@ -332,8 +332,14 @@ typedef struct gs_answer {
 } gs_answer;
 
 void gs_answer_error(gs_answer *a, const gi_proto_error *e);
-/* A core error as the answer: its status (gs_status_of) and message. */
+/* A core error as the answer: its status (gs_status_of) and message
+ * (gs_client_message). */
 void gs_answer_core_error(gs_answer *a, gi_result rc, const gi_error_info *e);
+/* The message a client sees for a core error: e's own, except for
+ * GI_ERR_IO (an answer's file could not be written or read back: a full
+ * disk), which names the server's private paths: that one is logged and
+ * the client gets "could not write the answer: <OS reason>" in buf. */
+const char *gs_client_message(gi_result rc, const gi_error_info *e, char *buf, size_t size);
 /* The request's quality as the core takes it (zero = auto, the server's
  * thread count) into *req, and its resolution (gi_quality_resolve). */
 gi_quality gs_resolve_request(gs_service *svc, const gs_scene *s, const gi_quality *in, gi_quality *req,

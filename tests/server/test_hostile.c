@@ -694,10 +694,24 @@ static void test_job_files_private(void **state) {
   mkdir(mine, 0700);
   snprintf(f, sizeof f, "%s/old.exr", stale);
   fclose(fopen(f, "w"));
+  /* A subfolder goes too (the stale folder stayed, logged as removed); a
+   * symbolic link goes without its target being touched. */
+  char sub[800], victim[700], vf[800], link[800];
+  snprintf(sub, sizeof sub, "%s/sub", stale);
+  mkdir(sub, 0700);
+  snprintf(f, sizeof f, "%s/sub/scratch.vdb", stale);
+  fclose(fopen(f, "w"));
+  snprintf(victim, sizeof victim, "%s/victim", dir);
+  mkdir(victim, 0700);
+  snprintf(vf, sizeof vf, "%s/keep.txt", victim);
+  fclose(fopen(vf, "w"));
+  snprintf(link, sizeof link, "%s/sub/link", stale);
+  assert_int_equal(symlink(victim, link), 0);
   su_server s;
   assert_int_equal(su_start(&s, "job-files", HOSTILE_INI("[limits]\nmax_probes_inline = 2\n")), 0);
   struct stat st;
   assert_int_not_equal(stat(stale, &st), 0);
+  assert_int_equal(stat(vf, &st), 0);
   assert_int_equal(stat(mine, &st), 0);
   const char *jf = jobs_folder(dir, s.pid);
   assert_true(jf[0]);
@@ -720,6 +734,8 @@ static void test_job_files_private(void **state) {
   /* A clean stop removes its own. */
   assert_int_not_equal(stat(folder, &st), 0);
   rmdir(mine);
+  unlink(vf);
+  rmdir(victim);
 }
 
 /* The private folder removed under a running server (a /tmp cleaner): it
