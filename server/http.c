@@ -248,6 +248,22 @@ static void waiting_remove(gs_http *h, gs_req *r) {
   r->prev = r->next = NULL;
 }
 
+/* The 504 of a request past its deadline, whoever saw it first: the
+ * reaper, or the worker whose lightmap, gather or session wait stopped on
+ * the request's token (which carries the deadline). The same request would
+ * cost as much again: retry after a deadline's time, when the server may be
+ * less busy, or ask for less. stopped: what was stopped, or "". */
+static void deadline_answer(gs_http *h, gs_answer *a, const char *stopped) {
+  const gs_config *cfg = h->svc->cfg;
+  int retry = (int)ceil(cfg->deadline_s);
+  gi_proto_error e;
+  gi_proto_fail(&e, 504, "the request took longer than the server's deadline of %g s%s; a retry costs as much: "
+                "retry after %d s, or ask for a cheaper quality", cfg->deadline_s, stopped, retry);
+  gs_answer_error(a, &e);
+  a->retry_after_s = retry;
+  gs_metrics_timeout(h->svc->metrics);
+}
+
 /* Hands an answer to the request unless the reaper answered first. */
 static void complete(gs_http *h, gs_req *r, gs_answer *a) {
   pthread_mutex_lock(&h->mu);
@@ -256,6 +272,10 @@ static void complete(gs_http *h, gs_req *r, gs_answer *a) {
     gs_answer_free(a);
     return;
   }
+  /* Stopped by its deadline before the reaper looked: the reaper's answer
+   * (it was a 504 with Retry-After 1, not counted in gi_timeouts_total). */
+  if (a->status == 504 && gi_cancel_check(r->cancel) == GI_CANCEL_DEADLINE)
+    deadline_answer(h, a, " and its work was stopped");
   r->done = 1;
   r->ans = *a;
   waiting_remove(h, r);
@@ -333,19 +353,7 @@ static int hung_up(gs_req *r) {
 static void give_up(gs_http *h, gs_req *r) {
   int cancelled = gs_cache_leave(h->svc->cache, &r->w);
   if (r->cancel) gi_cancel_set(r->cancel);
-  const gs_config *cfg = h->svc->cfg;
-  if (!r->gone) {
-    /* The same request would cost as much again: retry after a deadline's
-     * time, when the server may be less busy, or ask for less. */
-    int retry = (int)ceil(cfg->deadline_s);
-    gi_proto_error e;
-    gi_proto_fail(&e, 504, "the request took longer than the server's deadline of %g s%s; a retry costs as much: "
-                  "retry after %d s, or ask for a cheaper quality", cfg->deadline_s,
-                  cancelled ? " and its bake was stopped" : "", retry);
-    gs_answer_error(&r->ans, &e);
-    r->ans.retry_after_s = retry;
-    gs_metrics_timeout(h->svc->metrics);
-  }
+  if (!r->gone) deadline_answer(h, &r->ans, cancelled ? " and its bake was stopped" : "");
   pthread_mutex_lock(&h->mu);
   if (r->suspended) {
     r->suspended = 0;
