@@ -135,7 +135,7 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put_counter(&b, "gi_bakes_cancelled_total",
               "Bakes stopped because every request waiting for them left (deadline or hang-up).",
               atomic_load(&m->cancelled));
-  put_gauge(&b, "gi_bakes_in_flight", "Cascades (and lightmaps) being baked now.",
+  put_gauge(&b, "gi_bakes_in_flight", "Cascades (for requests, sessions and jobs) and lightmaps being baked now.",
             (double)atomic_load(&m->in_flight));
   put_counter(&b, "gi_cache_hits_total", "Requests answered from a cached cascade.", atomic_load(&m->cache[0]));
   put_counter(&b, "gi_cache_misses_total", "Requests that baked their cascade.", atomic_load(&m->cache[1]));

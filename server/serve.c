@@ -437,8 +437,12 @@ gi_result gs_gather_tiles(gs_service *svc, const gs_scene *s, const gi_quality *
       if ((rc = gs_cache_get(svc->cache, s, tl->at, req, q, w, &ent, &how, err)) != GI_OK) break;
       c = gs_entry_cascade(ent);
     } else {
+      /* A job's bake is a bake like any other in /metrics (it was missing from the gauge). */
       double t0 = gs_now_ms();
-      if ((rc = gi_cascade_bake_ex(s->scene, tl->at, req, cancel, &own, NULL, err)) != GI_OK) break;
+      gs_metrics_bake_begin(svc->metrics);
+      rc = gi_cascade_bake_ex(s->scene, tl->at, req, cancel, &own, NULL, err);
+      gs_metrics_bake_end(svc->metrics, 0);
+      if (rc != GI_OK) break;
       gs_metrics_bake(svc->metrics, (gs_now_ms() - t0) * 1e-3);
       c = own;
     }

@@ -495,6 +495,32 @@ static void test_job_cancel(void **state) {
   assert_true(su_metric(&S, "gi_jobs", "state=\"cancelled\"") == 2);
 }
 
+/* A job's private bakes are bakes in /metrics: gi_bakes_total counted
+ * them but gi_bakes_in_flight ("Cascades (and lightmaps) being baked
+ * now") stayed 0 while they ran. */
+static void test_job_bakes_in_flight(void **state) {
+  enum { TILES = 40 };
+  char id[64], path[160];
+  double bakes0 = su_metric(&S, "gi_bakes_total", NULL);
+  submit(&S, TILES, id);
+  assert_string_equal(job_wait(&S, id, "running", 30000).state, "running");
+  while (job_get(&S, id).tiles_done < 1) su_sleep_ms(20); /* one bake counted in gi_bakes_total */
+  /* Each tile is a bake then a gather: the gauge is 1 for most of a tile. */
+  double seen = 0, t0 = su_now_ms();
+  while (seen < 1 && su_now_ms() - t0 < 20000 && !strcmp(job_get(&S, id).state, "running")) {
+    seen = su_metric(&S, "gi_bakes_in_flight", NULL);
+    su_sleep_ms(10);
+  }
+  printf("  gi_bakes_in_flight %.0f while the job ran (%.0f ms to see it)\n", seen, su_now_ms() - t0);
+  assert_true(seen == 1);
+  snprintf(path, sizeof path, "/v1/jobs/%s", id);
+  su_resp r = su_http(&S, "DELETE", path, NULL, SU_TOKEN);
+  free(r.body);
+  assert_string_equal(job_wait(&S, id, "cancelled|done|failed", 30000).state, "cancelled");
+  assert_true(su_metric(&S, "gi_bakes_in_flight", NULL) == 0);
+  assert_true(su_metric(&S, "gi_bakes_total", NULL) > bakes0);
+}
+
 static void test_job_deadline(void **state) {
   su_server s;
   assert_int_equal(su_start(&s, "job-deadline", HOSTILE_INI("[limits]\nmax_probes_inline = 2\njob_deadline_s = 1\n")), 0);
@@ -1373,6 +1399,7 @@ int main(void) {
       cmocka_unit_test(test_unauthenticated_bodies_rss),
       cmocka_unit_test(test_slow_clients),
       cmocka_unit_test(test_job_cancel),
+      cmocka_unit_test(test_job_bakes_in_flight),
       cmocka_unit_test(test_job_deadline),
       cmocka_unit_test(test_job_stops_inside_tile),
       cmocka_unit_test(test_job_queue_limit),
