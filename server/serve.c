@@ -225,7 +225,7 @@ gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascad
       rc = GI_ERR_NOMEM;
       snprintf(e->msg, sizeof e->msg, "panorama: out of memory for %dx%d", b->width, b->height);
     } else {
-      rc = gi_cascade_panorama(c, b->at, b->width, b->height, dir, ind, &ms->gather, e);
+      rc = gi_cascade_panorama_ex(c, b->at, b->width, b->height, cancel, dir, ind, &ms->gather, e);
     }
     if (rc == GI_OK) {
       gi_proto_server_timing(ms, gs_now_ms() - t_start_ms, timing, sizeof timing);

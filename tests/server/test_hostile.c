@@ -1164,6 +1164,36 @@ static void test_probes_and_lightmap_cancelled(void **state) {
   assert_int_equal(su_stop(&s), 0);
 }
 
+/* A panorama on a cached cascade whose client hangs up: the panorama
+ * took no token (the probe gather did) and ran to its end, seconds of a
+ * worker for nobody. It stops on the request's token now. */
+#define PANO_QUALITY "quality=low&levels=8&res=32&step=0.05"
+static void test_panorama_cancelled(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "cancel-panorama", CANCEL_INI), 0);
+  char cache[16];
+  double ms;
+  assert_int_equal(timed_get(&s, "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&" PANO_QUALITY, &ms, cache),
+                   200);
+  /* The same cell at full size, timed whole, then one hung up. */
+  const char *pano = "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&" PANO_QUALITY
+                     "&kind=panorama&width=1024&height=1024";
+  assert_int_equal(timed_get(&s, pano, &ms, cache), 200);
+  assert_string_equal(cache, "hit");
+  int fd = send_get(&s, pano);
+  su_sleep_ms(200);
+  assert_true(su_metric(&s, "gi_workers_busy", NULL) == 1);
+  close(fd);
+  double free_ms = wait_workers_free(&s, 10000);
+  printf("  panorama on a cached cascade: %.0f ms whole; client gone after 200 ms: worker free %.0f ms later\n", ms,
+         free_ms);
+  assert_true(ms > 200 + FREE_WITHIN_MS + 500); /* else the test proves nothing */
+  assert_true(free_ms >= 0 && free_ms < FREE_WITHIN_MS);
+  assert_true(su_metric(&s, "gi_bakes_in_flight", NULL) == 0);
+  cheap_answered(&s);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* ---- 6. memory budget and encoded bytes ---------------------------------------------- */
 
 /* Bytes a res=64 levels=6 bake is admitted for: the bound of
@@ -1416,6 +1446,7 @@ int main(void) {
       cmocka_unit_test(test_coalesced_and_deadline),
       cmocka_unit_test(test_coalesced_without_queue),
       cmocka_unit_test(test_probes_and_lightmap_cancelled),
+      cmocka_unit_test(test_panorama_cancelled),
   };
   /* One test by name while working on it: GI_TEST_FILTER=test_name. */
   if (getenv("GI_TEST_FILTER")) cmocka_set_test_filter(getenv("GI_TEST_FILTER"));

@@ -1,4 +1,4 @@
-/* test_cancel.c: the cancel token through the bake and the gather.
+/* test_cancel.c: the cancel token through the bake, the gather and the panorama.
  *
  * A costly city bake (minutes when left alone) is stopped from another
  * thread and by a deadline, and must return GI_ERR_CANCELLED within a
@@ -121,6 +121,38 @@ static void deadline_after(const gi_quality *q, double ahead_ms) {
   assert_true(j.end_ms - t0 < ahead_ms + STOP_WITHIN_MS);
 }
 
+/* A panorama of about a second (the largest the server allows, the finest step)
+ * stops within a row's time of its deadline. */
+static void test_panorama_deadline(void **state) {
+  double at[3];
+  gi_scene *s = city(at);
+  gi_quality q = {0};
+  q.res = 32;
+  q.levels = 8;
+  q.step = 0.05f;
+  q.threads = 2;
+  gi_cascade *cas = NULL;
+  gi_error_info err = {0};
+  if (gi_cascade_bake(s, at, &q, &cas, NULL, &err) != GI_OK) fail_msg("bake: %s", err.msg);
+  enum { PW = 1024, PH = 1024 };
+  float *d = malloc(3 * sizeof(float) * PW * PH), *ind = malloc(3 * sizeof(float) * PW * PH);
+  assert_true(d && ind);
+  gi_cancel *c = gi_cancel_new();
+  double t0 = gi_now_ms();
+  gi_cancel_set_deadline(c, t0 + DEADLINE_MS);
+  gi_result rc = gi_cascade_panorama_ex(cas, at, PW, PH, c, d, ind, NULL, &err);
+  double ms = gi_now_ms() - t0;
+  printf("  panorama %dx%d: stopped %.0f ms after its start (deadline %.0f ms)\n", PW, PH, ms, DEADLINE_MS);
+  assert_int_equal(rc, GI_ERR_CANCELLED);
+  assert_non_null(strstr(err.msg, "panorama: stopped because the deadline passed"));
+  assert_true(ms >= DEADLINE_MS && ms < DEADLINE_MS + STOP_WITHIN_MS);
+  gi_cancel_free(c);
+  free(d);
+  free(ind);
+  gi_cascade_free(cas);
+  gi_scene_release(s);
+}
+
 static void test_deadline(void **state) {
   deadline_after(&(gi_quality){0}, DEADLINE_MS);
   /* Fewer, smaller levels: voxelized in a fraction of the time, so the
@@ -192,6 +224,18 @@ static void test_unfired_is_identical(void **state) {
   gi_cancel_set(c);
   assert_int_equal(gi_cascade_gather_ex(b, pts, NP, c, pb, NULL, &err), GI_ERR_CANCELLED);
   assert_non_null(strstr(err.msg, "gather"));
+  /* The panorama likewise (it took no token: a hung-up client's ran to its end). */
+  enum { PW = 64, PH = 32, PN = 3 * PW * PH };
+  static float da[PN], ia[PN], db[PN], ib[PN];
+  gi_cancel *fresh = gi_cancel_new();
+  gi_cancel_set_deadline(fresh, gi_now_ms() + 3600e3);
+  assert_int_equal(gi_cascade_panorama(a, at, PW, PH, da, ia, NULL, &err), GI_OK);
+  assert_int_equal(gi_cascade_panorama_ex(b, at, PW, PH, fresh, db, ib, NULL, &err), GI_OK);
+  assert_memory_equal(da, db, sizeof da);
+  assert_memory_equal(ia, ib, sizeof ia);
+  assert_int_equal(gi_cascade_panorama_ex(b, at, PW, PH, c, db, ib, NULL, &err), GI_ERR_CANCELLED);
+  assert_non_null(strstr(err.msg, "panorama: stopped because the caller cancelled"));
+  gi_cancel_free(fresh);
   gi_cascade_free(a);
   gi_cascade_free(b);
   gi_cancel_free(c);
@@ -204,6 +248,7 @@ int main(void) {
       cmocka_unit_test(test_unfired_is_identical),
       cmocka_unit_test(test_cancel_from_another_thread),
       cmocka_unit_test(test_deadline),
+      cmocka_unit_test(test_panorama_deadline),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

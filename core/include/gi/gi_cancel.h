@@ -1,8 +1,9 @@
 /* gi_cancel.h: stop a bake or a gather early.
  *
  * A gi_cancel is a token the caller creates and hands to
- * gi_cascade_bake_ex or gi_cascade_gather_ex. The call checks it between
- * chunks of work (voxel slabs, voxel batches, probe batches) and returns
+ * gi_cascade_bake_ex, gi_cascade_gather_ex or gi_cascade_panorama_ex. The
+ * call checks it between chunks of work (voxel slabs, voxel batches, probe
+ * batches, panorama rows) and returns
  * GI_ERR_CANCELLED soon after it is set or its deadline passes (a chunk
  * takes milliseconds). A cancelled call leaves no output and leaks nothing.
  *

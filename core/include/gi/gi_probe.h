@@ -61,6 +61,11 @@ void gi_sh_eval_irradiance(const float sh[9][3], const float n[3], float out[3])
  * Thread-safe on a baked cascade. */
 gi_result gi_cascade_panorama(const gi_cascade *c, const double at[3], int w, int h, float *direct,
                               float *indirect, double *ms, gi_error_info *err);
+/* As gi_cascade_panorama, checking `cancel` (may be NULL; gi_cancel.h)
+ * between rows: GI_ERR_CANCELLED once it fires (direct and indirect are
+ * then partly written). */
+gi_result gi_cascade_panorama_ex(const gi_cascade *c, const double at[3], int w, int h, const gi_cancel *cancel,
+                                 float *direct, float *indirect, double *ms, gi_error_info *err);
 
 #ifdef __cplusplus
 }

@@ -93,6 +93,11 @@ static void pano_rows(void *p, size_t b, size_t e, int worker) {
 
 gi_result gi_cascade_panorama(const gi_cascade *c, const double at[3], int w, int h, float *direct,
                               float *indirect, double *ms, gi_error_info *err) {
+  return gi_cascade_panorama_ex(c, at, w, h, NULL, direct, indirect, ms, err);
+}
+
+gi_result gi_cascade_panorama_ex(const gi_cascade *c, const double at[3], int w, int h, const gi_cancel *cancel,
+                                 float *direct, float *indirect, double *ms, gi_error_info *err) {
   if (!c || !at || !direct || !indirect)
     return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: %s is NULL",
                     !c ? "cascade" : !at ? "viewpoint" : !direct ? "direct" : "indirect");
@@ -109,7 +114,9 @@ gi_result gi_cascade_panorama(const gi_cascade *c, const double at[3], int w, in
   pano_ctx pc = {.c = c, .at = p, .w = w, .h = h, .direct = direct, .indirect = indirect,
                  .near = gi__near_surface(c, p)};
   if (gi__answer_sky(c->scene, &c->report)) gi__sky_radiance(c->scene, pc.sky);
-  gi__parallel_for((size_t)h, 1, c->report.quality.threads, pano_rows, &pc);
+  /* Checked between rows: a row of the largest panorama is a few ms of cones. */
+  if (gi__parallel_for_cancel((size_t)h, 1, c->report.quality.threads, pano_rows, &pc, NULL, cancel))
+    return gi__cancel_fail(cancel, err, "panorama");
   if (ms) *ms = gi__now_ms() - t0;
   return GI_OK;
 }
