@@ -21,7 +21,9 @@
  * bytes stay within the budget, after evicting unheld entries; otherwise
  * the caller answers 503 (GI_ERR_NOMEM) with Retry-After. Jobs' private
  * bakes reserve through gs_cache_reserve, so they count too. Encoded VDB
- * bytes are kept with their cascade and counted in its bytes. The table
+ * bytes are kept with their cascade and counted in its bytes; other
+ * answers' bytes count as being sent (gs_cache_admit_sending) until their
+ * client has read them. The table
  * is a list in LRU order: it holds at most a few
  * hundred cascades, so a scan costs microseconds next to a gather. */
 #define _POSIX_C_SOURCE 200809L
@@ -60,6 +62,7 @@ struct gs_cache {
   size_t bytes, entries, budget;
   size_t inflight;        /* estimates of the bakes admitted and not yet finished */
   size_t held;            /* sessions' cascades (session.c), for their lives */
+  size_t sending;         /* answers' encoded bytes until their clients have them (gs_cache_admit_sending) */
   gs_metrics *metrics;
 };
 
@@ -104,7 +107,9 @@ static void free_entry(gs_entry *e) {
 }
 
 /* Room left for `extra` more bytes: cached + in-flight + extra within the budget. */
-static int fits(const gs_cache *c, size_t extra) { return c->bytes + c->inflight + c->held + extra <= c->budget; }
+static int fits(const gs_cache *c, size_t extra) {
+  return c->bytes + c->inflight + c->held + c->sending + extra <= c->budget;
+}
 
 /* Evicts unheld READY entries from the LRU end until extra bytes fit. Locked. */
 static void evict(gs_cache *c, size_t extra) {
@@ -164,8 +169,8 @@ static gi_result admit(gs_cache *c, size_t need, gi_error_info *err) {
     if (err)
       snprintf(err->msg, sizeof err->msg,
                "busy: the memory budget is taken (%zu MiB cached, %zu MiB baking, %zu MiB held by sessions, "
-               "this bake needs %zu MiB); retry later",
-               c->bytes >> 20, c->inflight >> 20, c->held >> 20, need >> 20);
+               "%zu MiB of answers being sent, this needs %zu MiB); retry later",
+               c->bytes >> 20, c->inflight >> 20, c->held >> 20, c->sending >> 20, need >> 20);
     return GI_ERR_NOMEM;
   }
   c->inflight += need;
@@ -213,6 +218,33 @@ void gs_cache_unhold(gs_cache *c, size_t need) {
 size_t gs_cache_inflight(gs_cache *c) {
   pthread_mutex_lock(&c->mu);
   size_t n = c->inflight;
+  pthread_mutex_unlock(&c->mu);
+  return n;
+}
+
+gi_result gs_cache_admit_sending(gs_cache *c, gs_blob *b, gi_error_info *err) {
+  if (c->budget == 0) return GI_OK; /* no bound: nothing counted */
+  pthread_mutex_lock(&c->mu);
+  gi_result rc = admit(c, b->size, err);
+  if (rc == GI_OK) {
+    c->inflight -= b->size; /* admitted as a bake, counted apart */
+    c->sending += b->size;
+    b->sending = c;
+  }
+  pthread_mutex_unlock(&c->mu);
+  return rc;
+}
+
+void gs_cache_unsend(gs_cache *c, size_t bytes) {
+  pthread_mutex_lock(&c->mu);
+  c->sending -= bytes;
+  pthread_cond_broadcast(&c->done);
+  pthread_mutex_unlock(&c->mu);
+}
+
+size_t gs_cache_sending(gs_cache *c) {
+  pthread_mutex_lock(&c->mu);
+  size_t n = c->sending;
   pthread_mutex_unlock(&c->mu);
   return n;
 }

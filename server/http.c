@@ -634,6 +634,7 @@ static void metrics(gs_service *svc, gs_answer *a) {
   gs_cache_stats(svc->cache, &g.cache_bytes, &g.cache_entries);
   g.cache_budget = svc->cfg->cache_bytes;
   g.inflight_bytes = gs_cache_inflight(svc->cache);
+  g.sending_bytes = gs_cache_sending(svc->cache);
   gs_pool_stats(svc->pool, &g.queue_depth, &g.queue_capacity, &g.workers_busy);
   gs_jobs_count(svc->jobs, g.jobs);
   g.uptime_s = (gs_now_ms() - svc->start_ms) * 1e-3;

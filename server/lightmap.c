@@ -91,13 +91,7 @@ static gi_result encode(gs_service *svc, const gi_lightmap *lm, gs_endpoint ep, 
   gs_tmp_path(svc, ep == GS_EP_LIGHTMAP_UV ? ".glb" : ".exr", path, sizeof path);
   gi_result rc = ep == GS_EP_LIGHTMAP_UV ? gi_lightmap_write_gltf(lm, path, e) : gi_lightmap_write_exr(lm, path, half, e);
   if (rc != GI_OK) return rc;
-  gs_blob *blob = gs_blob_take_file(path, e);
-  if (!blob) return GI_ERR_IO;
-  a->status = 200;
-  a->blob = blob;
-  a->size = blob->size;
-  a->content_type = ep == GS_EP_LIGHTMAP_UV ? "model/gltf-binary" : "image/x-exr";
-  return GI_OK;
+  return gs_answer_take_file(svc, a, path, ep == GS_EP_LIGHTMAP_UV ? "model/gltf-binary" : "image/x-exr", e);
 }
 
 void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,

@@ -150,10 +150,12 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
               atomic_load(&m->rejected));
   put_counter(&b, "gi_timeouts_total", "Requests answered 504 at their deadline.", atomic_load(&m->timeouts));
   put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades and their encoded VDBs.", (double)g->cache_bytes);
-  put_gauge(&b, "gi_cache_budget_bytes", "The configured memory budget: cached plus in-flight bytes.",
+  put_gauge(&b, "gi_cache_budget_bytes", "The configured memory budget: cached, in-flight, held and sending bytes.",
             (double)g->cache_budget);
   put_gauge(&b, "gi_inflight_bytes", "Estimated bytes of the bakes running now (cache misses and jobs).",
             (double)g->inflight_bytes);
+  put_gauge(&b, "gi_sending_bytes", "Bytes of encoded answers (EXR, glTF) held until their clients have read them.",
+            (double)g->sending_bytes);
   put_gauge(&b, "gi_cache_entries", "Cascades in the cache (baking or ready).", (double)g->cache_entries);
   put_gauge(&b, "gi_queue_depth", "Requests waiting for a bake worker.", (double)g->queue_depth);
   put_gauge(&b, "gi_queue_capacity", "Requests that may wait before 503.", (double)g->queue_capacity);

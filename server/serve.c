@@ -3,7 +3,8 @@
  * The core's writers write to a path: each answer is encoded into the
  * private work folder, read back into a reference-counted blob and
  * unlinked at once, so nothing stays on disk and no descriptor stays open
- * whatever the client does. A cascade's VDB is kept with it in the cache
+ * whatever the client does; the blob counts in the memory budget until
+ * the client has read it. A cascade's VDB is kept with it in the cache
  * (counted in the budget): a second request for the same cell streams the
  * same bytes without encoding. EXR answers are not kept (a cell's answer
  * is cached in front, by nginx: canonical.c).
@@ -60,7 +61,9 @@ int gs_status_of(gi_result rc) {
 void gs_blob_retain(gs_blob *b) { atomic_fetch_add(&b->refs, 1); }
 
 void gs_blob_release(gs_blob *b) {
-  if (b && atomic_fetch_sub(&b->refs, 1) == 1) free(b);
+  if (!b || atomic_fetch_sub(&b->refs, 1) != 1) return;
+  if (b->sending) gs_cache_unsend(b->sending, b->size);
+  free(b);
 }
 
 void gs_blob_release_data(void *data) {
@@ -73,6 +76,7 @@ gs_blob *gs_blob_take_file(const char *path, gi_error_info *err) {
   gs_blob *b = NULL;
   if (fd >= 0 && fstat(fd, &st) == 0 && (b = malloc(sizeof *b + (size_t)st.st_size + 1))) {
     atomic_init(&b->refs, 1);
+    b->sending = NULL;
     b->size = (size_t)st.st_size;
     size_t got = 0;
     while (got < b->size) {
@@ -136,10 +140,17 @@ void gs_answer_core_error(gs_answer *a, gi_result rc, const gi_error_info *e) {
   gs_answer_error(a, &pe);
 }
 
-/* Reads the finished file into memory (unlinking it) and makes it the answer. */
-static gi_result take_file(gs_answer *a, const char *path, const char *type, gi_error_info *e) {
+gi_result gs_answer_take_file(gs_service *svc, gs_answer *a, const char *path, const char *type, gi_error_info *e) {
   gs_blob *b = gs_blob_take_file(path, e);
   if (!b) return GI_ERR_IO;
+  /* Its bytes live until the client has read them (a slow reader: minutes):
+   * they count in the budget meanwhile, or thirty slow readers of a 13 MB
+   * panorama held 470 MB outside it. */
+  gi_result rc = gs_cache_admit_sending(svc->cache, b, e);
+  if (rc != GI_OK) {
+    gs_blob_release(b);
+    return rc;
+  }
   a->status = 200;
   a->blob = b;
   a->size = b->size;
@@ -235,7 +246,7 @@ gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascad
       rc = gi_panorama_write_exr(path, b->width, b->height, dir, ind, s->scene, b->at, rep, b->half, extra,
                                  answer_extras(b), e);
       ms->encode = gs_now_ms() - t0;
-      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", e);
+      if (rc == GI_OK) rc = gs_answer_take_file(svc, a, path, "image/x-exr", e);
     }
     free(dir);
     free(ind);
@@ -249,7 +260,7 @@ gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascad
       t0 = gs_now_ms();
       rc = gi_probes_write_exr_ex(path, &pr, 1, s->scene, b->at, rep, b->half, extra, answer_extras(b), e);
       ms->encode = gs_now_ms() - t0;
-      if (rc == GI_OK) rc = take_file(a, path, "image/x-exr", e);
+      if (rc == GI_OK) rc = gs_answer_take_file(svc, a, path, "image/x-exr", e);
     }
   }
   if (rc == GI_OK) finish_headers(a, rep, ms, cache, t_start_ms);
@@ -585,7 +596,7 @@ void gs_serve_probes(gs_service *svc, const gs_scene *s, gi_proto_probes *p, dou
     const double *vp = tiles[0].at; /* 'at' itself when given */
     rc = gi_probes_write_exr_ex(path, pr, p->num_points, s->scene, vp, &rep, p->bake.half, extra, 3, &e);
     ms.encode = gs_now_ms() - t0;
-    if (rc == GI_OK && (rc = take_file(a, path, "image/x-exr", &e)) == GI_OK)
+    if (rc == GI_OK && (rc = gs_answer_take_file(svc, a, path, "image/x-exr", &e)) == GI_OK)
       finish_headers(a, &rep, &ms, cache_names[how], t_start_ms);
   }
   if (rc != GI_OK) gs_answer_core_error(a, rc, &e);

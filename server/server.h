@@ -120,7 +120,7 @@ typedef enum { GS_SESSION_CREATED, GS_SESSION_EXPIRED, GS_SESSION_DELETED, GS_SE
 void gs_metrics_session(gs_metrics *m, gs_session_event ev);
 /* Gauges read at scrape time. */
 typedef struct gs_gauges {
-  size_t cache_bytes, cache_entries, cache_budget, inflight_bytes;
+  size_t cache_bytes, cache_entries, cache_budget, inflight_bytes, sending_bytes;
   int queue_depth, queue_capacity, workers_busy;
   int jobs[GI_JOB_STATE_COUNT];  /* by gi_proto_job_state */
   double uptime_s;
@@ -136,12 +136,15 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g);
 /* Reference-counted bytes: the cache holds one reference, each answer
  * streaming them another, so a VDB is encoded once and a client that never
  * reads holds no copy and no file. */
+struct gs_cache;
 typedef struct gs_blob {
   atomic_int refs;
+  struct gs_cache *sending; /* counts size in this budget's bytes being sent until freed, or NULL */
   size_t size;
   unsigned char data[];
 } gs_blob;
-/* Reads path into a new blob (one reference) and unlinks the file; NULL with err on failure. */
+/* Reads path into a new blob (one reference, not counted in any budget)
+ * and unlinks the file; NULL with err on failure. */
 gs_blob *gs_blob_take_file(const char *path, gi_error_info *err);
 void gs_blob_retain(gs_blob *b);
 void gs_blob_release(gs_blob *b); /* accepts NULL */
@@ -225,6 +228,14 @@ gi_result gs_cache_hold(gs_cache *c, size_t need, gi_error_info *err);
 void gs_cache_unhold(gs_cache *c, size_t need);
 /* In-flight bytes: the estimates of admitted bakes still running (gauge). */
 size_t gs_cache_inflight(gs_cache *c);
+/* An answer's encoded bytes (a blob no one else holds yet) admitted in the
+ * budget as a bake is, evicting unheld entries first, and counted as being
+ * sent until the blob's last reference goes (gs_blob_release).
+ * GI_ERR_NOMEM (503) when they do not fit now, GI_ERR_LIMIT when never. */
+gi_result gs_cache_admit_sending(gs_cache *c, gs_blob *b, gi_error_info *err);
+/* Bytes of answers being sent (gauge), and their release (gs_blob_release). */
+size_t gs_cache_sending(gs_cache *c);
+void gs_cache_unsend(gs_cache *c, size_t bytes);
 /* The entry's encoded answer of a kind, with a reference for the caller, or NULL. */
 gs_blob *gs_cache_encoded(gs_cache *c, gs_entry *e, int kind);
 /* Keeps b (takes the caller's reference) as the entry's encoded answer,
@@ -351,6 +362,10 @@ gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascad
                              const gi_cancel *cancel, const char *cache, gi_timings *ms, double t_start_ms,
                              gs_answer *a, gi_error_info *e);
 void gs_answer_free(gs_answer *a);
+/* Reads the encoded file at path into the answer (200, type), unlinking
+ * it; its bytes are admitted in the budget while they are sent
+ * (gs_cache_admit_sending: GI_ERR_NOMEM when they do not fit). */
+gi_result gs_answer_take_file(gs_service *svc, gs_answer *a, const char *path, const char *type, gi_error_info *e);
 
 /* gs_cache_join_running for the cached bake gs_serve_bake would make or
  * wait for (lighting other than lightmaps, cascades); 0 for any other

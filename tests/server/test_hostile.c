@@ -1351,6 +1351,62 @@ static int open_files(pid_t pid, int *total) {
 #define VDB_PATH "/v1/scenes/city/cascades.vdb?at=2.1,1.7,1.4&redirect=0&levels=6&res=32"
 #define SILENT_CLIENTS 200
 #define CLIENTS_PER_ADDRESS 15 /* under max_connections_per_ip = 16 */
+/* Reads an answer's status line and headers (up to the blank line) within ms. */
+static void read_head(int fd, char *buf, size_t size, int ms) {
+  size_t n = 0;
+  double end = su_now_ms() + ms;
+  buf[0] = 0;
+  while (n + 1 < size && !strstr(buf, "\r\n\r\n") && su_now_ms() < end) {
+    struct pollfd p = {.fd = fd, .events = POLLIN};
+    if (poll(&p, 1, 50) <= 0) continue;
+    ssize_t k = recv(fd, buf + n, size - 1 - n, 0);
+    if (k <= 0) break;
+    n += (size_t)k;
+    buf[n] = 0;
+  }
+}
+
+/* Slow readers of one large answer (a 1024^2 panorama: 13 MB of EXR):
+ * each encoded its own copy and held it until its client had read it (or
+ * the 60 s idle timeout), outside the budget: thirty of them took RSS from
+ * 54 to 520 MB with cache_mb = 64 and gi_inflight_bytes 0. The bytes being
+ * sent now count in the budget (gi_sending_bytes): a new answer that would
+ * pass it is a 503 with Retry-After, and they return when the clients go. */
+#define SENDING_BUDGET_MB 64
+static void test_slow_readers_in_budget(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "slow-readers", HOSTILE_INI_WORK("workers = 2\nqueue = 8\nbake_threads = 1\n",
+                                                                 "[limits]\ncache_mb = 64\n")), 0);
+  const char *pano = "/v1/scenes/city/lighting?at=10,2,10&redirect=0&quality=low&kind=panorama&width=1024&height=1024";
+  enum { N = 12 };
+  int fds[N], n = 0, ok = 0, busy = 0;
+  double budget = SENDING_BUDGET_MB * 1048576.0, sending = 0;
+  char head[4096];
+  while (n < N && !busy) {
+    int fd = send_get(&s, pano);
+    fds[n++] = fd;
+    int small = 4096;
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    read_head(fd, head, sizeof head, 30000);
+    sending = su_metric(&s, "gi_sending_bytes", NULL);
+    printf("  reader %d: %.12s, %.1f MB being sent\n", n, head, sending / 1e6);
+    if (!strncmp(head, "HTTP/1.1 200", 12)) ok++;
+    else if (!strncmp(head, "HTTP/1.1 503", 12) && strstr(head, "\r\nRetry-After: 1\r\n")) busy++;
+    else fail_msg("reader %d: %s", n, head);
+    assert_true(sending <= budget);
+  }
+  assert_int_equal(busy, 1);
+  assert_true(ok >= 2);
+  assert_true(sending >= ok * 10e6); /* each reader's EXR, held while it does not read */
+  for (int i = 0; i < n; i++) close(fds[i]);
+  double t0 = su_now_ms();
+  while (su_now_ms() - t0 < 10000 && su_metric(&s, "gi_sending_bytes", NULL) > 0) su_sleep_ms(20);
+  printf("  %d readers held, the next a 503; all bytes returned %.0f ms after they left\n", ok, su_now_ms() - t0);
+  assert_true(su_metric(&s, "gi_sending_bytes", NULL) == 0);
+  cheap_answered(&s);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 /* libmicrohttpd's memory per connection (http.c), the per-connection part of RSS_SLACK_MB. */
 #define CONNECTION_MB 0.25
 
@@ -1441,6 +1497,7 @@ int main(void) {
       cmocka_unit_test(test_sigterm_with_running_job),
       cmocka_unit_test(test_memory_budget),
       cmocka_unit_test(test_vdb_from_memory),
+      cmocka_unit_test(test_slow_readers_in_budget),
       cmocka_unit_test(test_second_signal_and_grace),
       cmocka_unit_test(test_hangups_cancel_bakes),
       cmocka_unit_test(test_coalesced_and_deadline),
