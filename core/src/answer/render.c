@@ -126,9 +126,13 @@ static int primary_hit(const render_ctx *rc, int px, int py, float w[3], float x
 }
 
 /* Direct irradiance at surface point x (normal n) of pixel (px, py) from
- * the lights of plan lp, by shadow rays (seeded by the pixel). */
+ * the lights of plan lp, by shadow rays (seeded by the pixel). With a
+ * glossy lobe (r: its mirror direction, ns its exponent; r NULL: none),
+ * H receives what the lobe reflects of the sun, point and spot lights,
+ * sum V p(w) over those seen: no cone or lobe sample can meet a light of
+ * no area, and a glossy floor under a lamp showed no highlight. */
 static void direct_light(const render_ctx *rc, const gi_light_plan *lp, int px, int py, const float x[3],
-                         const float n[3], gi_ray_scratch *sc, float E[3]) {
+                         const float n[3], const float *r, double ns, gi_ray_scratch *sc, float E[3], float H[3]) {
   const struct gi_cascade *c = rc->c;
   const gi_scene *s = c->scene;
   gi_lsample *ls = sc->ls;
@@ -139,10 +143,15 @@ static void direct_light(const render_ctx *rc, const gi_light_plan *lp, int px, 
     if (gi__dot(n, ls[i].w) > 0) ls[k++] = ls[i];
   gi__shadow_rays(s, x, n, gi__voxel_at(c, x), ls, k, sc);
   E[0] = E[1] = E[2] = 0;
+  H[0] = H[1] = H[2] = 0;
   for (int i = 0; i < k; i++)
     if (sc->vis[i]) {
       float cn = gi__dot(n, ls[i].w);
       for (int a = 0; a < 3; a++) E[a] += ls[i].V[a] * cn;
+      if (r && (ls[i].fx == GI_FX_SUN || ls[i].fx == GI_FX_LOCAL)) {
+        float p = gi__phong_lobe(ns, gi__dot(r, ls[i].w));
+        for (int a = 0; a < 3; a++) H[a] += ls[i].V[a] * p;
+      }
     }
 }
 
@@ -192,7 +201,8 @@ static void anchor_rows(void *p, size_t b, size_t e, int worker) {
       if (!primary_hit(rc, px, py, w, an->x, an->n, ng, &tri)) continue;
       int d = gi__finest_level_at(rc->c, an->x);
       if (d < 0) continue;
-      if (rc->mix_sampled) direct_light(rc, &lp, px, py, an->x, an->n, &sc, an->Es);
+      float H[3]; /* no lobe: the anchors hold diffuse light only */
+      if (rc->mix_sampled) direct_light(rc, &lp, px, py, an->x, an->n, NULL, 0, &sc, an->Es, H);
       gb.req[gb.n] = gi__gather_req(an->x, an->n, GI_GATHER_SURFACE, d);
       who[gb.n++] = an;
       if (gb.n == GATHER_BATCH) anchor_flush(rc, &gb, who, &cones);
@@ -234,6 +244,7 @@ typedef struct {
   const gi_material *m;
   float albedo[3];              /* the hit triangle's (gi__tri_albedo) */
   float x[3], n[3], w[3], E[3]; /* E: the direct irradiance */
+  float H[3];    /* the glossy lobe's share of the sun, point and spot lights (direct_light) */
   int d;
   uint64_t seed; /* the pixel's own: its specular emitter rays */
 } pending_px;
@@ -245,14 +256,16 @@ static void finish_pixel(const render_ctx *rc, const pending_px *pp, uint64_t co
   float *out = pp->out;
   for (int a = 0; a < 3; a++) out[a] += pp->albedo[a] * (1.f / GI_PI_F) * pp->E[a];
   int glossy = gi__gloss(m) > 0;
+  float S[3] = {pp->H[0], pp->H[1], pp->H[2]};
   if (pp->d >= 0 && (rc->spec == SPEC_ALL || (rc->spec == SPEC_GLOSSY && glossy))) {
     gi_cone_out co;
     gi__specular_trace(rc->c, pp->x, pp->n, pp->w, m->roughness, pp->seed, &co);
     cones[1]++;
-    for (int a = 0; a < 3; a++) out[a] += m->specular * co.L[a];
-    if (pp->spec)
-      for (int a = 0; a < 3; a++) pp->spec[a] = m->specular * co.L[a];
+    for (int a = 0; a < 3; a++) S[a] += co.L[a];
   }
+  for (int a = 0; a < 3; a++) out[a] += m->specular * S[a];
+  if (pp->spec)
+    for (int a = 0; a < 3; a++) pp->spec[a] = m->specular * S[a];
 }
 
 /* Shades pixel (px, py) into out (and spec); returns 1, with *pp filled
@@ -287,7 +300,15 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   gi_light_plan lp = gi__answer_light_plan(c->scene, &c->report, rc->samples);
   /* A mixed pixel samples only the sharp lights (sun, point, spot) itself. */
   if (mixed && rc->mix_sampled) lp.sky = lp.emissive = 0;
-  direct_light(rc, &lp, px, py, x, n, sc, E);
+  /* The lobe the reference path-traces (gi__gloss > 0), where the specular pass runs. */
+  float r[3];
+  double ns = 0;
+  int lobe = rc->spec != SPEC_NONE && gi__gloss(m) > 0 && isfinite(ns = gi__gloss_exponent(m));
+  if (lobe) {
+    float dn = gi__dot(pp->w, n);
+    for (int a = 0; a < 3; a++) r[a] = pp->w[a] - 2 * dn * n[a];
+  }
+  direct_light(rc, &lp, px, py, x, n, lobe ? r : NULL, ns, sc, E, pp->H);
   for (int a = 0; a < 3; a++) E[a] += Es[a];
   if (d >= 0 && c->report.bounces_run > 0) {
     if (!mixed) return 1;

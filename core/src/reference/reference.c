@@ -70,8 +70,6 @@
 
 #define CHUNK 64
 #define MAX_DEPTH_HARD 256 /* unbounded paths stop here; a^256 is nothing for any a < 0.97 */
-/* Roughness^2 below this is a perfect mirror (the exponent would overflow). */
-#define MIRROR_A 1e-4
 /* Russian roulette keeps a path with at most this probability. */
 #define RR_MAX_KEEP 0.95f
 /* Stream keys: probes and pixels draw from disjoint families of streams. */
@@ -129,11 +127,7 @@ static int emitted_full(const ref_lights *L, uint32_t tri, const float ng[3], co
  * cone tracer's aperture stands for (a = roughness^2, ns = 2 / a^2 - 2), or
  * 0 when the material is not glossy (roughness < 0.5 and specular > 0 is
  * glossy, as for the cone tracer). INFINITY is a perfect mirror. */
-static double glossy_exponent(const gi_material *m) {
-  if (!(gi__gloss(m) > 0)) return 0;
-  double a = (double)m->roughness * m->roughness;
-  return a < MIRROR_A ? INFINITY : 2.0 / (a * a) - 2.0;
-}
+static double glossy_exponent(const gi_material *m) { return gi__gloss_exponent(m); }
 
 /* Samples w from p(w) = (ns+1)/(2 pi) cos^ns(angle(w, r)), exactly. */
 static void phong_dir(const float r[3], double ns, ref_rng *rng, float w[3]) {
@@ -264,6 +258,36 @@ static int glossy_vertex(const ref_ctx *rc, const float w[3], const float n[3], 
   return 1;
 }
 
+/* What the glossy lobe (exponent ns, finite; mirror direction of w about
+ * n) at x reflects of the sun, point and spot lights, without `specular`:
+ * sum over the lights seen of E p(w_l) (p the lobe's density). A lobe
+ * sample never meets a light of no area, so a glossy floor showed no
+ * highlight of a lamp. Taken at a path's first vertex only (what the
+ * camera or probe sees, directly or along a lobe): deeper, a diffuse
+ * direction rarely lands in a sharp lobe and each that does carries the
+ * lamp's whole peak, so the light a glossy floor throws on the walls (a
+ * caustic) stays out, as the voxels, which hold a lobe as diffuse light,
+ * leave it out too. */
+static void glossy_delta(const ref_ctx *rc, const float x[3], const float w[3], const float n[3], double ns,
+                         float Ld[3]) {
+  const gi_scene *s = rc->s;
+  float r[3], dn = gi__dot(w, n), o[3];
+  for (int k = 0; k < 3; k++) r[k] = w[k] - 2 * dn * n[k], o[k] = x[k] + rc->L.eps * n[k];
+  float lr = gi__len(r);
+  for (int k = 0; k < 3; k++) r[k] /= lr;
+  for (uint32_t i = 0; i < s->num_lights; i++) {
+    float wl[3], dist, E[3];
+    if (!gi__ref_delta_light(&rc->L, &s->lights[i], x, wl, &dist, E) || !(gi__dot(n, wl) > 0)) continue;
+    float p = gi__phong_lobe(ns, gi__dot(r, wl));
+    if (!(p > 0)) continue;
+    float tn = 0, tf = isinf(dist) ? INFINITY : dist * REF_SHADOW_SHORTEN;
+    uint8_t vis = 0;
+    gi__occluded(s, 1, o, wl, &tn, &tf, &vis);
+    if (vis)
+      for (int k = 0; k < 3; k++) Ld[k] += E[k] * p;
+  }
+}
+
 /* Radiance reflected toward the ray's origin by the surface hit at
  * x (ray direction w, triangle tri, winding normal ng), times T0: the
  * indirect part of one path, whose first vertex here is reflection number
@@ -296,7 +320,15 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     int dcont = !last && d.hit;
     double ns = glossy_exponent(mat);
     int gcont = 0, split = split0 && depth == depth0;
-    float spec = mat->specular, Lg[3] = {0, 0, 0};
+    float spec = mat->specular, Lg[3] = {0, 0, 0}, Ld[3] = {0, 0, 0};
+    if (depth == depth0 && ns > 0 && !isinf(ns)) {
+      glossy_delta(rc, x, w, n, ns, Ld);
+      for (int k = 0; k < 3; k++) {
+        float v = T[k] * spec * Ld[k];
+        L[k] += v;
+        if (split && Ls) Ls[k] += v;
+      }
+    }
     if (ns > 0 && glossy_vertex(rc, w, n, d.o, ns, rng, Lg, &g)) {
       gcont = !last && g.hit;
       for (int k = 0; k < 3; k++) {

@@ -170,6 +170,24 @@ static inline float gi__gloss(const gi_material *m) {
   return m->roughness < GI_GLOSSY_ROUGHNESS && m->specular > 0 ? m->specular : 0.f;
 }
 
+/* Below this Beckmann alpha (roughness^2) a glossy lobe is a mirror. */
+#define GI_MIRROR_ALPHA 1e-4
+/* The Phong exponent ns of m's glossy lobe as every stage models it
+ * (Beckmann alpha = roughness^2, ns = 2 / alpha^2 - 2): 0 without a lobe,
+ * INFINITY for a mirror. */
+static inline double gi__gloss_exponent(const gi_material *m) {
+  if (!(gi__gloss(m) > 0)) return 0;
+  double a = (double)m->roughness * m->roughness;
+  return a < GI_MIRROR_ALPHA ? INFINITY : 2.0 / (a * a) - 2.0;
+}
+/* The lobe's density p(w) = (ns + 1) / (2 pi) cos^ns at cos_r, the cosine
+ * between w and the mirror direction: 0 behind it, and for a mirror (a
+ * light of no area shows in it as a point of no area). */
+static inline float gi__phong_lobe(double ns, float cos_r) {
+  if (!(cos_r > 0) || !(ns > 0) || isinf(ns)) return 0.f;
+  return (float)((ns + 1) / (2 * 3.14159265358979323846) * pow((double)cos_r, ns));
+}
+
 /* Triangle tri's albedo: its own (vertex colours, its part of a texture:
  * gi_mesh_builder_set_vertex_color, _set_triangle_albedo), else its
  * material's. Every stage that reads a triangle's albedo goes through here

@@ -167,6 +167,7 @@ void gi__gather_probe_hemispheres(const struct gi_cascade *c, const gi_gather_re
  * half-width at half maximum of the Phong lobe equivalent to Beckmann
  * alpha = roughness^2 (exponent 2 / alpha^2 - 2), at least 0.5 degree. */
 float gi__specular_tan(float roughness);
+
 /* Radiance arriving along the mirror direction of view v (unit, pointing
  * from the eye to p) about unit normal n, through one cone, plus the sky
  * where the cone escapes and the emitters within it (rays seeded by seed:
