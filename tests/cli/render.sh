@@ -82,6 +82,13 @@ printf 'f 9 12 11\nf 9 11 10\n' >> "$T/closed.obj"
 # That camera stands inside the closed cube: a note says its cone view is leaked light.
 grep -q "gi-bake: note: the camera (0, 2, 0) looks inside a solid (" "$T/err" \
   && pass "a camera inside a solid: noted" || fail "inside-solid camera note: $(cat "$T/err")"
+# A viewpoint inside a solid with --render: the note says the view reads
+# that cascade too (it spoke of the probe alone).
+"$BIN" "$T/closed.obj" --at 0,2,0 --levels 3 --res 16 --render 5,1,5,6,1,6,60,16,16 --png "$T/inside.png" \
+    > /dev/null 2> "$T/err"
+grep -q "the --render view's indirect light comes from a cascade centred there: give --at where the view looks" \
+  "$T/err" && pass "a viewpoint inside a solid with --render: the note names the view" ||
+  fail "viewpoint-inside note with --render: $(cat "$T/err")"
 
 if command -v exrheader > /dev/null 2>&1; then
   exrheader "$T/view.exr" > "$T/hdr" 2>&1
