@@ -512,6 +512,50 @@ static int fold_emissive_strength(json_t *root, const char *path, gi_error_info 
   return changed;
 }
 
+#define KHR_SPECULAR "KHR_materials_specular"
+#define KHR_IOR "KHR_materials_ior"
+
+/* Each material's dielectric reflectance at normal incidence into
+ * out->f0 where KHR_materials_specular or KHR_materials_ior gives it (NAN
+ * where neither does: the core spec's 4%): min(((ior - 1) / (ior + 1))^2
+ * specularColorFactor, 1) specularFactor, the colour by its luminance.
+ * assimp 5.2 reads neither, and Blender writes the specular one for every
+ * Principled Specular other than 0.5: Specular 0 (no reflection in
+ * Cycles) read as a 4% lobe, 5.8x Cycles' floor under a lamp. 0, or -1
+ * with err set on a value out of its range (naming the material). */
+static int read_specular(json_t *root, const char *path, gi__gltf_shift *out, gi_error_info *err) {
+  json_t *mats = json_object_get(root, "materials");
+  size_t n = json_array_size(mats);
+  for (size_t i = 0; i < n; i++) {
+    json_t *ext = json_object_get(json_array_get(mats, i), "extensions");
+    json_t *sp = json_object_get(ext, KHR_SPECULAR), *io = json_object_get(ext, KHR_IOR);
+    if (!sp && !io) continue;
+    char what[64];
+    snprintf(what, sizeof what, "material %zu %s", i, sp ? KHR_SPECULAR : KHR_IOR);
+    double ior = 1.5, f = 1, c[3] = {1, 1, 1};
+    if (member_numbers(io, "ior", &ior, 1, path, what, err) < 0 || member_numbers(sp, "specularFactor", &f, 1, path,
+                                                                                   what, err) < 0 ||
+        member_numbers(sp, "specularColorFactor", c, 3, path, what, err) < 0)
+      return -1;
+    if (!(ior >= 1) || !(f >= 0 && f <= 1) || !(c[0] >= 0 && c[1] >= 0 && c[2] >= 0)) {
+      gi__fail(err, GI_ERR_FORMAT, "scene file '%s': glTF %s: ior must be >= 1, specularFactor in [0, 1] and "
+               "specularColorFactor >= 0", path, what);
+      return -1;
+    }
+    if (!out->f0) {
+      if (!(out->f0 = gi__malloc(n * sizeof *out->f0))) {
+        gi__fail(err, GI_ERR_NOMEM, "scene file '%s': out of memory for material reflectances", path);
+        return -1;
+      }
+      for (size_t k = 0; k < n; k++) out->f0[k] = NAN;
+      out->num_f0 = n;
+    }
+    double r = (ior - 1) / (ior + 1), lum = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    out->f0[i] = (float)(fmin(r * r * lum, 1.0) * f);
+  }
+  return 0;
+}
+
 #define KHR_TEXTURE_TRANSFORM "KHR_texture_transform"
 
 /* Each material's base-colour texture transform into out->uv_tf (see the
@@ -720,7 +764,8 @@ static int order_attribute_sets(json_t *root) {
  * what assimp 5.2 decodes (Draco, through libdraco). Sorted. */
 static const char *const supported_required[] = {
     "EXT_mesh_gpu_instancing", "KHR_draco_mesh_compression", "KHR_lights_punctual",
-    "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_texture_transform"};
+    "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_specular", "KHR_materials_transmission",
+    "KHR_texture_transform"};
 #define NUM_SUPPORTED_REQUIRED (sizeof supported_required / sizeof supported_required[0])
 
 /* extensionsRequired: the spec says a loader that lacks one must fail.
@@ -844,7 +889,7 @@ gi_result gi__gltf_recentre(const char *path, int glb, gi__gltf_shift *out, gi_e
   gi__gltf_bin bin = {.path = path};
   if (glb) glb_bin_chunk(buf, len, json_off + json_len, &bin);
   int folded = check_required(root, path, err) < 0 || check_sparse(root, path, err) < 0 ||
-                       read_uv_transforms(root, path, out, err) < 0
+                       read_uv_transforms(root, path, out, err) < 0 || read_specular(root, path, out, err) < 0
                    ? -1
                    : fold_emissive_strength(root, path, err);
   if (folded >= 0) folded += drop_points_and_lines(root) + order_attribute_sets(root) + expose_extension_images(root);
@@ -870,9 +915,12 @@ void gi__gltf_shift_free(gi__gltf_shift *s) {
   gi__free(s->data);
   gi__free(s->lights);
   gi__free(s->uv_tf);
+  gi__free(s->f0);
   s->data = NULL;
   s->lights = NULL;
   s->uv_tf = NULL;
+  s->f0 = NULL;
+  s->num_f0 = 0;
   s->len = s->num_lights = s->num_uv_tf = 0;
 }
 

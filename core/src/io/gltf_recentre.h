@@ -57,6 +57,11 @@ typedef struct gi__gltf_shift {
    * owned. assimp 5.2 does not apply it to the coordinates. */
   double (*uv_tf)[GI_GLTF_UV_TF];
   size_t num_uv_tf;
+  /* Per glTF material, its dielectric reflectance from KHR_materials_specular
+   * and KHR_materials_ior (NAN: neither given, the core spec's 4%), or NULL
+   * when no material has them; owned. assimp 5.2 reads neither. */
+  float *f0;
+  size_t num_f0;
   int io_oom; /* gi__gltf_open_io's file system ran out of memory */
   char io_err[512]; /* an MTL file it refused (gi__exact_mtl_normalise), or "" */
 } gi__gltf_shift;

@@ -625,7 +625,7 @@ static int collada_diffuse_only(const struct aiMaterial *am, const char *path) {
  * (1 - metallic)); a metal floor of base 0.5 reflected 0.5 twice, an
  * all-metal room 6.6x a diffuse one's light. A rough one (no lobe: every
  * stage drops it, GI_GLOSSY_ROUGHNESS) keeps its base colour as diffuse. */
-static float material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material *m) {
+static float material_lobe(const struct aiMaterial *am, tex_ctx *tc, unsigned index, gi_material *m) {
   float rough = 1.f, metal = 0.f, ns = 0.f, ks[3] = {0, 0, 0};
   int has_rough = get_float(am, AI_MATKEY_ROUGHNESS_FACTOR, &rough);
   int has_metal = get_float(am, AI_MATKEY_METALLIC_FACTOR, &metal);
@@ -653,7 +653,9 @@ static float material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material
     float mt = has_metal ? metal : 0.f;
     if (!(mt >= 0.f)) mt = 0.f;
     if (mt > 1.f) mt = 1.f;
-    m->specular = has_ks ? lum(ks) : 0.04f * (1.f - mt) + mt * lum(m->albedo);
+    /* A glTF dielectric's 4%, or what its KHR_materials_specular / _ior say (gltf_recentre.c). */
+    float f0 = tc->gs && index < tc->gs->num_f0 && !isnan(tc->gs->f0[index]) ? tc->gs->f0[index] : 0.04f;
+    m->specular = has_ks ? lum(ks) : f0 * (1.f - mt) + mt * lum(m->albedo);
     if (!has_ks && rough < GI_GLOSSY_ROUGHNESS) return 1.f - mt;
   } else if (has_ks && obj_by_blender(tc, m->name)) {
     /* Blender's MTL is its Principled material's: Ns = 1000 (1 - roughness)^2
@@ -685,8 +687,8 @@ static float material_lobe(const struct aiMaterial *am, tex_ctx *tc, gi_material
  * times the average of the diffuse (or base-colour) texture when there is
  * one; a texture that cannot be read leaves the factor alone. Fails only
  * when out of memory. */
-static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_material *m, mat_tex *mt,
-                                  gi_error_info *err) {
+static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, unsigned index, gi_material *m,
+                                  mat_tex *mt, gi_error_info *err) {
   memset(m, 0, sizeof *m);
   *mt = (mat_tex){.tex = -1}; /* add_meshes reads its uv set for every material */
   struct aiString name;
@@ -746,7 +748,7 @@ static gi_result convert_material(const struct aiMaterial *am, tex_ctx *tc, gi_m
    * read the file show it. */
   int two = 0;
   if (aiGetMaterialIntegerArray(am, AI_MATKEY_TWOSIDED, &two, NULL) == aiReturn_SUCCESS) m->two_sided = two != 0;
-  float keep = material_lobe(am, tc, m);
+  float keep = material_lobe(am, tc, index, m);
   for (int k = 0; k < 3; k++) m->albedo[k] *= keep, mt->factor[k] *= keep;
   return GI_OK;
 }
@@ -1024,7 +1026,7 @@ static gi_result add_materials(const struct aiScene *as, tex_ctx *tc, gi_mesh_bu
     }
     gi_material m;
     mat_tex mt;
-    gi_result rc = convert_material(as->mMaterials[i], tc, &m, &mt, err);
+    gi_result rc = convert_material(as->mMaterials[i], tc, i, &m, &mt, err);
     if (rc != GI_OK) return rc;
     /* An OBJ's faces before any usemtl (a file with no MTL at all: a scan)
      * take assimp's DefaultMaterial, Kd 0.6: colourless, they take the
