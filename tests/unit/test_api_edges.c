@@ -259,6 +259,19 @@ static void test_plan_viewpoint(void **state) {
   assert_names(&err, "viewpoint");
   assert_int_equal(gi_effect_plan(s, AT, NULL, NULL, NULL, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "out is NULL");
+  /* gi_effect_plan_for: its points may be NULL (n ignored) or not finite
+   * (skipped), as gi_cascade_bake_for's; it is the plan gi_effect_plan
+   * gives where the points add nothing. */
+  const double pts[6] = {1, 1, 1, NAN, 0, 0};
+  gi_effect with[GI_FX_COUNT];
+  gi_quality qa, qb;
+  assert_int_equal(gi_effect_plan_for(NULL, AT, pts, 2, NULL, fx, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "scene is NULL");
+  assert_int_equal(gi_effect_plan_for(s, AT, NULL, 5, NULL, with, &qa, &err), GI_OK);
+  assert_int_equal(gi_effect_plan_for(s, AT, pts, 2, NULL, with, &qa, &err), GI_OK);
+  assert_int_equal(gi_effect_plan(s, AT, NULL, fx, &qb, &err), GI_OK);
+  assert_int_equal(qa.bounces, qb.bounces);
+  assert_int_equal(gi_effect_plan_for(s, bad, pts, 2, NULL, with, NULL, &err), GI_ERR_NONFINITE);
   gi_quality q;
   assert_int_equal(gi_quality_resolve(NULL, NULL, &q, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "scene is NULL");
