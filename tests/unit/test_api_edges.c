@@ -15,7 +15,7 @@
 
 static gi_scene *room(void) {
   gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {{0.7f, 0.7f, 0.7f}, {0}, 1, 0, "white", 0};
+  gi_material m = {{0.7f, 0.7f, 0.7f}, {0}, 1, 0, "white", 0, {0}};
   uint32_t mi = gi_mesh_builder_add_material(b, &m);
   const double lo[3] = {-1, 0, -1}, hi[3] = {1, 2, 1};
   gi_mesh_builder_add_box(b, lo, hi, mi);
@@ -283,7 +283,7 @@ static void test_plan_viewpoint(void **state) {
  * (x = 0). */
 static gi_lightmap *strip_lightmap(gi_scene **s, double tile) {
   gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {{0.6f, 0.6f, 0.6f}, {0}, 1, 0, "floor", 0};
+  gi_material m = {{0.6f, 0.6f, 0.6f}, {0}, 1, 0, "floor", 0, {0}};
   uint32_t mi = gi_mesh_builder_add_material(b, &m);
   for (int i = -10; i < 10; i++) {
     const double a[3] = {i, 0, 1}, c[3] = {i + 1, 0, 1}, d[3] = {i + 1, 0, -1}, e[3] = {i, 0, -1};

@@ -2556,9 +2556,10 @@ static void test_fbx_materials(void **state) {
     const char *path;
     double rough, spec;
   } c[3] = {{fbx_material("bdiel.fbx", blender, 0), 0.2, 0.04},
-            /* a glossy metal: the base colour's luminance is its lobe, and it has no diffuse part (the
-             * base colour was both, 0.6 + lobe, then scaled down to 1 in all: lum / (0.6 + lum)) */
-            {fbx_material("bmetal.fbx", blender, 1), 0.2, lum},
+            /* a glossy metal: the base colour (0.6, 0.5, 0.4) is its lobe, `specular` its brightest
+             * channel, and it has no diffuse part (the base colour was both, 0.6 + lobe, then scaled
+             * down to 1 in all: lum / (0.6 + lum); then the lobe was grey, its luminance) */
+            {fbx_material("bmetal.fbx", blender, 1), 0.2, 0.6},
             {fbx_material("maya.fbx", maya, 0), sqrt(2.0 / 66.0), lum * 8.0 / 72.0}};
   for (int i = 0; i < 3; i++) {
     gi_scene *s = load_ok(c[i].path, NULL);
@@ -2567,7 +2568,14 @@ static void test_fbx_materials(void **state) {
            c[i].spec);
     assert_float_equal(m->roughness, c[i].rough, 1e-4);
     assert_float_equal(m->specular, c[i].spec, 2e-3);
-    if (i == 1) assert_true(m->albedo[0] == 0 && m->albedo[1] == 0 && m->albedo[2] == 0);
+    if (i == 1) {
+      assert_true(m->albedo[0] == 0 && m->albedo[1] == 0 && m->albedo[2] == 0);
+      assert_float_equal(m->specular_rgb[0], 0.6, 1e-4);
+      assert_float_equal(m->specular_rgb[1], 0.5, 1e-4);
+      assert_float_equal(m->specular_rgb[2], 0.4, 1e-4);
+    } else {
+      assert_true(m->specular_rgb[0] == 0 && m->specular_rgb[1] == 0 && m->specular_rgb[2] == 0);
+    }
     gi_scene_release(s);
   }
 }

@@ -386,6 +386,43 @@ static void test_cone_narrows(void **state) {
   }
 }
 
+/* A gold lobe (specular_rgb 0.9, 0.6, 0.3; a metal's base colour) on a
+ * black plane under a sky of 2, seen straight down a 1 degree view: every
+ * sample of the lobe escapes, so each pixel of the specular image is
+ * exactly specular_rgb x 2 per channel, in the path tracer and in the
+ * cone-traced view (both read grey, the lobe's one reflectance, before). */
+static void test_coloured_lobe(void **state) {
+  (void)state;
+  gi_light sky = {.type = GI_LIGHT_SKY, .color = {2, 2, 2}};
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0, 0, 0}, .roughness = 0.3f, .specular = 0.9f, .specular_rgb = {0.9f, 0.6f, 0.3f}};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {-100, 0, -100}, B[3] = {-100, 0, 100}, C[3] = {100, 0, 100}, D[3] = {100, 0, -100};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  gi_scene *s = tu_build(b, "gold plane", &sky, 1);
+  enum { w = 8, h = 6 };
+  static float rgb[w * h * 3], sp[w * h * 3];
+  gi_camera down = {.eye = {0, 1, 0}, .target = {0, 0, 0}, .up = {0, 0, 1}, .fov_deg = 1, .width = w, .height = h};
+  gi_error_info err = {0};
+  gi_render_opts o = {.spp = 4, .seed = 1, .specular = sp};
+  assert_int_equal(gi_reference_render_ex(s, &down, &o, rgb, NULL, &err), GI_OK);
+  const float want[3] = {1.8f, 1.2f, 0.6f};
+  printf("gold lobe under a sky of 2: path tracer (%.4f, %.4f, %.4f)", sp[0], sp[1], sp[2]);
+  for (int i = 0; i < w * h; i++)
+    for (int k = 0; k < 3; k++) assert_true(fabsf(sp[3 * i + k] - want[k]) < 1e-4f * want[k]);
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.25};
+  const double at[3] = {0, 1, 0};
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  gi_render_opts oc = {.specular = sp};
+  assert_int_equal(gi_cascade_render_ex(c, &down, &oc, rgb, NULL, &err), GI_OK);
+  printf(", cone (%.4f, %.4f, %.4f), exact (1.8, 1.2, 0.6)\n", sp[0], sp[1], sp[2]);
+  for (int i = 0; i < w * h; i++)
+    for (int k = 0; k < 3; k++) assert_true(fabsf(sp[3 * i + k] - want[k]) < 1e-3f * want[k]);
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* A black glossy floor (roughness 0.3, specular 0.5) under a point light
  * of intensity I 2 m up, seen from 1 m straight down a 1 degree view:
  * the mirror direction points at the light, so every pixel shows exactly
@@ -525,6 +562,7 @@ int main(void) {
       cmocka_unit_test(test_cone_narrows),
       cmocka_unit_test(test_reflects_lamp_and_sky),
       cmocka_unit_test(test_point_light_highlight),
+      cmocka_unit_test(test_coloured_lobe),
       cmocka_unit_test(test_cornell_diffuse),
       cmocka_unit_test(test_munich_diffuse),
   };

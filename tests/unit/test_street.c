@@ -39,7 +39,7 @@
  * a black street, the sun from the west-southwest 53 degrees up. */
 static gi_scene *canyon_scene_hidden(const gi_light *light, double hidden) {
   gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material wall = {{0.8f, 0.8f, 0.8f}, {0, 0, 0}, 1, 0, "wall", 0}, street = {{0, 0, 0}, {0, 0, 0}, 1, 0, "street", 0};
+  gi_material wall = {{0.8f, 0.8f, 0.8f}, {0, 0, 0}, 1, 0, "wall", 0, {0}}, street = {{0, 0, 0}, {0, 0, 0}, 1, 0, "street", 0, {0}};
   uint32_t mw = gi_mesh_builder_add_material(b, &wall), ms = gi_mesh_builder_add_material(b, &street);
   double w0[3] = {-27, 0, -100}, w1[3] = {-7, 20, 100}, e0[3] = {7, 0, -100}, e1[3] = {27, 20, 100};
   gi_mesh_builder_add_box(b, w0, w1, mw);
@@ -185,7 +185,7 @@ static void test_lamp_housing(void **state) {
   (void)state;
   gi_light lamp = {.type = GI_LIGHT_POINT, .color = {120, 120, 120}, .position = {0, 5.9, 0}};
   gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material white = {{0.8f, 0.8f, 0.8f}, {0, 0, 0}, 1, 0, "housing", 0}, dark = {{0.1f, 0.1f, 0.1f}, {0, 0, 0}, 1, 0, "ground", 0};
+  gi_material white = {{0.8f, 0.8f, 0.8f}, {0, 0, 0}, 1, 0, "housing", 0, {0}}, dark = {{0.1f, 0.1f, 0.1f}, {0, 0, 0}, 1, 0, "ground", 0, {0}};
   uint32_t mw = gi_mesh_builder_add_material(b, &white), mg = gi_mesh_builder_add_material(b, &dark);
   double h0[3] = {-0.25, 6, -0.25}, h1[3] = {0.25, 6.5, 0.25}, g0[3] = {-20, -1, -20}, g1[3] = {20, 0, 20};
   gi_mesh_builder_add_box(b, h0, h1, mw);

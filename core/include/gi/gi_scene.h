@@ -53,6 +53,11 @@ typedef struct gi_material {
    * the side its winding's normal points to. Reflection is two-sided
    * either way. Last, so positional initialisers stay valid. */
   int two_sided;
+  /* The glossy lobe's reflectance per channel (a gold metal's base colour);
+   * all 0, the default: `specular` in every channel. When set, the scene
+   * takes `specular` as its brightest channel (build time). Last, as
+   * two_sided. */
+  float specular_rgb[3];
 } gi_material;
 
 typedef enum gi_light_type {

@@ -263,9 +263,12 @@ static void finish_pixel(const render_ctx *rc, const pending_px *pp, uint64_t co
     cones[1]++;
     for (int a = 0; a < 3; a++) S[a] += co.L[a];
   }
-  for (int a = 0; a < 3; a++) out[a] += m->specular * S[a];
+  float sc[3]; /* the lobe per channel; a matte material forced through the pass: its `specular` */
+  if (glossy) gi__gloss_rgb(m, sc);
+  else sc[0] = sc[1] = sc[2] = m->specular;
+  for (int a = 0; a < 3; a++) out[a] += sc[a] * S[a];
   if (pp->spec)
-    for (int a = 0; a < 3; a++) pp->spec[a] = m->specular * S[a];
+    for (int a = 0; a < 3; a++) pp->spec[a] = sc[a] * S[a];
 }
 
 /* Shades pixel (px, py) into out (and spec); returns 1, with *pp filled

@@ -62,7 +62,7 @@ typedef struct gi_vgeo {
   float normal[3];     /* the largest group's orientation (inspection, export) */
   float centroid[3];   /* area-weighted centroid, local coordinates */
   float proj[3];       /* projected area per axis, |A_axis| summed */
-  float gloss;         /* area-weighted specular reflectance of glossy materials */
+  float gloss[3];      /* area-weighted specular reflectance of glossy materials, per channel */
   union {
     struct {           /* while voxelizing (gi__voxel_add_tri) */
       float tensor[6];   /* sum of area n n^T: xx, yy, zz, xy, xz, yz */

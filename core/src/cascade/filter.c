@@ -127,7 +127,7 @@ static void filter_voxel(const struct gi_cascade *c, const gi_vrad *empty_rad, c
         }
         for (int f = 0; f < GI_VOX_FACES; f++)
           for (int k = 0; k < 3; k++) side[f][k] += a * ks[z][y][x][f][k];
-        g->gloss += a * h->gloss;
+        for (int k = 0; k < 3; k++) g->gloss[k] += a * h->gloss[k];
       }
   if (area > 0) {
     float ia = (float)(1.0 / area);
@@ -139,7 +139,7 @@ static void filter_voxel(const struct gi_cascade *c, const gi_vrad *empty_rad, c
     }
     for (int f = 0; f < GI_VOX_FACES; f++)
       for (int k = 0; k < 3; k++) side[f][k] *= ia;
-    g->gloss *= ia;
+    for (int k = 0; k < 3; k++) g->gloss[k] *= ia;
     float nl = gi__len(g->normal);
     if (nl > 0)
       for (int k = 0; k < 3; k++) g->normal[k] /= nl;

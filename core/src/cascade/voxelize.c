@@ -83,7 +83,8 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
   gi__fan_moments(poly, n, A, C);
   float area = gi__len(A);
   if (!(area > 0)) return;
-  float gloss = gi__gloss(mat);
+  float gloss[3];
+  gi__gloss_rgb(mat, gloss);
   float *T = g->u.sum.tensor;
   /* area n n^T = A A^T / area: the same for either winding. */
   float ia = 1.f / area;
@@ -105,7 +106,7 @@ static void accumulate(gi_vgeo *g, const float poly[][3], int n, const float cor
       *front = gi__maxf(*front, A[k] > 0 ? s + rel : 2 * s - rel);
     }
   }
-  g->gloss += area * gloss;
+  for (int k = 0; k < 3; k++) g->gloss[k] += area * gloss[k];
 }
 
 int gi__voxel_clip_tri(double s, const int64_t cell[3], const float tv[3][3], float poly[GI_CLIP_MAXV][3],
@@ -350,7 +351,7 @@ int gi__voxel_finalize(gi_level *L, gi_vgeo *g, uint32_t slot, const int64_t cel
     g->emission[a] *= ia;
     g->centroid[a] *= ia;
   }
-  g->gloss *= ia;
+  for (int k = 0; k < 3; k++) g->gloss[k] *= ia;
   float corner[3];
   for (int a = 0; a < 3; a++) corner[a] = (float)((double)cell[a] * L->s);
   orient_groups(g, corner, (float)L->s);

@@ -656,6 +656,10 @@ static float material_lobe(const struct aiMaterial *am, tex_ctx *tc, unsigned in
     /* A glTF dielectric's 4%, or what its KHR_materials_specular / _ior say (gltf_recentre.c). */
     float f0 = tc->gs && index < tc->gs->num_f0 && !isnan(tc->gs->f0[index]) ? tc->gs->f0[index] : 0.04f;
     m->specular = has_ks ? lum(ks) : f0 * (1.f - mt) + mt * lum(m->albedo);
+    /* A metal's lobe is its base colour per channel (a gold floor reflected
+     * grey: blue 2.9x Cycles); scene.c makes `specular` its brightest. */
+    if (!has_ks && mt > 0.f)
+      for (int k = 0; k < 3; k++) m->specular_rgb[k] = f0 * (1.f - mt) + mt * m->albedo[k];
     if (!has_ks && rough < GI_GLOSSY_ROUGHNESS) return 1.f - mt;
   } else if (has_ks && obj_by_blender(tc, m->name)) {
     /* Blender's MTL is its Principled material's: Ns = 1000 (1 - roughness)^2

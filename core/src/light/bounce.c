@@ -144,7 +144,8 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
   memset(E, 0, sizeof(gi_faces3));
   if (hit) memset(hit, 0, sizeof *hit);
   /* A side that reflects nothing (no albedo, no glossy lobe) needs no light. */
-  if (g->groups == 0 || (g->albedo[0] + g->gloss <= 0 && g->albedo[1] + g->gloss <= 0 && g->albedo[2] + g->gloss <= 0))
+  if (g->groups == 0 ||
+      (g->albedo[0] + g->gloss[0] <= 0 && g->albedo[1] + g->gloss[1] <= 0 && g->albedo[2] + g->gloss[2] <= 0))
     return;
   int nc = wide ? c->num_wide_cones : c->num_cones, ns = 2 * g->groups, first = cb->nj;
   gi_cone_job all[GI_MAX_CONES];

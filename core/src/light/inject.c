@@ -287,7 +287,7 @@ static inline void face_radiance(const gi_level *L, uint32_t slot, const float (
   const gi_vgeo *g = gi__geo(L, slot);
   if (!side) side = (const float(*)[3])gi__side(L, slot);
   for (int f = 0; f < GI_VOX_FACES; f++)
-    for (int k = 0; k < 3; k++) Lf[f][k] = (g->albedo[k] + g->gloss) * (1.0f / GI_PI_F) * side[f][k];
+    for (int k = 0; k < 3; k++) Lf[f][k] = (g->albedo[k] + g->gloss[k]) * (1.0f / GI_PI_F) * side[f][k];
 }
 
 /* Occupied voxels [begin, end) of level d from `from` (per occupied voxel;

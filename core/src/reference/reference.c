@@ -320,11 +320,13 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     int dcont = !last && d.hit;
     double ns = glossy_exponent(mat);
     int gcont = 0, split = split0 && depth == depth0;
-    float spec = mat->specular, Lg[3] = {0, 0, 0}, Ld[3] = {0, 0, 0};
+    /* The lobe per channel (a gold metal's colour); spec, its brightest, picks the lobe. */
+    float spec = mat->specular, sr[3], Lg[3] = {0, 0, 0}, Ld[3] = {0, 0, 0};
+    gi__gloss_rgb(mat, sr);
     if (depth == depth0 && ns > 0 && !isinf(ns)) {
       glossy_delta(rc, x, w, n, ns, Ld);
       for (int k = 0; k < 3; k++) {
-        float v = T[k] * spec * Ld[k];
+        float v = T[k] * sr[k] * Ld[k];
         L[k] += v;
         if (split && Ls) Ls[k] += v;
       }
@@ -332,7 +334,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     if (ns > 0 && glossy_vertex(rc, w, n, d.o, ns, rng, Lg, &g)) {
       gcont = !last && g.hit;
       for (int k = 0; k < 3; k++) {
-        float v = T[k] * spec * Lg[k];
+        float v = T[k] * sr[k] * Lg[k];
         L[k] += v;
         if (split && Ls) Ls[k] += v;
       }
@@ -340,7 +342,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     if (split && gcont) {
       /* Follow the glossy lobe as its own path; the diffuse one goes on below. */
       float xg[3], Tg[3], Lr[3] = {0, 0, 0};
-      for (int k = 0; k < 3; k++) xg[k] = g.o[k] + g.t * g.w[k], Tg[k] = T[k] * spec;
+      for (int k = 0; k < 3; k++) xg[k] = g.o[k] + g.t * g.w[k], Tg[k] = T[k] * sr[k];
       reflected_from(rc, xg, g.w, g.tri, g.ng, Tg, depth + 1, 0, NULL, rng, Lr, NULL); /* splits no further */
       for (int k = 0; k < 3; k++) {
         L[k] += Lr[k];
@@ -360,7 +362,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
       prev.total = here.total, prev.pb = gi__dot(n, d.w) / (float)GI_PI;
       lt = &prev;
     }
-    for (int k = 0; k < 3; k++) T[k] *= next == &g ? spec / pg : a[k] / (1.f - pg);
+    for (int k = 0; k < 3; k++) T[k] *= next == &g ? sr[k] / pg : a[k] / (1.f - pg);
     for (int k = 0; k < 3; k++) x[k] = next->o[k] + next->t * next->w[k], w[k] = next->w[k], ng[k] = next->ng[k];
     tri = next->tri;
     if (depth >= rc->o.rr_depth) {

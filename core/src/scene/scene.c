@@ -219,6 +219,13 @@ static int sanitize_material(gi_material *m, float *energy) {
   clampf(&m->roughness, 0.f, 1.f, 1.f);
   if (!isfinite(m->specular)) { m->specular = 0.f; changed = 1; }
   clampf(&m->specular, 0.f, 1.f, 0.f);
+  /* A tinted lobe: specular is its brightest channel (gi__gloss_rgb). */
+  float tint = 0;
+  for (int k = 0; k < 3; k++) {
+    changed |= clampf(&m->specular_rgb[k], 0.f, 1.f, 0.f);
+    tint = gi__maxf(tint, m->specular_rgb[k]);
+  }
+  if (tint > 0 && m->specular != tint) m->specular = tint;
   m->name[sizeof m->name - 1] = 0;
   float total = gi__maxf(m->albedo[0], gi__maxf(m->albedo[1], m->albedo[2])) + gi__gloss(m);
   *energy = total > 1.f ? 1.f / total : 1.f;

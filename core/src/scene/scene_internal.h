@@ -170,6 +170,13 @@ static inline float gi__gloss(const gi_material *m) {
   return m->roughness < GI_GLOSSY_ROUGHNESS && m->specular > 0 ? m->specular : 0.f;
 }
 
+/* m's glossy lobe per channel: gi__gloss in every channel, or tinted by
+ * specular_rgb (whose brightest channel is `specular`, scene.c). */
+static inline void gi__gloss_rgb(const gi_material *m, float out[3]) {
+  float g = gi__gloss(m), mx = fmaxf(m->specular_rgb[0], fmaxf(m->specular_rgb[1], m->specular_rgb[2]));
+  for (int k = 0; k < 3; k++) out[k] = mx > 0 ? g * m->specular_rgb[k] / mx : g;
+}
+
 /* Below this Beckmann alpha (roughness^2) a glossy lobe is a mirror. */
 #define GI_MIRROR_ALPHA 1e-4
 /* The Phong exponent ns of m's glossy lobe as every stage models it
