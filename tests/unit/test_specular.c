@@ -386,6 +386,23 @@ static void test_cone_narrows(void **state) {
   }
 }
 
+/* The specular images of scene s seen from 1 m straight down a 1 degree
+ * w x h view: the path tracer's (4 paths a pixel) into ref, the cone
+ * tracer's (a cascade round the eye) into cone. */
+static void specular_down(const gi_scene *s, int w, int h, float *rgb, float *ref, float *cone) {
+  gi_camera down = {.eye = {0, 1, 0}, .target = {0, 0, 0}, .up = {0, 0, 1}, .fov_deg = 1, .width = w, .height = h};
+  gi_error_info err = {0};
+  gi_render_opts o = {.spp = 4, .seed = 1, .specular = ref};
+  assert_int_equal(gi_reference_render_ex(s, &down, &o, rgb, NULL, &err), GI_OK);
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.25};
+  const double at[3] = {0, 1, 0};
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
+  gi_render_opts oc = {.specular = cone};
+  assert_int_equal(gi_cascade_render_ex(c, &down, &oc, rgb, NULL, &err), GI_OK);
+  gi_cascade_free(c);
+}
+
 /* A gold lobe (specular_rgb 0.9, 0.6, 0.3; a metal's base colour) on a
  * black plane under a sky of 2, seen straight down a 1 degree view: every
  * sample of the lobe escapes, so each pixel of the specular image is
@@ -401,25 +418,16 @@ static void test_coloured_lobe(void **state) {
   gi_mesh_builder_add_quad(b, A, B, C, D, mat);
   gi_scene *s = tu_build(b, "gold plane", &sky, 1);
   enum { w = 8, h = 6 };
-  static float rgb[w * h * 3], sp[w * h * 3];
-  gi_camera down = {.eye = {0, 1, 0}, .target = {0, 0, 0}, .up = {0, 0, 1}, .fov_deg = 1, .width = w, .height = h};
-  gi_error_info err = {0};
-  gi_render_opts o = {.spp = 4, .seed = 1, .specular = sp};
-  assert_int_equal(gi_reference_render_ex(s, &down, &o, rgb, NULL, &err), GI_OK);
+  static float rgb[w * h * 3], ref[w * h * 3], cone[w * h * 3];
+  specular_down(s, w, h, rgb, ref, cone);
   const float want[3] = {1.8f, 1.2f, 0.6f};
-  printf("gold lobe under a sky of 2: path tracer (%.4f, %.4f, %.4f)", sp[0], sp[1], sp[2]);
+  printf("gold lobe under a sky of 2: path tracer (%.4f, %.4f, %.4f), cone (%.4f, %.4f, %.4f), exact (1.8, 1.2, 0.6)\n",
+         ref[0], ref[1], ref[2], cone[0], cone[1], cone[2]);
   for (int i = 0; i < w * h; i++)
-    for (int k = 0; k < 3; k++) assert_true(fabsf(sp[3 * i + k] - want[k]) < 1e-4f * want[k]);
-  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.25};
-  const double at[3] = {0, 1, 0};
-  gi_cascade *c = NULL;
-  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
-  gi_render_opts oc = {.specular = sp};
-  assert_int_equal(gi_cascade_render_ex(c, &down, &oc, rgb, NULL, &err), GI_OK);
-  printf(", cone (%.4f, %.4f, %.4f), exact (1.8, 1.2, 0.6)\n", sp[0], sp[1], sp[2]);
-  for (int i = 0; i < w * h; i++)
-    for (int k = 0; k < 3; k++) assert_true(fabsf(sp[3 * i + k] - want[k]) < 1e-3f * want[k]);
-  gi_cascade_free(c);
+    for (int k = 0; k < 3; k++) {
+      assert_true(fabsf(ref[3 * i + k] - want[k]) < 1e-4f * want[k]);
+      assert_true(fabsf(cone[3 * i + k] - want[k]) < 1e-3f * want[k]);
+    }
   gi_scene_release(s);
 }
 
@@ -442,23 +450,12 @@ static void test_point_light_highlight(void **state) {
   gi_scene *s = tu_build(b, "lamp over a glossy plane", &lamp, 1);
   const double a = (double)rough * rough, ns = 2 / (a * a) - 2, want = spec * (ns + 1) / (2 * PI_D) * I / 4;
   enum { w = 16, h = 12 };
-  static float rgb[w * h * 3], sp[w * h * 3];
-  gi_camera down = {.eye = {0, 1, 0}, .target = {0, 0, 0}, .up = {0, 0, 1}, .fov_deg = 1, .width = w, .height = h};
-  gi_error_info err = {0};
-  gi_render_opts o = {.spp = 4, .seed = 1, .specular = sp};
-  assert_int_equal(gi_reference_render_ex(s, &down, &o, rgb, NULL, &err), GI_OK);
-  double ref = sp[3 * (h / 2 * w + w / 2)];
-  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 0.25};
-  const double at[3] = {0, 1, 0};
-  gi_cascade *c = NULL;
-  assert_int_equal(gi_cascade_bake(s, at, &q, &c, NULL, &err), GI_OK);
-  gi_render_opts oc = {.specular = sp};
-  assert_int_equal(gi_cascade_render_ex(c, &down, &oc, rgb, NULL, &err), GI_OK);
-  double cone = sp[3 * (h / 2 * w + w / 2)];
+  static float rgb[w * h * 3], sref[w * h * 3], scone[w * h * 3];
+  specular_down(s, w, h, rgb, sref, scone);
+  double ref = sref[3 * (h / 2 * w + w / 2)], cone = scone[3 * (h / 2 * w + w / 2)];
   printf("point light over a glossy plane: highlight path %.4f, cone %.4f, exact %.4f\n", ref, cone, want);
   assert_true(fabs(ref / want - 1) < 0.01);
   assert_true(fabs(cone / want - 1) < 0.01);
-  gi_cascade_free(c);
   gi_scene_release(s);
 }
 

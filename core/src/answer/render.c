@@ -306,7 +306,7 @@ static int shade_pixel(render_ctx *rc, int px, int py, gi_ray_scratch *sc, uint6
   /* The lobe the reference path-traces (gi__gloss > 0), where the specular pass runs. */
   float r[3];
   double ns = 0;
-  int lobe = rc->spec != SPEC_NONE && gi__gloss(m) > 0 && isfinite(ns = gi__gloss_exponent(m));
+  int lobe = rc->spec != SPEC_NONE && (ns = gi__gloss_exponent(m)) > 0 && isfinite(ns);
   if (lobe) {
     float dn = gi__dot(pp->w, n);
     for (int a = 0; a < 3; a++) r[a] = pp->w[a] - 2 * dn * n[a];

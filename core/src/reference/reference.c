@@ -123,12 +123,6 @@ static int emitted_full(const ref_lights *L, uint32_t tri, const float ng[3], co
   return 1;
 }
 
-/* The material's glossy lobe: exponent of the normalised Phong lobe the
- * cone tracer's aperture stands for (a = roughness^2, ns = 2 / a^2 - 2), or
- * 0 when the material is not glossy (roughness < 0.5 and specular > 0 is
- * glossy, as for the cone tracer). INFINITY is a perfect mirror. */
-static double glossy_exponent(const gi_material *m) { return gi__gloss_exponent(m); }
-
 /* Samples w from p(w) = (ns+1)/(2 pi) cos^ns(angle(w, r)), exactly. */
 static void phong_dir(const float r[3], double ns, ref_rng *rng, float w[3]) {
   if (isinf(ns)) {
@@ -318,7 +312,7 @@ static void reflected_from(const ref_ctx *rc, float x[3], float w[3], uint32_t t
     diffuse_vertex(rc, x, n, last, lt, &here, rng, E, &d);
     for (int k = 0; k < 3; k++) L[k] += T[k] * a[k] * (1.f / (float)GI_PI) * E[k];
     int dcont = !last && d.hit;
-    double ns = glossy_exponent(mat);
+    double ns = gi__gloss_exponent(mat);
     int gcont = 0, split = split0 && depth == depth0;
     /* The lobe per channel (a gold metal's colour); spec, its brightest, picks the lobe. */
     float spec = mat->specular, sr[3], Lg[3] = {0, 0, 0}, Ld[3] = {0, 0, 0};

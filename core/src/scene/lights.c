@@ -214,12 +214,7 @@ float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t
   return (float)m * (pt / area) * t * t / cos_e;
 }
 
-/* The shadow ray to an emitter found along a ray stops this share short
- * of it, so the emitter's own triangle (or its neighbour across an edge)
- * does not block it. */
-#define GI_EMIT_SHADOW_SHORT 1e-4f
-
-static int emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
+int gi__emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e) {
   const float *Le = s->materials[s->tri_material[tri]].emission;
   if (!(Le[0] > 0 || Le[1] > 0 || Le[2] > 0)) return 0;
   float ng[3];
@@ -244,7 +239,7 @@ void gi__emitter_rays(const gi_scene *s, const float p[3], int n, const float (*
   uint8_t vis[GI_EMIT_RAYS];
   int who[GI_EMIT_RAYS], k = 0;
   for (int i = 0; i < n; i++) {
-    if (hit[i] && !emitter_hit(s, tri[i], w[i], &ce[i])) hit[i] = 0;
+    if (hit[i] && !gi__emitter_hit(s, tri[i], w[i], &ce[i])) hit[i] = 0;
     if (!hit[i]) continue;
     float tf = th[i] * (1.f - GI_EMIT_SHADOW_SHORT);
     if (!(tf > tnear[i])) continue;

@@ -24,6 +24,14 @@ typedef struct gi_lsample {
 float gi__emitter_mpl(const gi_scene *s, const float p[3], uint32_t tri, float t, float cos_e, int m);
 /* Rays per gi__emitter_rays call: its buffers live on the stack. */
 #define GI_EMIT_RAYS 64
+/* The shadow ray to an emitter found along a ray stops this share short
+ * of it, so the emitter's own triangle (or its neighbour across an edge)
+ * does not block it. */
+#define GI_EMIT_SHADOW_SHORT 1e-4f
+/* 1 when a ray along w meets emissive triangle tri on a side it emits
+ * from (its front, either side when two-sided), with *cos_e that side's
+ * cosine; 0 for a non-emitter, a degenerate triangle or its back. */
+int gi__emitter_hit(const gi_scene *s, uint32_t tri, const float w[3], float *cos_e);
 /* MIS companion of emitter light sampling at point p, for n <=
  * GI_EMIT_RAYS rays as two streams (the emitters found, then the shadow
  * rays in front of them). Ray i traces o[i] + t w[i] (t > tnear[i]; o[i]

@@ -10,14 +10,12 @@
 #define GI_SPECULAR_MAX_HALF 1.396f
 /* tan(GI_SPECULAR_MIN_HALF): a mirror's cone. */
 #define GI_SPECULAR_MIN_TAN 0.00870022f
-/* Below this Beckmann alpha the surface is a mirror. */
-#define GI_SPECULAR_MIRROR_ALPHA 1e-4f
 
 float gi__specular_tan(float roughness) {
   float r = fminf(fmaxf(roughness, 0.f), 1.f);
   float a = r * r;
   float half;
-  if (a < GI_SPECULAR_MIRROR_ALPHA) {
+  if (a < (float)GI_MIRROR_ALPHA) {
     half = GI_SPECULAR_MIN_HALF;
   } else {
     double ns = 2.0 / ((double)a * a) - 2.0;
@@ -66,14 +64,10 @@ static void specular_emitters(const struct gi_cascade *c, const float p[3], cons
   gi__emitter_find_n(s, m, (const float(*)[3])o, (const float(*)[3])w, tn, th, tri, hit);
   float tf[GI_SPEC_EMIT_RAYS], zero[GI_SPEC_EMIT_RAYS];
   for (int i = 0; i < m; i++) {
-    if (hit[i]) { /* the emitter's front, or either side of a two-sided one */
-      float ng[3];
-      gi__tri_cross(s, tri[i], ng);
-      float l = gi__len(ng);
-      hit[i] = l > 0 && gi__emitter_cos(s, tri[i], -gi__dot(ng, w[i]) / l) > 0;
-    }
+    float ce;
+    if (hit[i]) hit[i] = gi__emitter_hit(s, tri[i], w[i], &ce);
     /* Stop short of the emitter's own plane; a missed ray tests nothing. */
-    tf[i] = hit[i] ? th[i] * (1.f - 1e-4f) : -1.f;
+    tf[i] = hit[i] ? th[i] * (1.f - GI_EMIT_SHADOW_SHORT) : -1.f;
     zero[i] = 0;
   }
   gi__occluded(s, m, &o[0][0], &w[0][0], zero, tf, vis);
