@@ -187,6 +187,73 @@ static void test_furnace_noise(void **state) {
   assert_true(first[0] == again[0] && first[1] == again[1]);
 }
 
+/* A closed 6 x 3 x 5 room of albedo a lit by a point lamp of intensity I
+ * inside: all of the lamp's power P = 4 pi I lands on the walls and each
+ * reflection keeps a, so the walls' area-weighted mean indirect
+ * irradiance is P a / (A (1 - a)) whatever the room's shape or where the
+ * lamp is (A: the walls' area). Each wall in turn is made the floor (the
+ * probes' irradiance is about the scene's up axis) and a 10 x 10 grid of
+ * probes 2 cm above it is gathered. The bounces' tail took its ratio from
+ * successive increments, which the gathers inflate where a lamp lights a
+ * wall's middle more than its edges (they start a voxel off the surface
+ * and miss the strip beside them): 1.038x the exact mean at a = 0.8,
+ * 1.068x at 0.9. From energy (the share each voxel sends on to a
+ * surface): 1.022x, 1.010x. The path tracer reads 1.002x and 1.004x
+ * (8192 paths); the bound is 3%. */
+static void room_map(int wall, const double p[3], double o[3]) {
+  const double W = 6, H = 3, D = 5;
+  double x = p[0], y = p[1], z = p[2];
+  switch (wall) {
+  case 0: o[0] = x, o[1] = y, o[2] = z; break;
+  case 1: o[0] = x, o[1] = H - y, o[2] = z; break;
+  case 2: o[0] = y, o[1] = x, o[2] = z; break;
+  case 3: o[0] = y, o[1] = W - x, o[2] = z; break;
+  case 4: o[0] = x, o[1] = z, o[2] = y; break;
+  default: o[0] = x, o[1] = D - z, o[2] = y; break;
+  }
+}
+
+static void test_lamp_room_energy(void **state) {
+  (void)state;
+  const double size[3] = {6, 3, 5}, lamp[3] = {1.5, 2.7, 1.2}, I = 10, zero[3] = {0, 0, 0};
+  const double albedos[] = {0.8, 0.9};
+  enum { N = 10 };
+  for (size_t ai = 0; ai < 2; ai++) {
+    double a = albedos[ai], sum = 0, area = 0;
+    for (int wall = 0; wall < 6; wall++) {
+      double c0[3], c1[3], lo[3], hi[3], lw[3];
+      room_map(wall, zero, c0), room_map(wall, size, c1), room_map(wall, lamp, lw);
+      for (int k = 0; k < 3; k++) lo[k] = fmin(c0[k], c1[k]), hi[k] = fmax(c0[k], c1[k]);
+      gi_mesh_builder *b = gi_mesh_builder_new();
+      gi_material m = {.albedo = {(float)a, (float)a, (float)a}, .roughness = 1};
+      gi_mesh_builder_add_box(b, lo, hi, gi_mesh_builder_add_material(b, &m));
+      gi_light pl = {.type = GI_LIGHT_POINT, .color = {I, I, I}, .position = {lw[0], lw[1], lw[2]}};
+      gi_scene *sc = tu_build(b, "lamp room", &pl, 1);
+      double pts[3 * N * N];
+      for (int i = 0; i < N; i++)
+        for (int j = 0; j < N; j++) {
+          double *p = pts + 3 * (i * N + j);
+          p[0] = lo[0] + (hi[0] - lo[0]) * (i + 0.5) / N, p[1] = 0.02, p[2] = lo[2] + (hi[2] - lo[2]) * (j + 0.5) / N;
+        }
+      gi_quality q = {.threads = 2};
+      gi_cascade *c = NULL;
+      gi_bake_report rep;
+      gi_error_info err = {0};
+      assert_int_equal(gi_cascade_bake(sc, lw, &q, &c, &rep, &err), GI_OK);
+      gi_probe pr[N * N];
+      assert_int_equal(gi_cascade_gather(c, pts, N * N, pr, NULL, &err), GI_OK);
+      double mean = 0, A = (hi[0] - lo[0]) * (hi[2] - lo[2]);
+      for (int i = 0; i < N * N; i++) mean += pr[i].indirect[0] / (N * N);
+      sum += A * mean, area += A;
+      gi_cascade_free(c);
+      gi_scene_release(sc);
+    }
+    double want = 4 * 3.14159265358979 * I * a / (area * (1 - a)), got = sum / area;
+    printf("lamp room a=%.2f: walls' mean indirect %.4f, exact %.4f (x%.4f)\n", a, got, want, got / want);
+    assert_true(fabs(got / want - 1) <= 0.03);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_furnace_bounces),
@@ -194,6 +261,7 @@ int main(void) {
       cmocka_unit_test(test_furnace_mirror_walls),
       cmocka_unit_test(test_furnace_off_centre),
       cmocka_unit_test(test_furnace_noise),
+      cmocka_unit_test(test_lamp_room_energy),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -53,6 +53,8 @@ enum { GI_FACE_PX, GI_FACE_NX, GI_FACE_PY, GI_FACE_NY, GI_FACE_PZ, GI_FACE_NZ };
 /* Irradiance per face: what the surface shown through face f receives on
  * its side facing out of f (faces showing the same side hold the same value). */
 typedef float gi_faces3[GI_VOX_FACES][3];
+/* One float per face (a bounce's hit shares, gi__bounce_end). */
+typedef float gi_hfaces[GI_VOX_FACES];
 
 /* Geometry buffer of one voxel (sums while voxelizing, then normalised). */
 typedef struct gi_vgeo {
@@ -114,14 +116,20 @@ static inline void gi__side_centroid(const gi_vgeo *g, int sd, float out[3]) {
   for (int k = 0; k < 3; k++) out[k] = g->u.fin.gcen[sd / 2][k] + g->u.fin.soff[sd] * g->u.fin.orient[sd / 2][k];
 }
 
+/* The side face f reflects, given each side's irradiance Es (2 g + s). */
+static inline int gi__face_side_of(const gi_vgeo *g, const float Es[][3], int f) {
+  int sd = g->face_side[f];
+  if (g->brighter >> f & 1) {
+    int o = sd ^ 1;
+    if (Es[o][0] + Es[o][1] + Es[o][2] > Es[sd][0] + Es[sd][1] + Es[sd][2]) sd = o;
+  }
+  return sd;
+}
+
 /* The irradiance each face reflects, from each side's Es (2 g + s). */
 static inline void gi__face_light(const gi_vgeo *g, const float Es[][3], float E[GI_VOX_FACES][3]) {
   for (int f = 0; f < GI_VOX_FACES; f++) {
-    int sd = g->face_side[f];
-    if (g->brighter >> f & 1) {
-      int o = sd ^ 1;
-      if (Es[o][0] + Es[o][1] + Es[o][2] > Es[sd][0] + Es[sd][1] + Es[sd][2]) sd = o;
-    }
+    int sd = gi__face_side_of(g, Es, f);
     for (int k = 0; k < 3; k++) E[f][k] = Es[sd][k];
   }
 }

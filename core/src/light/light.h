@@ -150,7 +150,9 @@ int gi__between_take(const gi_vgeo *g, const gi_vgeo *const h[4], const float (*
  * others' occupied indices in redo (num_occ room) and returns how many. */
 uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *plan, gi_faces3 *E, uint32_t *redo);
 /* The gathers of level d's voxels slots[0..n) from the current texture
- * with the diffuse or the wide set: E[i] per face (the side it shows),
+ * with the diffuse or the wide set: E[i] per face (the side it shows), and
+ * when H is not NULL H[i] per face: the cosine-weighted share of that
+ * side's cones that met a surface (the tail's energy ratio, bounce.c),
  * each voxel's the same as gathered alone (the cones are marched in
  * batches across voxels); returns the texture samples taken and adds the
  * cones marched to *cones. plan (NULL: none) is the slots' own plan
@@ -159,7 +161,7 @@ uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *p
  * apex shift from it, finding and keeping it at the voxel's first gather.
  * Thread-safe for disjoint E and slots. */
 uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide,
-                           const gi_between *plan, gi_faces3 *E, uint64_t *cones);
+                           const gi_between *plan, gi_faces3 *E, gi_hfaces *H, uint64_t *cones);
 /* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
  * move's re-bake must agree bounce by bounce. */
 int gi__bounce_wide(const struct gi_cascade *c, int it);
@@ -178,8 +180,11 @@ gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_
 /* The end of one bounce from its gathers E (per level, per occupied voxel:
  * the bounce's increment, gi__bounce_between done): the tail's sums S
  * rolled, side light summed, the texture reshaded from the increment, or
- * from the whole side light when `last` (the caller refilters). Shared by
- * gi__bounce and the move's re-bake. */
-void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], double S[2][3], int add_tail, int last);
+ * from the whole side light when `last` (the caller refilters). H: the
+ * last bounce's hit shares (gi__gather_voxels; NaN where a voxel was not
+ * gathered), or NULL: the tail's ratio is then the increments' alone.
+ * Shared by gi__bounce and the move's re-bake. */
+void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], gi_hfaces *const H[], double S[2][3], int add_tail,
+                    int last);
 
 #endif

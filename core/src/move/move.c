@@ -402,7 +402,8 @@ typedef struct gi_move_state {
   void *block;     /* rad of every level, one gi__big_calloc block (see struct gi_cascade) */
   size_t block_bytes;
   gi_faces3 *E[GI_MAX_LEVELS]; /* this bounce's gathers, per occupied voxel */
-  uint32_t ecap[GI_MAX_LEVELS];   /* entries E[d] holds */
+  gi_hfaces *H[GI_MAX_LEVELS]; /* the last bounce's hit shares, per occupied voxel (the tail's ratio) */
+  uint32_t ecap[GI_MAX_LEVELS];   /* entries E[d] and H[d] hold */
   gi_between *plan[GI_MAX_LEVELS]; /* the voxels filled from their neighbours (the bake's plan at this anchor) */
   uint32_t plan_len[GI_MAX_LEVELS]; /* entries plan[d] holds */
   float rad_scale;
@@ -426,7 +427,7 @@ void gi__move_state_free(struct gi_move_state *m) {
   if (!m) return;
   gi__big_free(m->block, m->block_bytes, 1);
   for (int d = 0; d < GI_MAX_LEVELS; d++)
-    gi__free(m->E[d]), gi__free(m->side[d]), gi__free(m->last[d]), gi__free(m->plan[d]);
+    gi__free(m->E[d]), gi__free(m->H[d]), gi__free(m->side[d]), gi__free(m->last[d]), gi__free(m->plan[d]);
   gi__free(m);
 }
 
@@ -449,7 +450,7 @@ size_t gi__move_state_bytes(const struct gi_cascade *c) {
   for (int d = 0; d < c->n; d++)
     bytes += vox * sizeof *m->rad[d] +
              c->lv[d].cap * (sizeof *m->side[d] + sizeof *m->last[d] + sizeof *c->lv[d].shift) +
-             m->ecap[d] * sizeof *m->E[d] + m->plan_len[d] * sizeof *m->plan[d];
+             m->ecap[d] * (sizeof *m->E[d] + sizeof *m->H[d]) + m->plan_len[d] * sizeof *m->plan[d];
   return bytes;
 }
 
@@ -457,9 +458,9 @@ size_t gi_cascade_move_bytes_estimate(const gi_quality *q) {
   /* Out of range, as gi_cascade_bytes_estimate: the product would wrap. */
   if (!q || q->levels <= 0 || q->res <= 0 || q->levels > GI_MAX_LEVELS || q->res > GI_MAX_RES) return 0;
   gi_move_state *m = NULL;
-  /* At most every voxel holds geometry: one side, last, E, plan and shift entry each. */
+  /* At most every voxel holds geometry: one side, last, E, H, plan and shift entry each. */
   size_t per_voxel = sizeof *m->rad[0] + sizeof *m->side[0] + sizeof *m->last[0] + sizeof *m->E[0] +
-                     sizeof *m->plan[0] + sizeof(gi_shift6);
+                     sizeof *m->H[0] + sizeof *m->plan[0] + sizeof(gi_shift6);
   return sizeof *m + (size_t)q->levels * (size_t)q->res * (size_t)q->res * (size_t)q->res * per_voxel;
 }
 
@@ -525,6 +526,7 @@ typedef struct {
   int wide;        /* the bounces' wide set (gi__bounce_wide) */
   const gi_between *plan; /* the slots' plan entries, or NULL: gather every one */
   gi_faces3 *E;
+  gi_hfaces *H;    /* the slots' hit shares, or NULL */
   atomic_ullong samples, cones;
 } gather_ctx;
 
@@ -532,19 +534,21 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
   gather_ctx *g = p;
   uint64_t samples = 0, cones = 0;
   const gi_between *plan = g->plan ? g->plan + b : NULL;
-  samples += gi__gather_voxels(g->c, g->d, g->slots + b, e - b, g->wide, plan, g->E + b, &cones);
+  samples += gi__gather_voxels(g->c, g->d, g->slots + b, e - b, g->wide, plan, g->E + b, g->H ? g->H + b : NULL,
+                               &cones);
   atomic_fetch_add(&g->samples, samples);
   atomic_fetch_add(&g->cones, cones);
 }
 
 /* Gathers the n voxels slots[] of level d from the current texture into E
- * with the diffuse or the wide set, except those plan (the slots' own
- * entries, or NULL) fills from their neighbours. The report counts the
+ * (and their hit shares into H, may be NULL) with the diffuse or the wide
+ * set, except those plan (the slots' own entries, or NULL) fills from
+ * their neighbours. The report counts the
  * cones and samples of every gather, the voxels (level_rebounced) once a move: the
  * new voxels' first gather (fresh_texture's prime) does not count them. */
 static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uint32_t *slots, uint32_t n, int wide,
-                             const gi_between *plan, int count, gi_faces3 *E, gi_error_info *err) {
-  gather_ctx g = {.c = c, .d = d, .slots = slots, .wide = wide, .plan = plan, .E = E};
+                             const gi_between *plan, int count, gi_faces3 *E, gi_hfaces *H, gi_error_info *err) {
+  gather_ctx g = {.c = c, .d = d, .slots = slots, .wide = wide, .plan = plan, .E = E, .H = H};
   atomic_init(&g.samples, 0);
   atomic_init(&g.cones, 0);
   int cancelled = gi__parallel_for_cancel(n, 16, threads, gather_range, &g, NULL, c->cancel);
@@ -623,7 +627,7 @@ static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const 
     if (gi__between_slots(L, c->R, own, slots[q], nb))
       for (int k = 0; k < 4; k++) plan[q].nb[k] = (int32_t)nb[k];
   }
-  gi_result rc = gather_list(c, threads, d, slots, n, wide, plan, count, E, err);
+  gi_result rc = gather_list(c, threads, d, slots, n, wide, plan, count, E, NULL, err);
   /* Planned voxels whose neighbours disagree are gathered after all: marked by nb[0] = -2 for the second list. */
   uint32_t redo = 0;
   for (uint32_t q = 0; q < n && rc == GI_OK; q++) {
@@ -651,7 +655,7 @@ static gi_result gather_planned(struct gi_cascade *c, int threads, int d, const 
     uint32_t j = 0;
     for (uint32_t q = 0; q < n && rc == GI_OK; q++)
       if (plan[q].nb[0] == -2) rs[j] = slots[q], at[j++] = q;
-    if (rc == GI_OK) rc = gather_list(c, threads, d, rs, redo, wide, NULL, 0, got, err);
+    if (rc == GI_OK) rc = gather_list(c, threads, d, rs, redo, wide, NULL, 0, got, NULL, err);
     for (j = 0; j < redo && rc == GI_OK; j++) memcpy(E[at[j]], got[j], sizeof got[j]);
     gi__free(rs), gi__free(at), gi__free(got);
   }
@@ -718,12 +722,15 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
     for (uint32_t i = 0; i < L->num_occ; i++)
       memcpy(m->side[d][L->vix[L->occ[i]]], gi__direct(L, L->occ[i]), sizeof *L->side);
     if (m->ecap[d] < L->num_occ + 1) {
-      gi__free(m->E[d]);
+      gi__free(m->E[d]), gi__free(m->H[d]);
       m->ecap[d] = 0;
-      if (!(m->E[d] = gi__malloc(((size_t)L->num_occ + 1) * sizeof *m->E[d])))
-        return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake of level %d", d);
+      m->E[d] = gi__malloc(((size_t)L->num_occ + 1) * sizeof *m->E[d]);
+      m->H[d] = gi__malloc(((size_t)L->num_occ + 1) * sizeof *m->H[d]);
+      if (!m->E[d] || !m->H[d]) return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake of level %d", d);
       m->ecap[d] = L->num_occ + 1;
     }
+    /* Only the last bounce's gathers measure them (as gi__bounce). */
+    for (uint32_t i = 0; i <= L->num_occ; i++) m->H[d][i][0] = NAN;
     m->plan_len[d] = 0;
     if (gi__between_plan(c, d, &m->plan[d]) != GI_OK)
       return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake's plan of level %d", d);
@@ -739,12 +746,16 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
   return cancelled ? gi__cancel_fail(c->cancel, err, "re-bake filter") : GI_OK;
 }
 
+/* The hit shares the re-bake's tail takes (gi__bounce's rule: a tail
+ * after two bounces or more), or NULL. */
+static gi_hfaces *const *tail_H(const gi_move_state *m) { return m->tail && m->bounces >= 2 ? m->H : NULL; }
+
 /* Ends bounce `it` of the re-bake on its (swapped-in) texture with the
  * bake's own bounce end (light/bounce.c), so the result is bit-identical
  * to the bake's; then refilters. Between bounces that texture holds the
  * last increment only (the live one stays whole). */
 static int rebake_bounce_end(struct gi_cascade *c, gi_move_state *m, int it, int threads) {
-  gi__bounce_end(c, m->E, m->S, m->tail && it + 1 == m->bounces && it >= 1, it + 1 == m->bounces);
+  gi__bounce_end(c, m->E, tail_H(m), m->S, m->tail && it + 1 == m->bounces && it >= 1, it + 1 == m->bounces);
   return gi__cascade_filter(c, threads);
 }
 
@@ -762,8 +773,9 @@ static gi_result rebake_units(struct gi_cascade *c, gi_move_state *m, uint64_t l
       uint64_t b = lo > base ? lo - base : 0, e = end - base;
       if (e > c->lv[d].num_occ) e = c->lv[d].num_occ;
       if (lo >= base + c->lv[d].num_occ || end <= base || b >= e) continue;
+      gi_hfaces *H = tail_H(m) && it + 1 == m->bounces ? m->H[d] + b : NULL;
       rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), gi__bounce_wide(c, it), m->plan[d] + b, 1,
-                       m->E[d] + b, err);
+                       m->E[d] + b, H, err);
     }
     if (rc == GI_OK && end == (uint64_t)(it + 1) * U) {
       uint64_t samples = 0, cones = 0;
