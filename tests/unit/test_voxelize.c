@@ -247,9 +247,36 @@ static void test_order_and_threads(void **state) {
   gi_scene_release(sc);
 }
 
+/* gi__voxel_clip_tri: a triangle inside the cell comes back as it is, in
+ * its order, relative to the corner (vertices on the cell's faces count as
+ * inside); one across a face is cut there, the new vertices exactly on
+ * it; one whose centroid lies past the cell's upper faces is not its own. */
+static void test_clip_tri(void **state) {
+  (void)state;
+  const int64_t cell[3] = {2, -2, 3};
+  float poly[GI_CLIP_MAXV][3], corner[3];
+  const float in[3][3] = {{1.25f, -0.75f, 1.5f}, {1.5f, -0.5f, 1.75f}, {1.0f, -1.0f, 1.5f}};
+  assert_int_equal(gi__voxel_clip_tri(0.5, cell, in, poly, corner), 3);
+  const float corner_want[3] = {1.0f, -1.0f, 1.5f};
+  for (int a = 0; a < 3; a++) assert_true(corner[a] == corner_want[a]);
+  for (int q = 0; q < 3; q++)
+    for (int a = 0; a < 3; a++) assert_true(poly[q][a] == in[q][a] - corner_want[a]);
+  /* Across x = 1.5 (the cell's upper x face): the part below it, a quad. */
+  const float across[3][3] = {{1.25f, -0.75f, 1.5f}, {1.75f, -0.75f, 1.5f}, {1.25f, -0.75f, 2.0f}};
+  int n = gi__voxel_clip_tri(0.5, cell, across, poly, corner);
+  assert_int_equal(n, 4);
+  const float want[4][3] = {{0.25f, 0.25f, 0}, {0.5f, 0.25f, 0}, {0.5f, 0.25f, 0.25f}, {0.25f, 0.25f, 0.5f}};
+  for (int q = 0; q < 4; q++)
+    for (int a = 0; a < 3; a++) assert_true(poly[q][a] == want[q][a]);
+  /* Lying on the upper y face (y = -0.5): the cell above owns it. */
+  const float top[3][3] = {{1.25f, -0.5f, 1.5f}, {1.5f, -0.5f, 1.75f}, {1.0f, -0.5f, 1.5f}};
+  assert_int_equal(gi__voxel_clip_tri(0.5, cell, top, poly, corner), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_exact_counts),
+      cmocka_unit_test(test_clip_tri),
       cmocka_unit_test(test_snapping_and_nesting),
       cmocka_unit_test(test_query_visits_only_nearby),
       cmocka_unit_test(test_orientation_groups),

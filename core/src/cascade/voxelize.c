@@ -118,6 +118,12 @@ int gi__voxel_clip_tri(double s, const int64_t cell[3], const float tv[3][3], fl
     for (int a = 0; a < 3; a++) poly[q][a] = tv[q][a] - corner[a];
   int n = 3;
   for (int a = 0; a < 3 && n >= 3; a++) {
+    /* Every vertex within the slab along a: both clips would copy the
+     * polygon as it is (most of a coarse voxel's triangles, along most
+     * axes). */
+    int inside = 1;
+    for (int q = 0; q < n && inside; q++) inside = poly[q][a] >= 0.f && sz - poly[q][a] >= 0.f;
+    if (inside) continue;
     n = clip_plane(poly, n, pb, a, 0.f, 1);
     if (n < 3) break;
     n = clip_plane(pb, n, poly, a, sz, 0);
