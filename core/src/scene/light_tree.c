@@ -18,7 +18,7 @@
 #include <float.h>
 #include <math.h>
 #include <string.h>
-#include <xmmintrin.h>
+#include <emmintrin.h>
 #include "base/internal.h"
 #include "scene/lights.h"
 
@@ -367,18 +367,17 @@ static inline uint32_t root_link(const gi_scene *s) {
  * child with probability l: returns the child's link, rescales *u within
  * the branch taken and multiplies *pr by its probability. */
 static inline uint32_t step_down(const gi_light_pair *q, double l, double *u, double *pr) {
-  uint32_t next;
-  if (*u < l) {
-    *u = *u / l;
-    *pr *= l;
-    next = q->link[0];
-  } else {
-    *u = (*u - l) / (1 - l);
-    *pr *= 1 - l;
-    next = q->link[1];
-  }
-  *u = *u < 0 ? 0 : *u >= 1 ? 0x1.fffffffffffffp-1 : *u;
-  return next;
+  /* Either branch's numbers chosen by a mask, not a jump (the compiler
+   * jumps on a plain ?:): which way u goes is a coin toss per pick and
+   * level, and the mispredicted branch cost the picks more than the
+   * division both ways share. The same operations on the same numbers. */
+  __m128d vu = _mm_set_sd(*u), vl = _mm_set_sd(l), left = _mm_cmplt_sd(vu, vl);
+  __m128d num = _mm_or_pd(_mm_and_pd(left, vu), _mm_andnot_pd(left, _mm_sub_sd(vu, vl)));
+  __m128d den = _mm_or_pd(_mm_and_pd(left, vl), _mm_andnot_pd(left, _mm_sub_sd(_mm_set_sd(1.0), vl)));
+  double r = _mm_cvtsd_f64(_mm_div_sd(num, den));
+  *pr *= _mm_cvtsd_f64(den);
+  *u = r < 0 ? 0 : r >= 1 ? 0x1.fffffffffffffp-1 : r;
+  return q->link[_mm_movemask_pd(left) & 1 ? 0 : 1];
 }
 
 uint32_t gi__light_tree_pick(const gi_scene *s, const float p[3], double u, float *prob, float *u_rest) {
