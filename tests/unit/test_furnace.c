@@ -198,7 +198,7 @@ static void test_furnace_noise(void **state) {
  * wall's middle more than its edges (they start a voxel off the surface
  * and miss the strip beside them): 1.038x the exact mean at a = 0.8,
  * 1.068x at 0.9. From energy (the share each voxel sends on to a
- * surface): 1.022x, 1.010x. The path tracer reads 1.002x and 1.004x
+ * surface): 1.021x, 1.008x. The path tracer reads 1.002x and 1.004x
  * (8192 paths); the bound is 3%. */
 static void room_map(int wall, const double p[3], double o[3]) {
   const double W = 6, H = 3, D = 5;

@@ -53,8 +53,12 @@ enum { GI_FACE_PX, GI_FACE_NX, GI_FACE_PY, GI_FACE_NY, GI_FACE_PZ, GI_FACE_NZ };
 /* Irradiance per face: what the surface shown through face f receives on
  * its side facing out of f (faces showing the same side hold the same value). */
 typedef float gi_faces3[GI_VOX_FACES][3];
-/* One float per face (a bounce's hit shares, gi__bounce_end). */
-typedef float gi_hfaces[GI_VOX_FACES];
+/* A bounce's hit shares per face (gi__bounce_end), in steps of
+ * 1/GI_HIT_STEPS; GI_HIT_UNKNOWN: the voxel was not gathered. A byte each:
+ * a moving cascade keeps them per voxel, inside a session's budget. */
+typedef uint8_t gi_hfaces[GI_VOX_FACES];
+#define GI_HIT_STEPS 254
+#define GI_HIT_UNKNOWN 255
 
 /* Geometry buffer of one voxel (sums while voxelizing, then normalised). */
 typedef struct gi_vgeo {

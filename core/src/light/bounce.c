@@ -123,13 +123,13 @@ typedef struct {
   int16_t which[GI_MARCH_BATCH_JOBS]; /* bit side * set size + cone */
   int nj, nv;
   float step, ao_lambda; /* the gather's step rule: the quality's, every voxel's alike */
-  float *next_H;         /* the next voxel batch_add takes: where its faces' hit shares go, or NULL */
+  uint8_t *next_H;       /* the next voxel batch_add takes: where its faces' hit shares go, or NULL */
   struct {
     int d, first, count; /* the voxel's level and its jobs [first, first + count) */
     uint32_t slot;
     float *E;            /* its gi_faces3 */
     gi_hits *hit;        /* may be NULL */
-    float *H;            /* its gi_hfaces, may be NULL */
+    uint8_t *H;          /* its gi_hfaces, may be NULL */
   } v[BATCH_VOXELS];
 } cone_batch;
 
@@ -192,14 +192,17 @@ static int batch_room(const struct gi_cascade *c, int wide, const cone_batch *cb
  * (pi), for the side each face shows (gi__face_side_of on its sides'
  * light Es). Cones the first-hit mask skipped met none and add 0. */
 static void hit_shares(const gi_vgeo *g, const struct gi_cascade *c, int wide, const cone_batch *cb, int v,
-                       const float Es[][3], float *H) {
+                       const float Es[][3], uint8_t *H) {
   int nc = wide ? c->num_wide_cones : c->num_cones;
   const float *weight = wide ? c->wide_weight : c->cone_weight;
   float hs[GI_VOX_FACES] = {0}, all = 0;
   for (int ci = 0; ci < nc; ci++) all += weight[ci];
   for (int j = cb->v[v].first; j < cb->v[v].first + cb->v[v].count; j++)
     hs[cb->which[j] / nc] += weight[cb->which[j] % nc] * fminf(fmaxf(cb->co[j].alpha, 0.f), 1.f);
-  for (int f = 0; f < GI_VOX_FACES; f++) H[f] = all > 0 ? hs[gi__face_side_of(g, Es, f)] / all : 0.f;
+  for (int f = 0; f < GI_VOX_FACES; f++) {
+    float h = all > 0 ? fminf(hs[gi__face_side_of(g, Es, f)] / all, 1.f) : 0.f;
+    H[f] = (uint8_t)lrintf(h * GI_HIT_STEPS);
+  }
 }
 
 /* Marches cb's cones and folds each voxel's into its E (and hit); empties
@@ -387,13 +390,13 @@ static void energy_ratio(const struct gi_cascade *c, gi_faces3 *const E[], gi_hf
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     for (uint32_t i = 0; i < L->num_occ; i++) {
-      if (isnan(H[d][i][0])) continue;
+      if (H[d][i][0] == GI_HIT_UNKNOWN) continue;
       const gi_vgeo *g = gi__geo(L, L->occ[i]);
       double a = g->area;
       for (int f = 0; f < GI_VOX_FACES; f++)
         for (int k = 0; k < 3; k++) {
           double e = a * E[d][i][f][k];
-          num[k] += e * (g->albedo[k] + g->gloss[k]) * H[d][i][f];
+          num[k] += e * (g->albedo[k] + g->gloss[k]) * H[d][i][f] / GI_HIT_STEPS;
           den[k] += e;
         }
     }
@@ -460,7 +463,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     if (any_wide) hit[1][d] = gi__malloc(n * sizeof *hit[1][d]);
     shift[d] = gi__malloc(n * sizeof *shift[d]);
     if (want_H && (H[d] = gi__malloc(n * sizeof *H[d])) != NULL)
-      for (size_t i = 0; i < n; i++) H[d][i][0] = NAN; /* a voxel filled from its neighbours is not measured */
+      memset(H[d], GI_HIT_UNKNOWN, n * sizeof *H[d]); /* a voxel filled from its neighbours is not measured */
     if (!E[d] || !hit[0][d] || (any_wide && !hit[1][d]) || !shift[d] || (want_H && !H[d]) ||
         gi__between_plan(c, d, &plan[d]) != GI_OK) {
       rc = gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory");

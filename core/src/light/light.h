@@ -181,8 +181,9 @@ gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_
  * the bounce's increment, gi__bounce_between done): the tail's sums S
  * rolled, side light summed, the texture reshaded from the increment, or
  * from the whole side light when `last` (the caller refilters). H: the
- * last bounce's hit shares (gi__gather_voxels; NaN where a voxel was not
- * gathered), or NULL: the tail's ratio is then the increments' alone.
+ * last bounce's hit shares (gi__gather_voxels; GI_HIT_UNKNOWN where a
+ * voxel was not gathered), or NULL: the tail's ratio is then the
+ * increments' alone.
  * Shared by gi__bounce and the move's re-bake. */
 void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], gi_hfaces *const H[], double S[2][3], int add_tail,
                     int last);

@@ -730,7 +730,7 @@ static gi_result rebake_start(struct gi_cascade *c, const gi_quality *q, int tai
       m->ecap[d] = L->num_occ + 1;
     }
     /* Only the last bounce's gathers measure them (as gi__bounce). */
-    for (uint32_t i = 0; i <= L->num_occ; i++) m->H[d][i][0] = NAN;
+    memset(m->H[d], GI_HIT_UNKNOWN, ((size_t)L->num_occ + 1) * sizeof *m->H[d]);
     m->plan_len[d] = 0;
     if (gi__between_plan(c, d, &m->plan[d]) != GI_OK)
       return gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the re-bake's plan of level %d", d);
