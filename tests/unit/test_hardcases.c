@@ -91,6 +91,58 @@ static gi_scene *room_scene(const double o[3], float albedo, float light) {
   return room_scene2(o, albedo, 0.7f, light);
 }
 
+/* ---- a lamp panel under a ceiling ------------------------------------- */
+
+/* A closed 4 x 3 x 4 m room of albedo 0.95 lit by a black 1 x 1 m
+ * emissive panel (facing down) 1 cm under its ceiling: the panel and the
+ * ceiling share their voxels, which reflect the mean of the two (0.475)
+ * on their lower side, where the panel hides the ceiling and reflects
+ * nothing. The room absorbs too little, each bounce's increment shrinks
+ * too slowly, and the geometric tail, whose ratio came from the last two
+ * increments, multiplied the excess (r 0.946: 17.5x). Quads as in an OBJ
+ * of the room (its faces wound inward). */
+static gi_scene *panel_room_scene(void) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material wall = {.albedo = {0.95f, 0.95f, 0.95f}, .roughness = 1};
+  gi_material lamp = {.emission = {10, 10, 10}, .roughness = 1};
+  uint32_t mw = gi_mesh_builder_add_material(b, &wall), ml = gi_mesh_builder_add_material(b, &lamp);
+  const double v[28][3] = {{0, 0, 0}, {0, 0, 4}, {4, 0, 4}, {4, 0, 0}, {0, 3, 0}, {4, 3, 0}, {4, 3, 4},
+                           {0, 3, 4}, {0, 0, 0}, {0, 3, 0}, {0, 3, 4}, {0, 0, 4}, {4, 0, 0}, {4, 0, 4},
+                           {4, 3, 4}, {4, 3, 0}, {0, 0, 0}, {4, 0, 0}, {4, 3, 0}, {0, 3, 0}, {0, 0, 4},
+                           {0, 3, 4}, {4, 3, 4}, {4, 0, 4}, {1.5, 2.99, 1.5}, {2.5, 2.99, 1.5},
+                           {2.5, 2.99, 2.5}, {1.5, 2.99, 2.5}};
+  for (int i = 0; i < 7; i++)
+    gi_mesh_builder_add_quad(b, v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3], i < 6 ? mw : ml);
+  return build(b, "panel-room", NULL, 0);
+}
+
+/* The panel room's indirect light 1 m up against the path tracer's, at
+ * default quality (the ceiling's voxels are 0.16 m there). */
+static void test_panel_under_ceiling(void **state) {
+  gi_scene *s = panel_room_scene();
+  enum { N = 5 };
+  const double pts[3 * N] = {0.7, 1, 0.7, 2, 1, 2, 3.3, 1, 0.7, 0.7, 1, 3.3, 3.3, 1, 3.3}, at[3] = {2, 1.5, 2};
+  gi_quality q = {.threads = 2};
+  gi_probe pr[N];
+  bake_gather(s, at, &q, pts, N, pr);
+  gi_ref_probe ref[N];
+  gi_reference_opts ro = {.samples = 8192, .threads = 2};
+  gi_error_info err = {0};
+  assert_int_equal(gi_reference_irradiance(s, pts, N, &ro, ref, NULL, &err), GI_OK);
+  double cone = 0, pt = 0, se = 0;
+  for (int i = 0; i < N; i++)
+    cone += mean3(pr[i].indirect), pt += mean3(ref[i].indirect), se += mean3(ref[i].std_err_indirect);
+  printf("hardcase: panel 1 cm under the ceiling: indirect %.4f, reference %.4f (se %.4f): ratio %.4f\n", cone / N,
+         pt / N, se / N / sqrt(N), cone / pt);
+  /* Measured ratio 1.259 with the tail's ratio from the increments, 1.087
+   * with the energy ratio's cap (bounce.c). The panel 10 cm lower reads
+   * about 1.07 on these points (the cone tracer's bias in a room this
+   * bright; the panel's voxels then hold the ceiling alone). Bound 1.15. */
+  assert_true(pt > 1);
+  assert_true(cone / pt > 0.95 && cone / pt < 1.15);
+  gi_scene_release(s);
+}
+
 /* ---- far from the origin ------------------------------------------------ */
 
 static void test_far_origin(void **state) {
@@ -905,6 +957,7 @@ int main(void) {
       cmocka_unit_test(test_empty_and_outside),
       cmocka_unit_test(test_furnace_099),
       cmocka_unit_test(test_probe_on_floor),
+      cmocka_unit_test(test_panel_under_ceiling),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
