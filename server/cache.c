@@ -20,12 +20,23 @@
  * in-flight bytes. A bake is admitted only while cached bytes + in-flight
  * bytes stay within the budget, after evicting unheld entries; otherwise
  * the caller answers 503 (GI_ERR_NOMEM) with Retry-After. Jobs' private
- * bakes reserve through gs_cache_reserve, so they count too. Encoded VDB
- * bytes are kept with their cascade and counted in its bytes; other
- * answers' bytes count as being sent (gs_cache_admit_sending) until their
- * client has read them. The table
- * is a list in LRU order: it holds at most a few
- * hundred cascades, so a scan costs microseconds next to a gather. */
+ * bakes reserve through gs_cache_reserve, so they count too.
+ *
+ * Kept answers: an answer that is the same bytes for whoever asks (a
+ * cell's probe or panorama EXR, a cascade's VDB) is an entry of its own,
+ * keyed by its shape and its cascade's generation (a number each bake
+ * gets: a cascade baked again is another, so an answer never outlives the
+ * cascade it was gathered from). It is coalesced as a bake is: one request
+ * gathers and encodes (ENCODING is BAKING for such an entry), the others
+ * wait for it without a worker, and a failed or abandoned encode is never
+ * kept. Kept answers count in the cached bytes and are evicted in the same
+ * LRU order as cascades, and with their cascade. Bytes a client is still
+ * reading stay counted: an answer not kept (or evicted meanwhile) counts
+ * as being sent (gs_cache_admit_sending) until its last reference goes;
+ * evicting an answer a client still reads would free nothing, so eviction
+ * passes it by. The table is a list in LRU order: it holds at most a few
+ * hundred cascades and their answers, and the scan compares a hash first,
+ * so it costs microseconds next to a gather. */
 #define _POSIX_C_SOURCE 200809L
 #include <pthread.h>
 #include <stdio.h>
@@ -34,22 +45,27 @@
 #include "server.h"
 
 enum { BAKING, READY, FAILED };
+/* An answer entry's BAKING: one request gathers and encodes it. */
+#define ENCODING BAKING
 
 /* Keys: scene id, cell and every knob (make_key). */
 #define GS_KEY_SIZE 512
 
 struct gs_entry {
   char key[GS_KEY_SIZE];
+  uint64_t hash;          /* of key: compared before it */
   int state;
   int refs;               /* requests holding or waiting for it */
-  gi_cascade *cascade;
-  size_t bytes;           /* the cascade's plus its encoded answers' */
+  int answer;             /* a kept answer, not a cascade */
+  uint64_t gen;           /* a cascade's bake number; an answer's: its cascade's */
+  gi_cascade *cascade;    /* a cascade entry's, once READY */
+  gs_blob *blob;          /* an answer entry's encoded bytes, once READY */
+  size_t bytes;           /* the cascade's, or the answer's */
   size_t reserved;        /* in-flight bytes admitted for its bake, until the bake ends */
-  gs_blob *encoded[GS_ENCODED_KINDS];
   gi_result rc;
   gi_error_info err;
   int linked;             /* in the table (failed and cancelled entries leave it at once) */
-  gi_cancel *cancel;      /* the bake's token: set when nobody is interested any more */
+  gi_cancel *cancel;      /* the bake's (or encode's) token: set when nobody is interested any more */
   int interest;           /* requests that want the bake: the baker and its waiters */
   gs_waiter *waiters;     /* requests to wake when the bake ends (the baker's own first, if any) */
   struct gs_entry *prev, *next; /* most recent first */
@@ -59,7 +75,9 @@ struct gs_cache {
   pthread_mutex_t mu;
   pthread_cond_t done;
   gs_entry *head, *tail;
-  size_t bytes, entries, budget;
+  size_t bytes, entries, budget; /* bytes: cascades' and kept answers'; entries: cascades */
+  size_t answers, answer_bytes;  /* kept (or encoding) answers, and their part of bytes */
+  uint64_t gens;          /* bakes started: each cascade's generation */
   size_t inflight;        /* estimates of the bakes admitted and not yet finished */
   size_t held;            /* sessions' cascades (session.c), for their lives */
   size_t sending;         /* answers' encoded bytes until their clients have them (gs_cache_admit_sending) */
@@ -76,6 +94,15 @@ gs_cache *gs_cache_new(size_t budget_bytes, gs_metrics *m) {
   return c;
 }
 
+/* Counts e's bytes in (sign 1) or out of (-1) the table's. Locked. */
+static void count_bytes(gs_cache *c, const gs_entry *e, int sign) {
+  if (sign > 0) c->bytes += e->bytes;
+  else c->bytes -= e->bytes;
+  if (!e->answer) return;
+  if (sign > 0) c->answer_bytes += e->bytes;
+  else c->answer_bytes -= e->bytes;
+}
+
 static void unlink_entry(gs_cache *c, gs_entry *e) {
   if (!e->linked) return;
   if (e->prev) e->prev->next = e->next;
@@ -84,8 +111,9 @@ static void unlink_entry(gs_cache *c, gs_entry *e) {
   else c->tail = e->prev;
   e->prev = e->next = NULL;
   e->linked = 0;
-  c->entries--;
-  c->bytes -= e->bytes;
+  if (e->answer) c->answers--;
+  else c->entries--;
+  count_bytes(c, e, -1);
 }
 
 static void push_front(gs_cache *c, gs_entry *e) {
@@ -95,14 +123,39 @@ static void push_front(gs_cache *c, gs_entry *e) {
   c->head = e;
   if (!c->tail) c->tail = e;
   e->linked = 1;
-  c->entries++;
-  c->bytes += e->bytes;
+  if (e->answer) c->answers++;
+  else c->entries++;
+  count_bytes(c, e, 1);
 }
 
-static void free_entry(gs_entry *e) {
+/* e's bytes become n (counted in the table's while it is linked). Locked. */
+static void set_bytes(gs_cache *c, gs_entry *e, size_t n) {
+  if (e->linked) count_bytes(c, e, -1);
+  e->bytes = n;
+  if (e->linked) count_bytes(c, e, 1);
+}
+
+/* The cache lets go of a kept answer's bytes (locked). A client still
+ * reading them keeps them alive: they stay in the budget, as bytes being
+ * sent, until its last reference goes (gs_blob_release, which then takes
+ * the lock: hence the last release here is done in place). Only the
+ * cache retains a kept blob, under this lock, so its count can only fall
+ * meanwhile. */
+static void drop_kept(gs_cache *c, gs_blob *b) {
+  if (!b) return;
+  if (c->budget) {
+    b->sending = c;
+    c->sending += b->size;
+  }
+  if (atomic_fetch_sub(&b->refs, 1) != 1) return;
+  if (b->sending) c->sending -= b->size;
+  free(b);
+}
+
+static void free_entry(gs_cache *c, gs_entry *e) {
   gi_cascade_free(e->cascade);
   gi_cancel_free(e->cancel);
-  for (int k = 0; k < GS_ENCODED_KINDS; k++) gs_blob_release(e->encoded[k]);
+  drop_kept(c, e->blob);
   free(e);
 }
 
@@ -111,15 +164,42 @@ static int fits(const gs_cache *c, size_t extra) {
   return c->bytes + c->inflight + c->held + c->sending + extra <= c->budget;
 }
 
-/* Evicts unheld READY entries from the LRU end until extra bytes fit. Locked. */
+/* Whether evicting e would free its bytes: READY, unheld, and (an answer)
+ * not being read by a client, whose bytes would only move to the sending
+ * count. Locked. */
+static int evictable(const gs_cache *c, const gs_entry *e) {
+  if (e->state != READY || e->refs) return 0;
+  return !e->answer || !c->budget || atomic_load(&e->blob->refs) == 1;
+}
+
+static void evicted(gs_cache *c, gs_entry *e) {
+  unlink_entry(c, e);
+  if (c->metrics) {
+    if (e->answer) gs_metrics_encode_eviction(c->metrics);
+    else gs_metrics_eviction(c->metrics);
+  }
+  free_entry(c, e);
+}
+
+/* Evicts unheld READY entries from the LRU end until extra bytes fit; a
+ * cascade's kept answers go with it (no request can name its generation
+ * any more). Locked. */
 static void evict(gs_cache *c, size_t extra) {
   gs_entry *e = c->tail;
   while (e && !fits(c, extra)) {
     gs_entry *prev = e->prev;
-    if (e->state == READY && e->refs == 0) {
-      unlink_entry(c, e);
-      free_entry(e);
-      if (c->metrics) gs_metrics_eviction(c->metrics);
+    if (evictable(c, e)) {
+      if (!e->answer) {
+        uint64_t gen = e->gen;
+        evicted(c, e);
+        for (gs_entry *a = c->head, *n; a; a = n) {
+          n = a->next;
+          if (a->answer && a->gen == gen && a->state == READY && a->refs == 0) evicted(c, a);
+        }
+        prev = c->tail; /* the answers may have been anywhere: look again from the end */
+      } else {
+        evicted(c, e);
+      }
     }
     e = prev;
   }
@@ -127,9 +207,10 @@ static void evict(gs_cache *c, size_t extra) {
 
 void gs_cache_free(gs_cache *c) {
   if (!c) return;
+  c->budget = 0; /* nobody reads a blob any more: nothing moves to the sending count */
   for (gs_entry *e = c->head, *n; e; e = n) {
     n = e->next;
-    free_entry(e);
+    free_entry(c, e);
   }
   pthread_mutex_destroy(&c->mu);
   pthread_cond_destroy(&c->done);
@@ -249,7 +330,7 @@ size_t gs_cache_sending(gs_cache *c) {
   return n;
 }
 
-/* w is interested in e's bake. Locked. */
+/* w is interested in e's bake (or encode). Locked. */
 static void join(gs_entry *e, gs_waiter *w) {
   w->entry = e;
   w->next = e->waiters;
@@ -284,7 +365,7 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w) {
       gi_cancel_set(e->cancel);
       /* A request arriving now starts a fresh bake instead of joining this one. */
       unlink_entry(c, e);
-      cancelled = 1;
+      cancelled = e->answer ? 2 : 1;
     }
   }
   pthread_cond_broadcast(&c->done); /* a blocking waiter stops waiting */
@@ -301,23 +382,43 @@ static gi_result key_of(const gs_scene *s, const double at[3], const gi_quality 
   return rc;
 }
 
+/* FNV-1a 64 of a key (canonical.c's). */
+static uint64_t hash_key(const char *key) { return gs_hash_bytes(0xcbf29ce484222325ull, key, strlen(key)); }
+
 /* The entry under key, or NULL. Locked. */
 static gs_entry *lookup(gs_cache *c, const char *key) {
+  uint64_t h = hash_key(key);
   gs_entry *e = c->head;
-  while (e && strcmp(e->key, key)) e = e->next;
+  while (e && (e->hash != h || strcmp(e->key, key))) e = e->next;
   return e;
 }
 
-/* w waits for e's bake without a worker: the baker wakes it. Locked. */
+/* The key of cascade generation gen's answer of this shape. */
+static void answer_key(uint64_t gen, const char *shape, char key[GS_KEY_SIZE]) {
+  snprintf(key, GS_KEY_SIZE, "answer|%llu|%s", (unsigned long long)gen, shape);
+}
+
+/* A cache outcome in /metrics: the cascade's or the answer's counters. */
+static void count_how(gs_cache *c, const gs_entry *e, gs_cache_how how) {
+  if (!c->metrics) return;
+  if (e->answer) gs_metrics_encode(c->metrics, how);
+  else gs_metrics_cache(c->metrics, how);
+}
+
+/* w waits for e's bake (or encode) without a worker: the baker wakes it. Locked. */
 static void coalesce(gs_entry *e, gs_waiter *w) {
   join(e, w);
-  w->coalesced = 1;
+  if (e->answer) w->coalesced_encode = 1;
+  else w->coalesced = 1;
 }
 
 /* An entry found in the table: a hit, a pending waiter, or a blocking
- * wait for the bake. Called locked; returns unlocked. */
-static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_entry **out, gs_cache_how *how,
-                       gi_error_info *err) {
+ * wait for the bake. woken: w waited for this bake; counted: the outcome
+ * is in /metrics already (w waited for its answer's encode after finding
+ * its cascade, or joined that encode from dispatch). Called locked;
+ * returns unlocked. */
+static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, int counted, gs_entry **out,
+                       gs_cache_how *how, gi_error_info *err) {
   /* Most recently used first. */
   unlink_entry(c, e);
   push_front(c, e);
@@ -333,7 +434,7 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_ent
   if (e->state == BAKING && w && !w->blocking) {
     coalesce(e, w);
     pthread_mutex_unlock(&c->mu);
-    if (c->metrics) gs_metrics_cache(c->metrics, *how);
+    if (!counted) count_how(c, e, *how);
     return GS_PENDING;
   }
   e->refs++;
@@ -347,9 +448,11 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_ent
   }
   int gave_up = w && w->left;
   pthread_mutex_unlock(&c->mu);
-  if (c->metrics) gs_metrics_cache(c->metrics, *how);
+  if (!counted) count_how(c, e, *how);
   if (gave_up) {
-    if (err) snprintf(err->msg, sizeof err->msg, "bake: the request was given up while it waited for the bake");
+    if (err)
+      snprintf(err->msg, sizeof err->msg, "%s", e->answer ? "encode: the request was given up while it waited for "
+               "its answer's encode" : "bake: the request was given up while it waited for the bake");
     gs_cache_release(c, e);
     return GI_ERR_CANCELLED;
   }
@@ -363,30 +466,21 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, gs_ent
   return GI_OK;
 }
 
-/* The bake ended: stores or drops the result and wakes the waiters (each
- * held under the lock, woken after it). */
-static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, gi_cascade *cas,
-                      const gi_error_info *e_err) {
-  pthread_mutex_lock(&c->mu);
-  unreserve(c, e->reserved);
-  e->reserved = 0;
-  if (self && self->entry == e) drop_waiter(self);
-  /* Cancelled (nobody waited any more, the entry left the table then) is never cached. */
-  if (rc == GI_OK && e->linked) {
-    e->cascade = cas;
-    c->bytes -= e->bytes;
-    e->bytes = gi_cascade_bytes(cas);
-    c->bytes += e->bytes;
-    e->state = READY;
-    evict(c, 0);
-  } else {
-    gi_cascade_free(cas);
-    e->state = FAILED;
-    e->rc = rc == GI_OK ? GI_ERR_CANCELLED : rc;
-    e->err = *e_err;
-    if (rc == GI_OK) snprintf(e->err.msg, sizeof e->err.msg, "bake: cancelled as it finished (nobody waited)");
-    unlink_entry(c, e);
-  }
+/* e's bake (or encode) failed with rc: it leaves the table, and its
+ * waiters get the error. Locked. */
+static void fail_entry(gs_cache *c, gs_entry *e, gi_result rc, const gi_error_info *e_err) {
+  e->state = FAILED;
+  e->rc = rc == GI_OK ? GI_ERR_CANCELLED : rc;
+  e->err = *e_err;
+  if (rc == GI_OK)
+    snprintf(e->err.msg, sizeof e->err.msg, "%s: cancelled as it finished (nobody waited)",
+             e->answer ? "encode" : "bake");
+  unlink_entry(c, e);
+}
+
+/* e's bake (or encode) ended, its state set: wakes the waiters (each held
+ * under the lock, woken after it). Called locked; returns unlocked. */
+static void wake_waiters(gs_cache *c, gs_entry *e) {
   /* Blocking waiters read e themselves once the lock is let go (and may
    * reuse their waiter at once): only the others are kept to be woken. */
   gs_waiter *woken = NULL;
@@ -412,13 +506,38 @@ static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, g
   }
 }
 
+/* The bake ended: stores or drops the result and wakes the waiters. */
+static void bake_done(gs_cache *c, gs_entry *e, gs_waiter *self, gi_result rc, gi_cascade *cas,
+                      const gi_error_info *e_err) {
+  pthread_mutex_lock(&c->mu);
+  unreserve(c, e->reserved);
+  e->reserved = 0;
+  if (self && self->entry == e) drop_waiter(self);
+  /* Cancelled (nobody waited any more, the entry left the table then) is never cached. */
+  if (rc == GI_OK && e->linked) {
+    e->cascade = cas;
+    set_bytes(c, e, gi_cascade_bytes(cas));
+    e->state = READY;
+    evict(c, 0);
+  } else {
+    gi_cascade_free(cas);
+    fail_entry(c, e, rc, e_err);
+  }
+  wake_waiters(c, e);
+}
+
 int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
-                          const gi_quality *q, gs_waiter *w) {
+                          const gi_quality *q, const char *shape, gs_waiter *w) {
   int64_t anchor[3];
   char key[GS_KEY_SIZE];
   if (!w || w->blocking || key_of(s, at, req, q, anchor, key, NULL) != GI_OK) return 0; /* the worker reports it */
   pthread_mutex_lock(&c->mu);
-  gs_entry *e = lookup(c, key);
+  gs_entry *e = lookup(c, key), *cas = e;
+  if (e && e->state == READY && shape) {
+    /* The cascade is there: its answer may be being encoded. */
+    answer_key(e->gen, shape, key);
+    e = lookup(c, key);
+  }
   if (!e || e->state != BAKING || w->left || w->entry) {
     pthread_mutex_unlock(&c->mu);
     return 0;
@@ -427,7 +546,8 @@ int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], co
   push_front(c, e);
   coalesce(e, w);
   pthread_mutex_unlock(&c->mu);
-  if (c->metrics) gs_metrics_cache(c->metrics, GS_CACHE_COALESCED);
+  if (e->answer) count_how(c, cas, GS_CACHE_HIT); /* its rerun finds the cascade without counting it */
+  count_how(c, e, GS_CACHE_COALESCED);
   return 1;
 }
 
@@ -455,7 +575,8 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     return GI_ERR_CANCELLED;
   }
   gs_entry *e = lookup(c, key);
-  if (e) return found(c, e, w, woken, out, how, err);
+  /* Woken by its answer's encode: its cascade's outcome was counted before that wait. */
+  if (e) return found(c, e, w, woken, w && w->coalesced_encode, out, how, err);
   size_t need = gs_bake_bytes(q);
   if ((rc = admit(c, need, err)) != GI_OK) {
     pthread_mutex_unlock(&c->mu);
@@ -471,6 +592,8 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     return GI_ERR_NOMEM;
   }
   snprintf(e->key, sizeof e->key, "%s", key);
+  e->hash = hash_key(e->key);
+  e->gen = ++c->gens;
   e->state = BAKING;
   e->refs = 1;
   e->cancel = token;
@@ -514,41 +637,104 @@ void gs_cache_release(gs_cache *c, gs_entry *e) {
   pthread_mutex_lock(&c->mu);
   e->refs--;
   if (!e->linked && e->refs == 0) {
-    free_entry(e);
+    free_entry(c, e);
   } else if (e->refs == 0) {
     evict(c, 0);
   }
   pthread_mutex_unlock(&c->mu);
 }
 
-gs_blob *gs_cache_encoded(gs_cache *c, gs_entry *e, int kind) {
+gi_result gs_cache_answer(gs_cache *c, gs_entry *cas, const char *shape, gs_waiter *w, gs_blob **blob,
+                          gs_entry **job, gi_error_info *err) {
+  *blob = NULL;
+  *job = NULL;
+  if (w && w->rc != GI_OK) {
+    /* Woken by an encode that failed: its error is this request's answer. */
+    gi_result rc = w->rc;
+    if (err) *err = w->err;
+    w->rc = GI_OK;
+    return rc;
+  }
+  char key[GS_KEY_SIZE];
+  answer_key(cas->gen, shape, key);
+  int woken = w && w->coalesced_encode;
+  if (w) w->coalesced_encode = 0;
   pthread_mutex_lock(&c->mu);
-  gs_blob *b = e->encoded[kind];
-  if (b) gs_blob_retain(b);
+  if (w && w->left) {
+    pthread_mutex_unlock(&c->mu);
+    if (err) snprintf(err->msg, sizeof err->msg, "encode: the request was given up before its answer's encode started");
+    return GI_ERR_CANCELLED;
+  }
+  gs_entry *e = lookup(c, key);
+  if (e) {
+    gs_cache_how how;
+    gi_result rc = found(c, e, w, woken, 0, &e, &how, err);
+    if (rc != GI_OK) return rc;
+    /* Held (refs): the entry, and so its blob, stays until released. */
+    gs_blob_retain(e->blob);
+    *blob = e->blob;
+    gs_cache_release(c, e);
+    return GI_OK;
+  }
+  e = calloc(1, sizeof *e);
+  gi_cancel *token = e ? gi_cancel_new() : NULL;
+  if (!token) {
+    free(e);
+    pthread_mutex_unlock(&c->mu);
+    if (err) snprintf(err->msg, sizeof err->msg, "cache: out of memory for an answer's entry");
+    return GI_ERR_NOMEM;
+  }
+  snprintf(e->key, sizeof e->key, "%s", key);
+  e->hash = hash_key(e->key);
+  e->answer = 1;
+  e->gen = cas->gen;
+  e->state = ENCODING;
+  e->refs = 1;
+  e->cancel = token;
+  if (w) join(e, w);
+  else e->interest = 1;
+  push_front(c, e);
   pthread_mutex_unlock(&c->mu);
-  return b;
+  count_how(c, e, GS_CACHE_MISS);
+  *job = e;
+  return GI_OK;
 }
 
-gs_blob *gs_cache_store_encoded(gs_cache *c, gs_entry *e, int kind, gs_blob *b) {
+const gi_cancel *gs_entry_cancel(const gs_entry *job) { return job->cancel; }
+
+void gs_cache_answer_done(gs_cache *c, gs_entry *job, gs_waiter *self, gi_result rc, gs_blob *b,
+                          const gi_error_info *err) {
   pthread_mutex_lock(&c->mu);
-  if (e->encoded[kind]) {
-    /* Another request encoded it first: answer with the stored copy. */
-    gs_blob_release(b);
-    b = e->encoded[kind];
-  } else {
-    e->encoded[kind] = b;
-    e->bytes += b->size;
-    if (e->linked) c->bytes += b->size;
+  if (self && self->entry == job) drop_waiter(self);
+  /* Abandoned (nobody waited any more: it left the table then) or failed: never kept. */
+  if (rc == GI_OK && b && job->linked) {
+    if (b->sending) {
+      /* Admitted as bytes being sent: from now on they count as the entry's. */
+      c->sending -= b->size;
+      b->sending = NULL;
+    }
+    gs_blob_retain(b);
+    job->blob = b;
+    set_bytes(c, job, b->size);
+    job->state = READY;
     evict(c, 0);
+  } else {
+    fail_entry(c, job, rc == GI_OK && !b ? GI_ERR_INTERNAL : rc, err);
   }
-  gs_blob_retain(b);
-  pthread_mutex_unlock(&c->mu);
-  return b;
+  wake_waiters(c, job);
+  gs_cache_release(c, job);
 }
 
 void gs_cache_stats(gs_cache *c, size_t *bytes, size_t *entries) {
   pthread_mutex_lock(&c->mu);
   *bytes = c->bytes;
   *entries = c->entries;
+  pthread_mutex_unlock(&c->mu);
+}
+
+void gs_cache_answer_stats(gs_cache *c, size_t *bytes, size_t *answers) {
+  pthread_mutex_lock(&c->mu);
+  *bytes = c->answer_bytes;
+  *answers = c->answers;
   pthread_mutex_unlock(&c->mu);
 }

@@ -353,7 +353,8 @@ static int hung_up(gs_req *r) {
 static void give_up(gs_http *h, gs_req *r) {
   int cancelled = gs_cache_leave(h->svc->cache, &r->w);
   if (r->cancel) gi_cancel_set(r->cancel);
-  if (!r->gone) deadline_answer(h, &r->ans, cancelled ? " and its bake was stopped" : "");
+  static const char *const stopped[3] = {"", " and its bake was stopped", " and its gather was stopped"};
+  if (!r->gone) deadline_answer(h, &r->ans, stopped[cancelled]);
   pthread_mutex_lock(&h->mu);
   if (r->suspended) {
     r->suspended = 0;
@@ -632,6 +633,7 @@ static void health(gs_service *svc, gs_answer *a) {
 static void metrics(gs_service *svc, gs_answer *a) {
   gs_gauges g = {0};
   gs_cache_stats(svc->cache, &g.cache_bytes, &g.cache_entries);
+  gs_cache_answer_stats(svc->cache, &g.answer_bytes, &g.answers);
   g.cache_budget = svc->cfg->cache_bytes;
   g.inflight_bytes = gs_cache_inflight(svc->cache);
   g.sending_bytes = gs_cache_sending(svc->cache);

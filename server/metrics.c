@@ -29,7 +29,7 @@ struct gs_metrics {
   atomic_ullong requests[GS_EP_COUNT][NCODES + 1]; /* last: any other code */
   histogram req_seconds, bake_seconds, move_seconds;
   atomic_ullong moves, cycles, session_events[GS_SESSION_EVENT_COUNT];
-  atomic_ullong cache[3], evictions, bakes, rejected, timeouts, cancelled, encode[2];
+  atomic_ullong cache[3], evictions, bakes, rejected, timeouts, cancelled, encode[3], encode_evictions;
   atomic_llong in_flight; /* bakes running now */
 };
 
@@ -70,7 +70,8 @@ void gs_metrics_cache(gs_metrics *m, gs_cache_how how) { atomic_fetch_add(&m->ca
 void gs_metrics_eviction(gs_metrics *m) { atomic_fetch_add(&m->evictions, 1); }
 void gs_metrics_rejected(gs_metrics *m) { atomic_fetch_add(&m->rejected, 1); }
 void gs_metrics_timeout(gs_metrics *m) { atomic_fetch_add(&m->timeouts, 1); }
-void gs_metrics_encode(gs_metrics *m, int hit) { atomic_fetch_add(&m->encode[hit != 0], 1); }
+void gs_metrics_encode(gs_metrics *m, gs_cache_how how) { atomic_fetch_add(&m->encode[how], 1); }
+void gs_metrics_encode_eviction(gs_metrics *m) { atomic_fetch_add(&m->encode_evictions, 1); }
 
 typedef struct {
   char *buf;
@@ -143,18 +144,29 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
               atomic_load(&m->cache[2]));
   put_counter(&b, "gi_cache_evictions_total", "Cascades evicted to stay within the cache budget.",
               atomic_load(&m->evictions));
-  put_counter(&b, "gi_encode_hits_total", "VDB answers streamed from bytes kept with their cascade.",
-              atomic_load(&m->encode[1]));
-  put_counter(&b, "gi_encode_misses_total", "VDB answers encoded for the request.", atomic_load(&m->encode[0]));
+  put_counter(&b, "gi_encode_hits_total",
+              "Answers the same for everyone (a cell's probe or panorama, a VDB) streamed from kept bytes.",
+              atomic_load(&m->encode[GS_CACHE_HIT]));
+  put_counter(&b, "gi_encode_misses_total", "Such answers gathered and encoded for the request (and kept).",
+              atomic_load(&m->encode[GS_CACHE_MISS]));
+  put_counter(&b, "gi_encode_coalesced_total",
+              "Such answers that waited for another request's gather and encode of the same bytes.",
+              atomic_load(&m->encode[GS_CACHE_COALESCED]));
+  put_counter(&b, "gi_encode_evictions_total",
+              "Kept answers evicted to stay within the cache budget (alone or with their cascade).",
+              atomic_load(&m->encode_evictions));
   put_counter(&b, "gi_rejected_total", "Requests answered 503 (queue full or memory budget taken).",
               atomic_load(&m->rejected));
   put_counter(&b, "gi_timeouts_total", "Requests answered 504 at their deadline.", atomic_load(&m->timeouts));
-  put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades and their encoded VDBs.", (double)g->cache_bytes);
+  put_gauge(&b, "gi_cache_bytes", "Bytes held by cached cascades and kept answers.", (double)g->cache_bytes);
+  put_gauge(&b, "gi_encoded_bytes", "Bytes of kept answers (part of gi_cache_bytes).", (double)g->answer_bytes);
+  put_gauge(&b, "gi_encoded_answers", "Answers kept (or being encoded) in the cache.", (double)g->answers);
   put_gauge(&b, "gi_cache_budget_bytes", "The configured memory budget: cached, in-flight, held and sending bytes.",
             (double)g->cache_budget);
   put_gauge(&b, "gi_inflight_bytes", "Estimated bytes of the bakes running now (cache misses and jobs).",
             (double)g->inflight_bytes);
-  put_gauge(&b, "gi_sending_bytes", "Bytes of encoded answers (EXR, glTF) held until their clients have read them.",
+  put_gauge(&b, "gi_sending_bytes",
+            "Bytes of encoded answers not kept in the cache (or evicted since) held until their clients have read them.",
             (double)g->sending_bytes);
   put_gauge(&b, "gi_cache_entries", "Cascades in the cache (baking or ready).", (double)g->cache_entries);
   put_gauge(&b, "gi_queue_depth", "Requests waiting for a bake worker.", (double)g->queue_depth);

@@ -4,10 +4,13 @@
  * private work folder, read back into a reference-counted blob and
  * unlinked at once, so nothing stays on disk and no descriptor stays open
  * whatever the client does; the blob counts in the memory budget until
- * the client has read it. A cascade's VDB is kept with it in the cache
- * (counted in the budget): a second request for the same cell streams the
- * same bytes without encoding. EXR answers are not kept (a cell's answer
- * is cached in front, by nginx: canonical.c).
+ * the client has read it. An answer that is the same bytes for everyone
+ * (a cascade's VDB, a cell's probe or panorama: no timings in them) is
+ * gathered and encoded once and kept in the cache (gs_cache_answer,
+ * counted in the budget): identical requests at the same time wait for
+ * that one encode, later ones stream the same bytes. A viewpoint's own
+ * answer (a probe list, a session's lighting) carries its timings and is
+ * encoded per request.
  *
  * Probe lists are split into tiles: the points a single cascade answers
  * from its finest level. Each tile's cascade is anchored at the tile's
@@ -158,39 +161,50 @@ gi_result gs_answer_take_file(gs_service *svc, gs_answer *a, const char *path, c
   return GI_OK;
 }
 
-/* The cascade's VDB from the cache, else encoded now and kept there. */
+/* The cascade's VDB, encoded now (the caller keeps it: gs_cache_answer). */
 static gi_result cascade_vdb(gs_service *svc, gs_entry *ent, int faces, gs_answer *a, gi_error_info *e) {
-  int kind = faces ? 1 : 0;
-  gs_blob *b = gs_cache_encoded(svc->cache, ent, kind);
-  gs_metrics_encode(svc->metrics, b != NULL);
-  if (!b) {
-    /* The encode's dense copies count against the memory budget as a
-     * bake does (235 MB at 8 levels of 64^3 with faces: past the RSS
-     * bound when the cache was full). */
-    size_t need = gi_cascade_vdb_bytes_estimate(gs_entry_cascade(ent), faces);
-    gi_result rc = gs_cache_reserve(svc->cache, need, e);
-    if (rc != GI_OK) return rc;
-    char path[1200];
-    gs_tmp_path(svc, ".vdb", path, sizeof path);
-    rc = gi_cascade_write_vdb(gs_entry_cascade(ent), path, faces, e);
-    gs_cache_unreserve(svc->cache, need);
-    if (rc != GI_OK) {
-      unlink(path);
-      return rc;
-    }
-    if (!(b = gs_blob_take_file(path, e))) return GI_ERR_IO;
-    if (gs_vdb_stable_uuid(b) != 0) {
-      gs_blob_release(b);
-      snprintf(e->msg, sizeof e->msg, "encode: the VDB writer's header is not the expected one");
-      return GI_ERR_IO;
-    }
-    b = gs_cache_store_encoded(svc->cache, ent, kind, b);
+  /* The encode's dense copies count against the memory budget as a
+   * bake does (235 MB at 8 levels of 64^3 with faces: past the RSS
+   * bound when the cache was full). */
+  size_t need = gi_cascade_vdb_bytes_estimate(gs_entry_cascade(ent), faces);
+  gi_result rc = gs_cache_reserve(svc->cache, need, e);
+  if (rc != GI_OK) return rc;
+  char path[1200];
+  gs_tmp_path(svc, ".vdb", path, sizeof path);
+  rc = gi_cascade_write_vdb(gs_entry_cascade(ent), path, faces, e);
+  gs_cache_unreserve(svc->cache, need);
+  if (rc != GI_OK) {
+    unlink(path);
+    return rc;
+  }
+  gs_blob *b = gs_blob_take_file(path, e);
+  if (!b) return GI_ERR_IO;
+  if (gs_vdb_stable_uuid(b) != 0) {
+    gs_blob_release(b);
+    snprintf(e->msg, sizeof e->msg, "encode: the VDB writer's header is not the expected one");
+    return GI_ERR_IO;
   }
   a->status = 200;
   a->blob = b;
   a->size = b->size;
-  a->content_type = "application/octet-stream";
   return GI_OK;
+}
+
+/* The shape of an answer that is the same bytes for every request naming
+ * it, for gs_cache_answer: a cascade's VDB, or a cell's probe or panorama
+ * (answer_extras: no timings in it), with every parameter that shapes the
+ * bytes beyond its cascade. 0 for any other answer. */
+static int answer_shape(gs_endpoint ep, const gi_proto_bake *b, char *buf, size_t size) {
+  if (ep == GS_EP_CASCADES) {
+    snprintf(buf, size, "vdb faces=%d", b->faces ? 1 : 0);
+    return 1;
+  }
+  if (ep != GS_EP_LIGHTING || !b->cell || (b->kind != GI_PROTO_PROBE && b->kind != GI_PROTO_PANORAMA)) return 0;
+  int pano = b->kind == GI_PROTO_PANORAMA;
+  /* %a: the point exactly (a cell's centre, so the same for every request). */
+  int n = snprintf(buf, size, "%s half=%d %dx%d at=%a,%a,%a", pano ? "panorama" : "probe", b->half ? 1 : 0,
+                   pano ? b->width : 1, pano ? b->height : 1, b->at[0], b->at[1], b->at[2]);
+  return n > 0 && (size_t)n < size; /* a cut shape could name another answer: not kept */
 }
 
 static const char *const cache_names[3] = {"hit", "miss", "coalesced"};
@@ -221,7 +235,8 @@ static size_t answer_extras(const gi_proto_bake *b) { return b->cell ? 0 : 2; }
 
 /* The probe or panorama at b->at from cascade c: the lighting answer, for
  * the scene's lighting URLs and for sessions alike. ms holds the stages
- * already run (a bake's or a move's); gather and encode are added. */
+ * already run (a bake's or a move's); gather and encode are added. The
+ * gather stops on cancel. */
 gi_result gs_answer_lighting(gs_service *svc, const gs_scene *s, const gi_cascade *c, const gi_proto_bake *b,
                              const gi_cancel *cancel, const char *cache, gi_timings *ms, double t_start_ms,
                              gs_answer *a, gi_error_info *e) {
@@ -273,7 +288,9 @@ int gs_serve_join_running(gs_service *svc, const gs_scene *s, gs_endpoint ep, co
   gi_error_info e = {0};
   gi_result rc;
   gi_quality req, q = gs_resolve_request(svc, s, &b->quality, &req, &e, &rc);
-  return rc == GI_OK && gs_cache_join_running(svc->cache, s, b->at, &req, &q, w);
+  char shape[256];
+  int kept = answer_shape(ep, b, shape, sizeof shape);
+  return rc == GI_OK && gs_cache_join_running(svc->cache, s, b->at, &req, &q, kept ? shape : NULL, w);
 }
 
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, double t_start_ms,
@@ -293,17 +310,40 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
   const gi_bake_report *rep = gi_cascade_report(c);
   gi_timings ms = {0};
   if (how == GS_CACHE_MISS) ms = rep->ms;
-  if (ep == GS_EP_CASCADES) {
+  /* The same bytes for everyone: kept, being encoded by another request
+   * (wait for it), or encoded here for all who ask meanwhile. */
+  char shape[256];
+  gs_blob *kept = NULL;
+  gs_entry *job = NULL;
+  if (answer_shape(ep, b, shape, sizeof shape)) {
+    rc = gs_cache_answer(svc->cache, ent, shape, w, &kept, &job, &e);
+    if (rc == GS_PENDING) {
+      gs_cache_release(svc->cache, ent); /* no answer yet: w is woken when the encode ends */
+      return;
+    }
+    /* A shared gather stops when every request waiting for it has left, not when this one does. */
+    if (job) cancel = gs_entry_cancel(job);
+  }
+  if (rc == GI_OK && kept) {
+    a->status = 200;
+    a->blob = kept;
+    a->size = kept->size;
+  } else if (rc == GI_OK && ep == GS_EP_CASCADES) {
     double t0 = gs_now_ms();
     rc = cascade_vdb(svc, ent, b->faces, a, &e);
     ms.encode = gs_now_ms() - t0;
-    if (rc == GI_OK)
-      snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-cascades.vdb\"", s->id);
-    if (rc == GI_OK) finish_headers(a, rep, &ms, cache_names[how], t_start_ms);
-  } else {
+  } else if (rc == GI_OK) {
     rc = gs_answer_lighting(svc, s, c, b, cancel, cache_names[how], &ms, t_start_ms, a, &e);
   }
-  if (rc != GI_OK) gs_answer_core_error(a, rc, &e);
+  if (job) gs_cache_answer_done(svc->cache, job, w, rc, rc == GI_OK ? a->blob : NULL, &e);
+  if (rc == GI_OK) {
+    a->content_type = ep == GS_EP_CASCADES ? "application/octet-stream" : "image/x-exr";
+    if (ep == GS_EP_CASCADES)
+      snprintf(a->disposition, sizeof a->disposition, "attachment; filename=\"%s-cascades.vdb\"", s->id);
+    finish_headers(a, rep, &ms, cache_names[how], t_start_ms);
+  } else {
+    gs_answer_core_error(a, rc, &e);
+  }
   gs_cache_release(svc->cache, ent);
 }
 

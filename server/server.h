@@ -5,7 +5,8 @@
  * libmicrohttpd's threads and never bakes: heavy work goes to the bounded
  * worker pool (pool.c) and long probe lists to the job runner (jobs.c).
  * Workers get cascades from the cache (cache.c), which bakes each key once
- * even when many requests ask for it at the same time. metrics.c counts it
+ * even when many requests ask for it at the same time, and keeps the
+ * answers that are the same bytes for everyone (gathered and encoded once). metrics.c counts it
  * all for /metrics.
  *
  * Threading: the catalog and the config are read-only after start and
@@ -110,8 +111,10 @@ void gs_metrics_bake_end(gs_metrics *m, int cancelled);
 void gs_metrics_eviction(gs_metrics *m);
 void gs_metrics_rejected(gs_metrics *m);
 void gs_metrics_timeout(gs_metrics *m);
-/* A VDB answer: from the encoded bytes kept with its cascade (hit) or encoded now. */
-void gs_metrics_encode(gs_metrics *m, int hit);
+/* A kept answer (cache.c): reused (hit), encoded now (miss), or waited
+ * for another request's encode of it (coalesced); and one evicted. */
+void gs_metrics_encode(gs_metrics *m, gs_cache_how how);
+void gs_metrics_encode_eviction(gs_metrics *m);
 /* Sessions (session.c): one move (its seconds, whether it closed the
  * refresh cycle), and how sessions end or are refused. */
 void gs_metrics_move(gs_metrics *m, double seconds, int cycle_closed);
@@ -121,6 +124,7 @@ void gs_metrics_session(gs_metrics *m, gs_session_event ev);
 /* Gauges read at scrape time. */
 typedef struct gs_gauges {
   size_t cache_bytes, cache_entries, cache_budget, inflight_bytes, sending_bytes;
+  size_t answer_bytes, answers;  /* kept answers: their part of cache_bytes, and how many */
   int queue_depth, queue_capacity, workers_busy;
   int jobs[GI_JOB_STATE_COUNT];  /* by gi_proto_job_state */
   double uptime_s;
@@ -134,12 +138,14 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g);
 /* ---- blob (serve.c): encoded bytes shared by the cache and answers ------ */
 
 /* Reference-counted bytes: the cache holds one reference, each answer
- * streaming them another, so a VDB is encoded once and a client that never
- * reads holds no copy and no file. */
+ * streaming them another, so a kept answer is encoded once and a client
+ * that never reads holds no copy and no file. */
 struct gs_cache;
 typedef struct gs_blob {
   atomic_int refs;
-  struct gs_cache *sending; /* counts size in this budget's bytes being sent until freed, or NULL */
+  /* Counts size in this budget's bytes being sent until freed, or NULL
+   * (not counted, or counted as kept by the cache, under its lock). */
+  struct gs_cache *sending;
   size_t size;
   unsigned char data[];
 } gs_blob;
@@ -153,8 +159,6 @@ void gs_blob_release_data(void *data);
 
 /* ---- cache.c: cascades keyed by scene, anchor and quality -------------- */
 
-/* Encoded answers a cascade keeps: its VDB without and with per-face grids. */
-#define GS_ENCODED_KINDS 2
 /* A bake's transient buffers beside its cascade, as a fraction 1/DIV of the
  * cascade: bounce's irradiance pairs (24 of the 169 bytes a voxel holds),
  * voxelize's bins and inject's scratch. Measured peak RSS growth of one
@@ -178,9 +182,10 @@ typedef struct gs_waiter {
    * wake are then unused. */
   int blocking;
   /* The cache's, under its lock. */
-  gs_entry *entry;         /* the bake it is interested in, or NULL */
+  gs_entry *entry;         /* the bake (or answer's encode) it is interested in, or NULL */
   struct gs_waiter *next;
   int coalesced;           /* it waited for another request's bake */
+  int coalesced_encode;    /* it waited for another request's encode of its answer */
   int left;                /* gs_cache_leave was called: it joins no bake */
   gi_result rc;            /* that bake's failure, for the request's next try */
   gi_error_info err;
@@ -204,12 +209,15 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
 /* The request behind w gave up (deadline, hang-up): it stops counting as
  * interested. Returns 1 when that cancelled the bake (nobody else waits). */
 /* Before a request takes a worker: when a bake for its key is running,
- * w (not blocking) joins it as gs_cache_get would and 1 is returned; the
- * request then waits without a worker or a queue slot and w->wake comes
- * when the bake ends (its rerun is a coalesced hit, or the bake's error).
- * 0: no such bake; run the request as usual. */
+ * or (shape not NULL) the cascade is cached and its answer of that shape
+ * is being encoded (gs_cache_answer), w (not blocking) joins it as
+ * gs_cache_get would and 1 is returned; the request then waits without a
+ * worker or a queue slot and w->wake comes when the bake or encode ends
+ * (its rerun is a coalesced hit, or that error). 0: nothing to join; run
+ * the request as usual. */
 int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
-                          const gi_quality *resolved, gs_waiter *w);
+                          const gi_quality *resolved, const char *shape, gs_waiter *w);
+/* 1 when that cancelled a bake, 2 an answer's gather and encode. */
 int gs_cache_leave(gs_cache *c, gs_waiter *w);
 const gi_cascade *gs_entry_cascade(const gs_entry *e);
 void gs_cache_release(gs_cache *c, gs_entry *e);
@@ -236,12 +244,31 @@ gi_result gs_cache_admit_sending(gs_cache *c, gs_blob *b, gi_error_info *err);
 /* Bytes of answers being sent (gauge), and their release (gs_blob_release). */
 size_t gs_cache_sending(gs_cache *c);
 void gs_cache_unsend(gs_cache *c, size_t bytes);
-/* The entry's encoded answer of a kind, with a reference for the caller, or NULL. */
-gs_blob *gs_cache_encoded(gs_cache *c, gs_entry *e, int kind);
-/* Keeps b (takes the caller's reference) as the entry's encoded answer,
- * counted in the budget, and returns the kept blob with a reference for
- * the caller (an earlier one when another request stored first). */
-gs_blob *gs_cache_store_encoded(gs_cache *c, gs_entry *e, int kind, gs_blob *b);
+/* Kept answers: one that is the same bytes for every request naming it
+ * (a cell's probe or panorama, a cascade's VDB) is gathered and encoded
+ * once and kept, keyed by shape (a text naming everything else that
+ * shapes the bytes) and the cascade entry e it comes from (its
+ * generation: a cascade baked again is another), counted in the budget
+ * and evicted in LRU order with the cascades, and with e.
+ * GI_OK with *blob (a reference for the caller): kept, or encoded by the
+ * request w waited for. GI_OK with *blob NULL and *job: the caller
+ * encodes it now, stopping on gs_entry_cancel(job), then calls
+ * gs_cache_answer_done. GS_PENDING: w (not blocking) waits for another
+ * request's encode (see gs_waiter); a blocking waiter, and no waiter,
+ * block for it. Else that encode's error, or GI_ERR_CANCELLED when w left. */
+gi_result gs_cache_answer(gs_cache *c, gs_entry *e, const char *shape, gs_waiter *w, gs_blob **blob,
+                          gs_entry **job, gi_error_info *err);
+/* A job's token: set when no request wants its answer any more (gs_cache_leave). */
+const gi_cancel *gs_entry_cancel(const gs_entry *job);
+/* The job's encode ended with rc and b (the caller keeps its reference):
+ * b is kept (its bytes, if admitted as being sent, now count as the
+ * cache's) unless rc failed or nobody wanted it any more; a failure is
+ * never kept, and the requests waiting for it get it. Wakes them and
+ * releases job. */
+void gs_cache_answer_done(gs_cache *c, gs_entry *job, gs_waiter *w, gi_result rc, gs_blob *b,
+                          const gi_error_info *err);
+/* Kept answers' bytes (part of gs_cache_stats' bytes) and count. */
+void gs_cache_answer_stats(gs_cache *c, size_t *bytes, size_t *answers);
 
 /* ---- pool.c: the bounded worker pool ----------------------------------- */
 
@@ -368,14 +395,17 @@ void gs_answer_free(gs_answer *a);
 gi_result gs_answer_take_file(gs_service *svc, gs_answer *a, const char *path, const char *type, gi_error_info *e);
 
 /* gs_cache_join_running for the cached bake gs_serve_bake would make or
- * wait for (lighting other than lightmaps, cascades); 0 for any other
- * request or when its quality does not resolve (the worker reports it). */
+ * wait for (lighting other than lightmaps, cascades), or the encode of its
+ * kept answer; 0 for any other request or when its quality does not
+ * resolve (the worker reports it). */
 int gs_serve_join_running(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b, gs_waiter *w);
 /* Lighting (probe, panorama) or cascades for one viewpoint. */
 /* w (may be NULL: block for a running bake) as in gs_cache_get: out->status
- * stays 0 when the request waits for another request's bake. cancel (may
- * be NULL) fires when nobody waits for the answer: a gather or a lightmap
- * bake stops on it. */
+ * stays 0 when the request waits for another request's bake, or for its
+ * encode of the same kept answer (gs_cache_answer). cancel (may be NULL)
+ * fires when nobody waits for the answer: a gather not shared with other
+ * requests, or a lightmap bake, stops on it (a shared one stops when all
+ * its requests left). */
 void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_proto_bake *b,
                    double t_start_ms, gs_waiter *w, const gi_cancel *cancel, gs_answer *out);
 /* lightmap.c: kind=lightmap (the EXR atlas) or lightmap-uv.glb (ep) for

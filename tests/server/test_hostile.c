@@ -26,7 +26,10 @@
  *   encoded bytes     a second cascades.vdb for the same cell streams the
  *                     kept bytes (no encode); 200 clients that never read
  *                     a VDB leave no temporary file, no open file and RSS
- *                     bounded. */
+ *                     bounded; slow readers' answers count in the budget,
+ *                     and readers of one panorama share one copy, one
+ *                     gather and encode (a hang-up stops it only when
+ *                     every client waiting for it has gone). */
 #define _POSIX_C_SOURCE 200809L
 #include "server_util.h"
 #include "test_util.h"
@@ -1168,6 +1171,8 @@ static void test_probes_and_lightmap_cancelled(void **state) {
  * took no token (the probe gather did) and ran to its end, seconds of a
  * worker for nobody. It stops on the request's token now. */
 #define PANO_QUALITY "quality=low&levels=8&res=32&step=0.05"
+#define PANO_OTHER "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&" PANO_QUALITY \
+                   "&kind=panorama&width=1022&height=1024"
 /* CANCEL_INI with a deadline the whole panorama stays under in every
  * build: under ASan it takes several times its 2 s and met the 3 s
  * deadline (a 504 before the hang-up could be tested). */
@@ -1183,12 +1188,13 @@ static void test_panorama_cancelled(void **state) {
   double ms;
   assert_int_equal(timed_get(&s, "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&" PANO_QUALITY, &ms, cache),
                    200);
-  /* The same cell at full size, timed whole, then one hung up. */
+  /* The same cell at full size, timed whole, then one of another width
+   * (the first is kept: asked again, it would be no gather) hung up. */
   const char *pano = "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&" PANO_QUALITY
                      "&kind=panorama&width=1024&height=1024";
   assert_int_equal(timed_get(&s, pano, &ms, cache), 200);
   assert_string_equal(cache, "hit");
-  int fd = send_get(&s, pano);
+  int fd = send_get(&s, PANO_OTHER);
   su_sleep_ms(200);
   assert_true(su_metric(&s, "gi_workers_busy", NULL) == 1);
   close(fd);
@@ -1198,6 +1204,63 @@ static void test_panorama_cancelled(void **state) {
   assert_true(ms > 200 + FREE_WITHIN_MS + 500); /* else the test proves nothing */
   assert_true(free_ms >= 0 && free_ms < FREE_WITHIN_MS);
   assert_true(su_metric(&s, "gi_bakes_in_flight", NULL) == 0);
+  cheap_answered(&s);
+  assert_int_equal(su_stop(&s), 0);
+}
+
+static void read_head(int fd, char *buf, size_t size, int ms);
+
+/* One panorama asked by two clients at once is gathered and encoded once:
+ * the second waits for the first's gather (without a worker). The first
+ * client hanging up does not stop it while the second still waits, and
+ * the second gets the same bytes as a later request (a kept hit). When
+ * both hang up, the shared gather stops. Each request gathered its own
+ * panorama before: two workers busy, encoded twice. */
+static void test_panorama_shared(void **state) {
+  su_server s;
+  assert_int_equal(su_start(&s, "shared-panorama", PANO_INI), 0);
+  char cache[16];
+  double ms;
+  assert_int_equal(timed_get(&s, "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&" PANO_QUALITY, &ms, cache),
+                   200);
+  double miss0 = su_metric(&s, "gi_encode_misses_total", NULL);
+  int a = send_get(&s, PANO_OTHER);
+  su_sleep_ms(200);
+  int b = send_get(&s, PANO_OTHER);
+  for (int i = 0; i < 250 && su_metric(&s, "gi_encode_coalesced_total", NULL) < 1; i++) su_sleep_ms(20);
+  assert_true(su_metric(&s, "gi_encode_coalesced_total", NULL) == 1);
+  assert_true(su_metric(&s, "gi_workers_busy", NULL) == 1);
+  close(a);
+  su_sleep_ms(300);
+  /* The second client still waits: the gather goes on, on one worker. */
+  assert_true(su_metric(&s, "gi_workers_busy", NULL) == 1);
+  static char body[1 << 16];
+  read_head(b, body, sizeof body, 60000);
+  printf("  two clients, one panorama: %.0f encode(s); the first gone, the second got %.12s\n",
+         su_metric(&s, "gi_encode_misses_total", NULL) - miss0, body);
+  assert_non_null(strstr(body, "HTTP/1.1 200"));
+  close(b);
+  assert_true(su_metric(&s, "gi_encode_misses_total", NULL) == miss0 + 1);
+  su_resp r = su_http(&s, NULL, PANO_OTHER, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 200);
+  assert_true(su_metric(&s, "gi_encode_hits_total", NULL) == 1);
+  free(r.body);
+
+  /* Another size, both clients gone: the gather they shared stops. */
+  const char *third = "/v1/scenes/city/lighting?at=2.1,1.7,1.4&redirect=0&" PANO_QUALITY
+                      "&kind=panorama&width=1020&height=1024";
+  a = send_get(&s, third);
+  su_sleep_ms(200);
+  b = send_get(&s, third);
+  for (int i = 0; i < 250 && su_metric(&s, "gi_encode_coalesced_total", NULL) < 2; i++) su_sleep_ms(20);
+  assert_true(su_metric(&s, "gi_encode_coalesced_total", NULL) == 2);
+  close(a);
+  close(b);
+  double free_ms = wait_workers_free(&s, 10000);
+  printf("  both clients gone: worker free %.0f ms later, %.0f answer(s) kept\n", free_ms,
+         su_metric(&s, "gi_encoded_answers", NULL));
+  assert_true(free_ms >= 0 && free_ms < FREE_WITHIN_MS);
+  assert_true(su_metric(&s, "gi_encoded_answers", NULL) == 2); /* the probe and PANO_OTHER, not this one */
   cheap_answered(&s);
   assert_int_equal(su_stop(&s), 0);
 }
@@ -1374,43 +1437,69 @@ static void read_head(int fd, char *buf, size_t size, int ms) {
   }
 }
 
-/* Slow readers of one large answer (a 1024^2 panorama: 13 MB of EXR):
+/* Slow readers of large answers (1024^2 panoramas: 13 MB of EXR each):
  * each encoded its own copy and held it until its client had read it (or
  * the 60 s idle timeout), outside the budget: thirty of them took RSS from
  * 54 to 520 MB with cache_mb = 64 and gi_inflight_bytes 0. The bytes being
- * sent now count in the budget (gi_sending_bytes): a new answer that would
- * pass it is a 503 with Retry-After, and they return when the clients go. */
+ * read now count in the budget: a panorama of another width per reader is
+ * kept in the cache while it is read (gi_encoded_bytes; bytes not kept
+ * count in gi_sending_bytes), and a new answer that would pass the budget
+ * is a 503 with Retry-After. Once the clients go, the kept answers may be
+ * evicted: a new one is served. Readers of one panorama share one copy:
+ * all are served from it (the fifth was a 503 when each encoded its own). */
 #define SENDING_BUDGET_MB 64
+#define SLOW_PANO "/v1/scenes/city/lighting?at=10,2,10&redirect=0&quality=low&kind=panorama&width=%d&height=1024"
 static void test_slow_readers_in_budget(void **state) {
   su_server s;
   assert_int_equal(su_start(&s, "slow-readers", HOSTILE_INI_WORK("workers = 2\nqueue = 8\nbake_threads = 1\n",
                                                                  "[limits]\ncache_mb = 64\n")), 0);
-  const char *pano = "/v1/scenes/city/lighting?at=10,2,10&redirect=0&quality=low&kind=panorama&width=1024&height=1024";
   enum { N = 12 };
   int fds[N], n = 0, ok = 0, busy = 0;
-  double budget = SENDING_BUDGET_MB * 1048576.0, sending = 0;
-  char head[4096];
+  double budget = SENDING_BUDGET_MB * 1048576.0, held = 0;
+  char head[4096], pano[256];
   while (n < N && !busy) {
+    snprintf(pano, sizeof pano, SLOW_PANO, 1024 - 2 * n);
     int fd = send_get(&s, pano);
     fds[n++] = fd;
     int small = 4096;
     setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
     read_head(fd, head, sizeof head, 30000);
-    sending = su_metric(&s, "gi_sending_bytes", NULL);
-    printf("  reader %d: %.12s, %.1f MB being sent\n", n, head, sending / 1e6);
+    held = su_metric(&s, "gi_sending_bytes", NULL) + su_metric(&s, "gi_encoded_bytes", NULL);
+    printf("  reader %d: %.12s, %.1f MB of answers held\n", n, head, held / 1e6);
     if (!strncmp(head, "HTTP/1.1 200", 12)) ok++;
     else if (!strncmp(head, "HTTP/1.1 503", 12) && strstr(head, "\r\nRetry-After: 1\r\n")) busy++;
     else fail_msg("reader %d: %s", n, head);
-    assert_true(sending <= budget);
+    assert_true(held <= budget);
   }
   assert_int_equal(busy, 1);
   assert_true(ok >= 2);
-  assert_true(sending >= ok * 10e6); /* each reader's EXR, held while it does not read */
+  assert_true(held >= ok * 10e6); /* each reader's EXR, held while it does not read */
   for (int i = 0; i < n; i++) close(fds[i]);
   double t0 = su_now_ms();
   while (su_now_ms() - t0 < 10000 && su_metric(&s, "gi_sending_bytes", NULL) > 0) su_sleep_ms(20);
-  printf("  %d readers held, the next a 503; all bytes returned %.0f ms after they left\n", ok, su_now_ms() - t0);
+  printf("  %d readers held, the next a 503; all bytes sent or dropped %.0f ms after they left\n", ok,
+         su_now_ms() - t0);
   assert_true(su_metric(&s, "gi_sending_bytes", NULL) == 0);
+  /* Nobody reads the kept answers now: they make room for another. */
+  snprintf(pano, sizeof pano, SLOW_PANO, 1024 - 2 * n);
+  su_resp r = su_http(&s, NULL, pano, NULL, SU_TOKEN);
+  assert_int_equal(r.status, 200);
+  free(r.body);
+  double kept = su_metric(&s, "gi_encoded_bytes", NULL), misses = su_metric(&s, "gi_encode_misses_total", NULL);
+  /* N slow readers of that one panorama: one copy for them all. */
+  for (int i = 0; i < N; i++) {
+    fds[i] = send_get(&s, pano);
+    int small = 4096;
+    setsockopt(fds[i], SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    read_head(fds[i], head, sizeof head, 30000);
+    if (strncmp(head, "HTTP/1.1 200", 12)) fail_msg("reader %d of one panorama: %s", i + 1, head);
+    assert_true(su_metric(&s, "gi_encoded_bytes", NULL) <= kept);
+    assert_true(su_metric(&s, "gi_sending_bytes", NULL) == 0);
+  }
+  printf("  %d readers of one panorama: all 200, %.0f encode(s), %.1f MB of answers kept\n", N,
+         su_metric(&s, "gi_encode_misses_total", NULL) - misses, su_metric(&s, "gi_encoded_bytes", NULL) / 1e6);
+  assert_true(su_metric(&s, "gi_encode_misses_total", NULL) == misses);
+  for (int i = 0; i < N; i++) close(fds[i]);
   cheap_answered(&s);
   assert_int_equal(su_stop(&s), 0);
 }
@@ -1512,6 +1601,7 @@ int main(void) {
       cmocka_unit_test(test_coalesced_without_queue),
       cmocka_unit_test(test_probes_and_lightmap_cancelled),
       cmocka_unit_test(test_panorama_cancelled),
+      cmocka_unit_test(test_panorama_shared),
   };
   /* One test by name while working on it: GI_TEST_FILTER=test_name. */
   if (getenv("GI_TEST_FILTER")) cmocka_set_test_filter(getenv("GI_TEST_FILTER"));

@@ -17,6 +17,7 @@
 #include <errno.h>
 #include <jansson.h>
 #include <math.h>
+#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -370,6 +371,83 @@ static void test_coalescing(void **state) {
   assert_true(su_metric(&S_main, "gi_cache_misses_total", NULL) == miss + 1);
   assert_true(su_metric(&S_main, "gi_cache_hits_total", NULL) + su_metric(&S_main, "gi_cache_coalesced_total", NULL) ==
               other + N - 1);
+}
+
+/* n GETs of path at once (curl_multi) into r; the caller frees r[i].body. */
+static void get_all(const char *path, su_resp *r, int n) {
+  CURLM *m = curl_multi_init();
+  CURL *c[16];
+  struct curl_slist *h[16];
+  assert_true(n <= 16);
+  memset(r, 0, (size_t)n * sizeof *r);
+  for (int i = 0; i < n; i++) {
+    c[i] = su_make_req(&S_main, NULL, path, NULL, TOKEN, &r[i], &h[i]);
+    curl_multi_add_handle(m, c[i]);
+  }
+  int running = 1;
+  while (running) {
+    curl_multi_perform(m, &running);
+    curl_multi_poll(m, NULL, 0, 100, NULL);
+  }
+  for (int i = 0; i < n; i++) {
+    curl_easy_getinfo(c[i], CURLINFO_RESPONSE_CODE, &r[i].status);
+    curl_multi_remove_handle(m, c[i]);
+    curl_easy_cleanup(c[i]);
+    curl_slist_free_all(h[i]);
+  }
+  curl_multi_cleanup(m);
+}
+
+static double encode_total(void) {
+  return su_metric(&S_main, "gi_encode_hits_total", NULL) + su_metric(&S_main, "gi_encode_misses_total", NULL) +
+         su_metric(&S_main, "gi_encode_coalesced_total", NULL);
+}
+
+/* Identical requests at once share one gather and encode (the later ones
+ * wait for the first's), and all get the bytes a lone request gets later
+ * from the kept answer. Another cell, half floats or a panorama is another
+ * answer. Each request gathered and encoded its own EXR before. */
+static void test_shared_answers(void **state) {
+  enum { N = 8 };
+  const char *path = "/v1/scenes/city/lighting?at=-70,2,44&quality=low";
+  double misses = su_metric(&S_main, "gi_encode_misses_total", NULL), all = encode_total();
+  double bakes = su_metric(&S_main, "gi_bakes_total", NULL);
+  su_resp r[N];
+  get_all(path, r, N);
+  for (int i = 0; i < N; i++) {
+    assert_int_equal(r[i].status, 200);
+    assert_int_equal(r[i].len, r[0].len);
+    assert_memory_equal(r[i].body, r[0].body, r[0].len);
+  }
+  double m = su_metric(&S_main, "gi_encode_misses_total", NULL) - misses;
+  printf("  %d identical requests: %g bake(s), %g encode(s), %g served the same bytes\n", N,
+         su_metric(&S_main, "gi_bakes_total", NULL) - bakes, m, encode_total() - all - m);
+  assert_true(su_metric(&S_main, "gi_bakes_total", NULL) == bakes + 1);
+  assert_true(m == 1);
+  assert_true(encode_total() == all + N);
+  /* Later, alone: the kept bytes. */
+  double hits = su_metric(&S_main, "gi_encode_hits_total", NULL);
+  su_resp lone = GET(&S_main, path);
+  assert_int_equal(lone.status, 200);
+  assert_string_equal(su_header(&lone, "X-GI-Cache"), "hit");
+  assert_int_equal(lone.len, r[0].len);
+  assert_memory_equal(lone.body, r[0].body, r[0].len);
+  assert_true(su_metric(&S_main, "gi_encode_hits_total", NULL) == hits + 1);
+  assert_true(su_metric(&S_main, "gi_encode_misses_total", NULL) == misses + 1);
+  free(lone.body);
+  /* Not the same answer: each is encoded for itself. */
+  const char *other[] = {"/v1/scenes/city/lighting?at=70,2,-44&quality=low",
+                         "/v1/scenes/city/lighting?at=-70,2,44&quality=low&half=1",
+                         "/v1/scenes/city/lighting?at=-70,2,44&quality=low&kind=panorama&width=16&height=8",
+                         "/v1/scenes/city/lighting?at=-70,2,44&quality=low&bounces=0"};
+  for (int k = 0; k < 4; k++) {
+    su_resp o = GET(&S_main, other[k]);
+    assert_int_equal(o.status, 200);
+    assert_true(o.len != r[0].len || memcmp(o.body, r[0].body, o.len));
+    assert_true(su_metric(&S_main, "gi_encode_misses_total", NULL) == misses + 2 + k);
+    free(o.body);
+  }
+  for (int i = 0; i < N; i++) free(r[i].body);
 }
 
 /* effects= overrides the plan: a different cascade, said in the header, and less light. */
@@ -1045,6 +1123,212 @@ static void test_vdb_full_disk_not_cached(void **state) {
   gi_scene_release(sc.scene);
 }
 
+/* A counter or gauge's value in rendered /metrics text. */
+static double metric_in(const char *text, const char *name) {
+  char key[128];
+  snprintf(key, sizeof key, "\n%s ", name);
+  const char *p = strstr(text, key);
+  assert_non_null(p);
+  return strtod(p + strlen(key), NULL);
+}
+
+static double svc_metric(gs_service *svc, const char *name) {
+  char *m = gs_metrics_render(svc->metrics, &(gs_gauges){0});
+  double v = metric_in(m, name);
+  free(m);
+  return v;
+}
+
+/* An in-process service with a furnace scene and a cache of budget bytes. */
+typedef struct {
+  gs_config cfg;
+  gs_service svc;
+  gs_scene sc;
+} furnace_svc;
+
+static void furnace_start(furnace_svc *f, size_t budget) {
+  gs_config_defaults(&f->cfg);
+  f->cfg.bake_threads = 1;
+  f->cfg.cache_bytes = budget;
+  snprintf(f->cfg.tmp_dir, sizeof f->cfg.tmp_dir, "%s", tu_tmpdir());
+  f->svc = (gs_service){.cfg = &f->cfg, .metrics = gs_metrics_new()};
+  f->svc.cache = gs_cache_new(budget, f->svc.metrics);
+  assert_non_null(f->svc.cache);
+  f->sc = (gs_scene){.id = "furnace", .scene = tu_furnace_scene(1.0, 0.5, 1.0)};
+}
+
+static void furnace_stop(furnace_svc *f) {
+  gs_cache_free(f->svc.cache);
+  gs_metrics_free(f->svc.metrics);
+  gi_scene_release(f->sc.scene);
+}
+
+typedef struct {
+  gs_service *svc;
+  const gs_scene *sc;
+  gs_endpoint ep;
+  const gi_proto_bake *b;
+  gs_answer a;
+} serve_arg;
+
+static void *serve_thread(void *p) {
+  serve_arg *x = p;
+  x->a = (gs_answer){.fd = -1};
+  gs_serve_bake(x->svc, x->sc, x->ep, x->b, gs_now_ms(), NULL, NULL, &x->a);
+  return NULL;
+}
+
+/* A cell's panorama as the front asks for it (bake.cell: no timings in it). */
+static const gi_proto_bake FURNACE_PANO = {.has_at = 1, .at = {0.5, 0.5, 0.5}, .cell = 1, .kind = GI_PROTO_PANORAMA,
+                                           .width = 64, .height = 32, .quality = {.levels = 2, .res = 16, .bounces = 1}};
+
+/* In-process, without waiters (threads that block, as a probe list's
+ * would): N threads asking one panorama at once bake once and gather and
+ * encode once; all get the bytes a lone request then gets from the kept
+ * answer. An encode that fails (a full disk) is not kept: the next
+ * request encodes afresh. */
+static void test_shared_answers_blocking(void **state) {
+  (void)state;
+  enum { N = 6 };
+  furnace_svc f;
+  furnace_start(&f, (size_t)1 << 30);
+  serve_arg x[N];
+  pthread_t t[N];
+  for (int i = 0; i < N; i++) {
+    x[i] = (serve_arg){.svc = &f.svc, .sc = &f.sc, .ep = GS_EP_LIGHTING, .b = &FURNACE_PANO};
+    assert_int_equal(pthread_create(&t[i], NULL, serve_thread, &x[i]), 0);
+  }
+  for (int i = 0; i < N; i++) pthread_join(t[i], NULL);
+  for (int i = 0; i < N; i++) {
+    assert_int_equal(x[i].a.status, 200);
+    assert_int_equal(x[i].a.size, x[0].a.size);
+    assert_memory_equal(x[i].a.blob->data, x[0].a.blob->data, x[0].a.size);
+  }
+  double miss = svc_metric(&f.svc, "gi_encode_misses_total"), hit = svc_metric(&f.svc, "gi_encode_hits_total"),
+         co = svc_metric(&f.svc, "gi_encode_coalesced_total");
+  printf("  %d threads, one panorama: %g bake(s), encodes: %g miss, %g hit, %g coalesced\n", N,
+         svc_metric(&f.svc, "gi_bakes_total"), miss, hit, co);
+  assert_true(svc_metric(&f.svc, "gi_bakes_total") == 1);
+  assert_true(miss == 1 && hit + co == N - 1);
+  serve_arg lone = {.svc = &f.svc, .sc = &f.sc, .ep = GS_EP_LIGHTING, .b = &FURNACE_PANO};
+  serve_thread(&lone);
+  assert_int_equal(lone.a.status, 200);
+  assert_int_equal(lone.a.size, x[0].a.size);
+  assert_memory_equal(lone.a.blob->data, x[0].a.blob->data, x[0].a.size);
+  assert_true(lone.a.blob == x[0].a.blob); /* the kept bytes themselves, not a copy */
+  assert_true(svc_metric(&f.svc, "gi_encode_hits_total") == hit + 1);
+  gs_answer_free(&lone.a);
+  for (int i = 0; i < N; i++) gs_answer_free(&x[i].a);
+
+  /* Another size whose gather or encode runs out of memory (the core
+   * allocation after its entry's token fails: base/alloc_test.h): 503, not kept. */
+  gi_proto_bake b = FURNACE_PANO;
+  b.width = 32;
+  const int want_status[3] = {503, 200, 200};
+  const double want_miss[3] = {1, 2, 2}, want_hit[3] = {0, 0, 1};
+  miss = svc_metric(&f.svc, "gi_encode_misses_total");
+  hit = svc_metric(&f.svc, "gi_encode_hits_total");
+  for (int i = 0; i < 3; i++) {
+    serve_arg y = {.svc = &f.svc, .sc = &f.sc, .ep = GS_EP_LIGHTING, .b = &b};
+    if (i == 0) gi__alloc_fail_after(1);
+    serve_thread(&y);
+    if (i == 0) {
+      assert_false(gi__alloc_fail_armed()); /* the answer reached the failure */
+      gi__alloc_fail_after(-1);
+    }
+    printf("  32x32 panorama %d: status %d%s%s\n", i, y.a.status, y.a.json ? ", " : "", y.a.json ? y.a.json : "");
+    assert_int_equal(y.a.status, want_status[i]);
+    assert_true(svc_metric(&f.svc, "gi_encode_misses_total") == miss + want_miss[i]);
+    assert_true(svc_metric(&f.svc, "gi_encode_hits_total") == hit + want_hit[i]);
+    gs_answer_free(&y.a);
+  }
+  furnace_stop(&f);
+}
+
+/* One in-process request: its answer (the caller frees it). */
+static gs_answer serve_one(furnace_svc *f, gs_endpoint ep, const gi_proto_bake *b) {
+  serve_arg x = {.svc = &f->svc, .sc = &f->sc, .ep = ep, .b = b};
+  serve_thread(&x);
+  if (x.a.status != 200) fail_msg("status %d: %s", x.a.status, x.a.json ? x.a.json : "");
+  return x.a;
+}
+
+/* Kept answers under a budget that holds one cascade: a bake for another
+ * cell evicts the first cascade and its kept answers with it (counted as
+ * evictions), and answers clients are still reading (its probe and VDB
+ * here) stay counted, as bytes being sent, until the clients have them
+ * (a VDB was counted nowhere once its cascade was evicted). The first
+ * cell asked again is baked again and its answer encoded again, never
+ * served from the old cascade's, to the same bytes. */
+static void test_kept_answers_evicted(void **state) {
+  (void)state;
+  gi_proto_bake p1 = {.has_at = 1, .at = {0.5, 0.5, 0.5}, .cell = 1, .kind = GI_PROTO_PROBE,
+                      .quality = {.levels = 2, .res = 16, .bounces = 1}};
+  gi_proto_bake p2 = p1;
+  p2.at[0] = 0.15;
+  /* Sizes first, under no pressure: the cascade, its probe and its VDB. */
+  furnace_svc f;
+  furnace_start(&f, (size_t)1 << 30);
+  gi_error_info e = {0};
+  gi_result rc;
+  gi_quality req, q = gs_resolve_request(&f.svc, &f.sc, &p1.quality, &req, &e, &rc);
+  assert_int_equal(rc, GI_OK);
+  int64_t c1[3], c2[3];
+  assert_int_equal(gi_cascade_anchor(f.sc.scene, p1.at, &q, c1, &e), GI_OK);
+  assert_int_equal(gi_cascade_anchor(f.sc.scene, p2.at, &q, c2, &e), GI_OK);
+  assert_true(memcmp(c1, c2, sizeof c1) != 0); /* two cells */
+  gs_answer a = serve_one(&f, GS_EP_LIGHTING, &p1);
+  size_t probe = a.size, cas, n, kept, kept_n;
+  gs_answer_free(&a);
+  gs_cache_stats(f.svc.cache, &cas, &n);
+  gs_cache_answer_stats(f.svc.cache, &kept, &kept_n);
+  assert_int_equal(kept_n, 1);
+  assert_int_equal(kept, probe);
+  cas -= kept;
+  a = serve_one(&f, GS_EP_CASCADES, &p1);
+  size_t vdb = a.size;
+  gs_answer_free(&a);
+  furnace_stop(&f);
+
+  /* Room for a bake beside the VDB being read, not beside the cascade too. */
+  size_t budget = gs_bake_bytes(&q) + vdb + cas / 2;
+  furnace_start(&f, budget);
+  a = serve_one(&f, GS_EP_LIGHTING, &p1);
+  gs_answer held = serve_one(&f, GS_EP_CASCADES, &p1); /* a client still reading it */
+  assert_string_equal(a.cache, "miss");
+  gs_cache_answer_stats(f.svc.cache, &kept, &kept_n);
+  assert_int_equal(kept_n, 2);
+  assert_int_equal(kept, probe + vdb);
+  assert_int_equal(gs_cache_sending(f.svc.cache), 0);
+  gs_answer b = serve_one(&f, GS_EP_LIGHTING, &p2);
+  gs_cache_answer_stats(f.svc.cache, &kept, &kept_n);
+  gs_cache_stats(f.svc.cache, &cas, &n);
+  printf("  budget %zu: after the second cell, %zu cascade(s), %zu answer(s) kept (%zu bytes), %zu bytes being "
+         "sent (the VDB %zu and the probe %zu)\n", budget, n, kept_n, kept, gs_cache_sending(f.svc.cache), vdb, probe);
+  assert_int_equal(n, 1);
+  assert_int_equal(kept_n, 1);
+  assert_int_equal(kept, b.size);
+  assert_true(svc_metric(&f.svc, "gi_cache_evictions_total") == 1);
+  assert_true(svc_metric(&f.svc, "gi_encode_evictions_total") == 2);
+  assert_int_equal(gs_cache_sending(f.svc.cache), vdb + probe);
+  gs_answer_free(&held);
+  assert_int_equal(gs_cache_sending(f.svc.cache), probe);
+  /* The first cell again: a new cascade, so a new encode, to the same bytes. */
+  double miss = svc_metric(&f.svc, "gi_encode_misses_total");
+  gs_answer again = serve_one(&f, GS_EP_LIGHTING, &p1);
+  assert_string_equal(again.cache, "miss");
+  assert_true(svc_metric(&f.svc, "gi_encode_misses_total") == miss + 1);
+  assert_int_equal(again.size, a.size);
+  assert_memory_equal(again.blob->data, a.blob->data, a.size);
+  gs_answer_free(&again);
+  gs_answer_free(&a);
+  /* The second cell's cascade made room for that bake: its probe, still held, went with it. */
+  assert_int_equal(gs_cache_sending(f.svc.cache), b.size);
+  gs_answer_free(&b);
+  assert_int_equal(gs_cache_sending(f.svc.cache), 0);
+  furnace_stop(&f);
+}
+
 /* A scene whose file changes gets another version, hence another q: no
  * cache keyed by the old cell URLs can answer for it. Equal bytes and
  * build options give the same version on any replica. */
@@ -1226,6 +1510,7 @@ int main(void) {
       cmocka_unit_test(test_cell_urls),
       cmocka_unit_test(test_cell_edges),
       cmocka_unit_test(test_coalescing),
+      cmocka_unit_test(test_shared_answers),
       cmocka_unit_test(test_effect_override),
       cmocka_unit_test(test_panorama),
       cmocka_unit_test(test_lightmap),
@@ -1241,6 +1526,8 @@ int main(void) {
       cmocka_unit_test(test_log_flood),
       cmocka_unit_test(test_nomem_not_cached),
       cmocka_unit_test(test_vdb_full_disk_not_cached),
+      cmocka_unit_test(test_shared_answers_blocking),
+      cmocka_unit_test(test_kept_answers_evicted),
       cmocka_unit_test(test_scene_version),
       cmocka_unit_test(test_canonical_knobs),
       cmocka_unit_test(test_canonical_defaults),
