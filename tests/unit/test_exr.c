@@ -12,6 +12,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -337,6 +339,56 @@ static void test_unwritable_path(void **s) {
   assert_non_null(strstr(err.msg, "/nonexistent-dir/x.exr"));
 }
 
+/* A write that fails part way (a full disk, here the file-size limit) is
+ * an error naming the file, with no temporary left and the old file kept.
+ * OpenEXR reports a failed chunk write through the error callback while
+ * it holds the context's lock, and the callback asked the context for its
+ * user data, which takes that lock: the write never returned (a server
+ * worker hung on a full disk). Run in a child with an alarm so a hang
+ * fails the test instead of the suite. */
+static void test_write_fails_part_way(void **s) {
+  const char *path = tmp_path("full.exr");
+  gi_exr_image small = image(1, GI_EXR_ZIP);
+  gi_error_info err = {0};
+  assert_int_equal(gi_exr_write(path, &small, &err), GI_OK);
+  size_t n0;
+  unsigned char *before = slurp(path, &n0);
+  pid_t pid = fork();
+  assert_true(pid >= 0);
+  if (pid == 0) {
+    enum { BW = 512, BH = 512 };
+    static float noise[BW * BH];
+    uint32_t x = 12345;
+    for (int i = 0; i < BW * BH; i++) x = x * 1664525u + 1013904223u, noise[i] = (float)(x >> 8) / 65536.f;
+    gi_exr_channel ch = {"R", noise};
+    gi_exr_image big = {.width = BW, .height = BH, .compression = GI_EXR_ZIP, .num_channels = 1, .channels = &ch};
+    signal(SIGXFSZ, SIG_IGN);
+    alarm(30);
+    /* In the header (100, 300 bytes) and in the chunks (8 KiB, 64 KiB). */
+    const rlim_t limits[] = {100, 300, 8 * 1024, 64 * 1024};
+    for (int i = 0; i < 4; i++) {
+      struct rlimit rl = {limits[i], RLIM_INFINITY};
+      if (setrlimit(RLIMIT_FSIZE, &rl) != 0) _exit(3);
+      gi_error_info e = {0};
+      gi_result r = gi_exr_write(path, &big, &e);
+      if (r != GI_ERR_IO || !strstr(e.msg, path)) _exit(10 + i);
+    }
+    _exit(0);
+  }
+  int status = 0;
+  assert_int_equal(waitpid(pid, &status, 0), pid);
+  if (WIFSIGNALED(status)) fail_msg("the failing write did not return (signal %d)", WTERMSIG(status));
+  assert_true(WIFEXITED(status));
+  assert_int_equal(WEXITSTATUS(status), 0);
+  size_t n1;
+  unsigned char *after = slurp(path, &n1);
+  assert_int_equal(n0, n1);
+  assert_memory_equal(before, after, n0);
+  free(before);
+  free(after);
+  assert_no_temp_left();
+}
+
 /* Reads a file expected to be bad: must fail with a message naming it. */
 static void expect_read_fails(const char *path, gi_result want) {
   gi_exr_file *f = (gi_exr_file *)(uintptr_t)1; /* must be reset to NULL */
@@ -396,6 +448,7 @@ int main(void) {
       cmocka_unit_test(test_bad_input_keeps_old_file),
       cmocka_unit_test(test_invalid_arguments),
       cmocka_unit_test(test_unwritable_path),
+      cmocka_unit_test(test_write_fails_part_way),
       cmocka_unit_test(test_read_bad_files),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -20,7 +20,7 @@
  * widened by the library) and keeps every string attribute. Tiled, deep
  * and subsampled files are refused with GI_ERR_FORMAT. OpenEXR's own
  * message reaches the caller through the context's error callback, which
- * keeps the first message per call in a stack-local buffer. */
+ * keeps the first message per call in a stack-local buffer (current_msg). */
 #define _POSIX_C_SOURCE 200809L
 #include "gi/gi_exr.h"
 
@@ -47,10 +47,18 @@ typedef struct exr_msg {
   char text[256];
 } exr_msg;
 
+/* The calling thread's exr_msg while one of our calls runs. The callback
+ * cannot ask the context for its user data: OpenEXR 3.1 reports a failed
+ * write of a file's header or offsets while it holds the context's lock,
+ * which exr_get_user_data takes again, and the write never returned (a
+ * server worker hung on a full disk). The library calls back on the
+ * calling thread. */
+static _Thread_local exr_msg *current_msg;
+
 static void on_exr_error(exr_const_context_t ctxt, exr_result_t code, const char *msg) {
-  void *ud = NULL;
-  if (exr_get_user_data(ctxt, &ud) != EXR_ERR_SUCCESS || !ud) return;
-  exr_msg *m = ud;
+  (void)ctxt;
+  exr_msg *m = current_msg;
+  if (!m) return;
   /* Keep the first message: later ones are usually fallout of the first. */
   if (m->text[0]) return;
   snprintf(m->text, sizeof m->text, "%s", msg ? msg : exr_get_default_error_message(code));
@@ -215,7 +223,7 @@ static gi_result map_write_error(exr_result_t rv) {
   }
 }
 
-gi_result gi_exr_write(const char *path, const gi_exr_image *img, gi_error_info *err) {
+static gi_result write_file(const char *path, const gi_exr_image *img, gi_error_info *err) {
   gi_result r = validate(path, img, err);
   if (r != GI_OK) return r;
 
@@ -224,6 +232,7 @@ gi_result gi_exr_write(const char *path, const gi_exr_image *img, gi_error_info 
     return gi__fail(err, GI_ERR_INVALID_ARG, "EXR file '%.200s...': path too long", path);
 
   exr_msg msg = {{0}};
+  current_msg = &msg; /* until the public call returns */
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   init.error_handler_fn = on_exr_error;
   init.user_data = &msg;
@@ -430,7 +439,7 @@ static exr_result_t read_chunks(exr_context_t ctx, gi_exr_file *f, const exr_att
   return rv;
 }
 
-gi_result gi_exr_read(const char *path, gi_exr_file **out, gi_error_info *err) {
+static gi_result read_file(const char *path, gi_exr_file **out, gi_error_info *err) {
   if (out) *out = NULL;
   if (!path || !path[0] || !out) return gi__fail(err, GI_ERR_INVALID_ARG, "EXR read: empty path or out");
   struct stat st;
@@ -442,6 +451,7 @@ gi_result gi_exr_read(const char *path, gi_exr_file **out, gi_error_info *err) {
   if (st.st_size == 0) return gi__fail(err, GI_ERR_FORMAT, "EXR file '%s': file is empty", path);
 
   exr_msg msg = {{0}};
+  current_msg = &msg; /* until the public call returns */
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   init.error_handler_fn = on_exr_error;
   init.user_data = &msg;
@@ -556,3 +566,18 @@ const char *gi_exr_file_attr(const gi_exr_file *f, const char *name) {
 }
 
 gi_exr_compression gi_exr_file_compression(const gi_exr_file *f) { return f ? f->compression : GI_EXR_ZIP; }
+
+/* The public calls: the callback's message buffer is the call's own. */
+gi_result gi_exr_write(const char *path, const gi_exr_image *img, gi_error_info *err) {
+  exr_msg *outer = current_msg;
+  gi_result r = write_file(path, img, err);
+  current_msg = outer;
+  return r;
+}
+
+gi_result gi_exr_read(const char *path, gi_exr_file **out, gi_error_info *err) {
+  exr_msg *outer = current_msg;
+  gi_result r = read_file(path, out, err);
+  current_msg = outer;
+  return r;
+}
