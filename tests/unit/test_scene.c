@@ -369,6 +369,47 @@ static void test_stray_share(void **state) {
   gi_scene_release(s);
 }
 
+/* A finely meshed 1 m cube (40 x 40 quads a face) on a ground of two
+ * triangles 200 m across: the ground's centroids lie 33 m out, but the
+ * cube stands on it, so it is not stray (by centroids it was, and the
+ * cube baked without its ground: 0.6x the indirect light beside it). A
+ * leftover far from everything still is (test_stray_share). */
+static void test_ground_is_not_stray(void **state) {
+  (void)state;
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  const double G = 100;
+  const double g[4][3] = {{-G, 0, -G}, {-G, 0, G}, {G, 0, G}, {G, 0, -G}};
+  gi_mesh_builder_add_quad(b, g[0], g[1], g[2], g[3], mat);
+  enum { N = 40 };
+  /* Each face: origin and two edge directions (unit square), outward. */
+  const double f[5][3][3] = {{{-0.5, 0, 0.5}, {1, 0, 0}, {0, 1, 0}},  {{0.5, 0, -0.5}, {-1, 0, 0}, {0, 1, 0}},
+                             {{0.5, 0, 0.5}, {0, 0, -1}, {0, 1, 0}},  {{-0.5, 0, -0.5}, {0, 0, 1}, {0, 1, 0}},
+                             {{-0.5, 1, 0.5}, {1, 0, 0}, {0, 0, -1}}};
+  for (int k = 0; k < 5; k++)
+    for (int i = 0; i < N; i++)
+      for (int j = 0; j < N; j++) {
+        double q[4][3];
+        const double uv[4][2] = {{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}};
+        for (int c = 0; c < 4; c++)
+          for (int a = 0; a < 3; a++) q[c][a] = f[k][0][a] + (f[k][1][a] * uv[c][0] + f[k][2][a] * uv[c][1]) / N;
+        gi_mesh_builder_add_quad(b, q[0], q[1], q[2], q[3], mat);
+      }
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "cube on ground", NULL, &s, &err), GI_OK);
+  gi_mesh_builder_free(b);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.triangles, 2 + 5 * 2 * N * N);
+  assert_int_equal(st.far_triangles, 0);
+  double lo[3], hi[3];
+  gi_scene_bulk_bounds(s, lo, hi);
+  assert_true(lo[0] <= -G && hi[0] >= G && lo[2] <= -G && hi[2] >= G);
+  gi_scene_release(s);
+}
+
 static void test_far_origin(void **state) {
   gi_scene *s[2] = {NULL, NULL};
   const double base[2][3] = {{0, 0, 0}, {1e7, 0, 1e7}};
@@ -2825,6 +2866,7 @@ int main(void) {
       cmocka_unit_test(test_collada_z_up),
       cmocka_unit_test(test_empty_scene),
       cmocka_unit_test(test_stray_share),
+      cmocka_unit_test(test_ground_is_not_stray),
       cmocka_unit_test(test_far_origin),
       cmocka_unit_test(test_occluded_box),
       cmocka_unit_test(test_intersect1_box),
