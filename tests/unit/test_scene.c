@@ -1665,6 +1665,28 @@ static void expect_albedo(const gi_scene *s, uint32_t t, const double want[3], c
  * COLOR_0 (linear) each multiply the triangle's material albedo by the mean
  * of its corners' colours; a file without colours keeps no per-triangle
  * albedo at all. */
+/* Values that are not colours or lights are corrected and counted
+ * (clamped_albedo), never taken silently: a vertex colour "nan nan nan"
+ * made its wall white (the brightest albedo) without a word, and an MTL's
+ * negative Ke was zeroed uncounted where a negative Kd and a NaN Ke were
+ * counted. The NaN vertices keep their material's albedo. */
+static void test_bad_colors_counted(void **state) {
+  (void)state;
+  static const char mtl[] = "newmtl grey\nKd 0.5 0.5 0.5\nnewmtl neg\nKd 0.5 0.5 0.5\nKe -1 1 1\n";
+  tu_write_file("badcol.mtl", mtl, strlen(mtl));
+  static const char obj[] = "mtllib badcol.mtl\nv 0 0 0 nan nan nan\nv 1 0 0 nan nan nan\nv 0 1 0 nan nan nan\n"
+                            "v 1 1 0 0.5 0.5 0.5\nv 2 0 0\nv 2 1 0\nusemtl grey\nf 1 2 3\nusemtl neg\nf 2 5 6\n";
+  gi_scene *s = load_ok(tu_write_file("badcol.obj", obj, strlen(obj)), NULL);
+  gi_scene_stats st;
+  gi_scene_get_stats(s, &st);
+  assert_int_equal(st.clamped_albedo, 3 + 1); /* three vertex colours, one Ke */
+  const double grey[3] = {0.5, 0.5, 0.5};
+  expect_albedo(s, 0, grey, "nan colours");
+  const gi_material *neg = gi_scene_material(s, 1);
+  assert_true(neg->emission[0] == 0.f && neg->emission[1] == 1.f);
+  gi_scene_release(s);
+}
+
 static void test_vertex_colors_files(void **state) {
   (void)state;
   static const char ply[] = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
@@ -2892,6 +2914,7 @@ int main(void) {
       cmocka_unit_test(test_gltf_spots),
       cmocka_unit_test(test_gltf_light_nodes),
       cmocka_unit_test(test_vertex_colors_files),
+      cmocka_unit_test(test_bad_colors_counted),
       cmocka_unit_test(test_ply_colors),
       cmocka_unit_test(test_bad_file_matrix),
       cmocka_unit_test(test_bad_files_assimp_misreads),

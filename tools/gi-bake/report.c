@@ -226,7 +226,8 @@ static void print_human(const cli_run *r) {
          (unsigned long long)st.input_triangles, (unsigned long long)st.dropped_nonfinite,
          (unsigned long long)st.dropped_degenerate);
   printf("           %u materials%s, %u lights%s, %u emissive triangles\n", st.materials,
-         st.clamped_albedo ? " (some out of range or reflecting over 100%: corrected)" : "", st.lights,
+         st.clamped_albedo ? " (some values out of range, not numbers or reflecting over 100%: corrected)" : "",
+         st.lights,
          st.default_lights_added ? " (default sun + sky added)" : "", st.emissive_triangles);
   if (st.dropped_see_through)
     printf("           %llu triangle%s of see-through materials (glass, alpha-blended) left out: light passes "

@@ -105,8 +105,11 @@ typedef struct gi_scene_stats {
   uint64_t dropped_degenerate; /* zero area (incl. repeated vertices) */
   uint64_t dropped_see_through; /* of materials passing >= half the light straight through (glass,
                                    alpha-blended): left out, they pass it all */
-  uint64_t clamped_albedo;     /* materials whose albedo exceeded 1, or whose brightest albedo
-                                  channel plus glossy reflectance did (both scaled to sum to 1) */
+  uint64_t clamped_albedo;     /* materials whose albedo was out of [0, 1], or whose brightest
+                                  albedo channel plus glossy reflectance exceeded 1 (both scaled
+                                  to sum to 1), or with a negative or non-finite value (set to 0
+                                  or its default); and vertex colours with a NaN or infinite
+                                  channel (the vertex keeps its material's albedo) */
   uint32_t materials;
   uint32_t lights;
   uint32_t emissive_triangles;
@@ -189,7 +192,8 @@ void gi_mesh_builder_set_lightmap_uv(gi_mesh_builder *b, uint32_t vertex, double
 /* The colour of an added vertex, linear RGB (a scan's or glTF's COLOR_0):
  * a triangle's albedo is its material's times the mean of its three
  * corners' colours, clamped to [0, 1]. A vertex never given one is white;
- * a non-finite component counts as 1. */
+ * one given a NaN or infinite channel is white too (its material's albedo)
+ * and counted in gi_scene_stats.clamped_albedo. */
 void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, double r, double g, double bl);
 /* How many triangles the builder holds (the next one's index). */
 size_t gi_mesh_builder_num_triangles(const gi_mesh_builder *b);

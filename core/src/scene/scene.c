@@ -35,6 +35,7 @@ struct gi_mesh_builder {
   size_t cap_uv2;
   float *col;         /* 3 per vertex up to cap_col/3: vertex colours, 1 when unset; NULL: none */
   size_t cap_col;
+  uint64_t bad_col;   /* vertex colours given with a NaN or infinite channel (taken as white) */
   float *talb;        /* 3 per triangle up to cap_talb/3: albedo overrides, NaN when unset; NULL: none */
   size_t cap_talb;
   int oom;            /* an add_* ran out of memory */
@@ -103,6 +104,8 @@ void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, doubl
   float *c = item_slot(b, &b->col, &b->cap_col, b->nv, vertex, 3, 1.f,
                        "gi_mesh_builder_set_vertex_color", "vertex");
   const double v[3] = {r, g, bl};
+  /* Not a colour: the vertex keeps its material's albedo, counted as a correction. */
+  if (c && !(isfinite(r) && isfinite(g) && isfinite(bl))) b->bad_col++;
   for (int k = 0; c && k < 3; k++) c[k] = isfinite(v[k]) ? (float)v[k] : 1.f;
 }
 
@@ -199,8 +202,10 @@ static int clampf(float *x, float lo, float hi, float bad) {
   return 0;
 }
 
-/* Sanitises m in place; returns 1 when the albedo (or any non-finite value)
- * had to be changed, which is what stats.clamped_albedo counts. *energy
+/* Sanitises m in place; returns 1 when the albedo, a negative emission or
+ * any non-finite value had to be changed, which is what
+ * stats.clamped_albedo counts (with the vertex colours that were not
+ * numbers). *energy
  * receives the factor the albedo and the glossy lobe were scaled by so that
  * together they reflect at most what arrives (1: they did already). A
  * material of albedo 0.8 with a glossy lobe of 0.5 (a file's Kd 0.8, Ks 1,
@@ -212,7 +217,7 @@ static int sanitize_material(gi_material *m, float *energy) {
   for (int k = 0; k < 3; k++) {
     changed |= clampf(&m->albedo[k], 0.f, 1.f, 0.f);
     if (!isfinite(m->emission[k])) { m->emission[k] = 0.f; changed = 1; }
-    if (m->emission[k] < 0.f) m->emission[k] = 0.f;
+    if (m->emission[k] < 0.f) { m->emission[k] = 0.f; changed = 1; }
   }
   /* A broken roughness is treated as fully diffuse: the safest reading. */
   if (!isfinite(m->roughness)) { m->roughness = 1.f; changed = 1; }
@@ -609,6 +614,7 @@ static gi_result copy_materials(const gi_mesh_builder *b, gi_scene *s, build_tmp
         return gi__fail(err, GI_ERR_LIMIT, "material %zu ('%s'): emission %g exceeds %g (GI_MAX_LIGHT_VALUE)", i,
                         m->name, (double)m->emission[k], (double)GI_MAX_LIGHT_VALUE);
   }
+  s->stats.clamped_albedo += b->bad_col;
   s->stats.materials = (uint32_t)nm;
   return GI_OK;
 }
