@@ -805,7 +805,10 @@ static void test_prepare(void **state) {
 
 /* A move a client stopped: a far move (every level rebuilt, a cold bake's
  * work) with a fired token returns GI_ERR_CANCELLED, saying so; a small
- * one too. The cascade is then partial: freed, never read. */
+ * one too. The cascade is then partial: every later call on it is refused
+ * saying so (a gather and a retried move returned GI_OK with wrong light,
+ * 0.17x a cold bake's indirect light, found by a helper session's probes)
+ * until it is freed. */
 static void test_cancelled_move(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
   gi_scene *s = city(&cp);
@@ -822,6 +825,19 @@ static void test_cancelled_move(void **state) {
     printf("cancelled %s move -> %s: %s\n", far ? "far" : "one-cell", gi_err_name(rc), err.msg);
     assert_int_equal(rc, GI_ERR_CANCELLED);
     assert_non_null(strstr(err.msg, "cancel"));
+    gi_probe pr;
+    float rgb[3 * 4];
+    const double *pts = to;
+    gi_camera cam = {{to[0], to[1], to[2]}, {to[0] + 1, to[1], to[2]}, {0, 1, 0}, 60, 2, 2};
+    gi_error_info e2 = {0};
+    assert_int_equal(gi_cascade_gather(c, pts, 1, &pr, NULL, &e2), GI_ERR_INVALID_ARG);
+    assert_non_null(strstr(e2.msg, "gather: the cascade is partial"));
+    assert_int_equal(gi_cascade_move(c, to, NULL, NULL, &e2), GI_ERR_INVALID_ARG);
+    assert_non_null(strstr(e2.msg, "move: the cascade is partial"));
+    assert_int_equal(gi_cascade_render(c, &cam, 1, 1, rgb, NULL, &e2), GI_ERR_INVALID_ARG);
+    float dir[2 * 1 * 3], ind[2 * 1 * 3];
+    assert_int_equal(gi_cascade_panorama(c, to, 2, 1, dir, ind, NULL, &e2), GI_ERR_INVALID_ARG);
+    assert_int_equal(gi_cascade_write_vdb(c, "unused.vdb", 0, &e2), GI_ERR_INVALID_ARG);
     gi_cascade_free(c);
   }
   gi_cancel_free(stop);

@@ -1,11 +1,16 @@
-/* gi_cancel.h: stop a bake or a gather early.
+/* gi_cancel.h: stop a bake, a move or a gather early.
  *
  * A gi_cancel is a token the caller creates and hands to
- * gi_cascade_bake_ex, gi_cascade_gather_ex or gi_cascade_panorama_ex. The
+ * gi_cascade_bake_ex, gi_cascade_bake_for, gi_cascade_move_ex,
+ * gi_cascade_gather_ex, gi_cascade_panorama_ex or gi_lightmap_bake. The
  * call checks it between chunks of work (voxel slabs, voxel batches, probe
- * batches, panorama rows) and returns
+ * batches, panorama rows, texels) and returns
  * GI_ERR_CANCELLED soon after it is set or its deadline passes (a chunk
- * takes milliseconds). A cancelled call leaves no output and leaks nothing.
+ * takes milliseconds). A cancelled call leaks nothing. What it leaves: a
+ * bake no cascade (*out NULL); a gather, panorama or lightmap bake its
+ * output partly written (not to be read); a move a partial cascade, which
+ * every later call refuses (gi_move.h) and which must be freed. Renders,
+ * the path tracer and the writers take no token.
  *
  * Ownership: the caller owns the token (gi_cancel_new / gi_cancel_free)
  * and keeps it alive longer than every call it was given to. One token may

@@ -2,7 +2,10 @@
  *
  * Ownership and threads: the caller owns the cascade; a move writes it, so
  * no reader may run during a move. On error the cascade is left partial
- * and must be freed. The report (gi_cascade.h) describes the move: its
+ * and must be freed: every later call on it (gather, panorama, render,
+ * VDB, move) refuses it with GI_ERR_INVALID_ARG saying so. A move refused
+ * before it starts (a bad viewpoint, no memory for its state) leaves the
+ * cascade as it was. The report (gi_cascade.h) describes the move: its
  * level_voxelized, level_injected and level_rebounced (voxels gathered,
  * the live update's and the re-bake slice's, each once a move) and its
  * stage times count only what the move did; gi_cascade_report returns it

@@ -250,6 +250,7 @@ size_t gi_cascade_vdb_bytes_estimate(const gi_cascade *c, int faces) {
 
 gi_result gi_cascade_write_vdb(const gi_cascade *c, const char *path, int faces, gi_error_info *err) {
   if (!c || !path) return gi__fail(err, GI_ERR_INVALID_ARG, "VDB: %s is NULL", !c ? "cascade" : "path");
+  if (gi__cascade_whole(c, "VDB", err) != GI_OK) return GI_ERR_INVALID_ARG;
   static const char *const face_names[6] = {"px", "nx", "py", "ny", "pz", "nz"};
   int n = c->n;
   int per = 4 + (faces ? 6 : 0);

@@ -354,6 +354,7 @@ gi_result gi_cascade_gather_ex(const gi_cascade *c, const double *pts, size_t n,
                                gi_probe *out, double *ms, gi_error_info *err) {
   if (!c || (!pts && n) || (!out && n))
     return gi__fail(err, GI_ERR_INVALID_ARG, "gather: %s is NULL", !c ? "cascade" : !pts ? "pts" : "out");
+  if (gi__cascade_whole(c, "gather", err) != GI_OK) return GI_ERR_INVALID_ARG;
   /* No caller holds 3n doubles and n probes past this: 3 * n below would
    * wrap, check a few points and gather the rest from unread memory. */
   if (n > SIZE_MAX / sizeof *out)

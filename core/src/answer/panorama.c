@@ -101,6 +101,7 @@ gi_result gi_cascade_panorama_ex(const gi_cascade *c, const double at[3], int w,
   if (!c || !at || !direct || !indirect)
     return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: %s is NULL",
                     !c ? "cascade" : !at ? "viewpoint" : !direct ? "direct" : "indirect");
+  if (gi__cascade_whole(c, "panorama", err) != GI_OK) return GI_ERR_INVALID_ARG;
   if (w < 2 || h < 1 || w > 16384 || h > 8192)
     return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: size %dx%d outside 2..16384 x 1..8192", w, h);
   float p[3];

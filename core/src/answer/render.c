@@ -359,6 +359,7 @@ static void render_rows(void *p, size_t b, size_t e, int worker) {
 gi_result gi_cascade_render_ex(const gi_cascade *c, const gi_camera *cam, const gi_render_opts *opts, float *rgb,
                                gi_render_stats *st, gi_error_info *err) {
   if (!c || !rgb) return gi__fail(err, GI_ERR_INVALID_ARG, "render: %s is NULL", !c ? "cascade" : "rgb");
+  if (gi__cascade_whole(c, "render", err) != GI_OK) return GI_ERR_INVALID_ARG;
   gi_render_opts o = {0};
   if (opts) o = *opts;
   if (o.light_samples == 0) o.light_samples = 64;

@@ -165,6 +165,14 @@ static int64_t cover_scene(const struct gi_cascade *c, int d, int a, int64_t cel
   return nlo <= nhi ? clamp_i64(clamp_i64(cell0, want_lo, want_hi), nlo, nhi) : cell0;
 }
 
+gi_result gi__cascade_whole(const struct gi_cascade *c, const char *what, gi_error_info *err) {
+  if (!c->torn) return GI_OK;
+  return gi__fail(err, GI_ERR_INVALID_ARG,
+                  "%s: the cascade is partial after a move that failed or was cancelled part way; free it and bake "
+                  "again",
+                  what);
+}
+
 void gi__cascade_place(struct gi_cascade *c) {
   int R = c->R;
   double at[3] = {(double)c->at[0], (double)c->at[1], (double)c->at[2]};

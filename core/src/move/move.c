@@ -973,6 +973,8 @@ static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *re
 gi_result gi_cascade_move_ex(gi_cascade *c, const double at[3], const gi_cancel *cancel, gi_bake_report *report,
                              gi_move_info *info, gi_error_info *err) {
   if (!c) return gi__fail(err, GI_ERR_INVALID_ARG, "move: no cascade");
+  gi_result whole = gi__cascade_whole(c, "move", err);
+  if (whole != GI_OK) return whole;
   /* The stages look at c->cancel, as they do during a bake. */
   c->cancel = cancel;
   gi_result rc = move_body(c, at, report, info, err);
@@ -988,6 +990,7 @@ static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *re
   reset_counters(&c->report);
   gi_level old[GI_MAX_LEVELS];
   memcpy(old, c->lv, sizeof old);
+  c->torn = 1; /* until the move is whole */
   for (int a = 0; a < 3; a++) {
     c->at_world[a] = at[a];
     c->at[a] = (float)(at[a] - c->scene->origin[a]);
@@ -1010,6 +1013,7 @@ static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *re
   c->report.ms.filter = t[3] - t[2];
   c->report.ms.bounce = t[4] - t[3];
   if (scrolled) gi__cascade_count_occupied(c);
+  c->torn = 0;
   if (report) *report = c->report;
   if (info) *info = mi;
   return GI_OK;
