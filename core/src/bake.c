@@ -87,6 +87,7 @@ static size_t level_bytes(int levels, int res, int every_voxel) {
 
 /* A moved cascade also holds its re-bake's buffers. */
 size_t gi_cascade_bytes(const gi_cascade *c) {
+  if (!c) return 0;
   return level_bytes(c->n, c->R, 0) + gi__entries_bytes(c) + gi__move_state_bytes(c);
 }
 
@@ -100,7 +101,7 @@ size_t gi_cascade_bytes_estimate(const gi_quality *resolved) {
   return level_bytes(resolved->levels, resolved->res, 1) + (size_t)resolved->levels * GI_ENTRY_BYTES;
 }
 
-const gi_bake_report *gi_cascade_report(const gi_cascade *c) { return &c->report; }
+const gi_bake_report *gi_cascade_report(const gi_cascade *c) { return c ? &c->report : NULL; }
 
 gi_result gi_cascade_bake(const gi_scene *scene, const double at[3], const gi_quality *qin,
                           gi_cascade **out, gi_bake_report *report, gi_error_info *err) {
@@ -131,6 +132,10 @@ static int point_hints(const gi_scene *scene, const double *pts, size_t n, float
 gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
                               const gi_quality *q, const gi_cancel *cancel, gi_cascade **out,
                               gi_bake_report *report, gi_error_info *err) {
+  if (n && !pts) {
+    if (out) *out = NULL;
+    return gi__fail(err, GI_ERR_INVALID_ARG, "bake: pts is NULL with n = %zu points", n);
+  }
   float hint[MAX_PTS][6];
   int nh = point_hints(scene, pts, n, hint);
   return gi__cascade_bake_at(scene, at, q, cancel, &hint[0][0], nh, out, report, err);
@@ -139,6 +144,7 @@ gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const d
 gi_result gi_effect_plan_for(const gi_scene *scene, const double at[3], const double *pts, size_t n,
                              const gi_quality *q, gi_effect out[GI_FX_COUNT], gi_quality *resolved,
                              gi_error_info *err) {
+  if (n && !pts) return gi__fail(err, GI_ERR_INVALID_ARG, "effect plan: pts is NULL with n = %zu points", n);
   float hint[MAX_PTS][6];
   int nh = point_hints(scene, pts, n, hint);
   return gi__effect_plan_for(scene, at, q, &hint[0][0], nh, out, resolved, err);

@@ -259,15 +259,16 @@ static void test_plan_viewpoint(void **state) {
   assert_names(&err, "viewpoint");
   assert_int_equal(gi_effect_plan(s, AT, NULL, NULL, NULL, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "out is NULL");
-  /* gi_effect_plan_for: its points may be NULL (n ignored) or not finite
-   * (skipped), as gi_cascade_bake_for's; it is the plan gi_effect_plan
-   * gives where the points add nothing. */
+  /* gi_effect_plan_for: its points may be NULL when n is 0 (as its header
+   * and gi_cascade_bake_for's say; NULL with n > 0 is refused,
+   * test_null_getters) or not finite (skipped); it is the plan
+   * gi_effect_plan gives where the points add nothing. */
   const double pts[6] = {1, 1, 1, NAN, 0, 0};
   gi_effect with[GI_FX_COUNT];
   gi_quality qa, qb;
   assert_int_equal(gi_effect_plan_for(NULL, AT, pts, 2, NULL, fx, NULL, &err), GI_ERR_INVALID_ARG);
   assert_names(&err, "scene is NULL");
-  assert_int_equal(gi_effect_plan_for(s, AT, NULL, 5, NULL, with, &qa, &err), GI_OK);
+  assert_int_equal(gi_effect_plan_for(s, AT, NULL, 0, NULL, with, &qa, &err), GI_OK);
   assert_int_equal(gi_effect_plan_for(s, AT, pts, 2, NULL, with, &qa, &err), GI_OK);
   assert_int_equal(gi_effect_plan(s, AT, NULL, fx, &qb, &err), GI_OK);
   assert_int_equal(qa.bounces, qb.bounces);
@@ -601,6 +602,49 @@ static void test_io_null_args(void **state) {
   assert_names(&err, "unknown kind 5");
 }
 
+/* The scene and cascade getters take NULL as an empty object (a helper
+ * session's UBSan run: gi_scene_get_stats, _bounds, _bulk_bounds, _up,
+ * _num_lights, _light, _num_materials, _material, gi_cascade_bytes and
+ * gi_mesh_builder_add_vertex dereferenced it; gi_cascade_report and
+ * gi_scene_name returned a pointer into nothing), and gi_cascade_bake_for
+ * refuses NULL points with n > 0 as gi_cascade_would_cover does (it baked
+ * and ignored n). */
+static void test_null_getters(void **state) {
+  (void)state;
+  gi_scene_stats st;
+  memset(&st, 0xff, sizeof st);
+  gi_scene_get_stats(NULL, &st);
+  assert_true(st.triangles == 0 && st.far_triangles == 0 && st.clamped_albedo == 0);
+  gi_scene_get_stats(NULL, NULL);
+  double lo[3] = {1, 1, 1}, hi[3] = {1, 1, 1};
+  gi_scene_bounds(NULL, lo, hi);
+  for (int k = 0; k < 3; k++) assert_true(lo[k] == 0 && hi[k] == 0);
+  lo[0] = hi[0] = 5;
+  gi_scene_bulk_bounds(NULL, lo, hi);
+  assert_true(lo[0] == 0 && hi[0] == 0);
+  assert_int_equal(gi_scene_up(NULL), GI_UP_Y);
+  assert_null(gi_scene_name(NULL));
+  assert_int_equal(gi_scene_num_lights(NULL), 0);
+  assert_null(gi_scene_light(NULL, 0));
+  assert_int_equal(gi_scene_num_materials(NULL), 0);
+  assert_null(gi_scene_material(NULL, 0));
+  assert_int_equal(gi_mesh_builder_add_vertex(NULL, 0, 0, 0), UINT32_MAX);
+  assert_int_equal(gi_mesh_builder_num_triangles(NULL), 0);
+  assert_int_equal(gi_cascade_bytes(NULL), 0);
+  assert_null(gi_cascade_report(NULL));
+  gi_scene *s = room();
+  gi_quality q = {.levels = 2, .res = 8, .threads = 1};
+  gi_cascade *c = (gi_cascade *)(uintptr_t)1;
+  gi_error_info err = {0};
+  assert_int_equal(gi_cascade_bake_for(s, AT, NULL, 3, &q, NULL, &c, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_null(c);
+  assert_names(&err, "pts is NULL with n = 3");
+  gi_effect fx[GI_FX_COUNT];
+  assert_int_equal(gi_effect_plan_for(s, AT, NULL, 2, &q, fx, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "pts is NULL with n = 2");
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
@@ -621,6 +665,7 @@ int main(void) {
       cmocka_unit_test(test_street_volume_axis),
       cmocka_unit_test(test_exr_extras),
       cmocka_unit_test(test_io_null_args),
+      cmocka_unit_test(test_null_getters),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -108,7 +108,7 @@ gi_result gi_cascade_bake_for(const gi_scene *scene, const double at[3], const d
                               const gi_quality *q, const gi_cancel *cancel, gi_cascade **out,
                               gi_bake_report *report, gi_error_info *err);
 void gi_cascade_free(gi_cascade *c); /* accepts NULL */
-size_t gi_cascade_bytes(const gi_cascade *c);
+size_t gi_cascade_bytes(const gi_cascade *c); /* 0 for NULL */
 /* The most gi_cascade_bytes can report for a cascade baked with this
  * resolved quality (gi_quality_resolve), known before the bake: levels x
  * res^3 x the dense per-voxel arrays and the per-voxel record of geometry
@@ -116,7 +116,7 @@ size_t gi_cascade_bytes(const gi_cascade *c);
  * only for the voxels that do, a few percent). A bake's transient buffers
  * come on top. 0 when levels or res is unresolved or out of range. */
 size_t gi_cascade_bytes_estimate(const gi_quality *resolved);
-const gi_bake_report *gi_cascade_report(const gi_cascade *c);
+const gi_bake_report *gi_cascade_report(const gi_cascade *c); /* NULL for NULL */
 
 #ifdef __cplusplus
 }

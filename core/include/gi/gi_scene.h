@@ -12,6 +12,11 @@
  * gi_scene_name) live as long as the scene. A gi_mesh_builder belongs to
  * one thread at a time; gi_scene_build copies what it needs from it.
  *
+ * NULL: the accessors below take a NULL scene as an empty one (zeros,
+ * NULL, GI_UP_Y; gi_scene_get_stats fills zeros and ignores a NULL out);
+ * gi_mesh_builder_add_vertex on NULL returns UINT32_MAX. The calls that
+ * return a gi_result refuse NULL with GI_ERR_INVALID_ARG.
+ *
  * Precision: positions are stored as float relative to a double-precision
  * scene origin (the centre of the input's bounds), so a scene 10^7 units
  * from the world origin keeps sub-millimetre float resolution. OBJ and PLY

@@ -109,7 +109,7 @@ void gi_mesh_builder_set_vertex_color(gi_mesh_builder *b, uint32_t vertex, doubl
   for (int k = 0; c && k < 3; k++) c[k] = isfinite(v[k]) ? (float)v[k] : 1.f;
 }
 
-size_t gi_mesh_builder_num_triangles(const gi_mesh_builder *b) { return b->nt; }
+size_t gi_mesh_builder_num_triangles(const gi_mesh_builder *b) { return b ? b->nt : 0; }
 
 void gi_mesh_builder_set_triangle_albedo(gi_mesh_builder *b, size_t tri, double r, double g, double bl) {
   float *a = item_slot(b, &b->talb, &b->cap_talb, b->nt, tri, 3, NAN,
@@ -137,6 +137,7 @@ uint32_t gi_mesh_builder_add_material(gi_mesh_builder *b, const gi_material *m) 
 }
 
 uint32_t gi_mesh_builder_add_vertex(gi_mesh_builder *b, double x, double y, double z) {
+  if (!b) return UINT32_MAX;
   if (b->nv >= UINT32_MAX) { b->overflow = 1; return UINT32_MAX; }
   if (!grow((void **)&b->v, &b->cap_v, 3 * (b->nv + 1), sizeof *b->v)) { b->oom = 1; return UINT32_MAX; }
   double *p = b->v + 3 * b->nv;
@@ -809,19 +810,27 @@ void gi_scene_release(gi_scene *s) {
   gi__free(s);
 }
 
+/* The getters take a NULL scene as an empty one (zeros, NULL), as
+ * gi_scene_origin does: a caller's failed load must not crash its report. */
 void gi_scene_get_stats(const gi_scene *s, gi_scene_stats *out) {
-  *out = s->stats;
+  if (!out) return;
+  if (!s) memset(out, 0, sizeof *out);
+  else *out = s->stats;
 }
 
 void gi_scene_bounds(const gi_scene *s, double lo[3], double hi[3]) {
   for (int k = 0; k < 3; k++) {
+    if (!s) {
+      lo[k] = hi[k] = 0;
+      continue;
+    }
     lo[k] = s->origin[k] + (double)s->lo[k];
     hi[k] = s->origin[k] + (double)s->hi[k];
   }
 }
 
 void gi_scene_bulk_bounds(const gi_scene *s, double lo[3], double hi[3]) {
-  if (!s->stats.far_triangles) {
+  if (!s || !s->stats.far_triangles) {
     gi_scene_bounds(s, lo, hi);
     return;
   }
@@ -885,16 +894,16 @@ double gi_scene_escape_share(const gi_scene *s, const double p[3]) {
   return dir26_hits(s, p, &back, &open) ? (double)open / NUM_DIR26 : 1;
 }
 
-gi_up_axis gi_scene_up(const gi_scene *s) { return s->up; }
+gi_up_axis gi_scene_up(const gi_scene *s) { return s ? s->up : GI_UP_Y; }
 int gi_scene_has_lightmap_uv(const gi_scene *s) { return s && s->uv2 != NULL; }
-const char *gi_scene_name(const gi_scene *s) { return s->name; }
-size_t gi_scene_num_lights(const gi_scene *s) { return s->num_lights; }
-size_t gi_scene_num_materials(const gi_scene *s) { return s->num_materials; }
+const char *gi_scene_name(const gi_scene *s) { return s ? s->name : NULL; }
+size_t gi_scene_num_lights(const gi_scene *s) { return s ? s->num_lights : 0; }
+size_t gi_scene_num_materials(const gi_scene *s) { return s ? s->num_materials : 0; }
 
 const gi_light *gi_scene_light(const gi_scene *s, size_t i) {
-  return i < s->num_lights ? &s->lights[i] : NULL;
+  return s && i < s->num_lights ? &s->lights[i] : NULL;
 }
 
 const gi_material *gi_scene_material(const gi_scene *s, size_t i) {
-  return i < s->num_materials ? &s->materials[i] : NULL;
+  return s && i < s->num_materials ? &s->materials[i] : NULL;
 }
