@@ -11,6 +11,7 @@
 #include <time.h>
 #include "cascade/cascade_internal.h"
 #include "gi/gi_city.h"
+#include "gi/gi_lightmap.h"
 #include "gi/gi_probe.h"
 #include "test_levels.h"
 
@@ -242,6 +243,56 @@ static void test_unfired_is_identical(void **state) {
   gi_scene_release(s);
 }
 
+typedef struct {
+  gi_lightmap *lm;
+  gi_quality q;
+  gi_cancel *cancel;
+  gi_error_info err;
+  gi_result rc;
+  double end_ms;
+} lightmap_job;
+
+static void *lightmap_thread(void *p) {
+  lightmap_job *j = p;
+  j->rc = gi_lightmap_bake(j->lm, &j->q, j->cancel, NULL, &j->err);
+  j->end_ms = gi_now_ms();
+  return NULL;
+}
+
+/* A lightmap bake with costly texels (supersample 8: 64 footprint points
+ * each, 8192 light samples shared by them) stops within a chunk's time
+ * once it is cancelled in its texel stage. The token was read between
+ * chunks of 64 texels only: 100-300 ms after the cancel, seconds under
+ * ASan, and the server's lightmap past its deadline kept a worker. */
+static void test_lightmap_cancel(void **state) {
+  gi_city_params cp = {.extent = 120};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_city_build(&cp, NULL, &s, &err), GI_OK);
+  gi_lightmap_opts o = {.texel = 2, .atlas = 1024, .have_region = 1, .supersample = 8,
+                        .region_lo = {-20, -1, -20}, .region_hi = {20, 60, 20}};
+  lightmap_job j = {.q = {.levels = 3, .res = 16, .threads = 2, .light_samples = 16, .probe_samples = 8192, .cones = 32,
+                          .step = 0.1f}};
+  assert_int_equal(gi_lightmap_layout(s, &o, &j.lm, &err), GI_OK);
+  j.cancel = gi_cancel_new();
+  assert_non_null(j.cancel);
+  pthread_t t;
+  assert_int_equal(pthread_create(&t, NULL, lightmap_thread, &j), 0);
+  /* Past the tiles' small cascade bakes, into their texels. */
+  sleep_ms(1000 * SLOWDOWN);
+  double tc = gi_now_ms();
+  gi_cancel_set(j.cancel);
+  pthread_join(t, NULL);
+  printf("  lightmap cancelled in its texels: returned %.1f ms after the cancel (%s)\n", j.end_ms - tc, j.err.msg);
+  gi_lightmap_free(j.lm);
+  gi_cancel_free(j.cancel);
+  gi_scene_release(s);
+  assert_int_equal(j.rc, GI_ERR_CANCELLED);
+  assert_non_null(strstr(j.err.msg, "lightmap"));
+  /* A texel's time (1-2 ms here) with the margin; a chunk of 64 was 75-190 ms. */
+  assert_true(j.end_ms - tc < STOP_WITHIN_MS / 2);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_fired_before),
@@ -249,6 +300,7 @@ int main(void) {
       cmocka_unit_test(test_cancel_from_another_thread),
       cmocka_unit_test(test_deadline),
       cmocka_unit_test(test_panorama_deadline),
+      cmocka_unit_test(test_lightmap_cancel),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
