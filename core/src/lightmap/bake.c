@@ -13,7 +13,8 @@
  * edge see the surface, not what lies beyond it), is tested for lying
  * inside geometry (most of a few hemisphere rays hit back faces), and is
  * gathered by the surface rule (answer/surface.c). The texel keeps the
- * mean of its valid points. Every point's random stream comes from the
+ * mean of its valid points on its centre's side of any geometry crossing
+ * its footprint (a wall thinner than a texel standing on it). Every point's random stream comes from the
  * seed and its atlas position, so the result does not depend on tiles or
  * threads. Afterwards, invalid texels and gutters are filled layer by
  * layer from their already-filled neighbours in the same chart. */
@@ -45,6 +46,14 @@
  * back-face hits above which it does. */
 #define GI_LM_INSIDE_RAYS 12
 #define GI_LM_INSIDE_SHARE 0.5f
+/* A texel's points reach each other along its surface unless a triangle
+ * crosses the path between them; triangles this near parallel to the
+ * surface are its own facets (twice the chart angle, GI_LM_CHART_COS),
+ * passed at most this many times, each time resuming this share of the
+ * path further. */
+#define GI_LM_SAME_SURFACE_COS (2 * GI_LM_CHART_COS * GI_LM_CHART_COS - 1)
+#define GI_LM_REACH_PASSES 4
+#define GI_LM_REACH_EPS 1e-4f
 
 /* A texel of a tile's list: its chart, and its place in the chart's rectangle. */
 #define GI_LM_TEXEL(chart, dx, dy) ((uint64_t)(chart) << 32 | (uint64_t)(dy) << 16 | (uint64_t)(dx))
@@ -221,8 +230,68 @@ static int surface_side(const gi_scene *s, uint32_t tri, const float x[3], float
   return 0;
 }
 
+/* Whether geometry lies between surface points a and b (unit normals na,
+ * nb): the straight path between them lifted by `lift` along their
+ * normals meets a triangle. Hits on triangles within twice the chart
+ * angle of na (either side) are the surface itself (the chord across a
+ * convex fold of a chart dips under the lift) and are passed. */
+static int surface_blocked(const gi_scene *s, const float a[3], const float na[3], const float b[3],
+                           const float nb[3], float lift) {
+  float o[3], e[3], w[3];
+  for (int k = 0; k < 3; k++) o[k] = a[k] + lift * na[k], e[k] = b[k] + lift * nb[k] - o[k];
+  float len = gi__len(e), t0 = 0;
+  if (!(len > 0)) return 0;
+  for (int k = 0; k < 3; k++) w[k] = e[k] / len;
+  for (int i = 0; i < GI_LM_REACH_PASSES; i++) {
+    float th, ng[3];
+    uint32_t t;
+    if (!gi__intersect1(s, o, w, t0, len, &th, &t, ng)) return 0;
+    if (fabsf(gi__dot(ng, na)) < GI_LM_SAME_SURFACE_COS) return 1;
+    t0 = th + GI_LM_REACH_EPS * len;
+  }
+  return 1;
+}
+
+/* Of a texel's valid points pt[0..nv) (triangles tri), keeps one group
+ * of points that reach each other along the surface (surface_blocked; a
+ * group is the points its first reaches): when geometry crosses the
+ * footprint, the group its centre reaches most of, or the largest (the
+ * first on a tie) when the centre lies inside geometry or reaches none.
+ * A wall thinner than half a texel standing on a floor left points on
+ * both sides valid, and the texel beside a dark room read half the lit
+ * side's light. Moves the kept points to the front, in order; returns
+ * how many. */
+static int reachable_points(const gi_lightmap *lm, const gi_lm_chart *c, int x, int y, float reach,
+                            gi_surface_pt *pt, uint32_t *tri, int nv) {
+  enum { MAXP = GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE };
+  const gi_scene *s = lm->scene;
+  float lift = gi__shadow_offset(reach);
+  int group[MAXP], size[MAXP] = {0}, seen[MAXP] = {0}, ng = 0, keep = 0;
+  for (int v = 0; v < nv; v++) group[v] = -1;
+  for (int v = 0; v < nv; v++) {
+    if (group[v] >= 0) continue;
+    group[v] = ng, size[ng] = 1;
+    for (int u = v + 1; u < nv; u++)
+      if (group[u] < 0 && !surface_blocked(s, pt[v].x, pt[v].n, pt[u].x, pt[u].n, lift)) group[u] = ng, size[ng]++;
+    ng++;
+  }
+  if (ng <= 1) return nv;
+  float ctr[2] = {(float)x + 0.5f, (float)y + 0.5f}, X[3], n[3];
+  uint32_t ct;
+  if ((chart_point(lm, c, ctr, 0, &ct, X) || chart_point(lm, c, ctr, 1, &ct, X)) && surface_side(s, ct, X, reach, n))
+    for (int v = 0; v < nv; v++) seen[group[v]] += !surface_blocked(s, X, n, pt[v].x, pt[v].n, lift);
+  for (int k = 1; k < ng; k++)
+    if (seen[k] > seen[keep] || (seen[k] == seen[keep] && size[k] > size[keep])) keep = k;
+  int k = 0;
+  for (int v = 0; v < nv; v++)
+    if (group[v] == keep) pt[k] = pt[v], tri[k] = tri[v], k++;
+  return k;
+}
+
 /* One texel: the mean over the valid points of its footprint that lie on
- * the chart; a texel the chart only grazes takes the nearest edge points. */
+ * the chart and on its centre's side of any geometry crossing it
+ * (reachable_points); a texel the chart only grazes takes the nearest
+ * edge points. */
 static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int atlas, int x, int y,
                        gi_ray_scratch *sc) {
   const gi_scene *s = g->lm->scene;
@@ -245,6 +314,7 @@ static void bake_texel(tile_ctx *g, const gi_lm_chart *c, gi_lm_atlas *a, int at
       if (!surface_side(s, tri[nv], pt[nv].x, reach, pt[nv].n)) continue;
       pt[nv++].seed = gi__mix64(seed + (uint64_t)sub);
     }
+  nv = reachable_points(g->lm, c, x, y, reach, pt, tri, nv);
   float E[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE][3];
   float I[GI_LIGHTMAP_MAX_SUPERSAMPLE * GI_LIGHTMAP_MAX_SUPERSAMPLE][3];
   gi__surface_irradiance(g->c, pt, (size_t)nv, g->samples, sc, E, I);
