@@ -37,7 +37,7 @@ typedef struct {
   gi_between **plan; /* per level, per occupied voxel: filled from its neighbours instead (between.c) */
   int wide;         /* the wide set (gi__bounce_wide) */
   int first;        /* the set's first bounce: fills hit */
-  gi_shift6 **shift; /* per level, per occupied voxel: each side's apex shift (away_from_beside) */
+  gi_shift6 **shift; /* per level, per occupied voxel: each side's apex shift (gi__away_from_beside) */
   int shift_known;  /* shift holds it (after the first bounce) */
   gi_hfaces **H;    /* per level, per occupied voxel: each face's share of its cones that met a surface, or NULL */
   atomic_ullong samples, cones;
@@ -65,53 +65,11 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
   }
 }
 
-/* A side's apex also moves off the other surfaces beside it, found by
- * rays along the axes across its normal within BESIDE_REACH voxels (at
- * most half way to what lies behind the apex): a wall's side in the row of
- * voxels under a ceiling started its cones within a coarse voxel of the
- * ceiling, and a cone going down read, in the ceiling's voxel, the light
- * the sunlit roof above sends up. A sealed room under the sun then leaked
- * 0.5-22% of a windowed room's light into its dark inside (none after); a
- * room lit through a window read 30.7% indirect error (21.8% after).
- * away_from_groups does the same for the voxel's own other surfaces,
- * without rays. The shift depends on the geometry alone: a bake's first
- * bounce computes it, the later ones reuse it, and a moving cascade keeps
- * it per entry across its moves (gi_shift6). */
-#define BESIDE_REACH 1.5f
-
-/* 1 when every cell of level d that o + t e crosses for t in [0, reach]
- * (e an axis) is in the window and holds no surface: the ray along e can
- * meet nothing, and is not cast (Munich's bounce spent 16 ms on them). */
-static int cells_empty_along(const struct gi_cascade *c, int d, const float o[3], const float e[3], float reach) {
-  const gi_level *L = &c->lv[d];
-  /* Every half cell, the last at reach itself: no cell the ray crosses is skipped. */
-  int steps = (int)ceilf(2.f * reach / (float)L->s);
-  for (int i = 0; i <= steps; i++) {
-    float t = gi__minf((float)i * 0.5f * (float)L->s, reach);
-    int64_t cell[3];
-    for (int a = 0; a < 3; a++) {
-      cell[a] = (int64_t)floor(((double)o[a] + (double)t * e[a]) / L->s);
-      if (cell[a] < L->cell0[a] || cell[a] >= L->cell0[a] + c->R) return 0;
-    }
-    if (L->vix[gi__slot(cell[0], cell[1], cell[2], c->R)]) return 0;
-  }
-  return 1;
-}
-
-static void away_from_beside(const struct gi_cascade *c, int d, const float n[3], const float o[3], float out[3]) {
-  float reach = BESIDE_REACH * (float)c->lv[d].s, m[6][3], r[6];
-  unsigned axes = 0;
-  for (int a = 0; a < 6; a++) {
-    float e[3] = {0, 0, 0};
-    e[a / 2] = (a & 1) ? -1.f : 1.f;
-    /* Along the normal lie its own surface and what it faces. */
-    if (fabsf(gi__dot(e, n)) <= 0.5f && !cells_empty_along(c, d, o, e, reach)) axes |= 1u << a;
-  }
-  int k = gi__surfaces_beside(c, o, reach, 1e-3f * (float)c->s0, axes, NULL, 0, m, r);
-  out[0] = out[1] = out[2] = 0;
-  for (int i = 0; i < k; i++)
-    for (int a = 0; a < 3; a++) out[a] += r[i] * m[i][a];
-}
+/* A side's apex also moves off the other surfaces beside it
+ * (gi__away_from_beside, trace.h); away_from_groups does the same for the
+ * voxel's own other surfaces, without rays. The shift depends on the geometry
+ * alone: a bake's first bounce computes it, the later ones reuse it, and
+ * a moving cascade keeps it per entry across its moves (gi_shift6). */
 
 /* Cones of several voxels' gathers marched as one batch: the SIMD march
  * drains its lanes at a batch's end, and one voxel's 32-96 cones left a
@@ -165,7 +123,7 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
     if (ns > 2) away_from_groups(c, d, g, sd, &st);
     float sh[3];
     if (shift && shift_known) memcpy(sh, shift->v[sd], sizeof sh);
-    else away_from_beside(c, d, n, st.o, sh);
+    else gi__away_from_beside(c, d, n, st.o, sh);
     if (shift && !shift_known) memcpy(shift->v[sd], sh, sizeof sh);
     for (int k = 0; k < 3; k++) st.o[k] += sh[k];
     gi__hemisphere_jobs(c, wide, &st, n, all);

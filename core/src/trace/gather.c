@@ -173,3 +173,37 @@ int gi__surfaces_beside(const struct gi_cascade *c, const float o[3], float reac
   }
   return k;
 }
+
+/* 1 when every cell of level d that o + t e crosses for t in [0, reach]
+ * (e an axis) is in the window and holds no surface: the ray along e can
+ * meet nothing, and is not cast (Munich's bounce spent 16 ms on them). */
+static int cells_empty_along(const struct gi_cascade *c, int d, const float o[3], const float e[3], float reach) {
+  const gi_level *L = &c->lv[d];
+  /* Every half cell, the last at reach itself: no cell the ray crosses is skipped. */
+  int steps = (int)ceilf(2.f * reach / (float)L->s);
+  for (int i = 0; i <= steps; i++) {
+    float t = gi__minf((float)i * 0.5f * (float)L->s, reach);
+    int64_t cell[3];
+    for (int a = 0; a < 3; a++) {
+      cell[a] = (int64_t)floor(((double)o[a] + (double)t * e[a]) / L->s);
+      if (cell[a] < L->cell0[a] || cell[a] >= L->cell0[a] + c->R) return 0;
+    }
+    if (L->vix[gi__slot(cell[0], cell[1], cell[2], c->R)]) return 0;
+  }
+  return 1;
+}
+
+void gi__away_from_beside(const struct gi_cascade *c, int d, const float n[3], const float o[3], float out[3]) {
+  float reach = GI_BESIDE_REACH * (float)c->lv[d].s, m[6][3], r[6];
+  unsigned axes = 0;
+  for (int a = 0; a < 6; a++) {
+    float e[3] = {0, 0, 0};
+    e[a / 2] = (a & 1) ? -1.f : 1.f;
+    /* Along the normal lie its own surface and what it faces. */
+    if (fabsf(gi__dot(e, n)) <= 0.5f && !cells_empty_along(c, d, o, e, reach)) axes |= 1u << a;
+  }
+  int k = gi__surfaces_beside(c, o, reach, 1e-3f * (float)c->s0, axes, NULL, 0, m, r);
+  out[0] = out[1] = out[2] = 0;
+  for (int i = 0; i < k; i++)
+    for (int a = 0; a < 3; a++) out[a] += r[i] * m[i][a];
+}

@@ -85,6 +85,18 @@ int gi__gather_start(const struct gi_cascade *c, const float p[3], const float *
  * them. Thread-safe. */
 int gi__surfaces_beside(const struct gi_cascade *c, const float o[3], float reach, float on, unsigned axes,
                         const float *skip_n, float skip_cos, float m[6][3], float r[6]);
+/* The shift of a surface gather's apex o (level d, unit normal n) off the
+ * other surfaces beside it: by gi__surfaces_beside along the axes across
+ * n, within GI_BESIDE_REACH voxels of level d. A wall's side in the row of
+ * voxels under a ceiling started its cones within a coarse voxel of the
+ * ceiling, and a cone going down read, in the ceiling's voxel, the light
+ * the sunlit roof above sends up: a sealed room under the sun leaked
+ * 0.5-22% of a windowed room's light into its dark inside (none after); a
+ * room lit through a window read 30.7% indirect error (21.8% after).
+ * Voxel bounces (light/bounce.c) and lightmap texels (answer/surface.c)
+ * shift their apexes by it. Thread-safe. */
+#define GI_BESIDE_REACH 1.5f
+void gi__away_from_beside(const struct gi_cascade *c, int d, const float n[3], const float o[3], float out[3]);
 /* One cone of half-angle tangent tan_half along unit w from g. */
 void gi__gather_cone(const struct gi_cascade *c, const gi_gather_start *g, const float w[3], float tan_half,
                      gi_cone_out *out);
