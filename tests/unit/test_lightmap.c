@@ -1203,6 +1203,35 @@ static void test_wall_ceiling_edge(void **state) {
   gi_scene_release(sc);
 }
 
+/* A scene's own UVs set the texel: the EXR's gi.texel is the mean world
+ * side of their texels (a 10 x 10 plate over 32 x 32 texels of a 64 atlas:
+ * 0.3125), whatever texel was asked (it said the unused default, 0.25). */
+static void test_scene_uv_texel(void **state) {
+  (void)state;
+  gi_scene *s = plate_with_uv(0.5, 0.25, -1);
+  assert_true(gi_scene_has_lightmap_uv(s));
+  static const double asked[2] = {0, 2};
+  for (int i = 0; i < 2; i++) {
+    gi_lightmap_opts o = {.texel = asked[i], .atlas = 64};
+    gi_lightmap *lm = NULL;
+    gi_error_info err = {0};
+    assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+    char path[512];
+    snprintf(path, sizeof path, "%s/plate-lm-%d.exr", tu_tmpdir(), i);
+    assert_int_equal(gi_lightmap_write_exr(lm, path, 0, &err), GI_OK);
+    gi_exr_file *x = NULL;
+    assert_int_equal(gi_exr_read(path, &x, &err), GI_OK);
+    const char *t = gi_exr_file_attr(x, "gi.texel");
+    assert_non_null(t);
+    printf("scene's own UVs, texel %g asked: gi.texel %s\n", asked[i], t);
+    assert_float_equal(strtod(t, NULL), 0.3125, 1e-6);
+    gi_exr_file_free(x);
+    remove(path);
+    gi_lightmap_free(lm);
+  }
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
@@ -1224,6 +1253,7 @@ int main(void) {
       cmocka_unit_test(test_tiles_share_bounces),
       cmocka_unit_test(test_thin_wall_one_side),
       cmocka_unit_test(test_wall_ceiling_edge),
+      cmocka_unit_test(test_scene_uv_texel),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -68,7 +68,8 @@ typedef struct gi_lightmap_opts {
                           cannot hold them is refused, one larger than the region is one tile) */
   int scene_uv;        /* 0: bake into the scene's own lightmap UVs when it has them
                           (gi_scene_has_lightmap_uv: one atlas of `atlas` texels, one chart,
-                          texel unused); -1: always make charts */
+                          texel unused: the layout takes the mean world side of a texel of
+                          those UVs, the EXR's gi.texel); -1: always make charts */
 } gi_lightmap_opts;
 
 typedef struct gi_lightmap gi_lightmap;

@@ -336,12 +336,13 @@ static gi_result check_uv_overlap(const struct gi_lightmap *lm, const uint32_t *
  * and with area (all UVs at one point gathered one texel for the whole
  * atlas), and without overlaps. Fails naming the first bad triangle and
  * the way out. */
-static gi_result check_scene_uv(const struct gi_lightmap *lm, const uint32_t *sel, size_t n, gi_error_info *err) {
+static gi_result check_scene_uv(const struct gi_lightmap *lm, const uint32_t *sel, size_t n, double *surface,
+                                double *texels, gi_error_info *err) {
   const gi_scene *s = lm->scene;
   float N = (float)lm->opts.atlas, lo = -UV_SLACK * N, hi = (1 + UV_SLACK) * N;
   size_t outside = 0, first = SIZE_MAX;
   int bad = 0; /* first's vertex outside */
-  double area = 0, flat = 0;
+  double area = 0, flat = 0, covered = 0;
   for (size_t i = 0; i < n; i++) {
     const float *u = &lm->uv[6 * i];
     int out = 0;
@@ -358,9 +359,10 @@ static gi_result check_scene_uv(const struct gi_lightmap *lm, const uint32_t *se
       e2[k] = s->vertices[3 * (size_t)ix[2] + k] - s->vertices[3 * (size_t)ix[0] + k];
     gi__cross(e1, e2, x);
     double a = 0.5 * gi__len(x), uv_area = 0.5 * fabs((double)(u[2] - u[0]) * (u[5] - u[1]) - (double)(u[4] - u[0]) * (u[3] - u[1]));
-    area += a;
+    area += a, covered += uv_area;
     if (!(uv_area > 1e-6)) flat += a; /* under a millionth of a texel */
   }
+  *surface = area, *texels = covered;
   const char *way = "fix the UV set, or make charts instead (gi-bake --own-charts, gi_lightmap_opts.scene_uv = -1)";
   if (outside)
     return gi__fail(err, GI_ERR_FORMAT,
@@ -375,7 +377,8 @@ static gi_result check_scene_uv(const struct gi_lightmap *lm, const uint32_t *se
 }
 
 /* The scene's own lightmap UVs: every selected triangle in one chart that
- * covers the whole atlas, in texel units (texel centres at j + 0.5). */
+ * covers the whole atlas, in texel units (texel centres at j + 0.5), and
+ * opts.texel the mean world side of their texels. */
 static gi_result scene_chart(struct gi_lightmap *lm, uint32_t *sel, size_t n, gi_error_info *err) {
   const gi_scene *s = lm->scene;
   lm->charts = gi__calloc(1, sizeof *lm->charts);
@@ -389,8 +392,13 @@ static gi_result scene_chart(struct gi_lightmap *lm, uint32_t *sel, size_t n, gi
       lm->uv[6 * i + 2 * j + 1] = s->uv2[2 * (size_t)v + 1] * N;
       for (int k = 0; k < 3; k++) lo[k] = fminf(lo[k], s->vertices[3 * (size_t)v + k]), hi[k] = fmaxf(hi[k], s->vertices[3 * (size_t)v + k]);
     }
-  gi_result rc = check_scene_uv(lm, sel, n, err);
+  double area, covered;
+  gi_result rc = check_scene_uv(lm, sel, n, &area, &covered, err);
   if (rc != GI_OK) return rc;
+  /* The texel the UVs give (the EXR's gi.texel, the tiles' margins): the
+   * mean side, from the surface's area over the texels it covers. The
+   * caller's texel, unused here, was written as if it had been. */
+  lm->opts.texel = sqrt(area / covered);
   gi_lm_chart *c = &lm->charts[0];
   c->pub.count = n;
   c->cw = c->ch = lm->opts.atlas;
