@@ -14,8 +14,14 @@
  * cascade exactly as the probes gather (direct light by shadow rays,
  * indirect light by the cascade's cones), averaged over the texel's
  * footprint. The region is baked tile by tile, one cascade per tile, so
- * memory stays bounded by one cascade whatever the region's size; a texel
- * belongs to the tile holding its surface point (a chart may span many).
+ * the bake's cascade memory stays bounded by one cascade whatever the
+ * region's size; a texel belongs to the tile holding its surface point (a
+ * chart may span many). The atlases themselves are held whole, 92 bytes per
+ * atlas texel (its radiance, irradiance, direct, indirect and albedo,
+ * surface point and normal, valid, chart): they grow with the region's surface
+ * over texel^2 (a 4096^2 atlas is 1.4 GiB; the procedural city's whole
+ * surface at texel 0.25 reached 2.4 GB in its first 150 s). Bake large regions in
+ * parts (gi-bake --region, the server's region).
  *
  * Texels whose surface point lies inside other geometry (a floor under a
  * box) are marked invalid and filled from their neighbours in the same
