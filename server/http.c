@@ -1336,6 +1336,16 @@ void gs_http_stop(gs_http *h) {
     pthread_mutex_lock(&h->mu);
     int busy = h->waiting != NULL;
     pthread_mutex_unlock(&h->mu);
+    /* Then every answer out to its client: a request is done when its
+     * connection waits for the next one (receiving). MHD_stop_daemon cut
+     * a 15 MB panorama being sent at SIGTERM, and the client read a 200
+     * with a short body while the server exited 0. A client that never
+     * reads its answer is cut by the shutdown grace (exit status 3). */
+    if (!busy) {
+      pthread_mutex_lock(&h->conn_mu);
+      for (gs_conn *c = h->conns; c && !busy; c = c->next) busy = !c->receiving && !c->cut;
+      pthread_mutex_unlock(&h->conn_mu);
+    }
     if (!busy) break;
     struct timespec ts = {0, 20 * 1000000L};
     nanosleep(&ts, NULL);
