@@ -545,6 +545,7 @@ int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], co
   unlink_entry(c, e);
   push_front(c, e);
   coalesce(e, w);
+  if (e->answer) w->how = GS_CACHE_HIT; /* as if its cascade was found on a worker */
   pthread_mutex_unlock(&c->mu);
   if (e->answer) count_how(c, cas, GS_CACHE_HIT); /* its rerun finds the cascade without counting it */
   count_how(c, e, GS_CACHE_COALESCED);
@@ -575,8 +576,15 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     return GI_ERR_CANCELLED;
   }
   gs_entry *e = lookup(c, key);
-  /* Woken by its answer's encode: its cascade's outcome was counted before that wait. */
-  if (e) return found(c, e, w, woken, w && w->coalesced_encode, out, how, err);
+  if (e) {
+    /* Woken by its answer's encode: its cascade's outcome was counted, and
+     * said, before that wait. */
+    int again = w && w->coalesced_encode;
+    rc = found(c, e, w, woken, again, out, how, err);
+    if (rc == GI_OK && again) *how = w->how;
+    else if (rc == GI_OK && w) w->how = *how;
+    return rc;
+  }
   size_t need = gs_bake_bytes(q);
   if ((rc = admit(c, need, err)) != GI_OK) {
     pthread_mutex_unlock(&c->mu);
@@ -627,6 +635,7 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     return rc;
   }
   *out = e;
+  if (w) w->how = GS_CACHE_MISS;
   return GI_OK;
 }
 

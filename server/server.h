@@ -186,6 +186,7 @@ typedef struct gs_waiter {
   struct gs_waiter *next;
   int coalesced;           /* it waited for another request's bake */
   int coalesced_encode;    /* it waited for another request's encode of its answer */
+  gs_cache_how how;        /* its cascade's outcome (X-GI-Cache), kept across that wait */
   int left;                /* gs_cache_leave was called: it joins no bake */
   gi_result rc;            /* that bake's failure, for the request's next try */
   gi_error_info err;
@@ -200,7 +201,9 @@ typedef struct gs_waiter {
  * no waiter (NULL), block until the running bake ends (a blocking waiter
  * also until gs_cache_leave: GI_ERR_CANCELLED). A bake nobody is
  * interested in any more is cancelled and never cached. The entry stays
- * valid until gs_cache_release. */
+ * valid until gs_cache_release. *how: how the cascade was found; a rerun
+ * woken by a bake is coalesced, and one woken by its answer's encode
+ * keeps what its first run was (the baker's miss, a waiter's coalesced). */
 /* req is the request's quality as gi_cascade_bake takes it (zero = auto);
  * resolved is gi_quality_resolve's answer for it (placement, key). */
 gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,

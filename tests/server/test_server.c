@@ -373,15 +373,15 @@ static void test_coalescing(void **state) {
               other + N - 1);
 }
 
-/* n GETs of path at once (curl_multi) into r; the caller frees r[i].body. */
-static void get_all(const char *path, su_resp *r, int n) {
+/* n GETs of path at once (curl_multi) to server s into r; the caller frees r[i].body. */
+static void get_all_on(const su_server *s, const char *path, su_resp *r, int n) {
   CURLM *m = curl_multi_init();
   CURL *c[16];
   struct curl_slist *h[16];
   assert_true(n <= 16);
   memset(r, 0, (size_t)n * sizeof *r);
   for (int i = 0; i < n; i++) {
-    c[i] = su_make_req(&S_main, NULL, path, NULL, TOKEN, &r[i], &h[i]);
+    c[i] = su_make_req(s, NULL, path, NULL, TOKEN, &r[i], &h[i]);
     curl_multi_add_handle(m, c[i]);
   }
   int running = 1;
@@ -396,6 +396,52 @@ static void get_all(const char *path, su_resp *r, int n) {
     curl_slist_free_all(h[i]);
   }
   curl_multi_cleanup(m);
+}
+
+static void get_all(const char *path, su_resp *r, int n) { get_all_on(&S_main, path, r, n); }
+
+/* Of n answers to identical requests for a fresh cell, all 200 with the
+ * same bytes: exactly one says X-GI-Cache: miss, with its bake's stages in
+ * Server-Timing, and every other coalesced (the bake is slow enough that
+ * none arrives after it). */
+static void expect_one_miss(const su_resp *r, int n) {
+  int miss = 0, coalesced = 0;
+  for (int i = 0; i < n; i++) {
+    assert_int_equal(r[i].status, 200);
+    assert_int_equal(r[i].len, r[0].len);
+    assert_memory_equal(r[i].body, r[0].body, r[0].len);
+    const char *how = su_header(&r[i], "X-GI-Cache");
+    assert_non_null(how);
+    if (!strcmp(how, "miss")) {
+      miss++;
+      const char *st = su_header(&r[i], "Server-Timing");
+      double vox = 0;
+      assert_non_null(st);
+      assert_int_equal(sscanf(st, "voxelize;dur=%lf", &vox), 1);
+      assert_true(vox > 0);
+    } else if (!strcmp(how, "coalesced")) {
+      coalesced++;
+    }
+  }
+  printf("  X-GI-Cache: %d miss, %d coalesced of %d\n", miss, coalesced, n);
+  assert_int_equal(miss, 1);
+  assert_int_equal(coalesced, n - 1);
+}
+
+/* Identical requests for a fresh cell's panorama: the ones that waited for
+ * the bake say coalesced. They then waited for the shared encode too, and
+ * the rerun after that second wait said hit (and the baker, when another
+ * request took the encode, hit with no bake stages), while /metrics
+ * counted them coalesced. */
+static void test_coalesced_label(void **state) {
+  enum { N = 6 };
+  const char *path = "/v1/scenes/city/lighting?at=52,2,-61&levels=6&res=32&kind=panorama&width=256&height=128";
+  double coalesced = su_metric(&S_main, "gi_cache_coalesced_total", NULL);
+  su_resp r[N];
+  get_all(path, r, N);
+  expect_one_miss(r, N);
+  assert_true(su_metric(&S_main, "gi_cache_coalesced_total", NULL) == coalesced + N - 1);
+  for (int i = 0; i < N; i++) free(r[i].body);
 }
 
 static double encode_total(void) {
@@ -1511,6 +1557,7 @@ int main(void) {
       cmocka_unit_test(test_cell_edges),
       cmocka_unit_test(test_coalescing),
       cmocka_unit_test(test_shared_answers),
+      cmocka_unit_test(test_coalesced_label),
       cmocka_unit_test(test_effect_override),
       cmocka_unit_test(test_panorama),
       cmocka_unit_test(test_lightmap),
