@@ -5,7 +5,10 @@
  * from memory. A key being baked is in the table as BAKING: a second
  * request for it does not bake again (coalescing). A request with a
  * waiter (an HTTP request) returns GS_PENDING and frees its worker; the
- * baking worker wakes it when the bake ends, and it runs again as a hit.
+ * baking worker wakes it when the bake ends, handing it the entry held
+ * (gs_waiter's got), and it runs again on that: an entry nobody else holds
+ * is evicted at once under a zero budget, and a waiter finding it gone
+ * would bake again. Its answer's encode hands the answer the same way.
  * A request without one (a probe list) waits on the condition variable.
  * Every bake has a cancel token: when the last interested request leaves
  * (deadline, hang-up) the token is set, the entry leaves the table and the
@@ -330,6 +333,14 @@ size_t gs_cache_sending(gs_cache *c) {
   return n;
 }
 
+/* Drops a reference to e (NULL is fine). Locked. */
+static void release_locked(gs_cache *c, gs_entry *e) {
+  if (!e) return;
+  e->refs--;
+  if (!e->linked && e->refs == 0) free_entry(c, e);
+  else if (e->refs == 0) evict(c, 0);
+}
+
 /* w is interested in e's bake (or encode). Locked. */
 static void join(gs_entry *e, gs_waiter *w) {
   w->entry = e;
@@ -357,6 +368,10 @@ int gs_cache_leave(gs_cache *c, gs_waiter *w) {
   gs_entry *e = w->entry;
   int cancelled = 0;
   w->left = 1; /* it joins no bake after this */
+  /* Woken but never to run again: what it was handed goes back. */
+  release_locked(c, w->got);
+  release_locked(c, w->got_answer);
+  w->got = w->got_answer = NULL;
   /* A linked waiter means its bake is still running: the baker's own
    * reference keeps e alive. */
   if (e) {
@@ -405,36 +420,38 @@ static void count_how(gs_cache *c, const gs_entry *e, gs_cache_how how) {
   else gs_metrics_cache(c->metrics, how);
 }
 
-/* w waits for e's bake (or encode) without a worker: the baker wakes it. Locked. */
-static void coalesce(gs_entry *e, gs_waiter *w) {
-  join(e, w);
-  if (e->answer) w->coalesced_encode = 1;
-  else w->coalesced = 1;
+/* Most recently used first. Locked. */
+static void touch(gs_cache *c, gs_entry *e) {
+  if (!e->linked) return;
+  unlink_entry(c, e);
+  push_front(c, e);
+}
+
+/* What a wake handed w (its cascade, or answer), now the caller's
+ * reference, or NULL. */
+static gs_entry *take_handed(gs_cache *c, gs_waiter *w, int answer) {
+  if (!w) return NULL;
+  pthread_mutex_lock(&c->mu);
+  gs_entry **p = answer ? &w->got_answer : &w->got, *e = *p;
+  *p = NULL;
+  if (e) touch(c, e);
+  pthread_mutex_unlock(&c->mu);
+  return e;
 }
 
 /* An entry found in the table: a hit, a pending waiter, or a blocking
- * wait for the bake. woken: w waited for this bake; counted: the outcome
- * is in /metrics already (w waited for its answer's encode after finding
- * its cascade, or joined that encode from dispatch). Called locked;
- * returns unlocked. */
-static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, int counted, gs_entry **out,
+ * wait for the bake. held: the caller's reference that passes to w when
+ * it waits without a worker (its cascade, while it waits for its answer).
+ * Called locked; returns unlocked. */
+static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, gs_entry *held, gs_entry **out,
                        gs_cache_how *how, gi_error_info *err) {
-  /* Most recently used first. */
-  unlink_entry(c, e);
-  push_front(c, e);
+  touch(c, e);
   *how = e->state == READY ? GS_CACHE_HIT : GS_CACHE_COALESCED;
-  if (woken && e->state == READY) {
-    /* Woken after waiting for this bake: it counted as coalesced then. */
-    *how = GS_CACHE_COALESCED;
-    e->refs++;
-    pthread_mutex_unlock(&c->mu);
-    *out = e;
-    return GI_OK;
-  }
   if (e->state == BAKING && w && !w->blocking) {
-    coalesce(e, w);
+    join(e, w);
+    w->got = held;
     pthread_mutex_unlock(&c->mu);
-    if (!counted) count_how(c, e, *how);
+    count_how(c, e, *how);
     return GS_PENDING;
   }
   e->refs++;
@@ -448,7 +465,7 @@ static gi_result found(gs_cache *c, gs_entry *e, gs_waiter *w, int woken, int co
   }
   int gave_up = w && w->left;
   pthread_mutex_unlock(&c->mu);
-  if (!counted) count_how(c, e, *how);
+  count_how(c, e, *how);
   if (gave_up) {
     if (err)
       snprintf(err->msg, sizeof err->msg, "%s", e->answer ? "encode: the request was given up while it waited for "
@@ -479,7 +496,8 @@ static void fail_entry(gs_cache *c, gs_entry *e, gi_result rc, const gi_error_in
 }
 
 /* e's bake (or encode) ended, its state set: wakes the waiters (each held
- * under the lock, woken after it). Called locked; returns unlocked. */
+ * under the lock, woken after it), handing each e held when it is READY.
+ * Called locked; returns unlocked. */
 static void wake_waiters(gs_cache *c, gs_entry *e) {
   /* Blocking waiters read e themselves once the lock is let go (and may
    * reuse their waiter at once): only the others are kept to be woken. */
@@ -491,7 +509,16 @@ static void wake_waiters(gs_cache *c, gs_entry *e) {
     e->interest--;
     if (w->blocking) continue;
     w->rc = e->state == FAILED ? e->rc : GI_OK;
-    if (e->state == FAILED) w->err = e->err;
+    if (e->state == FAILED) {
+      w->err = e->err;
+    } else if (e->answer) {
+      e->refs++;
+      w->got_answer = e;
+    } else {
+      e->refs++;
+      w->got = e;
+      w->how = GS_CACHE_COALESCED;
+    }
     w->hold(w->arg);
     w->next = woken;
     woken = w;
@@ -542,10 +569,14 @@ int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], co
     pthread_mutex_unlock(&c->mu);
     return 0;
   }
-  unlink_entry(c, e);
-  push_front(c, e);
-  coalesce(e, w);
-  if (e->answer) w->how = GS_CACHE_HIT; /* as if its cascade was found on a worker */
+  touch(c, e);
+  join(e, w);
+  if (e->answer) {
+    /* Its cascade stays for its rerun, as if found there. */
+    cas->refs++;
+    w->got = cas;
+    w->how = GS_CACHE_HIT;
+  }
   pthread_mutex_unlock(&c->mu);
   if (e->answer) count_how(c, cas, GS_CACHE_HIT); /* its rerun finds the cascade without counting it */
   count_how(c, e, GS_CACHE_COALESCED);
@@ -555,19 +586,25 @@ int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], co
 gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
                        const gi_quality *q, gs_waiter *w, gs_entry **out, gs_cache_how *how, gi_error_info *err) {
   *out = NULL;
+  gs_entry *handed = take_handed(c, w, 0);
   if (w && w->rc != GI_OK) {
-    /* Woken by a bake that failed: its error is this request's answer. */
+    /* Woken by a bake (or its answer's encode) that failed: its error is this request's answer. */
     gi_result rc = w->rc;
     if (err) *err = w->err;
     w->rc = GI_OK;
+    gs_cache_release(c, handed);
     return rc;
+  }
+  if (handed) {
+    /* Woken by the bake it waited for, or by its answer's encode: counted then. */
+    *how = w->how;
+    *out = handed;
+    return GI_OK;
   }
   int64_t anchor[3];
   char key[GS_KEY_SIZE];
   gi_result rc = key_of(s, at, req, q, anchor, key, err);
   if (rc != GI_OK) return rc;
-  int woken = w && w->coalesced;
-  if (w) w->coalesced = 0;
   pthread_mutex_lock(&c->mu);
   if (w && w->left) {
     /* Given up (deadline, hang-up) before it could join a bake. */
@@ -577,12 +614,8 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
   }
   gs_entry *e = lookup(c, key);
   if (e) {
-    /* Woken by its answer's encode: its cascade's outcome was counted, and
-     * said, before that wait. */
-    int again = w && w->coalesced_encode;
-    rc = found(c, e, w, woken, again, out, how, err);
-    if (rc == GI_OK && again) *how = w->how;
-    else if (rc == GI_OK && w) w->how = *how;
+    rc = found(c, e, w, NULL, out, how, err);
+    if (rc == GI_OK && w) w->how = *how; /* for a rerun after a wait for its answer */
     return rc;
   }
   size_t need = gs_bake_bytes(q);
@@ -644,12 +677,7 @@ const gi_cascade *gs_entry_cascade(const gs_entry *e) { return e->cascade; }
 void gs_cache_release(gs_cache *c, gs_entry *e) {
   if (!e) return;
   pthread_mutex_lock(&c->mu);
-  e->refs--;
-  if (!e->linked && e->refs == 0) {
-    free_entry(c, e);
-  } else if (e->refs == 0) {
-    evict(c, 0);
-  }
+  release_locked(c, e);
   pthread_mutex_unlock(&c->mu);
 }
 
@@ -664,10 +692,16 @@ gi_result gs_cache_answer(gs_cache *c, gs_entry *cas, const char *shape, gs_wait
     w->rc = GI_OK;
     return rc;
   }
+  gs_entry *handed = take_handed(c, w, 1);
+  if (handed) {
+    /* Woken by the encode it waited for: counted then. */
+    gs_blob_retain(handed->blob);
+    *blob = handed->blob;
+    gs_cache_release(c, handed);
+    return GI_OK;
+  }
   char key[GS_KEY_SIZE];
   answer_key(cas->gen, shape, key);
-  int woken = w && w->coalesced_encode;
-  if (w) w->coalesced_encode = 0;
   pthread_mutex_lock(&c->mu);
   if (w && w->left) {
     pthread_mutex_unlock(&c->mu);
@@ -677,7 +711,7 @@ gi_result gs_cache_answer(gs_cache *c, gs_entry *cas, const char *shape, gs_wait
   gs_entry *e = lookup(c, key);
   if (e) {
     gs_cache_how how;
-    gi_result rc = found(c, e, w, woken, 0, &e, &how, err);
+    gi_result rc = found(c, e, w, cas, &e, &how, err);
     if (rc != GI_OK) return rc;
     /* Held (refs): the entry, and so its blob, stays until released. */
     gs_blob_retain(e->blob);

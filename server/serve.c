@@ -317,10 +317,7 @@ void gs_serve_bake(gs_service *svc, const gs_scene *s, gs_endpoint ep, const gi_
   gs_entry *job = NULL;
   if (answer_shape(ep, b, shape, sizeof shape)) {
     rc = gs_cache_answer(svc->cache, ent, shape, w, &kept, &job, &e);
-    if (rc == GS_PENDING) {
-      gs_cache_release(svc->cache, ent); /* no answer yet: w is woken when the encode ends */
-      return;
-    }
+    if (rc == GS_PENDING) return; /* w holds ent now, and is woken when the encode ends */
     /* A shared gather stops when every request waiting for it has left, not when this one does. */
     if (job) cancel = gs_entry_cancel(job);
   }

@@ -184,9 +184,12 @@ typedef struct gs_waiter {
   /* The cache's, under its lock. */
   gs_entry *entry;         /* the bake (or answer's encode) it is interested in, or NULL */
   struct gs_waiter *next;
-  int coalesced;           /* it waited for another request's bake */
-  int coalesced_encode;    /* it waited for another request's encode of its answer */
-  gs_cache_how how;        /* its cascade's outcome (X-GI-Cache), kept across that wait */
+  /* What a wake hands it, held for its rerun (gs_cache_get, gs_cache_answer
+   * take them; gs_cache_leave drops them), so a bake or encode it waited
+   * for is not evicted (cache_mb = 0 evicts at once) before it reruns. */
+  gs_entry *got;           /* its cascade: the bake it waited for, or its own while it waits for its answer */
+  gs_entry *got_answer;    /* the answer's encode it waited for */
+  gs_cache_how how;        /* got's outcome (X-GI-Cache): kept across the wait for its answer */
   int left;                /* gs_cache_leave was called: it joins no bake */
   gi_result rc;            /* that bake's failure, for the request's next try */
   gi_error_info err;
@@ -257,7 +260,8 @@ void gs_cache_unsend(gs_cache *c, size_t bytes);
  * request w waited for. GI_OK with *blob NULL and *job: the caller
  * encodes it now, stopping on gs_entry_cancel(job), then calls
  * gs_cache_answer_done. GS_PENDING: w (not blocking) waits for another
- * request's encode (see gs_waiter); a blocking waiter, and no waiter,
+ * request's encode (see gs_waiter), and the caller's reference to e
+ * passes to w (its rerun's gs_cache_get returns it); a blocking waiter, and no waiter,
  * block for it. Else that encode's error, or GI_ERR_CANCELLED when w left. */
 gi_result gs_cache_answer(gs_cache *c, gs_entry *e, const char *shape, gs_waiter *w, gs_blob **blob,
                           gs_entry **job, gi_error_info *err);

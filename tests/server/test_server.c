@@ -444,6 +444,32 @@ static void test_coalesced_label(void **state) {
   for (int i = 0; i < N; i++) free(r[i].body);
 }
 
+/* cache_mb = 0 caches nothing, yet requests at the same time still share
+ * one bake and one encode. The entry was evicted as soon as the baker (or
+ * encoder) let go, before the requests it woke ran again: one of them
+ * baked again while the rest waited another round (8 requests: 3 bakes,
+ * and 504s past the deadline). */
+static void test_zero_budget_coalescing(void **state) {
+  enum { N = 8 };
+  su_server s;
+  assert_int_equal(su_start(&s, "nocache", SERVER_INI("workers = 2\nqueue = 32\n[limits]\ncache_mb = 0\n")), 0);
+  const char *path = "/v1/scenes/city/lighting?at=-52,2,61&levels=6&res=32&kind=panorama&width=256&height=128";
+  su_resp r[N];
+  get_all_on(&s, path, r, N);
+  printf("  cache_mb = 0, %d identical requests: %g bake(s), %g encode(s)\n", N,
+         su_metric(&s, "gi_bakes_total", NULL), su_metric(&s, "gi_encode_misses_total", NULL));
+  expect_one_miss(r, N);
+  assert_true(su_metric(&s, "gi_bakes_total", NULL) == 1);
+  assert_true(su_metric(&s, "gi_cache_misses_total", NULL) == 1);
+  assert_true(su_metric(&s, "gi_encode_misses_total", NULL) == 1);
+  assert_true(su_metric(&s, "gi_encode_coalesced_total", NULL) + su_metric(&s, "gi_encode_hits_total", NULL) == N - 1);
+  /* Nothing stays once every request has its answer. */
+  assert_true(su_metric(&s, "gi_cache_entries", NULL) == 0);
+  assert_true(su_metric(&s, "gi_cache_bytes", NULL) == 0);
+  for (int i = 0; i < N; i++) free(r[i].body);
+  assert_int_equal(su_stop(&s), 0);
+}
+
 static double encode_total(void) {
   return su_metric(&S_main, "gi_encode_hits_total", NULL) + su_metric(&S_main, "gi_encode_misses_total", NULL) +
          su_metric(&S_main, "gi_encode_coalesced_total", NULL);
@@ -1558,6 +1584,7 @@ int main(void) {
       cmocka_unit_test(test_coalescing),
       cmocka_unit_test(test_shared_answers),
       cmocka_unit_test(test_coalesced_label),
+      cmocka_unit_test(test_zero_budget_coalescing),
       cmocka_unit_test(test_effect_override),
       cmocka_unit_test(test_panorama),
       cmocka_unit_test(test_lightmap),
