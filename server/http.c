@@ -318,12 +318,17 @@ static void wake_request(void *arg) {
   pthread_mutex_lock(&h->mu);
   int done = r->done;
   pthread_mutex_unlock(&h->mu);
+  /* Not to run again (answered meanwhile, or no worker takes it): the
+   * entry the wake handed it goes back (gs_cache_leave), or it stayed
+   * held, and counted, until the server stopped. */
   if (done) {
+    gs_cache_leave(h->svc->cache, &r->w);
     req_release(r);
     return;
   }
   /* It waited its turn already: ahead of the queue, not behind other bakes. */
   if (gs_pool_submit_first(h->svc->pool, task, r) == 0) return; /* the task takes the hold */
+  gs_cache_leave(h->svc->cache, &r->w);
   gi_proto_error e;
   gi_proto_fail(&e, 503, "%s", "the server is busy: the bake this request waited for is done, but no worker "
                                "could take it; retry after 1 s");
