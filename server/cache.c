@@ -238,13 +238,15 @@ size_t gs_bake_bytes(const gi_quality *resolved) {
   return cas + cas / GS_BAKE_TRANSIENT_DIV;
 }
 
-/* Reserves need bytes for a bake (locked): evicts what it must, else GI_ERR_NOMEM. */
-static gi_result admit(gs_cache *c, size_t need, gi_error_info *err) {
+/* Reserves need bytes for a bake, an encode or an answer being sent
+ * (what: "this bake", "this answer", ... for the messages; locked):
+ * evicts what it must, else GI_ERR_NOMEM. */
+static gi_result admit(gs_cache *c, size_t need, const char *what, gi_error_info *err) {
   /* A zero budget caches nothing and admits every bake (admission off). */
   if (c->budget == 0) return GI_OK;
   if (need > c->budget) {
     if (err)
-      snprintf(err->msg, sizeof err->msg, "memory: this bake needs about %zu MiB, more than the whole budget (%zu MiB)",
+      snprintf(err->msg, sizeof err->msg, "memory: %s needs about %zu MiB, more than the whole budget (%zu MiB)", what,
                need >> 20, c->budget >> 20);
     return GI_ERR_LIMIT;
   }
@@ -266,9 +268,9 @@ static void unreserve(gs_cache *c, size_t need) {
   c->inflight -= need;
 }
 
-gi_result gs_cache_reserve(gs_cache *c, size_t need, gi_error_info *err) {
+gi_result gs_cache_reserve(gs_cache *c, size_t need, const char *what, gi_error_info *err) {
   pthread_mutex_lock(&c->mu);
-  gi_result rc = admit(c, need, err);
+  gi_result rc = admit(c, need, what, err);
   pthread_mutex_unlock(&c->mu);
   return rc;
 }
@@ -282,7 +284,7 @@ void gs_cache_unreserve(gs_cache *c, size_t need) {
 
 gi_result gs_cache_hold(gs_cache *c, size_t need, gi_error_info *err) {
   pthread_mutex_lock(&c->mu);
-  gi_result rc = admit(c, need, err);
+  gi_result rc = admit(c, need, "this session's cascade", err);
   if (rc == GI_OK && c->budget) {
     /* Admitted as a bake, kept apart: a session holds it until it ends. */
     c->inflight -= need;
@@ -309,7 +311,7 @@ size_t gs_cache_inflight(gs_cache *c) {
 gi_result gs_cache_admit_sending(gs_cache *c, gs_blob *b, gi_error_info *err) {
   if (c->budget == 0) return GI_OK; /* no bound: nothing counted */
   pthread_mutex_lock(&c->mu);
-  gi_result rc = admit(c, b->size, err);
+  gi_result rc = admit(c, b->size, "this answer's encoded file (fewer pixels or half=1 make it smaller)", err);
   if (rc == GI_OK) {
     c->inflight -= b->size; /* admitted as a bake, counted apart */
     c->sending += b->size;
@@ -619,7 +621,7 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     return rc;
   }
   size_t need = gs_bake_bytes(q);
-  if ((rc = admit(c, need, err)) != GI_OK) {
+  if ((rc = admit(c, need, "this bake", err)) != GI_OK) {
     pthread_mutex_unlock(&c->mu);
     return rc;
   }

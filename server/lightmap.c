@@ -121,7 +121,7 @@ void gs_serve_lightmap(gs_service *svc, const gs_scene *s, gs_endpoint ep, const
   gi_lightmap_atlas at;
   gi_lightmap_get_atlas(lm, 0, &at);
   size_t need = ep == GS_EP_LIGHTMAP_UV ? 0 : gs_bake_bytes(&q) + (size_t)at.width * at.height * GS_LIGHTMAP_TEXEL_BYTES;
-  if (need && (rc = gs_cache_reserve(svc->cache, need, &e)) != GI_OK) {
+  if (need && (rc = gs_cache_reserve(svc->cache, need, "this lightmap's bake", &e)) != GI_OK) {
     gi_lightmap_free(lm);
     return gs_answer_core_error(a, rc, &e);
   }

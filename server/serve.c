@@ -167,7 +167,7 @@ static gi_result cascade_vdb(gs_service *svc, gs_entry *ent, int faces, gs_answe
    * bake does (235 MB at 8 levels of 64^3 with faces: past the RSS
    * bound when the cache was full). */
   size_t need = gi_cascade_vdb_bytes_estimate(gs_entry_cascade(ent), faces);
-  gi_result rc = gs_cache_reserve(svc->cache, need, e);
+  gi_result rc = gs_cache_reserve(svc->cache, need, "this VDB's encode", e);
   if (rc != GI_OK) return rc;
   char path[1200];
   gs_tmp_path(svc, ".vdb", path, sizeof path);
@@ -440,7 +440,7 @@ int gs_tile_around(const double at[3], size_t n, gs_tile **out, size_t *num_tile
 static gi_result reserve_waiting(gs_service *svc, size_t need, const gi_cancel *cancel, gi_error_info *err) {
   double t0 = gs_now_ms();
   gi_result rc;
-  while ((rc = gs_cache_reserve(svc->cache, need, err)) == GI_ERR_NOMEM && gs_now_ms() - t0 < GS_JOB_ADMIT_WAIT_MS) {
+  while ((rc = gs_cache_reserve(svc->cache, need, "this job's bake", err)) == GI_ERR_NOMEM && gs_now_ms() - t0 < GS_JOB_ADMIT_WAIT_MS) {
     if (gi_cancel_check(cancel) != GI_CANCEL_NONE) {
       snprintf(err->msg, sizeof err->msg, "probes: stopped while waiting for room in the memory budget");
       return GI_ERR_CANCELLED;

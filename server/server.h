@@ -234,7 +234,7 @@ size_t gs_bake_bytes(const gi_quality *resolved);
 /* Admission for bakes outside the cache (jobs): reserves need bytes when
  * cached + in-flight + need fit the budget (evicting unheld entries first);
  * GI_ERR_NOMEM when they do not now, GI_ERR_LIMIT when they never can. */
-gi_result gs_cache_reserve(gs_cache *c, size_t need, gi_error_info *err);
+gi_result gs_cache_reserve(gs_cache *c, size_t need, const char *what, gi_error_info *err);
 void gs_cache_unreserve(gs_cache *c, size_t need);
 /* Sessions' cascades: admitted as gs_cache_reserve (evicting unheld
  * entries first), then counted apart as held bytes until gs_cache_unhold. */

@@ -1006,6 +1006,13 @@ static void test_overload(void **state) {
     su_expect_error(&hr, 413, "payload_too_large", "more than the whole budget (9 MiB)");
     free(hr.body);
   }
+  /* An answer larger than the whole budget (a 12 MB panorama of a low
+   * bake that fits) names the answer, not the bake it already made. */
+  hr = su_http(&S_tight, NULL, "/v1/scenes/city/lighting?at=31,2,29&quality=low&kind=panorama&width=1024&height=1024",
+               NULL, NULL);
+  printf("  a 1024x1024 panorama in 9 MiB: %ld %s\n", hr.status, hr.body ? hr.body : "");
+  su_expect_error(&hr, 413, "payload_too_large", "this answer's encoded file (fewer pixels or half=1");
+  free(hr.body);
   assert_int_equal(su_stop(&S_tight), 0);
 }
 
