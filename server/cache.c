@@ -30,7 +30,7 @@
  * keyed by its shape and its cascade's generation (a number each bake
  * gets: a cascade baked again is another, so an answer never outlives the
  * cascade it was gathered from). It is coalesced as a bake is: one request
- * gathers and encodes (ENCODING is BAKING for such an entry), the others
+ * gathers and encodes (BAKING is that encode for such an entry), the others
  * wait for it without a worker, and a failed or abandoned encode is never
  * kept. Kept answers count in the cached bytes and are evicted in the same
  * LRU order as cascades, and with their cascade. Bytes a client is still
@@ -48,8 +48,6 @@
 #include "server.h"
 
 enum { BAKING, READY, FAILED };
-/* An answer entry's BAKING: one request gathers and encodes it. */
-#define ENCODING BAKING
 
 /* Keys: scene id, cell and every knob (make_key). */
 #define GS_KEY_SIZE 512
@@ -585,6 +583,31 @@ int gs_cache_join_running(gs_cache *c, const gs_scene *s, const double at[3], co
   return 1;
 }
 
+/* A new BAKING entry under key (a cascade of generation gen, or an answer
+ * of its cascade's), held once by its baker and in the table; w (may be
+ * NULL: the caller stays interested) waits for it. NULL without memory.
+ * Locked. */
+static gs_entry *start_entry(gs_cache *c, const char *key, int answer, uint64_t gen, gs_waiter *w) {
+  gs_entry *e = calloc(1, sizeof *e);
+  gi_cancel *token = e ? gi_cancel_new() : NULL;
+  if (!token) {
+    free(e);
+    return NULL;
+  }
+  snprintf(e->key, sizeof e->key, "%s", key);
+  e->hash = hash_key(e->key);
+  e->answer = answer;
+  e->gen = gen;
+  e->state = BAKING;
+  e->refs = 1;
+  e->cancel = token;
+  /* Without a waiter the caller cannot leave: it stays interested. */
+  if (w) join(e, w);
+  else e->interest = 1;
+  push_front(c, e);
+  return e;
+}
+
 gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const gi_quality *req,
                        const gi_quality *q, gs_waiter *w, gs_entry **out, gs_cache_how *how, gi_error_info *err) {
   *out = NULL;
@@ -625,26 +648,14 @@ gi_result gs_cache_get(gs_cache *c, const gs_scene *s, const double at[3], const
     pthread_mutex_unlock(&c->mu);
     return rc;
   }
-  e = calloc(1, sizeof *e);
-  gi_cancel *token = e ? gi_cancel_new() : NULL;
-  if (!token) {
-    free(e);
+  if (!(e = start_entry(c, key, 0, ++c->gens, w))) {
     unreserve(c, need);
     pthread_mutex_unlock(&c->mu);
     if (err) snprintf(err->msg, sizeof err->msg, "cache: out of memory for an entry");
     return GI_ERR_NOMEM;
   }
-  snprintf(e->key, sizeof e->key, "%s", key);
-  e->hash = hash_key(e->key);
-  e->gen = ++c->gens;
-  e->state = BAKING;
-  e->refs = 1;
-  e->cancel = token;
   e->reserved = need;
-  /* Without a waiter the caller cannot leave: it stays interested. */
-  if (w) join(e, w);
-  else e->interest = 1;
-  push_front(c, e);
+  gi_cancel *token = e->cancel;
   pthread_mutex_unlock(&c->mu);
   *how = GS_CACHE_MISS;
   if (c->metrics) gs_metrics_cache(c->metrics, GS_CACHE_MISS);
@@ -721,24 +732,11 @@ gi_result gs_cache_answer(gs_cache *c, gs_entry *cas, const char *shape, gs_wait
     gs_cache_release(c, e);
     return GI_OK;
   }
-  e = calloc(1, sizeof *e);
-  gi_cancel *token = e ? gi_cancel_new() : NULL;
-  if (!token) {
-    free(e);
+  if (!(e = start_entry(c, key, 1, cas->gen, w))) {
     pthread_mutex_unlock(&c->mu);
     if (err) snprintf(err->msg, sizeof err->msg, "cache: out of memory for an answer's entry");
     return GI_ERR_NOMEM;
   }
-  snprintf(e->key, sizeof e->key, "%s", key);
-  e->hash = hash_key(e->key);
-  e->answer = 1;
-  e->gen = cas->gen;
-  e->state = ENCODING;
-  e->refs = 1;
-  e->cancel = token;
-  if (w) join(e, w);
-  else e->interest = 1;
-  push_front(c, e);
   pthread_mutex_unlock(&c->mu);
   count_how(c, e, GS_CACHE_MISS);
   *job = e;

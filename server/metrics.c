@@ -166,7 +166,8 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put_gauge(&b, "gi_inflight_bytes", "Estimated bytes of the bakes running now (cache misses and jobs).",
             (double)g->inflight_bytes);
   put_gauge(&b, "gi_sending_bytes",
-            "Bytes of encoded answers not kept in the cache (or evicted since) held until their clients have read them.",
+            "Bytes of encoded answers not kept in the cache (or evicted since) held until their clients have read "
+            "them.",
             (double)g->sending_bytes);
   put_gauge(&b, "gi_cache_entries", "Cascades in the cache (baking or ready).", (double)g->cache_entries);
   put_gauge(&b, "gi_queue_depth", "Requests waiting for a bake worker.", (double)g->queue_depth);

@@ -440,7 +440,8 @@ int gs_tile_around(const double at[3], size_t n, gs_tile **out, size_t *num_tile
 static gi_result reserve_waiting(gs_service *svc, size_t need, const gi_cancel *cancel, gi_error_info *err) {
   double t0 = gs_now_ms();
   gi_result rc;
-  while ((rc = gs_cache_reserve(svc->cache, need, "this job's bake", err)) == GI_ERR_NOMEM && gs_now_ms() - t0 < GS_JOB_ADMIT_WAIT_MS) {
+  while ((rc = gs_cache_reserve(svc->cache, need, "this job's bake", err)) == GI_ERR_NOMEM &&
+         gs_now_ms() - t0 < GS_JOB_ADMIT_WAIT_MS) {
     if (gi_cancel_check(cancel) != GI_CANCEL_NONE) {
       snprintf(err->msg, sizeof err->msg, "probes: stopped while waiting for room in the memory budget");
       return GI_ERR_CANCELLED;

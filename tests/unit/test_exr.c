@@ -88,6 +88,16 @@ static void assert_no_temp_left(void) {
   assert_int_not_equal(system(cmd), 0);
 }
 
+/* path holds the n bytes `before` (freed here): a failed write left it as it was. */
+static void assert_file_is(const char *path, unsigned char *before, size_t n) {
+  size_t n1;
+  unsigned char *after = slurp(path, &n1);
+  assert_int_equal(n, n1);
+  assert_memory_equal(before, after, n);
+  free(before);
+  free(after);
+}
+
 static void check_round_trip(int use_half, gi_exr_compression comp, const char *name) {
   const char *path = tmp_path(name);
   gi_exr_image img = image(use_half, comp);
@@ -284,7 +294,7 @@ static void test_bad_input_keeps_old_file(void **s) {
   gi_exr_image img = image(1, GI_EXR_PIZ);
   gi_error_info err = {0};
   assert_int_equal(gi_exr_write(path, &img, &err), GI_OK);
-  size_t n0, n1;
+  size_t n0;
   unsigned char *before = slurp(path, &n0);
 
   /* Rejected before any file is touched. */
@@ -302,11 +312,7 @@ static void test_bad_input_keeps_old_file(void **s) {
   assert_int_not_equal(r, GI_OK);
   assert_non_null(strstr(err.msg, path));
 
-  unsigned char *after = slurp(path, &n1);
-  assert_int_equal(n0, n1);
-  assert_memory_equal(before, after, n0);
-  free(before);
-  free(after);
+  assert_file_is(path, before, n0);
   assert_no_temp_left();
 }
 
@@ -380,12 +386,7 @@ static void test_write_fails_part_way(void **s) {
   if (WIFSIGNALED(status)) fail_msg("the failing write did not return (signal %d)", WTERMSIG(status));
   assert_true(WIFEXITED(status));
   assert_int_equal(WEXITSTATUS(status), 0);
-  size_t n1;
-  unsigned char *after = slurp(path, &n1);
-  assert_int_equal(n0, n1);
-  assert_memory_equal(before, after, n0);
-  free(before);
-  free(after);
+  assert_file_is(path, before, n0);
   assert_no_temp_left();
 }
 

@@ -169,6 +169,10 @@ static inline float gi__dot(const float a[3], const float b[3]) { return a[0]*b[
 static inline void gi__cross(const float a[3], const float b[3], float o[3]) {
   o[0] = a[1]*b[2] - a[2]*b[1]; o[1] = a[2]*b[0] - a[0]*b[2]; o[2] = a[0]*b[1] - a[1]*b[0];
 }
+/* The same in double (world positions, before they are local). */
+static inline void gi__cross_d(const double a[3], const double b[3], double o[3]) {
+  o[0] = a[1]*b[2] - a[2]*b[1]; o[1] = a[2]*b[0] - a[0]*b[2]; o[2] = a[0]*b[1] - a[1]*b[0];
+}
 static inline float gi__len(const float a[3]) { return sqrtf(gi__dot(a, a)); }
 static inline float gi__lum(const float c[3]) { return 0.2126f*c[0] + 0.7152f*c[1] + 0.0722f*c[2]; }
 

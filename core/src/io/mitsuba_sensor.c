@@ -221,17 +221,13 @@ static double norm3(double v[3]) {
   return l;
 }
 
-static void cross3(const double a[3], const double b[3], double o[3]) {
-  o[0] = a[1] * b[2] - a[2] * b[1], o[1] = a[2] * b[0] - a[0] * b[2], o[2] = a[0] * b[1] - a[1] * b[0];
-}
-
 /* Mitsuba's look_at: columns left = up x dir, up' = dir x left, dir, origin. */
 static int lookat_matrix(const double o[3], const double tg[3], const double up[3], mx_mat m) {
   double dir[3] = {tg[0] - o[0], tg[1] - o[1], tg[2] - o[2]}, left[3], nu[3];
   if (!(norm3(dir) > 0)) return 0;
-  cross3(up, dir, left);
+  gi__cross_d(up, dir, left);
   if (!(norm3(left) > 0)) return 0;
-  cross3(dir, left, nu);
+  gi__cross_d(dir, left, nu);
   mat_identity(m);
   for (int k = 0; k < 3; k++) m[k][0] = left[k], m[k][1] = nu[k], m[k][2] = dir[k], m[k][3] = o[k];
   return 1;
@@ -446,7 +442,7 @@ static gi_result camera_from(const mx_file *f, const mx_xform *x, gi_camera *cam
   if (!ok || x->m[3][3] != 1)
     return gi__fail(f->err, GI_ERR_FORMAT, "camera: %s: the sensor's to_world transform is not an affine camera "
                     "placement (a zero axis or a projective row)", f->path);
-  cross3(up, fwd, c);
+  gi__cross_d(up, fwd, c);
   if (c[0] * left[0] + c[1] * left[1] + c[2] * left[2] < 0)
     return gi__fail(f->err, GI_ERR_FORMAT, "camera: %s: the sensor's to_world transform mirrors the image (a "
                     "negative scale); give the camera as X,Y,Z,TX,TY,TZ,FOV,W,H instead", f->path);

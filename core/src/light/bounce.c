@@ -65,12 +65,6 @@ static void away_from_groups(const struct gi_cascade *c, int d, const gi_vgeo *g
   }
 }
 
-/* A side's apex also moves off the other surfaces beside it
- * (gi__away_from_beside, trace.h); away_from_groups does the same for the
- * voxel's own other surfaces, without rays. The shift depends on the geometry
- * alone: a bake's first bounce computes it, the later ones reuse it, and
- * a moving cascade keeps it per entry across its moves (gi_shift6). */
-
 /* Cones of several voxels' gathers marched as one batch: the SIMD march
  * drains its lanes at a batch's end, and one voxel's 32-96 cones left a
  * fifth of the lane-steps idle (79% busy on the city). */
@@ -121,6 +115,9 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
     gi__side_centroid(g, sd, pc);
     gi__gather_start(c, pc, n, GI_GATHER_SURFACE, d, &st);
     if (ns > 2) away_from_groups(c, d, g, sd, &st);
+    /* Off the other surfaces beside it too (trace.h). The shift depends on
+     * the geometry alone: a bake's first bounce finds it, the later ones
+     * reuse it, and a moving cascade keeps it per entry (gi_shift6). */
     float sh[3];
     if (shift && shift_known) memcpy(sh, shift->v[sd], sizeof sh);
     else gi__away_from_beside(c, d, n, st.o, sh);

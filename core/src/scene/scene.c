@@ -451,10 +451,6 @@ static void centroid(const gi_mesh_builder *b, double scale, size_t tr, double c
     c[k] = (b->v[3 * (size_t)ti[0] + k] + b->v[3 * (size_t)ti[1] + k] + b->v[3 * (size_t)ti[2] + k]) * scale / 3;
 }
 
-static void cross3(const double a[3], const double b[3], double o[3]) {
-  o[0] = a[1] * b[2] - a[2] * b[1], o[1] = a[2] * b[0] - a[0] * b[2], o[2] = a[0] * b[1] - a[1] * b[0];
-}
-
 /* 1 when triangle v (world, double) meets the box [lo, hi]: no separating
  * axis among the box's three, the triangle's normal and their nine
  * cross products (a degenerate axis separates nothing). */
@@ -468,12 +464,12 @@ static int tri_meets_box(const double v[3][3], const double lo[3], const double 
   for (int j = 0; j < 3; j++)
     for (int a = 0; a < 3; a++) e[j][a] = p[(j + 1) % 3][a] - p[j][a];
   double axes[13][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  cross3(e[0], e[1], axes[3]);
+  gi__cross_d(e[0], e[1], axes[3]);
   for (int j = 0; j < 3; j++)
     for (int a = 0; a < 3; a++) {
       double u[3] = {0, 0, 0};
       u[a] = 1;
-      cross3(e[j], u, axes[4 + 3 * j + a]);
+      gi__cross_d(e[j], u, axes[4 + 3 * j + a]);
     }
   for (int x = 0; x < 13; x++) {
     const double *w = axes[x];
