@@ -16,10 +16,10 @@
  * footprint. The region is baked tile by tile, one cascade per tile, so
  * the bake's cascade memory stays bounded by one cascade whatever the
  * region's size; a texel belongs to the tile holding its surface point (a
- * chart may span many). The atlases themselves are held whole, 92 bytes per
- * atlas texel (its radiance, irradiance, direct, indirect and albedo,
- * surface point and normal, valid, chart): they grow with the region's surface
- * over texel^2 (a 4096^2 atlas is 1.4 GiB; the procedural city's whole
+ * chart may span many). The atlases themselves are held whole, 80 bytes per
+ * atlas texel (its radiance, irradiance, direct and indirect light, surface
+ * point and normal, valid, chart): they grow with the region's surface
+ * over texel^2 (a 4096^2 atlas is 1.25 GiB; the procedural city's whole
  * surface at texel 0.25 reached 2.4 GB in its first 150 s). Bake large regions in
  * parts (gi-bake --region, the server's region).
  *

@@ -28,7 +28,7 @@ typedef struct gi_lm_chart {
 
 typedef struct gi_lm_atlas {
   int w, h;
-  float *radiance, *irradiance, *direct, *indirect, *albedo; /* 3 per texel */
+  float *radiance, *irradiance, *direct, *indirect; /* 3 per texel */
   float *valid;
   int32_t *chart;
   float *point, *normal;
