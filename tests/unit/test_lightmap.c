@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include "base/alloc_test.h"
 #include "gi/gi.h"
 
 /* A 4 x 3 x 5 room (walls facing in) with a 1 m box standing on its floor,
@@ -1232,6 +1233,78 @@ static void test_scene_uv_texel(void **state) {
   gi_scene_release(s);
 }
 
+/* Whether every gathered array of every atlas is zero (unbaked). */
+static int atlases_zero(const gi_lightmap *lm) {
+  for (size_t k = 0; k < gi_lightmap_num_atlases(lm); k++) {
+    gi_lightmap_atlas a;
+    assert_int_equal(gi_lightmap_get_atlas(lm, k, &a), 0);
+    size_t n = (size_t)a.width * a.height;
+    for (size_t i = 0; i < n; i++) {
+      if (a.valid[i] != 0) return 0;
+      for (int c = 0; c < 3; c++)
+        if (a.radiance[3 * i + c] != 0 || a.irradiance[3 * i + c] != 0 || a.direct[3 * i + c] != 0 ||
+            a.indirect[3 * i + c] != 0 || a.point[3 * i + c] != 0 || a.normal[3 * i + c] != 0)
+          return 0;
+    }
+  }
+  return 1;
+}
+
+/* A bake that fails part way (here: out of memory in a later tile, after
+ * earlier tiles wrote their texels) leaves every atlas zero, whether the
+ * lightmap was fresh or held a previous bake; only the texels the tiles
+ * wrote are cleared (a fresh 4096^2 atlas is never written whole), so
+ * each failure point is checked. A clean bake after them matches the
+ * first bit for bit. */
+static void test_failed_bake_leaves_zero(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 256, .tile = 2};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_quality q = {.levels = 3, .res = 16, .probe_samples = 16, .cones = 6, .threads = 1};
+  gi_lightmap_report rep;
+  long a0 = gi__alloc_attempts();
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_OK);
+  long calls = gi__alloc_attempts() - a0;
+  assert_true(rep.tiles > 1 && rep.texels_valid > 0);
+  gi_lightmap_atlas a;
+  gi_lightmap_get_atlas(lm, 0, &a);
+  size_t n = 3 * (size_t)a.width * a.height;
+  float *first = malloc(n * sizeof *first);
+  assert_non_null(first);
+  memcpy(first, a.radiance, n * sizeof *first);
+  int failed = 0;
+  for (int fresh = 0; fresh < 2; fresh++)
+    for (int f = 1; f <= 9; f += 2) {
+      if (fresh) {
+        gi_lightmap_free(lm);
+        assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+      } else {
+        assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_OK);
+        assert_false(atlases_zero(lm));
+      }
+      gi__alloc_fail_after(calls * f / 10);
+      gi_result rc = gi_lightmap_bake(lm, &q, NULL, &rep, &err);
+      int reached = !gi__alloc_fail_armed();
+      gi__alloc_fail_after(-1);
+      assert_true(reached ? rc == GI_ERR_NOMEM : rc == GI_OK);
+      if (rc != GI_OK) {
+        failed++;
+        assert_true(atlases_zero(lm));
+      }
+    }
+  printf("room: %d of 10 bakes failed part way (of %ld allocations), each left its atlases zero\n", failed, calls);
+  assert_true(failed >= 8);
+  assert_int_equal(gi_lightmap_bake(lm, &q, NULL, &rep, &err), GI_OK);
+  gi_lightmap_get_atlas(lm, 0, &a);
+  assert_memory_equal(first, a.radiance, n * sizeof *first);
+  free(first);
+  gi_lightmap_free(lm);
+  gi_scene_release(s);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
@@ -1254,6 +1327,7 @@ int main(void) {
       cmocka_unit_test(test_thin_wall_one_side),
       cmocka_unit_test(test_wall_ceiling_edge),
       cmocka_unit_test(test_scene_uv_texel),
+      cmocka_unit_test(test_failed_bake_leaves_zero),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -381,10 +381,16 @@ static int64_t grid_cell(const gi_lightmap *lm, const lm_grid *g, const float p[
   return (int64_t)fmax(fmin(v, 1e9), -1e9);
 }
 
+/* Texels between two looks at the cancel token in the loops over every
+ * texel (a mask: every 65536). */
+#define CANCEL_EVERY 0xffff
+
 /* The grid for tiles of side at most `side` over the region and the
  * anchors anc[0..total) (3 floats each, NaN: none). 0 when its tiles number
- * more than max (g->nt then says how many along each axis). */
-static int grid_make(const gi_lightmap *lm, double side, const float *anc, size_t total, size_t max, lm_grid *g) {
+ * more than max (g->nt then says how many along each axis), -1 when the
+ * cancel token fired. */
+static int grid_make(const gi_lightmap *lm, double side, const float *anc, size_t total, size_t max,
+                     const gi_cancel *cancel, lm_grid *g) {
   int64_t lo[3] = {0, 0, 0}, hi[3];
   for (int k = 0; k < 3; k++) {
     double ext = (double)lm->hi[k] - lm->lo[k];
@@ -395,6 +401,7 @@ static int grid_make(const gi_lightmap *lm, double side, const float *anc, size_
   }
   for (size_t i = 0; i < total; i++) {
     const float *p = anc + 3 * i;
+    if (!(i & CANCEL_EVERY) && gi_cancel_check(cancel)) return -1;
     if (isnan(p[0])) continue;
     for (int k = 0; k < 3; k++) {
       int64_t v = grid_cell(lm, g, p, k);
@@ -447,6 +454,7 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   gi_light_plan lp = gi__answer_light_plan(lm->scene, &br, g.samples);
   g.cap = gi__light_sample_cap(lm->scene, &lp);
   atomic_init(&g.failed, 0);
+  lm->written = 1;
   if (gi__parallel_for_cancel(nj, 64, rq->threads, tile_texels, &g, &g.failed, cancel)) {
     rc = gi__cancel_fail(cancel, err, "lightmap");
     goto done;
@@ -477,6 +485,7 @@ typedef struct {
   const gi_lightmap *lm;
   const size_t *base;
   float *anc;
+  const gi_cancel *cancel; /* checked per row: one ground chart holds 10^5-10^6 texels */
 } anchor_ctx;
 
 static void anchor_charts(void *p, size_t b, size_t e, int worker) {
@@ -485,16 +494,18 @@ static void anchor_charts(void *p, size_t b, size_t e, int worker) {
   for (size_t i = b; i < e; i++) {
     const gi_lm_chart *c = &x->lm->charts[i];
     float *X = x->anc + 3 * x->base[i];
-    for (int dy = 0; dy < c->pub.h; dy++)
+    for (int dy = 0; dy < c->pub.h; dy++) {
+      if (gi_cancel_check(x->cancel)) return; /* the caller sees the token and drops every anchor */
       for (int dx = 0; dx < c->pub.w; dx++, X += 3)
         if (!texel_anchor(x->lm, c, c->pub.x + dx, c->pub.y + dy, X)) X[0] = NAN;
+    }
   }
 }
 
 /* The anchors of every chart texel (anchor_charts), found once whatever
  * the tiles: *base[i] is chart i's first texel, *total their count. */
-static gi_result texel_anchors(const gi_lightmap *lm, int threads, size_t **base, float **anc, size_t *total,
-                               gi_error_info *err) {
+static gi_result texel_anchors(const gi_lightmap *lm, int threads, const gi_cancel *cancel, size_t **base,
+                               float **anc, size_t *total, gi_error_info *err) {
   size_t n = 0;
   *anc = NULL;
   if (!(*base = gi__malloc((lm->num_charts + 1) * sizeof **base)))
@@ -503,8 +514,10 @@ static gi_result texel_anchors(const gi_lightmap *lm, int threads, size_t **base
   *total = n;
   if (!(*anc = gi__malloc((n ? n : 1) * 3 * sizeof **anc)))
     return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for the anchors of %zu texels", n);
-  anchor_ctx ax = {.lm = lm, .base = *base, .anc = *anc};
-  gi__parallel_for(lm->num_charts, 1, threads, anchor_charts, &ax);
+  anchor_ctx ax = {.lm = lm, .base = *base, .anc = *anc, .cancel = cancel};
+  if (gi__parallel_for_cancel(lm->num_charts, 1, threads, anchor_charts, &ax, NULL, cancel) ||
+      gi_cancel_check(cancel))
+    return gi__cancel_fail(cancel, err, "lightmap texel anchors");
   return GI_OK;
 }
 
@@ -512,7 +525,8 @@ static gi_result texel_anchors(const gi_lightmap *lm, int threads, size_t **base
  * (counting sort: chart order, then row-major, inside a tile), and the box
  * of their anchors, box[t] = lo[3], hi[3] (local; empty for a tile without). */
 static gi_result texels_by_tile(const gi_lightmap *lm, const lm_grid *g, const size_t *base, const float *anc,
-                                size_t total, size_t **start, uint64_t **list, float (**box)[6], gi_error_info *err) {
+                                size_t total, const gi_cancel *cancel, size_t **start, uint64_t **list,
+                                float (**box)[6], gi_error_info *err) {
   size_t ntiles = (size_t)g->nt[0] * g->nt[1] * g->nt[2], listed = 0;
   *start = gi__calloc(ntiles + 1, sizeof **start);
   *box = gi__malloc((ntiles ? ntiles : 1) * sizeof **box);
@@ -524,6 +538,10 @@ static gi_result texels_by_tile(const gi_lightmap *lm, const lm_grid *g, const s
   for (size_t t = 0; t < ntiles; t++)
     for (int k = 0; k < 3; k++) (*box)[t][k] = INFINITY, (*box)[t][3 + k] = -INFINITY;
   for (size_t k = 0; k < total; k++) {
+    if (!(k & CANCEL_EVERY) && gi_cancel_check(cancel)) {
+      gi__free(tid);
+      return gi__cancel_fail(cancel, err, "lightmap tiles");
+    }
     tid[k] = isnan(anc[3 * k]) ? -1 : tile_of(lm, g, anc + 3 * k);
     if (tid[k] >= 0) (*start)[tid[k] + 1]++, listed++;
   }
@@ -620,8 +638,12 @@ static gi_result fill_atlas(gi_lm_atlas *a, uint64_t *filled, gi_error_info *err
   return GI_OK;
 }
 
-/* Every atlas's gathered arrays to zero: unbaked. */
+/* Every atlas's gathered arrays to zero: unbaked. Only when a bake wrote
+ * them (lm->written): a 4096^2 atlas is 1.25 GiB, and zeroing the fresh
+ * layout's atlases held a cancelled bake 0.5 s before its first tile and
+ * again after. In place: callers may hold the arrays across bakes. */
 static void clear_atlases(gi_lightmap *lm) {
+  if (!lm->written) return;
   for (size_t a = 0; a < lm->num_atlases; a++) {
     gi_lm_atlas *A = &lm->atlases[a];
     size_t n = (size_t)A->w * A->h;
@@ -629,6 +651,21 @@ static void clear_atlases(gi_lightmap *lm) {
     for (size_t i = 0; i < sizeof rgb / sizeof rgb[0]; i++) memset(rgb[i], 0, 3 * n * sizeof(float));
     memset(A->valid, 0, n * sizeof(float));
   }
+  lm->written = 0;
+}
+
+/* Zeroes the listed texels (GI_LM_TEXEL entries) of the atlases: what the
+ * tiles of a failed bake wrote, before the fill reached the gutters. */
+static void clear_texels(gi_lightmap *lm, const uint64_t *texels, size_t n) {
+  for (size_t j = 0; j < n; j++) {
+    const gi_lm_chart *c = &lm->charts[texels[j] >> 32];
+    gi_lm_atlas *A = &lm->atlases[c->pub.atlas];
+    size_t i = (size_t)(c->pub.y + (int)(texels[j] >> 16 & 0xffff)) * A->w + c->pub.x + (int)(texels[j] & 0xffff);
+    float *rgb[] = {A->radiance, A->irradiance, A->direct, A->indirect, A->point, A->normal};
+    for (size_t r = 0; r < sizeof rgb / sizeof rgb[0]; r++) memset(rgb[r] + 3 * i, 0, 3 * sizeof(float));
+    A->valid[i] = 0;
+  }
+  lm->written = 0;
 }
 
 /* How far a texel's footprint points may lie from its anchor, in texels
@@ -661,13 +698,15 @@ static gi_result cascade_holds(const gi_lightmap *lm, const gi_quality *rq, cons
  * *bad says which tile does not. At res 8 the default tile, 0.8 of the
  * coarsest level, reached past its border: 84% of the Cornell box's
  * texels read no indirect light. */
-static gi_result place_tiles(const gi_lightmap *lm, const gi_quality *rq, const lm_grid *g, const size_t *start,
-                             const float (*box)[6], double (*tat)[3], int *held, size_t *bad, gi_error_info *err) {
+static gi_result place_tiles(const gi_lightmap *lm, const gi_quality *rq, const gi_cancel *cancel, const lm_grid *g,
+                             const size_t *start, const float (*box)[6], double (*tat)[3], int *held, size_t *bad,
+                             gi_error_info *err) {
   double margin = GI_LM_FOOTPRINT_TEXELS * lm->opts.texel;
   size_t ntiles = (size_t)g->nt[0] * g->nt[1] * g->nt[2];
   *held = 1;
   for (size_t t = 0; t < ntiles; t++) {
     if (start[t] == start[t + 1]) continue;
+    if (gi_cancel_check(cancel)) return gi__cancel_fail(cancel, err, "lightmap tiles");
     int in;
     tile_centre(lm, g, t, tat[t]);
     gi_result rc = cascade_holds(lm, rq, tat[t], box[t], margin, &in, err);
@@ -702,25 +741,27 @@ static void tiling_free(lm_tiling *T) {
   T->start = NULL, T->list = NULL, T->box = NULL, T->tat = NULL;
 }
 
-static gi_result plan_tiling(const gi_lightmap *lm, const gi_quality *rq, const size_t *base, const float *anc,
-                             size_t total, lm_tiling *T, gi_error_info *err) {
+static gi_result plan_tiling(const gi_lightmap *lm, const gi_quality *rq, const gi_cancel *cancel, const size_t *base,
+                             const float *anc, size_t total, lm_tiling *T, gi_error_info *err) {
   double side = lm->opts.tile > 0 ? lm->opts.tile
                                   : GI_LM_TILE_FRACTION * rq->res * rq->voxel0 * (double)(1u << (rq->levels - 1));
   for (int tries = 0;; tries++) {
     /* Each tile is a cascade bake: past this many the request is a mistake (and tile ids stay ints). */
     /* "raise tile" said to a caller who gave none (the default shrank) was no help. */
-    if (!grid_make(lm, side, anc, total, GI_LM_MAX_TILES, &T->g))
+    int fits = grid_make(lm, side, anc, total, GI_LM_MAX_TILES, cancel, &T->g);
+    if (fits < 0) return gi__cancel_fail(cancel, err, "lightmap tiles");
+    if (!fits)
       return gi__fail(err, GI_ERR_LIMIT, "lightmap: tiles of side %g cut the region and its texels into %d x %d x %d "
                       "tiles, more than %d cascade bakes: %s", side, T->g.nt[0], T->g.nt[1], T->g.nt[2],
                       GI_LM_MAX_TILES, lm->opts.tile > 0 ? "raise tile" :
                       "the default tile shrank to fit its cascade; use a larger voxel, more levels or a smaller region");
     size_t ntiles = (size_t)T->g.nt[0] * T->g.nt[1] * T->g.nt[2], bad = 0;
-    gi_result rc = texels_by_tile(lm, &T->g, base, anc, total, &T->start, &T->list, &T->box, err);
+    gi_result rc = texels_by_tile(lm, &T->g, base, anc, total, cancel, &T->start, &T->list, &T->box, err);
     if (rc != GI_OK) return rc;
     if (!(T->tat = gi__malloc((ntiles ? ntiles : 1) * sizeof *T->tat)))
       return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu tiles", ntiles);
     int held = 0;
-    rc = place_tiles(lm, rq, &T->g, T->start, (const float(*)[6])T->box, T->tat, &held, &bad, err);
+    rc = place_tiles(lm, rq, cancel, &T->g, T->start, (const float(*)[6])T->box, T->tat, &held, &bad, err);
     if (rc != GI_OK || held) return rc;
     if (lm->opts.tile > 0 || tries >= GI_LM_SHRINK_TRIES) {
       const double *o = lm->scene->origin;
@@ -744,8 +785,8 @@ static gi_result plan_tiling(const gi_lightmap *lm, const gi_quality *rq, const 
  * tiles share the most any of them plans and the tail if any adds it; an
  * explicit count is every tile's already. *tq: q with that count; *shared
  * 1 when it was chosen here. */
-static gi_result shared_bounces(const gi_lightmap *lm, const gi_quality *q, const lm_tiling *T, gi_quality *tq,
-                                int *shared, gi_error_info *err) {
+static gi_result shared_bounces(const gi_lightmap *lm, const gi_quality *q, const gi_cancel *cancel, const lm_tiling *T,
+                                gi_quality *tq, int *shared, gi_error_info *err) {
   gi_quality z = {0};
   *tq = q ? *q : z;
   *shared = 0;
@@ -753,6 +794,7 @@ static gi_result shared_bounces(const gi_lightmap *lm, const gi_quality *q, cons
   int most = 0, tail = 0;
   for (size_t t = 0; t < (size_t)T->g.nt[0] * T->g.nt[1] * T->g.nt[2]; t++) {
     if (T->start[t] == T->start[t + 1]) continue;
+    if (gi_cancel_check(cancel)) return gi__cancel_fail(cancel, err, "lightmap effect plan");
     gi_effect fx[GI_FX_COUNT];
     gi_quality r;
     float hints[TILE_HINTS][6]; /* as bake_tile gives its bake: the same sky test */
@@ -787,18 +829,24 @@ gi_result gi_lightmap_bake(gi_lightmap *lm, const gi_quality *q, const gi_cancel
    * fails) clears the atlases at `done`: tiles baked before the failure
    * beside zeros were not a lightmap. */
   double ts = gi__now_ms();
-  rc = texel_anchors(lm, rq.threads, &base, &anc, &total, err);
-  if (rc == GI_OK) rc = plan_tiling(lm, &rq, base, anc, total, &T, err);
+  rc = texel_anchors(lm, rq.threads, cancel, &base, &anc, &total, err);
+  if (rc == GI_OK) rc = plan_tiling(lm, &rq, cancel, base, anc, total, &T, err);
   rep.sort_ms = gi__now_ms() - ts;
   gi_quality tq;
   int shared = 0;
-  if (rc == GI_OK) rc = shared_bounces(lm, q, &T, &tq, &shared, err);
+  if (rc == GI_OK) rc = shared_bounces(lm, q, cancel, &T, &tq, &shared, err);
   if (rc != GI_OK) goto done;
   clear_atlases(lm), cleared = 1;
+  size_t reached = 0; /* T.list[0, reached): the texels the tiles so far may have written */
   for (size_t t = 0; t < (size_t)T.g.nt[0] * T.g.nt[1] * T.g.nt[2] && rc == GI_OK; t++)
-    if (T.start[t] != T.start[t + 1])
+    if (T.start[t] != T.start[t + 1]) {
+      reached = T.start[t + 1];
       rc = bake_tile(lm, &tq, cancel, T.list + T.start[t], T.start[t + 1] - T.start[t], T.tat[t], &rep, err);
-  if (rc != GI_OK) goto done;
+    }
+  if (rc != GI_OK) {
+    if (lm->written) clear_texels(lm, T.list, reached);
+    goto done;
+  }
   if (shared && rep.effect_tiles[GI_FX_BOUNCE])
     snprintf(rep.effects[GI_FX_BOUNCE].why, sizeof rep.effects[GI_FX_BOUNCE].why,
              "%d bounces%s in every tile: the most any tile's plan chose (one count: no step at their borders)",

@@ -46,6 +46,7 @@ struct gi_lightmap {
   gi_lm_chart *charts;
   size_t num_atlases;
   gi_lm_atlas *atlases;
+  int written;                /* a bake wrote the atlases since they were last zero */
   double layout_ms;
 };
 
