@@ -424,6 +424,9 @@ static void test_bounded(void **state) {
       gi_bake_report r;
       gi_move_info mi;
       assert_int_equal(gi_cascade_move(c, at, &r, &mi, &err), GI_OK);
+      /* The report's bytes are the cascade's as it now is (they stayed the bake's). */
+      assert_int_equal(r.cascade_bytes, gi_cascade_bytes(c));
+      assert_int_equal(gi_cascade_report(c)->cascade_bytes, gi_cascade_bytes(c));
       uint64_t g = total(r.level_rebounced, c->n), vx = total(r.level_voxelized, c->n);
       for (int d = 0; d < c->n; d++) assert_false(mi.rebuilt[d]);
       assert_false(mi.cycle_closed && mi.slice == 0);
