@@ -48,6 +48,45 @@ static void test_builder_box(void **state) {
 
 /* gi_scene_backface_share: every ray from inside a closed box wound outward
  * meets a side's back; from outside, those that meet it see its front. */
+/* gi_scene_digest: the same for two builds of one builder (any thread
+ * count), another for any change an answer reads (a vertex, a triangle's
+ * own albedo as a texture gives it, a material, a light), the same for a
+ * material's name alone. The bake hash took the file's bytes and missed a
+ * glTF's .bin and a texture. */
+static uint64_t box_digest(double x, double tri_r, float albedo, const char *name, int nlights, int threads) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = grey();
+  m.albedo[0] = albedo;
+  snprintf(m.name, sizeof m.name, "%s", name);
+  uint32_t mi = gi_mesh_builder_add_material(b, &m);
+  double lo[3] = {0, 0, 0}, hi[3] = {4, 4, 4}, plo[3] = {x, 0, 1}, phi[3] = {x + 0.1, 2, 3};
+  gi_mesh_builder_add_box(b, lo, hi, mi);
+  gi_mesh_builder_add_box(b, plo, phi, mi);
+  if (tri_r >= 0) gi_mesh_builder_set_triangle_albedo(b, 3, tri_r, 0.5, 0.5);
+  gi_light l = {.type = GI_LIGHT_POINT, .color = {1, 1, 1}, .position = {2, 3, 2}};
+  gi_scene_options o = {.threads = threads, .lights = &l, .num_lights = (size_t)nlights};
+  gi_scene *s = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_scene_build(b, "digest", &o, &s, &err), GI_OK);
+  uint64_t h = gi_scene_digest(s);
+  gi_scene_release(s);
+  gi_mesh_builder_free(b);
+  return h;
+}
+
+static void test_digest(void **state) {
+  (void)state;
+  uint64_t d = box_digest(1, -1, 0.5f, "grey", 1, 1);
+  assert_true(d == box_digest(1, -1, 0.5f, "grey", 1, 2));
+  assert_true(d == box_digest(1, -1, 0.5f, "another name", 1, 1));
+  assert_true(d != box_digest(1.5, -1, 0.5f, "grey", 1, 1));  /* a wall moved inside the same bounds */
+  assert_true(d != box_digest(1, 0.25, 0.5f, "grey", 1, 1));  /* one triangle's own albedo */
+  assert_true(box_digest(1, 0.25, 0.5f, "grey", 1, 1) != box_digest(1, 0.75, 0.5f, "grey", 1, 1));
+  assert_true(d != box_digest(1, -1, 0.6f, "grey", 1, 1));    /* the material */
+  assert_true(d != box_digest(1, -1, 0.5f, "grey", 0, 1));    /* the light */
+  assert_true(gi_scene_digest(NULL) == gi_scene_digest(NULL));
+}
+
 static void test_backface_share(void **state) {
   (void)state;
   gi_mesh_builder *b = gi_mesh_builder_new();
@@ -2927,6 +2966,7 @@ int main(void) {
       cmocka_unit_test(test_gpu_instancing),
       cmocka_unit_test(test_glass_window),
       cmocka_unit_test(test_backface_share),
+      cmocka_unit_test(test_digest),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -6,7 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "gi/gi.h"
-#include "toolargs.h" /* ta_fnv, ta_fnv_file: the bake hash */
+#include "toolargs.h" /* ta_fnv: the bake hash */
 
 /* The grid and its tiles, as gi.grid in the EXR header records them. */
 typedef struct batch_layout {

@@ -2,8 +2,8 @@
  * manifest.
  *
  * The hash covers everything that decides the output bytes: the layout,
- * resolved quality, effect plan, scene identity and lights, the version,
- * and every point's position and state. Two shards agree on it exactly
+ * resolved quality, effect plan, the scene as loaded (gi_scene_digest),
+ * the version and CPU path, and every point's position and state. Two shards agree on it exactly
  * when they are shares of the same bake. Timings and memory go only into
  * the manifest, never into the EXR or VDB. */
 #define _POSIX_C_SOURCE 200809L
@@ -43,30 +43,15 @@ static void effects_text(const gi_effect fx[GI_FX_COUNT], char *buf, size_t size
   }
 }
 
-/* Scene name, size, materials and lights, as text for the hash. The
- * materials: an edited .mtl (a wall's colour) changes every answer but
- * not the name or counts, and resumed tiles of the old colour were kept. */
+/* The scene's name (the EXR's gi.scene) and its content as loaded
+ * (gi_scene_digest): geometry, materials, textures, lights. The scene
+ * file's bytes were hashed instead, and missed what the loader read
+ * beside it: a glTF's .bin or a texture swapped kept the hash, and
+ * --resume and merge took tiles baked from the old one. */
 static uint64_t hash_scene(const gi_scene *s, uint64_t h) {
-  char buf[512];
-  gi_scene_stats ss;
-  gi_scene_get_stats(s, &ss);
-  snprintf(buf, sizeof buf, "%s|%llu|%u|%zu", gi_scene_name(s), (unsigned long long)ss.triangles, ss.materials,
-           gi_scene_num_lights(s));
-  h = batch_fnv(buf, strlen(buf), h);
-  for (size_t i = 0; i < gi_scene_num_materials(s); i++) {
-    const gi_material *m = gi_scene_material(s, i);
-    snprintf(buf, sizeof buf, "m %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g", m->albedo[0], m->albedo[1], m->albedo[2],
-             m->emission[0], m->emission[1], m->emission[2], m->roughness, m->specular);
-    h = batch_fnv(buf, strlen(buf), h);
-  }
-  for (size_t i = 0; i < gi_scene_num_lights(s); i++) {
-    const gi_light *l = gi_scene_light(s, i);
-    snprintf(buf, sizeof buf, "%d %.9g %.9g %.9g %.17g %.17g %.17g %.9g %.9g %.9g %.9g %.9g", (int)l->type,
-             l->color[0], l->color[1], l->color[2], l->position[0], l->position[1], l->position[2], l->direction[0],
-             l->direction[1], l->direction[2], l->cos_inner, l->cos_outer);
-    h = batch_fnv(buf, strlen(buf), h);
-  }
-  return h;
+  char buf[160];
+  snprintf(buf, sizeof buf, "%s|%016llx", gi_scene_name(s), (unsigned long long)gi_scene_digest(s));
+  return batch_fnv(buf, strlen(buf) + 1, h);
 }
 
 int batch_identify(batch_state *st) {
@@ -93,18 +78,15 @@ int batch_identify(batch_state *st) {
   quality_text(&st->resolved, st->quality, sizeof st->quality);
   effects_text(st->plan, st->effects, sizeof st->effects);
   layout_text(&st->L, st->grid_text, sizeof st->grid_text);
-  snprintf(st->version, sizeof st->version, "gi-bake %s (%s)", GI_VERSION, GI_GIT_REV);
+  /* The march's CPU path too: the two round a few products differently
+   * (FMA), so shards of both never merge into one bake's bytes. */
+  snprintf(st->version, sizeof st->version, "gi-bake %s (%s), cpu path %s", GI_VERSION, GI_GIT_REV, gi_cpu_path());
   const cli_batch *b = &st->o->batch;
   if (b->have_shard) snprintf(st->shard, sizeof st->shard, "%d/%d", b->shard_i, b->shard_n);
   const char *texts[] = {st->quality, st->effects, st->grid_text, st->version, st->o->q.ao ? "ao" : "no-ao"};
   uint64_t h = BATCH_FNV_BASIS;
   for (size_t i = 0; i < sizeof texts / sizeof texts[0]; i++) h = batch_fnv(texts[i], strlen(texts[i]) + 1, h);
   h = hash_scene(st->scene, h);
-  /* The scene file's bytes (its geometry: an edit that keeps the triangle
-   * count and the grid's points kept the hash, and --resume reused tiles
-   * baked from the old file). The city has no file: its options are the
-   * name and counts. */
-  if (!st->o->is_city) h = ta_fnv_file(h, st->o->scene);
   h = batch_fnv(st->grid.pos, st->grid.n * 3 * sizeof(double), h);
   h = batch_fnv(st->grid.state, st->grid.n, h);
   snprintf(st->hash, sizeof st->hash, "%016llx", (unsigned long long)h);

@@ -125,8 +125,14 @@ static int check_header(merge_state *s, const char *file, const gi_exr_file *f, 
   }
   char why[512];
   if (strcmp(vals[HDR_HASH], s->values[HDR_HASH])) {
-    snprintf(why, sizeof why, "belongs to a different bake (gi.bake_hash %s; %s has %s)", vals[HDR_HASH], s->first,
-             s->values[HDR_HASH]);
+    /* Shards of one scene and grid baked by two builds or CPU paths: the
+     * version says which (the hashes alone look like another scene). */
+    char by[320] = "";
+    if (strcmp(vals[HDR_VERSION], s->values[HDR_VERSION]))
+      snprintf(by, sizeof by, ": it was baked by '%.100s', %.80s by '%.100s'", vals[HDR_VERSION], s->first,
+               s->values[HDR_VERSION]);
+    snprintf(why, sizeof why, "belongs to a different bake (gi.bake_hash %s; %s has %s)%s", vals[HDR_HASH], s->first,
+             s->values[HDR_HASH], by);
     return bad(file, why);
   }
   for (int i = 0; i < HDR_SHARD; i++)
