@@ -9,9 +9,12 @@
  * gets a private temporary file that is copied into it once the run has
  * succeeded (`--exr /dev/stdout | ...` works). On SIGINT, SIGTERM, SIGHUP
  * or SIGPIPE (a reader gone) the temporary files of the named outputs are
- * removed before the process dies as the signal says. Not thread-safe:
- * tools call these from their main thread. */
+ * removed before the process dies as the signal says (and a scratch file
+ * named by ta_scratch_begin). A kill -9 cannot be caught: a later run
+ * removes the temporaries of its outputs whose process is gone. Not
+ * thread-safe: tools call these from their main thread. */
 #define _XOPEN_SOURCE 700 /* realpath */
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <libgen.h>
@@ -31,23 +34,25 @@ typedef struct {
   char *special;        /* a device or FIFO to copy into after success, or NULL (owned) */
   char *dir;            /* the private folder holding `write` for a special output (owned) */
   char sig_tmp[PATH_MAX + 32]; /* the writer's "<write>.tmp.<pid>", removed on a signal */
-  char sig_tmp2[PATH_MAX + 64]; /* "<sig_tmp>.tmp.<pid>": a writer's temporary for a file
-                                 * that waits at sig_tmp for its sibling (gi-bake --grid) */
   char *canon;          /* `write` with its folder resolved, for a plain file; else NULL (owned) */
   const char *opt;      /* the option that named it */
 } ta_output;
 
 static ta_output outs[TA_MAX_OUTPUTS];
 static volatile sig_atomic_t num_outs;
+/* A temporary file being written that is not an output's (a --resume
+ * tile): its name, valid while scratch_set is 1. */
+static char scratch[PATH_MAX + 64];
+static volatile sig_atomic_t scratch_set;
 
 /* Removes what a killed run leaves (async-signal-safe calls only), then
  * dies of the same signal. */
 static void on_signal(int sig) {
   for (int i = 0; i < num_outs; i++) {
     unlink(outs[i].sig_tmp);
-    unlink(outs[i].sig_tmp2);
     if (outs[i].special) unlink(outs[i].write), rmdir(outs[i].dir);
   }
+  if (scratch_set) unlink(scratch);
   signal(sig, SIG_DFL);
   raise(sig);
 }
@@ -132,6 +137,59 @@ static int special_file(ta_ctx *c, const char *opt, const char *dev, ta_output *
   return 0;
 }
 
+/* The pid of name's temporary suffix ".tmp.<pid>" (twice in older
+ * releases' "<out>.tmp.<pid>.tmp.<pid>"), and the length of the name before
+ * it; 0 when name has no such suffix. */
+static long temp_owner(const char *name, size_t *stem) {
+  long pid = 0;
+  size_t n = strlen(name);
+  for (int k = 0; k < 2; k++) {
+    size_t d = n;
+    while (d > 0 && name[d - 1] >= '0' && name[d - 1] <= '9') d--;
+    if (d == n || n - d > 9 || d < 6 || strncmp(name + d - 5, ".tmp.", 5) || name[d] == '0') break;
+    long p = strtol(name + d, NULL, 10);
+    if (pid && p != pid) break; /* a doubled name carries one pid twice */
+    pid = p, n = d - 5;
+  }
+  *stem = n;
+  return pid;
+}
+
+size_t ta_remove_stale(ta_ctx *c, const char *dir, int (*owns)(const char *name, size_t len, const void *arg),
+                       const void *arg) {
+  DIR *d = opendir(dir);
+  if (!d) return 0;
+  size_t removed = 0;
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    size_t stem;
+    long pid = temp_owner(e->d_name, &stem);
+    /* Only a process that is gone: ESRCH (EPERM is another user's, alive). */
+    if (pid <= 0 || pid == (long)getpid() || !owns(e->d_name, stem, arg) || kill((pid_t)pid, 0) == 0 ||
+        errno != ESRCH)
+      continue;
+    char path[PATH_MAX];
+    if (snprintf(path, sizeof path, "%s/%s", dir, e->d_name) >= (int)sizeof path) continue;
+    struct stat st;
+    if (lstat(path, &st) != 0 || !S_ISREG(st.st_mode) || unlink(path) != 0) continue;
+    removed++;
+    ta_error(c, 0, NULL, "removed '%s', a temporary file left by process %ld, which is gone", path, pid);
+  }
+  closedir(d);
+  return removed;
+}
+
+/* An output's own temporaries: its base name exactly. */
+static int owns_base(const char *name, size_t len, const void *arg) {
+  return strlen((const char *)arg) == len && !strncmp(name, (const char *)arg, len);
+}
+
+static void remove_stale_of(ta_ctx *c, const char *path) {
+  char *a = strdup(path), *b = strdup(path);
+  if (a && b) ta_remove_stale(c, dirname(a), owns_base, basename(b));
+  free(a), free(b);
+}
+
 int ta_check_output(ta_ctx *c, const char *opt, const char **path) {
   if (!**path) return ta_fail(c, opt, "expected a file name, got ''");
   /* "-" is standard output, as for curl -o - (a file of that name is ./-):
@@ -172,11 +230,36 @@ int ta_check_output(ta_ctx *c, const char *opt, const char **path) {
   }
   o->opt = opt;
   snprintf(o->sig_tmp, sizeof o->sig_tmp, "%s.tmp.%d", o->write, (int)getpid());
-  snprintf(o->sig_tmp2, sizeof o->sig_tmp2, "%s.tmp.%d.tmp.%d", o->write, (int)getpid(), (int)getpid());
-  if (num_outs == 0) watch_signals();
+  if (num_outs == 0 && !scratch_set) watch_signals();
   num_outs++;
   *path = o->write;
+  if (!o->special) remove_stale_of(c, o->write);
   return 0;
+}
+
+int ta_scratch_begin(const char *path) {
+  scratch_set = 0;
+  if (strlen(path) >= sizeof scratch) return -1;
+  strcpy(scratch, path);
+  if (num_outs == 0) watch_signals(); /* again is harmless: the same handler */
+  scratch_set = 1;
+  return 0;
+}
+
+void ta_scratch_end(void) { scratch_set = 0; }
+
+int ta_check_not_output(ta_ctx *c, const char *opt, const char *path) {
+  char *canon = canonical(path);
+  struct stat sp, so;
+  int have = stat(path, &sp) == 0, rc = 0;
+  for (int i = 0; i < num_outs && !rc; i++) {
+    const ta_output *o = &outs[i];
+    if ((canon && o->canon && !strcmp(canon, o->canon)) ||
+        (have && !o->special && stat(o->write, &so) == 0 && so.st_dev == sp.st_dev && so.st_ino == sp.st_ino))
+      rc = ta_fail(c, opt, "'%s' is also the %s output; give each its own name", path, o->opt);
+  }
+  free(canon);
+  return rc;
 }
 
 int ta_check_outputs_spare(ta_ctx *c, const char *what, const char *input) {

@@ -98,7 +98,8 @@ int ta_once(ta_ctx *c, const struct option *long_opts, int val, const int *repea
  * (/dev/stdout, also spelt "-") a private temporary file that
  * ta_outputs_finish copies into it. The strings live until ta_outputs_finish. A SIGINT, SIGTERM,
  * SIGHUP or SIGPIPE then removes the outputs' temporary files before the
- * process dies of it. Returns 0, TA_EXIT_USAGE (empty name, a folder) or
+ * process dies of it; temporaries of a plain output left by a process that
+ * is gone (kill -9) are removed now (ta_remove_stale). Returns 0, TA_EXIT_USAGE (empty name, a folder) or
  * TA_EXIT_RUN. Main thread only. */
 int ta_check_output(ta_ctx *c, const char *opt, const char **path);
 /* 0 when no output checked so far is the existing file `input` (what
@@ -106,6 +107,24 @@ int ta_check_output(ta_ctx *c, const char *opt, const char **path);
  * into place would replace an input the run reads (gi-bake box.obj --exr
  * box.obj wrote its EXR over the scene). Main thread only. */
 int ta_check_outputs_spare(ta_ctx *c, const char *what, const char *input);
+/* TA_EXIT_USAGE after "OPT: 'path' is also the --X output" when path (a
+ * folder or file the run writes other than through ta_check_output, such
+ * as gi-bake's --resume folder) names an output checked so far; else 0. */
+int ta_check_not_output(ta_ctx *c, const char *opt, const char *path);
+/* Removes from folder dir the temporary files "<name>.tmp.<pid>" (and
+ * older releases' "<name>.tmp.<pid>.tmp.<pid>") that a killed process left:
+ * those whose <name> (its first len bytes) owns() accepts and whose
+ * process is gone (kill(pid, 0) fails with ESRCH: a folder shared with
+ * another machine's processes is not for this). Says each on stderr
+ * (without a prefix option); returns how many. ta_check_output does this
+ * for each plain output file. */
+size_t ta_remove_stale(ta_ctx *c, const char *dir, int (*owns)(const char *name, size_t len, const void *arg),
+                       const void *arg);
+/* A temporary file that is not an output's, being written now: a SIGINT,
+ * SIGTERM, SIGHUP or SIGPIPE removes it too until ta_scratch_end. -1 when
+ * the name is too long (then it is not watched). Main thread only. */
+int ta_scratch_begin(const char *path);
+void ta_scratch_end(void);
 /* Whether path (as ta_check_output returned it) stands for a device or FIFO. */
 int ta_output_is_special(const char *path);
 /* Whether an output is this process's standard output (--exr /dev/stdout):

@@ -8,6 +8,7 @@
  * the manifest (batch_manifest.c). Memory: one cascade at a time, plus
  * the grid's positions and answers (about 270 bytes per point). */
 #define _POSIX_C_SOURCE 200809L
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -233,10 +234,13 @@ static int run_tiles(batch_state *st) {
       st->probes_owned += m;
     }
   }
-  if (st->o->batch.resume && mkdir(st->o->batch.resume, 0777) != 0 && !batch_is_dir(st->o->batch.resume)) {
-    fprintf(stderr, "gi-bake: --resume: cannot create folder '%s'\n", st->o->batch.resume);
+  const char *dir = st->o->batch.resume;
+  if (dir && mkdir(dir, 0777) != 0 && !batch_is_dir(dir)) {
+    fprintf(stderr, "gi-bake: --resume: cannot create folder '%s': %s\n", dir, strerror(errno));
     return EXIT_RUN;
   }
+  static ta_ctx ta = TA_CTX("gi-bake");
+  if (dir) ckpt_remove_stale(&ta, dir);
   st->loop_start_ms = batch_now_ms();
   for (size_t t = 0; t < st->L.tiles; t++) {
     if (!batch_owns(st, t)) continue;

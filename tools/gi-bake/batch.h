@@ -51,6 +51,7 @@ enum { OPT_GRID = 400, OPT_REGION, OPT_ABOVE_GROUND, OPT_SHARD, OPT_RESUME, OPT_
   "                        downward ray; probes inside buildings are dropped\n"       \
   "  --shard I/N           bake only tiles t with t mod N = I (0 <= I < N)\n"         \
   "  --resume DIR          keep each finished tile in DIR; a rerun skips them\n"      \
+  "                        (DIR must not be an output's name)\n"                      \
   "  --manifest OUT.json   grid, counts, quality, effect plan, timings, bake hash\n"  \
   "\n"
 

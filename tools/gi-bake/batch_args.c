@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
 #include "cli.h"
 
 /* --shard I/N: 0 <= I < N, N >= 1. */
@@ -70,5 +71,14 @@ int batch_check(ta_ctx *ta, cli_opts *o) {
   if (!o->exr && !o->vdb && !b->manifest && !o->json && !b->resume)
     return ta_fail(ta, "--grid", "needs an output: --exr, --vdb, --manifest, --resume or --json");
   if (b->manifest && (rc = ta_check_output(ta, "--manifest", &b->manifest))) return rc;
+  /* The folder is made and filled before the outputs are written: named as
+   * an output (--manifest c3.json --resume c3.json), the whole bake ran and
+   * then failed; a file of that name failed after the grid's planning. */
+  if (b->resume) {
+    struct stat st;
+    if ((rc = ta_check_not_output(ta, "--resume", b->resume))) return rc;
+    if (stat(b->resume, &st) == 0 && !S_ISDIR(st.st_mode))
+      return ta_fail(ta, "--resume", "'%s' exists and is not a folder; expected a folder for the tiles", b->resume);
+  }
   return 0;
 }

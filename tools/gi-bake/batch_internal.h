@@ -49,6 +49,10 @@ int ckpt_load(const char *dir, size_t tile, const char *hash, size_t n, gi_probe
 int ckpt_save(const char *dir, size_t tile, const char *hash, const uint32_t *idx, size_t m, const gi_probe *probes,
               char *msg, size_t msgsize);
 
+/* Removes the tile temporaries "tile-NNNNNNN.bin.tmp.<pid>" in dir that a
+ * killed run (kill -9) left, when their process is gone; returns how many. */
+size_t ckpt_remove_stale(ta_ctx *ta, const char *dir);
+
 /* 64-bit FNV-1a, continued from h. */
 uint64_t batch_fnv(const void *data, size_t len, uint64_t h);
 #define BATCH_FNV_BASIS 14695981039346656037ull

@@ -70,9 +70,12 @@ size_t batch_attrs(const char *const values[HDR_COUNT], gi_exr_attr attrs[HDR_CO
 }
 
 /* "<path>.tmp.<pid>": where an output waits for its sibling. It is the
- * name ta_check_output removes on SIGINT/SIGTERM (with the writer's own
- * "<it>.tmp.<pid>"), so a killed run leaves nothing; ".part.<pid>" files
- * were left behind, tens of MB each for a large grid. */
+ * name ta_check_output removes on SIGINT/SIGTERM, so a killed run leaves
+ * nothing; ".part.<pid>" files were left behind, tens of MB each for a
+ * large grid. The core's writers take it as their own temporary name and
+ * write it in place: "<path>.tmp.<pid>.tmp.<pid>", which a kill -9 left,
+ * is no longer made (a later run removes either kind once its process is
+ * gone: ta_remove_stale). */
 static void part_name(const char *path, char *buf, size_t size) {
   snprintf(buf, size, "%s.tmp.%ld", path, (long)getpid());
 }
@@ -119,8 +122,11 @@ int ckpt_save(const char *dir, size_t tile, const char *hash, const uint32_t *id
   char path[4096], tmp[4200];
   ckpt_path(dir, tile, path, sizeof path);
   snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
+  /* A signal meanwhile removes it: one that came before the rename left it, whole. */
+  ta_scratch_begin(tmp);
   FILE *f = fopen(tmp, "wb");
   if (!f) {
+    ta_scratch_end();
     snprintf(msg, msgsize, "cannot create '%s': %s", tmp, strerror(errno));
     return -1;
   }
@@ -140,10 +146,23 @@ int ckpt_save(const char *dir, size_t tile, const char *hash, const uint32_t *id
   if (!ok || rename(tmp, path) != 0) {
     snprintf(msg, msgsize, "cannot write '%s': %s", path, strerror(errno));
     remove(tmp);
+    ta_scratch_end();
     return -1;
   }
+  ta_scratch_end();
   return 0;
 }
+
+/* "tile-NNNNNNN.bin" (7 digits or more): a checkpoint's name, its temporaries' stem. */
+static int owns_tile(const char *name, size_t len, const void *arg) {
+  (void)arg;
+  if (len < 16 || strncmp(name, "tile-", 5) || strncmp(name + len - 4, ".bin", 4)) return 0;
+  for (size_t i = 5; i < len - 4; i++)
+    if (name[i] < '0' || name[i] > '9') return 0;
+  return 1;
+}
+
+size_t ckpt_remove_stale(ta_ctx *ta, const char *dir) { return ta_remove_stale(ta, dir, owns_tile, NULL); }
 
 /* Reads the body after the header into probes[], checking the sum. */
 static int ckpt_body(FILE *f, uint64_t h, size_t m, size_t n, gi_probe *probes) {

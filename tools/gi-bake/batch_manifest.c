@@ -7,6 +7,7 @@
  * when they are shares of the same bake. Timings and memory go only into
  * the manifest, never into the EXR or VDB. */
 #define _POSIX_C_SOURCE 200809L
+#include <errno.h>
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
@@ -199,9 +200,15 @@ static json_t *manifest_json(const batch_state *st) {
 static int dump_atomic(json_t *m, const char *path) {
   char tmp[4200];
   snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
-  if (json_dump_file(m, tmp, JSON_INDENT(2) | JSON_REAL_PRECISION(17)) != 0 || rename(tmp, path) != 0) {
+  errno = 0;
+  /* The reason too: "cannot write 'c3.json'" hid that it was a folder. */
+  const char *failed = json_dump_file(m, tmp, JSON_INDENT(2) | JSON_REAL_PRECISION(17)) != 0 ? tmp
+                       : rename(tmp, path) != 0                                            ? path
+                                                                                           : NULL;
+  if (failed) {
+    int e = errno;
     remove(tmp);
-    fprintf(stderr, "gi-bake: --manifest: cannot write '%s'\n", path);
+    fprintf(stderr, "gi-bake: --manifest: cannot write '%s': %s\n", failed, e ? strerror(e) : "write failed");
     return EXIT_RUN;
   }
   return 0;

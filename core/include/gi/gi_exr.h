@@ -3,7 +3,10 @@
  * The writer takes planar float channels and stores them as half or float,
  * ZIP or PIZ compressed, scanline, with string attributes in the header.
  * It writes to "<path>.tmp.<pid>" and renames into place, so a killed
- * process never leaves a truncated file under the final name.
+ * process never leaves a truncated file under the final name. A path that
+ * already ends in ".tmp.<pid>" of the calling process is taken as the
+ * caller's own temporary name and written in place (the caller renames it;
+ * the VDB writers do the same).
  * Both directions are thread-safe for distinct files. */
 #ifndef GI_EXR_H
 #define GI_EXR_H

@@ -5,6 +5,8 @@
  * scanline part to "<path>.tmp.<pid>" chunk by chunk with the library's
  * encode pipeline and renames the result into place; on any failure the
  * temporary file is removed and a file already at path is left untouched.
+ * A path that already ends in ".tmp.<pid>" of this process is the
+ * caller's own temporary name: it is written in place (no second name).
  * The core API keeps channels sorted by name, so pipeline channels are
  * matched to the caller's channels by name, never by position.
  *
@@ -227,9 +229,16 @@ static gi_result write_file(const char *path, const gi_exr_image *img, gi_error_
   gi_result r = validate(path, img, err);
   if (r != GI_OK) return r;
 
-  char tmp[4096];
+  char tmp[4096], own[32];
   if (snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid()) >= (int)sizeof tmp)
     return gi__fail(err, GI_ERR_INVALID_ARG, "EXR file '%.200s...': path too long", path);
+  /* A path that is this process's temporary name already is its caller's
+   * (who renames it): written in place, so a kill leaves one temporary name,
+   * not "<out>.tmp.<pid>.tmp.<pid>" beside it. */
+  snprintf(own, sizeof own, ".tmp.%ld", (long)getpid());
+  size_t np = strlen(path), no = strlen(own);
+  int in_place = np > no && !strcmp(path + np - no, own);
+  if (in_place) snprintf(tmp, sizeof tmp, "%s", path);
 
   exr_msg msg = {{0}};
   current_msg = &msg; /* until the public call returns */
@@ -291,7 +300,7 @@ static gi_result write_file(const char *path, const gi_exr_image *img, gi_error_
   ctx = NULL;
   if (rv != EXR_ERR_SUCCESS) goto fail;
   gi__free(scratch);
-  if (rename(tmp, path) != 0) {
+  if (!in_place && rename(tmp, path) != 0) {
     int e = errno;
     unlink(tmp);
     return gi__fail(err, GI_ERR_IO, "EXR file '%s': cannot rename '%s' into place: %s", path, tmp, strerror(e));

@@ -7,7 +7,8 @@
 // and anything else GI_ERR_BACKEND with what() in the message. The writer
 // turns dense blocks into sparse grids (only values != 0, the background,
 // become active), gives each grid the transform described in gi_vdb.h, and
-// writes "<path>.tmp.<pid>" before a rename, like the EXR writer; a write
+// writes "<path>.tmp.<pid>" before a rename, like the EXR writer (a path that
+// is this process's temporary name already is written in place); a write
 // the OS refuses (a full disk) is GI_ERR_IO with its reason, the temp file
 // removed and nothing renamed (write_checked). Readers
 // load the whole file through a stream that throws on a short read (see
@@ -261,6 +262,10 @@ void write_grids(const char *path, const openvdb::GridPtrVec &vec, const gi_vdb_
   add_meta(meta, file_meta, num_file_meta, "file metadata", false);
 
   std::string tmp = std::string(path) + ".tmp." + std::to_string((long)getpid());
+  /* The caller's own temporary name already (as the EXR writer): in place. */
+  std::string own = ".tmp." + std::to_string((long)getpid()), p(path);
+  bool in_place = p.size() > own.size() && p.compare(p.size() - own.size(), own.size(), own) == 0;
+  if (in_place) tmp = p;
   try {
     write_checked(tmp, vec, meta);
     if (uuid) set_uuid(tmp, uuid);
@@ -268,7 +273,7 @@ void write_grids(const char *path, const openvdb::GridPtrVec &vec, const gi_vdb_
     std::remove(tmp.c_str());
     throw;
   }
-  if (std::rename(tmp.c_str(), path) != 0) {
+  if (!in_place && std::rename(tmp.c_str(), path) != 0) {
     int e = errno;
     std::remove(tmp.c_str());
     throw Fail{GI_ERR_IO, "cannot rename '" + tmp + "' into place: " + std::strerror(e)};
