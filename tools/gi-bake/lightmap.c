@@ -9,6 +9,7 @@
  * every tile, then writes the glTF and the EXR atlases; when the second
  * write fails the first file is removed, so a failed run leaves nothing. */
 #define _POSIX_C_SOURCE 200809L
+#include <dirent.h>
 #include <jansson.h>
 #include <math.h>
 #include <signal.h>
@@ -16,6 +17,7 @@
 #include <string.h>
 #include <stdlib.h>
 #include <strings.h>
+#include <unistd.h>
 #include "cli.h"
 
 static ta_ctx ta = TA_CTX("gi-bake");
@@ -39,6 +41,53 @@ int lightmap_option(cli_opts *o, int c, const char *arg) {
 static int ends_with_ci(const char *s, const char *suffix) {
   size_t n = strlen(s), m = strlen(suffix);
   return n >= m && !strcasecmp(s + n - m, suffix);
+}
+
+/* The lightmap's file names: OUT.exr itself for one atlas, else OUT.0001.exr
+ * .. OUT.9999.exr (gi_lightmap_atlas_path), split as stem and extension of
+ * the base name. */
+typedef struct lm_names {
+  char dir[4096], stem[1024], ext[64];
+} lm_names;
+
+static int split_names(const char *out, lm_names *n) {
+  const char *slash = strrchr(out, '/'), *base = slash ? slash + 1 : out, *dot = strrchr(base, '.');
+  size_t dl = !slash ? 1 : slash == out ? 1 : (size_t)(slash - out), sl = dot ? (size_t)(dot - base) : strlen(base);
+  if (dl >= sizeof n->dir || sl >= sizeof n->stem || (dot && strlen(dot) >= sizeof n->ext)) return -1;
+  snprintf(n->dir, sizeof n->dir, "%.*s", (int)dl, !slash ? "." : slash == out ? "/" : out);
+  snprintf(n->stem, sizeof n->stem, "%.*s", (int)sl, base);
+  snprintf(n->ext, sizeof n->ext, "%s", dot ? dot : "");
+  return 0;
+}
+
+/* 0: not the lightmap's; 1: its bare name; 2 + k: its numbered atlas k. */
+static int atlas_number(const lm_names *n, const char *name, size_t len) {
+  size_t sl = strlen(n->stem), el = strlen(n->ext);
+  if (len < sl + el || strncmp(name, n->stem, sl) || strncmp(name + len - el, n->ext, el)) return 0;
+  if (len == sl + el) return 1;
+  if (len != sl + 5 + el || name[sl] != '.') return 0;
+  int k = 0;
+  for (size_t i = sl + 1; i < sl + 5; i++) {
+    if (name[i] < '0' || name[i] > '9') return 0;
+    k = 10 * k + name[i] - '0';
+  }
+  return k > 0 ? 2 + k : 0;
+}
+
+static int owns_atlas(const char *name, size_t len, const void *arg) { return atlas_number(arg, name, len) != 0; }
+
+/* Whether the file is a lightmap atlas gi-bake wrote: an EXR whose header
+ * holds gi.kind = "lightmap" (only those are removed as stale). */
+static int is_lightmap_exr(const char *path) {
+  static const char key[] = "gi.kind\0string\0\10\0\0\0lightmap";
+  unsigned char buf[1 << 16];
+  FILE *f = fopen(path, "rb");
+  size_t got = f ? fread(buf, 1, sizeof buf, f) : 0;
+  if (f) fclose(f);
+  if (got < 4 || memcmp(buf, "\x76\x2f\x31\x01", 4)) return 0;
+  for (size_t i = 4; i + sizeof key - 1 <= got; i++)
+    if (!memcmp(buf + i, key, sizeof key - 1)) return 1;
+  return 0;
 }
 
 int lightmap_check(cli_opts *o) {
@@ -70,8 +119,32 @@ int lightmap_check(cli_opts *o) {
   /* Several atlases go to OUT.0001.exr, ...: names beside a file, not a device's. */
   if (ta_output_is_special(l->out))
     return ta_fail(&ta, "--lightmap", "expected a file name (a lightmap may be several files), got a device or pipe");
+  lm_names names; /* the numbered atlases' temporaries a killed run left */
+  if (!split_names(l->out, &names)) ta_remove_stale(&ta, names.dir, owns_atlas, &names);
   if (l->uv_out && (rc = ta_check_output(&ta, "--uv-out", &l->uv_out))) return rc;
   return 0;
+}
+
+/* After a run wrote its atlases: the lightmap files of an earlier run under
+ * the same name that this run did not write (its numbered atlases past this
+ * run's count, the bare name beside numbered ones, or numbered ones beside
+ * the bare name), removed and said on stderr, so OUT's files are this
+ * run's alone. A file that is not a gi-bake lightmap EXR is left alone. */
+static void remove_stale_atlases(const char *out, size_t written) {
+  lm_names n;
+  DIR *d = split_names(out, &n) ? NULL : opendir(n.dir);
+  if (!d) return;
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    int k = atlas_number(&n, e->d_name, strlen(e->d_name));
+    int mine = written == 1 ? k == 1 : k >= 3 && (size_t)(k - 2) <= written;
+    char path[4200];
+    if (!k || mine || snprintf(path, sizeof path, "%s/%s", n.dir, e->d_name) >= (int)sizeof path) continue;
+    if (!is_lightmap_exr(path) || unlink(path) != 0) continue;
+    fprintf(stderr, "gi-bake: removed '%s', an atlas of an earlier lightmap under this name (this one has %zu)\n", path,
+            written);
+  }
+  closedir(d);
 }
 
 static const int held_sigs[3] = {SIGINT, SIGTERM, SIGHUP};
@@ -98,8 +171,40 @@ static void hold_signals(int on) {
   if (!on && held_sig) raise(held_sig);
 }
 
+/* What a lightmap may take: the machine's memory (as --city-extent is
+ * bounded) less what the process holds now (the scene) and one tile's
+ * cascade, with the server's allowance for a bake's transients. 0 when
+ * the machine does not say (no bound). */
+typedef struct lm_memory {
+  double machine, held, cascade;
+} lm_memory;
+
+static size_t lightmap_budget(const cli_opts *o, const gi_scene *scene, lm_memory *m) {
+  long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  memset(m, 0, sizeof *m);
+  if (pages <= 0 || page <= 0) return 0;
+  m->machine = (double)pages * (double)page;
+  long size = 0, resident = 0;
+  FILE *f = fopen("/proc/self/statm", "r");
+  if (f && fscanf(f, "%ld %ld", &size, &resident) == 2 && resident > 0) m->held = (double)resident * (double)page;
+  if (f) fclose(f);
+  gi_quality rq;
+  if (gi_quality_resolve(scene, &o->q, &rq, NULL) == GI_OK) {
+    size_t cas = gi_cascade_bytes_estimate(&rq);
+    m->cascade = (double)cas + (double)cas / 6;
+  }
+  double left = m->machine - m->held - m->cascade;
+  return left >= 1 ? (size_t)left : 1;
+}
+
 /* A layout the options make impossible is a usage error naming the option. */
-static int layout_failed(const gi_error_info *err, gi_result r) {
+static int layout_failed(const gi_error_info *err, gi_result r, int scene_uv, const lm_memory *m) {
+  if (r == GI_ERR_LIMIT) /* past the memory bound: the option that sets the texel count */
+    return ta_fail(&ta, scene_uv ? "--atlas" : "--texel", "%s: this machine's %.1f GiB of memory less %.2f GiB "
+                   "held now (the scene) and %.2f GiB for one tile's cascade; %s", err->msg, m->machine / 1073741824.0,
+                   m->held / 1073741824.0, m->cascade / 1073741824.0,
+                   scene_uv ? "lower --atlas (the scene's own UVs fill one atlas), or use --own-charts"
+                            : "raise --texel or bake a smaller --region in parts");
   if (r != GI_ERR_INVALID_ARG) {
     fprintf(stderr, "gi-bake: --lightmap: %s\n", err->msg[0] ? err->msg : gi_strerror(r));
     return EXIT_RUN;
@@ -180,8 +285,10 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
   if (st.uv2_missing && opts.scene_uv == 0)
     fprintf(stderr, "gi-bake: note: the scene's lightmap UVs (its second UV set) are not used: %llu vertices have none "
             "or non-finite ones; charts are made instead\n", (unsigned long long)st.uv2_missing);
+  lm_memory mem;
+  opts.max_bytes = lightmap_budget(o, scene, &mem);
   gi_result r = gi_lightmap_layout(scene, &opts, &lm, &err);
-  if (r != GI_OK) return layout_failed(&err, r);
+  if (r != GI_OK) return layout_failed(&err, r, opts.scene_uv == 0 && gi_scene_has_lightmap_uv(scene), &mem);
   gi_lightmap_report rep;
   lm_times t = {.load = load_ms};
   int rc = 0;
@@ -219,6 +326,7 @@ int lightmap_run(const cli_opts *o, const gi_scene *scene, double t_start_ms, do
     hold_signals(0); /* a signal held meanwhile ends the run now */
   }
   if (!rc) {
+    remove_stale_atlases(o->lm.out, gi_lightmap_num_atlases(lm));
     for (size_t i = 0; i < gi_lightmap_num_atlases(lm); i++) {
       char file[4096];
       gi_lightmap_atlas a;

@@ -76,7 +76,18 @@ typedef struct gi_lightmap_opts {
                           (gi_scene_has_lightmap_uv: one atlas of `atlas` texels, one chart,
                           texel unused: the layout takes the mean world side of a texel of
                           those UVs, the EXR's gi.texel); -1: always make charts */
+  size_t max_bytes;    /* 0: no bound; else a layout whose atlases would take more than this many
+                          bytes to bake and write (gi_lightmap_peak_bytes) is refused with
+                          GI_ERR_LIMIT and the figures, before any atlas is allocated */
 } gi_lightmap_opts;
+
+/* The bytes a lightmap's atlases take at their peak, texels of all
+ * atlases and `largest` of the largest one: 80 per texel held, plus the
+ * more of the bake's sorting and filling (24 per texel, or 20 plus 20 per
+ * texel of the atlas being filled) and the EXR writer's planar copy of the
+ * atlas being written (52 per texel). One tile's cascade and the scene
+ * come on top. */
+uint64_t gi_lightmap_peak_bytes(uint64_t texels, uint64_t largest);
 
 typedef struct gi_lightmap gi_lightmap;
 
@@ -106,7 +117,8 @@ typedef struct gi_lightmap_report {
 /* Charts and packing for the triangles of opts' region. Fails with
  * GI_ERR_INVALID_ARG naming the option when an option is out of range,
  * the region is empty or holds no triangle, or one chart is larger than
- * the atlas (then the message gives the chart's size in texels). */
+ * the atlas (then the message gives the chart's size in texels); with
+ * GI_ERR_LIMIT when the atlases would take more than opts' max_bytes. */
 gi_result gi_lightmap_layout(const gi_scene *scene, const gi_lightmap_opts *opts, gi_lightmap **out,
                              gi_error_info *err);
 /* Bakes every texel with quality q (may be NULL: defaults; `threads` and

@@ -108,6 +108,29 @@ oom:
   return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for a %d x %d atlas", w, h);
 }
 
+uint64_t gi_lightmap_peak_bytes(uint64_t texels, uint64_t largest) {
+  uint64_t sort = 24 * texels, fill = 20 * texels + 20 * largest, write = 52 * largest;
+  uint64_t work = sort > fill ? sort : fill;
+  return 80 * texels + (work > write ? work : write);
+}
+
+/* The caller's bound, checked before the atlases are allocated (a 36 GB
+ * layout on a 24 GiB machine ran 100 s into swap before). */
+static gi_result check_bytes(const struct gi_lightmap *lm, const int *heights, size_t n, gi_error_info *err) {
+  uint64_t texels = 0, largest = 0, N = (uint64_t)lm->opts.atlas;
+  for (size_t a = 0; a < n; a++) {
+    uint64_t t = N * (uint64_t)heights[a];
+    texels += t;
+    largest = t > largest ? t : largest;
+  }
+  uint64_t need = gi_lightmap_peak_bytes(texels, largest), max = lm->opts.max_bytes;
+  if (!max || need <= max) return GI_OK;
+  return gi__fail(err, GI_ERR_LIMIT, "lightmap: %zu atlas%s of %llu texels (%llu in all) need about %.1f GiB "
+                  "(%llu bytes) to bake and write, more than the %.1f GiB (%llu bytes) allowed", n,
+                  n == 1 ? "" : "es", (unsigned long long)N, (unsigned long long)texels, need / 1073741824.0,
+                  (unsigned long long)need, max / 1073741824.0, (unsigned long long)max);
+}
+
 /* Chart-local uv to atlas texel units (texel j's centre at j + 0.5), and
  * the owner map over each chart's rectangle. */
 static void to_atlas(struct gi_lightmap *lm) {
@@ -131,9 +154,11 @@ static gi_result pack_scene_uv(struct gi_lightmap *lm, gi_error_info *err) {
   gi_lightmap_chart *c = &lm->charts[0].pub;
   c->atlas = 0, c->x = c->y = 0, c->w = c->h = N;
   lm->num_atlases = 1;
+  gi_result rc = check_bytes(lm, &N, 1, err);
+  if (rc != GI_OK) return rc;
   if (!(lm->atlases = gi__calloc(1, sizeof *lm->atlases)))
     return gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for an atlas");
-  gi_result rc = alloc_atlas(&lm->atlases[0], N, N, err);
+  rc = alloc_atlas(&lm->atlases[0], N, N, err);
   if (rc != GI_OK) return rc;
   for (size_t i = 0; i < (size_t)N * N; i++) lm->atlases[0].chart[i] = 0;
   return bin_chart(lm, &lm->charts[0], err);
@@ -164,14 +189,16 @@ gi_result gi__lm_pack(struct gi_lightmap *lm, gi_error_info *err) {
   }
   qsort(keys, lm->num_charts, sizeof *keys, cmp_key);
   if ((rc = place(lm, keys, heights, err)) != GI_OK) goto done;
+  for (size_t a = 0; a < lm->num_atlases; a++) {
+    heights[a] = (heights[a] + GI_LM_HEIGHT_ALIGN - 1) / GI_LM_HEIGHT_ALIGN * GI_LM_HEIGHT_ALIGN;
+    if (heights[a] > N) heights[a] = N;
+  }
+  if ((rc = check_bytes(lm, heights, lm->num_atlases, err)) != GI_OK) goto done;
   if (!(lm->atlases = gi__calloc(lm->num_atlases, sizeof *lm->atlases))) {
     rc = gi__fail(err, GI_ERR_NOMEM, "lightmap: out of memory for %zu atlases", lm->num_atlases);
     goto done;
   }
-  for (size_t a = 0; a < lm->num_atlases && rc == GI_OK; a++) {
-    int h = (heights[a] + GI_LM_HEIGHT_ALIGN - 1) / GI_LM_HEIGHT_ALIGN * GI_LM_HEIGHT_ALIGN;
-    rc = alloc_atlas(&lm->atlases[a], N, h > N ? N : h, err);
-  }
+  for (size_t a = 0; a < lm->num_atlases && rc == GI_OK; a++) rc = alloc_atlas(&lm->atlases[a], N, heights[a], err);
   if (rc != GI_OK) goto done;
   to_atlas(lm);
   for (size_t i = 0; i < lm->num_charts && rc == GI_OK; i++) rc = bin_chart(lm, &lm->charts[i], err);
