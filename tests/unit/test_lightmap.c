@@ -126,6 +126,44 @@ static void test_charts_and_packing(void **state) {
   gi_scene_release(s);
 }
 
+/* opts.max_bytes: a layout needing more is refused before its atlases are
+ * allocated (GI_ERR_LIMIT, the bytes said), one needing exactly that is not. */
+static void test_max_bytes(void **state) {
+  (void)state;
+  gi_scene *s = room_scene();
+  gi_lightmap_opts o = {.texel = 0.25, .atlas = 64};
+  gi_lightmap *lm = NULL;
+  gi_error_info err = {0};
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  uint64_t texels = 0, largest = 0;
+  for (size_t i = 0; i < gi_lightmap_num_atlases(lm); i++) {
+    gi_lightmap_atlas a;
+    gi_lightmap_get_atlas(lm, i, &a);
+    uint64_t t = (uint64_t)a.width * (uint64_t)a.height;
+    texels += t;
+    largest = t > largest ? t : largest;
+  }
+  gi_lightmap_free(lm);
+  /* 80 held, plus the most of sorting (24), filling (20 + 20 of one atlas) and writing (52 of one). */
+  uint64_t work = 24 * texels > 20 * texels + 20 * largest ? 24 * texels : 20 * texels + 20 * largest;
+  uint64_t need = 80 * texels + (work > 52 * largest ? work : 52 * largest);
+  assert_true(texels > largest); /* several atlases */
+  assert_true(gi_lightmap_peak_bytes(texels, largest) == need);
+  assert_true(gi_lightmap_peak_bytes(100, 100) == 80 * 100 + 52 * 100); /* one atlas: the write's copy */
+  o.max_bytes = need;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_OK);
+  gi_lightmap_free(lm);
+  lm = (gi_lightmap *)1;
+  o.max_bytes = need - 1;
+  assert_int_equal(gi_lightmap_layout(s, &o, &lm, &err), GI_ERR_LIMIT);
+  assert_null(lm);
+  printf("past max_bytes: %s\n", err.msg);
+  char want[64];
+  snprintf(want, sizeof want, "(%llu bytes) to bake and write", (unsigned long long)need);
+  assert_non_null(strstr(err.msg, want));
+  gi_scene_release(s);
+}
+
 static void test_bad_options(void **state) {
   (void)state;
   gi_scene *s = room_scene();
@@ -1309,6 +1347,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_charts_and_packing),
       cmocka_unit_test(test_bad_options),
+      cmocka_unit_test(test_max_bytes),
       cmocka_unit_test(test_cornell_against_reference),
       cmocka_unit_test(test_exr_read_back),
       cmocka_unit_test(test_gltf_read_back),
