@@ -3,7 +3,10 @@
  * A probe grid is a regular lattice of points over a region of a scene:
  * either a full 3D lattice, or (above_ground > 0) one probe per column of
  * the two horizontal axes, placed above_ground units above the ground found
- * by a downward ray, with probes inside buildings dropped (valid = 0).
+ * by a downward ray (the first upward-facing surface that is neither a
+ * building's roof nor a narrow cover such as a canopy or a bridge deck; see
+ * README "Batch probe grids"), with probes inside buildings dropped
+ * (valid = 0).
  * Points are numbered x fastest, then y, then z (world axes), always in
  * the same order for the same scene and spec.
  *

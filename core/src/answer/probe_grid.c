@@ -1,13 +1,31 @@
 /* probe_grid.c: where a batch bake's probes go (gi_batch.h).
  *
  * A full lattice is pure arithmetic. Street-level mode shoots rays through
- * the scene's Embree BVH: per column one downward ray, repeated past each
- * hit, finds the lowest surface (the ground, not a roof); the probe goes
- * above_ground above it. A probe is inside a building when it is covered
- * (the ray straight up hits something) and enclosed (all eight horizontal
- * rays hit something): a street is open to the sky, an arcade or a bridge
- * is open along the street, a room is neither. This needs no consistent
- * winding, which OSM meshes do not promise. */
+ * the scene's Embree BVH. Per column one downward ray, repeated past each
+ * hit, lists the surfaces that are level enough to stand on, each facing
+ * up (a floor: ground, roof, deck top) or down (an underside), reading the
+ * winding as the cities' meshes give it (roofs and ground face up). The
+ * ground is the first floor from the top that is not
+ *  - a roof: a floor with another floor below it and no underside between
+ *    (a building without a bottom) or an underside right on one (a closed
+ *    box standing on the ground), nor
+ *  - a cover: the top of a solid with open air and a floor below it that
+ *    is narrower than COVER_MAX_WIDTH across (a canopy, a bridge deck).
+ * So the top of a closed ground slab is ground (the lowest surface was its
+ * bottom face), and so is a street over a tunnel (the layer above the
+ * tunnel is no narrow solid), while the probes of a building's columns go
+ * onto the ground inside it, to be dropped, and those under a canopy onto
+ * the street. A column with no floor at all takes its lowest surface.
+ *
+ * A probe is inside a building when it is covered (the ray straight up
+ * hits something) and enclosed: each of eight horizontal rays meets a
+ * wall. Under a ceiling (a cover's underside, facing down) a wall is one
+ * met from behind (inside a closed solid) or within ENCLOSE_REACH: a
+ * facade across the square or at the end of the street, met from the
+ * front, leaves an arcade, a canopy or a bridge open. Under a roof seen
+ * from inside (its back) any wall at any distance encloses: OSM blocks'
+ * courtyard walls may face into the block. A street is open to the sky;
+ * a room is closed whichever way its walls are wound. */
 #include <float.h>
 #include <math.h>
 #include <string.h>
@@ -19,31 +37,141 @@
 #define MAX_COLUMN_HITS 256
 /* Horizontal directions of the enclosure test. */
 #define ENCLOSE_DIRS 8
+/* A wall a horizontal ray meets from the front encloses the probe when it
+ * is nearer than this (world units, metres in the cities): a room's or a
+ * building's wall, not a facade across a square. */
+#define ENCLOSE_REACH 30.0f
+/* A solid with open air below that is narrower than this across (world
+ * units) in some horizontal direction is a cover over the ground (a canopy,
+ * a bridge deck); a wider one is ground (a street over a tunnel). */
+#define COVER_MAX_WIDTH 60.0f
+/* The step, in ray offsets, of a cover test repeated beside its column. */
+#define COVER_NUDGE 100
+/* A surface is level (a floor or an underside) when its normal is within
+ * about 84 degrees of the up axis; steeper ones are walls. */
+#define LEVEL_COS 0.1
+/* Facing flags of a column's hit. */
+#define FACES_UP 1
+#define FACES_DOWN 2
 /* Ray offsets, as a fraction of the scene's largest extent. */
 #define REL_EPS 1e-6
+
+typedef struct {
+  float h;              /* local up coordinate */
+  int faces;            /* FACES_UP | FACES_DOWN of the level surfaces there; 0: a wall */
+} col_hit;
 
 typedef struct {
   const struct gi_scene *s;
   int u, h0, h1;        /* up axis and the two horizontal ones (0..2) */
   float eps;            /* ray offset, local units */
   float top, floor_;    /* local up coordinates: where columns start and stop */
+  uint32_t *tris;       /* scratch of facings_at */
+  size_t ntris, cap;
+  col_hit hits[MAX_COLUMN_HITS];
 } ray_ctx;
 
-/* The lowest surface on the column at local (a, b); 0 when there is none. */
-static int column_ground(const ray_ctx *c, float a, float b, float *ground) {
-  float org[3], dir[3] = {0, 0, 0};
+/* The facings of the level surfaces crossing the column at (a, b) within
+ * 2 eps of height h: the one a ray met and any coplanar one it hid (a
+ * box's bottom face on the ground: the step past a hit skips the other). */
+static int facings_at(ray_ctx *c, float a, float b, float h) {
+  float lo[3], hi[3];
+  lo[c->h0] = a - c->eps, hi[c->h0] = a + c->eps;
+  lo[c->h1] = b - c->eps, hi[c->h1] = b + c->eps;
+  lo[c->u] = h - 2 * c->eps, hi[c->u] = h + 2 * c->eps;
+  c->ntris = 0;
+  if (gi__query_box(c->s, lo, hi, &c->tris, &c->ntris, &c->cap) != GI_OK) return 0;
+  int faces = 0;
+  for (size_t q = 0; q < c->ntris; q++) {
+    const uint32_t *ti = c->s->indices + 3 * (size_t)c->tris[q];
+    double v[3][3];
+    for (int k = 0; k < 3; k++)
+      for (int a3 = 0; a3 < 3; a3++) v[k][a3] = c->s->vertices[3 * (size_t)ti[k] + a3];
+    double e1[3], e2[3];
+    for (int a3 = 0; a3 < 3; a3++) e1[a3] = v[1][a3] - v[0][a3], e2[a3] = v[2][a3] - v[0][a3];
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(fabs(n[c->u]) > LEVEL_COS * len)) continue;
+    /* Barycentric weights of the column in the horizontal plane. */
+    double w[3], area = 0;
+    for (int k = 0; k < 3; k++) {
+      const double *p = v[(k + 1) % 3], *r = v[(k + 2) % 3];
+      w[k] = (p[c->h0] - a) * (r[c->h1] - b) - (p[c->h1] - b) * (r[c->h0] - a);
+      area += w[k];
+    }
+    if (area == 0 || w[0] / area < -1e-6 || w[1] / area < -1e-6 || w[2] / area < -1e-6) continue;
+    double at = (w[0] * v[0][c->u] + w[1] * v[1][c->u] + w[2] * v[2][c->u]) / area;
+    if (fabs(at - h) <= 2 * c->eps) faces |= n[c->u] > 0 ? FACES_UP : FACES_DOWN;
+  }
+  return faces;
+}
+
+/* Whether the solid between heights top and bottom at local (a, b) is
+ * narrower than COVER_MAX_WIDTH between its sides in some direction. */
+static int narrow_at(const ray_ctx *c, float a, float b, float top, float bottom) {
+  float p[3], t0, t1;
+  p[c->h0] = a, p[c->h1] = b, p[c->u] = 0.5f * (top + bottom);
+  for (int k = 0; k < ENCLOSE_DIRS / 2; k++) {
+    double ang = 2.0 * GI_PI * k / ENCLOSE_DIRS;
+    float d[3] = {0, 0, 0}, e[3] = {0, 0, 0};
+    d[c->h0] = (float)cos(ang), d[c->h1] = (float)sin(ang);
+    e[c->h0] = -d[c->h0], e[c->h1] = -d[c->h1];
+    if (gi__intersect1(c->s, p, d, c->eps, COVER_MAX_WIDTH, &t0, NULL, NULL) &&
+        gi__intersect1(c->s, p, e, c->eps, COVER_MAX_WIDTH, &t1, NULL, NULL) && t0 + t1 <= COVER_MAX_WIDTH)
+      return 1;
+  }
+  return 0;
+}
+
+/* A cover (see the file comment). A column in the plane of the solid's
+ * side (a grid line along a canopy's edge) has its rays graze that side:
+ * then a step inside decides. */
+static int is_cover(const ray_ctx *c, float a, float b, float top, float bottom) {
+  if (narrow_at(c, a, b, top, bottom)) return 1;
+  float d = COVER_NUDGE * c->eps;
+  return narrow_at(c, a + d, b, top, bottom) || narrow_at(c, a - d, b, top, bottom) ||
+         narrow_at(c, a, b + d, top, bottom) || narrow_at(c, a, b - d, top, bottom);
+}
+
+/* The ground of the column at local (a, b) (see the file comment); 0 when
+ * the column meets nothing. */
+static int column_ground(ray_ctx *c, float a, float b, float *ground) {
+  float org[3], dir[3] = {0, 0, 0}, ng[3];
   org[c->h0] = a, org[c->h1] = b, org[c->u] = c->top;
   dir[c->u] = -1;
   float tfar = c->top - c->floor_, tnear = 0, t;
-  int found = 0;
-  for (int i = 0; i < MAX_COLUMN_HITS; i++) {
-    if (!gi__intersect1(c->s, org, dir, tnear, tfar, &t, NULL, NULL)) break;
-    *ground = c->top - t;
-    found = 1;
+  col_hit *hit = c->hits;
+  int n = 0;
+  while (n < MAX_COLUMN_HITS) {
+    if (!gi__intersect1(c->s, org, dir, tnear, tfar, &t, NULL, ng)) break;
+    float h = c->top - t;
+    int faces = facings_at(c, a, b, h);
+    if (fabsf(ng[c->u]) > LEVEL_COS) faces |= ng[c->u] > 0 ? FACES_UP : FACES_DOWN;
+    hit[n++] = (col_hit){h, faces};
     tnear = t + c->eps;
     if (tnear > tfar) break;
   }
-  return found;
+  if (!n) return 0;
+  int i = 0;
+  while (i < n && !(hit[i].faces & FACES_UP)) i++;
+  if (i == n) { /* nothing faces up (a mesh wound the other way): the lowest surface */
+    *ground = hit[n - 1].h;
+    return 1;
+  }
+  for (;;) {
+    int j = i + 1;
+    while (j < n && !hit[j].faces) j++;
+    if (j == n) break;
+    /* A floor next: hit[i] is a roof (or a sheet) over it. */
+    if (hit[j].faces & FACES_UP) { i = j; continue; }
+    /* hit[i]'s underside at hit[j]: a cover when it is narrow and has a floor below. */
+    int k = j + 1;
+    while (k < n && !(hit[k].faces & FACES_UP)) k++;
+    if (k == n || !is_cover(c, a, b, hit[i].h, hit[j].h)) break;
+    i = k;
+  }
+  *ground = hit[i].h;
+  return 1;
 }
 
 /* A column on the scene's outer edge (a grid over the bounds puts its last
@@ -51,7 +179,7 @@ static int column_ground(const ray_ctx *c, float a, float b, float *ground) {
  * rule counts on one side only: the max edge's columns all missed. Such a
  * column looks for ground just inside the bounds. 0 when it is not on an
  * edge or finds nothing there either. */
-static int edge_ground(const ray_ctx *c, const float local[3], float *ground) {
+static int edge_ground(ray_ctx *c, const float local[3], float *ground) {
   const int ax[2] = {c->h0, c->h1};
   float q[2] = {local[c->h0], local[c->h1]};
   int moved = 0;
@@ -65,14 +193,17 @@ static int edge_ground(const ray_ctx *c, const float local[3], float *ground) {
 
 /* Covered and enclosed: see the file comment. */
 static int inside_building(const ray_ctx *c, const float p[3]) {
-  float dir[3] = {0, 0, 0}, t;
+  float dir[3] = {0, 0, 0}, t, ng[3];
   dir[c->u] = 1;
-  if (!gi__intersect1(c->s, p, dir, c->eps, INFINITY, &t, NULL, NULL)) return 0;
+  if (!gi__intersect1(c->s, p, dir, c->eps, INFINITY, &t, NULL, ng)) return 0;
+  int ceiling = ng[c->u] < 0;
   for (int k = 0; k < ENCLOSE_DIRS; k++) {
     double ang = 2.0 * GI_PI * k / ENCLOSE_DIRS;
     float d[3] = {0, 0, 0};
     d[c->h0] = (float)cos(ang), d[c->h1] = (float)sin(ang);
-    if (!gi__intersect1(c->s, p, d, c->eps, INFINITY, &t, NULL, NULL)) return 0;
+    if (!gi__intersect1(c->s, p, d, c->eps, INFINITY, &t, NULL, ng)) return 0;
+    /* Under a ceiling, a front face far off is a facade across the street, not a wall of ours. */
+    if (ceiling && t > ENCLOSE_REACH && gi__dot(ng, d) <= 0) return 0;
   }
   return 1;
 }
@@ -168,6 +299,7 @@ static void place_above_ground(const gi_scene *scene, const gi_grid_spec *spec, 
       g->num_valid++;
     }
   }
+  gi__free(c.tris);
 }
 
 gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
