@@ -86,10 +86,7 @@ static size_t level_bytes(int levels, int res, int every_voxel) {
 }
 
 /* A moved cascade also holds its re-bake's buffers. */
-size_t gi_cascade_bytes(const gi_cascade *c) {
-  if (!c) return 0;
-  return level_bytes(c->n, c->R, 0) + gi__entries_bytes(c) + gi__move_state_bytes(c);
-}
+size_t gi_cascade_bytes(const gi_cascade *c) { return c ? gi__cascade_held_bytes(c) : 0; }
 
 size_t gi_cascade_bytes_estimate(const gi_quality *resolved) {
   /* Unresolved (zero) or out-of-range levels or res: no estimate rather

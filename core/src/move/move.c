@@ -1015,7 +1015,7 @@ static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *re
   if (scrolled) gi__cascade_count_occupied(c);
   /* A move grows the levels' arrays and keeps its own state: the report
    * said the first bake's bytes for ever (1.39 MB against 3.22 MB held). */
-  c->report.cascade_bytes = gi_cascade_bytes(c);
+  c->report.cascade_bytes = gi__cascade_held_bytes(c);
   c->torn = 0;
   if (report) *report = c->report;
   if (info) *info = mi;
