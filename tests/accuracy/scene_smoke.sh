@@ -228,6 +228,26 @@ if grep -q "box: reference from cache" "$T/ed2" && grep -q "box: reference, 27 p
    && ! grep -q "box: reference from cache" "$T/ed3"; then
   pass "reference cache: reused for the same scene, made again after its .mtl changed"
 else fail "reference cache: rerun '$(grep 'box: reference' "$T/ed2")', edited '$(grep 'box: reference' "$T/ed3")'"; fi
+# ... and after a texture it reads changed: the walls' map_Kd, two pixels
+# (dark, light) mirrored, so the .obj and .mtl bytes and the material's
+# factors (its mean albedo) stay the same, which was all the key read.
+png2() { python3 -c 'import struct, sys, zlib
+a, b = int(sys.argv[2]), int(sys.argv[3]); raw = bytes([0, a, a, a, b, b, b])
+ck = lambda t, d: struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d))
+open(sys.argv[1], "wb").write(b"\x89PNG\r\n\x1a\n" + ck(b"IHDR", struct.pack(">IIBBBBB", 2, 1, 8, 2, 0, 0, 0))
+                              + ck(b"IDAT", zlib.compress(raw)) + ck(b"IEND", b""))' "$1" "$2" "$3"; }
+mkdir "$T/tx"
+# Every corner at the dark pixel's centre (one vt): the walls read one pixel.
+sed -e 's#^mtllib box.mtl#mtllib box.mtl\nvt 0.25 0.5#' -e '/^f /s#\([0-9][0-9]*\)\( \|$\)#\1/1\2#g' \
+  "$T/box.obj" > "$T/tx/box.obj"
+sed 's/^Kd 0.7 0.7 0.7/Kd 1 1 1\nmap_Kd wall.png/' "$T/box.mtl" > "$T/tx/box.mtl"
+png2 "$T/tx/wall.png" 64 230
+"$BIN" --scene "$T/tx/box.obj" $QUICK --out "$T/txo" > /dev/null 2> "$T/tx1" || fail "texture run 1: $(tail -n 2 "$T/tx1")"
+png2 "$T/tx/wall.png" 230 64
+"$BIN" --scene "$T/tx/box.obj" $QUICK --out "$T/txo" > /dev/null 2> "$T/tx2" || fail "texture run 2: $(tail -n 2 "$T/tx2")"
+if grep -q "box: reference, 27 probes" "$T/tx2" && ! grep -q "box: reference from cache" "$T/tx2"; then
+  pass "reference cache: made again after a texture the scene reads changed"
+else fail "reference cache: after the texture changed: '$(grep 'box: reference' "$T/tx2")'"; fi
 
 # Probes are chosen by the luminance of their direct light: a lamp lit in
 # red alone kept none by the green channel, and the run exited 1 without a

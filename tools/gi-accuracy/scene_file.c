@@ -206,27 +206,16 @@ static int placeable(const acc_scene_set *ss, const double p[3], const char *wha
   return 0;
 }
 
-/* What was loaded, for the reference cache's keys: the file's bytes (any
- * edit of its geometry) and the scene as built from it, materials and
- * lights (an edited .mtl beside an OBJ). The cache was keyed by the file's
- * base name alone: an edited scene read its former references. */
-static uint64_t scene_version(const char *path, const struct gi_scene *s) {
-  uint64_t h = ta_fnv_file(ta_fnv(1469598103934665603ull, "scene-file", 10), path);
-  gi_scene_stats st;
-  gi_scene_get_stats(s, &st);
-  h = ta_fnv(h, &st.triangles, sizeof st.triangles);
-  for (size_t i = 0; i < gi_scene_num_materials(s); i++) {
-    const gi_material *m = gi_scene_material(s, i);
-    float v[8] = {m->albedo[0], m->albedo[1], m->albedo[2], m->emission[0], m->emission[1], m->emission[2],
-                  m->roughness, m->specular};
-    h = ta_fnv(h, v, sizeof v);
-  }
-  for (size_t i = 0; i < gi_scene_num_lights(s); i++) {
-    const gi_light *l = gi_scene_light(s, i);
-    double v[12] = {l->type, l->color[0], l->color[1], l->color[2], l->position[0], l->position[1], l->position[2],
-                    l->direction[0], l->direction[1], l->direction[2], l->cos_inner, l->cos_outer};
-    h = ta_fnv(h, v, sizeof v);
-  }
+/* What was loaded, for the reference cache's keys: the scene as built
+ * (gi_scene_digest: geometry, per-triangle albedo from textures and
+ * vertex colours, materials, lights), so anything the loader read counts
+ * (a glTF's .bin, an OBJ's .mtl and map_Kd images) and a comment does
+ * not. The cache was keyed by the file's base name alone, then by its
+ * bytes and material factors, and an edited .bin or texture read its
+ * former references. */
+static uint64_t scene_version(const struct gi_scene *s) {
+  uint64_t d = gi_scene_digest(s);
+  uint64_t h = ta_fnv(ta_fnv(1469598103934665603ull, "scene-digest", 12), &d, sizeof d);
   return h ? h : 1; /* 0 means a built-in scene */
 }
 
@@ -238,7 +227,7 @@ int acc_file_setup(const acc_file_opts *f, int ref_samples, int threads, acc_sce
   gi_error_info err = {0};
   if (gi_scene_load(f->path, &so, &ss->s, &err) != GI_OK)
     return fprintf(stderr, "gi-accuracy: --scene: %s\n", err.msg), 0;
-  acc_cache_scene_version(scene_version(f->path, ss->s));
+  acc_cache_scene_version(scene_version(ss->s));
   if (!f->up_given && gi_scene_looks_z_up(ss->s))
     fprintf(stderr, "gi-accuracy: note: %s is flat along z " TA_NOTE_Z_UP_FIX "\n", f->path);
   if (f->have_at) memcpy(ss->at, f->at, sizeof ss->at);
