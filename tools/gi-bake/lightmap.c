@@ -77,7 +77,9 @@ static int atlas_number(const lm_names *n, const char *name, size_t len) {
 static int owns_atlas(const char *name, size_t len, const void *arg) { return atlas_number(arg, name, len) != 0; }
 
 /* Whether the file is a lightmap atlas gi-bake wrote: an EXR whose header
- * holds gi.kind = "lightmap" (only those are removed as stale). */
+ * holds gi.kind = "lightmap" (only those are removed as stale). Found in
+ * the header's bytes, not by gi_exr_read, which decodes every pixel of an
+ * atlas (up to gigabytes) that is about to be deleted. */
 static int is_lightmap_exr(const char *path) {
   static const char key[] = "gi.kind\0string\0\10\0\0\0lightmap";
   unsigned char buf[1 << 16];
