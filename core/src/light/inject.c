@@ -210,6 +210,39 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
   return rays;
 }
 
+/* A side of a voxel's surfaces that faces the inside of a closed solid
+ * (a lamp's housing lit from within, a building's inner walls) reflects
+ * light that nothing outside the solid can see. A coarse voxel holding
+ * the solid, or its walls across a few voxels, mixes that light with its
+ * outer faces at partial coverage, and the march and the filter let a
+ * share of it out: a lamp inside a closed 1 m cube lit a probe 1 m above
+ * at 14% of what the lamp on the cube's top gave, a 20 cm housing at 34%.
+ * A side (almost) wholly inside (gi__inside_sides) reflects nothing. A
+ * side partly inside keeps its light: a coarse voxel's ground around a
+ * building, a street's two facades, whose irradiance is mostly that of
+ * the surfaces outside (scaling every side by its share outside put the
+ * city's indirect error at 17.6% instead of 10.5%). A voxel whose pieces
+ * are not clipped (too many triangles) keeps all of it. Returns -1 when
+ * out of memory. */
+#define INSIDE_MIN_SHARE 0.9f
+/* Only a solid whose inside the coarsest level cannot resolve counts:
+ * one that rays from its inside cross within INSIDE_REACH of that level's
+ * voxels. A larger closed box is a room (the tests' rooms are boxes wound
+ * outward, lit from within, with probes inside), whose inside the coarse
+ * levels show as the fine ones do. */
+#define INSIDE_REACH 2.0f
+static int inside_faces(const struct gi_cascade *c, gi_vgeo *g, double sz, const int64_t cell[3], gi_near_scratch *ns,
+                        const float Es[][3]) {
+  float share[2 * GI_VOX_GROUPS] = {0};
+  float reach = INSIDE_REACH * (float)c->lv[c->n - 1].s;
+  int r = gi__inside_sides(c->scene, g, sz, cell, reach, ns, share);
+  for (int sd = 0; sd < 2 * GI_VOX_GROUPS; sd++)
+    if (share[sd] < INSIDE_MIN_SHARE) share[sd] = 0;
+  for (int f = 0; f < GI_VOX_FACES; f++)
+    g->inside[f] = (uint8_t)lrintf(255.f * share[gi__face_side_of(g, Es, f)]);
+  return r < 0 ? -1 : 0;
+}
+
 static void inject_range(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   inject_ctx *ic = p;
@@ -259,6 +292,7 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     near_lights(c->scene, g, voxel, d, n, &ib, &rng, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     if (!spread) rays += emitter_rays(ic, g, voxel, &rng, Es);
+    if (inside_faces(c, (gi_vgeo *)g, ib.sz, cell, &ib.ns, (const float(*)[3])Es)) ib.oom = 1;
     gi__face_light(g, (const float(*)[3])Es, gi__direct(L, slot));
     memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
   }
@@ -286,8 +320,10 @@ static inline void face_radiance(const gi_level *L, uint32_t slot, const float (
                                  float Lf[GI_VOX_FACES][3]) {
   const gi_vgeo *g = gi__geo(L, slot);
   if (!side) side = (const float(*)[3])gi__side(L, slot);
-  for (int f = 0; f < GI_VOX_FACES; f++)
-    for (int k = 0; k < 3; k++) Lf[f][k] = (g->albedo[k] + g->gloss[k]) * (1.0f / GI_PI_F) * side[f][k];
+  for (int f = 0; f < GI_VOX_FACES; f++) {
+    float out = (1.0f - g->inside[f] * (1.0f / 255.0f)) * (1.0f / GI_PI_F);
+    for (int k = 0; k < 3; k++) Lf[f][k] = (g->albedo[k] + g->gloss[k]) * out * side[f][k];
+  }
 }
 
 /* Occupied voxels [begin, end) of level d from `from` (per occupied voxel;

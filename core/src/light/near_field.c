@@ -551,3 +551,65 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
   }
   return sides_from_flux(g, ns->wsum, (const float(*)[2])ns->wside, (const float(*)[2][3])flux, Es);
 }
+
+/* Whether the voxel's surface lies inside a closed solid, side by side
+ * (gi__inside_sides): INSIDE_POINTS points spread over its pieces by area,
+ * each asking on both of its sides with a ray along the normal and three
+ * 50 degrees off it. A point is inside when the normal's ray and
+ * INSIDE_NEED rays in all meet a surface's back first. The normal's ray
+ * alone darkened Munich's street probes (indirect error on four of them
+ * 17.5% -> 23.3%, 21.9% this way); asking all four missed a cube's inside
+ * where its floor lies on the ground (a ray down meets either surface).
+ * Four points, not sixteen: a point outside costs a ray a side, and with
+ * sixteen test_cancel's lightmap tiles no longer baked within their
+ * second, and test_move's drive drifted 0.047 from cold bakes (0.035). */
+#define INSIDE_POINTS 4
+#define INSIDE_RAYS 4
+#define INSIDE_NEED 3
+#define INSIDE_COS 0.6428f
+#define INSIDE_SIN 0.7660f
+
+int gi__inside_sides(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], float reach,
+                     gi_near_scratch *ns, float share[2 * GI_VOX_GROUPS]) {
+  float corner[3];
+  int ready = spread_pieces(s, g, sz, cell, ns, corner);
+  if (ready <= 0) return ready;
+  float in[GI_VOX_GROUPS][2] = {{0}}, all[GI_VOX_GROUPS][2] = {{0}}, off = gi__shadow_offset((float)sz);
+  size_t i = 0;
+  for (int j = 0; j < INSIDE_POINTS; j++) {
+    float u = ((float)j + 0.5f) / (float)INSIDE_POINTS * ns->total, pt[3];
+    while (i + 1 < ns->npieces && ns->pieces[i].cum < u) i++;
+    const gi_piece *pc = &ns->pieces[i];
+    float lo = pc->cum - pc->area;
+    polygon_point((const float(*)[3])pc->v, pc->n, pc->area, gi__minf(gi__maxf((u - lo) / pc->area, 0.f), 0.99999f),
+                  gi__radical2_rot((uint32_t)j, 0.5f), pt);
+    for (int t = 0; t < 2; t++) {
+      float n[3], o[3], hit_t, ng[3];
+      uint32_t tri;
+      float t1[3], t2[3];
+      for (int k = 0; k < 3; k++) n[k] = (t ? -1.f : 1.f) * pc->A[k] / pc->area;
+      for (int k = 0; k < 3; k++) o[k] = pt[k] + corner[k] + off * n[k];
+      gi__basis(n, t1, t2);
+      /* A first hit showing a surface's back: inside (gi_scene_backface_share's rule). */
+      int backs = 0;
+      for (int r = 0; r < INSIDE_RAYS && backs + (INSIDE_RAYS - r) >= INSIDE_NEED; r++) {
+        float w[3], az = (float)r * (2 * GI_PI_F / 3) + (float)j;
+        for (int k = 0; k < 3; k++)
+          w[k] = r == 0 ? n[k] : INSIDE_COS * n[k] + INSIDE_SIN * (cosf(az) * t1[k] + sinf(az) * t2[k]);
+        int b = gi__intersect1(s, o, w, 0, reach, &hit_t, &tri, ng) && gi__dot(ng, w) > 0;
+        if (r == 0 && !b) break;
+        backs += b;
+      }
+      int inside = backs >= INSIDE_NEED;
+      for (int h = 0; h < g->groups; h++) {
+        if (!(pc->share[h] > 0)) continue;
+        int sd = gi__dot(g->u.fin.orient[h], n) >= 0 ? 0 : 1;
+        all[h][sd] += pc->share[h];
+        if (inside) in[h][sd] += pc->share[h];
+      }
+    }
+  }
+  for (int h = 0; h < g->groups; h++)
+    for (int sd = 0; sd < 2; sd++) share[2 * h + sd] = all[h][sd] > 0 ? in[h][sd] / all[h][sd] : 0.f;
+  return 1;
+}
