@@ -570,7 +570,7 @@ int gi__spread_emitters(const gi_scene *s, const gi_vgeo *g, double sz, const in
 #define INSIDE_SIN 0.7660f
 
 int gi__inside_sides(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], float reach,
-                     gi_near_scratch *ns, float share[2 * GI_VOX_GROUPS]) {
+                     unsigned sides, gi_near_scratch *ns, float share[2 * GI_VOX_GROUPS]) {
   float corner[3];
   int ready = spread_pieces(s, g, sz, cell, ns, corner);
   if (ready <= 0) return ready;
@@ -588,6 +588,11 @@ int gi__inside_sides(const gi_scene *s, const gi_vgeo *g, double sz, const int64
       uint32_t tri;
       float t1[3], t2[3];
       for (int k = 0; k < 3; k++) n[k] = (t ? -1.f : 1.f) * pc->A[k] / pc->area;
+      /* The groups' sides this side of the piece shows, of those asked. */
+      unsigned shows = 0;
+      for (int h = 0; h < g->groups; h++)
+        if (pc->share[h] > 0) shows |= 1u << (2 * h + (gi__dot(g->u.fin.orient[h], n) >= 0 ? 0 : 1));
+      if (!(shows & sides)) continue;
       for (int k = 0; k < 3; k++) o[k] = pt[k] + corner[k] + off * n[k];
       gi__basis(n, t1, t2);
       /* A first hit showing a surface's back: inside (gi_scene_backface_share's rule). */
@@ -604,6 +609,7 @@ int gi__inside_sides(const gi_scene *s, const gi_vgeo *g, double sz, const int64
       for (int h = 0; h < g->groups; h++) {
         if (!(pc->share[h] > 0)) continue;
         int sd = gi__dot(g->u.fin.orient[h], n) >= 0 ? 0 : 1;
+        if (!(sides >> (2 * h + sd) & 1)) continue;
         all[h][sd] += pc->share[h];
         if (inside) in[h][sd] += pc->share[h];
       }
