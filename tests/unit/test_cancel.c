@@ -263,7 +263,11 @@ static void *lightmap_thread(void *p) {
  * each, 8192 light samples shared by them) stops within a chunk's time
  * once it is cancelled in its texel stage. The token was read between
  * chunks of 64 texels only: 100-300 ms after the cancel, seconds under
- * ASan, and the server's lightmap past its deadline kept a worker. */
+ * ASan, and the server's lightmap past its deadline kept a worker. The
+ * tiles' cascade bakes come first; on a loaded machine a cancel a second
+ * in can still land in one (the error then names its stage, not
+ * "lightmap:", the texels' own), so the bake is run again with twice the wait, up to four
+ * times: the bound is on a cancel that reached the texels. */
 static void test_lightmap_cancel(void **state) {
   gi_city_params cp = {.extent = 120};
   gi_scene *s = NULL;
@@ -274,21 +278,26 @@ static void test_lightmap_cancel(void **state) {
   lightmap_job j = {.q = {.levels = 3, .res = 16, .threads = 2, .light_samples = 16, .probe_samples = 8192, .cones = 32,
                           .step = 0.1f}};
   assert_int_equal(gi_lightmap_layout(s, &o, &j.lm, &err), GI_OK);
-  j.cancel = gi_cancel_new();
-  assert_non_null(j.cancel);
-  pthread_t t;
-  assert_int_equal(pthread_create(&t, NULL, lightmap_thread, &j), 0);
-  /* Past the tiles' small cascade bakes, into their texels. */
-  sleep_ms(1000 * SLOWDOWN);
-  double tc = gi_now_ms();
-  gi_cancel_set(j.cancel);
-  pthread_join(t, NULL);
-  printf("  lightmap cancelled in its texels: returned %.1f ms after the cancel (%s)\n", j.end_ms - tc, j.err.msg);
+  double wait_ms = 1000 * SLOWDOWN, tc = 0;
+  for (int attempt = 0; attempt < 4; attempt++, wait_ms *= 2) {
+    j.cancel = gi_cancel_new();
+    assert_non_null(j.cancel);
+    pthread_t t;
+    assert_int_equal(pthread_create(&t, NULL, lightmap_thread, &j), 0);
+    /* Past the tiles' small cascade bakes, into their texels. */
+    sleep_ms(wait_ms);
+    tc = gi_now_ms();
+    gi_cancel_set(j.cancel);
+    pthread_join(t, NULL);
+    gi_cancel_free(j.cancel);
+    printf("  lightmap cancelled %.0f ms in: returned %.1f ms after the cancel (%s)\n", wait_ms, j.end_ms - tc,
+           j.err.msg);
+    if (j.rc != GI_ERR_CANCELLED || !strncmp(j.err.msg, "lightmap:", 9)) break;
+  }
   gi_lightmap_free(j.lm);
-  gi_cancel_free(j.cancel);
   gi_scene_release(s);
   assert_int_equal(j.rc, GI_ERR_CANCELLED);
-  assert_non_null(strstr(j.err.msg, "lightmap"));
+  assert_int_equal(strncmp(j.err.msg, "lightmap:", 9), 0);
   /* A texel's time (1-2 ms here) with the margin; a chunk of 64 was 75-190 ms. */
   assert_true(j.end_ms - tc < STOP_WITHIN_MS / 2);
 }
