@@ -78,7 +78,9 @@ static int alloc_state(batch_state *st) {
   st->valid = calloc(n, 1);
   st->tile_start = calloc(st->L.tiles + 1, sizeof *st->tile_start);
   st->order = malloc((st->grid.num_valid ? st->grid.num_valid : 1) * sizeof *st->order);
-  if (!st->probes || !st->valid || !st->tile_start || !st->order) {
+  st->tile_stats = calloc(st->L.tiles, sizeof *st->tile_stats);
+  st->tile_source = calloc(st->L.tiles, 1);
+  if (!st->probes || !st->valid || !st->tile_start || !st->order || !st->tile_stats || !st->tile_source) {
     fprintf(stderr, "gi-bake: out of memory for %zu probes\n", n);
     return EXIT_RUN;
   }
@@ -177,17 +179,21 @@ static int bake_tile(batch_state *st, size_t t) {
     fprintf(stderr, "gi-bake: tile %zu: %s\n", t, err.msg[0] ? err.msg : gi_strerror(r));
     return EXIT_RUN;
   }
-  st->bake_ms += t1 - t0;
-  st->gather_ms += batch_now_ms() - t1;
+  batch_tile_stats *ts = &st->tile_stats[t];
+  ts->bake_ms = t1 - t0;
+  ts->gather_ms = batch_now_ms() - t1;
+  ts->cascade_bytes = rep.cascade_bytes;
+  st->bake_ms += ts->bake_ms;
+  st->gather_ms += ts->gather_ms;
   if (rep.cascade_bytes > st->peak_cascade_bytes) st->peak_cascade_bytes = rep.cascade_bytes;
-  for (int e = 0; e < GI_FX_COUNT; e++) st->fx_ran[e] += rep.effects[e].ran != 0;
+  for (int e = 0; e < GI_FX_COUNT; e++) ts->fx_ran |= (uint32_t)(rep.effects[e].ran != 0) << e;
   double span = rep.voxel_size[0] * rep.quality.res;
   const uint32_t *idx = st->order + st->tile_start[t];
   for (size_t j = 0; j < m; j++) {
     int out = 0;
     for (int a = 0; a < 3; a++)
       out |= st->pts[3 * j + a] < rep.level_origin[0][a] || st->pts[3 * j + a] > rep.level_origin[0][a] + span;
-    st->outside_level0 += (size_t)out;
+    ts->outside_level0 += (uint32_t)out;
     st->probes[idx[j]] = st->tile_probes[j];
   }
   return 0;
@@ -199,28 +205,31 @@ static int run_tile(batch_state *st, size_t t) {
   size_t m = st->tile_start[t + 1] - st->tile_start[t];
   char msg[4400];
   const char *source = "empty";
+  batch_tile_stats *ts = &st->tile_stats[t];
+  memset(ts, 0, sizeof *ts);
   if (dir) {
-    int got = ckpt_load(dir, t, st->hash, st->grid.n, st->probes, msg, sizeof msg);
+    int got = ckpt_load(dir, t, st->hash, st->grid.n, st->probes, ts, msg, sizeof msg);
     if (got < 0) {
       fprintf(stderr, "gi-bake: --resume: %s\n", msg);
       return EXIT_RUN;
     }
     if (got > 0) source = "resumed";
   }
+  if (strcmp(source, "resumed")) memcpy(ts->run, st->run, sizeof ts->run);
   if (!strcmp(source, "empty") && m > 0) {
     int rc = bake_tile(st, t);
     if (rc) return rc;
     source = "baked";
   }
   if (dir && strcmp(source, "resumed") &&
-      ckpt_save(dir, t, st->hash, st->order + st->tile_start[t], m, st->probes, msg, sizeof msg)) {
+      ckpt_save(dir, t, st->hash, st->order + st->tile_start[t], m, st->probes, ts, msg, sizeof msg)) {
     fprintf(stderr, "gi-bake: --resume: %s\n", msg);
     return EXIT_RUN;
   }
   for (size_t j = 0; j < m; j++) st->valid[st->order[st->tile_start[t] + j]] = 1;
-  if (!strcmp(source, "resumed")) st->tiles_resumed++;
-  else if (!strcmp(source, "baked")) st->tiles_baked++, st->probes_baked += m;
-  else st->tiles_empty++;
+  if (!strcmp(source, "resumed")) st->tiles_resumed++, st->tile_source[t] = TILE_RESUMED;
+  else if (!strcmp(source, "baked")) st->tiles_baked++, st->probes_baked += m, st->tile_source[t] = TILE_BAKED;
+  else st->tiles_empty++, st->tile_source[t] = TILE_EMPTY;
   st->probes_done += m;
   batch_progress(st, t, source);
   return 0;
@@ -254,6 +263,17 @@ static int run_tiles(batch_state *st) {
 static void free_state(batch_state *st) {
   gi_probe_grid_free(&st->grid);
   free(st->probes); free(st->valid); free(st->tile_start); free(st->order); free(st->pts); free(st->tile_probes);
+  free(st->tile_stats); free(st->tile_source);
+}
+
+/* "YYYYMMDDTHHMMSSZ-PID": names the run in each tile it bakes. */
+static void name_run(char *buf, size_t size) {
+  time_t now = time(NULL);
+  struct tm tm;
+  char when[32] = "unknown";
+  if (gmtime_r(&now, &tm)) strftime(when, sizeof when, "%Y%m%dT%H%M%SZ", &tm);
+  memset(buf, 0, size);
+  snprintf(buf, size, "%s-%ld", when, (long)getpid());
 }
 
 int batch_run(const cli_opts *o, const gi_scene *scene, double load_ms) {
@@ -263,6 +283,7 @@ int batch_run(const cli_opts *o, const gi_scene *scene, double load_ms) {
   st.scene = scene;
   st.load_ms = load_ms;
   st.tty = isatty(STDERR_FILENO);
+  name_run(st.run, sizeof st.run);
   double t0 = batch_now_ms();
   int rc = make_grid(o, scene, &st.grid);
   if (!rc) rc = plan_tiles(&st);

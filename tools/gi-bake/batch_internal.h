@@ -41,13 +41,25 @@ size_t batch_attrs(const char *const values[HDR_COUNT], gi_exr_attr attrs[HDR_CO
 int batch_write_outputs(const char *exr, const char *vdb, const gi_probe_volume *v, const gi_exr_attr *attrs,
                         size_t num_attrs, const char *hash);
 
+/* What a tile's bake did, kept in its checkpoint so that the manifest of a
+ * resumed bake still describes every tile in the outputs (it counted only
+ * the last run's). 64 bytes, no padding: written as they are. */
+typedef struct batch_tile_stats {
+  char run[32];              /* the run that baked it: "YYYYMMDDTHHMMSSZ-PID" (UTC start, process id) */
+  uint32_t outside_level0;   /* its probes outside the finest level */
+  uint32_t fx_ran;           /* bit e: effect e ran in its cascade */
+  uint64_t cascade_bytes;
+  double bake_ms, gather_ms;
+} batch_tile_stats;
+
 /* Tile checkpoints in a --resume folder. ckpt_load: 1 loaded (into probes[]
- * and valid[] by point index), 0 absent, -1 unusable (why in msg). */
-int ckpt_load(const char *dir, size_t tile, const char *hash, size_t n, gi_probe *probes, char *msg, size_t msgsize);
-/* Writes tile's m probes (point indices idx) via a temporary name and a
- * rename, after fsync. 0 or -1 (why in msg). */
-int ckpt_save(const char *dir, size_t tile, const char *hash, const uint32_t *idx, size_t m, const gi_probe *probes,
+ * by point index, and *stats), 0 absent, -1 unusable (why in msg). */
+int ckpt_load(const char *dir, size_t tile, const char *hash, size_t n, gi_probe *probes, batch_tile_stats *stats,
               char *msg, size_t msgsize);
+/* Writes tile's m probes (point indices idx) and its stats via a temporary
+ * name and a rename, after fsync. 0 or -1 (why in msg). */
+int ckpt_save(const char *dir, size_t tile, const char *hash, const uint32_t *idx, size_t m, const gi_probe *probes,
+              const batch_tile_stats *stats, char *msg, size_t msgsize);
 
 /* Removes the tile temporaries "tile-NNNNNNN.bin.tmp.<pid>" in dir that a
  * killed run (kill -9) left, when their process is gone; returns how many. */

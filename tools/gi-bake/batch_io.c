@@ -111,14 +111,16 @@ int batch_write_outputs(const char *exr, const char *vdb, const gi_probe_volume 
   return 0;
 }
 
-#define CKPT_MAGIC "GIBTILE1"
+/* 2: the tile's stats after the header (1 had none). */
+#define CKPT_MAGIC "GIBTILE2"
+#define CKPT_MAGIC_V1 "GIBTILE1"
 
 static void ckpt_path(const char *dir, size_t tile, char *buf, size_t size) {
   snprintf(buf, size, "%s/tile-%07zu.bin", dir, tile);
 }
 
 int ckpt_save(const char *dir, size_t tile, const char *hash, const uint32_t *idx, size_t m, const gi_probe *probes,
-              char *msg, size_t msgsize) {
+              const batch_tile_stats *stats, char *msg, size_t msgsize) {
   char path[4096], tmp[4200];
   ckpt_path(dir, tile, path, sizeof path);
   snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
@@ -134,7 +136,9 @@ int ckpt_save(const char *dir, size_t tile, const char *hash, const uint32_t *id
   uint64_t h = batch_fnv(CKPT_MAGIC, 8, BATCH_FNV_BASIS);
   h = batch_fnv(hash, 16, h);
   h = batch_fnv(head, sizeof head, h);
-  int ok = fwrite(CKPT_MAGIC, 1, 8, f) == 8 && fwrite(hash, 1, 16, f) == 16 && fwrite(head, sizeof head, 1, f) == 1;
+  h = batch_fnv(stats, sizeof *stats, h);
+  int ok = fwrite(CKPT_MAGIC, 1, 8, f) == 8 && fwrite(hash, 1, 16, f) == 16 && fwrite(head, sizeof head, 1, f) == 1 &&
+           fwrite(stats, sizeof *stats, 1, f) == 1;
   for (size_t j = 0; ok && j < m; j++) {
     const gi_probe *p = &probes[idx[j]];
     ok = fwrite(&idx[j], sizeof idx[j], 1, f) == 1 && fwrite(p, sizeof *p, 1, f) == 1;
@@ -178,7 +182,8 @@ static int ckpt_body(FILE *f, uint64_t h, size_t m, size_t n, gi_probe *probes) 
   return fread(&sum, sizeof sum, 1, f) == 1 && sum == h && fgetc(f) == EOF ? 0 : -1;
 }
 
-int ckpt_load(const char *dir, size_t tile, const char *hash, size_t n, gi_probe *probes, char *msg, size_t msgsize) {
+int ckpt_load(const char *dir, size_t tile, const char *hash, size_t n, gi_probe *probes, batch_tile_stats *stats,
+              char *msg, size_t msgsize) {
   char path[4096];
   ckpt_path(dir, tile, path, sizeof path);
   FILE *f = fopen(path, "rb");
@@ -190,8 +195,12 @@ int ckpt_load(const char *dir, size_t tile, const char *hash, size_t n, gi_probe
   char magic[8], fh[16];
   uint32_t head[2];
   int rc = -1;
-  if (fread(magic, 1, 8, f) != 8 || memcmp(magic, CKPT_MAGIC, 8) || fread(fh, 1, 16, f) != 16 ||
-      fread(head, sizeof head, 1, f) != 1 || head[0] != tile) {
+  int got = fread(magic, 1, 8, f) == 8;
+  if (got && !memcmp(magic, CKPT_MAGIC_V1, 8)) {
+    snprintf(msg, msgsize, "'%s' is an older gi-bake's tile checkpoint (no tile record): resume into a new folder",
+             path);
+  } else if (!got || memcmp(magic, CKPT_MAGIC, 8) || fread(fh, 1, 16, f) != 16 ||
+             fread(head, sizeof head, 1, f) != 1 || head[0] != tile) {
     snprintf(msg, msgsize, "'%s' is not a gi-bake tile checkpoint", path);
   } else if (memcmp(fh, hash, 16)) {
     snprintf(msg, msgsize, "'%s' belongs to a different bake (hash %.16s, this bake %.16s)", path, fh, hash);
@@ -199,7 +208,10 @@ int ckpt_load(const char *dir, size_t tile, const char *hash, size_t n, gi_probe
     uint64_t h = batch_fnv(CKPT_MAGIC, 8, BATCH_FNV_BASIS);
     h = batch_fnv(fh, 16, h);
     h = batch_fnv(head, sizeof head, h);
-    rc = ckpt_body(f, h, head[1], n, probes) == 0 ? 1 : -1;
+    int ok = fread(stats, sizeof *stats, 1, f) == 1;
+    h = batch_fnv(stats, sizeof *stats, h);
+    stats->run[sizeof stats->run - 1] = 0;
+    rc = ok && ckpt_body(f, h, head[1], n, probes) == 0 ? 1 : -1;
     if (rc < 0) snprintf(msg, msgsize, "'%s' is damaged (short or checksum mismatch)", path);
   }
   fclose(f);

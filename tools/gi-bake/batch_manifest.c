@@ -151,22 +151,83 @@ static json_t *manifest_grid(const batch_state *st) {
                                             : json_null());
 }
 
+static const char *const SOURCE_NAMES[] = {"none", "baked", "resumed", "empty"};
+
+static size_t tile_probes(const batch_state *st, size_t t) { return st->tile_start[t + 1] - st->tile_start[t]; }
+
+/* One record per tile in the outputs: where its answers came from, the run
+ * that baked them (a resumed tile's is an earlier run's) and what its bake
+ * did (kept in its checkpoint). */
+static json_t *tile_record(const batch_state *st, size_t t) {
+  const batch_tile_stats *ts = &st->tile_stats[t];
+  json_t *fx = json_array();
+  for (int e = 0; e < GI_FX_COUNT; e++)
+    if (ts->fx_ran >> e & 1u) json_array_append_new(fx, json_string(gi_effect_name(e)));
+  return json_pack("{s:I,s:I,s:s,s:s,s:I,s:o,s:f,s:f,s:f}", "tile", (json_int_t)t, "probes",
+                   (json_int_t)tile_probes(st, t), "source", SOURCE_NAMES[st->tile_source[t]], "run", ts->run,
+                   "outside_level0", (json_int_t)ts->outside_level0, "effects_ran", fx, "cascade_mb",
+                   ts->cascade_bytes / 1048576.0, "bake_ms", ts->bake_ms, "gather_ms", ts->gather_ms);
+}
+
+/* Tiles and probes per run, in the order the runs first appear. */
+static json_t *tile_runs(const batch_state *st, json_t *records) {
+  json_t *runs = json_array(), *by = json_object();
+  size_t i;
+  json_t *r;
+  json_array_foreach(records, i, r) {
+    const char *id = json_string_value(json_object_get(r, "run"));
+    json_t *e = json_object_get(by, id);
+    if (!e) {
+      e = json_pack("{s:s,s:b,s:I,s:I}", "run", id, "this_run", !strcmp(id, st->run), "tiles", (json_int_t)0,
+                    "probes", (json_int_t)0);
+      json_object_set_new(by, id, e);
+      json_array_append(runs, e);
+    }
+    json_object_set_new(e, "tiles", json_integer(json_integer_value(json_object_get(e, "tiles")) + 1));
+    json_object_set_new(e, "probes", json_integer(json_integer_value(json_object_get(e, "probes")) +
+                                                  json_integer_value(json_object_get(r, "probes"))));
+  }
+  json_decref(by);
+  return runs;
+}
+
+/* baked, resumed and empty are this run's counts (as its progress lines);
+ * the probe totals, probes_outside_level0, runs and records describe
+ * every tile in the outputs, whichever run baked it. */
 static json_t *manifest_tiles(const batch_state *st) {
   const cli_batch *b = &st->o->batch;
   json_t *shard = b->have_shard ? json_pack("{s:i,s:i}", "index", b->shard_i, "count", b->shard_n) : json_null();
-  return json_pack("{s:o,s:o,s:I,s:o,s:I,s:I,s:I,s:I,s:I,s:I}", "size", ints3(st->L.tile), "grid",
-                   ints3(st->L.ntiles), "count", (json_int_t)st->L.tiles, "shard", shard, "owned",
-                   (json_int_t)st->tiles_owned, "baked", (json_int_t)st->tiles_baked, "resumed",
-                   (json_int_t)st->tiles_resumed, "empty", (json_int_t)st->tiles_empty, "probes_owned",
-                   (json_int_t)st->probes_owned, "probes_outside_level0", (json_int_t)st->outside_level0);
+  json_t *records = json_array();
+  size_t outside = 0, resumed = 0, done = 0;
+  for (size_t t = 0; t < st->L.tiles; t++) {
+    if (!st->tile_source[t]) continue;
+    json_array_append_new(records, tile_record(st, t));
+    outside += st->tile_stats[t].outside_level0;
+    done += tile_probes(st, t);
+    if (st->tile_source[t] == TILE_RESUMED) resumed += tile_probes(st, t);
+  }
+  json_t *j = json_pack("{s:o,s:o,s:I,s:o,s:I,s:I,s:I,s:I,s:I,s:I}", "size", ints3(st->L.tile), "grid",
+                        ints3(st->L.ntiles), "count", (json_int_t)st->L.tiles, "shard", shard, "owned",
+                        (json_int_t)st->tiles_owned, "baked", (json_int_t)st->tiles_baked, "resumed",
+                        (json_int_t)st->tiles_resumed, "empty", (json_int_t)st->tiles_empty, "probes_owned",
+                        (json_int_t)st->probes_owned, "probes_outside_level0", (json_int_t)outside);
+  json_object_set_new(j, "probes_done", json_integer((json_int_t)done));
+  json_object_set_new(j, "probes_baked", json_integer((json_int_t)st->probes_baked));
+  json_object_set_new(j, "probes_resumed", json_integer((json_int_t)resumed));
+  json_object_set_new(j, "runs", tile_runs(st, records));
+  json_object_set_new(j, "records", records);
+  return j;
 }
 
+/* tiles_ran: the tiles in the outputs whose cascade ran the effect. */
 static json_t *manifest_effects(const batch_state *st) {
   json_t *fx = json_object();
-  for (int i = 0; i < GI_FX_COUNT; i++)
+  for (int i = 0; i < GI_FX_COUNT; i++) {
+    json_int_t ran = 0;
+    for (size_t t = 0; t < st->L.tiles; t++) ran += st->tile_source[t] && (st->tile_stats[t].fx_ran >> i & 1u);
     json_object_set_new(fx, gi_effect_name(i),
-                        json_pack("{s:b,s:s,s:i}", "ran", st->plan[i].ran, "why", st->plan[i].why, "tiles_ran",
-                                  st->fx_ran[i]));
+                        json_pack("{s:b,s:s,s:I}", "ran", st->plan[i].ran, "why", st->plan[i].why, "tiles_ran", ran));
+  }
   return fx;
 }
 
@@ -175,8 +236,9 @@ static json_t *manifest_json(const batch_state *st) {
   struct rusage ru;
   getrusage(RUSAGE_SELF, &ru);
   double secs = st->bake_ms + st->gather_ms > 0 ? (st->bake_ms + st->gather_ms) / 1e3 : 0;
-  json_t *m = json_pack("{s:s,s:s,s:s,s:{s:s,s:s}}", "kind", "gi-bake probe grid", "bake_hash", st->hash, "version",
-                        st->version, "scene", "name", gi_scene_name(st->scene), "path", st->o->scene);
+  json_t *m = json_pack("{s:s,s:s,s:s,s:s,s:{s:s,s:s}}", "kind", "gi-bake probe grid", "bake_hash", st->hash,
+                        "run", st->run, "version", st->version, "scene", "name", gi_scene_name(st->scene), "path",
+                        st->o->scene);
   json_object_set_new(m, "grid", manifest_grid(st));
   json_object_set_new(m, "tiles", manifest_tiles(st));
   json_object_set_new(m, "quality", json_pack("{s:i,s:i,s:f,s:i,s:i,s:i,s:i,s:b,s:s}", "levels", q->levels, "res",

@@ -9,6 +9,8 @@
 /* The finest level spans this many tiles, so a tile's probes sit well inside it. */
 #define TILE_SPAN_RATIO 2.0
 
+enum { TILE_BAKED = 1, TILE_RESUMED, TILE_EMPTY };
+
 typedef struct batch_state {
   const cli_opts *o;
   const gi_scene *scene;
@@ -26,11 +28,15 @@ typedef struct batch_state {
   gi_effect plan[GI_FX_COUNT];
   int shared_bounces;        /* q's bounce count is the tiles' shared one (batch.c) */
   int tty;
-  /* What happened. */
+  char run[32];              /* this run's name (batch_tile_stats.run) */
+  /* Per tile (owned ones filled): what its bake did, and where its answers
+   * came from (0 not this shard's, else a TILE_* source). */
+  batch_tile_stats *tile_stats;
+  uint8_t *tile_source;
+  /* What happened (this run: baked; the outputs: done, resumed). */
   size_t tiles_owned, tiles_baked, tiles_resumed, tiles_empty;
-  size_t probes_owned, probes_done, probes_baked, outside_level0;
+  size_t probes_owned, probes_done, probes_baked;
   size_t peak_cascade_bytes;
-  int fx_ran[GI_FX_COUNT];
   double load_ms, plan_ms, bake_ms, gather_ms, write_ms, total_ms, loop_start_ms;
 } batch_state;
 
