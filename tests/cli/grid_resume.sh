@@ -1,9 +1,12 @@
 # grid_resume.sh: a resumed --grid bake's manifest describes the whole
-# outputs.
+# outputs, and an absurd grid is refused at once.
 # The manifest of a bake stopped part way and resumed counted only the last
 # run's tiles (effects' tiles_ran 5 of 8, no record of the 3 resumed ones):
 # now its totals equal an uninterrupted bake's, and one record per tile
-# names the run that baked it and matches the EXR's valid probes.
+# names the run that baked it and matches the EXR's valid probes. A grid of
+# 1.38M tiles was planned silently for 43 s before its first progress line
+# (ETA 9.5 days): more tiles than --max-tiles (default 100000) exit 2 naming
+# the flag, the count and the limit, before the grid is built.
 . "$(dirname "$0")/common.sh"
 make_box_scene
 BOXQ="--grid 0.5 --voxel 1 --res 8 --levels 2 --bounces 1 --cones 4 --samples 1 --probe-samples 4 --threads 1"
@@ -67,4 +70,21 @@ for t, x in recs.items():
     assert (x["effects_ran"], x["outside_level0"]) == (f["effects_ran"], f["outside_level0"]), (x, f)
 PY
 
+# An absurd grid (201^3 points in tiles of 2^3: 1030301 tiles): refused at
+# once, naming the flag, the count and the limit, with nothing written.
+start=$(date +%s)
+timeout 20 "$BIN" "$T/box.obj" --grid 0.02 --voxel 0.01 --res 8 --threads 1 --exr "$T/big.exr" \
+  > /dev/null 2> "$T/big.err"
+rc=$?
+took=$(($(date +%s) - start))
+[ $rc -eq 2 ] && grep -q -- "--max-tiles: the grid needs 1030301 tiles .* more than the limit 100000" "$T/big.err" \
+  && [ $took -le 3 ] && [ ! -e "$T/big.exr" ] && pass "1030301 tiles refused in ${took} s: exit 2 naming --max-tiles" \
+  || fail "absurd grid: rc $rc after ${took} s: $(head -c 300 "$T/big.err")"
+# The limit is the flag's: 8 tiles bake under --max-tiles 8, not under 7.
+"$BIN" "$T/box.obj" $BOXQ --max-tiles 7 --exr "$T/m7.exr" > /dev/null 2> "$T/m7.err"; rc=$?
+want="--max-tiles: the grid needs 8 tiles (9 x 9 x 9 points in tiles of 8 x 8 x 8), more than the limit 7"
+[ $rc -eq 2 ] && grep -qF -- "$want" "$T/m7.err" && [ ! -e "$T/m7.exr" ] && pass "--max-tiles 7: 8 tiles refused" \
+  || fail "--max-tiles 7: rc $rc $(cat "$T/m7.err")"
+"$BIN" "$T/box.obj" $BOXQ --max-tiles 8 --exr "$T/m8.exr" > /dev/null 2> "$T/m8.err"; rc=$?
+[ $rc -eq 0 ] && cmp -s "$T/m8.exr" "$T/full.exr" && pass "--max-tiles 8: baked" || fail "--max-tiles 8: rc $rc"
 finish

@@ -6,7 +6,7 @@ out=$("$BIN" --help); rc=$?
 for opt in --at --up --levels --res --voxel --cones --bounces --samples --probe-samples --threads \
            --exr --half --vdb --vdb-faces --json --probes --sun --sky --point --spot --no-default-lights \
            --ao --effect --render --png --render-samples --render-stride --city-extent --city-seed --city-detail --help --version \
-           --grid --region --above-ground --shard --resume --manifest --lightmap --uv-out --texel --atlas --tile --own-charts; do
+           --grid --region --above-ground --shard --resume --manifest --max-tiles --lightmap --uv-out --texel --atlas --tile --own-charts; do
   printf '%s\n' "$out" | grep -q -e "$opt\\b" || fail "--help does not mention $opt"
 done
 printf '%s\n' "$out" | grep -q "Examples" || fail "--help has no examples"

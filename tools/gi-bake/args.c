@@ -431,6 +431,7 @@ static int apply_option(cli_opts *o, int c, const char *arg, char **argv) {
     return ta_int(&ta, "--render-stride", NULL, arg, 1, GI_RENDER_MAX_STRIDE, &o->render_stride);
   case OPT_CITY_EXTENT: case OPT_CITY_SEED: case OPT_CITY_DETAIL: return city_option(o, c, arg);
   case OPT_GRID: case OPT_REGION: case OPT_ABOVE_GROUND: case OPT_SHARD: case OPT_RESUME: case OPT_MANIFEST:
+  case OPT_MAX_TILES:
     return batch_option(&ta, &o->batch, c, arg);
   case LM_OPT_OUT: case LM_OPT_UV_OUT: case LM_OPT_TEXEL: case LM_OPT_ATLAS: case LM_OPT_TILE: case LM_OPT_OWN_CHARTS:
     return lightmap_option(o, c, arg);

@@ -10,6 +10,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,22 +25,106 @@ double batch_now_ms(void) {
   return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
 }
 
+/* Prints "gi-bake: planning ..." every TICK_S while a stage that cannot
+ * report its own progress runs (the street-level grid: a few rays per
+ * column, about 5 us each, 75 s for 2^24 columns). */
+#define TICK_S 5
+typedef struct ticker {
+  pthread_t th;
+  pthread_mutex_t mu;
+  pthread_cond_t cv;
+  int stop, started;
+  const char *what;
+  double t0;
+} ticker;
+
+static void *tick_main(void *arg) {
+  ticker *tk = arg;
+  pthread_mutex_lock(&tk->mu);
+  while (!tk->stop) {
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    ts.tv_sec += TICK_S;
+    if (pthread_cond_timedwait(&tk->cv, &tk->mu, &ts) != 0 && !tk->stop)
+      fprintf(stderr, "gi-bake: planning stage=%s elapsed_s=%.0f\n", tk->what, (batch_now_ms() - tk->t0) / 1e3);
+  }
+  pthread_mutex_unlock(&tk->mu);
+  return NULL;
+}
+
+static void tick_start(ticker *tk, const char *what) {
+  memset(tk, 0, sizeof *tk);
+  tk->what = what;
+  tk->t0 = batch_now_ms();
+  pthread_mutex_init(&tk->mu, NULL);
+  pthread_cond_init(&tk->cv, NULL);
+  tk->started = pthread_create(&tk->th, NULL, tick_main, tk) == 0;
+}
+
+static void tick_stop(ticker *tk) {
+  if (tk->started) {
+    pthread_mutex_lock(&tk->mu);
+    tk->stop = 1;
+    pthread_cond_signal(&tk->cv);
+    pthread_mutex_unlock(&tk->mu);
+    pthread_join(tk->th, NULL);
+  }
+  pthread_mutex_destroy(&tk->mu);
+  pthread_cond_destroy(&tk->cv);
+}
+
+static void grid_spec(const cli_batch *b, gi_grid_spec *spec) {
+  *spec = (gi_grid_spec){.spacing = b->grid, .have_region = b->have_region, .above_ground = b->above};
+  for (int a = 0; a < 3; a++) spec->lo[a] = b->region[a], spec->hi[a] = b->region[3 + a];
+}
+
+/* The message for a grid the core refused. */
+static int grid_error(const cli_batch *b, gi_result r, const gi_error_info *err) {
+  const char *opt = r == GI_ERR_LIMIT ? "--grid" : r == GI_ERR_INVALID_ARG && b->have_region ? "--region" : "--grid";
+  fprintf(stderr, "gi-bake: %s: %s\n", opt, err->msg[0] ? err->msg : gi_strerror(r));
+  return r == GI_ERR_NOMEM ? EXIT_RUN : EXIT_USAGE;
+}
+
+/* The grid's counts only (no ray, no allocation), so the tiles can be
+ * counted and a huge grid refused before any work. */
+static int size_grid(const cli_opts *o, const gi_scene *scene, gi_probe_grid *g) {
+  gi_grid_spec spec;
+  grid_spec(&o->batch, &spec);
+  gi_error_info err = {0};
+  gi_result r = gi_probe_grid_size(scene, &spec, g, &err);
+  return r == GI_OK ? 0 : grid_error(&o->batch, r, &err);
+}
+
 /* The grid; a region outside the scene or too many probes is a usage error. */
 static int make_grid(const cli_opts *o, const gi_scene *scene, gi_probe_grid *g) {
   const cli_batch *b = &o->batch;
-  gi_grid_spec spec = {.spacing = b->grid, .have_region = b->have_region, .above_ground = b->above};
-  for (int a = 0; a < 3; a++) spec.lo[a] = b->region[a], spec.hi[a] = b->region[3 + a];
+  gi_grid_spec spec;
+  grid_spec(b, &spec);
   gi_error_info err = {0};
+  ticker tk;
+  tick_start(&tk, b->above > 0 ? "ground" : "grid");
   gi_result r = gi_probe_grid_build(scene, &spec, g, &err);
+  tick_stop(&tk);
   if (r == GI_OK && g->num_valid == 0) {
     fprintf(stderr, "gi-bake: --grid: no probe left: %zu columns without ground, %zu inside buildings\n",
             g->num_no_ground, g->num_inside);
     return EXIT_RUN;
   }
-  if (r == GI_OK) return 0;
-  const char *opt = r == GI_ERR_LIMIT ? "--grid" : r == GI_ERR_INVALID_ARG && b->have_region ? "--region" : "--grid";
-  fprintf(stderr, "gi-bake: %s: %s\n", opt, err.msg[0] ? err.msg : gi_strerror(r));
-  return r == GI_ERR_NOMEM ? EXIT_RUN : EXIT_USAGE;
+  return r == GI_OK ? 0 : grid_error(b, r, &err);
+}
+
+/* More tiles than --max-tiles (default BATCH_MAX_TILES): a usage error,
+ * said at once, before the grid is built or any tile planned. */
+static int check_tiles(const batch_state *st) {
+  const cli_batch *b = &st->o->batch;
+  long long limit = b->max_tiles > 0 ? b->max_tiles : BATCH_MAX_TILES;
+  const batch_layout *L = &st->L;
+  if ((long long)L->tiles <= limit) return 0;
+  fprintf(stderr, "gi-bake: --max-tiles: the grid needs %zu tiles (%d x %d x %d points in tiles of %d x %d x %d), "
+                  "more than the limit %lld; raise --max-tiles to bake it, or use a coarser --grid, a larger "
+                  "--voxel or --res, or a smaller --region\n",
+          L->tiles, L->counts[0], L->counts[1], L->counts[2], L->tile[0], L->tile[1], L->tile[2], limit);
+  return EXIT_USAGE;
 }
 
 /* Resolved quality (finest voxel = spacing unless --voxel) and the tiles. */
@@ -142,7 +227,15 @@ static size_t tile_points(batch_state *st, size_t t, double at[3]) {
 static int shared_bounces(batch_state *st) {
   if (st->q.bounces != 0) return 0;
   int most = 0, tail = 0;
+  double t0 = batch_now_ms(), next = t0 + 1e3 * TICK_S;
   for (size_t t = 0; t < st->L.tiles; t++) {
+    double now = batch_now_ms();
+    if (now >= next) { /* about 1.3 ms a tile: 100000 tiles take minutes */
+      double eta = t ? (now - t0) / 1e3 * (double)(st->L.tiles - t) / (double)t : -1;
+      fprintf(stderr, "gi-bake: planning stage=bounces tile=%zu/%zu elapsed_s=%.0f eta_s=%.0f\n", t, st->L.tiles,
+              (now - t0) / 1e3, eta);
+      next = now + 1e3 * TICK_S;
+    }
     if (st->tile_start[t] == st->tile_start[t + 1]) continue;
     double at[3];
     size_t m = tile_points(st, t, at);
@@ -285,8 +378,13 @@ int batch_run(const cli_opts *o, const gi_scene *scene, double load_ms) {
   st.tty = isatty(STDERR_FILENO);
   name_run(st.run, sizeof st.run);
   double t0 = batch_now_ms();
-  int rc = make_grid(o, scene, &st.grid);
+  int rc = size_grid(o, scene, &st.grid);
   if (!rc) rc = plan_tiles(&st);
+  if (!rc) rc = check_tiles(&st);
+  if (!rc) {
+    gi_probe_grid_free(&st.grid);
+    rc = make_grid(o, scene, &st.grid);
+  }
   if (!rc) rc = alloc_state(&st);
   if (!rc) rc = shared_bounces(&st);
   if (!rc) rc = batch_identify(&st);

@@ -47,6 +47,7 @@ int batch_option(ta_ctx *ta, cli_batch *b, int c, const char *arg) {
     if (!arg[0]) return ta_fail(ta, "--resume", "expected a folder, got ''");
     b->resume = arg;
     return 0;
+  case OPT_MAX_TILES: return ta_ll(ta, "--max-tiles", "a tile count >= 1", arg, 1, 1LL << 40, &b->max_tiles);
   default: b->manifest = arg; return 0;
   }
 }
@@ -60,6 +61,7 @@ int batch_check(ta_ctx *ta, cli_opts *o) {
     if (b->have_shard) return ta_fail(ta, "--shard", "needs --grid");
     if (b->resume) return ta_fail(ta, "--resume", "needs --grid");
     if (b->manifest) return ta_fail(ta, "--manifest", "needs --grid");
+    if (b->max_tiles) return ta_fail(ta, "--max-tiles", "needs --grid");
     return 0;
   }
   if (o->render) return ta_fail(ta, "--grid", "cannot be combined with --render");

@@ -64,6 +64,13 @@ typedef struct gi_probe_grid {
  * GI_GRID_MAX_POINTS points), GI_ERR_NOMEM. Deterministic; thread-safe. */
 gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
                               gi_error_info *err);
+/* The grid's size without building it: counts, origin, spacing, up_axis,
+ * above_ground and n as gi_probe_grid_build gives them (num_valid = n),
+ * pos and state NULL; no ray is cast and nothing is allocated, so a caller
+ * can refuse a huge grid at once. The same errors but GI_ERR_NOMEM and the
+ * float-range check. Deterministic; thread-safe. */
+gi_result gi_probe_grid_size(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
+                             gi_error_info *err);
 void gi_probe_grid_free(gi_probe_grid *g); /* accepts a zeroed grid */
 
 /* A grid's answers, ready to write: probes[i] is used where valid[i] is 1. */

@@ -235,9 +235,9 @@ static gi_result region_of(const gi_scene *scene, const gi_grid_spec *spec, doub
   return GI_OK;
 }
 
-/* Counts and allocation; the lattice positions (street level: up = floor). */
-static gi_result lay_out(const gi_grid_spec *spec, int u, const double lo[3], const double hi[3], gi_probe_grid *g,
-                         gi_error_info *err) {
+/* Counts, origin and n, nothing allocated. */
+static gi_result count_points(const gi_grid_spec *spec, int u, const double lo[3], const double hi[3],
+                              gi_probe_grid *g, gi_error_info *err) {
   double total = 1;
   for (int a = 0; a < 3; a++) {
     /* A point on the region's far face counts, whatever the rounding of
@@ -253,6 +253,14 @@ static gi_result lay_out(const gi_grid_spec *spec, int u, const double lo[3], co
     g->origin[a] = lo[a];
   }
   g->n = (size_t)total;
+  return GI_OK;
+}
+
+/* Counts and allocation; the lattice positions (street level: up = floor). */
+static gi_result lay_out(const gi_grid_spec *spec, int u, const double lo[3], const double hi[3], gi_probe_grid *g,
+                         gi_error_info *err) {
+  gi_result rc = count_points(spec, u, lo, hi, g, err);
+  if (rc != GI_OK) return rc;
   g->pos = gi__malloc(g->n * 3 * sizeof(double));
   g->state = gi__malloc(g->n);
   if (!g->pos || !g->state) return gi__fail(err, GI_ERR_NOMEM, "probe grid: out of memory for %zu probes", g->n);
@@ -302,8 +310,9 @@ static void place_above_ground(const gi_scene *scene, const gi_grid_spec *spec, 
   gi__free(c.tris);
 }
 
-gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
-                              gi_error_info *err) {
+/* The checks both entry points make; the region into lo, hi and the layout's fields into out. */
+static gi_result grid_start(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out, double lo[3],
+                            double hi[3], gi_error_info *err) {
   if (!out) return gi__fail(err, GI_ERR_INVALID_ARG, "probe grid: out is NULL");
   memset(out, 0, sizeof *out);
   if (!scene || !spec)
@@ -313,12 +322,29 @@ gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, g
   if (!(spec->above_ground >= 0) || !isfinite(spec->above_ground))
     return gi__fail(err, GI_ERR_INVALID_ARG, "height above ground must be finite and >= 0, got %g",
                     spec->above_ground);
-  double lo[3], hi[3];
   gi_result rc = region_of(scene, spec, lo, hi, err);
   if (rc != GI_OK) return rc;
   out->spacing = spec->spacing;
   out->above_ground = spec->above_ground;
   out->up_axis = gi_scene_up(scene) == GI_UP_Z ? 2 : 1;
+  return GI_OK;
+}
+
+gi_result gi_probe_grid_size(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
+                             gi_error_info *err) {
+  double lo[3], hi[3];
+  gi_result rc = grid_start(scene, spec, out, lo, hi, err);
+  if (rc == GI_OK) rc = count_points(spec, out->up_axis, lo, hi, out, err);
+  if (rc != GI_OK) gi_probe_grid_free(out);
+  else out->num_valid = out->n; /* before street level drops any */
+  return rc;
+}
+
+gi_result gi_probe_grid_build(const gi_scene *scene, const gi_grid_spec *spec, gi_probe_grid *out,
+                              gi_error_info *err) {
+  double lo[3], hi[3];
+  gi_result rc = grid_start(scene, spec, out, lo, hi, err);
+  if (rc != GI_OK) return rc;
   if ((rc = lay_out(spec, out->up_axis, lo, hi, out, err)) != GI_OK) {
     gi_probe_grid_free(out);
     return rc;
