@@ -194,6 +194,8 @@ gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const g
   gi__cascade_place(c);
   c->plan_q = q;
   c->auto_bounces = !qin || qin->bounces == 0;
+  if (qin) c->req_q = *qin;
+  c->req_default = !qin;
   int tail;
   c->answer_pts = pts, c->num_answer_pts = pts ? npts : 0;
   rc = gi__plan_effects(c, &q, !qin || qin->bounces == 0, &c->report, &tail, err);

@@ -808,10 +808,17 @@ static void test_prepare(void **state) {
 
 /* A move a client stopped: a far move (every level rebuilt, a cold bake's
  * work) with a fired token returns GI_ERR_CANCELLED, saying so; a small
- * one too. The cascade is then partial: every later call on it is refused
- * saying so (a gather and a retried move returned GI_OK with wrong light,
- * 0.17x a cold bake's indirect light, found by a helper session's probes)
- * until it is freed. */
+ * one too. The cascade is then partial (placement at the new viewpoint,
+ * some levels scrolled, the light stale): every call that reads it is
+ * refused saying so (a gather and a retried move returned GI_OK with wrong
+ * light, 0.17x a cold bake's indirect light, found by a helper session's
+ * probes), gi_cascade_move_prepare too (it said GI_OK), covers answers 0,
+ * the refresh period 0 and the view plan every effect off (they read the
+ * torn placement, cycle and plan). The
+ * next move re-bakes it whole: it then equals a cold bake at that
+ * viewpoint (geometry bit for bit, every face within FACE_REL_TOL, the
+ * probe equal) and moves on as any cascade; a re-bake cancelled in turn
+ * leaves it partial again. */
 static void test_cancelled_move(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
   gi_scene *s = city(&cp);
@@ -822,6 +829,7 @@ static void test_cancelled_move(void **state) {
   gi_cancel_set(stop);
   for (int far = 0; far < 2; far++) {
     gi_cascade *c = bake(s, at);
+    assert_int_equal(gi_cascade_move_prepare(c, NULL), GI_OK);
     double to[3] = {at[0] + (far ? 120.0 : 2.5 * c->s0), at[1], at[2] + (far ? 90.0 : 0.0)};
     gi_error_info err = {0};
     gi_result rc = gi_cascade_move_ex(c, to, stop, NULL, NULL, &err);
@@ -835,15 +843,95 @@ static void test_cancelled_move(void **state) {
     gi_error_info e2 = {0};
     assert_int_equal(gi_cascade_gather(c, pts, 1, &pr, NULL, &e2), GI_ERR_INVALID_ARG);
     assert_non_null(strstr(e2.msg, "gather: the cascade is partial"));
-    assert_int_equal(gi_cascade_move(c, to, NULL, NULL, &e2), GI_ERR_INVALID_ARG);
-    assert_non_null(strstr(e2.msg, "move: the cascade is partial"));
+    assert_non_null(strstr(e2.msg, "move it again"));
     assert_int_equal(gi_cascade_render(c, &cam, 1, 1, rgb, NULL, &e2), GI_ERR_INVALID_ARG);
     float dir[2 * 1 * 3], ind[2 * 1 * 3];
     assert_int_equal(gi_cascade_panorama(c, to, 2, 1, dir, ind, NULL, &e2), GI_ERR_INVALID_ARG);
     assert_int_equal(gi_cascade_write_vdb(c, "unused.vdb", 0, &e2), GI_ERR_INVALID_ARG);
+    e2.msg[0] = 0;
+    rc = gi_cascade_move_prepare(c, &e2);
+    printf("prepare after it -> %s: %s\n", gi_err_name(rc), e2.msg);
+    assert_int_equal(rc, GI_ERR_INVALID_ARG);
+    assert_non_null(strstr(e2.msg, "prepare: the cascade is partial"));
+    assert_int_equal(gi_cascade_covers(c, to), 0);
+    assert_int_equal(gi_cascade_covers(c, at), 0);
+    assert_int_equal(gi_cascade_refresh_period(c, 0), 0);
+    gi_effect fx[GI_FX_COUNT];
+    gi_cascade_view_plan(c, fx);
+    for (int i = 0; i < GI_FX_COUNT; i++) assert_false(fx[i].ran);
+    assert_non_null(strstr(fx[GI_FX_BOUNCE].why, "partial"));
+    /* A re-bake stopped in turn: still partial, still refused. */
+    assert_int_equal(gi_cascade_move_ex(c, to, stop, NULL, NULL, &e2), GI_ERR_CANCELLED);
+    assert_int_equal(gi_cascade_gather(c, pts, 1, &pr, NULL, &e2), GI_ERR_INVALID_ARG);
+    /* The next move re-bakes: a cold bake at that viewpoint. */
+    double next[3] = {to[0] + 1.5 * c->s0, to[1], to[2]};
+    gi_move_info mi;
+    gi_bake_report r;
+    rc = gi_cascade_move(c, next, &r, &mi, &e2);
+    printf("move after it -> %s: %s\n", gi_err_name(rc), rc == GI_OK ? "" : e2.msg);
+    assert_int_equal(rc, GI_OK);
+    assert_true(mi.cycle_closed);
+    assert_int_equal(mi.move, 3);
+    for (int d = 0; d < c->n; d++) assert_true(mi.rebuilt[d] && mi.refreshed[d]);
+    assert_int_equal(r.cascade_bytes, gi_cascade_bytes(c));
+    gi_cascade *b = bake(s, next);
+    assert_same_geometry(c, b);
+    double mean, worst;
+    compare_light(c, b, 1, &mean, &worst);
+    gi_probe pm, pb;
+    assert_int_equal(gi_cascade_gather(c, next, 1, &pm, NULL, &e2), GI_OK);
+    assert_int_equal(gi_cascade_gather(b, next, 1, &pb, NULL, &e2), GI_OK);
+    printf("re-baked: light against a cold bake: mean %.3g max %.3g; probe %.6g vs %.6g\n", mean, worst,
+           pm.irradiance[1], pb.irradiance[1]);
+    for (int k = 0; k < 3; k++)
+      assert_true(fabsf(pm.irradiance[k] - pb.irradiance[k]) <= FACE_REL_TOL * pb.irradiance[k]);
+    assert_true(gi_cascade_covers(c, next));
+    /* And it moves on as a baked cascade does. */
+    double on[3] = {next[0] + 2.5 * c->s0, next[1], next[2]};
+    assert_int_equal(gi_cascade_move(c, on, NULL, &mi, &e2), GI_OK);
+    assert_int_equal(gi_cascade_move_prepare(c, &e2), GI_OK);
+    gi_cascade_free(b);
     gi_cascade_free(c);
   }
   gi_cancel_free(stop);
+  gi_scene_release(s);
+}
+
+/* A move that ran out of memory part way is partial as a cancelled one:
+ * refused, then re-baked by the next move (equal to a cold bake there). */
+static void test_failed_move(void **state) {
+  gi_city_params cp = {.seed = 3, .extent = 300};
+  gi_scene *s = city(&cp);
+  double at[3];
+  gi_city_default_viewpoint(&cp, at);
+  for (long n = 0; n < 12; n += 5) {
+    gi_cascade *c = bake(s, at);
+    assert_int_equal(gi_cascade_move_prepare(c, NULL), GI_OK);
+    double to[3] = {at[0] + 2.5 * c->s0, at[1], at[2]};
+    gi_error_info err = {0};
+    gi__alloc_fail_after(n);
+    gi_result rc = gi_cascade_move(c, to, NULL, NULL, &err);
+    int hit = !gi__alloc_fail_armed();
+    gi__alloc_fail_after(-1);
+    printf("move failing allocation %ld -> %s: %s\n", n, gi_err_name(rc), err.msg);
+    assert_true(hit);
+    assert_int_equal(rc, GI_ERR_NOMEM);
+    gi_probe pm, pb;
+    assert_int_equal(gi_cascade_gather(c, to, 1, &pm, NULL, &err), GI_ERR_INVALID_ARG);
+    assert_int_equal(gi_cascade_move_prepare(c, &err), GI_ERR_INVALID_ARG);
+    gi_move_info mi;
+    assert_int_equal(gi_cascade_move(c, to, NULL, &mi, &err), GI_OK);
+    assert_true(mi.cycle_closed);
+    gi_cascade *b = bake(s, to);
+    assert_same_geometry(c, b);
+    double mean, worst;
+    compare_light(c, b, 1, &mean, &worst);
+    assert_int_equal(gi_cascade_gather(c, to, 1, &pm, NULL, &err), GI_OK);
+    assert_int_equal(gi_cascade_gather(b, to, 1, &pb, NULL, &err), GI_OK);
+    assert_memory_equal(pm.irradiance, pb.irradiance, sizeof pm.irradiance);
+    gi_cascade_free(b);
+    gi_cascade_free(c);
+  }
   gi_scene_release(s);
 }
 
@@ -952,6 +1040,7 @@ int main(void) {
       cmocka_unit_test(test_deterministic),
       cmocka_unit_test(test_prepare),
       cmocka_unit_test(test_cancelled_move),
+      cmocka_unit_test(test_failed_move),
       cmocka_unit_test(test_relit),
       cmocka_unit_test(test_walk),
       cmocka_unit_test(test_walk_scenes),

@@ -1,17 +1,28 @@
 /* gi_move.h: move a baked cascade to a new viewpoint.
  *
  * Ownership and threads: the caller owns the cascade; a move writes it, so
- * no reader may run during a move. On error the cascade is left partial
- * and must be freed: every later call on it (gather, panorama, render,
- * VDB, move) refuses it with GI_ERR_INVALID_ARG saying so. A move refused
- * before it starts (a bad viewpoint, no memory for its state) leaves the
- * cascade as it was. The report (gi_cascade.h) describes the move: its
- * level_voxelized, level_injected and level_rebounced (voxels gathered,
- * the live update's and the re-bake slice's, each once a move) and its
- * stage times count only what the move did; gi_cascade_report returns it
- * too. A moved cascade holds the re-bake's texture, its side light and
- * each voxel's last increment beside its own: gi_cascade_bytes counts
- * them, gi_cascade_move_bytes_estimate bounds them.
+ * no reader may run during a move. On error (a failure or a cancel) the
+ * cascade is left partial: its levels are placed at the new viewpoint,
+ * some scrolled and others not, and its plan, light and refresh cycle are
+ * left part way. Every call that would read that refuses it with
+ * GI_ERR_INVALID_ARG saying so (gather, panorama, render, VDB and
+ * gi_cascade_move_prepare); gi_cascade_covers answers 0 and
+ * gi_cascade_refresh_period 0, gi_cascade_view_plan every effect off, and
+ * gi_cascade_report describes the stopped move's work so far. The next
+ * gi_cascade_move bakes it afresh at its viewpoint with the bake's own
+ * quality (a cold bake's work, as a move by every level's extent: info
+ * says every level rebuilt and refreshed, the cycle closed), after which
+ * it equals a cold bake there and moves on as any cascade; a re-bake that
+ * fails or is cancelled in turn leaves it partial. Freeing it is fine too.
+ * A move refused before it starts (a bad viewpoint, no memory for its
+ * state) leaves the cascade as it was. The report (gi_cascade.h)
+ * describes the move: its level_voxelized, level_injected and
+ * level_rebounced (voxels gathered, the live update's and the re-bake
+ * slice's, each once a move) and its stage times count only what the move
+ * did; gi_cascade_report returns it too. A moved cascade holds the
+ * re-bake's texture, its side light and each voxel's last increment beside
+ * its own: gi_cascade_bytes counts them, gi_cascade_move_bytes_estimate
+ * bounds them.
  *
  * The scene is static, so the light field does not change as the viewer
  * moves: the cascade is a window on it. gi_cascade_move therefore
@@ -79,9 +90,10 @@ gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *rep
                           gi_error_info *err);
 /* As gi_cascade_move, checking `cancel` (may be NULL; gi_cancel.h) between
  * chunks of every stage: once it fires the move stops within a chunk's
- * time and returns GI_ERR_CANCELLED; the cascade is then partial and must
- * be freed (a rebuilt level can cost a cold bake: a server must be able to
- * stop it). A token that never fires moves exactly as gi_cascade_move. */
+ * time and returns GI_ERR_CANCELLED; the cascade is then partial (see
+ * above: the next move re-bakes it, or free it; a rebuilt level can cost a
+ * cold bake: a server must be able to stop it). A token that never fires
+ * moves exactly as gi_cascade_move. */
 gi_result gi_cascade_move_ex(gi_cascade *c, const double at[3], const gi_cancel *cancel, gi_bake_report *report,
                              gi_move_info *info, gi_error_info *err);
 /* Allocates what moves need (the re-bake's texture, touched so its pages
@@ -89,7 +101,8 @@ gi_result gi_cascade_move_ex(gi_cascade *c, const double at[3], const gi_cancel 
  * it: a session calls it once after its bake, at creation. Without it the
  * first move does it (6 levels of 32^3: 12 MB, 15-20 ms on the test VM).
  * GI_ERR_NOMEM leaves the cascade as it was. Calling it again, or after a
- * move, does nothing. Not thread-safe with other calls on c. */
+ * move, does nothing. On a partial cascade (see above) GI_ERR_INVALID_ARG,
+ * saying so. Not thread-safe with other calls on c. */
 gi_result gi_cascade_move_prepare(gi_cascade *c, gi_error_info *err);
 /* The most bytes gi_cascade_move adds to a cascade baked with this
  * resolved quality (the re-bake's texture, irradiance and gathers, and

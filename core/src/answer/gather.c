@@ -336,7 +336,8 @@ static void gather_range(void *p, size_t b, size_t e, int worker) {
 }
 
 int gi_cascade_covers(const gi_cascade *c, const double p[3]) {
-  if (!c || !p) return 0;
+  /* A partial cascade's levels are placed at a viewpoint their light is not from. */
+  if (!c || !p || c->torn) return 0;
   float pl[3];
   for (int k = 0; k < 3; k++) {
     if (!isfinite(p[k])) return 0;

@@ -42,6 +42,12 @@ static int spec_mode(const struct gi_cascade *c) {
 
 void gi_cascade_view_plan(const gi_cascade *c, gi_effect out[GI_FX_COUNT]) {
   if (!c || !out) return;
+  if (c->torn) { /* a stopped move may have re-planned part way; a view is refused anyway */
+    memset(out, 0, GI_FX_COUNT * sizeof *out);
+    for (int i = 0; i < GI_FX_COUNT; i++)
+      snprintf(out[i].why, sizeof out[i].why, "the cascade is partial (gi_move.h)");
+    return;
+  }
   memcpy(out, c->report.effects, sizeof c->report.effects);
   gi_effect *e = &out[GI_FX_SPECULAR];
   uint32_t g = c->report.glossy_triangles;

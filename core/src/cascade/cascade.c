@@ -168,7 +168,8 @@ static int64_t cover_scene(const struct gi_cascade *c, int d, int a, int64_t cel
 gi_result gi__cascade_whole(const struct gi_cascade *c, const char *what, gi_error_info *err) {
   if (!c->torn) return GI_OK;
   return gi__fail(err, GI_ERR_INVALID_ARG,
-                  "%s: the cascade is partial: a move failed or was cancelled part way (free it and bake again), "
+                  "%s: the cascade is partial: a move failed or was cancelled part way (move it again, which "
+                  "bakes it afresh at the new viewpoint, or free it), "
                   "or a move is running in another thread (no call may read a cascade while it moves: gi_move.h)",
                   what);
 }

@@ -270,10 +270,15 @@ struct gi_cascade {
    * added (the texture then holds every order) or after no bounce. */
   float last_share[3];
   uint64_t moves;
-  /* 1 while a move runs and after one that failed or was cancelled part
-   * way: the cascade is partial (gi_move.h) and every call refuses it
-   * (gi__cascade_whole) rather than answer with wrong light. */
+  /* GI_TORN_MOVING while a move runs, GI_TORN_LEFT after one that failed
+   * or was cancelled part way: the cascade is partial (gi_move.h) and every
+   * call refuses it (gi__cascade_whole) rather than answer with wrong light,
+   * except a move after a failed one, which bakes it afresh (move.c). */
   int torn;
+  /* The bake's request (req_default: it was NULL), which such a re-bake
+   * repeats so the cascade equals a cold bake made as this one was. */
+  gi_quality req_q;
+  int req_default;
   /* The effect plan's survey of what lies in the coarsest level's range
    * (plan.c), kept while that level's box stays: a move that scrolls only
    * finer levels does not query every triangle in range again (millions
@@ -354,8 +359,10 @@ gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err);
 /* Frees that block and clears the level pointers (a cascade never allocated is fine). */
 void gi__cascade_free_levels(struct gi_cascade *c);
 void gi__cascade_place(struct gi_cascade *c);
+/* gi_cascade.torn */
+enum { GI_TORN_MOVING = 1, GI_TORN_LEFT = 2 };
 /* GI_OK, or GI_ERR_INVALID_ARG naming `what` when c is torn (a move failed
- * or was cancelled part way: gi_move.h says to free it). */
+ * or was cancelled part way: gi_move.h says to move it again or free it). */
 gi_result gi__cascade_whole(const struct gi_cascade *c, const char *what, gi_error_info *err);
 /* filter.c: filters the region of level d covered by level d-1 from level d-1's light
  * (compositing along each axis) and geometry. */

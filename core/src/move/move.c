@@ -417,10 +417,16 @@ typedef struct gi_move_state {
   int arrived;     /* 1 once a move arrived at an anchor (the bake's own anchor's dwell is unknown) */
 } gi_move_state;
 
-uint64_t gi_cascade_refresh_period(const gi_cascade *c, int level) {
-  if (!c || level < 0 || level >= c->n) return 0;
+/* P, read by the move itself too (while the cascade is torn). */
+static uint64_t refresh_period(const struct gi_cascade *c) {
   const struct gi_move_state *m = c->move_state;
   return m && m->period ? m->period : resting_period(c);
+}
+
+uint64_t gi_cascade_refresh_period(const gi_cascade *c, int level) {
+  /* A partial cascade's cycle was restarted part way: no period to tell. */
+  if (!c || c->torn || level < 0 || level >= c->n) return 0;
+  return refresh_period(c);
 }
 
 void gi__move_state_free(struct gi_move_state *m) {
@@ -504,6 +510,8 @@ static gi_result move_state(struct gi_cascade *c, gi_error_info *err) {
 
 gi_result gi_cascade_move_prepare(gi_cascade *c, gi_error_info *err) {
   if (!c) return gi__fail(err, GI_ERR_INVALID_ARG, "move: no cascade");
+  /* Its state exists but was left part way: the next move re-bakes instead. */
+  if (gi__cascade_whole(c, "prepare", err) != GI_OK) return GI_ERR_INVALID_ARG;
   return move_state(c, err);
 }
 
@@ -807,7 +815,7 @@ static gi_result rebake_slice(struct gi_cascade *c, const gi_quality *q, int tai
                               gi_error_info *err) {
   gi_move_state *m = c->move_state;
   if (m->closed) return GI_OK;
-  uint64_t P = gi_cascade_refresh_period(c, 0);
+  uint64_t P = refresh_period(c);
   gi_result rc = GI_OK;
   if (m->slice == 0 && (rc = rebake_start(c, q, tail, err)) != GI_OK) return rc;
   uint64_t U = 0;
@@ -970,14 +978,52 @@ gi_result gi_cascade_move(gi_cascade *c, const double at[3], gi_bake_report *rep
 static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
                            gi_error_info *err);
 
+/* A move after one that failed or was cancelled part way. That cascade's
+ * placement is the stopped move's, some levels scrolled and others not,
+ * its plan, light and refresh cycle left part way: nothing in it can be
+ * reused, so it is baked afresh at `at` with its bake's own request (a
+ * cold bake's work, as a move by every level's extent) and takes the new
+ * cascade's insides. Its levels are freed first, so the re-bake does not
+ * hold two cascades. A failed or cancelled re-bake leaves it partial. */
+static gi_result rebake_torn(gi_cascade *c, const double at[3], gi_bake_report *report, gi_move_info *info,
+                             gi_error_info *err) {
+  gi_result rc = check_viewpoint(c, at, err);
+  if (rc != GI_OK) return rc;
+  uint64_t moves = ++c->moves;
+  c->torn = GI_TORN_MOVING;
+  gi__cascade_free_levels(c);
+  gi__move_state_free(c->move_state);
+  c->move_state = NULL;
+  gi_cascade *f = NULL;
+  rc = gi__cascade_bake_at(c->scene, at, c->req_default ? NULL : &c->req_q, c->cancel, NULL, 0, &f, NULL, err);
+  if (rc != GI_OK) {
+    c->torn = GI_TORN_LEFT;
+    return rc;
+  }
+  struct gi_cascade left = *c;
+  *c = *f;
+  *f = left; /* no levels, no move state: frees its scene reference alone */
+  gi_cascade_free(f);
+  c->moves = moves;
+  /* What moves need, as a session's prepare made it; without memory the next move makes it. */
+  (void)move_state(c, NULL);
+  gi_move_info mi = {.move = moves, .cycle_closed = 1, .slice = (int)refresh_period(c)};
+  for (int d = 0; d < c->n; d++) mi.rebuilt[d] = mi.refreshed[d] = 1;
+  c->report.cascade_bytes = gi__cascade_held_bytes(c);
+  if (report) *report = c->report;
+  if (info) *info = mi;
+  return GI_OK;
+}
+
 gi_result gi_cascade_move_ex(gi_cascade *c, const double at[3], const gi_cancel *cancel, gi_bake_report *report,
                              gi_move_info *info, gi_error_info *err) {
   if (!c) return gi__fail(err, GI_ERR_INVALID_ARG, "move: no cascade");
-  gi_result whole = gi__cascade_whole(c, "move", err);
-  if (whole != GI_OK) return whole;
+  /* Torn by a move under way (another thread's): refused. Torn by one that stopped: re-baked. */
+  if (c->torn == GI_TORN_MOVING) return gi__cascade_whole(c, "move", err);
   /* The stages look at c->cancel, as they do during a bake. */
   c->cancel = cancel;
-  gi_result rc = move_body(c, at, report, info, err);
+  gi_result rc = c->torn ? rebake_torn(c, at, report, info, err) : move_body(c, at, report, info, err);
+  if (rc != GI_OK && c->torn) c->torn = GI_TORN_LEFT;
   c->cancel = NULL;
   return rc;
 }
@@ -990,7 +1036,7 @@ static gi_result move_body(gi_cascade *c, const double at[3], gi_bake_report *re
   reset_counters(&c->report);
   gi_level old[GI_MAX_LEVELS];
   memcpy(old, c->lv, sizeof old);
-  c->torn = 1; /* until the move is whole */
+  c->torn = GI_TORN_MOVING; /* until the move is whole */
   for (int a = 0; a < 3; a++) {
     c->at_world[a] = at[a];
     c->at[a] = (float)(at[a] - c->scene->origin[a]);
