@@ -50,7 +50,7 @@
  * parameters (about 48 bytes each) and the read buffer. Its default, 32 KiB,
  * ran out at ~500 parameters and left the client hanging without a status. */
 #define GS_CONNECTION_MEMORY ((size_t)256 << 10)
-/* The core refuses viewpoints more than this from the scene; say so at once. */
+/* The core refuses viewpoints more than this from the scene's origin on an axis; say so at once. */
 #define GS_MAX_DISTANCE 1e9
 #define GS_MAX_DISTANCE_TEXT "1e9"
 /* Connections at once, from all clients. */
@@ -891,19 +891,22 @@ static void cheap_endpoint(gs_service *svc, gs_req *r, const query *q, gs_answer
   else gs_jobs_result(svc->jobs, r->id, a);
 }
 
-/* Points within GS_MAX_DISTANCE of the scene's bounds, else a 400 naming the first far one. */
+/* Points within GS_MAX_DISTANCE of the scene's origin on each axis (the
+ * core's rule: it was the bounds grown by it, and 1e9 + 1 past the origin
+ * passed here to be refused by the bake in other words), else a 400
+ * naming the first far one. */
 static int check_near(const gs_scene *s, const double *pts, size_t n, const char *what, gi_proto_error *e) {
-  double lo[3], hi[3];
-  gi_scene_bounds(s->scene, lo, hi);
+  double o[3];
+  gi_scene_origin(s->scene, o);
   for (size_t i = 0; i < n; i++)
     for (int k = 0; k < 3; k++) {
-      double v = pts[3 * i + k];
-      if (v >= lo[k] - GS_MAX_DISTANCE && v <= hi[k] + GS_MAX_DISTANCE) continue;
+      if (fabs(pts[3 * i + k] - o[k]) <= GS_MAX_DISTANCE) continue;
       if (n == 1)
         return gi_proto_fail(e, 400, "%s: out of range: (%g, %g, %g) is more than " GS_MAX_DISTANCE_TEXT
-                             " units from the scene", what, pts[0], pts[1], pts[2]);
+                             " units from the scene's origin on axis %c", what, pts[0], pts[1], pts[2], "xyz"[k]);
       return gi_proto_fail(e, 400, "%s[%zu]: out of range: (%g, %g, %g) is more than " GS_MAX_DISTANCE_TEXT
-                           " units from the scene", what, i, pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]);
+                           " units from the scene's origin on axis %c", what, i, pts[3 * i], pts[3 * i + 1],
+                           pts[3 * i + 2], "xyz"[k]);
     }
   return 0;
 }

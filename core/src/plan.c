@@ -675,7 +675,9 @@ gi_result gi__viewpoint_range(const gi_scene *s, const double at[3], double s0, 
   for (int a = 0; a < 3; a++) {
     float al = (float)(at[a] - s->origin[a]);
     if (!isfinite(al) || fabs(at[a] - s->origin[a]) > GI_MAX_VIEW_DISTANCE)
-      return gi__fail(err, GI_ERR_INVALID_ARG, "%s: viewpoint is more than 1e9 units from the scene", who);
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "%s: viewpoint is more than " GI_MAX_VIEW_DISTANCE_TEXT
+                      " units from the scene's origin on axis %c (%g)", who, "xyz"[a], fabs(at[a] - s->origin[a]));
     if (!gi__cells_ok(al, s0))
       return gi__fail(err, GI_ERR_INVALID_ARG,
                       "%s: the voxel size %g is too small for a viewpoint %g units from the scene's origin "

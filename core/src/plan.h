@@ -23,12 +23,15 @@ gi_result gi__effect_plan_for(const gi_scene *s, const double at[3], const gi_qu
                               gi_effect out[GI_FX_COUNT], gi_quality *resolved, gi_error_info *err);
 
 /* A finite viewpoint a cascade of finest voxel s0 can be placed at:
- * within GI_MAX_VIEW_DISTANCE of the scene's origin (farther, float
- * positions lose all precision) and within 2^52 voxels of it (cells are
- * indexed in int64 and placed in double, gi__cells_ok). Else
+ * within GI_MAX_VIEW_DISTANCE of the scene's origin on each axis (each
+ * local coordinate is a float: farther, positions lose all precision; a
+ * limit on the distance would refuse points no less precise than ones it
+ * takes) and within 2^52 voxels of it (cells are indexed in int64 and
+ * placed in double, gi__cells_ok). Else
  * GI_ERR_INVALID_ARG, the message starting with `who`. Shared by the
  * bake, the effect plan and a move. */
 #define GI_MAX_VIEW_DISTANCE 1e9
+#define GI_MAX_VIEW_DISTANCE_TEXT "1e9"
 gi_result gi__viewpoint_range(const gi_scene *s, const double at[3], double s0, const char *who, gi_error_info *err);
 
 /* A cascade as gi_cascade_bake would place it at `at` with resolved

@@ -210,7 +210,8 @@ expect_before 1 "--out: '$T/plain' exists and is not a folder" --out "$T/plain"
 # A viewpoint or probe the bake cannot place (more than 1e9 from the scene)
 # is refused before the reference, not by the bake after it.
 printf '1 1 1\n1e12 0 0\n' > "$T/farpts.txt"
-expect_before 1 "--at (1e+12, 0, 0) is more than 1e9 units from the scene" --out "$T/eb" --at 1e12,0,0
+expect_before 1 "--at (1e+12, 0, 0) is more than 1e9 units from the scene's origin on axis x" --out "$T/eb" \
+  --at 1e12,0,0
 expect_before 1 "--probes: $T/farpts.txt: point 2 (1e+12, 0, 0) is more than 1e9" --out "$T/eb" \
   --probes "$T/farpts.txt"
 

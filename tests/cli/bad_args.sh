@@ -93,8 +93,14 @@ far 2 --spot 0,-1e31,0,0,1,0,10,20,1,1,1
 # A --render eye past 1e9: refused (2) before the bake, as every other bad
 # camera is; it failed (1) after a whole bake.
 far 2 --render 1e300,5,10,0,0,0,60,8,8 --exr "$T/far.exr"
-grep -q "^gi-bake: --render: the eye (1e+300, 5, 10) is more than 1e9 units from the scene" "$T/err" \
-  && pass "a far --render eye is named" || fail "far --render eye: $(cat "$T/err")"
+grep -q "^gi-bake: --render: the eye (1e+300, 5, 10) is more than 1e9 units from the scene's origin on axis x" \
+  "$T/err" && pass "a far --render eye is named" || fail "far --render eye: $(cat "$T/err")"
+# The limit holds per axis from the scene's origin (the city's x and z are 0), as the core's camera: the
+# message said "from the scene" of a distance it never checked. 1e9 - 1 renders, 1e9 + 1 is refused.
+far 0 --render 999999999,5,10,0,0,0,60,4,4 --exr "$T/near.exr"
+far 2 --render 5,2,-1000000001,0,0,0,60,4,4 --exr "$T/far.exr"
+grep -q "^gi-bake: --render: the eye (5, 2, -1e+09) is more than 1e9 units from the scene's origin on axis z" \
+  "$T/err" && pass "an eye 1e9 + 1 along z is named" || fail "eye 1e9 + 1 along z: $(cat "$T/err")"
 # The core's message names its stage once ("bake: bake: the voxel size" stuttered).
 far 1 --at 1e7,0,0 --voxel 1e-9
 grep -q "^gi-bake: bake: the voxel size 1e-09 is too small" "$T/err" && pass "a bake error names 'bake:' once" \

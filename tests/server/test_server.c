@@ -875,6 +875,12 @@ static void test_errors(void **state) {
       {NULL, "/v1/scenes/city/lighting?at=1,2,3&kind=lightmap&atlas=8", NULL, 400, "bad_request", "'atlas'"},
       {NULL, "/v1/scenes/city/lightmap-uv.glb?at=1,2,3&kind=lightmap", NULL, 400, "bad_request", "'kind'"},
       {NULL, "/v1/scenes/city/lighting?at=1e12,2,3", NULL, 400, "bad_request", "1e9"},
+      /* The limit holds per axis from the scene's origin (the city's x is 0), as the core's; it was the
+       * bounds grown by 1e9 here, so 1e9 + 1 reached the bake and came back in the core's words. */
+      {NULL, "/v1/scenes/city/lighting?at=1000000001,2,3", NULL, 400, "bad_request",
+       "(1e+09, 2, 3) is more than 1e9 units from the scene's origin on axis x"},
+      {"POST", "/v1/scenes/city/probes", "{\"points\":[[1,2,3],[1,2,-1000000001]]}", 400, "bad_request",
+       "points[1]: out of range: (1, 2, -1e+09) is more than 1e9 units from the scene's origin on axis z"},
       {NULL, "/v1/scenes/city/lighting?at=1,2,3&voxel=1e-300", NULL, 400, "bad_request", "too small"},
       {NULL, "/v1/scenes/atlantis/lighting?at=1,2,3", NULL, 404, "not_found", "atlantis"},
       {NULL, "/v1/scenes/..%2Fetc/lighting?at=1,2,3", NULL, 404, "not_found", NULL},
@@ -898,6 +904,11 @@ static void test_errors(void **state) {
     if (cases[i].status == 405) assert_non_null(su_header(&r, "Allow"));
     free(r.body);
   }
+  /* Just inside the limit it passes; there float positions are 64 units apart, so the cell (the
+   * cache's key) does not round-trip and that is what is refused, in its own words. */
+  su_resp in = su_http(&S_main, NULL, "/v1/scenes/city/lighting?at=999999999,2,3&levels=2&res=8", NULL, TOKEN);
+  su_expect_error(&in, 400, "bad_request", "is too far from the scene to address");
+  free(in.body);
   /* 413: a body over max_body_bytes (4096), and more points than max_probes_job (100). */
   char *big = malloc(9000);
   strcpy(big, "{\"points\":[");

@@ -400,6 +400,53 @@ static void test_reference_far_point(void **state) {
   gi_scene_release(s);
 }
 
+/* The 1e9 limit holds on each axis of a viewpoint's offset from the scene's
+ * origin (each local coordinate is a float: its precision, and the cell
+ * index, depend on that axis alone), and the message says so: it said
+ * "more than 1e9 units from the scene" of a point whose distance was never
+ * checked ((0.9e9, 0.9e9, 0.9e9), 1.56e9 away, passes). 1e9 exactly
+ * passes, 1e9 + 1 fails naming the axis, for the anchor (the bake's and a
+ * move's rule), a view's eye (compared after rounding to float, it
+ * accepted 1e9 + 32 where gi-bake refuses it) and a panorama. */
+static void test_viewpoint_limit_per_axis(void **state) {
+  (void)state;
+  gi_scene *s = room();
+  gi_quality q = low_quality(), rq;
+  gi_error_info err = {0};
+  assert_int_equal(gi_quality_resolve(s, &q, &rq, &err), GI_OK);
+  double o[3];
+  gi_scene_origin(s, o);
+  int64_t a[3];
+  for (int ax = 0; ax < 3; ax++)
+    for (int sign = -1; sign <= 1; sign += 2) {
+      double p[3] = {o[0], o[1], o[2]};
+      p[ax] = o[ax] + sign * 1e9;
+      assert_int_equal(gi_cascade_anchor(s, p, &rq, a, &err), GI_OK);
+      p[ax] = o[ax] + sign * (1e9 + 1);
+      err.msg[0] = 0;
+      assert_int_equal(gi_cascade_anchor(s, p, &rq, a, &err), GI_ERR_INVALID_ARG);
+      char want[64];
+      snprintf(want, sizeof want, "from the scene's origin on axis %c", "xyz"[ax]);
+      assert_names(&err, "anchor: viewpoint is more than 1e9 units");
+      assert_names(&err, want);
+    }
+  const double diag[3] = {o[0] + 0.9e9, o[1] + 0.9e9, o[2] + 0.9e9};
+  assert_int_equal(gi_cascade_anchor(s, diag, &rq, a, &err), GI_OK);
+  gi_cascade *c = NULL;
+  assert_int_equal(gi_cascade_bake(s, AT, &q, &c, NULL, &err), GI_OK);
+  float rgb[2 * 2 * 3], dir[2 * 1 * 3], ind[2 * 1 * 3];
+  gi_camera cam = {{o[0] + 1e9 + 1, o[1], o[2]}, {o[0], o[1], o[2]}, {0, 1, 0}, 60, 2, 2};
+  err.msg[0] = 0;
+  assert_int_equal(gi_cascade_render(c, &cam, 1, 1, rgb, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "camera: eye is more than 1e9 units from the scene's origin on axis x");
+  const double far_z[3] = {o[0], o[1], o[2] - 1e9 - 1};
+  err.msg[0] = 0;
+  assert_int_equal(gi_cascade_panorama(c, far_z, 2, 1, dir, ind, NULL, &err), GI_ERR_INVALID_ARG);
+  assert_names(&err, "panorama: viewpoint is more than 1e9 units from the scene's origin on axis z");
+  gi_cascade_free(c);
+  gi_scene_release(s);
+}
+
 /* gi_lightmap_atlas_path compared snprintf's length with (int)cap for a
  * single atlas: a cap past INT_MAX (a caller's "no limit") turned negative
  * and a path that fits came back -1 (the several-atlas branch was right). */
@@ -649,6 +696,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_bake_null_out),
       cmocka_unit_test(test_anchor_args),
+      cmocka_unit_test(test_viewpoint_limit_per_axis),
       cmocka_unit_test(test_huge_n),
       cmocka_unit_test(test_writer_args),
       cmocka_unit_test(test_cancel_deadline_range),

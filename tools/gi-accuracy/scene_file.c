@@ -193,8 +193,8 @@ static int placeable(const acc_scene_set *ss, const double p[3], const char *wha
   gi_scene_origin(ss->s, o);
   for (int a = 0; a < 3; a++)
     if (!(fabs(p[a] - o[a]) <= 1e9)) {
-      fprintf(stderr, "gi-accuracy: %s (%g, %g, %g) is more than 1e9 units from the scene (origin %g, %g, %g)\n",
-              what, p[0], p[1], p[2], o[0], o[1], o[2]);
+      fprintf(stderr, "gi-accuracy: %s (%g, %g, %g) is more than 1e9 units from the scene's origin on axis %c "
+              "(origin %g, %g, %g)\n", what, p[0], p[1], p[2], "xyz"[a], o[0], o[1], o[2]);
       return 0;
     }
   gi_quality q = {0}, r;

@@ -153,7 +153,7 @@ static void note_outside(const cli_opts *o, const gi_cascade *cas, const double 
 
 /* The gather points, viewpoint first, then --probes; and room for their probes. */
 /* A --render eye the renderer will refuse (more than 1e9 from the scene's
- * origin, as the core's camera rule), refused before the bake: it failed
+ * origin on an axis, as the core's camera rule), refused before the bake: it failed
  * with exit 1 after a whole bake, where every other bad camera exits 2 at
  * once. */
 static int check_render_eye(const cli_opts *o, const gi_scene *scene) {
@@ -162,8 +162,9 @@ static int check_render_eye(const cli_opts *o, const gi_scene *scene) {
   gi_scene_origin(scene, org);
   for (int a = 0; a < 3; a++)
     if (!(fabs(o->cam.eye[a] - org[a]) <= 1e9)) {
-      fprintf(stderr, "gi-bake: --render: the eye (%g, %g, %g) is more than 1e9 units from the scene\n", o->cam.eye[0],
-              o->cam.eye[1], o->cam.eye[2]);
+      fprintf(stderr,
+              "gi-bake: --render: the eye (%g, %g, %g) is more than 1e9 units from the scene's origin on axis %c\n",
+              o->cam.eye[0], o->cam.eye[1], o->cam.eye[2], "xyz"[a]);
       return EXIT_USAGE;
     }
   return 0;

@@ -65,7 +65,9 @@ typedef struct gi_cascade gi_cascade;
  * quality: two viewpoints with equal anchors (same scene and quality) give
  * bit-identical cascades, so the anchor is a cache key. A viewpoint the
  * bake refuses has none: GI_ERR_NONFINITE, or GI_ERR_INVALID_ARG past 1e9
- * units (or 2^52 voxels) from the scene's origin. Thread-safe. */
+ * units (or 2^52 voxels) from the scene's origin on any axis (the limit
+ * holds per axis, as for a move's, a view's eye and a panorama's
+ * viewpoint). Thread-safe. */
 gi_result gi_cascade_anchor(const gi_scene *scene, const double at[3], const gi_quality *resolved,
                             int64_t anchor[3], gi_error_info *err);
 /* The world-space centre of anchor cell `cell` (side 2 voxel0, from the

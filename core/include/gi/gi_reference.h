@@ -95,8 +95,8 @@ typedef struct gi_ref_probe {
 } gi_ref_probe;
 
 /* Path-traces n probes at world points pts[3*i..] into out[i]. Non-finite
- * points, and points more than 1e9 units from the scene's origin (as the
- * panorama's), give GI_ERR_NONFINITE, bad options GI_ERR_INVALID_ARG (the
+ * points, and points more than 1e9 units from the scene's origin on any
+ * axis (as the panorama's), give GI_ERR_NONFINITE, bad options GI_ERR_INVALID_ARG (the
  * message names the field). ms (may be NULL) receives the wall-clock time. */
 gi_result gi_reference_irradiance(const gi_scene *scene, const double *pts, size_t n,
                                   const gi_reference_opts *opts, gi_ref_probe *out, double *ms,

@@ -6,6 +6,7 @@
 #include "answer/answer.h"
 #include "base/internal.h"
 #include "gi/gi_render.h"
+#include "plan.h"
 
 gi_result gi_camera_validate(const gi_camera *cam, gi_error_info *err) {
   if (!cam) return gi__fail(err, GI_ERR_INVALID_ARG, "camera: cam is NULL");
@@ -52,8 +53,12 @@ gi_result gi__cam_setup(const gi_scene *s, const gi_camera *cam, gi__cam *k, gi_
     k->eye[a] = (float)(cam->eye[a] - s->origin[a]);
     k->fwd[a] = (float)f[a], k->right[a] = (float)r[a], k->upv[a] = (float)u[a];
   }
-  if (!gi__finite3(k->eye) || fabsf(k->eye[0]) > 1e9f || fabsf(k->eye[1]) > 1e9f || fabsf(k->eye[2]) > 1e9f)
-    return gi__fail(err, GI_ERR_INVALID_ARG, "camera: eye is more than 1e9 units from the scene");
+  /* In double, as the bake's rule: rounded to float, 1e9 + 32 passed. */
+  for (int a = 0; a < 3; a++)
+    if (!isfinite(k->eye[a]) || fabs(cam->eye[a] - s->origin[a]) > GI_MAX_VIEW_DISTANCE)
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "camera: eye is more than " GI_MAX_VIEW_DISTANCE_TEXT
+                      " units from the scene's origin on axis %c (%g)", "xyz"[a], fabs(cam->eye[a] - s->origin[a]));
   return GI_OK;
 }
 

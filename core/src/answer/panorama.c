@@ -13,6 +13,7 @@
 #include <string.h>
 #include "answer/answer.h"
 #include "base/internal.h"
+#include "plan.h"
 #include "scene/lights.h"
 #include "trace/trace.h"
 
@@ -108,8 +109,10 @@ gi_result gi_cascade_panorama_ex(const gi_cascade *c, const double at[3], int w,
   for (int a = 0; a < 3; a++) {
     if (!isfinite(at[a])) return gi__fail(err, GI_ERR_NONFINITE, "panorama: viewpoint is not finite");
     p[a] = (float)(at[a] - c->scene->origin[a]);
-    if (!isfinite(p[a]) || fabs(at[a] - c->scene->origin[a]) > 1e9)
-      return gi__fail(err, GI_ERR_INVALID_ARG, "panorama: viewpoint is more than 1e9 units from the scene");
+    if (!isfinite(p[a]) || fabs(at[a] - c->scene->origin[a]) > GI_MAX_VIEW_DISTANCE)
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "panorama: viewpoint is more than " GI_MAX_VIEW_DISTANCE_TEXT
+                      " units from the scene's origin on axis %c (%g)", "xyz"[a], fabs(at[a] - c->scene->origin[a]));
   }
   double t0 = gi__now_ms();
   pano_ctx pc = {.c = c, .at = p, .w = w, .h = h, .direct = direct, .indirect = indirect,

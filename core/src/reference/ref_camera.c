@@ -21,7 +21,9 @@ gi_result gi__ref_cam_init(ref_cam *k, const gi_scene *s, const gi_camera *cam, 
   for (int a = 0; a < 3; a++) {
     double e = cam->eye[a] - s->origin[a];
     if (!(fabs(e) <= REF_MAX_DIST))
-      return gi__fail(err, GI_ERR_INVALID_ARG, "camera: eye is more than 1e9 units from the scene");
+      return gi__fail(err, GI_ERR_INVALID_ARG,
+                      "camera: eye is more than %g units from the scene's origin on axis %c (%g)", REF_MAX_DIST,
+                      "xyz"[a], fabs(e));
     k->eye[a] = (float)e;
     k->fwd[a] = (float)f[a], k->up[a] = (float)u[a], k->right[a] = (float)r[a];
   }
@@ -43,7 +45,9 @@ gi_result gi__ref_pano_init(ref_cam *k, const gi_scene *s, const double at[3], i
   for (int a = 0; a < 3; a++) {
     double e = at[a] - s->origin[a];
     if (!(fabs(e) <= REF_MAX_DIST))
-      return gi__fail(err, GI_ERR_NONFINITE, "reference panorama: point is not finite or too far from the scene");
+      return gi__fail(err, GI_ERR_NONFINITE,
+                      "reference panorama: point is not finite or more than %g units from the scene's origin "
+                      "on axis %c", REF_MAX_DIST, "xyz"[a]);
     k->eye[a] = (float)e;
   }
   k->w = w, k->h = h, k->pano = 1, k->up_z = s->up == GI_UP_Z;
