@@ -394,12 +394,17 @@ static inline float gi__vrad_tau(const gi_vrad *r, int a) { return gi__h2f(r->h[
 void gi__move_state_free(struct gi_move_state *m);
 size_t gi__move_state_bytes(const struct gi_cascade *c);
 
-/* What a cascade holds now (gi_cascade_bytes): every level's slots, the
- * entries of its occupied voxels and a move's re-bake state. Inline so a
- * move can report it without calling the bake's file. */
-static inline size_t gi__cascade_held_bytes(const struct gi_cascade *c) {
+/* What a cascade's levels hold: every level's slots and the entries of
+ * its occupied voxels (all a bake holds: it has no move state yet). */
+static inline size_t gi__cascade_level_bytes(const struct gi_cascade *c) {
   size_t vox = (size_t)c->R * (size_t)c->R * (size_t)c->R;
-  return (size_t)c->n * vox * GI_SLOT_BYTES + gi__entries_bytes(c) + gi__move_state_bytes(c);
+  return (size_t)c->n * vox * GI_SLOT_BYTES + gi__entries_bytes(c);
+}
+/* What a cascade holds now (gi_cascade_bytes): its levels and a move's
+ * re-bake state. Inline so a move can report it without calling the bake's
+ * file. */
+static inline size_t gi__cascade_held_bytes(const struct gi_cascade *c) {
+  return gi__cascade_level_bytes(c) + gi__move_state_bytes(c);
 }
 
 /* voxelize.c: fills the geometry of a freshly allocated (zeroed) cascade. */

@@ -1002,8 +1002,10 @@ static gi_result rebake_torn(gi_cascade *c, const double at[3], gi_bake_report *
   }
   struct gi_cascade left = *c;
   *c = *f;
-  *f = left; /* no levels, no move state: frees its scene reference alone */
-  gi_cascade_free(f);
+  /* The partial cascade's insides: no levels, no move state, only its scene
+   * reference (gi_cascade_free is the bake's file, which calls this one). */
+  gi_scene_release(left.scene);
+  gi__free(f);
   c->moves = moves;
   /* What moves need, as a session's prepare made it; without memory the next move makes it. */
   (void)move_state(c, NULL);
