@@ -54,7 +54,10 @@
  * restarts the re-bake, so a viewer that crosses cells on almost every
  * call sees the live update alone (measured on the city at default
  * quality, 600 steps at 10 Hz, against cold bakes: a 14 m/s drive reads
- * 0.39% mean / 1.49% max (docs/experiments.md); a 1.4 m/s walk, crossing
+ * 0.39% mean / 1.49% max (docs/experiments.md) on the probe's total
+ * irradiance, whose direct part a move does not change; its indirect part alone, over a
+ * 40-step drive, read 1.65% mean / 4.12% max, and stepped by 3.2% when the
+ * cycle closed at rest (2026-12-06); a 1.4 m/s walk, crossing
  * every ~10 calls, read 1.25% / 2.25% with the resting cycle, which never
  * closed, and 0.02% / 0.09% with the moving one).
  * A level that moves by its extent or more is rebuilt whole; such a move,
