@@ -1322,13 +1322,13 @@ static void test_panorama_shared(void **state) {
 
 /* Bytes a res=64 levels=6 bake is admitted for: the bound of
  * gi_cascade_bytes_estimate (test_anchor checks it against the structs),
- * 6 levels x (64^3 voxels x (57 dense bytes + a 336-byte entry, as if every
+ * 6 levels x (64^3 voxels x (57 dense bytes + a 328-byte entry, as if every
  * voxel held geometry) + entry 0), plus 1/6 for its transient buffers:
- * 688 MiB, so the budget holds one such bake and not two. The baked
+ * 674 MiB, so the budget holds one such bake and not two. The baked
  * cascade then holds the dense arrays and one entry per voxel holding
  * geometry only. */
 #define SLOT_BYTES 57
-#define ENTRY_BYTES 336
+#define ENTRY_BYTES 328
 #define BIG_DENSE_BYTES (6.0 * 64 * 64 * 64 * SLOT_BYTES)
 #define BIG_CASCADE_BOUND (6.0 * (64 * 64 * 64 * (SLOT_BYTES + ENTRY_BYTES) + ENTRY_BYTES))
 #define BIG_BAKE_BYTES (BIG_CASCADE_BOUND + (double)((size_t)BIG_CASCADE_BOUND / 6))

@@ -936,62 +936,6 @@ static void test_probe_on_floor(void **state) {
   assert_true(worst < 0.05);
 }
 
-/* A closed box of side h (outward-wound, albedo 0.5) on a 20 x 20 m
- * ground, with a point light at (0, ly, 0). */
-static gi_scene *box_lamp_scene(double h, double ly) {
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  const double g[4][3] = {{-10, 0, -10}, {-10, 0, 10}, {10, 0, 10}, {10, 0, -10}};
-  gi_mesh_builder_add_quad(b, g[0], g[1], g[2], g[3], mat);
-  double lo[3] = {-h / 2, 0, -h / 2}, hi[3] = {h / 2, h, h / 2};
-  gi_mesh_builder_add_box(b, lo, hi, mat);
-  gi_light l = {.type = GI_LIGHT_POINT, .color = {10, 10, 10}, .position = {0, ly, 0}};
-  return build(b, "box-lamp", &l, 1);
-}
-
-/* The indirect irradiance a probe's SH gives a surface facing down. */
-static double indirect_down(const gi_probe *p) {
-  float sh[9][3], e[3];
-  const float down[3] = {0, -1, 0};
-  for (int i = 0; i < 9; i++)
-    for (int k = 0; k < 3; k++) sh[i][k] = p->sh[i][k] - p->sh_direct[i][k];
-  gi_sh_eval_irradiance(sh, down, e);
-  return mean3(e);
-}
-
-/* A point light inside a closed box lights nothing outside it: a probe
- * 1 m above the box reads exactly 0. Scale: the same probe with the lamp
- * 1 cm above the box's top. A 1 m cube and a 20 cm housing, default
- * quality, baked around the scene's middle (the box lies in the filtered
- * regions of the coarse levels, its walls across their cells). */
-static void test_lamp_inside_box(void **state) {
-  const double sizes[2] = {1.0, 0.2};
-  double worst = 0;
-  for (int i = 0; i < 2; i++) {
-    double h = sizes[i], e[2];
-    const double at[3] = {0, h / 2, 0}, pt[3] = {0, h + 1, 0};
-    for (int w = 0; w < 2; w++) {
-      gi_scene *s = box_lamp_scene(h, w ? h + 0.01 : h / 2);
-      gi_quality q = {.threads = 2};
-      gi_probe pr;
-      bake_gather(s, at, &q, pt, 1, &pr);
-      e[w] = indirect_down(&pr);
-      gi_scene_release(s);
-    }
-    printf("hardcase: lamp inside a closed %.1f m box: indirect 1 m above %.5f (lamp on top %.4f, leak %.4f)\n",
-           h, e[0], e[1], e[0] / e[1]);
-    assert_true(e[1] > 1);
-    worst = fmax(worst, e[0] / e[1]);
-  }
-  printf("hardcase: lamp inside a closed box: largest leak %.4f\n", worst);
-  /* Measured leak 0.143 (1 m) and 0.338 (0.2 m) while the inner sides of
-   * the walls reflected into the texture, the coarse levels mixing them
-   * into their outer faces; 0.0029 and 0.015 once sides inside a small
-   * solid reflect nothing (inject.c, inside_faces). Bound 0.04. */
-  assert_true(worst < 0.04);
-}
-
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_far_origin),
@@ -1014,7 +958,6 @@ int main(void) {
       cmocka_unit_test(test_furnace_099),
       cmocka_unit_test(test_probe_on_floor),
       cmocka_unit_test(test_panel_under_ceiling),
-      cmocka_unit_test(test_lamp_inside_box),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

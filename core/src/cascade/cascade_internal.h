@@ -105,11 +105,6 @@ typedef struct gi_vgeo {
    * up to a quarter (a street canyon turned 20 degrees read 0.785 of the
    * reference, 0.968 unturned). */
   uint8_t brighter;
-  /* Per face: the share, in 1/255, of the side it shows that lies inside
-   * a small closed solid (light/inject.c, inside_faces): its light cannot
-   * leave the solid, so the face reflects only the rest. Set by the
-   * injection. */
-  uint8_t inside[GI_VOX_FACES];
 } gi_vgeo;
 
 /* The side of group g (orientation o) that face f shows: the one whose

@@ -339,7 +339,6 @@ static void orient_groups(gi_vgeo *g, const float corner[3], float s) {
   memcpy(g->normal, dir[0], sizeof g->normal);
   for (int f = 0; f < GI_VOX_FACES; f++) g->face_side[f] = gi__face_side(dir[grp[f / 2]], grp[f / 2], f);
   g->brighter = sheet_minor_faces(grp, dir, sarea);
-  memset(g->inside, 0, sizeof g->inside); /* the injection sets it */
 }
 
 /* Normalises one voxel's sums and derives its opacity; clears an empty

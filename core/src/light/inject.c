@@ -26,8 +26,6 @@ typedef struct {
   size_t start[GI_MAX_LEVELS + 1];
   uint64_t seed;
   int cap;             /* light samples per voxel at most (gi__light_sample_cap) */
-  float (*lamp)[3];    /* the lit point and spot lights' positions, local */
-  uint32_t nlamp;
   atomic_ullong rays;
   atomic_int failed;   /* a worker ran out of memory */
 } inject_ctx;
@@ -212,65 +210,6 @@ static uint64_t emitter_rays(const inject_ctx *ic, const gi_vgeo *g, float voxel
   return rays;
 }
 
-/* A side of a voxel's surfaces that faces the inside of a closed solid
- * (a lamp's housing lit from within, a building's inner walls) reflects
- * light that nothing outside the solid can see. A coarse voxel holding
- * the solid, or its walls across a few voxels, mixes that light with its
- * outer faces at partial coverage, and the march and the filter let a
- * share of it out: a lamp inside a closed 1 m cube lit a probe 1 m above
- * at 14% of what the lamp on the cube's top gave, a 20 cm housing at 34%.
- * A side (almost) wholly inside (gi__inside_sides) reflects nothing. A
- * side partly inside keeps its light: a coarse voxel's ground around a
- * building, a street's two facades, whose irradiance is mostly that of
- * the surfaces outside (scaling every side by its share outside put the
- * city's indirect error at 17.6% instead of 10.5%). A voxel whose pieces
- * are not clipped (too many triangles) keeps all of it. Returns -1 when
- * out of memory. */
-#define INSIDE_MIN_SHARE 0.9f
-/* Only a solid whose inside the coarsest level cannot resolve counts:
- * one that rays from its inside cross within INSIDE_REACH of that level's
- * voxels. A larger closed box is a room (the tests' rooms are boxes wound
- * outward, lit from within, with probes inside), whose inside the coarse
- * levels show as the fine ones do. */
-#define INSIDE_REACH 2.0f
-static int inside_faces(const struct gi_cascade *c, gi_vgeo *g, double sz, const int64_t cell[3], gi_near_scratch *ns,
-                        const float Es[][3], unsigned sides) {
-  float share[2 * GI_VOX_GROUPS] = {0};
-  float reach = INSIDE_REACH * (float)c->lv[c->n - 1].s;
-  int r = gi__inside_sides(c->scene, g, sz, cell, reach, sides, ns, share);
-  for (int sd = 0; sd < 2 * GI_VOX_GROUPS; sd++)
-    if (share[sd] < INSIDE_MIN_SHARE) share[sd] = 0;
-  for (int f = 0; f < GI_VOX_FACES; f++)
-    g->inside[f] = (uint8_t)lrintf(255.f * share[gi__face_side_of(g, Es, f)]);
-  return r < 0 ? -1 : 0;
-}
-
-/* Which sides of voxel g to ask whether they lie inside a small solid:
- * only a side lit by a point or spot light or an emitter within the
- * solids' reach. The sun and the sky cannot light a closed solid's inside
- * (their shadow rays meet its walls), and an unlit side reflects no direct
- * light to leak; asking every side cost Munich's bake (no lamps, no
- * emitters) 70% more injection time for rays that changed nothing there.
- * Light gathered by a bounce onto an unlit inside side is what leaked in
- * already, a second order. */
-static unsigned inside_candidates(const inject_ctx *ic, const gi_vgeo *g, float voxel, const float Es[][3]) {
-  unsigned lit = 0;
-  for (int sd = 0; sd < 2 * g->groups; sd++)
-    if (Es[sd][0] + Es[sd][1] + Es[sd][2] > 0) lit |= 1u << sd;
-  if (!lit) return 0;
-  /* A solid the rays cross within `reach` holds its light within twice
-   * that of any of its surfaces (its walls' voxels: half a diagonal more). */
-  float r = 2 * INSIDE_REACH * (float)ic->c->lv[ic->c->n - 1].s + voxel;
-  for (uint32_t i = 0; i < ic->nlamp; i++) {
-    float d2 = 0;
-    for (int k = 0; k < 3; k++) d2 += (ic->lamp[i][k] - g->centroid[k]) * (ic->lamp[i][k] - g->centroid[k]);
-    if (d2 <= r * r) return lit;
-  }
-  const gi_scene *s = ic->c->scene;
-  if (ic->lp->emissive && s->num_emitters && gi__light_tree_within(s, g->centroid, r)) return lit;
-  return 0;
-}
-
 static void inject_range(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   inject_ctx *ic = p;
@@ -320,9 +259,6 @@ static void inject_range(void *p, size_t b, size_t e, int worker) {
     near_lights(c->scene, g, voxel, d, n, &ib, &rng, Es);
     for (int h = 0; h < g->groups; h++) rays += light_group(ic, g, h, voxel, n, &ib, &rng, Es);
     if (!spread) rays += emitter_rays(ic, g, voxel, &rng, Es);
-    unsigned ask = inside_candidates(ic, g, voxel, (const float(*)[3])Es);
-    if (!ask) memset(((gi_vgeo *)g)->inside, 0, sizeof g->inside); /* a voxel lit again starts clear */
-    else if (inside_faces(c, (gi_vgeo *)g, ib.sz, cell, &ib.ns, (const float(*)[3])Es, ask)) ib.oom = 1;
     gi__face_light(g, (const float(*)[3])Es, gi__direct(L, slot));
     memcpy(gi__side(L, slot), gi__direct(L, slot), sizeof(gi_faces3));
   }
@@ -350,10 +286,8 @@ static inline void face_radiance(const gi_level *L, uint32_t slot, const float (
                                  float Lf[GI_VOX_FACES][3]) {
   const gi_vgeo *g = gi__geo(L, slot);
   if (!side) side = (const float(*)[3])gi__side(L, slot);
-  for (int f = 0; f < GI_VOX_FACES; f++) {
-    float out = (1.0f - g->inside[f] * (1.0f / 255.0f)) * (1.0f / GI_PI_F);
-    for (int k = 0; k < 3; k++) Lf[f][k] = (g->albedo[k] + g->gloss[k]) * out * side[f][k];
-  }
+  for (int f = 0; f < GI_VOX_FACES; f++)
+    for (int k = 0; k < 3; k++) Lf[f][k] = (g->albedo[k] + g->gloss[k]) * (1.0f / GI_PI_F) * side[f][k];
 }
 
 /* Occupied voxels [begin, end) of level d from `from` (per occupied voxel;
@@ -440,20 +374,9 @@ gi_result gi__inject_levels(struct gi_cascade *c, const gi_quality *q, const uin
   inject_ctx ic = {.c = c, .lp = &lp, .lp_other = lp, .slots = slots, .seed = q->seed, .cap = cap};
   ic.lp_other.emissive = 0;
   for (int d = 0; d < c->n; d++) ic.start[d + 1] = ic.start[d] + count[d];
-  const gi_scene *s = c->scene;
-  if (lp.local && s->num_lights && !(ic.lamp = gi__malloc(s->num_lights * sizeof *ic.lamp)))
-    return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for %u lights", s->num_lights);
-  for (uint32_t i = 0; lp.local && i < s->num_lights; i++) {
-    const gi_light *l = &s->lights[i];
-    if (l->type != GI_LIGHT_POINT && l->type != GI_LIGHT_SPOT) continue;
-    if (!(l->color[0] > 0 || l->color[1] > 0 || l->color[2] > 0)) continue;
-    for (int k = 0; k < 3; k++) ic.lamp[ic.nlamp][k] = (float)(l->position[k] - s->origin[k]);
-    ic.nlamp++;
-  }
   atomic_init(&ic.rays, 0);
   atomic_init(&ic.failed, 0);
   int cancelled = gi__parallel_for_cancel(ic.start[c->n], 32, q->threads, inject_range, &ic, &ic.failed, c->cancel);
-  gi__free(ic.lamp);
   if (cancelled) return gi__cancel_fail(c->cancel, err, "inject");
   if (atomic_load(&ic.failed))
     return gi__fail(err, GI_ERR_NOMEM, "inject: out of memory for the light-sample buffers (%d samples)", cap);

@@ -74,15 +74,6 @@ int gi__near_field(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t
 #define GI_SPREAD_MAX_POINTS 512
 int gi__spread_light(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], const gi_lsample *ls,
                      int m, uint64_t *rng, gi_near_scratch *ns, float Es[GI_VOX_FACES][3], uint64_t *rays);
-/* The share of each side 2 h + s of voxel g's surfaces that lies inside a
- * closed solid, into share (the sides in bit mask `sides`; others 0): points spread over its
- * surface by area, each with rays over both its sides; rays whose first
- * hit, within reach, shows a surface's back leave from inside a solid.
- * Returns 1, 0 when the voxel has no pieces or too many triangles (share
- * untouched), -1 when out of memory. Thread-safe with one scratch per
- * thread. */
-int gi__inside_sides(const gi_scene *s, const gi_vgeo *g, double sz, const int64_t cell[3], float reach,
-                     unsigned sides, gi_near_scratch *ns, float share[2 * GI_VOX_GROUPS]);
 /* Injection spreads the emitters over voxels of this level and coarser.
  * From level 1, test_move's drive drift (moved against cold bakes, E(-y)
  * over a dark road at its last steps) read 6.9% where it reads 3.8% from
