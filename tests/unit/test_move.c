@@ -863,6 +863,11 @@ static void test_cancelled_move(void **state) {
     /* A re-bake stopped in turn: still partial, still refused. */
     assert_int_equal(gi_cascade_move_ex(c, to, stop, NULL, NULL, &e2), GI_ERR_CANCELLED);
     assert_int_equal(gi_cascade_gather(c, pts, 1, &pr, NULL, &e2), GI_ERR_INVALID_ARG);
+    /* Its levels were freed for the re-bake: it holds none now, and says so. */
+    printf("after the stopped re-bake: %zu bytes held, report %llu\n", gi_cascade_bytes(c),
+           (unsigned long long)gi_cascade_report(c)->cascade_bytes);
+    assert_int_equal(gi_cascade_bytes(c), 0);
+    assert_int_equal(gi_cascade_report(c)->cascade_bytes, 0);
     /* The next move re-bakes: a cold bake at that viewpoint. */
     double next[3] = {to[0] + 1.5 * c->s0, to[1], to[2]};
     gi_move_info mi;

@@ -9,7 +9,7 @@
  * takes milliseconds). A cancelled call leaks nothing. What it leaves: a
  * bake no cascade (*out NULL); a gather, panorama or lightmap bake its
  * output partly written (not to be read); a move a partial cascade, which
- * every later call refuses (gi_move.h) and which must be freed. Renders,
+ * every later read refuses and the next move bakes afresh (gi_move.h). Renders,
  * the path tracer and the writers take no token.
  *
  * Ownership: the caller owns the token (gi_cancel_new / gi_cancel_free)

@@ -393,7 +393,8 @@ size_t gi__move_state_bytes(const struct gi_cascade *c);
  * its occupied voxels (all a bake holds: it has no move state yet). */
 static inline size_t gi__cascade_level_bytes(const struct gi_cascade *c) {
   size_t vox = (size_t)c->R * (size_t)c->R * (size_t)c->R;
-  return (size_t)c->n * vox * GI_SLOT_BYTES + gi__entries_bytes(c);
+  /* No block: the levels were freed (a move's re-bake that stopped). */
+  return (c->block ? (size_t)c->n * vox * GI_SLOT_BYTES : 0) + gi__entries_bytes(c);
 }
 /* What a cascade holds now (gi_cascade_bytes): its levels and a move's
  * re-bake state. Inline so a move can report it without calling the bake's

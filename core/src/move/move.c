@@ -998,6 +998,7 @@ static gi_result rebake_torn(gi_cascade *c, const double at[3], gi_bake_report *
   rc = gi__cascade_bake_at(c->scene, at, c->req_default ? NULL : &c->req_q, c->cancel, NULL, 0, &f, NULL, err);
   if (rc != GI_OK) {
     c->torn = GI_TORN_LEFT;
+    c->report.cascade_bytes = gi__cascade_held_bytes(c); /* its levels are gone */
     return rc;
   }
   struct gi_cascade left = *c;
