@@ -60,6 +60,7 @@ void gs_metrics_bake_end(gs_metrics *m, int cancelled) {
   atomic_fetch_sub(&m->in_flight, 1);
   if (cancelled) atomic_fetch_add(&m->cancelled, 1);
 }
+void gs_metrics_move_cancelled(gs_metrics *m) { atomic_fetch_add(&m->cancelled, 1); }
 void gs_metrics_move(gs_metrics *m, double seconds, int cycle_closed) {
   atomic_fetch_add(&m->moves, 1);
   if (cycle_closed) atomic_fetch_add(&m->cycles, 1);
@@ -134,7 +135,7 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put_hist(&b, "gi_bake_duration_seconds", "Time to bake one cascade (voxelize to bounce).", &m->bake_seconds);
   put_counter(&b, "gi_bakes_total", "Cascades baked.", atomic_load(&m->bakes));
   put_counter(&b, "gi_bakes_cancelled_total",
-              "Bakes stopped because every request waiting for them left (deadline or hang-up).",
+              "Bakes and session moves stopped because every request waiting for them left (deadline or hang-up).",
               atomic_load(&m->cancelled));
   put_gauge(&b, "gi_bakes_in_flight", "Cascades (for requests, sessions and jobs) and lightmaps being baked now.",
             (double)atomic_load(&m->in_flight));

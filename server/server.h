@@ -118,6 +118,7 @@ void gs_metrics_encode_eviction(gs_metrics *m);
 /* Sessions (session.c): one move (its seconds, whether it closed the
  * refresh cycle), and how sessions end or are refused. */
 void gs_metrics_move(gs_metrics *m, double seconds, int cycle_closed);
+void gs_metrics_move_cancelled(gs_metrics *m); /* a session move stopped by its token */
 typedef enum { GS_SESSION_CREATED, GS_SESSION_EXPIRED, GS_SESSION_DELETED, GS_SESSION_REJECTED,
                GS_SESSION_EVENT_COUNT } gs_session_event;
 void gs_metrics_session(gs_metrics *m, gs_session_event ev);

@@ -21,13 +21,15 @@
  * ends (DELETE, idle past session_ttl_s, a failed move, shutdown) by
  * leaving the table; its cascade is freed when the last request lets go.
  *
- * Cancelling: a request waiting for its session's lock gives up when its
- * token fires (deadline, hang-up). A started move runs to its end whatever
- * the token says (openapi.yaml): a stopped move leaves the cascade partial,
- * and a walking client that drops a stale request or times out must keep
- * its session. A move costs about a cold bake's work at most (gi_move.h),
- * which the session's creation did within the deadline. The gather after
- * the move stops on the token. */
+ * Cancelling: the request's token (deadline, hang-up) stops the wait for
+ * its session's lock, the move (gi_cascade_move_ex) and the gather after
+ * it, as it stops a lighting request's bake: a move that rebuilds a level
+ * costs a cold bake's work, which nothing could stop. A stopped move is a
+ * 504 (the deadline's answer, http.c) counted in gi_bakes_cancelled_total;
+ * it leaves the cascade partial, which no call reads (gi_move.h), and the
+ * session keeps it: the session's next move re-bakes it at its viewpoint
+ * (a cold bake's work, as its creation did within the deadline). The busy
+ * flag keeps every other request off the cascade in between. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <fcntl.h>
@@ -365,10 +367,16 @@ static void move_and_answer(gs_service *svc, gs_session *s, const gi_proto_bake 
   gi_bake_report rep;
   gi_move_info mi;
   double t0 = gs_now_ms();
-  /* No cancel token: a move stopped half way would tear the cascade. */
-  gi_result rc = gi_cascade_move(s->cascade, b->at, &rep, &mi, &e);
+  /* A cancelled move leaves the cascade partial; the next move re-bakes it (gi_move.h). */
+  gi_result rc = gi_cascade_move_ex(s->cascade, b->at, cancel, &rep, &mi, &e);
   if (rc == GI_ERR_NONFINITE || rc == GI_ERR_INVALID_ARG)
     return fail(a, 400, 0, "parameter 'at': %s", e.msg[0] ? e.msg : gi_strerror(rc)); /* cascade untouched */
+  if (rc == GI_ERR_CANCELLED) {
+    /* Past the deadline: http.c answers its 504 (Retry-After, gi_timeouts_total); hung up: nobody reads it. */
+    gs_metrics_move_cancelled(svc->metrics);
+    return fail(a, 504, (int)ceil(svc->cfg->deadline_s), "the session's move was stopped (deadline or hang-up); "
+                "the session stays: its next move re-bakes its cascade there");
+  }
   if (rc != GI_OK) {
     /* A failed move (out of memory) leaves the cascade partial: the session cannot go on. */
     pthread_mutex_lock(&svc->sessions->mu);

@@ -8,8 +8,8 @@
  *   - bad input: unknown session 404, non-finite and far 'at' 400 naming it,
  *     kind=lightmap 400, quality knobs on a session 400, a panorama taller
  *     than 8192 400, HEAD 405 (Allow: GET) without moving, DELETE then 404;
- *   - a client hanging up during a far move keeps its session: the move
- *     ends, the session stands there and moves on;
+ *   - a client hanging up during a far move stops it and keeps its session:
+ *     the next move re-bakes the cascade there and moves on;
  *   - limits: a third session is a 503 with Retry-After; an idle one
  *     expires after the TTL (404, gi_sessions_expired_total);
  *   - two clients hammering one session: every request answered, move
@@ -17,7 +17,9 @@
  *     it is still a cold bake's once the cycle closes (nothing torn).
  * Two more servers: a 13 MiB budget (a session evicts a cached cascade to
  * fit; a second one does not fit: 503) and a 0.3 s deadline (a session
- * whose bake outlives it is a 504, its bake cancelled, no session left). */
+ * whose bake outlives it is a 504, its bake cancelled, no session left).
+ * A 0.5 s deadline: a session's far move past it is the deadline's 504,
+ * stopped; the session's next moves re-bake it and answer a cold bake. */
 #define _POSIX_C_SOURCE 200809L
 #include "server_util.h"
 #include "test_util.h"
@@ -149,23 +151,25 @@ static long move_field(const su_resp *r, const char *key) {
   return p ? strtol(p + strlen(pat), NULL, 10) : -1;
 }
 
-/* The probe's irradiance in an EXR answer. */
-static void exr_rgb(const su_resp *r, float rgb[3]) {
-  gi_exr_file *x = su_read_exr(&S, r, "answer.exr");
+/* The probe's irradiance in an EXR answer of server srv. */
+static void exr_rgb_of(const su_server *srv, const su_resp *r, float rgb[3]) {
+  gi_exr_file *x = su_read_exr(srv, r, "answer.exr");
   const char *names[3] = {"R", "G", "B"};
   for (int k = 0; k < 3; k++) rgb[k] = gi_exr_file_channel(x, names[k])[0];
   gi_exr_file_free(x);
 }
 
-/* The core's probe at `at` from a cold bake, in this process. */
-static void cold_probe(const double at[3], float rgb[3]) {
+static void exr_rgb(const su_resp *r, float rgb[3]) { exr_rgb_of(&S, r, rgb); }
+
+/* The core's probe at `at` from a cold bake of quality q, in this process. */
+static void cold_probe_q(const double at[3], const gi_quality *q, float rgb[3]) {
   gi_city_params p = {.extent = 300};
   gi_scene_options opt = {.up = GI_UP_Y, .threads = 2, .default_lights = 1};
   gi_scene *s = NULL;
   gi_cascade *c = NULL;
   gi_error_info e = {0};
   assert_int_equal(gi_city_build(&p, &opt, &s, &e), GI_OK);
-  assert_int_equal(gi_cascade_bake(s, at, &Q_LOW, &c, NULL, &e), GI_OK);
+  assert_int_equal(gi_cascade_bake(s, at, q, &c, NULL, &e), GI_OK);
   gi_probe pr;
   assert_int_equal(gi_cascade_gather(c, at, 1, &pr, NULL, &e), GI_OK);
   memcpy(rgb, pr.irradiance, sizeof pr.irradiance);
@@ -188,15 +192,17 @@ static int stand_until_cycle(const char *id, const char *at, float rgb[3]) {
   return -1;
 }
 
-static void expect_cold(const float got[3], const double at[3]) {
+static void expect_cold_q(const float got[3], const double at[3], const gi_quality *q) {
   float want[3];
-  cold_probe(at, want);
+  cold_probe_q(at, q, want);
   for (int k = 0; k < 3; k++) {
     printf("  probe[%d]: session %.7g, cold bake %.7g\n", k, got[k], want[k]);
     assert_true(isfinite(got[k]) && got[k] > 0);
     assert_true(fabsf(got[k] - want[k]) <= COLD_TOL * fabsf(want[k]));
   }
 }
+
+static void expect_cold(const float got[3], const double at[3]) { expect_cold_q(got, at, &Q_LOW); }
 
 static void test_walk_matches_cold_bake(void **state) {
   (void)state;
@@ -304,12 +310,15 @@ static void test_bad_input(void **state) {
 }
 
 /* A client that hangs up while its session moves far (every level
- * rebuilt: a cold bake's work) keeps its session: the move runs to its
- * end, and the next request moves on from there. */
+ * rebuilt: a cold bake's work) stops the move, as a hang-up stops a
+ * lighting request's bake (gi_bakes_cancelled_total), and keeps its
+ * session: the stopped move left it where it was, and the next move
+ * re-bakes the cascade there (every level rebuilt, the cycle closed). */
 static void test_hangup_keeps_session(void **state) {
   (void)state;
   char id[64], req[512];
   snprintf(id, sizeof id, "%s", open_session("?quality=high&at=0,1.7,0", NULL));
+  double cancelled = su_metric(&S, "gi_bakes_cancelled_total", NULL);
   snprintf(req, sizeof req,
            "GET /v1/sessions/%s/lighting?at=100,1.7,0 HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " TOKEN "\r\n\r\n",
            id);
@@ -318,21 +327,25 @@ static void test_hangup_keeps_session(void **state) {
   assert_int_equal(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
   su_sleep_ms(50); /* the move has started */
   close(fd);
-  double t0 = su_now_ms(), x = 0;
-  long moves;
-  while ((moves = session_moves(id, &x)) == 0 && su_now_ms() - t0 < 30000) su_sleep_ms(20);
-  printf("  client gone during a far move: session has %ld move(s) at x = %g after %.0f ms\n", moves, x,
-         su_now_ms() - t0);
-  assert_int_equal(moves, 1);
-  assert_true(x == 100);
+  double t0 = su_now_ms(), x = -1;
+  while (su_metric(&S, "gi_bakes_cancelled_total", NULL) == cancelled && su_now_ms() - t0 < 30000) su_sleep_ms(20);
+  long moves = session_moves(id, &x);
+  printf("  client gone during a far move: stopped after %.0f ms; session has %ld move(s) at x = %g\n",
+         su_now_ms() - t0, moves, x);
+  assert_true(su_metric(&S, "gi_bakes_cancelled_total", NULL) == cancelled + 1);
+  assert_int_equal(moves, 0);
+  assert_true(x == 0);
   su_resp r = move_to(id, "100,1.7,0");
   assert_int_equal(r.status, 200);
-  assert_int_equal(move_field(&r, "n"), 2);
-  assert_int_equal(move_field(&r, "crossed"), 0);
+  assert_int_equal(move_field(&r, "n"), 2); /* the stopped move was the first */
+  assert_int_equal(move_field(&r, "cycle"), 1);
+  assert_int_equal(move_field(&r, "rebuilt"), 6);
   float rgb[3];
   exr_rgb(&r, rgb);
   for (int k = 0; k < 3; k++) assert_true(isfinite(rgb[k]) && rgb[k] > 0);
   free(r.body);
+  assert_int_equal(session_moves(id, &x), 1);
+  assert_true(x == 100);
   delete_session(id);
 }
 
@@ -516,6 +529,103 @@ static void test_deadline_cancels_creation(void **state) {
   S_deadline.pid = 0;
 }
 
+/* quality=high (6 levels) with the deadline server's one bake thread. */
+static const gi_quality Q_HIGH_1 = {.cones = 32, .light_samples = 64, .probe_samples = 1024, .step = 0.35f,
+                                    .threads = 1};
+/* The deadline server's, seconds. A session baked 1 km above the city
+ * (nothing in range: a 0.05 s bake) and moved into its streets rebuilds
+ * every level: a cold bake, 1.7-3.2 s with two bake threads and 3.1-3.6 s
+ * with one (measured run to its end, as moves did without a token). */
+#define MOVE_DEADLINE_S 0.5
+/* The stopped move answered and the session answering again, ms: the
+ * deadline plus a chunk and a 0.05 s re-bake; an unstoppable move held
+ * the session for seconds (the next request a 504 waiting for it). */
+#define MOVE_STOP_BOUND_MS 2500
+
+typedef struct {
+  const char *path;
+  su_resp r;
+} get_arg;
+
+/* One GET on S_deadline (no cmocka here: another thread). */
+static void *get_deadline(void *p) {
+  get_arg *g = p;
+  struct curl_slist *hd;
+  CURL *c = su_make_req(&S_deadline, NULL, g->path, NULL, NULL, &g->r, &hd);
+  g->r.status = -1;
+  if (curl_easy_perform(c) == CURLE_OK) curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &g->r.status);
+  curl_slist_free_all(hd);
+  curl_easy_cleanup(c);
+  return NULL;
+}
+
+/* A session's move past the deadline stops as a lighting request's bake
+ * does: the deadline's 504 (Retry-After, gi_timeouts_total), counted in
+ * gi_bakes_cancelled_total. The session stays: a request that waited for
+ * it, and the next one, re-bake the cascade where they are (no request
+ * reads the stopped move's partial cascade) and answer a cold bake's
+ * probe there. */
+static void test_deadline_stops_move(void **state) {
+  (void)state;
+  assert_int_equal(su_start(&S_deadline, "movedeadline",
+                            "[server]\nbind = 127.0.0.1\nport = 0\nbake_threads = 1\nworkers = 2\ntmp_dir = .\n"
+                            "deadline_s = " STR(MOVE_DEADLINE_S) "\n[scene city]\nsource = city\nextent = 300\n"),
+                   0);
+  su_resp r = su_http(&S_deadline, "POST", "/v1/scenes/city/sessions?quality=high&at=0,1000,0", NULL, NULL);
+  assert_int_equal(r.status, 201);
+  json_t *o = json_loadb(r.body, r.len, 0, NULL);
+  char id[64], far[160], near[160];
+  snprintf(id, sizeof id, "%s", json_string_value(json_object_get(o, "id")));
+  json_decref(o);
+  free(r.body);
+  snprintf(far, sizeof far, "/v1/sessions/%s/lighting?at=30,1.7,30", id);
+  snprintf(near, sizeof near, "/v1/sessions/%s/lighting?at=0,1000,0.5", id);
+  get_arg a = {.path = far}, b = {.path = near};
+  pthread_t ta, tb;
+  double t0 = su_now_ms();
+  assert_int_equal(pthread_create(&ta, NULL, get_deadline, &a), 0);
+  su_sleep_ms(250); /* b waits for the far move's turn to end */
+  assert_int_equal(pthread_create(&tb, NULL, get_deadline, &b), 0);
+  pthread_join(ta, NULL);
+  double t_a = su_now_ms() - t0;
+  pthread_join(tb, NULL);
+  su_resp c = su_http(&S_deadline, NULL, near, NULL, NULL);
+  double t_c = su_now_ms() - t0;
+  char mb[128], mc[128]; /* su_header's buffer is reused */
+  snprintf(mb, sizeof mb, "%s", su_header(&b.r, "X-GI-Move") ? su_header(&b.r, "X-GI-Move") : "-");
+  snprintf(mc, sizeof mc, "%s", su_header(&c, "X-GI-Move") ? su_header(&c, "X-GI-Move") : "-");
+  printf("  far move: %ld after %.0f ms; waiting request: %ld (%s); next: %ld (%s) %.0f ms after the far move began\n",
+         a.r.status, t_a, b.r.status, mb, c.status, mc, t_c);
+  su_expect_error(&a.r, 504, "timeout", "deadline");
+  assert_non_null(su_header(&a.r, "Retry-After"));
+  /* Nothing reads the partial cascade: an answer after the stop is a re-bake's. */
+  const double at[3] = {0, 1000, 0.5};
+  float got[3];
+  assert_true(b.r.status == 200 || b.r.status == 504);
+  if (b.r.status == 200) {
+    assert_int_equal(move_field(&b.r, "cycle"), 1);
+    assert_int_equal(move_field(&b.r, "rebuilt"), 6);
+    exr_rgb_of(&S_deadline, &b.r, got);
+    expect_cold_q(got, at, &Q_HIGH_1);
+  }
+  assert_int_equal(c.status, 200);
+  if (b.r.status != 200) assert_int_equal(move_field(&c, "rebuilt"), 6);
+  exr_rgb_of(&S_deadline, &c, got);
+  expect_cold_q(got, at, &Q_HIGH_1);
+  assert_true(t_c < MOVE_STOP_BOUND_MS);
+  double timeouts = su_metric(&S_deadline, "gi_timeouts_total", NULL);
+  double cancelled = su_metric(&S_deadline, "gi_bakes_cancelled_total", NULL);
+  printf("  gi_timeouts_total %g, gi_bakes_cancelled_total %g\n", timeouts, cancelled);
+  assert_true(timeouts == 1 + (b.r.status == 504));
+  assert_true(cancelled >= 1 && cancelled <= 1 + (b.r.status == 504));
+  assert_true(su_metric(&S_deadline, "gi_sessions_open", NULL) == 1);
+  free(a.r.body);
+  free(b.r.body);
+  free(c.body);
+  assert_int_equal(su_stop(&S_deadline), 0);
+  S_deadline.pid = 0;
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_walk_matches_cold_bake),
@@ -526,6 +636,7 @@ int main(void) {
       cmocka_unit_test(test_budget),
       cmocka_unit_test(test_creation_bytes),
       cmocka_unit_test(test_deadline_cancels_creation),
+      cmocka_unit_test(test_deadline_stops_move),
   };
   return cmocka_run_group_tests(tests, setup, teardown);
 }
