@@ -135,7 +135,8 @@ char *gs_metrics_render(gs_metrics *m, const gs_gauges *g) {
   put_hist(&b, "gi_bake_duration_seconds", "Time to bake one cascade (voxelize to bounce).", &m->bake_seconds);
   put_counter(&b, "gi_bakes_total", "Cascades baked.", atomic_load(&m->bakes));
   put_counter(&b, "gi_bakes_cancelled_total",
-              "Bakes and session moves stopped because every request waiting for them left (deadline or hang-up).",
+              "Bakes stopped because every request waiting for them left (deadline or hang-up), "
+              "and session moves stopped at their deadline.",
               atomic_load(&m->cancelled));
   put_gauge(&b, "gi_bakes_in_flight", "Cascades (for requests, sessions and jobs) and lightmaps being baked now.",
             (double)atomic_load(&m->in_flight));

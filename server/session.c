@@ -22,14 +22,16 @@
  * leaving the table; its cascade is freed when the last request lets go.
  *
  * Cancelling: the request's token (deadline, hang-up) stops the wait for
- * its session's lock, the move (gi_cascade_move_ex) and the gather after
- * it, as it stops a lighting request's bake: a move that rebuilds a level
- * costs a cold bake's work, which nothing could stop. A stopped move is a
- * 504 (the deadline's answer, http.c) counted in gi_bakes_cancelled_total;
- * it leaves the cascade partial, which no call reads (gi_move.h), and the
- * session keeps it: the session's next move re-bakes it at its viewpoint
- * (a cold bake's work, as its creation did within the deadline). The busy
- * flag keeps every other request off the cascade in between. */
+ * its session's lock and the gather after the move. The move itself stops
+ * at the request's deadline only (a token of its own): a move that
+ * rebuilds a level costs a cold bake's work, which must stay bounded, but a
+ * walking client that drops a stale request or times out must find its
+ * session moved. A stopped move is a 504 (the deadline's answer, http.c)
+ * counted in gi_bakes_cancelled_total; it leaves the cascade partial, which
+ * no call reads (gi_move.h), and the session keeps it: the session's next
+ * move re-bakes it at its viewpoint (a cold bake's work, as its creation
+ * did within the deadline). The busy flag keeps every other request off
+ * the cascade in between. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <fcntl.h>
@@ -367,14 +369,22 @@ static void move_and_answer(gs_service *svc, gs_session *s, const gi_proto_bake 
   gi_bake_report rep;
   gi_move_info mi;
   double t0 = gs_now_ms();
-  /* A cancelled move leaves the cascade partial; the next move re-bakes it (gi_move.h). */
-  gi_result rc = gi_cascade_move_ex(s->cascade, b->at, cancel, &rep, &mi, &e);
+  /* The move stops at the request's deadline, not when its client hangs up: a walking client
+   * drops stale requests and times out by design, and the finished move is what its next request
+   * reads, where a stopped one would make every next move a cold bake (a client whose timeout is
+   * shorter than that would never be answered again). A stopped move leaves the cascade partial;
+   * the next move re-bakes it (gi_move.h). */
+  gi_cancel *until = gi_cancel_new();
+  if (!until) return fail(a, 503, 1, "out of memory for the move's deadline");
+  gi_cancel_set_deadline(until, gi_now_ms() + (t_start_ms + svc->cfg->deadline_s * 1e3 - gs_now_ms()));
+  gi_result rc = gi_cascade_move_ex(s->cascade, b->at, until, &rep, &mi, &e);
+  gi_cancel_free(until);
   if (rc == GI_ERR_NONFINITE || rc == GI_ERR_INVALID_ARG)
     return fail(a, 400, 0, "parameter 'at': %s", e.msg[0] ? e.msg : gi_strerror(rc)); /* cascade untouched */
   if (rc == GI_ERR_CANCELLED) {
-    /* Past the deadline: http.c answers its 504 (Retry-After, gi_timeouts_total); hung up: nobody reads it. */
+    /* Past the deadline: http.c answers its 504 (Retry-After, gi_timeouts_total). */
     gs_metrics_move_cancelled(svc->metrics);
-    return fail(a, 504, (int)ceil(svc->cfg->deadline_s), "the session's move was stopped (deadline or hang-up); "
+    return fail(a, 504, (int)ceil(svc->cfg->deadline_s), "the session's move was stopped at the deadline; "
                 "the session stays: its next move re-bakes its cascade there");
   }
   if (rc != GI_OK) {
