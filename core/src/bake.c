@@ -66,10 +66,8 @@ gi_result gi_cascade_would_cover(const gi_scene *s, const double at[3], const gi
 
 void gi_cascade_free(gi_cascade *c) {
   if (!c) return;
-  gi__cascade_free_levels(c);
   gi__move_state_free(c->move_state);
-  gi_scene_release(c->scene);
-  gi__free(c);
+  gi__cascade_discard(c);
 }
 
 /* The dense arrays per voxel (rad, vix, occ, busy) and, at most, one entry

@@ -17,13 +17,6 @@
 #include "plan.h"
 #include "trace/trace.h"
 
-/* A bake that failed: its cascade has no move state yet. */
-static void discard(struct gi_cascade *c) {
-  gi__cascade_free_levels(c);
-  gi_scene_release(c->scene);
-  gi__free(c);
-}
-
 gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const gi_quality *qin,
                               const gi_cancel *cancel, const float *pts, int npts, gi_cascade **out,
                               gi_bake_report *report, gi_error_info *err) {
@@ -52,7 +45,7 @@ gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const g
     c->at[a] = (float)(at[a] - scene->origin[a]);
   }
   if ((rc = gi__viewpoint_range(scene, at, q.voxel0, "bake", err)) != GI_OK) {
-    discard(c);
+    gi__cascade_discard(c); /* no move state yet */
     return rc;
   }
   c->report.quality = q;
@@ -119,6 +112,6 @@ gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const g
   *out = c;
   return GI_OK;
 fail:
-  discard(c);
+  gi__cascade_discard(c);
   return rc;
 }

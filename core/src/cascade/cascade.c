@@ -66,6 +66,12 @@ void gi__cascade_free_levels(struct gi_cascade *c) {
   }
 }
 
+void gi__cascade_discard(struct gi_cascade *c) {
+  gi__cascade_free_levels(c);
+  gi_scene_release(c->scene);
+  gi__free(c);
+}
+
 /* Growth of a level's entries beyond what was asked: a move adds a few
  * hundred voxels at a time. */
 #define GI_ENTRY_SLACK 256

@@ -353,6 +353,9 @@ size_t gi__entries_bytes(const struct gi_cascade *c);
 gi_result gi__cascade_alloc(struct gi_cascade *c, gi_error_info *err);
 /* Frees that block and clears the level pointers (a cascade never allocated is fine). */
 void gi__cascade_free_levels(struct gi_cascade *c);
+/* Frees a cascade that holds no move state (a bake's, or one whose move
+ * state was freed): its levels, its scene reference and itself. */
+void gi__cascade_discard(struct gi_cascade *c);
 void gi__cascade_place(struct gi_cascade *c);
 /* gi_cascade.torn */
 enum { GI_TORN_MOVING = 1, GI_TORN_LEFT = 2 };

@@ -1003,10 +1003,8 @@ static gi_result rebake_torn(gi_cascade *c, const double at[3], gi_bake_report *
   }
   struct gi_cascade left = *c;
   *c = *f;
-  /* The partial cascade's insides: no levels, no move state, only its scene
-   * reference (gi_cascade_free is the bake's file, which calls this one). */
-  gi_scene_release(left.scene);
-  gi__free(f);
+  *f = left; /* the partial cascade's insides: no levels, no move state */
+  gi__cascade_discard(f);
   c->moves = moves;
   /* What moves need, as a session's prepare made it; without memory the next move makes it. */
   (void)move_state(c, NULL);
