@@ -241,6 +241,70 @@ static void test_lanes_match_scalar_march(void **state) {
   gi_cascade_free(c);
 }
 
+/* A march's taps (trace.h) give each cone's light again: every cone of
+ * the city's set, recorded by both builds of the march and replayed by
+ * both, against the light the march returned. */
+static void test_taps_replay_cones(void **state) {
+  gi_cascade *c = city_cascade(0);
+  enum { CAP = 6000 };
+  gi_cone_job *jobs = malloc(CAP * sizeof *jobs);
+  gi_cone_out *out = malloc(CAP * sizeof *out);
+  gi_tap *mine = malloc((size_t)GI_CONE_MAX_STEPS * 2 * sizeof *mine);
+  assert_non_null(jobs);
+  assert_non_null(out);
+  assert_non_null(mine);
+  int nj = city_jobs(c, jobs, CAP) - 3;
+  float step = c->report.quality.step, ao = c->report.quality.ao_lambda;
+  for (int v3 = 0; v3 < 2; v3++) {
+    if (v3 && !gi_cpu_has_v3()) {
+      printf("SKIP (x86-64-v3 part): this CPU has no x86-64-v3; the baseline's taps were checked\n");
+      continue;
+    }
+    gi__cpu_force(v3);
+    gi_tap_rec rec = {.max = (size_t)1 << 24};
+    gi__cone_march_jobs_rec(c, jobs, nj, c->cone_tan, step, ao, out, &rec);
+    assert_false(rec.full);
+    /* Each cone's taps, in the order the march took them. */
+    size_t *at = calloc((size_t)nj + 1, sizeof *at), *put = calloc((size_t)nj, sizeof *put);
+    gi_tap *sorted = malloc((rec.n + 1) * sizeof *sorted);
+    assert_non_null(at);
+    assert_non_null(put);
+    assert_non_null(sorted);
+    for (size_t i = 0; i < rec.n; i++) at[rec.t[i].job + 1]++;
+    for (int j = 0; j < nj; j++) at[j + 1] += at[j], put[j] = at[j];
+    for (size_t i = 0; i < rec.n; i++) sorted[put[rec.t[i].job]++] = rec.t[i];
+    double worst = 0;
+    int lit = 0;
+    for (int j = 0; j < nj; j++) {
+      int m = 0;
+      float a = out[j].alpha, sc = a >= GI_OPAQUE_ALPHA ? 1.f / a : 1.f;
+      for (size_t i = at[j]; i < at[j + 1]; i++) {
+        mine[m] = sorted[i];
+        mine[m].job = 0;
+        for (int k = 0; k < 3; k++) mine[m].k[k] *= sc;
+        m++;
+      }
+      float E[GI_VOX_FACES][3] = {{0}};
+      gi__replay_taps(c, mine, (size_t)m, E);
+      lit += m > 0 && out[j].L[0] + out[j].L[1] + out[j].L[2] > 0;
+      for (int k = 0; k < 3; k++) worst = fmax(worst, fabs(E[0][k] - out[j].L[k]) / fmax(fabs(out[j].L[k]), 1e-3));
+    }
+    printf("  %s: %d cones, %zu taps, %d cones lit; largest relative difference of a replay %.2e\n",
+           v3 ? "x86-64-v3" : "baseline", nj, rec.n, lit, worst);
+    assert_true(lit > nj / 4);
+    assert_true(worst < 1e-4);
+    free(at);
+    free(put);
+    free(sorted);
+    gi__free(rec.t);
+  }
+  gi__cpu_force(1);
+  free(jobs);
+  free(out);
+  free(mine);
+  gi_cascade_free(c);
+}
+
 /* The bounce skips, after its first pass, the cones that met no opacity
  * (light/bounce.c): exact only while the texture's opacity lanes and busy
  * masks stay as injection left them. A bake with no bounce and one with
@@ -270,6 +334,7 @@ int main(void) {
       cmocka_unit_test(test_both_march_builds_agree),
       cmocka_unit_test(test_lanes_match_scalar_march),
       cmocka_unit_test(test_bounces_keep_opacity),
+      cmocka_unit_test(test_taps_replay_cones),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

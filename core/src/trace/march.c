@@ -39,10 +39,13 @@ float gi__voxel_at(const struct gi_cascade *c, const float p[3]) {
 void gi__cone_march_base(GI_MARCH_ARGS);
 int gi__sample_level_base(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
                           float *wsum_alpha, float *sigma);
+void gi__cone_march_rec_base(GI_MARCH_ARGS, gi_tap_rec *rec, uint16_t job);
+void gi__replay_taps_base(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]);
 #ifdef GI_HAVE_V3_BUILD
 void gi__cone_march_v3(GI_MARCH_ARGS);
+void gi__replay_taps_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]);
 void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
-                            float step, float ao_lambda, gi_cone_out *out);
+                            float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec);
 int gi__sample_level_v3(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
                         float *wsum_alpha, float *sigma);
 #endif
@@ -66,17 +69,33 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
   return gi__sample_level_base(c, d, p, w, prem, wsum_alpha, sigma);
 }
 
-void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
-                         float step, float ao_lambda, gi_cone_out *out) {
+void gi__cone_march_jobs_rec(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                             float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec) {
 #ifdef GI_HAVE_V3_BUILD
   /* The lanes address texels by 32-bit byte offsets: R^3 x 48 bytes. */
   if (gi__cpu_v3() && c->R <= GI_MARCH_LANES_MAX_RES) {
-    gi__cone_march_jobs_v3(c, jobs, count, tan_half, step, ao_lambda, out);
+    gi__cone_march_jobs_v3(c, jobs, count, tan_half, step, ao_lambda, out, rec);
     return;
   }
 #endif
   for (int i = 0; i < count; i++) {
     const gi_cone_job *j = &jobs[i];
-    gi__cone_march_base(c, j->o, j->w, tan_half, j->t0, step, ao_lambda, j->h0, j->h0 >= 0 ? j->n : NULL, &out[i]);
+    gi__cone_march_rec_base(c, j->o, j->w, tan_half, j->t0, step, ao_lambda, j->h0, j->h0 >= 0 ? j->n : NULL,
+                            &out[i], rec, (uint16_t)i);
   }
+}
+
+void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                         float step, float ao_lambda, gi_cone_out *out) {
+  gi__cone_march_jobs_rec(c, jobs, count, tan_half, step, ao_lambda, out, NULL);
+}
+
+void gi__replay_taps(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]) {
+#ifdef GI_HAVE_V3_BUILD
+  if (gi__cpu_v3()) {
+    gi__replay_taps_lanes(c, t, n, E);
+    return;
+  }
+#endif
+  gi__replay_taps_base(c, t, n, E);
 }

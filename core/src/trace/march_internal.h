@@ -41,6 +41,39 @@ static inline void gi__level_spans(const struct gi_cascade *c, const float o[3],
 
 static inline int gi__span_has(const gi_span *sp, float t) { return t >= sp->in && t <= sp->out; }
 
+/* Axis a of the trilinear cell at coordinate x on level L (inv = 1 / s):
+ * the fraction f toward its second cell, both cells' toroidal slots times
+ * the axis's stride (off), and the first cell's index in the window, i0,
+ * in [0, R - 2]. Returns 1 when x lay outside and was clamped to it. */
+static inline int gi__cell_axis(const gi_level *L, int R, int a, float x, float inv, float *f, uint32_t off[2],
+                                int *i0out) {
+  float u = (x - L->lo[a]) * inv - 0.5f;
+  float fl = floorf(u);
+  int i0 = (int)fl, clamped = 0;
+  if (i0 < 0) i0 = 0, fl = 0, u = gi__maxf(u, 0.f), clamped = 1;
+  if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = gi__minf(u, (float)(R - 1)), clamped = 1;
+  *f = u - fl;
+  /* Wrap once: the window's cells sit in toroidal slots. */
+  int s0 = L->slot0[a] + i0;
+  if (s0 >= R) s0 -= R;
+  int s1 = s0 + 1 == R ? 0 : s0 + 1;
+  uint32_t stride = a == 0 ? 1u : (a == 1 ? (uint32_t)R : (uint32_t)R * (uint32_t)R);
+  off[0] = (uint32_t)s0 * stride;
+  off[1] = (uint32_t)s1 * stride;
+  *i0out = i0;
+  return clamped;
+}
+
+/* The cell's eight texels (corner i = dx + 2 dy + 4 dz) and their weights. */
+static inline void gi__cell_corners(const gi_level *L, const uint32_t off[3][2], const float f[3],
+                                    const gi_vrad *r[8], float wt[8]) {
+  for (int i = 0; i < 8; i++) {
+    int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
+    r[i] = &L->rad[off[2][dz] + off[1][dy] + off[0][dx]];
+    wt[i] = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+  }
+}
+
 /* The trilinear sum of the 2x2x2 texels at a sample, all 24 lanes at
  * once: the per-cone choice of faces and axis weights is applied after
  * (reduce), so the eight texel reads are the same straight-line loads for

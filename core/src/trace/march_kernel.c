@@ -28,17 +28,12 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
   const gi_level *L = &c->lv[d];
   int R = c->R;
   float inv = (float)(1.0 / L->s);
-  /* Wrap each axis once: toroidal slots of the two cells the footprint spans. */
   uint32_t off[3][2];
   float f[3], run = INFINITY, run4 = INFINITY;
   int b4[3];
   for (int a = 0; a < 3; a++) {
-    float u = (p[a] - L->lo[a]) * inv - 0.5f;
-    float fl = floorf(u);
-    int i0 = (int)fl;
-    if (i0 < 0) i0 = 0, fl = 0, u = gi__maxf(u, 0.f), run = run4 = 0;
-    if (i0 > R - 2) i0 = R - 2, fl = (float)(R - 2), u = gi__minf(u, (float)(R - 1)), run = run4 = 0;
-    f[a] = u - fl;
+    int i0;
+    if (gi__cell_axis(L, R, a, p[a], inv, &f[a], off[a], &i0)) run = run4 = 0;
     /* Inside the block while u stays in [fl, fl + 1]; inside the busy4
      * block while u stays in [4 b, 4 b + 4]: `more` whole cells further. */
     b4[a] = i0 / GI_EMPTY_BLOCK;
@@ -53,12 +48,6 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
       run = gi__minf(run, f[a] * along);
       run4 = gi__minf(run4, ((float)in4 + f[a]) * along);
     }
-    int s0 = L->slot0[a] + i0;
-    if (s0 >= R) s0 -= R;
-    int s1 = s0 + 1 == R ? 0 : s0 + 1;
-    uint32_t stride = a == 0 ? 1u : (a == 1 ? (uint32_t)R : (uint32_t)R * (uint32_t)R);
-    off[a][0] = (uint32_t)s0 * stride;
-    off[a][1] = (uint32_t)s1 * stride;
   }
   if (!L->busy[off[0][0] + off[1][0] + off[2][0]]) {
     prem[0] = prem[1] = prem[2] = 0;
@@ -73,11 +62,7 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
   if (clear) *clear = 0;
   const gi_vrad *r[8];
   float wt[8];
-  for (int i = 0; i < 8; i++) {
-    int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
-    r[i] = &L->rad[off[2][dz] + off[1][dy] + off[0][dx]];
-    wt[i] = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
-  }
+  gi__cell_corners(L, off, f, r, wt);
   gi_lanes s;
   gi__sum_texels(r, wt, &s);
   /* Light travelling toward the apex (-w) leaves through the face facing -w.
@@ -120,8 +105,27 @@ int GI_KERNEL(gi__sample_level)(const struct gi_cascade *c, int d, const float p
  * 9% before the rule, 0.8% with it; K = 1.75 lets the camera views leak
  * 1.9%, K = 3, the value while near samples still blended, reads the same
  * 0.8% with 13% more samples). */
-void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
-                    float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
+/* The taps of one scalar march step (see gi_tap): level d at p, each
+ * axis weighted ax_a |w_a| (ax NULL: 1) times the step's weight kk; with
+ * frac >= 0 the step blended level d + 1 in by frac, which adds its tap. */
+static void push_taps(gi_tap_rec *rec, uint16_t job, int d, const float p[3], const float w[3], const float *ax,
+                      float kk, float frac) {
+  gi_tap t;
+  t.job = job;
+  t.d = (uint8_t)d;
+  t.faces = (uint8_t)((w[0] > 0) | (w[1] > 0) << 1 | (w[2] > 0) << 2);
+  float k1 = frac >= 0 ? kk * (1 - frac) : kk;
+  for (int a = 0; a < 3; a++) t.p[a] = p[a], t.k[a] = k1 * fabsf(w[a]) * (ax ? ax[a] : 1.f);
+  gi__tap_push(rec, &t);
+  if (frac < 0) return;
+  t.d++;
+  for (int a = 0; a < 3; a++) t.k[a] = kk * frac * fabsf(w[a]);
+  gi__tap_push(rec, &t);
+}
+
+static void march(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
+                  float step, float ao_lambda, float h0, const float *n, gi_cone_out *out, gi_tap_rec *rec,
+                  uint16_t job) {
   float L[3] = {0, 0, 0}, a = 0, occ = 0;
   float nw = n && h0 >= 0 ? gi__dot(n, w) : 0.f;
   uint32_t samples = 0;
@@ -172,14 +176,13 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
     float P[3], wal, sig, clear, clear2 = INFINITY;
     /* Coarsest by width, height not shrinking: the cone reads this level to its end. */
     int far = d0 == c->n - 1 && (h0 < 0 || nw >= 0);
-    if (d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s) {
-      float axw[3] = {1 - n[0] * n[0], 1 - n[1] * n[1], 1 - n[2] * n[2]};
-      sample_level_ax(c, d, p, w, axw, far, P, &wal, &sig, &clear);
-    } else {
-      sample_level_ax(c, d, p, w, NULL, far, P, &wal, &sig, &clear);
-    }
+    int across = d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s;
+    float axw[3] = {across ? 1 - n[0] * n[0] : 1, across ? 1 - n[1] * n[1] : 1, across ? 1 - n[2] * n[2] : 1};
+    const float *ax = across ? axw : NULL;
+    sample_level_ax(c, d, p, w, ax, far, P, &wal, &sig, &clear);
     samples++;
-    if (frac > 0 && d + 1 < c->n && gi__span_has(&sp[d + 1], t)) {
+    int two = frac > 0 && d + 1 < c->n && gi__span_has(&sp[d + 1], t);
+    if (two) {
       float P2[3], wal2, sig2;
       sample_level_ax(c, d + 1, p, w, NULL, 0, P2, &wal2, &sig2, &clear2);
       samples++;
@@ -204,6 +207,7 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
       L[0] += k * P[0];
       L[1] += k * P[1];
       L[2] += k * P[2];
+      if (rec) push_taps(rec, job, d, p, w, ax, k, two ? frac : -1.f);
     }
     occ += (1 - occ) * as / (1.0f + ao_lambda * 0.5f * D);
     a += (1 - a) * as;
@@ -218,3 +222,40 @@ void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], con
   out->occlusion = occ;
   out->samples = samples;
 }
+
+void GI_KERNEL(gi__cone_march)(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half, float t0,
+                               float step, float ao_lambda, float h0, const float *n, gi_cone_out *out) {
+  march(c, o, w, tan_half, t0, step, ao_lambda, h0, n, out, NULL, 0);
+}
+
+void GI_KERNEL(gi__cone_march_rec)(const struct gi_cascade *c, const float o[3], const float w[3], float tan_half,
+                                   float t0, float step, float ao_lambda, float h0, const float *n, gi_cone_out *out,
+                                   gi_tap_rec *rec, uint16_t job) {
+  march(c, o, w, tan_half, t0, step, ao_lambda, h0, n, out, rec, job);
+}
+
+#if !GI_MARCH_V3
+void GI_KERNEL(gi__replay_taps)(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]) {
+  float S[GI_VOX_FACES][3] = {{0}};
+  for (size_t i = 0; i < n; i++) {
+    const gi_level *L = &c->lv[t[i].d];
+    uint32_t off[3][2];
+    float f[3];
+    float inv = (float)(1.0 / L->s);
+    int i0;
+    for (int a = 0; a < 3; a++) gi__cell_axis(L, c->R, a, t[i].p[a], inv, &f[a], off[a], &i0);
+    const gi_vrad *r[8];
+    float wt[8];
+    gi__cell_corners(L, off, f, r, wt);
+    gi_lanes s;
+    gi__sum_texels(r, wt, &s);
+    float *e = S[t[i].job];
+    for (int a = 0; a < 3; a++) {
+      int face = 2 * a + (t[i].faces >> a & 1);
+      for (int ch = 0; ch < 3; ch++) e[ch] += t[i].k[a] * s.v[3 * face + ch];
+    }
+  }
+  for (int f = 0; f < GI_VOX_FACES; f++)
+    for (int ch = 0; ch < 3; ch++) E[f][ch] += S[f][ch] * c->rad_scale;
+}
+#endif

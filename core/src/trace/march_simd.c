@@ -25,6 +25,7 @@ _Static_assert(GI_MAX_LEVELS <= TAB, "level tables hold every level");
 
 typedef struct {
   const struct gi_cascade *c;
+  gi_tap_rec *rec; /* NULL: no taps recorded */
   int n, R;
   float s[TAB], inv[TAB], lo[3][TAB];
   int32_t slot0[3][TAB];
@@ -304,7 +305,7 @@ static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m25
 /* Folds one sample into the lanes in act: the step, the empty-block
  * skip, the opacity and front-to-back compositing. */
 static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256 sd, __m256 D, const sample8 *s,
-                      __m256 clear2) {
+                      __m256 clear2, __m256 *lit_out, __m256 *k_out) {
   __m256 dt = _mm256_mul_ps(_mm256_blendv_ps(V1(q->step), V1(gi__minf(q->step, GI_NEAR_SURFACE_STEP)), near), sd);
   __m256 run = _mm256_min_ps(s->clear, clear2);
   dt = _mm256_blendv_ps(dt, _mm256_mul_ps(dt, _mm256_ceil_ps(_mm256_div_ps(run, dt))), CMP(run, dt, _CMP_GT_OQ));
@@ -314,6 +315,7 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
                                                 CMP(s->wal, V1(GI_MIN_SAMPLE_WEIGHT), _CMP_GT_OQ)));
   __m256 k = _mm256_div_ps(_mm256_mul_ps(ta, as), s->wal);
   for (int ch = 0; ch < 3; ch++) st->L[ch] = _mm256_blendv_ps(st->L[ch], _mm256_fmadd_ps(k, s->P[ch], st->L[ch]), lit);
+  *lit_out = lit, *k_out = k;
   __m256 occ = st->occ;
   __m256 att = _mm256_fmadd_ps(V1(q->ao_lambda * 0.5f), D, V1(1.f));
   occ = _mm256_add_ps(occ, _mm256_div_ps(_mm256_mul_ps(_mm256_sub_ps(V1(1.f), occ), as), att));
@@ -322,6 +324,36 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
   st->a = _mm256_blendv_ps(st->a, a, act);
   st->t = _mm256_blendv_ps(st->t, _mm256_add_ps(st->t, dt), act);
   st->act = _mm256_and_ps(act, CMP(st->a, V1(GI_OPAQUE_ALPHA), _CMP_LT_OQ));
+}
+
+/* The taps of the lanes in lit (see gi_tap): the sample at p on level d
+ * with each lane's compositing weight k, and where `two` blends in level
+ * d + 1 by frac, that one too. */
+static void record8(const batch *b, __m256 lit, __m256 k, const __m256 p[3], __m256i d, __m256 ax, __m256 two,
+                    __m256 frac) {
+  float P[3][LANES], K[LANES], F[LANES];
+  int32_t D[LANES];
+  for (int a = 0; a < 3; a++) _mm256_storeu_ps(P[a], p[a]);
+  _mm256_storeu_ps(K, k);
+  _mm256_storeu_ps(F, frac);
+  _mm256_storeu_si256((__m256i *)D, d);
+  int mx = _mm256_movemask_ps(ax), m2 = _mm256_movemask_ps(two);
+  for (int todo = _mm256_movemask_ps(lit); todo; todo &= todo - 1) {
+    int l = __builtin_ctz((unsigned)todo), blend = m2 >> l & 1;
+    const float *kw = (mx >> l & 1) ? b->kax[l] : b->k[l];
+    gi_tap t;
+    t.job = (uint16_t)b->job[l];
+    t.d = (uint8_t)D[l];
+    t.faces = (uint8_t)((b->w[0][l] > 0) | (b->w[1][l] > 0) << 1 | (b->w[2][l] > 0) << 2);
+    float k1 = blend ? K[l] * (1 - F[l]) : K[l];
+    for (int a = 0; a < 3; a++) t.p[a] = P[a][l], t.k[a] = k1 * kw[a];
+    gi__tap_push(b->rec, &t);
+    if (blend) {
+      t.d++;
+      for (int a = 0; a < 3; a++) t.k[a] = K[l] * F[l] * b->k[l][a];
+      gi__tap_push(b->rec, &t);
+    }
+  }
 }
 
 /* One step of every live lane. */
@@ -365,7 +397,9 @@ static void step8(const batch *b, const par8 *q, state8 *st) {
     s.sig = _mm256_blendv_ps(s.sig, _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.sig, s.sig), s.sig), two);
     clear2 = _mm256_blendv_ps(clear2, s2.clear, two);
   }
-  composite(q, st, act, near, sd, D, &s, clear2);
+  __m256 lit, k;
+  composite(q, st, act, near, sd, D, &s, clear2, &lit, &k);
+  if (b->rec) record8(b, lit, k, p, d, ax, two, frac);
   /* Every cone stops after GI_CONE_MAX_STEPS steps, as the scalar one. */
   st->act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(GI_CONE_MAX_STEPS),
                                                                           st->steps)));
@@ -499,9 +533,10 @@ static void load_job(const struct gi_cascade *c, batch *b, int l, const gi_cone_
 }
 
 static void march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, const par8 *q,
-                       gi_cone_out *out) {
+                       gi_cone_out *out, gi_tap_rec *rec) {
   batch b;
   batch_init(&b, c);
+  b.rec = rec;
   span_group sg = {.group = -1};
   /* Idle lanes hold a copy of job 0 that nobody reads. */
   int next = 0;
@@ -533,8 +568,86 @@ static void march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int 
 }
 
 void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
-                            float step, float ao_lambda, gi_cone_out *out) {
+                            float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec) {
   float s0 = (float)c->s0;
   par8 q = {tan_half, step, ao_lambda, s0, 1.f / s0, 1.f / (GI_SURFACE_LOD_K * s0)};
-  if (count > 0) march_jobs(c, jobs, count, &q, out);
+  if (count > 0) march_jobs(c, jobs, count, &q, out, rec);
+}
+
+/* gi__replay_taps in eight lanes: per tap, the cell's three axes in one
+ * vector (as locate), the eight corners' weights and byte offsets in one
+ * each, the texels summed as read_lane sums them and the three faces
+ * picked by permutes. About half the scalar replay's instructions. */
+void gi__replay_taps_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]) {
+  const int R = c->R;
+  float lo[GI_MAX_LEVELS][4], inv[GI_MAX_LEVELS];
+  int32_t slot0[GI_MAX_LEVELS][4];
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *L = &c->lv[d];
+    inv[d] = (float)(1.0 / L->s);
+    for (int a = 0; a < 3; a++) lo[d][a] = L->lo[a], slot0[d][a] = L->slot0[a];
+    lo[d][3] = 0, slot0[d][3] = 0;
+  }
+  const __m128i zero = _mm_setzero_si128(), Rv = _mm_set1_epi32(R), Rm2 = _mm_set1_epi32(R - 2);
+  const __m128i stride = _mm_setr_epi32(1, R, R * R, 0);
+  const __m256i ix = _mm256_setr_epi32(0, 4, 0, 4, 0, 4, 0, 4), iy = _mm256_setr_epi32(1, 1, 5, 5, 1, 1, 5, 5);
+  const __m256i iz = _mm256_setr_epi32(2, 2, 2, 2, 6, 6, 6, 6), iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256 acc[GI_VOX_FACES];
+  for (int f = 0; f < GI_VOX_FACES; f++) acc[f] = _mm256_setzero_ps();
+  for (size_t i = 0; i < n; i++) {
+    const gi_tap *tp = &t[i];
+    int d = tp->d;
+    /* The cell, as locate (clamped to the window, toroidal slots). */
+    __m128 u = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(tp->p), _mm_loadu_ps(lo[d])), _mm_set1_ps(inv[d])),
+                          _mm_set1_ps(0.5f));
+    __m128 fl = _mm_floor_ps(u);
+    __m128i i0 = _mm_cvttps_epi32(fl);
+    __m128 low = _mm_castsi128_ps(_mm_cmpgt_epi32(zero, i0)), high = _mm_castsi128_ps(_mm_cmpgt_epi32(i0, Rm2));
+    i0 = _mm_min_epi32(_mm_max_epi32(i0, zero), Rm2);
+    fl = _mm_blendv_ps(fl, _mm_setzero_ps(), low);
+    u = _mm_blendv_ps(u, _mm_max_ps(u, _mm_setzero_ps()), low);
+    fl = _mm_blendv_ps(fl, _mm_set1_ps((float)(R - 2)), high);
+    u = _mm_blendv_ps(u, _mm_min_ps(u, _mm_set1_ps((float)(R - 1))), high);
+    __m128 f = _mm_sub_ps(u, fl);
+    __m128i s0 = _mm_add_epi32(_mm_loadu_si128((const __m128i *)slot0[d]), i0);
+    s0 = _mm_sub_epi32(s0, _mm_andnot_si128(_mm_cmpgt_epi32(Rv, s0), Rv));
+    __m128i s1 = _mm_add_epi32(s0, _mm_set1_epi32(1));
+    s1 = _mm_andnot_si128(_mm_cmpeq_epi32(s1, Rv), s1);
+    /* Corner i = dx + 2 dy + 4 dz: its weight and its texel's byte offset. */
+    __m256i off = _mm256_set_m128i(_mm_mullo_epi32(s1, stride), _mm_mullo_epi32(s0, stride));
+    __m256i o = _mm256_add_epi32(_mm256_add_epi32(_mm256_permutevar8x32_epi32(off, iz),
+                                                  _mm256_permutevar8x32_epi32(off, iy)),
+                                 _mm256_permutevar8x32_epi32(off, ix));
+    o = _mm256_mullo_epi32(o, _mm256_set1_epi32((int)sizeof(gi_vrad)));
+    __m256 g = _mm256_set_m128(f, _mm_sub_ps(_mm_set1_ps(1.f), f));
+    __m256 w = _mm256_mul_ps(_mm256_mul_ps(_mm256_permutevar8x32_ps(g, ix), _mm256_permutevar8x32_ps(g, iy)),
+                             _mm256_permutevar8x32_ps(g, iz));
+    float wt[8];
+    uint32_t co[8];
+    _mm256_storeu_ps(wt, w);
+    _mm256_storeu_si256((__m256i *)co, o);
+    const char *rad = (const char *)c->lv[d].rad;
+    __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
+    for (int k = 0; k < 8; k++) {
+      __m256 wi = _mm256_broadcast_ss(&wt[k]);
+      const __m128i *h = (const __m128i *)(rad + co[k]);
+      a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
+      a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
+      a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
+    }
+    /* Each axis's face into lanes 0-2, as read_lane picks them. */
+    __m256 src[3] = {a0, _mm256_permute2f128_ps(a0, a1, 0x21), _mm256_permute2f128_ps(a1, a2, 0x21)};
+    __m256 P = _mm256_setzero_ps();
+    for (int a = 0; a < 3; a++) {
+      int fb = 3 * (2 * a + (tp->faces >> a & 1)) - (a == 0 ? 0 : a == 1 ? 4 : 12);
+      __m256 face = _mm256_permutevar8x32_ps(src[a], _mm256_add_epi32(_mm256_set1_epi32(fb), iota));
+      P = _mm256_fmadd_ps(_mm256_broadcast_ss(&tp->k[a]), face, P);
+    }
+    acc[tp->job] = _mm256_add_ps(acc[tp->job], P);
+  }
+  for (int f = 0; f < GI_VOX_FACES; f++) {
+    float v[8];
+    _mm256_storeu_ps(v, acc[f]);
+    for (int ch = 0; ch < 3; ch++) E[f][ch] += v[ch] * c->rad_scale;
+  }
 }

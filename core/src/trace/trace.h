@@ -119,6 +119,48 @@ typedef struct gi_cone_job {
 #define GI_MARCH_BATCH_JOBS 512
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out);
+/* A tap: one sample of a marched cone that added light, as the linear map
+ * it is. A cone's light is a sum over its samples of coefficients times
+ * texel radiance, and every coefficient (the step, opacity and trilinear
+ * weights) follows from the voxels' opacity alone, which no bounce changes:
+ * only the radiance does. So the bounces record a set's taps on its first
+ * bounce and replay them on the later ones (light/bounce.c): a replay reads
+ * the lit samples' texels again and skips the march. A tap reads level d at
+ * p (the march's trilinear cell), and on axis a the face facing -w
+ * (faces bit a: w_a > 0), weighted k[a] (times the cascade's rad_scale at
+ * replay). `job` is the cone's index in its march, or where a tape keeps
+ * it, the side it adds to. */
+typedef struct gi_tap {
+  float p[3], k[3];
+  uint16_t job;
+  uint8_t d, faces;
+} gi_tap;
+/* Where a recording march puts its taps, in the order it takes them (one
+ * cone's in step order). The caller owns t (gi__free) and sets max, the
+ * most taps t may grow to; full says a tap did not fit (past max, or out
+ * of memory: oom): t then misses some and must not be replayed. */
+typedef struct gi_tap_rec {
+  gi_tap *t;
+  size_t n, cap, max;
+  int full, oom;
+} gi_tap_rec;
+/* Appends one tap to r (marches call it; 0 when it did not fit).
+ * gi__tap_grow makes room for one more (trace/taps.c). */
+int gi__tap_grow(gi_tap_rec *r);
+static inline int gi__tap_push(gi_tap_rec *r, const gi_tap *tap) {
+  if (r->n == r->cap && !gi__tap_grow(r)) return 0;
+  r->t[r->n++] = *tap;
+  return 1;
+}
+/* gi__cone_march_jobs, also recording the taps of every cone into rec
+ * (NULL: none; job = the cone's index in jobs). A tap's k holds the cone's
+ * compositing weight before the renormalisation by alpha (out[i]) at its
+ * end. */
+void gi__cone_march_jobs_rec(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
+                             float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec);
+/* Adds n taps' light to E[tap.job] (tap.job < GI_VOX_FACES), reading the
+ * cascade's texture as it is now. Thread-safe. */
+void gi__replay_taps(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]);
 /* The same for the jobs[0..nj) whose done[k] is 0 (nj <= GI_MARCH_BATCH_JOBS);
  * out[k] of the others is left as it is (trace/gather.c). */
 void gi__cone_march_rest(const struct gi_cascade *c, const gi_cone_job *jobs, const uint8_t *done, int nj,
