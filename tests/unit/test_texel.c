@@ -16,11 +16,15 @@
 #include "gi/gi_city.h"
 #include "gi/gi_cpu.h"
 #include "gi/gi_probe.h"
+#include "light/light.h"
 #include "trace/trace.h"
 
 /* Half's relative spacing at the top of a binade: 2^-10; half of it is the
  * worst rounding error. */
 #define HALF_REL_ROUNDING (1.0f / 2048.0f)
+/* A replayed bounce sums the same products in another order: a face may
+ * round to the neighbouring half (2^-10), and the next bounce carries that on. */
+#define REPLAY_FACE_TOL 4e-3
 
 static void test_every_half_round_trips(void **state) {
   int checked = 0;
@@ -305,6 +309,75 @@ static void test_taps_replay_cones(void **state) {
   gi_cascade_free(c);
 }
 
+/* Every face's radiance of two cascades of one bake: the largest and the
+ * mean relative difference over faces above 1e-3 of the brightest. */
+static void compare_faces(const gi_cascade *a, const gi_cascade *b, double *worst, double *mean) {
+  size_t vox = (size_t)a->R * a->R * a->R, faces = 0;
+  float bright = 0;
+  for (int d = 0; d < a->n; d++)
+    for (size_t i = 0; i < vox; i++) {
+      gi_vrad_f f;
+      gi__vrad_unpack(a, &a->lv[d].rad[i], &f);
+      for (int k = 0; k < 18; k++) bright = fmaxf(bright, f.p[k / 3][k % 3]);
+    }
+  assert_true(bright > 0);
+  double sum = 0;
+  *worst = 0;
+  for (int d = 0; d < a->n; d++)
+    for (size_t i = 0; i < vox; i++) {
+      gi_vrad_f x, y;
+      gi__vrad_unpack(a, &a->lv[d].rad[i], &x);
+      gi__vrad_unpack(b, &b->lv[d].rad[i], &y);
+      for (int k = 0; k < 18; k++) {
+        double u = x.p[k / 3][k % 3], v = y.p[k / 3][k % 3], big = fmax(fabs(u), fabs(v));
+        if (big < 1e-3 * bright) continue;
+        double r = fabs(u - v) / big;
+        *worst = fmax(*worst, r);
+        sum += r;
+        faces++;
+      }
+    }
+  assert_true(faces > 1000);
+  *mean = sum / (double)faces;
+}
+
+/* The bounces replay their first bounce's taps (light/bounce.c): the same
+ * light as marching every bounce, to a half's rounding, with every tape
+ * kept and with a budget that holds only some of them. 4 bounces: both
+ * cone sets record and replay. */
+static void test_bounce_replays_match_marches(void **state) {
+  gi__cpu_force(gi_cpu_has_v3());
+  gi__set_tape_budget(0);
+  gi_cascade *march = city_cascade(4);
+  gi__set_tape_budget((size_t)1 << 20);
+  gi_cascade *part = city_cascade(4);
+  gi__set_tape_budget(GI_TAPE_MAX_BYTES);
+  gi_cascade *all = city_cascade(4);
+  const gi_bake_report *rm = gi_cascade_report(march), *rp = gi_cascade_report(part), *ra = gi_cascade_report(all);
+  printf("  samples marched: every bounce %llu, 1 MB of tapes %llu (%llu taps), all tapes %llu (%llu taps)\n",
+         (unsigned long long)rm->cone_samples, (unsigned long long)rp->cone_samples,
+         (unsigned long long)rp->taps_replayed, (unsigned long long)ra->cone_samples,
+         (unsigned long long)ra->taps_replayed);
+  assert_true(rm->taps_replayed == 0);
+  assert_true(ra->taps_replayed > 0 && ra->cone_samples < rm->cone_samples * 3 / 4);
+  assert_true(rp->taps_replayed > 0 && rp->taps_replayed < ra->taps_replayed);
+  assert_true(rp->cone_samples > ra->cone_samples && rp->cone_samples < rm->cone_samples);
+  size_t vox = (size_t)all->R * all->R * all->R, differ = 0;
+  for (int d = 0; d < all->n; d++)
+    for (size_t i = 0; i < vox; i++) differ += memcmp(&march->lv[d].rad[i], &all->lv[d].rad[i], sizeof(gi_vrad)) != 0;
+  printf("  texels differing from marching: %zu of %zu\n", differ, vox * (size_t)all->n);
+  double worst, mean;
+  compare_faces(march, all, &worst, &mean);
+  printf("  all tapes against marching: largest relative face difference %.2e, mean %.2e\n", worst, mean);
+  assert_true(worst < REPLAY_FACE_TOL && mean < 1e-5);
+  compare_faces(march, part, &worst, &mean);
+  printf("  1 MB of tapes against marching: largest %.2e, mean %.2e\n", worst, mean);
+  assert_true(worst < REPLAY_FACE_TOL && mean < 1e-5);
+  gi_cascade_free(march);
+  gi_cascade_free(part);
+  gi_cascade_free(all);
+}
+
 /* The bounce skips, after its first pass, the cones that met no opacity
  * (light/bounce.c): exact only while the texture's opacity lanes and busy
  * masks stay as injection left them. A bake with no bounce and one with
@@ -335,6 +408,7 @@ int main(void) {
       cmocka_unit_test(test_lanes_match_scalar_march),
       cmocka_unit_test(test_bounces_keep_opacity),
       cmocka_unit_test(test_taps_replay_cones),
+      cmocka_unit_test(test_bounce_replays_match_marches),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

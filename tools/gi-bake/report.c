@@ -92,14 +92,20 @@ static json_t *quality_json(jctx *j, const gi_quality *q, int threads) {
 }
 
 /* The march's cost: cones traced, samples per cone, and per sample the
- * bounce's wall time on every thread (so a loaded machine reads slower). */
+ * bounce's wall time on every thread less the replays' (so a loaded
+ * machine reads slower); the replays' taps and their time per tap. */
 static void add_march_figures(json_t *root, const gi_bake_report *rep) {
   json_object_set_new(root, "cones_traced", count(rep->cones_traced));
+  json_object_set_new(root, "taps_replayed", count(rep->taps_replayed));
+  json_object_set_new(root, "tape_bytes", count(rep->tape_bytes));
   json_object_set_new(root, "samples_per_cone",
                       json_real(rep->cones_traced ? (double)rep->cone_samples / (double)rep->cones_traced : 0.0));
+  /* The replays' own time is not the march's: ns_per_tap. */
+  double march_ms = rep->ms.bounce * rep->quality.threads - rep->replay_thread_ms;
   json_object_set_new(root, "ns_per_sample",
-                      json_real(rep->cone_samples ? rep->ms.bounce * 1e6 * rep->quality.threads / (double)rep->cone_samples
-                                                  : 0.0));
+                      json_real(rep->cone_samples ? march_ms * 1e6 / (double)rep->cone_samples : 0.0));
+  json_object_set_new(root, "ns_per_tap",
+                      json_real(rep->taps_replayed ? rep->replay_thread_ms * 1e6 / (double)rep->taps_replayed : 0.0));
   json_object_set_new(root, "cpu_path", json_string(gi_cpu_path()));
 }
 
@@ -273,7 +279,11 @@ static void print_human(const cli_run *r) {
   if (rep->cones_traced && rep->cone_samples)
     printf("cones      %llu traced, %.1f samples per cone, %.1f ns per sample per thread (%s march)\n",
            (unsigned long long)rep->cones_traced, (double)rep->cone_samples / (double)rep->cones_traced,
-           rep->ms.bounce * 1e6 * rep->quality.threads / (double)rep->cone_samples, gi_cpu_path());
+           (rep->ms.bounce * rep->quality.threads - rep->replay_thread_ms) * 1e6 / (double)rep->cone_samples,
+           gi_cpu_path());
+  if (rep->taps_replayed)
+    printf("replays    %llu lit samples read again from the first bounce's marches, %.1f ns each\n",
+           (unsigned long long)rep->taps_replayed, rep->replay_thread_ms * 1e6 / (double)rep->taps_replayed);
 
   const gi_effect *effects = r->render ? r->render->view.effects : rep->effects;
   printf("effects%s\n", r->render ? "    (of the rendered view)" : "");

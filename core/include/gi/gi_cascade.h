@@ -46,6 +46,11 @@ typedef struct gi_bake_report {
   uint64_t shadow_rays;
   uint64_t cone_samples;                 /* texture samples the bounces' cones took */
   uint64_t cones_traced;                 /* cones the bounces marched */
+  uint64_t taps_replayed;                /* lit samples the bounces read again from an earlier
+                                            bounce's march instead of marching (bounce.c) */
+  double replay_thread_ms;               /* time the replays took, summed over threads (part of
+                                            ms.bounce x threads) */
+  size_t tape_bytes;                     /* most bytes the replays' tapes held at once */
   size_t cascade_bytes;
   int bounces_run;
   uint32_t glossy_triangles;             /* glossy triangles inside the cascade: a camera

@@ -166,6 +166,14 @@ uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *sl
  * move's re-bake must agree bounce by bounce. */
 int gi__bounce_wide(const struct gi_cascade *c, int it);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
+/* The most bytes of tapes (trace.h: gi_tap) one bake's bounces keep to
+ * replay a cone set's later bounces: GI_TAPE_MAX_BYTES unless
+ * gi__set_tape_budget changed it (0: none, every bounce marches).
+ * Process-wide, for tests and measurements; thread-safe, read at each
+ * bake's start. A default bake keeps 13-40 MB (the Cornell box, Munich,
+ * the city). */
+#define GI_TAPE_MAX_BYTES ((size_t)256 << 20)
+void gi__set_tape_budget(size_t bytes);
 /* The end of a bounce's gathers (plan[d]: every level's plan; E: the
  * bounce's gathers of every other voxel): gi__between_fill, then the
  * voxels it turned down gathered with the bounce's set. Adds the samples
