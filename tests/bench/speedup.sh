@@ -4,8 +4,10 @@
 # Builds v0.1.0 (db8404f) once from a git worktree under out/ (cached), then
 # bakes each scene with both gi-bake binaries, alternating, RUNS times each on
 # 2 threads, and once more per run on 1 thread with this tree (thread scaling).
-# Prints medians and `speed-up: N.Nx` per scene, samples per cone and ns per
-# sample per thread, and appends one JSON line per scene to out/bench.jsonl.
+# Prints medians and `speed-up: N.Nx` per scene, samples per cone, ns per
+# marched sample per thread (the replays' time left out) and the millions of
+# lit samples the later bounces replayed instead of marching (light/bounce.c),
+# and appends one JSON line per scene to out/bench.jsonl.
 # Each run also bakes twice at once on 1 thread each: the ceiling column is
 # what two cores give this workload when they share a cache and memory.
 #
@@ -40,7 +42,8 @@ REV=$(git -C "$ROOT" rev-parse --short HEAD 2> /dev/null || echo unknown)
 git -C "$ROOT" diff --quiet HEAD -- 2> /dev/null || REV="$REV-dirty"
 STAMP=$(date -u +%Y-%m-%dT%H:%M:%SZ)
 
-# bake FILE BIN THREADS ARGS...: one line "bake_ms samples cones ns" to $TMP/FILE.
+# bake FILE BIN THREADS ARGS...: one line "bake_ms samples cones ns taps" to $TMP/FILE
+# (taps: lit samples the later bounces replayed instead of marching; none in v0.1.0).
 # (sh functions share variables: these names are bake's own; two bakes at
 # once run in subshells, each with its own FILE.)
 bake() {
@@ -51,7 +54,7 @@ import json, sys
 d = json.load(open(sys.argv[1]))
 t = d["timings_ms"]
 bake = sum(t[k] for k in ("voxelize", "inject", "filter", "bounce"))
-print(bake, d.get("cone_samples", 0), d.get("cones_traced", 0), d.get("ns_per_sample", 0))
+print(bake, d.get("cone_samples", 0), d.get("cones_traced", 0), d.get("ns_per_sample", 0), d.get("taps_replayed", 0))
 PY
   else
     say "$b_file: $(tail -n 1 "$TMP/$b_file.err")"
@@ -61,8 +64,8 @@ PY
 echo "cold bake, v0.1.0 ($BASE_REV) against $REV, $RUNS alternating runs, $(nproc) cpus, $STAMP"
 echo "ceiling: what two 1-thread bakes run at once give over one alone (2 x alone / together), the"
 echo "most 2 threads can give on this machine when the cores slow each other (shared cache, memory)"
-printf '%-10s %12s %12s %10s %12s %14s %14s %9s\n' scene "v0.1.0 ms" "now ms" speed-up "samples/cone" "ns/sample/thr" \
-  "2 thr vs 1" ceiling
+printf '%-10s %12s %12s %10s %12s %14s %14s %9s %12s\n' scene "v0.1.0 ms" "now ms" speed-up "samples/cone" \
+  "ns/sample/thr" "2 thr vs 1" ceiling "M replayed"
 
 # scene LABEL ARGS...
 scene() {
@@ -92,8 +95,9 @@ ms1 = statistics.median(r[0] for r in s) if s else float("nan")
 mp = statistics.median(r[0] for r in pair) if pair else float("nan")
 spc = n[0][1] / n[0][2] if n[0][2] else float("nan")
 ns = statistics.median(r[3] for r in n)
-print("%-10s %12.1f %12.1f %9.1fx %12.1f %14.1f %13.2fx %8.2fx" %
-      (label, mo, mn, mo / mn, spc, ns, ms1 / mn, 2 * ms1 / mp))
+taps = n[0][4] if len(n[0]) > 4 else 0.0
+print("%-10s %12.1f %12.1f %9.1fx %12.1f %14.1f %13.2fx %8.2fx %12.2f" %
+      (label, mo, mn, mo / mn, spc, ns, ms1 / mn, 2 * ms1 / mp, taps / 1e6))
 print("%-10s speed-up: %.1fx" % (label, mo / mn))
 with open(jsonl, "a") as f:
     f.write(json.dumps({"bench": "speedup", "scene": label, "args": args, "rev": rev, "base": base,
@@ -101,7 +105,7 @@ with open(jsonl, "a") as f:
                         "speedup": mo / mn, "one_thread_ms": ms1, "thread_scaling": ms1 / mn,
                         "pair_one_thread_ms": mp, "thread_ceiling": 2 * ms1 / mp,
                         "samples_per_cone": spc, "ns_per_sample": ns,
-                        "cone_samples": n[0][1], "v010_cone_samples": o[0][1]}) + "\n")
+                        "cone_samples": n[0][1], "v010_cone_samples": o[0][1], "taps_replayed": taps}) + "\n")
 PY
     say "$label: could not read the figures"
 }
