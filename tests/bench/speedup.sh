@@ -6,7 +6,7 @@
 # 2 threads, and once more per run on 1 thread with this tree (thread scaling).
 # Prints medians and `speed-up: N.Nx` per scene, samples per cone, ns per
 # marched sample per thread (the replays' time left out) and the millions of
-# lit samples the later bounces replayed instead of marching (light/bounce.c),
+# lit steps the later bounces replayed instead of marching (light/bounce.c),
 # and appends one JSON line per scene to out/bench.jsonl.
 # Each run also bakes twice at once on 1 thread each: the ceiling column is
 # what two cores give this workload when they share a cache and memory.
@@ -43,7 +43,7 @@ git -C "$ROOT" diff --quiet HEAD -- 2> /dev/null || REV="$REV-dirty"
 STAMP=$(date -u +%Y-%m-%dT%H:%M:%SZ)
 
 # bake FILE BIN THREADS ARGS...: one line "bake_ms samples cones ns taps" to $TMP/FILE
-# (taps: lit samples the later bounces replayed instead of marching; none in v0.1.0).
+# (taps: lit steps the later bounces replayed instead of marching; none in v0.1.0).
 # (sh functions share variables: these names are bake's own; two bakes at
 # once run in subshells, each with its own FILE.)
 bake() {

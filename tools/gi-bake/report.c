@@ -282,7 +282,7 @@ static void print_human(const cli_run *r) {
            (rep->ms.bounce * rep->quality.threads - rep->replay_thread_ms) * 1e6 / (double)rep->cone_samples,
            gi_cpu_path());
   if (rep->taps_replayed)
-    printf("replays    %llu lit samples read again from the first bounce's marches, %.1f ns each\n",
+    printf("replays    %llu lit steps read again from the first bounce's marches, %.1f ns each\n",
            (unsigned long long)rep->taps_replayed, rep->replay_thread_ms * 1e6 / (double)rep->taps_replayed);
 
   const gi_effect *effects = r->render ? r->render->view.effects : rep->effects;

@@ -15,11 +15,10 @@
  * and every other voxel along an edge (between.c: the Cornell box's bake
  * marches 50% fewer cones). A cone's march depends on the opacity alone,
  * which no bounce changes, so a set's first bounce records each voxel's
- * tape (the lit samples and their weights, trace.h: gi_tap) and the set's
- * later bounces replay it, reading those samples' texels again without
- * marching: the same light to float rounding (Munich: 14.7 M samples ->
- * 9.5 M marched and 2.1 M taps replayed; 11% fewer instructions per bake,
- * docs/accuracy-notes.md). A closed furnace of albedo a
+ * tape (its lit steps and their weights, trace.h: gi_tap) and the set's
+ * later bounces replay it, reading those steps' texels again without
+ * marching: the same bits (Munich: 14.7 M samples -> 9.5 M marched and
+ * 2.1 M steps replayed; docs/accuracy-notes.md). A closed furnace of albedo a
  * and emission Le therefore reaches Le (a + ... + a^(k+1)) reflected
  * radiance after k bounces. When the effect plan capped an automatic
  * bounce count short of what the albedo asks for, the last bounce also
@@ -33,11 +32,11 @@
 #include "trace/trace.h"
 
 /* A voxel's tape: the taps (trace.h) of its cones on its set's first
- * bounce, each side's in cone order, with the cone weights and the
- * renormalisation by alpha folded into k; the set's later bounces replay
- * it instead of marching (gi__replay_taps: the lit samples' texels only).
- * The taps of one batch of voxels share one
- * block, which the voxel marked own frees. */
+ * bounce, cone by cone in the set's order (job: the cone's bit), each
+ * with its cone's alpha; the set's later bounces replay it instead of
+ * marching (gi__replay_cones: the lit steps' texels only, the march's
+ * arithmetic, its bits). The taps of one batch of voxels share one block,
+ * which the voxel marked own frees. */
 typedef struct {
   gi_tap *t;
   uint32_t n;
@@ -200,8 +199,8 @@ static void face_hits(const gi_vgeo *g, const float hs[GI_VOX_FACES], const floa
 
 /* After cb's march recorded its taps (cb->rec, job order = the march's),
  * gives each voxel with a tape slot its taps: sorted by cone (counting
- * sort, stable: each cone's in step order), k times the cone's weight and
- * its 1 / alpha, job = its side. A batch whose taps did not fit (rec full,
+ * sort, stable: each cone's in step order), with the cone's alpha, job =
+ * its bit. A batch whose taps did not fit (rec full,
  * the budget spent) records nothing: its voxels march again. Out of
  * memory sets cb->oom: the bake fails as it would anywhere else. */
 static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
@@ -219,17 +218,9 @@ static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
     cb->oom = 1;
     return;
   }
-  int nc = wide ? c->num_wide_cones : c->num_cones;
-  const float *weight = wide ? c->wide_weight : c->cone_weight;
   uint32_t at[GI_MARCH_BATCH_JOBS + 1] = {0};
-  float scale[GI_MARCH_BATCH_JOBS];
   for (size_t i = 0; i < r->n; i++) at[r->t[i].job + 1]++;
-  for (int j = 0; j < cb->nj; j++) {
-    at[j + 1] += at[j];
-    float a = cb->co[j].alpha;
-    /* A cone stopped by opacity was renormalised by a (lane_finish). */
-    scale[j] = weight[cb->which[j] % nc] * (a >= GI_OPAQUE_ALPHA ? 1.f / a : 1.f);
-  }
+  for (int j = 0; j < cb->nj; j++) at[j + 1] += at[j];
   for (int v = 0; v < cb->nv; v++) {
     gi_tape *tp = cb->v[v].tape;
     if (!tp) continue;
@@ -243,8 +234,8 @@ static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
   for (size_t i = 0; i < r->n; i++) {
     gi_tap t = r->t[i];
     int j = t.job;
-    for (int a = 0; a < 3; a++) t.k[a] *= scale[j];
-    t.job = (uint16_t)(cb->which[j] / nc);
+    t.alpha = cb->co[j].alpha;
+    t.job = (uint16_t)cb->which[j];
     block[at[j]++] = t;
   }
   /* The block's first voxel frees it (every voxel of a recording batch has a tape). */
@@ -365,13 +356,23 @@ int gi__bounce_wide(const struct gi_cascade *c, int it) {
   return it >= WIDE_FROM && c->num_wide_cones < c->num_cones;
 }
 
-/* The set's later bounce for voxel (d, i) from its tape: the same light
- * its cones would gather from the texture as it is now. */
+/* The set's later bounce for voxel (d, i) from its tape: the light its
+ * cones would gather from the texture as it is now, summed as
+ * batch_finish sums them (cones with no tap bring exact zeros). */
 static void replay_voxel(const bounce_ctx *bc, int d, size_t i, uint32_t slot) {
   const gi_tape *tp = &bc->tape[d][i];
   const gi_vgeo *g = gi__geo(&bc->c->lv[d], slot);
-  float Es[GI_VOX_FACES][3] = {{0}};
-  gi__replay_taps(bc->c, tp->t, tp->n, Es);
+  int nc = bc->wide ? bc->c->num_wide_cones : bc->c->num_cones;
+  const float *weight = bc->wide ? bc->c->wide_weight : bc->c->cone_weight;
+  float Es[GI_VOX_FACES][3] = {{0}}, L[GI_VOX_FACES * GI_MAX_CONES][3];
+  gi__replay_cones(bc->c, tp->t, tp->n, L);
+  for (uint32_t i = 0, cone = 0; i < tp->n; i++) {
+    if (i + 1 < tp->n && tp->t[i + 1].job == tp->t[i].job) continue;
+    int sd = tp->t[i].job / nc;
+    float cw = weight[tp->t[i].job % nc];
+    for (int k = 0; k < 3; k++) Es[sd][k] += cw * L[cone][k];
+    cone++;
+  }
   gi__face_light(g, (const float(*)[3])Es, bc->E[d][i]);
   if (bc->H) face_hits(g, tp->hs, (const float(*)[3])Es, bc->H[d][i]);
 }

@@ -170,8 +170,8 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
  * replay a cone set's later bounces: GI_TAPE_MAX_BYTES unless
  * gi__set_tape_budget changed it (0: none, every bounce marches).
  * Process-wide, for tests and measurements; thread-safe, read at each
- * bake's start. A default bake keeps 13-40 MB (the Cornell box, Munich,
- * the city). */
+ * bake's start. A default bake keeps 14-57 MB (the Cornell box, the
+ * city, Munich). */
 #define GI_TAPE_MAX_BYTES ((size_t)256 << 20)
 void gi__set_tape_budget(size_t bytes);
 /* The end of a bounce's gathers (plan[d]: every level's plan; E: the

@@ -40,10 +40,10 @@ void gi__cone_march_base(GI_MARCH_ARGS);
 int gi__sample_level_base(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
                           float *wsum_alpha, float *sigma);
 void gi__cone_march_rec_base(GI_MARCH_ARGS, gi_tap_rec *rec, uint16_t job);
-void gi__replay_taps_base(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]);
+void gi__replay_cones_base(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]);
 #ifdef GI_HAVE_V3_BUILD
 void gi__cone_march_v3(GI_MARCH_ARGS);
-void gi__replay_taps_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]);
+void gi__replay_cones_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]);
 void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                             float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec);
 int gi__sample_level_v3(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
@@ -90,12 +90,13 @@ void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, in
   gi__cone_march_jobs_rec(c, jobs, count, tan_half, step, ao_lambda, out, NULL);
 }
 
-void gi__replay_taps(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]) {
+void gi__replay_cones(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]) {
 #ifdef GI_HAVE_V3_BUILD
-  if (gi__cpu_v3()) {
-    gi__replay_taps_lanes(c, t, n, E);
+  /* The path gi__cone_march_jobs_rec took: its arithmetic is the replay's. */
+  if (gi__cpu_v3() && c->R <= GI_MARCH_LANES_MAX_RES) {
+    gi__replay_cones_lanes(c, t, n, L);
     return;
   }
 #endif
-  gi__replay_taps_base(c, t, n, E);
+  gi__replay_cones_base(c, t, n, L);
 }

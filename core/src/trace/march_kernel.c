@@ -105,21 +105,18 @@ int GI_KERNEL(gi__sample_level)(const struct gi_cascade *c, int d, const float p
  * 9% before the rule, 0.8% with it; K = 1.75 lets the camera views leak
  * 1.9%, K = 3, the value while near samples still blended, reads the same
  * 0.8% with 13% more samples). */
-/* The taps of one scalar march step (see gi_tap): level d at p, each
- * axis weighted ax_a |w_a| (ax NULL: 1) times the step's weight kk; with
- * frac >= 0 the step blended level d + 1 in by frac, which adds its tap. */
-static void push_taps(gi_tap_rec *rec, uint16_t job, int d, const float p[3], const float w[3], const float *ax,
-                      float kk, float frac) {
+/* The tap of one lit scalar march step (see gi_tap): level d at p with
+ * each axis weighted |w_a| ax_a (ax NULL: 1), the step's weight kk, and
+ * frac >= 0 when it blended level d + 1 in. busy: GI_TAP_BUSY and
+ * GI_TAP_BUSY2 as its samples read. */
+static void push_tap(gi_tap_rec *rec, uint16_t job, int d, const float p[3], const float w[3], const float *ax,
+                     float kk, float frac, int busy) {
   gi_tap t;
   t.job = job;
   t.d = (uint8_t)d;
-  t.faces = (uint8_t)((w[0] > 0) | (w[1] > 0) << 1 | (w[2] > 0) << 2);
-  float k1 = frac >= 0 ? kk * (1 - frac) : kk;
-  for (int a = 0; a < 3; a++) t.p[a] = p[a], t.k[a] = k1 * fabsf(w[a]) * (ax ? ax[a] : 1.f);
-  gi__tap_push(rec, &t);
-  if (frac < 0) return;
-  t.d++;
-  for (int a = 0; a < 3; a++) t.k[a] = kk * frac * fabsf(w[a]);
+  t.flags = (uint8_t)((w[0] > 0) | (w[1] > 0) << 1 | (w[2] > 0) << 2 | busy | (frac >= 0 ? GI_TAP_BLEND : 0));
+  for (int a = 0; a < 3; a++) t.p[a] = p[a], t.k[a] = fabsf(w[a]) * (ax ? ax[a] : 1.f);
+  t.kk = kk, t.frac = frac >= 0 ? frac : 0, t.alpha = 0;
   gi__tap_push(rec, &t);
 }
 
@@ -179,12 +176,12 @@ static void march(const struct gi_cascade *c, const float o[3], const float w[3]
     int across = d > d0 && h0 >= 0 && h0 + t * nw < GI_TRILINEAR_REACH * (float)c->lv[d].s;
     float axw[3] = {across ? 1 - n[0] * n[0] : 1, across ? 1 - n[1] * n[1] : 1, across ? 1 - n[2] * n[2] : 1};
     const float *ax = across ? axw : NULL;
-    sample_level_ax(c, d, p, w, ax, far, P, &wal, &sig, &clear);
+    int busy = sample_level_ax(c, d, p, w, ax, far, P, &wal, &sig, &clear) ? GI_TAP_BUSY : 0;
     samples++;
     int two = frac > 0 && d + 1 < c->n && gi__span_has(&sp[d + 1], t);
     if (two) {
       float P2[3], wal2, sig2;
-      sample_level_ax(c, d + 1, p, w, NULL, 0, P2, &wal2, &sig2, &clear2);
+      busy |= sample_level_ax(c, d + 1, p, w, NULL, 0, P2, &wal2, &sig2, &clear2) ? GI_TAP_BUSY2 : 0;
       samples++;
       for (int k = 0; k < 3; k++) P[k] += frac * (P2[k] - P[k]);
       wal += frac * (wal2 - wal);
@@ -207,7 +204,7 @@ static void march(const struct gi_cascade *c, const float o[3], const float w[3]
       L[0] += k * P[0];
       L[1] += k * P[1];
       L[2] += k * P[2];
-      if (rec) push_taps(rec, job, d, p, w, ax, k, two ? frac : -1.f);
+      if (rec) push_tap(rec, job, d, p, w, ax, k, two ? frac : -1.f, busy);
     }
     occ += (1 - occ) * as / (1.0f + ao_lambda * 0.5f * D);
     a += (1 - a) * as;
@@ -235,27 +232,50 @@ void GI_KERNEL(gi__cone_march_rec)(const struct gi_cascade *c, const float o[3],
 }
 
 #if !GI_MARCH_V3
-void GI_KERNEL(gi__replay_taps)(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]) {
-  float S[GI_VOX_FACES][3] = {{0}};
-  for (size_t i = 0; i < n; i++) {
-    const gi_level *L = &c->lv[t[i].d];
-    uint32_t off[3][2];
-    float f[3];
-    float inv = (float)(1.0 / L->s);
-    int i0;
-    for (int a = 0; a < 3; a++) gi__cell_axis(L, c->R, a, t[i].p[a], inv, &f[a], off[a], &i0);
-    const gi_vrad *r[8];
-    float wt[8];
-    gi__cell_corners(L, off, f, r, wt);
-    gi_lanes s;
-    gi__sum_texels(r, wt, &s);
-    float *e = S[t[i].job];
-    for (int a = 0; a < 3; a++) {
-      int face = 2 * a + (t[i].faces >> a & 1);
-      for (int ch = 0; ch < 3; ch++) e[ch] += t[i].k[a] * s.v[3 * face + ch];
+/* sample_level_ax's radiance for a tap's sample on level d (busy: else 0). */
+static void tap_sample(const struct gi_cascade *c, int d, const gi_tap *t, int busy, float prem[3]) {
+  prem[0] = prem[1] = prem[2] = 0;
+  if (!busy) return;
+  const gi_level *L = &c->lv[d];
+  float inv = (float)(1.0 / L->s), f[3];
+  uint32_t off[3][2];
+  int i0;
+  for (int a = 0; a < 3; a++) gi__cell_axis(L, c->R, a, t->p[a], inv, &f[a], off[a], &i0);
+  const gi_vrad *r[8];
+  float wt[8];
+  gi__cell_corners(L, off, f, r, wt);
+  gi_lanes s;
+  gi__sum_texels(r, wt, &s);
+  float P[3] = {0, 0, 0};
+  for (int a = 0; a < 3; a++) {
+    int face = 2 * a + (t->flags >> a & 1);
+    float k = t->k[a];
+    for (int ch = 0; ch < 3; ch++) P[ch] += k * s.v[3 * face + ch];
+  }
+  for (int ch = 0; ch < 3; ch++) prem[ch] = P[ch] * c->rad_scale;
+}
+
+/* The scalar march's arithmetic, step by step (march). */
+void GI_KERNEL(gi__replay_cones)(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]) {
+  float acc[3] = {0, 0, 0};
+  for (size_t i = 0, cone = 0; i < n; i++) {
+    float P[3], P2[3];
+    tap_sample(c, t[i].d, &t[i], t[i].flags & GI_TAP_BUSY, P);
+    if (t[i].flags & GI_TAP_BLEND) {
+      tap_sample(c, t[i].d + 1, &t[i], t[i].flags & GI_TAP_BUSY2, P2);
+      for (int k = 0; k < 3; k++) P[k] += t[i].frac * (P2[k] - P[k]);
+    }
+    float k = t[i].kk;
+    acc[0] += k * P[0];
+    acc[1] += k * P[1];
+    acc[2] += k * P[2];
+    if (i + 1 == n || t[i + 1].job != t[i].job) {
+      float a = t[i].alpha;
+      if (a >= GI_OPAQUE_ALPHA)
+        for (int q = 0; q < 3; q++) acc[q] /= a;
+      memcpy(L[cone++], acc, sizeof acc);
+      acc[0] = acc[1] = acc[2] = 0;
     }
   }
-  for (int f = 0; f < GI_VOX_FACES; f++)
-    for (int ch = 0; ch < 3; ch++) E[f][ch] += S[f][ch] * c->rad_scale;
 }
 #endif

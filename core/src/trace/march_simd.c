@@ -48,6 +48,7 @@ typedef struct {
 /* One sample per lane: what sample_level_ax returns. */
 typedef struct {
   __m256 P[3], wal, sig, clear;
+  int busy; /* lanes whose block held opacity (the others read zero) */
 } sample8;
 
 static inline __m256 tab16(const float *t, __m256i d) {
@@ -248,6 +249,7 @@ static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, __m256 
       _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(~busy & m), bit), bit));
   __m256 clear = _mm256_blendv_ps(_mm256_loadu_ps(cl.run), _mm256_loadu_ps(cl.run4), _mm256_and_ps(far, lane_open4));
   out->clear = _mm256_and_ps(clear, lane_empty);
+  out->busy = busy;
 }
 
 /* The step rule all cones share, and the cascade's finest voxel. */
@@ -326,11 +328,12 @@ static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256
   st->act = _mm256_and_ps(act, CMP(st->a, V1(GI_OPAQUE_ALPHA), _CMP_LT_OQ));
 }
 
-/* The taps of the lanes in lit (see gi_tap): the sample at p on level d
+/* The taps of the lanes in lit (see gi_tap): the step at p on level d
  * with each lane's compositing weight k, and where `two` blends in level
- * d + 1 by frac, that one too. */
+ * d + 1 by frac, that too; busy1 and busy2: the lanes whose samples read
+ * opacity. */
 static void record8(const batch *b, __m256 lit, __m256 k, const __m256 p[3], __m256i d, __m256 ax, __m256 two,
-                    __m256 frac) {
+                    __m256 frac, int busy1, int busy2) {
   float P[3][LANES], K[LANES], F[LANES];
   int32_t D[LANES];
   for (int a = 0; a < 3; a++) _mm256_storeu_ps(P[a], p[a]);
@@ -340,19 +343,17 @@ static void record8(const batch *b, __m256 lit, __m256 k, const __m256 p[3], __m
   int mx = _mm256_movemask_ps(ax), m2 = _mm256_movemask_ps(two);
   for (int todo = _mm256_movemask_ps(lit); todo; todo &= todo - 1) {
     int l = __builtin_ctz((unsigned)todo), blend = m2 >> l & 1;
+    /* Never both: a step pushed to a coarser level (ax) does not blend. */
     const float *kw = (mx >> l & 1) ? b->kax[l] : b->k[l];
     gi_tap t;
     t.job = (uint16_t)b->job[l];
     t.d = (uint8_t)D[l];
-    t.faces = (uint8_t)((b->w[0][l] > 0) | (b->w[1][l] > 0) << 1 | (b->w[2][l] > 0) << 2);
-    float k1 = blend ? K[l] * (1 - F[l]) : K[l];
-    for (int a = 0; a < 3; a++) t.p[a] = P[a][l], t.k[a] = k1 * kw[a];
+    t.flags = (uint8_t)((b->w[0][l] > 0) | (b->w[1][l] > 0) << 1 | (b->w[2][l] > 0) << 2 |
+                        (busy1 >> l & 1 ? GI_TAP_BUSY : 0) | (blend && (busy2 >> l & 1) ? GI_TAP_BUSY2 : 0) |
+                        (blend ? GI_TAP_BLEND : 0));
+    for (int a = 0; a < 3; a++) t.p[a] = P[a][l], t.k[a] = kw[a];
+    t.kk = K[l], t.frac = blend ? F[l] : 0, t.alpha = 0;
     gi__tap_push(b->rec, &t);
-    if (blend) {
-      t.d++;
-      for (int a = 0; a < 3; a++) t.k[a] = K[l] * F[l] * b->k[l][a];
-      gi__tap_push(b->rec, &t);
-    }
   }
 }
 
@@ -386,6 +387,7 @@ static void step8(const batch *b, const par8 *q, state8 *st) {
   st->samples = _mm256_sub_epi32(st->samples, _mm256_castps_si256(act));
   __m256 two = _mm256_and_ps(act, _mm256_and_ps(next, CMP(frac, _mm256_setzero_ps(), _CMP_GT_OQ)));
   __m256 clear2 = V1(INFINITY);
+  int busy2 = 0;
   if (_mm256_movemask_ps(two)) {
     sample8 s2;
     sample8_at(b, _mm256_add_epi32(d, _mm256_set1_epi32(1)), two, _mm256_setzero_ps(), _mm256_setzero_ps(), p, st->w,
@@ -396,10 +398,11 @@ static void step8(const batch *b, const par8 *q, state8 *st) {
     s.wal = _mm256_blendv_ps(s.wal, _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.wal, s.wal), s.wal), two);
     s.sig = _mm256_blendv_ps(s.sig, _mm256_fmadd_ps(frac, _mm256_sub_ps(s2.sig, s.sig), s.sig), two);
     clear2 = _mm256_blendv_ps(clear2, s2.clear, two);
+    busy2 = s2.busy;
   }
   __m256 lit, k;
   composite(q, st, act, near, sd, D, &s, clear2, &lit, &k);
-  if (b->rec) record8(b, lit, k, p, d, ax, two, frac);
+  if (b->rec) record8(b, lit, k, p, d, ax, two, frac, s.busy, busy2);
   /* Every cone stops after GI_CONE_MAX_STEPS steps, as the scalar one. */
   st->act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(GI_CONE_MAX_STEPS),
                                                                           st->steps)));
@@ -574,80 +577,90 @@ void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs,
   if (count > 0) march_jobs(c, jobs, count, &q, out, rec);
 }
 
-/* gi__replay_taps in eight lanes: per tap, the cell's three axes in one
- * vector (as locate), the eight corners' weights and byte offsets in one
- * each, the texels summed as read_lane sums them and the three faces
- * picked by permutes. About half the scalar replay's instructions. */
-void gi__replay_taps_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]) {
+/* Level d's sample of a tap as sample8_at and read_lane take it, times
+ * rad_scale: the cell as locate finds it, the eight corners summed in
+ * their order, each axis's face weighted in read_lane's order. */
+static inline __attribute__((always_inline)) __m256 tap_sample8(const struct gi_cascade *c, const float (*lo)[4], const float *inv,
+                          const int32_t (*slot0)[4], int d, const gi_tap *tp) {
   const int R = c->R;
-  float lo[GI_MAX_LEVELS][4], inv[GI_MAX_LEVELS];
-  int32_t slot0[GI_MAX_LEVELS][4];
-  for (int d = 0; d < c->n; d++) {
-    const gi_level *L = &c->lv[d];
-    inv[d] = (float)(1.0 / L->s);
-    for (int a = 0; a < 3; a++) lo[d][a] = L->lo[a], slot0[d][a] = L->slot0[a];
-    lo[d][3] = 0, slot0[d][3] = 0;
-  }
   const __m128i zero = _mm_setzero_si128(), Rv = _mm_set1_epi32(R), Rm2 = _mm_set1_epi32(R - 2);
   const __m128i stride = _mm_setr_epi32(1, R, R * R, 0);
   const __m256i ix = _mm256_setr_epi32(0, 4, 0, 4, 0, 4, 0, 4), iy = _mm256_setr_epi32(1, 1, 5, 5, 1, 1, 5, 5);
   const __m256i iz = _mm256_setr_epi32(2, 2, 2, 2, 6, 6, 6, 6), iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  __m256 acc[GI_VOX_FACES];
-  for (int f = 0; f < GI_VOX_FACES; f++) acc[f] = _mm256_setzero_ps();
-  for (size_t i = 0; i < n; i++) {
-    const gi_tap *tp = &t[i];
-    int d = tp->d;
-    /* The cell, as locate (clamped to the window, toroidal slots). */
-    __m128 u = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(tp->p), _mm_loadu_ps(lo[d])), _mm_set1_ps(inv[d])),
-                          _mm_set1_ps(0.5f));
-    __m128 fl = _mm_floor_ps(u);
-    __m128i i0 = _mm_cvttps_epi32(fl);
-    __m128 low = _mm_castsi128_ps(_mm_cmpgt_epi32(zero, i0)), high = _mm_castsi128_ps(_mm_cmpgt_epi32(i0, Rm2));
-    i0 = _mm_min_epi32(_mm_max_epi32(i0, zero), Rm2);
-    fl = _mm_blendv_ps(fl, _mm_setzero_ps(), low);
-    u = _mm_blendv_ps(u, _mm_max_ps(u, _mm_setzero_ps()), low);
-    fl = _mm_blendv_ps(fl, _mm_set1_ps((float)(R - 2)), high);
-    u = _mm_blendv_ps(u, _mm_min_ps(u, _mm_set1_ps((float)(R - 1))), high);
-    __m128 f = _mm_sub_ps(u, fl);
-    __m128i s0 = _mm_add_epi32(_mm_loadu_si128((const __m128i *)slot0[d]), i0);
-    s0 = _mm_sub_epi32(s0, _mm_andnot_si128(_mm_cmpgt_epi32(Rv, s0), Rv));
-    __m128i s1 = _mm_add_epi32(s0, _mm_set1_epi32(1));
-    s1 = _mm_andnot_si128(_mm_cmpeq_epi32(s1, Rv), s1);
-    /* Corner i = dx + 2 dy + 4 dz: its weight and its texel's byte offset. */
-    __m256i off = _mm256_set_m128i(_mm_mullo_epi32(s1, stride), _mm_mullo_epi32(s0, stride));
-    __m256i o = _mm256_add_epi32(_mm256_add_epi32(_mm256_permutevar8x32_epi32(off, iz),
-                                                  _mm256_permutevar8x32_epi32(off, iy)),
-                                 _mm256_permutevar8x32_epi32(off, ix));
-    o = _mm256_mullo_epi32(o, _mm256_set1_epi32((int)sizeof(gi_vrad)));
-    __m256 g = _mm256_set_m128(f, _mm_sub_ps(_mm_set1_ps(1.f), f));
-    __m256 w = _mm256_mul_ps(_mm256_mul_ps(_mm256_permutevar8x32_ps(g, ix), _mm256_permutevar8x32_ps(g, iy)),
-                             _mm256_permutevar8x32_ps(g, iz));
-    float wt[8];
-    uint32_t co[8];
-    _mm256_storeu_ps(wt, w);
-    _mm256_storeu_si256((__m256i *)co, o);
-    const char *rad = (const char *)c->lv[d].rad;
-    __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
-    for (int k = 0; k < 8; k++) {
-      __m256 wi = _mm256_broadcast_ss(&wt[k]);
-      const __m128i *h = (const __m128i *)(rad + co[k]);
-      a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
-      a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
-      a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
-    }
-    /* Each axis's face into lanes 0-2, as read_lane picks them. */
-    __m256 src[3] = {a0, _mm256_permute2f128_ps(a0, a1, 0x21), _mm256_permute2f128_ps(a1, a2, 0x21)};
-    __m256 P = _mm256_setzero_ps();
-    for (int a = 0; a < 3; a++) {
-      int fb = 3 * (2 * a + (tp->faces >> a & 1)) - (a == 0 ? 0 : a == 1 ? 4 : 12);
-      __m256 face = _mm256_permutevar8x32_ps(src[a], _mm256_add_epi32(_mm256_set1_epi32(fb), iota));
-      P = _mm256_fmadd_ps(_mm256_broadcast_ss(&tp->k[a]), face, P);
-    }
-    acc[tp->job] = _mm256_add_ps(acc[tp->job], P);
+  __m128 u = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(tp->p), _mm_loadu_ps(lo[d])), _mm_set1_ps(inv[d])),
+                        _mm_set1_ps(0.5f));
+  __m128 fl = _mm_floor_ps(u);
+  __m128i i0 = _mm_cvttps_epi32(fl);
+  __m128 low = _mm_castsi128_ps(_mm_cmpgt_epi32(zero, i0)), high = _mm_castsi128_ps(_mm_cmpgt_epi32(i0, Rm2));
+  i0 = _mm_min_epi32(_mm_max_epi32(i0, zero), Rm2);
+  fl = _mm_blendv_ps(fl, _mm_setzero_ps(), low);
+  u = _mm_blendv_ps(u, _mm_max_ps(u, _mm_setzero_ps()), low);
+  fl = _mm_blendv_ps(fl, _mm_set1_ps((float)(R - 2)), high);
+  u = _mm_blendv_ps(u, _mm_min_ps(u, _mm_set1_ps((float)(R - 1))), high);
+  __m128 f = _mm_sub_ps(u, fl);
+  __m128i s0 = _mm_add_epi32(_mm_loadu_si128((const __m128i *)slot0[d]), i0);
+  s0 = _mm_sub_epi32(s0, _mm_andnot_si128(_mm_cmpgt_epi32(Rv, s0), Rv));
+  __m128i s1 = _mm_add_epi32(s0, _mm_set1_epi32(1));
+  s1 = _mm_andnot_si128(_mm_cmpeq_epi32(s1, Rv), s1);
+  /* Corner i = dx + 2 dy + 4 dz: its byte offset, and its weight (x y) z as locate's. */
+  __m256i off = _mm256_set_m128i(_mm_mullo_epi32(s1, stride), _mm_mullo_epi32(s0, stride));
+  __m256i o = _mm256_add_epi32(_mm256_add_epi32(_mm256_permutevar8x32_epi32(off, iz),
+                                                _mm256_permutevar8x32_epi32(off, iy)),
+                               _mm256_permutevar8x32_epi32(off, ix));
+  o = _mm256_mullo_epi32(o, _mm256_set1_epi32((int)sizeof(gi_vrad)));
+  __m256 g = _mm256_set_m128(f, _mm_sub_ps(_mm_set1_ps(1.f), f));
+  __m256 w = _mm256_mul_ps(_mm256_mul_ps(_mm256_permutevar8x32_ps(g, ix), _mm256_permutevar8x32_ps(g, iy)),
+                           _mm256_permutevar8x32_ps(g, iz));
+  float wt[8];
+  uint32_t co[8];
+  _mm256_storeu_ps(wt, w);
+  _mm256_storeu_si256((__m256i *)co, o);
+  const char *rad = (const char *)c->lv[d].rad;
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
+  for (int k = 0; k < 8; k++) {
+    __m256 wi = _mm256_broadcast_ss(&wt[k]);
+    const __m128i *h = (const __m128i *)(rad + co[k]);
+    a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
+    a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
+    a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
   }
-  for (int f = 0; f < GI_VOX_FACES; f++) {
-    float v[8];
-    _mm256_storeu_ps(v, acc[f]);
-    for (int ch = 0; ch < 3; ch++) E[f][ch] += v[ch] * c->rad_scale;
+  __m256 src[3] = {a0, _mm256_permute2f128_ps(a0, a1, 0x21), _mm256_permute2f128_ps(a1, a2, 0x21)}, T[3];
+  for (int a = 0; a < 3; a++) {
+    int fb = 3 * (2 * a + (tp->flags >> a & 1)) - (a == 0 ? 0 : a == 1 ? 4 : 12);
+    T[a] = _mm256_permutevar8x32_ps(src[a], _mm256_add_epi32(_mm256_set1_epi32(fb), iota));
+  }
+  __m256 P = _mm256_fmadd_ps(_mm256_broadcast_ss(&tp->k[2]), T[2],
+                             _mm256_fmadd_ps(_mm256_broadcast_ss(&tp->k[1]), T[1],
+                                             _mm256_mul_ps(_mm256_broadcast_ss(&tp->k[0]), T[0])));
+  return _mm256_mul_ps(P, V1(c->rad_scale));
+}
+
+/* gi__replay_cones in lanes 0-2: the eight-lane march's arithmetic for
+ * one lane, step by step (step8, composite, lane_finish). */
+void gi__replay_cones_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]) {
+  float lo[GI_MAX_LEVELS][4], inv[GI_MAX_LEVELS];
+  int32_t slot0[GI_MAX_LEVELS][4];
+  for (int d = 0; d < c->n; d++) {
+    const gi_level *lv = &c->lv[d];
+    inv[d] = (float)(1.0 / lv->s);
+    for (int a = 0; a < 3; a++) lo[d][a] = lv->lo[a], slot0[d][a] = lv->slot0[a];
+    lo[d][3] = 0, slot0[d][3] = 0;
+  }
+  __m256 acc = _mm256_setzero_ps();
+  for (size_t i = 0, cone = 0; i < n; i++) {
+    const gi_tap *tp = &t[i];
+    __m256 P = tp->flags & GI_TAP_BUSY ? tap_sample8(c, lo, inv, slot0, tp->d, tp) : _mm256_setzero_ps();
+    if (tp->flags & GI_TAP_BLEND) {
+      __m256 P2 = tp->flags & GI_TAP_BUSY2 ? tap_sample8(c, lo, inv, slot0, tp->d + 1, tp) : _mm256_setzero_ps();
+      P = _mm256_fmadd_ps(V1(tp->frac), _mm256_sub_ps(P2, P), P);
+    }
+    acc = _mm256_fmadd_ps(V1(tp->kk), P, acc);
+    if (i + 1 == n || t[i + 1].job != tp->job) {
+      float v[8], a = tp->alpha;
+      _mm256_storeu_ps(v, acc);
+      for (int ch = 0; ch < 3; ch++) L[cone][ch] = a >= GI_OPAQUE_ALPHA ? v[ch] / a : v[ch];
+      acc = _mm256_setzero_ps();
+      cone++;
+    }
   }
 }

@@ -119,21 +119,30 @@ typedef struct gi_cone_job {
 #define GI_MARCH_BATCH_JOBS 512
 void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                          float step, float ao_lambda, gi_cone_out *out);
-/* A tap: one sample of a marched cone that added light, as the linear map
- * it is. A cone's light is a sum over its samples of coefficients times
- * texel radiance, and every coefficient (the step, opacity and trilinear
- * weights) follows from the voxels' opacity alone, which no bounce changes:
- * only the radiance does. So the bounces record a set's taps on its first
- * bounce and replay them on the later ones (light/bounce.c): a replay reads
- * the lit samples' texels again and skips the march. A tap reads level d at
- * p (the march's trilinear cell), and on axis a the face facing -w
- * (faces bit a: w_a > 0), weighted k[a] (times the cascade's rad_scale at
- * replay). `job` is the cone's index in its march, or where a tape keeps
- * it, the side it adds to. */
+/* A tap: one step of a marched cone that added light. A cone's light is
+ * a sum over its steps of weights times texel radiance, and every weight
+ * (the step, the opacity, the trilinear corners) follows from the
+ * voxels' opacity, which no bounce changes: only the radiance does. So the
+ * bounces record a set's taps on its first bounce and replay them on the
+ * later ones (light/bounce.c): a replay reads the lit steps' texels again
+ * and skips the march, and repeats the march's own arithmetic in its
+ * order, so it returns the march's light bit for bit. A tap reads level d
+ * at p (and with GI_TAP_BLEND level d + 1 there too, blended by frac),
+ * axis a through the face facing -w (GI_TAP_FACE_X << a: w_a > 0) with
+ * weight k[a]; kk is the step's compositing weight, alpha the cone's
+ * final opacity (0 until the cone ends). `job` is the cone's index in its
+ * march, or in a tape its bit (side x set size + cone). */
+enum {
+  GI_TAP_FACE_X = 1,  /* faces: bit a set when w_a > 0 */
+  GI_TAP_BUSY = 8,    /* level d's block held opacity (else it read zero) */
+  GI_TAP_BUSY2 = 16,  /* the same for level d + 1 */
+  GI_TAP_BLEND = 32   /* the step blended level d + 1 in by frac */
+};
 typedef struct gi_tap {
   float p[3], k[3];
+  float kk, frac, alpha;
   uint16_t job;
-  uint8_t d, faces;
+  uint8_t d, flags;
 } gi_tap;
 /* Where a recording march puts its taps, in the order it takes them (one
  * cone's in step order). The caller owns t (gi__free) and sets max, the
@@ -153,14 +162,14 @@ static inline int gi__tap_push(gi_tap_rec *r, const gi_tap *tap) {
   return 1;
 }
 /* gi__cone_march_jobs, also recording the taps of every cone into rec
- * (NULL: none; job = the cone's index in jobs). A tap's k holds the cone's
- * compositing weight before the renormalisation by alpha (out[i]) at its
- * end. */
+ * (NULL: none; job = the cone's index in jobs, alpha left 0). */
 void gi__cone_march_jobs_rec(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                              float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec);
-/* Adds n taps' light to E[tap.job] (tap.job < GI_VOX_FACES), reading the
- * cascade's texture as it is now. Thread-safe. */
-void gi__replay_taps(const struct gi_cascade *c, const gi_tap *t, size_t n, float E[][3]);
+/* The light of the cones of n taps (runs of one job, each run one cone's
+ * taps in step order with its alpha), reading the cascade's texture as it
+ * is now: the k-th run's in L[k], what gi__cone_march_jobs would return for
+ * that cone, bit for bit, on the same path (cpu and R). Thread-safe. */
+void gi__replay_cones(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]);
 /* The same for the jobs[0..nj) whose done[k] is 0 (nj <= GI_MARCH_BATCH_JOBS);
  * out[k] of the others is left as it is (trace/gather.c). */
 void gi__cone_march_rest(const struct gi_cascade *c, const gi_cone_job *jobs, const uint8_t *done, int nj,
