@@ -4,7 +4,9 @@
  * and once with -march=x86-64-v3 (GI_MARCH_V3=1); march.c calls the one
  * base/cpu.c chose. The two differ only in how a texel's 24 half floats
  * become float (bit arithmetic, or F16C eight lanes at a time) and in the
- * compiler's use of AVX2 and FMA. See march.c for what the march does. */
+ * compiler's use of AVX2 and FMA. See march.c for what the march does.
+ * The baseline build also replays the scalar march's taps (trace.h:
+ * gi_tap) in its arithmetic; the x86-64-v3 one's are march_simd.c's. */
 #include <string.h>
 #include "base/internal.h"
 #include "trace/trace.h"

@@ -14,7 +14,9 @@
  * reduced by that cone's faces. The eight cones' reads are independent,
  * so the CPU overlaps their cache misses, which one cone's march, a chain
  * of dependent steps, cannot. Results match the scalar march to float
- * rounding (test_texel). */
+ * rounding (test_texel). A recording batch also keeps each lane's lit
+ * steps (trace.h: gi_tap), and gi__replay_cones_lanes replays them in
+ * this march's own arithmetic, so a replay returns its bits. */
 #include <immintrin.h>
 #include "trace/march_internal.h"
 
