@@ -69,11 +69,16 @@ int gi__sample_level(const struct gi_cascade *c, int d, const float p[3], const 
   return gi__sample_level_base(c, d, p, w, prem, wsum_alpha, sigma);
 }
 
+#ifdef GI_HAVE_V3_BUILD
+/* Batches march in eight lanes (and their taps replay so): x86-64-v3, and
+ * the lanes address texels by 32-bit byte offsets, R^3 x 48 bytes. */
+static int lanes_path(const struct gi_cascade *c) { return gi__cpu_v3() && c->R <= GI_MARCH_LANES_MAX_RES; }
+#endif
+
 void gi__cone_march_jobs_rec(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                              float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec) {
 #ifdef GI_HAVE_V3_BUILD
-  /* The lanes address texels by 32-bit byte offsets: R^3 x 48 bytes. */
-  if (gi__cpu_v3() && c->R <= GI_MARCH_LANES_MAX_RES) {
+  if (lanes_path(c)) {
     gi__cone_march_jobs_v3(c, jobs, count, tan_half, step, ao_lambda, out, rec);
     return;
   }
@@ -93,7 +98,7 @@ void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, in
 void gi__replay_cones(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]) {
 #ifdef GI_HAVE_V3_BUILD
   /* The path gi__cone_march_jobs_rec took: its arithmetic is the replay's. */
-  if (gi__cpu_v3() && c->R <= GI_MARCH_LANES_MAX_RES) {
+  if (lanes_path(c)) {
     gi__replay_cones_lanes(c, t, n, L);
     return;
   }

@@ -17,6 +17,20 @@
 #define GI_KERNEL(name) name##_base
 #endif
 
+/* A sample's radiance from its summed texels s: on axis a the face facing
+ * -w (faces bit a: w_a > 0) weighted k[a], times rad_scale. The march
+ * (sample_level_ax) and its replay (tap_sample) share it, so their sums
+ * are one arithmetic. */
+static inline void faces_radiance(const struct gi_cascade *c, const gi_lanes *s, int faces, const float k[3],
+                                  float prem[3]) {
+  float P[3] = {0, 0, 0};
+  for (int a = 0; a < 3; a++) {
+    int face = 2 * a + (faces >> a & 1);
+    for (int ch = 0; ch < 3; ch++) P[ch] += k[a] * s->v[3 * face + ch];
+  }
+  for (int ch = 0; ch < 3; ch++) prem[ch] = P[ch] * c->rad_scale;
+}
+
 /* gi__sample_level with each axis's share scaled by axw[a] (NULL: 1).
  * When the sample's 2x2x2 block is empty, *clear (may be NULL) receives
  * how far along w the point may move and still read only that block:
@@ -74,16 +88,13 @@ static int sample_level_ax(const struct gi_cascade *c, int d, const float p[3], 
    * w_a^2 over-weighted the face most aligned with w: a closed solid's lit
    * face read 1.2x from 15 degrees, and the city's street probes read its
    * indirect light at 15.6% error instead of 10.4%. */
-  float P[3] = {0, 0, 0}, wal = 0, tau = 0;
+  float k[3], wal = 0, tau = 0;
+  for (int a = 0; a < 3; a++) k[a] = fabsf(w[a]) * (axw ? axw[a] : 1.f);
+  faces_radiance(c, &s, (w[0] > 0) | (w[1] > 0) << 1 | (w[2] > 0) << 2, k, prem);
   for (int a = 0; a < 3; a++) {
-    int face = 2 * a + (w[a] > 0 ? 1 : 0);
-    float ax = axw ? axw[a] : 1.f;
-    float k = fabsf(w[a]) * ax;
-    for (int ch = 0; ch < 3; ch++) P[ch] += k * s.v[3 * face + ch];
-    wal += k * s.v[GI_VRAD_ALPHA + a];
-    tau += k * s.v[GI_VRAD_TAU + a];
+    wal += k[a] * s.v[GI_VRAD_ALPHA + a];
+    tau += k[a] * s.v[GI_VRAD_TAU + a];
   }
-  for (int ch = 0; ch < 3; ch++) prem[ch] = P[ch] * c->rad_scale;
   *wsum_alpha = wal;
   *sigma = tau * inv;
   return 1;
@@ -248,13 +259,7 @@ static void tap_sample(const struct gi_cascade *c, int d, const gi_tap *t, int b
   gi__cell_corners(L, off, f, r, wt);
   gi_lanes s;
   gi__sum_texels(r, wt, &s);
-  float P[3] = {0, 0, 0};
-  for (int a = 0; a < 3; a++) {
-    int face = 2 * a + (t->flags >> a & 1);
-    float k = t->k[a];
-    for (int ch = 0; ch < 3; ch++) P[ch] += k * s.v[3 * face + ch];
-  }
-  for (int ch = 0; ch < 3; ch++) prem[ch] = P[ch] * c->rad_scale;
+  faces_radiance(c, &s, t->flags, t->k, prem);
 }
 
 /* The scalar march's arithmetic, step by step (march). */

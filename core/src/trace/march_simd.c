@@ -156,35 +156,56 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
  * weight, optical depth; transposed into sample8 after. */
 enum { ROW_P = 0, ROW_WAL = 3, ROW_TAU = 4 };
 
+/* Where axis a's face (its w_a > 0 one when pos) starts in that axis's
+ * register of texel_faces (src[a] there). */
+static inline int face_lane(int a, int pos) { return 3 * (2 * a + pos) - (a == 0 ? 0 : a == 1 ? 4 : 12); }
+
+/* The trilinear sum of a sample's eight texels (corner i at byte
+ * corner[i * stride] of rad, weight wt[i * stride]), all 24 lanes, and
+ * each axis's face (starting at fb[a], face_lane) from the one register
+ * holding all of it (x: texel lanes 0-7, faces 0 and 1; y: lanes 4-11,
+ * faces 2 and 3; z: lanes 12-19, faces 4 and 5) into T[a]'s lanes 0-2.
+ * a2 keeps lanes 16-23 (opacity, depth). The march (read_lane) and its
+ * replay (tap_sample8) both take this, so their sums are one arithmetic. */
+static inline __attribute__((always_inline)) void texel_faces(const char *rad, const uint32_t *corner,
+                                                             const float *wt, int stride, const int fb[3],
+                                                             __m256 T[3], __m256 *a2out) {
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
+  for (int i = 0; i < 8; i++) {
+    __m256 wi = _mm256_broadcast_ss(&wt[i * stride]);
+    const __m128i *h = (const __m128i *)(rad + corner[i * stride]);
+    a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
+    a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
+    a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
+  }
+  __m256 src[3] = {a0, _mm256_permute2f128_ps(a0, a1, 0x21), _mm256_permute2f128_ps(a1, a2, 0x21)};
+  const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  for (int a = 0; a < 3; a++) T[a] = _mm256_permutevar8x32_ps(src[a], _mm256_add_epi32(_mm256_set1_epi32(fb[a]), iota));
+  *a2out = a2;
+}
+
+/* A sample's radiance from its faces T weighted k: the scalar kernel's
+ * order, with fused steps. */
+static inline __m256 faces_radiance(const float k[3], const __m256 T[3]) {
+  return _mm256_fmadd_ps(_mm256_broadcast_ss(&k[2]), T[2],
+                         _mm256_fmadd_ps(_mm256_broadcast_ss(&k[1]), T[1], _mm256_mul_ps(_mm256_broadcast_ss(&k[0]), T[0])));
+}
+
 /* One busy lane's texel reads: sample_level_ax's second half, as one row
  * (lanes 5-7 unused). The sum stays in registers: storing it and reading
  * each face back with a load that straddled two of the stores (faces 2
  * and 5) stalled store forwarding, a sixth of this function's time. */
 static __m256 read_lane(const batch *b, int l, int d, const cell8 *cl, int ax) {
-  /* gi__sum_texels with the weights and corners read from the lane's column. */
-  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
-  for (int i = 0; i < 8; i++) {
-    __m256 wi = _mm256_broadcast_ss(&cl->wt[i][l]);
-    const __m128i *h = (const __m128i *)(b->rad[d] + cl->corner[i][l]);
-    a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
-    a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
-    a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
-  }
-  /* Each axis's face from the one register holding all of it (x: texel
-   * lanes 4-11, faces 2 and 3; y: lanes 12-19, faces 4 and 5) into lanes
-   * 0-2, and its opacity (lane 18 + a) and depth (21 + a) into lanes 3, 4. */
-  __m256 src[3] = {a0, _mm256_permute2f128_ps(a0, a1, 0x21), _mm256_permute2f128_ps(a1, a2, 0x21)};
-  const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  /* The weights and corners read from the lane's column. */
+  __m256 T[3], a2;
+  texel_faces(b->rad[d], &cl->corner[0][l], &cl->wt[0][l], LANES, b->fb[l], T, &a2);
+  /* Its opacity (texel lane 18 + a) and depth (21 + a) into lanes 3, 4. */
+  for (int a = 0; a < 3; a++)
+    T[a] = _mm256_blend_ps(T[a], _mm256_permutevar8x32_ps(a2, _mm256_setr_epi32(0, 0, 0, 2 + a, 5 + a, 0, 0, 0)), 0x18);
+  /* P with fused steps, the opacity and depth without (the scalar kernel's order). */
   const float *k = ax ? b->kax[l] : b->k[l];
-  __m256 T[3];
-  for (int a = 0; a < 3; a++) {
-    __m256 face = _mm256_permutevar8x32_ps(src[a], _mm256_add_epi32(_mm256_set1_epi32(b->fb[l][a]), iota));
-    __m256 at = _mm256_permutevar8x32_ps(a2, _mm256_setr_epi32(0, 0, 0, 2 + a, 5 + a, 0, 0, 0));
-    T[a] = _mm256_blend_ps(face, at, 0x18);
-  }
-  /* The scalar kernel's order: P with fused steps, the opacity and depth without. */
   __m256 k0 = _mm256_broadcast_ss(&k[0]), k1 = _mm256_broadcast_ss(&k[1]), k2 = _mm256_broadcast_ss(&k[2]);
-  __m256 P = _mm256_fmadd_ps(k2, T[2], _mm256_fmadd_ps(k1, T[1], _mm256_mul_ps(k0, T[0])));
+  __m256 P = faces_radiance(k, T);
   __m256 W = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(k0, T[0]), _mm256_mul_ps(k1, T[1])), _mm256_mul_ps(k2, T[2]));
   return _mm256_blend_ps(P, W, 0x18);
 }
@@ -458,7 +479,7 @@ static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const fl
     b->o[a][l] = j->o[a];
     b->w[a][l] = w[a];
     b->iw[a][l] = 1.f / fabsf(w[a]); /* inf for 0: that axis never ends a run */
-    b->fb[l][a] = 3 * (2 * a + (w[a] > 0 ? 1 : 0)) - (a == 0 ? 0 : a == 1 ? 4 : 12); /* in read_lane's src[a] */
+    b->fb[l][a] = face_lane(a, w[a] > 0);
     b->k[l][a] = fabsf(w[a]); /* a face's projected area, as the scalar kernel */
     b->kax[l][a] = fabsf(w[a]) * across;
     b->L[a][l] = 0;
@@ -582,13 +603,14 @@ void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs,
 /* Level d's sample of a tap as sample8_at and read_lane take it, times
  * rad_scale: the cell as locate finds it, the eight corners summed in
  * their order, each axis's face weighted in read_lane's order. */
-static inline __attribute__((always_inline)) __m256 tap_sample8(const struct gi_cascade *c, const float (*lo)[4], const float *inv,
-                          const int32_t (*slot0)[4], int d, const gi_tap *tp) {
+static inline __attribute__((always_inline)) __m256 tap_sample8(const struct gi_cascade *c, const float (*lo)[4],
+                                                                 const float *inv, const int32_t (*slot0)[4], int d,
+                                                                 const gi_tap *tp) {
   const int R = c->R;
   const __m128i zero = _mm_setzero_si128(), Rv = _mm_set1_epi32(R), Rm2 = _mm_set1_epi32(R - 2);
   const __m128i stride = _mm_setr_epi32(1, R, R * R, 0);
   const __m256i ix = _mm256_setr_epi32(0, 4, 0, 4, 0, 4, 0, 4), iy = _mm256_setr_epi32(1, 1, 5, 5, 1, 1, 5, 5);
-  const __m256i iz = _mm256_setr_epi32(2, 2, 2, 2, 6, 6, 6, 6), iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i iz = _mm256_setr_epi32(2, 2, 2, 2, 6, 6, 6, 6);
   __m128 u = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(tp->p), _mm_loadu_ps(lo[d])), _mm_set1_ps(inv[d])),
                         _mm_set1_ps(0.5f));
   __m128 fl = _mm_floor_ps(u);
@@ -617,23 +639,11 @@ static inline __attribute__((always_inline)) __m256 tap_sample8(const struct gi_
   uint32_t co[8];
   _mm256_storeu_ps(wt, w);
   _mm256_storeu_si256((__m256i *)co, o);
-  const char *rad = (const char *)c->lv[d].rad;
-  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps();
-  for (int k = 0; k < 8; k++) {
-    __m256 wi = _mm256_broadcast_ss(&wt[k]);
-    const __m128i *h = (const __m128i *)(rad + co[k]);
-    a0 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h)), a0);
-    a1 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 1)), a1);
-    a2 = _mm256_fmadd_ps(wi, _mm256_cvtph_ps(_mm_loadu_si128(h + 2)), a2);
-  }
-  __m256 src[3] = {a0, _mm256_permute2f128_ps(a0, a1, 0x21), _mm256_permute2f128_ps(a1, a2, 0x21)}, T[3];
-  for (int a = 0; a < 3; a++) {
-    int fb = 3 * (2 * a + (tp->flags >> a & 1)) - (a == 0 ? 0 : a == 1 ? 4 : 12);
-    T[a] = _mm256_permutevar8x32_ps(src[a], _mm256_add_epi32(_mm256_set1_epi32(fb), iota));
-  }
-  __m256 P = _mm256_fmadd_ps(_mm256_broadcast_ss(&tp->k[2]), T[2],
-                             _mm256_fmadd_ps(_mm256_broadcast_ss(&tp->k[1]), T[1],
-                                             _mm256_mul_ps(_mm256_broadcast_ss(&tp->k[0]), T[0])));
+  int fb[3];
+  for (int a = 0; a < 3; a++) fb[a] = face_lane(a, tp->flags >> a & 1);
+  __m256 T[3], a2;
+  texel_faces((const char *)c->lv[d].rad, co, wt, 1, fb, T, &a2);
+  __m256 P = faces_radiance(tp->k, T);
   return _mm256_mul_ps(P, V1(c->rad_scale));
 }
 
