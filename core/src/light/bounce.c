@@ -35,19 +35,82 @@
  * bounce, cone by cone in the set's order (job: the cone's bit), each
  * with its cone's alpha; the set's later bounces replay it instead of
  * marching (gi__replay_cones: the lit steps' texels only, the march's
- * arithmetic, its bits). The taps of one batch of voxels share one block,
- * which the voxel marked own frees. */
+ * arithmetic, its bits). The taps live in their worker's tape_arena. */
 typedef struct {
   gi_tap *t;
   uint32_t n;
-  uint8_t rec, own;       /* rec: recorded (0: march) */
+  uint8_t rec;            /* recorded (0: march) */
   float hs[GI_VOX_FACES]; /* each side's hit share (side_hits), for the tail's H */
 } gi_tape;
 
-/* The tapes' memory, bounded per bake: past it voxels march again. */
+/* One worker's tape memory: blocks cut from chunks of TAPE_CHUNK bytes
+ * or more, mapped on huge pages (gi__big_malloc). A set's tapes go all at
+ * once and the next set's reuse the chunks (arena_reset); the bake frees
+ * them at its end. A block per batch from the heap cost Munich's
+ * recording bounce a third of its time on one thread: fresh 4 KB pages
+ * faulted in one by one (base/internal.h), and the frees gave them back. */
+#define TAPE_CHUNK ((size_t)4 << 20)
+typedef struct tape_chunk {
+  struct tape_chunk *next;
+  size_t bytes;
+} tape_chunk;
+typedef struct {
+  tape_chunk *head, *cur; /* the chunks in the order taken, and the one being cut */
+  char *at;               /* cur's free space */
+  size_t left;
+} tape_arena;
+
+#define CHUNK_HEAD ((sizeof(tape_chunk) + 63) & ~(size_t)63)
+
+static void arena_use(tape_arena *a, tape_chunk *ch) {
+  a->cur = ch, a->at = (char *)ch + CHUNK_HEAD, a->left = ch->bytes - CHUNK_HEAD;
+}
+
+/* Room for n taps from a, or NULL when memory ran out. */
+static gi_tap *arena_take(tape_arena *a, size_t n) {
+  size_t bytes = n * sizeof(gi_tap);
+  while (bytes > a->left) {
+    if (a->cur && a->cur->next) { /* a chunk the last set used */
+      arena_use(a, a->cur->next);
+      continue;
+    }
+    size_t want = CHUNK_HEAD + bytes > TAPE_CHUNK ? CHUNK_HEAD + bytes : TAPE_CHUNK;
+    int zeroed;
+    tape_chunk *ch = gi__big_malloc(want, &zeroed);
+    if (!ch) return NULL;
+    ch->next = NULL, ch->bytes = want;
+    if (a->cur) a->cur->next = ch;
+    else a->head = ch;
+    arena_use(a, ch);
+  }
+  gi_tap *t = (gi_tap *)(void *)a->at;
+  a->at += bytes, a->left -= bytes;
+  return t;
+}
+
+/* Every block of a is free again; its chunks stay for the next set. */
+static void arena_reset(tape_arena *a) {
+  if (a->head) arena_use(a, a->head);
+}
+
+static void arena_free(tape_arena *a) {
+  while (a->head) {
+    tape_chunk *next = a->head->next;
+    gi__big_free(a->head, a->head->bytes, 1);
+    a->head = next;
+  }
+  a->cur = NULL, a->at = NULL, a->left = 0;
+}
+
+/* The tapes' memory, bounded per bake: past it voxels march again. arena
+ * and rec: per worker id (gi__parallel_for), the tapes' memory and the
+ * march's record, kept across a bounce's chunks (regrowing a record per
+ * chunk of 16 voxels faulted its pages in again each time). */
 typedef struct {
   atomic_size_t bytes;
   size_t max;
+  tape_arena arena[GI_MAX_WORKERS];
+  gi_tap_rec rec[GI_MAX_WORKERS];
 } tape_budget;
 
 /* One bounce over every level's own voxels as one parallel loop (level d's
@@ -106,7 +169,8 @@ typedef struct {
   float step, ao_lambda; /* the gather's step rule: the quality's, every voxel's alike */
   uint8_t *next_H;       /* the next voxel batch_add takes: where its faces' hit shares go, or NULL */
   gi_tape *next_tape;    /* the same for its tape, when this batch records */
-  gi_tap_rec rec;        /* the batch's taps while recording (t reused across batches) */
+  gi_tap_rec *rec;       /* the batch's taps while recording (the worker's, reused across batches) */
+  tape_arena *arena;     /* where the worker's kept taps go */
   tape_budget *budget;   /* NULL: no recording */
   int oom;               /* a tape could not be allocated */
   struct {
@@ -204,7 +268,7 @@ static void face_hits(const gi_vgeo *g, const float hs[GI_VOX_FACES], const floa
  * the budget spent) records nothing: its voxels march again. Out of
  * memory sets cb->oom: the bake fails as it would anywhere else. */
 static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
-  gi_tap_rec *r = &cb->rec;
+  gi_tap_rec *r = cb->rec;
   size_t bytes = r->n * sizeof(gi_tap);
   gi_tap *block = NULL;
   if (r->oom) cb->oom = 1;
@@ -213,7 +277,7 @@ static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
     atomic_fetch_sub(&cb->budget->bytes, bytes);
     return;
   }
-  if (r->n > 0 && !(block = gi__malloc(bytes))) {
+  if (r->n > 0 && !(block = arena_take(cb->arena, r->n))) {
     atomic_fetch_sub(&cb->budget->bytes, bytes);
     cb->oom = 1;
     return;
@@ -228,7 +292,6 @@ static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
     tp->t = block ? block + at[j0] : NULL;
     tp->n = at[j1] - at[j0];
     tp->rec = 1;
-    tp->own = 0;
     side_hits(c, wide, cb, v, tp->hs);
   }
   for (size_t i = 0; i < r->n; i++) {
@@ -238,19 +301,17 @@ static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
     t.job = (uint16_t)cb->which[j];
     block[at[j]++] = t;
   }
-  /* The block's first voxel frees it (every voxel of a recording batch has a tape). */
-  if (block) cb->v[0].tape->own = 1;
-  else atomic_fetch_sub(&cb->budget->bytes, bytes);
+  if (!block) atomic_fetch_sub(&cb->budget->bytes, bytes);
 }
 
 /* Marches cb's cones and folds each voxel's into its E (and hit); empties
  * cb. Returns the samples taken. */
 static uint64_t batch_finish(const struct gi_cascade *c, int wide, cone_batch *cb, uint64_t *cones) {
   uint64_t samples = 0;
-  if (cb->budget) cb->rec.n = 0, cb->rec.full = cb->rec.oom = 0;
+  if (cb->budget) cb->rec->n = 0, cb->rec->full = cb->rec->oom = 0;
   if (cb->nj > 0)
     gi__cone_march_jobs_rec(c, cb->jobs, cb->nj, wide ? c->wide_tan : c->cone_tan, cb->step, cb->ao_lambda, cb->co,
-                            cb->budget ? &cb->rec : NULL);
+                            cb->budget ? cb->rec : NULL);
   int nc = wide ? c->num_wide_cones : c->num_cones;
   const float *weight = wide ? c->wide_weight : c->cone_weight;
   for (int v = 0; v < cb->nv; v++) {
@@ -378,7 +439,6 @@ static void replay_voxel(const bounce_ctx *bc, int d, size_t i, uint32_t slot) {
 }
 
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
-  (void)worker;
   bounce_ctx *bc = p;
   uint64_t samples = 0, cones = 0, taps = 0;
   /* A replaying bounce's time less its marches is the replays' (a clock
@@ -392,7 +452,8 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   cb.next_tape = NULL;
   cb.budget = bc->record ? bc->budget : NULL;
   cb.oom = 0;
-  cb.rec = (gi_tap_rec){.max = bc->budget ? bc->budget->max / sizeof(gi_tap) : 0};
+  cb.rec = &bc->budget->rec[worker];
+  cb.arena = &bc->budget->arena[worker];
   for (size_t q = b; q < e; q++) {
     while (q >= bc->start[d + 1]) d++;
     size_t i = q - bc->start[d];
@@ -418,7 +479,6 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   double m0 = replaying ? gi__now_ms() : 0;
   samples += batch_finish(bc->c, bc->wide, &cb, &cones);
   double end = replaying ? gi__now_ms() : 0, replay_ms = end - t0 - (march_ms + end - m0);
-  gi__free(cb.rec.t);
   if (cb.oom) atomic_store(&bc->oom, 1);
   atomic_fetch_add(&bc->samples, samples);
   atomic_fetch_add(&bc->cones, cones);
@@ -426,15 +486,15 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   if (replay_ms > 0) atomic_fetch_add(&bc->replay_ns, (unsigned long long)(replay_ms * 1e6));
 }
 
-/* Frees every level's tapes (NULL entries skipped) and sets them NULL. */
-static void free_tapes(const struct gi_cascade *c, gi_tape *tape[]) {
+/* Frees every level's tapes (NULL entries skipped) and sets them NULL;
+ * the workers' tape memory is free for the next set's (arena_reset). */
+static void free_tapes(const struct gi_cascade *c, gi_tape *tape[], tape_budget *budget) {
   for (int d = 0; d < c->n; d++) {
-    if (!tape[d]) continue;
-    for (uint32_t i = 0; i < c->lv[d].num_occ; i++)
-      if (tape[d][i].own) gi__free(tape[d][i].t);
     gi__free(tape[d]);
     tape[d] = NULL;
   }
+  for (int w = 0; w < GI_MAX_WORKERS; w++) arena_reset(&budget->arena[w]);
+  atomic_store(&budget->bytes, 0);
 }
 
 /* The tapes' budget per bake: GI_TAPE_MAX_BYTES, or what
@@ -563,6 +623,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
   gi_tape *tape[GI_MAX_LEVELS] = {0}; /* the current set's tapes, while a later bounce of the set replays them */
   tape_budget budget = {.max = tape_max_bytes()};
   atomic_init(&budget.bytes, 0);
+  for (int w = 0; w < GI_MAX_WORKERS; w++) budget.rec[w].max = budget.max / sizeof(gi_tap);
   int want_H = tail && bounces >= 2;
   gi_result rc = GI_OK;
   /* Area-weighted sums of the increment per bounce (both sides,
@@ -589,7 +650,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     int first = it == 0 || (wide && !gi__bounce_wide(c, it - 1));
     /* A set's first bounce records its tapes when a later bounce takes the same set. */
     int record = first && budget.max > 0 && it + 1 < bounces && gi__bounce_wide(c, it + 1) == wide;
-    if (first) free_tapes(c, tape), atomic_store(&budget.bytes, 0);
+    if (first) free_tapes(c, tape, &budget);
     for (int d = 0; d < c->n && record; d++)
       if (!(tape[d] = gi__calloc((size_t)c->lv[d].num_occ + 1, sizeof *tape[d]))) {
         rc = gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory");
@@ -632,7 +693,8 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     c->report.bounces_run = it + 1;
   }
 done:
-  free_tapes(c, tape);
+  free_tapes(c, tape, &budget);
+  for (int w = 0; w < GI_MAX_WORKERS; w++) arena_free(&budget.arena[w]), gi__free(budget.rec[w].t);
   for (int d = 0; d < c->n; d++)
     gi__free(E[d]), gi__free(hit[0][d]), gi__free(hit[1][d]), gi__free(plan[d]), gi__free(shift[d]), gi__free(H[d]);
   return rc;
