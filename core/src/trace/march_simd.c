@@ -312,7 +312,11 @@ static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m25
   *near = _mm256_andnot_ps(coarsest, *near); /* the full step on the coarsest level */
   __m256i d = _mm256_set1_epi32(b->n);
   __m256 has_next = _mm256_setzero_ps(), prev = _mm256_setzero_ps();
-  for (int k = b->n - 1; k >= 0; k--) {
+  /* No lane takes a level below its d0: the loop stops at the lanes' least. */
+  __m128i m4 = _mm_min_epi32(_mm256_castsi256_si128(d0), _mm256_extracti128_si256(d0, 1));
+  m4 = _mm_min_epi32(m4, _mm_shuffle_epi32(m4, 0x4e));
+  int kmin = _mm_cvtsi128_si32(_mm_min_epi32(m4, _mm_shuffle_epi32(m4, 0xb1)));
+  for (int k = b->n - 1; k >= kmin && k >= 0; k--) {
     __m256 ok = _mm256_and_ps(CMP(_mm256_loadu_ps(b->span_in[k]), st->t, _CMP_LE_OQ),
                               CMP(st->t, _mm256_loadu_ps(b->span_out[k]), _CMP_LE_OQ));
     __m256 sel = _mm256_and_ps(ok, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(k + 1), d0)));
