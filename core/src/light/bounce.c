@@ -340,8 +340,13 @@ static uint64_t batch_finish(const struct gi_cascade *c, int wide, cone_batch *c
   return samples;
 }
 
-uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide,
-                           const gi_between *plan, gi_faces3 *E, gi_hfaces *H, uint64_t *cones) {
+/* gi__gather_voxels, and with hit (the level's first-hit masks, voxel i's
+ * at hit[at[i]]; NULL: none) on the set's first bounce (first) each
+ * voxel's mask filled, on its later bounces the cones its mask says met
+ * nothing skipped: they bring exact zeros, as in bounce_range. */
+static uint64_t gather_masked(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide,
+                              const gi_between *plan, gi_faces3 *E, gi_hfaces *H, gi_hits *hit, const uint32_t *at,
+                              int first, uint64_t *cones) {
   cone_batch cb;
   cb.nj = cb.nv = 0;
   cb.budget = NULL, cb.next_tape = NULL, cb.oom = 0;
@@ -352,31 +357,46 @@ uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *sl
     if (!batch_room(c, wide, &cb)) samples += batch_finish(c, wide, &cb, cones);
     cb.next_H = H ? H[i] : NULL;
     gi_shift6 *sh = L->shift ? &L->shift[L->vix[slots[i]]] : NULL;
-    batch_add(c, d, slots[i], wide, NULL, E[i], NULL, sh, sh && !isnan(sh->v[0][0]), &cb);
+    gi_hits *hm = hit ? &hit[at[i]] : NULL;
+    batch_add(c, d, slots[i], wide, first ? NULL : hm, E[i], first ? hm : NULL, sh, sh && !isnan(sh->v[0][0]), &cb);
   }
   return samples + batch_finish(c, wide, &cb, cones);
+}
+
+uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide,
+                           const gi_between *plan, gi_faces3 *E, gi_hfaces *H, uint64_t *cones) {
+  return gather_masked(c, d, slots, n, wide, plan, E, H, NULL, NULL, 0, cones);
 }
 
 /* The voxels between gathered neighbours that gi__between_fill turned
  * down, of one level: their slots, where their E goes, and their gathers. */
 typedef struct {
   const struct gi_cascade *c;
-  int d, wide;
+  int d, wide, first;
   uint32_t *slots;
+  const uint32_t *at; /* their indices in the level's occ list */
   gi_faces3 *E;
+  gi_hits *hit;       /* the level's first-hit masks (gather_masked), or NULL */
   atomic_ullong samples, cones;
 } redo_ctx;
 
 static void redo_range(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   redo_ctx *r = p;
-  uint64_t cones = 0, samples = gi__gather_voxels(r->c, r->d, r->slots + b, e - b, r->wide, NULL, r->E + b, NULL, &cones);
+  uint64_t cones = 0, samples = gather_masked(r->c, r->d, r->slots + b, e - b, r->wide, NULL, r->E + b, NULL, r->hit,
+                                              r->at + b, r->first, &cones);
   atomic_fetch_add(&r->samples, samples);
   atomic_fetch_add(&r->cones, cones);
 }
 
-gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
-                             int threads, uint64_t *samples, uint64_t *cones, gi_error_info *err) {
+/* gi__bounce_between with the set's first-hit masks (per level, or NULL):
+ * the turned-down voxels' masks are filled on the set's first bounce and
+ * skip cones on its later ones, as every other voxel's. Their cones that
+ * meet nothing are most of their samples (a cone into the open sky
+ * crosses every level). */
+static gi_result between_masked(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
+                                int threads, gi_hits *const hit[], int first, uint64_t *samples, uint64_t *cones,
+                                gi_error_info *err) {
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
     uint32_t *at = gi__malloc(((size_t)L->num_occ + 1) * sizeof *at), n;
@@ -385,7 +405,7 @@ gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_
       gi__free(at);
       continue;
     }
-    redo_ctx r = {.c = c, .d = d, .wide = wide};
+    redo_ctx r = {.c = c, .d = d, .wide = wide, .first = first, .at = at, .hit = hit ? hit[d] : NULL};
     r.slots = gi__malloc((size_t)n * sizeof *r.slots);
     r.E = gi__malloc((size_t)n * sizeof *r.E);
     if (!r.slots || !r.E) {
@@ -403,6 +423,11 @@ gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_
     if (cancelled) return gi__cancel_fail(c->cancel, err, "bounce");
   }
   return GI_OK;
+}
+
+gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
+                             int threads, uint64_t *samples, uint64_t *cones, gi_error_info *err) {
+  return between_masked(c, plan, E, wide, threads, NULL, 0, samples, cones, err);
 }
 
 /* The first two bounces gather the direct light and the first bounce's,
@@ -644,6 +669,9 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
       rc = gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory");
       goto done;
     }
+    /* Every cone, until a voxel's gather on its set's first bounce says which met something. */
+    memset(hit[0][d], 0xff, n * sizeof *hit[0][d]);
+    if (any_wide) memset(hit[1][d], 0xff, n * sizeof *hit[1][d]);
   }
   for (int it = 0; it < bounces; it++) {
     int wide = gi__bounce_wide(c, it);
@@ -681,7 +709,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
       goto done;
     }
     uint64_t samples = 0, cones = 0;
-    rc = gi__bounce_between(c, plan, E, wide, q->threads, &samples, &cones, err);
+    rc = between_masked(c, plan, E, wide, q->threads, hit[wide], first, &samples, &cones, err);
     c->report.cone_samples += samples;
     c->report.cones_traced += cones;
     if (rc != GI_OK) goto done;
