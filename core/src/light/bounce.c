@@ -235,6 +235,18 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
   cb->nv++;
 }
 
+/* An empty batch for worker w, recording into budget (the worker's
+ * record and tape arena) or not (NULL). */
+static void batch_start(cone_batch *cb, tape_budget *budget, int w) {
+  cb->nj = cb->nv = 0;
+  cb->next_H = NULL;
+  cb->next_tape = NULL;
+  cb->budget = budget;
+  cb->rec = budget ? &budget->rec[w] : NULL;
+  cb->arena = budget ? &budget->arena[w] : NULL;
+  cb->oom = 0;
+}
+
 /* Whether cb has room for one more voxel's cones. */
 static int batch_room(const struct gi_cascade *c, int wide, const cone_batch *cb) {
   int nc = wide ? c->num_wide_cones : c->num_cones;
@@ -348,8 +360,7 @@ static uint64_t gather_masked(const struct gi_cascade *c, int d, const uint32_t 
                               const gi_between *plan, gi_faces3 *E, gi_hfaces *H, gi_hits *hit, const uint32_t *at,
                               int first, uint64_t *cones) {
   cone_batch cb;
-  cb.nj = cb.nv = 0;
-  cb.budget = NULL, cb.next_tape = NULL, cb.oom = 0;
+  batch_start(&cb, NULL, 0);
   uint64_t samples = 0;
   const gi_level *L = &c->lv[d];
   for (size_t i = 0; i < n; i++) {
@@ -472,13 +483,7 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   double t0 = replaying ? gi__now_ms() : 0, march_ms = 0;
   int d = 0;
   cone_batch cb;
-  cb.nj = cb.nv = 0;
-  cb.next_H = NULL;
-  cb.next_tape = NULL;
-  cb.budget = bc->record ? bc->budget : NULL;
-  cb.oom = 0;
-  cb.rec = &bc->budget->rec[worker];
-  cb.arena = &bc->budget->arena[worker];
+  batch_start(&cb, bc->record ? bc->budget : NULL, worker);
   for (size_t q = b; q < e; q++) {
     while (q >= bc->start[d + 1]) d++;
     size_t i = q - bc->start[d];
