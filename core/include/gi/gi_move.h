@@ -34,8 +34,10 @@
  *     once (near a window's face a voxel's cones read the coarser level at
  *     once) from a copy of the texture that holds the orders the bake's
  *     last bounce read: every voxel's light less what the last bounce
- *     added (its own increment since a re-bake closed, before that the
- *     bounce's share), the new voxels' from a first gather of their own;
+ *     and the bounce tail on it added (its own increment since a re-bake
+ *     closed, before that the bounce's share; with a tail and no re-bake
+ *     closed yet, the whole texture), the new voxels' from a first gather
+ *     of their own, the tail then put back on what they gathered;
  *     other kept voxels keep their light;
  *   - re-bakes in the background: on each call that keeps the anchor
  *     (gi_cascade_anchor), it runs one slice of the bake's own bounce

@@ -260,10 +260,12 @@ struct gi_cascade {
   int auto_bounces;
   int tail;            /* the plan's bounce tail (gi__bounce) */
   /* Per channel, the share of the voxels' indirect light (side - direct,
-   * area-weighted) that the last bounce added: what a gather of the whole
-   * texture returns beyond the bake's orders (move.c). 0 when the tail was
-   * added (the texture then holds every order) or after no bounce. */
-  float last_share[3];
+   * area-weighted, with the tail) that the last bounce's increment D_k
+   * added, and the tail's gain on it (the tail added tail_gain x D_k; 0
+   * without a tail): a move's fresh gather takes (1 + tail_gain) x D_k off
+   * to read the bake's orders, and puts the tail back (move.c). 0 after
+   * no bounce. */
+  float last_share[3], tail_gain[3];
   uint64_t moves;
   /* GI_TORN_MOVING while a move runs, GI_TORN_LEFT after one that failed
    * or was cancelled part way: the cascade is partial (gi_move.h) and every

@@ -537,8 +537,9 @@ void gi__set_tape_budget(size_t bytes) { atomic_store(&tape_budget_set, bytes); 
 static size_t tape_max_bytes(void) { return atomic_load(&tape_budget_set); }
 
 /* c->last_share from the last bounce's area-weighted increment `last`
- * and the voxels' whole indirect light (side already summed). */
-static void last_bounce_share(struct gi_cascade *c, const double last[3], int add_tail) {
+ * and the voxels' whole indirect light (side already summed, with the
+ * tail), and c->tail_gain from the tail's factor f. */
+static void last_bounce_share(struct gi_cascade *c, const double last[3], const double f[3]) {
   double all[3] = {0, 0, 0};
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
@@ -551,8 +552,9 @@ static void last_bounce_share(struct gi_cascade *c, const double last[3], int ad
     }
   }
   for (int k = 0; k < 3; k++) {
-    double r = !add_tail && all[k] > 0 && last[k] > 0 ? last[k] / all[k] : 0;
+    double r = all[k] > 0 && last[k] > 0 ? last[k] / all[k] : 0;
     c->last_share[k] = (float)(r < 1 ? r : 1);
+    c->tail_gain[k] = (float)f[k];
   }
 }
 
@@ -638,7 +640,7 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], gi_hfaces *const
         }
     }
   }
-  if (last) last_bounce_share(c, S[1], add_tail);
+  if (last) last_bounce_share(c, S[1], f);
   if (last) gi__shade_all(c);
   else gi__shade_all_from(c, E);
 }
@@ -660,6 +662,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
    * every level's own voxels), for the tail's ratio. */
   double S[2][3] = {{0}};
   memset(c->last_share, 0, sizeof c->last_share);
+  memset(c->tail_gain, 0, sizeof c->tail_gain);
   int any_wide = bounces > 0 && gi__bounce_wide(c, bounces - 1);
   for (int d = 0; d < c->n; d++) {
     size_t n = (size_t)c->lv[d].num_occ + 1;
