@@ -567,6 +567,20 @@ static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uin
   return cancelled ? gi__cancel_fail(c->cancel, err, "move gather") : GI_OK;
 }
 
+/* With a bounce tail the fresh gather takes D_k and the tail on it off
+ * (1 + f times D_k) and puts the tail back on what it gathers: with each
+ * voxel's own D_k once a re-bake closed (the 600 m city's walk, 12
+ * sampled shifts: 1.09% -> 0.82% from cold bakes, against 0.94% between
+ * cold bakes). Before, only the cascade's mean share is known, which
+ * misses where a voxel's own differs (near a lamp the first orders are
+ * most of its light) and the tail multiplies the miss by f: the lit
+ * room's walk that never closes (f ~ 9) read 0.0062 mean from cold bakes
+ * so, 0.0028 with the whole texture read, which holds every order (the
+ * gather of it returns E_k + f D_k where the ratio is the tail's). */
+static int whole_texture(const struct gi_cascade *c, const gi_move_state *m) {
+  return !m->have_last && c->tail_gain[0] + c->tail_gain[1] + c->tail_gain[2] > 0;
+}
+
 /* The texture the fresh gather reads, in the re-bake's arrays (free at a
  * crossing: the cycle restarts): every own voxel's light without what the
  * last bounce (and the tail on it: whole_texture) added, shaded and
@@ -585,20 +599,6 @@ static gi_result gather_list(struct gi_cascade *c, int threads, int d, const uin
  * (the drive, a new slab at nearly every step: probe 0.46% / 1.98% mean /
  * max from cold bakes, 0.39% / 1.49% primed). Swaps the fresh texture in
  * (the caller swaps it out); nonzero when cancelled. */
-/* With a bounce tail the fresh gather takes D_k and the tail on it off
- * (1 + f times D_k) and puts the tail back on what it gathers: with each
- * voxel's own D_k once a re-bake closed (the 600 m city's walk, 12
- * sampled shifts: 1.09% -> 0.82% from cold bakes, against 0.94% between
- * cold bakes). Before, only the cascade's mean share is known, which
- * misses where a voxel's own differs (near a lamp the first orders are
- * most of its light) and the tail multiplies the miss by f: the lit
- * room's walk that never closes (f ~ 9) read 0.0062 mean from cold bakes
- * so, 0.0028 with the whole texture read, which holds every order (the
- * gather of it returns E_k + f D_k where the ratio is the tail's). */
-static int whole_texture(const struct gi_cascade *c, const gi_move_state *m) {
-  return !m->have_last && c->tail_gain[0] + c->tail_gain[1] + c->tail_gain[2] > 0;
-}
-
 static int fresh_texture(struct gi_cascade *c, gi_move_state *m, int threads, uint32_t **fresh,
                          const uint32_t *nnew, gi_faces3 *const *prime) {
   size_t vox = (size_t)c->R * c->R * c->R;
@@ -740,8 +740,9 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
    * D_k = s_k E_k with s_k = s / (1 - f s) (s: last_share, a share of
    * the light with the tail), so the light is E_k / (1 - f s). */
   float gain[3], share[3];
+  int whole = whole_texture(c, m);
   for (int k = 0; k < 3; k++) {
-    float fs = whole_texture(c, m) ? 0 : c->tail_gain[k] * c->last_share[k];
+    float fs = whole ? 0 : c->tail_gain[k] * c->last_share[k];
     gain[k] = fs < 1 ? 1 / (1 - fs) : 1;
     share[k] = c->last_share[k] * gain[k];
   }
@@ -752,6 +753,7 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
       float(*side)[3] = gi__side(L, slot), (*direct)[3] = gi__direct(L, slot);
       float(*last)[3] = m->last[d][L->vix[slot]];
       float g[3] = {gain[0], gain[1], gain[2]}, sh[3] = {share[0], share[1], share[2]};
+      /* fresh[d]'s first nnew[d] are the new voxels: no D_k of their own. */
       if (m->have_last && q >= nnew[d]) own_gain(c, side, direct, last, g, sh);
       for (int sd = 0; sd < GI_VOX_FACES; sd++)
         for (int k = 0; k < 3; k++) {
