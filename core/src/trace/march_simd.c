@@ -38,6 +38,7 @@ typedef struct {
    * area: radiance, opacity and optical depth alike), and the same across
    * the surface's normal only (x (1 - n_a^2)). */
   int fb[LANES][3];
+  uint8_t faces[LANES]; /* per lane: bit a set when w_a > 0 (gi_tap's face bits) */
   float k[LANES][3], kax[LANES][3];
   float span_in[GI_MAX_LEVELS][LANES], span_out[GI_MAX_LEVELS][LANES];
   /* Per lane: the cone's start (apex, direction, cosine to the surface
@@ -246,25 +247,35 @@ static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, __m256 
   for (int l = 0; l < LANES; l++) {
     int dd = dl[l] & (TAB - 1); /* idle lanes may hold n: any table entry is readable */
     busy |= (b->busy[dd][cl.block[l]] != 0) << l;
-    open4 |= (b->busy4[dd][cl.block4[l]] == 0) << l;
   }
   busy &= m;
-  /* Whole rows, each one store, so the transpose's loads forward. The
-   * idle lanes' zeros by mask: a loop over all eight, or a memset, became
-   * rep stos, 7% of this function. */
-  float rows[LANES][LANES];
-  for (int todo = ~busy & 0xff; todo; todo &= todo - 1)
-    _mm256_storeu_ps(rows[__builtin_ctz((unsigned)todo)], _mm256_setzero_ps());
-  for (int todo = busy; todo; todo &= todo - 1) {
+  /* Only an empty far lane asks its busy4 block (most steps have none). */
+  for (int todo = _mm256_movemask_ps(far) & m & ~busy; todo; todo &= todo - 1) {
     int l = __builtin_ctz((unsigned)todo);
-    _mm256_storeu_ps(rows[l], read_lane(b, l, dl[l], &cl, (mx >> l) & 1));
+    open4 |= (b->busy4[dl[l]][cl.block4[l]] == 0) << l;
   }
-  __m256 col[LANES];
-  transpose8((const float(*)[LANES])rows, col);
-  __m256 scale = V1(b->c->rad_scale);
-  for (int ch = 0; ch < 3; ch++) out->P[ch] = _mm256_mul_ps(col[ROW_P + ch], scale);
-  out->wal = col[ROW_WAL];
-  out->sig = _mm256_mul_ps(col[ROW_TAU], tab16(b->inv, d));
+  if (busy) {
+    /* Whole rows, each one store, so the transpose's loads forward. The
+     * idle lanes' zeros by mask: a loop over all eight, or a memset, became
+     * rep stos, 7% of this function. */
+    float rows[LANES][LANES];
+    for (int todo = ~busy & 0xff; todo; todo &= todo - 1)
+      _mm256_storeu_ps(rows[__builtin_ctz((unsigned)todo)], _mm256_setzero_ps());
+    for (int todo = busy; todo; todo &= todo - 1) {
+      int l = __builtin_ctz((unsigned)todo);
+      _mm256_storeu_ps(rows[l], read_lane(b, l, dl[l], &cl, (mx >> l) & 1));
+    }
+    __m256 col[LANES];
+    transpose8((const float(*)[LANES])rows, col);
+    __m256 scale = V1(b->c->rad_scale);
+    for (int ch = 0; ch < 3; ch++) out->P[ch] = _mm256_mul_ps(col[ROW_P + ch], scale);
+    out->wal = col[ROW_WAL];
+    out->sig = _mm256_mul_ps(col[ROW_TAU], tab16(b->inv, d));
+  } else {
+    /* No lane read a texel: the zeros the sums above would give, bit for bit (+0 times a scale). */
+    for (int ch = 0; ch < 3; ch++) out->P[ch] = _mm256_setzero_ps();
+    out->wal = out->sig = _mm256_setzero_ps();
+  }
   /* Empty lanes may skip: to the busy4 block's end where far and that block is empty too. */
   __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
   __m256 lane_open4 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(open4), bit), bit));
@@ -332,12 +343,20 @@ static __m256i pick_level(const batch *b, const par8 *q, const state8 *st, __m25
 }
 
 /* Folds one sample into the lanes in act: the step, the empty-block
- * skip, the opacity and front-to-back compositing. */
+ * skip, the opacity and front-to-back compositing (any: some lane's
+ * sample read a texel; else only the step). */
 static void composite(const par8 *q, state8 *st, __m256 act, __m256 near, __m256 sd, __m256 D, const sample8 *s,
-                      __m256 clear2, __m256 *lit_out, __m256 *k_out) {
+                      __m256 clear2, int any, __m256 *lit_out, __m256 *k_out) {
   __m256 dt = _mm256_mul_ps(_mm256_blendv_ps(V1(q->step), V1(gi__minf(q->step, GI_NEAR_SURFACE_STEP)), near), sd);
   __m256 run = _mm256_min_ps(s->clear, clear2);
   dt = _mm256_blendv_ps(dt, _mm256_mul_ps(dt, _mm256_ceil_ps(_mm256_div_ps(run, dt))), CMP(run, dt, _CMP_GT_OQ));
+  if (!any) {
+    /* Nothing read: opacity 0, so L, a and occ stay as they are, bit for bit. */
+    *lit_out = *k_out = _mm256_setzero_ps();
+    st->t = _mm256_blendv_ps(st->t, _mm256_add_ps(st->t, dt), act);
+    st->act = _mm256_and_ps(act, CMP(st->a, V1(GI_OPAQUE_ALPHA), _CMP_LT_OQ));
+    return;
+  }
   __m256 as = _mm256_sub_ps(V1(1.f), exp_neg8(_mm256_mul_ps(s->sig, dt)));
   __m256 a = st->a, ta = _mm256_sub_ps(V1(1.f), a);
   __m256 lit = _mm256_and_ps(act, _mm256_and_ps(CMP(as, _mm256_setzero_ps(), _CMP_GT_OQ),
@@ -367,20 +386,27 @@ static void record8(const batch *b, __m256 lit, __m256 k, const __m256 p[3], __m
   _mm256_storeu_ps(K, k);
   _mm256_storeu_ps(F, frac);
   _mm256_storeu_si256((__m256i *)D, d);
-  int mx = _mm256_movemask_ps(ax), m2 = _mm256_movemask_ps(two);
-  for (int todo = _mm256_movemask_ps(lit); todo; todo &= todo - 1) {
+  int mx = _mm256_movemask_ps(ax), m2 = _mm256_movemask_ps(two), lit_m = _mm256_movemask_ps(lit);
+  gi_tap_rec *r = b->rec;
+  /* Room for every lane's tap at once, then each written in place. */
+  while (r->cap - r->n < (size_t)__builtin_popcount((unsigned)lit_m)) {
+    size_t had = r->cap;
+    if (!gi__tap_grow(r) || r->cap == had) { /* at max: full, and a full record is not replayed (trace.h) */
+      r->full = 1;
+      return;
+    }
+  }
+  for (int todo = lit_m; todo; todo &= todo - 1) {
     int l = __builtin_ctz((unsigned)todo), blend = m2 >> l & 1;
     /* Never both: a step pushed to a coarser level (ax) does not blend. */
     const float *kw = (mx >> l & 1) ? b->kax[l] : b->k[l];
-    gi_tap t;
-    t.job = (uint16_t)b->job[l];
-    t.d = (uint8_t)D[l];
-    t.flags = (uint8_t)((b->w[0][l] > 0) | (b->w[1][l] > 0) << 1 | (b->w[2][l] > 0) << 2 |
-                        (busy1 >> l & 1 ? GI_TAP_BUSY : 0) | (blend && (busy2 >> l & 1) ? GI_TAP_BUSY2 : 0) |
-                        (blend ? GI_TAP_BLEND : 0));
-    for (int a = 0; a < 3; a++) t.p[a] = P[a][l], t.k[a] = kw[a];
-    t.kk = K[l], t.frac = blend ? F[l] : 0, t.alpha = 0;
-    gi__tap_push(b->rec, &t);
+    gi_tap *t = &r->t[r->n++];
+    t->job = (uint16_t)b->job[l];
+    t->d = (uint8_t)D[l];
+    t->flags = (uint8_t)(b->faces[l] | (busy1 >> l & 1 ? GI_TAP_BUSY : 0) |
+                         (blend && (busy2 >> l & 1) ? GI_TAP_BUSY2 : 0) | (blend ? GI_TAP_BLEND : 0));
+    for (int a = 0; a < 3; a++) t->p[a] = P[a][l], t->k[a] = kw[a];
+    t->kk = K[l], t->frac = blend ? F[l] : 0, t->alpha = 0;
   }
 }
 
@@ -428,8 +454,9 @@ static void step8(const batch *b, const par8 *q, state8 *st) {
     busy2 = s2.busy;
   }
   __m256 lit, k;
-  composite(q, st, act, near, sd, D, &s, clear2, &lit, &k);
-  if (b->rec) record8(b, lit, k, p, d, ax, two, frac, s.busy, busy2);
+  int any = s.busy | busy2;
+  composite(q, st, act, near, sd, D, &s, clear2, any, &lit, &k);
+  if (b->rec && any) record8(b, lit, k, p, d, ax, two, frac, s.busy, busy2);
   /* Every cone stops after GI_CONE_MAX_STEPS steps, as the scalar one. */
   st->act = _mm256_and_ps(st->act, _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(GI_CONE_MAX_STEPS),
                                                                           st->steps)));
@@ -488,6 +515,7 @@ static void lane_load(batch *b, int l, const gi_cone_job *j, int index, const fl
     b->kax[l][a] = fabsf(w[a]) * across;
     b->L[a][l] = 0;
   }
+  b->faces[l] = (uint8_t)((w[0] > 0) | (w[1] > 0) << 1 | (w[2] > 0) << 2);
   b->nw[l] = surf ? gi__dot(j->n, w) : 0.f;
   b->h0[l] = j->h0;
   for (int d = 0; d < b->n; d++) b->span_in[d][l] = gin[d][gl], b->span_out[d][l] = gout[d][gl];
