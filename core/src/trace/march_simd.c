@@ -388,14 +388,8 @@ static void record8(const batch *b, __m256 lit, __m256 k, const __m256 p[3], __m
   _mm256_storeu_si256((__m256i *)D, d);
   int mx = _mm256_movemask_ps(ax), m2 = _mm256_movemask_ps(two), lit_m = _mm256_movemask_ps(lit);
   gi_tap_rec *r = b->rec;
-  /* Room for every lane's tap at once, then each written in place. */
-  while (r->cap - r->n < (size_t)__builtin_popcount((unsigned)lit_m)) {
-    size_t had = r->cap;
-    if (!gi__tap_grow(r) || r->cap == had) { /* at max: full, and a full record is not replayed (trace.h) */
-      r->full = 1;
-      return;
-    }
-  }
+  /* Room for every lane's tap at once, then each written in place (full: not replayed). */
+  if (!gi__tap_reserve(r, (size_t)__builtin_popcount((unsigned)lit_m))) return;
   for (int todo = lit_m; todo; todo &= todo - 1) {
     int l = __builtin_ctz((unsigned)todo), blend = m2 >> l & 1;
     /* Never both: a step pushed to a coarser level (ax) does not blend. */

@@ -153,11 +153,18 @@ typedef struct gi_tap_rec {
   size_t n, cap, max;
   int full, oom;
 } gi_tap_rec;
-/* Appends one tap to r (marches call it; 0 when it did not fit).
- * gi__tap_grow makes room for one more (trace/taps.c). */
+/* gi__tap_grow enlarges r's room (trace/taps.c); 0 when it cannot (at
+ * max, or out of memory), with r->full set. gi__tap_reserve makes room
+ * for k more taps (0: they do not fit, r->full set); gi__tap_push
+ * appends one (marches call it; 0 when it did not fit). */
 int gi__tap_grow(gi_tap_rec *r);
+static inline int gi__tap_reserve(gi_tap_rec *r, size_t k) {
+  while (r->cap - r->n < k)
+    if (!gi__tap_grow(r)) return 0;
+  return 1;
+}
 static inline int gi__tap_push(gi_tap_rec *r, const gi_tap *tap) {
-  if (r->n == r->cap && !gi__tap_grow(r)) return 0;
+  if (!gi__tap_reserve(r, 1)) return 0;
   r->t[r->n++] = *tap;
   return 1;
 }
