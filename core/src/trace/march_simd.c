@@ -95,7 +95,16 @@ typedef struct {
   uint32_t block4[LANES];     /* its busy4 block */
 } cell8;
 
-static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[3], const __m256 iw[3], cell8 *out) {
+/* What corners needs from locate, kept apart from cell8 (whose address
+ * read_lane takes) so that it can stay in registers. */
+typedef struct {
+  __m256 f[3];       /* the fraction along each axis */
+  __m256i off[3][2]; /* each axis's two slots times its stride */
+} frac8;
+
+static inline __attribute__((always_inline)) void locate(const batch *b, __m256i d, const __m256 p[3],
+                                                          const __m256 w[3], const __m256 iw[3], cell8 *out,
+                                                          frac8 *fo) {
   __m256 inv = tab16(b->inv, d), sd = tab16(b->s, d), run = V1(INFINITY), run4 = V1(INFINITY);
   __m256i R = _mm256_set1_epi32(b->R), Rm2 = _mm256_set1_epi32(b->R - 2), one = _mm256_set1_epi32(1);
   __m256i blk4 = _mm256_setzero_si256(), nb = _mm256_set1_epi32(gi__busy4_side(b->R));
@@ -140,16 +149,22 @@ static void locate(const batch *b, __m256i d, const __m256 p[3], const __m256 w[
   _mm256_storeu_ps(out->run, run);
   _mm256_storeu_ps(out->run4, run4);
   _mm256_storeu_si256((__m256i *)out->block4, blk4);
+  _mm256_storeu_si256((__m256i *)out->block, _mm256_add_epi32(_mm256_add_epi32(off[2][0], off[1][0]), off[0][0]));
+  for (int a = 0; a < 3; a++) fo->f[a] = f[a], fo->off[a][0] = off[a][0], fo->off[a][1] = off[a][1];
+}
+
+/* The eight corners' weights and byte offsets of the cell locate found:
+ * only a step where some lane reads texels needs them (most read none). */
+static inline __attribute__((always_inline)) void corners(const frac8 *fo, cell8 *cl) {
   __m256 g[3][2];
-  for (int a = 0; a < 3; a++) g[a][0] = _mm256_sub_ps(V1(1.f), f[a]), g[a][1] = f[a];
+  for (int a = 0; a < 3; a++) g[a][0] = _mm256_sub_ps(V1(1.f), fo->f[a]), g[a][1] = fo->f[a];
   __m256i texel = _mm256_set1_epi32((int)sizeof(gi_vrad));
   for (int i = 0; i < 8; i++) {
     int dx = i & 1, dy = (i >> 1) & 1, dz = i >> 2;
     /* The scalar march's order: (x y) z. */
-    _mm256_storeu_ps(out->wt[i], _mm256_mul_ps(_mm256_mul_ps(g[0][dx], g[1][dy]), g[2][dz]));
-    __m256i o = _mm256_add_epi32(_mm256_add_epi32(off[2][dz], off[1][dy]), off[0][dx]);
-    if (i == 0) _mm256_storeu_si256((__m256i *)out->block, o);
-    _mm256_storeu_si256((__m256i *)out->corner[i], _mm256_mullo_epi32(o, texel));
+    _mm256_storeu_ps(cl->wt[i], _mm256_mul_ps(_mm256_mul_ps(g[0][dx], g[1][dy]), g[2][dz]));
+    __m256i o = _mm256_add_epi32(_mm256_add_epi32(fo->off[2][dz], fo->off[1][dy]), fo->off[0][dx]);
+    _mm256_storeu_si256((__m256i *)cl->corner[i], _mm256_mullo_epi32(o, texel));
   }
 }
 
@@ -240,7 +255,8 @@ static inline void transpose8(const float rows[LANES][LANES], __m256 col[LANES])
 static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, __m256 far, const __m256 p[3],
                        const __m256 w[3], const __m256 iw[3], sample8 *out) {
   cell8 cl;
-  locate(b, d, p, w, iw, &cl);
+  frac8 fr;
+  locate(b, d, p, w, iw, &cl, &fr);
   int32_t dl[LANES];
   _mm256_storeu_si256((__m256i *)dl, d);
   int m = _mm256_movemask_ps(act), mx = _mm256_movemask_ps(ax), busy = 0, open4 = 0;
@@ -259,6 +275,7 @@ static void sample8_at(const batch *b, __m256i d, __m256 act, __m256 ax, __m256 
      * idle lanes' zeros by mask: a loop over all eight, or a memset, became
      * rep stos, 7% of this function. */
     float rows[LANES][LANES];
+    corners(&fr, &cl);
     for (int todo = ~busy & 0xff; todo; todo &= todo - 1)
       _mm256_storeu_ps(rows[__builtin_ctz((unsigned)todo)], _mm256_setzero_ps());
     for (int todo = busy; todo; todo &= todo - 1) {
