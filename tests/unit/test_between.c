@@ -305,7 +305,9 @@ static void test_fill_fields(void **state) {
       cell_of(c, 0, (int32_t)i, cell);
       set_faces(E[i], plan[i].nb[0] < 0 ? field(cell, step, step_x) : -1.0f);
     }
-    uint32_t n = gi__between_fill(c, 0, plan, E, redo);
+    /* Two workers: the voxels fill in any order, the list comes out in order. */
+    uint32_t n = gi__between_fill(c, 0, plan, E, redo, 2);
+    for (uint32_t j = 1; j < n; j++) assert_true(redo[j - 1] < redo[j]);
     int listed = 0;
     for (uint32_t i = 0; i < L->num_occ; i++) {
       if (plan[i].nb[0] < 0) continue;

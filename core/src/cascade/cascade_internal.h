@@ -371,7 +371,8 @@ int gi__cascade_filter(struct gi_cascade *c, int threads);
 /* Filters only the nested cells of level d (>= 1) inside its global cells
  * [lo, hi): a move whose finer level changed there. Nonzero when cancelled. */
 int gi__cascade_filter_box(struct gi_cascade *c, int threads, int d, const int64_t lo[3], const int64_t hi[3]);
-/* Rebuilds every level's busy and busy4 masks from its opacity (after filtering). */
+/* Rebuilds every level's busy and busy4 masks from its opacity (after
+ * filtering), on the bake's threads (c->report.quality.threads). */
 void gi__cascade_mark_busy(struct gi_cascade *c);
 /* report.occupied[d]: voxels holding geometry per level, the filtered region included. */
 void gi__cascade_count_occupied(struct gi_cascade *c);

@@ -227,11 +227,18 @@ static void mark_busy4(gi_level *L, int R) {
     }
 }
 
-void gi__cascade_mark_busy(struct gi_cascade *c) {
-  for (int d = 0; d < c->n; d++) {
+static void busy_range(void *p, size_t b, size_t e, int worker) {
+  (void)worker;
+  struct gi_cascade *c = p;
+  for (size_t d = b; d < e; d++) {
     mark_busy2(&c->lv[d], c->R);
     mark_busy4(&c->lv[d], c->R);
   }
+}
+
+/* A level's masks are its own: the levels side by side. */
+void gi__cascade_mark_busy(struct gi_cascade *c) {
+  gi__parallel_for((size_t)c->n, 1, c->report.quality.threads, busy_range, c);
 }
 
 void gi__cascade_count_occupied(struct gi_cascade *c) {

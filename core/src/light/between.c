@@ -150,6 +150,25 @@ int gi__between_slots(const gi_level *L, int R, const int32_t *own, uint32_t slo
   return 1;
 }
 
+typedef struct {
+  const struct gi_cascade *c;
+  const gi_level *L;
+  const int32_t *occ_of; /* per slot: its occupied index, or -1 */
+  gi_between *b;
+} plan_ctx;
+
+/* Each voxel's plan depends on the level's voxels alone: any order. */
+static void plan_range(void *p, size_t lo, size_t hi, int worker) {
+  (void)worker;
+  const plan_ctx *x = p;
+  for (size_t i = lo; i < hi; i++) {
+    uint32_t nb[4];
+    x->b[i].nb[0] = -1;
+    if (gi__between_slots(x->L, x->c->R, x->occ_of, x->L->occ[i], nb))
+      for (int k = 0; k < 4; k++) x->b[i].nb[k] = x->occ_of[nb[k]];
+  }
+}
+
 gi_result gi__between_plan(const struct gi_cascade *c, int d, gi_between **out) {
   const gi_level *L = &c->lv[d];
   int R = c->R;
@@ -163,12 +182,8 @@ gi_result gi__between_plan(const struct gi_cascade *c, int d, gi_between **out) 
   }
   for (size_t i = 0; i < vox; i++) occ_of[i] = -1;
   for (uint32_t i = 0; i < L->num_occ; i++) occ_of[L->occ[i]] = (int32_t)i;
-  for (uint32_t i = 0; i < L->num_occ; i++) {
-    uint32_t nb[4];
-    b[i].nb[0] = -1;
-    if (gi__between_slots(L, R, occ_of, L->occ[i], nb))
-      for (int k = 0; k < 4; k++) b[i].nb[k] = occ_of[nb[k]];
-  }
+  plan_ctx x = {.c = c, .L = L, .occ_of = occ_of, .b = b};
+  gi__parallel_for(L->num_occ, 256, c->report.quality.threads, plan_range, &x);
   gi__free(occ_of);
   return GI_OK;
 }
@@ -218,16 +233,38 @@ int gi__between_take(const gi_vgeo *g, const gi_vgeo *const h[4], const float (*
   return 1;
 }
 
-uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *plan, gi_faces3 *E, uint32_t *redo) {
-  const gi_level *L = &c->lv[d];
-  uint32_t n = 0;
-  for (uint32_t i = 0; i < L->num_occ; i++) {
-    const int32_t *nb = plan[i].nb;
+typedef struct {
+  const gi_level *L;
+  const gi_between *plan;
+  gi_faces3 *E;
+  uint32_t *turned; /* per voxel: 1 when its neighbours did not agree */
+} fill_ctx;
+
+/* A planned voxel reads its gathered neighbours' E only (a neighbour is
+ * never planned itself: gi__between_plan), so the voxels fill in any order. */
+static void fill_range(void *p, size_t b, size_t e, int worker) {
+  (void)worker;
+  const fill_ctx *x = p;
+  const gi_level *L = x->L;
+  for (size_t i = b; i < e; i++) {
+    const int32_t *nb = x->plan[i].nb;
+    x->turned[i] = 0;
     if (nb[0] < 0) continue;
     const gi_vgeo *h[4];
     const float(*from[4])[3];
-    for (int k = 0; k < 4; k++) h[k] = gi__geo(L, L->occ[nb[k]]), from[k] = (const float(*)[3])E[nb[k]];
-    if (!gi__between_take(gi__geo(L, L->occ[i]), h, from, E[i])) redo[n++] = i;
+    for (int k = 0; k < 4; k++) h[k] = gi__geo(L, L->occ[nb[k]]), from[k] = (const float(*)[3])x->E[nb[k]];
+    x->turned[i] = !gi__between_take(gi__geo(L, L->occ[i]), h, from, x->E[i]);
   }
+}
+
+uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *plan, gi_faces3 *E, uint32_t *redo,
+                          int threads) {
+  const gi_level *L = &c->lv[d];
+  /* Each voxel's verdict in redo first, then the list in place (n <= i). */
+  fill_ctx x = {.L = L, .plan = plan, .E = E, .turned = redo};
+  gi__parallel_for(L->num_occ, 256, threads, fill_range, &x);
+  uint32_t n = 0;
+  for (uint32_t i = 0; i < L->num_occ; i++)
+    if (redo[i]) redo[n++] = i;
   return n;
 }

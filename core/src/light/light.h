@@ -127,7 +127,8 @@ typedef struct gi_between {
 int gi__between_slots(const gi_level *L, int R, const int32_t *own, uint32_t slot, uint32_t nb[4]);
 /* Level d's plan into *plan (num_occ + 1 entries, reallocated; the caller
  * frees it with gi__free); GI_ERR_NOMEM when out of memory (*plan may
- * then have grown or stayed). Depends only on the level's voxels. */
+ * then have grown or stayed). Depends only on the level's voxels; runs
+ * on the bake's threads (c->report.quality.threads). */
 gi_result gi__between_plan(const struct gi_cascade *c, int d, gi_between **plan);
 /* The irradiance on the sides of g's surfaces in voxel h from h's per-face
  * irradiance E (the faces across each surface's major axis show its two
@@ -146,9 +147,11 @@ int gi__between_mean(int sides, const float v[4][2 * GI_VOX_GROUPS][3], float ou
 int gi__between_take(const gi_vgeo *g, const gi_vgeo *const h[4], const float (*const from[4])[3],
                      float E[GI_VOX_FACES][3]);
 /* Level d's planned voxels (plan: its plan; E: the bounce's gathers of
- * its other voxels) whose neighbours agree take their mean; lists the
- * others' occupied indices in redo (num_occ room) and returns how many. */
-uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *plan, gi_faces3 *E, uint32_t *redo);
+ * its other voxels) whose neighbours agree take their mean, on `threads`
+ * workers; lists the others' occupied indices in redo (num_occ room), in
+ * order, and returns how many. */
+uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *plan, gi_faces3 *E, uint32_t *redo,
+                          int threads);
 /* The gathers of level d's voxels slots[0..n) from the current texture
  * with the diffuse or the wide set: E[i] per face (the side it shows), and
  * when H is not NULL H[i] per face: the cosine-weighted share of that
