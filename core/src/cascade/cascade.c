@@ -110,14 +110,20 @@ gi_result gi__level_reserve(struct gi_cascade *c, int d, uint32_t entries, int s
 
 uint32_t gi__level_free_entries(const gi_level *L) { return L->cap - L->used + L->num_freed; }
 
-void gi__level_take(gi_level *L, uint32_t slot) {
+uint32_t gi__level_claim(gi_level *L, uint32_t slot) {
   uint32_t e = L->num_freed > 0 ? L->freed[--L->num_freed] : L->used++;
+  L->vix[slot] = e;
+  return e;
+}
+
+void gi__level_clear(gi_level *L, uint32_t e) {
   memset(&L->geo[e], 0, sizeof L->geo[e]);
   memset(L->side[e], 0, sizeof L->side[e]);
   memset(L->direct[e], 0, sizeof L->direct[e]);
   if (L->shift) L->shift[e].v[0][0] = NAN; /* found at its first gather */
-  L->vix[slot] = e;
 }
+
+void gi__level_take(gi_level *L, uint32_t slot) { gi__level_clear(L, gi__level_claim(L, slot)); }
 
 void gi__level_release(gi_level *L, uint32_t slot) {
   uint32_t e = L->vix[slot];

@@ -338,10 +338,15 @@ static inline float (*gi__direct(const gi_level *L, uint32_t slot))[3] { return 
  * swapped its texture in (the move grows its own side array to match).
  * gi__level_take gives slot a zeroed entry (room reserved; the slot must
  * have none); gi__level_release gives it back (a slot without one is
- * fine). Neither is thread-safe. */
+ * fine). Neither is thread-safe. gi__level_claim is gi__level_take
+ * without the zeroing: it returns the entry, which gi__level_clear (or
+ * the caller) must fill before anything reads it; gi__level_clear of
+ * distinct entries may run on several threads at once. */
 gi_result gi__level_reserve(struct gi_cascade *c, int d, uint32_t entries, int slack, gi_error_info *err);
 uint32_t gi__level_free_entries(const gi_level *L);
 void gi__level_take(gi_level *L, uint32_t slot);
+uint32_t gi__level_claim(gi_level *L, uint32_t slot);
+void gi__level_clear(gi_level *L, uint32_t e);
 void gi__level_release(gi_level *L, uint32_t slot);
 /* Bytes of one entry across geo, side, direct and freed (a moving
  * cascade's shift is the move's: gi__move_state_bytes). */
