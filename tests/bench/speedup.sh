@@ -4,7 +4,8 @@
 # Builds v0.1.0 (db8404f) once from a git worktree under out/ (cached), then
 # bakes each scene with both gi-bake binaries, alternating, RUNS times each on
 # 2 threads, and once more per run on 1 thread with this tree (thread scaling).
-# Prints medians and `speed-up: N.Nx` per scene, samples per cone, ns per
+# Prints medians and `speed-up: N.Nx` per scene (with the range of the single
+# runs' ratios, each v0.1.0 bake over the bake after it), samples per cone, ns per
 # marched sample per thread (the replays' time left out) and the millions of
 # lit steps the later bounces replayed instead of marching (light/bounce.c),
 # and appends one JSON line per scene to out/bench.jsonl.
@@ -98,14 +99,18 @@ ns = statistics.median(r[3] for r in n)
 taps = n[0][4] if len(n[0]) > 4 else 0.0
 print("%-10s %12.1f %12.1f %9.1fx %12.1f %14.1f %13.2fx %8.2fx %12.2f" %
       (label, mo, mn, mo / mn, spc, ns, ms1 / mn, 2 * ms1 / mp, taps / 1e6))
-print("%-10s speed-up: %.1fx" % (label, mo / mn))
+# Each run's own ratio (its v0.1.0 bake over the bake right after it): how far
+# this machine's speed moved within the run, which the medians hide.
+per = sorted(a[0] / b[0] for a, b in zip(o, n) if b[0] > 0)
+print("%-10s speed-up: %.1fx (median; single runs %.1f-%.1fx)" % (label, mo / mn, per[0], per[-1]))
 with open(jsonl, "a") as f:
     f.write(json.dumps({"bench": "speedup", "scene": label, "args": args, "rev": rev, "base": base,
                         "stamp": stamp, "runs": len(n), "v010_bake_ms": mo, "bake_ms": mn,
                         "speedup": mo / mn, "one_thread_ms": ms1, "thread_scaling": ms1 / mn,
                         "pair_one_thread_ms": mp, "thread_ceiling": 2 * ms1 / mp,
                         "samples_per_cone": spc, "ns_per_sample": ns,
-                        "cone_samples": n[0][1], "v010_cone_samples": o[0][1], "taps_replayed": taps}) + "\n")
+                        "cone_samples": n[0][1], "v010_cone_samples": o[0][1], "taps_replayed": taps,
+                        "speedup_run_min": per[0], "speedup_run_max": per[-1]}) + "\n")
 PY
     say "$label: could not read the figures"
 }
