@@ -195,7 +195,8 @@ gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_
  * last bounce's hit shares (gi__gather_voxels; GI_HIT_UNKNOWN where a
  * voxel was not gathered), or NULL: the tail's ratio is then the
  * increments' alone.
- * Shared by gi__bounce and the move's re-bake. */
+ * Shared by gi__bounce and the move's re-bake. Runs on the bake's
+ * threads (c->report.quality.threads); its sums do not depend on them. */
 void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], gi_hfaces *const H[], double S[2][3], int add_tail,
                     int last);
 
