@@ -7,8 +7,9 @@
  *     (each nesting more calls), finish with the right sums;
  *   a call finishes even while every pool thread is stuck in another call's
  *     chunk: the caller works its own job;
- *   a bake answers the same bits on 1, 2 and 3 threads (its sums over
- *     voxels run in blocks fixed by the voxels, not by the workers). */
+ *   a bake answers the same bits on 1, 2 and 3 threads (a race or a
+ *     thread-dependent path shows; a reassociated double sum too small to
+ *     reach a float would not). */
 #include "test_util.h"
 #include <pthread.h>
 #include <sched.h>

@@ -667,7 +667,7 @@ void gi__bounce_end(struct gi_cascade *c, gi_faces3 *const E[], gi_hfaces *const
     for (int k = 0; k < 3; k++) {
       double dk = S[1][k], dk1 = S[0][k];
       double r = dk1 > 0 && dk > 0 ? dk / dk1 : 0;
-      double re = H && sum.den[k] > 0 && sum.num[k] > 0 ? sum.num[k] / sum.den[k] : 0;
+      double re = x.H && sum.den[k] > 0 && sum.num[k] > 0 ? sum.num[k] / sum.den[k] : 0;
       if (re > 0 && re < r) r = re;
       if (r > GI_TAIL_RATIO_MAX) r = GI_TAIL_RATIO_MAX;
       f[k] = r / (1 - r);
