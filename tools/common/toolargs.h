@@ -165,6 +165,11 @@ int ta_read_points(ta_ctx *c, const char *opt, const char *path, size_t max, dou
  * on a path the user did not ask for. */
 int ta_check_cpu_path(ta_ctx *c);
 
+/* A one-shot tool's malloc keeps the blocks it frees for its later ones
+ * instead of returning them to the kernel (mempolicy.c says why). Call it
+ * first in main, before anything allocates. Not for long-lived processes. */
+void ta_memory_policy(void);
+
 /* "VERSION (GIT_REV)" of this build. */
 const char *ta_version(void);
 /* FNV-1a (64 bits) of n bytes at p, continuing from h: the tools' cache

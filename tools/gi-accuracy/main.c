@@ -761,6 +761,7 @@ static int check_notes(const char *path) {
 
 int main(int argc, char **argv) {
   opts o;
+  ta_memory_policy();
   int rc = ta_check_cpu_path(&ta);
   if (rc) return rc;
   rc = parse_args(argc, argv, &o);

@@ -216,6 +216,7 @@ static int report(const cli_run *run, int json) {
 
 int main(int argc, char **argv) {
   static ta_ctx fin = TA_CTX("gi-bake");
+  ta_memory_policy();
   int crc = ta_check_cpu_path(&fin);
   if (crc) return crc;
   if (argc > 1 && !strcmp(argv[1], "merge")) {
@@ -237,8 +238,7 @@ int main(int argc, char **argv) {
   uint8_t *covered = NULL;
   double *pts = NULL;
   size_t n = 0;
-  gi_error_info err;
-  memset(&err, 0, sizeof err);
+  gi_error_info err = {0};
   gi_result r;
 
   double t_start = now_ms();

@@ -222,6 +222,7 @@ static int run_tables(all_opts *a, ta_ctx *ctx) {
 
 int main(int argc, char **argv) {
   ta_ctx ctx = TA_CTX("gi-walk");
+  ta_memory_policy();
   int crc = ta_check_cpu_path(&ctx);
   if (crc) return crc;
   setvbuf(stdout, NULL, _IOLBF, 0); /* figures show up as they come, also through tee */
