@@ -244,14 +244,22 @@ static void test_lanes_match_scalar_march(void **state) {
 
 /* A march's taps (trace.h) give each cone's light again, bit for bit:
  * every cone of the city's set, recorded and replayed by both builds of
- * the march. A cone with no tap took no light. */
+ * the march, in batches as the bounces record them, each packed as a
+ * voxel's tape is (gi_tape_unit). A cone with no tap took no light. */
 static void test_taps_replay_cones(void **state) {
   gi_cascade *c = city_cascade(0);
   enum { CAP = 6000 };
   gi_cone_job *jobs = malloc(CAP * sizeof *jobs);
   gi_cone_out *out = malloc(CAP * sizeof *out);
+  gi_tape_plan *pl = malloc(sizeof *pl);
+  int16_t id[GI_MARCH_BATCH_JOBS];
+  uint16_t job[GI_MARCH_BATCH_JOBS];
+  float(*L)[3] = calloc(GI_MARCH_BATCH_JOBS, sizeof *L);
   assert_non_null(jobs);
   assert_non_null(out);
+  assert_non_null(pl);
+  assert_non_null(L);
+  for (int j = 0; j < GI_MARCH_BATCH_JOBS; j++) id[j] = (int16_t)(GI_MARCH_BATCH_JOBS - 1 - j);
   int nj = city_jobs(c, jobs, CAP) - 3;
   float step = c->report.quality.step, ao = c->report.quality.ao_lambda;
   for (int v3 = 0; v3 < 2; v3++) {
@@ -260,48 +268,52 @@ static void test_taps_replay_cones(void **state) {
       continue;
     }
     gi__cpu_force(v3);
-    gi_tap_rec rec = {.max = (size_t)1 << 24};
-    gi__cone_march_jobs_rec(c, jobs, nj, c->cone_tan, step, ao, out, &rec);
-    assert_false(rec.full);
-    /* Each cone's taps, in the order the march took them. */
-    size_t *at = calloc((size_t)nj + 1, sizeof *at), *put = calloc((size_t)nj, sizeof *put);
-    gi_tap *sorted = malloc((rec.n + 1) * sizeof *sorted);
-    assert_non_null(at);
-    assert_non_null(put);
-    assert_non_null(sorted);
-    for (size_t i = 0; i < rec.n; i++) at[rec.t[i].job + 1]++;
-    for (int j = 0; j < nj; j++) at[j + 1] += at[j], put[j] = at[j];
-    for (size_t i = 0; i < rec.n; i++) sorted[put[rec.t[i].job]++] = rec.t[i];
-    int lit = 0, differ = 0, blends = 0;
-    for (int j = 0; j < nj; j++)
-      for (size_t i = at[j]; i < at[j + 1]; i++) {
-        sorted[i].alpha = out[j].alpha;
-        blends += (sorted[i].flags & GI_TAP_BLEND) != 0;
+    int lit = 0, differ = 0, blends = 0, alts = 0;
+    size_t taps = 0, units = 0;
+    for (int b = 0; b < nj; b += GI_MARCH_BATCH_JOBS) {
+      int nb = nj - b < GI_MARCH_BATCH_JOBS ? nj - b : GI_MARCH_BATCH_JOBS;
+      gi_tap_rec rec = {.max = (size_t)1 << 24};
+      gi__cone_march_jobs_rec(c, jobs + b, nb, c->cone_tan, step, ao, out + b, &rec);
+      assert_false(rec.full);
+      for (size_t i = 0; i < rec.n; i++) blends += (rec.t[i].flags & GI_TAP_BLEND) != 0;
+      gi__tape_plan(rec.t, rec.n, nb, pl);
+      size_t nu = pl->start[nb];
+      gi_tape_unit *tape = malloc((nu + 1) * sizeof *tape);
+      assert_non_null(tape);
+      gi__tape_pack(rec.t, rec.n, nb, pl, id, out + b, tape);
+      size_t cones = gi__replay_tape(c, tape, nu, L, job);
+      size_t run = 0;
+      for (int j = 0; j < nb; j++) {
+        float z[3] = {0, 0, 0};
+        const float *want = out[b + j].L, *got = z; /* no tap: no light */
+        alts += pl->k1[j] >= 0;
+        if (pl->taps[j]) {
+          assert_true(run < cones);
+          assert_int_equal(job[run], id[j]); /* the cones in job order, each with its id */
+          got = L[run++];
+        }
+        lit += pl->taps[j] > 0 && want[0] + want[1] + want[2] > 0;
+        if (memcmp(got, want, sizeof z) != 0 && differ++ < 5)
+          printf("  cone %d: replay %.9g %.9g %.9g, march %.9g %.9g %.9g\n", b + j, got[0], got[1], got[2], want[0],
+                 want[1], want[2]);
       }
-    /* Every cone at once, as a voxel's tape replays (runs of one job). */
-    float(*L)[3] = calloc((size_t)nj, sizeof *L);
-    assert_non_null(L);
-    gi__replay_cones(c, sorted, rec.n, L);
-    for (int j = 0, run = 0; j < nj; j++) {
-      float z[3] = {0, 0, 0};
-      const float *got = at[j + 1] > at[j] ? L[run++] : z; /* no tap: no light */
-      lit += at[j + 1] > at[j] && out[j].L[0] + out[j].L[1] + out[j].L[2] > 0;
-      if (memcmp(got, out[j].L, sizeof z) != 0 && differ++ < 5)
-        printf("  cone %d: replay %.9g %.9g %.9g, march %.9g %.9g %.9g\n", j, got[0], got[1], got[2], out[j].L[0],
-               out[j].L[1], out[j].L[2]);
+      assert_int_equal(run, cones);
+      taps += rec.n, units += nu;
+      free(tape);
+      gi__free(rec.t);
     }
-    free(L);
-    printf("  %s: %d cones, %zu taps (%d blending two levels), %d cones lit; replays differing from the march: %d\n",
-           v3 ? "x86-64-v3" : "baseline", nj, rec.n, blends, lit, differ);
+    printf("  %s: %d cones, %zu taps (%d blending two levels, %d cones with a second k) in %zu units; replays "
+           "differing from the march: %d\n",
+           v3 ? "x86-64-v3" : "baseline", nj, taps, blends, alts, units, differ);
     assert_true(lit > nj / 4);
     assert_true(blends > 0);
+    /* Half a gi_tap's 40 bytes per tap, plus a head per lit cone. */
+    assert_true(units > taps && units < 2 * taps);
     assert_int_equal(differ, 0);
-    free(at);
-    free(put);
-    free(sorted);
-    gi__free(rec.t);
   }
   gi__cpu_force(1);
+  free(L);
+  free(pl);
   free(jobs);
   free(out);
   gi_cascade_free(c);

@@ -32,13 +32,14 @@
 #include "trace/trace.h"
 
 /* A voxel's tape: the taps (trace.h) of its cones on its set's first
- * bounce, cone by cone in the set's order (job: the cone's bit), each
- * with its cone's alpha; the set's later bounces replay it instead of
- * marching (gi__replay_cones: the lit steps' texels only, the march's
- * arithmetic, its bits). The taps live in their worker's tape_arena. */
+ * bounce, cone by cone in the set's order (job: the cone's bit), with
+ * each cone's alpha, packed (gi_tape_unit); the set's later bounces
+ * replay it instead of marching (gi__replay_tape: the lit steps' texels
+ * only, the march's arithmetic, its bits). The units live in their
+ * worker's tape_arena. */
 typedef struct {
-  gi_tap *t;
-  uint32_t n;
+  gi_tape_unit *u;
+  uint32_t n, taps;       /* units, and the taps they hold */
   uint8_t rec;            /* recorded (0: march) */
   float hs[GI_VOX_FACES]; /* each side's hit share (side_hits), for the tail's H */
 } gi_tape;
@@ -66,9 +67,9 @@ static void arena_use(tape_arena *a, tape_chunk *ch) {
   a->cur = ch, a->at = (char *)ch + CHUNK_HEAD, a->left = ch->bytes - CHUNK_HEAD;
 }
 
-/* Room for n taps from a, or NULL when memory ran out. */
-static gi_tap *arena_take(tape_arena *a, size_t n) {
-  size_t bytes = n * sizeof(gi_tap);
+/* Room for n units from a, or NULL when memory ran out. */
+static gi_tape_unit *arena_take(tape_arena *a, size_t n) {
+  size_t bytes = n * sizeof(gi_tape_unit);
   while (bytes > a->left) {
     if (a->cur && a->cur->next) { /* a chunk the last set used */
       arena_use(a, a->cur->next);
@@ -83,9 +84,9 @@ static gi_tap *arena_take(tape_arena *a, size_t n) {
     else a->head = ch;
     arena_use(a, ch);
   }
-  gi_tap *t = (gi_tap *)(void *)a->at;
+  gi_tape_unit *u = (gi_tape_unit *)(void *)a->at;
   a->at += bytes, a->left -= bytes;
-  return t;
+  return u;
 }
 
 /* Every block of a is free again; its chunks stay for the next set. */
@@ -274,46 +275,42 @@ static void face_hits(const gi_vgeo *g, const float hs[GI_VOX_FACES], const floa
 }
 
 /* After cb's march recorded its taps (cb->rec, job order = the march's),
- * gives each voxel with a tape slot its taps: sorted by cone (counting
- * sort, stable: each cone's in step order), with the cone's alpha, job =
- * its bit. A batch whose taps did not fit (rec full,
- * the budget spent) records nothing: its voxels march again. Out of
- * memory sets cb->oom: the bake fails as it would anywhere else. */
+ * gives each voxel with a tape slot its taps, packed (gi__tape_pack): its
+ * cones' in job order, each cone's in step order, with the cone's bit and
+ * alpha. A batch whose taps did not fit (rec full, the budget spent)
+ * records nothing: its voxels march again. Out of memory sets
+ * cb->oom: the bake fails as it would anywhere else. */
 static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
   gi_tap_rec *r = cb->rec;
-  size_t bytes = r->n * sizeof(gi_tap);
-  gi_tap *block = NULL;
+  gi_tape_plan pl;
   if (r->oom) cb->oom = 1;
   if (r->full) return;
+  gi__tape_plan(r->t, r->n, cb->nj, &pl);
+  size_t all = pl.start[cb->nj], bytes = all * sizeof(gi_tape_unit);
   if (atomic_fetch_add(&cb->budget->bytes, bytes) + bytes > cb->budget->max) {
     atomic_fetch_sub(&cb->budget->bytes, bytes);
     return;
   }
-  if (r->n > 0 && !(block = arena_take(cb->arena, r->n))) {
-    atomic_fetch_sub(&cb->budget->bytes, bytes);
-    cb->oom = 1;
-    return;
+  gi_tape_unit *block = NULL;
+  if (all > 0) {
+    if (!(block = arena_take(cb->arena, all))) {
+      atomic_fetch_sub(&cb->budget->bytes, bytes);
+      cb->oom = 1;
+      return;
+    }
+    gi__tape_pack(r->t, r->n, cb->nj, &pl, cb->which, cb->co, block);
   }
-  uint32_t at[GI_MARCH_BATCH_JOBS + 1] = {0};
-  for (size_t i = 0; i < r->n; i++) at[r->t[i].job + 1]++;
-  for (int j = 0; j < cb->nj; j++) at[j + 1] += at[j];
   for (int v = 0; v < cb->nv; v++) {
     gi_tape *tp = cb->v[v].tape;
     if (!tp) continue;
     int j0 = cb->v[v].first, j1 = j0 + cb->v[v].count;
-    tp->t = block ? block + at[j0] : NULL;
-    tp->n = at[j1] - at[j0];
+    tp->u = block ? block + pl.start[j0] : NULL;
+    tp->n = pl.start[j1] - pl.start[j0];
+    tp->taps = 0;
+    for (int j = j0; j < j1; j++) tp->taps += pl.taps[j];
     tp->rec = 1;
     side_hits(c, wide, cb, v, tp->hs);
   }
-  for (size_t i = 0; i < r->n; i++) {
-    gi_tap t = r->t[i];
-    int j = t.job;
-    t.alpha = cb->co[j].alpha;
-    t.job = (uint16_t)cb->which[j];
-    block[at[j]++] = t;
-  }
-  if (!block) atomic_fetch_sub(&cb->budget->bytes, bytes);
 }
 
 /* Marches cb's cones and folds each voxel's into its E (and hit); empties
@@ -462,13 +459,12 @@ static void replay_voxel(const bounce_ctx *bc, int d, size_t i, uint32_t slot) {
   int nc = bc->wide ? bc->c->num_wide_cones : bc->c->num_cones;
   const float *weight = bc->wide ? bc->c->wide_weight : bc->c->cone_weight;
   float Es[GI_VOX_FACES][3] = {{0}}, L[GI_VOX_FACES * GI_MAX_CONES][3];
-  gi__replay_cones(bc->c, tp->t, tp->n, L);
-  for (uint32_t i = 0, cone = 0; i < tp->n; i++) {
-    if (i + 1 < tp->n && tp->t[i + 1].job == tp->t[i].job) continue;
-    int sd = tp->t[i].job / nc;
-    float cw = weight[tp->t[i].job % nc];
-    for (int k = 0; k < 3; k++) Es[sd][k] += cw * L[cone][k];
-    cone++;
+  uint16_t job[GI_VOX_FACES * GI_MAX_CONES];
+  size_t cones = gi__replay_tape(bc->c, tp->u, tp->n, L, job);
+  for (size_t k = 0; k < cones; k++) {
+    int sd = job[k] / nc;
+    float cw = weight[job[k] % nc];
+    for (int ch = 0; ch < 3; ch++) Es[sd][ch] += cw * L[k][ch];
   }
   gi__face_light(g, (const float(*)[3])Es, bc->E[d][i]);
   if (bc->H) face_hits(g, tp->hs, (const float(*)[3])Es, bc->H[d][i]);
@@ -491,7 +487,7 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
     if (bc->plan[d][i].nb[0] >= 0) continue;
     if (replaying && bc->tape[d][i].rec) {
       replay_voxel(bc, d, i, slot);
-      taps += bc->tape[d][i].n;
+      taps += bc->tape[d][i].taps;
       continue;
     }
     if (!batch_room(bc->c, bc->wide, &cb)) {

@@ -40,10 +40,12 @@ void gi__cone_march_base(GI_MARCH_ARGS);
 int gi__sample_level_base(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
                           float *wsum_alpha, float *sigma);
 void gi__cone_march_rec_base(GI_MARCH_ARGS, gi_tap_rec *rec, uint16_t job);
-void gi__replay_cones_base(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]);
+size_t gi__replay_tape_base(const struct gi_cascade *c, const gi_tape_unit *u, size_t units, float L[][3],
+                            uint16_t *job);
 #ifdef GI_HAVE_V3_BUILD
 void gi__cone_march_v3(GI_MARCH_ARGS);
-void gi__replay_cones_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]);
+size_t gi__replay_tape_lanes(const struct gi_cascade *c, const gi_tape_unit *u, size_t units, float L[][3],
+                             uint16_t *job);
 void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                             float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec);
 int gi__sample_level_v3(const struct gi_cascade *c, int d, const float p[3], const float w[3], float prem[3],
@@ -95,13 +97,11 @@ void gi__cone_march_jobs(const struct gi_cascade *c, const gi_cone_job *jobs, in
   gi__cone_march_jobs_rec(c, jobs, count, tan_half, step, ao_lambda, out, NULL);
 }
 
-void gi__replay_cones(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]) {
+size_t gi__replay_tape(const struct gi_cascade *c, const gi_tape_unit *u, size_t units, float L[][3],
+                       uint16_t *job) {
 #ifdef GI_HAVE_V3_BUILD
   /* The path gi__cone_march_jobs_rec took: its arithmetic is the replay's. */
-  if (lanes_path(c)) {
-    gi__replay_cones_lanes(c, t, n, L);
-    return;
-  }
+  if (lanes_path(c)) return gi__replay_tape_lanes(c, u, units, L, job);
 #endif
-  gi__replay_cones_base(c, t, n, L);
+  return gi__replay_tape_base(c, u, units, L, job);
 }

@@ -127,7 +127,8 @@ static void push_tap(gi_tap_rec *rec, uint16_t job, int d, const float p[3], con
   gi_tap t;
   t.job = job;
   t.d = (uint8_t)d;
-  t.flags = (uint8_t)((w[0] > 0) | (w[1] > 0) << 1 | (w[2] > 0) << 2 | busy | (frac >= 0 ? GI_TAP_BLEND : 0));
+  t.flags = (uint8_t)((w[0] > 0) | (w[1] > 0) << 1 | (w[2] > 0) << 2 | busy | (frac >= 0 ? GI_TAP_BLEND : 0) |
+                      (ax ? GI_TAP_KALT : 0));
   for (int a = 0; a < 3; a++) t.p[a] = p[a], t.k[a] = fabsf(w[a]) * (ax ? ax[a] : 1.f);
   t.kk = kk, t.frac = frac >= 0 ? frac : 0, t.alpha = 0;
   gi__tap_push(rec, &t);
@@ -245,44 +246,57 @@ void GI_KERNEL(gi__cone_march_rec)(const struct gi_cascade *c, const float o[3],
 }
 
 #if !GI_MARCH_V3
-/* sample_level_ax's radiance for a tap's sample on level d (busy: else 0). */
-static void tap_sample(const struct gi_cascade *c, int d, const gi_tap *t, int busy, float prem[3]) {
+/* sample_level_ax's radiance for a tap's sample on level d at p, axes
+ * weighted k, through the faces bits of `faces` (busy: else 0). */
+static void tap_sample(const struct gi_cascade *c, int d, const float p[3], const float k[3], int faces, int busy,
+                       float prem[3]) {
   prem[0] = prem[1] = prem[2] = 0;
   if (!busy) return;
   const gi_level *L = &c->lv[d];
   float inv = (float)(1.0 / L->s), f[3];
   uint32_t off[3][2];
   int i0;
-  for (int a = 0; a < 3; a++) gi__cell_axis(L, c->R, a, t->p[a], inv, &f[a], off[a], &i0);
+  for (int a = 0; a < 3; a++) gi__cell_axis(L, c->R, a, p[a], inv, &f[a], off[a], &i0);
   const gi_vrad *r[8];
   float wt[8];
   gi__cell_corners(L, off, f, r, wt);
   gi_lanes s;
   gi__sum_texels(r, wt, &s);
-  faces_radiance(c, &s, t->flags, t->k, prem);
+  faces_radiance(c, &s, faces, k, prem);
 }
 
-/* The scalar march's arithmetic, step by step (march). */
-void GI_KERNEL(gi__replay_cones)(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]) {
-  float acc[3] = {0, 0, 0};
-  for (size_t i = 0, cone = 0; i < n; i++) {
-    float P[3], P2[3];
-    tap_sample(c, t[i].d, &t[i], t[i].flags & GI_TAP_BUSY, P);
-    if (t[i].flags & GI_TAP_BLEND) {
-      tap_sample(c, t[i].d + 1, &t[i], t[i].flags & GI_TAP_BUSY2, P2);
-      for (int k = 0; k < 3; k++) P[k] += t[i].frac * (P2[k] - P[k]);
+/* The scalar march's arithmetic, step by step (march), from a packed tape. */
+size_t GI_KERNEL(gi__replay_tape)(const struct gi_cascade *c, const gi_tape_unit *u, size_t units, float L[][3],
+                                  uint16_t *job) {
+  size_t cone = 0;
+  for (size_t w = 0; w < units;) {
+    const gi_tape_unit *h = &u[w++];
+    const float *k0 = h->head.k, *k1 = k0;
+    unsigned n = h->head.n & ~GI_TAPE_ALT;
+    if (h->head.n & GI_TAPE_ALT) k1 = u[w++].f;
+    float acc[3] = {0, 0, 0};
+    for (unsigned q = 0; q < n; q++) {
+      const gi_tape_unit *x = &u[w++];
+      const float *k = x->tap.flags & GI_TAP_KALT ? k1 : k0;
+      float P[3], P2[3];
+      tap_sample(c, x->tap.d, x->tap.p, k, x->tap.flags, x->tap.flags & GI_TAP_BUSY, P);
+      if (x->tap.flags & GI_TAP_BLEND) {
+        float frac = u[w++].f[0];
+        tap_sample(c, x->tap.d + 1, x->tap.p, k, x->tap.flags, x->tap.flags & GI_TAP_BUSY2, P2);
+        for (int ch = 0; ch < 3; ch++) P[ch] += frac * (P2[ch] - P[ch]);
+      }
+      float kk = x->tap.kk;
+      acc[0] += kk * P[0];
+      acc[1] += kk * P[1];
+      acc[2] += kk * P[2];
     }
-    float k = t[i].kk;
-    acc[0] += k * P[0];
-    acc[1] += k * P[1];
-    acc[2] += k * P[2];
-    if (i + 1 == n || t[i + 1].job != t[i].job) {
-      float a = t[i].alpha;
-      if (a >= GI_OPAQUE_ALPHA)
-        for (int q = 0; q < 3; q++) acc[q] /= a;
-      memcpy(L[cone++], acc, sizeof acc);
-      acc[0] = acc[1] = acc[2] = 0;
-    }
+    float a = h->head.alpha;
+    if (a >= GI_OPAQUE_ALPHA)
+      for (int ch = 0; ch < 3; ch++) acc[ch] /= a;
+    memcpy(L[cone], acc, sizeof acc);
+    if (job) job[cone] = h->head.job;
+    cone++;
   }
+  return cone;
 }
 #endif

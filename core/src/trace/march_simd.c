@@ -15,7 +15,7 @@
  * so the CPU overlaps their cache misses, which one cone's march, a chain
  * of dependent steps, cannot. Results match the scalar march to float
  * rounding (test_texel). A recording batch also keeps each lane's lit
- * steps (trace.h: gi_tap), and gi__replay_cones_lanes replays them in
+ * steps (trace.h: gi_tap), and gi__replay_tape_lanes replays them in
  * this march's own arithmetic, so a replay returns its bits. */
 #include <immintrin.h>
 #include "trace/march_internal.h"
@@ -415,7 +415,8 @@ static void record8(const batch *b, __m256 lit, __m256 k, const __m256 p[3], __m
     t->job = (uint16_t)b->job[l];
     t->d = (uint8_t)D[l];
     t->flags = (uint8_t)(b->faces[l] | (busy1 >> l & 1 ? GI_TAP_BUSY : 0) |
-                         (blend && (busy2 >> l & 1) ? GI_TAP_BUSY2 : 0) | (blend ? GI_TAP_BLEND : 0));
+                         (blend && (busy2 >> l & 1) ? GI_TAP_BUSY2 : 0) | (blend ? GI_TAP_BLEND : 0) |
+                         (mx >> l & 1 ? GI_TAP_KALT : 0));
     for (int a = 0; a < 3; a++) t->p[a] = P[a][l], t->k[a] = kw[a];
     t->kk = K[l], t->frac = blend ? F[l] : 0, t->alpha = 0;
   }
@@ -648,13 +649,13 @@ void gi__cone_march_jobs_v3(const struct gi_cascade *c, const gi_cone_job *jobs,
  * their order, each axis's face weighted in read_lane's order. */
 static inline __attribute__((always_inline)) __m256 tap_sample8(const struct gi_cascade *c, const float (*lo)[4],
                                                                  const float *inv, const int32_t (*slot0)[4], int d,
-                                                                 const gi_tap *tp) {
+                                                                 const float *p, const float *k, int faces) {
   const int R = c->R;
   const __m128i zero = _mm_setzero_si128(), Rv = _mm_set1_epi32(R), Rm2 = _mm_set1_epi32(R - 2);
   const __m128i stride = _mm_setr_epi32(1, R, R * R, 0);
   const __m256i ix = _mm256_setr_epi32(0, 4, 0, 4, 0, 4, 0, 4), iy = _mm256_setr_epi32(1, 1, 5, 5, 1, 1, 5, 5);
   const __m256i iz = _mm256_setr_epi32(2, 2, 2, 2, 6, 6, 6, 6);
-  __m128 u = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(tp->p), _mm_loadu_ps(lo[d])), _mm_set1_ps(inv[d])),
+  __m128 u = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(p), _mm_loadu_ps(lo[d])), _mm_set1_ps(inv[d])),
                         _mm_set1_ps(0.5f));
   __m128 fl = _mm_floor_ps(u);
   __m128i i0 = _mm_cvttps_epi32(fl);
@@ -683,16 +684,17 @@ static inline __attribute__((always_inline)) __m256 tap_sample8(const struct gi_
   _mm256_storeu_ps(wt, w);
   _mm256_storeu_si256((__m256i *)co, o);
   int fb[3];
-  for (int a = 0; a < 3; a++) fb[a] = face_lane(a, tp->flags >> a & 1);
+  for (int a = 0; a < 3; a++) fb[a] = face_lane(a, faces >> a & 1);
   __m256 T[3], a2;
   texel_faces((const char *)c->lv[d].rad, co, wt, 1, fb, T, &a2);
-  __m256 P = faces_radiance(tp->k, T);
+  __m256 P = faces_radiance(k, T);
   return _mm256_mul_ps(P, V1(c->rad_scale));
 }
 
-/* gi__replay_cones in lanes 0-2: the eight-lane march's arithmetic for
+/* gi__replay_tape in lanes 0-2: the eight-lane march's arithmetic for
  * one lane, step by step (step8, composite, lane_finish). */
-void gi__replay_cones_lanes(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]) {
+size_t gi__replay_tape_lanes(const struct gi_cascade *c, const gi_tape_unit *u, size_t units, float L[][3],
+                             uint16_t *job) {
   float lo[GI_MAX_LEVELS][4], inv[GI_MAX_LEVELS];
   int32_t slot0[GI_MAX_LEVELS][4];
   for (int d = 0; d < c->n; d++) {
@@ -701,21 +703,30 @@ void gi__replay_cones_lanes(const struct gi_cascade *c, const gi_tap *t, size_t 
     for (int a = 0; a < 3; a++) lo[d][a] = lv->lo[a], slot0[d][a] = lv->slot0[a];
     lo[d][3] = 0, slot0[d][3] = 0;
   }
-  __m256 acc = _mm256_setzero_ps();
-  for (size_t i = 0, cone = 0; i < n; i++) {
-    const gi_tap *tp = &t[i];
-    __m256 P = tp->flags & GI_TAP_BUSY ? tap_sample8(c, lo, inv, slot0, tp->d, tp) : _mm256_setzero_ps();
-    if (tp->flags & GI_TAP_BLEND) {
-      __m256 P2 = tp->flags & GI_TAP_BUSY2 ? tap_sample8(c, lo, inv, slot0, tp->d + 1, tp) : _mm256_setzero_ps();
-      P = _mm256_fmadd_ps(V1(tp->frac), _mm256_sub_ps(P2, P), P);
+  size_t cone = 0;
+  for (size_t w = 0; w < units;) {
+    const gi_tape_unit *h = &u[w++];
+    const float *k0 = h->head.k, *k1 = k0;
+    unsigned n = h->head.n & ~GI_TAPE_ALT;
+    if (h->head.n & GI_TAPE_ALT) k1 = u[w++].f;
+    __m256 acc = _mm256_setzero_ps();
+    for (unsigned q = 0; q < n; q++) {
+      const gi_tape_unit *x = &u[w++];
+      int fl = x->tap.flags, d = x->tap.d;
+      const float *k = fl & GI_TAP_KALT ? k1 : k0;
+      __m256 P = fl & GI_TAP_BUSY ? tap_sample8(c, lo, inv, slot0, d, x->tap.p, k, fl) : _mm256_setzero_ps();
+      if (fl & GI_TAP_BLEND) {
+        float frac = u[w++].f[0];
+        __m256 P2 = fl & GI_TAP_BUSY2 ? tap_sample8(c, lo, inv, slot0, d + 1, x->tap.p, k, fl) : _mm256_setzero_ps();
+        P = _mm256_fmadd_ps(V1(frac), _mm256_sub_ps(P2, P), P);
+      }
+      acc = _mm256_fmadd_ps(V1(x->tap.kk), P, acc);
     }
-    acc = _mm256_fmadd_ps(V1(tp->kk), P, acc);
-    if (i + 1 == n || t[i + 1].job != tp->job) {
-      float v[8], a = tp->alpha;
-      _mm256_storeu_ps(v, acc);
-      for (int ch = 0; ch < 3; ch++) L[cone][ch] = a >= GI_OPAQUE_ALPHA ? v[ch] / a : v[ch];
-      acc = _mm256_setzero_ps();
-      cone++;
-    }
+    float v[8], a = h->head.alpha;
+    _mm256_storeu_ps(v, acc);
+    for (int ch = 0; ch < 3; ch++) L[cone][ch] = a >= GI_OPAQUE_ALPHA ? v[ch] / a : v[ch];
+    if (job) job[cone] = h->head.job;
+    cone++;
   }
+  return cone;
 }

@@ -136,13 +136,14 @@ enum {
   GI_TAP_FACE_X = 1,  /* faces: bit a set when w_a > 0 */
   GI_TAP_BUSY = 8,    /* level d's block held opacity (else it read zero) */
   GI_TAP_BUSY2 = 16,  /* the same for level d + 1 */
-  GI_TAP_BLEND = 32   /* the step blended level d + 1 in by frac */
+  GI_TAP_BLEND = 32,  /* the step blended level d + 1 in by frac */
+  GI_TAP_KALT = 64    /* the step read the axes across the normal only: k is the cone's second */
 };
 typedef struct gi_tap {
-  float p[3], k[3];
-  float kk, frac, alpha;
-  uint16_t job;
+  float p[3], kk; /* p, kk, d and flags as a tape unit holds them (gi__tape_pack copies them whole) */
+  float k[3], frac, alpha;
   uint8_t d, flags;
+  uint16_t job;
 } gi_tap;
 /* Where a recording march puts its taps, in the order it takes them (one
  * cone's in step order). The caller owns t (gi__free) and sets max, the
@@ -172,11 +173,58 @@ static inline int gi__tap_push(gi_tap_rec *r, const gi_tap *tap) {
  * (NULL: none; job = the cone's index in jobs, alpha left 0). */
 void gi__cone_march_jobs_rec(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                              float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec);
-/* The light of the cones of n taps (runs of one job, each run one cone's
- * taps in step order with its alpha), reading the cascade's texture as it
- * is now: the k-th run's in L[k], what gi__cone_march_jobs would return for
- * that cone, bit for bit, on the same path (cpu and R). Thread-safe. */
-void gi__replay_cones(const struct gi_cascade *c, const gi_tap *t, size_t n, float L[][3]);
+/* A kept tape: runs of taps (one cone's each, alpha set) packed into
+ * 20-byte units, half of a gi_tap's 40 bytes, since a bake keeps tens of
+ * MB of them and fresh memory is what a bake's first touch pays for. Per
+ * cone: a head (its job, its tap count n, with GI_TAPE_ALT set when a unit
+ * holding its second axis weights k follows, its alpha and its k), then
+ * its taps (p, kk, d, flags; GI_TAP_KALT: the second k), a blending tap
+ * followed by a unit whose f[0] is its frac. The per-cone values were the
+ * same in every one of the cone's taps, so the replay reads the same
+ * numbers as from the gi_taps, and returns the same bits. */
+#define GI_TAPE_ALT 0x8000u
+typedef union gi_tape_unit {
+  struct {
+    uint16_t job, n;
+    float alpha, k[3];
+  } head;
+  struct {
+    float p[3], kk;
+    uint8_t d, flags;
+    uint16_t unused;
+  } tap;
+  float f[5];
+} gi_tape_unit;
+_Static_assert(sizeof(gi_tape_unit) == 20, "a tape unit is 20 bytes");
+_Static_assert(offsetof(gi_tap, kk) == offsetof(gi_tape_unit, tap.kk) && offsetof(gi_tap, d) == 36 &&
+                   offsetof(gi_tape_unit, tap.d) == 16 && offsetof(gi_tap, flags) == 37 &&
+                   offsetof(gi_tape_unit, tap.flags) == 17,
+               "a tap's p, kk, d and flags copy into a unit in two moves");
+_Static_assert(GI_CONE_MAX_STEPS < GI_TAPE_ALT, "a cone's tap count fits beside GI_TAPE_ALT");
+/* How a recording march's taps (rec order, job: the cone's index in the
+ * march, < nj <= GI_MARCH_BATCH_JOBS) pack, every cone's units laid out
+ * in job order: cone j's are [start[j], start[j + 1]) (none without a
+ * tap), and it holds taps[j] taps; k0[j] and k1[j] are taps holding its
+ * axis weights and its second ones (GI_TAP_KALT; -1: none). A cone's
+ * taps of either kind hold the same k, the march's per-cone constants
+ * (test_texel checks the replay's bits). gi__tape_pack writes them
+ * into u (start[nj] units), cone j's head with job id[j] and alpha
+ * co[j].alpha: cones [j0, j1) are one tape of units [start[j0],
+ * start[j1]). */
+typedef struct gi_tape_plan {
+  uint32_t start[GI_MARCH_BATCH_JOBS + 1], taps[GI_MARCH_BATCH_JOBS];
+  int32_t k0[GI_MARCH_BATCH_JOBS], k1[GI_MARCH_BATCH_JOBS];
+} gi_tape_plan;
+void gi__tape_plan(const gi_tap *t, size_t n, int nj, gi_tape_plan *pl);
+void gi__tape_pack(const gi_tap *t, size_t n, int nj, const gi_tape_plan *pl, const int16_t *id,
+                   const gi_cone_out *co, gi_tape_unit *u);
+/* The light of the cones of a packed tape of `units` units, reading the
+ * cascade's texture as it is now: the k-th cone's in L[k] (its job in
+ * job[k]; job may be NULL), what gi__cone_march_jobs would return for
+ * that cone, bit for bit, on the same path (cpu and R). Returns the
+ * cones. Thread-safe. */
+size_t gi__replay_tape(const struct gi_cascade *c, const gi_tape_unit *u, size_t units, float L[][3],
+                       uint16_t *job);
 /* The same for the jobs[0..nj) whose done[k] is 0 (nj <= GI_MARCH_BATCH_JOBS);
  * out[k] of the others is left as it is (trace/gather.c). */
 void gi__cone_march_rest(const struct gi_cascade *c, const gi_cone_job *jobs, const uint8_t *done, int nj,
