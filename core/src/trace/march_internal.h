@@ -104,6 +104,16 @@ static inline void gi__sum_texels(const gi_vrad *const r[8], const float wt[8], 
 }
 #endif
 
+/* A packed tape's next cone (trace.h: gi_tape_unit) from unit *w on: its
+ * tap count, its axis weights k0 and its second ones k1 (k0 when it has
+ * none); *w moves to its first tap. */
+static inline unsigned gi__tape_cone(const gi_tape_unit *u, size_t *w, const float **k0, const float **k1) {
+  const gi_tape_unit *h = &u[(*w)++];
+  *k0 = *k1 = h->head.k;
+  if (h->head.n & GI_TAPE_ALT) *k1 = u[(*w)++].f;
+  return h->head.n & ~GI_TAPE_ALT;
+}
+
 /* A sample's trilinear footprint reaches this many of its level's voxels. */
 #define GI_TRILINEAR_REACH 1.5f
 /* A sample whose weighted opacity is below this carries no usable radiance. */

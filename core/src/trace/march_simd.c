@@ -705,10 +705,9 @@ size_t gi__replay_tape_lanes(const struct gi_cascade *c, const gi_tape_unit *u, 
   }
   size_t cone = 0;
   for (size_t w = 0; w < units;) {
-    const gi_tape_unit *h = &u[w++];
-    const float *k0 = h->head.k, *k1 = k0;
-    unsigned n = h->head.n & ~GI_TAPE_ALT;
-    if (h->head.n & GI_TAPE_ALT) k1 = u[w++].f;
+    const gi_tape_unit *h = &u[w];
+    const float *k0, *k1;
+    unsigned n = gi__tape_cone(u, &w, &k0, &k1);
     __m256 acc = _mm256_setzero_ps();
     for (unsigned q = 0; q < n; q++) {
       const gi_tape_unit *x = &u[w++];
