@@ -173,15 +173,15 @@ static inline int gi__tap_push(gi_tap_rec *r, const gi_tap *tap) {
  * (NULL: none; job = the cone's index in jobs, alpha left 0). */
 void gi__cone_march_jobs_rec(const struct gi_cascade *c, const gi_cone_job *jobs, int count, float tan_half,
                              float step, float ao_lambda, gi_cone_out *out, gi_tap_rec *rec);
-/* A kept tape: runs of taps (one cone's each, alpha set) packed into
- * 20-byte units, half of a gi_tap's 40 bytes, since a bake keeps tens of
- * MB of them and fresh memory is what a bake's first touch pays for. Per
- * cone: a head (its job, its tap count n, with GI_TAPE_ALT set when a unit
- * holding its second axis weights k follows, its alpha and its k), then
- * its taps (p, kk, d, flags; GI_TAP_KALT: the second k), a blending tap
- * followed by a unit whose f[0] is its frac. The per-cone values were the
- * same in every one of the cone's taps, so the replay reads the same
- * numbers as from the gi_taps, and returns the same bits. */
+/* A kept tape: its cones' taps packed into 20-byte units, half of a
+ * gi_tap's 40 bytes, since a bake keeps tens of MB of them and fresh
+ * memory is what a bake's first touch pays for. Per cone: a head (its
+ * job, its tap count n, with GI_TAPE_ALT set when a unit holding its
+ * second axis weights k follows, its alpha and its k), then its taps (p,
+ * kk, d, flags; GI_TAP_KALT: the second k), a blending tap followed by a
+ * unit whose f[0] is its frac. The per-cone values were the same in every
+ * one of the cone's taps, so the replay reads the same numbers as from
+ * the gi_taps, and returns the same bits. */
 #define GI_TAPE_ALT 0x8000u
 typedef union gi_tape_unit {
   struct {
