@@ -1098,12 +1098,16 @@ static void test_lightmap_deadline(void **state) {
     su_expect_error(&r, 504, "timeout", "the server's deadline of 0.6 s");
     assert_string_equal(su_header(&r, "Retry-After"), "1");
     free(r.body);
+    /* The next request waits for the one worker: sent while this bake is
+     * still stopping, it could pass its own deadline in the queue and never
+     * bake (seen once under ASan with the suite running beside it). */
+    double t0 = su_now_ms();
+    while (su_now_ms() - t0 < 5000 && su_metric(&s, "gi_bakes_in_flight", NULL) > 0) su_sleep_ms(5);
+    printf("  its bake stopped %.0f ms after the answer\n", su_now_ms() - t0);
+    assert_true(su_metric(&s, "gi_bakes_in_flight", NULL) == 0);
+    assert_true(su_metric(&s, "gi_bakes_cancelled_total", NULL) == i + 1);
   }
-  double t0 = su_now_ms();
-  while (su_now_ms() - t0 < 5000 && su_metric(&s, "gi_bakes_in_flight", NULL) > 0) su_sleep_ms(20);
   assert_true(su_metric(&s, "gi_timeouts_total", NULL) == 3);
-  assert_true(su_metric(&s, "gi_bakes_cancelled_total", NULL) == 3);
-  assert_true(su_metric(&s, "gi_bakes_in_flight", NULL) == 0);
   assert_int_equal(su_stop(&s), 0);
 }
 
