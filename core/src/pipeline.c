@@ -32,6 +32,7 @@ gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const g
   struct gi_cascade *c = gi__calloc(1, sizeof *c);
   if (!c) return gi__fail(err, GI_ERR_NOMEM, "bake: out of memory");
   c->scene = gi_scene_retain((gi_scene *)scene);
+  c->wide_level = GI_MAX_LEVELS;
   c->cancel = cancel;
   c->n = q.levels;
   c->R = q.res;

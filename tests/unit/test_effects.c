@@ -19,7 +19,10 @@
  *   a camera view of a scene with one glossy quad traces the specular cone
  *     at exactly the glossy quad's pixels on auto, at none when off;
  *   the report's quality says what ran (bounces, ao) where the plan
- *     overrode the request. */
+ *     overrode the request;
+ *   the coarse levels an open plane's viewpoint barely sees take the
+ *     bounces' wide set from the first bounce; a closed box's walls keep
+ *     the full set. */
 #include "test_util.h"
 #include <math.h>
 #include <stdio.h>
@@ -39,6 +42,15 @@ static gi_scene *make_box(double a, double Le, const gi_light *l) {
   assert_int_equal(gi_scene_build(b, "box", &opt, &s, &err), GI_OK);
   gi_mesh_builder_free(b);
   return s;
+}
+
+/* A grey plane 100 units square at y = 0, lit by l. */
+static gi_scene *make_plane(const gi_light *l) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  double A[3] = {-50, 0, -50}, B[3] = {-50, 0, 50}, C[3] = {50, 0, 50}, D[3] = {50, 0, -50};
+  gi_mesh_builder_add_quad(b, A, B, C, D, gi_mesh_builder_add_material(b, &m));
+  return tu_build(b, "plane", l, 1);
 }
 
 static void bake_at(const gi_scene *s, const double at[3], const gi_quality *q, gi_bake_report *rep, gi_probe *p) {
@@ -223,19 +235,40 @@ static void test_sky_only_where_visible(void **state) {
   gi_scene_release(s);
 
   /* An open plane sees it. */
-  gi_mesh_builder *b = gi_mesh_builder_new();
-  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
-  uint32_t mat = gi_mesh_builder_add_material(b, &m);
-  double A[3] = {-50, 0, -50}, B[3] = {-50, 0, 50}, C[3] = {50, 0, 50}, D[3] = {50, 0, -50};
-  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
-  gi_scene_options opt = {.up = GI_UP_Y, .lights = &sky, .num_lights = 1};
-  assert_int_equal(gi_scene_build(b, "plane", &opt, &s, &err), GI_OK);
-  gi_mesh_builder_free(b);
+  s = make_plane(&sky);
   const double at2[3] = {0, 1, 0};
   gi_quality q2 = {.levels = 2, .res = 16, .voxel0 = 1};
   bake_at(s, at2, &q2, &rep, &auto_p);
   assert_true(rep.effects[GI_FX_SKY].ran);
   assert_true(fabs(auto_p.direct[0] - 3.14159) < 0.05 * 3.14159);
+  gi_scene_release(s);
+}
+
+/* The coarse levels the viewpoint barely sees take the bounces' wide set
+ * from the first bounce (plan.c wide_level): over an open plane, 1 above
+ * it, rays from the viewpoint meet the plane beyond level 0's 8 units
+ * only within 7 degrees of the horizon (6% of the sphere): levels 1-2 take
+ * it. In a closed box whose walls lie at its coarsest level, every ray
+ * meets them there: no level does. */
+static void test_wide_levels_from_view(void **state) {
+  gi_light sun = {.type = GI_LIGHT_SUN, .color = {1, 1, 1}, .direction = {0.3f, -1, 0.2f}};
+  gi_scene *s = make_plane(&sun);
+  const double at[3] = {0, 1, 0};
+  gi_quality q = {.levels = 3, .res = 16, .voxel0 = 1, .bounces = 2};
+  gi_bake_report rep;
+  gi_probe p;
+  bake_at(s, at, &q, &rep, &p);
+  printf("open plane: wide set from level %d of %d\n", rep.wide_from_level, rep.levels);
+  assert_int_equal(rep.wide_from_level, 1);
+  gi_scene_release(s);
+
+  s = make_box(0.5, 1.0, NULL);
+  const double mid[3] = {0.5, 0.5, 0.5};
+  /* Level 2 spans 0.8, level 3 1.6: the walls, 0.5 from the middle, lie in level 3's own voxels. */
+  gi_quality qb = {.levels = 4, .res = 16, .voxel0 = 1.0 / 80, .bounces = 2};
+  bake_at(s, mid, &qb, &rep, &p);
+  printf("closed box: wide set from level %d of %d\n", rep.wide_from_level, rep.levels);
+  assert_int_equal(rep.wide_from_level, rep.levels);
   gi_scene_release(s);
 }
 
@@ -545,6 +578,7 @@ int main(void) {
       cmocka_unit_test(test_emitter_reach_by_size),
       cmocka_unit_test(test_report_matches_plan),
       cmocka_unit_test(test_sky_from_answer_points),
+      cmocka_unit_test(test_wide_levels_from_view),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -207,6 +207,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
   json_object_set_new(root, "cone_samples", count(rep->cone_samples));
   add_march_figures(root, rep);
   json_object_set_new(root, "bounces_run", json_integer(rep->bounces_run));
+  json_object_set_new(root, "wide_from_level", json_integer(rep->wide_from_level));
 
   json_t *out = json_object();
   json_object_set_new(out, "exr", r->o->exr ? json_string(r->o->exr) : json_null());

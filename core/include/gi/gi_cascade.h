@@ -53,6 +53,8 @@ typedef struct gi_bake_report {
   size_t tape_bytes;                     /* most bytes the replays' tapes held at once */
   size_t cascade_bytes;
   int bounces_run;
+  int wide_from_level;                   /* levels from this one up gather with the bounces' wide
+                                            set from the first bounce (levels: none; bounce.c) */
   uint32_t glossy_triangles;             /* glossy triangles inside the cascade: a camera
                                             view's specular pass runs on auto when > 0 */
   /* Work per level: voxels voxelized (own voxels, not the filtered region),

@@ -241,6 +241,9 @@ struct gi_cascade {
   float wide_dir[GI_MAX_CONES][3];
   float wide_weight[GI_MAX_CONES];
   float wide_tan;
+  /* Levels from this one up take the wide set from the first bounce on
+   * (the effect plan's, plan.c; n: none). */
+  int wide_level;
   /* The probes' denser final-gather set (gi__probe_cone_set). */
   int num_probe_cones;
   float probe_dir[GI_MAX_CONES][3];

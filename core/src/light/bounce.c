@@ -10,8 +10,10 @@
  * shaded and filtered, and each voxel's side light sums the increments;
  * after the last bounce the texture is reshaded from the sum. From the
  * third bounce on the increment is small and smooth, and the gather takes
- * the wide set (gi__bounce_wide). On a plane, three voxels in four wait
- * for their gathered neighbours and take their mean where those agree,
+ * the wide set (gi__bounce_wide); so do, from the first, the coarse
+ * levels the viewpoint barely sees (c->wide_level, plan.c). On a plane,
+ * three voxels in four wait for their gathered neighbours and take their
+ * mean where those agree,
  * and every other voxel along an edge (between.c: the Cornell box's bake
  * marches 50% fewer cones). A cone's march depends on the opacity alone,
  * which no bounce changes, so a set's first bounce records each voxel's
@@ -106,11 +108,15 @@ static void arena_free(tape_arena *a) {
 /* The tapes' memory, bounded per bake: past it voxels march again. arena
  * and rec: per worker id (gi__parallel_for), the tapes' memory and the
  * march's record, kept across a bounce's chunks (regrowing a record per
- * chunk of 16 voxels faulted its pages in again each time). */
+ * chunk of 16 voxels faulted its pages in again each time). A level's
+ * tapes are of class 1 when it takes the wide set from the first bounce
+ * (they serve every bounce), else of class 0 (freed when the level turns
+ * to the wide set): each class has its own arenas. */
 typedef struct {
-  atomic_size_t bytes;
+  atomic_size_t bytes;  /* both classes' */
+  atomic_size_t cls[2]; /* each class's */
   size_t max;
-  tape_arena arena[GI_MAX_WORKERS];
+  tape_arena arena[2][GI_MAX_WORKERS];
   gi_tap_rec rec[GI_MAX_WORKERS];
 } tape_budget;
 
@@ -121,15 +127,17 @@ typedef struct {
   struct gi_cascade *c;
   size_t start[GI_MAX_LEVELS + 1];
   gi_faces3 **E;    /* per level, per occupied voxel */
-  gi_hits **hit;    /* per level, per occupied voxel: the cones of the set that met opacity on its first bounce */
+  gi_hits *hit[GI_MAX_LEVELS]; /* per level, per occupied voxel: the cones of its set that met opacity on the set's
+                                  first bounce */
   gi_between **plan; /* per level, per occupied voxel: filled from its neighbours instead (between.c) */
-  int wide;         /* the wide set (gi__bounce_wide) */
-  int first;        /* the set's first bounce: fills hit */
+  uint8_t wide[GI_MAX_LEVELS];   /* per level: the wide set (gi__bounce_wide) */
+  uint8_t first[GI_MAX_LEVELS];  /* per level: its set's first bounce, which fills hit */
+  uint8_t record[GI_MAX_LEVELS]; /* per level: this bounce fills tape (the set's first, with a later bounce of it) */
+  uint8_t cls[GI_MAX_LEVELS];    /* per level: its tapes' class (tape_budget) */
   gi_shift6 **shift; /* per level, per occupied voxel: each side's apex shift (gi__away_from_beside) */
   int shift_known;  /* shift holds it (after the first bounce) */
   gi_hfaces **H;    /* per level, per occupied voxel: each face's share of its cones that met a surface, or NULL */
-  gi_tape **tape;   /* per level, per occupied voxel: the set's tapes, or NULL (none kept) */
-  int record;       /* this bounce fills tape (the set's first, with a later bounce of the set) */
+  gi_tape **tape;   /* per level (NULL: none kept), per occupied voxel: its set's tapes */
   tape_budget *budget;
   atomic_ullong samples, cones, taps;
   atomic_ullong replay_ns; /* the replays' time, summed over workers */
@@ -170,8 +178,10 @@ typedef struct {
   float step, ao_lambda; /* the gather's step rule: the quality's, every voxel's alike */
   uint8_t *next_H;       /* the next voxel batch_add takes: where its faces' hit shares go, or NULL */
   gi_tape *next_tape;    /* the same for its tape, when this batch records */
+  int wide;              /* the set its voxels gather with */
   gi_tap_rec *rec;       /* the batch's taps while recording (the worker's, reused across batches) */
-  tape_arena *arena;     /* where the worker's kept taps go */
+  tape_arena *arena;     /* where the worker's kept taps go (their class's) */
+  int cls;               /* that class */
   tape_budget *budget;   /* NULL: no recording */
   int oom;               /* a tape could not be allocated */
   struct {
@@ -236,15 +246,18 @@ static void batch_add(const struct gi_cascade *c, int d, uint32_t slot, int wide
   cb->nv++;
 }
 
-/* An empty batch for worker w, recording into budget (the worker's
- * record and tape arena) or not (NULL). */
-static void batch_start(cone_batch *cb, tape_budget *budget, int w) {
+/* An empty batch for worker w of the wide set or not, recording into
+ * budget (the worker's record and its tape arena of class cls) or not
+ * (NULL). */
+static void batch_start(cone_batch *cb, int wide, tape_budget *budget, int cls, int w) {
   cb->nj = cb->nv = 0;
+  cb->wide = wide;
   cb->next_H = NULL;
   cb->next_tape = NULL;
   cb->budget = budget;
   cb->rec = budget ? &budget->rec[w] : NULL;
-  cb->arena = budget ? &budget->arena[w] : NULL;
+  cb->arena = budget ? &budget->arena[cls][w] : NULL;
+  cb->cls = cls;
   cb->oom = 0;
 }
 
@@ -300,6 +313,7 @@ static void keep_tapes(const struct gi_cascade *c, int wide, cone_batch *cb) {
     }
     gi__tape_pack(r->t, r->n, cb->nj, &pl, cb->which, cb->co, block);
   }
+  atomic_fetch_add(&cb->budget->cls[cb->cls], bytes);
   for (int v = 0; v < cb->nv; v++) {
     gi_tape *tp = cb->v[v].tape;
     if (!tp) continue;
@@ -357,7 +371,7 @@ static uint64_t gather_masked(const struct gi_cascade *c, int d, const uint32_t 
                               const gi_between *plan, gi_faces3 *E, gi_hfaces *H, gi_hits *hit, const uint32_t *at,
                               int first, uint64_t *cones) {
   cone_batch cb;
-  batch_start(&cb, NULL, 0);
+  batch_start(&cb, wide, NULL, 0, 0);
   uint64_t samples = 0;
   const gi_level *L = &c->lv[d];
   for (size_t i = 0; i < n; i++) {
@@ -397,23 +411,29 @@ static void redo_range(void *p, size_t b, size_t e, int worker) {
   atomic_fetch_add(&r->cones, cones);
 }
 
-/* gi__bounce_between with the set's first-hit masks (per level, or NULL):
- * the turned-down voxels' masks are filled on the set's first bounce and
- * skip cones on its later ones, as every other voxel's. Their cones that
- * meet nothing are most of their samples (a cone into the open sky
- * crosses every level). */
-static gi_result between_masked(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
-                                int threads, gi_hits *const hit[], int first, uint64_t *samples, uint64_t *cones,
-                                gi_error_info *err) {
+/* Whether bounce `it` is the first of level d's set. */
+static int set_first(const struct gi_cascade *c, int it, int d) {
+  return it == 0 || gi__bounce_wide(c, it, d) != gi__bounce_wide(c, it - 1, d);
+}
+
+/* gi__bounce_between with each set's first-hit masks (per set and level,
+ * or NULL): the turned-down voxels' masks are filled on their set's first
+ * bounce and skip cones on its later ones, as every other voxel's. Their
+ * cones that meet nothing are most of their samples (a cone into the open
+ * sky crosses every level). */
+static gi_result between_masked(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int it,
+                                int threads, gi_hits *(*hit)[GI_MAX_LEVELS], uint64_t *samples,
+                                uint64_t *cones, gi_error_info *err) {
   for (int d = 0; d < c->n; d++) {
     const gi_level *L = &c->lv[d];
+    int wide = gi__bounce_wide(c, it, d), first = set_first(c, it, d);
     uint32_t *at = gi__malloc(((size_t)L->num_occ + 1) * sizeof *at), n;
     if (!at) return gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory for level %d's voxels between", d);
     if (!(n = gi__between_fill(c, d, plan[d], E[d], at, threads))) {
       gi__free(at);
       continue;
     }
-    redo_ctx r = {.c = c, .d = d, .wide = wide, .first = first, .at = at, .hit = hit ? hit[d] : NULL};
+    redo_ctx r = {.c = c, .d = d, .wide = wide, .first = first, .at = at, .hit = hit ? hit[wide][d] : NULL};
     r.slots = gi__malloc((size_t)n * sizeof *r.slots);
     r.E = gi__malloc((size_t)n * sizeof *r.E);
     if (!r.slots || !r.E) {
@@ -433,9 +453,9 @@ static gi_result between_masked(struct gi_cascade *c, gi_between *const plan[], 
   return GI_OK;
 }
 
-gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
+gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int it,
                              int threads, uint64_t *samples, uint64_t *cones, gi_error_info *err) {
-  return between_masked(c, plan, E, wide, threads, NULL, 0, samples, cones, err);
+  return between_masked(c, plan, E, it, threads, NULL, samples, cones, err);
 }
 
 /* The first two bounces gather the direct light and the first bounce's,
@@ -446,8 +466,8 @@ gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_
  * throughout; 6 wide cones instead of 8 moved Munich's probe 7%. */
 #define WIDE_FROM 2
 
-int gi__bounce_wide(const struct gi_cascade *c, int it) {
-  return it >= WIDE_FROM && c->num_wide_cones < c->num_cones;
+int gi__bounce_wide(const struct gi_cascade *c, int it, int d) {
+  return (it >= WIDE_FROM || d >= c->wide_level) && c->num_wide_cones < c->num_cones;
 }
 
 /* The set's later bounce for voxel (d, i) from its tape: the light its
@@ -456,8 +476,8 @@ int gi__bounce_wide(const struct gi_cascade *c, int it) {
 static void replay_voxel(const bounce_ctx *bc, int d, size_t i, uint32_t slot) {
   const gi_tape *tp = &bc->tape[d][i];
   const gi_vgeo *g = gi__geo(&bc->c->lv[d], slot);
-  int nc = bc->wide ? bc->c->num_wide_cones : bc->c->num_cones;
-  const float *weight = bc->wide ? bc->c->wide_weight : bc->c->cone_weight;
+  int nc = bc->wide[d] ? bc->c->num_wide_cones : bc->c->num_cones;
+  const float *weight = bc->wide[d] ? bc->c->wide_weight : bc->c->cone_weight;
   float Es[GI_VOX_FACES][3] = {{0}}, L[GI_VOX_FACES * GI_MAX_CONES][3];
   uint16_t job[GI_VOX_FACES * GI_MAX_CONES];
   size_t cones = gi__replay_tape(bc->c, tp->u, tp->n, L, job);
@@ -472,39 +492,45 @@ static void replay_voxel(const bounce_ctx *bc, int d, size_t i, uint32_t slot) {
 
 static void bounce_range(void *p, size_t b, size_t e, int worker) {
   bounce_ctx *bc = p;
+  const struct gi_cascade *c = bc->c;
   uint64_t samples = 0, cones = 0, taps = 0;
-  /* A replaying bounce's time less its marches is the replays' (a clock
-   * read per voxel cost 1% of the bounce). */
-  int replaying = bc->tape && !bc->record;
-  double t0 = replaying ? gi__now_ms() : 0, march_ms = 0;
-  int d = 0;
+  /* The replays' time: a clock read where a run of replayed voxels starts
+   * and ends (one per voxel cost 1% of the bounce). */
+  double run0 = -1, replay_ms = 0;
+  int d = 0, key = -1; /* the batch's set, recording and class, as one key */
   cone_batch cb;
-  batch_start(&cb, bc->record ? bc->budget : NULL, worker);
+  batch_start(&cb, 0, NULL, 0, worker);
   for (size_t q = b; q < e; q++) {
     while (q >= bc->start[d + 1]) d++;
     size_t i = q - bc->start[d];
-    uint32_t slot = bc->c->lv[d].occ[i];
+    uint32_t slot = c->lv[d].occ[i];
     if (bc->plan[d][i].nb[0] >= 0) continue;
-    if (replaying && bc->tape[d][i].rec) {
+    if (bc->tape[d] && !bc->record[d] && bc->tape[d][i].rec) {
+      if (run0 < 0) run0 = gi__now_ms();
       replay_voxel(bc, d, i, slot);
       taps += bc->tape[d][i].taps;
       continue;
     }
-    if (!batch_room(bc->c, bc->wide, &cb)) {
-      double m0 = replaying ? gi__now_ms() : 0;
-      samples += batch_finish(bc->c, bc->wide, &cb, &cones);
-      if (replaying) march_ms += gi__now_ms() - m0;
+    if (run0 >= 0) replay_ms += gi__now_ms() - run0, run0 = -1;
+    /* A batch marches one set and records into one class, or not at all. */
+    int wide = bc->wide[d], k = wide | bc->record[d] << 1 | bc->cls[d] << 2;
+    if (k != key) {
+      samples += batch_finish(c, cb.wide, &cb, &cones);
+      if (cb.oom) atomic_store(&bc->oom, 1);
+      batch_start(&cb, wide, bc->record[d] ? bc->budget : NULL, bc->cls[d], worker);
+      key = k;
+    } else if (!batch_room(c, wide, &cb)) {
+      samples += batch_finish(c, wide, &cb, &cones);
     }
     cb.next_H = bc->H ? bc->H[d][i] : NULL;
-    cb.next_tape = bc->record ? &bc->tape[d][i] : NULL;
-    if (bc->first)
-      batch_add(bc->c, d, slot, bc->wide, NULL, bc->E[d][i], &bc->hit[d][i], &bc->shift[d][i], bc->shift_known, &cb);
+    cb.next_tape = bc->record[d] ? &bc->tape[d][i] : NULL;
+    if (bc->first[d])
+      batch_add(c, d, slot, wide, NULL, bc->E[d][i], &bc->hit[d][i], &bc->shift[d][i], bc->shift_known, &cb);
     else
-      batch_add(bc->c, d, slot, bc->wide, &bc->hit[d][i], bc->E[d][i], NULL, &bc->shift[d][i], bc->shift_known, &cb);
+      batch_add(c, d, slot, wide, &bc->hit[d][i], bc->E[d][i], NULL, &bc->shift[d][i], bc->shift_known, &cb);
   }
-  double m0 = replaying ? gi__now_ms() : 0;
-  samples += batch_finish(bc->c, bc->wide, &cb, &cones);
-  double end = replaying ? gi__now_ms() : 0, replay_ms = end - t0 - (march_ms + end - m0);
+  if (run0 >= 0) replay_ms += gi__now_ms() - run0;
+  samples += batch_finish(c, cb.wide, &cb, &cones);
   if (cb.oom) atomic_store(&bc->oom, 1);
   atomic_fetch_add(&bc->samples, samples);
   atomic_fetch_add(&bc->cones, cones);
@@ -512,15 +538,20 @@ static void bounce_range(void *p, size_t b, size_t e, int worker) {
   if (replay_ms > 0) atomic_fetch_add(&bc->replay_ns, (unsigned long long)(replay_ms * 1e6));
 }
 
-/* Frees every level's tapes (NULL entries skipped) and sets them NULL;
- * the workers' tape memory is free for the next set's (arena_reset). */
-static void free_tapes(const struct gi_cascade *c, gi_tape *tape[], tape_budget *budget) {
+/* The class of level d's tapes (tape_budget). */
+static int tape_class(const struct gi_cascade *c, int d) { return gi__bounce_wide(c, 0, d); }
+
+/* Frees the tapes of every level of class cls (NULL entries skipped) and
+ * sets them NULL; the workers' tape memory of that class is free for the
+ * next set's (arena_reset). */
+static void free_tapes(const struct gi_cascade *c, gi_tape *tape[], tape_budget *budget, int cls) {
   for (int d = 0; d < c->n; d++) {
+    if (tape_class(c, d) != cls) continue;
     gi__free(tape[d]);
     tape[d] = NULL;
   }
-  for (int w = 0; w < GI_MAX_WORKERS; w++) arena_reset(&budget->arena[w]);
-  atomic_store(&budget->bytes, 0);
+  for (int w = 0; w < GI_MAX_WORKERS; w++) arena_reset(&budget->arena[cls][w]);
+  atomic_fetch_sub(&budget->bytes, atomic_exchange(&budget->cls[cls], 0));
 }
 
 /* The tapes' budget per bake: GI_TAPE_MAX_BYTES, or what
@@ -683,9 +714,11 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
   gi_between *plan[GI_MAX_LEVELS] = {0};
   gi_shift6 *shift[GI_MAX_LEVELS] = {0};
   gi_hfaces *H[GI_MAX_LEVELS] = {0}; /* the last bounce's hit shares, for the tail (gi__bounce_end) */
-  gi_tape *tape[GI_MAX_LEVELS] = {0}; /* the current set's tapes, while a later bounce of the set replays them */
+  gi_tape *tape[GI_MAX_LEVELS] = {0}; /* each level's set's tapes, while a later bounce of the set replays them */
   tape_budget budget = {.max = tape_max_bytes()};
   atomic_init(&budget.bytes, 0);
+  atomic_init(&budget.cls[0], 0);
+  atomic_init(&budget.cls[1], 0);
   for (int w = 0; w < GI_MAX_WORKERS; w++) budget.rec[w].max = budget.max / sizeof(gi_tap);
   int want_H = tail && bounces >= 2;
   gi_result rc = GI_OK;
@@ -694,7 +727,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
   double S[2][3] = {{0}};
   memset(c->last_share, 0, sizeof c->last_share);
   memset(c->tail_gain, 0, sizeof c->tail_gain);
-  int any_wide = bounces > 0 && gi__bounce_wide(c, bounces - 1);
+  int any_wide = bounces > 0 && gi__bounce_wide(c, bounces - 1, c->n - 1);
   for (int d = 0; d < c->n; d++) {
     size_t n = (size_t)c->lv[d].num_occ + 1;
     E[d] = gi__malloc(n * sizeof *E[d]);
@@ -713,19 +746,22 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     if (any_wide) memset(hit[1][d], 0xff, n * sizeof *hit[1][d]);
   }
   for (int it = 0; it < bounces; it++) {
-    int wide = gi__bounce_wide(c, it);
-    int first = it == 0 || (wide && !gi__bounce_wide(c, it - 1));
-    /* A set's first bounce records its tapes when a later bounce takes the same set. */
-    int record = first && budget.max > 0 && it + 1 < bounces && gi__bounce_wide(c, it + 1) == wide;
-    if (first) free_tapes(c, tape, &budget);
-    for (int d = 0; d < c->n && record; d++)
-      if (!(tape[d] = gi__calloc((size_t)c->lv[d].num_occ + 1, sizeof *tape[d]))) {
+    bounce_ctx bc = {.c = c, .E = E, .plan = plan, .shift = shift, .shift_known = it > 0,
+                     .H = want_H && it + 1 == bounces ? H : NULL, .tape = tape, .budget = &budget};
+    for (int d = 0; d < c->n; d++) {
+      int wide = gi__bounce_wide(c, it, d), first = set_first(c, it, d);
+      /* A set's first bounce records its tapes when a later bounce takes the same set. */
+      int record = first && budget.max > 0 && it + 1 < bounces && gi__bounce_wide(c, it + 1, d) == wide;
+      bc.wide[d] = (uint8_t)wide, bc.first[d] = (uint8_t)first, bc.record[d] = (uint8_t)record;
+      bc.cls[d] = (uint8_t)tape_class(c, d), bc.hit[d] = hit[wide][d];
+      /* A level's set changes once at most, with every level of its class. */
+      if (first && it > 0 && tape[d]) free_tapes(c, tape, &budget, bc.cls[d]);
+    }
+    for (int d = 0; d < c->n; d++)
+      if (bc.record[d] && !(tape[d] = gi__calloc((size_t)c->lv[d].num_occ + 1, sizeof *tape[d]))) {
         rc = gi__fail(err, GI_ERR_NOMEM, "bounce: out of memory");
         goto done;
       }
-    bounce_ctx bc = {.c = c, .E = E, .hit = hit[wide], .plan = plan, .wide = wide, .first = first, .shift = shift,
-                     .shift_known = it > 0, .H = want_H && it + 1 == bounces ? H : NULL,
-                     .tape = tape[0] ? tape : NULL, .record = record, .budget = &budget};
     for (int d = 0; d < c->n; d++) bc.start[d + 1] = bc.start[d] + c->lv[d].num_occ;
     atomic_init(&bc.samples, 0);
     atomic_init(&bc.cones, 0);
@@ -748,7 +784,7 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
       goto done;
     }
     uint64_t samples = 0, cones = 0;
-    rc = between_masked(c, plan, E, wide, q->threads, hit[wide], first, &samples, &cones, err);
+    rc = between_masked(c, plan, E, it, q->threads, hit, &samples, &cones, err);
     c->report.cone_samples += samples;
     c->report.cones_traced += cones;
     if (rc != GI_OK) goto done;
@@ -760,8 +796,9 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
     c->report.bounces_run = it + 1;
   }
 done:
-  free_tapes(c, tape, &budget);
-  for (int w = 0; w < GI_MAX_WORKERS; w++) arena_free(&budget.arena[w]), gi__free(budget.rec[w].t);
+  for (int cls = 0; cls < 2; cls++) free_tapes(c, tape, &budget, cls);
+  for (int w = 0; w < GI_MAX_WORKERS; w++)
+    arena_free(&budget.arena[0][w]), arena_free(&budget.arena[1][w]), gi__free(budget.rec[w].t);
   for (int d = 0; d < c->n; d++)
     gi__free(E[d]), gi__free(hit[0][d]), gi__free(hit[1][d]), gi__free(plan[d]), gi__free(shift[d]), gi__free(H[d]);
   return rc;

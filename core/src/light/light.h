@@ -165,9 +165,9 @@ uint32_t gi__between_fill(const struct gi_cascade *c, int d, const gi_between *p
  * Thread-safe for disjoint E and slots. */
 uint64_t gi__gather_voxels(const struct gi_cascade *c, int d, const uint32_t *slots, size_t n, int wide,
                            const gi_between *plan, gi_faces3 *E, gi_hfaces *H, uint64_t *cones);
-/* 1 when bounce `it` (from 0) gathers with the wide set: the bake and the
- * move's re-bake must agree bounce by bounce. */
-int gi__bounce_wide(const struct gi_cascade *c, int it);
+/* 1 when bounce `it` (from 0) of level d's voxels gathers with the wide
+ * set: the bake and the move's re-bake must agree bounce by bounce. */
+int gi__bounce_wide(const struct gi_cascade *c, int it, int d);
 gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int tail, gi_error_info *err);
 /* The most bytes of tapes (trace.h: gi_tap) one bake's bounces keep to
  * replay a cone set's later bounces: GI_TAPE_MAX_BYTES unless
@@ -177,12 +177,13 @@ gi_result gi__bounce(struct gi_cascade *c, const gi_quality *q, int bounces, int
  * city, Munich). */
 #define GI_TAPE_MAX_BYTES ((size_t)256 << 20)
 void gi__set_tape_budget(size_t bytes);
-/* The end of a bounce's gathers (plan[d]: every level's plan; E: the
+/* The end of bounce `it`'s gathers (plan[d]: every level's plan; E: the
  * bounce's gathers of every other voxel): gi__between_fill, then the
- * voxels it turned down gathered with the bounce's set. Adds the samples
- * and cones marched; GI_ERR_NOMEM, or GI_ERR_CANCELLED when the
- * cascade's token fired. Shared by gi__bounce and the move's re-bake. */
-gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int wide,
+ * voxels it turned down gathered with their level's set for the bounce
+ * (gi__bounce_wide). Adds the samples and cones marched; GI_ERR_NOMEM, or
+ * GI_ERR_CANCELLED when the cascade's token fired. Shared by gi__bounce
+ * and the move's re-bake. */
+gi_result gi__bounce_between(struct gi_cascade *c, gi_between *const plan[], gi_faces3 *const E[], int it,
                              int threads, uint64_t *samples, uint64_t *cones, gi_error_info *err);
 /* The largest ratio the bounces' geometric tail takes (gi__bounce_end): a
  * furnace of albedo 0.99 would otherwise multiply its last increment by

@@ -725,15 +725,18 @@ static gi_result gather_fresh(struct gi_cascade *c, int threads, uint32_t **fres
     if (!(E[d] = gi__malloc(((size_t)nfresh[d] + 1) * sizeof *E[d])))
       rc = gi__fail(err, GI_ERR_NOMEM, "move: out of memory for the gather of level %d", d);
   if (rc != GI_OK) goto done;
-  /* The new voxels' first gather, from the live texture (see fresh_texture). */
-  int wide = gi__bounce_wide(c, INT_MAX); /* the set the bounces take for the later orders */
+  /* The new voxels' first gather, from the live texture (see
+   * fresh_texture), with the set the bounces take for the later orders. */
   for (int d = 0; d < c->n && rc == GI_OK; d++)
-    rc = gather_planned(c, threads, d, fresh[d], nnew[d], wide, 0, c->lv[d].side, E[d], own, err);
+    rc = gather_planned(c, threads, d, fresh[d], nnew[d], gi__bounce_wide(c, INT_MAX, d), 0, c->lv[d].side, E[d],
+                        own, err);
   if (rc == GI_OK) {
     if (fresh_texture(c, m, threads, fresh, nnew, E)) rc = gi__cancel_fail(c->cancel, err, "move filter");
-    /* The fresh texture is swapped in: the live side entries are m's now. */
+    /* The fresh texture is swapped in: the live side entries are m's now.
+     * Each level gathers with the set of the bake's first bounce. */
     for (int d = 0; d < c->n && rc == GI_OK; d++)
-      rc = gather_planned(c, threads, d, fresh[d], nfresh[d], 0, 1, m->side[d], E[d], own, err);
+      rc = gather_planned(c, threads, d, fresh[d], nfresh[d], gi__bounce_wide(c, 0, d), 1, m->side[d], E[d], own,
+                          err);
     swap_texture(c, m);
   }
   /* The gather returned orders 1..k+1 (E_k): the tail puts f D_k on it,
@@ -833,12 +836,12 @@ static gi_result rebake_units(struct gi_cascade *c, gi_move_state *m, uint64_t l
       if (e > c->lv[d].num_occ) e = c->lv[d].num_occ;
       if (lo >= base + c->lv[d].num_occ || end <= base || b >= e) continue;
       gi_hfaces *H = tail_H(m) && it + 1 == m->bounces ? m->H[d] + b : NULL;
-      rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), gi__bounce_wide(c, it), m->plan[d] + b, 1,
-                       m->E[d] + b, H, err);
+      rc = gather_list(c, threads, d, c->lv[d].occ + b, (uint32_t)(e - b), gi__bounce_wide(c, it, d),
+                       m->plan[d] + b, 1, m->E[d] + b, H, err);
     }
     if (rc == GI_OK && end == (uint64_t)(it + 1) * U) {
       uint64_t samples = 0, cones = 0;
-      rc = gi__bounce_between(c, m->plan, m->E, gi__bounce_wide(c, it), threads, &samples, &cones, err);
+      rc = gi__bounce_between(c, m->plan, m->E, it, threads, &samples, &cones, err);
       c->report.cone_samples += samples;
       c->report.cones_traced += cones;
       if (rc == GI_OK && rebake_bounce_end(c, m, it, threads)) rc = gi__cancel_fail(c->cancel, err, "re-bake filter");
