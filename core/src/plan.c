@@ -205,6 +205,19 @@ int gi__fx_forced(const gi_quality *q, gi_effect_id id) {
 #define MAX_HINTS 32
 #define HINT_PER 8
 
+/* The anchor cell's centre, which the plan's rays leave from: level 0
+ * starts R/2 cells below the anchor cell's first cell (cascade.c). */
+static void anchor_centre(const struct gi_cascade *c, float centre[3]) {
+  const gi_level *L0 = &c->lv[0];
+  for (int a = 0; a < 3; a++) centre[a] = (float)(((double)L0->cell0[a] + c->R / 2 + 1) * L0->s);
+}
+
+/* Direction i of n on a Fibonacci sphere: even directions, no random numbers. */
+static void sphere_dir(int i, int n, float w[3]) {
+  float z = 1 - (2 * (float)i + 1) / (float)n, r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = (float)i * 2.39996323f;
+  w[0] = r * cosf(phi), w[1] = r * sinf(phi), w[2] = z;
+}
+
 /* The upward rays' frame, and the arrays sky_rays fills. */
 typedef struct {
   float up[3], t[3], b[3];
@@ -243,10 +256,9 @@ static int sky_beyond(const struct gi_cascade *c, sky_batch *sb, const float cen
   float off = 0.5f * (float)c->lv[0].s;
   sb->n = 0;
   for (int i = 0; i < SEEN_DIRS; i++) {
-    /* A Fibonacci sphere: even directions, no random numbers. */
-    float z = 1 - (2 * (float)i + 1) / (float)SEEN_DIRS, r = sqrtf(fmaxf(0.f, 1 - z * z));
-    float phi = (float)i * 2.39996323f, w[3] = {r * cosf(phi), r * sinf(phi), z}, t, ng[3], p[3];
+    float w[3], t, ng[3], p[3];
     uint32_t tri;
+    sphere_dir(i, SEEN_DIRS, w);
     if (!gi__intersect1(s, centre, w, 0, INFINITY, &t, &tri, ng)) continue; /* escapes: the sky test's own rays judge that */
     float side = gi__dot(ng, w) > 0 ? -1.f : 1.f; /* toward the viewpoint */
     for (int k = 0; k < 3; k++) p[k] = centre[k] + t * w[k] + side * off * ng[k];
@@ -271,8 +283,7 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
   gi__basis(sb.up, sb.t, sb.b);
   const gi_level *L0 = &c->lv[0];
   float half = (float)(0.5 * c->R * L0->s), centre[3];
-  /* Level 0 starts R/2 cells below the anchor cell's first cell (cascade.c). */
-  for (int a = 0; a < 3; a++) centre[a] = (float)(((double)L0->cell0[a] + c->R / 2 + 1) * L0->s);
+  anchor_centre(c, centre);
   for (int o = 0; o < ORG; o++) {
     float p[3] = {centre[0], centre[1], centre[2]};
     if (o) p[(o - 1) / 2] += (o & 1) ? half : -half;
@@ -320,12 +331,11 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
 #define WIDE_OPEN 0.1
 static int wide_level(const struct gi_cascade *c) {
   int per[GI_MAX_LEVELS] = {0}, open = 0;
-  const gi_level *L0 = &c->lv[0];
   float centre[3];
-  for (int a = 0; a < 3; a++) centre[a] = (float)(((double)L0->cell0[a] + c->R / 2 + 1) * L0->s);
+  anchor_centre(c, centre);
   for (int i = 0; i < WIDE_DIRS; i++) {
-    float z = 1 - (2 * (float)i + 1) / (float)WIDE_DIRS, r = sqrtf(fmaxf(0.f, 1 - z * z));
-    float phi = (float)i * 2.39996323f, w[3] = {r * cosf(phi), r * sinf(phi), z}, t, p[3];
+    float w[3], t, p[3];
+    sphere_dir(i, WIDE_DIRS, w);
     if (!gi__intersect1(c->scene, centre, w, 0, INFINITY, &t, NULL, NULL)) {
       open++;
       continue;
