@@ -53,6 +53,19 @@ static gi_scene *make_plane(const gi_light *l) {
   return tu_build(b, "plane", l, 1);
 }
 
+/* make_plane's plane with a solid block on it, 4 x 3 x 4 round the y axis
+ * (sides wound outward). */
+static gi_scene *make_plane_block(const gi_light *l) {
+  gi_mesh_builder *b = gi_mesh_builder_new();
+  gi_material m = {.albedo = {0.5f, 0.5f, 0.5f}, .roughness = 1};
+  uint32_t mat = gi_mesh_builder_add_material(b, &m);
+  double A[3] = {-50, 0, -50}, B[3] = {-50, 0, 50}, C[3] = {50, 0, 50}, D[3] = {50, 0, -50};
+  gi_mesh_builder_add_quad(b, A, B, C, D, mat);
+  double lo[3] = {-2, 0, -2}, hi[3] = {2, 3, 2};
+  gi_mesh_builder_add_box(b, lo, hi, mat);
+  return tu_build(b, "plane+block", l, 1);
+}
+
 static void bake_at(const gi_scene *s, const double at[3], const gi_quality *q, gi_bake_report *rep, gi_probe *p) {
   gi_cascade *c = NULL;
   gi_error_info err = {0};
@@ -262,6 +275,19 @@ static void test_wide_levels_from_view(void **state) {
   assert_int_equal(rep.wide_from_level, 1);
   gi_scene_release(s);
 
+  /* The same plane with the viewpoint inside a solid block: the anchor's
+   * rays see the block's inside (no ray escapes, every surface shows its
+   * back); the points half level 0's box (8) off it, outside the block,
+   * see the plane's open view and the block, 6 off them, in level 1:
+   * the levels from 2 on. */
+  s = make_plane_block(&sun);
+  bake_at(s, at, &q, &rep, &p);
+  printf("viewpoint inside a block on the plane: wide set from level %d of %d\n", rep.wide_from_level, rep.levels);
+  assert_int_equal(rep.wide_from_level, 2);
+  gi_scene_release(s);
+
+  /* A box wider than level 0's box, wound outward, round the viewpoint:
+   * all seven points lie inside it, and nothing says the view is open. */
   s = make_box(0.5, 1.0, NULL);
   const double mid[3] = {0.5, 0.5, 0.5};
   /* Level 2 spans 0.8, level 3 1.6: the walls, 0.5 from the middle, lie in level 3's own voxels. */
