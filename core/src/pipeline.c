@@ -17,6 +17,19 @@
 #include "plan.h"
 #include "trace/trace.h"
 
+/* The report's work per level: voxels voxelized (the level's own, not its
+ * filtered region), injected and bounced. */
+static void level_work(struct gi_cascade *c) {
+  for (int d = 0; d < c->n; d++) {
+    gi_level *L = &c->lv[d];
+    uint64_t inner = 1;
+    for (int a = 0; a < 3; a++) inner *= L->has_inner ? (uint64_t)(L->inner1[a] - L->inner0[a]) : 0;
+    c->report.level_voxelized[d] = (uint64_t)c->R * c->R * c->R - inner;
+    c->report.level_injected[d] = L->num_occ;
+    c->report.level_rebounced[d] = (uint64_t)L->num_occ * (uint64_t)c->report.bounces_run;
+  }
+}
+
 gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const gi_quality *qin,
                               const gi_cancel *cancel, const float *pts, int npts, gi_cascade **out,
                               gi_bake_report *report, gi_error_info *err) {
@@ -26,6 +39,7 @@ gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const g
   if (!scene || !at) return gi__fail(err, GI_ERR_INVALID_ARG, "bake: %s is NULL", !scene ? "scene" : "viewpoint");
   if (!isfinite(at[0]) || !isfinite(at[1]) || !isfinite(at[2]))
     return gi__fail(err, GI_ERR_NONFINITE, "bake: viewpoint (%g, %g, %g) is not finite", at[0], at[1], at[2]);
+  double tp = gi__now_ms();
   gi_quality q;
   gi_result rc = gi_quality_resolve(scene, qin, &q, err);
   if (rc != GI_OK) return rc;
@@ -94,19 +108,13 @@ gi_result gi__cascade_bake_at(const gi_scene *scene, const double at[3], const g
   if (c->report.effects[GI_FX_BOUNCE].ran)
     if ((rc = gi__bounce(c, &q, q.bounces, tail, err)) != GI_OK) goto fail;
   double t4 = gi__now_ms();
+  c->report.ms.plan = t0 - tp;
   c->report.ms.voxelize = t1 - t0;
   c->report.ms.inject = t2 - t1;
   c->report.ms.filter = t3 - t2;
   c->report.ms.bounce = t4 - t3;
   gi__cascade_count_occupied(c);
-  for (int d = 0; d < c->n; d++) {
-    gi_level *L = &c->lv[d];
-    uint64_t inner = 1;
-    for (int a = 0; a < 3; a++) inner *= L->has_inner ? (uint64_t)(L->inner1[a] - L->inner0[a]) : 0;
-    c->report.level_voxelized[d] = (uint64_t)c->R * c->R * c->R - inner;
-    c->report.level_injected[d] = L->num_occ;
-    c->report.level_rebounced[d] = (uint64_t)L->num_occ * (uint64_t)c->report.bounces_run;
-  }
+  level_work(c);
   c->report.cascade_bytes = gi__cascade_level_bytes(c); /* no move state yet */
   c->cancel = NULL; /* the token need not outlive the bake */
   if (report) *report = c->report;

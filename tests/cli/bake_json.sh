@@ -29,8 +29,12 @@ for i, p in enumerate(d["probes"]): probe_ok(p, "probes[%d]" % i)
 assert d["probe"]["in_cascade"] is True and [p["in_cascade"] for p in d["probes"]] == [True, True, False], \
     "in_cascade flags"
 assert d["probes"][2]["indirect"] == [0, 0, 0], "outside: indirect %r" % d["probes"][2]["indirect"]
-for k in ("load", "voxelize", "inject", "filter", "bounce", "gather", "encode", "total"):
+for k in ("load", "plan", "voxelize", "inject", "filter", "bounce", "gather", "encode", "total"):
     assert finite(d["timings_ms"][k]) and d["timings_ms"][k] >= 0, "timing " + k
+# The plan (quality, placement, the effect plan's surveys and rays) is part of the bake's time.
+assert d["timings_ms"]["plan"] > 0, "timing plan"
+assert sum(d["timings_ms"][k] for k in ("load", "plan", "voxelize", "inject", "filter", "bounce")) \
+    <= d["timings_ms"]["total"], "stages within total"
 for k in ("sun", "local_lights", "sky", "emissive", "bounce", "specular", "ao"):
     e = d["effects"][k]
     assert isinstance(e["ran"], bool) and isinstance(e["why"], str) and e["why"], "effect " + k

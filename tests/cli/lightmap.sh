@@ -28,14 +28,14 @@ d = json.load(open(sys.argv[1]))["lightmap"]
 for k in ("layout_ms", "cascade_ms", "gather_ms", "fill_ms", "total_ms"):
     assert math.isfinite(d[k]) and d[k] >= 0, k
 t = d["timings_ms"]
-names = ["load", "layout", "voxelize", "inject", "filter", "bounce", "gather", "encode", "total"]
+names = ["load", "layout", "plan", "voxelize", "inject", "filter", "bounce", "gather", "encode", "total"]
 assert list(t) == names, list(t)
 assert all(isinstance(t[k], float) and math.isfinite(t[k]) and t[k] >= 0 for k in names), t
 assert t["voxelize"] > 0 and t["bounce"] > 0 and t["gather"] > 0 and t["encode"] > 0, t
 # layout adds the texels sorted into tiles to the charts' layout_ms.
 assert t["layout"] >= d["layout_ms"] and t["total"] == d["total_ms"], (t, d)
 assert abs(t["gather"] - (d["gather_ms"] + d["fill_ms"])) <= 1e-9 * t["gather"], (t, d)
-assert t["voxelize"] + t["inject"] + t["filter"] + t["bounce"] <= d["cascade_ms"], (t, d)
+assert t["plan"] + t["voxelize"] + t["inject"] + t["filter"] + t["bounce"] <= d["cascade_ms"], (t, d)
 assert sum(t[k] for k in names[:-1]) <= t["total"], t
 PY
 # The summary names the same stages on one line.
@@ -43,7 +43,7 @@ PY
 "$BIN" "$T/box.obj" $Q --lightmap "$T/txt.exr" --texel 1 --atlas 32 > "$T/out.txt" 2> "$T/err"; rc=$?
 stages=$(grep '^stages (ms): ' "$T/out.txt")
 if [ $rc -eq 0 ] && printf '%s\n' "$stages" | grep -Eq \
-  '^stages \(ms\): load [0-9.]+, layout [0-9.]+, voxelize [0-9.]*[1-9][0-9.]*, inject [0-9.]+, filter [0-9.]+, bounce [0-9.]*[1-9][0-9.]*, gather [0-9.]*[1-9][0-9.]*, encode [0-9.]+, total [0-9.]+$'; then
+  '^stages \(ms\): load [0-9.]+, layout [0-9.]+, plan [0-9.]+, voxelize [0-9.]*[1-9][0-9.]*, inject [0-9.]+, filter [0-9.]+, bounce [0-9.]*[1-9][0-9.]*, gather [0-9.]*[1-9][0-9.]*, encode [0-9.]+, total [0-9.]+$'; then
   pass "summary: $stages"
 else
   fail "summary stages: exit $rc: $(cat "$T/out.txt" "$T/err")"

@@ -8,6 +8,11 @@
 #include "gi/gi_camera.h"
 #include "metrics.h"
 
+/* A cold bake's time: its plan and its four stages (the gather apart). */
+static inline double acc_bake_ms(const gi_bake_report *r) {
+  return r->ms.plan + r->ms.voxelize + r->ms.inject + r->ms.filter + r->ms.bounce;
+}
+
 /* The shipped scenes one run can name (cornell, munich, city, city5k):
  * every per-scene table of a run holds this many. */
 #define ACC_MAX_SCENES 4

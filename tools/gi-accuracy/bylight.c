@@ -38,7 +38,7 @@ static int kind_bake(const char *name, const acc_scene_set *ss, int fx, int thre
     gi_cascade_free(c);
     return 0;
   }
-  *ms = rep.ms.voxelize + rep.ms.inject + rep.ms.filter + rep.ms.bounce + gms;
+  *ms = acc_bake_ms(&rep) + gms;
   gi_cascade_free(c);
   return 1;
 }

@@ -424,7 +424,7 @@ static int run_cone(const char *name, const scene_set *ss, const gi_ref_probe *r
       free(pr);
       return 0;
     }
-    double b = rep.ms.voxelize + rep.ms.inject + rep.ms.filter + rep.ms.bounce;
+    double b = acc_bake_ms(&rep);
     if (b + gms < best) best = b + gms, bake = b;
   }
   /* A probe outside the cascade reads no indirect light: its error is the

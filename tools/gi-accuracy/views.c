@@ -205,7 +205,7 @@ static int run_cone_image(const char *name, const gi_scene *s, const double at[3
       gi_cascade_free(c);
       return 0;
     }
-    double b = rep.ms.voxelize + rep.ms.inject + rep.ms.filter + rep.ms.bounce;
+    double b = acc_bake_ms(&rep);
     if (b + ms < v->cone_ms) v->cone_ms = b + ms, v->cone_bake_ms = b, v->cone_render_ms = ms;
     v->specular_cones = spec;
     gi_cascade_free(c);

@@ -144,7 +144,7 @@ static int cone_probes(const acc_wl_opts *o, const char *name, const acc_scene_s
     c = NULL;
     if (gi_cascade_bake(ss->s, ss->at, &q, &c, &rep, &err) != GI_OK)
       return fprintf(stderr, "gi-accuracy: %s workloads: %s\n", name, err.msg), 0;
-    r->bake_ms = fmin(r->bake_ms, rep.ms.voxelize + rep.ms.inject + rep.ms.filter + rep.ms.bounce);
+    r->bake_ms = fmin(r->bake_ms, acc_bake_ms(&rep));
   }
   double lo[3], hi[3], side = rep.voxel_size[0] * rep.quality.res;
   for (int k = 0; k < 3; k++) lo[k] = rep.level_origin[0][k], hi[k] = lo[k] + side;

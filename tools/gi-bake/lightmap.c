@@ -224,9 +224,9 @@ typedef struct lm_times {
 } lm_times;
 
 static json_t *timings_json(const gi_lightmap_report *r, const lm_times *t) {
-  return json_pack("{s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f}", "load", t->load, "layout", r->layout_ms + r->sort_ms,
-                   "voxelize", r->ms.voxelize, "inject", r->ms.inject, "filter", r->ms.filter, "bounce", r->ms.bounce,
-                   "gather", r->ms.gather, "encode", t->encode, "total", t->total);
+  return json_pack("{s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:f}", "load", t->load, "layout", r->layout_ms + r->sort_ms,
+                   "plan", r->ms.plan, "voxelize", r->ms.voxelize, "inject", r->ms.inject, "filter", r->ms.filter,
+                   "bounce", r->ms.bounce, "gather", r->ms.gather, "encode", t->encode, "total", t->total);
 }
 
 /* The tiles' effect plans, as gi-bake's own report gives one bake's (its
@@ -248,9 +248,9 @@ static void print_report(const cli_opts *o, const gi_lightmap *lm, const gi_ligh
            (unsigned long long)r->texels_valid, (unsigned long long)r->texels_filled, r->tiles, r->tiles == 1 ? "" : "s");
     printf("time: layout %.1f ms, cascades %.1f ms, gather %.1f ms, fill %.1f ms, total %.1f ms\n", r->layout_ms,
            r->cascade_ms, r->gather_ms, r->fill_ms, t->total);
-    printf("stages (ms): load %.2f, layout %.2f, voxelize %.2f, inject %.2f, filter %.2f, bounce %.2f, gather %.2f, "
-           "encode %.2f, total %.2f\n", t->load, r->layout_ms + r->sort_ms, r->ms.voxelize, r->ms.inject,
-           r->ms.filter, r->ms.bounce, r->ms.gather, t->encode, t->total);
+    printf("stages (ms): load %.2f, layout %.2f, plan %.2f, voxelize %.2f, inject %.2f, filter %.2f, bounce %.2f, "
+           "gather %.2f, encode %.2f, total %.2f\n", t->load, r->layout_ms + r->sort_ms, r->ms.plan, r->ms.voxelize,
+           r->ms.inject, r->ms.filter, r->ms.bounce, r->ms.gather, t->encode, t->total);
     printf("effects (of %d tile%s)\n", r->tiles, r->tiles == 1 ? "" : "s");
     for (int i = 0; i < GI_FX_COUNT; i++)
       printf("           %-13s %-8s %d tile%s: %s\n", gi_effect_name((gi_effect_id)i),

@@ -153,6 +153,7 @@ static json_t *build_json(const cli_run *r, jctx *j) {
 
   json_t *t = json_object();
   json_object_set_new(t, "load", num(j, r->load_ms, "timings_ms.load"));
+  json_object_set_new(t, "plan", num(j, rep->ms.plan, "timings_ms.plan"));
   json_object_set_new(t, "voxelize", num(j, rep->ms.voxelize, "timings_ms.voxelize"));
   json_object_set_new(t, "inject", num(j, rep->ms.inject, "timings_ms.inject"));
   json_object_set_new(t, "filter", num(j, rep->ms.filter, "timings_ms.filter"));
@@ -270,10 +271,10 @@ static void print_human(const cli_run *r) {
            rep->level_origin[d][2]);
 
   printf("timings    ms on %d thread%s\n", r->threads, r->threads == 1 ? "" : "s");
-  const char *names[8] = {"load", "voxelize", "inject", "filter", "bounce", "gather", "encode", "total"};
-  double ms[8] = {r->load_ms, rep->ms.voxelize, rep->ms.inject, rep->ms.filter,
+  const char *names[9] = {"load", "plan", "voxelize", "inject", "filter", "bounce", "gather", "encode", "total"};
+  double ms[9] = {r->load_ms, rep->ms.plan, rep->ms.voxelize, rep->ms.inject, rep->ms.filter,
                   rep->ms.bounce, r->gather_ms, r->encode_ms, r->total_ms};
-  for (int i = 0; i < 8; i++) printf("           %-9s %10.2f\n", names[i], ms[i]);
+  for (int i = 0; i < 9; i++) printf("           %-9s %10.2f\n", names[i], ms[i]);
   printf("work       %llu triangle/level pairs, %llu shadow rays, %llu cone samples, %d bounce%s run\n",
          (unsigned long long)rep->triangles_visited, (unsigned long long)rep->shadow_rays,
          (unsigned long long)rep->cone_samples, rep->bounces_run, rep->bounces_run == 1 ? "" : "s");

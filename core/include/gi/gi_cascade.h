@@ -28,9 +28,11 @@
 extern "C" {
 #endif
 
-/* Per-stage wall-clock milliseconds. */
+/* Per-stage wall-clock milliseconds. plan: a cold bake's setup before
+ * voxelizing (quality, placement, the effect plan's surveys and test
+ * rays); a move counts its plan in inject. */
 typedef struct gi_timings {
-  double voxelize, inject, bounce, filter, gather, encode;
+  double voxelize, inject, bounce, filter, gather, encode, plan;
 } gi_timings;
 
 /* What one bake did: counts for reports, tests and benchmarks. */

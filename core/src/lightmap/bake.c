@@ -474,6 +474,7 @@ static gi_result bake_tile(gi_lightmap *lm, const gi_quality *q, const gi_cancel
   }
   rep->cascade_ms += t1 - t0;
   rep->gather_ms += gi__now_ms() - t1;
+  rep->ms.plan += br.ms.plan;
   rep->ms.voxelize += br.ms.voxelize;
   rep->ms.inject += br.ms.inject;
   rep->ms.filter += br.ms.filter;
