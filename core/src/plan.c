@@ -471,17 +471,16 @@ static gi_result level_sums(struct gi_cascade *c, int d) {
   return GI_OK;
 }
 
-/* The brightest level's mean (above); *surfaces 0 when no level holds any.
- * Each level's sums depend on its box alone and are kept while it stays
- * (a move that scrolls only the finest level queries that level again),
- * so a moved cascade plans as a cold bake at its anchor does. */
+/* level_sums of every level in one parallel loop, coarsest first: the
+ * coarsest holds the most triangles (the city's: all 142k), so it starts
+ * at once. Each level's sums are its own (its triangles in its query's
+ * order): side by side they give the same bits. One after another they
+ * were 11-12.5 ms of the city's plan on 2 threads (8.3-8.8 ms now). */
 typedef struct {
   struct gi_cascade *c;
   gi_result rc[GI_MAX_LEVELS];
 } sums_ctx;
 
-/* Levels coarsest first: the coarsest holds the most triangles (the
- * city's: all 142k), so it starts at once. */
 static void sums_range(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   sums_ctx *x = p;
@@ -491,12 +490,13 @@ static void sums_range(void *p, size_t b, size_t e, int worker) {
   }
 }
 
+/* The brightest level's mean (above); *surfaces 0 when no level holds any.
+ * Each level's sums depend on its box alone and are kept while it stays
+ * (a move that scrolls only the finest level queries that level again),
+ * so a moved cascade plans as a cold bake at its anchor does. */
 static gi_result level_albedo(struct gi_cascade *c, int threads, double *abar, int *surfaces) {
   double best = 0, any = 0;
   *surfaces = 0;
-  /* Each level's sums are its own (its triangles in its query's order), so
-   * the levels run side by side: one after another they were most of the
-   * city's 12-22 ms plan, which comes before any stage. */
   sums_ctx x = {.c = c};
   gi__parallel_for((size_t)c->n, 1, threads, sums_range, &x);
   for (int d = 0; d < c->n; d++) {

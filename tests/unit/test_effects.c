@@ -276,10 +276,12 @@ static void test_wide_levels_from_view(void **state) {
   gi_scene_release(s);
 
   /* The same plane with the viewpoint inside a solid block: the anchor's
-   * rays see the block's inside (no ray escapes, every surface shows its
-   * back); the points half level 0's box (8) off it, outside the block,
-   * see the plane's open view and the block, 6 off them, in level 1:
-   * the levels from 2 on. */
+   * rays see the block's inside (none escapes, two thirds of the surfaces
+   * they meet show their backs). The points half level 0's box (8) off
+   * it judge: the one under the plane shows only backs and is left out;
+   * the five others see the open plane, and from the edge of level 0 a
+   * third of their rays meet it in level 1 (against 9 of 256 from the
+   * centre above): the levels from 2 on. */
   s = make_plane_block(&sun);
   bake_at(s, at, &q, &rep, &p);
   printf("viewpoint inside a block on the plane: wide set from level %d of %d\n", rep.wide_from_level, rep.levels);
