@@ -212,6 +212,17 @@ static void anchor_centre(const struct gi_cascade *c, float centre[3]) {
   for (int a = 0; a < 3; a++) centre[a] = (float)(((double)L0->cell0[a] + c->R / 2 + 1) * L0->s);
 }
 
+/* The plan's seven points: the anchor cell's centre (o = 0), and half
+ * level 0's box off it along x, y and z, + then - (o = 1..6). The sky
+ * test looks up from all of them, the wide-level rule judges from them
+ * when the centre is inside a solid. */
+#define PLAN_POINTS 7
+static void plan_point(const struct gi_cascade *c, int o, float p[3]) {
+  float half = (float)(0.5 * c->R * c->lv[0].s);
+  anchor_centre(c, p);
+  if (o) p[(o - 1) / 2] += (o & 1) ? half : -half;
+}
+
 /* Direction i of n on a Fibonacci sphere: even directions, no random numbers. */
 static void sphere_dir(int i, int n, float w[3]) {
   float z = 1 - (2 * (float)i + 1) / (float)n, r = sqrtf(fmaxf(0.f, 1 - z * z)), phi = (float)i * 2.39996323f;
@@ -274,7 +285,7 @@ static int sky_beyond(const struct gi_cascade *c, sky_batch *sb, const float cen
 
 static int sky_rays(const struct gi_cascade *c, int *tested) {
   const gi_scene *s = c->scene;
-  enum { ORG = 7, PER = 32, NEAR = ORG * PER + 2 * MAX_HINTS * HINT_PER, BEYOND = SEEN_DIRS * SEEN_UP };
+  enum { ORG = PLAN_POINTS, PER = 32, NEAR = ORG * PER + 2 * MAX_HINTS * HINT_PER, BEYOND = SEEN_DIRS * SEEN_UP };
   enum { MAXR = NEAR > BEYOND ? NEAR : BEYOND }; /* sky_beyond reuses the arrays */
   float org[3 * MAXR], dir[3 * MAXR], tn[MAXR], tf[MAXR];
   uint8_t vis[MAXR];
@@ -282,11 +293,11 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
                   .org = org, .dir = dir, .tn = tn, .tf = tf};
   gi__basis(sb.up, sb.t, sb.b);
   const gi_level *L0 = &c->lv[0];
-  float half = (float)(0.5 * c->R * L0->s), centre[3];
+  float centre[3];
   anchor_centre(c, centre);
   for (int o = 0; o < ORG; o++) {
-    float p[3] = {centre[0], centre[1], centre[2]};
-    if (o) p[(o - 1) / 2] += (o & 1) ? half : -half;
+    float p[3];
+    plan_point(c, o, p);
     upward_rays(&sb, p, PER, 0x5c1ull + (uint64_t)o);
   }
   int nh = c->num_answer_pts < MAX_HINTS ? c->num_answer_pts : MAX_HINTS;
@@ -347,11 +358,9 @@ static int sky_rays(const struct gi_cascade *c, int *tested) {
 #define WIDE_INSIDE 0.1
 static int wide_level(const struct gi_cascade *c) {
   int per[GI_MAX_LEVELS] = {0}, open = 0, cast = 0;
-  float centre[3], half = (float)(0.5 * c->R * c->lv[0].s);
-  anchor_centre(c, centre);
-  for (int o = 0; o < 7; o++) {
-    float q[3] = {centre[0], centre[1], centre[2]};
-    if (o) q[(o - 1) / 2] += (o & 1) ? half : -half;
+  for (int o = 0; o < PLAN_POINTS; o++) {
+    float q[3];
+    plan_point(c, o, q);
     int pq[GI_MAX_LEVELS] = {0}, escaped = 0, back = 0;
     for (int i = 0; i < WIDE_DIRS; i++) {
       float w[3], t, p[3], ng[3];
