@@ -447,12 +447,17 @@ static double area_in_box(const float *P[3], const float lo[3], const float hi[3
  * surface than a strip one voxel wide across it (a corner of a wall)
  * does not count, unless no level holds more. level_sums: level d's
  * clipped area and albedo-weighted area into c->survey.lvl[d]. */
+/* 1 when level d's sums are of its current box. */
+static int sums_current(const struct gi_cascade *c, int d) {
+  const gi_level *L = &c->lv[d];
+  return c->survey.lvl[d].valid && !memcmp(c->survey.lvl[d].lo, L->lo, sizeof L->lo) &&
+         !memcmp(c->survey.lvl[d].hi, L->hi, sizeof L->hi);
+}
+
 static gi_result level_sums(struct gi_cascade *c, int d) {
   const gi_scene *s = c->scene;
   const gi_level *L = &c->lv[d];
-  if (c->survey.lvl[d].valid && !memcmp(c->survey.lvl[d].lo, L->lo, sizeof L->lo) &&
-      !memcmp(c->survey.lvl[d].hi, L->hi, sizeof L->hi))
-    return GI_OK;
+  if (sums_current(c, d)) return GI_OK;
   size_t n = 0, cap = 0;
   uint32_t *tris = NULL;
   gi_result rc = gi__query_box(s, L->lo, L->hi, &tris, &n, &cap);
@@ -480,23 +485,23 @@ static gi_result level_sums(struct gi_cascade *c, int d) {
   return GI_OK;
 }
 
-/* level_sums of every level in one parallel loop, coarsest first: the
- * coarsest holds the most triangles (the city's: all 142k), so it starts
- * at once. Each level's sums are its own (its triangles in its query's
- * order): side by side they give the same bits. One after another they
- * were 11-12.5 ms of the city's plan on 2 threads (8.3-8.8 ms now). */
+/* level_sums of the levels whose box changed, in one parallel loop,
+ * coarsest first: the coarsest holds the most triangles (the city's: all
+ * 142k), so it starts at once. Each level's sums are its own (its
+ * triangles in its query's order): side by side they give the same bits.
+ * One after another they were 11-12.5 ms of the city's plan on 2 threads
+ * (8.3-8.8 ms now). A move's re-plan mostly re-surveys the finest level
+ * alone, which then runs on the caller without waking a helper. */
 typedef struct {
   struct gi_cascade *c;
+  int stale[GI_MAX_LEVELS]; /* the levels to survey, coarsest first */
   gi_result rc[GI_MAX_LEVELS];
 } sums_ctx;
 
 static void sums_range(void *p, size_t b, size_t e, int worker) {
   (void)worker;
   sums_ctx *x = p;
-  for (size_t i = b; i < e; i++) {
-    int d = x->c->n - 1 - (int)i;
-    x->rc[d] = level_sums(x->c, d);
-  }
+  for (size_t i = b; i < e; i++) x->rc[x->stale[i]] = level_sums(x->c, x->stale[i]);
 }
 
 /* The brightest level's mean (above); *surfaces 0 when no level holds any.
@@ -507,7 +512,12 @@ static gi_result level_albedo(struct gi_cascade *c, int threads, double *abar, i
   double best = 0, any = 0;
   *surfaces = 0;
   sums_ctx x = {.c = c};
-  gi__parallel_for((size_t)c->n, 1, threads, sums_range, &x);
+  size_t n = 0;
+  for (int d = c->n - 1; d >= 0; d--) {
+    x.rc[d] = GI_OK;
+    if (!sums_current(c, d)) x.stale[n++] = d;
+  }
+  gi__parallel_for(n, 1, threads, sums_range, &x);
   for (int d = 0; d < c->n; d++) {
     gi_result rc = x.rc[d];
     if (rc != GI_OK) return rc;
