@@ -556,8 +556,8 @@ static void probe_figures(const gi_cascade *c, const double at[3], double v[21])
  * sample (answer/gather.c) it reads 0.0379, the walk 0.0039: the figure is
  * E(-y), 0.2 against E(+y)'s 2, at steps 36-38, where the moved texture
  * differs from the cold one by 4% in the street under the probe and the
- * down cones now read it unblended. Bound 1.2x that. */
-/* The largest figure is one dim direction's noise, and the bounds fit this
+ * down cones now read it unblended. Bound 1.2x that.
+ * The largest figure is one dim direction's noise, and the bounds fit this
  * seed: with the injection's seed changed (8 seeds, 5d6c999, 2026-12-08)
  * the same code read walk max 0.0037-0.0104 and drive 0.030-0.067, the
  * means 0.0001-0.0002 and 0.0018-0.0026. A change that only moves the
@@ -663,10 +663,10 @@ static void test_room_fast_walk(void **state) {
  * tail made the fresh gather read the whole texture (99fc4d8 to 3da0b34):
  * room 0.0010 / 0.0090, city 0.0007 / 0.0038: on cascades this small the
  * two forms agree, and the walk bench (600 m city, default quality) is
- * where they part (docs/experiments.md). Bounds 1.5x the measured figures. */
+ * where they part (docs/experiments.md). Bounds 1.5x the measured figures.
+ * As test_probe_drift's, they fit this seed: over 8 injection seeds the
+ * city read max 0.0035-0.0196 and mean 0.0006-0.0010 (5d6c999). */
 #define CLOSED_STEPS 12
-/* As test_probe_drift's: over 8 injection seeds the city read max
- * 0.0035-0.0196 and mean 0.0006-0.0010 (5d6c999). */
 static const double CLOSED_MEAN_BOUND[2] = {0.0014, 0.0009}, CLOSED_MAX_BOUND[2] = {0.016, 0.0057};
 static void test_closed_crossings(void **state) {
   gi_city_params cp = {.seed = 3, .extent = 300};
